@@ -1,0 +1,172 @@
+//! Fixed-size spatial algebra (Featherstone's notation).
+//!
+//! Spatial vectors are ordered **(angular, linear)** everywhere in nudyn:
+//! a motion vector is (ω, v) with v the velocity of the frame's origin, a
+//! force vector is (n, f) with n the moment about the frame's origin.
+
+use nalgebra::{Matrix3, SMatrix, SVector, UnitQuaternion, Vector3};
+use serde::{Deserialize, Serialize};
+
+/// A 3-vector.
+pub type Vec3 = Vector3<f64>;
+/// A 3×3 matrix.
+pub type Mat3 = Matrix3<f64>;
+/// A unit quaternion (MuJoCo order w, x, y, z when read from or written to qpos).
+pub type Quat = UnitQuaternion<f64>;
+/// A spatial motion or force vector, (angular, linear).
+pub type SpatialVec = SVector<f64, 6>;
+/// A 6×6 spatial matrix (inertias, transforms, cross-product operators).
+pub type SpatialMat = SMatrix<f64, 6, 6>;
+
+/// The cross-product matrix: `skew(a) * b == a.cross(&b)`.
+pub fn skew(a: &Vec3) -> Mat3 {
+    Mat3::new(0.0, -a.z, a.y, a.z, 0.0, -a.x, -a.y, a.x, 0.0)
+}
+
+/// Angular part of a spatial vector.
+pub fn angular(v: &SpatialVec) -> Vec3 {
+    v.fixed_rows::<3>(0).into_owned()
+}
+
+/// Linear part of a spatial vector.
+pub fn linear(v: &SpatialVec) -> Vec3 {
+    v.fixed_rows::<3>(3).into_owned()
+}
+
+/// Joins an angular and a linear part.
+pub fn spatial(angular: &Vec3, linear: &Vec3) -> SpatialVec {
+    SpatialVec::new(angular.x, angular.y, angular.z, linear.x, linear.y, linear.z)
+}
+
+/// Motion cross product `v × m`.
+pub fn cross_motion(v: &SpatialVec, m: &SpatialVec) -> SpatialVec {
+    let (w, vl) = (angular(v), linear(v));
+    let (mw, ml) = (angular(m), linear(m));
+    spatial(&w.cross(&mw), &(w.cross(&ml) + vl.cross(&mw)))
+}
+
+/// Force cross product `v ×* f`.
+pub fn cross_force(v: &SpatialVec, f: &SpatialVec) -> SpatialVec {
+    let (w, vl) = (angular(v), linear(v));
+    let (n, fl) = (angular(f), linear(f));
+    spatial(&(w.cross(&n) + vl.cross(&fl)), &w.cross(&fl))
+}
+
+/// The matrix of `v ×` acting on motion vectors.
+pub fn cross_motion_matrix(v: &SpatialVec) -> SpatialMat {
+    let (w, vl) = (skew(&angular(v)), skew(&linear(v)));
+    let mut out = SpatialMat::zeros();
+    out.fixed_view_mut::<3, 3>(0, 0).copy_from(&w);
+    out.fixed_view_mut::<3, 3>(3, 0).copy_from(&vl);
+    out.fixed_view_mut::<3, 3>(3, 3).copy_from(&w);
+    out
+}
+
+/// The spatial inertia, about the frame origin, of a rigid body with mass
+/// `mass`, centre of mass `com` and inertia `inertia_com` about the centre of mass.
+pub fn rigid_inertia(mass: f64, com: &Vec3, inertia_com: &Mat3) -> SpatialMat {
+    let c = skew(com);
+    let mut out = SpatialMat::zeros();
+    out.fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&(inertia_com + mass * c * c.transpose()));
+    out.fixed_view_mut::<3, 3>(0, 3).copy_from(&(mass * c));
+    out.fixed_view_mut::<3, 3>(3, 0)
+        .copy_from(&(mass * c.transpose()));
+    out.fixed_view_mut::<3, 3>(3, 3)
+        .copy_from(&(mass * Mat3::identity()));
+    out
+}
+
+/// A Plücker transform ᶜX_ₚ from a parent frame p to a child frame c.
+///
+/// `rot` (E) maps parent coordinates to child coordinates; `trans` (r) is
+/// the child origin in parent coordinates. As a motion transform
+/// X = [E 0; −E r× E].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Transform {
+    /// E: parent → child coordinates.
+    pub rot: Mat3,
+    /// r: child origin in parent coordinates.
+    pub trans: Vec3,
+}
+
+impl Default for Transform {
+    fn default() -> Self {
+        Self::identity()
+    }
+}
+
+impl Transform {
+    /// The identity transform.
+    pub fn identity() -> Self {
+        Self { rot: Mat3::identity(), trans: Vec3::zeros() }
+    }
+
+    /// The transform to a child frame whose axes are `child_to_parent` (its
+    /// columns are the child axes in parent coordinates) and whose origin is
+    /// `origin` in parent coordinates.
+    pub fn from_pose(child_to_parent: &Mat3, origin: &Vec3) -> Self {
+        Self { rot: child_to_parent.transpose(), trans: *origin }
+    }
+
+    /// ᶜX_ₐ = ᶜX_b · ᵇX_ₐ, with `self` = ᶜX_b and `inner` = ᵇX_ₐ.
+    pub fn compose(&self, inner: &Transform) -> Transform {
+        Transform {
+            rot: self.rot * inner.rot,
+            trans: inner.trans + inner.rot.transpose() * self.trans,
+        }
+    }
+
+    /// X m: a parent-frame motion vector in child coordinates.
+    pub fn apply_motion(&self, m: &SpatialVec) -> SpatialVec {
+        let w = angular(m);
+        let v = linear(m) - self.trans.cross(&w);
+        spatial(&(self.rot * w), &(self.rot * v))
+    }
+
+    /// Xᵀ f: a child-frame force vector in parent coordinates.
+    pub fn apply_transpose_force(&self, f: &SpatialVec) -> SpatialVec {
+        let n = self.rot.transpose() * angular(f);
+        let fl = self.rot.transpose() * linear(f);
+        spatial(&(n + self.trans.cross(&fl)), &fl)
+    }
+
+    /// The 6×6 motion-transform matrix X.
+    pub fn motion_matrix(&self) -> SpatialMat {
+        let mut out = SpatialMat::zeros();
+        out.fixed_view_mut::<3, 3>(0, 0).copy_from(&self.rot);
+        out.fixed_view_mut::<3, 3>(3, 0)
+            .copy_from(&(-self.rot * skew(&self.trans)));
+        out.fixed_view_mut::<3, 3>(3, 3).copy_from(&self.rot);
+        out
+    }
+
+    /// Xᵀ I X: a child-frame inertia (or its derivative) in parent coordinates.
+    pub fn transform_inertia_to_parent(&self, inertia: &SpatialMat) -> SpatialMat {
+        let x = self.motion_matrix();
+        x.transpose() * inertia * x
+    }
+}
+
+/// Quaternion from MuJoCo's (w, x, y, z) order, not normalized.
+pub fn quat_from_wxyz(q: &[f64]) -> nalgebra::Quaternion<f64> {
+    nalgebra::Quaternion::new(q[0], q[1], q[2], q[3])
+}
+
+/// Writes a quaternion in MuJoCo's (w, x, y, z) order.
+pub fn quat_to_wxyz(q: &Quat, out: &mut [f64]) {
+    out[0] = q.w;
+    out[1] = q.i;
+    out[2] = q.j;
+    out[3] = q.k;
+}
+
+/// The rotation vector of `qa ⊖ qb`: the local-frame rotation r with
+/// qa = qb · exp(r) (MuJoCo's `mju_subQuat`), taking the shorter way round.
+pub fn quat_difference(qa: &Quat, qb: &Quat) -> Vec3 {
+    let mut d = qb.inverse() * qa;
+    if d.w < 0.0 {
+        d = Quat::new_unchecked(-d.into_inner());
+    }
+    d.scaled_axis()
+}
