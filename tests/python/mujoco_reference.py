@@ -1,0 +1,311 @@
+"""Reference values of nudyn's quantities computed from MuJoCo alone.
+
+Nothing here uses nudyn: these are the independent numbers the tests compare
+`nudyn eval` against (DYNAMICS.md §3 and §7).
+
+Conventions (DYNAMICS.md §2, MuJoCo's own):
+  theta = qpos (nq), qvel (nv) in MuJoCo's order and meaning.
+  M(theta) = m m*  with m upper triangular, positive diagonal (parent-first),
+  equivalently MuJoCo's reverse factor M = L^T diag(d) L (L unit lower
+  triangular), m = L^T diag(sqrt d):
+      nu       = m^T qvel            = diag(sqrt d) L qvel
+      eps(T)   = m^-1 T              = diag(sqrt d)^-1 L^-T T
+      nu_dot   = m^T(theta) qacc + (d/dt m^T(theta(t))) qvel
+      C        = -nu_dot  with gravity, springs, dampers and torques all off.
+  Kinetic energy = 1/2 qvel^T M qvel (M includes joint armature).
+  Momentum: 6-vector [angular; linear] of all bodies, world axes, angular
+  part about the world origin.  Armature (reflected rotor inertia) is not a
+  body and carries no momentum here.
+
+Every function that takes (model, ...) works on a `Reference` wrapper that
+owns an MjModel with contacts and constraints disabled and a scratch MjData.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+# Step used for the central differences of m*(theta) along the motion, as a
+# displacement in configuration space (rad, or m): h is scaled so that
+# h * |qvel|_inf equals this.  With the 6th-order stencil the truncation error
+# is ~ FD_STEP^6 and the rounding error ~ 1e-16 cond / FD_STEP; 1e-3 keeps
+# (d/dt m*) qvel within ~1e-11 of |nu_dot| on the examples, where a
+# 4th-order stencil at 2e-3 was off by 2e-9 on bus_arm7 (the factor of M is
+# far less smooth than M).  test_reference.py checks nu_dot against a
+# finite difference of nu along an RK4 trajectory and against a second route.
+FD_STEP = 1e-3
+
+
+def central_diff(f, h: float):
+    """f'(0) by the 6th-order central difference with step h."""
+    return (
+        f(3 * h) - 9 * f(2 * h) + 45 * f(h) - 45 * f(-h) + 9 * f(-2 * h) - f(-3 * h)
+    ) / (60 * h)
+
+
+def load_model(path: str | Path) -> mujoco.MjModel:
+    """Load an MJCF file with contacts and constraints disabled."""
+    model = mujoco.MjModel.from_xml_path(str(path))
+    model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT) | int(
+        mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+    )
+    return model
+
+
+@dataclass
+class Reference:
+    """MuJoCo model + scratch data, and the reference quantities."""
+
+    model: mujoco.MjModel
+    data: mujoco.MjData
+
+    @classmethod
+    def from_file(cls, path: str | Path) -> "Reference":
+        model = load_model(path)
+        return cls(model, mujoco.MjData(model))
+
+    @property
+    def nq(self) -> int:
+        return self.model.nq
+
+    @property
+    def nv(self) -> int:
+        return self.model.nv
+
+    # ------------------------------------------------------------------ #
+    # state handling
+    # ------------------------------------------------------------------ #
+    def forward(self, qpos, qvel=None, torque=None) -> mujoco.MjData:
+        """mj_forward at (qpos, qvel) with qfrc_applied = torque."""
+        d = self.data
+        mujoco.mj_resetData(self.model, d)
+        d.qpos[:] = qpos
+        d.qvel[:] = 0.0 if qvel is None else qvel
+        d.qfrc_applied[:] = 0.0 if torque is None else torque
+        mujoco.mj_forward(self.model, d)
+        return d
+
+    def mass_matrix(self, qpos) -> np.ndarray:
+        """Dense M(theta) (armature included) from MuJoCo's CRB."""
+        d = self.data
+        mujoco.mj_resetData(self.model, d)
+        d.qpos[:] = qpos
+        mujoco.mj_fwdPosition(self.model, d)
+        M = np.zeros((self.nv, self.nv))
+        mujoco.mj_fullM(self.model, d, M)  # MuJoCo 4: (m, d, dst)
+        return M
+
+    # ------------------------------------------------------------------ #
+    # the factor
+    # ------------------------------------------------------------------ #
+    def m_upper(self, qpos) -> np.ndarray:
+        """m(theta): upper triangular, positive diagonal, m m^T = M."""
+        return upper_factor(self.mass_matrix(qpos))
+
+    def m_star(self, qpos) -> np.ndarray:
+        """m*(theta) = m^T = diag(sqrt d) L: lower triangular."""
+        return self.m_upper(qpos).T
+
+    def nu(self, qpos, qvel) -> np.ndarray:
+        return self.m_star(qpos) @ np.asarray(qvel, float)
+
+    def qvel_from_nu(self, qpos, nu) -> np.ndarray:
+        return np.linalg.solve(self.m_star(qpos), np.asarray(nu, float))
+
+    def eps(self, qpos, torque) -> np.ndarray:
+        """eps = m^-1 T: the diagonalized generalized force of torques T."""
+        return np.linalg.solve(self.m_upper(qpos), np.asarray(torque, float))
+
+    def torque_from_eps(self, qpos, eps) -> np.ndarray:
+        return self.m_upper(qpos) @ np.asarray(eps, float)
+
+    # ------------------------------------------------------------------ #
+    # time derivative of nu along MuJoCo's motion
+    # ------------------------------------------------------------------ #
+    def qacc(self, qpos, qvel, torque=None) -> np.ndarray:
+        """MuJoCo's forward dynamics (gravity, springs, dampers included)."""
+        return self.forward(qpos, qvel, torque).qacc.copy()
+
+    def _fd_step(self, qvel) -> float:
+        return FD_STEP / max(1e-12, float(np.max(np.abs(qvel))))
+
+    def m_star_dot(self, qpos, qvel) -> np.ndarray:
+        """d/dt m*(theta(t)) where theta moves with velocity qvel.
+
+        6th-order central difference along theta(h) = theta (+) h qvel
+        (mj_integratePos, exact on quaternions)."""
+        qvel = np.asarray(qvel, float)
+        if not np.any(qvel):
+            return np.zeros((self.nv, self.nv))
+        h = self._fd_step(qvel)
+
+        def at(t):
+            q = np.array(qpos, float)
+            mujoco.mj_integratePos(self.model, q, qvel, t)
+            return self.m_star(q)
+
+        return central_diff(at, h)
+
+    def m_star_dot_via_mdot(self, qpos, qvel) -> np.ndarray:
+        """Same as m_star_dot by another route (a cross-check): from
+        M = m m^T, m^-1 Mdot m^-T = X + X^T with X = m^-1 mdot upper
+        triangular, so mdot = m Phi(m^-1 Mdot m^-T) (Phi: upper triangle,
+        diagonal halved); Mdot by central differences of M."""
+        qvel = np.asarray(qvel, float)
+        h = self._fd_step(qvel)
+
+        def at(t):
+            q = np.array(qpos, float)
+            mujoco.mj_integratePos(self.model, q, qvel, t)
+            return self.mass_matrix(q)
+
+        Mdot = central_diff(at, h)
+        m = self.m_upper(qpos)
+        minv = np.linalg.inv(m)
+        S = minv @ Mdot @ minv.T
+        X = np.triu(S) - 0.5 * np.diag(np.diag(S))
+        return (m @ X).T
+
+    def nu_dot(self, qpos, qvel, torque=None) -> np.ndarray:
+        """nu_dot = m*(theta) qacc + (d/dt m*) qvel under torque T."""
+        qacc = self.qacc(qpos, qvel, torque)
+        return self.m_star(qpos) @ qacc + self.m_star_dot(qpos, qvel) @ qvel
+
+    def coriolis(self, qpos, qvel) -> np.ndarray:
+        """C(theta, nu): -nu_dot with gravity, springs and dampers disabled."""
+        opt = self.model.opt
+        saved = opt.disableflags
+        opt.disableflags = saved | (
+            int(mujoco.mjtDisableBit.mjDSBL_GRAVITY)
+            | int(mujoco.mjtDisableBit.mjDSBL_SPRING)
+            | int(mujoco.mjtDisableBit.mjDSBL_DAMPER)
+        )
+        try:
+            return -self.nu_dot(qpos, qvel)
+        finally:
+            opt.disableflags = saved
+
+    # ------------------------------------------------------------------ #
+    # energy and momentum
+    # ------------------------------------------------------------------ #
+    def kinetic_energy(self, qpos, qvel) -> float:
+        qvel = np.asarray(qvel, float)
+        return 0.5 * float(qvel @ self.mass_matrix(qpos) @ qvel)
+
+    def body_velocities(self, qpos, qvel) -> np.ndarray:
+        """(nbody, 6): [omega; v_com] of each body, both in WORLD axes,
+        v_com the velocity of the body's centre of mass (d.xipos).
+
+        mj_objectVelocity(mjOBJ_BODY, flg_local=0) shifts MuJoCo's cvel
+        (which is expressed at the subtree root's centre of mass) to the
+        body's inertial frame origin d.xipos and leaves world orientation."""
+        d = self.forward(qpos, qvel)
+        out = np.zeros((self.model.nbody, 6))
+        for b in range(1, self.model.nbody):
+            mujoco.mj_objectVelocity(
+                self.model, d, int(mujoco.mjtObj.mjOBJ_BODY), b, out[b], 0
+            )
+        return out
+
+    def momentum(self, qpos, qvel) -> np.ndarray:
+        """[angular; linear] momentum of all bodies, world axes, about the
+        world origin:  h = sum R I R^T omega + c x (mass v_c),  p = sum mass v_c,
+        with R = d.ximat (principal axes), I = diag(m.body_inertia),
+        c = d.xipos."""
+        vel = self.body_velocities(qpos, qvel)  # leaves d at this state
+        d, m = self.data, self.model
+        h = np.zeros(3)
+        p = np.zeros(3)
+        for b in range(1, m.nbody):
+            R = d.ximat[b].reshape(3, 3)
+            w, v = vel[b, :3], vel[b, 3:]
+            pb = m.body_mass[b] * v
+            h += R @ (m.body_inertia[b] * (R.T @ w)) + np.cross(d.xipos[b], pb)
+            p += pb
+        return np.concatenate([h, p])
+
+    def momentum_via_subtree(self, qpos, qvel) -> np.ndarray:
+        """The same momentum from MuJoCo's mj_subtreeVel (a cross-check):
+        world subtree angular momentum about the total centre of mass, moved
+        to the origin."""
+        d = self.forward(qpos, qvel)
+        mujoco.mj_subtreeVel(self.model, d)
+        mass = self.model.body_subtreemass[0]
+        p = mass * d.subtree_linvel[0]
+        h = d.subtree_angmom[0] + np.cross(d.subtree_com[0], p)
+        return np.concatenate([h, p])
+
+    # ------------------------------------------------------------------ #
+    # random states
+    # ------------------------------------------------------------------ #
+    def random_state(self, rng: np.random.Generator):
+        """A random (qpos, qvel, torque) of realistic size for a space robot.
+
+        free: position ~ N(0, 2 m), random unit quaternion, linear velocity
+              ~ N(0, 0.2 m/s), angular velocity ~ N(0, 0.05 rad/s); force
+              ~ N(0, 20 N), torque ~ N(0, 20 N m);
+        ball: random unit quaternion, ~ N(0, 0.3 rad/s), ~ N(0, 10 N m);
+        hinge: U(-pi, pi) rad, ~ N(0, 0.3 rad/s), ~ N(0, 10 N m);
+        slide: qpos0 + U(-0.2, 0.2) m, ~ N(0, 0.1 m/s), ~ N(0, 20 N)."""
+        m = self.model
+        qpos = m.qpos0.copy()
+        qvel = np.zeros(m.nv)
+        tau = np.zeros(m.nv)
+        for j in range(m.njnt):
+            a, v = m.jnt_qposadr[j], m.jnt_dofadr[j]
+            t = m.jnt_type[j]
+            if t == mujoco.mjtJoint.mjJNT_FREE:
+                qpos[a : a + 3] = rng.normal(0, 2.0, 3)
+                qpos[a + 3 : a + 7] = random_quat(rng)
+                qvel[v : v + 3] = rng.normal(0, 0.2, 3)
+                qvel[v + 3 : v + 6] = rng.normal(0, 0.05, 3)
+                tau[v : v + 6] = rng.normal(0, 20.0, 6)
+            elif t == mujoco.mjtJoint.mjJNT_BALL:
+                qpos[a : a + 4] = random_quat(rng)
+                qvel[v : v + 3] = rng.normal(0, 0.3, 3)
+                tau[v : v + 3] = rng.normal(0, 10.0, 3)
+            elif t == mujoco.mjtJoint.mjJNT_HINGE:
+                qpos[a] = rng.uniform(-np.pi, np.pi)
+                qvel[v] = rng.normal(0, 0.3)
+                tau[v] = rng.normal(0, 10.0)
+            else:  # slide
+                qpos[a] = m.qpos0[a] + rng.uniform(-0.2, 0.2)
+                qvel[v] = rng.normal(0, 0.1)
+                tau[v] = rng.normal(0, 20.0)
+        return qpos, qvel, tau
+
+
+def random_quat(rng: np.random.Generator) -> np.ndarray:
+    """Uniformly distributed unit quaternion (w, x, y, z), w >= 0."""
+    q = rng.normal(size=4)
+    q /= np.linalg.norm(q)
+    return q if q[0] >= 0 else -q
+
+
+def upper_factor(M: np.ndarray) -> np.ndarray:
+    """The unique m, upper triangular with positive diagonal, m m^T = M.
+
+    With J the reversal permutation, J M J = C C^T (ordinary lower Cholesky)
+    gives M = (J C J)(J C J)^T and J C J is upper triangular with positive
+    diagonal.  In MuJoCo's terms m = L^T diag(sqrt d) for M = L^T diag(d) L."""
+    C = np.linalg.cholesky(M[::-1, ::-1])
+    return np.ascontiguousarray(C[::-1, ::-1])
+
+
+def ldl_reverse(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """MuJoCo's factor M = L^T diag(d) L: returns (L unit lower, d)."""
+    m = upper_factor(M)
+    sqrt_d = np.diag(m).copy()
+    L = (m / sqrt_d[None, :]).T
+    return L, sqrt_d**2
+
+
+def rel_err(actual, expected) -> float:
+    """max |actual - expected| / max(1, |expected|_inf)."""
+    a = np.asarray(actual, float)
+    e = np.asarray(expected, float)
+    return float(np.max(np.abs(a - e), initial=0.0) / max(1.0, np.max(np.abs(e), initial=0.0)))
