@@ -11,3 +11,6 @@
 
 pub mod math;
 pub mod vehicle;
+pub mod dynamics;
+pub mod model;
+pub mod workspace;

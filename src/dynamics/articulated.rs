@@ -1,0 +1,98 @@
+//! Pass 1, tip to base (θ only): articulated-body inertias and the
+//! innovations factor (DYNAMICS.md §3, §4 pass 1).
+//!
+//! I^A_i = I_i + Σ_children Xᵀ I^a_c X,  U = I^A S,  D = SᵀU + armature,
+//! D = R Rᵀ with R upper triangular,  G = U D⁻¹,  I^a = I^A − G Uᵀ.
+
+use nalgebra::SMatrix;
+
+use super::{DynamicsError, cols};
+use crate::math::{Mat3, SpatialMat};
+use crate::model::Model;
+use crate::workspace::Workspace;
+
+/// The upper-triangular R with R Rᵀ = D and a positive diagonal (the
+/// "reverse" Cholesky factor), or `None` if D is not positive definite.
+/// Written by hand: nalgebra's Cholesky gives the lower factor L Lᵀ, and
+/// the unique factor m of DYNAMICS.md §3 needs this one.
+pub fn upper_cholesky<const N: usize>(d: &SMatrix<f64, N, N>) -> Option<SMatrix<f64, N, N>> {
+    let mut r = SMatrix::<f64, N, N>::zeros();
+    for j in (0..N).rev() {
+        let mut diag = d[(j, j)];
+        for k in j + 1..N {
+            diag -= r[(j, k)] * r[(j, k)];
+        }
+        if !(diag > 0.0) {
+            return None;
+        }
+        let rjj = diag.sqrt();
+        r[(j, j)] = rjj;
+        for i in 0..j {
+            let mut s = d[(i, j)];
+            for k in j + 1..N {
+                s -= r[(i, k)] * r[(j, k)];
+            }
+            r[(i, j)] = s / rjj;
+        }
+    }
+    Some(r)
+}
+
+/// Inverse of an upper-triangular matrix with a nonzero diagonal.
+pub fn upper_triangular_inverse<const N: usize>(r: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
+    let mut inv = SMatrix::<f64, N, N>::zeros();
+    for j in 0..N {
+        inv[(j, j)] = 1.0 / r[(j, j)];
+        for i in (0..j).rev() {
+            let mut s = 0.0;
+            for k in i + 1..=j {
+                s += r[(i, k)] * inv[(k, j)];
+            }
+            inv[(i, j)] = -s / r[(i, i)];
+        }
+    }
+    inv
+}
+
+/// Pass 1 for one link with N dofs, given its accumulated I^A.
+fn factor_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize) -> Result<(), DynamicsError> {
+    let link = &model.links[i];
+    let s = cols::<N>(&link.motion_subspace);
+    let ia = ws.ia_body[i];
+    let u = ia * s;
+    let d = s.transpose() * u + SMatrix::<f64, N, N>::identity() * link.armature;
+    let r = upper_cholesky(&d).ok_or(DynamicsError::Singular { link: i })?;
+    let r_inv = upper_triangular_inverse(&r);
+    let d_inv = r_inv.transpose() * r_inv;
+    let gain = u * d_inv;
+    ws.ia_reduced[i] = ia - gain * u.transpose();
+    ws.u_body[i].fixed_columns_mut::<N>(0).copy_from(&u);
+    ws.gain[i].fixed_columns_mut::<N>(0).copy_from(&gain);
+    write_block(&mut ws.d_joint[i], &d);
+    write_block(&mut ws.r_joint[i], &r);
+    write_block(&mut ws.r_inv_joint[i], &r_inv);
+    Ok(())
+}
+
+/// Stores an N×N block in the top-left of a 3×3 buffer.
+fn write_block<const N: usize>(out: &mut Mat3, m: &SMatrix<f64, N, N>) {
+    out.fixed_view_mut::<N, N>(0, 0).copy_from(m);
+}
+
+/// Pass 1: I^A, I^a, U, G, D, R, R⁻¹ for every link.
+pub(crate) fn articulated_pass(model: &Model, ws: &mut Workspace) -> Result<(), DynamicsError> {
+    for (i, link) in model.links.iter().enumerate() {
+        ws.ia_body[i] = link.inertia;
+    }
+    for i in (0..model.links.len()).rev() {
+        match model.links[i].ndof {
+            1 => factor_link::<1>(model, ws, i)?,
+            _ => factor_link::<3>(model, ws, i)?,
+        }
+        if let Some(p) = model.links[i].parent {
+            let to_parent: SpatialMat = ws.x_parent[i].transform_inertia_to_parent(&ws.ia_reduced[i]);
+            ws.ia_body[p] += to_parent;
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,114 @@
+//! ε from physical forces and physical torques from ε (DYNAMICS.md §5),
+//! each one inward pass over the factor computed by pass 1.
+//!
+//! ε = ℓ(θ)(T + Jᵀf):  p_i = −f_i + Σ_children Xᵀ(p_c + G_c u_c),
+//!                     u_i = T_i − S_iᵀ p_i,  ε_i = R_i⁻¹ u_i.
+//! T = m(θ) ε:         u_i = R_i ε_i,  T_i = u_i + S_iᵀ p_i (same p).
+
+use nalgebra::SVector;
+
+use super::{DynamicsError, block, check_input, cols, require};
+use crate::math::SpatialVec;
+use crate::model::Model;
+use crate::workspace::{Stage, Workspace};
+
+/// Which way the recursion runs.
+#[derive(Clone, Copy)]
+enum Direction {
+    /// `input` is T; write ε.
+    EpsFromTorque,
+    /// `input` is ε; write T.
+    TorqueFromEps,
+}
+
+fn inward_link<const N: usize>(
+    model: &Model,
+    ws: &mut Workspace,
+    i: usize,
+    direction: Direction,
+    input: &[f64],
+    out: &mut [f64],
+) {
+    let link = &model.links[i];
+    let adr = link.dof_adr;
+    let s = cols::<N>(&link.motion_subspace);
+    let p = ws.p_scratch_body[i];
+    let x: SVector<f64, N> = SVector::from_column_slice(&input[adr..adr + N]);
+    let (u, y) = match direction {
+        Direction::EpsFromTorque => {
+            let u = x - s.transpose() * p;
+            (u, block::<N>(&ws.r_inv_joint[i]) * u)
+        }
+        Direction::TorqueFromEps => {
+            let u = block::<N>(&ws.r_joint[i]) * x;
+            (u, u + s.transpose() * p)
+        }
+    };
+    out[adr..adr + N].copy_from_slice(y.as_slice());
+    if let Some(parent) = link.parent {
+        let p_reduced = p + cols::<N>(&ws.gain[i]) * u;
+        ws.p_scratch_body[parent] += ws.x_parent[i].apply_transpose_force(&p_reduced);
+    }
+}
+
+fn inward_pass(
+    model: &Model,
+    ws: &mut Workspace,
+    direction: Direction,
+    input: &[f64],
+    body_forces: Option<&[SpatialVec]>,
+    out: &mut [f64],
+) {
+    for i in 0..model.links.len() {
+        ws.p_scratch_body[i] = match body_forces {
+            Some(f) => -f[i],
+            None => SpatialVec::zeros(),
+        };
+    }
+    for i in (0..model.links.len()).rev() {
+        match model.links[i].ndof {
+            1 => inward_link::<1>(model, ws, i, direction, input, out),
+            _ => inward_link::<3>(model, ws, i, direction, input, out),
+        }
+    }
+}
+
+impl Workspace {
+    /// ε = ℓ(θ)(T + Σ Jᵢᵀfᵢ) for joint torques `torque` (MuJoCo's
+    /// qfrc_applied convention) and optional per-link wrenches `body_forces`
+    /// (link coordinates, about the link origin). Needs the configuration.
+    pub fn eps_from_forces(
+        &mut self,
+        model: &Model,
+        torque: &[f64],
+        body_forces: Option<&[SpatialVec]>,
+        eps: &mut [f64],
+    ) -> Result<(), DynamicsError> {
+        require(self, Stage::Configuration, "eps_from_forces")?;
+        check_input("torque", torque, model.nv)?;
+        check_output(eps, model.nv)?;
+        if let Some(f) = body_forces {
+            if f.len() != model.links.len() {
+                return Err(DynamicsError::Length { what: "body_forces", expected: model.links.len(), found: f.len() });
+            }
+        }
+        inward_pass(model, self, Direction::EpsFromTorque, torque, body_forces, eps);
+        Ok(())
+    }
+
+    /// T = m(θ) ε: the joint torques whose ε is `eps`. Needs the configuration.
+    pub fn torque_from_eps(&mut self, model: &Model, eps: &[f64], torque: &mut [f64]) -> Result<(), DynamicsError> {
+        require(self, Stage::Configuration, "torque_from_eps")?;
+        check_input("eps", eps, model.nv)?;
+        check_output(torque, model.nv)?;
+        inward_pass(model, self, Direction::TorqueFromEps, eps, None, torque);
+        Ok(())
+    }
+}
+
+fn check_output(out: &[f64], expected: usize) -> Result<(), DynamicsError> {
+    if out.len() != expected {
+        return Err(DynamicsError::Length { what: "output", expected, found: out.len() });
+    }
+    Ok(())
+}

@@ -1,0 +1,54 @@
+//! Pass 0, base to tip: link placements from θ (MuJoCo's kinematics).
+//!
+//! Joint transforms follow MuJoCo: a hinge or ball rotates the body about
+//! its anchor, F_j = F_{j−1} · T(r) · Rot · T(−r); a slide translates along
+//! its axis by θ − ref; the translation half of a free joint places the
+//! body origin at θ[0..3] in world axes.
+
+use nalgebra::{Rotation3, Unit};
+
+use super::DynamicsError;
+use crate::math::{Mat3, Transform, Vec3, quat_from_wxyz};
+use crate::model::{Link, LinkJoint, Model};
+use crate::workspace::Workspace;
+
+/// ⁱX_F: the link frame relative to its joint's inboard frame, for `theta`.
+/// Quaternions are normalized in `theta` (as MuJoCo does).
+pub fn joint_transform(link: &Link, theta: &mut [f64]) -> Result<Transform, DynamicsError> {
+    let q = &mut theta[link.qpos_adr..];
+    let rotate_about_anchor = |rot: Mat3| Transform::from_pose(&rot, &(link.anchor - rot * link.anchor));
+    Ok(match link.joint {
+        LinkJoint::Hinge => {
+            let angle = q[0] - link.reference;
+            rotate_about_anchor(Rotation3::from_axis_angle(&Unit::new_unchecked(link.axis), angle).into_inner())
+        }
+        LinkJoint::Slide => Transform::from_pose(&Mat3::identity(), &(link.axis * (q[0] - link.reference))),
+        LinkJoint::Ball => {
+            let quat = quat_from_wxyz(q);
+            let norm = quat.norm();
+            if norm == 0.0 {
+                return Err(DynamicsError::ZeroQuaternion { joint: link.joint_name.clone(), qpos_adr: link.qpos_adr });
+            }
+            let unit = nalgebra::UnitQuaternion::new_unchecked(quat / norm);
+            for k in 0..4 {
+                q[k] /= norm;
+            }
+            rotate_about_anchor(unit.to_rotation_matrix().into_inner())
+        }
+        LinkJoint::Translation => Transform::from_pose(&Mat3::identity(), &Vec3::new(q[0], q[1], q[2])),
+    })
+}
+
+/// Pass 0: `x_parent` and `x_world` for the configuration in `ws.theta`.
+pub(crate) fn kinematics_pass(model: &Model, ws: &mut Workspace) -> Result<(), DynamicsError> {
+    for (i, link) in model.links.iter().enumerate() {
+        let x_joint = joint_transform(link, ws.theta.as_mut_slice())?;
+        let x_parent = x_joint.compose(&link.x_tree);
+        ws.x_parent[i] = x_parent;
+        ws.x_world[i] = match link.parent {
+            Some(p) => x_parent.compose(&ws.x_world[p]),
+            None => x_parent,
+        };
+    }
+    Ok(())
+}

@@ -1,0 +1,153 @@
+//! The O(N) passes of the diagonalized dynamics (DYNAMICS.md §4–§5) and
+//! the operators built from them.
+//!
+//! | pass | direction | input | fills |
+//! |---|---|---|---|
+//! | 0 [`kinematics`] | base → tip | θ | link transforms |
+//! | 1 [`articulated`] | tip → base | θ | I^A, D, R = D^½, G |
+//! | 2 [`velocity`] | base → tip | ν or θ̇ | V, θ̇ = ℓ*ν or ν = m*θ̇ |
+//! | 3 [`bias`] | tip → base | ε | ν̇, C(θ,ν), ε of passive forces and gravity |
+//!
+//! [`forces`] maps physical joint torques and body wrenches to ε and back;
+//! [`quantities`] gives kinetic energy, power and momentum.
+
+pub mod articulated;
+pub mod bias;
+pub mod forces;
+pub mod kinematics;
+pub mod quantities;
+pub mod velocity;
+
+use nalgebra::SMatrix;
+
+use crate::model::Model;
+use crate::workspace::{Stage, Workspace};
+
+/// Why a dynamics call could not be evaluated.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum DynamicsError {
+    /// A vector has the wrong length.
+    #[error("{what} has {found} entries, expected {expected}")]
+    Length {
+        /// Which vector.
+        what: &'static str,
+        /// Its required length.
+        expected: usize,
+        /// Its actual length.
+        found: usize,
+    },
+    /// An input entry is NaN or infinite.
+    #[error("{what}[{index}] is not finite ({value})")]
+    NonFinite {
+        /// Which vector.
+        what: &'static str,
+        /// 0-based index of the entry.
+        index: usize,
+        /// The entry.
+        value: f64,
+    },
+    /// A quaternion in θ has zero norm.
+    #[error("theta[{qpos_adr}..{}] is a zero quaternion (joint '{joint}')", qpos_adr + 4)]
+    ZeroQuaternion {
+        /// Joint name.
+        joint: String,
+        /// First qpos entry of the quaternion.
+        qpos_adr: usize,
+    },
+    /// The articulated inertia seen by a link's joint is not positive definite.
+    #[error("articulated inertia of link {link} is not positive definite")]
+    Singular {
+        /// Link index.
+        link: usize,
+    },
+    /// A pass was called before the passes it depends on.
+    #[error("{call} needs {needed:?} computed first")]
+    OutOfOrder {
+        /// The call.
+        call: &'static str,
+        /// The stage it needs.
+        needed: Stage,
+    },
+}
+
+/// Checks a vector's length and that all its entries are finite.
+pub(crate) fn check_input(what: &'static str, values: &[f64], expected: usize) -> Result<(), DynamicsError> {
+    if values.len() != expected {
+        return Err(DynamicsError::Length { what, expected, found: values.len() });
+    }
+    match values.iter().position(|v| !v.is_finite()) {
+        Some(index) => Err(DynamicsError::NonFinite { what, index, value: values[index] }),
+        None => Ok(()),
+    }
+}
+
+/// Checks that the workspace has reached `needed`.
+pub(crate) fn require(ws: &Workspace, needed: Stage, call: &'static str) -> Result<(), DynamicsError> {
+    if ws.stage < needed {
+        return Err(DynamicsError::OutOfOrder { call, needed });
+    }
+    Ok(())
+}
+
+/// An N×N block of a padded 3×3 matrix.
+pub(crate) fn block<const N: usize>(m: &nalgebra::Matrix3<f64>) -> SMatrix<f64, N, N> {
+    m.fixed_view::<N, N>(0, 0).into_owned()
+}
+
+/// The first N columns of a padded 6×3 matrix.
+pub(crate) fn cols<const N: usize>(m: &SMatrix<f64, 6, 3>) -> SMatrix<f64, 6, N> {
+    m.fixed_columns::<N>(0).into_owned()
+}
+
+/// All passes for one state: ν̇ = ε − C(θ,ν) + ε_passive, in O(N).
+///
+/// After it returns, the workspace holds θ̇ (`qvel`), `nu_dot`, `coriolis`
+/// and `eps_passive`.
+pub fn forward(model: &Model, ws: &mut Workspace, theta: &[f64], nu: &[f64], eps: &[f64]) -> Result<(), DynamicsError> {
+    ws.set_configuration(model, theta)?;
+    ws.set_nu(model, nu)?;
+    ws.compute_nu_dot(model, eps)
+}
+
+impl Workspace {
+    /// Passes 0 and 1 for configuration `theta` (nq; quaternions are
+    /// normalized, as MuJoCo does).
+    pub fn set_configuration(&mut self, model: &Model, theta: &[f64]) -> Result<(), DynamicsError> {
+        check_input("theta", theta, model.nq)?;
+        self.stage = Stage::Empty;
+        self.theta.copy_from_slice(theta);
+        kinematics::kinematics_pass(model, self)?;
+        articulated::articulated_pass(model, self)?;
+        self.stage = Stage::Configuration;
+        Ok(())
+    }
+
+    /// Pass 2 from ν (nv): velocities and θ̇ = ℓ*(θ) ν.
+    pub fn set_nu(&mut self, model: &Model, nu: &[f64]) -> Result<(), DynamicsError> {
+        require(self, Stage::Configuration, "set_nu")?;
+        check_input("nu", nu, model.nv)?;
+        self.nu.copy_from_slice(nu);
+        velocity::velocity_pass(model, self, velocity::Given::Nu);
+        self.stage = Stage::Velocity;
+        Ok(())
+    }
+
+    /// Pass 2 from θ̇ (nv, MuJoCo's qvel): velocities and ν = m*(θ) θ̇.
+    pub fn set_qvel(&mut self, model: &Model, qvel: &[f64]) -> Result<(), DynamicsError> {
+        require(self, Stage::Configuration, "set_qvel")?;
+        check_input("qvel", qvel, model.nv)?;
+        self.qvel.copy_from_slice(qvel);
+        velocity::velocity_pass(model, self, velocity::Given::Qvel);
+        self.stage = Stage::Velocity;
+        Ok(())
+    }
+
+    /// Pass 3: ν̇ = ε − C(θ,ν) + ε_passive for applied `eps` (nv).
+    pub fn compute_nu_dot(&mut self, model: &Model, eps: &[f64]) -> Result<(), DynamicsError> {
+        require(self, Stage::Velocity, "compute_nu_dot")?;
+        check_input("eps", eps, model.nv)?;
+        bias::bias_pass(model, self, eps);
+        self.stage = Stage::Acceleration;
+        Ok(())
+    }
+}

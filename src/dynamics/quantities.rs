@@ -1,0 +1,32 @@
+//! Kinetic energy, power and the vehicle's spatial momentum.
+
+use super::{DynamicsError, require};
+use crate::math::SpatialVec;
+use crate::model::Model;
+use crate::workspace::{Stage, Workspace};
+
+impl Workspace {
+    /// K = ½|ν|² (paper (1.2), corrected: DYNAMICS.md §1).
+    pub fn kinetic_energy(&self) -> f64 {
+        0.5 * self.nu.norm_squared()
+    }
+
+    /// Power of the applied ε: ν·ε (Lemma 3).
+    pub fn power(&self, eps: &[f64]) -> f64 {
+        self.nu.iter().zip(eps).map(|(n, e)| n * e).sum()
+    }
+
+    /// Spatial momentum of all bodies (angular about the world origin, then
+    /// linear), in world coordinates. Armature is rotor inertia, not body
+    /// momentum, so it is not included (as in MuJoCo).
+    pub fn momentum(&self, model: &Model) -> Result<SpatialVec, DynamicsError> {
+        require(self, Stage::Velocity, "momentum")?;
+        let mut total = SpatialVec::zeros();
+        for (i, link) in model.links.iter().enumerate() {
+            let h = link.inertia * self.v_body[i];
+            // ⁱX₀ᵀ h: the link's momentum in world coordinates about the world origin.
+            total += self.x_world[i].apply_transpose_force(&h);
+        }
+        Ok(total)
+    }
+}

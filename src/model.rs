@@ -1,0 +1,346 @@
+//! The compiled vehicle model: immutable, serializable (it is what an FMU
+//! loads from its resources), and laid out for the O(N) passes.
+//!
+//! Compilation turns the MJCF body tree into a parent-first array of
+//! *links*, one per joint, each with a constant motion subspace in its own
+//! frame (DYNAMICS.md §2):
+//! - a body with several joints becomes a chain of links; the frames
+//!   between its joints are massless and the body's inertia sits on the last;
+//! - a free joint becomes a world-aligned 3-dof translation link followed by
+//!   a 3-dof ball link at the body origin (massless in between);
+//! - a body without joints is welded: its inertia is added to the link it
+//!   is attached to (or dropped, if it is welded to the world).
+//!
+//! The links' order is MuJoCo's dof order, so link `k`'s dofs are the
+//! qvel entries `dof_adr..dof_adr + ndof` and its coordinates the qpos
+//! entries `qpos_adr..`.
+
+use nalgebra::SMatrix;
+use serde::{Deserialize, Serialize};
+
+use crate::math::{Mat3, SpatialMat, Transform, Vec3, rigid_inertia, skew};
+use crate::vehicle::{JointKind, Vehicle};
+
+/// Motion subspace storage: up to three columns, the first `ndof` used.
+pub type MotionSubspace = SMatrix<f64, 6, 3>;
+
+/// The joint of one link, as the passes see it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LinkJoint {
+    /// Rotation about `axis` through `anchor`; 1 qpos, 1 dof.
+    Hinge,
+    /// Translation along `axis`; 1 qpos, 1 dof.
+    Slide,
+    /// Rotation about `anchor`; quaternion qpos (w,x,y,z), 3 dofs (body-frame ω).
+    Ball,
+    /// World-aligned translation (the first half of a free joint); 3 qpos, 3 dofs.
+    Translation,
+}
+
+/// One link: a joint and the rigid body that moves with it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Link {
+    /// Name of the MJCF joint this link implements.
+    pub joint_name: String,
+    /// Name of the MJCF body this link belongs to.
+    pub body_name: String,
+    /// Parent link; `None` for a link attached to the world.
+    pub parent: Option<usize>,
+    /// Fixed placement of the joint's inboard frame relative to the parent
+    /// link frame (or world).
+    pub x_tree: Transform,
+    /// The joint type.
+    pub joint: LinkJoint,
+    /// Unit axis (hinge, slide), in link coordinates.
+    pub axis: Vec3,
+    /// Rotation centre (hinge, ball), in link coordinates.
+    pub anchor: Vec3,
+    /// MuJoCo's `ref` (hinge, slide): the joint value of the modelled pose;
+    /// kinematics use θ − reference.
+    pub reference: f64,
+    /// Number of dofs (1 or 3).
+    pub ndof: usize,
+    /// Constant motion subspace S in link coordinates (first `ndof` columns).
+    pub motion_subspace: MotionSubspace,
+    /// First qpos entry of this link.
+    pub qpos_adr: usize,
+    /// First qvel entry of this link.
+    pub dof_adr: usize,
+    /// Armature added to each of this link's dofs.
+    pub armature: f64,
+    /// Spring stiffness acting on this link's dofs.
+    pub stiffness: f64,
+    /// Viscous damping acting on this link's dofs.
+    pub damping: f64,
+    /// Spatial inertia about the link origin, in link coordinates.
+    pub inertia: SpatialMat,
+    /// Mass of the link (including bodies welded to it).
+    pub mass: f64,
+    /// First mass moment m·c (c: centre of mass in link coordinates).
+    pub mass_moment: Vec3,
+}
+
+/// Descriptive information on one MJCF joint (for variable descriptions).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct JointInfo {
+    /// Joint name.
+    pub name: String,
+    /// Body it moves.
+    pub body_name: String,
+    /// Joint kind.
+    pub kind: JointKind,
+    /// First qpos entry.
+    pub qpos_adr: usize,
+    /// First qvel entry.
+    pub dof_adr: usize,
+}
+
+/// The compiled vehicle model.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Model {
+    /// Vehicle name.
+    pub name: String,
+    /// Number of position coordinates θ (MuJoCo's nq).
+    pub nq: usize,
+    /// Number of dofs, the length of ν and ε (MuJoCo's nv).
+    pub nv: usize,
+    /// Gravity in world coordinates.
+    pub gravity: Vec3,
+    /// Links in parent-first (MuJoCo dof) order.
+    pub links: Vec<Link>,
+    /// MJCF joints in qpos order.
+    pub joints: Vec<JointInfo>,
+    /// The configuration in which the vehicle is modelled (MuJoCo's qpos0).
+    pub qpos0: Vec<f64>,
+    /// Spring rest configuration (MuJoCo's qpos_spring).
+    pub qpos_spring: Vec<f64>,
+}
+
+/// Why a vehicle cannot be compiled.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum ModelError {
+    /// No joints: nothing moves.
+    #[error("the vehicle has no joints: nothing moves")]
+    NoJoints,
+    /// A free joint that is not on a child of the world body.
+    #[error("free joint '{joint}' (line {line}) must be the only joint of a body placed directly in <worldbody>")]
+    MisplacedFreeJoint {
+        /// Joint name.
+        joint: String,
+        /// MJCF line.
+        line: u32,
+    },
+    /// The articulated inertia seen by a joint is singular.
+    #[error(
+        "joint '{joint}' moves no mass or inertia in some direction (articulated inertia \
+         not positive definite in the initial configuration): give the bodies it moves \
+         mass and inertia, or armature to the joint"
+    )]
+    Singular {
+        /// Joint name.
+        joint: String,
+    },
+    /// A parameter that must be finite and non-negative is not.
+    #[error("joint '{joint}': {what} must be finite and non-negative, found {value}")]
+    BadParameter {
+        /// Joint name.
+        joint: String,
+        /// Which parameter.
+        what: &'static str,
+        /// Its value.
+        value: f64,
+    },
+}
+
+/// What a body frame is rigidly attached to during compilation.
+#[derive(Clone, Copy)]
+struct Attachment {
+    /// The link carrying the body, or `None` for the world.
+    link: Option<usize>,
+    /// ᵇᵒᵈʸX_ₗᵢₙₖ: the body frame relative to that link frame.
+    offset: Transform,
+}
+
+impl Model {
+    /// Compiles a vehicle description into the link array.
+    pub fn compile(vehicle: &Vehicle) -> Result<Model, ModelError> {
+        let mut links: Vec<Link> = Vec::new();
+        let mut joints = Vec::new();
+        let mut qpos0 = Vec::new();
+        let mut qpos_spring = Vec::new();
+        let mut attachments: Vec<Attachment> = Vec::with_capacity(vehicle.bodies.len());
+
+        for body in &vehicle.bodies {
+            let parent = match body.parent {
+                Some(p) => attachments[p],
+                None => Attachment { link: None, offset: Transform::identity() },
+            };
+            let body_in_parent =
+                Transform::from_pose(&body.quat.to_rotation_matrix().into_inner(), &body.pos);
+            // The body frame before its joints move it, relative to the parent link.
+            let mut inboard = Attachment { link: parent.link, offset: body_in_parent.compose(&parent.offset) };
+
+            for joint in &body.joints {
+                for (what, value) in [
+                    ("armature", joint.armature),
+                    ("stiffness", joint.stiffness),
+                    ("damping", joint.damping),
+                ] {
+                    if !(value.is_finite() && value >= 0.0) {
+                        return Err(ModelError::BadParameter { joint: joint.name.clone(), what, value });
+                    }
+                }
+                joints.push(JointInfo {
+                    name: joint.name.clone(),
+                    body_name: body.name.clone(),
+                    kind: joint.kind,
+                    qpos_adr: qpos0.len(),
+                    dof_adr: links.last().map_or(0, |l: &Link| l.dof_adr + l.ndof),
+                });
+                match joint.kind {
+                    JointKind::Hinge | JointKind::Slide => {
+                        let kind = if joint.kind == JointKind::Hinge { LinkJoint::Hinge } else { LinkJoint::Slide };
+                        let k = push_link(&mut links, qpos0.len(), joint, &body.name, kind, inboard);
+                        links[k].reference = joint.reference;
+                        inboard = Attachment { link: Some(k), offset: Transform::identity() };
+                        qpos0.push(joint.reference);
+                        qpos_spring.push(joint.springref);
+                    }
+                    JointKind::Ball => {
+                        let k = push_link(&mut links, qpos0.len(), joint, &body.name, LinkJoint::Ball, inboard);
+                        inboard = Attachment { link: Some(k), offset: Transform::identity() };
+                        qpos0.extend([1.0, 0.0, 0.0, 0.0]);
+                        qpos_spring.extend([1.0, 0.0, 0.0, 0.0]);
+                    }
+                    JointKind::Free => {
+                        if body.parent.is_some() || body.joints.len() != 1 {
+                            return Err(ModelError::MisplacedFreeJoint { joint: joint.name.clone(), line: joint.line });
+                        }
+                        // qpos holds the body pose in world directly: the tree offset is absorbed.
+                        let world = Attachment { link: None, offset: Transform::identity() };
+                        let t = push_link(&mut links, qpos0.len(), joint, &body.name, LinkJoint::Translation, world);
+                        let at_translation = Attachment { link: Some(t), offset: Transform::identity() };
+                        let r = push_link(&mut links, qpos0.len() + 3, joint, &body.name, LinkJoint::Ball, at_translation);
+                        inboard = Attachment { link: Some(r), offset: Transform::identity() };
+                        let q = body.quat;
+                        let pose = [body.pos.x, body.pos.y, body.pos.z, q.w, q.i, q.j, q.k];
+                        qpos0.extend(pose);
+                        qpos_spring.extend(pose);
+                    }
+                }
+            }
+
+            if let (Some(mass_props), Some(link)) = (&body.inertia, inboard.link) {
+                let inertia = rigid_inertia(mass_props.mass, &mass_props.com, &mass_props.inertia);
+                let l = &mut links[link];
+                // The body frame is ᵇX_ₗ = offset relative to the link: bring its inertia to the link frame.
+                l.inertia += inboard.offset.transform_inertia_to_parent(&inertia);
+                l.mass += mass_props.mass;
+                l.mass_moment += mass_props.mass
+                    * (inboard.offset.trans + inboard.offset.rot.transpose() * mass_props.com);
+            }
+            attachments.push(inboard);
+        }
+
+        if links.is_empty() {
+            return Err(ModelError::NoJoints);
+        }
+        let nv = links.last().map_or(0, |l| l.dof_adr + l.ndof);
+        let model = Model {
+            name: vehicle.name.clone(),
+            nq: qpos0.len(),
+            nv,
+            gravity: vehicle.gravity,
+            links,
+            joints,
+            qpos0,
+            qpos_spring,
+        };
+        model.check_positive_definite()?;
+        Ok(model)
+    }
+
+    /// A fresh workspace for this model.
+    pub fn workspace(&self) -> crate::workspace::Workspace {
+        crate::workspace::Workspace::new(self)
+    }
+
+    /// Verifies that every joint sees a positive-definite articulated
+    /// inertia in the initial configuration.
+    fn check_positive_definite(&self) -> Result<(), ModelError> {
+        let mut ws = self.workspace();
+        match ws.set_configuration(self, &self.qpos0) {
+            Err(crate::dynamics::DynamicsError::Singular { link }) => {
+                Err(ModelError::Singular { joint: self.links[link].joint_name.clone() })
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+/// Appends the link of `joint` (of body `body_name`) attached at `inboard`;
+/// returns its index. Free-joint halves have their anchor at the body origin.
+fn push_link(
+    links: &mut Vec<Link>,
+    qpos_adr: usize,
+    joint: &crate::vehicle::Joint,
+    body_name: &str,
+    joint_type: LinkJoint,
+    inboard: Attachment,
+) -> usize {
+    let anchor = if joint.kind == JointKind::Free { Vec3::zeros() } else { joint.pos };
+    let axis = match joint_type {
+        LinkJoint::Hinge | LinkJoint::Slide => joint.axis,
+        LinkJoint::Ball | LinkJoint::Translation => Vec3::zeros(),
+    };
+    let dof_adr = links.last().map_or(0, |l| l.dof_adr + l.ndof);
+    let (ndof, motion_subspace) = motion_subspace(joint_type, &axis, &anchor);
+    links.push(Link {
+        joint_name: joint.name.clone(),
+        body_name: body_name.to_string(),
+        parent: inboard.link,
+        x_tree: inboard.offset,
+        joint: joint_type,
+        axis,
+        anchor,
+        reference: 0.0,
+        ndof,
+        motion_subspace,
+        qpos_adr,
+        dof_adr,
+        armature: joint.armature,
+        stiffness: joint.stiffness,
+        damping: joint.damping,
+        inertia: SpatialMat::zeros(),
+        mass: 0.0,
+        mass_moment: Vec3::zeros(),
+    });
+    links.len() - 1
+}
+
+/// S for a joint, in the link frame (DYNAMICS.md §2): a hinge through `anchor`
+/// moves the link origin with velocity θ̇ (anchor × axis).
+fn motion_subspace(joint: LinkJoint, axis: &Vec3, anchor: &Vec3) -> (usize, MotionSubspace) {
+    let mut s = MotionSubspace::zeros();
+    match joint {
+        LinkJoint::Hinge => {
+            s.fixed_view_mut::<3, 1>(0, 0).copy_from(axis);
+            s.fixed_view_mut::<3, 1>(3, 0).copy_from(&anchor.cross(axis));
+            (1, s)
+        }
+        LinkJoint::Slide => {
+            s.fixed_view_mut::<3, 1>(3, 0).copy_from(axis);
+            (1, s)
+        }
+        LinkJoint::Ball => {
+            s.fixed_view_mut::<3, 3>(0, 0).copy_from(&Mat3::identity());
+            s.fixed_view_mut::<3, 3>(3, 0).copy_from(&skew(anchor));
+            (3, s)
+        }
+        LinkJoint::Translation => {
+            s.fixed_view_mut::<3, 3>(3, 0).copy_from(&Mat3::identity());
+            (3, s)
+        }
+    }
+}

@@ -1,0 +1,122 @@
+//! Per-instance buffers for the passes, sized once from the model so that
+//! no pass allocates. Each field says which pass fills it; per-link arrays
+//! are indexed like [`Model::links`](crate::model::Model::links), dof-length
+//! vectors like qvel.
+
+use nalgebra::{DVector, SMatrix};
+
+use crate::math::{Mat3, SpatialMat, SpatialVec, Transform};
+use crate::model::Model;
+
+/// 6×3 storage for per-link 6×ndof quantities (first `ndof` columns used).
+pub type LinkCols = SMatrix<f64, 6, 3>;
+
+/// How far the passes have got for the current state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Stage {
+    /// Nothing computed yet.
+    Empty,
+    /// Passes 0 and 1 done for `theta`.
+    Configuration,
+    /// Pass 2 done: velocities known.
+    Velocity,
+    /// Pass 3 done: ν̇ and C known.
+    Acceleration,
+}
+
+/// Preallocated buffers and results of the passes.
+#[derive(Clone, Debug)]
+pub struct Workspace {
+    /// How far the passes have got.
+    pub stage: Stage,
+    /// The configuration θ (qpos, quaternions normalized) — set_configuration.
+    pub theta: DVector<f64>,
+
+    /// ⁱX_λ: link relative to parent link (or world) — pass 0.
+    pub x_parent: Vec<Transform>,
+    /// ⁱX₀: link relative to world — pass 0.
+    pub x_world: Vec<Transform>,
+
+    /// I^A: articulated-body inertia (the paper's P) — pass 1.
+    pub ia_body: Vec<SpatialMat>,
+    /// I^a = I^A − U D⁻¹ Uᵀ: what the parent sees through the joint — pass 1.
+    pub ia_reduced: Vec<SpatialMat>,
+    /// U = I^A S — pass 1.
+    pub u_body: Vec<LinkCols>,
+    /// G = U D⁻¹ (the paper's Kalman gain) — pass 1.
+    pub gain: Vec<LinkCols>,
+    /// D = SᵀI^A S + armature — pass 1.
+    pub d_joint: Vec<Mat3>,
+    /// R, upper triangular with R Rᵀ = D (D^½ of DYNAMICS.md §3) — pass 1.
+    pub r_joint: Vec<Mat3>,
+    /// R⁻¹ — pass 1.
+    pub r_inv_joint: Vec<Mat3>,
+
+    /// ν — pass 2 (given, or computed from θ̇).
+    pub nu: DVector<f64>,
+    /// θ̇ in dof space (MuJoCo's qvel) — pass 2.
+    pub qvel: DVector<f64>,
+    /// w = R⁻ᵀ ν = θ̇ + GᵀV⁺, stored in dof layout — pass 2.
+    pub w_joint: DVector<f64>,
+    /// V⁺ = X V_λ: parent velocity in link coordinates — pass 2.
+    pub v_plus_body: Vec<SpatialVec>,
+    /// V: link spatial velocity in link coordinates — pass 2.
+    pub v_body: Vec<SpatialVec>,
+    /// v_J = S θ̇ — pass 2.
+    pub v_joint: Vec<SpatialVec>,
+    /// c = V × v_J — pass 2.
+    pub c_body: Vec<SpatialVec>,
+
+    /// Velocity-product bias p^A (accumulates children's p^a) — pass 3.
+    pub p_bias_body: Vec<SpatialVec>,
+    /// Force bias (gravity, children's force terms) — pass 3.
+    pub p_force_body: Vec<SpatialVec>,
+    /// Scratch inward accumulator of the force-only recursions (ε ↔ T).
+    pub p_scratch_body: Vec<SpatialVec>,
+    /// İ^A (accumulates children's contributions) — pass 3.
+    pub ia_dot_body: Vec<SpatialMat>,
+    /// Passive joint forces: springs and dampers — pass 3.
+    pub tau_passive: DVector<f64>,
+    /// ε of the passive forces and gravity, ℓ(θ)(τ_passive + Jᵀf_gravity) — pass 3.
+    pub eps_passive: DVector<f64>,
+    /// C(θ, ν): velocity-product terms — pass 3.
+    pub coriolis: DVector<f64>,
+    /// ν̇ = ε − C + eps_passive — pass 3.
+    pub nu_dot: DVector<f64>,
+}
+
+impl Workspace {
+    /// Buffers sized for `model`.
+    pub fn new(model: &Model) -> Self {
+        let n = model.links.len();
+        let dof = || DVector::zeros(model.nv);
+        Workspace {
+            stage: Stage::Empty,
+            theta: DVector::from_column_slice(&model.qpos0),
+            x_parent: vec![Transform::identity(); n],
+            x_world: vec![Transform::identity(); n],
+            ia_body: vec![SpatialMat::zeros(); n],
+            ia_reduced: vec![SpatialMat::zeros(); n],
+            u_body: vec![LinkCols::zeros(); n],
+            gain: vec![LinkCols::zeros(); n],
+            d_joint: vec![Mat3::zeros(); n],
+            r_joint: vec![Mat3::zeros(); n],
+            r_inv_joint: vec![Mat3::zeros(); n],
+            nu: dof(),
+            qvel: dof(),
+            w_joint: dof(),
+            v_plus_body: vec![SpatialVec::zeros(); n],
+            v_body: vec![SpatialVec::zeros(); n],
+            v_joint: vec![SpatialVec::zeros(); n],
+            c_body: vec![SpatialVec::zeros(); n],
+            p_bias_body: vec![SpatialVec::zeros(); n],
+            p_force_body: vec![SpatialVec::zeros(); n],
+            p_scratch_body: vec![SpatialVec::zeros(); n],
+            ia_dot_body: vec![SpatialMat::zeros(); n],
+            tau_passive: dof(),
+            eps_passive: dof(),
+            coriolis: dof(),
+            nu_dot: dof(),
+        }
+    }
+}

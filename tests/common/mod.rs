@@ -1,0 +1,474 @@
+//! Shared test harness: random vehicles, and an independent dense reference
+//! for the dynamics.
+//!
+//! The reference works in world coordinates straight from the vehicle
+//! description (not the compiled model): body poses by MuJoCo's kinematic
+//! rules, per-dof world Jacobians, M = Σ Jᵀ diag(m, I) J + armature, and
+//! the bias forces by Kane's method (h = Σ Jᵀ(m J̇θ̇ − m g, I J̇ωθ̇ + ω×Iω)),
+//! which holds for the quaternion quasi-velocities of ball and free joints.
+//! J̇θ̇ and ṁ are taken by 4th-order central differences along the exact
+//! constant-velocity motion. Nothing here uses the spatial-operator code under test.
+#![allow(dead_code)]
+
+use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, Unit, UnitQuaternion, Vector3};
+use nudyn::vehicle::{Body, Joint, JointKind, MassProperties, Vehicle};
+
+pub type V3 = Vector3<f64>;
+pub type M3 = Matrix3<f64>;
+
+/// One dof's effect on the world, at a configuration.
+#[derive(Clone, Copy, Debug)]
+enum DofMotion {
+    /// Rotation about `axis` through `point` (world).
+    Rotation { axis: V3, point: V3 },
+    /// Translation along `axis` (world).
+    Translation { axis: V3 },
+}
+
+/// World poses of all bodies and the world motion of every dof.
+pub struct Kinematics {
+    pub body_rot: Vec<M3>,
+    pub body_pos: Vec<V3>,
+    dofs: Vec<DofMotion>,
+    /// For each body, the dofs that move it (ancestors' and its own).
+    body_dofs: Vec<Vec<usize>>,
+}
+
+pub fn nq_nv(vehicle: &Vehicle) -> (usize, usize) {
+    let joints = vehicle.bodies.iter().flat_map(|b| b.joints.iter());
+    joints.fold((0, 0), |(q, v), j| (q + j.kind.nq(), v + j.kind.nv()))
+}
+
+fn quat_at(theta: &[f64], adr: usize) -> UnitQuaternion<f64> {
+    UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+        theta[adr],
+        theta[adr + 1],
+        theta[adr + 2],
+        theta[adr + 3],
+    ))
+}
+
+pub fn kinematics(vehicle: &Vehicle, theta: &[f64]) -> Kinematics {
+    let n = vehicle.bodies.len();
+    let mut k = Kinematics {
+        body_rot: Vec::with_capacity(n),
+        body_pos: Vec::with_capacity(n),
+        dofs: Vec::new(),
+        body_dofs: Vec::with_capacity(n),
+    };
+    let mut qadr = 0;
+    for body in &vehicle.bodies {
+        let (parent_rot, parent_pos, mut dofs) = match body.parent {
+            Some(p) => (k.body_rot[p], k.body_pos[p], k.body_dofs[p].clone()),
+            None => (M3::identity(), V3::zeros(), Vec::new()),
+        };
+        let mut rot = parent_rot * body.quat.to_rotation_matrix().into_inner();
+        let mut pos = parent_pos + parent_rot * body.pos;
+        for joint in &body.joints {
+            match joint.kind {
+                JointKind::Hinge => {
+                    let axis = rot * joint.axis;
+                    let anchor = pos + rot * joint.pos;
+                    let r = Rotation3::from_axis_angle(&Unit::new_normalize(joint.axis), theta[qadr] - joint.reference);
+                    rot *= r.into_inner();
+                    pos = anchor - rot * joint.pos;
+                    dofs.push(k.dofs.len());
+                    k.dofs.push(DofMotion::Rotation { axis, point: anchor });
+                }
+                JointKind::Slide => {
+                    let axis = rot * joint.axis;
+                    pos += axis * (theta[qadr] - joint.reference);
+                    dofs.push(k.dofs.len());
+                    k.dofs.push(DofMotion::Translation { axis });
+                }
+                JointKind::Ball => {
+                    let anchor = pos + rot * joint.pos;
+                    rot *= quat_at(theta, qadr).to_rotation_matrix().into_inner();
+                    pos = anchor - rot * joint.pos;
+                    for c in 0..3 {
+                        dofs.push(k.dofs.len());
+                        k.dofs.push(DofMotion::Rotation { axis: rot.column(c).into_owned(), point: anchor });
+                    }
+                }
+                JointKind::Free => {
+                    pos = V3::new(theta[qadr], theta[qadr + 1], theta[qadr + 2]);
+                    rot = quat_at(theta, qadr + 3).to_rotation_matrix().into_inner();
+                    for c in 0..3 {
+                        dofs.push(k.dofs.len());
+                        k.dofs.push(DofMotion::Translation { axis: M3::identity().column(c).into_owned() });
+                    }
+                    for c in 0..3 {
+                        dofs.push(k.dofs.len());
+                        k.dofs.push(DofMotion::Rotation { axis: rot.column(c).into_owned(), point: pos });
+                    }
+                }
+            }
+            qadr += joint.kind.nq();
+        }
+        k.body_rot.push(rot);
+        k.body_pos.push(pos);
+        k.body_dofs.push(dofs);
+    }
+    k
+}
+
+/// Angular and linear (of a world point) Jacobians of a body, 3×nv each.
+fn point_jacobian(k: &Kinematics, body: usize, point: &V3, nv: usize) -> (DMatrix<f64>, DMatrix<f64>) {
+    let mut jw = DMatrix::zeros(3, nv);
+    let mut jv = DMatrix::zeros(3, nv);
+    for &d in &k.body_dofs[body] {
+        match k.dofs[d] {
+            DofMotion::Rotation { axis, point: c } => {
+                jw.fixed_view_mut::<3, 1>(0, d).copy_from(&axis);
+                jv.fixed_view_mut::<3, 1>(0, d).copy_from(&axis.cross(&(point - c)));
+            }
+            DofMotion::Translation { axis } => jv.fixed_view_mut::<3, 1>(0, d).copy_from(&axis),
+        }
+    }
+    (jw, jv)
+}
+
+/// Per body: (mass, world centre of mass, world inertia about com, Jω, Jv_com).
+pub struct BodyTerms {
+    pub mass: f64,
+    pub com: V3,
+    pub inertia: M3,
+    pub jw: DMatrix<f64>,
+    pub jv: DMatrix<f64>,
+}
+
+pub fn body_terms(vehicle: &Vehicle, k: &Kinematics, nv: usize) -> Vec<BodyTerms> {
+    let mut out = Vec::new();
+    for (b, body) in vehicle.bodies.iter().enumerate() {
+        let Some(mp) = &body.inertia else { continue };
+        let com = k.body_pos[b] + k.body_rot[b] * mp.com;
+        let inertia = k.body_rot[b] * mp.inertia * k.body_rot[b].transpose();
+        let (jw, jv) = point_jacobian(k, b, &com, nv);
+        out.push(BodyTerms { mass: mp.mass, com, inertia, jw, jv });
+    }
+    out
+}
+
+pub fn armature(vehicle: &Vehicle) -> Vec<f64> {
+    let joints = vehicle.bodies.iter().flat_map(|b| b.joints.iter());
+    joints.flat_map(|j| std::iter::repeat_n(j.armature, j.kind.nv())).collect()
+}
+
+/// Dense mass matrix.
+pub fn mass_matrix(vehicle: &Vehicle, theta: &[f64]) -> DMatrix<f64> {
+    let (_, nv) = nq_nv(vehicle);
+    let k = kinematics(vehicle, theta);
+    let mut m = DMatrix::from_diagonal(&DVector::from_vec(armature(vehicle)));
+    for t in body_terms(vehicle, &k, nv) {
+        m += t.mass * t.jv.transpose() * &t.jv + t.jw.transpose() * t.inertia * &t.jw;
+    }
+    m
+}
+
+/// θ ⊕ s·u: MuJoCo's position integration (exact for constant u).
+pub fn integrate_pos(vehicle: &Vehicle, theta: &[f64], u: &[f64], s: f64) -> Vec<f64> {
+    let mut out = theta.to_vec();
+    let (mut qa, mut va) = (0, 0);
+    let rotate = |out: &mut Vec<f64>, qa: usize, w: V3| {
+        let q = quat_at(out, qa) * UnitQuaternion::from_scaled_axis(w * s);
+        out[qa..qa + 4].copy_from_slice(&[q.w, q.i, q.j, q.k]);
+    };
+    for joint in vehicle.bodies.iter().flat_map(|b| b.joints.iter()) {
+        match joint.kind {
+            JointKind::Hinge | JointKind::Slide => out[qa] += s * u[va],
+            JointKind::Ball => rotate(&mut out, qa, V3::new(u[va], u[va + 1], u[va + 2])),
+            JointKind::Free => {
+                for c in 0..3 {
+                    out[qa + c] += s * u[va + c];
+                }
+                rotate(&mut out, qa + 3, V3::new(u[va + 3], u[va + 4], u[va + 5]));
+            }
+        }
+        qa += joint.kind.nq();
+        va += joint.kind.nv();
+    }
+    out
+}
+
+/// Passive joint forces (springs about qpos_spring, dampers), as MuJoCo.
+pub fn passive(vehicle: &Vehicle, theta: &[f64], qvel: &[f64]) -> DVector<f64> {
+    let mut tau = DVector::zeros(qvel.len());
+    let (mut qa, mut va) = (0, 0);
+    for body in &vehicle.bodies {
+        for joint in &body.joints {
+            let (k, b) = (joint.stiffness, joint.damping);
+            match joint.kind {
+                JointKind::Hinge | JointKind::Slide => tau[va] = -k * (theta[qa] - joint.springref),
+                JointKind::Ball => {
+                    let r = quat_at(theta, qa).scaled_axis();
+                    for c in 0..3 {
+                        tau[va + c] = -k * r[c];
+                    }
+                }
+                JointKind::Free => {
+                    let rest = body.quat;
+                    let d = rest.rotation_to(&quat_at(theta, qa + 3));
+                    let r = rest.inverse() * d.scaled_axis();
+                    for c in 0..3 {
+                        tau[va + c] = -k * (theta[qa + c] - body.pos[c]);
+                        tau[va + 3 + c] = -k * r[c];
+                    }
+                }
+            }
+            for c in 0..joint.kind.nv() {
+                tau[va + c] -= b * qvel[va + c];
+            }
+            qa += joint.kind.nq();
+            va += joint.kind.nv();
+        }
+    }
+    tau
+}
+
+/// Step of the finite differences along the motion (state scale ~1).
+const FD_STEP: f64 = 1e-3;
+
+/// f'(0) to O(h⁴) from f(±h), f(±2h).
+fn central_difference(p1: &DMatrix<f64>, m1: &DMatrix<f64>, p2: &DMatrix<f64>, m2: &DMatrix<f64>, h: f64) -> DMatrix<f64> {
+    (8.0 * (p1 - m1) - (p2 - m2)) / (12.0 * h)
+}
+
+/// Velocity-dependent and gravity bias h(θ, θ̇) by Kane's method, split
+/// into (velocity products, gravity).
+pub fn bias(vehicle: &Vehicle, theta: &[f64], qvel: &[f64]) -> (DVector<f64>, DVector<f64>) {
+    let (_, nv) = nq_nv(vehicle);
+    let u = DVector::from_column_slice(qvel);
+    let terms = |s: f64| {
+        let th = integrate_pos(vehicle, theta, qvel, s);
+        body_terms(vehicle, &kinematics(vehicle, &th), nv)
+    };
+    let h = FD_STEP;
+    let (now, p1, m1, p2, m2) = (terms(0.0), terms(h), terms(-h), terms(2.0 * h), terms(-2.0 * h));
+    let mut h_vel = DVector::zeros(nv);
+    let mut h_grav = DVector::zeros(nv);
+    for (b, t) in now.iter().enumerate() {
+        let jv_dot_u = central_difference(&p1[b].jv, &m1[b].jv, &p2[b].jv, &m2[b].jv, h) * &u;
+        let jw_dot_u = central_difference(&p1[b].jw, &m1[b].jw, &p2[b].jw, &m2[b].jw, h) * &u;
+        let w: V3 = (&t.jw * &u).fixed_rows::<3>(0).into_owned();
+        let moment: V3 = t.inertia * jw_dot_u.fixed_rows::<3>(0) + w.cross(&(t.inertia * w));
+        h_vel += t.mass * t.jv.transpose() * jv_dot_u + t.jw.transpose() * DVector::from_column_slice(moment.as_slice());
+        h_grav -= t.mass * t.jv.transpose() * DVector::from_column_slice(vehicle.gravity.as_slice());
+    }
+    (h_vel, h_grav)
+}
+
+/// Upper-triangular m with m mᵀ = M and a positive diagonal.
+pub fn upper_factor(m: &DMatrix<f64>) -> DMatrix<f64> {
+    let n = m.nrows();
+    let flip = |a: &DMatrix<f64>| DMatrix::from_fn(n, n, |i, j| a[(n - 1 - i, n - 1 - j)]);
+    let l = nalgebra::Cholesky::new(flip(m)).expect("M positive definite").l();
+    flip(&l)
+}
+
+/// θ̈ from the dense equations: M θ̈ = T + τ_passive − h.
+pub fn forward_dynamics(vehicle: &Vehicle, theta: &[f64], qvel: &[f64], torque: &[f64]) -> DVector<f64> {
+    let m = mass_matrix(vehicle, theta);
+    let (h_vel, h_grav) = bias(vehicle, theta, qvel);
+    let rhs = DVector::from_column_slice(torque) + passive(vehicle, theta, qvel) - h_vel - h_grav;
+    m.cholesky().expect("M positive definite").solve(&rhs)
+}
+
+/// ν̇ = m*θ̈ + (d/dt m*) θ̇, the derivative of m* by central differences
+/// along the motion.
+pub fn nu_dot_reference(vehicle: &Vehicle, theta: &[f64], qvel: &[f64], torque: &[f64]) -> DVector<f64> {
+    let u = DVector::from_column_slice(qvel);
+    let qacc = forward_dynamics(vehicle, theta, qvel, torque);
+    let m_at = |s: f64| upper_factor(&mass_matrix(vehicle, &integrate_pos(vehicle, theta, qvel, s)));
+    let h = FD_STEP;
+    let m_dot = central_difference(&m_at(h), &m_at(-h), &m_at(2.0 * h), &m_at(-2.0 * h), h);
+    m_at(0.0).transpose() * qacc + m_dot.transpose() * u
+}
+
+/// Spatial momentum about the world origin (angular, linear), world axes.
+pub fn momentum(vehicle: &Vehicle, theta: &[f64], qvel: &[f64]) -> [f64; 6] {
+    let (_, nv) = nq_nv(vehicle);
+    let u = DVector::from_column_slice(qvel);
+    let mut out = [0.0; 6];
+    for t in body_terms(vehicle, &kinematics(vehicle, theta), nv) {
+        let v: V3 = (&t.jv * &u).fixed_rows::<3>(0).into_owned();
+        let w: V3 = (&t.jw * &u).fixed_rows::<3>(0).into_owned();
+        let lin = t.mass * v;
+        let ang = t.com.cross(&lin) + t.inertia * w;
+        for c in 0..3 {
+            out[c] += ang[c];
+            out[3 + c] += lin[c];
+        }
+    }
+    out
+}
+
+// ---------------------------------------------------------------------------
+// Vehicles for tests.
+
+/// A small deterministic generator (tests must be reproducible without a crate).
+pub struct Rng(u64);
+
+impl Rng {
+    pub fn new(seed: u64) -> Self {
+        Rng(seed.wrapping_mul(0x9E3779B97F4A7C15) | 1)
+    }
+    pub fn next_u64(&mut self) -> u64 {
+        // xorshift64*
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545F4914F6CDD1D)
+    }
+    /// Uniform in [lo, hi).
+    pub fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * ((self.next_u64() >> 11) as f64 / (1u64 << 53) as f64)
+    }
+    pub fn below(&mut self, n: usize) -> usize {
+        (self.next_u64() % n as u64) as usize
+    }
+    pub fn vec3(&mut self, scale: f64) -> V3 {
+        V3::new(self.uniform(-scale, scale), self.uniform(-scale, scale), self.uniform(-scale, scale))
+    }
+    pub fn unit_quat(&mut self) -> UnitQuaternion<f64> {
+        UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+            self.uniform(-1.0, 1.0),
+            self.uniform(-1.0, 1.0),
+            self.uniform(-1.0, 1.0),
+            self.uniform(-1.0, 1.0),
+        ))
+    }
+    pub fn unit_vec(&mut self) -> V3 {
+        loop {
+            let v = self.vec3(1.0);
+            if v.norm() > 0.2 {
+                return v.normalize();
+            }
+        }
+    }
+    pub fn vec(&mut self, n: usize, scale: f64) -> Vec<f64> {
+        (0..n).map(|_| self.uniform(-scale, scale)).collect()
+    }
+}
+
+/// Full, off-centre mass properties: principal moments that satisfy the
+/// triangle inequality, rotated to random axes.
+pub fn random_mass(rng: &mut Rng) -> MassProperties {
+    let mass = rng.uniform(0.2, 5.0);
+    let a = rng.uniform(0.02, 0.3);
+    let b = rng.uniform(0.02, 0.3);
+    let c = rng.uniform(0.02, 0.3);
+    // Moments of a solid box with half sizes a, b, c.
+    let diag = M3::from_diagonal(&V3::new(b * b + c * c, a * a + c * c, a * a + b * b)) * (mass / 3.0);
+    let r = rng.unit_quat().to_rotation_matrix().into_inner();
+    MassProperties { mass, com: rng.vec3(0.3), inertia: r * diag * r.transpose() }
+}
+
+pub fn joint(rng: &mut Rng, name: String, kind: JointKind) -> Joint {
+    Joint {
+        name,
+        kind,
+        pos: if kind == JointKind::Free { V3::zeros() } else { rng.vec3(0.2) },
+        axis: rng.unit_vec(),
+        reference: if matches!(kind, JointKind::Hinge | JointKind::Slide) { rng.uniform(-0.5, 0.5) } else { 0.0 },
+        springref: rng.uniform(-0.5, 0.5),
+        stiffness: 0.0,
+        damping: 0.0,
+        armature: if rng.below(2) == 0 { rng.uniform(0.0, 0.5) } else { 0.0 },
+        line: 0,
+    }
+}
+
+/// Options for [`random_vehicle`].
+#[derive(Clone, Copy)]
+pub struct TreeOptions {
+    pub bodies: usize,
+    /// Root is a free-floating base.
+    pub free_base: bool,
+    /// Allow gravity, springs and dampers.
+    pub passive: bool,
+    /// Attach each body to the previous one (a chain) instead of a random parent.
+    pub chain: bool,
+}
+
+/// A random tree with every joint type, several joints per body, welded
+/// bodies, off-centre full inertias and armature.
+pub fn random_vehicle(rng: &mut Rng, opts: TreeOptions) -> Vehicle {
+    let mut bodies: Vec<Body> = Vec::new();
+    for b in 0..opts.bodies {
+        let parent = if b == 0 {
+            None
+        } else if opts.chain {
+            Some(b - 1)
+        } else {
+            Some(rng.below(b))
+        };
+        let mut joints = Vec::new();
+        if b == 0 && opts.free_base {
+            joints.push(joint(rng, format!("j{b}_free"), JointKind::Free));
+        } else {
+            // 0 (welded) to 3 joints; a ball only last, as MuJoCo requires.
+            let count = [0, 1, 1, 1, 2, 3][rng.below(6)];
+            let count = if b == 0 && count == 0 { 1 } else { count };
+            for k in 0..count {
+                let kind = match rng.below(5) {
+                    0 | 1 => JointKind::Hinge,
+                    2 => JointKind::Slide,
+                    _ if k + 1 == count => JointKind::Ball,
+                    _ => JointKind::Hinge,
+                };
+                let mut j = joint(rng, format!("j{b}_{k}"), kind);
+                if opts.passive {
+                    j.stiffness = rng.uniform(0.0, 5.0);
+                    j.damping = rng.uniform(0.0, 1.0);
+                }
+                joints.push(j);
+            }
+        }
+        let mut body = Body {
+            name: format!("b{b}"),
+            parent,
+            pos: rng.vec3(0.5),
+            quat: rng.unit_quat(),
+            inertia: Some(random_mass(rng)),
+            joints,
+            line: 0,
+        };
+        if b == 0 && opts.free_base {
+            if opts.passive {
+                body.joints[0].stiffness = rng.uniform(0.0, 5.0);
+                body.joints[0].damping = rng.uniform(0.0, 1.0);
+            }
+            body.joints[0].armature = 0.0;
+        }
+        bodies.push(body);
+    }
+    let gravity = if opts.passive { V3::new(0.3, -0.2, -9.81) } else { V3::zeros() };
+    Vehicle { name: "random".into(), gravity, bodies }
+}
+
+/// A random configuration (unit quaternions) for a vehicle.
+pub fn random_theta(rng: &mut Rng, vehicle: &Vehicle) -> Vec<f64> {
+    let mut theta = Vec::new();
+    for joint in vehicle.bodies.iter().flat_map(|b| b.joints.iter()) {
+        match joint.kind {
+            JointKind::Hinge | JointKind::Slide => theta.push(rng.uniform(-2.0, 2.0)),
+            JointKind::Ball => {
+                let q = rng.unit_quat();
+                theta.extend([q.w, q.i, q.j, q.k]);
+            }
+            JointKind::Free => {
+                let p = rng.vec3(2.0);
+                let q = rng.unit_quat();
+                theta.extend([p.x, p.y, p.z, q.w, q.i, q.j, q.k]);
+            }
+        }
+    }
+    theta
+}
+
+/// max |a − b| / max(1, max |b|).
+pub fn rel_err(a: &[f64], b: &[f64]) -> f64 {
+    assert_eq!(a.len(), b.len(), "length mismatch");
+    let scale = b.iter().fold(1.0f64, |m, x| m.max(x.abs()));
+    a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / scale
+}

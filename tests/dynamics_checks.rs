@@ -1,0 +1,136 @@
+//! DYNAMICS.md §7 checks 1–5: the O(N) passes against the independent
+//! dense reference in `common`, on random trees with every joint type.
+
+mod common;
+
+use common::{Rng, TreeOptions, random_theta, random_vehicle, rel_err};
+use nalgebra::{DMatrix, DVector};
+use nudyn::model::Model;
+use nudyn::vehicle::Vehicle;
+use nudyn::workspace::Workspace;
+use proptest::prelude::*;
+
+/// m built column by column from ν = m*θ̇ with unit θ̇.
+fn factor_from_passes(model: &Model, ws: &mut Workspace, theta: &[f64]) -> DMatrix<f64> {
+    ws.set_configuration(model, theta).unwrap();
+    let mut m_star = DMatrix::zeros(model.nv, model.nv);
+    for k in 0..model.nv {
+        let mut e = vec![0.0; model.nv];
+        e[k] = 1.0;
+        ws.set_qvel(model, &e).unwrap();
+        m_star.set_column(k, &ws.nu);
+    }
+    m_star.transpose()
+}
+
+/// Every check on one vehicle at one random state; returns a description
+/// of the first failure.
+fn check_vehicle(vehicle: &Vehicle, rng: &mut Rng) -> Result<(), String> {
+    let model = Model::compile(vehicle).map_err(|e| e.to_string())?;
+    let mut ws = model.workspace();
+    let theta = random_theta(rng, vehicle);
+    let qvel = rng.vec(model.nv, 1.5);
+    let torque = rng.vec(model.nv, 3.0);
+    let fail = |what: &str, err: f64, tol: f64| {
+        if err <= tol { Ok(()) } else { Err(format!("{what}: error {err:.3e} > {tol:.0e}")) }
+    };
+
+    // 1. m m* = M, and m is the unique upper factor.
+    let m_dense = common::mass_matrix(vehicle, &theta);
+    let m = factor_from_passes(&model, &mut ws, &theta);
+    fail("m m* = M", rel_err((&m * m.transpose()).as_slice(), m_dense.as_slice()), 1e-12)?;
+    fail("m = upper factor of M", rel_err(m.as_slice(), common::upper_factor(&m_dense).as_slice()), 1e-10)?;
+
+    // 2. θ̇ = ℓ*ν inverts ν = m*θ̇; ε = ℓT inverts T = mε; ε = m⁻¹T densely.
+    ws.set_qvel(&model, &qvel).unwrap();
+    let nu = ws.nu.clone();
+    fail("nu = m* qvel", rel_err(nu.as_slice(), (m.transpose() * DVector::from_column_slice(&qvel)).as_slice()), 1e-12)?;
+    ws.set_nu(&model, nu.as_slice()).unwrap();
+    fail("qvel = l* nu round trip", rel_err(ws.qvel.as_slice(), &qvel), 1e-12)?;
+    let mut eps = vec![0.0; model.nv];
+    ws.eps_from_forces(&model, &torque, None, &mut eps).unwrap();
+    let eps_dense = m.clone().solve_upper_triangular(&DVector::from_column_slice(&torque)).unwrap();
+    fail("eps = m^-1 T", rel_err(&eps, eps_dense.as_slice()), 1e-10)?;
+    let mut torque_back = vec![0.0; model.nv];
+    ws.torque_from_eps(&model, &eps, &mut torque_back).unwrap();
+    fail("T = m eps round trip", rel_err(&torque_back, &torque), 1e-12)?;
+
+    // 3. ν·C = 0.
+    ws.set_nu(&model, nu.as_slice()).unwrap();
+    ws.compute_nu_dot(&model, &eps).unwrap();
+    let c = ws.coriolis.clone();
+    // C is quadratic in ν: scale by |ν|·max(|C|, |ν|²) so round-off on a near-zero C cannot fail.
+    let work = nu.dot(&c).abs() / (nu.norm() * c.norm().max(nu.norm_squared())).max(1e-300);
+    fail("nu . C = 0", work, 1e-12)?;
+
+    // 4. ν̇ = m*θ̈ + ṁ*θ̇ with θ̈ from the dense equations under the same torques.
+    let nu_dot_ref = common::nu_dot_reference(vehicle, &theta, &qvel, &torque);
+    fail("nu_dot", rel_err(ws.nu_dot.as_slice(), nu_dot_ref.as_slice()), 1e-7)?;
+
+    // 5. Momentum and |ν| are invariant with ε = 0 and no passive forces:
+    // checked on the instantaneous rates, by central differences along the motion.
+    let free_base = vehicle.bodies[0].joints.first().is_some_and(|j| j.kind == nudyn::vehicle::JointKind::Free);
+    if free_base && vehicle.gravity.norm() == 0.0 && vehicle.bodies.iter().all(|b| b.joints.iter().all(|j| j.stiffness == 0.0 && j.damping == 0.0)) {
+        let p = ws.momentum(&model).unwrap();
+        let p_ref = common::momentum(vehicle, &theta, &qvel);
+        fail("momentum", rel_err(p.as_slice(), &p_ref), 1e-12)?;
+        fail("kinetic energy", (ws.kinetic_energy() - 0.5 * qvel_m(&m_dense, &qvel)).abs() / ws.kinetic_energy().max(1.0), 1e-12)?;
+        let zero = vec![0.0; model.nv];
+        ws.compute_nu_dot(&model, &zero).unwrap();
+        let nu_dot = ws.nu_dot.clone();
+        let qvel_now = ws.qvel.clone();
+        let h = 1e-5;
+        let momentum_at = |ws: &mut Workspace, s: f64| {
+            let th = common::integrate_pos(vehicle, &theta, qvel_now.as_slice(), s);
+            ws.set_configuration(&model, &th).unwrap();
+            ws.set_nu(&model, (&nu + s * &nu_dot).as_slice()).unwrap();
+            ws.momentum(&model).unwrap()
+        };
+        let rate = (momentum_at(&mut ws, h) - momentum_at(&mut ws, -h)) / (2.0 * h);
+        let scale = p.norm().max(1.0);
+        fail("d/dt momentum = 0", rate.norm() / scale, 1e-7)?;
+        fail("d/dt |nu|^2 = 0", 2.0 * nu.dot(&nu_dot) / nu.norm_squared().max(1.0), 1e-12)?;
+    }
+    Ok(())
+}
+
+fn qvel_m(m: &DMatrix<f64>, qvel: &[f64]) -> f64 {
+    let u = DVector::from_column_slice(qvel);
+    u.dot(&(m * &u))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
+
+    #[test]
+    fn random_trees_without_passive_forces(seed in any::<u64>(), bodies in 1usize..9, free_base in any::<bool>()) {
+        let mut rng = Rng::new(seed);
+        let vehicle = random_vehicle(&mut rng, TreeOptions { bodies, free_base, passive: false, chain: false });
+        if let Err(e) = check_vehicle(&vehicle, &mut rng) {
+            prop_assert!(false, "{e}\n{vehicle:#?}");
+        }
+    }
+
+    #[test]
+    fn random_trees_with_gravity_springs_and_dampers(seed in any::<u64>(), bodies in 1usize..9, free_base in any::<bool>()) {
+        let mut rng = Rng::new(seed);
+        let vehicle = random_vehicle(&mut rng, TreeOptions { bodies, free_base, passive: true, chain: false });
+        if let Err(e) = check_vehicle(&vehicle, &mut rng) {
+            prop_assert!(false, "{e}\n{vehicle:#?}");
+        }
+    }
+}
+
+#[test]
+fn chain_of_200_bodies_on_a_free_base() {
+    let mut rng = Rng::new(200);
+    let vehicle = random_vehicle(&mut rng, TreeOptions { bodies: 201, free_base: true, passive: false, chain: true });
+    check_vehicle(&vehicle, &mut rng).unwrap();
+}
+
+#[test]
+fn tree_of_220_bodies_with_passive_forces() {
+    let mut rng = Rng::new(220);
+    let vehicle = random_vehicle(&mut rng, TreeOptions { bodies: 220, free_base: true, passive: true, chain: false });
+    check_vehicle(&vehicle, &mut rng).unwrap();
+}
