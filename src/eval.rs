@@ -1,0 +1,92 @@
+//! `nudyn eval`: one evaluation of the diagonalized dynamics per JSON
+//! request. The field names are a contract with users' scripts.
+
+use serde::{Deserialize, Serialize};
+
+use crate::dynamics::DynamicsError;
+use crate::model::Model;
+use crate::workspace::Workspace;
+
+/// One state to evaluate.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EvalRequest {
+    /// Configuration θ (nq, MuJoCo's qpos).
+    pub theta: Vec<f64>,
+    /// ν (nv); give this or `qvel`.
+    pub nu: Option<Vec<f64>>,
+    /// θ̇ (nv, MuJoCo's qvel); give this or `nu`.
+    pub qvel: Option<Vec<f64>>,
+    /// Applied ε (nv); default 0.
+    pub eps: Option<Vec<f64>>,
+    /// Physical joint torques and forces (nv, MuJoCo's qfrc_applied); default 0.
+    pub torque: Option<Vec<f64>>,
+}
+
+/// The dynamics at one state.
+#[derive(Clone, Debug, Serialize)]
+pub struct EvalResponse {
+    /// θ with quaternions normalized.
+    pub theta: Vec<f64>,
+    /// θ̇ = ℓ*ν (MuJoCo's qvel).
+    pub qvel: Vec<f64>,
+    /// ν = m*θ̇.
+    pub nu: Vec<f64>,
+    /// ν̇ = ε − C(θ,ν) + eps_passive.
+    pub nu_dot: Vec<f64>,
+    /// C(θ,ν): the velocity-product terms.
+    pub coriolis: Vec<f64>,
+    /// Total applied ε: the request's `eps` plus ℓ·torque.
+    pub eps: Vec<f64>,
+    /// ε of springs, dampers and gravity.
+    pub eps_passive: Vec<f64>,
+    /// K = ½|ν|².
+    pub kinetic_energy: f64,
+    /// Power of the applied ε, ν·ε.
+    pub power: f64,
+    /// Spatial momentum of the vehicle: angular (about the world origin) then linear, world frame.
+    pub momentum: [f64; 6],
+}
+
+/// Why a request could not be evaluated.
+#[derive(Debug, thiserror::Error)]
+pub enum EvalError {
+    /// The request gives both or neither of `nu` and `qvel`.
+    #[error("give exactly one of \"nu\" and \"qvel\"")]
+    Velocity,
+    /// The state is not valid for the model.
+    #[error(transparent)]
+    Dynamics(#[from] DynamicsError),
+}
+
+/// Evaluates one request.
+pub fn evaluate(model: &Model, ws: &mut Workspace, request: &EvalRequest) -> Result<EvalResponse, EvalError> {
+    let zeros = vec![0.0; model.nv];
+    ws.set_configuration(model, &request.theta)?;
+    match (&request.nu, &request.qvel) {
+        (Some(nu), None) => ws.set_nu(model, nu)?,
+        (None, Some(qvel)) => ws.set_qvel(model, qvel)?,
+        _ => return Err(EvalError::Velocity),
+    }
+    let mut eps = request.eps.clone().unwrap_or_else(|| zeros.clone());
+    crate::dynamics::check_input("eps", &eps, model.nv)?;
+    if let Some(torque) = &request.torque {
+        let mut eps_torque = zeros.clone();
+        ws.eps_from_forces(model, torque, None, &mut eps_torque)?;
+        eps.iter_mut().zip(&eps_torque).for_each(|(e, t)| *e += t);
+    }
+    ws.compute_nu_dot(model, &eps)?;
+    let momentum = ws.momentum(model)?;
+    Ok(EvalResponse {
+        theta: ws.theta.as_slice().to_vec(),
+        qvel: ws.qvel.as_slice().to_vec(),
+        nu: ws.nu.as_slice().to_vec(),
+        nu_dot: ws.nu_dot.as_slice().to_vec(),
+        coriolis: ws.coriolis.as_slice().to_vec(),
+        power: ws.power(&eps),
+        eps,
+        eps_passive: ws.eps_passive.as_slice().to_vec(),
+        kinetic_energy: ws.kinetic_energy(),
+        momentum: std::array::from_fn(|k| momentum[k]),
+    })
+}

@@ -1,0 +1,95 @@
+//! Bad states and out-of-order calls give typed errors, never NaN.
+
+mod common;
+
+use common::{Rng, TreeOptions, random_theta, random_vehicle};
+use nudyn::dynamics::DynamicsError;
+use nudyn::model::{Model, ModelError};
+use nudyn::vehicle::JointKind;
+use nudyn::workspace::Stage;
+
+fn free_vehicle() -> (nudyn::vehicle::Vehicle, Model) {
+    let mut rng = Rng::new(7);
+    let vehicle = random_vehicle(&mut rng, TreeOptions { bodies: 4, free_base: true, passive: false, chain: true });
+    let model = Model::compile(&vehicle).unwrap();
+    (vehicle, model)
+}
+
+#[test]
+fn wrong_lengths_and_non_finite_entries_are_rejected() {
+    let (_, model) = free_vehicle();
+    let mut ws = model.workspace();
+    let short = vec![0.0; model.nq - 1];
+    assert_eq!(
+        ws.set_configuration(&model, &short),
+        Err(DynamicsError::Length { what: "theta", expected: model.nq, found: model.nq - 1 })
+    );
+    let mut theta = model.qpos0.clone();
+    theta[2] = f64::NAN;
+    assert!(matches!(ws.set_configuration(&model, &theta), Err(DynamicsError::NonFinite { what: "theta", index: 2, .. })));
+    ws.set_configuration(&model, &model.qpos0).unwrap();
+    let mut nu = vec![0.0; model.nv];
+    nu[1] = f64::INFINITY;
+    assert!(matches!(ws.set_nu(&model, &nu), Err(DynamicsError::NonFinite { what: "nu", index: 1, .. })));
+}
+
+#[test]
+fn zero_quaternion_names_the_joint() {
+    let (vehicle, model) = free_vehicle();
+    let mut ws = model.workspace();
+    let mut theta = model.qpos0.clone();
+    theta[3..7].copy_from_slice(&[0.0; 4]);
+    let err = ws.set_configuration(&model, &theta).unwrap_err();
+    assert_eq!(err, DynamicsError::ZeroQuaternion { joint: vehicle.bodies[0].joints[0].name.clone(), qpos_adr: 3 });
+    assert!(err.to_string().contains("theta[3..7]"), "{err}");
+}
+
+#[test]
+fn unnormalized_quaternions_are_normalized_like_mujoco() {
+    let (vehicle, model) = free_vehicle();
+    let mut rng = Rng::new(3);
+    let theta = random_theta(&mut rng, &vehicle);
+    let mut scaled = theta.clone();
+    scaled[3..7].iter_mut().for_each(|q| *q *= 3.0);
+    let mut ws = model.workspace();
+    ws.set_configuration(&model, &scaled).unwrap();
+    let normalized = ws.theta.clone();
+    assert!(common::rel_err(normalized.as_slice(), &theta) < 1e-15);
+}
+
+#[test]
+fn calls_out_of_order_are_rejected() {
+    let (_, model) = free_vehicle();
+    let mut ws = model.workspace();
+    let zeros = vec![0.0; model.nv];
+    assert_eq!(ws.set_nu(&model, &zeros), Err(DynamicsError::OutOfOrder { call: "set_nu", needed: Stage::Configuration }));
+    ws.set_configuration(&model, &model.qpos0).unwrap();
+    assert_eq!(
+        ws.compute_nu_dot(&model, &zeros),
+        Err(DynamicsError::OutOfOrder { call: "compute_nu_dot", needed: Stage::Velocity })
+    );
+    // An input rejected on entry leaves the workspace as it was.
+    ws.set_nu(&model, &zeros).unwrap();
+    let mut bad = model.qpos0.clone();
+    bad[0] = f64::NAN;
+    assert!(ws.set_configuration(&model, &bad).is_err());
+    assert_eq!(ws.stage, Stage::Velocity);
+    // A failure inside the passes invalidates what was computed before it.
+    let mut zero_quat = model.qpos0.clone();
+    zero_quat[3..7].copy_from_slice(&[0.0; 4]);
+    assert!(ws.set_configuration(&model, &zero_quat).is_err());
+    assert!(ws.compute_nu_dot(&model, &zeros).is_err());
+}
+
+#[test]
+fn a_joint_that_moves_nothing_is_rejected_at_compile_time() {
+    let (mut vehicle, _) = free_vehicle();
+    // A massless tip body on a hinge with no armature: its joint sees zero inertia.
+    let tip = vehicle.bodies.len() - 1;
+    let mut hinge = common::joint(&mut Rng::new(1), "massless".into(), JointKind::Hinge);
+    hinge.armature = 0.0;
+    vehicle.bodies[tip].inertia = None;
+    vehicle.bodies[tip].joints = vec![hinge];
+    let name = "massless".to_string();
+    assert_eq!(Model::compile(&vehicle), Err(ModelError::Singular { joint: name }));
+}
