@@ -12,5 +12,6 @@
 pub mod math;
 pub mod vehicle;
 pub mod dynamics;
+pub mod eval;
 pub mod model;
 pub mod workspace;
