@@ -72,7 +72,8 @@ class EvalResult:
         try:
             return json.loads(self.stdout, parse_constant=_reject_constant)
         except ValueError as e:
-            pytest.fail(f"nudyn eval printed invalid JSON: {e}\n{self.describe()}", pytrace=False)
+            problem = str(e)
+        pytest.fail(f"nudyn eval printed invalid JSON: {problem}\n{self.describe()}", pytrace=False)
 
 
 def run_eval(binary: Path, model: Path, stdin: str, timeout: float = 300) -> EvalResult:
