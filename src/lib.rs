@@ -13,5 +13,6 @@ pub mod math;
 pub mod vehicle;
 pub mod dynamics;
 pub mod eval;
+pub mod integrate;
 pub mod model;
 pub mod workspace;
