@@ -10,6 +10,7 @@
 #![warn(missing_docs)]
 
 pub mod math;
+pub mod mjcf;
 pub mod vehicle;
 pub mod dynamics;
 pub mod eval;

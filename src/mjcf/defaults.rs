@@ -1,0 +1,380 @@
+//! `<default>` classes and the joint and geom settings they carry.
+//!
+//! As in MuJoCo, a class starts as a copy of its parent class, its `<joint>`
+//! and `<geom>` children overwrite the attributes they give, and an element
+//! starts as a copy of its class and overwrites the attributes it gives.
+
+use std::collections::HashMap;
+
+use super::MjcfWarning;
+use super::element::Element;
+use super::error::MjcfError;
+use super::orientation::Orientation;
+use crate::vehicle::JointKind;
+
+/// Attributes of `<joint>` in a body (MuJoCo 4.0 schema).
+pub(crate) const JOINT_ATTRIBUTES: &[&str] = &[
+    "name", "class", "type", "group", "pos", "axis", "springdamper", "limited", "actuatorfrclimited",
+    "solreflimit", "solimplimit", "solreffriction", "solimpfriction", "stiffness", "range",
+    "actuatorfrcrange", "actuatorgravcomp", "margin", "ref", "springref", "armature", "damping",
+    "frictionloss", "user", "springyield",
+];
+
+/// Attributes of `<geom>` in a body (MuJoCo 4.0 schema).
+pub(crate) const GEOM_ATTRIBUTES: &[&str] = &[
+    "name", "class", "type", "contype", "conaffinity", "condim", "group", "priority", "size",
+    "material", "friction", "mass", "density", "shellinertia", "solmix", "solref", "solimp",
+    "margin", "gap", "surfacevel", "adhesion", "fromto", "pos", "quat", "axisangle", "xyaxes",
+    "zaxis", "euler", "hfield", "mesh", "fitscale", "rgba", "fluidshape", "fluidcoef", "user",
+    "castshadow",
+];
+
+/// `<joint>` and `<geom>` inside `<default>` take everything but these.
+const NOT_IN_DEFAULTS: [&str; 2] = ["name", "class"];
+
+/// Children of `<default>` that configure elements without effect on the
+/// dynamics.
+const IGNORED_DEFAULTS: &[&str] = &[
+    "site", "camera", "light", "mesh", "material", "texture", "pair", "equality", "tendon", "general",
+    "motor", "position", "velocity", "intvelocity", "orientation", "pid", "damper", "cylinder",
+    "muscle", "adhesion", "dcmotor",
+];
+
+/// Whether a joint or tendon has limits (`limited`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Limited {
+    /// `limited="false"`.
+    No,
+    /// `limited="true"`.
+    Yes,
+    /// `limited="auto"`: limited when `range` is given and `autolimits` is on.
+    Auto,
+}
+
+/// A joint's attributes, as a class or an element sets them.
+#[derive(Clone, Debug)]
+pub(crate) struct JointSettings {
+    /// `type`.
+    pub kind: JointKind,
+    /// `pos`.
+    pub pos: [f64; 3],
+    /// `axis`, not normalized.
+    pub axis: [f64; 3],
+    /// `ref`, in the compiler's angle unit for hinges.
+    pub reference: f64,
+    /// `springref`, like `ref`.
+    pub springref: f64,
+    /// `stiffness`: the linear coefficient, then MuJoCo's nonlinear ones.
+    pub stiffness: [f64; 3],
+    /// `damping`, like `stiffness`.
+    pub damping: [f64; 3],
+    /// `armature`.
+    pub armature: f64,
+    /// `frictionloss`.
+    pub frictionloss: f64,
+    /// `springdamper` (time constant, damping ratio).
+    pub springdamper: [f64; 2],
+    /// `springyield`.
+    pub springyield: f64,
+    /// `limited`.
+    pub limited: Limited,
+    /// `range`.
+    pub range: [f64; 2],
+}
+
+impl Default for JointSettings {
+    /// MuJoCo's built-in joint defaults.
+    fn default() -> Self {
+        Self {
+            kind: JointKind::Hinge,
+            pos: [0.0; 3],
+            axis: [0.0, 0.0, 1.0],
+            reference: 0.0,
+            springref: 0.0,
+            stiffness: [0.0; 3],
+            damping: [0.0; 3],
+            armature: 0.0,
+            frictionloss: 0.0,
+            springdamper: [0.0; 2],
+            springyield: 0.0,
+            limited: Limited::Auto,
+            range: [0.0; 2],
+        }
+    }
+}
+
+impl JointSettings {
+    /// Overwrites the settings the element gives.
+    pub fn apply(&mut self, element: &Element) -> Result<(), MjcfError> {
+        let kinds = [
+            ("hinge", JointKind::Hinge),
+            ("slide", JointKind::Slide),
+            ("ball", JointKind::Ball),
+            ("free", JointKind::Free),
+        ];
+        if let Some(kind) = element.keyword("type", &kinds)? {
+            self.kind = kind;
+        }
+        if let Some(pos) = element.numbers("pos")? {
+            self.pos = pos;
+        }
+        if let Some(axis) = element.numbers("axis")? {
+            self.axis = axis;
+        }
+        if let Some(reference) = element.number("ref")? {
+            self.reference = reference;
+        }
+        if let Some(springref) = element.number("springref")? {
+            self.springref = springref;
+        }
+        element.overwrite_numbers("stiffness", &mut self.stiffness)?;
+        element.overwrite_numbers("damping", &mut self.damping)?;
+        for (attribute, coefficients) in [("stiffness", &self.stiffness), ("damping", &self.damping)] {
+            if element.has(attribute) && coefficients[0] < 0.0 {
+                return Err(element.bad_value(attribute, "a non-negative first coefficient"));
+            }
+        }
+        if let Some(armature) = element.non_negative("armature")? {
+            self.armature = armature;
+        }
+        if let Some(frictionloss) = element.non_negative("frictionloss")? {
+            self.frictionloss = frictionloss;
+        }
+        if let Some(springdamper) = element.numbers("springdamper")? {
+            self.springdamper = springdamper;
+        }
+        if let Some(springyield) = element.number("springyield")? {
+            self.springyield = springyield;
+        }
+        let limited = [("false", Limited::No), ("true", Limited::Yes), ("auto", Limited::Auto)];
+        if let Some(limited) = element.keyword("limited", &limited)? {
+            self.limited = limited;
+        }
+        if let Some(range) = element.numbers("range")? {
+            self.range = range;
+        }
+        Ok(())
+    }
+}
+
+/// MuJoCo's geom types.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum GeomKind {
+    /// `plane`.
+    Plane,
+    /// `hfield` (height field asset).
+    Hfield,
+    /// `sphere`, MuJoCo's default.
+    Sphere,
+    /// `capsule`.
+    Capsule,
+    /// `ellipsoid`.
+    Ellipsoid,
+    /// `cylinder`.
+    Cylinder,
+    /// `box`.
+    Box,
+    /// `mesh` (mesh asset).
+    Mesh,
+    /// `sdf` (signed distance field plugin).
+    Sdf,
+}
+
+/// A geom's attributes, as a class or an element sets them.
+#[derive(Clone, Debug)]
+pub(crate) struct GeomSettings {
+    /// `type`.
+    pub kind: GeomKind,
+    /// `size` (its meaning depends on `type`).
+    pub size: [f64; 3],
+    /// `pos`.
+    pub pos: [f64; 3],
+    /// `quat` or one of its alternatives.
+    pub orientation: Orientation,
+    /// `fromto`.
+    pub fromto: Option<[f64; 6]>,
+    /// `mass`, which overrides `density` when given.
+    pub mass: Option<f64>,
+    /// `density`.
+    pub density: f64,
+    /// `shellinertia`.
+    pub shell_inertia: bool,
+    /// `group`.
+    pub group: i32,
+    /// `mesh`: the mesh asset the geom is or is fitted to.
+    pub mesh: bool,
+}
+
+impl Default for GeomSettings {
+    /// MuJoCo's built-in geom defaults.
+    fn default() -> Self {
+        Self {
+            kind: GeomKind::Sphere,
+            size: [0.0; 3],
+            pos: [0.0; 3],
+            orientation: Orientation::default(),
+            fromto: None,
+            mass: None,
+            density: 1000.0,
+            shell_inertia: false,
+            group: 0,
+            mesh: false,
+        }
+    }
+}
+
+impl GeomSettings {
+    /// Overwrites the settings the element gives.
+    pub fn apply(&mut self, element: &Element) -> Result<(), MjcfError> {
+        let kinds = [
+            ("plane", GeomKind::Plane),
+            ("hfield", GeomKind::Hfield),
+            ("sphere", GeomKind::Sphere),
+            ("capsule", GeomKind::Capsule),
+            ("ellipsoid", GeomKind::Ellipsoid),
+            ("cylinder", GeomKind::Cylinder),
+            ("box", GeomKind::Box),
+            ("mesh", GeomKind::Mesh),
+            ("sdf", GeomKind::Sdf),
+        ];
+        if let Some(kind) = element.keyword("type", &kinds)? {
+            self.kind = kind;
+        }
+        element.overwrite_numbers("size", &mut self.size)?;
+        if let Some(pos) = element.numbers("pos")? {
+            self.pos = pos;
+        }
+        // An orientation written on the element replaces the class's, whichever form each uses.
+        if let Some(orientation) = Orientation::read(element)? {
+            self.orientation = orientation;
+        }
+        if let Some(fromto) = element.numbers("fromto")? {
+            self.fromto = Some(fromto);
+        }
+        if let Some(mass) = element.non_negative("mass")? {
+            self.mass = Some(mass);
+        }
+        if let Some(density) = element.non_negative("density")? {
+            self.density = density;
+        }
+        if let Some(shell_inertia) = element.boolean("shellinertia")? {
+            self.shell_inertia = shell_inertia;
+        }
+        if let Some([group]) = element.integers("group")? {
+            self.group = group;
+        }
+        if element.has("mesh") {
+            self.mesh = true;
+        }
+        Ok(())
+    }
+}
+
+/// One `<default>` class.
+#[derive(Clone, Debug)]
+pub(crate) struct DefaultClass {
+    /// Settings a `<joint>` of this class starts from.
+    pub joint: JointSettings,
+    /// Settings a `<geom>` of this class starts from.
+    pub geom: GeomSettings,
+}
+
+/// All default classes; index 0 is "main".
+pub(crate) struct Defaults {
+    classes: Vec<DefaultClass>,
+    /// Class name → (index, line of its `<default>`).
+    by_name: HashMap<String, (usize, u32)>,
+}
+
+/// The top-level class.
+pub(crate) const MAIN: usize = 0;
+
+impl Defaults {
+    /// Only the "main" class, with MuJoCo's built-in settings.
+    pub fn new() -> Self {
+        let main = DefaultClass { joint: JointSettings::default(), geom: GeomSettings::default() };
+        Self { classes: vec![main], by_name: HashMap::from([("main".to_string(), (MAIN, 0))]) }
+    }
+
+    /// The class with this index.
+    pub fn class(&self, index: usize) -> &DefaultClass {
+        &self.classes[index]
+    }
+
+    /// The index of the class named by the element's attribute (`class` or
+    /// `childclass`), if it has that attribute.
+    pub fn lookup(&self, element: &Element, attribute: &str) -> Result<Option<usize>, MjcfError> {
+        match element.text(attribute) {
+            None => Ok(None),
+            Some(name) => match self.by_name.get(name) {
+                Some(&(index, _)) => Ok(Some(index)),
+                None => Err(element.unknown_class(name)),
+            },
+        }
+    }
+
+    /// Reads a `<default>` element: a top-level one (`parent` is `None`)
+    /// adds to "main", a nested one defines a new class.
+    pub fn read(
+        &mut self,
+        element: &Element,
+        parent: Option<usize>,
+        warnings: &mut Vec<MjcfWarning>,
+    ) -> Result<(), MjcfError> {
+        element.check_attributes(&["class"])?;
+        let index = match parent {
+            None => {
+                if element.text("class").is_some_and(|name| name != "main") {
+                    return Err(element.invalid("the top-level default class is \"main\" and cannot be renamed"));
+                }
+                MAIN
+            }
+            Some(parent) => {
+                let name = element.text("class").ok_or_else(|| element.missing("class"))?;
+                if let Some(&(_, first_line)) = self.by_name.get(name) {
+                    return Err(MjcfError::DuplicateName {
+                        line: element.line,
+                        element: element.label(),
+                        kind: "default class",
+                        name: name.to_string(),
+                        first_line,
+                    });
+                }
+                self.classes.push(self.classes[parent].clone());
+                let index = self.classes.len() - 1;
+                self.by_name.insert(name.to_string(), (index, element.line));
+                index
+            }
+        };
+
+        let mut joint_seen: Option<Element> = None;
+        let mut geom_seen: Option<Element> = None;
+        for child in element.children() {
+            match child.tag() {
+                "joint" | "geom" => {
+                    let (seen, allowed) = if child.tag() == "joint" {
+                        (&mut joint_seen, JOINT_ATTRIBUTES)
+                    } else {
+                        (&mut geom_seen, GEOM_ATTRIBUTES)
+                    };
+                    if let Some(first) = seen {
+                        return Err(child.repeated(first));
+                    }
+                    *seen = Some(child);
+                    let allowed: Vec<&str> = allowed.iter().copied().filter(|a| !NOT_IN_DEFAULTS.contains(a)).collect();
+                    child.check_attributes(&allowed)?;
+                    let class = &mut self.classes[index];
+                    if child.tag() == "joint" {
+                        class.joint.apply(&child)?;
+                    } else {
+                        class.geom.apply(&child)?;
+                    }
+                }
+                "default" => self.read(&child, Some(index), warnings)?,
+                tag if IGNORED_DEFAULTS.contains(&tag) => warnings.push(child.ignored()),
+                _ => return Err(child.unknown()),
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,62 @@
+//! MJCF importer: reads a MuJoCo XML file into a [`Vehicle`], resolving
+//! defaults, orientations, angle units and geom-derived mass properties
+//! exactly as MuJoCo 4.0's compiler does.
+//!
+//! Elements without effect on the dynamics (cameras, lights, sites,
+//! actuators, sensors, visual settings…) are ignored with a warning each;
+//! elements that would change the dynamics in ways nudyn does not model
+//! (tendons, equality constraints, flexible bodies, fluid forces, friction
+//! loss…) are rejected with an [`MjcfError`] naming the element and its line.
+
+mod defaults;
+mod element;
+mod error;
+mod inertia;
+mod orientation;
+mod reader;
+
+use std::fmt;
+use std::path::Path;
+
+pub use error::MjcfError;
+
+use crate::vehicle::Vehicle;
+
+/// The result of a successful import.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Imported {
+    /// The vehicle the file describes.
+    pub vehicle: Vehicle,
+    /// What the importer ignored, in document order.
+    pub warnings: Vec<MjcfWarning>,
+}
+
+/// Something in the file that the importer ignored.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MjcfWarning {
+    /// 1-based line of the element.
+    pub line: u32,
+    /// The element: its tag, with its `name` attribute when it has one
+    /// (e.g. `camera name="top"`).
+    pub element: String,
+    /// What was ignored and why.
+    pub message: String,
+}
+
+impl fmt::Display for MjcfWarning {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "line {}: <{}>: {}", self.line, self.element, self.message)
+    }
+}
+
+/// Reads an MJCF document.
+pub fn parse_mjcf(xml: &str) -> Result<Imported, MjcfError> {
+    reader::read(xml)
+}
+
+/// Reads an MJCF file.
+pub fn load_mjcf(path: &Path) -> Result<Imported, MjcfError> {
+    let xml = std::fs::read_to_string(path)
+        .map_err(|source| MjcfError::Io { path: path.to_path_buf(), source })?;
+    parse_mjcf(&xml)
+}

@@ -1,0 +1,818 @@
+//! Walks an MJCF document and builds the [`Vehicle`].
+
+use std::collections::HashMap;
+
+use roxmltree::Document;
+
+use super::defaults::{Defaults, GEOM_ATTRIBUTES, GeomKind, GeomSettings, JOINT_ATTRIBUTES, JointSettings, Limited, MAIN};
+use super::element::Element;
+use super::error::MjcfError;
+use super::inertia::{self, BodyInertia, EPS, GeomMass};
+use super::orientation::{AngleConvention, ORIENTATION_ATTRIBUTES, Orientation, normalized, z_to_quaternion};
+use super::{Imported, MjcfWarning};
+use crate::math::{Mat3, Quat, Vec3};
+use crate::vehicle::{Body, Joint, JointKind, MassProperties, Vehicle};
+
+/// MuJoCo's `mjMINVAL`: the least mass and principal moment of a moving body.
+const MIN_VALUE: f64 = 1e-15;
+
+/// Attributes of `<body>`.
+const BODY_ATTRIBUTES: &[&str] = &[
+    "name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler", "mocap", "gravcomp",
+    "user", "sleep", "simple", "fuse",
+];
+
+/// Attributes of `<inertial>`.
+const INERTIAL_ATTRIBUTES: &[&str] =
+    &["pos", "mass", "diaginertia", "fullinertia", "quat", "axisangle", "xyaxes", "zaxis", "euler"];
+
+/// Attributes of `<compiler>`.
+const COMPILER_ATTRIBUTES: &[&str] = &[
+    "alignfree", "angle", "assetdir", "autolimits", "balanceinertia", "boundinertia", "boundmass",
+    "conflict", "coordinate", "discardvisual", "eulerseq", "fitaabb", "fusestatic", "inertiafromgeom",
+    "inertiagrouprange", "meshdir", "passthrough", "savecanonical", "savecompiled", "saveinertial",
+    "settotalmass", "strippath", "texturedir", "usethread",
+];
+
+/// Attributes of `<option>`.
+const OPTION_ATTRIBUTES: &[&str] = &[
+    "actuatorgroupdisable", "ccd_iterations", "ccd_tolerance", "cone", "density", "gravity", "impratio",
+    "integrator", "iterations", "jacobian", "ls_iterations", "ls_tolerance", "magnetic",
+    "noslip_iterations", "noslip_tolerance", "o_friction", "o_margin", "o_solimp", "o_solref",
+    "sdf_initpoints", "sdf_iterations", "sleep_tolerance", "solver", "timestep", "tolerance",
+    "viscosity", "wind",
+];
+
+/// Attributes of `<flag>`; all take "enable" or "disable".
+const FLAG_ATTRIBUTES: &[&str] = &[
+    "actuation", "autoreset", "clampctrl", "constraint", "contact", "damper", "diagexact", "energy",
+    "equality", "eulerdamp", "filterparent", "frictionloss", "fwdinv", "gravity", "invdiscrete", "ipc",
+    "island", "limit", "midphase", "multiccd", "nativeccd", "override", "refsafe", "sensor", "sleep",
+    "speculative", "spring", "warmstart",
+];
+
+/// Top-level sections without effect on the dynamics.
+const IGNORED_SECTIONS: &[&str] =
+    &["size", "statistic", "visual", "asset", "contact", "actuator", "sensor", "keyframe", "custom", "extension"];
+
+/// Where `<compiler inertiafromgeom>` takes a body's mass properties from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum InertiaFromGeom {
+    /// Always from `<inertial>` (massless without one).
+    Never,
+    /// Always from the geoms, overriding `<inertial>`.
+    Always,
+    /// From the geoms when the body has no `<inertial>`.
+    Auto,
+}
+
+/// `<compiler>` settings that matter here.
+struct Compiler {
+    angles: AngleConvention,
+    inertia_from_geom: InertiaFromGeom,
+    inertia_groups: [i32; 2],
+    bound_mass: f64,
+    bound_inertia: f64,
+    balance_inertia: bool,
+    autolimits: bool,
+    align_free: bool,
+    /// `settotalmass` when positive, with the warning it earns.
+    total_mass: Option<(f64, MjcfWarning)>,
+}
+
+/// `<option>` settings that matter here.
+struct Physics {
+    gravity: Vec3,
+    gravity_disabled: bool,
+    spring_disabled: bool,
+    damper_disabled: bool,
+}
+
+/// What the checks after the whole tree is read need to know of a body.
+struct BodyRecord {
+    line: u32,
+    label: String,
+    inertia: BodyInertia,
+    has_joints: bool,
+    children: Vec<usize>,
+}
+
+/// `align` of a free joint.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Align {
+    No,
+    Yes,
+    Auto,
+}
+
+/// A joint element with its resolved settings.
+struct JointElement<'a, 'input> {
+    element: Element<'a, 'input>,
+    settings: JointSettings,
+    align: Align,
+}
+
+struct Reader {
+    compiler: Compiler,
+    physics: Physics,
+    defaults: Defaults,
+    warnings: Vec<MjcfWarning>,
+    bodies: Vec<Body>,
+    records: Vec<BodyRecord>,
+    body_names: HashMap<String, u32>,
+    joint_names: HashMap<String, u32>,
+}
+
+/// Reads an MJCF document.
+pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
+    let document = Document::parse(xml).map_err(|e| MjcfError::Xml {
+        line: e.pos().row,
+        column: e.pos().col,
+        message: e.to_string(),
+    })?;
+    let root = Element::new(document.root_element());
+    if root.tag() != "mujoco" {
+        return Err(MjcfError::WrongRoot { line: root.line, element: root.label() });
+    }
+    root.check_attributes(&["model"])?;
+
+    let mut reader = Reader::new();
+    // MuJoCo applies these wherever they appear, even after <worldbody>.
+    for section in root.children() {
+        match section.tag() {
+            "compiler" => reader.read_compiler(&section)?,
+            "option" => reader.read_option(&section)?,
+            "default" => reader.defaults.read(&section, None, &mut reader.warnings)?,
+            _ => {}
+        }
+    }
+
+    let mut has_worldbody = false;
+    for section in root.children() {
+        match section.tag() {
+            "compiler" | "option" | "default" => {}
+            "worldbody" => {
+                has_worldbody = true;
+                reader.read_worldbody(&section)?;
+            }
+            tag if IGNORED_SECTIONS.contains(&tag) => reader.warnings.push(section.ignored()),
+            "tendon" | "equality" => match section.children().next() {
+                Some(first) => {
+                    return Err(first.unsupported(format!(
+                        "<{}> elements add forces or constraints that nudyn does not model",
+                        section.tag()
+                    )));
+                }
+                None => reader.warnings.push(section.ignored()),
+            },
+            "deformable" => reader.read_deformable(&section)?,
+            "include" => return Err(section.unsupported("<include> is not supported; merge the included file")),
+            _ => return Err(section.unknown()),
+        }
+    }
+    if !has_worldbody {
+        return Err(MjcfError::MissingWorldbody { line: root.line, element: root.label() });
+    }
+
+    let name = root.text("model").unwrap_or("vehicle").to_string();
+    reader.finish(name)
+}
+
+impl Reader {
+    fn new() -> Self {
+        Self {
+            compiler: Compiler {
+                angles: AngleConvention { degrees: true, euler_seq: *b"xyz" },
+                inertia_from_geom: InertiaFromGeom::Auto,
+                inertia_groups: [0, 5],
+                bound_mass: 0.0,
+                bound_inertia: 0.0,
+                balance_inertia: false,
+                autolimits: true,
+                align_free: false,
+                total_mass: None,
+            },
+            physics: Physics {
+                gravity: Vec3::new(0.0, 0.0, -9.81),
+                gravity_disabled: false,
+                spring_disabled: false,
+                damper_disabled: false,
+            },
+            defaults: Defaults::new(),
+            warnings: Vec::new(),
+            bodies: Vec::new(),
+            records: Vec::new(),
+            body_names: HashMap::new(),
+            joint_names: HashMap::new(),
+        }
+    }
+
+    fn read_compiler(&mut self, element: &Element) -> Result<(), MjcfError> {
+        element.check_attributes(COMPILER_ATTRIBUTES)?;
+        let compiler = &mut self.compiler;
+        match element.text("coordinate") {
+            None | Some("local") => {}
+            Some("global") => {
+                return Err(element.unsupported("coordinate=\"global\" (removed from MuJoCo in version 2.3.3)"));
+            }
+            Some(_) => return Err(element.bad_value("coordinate", "\"local\"")),
+        }
+        if let Some(degrees) = element.keyword("angle", &[("degree", true), ("radian", false)])? {
+            compiler.angles.degrees = degrees;
+        }
+        if let Some(sequence) = element.text("eulerseq") {
+            compiler.angles.euler_seq = sequence
+                .as_bytes()
+                .try_into()
+                .ok()
+                .filter(|s: &[u8; 3]| s.iter().all(|c| b"xyzXYZ".contains(c)))
+                .ok_or_else(|| element.bad_value("eulerseq", "3 letters from x, y, z, X, Y, Z"))?;
+        }
+        let sources = [
+            ("false", InertiaFromGeom::Never),
+            ("true", InertiaFromGeom::Always),
+            ("auto", InertiaFromGeom::Auto),
+        ];
+        if let Some(source) = element.keyword("inertiafromgeom", &sources)? {
+            compiler.inertia_from_geom = source;
+        }
+        if let Some(groups) = element.integers("inertiagrouprange")? {
+            compiler.inertia_groups = groups;
+        }
+        if let Some(bound) = element.non_negative("boundmass")? {
+            compiler.bound_mass = bound;
+        }
+        if let Some(bound) = element.non_negative("boundinertia")? {
+            compiler.bound_inertia = bound;
+        }
+        if let Some(balance) = element.boolean("balanceinertia")? {
+            compiler.balance_inertia = balance;
+        }
+        if let Some(autolimits) = element.boolean("autolimits")? {
+            compiler.autolimits = autolimits;
+        }
+        if let Some(align) = element.boolean("alignfree")? {
+            compiler.align_free = align;
+        }
+        if let Some(total) = element.number("settotalmass")? {
+            let warning = element.warning(format!(
+                "settotalmass is deprecated in MuJoCo; all masses and inertias are scaled so the total mass is {total}"
+            ));
+            compiler.total_mass = (total > 0.0).then_some((total, warning));
+        }
+        for child in element.children() {
+            match child.tag() {
+                "lengthrange" => self.warnings.push(child.ignored()),
+                _ => return Err(child.unknown()),
+            }
+        }
+        Ok(())
+    }
+
+    fn read_option(&mut self, element: &Element) -> Result<(), MjcfError> {
+        element.check_attributes(OPTION_ATTRIBUTES)?;
+        if let Some(gravity) = element.numbers::<3>("gravity")? {
+            self.physics.gravity = Vec3::from(gravity);
+        }
+        if element.numbers::<3>("wind")?.is_some_and(|w| w != [0.0; 3]) {
+            return Err(element.unsupported("wind acts through fluid forces, which nudyn does not model"));
+        }
+        for medium in ["density", "viscosity"] {
+            if element.number(medium)?.is_some_and(|x| x != 0.0) {
+                return Err(element.unsupported(format!(
+                    "a nonzero medium {medium} adds fluid forces, which nudyn does not model"
+                )));
+            }
+        }
+        let mut flag_seen: Option<Element> = None;
+        for child in element.children() {
+            if child.tag() != "flag" {
+                return Err(child.unknown());
+            }
+            if let Some(first) = &flag_seen {
+                return Err(child.repeated(first));
+            }
+            flag_seen = Some(child);
+            child.check_attributes(FLAG_ATTRIBUTES)?;
+            let mut disabled = HashMap::new();
+            for &flag in FLAG_ATTRIBUTES {
+                if let Some(off) = child.keyword(flag, &[("enable", false), ("disable", true)])? {
+                    disabled.insert(flag, off);
+                }
+            }
+            if disabled.get("sleep") == Some(&false) {
+                return Err(child.unsupported("sleeping bodies (flag sleep=\"enable\") freeze the dynamics"));
+            }
+            let physics = &mut self.physics;
+            for (flag, target) in [
+                ("gravity", &mut physics.gravity_disabled),
+                ("spring", &mut physics.spring_disabled),
+                ("damper", &mut physics.damper_disabled),
+            ] {
+                if let Some(&off) = disabled.get(flag) {
+                    *target = off;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn read_deformable(&mut self, section: &Element) -> Result<(), MjcfError> {
+        if section.children().next().is_none() {
+            self.warnings.push(section.ignored());
+        }
+        for child in section.children() {
+            match child.tag() {
+                "skin" => self.warnings.push(child.ignored()),
+                "flex" => return Err(child.unsupported("flexible bodies are not modelled")),
+                _ => return Err(child.unknown()),
+            }
+        }
+        Ok(())
+    }
+
+    fn read_worldbody(&mut self, section: &Element) -> Result<(), MjcfError> {
+        // MuJoCo: "World body cannot have attributes".
+        section.check_attributes(&[])?;
+        for child in section.children() {
+            match child.tag() {
+                "body" => self.read_body(&child, None, MAIN, false)?,
+                "geom" | "site" | "camera" | "light" => self.warnings.push(child.ignored()),
+                "joint" | "freejoint" => return Err(child.invalid("the world body cannot have joints")),
+                "inertial" => return Err(child.invalid("the world body cannot have an <inertial>")),
+                _ => return Err(unsupported_child(&child)),
+            }
+        }
+        Ok(())
+    }
+
+    /// Reads a body and, after it, its descendants. `inherited_class` is the
+    /// nearest ancestor's `childclass`; `parent_moving` whether a joint lies
+    /// between the parent and the world.
+    fn read_body(
+        &mut self,
+        element: &Element,
+        parent: Option<usize>,
+        inherited_class: usize,
+        parent_moving: bool,
+    ) -> Result<(), MjcfError> {
+        element.check_attributes(BODY_ATTRIBUTES)?;
+        if element.boolean("mocap")? == Some(true) {
+            return Err(element.unsupported("mocap bodies are moved by the user, not by the dynamics"));
+        }
+        if element.number("gravcomp")?.is_some_and(|g| g != 0.0) {
+            return Err(element.unsupported("gravity compensation (gravcomp) is not modelled"));
+        }
+        let class = self.defaults.lookup(element, "childclass")?.unwrap_or(inherited_class);
+        let pos = Vec3::from(element.numbers::<3>("pos")?.unwrap_or_default());
+        let quat = self.resolve(element, &Orientation::read(element)?.unwrap_or_default())?;
+        let index = self.bodies.len();
+        let name = element.text("name").map_or_else(|| format!("body{index}"), str::to_string);
+        claim_name(&mut self.body_names, "body", &name, element)?;
+
+        let mut inertial: Option<(Element, BodyInertia)> = None;
+        let mut joints = Vec::new();
+        let mut geoms = Vec::new();
+        let mut child_bodies = Vec::new();
+        for child in element.children() {
+            match child.tag() {
+                "inertial" => {
+                    if let Some((first, _)) = &inertial {
+                        return Err(child.repeated(first));
+                    }
+                    inertial = Some((child, self.read_inertial(&child)?));
+                }
+                "joint" => {
+                    child.check_attributes(JOINT_ATTRIBUTES)?;
+                    no_children(&child)?;
+                    let mut settings = self.defaults.class(self.class_of(&child, class)?).joint.clone();
+                    settings.apply(&child)?;
+                    joints.push(JointElement { element: child, settings, align: Align::Auto });
+                }
+                "freejoint" => {
+                    // MuJoCo's <freejoint> takes no defaults.
+                    child.check_attributes(&["name", "group", "align"])?;
+                    no_children(&child)?;
+                    let aligns = [("false", Align::No), ("true", Align::Yes), ("auto", Align::Auto)];
+                    let align = child.keyword("align", &aligns)?.unwrap_or(Align::Auto);
+                    let settings = JointSettings { kind: JointKind::Free, ..JointSettings::default() };
+                    joints.push(JointElement { element: child, settings, align });
+                }
+                "geom" => {
+                    child.check_attributes(GEOM_ATTRIBUTES)?;
+                    if let Some(grandchild) = child.children().next() {
+                        return Err(unsupported_child(&grandchild));
+                    }
+                    let mut settings = self.defaults.class(self.class_of(&child, class)?).geom.clone();
+                    settings.apply(&child)?;
+                    geoms.push((child, settings));
+                }
+                "site" | "camera" | "light" => self.warnings.push(child.ignored()),
+                "body" => child_bodies.push(child),
+                _ => return Err(unsupported_child(&child)),
+            }
+        }
+
+        let moving = parent_moving || !joints.is_empty();
+        let has_joints = !joints.is_empty();
+        let joints = self.build_joints(&name, parent, joints, !child_bodies.is_empty())?;
+
+        let explicit = inertial.map(|(_, inertia)| inertia);
+        let from_geoms = match self.compiler.inertia_from_geom {
+            InertiaFromGeom::Never => false,
+            InertiaFromGeom::Always => true,
+            InertiaFromGeom::Auto => explicit.is_none(),
+        };
+        let mut selected = Vec::new();
+        for (geom, settings) in &geoms {
+            let [low, high] = self.compiler.inertia_groups;
+            let contributes = from_geoms && (low..=high).contains(&settings.group);
+            if let Some(mass) = self.geom_mass(geom, settings, moving, contributes)? {
+                selected.push(mass);
+            }
+        }
+        let inertia = match explicit {
+            _ if !selected.is_empty() => BodyInertia::from_geoms(&selected).map_err(|r| element.invalid(r))?,
+            Some(explicit) => explicit,
+            // MuJoCo puts the inertial frame of a body without mass at the body's
+            // own pose in its parent; it matters once boundmass gives it mass.
+            None => BodyInertia::from_principal(0.0, pos, &quat, Vec3::zeros()),
+        };
+        let inertia = self.bound(element, inertia)?;
+
+        self.bodies.push(Body { name, parent, pos, quat, inertia: None, joints, line: element.line });
+        self.records.push(BodyRecord {
+            line: element.line,
+            label: element.label(),
+            inertia,
+            has_joints,
+            children: Vec::new(),
+        });
+        if let Some(parent) = parent {
+            self.records[parent].children.push(index);
+        }
+        for child in &child_bodies {
+            self.read_body(child, Some(index), class, moving)?;
+        }
+        Ok(())
+    }
+
+    /// The class of a joint or geom: its `class`, else its body's class.
+    fn class_of(&self, element: &Element, body_class: usize) -> Result<usize, MjcfError> {
+        Ok(self.defaults.lookup(element, "class")?.unwrap_or(body_class))
+    }
+
+    fn resolve(&self, element: &Element, orientation: &Orientation) -> Result<Quat, MjcfError> {
+        orientation.resolve(&self.compiler.angles).map_err(|reason| element.invalid(reason))
+    }
+
+    fn read_inertial(&self, element: &Element) -> Result<BodyInertia, MjcfError> {
+        element.check_attributes(INERTIAL_ATTRIBUTES)?;
+        no_children(element)?;
+        let com = Vec3::from(element.numbers::<3>("pos")?.ok_or_else(|| element.missing("pos"))?);
+        let mass = element.non_negative("mass")?.ok_or_else(|| element.missing("mass"))?;
+        let orientation = Orientation::read(element)?;
+        let Some([xx, yy, zz, xy, xz, yz]) = element.numbers::<6>("fullinertia")? else {
+            let principal = element.non_negative_numbers::<3>("diaginertia")?.unwrap_or_default();
+            let quat = self.resolve(element, &orientation.unwrap_or_default())?;
+            return Ok(BodyInertia::from_principal(mass, com, &quat, Vec3::from(principal)));
+        };
+        if let Some(attribute) = ORIENTATION_ATTRIBUTES.iter().find(|a| element.has(a)) {
+            return Err(element.conflict("fullinertia", attribute));
+        }
+        if element.has("diaginertia") {
+            return Err(element.conflict("fullinertia", "diaginertia"));
+        }
+        let tensor = Mat3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz);
+        BodyInertia::from_tensor(mass, com, tensor).map_err(|r| element.invalid(format!("fullinertia: {r}")))
+    }
+
+    /// Applies `boundmass`, `boundinertia` and MuJoCo's triangle inequality.
+    fn bound(&self, element: &Element, mut inertia: BodyInertia) -> Result<BodyInertia, MjcfError> {
+        let compiler = &self.compiler;
+        inertia.mass = inertia.mass.max(compiler.bound_mass);
+        let bounded = inertia.principal.map(|p| p.max(compiler.bound_inertia));
+        if bounded != inertia.principal {
+            inertia.set_principal(bounded);
+        }
+        let p = inertia.principal;
+        if p.x + p.y < p.z || p.x + p.z < p.y || p.y + p.z < p.x {
+            if !compiler.balance_inertia {
+                return Err(element.invalid(format!(
+                    "principal moments of inertia {} {} {} violate A + B >= C; \
+                     fix them or set <compiler balanceinertia=\"true\">",
+                    p.x, p.y, p.z
+                )));
+            }
+            inertia.set_principal(Vec3::repeat(p.sum() / 3.0));
+        }
+        Ok(inertia)
+    }
+
+    /// The geom's mass, frame and principal moments when it contributes to its
+    /// body's inertia; checks it as MuJoCo does either way.
+    fn geom_mass(
+        &self,
+        element: &Element,
+        settings: &GeomSettings,
+        moving: bool,
+        contributes: bool,
+    ) -> Result<Option<GeomMass>, MjcfError> {
+        if settings.kind == GeomKind::Plane && moving {
+            return Err(element.invalid("a plane geom is only allowed in a body that cannot move"));
+        }
+        let mut size = settings.size;
+        let (pos, quat) = match settings.fromto {
+            Some(fromto) => {
+                if !matches!(
+                    settings.kind,
+                    GeomKind::Capsule | GeomKind::Cylinder | GeomKind::Ellipsoid | GeomKind::Box
+                ) {
+                    return Err(element.invalid("'fromto' requires a capsule, cylinder, ellipsoid or box geom"));
+                }
+                if settings.pos != [0.0; 3] {
+                    return Err(element.conflict("pos", "fromto"));
+                }
+                let from = Vec3::new(fromto[0], fromto[1], fromto[2]);
+                let to = Vec3::new(fromto[3], fromto[4], fromto[5]);
+                // MuJoCo's z axis points from 'to' towards 'from'.
+                let direction = normalized(from - to).ok_or_else(|| element.invalid("the 'fromto' points coincide"))?;
+                let half_length = (from - to).norm() / 2.0;
+                if half_length < EPS {
+                    return Err(element.invalid("the 'fromto' points coincide"));
+                }
+                if matches!(settings.kind, GeomKind::Ellipsoid | GeomKind::Box) {
+                    size = [size[0], size[0], half_length];
+                } else {
+                    size[1] = half_length;
+                }
+                ((from + to) / 2.0, Quat::new_normalize(z_to_quaternion(&direction)))
+            }
+            None => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
+        };
+        // A geom fitted to a mesh gets its size from the mesh.
+        if !settings.mesh {
+            check_size(element, settings.kind, &size)?;
+        }
+        if !contributes {
+            return Ok(None);
+        }
+        if matches!(settings.kind, GeomKind::Mesh | GeomKind::Sdf | GeomKind::Hfield) || settings.mesh {
+            return Err(element.unsupported(
+                "the mass properties of mesh, sdf and height-field geoms are not computed; \
+                 give the body an <inertial>, or put the geom in a group outside inertiagrouprange",
+            ));
+        }
+        if settings.shell_inertia {
+            return Err(element.unsupported("shell inertia (shellinertia=\"true\")"));
+        }
+        let volume = inertia::volume(settings.kind, &size);
+        let mass = match settings.mass {
+            Some(mass) if volume > EPS => mass,
+            // MuJoCo ignores a given mass when the volume is zero.
+            Some(_) => 0.0,
+            None => settings.density * volume,
+        };
+        let principal = inertia::principal_moments(settings.kind, &size, mass);
+        Ok(Some(GeomMass { mass, pos, quat, principal }))
+    }
+
+    /// Checks a body's joints and turns them into [`Joint`]s.
+    fn build_joints(
+        &mut self,
+        body_name: &str,
+        parent: Option<usize>,
+        elements: Vec<JointElement>,
+        has_child_bodies: bool,
+    ) -> Result<Vec<Joint>, MjcfError> {
+        let count = elements.len();
+        let mut joints = Vec::with_capacity(count);
+        let mut after_ball = false;
+        let mut dofs = 0;
+        for (k, JointElement { element, settings: s, align }) in elements.into_iter().enumerate() {
+            let origin = |attribute: &str| {
+                if element.has(attribute) { "" } else { " (from its default class)" }
+            };
+            if s.frictionloss != 0.0 {
+                return Err(element.unsupported(format!(
+                    "frictionloss={}{}: friction loss is a constraint force, which nudyn does not model",
+                    s.frictionloss,
+                    origin("frictionloss")
+                )));
+            }
+            if s.springdamper != [0.0; 2] {
+                return Err(element.unsupported(format!(
+                    "springdamper{}: it derives stiffness and damping from the compiled mass matrix; \
+                     give 'stiffness' and 'damping' instead",
+                    origin("springdamper")
+                )));
+            }
+            if s.springyield != 0.0 {
+                return Err(element.unsupported(format!("springyield{}: yielding springs", origin("springyield"))));
+            }
+            for (attribute, coefficients) in [("stiffness", &s.stiffness), ("damping", &s.damping)] {
+                if coefficients[1..] != [0.0; 2] {
+                    return Err(element.unsupported(format!(
+                        "nonlinear {attribute}{} (more than one coefficient)",
+                        origin(attribute)
+                    )));
+                }
+            }
+
+            let rotational = matches!(s.kind, JointKind::Hinge | JointKind::Ball);
+            if rotational && after_ball {
+                return Err(element.unsupported(
+                    "a hinge or ball joint after a ball joint in the same body (MuJoCo allows no rotation after a ball joint)",
+                ));
+            }
+            after_ball |= s.kind == JointKind::Ball;
+            dofs += s.kind.nv();
+            if dofs > 6 {
+                return Err(element.invalid("more than 6 degrees of freedom in one body"));
+            }
+
+            if s.kind == JointKind::Free {
+                if count > 1 {
+                    return Err(element.invalid("a free joint must be the only joint of its body"));
+                }
+                if parent.is_some() {
+                    return Err(element.invalid("a free joint must belong to a body directly inside <worldbody>"));
+                }
+                if !has_child_bodies && (align == Align::Yes || (align == Align::Auto && self.compiler.align_free)) {
+                    return Err(element.unsupported(
+                        "aligning the body frame with its inertial frame (freejoint align, compiler alignfree)",
+                    ));
+                }
+            } else {
+                self.check_limits(&element, &s)?;
+            }
+
+            let axis = match s.kind {
+                JointKind::Hinge | JointKind::Slide => normalized(Vec3::from(s.axis))
+                    .ok_or_else(|| element.bad_value("axis", "a vector that is not zero"))?,
+                JointKind::Ball | JointKind::Free => Vec3::z(),
+            };
+            let (reference, springref) = match s.kind {
+                JointKind::Hinge => {
+                    let angles = &self.compiler.angles;
+                    (angles.radians(s.reference), angles.radians(s.springref))
+                }
+                JointKind::Slide => (s.reference, s.springref),
+                JointKind::Ball | JointKind::Free => (0.0, 0.0),
+            };
+            let name = element.text("name").map_or_else(|| format!("{body_name}_joint{k}"), str::to_string);
+            claim_name(&mut self.joint_names, "joint", &name, &element)?;
+            joints.push(Joint {
+                name,
+                kind: s.kind,
+                pos: if s.kind == JointKind::Free { Vec3::zeros() } else { Vec3::from(s.pos) },
+                axis,
+                reference,
+                springref,
+                stiffness: if self.physics.spring_disabled { 0.0 } else { s.stiffness[0] },
+                damping: if self.physics.damper_disabled { 0.0 } else { s.damping[0] },
+                armature: s.armature,
+                line: element.line,
+            });
+        }
+        Ok(joints)
+    }
+
+    /// MuJoCo's checks of joint limits; limits themselves are only warned about.
+    fn check_limits(&mut self, element: &Element, settings: &JointSettings) -> Result<(), MjcfError> {
+        let [low, high] = settings.range;
+        if settings.limited == Limited::Auto && settings.range != [0.0; 2] && !self.compiler.autolimits {
+            return Err(element.invalid(
+                "'range' without 'limited' while <compiler autolimits=\"false\">; give 'limited' or remove 'range'",
+            ));
+        }
+        let limited = settings.limited == Limited::Yes || (settings.limited == Limited::Auto && low < high);
+        if !limited {
+            return Ok(());
+        }
+        if settings.kind == JointKind::Ball {
+            if low != 0.0 {
+                return Err(element.invalid("the first 'range' value of a ball joint must be 0"));
+            }
+        } else if low >= high {
+            return Err(element.invalid("the first 'range' value must be smaller than the second"));
+        }
+        self.warnings.push(element.warning("joint limits are not modelled (range ignored)"));
+        Ok(())
+    }
+
+    /// The checks that need the whole tree, `settotalmass`, and the vehicle.
+    fn finish(mut self, name: String) -> Result<Imported, MjcfError> {
+        let valid = |r: &BodyRecord| r.inertia.mass >= MIN_VALUE && r.inertia.principal.min() >= MIN_VALUE;
+        for record in self.records.iter().filter(|r| r.has_joints && !valid(r)) {
+            // MuJoCo accepts it when a body welded below it carries the mass.
+            let mut welded: Vec<usize> = record.children.clone();
+            let mut carried = false;
+            while let Some(index) = welded.pop() {
+                let child = &self.records[index];
+                if child.has_joints {
+                    continue;
+                }
+                carried |= valid(child);
+                welded.extend(&child.children);
+            }
+            if !carried {
+                return Err(MjcfError::Invalid {
+                    line: record.line,
+                    element: record.label.clone(),
+                    reason: format!(
+                        "a moving body needs mass and principal moments of inertia of at least {MIN_VALUE} \
+                         (MuJoCo's mjMINVAL), or a body welded to it that has them"
+                    ),
+                });
+            }
+        }
+
+        if let Some((total, warning)) = self.compiler.total_mass.take() {
+            let sum: f64 = self.records.iter().map(|r| r.inertia.mass).sum();
+            if sum < MIN_VALUE {
+                return Err(MjcfError::Invalid {
+                    line: warning.line,
+                    element: warning.element,
+                    reason: "settotalmass cannot scale a model without mass".to_string(),
+                });
+            }
+            for record in &mut self.records {
+                record.inertia.scale(total / sum);
+            }
+            self.warnings.push(warning);
+        }
+
+        for (body, record) in self.bodies.iter_mut().zip(&self.records) {
+            let inertia = &record.inertia;
+            let massless = inertia.mass == 0.0 && inertia.tensor == Mat3::zeros();
+            body.inertia = (!massless).then_some(MassProperties {
+                mass: inertia.mass,
+                com: inertia.com,
+                inertia: inertia.tensor,
+            });
+        }
+        self.warnings.sort_by_key(|w| w.line);
+        let gravity = if self.physics.gravity_disabled { Vec3::zeros() } else { self.physics.gravity };
+        Ok(Imported { vehicle: Vehicle { name, gravity, bodies: self.bodies }, warnings: self.warnings })
+    }
+}
+
+/// MuJoCo's size check: the sizes a primitive uses must be positive.
+fn check_size(element: &Element, kind: GeomKind, size: &[f64; 3]) -> Result<(), MjcfError> {
+    let (used, name) = match kind {
+        GeomKind::Sphere => (0..1, "sphere"),
+        GeomKind::Capsule => (0..2, "capsule"),
+        GeomKind::Cylinder => (0..2, "cylinder"),
+        GeomKind::Ellipsoid => (0..3, "ellipsoid"),
+        GeomKind::Box => (0..3, "box"),
+        GeomKind::Plane => (2..3, "plane"),
+        GeomKind::Hfield | GeomKind::Mesh | GeomKind::Sdf => return Ok(()),
+    };
+    match used.into_iter().find(|&i| size[i] <= 0.0) {
+        Some(i) => Err(element.invalid(format!("size[{i}] of a {name} geom must be positive, found {}", size[i]))),
+        None => Ok(()),
+    }
+}
+
+/// Registers a body or joint name, rejecting a repetition.
+fn claim_name(
+    names: &mut HashMap<String, u32>,
+    kind: &'static str,
+    name: &str,
+    element: &Element,
+) -> Result<(), MjcfError> {
+    if let Some(&first_line) = names.get(name) {
+        return Err(MjcfError::DuplicateName {
+            line: element.line,
+            element: element.label(),
+            kind,
+            name: name.to_string(),
+            first_line,
+        });
+    }
+    names.insert(name.to_string(), element.line);
+    Ok(())
+}
+
+/// Rejects child elements of an element that takes none.
+fn no_children(element: &Element) -> Result<(), MjcfError> {
+    match element.children().next() {
+        Some(child) => Err(child.unknown()),
+        None => Ok(()),
+    }
+}
+
+/// The error for a child element of a body that nudyn does not read.
+fn unsupported_child(element: &Element) -> MjcfError {
+    let reason = match element.tag() {
+        "frame" => "<frame> is not supported; write its pose into the elements it contains",
+        "replicate" => "<replicate> is not supported; write the copies out",
+        "attach" => "<attach> is not supported (it loads another model)",
+        "include" => "<include> is not supported; merge the included file",
+        "composite" | "flexcomp" => "composite and flexible objects change the dynamics and are not modelled",
+        "plugin" => "plugins add forces nudyn does not model",
+        _ => return element.unknown(),
+    };
+    element.unsupported(reason)
+}
