@@ -2,7 +2,7 @@
 //!
 //! [`to_xml`] writes a [`FmiModelDescription`] as a document that validates
 //! against the official FMI 2.0 XML schema, [`from_xml`] reads one back, and
-//! [`validate`] checks the semantic rules of the standard that the schema
+//! [`validate()`] checks the semantic rules of the standard that the schema
 //! cannot express (unique names, the `<ModelStructure>` lists, legal
 //! causality/variability/initial combinations, references to types and
 //! units).
@@ -13,11 +13,11 @@
 #![warn(missing_docs)]
 
 mod model;
-mod validate;
+mod validation;
 mod xsd;
 
 pub use model::*;
-pub use validate::{BaseType, Problem, StructureList, validate};
+pub use validation::{BaseType, Problem, StructureList, validate};
 
 use serde::Serialize;
 
@@ -38,7 +38,7 @@ const XML_DECLARATION: &str = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
 /// Writes `model` as a complete, indented `modelDescription.xml` document,
 /// starting with the XML declaration.
 ///
-/// This does not call [`validate`]: a model that breaks the standard's
+/// This does not call [`validate()`]: a model that breaks the standard's
 /// semantic rules is written as it is.
 pub fn to_xml(model: &FmiModelDescription) -> Result<String, Error> {
     let mut document = String::from(XML_DECLARATION);

@@ -476,7 +476,7 @@ pub struct ScalarVariable {
     #[serde(rename = "@variability", default)]
     pub variability: Variability,
     /// `initial`; when absent its value follows from causality and
-    /// variability (see [`crate::validate`]).
+    /// variability (see [`crate::validate()`]).
     #[serde(rename = "@initial", default, skip_serializing_if = "Option::is_none")]
     pub initial: Option<Initial>,
     /// `canHandleMultipleSetPerTimeInstant`: meaningful for Model Exchange

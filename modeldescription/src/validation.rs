@@ -3,6 +3,7 @@
 //! FMPy or the FMI compliance checker enforces.
 
 use std::cmp::Ordering;
+use std::collections::hash_map::Entry;
 use std::collections::{HashMap, HashSet};
 use std::fmt;
 
@@ -55,7 +56,7 @@ impl fmt::Display for BaseType {
     }
 }
 
-/// One violation of an FMI 2.0 rule, found by [`validate`]. The message
+/// One violation of an FMI 2.0 rule, found by [`validate()`]. The message
 /// names the section of the standard that states the rule.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum Problem {
@@ -535,8 +536,8 @@ fn check_default_experiment(model: &FmiModelDescription, problems: &mut Vec<Prob
     }
 }
 
-/// The `initial` values allowed for a causality/variability pair: cases (A)
-/// to (E) of the second table of §2.2.7.
+/// The `initial` values allowed for a causality/variability pair: the cases
+/// (A) to (E) of the §2.2.7 table of `initial` values.
 #[derive(Debug, Clone, Copy)]
 enum InitialRule {
     /// (A): exact only.
@@ -550,7 +551,7 @@ enum InitialRule {
 }
 
 impl InitialRule {
-    /// §2.2.7 first table (causality × variability): `None` for the
+    /// The §2.2.7 table of causality × variability: `None` for the
     /// combinations it forbids, e.g. constant input or discrete parameter.
     fn of(causality: Causality, variability: Variability) -> Option<Self> {
         use Causality as C;
@@ -666,16 +667,17 @@ fn check_variables(model: &FmiModelDescription, problems: &mut Vec<Problem>) {
 
     for variable in variables {
         let name = &variable.name;
-        let key = (base_type(&variable.kind), variable.value_reference);
-        if let Some(first) = value_references.insert(key, name) {
-            // Keep reporting against the first holder of the reference.
-            value_references.insert(key, first);
-            problems.push(Problem::SharedValueReference {
-                base_type: key.0,
-                value_reference: key.1,
-                first: first.to_owned(),
+        let base_type = base_type(&variable.kind);
+        match value_references.entry((base_type, variable.value_reference)) {
+            Entry::Occupied(first) => problems.push(Problem::SharedValueReference {
+                base_type,
+                value_reference: variable.value_reference,
+                first: (*first.get()).to_owned(),
                 second: name.clone(),
-            });
+            }),
+            Entry::Vacant(slot) => {
+                slot.insert(name);
+            }
         }
 
         if variable.causality == Causality::Independent {
