@@ -13,6 +13,7 @@ use super::orientation::Orientation;
 use crate::vehicle::JointKind;
 
 /// Attributes of `<joint>` in a body (MuJoCo 4.0 schema).
+#[rustfmt::skip]
 pub(crate) const JOINT_ATTRIBUTES: &[&str] = &[
     "name", "class", "type", "group", "pos", "axis", "springdamper", "limited", "actuatorfrclimited",
     "solreflimit", "solimplimit", "solreffriction", "solimpfriction", "stiffness", "range",
@@ -21,6 +22,7 @@ pub(crate) const JOINT_ATTRIBUTES: &[&str] = &[
 ];
 
 /// Attributes of `<geom>` in a body (MuJoCo 4.0 schema).
+#[rustfmt::skip]
 pub(crate) const GEOM_ATTRIBUTES: &[&str] = &[
     "name", "class", "type", "contype", "conaffinity", "condim", "group", "priority", "size",
     "material", "friction", "mass", "density", "shellinertia", "solmix", "solref", "solimp",
@@ -34,6 +36,7 @@ const NOT_IN_DEFAULTS: [&str; 2] = ["name", "class"];
 
 /// Children of `<default>` that configure elements without effect on the
 /// dynamics.
+#[rustfmt::skip]
 const IGNORED_DEFAULTS: &[&str] = &[
     "site", "camera", "light", "mesh", "material", "texture", "pair", "equality", "tendon", "general",
     "motor", "position", "velocity", "intvelocity", "orientation", "pid", "damper", "cylinder",
@@ -129,7 +132,9 @@ impl JointSettings {
         }
         element.overwrite_numbers("stiffness", &mut self.stiffness)?;
         element.overwrite_numbers("damping", &mut self.damping)?;
-        for (attribute, coefficients) in [("stiffness", &self.stiffness), ("damping", &self.damping)] {
+        for (attribute, coefficients) in
+            [("stiffness", &self.stiffness), ("damping", &self.damping)]
+        {
             if element.has(attribute) && coefficients[0] < 0.0 {
                 return Err(element.bad_value(attribute, "a non-negative first coefficient"));
             }
@@ -146,7 +151,11 @@ impl JointSettings {
         if let Some(springyield) = element.number("springyield")? {
             self.springyield = springyield;
         }
-        let limited = [("false", Limited::No), ("true", Limited::Yes), ("auto", Limited::Auto)];
+        let limited = [
+            ("false", Limited::No),
+            ("true", Limited::Yes),
+            ("auto", Limited::Auto),
+        ];
         if let Some(limited) = element.keyword("limited", &limited)? {
             self.limited = limited;
         }
@@ -201,8 +210,11 @@ pub(crate) struct GeomSettings {
     pub shell_inertia: bool,
     /// `group`.
     pub group: i32,
-    /// `mesh`: the mesh asset the geom is or is fitted to.
+    /// Whether `mesh` names a mesh asset (the geom's shape, or the shape a
+    /// primitive is fitted to).
     pub mesh: bool,
+    /// Whether `hfield` names a height-field asset.
+    pub hfield: bool,
 }
 
 impl Default for GeomSettings {
@@ -219,6 +231,7 @@ impl Default for GeomSettings {
             shell_inertia: false,
             group: 0,
             mesh: false,
+            hfield: false,
         }
     }
 }
@@ -263,9 +276,8 @@ impl GeomSettings {
         if let Some([group]) = element.integers("group")? {
             self.group = group;
         }
-        if element.has("mesh") {
-            self.mesh = true;
-        }
+        self.mesh |= element.has("mesh");
+        self.hfield |= element.has("hfield");
         Ok(())
     }
 }
@@ -292,8 +304,14 @@ pub(crate) const MAIN: usize = 0;
 impl Defaults {
     /// Only the "main" class, with MuJoCo's built-in settings.
     pub fn new() -> Self {
-        let main = DefaultClass { joint: JointSettings::default(), geom: GeomSettings::default() };
-        Self { classes: vec![main], by_name: HashMap::from([("main".to_string(), (MAIN, 0))]) }
+        let main = DefaultClass {
+            joint: JointSettings::default(),
+            geom: GeomSettings::default(),
+        };
+        Self {
+            classes: vec![main],
+            by_name: HashMap::from([("main".to_string(), (MAIN, 0))]),
+        }
     }
 
     /// The class with this index.
@@ -325,12 +343,20 @@ impl Defaults {
         let index = match parent {
             None => {
                 if element.text("class").is_some_and(|name| name != "main") {
-                    return Err(element.invalid("the top-level default class is \"main\" and cannot be renamed"));
+                    return Err(element
+                        .invalid("the top-level default class is \"main\" and cannot be renamed"));
                 }
                 MAIN
             }
             Some(parent) => {
-                let name = element.text("class").ok_or_else(|| element.missing("class"))?;
+                let name = element
+                    .text("class")
+                    .ok_or_else(|| element.missing("class"))?;
+                if name == "main" {
+                    return Err(
+                        element.invalid("\"main\" is the name of the top-level default class")
+                    );
+                }
                 if let Some(&(_, first_line)) = self.by_name.get(name) {
                     return Err(MjcfError::DuplicateName {
                         line: element.line,
@@ -361,7 +387,11 @@ impl Defaults {
                         return Err(child.repeated(first));
                     }
                     *seen = Some(child);
-                    let allowed: Vec<&str> = allowed.iter().copied().filter(|a| !NOT_IN_DEFAULTS.contains(a)).collect();
+                    let allowed: Vec<&str> = allowed
+                        .iter()
+                        .copied()
+                        .filter(|a| !NOT_IN_DEFAULTS.contains(a))
+                        .collect();
                     child.check_attributes(&allowed)?;
                     let class = &mut self.classes[index];
                     if child.tag() == "joint" {

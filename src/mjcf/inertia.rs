@@ -49,12 +49,16 @@ pub(crate) fn principal_moments(kind: GeomKind, size: &[f64; 3], mass: f64) -> V
             let transverse = mass * (3.0 * radius * radius + height * height) / 12.0;
             Vec3::new(transverse, transverse, mass * radius * radius / 2.0)
         }
-        GeomKind::Ellipsoid => {
-            Vec3::new(mass * (b * b + c * c) / 5.0, mass * (a * a + c * c) / 5.0, mass * (a * a + b * b) / 5.0)
-        }
-        GeomKind::Box => {
-            Vec3::new(mass * (b * b + c * c) / 3.0, mass * (a * a + c * c) / 3.0, mass * (a * a + b * b) / 3.0)
-        }
+        GeomKind::Ellipsoid => Vec3::new(
+            mass * (b * b + c * c) / 5.0,
+            mass * (a * a + c * c) / 5.0,
+            mass * (a * a + b * b) / 5.0,
+        ),
+        GeomKind::Box => Vec3::new(
+            mass * (b * b + c * c) / 3.0,
+            mass * (a * a + c * c) / 3.0,
+            mass * (a * a + b * b) / 3.0,
+        ),
         GeomKind::Plane | GeomKind::Hfield | GeomKind::Mesh | GeomKind::Sdf => Vec3::zeros(),
     }
 }
@@ -94,7 +98,13 @@ impl BodyInertia {
     pub fn from_principal(mass: f64, com: Vec3, quat: &Quat, principal: Vec3) -> Self {
         let axes = quat.to_rotation_matrix().into_inner();
         let tensor = axes * Mat3::from_diagonal(&principal) * axes.transpose();
-        Self { mass, com, principal, axes, tensor }
+        Self {
+            mass,
+            com,
+            principal,
+            axes,
+            tensor,
+        }
     }
 
     /// From a full tensor; MuJoCo requires its eigenvalues to be at least mjEPS.
@@ -103,14 +113,25 @@ impl BodyInertia {
         if eigen.eigenvalues.min() < EPS {
             return Err("inertia must have positive eigenvalues");
         }
-        Ok(Self { mass, com, principal: eigen.eigenvalues, axes: eigen.eigenvectors, tensor })
+        Ok(Self {
+            mass,
+            com,
+            principal: eigen.eigenvalues,
+            axes: eigen.eigenvectors,
+            tensor,
+        })
     }
 
     /// Sums several geoms: total mass, their common centre of mass, and the
     /// parallel-axis sum of their inertias about it.
     pub fn from_geoms(geoms: &[GeomMass]) -> Result<Self, &'static str> {
         if let [geom] = geoms {
-            return Ok(Self::from_principal(geom.mass, geom.pos, &geom.quat, geom.principal));
+            return Ok(Self::from_principal(
+                geom.mass,
+                geom.pos,
+                &geom.quat,
+                geom.principal,
+            ));
         }
         let mass: f64 = geoms.iter().map(|g| g.mass).sum();
         if mass < EPS {

@@ -11,7 +11,8 @@ use crate::math::{Quat, Vec3};
 const EPS: f64 = 1e-14;
 
 /// The attributes that give an orientation; an element may use one of them.
-pub(crate) const ORIENTATION_ATTRIBUTES: [&str; 5] = ["quat", "axisangle", "xyaxes", "zaxis", "euler"];
+pub(crate) const ORIENTATION_ATTRIBUTES: [&str; 5] =
+    ["quat", "axisangle", "xyaxes", "zaxis", "euler"];
 
 /// How `<compiler>` says angles are written.
 #[derive(Clone, Copy, Debug)]
@@ -25,7 +26,11 @@ pub(crate) struct AngleConvention {
 impl AngleConvention {
     /// An angle in radians.
     pub fn radians(&self, angle: f64) -> f64 {
-        if self.degrees { angle / 180.0 * std::f64::consts::PI } else { angle }
+        if self.degrees {
+            angle / 180.0 * std::f64::consts::PI
+        } else {
+            angle
+        }
     }
 }
 
@@ -80,17 +85,20 @@ impl Orientation {
         let q = match *self {
             Orientation::Quat([w, x, y, z]) => Quaternion::new(w, x, y, z),
             Orientation::AxisAngle([x, y, z, angle]) => {
-                let axis = normalized(Vec3::new(x, y, z)).ok_or("the axis of 'axisangle' is too small")?;
+                let axis =
+                    normalized(Vec3::new(x, y, z)).ok_or("the axis of 'axisangle' is too small")?;
                 let half = angles.radians(angle) / 2.0;
                 Quaternion::from_parts(half.cos(), axis * half.sin())
             }
             Orientation::XyAxes([x0, x1, x2, y0, y1, y2]) => {
                 // Gram-Schmidt: y loses its component along x, z = x × y.
-                let x = normalized(Vec3::new(x0, x1, x2)).ok_or("the x axis of 'xyaxes' is too small")?;
+                let x = normalized(Vec3::new(x0, x1, x2))
+                    .ok_or("the x axis of 'xyaxes' is too small")?;
                 let y = Vec3::new(y0, y1, y2);
                 let y = normalized(y - x * x.dot(&y))
                     .ok_or("the y axis of 'xyaxes' is too small or parallel to the x axis")?;
-                let z = normalized(x.cross(&y)).ok_or("the axes of 'xyaxes' do not span a plane")?;
+                let z =
+                    normalized(x.cross(&y)).ok_or("the axes of 'xyaxes' do not span a plane")?;
                 frame_to_quaternion(&x, &y, &z)
             }
             Orientation::ZAxis([x, y, z]) => {
@@ -108,7 +116,11 @@ impl Orientation {
                     };
                     let rotation = Quaternion::from_parts(half.cos(), unit * half.sin());
                     // Rotating axes compose on the right, fixed axes on the left.
-                    q = if axis.is_ascii_lowercase() { q * rotation } else { rotation * q };
+                    q = if axis.is_ascii_lowercase() {
+                        q * rotation
+                    } else {
+                        rotation * q
+                    };
                 }
                 q
             }
@@ -142,15 +154,35 @@ fn frame_to_quaternion(x: &Vec3, y: &Vec3, z: &Vec3) -> Quaternion<f64> {
     let trace = m[0][0] + m[1][1] + m[2][2];
     if trace > 0.0 {
         let w = 0.5 * (1.0 + trace).sqrt();
-        Quaternion::new(w, 0.25 * (m[1][2] - m[2][1]) / w, 0.25 * (m[2][0] - m[0][2]) / w, 0.25 * (m[0][1] - m[1][0]) / w)
+        Quaternion::new(
+            w,
+            0.25 * (m[1][2] - m[2][1]) / w,
+            0.25 * (m[2][0] - m[0][2]) / w,
+            0.25 * (m[0][1] - m[1][0]) / w,
+        )
     } else if m[0][0] > m[1][1] && m[0][0] > m[2][2] {
         let qx = 0.5 * (1.0 + m[0][0] - m[1][1] - m[2][2]).sqrt();
-        Quaternion::new(0.25 * (m[1][2] - m[2][1]) / qx, qx, 0.25 * (m[1][0] + m[0][1]) / qx, 0.25 * (m[2][0] + m[0][2]) / qx)
+        Quaternion::new(
+            0.25 * (m[1][2] - m[2][1]) / qx,
+            qx,
+            0.25 * (m[1][0] + m[0][1]) / qx,
+            0.25 * (m[2][0] + m[0][2]) / qx,
+        )
     } else if m[1][1] > m[2][2] {
         let qy = 0.5 * (1.0 - m[0][0] + m[1][1] - m[2][2]).sqrt();
-        Quaternion::new(0.25 * (m[2][0] - m[0][2]) / qy, 0.25 * (m[1][0] + m[0][1]) / qy, qy, 0.25 * (m[2][1] + m[1][2]) / qy)
+        Quaternion::new(
+            0.25 * (m[2][0] - m[0][2]) / qy,
+            0.25 * (m[1][0] + m[0][1]) / qy,
+            qy,
+            0.25 * (m[2][1] + m[1][2]) / qy,
+        )
     } else {
         let qz = 0.5 * (1.0 - m[0][0] - m[1][1] + m[2][2]).sqrt();
-        Quaternion::new(0.25 * (m[0][1] - m[1][0]) / qz, 0.25 * (m[2][0] + m[0][2]) / qz, 0.25 * (m[2][1] + m[1][2]) / qz, qz)
+        Quaternion::new(
+            0.25 * (m[0][1] - m[1][0]) / qz,
+            0.25 * (m[2][0] + m[0][2]) / qz,
+            0.25 * (m[2][1] + m[1][2]) / qz,
+            qz,
+        )
     }
 }

@@ -4,11 +4,16 @@ use std::collections::HashMap;
 
 use roxmltree::Document;
 
-use super::defaults::{Defaults, GEOM_ATTRIBUTES, GeomKind, GeomSettings, JOINT_ATTRIBUTES, JointSettings, Limited, MAIN};
+use super::defaults::{
+    Defaults, GEOM_ATTRIBUTES, GeomKind, GeomSettings, JOINT_ATTRIBUTES, JointSettings, Limited,
+    MAIN,
+};
 use super::element::Element;
 use super::error::MjcfError;
 use super::inertia::{self, BodyInertia, EPS, GeomMass};
-use super::orientation::{AngleConvention, ORIENTATION_ATTRIBUTES, Orientation, normalized, z_to_quaternion};
+use super::orientation::{
+    AngleConvention, ORIENTATION_ATTRIBUTES, Orientation, normalized, z_to_quaternion,
+};
 use super::{Imported, MjcfWarning};
 use crate::math::{Mat3, Quat, Vec3};
 use crate::vehicle::{Body, Joint, JointKind, MassProperties, Vehicle};
@@ -17,16 +22,19 @@ use crate::vehicle::{Body, Joint, JointKind, MassProperties, Vehicle};
 const MIN_VALUE: f64 = 1e-15;
 
 /// Attributes of `<body>`.
+#[rustfmt::skip]
 const BODY_ATTRIBUTES: &[&str] = &[
     "name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler", "mocap", "gravcomp",
     "user", "sleep", "simple", "fuse",
 ];
 
 /// Attributes of `<inertial>`.
+#[rustfmt::skip]
 const INERTIAL_ATTRIBUTES: &[&str] =
     &["pos", "mass", "diaginertia", "fullinertia", "quat", "axisangle", "xyaxes", "zaxis", "euler"];
 
 /// Attributes of `<compiler>`.
+#[rustfmt::skip]
 const COMPILER_ATTRIBUTES: &[&str] = &[
     "alignfree", "angle", "assetdir", "autolimits", "balanceinertia", "boundinertia", "boundmass",
     "conflict", "coordinate", "discardvisual", "eulerseq", "fitaabb", "fusestatic", "inertiafromgeom",
@@ -35,6 +43,7 @@ const COMPILER_ATTRIBUTES: &[&str] = &[
 ];
 
 /// Attributes of `<option>`.
+#[rustfmt::skip]
 const OPTION_ATTRIBUTES: &[&str] = &[
     "actuatorgroupdisable", "ccd_iterations", "ccd_tolerance", "cone", "density", "gravity", "impratio",
     "integrator", "iterations", "jacobian", "ls_iterations", "ls_tolerance", "magnetic",
@@ -44,6 +53,7 @@ const OPTION_ATTRIBUTES: &[&str] = &[
 ];
 
 /// Attributes of `<flag>`; all take "enable" or "disable".
+#[rustfmt::skip]
 const FLAG_ATTRIBUTES: &[&str] = &[
     "actuation", "autoreset", "clampctrl", "constraint", "contact", "damper", "diagexact", "energy",
     "equality", "eulerdamp", "filterparent", "frictionloss", "fwdinv", "gravity", "invdiscrete", "ipc",
@@ -52,6 +62,7 @@ const FLAG_ATTRIBUTES: &[&str] = &[
 ];
 
 /// Top-level sections without effect on the dynamics.
+#[rustfmt::skip]
 const IGNORED_SECTIONS: &[&str] =
     &["size", "statistic", "visual", "asset", "contact", "actuator", "sensor", "keyframe", "custom", "extension"];
 
@@ -132,7 +143,10 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
     })?;
     let root = Element::new(document.root_element());
     if root.tag() != "mujoco" {
-        return Err(MjcfError::WrongRoot { line: root.line, element: root.label() });
+        return Err(MjcfError::WrongRoot {
+            line: root.line,
+            element: root.label(),
+        });
     }
     root.check_attributes(&["model"])?;
 
@@ -157,21 +171,24 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
             }
             tag if IGNORED_SECTIONS.contains(&tag) => reader.warnings.push(section.ignored()),
             "tendon" | "equality" => match section.children().next() {
-                Some(first) => {
-                    return Err(first.unsupported(format!(
-                        "<{}> elements add forces or constraints that nudyn does not model",
-                        section.tag()
-                    )));
+                Some(first) if section.tag() == "tendon" => {
+                    return Err(
+                        first.unsupported("tendons (their forces and limits are not modelled)")
+                    );
                 }
+                Some(first) => return Err(first.unsupported("equality constraints")),
                 None => reader.warnings.push(section.ignored()),
             },
             "deformable" => reader.read_deformable(&section)?,
-            "include" => return Err(section.unsupported("<include> is not supported; merge the included file")),
+            "include" => return Err(unsupported_child(&section)),
             _ => return Err(section.unknown()),
         }
     }
     if !has_worldbody {
-        return Err(MjcfError::MissingWorldbody { line: root.line, element: root.label() });
+        return Err(MjcfError::MissingWorldbody {
+            line: root.line,
+            element: root.label(),
+        });
     }
 
     let name = root.text("model").unwrap_or("vehicle").to_string();
@@ -182,7 +199,10 @@ impl Reader {
     fn new() -> Self {
         Self {
             compiler: Compiler {
-                angles: AngleConvention { degrees: true, euler_seq: *b"xyz" },
+                angles: AngleConvention {
+                    degrees: true,
+                    euler_seq: *b"xyz",
+                },
                 inertia_from_geom: InertiaFromGeom::Auto,
                 inertia_groups: [0, 5],
                 bound_mass: 0.0,
@@ -213,7 +233,8 @@ impl Reader {
         match element.text("coordinate") {
             None | Some("local") => {}
             Some("global") => {
-                return Err(element.unsupported("coordinate=\"global\" (removed from MuJoCo in version 2.3.3)"));
+                return Err(element
+                    .unsupported("coordinate=\"global\" (removed from MuJoCo in version 2.3.3)"));
             }
             Some(_) => return Err(element.bad_value("coordinate", "\"local\"")),
         }
@@ -275,7 +296,9 @@ impl Reader {
             self.physics.gravity = Vec3::from(gravity);
         }
         if element.numbers::<3>("wind")?.is_some_and(|w| w != [0.0; 3]) {
-            return Err(element.unsupported("wind acts through fluid forces, which nudyn does not model"));
+            return Err(
+                element.unsupported("wind acts through fluid forces, which nudyn does not model")
+            );
         }
         for medium in ["density", "viscosity"] {
             if element.number(medium)?.is_some_and(|x| x != 0.0) {
@@ -301,7 +324,8 @@ impl Reader {
                 }
             }
             if disabled.get("sleep") == Some(&false) {
-                return Err(child.unsupported("sleeping bodies (flag sleep=\"enable\") freeze the dynamics"));
+                return Err(child
+                    .unsupported("sleeping bodies (flag sleep=\"enable\") freeze the dynamics"));
             }
             let physics = &mut self.physics;
             for (flag, target) in [
@@ -324,7 +348,7 @@ impl Reader {
         for child in section.children() {
             match child.tag() {
                 "skin" => self.warnings.push(child.ignored()),
-                "flex" => return Err(child.unsupported("flexible bodies are not modelled")),
+                "flex" => return Err(child.unsupported("flexible bodies")),
                 _ => return Err(child.unknown()),
             }
         }
@@ -338,7 +362,9 @@ impl Reader {
             match child.tag() {
                 "body" => self.read_body(&child, None, MAIN, false)?,
                 "geom" | "site" | "camera" | "light" => self.warnings.push(child.ignored()),
-                "joint" | "freejoint" => return Err(child.invalid("the world body cannot have joints")),
+                "joint" | "freejoint" => {
+                    return Err(child.invalid("the world body cannot have joints"));
+                }
                 "inertial" => return Err(child.invalid("the world body cannot have an <inertial>")),
                 _ => return Err(unsupported_child(&child)),
             }
@@ -358,16 +384,23 @@ impl Reader {
     ) -> Result<(), MjcfError> {
         element.check_attributes(BODY_ATTRIBUTES)?;
         if element.boolean("mocap")? == Some(true) {
-            return Err(element.unsupported("mocap bodies are moved by the user, not by the dynamics"));
+            return Err(
+                element.unsupported("mocap bodies are moved by the user, not by the dynamics")
+            );
         }
         if element.number("gravcomp")?.is_some_and(|g| g != 0.0) {
             return Err(element.unsupported("gravity compensation (gravcomp) is not modelled"));
         }
-        let class = self.defaults.lookup(element, "childclass")?.unwrap_or(inherited_class);
+        let class = self
+            .defaults
+            .lookup(element, "childclass")?
+            .unwrap_or(inherited_class);
         let pos = Vec3::from(element.numbers::<3>("pos")?.unwrap_or_default());
         let quat = self.resolve(element, &Orientation::read(element)?.unwrap_or_default())?;
         let index = self.bodies.len();
-        let name = element.text("name").map_or_else(|| format!("body{index}"), str::to_string);
+        let name = element
+            .text("name")
+            .map_or_else(|| format!("body{index}"), str::to_string);
         claim_name(&mut self.body_names, "body", &name, element)?;
 
         let mut inertial: Option<(Element, BodyInertia)> = None;
@@ -385,25 +418,48 @@ impl Reader {
                 "joint" => {
                     child.check_attributes(JOINT_ATTRIBUTES)?;
                     no_children(&child)?;
-                    let mut settings = self.defaults.class(self.class_of(&child, class)?).joint.clone();
+                    let mut settings = self
+                        .defaults
+                        .class(self.class_of(&child, class)?)
+                        .joint
+                        .clone();
                     settings.apply(&child)?;
-                    joints.push(JointElement { element: child, settings, align: Align::Auto });
+                    joints.push(JointElement {
+                        element: child,
+                        settings,
+                        align: Align::Auto,
+                    });
                 }
                 "freejoint" => {
                     // MuJoCo's <freejoint> takes no defaults.
                     child.check_attributes(&["name", "group", "align"])?;
                     no_children(&child)?;
-                    let aligns = [("false", Align::No), ("true", Align::Yes), ("auto", Align::Auto)];
+                    let aligns = [
+                        ("false", Align::No),
+                        ("true", Align::Yes),
+                        ("auto", Align::Auto),
+                    ];
                     let align = child.keyword("align", &aligns)?.unwrap_or(Align::Auto);
-                    let settings = JointSettings { kind: JointKind::Free, ..JointSettings::default() };
-                    joints.push(JointElement { element: child, settings, align });
+                    let settings = JointSettings {
+                        kind: JointKind::Free,
+                        ..JointSettings::default()
+                    };
+                    joints.push(JointElement {
+                        element: child,
+                        settings,
+                        align,
+                    });
                 }
                 "geom" => {
                     child.check_attributes(GEOM_ATTRIBUTES)?;
                     if let Some(grandchild) = child.children().next() {
                         return Err(unsupported_child(&grandchild));
                     }
-                    let mut settings = self.defaults.class(self.class_of(&child, class)?).geom.clone();
+                    let mut settings = self
+                        .defaults
+                        .class(self.class_of(&child, class)?)
+                        .geom
+                        .clone();
                     settings.apply(&child)?;
                     geoms.push((child, settings));
                 }
@@ -432,7 +488,9 @@ impl Reader {
             }
         }
         let inertia = match explicit {
-            _ if !selected.is_empty() => BodyInertia::from_geoms(&selected).map_err(|r| element.invalid(r))?,
+            _ if !selected.is_empty() => {
+                BodyInertia::from_geoms(&selected).map_err(|r| element.invalid(r))?
+            }
             Some(explicit) => explicit,
             // MuJoCo puts the inertial frame of a body without mass at the body's
             // own pose in its parent; it matters once boundmass gives it mass.
@@ -440,7 +498,15 @@ impl Reader {
         };
         let inertia = self.bound(element, inertia)?;
 
-        self.bodies.push(Body { name, parent, pos, quat, inertia: None, joints, line: element.line });
+        self.bodies.push(Body {
+            name,
+            parent,
+            pos,
+            quat,
+            inertia: None,
+            joints,
+            line: element.line,
+        });
         self.records.push(BodyRecord {
             line: element.line,
             label: element.label(),
@@ -459,23 +525,41 @@ impl Reader {
 
     /// The class of a joint or geom: its `class`, else its body's class.
     fn class_of(&self, element: &Element, body_class: usize) -> Result<usize, MjcfError> {
-        Ok(self.defaults.lookup(element, "class")?.unwrap_or(body_class))
+        Ok(self
+            .defaults
+            .lookup(element, "class")?
+            .unwrap_or(body_class))
     }
 
     fn resolve(&self, element: &Element, orientation: &Orientation) -> Result<Quat, MjcfError> {
-        orientation.resolve(&self.compiler.angles).map_err(|reason| element.invalid(reason))
+        orientation
+            .resolve(&self.compiler.angles)
+            .map_err(|reason| element.invalid(reason))
     }
 
     fn read_inertial(&self, element: &Element) -> Result<BodyInertia, MjcfError> {
         element.check_attributes(INERTIAL_ATTRIBUTES)?;
         no_children(element)?;
-        let com = Vec3::from(element.numbers::<3>("pos")?.ok_or_else(|| element.missing("pos"))?);
-        let mass = element.non_negative("mass")?.ok_or_else(|| element.missing("mass"))?;
+        let com = Vec3::from(
+            element
+                .numbers::<3>("pos")?
+                .ok_or_else(|| element.missing("pos"))?,
+        );
+        let mass = element
+            .non_negative("mass")?
+            .ok_or_else(|| element.missing("mass"))?;
         let orientation = Orientation::read(element)?;
         let Some([xx, yy, zz, xy, xz, yz]) = element.numbers::<6>("fullinertia")? else {
-            let principal = element.non_negative_numbers::<3>("diaginertia")?.unwrap_or_default();
+            let principal = element
+                .non_negative_numbers::<3>("diaginertia")?
+                .unwrap_or_default();
             let quat = self.resolve(element, &orientation.unwrap_or_default())?;
-            return Ok(BodyInertia::from_principal(mass, com, &quat, Vec3::from(principal)));
+            return Ok(BodyInertia::from_principal(
+                mass,
+                com,
+                &quat,
+                Vec3::from(principal),
+            ));
         };
         if let Some(attribute) = ORIENTATION_ATTRIBUTES.iter().find(|a| element.has(a)) {
             return Err(element.conflict("fullinertia", attribute));
@@ -484,7 +568,8 @@ impl Reader {
             return Err(element.conflict("fullinertia", "diaginertia"));
         }
         let tensor = Mat3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz);
-        BodyInertia::from_tensor(mass, com, tensor).map_err(|r| element.invalid(format!("fullinertia: {r}")))
+        BodyInertia::from_tensor(mass, com, tensor)
+            .map_err(|r| element.invalid(format!("fullinertia: {r}")))
     }
 
     /// Applies `boundmass`, `boundinertia` and MuJoCo's triangle inequality.
@@ -518,6 +603,12 @@ impl Reader {
         moving: bool,
         contributes: bool,
     ) -> Result<Option<GeomMass>, MjcfError> {
+        if matches!(settings.kind, GeomKind::Mesh | GeomKind::Sdf) && !settings.mesh {
+            return Err(element.missing("mesh"));
+        }
+        if settings.kind == GeomKind::Hfield && !settings.hfield {
+            return Err(element.missing("hfield"));
+        }
         if settings.kind == GeomKind::Plane && moving {
             return Err(element.invalid("a plane geom is only allowed in a body that cannot move"));
         }
@@ -528,7 +619,8 @@ impl Reader {
                     settings.kind,
                     GeomKind::Capsule | GeomKind::Cylinder | GeomKind::Ellipsoid | GeomKind::Box
                 ) {
-                    return Err(element.invalid("'fromto' requires a capsule, cylinder, ellipsoid or box geom"));
+                    return Err(element
+                        .invalid("'fromto' requires a capsule, cylinder, ellipsoid or box geom"));
                 }
                 if settings.pos != [0.0; 3] {
                     return Err(element.conflict("pos", "fromto"));
@@ -536,7 +628,8 @@ impl Reader {
                 let from = Vec3::new(fromto[0], fromto[1], fromto[2]);
                 let to = Vec3::new(fromto[3], fromto[4], fromto[5]);
                 // MuJoCo's z axis points from 'to' towards 'from'.
-                let direction = normalized(from - to).ok_or_else(|| element.invalid("the 'fromto' points coincide"))?;
+                let direction = normalized(from - to)
+                    .ok_or_else(|| element.invalid("the 'fromto' points coincide"))?;
                 let half_length = (from - to).norm() / 2.0;
                 if half_length < EPS {
                     return Err(element.invalid("the 'fromto' points coincide"));
@@ -546,9 +639,15 @@ impl Reader {
                 } else {
                     size[1] = half_length;
                 }
-                ((from + to) / 2.0, Quat::new_normalize(z_to_quaternion(&direction)))
+                (
+                    (from + to) / 2.0,
+                    Quat::new_normalize(z_to_quaternion(&direction)),
+                )
             }
-            None => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
+            None => (
+                Vec3::from(settings.pos),
+                self.resolve(element, &settings.orientation)?,
+            ),
         };
         // A geom fitted to a mesh gets its size from the mesh.
         if !settings.mesh {
@@ -557,7 +656,11 @@ impl Reader {
         if !contributes {
             return Ok(None);
         }
-        if matches!(settings.kind, GeomKind::Mesh | GeomKind::Sdf | GeomKind::Hfield) || settings.mesh {
+        if matches!(
+            settings.kind,
+            GeomKind::Mesh | GeomKind::Sdf | GeomKind::Hfield
+        ) || settings.mesh
+        {
             return Err(element.unsupported(
                 "the mass properties of mesh, sdf and height-field geoms are not computed; \
                  give the body an <inertial>, or put the geom in a group outside inertiagrouprange",
@@ -574,7 +677,12 @@ impl Reader {
             None => settings.density * volume,
         };
         let principal = inertia::principal_moments(settings.kind, &size, mass);
-        Ok(Some(GeomMass { mass, pos, quat, principal }))
+        Ok(Some(GeomMass {
+            mass,
+            pos,
+            quat,
+            principal,
+        }))
     }
 
     /// Checks a body's joints and turns them into [`Joint`]s.
@@ -589,9 +697,21 @@ impl Reader {
         let mut joints = Vec::with_capacity(count);
         let mut after_ball = false;
         let mut dofs = 0;
-        for (k, JointElement { element, settings: s, align }) in elements.into_iter().enumerate() {
+        for (
+            k,
+            JointElement {
+                element,
+                settings: s,
+                align,
+            },
+        ) in elements.into_iter().enumerate()
+        {
             let origin = |attribute: &str| {
-                if element.has(attribute) { "" } else { " (from its default class)" }
+                if element.has(attribute) {
+                    ""
+                } else {
+                    " (from its default class)"
+                }
             };
             if s.frictionloss != 0.0 {
                 return Err(element.unsupported(format!(
@@ -608,9 +728,13 @@ impl Reader {
                 )));
             }
             if s.springyield != 0.0 {
-                return Err(element.unsupported(format!("springyield{}: yielding springs", origin("springyield"))));
+                return Err(element.unsupported(format!(
+                    "springyield{}: yielding springs",
+                    origin("springyield")
+                )));
             }
-            for (attribute, coefficients) in [("stiffness", &s.stiffness), ("damping", &s.damping)] {
+            for (attribute, coefficients) in [("stiffness", &s.stiffness), ("damping", &s.damping)]
+            {
                 if coefficients[1..] != [0.0; 2] {
                     return Err(element.unsupported(format!(
                         "nonlinear {attribute}{} (more than one coefficient)",
@@ -626,25 +750,29 @@ impl Reader {
                 ));
             }
             after_ball |= s.kind == JointKind::Ball;
-            dofs += s.kind.nv();
-            if dofs > 6 {
-                return Err(element.invalid("more than 6 degrees of freedom in one body"));
-            }
 
             if s.kind == JointKind::Free {
                 if count > 1 {
                     return Err(element.invalid("a free joint must be the only joint of its body"));
                 }
                 if parent.is_some() {
-                    return Err(element.invalid("a free joint must belong to a body directly inside <worldbody>"));
+                    return Err(element.invalid(
+                        "a free joint must belong to a body directly inside <worldbody>",
+                    ));
                 }
-                if !has_child_bodies && (align == Align::Yes || (align == Align::Auto && self.compiler.align_free)) {
+                if !has_child_bodies
+                    && (align == Align::Yes || (align == Align::Auto && self.compiler.align_free))
+                {
                     return Err(element.unsupported(
                         "aligning the body frame with its inertial frame (freejoint align, compiler alignfree)",
                     ));
                 }
             } else {
                 self.check_limits(&element, &s)?;
+            }
+            dofs += s.kind.nv();
+            if dofs > 6 {
+                return Err(element.invalid("more than 6 degrees of freedom in one body"));
             }
 
             let axis = match s.kind {
@@ -660,17 +788,31 @@ impl Reader {
                 JointKind::Slide => (s.reference, s.springref),
                 JointKind::Ball | JointKind::Free => (0.0, 0.0),
             };
-            let name = element.text("name").map_or_else(|| format!("{body_name}_joint{k}"), str::to_string);
+            let name = element
+                .text("name")
+                .map_or_else(|| format!("{body_name}_joint{k}"), str::to_string);
             claim_name(&mut self.joint_names, "joint", &name, &element)?;
             joints.push(Joint {
                 name,
                 kind: s.kind,
-                pos: if s.kind == JointKind::Free { Vec3::zeros() } else { Vec3::from(s.pos) },
+                pos: if s.kind == JointKind::Free {
+                    Vec3::zeros()
+                } else {
+                    Vec3::from(s.pos)
+                },
                 axis,
                 reference,
                 springref,
-                stiffness: if self.physics.spring_disabled { 0.0 } else { s.stiffness[0] },
-                damping: if self.physics.damper_disabled { 0.0 } else { s.damping[0] },
+                stiffness: if self.physics.spring_disabled {
+                    0.0
+                } else {
+                    s.stiffness[0]
+                },
+                damping: if self.physics.damper_disabled {
+                    0.0
+                } else {
+                    s.damping[0]
+                },
                 armature: s.armature,
                 line: element.line,
             });
@@ -679,14 +821,22 @@ impl Reader {
     }
 
     /// MuJoCo's checks of joint limits; limits themselves are only warned about.
-    fn check_limits(&mut self, element: &Element, settings: &JointSettings) -> Result<(), MjcfError> {
+    fn check_limits(
+        &mut self,
+        element: &Element,
+        settings: &JointSettings,
+    ) -> Result<(), MjcfError> {
         let [low, high] = settings.range;
-        if settings.limited == Limited::Auto && settings.range != [0.0; 2] && !self.compiler.autolimits {
+        if settings.limited == Limited::Auto
+            && settings.range != [0.0; 2]
+            && !self.compiler.autolimits
+        {
             return Err(element.invalid(
                 "'range' without 'limited' while <compiler autolimits=\"false\">; give 'limited' or remove 'range'",
             ));
         }
-        let limited = settings.limited == Limited::Yes || (settings.limited == Limited::Auto && low < high);
+        let limited =
+            settings.limited == Limited::Yes || (settings.limited == Limited::Auto && low < high);
         if !limited {
             return Ok(());
         }
@@ -697,13 +847,15 @@ impl Reader {
         } else if low >= high {
             return Err(element.invalid("the first 'range' value must be smaller than the second"));
         }
-        self.warnings.push(element.warning("joint limits are not modelled (range ignored)"));
+        self.warnings
+            .push(element.warning("joint limits are not modelled (range ignored)"));
         Ok(())
     }
 
     /// The checks that need the whole tree, `settotalmass`, and the vehicle.
     fn finish(mut self, name: String) -> Result<Imported, MjcfError> {
-        let valid = |r: &BodyRecord| r.inertia.mass >= MIN_VALUE && r.inertia.principal.min() >= MIN_VALUE;
+        let valid =
+            |r: &BodyRecord| r.inertia.mass >= MIN_VALUE && r.inertia.principal.min() >= MIN_VALUE;
         for record in self.records.iter().filter(|r| r.has_joints && !valid(r)) {
             // MuJoCo accepts it when a body welded below it carries the mass.
             let mut welded: Vec<usize> = record.children.clone();
@@ -720,10 +872,9 @@ impl Reader {
                 return Err(MjcfError::Invalid {
                     line: record.line,
                     element: record.label.clone(),
-                    reason: format!(
-                        "a moving body needs mass and principal moments of inertia of at least {MIN_VALUE} \
-                         (MuJoCo's mjMINVAL), or a body welded to it that has them"
-                    ),
+                    reason: "a moving body needs mass and principal moments of inertia of at least 1e-15 \
+                             (MuJoCo's mjMINVAL), or a body welded to it that has them"
+                        .to_string(),
                 });
             }
         }
@@ -753,8 +904,19 @@ impl Reader {
             });
         }
         self.warnings.sort_by_key(|w| w.line);
-        let gravity = if self.physics.gravity_disabled { Vec3::zeros() } else { self.physics.gravity };
-        Ok(Imported { vehicle: Vehicle { name, gravity, bodies: self.bodies }, warnings: self.warnings })
+        let gravity = if self.physics.gravity_disabled {
+            Vec3::zeros()
+        } else {
+            self.physics.gravity
+        };
+        Ok(Imported {
+            vehicle: Vehicle {
+                name,
+                gravity,
+                bodies: self.bodies,
+            },
+            warnings: self.warnings,
+        })
     }
 }
 
@@ -770,7 +932,10 @@ fn check_size(element: &Element, kind: GeomKind, size: &[f64; 3]) -> Result<(), 
         GeomKind::Hfield | GeomKind::Mesh | GeomKind::Sdf => return Ok(()),
     };
     match used.into_iter().find(|&i| size[i] <= 0.0) {
-        Some(i) => Err(element.invalid(format!("size[{i}] of a {name} geom must be positive, found {}", size[i]))),
+        Some(i) => Err(element.invalid(format!(
+            "size[{i}] of a {name} geom must be positive, found {}",
+            size[i]
+        ))),
         None => Ok(()),
     }
 }
@@ -803,15 +968,16 @@ fn no_children(element: &Element) -> Result<(), MjcfError> {
     }
 }
 
-/// The error for a child element of a body that nudyn does not read.
+/// The error for an element that nudyn does not read where bodies or
+/// sections are expected.
 fn unsupported_child(element: &Element) -> MjcfError {
     let reason = match element.tag() {
-        "frame" => "<frame> is not supported; write its pose into the elements it contains",
-        "replicate" => "<replicate> is not supported; write the copies out",
-        "attach" => "<attach> is not supported (it loads another model)",
-        "include" => "<include> is not supported; merge the included file",
-        "composite" | "flexcomp" => "composite and flexible objects change the dynamics and are not modelled",
-        "plugin" => "plugins add forces nudyn does not model",
+        "frame" => "frames (write the frame's pose into the elements it contains)",
+        "replicate" => "replicated subtrees (write the copies out)",
+        "attach" => "attaching another model",
+        "include" => "included files (merge the file into this one)",
+        "composite" | "flexcomp" => "composite and flexible objects",
+        "plugin" => "plugins",
         _ => return element.unknown(),
     };
     element.unsupported(reason)

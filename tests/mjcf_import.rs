@@ -1,0 +1,774 @@
+//! The MJCF importer against hand-computed expectations: fixture files under
+//! `tests/fixtures/mjcf/`, a table of malformed inputs, and the warnings for
+//! ignored elements.
+
+use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
+use std::path::PathBuf;
+
+use nalgebra::{Quaternion, UnitQuaternion};
+use nudyn::math::{Mat3, Quat, Vec3};
+use nudyn::mjcf::{Imported, MjcfError, load_mjcf, parse_mjcf};
+use nudyn::vehicle::{Body, Joint, JointKind, MassProperties, Vehicle};
+
+const TOL: f64 = 1e-12;
+
+fn fixture(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures/mjcf")
+        .join(name)
+}
+
+fn load(name: &str) -> Imported {
+    load_mjcf(&fixture(name)).unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+fn body<'a>(vehicle: &'a Vehicle, name: &str) -> &'a Body {
+    vehicle
+        .bodies
+        .iter()
+        .find(|b| b.name == name)
+        .unwrap_or_else(|| panic!("no body {name}"))
+}
+
+fn joint<'a>(vehicle: &'a Vehicle, name: &str) -> &'a Joint {
+    vehicle
+        .bodies
+        .iter()
+        .flat_map(|b| &b.joints)
+        .find(|j| j.name == name)
+        .unwrap_or_else(|| panic!("no joint {name}"))
+}
+
+fn inertia(body: &Body) -> &MassProperties {
+    body.inertia
+        .as_ref()
+        .unwrap_or_else(|| panic!("{} is massless", body.name))
+}
+
+fn assert_close(what: &str, actual: f64, expected: f64) {
+    assert!(
+        (actual - expected).abs() <= TOL * expected.abs().max(1.0),
+        "{what}: {actual} != {expected}"
+    );
+}
+
+fn assert_vec(what: &str, actual: &Vec3, expected: Vec3) {
+    assert!(
+        (actual - expected).amax() <= TOL * expected.amax().max(1.0),
+        "{what}: {actual} != {expected}"
+    );
+}
+
+fn assert_mat(what: &str, actual: &Mat3, expected: Mat3) {
+    assert!(
+        (actual - expected).amax() <= TOL * expected.amax().max(1.0),
+        "{what}: {actual} != {expected}"
+    );
+}
+
+/// Compares quaternion coordinates, sign included (the importer keeps MuJoCo's).
+fn assert_quat(what: &str, actual: &Quat, expected: Quat) {
+    assert!(
+        (actual.coords - expected.coords).amax() <= TOL,
+        "{what}: {:?} != {:?}",
+        actual.coords,
+        expected.coords
+    );
+}
+
+fn wxyz(w: f64, x: f64, y: f64, z: f64) -> Quat {
+    UnitQuaternion::new_normalize(Quaternion::new(w, x, y, z))
+}
+
+/// Rotation by `angle` about a coordinate axis.
+fn about(axis: Vec3, angle: f64) -> Quat {
+    Quat::from_axis_angle(&nalgebra::Unit::new_normalize(axis), angle)
+}
+
+/// Solid box with half sizes a, b, c: m (b² + c²) / 3, ...
+fn box_moments(mass: f64, a: f64, b: f64, c: f64) -> Vec3 {
+    Vec3::new(
+        mass * (b * b + c * c) / 3.0,
+        mass * (a * a + c * c) / 3.0,
+        mass * (a * a + b * b) / 3.0,
+    )
+}
+
+/// Solid cylinder of radius r and half length h along z.
+fn cylinder_moments(mass: f64, r: f64, h: f64) -> Vec3 {
+    let transverse = mass * (3.0 * r * r + 4.0 * h * h) / 12.0;
+    Vec3::new(transverse, transverse, mass * r * r / 2.0)
+}
+
+/// Solid capsule of radius r and cylinder half length h along z: a cylinder
+/// plus two hemispheres, the masses split by volume. A hemisphere's centre
+/// of mass lies 3r/8 from its flat face, which lies h from the centre.
+fn capsule_moments(mass: f64, r: f64, h: f64) -> Vec3 {
+    let cylinder_volume = PI * r * r * 2.0 * h;
+    let sphere_volume = 4.0 / 3.0 * PI * r * r * r;
+    let sphere_mass = mass * sphere_volume / (cylinder_volume + sphere_volume);
+    let cylinder = cylinder_moments(mass - sphere_mass, r, h);
+    // Two half spheres about the capsule's centre: the sphere's own moment,
+    // plus the parallel-axis shift from the flat face (at h) in two steps
+    // that leave the hemisphere's own offset (3r/8) in place.
+    let shift = sphere_mass * (h * h + 2.0 * h * 3.0 * r / 8.0);
+    let sphere = 2.0 * sphere_mass * r * r / 5.0;
+    Vec3::new(
+        cylinder.x + sphere + shift,
+        cylinder.y + sphere + shift,
+        cylinder.z + sphere,
+    )
+}
+
+fn diag(v: Vec3) -> Mat3 {
+    Mat3::from_diagonal(&v)
+}
+
+#[test]
+fn box_arm_bodies_joints_and_box_inertia() {
+    let Imported { vehicle, warnings } = load("box_arm.xml");
+    assert!(warnings.is_empty(), "{warnings:?}");
+    assert_eq!(vehicle.name, "box_arm");
+    assert_vec("gravity", &vehicle.gravity, Vec3::new(0.0, 0.0, -9.81));
+    assert_eq!(vehicle.bodies.len(), 2);
+
+    let base = body(&vehicle, "base");
+    assert_eq!((base.parent, base.line), (None, 4));
+    assert_vec("base.pos", &base.pos, Vec3::new(0.0, 0.0, 1.0));
+    assert_quat("base.quat", &base.quat, Quat::identity());
+    let m = inertia(base);
+    assert_close("base.mass", m.mass, 6.0);
+    assert_vec("base.com", &m.com, Vec3::zeros());
+    assert_mat(
+        "base.inertia",
+        &m.inertia,
+        diag(box_moments(6.0, 0.1, 0.2, 0.3)),
+    );
+
+    let shoulder = joint(&vehicle, "shoulder");
+    assert_eq!((shoulder.kind, shoulder.line), (JointKind::Hinge, 5));
+    assert_vec("shoulder.pos", &shoulder.pos, Vec3::new(0.0, 0.0, 0.1));
+    assert_vec("shoulder.axis", &shoulder.axis, Vec3::y());
+    assert_close("shoulder.ref (30°)", shoulder.reference, PI / 6.0);
+    assert_close("shoulder.springref (-45°)", shoulder.springref, -FRAC_PI_4);
+    assert_eq!(
+        (shoulder.stiffness, shoulder.damping, shoulder.armature),
+        (2.0, 0.5, 0.01)
+    );
+
+    let slider = body(&vehicle, "slider");
+    assert_eq!(slider.parent, Some(0));
+    assert_vec("slider.pos", &slider.pos, Vec3::new(0.5, 0.0, 0.0));
+    let rail = joint(&vehicle, "rail");
+    assert_eq!(rail.kind, JointKind::Slide);
+    assert_vec("rail.axis", &rail.axis, Vec3::x());
+    // Slide positions are lengths: no angle conversion.
+    assert_eq!((rail.reference, rail.springref), (0.25, 0.1));
+    let sphere_mass = 500.0 * 4.0 / 3.0 * PI * 0.1f64.powi(3);
+    let m = inertia(slider);
+    assert_close("slider.mass", m.mass, sphere_mass);
+    assert_vec("slider.com", &m.com, Vec3::new(0.0, 0.0, 0.2));
+    assert_mat(
+        "slider.inertia",
+        &m.inertia,
+        Mat3::identity() * 0.4 * sphere_mass * 0.01,
+    );
+}
+
+#[test]
+fn every_orientation_form() {
+    let vehicle = load("orientations.xml").vehicle;
+    let half = FRAC_PI_4;
+    let cases = [
+        ("by_quat", wxyz(1.0, 0.0, 0.0, 1.0)),
+        ("by_axisangle", wxyz(half.cos(), 0.0, 0.0, half.sin())),
+        // Lowercase xyz: rotate about x, then about the rotated y.
+        (
+            "by_euler",
+            about(Vec3::x(), FRAC_PI_2) * about(Vec3::y(), FRAC_PI_2),
+        ),
+        // x = (0 1 0); y = (-1 1 0) minus its x part = (-1 0 0); z = x × y = (0 0 1).
+        ("by_xyaxes", about(Vec3::z(), FRAC_PI_2)),
+        // The minimal rotation taking z to x is a quarter turn about y.
+        ("by_zaxis", wxyz(half.cos(), 0.0, half.sin(), 0.0)),
+        // Taking z to -z: MuJoCo turns half a turn about x.
+        ("by_zaxis_down", wxyz(0.0, 1.0, 0.0, 0.0)),
+    ];
+    for (name, expected) in cases {
+        assert_quat(name, &body(&vehicle, name).quat, expected);
+    }
+}
+
+#[test]
+fn radians_and_mixed_euler_sequence() {
+    let vehicle = load("euler_radian.xml").vehicle;
+    let turned = body(&vehicle, "turned");
+    // eulerseq="zYx": z moving (right), Y fixed (left), x moving (right).
+    let expected = about(Vec3::y(), -0.5) * about(Vec3::z(), 0.3) * about(Vec3::x(), 1.2);
+    assert_quat("turned.quat", &turned.quat, expected);
+    let hinge = joint(&vehicle, "hinge");
+    assert_eq!((hinge.reference, hinge.springref), (0.7, -0.2));
+    // The box turned a quarter turn about x: its y and z moments swap.
+    let mass = 1000.0 * 8.0 * 0.1 * 0.2 * 0.3;
+    let moments = box_moments(mass, 0.1, 0.2, 0.3);
+    let m = inertia(turned);
+    assert_close("mass", m.mass, mass);
+    assert_mat(
+        "inertia",
+        &m.inertia,
+        diag(Vec3::new(moments.x, moments.z, moments.y)),
+    );
+}
+
+#[test]
+fn geom_shapes_fromto_and_sums() {
+    let vehicle = load("geoms.xml").vehicle;
+
+    let m = inertia(body(&vehicle, "capsule"));
+    assert_close("capsule.mass", m.mass, 2.0);
+    assert_mat(
+        "capsule.inertia",
+        &m.inertia,
+        diag(capsule_moments(2.0, 0.05, 0.2)),
+    );
+
+    let mass = 2000.0 * PI * 0.05 * 0.05 * 0.4;
+    let m = inertia(body(&vehicle, "cylinder"));
+    assert_close("cylinder.mass", m.mass, mass);
+    assert_mat(
+        "cylinder.inertia",
+        &m.inertia,
+        diag(cylinder_moments(mass, 0.05, 0.2)),
+    );
+
+    let m = inertia(body(&vehicle, "ellipsoid"));
+    let (a, b, c) = (0.01, 0.04, 0.09);
+    assert_mat(
+        "ellipsoid.inertia",
+        &m.inertia,
+        diag(Vec3::new(b + c, a + c, a + b) * 3.0 / 5.0),
+    );
+
+    // fromto along x: centre halfway, the capsule's own z axis along body x.
+    let m = inertia(body(&vehicle, "rod"));
+    let moments = capsule_moments(1.0, 0.05, 0.2);
+    assert_vec("rod.com", &m.com, Vec3::new(0.2, 0.0, 0.0));
+    assert_mat(
+        "rod.inertia",
+        &m.inertia,
+        diag(Vec3::new(moments.z, moments.x, moments.y)),
+    );
+
+    // A box given by fromto keeps its first size for x and y; z is half the length.
+    let m = inertia(body(&vehicle, "beam"));
+    assert_vec("beam.com", &m.com, Vec3::new(0.0, 0.0, 0.5));
+    assert_mat(
+        "beam.inertia",
+        &m.inertia,
+        diag(box_moments(1.0, 0.1, 0.1, 0.5)),
+    );
+
+    // Two spheres (1 kg at x = -0.5, 3 kg at x = 0.5); the group-3 box is
+    // outside inertiagrouprange="0 2".
+    let m = inertia(body(&vehicle, "dumbbell"));
+    let own = 2.0 / 5.0 * 4.0 * 0.01;
+    let com = (-0.5 * 1.0 + 0.5 * 3.0) / 4.0;
+    let transfer = 1.0 * (-0.5 - com) * (-0.5 - com) + 3.0 * (0.5 - com) * (0.5 - com);
+    assert_close("dumbbell.mass", m.mass, 4.0);
+    assert_vec("dumbbell.com", &m.com, Vec3::new(com, 0.0, 0.0));
+    assert_mat(
+        "dumbbell.inertia",
+        &m.inertia,
+        diag(Vec3::new(own, own + transfer, own + transfer)),
+    );
+}
+
+#[test]
+fn default_classes_inherit_and_override() {
+    let vehicle = load("defaults.xml").vehicle;
+    let plain = joint(&vehicle, "plain_joint");
+    assert_eq!(
+        (plain.kind, plain.damping, plain.stiffness),
+        (JointKind::Hinge, 1.0, 3.0)
+    );
+    assert_vec("plain.axis", &plain.axis, Vec3::z());
+    let box_mass = 100.0 * 8.0 * 0.1 * 0.2 * 0.3;
+    let m = inertia(body(&vehicle, "plain"));
+    assert_close("plain.mass", m.mass, box_mass);
+    assert_mat(
+        "plain.inertia",
+        &m.inertia,
+        diag(box_moments(box_mass, 0.1, 0.2, 0.3)),
+    );
+
+    // childclass="arm": damping and axis from "arm", stiffness from "main".
+    let elbow = joint(&vehicle, "elbow");
+    assert_eq!((elbow.damping, elbow.stiffness), (2.0, 3.0));
+    assert_vec("elbow.axis", &elbow.axis, Vec3::y());
+    // The geom's own quat replaces the class's euler.
+    assert_mat(
+        "upper.inertia",
+        &inertia(body(&vehicle, "upper")).inertia,
+        diag(box_moments(box_mass, 0.1, 0.2, 0.3)),
+    );
+
+    // "lower" inherits childclass "arm" from its parent; class= overrides it.
+    let main = joint(&vehicle, "lower_main");
+    assert_eq!(
+        (main.kind, main.damping, main.armature),
+        (JointKind::Hinge, 1.0, 0.0)
+    );
+    assert_vec("lower_main.axis", &main.axis, Vec3::z());
+    let wrist = joint(&vehicle, "lower_wrist");
+    assert_eq!(
+        (wrist.kind, wrist.damping, wrist.stiffness, wrist.armature),
+        (JointKind::Slide, 2.0, 3.0, 5.0)
+    );
+    assert_vec("lower_wrist.axis", &wrist.axis, Vec3::y());
+    // size="0.4" replaces only the first size: (0.4, 0.2, 0.3); the euler
+    // "0 0 90" from "arm" swaps x and y.
+    let mass = 100.0 * 8.0 * 0.4 * 0.2 * 0.3;
+    let moments = box_moments(mass, 0.4, 0.2, 0.3);
+    let m = inertia(body(&vehicle, "lower"));
+    assert_close("lower.mass", m.mass, mass);
+    assert_mat(
+        "lower.inertia",
+        &m.inertia,
+        diag(Vec3::new(moments.y, moments.x, moments.z)),
+    );
+}
+
+#[test]
+fn explicit_inertial() {
+    let vehicle = load("inertial.xml").vehicle;
+    let m = inertia(body(&vehicle, "rotated"));
+    assert_close("rotated.mass", m.mass, 4.0);
+    assert_vec("rotated.com", &m.com, Vec3::new(0.1, 0.2, 0.3));
+    // diag(1 2 3) turned a quarter turn about z; the box geom does not count.
+    assert_mat(
+        "rotated.inertia",
+        &m.inertia,
+        diag(Vec3::new(2.0, 1.0, 3.0)),
+    );
+
+    let m = inertia(body(&vehicle, "full"));
+    assert_close("full.mass", m.mass, 2.0);
+    assert_vec("full.com", &m.com, Vec3::new(0.0, 0.0, -0.5));
+    assert_mat(
+        "full.inertia",
+        &m.inertia,
+        Mat3::new(2.0, 0.1, -0.2, 0.1, 3.0, 0.3, -0.2, 0.3, 4.0),
+    );
+
+    // No inertial and no geoms: massless, though its welded child has mass.
+    let hollow = body(&vehicle, "hollow");
+    assert!(hollow.inertia.is_none() && hollow.joints.is_empty());
+    let welded = body(&vehicle, "welded");
+    assert_eq!(welded.parent, Some(2));
+    assert_close(
+        "welded.mass",
+        inertia(welded).mass,
+        1000.0 * 4.0 / 3.0 * PI * 0.125,
+    );
+}
+
+#[test]
+fn inertia_from_geom_true_overrides_inertial() {
+    let vehicle = load("inertia_from_geom.xml").vehicle;
+    let m = inertia(body(&vehicle, "overridden"));
+    assert_close("mass", m.mass, 8.0);
+    assert_mat("inertia", &m.inertia, diag(box_moments(8.0, 0.1, 0.1, 0.1)));
+}
+
+#[test]
+fn compiler_bounds_and_balance() {
+    let vehicle = load("bounds.xml").vehicle;
+    let m = inertia(body(&vehicle, "light"));
+    assert_close("light.mass (boundmass)", m.mass, 0.5);
+    assert_mat(
+        "light.inertia (boundinertia)",
+        &m.inertia,
+        diag(Vec3::new(1.0, 1.0, 0.25)),
+    );
+    // 1 + 1 < 3: balanceinertia sets all three to their mean.
+    let m = inertia(body(&vehicle, "unbalanced"));
+    assert_mat(
+        "unbalanced.inertia",
+        &m.inertia,
+        Mat3::identity() * 5.0 / 3.0,
+    );
+}
+
+#[test]
+fn disabled_gravity_springs_and_dampers() {
+    let vehicle = load("flags.xml").vehicle;
+    assert_eq!(vehicle.gravity, Vec3::zeros());
+    let j = &body(&vehicle, "pendulum").joints[0];
+    assert_eq!((j.stiffness, j.damping, j.armature), (0.0, 0.0, 0.5));
+
+    let vehicle = load("lunar_gravity.xml").vehicle;
+    assert_eq!(vehicle.name, "vehicle");
+    assert_eq!(vehicle.gravity, Vec3::new(0.0, 0.0, -1.62));
+    assert_eq!(vehicle.bodies[0].name, "body0");
+    assert_eq!(vehicle.bodies[0].joints[0].name, "body0_joint0");
+}
+
+#[test]
+fn free_ball_and_multiple_joints() {
+    let vehicle = load("joints.xml").vehicle;
+    let names: Vec<&str> = vehicle.bodies.iter().map(|b| b.name.as_str()).collect();
+    assert_eq!(
+        names,
+        ["floater", "drifter", "shoulder", "body3", "pedestal"]
+    );
+    let parents: Vec<Option<usize>> = vehicle.bodies.iter().map(|b| b.parent).collect();
+    assert_eq!(parents, [None, None, Some(1), Some(2), None]);
+
+    // <freejoint> takes no defaults; <joint type="free"> does.
+    let float = joint(&vehicle, "float");
+    assert_eq!(
+        (float.kind, float.damping, float.armature),
+        (JointKind::Free, 0.0, 0.0)
+    );
+    assert_quat(
+        "floater.quat",
+        &body(&vehicle, "floater").quat,
+        about(Vec3::z(), FRAC_PI_4),
+    );
+    let drift = joint(&vehicle, "drifter_joint0");
+    assert_eq!(
+        (drift.kind, drift.damping, drift.armature),
+        (JointKind::Free, 0.3, 0.2)
+    );
+
+    let ball = joint(&vehicle, "ball");
+    assert_eq!((ball.kind, ball.reference), (JointKind::Ball, 0.0));
+    assert_vec("ball.pos", &ball.pos, Vec3::new(0.0, 0.0, -0.1));
+    assert_eq!(joint(&vehicle, "extend").kind, JointKind::Slide);
+
+    let unnamed = body(&vehicle, "body3");
+    let joint_names: Vec<&str> = unnamed.joints.iter().map(|j| j.name.as_str()).collect();
+    assert_eq!(joint_names, ["body3_joint0", "body3_joint1"]);
+    assert_close("body3_joint1.ref", unnamed.joints[1].reference, FRAC_PI_2);
+    assert_vec("body3_joint1.axis", &unnamed.joints[1].axis, Vec3::y());
+
+    // A body without joints directly in <worldbody> stays, welded to the world.
+    let pedestal = body(&vehicle, "pedestal");
+    assert!(pedestal.joints.is_empty());
+    let mass = 1000.0 * PI * 0.09 * 0.2;
+    assert_mat(
+        "pedestal.inertia",
+        &inertia(pedestal).inertia,
+        diag(cylinder_moments(mass, 0.3, 0.1)),
+    );
+}
+
+#[test]
+fn satellite() {
+    let vehicle = load("satellite.xml").vehicle;
+    assert_eq!(vehicle.gravity, Vec3::zeros());
+    let kinds: Vec<(&str, JointKind)> = vehicle
+        .bodies
+        .iter()
+        .flat_map(|b| &b.joints)
+        .map(|j| (j.name.as_str(), j.kind))
+        .collect();
+    assert_eq!(
+        kinds,
+        [
+            ("bus_free", JointKind::Free),
+            ("deploy_left", JointKind::Hinge),
+            ("deploy_right", JointKind::Hinge),
+            ("arm_yaw", JointKind::Hinge),
+            ("arm_pitch", JointKind::Hinge),
+            ("elbow", JointKind::Hinge),
+            ("wrist", JointKind::Ball),
+        ]
+    );
+    // The bus's <inertial> wins over its box geom.
+    let bus = inertia(body(&vehicle, "bus"));
+    assert_close("bus.mass", bus.mass, 250.0);
+    assert_mat(
+        "bus.inertia",
+        &bus.inertia,
+        Mat3::new(40.0, 0.5, -0.3, 0.5, 42.0, 0.2, -0.3, 0.2, 35.0),
+    );
+
+    let deploy = joint(&vehicle, "deploy_right");
+    assert_eq!(
+        (deploy.stiffness, deploy.damping, deploy.armature),
+        (0.2, 0.1, 0.01)
+    );
+    assert_close("deploy_right.ref", deploy.reference, FRAC_PI_2);
+    assert_quat(
+        "array_right.quat",
+        &body(&vehicle, "array_right").quat,
+        about(Vec3::z(), PI),
+    );
+    assert_close(
+        "array_right.mass",
+        inertia(body(&vehicle, "array_right")).mass,
+        4.0,
+    );
+
+    // The hand: a cylinder along x (zaxis="1 0 0") and a box, summed.
+    let hand = inertia(body(&vehicle, "hand"));
+    let (m1, x1, m2, x2) = (1.5, 0.05, 0.3, 0.13);
+    let com = (m1 * x1 + m2 * x2) / (m1 + m2);
+    let cylinder = cylinder_moments(m1, 0.06, 0.05);
+    let cube = box_moments(m2, 0.02, 0.05, 0.03);
+    let transfer = m1 * (x1 - com).powi(2) + m2 * (x2 - com).powi(2);
+    let expected = Vec3::new(
+        cylinder.z + cube.x,
+        cylinder.x + cube.y + transfer,
+        cylinder.y + cube.z + transfer,
+    );
+    assert_close("hand.mass", hand.mass, m1 + m2);
+    assert_vec("hand.com", &hand.com, Vec3::new(com, 0.0, 0.0));
+    assert_mat("hand.inertia", &hand.inertia, diag(expected));
+}
+
+#[test]
+fn ignored_elements_warn_once_each() {
+    let Imported { vehicle, warnings } = load("ignored.xml");
+    assert_eq!(vehicle.bodies.len(), 1);
+    let shown: Vec<String> = warnings.iter().map(ToString::to_string).collect();
+    let ignored = |line: u32, element: &str| {
+        format!("line {line}: <{element}>: ignored (no effect on the dynamics)")
+    };
+    let expected = [
+        ignored(3, "lengthrange"),
+        ignored(5, "size"),
+        ignored(6, "statistic"),
+        ignored(7, "visual"),
+        ignored(11, "site"),
+        ignored(13, "asset"),
+        ignored(17, "light name=\"sun\""),
+        ignored(18, "geom name=\"floor\""),
+        ignored(19, "camera name=\"overview\""),
+        "line 21: <joint name=\"hinge\">: joint limits are not modelled (range ignored)"
+            .to_string(),
+        ignored(23, "site name=\"tip\""),
+        ignored(24, "camera name=\"eye\""),
+        ignored(27, "contact"),
+        ignored(30, "equality"),
+        ignored(31, "actuator"),
+        ignored(34, "sensor"),
+        ignored(37, "keyframe"),
+        ignored(40, "custom"),
+        ignored(43, "extension"),
+    ];
+    assert_eq!(shown, expected);
+    let camera = &warnings[8];
+    assert_eq!(
+        (camera.line, camera.element.as_str()),
+        (19, "camera name=\"overview\"")
+    );
+}
+
+#[test]
+fn settotalmass_scales_and_warns() {
+    let xml = r#"<mujoco>
+  <compiler settotalmass="10"/>
+  <worldbody>
+    <body><joint/><geom size="0.1" mass="1"/><body><geom size="0.1" mass="3"/></body></body>
+  </worldbody>
+</mujoco>"#;
+    let Imported { vehicle, warnings } = parse_mjcf(xml).unwrap();
+    let masses: Vec<f64> = vehicle.bodies.iter().map(|b| inertia(b).mass).collect();
+    assert_eq!(masses, [2.5, 7.5]);
+    assert_close(
+        "scaled moment",
+        inertia(&vehicle.bodies[0]).inertia[(0, 0)],
+        2.5 * 0.4 * 0.01,
+    );
+    assert_eq!(warnings.len(), 1);
+    assert!(
+        warnings[0]
+            .to_string()
+            .starts_with("line 2: <compiler>: settotalmass is deprecated")
+    );
+}
+
+#[test]
+fn io_error_names_the_path() {
+    let path = fixture("no_such_file.xml");
+    let error = load_mjcf(&path).unwrap_err();
+    assert!(matches!(error, MjcfError::Io { .. }));
+    assert!(error.to_string().contains("no_such_file.xml"), "{error}");
+}
+
+/// A file that must be rejected: which variant, which element, which line.
+struct Malformed {
+    what: &'static str,
+    xml: &'static str,
+    variant: fn(&MjcfError) -> bool,
+    element: &'static str,
+    line: u32,
+}
+
+#[rustfmt::skip]
+const MALFORMED: &[Malformed] = &[
+    Malformed { what: "not a number", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<joint name=\"j\">", line: 4,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<joint name=\"j\" damping=\"fast\"/>\n<geom size=\"1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "too few numbers", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<joint name=\"j2\">", line: 5,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<geom size=\"1\"/>\n<joint name=\"j2\" axis=\"0 1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "too many numbers", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<body>", line: 3,
+        xml: "<mujoco>\n<worldbody>\n<body pos=\"1 2 3 4\">\n<geom size=\"1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "NaN", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<geom>", line: 4,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<geom size=\"nan\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "infinite mass", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<inertial>", line: 4,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<inertial pos=\"0 0 0\" mass=\"inf\" diaginertia=\"1 1 1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "negative mass", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<inertial>", line: 4,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<inertial pos=\"0 0 0\" mass=\"-1\" diaginertia=\"1 1 1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "negative geom mass", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<geom name=\"g\">", line: 5,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<joint/>\n<geom name=\"g\" size=\"1\" mass=\"-2\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "negative size", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<geom>", line: 5,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<joint/>\n<geom type=\"box\" size=\"1 -1 1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "two orientations", variant: |e| matches!(e, MjcfError::ConflictingAttributes { .. }), element: "<body name=\"b\">", line: 3,
+        xml: "<mujoco>\n<worldbody>\n<body name=\"b\" quat=\"1 0 0 0\" euler=\"0 0 1\">\n<geom size=\"1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "zero quaternion", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<geom>", line: 4,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<geom size=\"1\" quat=\"0 0 0 0\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "unknown attribute", variant: |e| matches!(e, MjcfError::UnknownAttribute { .. }), element: "<joint>", line: 4,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<joint dampnig=\"1\"/>\n<geom size=\"1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "unknown keyword", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<joint>", line: 4,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<joint type=\"hing\"/>\n<geom size=\"1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "unknown element in a body", variant: |e| matches!(e, MjcfError::UnknownElement { .. }), element: "<motor>", line: 5,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<geom size=\"1\"/>\n<motor/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "unknown section", variant: |e| matches!(e, MjcfError::UnknownElement { .. }), element: "<physics>", line: 2,
+        xml: "<mujoco>\n<physics/>\n<worldbody/>\n</mujoco>" },
+    Malformed { what: "tendon", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<fixed name=\"t\">", line: 9,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<joint name=\"a\"/>\n<geom size=\"1\"/>\n</body>\n</worldbody>\n<tendon>\n<fixed name=\"t\"><joint joint=\"a\" coef=\"1\"/></fixed>\n</tendon>\n</mujoco>" },
+    Malformed { what: "equality", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<weld>", line: 8,
+        xml: "<mujoco>\n<worldbody>\n<body name=\"a\">\n<freejoint/><geom size=\"1\"/>\n</body>\n</worldbody>\n<equality>\n<weld body1=\"a\"/>\n</equality>\n</mujoco>" },
+    Malformed { what: "frictionloss", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<joint name=\"j\">", line: 4,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<joint name=\"j\" frictionloss=\"0.1\"/>\n<geom size=\"1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "frictionloss from a default class", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<joint>", line: 8,
+        xml: "<mujoco>\n<default>\n<joint frictionloss=\"0.1\"/>\n</default>\n<worldbody>\n<body>\n<geom size=\"1\"/>\n<joint/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "free joint in a nested body", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<freejoint>", line: 6,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<geom size=\"1\"/>\n<body>\n<freejoint/>\n<geom size=\"1\"/>\n</body>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "free joint with another joint", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<joint>", line: 5,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<geom size=\"1\"/>\n<joint type=\"free\"/>\n<joint/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "ball followed by hinge", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<joint name=\"h\">", line: 6,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<geom size=\"1\"/>\n<joint type=\"ball\"/>\n<joint name=\"h\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "mesh geom without inertial", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<geom name=\"hull\">", line: 8,
+        xml: "<mujoco>\n<asset>\n<mesh name=\"m\" vertex=\"0 0 0 1 0 0 0 1 0 0 0 1\"/>\n</asset>\n<worldbody>\n<body>\n<joint/>\n<geom name=\"hull\" type=\"mesh\" mesh=\"m\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "shell inertia", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<geom>", line: 5,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<joint/>\n<geom size=\"1\" shellinertia=\"true\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "missing worldbody", variant: |e| matches!(e, MjcfError::MissingWorldbody { .. }), element: "<mujoco>", line: 2,
+        xml: "<?xml version=\"1.0\"?>\n<mujoco model=\"m\">\n<option timestep=\"0.01\"/>\n</mujoco>" },
+    Malformed { what: "wrong root", variant: |e| matches!(e, MjcfError::WrongRoot { .. }), element: "<robot name=\"r\">", line: 1,
+        xml: "<robot name=\"r\"><link name=\"l\"/></robot>" },
+    Malformed { what: "unknown class", variant: |e| matches!(e, MjcfError::UnknownClass { .. }), element: "<geom>", line: 4,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<geom class=\"heavy\" size=\"1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "unknown childclass", variant: |e| matches!(e, MjcfError::UnknownClass { .. }), element: "<body name=\"b\">", line: 3,
+        xml: "<mujoco>\n<worldbody>\n<body name=\"b\" childclass=\"arm\">\n<geom size=\"1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "duplicate body name", variant: |e| matches!(e, MjcfError::DuplicateName { .. }), element: "<body name=\"b\">", line: 6,
+        xml: "<mujoco>\n<worldbody>\n<body name=\"b\">\n<geom size=\"1\"/>\n</body>\n<body name=\"b\">\n<geom size=\"1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "mocap body", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<body name=\"target\">", line: 3,
+        xml: "<mujoco>\n<worldbody>\n<body name=\"target\" mocap=\"true\">\n<geom size=\"1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "gravity compensation", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<body>", line: 3,
+        xml: "<mujoco>\n<worldbody>\n<body gravcomp=\"1\">\n<joint/>\n<geom size=\"1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "wind", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<option>", line: 2,
+        xml: "<mujoco>\n<option wind=\"1 0 0\"/>\n<worldbody/>\n</mujoco>" },
+    Malformed { what: "fluid density", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<option>", line: 3,
+        xml: "<mujoco>\n<worldbody/>\n<option density=\"1.2\"/>\n</mujoco>" },
+    Malformed { what: "sleeping bodies", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<flag>", line: 3,
+        xml: "<mujoco>\n<option>\n<flag sleep=\"enable\"/>\n</option>\n<worldbody/>\n</mujoco>" },
+    Malformed { what: "global coordinates", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<compiler>", line: 2,
+        xml: "<mujoco>\n<compiler coordinate=\"global\"/>\n<worldbody/>\n</mujoco>" },
+    Malformed { what: "bad euler sequence", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<compiler>", line: 2,
+        xml: "<mujoco>\n<compiler eulerseq=\"xyw\"/>\n<worldbody/>\n</mujoco>" },
+    Malformed { what: "frame", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<frame>", line: 3,
+        xml: "<mujoco>\n<worldbody>\n<frame pos=\"1 0 0\">\n<body><geom size=\"1\"/></body>\n</frame>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "include", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<include>", line: 2,
+        xml: "<mujoco>\n<include file=\"arm.xml\"/>\n<worldbody/>\n</mujoco>" },
+    Malformed { what: "composite", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<composite>", line: 4,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<composite type=\"cable\" count=\"4 1 1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "flex", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<flex name=\"cloth\">", line: 4,
+        xml: "<mujoco>\n<worldbody/>\n<deformable>\n<flex name=\"cloth\" dim=\"2\"/>\n</deformable>\n</mujoco>" },
+    Malformed { what: "missing inertial mass", variant: |e| matches!(e, MjcfError::MissingAttribute { .. }), element: "<inertial>", line: 5,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<joint/>\n<inertial pos=\"0 0 0\" diaginertia=\"1 1 1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "two inertials", variant: |e| matches!(e, MjcfError::Repeated { .. }), element: "<inertial>", line: 5,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<inertial pos=\"0 0 0\" mass=\"1\" diaginertia=\"1 1 1\"/>\n<inertial pos=\"0 0 0\" mass=\"1\" diaginertia=\"1 1 1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "fullinertia and quat", variant: |e| matches!(e, MjcfError::ConflictingAttributes { .. }), element: "<inertial>", line: 4,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<inertial pos=\"0 0 0\" mass=\"1\" fullinertia=\"1 1 1 0 0 0\" quat=\"1 0 0 0\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "inertia not positive definite", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<inertial>", line: 4,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<inertial pos=\"0 0 0\" mass=\"1\" fullinertia=\"1 1 1 2 0 0\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "triangle inequality", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<body name=\"thin\">", line: 3,
+        xml: "<mujoco>\n<worldbody>\n<body name=\"thin\">\n<joint/>\n<inertial pos=\"0 0 0\" mass=\"1\" diaginertia=\"1 1 3\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "massless moving body", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<body name=\"ghost\">", line: 3,
+        xml: "<mujoco>\n<worldbody>\n<body name=\"ghost\">\n<joint/>\n<site/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "zero joint axis", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<joint>", line: 5,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<geom size=\"1\"/>\n<joint axis=\"0 0 0\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "fromto on a sphere", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<geom>", line: 5,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<joint/>\n<geom size=\"1\" fromto=\"0 0 0 0 0 1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "plane in a moving body", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<geom>", line: 6,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<joint/>\n<geom size=\"1\"/>\n<geom type=\"plane\" size=\"1 1 1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "springdamper", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<joint>", line: 5,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<geom size=\"1\"/>\n<joint springdamper=\"0.1 1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "nonlinear stiffness", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<joint>", line: 5,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<geom size=\"1\"/>\n<joint stiffness=\"1 0.5\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "joint in the world body", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<joint>", line: 3,
+        xml: "<mujoco>\n<worldbody>\n<joint/>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "free joint aligned to the inertial frame", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<freejoint>", line: 4,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<freejoint align=\"true\"/>\n<geom size=\"1\" pos=\"1 0 0\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "range without limited or autolimits", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<joint>", line: 6,
+        xml: "<mujoco>\n<compiler autolimits=\"false\"/>\n<worldbody>\n<body>\n<geom size=\"1\"/>\n<joint range=\"-1 1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "nested default without class", variant: |e| matches!(e, MjcfError::MissingAttribute { .. }), element: "<default>", line: 3,
+        xml: "<mujoco>\n<default>\n<default>\n<joint damping=\"1\"/>\n</default>\n</default>\n<worldbody/>\n</mujoco>" },
+];
+
+#[test]
+fn malformed_inputs_are_rejected_with_element_and_line() {
+    for case in MALFORMED {
+        let error = match parse_mjcf(case.xml) {
+            Ok(_) => panic!("{}: accepted", case.what),
+            Err(error) => error,
+        };
+        let message = error.to_string();
+        assert!(
+            (case.variant)(&error),
+            "{}: unexpected variant {error:?}",
+            case.what
+        );
+        assert!(
+            message.contains(case.element),
+            "{}: {message:?} does not name {}",
+            case.what,
+            case.element
+        );
+        assert!(
+            message.starts_with(&format!("line {}: ", case.line)),
+            "{}: {message:?} is not at line {}",
+            case.what,
+            case.line
+        );
+    }
+    assert!(MALFORMED.len() >= 25);
+}
+
+#[test]
+fn not_xml_at_all() {
+    let error = parse_mjcf("this is not XML").unwrap_err();
+    assert!(matches!(error, MjcfError::Xml { line: 1, .. }), "{error:?}");
+    assert!(
+        error
+            .to_string()
+            .starts_with("line 1, column 1: not well-formed XML"),
+        "{error}"
+    );
+
+    let error = parse_mjcf("<mujoco>\n<worldbody>\n</mujoco>").unwrap_err();
+    assert!(matches!(error, MjcfError::Xml { line: 3, .. }), "{error:?}");
+}
+
+#[test]
+fn error_message_shows_expected_and_found() {
+    let xml = "<mujoco>\n<worldbody>\n<body>\n<geom size=\"1\"/>\n<joint name=\"j2\" axis=\"0 1\"/>\n</body>\n</worldbody>\n</mujoco>";
+    let error = parse_mjcf(xml).unwrap_err();
+    assert_eq!(
+        error.to_string(),
+        "line 5: <joint name=\"j2\">: attribute 'axis' expects 3 numbers, found \"0 1\""
+    );
+}
