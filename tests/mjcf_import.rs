@@ -281,6 +281,18 @@ fn geom_shapes_fromto_and_sums() {
         &m.inertia,
         diag(Vec3::new(own, own + transfer, own + transfer)),
     );
+
+    // A geom without mass is left out, so the box alone is the body: its frame
+    // and moments as they are (a quarter turn about z swaps x and y).
+    let m = inertia(body(&vehicle, "weightless_geom"));
+    let moments = box_moments(6.0, 0.1, 0.2, 0.3);
+    assert_close("weightless_geom.mass", m.mass, 6.0);
+    assert_vec("weightless_geom.com", &m.com, Vec3::new(-1.0, 0.0, 0.0));
+    assert_mat(
+        "weightless_geom.inertia",
+        &m.inertia,
+        diag(Vec3::new(moments.y, moments.x, moments.z)),
+    );
 }
 
 #[test]
@@ -397,6 +409,12 @@ fn compiler_bounds_and_balance() {
         &m.inertia,
         Mat3::identity() * 5.0 / 3.0,
     );
+    // MuJoCo puts the bound mass of a body without geoms or inertial at the
+    // body's position in its parent, taken as a point in the body frame.
+    let m = inertia(body(&vehicle, "empty"));
+    assert_close("empty.mass", m.mass, 0.5);
+    assert_vec("empty.com", &m.com, Vec3::new(1.0, 2.0, 3.0));
+    assert_mat("empty.inertia", &m.inertia, Mat3::identity() * 0.25);
 }
 
 #[test]

@@ -122,8 +122,9 @@ impl BodyInertia {
         })
     }
 
-    /// Sums several geoms: total mass, their common centre of mass, and the
-    /// parallel-axis sum of their inertias about it.
+    /// Sums geoms (each of mass above mjEPS): total mass, their common centre
+    /// of mass, and the parallel-axis sum of their inertias about it. Like
+    /// MuJoCo, a single geom's frame and moments are copied as they are.
     pub fn from_geoms(geoms: &[GeomMass]) -> Result<Self, &'static str> {
         if let [geom] = geoms {
             return Ok(Self::from_principal(
@@ -134,9 +135,6 @@ impl BodyInertia {
             ));
         }
         let mass: f64 = geoms.iter().map(|g| g.mass).sum();
-        if mass < EPS {
-            return Err("body mass is too small to compute the centre of mass of its geoms");
-        }
         let com = geoms.iter().map(|g| g.mass * g.pos).sum::<Vec3>() / mass;
         let tensor = geoms
             .iter()

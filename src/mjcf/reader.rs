@@ -123,6 +123,7 @@ struct JointElement<'a, 'input> {
     align: Align,
 }
 
+/// What the walk through the document has gathered so far.
 struct Reader {
     compiler: Compiler,
     physics: Physics,
@@ -469,8 +470,8 @@ impl Reader {
             }
         }
 
-        let moving = parent_moving || !joints.is_empty();
         let has_joints = !joints.is_empty();
+        let moving = parent_moving || has_joints;
         let joints = self.build_joints(&name, parent, joints, !child_bodies.is_empty())?;
 
         let explicit = inertial.map(|(_, inertia)| inertia);
@@ -483,18 +484,21 @@ impl Reader {
         for (geom, settings) in &geoms {
             let [low, high] = self.compiler.inertia_groups;
             let contributes = from_geoms && (low..=high).contains(&settings.group);
-            if let Some(mass) = self.geom_mass(geom, settings, moving, contributes)? {
+            // MuJoCo leaves out geoms of mass up to mjEPS.
+            if let Some(mass) = self.geom_mass(geom, settings, moving, contributes)?
+                && mass.mass > EPS
+            {
                 selected.push(mass);
             }
         }
-        let inertia = match explicit {
-            _ if !selected.is_empty() => {
-                BodyInertia::from_geoms(&selected).map_err(|r| element.invalid(r))?
-            }
-            Some(explicit) => explicit,
+        let inertia = if !selected.is_empty() {
+            BodyInertia::from_geoms(&selected).map_err(|r| element.invalid(r))?
+        } else if let Some(explicit) = explicit {
+            explicit
+        } else {
             // MuJoCo puts the inertial frame of a body without mass at the body's
             // own pose in its parent; it matters once boundmass gives it mass.
-            None => BodyInertia::from_principal(0.0, pos, &quat, Vec3::zeros()),
+            BodyInertia::from_principal(0.0, pos, &quat, Vec3::zeros())
         };
         let inertia = self.bound(element, inertia)?;
 
@@ -631,9 +635,6 @@ impl Reader {
                 let direction = normalized(from - to)
                     .ok_or_else(|| element.invalid("the 'fromto' points coincide"))?;
                 let half_length = (from - to).norm() / 2.0;
-                if half_length < EPS {
-                    return Err(element.invalid("the 'fromto' points coincide"));
-                }
                 if matches!(settings.kind, GeomKind::Ellipsoid | GeomKind::Box) {
                     size = [size[0], size[0], half_length];
                 } else {
@@ -697,15 +698,12 @@ impl Reader {
         let mut joints = Vec::with_capacity(count);
         let mut after_ball = false;
         let mut dofs = 0;
-        for (
-            k,
-            JointElement {
+        for (k, joint) in elements.into_iter().enumerate() {
+            let JointElement {
                 element,
                 settings: s,
                 align,
-            },
-        ) in elements.into_iter().enumerate()
-        {
+            } = joint;
             let origin = |attribute: &str| {
                 if element.has(attribute) {
                     ""
