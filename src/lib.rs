@@ -14,6 +14,7 @@ pub mod mjcf;
 pub mod vehicle;
 pub mod dynamics;
 pub mod eval;
+pub mod export;
 pub mod integrate;
 pub mod model;
 pub mod workspace;

@@ -1,0 +1,794 @@
+//! The generic FMI 2.0 co-simulation layer: every exported `fmi2*`
+//! function, and all of the crate's `unsafe`.
+//!
+//! Each function checks its pointers, checks the instance's state against
+//! the table in [`crate::state`], then calls a safe [`Slave`] method inside
+//! `catch_unwind` (a panic becomes fmi2Error, never an abort of the host),
+//! and turns the result into a status, logging every rejection with the
+//! values involved. A rejected call (bad arguments, wrong state) changes
+//! nothing; a panic leaves the instance in the error state.
+//!
+//! The instance is a `Box<Instance>` handed out with `Box::into_raw`; FMU
+//! states are `Box<Snapshot>` pointers likewise.
+
+// The patterns below are fmi-sys's C constants, named as in fmi2Functions.h.
+#![allow(non_upper_case_globals)]
+
+use std::ffi::{CStr, CString, c_char};
+use std::panic::{AssertUnwindSafe, catch_unwind};
+
+use fmi_sys::fmi2::*;
+use nudyn::export::LOG_CATEGORIES;
+
+use crate::slave::{Slave, SlaveError};
+use crate::snapshot::Snapshot;
+use crate::state::{Function, Phase};
+
+/// Index of a category in [`LOG_CATEGORIES`].
+#[derive(Clone, Copy)]
+enum Category {
+    Discard = 0,
+    Error = 1,
+    Fatal = 2,
+    Calls = 3,
+}
+
+/// Why a call is refused before or after reaching the slave.
+#[derive(Debug, thiserror::Error)]
+enum CallError {
+    /// The function was called in a state that does not allow it.
+    #[error("{function} may not be called in state {phase}")]
+    IllegalState {
+        /// The C name of the function.
+        function: &'static str,
+        /// The state's name.
+        phase: &'static str,
+    },
+    /// fmi2Instantiate asked for model exchange.
+    #[error("fmuType = {0}: this FMU supports co-simulation (fmi2CoSimulation = 1) only")]
+    NotCoSimulation(fmi2Type),
+    /// A required pointer is NULL.
+    #[error("{0} is NULL")]
+    Null(&'static str),
+    /// fmi2SetDebugLogging named a category the FMU does not declare.
+    #[error("unknown log category '{0}' (known: logStatusDiscard, logStatusError, logStatusFatal, logCalls)")]
+    UnknownCategory(String),
+    /// A serialized state buffer of the wrong size.
+    #[error("the buffer for the serialized FMU state has {found} bytes, expected {expected}")]
+    BufferSize {
+        /// fmi2SerializedFMUstateSize.
+        expected: usize,
+        /// The size passed.
+        found: usize,
+    },
+    /// A status the FMU does not provide.
+    #[error("status kind {0} is not available")]
+    StatusUnavailable(fmi2StatusKind),
+    /// Directional derivatives are not provided (providesDirectionalDerivative="false").
+    #[error("directional derivatives are not provided (providesDirectionalDerivative=\"false\")")]
+    NoDirectionalDerivatives,
+    /// The slave refused or failed.
+    #[error(transparent)]
+    Slave(#[from] SlaveError),
+}
+
+impl CallError {
+    fn status(&self) -> fmi2Status {
+        match self {
+            CallError::Slave(e) if e.is_discard() => fmi2Status_fmi2Discard,
+            CallError::StatusUnavailable(_) => fmi2Status_fmi2Discard,
+            _ => fmi2Status_fmi2Error,
+        }
+    }
+}
+
+/// Where log messages go: the importer's callback and the enabled categories.
+struct Logger {
+    callback: fmi2CallbackLogger,
+    environment: fmi2ComponentEnvironment,
+    instance_name: CString,
+    enabled: [bool; LOG_CATEGORIES.len()],
+}
+
+impl Logger {
+    fn new(functions: &fmi2CallbackFunctions, instance_name: CString, logging_on: bool) -> Self {
+        let mut enabled = [true; LOG_CATEGORIES.len()];
+        enabled[Category::Calls as usize] = logging_on;
+        Logger { callback: functions.logger, environment: functions.componentEnvironment, instance_name, enabled }
+    }
+
+    fn log(&self, status: fmi2Status, category: Category, message: &str) {
+        let Some(callback) = self.callback else { return };
+        if !self.enabled[category as usize] {
+            return;
+        }
+        let category = CString::new(LOG_CATEGORIES[category as usize].0).expect("no NUL in category names");
+        // The message is the format itself, with '%' escaped: importers that
+        // cannot read C varargs (FMPy's ctypes logger) print it as it is.
+        let message = CString::new(message.replace('\0', " ").replace('%', "%%")).expect("NULs replaced");
+        // SAFETY: the callback is the importer's fmi2CallbackLogger; every
+        // string is NUL-terminated and outlives the call, and the format
+        // has no conversions left to read arguments.
+        unsafe {
+            callback(self.environment, self.instance_name.as_ptr(), status, category.as_ptr(), message.as_ptr())
+        };
+    }
+
+    fn log_status(&self, status: fmi2Status, message: &str) {
+        let category = match status {
+            fmi2Status_fmi2Discard => Category::Discard,
+            fmi2Status_fmi2Fatal => Category::Fatal,
+            _ => Category::Error,
+        };
+        self.log(status, category, message);
+    }
+}
+
+/// One FMU instance: the logger, the state machine and the slave.
+struct Instance {
+    logger: Logger,
+    phase: Phase,
+    slave: Slave,
+}
+
+/// The text of a panic payload.
+fn panic_message(payload: &(dyn std::any::Any + Send)) -> &str {
+    payload
+        .downcast_ref::<&str>()
+        .copied()
+        .or_else(|| payload.downcast_ref::<String>().map(String::as_str))
+        .unwrap_or("(no message)")
+}
+
+/// The common entry path: state check, panic guard, status and logging.
+///
+/// # Safety
+/// `c` must be NULL or a pointer returned by fmi2Instantiate and not yet freed.
+unsafe fn enter(
+    c: fmi2Component,
+    function: Function,
+    body: impl FnOnce(&mut Instance) -> Result<(), CallError>,
+) -> fmi2Status {
+    // SAFETY: by the contract above, a non-NULL `c` is a live Box<Instance>.
+    let Some(instance) = (unsafe { (c as *mut Instance).as_mut() }) else {
+        return fmi2Status_fmi2Error;
+    };
+    let result = if function.allowed_in(instance.phase) {
+        catch_unwind(AssertUnwindSafe(|| body(&mut *instance)))
+    } else {
+        Ok(Err(CallError::IllegalState { function: function.name(), phase: instance.phase.name() }))
+    };
+    let status = match result {
+        Ok(Ok(())) => fmi2Status_fmi2OK,
+        Ok(Err(error)) => {
+            let status = error.status();
+            instance.logger.log_status(status, &format!("{}: {error}", function.name()));
+            status
+        }
+        Err(payload) => {
+            instance.phase = Phase::Error;
+            let message = format!("{}: internal error (panic): {}", function.name(), panic_message(&*payload));
+            instance.logger.log_status(fmi2Status_fmi2Error, &message);
+            fmi2Status_fmi2Error
+        }
+    };
+    instance.logger.log(status, Category::Calls, &format!("{} returned status {status}", function.name()));
+    status
+}
+
+/// A slice from a C array; NULL is accepted for an empty one.
+///
+/// # Safety
+/// A non-NULL `ptr` must point to `n` valid elements that live for `'a`.
+unsafe fn slice<'a, T>(ptr: *const T, n: usize, what: &'static str) -> Result<&'a [T], CallError> {
+    if n == 0 {
+        return Ok(&[]);
+    }
+    if ptr.is_null() {
+        return Err(CallError::Null(what));
+    }
+    // SAFETY: non-NULL, and `n` elements by the contract above.
+    Ok(unsafe { std::slice::from_raw_parts(ptr, n) })
+}
+
+/// A mutable slice from a C array; NULL is accepted for an empty one.
+///
+/// # Safety
+/// A non-NULL `ptr` must point to `n` valid, writable elements, unaliased for `'a`.
+unsafe fn slice_mut<'a, T>(ptr: *mut T, n: usize, what: &'static str) -> Result<&'a mut [T], CallError> {
+    if n == 0 {
+        return Ok(&mut []);
+    }
+    if ptr.is_null() {
+        return Err(CallError::Null(what));
+    }
+    // SAFETY: non-NULL, and `n` writable elements by the contract above.
+    Ok(unsafe { std::slice::from_raw_parts_mut(ptr, n) })
+}
+
+/// A C string argument, lossily as UTF-8.
+///
+/// # Safety
+/// A non-NULL `ptr` must be a NUL-terminated string.
+unsafe fn string(ptr: fmi2String, what: &'static str) -> Result<String, CallError> {
+    if ptr.is_null() {
+        return Err(CallError::Null(what));
+    }
+    // SAFETY: non-NULL and NUL-terminated by the contract above.
+    Ok(unsafe { CStr::from_ptr(ptr) }.to_string_lossy().into_owned())
+}
+
+/// Whether the phase is before fmi2ExitInitializationMode.
+fn initialized(phase: Phase) -> bool {
+    !matches!(phase, Phase::Instantiated | Phase::InitializationMode)
+}
+
+#[unsafe(no_mangle)]
+pub extern "C" fn fmi2GetTypesPlatform() -> *const c_char {
+    c"default".as_ptr()
+}
+
+#[unsafe(no_mangle)]
+pub extern "C" fn fmi2GetVersion() -> *const c_char {
+    c"2.0".as_ptr()
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions: pointers as the standard describes them.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2Instantiate(
+    instance_name: fmi2String,
+    fmu_type: fmi2Type,
+    fmu_guid: fmi2String,
+    fmu_resource_location: fmi2String,
+    functions: *const fmi2CallbackFunctions,
+    _visible: fmi2Boolean,
+    logging_on: fmi2Boolean,
+) -> fmi2Component {
+    // SAFETY: a non-NULL `functions` points to the importer's callbacks.
+    let Some(functions) = (unsafe { functions.as_ref() }) else {
+        return std::ptr::null_mut();
+    };
+    // SAFETY: NUL-terminated by the standard when non-NULL.
+    let name = unsafe { string(instance_name, "instanceName") }.unwrap_or_else(|_| "(NULL)".into());
+    let logger = Logger::new(functions, CString::new(name.replace('\0', " ")).expect("NULs replaced"), logging_on != 0);
+    let instantiate = || -> Result<Slave, CallError> {
+        if fmu_type != fmi2Type_fmi2CoSimulation {
+            return Err(CallError::NotCoSimulation(fmu_type));
+        }
+        if instance_name.is_null() {
+            return Err(CallError::Null("instanceName"));
+        }
+        // SAFETY: NUL-terminated by the standard when non-NULL.
+        let guid = unsafe { string(fmu_guid, "fmuGUID") }?;
+        // SAFETY: as above.
+        let location = unsafe { string(fmu_resource_location, "fmuResourceLocation") }?;
+        Ok(Slave::load(&location, &guid)?)
+    };
+    match catch_unwind(AssertUnwindSafe(instantiate)) {
+        Ok(Ok(slave)) => Box::into_raw(Box::new(Instance { logger, phase: Phase::Instantiated, slave })) as fmi2Component,
+        Ok(Err(error)) => {
+            logger.log_status(fmi2Status_fmi2Error, &format!("fmi2Instantiate: {error}"));
+            std::ptr::null_mut()
+        }
+        Err(payload) => {
+            let message = format!("fmi2Instantiate: internal error (panic): {}", panic_message(&*payload));
+            logger.log_status(fmi2Status_fmi2Error, &message);
+            std::ptr::null_mut()
+        }
+    }
+}
+
+/// # Safety
+/// `c` is NULL or an instance from fmi2Instantiate, not used afterwards.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2FreeInstance(c: fmi2Component) {
+    // SAFETY: `c` is an instance or NULL.
+    let Some(instance) = (unsafe { (c as *mut Instance).as_ref() }) else { return };
+    if !Function::FreeInstance.allowed_in(instance.phase) {
+        let error = CallError::IllegalState { function: "fmi2FreeInstance", phase: instance.phase.name() };
+        instance.logger.log_status(fmi2Status_fmi2Error, &error.to_string());
+        return;
+    }
+    // SAFETY: `c` came from Box::into_raw in fmi2Instantiate and is freed once.
+    let instance = unsafe { Box::from_raw(c as *mut Instance) };
+    // Dropping frees plain Rust data; guard anyway so nothing unwinds into C.
+    let _ = catch_unwind(AssertUnwindSafe(move || drop(instance)));
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2SetDebugLogging(
+    c: fmi2Component,
+    logging_on: fmi2Boolean,
+    n_categories: usize,
+    categories: *const fmi2String,
+) -> fmi2Status {
+    unsafe {
+        enter(c, Function::SetDebugLogging, |instance| {
+            let categories = slice(categories, n_categories, "categories")?;
+            let mut indices = Vec::with_capacity(categories.len());
+            for &category in categories {
+                let name = string(category, "a category")?;
+                let index = LOG_CATEGORIES.iter().position(|(known, _)| *known == name);
+                indices.push(index.ok_or(CallError::UnknownCategory(name))?);
+            }
+            let enabled = &mut instance.logger.enabled;
+            if indices.is_empty() {
+                enabled.fill(logging_on != 0);
+            }
+            indices.into_iter().for_each(|i| enabled[i] = logging_on != 0);
+            Ok(())
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2SetupExperiment(
+    c: fmi2Component,
+    tolerance_defined: fmi2Boolean,
+    tolerance: fmi2Real,
+    start_time: fmi2Real,
+    stop_time_defined: fmi2Boolean,
+    stop_time: fmi2Real,
+) -> fmi2Status {
+    unsafe {
+        enter(c, Function::SetupExperiment, |instance| {
+            let tolerance = (tolerance_defined != 0).then_some(tolerance);
+            let stop_time = (stop_time_defined != 0).then_some(stop_time);
+            Ok(instance.slave.setup_experiment(tolerance, start_time, stop_time)?)
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2EnterInitializationMode(c: fmi2Component) -> fmi2Status {
+    unsafe {
+        enter(c, Function::EnterInitializationMode, |instance| {
+            instance.phase = Phase::InitializationMode;
+            Ok(())
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2ExitInitializationMode(c: fmi2Component) -> fmi2Status {
+    unsafe {
+        enter(c, Function::ExitInitializationMode, |instance| {
+            instance.slave.initialize()?;
+            instance.phase = Phase::StepComplete;
+            Ok(())
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2Terminate(c: fmi2Component) -> fmi2Status {
+    unsafe {
+        enter(c, Function::Terminate, |instance| {
+            instance.phase = Phase::Terminated;
+            Ok(())
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2Reset(c: fmi2Component) -> fmi2Status {
+    unsafe {
+        enter(c, Function::Reset, |instance| {
+            instance.slave.reset();
+            instance.phase = Phase::Instantiated;
+            Ok(())
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2GetReal(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    value: *mut fmi2Real,
+) -> fmi2Status {
+    unsafe {
+        enter(c, Function::GetReal, |instance| {
+            let vrs = slice(vr, nvr, "vr")?;
+            let values = slice_mut(value, nvr, "value")?;
+            Ok(instance.slave.get_real(vrs, values)?)
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2SetReal(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    value: *const fmi2Real,
+) -> fmi2Status {
+    unsafe {
+        enter(c, Function::SetReal, |instance| {
+            let (vrs, values) = (slice(vr, nvr, "vr")?, slice(value, nvr, "value")?);
+            Ok(instance.slave.set_real(vrs, values, initialized(instance.phase))?)
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2GetInteger(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    value: *mut fmi2Integer,
+) -> fmi2Status {
+    unsafe {
+        enter(c, Function::GetInteger, |instance| {
+            let (vrs, values) = (slice(vr, nvr, "vr")?, slice_mut(value, nvr, "value")?);
+            Ok(instance.slave.get_integer(vrs, values)?)
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2SetInteger(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    value: *const fmi2Integer,
+) -> fmi2Status {
+    unsafe {
+        enter(c, Function::SetInteger, |instance| {
+            let (vrs, values) = (slice(vr, nvr, "vr")?, slice(value, nvr, "value")?);
+            Ok(instance.slave.set_integer(vrs, values, initialized(instance.phase))?)
+        })
+    }
+}
+
+/// The FMU has no Boolean or String variables: any value reference is unknown.
+fn no_variables(vrs: &[fmi2ValueReference], kind: &'static str) -> Result<(), CallError> {
+    match vrs.first() {
+        Some(&vr) => Err(SlaveError::UnknownValueReference { vr, kind }.into()),
+        None => Ok(()),
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2GetBoolean(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    _value: *mut fmi2Boolean,
+) -> fmi2Status {
+    unsafe { enter(c, Function::GetBoolean, |_| no_variables(slice(vr, nvr, "vr")?, "Boolean")) }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2SetBoolean(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    _value: *const fmi2Boolean,
+) -> fmi2Status {
+    unsafe { enter(c, Function::SetBoolean, |_| no_variables(slice(vr, nvr, "vr")?, "Boolean")) }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2GetString(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    _value: *mut fmi2String,
+) -> fmi2Status {
+    unsafe { enter(c, Function::GetString, |_| no_variables(slice(vr, nvr, "vr")?, "String")) }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2SetString(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    _value: *const fmi2String,
+) -> fmi2Status {
+    unsafe { enter(c, Function::SetString, |_| no_variables(slice(vr, nvr, "vr")?, "String")) }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions; `*state` is NULL or a state of this FMU.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2GetFMUstate(c: fmi2Component, state: *mut fmi2FMUstate) -> fmi2Status {
+    unsafe {
+        enter(c, Function::GetFmuState, |instance| {
+            let state = state.as_mut().ok_or(CallError::Null("FMUstate"))?;
+            match (*state as *mut Snapshot).as_mut() {
+                // An existing state is overwritten in place (FMI 2.0 §2.1.8).
+                Some(snapshot) => instance.slave.save(snapshot),
+                None => *state = Box::into_raw(Box::new(instance.slave.snapshot())) as fmi2FMUstate,
+            }
+            Ok(())
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions; `state` is a state of this FMU.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2SetFMUstate(c: fmi2Component, state: fmi2FMUstate) -> fmi2Status {
+    unsafe {
+        enter(c, Function::SetFmuState, |instance| {
+            let snapshot = (state as *const Snapshot).as_ref().ok_or(CallError::Null("FMUstate"))?;
+            instance.slave.restore(snapshot)?;
+            if instance.phase == Phase::StepFailed {
+                instance.phase = Phase::StepComplete;
+            }
+            Ok(())
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions; `*state` is NULL or a state of this FMU.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2FreeFMUstate(c: fmi2Component, state: *mut fmi2FMUstate) -> fmi2Status {
+    unsafe {
+        enter(c, Function::FreeFmuState, |_| {
+            let Some(state) = state.as_mut() else { return Ok(()) };
+            if !state.is_null() {
+                drop(Box::from_raw(*state as *mut Snapshot));
+                *state = std::ptr::null_mut();
+            }
+            Ok(())
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions; `state` is a state of this FMU.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2SerializedFMUstateSize(c: fmi2Component, state: fmi2FMUstate, size: *mut usize) -> fmi2Status {
+    unsafe {
+        enter(c, Function::SerializedFmuStateSize, |_| {
+            let snapshot = (state as *const Snapshot).as_ref().ok_or(CallError::Null("FMUstate"))?;
+            *size.as_mut().ok_or(CallError::Null("size"))? = snapshot.serialized_size();
+            Ok(())
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions; `state` is a state of this FMU.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2SerializeFMUstate(
+    c: fmi2Component,
+    state: fmi2FMUstate,
+    bytes: *mut fmi2Byte,
+    size: usize,
+) -> fmi2Status {
+    unsafe {
+        enter(c, Function::SerializeFmuState, |_| {
+            let snapshot = (state as *const Snapshot).as_ref().ok_or(CallError::Null("FMUstate"))?;
+            let expected = snapshot.serialized_size();
+            if size != expected {
+                return Err(CallError::BufferSize { expected, found: size });
+            }
+            snapshot.serialize(slice_mut(bytes as *mut u8, size, "serializedState")?);
+            Ok(())
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions; `*state` is NULL or a state of this FMU.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2DeSerializeFMUstate(
+    c: fmi2Component,
+    bytes: *const fmi2Byte,
+    size: usize,
+    state: *mut fmi2FMUstate,
+) -> fmi2Status {
+    unsafe {
+        enter(c, Function::DeSerializeFmuState, |instance| {
+            let state = state.as_mut().ok_or(CallError::Null("FMUstate"))?;
+            let snapshot = instance.slave.deserialize(slice(bytes as *const u8, size, "serializedState")?)?;
+            match (*state as *mut Snapshot).as_mut() {
+                Some(existing) => *existing = snapshot,
+                None => *state = Box::into_raw(Box::new(snapshot)) as fmi2FMUstate,
+            }
+            Ok(())
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2GetDirectionalDerivative(
+    c: fmi2Component,
+    _unknown: *const fmi2ValueReference,
+    _n_unknown: usize,
+    _known: *const fmi2ValueReference,
+    _n_known: usize,
+    _dv_known: *const fmi2Real,
+    _dv_unknown: *mut fmi2Real,
+) -> fmi2Status {
+    unsafe { enter(c, Function::GetDirectionalDerivative, |_| Err(CallError::NoDirectionalDerivatives)) }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2SetRealInputDerivatives(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    order: *const fmi2Integer,
+    value: *const fmi2Real,
+) -> fmi2Status {
+    unsafe {
+        enter(c, Function::SetRealInputDerivatives, |instance| {
+            let (vrs, orders, values) = (slice(vr, nvr, "vr")?, slice(order, nvr, "order")?, slice(value, nvr, "value")?);
+            Ok(instance.slave.set_input_derivatives(vrs, orders, values)?)
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2GetRealOutputDerivatives(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    order: *const fmi2Integer,
+    value: *mut fmi2Real,
+) -> fmi2Status {
+    unsafe {
+        enter(c, Function::GetRealOutputDerivatives, |instance| {
+            let (vrs, orders) = (slice(vr, nvr, "vr")?, slice(order, nvr, "order")?);
+            let values = slice_mut(value, nvr, "value")?;
+            Ok(instance.slave.get_output_derivatives(vrs, orders, values)?)
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2DoStep(
+    c: fmi2Component,
+    current_communication_point: fmi2Real,
+    communication_step_size: fmi2Real,
+    _no_set_fmu_state_prior_to_current_point: fmi2Boolean,
+) -> fmi2Status {
+    unsafe {
+        enter(c, Function::DoStep, |instance| {
+            let result = instance.slave.do_step(current_communication_point, communication_step_size);
+            if let Err(error) = &result
+                && error.is_discard()
+            {
+                instance.phase = Phase::StepFailed;
+            }
+            Ok(result?)
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2CancelStep(c: fmi2Component) -> fmi2Status {
+    // The state table refuses it in every state: no step is ever in progress.
+    unsafe { enter(c, Function::CancelStep, |_| Ok(())) }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2GetStatus(c: fmi2Component, kind: fmi2StatusKind, value: *mut fmi2Status) -> fmi2Status {
+    unsafe {
+        enter(c, Function::GetStatus, |_| {
+            let value = value.as_mut().ok_or(CallError::Null("value"))?;
+            match kind {
+                // doStep is synchronous: its status is final when it returns.
+                fmi2StatusKind_fmi2DoStepStatus => *value = fmi2Status_fmi2OK,
+                _ => return Err(CallError::StatusUnavailable(kind)),
+            }
+            Ok(())
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2GetRealStatus(c: fmi2Component, kind: fmi2StatusKind, value: *mut fmi2Real) -> fmi2Status {
+    unsafe {
+        enter(c, Function::GetStatus, |instance| {
+            let value = value.as_mut().ok_or(CallError::Null("value"))?;
+            match kind {
+                fmi2StatusKind_fmi2LastSuccessfulTime => *value = instance.slave.time(),
+                _ => return Err(CallError::StatusUnavailable(kind)),
+            }
+            Ok(())
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2GetIntegerStatus(
+    c: fmi2Component,
+    kind: fmi2StatusKind,
+    _value: *mut fmi2Integer,
+) -> fmi2Status {
+    unsafe { enter(c, Function::GetStatus, |_| Err(CallError::StatusUnavailable(kind))) }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2GetBooleanStatus(
+    c: fmi2Component,
+    kind: fmi2StatusKind,
+    value: *mut fmi2Boolean,
+) -> fmi2Status {
+    unsafe {
+        enter(c, Function::GetStatus, |instance| {
+            let value = value.as_mut().ok_or(CallError::Null("value"))?;
+            match kind {
+                // After a non-finite state the slave cannot go on: tell the master to stop.
+                fmi2StatusKind_fmi2Terminated => *value = fmi2Boolean::from(instance.slave.failed_for_good()),
+                _ => return Err(CallError::StatusUnavailable(kind)),
+            }
+            Ok(())
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2GetStringStatus(
+    c: fmi2Component,
+    kind: fmi2StatusKind,
+    _value: *mut fmi2String,
+) -> fmi2Status {
+    unsafe { enter(c, Function::GetStatus, |_| Err(CallError::StatusUnavailable(kind))) }
+}
+
+// The C types used above, named so that a signature mismatch with fmi-sys's
+// function-pointer types is a compile error.
+const _: [fmi2DoStepTYPE; 1] = [Some(fmi2DoStep)];
+const _: [fmi2InstantiateTYPE; 1] = [Some(fmi2Instantiate)];
+const _: [fmi2GetRealTYPE; 1] = [Some(fmi2GetReal)];
+const _: [fmi2SetDebugLoggingTYPE; 1] = [Some(fmi2SetDebugLogging)];
+const _: [fmi2SerializeFMUstateTYPE; 1] = [Some(fmi2SerializeFMUstate)];
+const _: [fmi2DeSerializeFMUstateTYPE; 1] = [Some(fmi2DeSerializeFMUstate)];
+const _: [fmi2GetRealOutputDerivativesTYPE; 1] = [Some(fmi2GetRealOutputDerivatives)];

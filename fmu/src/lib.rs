@@ -1,0 +1,16 @@
+//! The binary of a nudyn FMI 2.0 co-simulation FMU. `nudyn export` copies
+//! this cdylib to `binaries/linux64/<modelIdentifier>.so` beside the
+//! compiled model in `resources/model.json`; the exported symbols are the
+//! standard, unprefixed `fmi2*` names.
+//!
+//! - [`fmi2`]: the generic FMI layer, the only `unsafe` code;
+//! - [`state`]: the state machine's table of allowed calls;
+//! - [`slave`]: the safe slave that integrates the vehicle;
+//! - [`snapshot`]: FMU states and their serialized form;
+//! - [`uri`]: the resource location.
+
+pub mod fmi2;
+mod slave;
+mod snapshot;
+mod state;
+mod uri;

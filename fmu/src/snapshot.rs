@@ -1,0 +1,272 @@
+//! FMU states (fmi2GetFMUstate) and their byte format
+//! (fmi2SerializeFMUstate): a versioned header naming the FMU, the sizes,
+//! the values as little-endian f64, and an FNV-1a checksum, so that a
+//! truncated, corrupted or foreign blob is rejected before anything is
+//! restored.
+
+use crate::slave::SlaveState;
+
+/// Identifies a nudyn FMU state blob.
+const MAGIC: &[u8; 8] = b"nudynFMS";
+/// Version of the byte layout below.
+const VERSION: u32 = 1;
+
+/// A saved state of one FMU (its GUID names the FMU it belongs to).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Snapshot {
+    /// GUID of the FMU that saved it.
+    pub guid: String,
+    /// The saved values.
+    pub state: SlaveState,
+}
+
+/// Why a blob cannot be deserialized.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum SnapshotError {
+    /// Shorter than its header says.
+    #[error("serialized FMU state is truncated: {found} bytes, expected {expected}")]
+    Truncated {
+        /// Bytes needed.
+        expected: usize,
+        /// Bytes given.
+        found: usize,
+    },
+    /// Longer than its header says.
+    #[error("serialized FMU state has {found} bytes, expected {expected}")]
+    TrailingBytes {
+        /// Bytes the header accounts for.
+        expected: usize,
+        /// Bytes given.
+        found: usize,
+    },
+    /// Not a nudyn FMU state.
+    #[error("not a serialized nudyn FMU state (bad magic number)")]
+    BadMagic,
+    /// Written by another version of the format.
+    #[error("serialized FMU state has format version {found}, expected {VERSION}")]
+    Version {
+        /// The blob's version.
+        found: u32,
+    },
+    /// Saved by another FMU.
+    #[error("serialized FMU state belongs to the FMU with GUID '{found}', not '{expected}'")]
+    ForeignGuid {
+        /// The blob's GUID.
+        found: String,
+        /// This FMU's GUID.
+        expected: String,
+    },
+    /// Sizes that do not match this FMU.
+    #[error("serialized FMU state has nq = {nq}, nv = {nv}, expected nq = {expected_nq}, nv = {expected_nv}")]
+    Sizes {
+        /// The blob's nq.
+        nq: usize,
+        /// The blob's nv.
+        nv: usize,
+        /// This FMU's nq.
+        expected_nq: usize,
+        /// This FMU's nv.
+        expected_nv: usize,
+    },
+    /// The checksum does not match the contents.
+    #[error("serialized FMU state is corrupted (checksum {found:#018x}, contents hash to {computed:#018x})")]
+    Checksum {
+        /// Stored checksum.
+        found: u64,
+        /// Checksum of the contents.
+        computed: u64,
+    },
+}
+
+/// FNV-1a, 64 bit: a checksum against accidental corruption, not an adversary.
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |hash, &b| (hash ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3))
+}
+
+impl Snapshot {
+    /// Number of scalars after the header: five times and settings, then theta, nu, eps, eps_rate.
+    fn scalar_count(nq: usize, nv: usize) -> usize {
+        5 + nq + 3 * nv
+    }
+
+    /// The size of [`Snapshot::serialize`]'s output.
+    pub fn serialized_size(&self) -> usize {
+        let (nq, nv) = (self.state.theta.len(), self.state.nu.len());
+        MAGIC.len() + 4 + 4 + self.guid.len() + 4 + 4 + 1 + 8 * Self::scalar_count(nq, nv) + 8
+    }
+
+    /// Writes the state into `out`, which must be [`Snapshot::serialized_size`] bytes long.
+    pub fn serialize(&self, out: &mut [u8]) {
+        let s = &self.state;
+        let mut bytes = Vec::with_capacity(self.serialized_size());
+        bytes.extend_from_slice(MAGIC);
+        bytes.extend_from_slice(&VERSION.to_le_bytes());
+        bytes.extend_from_slice(&(self.guid.len() as u32).to_le_bytes());
+        bytes.extend_from_slice(self.guid.as_bytes());
+        bytes.extend_from_slice(&(s.theta.len() as u32).to_le_bytes());
+        bytes.extend_from_slice(&(s.nu.len() as u32).to_le_bytes());
+        bytes.push(u8::from(s.stop_time.is_some()));
+        let scalars = [s.time, s.start_time, s.stop_time.unwrap_or(0.0), s.tolerance, s.max_step];
+        for x in scalars.iter().chain(&s.theta).chain(&s.nu).chain(&s.eps).chain(&s.eps_rate) {
+            bytes.extend_from_slice(&x.to_le_bytes());
+        }
+        let checksum = fnv1a(&bytes);
+        bytes.extend_from_slice(&checksum.to_le_bytes());
+        out.copy_from_slice(&bytes);
+    }
+
+    /// Reads a blob written by [`Snapshot::serialize`] for the FMU with
+    /// `guid` and sizes `nq`, `nv`; checks everything before returning.
+    pub fn deserialize(bytes: &[u8], guid: &str, nq: usize, nv: usize) -> Result<Snapshot, SnapshotError> {
+        let mut reader = Reader { bytes, at: 0 };
+        if reader.take(MAGIC.len())? != MAGIC {
+            return Err(SnapshotError::BadMagic);
+        }
+        let version = reader.u32()?;
+        if version != VERSION {
+            return Err(SnapshotError::Version { found: version });
+        }
+        let guid_len = reader.u32()? as usize;
+        let found_guid = String::from_utf8_lossy(reader.take(guid_len)?).into_owned();
+        if found_guid != guid {
+            return Err(SnapshotError::ForeignGuid { found: found_guid, expected: guid.to_string() });
+        }
+        let (found_nq, found_nv) = (reader.u32()? as usize, reader.u32()? as usize);
+        if (found_nq, found_nv) != (nq, nv) {
+            return Err(SnapshotError::Sizes { nq: found_nq, nv: found_nv, expected_nq: nq, expected_nv: nv });
+        }
+        let stop_time_defined = reader.take(1)?[0] != 0;
+        let scalars: Vec<f64> = (0..Self::scalar_count(nq, nv)).map(|_| reader.f64()).collect::<Result<_, _>>()?;
+        let contents_len = reader.at;
+        let found = u64::from_le_bytes(reader.take(8)?.try_into().expect("8 bytes"));
+        if reader.at != bytes.len() {
+            return Err(SnapshotError::TrailingBytes { expected: reader.at, found: bytes.len() });
+        }
+        let computed = fnv1a(&bytes[..contents_len]);
+        if found != computed {
+            return Err(SnapshotError::Checksum { found, computed });
+        }
+        let (settings, vectors) = scalars.split_at(5);
+        let (theta, rest) = vectors.split_at(nq);
+        let (nu, rest) = rest.split_at(nv);
+        let (eps, eps_rate) = rest.split_at(nv);
+        Ok(Snapshot {
+            guid: found_guid,
+            state: SlaveState {
+                time: settings[0],
+                start_time: settings[1],
+                stop_time: stop_time_defined.then_some(settings[2]),
+                tolerance: settings[3],
+                max_step: settings[4],
+                theta: theta.to_vec(),
+                nu: nu.to_vec(),
+                eps: eps.to_vec(),
+                eps_rate: eps_rate.to_vec(),
+            },
+        })
+    }
+}
+
+/// A cursor over a blob that fails with `Truncated` instead of panicking.
+struct Reader<'a> {
+    bytes: &'a [u8],
+    at: usize,
+}
+
+impl<'a> Reader<'a> {
+    fn take(&mut self, n: usize) -> Result<&'a [u8], SnapshotError> {
+        let end = self.at.checked_add(n).filter(|&end| end <= self.bytes.len());
+        let end = end.ok_or(SnapshotError::Truncated { expected: self.at.saturating_add(n), found: self.bytes.len() })?;
+        let slice = &self.bytes[self.at..end];
+        self.at = end;
+        Ok(slice)
+    }
+
+    fn u32(&mut self) -> Result<u32, SnapshotError> {
+        Ok(u32::from_le_bytes(self.take(4)?.try_into().expect("4 bytes")))
+    }
+
+    fn f64(&mut self) -> Result<f64, SnapshotError> {
+        Ok(f64::from_le_bytes(self.take(8)?.try_into().expect("8 bytes")))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GUID: &str = "{01234567-89ab-cdef-0123-456789abcdef}";
+
+    fn sample() -> Snapshot {
+        Snapshot {
+            guid: GUID.to_string(),
+            state: SlaveState {
+                time: 0.1 + 0.2,
+                start_time: -1.5,
+                stop_time: Some(10.0),
+                tolerance: 1e-6,
+                max_step: 1e-3,
+                theta: vec![1.0, 0.0, 0.0, 0.0, std::f64::consts::PI],
+                nu: vec![1e-300, -0.0, 3.5, 7.25],
+                eps: vec![0.5, 0.25, -1.0, 2.0],
+                eps_rate: vec![0.0, 1.0, 0.0, -3.0],
+            },
+        }
+    }
+
+    fn serialized(snapshot: &Snapshot) -> Vec<u8> {
+        let mut bytes = vec![0; snapshot.serialized_size()];
+        snapshot.serialize(&mut bytes);
+        bytes
+    }
+
+    #[test]
+    fn round_trips_bit_exactly() {
+        for stop_time in [Some(10.0), None] {
+            let mut original = sample();
+            original.state.stop_time = stop_time;
+            let bytes = serialized(&original);
+            let back = Snapshot::deserialize(&bytes, GUID, 5, 4).unwrap();
+            assert_eq!(back, original);
+            assert!(back.state.nu[1].is_sign_negative(), "-0.0 keeps its sign");
+            assert_eq!(serialized(&back), bytes);
+        }
+    }
+
+    #[test]
+    fn rejects_every_truncation_and_extension() {
+        let bytes = serialized(&sample());
+        for len in 0..bytes.len() {
+            assert!(Snapshot::deserialize(&bytes[..len], GUID, 5, 4).is_err(), "truncated to {len}");
+        }
+        let mut longer = bytes.clone();
+        longer.push(0);
+        assert!(matches!(Snapshot::deserialize(&longer, GUID, 5, 4), Err(SnapshotError::TrailingBytes { .. })));
+    }
+
+    #[test]
+    fn rejects_every_single_bit_flip() {
+        let bytes = serialized(&sample());
+        for byte in 0..bytes.len() {
+            for bit in 0..8 {
+                let mut corrupt = bytes.clone();
+                corrupt[byte] ^= 1 << bit;
+                assert!(Snapshot::deserialize(&corrupt, GUID, 5, 4).is_err(), "byte {byte} bit {bit}");
+            }
+        }
+    }
+
+    #[test]
+    fn rejects_foreign_blobs() {
+        let bytes = serialized(&sample());
+        assert!(matches!(
+            Snapshot::deserialize(&bytes, "{other}", 5, 4),
+            Err(SnapshotError::ForeignGuid { .. })
+        ));
+        assert!(matches!(Snapshot::deserialize(&bytes, GUID, 7, 6), Err(SnapshotError::Sizes { .. })));
+        assert_eq!(Snapshot::deserialize(b"PK\x03\x04 not a state", GUID, 5, 4), Err(SnapshotError::BadMagic));
+        let mut other_version = bytes.clone();
+        other_version[8..12].copy_from_slice(&2u32.to_le_bytes());
+        assert_eq!(Snapshot::deserialize(&other_version, GUID, 5, 4), Err(SnapshotError::Version { found: 2 }));
+    }
+}
