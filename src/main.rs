@@ -7,7 +7,10 @@ use std::process::ExitCode;
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use nudyn::eval::{EvalRequest, EvalResponse, evaluate};
+use nudyn::export::{ExportOptions, OptionalOutputs, model_identifier_from, write_fmu};
+use nudyn::integrate::{Integrator, RK4};
 use nudyn::model::Model;
+use serde::{Deserialize, Serialize};
 
 #[derive(Parser)]
 #[command(name = "nudyn", version, about = "Diagonalized dynamics of robotic space vehicles, as FMI 2.0 FMUs")]
@@ -28,6 +31,42 @@ enum Command {
         /// The vehicle's MJCF file.
         model: PathBuf,
     },
+    /// Export the vehicle as an FMI 2.0 co-simulation FMU.
+    ///
+    /// The FMU's binary is the `nudyn_fmu` library that
+    /// `cargo build --release --workspace` puts beside the `nudyn`
+    /// executable (libnudyn_fmu.so); the environment variable NUDYN_FMU_LIB
+    /// overrides where it is looked for.
+    Export {
+        /// The vehicle's MJCF file.
+        model: PathBuf,
+        /// The FMU file to write.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// The model identifier (the name of the FMU's shared library);
+        /// default: the MJCF file name without extension, made a C identifier.
+        #[arg(long)]
+        model_identifier: Option<String>,
+        /// Optional outputs, comma-separated: qvel, kinetic_energy, power, momentum.
+        #[arg(long, default_value = "")]
+        outputs: OptionalOutputs,
+    },
+    /// Integrate the vehicle with fixed RK4 steps, as the FMU's core does.
+    ///
+    /// Input on stdin: a JSON object with optional "theta" (nq, default the
+    /// model's qpos0), "nu" (nv, default 0) and a constant "eps" (nv,
+    /// default 0). Output: {"time": [...], "theta": [[...], ...], "nu": [...]}
+    /// at t = 0, H, 2H, ... up to the stop time.
+    Simulate {
+        /// The vehicle's MJCF file.
+        model: PathBuf,
+        /// The step H (s).
+        #[arg(long)]
+        step: f64,
+        /// The stop time (s), a multiple of the step.
+        #[arg(long)]
+        stop: f64,
+    },
 }
 
 fn main() -> ExitCode {
@@ -43,6 +82,10 @@ fn main() -> ExitCode {
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Eval { model } => eval(&model),
+        Command::Export { model, output, model_identifier, outputs } => {
+            export(&model, &output, model_identifier, outputs)
+        }
+        Command::Simulate { model, step, stop } => simulate(&model, step, stop),
     }
 }
 
@@ -81,5 +124,86 @@ fn eval(model_path: &Path) -> Result<()> {
         request => serde_json::to_string(&answer(request)?)?,
     };
     println!("{output}");
+    Ok(())
+}
+
+/// The FMU binary: $NUDYN_FMU_LIB, or libnudyn_fmu.so beside this executable.
+fn fmu_library() -> Result<PathBuf> {
+    if let Some(path) = std::env::var_os("NUDYN_FMU_LIB") {
+        return Ok(PathBuf::from(path));
+    }
+    let exe = std::env::current_exe().context("cannot locate the nudyn executable")?;
+    let library = exe.with_file_name("libnudyn_fmu.so");
+    if !library.is_file() {
+        bail!(
+            "the FMU binary {} is missing: build it with `cargo build --release --workspace`, \
+             or point NUDYN_FMU_LIB at libnudyn_fmu.so",
+            library.display()
+        );
+    }
+    Ok(library)
+}
+
+fn export(model_path: &Path, output: &Path, model_identifier: Option<String>, outputs: OptionalOutputs) -> Result<()> {
+    let model = load_model(model_path)?;
+    let stem = model_path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let options = ExportOptions {
+        model_identifier: model_identifier.unwrap_or_else(|| model_identifier_from(&stem)),
+        outputs,
+    };
+    let library = fmu_library()?;
+    write_fmu(&model, &options, &library, output).with_context(|| format!("cannot export {}", output.display()))
+}
+
+/// `nudyn simulate`'s input.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SimulateRequest {
+    theta: Option<Vec<f64>>,
+    nu: Option<Vec<f64>>,
+    eps: Option<Vec<f64>>,
+}
+
+/// `nudyn simulate`'s output: the state at each step.
+#[derive(Serialize)]
+struct Trajectory {
+    time: Vec<f64>,
+    theta: Vec<Vec<f64>>,
+    nu: Vec<Vec<f64>>,
+}
+
+fn simulate(model_path: &Path, step: f64, stop: f64) -> Result<()> {
+    if !(step.is_finite() && step > 0.0 && stop.is_finite() && stop >= 0.0) {
+        bail!("--step must be positive and --stop non-negative, found {step} and {stop}");
+    }
+    let steps = (stop / step).round();
+    if ((steps * step - stop) / step).abs() > 1e-9 {
+        bail!("--stop {stop} is not a multiple of --step {step}");
+    }
+    let model = load_model(model_path)?;
+    let mut input = String::new();
+    std::io::stdin().read_to_string(&mut input).context("cannot read stdin")?;
+    let request: SimulateRequest = serde_json::from_str(&input).context("stdin is not a valid simulate request")?;
+    let mut theta = request.theta.unwrap_or_else(|| model.qpos0.clone());
+    let mut nu = request.nu.unwrap_or_else(|| vec![0.0; model.nv]);
+    let eps = request.eps.unwrap_or_else(|| vec![0.0; model.nv]);
+    let mut ws = model.workspace();
+    // Like the FMU at initialization: check the state and normalize its quaternions.
+    ws.set_configuration(&model, &theta)?;
+    ws.set_nu(&model, &nu)?;
+    ws.compute_nu_dot(&model, &eps)?;
+    theta.copy_from_slice(ws.theta.as_slice());
+    let mut integrator = Integrator::new(&model, RK4);
+    let mut trajectory = Trajectory { time: vec![0.0], theta: vec![theta.clone()], nu: vec![nu.clone()] };
+    for n in 0..steps as usize {
+        let t = n as f64 * step;
+        integrator
+            .step(&model, &mut ws, &mut theta, &mut nu, t, step, |_, out| out.copy_from_slice(&eps))
+            .with_context(|| format!("the step from t = {t} failed"))?;
+        trajectory.time.push(t + step);
+        trajectory.theta.push(theta.clone());
+        trajectory.nu.push(nu.clone());
+    }
+    println!("{}", serde_json::to_string(&trajectory)?);
     Ok(())
 }

@@ -1,0 +1,431 @@
+"""The exported FMI 2.0 co-simulation FMU, driven by FMPy: validation of
+every example, agreement with the core library's own integration
+(`nudyn simulate`, which does not go through the FMI layer), FMU states,
+reset, independent instances, and the rejections of the FMI layer."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fmpy import extract, read_model_description, simulate_fmu
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Terminated
+from fmpy.validation import validate_fmu
+
+from conftest import EXAMPLES, ROOT, example_ids
+
+ALL_OUTPUTS = "qvel,kinetic_energy,power,momentum"
+STEP = 0.01
+
+
+@pytest.fixture(scope="session")
+def fmu_library(nudyn):
+    """libnudyn_fmu.so beside the nudyn binary, built if needed (a plain
+    `cargo build --release` or `cargo test` does not build the cdylib)."""
+    if "NUDYN_FMU_LIB" in os.environ:
+        return Path(os.environ["NUDYN_FMU_LIB"])
+    profile_dir = nudyn.parent
+    cmd = ["cargo", "build", "-q", "-p", "nudyn-fmu", "--target-dir", str(profile_dir.parent)]
+    if profile_dir.name == "release":
+        cmd.append("--release")
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+    assert proc.returncode == 0, f"{' '.join(cmd)} failed:\n{proc.stderr}"
+    return profile_dir / "libnudyn_fmu.so"
+
+
+def export(nudyn, fmu_library, model: Path, out: Path, *extra: str) -> Path:
+    cmd = [str(nudyn), "export", str(model), "-o", str(out), *extra]
+    env = {**os.environ, "NUDYN_FMU_LIB": str(fmu_library)}
+    proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    assert proc.returncode == 0, f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stderr}"
+    return out
+
+
+@pytest.fixture(scope="session")
+def exported(nudyn, fmu_library, tmp_path_factory):
+    """Each example exported once with every optional output."""
+    directory = tmp_path_factory.mktemp("fmus")
+    return {
+        model.stem: export(nudyn, fmu_library, model, directory / f"{model.stem}.fmu", "--outputs", ALL_OUTPUTS)
+        for model in EXAMPLES
+    }
+
+
+def variables(description, prefix: str):
+    return [v for v in description.modelVariables if v.name.startswith(prefix + "[")]
+
+
+def initial_state(description, seed: int):
+    """A tumbling start: qpos0 with hinge/slide offsets and random unit
+    quaternions, random nu, constant random eps; as FMPy start values."""
+    rng = np.random.default_rng(seed)
+    theta = variables(description, "theta")
+    start = {}
+    k = 0
+    while k < len(theta):
+        if "quaternion w" in theta[k].description:
+            q = rng.normal(size=4)
+            q /= np.linalg.norm(q)
+            start.update({theta[k + i].name: float(q[i]) for i in range(4)})
+            k += 4
+        else:
+            start[theta[k].name] = float(theta[k].start) + float(rng.uniform(-0.5, 0.5))
+            k += 1
+    nu = {v.name: float(rng.uniform(-1, 1)) for v in variables(description, "nu")}
+    eps = [float(rng.uniform(-1, 1)) for _ in variables(description, "eps")]
+    return start, nu, eps
+
+
+def core_trajectory(nudyn, model: Path, theta, nu, eps, step: float, stop: float):
+    request = json.dumps({"theta": theta, "nu": nu, "eps": eps})
+    cmd = [str(nudyn), "simulate", str(model), "--step", repr(step), "--stop", repr(stop)]
+    proc = subprocess.run(cmd, input=request, capture_output=True, text=True)
+    assert proc.returncode == 0, f"{' '.join(cmd)} < {request} failed:\n{proc.stderr}"
+    return json.loads(proc.stdout)
+
+
+@pytest.mark.parametrize("model", EXAMPLES, ids=example_ids())
+def test_model_description_is_valid(model, exported):
+    path = exported[model.stem]
+    assert validate_fmu(str(path)) == []
+    description = read_model_description(str(path), validate=True)
+    assert description.variableNamingConvention == "structured"
+    cs = description.coSimulation
+    assert cs.canHandleVariableCommunicationStepSize and cs.canInterpolateInputs
+    assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate
+    assert cs.maxOutputDerivativeOrder == 1 and not cs.canBeInstantiatedOnlyOncePerProcess
+    theta, nu, eps = (variables(description, p) for p in ("theta", "nu", "eps"))
+    assert len(nu) == len(eps) and len(theta) >= len(nu)
+    assert [v.name for v in theta] == [f"theta[{k + 1}]" for k in range(len(theta))]
+    assert all(v.causality == "output" and v.initial == "exact" for v in theta + nu)
+    assert all(v.causality == "input" and float(v.start) == 0.0 for v in eps)
+    assert all("joint '" in v.description and "(" in v.description for v in theta + nu + eps)
+    assert len(variables(description, "momentum")) == 6
+
+
+def test_outputs_not_chosen_do_not_exist(nudyn, fmu_library, tmp_path):
+    path = export(nudyn, fmu_library, ROOT / "examples/fixed_rig.xml", tmp_path / "rig.fmu", "--model-identifier", "rig")
+    description = read_model_description(str(path), validate=True)
+    names = {v.name for v in description.modelVariables}
+    assert description.coSimulation.modelIdentifier == "rig"
+    assert not names & {"kinetic_energy", "power", "qvel[1]", "momentum[1]"}
+    assert {"theta[1]", "nu[1]", "eps[1]", "method", "tolerance", "max_step"} <= names
+
+
+def fmu_run(path: Path, start, eps, stop: float, max_step: float, output_names):
+    """simulate_fmu with the start values and a constant eps input table."""
+    description = read_model_description(str(path))
+    eps_names = [v.name for v in variables(description, "eps")]
+    signals = np.array(
+        [(0.0, *eps), (stop, *eps)],
+        dtype=[("time", np.float64)] + [(name, np.float64) for name in eps_names],
+    )
+    return simulate_fmu(
+        str(path),
+        stop_time=stop,
+        output_interval=STEP,
+        start_values={**start, "max_step": max_step},
+        input=signals,
+        output=output_names,
+    )
+
+
+@pytest.mark.parametrize("model", EXAMPLES, ids=example_ids())
+@pytest.mark.parametrize("substeps", [1, 4])
+def test_fmu_equals_core_integration(model, substeps, exported, nudyn):
+    """The FMU's outputs equal `nudyn simulate` from the same state with the
+    same RK4 step, to round-off."""
+    path = exported[model.stem]
+    description = read_model_description(str(path))
+    start, nu_start, eps = initial_state(description, seed=len(model.stem))
+    theta_names = [v.name for v in variables(description, "theta")]
+    nu_names = [v.name for v in variables(description, "nu")]
+    stop = 0.1
+    result = fmu_run(path, {**start, **nu_start}, eps, stop, STEP / substeps, theta_names + nu_names)
+
+    theta0 = [start.get(name, float(v.start)) for name, v in zip(theta_names, variables(description, "theta"))]
+    core = core_trajectory(nudyn, model, theta0, [nu_start[n] for n in nu_names], eps, STEP / substeps, stop)
+    core_theta = np.array(core["theta"])[::substeps]
+    core_nu = np.array(core["nu"])[::substeps]
+    fmu_theta = np.column_stack([result[n] for n in theta_names])
+    fmu_nu = np.column_stack([result[n] for n in nu_names])
+    assert np.allclose(result["time"], np.array(core["time"])[::substeps], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(fmu_theta, core_theta, rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(fmu_nu, core_nu, rtol=1e-13, atol=1e-13)
+    assert not np.allclose(fmu_nu[-1], fmu_nu[0]), "the state must actually move"
+
+
+class Logged:
+    """An FMPy logger that keeps the messages."""
+
+    def __init__(self):
+        self.messages: list[tuple[int, str, str]] = []
+        self.callbacks = fmi2CallbackFunctions()
+        self.callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
+        self.callbacks.allocateMemory = fmi2CallbackFunctions._fields_[1][1](lambda n, size: None)
+        self.callbacks.freeMemory = fmi2CallbackFunctions._fields_[2][1](lambda p: None)
+
+    def _log(self, _env, _name, status, category, message):
+        self.messages.append((status, category.decode(), message.decode()))
+
+    def text(self) -> str:
+        return "\n".join(f"[{s}] {c}: {m}" for s, c, m in self.messages)
+
+
+class Slave:
+    """One FMU instance, initialized, with helpers by variable name."""
+
+    def __init__(self, path: Path, unzipdir: str, start=None, name="instance"):
+        self.description = read_model_description(str(path))
+        self.vr = {v.name: v.valueReference for v in self.description.modelVariables}
+        self.log = Logged()
+        self.fmu = FMU2Slave(
+            guid=self.description.guid,
+            unzipDirectory=unzipdir,
+            modelIdentifier=self.description.coSimulation.modelIdentifier,
+            instanceName=name,
+        )
+        self.fmu.instantiate(callbacks=self.log.callbacks)
+        self.fmu.setupExperiment(startTime=0.0)
+        if start:
+            self.set(start)
+        self.fmu.enterInitializationMode()
+        self.fmu.exitInitializationMode()
+        self.time = 0.0
+
+    def set(self, values: dict):
+        self.fmu.setReal([self.vr[n] for n in values], list(values.values()))
+
+    def get(self, names):
+        return np.array(self.fmu.getReal([self.vr[n] for n in names]))
+
+    def step(self, n=1):
+        for _ in range(n):
+            self.fmu.doStep(currentCommunicationPoint=self.time, communicationStepSize=STEP)
+            self.time += STEP
+
+    def all_reals(self):
+        return self.get([v.name for v in self.description.modelVariables if v.type == "Real"])
+
+
+@pytest.fixture
+def bus(exported, tmp_path):
+    path = exported["bus_arm7"]
+    unzipdir = extract(str(path), str(tmp_path / "unzipped"))
+    description = read_model_description(str(path))
+    start, nu, eps = initial_state(description, seed=7)
+    eps_values = {v.name: e for v, e in zip(variables(description, "eps"), eps)}
+    slaves = []
+
+    def make(name="instance", with_start=True):
+        slave = Slave(path, unzipdir, {**start, **nu} if with_start else None, name=name)
+        slave.set(eps_values)
+        slaves.append(slave)
+        return slave
+
+    yield make
+    for slave in slaves:
+        slave.fmu.terminate()
+        slave.fmu.freeInstance()
+
+
+def test_fmu_state_round_trips_bit_exactly(bus):
+    slave = bus()
+    slave.step(3)
+    state = slave.fmu.getFMUstate()
+    blob = slave.fmu.serializeFMUstate(state)
+    saved = slave.all_reals()
+    slave.step(5)
+    after = slave.all_reals()
+
+    slave.fmu.setFMUstate(state)
+    assert np.array_equal(slave.all_reals(), saved)
+    slave.time = 3 * STEP
+    slave.step(5)
+    assert np.array_equal(slave.all_reals(), after)
+
+    restored = slave.fmu.deSerializeFMUstate(blob)
+    assert slave.fmu.serializeFMUstate(restored) == blob
+    slave.fmu.setFMUstate(restored)
+    assert np.array_equal(slave.all_reals(), saved)
+    slave.fmu.freeFMUstate(restored)
+    slave.fmu.freeFMUstate(state)
+
+
+def test_corrupt_or_foreign_states_are_rejected(bus, exported, tmp_path):
+    slave = bus()
+    slave.step(2)
+    state = slave.fmu.getFMUstate()
+    blob = bytearray(slave.fmu.serializeFMUstate(state))
+    slave.fmu.freeFMUstate(state)
+    before = slave.all_reals()
+    corrupt = bytearray(blob)
+    corrupt[len(corrupt) // 2] ^= 0x10
+    for bad in (bytes(corrupt), bytes(blob[:-1]), bytes(blob) + b"\0", b"not a state"):
+        with pytest.raises(FMICallException):
+            slave.fmu.deSerializeFMUstate(bad)
+    assert "corrupted" in slave.log.text() and "truncated" in slave.log.text()
+    # A state of another FMU (another GUID) is refused too.
+    rig_path = exported["fixed_rig"]
+    rig = Slave(rig_path, extract(str(rig_path), str(tmp_path / "rig")))
+    rig_blob = rig.fmu.serializeFMUstate(rig.fmu.getFMUstate())
+    with pytest.raises(FMICallException):
+        slave.fmu.deSerializeFMUstate(rig_blob)
+    assert "belongs to the FMU with GUID" in slave.log.text()
+    assert np.array_equal(slave.all_reals(), before), "a rejected state changes nothing"
+    slave.step(1)
+
+
+def test_reset_then_rerun_is_identical(bus):
+    slave = bus()
+    names = [v.name for v in slave.description.modelVariables if v.type == "Real"]
+    start = {n: float(x) for n, x in zip(names, slave.all_reals()) if n.startswith(("theta", "nu", "eps"))}
+    slave.step(10)
+    first = slave.all_reals()
+    slave.fmu.reset()
+    slave.fmu.setupExperiment(startTime=0.0)
+    slave.set(start)
+    slave.fmu.enterInitializationMode()
+    slave.fmu.exitInitializationMode()
+    slave.time = 0.0
+    slave.step(10)
+    assert np.array_equal(slave.all_reals(), first)
+
+
+def test_reset_returns_to_the_model_start(bus):
+    slave = bus()
+    slave.step(2)
+    slave.fmu.reset()
+    slave.fmu.setupExperiment(startTime=0.0)
+    slave.fmu.enterInitializationMode()
+    theta = [v for v in slave.description.modelVariables if v.name.startswith(("theta[", "nu[", "eps["))]
+    assert np.array_equal(slave.get([v.name for v in theta]), [float(v.start) for v in theta])
+    slave.fmu.exitInitializationMode()
+
+
+def test_two_instances_do_not_interfere(bus):
+    alone = bus("alone")
+    alone.step(6)
+    expected = alone.all_reals()
+    a, b = bus("a"), bus("b", with_start=False)
+    for _ in range(6):
+        a.step()
+        b.step()
+    assert np.array_equal(a.all_reals(), expected)
+    assert not np.array_equal(b.all_reals(), expected)
+
+
+def test_terminate_keeps_final_values_readable(bus):
+    slave = bus()
+    slave.step(3)
+    final = slave.all_reals()
+    slave.fmu.terminate()
+    assert np.array_equal(slave.all_reals(), final)
+    slave.fmu.reset()  # so that the fixture's terminate is legal again
+    slave.fmu.setupExperiment(startTime=0.0)
+    slave.fmu.enterInitializationMode()
+    slave.fmu.exitInitializationMode()
+
+
+def test_output_derivatives(bus, nudyn):
+    """d(nu)/dt is nu_dot of `nudyn eval`; d(theta)/dt of a hinge is its qvel."""
+    slave = bus()
+    slave.step(2)
+    d = slave.description
+    theta_names = [v.name for v in variables(d, "theta")]
+    nu_names = [v.name for v in variables(d, "nu")]
+    eps_names = [v.name for v in variables(d, "eps")]
+    request = {"theta": list(slave.get(theta_names)), "nu": list(slave.get(nu_names)), "eps": list(slave.get(eps_names))}
+    proc = subprocess.run([str(nudyn), "eval", str(ROOT / "examples/bus_arm7.xml")], input=json.dumps(request),
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    expected = json.loads(proc.stdout)
+    nu_rate = slave.fmu.getRealOutputDerivatives([slave.vr[n] for n in nu_names], [1] * len(nu_names))
+    np.testing.assert_allclose(nu_rate, expected["nu_dot"], rtol=1e-12, atol=1e-12)
+    # theta[8..14] are the arm's hinges, qvel[7..13].
+    theta_rate = slave.fmu.getRealOutputDerivatives([slave.vr[f"theta[{k}]"] for k in range(8, 15)], [1] * 7)
+    np.testing.assert_allclose(theta_rate, expected["qvel"][6:], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(slave.get([f"qvel[{k}]" for k in range(1, 14)]), expected["qvel"], rtol=1e-12, atol=1e-12)
+
+
+def test_input_ramp_changes_the_step(bus):
+    """fmi2SetRealInputDerivatives makes eps ramp within the next step only."""
+    held, ramped = bus("held"), bus("ramped")
+    ramped.fmu.setRealInputDerivatives([ramped.vr["eps[7]"]], [1], [50.0])
+    held.step()
+    ramped.step()
+    assert not np.array_equal(held.get(["nu[7]"]), ramped.get(["nu[7]"]))
+    # After the step the ramp is over: both go on with the same held eps.
+    state = held.fmu.getFMUstate()
+    held_blob = held.fmu.serializeFMUstate(state)
+    held.fmu.freeFMUstate(state)
+    copy = ramped.fmu.deSerializeFMUstate(held_blob)
+    ramped.fmu.setFMUstate(copy)
+    ramped.fmu.freeFMUstate(copy)
+    held.step()
+    ramped.step()
+    assert np.array_equal(held.all_reals(), ramped.all_reals())
+
+
+def test_rejections_are_logged_and_change_nothing(bus):
+    slave = bus()
+    slave.step(1)
+    before = slave.all_reals()
+    with pytest.raises(FMICallException):
+        slave.fmu.doStep(currentCommunicationPoint=0.5, communicationStepSize=STEP)
+    assert f"expected currentCommunicationPoint = {STEP} but was 0.5" in slave.log.text()
+    with pytest.raises(FMICallException):
+        slave.set({"theta[8]": 1.0})
+    assert "theta[8]" in slave.log.text() and "after initialization" in slave.log.text()
+    with pytest.raises(FMICallException):
+        slave.set({"eps[1]": float("nan")})
+    assert "eps[1] = NaN is not finite" in slave.log.text()
+    with pytest.raises(FMICallException):
+        slave.fmu.getReal([99999])
+    assert "unknown value reference 99999" in slave.log.text()
+    with pytest.raises(FMICallException):
+        slave.fmu.enterInitializationMode()
+    assert "fmi2EnterInitializationMode may not be called in state stepComplete" in slave.log.text()
+    assert np.array_equal(slave.all_reals(), before)
+    slave.step(1)
+
+
+def test_non_finite_state_is_discarded_not_output(bus):
+    slave = bus()
+    slave.set({"eps[1]": 1e300, "eps[2]": -1e300})
+    before = slave.all_reals()
+    with pytest.raises(FMICallException) as failure:
+        slave.step()
+    assert failure.value.status == 2  # fmi2Discard
+    assert slave.fmu.getBooleanStatus(fmi2Terminated)
+    assert np.array_equal(slave.all_reals(), before)
+    assert np.all(np.isfinite(slave.all_reals()))
+    assert "failed" in slave.log.text()
+
+
+def test_guid_mismatch_fails_instantiation(exported, tmp_path):
+    path = exported["fixed_rig"]
+    unzipdir = extract(str(path), str(tmp_path / "unzipped"))
+    description = read_model_description(str(path))
+    log = Logged()
+    fmu = FMU2Slave(guid="{00000000-0000-0000-0000-000000000000}", unzipDirectory=unzipdir,
+                    modelIdentifier=description.coSimulation.modelIdentifier, instanceName="wrong")
+    with pytest.raises(Exception):
+        fmu.instantiate(callbacks=log.callbacks)
+    assert "does not match the FMU's resources" in log.text()
+
+
+def test_resource_location_with_spaces(exported, tmp_path):
+    """The resource URI is percent-encoded by FMPy; the FMU decodes it."""
+    path = exported["fixed_rig"]
+    unzipdir = tmp_path / "dir with spaces"
+    shutil.unpack_archive(str(path), str(unzipdir), "zip")
+    slave = Slave(path, str(unzipdir))
+    slave.step(2)
+    assert np.all(np.isfinite(slave.all_reals()))
