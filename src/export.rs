@@ -116,6 +116,9 @@ pub enum RealVariable {
     Momentum(usize),
 }
 
+/// The variable of index k within a block.
+type VariableOf = fn(usize) -> RealVariable;
+
 /// The FMU's Real variables and their value references: consecutive blocks
 /// after the two parameters, `tolerance` (1) and `max_step` (2), in the
 /// order eps, theta, nu, then the chosen optional outputs.
@@ -136,9 +139,9 @@ impl Layout {
     }
 
     /// The blocks in value-reference order: (first value reference, length, variable of index k).
-    fn blocks(&self) -> impl Iterator<Item = (u32, usize, fn(usize) -> RealVariable)> {
+    fn blocks(&self) -> impl Iterator<Item = (u32, usize, VariableOf)> {
         let o = self.outputs;
-        let blocks: [(usize, fn(usize) -> RealVariable); 9] = [
+        let blocks: [(usize, VariableOf); 9] = [
             (1, |_| RealVariable::Tolerance),
             (1, |_| RealVariable::MaxStep),
             (self.nv, RealVariable::Eps),

@@ -172,7 +172,9 @@ unsafe fn enter(
             fmi2Status_fmi2Error
         }
     };
-    instance.logger.log(status, Category::Calls, &format!("{} returned status {status}", function.name()));
+    if instance.logger.enabled[Category::Calls as usize] {
+        instance.logger.log(status, Category::Calls, &format!("{} returned status {status}", function.name()));
+    }
     status
 }
 
@@ -792,3 +794,91 @@ const _: [fmi2SetDebugLoggingTYPE; 1] = [Some(fmi2SetDebugLogging)];
 const _: [fmi2SerializeFMUstateTYPE; 1] = [Some(fmi2SerializeFMUstate)];
 const _: [fmi2DeSerializeFMUstateTYPE; 1] = [Some(fmi2DeSerializeFMUstate)];
 const _: [fmi2GetRealOutputDerivativesTYPE; 1] = [Some(fmi2GetRealOutputDerivatives)];
+
+#[cfg(test)]
+mod tests {
+    use std::path::PathBuf;
+
+    use nudyn::export::{Layout, OptionalOutputs, guid, resource_json};
+
+    use super::*;
+
+    /// The fixed_rig example's resources in a fresh directory: (resource URI, GUID).
+    fn resources(test: &str) -> (CString, CString) {
+        let example = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../examples/fixed_rig.xml");
+        let vehicle = nudyn::mjcf::load_mjcf(&example).expect("example imports").vehicle;
+        let model = nudyn::model::Model::compile(&vehicle).expect("example compiles");
+        let outputs = OptionalOutputs::default();
+        let json = resource_json(&model, outputs).expect("serializable");
+        let dir = std::env::temp_dir().join(format!("nudyn-fmu-{test}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        std::fs::write(dir.join("model.json"), &json).expect("resource written");
+        let uri = format!("file://{}/", dir.display());
+        let guid = guid(&json, &Layout::new(&model, outputs));
+        (CString::new(uri).expect("no NUL"), CString::new(guid).expect("no NUL"))
+    }
+
+    fn instantiate(uri: &CString, guid: &CStr) -> fmi2Component {
+        let functions = fmi2CallbackFunctions {
+            logger: None,
+            allocateMemory: None,
+            freeMemory: None,
+            stepFinished: None,
+            componentEnvironment: std::ptr::null_mut(),
+        };
+        unsafe { fmi2Instantiate(c"test".as_ptr(), fmi2Type_fmi2CoSimulation, guid.as_ptr(), uri.as_ptr(), &functions, 0, 0) }
+    }
+
+    fn phase(c: fmi2Component) -> Phase {
+        unsafe { (*(c as *const Instance)).phase }
+    }
+
+    #[test]
+    fn a_panic_becomes_an_error_status_and_reset_recovers() {
+        let (uri, guid) = resources("panic");
+        let c = instantiate(&uri, &guid);
+        assert!(!c.is_null());
+        let status = unsafe { enter(c, Function::SetReal, |_| panic!("deliberate")) };
+        assert_eq!(status, fmi2Status_fmi2Error);
+        assert_eq!(phase(c), Phase::Error);
+        assert_eq!(unsafe { fmi2Reset(c) }, fmi2Status_fmi2OK);
+        assert_eq!(phase(c), Phase::Instantiated);
+        unsafe { fmi2FreeInstance(c) };
+    }
+
+    #[test]
+    fn a_wrong_guid_or_location_fails_instantiation() {
+        let (uri, _) = resources("guid");
+        assert!(instantiate(&uri, c"{00000000-0000-0000-0000-000000000000}").is_null());
+        let (_, guid) = resources("location");
+        assert!(instantiate(&CString::new("file:///nonexistent/").unwrap(), &guid).is_null());
+    }
+
+    #[test]
+    fn null_pointers_and_illegal_states_are_refused_without_change() {
+        let (uri, guid) = resources("null");
+        let c = instantiate(&uri, &guid);
+        let mut value = [0.0; 2];
+        unsafe {
+            assert_eq!(fmi2GetReal(std::ptr::null_mut(), [1, 2].as_ptr(), 2, value.as_mut_ptr()), fmi2Status_fmi2Error);
+            assert_eq!(fmi2DoStep(c, 0.0, 0.01, 1), fmi2Status_fmi2Error, "doStep before initialization");
+            assert_eq!(phase(c), Phase::Instantiated);
+            assert_eq!(fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0.0), fmi2Status_fmi2OK);
+            assert_eq!(fmi2EnterInitializationMode(c), fmi2Status_fmi2OK);
+            assert_eq!(fmi2GetReal(c, std::ptr::null(), 2, value.as_mut_ptr()), fmi2Status_fmi2Error);
+            assert_eq!(fmi2GetReal(c, [3, 4].as_ptr(), 2, std::ptr::null_mut()), fmi2Status_fmi2Error);
+            assert_eq!(fmi2GetReal(c, std::ptr::null(), 0, std::ptr::null_mut()), fmi2Status_fmi2OK, "empty arrays");
+            assert_eq!(phase(c), Phase::InitializationMode);
+            assert_eq!(fmi2ExitInitializationMode(c), fmi2Status_fmi2OK);
+            assert_eq!(fmi2DoStep(c, 0.0, 0.01, 1), fmi2Status_fmi2OK);
+            assert_eq!(fmi2CancelStep(c), fmi2Status_fmi2Error);
+            let mut state: fmi2FMUstate = std::ptr::null_mut();
+            assert_eq!(fmi2GetFMUstate(c, &mut state), fmi2Status_fmi2OK);
+            assert_eq!(fmi2SetFMUstate(c, std::ptr::null_mut()), fmi2Status_fmi2Error);
+            assert_eq!(fmi2FreeFMUstate(c, &mut state), fmi2Status_fmi2OK);
+            assert!(state.is_null());
+            assert_eq!(phase(c), Phase::StepComplete);
+            fmi2FreeInstance(c);
+        }
+    }
+}
