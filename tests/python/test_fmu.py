@@ -429,3 +429,17 @@ def test_resource_location_with_spaces(exported, tmp_path):
     slave = Slave(path, str(unzipdir))
     slave.step(2)
     assert np.all(np.isfinite(slave.all_reals()))
+
+
+def test_logging_honours_set_debug_logging(bus):
+    slave = bus()
+    slave.fmu.setDebugLogging(False, [])
+    with pytest.raises(FMICallException):
+        slave.fmu.getReal([99999])
+    assert slave.log.messages == [], "all categories off"
+    slave.fmu.setDebugLogging(True, ["logCalls", "logStatusError"])
+    slave.fmu.getReal([slave.vr["nu[1]"]])
+    assert any(c == "logCalls" and "fmi2GetReal returned status 0" in m for _, c, m in slave.log.messages)
+    with pytest.raises(FMICallException):
+        slave.fmu.setDebugLogging(True, ["noSuchCategory"])
+    assert "unknown log category 'noSuchCategory'" in slave.log.text()

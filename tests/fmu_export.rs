@@ -1,0 +1,85 @@
+//! `nudyn::export::write_fmu`: the archive's entries, a modelDescription
+//! that reads back and validates, and a GUID that follows the content.
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use nudyn::export::{ExportError, ExportOptions, Layout, OptionalOutputs, RESOURCE_PATH, guid, write_fmu};
+use nudyn::model::Model;
+
+fn example(name: &str) -> Model {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples").join(name);
+    let imported = nudyn::mjcf::load_mjcf(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    Model::compile(&imported.vehicle).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+fn scratch(test: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("nudyn-fmu-export-{test}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("scratch directory");
+    dir
+}
+
+/// Every entry of the archive, by name.
+fn entries(archive: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut zip = zip::ZipArchive::new(std::fs::File::open(archive).expect("archive exists")).expect("a zip file");
+    (0..zip.len())
+        .map(|i| {
+            let mut entry = zip.by_index(i).expect("readable entry");
+            let mut bytes = Vec::new();
+            entry.read_to_end(&mut bytes).expect("readable entry");
+            (entry.name().expect("UTF-8 name").to_string(), bytes)
+        })
+        .collect()
+}
+
+#[test]
+fn archive_holds_description_binary_and_resource() {
+    let dir = scratch("archive");
+    let binary = dir.join("libnudyn_fmu.so");
+    std::fs::write(&binary, b"stand-in for the cdylib").unwrap();
+    let model = example("bus_arm7.xml");
+    let outputs: OptionalOutputs = "kinetic_energy,momentum".parse().unwrap();
+    let options = ExportOptions { model_identifier: "bus".into(), outputs };
+    let fmu = dir.join("bus.fmu");
+    write_fmu(&model, &options, &binary, &fmu).unwrap();
+
+    let entries = entries(&fmu);
+    let names: Vec<&str> = entries.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names, ["modelDescription.xml", "binaries/linux64/bus.so", RESOURCE_PATH]);
+    assert_eq!(entries[1].1, b"stand-in for the cdylib");
+
+    let xml = String::from_utf8(entries[0].1.clone()).unwrap();
+    let description = modeldescription::from_xml(&xml).unwrap();
+    assert!(modeldescription::validate(&description).is_empty());
+    assert_eq!(description.guid, guid(&entries[2].1, &Layout::new(&model, outputs)));
+    assert_eq!(description.co_simulation.model_identifier, "bus");
+    // method, tolerance, max_step, eps (13), theta (14), nu (13), kinetic_energy, momentum (6)
+    assert_eq!(description.model_variables.len(), 3 + 13 + 14 + 13 + 1 + 6);
+    let theta8 = description.model_variables.iter().find(|v| v.name == "theta[8]").unwrap();
+    assert!(theta8.description.as_deref().unwrap().contains("hinge joint"), "{:?}", theta8.description);
+    assert!(theta8.description.as_deref().unwrap().ends_with("(rad)"), "{:?}", theta8.description);
+}
+
+#[test]
+fn guid_follows_the_content() {
+    let model = example("fixed_rig.xml");
+    let layout = Layout::new(&model, OptionalOutputs::default());
+    let json = nudyn::export::resource_json(&model, OptionalOutputs::default()).unwrap();
+    let reference = guid(&json, &layout);
+    assert_eq!(guid(&json, &layout), reference, "stable");
+    let mut other = model.clone();
+    other.links[0].damping += 1.0;
+    let other_json = nudyn::export::resource_json(&other, OptionalOutputs::default()).unwrap();
+    assert_ne!(guid(&other_json, &layout), reference, "a model change changes the GUID");
+    let with_qvel = Layout::new(&model, "qvel".parse().unwrap());
+    assert_ne!(guid(&json, &with_qvel), reference, "a variable change changes the GUID");
+    assert_eq!(reference.len(), 38);
+}
+
+#[test]
+fn bad_model_identifier_is_refused() {
+    let dir = scratch("identifier");
+    let options = ExportOptions { model_identifier: "my model".into(), outputs: OptionalOutputs::default() };
+    let error = write_fmu(&example("fixed_rig.xml"), &options, &dir.join("missing.so"), &dir.join("x.fmu")).unwrap_err();
+    assert!(matches!(error, ExportError::ModelIdentifier(_)), "{error}");
+}
