@@ -16,6 +16,9 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 EXAMPLES_DIR = ROOT / "examples"
 EXAMPLES = sorted(EXAMPLES_DIR.glob("*.xml"))
+# The importer's fixtures exercise every supported MJCF feature (orientations,
+# euler sequences, defaults, geom inertia, flags): MuJoCo must agree on them too.
+IMPORTER_FIXTURES = sorted((ROOT / "tests" / "fixtures" / "mjcf").glob("*.xml"))
 
 sys.path.insert(0, str(HERE))
 
