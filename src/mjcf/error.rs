@@ -11,7 +11,8 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 pub enum MjcfError {
     /// The file could not be read.
-    #[error("cannot read {}: {source}", path.display())]
+    // The io error is the source, so error chains (anyhow's {:#}) print it once.
+    #[error("cannot read {}", path.display())]
     Io {
         /// The file's path.
         path: PathBuf,
