@@ -54,8 +54,8 @@ enum Command {
     /// Integrate the vehicle with fixed RK4 steps, as the FMU's core does.
     ///
     /// Input on stdin: a JSON object with optional "theta" (nq, default the
-    /// model's qpos0), "nu" (nv, default 0) and a constant "eps" (nv,
-    /// default 0). Output: {"time": [...], "theta": [[...], ...], "nu": [...]}
+    /// model's qpos0), "nu" (nv, default 0), "eps" (nv, default 0) and
+    /// "eps_rate" (nv, default 0): ε(t) = eps + eps_rate·t. Output: {"time": [...], "theta": [[...], ...], "nu": [...]}
     /// at t = 0, H, 2H, ... up to the stop time.
     Simulate {
         /// The vehicle's MJCF file.
@@ -162,6 +162,7 @@ struct SimulateRequest {
     theta: Option<Vec<f64>>,
     nu: Option<Vec<f64>>,
     eps: Option<Vec<f64>>,
+    eps_rate: Option<Vec<f64>>,
 }
 
 /// `nudyn simulate`'s output: the state at each step.
@@ -187,6 +188,10 @@ fn simulate(model_path: &Path, step: f64, stop: f64) -> Result<()> {
     let mut theta = request.theta.unwrap_or_else(|| model.qpos0.clone());
     let mut nu = request.nu.unwrap_or_else(|| vec![0.0; model.nv]);
     let eps = request.eps.unwrap_or_else(|| vec![0.0; model.nv]);
+    let eps_rate = request.eps_rate.unwrap_or_else(|| vec![0.0; model.nv]);
+    if eps_rate.len() != model.nv {
+        bail!("eps_rate has {} entries, expected {}", eps_rate.len(), model.nv);
+    }
     let mut ws = model.workspace();
     // Like the FMU at initialization: check the state and normalize its quaternions.
     ws.set_configuration(&model, &theta)?;
@@ -198,7 +203,11 @@ fn simulate(model_path: &Path, step: f64, stop: f64) -> Result<()> {
     for n in 0..steps as usize {
         let t = n as f64 * step;
         integrator
-            .step(&model, &mut ws, &mut theta, &mut nu, t, step, |_, out| out.copy_from_slice(&eps))
+            .step(&model, &mut ws, &mut theta, &mut nu, t, step, |t, out| {
+                for ((o, e), r) in out.iter_mut().zip(&eps).zip(&eps_rate) {
+                    *o = e + r * t;
+                }
+            })
             .with_context(|| format!("the step from t = {t} failed"))?;
         trajectory.time.push(t + step);
         trajectory.theta.push(theta.clone());

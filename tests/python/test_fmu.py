@@ -373,6 +373,25 @@ def test_input_ramp_changes_the_step(bus):
     assert np.array_equal(held.all_reals(), ramped.all_reals())
 
 
+def test_input_ramp_equals_core_integration(bus, nudyn):
+    """One communication step of 4 internal steps with dε/dt set equals the
+    core integration of ε(t) = ε + dε/dt·t with the same internal step."""
+    slave = bus()
+    d = slave.description
+    names = {p: [v.name for v in variables(d, p)] for p in ("theta", "nu", "eps")}
+    state = {p: [float(x) for x in slave.get(n)] for p, n in names.items()}
+    rate = [float(x) for x in np.linspace(-20.0, 20.0, len(names["eps"]))]
+    slave.fmu.setRealInputDerivatives([slave.vr[n] for n in names["eps"]], [1] * len(rate), rate)
+    slave.fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=4e-3)
+    request = json.dumps({**state, "eps_rate": rate})
+    cmd = [str(nudyn), "simulate", str(ROOT / "examples/bus_arm7.xml"), "--step", "1e-3", "--stop", "4e-3"]
+    proc = subprocess.run(cmd, input=request, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    core = json.loads(proc.stdout)
+    np.testing.assert_allclose(slave.get(names["theta"]), core["theta"][-1], rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(slave.get(names["nu"]), core["nu"][-1], rtol=1e-13, atol=1e-13)
+
+
 def test_rejections_are_logged_and_change_nothing(bus):
     slave = bus()
     slave.step(1)
