@@ -102,7 +102,15 @@ fn eval(model_path: &Path) -> Result<()> {
     let model = load_model(model_path)?;
     let mut input = String::new();
     std::io::stdin().read_to_string(&mut input).context("cannot read stdin")?;
-    let value: serde_json::Value = serde_json::from_str(&input).context("stdin is not valid JSON")?;
+    let value: serde_json::Value = serde_json::from_str(&input).map_err(|e| {
+        // JSON has no NaN or Infinity; say so rather than leave a bare syntax error.
+        let hint = if ["NaN", "Infinity"].iter().any(|t| input.contains(t)) {
+            " (JSON has no NaN or Infinity: every number must be finite)"
+        } else {
+            ""
+        };
+        anyhow::anyhow!("stdin is not valid JSON: {e}{hint}")
+    })?;
     let mut ws = model.workspace();
     let mut answer = |request: serde_json::Value| -> Result<EvalResponse> {
         let request: EvalRequest = serde_json::from_value(request)?;

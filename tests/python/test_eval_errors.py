@@ -60,7 +60,7 @@ def test_bare_nan(nudyn, good):
     req, _, _ = good
     text = json.dumps(req).replace("[0.1,", "[NaN,", 1)
     assert "NaN" in text
-    expect_error(run_eval(nudyn, MODEL, text), r"nan|json|expected|line|column|invalid|parse")
+    expect_error(run_eval(nudyn, MODEL, text), r"no NaN or Infinity")
 
 
 def test_not_json(nudyn):
