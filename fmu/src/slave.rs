@@ -321,15 +321,14 @@ impl Slave {
     pub fn set_real(&mut self, vrs: &[u32], values: &[f64], initialized: bool) -> Result<(), SlaveError> {
         for (&vr, &value) in vrs.iter().zip(values) {
             let variable = self.real_variable(vr)?;
-            let settable = match variable {
-                RealVariable::Eps(_) => true,
+            let refusal = match variable {
+                RealVariable::Eps(_) => None,
                 RealVariable::Tolerance | RealVariable::MaxStep | RealVariable::Theta(_) | RealVariable::Nu(_) => {
-                    !initialized
+                    initialized.then_some("after initialization")
                 }
-                _ => false,
+                _ => Some("at all: it is a calculated output"),
             };
-            if !settable {
-                let when = if initialized { "after initialization" } else { "ever: it is a calculated output" };
+            if let Some(when) = refusal {
                 return Err(SlaveError::NotSettable { name: variable.name(), vr, when });
             }
             if !value.is_finite() {

@@ -409,6 +409,9 @@ def test_rejections_are_logged_and_change_nothing(bus):
         slave.fmu.getReal([99999])
     assert "unknown value reference 99999" in slave.log.text()
     with pytest.raises(FMICallException):
+        slave.set({"kinetic_energy": 1.0})
+    assert "kinetic_energy" in slave.log.text() and "calculated output" in slave.log.text()
+    with pytest.raises(FMICallException):
         slave.fmu.enterInitializationMode()
     assert "fmi2EnterInitializationMode may not be called in state stepComplete" in slave.log.text()
     assert np.array_equal(slave.all_reals(), before)
