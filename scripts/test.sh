@@ -10,7 +10,7 @@ cd "$ROOT"
 
 bash scripts/setup.sh
 
-cargo build --release
+cargo build --release --workspace
 cargo test --release --workspace
 
 NUDYN_BIN=target/release/nudyn \
