@@ -137,8 +137,9 @@ impl Integrator {
             self.delta.axpy(h * b, &self.k_delta[i], 1.0);
             self.nu_stage.axpy(h * b, &self.k_nu[i], 1.0);
         }
-        if let Some(index) = self.nu_stage.iter().chain(self.delta.iter()).position(|x| !x.is_finite()) {
-            return Err(DynamicsError::NonFinite { what: "integrated state", index, value: f64::NAN });
+        let update = self.nu_stage.iter().chain(self.delta.iter());
+        if let Some((index, &value)) = update.enumerate().find(|(_, x)| !x.is_finite()) {
+            return Err(DynamicsError::NonFinite { what: "integrated state", index, value });
         }
         retract(model, theta, self.delta.as_slice());
         nu.copy_from_slice(self.nu_stage.as_slice());

@@ -196,7 +196,7 @@ impl Model {
                     body_name: body.name.clone(),
                     kind: joint.kind,
                     qpos_adr: qpos0.len(),
-                    dof_adr: links.last().map_or(0, |l: &Link| l.dof_adr + l.ndof),
+                    dof_adr: dof_count(&links),
                 });
                 match joint.kind {
                     JointKind::Hinge | JointKind::Slide => {
@@ -246,7 +246,7 @@ impl Model {
         if links.is_empty() {
             return Err(ModelError::NoJoints);
         }
-        let nv = links.last().map_or(0, |l| l.dof_adr + l.ndof);
+        let nv = dof_count(&links);
         let model = Model {
             name: vehicle.name.clone(),
             nq: qpos0.len(),
@@ -279,6 +279,11 @@ impl Model {
     }
 }
 
+/// Dofs taken by `links`: the next link's first dof.
+fn dof_count(links: &[Link]) -> usize {
+    links.last().map_or(0, |l| l.dof_adr + l.ndof)
+}
+
 /// Appends the link of `joint` (of body `body_name`) attached at `inboard`;
 /// returns its index. Free-joint halves have their anchor at the body origin.
 fn push_link(
@@ -294,7 +299,7 @@ fn push_link(
         LinkJoint::Hinge | LinkJoint::Slide => joint.axis,
         LinkJoint::Ball | LinkJoint::Translation => Vec3::zeros(),
     };
-    let dof_adr = links.last().map_or(0, |l| l.dof_adr + l.ndof);
+    let dof_adr = dof_count(links);
     let (ndof, motion_subspace) = motion_subspace(joint_type, &axis, &anchor);
     links.push(Link {
         joint_name: joint.name.clone(),

@@ -7,7 +7,7 @@
 
 use nalgebra::SVector;
 
-use super::{DynamicsError, block, check_input, cols, require};
+use super::{DynamicsError, block, check_input, check_length, cols, require};
 use crate::math::SpatialVec;
 use crate::model::Model;
 use crate::workspace::{Stage, Workspace};
@@ -86,7 +86,7 @@ impl Workspace {
     ) -> Result<(), DynamicsError> {
         require(self, Stage::Configuration, "eps_from_forces")?;
         check_input("torque", torque, model.nv)?;
-        check_output(eps, model.nv)?;
+        check_length("output", eps, model.nv)?;
         if let Some(f) = body_forces {
             if f.len() != model.links.len() {
                 return Err(DynamicsError::Length { what: "body_forces", expected: model.links.len(), found: f.len() });
@@ -100,15 +100,9 @@ impl Workspace {
     pub fn torque_from_eps(&mut self, model: &Model, eps: &[f64], torque: &mut [f64]) -> Result<(), DynamicsError> {
         require(self, Stage::Configuration, "torque_from_eps")?;
         check_input("eps", eps, model.nv)?;
-        check_output(torque, model.nv)?;
+        check_length("output", torque, model.nv)?;
         inward_pass(model, self, Direction::TorqueFromEps, eps, None, torque);
         Ok(())
     }
 }
 
-fn check_output(out: &[f64], expected: usize) -> Result<(), DynamicsError> {
-    if out.len() != expected {
-        return Err(DynamicsError::Length { what: "output", expected, found: out.len() });
-    }
-    Ok(())
-}

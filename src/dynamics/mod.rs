@@ -70,11 +70,17 @@ pub enum DynamicsError {
     },
 }
 
-/// Checks a vector's length and that all its entries are finite.
-pub(crate) fn check_input(what: &'static str, values: &[f64], expected: usize) -> Result<(), DynamicsError> {
+/// Checks a vector's length.
+pub(crate) fn check_length(what: &'static str, values: &[f64], expected: usize) -> Result<(), DynamicsError> {
     if values.len() != expected {
         return Err(DynamicsError::Length { what, expected, found: values.len() });
     }
+    Ok(())
+}
+
+/// Checks a vector's length and that all its entries are finite.
+pub(crate) fn check_input(what: &'static str, values: &[f64], expected: usize) -> Result<(), DynamicsError> {
+    check_length(what, values, expected)?;
     match values.iter().position(|v| !v.is_finite()) {
         Some(index) => Err(DynamicsError::NonFinite { what, index, value: values[index] }),
         None => Ok(()),
