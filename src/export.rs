@@ -13,6 +13,7 @@ use modeldescription as md;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
+use crate::integrate::Method;
 use crate::model::Model;
 use crate::vehicle::JointKind;
 
@@ -25,15 +26,28 @@ pub const RESOURCE_PATH: &str = "resources/model.json";
 /// Value reference of the Integer (enumeration) parameter `method`.
 pub const METHOD_VR: u32 = 0;
 
-/// Items of the `method` enumeration, by value (1-based, as FMI enumerations
-/// usually are). Only RK4 exists today; adaptive methods will join it.
-pub const METHODS: [(&str, i32); 1] = [("rk4", 1)];
+/// Value reference of the Boolean parameter `energy_projection`.
+pub const ENERGY_PROJECTION_VR: u32 = 0;
+
+/// The value of `method` in the FMU's enumeration: 1-based, as FMI
+/// enumerations usually are, in the order of [`Method::ALL`].
+pub fn method_value(method: Method) -> i32 {
+    Method::ALL.iter().position(|&m| m == method).expect("listed") as i32 + 1
+}
+
+/// The method of an enumeration value, if it is one.
+pub fn method_of_value(value: i32) -> Option<Method> {
+    usize::try_from(value - 1).ok().and_then(|i| Method::ALL.get(i).copied())
+}
+
+/// Default of the `method` parameter.
+pub const DEFAULT_METHOD: Method = Method::Dop853;
 
 /// Default of the `max_step` parameter (s): the longest internal step.
-pub const DEFAULT_MAX_STEP: f64 = 1e-3;
+pub const DEFAULT_MAX_STEP: f64 = 1e-2;
 
-/// Default of the `tolerance` parameter (for the adaptive methods to come).
-pub const DEFAULT_TOLERANCE: f64 = 1e-6;
+/// Default of the `tolerance` parameter.
+pub const DEFAULT_TOLERANCE: f64 = 1e-8;
 
 /// The FMU's log categories (name, description); the FMU indexes them by
 /// position. Errors are logged by default, calls only with loggingOn.
@@ -56,11 +70,14 @@ pub struct OptionalOutputs {
     pub power: bool,
     /// `momentum[1..6]`: spatial momentum (angular about the world origin, then linear), world axes.
     pub momentum: bool,
+    /// `energy_residual`: K − K₀ − ∫ν·ν̇ dt, the integration's energy error.
+    #[serde(default)]
+    pub energy_residual: bool,
 }
 
 /// Why a list of optional outputs cannot be parsed.
 #[derive(Debug, thiserror::Error, PartialEq)]
-#[error("unknown optional output '{0}': expected qvel, kinetic_energy, power or momentum")]
+#[error("unknown optional output '{0}': expected qvel, kinetic_energy, power, momentum or energy_residual")]
 pub struct UnknownOutput(pub String);
 
 impl std::str::FromStr for OptionalOutputs {
@@ -75,6 +92,7 @@ impl std::str::FromStr for OptionalOutputs {
                 "kinetic_energy" => outputs.kinetic_energy = true,
                 "power" => outputs.power = true,
                 "momentum" => outputs.momentum = true,
+                "energy_residual" => outputs.energy_residual = true,
                 _ => return Err(UnknownOutput(name.to_string())),
             }
         }
@@ -114,6 +132,8 @@ pub enum RealVariable {
     Power,
     /// Optional output `momentum[k+1]`.
     Momentum(usize),
+    /// Optional output `energy_residual`.
+    EnergyResidual,
 }
 
 /// The variable of index k within a block.
@@ -141,7 +161,7 @@ impl Layout {
     /// The blocks in value-reference order: (first value reference, length, variable of index k).
     fn blocks(&self) -> impl Iterator<Item = (u32, usize, VariableOf)> {
         let o = self.outputs;
-        let blocks: [(usize, VariableOf); 9] = [
+        let blocks: [(usize, VariableOf); 10] = [
             (1, |_| RealVariable::Tolerance),
             (1, |_| RealVariable::MaxStep),
             (self.nv, RealVariable::Eps),
@@ -151,6 +171,7 @@ impl Layout {
             (usize::from(o.kinetic_energy), |_| RealVariable::KineticEnergy),
             (usize::from(o.power), |_| RealVariable::Power),
             (if o.momentum { 6 } else { 0 }, RealVariable::Momentum),
+            (usize::from(o.energy_residual), |_| RealVariable::EnergyResidual),
         ];
         let mut next = METHOD_VR + 1;
         blocks.into_iter().map(move |(len, variable)| {
@@ -191,6 +212,7 @@ impl RealVariable {
             RealVariable::KineticEnergy => "kinetic_energy".into(),
             RealVariable::Power => "power".into(),
             RealVariable::Momentum(k) => format!("momentum[{}]", k + 1),
+            RealVariable::EnergyResidual => "energy_residual".into(),
         }
     }
 }
@@ -266,6 +288,9 @@ pub fn description(model: &Model, variable: RealVariable) -> String {
         RealVariable::KineticEnergy => "kinetic energy 1/2 |nu|^2 (J)".into(),
         RealVariable::Power => "power of the applied eps, nu . eps (W)".into(),
         RealVariable::Momentum(k) => format!("spatial momentum of the vehicle, world axes: {}", MOMENTUM[k]),
+        RealVariable::EnergyResidual => {
+            "energy residual K - K(start) - integral of nu . nu_dot dt, the integration's energy error (J)".into()
+        }
     }
 }
 
@@ -368,8 +393,17 @@ pub fn model_description(model: &Model, options: &ExportOptions, guid: &str) -> 
             quantity: None,
             min: None,
             max: None,
-            start: Some(METHODS[0].1),
+            start: Some(method_value(DEFAULT_METHOD)),
         }),
+    );
+    let energy_projection = scalar(
+        "energy_projection".into(),
+        ENERGY_PROJECTION_VR,
+        "rescale nu after each internal step so that the kinetic energy follows the work done (keeps K exactly when no force acts)".into(),
+        md::Causality::Parameter,
+        md::Variability::Fixed,
+        Some(md::Initial::Exact),
+        md::VariableKind::Boolean(md::BooleanVariable { start: Some(false), ..Default::default() }),
     );
     let reals = layout.real_variables().map(|(vr, variable)| {
         use md::{Causality::*, Initial::Exact, Variability::*};
@@ -384,7 +418,7 @@ pub fn model_description(model: &Model, options: &ExportOptions, guid: &str) -> 
         };
         scalar(variable.name(), vr, description(model, variable), causality, variability, initial, real(start))
     });
-    let model_variables: Vec<md::ScalarVariable> = std::iter::once(method).chain(reals).collect();
+    let model_variables: Vec<md::ScalarVariable> = [method, energy_projection].into_iter().chain(reals).collect();
 
     // 1-based ScalarVariable indices, as <ModelStructure> refers to them.
     let index_of = |variable: RealVariable| {
@@ -444,12 +478,12 @@ pub fn model_description(model: &Model, options: &ExportOptions, guid: &str) -> 
             description: Some("integration method".into()),
             kind: md::SimpleTypeKind::Enumeration(md::EnumerationType {
                 quantity: None,
-                items: METHODS
+                items: Method::ALL
                     .iter()
-                    .map(|&(name, value)| md::Item {
-                        name: name.into(),
-                        value,
-                        description: Some("classical 4th-order Runge-Kutta (Munthe-Kaas on rotations), fixed step".into()),
+                    .map(|&method| md::Item {
+                        name: method.name().into(),
+                        value: method_value(method),
+                        description: Some(format!("{} (Munthe-Kaas on rotations)", method.description())),
                     })
                     .collect(),
             }),
@@ -461,7 +495,7 @@ pub fn model_description(model: &Model, options: &ExportOptions, guid: &str) -> 
         default_experiment: Some(md::DefaultExperiment {
             start_time: Some(0.0),
             stop_time: Some(DEFAULT_STOP_TIME),
-            tolerance: None,
+            tolerance: Some(DEFAULT_TOLERANCE),
             step_size: Some(DEFAULT_STEP_SIZE),
         }),
         model_variables,
@@ -514,7 +548,7 @@ mod tests {
     #[test]
     fn parses_optional_outputs() {
         let all: OptionalOutputs = "qvel, kinetic_energy,power,momentum".parse().unwrap();
-        assert_eq!(all, OptionalOutputs { qvel: true, kinetic_energy: true, power: true, momentum: true });
+        assert_eq!(all, OptionalOutputs { qvel: true, kinetic_energy: true, power: true, momentum: true, energy_residual: false });
         assert_eq!("".parse::<OptionalOutputs>().unwrap(), OptionalOutputs::default());
         assert_eq!("qvel,speed".parse::<OptionalOutputs>(), Err(UnknownOutput("speed".into())));
     }

@@ -8,7 +8,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use nudyn::eval::{EvalRequest, EvalResponse, evaluate};
 use nudyn::export::{ExportOptions, OptionalOutputs, model_identifier_from, write_fmu};
-use nudyn::integrate::{Integrator, RK4};
+use nudyn::integrate::{Integrator, Method};
 use nudyn::model::Model;
 use serde::{Deserialize, Serialize};
 
@@ -206,7 +206,7 @@ fn simulate(model_path: &Path, step: f64, stop: f64) -> Result<()> {
     ws.set_nu(&model, &nu)?;
     ws.compute_nu_dot(&model, &eps)?;
     theta.copy_from_slice(ws.theta.as_slice());
-    let mut integrator = Integrator::new(&model, RK4);
+    let mut integrator = Integrator::new(&model, Method::Rk4);
     let mut trajectory = Trajectory { time: vec![0.0], theta: vec![theta.clone()], nu: vec![nu.clone()] };
     for n in 0..steps as usize {
         let t = n as f64 * step;

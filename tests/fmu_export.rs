@@ -53,8 +53,8 @@ fn archive_holds_description_binary_and_resource() {
     assert!(modeldescription::validate(&description).is_empty());
     assert_eq!(description.guid, guid(&entries[2].1, &Layout::new(&model, outputs)));
     assert_eq!(description.co_simulation.model_identifier, "bus");
-    // method, tolerance, max_step, eps (13), theta (14), nu (13), kinetic_energy, momentum (6)
-    assert_eq!(description.model_variables.len(), 3 + 13 + 14 + 13 + 1 + 6);
+    // method, energy_projection, tolerance, max_step, eps (13), theta (14), nu (13), kinetic_energy, momentum (6)
+    assert_eq!(description.model_variables.len(), 4 + 13 + 14 + 13 + 1 + 6);
     let theta8 = description.model_variables.iter().find(|v| v.name == "theta[8]").unwrap();
     assert!(theta8.description.as_deref().unwrap().contains("hinge joint"), "{:?}", theta8.description);
     assert!(theta8.description.as_deref().unwrap().ends_with("(rad)"), "{:?}", theta8.description);

@@ -4,13 +4,13 @@
 mod common;
 
 use common::{Rng, TreeOptions, random_theta, random_vehicle};
-use nudyn::integrate::{Integrator, RK4};
+use nudyn::integrate::{Integrator, Method};
 use nudyn::model::Model;
 use nudyn::vehicle::{JointKind, Vehicle};
 
 fn simulate(model: &Model, theta0: &[f64], nu0: &[f64], h: f64, steps: usize) -> (Vec<f64>, Vec<f64>) {
     let mut ws = model.workspace();
-    let mut integrator = Integrator::new(model, RK4);
+    let mut integrator = Integrator::new(model, Method::Rk4);
     let (mut theta, mut nu) = (theta0.to_vec(), nu0.to_vec());
     // A smooth, time-varying ε so that the inputs are exercised too.
     let eps_at = |t: f64, out: &mut [f64]| out.iter_mut().enumerate().for_each(|(k, e)| *e = 0.3 * (2.0 * t + k as f64).sin());
@@ -76,7 +76,7 @@ fn free_tumbling_conserves_norm_of_nu_and_momentum() {
     let vehicle = random_vehicle(&mut rng, TreeOptions { bodies: 6, free_base: true, passive: false, chain: false });
     let model = Model::compile(&vehicle).unwrap();
     let mut ws = model.workspace();
-    let mut integrator = Integrator::new(&model, RK4);
+    let mut integrator = Integrator::new(&model, Method::Rk4);
     let mut theta = random_theta(&mut rng, &vehicle);
     let mut nu = rng.vec(model.nv, 1.0);
     let zero = vec![0.0; model.nv];

@@ -465,7 +465,7 @@ pub unsafe extern "C" fn fmi2SetInteger(
     }
 }
 
-/// The FMU has no Boolean or String variables: any value reference is unknown.
+/// The FMU has no String variables: any value reference is unknown.
 fn no_variables(vrs: &[fmi2ValueReference], kind: &'static str) -> Result<(), CallError> {
     match vrs.first() {
         Some(&vr) => Err(SlaveError::UnknownValueReference { vr, kind }.into()),
@@ -480,9 +480,16 @@ pub unsafe extern "C" fn fmi2GetBoolean(
     c: fmi2Component,
     vr: *const fmi2ValueReference,
     nvr: usize,
-    _value: *mut fmi2Boolean,
+    value: *mut fmi2Boolean,
 ) -> fmi2Status {
-    unsafe { enter(c, Function::GetBoolean, |_| no_variables(slice(vr, nvr, "vr")?, "Boolean")) }
+    unsafe {
+        enter(c, Function::GetBoolean, |instance| {
+            let (vrs, values) = (slice(vr, nvr, "vr")?, slice_mut(value, nvr, "value")?);
+            let energy_projection = instance.slave.get_boolean(vrs)?;
+            values.fill(fmi2Boolean::from(energy_projection));
+            Ok(())
+        })
+    }
 }
 
 /// # Safety
@@ -492,9 +499,15 @@ pub unsafe extern "C" fn fmi2SetBoolean(
     c: fmi2Component,
     vr: *const fmi2ValueReference,
     nvr: usize,
-    _value: *const fmi2Boolean,
+    value: *const fmi2Boolean,
 ) -> fmi2Status {
-    unsafe { enter(c, Function::SetBoolean, |_| no_variables(slice(vr, nvr, "vr")?, "Boolean")) }
+    unsafe {
+        enter(c, Function::SetBoolean, |instance| {
+            let (vrs, values) = (slice(vr, nvr, "vr")?, slice(value, nvr, "value")?);
+            let flags: Vec<bool> = values.iter().map(|&v| v != 0).collect();
+            Ok(instance.slave.set_boolean(vrs, &flags, initialized(instance.phase))?)
+        })
+    }
 }
 
 /// # Safety

@@ -11,9 +11,10 @@ use std::path::{Path, PathBuf};
 
 use nudyn::dynamics::DynamicsError;
 use nudyn::export::{
-    DEFAULT_MAX_STEP, DEFAULT_TOLERANCE, FmuResource, Layout, METHOD_VR, METHODS, RESOURCE_FORMAT, RealVariable,
+    DEFAULT_MAX_STEP, DEFAULT_METHOD, DEFAULT_TOLERANCE, ENERGY_PROJECTION_VR, FmuResource, Layout, METHOD_VR,
+    RESOURCE_FORMAT, RealVariable, method_of_value, method_value,
 };
-use nudyn::integrate::{Integrator, RK4};
+use nudyn::integrate::{AdvanceError, Carry, Integrator, Method, Settings};
 use nudyn::model::{LinkJoint, Model};
 use nudyn::workspace::Workspace;
 
@@ -37,6 +38,14 @@ pub struct SlaveState {
     pub tolerance: f64,
     /// Parameter `max_step` (s).
     pub max_step: f64,
+    /// Parameter `method`.
+    pub method: Method,
+    /// Parameter `energy_projection`.
+    pub energy_projection: bool,
+    /// The integrator's proposed next step and accumulated work.
+    pub carry: Carry,
+    /// K = ½|ν|² at initialization (J), for the energy residual.
+    pub initial_energy: f64,
     /// θ (nq, qpos).
     pub theta: Vec<f64>,
     /// ν (nv).
@@ -56,6 +65,10 @@ impl SlaveState {
             stop_time: None,
             tolerance: DEFAULT_TOLERANCE,
             max_step: DEFAULT_MAX_STEP,
+            method: DEFAULT_METHOD,
+            energy_projection: false,
+            carry: Carry::default(),
+            initial_energy: 0.0,
             theta: model.qpos0.clone(),
             nu: vec![0.0; model.nv],
             eps: vec![0.0; model.nv],
@@ -137,7 +150,7 @@ pub enum SlaveError {
         value: f64,
     },
     /// A `method` value that is not an item of the enumeration.
-    #[error("method = {0} is not an item of the enumeration (1 = rk4)")]
+    #[error("method = {0} is not an item of the enumeration ({items})", items = method_items())]
     UnknownMethod(i32),
     /// The initial state (θ, ν) set by the master cannot be used.
     #[error("the initial state cannot be used: {0}")]
@@ -166,15 +179,15 @@ pub enum SlaveError {
         /// The stop time of fmi2SetupExperiment.
         stop_time: f64,
     },
-    /// The integration failed (a non-finite state): the slave stays at `time`.
-    #[error("the step from t = {time} by {step} failed ({source}); the state stays at t = {time}")]
+    /// The integration stopped inside the step: the slave stays where it stopped.
+    #[error("the step from t = {time} by {step} stopped at t = {reached}: {source}", reached = source.reached())]
     StepFailed {
-        /// Start of the step, where the state stays.
+        /// Start of the step.
         time: f64,
         /// Its size.
         step: f64,
-        /// The cause.
-        source: DynamicsError,
+        /// The cause, with the time reached.
+        source: AdvanceError,
     },
     /// An input or output derivative of an order other than 1.
     #[error("derivative order {order} of {name} is not supported (only order 1)")]
@@ -197,6 +210,11 @@ pub enum SlaveError {
     /// An FMU state that cannot be restored.
     #[error(transparent)]
     Snapshot(#[from] SnapshotError),
+}
+
+/// "1 = rk4, 2 = dopri5, ...", for messages.
+fn method_items() -> String {
+    Method::ALL.iter().map(|&m| format!("{} = {}", method_value(m), m.name())).collect::<Vec<_>>().join(", ")
 }
 
 impl SlaveError {
@@ -228,9 +246,6 @@ pub struct Slave {
     evaluated: Evaluated,
     /// Momentum at the current state, when `evaluated` ≥ Velocity and it is an output.
     momentum: [f64; 6],
-    /// θ and ν before the current doStep, to restore when it fails midway.
-    theta_backup: Vec<f64>,
-    nu_backup: Vec<f64>,
     /// Set when a step failed on a non-finite state: the master should stop
     /// (fmi2GetBooleanStatus(fmi2Terminated)).
     failed_for_good: bool,
@@ -257,12 +272,10 @@ impl Slave {
             layout,
             guid: actual,
             ws: model.workspace(),
-            integrator: Integrator::new(&model, RK4),
+            integrator: Integrator::new(&model, DEFAULT_METHOD),
             state: SlaveState::initial(&model),
             evaluated: Evaluated::Nothing,
             momentum: [0.0; 6],
-            theta_backup: vec![0.0; model.nq],
-            nu_backup: vec![0.0; model.nv],
             failed_for_good: false,
             model,
         })
@@ -306,6 +319,9 @@ impl Slave {
         self.ws.set_configuration(&self.model, &self.state.theta).map_err(SlaveError::InitialState)?;
         self.ws.set_nu(&self.model, &self.state.nu).map_err(SlaveError::InitialState)?;
         self.state.theta.copy_from_slice(self.ws.theta.as_slice());
+        self.state.carry = Carry::default();
+        self.state.initial_energy = kinetic_energy(&self.state.nu);
+        self.integrator.set_method(self.state.method);
         self.evaluated = Evaluated::Nothing;
         Ok(())
     }
@@ -392,9 +408,10 @@ impl Slave {
                 RealVariable::Theta(k) => s.theta[k],
                 RealVariable::Nu(k) => s.nu[k],
                 RealVariable::Qvel(k) => self.ws.qvel[k],
-                RealVariable::KineticEnergy => 0.5 * s.nu.iter().map(|x| x * x).sum::<f64>(),
+                RealVariable::KineticEnergy => kinetic_energy(&s.nu),
                 RealVariable::Power => s.nu.iter().zip(&s.eps).map(|(n, e)| n * e).sum(),
                 RealVariable::Momentum(k) => self.momentum[k],
+                RealVariable::EnergyResidual => kinetic_energy(&s.nu) - s.initial_energy - s.carry.work,
             };
         }
         Ok(())
@@ -405,7 +422,32 @@ impl Slave {
         if let Some(&vr) = vrs.iter().find(|&&vr| vr != METHOD_VR) {
             return Err(SlaveError::UnknownValueReference { vr, kind: "Integer" });
         }
-        values.iter_mut().for_each(|v| *v = METHODS[0].1);
+        values.iter_mut().for_each(|v| *v = method_value(self.state.method));
+        Ok(())
+    }
+
+    /// fmi2GetBoolean: the value of the only Boolean variable, the
+    /// parameter `energy_projection`, once `vrs` are checked to name it.
+    pub fn get_boolean(&self, vrs: &[u32]) -> Result<bool, SlaveError> {
+        if let Some(&vr) = vrs.iter().find(|&&vr| vr != ENERGY_PROJECTION_VR) {
+            return Err(SlaveError::UnknownValueReference { vr, kind: "Boolean" });
+        }
+        Ok(self.state.energy_projection)
+    }
+
+    /// fmi2SetBoolean: `energy_projection`, before initialization.
+    pub fn set_boolean(&mut self, vrs: &[u32], values: &[bool], initialized: bool) -> Result<(), SlaveError> {
+        for &vr in vrs {
+            if vr != ENERGY_PROJECTION_VR {
+                return Err(SlaveError::UnknownValueReference { vr, kind: "Boolean" });
+            }
+            if initialized {
+                return Err(SlaveError::NotSettable { name: "energy_projection".into(), vr, when: "after initialization" });
+            }
+        }
+        if let Some(&value) = values.last() {
+            self.state.energy_projection = value;
+        }
         Ok(())
     }
 
@@ -418,9 +460,12 @@ impl Slave {
             if initialized {
                 return Err(SlaveError::NotSettable { name: "method".into(), vr, when: "after initialization" });
             }
-            if !METHODS.iter().any(|&(_, item)| item == value) {
+            if method_of_value(value).is_none() {
                 return Err(SlaveError::UnknownMethod(value));
             }
+        }
+        if let Some(method) = values.last().and_then(|&v| method_of_value(v)) {
+            self.state.method = method;
         }
         Ok(())
     }
@@ -489,9 +534,11 @@ impl Slave {
         }
     }
 
-    /// fmi2DoStep: integrates from `time` to `time + step` in equal internal
-    /// steps of at most `max_step`, with ε(t) = ε + dε/dt·(t − time).
-    /// The ramp applies to this step only. On failure nothing changes.
+    /// fmi2DoStep: integrates from `time` to `time + step` with the chosen
+    /// method (internal steps independent of the communication step), with
+    /// ε(t) = ε + dε/dt·(t − time); the ramp applies to this step only.
+    /// If the integration stops inside the step, the state stays at the
+    /// last successful internal step and the time says where.
     pub fn do_step(&mut self, time: f64, step: f64) -> Result<(), SlaveError> {
         let s = &mut self.state;
         if (time - s.time).abs() > TIME_TOLERANCE * s.time.abs().max(1.0) {
@@ -503,31 +550,29 @@ impl Slave {
         if let Some(stop_time) = s.stop_time.filter(|&stop| time + step > stop + TIME_TOLERANCE * stop.abs().max(1.0)) {
             return Err(SlaveError::PastStopTime { time, step, stop_time });
         }
-        // The tolerance keeps a step of exactly k·max_step (up to round-off) at k internal steps.
-        let substeps = (step / s.max_step * (1.0 - 1e-12)).ceil().max(1.0);
-        let h = step / substeps;
-        self.theta_backup.copy_from_slice(&s.theta);
-        self.nu_backup.copy_from_slice(&s.nu);
+        let settings = Settings { tolerance: s.tolerance, max_step: s.max_step, energy_projection: s.energy_projection };
         let (eps, eps_rate) = (&s.eps, &s.eps_rate);
-        for i in 0..substeps as usize {
-            let t = time + i as f64 * h;
-            let applied = |t_stage: f64, out: &mut [f64]| {
-                for ((o, e), r) in out.iter_mut().zip(eps).zip(eps_rate) {
-                    *o = e + r * (t_stage - time);
-                }
-            };
-            if let Err(source) = self.integrator.step(&self.model, &mut self.ws, &mut s.theta, &mut s.nu, t, h, applied) {
-                s.theta.copy_from_slice(&self.theta_backup);
-                s.nu.copy_from_slice(&self.nu_backup);
-                self.failed_for_good = true;
-                self.evaluated = Evaluated::Nothing;
-                return Err(SlaveError::StepFailed { time, step, source });
+        let applied = |t_stage: f64, out: &mut [f64]| {
+            for ((o, e), r) in out.iter_mut().zip(eps).zip(eps_rate) {
+                *o = e + r * (t_stage - time);
+            }
+        };
+        let (model, ws, integrator) = (&self.model, &mut self.ws, &mut self.integrator);
+        let result =
+            integrator.advance(model, ws, &mut s.theta, &mut s.nu, (time, time + step), &settings, &mut s.carry, applied);
+        self.evaluated = Evaluated::Nothing;
+        match result {
+            Ok(_) => {
+                s.time = time + step;
+                s.eps_rate.fill(0.0);
+                Ok(())
+            }
+            Err(source) => {
+                s.time = source.reached();
+                self.failed_for_good = source.is_non_finite();
+                Err(SlaveError::StepFailed { time, step, source })
             }
         }
-        s.time = time + step;
-        s.eps_rate.fill(0.0);
-        self.evaluated = Evaluated::Nothing;
-        Ok(())
     }
 
     /// The current time (fmi2LastSuccessfulTime).
@@ -562,6 +607,7 @@ impl Slave {
             return Err(SnapshotError::Sizes { nq, nv, expected_nq, expected_nv }.into());
         }
         self.state.clone_from(&snapshot.state);
+        self.integrator.set_method(self.state.method);
         self.evaluated = Evaluated::Nothing;
         self.failed_for_good = false;
         Ok(())
@@ -571,4 +617,9 @@ impl Slave {
     pub fn deserialize(&self, bytes: &[u8]) -> Result<Snapshot, SlaveError> {
         Ok(Snapshot::deserialize(bytes, &self.guid, self.model.nq, self.model.nv)?)
     }
+}
+
+/// K = ½|ν|².
+fn kinetic_energy(nu: &[f64]) -> f64 {
+    0.5 * nu.iter().map(|x| x * x).sum::<f64>()
 }

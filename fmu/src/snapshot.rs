@@ -4,12 +4,14 @@
 //! truncated, corrupted or foreign blob is rejected before anything is
 //! restored.
 
+use nudyn::integrate::{Carry, Method};
+
 use crate::slave::SlaveState;
 
 /// Identifies a nudyn FMU state blob.
 const MAGIC: &[u8; 8] = b"nudynFMS";
 /// Version of the byte layout below.
-const VERSION: u32 = 1;
+const VERSION: u32 = 2;
 
 /// A saved state of one FMU (its GUID names the FMU it belongs to).
 #[derive(Clone, Debug, PartialEq)]
@@ -68,6 +70,9 @@ pub enum SnapshotError {
         /// This FMU's nv.
         expected_nv: usize,
     },
+    /// A method number that names no method.
+    #[error("serialized FMU state names integration method number {0}, which does not exist")]
+    UnknownMethod(u8),
     /// The checksum does not match the contents.
     #[error("serialized FMU state is corrupted (checksum {found:#018x}, contents hash to {computed:#018x})")]
     Checksum {
@@ -84,15 +89,16 @@ fn fnv1a(bytes: &[u8]) -> u64 {
 }
 
 impl Snapshot {
-    /// Number of scalars after the header: five times and settings, then theta, nu, eps, eps_rate.
+    /// Number of scalars after the header: eight times, settings and
+    /// integration values, then theta, nu, eps, eps_rate.
     fn scalar_count(nq: usize, nv: usize) -> usize {
-        5 + nq + 3 * nv
+        8 + nq + 3 * nv
     }
 
     /// The size of [`Snapshot::serialize`]'s output.
     pub fn serialized_size(&self) -> usize {
         let (nq, nv) = (self.state.theta.len(), self.state.nu.len());
-        MAGIC.len() + 4 + 4 + self.guid.len() + 4 + 4 + 1 + 8 * Self::scalar_count(nq, nv) + 8
+        MAGIC.len() + 4 + 4 + self.guid.len() + 4 + 4 + 3 + 8 * Self::scalar_count(nq, nv) + 8
     }
 
     /// Writes the state into `out`, which must be [`Snapshot::serialized_size`] bytes long.
@@ -106,7 +112,18 @@ impl Snapshot {
         bytes.extend_from_slice(&(s.theta.len() as u32).to_le_bytes());
         bytes.extend_from_slice(&(s.nu.len() as u32).to_le_bytes());
         bytes.push(u8::from(s.stop_time.is_some()));
-        let scalars = [s.time, s.start_time, s.stop_time.unwrap_or(0.0), s.tolerance, s.max_step];
+        bytes.push(Method::ALL.iter().position(|&m| m == s.method).expect("listed") as u8);
+        bytes.push(u8::from(s.energy_projection));
+        let scalars = [
+            s.time,
+            s.start_time,
+            s.stop_time.unwrap_or(0.0),
+            s.tolerance,
+            s.max_step,
+            s.carry.next_step,
+            s.carry.work,
+            s.initial_energy,
+        ];
         for x in scalars.iter().chain(&s.theta).chain(&s.nu).chain(&s.eps).chain(&s.eps_rate) {
             bytes.extend_from_slice(&x.to_le_bytes());
         }
@@ -135,7 +152,8 @@ impl Snapshot {
         if (found_nq, found_nv) != (nq, nv) {
             return Err(SnapshotError::Sizes { nq: found_nq, nv: found_nv, expected_nq: nq, expected_nv: nv });
         }
-        let stop_time_defined = reader.take(1)?[0] != 0;
+        let flags = reader.take(3)?;
+        let (stop_time_defined, method_index, energy_projection) = (flags[0] != 0, flags[1], flags[2] != 0);
         let scalars: Vec<f64> = (0..Self::scalar_count(nq, nv)).map(|_| reader.f64()).collect::<Result<_, _>>()?;
         let contents_len = reader.at;
         let found = u64::from_le_bytes(reader.take(8)?.try_into().expect("8 bytes"));
@@ -146,7 +164,8 @@ impl Snapshot {
         if found != computed {
             return Err(SnapshotError::Checksum { found, computed });
         }
-        let (settings, vectors) = scalars.split_at(5);
+        let method = *Method::ALL.get(usize::from(method_index)).ok_or(SnapshotError::UnknownMethod(method_index))?;
+        let (settings, vectors) = scalars.split_at(8);
         let (theta, rest) = vectors.split_at(nq);
         let (nu, rest) = rest.split_at(nv);
         let (eps, eps_rate) = rest.split_at(nv);
@@ -158,6 +177,10 @@ impl Snapshot {
                 stop_time: stop_time_defined.then_some(settings[2]),
                 tolerance: settings[3],
                 max_step: settings[4],
+                method,
+                energy_projection,
+                carry: Carry { next_step: settings[5], work: settings[6] },
+                initial_energy: settings[7],
                 theta: theta.to_vec(),
                 nu: nu.to_vec(),
                 eps: eps.to_vec(),
@@ -206,6 +229,10 @@ mod tests {
                 stop_time: Some(10.0),
                 tolerance: 1e-6,
                 max_step: 1e-3,
+                method: Method::Dopri5,
+                energy_projection: true,
+                carry: Carry { next_step: 2.5e-3, work: -0.75 },
+                initial_energy: 1.25,
                 theta: vec![1.0, 0.0, 0.0, 0.0, std::f64::consts::PI],
                 nu: vec![1e-300, -0.0, 3.5, 7.25],
                 eps: vec![0.5, 0.25, -1.0, 2.0],
@@ -266,7 +293,8 @@ mod tests {
         assert!(matches!(Snapshot::deserialize(&bytes, GUID, 7, 6), Err(SnapshotError::Sizes { .. })));
         assert_eq!(Snapshot::deserialize(b"PK\x03\x04 not a state", GUID, 5, 4), Err(SnapshotError::BadMagic));
         let mut other_version = bytes.clone();
-        other_version[8..12].copy_from_slice(&2u32.to_le_bytes());
-        assert_eq!(Snapshot::deserialize(&other_version, GUID, 5, 4), Err(SnapshotError::Version { found: 2 }));
+        other_version[8..12].copy_from_slice(&(VERSION + 1).to_le_bytes());
+        let found = VERSION + 1;
+        assert_eq!(Snapshot::deserialize(&other_version, GUID, 5, 4), Err(SnapshotError::Version { found }));
     }
 }

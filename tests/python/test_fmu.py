@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -15,7 +16,13 @@ import numpy as np
 import pytest
 from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Terminated
+from fmpy.fmi2 import (
+    FMU2Slave,
+    fmi2CallbackFunctions,
+    fmi2CallbackLoggerTYPE,
+    fmi2LastSuccessfulTime,
+    fmi2Terminated,
+)
 from fmpy.validation import validate_fmu
 
 from conftest import EXAMPLES, ROOT, example_ids
@@ -118,8 +125,14 @@ def test_outputs_not_chosen_do_not_exist(nudyn, fmu_library, tmp_path):
     assert {"theta[1]", "nu[1]", "eps[1]", "method", "tolerance", "max_step"} <= names
 
 
+def method_value(description, name: str) -> int:
+    """The value of the `method` enumeration item called `name`."""
+    method_type = next(t for t in description.typeDefinitions if t.name == "Method")
+    return next(int(item.value) for item in method_type.items if item.name == name)
+
+
 def fmu_run(path: Path, start, eps, stop: float, max_step: float, output_names):
-    """simulate_fmu with the start values and a constant eps input table."""
+    """simulate_fmu with RK4, the start values and a constant eps input table."""
     description = read_model_description(str(path))
     eps_names = [v.name for v in variables(description, "eps")]
     signals = np.array(
@@ -130,7 +143,7 @@ def fmu_run(path: Path, start, eps, stop: float, max_step: float, output_names):
         str(path),
         stop_time=stop,
         output_interval=STEP,
-        start_values={**start, "max_step": max_step},
+        start_values={**start, "max_step": max_step, "method": method_value(description, "rk4")},
         input=signals,
         output=output_names,
     )
@@ -428,7 +441,24 @@ def test_non_finite_state_is_discarded_not_output(bus):
     assert slave.fmu.getBooleanStatus(fmi2Terminated)
     assert np.array_equal(slave.all_reals(), before)
     assert np.all(np.isfinite(slave.all_reals()))
-    assert "failed" in slave.log.text()
+    assert slave.fmu.getRealStatus(fmi2LastSuccessfulTime) == 0.0
+    assert "stopped at t = 0: " in slave.log.text()
+    assert "is not finite" in slave.log.text()
+
+
+def test_discarded_step_stops_where_the_integration_stopped(bus):
+    """A ramp to an overflowing ε: the step gets partway, the state stays
+    there, finite, and fmi2LastSuccessfulTime says where."""
+    slave = bus()
+    slave.fmu.setRealInputDerivatives([slave.vr["eps[8]"]], [1], [1e20])
+    with pytest.raises(FMICallException) as failure:
+        slave.step()
+    assert failure.value.status == 2  # fmi2Discard
+    reached = slave.fmu.getRealStatus(fmi2LastSuccessfulTime)
+    assert 0.0 < reached < STEP
+    stopped_at = re.search(r"stopped at t = ([0-9.e+-]+)", slave.log.text())
+    assert stopped_at and float(stopped_at.group(1)) == reached
+    assert np.all(np.isfinite(slave.all_reals()))
 
 
 def test_guid_mismatch_fails_instantiation(exported, tmp_path):

@@ -1,0 +1,402 @@
+//! Advancing (θ, ν) over an interval [t₀, t₁]: equal fixed steps for RK4,
+//! or adaptive steps of an embedded pair under error control (Hairer,
+//! Nørsett & Wanner I, §II.4: the scaled RMS error norm, the step-size
+//! controller, and the starting step).
+//!
+//! The error is measured on the step's (Δ, ν) increments, with the scale
+//! tol·(1 + |y|) per component (relative and absolute tolerance both `tol`):
+//! y is ν, a hinge or slide coordinate or a free joint's position; rotations
+//! (rotation vectors of ball and free joints) are measured absolutely, in rad.
+//!
+//! With `energy_projection`, ν is rescaled after each step so that
+//! K = ½|ν|² equals K before the step plus the step's quadrature of the
+//! power ν·ν̇ (= ν·(ε + passive forces), since ν·C = 0). With ε = 0 and no
+//! passive forces that power is zero, so K is then kept to round-off for
+//! any length of run; the rescaling is O(h^(p+1)), so orders are kept.
+
+use super::rkmk::{Integrator, retract};
+use super::tableau::ErrorEstimate;
+use crate::dynamics::DynamicsError;
+use crate::model::{LinkJoint, Model};
+use crate::workspace::Workspace;
+
+/// How to integrate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Settings {
+    /// Relative (and absolute) local error tolerance of adaptive methods.
+    pub tolerance: f64,
+    /// Longest internal step (s); RK4 takes equal steps of at most this.
+    pub max_step: f64,
+    /// Rescale ν after each step to the energy balance (module docs).
+    pub energy_projection: bool,
+}
+
+/// What one interval hands to the next, beyond (θ, ν) and the time: part of
+/// the integration's state, so that a saved and restored run repeats exactly.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Carry {
+    /// The step size the controller proposes next (s); 0 before the first step.
+    pub next_step: f64,
+    /// ∫ν·ν̇ dt since the start (J): the work of all forces, for the energy
+    /// residual K − K₀ − work.
+    pub work: f64,
+}
+
+/// Counts of one call to `advance`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Stats {
+    /// Steps taken.
+    pub accepted: usize,
+    /// Steps rejected by the error control.
+    pub rejected: usize,
+}
+
+/// Why an interval could not be completed. (θ, ν) and the carry are left at
+/// the last successful internal step, at time `reached`.
+#[derive(Debug, thiserror::Error)]
+pub enum AdvanceError {
+    /// The error control shrank the step to round-off level.
+    #[error(
+        "cannot meet tolerance {tolerance:e}: the step size fell to {step:e} s at t = {reached} s{}",
+        cause.as_ref().map(|c| format!(" (last attempt: {c})")).unwrap_or_default()
+    )]
+    StepTooSmall {
+        /// Where the state stays.
+        reached: f64,
+        /// The step size at which it gave up.
+        step: f64,
+        /// The tolerance.
+        tolerance: f64,
+        /// What went wrong in the last attempt, if something overflowed rather than the error test failing.
+        cause: Option<Overflow>,
+    },
+    /// The interval needs more internal steps than one call may take.
+    #[error(
+        "{MAX_ADAPTIVE_STEPS} internal steps (the last {step:e} s) reached only t = {reached} s: \
+         the motion is too fast or stiff for tolerance {tolerance:e}"
+    )]
+    TooManySteps {
+        /// Where the state stays.
+        reached: f64,
+        /// The last step size.
+        step: f64,
+        /// The tolerance.
+        tolerance: f64,
+    },
+    /// A fixed step failed (a non-finite value).
+    #[error("the step from t = {reached} s by {step:e} s failed: {cause}")]
+    StepFailed {
+        /// Where the state stays.
+        reached: f64,
+        /// The step size.
+        step: f64,
+        /// The cause.
+        cause: DynamicsError,
+    },
+}
+
+impl AdvanceError {
+    /// Whether the dynamics produced a non-finite value, rather than the
+    /// error test alone failing: going on from here is pointless.
+    pub fn is_non_finite(&self) -> bool {
+        matches!(self, AdvanceError::StepFailed { .. } | AdvanceError::StepTooSmall { cause: Some(_), .. })
+    }
+
+    /// The time of the last successful internal step, where (θ, ν) are.
+    pub fn reached(&self) -> f64 {
+        match self {
+            AdvanceError::StepTooSmall { reached, .. }
+            | AdvanceError::TooManySteps { reached, .. }
+            | AdvanceError::StepFailed { reached, .. } => *reached,
+        }
+    }
+}
+
+/// Why an attempted step produced no usable error estimate.
+#[derive(Debug, thiserror::Error)]
+pub enum Overflow {
+    /// The dynamics failed at a stage or the result is not finite.
+    #[error(transparent)]
+    Dynamics(#[from] DynamicsError),
+    /// The result is finite but its error estimate is not.
+    #[error("the error estimate is not finite: the rates reach |nu_dot| = {largest_rate:e}")]
+    ErrorEstimate {
+        /// The largest |ν̇| over the stages.
+        largest_rate: f64,
+    },
+}
+
+/// Most attempted steps in one call of an adaptive method, so that a host
+/// is never stalled by steps that progress only by round-off (as `nmax` in
+/// Hairer's codes).
+pub const MAX_ADAPTIVE_STEPS: usize = 100_000;
+
+/// Safety factor of the step-size controller.
+const SAFETY: f64 = 0.9;
+
+impl Integrator {
+    /// Integrates from `t0` to `t1`, moving `theta` (nq) and `nu` (nv) in
+    /// place; `eps_at(t, out)` writes the applied ε at time t.
+    #[allow(clippy::too_many_arguments)]
+    pub fn advance(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        theta: &mut [f64],
+        nu: &mut [f64],
+        (t0, t1): (f64, f64),
+        settings: &Settings,
+        carry: &mut Carry,
+        mut eps_at: impl FnMut(f64, &mut [f64]),
+    ) -> Result<Stats, AdvanceError> {
+        // ε may have changed since the last interval.
+        self.first.valid = false;
+        if self.method.is_adaptive() {
+            self.advance_adaptive(model, ws, theta, nu, (t0, t1), settings, carry, &mut eps_at)
+        } else {
+            self.advance_fixed(model, ws, theta, nu, (t0, t1), settings, carry, &mut eps_at)
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn advance_fixed(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        theta: &mut [f64],
+        nu: &mut [f64],
+        (t0, t1): (f64, f64),
+        settings: &Settings,
+        carry: &mut Carry,
+        eps_at: &mut impl FnMut(f64, &mut [f64]),
+    ) -> Result<Stats, AdvanceError> {
+        // The tolerance keeps an interval of exactly k·max_step (up to round-off) at k steps.
+        let steps = ((t1 - t0) / settings.max_step * (1.0 - 1e-12)).ceil().max(1.0) as usize;
+        let h = (t1 - t0) / steps as f64;
+        for n in 0..steps {
+            let t = t0 + n as f64 * h;
+            let failed = |cause| AdvanceError::StepFailed { reached: t, step: h, cause };
+            self.attempt(model, ws, theta, nu, t, h, eps_at).map_err(failed)?;
+            if let Some(cause) = self.non_finite_result() {
+                return Err(failed(cause));
+            }
+            self.accept_with_energy(model, theta, nu, h, settings, carry);
+        }
+        carry.next_step = h;
+        Ok(Stats { accepted: steps, rejected: 0 })
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn advance_adaptive(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        theta: &mut [f64],
+        nu: &mut [f64],
+        (t0, t1): (f64, f64),
+        settings: &Settings,
+        carry: &mut Carry,
+        eps_at: &mut impl FnMut(f64, &mut [f64]),
+    ) -> Result<Stats, AdvanceError> {
+        let tableau = self.method.tableau();
+        let (shrink_limit, grow_limit) = tableau.factor_bounds;
+        let tolerance = settings.tolerance;
+        let mut stats = Stats::default();
+        let mut t = t0;
+        let mut h = if carry.next_step > 0.0 {
+            carry.next_step
+        } else {
+            self.initial_step(model, ws, theta, nu, t0, settings, eps_at)
+                .map_err(|cause| AdvanceError::StepFailed { reached: t0, step: 0.0, cause })?
+        };
+        let mut last_rejected = false;
+        let mut last_cause = None;
+        // Within this of t1 the interval is done (a step that small is only round-off).
+        let end_slack = 4.0 * f64::EPSILON * t1.abs().max(1.0);
+        while t1 - t > end_slack {
+            let planned = h.min(settings.max_step);
+            let remaining = t1 - t;
+            let step = if planned >= remaining { remaining } else { planned };
+            if step < 16.0 * f64::EPSILON * t.abs().max(1.0) {
+                return Err(AdvanceError::StepTooSmall { reached: t, step, tolerance, cause: last_cause });
+            }
+            if stats.accepted + stats.rejected >= MAX_ADAPTIVE_STEPS {
+                return Err(AdvanceError::TooManySteps { reached: t, step, tolerance });
+            }
+            let error = match self.attempt(model, ws, theta, nu, t, step, eps_at) {
+                Ok(()) => self.error_norm(model, theta, nu, tolerance),
+                Err(cause) => {
+                    last_cause = Some(Overflow::Dynamics(cause));
+                    f64::INFINITY
+                }
+            };
+            if error <= 1.0 {
+                self.accept_with_energy(model, theta, nu, step, settings, carry);
+                t = if step == remaining { t1 } else { t + step };
+                stats.accepted += 1;
+                let mut factor = (SAFETY * error.powf(-tableau.controller_exponent)).clamp(shrink_limit, grow_limit);
+                if last_rejected {
+                    factor = factor.min(1.0);
+                }
+                // A step cut short to land on t1 says little about the next one.
+                h = if step < planned { (step * factor).max(planned) } else { step * factor };
+                last_rejected = false;
+                last_cause = None;
+            } else {
+                if error.is_finite() {
+                    last_cause = None;
+                } else if last_cause.is_none() {
+                    last_cause = Some(match self.non_finite_result() {
+                        Some(cause) => Overflow::Dynamics(cause),
+                        None => Overflow::ErrorEstimate { largest_rate: self.largest_rate() },
+                    });
+                }
+                let factor = if error.is_finite() {
+                    (SAFETY * error.powf(-tableau.controller_exponent)).max(shrink_limit)
+                } else {
+                    shrink_limit
+                };
+                h = step * factor;
+                stats.rejected += 1;
+                last_rejected = true;
+            }
+        }
+        carry.next_step = h;
+        Ok(stats)
+    }
+
+    /// The largest |ν̇| over the attempted step's stages.
+    fn largest_rate(&self) -> f64 {
+        let stages = self.method.tableau().b.len();
+        self.k_nu[..stages].iter().flat_map(|k| k.iter()).fold(0.0, |m: f64, x| m.max(x.abs()))
+    }
+
+    /// The first non-finite value of the attempted step, if any.
+    fn non_finite_result(&self) -> Option<DynamicsError> {
+        let update = self.nu_next.iter().chain(self.delta.iter());
+        update
+            .enumerate()
+            .find(|(_, x)| !x.is_finite())
+            .map(|(index, &value)| DynamicsError::NonFinite { what: "integrated state", index, value })
+    }
+
+    /// Takes the attempted step, adds its work to `carry`, and projects ν
+    /// onto the energy balance if asked.
+    fn accept_with_energy(
+        &mut self,
+        model: &Model,
+        theta: &mut [f64],
+        nu: &mut [f64],
+        h: f64,
+        settings: &Settings,
+        carry: &mut Carry,
+    ) {
+        let work = self.step_work(h);
+        let energy_before = 0.5 * nu.iter().map(|x| x * x).sum::<f64>();
+        self.accept(model, theta, nu);
+        carry.work += work;
+        if settings.energy_projection {
+            let target = energy_before + work;
+            let energy = 0.5 * nu.iter().map(|x| x * x).sum::<f64>();
+            if target > 0.0 && energy > 0.0 {
+                let scale = (target / energy).sqrt();
+                nu.iter_mut().for_each(|x| *x *= scale);
+                // The cached last stage was evaluated at the unprojected ν.
+                self.first.valid = false;
+            }
+        }
+    }
+
+    /// The scaled RMS norm of the attempted step's error estimate: ≤ 1 passes.
+    fn error_norm(&self, model: &Model, theta: &[f64], nu: &[f64], tolerance: f64) -> f64 {
+        let (mut high, mut low) = (0.0, 0.0);
+        for (dof, position) in positions(model, theta) {
+            let position = position.map_or(0.0, |y| y.abs().max((y + self.delta[dof]).abs()));
+            let scale_delta = tolerance * (1.0 + position);
+            let scale_nu = tolerance * (1.0 + nu[dof].abs().max(self.nu_next[dof].abs()));
+            high += (self.error_delta[dof] / scale_delta).powi(2) + (self.error_nu[dof] / scale_nu).powi(2);
+            low += (self.error_delta_low[dof] / scale_delta).powi(2) + (self.error_nu_low[dof] / scale_nu).powi(2);
+        }
+        let n = 2.0 * model.nv as f64;
+        match self.method.tableau().error {
+            ErrorEstimate::Dop853 { .. } => {
+                let denominator = high + 0.01 * low;
+                if denominator > 0.0 { high / (n * denominator).sqrt() } else { 0.0 }
+            }
+            _ => (high / n).sqrt(),
+        }
+    }
+
+    /// A starting step from the size of the solution, its rate and an Euler
+    /// probe of its second derivative (Hairer's starting-step heuristic);
+    /// leaves the start's rates as the first stage.
+    #[allow(clippy::too_many_arguments)]
+    fn initial_step(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        theta: &[f64],
+        nu: &[f64],
+        t0: f64,
+        settings: &Settings,
+        eps_at: &mut impl FnMut(f64, &mut [f64]),
+    ) -> Result<f64, DynamicsError> {
+        let tolerance = settings.tolerance;
+        eps_at(t0, self.eps_stage.as_mut_slice());
+        ws.set_configuration(model, theta)?;
+        ws.set_nu(model, nu)?;
+        ws.compute_nu_dot(model, self.eps_stage.as_slice())?;
+        self.first.qvel.copy_from(&ws.qvel);
+        self.first.nu_dot.copy_from(&ws.nu_dot);
+        self.first.valid = true;
+        let n = 2.0 * model.nv as f64;
+        let (mut size, mut rate) = (0.0, 0.0);
+        for (dof, position) in positions(model, theta) {
+            let position = position.map_or(0.0, f64::abs);
+            let (scale_delta, scale_nu) = (tolerance * (1.0 + position), tolerance * (1.0 + nu[dof].abs()));
+            size += (position / scale_delta).powi(2) + (nu[dof] / scale_nu).powi(2);
+            rate += (self.first.qvel[dof] / scale_delta).powi(2) + (self.first.nu_dot[dof] / scale_nu).powi(2);
+        }
+        let (size, rate) = ((size / n).sqrt(), (rate / n).sqrt());
+        // Overflowing norms (huge rates) make the heuristic meaningless: start
+        // small and let the error control decide.
+        let h0 = 0.01 * size / rate;
+        let h0 = if size < 1e-5 || rate < 1e-5 || !(h0 > 0.0 && h0.is_finite()) { 1e-6 } else { h0 };
+        let h0 = h0.min(settings.max_step);
+        // Explicit Euler probe to h0.
+        self.delta.copy_from(&self.first.qvel);
+        self.delta *= h0;
+        self.theta_stage.copy_from_slice(theta);
+        retract(model, self.theta_stage.as_mut_slice(), self.delta.as_slice());
+        self.nu_stage.copy_from_slice(nu);
+        self.nu_stage.axpy(h0, &self.first.nu_dot, 1.0);
+        eps_at(t0 + h0, self.eps_stage.as_mut_slice());
+        ws.set_configuration(model, self.theta_stage.as_slice())?;
+        ws.set_nu(model, self.nu_stage.as_slice())?;
+        ws.compute_nu_dot(model, self.eps_stage.as_slice())?;
+        let mut curvature = 0.0;
+        for (dof, position) in positions(model, theta) {
+            let position = position.map_or(0.0, f64::abs);
+            let (scale_delta, scale_nu) = (tolerance * (1.0 + position), tolerance * (1.0 + nu[dof].abs()));
+            curvature += ((ws.qvel[dof] - self.first.qvel[dof]) / scale_delta).powi(2)
+                + ((ws.nu_dot[dof] - self.first.nu_dot[dof]) / scale_nu).powi(2);
+        }
+        let curvature = (curvature / n).sqrt() / h0;
+        let largest = rate.max(curvature);
+        let order = self.method.tableau().order as f64;
+        let h1 = if largest <= 1e-15 { (h0 * 1e-3).max(1e-6) } else { (0.01 / largest).powf(1.0 / order) };
+        let h = (100.0 * h0).min(h1).min(settings.max_step);
+        Ok(if h > 0.0 { h } else { h0 })
+    }
+}
+
+/// Each dof with the coordinate it moves, if that is a vector coordinate
+/// (hinge, slide, free-joint position); rotations have none.
+fn positions<'a>(model: &'a Model, theta: &'a [f64]) -> impl Iterator<Item = (usize, Option<f64>)> + 'a {
+    model.links.iter().flat_map(move |link| {
+        (0..link.ndof).map(move |k| {
+            let position = (link.joint != LinkJoint::Ball).then(|| theta[link.qpos_adr + k]);
+            (link.dof_adr + k, position)
+        })
+    })
+}

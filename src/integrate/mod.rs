@@ -1,0 +1,11 @@
+//! Time integration of (θ, ν): Runge–Kutta–Munthe-Kaas steps (`rkmk`) with
+//! the methods of `tableau`, driven over an interval with fixed or adaptive
+//! steps (`adaptive`).
+
+mod adaptive;
+mod rkmk;
+mod tableau;
+
+pub use adaptive::{AdvanceError, Carry, MAX_ADAPTIVE_STEPS, Overflow, Settings, Stats};
+pub use rkmk::{Integrator, retract};
+pub use tableau::{DOP853, DOPRI5, ErrorEstimate, Method, RK4, Tableau};

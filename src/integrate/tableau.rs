@@ -1,0 +1,322 @@
+//! The Runge–Kutta methods nudyn integrates with: Butcher tableaus and, for
+//! the adaptive pairs, their error estimators and step-size controllers.
+//! Coefficients are the published ones (Hairer, Nørsett & Wanner, Solving
+//! Ordinary Differential Equations I, 2nd ed., §II.5 and §II.10).
+
+/// How a method estimates the local error of a step from its stages.
+#[derive(Clone, Copy, Debug)]
+pub enum ErrorEstimate {
+    /// Fixed step: no estimate.
+    None,
+    /// One embedded formula: the error is h·Σ eᵢkᵢ with these weights eᵢ.
+    Embedded(&'static [f64]),
+    /// DOP853's pair of estimators, of orders 5 and 3, combined as
+    /// |e₅|² / √(n(|e₅|² + 0.01|e₃|²)) so that the estimate is of order 8
+    /// yet does not vanish by accident where e₅ does.
+    Dop853 {
+        /// Weights of the 5th-order estimator.
+        fifth: &'static [f64],
+        /// Weights of the 3rd-order estimator.
+        third: &'static [f64],
+    },
+}
+
+/// A Butcher tableau of an explicit Runge–Kutta method, with its error
+/// estimator and step-size controller constants.
+#[derive(Clone, Copy, Debug)]
+pub struct Tableau {
+    /// Strictly lower-triangular stage coefficients, row i has i entries.
+    pub a: &'static [&'static [f64]],
+    /// Weights.
+    pub b: &'static [f64],
+    /// Nodes.
+    pub c: &'static [f64],
+    /// Order of the solution.
+    pub order: u32,
+    /// Local error estimator.
+    pub error: ErrorEstimate,
+    /// The error estimate scales as h^(1/exponent): the controller takes
+    /// the new step as h·(1/err)^exponent.
+    pub controller_exponent: f64,
+    /// Bounds on the factor by which one step may shrink or grow the next.
+    pub factor_bounds: (f64, f64),
+    /// Whether the last stage is evaluated at the step's result ("first same
+    /// as last"), so that it is the next step's first stage.
+    pub first_same_as_last: bool,
+}
+
+/// The classical 4th-order Runge–Kutta method.
+pub const RK4: Tableau = Tableau {
+    a: &[&[], &[0.5], &[0.0, 0.5], &[0.0, 0.0, 1.0]],
+    b: &[1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0],
+    c: &[0.0, 0.5, 0.5, 1.0],
+    order: 4,
+    error: ErrorEstimate::None,
+    controller_exponent: 0.0,
+    factor_bounds: (1.0, 1.0),
+    first_same_as_last: false,
+};
+
+/// Dormand–Prince 5(4): 7 stages, first same as last, so 6 evaluations per step.
+pub const DOPRI5: Tableau = Tableau {
+    a: &[
+        &[],
+        &[1.0 / 5.0],
+        &[3.0 / 40.0, 9.0 / 40.0],
+        &[44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0],
+        &[19372.0 / 6561.0, -25360.0 / 2187.0, 64448.0 / 6561.0, -212.0 / 729.0],
+        &[9017.0 / 3168.0, -355.0 / 33.0, 46732.0 / 5247.0, 49.0 / 176.0, -5103.0 / 18656.0],
+        &[35.0 / 384.0, 0.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0],
+    ],
+    b: &[35.0 / 384.0, 0.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0, 0.0],
+    c: &[0.0, 1.0 / 5.0, 3.0 / 10.0, 4.0 / 5.0, 8.0 / 9.0, 1.0, 1.0],
+    order: 5,
+    // b − b̂, with b̂ the 4th-order weights.
+    error: ErrorEstimate::Embedded(&[
+        71.0 / 57600.0,
+        0.0,
+        -71.0 / 16695.0,
+        71.0 / 1920.0,
+        -17253.0 / 339200.0,
+        22.0 / 525.0,
+        -1.0 / 40.0,
+    ]),
+    controller_exponent: 1.0 / 5.0,
+    factor_bounds: (0.2, 10.0),
+    first_same_as_last: true,
+};
+
+// DOP853's coefficients, with the digits Hairer publishes.
+#[allow(clippy::excessive_precision)]
+mod dop853 {
+    pub const C: [f64; 12] = [
+        0.0,
+        0.526001519587677318785587544488e-01,
+        0.789002279381515978178381316732e-01,
+        0.118350341907227396726757197510e+00,
+        0.281649658092772603273242802490e+00,
+        1.0 / 3.0,
+        0.25,
+        4.0 / 13.0,
+        127.0 / 195.0,
+        0.6,
+        6.0 / 7.0,
+        1.0,
+    ];
+    pub const B: [f64; 12] = [
+        5.42937341165687622380535766363e-2,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        4.45031289275240888144113950566e0,
+        1.89151789931450038304281599044e0,
+        -5.8012039600105847814672114227e0,
+        3.1116436695781989440891606237e-1,
+        -1.52160949662516078556178806805e-1,
+        2.01365400804030348374776537501e-1,
+        4.47106157277725905176885569043e-2,
+    ];
+    /// The weights b̂ of the 3rd-order solution, on stages 1, 9 and 12.
+    const BHH: [f64; 3] = [0.244094488188976377952755905512, 0.733846688281611857341361741547, 0.220588235294117647058823529412e-01];
+    pub const THIRD: [f64; 12] = [
+        B[0] - BHH[0],
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        B[5],
+        B[6],
+        B[7],
+        B[8] - BHH[1],
+        B[9],
+        B[10],
+        B[11] - BHH[2],
+    ];
+    pub const FIFTH: [f64; 12] = [
+        0.1312004499419488073250102996e-01,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        -0.1225156446376204440720569753e+01,
+        -0.4957589496572501915214079952e+00,
+        0.1664377182454986536961530415e+01,
+        -0.3503288487499736816886487290e+00,
+        0.3341791187130174790297318841e+00,
+        0.8192320648511571246570742613e-01,
+        -0.2235530786388629525884427845e-01,
+    ];
+    pub const A: [&[f64]; 12] = [
+        &[],
+        &[5.26001519587677318785587544488e-2],
+        &[1.97250569845378994544595329183e-2, 5.91751709536136983633785987549e-2],
+        &[2.95875854768068491816892993775e-2, 0.0, 8.87627564304205475450678981324e-2],
+        &[2.41365134159266685502369798665e-1, 0.0, -8.84549479328286085344864962717e-1, 9.24834003261792003115737966543e-1],
+        &[3.7037037037037037037037037037e-2, 0.0, 0.0, 1.70828608729473871279604482173e-1, 1.25467687566822425016691814123e-1],
+        &[3.7109375e-2, 0.0, 0.0, 1.70252211019544039314978060272e-1, 6.02165389804559606850219397283e-2, -1.7578125e-2],
+        &[
+            3.70920001185047927108779319836e-2,
+            0.0,
+            0.0,
+            1.70383925712239993810214054705e-1,
+            1.07262030446373284651809199168e-1,
+            -1.53194377486244017527936158236e-2,
+            8.27378916381402288758473766002e-3,
+        ],
+        &[
+            6.24110958716075717114429577812e-1,
+            0.0,
+            0.0,
+            -3.36089262944694129406857109825e0,
+            -8.68219346841726006818189891453e-1,
+            2.75920996994467083049415600797e1,
+            2.01540675504778934086186788979e1,
+            -4.34898841810699588477366255144e1,
+        ],
+        &[
+            4.77662536438264365890433908527e-1,
+            0.0,
+            0.0,
+            -2.48811461997166764192642586468e0,
+            -5.90290826836842996371446475743e-1,
+            2.12300514481811942347288949897e1,
+            1.52792336328824235832596922938e1,
+            -3.32882109689848629194453265587e1,
+            -2.03312017085086261358222928593e-2,
+        ],
+        &[
+            -9.3714243008598732571704021658e-1,
+            0.0,
+            0.0,
+            5.18637242884406370830023853209e0,
+            1.09143734899672957818500254654e0,
+            -8.14978701074692612513997267357e0,
+            -1.85200656599969598641566180701e1,
+            2.27394870993505042818970056734e1,
+            2.49360555267965238987089396762e0,
+            -3.0467644718982195003823669022e0,
+        ],
+        &[
+            2.27331014751653820792359768449e0,
+            0.0,
+            0.0,
+            -1.05344954667372501984066689879e1,
+            -2.00087205822486249909675718444e0,
+            -1.79589318631187989172765950534e1,
+            2.79488845294199600508499808837e1,
+            -2.85899827713502369474065508674e0,
+            -8.87285693353062954433549289258e0,
+            1.23605671757943030647266201528e1,
+            6.43392746015763530355970484046e-1,
+        ],
+    ];
+}
+
+/// Dormand–Prince 8(5,3) (Hairer's DOP853): 12 stages, 8th order.
+pub const DOP853: Tableau = Tableau {
+    a: &dop853::A,
+    b: &dop853::B,
+    c: &dop853::C,
+    order: 8,
+    error: ErrorEstimate::Dop853 { fifth: &dop853::FIFTH, third: &dop853::THIRD },
+    controller_exponent: 1.0 / 8.0,
+    factor_bounds: (1.0 / 3.0, 6.0),
+    first_same_as_last: false,
+};
+
+/// The integration methods, as the FMU's `method` parameter names them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Method {
+    /// Classical RK4 with fixed internal steps of at most `max_step`.
+    Rk4,
+    /// Dormand–Prince 5(4), adaptive.
+    Dopri5,
+    /// Dormand–Prince 8(5,3), adaptive.
+    Dop853,
+}
+
+impl Method {
+    /// Every method, in the order of the FMU's enumeration (values 1, 2, 3).
+    pub const ALL: [Method; 3] = [Method::Rk4, Method::Dopri5, Method::Dop853];
+
+    /// The method's tableau.
+    pub fn tableau(self) -> &'static Tableau {
+        match self {
+            Method::Rk4 => &RK4,
+            Method::Dopri5 => &DOPRI5,
+            Method::Dop853 => &DOP853,
+        }
+    }
+
+    /// Its name, as in the FMU's enumeration and the CLI.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Rk4 => "rk4",
+            Method::Dopri5 => "dopri5",
+            Method::Dop853 => "dop853",
+        }
+    }
+
+    /// One line for people.
+    pub fn description(self) -> &'static str {
+        match self {
+            Method::Rk4 => "classical 4th-order Runge-Kutta, fixed internal step max_step",
+            Method::Dopri5 => "Dormand-Prince 5(4), adaptive to tolerance, steps at most max_step",
+            Method::Dop853 => "Dormand-Prince 8(5,3), adaptive to tolerance, steps at most max_step",
+        }
+    }
+
+    /// The method of a name.
+    pub fn from_name(name: &str) -> Option<Method> {
+        Method::ALL.into_iter().find(|m| m.name() == name)
+    }
+
+    /// Whether it adapts its step to a tolerance.
+    pub fn is_adaptive(self) -> bool {
+        !matches!(self.tableau().error, ErrorEstimate::None)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Row sums of a equal c, and the weights of the solution and of every
+    /// estimator sum to 1 and 0: the first consistency conditions, which
+    /// catch a mistyped coefficient in most rows.
+    #[test]
+    fn tableaus_are_consistent() {
+        for method in Method::ALL {
+            let t = method.tableau();
+            assert_eq!(t.a.len(), t.b.len());
+            assert_eq!(t.c.len(), t.b.len());
+            for (i, row) in t.a.iter().enumerate() {
+                assert_eq!(row.len(), i);
+                let sum: f64 = row.iter().sum();
+                assert!((sum - t.c[i]).abs() < 1e-14, "{method:?} row {i}: {sum} vs c = {}", t.c[i]);
+            }
+            assert!((t.b.iter().sum::<f64>() - 1.0).abs() < 1e-14, "{method:?}");
+            let estimators: Vec<&[f64]> = match t.error {
+                ErrorEstimate::None => vec![],
+                ErrorEstimate::Embedded(e) => vec![e],
+                ErrorEstimate::Dop853 { fifth, third } => vec![fifth, third],
+            };
+            for e in estimators {
+                assert_eq!(e.len(), t.b.len());
+                assert!(e.iter().sum::<f64>().abs() < 1e-14, "{method:?}");
+            }
+            // Second-order condition Σ bᵢcᵢ = ½.
+            let bc: f64 = t.b.iter().zip(t.c).map(|(b, c)| b * c).sum();
+            assert!((bc - 0.5).abs() < 1e-14, "{method:?}: {bc}");
+        }
+    }
+
+    #[test]
+    fn names_round_trip() {
+        for method in Method::ALL {
+            assert_eq!(Method::from_name(method.name()), Some(method));
+        }
+        assert_eq!(Method::from_name("euler"), None);
+    }
+}
