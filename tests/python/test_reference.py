@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from conftest import EXAMPLES, example_ids
-from mujoco_reference import Reference, ldl_reverse, rel_err, upper_factor
+from nudyn_validation.mujoco_reference import Reference, ldl_reverse, rel_err, upper_factor
 
 N_STATES = 3
 
