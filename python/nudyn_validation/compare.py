@@ -17,6 +17,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+from fmpy.fmi1 import FMICallException
 
 from .fmu_run import FmuPackage, FmuVehicle, ValidationError, export_fmu
 from .mujoco_reference import load_model
@@ -186,11 +187,19 @@ def run_scenario(package: FmuPackage, model_path: Path, scenario: Scenario, sett
             eps = np.asarray(scenario.eps_law(t, fmu_samples.rows["nu"][-1]), float)
             held.append(eps)
             start = time.perf_counter()
-            fmu.do_step(t, h, eps)
+            try:
+                fmu.do_step(t, h, eps)
+            except FMICallException as e:
+                raise ValidationError(f"{scenario.name}: the FMU failed the step from t = {t:g} s: {e}") from None
             fmu_samples.wall_time += time.perf_counter() - start
             start = time.perf_counter()
             mj.advance(eps, substeps)
             mj_samples.wall_time += time.perf_counter() - start
+            if mj.instability():
+                raise ValidationError(
+                    f"{scenario.name}: MuJoCo's simulation became unstable ({mj.instability()}) "
+                    f"between t = {t:g} s and {t + h:g} s; try a smaller --mujoco-step"
+                )
             sample()
     finally:
         fmu.close()

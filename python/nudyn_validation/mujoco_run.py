@@ -42,6 +42,12 @@ class MujocoVehicle:
         self.model.opt.timestep = step
         # data.energy = (potential: gravity and springs, kinetic ½ qvelᵀ M qvel).
         self.model.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_ENERGY)
+        # nudyn ignores actuators (`nudyn export` warns): the FMU's only
+        # input is ε.  MuJoCo's actuators are silenced to match; a position
+        # servo would otherwise pull on its joint even at ctrl = 0.  (Not
+        # with mjDSBL_ACTUATION: that also skips the control callback.)
+        self.model.actuator_gainprm[:] = 0.0
+        self.model.actuator_biasprm[:] = 0.0
         self.data = mujoco.MjData(self.model)
         self.factor = MujocoFactor(self.model)
         self.held_eps = np.zeros(self.model.nv)
@@ -66,6 +72,15 @@ class MujocoVehicle:
             # RK4's last stage is not at the new state: evaluate there, so that
             # the factor, the energies and the momentum below belong to it.
             mujoco.mj_forward(self.model, self.data)
+
+    def instability(self) -> str | None:
+        """The first of MuJoCo's bad-state warnings raised so far, if any:
+        on a non-finite or huge qpos, qvel or qacc MuJoCo resets the state
+        and goes on, which must not pass for a comparison."""
+        for warning in (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC):
+            if self.data.warning[int(warning)].number > 0:
+                return warning.name
+        return None
 
     # Quantities at the current state (valid after set_state or advance).
     def theta(self) -> np.ndarray:
@@ -94,8 +109,16 @@ class MujocoVehicle:
 
     @property
     def has_dampers(self) -> bool:
-        return bool(np.any(self.model.dof_damping > 0.0))
+        return has_dampers(self.model)
 
-    @property
-    def has_gravity(self) -> bool:
-        return bool(np.any(self.model.opt.gravity != 0.0))
+
+def _enabled(model: mujoco.MjModel, disable_bit) -> bool:
+    return not model.opt.disableflags & int(disable_bit)
+
+
+def has_gravity(model: mujoco.MjModel) -> bool:
+    return bool(np.any(model.opt.gravity != 0.0)) and _enabled(model, mujoco.mjtDisableBit.mjDSBL_GRAVITY)
+
+
+def has_dampers(model: mujoco.MjModel) -> bool:
+    return bool(np.any(model.dof_damping > 0.0)) and _enabled(model, mujoco.mjtDisableBit.mjDSBL_DAMPER)

@@ -23,6 +23,7 @@ import mujoco
 import numpy as np
 
 from .mujoco_reference import MujocoFactor, random_quat
+from .mujoco_run import has_gravity
 
 # Tolerances of the issue: max |θ error| and |ν error| over the run.
 UNFORCED_TOLERANCE = 1e-8
@@ -132,8 +133,8 @@ def make_scenario(name: str, model: mujoco.MjModel, seed: int) -> Scenario:
             False,
         )
     if name == "gravity":
-        if not np.any(model.opt.gravity != 0.0):
-            raise ValueError("scenario 'gravity' needs a model with gravity (its <option gravity> is zero)")
+        if not has_gravity(model):
+            raise ValueError("scenario 'gravity' needs a model with gravity (it has none, or it is disabled)")
         return Scenario(
             name, "released from rest under gravity (and springs), ε = 0", qpos0, zero.copy(), lambda t, nu: zero, True
         )
@@ -142,5 +143,4 @@ def make_scenario(name: str, model: mujoco.MjModel, seed: int) -> Scenario:
 
 def default_scenarios(model: mujoco.MjModel) -> list[str]:
     """Every scenario that applies: 'gravity' only when the model has gravity."""
-    with_gravity = bool(np.any(model.opt.gravity != 0.0))
-    return [name for name in SCENARIO_NAMES if name != "gravity" or with_gravity]
+    return [name for name in SCENARIO_NAMES if name != "gravity" or has_gravity(model)]

@@ -85,6 +85,19 @@ def test_comparison_detects_a_wrong_input_mapping(nudyn, tmp_path, monkeypatch):
     assert not validation.passed
 
 
+def test_actuators_act_on_neither_side(nudyn, tmp_path):
+    """nudyn ignores actuators, so the validation silences MuJoCo's: a
+    position servo (which pulls even at ctrl = 0) changes nothing."""
+    model = tmp_path / "servo.xml"
+    model.write_text(
+        '<mujoco><option gravity="0 0 -9.81"/><worldbody><body pos="0 0 1"><joint name="j" axis="0 1 0"/>'
+        '<geom type="capsule" fromto="0 0 0 0.5 0 0" size="0.05"/></body></worldbody>'
+        '<actuator><position joint="j" kp="50"/></actuator></mujoco>'
+    )
+    validation = validate_model(model, tmp_path / "servo.fmu", nudyn, ["gravity"], Settings(duration=0.5))
+    assert validation.passed, validation.results[0].summary()
+
+
 def run_command(*args):
     cmd = [sys.executable, str(ROOT / "scripts" / "validate.py"), *map(str, args)]
     return subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
