@@ -195,9 +195,10 @@ def run_scenario(package: FmuPackage, model_path: Path, scenario: Scenario, sett
             start = time.perf_counter()
             mj.advance(eps, substeps)
             mj_samples.wall_time += time.perf_counter() - start
-            if mj.instability():
+            problem = mj.instability()
+            if problem:
                 raise ValidationError(
-                    f"{scenario.name}: MuJoCo's simulation became unstable ({mj.instability()}) "
+                    f"{scenario.name}: MuJoCo's simulation became unstable ({problem}) "
                     f"between t = {t:g} s and {t + h:g} s; try a smaller --mujoco-step"
                 )
             sample()
