@@ -52,7 +52,8 @@ def arguments(argv):
         type=parse_parameter,
         default=[],
         metavar="NAME=VALUE",
-        help=f"set a Real parameter of the FMU by name (repeatable; default {defaults.parameters()})",
+        help="set a Real parameter of the FMU by name (repeatable; with rk4, max_step defaults to "
+        f"{defaults.parameters()['max_step']:g} s)",
     )
     p.add_argument("--seed", type=int, default=defaults.seed, help="seed of the initial state and the sine (default %(default)s)")
     p.add_argument("--out", type=Path, help="output directory (default out/validation/MODEL)")

@@ -38,12 +38,16 @@ class Settings:
     # 4e-10 at 1e-4 s: well inside the 1e-8 tolerance.
     mujoco_step: float = 1e-4
     method: str = "rk4"
-    # FMU Real parameters by name, over the default internal step below.
+    # FMU Real parameters by name, over the defaults of parameters().
     fmu_parameters: dict | None = None
     seed: int = 1
 
     def parameters(self) -> dict[str, float]:
-        return {"max_step": 1e-4, **(self.fmu_parameters or {})}
+        """RK4's internal step is the one above; an adaptive method keeps
+        the FMU's own defaults (its step follows its `tolerance`) unless
+        told otherwise."""
+        defaults = {"max_step": 1e-4} if self.method == "rk4" else {}
+        return {**defaults, **(self.fmu_parameters or {})}
 
     def check(self) -> None:
         """Refuse steps that do not divide (before any work is done)."""

@@ -36,7 +36,6 @@ class FmuPackage:
     """An exported FMU, unzipped once, from which instances are made."""
 
     def __init__(self, fmu_path: Path, unzip_dir: Path):
-        self.path = fmu_path
         self.description = read_model_description(str(fmu_path))
         self.unzip_dir = extract(str(fmu_path), str(unzip_dir))
         self.variables = {v.name: v for v in self.description.modelVariables}
@@ -72,7 +71,6 @@ class FmuVehicle:
 
     def __init__(self, package: FmuPackage, method: str, parameters: dict[str, float], theta0, nu0):
         package.check_real_parameters(parameters)
-        self.package = package
         self.vr = {name: v.valueReference for name, v in package.variables.items()}
         self._theta = self._refs("theta", package.nq)
         self._nu = self._refs("nu", package.nv)

@@ -79,7 +79,7 @@ def _number(x: float | None) -> str:
 
 def table(validation: ModelValidation) -> str:
     s = validation.settings
-    params = ", ".join(f"{k} = {v:g}" for k, v in s.parameters().items())
+    params = ", ".join(f"{k} = {v:g}" for k, v in s.parameters().items()) or "its default parameters"
     lines = [
         f"`{validation.model_path.name}`, {s.duration:g} s, communication step {s.communication_step:g} s; "
         f"FMU: method {s.method}, {params}; MuJoCo: RK4, step {s.mujoco_step:g} s.",
