@@ -21,6 +21,9 @@ EXAMPLES = sorted(EXAMPLES_DIR.glob("*.xml"))
 IMPORTER_FIXTURES = sorted((ROOT / "tests" / "fixtures" / "mjcf").glob("*.xml"))
 
 sys.path.insert(0, str(HERE))
+# The MuJoCo reference and the validation against the FMU are a package
+# outside tests/, shared with scripts/validate.py.
+sys.path.insert(0, str(ROOT / "python"))
 
 
 def example_ids():

@@ -1,4 +1,4 @@
-"""`nudyn eval` against MuJoCo (the reference in mujoco_reference.py).
+"""`nudyn eval` against MuJoCo (the reference in nudyn_validation.mujoco_reference).
 
 For every example vehicle, N_STATES random states (fixed seed per file):
 random unit quaternions, joint angles, velocities and torques of realistic
@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from conftest import EXAMPLES, IMPORTER_FIXTURES, example_ids, run_eval
-from mujoco_reference import Reference, rel_err
+from nudyn_validation.mujoco_reference import Reference, rel_err
 
 N_STATES = 4
 KEYS = ["theta", "qvel", "nu", "nu_dot", "coriolis", "eps", "kinetic_energy", "momentum"]

@@ -9,7 +9,7 @@ import re
 import pytest
 
 from conftest import EXAMPLES_DIR, run_eval
-from mujoco_reference import Reference
+from nudyn_validation.mujoco_reference import Reference
 
 MODEL = EXAMPLES_DIR / "bus_arm7.xml"
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from conftest import EXAMPLES, example_ids
-from mujoco_reference import Reference, ldl_reverse, rel_err, upper_factor
+from nudyn_validation.mujoco_reference import MujocoFactor, Reference, ldl_reverse, rel_err, upper_factor
 
 N_STATES = 3
 
@@ -62,6 +62,23 @@ def test_factor(example):
         mujoco.mj_solveM(ref.model, ref.data, x.reshape(1, -1), torque.reshape(1, -1))
         ours = np.linalg.solve(m.T, ref.eps(qpos, torque))
         assert rel_err(ours, x) <= 1e-10
+
+
+def test_mujoco_factor_read_from_qLD(example):
+    """MujocoFactor's L and d (MuJoCo's sparse qLD) are the dense reverse
+    factor of mj_fullM's M, and its nu and m eps are the dense products."""
+    ref, cases = example
+    factor = MujocoFactor(ref.model)
+    rng = np.random.default_rng(3)
+    for qpos, qvel, _ in cases:
+        M = ref.mass_matrix(qpos)  # leaves ref.data factored at qpos
+        L, d = ldl_reverse(M)
+        scale = np.max(np.abs(M))
+        assert np.max(np.abs(factor.lower(ref.data) - L)) <= 1e-10 * scale
+        assert rel_err(factor.sqrt_d(ref.data) ** 2, d) <= 1e-12
+        assert rel_err(factor.nu(ref.data, qvel), ref.nu(qpos, qvel)) <= 1e-12
+        eps = rng.normal(size=ref.nv)
+        assert rel_err(factor.torque(ref.data, eps), ref.torque_from_eps(qpos, eps)) <= 1e-12
 
 
 def test_nu_energy_and_round_trip(example):

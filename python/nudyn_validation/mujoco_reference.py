@@ -232,12 +232,7 @@ class Reference:
         """The same momentum from MuJoCo's mj_subtreeVel (a cross-check):
         world subtree angular momentum about the total centre of mass, moved
         to the origin."""
-        d = self.forward(qpos, qvel)
-        mujoco.mj_subtreeVel(self.model, d)
-        mass = self.model.body_subtreemass[0]
-        p = mass * d.subtree_linvel[0]
-        h = d.subtree_angmom[0] + np.cross(d.subtree_com[0], p)
-        return np.concatenate([h, p])
+        return subtree_momentum(self.model, self.forward(qpos, qvel))
 
     # ------------------------------------------------------------------ #
     # random states
@@ -277,6 +272,62 @@ class Reference:
                 qvel[v] = rng.normal(0, 0.1)
                 tau[v] = rng.normal(0, 20.0)
         return qpos, qvel, tau
+
+
+def subtree_momentum(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+    """[angular; linear] momentum of all bodies, world axes, about the world
+    origin, from MuJoCo's mj_subtreeVel at the state mj_forward left in data:
+    the world subtree's angular momentum about its centre of mass, moved to
+    the origin."""
+    mujoco.mj_subtreeVel(model, data)
+    p = model.body_subtreemass[0] * data.subtree_linvel[0]
+    h = data.subtree_angmom[0] + np.cross(data.subtree_com[0], p)
+    return np.concatenate([h, p])
+
+
+class MujocoFactor:
+    """MuJoCo's own factor M = L^T diag(d) L, as mj_factorM (called by
+    mj_fwdPosition) leaves it in data.qLD, and the products with
+    m = L^T diag(sqrt d) that the validation needs at every RK4 stage.
+
+    qLD is stored in the sparse row format of M (model.M_rownnz, M_rowadr,
+    M_colind): row i holds L[i, j] for the dofs j < i that M couples to i,
+    and d[i] at column i.  The index arrays are built once; each product is
+    then two vectorized gathers and a bincount (O(nnz), no dense matrix)."""
+
+    def __init__(self, model: mujoco.MjModel):
+        self.nv = model.nv
+        rows = np.repeat(np.arange(model.nv), model.M_rownnz)
+        cols = np.asarray(model.M_colind)
+        on_diagonal = rows == cols
+        self._diag = np.flatnonzero(on_diagonal)
+        if not np.array_equal(rows[self._diag], np.arange(model.nv)):
+            raise ValueError("qLD does not hold one diagonal entry per dof: MuJoCo's layout changed")
+        self._off = np.flatnonzero(~on_diagonal)
+        self._off_rows = rows[self._off]
+        self._off_cols = cols[self._off]
+
+    def sqrt_d(self, data: mujoco.MjData) -> np.ndarray:
+        return np.sqrt(data.qLD[self._diag])
+
+    def lower(self, data: mujoco.MjData) -> np.ndarray:
+        """Dense L (unit lower triangular), for checks."""
+        L = np.eye(self.nv)
+        L[self._off_rows, self._off_cols] = data.qLD[self._off]
+        return L
+
+    def nu(self, data: mujoco.MjData, qvel) -> np.ndarray:
+        """nu = m* qvel = diag(sqrt d) L qvel."""
+        qvel = np.asarray(qvel, float)
+        below = data.qLD[self._off] * qvel[self._off_cols]
+        return self.sqrt_d(data) * (qvel + np.bincount(self._off_rows, below, self.nv))
+
+    def torque(self, data: mujoco.MjData, eps) -> np.ndarray:
+        """T = m eps = L^T diag(sqrt d) eps: the joint torques whose
+        diagonalized force is eps."""
+        scaled = self.sqrt_d(data) * np.asarray(eps, float)
+        above = data.qLD[self._off] * scaled[self._off_rows]
+        return scaled + np.bincount(self._off_cols, above, self.nv)
 
 
 def random_quat(rng: np.random.Generator) -> np.ndarray:

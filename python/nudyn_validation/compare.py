@@ -1,0 +1,262 @@
+"""The FMU and MuJoCo run side by side from the same state with the same held
+ε, and the differences between them.
+
+At each communication point t_k the scenario's ε_k is computed (from the
+FMU's ν for closed loops), given to both, and held until t_k + Δt.  Both
+sides are sampled at every communication point: θ, ν, the kinetic energy,
+the momentum and, for the energy drift, K + U (U: MuJoCo's potential energy
+of gravity and springs).
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+from fmpy.fmi1 import FMICallException
+
+from .fmu_run import FmuPackage, FmuVehicle, ValidationError, export_fmu
+from .mujoco_reference import load_model
+from .mujoco_run import MujocoVehicle
+from .scenarios import Scenario, default_scenarios, make_scenario
+
+
+@dataclass
+class Settings:
+    """How both sides are run.  The defaults meet the tolerances on every
+    example with margin (the measurements are in the README)."""
+
+    duration: float = 2.0
+    communication_step: float = 0.01
+    # Both RK4s at 1e-4 s.  On chain60, the most demanding example, the two
+    # sides' max ν difference in free motion is 1.8e-6 at 1e-3 s, 1.1e-7 at
+    # 5e-4 s, 7e-9 at 2.5e-4 s (4th order; both sides add about half) and
+    # 4e-10 at 1e-4 s: well inside the 1e-8 tolerance.
+    mujoco_step: float = 1e-4
+    method: str = "rk4"
+    # FMU Real parameters by name, over the defaults of parameters().
+    fmu_parameters: dict | None = None
+    seed: int = 1
+
+    def parameters(self) -> dict[str, float]:
+        """RK4's internal step is the one above; an adaptive method keeps
+        the FMU's own defaults (its step follows its `tolerance`) unless
+        told otherwise."""
+        defaults = {"max_step": 1e-4} if self.method == "rk4" else {}
+        return {**defaults, **(self.fmu_parameters or {})}
+
+    def check(self) -> None:
+        """Refuse steps that do not divide (before any work is done)."""
+        self.communication_steps()
+        self.mujoco_substeps()
+
+    def communication_steps(self) -> int:
+        return _whole_number(self.duration, self.communication_step, "duration", "communication step")
+
+    def mujoco_substeps(self) -> int:
+        """MuJoCo steps per communication step: the input changes only at
+        communication points, so they must fall on MuJoCo's step boundaries."""
+        return _whole_number(self.communication_step, self.mujoco_step, "communication step", "MuJoCo step")
+
+
+def _whole_number(total: float, step: float, total_name: str, step_name: str) -> int:
+    count = round(total / step) if step > 0 else 0
+    if count < 1 or abs(count * step - total) > 1e-9 * total:
+        raise ValidationError(f"the {step_name} ({step:g} s) must divide the {total_name} ({total:g} s)")
+    return count
+
+
+@dataclass
+class Trajectory:
+    """One side's samples at the communication points."""
+
+    theta: np.ndarray  # (n + 1, nq)
+    nu: np.ndarray  # (n + 1, nv)
+    kinetic_energy: np.ndarray  # (n + 1,)
+    momentum: np.ndarray  # (n + 1, 6)
+    energy: np.ndarray  # (n + 1,) K + U
+    wall_time: float  # seconds spent integrating
+
+
+@dataclass
+class ScenarioResult:
+    scenario: Scenario
+    time: np.ndarray  # (n + 1,)
+    eps: np.ndarray  # (n, nv): ε held over [t_k, t_k+1]
+    fmu: Trajectory
+    mujoco: Trajectory
+    quaternion_starts: list[int]  # qpos index of each quaternion (w, x, y, z)
+    energy_is_conserved: bool
+
+    def theta_error(self) -> np.ndarray:
+        """max_k |θ_fmu − θ_mujoco| at each time, each FMU quaternion first
+        given the sign nearer MuJoCo's (q and −q are the same rotation)."""
+        fmu = self.fmu.theta.copy()
+        for a in self.quaternion_starts:
+            block = slice(a, a + 4)
+            flip = np.sum(fmu[:, block] * self.mujoco.theta[:, block], axis=1) < 0.0
+            fmu[flip, block] *= -1.0
+        return np.max(np.abs(fmu - self.mujoco.theta), axis=1)
+
+    def nu_error(self) -> np.ndarray:
+        return np.max(np.abs(self.fmu.nu - self.mujoco.nu), axis=1)
+
+    def kinetic_energy_error(self) -> np.ndarray:
+        return np.abs(self.fmu.kinetic_energy - self.mujoco.kinetic_energy)
+
+    def momentum_error(self) -> np.ndarray:
+        return np.max(np.abs(self.fmu.momentum - self.mujoco.momentum), axis=1)
+
+    def energy_drift(self, side: Trajectory) -> float | None:
+        """max |E(t) − E(0)| with E = K + U, where E is conserved (ε = 0, no
+        dampers); None elsewhere."""
+        if not self.energy_is_conserved:
+            return None
+        return float(np.max(np.abs(side.energy - side.energy[0])))
+
+    def summary(self) -> dict:
+        theta_error, nu_error = float(np.max(self.theta_error())), float(np.max(self.nu_error()))
+        return {
+            "scenario": self.scenario.name,
+            "description": self.scenario.description,
+            "max_theta_error": theta_error,
+            "max_nu_error": nu_error,
+            "max_kinetic_energy_error": float(np.max(self.kinetic_energy_error())),
+            "max_momentum_error": float(np.max(self.momentum_error())),
+            "kinetic_energy_start": float(self.mujoco.kinetic_energy[0]),
+            "energy_drift_fmu": self.energy_drift(self.fmu),
+            "energy_drift_mujoco": self.energy_drift(self.mujoco),
+            "fmu_seconds": self.fmu.wall_time,
+            "mujoco_seconds": self.mujoco.wall_time,
+            "tolerance": self.scenario.tolerance,
+            "passed": max(theta_error, nu_error) <= self.scenario.tolerance,
+        }
+
+
+def quaternion_starts(model: mujoco.MjModel) -> list[int]:
+    starts = []
+    for j in range(model.njnt):
+        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
+            starts.append(int(model.jnt_qposadr[j]) + 3)
+        elif model.jnt_type[j] == mujoco.mjtJoint.mjJNT_BALL:
+            starts.append(int(model.jnt_qposadr[j]))
+    return starts
+
+
+class _Samples:
+    """Collects one side's samples, then freezes them into a Trajectory."""
+
+    def __init__(self):
+        self.rows: dict[str, list] = {k: [] for k in ("theta", "nu", "kinetic_energy", "momentum", "energy")}
+        self.wall_time = 0.0
+
+    def add(self, theta, nu, kinetic_energy, momentum, potential_energy):
+        for key, value in (
+            ("theta", theta),
+            ("nu", nu),
+            ("kinetic_energy", kinetic_energy),
+            ("momentum", momentum),
+            ("energy", kinetic_energy + potential_energy),
+        ):
+            self.rows[key].append(value)
+
+    def trajectory(self) -> Trajectory:
+        return Trajectory(**{k: np.array(v) for k, v in self.rows.items()}, wall_time=self.wall_time)
+
+
+def run_scenario(package: FmuPackage, model_path: Path, scenario: Scenario, settings: Settings) -> ScenarioResult:
+    """Run the FMU and MuJoCo in lockstep over settings.duration."""
+    h = settings.communication_step
+    steps, substeps = settings.communication_steps(), settings.mujoco_substeps()
+    mj = MujocoVehicle(model_path, h / substeps)
+    mj.set_state(scenario.qpos0, scenario.qvel0)
+    # The FMU starts from the same θ and from MuJoCo's ν of the same qvel.
+    fmu = FmuVehicle(package, settings.method, settings.parameters(), scenario.qpos0, mj.nu())
+    fmu_samples, mj_samples = _Samples(), _Samples()
+    held = []
+
+    def sample():
+        theta = fmu.theta()
+        fmu_samples.add(theta, fmu.nu(), fmu.kinetic_energy(), fmu.momentum(), mj.potential_energy_at(theta))
+        mj_samples.add(mj.theta(), mj.nu(), mj.kinetic_energy(), mj.momentum(), mj.potential_energy())
+
+    try:
+        sample()
+        for k in range(steps):
+            t = k * h
+            eps = np.asarray(scenario.eps_law(t, fmu_samples.rows["nu"][-1]), float)
+            held.append(eps)
+            start = time.perf_counter()
+            try:
+                fmu.do_step(t, h, eps)
+            except FMICallException as e:
+                raise ValidationError(f"{scenario.name}: the FMU failed the step from t = {t:g} s: {e}") from None
+            fmu_samples.wall_time += time.perf_counter() - start
+            start = time.perf_counter()
+            mj.advance(eps, substeps)
+            mj_samples.wall_time += time.perf_counter() - start
+            problem = mj.instability()
+            if problem:
+                raise ValidationError(
+                    f"{scenario.name}: MuJoCo's simulation became unstable ({problem}) "
+                    f"between t = {t:g} s and {t + h:g} s; try a smaller --mujoco-step"
+                )
+            sample()
+    finally:
+        fmu.close()
+
+    return ScenarioResult(
+        scenario=scenario,
+        time=h * np.arange(steps + 1),
+        eps=np.array(held),
+        fmu=fmu_samples.trajectory(),
+        mujoco=mj_samples.trajectory(),
+        quaternion_starts=quaternion_starts(mj.model),
+        energy_is_conserved=scenario.unforced and not mj.has_dampers,
+    )
+
+
+@dataclass
+class ModelValidation:
+    model_path: Path
+    fmu_path: Path
+    settings: Settings
+    results: list[ScenarioResult]
+
+    @property
+    def passed(self) -> bool:
+        return all(r.summary()["passed"] for r in self.results)
+
+
+def validate_model(
+    model_path: Path,
+    fmu_path: Path,
+    nudyn: Path,
+    scenario_names: list[str] | None = None,
+    settings: Settings | None = None,
+) -> ModelValidation:
+    """Export model_path to fmu_path and run every scenario (all that apply
+    when scenario_names is None)."""
+    settings = settings or Settings()
+    settings.check()
+    # nudyn's importer first: its messages name the unsupported element.
+    export_fmu(nudyn, model_path, fmu_path)
+    try:
+        model = load_model(model_path)
+        names = scenario_names or default_scenarios(model)
+        scenarios = [make_scenario(name, model, settings.seed) for name in names]
+    except ValueError as e:
+        raise ValidationError(str(e)) from None
+    with tempfile.TemporaryDirectory(prefix="nudyn-fmu-") as unzip_dir:
+        package = FmuPackage(fmu_path, Path(unzip_dir))
+        if (package.nq, package.nv) != (model.nq, model.nv):
+            raise ValidationError(
+                f"the FMU has nq = {package.nq}, nv = {package.nv} but MuJoCo's model has "
+                f"nq = {model.nq}, nv = {model.nv}"
+            )
+        results = [run_scenario(package, model_path, s, settings) for s in scenarios]
+    return ModelValidation(model_path, fmu_path, settings, results)

@@ -1,0 +1,124 @@
+"""MuJoCo's simulation of a vehicle driven by diagonalized forces ε.
+
+MuJoCo integrates with its own RK4 (mjINT_RK4, 4th order on quaternions) at
+a step much smaller than the communication step.  MuJoCo knows physical
+joint torques, not ε, so a control callback applies T = m(θ) ε with
+m = Lᵀ diag(√d) from MuJoCo's own factor (`MujocoFactor`, qLD) at the state
+of every RK4 stage: mjcb_control runs once per stage, after the position
+stage has factored M at that stage's θ.  ε is held constant from one
+communication point to the next, exactly as the FMU holds its input.
+"""
+
+from __future__ import annotations
+
+from contextlib import contextmanager
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from .mujoco_reference import MujocoFactor, load_model, subtree_momentum
+
+
+@contextmanager
+def control_callback(callback):
+    """Install a global mjcb_control for the duration of the block, and put
+    back whatever was there before (the callback is process-wide)."""
+    previous = mujoco.get_mjcb_control()
+    mujoco.set_mjcb_control(callback)
+    try:
+        yield
+    finally:
+        mujoco.set_mjcb_control(previous)
+
+
+class MujocoVehicle:
+    """One MuJoCo simulation of the vehicle, stepped in communication steps
+    with a held ε; after each, the quantities compared with the FMU."""
+
+    def __init__(self, model_path: str | Path, step: float):
+        self.model = load_model(model_path)
+        self.model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
+        self.model.opt.timestep = step
+        # data.energy = (potential: gravity and springs, kinetic ½ qvelᵀ M qvel).
+        self.model.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_ENERGY)
+        # nudyn ignores actuators (`nudyn export` warns): the FMU's only
+        # input is ε.  MuJoCo's actuators are silenced to match; a position
+        # servo would otherwise pull on its joint even at ctrl = 0.  (Not
+        # with mjDSBL_ACTUATION: that also skips the control callback.)
+        self.model.actuator_gainprm[:] = 0.0
+        self.model.actuator_biasprm[:] = 0.0
+        self.data = mujoco.MjData(self.model)
+        self.factor = MujocoFactor(self.model)
+        self.held_eps = np.zeros(self.model.nv)
+        self._scratch = mujoco.MjData(self.model)
+
+    def set_state(self, qpos, qvel) -> None:
+        self.data.qpos[:] = qpos
+        self.data.qvel[:] = qvel
+        self.data.time = 0.0
+        mujoco.mj_forward(self.model, self.data)
+
+    def _apply_held_eps(self, model, data) -> None:
+        data.qfrc_applied[:] = self.factor.torque(data, self.held_eps)
+
+    def advance(self, eps, substeps: int) -> None:
+        """Integrate over one communication step of `substeps` MuJoCo steps
+        with ε held at eps."""
+        self.held_eps[:] = eps
+        with control_callback(self._apply_held_eps):
+            for _ in range(substeps):
+                mujoco.mj_step(self.model, self.data)
+            # RK4's last stage is not at the new state: evaluate there, so that
+            # the factor, the energies and the momentum below belong to it.
+            mujoco.mj_forward(self.model, self.data)
+
+    def instability(self) -> str | None:
+        """The first of MuJoCo's bad-state warnings raised so far, if any:
+        on a non-finite or huge qpos, qvel or qacc MuJoCo resets the state
+        and goes on, which must not pass for a comparison."""
+        for warning in (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC):
+            if self.data.warning[int(warning)].number > 0:
+                return warning.name
+        return None
+
+    # Quantities at the current state (valid after set_state or advance).
+    def theta(self) -> np.ndarray:
+        return self.data.qpos.copy()
+
+    def nu(self) -> np.ndarray:
+        return self.factor.nu(self.data, self.data.qvel)
+
+    def kinetic_energy(self) -> float:
+        return float(self.data.energy[1])
+
+    def potential_energy(self) -> float:
+        return float(self.data.energy[0])
+
+    def momentum(self) -> np.ndarray:
+        return subtree_momentum(self.model, self.data)
+
+    def potential_energy_at(self, qpos) -> float:
+        """MuJoCo's potential energy (gravity, springs) at another θ, on
+        scratch data: the FMU has no potential-energy output, so its energy
+        drift uses this function of its own θ."""
+        self._scratch.qpos[:] = qpos
+        mujoco.mj_fwdPosition(self.model, self._scratch)
+        mujoco.mj_energyPos(self.model, self._scratch)
+        return float(self._scratch.energy[0])
+
+    @property
+    def has_dampers(self) -> bool:
+        return has_dampers(self.model)
+
+
+def _enabled(model: mujoco.MjModel, disable_bit) -> bool:
+    return not model.opt.disableflags & int(disable_bit)
+
+
+def has_gravity(model: mujoco.MjModel) -> bool:
+    return bool(np.any(model.opt.gravity != 0.0)) and _enabled(model, mujoco.mjtDisableBit.mjDSBL_GRAVITY)
+
+
+def has_dampers(model: mujoco.MjModel) -> bool:
+    return bool(np.any(model.dof_damping > 0.0)) and _enabled(model, mujoco.mjtDisableBit.mjDSBL_DAMPER)

@@ -1,0 +1,146 @@
+"""The validation scenarios: an initial state and a law for the held ε.
+
+Sizes are chosen per dof from its joint type and from MuJoCo's factor at the
+initial pose, so that any vehicle, light or heavy, moves visibly but
+realistically in a couple of seconds:
+  velocities: free joint 0.05 m/s and 0.1 rad/s, ball and hinge 0.2 rad/s,
+              slide 0.02 m/s (each component ~ N(0, scale)): a space
+              robot's rates (they add up along a chain: chain60 starts
+              with 630 J);
+  pose:       hinges qpos0 ± 0.5 rad, slides qpos0 ± 0.05 m, ball and free
+              joints a random orientation (free: position qpos0 ± 0.5 m);
+  sine ε:     ε_k = a_k sin(2π f_k t + φ_k), a_k = √d_k · (velocity scale
+              of dof k) / 1 s, i.e. the diagonalized force that changes
+              the dof's rate by its scale in about a second.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import mujoco
+import numpy as np
+
+from .mujoco_reference import MujocoFactor, random_quat
+from .mujoco_run import has_gravity
+
+# Tolerances of the issue: max |θ error| and |ν error| over the run.
+UNFORCED_TOLERANCE = 1e-8
+FORCED_TOLERANCE = 1e-6
+
+# Rate-damping gain of ε = −c ν (1/s): ν decays like e^{−t}.
+DAMPING_GAIN = 1.0
+
+SCENARIO_NAMES = ("tumble", "sine", "damping", "gravity")
+
+# ε as a function of (time, the FMU's ν at that communication point).
+EpsLaw = Callable[[float, np.ndarray], np.ndarray]
+
+
+@dataclass
+class Scenario:
+    name: str
+    description: str
+    qpos0: np.ndarray
+    qvel0: np.ndarray
+    eps_law: EpsLaw
+    unforced: bool
+    tolerance: float = field(init=False)
+
+    def __post_init__(self):
+        self.tolerance = UNFORCED_TOLERANCE if self.unforced else FORCED_TOLERANCE
+
+
+def velocity_scales(model: mujoco.MjModel) -> np.ndarray:
+    """Per-dof velocity scale (m/s or rad/s) from the joint types."""
+    scale = np.zeros(model.nv)
+    for j in range(model.njnt):
+        v, kind = model.jnt_dofadr[j], model.jnt_type[j]
+        if kind == mujoco.mjtJoint.mjJNT_FREE:
+            scale[v : v + 6] = [0.05] * 3 + [0.1] * 3
+        elif kind == mujoco.mjtJoint.mjJNT_BALL:
+            scale[v : v + 3] = 0.2
+        elif kind == mujoco.mjtJoint.mjJNT_HINGE:
+            scale[v] = 0.2
+        else:
+            scale[v] = 0.02
+    return scale
+
+
+def offset_pose(model: mujoco.MjModel, rng: np.random.Generator) -> np.ndarray:
+    qpos = model.qpos0.copy()
+    for j in range(model.njnt):
+        a, kind = model.jnt_qposadr[j], model.jnt_type[j]
+        if kind == mujoco.mjtJoint.mjJNT_FREE:
+            qpos[a : a + 3] += rng.uniform(-0.5, 0.5, 3)
+            qpos[a + 3 : a + 7] = random_quat(rng)
+        elif kind == mujoco.mjtJoint.mjJNT_BALL:
+            qpos[a : a + 4] = random_quat(rng)
+        elif kind == mujoco.mjtJoint.mjJNT_HINGE:
+            qpos[a] += rng.uniform(-0.5, 0.5)
+        else:
+            qpos[a] += rng.uniform(-0.05, 0.05)
+    return qpos
+
+
+def sqrt_d_at(model: mujoco.MjModel, qpos) -> np.ndarray:
+    """√d of MuJoCo's factor at qpos."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos
+    mujoco.mj_fwdPosition(model, data)
+    return MujocoFactor(model).sqrt_d(data)
+
+
+def make_scenario(name: str, model: mujoco.MjModel, seed: int) -> Scenario:
+    """The scenario called name (one of SCENARIO_NAMES) for this model; the
+    same seed gives the same pose, velocities and sine for every scenario."""
+    rng = np.random.default_rng(seed)
+    qpos0 = offset_pose(model, rng)
+    scales = velocity_scales(model)
+    qvel0 = rng.normal(0.0, scales)
+    frequency = rng.uniform(0.3, 1.5, model.nv)  # Hz
+    phase = rng.uniform(0.0, 2 * np.pi, model.nv)
+    amplitude = sqrt_d_at(model, qpos0) * scales  # per 1 s
+
+    zero = np.zeros(model.nv)
+    if name == "tumble":
+        return Scenario(
+            name, "free motion, ε = 0, from a moving (tumbling) start", qpos0, qvel0, lambda t, nu: zero, True
+        )
+    if name == "sine":
+        return Scenario(
+            name,
+            "open-loop sinusoidal ε, sampled and held at each communication point",
+            qpos0,
+            qvel0,
+            lambda t, nu: amplitude * np.sin(2 * np.pi * frequency * t + phase),
+            False,
+        )
+    if name == "damping":
+        # ε comes from the FMU's ν, and MuJoCo is given the very same ε:
+        # both sides then integrate the same input sequence, so their
+        # difference measures the dynamics alone.  Feeding MuJoCo −c ν of
+        # its own would compare two closed loops whose inputs already differ
+        # by c·(ν error); the damping loop would shrink that difference and
+        # hide part of the disagreement the comparison is there to show.
+        return Scenario(
+            name,
+            f"closed-loop rate damping ε = −{DAMPING_GAIN:g} ν (the FMU's ν, held)",
+            qpos0,
+            qvel0,
+            lambda t, nu: -DAMPING_GAIN * nu,
+            False,
+        )
+    if name == "gravity":
+        if not has_gravity(model):
+            raise ValueError("scenario 'gravity' needs a model with gravity (it has none, or it is disabled)")
+        return Scenario(
+            name, "released from rest under gravity (and springs), ε = 0", qpos0, zero.copy(), lambda t, nu: zero, True
+        )
+    raise ValueError(f"unknown scenario '{name}' (known: {', '.join(SCENARIO_NAMES)})")
+
+
+def default_scenarios(model: mujoco.MjModel) -> list[str]:
+    """Every scenario that applies: 'gravity' only when the model has gravity."""
+    return [name for name in SCENARIO_NAMES if name != "gravity" or has_gravity(model)]
