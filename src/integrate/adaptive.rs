@@ -131,6 +131,12 @@ pub enum Overflow {
 /// Hairer's codes).
 pub const MAX_ADAPTIVE_STEPS: usize = 100_000;
 
+/// The tolerance is the error allowed per this much simulated time (s):
+/// each step's local error is held to tol·h/(1 s) ("error per unit step"),
+/// so that errors summed over a second stay near tol, whatever the number
+/// of steps, rather than near tol per step.
+pub const TOLERANCE_TIME: f64 = 1.0;
+
 /// Safety factor of the step-size controller.
 const SAFETY: f64 = 0.9;
 
@@ -224,7 +230,7 @@ impl Integrator {
                 return Err(AdvanceError::TooManySteps { reached: t, step, tolerance });
             }
             let error = match self.attempt(model, ws, theta, nu, t, step, eps_at) {
-                Ok(()) => self.error_norm(model, theta, nu, tolerance),
+                Ok(()) => self.error_norm(model, theta, nu, tolerance) / (step / TOLERANCE_TIME).min(1.0),
                 Err(cause) => {
                     last_cause = Some(Overflow::Dynamics(cause));
                     f64::INFINITY

@@ -35,8 +35,8 @@ pub struct Tableau {
     pub order: u32,
     /// Local error estimator.
     pub error: ErrorEstimate,
-    /// The error estimate scales as h^(1/exponent): the controller takes
-    /// the new step as h·(1/err)^exponent.
+    /// The error estimate per unit step scales as h^(1/exponent): the
+    /// controller takes the new step as h·(1/err)^exponent.
     pub controller_exponent: f64,
     /// Bounds on the factor by which one step may shrink or grow the next.
     pub factor_bounds: (f64, f64),
@@ -81,7 +81,7 @@ pub const DOPRI5: Tableau = Tableau {
         22.0 / 525.0,
         -1.0 / 40.0,
     ]),
-    controller_exponent: 1.0 / 5.0,
+    controller_exponent: 1.0 / 4.0,
     factor_bounds: (0.2, 10.0),
     first_same_as_last: true,
 };
@@ -220,7 +220,7 @@ pub const DOP853: Tableau = Tableau {
     c: &dop853::C,
     order: 8,
     error: ErrorEstimate::Dop853 { fifth: &dop853::FIFTH, third: &dop853::THIRD },
-    controller_exponent: 1.0 / 8.0,
+    controller_exponent: 1.0 / 7.0,
     factor_bounds: (1.0 / 3.0, 6.0),
     first_same_as_last: false,
 };
