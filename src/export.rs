@@ -269,7 +269,11 @@ pub fn description(model: &Model, variable: RealVariable) -> String {
         "linear momentum z (kg*m/s)",
     ];
     match variable {
-        RealVariable::Tolerance => "relative tolerance of adaptive integration methods (1)".into(),
+        RealVariable::Tolerance => {
+            "error allowed per second of simulated time, relative to 1 + |value|, for the adaptive methods; \
+             a tolerance passed to fmi2SetupExperiment replaces it (1)"
+                .into()
+        }
         RealVariable::MaxStep => "longest internal integration step (s)".into(),
         RealVariable::Eps(k) => {
             format!("diagonalized force eps of dof {} of {} (sqrt(kg)*m/s^2)", k + 1, joint_entry(model, k, false).0)
@@ -495,7 +499,10 @@ pub fn model_description(model: &Model, options: &ExportOptions, guid: &str) -> 
         default_experiment: Some(md::DefaultExperiment {
             start_time: Some(0.0),
             stop_time: Some(DEFAULT_STOP_TIME),
-            tolerance: Some(DEFAULT_TOLERANCE),
+            // None, so that importers which pass the DefaultExperiment's
+            // tolerance to fmi2SetupExperiment (FMPy does) leave the
+            // `tolerance` parameter in charge unless told otherwise.
+            tolerance: None,
             step_size: Some(DEFAULT_STEP_SIZE),
         }),
         model_variables,

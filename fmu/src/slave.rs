@@ -249,6 +249,9 @@ pub struct Slave {
     /// Set when a step failed on a non-finite state: the master should stop
     /// (fmi2GetBooleanStatus(fmi2Terminated)).
     failed_for_good: bool,
+    /// The tolerance fmi2SetupExperiment passed, if it passed one: it
+    /// replaces the `tolerance` parameter at initialization.
+    experiment_tolerance: Option<f64>,
 }
 
 impl Slave {
@@ -277,6 +280,7 @@ impl Slave {
             evaluated: Evaluated::Nothing,
             momentum: [0.0; 6],
             failed_for_good: false,
+            experiment_tolerance: None,
             model,
         })
     }
@@ -286,6 +290,7 @@ impl Slave {
         self.state = SlaveState::initial(&self.model);
         self.evaluated = Evaluated::Nothing;
         self.failed_for_good = false;
+        self.experiment_tolerance = None;
     }
 
     /// fmi2SetupExperiment: the start time becomes the current time.
@@ -304,9 +309,7 @@ impl Slave {
         if let Some(stop) = stop_time.filter(|s| !(s.is_finite() && *s >= start_time)) {
             return Err(SlaveError::NonFinite { name: format!("stopTime (startTime = {start_time})"), value: stop });
         }
-        if let Some(tolerance) = tolerance {
-            self.state.tolerance = tolerance;
-        }
+        self.experiment_tolerance = tolerance;
         self.state.start_time = start_time;
         self.state.time = start_time;
         self.state.stop_time = stop_time;
@@ -314,11 +317,16 @@ impl Slave {
     }
 
     /// fmi2ExitInitializationMode: checks the initial state set by the
-    /// master and normalizes its quaternions, as MuJoCo does.
+    /// master and normalizes its quaternions, as MuJoCo does. A tolerance
+    /// from fmi2SetupExperiment takes the place of the `tolerance`
+    /// parameter, which then reads back the tolerance in effect.
     pub fn initialize(&mut self) -> Result<(), SlaveError> {
         self.ws.set_configuration(&self.model, &self.state.theta).map_err(SlaveError::InitialState)?;
         self.ws.set_nu(&self.model, &self.state.nu).map_err(SlaveError::InitialState)?;
         self.state.theta.copy_from_slice(self.ws.theta.as_slice());
+        if let Some(tolerance) = self.experiment_tolerance {
+            self.state.tolerance = tolerance;
+        }
         self.state.carry = Carry::default();
         self.state.initial_energy = kinetic_energy(&self.state.nu);
         self.integrator.set_method(self.state.method);

@@ -27,7 +27,7 @@ from fmpy.validation import validate_fmu
 
 from conftest import EXAMPLES, ROOT, example_ids
 
-ALL_OUTPUTS = "qvel,kinetic_energy,power,momentum"
+ALL_OUTPUTS = "qvel,kinetic_energy,power,momentum,energy_residual"
 STEP = 0.01
 
 
@@ -194,7 +194,8 @@ class Logged:
 class Slave:
     """One FMU instance, initialized, with helpers by variable name."""
 
-    def __init__(self, path: Path, unzipdir: str, start=None, name="instance"):
+    def __init__(self, path: Path, unzipdir: str, start=None, name="instance", experiment_tolerance=None, method=None,
+                 energy_projection=None):
         self.description = read_model_description(str(path))
         self.vr = {v.name: v.valueReference for v in self.description.modelVariables}
         self.log = Logged()
@@ -205,9 +206,13 @@ class Slave:
             instanceName=name,
         )
         self.fmu.instantiate(callbacks=self.log.callbacks)
-        self.fmu.setupExperiment(startTime=0.0)
+        self.fmu.setupExperiment(tolerance=experiment_tolerance, startTime=0.0)
         if start:
             self.set(start)
+        if method is not None:
+            self.fmu.setInteger([self.vr["method"]], [method_value(self.description, method)])
+        if energy_projection is not None:
+            self.fmu.setBoolean([self.vr["energy_projection"]], [energy_projection])
         self.fmu.enterInitializationMode()
         self.fmu.exitInitializationMode()
         self.time = 0.0
@@ -495,3 +500,67 @@ def test_logging_honours_set_debug_logging(bus):
     with pytest.raises(FMICallException):
         slave.fmu.setDebugLogging(True, ["noSuchCategory"])
     assert "unknown log category 'noSuchCategory'" in slave.log.text()
+
+
+def test_setup_experiment_tolerance_replaces_the_parameter(exported, tmp_path):
+    path = exported["bus_arm7"]
+    unzipdir = extract(str(path), str(tmp_path / "unzipped"))
+    chosen = Slave(path, unzipdir, {"tolerance": 1e-10}, name="parameter")
+    assert chosen.get(["tolerance"])[0] == 1e-10
+    importer = Slave(path, unzipdir, {"tolerance": 1e-10}, name="importer", experiment_tolerance=1e-4)
+    assert importer.get(["tolerance"])[0] == 1e-4
+    for slave in (chosen, importer):
+        slave.fmu.terminate()
+        slave.fmu.freeInstance()
+
+
+@pytest.mark.parametrize("method", ["dopri5", "dop853"])
+def test_adaptive_methods_meet_their_tolerance_through_fmi(exported, tmp_path, method):
+    """1 s of bus_arm7 tumbling under a constant eps, at tolerance 1e-8 (per
+    second), against RK4 with 1e-4 s steps (error ~1e-14), through the FMU."""
+    path = exported["bus_arm7"]
+    unzipdir = extract(str(path), str(tmp_path / "unzipped"))
+    description = read_model_description(str(path))
+    start, nu, eps = initial_state(description, seed=3)
+    eps_values = {v.name: e for v, e in zip(variables(description, "eps"), eps)}
+    outputs = [v.name for v in variables(description, "theta") + variables(description, "nu")]
+
+    def trajectory(slave):
+        slave.set(eps_values)
+        rows = []
+        for _ in range(100):
+            slave.step()
+            rows.append(slave.get(outputs))
+        slave.fmu.terminate()
+        slave.fmu.freeInstance()
+        return np.array(rows)
+
+    reference = trajectory(Slave(path, unzipdir, {**start, **nu, "max_step": 1e-4}, name="rk4", method="rk4"))
+    adaptive = trajectory(Slave(path, unzipdir, {**start, **nu, "tolerance": 1e-8}, name=method, method=method))
+    error = np.max(np.abs(adaptive - reference) / (1 + np.abs(reference)))
+    assert 0 < error <= 1.5e-8, error
+
+
+def test_energy_projection_keeps_kinetic_energy_through_fmi(exported, tmp_path):
+    """bus_arm7 tumbling without input for 20 s in 1 s communication steps
+    at a loose tolerance: the energy residual shows the drift, and
+    energy_projection removes it."""
+    path = exported["bus_arm7"]
+    unzipdir = extract(str(path), str(tmp_path / "unzipped"))
+    description = read_model_description(str(path))
+    start, nu, _ = initial_state(description, seed=4)
+    drift = {}
+    for projection in (False, True):
+        slave = Slave(path, unzipdir, {**start, **nu, "tolerance": 1e-3, "max_step": 1.0}, name=str(projection),
+                      energy_projection=projection)
+        k0 = slave.get(["kinetic_energy"])[0]
+        for n in range(20):
+            slave.fmu.doStep(currentCommunicationPoint=float(n), communicationStepSize=1.0)
+        k, residual = slave.get(["kinetic_energy", "energy_residual"])
+        assert abs(residual - (k - k0)) <= 1e-12 * k0  # no force acts: the residual is the drift
+        drift[projection] = abs(k - k0) / k0
+        slave.fmu.terminate()
+        slave.fmu.freeInstance()
+    assert drift[False] > 1e-9, drift
+    assert drift[True] < 1e-13, drift
+    assert drift[False] > 1e4 * drift[True], drift
