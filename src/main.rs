@@ -8,7 +8,8 @@ use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use nudyn::eval::{EvalRequest, EvalResponse, evaluate};
 use nudyn::export::{ExportOptions, OptionalOutputs, model_identifier_from, write_fmu};
-use nudyn::integrate::{Integrator, Method};
+use nudyn::export::DEFAULT_TOLERANCE;
+use nudyn::integrate::{Carry, Integrator, Method, Settings};
 use nudyn::model::Model;
 use serde::{Deserialize, Serialize};
 
@@ -51,7 +52,8 @@ enum Command {
         #[arg(long, default_value = "")]
         outputs: OptionalOutputs,
     },
-    /// Integrate the vehicle with fixed RK4 steps, as the FMU's core does.
+    /// Integrate the vehicle as the FMU does, without the FMI layer: by
+    /// default with one RK4 step per output interval H.
     ///
     /// Input on stdin: a JSON object with optional "theta" (nq, default the
     /// model's qpos0), "nu" (nv, default 0), "eps" (nv, default 0) and
@@ -66,7 +68,26 @@ enum Command {
         /// The stop time (s), a multiple of the step.
         #[arg(long)]
         stop: f64,
+        /// Integration method: rk4 (fixed internal steps of --max-step), dopri5 or dop853 (adaptive).
+        #[arg(long, default_value = "rk4", value_parser = parse_method)]
+        method: Method,
+        /// Error allowed per second of simulated time, relative to 1 + |value| (adaptive methods).
+        #[arg(long, default_value_t = DEFAULT_TOLERANCE)]
+        tolerance: f64,
+        /// Longest internal step (s); default: the step H.
+        #[arg(long)]
+        max_step: Option<f64>,
+        /// Rescale nu after each internal step so that K follows the work done.
+        #[arg(long)]
+        energy_projection: bool,
     },
+}
+
+fn parse_method(name: &str) -> Result<Method, String> {
+    Method::from_name(name).ok_or_else(|| {
+        let names: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
+        format!("unknown method '{name}' (known: {})", names.join(", "))
+    })
 }
 
 fn main() -> ExitCode {
@@ -85,7 +106,10 @@ fn run(cli: Cli) -> Result<()> {
         Command::Export { model, output, model_identifier, outputs } => {
             export(&model, &output, model_identifier, outputs)
         }
-        Command::Simulate { model, step, stop } => simulate(&model, step, stop),
+        Command::Simulate { model, step, stop, method, tolerance, max_step, energy_projection } => {
+            let settings = Settings { tolerance, max_step: max_step.unwrap_or(step), energy_projection };
+            simulate(&model, step, stop, method, &settings)
+        }
     }
 }
 
@@ -181,9 +205,14 @@ struct Trajectory {
     nu: Vec<Vec<f64>>,
 }
 
-fn simulate(model_path: &Path, step: f64, stop: f64) -> Result<()> {
+fn simulate(model_path: &Path, step: f64, stop: f64, method: Method, settings: &Settings) -> Result<()> {
     if !(step.is_finite() && step > 0.0 && stop.is_finite() && stop >= 0.0) {
         bail!("--step must be positive and --stop non-negative, found {step} and {stop}");
+    }
+    for (name, value) in [("--tolerance", settings.tolerance), ("--max-step", settings.max_step)] {
+        if !(value.is_finite() && value > 0.0) {
+            bail!("{name} must be positive, found {value}");
+        }
     }
     let steps = (stop / step).round();
     if ((steps * step - stop) / step).abs() > 1e-9 {
@@ -206,16 +235,18 @@ fn simulate(model_path: &Path, step: f64, stop: f64) -> Result<()> {
     ws.set_nu(&model, &nu)?;
     ws.compute_nu_dot(&model, &eps)?;
     theta.copy_from_slice(ws.theta.as_slice());
-    let mut integrator = Integrator::new(&model, Method::Rk4);
+    let mut integrator = Integrator::new(&model, method);
+    let mut carry = Carry::default();
     let mut trajectory = Trajectory { time: vec![0.0], theta: vec![theta.clone()], nu: vec![nu.clone()] };
     for n in 0..steps as usize {
         let t = n as f64 * step;
+        let eps_at = |t: f64, out: &mut [f64]| {
+            for ((o, e), r) in out.iter_mut().zip(&eps).zip(&eps_rate) {
+                *o = e + r * t;
+            }
+        };
         integrator
-            .step(&model, &mut ws, &mut theta, &mut nu, t, step, |t, out| {
-                for ((o, e), r) in out.iter_mut().zip(&eps).zip(&eps_rate) {
-                    *o = e + r * t;
-                }
-            })
+            .advance(&model, &mut ws, &mut theta, &mut nu, (t, t + step), settings, &mut carry, eps_at)
             .with_context(|| format!("the step from t = {t} failed"))?;
         trajectory.time.push(t + step);
         trajectory.theta.push(theta.clone());
