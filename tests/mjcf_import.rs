@@ -568,9 +568,11 @@ fn ignored_elements_warn_once_each() {
             .to_string(),
         ignored(23, "site name=\"tip\""),
         ignored(24, "camera name=\"eye\""),
-        ignored(27, "contact"),
+        "line 27: <contact>: ignored: nudyn models no contacts".to_string(),
         ignored(30, "equality"),
-        ignored(31, "actuator"),
+        "line 31: <actuator>: ignored: nudyn applies no actuator forces (drive the joints through eps); \
+         MuJoCo's position and velocity actuators pull even at ctrl = 0"
+            .to_string(),
         ignored(34, "sensor"),
         ignored(37, "keyframe"),
         ignored(40, "custom"),

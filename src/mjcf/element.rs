@@ -281,9 +281,17 @@ impl<'a, 'input> Element<'a, 'input> {
         }
     }
 
-    /// The warning that this element is ignored.
+    /// The warning that this element is ignored. Sections that do change
+    /// MuJoCo's dynamics say how nudyn's differ.
     pub fn ignored(&self) -> MjcfWarning {
-        self.warning("ignored (no effect on the dynamics)")
+        match self.tag() {
+            "actuator" => self.warning(
+                "ignored: nudyn applies no actuator forces (drive the joints through eps); \
+                 MuJoCo's position and velocity actuators pull even at ctrl = 0",
+            ),
+            "contact" => self.warning("ignored: nudyn models no contacts"),
+            _ => self.warning("ignored (no effect on the dynamics)"),
+        }
     }
 
     /// A warning about this element.
