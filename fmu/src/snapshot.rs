@@ -1,19 +1,24 @@
 //! FMU states (fmi2GetFMUstate) and their byte format
 //! (fmi2SerializeFMUstate): a versioned header naming the FMU, the sizes,
-//! the values as little-endian f64, and an FNV-1a checksum, so that a
-//! truncated, corrupted or foreign blob is rejected before anything is
-//! restored.
+//! the state machine's state, the values as little-endian f64, and an
+//! FNV-1a checksum, so that a truncated, corrupted or foreign blob is
+//! rejected before anything is restored. The values are checked too
+//! (finite, positive settings), so that even a blob crafted with a valid
+//! checksum cannot put a NaN into the outputs.
 
 use crate::slave::SlaveState;
+use crate::state::Phase;
 
 /// Identifies a nudyn FMU state blob.
 const MAGIC: &[u8; 8] = b"nudynFMS";
-/// Version of the byte layout below.
-const VERSION: u32 = 1;
+/// Version of the byte layout below (2: the state machine's state added).
+const VERSION: u32 = 2;
 
 /// A saved state of one FMU (its GUID names the FMU it belongs to).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Snapshot {
+    /// The state machine's state when it was saved: fmi2SetFMUstate returns to it.
+    pub phase: Phase,
     /// GUID of the FMU that saved it.
     pub guid: String,
     /// The saved values.
@@ -68,6 +73,19 @@ pub enum SnapshotError {
         /// This FMU's nv.
         expected_nv: usize,
     },
+    /// A state machine state that a saved state cannot have.
+    #[error("serialized FMU state has state machine state {0}, which is not one a state can be saved in")]
+    Phase(u8),
+    /// A value that a state of this FMU cannot hold.
+    #[error("serialized FMU state has {what} = {value}, which must be {must}")]
+    Value {
+        /// Which value.
+        what: &'static str,
+        /// The value.
+        value: f64,
+        /// What it must be.
+        must: &'static str,
+    },
     /// The checksum does not match the contents.
     #[error("serialized FMU state is corrupted (checksum {found:#018x}, contents hash to {computed:#018x})")]
     Checksum {
@@ -92,7 +110,7 @@ impl Snapshot {
     /// The size of [`Snapshot::serialize`]'s output.
     pub fn serialized_size(&self) -> usize {
         let (nq, nv) = (self.state.theta.len(), self.state.nu.len());
-        MAGIC.len() + 4 + 4 + self.guid.len() + 4 + 4 + 1 + 8 * Self::scalar_count(nq, nv) + 8
+        MAGIC.len() + 4 + 4 + self.guid.len() + 4 + 4 + 1 + 1 + 8 * Self::scalar_count(nq, nv) + 8
     }
 
     /// Writes the state into `out`, which must be [`Snapshot::serialized_size`] bytes long.
@@ -105,6 +123,7 @@ impl Snapshot {
         bytes.extend_from_slice(self.guid.as_bytes());
         bytes.extend_from_slice(&(s.theta.len() as u32).to_le_bytes());
         bytes.extend_from_slice(&(s.nu.len() as u32).to_le_bytes());
+        bytes.push(self.phase.code());
         bytes.push(u8::from(s.stop_time.is_some()));
         let scalars = [s.time, s.start_time, s.stop_time.unwrap_or(0.0), s.tolerance, s.max_step];
         for x in scalars.iter().chain(&s.theta).chain(&s.nu).chain(&s.eps).chain(&s.eps_rate) {
@@ -135,6 +154,7 @@ impl Snapshot {
         if (found_nq, found_nv) != (nq, nv) {
             return Err(SnapshotError::Sizes { nq: found_nq, nv: found_nv, expected_nq: nq, expected_nv: nv });
         }
+        let phase_code = reader.take(1)?[0];
         let stop_time_defined = reader.take(1)?[0] != 0;
         let scalars: Vec<f64> = (0..Self::scalar_count(nq, nv)).map(|_| reader.f64()).collect::<Result<_, _>>()?;
         let contents_len = reader.at;
@@ -146,11 +166,17 @@ impl Snapshot {
         if found != computed {
             return Err(SnapshotError::Checksum { found, computed });
         }
+        // Fatal is never entered, so never saved.
+        let phase = Phase::from_code(phase_code)
+            .filter(|&p| p != Phase::Fatal)
+            .ok_or(SnapshotError::Phase(phase_code))?;
         let (settings, vectors) = scalars.split_at(5);
+        check_values(settings, vectors)?;
         let (theta, rest) = vectors.split_at(nq);
         let (nu, rest) = rest.split_at(nv);
         let (eps, eps_rate) = rest.split_at(nv);
         Ok(Snapshot {
+            phase,
             guid: found_guid,
             state: SlaveState {
                 time: settings[0],
@@ -164,6 +190,27 @@ impl Snapshot {
                 eps_rate: eps_rate.to_vec(),
             },
         })
+    }
+}
+
+/// Checks what fmi2SetupExperiment and fmi2SetReal would have refused:
+/// every value finite, `tolerance` and `max_step` positive. (The stop time
+/// is checked even when it is not defined: the writer stores 0 then.)
+fn check_values(settings: &[f64], vectors: &[f64]) -> Result<(), SnapshotError> {
+    const NAMES: [&str; 5] = ["time", "start_time", "stop_time", "tolerance", "max_step"];
+    for (&what, &value) in NAMES.iter().zip(settings) {
+        if !value.is_finite() {
+            return Err(SnapshotError::Value { what, value, must: "finite" });
+        }
+    }
+    for (&what, &value) in NAMES[3..].iter().zip(&settings[3..]) {
+        if value <= 0.0 {
+            return Err(SnapshotError::Value { what, value, must: "positive" });
+        }
+    }
+    match vectors.iter().find(|x| !x.is_finite()) {
+        Some(&value) => Err(SnapshotError::Value { what: "a value of theta, nu, eps or eps_rate", value, must: "finite" }),
+        None => Ok(()),
     }
 }
 
@@ -199,6 +246,7 @@ mod tests {
 
     fn sample() -> Snapshot {
         Snapshot {
+            phase: Phase::StepComplete,
             guid: GUID.to_string(),
             state: SlaveState {
                 time: 0.1 + 0.2,
@@ -266,7 +314,36 @@ mod tests {
         assert!(matches!(Snapshot::deserialize(&bytes, GUID, 7, 6), Err(SnapshotError::Sizes { .. })));
         assert_eq!(Snapshot::deserialize(b"PK\x03\x04 not a state", GUID, 5, 4), Err(SnapshotError::BadMagic));
         let mut other_version = bytes.clone();
-        other_version[8..12].copy_from_slice(&2u32.to_le_bytes());
-        assert_eq!(Snapshot::deserialize(&other_version, GUID, 5, 4), Err(SnapshotError::Version { found: 2 }));
+        other_version[8..12].copy_from_slice(&1u32.to_le_bytes());
+        assert_eq!(Snapshot::deserialize(&other_version, GUID, 5, 4), Err(SnapshotError::Version { found: 1 }));
+    }
+
+    /// A blob whose checksum is made to match, as a deliberate forgery would.
+    fn with_valid_checksum(mut bytes: Vec<u8>) -> Vec<u8> {
+        let contents = bytes.len() - 8;
+        let checksum = fnv1a(&bytes[..contents]);
+        bytes[contents..].copy_from_slice(&checksum.to_le_bytes());
+        bytes
+    }
+
+    #[test]
+    fn rejects_values_a_state_cannot_hold_even_with_a_valid_checksum() {
+        let mut nan_theta = sample();
+        nan_theta.state.theta[2] = f64::NAN;
+        let mut zero_step = sample();
+        zero_step.state.max_step = 0.0;
+        let mut infinite_time = sample();
+        infinite_time.state.time = f64::INFINITY;
+        for (snapshot, what) in [(nan_theta, "a value of theta"), (zero_step, "max_step"), (infinite_time, "time")] {
+            let error = Snapshot::deserialize(&serialized(&snapshot), GUID, 5, 4).unwrap_err();
+            assert!(matches!(error, SnapshotError::Value { .. }) && error.to_string().contains(what), "{error}");
+        }
+        let mut bytes = serialized(&sample());
+        let phase_at = MAGIC.len() + 8 + GUID.len() + 8;
+        for code in [Phase::Fatal.code(), 7, 255] {
+            bytes[phase_at] = code;
+            bytes = with_valid_checksum(bytes);
+            assert_eq!(Snapshot::deserialize(&bytes, GUID, 5, 4), Err(SnapshotError::Phase(code)));
+        }
     }
 }
