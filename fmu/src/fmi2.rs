@@ -391,8 +391,16 @@ pub unsafe extern "C" fn fmi2Instantiate(
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi2FreeInstance(c: fmi2Component) {
     // Deregistered under the lock, so two racing frees cannot both free it.
-    if !instances().remove(&(c as usize)) {
-        return;
+    {
+        let mut live = instances();
+        if !live.remove(&(c as usize)) {
+            return;
+        }
+        // An emptied BTreeSet keeps its root node: drop it, so that a host
+        // that unloads the library (dlclose) after the last instance loses nothing.
+        if live.is_empty() {
+            *live = BTreeSet::new();
+        }
     }
     // SAFETY: `c` came from Box::into_raw in fmi2Instantiate and was live
     // until just now; every state allows fmi2FreeInstance (§4.2.4).

@@ -29,7 +29,7 @@ const TIME_TOLERANCE: f64 = 1e-9;
 /// The most internal steps of `max_step` one doStep may ask for: more would
 /// keep the host busy for hours (1e300 s, or `max_step` = 1e-300, forever),
 /// so such a step is refused up front.
-const MAX_INTERNAL_STEPS: f64 = 1e7;
+const MAX_INTERNAL_STEPS: f64 = 1e6;
 
 /// The values that determine the slave's future: what an FMU state saves.
 #[derive(Clone, Debug, PartialEq)]
