@@ -3,7 +3,8 @@
 # as root, or with sudo available).  Idempotent: a rerun with everything in
 # place touches nothing and takes about a second.
 #
-#   - Debian: libclang-dev (only if missing: checked with dpkg -s);
+#   - Debian: libclang-dev, valgrind (only if missing: checked with dpkg -s);
+#   - cargo-fuzz (cargo install --locked, only if `cargo fuzz` is missing);
 #   - Python: a venv at .venv (repo root) with requirements.txt's pins.
 #
 # Environment: PYTHON (default python3) is the interpreter the venv is made from.
@@ -22,12 +23,19 @@ as_root() {
 # --- Debian packages --------------------------------------------------------
 missing=()
 dpkg -s libclang-dev >/dev/null 2>&1 || missing+=(libclang-dev)
+dpkg -s valgrind >/dev/null 2>&1 || missing+=(valgrind)
 # Debian's own python3 cannot make a venv without python3-venv (ensurepip).
 "$PYTHON" -c 'import ensurepip, venv' >/dev/null 2>&1 || missing+=(python3-venv)
 if [ "${#missing[@]}" -gt 0 ]; then
     echo "setup: installing ${missing[*]}"
     as_root apt-get update
     as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y "${missing[@]}"
+fi
+
+# --- cargo-fuzz (scripts/stress-fmu.sh) ----------------------------------------
+if ! cargo fuzz --version >/dev/null 2>&1; then
+    echo "setup: installing cargo-fuzz"
+    cargo install --locked cargo-fuzz
 fi
 
 # --- Python venv --------------------------------------------------------------

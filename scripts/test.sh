@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # nudyn's whole test suite: setup, Rust build and tests, Python tests
-# against MuJoCo.  Fails if any step fails.
+# against MuJoCo, the FMU's memory and fuzz checks (briefly; see
+# scripts/stress-fmu.sh --long).  Fails if any step fails.
 #
 #   bash scripts/test.sh
 set -euo pipefail
@@ -15,3 +16,5 @@ cargo test --release --workspace
 
 NUDYN_BIN=target/release/nudyn \
     .venv/bin/python -m pytest tests/python -q
+
+bash scripts/stress-fmu.sh

@@ -5,17 +5,40 @@
 //! the table in [`crate::state`], then calls a safe [`Slave`] method inside
 //! `catch_unwind` (a panic becomes fmi2Error, never an abort of the host),
 //! and turns the result into a status, logging every rejection with the
-//! values involved. A rejected call (bad arguments, wrong state) changes
-//! nothing; a panic leaves the instance in the error state.
+//! values involved.
+//!
+//! What a refusal does to the instance follows FMI 2.0 §2.1.3:
+//! - fmi2Error ("the simulation cannot be continued with this FMU
+//!   instance") moves the instance to the state machine's `error` state
+//!   (§4.2.4), whatever the cause: wrong call sequence, NULL or unknown
+//!   arguments, a bad serialized state, a panic. Nothing else changes; the
+//!   values stay readable, and fmi2SetFMUstate (to a state saved before),
+//!   fmi2Reset or fmi2FreeInstance are the ways on, as the standard says.
+//!   (The FMI Reference FMUs instead return fmi2Error and stay where they
+//!   were; the standard's text does not allow continuing, so neither do we.)
+//! - fmi2Discard, which §2.1.3 allows for fmi2SetXXX in co-simulation
+//!   (footnote 3: "fmi2SetXXX functions could check whether the input
+//!   arguments are in their validity range. If not, these functions could
+//!   return with fmi2Discard"), refuses a value out of its range (NaN, ±Inf,
+//!   a non-positive `max_step`, an unknown `method` item): the value is not
+//!   taken and the instance stays in its state. fmi2DoStep returns it for a
+//!   step that failed (§4.2.2), fmi2GetXXXStatus for a status it cannot give.
 //!
 //! The instance is a `Box<Instance>` handed out with `Box::into_raw`; FMU
-//! states are `Box<Snapshot>` pointers likewise.
+//! states are `Box<Snapshot>` pointers likewise. Every instance and FMU
+//! state handed out is registered, so that a pointer that is not one (freed
+//! already, from another instance, or garbage) is refused without being
+//! dereferenced: a second fmi2FreeInstance or fmi2FreeFMUstate is harmless.
+//! (A freed address that the allocator hands to a new instance cannot be
+//! told from it; the standard leaves calls after fmi2FreeInstance undefined.)
 
 // The patterns below are fmi-sys's C constants, named as in fmi2Functions.h.
 #![allow(non_upper_case_globals)]
 
+use std::collections::BTreeSet;
 use std::ffi::{CStr, CString, c_char};
 use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::sync::{Mutex, PoisonError};
 
 use fmi_sys::fmi2::*;
 use nudyn::export::LOG_CATEGORIES;
@@ -53,6 +76,12 @@ enum CallError {
     /// fmi2SetDebugLogging named a category the FMU does not declare.
     #[error("unknown log category '{0}' (known: logStatusDiscard, logStatusError, logStatusFatal, logCalls)")]
     UnknownCategory(String),
+    /// An fmi2FMUstate that this instance did not hand out, or has freed.
+    #[error("FMUstate {0:#x} is not a live FMU state of this instance (freed already, or from another instance)")]
+    UnknownState(usize),
+    /// A value out of its range passed to fmi2SetXXX: fmi2Discard (§2.1.3, footnote 3).
+    #[error(transparent)]
+    OutOfRange(SlaveError),
     /// A serialized state buffer of the wrong size.
     #[error("the buffer for the serialized FMU state has {found} bytes, expected {expected}")]
     BufferSize {
@@ -76,7 +105,7 @@ impl CallError {
     fn status(&self) -> fmi2Status {
         match self {
             CallError::Slave(e) if e.is_discard() => fmi2Status_fmi2Discard,
-            CallError::StatusUnavailable(_) => fmi2Status_fmi2Discard,
+            CallError::StatusUnavailable(_) | CallError::OutOfRange(_) => fmi2Status_fmi2Discard,
             _ => fmi2Status_fmi2Error,
         }
     }
@@ -129,6 +158,66 @@ struct Instance {
     logger: Logger,
     phase: Phase,
     slave: Slave,
+    /// The FMU states handed out by this instance and not yet freed (addresses).
+    states: BTreeSet<usize>,
+}
+
+/// The FMU state `state`, if it is among `states`, those an instance handed
+/// out and has not freed.
+///
+/// # Safety
+/// `states` are live `Box<Snapshot>` addresses; the reference is used
+/// before any of them is freed, and is the only one to that state.
+unsafe fn snapshot<'a>(states: &BTreeSet<usize>, state: fmi2FMUstate) -> Result<&'a mut Snapshot, CallError> {
+    if state.is_null() {
+        return Err(CallError::Null("FMUstate"));
+    }
+    if !states.contains(&(state as usize)) {
+        return Err(CallError::UnknownState(state as usize));
+    }
+    // SAFETY: by the contract above.
+    Ok(unsafe { &mut *(state as *mut Snapshot) })
+}
+
+impl Instance {
+    /// Hands out a new FMU state.
+    fn register(&mut self, snapshot: Snapshot) -> fmi2FMUstate {
+        let state = Box::into_raw(Box::new(snapshot));
+        self.states.insert(state as usize);
+        state as fmi2FMUstate
+    }
+}
+
+impl Drop for Instance {
+    /// FMU states die with their instance (they are valid for it only).
+    fn drop(&mut self) {
+        for &state in &self.states {
+            // SAFETY: each address is a live Box<Snapshot> from `register`.
+            drop(unsafe { Box::from_raw(state as *mut Snapshot) });
+        }
+    }
+}
+
+/// The addresses of the live instances of this process.
+static INSTANCES: Mutex<BTreeSet<usize>> = Mutex::new(BTreeSet::new());
+
+/// The registry of live instances. No code panics while holding the lock,
+/// but a poisoned lock still holds a consistent set.
+fn instances() -> std::sync::MutexGuard<'static, BTreeSet<usize>> {
+    INSTANCES.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// The instance `c` points to, if it is a live one.
+///
+/// # Safety
+/// No other reference to the instance may be alive (FMI 2.0 §2.1.5: an
+/// instance is not called from two threads at once).
+unsafe fn instance<'a>(c: fmi2Component) -> Option<&'a mut Instance> {
+    if !instances().contains(&(c as usize)) {
+        return None;
+    }
+    // SAFETY: registered at fmi2Instantiate, removed before fmi2FreeInstance frees it.
+    Some(unsafe { &mut *(c as *mut Instance) })
 }
 
 /// The text of a panic payload.
@@ -141,16 +230,18 @@ fn panic_message(payload: &(dyn std::any::Any + Send)) -> &str {
 }
 
 /// The common entry path: state check, panic guard, status and logging.
+/// A `c` that is not a live instance (NULL, freed, garbage) gets fmi2Error
+/// and nothing else: there is no logger to tell.
 ///
 /// # Safety
-/// `c` must be NULL or a pointer returned by fmi2Instantiate and not yet freed.
+/// FMI 2.0 calling conventions (the instance is not used concurrently).
 unsafe fn enter(
     c: fmi2Component,
     function: Function,
     body: impl FnOnce(&mut Instance) -> Result<(), CallError>,
 ) -> fmi2Status {
-    // SAFETY: by the contract above, a non-NULL `c` is a live Box<Instance>.
-    let Some(instance) = (unsafe { (c as *mut Instance).as_mut() }) else {
+    // SAFETY: by the contract above.
+    let Some(instance) = (unsafe { instance(c) }) else {
         return fmi2Status_fmi2Error;
     };
     let result = if function.allowed_in(instance.phase) {
@@ -162,6 +253,9 @@ unsafe fn enter(
         Ok(Ok(())) => fmi2Status_fmi2OK,
         Ok(Err(error)) => {
             let status = error.status();
+            if status == fmi2Status_fmi2Error {
+                instance.phase = Phase::Error;
+            }
             instance.logger.log_status(status, &format!("{}: {error}", function.name()));
             status
         }
@@ -220,6 +314,12 @@ unsafe fn string(ptr: fmi2String, what: &'static str) -> Result<String, CallErro
     Ok(unsafe { CStr::from_ptr(ptr) }.to_string_lossy().into_owned())
 }
 
+/// fmi2SetXXX's refusal: a value out of its range is fmi2Discard (§2.1.3,
+/// footnote 3), anything else (unknown or unsettable variable) fmi2Error.
+fn out_of_range_discards(error: SlaveError) -> CallError {
+    if error.is_out_of_range() { CallError::OutOfRange(error) } else { CallError::Slave(error) }
+}
+
 /// Whether the phase is before fmi2ExitInitializationMode.
 fn initialized(phase: Phase) -> bool {
     !matches!(phase, Phase::Instantiated | Phase::InitializationMode)
@@ -268,7 +368,12 @@ pub unsafe extern "C" fn fmi2Instantiate(
         Ok(Slave::load(&location, &guid)?)
     };
     match catch_unwind(AssertUnwindSafe(instantiate)) {
-        Ok(Ok(slave)) => Box::into_raw(Box::new(Instance { logger, phase: Phase::Instantiated, slave })) as fmi2Component,
+        Ok(Ok(slave)) => {
+            let instance = Instance { logger, phase: Phase::Instantiated, slave, states: BTreeSet::new() };
+            let c = Box::into_raw(Box::new(instance));
+            instances().insert(c as usize);
+            c as fmi2Component
+        }
         Ok(Err(error)) => {
             logger.log_status(fmi2Status_fmi2Error, &format!("fmi2Instantiate: {error}"));
             std::ptr::null_mut()
@@ -282,17 +387,23 @@ pub unsafe extern "C" fn fmi2Instantiate(
 }
 
 /// # Safety
-/// `c` is NULL or an instance from fmi2Instantiate, not used afterwards.
+/// FMI 2.0 calling conventions. A NULL, freed or foreign `c` is ignored.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi2FreeInstance(c: fmi2Component) {
-    // SAFETY: `c` is an instance or NULL.
-    let Some(instance) = (unsafe { (c as *mut Instance).as_ref() }) else { return };
-    if !Function::FreeInstance.allowed_in(instance.phase) {
-        let error = CallError::IllegalState { function: "fmi2FreeInstance", phase: instance.phase.name() };
-        instance.logger.log_status(fmi2Status_fmi2Error, &error.to_string());
-        return;
+    // Deregistered under the lock, so two racing frees cannot both free it.
+    {
+        let mut live = instances();
+        if !live.remove(&(c as usize)) {
+            return;
+        }
+        // An emptied BTreeSet keeps its root node: drop it, so that a host
+        // that unloads the library (dlclose) after the last instance loses nothing.
+        if live.is_empty() {
+            *live = BTreeSet::new();
+        }
     }
-    // SAFETY: `c` came from Box::into_raw in fmi2Instantiate and is freed once.
+    // SAFETY: `c` came from Box::into_raw in fmi2Instantiate and was live
+    // until just now; every state allows fmi2FreeInstance (§4.2.4).
     let instance = unsafe { Box::from_raw(c as *mut Instance) };
     // Dropping frees plain Rust data; guard anyway so nothing unwinds into C.
     let _ = catch_unwind(AssertUnwindSafe(move || drop(instance)));
@@ -426,7 +537,7 @@ pub unsafe extern "C" fn fmi2SetReal(
     unsafe {
         enter(c, Function::SetReal, |instance| {
             let (vrs, values) = (slice(vr, nvr, "vr")?, slice(value, nvr, "value")?);
-            Ok(instance.slave.set_real(vrs, values, initialized(instance.phase))?)
+            instance.slave.set_real(vrs, values, initialized(instance.phase)).map_err(out_of_range_discards)
         })
     }
 }
@@ -460,7 +571,7 @@ pub unsafe extern "C" fn fmi2SetInteger(
     unsafe {
         enter(c, Function::SetInteger, |instance| {
             let (vrs, values) = (slice(vr, nvr, "vr")?, slice(value, nvr, "value")?);
-            Ok(instance.slave.set_integer(vrs, values, initialized(instance.phase))?)
+            instance.slave.set_integer(vrs, values, initialized(instance.phase)).map_err(out_of_range_discards)
         })
     }
 }
@@ -535,16 +646,18 @@ pub unsafe extern "C" fn fmi2SetString(
 }
 
 /// # Safety
-/// FMI 2.0 calling conventions; `*state` is NULL or a state of this FMU.
+/// FMI 2.0 calling conventions.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi2GetFMUstate(c: fmi2Component, state: *mut fmi2FMUstate) -> fmi2Status {
     unsafe {
         enter(c, Function::GetFmuState, |instance| {
             let state = state.as_mut().ok_or(CallError::Null("FMUstate"))?;
-            match (*state as *mut Snapshot).as_mut() {
+            let phase = instance.phase;
+            if state.is_null() {
+                *state = instance.register(instance.slave.snapshot(phase));
+            } else {
                 // An existing state is overwritten in place (FMI 2.0 §2.1.8).
-                Some(snapshot) => instance.slave.save(snapshot),
-                None => *state = Box::into_raw(Box::new(instance.slave.snapshot())) as fmi2FMUstate,
+                instance.slave.save(phase, snapshot(&instance.states, *state)?);
             }
             Ok(())
         })
@@ -552,44 +665,49 @@ pub unsafe extern "C" fn fmi2GetFMUstate(c: fmi2Component, state: *mut fmi2FMUst
 }
 
 /// # Safety
-/// FMI 2.0 calling conventions; `state` is a state of this FMU.
+/// FMI 2.0 calling conventions.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi2SetFMUstate(c: fmi2Component, state: fmi2FMUstate) -> fmi2Status {
     unsafe {
         enter(c, Function::SetFmuState, |instance| {
-            let snapshot = (state as *const Snapshot).as_ref().ok_or(CallError::Null("FMUstate"))?;
+            let snapshot = snapshot(&instance.states, state)?;
+            let phase = snapshot.phase;
             instance.slave.restore(snapshot)?;
-            if instance.phase == Phase::StepFailed {
-                instance.phase = Phase::StepComplete;
-            }
+            // The state machine goes back to where the state was saved: this
+            // is how a master leaves `error` (§2.1.3) or `stepFailed`.
+            instance.phase = phase;
             Ok(())
         })
     }
 }
 
 /// # Safety
-/// FMI 2.0 calling conventions; `*state` is NULL or a state of this FMU.
+/// FMI 2.0 calling conventions.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi2FreeFMUstate(c: fmi2Component, state: *mut fmi2FMUstate) -> fmi2Status {
     unsafe {
-        enter(c, Function::FreeFmuState, |_| {
+        enter(c, Function::FreeFmuState, |instance| {
+            // NULL, or a pointer to NULL, frees nothing (as free(NULL) does).
             let Some(state) = state.as_mut() else { return Ok(()) };
-            if !state.is_null() {
-                drop(Box::from_raw(*state as *mut Snapshot));
-                *state = std::ptr::null_mut();
+            if state.is_null() {
+                return Ok(());
             }
+            snapshot(&instance.states, *state)?;
+            instance.states.remove(&(*state as usize));
+            drop(Box::from_raw(*state as *mut Snapshot));
+            *state = std::ptr::null_mut();
             Ok(())
         })
     }
 }
 
 /// # Safety
-/// FMI 2.0 calling conventions; `state` is a state of this FMU.
+/// FMI 2.0 calling conventions.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi2SerializedFMUstateSize(c: fmi2Component, state: fmi2FMUstate, size: *mut usize) -> fmi2Status {
     unsafe {
-        enter(c, Function::SerializedFmuStateSize, |_| {
-            let snapshot = (state as *const Snapshot).as_ref().ok_or(CallError::Null("FMUstate"))?;
+        enter(c, Function::SerializedFmuStateSize, |instance| {
+            let snapshot = snapshot(&instance.states, state)?;
             *size.as_mut().ok_or(CallError::Null("size"))? = snapshot.serialized_size();
             Ok(())
         })
@@ -597,7 +715,7 @@ pub unsafe extern "C" fn fmi2SerializedFMUstateSize(c: fmi2Component, state: fmi
 }
 
 /// # Safety
-/// FMI 2.0 calling conventions; `state` is a state of this FMU.
+/// FMI 2.0 calling conventions.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi2SerializeFMUstate(
     c: fmi2Component,
@@ -606,8 +724,8 @@ pub unsafe extern "C" fn fmi2SerializeFMUstate(
     size: usize,
 ) -> fmi2Status {
     unsafe {
-        enter(c, Function::SerializeFmuState, |_| {
-            let snapshot = (state as *const Snapshot).as_ref().ok_or(CallError::Null("FMUstate"))?;
+        enter(c, Function::SerializeFmuState, |instance| {
+            let snapshot = snapshot(&instance.states, state)?;
             let expected = snapshot.serialized_size();
             if size != expected {
                 return Err(CallError::BufferSize { expected, found: size });
@@ -619,7 +737,7 @@ pub unsafe extern "C" fn fmi2SerializeFMUstate(
 }
 
 /// # Safety
-/// FMI 2.0 calling conventions; `*state` is NULL or a state of this FMU.
+/// FMI 2.0 calling conventions.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi2DeSerializeFMUstate(
     c: fmi2Component,
@@ -630,10 +748,12 @@ pub unsafe extern "C" fn fmi2DeSerializeFMUstate(
     unsafe {
         enter(c, Function::DeSerializeFmuState, |instance| {
             let state = state.as_mut().ok_or(CallError::Null("FMUstate"))?;
+            let existing = if state.is_null() { None } else { Some(snapshot(&instance.states, *state)? as *mut Snapshot) };
             let snapshot = instance.slave.deserialize(slice(bytes as *const u8, size, "serializedState")?)?;
-            match (*state as *mut Snapshot).as_mut() {
+            match existing {
+                // SAFETY: checked live above; nothing freed it since.
                 Some(existing) => *existing = snapshot,
-                None => *state = Box::into_raw(Box::new(snapshot)) as fmi2FMUstate,
+                None => *state = instance.register(snapshot),
             }
             Ok(())
         })
@@ -703,6 +823,7 @@ pub unsafe extern "C" fn fmi2DoStep(
 ) -> fmi2Status {
     unsafe {
         enter(c, Function::DoStep, |instance| {
+            instance.slave.check_step_arguments(current_communication_point, communication_step_size)?;
             let result = instance.slave.do_step(current_communication_point, communication_step_size);
             if let Err(error) = &result
                 && error.is_discard()
@@ -744,7 +865,7 @@ pub unsafe extern "C" fn fmi2GetStatus(c: fmi2Component, kind: fmi2StatusKind, v
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi2GetRealStatus(c: fmi2Component, kind: fmi2StatusKind, value: *mut fmi2Real) -> fmi2Status {
     unsafe {
-        enter(c, Function::GetStatus, |instance| {
+        enter(c, Function::GetRealStatus, |instance| {
             let value = value.as_mut().ok_or(CallError::Null("value"))?;
             match kind {
                 fmi2StatusKind_fmi2LastSuccessfulTime => *value = instance.slave.time(),
@@ -763,7 +884,7 @@ pub unsafe extern "C" fn fmi2GetIntegerStatus(
     kind: fmi2StatusKind,
     _value: *mut fmi2Integer,
 ) -> fmi2Status {
-    unsafe { enter(c, Function::GetStatus, |_| Err(CallError::StatusUnavailable(kind))) }
+    unsafe { enter(c, Function::GetIntegerStatus, |_| Err(CallError::StatusUnavailable(kind))) }
 }
 
 /// # Safety
@@ -775,7 +896,7 @@ pub unsafe extern "C" fn fmi2GetBooleanStatus(
     value: *mut fmi2Boolean,
 ) -> fmi2Status {
     unsafe {
-        enter(c, Function::GetStatus, |instance| {
+        enter(c, Function::GetBooleanStatus, |instance| {
             let value = value.as_mut().ok_or(CallError::Null("value"))?;
             match kind {
                 // After a non-finite state the slave cannot go on: tell the master to stop.
@@ -795,7 +916,7 @@ pub unsafe extern "C" fn fmi2GetStringStatus(
     kind: fmi2StatusKind,
     _value: *mut fmi2String,
 ) -> fmi2Status {
-    unsafe { enter(c, Function::GetStatus, |_| Err(CallError::StatusUnavailable(kind))) }
+    unsafe { enter(c, Function::GetStringStatus, |_| Err(CallError::StatusUnavailable(kind))) }
 }
 
 // The C types used above, named so that a signature mismatch with fmi-sys's
@@ -868,30 +989,60 @@ mod tests {
     }
 
     #[test]
-    fn null_pointers_and_illegal_states_are_refused_without_change() {
-        let (uri, guid) = resources("null");
+    fn an_error_enters_the_error_state_and_a_saved_state_leaves_it() {
+        let (uri, guid) = resources("error");
         let c = instantiate(&uri, &guid);
         let mut value = [0.0; 2];
         unsafe {
             assert_eq!(fmi2GetReal(std::ptr::null_mut(), [1, 2].as_ptr(), 2, value.as_mut_ptr()), fmi2Status_fmi2Error);
             assert_eq!(fmi2DoStep(c, 0.0, 0.01, 1), fmi2Status_fmi2Error, "doStep before initialization");
-            assert_eq!(phase(c), Phase::Instantiated);
+            assert_eq!(phase(c), Phase::Error);
+            assert_eq!(fmi2Reset(c), fmi2Status_fmi2OK);
             assert_eq!(fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0.0), fmi2Status_fmi2OK);
             assert_eq!(fmi2EnterInitializationMode(c), fmi2Status_fmi2OK);
-            assert_eq!(fmi2GetReal(c, std::ptr::null(), 2, value.as_mut_ptr()), fmi2Status_fmi2Error);
-            assert_eq!(fmi2GetReal(c, [3, 4].as_ptr(), 2, std::ptr::null_mut()), fmi2Status_fmi2Error);
             assert_eq!(fmi2GetReal(c, std::ptr::null(), 0, std::ptr::null_mut()), fmi2Status_fmi2OK, "empty arrays");
-            assert_eq!(phase(c), Phase::InitializationMode);
             assert_eq!(fmi2ExitInitializationMode(c), fmi2Status_fmi2OK);
-            assert_eq!(fmi2DoStep(c, 0.0, 0.01, 1), fmi2Status_fmi2OK);
-            assert_eq!(fmi2CancelStep(c), fmi2Status_fmi2Error);
-            let mut state: fmi2FMUstate = std::ptr::null_mut();
-            assert_eq!(fmi2GetFMUstate(c, &mut state), fmi2Status_fmi2OK);
-            assert_eq!(fmi2SetFMUstate(c, std::ptr::null_mut()), fmi2Status_fmi2Error);
-            assert_eq!(fmi2FreeFMUstate(c, &mut state), fmi2Status_fmi2OK);
-            assert!(state.is_null());
+            let mut saved: fmi2FMUstate = std::ptr::null_mut();
+            assert_eq!(fmi2GetFMUstate(c, &mut saved), fmi2Status_fmi2OK);
+            assert_eq!(fmi2GetReal(c, std::ptr::null(), 2, value.as_mut_ptr()), fmi2Status_fmi2Error);
+            assert_eq!(phase(c), Phase::Error);
+            assert_eq!(fmi2DoStep(c, 0.0, 0.01, 1), fmi2Status_fmi2Error, "no step in the error state");
+            assert_eq!(fmi2SetFMUstate(c, saved), fmi2Status_fmi2OK);
             assert_eq!(phase(c), Phase::StepComplete);
+            assert_eq!(fmi2DoStep(c, 0.0, 0.01, 1), fmi2Status_fmi2OK);
+            let eps = [f64::NAN];
+            assert_eq!(fmi2SetReal(c, [3].as_ptr(), 1, eps.as_ptr()), fmi2Status_fmi2Discard, "out of range");
+            assert_eq!(phase(c), Phase::StepComplete);
+            assert_eq!(fmi2FreeFMUstate(c, &mut saved), fmi2Status_fmi2OK);
+            assert!(saved.is_null());
             fmi2FreeInstance(c);
+        }
+    }
+
+    #[test]
+    fn pointers_that_were_not_handed_out_are_refused_unread() {
+        let (uri, guid) = resources("pointers");
+        let (a, b) = (instantiate(&uri, &guid), instantiate(&uri, &guid));
+        unsafe {
+            let mut state: fmi2FMUstate = std::ptr::null_mut();
+            assert_eq!(fmi2GetFMUstate(a, &mut state), fmi2Status_fmi2OK);
+            assert_eq!(fmi2SetFMUstate(b, state), fmi2Status_fmi2Error, "a state of another instance");
+            let mut copy = state;
+            assert_eq!(fmi2FreeFMUstate(a, &mut copy), fmi2Status_fmi2OK);
+            assert_eq!(fmi2Reset(a), fmi2Status_fmi2OK);
+            assert_eq!(fmi2FreeFMUstate(a, &mut state), fmi2Status_fmi2Error, "freed twice");
+            let mut garbage = 0x1234usize as fmi2FMUstate;
+            assert_eq!(fmi2FreeFMUstate(a, &mut garbage), fmi2Status_fmi2Error);
+            // A state left unfreed goes with its instance.
+            let mut left: fmi2FMUstate = std::ptr::null_mut();
+            assert_eq!(fmi2Reset(a), fmi2Status_fmi2OK);
+            assert_eq!(fmi2GetFMUstate(a, &mut left), fmi2Status_fmi2OK);
+            fmi2FreeInstance(a);
+            fmi2FreeInstance(a);
+            assert_eq!(fmi2Reset(a), fmi2Status_fmi2Error, "a freed instance");
+            assert_eq!(fmi2Reset(0x1000usize as fmi2Component), fmi2Status_fmi2Error, "never an instance");
+            assert_eq!(fmi2Reset(b), fmi2Status_fmi2OK, "the other instance is unaffected");
+            fmi2FreeInstance(b);
         }
     }
 }

@@ -7,9 +7,11 @@
 //! - [`state`]: the state machine's table of allowed calls;
 //! - [`slave`]: the safe slave that integrates the vehicle;
 //! - [`snapshot`]: FMU states and their serialized form;
+//! - [`resource`]: the consistency check of the loaded model;
 //! - [`uri`]: the resource location.
 
 pub mod fmi2;
+mod resource;
 mod slave;
 mod snapshot;
 mod state;

@@ -18,12 +18,19 @@ use nudyn::integrate::{AdvanceError, Carry, Integrator, Method, Settings};
 use nudyn::model::{LinkJoint, Model};
 use nudyn::workspace::Workspace;
 
+use crate::resource::{ResourceError, check_model};
 use crate::snapshot::{Snapshot, SnapshotError};
+use crate::state::Phase;
 use crate::uri::{UriError, resource_directory};
 
 /// Relative tolerance on currentCommunicationPoint against the slave's time:
 /// masters compute communication points in their own way (FMPy: start + n·h).
 const TIME_TOLERANCE: f64 = 1e-9;
+
+/// The most internal steps of `max_step` one doStep may ask for: more would
+/// keep the host busy for hours (1e300 s, or `max_step` = 1e-300, forever),
+/// so such a step is refused up front.
+const MAX_INTERNAL_STEPS: f64 = 1e6;
 
 /// The values that determine the slave's future: what an FMU state saves.
 #[derive(Clone, Debug, PartialEq)]
@@ -107,6 +114,14 @@ pub enum SlaveError {
         /// Its format.
         found: u32,
     },
+    /// The compiled model is inconsistent (a corrupted or foreign resource).
+    #[error("{path} does not hold a consistent compiled model: {source}")]
+    BadModel {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        source: ResourceError,
+    },
     /// The GUID passed to fmi2Instantiate is not this FMU's.
     #[error("fmuGUID '{given}' does not match the FMU's resources, whose GUID is '{actual}'")]
     Guid {
@@ -141,6 +156,14 @@ pub enum SlaveError {
         /// The value.
         value: f64,
     },
+    /// An output that is not finite at the current (finite) state.
+    #[error("{name} = {value} is not finite at the current state: no value is returned")]
+    NonFiniteOutput {
+        /// Variable name.
+        name: String,
+        /// The value.
+        value: f64,
+    },
     /// A parameter value outside its range.
     #[error("{name} = {value} must be positive")]
     NotPositive {
@@ -169,6 +192,16 @@ pub enum SlaveError {
     /// A step size that is not positive and finite.
     #[error("communicationStepSize = {0} must be positive and finite")]
     StepSize(f64),
+    /// The step needs more internal steps than [`MAX_INTERNAL_STEPS`].
+    #[error("communicationStepSize = {step} with max_step = {max_step} needs {needed:e} internal steps, more than {MAX_INTERNAL_STEPS:e}")]
+    TooLong {
+        /// The step.
+        step: f64,
+        /// The parameter max_step.
+        max_step: f64,
+        /// step / max_step.
+        needed: f64,
+    },
     /// The step would pass the declared stop time.
     #[error("the step from t = {time} by {step} passes stopTime = {stop_time}")]
     PastStopTime {
@@ -223,6 +256,12 @@ impl SlaveError {
     pub fn is_discard(&self) -> bool {
         matches!(self, SlaveError::StepFailed { .. })
     }
+
+    /// Whether a value was refused for being outside its range (not finite,
+    /// not positive, not an enumeration item): fmi2Discard from fmi2SetXXX.
+    pub fn is_out_of_range(&self) -> bool {
+        matches!(self, SlaveError::NonFinite { .. } | SlaveError::NotPositive { .. } | SlaveError::UnknownMethod(_))
+    }
 }
 
 /// How far the workspace holds the passes for the current (θ, ν, ε).
@@ -265,6 +304,8 @@ impl Slave {
         if resource.format != RESOURCE_FORMAT {
             return Err(SlaveError::ResourceFormat { path, found: resource.format });
         }
+        // Before anything sized by nq or nv (the GUID's variable list, the workspace).
+        check_model(&resource.model).map_err(|source| SlaveError::BadModel { path: path.clone(), source })?;
         let layout = Layout::new(&resource.model, resource.outputs);
         let actual = nudyn::export::guid(&bytes, &layout);
         if actual != guid {
@@ -407,22 +448,34 @@ impl Slave {
         if variables.clone().flatten().any(|v| matches!(v, RealVariable::Qvel(_) | RealVariable::Momentum(_))) {
             self.evaluate(Evaluated::Velocity)?;
         }
-        let s = &self.state;
-        for (value, vr) in values.iter_mut().zip(vrs) {
-            *value = match self.layout.real_variable(*vr).expect("checked above") {
-                RealVariable::Tolerance => s.tolerance,
-                RealVariable::MaxStep => s.max_step,
-                RealVariable::Eps(k) => s.eps[k],
-                RealVariable::Theta(k) => s.theta[k],
-                RealVariable::Nu(k) => s.nu[k],
-                RealVariable::Qvel(k) => self.ws.qvel[k],
-                RealVariable::KineticEnergy => kinetic_energy(&s.nu),
-                RealVariable::Power => s.nu.iter().zip(&s.eps).map(|(n, e)| n * e).sum(),
-                RealVariable::Momentum(k) => self.momentum[k],
-                RealVariable::EnergyResidual => kinetic_energy(&s.nu) - s.initial_energy - s.carry.work,
-            };
+        // First every value is computed and checked, then written: a value
+        // that overflowed (½|ν|² of a huge ν, ν·ε of a huge ε) is refused,
+        // never handed out, and the importer's buffer is left as it was.
+        if let Some((vr, value)) = vrs.iter().map(|&vr| (vr, self.real_value(vr))).find(|(_, v)| !v.is_finite()) {
+            let name = self.layout.real_variable(vr).expect("checked above").name();
+            return Err(SlaveError::NonFiniteOutput { name, value });
+        }
+        for (value, &vr) in values.iter_mut().zip(vrs) {
+            *value = self.real_value(vr);
         }
         Ok(())
+    }
+
+    /// The value of Real variable `vr` (known to exist; evaluated as needed).
+    fn real_value(&self, vr: u32) -> f64 {
+        let s = &self.state;
+        match self.layout.real_variable(vr).expect("checked by the caller") {
+            RealVariable::Tolerance => s.tolerance,
+            RealVariable::MaxStep => s.max_step,
+            RealVariable::Eps(k) => s.eps[k],
+            RealVariable::Theta(k) => s.theta[k],
+            RealVariable::Nu(k) => s.nu[k],
+            RealVariable::Qvel(k) => self.ws.qvel[k],
+            RealVariable::KineticEnergy => kinetic_energy(&s.nu),
+            RealVariable::Power => s.nu.iter().zip(&s.eps).map(|(n, e)| n * e).sum(),
+            RealVariable::Momentum(k) => self.momentum[k],
+            RealVariable::EnergyResidual => kinetic_energy(&s.nu) - s.initial_energy - s.carry.work,
+        }
     }
 
     /// fmi2GetInteger: the enumeration parameter `method`.
@@ -513,12 +566,18 @@ impl Slave {
             }
         }
         self.evaluate(Evaluated::Acceleration)?;
+        let derivative = |vr: u32| match self.layout.real_variable(vr) {
+            Some(RealVariable::Theta(k)) => self.qpos_rate(k),
+            Some(RealVariable::Nu(k)) => self.ws.nu_dot[k],
+            _ => unreachable!("checked above"),
+        };
+        // As in get_real: an overflowed derivative is refused, not handed out.
+        if let Some((vr, value)) = vrs.iter().map(|&vr| (vr, derivative(vr))).find(|(_, v)| !v.is_finite()) {
+            let name = format!("der({})", self.layout.real_variable(vr).expect("checked above").name());
+            return Err(SlaveError::NonFiniteOutput { name, value });
+        }
         for (value, &vr) in values.iter_mut().zip(vrs) {
-            *value = match self.layout.real_variable(vr) {
-                Some(RealVariable::Theta(k)) => self.qpos_rate(k),
-                Some(RealVariable::Nu(k)) => self.ws.nu_dot[k],
-                _ => unreachable!("checked above"),
-            };
+            *value = derivative(vr);
         }
         Ok(())
     }
@@ -583,6 +642,22 @@ impl Slave {
         }
     }
 
+    /// Refuses what [`Slave::do_step`] does not check (it is called first):
+    /// a non-finite communication point, which no tolerance compares with
+    /// the slave's time, and a finite step that would take more than
+    /// [`MAX_INTERNAL_STEPS`] internal steps.
+    pub fn check_step_arguments(&self, time: f64, step: f64) -> Result<(), SlaveError> {
+        if !time.is_finite() {
+            return Err(SlaveError::CommunicationPoint { expected: self.state.time, found: time });
+        }
+        let max_step = self.state.max_step;
+        let needed = step / max_step;
+        if step.is_finite() && needed > MAX_INTERNAL_STEPS {
+            return Err(SlaveError::TooLong { step, max_step, needed });
+        }
+        Ok(())
+    }
+
     /// The current time (fmi2LastSuccessfulTime).
     pub fn time(&self) -> f64 {
         self.state.time
@@ -593,15 +668,16 @@ impl Slave {
         self.failed_for_good
     }
 
-    /// Saves the state into `snapshot` (reusing its buffers).
-    pub fn save(&self, snapshot: &mut Snapshot) {
+    /// Saves the state, taken in `phase`, into `snapshot` (reusing its buffers).
+    pub fn save(&self, phase: Phase, snapshot: &mut Snapshot) {
+        snapshot.phase = phase;
         snapshot.guid.clone_from(&self.guid);
         snapshot.state.clone_from(&self.state);
     }
 
-    /// A new snapshot of the state.
-    pub fn snapshot(&self) -> Snapshot {
-        Snapshot { guid: self.guid.clone(), state: self.state.clone() }
+    /// A new snapshot of the state, taken in `phase`.
+    pub fn snapshot(&self, phase: Phase) -> Snapshot {
+        Snapshot { phase, guid: self.guid.clone(), state: self.state.clone() }
     }
 
     /// Restores a saved state; a state of another FMU is refused.

@@ -1,21 +1,27 @@
 //! FMU states (fmi2GetFMUstate) and their byte format
 //! (fmi2SerializeFMUstate): a versioned header naming the FMU, the sizes,
-//! the values as little-endian f64, and an FNV-1a checksum, so that a
-//! truncated, corrupted or foreign blob is rejected before anything is
-//! restored.
+//! the state machine's state, the values as little-endian f64, and an
+//! FNV-1a checksum, so that a truncated, corrupted or foreign blob is
+//! rejected before anything is restored. The values are checked too
+//! (finite, positive settings), so that even a blob crafted with a valid
+//! checksum cannot put a NaN into the outputs.
 
 use nudyn::integrate::{Carry, Method};
 
 use crate::slave::SlaveState;
+use crate::state::Phase;
 
 /// Identifies a nudyn FMU state blob.
 const MAGIC: &[u8; 8] = b"nudynFMS";
-/// Version of the byte layout below.
-const VERSION: u32 = 2;
+/// Version of the byte layout below (2: the state machine's state; 3: the
+/// integration method, energy projection, carried step, work and K₀).
+const VERSION: u32 = 3;
 
 /// A saved state of one FMU (its GUID names the FMU it belongs to).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Snapshot {
+    /// The state machine's state when it was saved: fmi2SetFMUstate returns to it.
+    pub phase: Phase,
     /// GUID of the FMU that saved it.
     pub guid: String,
     /// The saved values.
@@ -73,6 +79,19 @@ pub enum SnapshotError {
     /// A method number that names no method.
     #[error("serialized FMU state names integration method number {0}, which does not exist")]
     UnknownMethod(u8),
+    /// A state machine state that a saved state cannot have.
+    #[error("serialized FMU state has state machine state {0}, which is not one a state can be saved in")]
+    Phase(u8),
+    /// A value that a state of this FMU cannot hold.
+    #[error("serialized FMU state has {what} = {value}, which must be {must}")]
+    Value {
+        /// Which value.
+        what: &'static str,
+        /// The value.
+        value: f64,
+        /// What it must be.
+        must: &'static str,
+    },
     /// The checksum does not match the contents.
     #[error("serialized FMU state is corrupted (checksum {found:#018x}, contents hash to {computed:#018x})")]
     Checksum {
@@ -98,7 +117,7 @@ impl Snapshot {
     /// The size of [`Snapshot::serialize`]'s output.
     pub fn serialized_size(&self) -> usize {
         let (nq, nv) = (self.state.theta.len(), self.state.nu.len());
-        MAGIC.len() + 4 + 4 + self.guid.len() + 4 + 4 + 3 + 8 * Self::scalar_count(nq, nv) + 8
+        MAGIC.len() + 4 + 4 + self.guid.len() + 4 + 4 + 4 + 8 * Self::scalar_count(nq, nv) + 8
     }
 
     /// Writes the state into `out`, which must be [`Snapshot::serialized_size`] bytes long.
@@ -111,6 +130,7 @@ impl Snapshot {
         bytes.extend_from_slice(self.guid.as_bytes());
         bytes.extend_from_slice(&(s.theta.len() as u32).to_le_bytes());
         bytes.extend_from_slice(&(s.nu.len() as u32).to_le_bytes());
+        bytes.push(self.phase.code());
         bytes.push(u8::from(s.stop_time.is_some()));
         bytes.push(Method::ALL.iter().position(|&m| m == s.method).expect("listed") as u8);
         bytes.push(u8::from(s.energy_projection));
@@ -152,8 +172,9 @@ impl Snapshot {
         if (found_nq, found_nv) != (nq, nv) {
             return Err(SnapshotError::Sizes { nq: found_nq, nv: found_nv, expected_nq: nq, expected_nv: nv });
         }
-        let flags = reader.take(3)?;
-        let (stop_time_defined, method_index, energy_projection) = (flags[0] != 0, flags[1], flags[2] != 0);
+        let flags = reader.take(4)?;
+        let (phase_code, stop_time_defined, method_index, energy_projection) =
+            (flags[0], flags[1] != 0, flags[2], flags[3] != 0);
         let scalars: Vec<f64> = (0..Self::scalar_count(nq, nv)).map(|_| reader.f64()).collect::<Result<_, _>>()?;
         let contents_len = reader.at;
         let found = u64::from_le_bytes(reader.take(8)?.try_into().expect("8 bytes"));
@@ -164,12 +185,18 @@ impl Snapshot {
         if found != computed {
             return Err(SnapshotError::Checksum { found, computed });
         }
+        // Fatal is never entered, so never saved.
+        let phase = Phase::from_code(phase_code)
+            .filter(|&p| p != Phase::Fatal)
+            .ok_or(SnapshotError::Phase(phase_code))?;
         let method = *Method::ALL.get(usize::from(method_index)).ok_or(SnapshotError::UnknownMethod(method_index))?;
         let (settings, vectors) = scalars.split_at(8);
+        check_values(settings, vectors)?;
         let (theta, rest) = vectors.split_at(nq);
         let (nu, rest) = rest.split_at(nv);
         let (eps, eps_rate) = rest.split_at(nv);
         Ok(Snapshot {
+            phase,
             guid: found_guid,
             state: SlaveState {
                 time: settings[0],
@@ -187,6 +214,34 @@ impl Snapshot {
                 eps_rate: eps_rate.to_vec(),
             },
         })
+    }
+}
+
+/// Checks what fmi2SetupExperiment and fmi2SetReal would have refused:
+/// every value finite, `tolerance` and `max_step` positive, the carried
+/// step and K₀ not negative. (The stop time
+/// is checked even when it is not defined: the writer stores 0 then.)
+fn check_values(settings: &[f64], vectors: &[f64]) -> Result<(), SnapshotError> {
+    const NAMES: [&str; 8] =
+        ["time", "start_time", "stop_time", "tolerance", "max_step", "next step", "work", "initial energy"];
+    for (&what, &value) in NAMES.iter().zip(settings) {
+        if !value.is_finite() {
+            return Err(SnapshotError::Value { what, value, must: "finite" });
+        }
+    }
+    for (&what, &value) in NAMES[3..5].iter().zip(&settings[3..5]) {
+        if value <= 0.0 {
+            return Err(SnapshotError::Value { what, value, must: "positive" });
+        }
+    }
+    for (&what, &value) in [(&NAMES[5], &settings[5]), (&NAMES[7], &settings[7])] {
+        if value < 0.0 {
+            return Err(SnapshotError::Value { what, value, must: "non-negative" });
+        }
+    }
+    match vectors.iter().find(|x| !x.is_finite()) {
+        Some(&value) => Err(SnapshotError::Value { what: "a value of theta, nu, eps or eps_rate", value, must: "finite" }),
+        None => Ok(()),
     }
 }
 
@@ -222,6 +277,7 @@ mod tests {
 
     fn sample() -> Snapshot {
         Snapshot {
+            phase: Phase::StepComplete,
             guid: GUID.to_string(),
             state: SlaveState {
                 time: 0.1 + 0.2,
@@ -296,5 +352,34 @@ mod tests {
         other_version[8..12].copy_from_slice(&(VERSION + 1).to_le_bytes());
         let found = VERSION + 1;
         assert_eq!(Snapshot::deserialize(&other_version, GUID, 5, 4), Err(SnapshotError::Version { found }));
+    }
+
+    /// A blob whose checksum is made to match, as a deliberate forgery would.
+    fn with_valid_checksum(mut bytes: Vec<u8>) -> Vec<u8> {
+        let contents = bytes.len() - 8;
+        let checksum = fnv1a(&bytes[..contents]);
+        bytes[contents..].copy_from_slice(&checksum.to_le_bytes());
+        bytes
+    }
+
+    #[test]
+    fn rejects_values_a_state_cannot_hold_even_with_a_valid_checksum() {
+        let mut nan_theta = sample();
+        nan_theta.state.theta[2] = f64::NAN;
+        let mut zero_step = sample();
+        zero_step.state.max_step = 0.0;
+        let mut infinite_time = sample();
+        infinite_time.state.time = f64::INFINITY;
+        for (snapshot, what) in [(nan_theta, "a value of theta"), (zero_step, "max_step"), (infinite_time, "time")] {
+            let error = Snapshot::deserialize(&serialized(&snapshot), GUID, 5, 4).unwrap_err();
+            assert!(matches!(error, SnapshotError::Value { .. }) && error.to_string().contains(what), "{error}");
+        }
+        let mut bytes = serialized(&sample());
+        let phase_at = MAGIC.len() + 8 + GUID.len() + 8;
+        for code in [Phase::Fatal.code(), 7, 255] {
+            bytes[phase_at] = code;
+            bytes = with_valid_checksum(bytes);
+            assert_eq!(Snapshot::deserialize(&bytes, GUID, 5, 4), Err(SnapshotError::Phase(code)));
+        }
     }
 }

@@ -24,8 +24,29 @@ pub enum Phase {
 }
 
 impl Phase {
+    /// Every state, in the order of their codes.
+    pub const ALL: [Phase; 7] = [
+        Phase::Instantiated,
+        Phase::InitializationMode,
+        Phase::StepComplete,
+        Phase::StepFailed,
+        Phase::Terminated,
+        Phase::Error,
+        Phase::Fatal,
+    ];
+
     const fn bit(self) -> u8 {
         1 << self as u8
+    }
+
+    /// The state's code in serialized FMU states.
+    pub fn code(self) -> u8 {
+        self as u8
+    }
+
+    /// The state of a code, if there is one.
+    pub fn from_code(code: u8) -> Option<Phase> {
+        Phase::ALL.get(usize::from(code)).copied()
     }
 
     /// The spec's name of the state, for messages.
@@ -48,7 +69,6 @@ const STEP_COMPLETE: u8 = Phase::StepComplete.bit();
 const STEP_FAILED: u8 = Phase::StepFailed.bit();
 const TERMINATED: u8 = Phase::Terminated.bit();
 const ERROR: u8 = Phase::Error.bit();
-const FATAL: u8 = Phase::Fatal.bit();
 /// Every state in which the instance is still usable or inspectable.
 const ALIVE: u8 = INSTANTIATED | INIT | STEP_COMPLETE | STEP_FAILED | TERMINATED | ERROR;
 
@@ -56,7 +76,6 @@ const ALIVE: u8 = INSTANTIATED | INIT | STEP_COMPLETE | STEP_FAILED | TERMINATED
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Function {
     SetDebugLogging,
-    FreeInstance,
     SetupExperiment,
     EnterInitializationMode,
     ExitInitializationMode,
@@ -82,6 +101,10 @@ pub enum Function {
     DoStep,
     CancelStep,
     GetStatus,
+    GetRealStatus,
+    GetIntegerStatus,
+    GetBooleanStatus,
+    GetStringStatus,
 }
 
 impl Function {
@@ -89,7 +112,6 @@ impl Function {
     pub fn name(self) -> &'static str {
         match self {
             Function::SetDebugLogging => "fmi2SetDebugLogging",
-            Function::FreeInstance => "fmi2FreeInstance",
             Function::SetupExperiment => "fmi2SetupExperiment",
             Function::EnterInitializationMode => "fmi2EnterInitializationMode",
             Function::ExitInitializationMode => "fmi2ExitInitializationMode",
@@ -115,15 +137,19 @@ impl Function {
             Function::DoStep => "fmi2DoStep",
             Function::CancelStep => "fmi2CancelStep",
             Function::GetStatus => "fmi2GetStatus",
+            Function::GetRealStatus => "fmi2GetRealStatus",
+            Function::GetIntegerStatus => "fmi2GetIntegerStatus",
+            Function::GetBooleanStatus => "fmi2GetBooleanStatus",
+            Function::GetStringStatus => "fmi2GetStringStatus",
         }
     }
 
     /// The states in which the function may be called (FMI 2.0 §4.2.4).
-    /// fmi2FreeInstance is also accepted in `fatal`: releasing memory is
-    /// always safe here, and refusing would only leak it.
+    /// fmi2FreeInstance is not in the table: it is accepted in every state,
+    /// `fatal` included, since releasing memory is always safe here and
+    /// refusing would only leak it.
     fn allowed(self) -> u8 {
         match self {
-            Function::FreeInstance => ALIVE | FATAL,
             Function::SetDebugLogging | Function::Reset => ALIVE,
             Function::GetFmuState | Function::SetFmuState | Function::FreeFmuState => ALIVE,
             Function::SerializedFmuStateSize | Function::SerializeFmuState | Function::DeSerializeFmuState => ALIVE,
@@ -142,7 +168,11 @@ impl Function {
             Function::DoStep => STEP_COMPLETE,
             // Only legal in stepInProgress, which a synchronous doStep never leaves behind.
             Function::CancelStep => 0,
-            Function::GetStatus => STEP_COMPLETE | STEP_FAILED | TERMINATED,
+            Function::GetStatus
+            | Function::GetRealStatus
+            | Function::GetIntegerStatus
+            | Function::GetBooleanStatus
+            | Function::GetStringStatus => STEP_COMPLETE | STEP_FAILED | TERMINATED,
         }
     }
 
@@ -156,18 +186,8 @@ impl Function {
 mod tests {
     use super::*;
 
-    const ALL: [Phase; 7] = [
-        Phase::Instantiated,
-        Phase::InitializationMode,
-        Phase::StepComplete,
-        Phase::StepFailed,
-        Phase::Terminated,
-        Phase::Error,
-        Phase::Fatal,
-    ];
-
     fn allowed_phases(function: Function) -> Vec<Phase> {
-        ALL.into_iter().filter(|&p| function.allowed_in(p)).collect()
+        Phase::ALL.into_iter().filter(|&p| function.allowed_in(p)).collect()
     }
 
     #[test]
@@ -198,10 +218,17 @@ mod tests {
     }
 
     #[test]
-    fn fatal_allows_only_free() {
+    fn codes_round_trip() {
+        for phase in Phase::ALL {
+            assert_eq!(Phase::from_code(phase.code()), Some(phase));
+        }
+        assert_eq!(Phase::from_code(7), None);
+    }
+
+    #[test]
+    fn fatal_allows_nothing_in_the_table() {
         let in_fatal: Vec<Function> = [
             Function::SetDebugLogging,
-            Function::FreeInstance,
             Function::Reset,
             Function::GetReal,
             Function::DoStep,
@@ -210,7 +237,7 @@ mod tests {
         .into_iter()
         .filter(|f| f.allowed_in(Phase::Fatal))
         .collect();
-        assert_eq!(in_fatal, [Function::FreeInstance]);
+        assert_eq!(in_fatal, []);
     }
 
     #[test]

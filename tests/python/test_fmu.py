@@ -249,7 +249,7 @@ def bus(exported, tmp_path):
 
     yield make
     for slave in slaves:
-        slave.fmu.terminate()
+        # Legal in every state, error included (FMI 2.0 §4.2.4).
         slave.fmu.freeInstance()
 
 
@@ -277,17 +277,20 @@ def test_fmu_state_round_trips_bit_exactly(bus):
 
 
 def test_corrupt_or_foreign_states_are_rejected(bus, exported, tmp_path):
+    """Each rejection is fmi2Error, so the instance enters the error state
+    (FMI 2.0 §2.1.3); its values are unchanged, and restoring a state saved
+    before lets it go on."""
     slave = bus()
     slave.step(2)
     state = slave.fmu.getFMUstate()
     blob = bytearray(slave.fmu.serializeFMUstate(state))
-    slave.fmu.freeFMUstate(state)
     before = slave.all_reals()
     corrupt = bytearray(blob)
     corrupt[len(corrupt) // 2] ^= 0x10
     for bad in (bytes(corrupt), bytes(blob[:-1]), bytes(blob) + b"\0", b"not a state"):
         with pytest.raises(FMICallException):
             slave.fmu.deSerializeFMUstate(bad)
+        slave.fmu.setFMUstate(state)
     assert "corrupted" in slave.log.text() and "truncated" in slave.log.text()
     # A state of another FMU (another GUID) is refused too.
     rig_path = exported["fixed_rig"]
@@ -297,6 +300,8 @@ def test_corrupt_or_foreign_states_are_rejected(bus, exported, tmp_path):
         slave.fmu.deSerializeFMUstate(rig_blob)
     assert "belongs to the FMU with GUID" in slave.log.text()
     assert np.array_equal(slave.all_reals(), before), "a rejected state changes nothing"
+    slave.fmu.setFMUstate(state)
+    slave.fmu.freeFMUstate(state)
     slave.step(1)
 
 
@@ -345,10 +350,9 @@ def test_terminate_keeps_final_values_readable(bus):
     final = slave.all_reals()
     slave.fmu.terminate()
     assert np.array_equal(slave.all_reals(), final)
-    slave.fmu.reset()  # so that the fixture's terminate is legal again
-    slave.fmu.setupExperiment(startTime=0.0)
-    slave.fmu.enterInitializationMode()
-    slave.fmu.exitInitializationMode()
+    with pytest.raises(FMICallException):
+        slave.fmu.terminate()
+    assert "fmi2Terminate may not be called in state terminated" in slave.log.text()
 
 
 def test_output_derivatives(bus, nudyn):
@@ -411,28 +415,36 @@ def test_input_ramp_equals_core_integration(bus, nudyn):
 
 
 def test_rejections_are_logged_and_change_nothing(bus):
+    """A call refused with fmi2Error leaves the values as they were and the
+    instance in the error state, where fmi2SetFMUstate to a state saved
+    before goes on (FMI 2.0 §2.1.3); a value out of its range passed to
+    fmi2SetReal is fmi2Discard and the instance stays usable."""
     slave = bus()
     slave.step(1)
     before = slave.all_reals()
-    with pytest.raises(FMICallException):
-        slave.fmu.doStep(currentCommunicationPoint=0.5, communicationStepSize=STEP)
-    assert f"expected currentCommunicationPoint = {STEP} but was 0.5" in slave.log.text()
-    with pytest.raises(FMICallException):
-        slave.set({"theta[8]": 1.0})
-    assert "theta[8]" in slave.log.text() and "after initialization" in slave.log.text()
-    with pytest.raises(FMICallException):
+    saved = slave.fmu.getFMUstate()
+    refusals = [
+        (lambda: slave.fmu.doStep(currentCommunicationPoint=0.5, communicationStepSize=STEP),
+         f"expected currentCommunicationPoint = {STEP} but was 0.5"),
+        (lambda: slave.set({"theta[8]": 1.0}), "theta[8] (value reference"),
+        (lambda: slave.fmu.getReal([99999]), "unknown value reference 99999"),
+        (lambda: slave.set({"kinetic_energy": 1.0}), "calculated output"),
+        (lambda: slave.fmu.enterInitializationMode(), "fmi2EnterInitializationMode may not be called in state stepComplete"),
+    ]
+    for call, message in refusals:
+        with pytest.raises(FMICallException) as refused:
+            call()
+        assert refused.value.status == 3 and message in slave.log.text()
+        assert np.array_equal(slave.all_reals(), before)
+        with pytest.raises(FMICallException, match="error"):
+            slave.step(1)
+        assert "fmi2DoStep may not be called in state error" in slave.log.text()
+        slave.fmu.setFMUstate(saved)
+    with pytest.raises(FMICallException) as discarded:
         slave.set({"eps[1]": float("nan")})
-    assert "eps[1] = NaN is not finite" in slave.log.text()
-    with pytest.raises(FMICallException):
-        slave.fmu.getReal([99999])
-    assert "unknown value reference 99999" in slave.log.text()
-    with pytest.raises(FMICallException):
-        slave.set({"kinetic_energy": 1.0})
-    assert "kinetic_energy" in slave.log.text() and "calculated output" in slave.log.text()
-    with pytest.raises(FMICallException):
-        slave.fmu.enterInitializationMode()
-    assert "fmi2EnterInitializationMode may not be called in state stepComplete" in slave.log.text()
+    assert discarded.value.status == 2 and "eps[1] = NaN is not finite" in slave.log.text()
     assert np.array_equal(slave.all_reals(), before)
+    slave.fmu.freeFMUstate(saved)
     slave.step(1)
 
 

@@ -1,0 +1,219 @@
+//! The consistency check of the compiled model read from
+//! `resources/model.json`. `nudyn export` writes a model that
+//! `Model::compile` built, but the FMU reads whatever file is there: a
+//! corrupted or hand-edited one must be refused at fmi2Instantiate with a
+//! message, not crash, hang or allocate without bound later. A model that
+//! passes has the shape every pass relies on: parent-first links with
+//! consecutive coordinates and dofs, vectors of the declared sizes, and
+//! finite numbers.
+
+use nudyn::model::{LinkJoint, Model};
+
+/// What is wrong with a compiled model.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum ResourceError {
+    /// No links at all.
+    #[error("the model has no links")]
+    NoLinks,
+    /// A parent that does not come before its child.
+    #[error("link {link} has parent {parent}: parents must come first")]
+    Parent {
+        /// The link.
+        link: usize,
+        /// Its parent.
+        parent: usize,
+    },
+    /// A dof count that does not fit the joint.
+    #[error("link {link} is a {joint:?} joint with {ndof} dofs, expected {expected}")]
+    Dofs {
+        /// The link.
+        link: usize,
+        /// Its joint.
+        joint: LinkJoint,
+        /// Its dof count.
+        ndof: usize,
+        /// The joint's dof count.
+        expected: usize,
+    },
+    /// Coordinates or dofs that are not consecutive in link order.
+    #[error("link {link} starts at {what} {found}, expected {expected}")]
+    Address {
+        /// The link.
+        link: usize,
+        /// "qpos" or "dof".
+        what: &'static str,
+        /// Its address.
+        found: usize,
+        /// The end of the previous link's.
+        expected: usize,
+    },
+    /// A size that does not match the links.
+    #[error("{what} is {found}, the links give {expected}")]
+    Size {
+        /// Which size.
+        what: &'static str,
+        /// The value in the file.
+        found: usize,
+        /// The value the links imply.
+        expected: usize,
+    },
+    /// A joint whose coordinates or dofs lie outside the vectors.
+    #[error("joint '{joint}' lies outside the coordinates or dofs")]
+    JointAddress {
+        /// The joint name.
+        joint: String,
+    },
+    /// A number that is not finite, or negative where it must not be.
+    #[error("{what} of link {link} is {value}: must be finite{}", if *.non_negative { " and non-negative" } else { "" })]
+    Number {
+        /// The link (or 0 for model-wide values).
+        link: usize,
+        /// Which quantity.
+        what: &'static str,
+        /// The offending value.
+        value: f64,
+        /// Whether the quantity must also be non-negative.
+        non_negative: bool,
+    },
+}
+
+/// (qpos count, dof count) of a link's joint.
+fn joint_size(joint: LinkJoint) -> (usize, usize) {
+    match joint {
+        LinkJoint::Hinge | LinkJoint::Slide => (1, 1),
+        LinkJoint::Ball => (4, 3),
+        LinkJoint::Translation => (3, 3),
+    }
+}
+
+/// The first non-finite value of `values`, as an error about `what` of `link`.
+fn finite<'a>(link: usize, what: &'static str, values: impl IntoIterator<Item = &'a f64>) -> Result<(), ResourceError> {
+    match values.into_iter().find(|x| !x.is_finite()) {
+        Some(&value) => Err(ResourceError::Number { link, what, value, non_negative: false }),
+        None => Ok(()),
+    }
+}
+
+/// A value that must be finite and non-negative.
+fn non_negative(link: usize, what: &'static str, value: f64) -> Result<(), ResourceError> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(())
+    } else {
+        Err(ResourceError::Number { link, what, value, non_negative: true })
+    }
+}
+
+/// Checks that `model` has the structure `Model::compile` gives; O(links).
+pub fn check_model(model: &Model) -> Result<(), ResourceError> {
+    if model.links.is_empty() {
+        return Err(ResourceError::NoLinks);
+    }
+    let (mut nq, mut nv) = (0, 0);
+    for (k, link) in model.links.iter().enumerate() {
+        if let Some(parent) = link.parent.filter(|&p| p >= k) {
+            return Err(ResourceError::Parent { link: k, parent });
+        }
+        let (link_nq, link_nv) = joint_size(link.joint);
+        if link.ndof != link_nv {
+            return Err(ResourceError::Dofs { link: k, joint: link.joint, ndof: link.ndof, expected: link_nv });
+        }
+        if link.qpos_adr != nq {
+            return Err(ResourceError::Address { link: k, what: "qpos", found: link.qpos_adr, expected: nq });
+        }
+        if link.dof_adr != nv {
+            return Err(ResourceError::Address { link: k, what: "dof", found: link.dof_adr, expected: nv });
+        }
+        nq += link_nq;
+        nv += link_nv;
+        finite(k, "x_tree", link.x_tree.rot.iter().chain(link.x_tree.trans.iter()))?;
+        finite(k, "axis", link.axis.iter())?;
+        finite(k, "anchor", link.anchor.iter())?;
+        finite(k, "reference", [link.reference].iter())?;
+        finite(k, "motion_subspace", link.motion_subspace.iter())?;
+        finite(k, "inertia", link.inertia.iter())?;
+        finite(k, "mass_moment", link.mass_moment.iter())?;
+        non_negative(k, "armature", link.armature)?;
+        non_negative(k, "stiffness", link.stiffness)?;
+        non_negative(k, "damping", link.damping)?;
+        non_negative(k, "mass", link.mass)?;
+    }
+    for (what, found, expected) in [
+        ("nq", model.nq, nq),
+        ("nv", model.nv, nv),
+        ("the length of qpos0", model.qpos0.len(), nq),
+        ("the length of qpos_spring", model.qpos_spring.len(), nq),
+    ] {
+        if found != expected {
+            return Err(ResourceError::Size { what, found, expected });
+        }
+    }
+    if let Some(joint) = model.joints.iter().find(|j| j.qpos_adr >= nq || j.dof_adr >= nv) {
+        return Err(ResourceError::JointAddress { joint: joint.name.clone() });
+    }
+    finite(0, "gravity", model.gravity.iter())?;
+    finite(0, "qpos0", &model.qpos0)?;
+    finite(0, "qpos_spring", &model.qpos_spring)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::PathBuf;
+
+    use super::*;
+
+    fn example(name: &str) -> Model {
+        let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../examples").join(name);
+        let vehicle = nudyn::mjcf::load_mjcf(&path).expect("example imports").vehicle;
+        Model::compile(&vehicle).expect("example compiles")
+    }
+
+    #[test]
+    fn compiled_examples_pass() {
+        for name in ["bus_arm7.xml", "flexible_boom.xml", "fixed_rig.xml", "chain60.xml"] {
+            assert_eq!(check_model(&example(name)), Ok(()), "{name}");
+        }
+    }
+
+    #[test]
+    fn sizes_that_do_not_match_the_links_are_refused() {
+        let mut model = example("bus_arm7.xml");
+        // A flipped digit in "nv" would otherwise size every vector (and the GUID's variable list) by it.
+        model.nv = 1_000_000_000_000;
+        assert!(matches!(check_model(&model), Err(ResourceError::Size { what: "nv", .. })));
+        let mut model = example("bus_arm7.xml");
+        model.qpos0.pop();
+        assert!(matches!(check_model(&model), Err(ResourceError::Size { .. })));
+    }
+
+    #[test]
+    fn broken_structure_is_refused() {
+        let mut model = example("bus_arm7.xml");
+        model.links[3].parent = Some(5);
+        assert_eq!(check_model(&model), Err(ResourceError::Parent { link: 3, parent: 5 }));
+        let mut model = example("bus_arm7.xml");
+        model.links[2].ndof = 3;
+        assert!(matches!(check_model(&model), Err(ResourceError::Dofs { link: 2, .. })));
+        let mut model = example("bus_arm7.xml");
+        model.links[4].qpos_adr += 1;
+        assert!(matches!(check_model(&model), Err(ResourceError::Address { link: 4, what: "qpos", .. })));
+        let mut model = example("bus_arm7.xml");
+        model.links.clear();
+        assert_eq!(check_model(&model), Err(ResourceError::NoLinks));
+        let mut model = example("bus_arm7.xml");
+        model.joints[1].dof_adr = model.nv;
+        assert!(matches!(check_model(&model), Err(ResourceError::JointAddress { .. })));
+    }
+
+    #[test]
+    fn bad_numbers_are_refused() {
+        let mut model = example("flexible_boom.xml");
+        model.links[1].inertia[(2, 2)] = f64::NAN;
+        assert!(matches!(check_model(&model), Err(ResourceError::Number { link: 1, what: "inertia", .. })));
+        let mut model = example("flexible_boom.xml");
+        model.links[0].mass = -1.0;
+        assert!(matches!(check_model(&model), Err(ResourceError::Number { what: "mass", non_negative: true, .. })));
+        let mut model = example("flexible_boom.xml");
+        model.gravity[2] = f64::INFINITY;
+        assert!(matches!(check_model(&model), Err(ResourceError::Number { what: "gravity", .. })));
+    }
+}

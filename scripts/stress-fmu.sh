@@ -1,0 +1,94 @@
+#!/usr/bin/env bash
+# The FMU's memory and fuzz checks (the misuse suite and the concurrency
+# test are in tests/python/test_fmu_misuse.py):
+#
+#   - memory: tests/memory/fmu_runs.c, a plain C importer, under valgrind:
+#     instantiate → 1000 steps (with FMU states and a refused call) → free,
+#     1 time and RUNS times; nothing lost, and the memory in use at exit the
+#     same for both (no growth with the number of runs);
+#   - fuzzing: each cargo fuzz target (fuzz/) for SECONDS seconds, seeded
+#     with the examples; a crash leaves its input in fuzz/artifacts/ and
+#     fails the script.
+#
+#   bash scripts/stress-fmu.sh           # CI: RUNS=3, 15 s per target
+#   bash scripts/stress-fmu.sh --long    # RUNS=20, 600 s per target
+#
+# Needs what scripts/setup.sh installs (valgrind, cargo-fuzz) and the
+# release build (target/release/nudyn, libnudyn_fmu.so).
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+RUNS=3
+FUZZ_SECONDS=15
+if [ "${1:-}" = "--long" ]; then
+    RUNS=20
+    FUZZ_SECONDS=600
+fi
+
+WORK="$(mktemp -d)"
+trap 'rm -rf "$WORK"' EXIT
+
+# --- memory ---------------------------------------------------------------------
+target/release/nudyn export examples/bus_arm7.xml -o "$WORK/bus.fmu" --outputs qvel,kinetic_energy,power,momentum \
+    >/dev/null
+.venv/bin/python - "$WORK/bus.fmu" "$WORK/bus" >"$WORK/fmu.txt" <<'EOF'
+import sys, zipfile, xml.etree.ElementTree as ET
+zipfile.ZipFile(sys.argv[1]).extractall(sys.argv[2])
+root = ET.parse(f"{sys.argv[2]}/modelDescription.xml").getroot()
+reals = [v for v in root.find("ModelVariables") if v.find("Real") is not None]
+print(root.find("CoSimulation").get("modelIdentifier"), root.get("guid"), len(reals))
+EOF
+read -r IDENTIFIER GUID REALS <"$WORK/fmu.txt"
+gcc -O1 -g -Wall -Wextra -Werror -o "$WORK/fmu_runs" tests/memory/fmu_runs.c -ldl -lm
+
+# Prints the bytes in use at exit; fails on any error or lost byte.
+in_use_after() {
+    local runs=$1 log="$WORK/valgrind-$1.txt"
+    if ! valgrind --leak-check=full --show-leak-kinds=definite,indirect,possible \
+        --errors-for-leak-kinds=definite,indirect,possible --error-exitcode=99 \
+        "$WORK/fmu_runs" "$WORK/bus" "$IDENTIFIER" "$GUID" "$REALS" "$runs" 1000 >"$log" 2>&1; then
+        cat "$log" >&2
+        echo "stress-fmu: valgrind found errors or leaks in $runs runs" >&2
+        return 1
+    fi
+    grep -o 'in use at exit: [0-9,]* bytes' "$log" | tr -dc '0-9'
+}
+one=$(in_use_after 1)
+many=$(in_use_after "$RUNS")
+echo "stress-fmu: valgrind: no errors, nothing lost; in use at exit after 1 run: $one bytes, after $RUNS runs: $many bytes"
+if [ "$one" != "$many" ]; then
+    echo "stress-fmu: memory in use at exit grows with the number of runs" >&2
+    exit 1
+fi
+
+# --- fuzzing --------------------------------------------------------------------
+# cargo fuzz needs nightly flags (-Zsanitizer); the stable toolchain accepts
+# them with RUSTC_BOOTSTRAP=1.
+export RUSTC_BOOTSTRAP=1
+SEEDS="$WORK/seeds"
+mkdir -p "$SEEDS/mjcf_import" "$SEEDS/resource_loader" "$SEEDS/state_deserializer" "$SEEDS/call_sequence"
+cp examples/*.xml tests/fixtures/mjcf/*.xml "$SEEDS/mjcf_import/"
+cp "$WORK/bus/resources/model.json" "$SEEDS/resource_loader/bus_arm7.json"
+for example in fixed_rig flexible_boom; do
+    target/release/nudyn export "examples/$example.xml" -o "$WORK/$example.fmu" >/dev/null
+    .venv/bin/python -c "import sys, zipfile; sys.stdout.buffer.write(zipfile.ZipFile(sys.argv[1]).read('resources/model.json'))" \
+        "$WORK/$example.fmu" >"$SEEDS/resource_loader/$example.json"
+done
+printf '\x81' >"$SEEDS/state_deserializer/valid"
+printf 'call sequence seed: any bytes decode to calls' >"$SEEDS/call_sequence/text"
+
+for target in mjcf_import resource_loader state_deserializer call_sequence; do
+    mkdir -p "fuzz/corpus/$target"
+    echo "stress-fmu: fuzzing $target for $FUZZ_SECONDS s"
+    (cd fuzz && nice cargo fuzz run --release "$target" "corpus/$target" "$SEEDS/$target" -- \
+        -max_total_time="$FUZZ_SECONDS" -timeout=20 -rss_limit_mb=4096 -print_final_stats=1 \
+        2>"$WORK/fuzz-$target.txt") || {
+        tail -n 60 "$WORK/fuzz-$target.txt" >&2
+        echo "stress-fmu: $target crashed; the input is in fuzz/artifacts/$target/" >&2
+        exit 1
+    }
+    grep -E '^stat::number_of_executed_units|^stat::average_exec_per_sec' "$WORK/fuzz-$target.txt" \
+        | sed "s/^/stress-fmu: $target: /"
+done
+echo "stress-fmu: ok"

@@ -1,0 +1,109 @@
+"""The FMU never takes its host down: every misuse case of
+`fmu_misuse.py` in a process of its own (a crash is a signal, a hang a
+timeout), 8 instances on 8 threads bit-identical to sequential runs, and
+the README's table of cases, statuses and crashes kept current."""
+
+from __future__ import annotations
+
+import ctypes as C
+import json
+import os
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import pytest
+from fmpy import extract
+
+import fmu_misuse
+from conftest import ROOT
+from test_fmu import export, fmu_library  # noqa: F401 (the fixture)
+
+CASE_TIMEOUT = 120
+RESULTS: dict[str, dict] = {}
+
+
+@pytest.fixture(scope="session")
+def unzipped(nudyn, fmu_library, tmp_path_factory):
+    """bus_arm7 with every optional output, and fixed_rig (the "other" FMU), unzipped."""
+    directory = tmp_path_factory.mktemp("misuse")
+    bus = export(nudyn, fmu_library, ROOT / "examples/bus_arm7.xml", directory / "bus.fmu",
+                 "--outputs", "qvel,kinetic_energy,power,momentum")
+    rig = export(nudyn, fmu_library, ROOT / "examples/fixed_rig.xml", directory / "rig.fmu")
+    return Path(extract(str(bus), str(directory / "bus"))), Path(extract(str(rig), str(directory / "rig")))
+
+
+@pytest.mark.parametrize("name", list(fmu_misuse.CASES))
+def test_misuse_case(name, unzipped, tmp_path):
+    bus, rig = unzipped
+    cmd = [sys.executable, fmu_misuse.__file__, "run", name, str(bus), str(rig)]
+    env = {**os.environ, "MISUSE_SCRATCH": str(tmp_path)}
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=CASE_TIMEOUT, env=env)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"{name} hung (no answer in {CASE_TIMEOUT} s)")
+    assert proc.returncode >= 0, f"{name} crashed with signal {-proc.returncode}:\n{proc.stderr[-4000:]}"
+    assert proc.returncode == 0, f"{name} failed:\n{proc.stderr[-4000:]}"
+    RESULTS[name] = json.loads(proc.stdout)
+
+
+def test_readme_table_is_current():
+    """Runs after the cases (file order); skipped when only some ran."""
+    if set(RESULTS) != set(fmu_misuse.CASES):
+        pytest.skip("not every misuse case ran in this session")
+    table = fmu_misuse.table([RESULTS[name] for name in fmu_misuse.CASES])
+    readme = (ROOT / "README.md").read_text()
+    assert table in readme, f"README.md's misuse table is out of date; it should read:\n\n{table}\n"
+
+
+def run_instance(fmu: fmu_misuse.FmuDir, lib: C.CDLL, seed: int, steps: int) -> bytes:
+    """One instance from a start that depends on `seed`: the bytes of every
+    Real value after every step."""
+    callbacks = fmu_misuse.Callbacks(fmu_misuse.LOGGER(), fmu_misuse.ALLOCATE(), fmu_misuse.FREE(),
+                                     fmu_misuse.STEP_FINISHED(), None)
+    c = lib.fmi2Instantiate(f"thread{seed}".encode(), 1, fmu.guid.encode(), fmu.uri.encode(),
+                            C.pointer(callbacks), 0, 0)
+    assert c
+    assert lib.fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0.0) == 0
+    assert lib.fmi2EnterInitializationMode(c) == 0
+    start = {"nu[4]": 0.1 * seed, "nu[8]": -0.05 * seed, "eps[9]": 0.2, "eps[13]": 0.01 * seed}
+    vrs = (C.c_uint * len(start))(*[fmu.vr[n] for n in start])
+    assert lib.fmi2SetReal(c, vrs, len(start), (C.c_double * len(start))(*start.values())) == 0
+    assert lib.fmi2ExitInitializationMode(c) == 0
+    all_vrs = (C.c_uint * len(fmu.reals))(*[fmu.vr[n] for n in fmu.reals])
+    values = (C.c_double * len(fmu.reals))()
+    trajectory = bytearray()
+    for k in range(steps):
+        assert lib.fmi2DoStep(c, k * fmu_misuse.STEP, fmu_misuse.STEP, 1) == 0
+        assert lib.fmi2GetReal(c, all_vrs, len(fmu.reals), values) == 0
+        trajectory += bytes(values)
+    lib.fmi2FreeInstance(c)
+    return bytes(trajectory)
+
+
+def test_eight_threads_match_sequential_runs_bit_for_bit(unzipped):
+    """ctypes releases the GIL during each call, so the 8 instances really
+    step at the same time."""
+    fmu = fmu_misuse.FmuDir(unzipped[0])
+    lib = fmu_misuse.Harness(fmu).lib
+    steps = 100
+    sequential = [run_instance(fmu, lib, seed, steps) for seed in range(8)]
+    assert len(set(sequential)) == 8, "the seeds give different runs"
+    concurrent: list[bytes | None] = [None] * 8
+    errors: list[BaseException] = []
+
+    def worker(seed):
+        try:
+            concurrent[seed] = run_instance(fmu, lib, seed, steps)
+        except BaseException as error:  # reported below, in the main thread
+            errors.append(error)
+
+    threads = [threading.Thread(target=worker, args=(seed,)) for seed in range(8)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert not errors, errors
+    for seed in range(8):
+        assert concurrent[seed] == sequential[seed], f"thread {seed} differs from its sequential run"
