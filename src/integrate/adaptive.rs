@@ -217,8 +217,9 @@ impl Integrator {
         };
         let mut last_rejected = false;
         let mut last_cause = None;
-        // Within this of t1 the interval is done (a step that small is only round-off).
-        let end_slack = 4.0 * f64::EPSILON * t1.abs().max(1.0);
+        // Within this of t1 the interval is done: a step that small is only
+        // round-off, and the smallest step allowed below could not take it.
+        let end_slack = 16.0 * f64::EPSILON * t1.abs().max(1.0);
         while t1 - t > end_slack {
             let planned = h.min(settings.max_step);
             let remaining = t1 - t;
