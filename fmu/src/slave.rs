@@ -14,6 +14,7 @@ use nudyn::export::{
     DEFAULT_MAX_STEP, DEFAULT_METHOD, DEFAULT_TOLERANCE, ENERGY_PROJECTION_VR, FmuResource, Layout, METHOD_VR,
     RESOURCE_FORMAT, RealVariable, method_of_value, method_value,
 };
+use nudyn::dynamics::quantities::kinetic_energy;
 use nudyn::integrate::{AdvanceError, Carry, Integrator, Method, Settings};
 use nudyn::model::{LinkJoint, Model};
 use nudyn::workspace::Workspace;
@@ -701,9 +702,4 @@ impl Slave {
     pub fn deserialize(&self, bytes: &[u8]) -> Result<Snapshot, SlaveError> {
         Ok(Snapshot::deserialize(bytes, &self.guid, self.model.nq, self.model.nv)?)
     }
-}
-
-/// K = ½|ν|².
-fn kinetic_energy(nu: &[f64]) -> f64 {
-    0.5 * nu.iter().map(|x| x * x).sum::<f64>()
 }

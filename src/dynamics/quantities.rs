@@ -5,10 +5,15 @@ use crate::math::SpatialVec;
 use crate::model::Model;
 use crate::workspace::{Stage, Workspace};
 
+/// K = ½|ν|² (paper (1.2), corrected: DYNAMICS.md §1).
+pub fn kinetic_energy(nu: &[f64]) -> f64 {
+    0.5 * nu.iter().map(|x| x * x).sum::<f64>()
+}
+
 impl Workspace {
-    /// K = ½|ν|² (paper (1.2), corrected: DYNAMICS.md §1).
+    /// K = ½|ν|² of the workspace's ν.
     pub fn kinetic_energy(&self) -> f64 {
-        0.5 * self.nu.norm_squared()
+        kinetic_energy(self.nu.as_slice())
     }
 
     /// Power of the applied ε: ν·ε (Lemma 3).

@@ -17,6 +17,7 @@
 use super::rkmk::{Integrator, retract};
 use super::tableau::ErrorEstimate;
 use crate::dynamics::DynamicsError;
+use crate::dynamics::quantities::kinetic_energy;
 use crate::model::{LinkJoint, Model};
 use crate::workspace::Workspace;
 
@@ -278,15 +279,6 @@ impl Integrator {
         self.k_nu[..stages].iter().flat_map(|k| k.iter()).fold(0.0, |m: f64, x| m.max(x.abs()))
     }
 
-    /// The first non-finite value of the attempted step, if any.
-    fn non_finite_result(&self) -> Option<DynamicsError> {
-        let update = self.nu_next.iter().chain(self.delta.iter());
-        update
-            .enumerate()
-            .find(|(_, x)| !x.is_finite())
-            .map(|(index, &value)| DynamicsError::NonFinite { what: "integrated state", index, value })
-    }
-
     /// Takes the attempted step, adds its work to `carry`, and projects ν
     /// onto the energy balance if asked.
     fn accept_with_energy(
@@ -299,12 +291,12 @@ impl Integrator {
         carry: &mut Carry,
     ) {
         let work = self.step_work(h);
-        let energy_before = 0.5 * nu.iter().map(|x| x * x).sum::<f64>();
+        let energy_before = kinetic_energy(nu);
         self.accept(model, theta, nu);
         carry.work += work;
         if settings.energy_projection {
             let target = energy_before + work;
-            let energy = 0.5 * nu.iter().map(|x| x * x).sum::<f64>();
+            let energy = kinetic_energy(nu);
             if target > 0.0 && energy > 0.0 {
                 let scale = (target / energy).sqrt();
                 nu.iter_mut().for_each(|x| *x *= scale);
@@ -356,15 +348,9 @@ impl Integrator {
         self.first.qvel.copy_from(&ws.qvel);
         self.first.nu_dot.copy_from(&ws.nu_dot);
         self.first.valid = true;
-        let n = 2.0 * model.nv as f64;
-        let (mut size, mut rate) = (0.0, 0.0);
-        for (dof, position) in positions(model, theta) {
-            let position = position.map_or(0.0, f64::abs);
-            let (scale_delta, scale_nu) = (tolerance * (1.0 + position), tolerance * (1.0 + nu[dof].abs()));
-            size += (position / scale_delta).powi(2) + (nu[dof] / scale_nu).powi(2);
-            rate += (self.first.qvel[dof] / scale_delta).powi(2) + (self.first.nu_dot[dof] / scale_nu).powi(2);
-        }
-        let (size, rate) = ((size / n).sqrt(), (rate / n).sqrt());
+        let first = &self.first;
+        let size = start_norm(model, theta, nu, tolerance, |dof, position| (position, nu[dof]));
+        let rate = start_norm(model, theta, nu, tolerance, |dof, _| (first.qvel[dof], first.nu_dot[dof]));
         // Overflowing norms (huge rates) make the heuristic meaningless: start
         // small and let the error control decide.
         let h0 = 0.01 * size / rate;
@@ -381,20 +367,35 @@ impl Integrator {
         ws.set_configuration(model, self.theta_stage.as_slice())?;
         ws.set_nu(model, self.nu_stage.as_slice())?;
         ws.compute_nu_dot(model, self.eps_stage.as_slice())?;
-        let mut curvature = 0.0;
-        for (dof, position) in positions(model, theta) {
-            let position = position.map_or(0.0, f64::abs);
-            let (scale_delta, scale_nu) = (tolerance * (1.0 + position), tolerance * (1.0 + nu[dof].abs()));
-            curvature += ((ws.qvel[dof] - self.first.qvel[dof]) / scale_delta).powi(2)
-                + ((ws.nu_dot[dof] - self.first.nu_dot[dof]) / scale_nu).powi(2);
-        }
-        let curvature = (curvature / n).sqrt() / h0;
+        let first = &self.first;
+        let change = |dof, _| (ws.qvel[dof] - first.qvel[dof], ws.nu_dot[dof] - first.nu_dot[dof]);
+        let curvature = start_norm(model, theta, nu, tolerance, change) / h0;
         let largest = rate.max(curvature);
         let order = self.method.tableau().order as f64;
         let h1 = if largest <= 1e-15 { (h0 * 1e-3).max(1e-6) } else { (0.01 / largest).powf(1.0 / order) };
         let h = (100.0 * h0).min(h1).min(settings.max_step);
         Ok(if h > 0.0 { h } else { h0 })
     }
+}
+
+/// The RMS over the dofs of `value(dof, |coordinate|)`, a (Δ, ν) pair
+/// scaled by tol·(1 + |θ|) and tol·(1 + |ν|) at the step's start: the
+/// norm of the starting-step heuristic.
+fn start_norm(
+    model: &Model,
+    theta: &[f64],
+    nu: &[f64],
+    tolerance: f64,
+    value: impl Fn(usize, f64) -> (f64, f64),
+) -> f64 {
+    let sum: f64 = positions(model, theta)
+        .map(|(dof, position)| {
+            let position = position.map_or(0.0, f64::abs);
+            let (delta, nu_part) = value(dof, position);
+            (delta / (tolerance * (1.0 + position))).powi(2) + (nu_part / (tolerance * (1.0 + nu[dof].abs()))).powi(2)
+        })
+        .sum();
+    (sum / (2.0 * model.nv as f64)).sqrt()
 }
 
 /// Each dof with the coordinate it moves, if that is a vector coordinate

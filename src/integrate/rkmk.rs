@@ -140,12 +140,20 @@ impl Integrator {
     ) -> Result<(), DynamicsError> {
         self.first.valid = false;
         self.attempt(model, ws, theta, nu, t, h, &mut eps_at)?;
-        let update = self.nu_next.iter().chain(self.delta.iter());
-        if let Some((index, &value)) = update.enumerate().find(|(_, x)| !x.is_finite()) {
-            return Err(DynamicsError::NonFinite { what: "integrated state", index, value });
+        if let Some(cause) = self.non_finite_result() {
+            return Err(cause);
         }
         self.accept(model, theta, nu);
         Ok(())
+    }
+
+    /// The first non-finite value of the attempted step, if any.
+    pub(super) fn non_finite_result(&self) -> Option<DynamicsError> {
+        let update = self.nu_next.iter().chain(self.delta.iter());
+        update
+            .enumerate()
+            .find(|(_, x)| !x.is_finite())
+            .map(|(index, &value)| DynamicsError::NonFinite { what: "integrated state", index, value })
     }
 
     /// Evaluates the stages of a step of size `h` from (θ, ν) at time `t`
