@@ -51,11 +51,12 @@ pub const DEFAULT_TOLERANCE: f64 = 1e-8;
 
 /// The FMU's log categories (name, description); the FMU indexes them by
 /// position. Errors are logged by default, calls only with loggingOn.
-pub const LOG_CATEGORIES: [(&str, &str); 4] = [
+pub const LOG_CATEGORIES: [(&str, &str); 5] = [
     ("logStatusDiscard", "why a step was discarded"),
     ("logStatusError", "why a call was refused or failed"),
     ("logStatusFatal", "unrecoverable failures"),
     ("logCalls", "every call and its status (debug)"),
+    ("logStatusWarning", "a step that completed at a looser tolerance than asked"),
 ];
 
 /// The optional outputs chosen at export; those not chosen do not exist in

@@ -252,6 +252,15 @@ fn simulate(model_path: &Path, step: f64, stop: f64, method: Method, settings: &
         trajectory.theta.push(theta.clone());
         trajectory.nu.push(nu.clone());
     }
+    if carry.relaxation > 1.0 {
+        eprintln!(
+            "warning: tolerance {:e} per second is below what round-off in this vehicle's rates allows: \
+             the error was held to {:e} per second (and to {:e} per internal step)",
+            settings.tolerance,
+            carry.attained_tolerance(settings.tolerance),
+            settings.tolerance
+        );
+    }
     println!("{}", serde_json::to_string(&trajectory)?);
     Ok(())
 }

@@ -111,6 +111,7 @@ fn adaptive_runs_meet_their_tolerance() {
                     result.steps
                 );
                 assert!(result.steps > previous_steps, "a tighter tolerance takes more steps");
+                assert_eq!(result.carry.relaxation, 0.0, "round-off never limits these well-conditioned trees");
                 previous_steps = result.steps;
             }
         }
@@ -172,4 +173,54 @@ fn energy_residual_follows_the_tolerance() {
     assert!(loose < 2.0 * 1e-5 && tight < 2.0 * 1e-9, "{loose:.1e}, {tight:.1e}");
     assert!(tight < loose / 10.0, "{tight:.1e} vs {loose:.1e}");
     assert!(projected < 1e-12, "{projected:.1e}");
+}
+
+/// Three rods of inertia diag(1e-9, 1, 1) on a bus: M has three
+/// near-null directions (each rod spinning about its own axis), whose pivots
+/// come out of sums of order 10 cancelling to 1e-9, so round-off in ν̇ is
+/// about 1e-5 of it: more than a tolerance of 1e-8 per second allows, at
+/// any step size. The error control must then say so (the relaxation) and
+/// go on, as accurate as double precision lets this vehicle be: fixed-step
+/// DOP853 runs at 2e-4 … 2.5e-5 s, whose truncation errors are far below
+/// round-off, disagree among themselves by ~1e-5 (the spread); the adaptive
+/// runs must be within 3× the larger of the spread and the relaxed
+/// tolerance × time of them (measured: DOPRI5 0.7×, DOP853 2.1×, its
+/// 200 steps of ~5 ms letting this vehicle's sensitivity grow them), and
+/// keep K (invariant here) to the relaxed tolerance.
+#[test]
+fn round_off_in_the_rates_relaxes_the_tolerance_and_says_so() {
+    let imported = nudyn::mjcf::load_mjcf(std::path::Path::new("tests/fixtures/thin_rods.xml")).unwrap();
+    let model = Model::compile(&imported.vehicle).unwrap();
+    let mut theta = model.qpos0.clone();
+    // Bend the rods so that the near-null directions couple to the rest.
+    theta[7..11].copy_from_slice(&[0.9553, 0.0, 0.0, 0.2955]);
+    theta[11..15].copy_from_slice(&[0.9801, 0.0, 0.1987, 0.0]);
+    // Rates of a few rad/s (a random ν would spin the rods at 1e4 rad/s).
+    let mut rng = Rng::new(8);
+    let mut ws = model.workspace();
+    ws.set_configuration(&model, &theta).unwrap();
+    ws.set_qvel(&model, &rng.vec(model.nv, 2.0)).unwrap();
+    let start = (theta, ws.nu.as_slice().to_vec());
+    let intervals = (0.05, 20);
+    let duration = 0.05 * 20.0;
+    let fixed = |h| Settings { tolerance: 1.0, max_step: h, energy_projection: false };
+    let reference = run(&model, &start, Method::Dop853, fixed(1e-4), intervals, no_eps);
+    let spread = [2e-4, 5e-5, 2.5e-5]
+        .map(|h| scaled_error(&run(&model, &start, Method::Dop853, fixed(h), intervals, no_eps), &reference))
+        .into_iter()
+        .fold(0.0, f64::max);
+    assert!(spread > 1e-6, "round-off should limit this vehicle: fixed steps agree to {spread:.1e}");
+    let energy = |nu: &[f64]| 0.5 * nu.iter().map(|x| x * x).sum::<f64>();
+    let tolerance = 1e-8;
+    for method in [Method::Dopri5, Method::Dop853] {
+        let result = run(&model, &start, method, settings(tolerance), intervals, no_eps);
+        let attained = result.carry.attained_tolerance(tolerance);
+        assert!(attained > 10.0 * tolerance, "{method:?}: relaxation {}", result.carry.relaxation);
+        let error = scaled_error(&result, &reference);
+        let floor = spread.max(attained * duration);
+        assert!(error <= 3.0 * floor, "{method:?}: error {error:.2e}, fixed-step spread {spread:.2e}");
+        let k0 = energy(&start.1);
+        let k_drift = (energy(&result.states.last().unwrap().1) - k0).abs() / k0;
+        assert!(k_drift <= attained * duration, "{method:?}: K drift {k_drift:.2e}, attained {attained:.2e}");
+    }
 }

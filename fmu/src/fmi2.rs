@@ -54,6 +54,7 @@ enum Category {
     Error = 1,
     Fatal = 2,
     Calls = 3,
+    Warning = 4,
 }
 
 /// Why a call is refused before or after reaching the slave.
@@ -160,6 +161,8 @@ struct Instance {
     slave: Slave,
     /// The FMU states handed out by this instance and not yet freed (addresses).
     states: BTreeSet<usize>,
+    /// A warning the last call completed with: its status is fmi2Warning.
+    warning: Option<String>,
 }
 
 /// The FMU state `state`, if it is among `states`, those an instance handed
@@ -250,7 +253,13 @@ unsafe fn enter(
         Ok(Err(CallError::IllegalState { function: function.name(), phase: instance.phase.name() }))
     };
     let status = match result {
-        Ok(Ok(())) => fmi2Status_fmi2OK,
+        Ok(Ok(())) => match instance.warning.take() {
+            Some(message) => {
+                instance.logger.log(fmi2Status_fmi2Warning, Category::Warning, &message);
+                fmi2Status_fmi2Warning
+            }
+            None => fmi2Status_fmi2OK,
+        },
         Ok(Err(error)) => {
             let status = error.status();
             if status == fmi2Status_fmi2Error {
@@ -369,7 +378,7 @@ pub unsafe extern "C" fn fmi2Instantiate(
     };
     match catch_unwind(AssertUnwindSafe(instantiate)) {
         Ok(Ok(slave)) => {
-            let instance = Instance { logger, phase: Phase::Instantiated, slave, states: BTreeSet::new() };
+            let instance = Instance { logger, phase: Phase::Instantiated, slave, states: BTreeSet::new(), warning: None };
             let c = Box::into_raw(Box::new(instance));
             instances().insert(c as usize);
             c as fmi2Component
@@ -830,7 +839,8 @@ pub unsafe extern "C" fn fmi2DoStep(
             {
                 instance.phase = Phase::StepFailed;
             }
-            Ok(result?)
+            instance.warning = result?.map(|relaxed| format!("fmi2DoStep: {relaxed}"));
+            Ok(())
         })
     }
 }

@@ -85,6 +85,22 @@ impl SlaveState {
     }
 }
 
+/// A step that completed with the tolerance relaxed (fmi2Warning).
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "tolerance {tolerance:e} per second is below what round-off in this vehicle's rates allows: \
+     from the step at t = {time} s on, the error is held to {attained:e} per second \
+     (and to {tolerance:e} per internal step)"
+)]
+pub struct ToleranceRelaxed {
+    /// The communication point of the step.
+    pub time: f64,
+    /// The tolerance asked for.
+    pub tolerance: f64,
+    /// The tolerance held.
+    pub attained: f64,
+}
+
 /// Why a slave call is refused or failed.
 #[derive(Debug, thiserror::Error)]
 pub enum SlaveError {
@@ -606,8 +622,9 @@ impl Slave {
     /// method (internal steps independent of the communication step), with
     /// ε(t) = ε + dε/dt·(t − time); the ramp applies to this step only.
     /// If the integration stops inside the step, the state stays at the
-    /// last successful internal step and the time says where.
-    pub fn do_step(&mut self, time: f64, step: f64) -> Result<(), SlaveError> {
+    /// last successful internal step and the time says where. A step that
+    /// completed only by relaxing the tolerance says so.
+    pub fn do_step(&mut self, time: f64, step: f64) -> Result<Option<ToleranceRelaxed>, SlaveError> {
         let s = &mut self.state;
         if (time - s.time).abs() > TIME_TOLERANCE * s.time.abs().max(1.0) {
             return Err(SlaveError::CommunicationPoint { expected: s.time, found: time });
@@ -626,6 +643,7 @@ impl Slave {
             }
         };
         let (model, ws, integrator) = (&self.model, &mut self.ws, &mut self.integrator);
+        let relaxation_before = s.carry.relaxation;
         let result =
             integrator.advance(model, ws, &mut s.theta, &mut s.nu, (time, time + step), &settings, &mut s.carry, applied);
         self.evaluated = Evaluated::Nothing;
@@ -633,7 +651,12 @@ impl Slave {
             Ok(_) => {
                 s.time = time + step;
                 s.eps_rate.fill(0.0);
-                Ok(())
+                let relaxed = s.carry.relaxation > relaxation_before.max(1.0);
+                Ok(relaxed.then(|| ToleranceRelaxed {
+                    time,
+                    tolerance: s.tolerance,
+                    attained: s.carry.attained_tolerance(s.tolerance),
+                }))
             }
             Err(source) => {
                 s.time = source.reached();

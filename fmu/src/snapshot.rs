@@ -14,8 +14,9 @@ use crate::state::Phase;
 /// Identifies a nudyn FMU state blob.
 const MAGIC: &[u8; 8] = b"nudynFMS";
 /// Version of the byte layout below (2: the state machine's state; 3: the
-/// integration method, energy projection, carried step, work and K₀).
-const VERSION: u32 = 3;
+/// integration method, energy projection, carried step, work and K₀; 4: the
+/// error control's relaxation).
+const VERSION: u32 = 4;
 
 /// A saved state of one FMU (its GUID names the FMU it belongs to).
 #[derive(Clone, Debug, PartialEq)]
@@ -111,7 +112,7 @@ impl Snapshot {
     /// Number of scalars after the header: eight times, settings and
     /// integration values, then theta, nu, eps, eps_rate.
     fn scalar_count(nq: usize, nv: usize) -> usize {
-        8 + nq + 3 * nv
+        9 + nq + 3 * nv
     }
 
     /// The size of [`Snapshot::serialize`]'s output.
@@ -143,6 +144,7 @@ impl Snapshot {
             s.carry.next_step,
             s.carry.work,
             s.initial_energy,
+            s.carry.relaxation,
         ];
         for x in scalars.iter().chain(&s.theta).chain(&s.nu).chain(&s.eps).chain(&s.eps_rate) {
             bytes.extend_from_slice(&x.to_le_bytes());
@@ -190,7 +192,7 @@ impl Snapshot {
             .filter(|&p| p != Phase::Fatal)
             .ok_or(SnapshotError::Phase(phase_code))?;
         let method = *Method::ALL.get(usize::from(method_index)).ok_or(SnapshotError::UnknownMethod(method_index))?;
-        let (settings, vectors) = scalars.split_at(8);
+        let (settings, vectors) = scalars.split_at(9);
         check_values(settings, vectors)?;
         let (theta, rest) = vectors.split_at(nq);
         let (nu, rest) = rest.split_at(nv);
@@ -206,7 +208,7 @@ impl Snapshot {
                 max_step: settings[4],
                 method,
                 energy_projection,
-                carry: Carry { next_step: settings[5], work: settings[6] },
+                carry: Carry { next_step: settings[5], work: settings[6], relaxation: settings[8] },
                 initial_energy: settings[7],
                 theta: theta.to_vec(),
                 nu: nu.to_vec(),
@@ -219,11 +221,20 @@ impl Snapshot {
 
 /// Checks what fmi2SetupExperiment and fmi2SetReal would have refused:
 /// every value finite, `tolerance` and `max_step` positive, the carried
-/// step and K₀ not negative. (The stop time
+/// step, K₀ and the relaxation not negative. (The stop time
 /// is checked even when it is not defined: the writer stores 0 then.)
 fn check_values(settings: &[f64], vectors: &[f64]) -> Result<(), SnapshotError> {
-    const NAMES: [&str; 8] =
-        ["time", "start_time", "stop_time", "tolerance", "max_step", "next step", "work", "initial energy"];
+    const NAMES: [&str; 9] = [
+        "time",
+        "start_time",
+        "stop_time",
+        "tolerance",
+        "max_step",
+        "next step",
+        "work",
+        "initial energy",
+        "relaxation",
+    ];
     for (&what, &value) in NAMES.iter().zip(settings) {
         if !value.is_finite() {
             return Err(SnapshotError::Value { what, value, must: "finite" });
@@ -234,7 +245,7 @@ fn check_values(settings: &[f64], vectors: &[f64]) -> Result<(), SnapshotError> 
             return Err(SnapshotError::Value { what, value, must: "positive" });
         }
     }
-    for (&what, &value) in [(&NAMES[5], &settings[5]), (&NAMES[7], &settings[7])] {
+    for (&what, &value) in [5, 7, 8].map(|i| (&NAMES[i], &settings[i])) {
         if value < 0.0 {
             return Err(SnapshotError::Value { what, value, must: "non-negative" });
         }
@@ -287,7 +298,7 @@ mod tests {
                 max_step: 1e-3,
                 method: Method::Dopri5,
                 energy_projection: true,
-                carry: Carry { next_step: 2.5e-3, work: -0.75 },
+                carry: Carry { next_step: 2.5e-3, work: -0.75, relaxation: 3.0 },
                 initial_energy: 1.25,
                 theta: vec![1.0, 0.0, 0.0, 0.0, std::f64::consts::PI],
                 nu: vec![1e-300, -0.0, 3.5, 7.25],

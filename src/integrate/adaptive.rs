@@ -7,6 +7,15 @@
 //! tol·(1 + |y|) per component (relative and absolute tolerance both `tol`):
 //! y is ν, a hinge or slide coordinate or a free joint's position; rotations
 //! (rotation vectors of ball and free joints) are measured absolutely, in rad.
+//! A step passes when its error is within tol·h/(1 s) (`TOLERANCE_TIME`).
+//!
+//! Round-off in the rates does not shrink with the step: on an
+//! ill-conditioned vehicle (near-singular inertias, very long chains) it can
+//! exceed tol per second at every step size. When the error estimate is
+//! seen not to fall as the step is cut (`at_round_off_floor`), the
+//! per-second tolerance is relaxed to ten times that level (`Carry::
+//! relaxation`, reported by the caller), never beyond tol per step; a run
+//! that cannot hold even that stops with `StepTooSmall`.
 //!
 //! With `energy_projection`, ν is rescaled after each step so that
 //! K = ½|ν|² equals K before the step plus the step's quadrature of the
@@ -41,6 +50,18 @@ pub struct Carry {
     /// ∫ν·ν̇ dt since the start (J): the work of all forces, for the energy
     /// residual K − K₀ − work.
     pub work: f64,
+    /// How far round-off in the rates has put the tolerance out of reach:
+    /// steps are accepted at tolerance × this (1 when it has not; 0 before
+    /// the first step means 1).
+    pub relaxation: f64,
+}
+
+impl Carry {
+    /// The tolerance the error control has actually held: `tolerance` unless
+    /// round-off in the rates made it unattainable (`relaxation`).
+    pub fn attained_tolerance(&self, tolerance: f64) -> f64 {
+        tolerance * self.relaxation.max(1.0)
+    }
 }
 
 /// Counts of one call to `advance`.
@@ -138,6 +159,23 @@ pub const MAX_ADAPTIVE_STEPS: usize = 100_000;
 /// of steps, rather than near tol per step.
 pub const TOLERANCE_TIME: f64 = 1.0;
 
+/// Whether an attempted step's error estimate is round-off rather than
+/// truncation error: since the first rejection at this t the step has been
+/// at least halved, and the per-second error fell by less than the square of
+/// that factor (truncation error falls at least by its 4th power, round-off
+/// in the rates not at all), while the step passes the classic per-step
+/// test. Round-off in the rates (ill-conditioned inertias, long chains) does
+/// not shrink with the step, so per-second control would shrink it to nothing.
+fn at_round_off_floor(per_step: f64, (step, per_second): (f64, f64), (first_step, first_per_second): (f64, f64)) -> bool {
+    let shrink = step / first_step;
+    per_step <= 1.0 && shrink <= 0.5 && per_second >= first_per_second * shrink * shrink
+}
+
+/// How far above the round-off level found the error control then sets its
+/// tolerance: close to the floor the estimate is all noise, which does not
+/// shrink with the step, so the controller could not grow the step again.
+const ROUND_OFF_MARGIN: f64 = 10.0;
+
 /// Safety factor of the step-size controller.
 const SAFETY: f64 = 0.9;
 
@@ -216,7 +254,8 @@ impl Integrator {
             self.initial_step(model, ws, theta, nu, t0, settings, eps_at)
                 .map_err(|cause| AdvanceError::StepFailed { reached: t0, step: 0.0, cause })?
         };
-        let mut last_rejected = false;
+        // (step, per-second error) of the first of the rejections at this t.
+        let mut first_rejection: Option<(f64, f64)> = None;
         let mut last_cause = None;
         // Within this of t1 the interval is done: a step that small is only
         // round-off, and the smallest step allowed below could not take it.
@@ -231,24 +270,33 @@ impl Integrator {
             if stats.accepted + stats.rejected >= MAX_ADAPTIVE_STEPS {
                 return Err(AdvanceError::TooManySteps { reached: t, step, tolerance });
             }
-            let error = match self.attempt(model, ws, theta, nu, t, step, eps_at) {
-                Ok(()) => self.error_norm(model, theta, nu, tolerance) / (step / TOLERANCE_TIME).min(1.0),
+            let per_step = match self.attempt(model, ws, theta, nu, t, step, eps_at) {
+                Ok(()) => self.error_norm(model, theta, nu, tolerance),
                 Err(cause) => {
                     last_cause = Some(Overflow::Dynamics(cause));
                     f64::INFINITY
                 }
             };
+            let per_second = per_step / (step / TOLERANCE_TIME).min(1.0);
+            if let Some(first_rejected) = first_rejection
+                && at_round_off_floor(per_step, (step, per_second), first_rejected)
+            {
+                carry.relaxation = carry.relaxation.max(ROUND_OFF_MARGIN * per_second);
+            }
+            // The per-second test, relaxed where round-off rules it out, but
+            // never looser than the classic per-step test.
+            let error = (per_second / carry.relaxation.max(1.0)).max(per_step);
             if error <= 1.0 {
                 self.accept_with_energy(model, theta, nu, step, settings, carry);
                 t = if step == remaining { t1 } else { t + step };
                 stats.accepted += 1;
                 let mut factor = (SAFETY * error.powf(-tableau.controller_exponent)).clamp(shrink_limit, grow_limit);
-                if last_rejected {
+                if first_rejection.is_some() {
                     factor = factor.min(1.0);
                 }
                 // A step cut short to land on t1 says little about the next one.
                 h = if step < planned { (step * factor).max(planned) } else { step * factor };
-                last_rejected = false;
+                first_rejection = None;
                 last_cause = None;
             } else {
                 if error.is_finite() {
@@ -266,7 +314,7 @@ impl Integrator {
                 };
                 h = step * factor;
                 stats.rejected += 1;
-                last_rejected = true;
+                first_rejection.get_or_insert((step, per_second));
             }
         }
         carry.next_step = h;
@@ -408,3 +456,4 @@ fn positions<'a>(model: &'a Model, theta: &'a [f64]) -> impl Iterator<Item = (us
         })
     })
 }
+

@@ -21,7 +21,10 @@ from fmpy.fmi2 import (
     fmi2CallbackFunctions,
     fmi2CallbackLoggerTYPE,
     fmi2LastSuccessfulTime,
+    fmi2OK,
     fmi2Terminated,
+    fmi2True,
+    fmi2Warning,
 )
 from fmpy.validation import validate_fmu
 
@@ -598,3 +601,34 @@ def test_fmu_equals_core_integration_with_adaptive_methods(exported, nudyn, meth
                            "--method", method, "--tolerance", "1e-7", "--max-step", "0.05")
     fmu = np.column_stack([result[n] for n in theta_names + nu_names])
     np.testing.assert_allclose(fmu, np.hstack([core["theta"], core["nu"]]), rtol=1e-13, atol=1e-13)
+
+
+def test_unattainable_tolerance_is_a_warning_not_a_failure(nudyn, fmu_library, tmp_path):
+    """Rods of inertia diag(1e-9, 1, 1): round-off in ν̇ exceeds 1e-8 per
+    second at any step size. The steps complete with fmi2Warning, a
+    logStatusWarning message says what tolerance was held instead, and the
+    outputs stay finite (before, every adaptive step was discarded)."""
+    from nudyn_stress.measures import nu_of
+
+    model = ROOT / "tests" / "fixtures" / "thin_rods.xml"
+    path = export(nudyn, fmu_library, model, tmp_path / "thin_rods.fmu")
+    description = read_model_description(str(path))
+    theta = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.9553, 0.0, 0.0, 0.2955, 0.9801, 0.0, 0.1987, 0.0, 0.0]
+    qvel = np.random.default_rng(8).normal(0.0, 2.0, len(theta) - 3)
+    nu = nu_of(nudyn, model, theta, qvel)
+    start = {f"theta[{k + 1}]": x for k, x in enumerate(theta)} | {f"nu[{k + 1}]": x for k, x in enumerate(nu)}
+    slave = Slave(path, extract(str(path), str(tmp_path / "unzipped")), start, experiment_tolerance=1e-8,
+                  method="dop853")
+    statuses = []
+    for _ in range(50):
+        statuses.append(slave.fmu.fmi2DoStep(slave.fmu.component, slave.time, STEP, fmi2True))
+        slave.time += STEP
+    assert fmi2Warning in statuses and set(statuses) <= {fmi2OK, fmi2Warning}, statuses
+    warnings = [m for s, c, m in slave.log.messages if c == "logStatusWarning"]
+    assert len(warnings) == statuses.count(fmi2Warning) and all(s == fmi2Warning for s, c, _ in slave.log.messages)
+    held = [float(re.search(r"held to ([0-9.e+-]+) per second", m).group(1)) for m in warnings]
+    assert all("tolerance 1e-8 per second is below what round-off" in m for m in warnings), warnings[0]
+    assert held == sorted(held) and held[0] > 1e-8, held
+    assert slave.fmu.getRealStatus(fmi2LastSuccessfulTime) == pytest.approx(50 * STEP)
+    assert np.all(np.isfinite(slave.all_reals()))
+    slave.fmu.freeInstance()
