@@ -42,6 +42,7 @@ use std::sync::{Mutex, PoisonError};
 
 use fmi_sys::fmi2::*;
 use nudyn::export::LOG_CATEGORIES;
+use nudyn::integrate::Stats;
 
 use crate::slave::{Slave, SlaveError};
 use crate::snapshot::Snapshot;
@@ -839,7 +840,13 @@ pub unsafe extern "C" fn fmi2DoStep(
             {
                 instance.phase = Phase::StepFailed;
             }
-            instance.warning = result?.map(|relaxed| format!("fmi2DoStep: {relaxed}"));
+            let report = result?;
+            if instance.logger.enabled[Category::Calls as usize] {
+                let Stats { accepted, rejected } = report.stats;
+                let message = format!("fmi2DoStep: {accepted} internal steps taken, {rejected} rejected");
+                instance.logger.log(fmi2Status_fmi2OK, Category::Calls, &message);
+            }
+            instance.warning = report.relaxed.map(|relaxed| format!("fmi2DoStep: {relaxed}"));
             Ok(())
         })
     }

@@ -15,7 +15,7 @@ use nudyn::export::{
     RESOURCE_FORMAT, RealVariable, method_of_value, method_value,
 };
 use nudyn::dynamics::quantities::kinetic_energy;
-use nudyn::integrate::{AdvanceError, Carry, Integrator, Method, Settings};
+use nudyn::integrate::{AdvanceError, Carry, Integrator, Method, Settings, Stats};
 use nudyn::model::{LinkJoint, Model};
 use nudyn::workspace::Workspace;
 
@@ -83,6 +83,15 @@ impl SlaveState {
             eps_rate: vec![0.0; model.nv],
         }
     }
+}
+
+/// What a completed fmi2DoStep did.
+#[derive(Debug)]
+pub struct StepReport {
+    /// The internal steps taken and rejected.
+    pub stats: Stats,
+    /// Set when the tolerance had to be relaxed (fmi2Warning).
+    pub relaxed: Option<ToleranceRelaxed>,
 }
 
 /// A step that completed with the tolerance relaxed (fmi2Warning).
@@ -624,7 +633,7 @@ impl Slave {
     /// If the integration stops inside the step, the state stays at the
     /// last successful internal step and the time says where. A step that
     /// completed only by relaxing the tolerance says so.
-    pub fn do_step(&mut self, time: f64, step: f64) -> Result<Option<ToleranceRelaxed>, SlaveError> {
+    pub fn do_step(&mut self, time: f64, step: f64) -> Result<StepReport, SlaveError> {
         let s = &mut self.state;
         if (time - s.time).abs() > TIME_TOLERANCE * s.time.abs().max(1.0) {
             return Err(SlaveError::CommunicationPoint { expected: s.time, found: time });
@@ -648,15 +657,16 @@ impl Slave {
             integrator.advance(model, ws, &mut s.theta, &mut s.nu, (time, time + step), &settings, &mut s.carry, applied);
         self.evaluated = Evaluated::Nothing;
         match result {
-            Ok(_) => {
+            Ok(stats) => {
                 s.time = time + step;
                 s.eps_rate.fill(0.0);
                 let relaxed = s.carry.relaxation > relaxation_before.max(1.0);
-                Ok(relaxed.then(|| ToleranceRelaxed {
+                let relaxed = relaxed.then(|| ToleranceRelaxed {
                     time,
                     tolerance: s.tolerance,
                     attained: s.carry.attained_tolerance(s.tolerance),
-                }))
+                });
+                Ok(StepReport { stats, relaxed })
             }
             Err(source) => {
                 s.time = source.reached();

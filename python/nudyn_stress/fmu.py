@@ -6,6 +6,7 @@ call or a discarded step is a result here, not a crash."""
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import time
 from dataclasses import dataclass, field
@@ -65,17 +66,34 @@ class Package:
 
 
 class Log:
-    """An FMPy logger that keeps (status, category, message)."""
+    """An FMPy logger that keeps (status, category, message), except the
+    logCalls debug messages, of which it counts the internal steps that
+    fmi2DoStep reports."""
+
+    STEPS = re.compile(r"fmi2DoStep: (\d+) internal steps taken, (\d+) rejected")
 
     def __init__(self):
         self.messages: list[tuple[int, str, str]] = []
+        self.steps_taken = 0
+        self.steps_rejected = 0
         self.callbacks = fmi2CallbackFunctions()
         self.callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
         self.callbacks.allocateMemory = fmi2CallbackFunctions._fields_[1][1](lambda n, size: None)
         self.callbacks.freeMemory = fmi2CallbackFunctions._fields_[2][1](lambda p: None)
 
     def _log(self, _env, _name, status, category, message):
-        self.messages.append((status, category.decode(), message.decode()))
+        category, message = category.decode(), message.decode()
+        if category != "logCalls":
+            self.messages.append((status, category, message))
+        elif steps := self.STEPS.match(message):
+            self.steps_taken += int(steps.group(1))
+            self.steps_rejected += int(steps.group(2))
+
+    def held_tolerance(self) -> float | None:
+        """The per-second tolerance the FMU last said it held instead of
+        the one asked for (round-off in the rates), if it said so."""
+        held = [re.search(r"held to (\S+) per second", m) for _, c, m in self.messages if c == "logStatusWarning"]
+        return float(held[-1].group(1)) if held else None
 
     def last(self) -> str:
         return self.messages[-1][2] if self.messages else ""
@@ -114,7 +132,7 @@ class Instance:
             modelIdentifier=package.description.coSimulation.modelIdentifier,
             instanceName=name,
         )
-        self.fmu.instantiate(callbacks=self.log.callbacks)
+        self.fmu.instantiate(callbacks=self.log.callbacks, loggingOn=True)  # logCalls: the step counts
         self.fmu.setupExperiment(startTime=0.0)
         vr = package.vr
         self.fmu.setInteger([vr["method"]], [package.methods[setup.method]])
@@ -196,6 +214,9 @@ class Run:
     do_steps: int = 0
     status: int = 0  # of the last doStep
     message: str = ""  # the FMU's message when a step failed
+    steps_taken: int = 0  # internal steps, as the FMU reports them
+    steps_rejected: int = 0
+    held_tolerance: float | None = None  # set when the FMU relaxed the tolerance
 
     def sample(self, instance: Instance) -> None:
         self.time.append(instance.time)
@@ -241,5 +262,7 @@ def simulate(package: Package, setup: Setup, theta0, nu0, duration: float, comm_
                 run.message = instance.log.last()
                 break
     finally:
+        run.steps_taken, run.steps_rejected = instance.log.steps_taken, instance.log.steps_rejected
+        run.held_tolerance = instance.log.held_tolerance()
         instance.close()
     return run

@@ -32,7 +32,7 @@ def case_table(result: CaseResult) -> str:
         f"Checked: {result.checked}. Verdict: **{'pass' if result.passed else 'FAIL'}**, {result.verdict}.",
         f"Figure: `{result.figure.name}`.",
         "",
-        "| set-up | outcome | max error | K drift | momentum drift | energy residual | ≈ steps/s | wall (s) | note |",
+        "| set-up | outcome | max error | K drift | momentum drift | energy residual | steps/s | wall (s) | note |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for row in result.rows:
@@ -48,8 +48,8 @@ LEGEND = (
     "Max error: max over time and components of |x − x_ref| / (1 + |x_ref|) for θ and ν (quaternions up "
     "to sign), the measure the FMU's tolerance uses, against the case's reference. K drift: max |K − K₀|/K₀ "
     "(where K is conserved). Momentum drift: max(|ΔL|/|L₀|, |Δp|/|p₀|). Energy residual: max |K − K₀ − ∫ν·ν̇ dt| / K₀, "
-    "the integration's energy error. ≈ steps/s: internal steps per simulated second estimated from the wall "
-    "time and the cost of one dynamics evaluation (measured with RK4); the FMU does not report its step count. "
+    "the integration's energy error. Steps/s: internal steps (taken and rejected) per simulated second, as the "
+    "FMU reports them in its logCalls messages. "
     "Wall: seconds spent in fmi2DoStep. Defaults: dop853, tolerance 1e-8 per second, max_step 0.01 s."
 )
 

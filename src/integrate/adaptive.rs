@@ -254,8 +254,10 @@ impl Integrator {
             self.initial_step(model, ws, theta, nu, t0, settings, eps_at)
                 .map_err(|cause| AdvanceError::StepFailed { reached: t0, step: 0.0, cause })?
         };
-        // (step, per-second error) of the first of the rejections at this t.
+        // (step, per-second error) of the first of the rejections at this t,
+        // and the least per-second error among them.
         let mut first_rejection: Option<(f64, f64)> = None;
+        let mut least_rejected = f64::INFINITY;
         let mut last_cause = None;
         // Within this of t1 the interval is done: a step that small is only
         // round-off, and the smallest step allowed below could not take it.
@@ -281,7 +283,8 @@ impl Integrator {
             if let Some(first_rejected) = first_rejection
                 && at_round_off_floor(per_step, (step, per_second), first_rejected)
             {
-                carry.relaxation = carry.relaxation.max(ROUND_OFF_MARGIN * per_second);
+                // The least error seen is the one least mixed with truncation error.
+                carry.relaxation = carry.relaxation.max(ROUND_OFF_MARGIN * per_second.min(least_rejected));
             }
             // The per-second test, relaxed where round-off rules it out, but
             // never looser than the classic per-step test.
@@ -297,6 +300,7 @@ impl Integrator {
                 // A step cut short to land on t1 says little about the next one.
                 h = if step < planned { (step * factor).max(planned) } else { step * factor };
                 first_rejection = None;
+                least_rejected = f64::INFINITY;
                 last_cause = None;
             } else {
                 if error.is_finite() {
@@ -315,6 +319,7 @@ impl Integrator {
                 h = step * factor;
                 stats.rejected += 1;
                 first_rejection.get_or_insert((step, per_second));
+                least_rejected = least_rejected.min(per_second);
             }
         }
         carry.next_step = h;
