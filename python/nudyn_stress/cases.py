@@ -240,7 +240,10 @@ def _accuracy_case(ctx, model, key, title, checked, theta0, nu0, eps_law, durati
         spread = 0.0
         if round_off_probe is not None:
             probe = simulate(package, round_off_probe, theta0, nu0, duration, comm_step, law)
-            spread = float(np.max(scaled_error(probe, reference, package.quaternion_starts)))
+            probe_error = scaled_error(probe, reference, package.quaternion_starts)
+            error_series[f"{round_off_probe.label()} (the spread), {label}"] = (np.array(probe.time[: len(probe_error)]),
+                                                                               probe_error)
+            spread = float(np.max(probe_error))
             numbers["spread"][label] = spread
             rows.append(_row(probe, reference=reference, quaternion_starts=package.quaternion_starts,
                              conserved=law is None, momentum_conserved=law is None,
