@@ -13,6 +13,7 @@ use nudyn::export::{ExportOptions, OptionalOutputs, model_identifier_from, write
 use nudyn::export::DEFAULT_TOLERANCE;
 use nudyn::integrate::{Carry, Integrator, Method, Settings};
 use nudyn::model::Model;
+use nudyn::vehicle::Vehicle;
 use serde::{Deserialize, Serialize};
 
 #[derive(Parser)]
@@ -129,11 +130,18 @@ fn run(cli: Cli) -> Result<()> {
 
 /// Imports and compiles an MJCF file, printing the importer's warnings.
 fn load_model(path: &Path) -> Result<Model> {
+    Ok(load_vehicle(path)?.1)
+}
+
+/// The vehicle as imported (body names and offsets, for a controller's
+/// end effector) and compiled, printing the importer's warnings.
+fn load_vehicle(path: &Path) -> Result<(Vehicle, Model)> {
     let imported = nudyn::mjcf::load_mjcf(path).with_context(|| format!("cannot import {}", path.display()))?;
     for warning in &imported.warnings {
         eprintln!("nudyn: warning: {}: {warning}", path.display());
     }
-    Model::compile(&imported.vehicle).with_context(|| format!("cannot compile {}", path.display()))
+    let model = Model::compile(&imported.vehicle).with_context(|| format!("cannot compile {}", path.display()))?;
+    Ok((imported.vehicle, model))
 }
 
 fn eval(model_path: &Path) -> Result<()> {
@@ -202,10 +210,9 @@ fn export(model_path: &Path, output: &Path, model_identifier: Option<String>, ou
 }
 
 fn export_controller(model_path: &Path, output: &Path, model_identifier: Option<String>, end_effector: Option<&str>) -> Result<()> {
-    let imported = nudyn::mjcf::load_mjcf(model_path).with_context(|| format!("cannot import {}", model_path.display()))?;
-    let model = load_model(model_path)?;
+    let (vehicle, model) = load_vehicle(model_path)?;
     let law = match end_effector {
-        Some(body) => ControlLaw::pose(&imported.vehicle, &model, body),
+        Some(body) => ControlLaw::pose(&vehicle, &model, body),
         None => ControlLaw::joints(&model),
     }
     .with_context(|| format!("cannot build the controller of {}", model_path.display()))?;
