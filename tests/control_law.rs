@@ -17,7 +17,7 @@ use nudyn::vehicle::{Body, JointKind, Vehicle};
 fn vehicle(seed: u64) -> Vehicle {
     let mut rng = Rng::new(seed);
     let bodies = 2 + rng.below(6);
-    random_vehicle(&mut rng, TreeOptions { bodies, free_base: seed % 2 == 0, passive: false, chain: false })
+    random_vehicle(&mut rng, TreeOptions { bodies, free_base: seed.is_multiple_of(2), passive: false, chain: false })
 }
 
 /// m⁻¹ x with m the dense upper factor of M(θ).

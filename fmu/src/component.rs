@@ -13,9 +13,9 @@ use crate::uri::resource_directory;
 /// The slave behind one FMU instance.
 pub enum Component {
     /// The vehicle's dynamics: ε in, θ and ν out.
-    Plant(Slave),
+    Plant(Box<Slave>),
     /// The control law: θ and ν in, ε out.
-    Controller(Controller),
+    Controller(Box<Controller>),
 }
 
 impl Component {
@@ -24,9 +24,9 @@ impl Component {
     pub fn load(resource_location: &str, guid: &str) -> Result<Component, SlaveError> {
         let directory = resource_directory(resource_location)?;
         if directory.join(CONTROLLER_RESOURCE_FILE).is_file() {
-            return Ok(Component::Controller(Controller::load(&directory, guid)?));
+            return Ok(Component::Controller(Box::new(Controller::load(&directory, guid)?)));
         }
-        Ok(Component::Plant(Slave::load(resource_location, guid)?))
+        Ok(Component::Plant(Box::new(Slave::load(resource_location, guid)?)))
     }
 
     /// fmi2Reset.
@@ -152,7 +152,10 @@ impl Component {
     /// Saves the state into an existing FMU state.
     pub fn save(&self, phase: Phase, snapshot: &mut Snapshot) -> Result<(), SlaveError> {
         match self {
-            Component::Plant(s) => Ok(s.save(phase, snapshot)),
+            Component::Plant(s) => {
+                s.save(phase, snapshot);
+                Ok(())
+            }
             Component::Controller(_) => Err(SlaveError::NoFmuState),
         }
     }

@@ -379,8 +379,8 @@ impl ControlWorkspace {
                 self.ws.eps_from_forces(model, self.torque.as_slice(), Some(&self.body_forces), self.eps.as_mut_slice())?;
             }
         }
-        for k in 0..model.nv {
-            self.eps[k] -= parameters.c1[k] * nu[k];
+        for ((eps, c1), nu) in self.eps.iter_mut().zip(&parameters.c1).zip(nu) {
+            *eps -= c1 * nu;
         }
         self.potential = 0.5 * self.error.iter().zip(c2).map(|(e, c)| c * e * e).sum::<f64>();
         Ok(())
