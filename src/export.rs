@@ -222,10 +222,16 @@ impl RealVariable {
 /// list, written as a braced UUID. The FMU recomputes it from the resource
 /// it loads, so a GUID that does not match the resources fails instantiation.
 pub fn guid(resource_json: &[u8], layout: &Layout) -> String {
+    guid_of(resource_json, layout.real_variables().map(|(vr, variable)| (vr, variable.name())))
+}
+
+/// The GUID of [`guid`] for any FMU nudyn writes: a SHA-256 of the resource
+/// and of its (value reference, name) list.
+pub fn guid_of(resource_json: &[u8], variables: impl Iterator<Item = (u32, String)>) -> String {
     let mut hasher = Sha256::new();
     hasher.update(resource_json);
-    for (vr, variable) in layout.real_variables() {
-        hasher.update(format!("\n{vr} {}", variable.name()).as_bytes());
+    for (vr, name) in variables {
+        hasher.update(format!("\n{vr} {name}").as_bytes());
     }
     let hex: String = hasher.finalize()[..16].iter().map(|b| format!("{b:02x}")).collect();
     format!("{{{}-{}-{}-{}-{}}}", &hex[0..8], &hex[8..12], &hex[12..16], &hex[16..20], &hex[20..32])
@@ -357,7 +363,7 @@ pub fn model_identifier_from(name: &str) -> String {
     }
 }
 
-fn is_c_identifier(name: &str) -> bool {
+pub(crate) fn is_c_identifier(name: &str) -> bool {
     let mut chars = name.chars();
     chars.next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
         && chars.all(|c| c.is_ascii_alphanumeric() || c == '_')
@@ -521,11 +527,23 @@ pub fn write_fmu(model: &Model, options: &ExportOptions, binary: &Path, out: &Pa
     let resource = resource_json(model, options.outputs)?;
     let guid = guid(&resource, &Layout::new(model, options.outputs));
     let description = model_description(model, options, &guid);
-    let problems = md::validate(&description);
+    write_archive(&description, (RESOURCE_PATH, &resource), binary, out)
+}
+
+/// Writes an FMU archive: `description` (validated first) as
+/// modelDescription.xml, `binary` as `binaries/linux64/<modelIdentifier>.so`
+/// and `resource` = (path in the archive, bytes).
+pub fn write_archive(
+    description: &md::FmiModelDescription,
+    resource: (&str, &[u8]),
+    binary: &Path,
+    out: &Path,
+) -> Result<(), ExportError> {
+    let problems = md::validate(description);
     if !problems.is_empty() {
         return Err(ExportError::InvalidModelDescription(problems));
     }
-    let xml = md::to_xml(&description)?;
+    let xml = md::to_xml(description)?;
     let library = std::fs::read(binary).map_err(|source| ExportError::Io { path: binary.to_path_buf(), source })?;
 
     let file = std::fs::File::create(out).map_err(|source| ExportError::Io { path: out.to_path_buf(), source })?;
@@ -538,8 +556,8 @@ pub fn write_fmu(model: &Model, options: &ExportOptions, binary: &Path, out: &Pa
     };
     let entries = [
         ("modelDescription.xml".to_string(), xml.as_bytes(), 0o644),
-        (format!("binaries/linux64/{}.so", options.model_identifier), &library[..], 0o755),
-        (RESOURCE_PATH.to_string(), &resource[..], 0o644),
+        (format!("binaries/linux64/{}.so", description.co_simulation.model_identifier), &library[..], 0o755),
+        (resource.0.to_string(), resource.1, 0o644),
     ];
     for (name, bytes, mode) in entries {
         archive.start_file(name, options_for(mode)).map_err(zip_error)?;

@@ -6,13 +6,15 @@
 //! - [`vehicle`]: a vehicle as its MJCF file describes it;
 //! - [`model`]: the immutable compiled model (serializable; the FMU's resource);
 //! - [`workspace`]: per-instance preallocated buffers, filled by the passes;
-//! - [`dynamics`]: the O(N) passes and the operators built from them.
+//! - [`dynamics`]: the O(N) passes and the operators built from them;
+//! - [`control`]: the paper's noninteracting controllers, and their FMU.
 #![warn(missing_docs)]
 
 pub mod math;
 pub mod mjcf;
 pub mod vehicle;
 pub mod dynamics;
+pub mod control;
 pub mod eval;
 pub mod export;
 pub mod integrate;

@@ -6,11 +6,14 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
+use nudyn::control::ControlLaw;
+use nudyn::control::export::write_controller_fmu;
 use nudyn::eval::{EvalRequest, EvalResponse, evaluate};
 use nudyn::export::{ExportOptions, OptionalOutputs, model_identifier_from, write_fmu};
 use nudyn::export::DEFAULT_TOLERANCE;
 use nudyn::integrate::{Carry, Integrator, Method, Settings};
 use nudyn::model::Model;
+use nudyn::vehicle::Vehicle;
 use serde::{Deserialize, Serialize};
 
 #[derive(Parser)]
@@ -49,8 +52,17 @@ enum Command {
         #[arg(long)]
         model_identifier: Option<String>,
         /// Optional outputs, comma-separated: qvel, kinetic_energy, power, momentum.
-        #[arg(long, default_value = "")]
+        #[arg(long, default_value = "", conflicts_with = "controller")]
         outputs: OptionalOutputs,
+        /// Write the controller FMU of the vehicle instead of the plant:
+        /// inputs theta, nu; output eps = -c1 nu + l J^T c2 (Yhat - Y);
+        /// Y = every hinge and slide joint value, or the pose of --end-effector.
+        /// Default model identifier: the file name with "_controller".
+        #[arg(long)]
+        controller: bool,
+        /// With --controller: Y is the pose (position and orientation) of this body.
+        #[arg(long, requires = "controller", value_name = "BODY")]
+        end_effector: Option<String>,
     },
     /// Integrate the vehicle as the FMU does, without the FMI layer: by
     /// default with one RK4 step per output interval H.
@@ -103,7 +115,10 @@ fn main() -> ExitCode {
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Eval { model } => eval(&model),
-        Command::Export { model, output, model_identifier, outputs } => {
+        Command::Export { model, output, model_identifier, controller: true, end_effector, .. } => {
+            export_controller(&model, &output, model_identifier, end_effector.as_deref())
+        }
+        Command::Export { model, output, model_identifier, outputs, .. } => {
             export(&model, &output, model_identifier, outputs)
         }
         Command::Simulate { model, step, stop, method, tolerance, max_step, energy_projection } => {
@@ -115,11 +130,18 @@ fn run(cli: Cli) -> Result<()> {
 
 /// Imports and compiles an MJCF file, printing the importer's warnings.
 fn load_model(path: &Path) -> Result<Model> {
+    Ok(load_vehicle(path)?.1)
+}
+
+/// The vehicle as imported (body names and offsets, for a controller's
+/// end effector) and compiled, printing the importer's warnings.
+fn load_vehicle(path: &Path) -> Result<(Vehicle, Model)> {
     let imported = nudyn::mjcf::load_mjcf(path).with_context(|| format!("cannot import {}", path.display()))?;
     for warning in &imported.warnings {
         eprintln!("nudyn: warning: {}: {warning}", path.display());
     }
-    Model::compile(&imported.vehicle).with_context(|| format!("cannot compile {}", path.display()))
+    let model = Model::compile(&imported.vehicle).with_context(|| format!("cannot compile {}", path.display()))?;
+    Ok((imported.vehicle, model))
 }
 
 fn eval(model_path: &Path) -> Result<()> {
@@ -185,6 +207,20 @@ fn export(model_path: &Path, output: &Path, model_identifier: Option<String>, ou
     };
     let library = fmu_library()?;
     write_fmu(&model, &options, &library, output).with_context(|| format!("cannot export {}", output.display()))
+}
+
+fn export_controller(model_path: &Path, output: &Path, model_identifier: Option<String>, end_effector: Option<&str>) -> Result<()> {
+    let (vehicle, model) = load_vehicle(model_path)?;
+    let law = match end_effector {
+        Some(body) => ControlLaw::pose(&vehicle, &model, body),
+        None => ControlLaw::joints(&model),
+    }
+    .with_context(|| format!("cannot build the controller of {}", model_path.display()))?;
+    let stem = model_path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let identifier = model_identifier.unwrap_or_else(|| model_identifier_from(&format!("{stem}_controller")));
+    let library = fmu_library()?;
+    write_controller_fmu(&model, &law, &identifier, &library, output)
+        .with_context(|| format!("cannot export {}", output.display()))
 }
 
 /// `nudyn simulate`'s input.

@@ -44,7 +44,8 @@ use fmi_sys::fmi2::*;
 use nudyn::export::LOG_CATEGORIES;
 use nudyn::integrate::Stats;
 
-use crate::slave::{Slave, SlaveError};
+use crate::component::Component;
+use crate::slave::SlaveError;
 use crate::snapshot::Snapshot;
 use crate::state::{Function, Phase};
 
@@ -155,11 +156,11 @@ impl Logger {
     }
 }
 
-/// One FMU instance: the logger, the state machine and the slave.
+/// One FMU instance: the logger, the state machine and the slave (plant or controller).
 struct Instance {
     logger: Logger,
     phase: Phase,
-    slave: Slave,
+    slave: Component,
     /// The FMU states handed out by this instance and not yet freed (addresses).
     states: BTreeSet<usize>,
     /// A warning the last call completed with: its status is fmi2Warning.
@@ -364,7 +365,7 @@ pub unsafe extern "C" fn fmi2Instantiate(
     // SAFETY: NUL-terminated by the standard when non-NULL.
     let name = unsafe { string(instance_name, "instanceName") }.unwrap_or_else(|_| "(NULL)".into());
     let logger = Logger::new(functions, CString::new(name.replace('\0', " ")).expect("NULs replaced"), logging_on != 0);
-    let instantiate = || -> Result<Slave, CallError> {
+    let instantiate = || -> Result<Component, CallError> {
         if fmu_type != fmi2Type_fmi2CoSimulation {
             return Err(CallError::NotCoSimulation(fmu_type));
         }
@@ -375,7 +376,7 @@ pub unsafe extern "C" fn fmi2Instantiate(
         let guid = unsafe { string(fmu_guid, "fmuGUID") }?;
         // SAFETY: as above.
         let location = unsafe { string(fmu_resource_location, "fmuResourceLocation") }?;
-        Ok(Slave::load(&location, &guid)?)
+        Ok(Component::load(&location, &guid)?)
     };
     match catch_unwind(AssertUnwindSafe(instantiate)) {
         Ok(Ok(slave)) => {
@@ -664,10 +665,10 @@ pub unsafe extern "C" fn fmi2GetFMUstate(c: fmi2Component, state: *mut fmi2FMUst
             let state = state.as_mut().ok_or(CallError::Null("FMUstate"))?;
             let phase = instance.phase;
             if state.is_null() {
-                *state = instance.register(instance.slave.snapshot(phase));
+                *state = instance.register(instance.slave.snapshot(phase)?);
             } else {
                 // An existing state is overwritten in place (FMI 2.0 §2.1.8).
-                instance.slave.save(phase, snapshot(&instance.states, *state)?);
+                instance.slave.save(phase, snapshot(&instance.states, *state)?)?;
             }
             Ok(())
         })
@@ -840,7 +841,7 @@ pub unsafe extern "C" fn fmi2DoStep(
             {
                 instance.phase = Phase::StepFailed;
             }
-            let report = result?;
+            let Some(report) = result? else { return Ok(()) };
             if instance.logger.enabled[Category::Calls as usize] {
                 let Stats { accepted, rejected } = report.stats;
                 let message = format!("fmi2DoStep: {accepted} internal steps taken, {rejected} rejected");

@@ -5,11 +5,15 @@
 //!
 //! - [`fmi2`]: the generic FMI layer, the only `unsafe` code;
 //! - [`state`]: the state machine's table of allowed calls;
+//! - [`component`]: the plant or the controller, chosen by the resource;
 //! - [`slave`]: the safe slave that integrates the vehicle;
+//! - [`controller`]: the safe slave of a controller FMU (the control law);
 //! - [`snapshot`]: FMU states and their serialized form;
 //! - [`resource`]: the consistency check of the loaded model;
 //! - [`uri`]: the resource location.
 
+mod component;
+mod controller;
 pub mod fmi2;
 mod resource;
 mod slave;

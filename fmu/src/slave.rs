@@ -26,7 +26,7 @@ use crate::uri::{UriError, resource_directory};
 
 /// Relative tolerance on currentCommunicationPoint against the slave's time:
 /// masters compute communication points in their own way (FMPy: start + n·h).
-const TIME_TOLERANCE: f64 = 1e-9;
+pub(crate) const TIME_TOLERANCE: f64 = 1e-9;
 
 /// The most internal steps of `max_step` one doStep may ask for: more would
 /// keep the host busy for hours (1e300 s, or `max_step` = 1e-300, forever),
@@ -269,6 +269,28 @@ pub enum SlaveError {
     /// An FMU state that cannot be restored.
     #[error(transparent)]
     Snapshot(#[from] SnapshotError),
+    /// A gain that must not be negative.
+    #[error("{name} = {value} must be non-negative")]
+    Negative {
+        /// Variable name.
+        name: String,
+        /// The value.
+        value: f64,
+    },
+    /// The controller resource holds a law that does not fit its model.
+    #[error("{path} does not hold a consistent control law: {reason}")]
+    BadLaw {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The control law cannot be evaluated at the current inputs and parameters.
+    #[error("the controller cannot be evaluated: {0}")]
+    Control(nudyn::control::ControlError),
+    /// FMU states asked of an FMU that declares canGetAndSetFMUstate="false".
+    #[error("this FMU has no FMU states (canGetAndSetFMUstate=\"false\"): its outputs depend on its inputs and parameters only")]
+    NoFmuState,
 }
 
 /// "1 = rk4, 2 = dopri5, ...", for messages.
@@ -286,7 +308,13 @@ impl SlaveError {
     /// Whether a value was refused for being outside its range (not finite,
     /// not positive, not an enumeration item): fmi2Discard from fmi2SetXXX.
     pub fn is_out_of_range(&self) -> bool {
-        matches!(self, SlaveError::NonFinite { .. } | SlaveError::NotPositive { .. } | SlaveError::UnknownMethod(_))
+        matches!(
+            self,
+            SlaveError::NonFinite { .. }
+                | SlaveError::NotPositive { .. }
+                | SlaveError::Negative { .. }
+                | SlaveError::UnknownMethod(_)
+        )
     }
 }
 

@@ -113,7 +113,7 @@ pub fn kinematics(vehicle: &Vehicle, theta: &[f64]) -> Kinematics {
 }
 
 /// Angular and linear (of a world point) Jacobians of a body, 3×nv each.
-fn point_jacobian(k: &Kinematics, body: usize, point: &V3, nv: usize) -> (DMatrix<f64>, DMatrix<f64>) {
+pub fn point_jacobian(k: &Kinematics, body: usize, point: &V3, nv: usize) -> (DMatrix<f64>, DMatrix<f64>) {
     let mut jw = DMatrix::zeros(3, nv);
     let mut jv = DMatrix::zeros(3, nv);
     for &d in &k.body_dofs[body] {
