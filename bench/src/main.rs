@@ -39,7 +39,7 @@ enum Command {
         /// MuJoCo's libmujoco.so; with --mujoco-model, also time MuJoCo.
         #[arg(long, requires = "mujoco_model")]
         mujoco_lib: Option<PathBuf>,
-        /// The same vehicle for MuJoCo, with contacts and constraints off.
+        /// The same vehicle for MuJoCo, as a binary model (mj_saveModel) with contacts and constraints off.
         #[arg(long, requires = "mujoco_lib")]
         mujoco_model: Option<PathBuf>,
         /// Also time nudyn with each shortcut the model takes turned off, and with none.

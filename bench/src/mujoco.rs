@@ -1,9 +1,10 @@
 //! MuJoCo's C API, loaded at run time from the `libmujoco.so` that the
 //! mujoco Python package ships (its path is given on the command line), so
 //! that `mj_forward` runs natively in the same process and the same timing
-//! loop as nudyn. Only functions are used, never struct fields: the state
-//! goes in through `mj_setState`, and the options (contacts and constraints
-//! off) are set in the MJCF file the driver writes.
+//! loop as nudyn. Only functions are used, never struct fields: the model
+//! is the binary file (mj_saveModel) the driver writes from its MjModel,
+//! with contacts and constraints off, and the state goes in through
+//! `mj_setState`.
 
 use std::ffi::{CString, c_char, c_int, c_void};
 use std::path::Path;
@@ -51,7 +52,7 @@ impl Pipeline {
 
 /// The loaded library and the functions the benchmark calls.
 pub struct Api {
-    load_xml: unsafe extern "C" fn(*const c_char, *const c_void, *mut c_char, c_int) -> *mut c_void,
+    load_model: unsafe extern "C" fn(*const c_char, *const c_void) -> *mut c_void,
     make_data: unsafe extern "C" fn(*const c_void) -> *mut c_void,
     delete_data: unsafe extern "C" fn(*mut c_void),
     delete_model: unsafe extern "C" fn(*mut c_void),
@@ -82,7 +83,7 @@ impl Api {
                 };
             }
             Ok(Api {
-                load_xml: symbol!(b"mj_loadXML\0"),
+                load_model: symbol!(b"mj_loadModel\0"),
                 make_data: symbol!(b"mj_makeData\0"),
                 delete_data: symbol!(b"mj_deleteData\0"),
                 delete_model: symbol!(b"mj_deleteModel\0"),
@@ -113,16 +114,13 @@ pub struct Simulation<'a> {
 }
 
 impl<'a> Simulation<'a> {
-    /// Compiles the MJCF file at `path`.
+    /// Loads the binary model (mj_saveModel's file) at `path`.
     pub fn load(api: &'a Api, path: &Path) -> Result<Simulation<'a>> {
         let c_path = CString::new(path.to_string_lossy().as_bytes()).context("path contains a NUL byte")?;
-        let mut error = vec![0 as c_char; 1000];
-        // SAFETY: a NUL-terminated path, no VFS, and an error buffer of the size passed.
-        let model = unsafe { (api.load_xml)(c_path.as_ptr(), std::ptr::null(), error.as_mut_ptr(), error.len() as c_int) };
+        // SAFETY: a NUL-terminated path and no VFS.
+        let model = unsafe { (api.load_model)(c_path.as_ptr(), std::ptr::null()) };
         if model.is_null() {
-            // SAFETY: MuJoCo writes a NUL-terminated message into the buffer.
-            let message = unsafe { std::ffi::CStr::from_ptr(error.as_ptr()) }.to_string_lossy().into_owned();
-            bail!("MuJoCo cannot load {}: {message}", path.display());
+            bail!("MuJoCo cannot load the binary model {}", path.display());
         }
         // SAFETY: `model` is a valid mjModel from mj_loadXML.
         let (data, nq, nv) = unsafe { ((api.make_data)(model), (api.state_size)(model, STATE_QPOS), (api.state_size)(model, STATE_QVEL)) };

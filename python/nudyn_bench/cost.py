@@ -15,12 +15,14 @@ from .vehicles import Vehicle, mujoco_library
 
 
 def eval_cost(bench: Path, vehicle: Vehicle, repetitions: int, batch_ms: float, shortcuts: bool, dense: bool) -> dict:
-    """`nudyn-bench eval-cost`: ns per call of each case, per repetition."""
+    """`nudyn-bench eval-cost`: ns per call of each case, per repetition
+    (MuJoCo's only when the vehicle has a MuJoCo model)."""
     cmd = [
         str(bench), "eval-cost", str(vehicle.path), "--state", str(vehicle.state_path),
-        "--mujoco-lib", str(mujoco_library()), "--mujoco-model", str(vehicle.mujoco_path),
         "--repetitions", str(repetitions), "--batch-ms", str(batch_ms),
     ]
+    if vehicle.mujoco_path is not None:
+        cmd += ["--mujoco-lib", str(mujoco_library()), "--mujoco-model", str(vehicle.mujoco_path)]
     if shortcuts:
         cmd.append("--shortcuts")
     if dense:

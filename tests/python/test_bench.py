@@ -38,3 +38,17 @@ def test_quick_benchmark_writes_results_table_and_plots(tmp_path):
     assert results["work_precision"]["reference_check"]["difference"] < 1e-8
     assert set(summary["targets"]) == {"nu_dot_not_slower_than_mj_forward", "half_of_mujoco_best_at_1e-6", "linear_scaling"}
     assert "### Targets" in (tmp_path / "table.md").read_text()
+
+
+def test_chains_built_for_mujoco_equal_the_generated_files():
+    """MuJoCo cannot read bodies nested 500 deep, so the benchmark builds its
+    chains with MuJoCo's model editor: they must be gen_chain.py's chains."""
+    import numpy as np
+
+    from nudyn_bench.vehicles import chain_model
+    from nudyn_validation.mujoco_reference import load_model
+
+    built, read = chain_model(60), load_model(ROOT / "examples" / "chain60.xml")
+    assert (built.nq, built.nv) == (read.nq, read.nv)
+    for field in ("body_mass", "body_inertia", "body_ipos", "body_iquat", "body_pos", "body_quat", "jnt_axis", "dof_armature", "dof_damping", "qpos0"):
+        assert np.allclose(getattr(built, field), getattr(read, field), rtol=0, atol=1e-15), field
