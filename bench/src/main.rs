@@ -233,6 +233,8 @@ struct SimulateResult {
     /// Steps accepted and rejected in the (last) run.
     accepted: usize,
     rejected: usize,
+    /// Why the run stopped early, if it did (then the samples end there).
+    failed: Option<String>,
     time: Vec<f64>,
     qpos: Vec<Vec<f64>>,
     qvel: Vec<Vec<f64>>,
@@ -253,7 +255,17 @@ fn simulate(model: &Model, state: &State, run: &str, duration: f64, sample: f64,
     }
     let mut ws = model.workspace();
     let eps_at = |_: f64, out: &mut [f64]| out.fill(0.0);
-    let mut result = SimulateResult { run: run.to_string(), seconds: Vec::new(), accepted: 0, rejected: 0, time: Vec::new(), qpos: Vec::new(), qvel: Vec::new() };
+    let mut result = SimulateResult {
+        run: run.to_string(),
+        seconds: Vec::new(),
+        accepted: 0,
+        rejected: 0,
+        failed: None,
+        time: Vec::new(),
+        qpos: Vec::new(),
+        qvel: Vec::new(),
+    };
+    let mut reached = intervals;
     // Preallocated outside the timed loop: the sampled (θ, ν).
     let mut trajectory = vec![(state.theta.clone(), state.nu.clone()); intervals + 1];
     for _ in 0..repetitions {
@@ -264,11 +276,18 @@ fn simulate(model: &Model, state: &State, run: &str, duration: f64, sample: f64,
         let start = Instant::now();
         for n in 0..intervals {
             let t = n as f64 * sample;
-            let stats = integrator
-                .advance(model, &mut ws, &mut theta, &mut nu, (t, t + sample), &settings, &mut carry, eps_at)
-                .with_context(|| format!("{run}: the interval from t = {t} failed"))?;
-            accepted += stats.accepted;
-            rejected += stats.rejected;
+            match integrator.advance(model, &mut ws, &mut theta, &mut nu, (t, t + sample), &settings, &mut carry, eps_at) {
+                Ok(stats) => {
+                    accepted += stats.accepted;
+                    rejected += stats.rejected;
+                }
+                Err(error) => {
+                    // Too large a step for the motion: a point of the curve all the same.
+                    result.failed = Some(error.to_string());
+                    reached = n;
+                    break;
+                }
+            }
             trajectory[n + 1].0.copy_from_slice(&theta);
             trajectory[n + 1].1.copy_from_slice(&nu);
         }
@@ -276,7 +295,7 @@ fn simulate(model: &Model, state: &State, run: &str, duration: f64, sample: f64,
         (result.accepted, result.rejected) = (accepted, rejected);
     }
     if samples {
-        for (n, (theta, nu)) in trajectory.iter().enumerate() {
+        for (n, (theta, nu)) in trajectory.iter().enumerate().take(reached + 1) {
             ws.set_configuration(model, theta)?;
             ws.set_nu(model, nu)?;
             result.time.push(n as f64 * sample);

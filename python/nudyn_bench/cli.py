@@ -81,6 +81,7 @@ def main(argv=None) -> int:
         "versions": {"mujoco": mujoco.__version__, "pinocchio": pinocchio.__version__, "python": platform.python_version()},
         "eval_cost": {},
         "scaling": {},
+        "work_precision": {},
     }
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
@@ -89,7 +90,10 @@ def main(argv=None) -> int:
             tasks.append((f"ν̇ cost: {name}", lambda name=name: eval_cost_example(results, bench, name, work, sizes)))
         for links in sizes.chains:
             tasks.append((f"scaling: chain of {links}", lambda links=links: scaling_chain(results, bench, nudyn, links, work, sizes)))
-        tasks.append(("work-precision: bus_arm7", lambda: work_precision_section(results, bench, work, sizes)))
+        for scenario in work_precision.SCENARIOS:
+            tasks.append(
+                (f"work-precision: bus_arm7, {scenario}", lambda scenario=scenario: work_precision_section(results, bench, scenario, work, sizes))
+            )
         tasks.append(("FMI overhead: bus_arm7", lambda: fmi_section(results, nudyn, bench, work, sizes)))
         with tqdm(total=len(tasks), unit="task", dynamic_ncols=True) as bar:
             for description, task in tasks:
@@ -127,9 +131,10 @@ def scaling_chain(results: dict, bench: Path, nudyn: Path, links: int, work: Pat
     results["scaling"][name] = entry
 
 
-def work_precision_section(results: dict, bench: Path, work: Path, sizes: Sizes) -> None:
+def work_precision_section(results: dict, bench: Path, scenario: str, work: Path, sizes: Sizes) -> None:
     plan = sizes.plan
-    vehicle = prepare("bus_arm7_fast", ROOT / "examples" / "bus_arm7.xml", work, rate_scale=work_precision.RATE_SCALE)
+    rate_scale = work_precision.SCENARIOS[scenario]
+    vehicle = prepare(f"bus_arm7_x{rate_scale:g}", ROOT / "examples" / "bus_arm7.xml", work, rate_scale=rate_scale)
     runs = work_precision.MujocoRuns(vehicle)
     reference_qpos, reference_qvel = runs.reference(plan)
     model = vehicle.model
@@ -148,16 +153,17 @@ def work_precision_section(results: dict, bench: Path, work: Path, sizes: Sizes)
             entry = nudyn_entries[out["run"]]
             entry["seconds"].append(out["seconds"][0])
             if repetition == 0:
-                entry.update(error=error(out["qpos"], out["qvel"]), steps=out["accepted"], rejected=out["rejected"])
+                entry.update(steps=out["accepted"], rejected=out["rejected"], failed=out["failed"])
+                entry["error"] = float("inf") if out["failed"] else error(out["qpos"], out["qvel"])
         for name, h in mujoco_names:
             seconds, qpos, qvel = runs.run(name, h, plan)
             entry = mujoco_entries[f"{name}:{h:g}"]
             entry["seconds"].append(seconds)
             if repetition == 0:
                 entry.update(error=error(qpos, qvel), steps=int(round(plan.duration / h)))
-    results["work_precision"] = {
+    results["work_precision"][scenario] = {
         "vehicle": "bus_arm7",
-        "start": f"the validation's tumble (seed 1) with {work_precision.RATE_SCALE:g}× its rates",
+        "start": f"the validation's tumble (seed 1) with {rate_scale:g}× its rates",
         "duration": plan.duration,
         "sample": plan.sample,
         "reference": f"MuJoCo RK4 at {plan.reference_step:g} s",
