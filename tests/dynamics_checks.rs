@@ -215,3 +215,15 @@ proptest! {
         }
     }
 }
+
+/// `tests/fixtures/mjcf/every_shortcut.xml` is the vehicle on which the
+/// Python tests compare the fully specialized passes with MuJoCo: it must
+/// keep taking every shortcut.
+#[test]
+fn the_every_shortcut_fixture_takes_every_shortcut() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/mjcf/every_shortcut.xml");
+    let model = Model::compile(&nudyn::mjcf::load_mjcf(&path).unwrap().vehicle).unwrap();
+    let s = model.shortcuts;
+    assert!(s.no_gravity && s.no_springs && s.no_dampers && s.no_armature && s.no_passive_forces(), "{s:?}");
+    assert!(model.links.iter().skip(2).all(|l| l.ndof == 1), "only 1-dof joints past the free base");
+}
