@@ -50,7 +50,7 @@ fi
 stamp="$VENV/.requirements.sha256"
 want="$(sha256sum "$REQ" | cut -d' ' -f1)"
 if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ] \
-    || ! "$VENV/bin/python" -c 'import mujoco, fmpy, numpy, pytest, matplotlib, libcosimpy' >/dev/null 2>&1; then
+    || ! "$VENV/bin/python" -c 'import mujoco, fmpy, numpy, pytest, matplotlib, libcosimpy, pinocchio, tqdm' >/dev/null 2>&1; then
     echo "setup: installing Python packages from requirements.txt"
     "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -r "$REQ"
     echo "$want" >"$stamp"

@@ -62,6 +62,21 @@ pub fn cross_motion_matrix(v: &SpatialVec) -> SpatialMat {
     out
 }
 
+/// `m · (v ×)` for a 6×6 `m`, by 3×3 blocks: (v ×) = [ω× 0; v× ω×] has
+/// three nonzero blocks, so this takes half the multiplications of
+/// `m * cross_motion_matrix(v)`.
+pub fn mul_cross_motion(m: &SpatialMat, v: &SpatialVec) -> SpatialMat {
+    let (w, vl) = (skew(&angular(v)), skew(&linear(v)));
+    let mut out = SpatialMat::zeros();
+    for row in [0, 3] {
+        let left = m.fixed_view::<3, 3>(row, 0);
+        let right = m.fixed_view::<3, 3>(row, 3);
+        out.fixed_view_mut::<3, 3>(row, 0).copy_from(&(left * w + right * vl));
+        out.fixed_view_mut::<3, 3>(row, 3).copy_from(&(right * w));
+    }
+    out
+}
+
 /// The spatial inertia, about the frame origin, of a rigid body with mass
 /// `mass`, centre of mass `com` and inertia `inertia_com` about the centre of mass.
 pub fn rigid_inertia(mass: f64, com: &Vec3, inertia_com: &Mat3) -> SpatialMat {
@@ -142,9 +157,32 @@ impl Transform {
     }
 
     /// Xᵀ I X: a child-frame inertia (or its derivative) in parent coordinates.
+    ///
+    /// `inertia` must be symmetric, [A B; Bᵀ C] in (angular, linear)
+    /// blocks; its lower-left block is not read. By blocks rather than as
+    /// 6×6 products (this congruence is the passes' largest cost): with
+    /// X = diag(E, E)·[1 0; −r× 1], first A′ = EᵀAE, B′ = EᵀBE, C′ = EᵀCE,
+    /// then Xᵀ I X = [A′ + r×B′ᵀ + (r×B′ᵀ)ᵀ − r×C′r×,  B′ + r×C′;  ·,  C′].
+    ///
+    /// The result is exactly symmetric (its diagonal blocks are symmetrized): the
+    /// passes accumulate these along the tree, and formulas that rely on
+    /// symmetry would let a round-off asymmetry grow link by link.
     pub fn transform_inertia_to_parent(&self, inertia: &SpatialMat) -> SpatialMat {
-        let x = self.motion_matrix();
-        x.transpose() * inertia * x
+        let (e, e_t) = (self.rot, self.rot.transpose());
+        let symmetric = |m: Mat3| 0.5 * (m + m.transpose());
+        let a = e_t * inertia.fixed_view::<3, 3>(0, 0) * e;
+        let b = e_t * inertia.fixed_view::<3, 3>(0, 3) * e;
+        let c = symmetric(e_t * inertia.fixed_view::<3, 3>(3, 3) * e);
+        let r = skew(&self.trans);
+        let r_c = r * c;
+        let r_bt = r * b.transpose();
+        let b_parent = b + r_c;
+        let mut out = SpatialMat::zeros();
+        out.fixed_view_mut::<3, 3>(0, 0).copy_from(&symmetric(a + r_bt + r_bt.transpose() - r_c * r));
+        out.fixed_view_mut::<3, 3>(0, 3).copy_from(&b_parent);
+        out.fixed_view_mut::<3, 3>(3, 0).copy_from(&b_parent.transpose());
+        out.fixed_view_mut::<3, 3>(3, 3).copy_from(&c);
+        out
     }
 }
 
@@ -169,4 +207,30 @@ pub fn quat_difference(qa: &Quat, qb: &Quat) -> Vec3 {
         d = Quat::new_unchecked(-d.into_inner());
     }
     d.scaled_axis()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A random-looking but fixed symmetric 6×6 matrix and transform.
+    fn sample() -> (SpatialMat, Transform, SpatialVec) {
+        let m = SpatialMat::from_fn(|i, j| ((i * 7 + j * 3) as f64 * 0.37).sin() + ((j * 7 + i * 3) as f64 * 0.37).sin());
+        let rot = nalgebra::Rotation3::from_euler_angles(0.3, -1.1, 2.0).into_inner();
+        let x = Transform { rot, trans: Vec3::new(0.4, -0.2, 0.9) };
+        (m, x, SpatialVec::new(0.5, -0.3, 0.8, 1.2, 0.1, -0.7))
+    }
+
+    #[test]
+    fn blockwise_congruence_equals_the_dense_product() {
+        let (m, x, _) = sample();
+        let dense = x.motion_matrix().transpose() * m * x.motion_matrix();
+        assert!((x.transform_inertia_to_parent(&m) - dense).abs().max() < 1e-13);
+    }
+
+    #[test]
+    fn blockwise_cross_product_equals_the_dense_product() {
+        let (m, _, v) = sample();
+        assert!((mul_cross_motion(&m, &v) - m * cross_motion_matrix(&v)).abs().max() < 1e-14);
+    }
 }

@@ -96,6 +96,65 @@ pub struct JointInfo {
     pub dof_adr: usize,
 }
 
+/// Terms of the dynamics that a vehicle does not have, found by
+/// [`Model::compile`]; the passes then skip computing them.
+///
+/// Turning a shortcut off is always safe: the passes compute the term, which
+/// is then zero, and give the same numbers (tests check this). A shortcut
+/// turned on for a vehicle that has the term would drop it:
+/// [`Shortcuts::not_allowed_for`] tells, and the FMU refuses such a model.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Shortcuts {
+    /// Gravity is zero: no gravity wrenches in pass 3, and no world
+    /// transforms in pass 0 (only the momentum needs them then, and it
+    /// computes them when asked).
+    pub no_gravity: bool,
+    /// No joint has stiffness: no spring forces (for ball and free joints,
+    /// no rotation vector from the spring pose).
+    pub no_springs: bool,
+    /// No joint has damping: no damper forces.
+    pub no_dampers: bool,
+    /// No joint has armature: D = SᵀI^A S.
+    pub no_armature: bool,
+}
+
+impl Shortcuts {
+    /// Every shortcut the links and gravity allow.
+    pub fn of(links: &[Link], gravity: &Vec3) -> Shortcuts {
+        Shortcuts {
+            no_gravity: *gravity == Vec3::zeros(),
+            no_springs: links.iter().all(|l| l.stiffness == 0.0),
+            no_dampers: links.iter().all(|l| l.damping == 0.0),
+            no_armature: links.iter().all(|l| l.armature == 0.0),
+        }
+    }
+
+    /// No shortcut: the passes compute every term.
+    pub fn none() -> Shortcuts {
+        Shortcuts::default()
+    }
+
+    /// Whether pass 3 can skip the inward recursion of joint and gravity
+    /// forces altogether (their ε is zero).
+    pub fn no_passive_forces(&self) -> bool {
+        self.no_gravity && self.no_springs && self.no_dampers
+    }
+
+    /// The first shortcut that would drop a term `model` has, if any.
+    pub fn not_allowed_for(&self, model: &Model) -> Option<&'static str> {
+        let allowed = Shortcuts::of(&model.links, &model.gravity);
+        [
+            ("no_gravity", self.no_gravity, allowed.no_gravity),
+            ("no_springs", self.no_springs, allowed.no_springs),
+            ("no_dampers", self.no_dampers, allowed.no_dampers),
+            ("no_armature", self.no_armature, allowed.no_armature),
+        ]
+        .into_iter()
+        .find(|(_, taken, allowed)| *taken && !allowed)
+        .map(|(name, _, _)| name)
+    }
+}
+
 /// The compiled vehicle model.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Model {
@@ -115,6 +174,9 @@ pub struct Model {
     pub qpos0: Vec<f64>,
     /// Spring rest configuration (MuJoCo's qpos_spring).
     pub qpos_spring: Vec<f64>,
+    /// The terms the passes skip; none when absent from a model file.
+    #[serde(default)]
+    pub shortcuts: Shortcuts,
 }
 
 /// Why a vehicle cannot be compiled.
@@ -247,6 +309,7 @@ impl Model {
             return Err(ModelError::NoJoints);
         }
         let nv = dof_count(&links);
+        let shortcuts = Shortcuts::of(&links, &vehicle.gravity);
         let model = Model {
             name: vehicle.name.clone(),
             nq: qpos0.len(),
@@ -256,6 +319,7 @@ impl Model {
             joints,
             qpos0,
             qpos_spring,
+            shortcuts,
         };
         model.check_positive_definite()?;
         Ok(model)

@@ -34,8 +34,11 @@ pub struct Workspace {
 
     /// ⁱX_λ: link relative to parent link (or world) — pass 0.
     pub x_parent: Vec<Transform>,
-    /// ⁱX₀: link relative to world — pass 0.
+    /// ⁱX₀: link relative to world — pass 0 when the model has gravity,
+    /// else on demand (momentum).
     pub x_world: Vec<Transform>,
+    /// Whether `x_world` belongs to the current configuration.
+    pub world_transforms_current: bool,
 
     /// I^A: articulated-body inertia (the paper's P) — pass 1.
     pub ia_body: Vec<SpatialMat>,
@@ -95,6 +98,7 @@ impl Workspace {
             theta: DVector::from_column_slice(&model.qpos0),
             x_parent: vec![Transform::identity(); n],
             x_world: vec![Transform::identity(); n],
+            world_transforms_current: false,
             ia_body: vec![SpatialMat::zeros(); n],
             ia_reduced: vec![SpatialMat::zeros(); n],
             u_body: vec![LinkCols::zeros(); n],

@@ -172,7 +172,9 @@ fn energy_residual_follows_the_tolerance() {
     eprintln!("relative energy residual: {loose:.1e} at 1e-5, {tight:.1e} at 1e-9, {projected:.1e} projected");
     assert!(loose < 2.0 * 1e-5 && tight < 2.0 * 1e-9, "{loose:.1e}, {tight:.1e}");
     assert!(tight < loose / 10.0, "{tight:.1e} vs {loose:.1e}");
-    assert!(projected < 1e-12, "{projected:.1e}");
+    // Round-off only: each rescaling leaves a few ulps of K, summed over the
+    // run's steps (6e-13 and 1.4e-12 with two orderings of the same sums).
+    assert!(projected < 1e-11, "{projected:.1e}");
 }
 
 /// Three rods of inertia diag(1e-9, 1, 1) on a bus: M has three

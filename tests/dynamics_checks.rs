@@ -5,7 +5,7 @@ mod common;
 
 use common::{Rng, TreeOptions, random_theta, random_vehicle, rel_err};
 use nalgebra::{DMatrix, DVector};
-use nudyn::model::Model;
+use nudyn::model::{Model, Shortcuts};
 use nudyn::vehicle::Vehicle;
 use nudyn::workspace::Workspace;
 use proptest::prelude::*;
@@ -133,4 +133,97 @@ fn tree_of_220_bodies_with_passive_forces() {
     let mut rng = Rng::new(220);
     let vehicle = random_vehicle(&mut rng, TreeOptions { bodies: 220, free_base: true, passive: true, chain: false });
     check_vehicle(&vehicle, &mut rng).unwrap();
+}
+
+/// ν̇, θ̇ and the momentum with the shortcuts `Model::compile` found and
+/// with none: skipping a term the vehicle does not have must not change a
+/// number beyond round-off.
+fn check_shortcuts_change_nothing(vehicle: &Vehicle, rng: &mut Rng) -> Result<Shortcuts, String> {
+    let fast = Model::compile(vehicle).map_err(|e| e.to_string())?;
+    let mut general = fast.clone();
+    general.shortcuts = Shortcuts::none();
+    let theta = random_theta(rng, vehicle);
+    let nu = rng.vec(fast.nv, 1.5);
+    let eps = rng.vec(fast.nv, 2.0);
+    let mut results = Vec::new();
+    for model in [&fast, &general] {
+        let mut ws = model.workspace();
+        nudyn::dynamics::forward(model, &mut ws, &theta, &nu, &eps).map_err(|e| e.to_string())?;
+        let momentum = ws.momentum(model).map_err(|e| e.to_string())?;
+        results.push((ws.nu_dot.clone(), ws.qvel.clone(), ws.coriolis.clone(), momentum));
+    }
+    let (a, b) = (&results[0], &results[1]);
+    for (what, x, y) in [
+        ("nu_dot", a.0.as_slice(), b.0.as_slice()),
+        ("qvel", a.1.as_slice(), b.1.as_slice()),
+        ("coriolis", a.2.as_slice(), b.2.as_slice()),
+        ("momentum", a.3.as_slice(), b.3.as_slice()),
+    ] {
+        let err = rel_err(x, y);
+        if err > 1e-15 {
+            return Err(format!("{what} with shortcuts {:?} differs by {err:.3e}", fast.shortcuts));
+        }
+    }
+    Ok(fast.shortcuts)
+}
+
+/// A free base carrying a chain of hinges and slides, with each of gravity,
+/// springs, dampers and armature present or not: every combination of
+/// shortcuts, each checked against the dense reference and against the
+/// general path.
+#[test]
+fn every_combination_of_shortcuts_on_one_dof_chains() {
+    let mut rng = Rng::new(7);
+    for combination in 0..16u32 {
+        let present = |bit: u32| combination & (1 << bit) != 0;
+        let mut vehicle = random_vehicle(&mut rng, TreeOptions { bodies: 7, free_base: true, passive: true, chain: true });
+        vehicle.gravity = if present(0) { nalgebra::Vector3::new(0.3, -0.2, -9.81) } else { nalgebra::Vector3::zeros() };
+        for (b, body) in vehicle.bodies.iter_mut().enumerate() {
+            for joint in &mut body.joints {
+                if b > 0 {
+                    // Only 1-dof joints past the base.
+                    joint.kind = if joint.kind == nudyn::vehicle::JointKind::Slide { joint.kind } else { nudyn::vehicle::JointKind::Hinge };
+                }
+                if !present(1) {
+                    joint.stiffness = 0.0;
+                }
+                if !present(2) {
+                    joint.damping = 0.0;
+                }
+                joint.armature = if present(3) && b > 0 { 0.1 + 0.05 * b as f64 } else { 0.0 };
+            }
+        }
+        let shortcuts = check_shortcuts_change_nothing(&vehicle, &mut rng).unwrap();
+        assert_eq!(
+            [shortcuts.no_gravity, shortcuts.no_springs, shortcuts.no_dampers, shortcuts.no_armature],
+            [!present(0), !present(1), !present(2), !present(3)],
+            "combination {combination:04b}"
+        );
+        check_vehicle(&vehicle, &mut rng).unwrap_or_else(|e| panic!("combination {combination:04b}: {e}"));
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 32, ..ProptestConfig::default() })]
+
+    #[test]
+    fn shortcuts_change_nothing_on_random_trees(seed in any::<u64>(), bodies in 1usize..9, free_base in any::<bool>(), passive in any::<bool>()) {
+        let mut rng = Rng::new(seed);
+        let vehicle = random_vehicle(&mut rng, TreeOptions { bodies, free_base, passive, chain: false });
+        if let Err(e) = check_shortcuts_change_nothing(&vehicle, &mut rng) {
+            prop_assert!(false, "{e}\n{vehicle:#?}");
+        }
+    }
+}
+
+/// `tests/fixtures/mjcf/every_shortcut.xml` is the vehicle on which the
+/// Python tests compare the fully specialized passes with MuJoCo: it must
+/// keep taking every shortcut.
+#[test]
+fn the_every_shortcut_fixture_takes_every_shortcut() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/mjcf/every_shortcut.xml");
+    let model = Model::compile(&nudyn::mjcf::load_mjcf(&path).unwrap().vehicle).unwrap();
+    let s = model.shortcuts;
+    assert!(s.no_gravity && s.no_springs && s.no_dampers && s.no_armature && s.no_passive_forces(), "{s:?}");
+    assert!(model.links.iter().skip(2).all(|l| l.ndof == 1), "only 1-dof joints past the free base");
 }

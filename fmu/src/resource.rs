@@ -75,6 +75,9 @@ pub enum ResourceError {
         /// Whether the quantity must also be non-negative.
         non_negative: bool,
     },
+    /// A shortcut that would skip a term the model has.
+    #[error("the model takes the shortcut {0}, but it has that term")]
+    Shortcut(&'static str),
 }
 
 /// (qpos count, dof count) of a link's joint.
@@ -152,7 +155,11 @@ pub fn check_model(model: &Model) -> Result<(), ResourceError> {
     }
     finite(0, "gravity", model.gravity.iter())?;
     finite(0, "qpos0", &model.qpos0)?;
-    finite(0, "qpos_spring", &model.qpos_spring)
+    finite(0, "qpos_spring", &model.qpos_spring)?;
+    match model.shortcuts.not_allowed_for(model) {
+        Some(shortcut) => Err(ResourceError::Shortcut(shortcut)),
+        None => Ok(()),
+    }
 }
 
 #[cfg(test)]
@@ -215,5 +222,16 @@ mod tests {
         let mut model = example("flexible_boom.xml");
         model.gravity[2] = f64::INFINITY;
         assert!(matches!(check_model(&model), Err(ResourceError::Number { what: "gravity", .. })));
+    }
+
+    #[test]
+    fn a_shortcut_past_a_term_the_model_has_is_refused() {
+        // bus_arm7 has no gravity but has armature: an edited file must not skip it.
+        let mut model = example("bus_arm7.xml");
+        assert!(model.shortcuts.no_gravity && !model.shortcuts.no_armature);
+        model.shortcuts.no_armature = true;
+        assert_eq!(check_model(&model), Err(ResourceError::Shortcut("no_armature")));
+        model.shortcuts = nudyn::model::Shortcuts::none();
+        assert_eq!(check_model(&model), Ok(()));
     }
 }

@@ -225,7 +225,7 @@ impl ControlLaw {
             Objective::Pose(frame) => {
                 let mut ws = model.workspace();
                 ws.set_configuration(model, &model.qpos0)?;
-                let (position, orientation) = body_pose(&ws, frame);
+                let (position, orientation) = body_pose(model, &mut ws, frame);
                 let q = orientation.quaternion();
                 vec![position.x, position.y, position.z, q.w, q.i, q.j, q.k]
             }
@@ -276,9 +276,9 @@ impl ControlParameters {
 
 /// Position (world) and orientation (body → world) of a body frame, from
 /// the workspace's pass 0.
-pub fn body_pose(ws: &Workspace, frame: &BodyFrame) -> (Vec3, Quat) {
+pub fn body_pose(model: &Model, ws: &mut Workspace, frame: &BodyFrame) -> (Vec3, Quat) {
     // ᵇX₀: rot maps world to body coordinates, trans is the body origin in world.
-    let body_from_world = frame.offset.compose(&ws.x_world[frame.link]);
+    let body_from_world = frame.offset.compose(&ws.world_transforms(model)[frame.link]);
     let rotation = nalgebra::Rotation3::from_matrix_unchecked(body_from_world.rot.transpose());
     (body_from_world.trans, Quat::from_rotation_matrix(&rotation))
 }
@@ -323,15 +323,15 @@ impl ControlWorkspace {
         wrench_world: &SpatialVec,
         eps: &mut [f64],
     ) -> Result<(), ControlError> {
-        self.load_wrench(frame, wrench_world);
+        self.load_wrench(model, frame, wrench_world);
         self.ws.eps_from_forces(model, self.torque.as_slice(), Some(&self.body_forces), eps)?;
         Ok(())
     }
 
     /// Puts the wrench (world axes, moment about the frame origin) on its
     /// link, in link coordinates about the link origin, and zeroes the joint forces.
-    fn load_wrench(&mut self, frame: &BodyFrame, wrench_world: &SpatialVec) {
-        let body_from_world = frame.offset.compose(&self.ws.x_world[frame.link]);
+    fn load_wrench(&mut self, model: &Model, frame: &BodyFrame, wrench_world: &SpatialVec) {
+        let body_from_world = frame.offset.compose(&self.ws.world_transforms(model)[frame.link]);
         let in_body = spatial(&(body_from_world.rot * angular(wrench_world)), &(body_from_world.rot * linear(wrench_world)));
         self.body_forces.fill(SpatialVec::zeros());
         // ᵇX_ₗᵀ f: from body coordinates to link coordinates about the link origin.
@@ -362,7 +362,7 @@ impl ControlWorkspace {
                 self.ws.eps_from_forces(model, self.torque.as_slice(), None, self.eps.as_mut_slice())?;
             }
             Objective::Pose(frame) => {
-                let (position, orientation) = body_pose(&self.ws, frame);
+                let (position, orientation) = body_pose(model, &mut self.ws, frame);
                 let target = &parameters.target;
                 let target_orientation = Quat::from_quaternion(quat_from_wxyz(&target[3..7]));
                 let position_error = Vec3::new(target[0], target[1], target[2]) - position;
@@ -375,7 +375,7 @@ impl ControlWorkspace {
                     self.error[c] = position_error[c];
                     self.error[3 + c] = -phi[c];
                 }
-                self.load_wrench(frame, &spatial(&(orientation * moment_body), &force));
+                self.load_wrench(model, frame, &spatial(&(orientation * moment_body), &force));
                 self.ws.eps_from_forces(model, self.torque.as_slice(), Some(&self.body_forces), self.eps.as_mut_slice())?;
             }
         }

@@ -60,7 +60,10 @@ fn factor_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize) -> R
     let s = cols::<N>(&link.motion_subspace);
     let ia = ws.ia_body[i];
     let u = ia * s;
-    let d = s.transpose() * u + SMatrix::<f64, N, N>::identity() * link.armature;
+    let mut d = s.transpose() * u;
+    if !model.shortcuts.no_armature {
+        d += SMatrix::<f64, N, N>::identity() * link.armature;
+    }
     let r = upper_cholesky(&d).ok_or(DynamicsError::Singular { link: i })?;
     let r_inv = upper_triangular_inverse(&r);
     let d_inv = r_inv.transpose() * r_inv;

@@ -8,32 +8,39 @@
 //!   İ^a_i = (1 − G Sᵀ) İ^A (1 − G Sᵀ)ᵀ,
 //!   −C_i = R⁻¹ u_i + Ṙᵀ w_i + Rᵀ Ġᵀ V⁺_i.
 //! Forces (springs, dampers, gravity) run the same inward recursion without
-//! velocities: u_i = τ_i − Sᵀ p_i, p^a = p + G u, ε_passive,i = R⁻¹ u_i.
+//! velocities: u_i = τ_i − Sᵀ p_i, p^a = p + G u, ε_passive,i = R⁻¹ u_i;
+//! a vehicle with none of them (`Shortcuts::no_passive_forces`) skips it.
 
 use nalgebra::{SMatrix, SVector};
 
 use super::{block, cols};
-use crate::math::{Quat, SpatialMat, Vec3, cross_force, cross_motion_matrix, quat_difference, spatial};
+use crate::math::{Quat, SpatialMat, SpatialVec, Vec3, cross_force, mul_cross_motion, quat_difference, spatial};
 use crate::model::{LinkJoint, Model};
 use crate::workspace::Workspace;
 
 /// Springs −k(θ − θ_spring) and dampers −b θ̇, as MuJoCo applies them
 /// (ball and free-joint rotations: −k times the rotation vector from the
-/// spring pose, in the body frame).
+/// spring pose, in the body frame). Each term is skipped when no joint has it.
 pub(crate) fn passive_forces(model: &Model, ws: &mut Workspace) {
+    let shortcuts = model.shortcuts;
     for link in &model.links {
-        let (q, qs) = (&ws.theta.as_slice()[link.qpos_adr..], &model.qpos_spring[link.qpos_adr..]);
-        let spring: Vec3 = match link.joint {
-            LinkJoint::Hinge | LinkJoint::Slide => Vec3::new(q[0] - qs[0], 0.0, 0.0),
-            LinkJoint::Translation => Vec3::new(q[0] - qs[0], q[1] - qs[1], q[2] - qs[2]),
-            LinkJoint::Ball => {
-                let quat = |v: &[f64]| Quat::from_quaternion(crate::math::quat_from_wxyz(v));
-                quat_difference(&quat(q), &quat(qs))
+        let spring: Vec3 = if shortcuts.no_springs {
+            Vec3::zeros()
+        } else {
+            let (q, qs) = (&ws.theta.as_slice()[link.qpos_adr..], &model.qpos_spring[link.qpos_adr..]);
+            match link.joint {
+                LinkJoint::Hinge | LinkJoint::Slide => Vec3::new(q[0] - qs[0], 0.0, 0.0),
+                LinkJoint::Translation => Vec3::new(q[0] - qs[0], q[1] - qs[1], q[2] - qs[2]),
+                LinkJoint::Ball => {
+                    let quat = |v: &[f64]| Quat::from_quaternion(crate::math::quat_from_wxyz(v));
+                    quat_difference(&quat(q), &quat(qs))
+                }
             }
         };
         for k in 0..link.ndof {
             let dof = link.dof_adr + k;
-            ws.tau_passive[dof] = -link.stiffness * spring[k] - link.damping * ws.qvel[dof];
+            let damper = if shortcuts.no_dampers { 0.0 } else { link.damping * ws.qvel[dof] };
+            ws.tau_passive[dof] = -link.stiffness * spring[k] - damper;
         }
     }
 }
@@ -47,7 +54,9 @@ fn upper_half<const N: usize>(x: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
     out
 }
 
-fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &[f64]) {
+/// Pass 3 for one link with N dofs; `forces`: whether to run the recursion
+/// of springs, dampers and gravity (else their ε is zero).
+fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &[f64], forces: bool) {
     let link = &model.links[i];
     let adr = link.dof_adr;
     let s = cols::<N>(&link.motion_subspace);
@@ -61,16 +70,19 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
     // Velocity-product terms.
     let p_bias = ws.p_bias_body[i];
     let u: SVector<f64, N> = -(s.transpose() * p_bias);
-    let st_ia_dot = s.transpose() * ia_dot;
-    let d_dot = st_ia_dot * s;
-    let gain_t_dot = d_inv * (st_ia_dot - d_dot * gain.transpose());
+    let ia_dot_s = ia_dot * s;
+    let d_dot = s.transpose() * ia_dot_s;
+    let gain_t_dot = d_inv * (ia_dot_s.transpose() - d_dot * gain.transpose());
     let r_dot = r * upper_half(&(r_inv * d_dot * r_inv.transpose()));
     let minus_c = r_inv * u + r_dot.transpose() * w + r.transpose() * (gain_t_dot * ws.v_plus_body[i]);
 
     // Springs, dampers and gravity.
-    let tau: SVector<f64, N> = ws.tau_passive.fixed_rows::<N>(adr).into_owned();
     let p_force = ws.p_force_body[i];
-    let u_force = tau - s.transpose() * p_force;
+    let u_force: SVector<f64, N> = if forces {
+        ws.tau_passive.fixed_rows::<N>(adr) - s.transpose() * p_force
+    } else {
+        SVector::zeros()
+    };
     let eps_passive = r_inv * u_force;
 
     for k in 0..N {
@@ -84,12 +96,16 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
         let ia_reduced = ws.ia_reduced[i];
         let p_reduced = p_bias + ia_reduced * ws.c_body[i] + gain * u;
         ws.p_bias_body[p] += x.apply_transpose_force(&p_reduced);
-        ws.p_force_body[p] += x.apply_transpose_force(&(p_force + gain * u_force));
+        if forces {
+            ws.p_force_body[p] += x.apply_transpose_force(&(p_force + gain * u_force));
+        }
 
-        let project = SpatialMat::identity() - gain * s.transpose();
-        let ia_reduced_dot = project * ia_dot * project.transpose();
+        // İ^a = (1 − G Sᵀ) İ^A (1 − G Sᵀ)ᵀ = İ^A − G Aᵀ − A Gᵀ + G Ḋ Gᵀ with
+        // A = İ^A S: rank-N updates instead of two 6×6 products.
+        let g_at = gain * ia_dot_s.transpose();
+        let ia_reduced_dot = ia_dot - g_at - g_at.transpose() + gain * d_dot * gain.transpose();
         // v_J ×* I^a − I^a v_J × = −(B + Bᵀ) with B = I^a (v_J ×), I^a symmetric.
-        let b = ia_reduced * cross_motion_matrix(&ws.v_joint[i]);
+        let b = mul_cross_motion(&ia_reduced, &ws.v_joint[i]);
         let child_term = ia_reduced_dot - b - b.transpose();
         ws.ia_dot_body[p] += x.transform_inertia_to_parent(&child_term);
     }
@@ -97,19 +113,26 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
 
 /// Pass 3 over all links; `eps` is the applied ε (nv).
 pub(crate) fn bias_pass(model: &Model, ws: &mut Workspace, eps: &[f64]) {
-    passive_forces(model, ws);
+    let forces = !model.shortcuts.no_passive_forces();
+    if forces {
+        passive_forces(model, ws);
+    }
     for (i, link) in model.links.iter().enumerate() {
         let v = ws.v_body[i];
         ws.p_bias_body[i] = cross_force(&v, &(link.inertia * v));
-        // Gravity is an external force m g at the centre of mass: p = −f_ext.
-        let g_link = ws.x_world[i].rot * model.gravity;
-        ws.p_force_body[i] = -spatial(&link.mass_moment.cross(&g_link), &(link.mass * g_link));
         ws.ia_dot_body[i] = SpatialMat::zeros();
+        ws.p_force_body[i] = if model.shortcuts.no_gravity {
+            SpatialVec::zeros()
+        } else {
+            // Gravity is an external force m g at the centre of mass: p = −f_ext.
+            let g_link = ws.x_world[i].rot * model.gravity;
+            -spatial(&link.mass_moment.cross(&g_link), &(link.mass * g_link))
+        };
     }
     for i in (0..model.links.len()).rev() {
         match model.links[i].ndof {
-            1 => bias_link::<1>(model, ws, i, eps),
-            _ => bias_link::<3>(model, ws, i, eps),
+            1 => bias_link::<1>(model, ws, i, eps, forces),
+            _ => bias_link::<3>(model, ws, i, eps, forces),
         }
     }
 }

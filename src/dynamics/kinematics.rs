@@ -39,16 +39,39 @@ pub fn joint_transform(link: &Link, theta: &mut [f64]) -> Result<Transform, Dyna
     })
 }
 
-/// Pass 0: `x_parent` and `x_world` for the configuration in `ws.theta`.
+/// Pass 0: `x_parent` for the configuration in `ws.theta`, and `x_world`
+/// unless the model has no gravity (then only the momentum needs it, and
+/// asks for [`world_transforms_pass`]).
 pub(crate) fn kinematics_pass(model: &Model, ws: &mut Workspace) -> Result<(), DynamicsError> {
+    ws.world_transforms_current = false;
     for (i, link) in model.links.iter().enumerate() {
         let x_joint = joint_transform(link, ws.theta.as_mut_slice())?;
-        let x_parent = x_joint.compose(&link.x_tree);
-        ws.x_parent[i] = x_parent;
-        ws.x_world[i] = match link.parent {
-            Some(p) => x_parent.compose(&ws.x_world[p]),
-            None => x_parent,
-        };
+        ws.x_parent[i] = x_joint.compose(&link.x_tree);
+    }
+    if !model.shortcuts.no_gravity {
+        world_transforms_pass(model, ws);
     }
     Ok(())
+}
+
+impl Workspace {
+    /// ⁱX₀ of every link for the current configuration, computed now if
+    /// pass 0 skipped them (a model without gravity).
+    pub fn world_transforms(&mut self, model: &Model) -> &[Transform] {
+        if !self.world_transforms_current {
+            world_transforms_pass(model, self);
+        }
+        &self.x_world
+    }
+}
+
+/// ⁱX₀ = ⁱX_λ · ᵝX₀, base to tip, from `x_parent`.
+pub(crate) fn world_transforms_pass(model: &Model, ws: &mut Workspace) {
+    for (i, link) in model.links.iter().enumerate() {
+        ws.x_world[i] = match link.parent {
+            Some(p) => ws.x_parent[i].compose(&ws.x_world[p]),
+            None => ws.x_parent[i],
+        };
+    }
+    ws.world_transforms_current = true;
 }

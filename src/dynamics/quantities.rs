@@ -24,8 +24,9 @@ impl Workspace {
     /// Spatial momentum of all bodies (angular about the world origin, then
     /// linear), in world coordinates. Armature is rotor inertia, not body
     /// momentum, so it is not included (as in MuJoCo).
-    pub fn momentum(&self, model: &Model) -> Result<SpatialVec, DynamicsError> {
+    pub fn momentum(&mut self, model: &Model) -> Result<SpatialVec, DynamicsError> {
         require(self, Stage::Velocity, "momentum")?;
+        self.world_transforms(model);
         let mut total = SpatialVec::zeros();
         for (i, link) in model.links.iter().enumerate() {
             let h = link.inertia * self.v_body[i];

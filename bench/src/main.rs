@@ -1,0 +1,307 @@
+//! `nudyn-bench`: the timing side of `scripts/bench.py`. It times nudyn
+//! and MuJoCo (its C library, loaded from the mujoco Python package) side
+//! by side in one process, and runs nudyn's integrators for the
+//! work-precision comparison; it prints JSON that the driver turns into
+//! the tables and plots of `docs/bench/`.
+
+mod dense;
+mod mujoco;
+mod timing;
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result, bail};
+use clap::{Parser, Subcommand};
+use nudyn::integrate::{Carry, Integrator, Method, Settings};
+use nudyn::model::{Model, Shortcuts};
+use serde::{Deserialize, Serialize};
+use timing::Case;
+
+#[derive(Parser)]
+#[command(name = "nudyn-bench", about = "Timing side of scripts/bench.py: nudyn and MuJoCo side by side")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Nanoseconds per ν̇ evaluation (nudyn's `forward`: all four passes,
+    /// from θ and ν), beside MuJoCo's pipelines on the same state, nudyn
+    /// with each shortcut turned off, and the dense O(N³) path.
+    EvalCost {
+        /// The vehicle's MJCF file (nudyn's import).
+        model: PathBuf,
+        /// The state: a JSON file with "theta" (nq), "nu" and "qvel" (nv).
+        #[arg(long)]
+        state: PathBuf,
+        /// MuJoCo's libmujoco.so; with --mujoco-model, also time MuJoCo.
+        #[arg(long, requires = "mujoco_model")]
+        mujoco_lib: Option<PathBuf>,
+        /// The same vehicle for MuJoCo, as a binary model (mj_saveModel) with contacts and constraints off.
+        #[arg(long, requires = "mujoco_lib")]
+        mujoco_model: Option<PathBuf>,
+        /// Also time nudyn with each shortcut the model takes turned off, and with none.
+        #[arg(long)]
+        shortcuts: bool,
+        /// Also time the dense O(N³) path (and compare its ν̇ with nudyn's).
+        #[arg(long)]
+        dense: bool,
+        /// Repetitions (one batch of each case per repetition).
+        #[arg(long, default_value_t = 15)]
+        repetitions: usize,
+        /// Length of one batch (ms).
+        #[arg(long, default_value_t = 20.0)]
+        batch_ms: f64,
+    },
+    /// Integrate with nudyn's methods from a given state, timing each run;
+    /// prints the state at every sample time.
+    Simulate {
+        /// The vehicle's MJCF file.
+        model: PathBuf,
+        /// The initial state: a JSON file with "theta" (nq) and "nu" (nv).
+        #[arg(long)]
+        state: PathBuf,
+        /// Simulated time (s).
+        #[arg(long, default_value_t = 10.0)]
+        duration: f64,
+        /// Interval between samples (s): each is one call of the
+        /// integrator's `advance`, as one FMU doStep.
+        #[arg(long, default_value_t = 0.1)]
+        sample: f64,
+        /// Runs, as METHOD:VALUE — rk4:STEP, dopri5:TOLERANCE or dop853:TOLERANCE.
+        #[arg(long = "run", required = true)]
+        runs: Vec<String>,
+        /// Timed repetitions of each run.
+        #[arg(long, default_value_t = 1)]
+        repetitions: usize,
+        /// Print only times and step counts, not the sampled states.
+        #[arg(long)]
+        no_samples: bool,
+    },
+}
+
+/// A state read from a JSON file.
+#[derive(Deserialize)]
+struct State {
+    theta: Vec<f64>,
+    nu: Vec<f64>,
+    qvel: Option<Vec<f64>>,
+}
+
+fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<T> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    serde_json::from_str(&text).with_context(|| format!("{} is not the expected JSON", path.display()))
+}
+
+fn load_model(path: &Path) -> Result<Model> {
+    let imported = nudyn::mjcf::load_mjcf(path).with_context(|| format!("cannot import {}", path.display()))?;
+    Model::compile(&imported.vehicle).with_context(|| format!("cannot compile {}", path.display()))
+}
+
+fn main() -> Result<()> {
+    match Cli::parse().command {
+        Command::EvalCost { model, state, mujoco_lib, mujoco_model, shortcuts, dense, repetitions, batch_ms } => {
+            let mujoco = mujoco_lib.zip(mujoco_model);
+            let options = CostOptions { shortcuts, dense, repetitions, batch: Duration::from_secs_f64(batch_ms / 1e3) };
+            let result = eval_cost(&load_model(&model)?, &read_json(&state)?, mujoco.as_ref(), &options)?;
+            println!("{}", serde_json::to_string(&result)?);
+        }
+        Command::Simulate { model, state, duration, sample, runs, repetitions, no_samples } => {
+            let model = load_model(&model)?;
+            let state: State = read_json(&state)?;
+            let mut results = Vec::new();
+            for run in &runs {
+                results.push(simulate(&model, &state, run, duration, sample, repetitions, !no_samples)?);
+            }
+            println!("{}", serde_json::to_string(&results)?);
+        }
+    }
+    Ok(())
+}
+
+struct CostOptions {
+    shortcuts: bool,
+    dense: bool,
+    repetitions: usize,
+    batch: Duration,
+}
+
+#[derive(Serialize)]
+struct CostResult {
+    nv: usize,
+    /// The shortcuts the compiled model takes.
+    shortcuts: Shortcuts,
+    /// Nanoseconds per evaluation, per case, one entry per repetition.
+    nanoseconds: std::collections::BTreeMap<String, Vec<f64>>,
+    /// max |ν̇_dense − ν̇| / max(1, max |ν̇|), when the dense path ran.
+    dense_difference: Option<f64>,
+}
+
+/// The model with one shortcut turned off.
+fn without(model: &Model, name: &str) -> Model {
+    let mut general = model.clone();
+    let s = &mut general.shortcuts;
+    match name {
+        "no_gravity" => s.no_gravity = false,
+        "no_springs" => s.no_springs = false,
+        "no_dampers" => s.no_dampers = false,
+        "no_armature" => s.no_armature = false,
+        _ => *s = Shortcuts::none(),
+    }
+    general
+}
+
+fn eval_cost(model: &Model, state: &State, mujoco: Option<&(PathBuf, PathBuf)>, options: &CostOptions) -> Result<CostResult> {
+    let eps = vec![0.0; model.nv];
+    // Variants of the model: as compiled, then each shortcut it takes turned off, then none.
+    let taken = model.shortcuts;
+    let mut variants = vec![("nudyn".to_string(), model.clone())];
+    if options.shortcuts {
+        for (name, on) in [
+            ("no_gravity", taken.no_gravity),
+            ("no_springs", taken.no_springs),
+            ("no_dampers", taken.no_dampers),
+            ("no_armature", taken.no_armature),
+        ] {
+            if on {
+                variants.push((format!("nudyn without {name}"), without(model, name)));
+            }
+        }
+        variants.push(("nudyn without shortcuts".to_string(), without(model, "all")));
+    }
+    let mut workspaces: Vec<_> = variants.iter().map(|(_, m)| m.workspace()).collect();
+    for (ws, (_, m)) in workspaces.iter_mut().zip(&variants) {
+        nudyn::dynamics::forward(m, ws, &state.theta, &state.nu, &eps)?;
+    }
+    let mut dense_ws = model.workspace();
+    let dense_difference = if options.dense {
+        dense::check_supported(model)?;
+        let dense = dense::nu_dot(model, &mut dense_ws, &state.theta, &state.nu)?;
+        let fast = &workspaces[0].nu_dot;
+        Some((&dense - fast).amax() / fast.amax().max(1.0))
+    } else {
+        None
+    };
+
+    let api = mujoco.map(|(lib, _)| mujoco::Api::load(lib)).transpose()?;
+    let mut simulations = Vec::new();
+    if let (Some(api), Some((_, path))) = (&api, mujoco) {
+        for pipeline in mujoco::Pipeline::ALL {
+            let mut simulation = mujoco::Simulation::load(api, path)?;
+            let qvel = state.qvel.as_ref().context("the state has no qvel, which MuJoCo needs")?;
+            simulation.set_state(&state.theta, qvel)?;
+            simulations.push((pipeline, simulation));
+        }
+    }
+
+    let mut cases: Vec<Case> = Vec::new();
+    for ((name, m), ws) in variants.iter().zip(workspaces.iter_mut()) {
+        let (theta, nu, eps) = (&state.theta, &state.nu, &eps);
+        cases.push(Case {
+            name: name.clone(),
+            call: Box::new(move || {
+                nudyn::dynamics::forward(m, ws, std::hint::black_box(theta), nu, eps).expect("the state evaluates");
+            }),
+        });
+    }
+    for (pipeline, simulation) in simulations.iter_mut() {
+        let pipeline = *pipeline;
+        cases.push(Case { name: pipeline.name().to_string(), call: Box::new(move || simulation.evaluate(pipeline)) });
+    }
+    if options.dense {
+        let (theta, nu) = (&state.theta, &state.nu);
+        let dense_ws = &mut dense_ws;
+        cases.push(Case {
+            name: "dense".to_string(),
+            call: Box::new(move || {
+                dense::nu_dot(model, dense_ws, theta, nu).expect("the dense path evaluates");
+            }),
+        });
+    }
+    let times = timing::interleaved(&mut cases, options.repetitions, options.batch);
+    let nanoseconds = cases.iter().map(|c| c.name.clone()).zip(times).collect();
+    Ok(CostResult { nv: model.nv, shortcuts: taken, nanoseconds, dense_difference })
+}
+
+#[derive(Serialize)]
+struct SimulateResult {
+    run: String,
+    /// Wall time of each repetition (s): the integration only.
+    seconds: Vec<f64>,
+    /// Steps accepted and rejected in the (last) run.
+    accepted: usize,
+    rejected: usize,
+    /// Why the run stopped early, if it did (then the samples end there).
+    failed: Option<String>,
+    time: Vec<f64>,
+    qpos: Vec<Vec<f64>>,
+    qvel: Vec<Vec<f64>>,
+}
+
+fn simulate(model: &Model, state: &State, run: &str, duration: f64, sample: f64, repetitions: usize, samples: bool) -> Result<SimulateResult> {
+    let (method_name, value) = run.split_once(':').with_context(|| format!("--run {run}: expected METHOD:VALUE"))?;
+    let method = Method::from_name(method_name).with_context(|| format!("--run {run}: unknown method"))?;
+    let value: f64 = value.parse().with_context(|| format!("--run {run}: not a number"))?;
+    let settings = if method.is_adaptive() {
+        Settings { tolerance: value, max_step: sample, energy_projection: false }
+    } else {
+        Settings { tolerance: 1.0, max_step: value, energy_projection: false }
+    };
+    let intervals = (duration / sample).round() as usize;
+    if (intervals as f64 * sample - duration).abs() > 1e-9 * duration {
+        bail!("--duration {duration} is not a multiple of --sample {sample}");
+    }
+    let mut ws = model.workspace();
+    let eps_at = |_: f64, out: &mut [f64]| out.fill(0.0);
+    let mut result = SimulateResult {
+        run: run.to_string(),
+        seconds: Vec::new(),
+        accepted: 0,
+        rejected: 0,
+        failed: None,
+        time: Vec::new(),
+        qpos: Vec::new(),
+        qvel: Vec::new(),
+    };
+    let mut reached = intervals;
+    // Preallocated outside the timed loop: the sampled (θ, ν).
+    let mut trajectory = vec![(state.theta.clone(), state.nu.clone()); intervals + 1];
+    for _ in 0..repetitions {
+        let mut integrator = Integrator::new(model, method);
+        let mut carry = Carry::default();
+        let (mut theta, mut nu) = (state.theta.clone(), state.nu.clone());
+        let (mut accepted, mut rejected) = (0, 0);
+        let start = Instant::now();
+        for n in 0..intervals {
+            let t = n as f64 * sample;
+            match integrator.advance(model, &mut ws, &mut theta, &mut nu, (t, t + sample), &settings, &mut carry, eps_at) {
+                Ok(stats) => {
+                    accepted += stats.accepted;
+                    rejected += stats.rejected;
+                }
+                Err(error) => {
+                    // Too large a step for the motion: a point of the curve all the same.
+                    result.failed = Some(error.to_string());
+                    reached = n;
+                    break;
+                }
+            }
+            trajectory[n + 1].0.copy_from_slice(&theta);
+            trajectory[n + 1].1.copy_from_slice(&nu);
+        }
+        result.seconds.push(start.elapsed().as_secs_f64());
+        (result.accepted, result.rejected) = (accepted, rejected);
+    }
+    if samples {
+        for (n, (theta, nu)) in trajectory.iter().enumerate().take(reached + 1) {
+            ws.set_configuration(model, theta)?;
+            ws.set_nu(model, nu)?;
+            result.time.push(n as f64 * sample);
+            result.qpos.push(ws.theta.as_slice().to_vec());
+            result.qvel.push(ws.qvel.as_slice().to_vec());
+        }
+    }
+    Ok(result)
+}

@@ -1,0 +1,1 @@
+"""nudyn's benchmarks against MuJoCo and Pinocchio: `scripts/bench.py`."""

@@ -1,0 +1,55 @@
+"""Smoke test of the benchmark command (`scripts/bench.py --quick`): it
+runs every section at tiny sizes and writes what the README shows. It
+checks that the outputs are there and consistent, never how fast anything
+is (a timed test on a shared machine would only measure the machine)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+from conftest import ROOT, nudyn_bin
+
+
+def test_quick_benchmark_writes_results_table_and_plots(tmp_path):
+    bin_dir = nudyn_bin().parent
+    proc = subprocess.run(
+        [sys.executable, str(ROOT / "scripts" / "bench.py"), "--quick", "--out", str(tmp_path), "--bin-dir", str(bin_dir)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=ROOT,
+        env={**os.environ, "PYTHONWARNINGS": "ignore"},
+    )
+    assert proc.returncode == 0, f"bench.py failed\nstdout: {proc.stdout}\nstderr: {proc.stderr[-4000:]}"
+    for name in ("results.json", "table.md", "scaling.png", "work_precision.png"):
+        assert (tmp_path / name).stat().st_size > 0, name
+    results = json.loads((tmp_path / "results.json").read_text())
+    assert results["quick"] is True
+    summary = results["summary"]
+    for name, row in summary["eval_cost"].items():
+        assert row["nudyn_ns"] > 0 and row["mj_forward_ns"] > 0, name
+    # The dense O(N³) path computes the same ν̇ (its Ṁ by a central difference).
+    for row in summary["scaling"]["rows"]:
+        assert row["dense_difference"] < 1e-6, row
+    # The reference of the work-precision runs is checked by an independent integration.
+    for scenario in results["work_precision"].values():
+        assert scenario["reference_check"]["difference"] < 1e-8
+    assert set(summary["targets"]) == {"nu_dot_not_slower_than_mj_forward", "half_of_mujoco_best_at_1e-6", "linear_scaling"}
+    assert "### Targets" in (tmp_path / "table.md").read_text()
+
+
+def test_chains_built_for_mujoco_equal_the_generated_files():
+    """MuJoCo cannot read bodies nested 500 deep, so the benchmark builds its
+    chains with MuJoCo's model editor: they must be gen_chain.py's chains."""
+    import numpy as np
+
+    from nudyn_bench.vehicles import chain_model
+    from nudyn_validation.mujoco_reference import load_model
+
+    built, read = chain_model(60), load_model(ROOT / "examples" / "chain60.xml")
+    assert (built.nq, built.nv) == (read.nq, read.nv)
+    for field in ("body_mass", "body_inertia", "body_ipos", "body_iquat", "body_pos", "body_quat", "jnt_axis", "dof_armature", "dof_damping", "qpos0"):
+        assert np.allclose(getattr(built, field), getattr(read, field), rtol=0, atol=1e-15), field
