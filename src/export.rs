@@ -140,6 +140,35 @@ pub enum RealVariable {
 /// The variable of index k within a block.
 type VariableOf = fn(usize) -> RealVariable;
 
+/// Blocks of variables numbered consecutively from value reference `first`:
+/// (length, variable of index k) becomes (first value reference, length,
+/// variable of index k). A layout's value references are its blocks'.
+pub(crate) fn numbered_blocks<V, const N: usize>(
+    first: u32,
+    blocks: [(usize, fn(usize) -> V); N],
+) -> impl Iterator<Item = (u32, usize, fn(usize) -> V)> {
+    let mut next = first;
+    blocks.into_iter().map(move |(len, variable)| {
+        let first = next;
+        next += len as u32;
+        (first, len, variable)
+    })
+}
+
+/// The variable with value reference `vr` among numbered `blocks`, if any.
+pub(crate) fn variable_at<V>(mut blocks: impl Iterator<Item = (u32, usize, fn(usize) -> V)>, vr: u32) -> Option<V> {
+    blocks
+        .find(|&(first, len, _)| vr >= first && ((vr - first) as usize) < len)
+        .map(|(first, _, variable)| variable((vr - first) as usize))
+}
+
+/// Every variable of numbered `blocks` with its value reference, in order.
+pub(crate) fn every_variable<V>(
+    blocks: impl Iterator<Item = (u32, usize, fn(usize) -> V)>,
+) -> impl Iterator<Item = (u32, V)> {
+    blocks.flat_map(|(first, len, variable)| (0..len).map(move |k| (first + k as u32, variable(k))))
+}
+
 /// The FMU's Real variables and their value references: consecutive blocks
 /// after the two parameters, `tolerance` (1) and `max_step` (2), in the
 /// order eps, theta, nu, then the chosen optional outputs.
@@ -174,24 +203,17 @@ impl Layout {
             (if o.momentum { 6 } else { 0 }, RealVariable::Momentum),
             (usize::from(o.energy_residual), |_| RealVariable::EnergyResidual),
         ];
-        let mut next = METHOD_VR + 1;
-        blocks.into_iter().map(move |(len, variable)| {
-            let first = next;
-            next += len as u32;
-            (first, len, variable)
-        })
+        numbered_blocks(METHOD_VR + 1, blocks)
     }
 
     /// The variable with value reference `vr`, if any.
     pub fn real_variable(&self, vr: u32) -> Option<RealVariable> {
-        self.blocks()
-            .find(|&(first, len, _)| vr >= first && ((vr - first) as usize) < len)
-            .map(|(first, _, variable)| variable((vr - first) as usize))
+        variable_at(self.blocks(), vr)
     }
 
     /// All Real variables with their value references, in order.
     pub fn real_variables(&self) -> impl Iterator<Item = (u32, RealVariable)> {
-        self.blocks().flat_map(|(first, len, variable)| (0..len).map(move |k| (first + k as u32, variable(k))))
+        every_variable(self.blocks())
     }
 
     /// The value reference of `variable` (which must exist in this layout).

@@ -16,7 +16,7 @@ use nudyn::control::{ControlLaw, ControlParameters, ControlWorkspace, Objective}
 use nudyn::model::{LinkJoint, Model};
 
 use crate::resource::check_model;
-use crate::slave::{SlaveError, TIME_TOLERANCE};
+use crate::slave::{SlaveError, check_communication_step, check_experiment};
 
 /// File name of the controller resource in the resources directory.
 pub const CONTROLLER_RESOURCE_FILE: &str = "controller.json";
@@ -113,15 +113,7 @@ impl Controller {
     /// fmi2SetupExperiment: the start time becomes the current time. The
     /// tolerance has no use here but is checked like the plant's.
     pub fn setup_experiment(&mut self, tolerance: Option<f64>, start_time: f64, stop_time: Option<f64>) -> Result<(), SlaveError> {
-        if !start_time.is_finite() {
-            return Err(SlaveError::NonFinite { name: "startTime".into(), value: start_time });
-        }
-        if let Some(tolerance) = tolerance.filter(|t| !(t.is_finite() && *t > 0.0)) {
-            return Err(SlaveError::NotPositive { name: "tolerance", value: tolerance });
-        }
-        if let Some(stop) = stop_time.filter(|s| !(s.is_finite() && *s >= start_time)) {
-            return Err(SlaveError::NonFinite { name: format!("stopTime (startTime = {start_time})"), value: stop });
-        }
+        check_experiment(tolerance, start_time, stop_time)?;
         self.time = start_time;
         self.stop_time = stop_time;
         Ok(())
@@ -243,15 +235,7 @@ impl Controller {
     /// fmi2DoStep: the same checks as the plant's; then time advances. The
     /// outputs stay the law at the current inputs.
     pub fn do_step(&mut self, time: f64, step: f64) -> Result<(), SlaveError> {
-        if (time - self.time).abs() > TIME_TOLERANCE * self.time.abs().max(1.0) {
-            return Err(SlaveError::CommunicationPoint { expected: self.time, found: time });
-        }
-        if !(step.is_finite() && step > 0.0) {
-            return Err(SlaveError::StepSize(step));
-        }
-        if let Some(stop_time) = self.stop_time.filter(|&stop| time + step > stop + TIME_TOLERANCE * stop.abs().max(1.0)) {
-            return Err(SlaveError::PastStopTime { time, step, stop_time });
-        }
+        check_communication_step(self.time, self.stop_time, time, step)?;
         self.time = time + step;
         Ok(())
     }

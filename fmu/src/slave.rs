@@ -26,7 +26,7 @@ use crate::uri::{UriError, resource_directory};
 
 /// Relative tolerance on currentCommunicationPoint against the slave's time:
 /// masters compute communication points in their own way (FMPy: start + n·h).
-pub(crate) const TIME_TOLERANCE: f64 = 1e-9;
+const TIME_TOLERANCE: f64 = 1e-9;
 
 /// The most internal steps of `max_step` one doStep may ask for: more would
 /// keep the host busy for hours (1e300 s, or `max_step` = 1e-300, forever),
@@ -83,6 +83,37 @@ impl SlaveState {
             eps_rate: vec![0.0; model.nv],
         }
     }
+}
+
+/// Refuses fmi2SetupExperiment arguments no run can use: a non-finite
+/// start, a tolerance that is not positive, a stop time before the start.
+pub fn check_experiment(tolerance: Option<f64>, start_time: f64, stop_time: Option<f64>) -> Result<(), SlaveError> {
+    if !start_time.is_finite() {
+        return Err(SlaveError::NonFinite { name: "startTime".into(), value: start_time });
+    }
+    if let Some(tolerance) = tolerance.filter(|t| !(t.is_finite() && *t > 0.0)) {
+        return Err(SlaveError::NotPositive { name: "tolerance", value: tolerance });
+    }
+    if let Some(stop) = stop_time.filter(|s| !(s.is_finite() && *s >= start_time)) {
+        return Err(SlaveError::NonFinite { name: format!("stopTime (startTime = {start_time})"), value: stop });
+    }
+    Ok(())
+}
+
+/// Refuses an fmi2DoStep from a communication point other than the
+/// instance's time `now`, by a step that is not positive and finite, or
+/// past the stop time.
+pub fn check_communication_step(now: f64, stop_time: Option<f64>, time: f64, step: f64) -> Result<(), SlaveError> {
+    if (time - now).abs() > TIME_TOLERANCE * now.abs().max(1.0) {
+        return Err(SlaveError::CommunicationPoint { expected: now, found: time });
+    }
+    if !(step.is_finite() && step > 0.0) {
+        return Err(SlaveError::StepSize(step));
+    }
+    if let Some(stop_time) = stop_time.filter(|&stop| time + step > stop + TIME_TOLERANCE * stop.abs().max(1.0)) {
+        return Err(SlaveError::PastStopTime { time, step, stop_time });
+    }
+    Ok(())
 }
 
 /// What a completed fmi2DoStep did.
@@ -395,15 +426,7 @@ impl Slave {
         start_time: f64,
         stop_time: Option<f64>,
     ) -> Result<(), SlaveError> {
-        if !start_time.is_finite() {
-            return Err(SlaveError::NonFinite { name: "startTime".into(), value: start_time });
-        }
-        if let Some(tolerance) = tolerance.filter(|t| !(t.is_finite() && *t > 0.0)) {
-            return Err(SlaveError::NotPositive { name: "tolerance", value: tolerance });
-        }
-        if let Some(stop) = stop_time.filter(|s| !(s.is_finite() && *s >= start_time)) {
-            return Err(SlaveError::NonFinite { name: format!("stopTime (startTime = {start_time})"), value: stop });
-        }
+        check_experiment(tolerance, start_time, stop_time)?;
         self.experiment_tolerance = tolerance;
         self.state.start_time = start_time;
         self.state.time = start_time;
@@ -663,15 +686,7 @@ impl Slave {
     /// completed only by relaxing the tolerance says so.
     pub fn do_step(&mut self, time: f64, step: f64) -> Result<StepReport, SlaveError> {
         let s = &mut self.state;
-        if (time - s.time).abs() > TIME_TOLERANCE * s.time.abs().max(1.0) {
-            return Err(SlaveError::CommunicationPoint { expected: s.time, found: time });
-        }
-        if !(step.is_finite() && step > 0.0) {
-            return Err(SlaveError::StepSize(step));
-        }
-        if let Some(stop_time) = s.stop_time.filter(|&stop| time + step > stop + TIME_TOLERANCE * stop.abs().max(1.0)) {
-            return Err(SlaveError::PastStopTime { time, step, stop_time });
-        }
+        check_communication_step(s.time, s.stop_time, time, step)?;
         let settings = Settings { tolerance: s.tolerance, max_step: s.max_step, energy_projection: s.energy_projection };
         let (eps, eps_rate) = (&s.eps, &s.eps_rate);
         let applied = |t_stage: f64, out: &mut [f64]| {

@@ -18,8 +18,8 @@ use serde::{Deserialize, Serialize};
 
 use super::{ControlError, ControlLaw, ControlParameters, Objective};
 use crate::export::{
-    DEFAULT_STEP_SIZE, DEFAULT_STOP_TIME, ExportError, LOG_CATEGORIES, RealVariable, description, guid_of,
-    is_c_identifier, write_archive,
+    DEFAULT_STEP_SIZE, DEFAULT_STOP_TIME, ExportError, LOG_CATEGORIES, RealVariable, description, every_variable,
+    guid_of, is_c_identifier, numbered_blocks, variable_at, write_archive,
 };
 use crate::model::{LinkJoint, Model};
 use std::path::Path;
@@ -105,24 +105,17 @@ impl ControllerLayout {
             (1, |_| ControllerVariable::Potential),
             (self.ny, ControllerVariable::TargetError),
         ];
-        let mut next = 1u32;
-        blocks.into_iter().map(move |(len, variable)| {
-            let first = next;
-            next += len as u32;
-            (first, len, variable)
-        })
+        numbered_blocks(1, blocks)
     }
 
     /// The variable with value reference `vr`, if any.
     pub fn variable(&self, vr: u32) -> Option<ControllerVariable> {
-        self.blocks()
-            .find(|&(first, len, _)| vr >= first && ((vr - first) as usize) < len)
-            .map(|(first, _, variable)| variable((vr - first) as usize))
+        variable_at(self.blocks(), vr)
     }
 
     /// All Real variables with their value references, in order.
     pub fn variables(&self) -> impl Iterator<Item = (u32, ControllerVariable)> {
-        self.blocks().flat_map(|(first, len, variable)| (0..len).map(move |k| (first + k as u32, variable(k))))
+        every_variable(self.blocks())
     }
 
     /// The structured, 1-based name of `variable`.
