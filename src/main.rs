@@ -281,21 +281,16 @@ fn simulate(model_path: &Path, step: f64, stop: f64, method: Method, settings: &
                 *o = e + r * t;
             }
         };
+        let relaxation_before = carry.relaxation;
         integrator
             .advance(&model, &mut ws, &mut theta, &mut nu, (t, t + step), settings, &mut carry, eps_at)
             .with_context(|| format!("the step from t = {t} failed"))?;
+        if let Some(relaxed) = carry.relaxed_since(relaxation_before, t, settings.tolerance) {
+            eprintln!("warning: {relaxed}");
+        }
         trajectory.time.push(t + step);
         trajectory.theta.push(theta.clone());
         trajectory.nu.push(nu.clone());
-    }
-    if carry.relaxation > 1.0 {
-        eprintln!(
-            "warning: tolerance {:e} per second is below what round-off in this vehicle's rates allows: \
-             the error was held to {:e} per second (and to {:e} per internal step)",
-            settings.tolerance,
-            carry.attained_tolerance(settings.tolerance),
-            settings.tolerance
-        );
     }
     println!("{}", serde_json::to_string(&trajectory)?);
     Ok(())

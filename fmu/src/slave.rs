@@ -15,7 +15,7 @@ use nudyn::export::{
     RESOURCE_FORMAT, RealVariable, method_of_value, method_value,
 };
 use nudyn::dynamics::quantities::kinetic_energy;
-use nudyn::integrate::{AdvanceError, Carry, Integrator, Method, Settings, Stats};
+use nudyn::integrate::{AdvanceError, Carry, Integrator, Method, Settings, Stats, ToleranceRelaxed};
 use nudyn::model::{LinkJoint, Model};
 use nudyn::workspace::Workspace;
 
@@ -123,22 +123,6 @@ pub struct StepReport {
     pub stats: Stats,
     /// Set when the tolerance had to be relaxed (fmi2Warning).
     pub relaxed: Option<ToleranceRelaxed>,
-}
-
-/// A step that completed with the tolerance relaxed (fmi2Warning).
-#[derive(Debug, thiserror::Error)]
-#[error(
-    "tolerance {tolerance:e} per second is below what round-off in this vehicle's rates allows: \
-     from the step at t = {time} s on, the error is held to {attained:e} per second \
-     (and to {tolerance:e} per internal step)"
-)]
-pub struct ToleranceRelaxed {
-    /// The communication point of the step.
-    pub time: f64,
-    /// The tolerance asked for.
-    pub tolerance: f64,
-    /// The tolerance held.
-    pub attained: f64,
 }
 
 /// Why a slave call is refused or failed.
@@ -703,12 +687,7 @@ impl Slave {
             Ok(stats) => {
                 s.time = time + step;
                 s.eps_rate.fill(0.0);
-                let relaxed = s.carry.relaxation > relaxation_before.max(1.0);
-                let relaxed = relaxed.then(|| ToleranceRelaxed {
-                    time,
-                    tolerance: s.tolerance,
-                    attained: s.carry.attained_tolerance(s.tolerance),
-                });
+                let relaxed = s.carry.relaxed_since(relaxation_before, time, s.tolerance);
                 Ok(StepReport { stats, relaxed })
             }
             Err(source) => {

@@ -62,6 +62,32 @@ impl Carry {
     pub fn attained_tolerance(&self, tolerance: f64) -> f64 {
         tolerance * self.relaxation.max(1.0)
     }
+
+    /// Whether the relaxation grew past `before` in the interval from `time`,
+    /// and then what the caller must be told.
+    pub fn relaxed_since(&self, before: f64, time: f64, tolerance: f64) -> Option<ToleranceRelaxed> {
+        (self.relaxation > before.max(1.0)).then(|| ToleranceRelaxed {
+            time,
+            tolerance,
+            attained: self.attained_tolerance(tolerance),
+        })
+    }
+}
+
+/// An interval completed only by relaxing the tolerance (the FMU's fmi2Warning).
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "tolerance {tolerance:e} per second is below what round-off in this vehicle's rates allows: \
+     from the step at t = {time} s on, the error is held to {attained:e} per second \
+     (and to {tolerance:e} per internal step)"
+)]
+pub struct ToleranceRelaxed {
+    /// The start of the interval.
+    pub time: f64,
+    /// The tolerance asked for.
+    pub tolerance: f64,
+    /// The tolerance held.
+    pub attained: f64,
 }
 
 /// Counts of one call to `advance`.

@@ -6,6 +6,6 @@ mod adaptive;
 mod rkmk;
 mod tableau;
 
-pub use adaptive::{AdvanceError, Carry, MAX_ADAPTIVE_STEPS, Overflow, Settings, Stats};
+pub use adaptive::{AdvanceError, Carry, MAX_ADAPTIVE_STEPS, Overflow, Settings, Stats, ToleranceRelaxed};
 pub use rkmk::{Integrator, retract};
 pub use tableau::{DOP853, DOPRI5, ErrorEstimate, Method, RK4, Tableau};
