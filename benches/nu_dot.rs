@@ -1,5 +1,5 @@
 //! Cost of one ν̇ evaluation (all four passes) on each bundled example and
-//! on a 200-body hinge chain on a free base.
+//! on a 200-body hinge chain on a free base, and of each pass alone.
 
 use std::hint::black_box;
 use std::path::Path;
@@ -62,6 +62,20 @@ fn bench_model(c: &mut Criterion, name: &str, model: &Model) {
     let (theta, nu, eps) = state(model);
     c.bench_function(&format!("nu_dot/{name} (nv={})", model.nv), |b| {
         b.iter(|| forward(model, &mut ws, black_box(&theta), black_box(&nu), black_box(&eps)).unwrap())
+    });
+    // Where the time goes: each pass is timed after the ones it needs, so
+    // a pass costs the difference between consecutive lines.
+    c.bench_function(&format!("passes/{name}/0-1 configuration"), |b| {
+        b.iter(|| ws.set_configuration(model, black_box(&theta)).unwrap())
+    });
+    c.bench_function(&format!("passes/{name}/2 velocity"), |b| {
+        ws.set_configuration(model, &theta).unwrap();
+        b.iter(|| ws.set_nu(model, black_box(&nu)).unwrap())
+    });
+    c.bench_function(&format!("passes/{name}/3 bias"), |b| {
+        ws.set_configuration(model, &theta).unwrap();
+        ws.set_nu(model, &nu).unwrap();
+        b.iter(|| ws.compute_nu_dot(model, black_box(&eps)).unwrap())
     });
 }
 
