@@ -8,7 +8,7 @@ use super::defaults::{
     Defaults, GEOM_ATTRIBUTES, GeomKind, GeomSettings, JOINT_ATTRIBUTES, JointSettings, Limited,
     MAIN,
 };
-use super::element::Element;
+use super::element::{Element, LineStarts};
 use super::error::MjcfError;
 use super::inertia::{self, BodyInertia, EPS, GeomMass};
 use super::orientation::{
@@ -142,7 +142,8 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
         column: e.pos().col,
         message: e.to_string(),
     })?;
-    let root = Element::new(document.root_element());
+    let lines = LineStarts::new(xml);
+    let root = Element::new(document.root_element(), &lines);
     if root.tag() != "mujoco" {
         return Err(MjcfError::WrongRoot {
             line: root.line,
