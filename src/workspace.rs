@@ -40,16 +40,13 @@ pub struct Workspace {
     /// Whether `x_world` belongs to the current configuration.
     pub world_transforms_current: bool,
 
-    /// I^A: articulated-body inertia (the paper's P) — pass 1.
-    pub ia_body: Vec<SpatialMat>,
     /// I^a = I^A − U D⁻¹ Uᵀ: what the parent sees through the joint — pass 1.
+    /// Pass 1 accumulates the articulated-body inertia I^A (the paper's P)
+    /// in the same slot and replaces it once the link's joint is factored:
+    /// one 6×6 array fewer to stream through the cache on long chains.
     pub ia_reduced: Vec<SpatialMat>,
-    /// U = I^A S — pass 1.
-    pub u_body: Vec<LinkCols>,
     /// G = U D⁻¹ (the paper's Kalman gain) — pass 1.
     pub gain: Vec<LinkCols>,
-    /// D = SᵀI^A S + armature — pass 1.
-    pub d_joint: Vec<Mat3>,
     /// R, upper triangular with R Rᵀ = D (D^½ of DYNAMICS.md §3) — pass 1.
     pub r_joint: Vec<Mat3>,
     /// R⁻¹ — pass 1.
@@ -99,11 +96,8 @@ impl Workspace {
             x_parent: vec![Transform::identity(); n],
             x_world: vec![Transform::identity(); n],
             world_transforms_current: false,
-            ia_body: vec![SpatialMat::zeros(); n],
             ia_reduced: vec![SpatialMat::zeros(); n],
-            u_body: vec![LinkCols::zeros(); n],
             gain: vec![LinkCols::zeros(); n],
-            d_joint: vec![Mat3::zeros(); n],
             r_joint: vec![Mat3::zeros(); n],
             r_inv_joint: vec![Mat3::zeros(); n],
             nu: dof(),

@@ -58,7 +58,7 @@ pub fn upper_triangular_inverse<const N: usize>(r: &SMatrix<f64, N, N>) -> SMatr
 fn factor_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize) -> Result<(), DynamicsError> {
     let link = &model.links[i];
     let s = cols::<N>(&link.motion_subspace);
-    let ia = ws.ia_body[i];
+    let ia = ws.ia_reduced[i];
     let u = ia * s;
     let mut d = s.transpose() * u;
     if !model.shortcuts.no_armature {
@@ -69,9 +69,7 @@ fn factor_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize) -> R
     let d_inv = r_inv.transpose() * r_inv;
     let gain = u * d_inv;
     ws.ia_reduced[i] = ia - gain * u.transpose();
-    ws.u_body[i].fixed_columns_mut::<N>(0).copy_from(&u);
     ws.gain[i].fixed_columns_mut::<N>(0).copy_from(&gain);
-    write_block(&mut ws.d_joint[i], &d);
     write_block(&mut ws.r_joint[i], &r);
     write_block(&mut ws.r_inv_joint[i], &r_inv);
     Ok(())
@@ -82,10 +80,10 @@ fn write_block<const N: usize>(out: &mut Mat3, m: &SMatrix<f64, N, N>) {
     out.fixed_view_mut::<N, N>(0, 0).copy_from(m);
 }
 
-/// Pass 1: I^A, I^a, U, G, D, R, R⁻¹ for every link.
+/// Pass 1: I^A, I^a, G, R, R⁻¹ for every link (U and D are only intermediates).
 pub(crate) fn articulated_pass(model: &Model, ws: &mut Workspace) -> Result<(), DynamicsError> {
     for (i, link) in model.links.iter().enumerate() {
-        ws.ia_body[i] = link.inertia;
+        ws.ia_reduced[i] = link.inertia;
     }
     for i in (0..model.links.len()).rev() {
         match model.links[i].ndof {
@@ -94,7 +92,7 @@ pub(crate) fn articulated_pass(model: &Model, ws: &mut Workspace) -> Result<(), 
         }
         if let Some(p) = model.links[i].parent {
             let to_parent: SpatialMat = ws.x_parent[i].transform_inertia_to_parent(&ws.ia_reduced[i]);
-            ws.ia_body[p] += to_parent;
+            ws.ia_reduced[p] += to_parent;
         }
     }
     Ok(())
