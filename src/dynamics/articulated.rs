@@ -22,7 +22,8 @@ pub fn upper_cholesky<const N: usize>(d: &SMatrix<f64, N, N>) -> Option<SMatrix<
         for k in j + 1..N {
             diag -= r[(j, k)] * r[(j, k)];
         }
-        if !(diag > 0.0) {
+        // Also refuses NaN, which `diag <= 0.0` would let through.
+        if diag.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             return None;
         }
         let rjj = diag.sqrt();

@@ -87,10 +87,10 @@ impl Workspace {
         require(self, Stage::Configuration, "eps_from_forces")?;
         check_input("torque", torque, model.nv)?;
         check_length("output", eps, model.nv)?;
-        if let Some(f) = body_forces {
-            if f.len() != model.links.len() {
-                return Err(DynamicsError::Length { what: "body_forces", expected: model.links.len(), found: f.len() });
-            }
+        if let Some(f) = body_forces
+            && f.len() != model.links.len()
+        {
+            return Err(DynamicsError::Length { what: "body_forces", expected: model.links.len(), found: f.len() });
         }
         inward_pass(model, self, Direction::EpsFromTorque, torque, body_forces, eps);
         Ok(())

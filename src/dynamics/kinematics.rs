@@ -30,9 +30,7 @@ pub fn joint_transform(link: &Link, theta: &mut [f64]) -> Result<Transform, Dyna
                 return Err(DynamicsError::ZeroQuaternion { joint: link.joint_name.clone(), qpos_adr: link.qpos_adr });
             }
             let unit = nalgebra::UnitQuaternion::new_unchecked(quat / norm);
-            for k in 0..4 {
-                q[k] /= norm;
-            }
+            q[..4].iter_mut().for_each(|c| *c /= norm);
             rotate_about_anchor(unit.to_rotation_matrix().into_inner())
         }
         LinkJoint::Translation => Transform::from_pose(&Mat3::identity(), &Vec3::new(q[0], q[1], q[2])),
