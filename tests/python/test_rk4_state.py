@@ -21,6 +21,7 @@ import mujoco
 import numpy as np
 
 from conftest import EXAMPLES_DIR
+from nudyn_validation.mujoco_reference import upper_factor
 
 MODEL = EXAMPLES_DIR / "bus_arm7.xml"
 STEP = 0.05
@@ -59,8 +60,7 @@ class Mujoco:
         mujoco.mj_forward(self.m, self.d)
         mass = np.zeros((self.m.nv, self.m.nv))
         mujoco.mj_fullM(self.m, self.d, mass)
-        reverse = np.eye(self.m.nv)[::-1]
-        return reverse @ np.linalg.cholesky(reverse @ mass @ reverse) @ reverse
+        return upper_factor(mass)
 
     def retract(self, qpos, delta):
         moved = qpos.copy()
