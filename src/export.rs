@@ -521,21 +521,31 @@ pub fn model_description(model: &Model, options: &ExportOptions, guid: &str) -> 
                     .collect(),
             }),
         }],
-        log_categories: LOG_CATEGORIES
-            .iter()
-            .map(|&(name, description)| md::Category { name: name.into(), description: Some(description.into()) })
-            .collect(),
-        default_experiment: Some(md::DefaultExperiment {
-            start_time: Some(0.0),
-            stop_time: Some(DEFAULT_STOP_TIME),
-            // None, so that importers which pass the DefaultExperiment's
-            // tolerance to fmi2SetupExperiment (FMPy does) leave the
-            // `tolerance` parameter in charge unless told otherwise.
-            tolerance: None,
-            step_size: Some(DEFAULT_STEP_SIZE),
-        }),
+        log_categories: log_categories(),
+        default_experiment: Some(default_experiment()),
         model_variables,
         model_structure: md::ModelStructure { outputs, derivatives: Vec::new(), initial_unknowns },
+    }
+}
+
+/// The LogCategories every nudyn FMU declares (plant and controller).
+pub(crate) fn log_categories() -> Vec<md::Category> {
+    LOG_CATEGORIES
+        .iter()
+        .map(|&(name, description)| md::Category { name: name.into(), description: Some(description.into()) })
+        .collect()
+}
+
+/// The DefaultExperiment every nudyn FMU declares (plant and controller).
+pub(crate) fn default_experiment() -> md::DefaultExperiment {
+    md::DefaultExperiment {
+        start_time: Some(0.0),
+        stop_time: Some(DEFAULT_STOP_TIME),
+        // None, so that importers which pass the DefaultExperiment's
+        // tolerance to fmi2SetupExperiment (FMPy does) leave the plant's
+        // `tolerance` parameter in charge unless told otherwise.
+        tolerance: None,
+        step_size: Some(DEFAULT_STEP_SIZE),
     }
 }
 

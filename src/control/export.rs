@@ -18,8 +18,8 @@ use serde::{Deserialize, Serialize};
 
 use super::{ControlError, ControlLaw, ControlParameters, Objective};
 use crate::export::{
-    DEFAULT_STEP_SIZE, DEFAULT_STOP_TIME, ExportError, LOG_CATEGORIES, RealVariable, description, every_variable,
-    guid_of, is_c_identifier, numbered_blocks, variable_at, write_archive,
+    ExportError, RealVariable, default_experiment, description, every_variable, guid_of, is_c_identifier,
+    log_categories, numbered_blocks, variable_at, write_archive,
 };
 use crate::model::{LinkJoint, Model};
 use std::path::Path;
@@ -291,16 +291,8 @@ pub fn controller_model_description(
         },
         unit_definitions: Vec::new(),
         type_definitions: Vec::new(),
-        log_categories: LOG_CATEGORIES
-            .iter()
-            .map(|&(name, description)| md::Category { name: name.into(), description: Some(description.into()) })
-            .collect(),
-        default_experiment: Some(md::DefaultExperiment {
-            start_time: Some(0.0),
-            stop_time: Some(DEFAULT_STOP_TIME),
-            tolerance: None,
-            step_size: Some(DEFAULT_STEP_SIZE),
-        }),
+        log_categories: log_categories(),
+        default_experiment: Some(default_experiment()),
         model_variables,
         model_structure: md::ModelStructure { outputs, derivatives: Vec::new(), initial_unknowns },
     }
