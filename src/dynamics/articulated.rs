@@ -55,7 +55,7 @@ pub fn upper_triangular_inverse<const N: usize>(r: &SMatrix<f64, N, N>) -> SMatr
     inv
 }
 
-/// Pass 1 for one link with N dofs, given its accumulated I^A.
+/// Pass 1 for one link with N dofs, given its accumulated I^A (in `ia_reduced[i]`).
 fn factor_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize) -> Result<(), DynamicsError> {
     let link = &model.links[i];
     let s = cols::<N>(&link.motion_subspace);
@@ -81,7 +81,7 @@ fn write_block<const N: usize>(out: &mut Mat3, m: &SMatrix<f64, N, N>) {
     out.fixed_view_mut::<N, N>(0, 0).copy_from(m);
 }
 
-/// Pass 1: I^A, I^a, G, R, R⁻¹ for every link (U and D are only intermediates).
+/// Pass 1: I^a, G, R, R⁻¹ for every link (I^A, U and D are intermediates).
 pub(crate) fn articulated_pass(model: &Model, ws: &mut Workspace) -> Result<(), DynamicsError> {
     for (i, link) in model.links.iter().enumerate() {
         ws.ia_reduced[i] = link.inertia;

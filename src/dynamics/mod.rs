@@ -4,7 +4,7 @@
 //! | pass | direction | input | fills |
 //! |---|---|---|---|
 //! | 0 [`kinematics`] | base → tip | θ | link transforms |
-//! | 1 [`articulated`] | tip → base | θ | I^A, D, R = D^½, G |
+//! | 1 [`articulated`] | tip → base | θ | I^a, R = D^½, G |
 //! | 2 [`velocity`] | base → tip | ν or θ̇ | V, θ̇ = ℓ*ν or ν = m*θ̇ |
 //! | 3 [`bias`] | tip → base | ε | ν̇, C(θ,ν), ε of passive forces and gravity |
 //!
