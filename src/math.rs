@@ -19,26 +19,31 @@ pub type SpatialVec = SVector<f64, 6>;
 pub type SpatialMat = SMatrix<f64, 6, 6>;
 
 /// The cross-product matrix: `skew(a) * b == a.cross(&b)`.
+#[inline]
 pub fn skew(a: &Vec3) -> Mat3 {
     Mat3::new(0.0, -a.z, a.y, a.z, 0.0, -a.x, -a.y, a.x, 0.0)
 }
 
 /// Angular part of a spatial vector.
+#[inline]
 pub fn angular(v: &SpatialVec) -> Vec3 {
     v.fixed_rows::<3>(0).into_owned()
 }
 
 /// Linear part of a spatial vector.
+#[inline]
 pub fn linear(v: &SpatialVec) -> Vec3 {
     v.fixed_rows::<3>(3).into_owned()
 }
 
 /// Joins an angular and a linear part.
+#[inline]
 pub fn spatial(angular: &Vec3, linear: &Vec3) -> SpatialVec {
     SpatialVec::new(angular.x, angular.y, angular.z, linear.x, linear.y, linear.z)
 }
 
 /// Motion cross product `v × m`.
+#[inline]
 pub fn cross_motion(v: &SpatialVec, m: &SpatialVec) -> SpatialVec {
     let (w, vl) = (angular(v), linear(v));
     let (mw, ml) = (angular(m), linear(m));
@@ -46,6 +51,7 @@ pub fn cross_motion(v: &SpatialVec, m: &SpatialVec) -> SpatialVec {
 }
 
 /// Force cross product `v ×* f`.
+#[inline]
 pub fn cross_force(v: &SpatialVec, f: &SpatialVec) -> SpatialVec {
     let (w, vl) = (angular(v), linear(v));
     let (n, fl) = (angular(f), linear(f));
@@ -53,6 +59,7 @@ pub fn cross_force(v: &SpatialVec, f: &SpatialVec) -> SpatialVec {
 }
 
 /// The matrix of `v ×` acting on motion vectors.
+#[inline]
 pub fn cross_motion_matrix(v: &SpatialVec) -> SpatialMat {
     let (w, vl) = (skew(&angular(v)), skew(&linear(v)));
     let mut out = SpatialMat::zeros();
@@ -65,6 +72,7 @@ pub fn cross_motion_matrix(v: &SpatialVec) -> SpatialMat {
 /// `m · (v ×)` for a 6×6 `m`, by 3×3 blocks: (v ×) = [ω× 0; v× ω×] has
 /// three nonzero blocks, so this takes half the multiplications of
 /// `m * cross_motion_matrix(v)`.
+#[inline]
 pub fn mul_cross_motion(m: &SpatialMat, v: &SpatialVec) -> SpatialMat {
     let (w, vl) = (skew(&angular(v)), skew(&linear(v)));
     let mut out = SpatialMat::zeros();
@@ -79,6 +87,7 @@ pub fn mul_cross_motion(m: &SpatialMat, v: &SpatialVec) -> SpatialMat {
 
 /// The spatial inertia, about the frame origin, of a rigid body with mass
 /// `mass`, centre of mass `com` and inertia `inertia_com` about the centre of mass.
+#[inline]
 pub fn rigid_inertia(mass: f64, com: &Vec3, inertia_com: &Mat3) -> SpatialMat {
     let c = skew(com);
     let mut out = SpatialMat::zeros();
@@ -113,6 +122,7 @@ impl Default for Transform {
 
 impl Transform {
     /// The identity transform.
+    #[inline]
     pub fn identity() -> Self {
         Self { rot: Mat3::identity(), trans: Vec3::zeros() }
     }
@@ -120,11 +130,13 @@ impl Transform {
     /// The transform to a child frame whose axes are `child_to_parent` (its
     /// columns are the child axes in parent coordinates) and whose origin is
     /// `origin` in parent coordinates.
+    #[inline]
     pub fn from_pose(child_to_parent: &Mat3, origin: &Vec3) -> Self {
         Self { rot: child_to_parent.transpose(), trans: *origin }
     }
 
     /// ᶜX_ₐ = ᶜX_b · ᵇX_ₐ, with `self` = ᶜX_b and `inner` = ᵇX_ₐ.
+    #[inline]
     pub fn compose(&self, inner: &Transform) -> Transform {
         Transform {
             rot: self.rot * inner.rot,
@@ -133,6 +145,7 @@ impl Transform {
     }
 
     /// X m: a parent-frame motion vector in child coordinates.
+    #[inline]
     pub fn apply_motion(&self, m: &SpatialVec) -> SpatialVec {
         let w = angular(m);
         let v = linear(m) - self.trans.cross(&w);
@@ -140,6 +153,7 @@ impl Transform {
     }
 
     /// Xᵀ f: a child-frame force vector in parent coordinates.
+    #[inline]
     pub fn apply_transpose_force(&self, f: &SpatialVec) -> SpatialVec {
         let n = self.rot.transpose() * angular(f);
         let fl = self.rot.transpose() * linear(f);
@@ -147,6 +161,7 @@ impl Transform {
     }
 
     /// The 6×6 motion-transform matrix X.
+    #[inline]
     pub fn motion_matrix(&self) -> SpatialMat {
         let mut out = SpatialMat::zeros();
         out.fixed_view_mut::<3, 3>(0, 0).copy_from(&self.rot);
@@ -167,6 +182,7 @@ impl Transform {
     /// The result is exactly symmetric (its diagonal blocks are symmetrized): the
     /// passes accumulate these along the tree, and formulas that rely on
     /// symmetry would let a round-off asymmetry grow link by link.
+    #[inline]
     pub fn transform_inertia_to_parent(&self, inertia: &SpatialMat) -> SpatialMat {
         let (e, e_t) = (self.rot, self.rot.transpose());
         let symmetric = |m: Mat3| 0.5 * (m + m.transpose());
@@ -187,11 +203,13 @@ impl Transform {
 }
 
 /// Quaternion from MuJoCo's (w, x, y, z) order, not normalized.
+#[inline]
 pub fn quat_from_wxyz(q: &[f64]) -> nalgebra::Quaternion<f64> {
     nalgebra::Quaternion::new(q[0], q[1], q[2], q[3])
 }
 
 /// Writes a quaternion in MuJoCo's (w, x, y, z) order.
+#[inline]
 pub fn quat_to_wxyz(q: &Quat, out: &mut [f64]) {
     out[0] = q.w;
     out[1] = q.i;
@@ -201,6 +219,7 @@ pub fn quat_to_wxyz(q: &Quat, out: &mut [f64]) {
 
 /// The rotation vector of `qa ⊖ qb`: the local-frame rotation r with
 /// qa = qb · exp(r) (MuJoCo's `mju_subQuat`), taking the shorter way round.
+#[inline]
 pub fn quat_difference(qa: &Quat, qb: &Quat) -> Vec3 {
     let mut d = qb.inverse() * qa;
     if d.w < 0.0 {
