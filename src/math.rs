@@ -3,6 +3,10 @@
 //! Spatial vectors are ordered **(angular, linear)** everywhere in nudyn:
 //! a motion vector is (ω, v) with v the velocity of the frame's origin, a
 //! force vector is (n, f) with n the moment about the frame's origin.
+//!
+//! Every helper is `#[inline]`: the passes call them per link from other
+//! codegen units, and out of line they cost a fifth of a ν̇ (bus_arm7
+//! 3.30 → 2.70 µs with them inlined, criterion).
 
 use nalgebra::{Matrix3, SMatrix, SVector, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
