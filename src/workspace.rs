@@ -24,11 +24,26 @@ pub enum Stage {
     Acceleration,
 }
 
+/// Where a link stands in the inward passes' sums (from the model's parent
+/// array): the passes keep in each link's slot only what its children add,
+/// so no sweep has to clear or seed the slots first.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Accumulation {
+    /// Some child adds into this link's slots.
+    pub has_children: bool,
+    /// This link is the first of its parent's children that the inward
+    /// passes reach (the highest index): it sets the parent's slots rather
+    /// than adding to them.
+    pub opens_parent: bool,
+}
+
 /// Preallocated buffers and results of the passes.
 #[derive(Clone, Debug)]
 pub struct Workspace {
     /// How far the passes have got.
     pub stage: Stage,
+    /// Each link's place in the inward sums (fixed by the model).
+    pub accumulation: Vec<Accumulation>,
     /// The configuration θ (qpos, quaternions normalized) — set_configuration.
     pub theta: DVector<f64>,
 
@@ -41,9 +56,10 @@ pub struct Workspace {
     pub world_transforms_current: bool,
 
     /// I^a = I^A − U D⁻¹ Uᵀ: what the parent sees through the joint — pass 1.
-    /// Pass 1 accumulates the articulated-body inertia I^A (the paper's P)
-    /// in the same slot and replaces it once the link's joint is factored:
-    /// one 6×6 array fewer to stream through the cache on long chains.
+    /// Pass 1 accumulates the children's share of the articulated-body
+    /// inertia I^A (the paper's P) in the same slot and replaces it once the
+    /// link's joint is factored: one 6×6 array fewer to stream through the
+    /// cache on long chains.
     pub ia_reduced: Vec<SpatialMat>,
     /// G = U D⁻¹ (the paper's Kalman gain) — pass 1.
     pub gain: Vec<LinkCols>,
@@ -67,13 +83,13 @@ pub struct Workspace {
     /// c = V × v_J — pass 2.
     pub c_body: Vec<SpatialVec>,
 
-    /// Velocity-product bias p^A (accumulates children's p^a) — pass 3.
+    /// Children's share of the velocity-product bias p^A — pass 3.
     pub p_bias_body: Vec<SpatialVec>,
-    /// Force bias (gravity, children's force terms) — pass 3.
+    /// Children's share of the force bias (gravity, springs, dampers) — pass 3.
     pub p_force_body: Vec<SpatialVec>,
     /// Scratch inward accumulator of the force-only recursions (ε ↔ T).
     pub p_scratch_body: Vec<SpatialVec>,
-    /// İ^A (accumulates children's contributions) — pass 3.
+    /// Children's share of İ^A — pass 3.
     pub ia_dot_body: Vec<SpatialMat>,
     /// Passive joint forces: springs and dampers — pass 3.
     pub tau_passive: DVector<f64>,
@@ -90,8 +106,18 @@ impl Workspace {
     pub fn new(model: &Model) -> Self {
         let n = model.links.len();
         let dof = || DVector::zeros(model.nv);
+        let mut accumulation = vec![Accumulation::default(); n];
+        for (i, link) in model.links.iter().enumerate().rev() {
+            if let Some(p) = link.parent
+                && !accumulation[p].has_children
+            {
+                accumulation[p].has_children = true;
+                accumulation[i].opens_parent = true;
+            }
+        }
         Workspace {
             stage: Stage::Empty,
+            accumulation,
             theta: DVector::from_column_slice(&model.qpos0),
             x_parent: vec![Transform::identity(); n],
             x_world: vec![Transform::identity(); n],

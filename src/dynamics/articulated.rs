@@ -55,11 +55,11 @@ pub fn upper_triangular_inverse<const N: usize>(r: &SMatrix<f64, N, N>) -> SMatr
     inv
 }
 
-/// Pass 1 for one link with N dofs, given its accumulated I^A (in `ia_reduced[i]`).
+/// Pass 1 for one link with N dofs; `ia_reduced[i]` holds its children's share of I^A.
 fn factor_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize) -> Result<(), DynamicsError> {
     let link = &model.links[i];
     let s = cols::<N>(&link.motion_subspace);
-    let ia = ws.ia_reduced[i];
+    let ia = if ws.accumulation[i].has_children { link.inertia + ws.ia_reduced[i] } else { link.inertia };
     let u = ia * s;
     let mut d = s.transpose() * u;
     if !model.shortcuts.no_armature {
@@ -83,9 +83,6 @@ fn write_block<const N: usize>(out: &mut Mat3, m: &SMatrix<f64, N, N>) {
 
 /// Pass 1: I^a, G, R, R⁻¹ for every link (I^A, U and D are intermediates).
 pub(crate) fn articulated_pass(model: &Model, ws: &mut Workspace) -> Result<(), DynamicsError> {
-    for (i, link) in model.links.iter().enumerate() {
-        ws.ia_reduced[i] = link.inertia;
-    }
     for i in (0..model.links.len()).rev() {
         match model.links[i].ndof {
             1 => factor_link::<1>(model, ws, i)?,
@@ -93,7 +90,11 @@ pub(crate) fn articulated_pass(model: &Model, ws: &mut Workspace) -> Result<(), 
         }
         if let Some(p) = model.links[i].parent {
             let to_parent: SpatialMat = ws.x_parent[i].transform_inertia_to_parent(&ws.ia_reduced[i]);
-            ws.ia_reduced[p] += to_parent;
+            if ws.accumulation[i].opens_parent {
+                ws.ia_reduced[p] = to_parent;
+            } else {
+                ws.ia_reduced[p] += to_parent;
+            }
         }
     }
     Ok(())

@@ -64,11 +64,16 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
     let r = block::<N>(&ws.r_joint[i]);
     let r_inv = block::<N>(&ws.r_inv_joint[i]);
     let d_inv = r_inv.transpose() * r_inv;
-    let ia_dot = ws.ia_dot_body[i];
     let w: SVector<f64, N> = ws.w_joint.fixed_rows::<N>(adr).into_owned();
+    let v = ws.v_body[i];
+    let has_children = ws.accumulation[i].has_children;
+    let ia_dot = if has_children { ws.ia_dot_body[i] } else { SpatialMat::zeros() };
 
     // Velocity-product terms.
-    let p_bias = ws.p_bias_body[i];
+    let mut p_bias = cross_force(&v, &(link.inertia * v));
+    if has_children {
+        p_bias += ws.p_bias_body[i];
+    }
     let u: SVector<f64, N> = -(s.transpose() * p_bias);
     let ia_dot_s = ia_dot * s;
     let d_dot = s.transpose() * ia_dot_s;
@@ -77,7 +82,21 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
     let minus_c = r_inv * u + r_dot.transpose() * w + r.transpose() * (gain_t_dot * ws.v_plus_body[i]);
 
     // Springs, dampers and gravity.
-    let p_force = ws.p_force_body[i];
+    let p_force = if !forces {
+        SpatialVec::zeros()
+    } else {
+        let mut p_force = if model.shortcuts.no_gravity {
+            SpatialVec::zeros()
+        } else {
+            // Gravity is an external force m g at the centre of mass: p = −f_ext.
+            let g_link = ws.x_world[i].rot * model.gravity;
+            -spatial(&link.mass_moment.cross(&g_link), &(link.mass * g_link))
+        };
+        if has_children {
+            p_force += ws.p_force_body[i];
+        }
+        p_force
+    };
     let u_force: SVector<f64, N> = if forces {
         ws.tau_passive.fixed_rows::<N>(adr) - s.transpose() * p_force
     } else {
@@ -94,10 +113,14 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
     if let Some(p) = link.parent {
         let x = ws.x_parent[i];
         let ia_reduced = ws.ia_reduced[i];
+        let opens_parent = ws.accumulation[i].opens_parent;
+        let add = |slot: &mut SpatialVec, value: SpatialVec| {
+            if opens_parent { *slot = value } else { *slot += value }
+        };
         let p_reduced = p_bias + ia_reduced * ws.c_body[i] + gain * u;
-        ws.p_bias_body[p] += x.apply_transpose_force(&p_reduced);
+        add(&mut ws.p_bias_body[p], x.apply_transpose_force(&p_reduced));
         if forces {
-            ws.p_force_body[p] += x.apply_transpose_force(&(p_force + gain * u_force));
+            add(&mut ws.p_force_body[p], x.apply_transpose_force(&(p_force + gain * u_force)));
         }
 
         // İ^a = (1 − G Sᵀ) İ^A (1 − G Sᵀ)ᵀ = İ^A − G Aᵀ − A Gᵀ + G Ḋ Gᵀ with
@@ -107,7 +130,12 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
         // v_J ×* I^a − I^a v_J × = −(B + Bᵀ) with B = I^a (v_J ×), I^a symmetric.
         let b = mul_cross_motion(&ia_reduced, &ws.v_joint[i]);
         let child_term = ia_reduced_dot - b - b.transpose();
-        ws.ia_dot_body[p] += x.transform_inertia_to_parent(&child_term);
+        let to_parent = x.transform_inertia_to_parent(&child_term);
+        if opens_parent {
+            ws.ia_dot_body[p] = to_parent;
+        } else {
+            ws.ia_dot_body[p] += to_parent;
+        }
     }
 }
 
@@ -116,18 +144,6 @@ pub(crate) fn bias_pass(model: &Model, ws: &mut Workspace, eps: &[f64]) {
     let forces = !model.shortcuts.no_passive_forces();
     if forces {
         passive_forces(model, ws);
-    }
-    for (i, link) in model.links.iter().enumerate() {
-        let v = ws.v_body[i];
-        ws.p_bias_body[i] = cross_force(&v, &(link.inertia * v));
-        ws.ia_dot_body[i] = SpatialMat::zeros();
-        ws.p_force_body[i] = if model.shortcuts.no_gravity {
-            SpatialVec::zeros()
-        } else {
-            // Gravity is an external force m g at the centre of mass: p = −f_ext.
-            let g_link = ws.x_world[i].rot * model.gravity;
-            -spatial(&link.mass_moment.cross(&g_link), &(link.mass * g_link))
-        };
     }
     for i in (0..model.links.len()).rev() {
         match model.links[i].ndof {
