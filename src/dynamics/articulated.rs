@@ -6,7 +6,7 @@
 
 use nalgebra::SMatrix;
 
-use super::{DynamicsError, cols};
+use super::{DynamicsError, accumulate, cols};
 use crate::math::{Mat3, SpatialMat};
 use crate::model::Model;
 use crate::workspace::Workspace;
@@ -90,11 +90,7 @@ pub(crate) fn articulated_pass(model: &Model, ws: &mut Workspace) -> Result<(), 
         }
         if let Some(p) = model.links[i].parent {
             let to_parent: SpatialMat = ws.x_parent[i].transform_inertia_to_parent(&ws.ia_reduced[i]);
-            if ws.accumulation[i].opens_parent {
-                ws.ia_reduced[p] = to_parent;
-            } else {
-                ws.ia_reduced[p] += to_parent;
-            }
+            accumulate(&mut ws.ia_reduced[p], to_parent, ws.accumulation[i].opens_parent);
         }
     }
     Ok(())

@@ -13,7 +13,7 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use super::{block, cols};
+use super::{accumulate, block, cols};
 use crate::math::{Quat, SpatialMat, SpatialVec, Vec3, cross_force, mul_cross_motion, quat_difference, spatial};
 use crate::model::{LinkJoint, Model};
 use crate::workspace::Workspace;
@@ -114,13 +114,10 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
         let x = ws.x_parent[i];
         let ia_reduced = ws.ia_reduced[i];
         let opens_parent = ws.accumulation[i].opens_parent;
-        let add = |slot: &mut SpatialVec, value: SpatialVec| {
-            if opens_parent { *slot = value } else { *slot += value }
-        };
         let p_reduced = p_bias + ia_reduced * ws.c_body[i] + gain * u;
-        add(&mut ws.p_bias_body[p], x.apply_transpose_force(&p_reduced));
+        accumulate(&mut ws.p_bias_body[p], x.apply_transpose_force(&p_reduced), opens_parent);
         if forces {
-            add(&mut ws.p_force_body[p], x.apply_transpose_force(&(p_force + gain * u_force)));
+            accumulate(&mut ws.p_force_body[p], x.apply_transpose_force(&(p_force + gain * u_force)), opens_parent);
         }
 
         // İ^a = (1 − G Sᵀ) İ^A (1 − G Sᵀ)ᵀ = İ^A − G Aᵀ − A Gᵀ + G Ḋ Gᵀ with
@@ -130,12 +127,7 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
         // v_J ×* I^a − I^a v_J × = −(B + Bᵀ) with B = I^a (v_J ×), I^a symmetric.
         let b = mul_cross_motion(&ia_reduced, &ws.v_joint[i]);
         let child_term = ia_reduced_dot - b - b.transpose();
-        let to_parent = x.transform_inertia_to_parent(&child_term);
-        if opens_parent {
-            ws.ia_dot_body[p] = to_parent;
-        } else {
-            ws.ia_dot_body[p] += to_parent;
-        }
+        accumulate(&mut ws.ia_dot_body[p], x.transform_inertia_to_parent(&child_term), opens_parent);
     }
 }
 

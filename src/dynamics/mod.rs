@@ -95,6 +95,17 @@ pub(crate) fn require(ws: &Workspace, needed: Stage, call: &'static str) -> Resu
     Ok(())
 }
 
+/// Adds a child's term to its parent's slot in an inward pass, or sets the
+/// slot if this child is the first the pass reaches (`Accumulation::opens_parent`).
+#[inline]
+pub(crate) fn accumulate<T: std::ops::AddAssign>(slot: &mut T, value: T, opens_parent: bool) {
+    if opens_parent {
+        *slot = value;
+    } else {
+        *slot += value;
+    }
+}
+
 /// An N×N block of a padded 3×3 matrix.
 pub(crate) fn block<const N: usize>(m: &nalgebra::Matrix3<f64>) -> SMatrix<f64, N, N> {
     m.fixed_view::<N, N>(0, 0).into_owned()
