@@ -87,7 +87,7 @@ pub struct Workspace {
     pub p_bias_body: Vec<SpatialVec>,
     /// Children's share of the force bias (gravity, springs, dampers) — pass 3.
     pub p_force_body: Vec<SpatialVec>,
-    /// Scratch inward accumulator of the force-only recursions (ε ↔ T).
+    /// Children's share of the force-only recursions' p (ε ↔ T).
     pub p_scratch_body: Vec<SpatialVec>,
     /// Children's share of İ^A — pass 3.
     pub ia_dot_body: Vec<SpatialMat>,

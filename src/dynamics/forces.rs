@@ -7,7 +7,7 @@
 
 use nalgebra::SVector;
 
-use super::{DynamicsError, block, check_input, check_length, cols, require};
+use super::{DynamicsError, accumulate, block, check_input, check_length, cols, require};
 use crate::math::SpatialVec;
 use crate::model::Model;
 use crate::workspace::{Stage, Workspace};
@@ -27,12 +27,16 @@ fn inward_link<const N: usize>(
     i: usize,
     direction: Direction,
     input: &[f64],
+    body_forces: Option<&[SpatialVec]>,
     out: &mut [f64],
 ) {
     let link = &model.links[i];
     let adr = link.dof_adr;
     let s = cols::<N>(&link.motion_subspace);
-    let p = ws.p_scratch_body[i];
+    let mut p = body_forces.map_or(SpatialVec::zeros(), |f| -f[i]);
+    if ws.accumulation[i].has_children {
+        p += ws.p_scratch_body[i];
+    }
     let x: SVector<f64, N> = SVector::from_column_slice(&input[adr..adr + N]);
     let (u, y) = match direction {
         Direction::EpsFromTorque => {
@@ -47,7 +51,8 @@ fn inward_link<const N: usize>(
     out[adr..adr + N].copy_from_slice(y.as_slice());
     if let Some(parent) = link.parent {
         let p_reduced = p + cols::<N>(&ws.gain[i]) * u;
-        ws.p_scratch_body[parent] += ws.x_parent[i].apply_transpose_force(&p_reduced);
+        let to_parent = ws.x_parent[i].apply_transpose_force(&p_reduced);
+        accumulate(&mut ws.p_scratch_body[parent], to_parent, ws.accumulation[i].opens_parent);
     }
 }
 
@@ -59,16 +64,10 @@ fn inward_pass(
     body_forces: Option<&[SpatialVec]>,
     out: &mut [f64],
 ) {
-    for i in 0..model.links.len() {
-        ws.p_scratch_body[i] = match body_forces {
-            Some(f) => -f[i],
-            None => SpatialVec::zeros(),
-        };
-    }
     for i in (0..model.links.len()).rev() {
         match model.links[i].ndof {
-            1 => inward_link::<1>(model, ws, i, direction, input, out),
-            _ => inward_link::<3>(model, ws, i, direction, input, out),
+            1 => inward_link::<1>(model, ws, i, direction, input, body_forces, out),
+            _ => inward_link::<3>(model, ws, i, direction, input, body_forces, out),
         }
     }
 }
