@@ -186,7 +186,7 @@ impl Transform {
     /// The result is exactly symmetric (its diagonal blocks are symmetrized): the
     /// passes accumulate these along the tree, and formulas that rely on
     /// symmetry would let a round-off asymmetry grow link by link.
-    #[inline]
+    #[inline(always)]
     pub fn transform_inertia_to_parent(&self, inertia: &SpatialMat) -> SpatialMat {
         let (e, e_t) = (self.rot, self.rot.transpose());
         let symmetric = |m: Mat3| 0.5 * (m + m.transpose());

@@ -67,7 +67,8 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
     let w: SVector<f64, N> = ws.w_joint.fixed_rows::<N>(adr).into_owned();
     let v = ws.v_body[i];
     let has_children = ws.accumulation[i].has_children;
-    let ia_dot = if has_children { ws.ia_dot_body[i] } else { SpatialMat::zeros() };
+    let no_children = SpatialMat::zeros();
+    let ia_dot = if has_children { &ws.ia_dot_body[i] } else { &no_children };
 
     // Velocity-product terms.
     let mut p_bias = cross_force(&v, &(link.inertia * v));
@@ -111,8 +112,8 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
     }
 
     if let Some(p) = link.parent {
-        let x = ws.x_parent[i];
-        let ia_reduced = ws.ia_reduced[i];
+        let x = &ws.x_parent[i];
+        let ia_reduced = &ws.ia_reduced[i];
         let opens_parent = ws.accumulation[i].opens_parent;
         let p_reduced = p_bias + ia_reduced * ws.c_body[i] + gain * u;
         accumulate(&mut ws.p_bias_body[p], x.apply_transpose_force(&p_reduced), opens_parent);
@@ -120,13 +121,14 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
             accumulate(&mut ws.p_force_body[p], x.apply_transpose_force(&(p_force + gain * u_force)), opens_parent);
         }
 
-        // İ^a = (1 − G Sᵀ) İ^A (1 − G Sᵀ)ᵀ = İ^A − G Aᵀ − A Gᵀ + G Ḋ Gᵀ with
-        // A = İ^A S: rank-N updates instead of two 6×6 products.
-        let g_at = gain * ia_dot_s.transpose();
-        let ia_reduced_dot = ia_dot - g_at - g_at.transpose() + gain * d_dot * gain.transpose();
-        // v_J ×* I^a − I^a v_J × = −(B + Bᵀ) with B = I^a (v_J ×), I^a symmetric.
-        let b = mul_cross_motion(&ia_reduced, &ws.v_joint[i]);
-        let child_term = ia_reduced_dot - b - b.transpose();
+        // The child's term İ^a + v_J ×* I^a − I^a v_J × as İ^A − Q − Qᵀ:
+        // İ^a = (1 − G Sᵀ) İ^A (1 − G Sᵀ)ᵀ = İ^A − G A′ᵀ − A′ Gᵀ with
+        // A′ = İ^A S − ½ G Ḋ (rank-N updates instead of two 6×6 products),
+        // and v_J ×* I^a − I^a v_J × = −(B + Bᵀ) with B = I^a (v_J ×), I^a
+        // symmetric; so Q = B + G A′ᵀ.
+        let a_shifted = ia_dot_s - gain * (0.5 * d_dot);
+        let q = mul_cross_motion(ia_reduced, &ws.v_joint[i]) + gain * a_shifted.transpose();
+        let child_term = if has_children { ia_dot - q - q.transpose() } else { -(q + q.transpose()) };
         accumulate(&mut ws.ia_dot_body[p], x.transform_inertia_to_parent(&child_term), opens_parent);
     }
 }

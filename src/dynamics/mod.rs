@@ -97,7 +97,7 @@ pub(crate) fn require(ws: &Workspace, needed: Stage, call: &'static str) -> Resu
 
 /// Adds a child's term to its parent's slot in an inward pass, or sets the
 /// slot if this child is the first the pass reaches (`Accumulation::opens_parent`).
-#[inline]
+#[inline(always)]
 pub(crate) fn accumulate<T: std::ops::AddAssign>(slot: &mut T, value: T, opens_parent: bool) {
     if opens_parent {
         *slot = value;
