@@ -73,18 +73,23 @@ pub fn cross_motion_matrix(v: &SpatialVec) -> SpatialMat {
     out
 }
 
-/// `m · (v ×)` for a 6×6 `m`, by 3×3 blocks: (v ×) = [ω× 0; v× ω×] has
-/// three nonzero blocks, so this takes half the multiplications of
-/// `m * cross_motion_matrix(v)`.
+/// `m · (v ×)` for a 6×6 `m`, row by row: (v ×) = [ω× 0; v× ω×], and a
+/// row vector times a skew matrix is a cross product, (xᵀ a×) = (x × a)ᵀ;
+/// so each row costs three cross products instead of 3×3 products with
+/// skew matrices (half of whose entries are zero).
 #[inline]
 pub fn mul_cross_motion(m: &SpatialMat, v: &SpatialVec) -> SpatialMat {
-    let (w, vl) = (skew(&angular(v)), skew(&linear(v)));
+    let (w, vl) = (angular(v), linear(v));
     let mut out = SpatialMat::zeros();
-    for row in [0, 3] {
-        let left = m.fixed_view::<3, 3>(row, 0);
-        let right = m.fixed_view::<3, 3>(row, 3);
-        out.fixed_view_mut::<3, 3>(row, 0).copy_from(&(left * w + right * vl));
-        out.fixed_view_mut::<3, 3>(row, 3).copy_from(&(right * w));
+    for row in 0..6 {
+        let left = Vec3::new(m[(row, 0)], m[(row, 1)], m[(row, 2)]);
+        let right = Vec3::new(m[(row, 3)], m[(row, 4)], m[(row, 5)]);
+        let out_left = left.cross(&w) + right.cross(&vl);
+        let out_right = right.cross(&w);
+        for k in 0..3 {
+            out[(row, k)] = out_left[k];
+            out[(row, k + 3)] = out_right[k];
+        }
     }
     out
 }
