@@ -193,6 +193,16 @@ impl Transform {
     /// symmetry would let a round-off asymmetry grow link by link.
     #[inline(always)]
     pub fn transform_inertia_to_parent(&self, inertia: &SpatialMat) -> SpatialMat {
+        let mut out = SpatialMat::zeros();
+        self.add_inertia_to_parent(inertia, &mut out, true);
+        out
+    }
+
+    /// `slot` = Xᵀ I X (if `replace`) or `slot` += Xᵀ I X, written block by
+    /// block into the slot: the inward passes' accumulation without a 6×6
+    /// temporary.
+    #[inline(always)]
+    pub fn add_inertia_to_parent(&self, inertia: &SpatialMat, slot: &mut SpatialMat, replace: bool) {
         let (e, e_t) = (self.rot, self.rot.transpose());
         let symmetric = |m: Mat3| 0.5 * (m + m.transpose());
         let a = e_t * inertia.fixed_view::<3, 3>(0, 0) * e;
@@ -202,12 +212,15 @@ impl Transform {
         let r_c = r * c;
         let r_bt = r * b.transpose();
         let b_parent = b + r_c;
-        let mut out = SpatialMat::zeros();
-        out.fixed_view_mut::<3, 3>(0, 0).copy_from(&symmetric(a + r_bt + r_bt.transpose() - r_c * r));
-        out.fixed_view_mut::<3, 3>(0, 3).copy_from(&b_parent);
-        out.fixed_view_mut::<3, 3>(3, 0).copy_from(&b_parent.transpose());
-        out.fixed_view_mut::<3, 3>(3, 3).copy_from(&c);
-        out
+        let a_parent = symmetric(a + r_bt + r_bt.transpose() - r_c * r);
+        for (row, col, block) in [(0, 0, a_parent), (0, 3, b_parent), (3, 0, b_parent.transpose()), (3, 3, c)] {
+            let mut target = slot.fixed_view_mut::<3, 3>(row, col);
+            if replace {
+                target.copy_from(&block);
+            } else {
+                target += block;
+            }
+        }
     }
 }
 

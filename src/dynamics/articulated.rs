@@ -6,8 +6,8 @@
 
 use nalgebra::SMatrix;
 
-use super::{DynamicsError, accumulate, cols};
-use crate::math::{Mat3, SpatialMat};
+use super::{DynamicsError, cols};
+use crate::math::Mat3;
 use crate::model::Model;
 use crate::workspace::Workspace;
 
@@ -89,8 +89,9 @@ pub(crate) fn articulated_pass(model: &Model, ws: &mut Workspace) -> Result<(), 
             _ => factor_link::<3>(model, ws, i)?,
         }
         if let Some(p) = model.links[i].parent {
-            let to_parent: SpatialMat = ws.x_parent[i].transform_inertia_to_parent(&ws.ia_reduced[i]);
-            accumulate(&mut ws.ia_reduced[p], to_parent, ws.accumulation[i].opens_parent);
+            // Parents precede their children in the link order (p < i).
+            let (parents, children) = ws.ia_reduced.split_at_mut(i);
+            ws.x_parent[i].add_inertia_to_parent(&children[0], &mut parents[p], ws.accumulation[i].opens_parent);
         }
     }
     Ok(())

@@ -14,7 +14,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::{accumulate, block, cols};
-use crate::math::{Quat, SpatialMat, SpatialVec, Vec3, cross_force, mul_cross_motion, quat_difference, spatial};
+use crate::math::{Quat, SpatialVec, Vec3, cross_force, mul_cross_motion, quat_difference, spatial};
 use crate::model::{LinkJoint, Model};
 use crate::workspace::Workspace;
 
@@ -67,8 +67,8 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
     let w: SVector<f64, N> = ws.w_joint.fixed_rows::<N>(adr).into_owned();
     let v = ws.v_body[i];
     let has_children = ws.accumulation[i].has_children;
-    let no_children = SpatialMat::zeros();
-    let ia_dot = if has_children { &ws.ia_dot_body[i] } else { &no_children };
+    // İ^A is zero for a link without children (its own inertia is constant in its frame).
+    let ia_dot = has_children.then(|| &ws.ia_dot_body[i]);
 
     // Velocity-product terms.
     let mut p_bias = cross_force(&v, &(link.inertia * v));
@@ -76,7 +76,7 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
         p_bias += ws.p_bias_body[i];
     }
     let u: SVector<f64, N> = -(s.transpose() * p_bias);
-    let ia_dot_s = ia_dot * s;
+    let ia_dot_s: SMatrix<f64, 6, N> = ia_dot.map_or_else(SMatrix::zeros, |ia_dot| ia_dot * s);
     let d_dot = s.transpose() * ia_dot_s;
     let gain_t_dot = d_inv * (ia_dot_s.transpose() - d_dot * gain.transpose());
     let r_dot = r * upper_half(&(r_inv * d_dot * r_inv.transpose()));
@@ -128,8 +128,11 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
         // symmetric; so Q = B + G A′ᵀ.
         let a_shifted = ia_dot_s - gain * (0.5 * d_dot);
         let q = mul_cross_motion(ia_reduced, &ws.v_joint[i]) + gain * a_shifted.transpose();
-        let child_term = if has_children { ia_dot - q - q.transpose() } else { -(q + q.transpose()) };
-        accumulate(&mut ws.ia_dot_body[p], x.transform_inertia_to_parent(&child_term), opens_parent);
+        let child_term = match ia_dot {
+            Some(ia_dot) => ia_dot - q - q.transpose(),
+            None => -(q + q.transpose()),
+        };
+        x.add_inertia_to_parent(&child_term, &mut ws.ia_dot_body[p], opens_parent);
     }
 }
 
