@@ -101,6 +101,9 @@ class MujocoRuns:
         per_sample = _whole(plan.sample, step)
         samples = _whole(plan.duration, plan.sample)
         states = np.empty((1, per_sample * samples, self.initial.size))
+        # Untimed, one sample long: a millisecond run timed cold (first
+        # after a change of integrator) took up to twice its warm time.
+        mujoco.rollout.rollout(self.model, self.data, self.initial, nstep=per_sample, state=states[:, :per_sample])
         start = time.perf_counter()
         mujoco.rollout.rollout(self.model, self.data, self.initial, nstep=per_sample * samples, state=states)
         seconds = time.perf_counter() - start
