@@ -137,16 +137,16 @@ pub enum RealVariable {
     EnergyResidual,
 }
 
-/// The variable of index k within a block.
-type VariableOf = fn(usize) -> RealVariable;
+/// The variable of index k within a block of variables of type V.
+pub(crate) type VariableOf<V> = fn(usize) -> V;
 
 /// Blocks of variables numbered consecutively from value reference `first`:
 /// (length, variable of index k) becomes (first value reference, length,
 /// variable of index k). A layout's value references are its blocks'.
 pub(crate) fn numbered_blocks<V, const N: usize>(
     first: u32,
-    blocks: [(usize, fn(usize) -> V); N],
-) -> impl Iterator<Item = (u32, usize, fn(usize) -> V)> {
+    blocks: [(usize, VariableOf<V>); N],
+) -> impl Iterator<Item = (u32, usize, VariableOf<V>)> {
     let mut next = first;
     blocks.into_iter().map(move |(len, variable)| {
         let first = next;
@@ -156,7 +156,7 @@ pub(crate) fn numbered_blocks<V, const N: usize>(
 }
 
 /// The variable with value reference `vr` among numbered `blocks`, if any.
-pub(crate) fn variable_at<V>(mut blocks: impl Iterator<Item = (u32, usize, fn(usize) -> V)>, vr: u32) -> Option<V> {
+pub(crate) fn variable_at<V>(mut blocks: impl Iterator<Item = (u32, usize, VariableOf<V>)>, vr: u32) -> Option<V> {
     blocks
         .find(|&(first, len, _)| vr >= first && ((vr - first) as usize) < len)
         .map(|(first, _, variable)| variable((vr - first) as usize))
@@ -164,7 +164,7 @@ pub(crate) fn variable_at<V>(mut blocks: impl Iterator<Item = (u32, usize, fn(us
 
 /// Every variable of numbered `blocks` with its value reference, in order.
 pub(crate) fn every_variable<V>(
-    blocks: impl Iterator<Item = (u32, usize, fn(usize) -> V)>,
+    blocks: impl Iterator<Item = (u32, usize, VariableOf<V>)>,
 ) -> impl Iterator<Item = (u32, V)> {
     blocks.flat_map(|(first, len, variable)| (0..len).map(move |k| (first + k as u32, variable(k))))
 }
@@ -189,9 +189,9 @@ impl Layout {
     }
 
     /// The blocks in value-reference order: (first value reference, length, variable of index k).
-    fn blocks(&self) -> impl Iterator<Item = (u32, usize, VariableOf)> {
+    fn blocks(&self) -> impl Iterator<Item = (u32, usize, VariableOf<RealVariable>)> {
         let o = self.outputs;
-        let blocks: [(usize, VariableOf); 10] = [
+        let blocks: [(usize, VariableOf<RealVariable>); 10] = [
             (1, |_| RealVariable::Tolerance),
             (1, |_| RealVariable::MaxStep),
             (self.nv, RealVariable::Eps),

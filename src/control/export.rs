@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{ControlError, ControlLaw, ControlParameters, Objective};
 use crate::export::{
-    ExportError, RealVariable, default_experiment, description, every_variable, guid_of, is_c_identifier,
+    ExportError, RealVariable, VariableOf, default_experiment, description, every_variable, guid_of, is_c_identifier,
     log_categories, numbered_blocks, variable_at, write_archive,
 };
 use crate::model::{LinkJoint, Model};
@@ -63,9 +63,6 @@ pub enum ControllerVariable {
     TargetError(usize),
 }
 
-/// The variable of index k within a block.
-type VariableOf = fn(usize) -> ControllerVariable;
-
 /// The controller's Real variables and value references: consecutive blocks
 /// from 1 in the order c1, c2, target, theta, nu, eps, potential, target_error.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -94,8 +91,8 @@ impl ControllerLayout {
         }
     }
 
-    fn blocks(&self) -> impl Iterator<Item = (u32, usize, VariableOf)> {
-        let blocks: [(usize, VariableOf); 8] = [
+    fn blocks(&self) -> impl Iterator<Item = (u32, usize, VariableOf<ControllerVariable>)> {
+        let blocks: [(usize, VariableOf<ControllerVariable>); 8] = [
             (self.nv, ControllerVariable::RateGain),
             (self.ny, ControllerVariable::TargetGain),
             (self.target_len, ControllerVariable::Target),
