@@ -270,6 +270,15 @@ mod tests {
     }
 
     #[test]
+    fn adding_into_a_slot_adds_the_dense_congruence() {
+        let (m, x, _) = sample();
+        let dense = x.motion_matrix().transpose() * m * x.motion_matrix();
+        let mut slot = m;
+        x.add_inertia_to_parent(&m, &mut slot, false);
+        assert!((slot - (m + dense)).abs().max() < 1e-13);
+    }
+
+    #[test]
     fn blockwise_cross_product_equals_the_dense_product() {
         let (m, _, v) = sample();
         assert!((mul_cross_motion(&m, &v) - m * cross_motion_matrix(&v)).abs().max() < 1e-14);
