@@ -180,7 +180,10 @@ impl Transform {
         out
     }
 
-    /// Xᵀ I X: a child-frame inertia (or its derivative) in parent coordinates.
+    /// `slot` = Xᵀ I X (if `replace`) or `slot` += Xᵀ I X: a child-frame
+    /// inertia (or its derivative) in parent coordinates, written block by
+    /// block into the slot, so the inward passes accumulate without a 6×6
+    /// temporary.
     ///
     /// `inertia` must be symmetric, [A B; Bᵀ C] in (angular, linear)
     /// blocks; its lower-left block is not read. By blocks rather than as
@@ -188,19 +191,9 @@ impl Transform {
     /// X = diag(E, E)·[1 0; −r× 1], first A′ = EᵀAE, B′ = EᵀBE, C′ = EᵀCE,
     /// then Xᵀ I X = [A′ + r×B′ᵀ + (r×B′ᵀ)ᵀ − r×C′r×,  B′ + r×C′;  ·,  C′].
     ///
-    /// The result is exactly symmetric (its diagonal blocks are symmetrized): the
+    /// The term is exactly symmetric (its diagonal blocks are symmetrized): the
     /// passes accumulate these along the tree, and formulas that rely on
     /// symmetry would let a round-off asymmetry grow link by link.
-    #[inline(always)]
-    pub fn transform_inertia_to_parent(&self, inertia: &SpatialMat) -> SpatialMat {
-        let mut out = SpatialMat::zeros();
-        self.add_inertia_to_parent(inertia, &mut out, true);
-        out
-    }
-
-    /// `slot` = Xᵀ I X (if `replace`) or `slot` += Xᵀ I X, written block by
-    /// block into the slot: the inward passes' accumulation without a 6×6
-    /// temporary.
     #[inline(always)]
     pub fn add_inertia_to_parent(&self, inertia: &SpatialMat, slot: &mut SpatialMat, replace: bool) {
         let (e, e_t) = (self.rot, self.rot.transpose());
@@ -266,7 +259,10 @@ mod tests {
     fn blockwise_congruence_equals_the_dense_product() {
         let (m, x, _) = sample();
         let dense = x.motion_matrix().transpose() * m * x.motion_matrix();
-        assert!((x.transform_inertia_to_parent(&m) - dense).abs().max() < 1e-13);
+        // Replacing overwrites whatever the slot held.
+        let mut slot = SpatialMat::from_element(7.0);
+        x.add_inertia_to_parent(&m, &mut slot, true);
+        assert!((slot - dense).abs().max() < 1e-13);
     }
 
     #[test]

@@ -297,7 +297,7 @@ impl Model {
                 let inertia = rigid_inertia(mass_props.mass, &mass_props.com, &mass_props.inertia);
                 let l = &mut links[link];
                 // The body frame is ᵇX_ₗ = offset relative to the link: bring its inertia to the link frame.
-                l.inertia += inboard.offset.transform_inertia_to_parent(&inertia);
+                inboard.offset.add_inertia_to_parent(&inertia, &mut l.inertia, false);
                 l.mass += mass_props.mass;
                 l.mass_moment += mass_props.mass
                     * (inboard.offset.trans + inboard.offset.rot.transpose() * mass_props.com);

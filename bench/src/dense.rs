@@ -35,8 +35,9 @@ fn mass_matrix(model: &Model, ws: &Workspace) -> DMatrix<f64> {
     let mut composite: Vec<SpatialMat> = model.links.iter().map(|l| l.inertia).collect();
     for i in (0..n).rev() {
         if let Some(p) = model.links[i].parent {
-            let to_parent = ws.x_parent[i].transform_inertia_to_parent(&composite[i]);
-            composite[p] += to_parent;
+            // Parents precede their children in the link order (p < i).
+            let (parents, children) = composite.split_at_mut(i);
+            ws.x_parent[i].add_inertia_to_parent(&children[0], &mut parents[p], false);
         }
     }
     let mut m = DMatrix::zeros(model.nv, model.nv);
