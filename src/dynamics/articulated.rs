@@ -65,9 +65,21 @@ fn factor_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize) -> R
     if !model.shortcuts.no_armature {
         d += SMatrix::<f64, N, N>::identity() * link.armature;
     }
-    let r = upper_cholesky(&d).ok_or(DynamicsError::Singular { link: i })?;
-    let r_inv = upper_triangular_inverse(&r);
-    let d_inv = r_inv.transpose() * r_inv;
+    let (r, r_inv, d_inv) = if N == 1 {
+        // A hinge or slide: D⁻¹ straight from D, so that the gain (on the
+        // pass's critical path) does not wait for the square root.
+        let d = d[(0, 0)];
+        if d.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            return Err(DynamicsError::Singular { link: i });
+        }
+        let (root, d_inv) = (d.sqrt(), 1.0 / d);
+        (SMatrix::from_element(root), SMatrix::from_element(root * d_inv), SMatrix::from_element(d_inv))
+    } else {
+        let r = upper_cholesky(&d).ok_or(DynamicsError::Singular { link: i })?;
+        let r_inv = upper_triangular_inverse(&r);
+        let d_inv = r_inv.transpose() * r_inv;
+        (r, r_inv, d_inv)
+    };
     let gain = u * d_inv;
     ws.ia_reduced[i] = ia - gain * u.transpose();
     ws.gain[i].fixed_columns_mut::<N>(0).copy_from(&gain);
