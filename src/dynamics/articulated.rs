@@ -6,7 +6,7 @@
 
 use nalgebra::SMatrix;
 
-use super::{DynamicsError, cols};
+use super::{DynamicsError, cols, kinematics};
 use crate::math::Mat3;
 use crate::model::Model;
 use crate::workspace::Workspace;
@@ -93,9 +93,11 @@ fn write_block<const N: usize>(out: &mut Mat3, m: &SMatrix<f64, N, N>) {
     out.fixed_view_mut::<N, N>(0, 0).copy_from(m);
 }
 
-/// Pass 1: I^a, G, R, R⁻¹ for every link (I^A, U and D are intermediates).
+/// Passes 0 and 1: each link's placement, then I^a, G, R, R⁻¹ for it
+/// (I^A, U and D are intermediates).
 pub(crate) fn articulated_pass(model: &Model, ws: &mut Workspace) -> Result<(), DynamicsError> {
     for i in (0..model.links.len()).rev() {
+        kinematics::place_link(model, ws, i)?;
         match model.links[i].ndof {
             1 => factor_link::<1>(model, ws, i)?,
             _ => factor_link::<3>(model, ws, i)?,

@@ -1,4 +1,5 @@
-//! Pass 0, base to tip: link placements from θ (MuJoCo's kinematics).
+//! Pass 0: link placements from θ (MuJoCo's kinematics), link by link
+//! within pass 1, then the world placements base to tip when needed.
 //!
 //! Joint transforms follow MuJoCo: a hinge or ball rotates the body about
 //! its anchor, F_j = F_{j−1} · T(r) · Rot · T(−r); a slide translates along
@@ -37,18 +38,15 @@ pub fn joint_transform(link: &Link, theta: &mut [f64]) -> Result<Transform, Dyna
     })
 }
 
-/// Pass 0: `x_parent` for the configuration in `ws.theta`, and `x_world`
-/// unless the model has no gravity (then only the momentum needs it, and
-/// asks for [`world_transforms_pass`]).
-pub(crate) fn kinematics_pass(model: &Model, ws: &mut Workspace) -> Result<(), DynamicsError> {
-    ws.world_transforms_current = false;
-    for (i, link) in model.links.iter().enumerate() {
-        let x_joint = joint_transform(link, ws.theta.as_mut_slice())?;
-        ws.x_parent[i] = x_joint.compose(&link.x_tree);
-    }
-    if !model.shortcuts.no_gravity {
-        world_transforms_pass(model, ws);
-    }
+/// Pass 0 for link `i`: its `x_parent` for the configuration in `ws.theta`.
+/// A link's placement depends on its own joint only, so pass 1 calls this
+/// as it reaches each link instead of sweeping the links once more (on long
+/// chains every sweep streams the model and workspace through the cache).
+#[inline(always)]
+pub(crate) fn place_link(model: &Model, ws: &mut Workspace, i: usize) -> Result<(), DynamicsError> {
+    let link = &model.links[i];
+    let x_joint = joint_transform(link, ws.theta.as_mut_slice())?;
+    ws.x_parent[i] = x_joint.compose(&link.x_tree);
     Ok(())
 }
 

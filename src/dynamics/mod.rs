@@ -3,7 +3,7 @@
 //!
 //! | pass | direction | input | fills |
 //! |---|---|---|---|
-//! | 0 [`kinematics`] | base → tip | θ | link transforms |
+//! | 0 [`kinematics`] | within pass 1; world placements base → tip | θ | link transforms |
 //! | 1 [`articulated`] | tip → base | θ | I^a, R = D^½, G |
 //! | 2 [`velocity`] | base → tip | ν or θ̇ | V, θ̇ = ℓ*ν or ν = m*θ̇ |
 //! | 3 [`bias`] | tip → base | ε | ν̇, C(θ,ν), ε of passive forces and gravity |
@@ -133,8 +133,11 @@ impl Workspace {
         check_input("theta", theta, model.nq)?;
         self.stage = Stage::Empty;
         self.theta.copy_from_slice(theta);
-        kinematics::kinematics_pass(model, self)?;
+        self.world_transforms_current = false;
         articulated::articulated_pass(model, self)?;
+        if !model.shortcuts.no_gravity {
+            kinematics::world_transforms_pass(model, self);
+        }
         self.stage = Stage::Configuration;
         Ok(())
     }
