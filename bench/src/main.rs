@@ -55,6 +55,22 @@ enum Command {
         #[arg(long, default_value_t = 20.0)]
         batch_ms: f64,
     },
+    /// Nanoseconds per ν̇ evaluation of several vehicles, timed side by
+    /// side (the scaling target's ratio of two chain lengths).
+    EvalCostSideBySide {
+        /// The vehicles' MJCF files, in order.
+        #[arg(long = "model", required = true)]
+        models: Vec<PathBuf>,
+        /// Their states (as for eval-cost), one per --model, in the same order.
+        #[arg(long = "state", required = true)]
+        states: Vec<PathBuf>,
+        /// Repetitions (one batch of each vehicle per repetition).
+        #[arg(long, default_value_t = 15)]
+        repetitions: usize,
+        /// Length of one batch (ms).
+        #[arg(long, default_value_t = 20.0)]
+        batch_ms: f64,
+    },
     /// Integrate with nudyn's methods from a given state, timing each run;
     /// prints the state at every sample time.
     Simulate {
@@ -106,6 +122,18 @@ fn main() -> Result<()> {
             let mujoco = mujoco_lib.zip(mujoco_model);
             let options = CostOptions { shortcuts, dense, repetitions, batch: Duration::from_secs_f64(batch_ms / 1e3) };
             let result = eval_cost(&load_model(&model)?, &read_json(&state)?, mujoco.as_ref(), &options)?;
+            println!("{}", serde_json::to_string(&result)?);
+        }
+        Command::EvalCostSideBySide { models, states, repetitions, batch_ms } => {
+            if models.len() != states.len() {
+                bail!("{} --model but {} --state: give one state per model", models.len(), states.len());
+            }
+            let vehicles = models
+                .iter()
+                .zip(&states)
+                .map(|(model, state)| Ok((load_model(model)?, read_json::<State>(state)?)))
+                .collect::<Result<Vec<_>>>()?;
+            let result = eval_cost_side_by_side(&models, &vehicles, repetitions, Duration::from_secs_f64(batch_ms / 1e3))?;
             println!("{}", serde_json::to_string(&result)?);
         }
         Command::Simulate { model, state, duration, sample, runs, repetitions, no_samples } => {
@@ -223,6 +251,50 @@ fn eval_cost(model: &Model, state: &State, mujoco: Option<&(PathBuf, PathBuf)>, 
     let times = timing::interleaved(&mut cases, options.repetitions, options.batch);
     let nanoseconds = cases.iter().map(|c| c.name.clone()).zip(times).collect();
     Ok(CostResult { nv: model.nv, shortcuts: taken, nanoseconds, dense_difference })
+}
+
+/// One vehicle's times from `eval-cost-side-by-side`.
+#[derive(Serialize)]
+struct SideBySideEntry {
+    model: PathBuf,
+    nv: usize,
+    /// Nanoseconds per evaluation, one entry per repetition.
+    nanoseconds: Vec<f64>,
+}
+
+fn eval_cost_side_by_side(
+    paths: &[PathBuf],
+    vehicles: &[(Model, State)],
+    repetitions: usize,
+    batch: Duration,
+) -> Result<Vec<SideBySideEntry>> {
+    let mut prepared = Vec::new();
+    for (model, state) in vehicles {
+        let eps = vec![0.0; model.nv];
+        let mut ws = model.workspace();
+        nudyn::dynamics::forward(model, &mut ws, &state.theta, &state.nu, &eps)?;
+        prepared.push((model, state, eps, ws));
+    }
+    let mut cases: Vec<Case> = prepared
+        .iter_mut()
+        .zip(paths)
+        .map(|((model, state, eps, ws), path)| {
+            let (model, theta, nu, eps) = (*model, &state.theta, &state.nu, &*eps);
+            Case {
+                name: path.display().to_string(),
+                call: Box::new(move || {
+                    nudyn::dynamics::forward(model, ws, std::hint::black_box(theta), nu, eps).expect("the state evaluates");
+                }),
+            }
+        })
+        .collect();
+    let times = timing::interleaved(&mut cases, repetitions, batch);
+    Ok(paths
+        .iter()
+        .zip(vehicles)
+        .zip(times)
+        .map(|((model, (m, _)), nanoseconds)| SideBySideEntry { model: model.clone(), nv: m.nv, nanoseconds })
+        .collect())
 }
 
 #[derive(Serialize)]

@@ -48,6 +48,8 @@ class Sizes:
     def __init__(self, quick: bool):
         self.examples = ["bus_arm7", "fixed_rig"] if quick else EXAMPLES
         self.chains = [10, 20] if quick else [10, 20, 50, 100, 200, 500, 1000, 2000]
+        # The scaling target's pair, also timed side by side.
+        self.scaling_pair = (10, 20) if quick else (200, 2000)
         self.dense_max = 20 if quick else 500
         self.repetitions = 3 if quick else 21
         self.batch_ms = 2.0 if quick else 20.0
@@ -90,8 +92,13 @@ def main(argv=None) -> int:
         tasks = []
         for name in sizes.examples:
             tasks.append((f"ν̇ cost: {name}", lambda name=name: eval_cost_example(results, bench, name, work, sizes)))
+        chains = {}
         for links in sizes.chains:
-            tasks.append((f"scaling: chain of {links}", lambda links=links: scaling_chain(results, bench, nudyn, links, work, sizes)))
+            tasks.append(
+                (f"scaling: chain of {links}", lambda links=links: scaling_chain(results, bench, nudyn, links, work, sizes, chains))
+            )
+        small, large = sizes.scaling_pair
+        tasks.append((f"scaling: chains of {small} and {large} side by side", lambda: scaling_side_by_side(results, bench, sizes, chains)))
         for scenario in work_precision.SCENARIOS:
             tasks.append(
                 (f"work-precision: bus_arm7, {scenario}", lambda scenario=scenario: work_precision_section(results, bench, scenario, work, sizes))
@@ -116,13 +123,14 @@ def eval_cost_example(results: dict, bench: Path, name: str, work: Path, sizes: 
     results["eval_cost"][name] = entry
 
 
-def scaling_chain(results: dict, bench: Path, nudyn: Path, links: int, work: Path, sizes: Sizes) -> None:
+def scaling_chain(results: dict, bench: Path, nudyn: Path, links: int, work: Path, sizes: Sizes, chains: dict) -> None:
     name = f"chain{links}"
     path = write_chain(links, work / f"{name}.xml")
     if links <= MUJOCO_MAX_LINKS:
         vehicle = prepare(name, path, work, model=chain_model(links))
     else:
         vehicle = prepare_chain_without_mujoco(links, path, nudyn, work)
+    chains[links] = vehicle
     repetitions = sizes.repetitions if links <= 200 else max(3, sizes.repetitions // 3)
     entry = cost.eval_cost(bench, vehicle, repetitions, sizes.batch_ms, shortcuts=False, dense=links <= sizes.dense_max)
     entry["links"] = links
@@ -131,6 +139,15 @@ def scaling_chain(results: dict, bench: Path, nudyn: Path, links: int, work: Pat
     else:
         entry["pinocchio"] = {"converts": False, "problem": PINOCCHIO_TOO_DEEP}
     results["scaling"][name] = entry
+
+
+def scaling_side_by_side(results: dict, bench: Path, sizes: Sizes, chains: dict) -> None:
+    """The scaling target's two chains timed in turn in one process: their
+    ratio per repetition is not at the mercy of how busy the machine was
+    during each chain's own run, minutes apart."""
+    small, large = sizes.scaling_pair
+    entries = cost.eval_cost_side_by_side(bench, [chains[small], chains[large]], sizes.repetitions, sizes.batch_ms)
+    results["scaling_side_by_side"] = {"links": [small, large], "nanoseconds": [e["nanoseconds"] for e in entries]}
 
 
 def work_precision_section(results: dict, bench: Path, scenario: str, work: Path, sizes: Sizes) -> None:

@@ -128,3 +128,15 @@ def pinocchio_aba(vehicle: Vehicle, repetitions: int, batch_s: float) -> dict:
     q1, v1, tau1 = np.zeros(1), np.ones(1), np.zeros(1)
     floor = _time_calls(lambda: pin.aba(one, one_data, q1, v1, tau1), repetitions, batch_s)
     return {"converts": True, "mass_matrix_difference": difference, "nanoseconds": times, "one_hinge_nanoseconds": floor}
+
+
+def eval_cost_side_by_side(bench: Path, vehicles: list[Vehicle], repetitions: int, batch_ms: float) -> list[dict]:
+    """`nudyn-bench eval-cost-side-by-side`: ns per ν̇ evaluation of each
+    vehicle, per repetition, the vehicles timed in turn within each repetition."""
+    cmd = [str(bench), "eval-cost-side-by-side", "--repetitions", str(repetitions), "--batch-ms", str(batch_ms)]
+    for vehicle in vehicles:
+        cmd += ["--model", str(vehicle.path), "--state", str(vehicle.state_path)]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"`{' '.join(cmd)}` failed:\n{proc.stderr}")
+    return json.loads(proc.stdout)

@@ -72,7 +72,15 @@ def summarize(results: dict) -> dict:
     with_mj = large & np.isfinite(mj)
     scaling["mj_forward_exponent"] = scaling_exponent(links[with_mj], mj[with_mj]) if with_mj.sum() >= 2 else None
     if 200 in scaling["links"] and 2000 in scaling["links"]:
-        scaling["ratio_2000_over_200"] = float(nudyn[scaling["links"].index(2000)] / nudyn[scaling["links"].index(200)])
+        scaling["ratio_2000_over_200_separate_runs"] = float(nudyn[scaling["links"].index(2000)] / nudyn[scaling["links"].index(200)])
+    pair = results.get("scaling_side_by_side")
+    if pair:
+        (small, large), (small_ns, large_ns) = pair["links"], pair["nanoseconds"]
+        scaling["side_by_side"] = {
+            "links": [small, large],
+            "nudyn_ns": [median(small_ns), median(large_ns)],
+            "ratio": paired_ratio(large_ns, small_ns),
+        }
     summary["scaling"] = scaling
 
     summary["work_precision"] = {name: work_precision_summary(wp) for name, wp in results["work_precision"].items()}
@@ -122,9 +130,12 @@ def targets(summary: dict) -> dict:
         "nudyn_over_mujoco": ratios,
         "met": bool(ratios) and all(r is not None and r < 0.5 for r in ratios.values()),
     }
-    scaling_ratio = summary["scaling"].get("ratio_2000_over_200")
+    # Judged on the two chains timed side by side (the separate runs' ratio is reported beside it).
+    pair = summary["scaling"].get("side_by_side")
+    scaling_ratio = pair["ratio"] if pair and pair["links"] == [200, 2000] else None
     out["linear_scaling"] = {
         "ratio_2000_over_200": scaling_ratio,
+        "ratio_2000_over_200_separate_runs": summary["scaling"].get("ratio_2000_over_200_separate_runs"),
         "exponent": summary["scaling"]["nudyn_exponent"],
         "met": scaling_ratio is not None and scaling_ratio <= 11.0,
     }
@@ -149,7 +160,8 @@ def targets_text(summary: dict) -> str:
             f"- at max error 1e-6 over 10 s, under half of MuJoCo's best wall time: {'met' if b['met'] else 'NOT met'} "
             f"(nudyn's best / MuJoCo's best: {', '.join(f'{n} {_ratio(r)}' for n, r in b['nudyn_over_mujoco'].items())})",
             f"- linear scaling, time(N=2000) ≤ 11 × time(N=200): {'met' if c['met'] else 'NOT met'} "
-            f"(ratio {_ratio(c['ratio_2000_over_200'])}, fitted exponent {c['exponent']:.2f})",
+            f"(ratio {_ratio(c['ratio_2000_over_200'])}, the two timed side by side; from their separate runs in the "
+            f"scaling table {_ratio(c['ratio_2000_over_200_separate_runs'])}; fitted exponent {c['exponent']:.2f})",
         ]
     )
 
@@ -204,6 +216,14 @@ def table(results: dict) -> str:
             f"| {links} | {r['nv']} | {_us(r['nudyn_ns'])} | {_us(r.get('mj_forward_ns'))} | {_us(r.get('dense_ns'))} | "
             f"{_us(r.get('pinocchio_aba_ns'))} | {diff} |"
         )
+    pair = sc.get("side_by_side")
+    if pair:
+        (small, large), (small_ns, large_ns) = pair["links"], pair["nudyn_ns"]
+        lines += [
+            "",
+            f"Timed side by side (in turn, within each repetition): N={small} {_us(small_ns)} µs, N={large} {_us(large_ns)} µs, "
+            f"ratio {pair['ratio']:.2f} (median of per-repetition ratios).",
+        ]
     for name, wp in results["work_precision"].items():
         ws = s["work_precision"][name]
         lines += [
