@@ -78,10 +78,6 @@ pub struct Workspace {
     pub v_plus_body: Vec<SpatialVec>,
     /// V: link spatial velocity in link coordinates — pass 2.
     pub v_body: Vec<SpatialVec>,
-    /// v_J = S θ̇ — pass 2.
-    pub v_joint: Vec<SpatialVec>,
-    /// c = V × v_J — pass 2.
-    pub c_body: Vec<SpatialVec>,
 
     /// Children's share of the velocity-product bias p^A — pass 3.
     pub p_bias_body: Vec<SpatialVec>,
@@ -131,8 +127,6 @@ impl Workspace {
             w_joint: dof(),
             v_plus_body: vec![SpatialVec::zeros(); n],
             v_body: vec![SpatialVec::zeros(); n],
-            v_joint: vec![SpatialVec::zeros(); n],
-            c_body: vec![SpatialVec::zeros(); n],
             p_bias_body: vec![SpatialVec::zeros(); n],
             p_force_body: vec![SpatialVec::zeros(); n],
             p_scratch_body: vec![SpatialVec::zeros(); n],

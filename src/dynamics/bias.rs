@@ -14,7 +14,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::{accumulate, block, cols};
-use crate::math::{Quat, SpatialVec, Vec3, cross_force, mul_cross_motion, quat_difference, spatial};
+use crate::math::{Quat, SpatialVec, Vec3, cross_force, cross_motion, mul_cross_motion, quat_difference, spatial};
 use crate::model::{LinkJoint, Model};
 use crate::workspace::Workspace;
 
@@ -65,7 +65,10 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
     let r_inv = block::<N>(&ws.r_inv_joint[i]);
     let d_inv = r_inv.transpose() * r_inv;
     let w: SVector<f64, N> = ws.w_joint.fixed_rows::<N>(adr).into_owned();
-    let v = ws.v_body[i];
+    let (v, v_plus) = (ws.v_body[i], ws.v_plus_body[i]);
+    // v_J = S θ̇ and c = V × v_J = V⁺ × v_J, recomputed rather than stored
+    // by pass 2: two fewer per-link arrays to stream on long chains.
+    let v_joint = s * ws.qvel.fixed_rows::<N>(adr);
     let has_children = ws.accumulation[i].has_children;
     // İ^A is zero for a link without children (its own inertia is constant in its frame).
     let ia_dot = has_children.then(|| &ws.ia_dot_body[i]);
@@ -80,7 +83,7 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
     let d_dot = s.transpose() * ia_dot_s;
     let gain_t_dot = d_inv * (ia_dot_s.transpose() - d_dot * gain.transpose());
     let r_dot = r * upper_half(&(r_inv * d_dot * r_inv.transpose()));
-    let minus_c = r_inv * u + r_dot.transpose() * w + r.transpose() * (gain_t_dot * ws.v_plus_body[i]);
+    let minus_c = r_inv * u + r_dot.transpose() * w + r.transpose() * (gain_t_dot * v_plus);
 
     // Springs, dampers and gravity.
     let p_force = if !forces {
@@ -115,7 +118,7 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
         let x = &ws.x_parent[i];
         let ia_reduced = &ws.ia_reduced[i];
         let opens_parent = ws.accumulation[i].opens_parent;
-        let p_reduced = p_bias + ia_reduced * ws.c_body[i] + gain * u;
+        let p_reduced = p_bias + ia_reduced * cross_motion(&v_plus, &v_joint) + gain * u;
         accumulate(&mut ws.p_bias_body[p], x.apply_transpose_force(&p_reduced), opens_parent);
         if forces {
             accumulate(&mut ws.p_force_body[p], x.apply_transpose_force(&(p_force + gain * u_force)), opens_parent);
@@ -127,7 +130,7 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
         // and v_J ×* I^a − I^a v_J × = −(B + Bᵀ) with B = I^a (v_J ×), I^a
         // symmetric; so Q = B + G A′ᵀ.
         let a_shifted = ia_dot_s - gain * (0.5 * d_dot);
-        let q = mul_cross_motion(ia_reduced, &ws.v_joint[i]) + gain * a_shifted.transpose();
+        let q = mul_cross_motion(ia_reduced, &v_joint) + gain * a_shifted.transpose();
         let child_term = match ia_dot {
             Some(ia_dot) => ia_dot - q - q.transpose(),
             None => -(q + q.transpose()),

@@ -1,13 +1,13 @@
 //! Pass 2, base to tip: velocities, and the maps between ν and θ̇
 //! (DYNAMICS.md §4 pass 2).
 //!
-//! V⁺_i = X V_λ,  w_i = θ̇_i + G_iᵀV⁺_i = R_i⁻ᵀ ν_i,  V_i = V⁺_i + S θ̇_i,
-//! c_i = V_i × S θ̇_i.  From ν this is θ̇ = ℓ*ν; from θ̇ it is ν = m*θ̇.
+//! V⁺_i = X V_λ,  w_i = θ̇_i + G_iᵀV⁺_i = R_i⁻ᵀ ν_i,  V_i = V⁺_i + S θ̇_i.
+//! From ν this is θ̇ = ℓ*ν; from θ̇ it is ν = m*θ̇.
 
 use nalgebra::SVector;
 
 use super::{block, cols};
-use crate::math::{SpatialVec, cross_motion};
+use crate::math::SpatialVec;
 use crate::model::Model;
 use crate::workspace::Workspace;
 
@@ -45,11 +45,8 @@ fn velocity_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, gi
     };
     ws.qvel.fixed_rows_mut::<N>(adr).copy_from(&qvel);
     ws.w_joint.fixed_rows_mut::<N>(adr).copy_from(&w);
-    let v_joint = cols::<N>(&link.motion_subspace) * qvel;
     ws.v_plus_body[i] = v_plus;
-    ws.v_joint[i] = v_joint;
-    ws.v_body[i] = v_plus + v_joint;
-    ws.c_body[i] = cross_motion(&v_plus, &v_joint);
+    ws.v_body[i] = v_plus + cols::<N>(&link.motion_subspace) * qvel;
 }
 
 /// Pass 2 over all links.
