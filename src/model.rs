@@ -18,7 +18,7 @@
 use nalgebra::SMatrix;
 use serde::{Deserialize, Serialize};
 
-use crate::math::{Mat3, SpatialMat, Transform, Vec3, rigid_inertia, skew};
+use crate::math::{Mat3, SpatialMat, SpatialVec, Transform, Vec3, angular, linear, rigid_inertia, skew, spatial};
 use crate::vehicle::{JointKind, Vehicle};
 
 /// Motion subspace storage: up to three columns, the first `ndof` used.
@@ -73,12 +73,39 @@ pub struct Link {
     pub stiffness: f64,
     /// Viscous damping acting on this link's dofs.
     pub damping: f64,
-    /// Spatial inertia about the link origin, in link coordinates.
-    pub inertia: SpatialMat,
+    /// Rotational inertia about the link origin, in link coordinates
+    /// (including bodies welded to it). With `mass` and `mass_moment` it
+    /// makes the link's spatial inertia ([`Link::spatial_inertia`]), which
+    /// is not stored: ten numbers where the 6×6 matrix takes 36, and the
+    /// passes stream every link's model data on long chains.
+    pub rotational_inertia: Mat3,
     /// Mass of the link (including bodies welded to it).
     pub mass: f64,
     /// First mass moment m·c (c: centre of mass in link coordinates).
     pub mass_moment: Vec3,
+}
+
+impl Link {
+    /// The spatial inertia about the link origin, in link coordinates:
+    /// [Ī h×; h×ᵀ m·1] with Ī the rotational inertia and h the mass moment.
+    #[inline]
+    pub fn spatial_inertia(&self) -> SpatialMat {
+        let h = skew(&self.mass_moment);
+        let mut out = SpatialMat::zeros();
+        out.fixed_view_mut::<3, 3>(0, 0).copy_from(&self.rotational_inertia);
+        out.fixed_view_mut::<3, 3>(0, 3).copy_from(&h);
+        out.fixed_view_mut::<3, 3>(3, 0).copy_from(&h.transpose());
+        out.fixed_view_mut::<3, 3>(3, 3).copy_from(&(self.mass * Mat3::identity()));
+        out
+    }
+
+    /// The spatial inertia times a motion vector (ω, v): (Īω + h × v, m v − h × ω).
+    #[inline]
+    pub fn inertia_times(&self, motion: &SpatialVec) -> SpatialVec {
+        let (w, v) = (angular(motion), linear(motion));
+        let h = self.mass_moment;
+        spatial(&(self.rotational_inertia * w + h.cross(&v)), &(self.mass * v - h.cross(&w)))
+    }
 }
 
 /// Descriptive information on one MJCF joint (for variable descriptions).
@@ -297,7 +324,9 @@ impl Model {
                 let inertia = rigid_inertia(mass_props.mass, &mass_props.com, &mass_props.inertia);
                 let l = &mut links[link];
                 // The body frame is ᵇX_ₗ = offset relative to the link: bring its inertia to the link frame.
-                inboard.offset.add_inertia_to_parent(&inertia, &mut l.inertia, false);
+                let mut in_link = SpatialMat::zeros();
+                inboard.offset.add_inertia_to_parent(&inertia, &mut in_link, true);
+                l.rotational_inertia += in_link.fixed_view::<3, 3>(0, 0);
                 l.mass += mass_props.mass;
                 l.mass_moment += mass_props.mass
                     * (inboard.offset.trans + inboard.offset.rot.transpose() * mass_props.com);
@@ -381,7 +410,7 @@ fn push_link(
         armature: joint.armature,
         stiffness: joint.stiffness,
         damping: joint.damping,
-        inertia: SpatialMat::zeros(),
+        rotational_inertia: Mat3::zeros(),
         mass: 0.0,
         mass_moment: Vec3::zeros(),
     });
@@ -411,5 +440,40 @@ fn motion_subspace(joint: LinkJoint, axis: &Vec3, anchor: &Vec3) -> (usize, Moti
             s.fixed_view_mut::<3, 3>(3, 0).copy_from(&Mat3::identity());
             (3, s)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A hinge body carrying a welded box, offset and rotated.
+    const WELDED: &str = r#"<mujoco><worldbody><body name="arm" pos="0 0 1">
+        <joint name="hinge" axis="0 1 0"/>
+        <inertial pos="0.1 0.2 -0.3" mass="2" diaginertia="0.3 0.2 0.1"/>
+        <body name="tool" pos="0.5 -0.1 0.2" euler="30 -20 45">
+          <inertial pos="0.05 0 0.1" mass="0.7" fullinertia="0.02 0.03 0.04 0.001 -0.002 0.003"/>
+        </body></body></worldbody></mujoco>"#;
+
+    #[test]
+    fn spatial_inertia_is_the_sum_of_the_links_bodies_in_its_frame() {
+        let vehicle = crate::mjcf::parse_mjcf(WELDED).unwrap().vehicle;
+        let model = Model::compile(&vehicle).unwrap();
+        let link = &model.links[0];
+        // Independently: each body's rigid inertia through a dense 6×6
+        // motion transform (identity for the link's own body; for the tool,
+        // its pose relative to the arm).
+        let mut expected = SpatialMat::zeros();
+        for body in &vehicle.bodies {
+            let props = body.inertia.as_ref().unwrap();
+            let x = match body.parent {
+                Some(_) => Transform::from_pose(&body.quat.to_rotation_matrix().into_inner(), &body.pos).motion_matrix(),
+                None => SpatialMat::identity(),
+            };
+            expected += x.transpose() * rigid_inertia(props.mass, &props.com, &props.inertia) * x;
+        }
+        assert!((link.spatial_inertia() - expected).abs().max() < 1e-14, "{}\n{}", link.spatial_inertia(), expected);
+        let v = SpatialVec::new(0.3, -1.2, 0.7, 2.0, 0.4, -0.9);
+        assert!((link.inertia_times(&v) - link.spatial_inertia() * v).abs().max() < 1e-14);
     }
 }

@@ -32,7 +32,7 @@ pub fn check_supported(model: &Model) -> Result<()> {
 /// M(θ) by the composite-rigid-body algorithm, with `ws` at configuration θ.
 fn mass_matrix(model: &Model, ws: &Workspace) -> DMatrix<f64> {
     let n = model.links.len();
-    let mut composite: Vec<SpatialMat> = model.links.iter().map(|l| l.inertia).collect();
+    let mut composite: Vec<SpatialMat> = model.links.iter().map(|l| l.spatial_inertia()).collect();
     for i in (0..n).rev() {
         if let Some(p) = model.links[i].parent {
             // Parents precede their children in the link order (p < i).
@@ -86,7 +86,7 @@ fn bias_forces(model: &Model, ws: &Workspace, theta: &[f64], qvel: &[f64]) -> DV
         let x = &ws.x_parent[i];
         velocity[i] = x.apply_motion(&v_parent) + v_joint;
         acceleration[i] = x.apply_motion(&a_parent) + cross_motion(&velocity[i], &v_joint);
-        force[i] = link.inertia * acceleration[i] + cross_force(&velocity[i], &(link.inertia * velocity[i]));
+        force[i] = link.inertia_times(&acceleration[i]) + cross_force(&velocity[i], &link.inertia_times(&velocity[i]));
     }
     let mut h = DVector::zeros(model.nv);
     for i in (0..n).rev() {

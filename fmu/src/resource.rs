@@ -133,7 +133,7 @@ pub fn check_model(model: &Model) -> Result<(), ResourceError> {
         finite(k, "anchor", link.anchor.iter())?;
         finite(k, "reference", [link.reference].iter())?;
         finite(k, "motion_subspace", link.motion_subspace.iter())?;
-        finite(k, "inertia", link.inertia.iter())?;
+        finite(k, "rotational_inertia", link.rotational_inertia.iter())?;
         finite(k, "mass_moment", link.mass_moment.iter())?;
         non_negative(k, "armature", link.armature)?;
         non_negative(k, "stiffness", link.stiffness)?;
@@ -214,8 +214,8 @@ mod tests {
     #[test]
     fn bad_numbers_are_refused() {
         let mut model = example("flexible_boom.xml");
-        model.links[1].inertia[(2, 2)] = f64::NAN;
-        assert!(matches!(check_model(&model), Err(ResourceError::Number { link: 1, what: "inertia", .. })));
+        model.links[1].rotational_inertia[(2, 2)] = f64::NAN;
+        assert!(matches!(check_model(&model), Err(ResourceError::Number { link: 1, what: "rotational_inertia", .. })));
         let mut model = example("flexible_boom.xml");
         model.links[0].mass = -1.0;
         assert!(matches!(check_model(&model), Err(ResourceError::Number { what: "mass", non_negative: true, .. })));

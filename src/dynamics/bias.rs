@@ -74,7 +74,7 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
     let ia_dot = has_children.then(|| &ws.ia_dot_body[i]);
 
     // Velocity-product terms.
-    let mut p_bias = cross_force(&v, &(link.inertia * v));
+    let mut p_bias = cross_force(&v, &link.inertia_times(&v));
     if has_children {
         p_bias += ws.p_bias_body[i];
     }

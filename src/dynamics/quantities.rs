@@ -29,7 +29,7 @@ impl Workspace {
         self.world_transforms(model);
         let mut total = SpatialVec::zeros();
         for (i, link) in model.links.iter().enumerate() {
-            let h = link.inertia * self.v_body[i];
+            let h = link.inertia_times(&self.v_body[i]);
             // ⁱX₀ᵀ h: the link's momentum in world coordinates about the world origin.
             total += self.x_world[i].apply_transpose_force(&h);
         }
