@@ -59,7 +59,10 @@ pub fn upper_triangular_inverse<const N: usize>(r: &SMatrix<f64, N, N>) -> SMatr
 fn factor_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize) -> Result<(), DynamicsError> {
     let link = &model.links[i];
     let s = cols::<N>(&link.motion_subspace);
-    let ia = if ws.accumulation[i].has_children { link.spatial_inertia() + ws.ia_reduced[i] } else { link.spatial_inertia() };
+    let mut ia = link.spatial_inertia();
+    if ws.accumulation[i].has_children {
+        ia += ws.ia_reduced[i];
+    }
     let u = ia * s;
     let mut d = s.transpose() * u;
     if !model.shortcuts.no_armature {
