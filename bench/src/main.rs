@@ -15,6 +15,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use nudyn::integrate::{Carry, Integrator, Method, Settings};
 use nudyn::model::{Model, Shortcuts};
+use nudyn::workspace::Workspace;
 use serde::{Deserialize, Serialize};
 use timing::Case;
 
@@ -226,13 +227,7 @@ fn eval_cost(model: &Model, state: &State, mujoco: Option<&(PathBuf, PathBuf)>, 
 
     let mut cases: Vec<Case> = Vec::new();
     for ((name, m), ws) in variants.iter().zip(workspaces.iter_mut()) {
-        let (theta, nu, eps) = (&state.theta, &state.nu, &eps);
-        cases.push(Case {
-            name: name.clone(),
-            call: Box::new(move || {
-                nudyn::dynamics::forward(m, ws, std::hint::black_box(theta), nu, eps).expect("the state evaluates");
-            }),
-        });
+        cases.push(forward_case(name.clone(), m, ws, state, &eps));
     }
     for (pipeline, simulation) in simulations.iter_mut() {
         let pipeline = *pipeline;
@@ -251,6 +246,17 @@ fn eval_cost(model: &Model, state: &State, mujoco: Option<&(PathBuf, PathBuf)>, 
     let times = timing::interleaved(&mut cases, options.repetitions, options.batch);
     let nanoseconds = cases.iter().map(|c| c.name.clone()).zip(times).collect();
     Ok(CostResult { nv: model.nv, shortcuts: taken, nanoseconds, dense_difference })
+}
+
+/// A timed case of nudyn's ν̇: one `forward` from `state` with applied `eps`.
+fn forward_case<'a>(name: String, model: &'a Model, ws: &'a mut Workspace, state: &'a State, eps: &'a [f64]) -> Case<'a> {
+    let (theta, nu) = (&state.theta, &state.nu);
+    Case {
+        name,
+        call: Box::new(move || {
+            nudyn::dynamics::forward(model, ws, std::hint::black_box(theta), nu, eps).expect("the state evaluates");
+        }),
+    }
 }
 
 /// One vehicle's times from `eval-cost-side-by-side`.
@@ -278,15 +284,7 @@ fn eval_cost_side_by_side(
     let mut cases: Vec<Case> = prepared
         .iter_mut()
         .zip(paths)
-        .map(|((model, state, eps, ws), path)| {
-            let (model, theta, nu, eps) = (*model, &state.theta, &state.nu, &*eps);
-            Case {
-                name: path.display().to_string(),
-                call: Box::new(move || {
-                    nudyn::dynamics::forward(model, ws, std::hint::black_box(theta), nu, eps).expect("the state evaluates");
-                }),
-            }
-        })
+        .map(|((model, state, eps, ws), path)| forward_case(path.display().to_string(), model, ws, state, eps))
         .collect();
     let times = timing::interleaved(&mut cases, repetitions, batch);
     Ok(paths
