@@ -15,6 +15,7 @@ pub mod mjcf;
 pub mod vehicle;
 pub mod dynamics;
 pub mod control;
+pub mod describe;
 pub mod eval;
 pub mod export;
 pub mod integrate;

@@ -64,6 +64,18 @@ enum Command {
         #[arg(long, requires = "controller", value_name = "BODY")]
         end_effector: Option<String>,
     },
+    /// Print the vehicle's joints and where each sits in θ (qpos) and ν (qvel).
+    ///
+    /// With --json: {"name", "nq", "nv", "gravity", "qpos0", "joints": [{"name",
+    /// "body", "kind", "qpos_adr", "nq", "dof_adr", "nv", "quaternion_adr"}]},
+    /// addresses 0-based (FMU variable theta[qpos_adr + 1] is the joint's first).
+    Describe {
+        /// The vehicle's MJCF file.
+        model: PathBuf,
+        /// Print JSON instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
     /// Integrate the vehicle as the FMU does, without the FMI layer: by
     /// default with one RK4 step per output interval H.
     ///
@@ -115,6 +127,7 @@ fn main() -> ExitCode {
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Eval { model } => eval(&model),
+        Command::Describe { model, json } => describe(&model, json),
         Command::Export { model, output, model_identifier, controller: true, end_effector, .. } => {
             export_controller(&model, &output, model_identifier, end_effector.as_deref())
         }
@@ -178,6 +191,30 @@ fn eval(model_path: &Path) -> Result<()> {
         request => serde_json::to_string(&answer(request)?)?,
     };
     println!("{output}");
+    Ok(())
+}
+
+fn describe(model_path: &Path, json: bool) -> Result<()> {
+    let description = nudyn::describe::Description::of(&load_model(model_path)?);
+    if json {
+        println!("{}", serde_json::to_string_pretty(&description)?);
+        return Ok(());
+    }
+    println!("{}: nq = {}, nv = {}", description.name, description.nq, description.nv);
+    println!("{:<24} {:<24} {:<6} {:>9} {:>9}", "joint", "body", "kind", "theta", "nu, eps");
+    for joint in &description.joints {
+        // 1-based FMU variable indices, as in theta[k] and nu[k].
+        let range = |first: usize, n: usize| if n == 1 { format!("{}", first + 1) } else { format!("{}..{}", first + 1, first + n) };
+        let kind = serde_json::to_value(joint.kind)?;
+        println!(
+            "{:<24} {:<24} {:<6} {:>9} {:>9}",
+            joint.name,
+            joint.body,
+            kind.as_str().unwrap_or_default(),
+            range(joint.qpos_adr, joint.nq),
+            range(joint.dof_adr, joint.nv)
+        );
+    }
     Ok(())
 }
 
