@@ -4,10 +4,18 @@
 //!
 //! The pieces, in the order data flows through them:
 //! - [`vehicle`]: a vehicle as its MJCF file describes it;
-//! - [`model`]: the immutable compiled model (serializable; the FMU's resource);
+//! - [`mjcf`]: the MJCF importer;
+//! - [`model`]: the immutable compiled model (serializable; the FMU's
+//!   resource), and [`model::Model::validate`];
 //! - [`workspace`]: per-instance preallocated buffers, filled by the passes;
 //! - [`dynamics`]: the O(N) passes and the operators built from them;
-//! - [`control`]: the paper's noninteracting controllers, and their FMU.
+//! - [`integrate`]: Runge–Kutta–Munthe-Kaas steps, error control;
+//! - [`control`]: the paper's noninteracting control law;
+//! - [`eval`], [`describe`]: `nudyn eval`'s and `nudyn describe`'s data.
+//!
+//! This crate has no FMI, command-line or archive code: the FMI contract is
+//! the `nudyn-contract` crate, the FMU binary `nudyn-fmu`, and the `nudyn`
+//! command and its exporter `nudyn-cli`.
 #![warn(missing_docs)]
 
 pub mod math;
@@ -17,7 +25,6 @@ pub mod dynamics;
 pub mod control;
 pub mod describe;
 pub mod eval;
-pub mod export;
 pub mod integrate;
 pub mod model;
 pub mod workspace;

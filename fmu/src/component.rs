@@ -1,194 +1,403 @@
-//! What an instance runs: the plant (the vehicle's dynamics, [`Slave`]) or
-//! its controller ([`Controller`]), told apart at fmi2Instantiate by the
-//! resource the FMU ships. The FMI layer calls only this type, so its
-//! checks (state machine, pointers, value references, statuses, logging)
-//! are the same for both.
+//! One interface for what an FMU instance runs, the plant or the
+//! controller (after the FMI Reference FMUs' `model.h`): each implements
+//! [`Component`], with defaults for what it does not provide, and the FMI
+//! layer calls it through the generic checks of [`crate::calls`].
+//!
+//! Errors are split by the phase they belong to: [`LoadError`] at
+//! instantiation, [`CallError`] for a call that is refused or cannot be
+//! answered, [`StepError`] for a step that started and did not complete.
 
-use crate::controller::{CONTROLLER_RESOURCE_FILE, Controller};
-use crate::slave::{Slave, SlaveError, StepReport};
-use crate::snapshot::Snapshot;
+use std::path::{Path, PathBuf};
+
+use nudyn::dynamics::DynamicsError;
+use nudyn::integrate::{AdvanceError, Stats, ToleranceRelaxed};
+use nudyn::model::InvalidModel;
+use nudyn_contract::capabilities::Capabilities;
+use nudyn_contract::controller::ControllerResource;
+use nudyn_contract::plant::method_items;
+use nudyn_contract::resource::Resource;
+use nudyn_contract::variable::Kind;
+
+use crate::controller::Controller;
+use crate::plant::Plant;
+use crate::snapshot::{Snapshot, SnapshotError};
 use crate::state::Phase;
-use crate::uri::resource_directory;
+use crate::uri::{UriError, resource_directory};
 
-/// The slave behind one FMU instance.
-pub enum Component {
-    /// The vehicle's dynamics: ε in, θ and ν out.
-    Plant(Box<Slave>),
-    /// The control law: θ and ν in, ε out.
-    Controller(Box<Controller>),
+/// A Real variable as the checks need it: its name, for messages, and its kind.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Variable {
+    /// The structured name, as in the modelDescription.
+    pub name: String,
+    /// Causality, variability, range.
+    pub kind: Kind,
 }
 
-impl Component {
-    /// Loads the FMU's resources: a controller if `controller.json` is
-    /// there, else the plant (whose loader reports a missing `model.json`).
-    pub fn load(resource_location: &str, guid: &str) -> Result<Component, SlaveError> {
-        let directory = resource_directory(resource_location)?;
-        if directory.join(CONTROLLER_RESOURCE_FILE).is_file() {
-            return Ok(Component::Controller(Box::new(Controller::load(&directory, guid)?)));
-        }
-        Ok(Component::Plant(Box::new(Slave::load(resource_location, guid)?)))
+/// What a completed fmi2DoStep did, when the component integrates.
+#[derive(Debug)]
+pub struct StepReport {
+    /// The internal steps taken and rejected.
+    pub stats: Stats,
+    /// Set when the tolerance had to be relaxed (fmi2Warning).
+    pub relaxed: Option<ToleranceRelaxed>,
+}
+
+/// What an FMU instance runs. Methods are called only after the checks of
+/// [`crate::calls`] passed: known value references, settable variables,
+/// finite values in range, a valid communication step.
+pub trait Component {
+    /// What the FMU declares it can do (the same value its modelDescription was written from).
+    fn capabilities(&self) -> Capabilities;
+
+    /// Back to the state just after loading (fmi2Reset).
+    fn reset(&mut self);
+
+    /// The current time (fmi2LastSuccessfulTime).
+    fn time(&self) -> f64;
+
+    /// The stop time fmi2SetupExperiment declared, if any.
+    fn stop_time(&self) -> Option<f64>;
+
+    /// fmi2SetupExperiment, with arguments already checked.
+    fn setup_experiment(&mut self, tolerance: Option<f64>, start_time: f64, stop_time: Option<f64>);
+
+    /// fmi2ExitInitializationMode: whatever was set must make a run.
+    fn initialize(&mut self) -> Result<(), CallError>;
+
+    /// The Real variable with value reference `vr`, if there is one.
+    fn real_variable(&self, vr: u32) -> Option<Variable>;
+
+    /// Takes Real values that passed every check (fmi2SetReal).
+    fn set_reals(&mut self, vrs: &[u32], values: &[f64]);
+
+    /// Computes what reading `vrs` needs (known variables), once per change.
+    fn prepare_reals(&mut self, vrs: &[u32]) -> Result<(), CallError>;
+
+    /// The value of the known Real variable `vr`, after [`Component::prepare_reals`].
+    fn real_value(&self, vr: u32) -> f64;
+
+    /// fmi2GetInteger.
+    fn get_integer(&self, vrs: &[u32], _values: &mut [i32]) -> Result<(), CallError> {
+        none_of("Integer", vrs)
     }
 
-    /// fmi2Reset.
-    pub fn reset(&mut self) {
-        match self {
-            Component::Plant(s) => s.reset(),
-            Component::Controller(c) => c.reset(),
-        }
+    /// fmi2SetInteger; `initialized`: after fmi2ExitInitializationMode.
+    fn set_integer(&mut self, vrs: &[u32], _values: &[i32], _initialized: bool) -> Result<(), CallError> {
+        none_of("Integer", vrs)
     }
 
-    /// fmi2SetupExperiment.
-    pub fn setup_experiment(&mut self, tolerance: Option<f64>, start_time: f64, stop_time: Option<f64>) -> Result<(), SlaveError> {
-        match self {
-            Component::Plant(s) => s.setup_experiment(tolerance, start_time, stop_time),
-            Component::Controller(c) => c.setup_experiment(tolerance, start_time, stop_time),
-        }
+    /// fmi2GetBoolean.
+    fn get_boolean(&self, vrs: &[u32], _values: &mut [bool]) -> Result<(), CallError> {
+        none_of("Boolean", vrs)
     }
 
-    /// fmi2ExitInitializationMode.
-    pub fn initialize(&mut self) -> Result<(), SlaveError> {
-        match self {
-            Component::Plant(s) => s.initialize(),
-            Component::Controller(c) => c.initialize(),
-        }
+    /// fmi2SetBoolean; `initialized`: after fmi2ExitInitializationMode.
+    fn set_boolean(&mut self, vrs: &[u32], _values: &[bool], _initialized: bool) -> Result<(), CallError> {
+        none_of("Boolean", vrs)
     }
 
-    /// fmi2GetReal.
-    pub fn get_real(&mut self, vrs: &[u32], values: &mut [f64]) -> Result<(), SlaveError> {
-        match self {
-            Component::Plant(s) => s.get_real(vrs, values),
-            Component::Controller(c) => c.get_real(vrs, values),
-        }
+    /// Takes first derivatives of inputs that passed every check
+    /// (fmi2SetRealInputDerivatives; only with canInterpolateInputs).
+    fn set_input_derivatives(&mut self, _vrs: &[u32], _values: &[f64]) -> Result<(), CallError> {
+        Err(CallError::NotProvided("canInterpolateInputs"))
     }
 
-    /// fmi2SetReal; `initialized`: after fmi2ExitInitializationMode.
-    pub fn set_real(&mut self, vrs: &[u32], values: &[f64], initialized: bool) -> Result<(), SlaveError> {
-        match self {
-            Component::Plant(s) => s.set_real(vrs, values, initialized),
-            Component::Controller(c) => c.set_real(vrs, values),
-        }
+    /// Computes the time derivatives of the state outputs (only with maxOutputDerivativeOrder ≥ 1).
+    fn prepare_output_derivatives(&mut self) -> Result<(), CallError> {
+        Err(CallError::NotProvided("maxOutputDerivativeOrder"))
     }
 
-    /// fmi2GetInteger (the controller has no Integer variables).
-    pub fn get_integer(&self, vrs: &[u32], values: &mut [i32]) -> Result<(), SlaveError> {
-        match self {
-            Component::Plant(s) => s.get_integer(vrs, values),
-            Component::Controller(_) => none_of("Integer", vrs),
-        }
+    /// The time derivative of the state output `vr`, after [`Component::prepare_output_derivatives`].
+    fn output_derivative(&self, _vr: u32) -> f64 {
+        f64::NAN
     }
 
-    /// fmi2SetInteger.
-    pub fn set_integer(&mut self, vrs: &[u32], values: &[i32], initialized: bool) -> Result<(), SlaveError> {
-        match self {
-            Component::Plant(s) => s.set_integer(vrs, values, initialized),
-            Component::Controller(_) => none_of("Integer", vrs),
-        }
+    /// Refuses a step size this component cannot take, beyond the generic checks.
+    fn check_step_size(&self, _step: f64) -> Result<(), CallError> {
+        Ok(())
     }
 
-    /// fmi2GetBoolean: the value of the variables `vrs` (all the same one).
-    pub fn get_boolean(&self, vrs: &[u32]) -> Result<bool, SlaveError> {
-        match self {
-            Component::Plant(s) => s.get_boolean(vrs),
-            Component::Controller(_) => none_of("Boolean", vrs).map(|()| false),
-        }
+    /// fmi2DoStep from the communication point `time` (checked to be the
+    /// current time) by `step`; a component that integrates reports what it did.
+    fn do_step(&mut self, time: f64, step: f64) -> Result<Option<StepReport>, StepError>;
+
+    /// Whether the instance cannot go on (fmi2Terminated status).
+    fn failed_for_good(&self) -> bool {
+        false
     }
 
-    /// fmi2SetBoolean.
-    pub fn set_boolean(&mut self, vrs: &[u32], values: &[bool], initialized: bool) -> Result<(), SlaveError> {
-        match self {
-            Component::Plant(s) => s.set_boolean(vrs, values, initialized),
-            Component::Controller(_) => none_of("Boolean", vrs),
-        }
-    }
-
-    /// fmi2SetRealInputDerivatives.
-    pub fn set_input_derivatives(&mut self, vrs: &[u32], orders: &[i32], values: &[f64]) -> Result<(), SlaveError> {
-        match self {
-            Component::Plant(s) => s.set_input_derivatives(vrs, orders, values),
-            Component::Controller(c) => c.set_input_derivatives(vrs),
-        }
-    }
-
-    /// fmi2GetRealOutputDerivatives.
-    pub fn get_output_derivatives(&mut self, vrs: &[u32], orders: &[i32], values: &mut [f64]) -> Result<(), SlaveError> {
-        match self {
-            Component::Plant(s) => s.get_output_derivatives(vrs, orders, values),
-            Component::Controller(c) => c.get_output_derivatives(vrs),
-        }
-    }
-
-    /// The checks fmi2DoStep makes before stepping.
-    pub fn check_step_arguments(&self, time: f64, step: f64) -> Result<(), SlaveError> {
-        match self {
-            Component::Plant(s) => s.check_step_arguments(time, step),
-            Component::Controller(c) => c.check_step_arguments(time),
-        }
-    }
-
-    /// fmi2DoStep; the plant reports what its integration did.
-    pub fn do_step(&mut self, time: f64, step: f64) -> Result<Option<StepReport>, SlaveError> {
-        match self {
-            Component::Plant(s) => s.do_step(time, step).map(Some),
-            Component::Controller(c) => c.do_step(time, step).map(|()| None),
-        }
-    }
-
-    /// fmi2LastSuccessfulTime.
-    pub fn time(&self) -> f64 {
-        match self {
-            Component::Plant(s) => s.time(),
-            Component::Controller(c) => c.time(),
-        }
-    }
-
-    /// fmi2Terminated status: whether the slave cannot go on.
-    pub fn failed_for_good(&self) -> bool {
-        match self {
-            Component::Plant(s) => s.failed_for_good(),
-            Component::Controller(_) => false,
-        }
+    /// A new FMU state, taken in `phase` (only with canGetAndSetFMUstate).
+    fn snapshot(&self, _phase: Phase) -> Result<Snapshot, CallError> {
+        Err(CallError::NoFmuState)
     }
 
     /// Saves the state into an existing FMU state.
-    pub fn save(&self, phase: Phase, snapshot: &mut Snapshot) -> Result<(), SlaveError> {
-        match self {
-            Component::Plant(s) => {
-                s.save(phase, snapshot);
-                Ok(())
-            }
-            Component::Controller(_) => Err(SlaveError::NoFmuState),
-        }
-    }
-
-    /// A new FMU state.
-    pub fn snapshot(&self, phase: Phase) -> Result<Snapshot, SlaveError> {
-        match self {
-            Component::Plant(s) => Ok(s.snapshot(phase)),
-            Component::Controller(_) => Err(SlaveError::NoFmuState),
-        }
+    fn save(&self, _phase: Phase, _snapshot: &mut Snapshot) -> Result<(), CallError> {
+        Err(CallError::NoFmuState)
     }
 
     /// Restores an FMU state.
-    pub fn restore(&mut self, snapshot: &Snapshot) -> Result<(), SlaveError> {
-        match self {
-            Component::Plant(s) => s.restore(snapshot),
-            Component::Controller(_) => Err(SlaveError::NoFmuState),
-        }
+    fn restore(&mut self, _snapshot: &Snapshot) -> Result<(), CallError> {
+        Err(CallError::NoFmuState)
     }
 
-    /// Reads a serialized FMU state.
-    pub fn deserialize(&self, bytes: &[u8]) -> Result<Snapshot, SlaveError> {
-        match self {
-            Component::Plant(s) => s.deserialize(bytes),
-            Component::Controller(_) => Err(SlaveError::NoFmuState),
-        }
+    /// Reads a serialized FMU state of this FMU.
+    fn deserialize(&self, _bytes: &[u8]) -> Result<Snapshot, CallError> {
+        Err(CallError::NoFmuState)
     }
 }
 
-/// A type of which the FMU has no variables: any value reference is unknown.
-fn none_of(kind: &'static str, vrs: &[u32]) -> Result<(), SlaveError> {
+/// A type of which the component has no variables: any value reference is unknown.
+fn none_of(kind: &'static str, vrs: &[u32]) -> Result<(), CallError> {
     match vrs.first() {
-        Some(&vr) => Err(SlaveError::UnknownValueReference { vr, kind }),
+        Some(&vr) => Err(CallError::UnknownValueReference { vr, kind }),
         None => Ok(()),
     }
+}
+
+/// Loads the FMU's resources: the controller if `controller.json` is
+/// there, else the plant (whose loader reports a missing `model.json`).
+pub fn load(resource_location: &str, guid: &str) -> Result<Box<dyn Component>, LoadError> {
+    let directory = resource_directory(resource_location)?;
+    if directory.join(ControllerResource::FILE).is_file() {
+        Ok(Box::new(Controller::load(read_resource(&directory, guid, Controller::check_law)?)?))
+    } else {
+        Ok(Box::new(Plant::load(read_resource(&directory, guid, |_, _| Ok(()))?)))
+    }
+}
+
+/// A resource file read and checked: the format, the model's consistency,
+/// what `check` checks of the rest, and the GUID (recomputed from the bytes
+/// and the variables they define).
+pub struct Loaded<R> {
+    /// The resource.
+    pub resource: R,
+    /// The file it was read from.
+    pub path: PathBuf,
+    /// The FMU's GUID.
+    pub guid: String,
+}
+
+fn read_resource<R: Resource>(
+    directory: &Path,
+    guid: &str,
+    check: impl Fn(&R, &Path) -> Result<(), LoadError>,
+) -> Result<Loaded<R>, LoadError> {
+    let path = directory.join(R::FILE);
+    let bytes = std::fs::read(&path).map_err(|source| LoadError::Read { path: path.clone(), source })?;
+    let resource: R = serde_json::from_slice(&bytes).map_err(|source| LoadError::Parse { path: path.clone(), source })?;
+    if resource.format() != R::FORMAT {
+        return Err(LoadError::Format { path, found: resource.format(), expected: R::FORMAT });
+    }
+    // Before anything sized by nq or nv (the GUID's variable list, the workspace).
+    resource.model().validate().map_err(|source| LoadError::BadModel { path: path.clone(), source })?;
+    check(&resource, &path)?;
+    let actual = resource.guid(&bytes);
+    if actual != guid {
+        return Err(LoadError::Guid { given: guid.to_string(), actual });
+    }
+    Ok(Loaded { resource, path, guid: actual })
+}
+
+/// Why fmi2Instantiate cannot make an instance.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    /// The resource location is unusable.
+    #[error(transparent)]
+    Uri(#[from] UriError),
+    /// The resource file cannot be read.
+    #[error("cannot read the compiled model {path}: {source}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// The resource file cannot be parsed.
+    #[error("{path} is not a nudyn FMU resource: {source}")]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: serde_json::Error,
+    },
+    /// Written by an exporter with another resource format.
+    #[error("{path} has resource format {found}, this binary reads format {expected}")]
+    Format {
+        /// The file.
+        path: PathBuf,
+        /// Its format.
+        found: u32,
+        /// The format this binary reads.
+        expected: u32,
+    },
+    /// The compiled model is inconsistent (a corrupted or foreign resource).
+    #[error("{path} does not hold a consistent compiled model: {source}")]
+    BadModel {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        source: InvalidModel,
+    },
+    /// The controller resource holds a law that does not fit its model.
+    #[error("{path} does not hold a consistent control law: {reason}")]
+    BadLaw {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The GUID passed to fmi2Instantiate is not this FMU's.
+    #[error("fmuGUID '{given}' does not match the FMU's resources, whose GUID is '{actual}'")]
+    Guid {
+        /// The GUID given.
+        given: String,
+        /// The GUID of the resources.
+        actual: String,
+    },
+}
+
+/// Why a call is refused, or cannot be answered at the current state.
+#[derive(Debug, thiserror::Error)]
+pub enum CallError {
+    /// No variable of this type has the value reference.
+    #[error("unknown value reference {vr} for a variable of type {kind}")]
+    UnknownValueReference {
+        /// The value reference.
+        vr: u32,
+        /// The FMI base type asked for.
+        kind: &'static str,
+    },
+    /// The variable cannot be set now.
+    #[error("{name} (value reference {vr}) cannot be set {when}")]
+    NotSettable {
+        /// Variable name.
+        name: String,
+        /// Its value reference.
+        vr: u32,
+        /// When it was tried.
+        when: &'static str,
+    },
+    /// A value that must be finite is not.
+    #[error("{name} = {value} is not finite")]
+    NonFinite {
+        /// Variable or argument name.
+        name: String,
+        /// The value.
+        value: f64,
+    },
+    /// A finite value outside the variable's range.
+    #[error("{name} = {value} must be {must}")]
+    OutOfRange {
+        /// Variable or argument name.
+        name: String,
+        /// The value.
+        value: f64,
+        /// "positive" or "non-negative".
+        must: &'static str,
+    },
+    /// A `method` value that is not an item of the enumeration.
+    #[error("method = {0} is not an item of the enumeration ({items})", items = method_items())]
+    UnknownMethod(i32),
+    /// An output that is not finite at the current (finite) state.
+    #[error("{name} = {value} is not finite at the current state: no value is returned")]
+    NonFiniteOutput {
+        /// Variable name.
+        name: String,
+        /// The value.
+        value: f64,
+    },
+    /// The initial state (θ, ν) set by the master cannot be used.
+    #[error("the initial state cannot be used: {0}")]
+    InitialState(DynamicsError),
+    /// An output could not be evaluated at the current state.
+    #[error("the outputs cannot be evaluated at the current state: {0}")]
+    Evaluate(DynamicsError),
+    /// The control law cannot be evaluated at the current inputs and parameters.
+    #[error("the controller cannot be evaluated: {0}")]
+    Control(nudyn::control::ControlError),
+    /// currentCommunicationPoint is not the instance's time.
+    #[error("expected currentCommunicationPoint = {expected} but was {found}")]
+    CommunicationPoint {
+        /// The instance's time.
+        expected: f64,
+        /// The argument.
+        found: f64,
+    },
+    /// A step size that is not positive and finite.
+    #[error("communicationStepSize = {0} must be positive and finite")]
+    StepSize(f64),
+    /// The step needs more internal steps than the plant allows in one call.
+    #[error("communicationStepSize = {step} with max_step = {max_step} needs {needed:e} internal steps, more than {limit:e}")]
+    TooLong {
+        /// The step.
+        step: f64,
+        /// The parameter max_step.
+        max_step: f64,
+        /// step / max_step.
+        needed: f64,
+        /// The most internal steps one doStep may take.
+        limit: f64,
+    },
+    /// The step would pass the declared stop time.
+    #[error("the step from t = {time} by {step} passes stopTime = {stop_time}")]
+    PastStopTime {
+        /// Start of the step.
+        time: f64,
+        /// Its size.
+        step: f64,
+        /// The stop time of fmi2SetupExperiment.
+        stop_time: f64,
+    },
+    /// An input or output derivative of an order the FMU does not serve.
+    #[error("derivative order {order} of {name} is not supported (only order 1)")]
+    DerivativeOrder {
+        /// Variable name.
+        name: String,
+        /// The order asked for.
+        order: i32,
+    },
+    /// A derivative asked of a variable that has none.
+    #[error("{name} (value reference {vr}) has no {what} derivative")]
+    NoDerivative {
+        /// Variable name.
+        name: String,
+        /// Its value reference.
+        vr: u32,
+        /// "input" or "output".
+        what: &'static str,
+    },
+    /// An FMU state that cannot be restored.
+    #[error(transparent)]
+    Snapshot(#[from] SnapshotError),
+    /// FMU states asked of an FMU that declares canGetAndSetFMUstate="false".
+    #[error(
+        "this FMU has no FMU states (canGetAndSetFMUstate=\"false\"): its outputs depend on its inputs and parameters only"
+    )]
+    NoFmuState,
+    /// A function whose capability flag the FMU does not declare.
+    #[error("not provided: the FMU does not declare {0}")]
+    NotProvided(&'static str),
+}
+
+impl CallError {
+    /// Whether a value was refused for being outside its range (not finite,
+    /// not positive, not an enumeration item): fmi2Discard from fmi2SetXXX
+    /// (FMI 2.0 §2.1.3, footnote 3).
+    pub fn is_out_of_range(&self) -> bool {
+        matches!(self, CallError::NonFinite { .. } | CallError::OutOfRange { .. } | CallError::UnknownMethod(_))
+    }
+}
+
+/// A step that started and stopped inside the interval: the instance stays
+/// where it stopped, and the time says where (fmi2Discard).
+#[derive(Debug, thiserror::Error)]
+#[error("the step from t = {time} by {step} stopped at t = {reached}: {source}", reached = source.reached())]
+pub struct StepError {
+    /// Start of the step.
+    pub time: f64,
+    /// Its size.
+    pub step: f64,
+    /// The cause, with the time reached.
+    pub source: AdvanceError,
 }

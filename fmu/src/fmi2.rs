@@ -2,10 +2,11 @@
 //! function, and all of the crate's `unsafe`.
 //!
 //! Each function checks its pointers, checks the instance's state against
-//! the table in [`crate::state`], then calls a safe [`Slave`] method inside
-//! `catch_unwind` (a panic becomes fmi2Error, never an abort of the host),
-//! and turns the result into a status, logging every rejection with the
-//! values involved.
+//! the table in [`crate::state`], then calls the instance's
+//! [`Component`] through the shared argument checks of [`crate::calls`]
+//! inside `catch_unwind` (a panic becomes fmi2Error, never an abort of the
+//! host), and turns the result into a status, logging every rejection with
+//! the values involved.
 //!
 //! What a refusal does to the instance follows FMI 2.0 §2.1.3:
 //! - fmi2Error ("the simulation cannot be continued with this FMU
@@ -41,27 +42,17 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::{Mutex, PoisonError};
 
 use fmi_sys::fmi2::*;
-use nudyn::export::LOG_CATEGORIES;
 use nudyn::integrate::Stats;
+use nudyn_contract::log::LogCategory;
 
-use crate::component::Component;
-use crate::slave::SlaveError;
+use crate::calls::{self, Stepped};
+use crate::component::{self, CallError, Component, LoadError, StepError};
 use crate::snapshot::Snapshot;
 use crate::state::{Function, Phase};
 
-/// Index of a category in [`LOG_CATEGORIES`].
-#[derive(Clone, Copy)]
-enum Category {
-    Discard = 0,
-    Error = 1,
-    Fatal = 2,
-    Calls = 3,
-    Warning = 4,
-}
-
-/// Why a call is refused before or after reaching the slave.
+/// Why a call is refused before or after reaching the component.
 #[derive(Debug, thiserror::Error)]
-enum CallError {
+enum FmiError {
     /// The function was called in a state that does not allow it.
     #[error("{function} may not be called in state {phase}")]
     IllegalState {
@@ -77,14 +68,14 @@ enum CallError {
     #[error("{0} is NULL")]
     Null(&'static str),
     /// fmi2SetDebugLogging named a category the FMU does not declare.
-    #[error("unknown log category '{0}' (known: logStatusDiscard, logStatusError, logStatusFatal, logCalls)")]
+    #[error("unknown log category '{0}' (known: {known})", known = LogCategory::known_names())]
     UnknownCategory(String),
     /// An fmi2FMUstate that this instance did not hand out, or has freed.
     #[error("FMUstate {0:#x} is not a live FMU state of this instance (freed already, or from another instance)")]
     UnknownState(usize),
     /// A value out of its range passed to fmi2SetXXX: fmi2Discard (§2.1.3, footnote 3).
     #[error(transparent)]
-    OutOfRange(SlaveError),
+    OutOfRange(CallError),
     /// A serialized state buffer of the wrong size.
     #[error("the buffer for the serialized FMU state has {found} bytes, expected {expected}")]
     BufferSize {
@@ -99,16 +90,21 @@ enum CallError {
     /// Directional derivatives are not provided (providesDirectionalDerivative="false").
     #[error("directional derivatives are not provided (providesDirectionalDerivative=\"false\")")]
     NoDirectionalDerivatives,
-    /// The slave refused or failed.
+    /// The resources cannot make an instance.
     #[error(transparent)]
-    Slave(#[from] SlaveError),
+    Load(#[from] LoadError),
+    /// The component refused the call, or cannot answer it.
+    #[error(transparent)]
+    Call(#[from] CallError),
+    /// The step stopped inside the interval.
+    #[error(transparent)]
+    Step(#[from] StepError),
 }
 
-impl CallError {
+impl FmiError {
     fn status(&self) -> fmi2Status {
         match self {
-            CallError::Slave(e) if e.is_discard() => fmi2Status_fmi2Discard,
-            CallError::StatusUnavailable(_) | CallError::OutOfRange(_) => fmi2Status_fmi2Discard,
+            FmiError::Step(_) | FmiError::StatusUnavailable(_) | FmiError::OutOfRange(_) => fmi2Status_fmi2Discard,
             _ => fmi2Status_fmi2Error,
         }
     }
@@ -119,22 +115,25 @@ struct Logger {
     callback: fmi2CallbackLogger,
     environment: fmi2ComponentEnvironment,
     instance_name: CString,
-    enabled: [bool; LOG_CATEGORIES.len()],
+    enabled: [bool; LogCategory::ALL.len()],
 }
 
 impl Logger {
     fn new(functions: &fmi2CallbackFunctions, instance_name: CString, logging_on: bool) -> Self {
-        let mut enabled = [true; LOG_CATEGORIES.len()];
-        enabled[Category::Calls as usize] = logging_on;
+        let enabled = LogCategory::ALL.map(|category| category.on_at_start(logging_on));
         Logger { callback: functions.logger, environment: functions.componentEnvironment, instance_name, enabled }
     }
 
-    fn log(&self, status: fmi2Status, category: Category, message: &str) {
+    fn enabled(&self, category: LogCategory) -> bool {
+        self.enabled[category.index()]
+    }
+
+    fn log(&self, status: fmi2Status, category: LogCategory, message: &str) {
         let Some(callback) = self.callback else { return };
-        if !self.enabled[category as usize] {
+        if !self.enabled(category) {
             return;
         }
-        let category = CString::new(LOG_CATEGORIES[category as usize].0).expect("no NUL in category names");
+        let category = CString::new(category.name()).expect("no NUL in category names");
         // The message is the format itself, with '%' escaped: importers that
         // cannot read C varargs (FMPy's ctypes logger) print it as it is.
         let message = CString::new(message.replace('\0', " ").replace('%', "%%")).expect("NULs replaced");
@@ -148,19 +147,19 @@ impl Logger {
 
     fn log_status(&self, status: fmi2Status, message: &str) {
         let category = match status {
-            fmi2Status_fmi2Discard => Category::Discard,
-            fmi2Status_fmi2Fatal => Category::Fatal,
-            _ => Category::Error,
+            fmi2Status_fmi2Discard => LogCategory::Discard,
+            fmi2Status_fmi2Fatal => LogCategory::Fatal,
+            _ => LogCategory::Error,
         };
         self.log(status, category, message);
     }
 }
 
-/// One FMU instance: the logger, the state machine and the slave (plant or controller).
+/// One FMU instance: the logger, the state machine and the component (plant or controller).
 struct Instance {
     logger: Logger,
     phase: Phase,
-    slave: Component,
+    component: Box<dyn Component>,
     /// The FMU states handed out by this instance and not yet freed (addresses).
     states: BTreeSet<usize>,
     /// A warning the last call completed with: its status is fmi2Warning.
@@ -173,12 +172,12 @@ struct Instance {
 /// # Safety
 /// `states` are live `Box<Snapshot>` addresses; the reference is used
 /// before any of them is freed, and is the only one to that state.
-unsafe fn snapshot<'a>(states: &BTreeSet<usize>, state: fmi2FMUstate) -> Result<&'a mut Snapshot, CallError> {
+unsafe fn snapshot<'a>(states: &BTreeSet<usize>, state: fmi2FMUstate) -> Result<&'a mut Snapshot, FmiError> {
     if state.is_null() {
-        return Err(CallError::Null("FMUstate"));
+        return Err(FmiError::Null("FMUstate"));
     }
     if !states.contains(&(state as usize)) {
-        return Err(CallError::UnknownState(state as usize));
+        return Err(FmiError::UnknownState(state as usize));
     }
     // SAFETY: by the contract above.
     Ok(unsafe { &mut *(state as *mut Snapshot) })
@@ -243,7 +242,7 @@ fn panic_message(payload: &(dyn std::any::Any + Send)) -> &str {
 unsafe fn enter(
     c: fmi2Component,
     function: Function,
-    body: impl FnOnce(&mut Instance) -> Result<(), CallError>,
+    body: impl FnOnce(&mut Instance) -> Result<(), FmiError>,
 ) -> fmi2Status {
     // SAFETY: by the contract above.
     let Some(instance) = (unsafe { instance(c) }) else {
@@ -252,12 +251,12 @@ unsafe fn enter(
     let result = if function.allowed_in(instance.phase) {
         catch_unwind(AssertUnwindSafe(|| body(&mut *instance)))
     } else {
-        Ok(Err(CallError::IllegalState { function: function.name(), phase: instance.phase.name() }))
+        Ok(Err(FmiError::IllegalState { function: function.name(), phase: instance.phase.name() }))
     };
     let status = match result {
         Ok(Ok(())) => match instance.warning.take() {
             Some(message) => {
-                instance.logger.log(fmi2Status_fmi2Warning, Category::Warning, &message);
+                instance.logger.log(fmi2Status_fmi2Warning, LogCategory::Warning, &message);
                 fmi2Status_fmi2Warning
             }
             None => fmi2Status_fmi2OK,
@@ -277,8 +276,8 @@ unsafe fn enter(
             fmi2Status_fmi2Error
         }
     };
-    if instance.logger.enabled[Category::Calls as usize] {
-        instance.logger.log(status, Category::Calls, &format!("{} returned status {status}", function.name()));
+    if instance.logger.enabled(LogCategory::Calls) {
+        instance.logger.log(status, LogCategory::Calls, &format!("{} returned status {status}", function.name()));
     }
     status
 }
@@ -287,12 +286,12 @@ unsafe fn enter(
 ///
 /// # Safety
 /// A non-NULL `ptr` must point to `n` valid elements that live for `'a`.
-unsafe fn slice<'a, T>(ptr: *const T, n: usize, what: &'static str) -> Result<&'a [T], CallError> {
+unsafe fn slice<'a, T>(ptr: *const T, n: usize, what: &'static str) -> Result<&'a [T], FmiError> {
     if n == 0 {
         return Ok(&[]);
     }
     if ptr.is_null() {
-        return Err(CallError::Null(what));
+        return Err(FmiError::Null(what));
     }
     // SAFETY: non-NULL, and `n` elements by the contract above.
     Ok(unsafe { std::slice::from_raw_parts(ptr, n) })
@@ -302,12 +301,12 @@ unsafe fn slice<'a, T>(ptr: *const T, n: usize, what: &'static str) -> Result<&'
 ///
 /// # Safety
 /// A non-NULL `ptr` must point to `n` valid, writable elements, unaliased for `'a`.
-unsafe fn slice_mut<'a, T>(ptr: *mut T, n: usize, what: &'static str) -> Result<&'a mut [T], CallError> {
+unsafe fn slice_mut<'a, T>(ptr: *mut T, n: usize, what: &'static str) -> Result<&'a mut [T], FmiError> {
     if n == 0 {
         return Ok(&mut []);
     }
     if ptr.is_null() {
-        return Err(CallError::Null(what));
+        return Err(FmiError::Null(what));
     }
     // SAFETY: non-NULL, and `n` writable elements by the contract above.
     Ok(unsafe { std::slice::from_raw_parts_mut(ptr, n) })
@@ -317,9 +316,9 @@ unsafe fn slice_mut<'a, T>(ptr: *mut T, n: usize, what: &'static str) -> Result<
 ///
 /// # Safety
 /// A non-NULL `ptr` must be a NUL-terminated string.
-unsafe fn string(ptr: fmi2String, what: &'static str) -> Result<String, CallError> {
+unsafe fn string(ptr: fmi2String, what: &'static str) -> Result<String, FmiError> {
     if ptr.is_null() {
-        return Err(CallError::Null(what));
+        return Err(FmiError::Null(what));
     }
     // SAFETY: non-NULL and NUL-terminated by the contract above.
     Ok(unsafe { CStr::from_ptr(ptr) }.to_string_lossy().into_owned())
@@ -327,8 +326,8 @@ unsafe fn string(ptr: fmi2String, what: &'static str) -> Result<String, CallErro
 
 /// fmi2SetXXX's refusal: a value out of its range is fmi2Discard (§2.1.3,
 /// footnote 3), anything else (unknown or unsettable variable) fmi2Error.
-fn out_of_range_discards(error: SlaveError) -> CallError {
-    if error.is_out_of_range() { CallError::OutOfRange(error) } else { CallError::Slave(error) }
+fn out_of_range_discards(error: CallError) -> FmiError {
+    if error.is_out_of_range() { FmiError::OutOfRange(error) } else { FmiError::Call(error) }
 }
 
 /// Whether the phase is before fmi2ExitInitializationMode.
@@ -365,22 +364,23 @@ pub unsafe extern "C" fn fmi2Instantiate(
     // SAFETY: NUL-terminated by the standard when non-NULL.
     let name = unsafe { string(instance_name, "instanceName") }.unwrap_or_else(|_| "(NULL)".into());
     let logger = Logger::new(functions, CString::new(name.replace('\0', " ")).expect("NULs replaced"), logging_on != 0);
-    let instantiate = || -> Result<Component, CallError> {
+    let instantiate = || -> Result<Box<dyn Component>, FmiError> {
         if fmu_type != fmi2Type_fmi2CoSimulation {
-            return Err(CallError::NotCoSimulation(fmu_type));
+            return Err(FmiError::NotCoSimulation(fmu_type));
         }
         if instance_name.is_null() {
-            return Err(CallError::Null("instanceName"));
+            return Err(FmiError::Null("instanceName"));
         }
         // SAFETY: NUL-terminated by the standard when non-NULL.
         let guid = unsafe { string(fmu_guid, "fmuGUID") }?;
         // SAFETY: as above.
         let location = unsafe { string(fmu_resource_location, "fmuResourceLocation") }?;
-        Ok(Component::load(&location, &guid)?)
+        Ok(component::load(&location, &guid)?)
     };
     match catch_unwind(AssertUnwindSafe(instantiate)) {
-        Ok(Ok(slave)) => {
-            let instance = Instance { logger, phase: Phase::Instantiated, slave, states: BTreeSet::new(), warning: None };
+        Ok(Ok(component)) => {
+            let instance =
+                Instance { logger, phase: Phase::Instantiated, component, states: BTreeSet::new(), warning: None };
             let c = Box::into_raw(Box::new(instance));
             instances().insert(c as usize);
             c as fmi2Component
@@ -435,8 +435,8 @@ pub unsafe extern "C" fn fmi2SetDebugLogging(
             let mut indices = Vec::with_capacity(categories.len());
             for &category in categories {
                 let name = string(category, "a category")?;
-                let index = LOG_CATEGORIES.iter().position(|(known, _)| *known == name);
-                indices.push(index.ok_or(CallError::UnknownCategory(name))?);
+                let category = LogCategory::from_name(&name).ok_or(FmiError::UnknownCategory(name))?;
+                indices.push(category.index());
             }
             let enabled = &mut instance.logger.enabled;
             if indices.is_empty() {
@@ -463,7 +463,7 @@ pub unsafe extern "C" fn fmi2SetupExperiment(
         enter(c, Function::SetupExperiment, |instance| {
             let tolerance = (tolerance_defined != 0).then_some(tolerance);
             let stop_time = (stop_time_defined != 0).then_some(stop_time);
-            Ok(instance.slave.setup_experiment(tolerance, start_time, stop_time)?)
+            Ok(calls::setup_experiment(&mut *instance.component, tolerance, start_time, stop_time)?)
         })
     }
 }
@@ -486,7 +486,7 @@ pub unsafe extern "C" fn fmi2EnterInitializationMode(c: fmi2Component) -> fmi2St
 pub unsafe extern "C" fn fmi2ExitInitializationMode(c: fmi2Component) -> fmi2Status {
     unsafe {
         enter(c, Function::ExitInitializationMode, |instance| {
-            instance.slave.initialize()?;
+            instance.component.initialize()?;
             instance.phase = Phase::StepComplete;
             Ok(())
         })
@@ -511,7 +511,7 @@ pub unsafe extern "C" fn fmi2Terminate(c: fmi2Component) -> fmi2Status {
 pub unsafe extern "C" fn fmi2Reset(c: fmi2Component) -> fmi2Status {
     unsafe {
         enter(c, Function::Reset, |instance| {
-            instance.slave.reset();
+            instance.component.reset();
             instance.phase = Phase::Instantiated;
             Ok(())
         })
@@ -531,7 +531,7 @@ pub unsafe extern "C" fn fmi2GetReal(
         enter(c, Function::GetReal, |instance| {
             let vrs = slice(vr, nvr, "vr")?;
             let values = slice_mut(value, nvr, "value")?;
-            Ok(instance.slave.get_real(vrs, values)?)
+            Ok(calls::get_real(&mut *instance.component, vrs, values)?)
         })
     }
 }
@@ -548,7 +548,8 @@ pub unsafe extern "C" fn fmi2SetReal(
     unsafe {
         enter(c, Function::SetReal, |instance| {
             let (vrs, values) = (slice(vr, nvr, "vr")?, slice(value, nvr, "value")?);
-            instance.slave.set_real(vrs, values, initialized(instance.phase)).map_err(out_of_range_discards)
+            let initialized = initialized(instance.phase);
+            calls::set_real(&mut *instance.component, vrs, values, initialized).map_err(out_of_range_discards)
         })
     }
 }
@@ -565,7 +566,7 @@ pub unsafe extern "C" fn fmi2GetInteger(
     unsafe {
         enter(c, Function::GetInteger, |instance| {
             let (vrs, values) = (slice(vr, nvr, "vr")?, slice_mut(value, nvr, "value")?);
-            Ok(instance.slave.get_integer(vrs, values)?)
+            Ok(instance.component.get_integer(vrs, values)?)
         })
     }
 }
@@ -582,15 +583,16 @@ pub unsafe extern "C" fn fmi2SetInteger(
     unsafe {
         enter(c, Function::SetInteger, |instance| {
             let (vrs, values) = (slice(vr, nvr, "vr")?, slice(value, nvr, "value")?);
-            instance.slave.set_integer(vrs, values, initialized(instance.phase)).map_err(out_of_range_discards)
+            let initialized = initialized(instance.phase);
+            instance.component.set_integer(vrs, values, initialized).map_err(out_of_range_discards)
         })
     }
 }
 
 /// The FMU has no String variables: any value reference is unknown.
-fn no_variables(vrs: &[fmi2ValueReference], kind: &'static str) -> Result<(), CallError> {
+fn no_variables(vrs: &[fmi2ValueReference], kind: &'static str) -> Result<(), FmiError> {
     match vrs.first() {
-        Some(&vr) => Err(SlaveError::UnknownValueReference { vr, kind }.into()),
+        Some(&vr) => Err(CallError::UnknownValueReference { vr, kind }.into()),
         None => Ok(()),
     }
 }
@@ -607,8 +609,9 @@ pub unsafe extern "C" fn fmi2GetBoolean(
     unsafe {
         enter(c, Function::GetBoolean, |instance| {
             let (vrs, values) = (slice(vr, nvr, "vr")?, slice_mut(value, nvr, "value")?);
-            let energy_projection = instance.slave.get_boolean(vrs)?;
-            values.fill(fmi2Boolean::from(energy_projection));
+            let mut flags = vec![false; vrs.len()];
+            instance.component.get_boolean(vrs, &mut flags)?;
+            values.iter_mut().zip(flags).for_each(|(value, flag)| *value = fmi2Boolean::from(flag));
             Ok(())
         })
     }
@@ -627,7 +630,7 @@ pub unsafe extern "C" fn fmi2SetBoolean(
         enter(c, Function::SetBoolean, |instance| {
             let (vrs, values) = (slice(vr, nvr, "vr")?, slice(value, nvr, "value")?);
             let flags: Vec<bool> = values.iter().map(|&v| v != 0).collect();
-            Ok(instance.slave.set_boolean(vrs, &flags, initialized(instance.phase))?)
+            Ok(instance.component.set_boolean(vrs, &flags, initialized(instance.phase))?)
         })
     }
 }
@@ -662,13 +665,13 @@ pub unsafe extern "C" fn fmi2SetString(
 pub unsafe extern "C" fn fmi2GetFMUstate(c: fmi2Component, state: *mut fmi2FMUstate) -> fmi2Status {
     unsafe {
         enter(c, Function::GetFmuState, |instance| {
-            let state = state.as_mut().ok_or(CallError::Null("FMUstate"))?;
+            let state = state.as_mut().ok_or(FmiError::Null("FMUstate"))?;
             let phase = instance.phase;
             if state.is_null() {
-                *state = instance.register(instance.slave.snapshot(phase)?);
+                *state = instance.register(instance.component.snapshot(phase)?);
             } else {
                 // An existing state is overwritten in place (FMI 2.0 §2.1.8).
-                instance.slave.save(phase, snapshot(&instance.states, *state)?)?;
+                instance.component.save(phase, snapshot(&instance.states, *state)?)?;
             }
             Ok(())
         })
@@ -683,7 +686,7 @@ pub unsafe extern "C" fn fmi2SetFMUstate(c: fmi2Component, state: fmi2FMUstate) 
         enter(c, Function::SetFmuState, |instance| {
             let snapshot = snapshot(&instance.states, state)?;
             let phase = snapshot.phase;
-            instance.slave.restore(snapshot)?;
+            instance.component.restore(snapshot)?;
             // The state machine goes back to where the state was saved: this
             // is how a master leaves `error` (§2.1.3) or `stepFailed`.
             instance.phase = phase;
@@ -719,7 +722,7 @@ pub unsafe extern "C" fn fmi2SerializedFMUstateSize(c: fmi2Component, state: fmi
     unsafe {
         enter(c, Function::SerializedFmuStateSize, |instance| {
             let snapshot = snapshot(&instance.states, state)?;
-            *size.as_mut().ok_or(CallError::Null("size"))? = snapshot.serialized_size();
+            *size.as_mut().ok_or(FmiError::Null("size"))? = snapshot.serialized_size();
             Ok(())
         })
     }
@@ -739,7 +742,7 @@ pub unsafe extern "C" fn fmi2SerializeFMUstate(
             let snapshot = snapshot(&instance.states, state)?;
             let expected = snapshot.serialized_size();
             if size != expected {
-                return Err(CallError::BufferSize { expected, found: size });
+                return Err(FmiError::BufferSize { expected, found: size });
             }
             snapshot.serialize(slice_mut(bytes as *mut u8, size, "serializedState")?);
             Ok(())
@@ -758,9 +761,9 @@ pub unsafe extern "C" fn fmi2DeSerializeFMUstate(
 ) -> fmi2Status {
     unsafe {
         enter(c, Function::DeSerializeFmuState, |instance| {
-            let state = state.as_mut().ok_or(CallError::Null("FMUstate"))?;
+            let state = state.as_mut().ok_or(FmiError::Null("FMUstate"))?;
             let existing = if state.is_null() { None } else { Some(snapshot(&instance.states, *state)? as *mut Snapshot) };
-            let snapshot = instance.slave.deserialize(slice(bytes as *const u8, size, "serializedState")?)?;
+            let snapshot = instance.component.deserialize(slice(bytes as *const u8, size, "serializedState")?)?;
             match existing {
                 // SAFETY: checked live above; nothing freed it since.
                 Some(existing) => *existing = snapshot,
@@ -783,7 +786,7 @@ pub unsafe extern "C" fn fmi2GetDirectionalDerivative(
     _dv_known: *const fmi2Real,
     _dv_unknown: *mut fmi2Real,
 ) -> fmi2Status {
-    unsafe { enter(c, Function::GetDirectionalDerivative, |_| Err(CallError::NoDirectionalDerivatives)) }
+    unsafe { enter(c, Function::GetDirectionalDerivative, |_| Err(FmiError::NoDirectionalDerivatives)) }
 }
 
 /// # Safety
@@ -799,7 +802,7 @@ pub unsafe extern "C" fn fmi2SetRealInputDerivatives(
     unsafe {
         enter(c, Function::SetRealInputDerivatives, |instance| {
             let (vrs, orders, values) = (slice(vr, nvr, "vr")?, slice(order, nvr, "order")?, slice(value, nvr, "value")?);
-            Ok(instance.slave.set_input_derivatives(vrs, orders, values)?)
+            Ok(calls::set_input_derivatives(&mut *instance.component, vrs, orders, values)?)
         })
     }
 }
@@ -818,7 +821,7 @@ pub unsafe extern "C" fn fmi2GetRealOutputDerivatives(
         enter(c, Function::GetRealOutputDerivatives, |instance| {
             let (vrs, orders) = (slice(vr, nvr, "vr")?, slice(order, nvr, "order")?);
             let values = slice_mut(value, nvr, "value")?;
-            Ok(instance.slave.get_output_derivatives(vrs, orders, values)?)
+            Ok(calls::get_output_derivatives(&mut *instance.component, vrs, orders, values)?)
         })
     }
 }
@@ -834,18 +837,21 @@ pub unsafe extern "C" fn fmi2DoStep(
 ) -> fmi2Status {
     unsafe {
         enter(c, Function::DoStep, |instance| {
-            instance.slave.check_step_arguments(current_communication_point, communication_step_size)?;
-            let result = instance.slave.do_step(current_communication_point, communication_step_size);
-            if let Err(error) = &result
-                && error.is_discard()
-            {
-                instance.phase = Phase::StepFailed;
-            }
-            let Some(report) = result? else { return Ok(()) };
-            if instance.logger.enabled[Category::Calls as usize] {
+            let stepped =
+                calls::do_step(&mut *instance.component, current_communication_point, communication_step_size);
+            let report = match stepped {
+                Ok(Some(report)) => report,
+                Ok(None) => return Ok(()),
+                Err(Stepped::Refused(error)) => return Err(error.into()),
+                Err(Stepped::Failed(error)) => {
+                    instance.phase = Phase::StepFailed;
+                    return Err(error.into());
+                }
+            };
+            if instance.logger.enabled(LogCategory::Calls) {
                 let Stats { accepted, rejected } = report.stats;
                 let message = format!("fmi2DoStep: {accepted} internal steps taken, {rejected} rejected");
-                instance.logger.log(fmi2Status_fmi2OK, Category::Calls, &message);
+                instance.logger.log(fmi2Status_fmi2OK, LogCategory::Calls, &message);
             }
             instance.warning = report.relaxed.map(|relaxed| format!("fmi2DoStep: {relaxed}"));
             Ok(())
@@ -867,11 +873,11 @@ pub unsafe extern "C" fn fmi2CancelStep(c: fmi2Component) -> fmi2Status {
 pub unsafe extern "C" fn fmi2GetStatus(c: fmi2Component, kind: fmi2StatusKind, value: *mut fmi2Status) -> fmi2Status {
     unsafe {
         enter(c, Function::GetStatus, |_| {
-            let value = value.as_mut().ok_or(CallError::Null("value"))?;
+            let value = value.as_mut().ok_or(FmiError::Null("value"))?;
             match kind {
                 // doStep is synchronous: its status is final when it returns.
                 fmi2StatusKind_fmi2DoStepStatus => *value = fmi2Status_fmi2OK,
-                _ => return Err(CallError::StatusUnavailable(kind)),
+                _ => return Err(FmiError::StatusUnavailable(kind)),
             }
             Ok(())
         })
@@ -884,10 +890,10 @@ pub unsafe extern "C" fn fmi2GetStatus(c: fmi2Component, kind: fmi2StatusKind, v
 pub unsafe extern "C" fn fmi2GetRealStatus(c: fmi2Component, kind: fmi2StatusKind, value: *mut fmi2Real) -> fmi2Status {
     unsafe {
         enter(c, Function::GetRealStatus, |instance| {
-            let value = value.as_mut().ok_or(CallError::Null("value"))?;
+            let value = value.as_mut().ok_or(FmiError::Null("value"))?;
             match kind {
-                fmi2StatusKind_fmi2LastSuccessfulTime => *value = instance.slave.time(),
-                _ => return Err(CallError::StatusUnavailable(kind)),
+                fmi2StatusKind_fmi2LastSuccessfulTime => *value = instance.component.time(),
+                _ => return Err(FmiError::StatusUnavailable(kind)),
             }
             Ok(())
         })
@@ -902,7 +908,7 @@ pub unsafe extern "C" fn fmi2GetIntegerStatus(
     kind: fmi2StatusKind,
     _value: *mut fmi2Integer,
 ) -> fmi2Status {
-    unsafe { enter(c, Function::GetIntegerStatus, |_| Err(CallError::StatusUnavailable(kind))) }
+    unsafe { enter(c, Function::GetIntegerStatus, |_| Err(FmiError::StatusUnavailable(kind))) }
 }
 
 /// # Safety
@@ -915,11 +921,11 @@ pub unsafe extern "C" fn fmi2GetBooleanStatus(
 ) -> fmi2Status {
     unsafe {
         enter(c, Function::GetBooleanStatus, |instance| {
-            let value = value.as_mut().ok_or(CallError::Null("value"))?;
+            let value = value.as_mut().ok_or(FmiError::Null("value"))?;
             match kind {
-                // After a non-finite state the slave cannot go on: tell the master to stop.
-                fmi2StatusKind_fmi2Terminated => *value = fmi2Boolean::from(instance.slave.failed_for_good()),
-                _ => return Err(CallError::StatusUnavailable(kind)),
+                // After a non-finite state the plant cannot go on: tell the master to stop.
+                fmi2StatusKind_fmi2Terminated => *value = fmi2Boolean::from(instance.component.failed_for_good()),
+                _ => return Err(FmiError::StatusUnavailable(kind)),
             }
             Ok(())
         })
@@ -934,7 +940,7 @@ pub unsafe extern "C" fn fmi2GetStringStatus(
     kind: fmi2StatusKind,
     _value: *mut fmi2String,
 ) -> fmi2Status {
-    unsafe { enter(c, Function::GetStringStatus, |_| Err(CallError::StatusUnavailable(kind))) }
+    unsafe { enter(c, Function::GetStringStatus, |_| Err(FmiError::StatusUnavailable(kind))) }
 }
 
 // The C types used above, named so that a signature mismatch with fmi-sys's
@@ -951,7 +957,8 @@ const _: [fmi2GetRealOutputDerivativesTYPE; 1] = [Some(fmi2GetRealOutputDerivati
 mod tests {
     use std::path::PathBuf;
 
-    use nudyn::export::{Layout, OptionalOutputs, guid, resource_json};
+    use nudyn_contract::plant::{OptionalOutputs, PlantResource};
+    use nudyn_contract::resource::Resource;
 
     use super::*;
 
@@ -960,13 +967,13 @@ mod tests {
         let example = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../examples/fixed_rig.xml");
         let vehicle = nudyn::mjcf::load_mjcf(&example).expect("example imports").vehicle;
         let model = nudyn::model::Model::compile(&vehicle).expect("example compiles");
-        let outputs = OptionalOutputs::default();
-        let json = resource_json(&model, outputs).expect("serializable");
+        let resource = PlantResource::new(model, OptionalOutputs::default());
+        let json = resource.to_json().expect("serializable");
         let dir = std::env::temp_dir().join(format!("nudyn-fmu-{test}-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("temp dir");
         std::fs::write(dir.join("model.json"), &json).expect("resource written");
         let uri = format!("file://{}/", dir.display());
-        let guid = guid(&json, &Layout::new(&model, outputs));
+        let guid = resource.guid(&json);
         (CString::new(uri).expect("no NUL"), CString::new(guid).expect("no NUL"))
     }
 

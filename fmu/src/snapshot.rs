@@ -8,7 +8,7 @@
 
 use nudyn::integrate::{Carry, Method};
 
-use crate::slave::SlaveState;
+use crate::plant::PlantState;
 use crate::state::Phase;
 
 /// Identifies a nudyn FMU state blob.
@@ -26,7 +26,7 @@ pub struct Snapshot {
     /// GUID of the FMU that saved it.
     pub guid: String,
     /// The saved values.
-    pub state: SlaveState,
+    pub state: PlantState,
 }
 
 /// Why a blob cannot be deserialized.
@@ -200,7 +200,7 @@ impl Snapshot {
         Ok(Snapshot {
             phase,
             guid: found_guid,
-            state: SlaveState {
+            state: PlantState {
                 time: settings[0],
                 start_time: settings[1],
                 stop_time: stop_time_defined.then_some(settings[2]),
@@ -290,7 +290,7 @@ mod tests {
         Snapshot {
             phase: Phase::StepComplete,
             guid: GUID.to_string(),
-            state: SlaveState {
+            state: PlantState {
                 time: 0.1 + 0.2,
                 start_time: -1.5,
                 stop_time: Some(10.0),

@@ -11,7 +11,8 @@ use std::path::PathBuf;
 use std::sync::OnceLock;
 
 use fmi_sys::fmi2::*;
-use nudyn::export::{Layout, OptionalOutputs, guid, resource_json};
+use nudyn_contract::plant::{OptionalOutputs, PlantResource};
+use nudyn_contract::resource::Resource;
 use nudyn_fmu::fmi2::*;
 
 thread_local! {
@@ -67,14 +68,14 @@ pub fn example_fmu(name: &str) -> Fmu {
     let vehicle = nudyn::mjcf::load_mjcf(&path).expect("example imports").vehicle;
     let model = nudyn::model::Model::compile(&vehicle).expect("example compiles");
     let outputs: OptionalOutputs = "qvel,kinetic_energy,power,momentum".parse().expect("known outputs");
-    let json = resource_json(&model, outputs).expect("serializable");
-    let layout = Layout::new(&model, outputs);
+    let resource = PlantResource::new(model, outputs);
+    let json = resource.to_json().expect("serializable");
     let dir = scratch_dir(name);
-    std::fs::write(dir.join("model.json"), &json).expect("resource written");
+    std::fs::write(dir.join(PlantResource::FILE), &json).expect("resource written");
     Fmu {
         uri: CString::new(format!("file://{}/", dir.display())).expect("no NUL"),
-        guid: CString::new(guid(&json, &layout)).expect("no NUL"),
-        reals: layout.real_variables().count() as u32,
+        guid: CString::new(resource.guid(&json)).expect("no NUL"),
+        reals: resource.layout().real_variables().count() as u32,
         resource: json,
     }
 }

@@ -27,7 +27,6 @@
 //! controller FMU's resource with the [`Model`]); [`ControlWorkspace`]
 //! holds every buffer, so [`ControlWorkspace::evaluate`] never allocates.
 
-pub mod export;
 pub mod pose;
 
 use nalgebra::DVector;
@@ -213,6 +212,30 @@ impl ControlLaw {
         match &self.objective {
             Objective::Joints(joints) => joints.len(),
             Objective::Pose(_) => 7,
+        }
+    }
+
+    /// Why the law does not fit `model`, if it does not: a law read from a
+    /// corrupted or hand-edited FMU resource must be refused when it is
+    /// loaded, not crash later.
+    pub fn mismatch(&self, model: &Model) -> Option<String> {
+        match &self.objective {
+            Objective::Joints(joints) if joints.is_empty() => Some("no joint has a target".into()),
+            Objective::Joints(joints) => joints.iter().find_map(|joint| {
+                let fits = model.links.iter().any(|l| {
+                    l.qpos_adr == joint.qpos_adr
+                        && l.dof_adr == joint.dof_adr
+                        && matches!(l.joint, LinkJoint::Hinge | LinkJoint::Slide)
+                });
+                (!fits).then(|| format!("joint '{}' is not a hinge or slide of the model", joint.name))
+            }),
+            Objective::Pose(frame) if frame.link >= model.links.len() => {
+                Some(format!("body '{}' is on link {}, the model has {}", frame.body, frame.link, model.links.len()))
+            }
+            Objective::Pose(frame) => {
+                let mut numbers = frame.offset.rot.iter().chain(frame.offset.trans.iter());
+                numbers.any(|x| !x.is_finite()).then(|| format!("body '{}' has a non-finite offset", frame.body))
+            }
         }
     }
 

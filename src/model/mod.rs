@@ -21,6 +21,9 @@ use serde::{Deserialize, Serialize};
 use crate::math::{Mat3, SpatialMat, SpatialVec, Transform, Vec3, angular, linear, rigid_inertia, skew, spatial};
 use crate::vehicle::{JointKind, Vehicle};
 
+mod validate;
+pub use validate::InvalidModel;
+
 /// Motion subspace storage: up to three columns, the first `ndof` used.
 pub type MotionSubspace = SMatrix<f64, 6, 3>;
 
@@ -209,6 +212,9 @@ pub struct Model {
 /// Why a vehicle cannot be compiled.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum ModelError {
+    /// The compiled model is not consistent (a number overflowed while compiling).
+    #[error("the compiled model is not consistent: {0}")]
+    Invalid(#[from] InvalidModel),
     /// No joints: nothing moves.
     #[error("the vehicle has no joints: nothing moves")]
     NoJoints,
@@ -350,6 +356,7 @@ impl Model {
             qpos_spring,
             shortcuts,
         };
+        model.validate()?;
         model.check_positive_definite()?;
         Ok(model)
     }

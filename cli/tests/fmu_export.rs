@@ -1,14 +1,18 @@
-//! `nudyn::export::write_fmu`: the archive's entries, a modelDescription
-//! that reads back and validates, and a GUID that follows the content.
+//! `nudyn_cli::export::plant::write_fmu`: the archive's entries, a
+//! modelDescription that reads back and validates, and a GUID that follows
+//! the content.
 
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
-use nudyn::export::{ExportError, ExportOptions, Layout, OptionalOutputs, RESOURCE_PATH, guid, write_fmu};
 use nudyn::model::Model;
+use nudyn_cli::export::ExportError;
+use nudyn_cli::export::plant::{ExportOptions, write_fmu};
+use nudyn_contract::plant::{OptionalOutputs, PlantResource};
+use nudyn_contract::resource::Resource;
 
 fn example(name: &str) -> Model {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples").join(name);
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../examples").join(name);
     let imported = nudyn::mjcf::load_mjcf(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     Model::compile(&imported.vehicle).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
@@ -45,13 +49,13 @@ fn archive_holds_description_binary_and_resource() {
 
     let entries = entries(&fmu);
     let names: Vec<&str> = entries.iter().map(|(n, _)| n.as_str()).collect();
-    assert_eq!(names, ["modelDescription.xml", "binaries/linux64/bus.so", RESOURCE_PATH]);
+    assert_eq!(names, ["modelDescription.xml", "binaries/linux64/bus.so", "resources/model.json"]);
     assert_eq!(entries[1].1, b"stand-in for the cdylib");
 
     let xml = String::from_utf8(entries[0].1.clone()).unwrap();
     let description = modeldescription::from_xml(&xml).unwrap();
     assert!(modeldescription::validate(&description).is_empty());
-    assert_eq!(description.guid, guid(&entries[2].1, &Layout::new(&model, outputs)));
+    assert_eq!(description.guid, PlantResource::new(model, outputs).guid(&entries[2].1));
     assert_eq!(description.co_simulation.model_identifier, "bus");
     // method, energy_projection, tolerance, max_step, eps (13), theta (14), nu (13), kinetic_energy, momentum (6)
     assert_eq!(description.model_variables.len(), 4 + 13 + 14 + 13 + 1 + 6);
@@ -62,17 +66,15 @@ fn archive_holds_description_binary_and_resource() {
 
 #[test]
 fn guid_follows_the_content() {
-    let model = example("fixed_rig.xml");
-    let layout = Layout::new(&model, OptionalOutputs::default());
-    let json = nudyn::export::resource_json(&model, OptionalOutputs::default()).unwrap();
-    let reference = guid(&json, &layout);
-    assert_eq!(guid(&json, &layout), reference, "stable");
-    let mut other = model.clone();
-    other.links[0].damping += 1.0;
-    let other_json = nudyn::export::resource_json(&other, OptionalOutputs::default()).unwrap();
-    assert_ne!(guid(&other_json, &layout), reference, "a model change changes the GUID");
-    let with_qvel = Layout::new(&model, "qvel".parse().unwrap());
-    assert_ne!(guid(&json, &with_qvel), reference, "a variable change changes the GUID");
+    let resource = PlantResource::new(example("fixed_rig.xml"), OptionalOutputs::default());
+    let json = resource.to_json().unwrap();
+    let reference = resource.guid(&json);
+    assert_eq!(resource.guid(&json), reference, "stable");
+    let mut other = resource.clone();
+    other.model.links[0].damping += 1.0;
+    assert_ne!(other.guid(&other.to_json().unwrap()), reference, "a model change changes the GUID");
+    let with_qvel = PlantResource::new(resource.model.clone(), "qvel".parse().unwrap());
+    assert_ne!(with_qvel.guid(&json), reference, "a variable change changes the GUID");
     assert_eq!(reference.len(), 38);
 }
 

@@ -7,13 +7,14 @@ use std::process::ExitCode;
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use nudyn::control::ControlLaw;
-use nudyn::control::export::write_controller_fmu;
 use nudyn::eval::{EvalRequest, EvalResponse, evaluate};
-use nudyn::export::{ExportOptions, OptionalOutputs, model_identifier_from, write_fmu};
-use nudyn::export::DEFAULT_TOLERANCE;
 use nudyn::integrate::{Carry, Integrator, Method, Settings};
 use nudyn::model::Model;
 use nudyn::vehicle::Vehicle;
+use nudyn_cli::export::controller::write_controller_fmu;
+use nudyn_cli::export::model_identifier_from;
+use nudyn_cli::export::plant::{ExportOptions, write_fmu};
+use nudyn_contract::plant::{DEFAULT_TOLERANCE, OptionalOutputs};
 use serde::{Deserialize, Serialize};
 
 #[derive(Parser)]
@@ -51,8 +52,8 @@ enum Command {
         /// default: the MJCF file name without extension, made a C identifier.
         #[arg(long)]
         model_identifier: Option<String>,
-        /// Optional outputs, comma-separated: qvel, kinetic_energy, power, momentum.
-        #[arg(long, default_value = "", conflicts_with = "controller")]
+        /// Optional outputs, comma-separated.
+        #[arg(long, default_value = "", conflicts_with = "controller", help = outputs_help())]
         outputs: OptionalOutputs,
         /// Write the controller FMU of the vehicle instead of the plant:
         /// inputs theta, nu; output eps = -c1 nu + l J^T c2 (Yhat - Y);
@@ -105,6 +106,11 @@ enum Command {
         #[arg(long)]
         energy_projection: bool,
     },
+}
+
+/// `--outputs`' help, from the contract's list of optional outputs.
+fn outputs_help() -> String {
+    format!("Optional outputs, comma-separated: {}", OptionalOutputs::NAMES.join(", "))
 }
 
 fn parse_method(name: &str) -> Result<Method, String> {

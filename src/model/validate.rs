@@ -1,17 +1,18 @@
-//! The consistency check of the compiled model read from
-//! `resources/model.json`. `nudyn export` writes a model that
-//! `Model::compile` built, but the FMU reads whatever file is there: a
-//! corrupted or hand-edited one must be refused at fmi2Instantiate with a
-//! message, not crash, hang or allocate without bound later. A model that
-//! passes has the shape every pass relies on: parent-first links with
-//! consecutive coordinates and dofs, vectors of the declared sizes, and
-//! finite numbers.
+//! [`Model::validate`]: the shape every pass relies on. A model that passes
+//! has parent-first links with consecutive coordinates and dofs, vectors of
+//! the declared sizes, finite numbers, and no shortcut past a term it has.
+//!
+//! [`Model::compile`] checks what it builds with it (a number that
+//! overflowed while compiling is caught here), and the FMU checks the model
+//! it reads from its resources, which may be corrupted or hand-edited: such
+//! a file must be refused at instantiation with a message, not crash, hang
+//! or allocate without bound later.
 
-use nudyn::model::{LinkJoint, Model};
+use super::{LinkJoint, Model};
 
 /// What is wrong with a compiled model.
 #[derive(Debug, thiserror::Error, PartialEq)]
-pub enum ResourceError {
+pub enum InvalidModel {
     /// No links at all.
     #[error("the model has no links")]
     NoLinks,
@@ -90,41 +91,47 @@ fn joint_size(joint: LinkJoint) -> (usize, usize) {
 }
 
 /// The first non-finite value of `values`, as an error about `what` of `link`.
-fn finite<'a>(link: usize, what: &'static str, values: impl IntoIterator<Item = &'a f64>) -> Result<(), ResourceError> {
+fn finite<'a>(link: usize, what: &'static str, values: impl IntoIterator<Item = &'a f64>) -> Result<(), InvalidModel> {
     match values.into_iter().find(|x| !x.is_finite()) {
-        Some(&value) => Err(ResourceError::Number { link, what, value, non_negative: false }),
+        Some(&value) => Err(InvalidModel::Number { link, what, value, non_negative: false }),
         None => Ok(()),
     }
 }
 
 /// A value that must be finite and non-negative.
-fn non_negative(link: usize, what: &'static str, value: f64) -> Result<(), ResourceError> {
+fn non_negative(link: usize, what: &'static str, value: f64) -> Result<(), InvalidModel> {
     if value.is_finite() && value >= 0.0 {
         Ok(())
     } else {
-        Err(ResourceError::Number { link, what, value, non_negative: true })
+        Err(InvalidModel::Number { link, what, value, non_negative: true })
     }
 }
 
-/// Checks that `model` has the structure `Model::compile` gives; O(links).
-pub fn check_model(model: &Model) -> Result<(), ResourceError> {
+impl Model {
+    /// Checks that the model has the structure [`Model::compile`] gives; O(links).
+    pub fn validate(&self) -> Result<(), InvalidModel> {
+        validate(self)
+    }
+}
+
+fn validate(model: &Model) -> Result<(), InvalidModel> {
     if model.links.is_empty() {
-        return Err(ResourceError::NoLinks);
+        return Err(InvalidModel::NoLinks);
     }
     let (mut nq, mut nv) = (0, 0);
     for (k, link) in model.links.iter().enumerate() {
         if let Some(parent) = link.parent.filter(|&p| p >= k) {
-            return Err(ResourceError::Parent { link: k, parent });
+            return Err(InvalidModel::Parent { link: k, parent });
         }
         let (link_nq, link_nv) = joint_size(link.joint);
         if link.ndof != link_nv {
-            return Err(ResourceError::Dofs { link: k, joint: link.joint, ndof: link.ndof, expected: link_nv });
+            return Err(InvalidModel::Dofs { link: k, joint: link.joint, ndof: link.ndof, expected: link_nv });
         }
         if link.qpos_adr != nq {
-            return Err(ResourceError::Address { link: k, what: "qpos", found: link.qpos_adr, expected: nq });
+            return Err(InvalidModel::Address { link: k, what: "qpos", found: link.qpos_adr, expected: nq });
         }
         if link.dof_adr != nv {
-            return Err(ResourceError::Address { link: k, what: "dof", found: link.dof_adr, expected: nv });
+            return Err(InvalidModel::Address { link: k, what: "dof", found: link.dof_adr, expected: nv });
         }
         nq += link_nq;
         nv += link_nv;
@@ -147,17 +154,17 @@ pub fn check_model(model: &Model) -> Result<(), ResourceError> {
         ("the length of qpos_spring", model.qpos_spring.len(), nq),
     ] {
         if found != expected {
-            return Err(ResourceError::Size { what, found, expected });
+            return Err(InvalidModel::Size { what, found, expected });
         }
     }
     if let Some(joint) = model.joints.iter().find(|j| j.qpos_adr >= nq || j.dof_adr >= nv) {
-        return Err(ResourceError::JointAddress { joint: joint.name.clone() });
+        return Err(InvalidModel::JointAddress { joint: joint.name.clone() });
     }
     finite(0, "gravity", model.gravity.iter())?;
     finite(0, "qpos0", &model.qpos0)?;
     finite(0, "qpos_spring", &model.qpos_spring)?;
     match model.shortcuts.not_allowed_for(model) {
-        Some(shortcut) => Err(ResourceError::Shortcut(shortcut)),
+        Some(shortcut) => Err(InvalidModel::Shortcut(shortcut)),
         None => Ok(()),
     }
 }
@@ -169,15 +176,15 @@ mod tests {
     use super::*;
 
     fn example(name: &str) -> Model {
-        let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../examples").join(name);
-        let vehicle = nudyn::mjcf::load_mjcf(&path).expect("example imports").vehicle;
+        let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples").join(name);
+        let vehicle = crate::mjcf::load_mjcf(&path).expect("example imports").vehicle;
         Model::compile(&vehicle).expect("example compiles")
     }
 
     #[test]
     fn compiled_examples_pass() {
         for name in ["bus_arm7.xml", "flexible_boom.xml", "fixed_rig.xml", "chain60.xml"] {
-            assert_eq!(check_model(&example(name)), Ok(()), "{name}");
+            assert_eq!(validate(&example(name)), Ok(()), "{name}");
         }
     }
 
@@ -186,42 +193,42 @@ mod tests {
         let mut model = example("bus_arm7.xml");
         // A flipped digit in "nv" would otherwise size every vector (and the GUID's variable list) by it.
         model.nv = 1_000_000_000_000;
-        assert!(matches!(check_model(&model), Err(ResourceError::Size { what: "nv", .. })));
+        assert!(matches!(validate(&model), Err(InvalidModel::Size { what: "nv", .. })));
         let mut model = example("bus_arm7.xml");
         model.qpos0.pop();
-        assert!(matches!(check_model(&model), Err(ResourceError::Size { .. })));
+        assert!(matches!(validate(&model), Err(InvalidModel::Size { .. })));
     }
 
     #[test]
     fn broken_structure_is_refused() {
         let mut model = example("bus_arm7.xml");
         model.links[3].parent = Some(5);
-        assert_eq!(check_model(&model), Err(ResourceError::Parent { link: 3, parent: 5 }));
+        assert_eq!(validate(&model), Err(InvalidModel::Parent { link: 3, parent: 5 }));
         let mut model = example("bus_arm7.xml");
         model.links[2].ndof = 3;
-        assert!(matches!(check_model(&model), Err(ResourceError::Dofs { link: 2, .. })));
+        assert!(matches!(validate(&model), Err(InvalidModel::Dofs { link: 2, .. })));
         let mut model = example("bus_arm7.xml");
         model.links[4].qpos_adr += 1;
-        assert!(matches!(check_model(&model), Err(ResourceError::Address { link: 4, what: "qpos", .. })));
+        assert!(matches!(validate(&model), Err(InvalidModel::Address { link: 4, what: "qpos", .. })));
         let mut model = example("bus_arm7.xml");
         model.links.clear();
-        assert_eq!(check_model(&model), Err(ResourceError::NoLinks));
+        assert_eq!(validate(&model), Err(InvalidModel::NoLinks));
         let mut model = example("bus_arm7.xml");
         model.joints[1].dof_adr = model.nv;
-        assert!(matches!(check_model(&model), Err(ResourceError::JointAddress { .. })));
+        assert!(matches!(validate(&model), Err(InvalidModel::JointAddress { .. })));
     }
 
     #[test]
     fn bad_numbers_are_refused() {
         let mut model = example("flexible_boom.xml");
         model.links[1].rotational_inertia[(2, 2)] = f64::NAN;
-        assert!(matches!(check_model(&model), Err(ResourceError::Number { link: 1, what: "rotational_inertia", .. })));
+        assert!(matches!(validate(&model), Err(InvalidModel::Number { link: 1, what: "rotational_inertia", .. })));
         let mut model = example("flexible_boom.xml");
         model.links[0].mass = -1.0;
-        assert!(matches!(check_model(&model), Err(ResourceError::Number { what: "mass", non_negative: true, .. })));
+        assert!(matches!(validate(&model), Err(InvalidModel::Number { what: "mass", non_negative: true, .. })));
         let mut model = example("flexible_boom.xml");
         model.gravity[2] = f64::INFINITY;
-        assert!(matches!(check_model(&model), Err(ResourceError::Number { what: "gravity", .. })));
+        assert!(matches!(validate(&model), Err(InvalidModel::Number { what: "gravity", .. })));
     }
 
     #[test]
@@ -230,8 +237,8 @@ mod tests {
         let mut model = example("bus_arm7.xml");
         assert!(model.shortcuts.no_gravity && !model.shortcuts.no_armature);
         model.shortcuts.no_armature = true;
-        assert_eq!(check_model(&model), Err(ResourceError::Shortcut("no_armature")));
-        model.shortcuts = nudyn::model::Shortcuts::none();
-        assert_eq!(check_model(&model), Ok(()));
+        assert_eq!(validate(&model), Err(InvalidModel::Shortcut("no_armature")));
+        model.shortcuts = crate::model::Shortcuts::none();
+        assert_eq!(validate(&model), Ok(()));
     }
 }

@@ -1,0 +1,160 @@
+//! The controller FMU's modelDescription (`nudyn export --controller`):
+//! the contract's controller variables with descriptions that name the
+//! controlled joints or body. Same binary as the plant FMU: it tells the
+//! two apart by the resource file it finds.
+
+use std::path::Path;
+
+use modeldescription as md;
+use nudyn::control::{ControlError, ControlLaw, ControlParameters, Objective};
+use nudyn::model::{LinkJoint, Model};
+use nudyn_contract::controller::{CAPABILITIES, ControllerLayout, ControllerResource, ControllerVariable};
+use nudyn_contract::plant::RealVariable;
+use nudyn_contract::resource::Resource;
+use nudyn_contract::variable::Causality;
+
+use super::plant::description;
+use super::{ExportError, Header, check_model_identifier, co_simulation, real_variable, write_archive};
+
+/// What controlled quantity k is, and its unit, for descriptions.
+fn quantity(model: &Model, law: &ControlLaw, k: usize) -> (String, &'static str, &'static str) {
+    const AXES: [&str; 3] = ["x", "y", "z"];
+    match &law.objective {
+        Objective::Joints(joints) => {
+            let joint = &joints[k];
+            let slide = model.links.iter().any(|l| l.qpos_adr == joint.qpos_adr && l.joint == LinkJoint::Slide);
+            let (kind, unit, gain_unit) = if slide { ("slide", "m", "N/m") } else { ("hinge", "rad", "N*m/rad") };
+            (format!("{kind} joint '{}'", joint.name), unit, gain_unit)
+        }
+        Objective::Pose(frame) if k < 3 => {
+            (format!("position {} of body '{}' in world", AXES[k], frame.body), "m", "N/m")
+        }
+        Objective::Pose(frame) => (
+            format!("rotation of body '{}' about the target frame's {} axis", frame.body, AXES[k - 3]),
+            "rad",
+            "N*m/rad",
+        ),
+    }
+}
+
+/// The description of `variable` in modelDescription.xml.
+fn controller_description(model: &Model, law: &ControlLaw, variable: ControllerVariable) -> String {
+    const QUATERNION: [&str; 4] = ["w", "x", "y", "z"];
+    match variable {
+        ControllerVariable::RateGain(k) => format!("rate gain c1 of dof {} (1/s): eps[{0}] = -c1[{0}] nu[{0}] + ...", k + 1),
+        ControllerVariable::TargetGain(k) => {
+            let (what, _, unit) = quantity(model, law, k);
+            format!("gain c2 on the error of the {what} ({unit})")
+        }
+        ControllerVariable::Target(k) => match &law.objective {
+            Objective::Pose(frame) if k < 3 => {
+                format!("target position {} of body '{}' in world (m)", ["x", "y", "z"][k], frame.body)
+            }
+            Objective::Pose(frame) => format!(
+                "target orientation of body '{}', quaternion {} (body to world; normalized when used) (1)",
+                frame.body,
+                QUATERNION[k - 3]
+            ),
+            Objective::Joints(_) => {
+                let (what, unit, _) = quantity(model, law, k);
+                format!("target of the {what} ({unit})")
+            }
+        },
+        ControllerVariable::Theta(k) => format!("input: {}", description(model, RealVariable::Theta(k))),
+        ControllerVariable::Nu(k) => format!("input: {}", description(model, RealVariable::Nu(k))),
+        ControllerVariable::Eps(k) => {
+            format!("output: {} = -c1 nu + l J^T c2 (Yhat - Y)", description(model, RealVariable::Eps(k)))
+        }
+        ControllerVariable::Potential => "potential 1/2 sum c2 (Yhat - Y)^2 of the configuration term (J)".into(),
+        ControllerVariable::TargetError(k) => {
+            let (what, unit, _) = quantity(model, law, k);
+            match &law.objective {
+                Objective::Pose(_) if k >= 3 => {
+                    format!("error Yhat - Y = -phi, phi = log(Rhat^T R): {what} relative to the target ({unit})")
+                }
+                _ => format!("error Yhat - Y of the {what} ({unit})"),
+            }
+        }
+    }
+}
+
+/// The typed modelDescription of the controller FMU (validated when written).
+pub fn controller_model_description(
+    model: &Model,
+    law: &ControlLaw,
+    defaults: &ControlParameters,
+    model_identifier: &str,
+    guid: &str,
+) -> md::FmiModelDescription {
+    let layout = ControllerLayout::new(model, law);
+    let model_variables: Vec<md::ScalarVariable> = layout
+        .variables()
+        .map(|(vr, variable)| {
+            let description = controller_description(model, law, variable);
+            real_variable(layout.name(variable), vr, description, variable.kind(), variable.start(model, defaults))
+        })
+        .collect();
+
+    // Value references start at 1 in variable order, so index = vr.
+    let indices = |pick: fn(&ControllerVariable) -> bool| -> Vec<u32> {
+        layout.variables().filter(|(_, v)| pick(v)).map(|(vr, _)| vr).collect()
+    };
+    let theta = indices(|v| matches!(v, ControllerVariable::Theta(_)));
+    let theta_and_nu = indices(|v| v.kind().causality == Causality::Input);
+    let mut outputs = Vec::new();
+    let mut initial_unknowns = Vec::new();
+    for (vr, variable) in layout.variables() {
+        let dependencies = match variable {
+            ControllerVariable::Eps(_) => theta_and_nu.clone(),
+            ControllerVariable::Potential | ControllerVariable::TargetError(_) => theta.clone(),
+            _ => continue,
+        };
+        outputs.push(md::Unknown { index: vr, dependencies: Some(dependencies), dependencies_kind: None });
+        initial_unknowns.push(md::Unknown::new(vr));
+    }
+    let target = match &law.objective {
+        Objective::Joints(joints) => format!("the {} hinge and slide joint values", joints.len()),
+        Objective::Pose(frame) => format!("the pose of body '{}'", frame.body),
+    };
+    let header = Header {
+        model_name: format!("{}_controller", if model.name.is_empty() { model_identifier } else { &model.name }),
+        guid: guid.to_string(),
+        description: format!(
+            "noninteracting controller of the vehicle '{}' (nq = {}, nv = {}): \
+             eps = -c1 nu + l(theta) J^T(theta) c2 (Yhat - Y(theta)), Y = {target}",
+            model.name, model.nq, model.nv
+        ),
+        co_simulation: co_simulation(model_identifier, CAPABILITIES),
+    };
+    let structure = md::ModelStructure { outputs, derivatives: Vec::new(), initial_unknowns };
+    header.into_model_description(Vec::new(), model_variables, structure)
+}
+
+/// Why a controller FMU cannot be written.
+#[derive(Debug, thiserror::Error)]
+pub enum ControllerExportError {
+    /// The law cannot be built for this vehicle.
+    #[error(transparent)]
+    Control(#[from] ControlError),
+    /// The archive cannot be written.
+    #[error(transparent)]
+    Export(#[from] ExportError),
+}
+
+/// Writes the controller FMU `out` for `model` with `law`; `binary` is the
+/// `nudyn_fmu` cdylib, as for the plant.
+pub fn write_controller_fmu(
+    model: &Model,
+    law: &ControlLaw,
+    model_identifier: &str,
+    binary: &Path,
+    out: &Path,
+) -> Result<(), ControllerExportError> {
+    check_model_identifier(model_identifier)?;
+    let defaults = law.default_parameters(model)?;
+    let resource = ControllerResource::new(model.clone(), law.clone());
+    let bytes = resource.to_json().map_err(ExportError::from)?;
+    let description = controller_model_description(model, law, &defaults, model_identifier, &resource.guid(&bytes));
+    write_archive::<ControllerResource>(&description, &bytes, binary, out)?;
+    Ok(())
+}

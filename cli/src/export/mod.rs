@@ -1,0 +1,224 @@
+//! `nudyn export`: the FMU archive. The variables, value references,
+//! defaults, capability flags, log categories and GUID come from the
+//! `nudyn-contract` crate, which the FMU binary serves from; this module
+//! only writes them down as FMI 2.0 `modelDescription.xml` (with the
+//! descriptions a person reads) and zips it with the binary and the
+//! resource file.
+
+pub mod controller;
+pub mod plant;
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use modeldescription as md;
+use nudyn_contract::capabilities::Capabilities;
+use nudyn_contract::log::LogCategory;
+use nudyn_contract::resource::Resource;
+use nudyn_contract::variable::{Causality, Kind, Range, Variability};
+use nudyn_contract::{DEFAULT_STEP_SIZE, DEFAULT_STOP_TIME};
+
+/// Why an FMU cannot be written.
+#[derive(Debug, thiserror::Error)]
+pub enum ExportError {
+    /// The model identifier is not a C identifier (it names the shared library).
+    #[error("model identifier '{0}' is not a C identifier ([A-Za-z_][A-Za-z0-9_]*)")]
+    ModelIdentifier(String),
+    /// The modelDescription breaks the standard's rules: a bug in this exporter.
+    #[error("the generated modelDescription.xml breaks FMI 2.0 rules: {}", .0.iter().map(ToString::to_string).collect::<Vec<_>>().join("; "))]
+    InvalidModelDescription(Vec<md::Problem>),
+    /// The modelDescription cannot be written.
+    #[error(transparent)]
+    ModelDescription(#[from] md::Error),
+    /// The compiled model cannot be serialized.
+    #[error("cannot serialize the compiled model: {0}")]
+    Resource(#[from] serde_json::Error),
+    /// A file cannot be read or written.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// The archive cannot be written.
+    #[error("cannot write {}: {source}", path.display())]
+    Zip {
+        /// The archive.
+        path: PathBuf,
+        /// The cause.
+        source: zip::result::ZipError,
+    },
+}
+
+/// A model identifier from a name (e.g. the MJCF file stem): characters
+/// outside `[A-Za-z0-9_]` become `_`, and a leading digit gets a `_` before it.
+pub fn model_identifier_from(name: &str) -> String {
+    let identifier: String = name.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect();
+    match identifier.chars().next() {
+        Some(c) if !c.is_ascii_digit() => identifier,
+        _ => format!("_{identifier}"),
+    }
+}
+
+fn is_c_identifier(name: &str) -> bool {
+    let mut chars = name.chars();
+    chars.next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_')
+}
+
+/// Refuses a model identifier that cannot name the shared library.
+fn check_model_identifier(model_identifier: &str) -> Result<(), ExportError> {
+    if is_c_identifier(model_identifier) {
+        Ok(())
+    } else {
+        Err(ExportError::ModelIdentifier(model_identifier.to_string()))
+    }
+}
+
+/// The `<ScalarVariable>` of a Real variable of kind `kind`.
+fn real_variable(name: String, vr: u32, description: String, kind: Kind, start: Option<f64>) -> md::ScalarVariable {
+    let (causality, initial) = match kind.causality {
+        Causality::Parameter => (md::Causality::Parameter, Some(md::Initial::Exact)),
+        Causality::Input => (md::Causality::Input, None),
+        Causality::Output if kind.exact_start => (md::Causality::Output, Some(md::Initial::Exact)),
+        Causality::Output => (md::Causality::Output, Some(md::Initial::Calculated)),
+    };
+    let min = (kind.range == Range::NonNegative).then_some(0.0);
+    md::ScalarVariable {
+        name,
+        value_reference: vr,
+        description: Some(description),
+        causality,
+        variability: variability(kind.variability),
+        initial,
+        can_handle_multiple_set_per_time_instant: None,
+        kind: md::VariableKind::Real(md::RealVariable { start, min, ..Default::default() }),
+    }
+}
+
+fn variability(variability: Variability) -> md::Variability {
+    match variability {
+        Variability::Fixed => md::Variability::Fixed,
+        Variability::Tunable => md::Variability::Tunable,
+        Variability::Continuous => md::Variability::Continuous,
+    }
+}
+
+/// The `<CoSimulation>` element of an FMU with `capabilities`.
+fn co_simulation(model_identifier: &str, capabilities: Capabilities) -> md::CoSimulation {
+    md::CoSimulation {
+        model_identifier: model_identifier.to_string(),
+        needs_execution_tool: false,
+        can_handle_variable_communication_step_size: capabilities.can_handle_variable_communication_step_size,
+        can_interpolate_inputs: capabilities.can_interpolate_inputs,
+        max_output_derivative_order: capabilities.max_output_derivative_order,
+        can_run_asynchronuously: false,
+        can_be_instantiated_only_once_per_process: false,
+        can_not_use_memory_management_functions: true,
+        can_get_and_set_fmu_state: capabilities.can_get_and_set_fmu_state,
+        can_serialize_fmu_state: capabilities.can_serialize_fmu_state,
+        provides_directional_derivative: capabilities.provides_directional_derivative,
+    }
+}
+
+/// The modelDescription fields every nudyn FMU shares, around its own
+/// name, GUID, description, `<CoSimulation>`, types, variables and structure.
+struct Header {
+    model_name: String,
+    guid: String,
+    description: String,
+    co_simulation: md::CoSimulation,
+}
+
+impl Header {
+    fn into_model_description(
+        self,
+        type_definitions: Vec<md::SimpleType>,
+        model_variables: Vec<md::ScalarVariable>,
+        model_structure: md::ModelStructure,
+    ) -> md::FmiModelDescription {
+        md::FmiModelDescription {
+            fmi_version: md::FmiVersion::Fmi2,
+            model_name: self.model_name,
+            guid: self.guid,
+            description: Some(self.description),
+            author: None,
+            version: None,
+            copyright: None,
+            license: None,
+            generation_tool: Some(format!("nudyn {}", env!("CARGO_PKG_VERSION"))),
+            generation_date_and_time: None,
+            variable_naming_convention: Some(md::VariableNamingConvention::Structured),
+            number_of_event_indicators: None,
+            co_simulation: self.co_simulation,
+            unit_definitions: Vec::new(),
+            type_definitions,
+            log_categories: LogCategory::ALL
+                .iter()
+                .map(|c| md::Category { name: c.name().into(), description: Some(c.description().into()) })
+                .collect(),
+            default_experiment: Some(md::DefaultExperiment {
+                start_time: Some(0.0),
+                stop_time: Some(DEFAULT_STOP_TIME),
+                // None, so that importers which pass the DefaultExperiment's
+                // tolerance to fmi2SetupExperiment (FMPy does) leave the plant's
+                // `tolerance` parameter in charge unless told otherwise.
+                tolerance: None,
+                step_size: Some(DEFAULT_STEP_SIZE),
+            }),
+            model_variables,
+            model_structure,
+        }
+    }
+}
+
+/// Writes the FMU archive `out`: `description` (validated first) as
+/// modelDescription.xml, `binary` (the `nudyn_fmu` cdylib) as
+/// `binaries/linux64/<modelIdentifier>.so`, and the resource file.
+fn write_archive<R: Resource>(
+    description: &md::FmiModelDescription,
+    resource: &[u8],
+    binary: &Path,
+    out: &Path,
+) -> Result<(), ExportError> {
+    let problems = md::validate(description);
+    if !problems.is_empty() {
+        return Err(ExportError::InvalidModelDescription(problems));
+    }
+    let xml = md::to_xml(description)?;
+    let library = std::fs::read(binary).map_err(|source| ExportError::Io { path: binary.to_path_buf(), source })?;
+
+    let file = std::fs::File::create(out).map_err(|source| ExportError::Io { path: out.to_path_buf(), source })?;
+    let zip_error = |source| ExportError::Zip { path: out.to_path_buf(), source };
+    let mut archive = zip::ZipWriter::new(file);
+    let options_for = |mode| {
+        zip::write::SimpleFileOptions::default()
+            .compression_method(zip::CompressionMethod::Deflated)
+            .unix_permissions(mode)
+    };
+    let entries = [
+        ("modelDescription.xml".to_string(), xml.as_bytes(), 0o644),
+        (format!("binaries/linux64/{}.so", description.co_simulation.model_identifier), &library[..], 0o755),
+        (R::archive_path(), resource, 0o644),
+    ];
+    for (name, bytes, mode) in entries {
+        archive.start_file(name, options_for(mode)).map_err(zip_error)?;
+        archive.write_all(bytes).map_err(|source| ExportError::Io { path: out.to_path_buf(), source })?;
+    }
+    archive.finish().map_err(zip_error)?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn model_identifiers_are_c_identifiers() {
+        assert_eq!(model_identifier_from("bus_arm7"), "bus_arm7");
+        assert_eq!(model_identifier_from("flexible-boom.v2"), "flexible_boom_v2");
+        assert_eq!(model_identifier_from("60links"), "_60links");
+        assert!(is_c_identifier("_60links") && !is_c_identifier("a b") && !is_c_identifier(""));
+    }
+}

@@ -1,0 +1,192 @@
+//! The plant FMU's modelDescription: the contract's variables with
+//! descriptions that name each joint, component and unit.
+
+use std::path::Path;
+
+use modeldescription as md;
+use nudyn::integrate::Method;
+use nudyn::model::Model;
+use nudyn::vehicle::JointKind;
+use nudyn_contract::plant::{
+    CAPABILITIES, DEFAULT_METHOD, ENERGY_PROJECTION_VR, Layout, METHOD_TYPE, METHOD_VR, OptionalOutputs, PlantResource,
+    RealVariable, method_value,
+};
+use nudyn_contract::resource::Resource;
+
+use super::{ExportError, Header, check_model_identifier, co_simulation, real_variable, write_archive};
+
+/// What `nudyn export` is asked for.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ExportOptions {
+    /// The model identifier: the shared library's name, a C identifier.
+    pub model_identifier: String,
+    /// The optional outputs.
+    pub outputs: OptionalOutputs,
+}
+
+/// What one coordinate or dof is, for variable descriptions: the joint, its
+/// kind, and the component and unit of entry `k` within the joint.
+fn joint_entry(model: &Model, index: usize, qpos: bool) -> (String, &'static str) {
+    let joint = model
+        .joints
+        .iter()
+        .rev()
+        .find(|j| if qpos { j.qpos_adr <= index } else { j.dof_adr <= index })
+        .expect("every coordinate belongs to a joint");
+    let k = index - if qpos { joint.qpos_adr } else { joint.dof_adr };
+    const AXES: [&str; 3] = ["x", "y", "z"];
+    const QUAT: [&str; 4] = ["w", "x", "y", "z"];
+    let (kind, component, unit) = match (joint.kind, qpos) {
+        (JointKind::Hinge, true) => ("hinge", String::new(), "rad"),
+        (JointKind::Hinge, false) => ("hinge", String::new(), "rad/s"),
+        (JointKind::Slide, true) => ("slide", String::new(), "m"),
+        (JointKind::Slide, false) => ("slide", String::new(), "m/s"),
+        (JointKind::Ball, true) => ("ball", format!(", quaternion {}", QUAT[k]), "1"),
+        (JointKind::Ball, false) => ("ball", format!(", angular velocity {} in the body frame", AXES[k]), "rad/s"),
+        (JointKind::Free, true) if k < 3 => ("free", format!(", position {} in world", AXES[k]), "m"),
+        (JointKind::Free, true) => ("free", format!(", quaternion {}", QUAT[k - 3]), "1"),
+        (JointKind::Free, false) if k < 3 => ("free", format!(", linear velocity {} in world", AXES[k]), "m/s"),
+        (JointKind::Free, false) => ("free", format!(", angular velocity {} in the body frame", AXES[k - 3]), "rad/s"),
+    };
+    (format!("{kind} joint '{}'{component}", joint.name), unit)
+}
+
+/// The description of `variable` in `modelDescription.xml`, naming the
+/// joint and the unit. ν and ε are in √J = √kg·m/s and √kg·m/s² since K = ½|ν|².
+pub fn description(model: &Model, variable: RealVariable) -> String {
+    const MOMENTUM: [&str; 6] = [
+        "angular momentum x about the world origin (kg*m^2/s)",
+        "angular momentum y about the world origin (kg*m^2/s)",
+        "angular momentum z about the world origin (kg*m^2/s)",
+        "linear momentum x (kg*m/s)",
+        "linear momentum y (kg*m/s)",
+        "linear momentum z (kg*m/s)",
+    ];
+    match variable {
+        RealVariable::Tolerance => {
+            "error allowed per second of simulated time, relative to 1 + |value|, for the adaptive methods; \
+             a tolerance passed to fmi2SetupExperiment replaces it (1)"
+                .into()
+        }
+        RealVariable::MaxStep => "longest internal integration step (s)".into(),
+        RealVariable::Eps(k) => {
+            format!("diagonalized force eps of dof {} of {} (sqrt(kg)*m/s^2)", k + 1, joint_entry(model, k, false).0)
+        }
+        RealVariable::Theta(k) => {
+            let (joint, unit) = joint_entry(model, k, true);
+            format!("qpos of {joint} ({unit})")
+        }
+        RealVariable::Nu(k) => {
+            format!("diagonalized velocity nu of dof {} of {} (sqrt(kg)*m/s)", k + 1, joint_entry(model, k, false).0)
+        }
+        RealVariable::Qvel(k) => {
+            let (joint, unit) = joint_entry(model, k, false);
+            format!("qvel of {joint} ({unit})")
+        }
+        RealVariable::KineticEnergy => "kinetic energy 1/2 |nu|^2 (J)".into(),
+        RealVariable::Power => "power of the applied eps, nu . eps (W)".into(),
+        RealVariable::Momentum(k) => format!("spatial momentum of the vehicle, world axes: {}", MOMENTUM[k]),
+        RealVariable::EnergyResidual => {
+            "energy residual K - K(start) - integral of nu . nu_dot dt, the integration's energy error (J)".into()
+        }
+    }
+}
+
+/// The typed modelDescription of the plant FMU (not yet validated).
+pub fn model_description(model: &Model, options: &ExportOptions, guid: &str) -> md::FmiModelDescription {
+    let layout = Layout::new(model, options.outputs);
+    let method = md::ScalarVariable {
+        name: "method".into(),
+        value_reference: METHOD_VR,
+        description: Some("integration method".into()),
+        causality: md::Causality::Parameter,
+        variability: md::Variability::Fixed,
+        initial: Some(md::Initial::Exact),
+        can_handle_multiple_set_per_time_instant: None,
+        kind: md::VariableKind::Enumeration(md::EnumerationVariable {
+            declared_type: METHOD_TYPE.into(),
+            quantity: None,
+            min: None,
+            max: None,
+            start: Some(method_value(DEFAULT_METHOD)),
+        }),
+    };
+    let energy_projection = md::ScalarVariable {
+        name: "energy_projection".into(),
+        value_reference: ENERGY_PROJECTION_VR,
+        description: Some(
+            "rescale nu after each internal step so that the kinetic energy follows the work done \
+             (keeps K exactly when no force acts)"
+                .into(),
+        ),
+        causality: md::Causality::Parameter,
+        variability: md::Variability::Fixed,
+        initial: Some(md::Initial::Exact),
+        can_handle_multiple_set_per_time_instant: None,
+        kind: md::VariableKind::Boolean(md::BooleanVariable { start: Some(false), ..Default::default() }),
+    };
+    let reals = layout.real_variables().map(|(vr, variable)| {
+        real_variable(variable.name(), vr, description(model, variable), variable.kind(), variable.start(model))
+    });
+    let model_variables: Vec<md::ScalarVariable> = [method, energy_projection].into_iter().chain(reals).collect();
+
+    // 1-based ScalarVariable indices, as <ModelStructure> refers to them.
+    let index_of = |variable: RealVariable| {
+        let vr = layout.value_reference(variable).expect("the variable exists");
+        model_variables.iter().position(|v| v.value_reference == vr && v.name == variable.name()).expect("listed") as u32 + 1
+    };
+    let eps_indices: Vec<u32> = (0..model.nv).map(|k| index_of(RealVariable::Eps(k))).collect();
+    let mut outputs = Vec::new();
+    let mut initial_unknowns = Vec::new();
+    for (_, variable) in layout.real_variables() {
+        let kind = variable.kind();
+        if kind.causality != nudyn_contract::variable::Causality::Output {
+            continue;
+        }
+        let index = index_of(variable);
+        let dependencies = if variable.depends_on_inputs() { eps_indices.clone() } else { Vec::new() };
+        outputs.push(md::Unknown { index, dependencies: Some(dependencies), dependencies_kind: None });
+        if !kind.exact_start {
+            // Calculated outputs are initial unknowns; they may depend on every exact start value and input.
+            initial_unknowns.push(md::Unknown::new(index));
+        }
+    }
+
+    let method_type = md::SimpleType {
+        name: METHOD_TYPE.into(),
+        description: Some("integration method".into()),
+        kind: md::SimpleTypeKind::Enumeration(md::EnumerationType {
+            quantity: None,
+            items: Method::ALL
+                .iter()
+                .map(|&method| md::Item {
+                    name: method.name().into(),
+                    value: method_value(method),
+                    description: Some(format!("{} (Munthe-Kaas on rotations)", method.description())),
+                })
+                .collect(),
+        }),
+    };
+    let header = Header {
+        model_name: if model.name.is_empty() { options.model_identifier.clone() } else { model.name.clone() },
+        guid: guid.to_string(),
+        description: format!(
+            "diagonalized dynamics of the vehicle '{}' (nq = {}, nv = {}): nu' + C(theta, nu) = eps",
+            model.name, model.nq, model.nv
+        ),
+        co_simulation: co_simulation(&options.model_identifier, CAPABILITIES),
+    };
+    let structure = md::ModelStructure { outputs, derivatives: Vec::new(), initial_unknowns };
+    header.into_model_description(vec![method_type], model_variables, structure)
+}
+
+/// Writes the plant FMU `out` of `model`: modelDescription.xml (validated
+/// first), `binaries/linux64/<modelIdentifier>.so` copied from `binary`
+/// (the `nudyn_fmu` cdylib) and `resources/model.json`.
+pub fn write_fmu(model: &Model, options: &ExportOptions, binary: &Path, out: &Path) -> Result<(), ExportError> {
+    check_model_identifier(&options.model_identifier)?;
+    let resource = PlantResource::new(model.clone(), options.outputs);
+    let bytes = resource.to_json()?;
+    let description = model_description(model, options, &resource.guid(&bytes));
+    write_archive::<PlantResource>(&description, &bytes, binary, out)
+}

@@ -1,0 +1,224 @@
+//! The controller FMU (`nudyn export --controller`): the control law of
+//! `nudyn::control` with the plant's variable names, so that a master
+//! connects them name to name: plant `theta[i]` → controller `theta[i]`,
+//! plant `nu[i]` → controller `nu[i]`, controller `eps[i]` → plant `eps[i]`.
+//!
+//! The controller is a direct-feedthrough map (θ, ν) ↦ ε with no state: its
+//! outputs are calculated from its inputs and its tunable parameters (gains
+//! and targets), and fmi2DoStep only advances time.
+
+use serde::{Deserialize, Serialize};
+
+use nudyn::control::{ControlLaw, ControlParameters, Objective};
+use nudyn::model::Model;
+
+use crate::blocks::{VariableOf, every_variable, numbered_blocks, variable_at};
+use crate::capabilities::Capabilities;
+use crate::resource::Resource;
+use crate::variable::{Kind, Range};
+
+/// What the controller FMU can do: nothing to save (its outputs are a
+/// function of inputs and parameters), no input or output derivatives.
+pub const CAPABILITIES: Capabilities = Capabilities {
+    can_interpolate_inputs: false,
+    max_output_derivative_order: 0,
+    can_get_and_set_fmu_state: false,
+    can_serialize_fmu_state: false,
+    provides_directional_derivative: false,
+    can_handle_variable_communication_step_size: true,
+};
+
+/// `resources/controller.json`: what the controller FMU loads.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ControllerResource {
+    /// [`Resource::FORMAT`] of the writer.
+    pub format: u32,
+    /// The control law.
+    pub law: ControlLaw,
+    /// The compiled vehicle.
+    pub model: Model,
+}
+
+impl ControllerResource {
+    /// The resource of the controller of `model` with `law`.
+    pub fn new(model: Model, law: ControlLaw) -> Self {
+        ControllerResource { format: Self::FORMAT, law, model }
+    }
+
+    /// The layout of its variables.
+    pub fn layout(&self) -> ControllerLayout {
+        ControllerLayout::new(&self.model, &self.law)
+    }
+}
+
+impl Resource for ControllerResource {
+    const FILE: &'static str = "controller.json";
+    const FORMAT: u32 = 1;
+
+    fn format(&self) -> u32 {
+        self.format
+    }
+
+    fn model(&self) -> &Model {
+        &self.model
+    }
+
+    fn variable_names(&self) -> Vec<(u32, String)> {
+        let layout = self.layout();
+        layout.variables().map(|(vr, v)| (vr, layout.name(v))).collect()
+    }
+}
+
+/// One Real variable of the controller FMU; indices 0-based (1-based in names).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ControllerVariable {
+    /// Parameter `c1[k+1]`: rate gain of dof k.
+    RateGain(usize),
+    /// Parameter `c2[k+1]`: gain of controlled quantity k.
+    TargetGain(usize),
+    /// Parameter `target[k+1]` (joint targets) or `target_position[1..3]`,
+    /// `target_quaternion[1..4]` (pose target: k = 0..7).
+    Target(usize),
+    /// Input `theta[k+1]`.
+    Theta(usize),
+    /// Input `nu[k+1]`.
+    Nu(usize),
+    /// Output `eps[k+1]`.
+    Eps(usize),
+    /// Output `potential`: U = ½ ΔYᵀ c₂ ΔY.
+    Potential,
+    /// Output `target_error[k+1]`: ΔY = Ŷ − Y.
+    TargetError(usize),
+}
+
+impl ControllerVariable {
+    /// What kind of variable it is: gains and targets are tunable.
+    pub fn kind(self) -> Kind {
+        match self {
+            ControllerVariable::RateGain(_) | ControllerVariable::TargetGain(_) => {
+                Kind::tunable_parameter(Range::NonNegative)
+            }
+            ControllerVariable::Target(_) => Kind::tunable_parameter(Range::Any),
+            ControllerVariable::Theta(_) | ControllerVariable::Nu(_) => Kind::INPUT,
+            ControllerVariable::Eps(_) | ControllerVariable::Potential | ControllerVariable::TargetError(_) => {
+                Kind::CALCULATED_OUTPUT
+            }
+        }
+    }
+
+    /// The start value written into the modelDescription, if it has one.
+    pub fn start(self, model: &Model, defaults: &ControlParameters) -> Option<f64> {
+        match self {
+            ControllerVariable::RateGain(k) => Some(defaults.c1[k]),
+            ControllerVariable::TargetGain(k) => Some(defaults.c2[k]),
+            ControllerVariable::Target(k) => Some(defaults.target[k]),
+            ControllerVariable::Theta(k) => Some(model.qpos0[k]),
+            ControllerVariable::Nu(_) => Some(0.0),
+            _ => None,
+        }
+    }
+}
+
+/// The controller's Real variables and value references: consecutive blocks
+/// from 1 in the order c1, c2, target, theta, nu, eps, potential, target_error.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ControllerLayout {
+    /// Number of position coordinates.
+    pub nq: usize,
+    /// Number of dofs.
+    pub nv: usize,
+    /// Number of controlled quantities.
+    pub ny: usize,
+    /// Number of target values.
+    pub target_len: usize,
+    /// Whether the target is a pose (names target_position, target_quaternion).
+    pub pose: bool,
+}
+
+impl ControllerLayout {
+    /// The layout of the controller of `model` with `law`.
+    pub fn new(model: &Model, law: &ControlLaw) -> Self {
+        ControllerLayout {
+            nq: model.nq,
+            nv: model.nv,
+            ny: law.ny(),
+            target_len: law.target_len(),
+            pose: matches!(law.objective, Objective::Pose(_)),
+        }
+    }
+
+    fn blocks(&self) -> impl Iterator<Item = (u32, usize, VariableOf<ControllerVariable>)> {
+        let blocks: [(usize, VariableOf<ControllerVariable>); 8] = [
+            (self.nv, ControllerVariable::RateGain),
+            (self.ny, ControllerVariable::TargetGain),
+            (self.target_len, ControllerVariable::Target),
+            (self.nq, ControllerVariable::Theta),
+            (self.nv, ControllerVariable::Nu),
+            (self.nv, ControllerVariable::Eps),
+            (1, |_| ControllerVariable::Potential),
+            (self.ny, ControllerVariable::TargetError),
+        ];
+        numbered_blocks(1, blocks)
+    }
+
+    /// The variable with value reference `vr`, if any.
+    pub fn variable(&self, vr: u32) -> Option<ControllerVariable> {
+        variable_at(self.blocks(), vr)
+    }
+
+    /// All Real variables with their value references, in order.
+    pub fn variables(&self) -> impl Iterator<Item = (u32, ControllerVariable)> {
+        every_variable(self.blocks())
+    }
+
+    /// The structured, 1-based name of `variable`.
+    pub fn name(&self, variable: ControllerVariable) -> String {
+        match variable {
+            ControllerVariable::RateGain(k) => format!("c1[{}]", k + 1),
+            ControllerVariable::TargetGain(k) => format!("c2[{}]", k + 1),
+            ControllerVariable::Target(k) if self.pose && k < 3 => format!("target_position[{}]", k + 1),
+            ControllerVariable::Target(k) if self.pose => format!("target_quaternion[{}]", k - 2),
+            ControllerVariable::Target(k) => format!("target[{}]", k + 1),
+            ControllerVariable::Theta(k) => format!("theta[{}]", k + 1),
+            ControllerVariable::Nu(k) => format!("nu[{}]", k + 1),
+            ControllerVariable::Eps(k) => format!("eps[{}]", k + 1),
+            ControllerVariable::Potential => "potential".into(),
+            ControllerVariable::TargetError(k) => format!("target_error[{}]", k + 1),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn value_references_are_consecutive_and_decode() {
+        let layout = ControllerLayout { nq: 14, nv: 13, ny: 6, target_len: 7, pose: true };
+        let all: Vec<(u32, ControllerVariable)> = layout.variables().collect();
+        assert_eq!(all.len(), 13 + 6 + 7 + 14 + 13 + 13 + 1 + 6);
+        for (k, &(vr, variable)) in all.iter().enumerate() {
+            assert_eq!(vr, k as u32 + 1);
+            assert_eq!(layout.variable(vr), Some(variable));
+        }
+        assert_eq!(layout.variable(0), None);
+        assert_eq!(layout.variable(all.len() as u32 + 1), None);
+        let names: Vec<String> = all.iter().map(|&(_, v)| layout.name(v)).collect();
+        for name in [
+            "c1[13]",
+            "c2[6]",
+            "target_position[3]",
+            "target_quaternion[1]",
+            "target_quaternion[4]",
+            "theta[14]",
+            "nu[1]",
+            "eps[13]",
+            "potential",
+            "target_error[6]",
+        ] {
+            assert!(names.iter().any(|n| n == name), "{name} missing from {names:?}");
+        }
+        let joints = ControllerLayout { nq: 4, nv: 4, ny: 3, target_len: 3, pose: false };
+        assert_eq!(joints.name(ControllerVariable::Target(2)), "target[3]");
+    }
+}

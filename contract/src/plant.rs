@@ -1,0 +1,318 @@
+//! The plant FMU, the vehicle's dynamics: its variables, value references,
+//! parameter defaults, capabilities and resource file.
+//!
+//! Variables follow MuJoCo's qpos/qvel order with 1-based structured names
+//! (`theta[1]`): inputs `eps[1..nv]`, outputs `theta[1..nq]` and
+//! `nu[1..nv]`, and the optional outputs chosen at export.
+
+use serde::{Deserialize, Serialize};
+
+use nudyn::integrate::Method;
+use nudyn::model::Model;
+
+use crate::blocks::{VariableOf, every_variable, numbered_blocks, variable_at};
+use crate::capabilities::Capabilities;
+use crate::resource::Resource;
+use crate::variable::{Kind, Range};
+
+/// Value reference of the Integer (enumeration) parameter `method`.
+pub const METHOD_VR: u32 = 0;
+
+/// Value reference of the Boolean parameter `energy_projection`.
+pub const ENERGY_PROJECTION_VR: u32 = 0;
+
+/// Default of the `method` parameter.
+pub const DEFAULT_METHOD: Method = Method::Dop853;
+
+/// Default of the `max_step` parameter (s): the longest internal step.
+pub const DEFAULT_MAX_STEP: f64 = 1e-2;
+
+/// Default of the `tolerance` parameter.
+pub const DEFAULT_TOLERANCE: f64 = 1e-8;
+
+/// The name of the enumeration type of `method`.
+pub const METHOD_TYPE: &str = "Method";
+
+/// The value of `method` in the FMU's enumeration: 1-based, as FMI
+/// enumerations usually are, in the order of [`Method::ALL`].
+pub fn method_value(method: Method) -> i32 {
+    Method::ALL.iter().position(|&m| m == method).expect("listed") as i32 + 1
+}
+
+/// The method of an enumeration value, if it is one.
+pub fn method_of_value(value: i32) -> Option<Method> {
+    usize::try_from(value - 1).ok().and_then(|i| Method::ALL.get(i).copied())
+}
+
+/// "1 = rk4, 2 = dopri5, ...": the enumeration's items, for messages.
+pub fn method_items() -> String {
+    Method::ALL.iter().map(|&m| format!("{} = {}", method_value(m), m.name())).collect::<Vec<_>>().join(", ")
+}
+
+/// What the plant FMU can do.
+pub const CAPABILITIES: Capabilities = Capabilities {
+    can_interpolate_inputs: true,
+    max_output_derivative_order: 1,
+    can_get_and_set_fmu_state: true,
+    can_serialize_fmu_state: true,
+    provides_directional_derivative: false,
+    can_handle_variable_communication_step_size: true,
+};
+
+/// The optional outputs chosen at export; those not chosen do not exist in
+/// the FMU, so they cost nothing at run time.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct OptionalOutputs {
+    /// `qvel[1..nv]`: θ̇ in MuJoCo's convention.
+    pub qvel: bool,
+    /// `kinetic_energy`: K = ½|ν|².
+    pub kinetic_energy: bool,
+    /// `power`: ν·ε of the applied ε.
+    pub power: bool,
+    /// `momentum[1..6]`: spatial momentum (angular about the world origin, then linear), world axes.
+    pub momentum: bool,
+    /// `energy_residual`: K − K₀ − ∫ν·ν̇ dt, the integration's energy error.
+    #[serde(default)]
+    pub energy_residual: bool,
+}
+
+impl OptionalOutputs {
+    /// The name of every optional output, as `--outputs` takes them.
+    pub const NAMES: [&str; 5] = ["qvel", "kinetic_energy", "power", "momentum", "energy_residual"];
+
+    /// The flag of the output `name`, if it is one of [`OptionalOutputs::NAMES`].
+    fn flag(&mut self, name: &str) -> Option<&mut bool> {
+        match name {
+            "qvel" => Some(&mut self.qvel),
+            "kinetic_energy" => Some(&mut self.kinetic_energy),
+            "power" => Some(&mut self.power),
+            "momentum" => Some(&mut self.momentum),
+            "energy_residual" => Some(&mut self.energy_residual),
+            _ => None,
+        }
+    }
+}
+
+/// Why a list of optional outputs cannot be parsed.
+#[derive(Debug, thiserror::Error, PartialEq)]
+#[error("unknown optional output '{0}': expected one of {names}", names = OptionalOutputs::NAMES.join(", "))]
+pub struct UnknownOutput(pub String);
+
+impl std::str::FromStr for OptionalOutputs {
+    type Err = UnknownOutput;
+
+    /// Parses a comma-separated list such as `qvel,kinetic_energy` (empty: none).
+    fn from_str(list: &str) -> Result<Self, UnknownOutput> {
+        let mut outputs = OptionalOutputs::default();
+        for name in list.split(',').map(str::trim).filter(|n| !n.is_empty()) {
+            *outputs.flag(name).ok_or_else(|| UnknownOutput(name.to_string()))? = true;
+        }
+        Ok(outputs)
+    }
+}
+
+/// `resources/model.json`: what the plant FMU loads at instantiation.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PlantResource {
+    /// [`Resource::FORMAT`] of the writer.
+    pub format: u32,
+    /// The optional outputs the FMU provides.
+    pub outputs: OptionalOutputs,
+    /// The compiled vehicle.
+    pub model: Model,
+}
+
+impl PlantResource {
+    /// The resource of an FMU of `model` with `outputs`.
+    pub fn new(model: Model, outputs: OptionalOutputs) -> Self {
+        PlantResource { format: Self::FORMAT, outputs, model }
+    }
+
+    /// The layout of its variables.
+    pub fn layout(&self) -> Layout {
+        Layout::new(&self.model, self.outputs)
+    }
+}
+
+impl Resource for PlantResource {
+    const FILE: &'static str = "model.json";
+    const FORMAT: u32 = 1;
+
+    fn format(&self) -> u32 {
+        self.format
+    }
+
+    fn model(&self) -> &Model {
+        &self.model
+    }
+
+    fn variable_names(&self) -> Vec<(u32, String)> {
+        self.layout().real_variables().map(|(vr, variable)| (vr, variable.name())).collect()
+    }
+}
+
+/// One Real variable of the plant; indices are 0-based here, 1-based in names.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RealVariable {
+    /// Parameter `tolerance`.
+    Tolerance,
+    /// Parameter `max_step`.
+    MaxStep,
+    /// Input `eps[k+1]`.
+    Eps(usize),
+    /// Output `theta[k+1]` (qpos).
+    Theta(usize),
+    /// Output `nu[k+1]`.
+    Nu(usize),
+    /// Optional output `qvel[k+1]`.
+    Qvel(usize),
+    /// Optional output `kinetic_energy`.
+    KineticEnergy,
+    /// Optional output `power`.
+    Power,
+    /// Optional output `momentum[k+1]`.
+    Momentum(usize),
+    /// Optional output `energy_residual`.
+    EnergyResidual,
+}
+
+impl RealVariable {
+    /// The structured, 1-based name, as in `modelDescription.xml`.
+    pub fn name(self) -> String {
+        match self {
+            RealVariable::Tolerance => "tolerance".into(),
+            RealVariable::MaxStep => "max_step".into(),
+            RealVariable::Eps(k) => format!("eps[{}]", k + 1),
+            RealVariable::Theta(k) => format!("theta[{}]", k + 1),
+            RealVariable::Nu(k) => format!("nu[{}]", k + 1),
+            RealVariable::Qvel(k) => format!("qvel[{}]", k + 1),
+            RealVariable::KineticEnergy => "kinetic_energy".into(),
+            RealVariable::Power => "power".into(),
+            RealVariable::Momentum(k) => format!("momentum[{}]", k + 1),
+            RealVariable::EnergyResidual => "energy_residual".into(),
+        }
+    }
+
+    /// What kind of variable it is. θ and ν are outputs with initial="exact":
+    /// settable until initialization, which is how a master chooses the
+    /// initial state.
+    pub fn kind(self) -> Kind {
+        match self {
+            RealVariable::Tolerance | RealVariable::MaxStep => Kind::fixed_parameter(Range::Positive),
+            RealVariable::Eps(_) => Kind::INPUT,
+            RealVariable::Theta(_) | RealVariable::Nu(_) => Kind::STATE_OUTPUT,
+            _ => Kind::CALCULATED_OUTPUT,
+        }
+    }
+
+    /// The start value written into the modelDescription, if it has one.
+    pub fn start(self, model: &Model) -> Option<f64> {
+        match self {
+            RealVariable::Tolerance => Some(DEFAULT_TOLERANCE),
+            RealVariable::MaxStep => Some(DEFAULT_MAX_STEP),
+            RealVariable::Eps(_) | RealVariable::Nu(_) => Some(0.0),
+            RealVariable::Theta(k) => Some(model.qpos0[k]),
+            _ => None,
+        }
+    }
+
+    /// Whether the output feeds through from the inputs at a communication
+    /// point (only the power, ν·ε, does).
+    pub fn depends_on_inputs(self) -> bool {
+        self == RealVariable::Power
+    }
+}
+
+/// The plant's Real variables and their value references: consecutive
+/// blocks after the two parameters, `tolerance` (1) and `max_step` (2), in
+/// the order eps, theta, nu, then the chosen optional outputs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Layout {
+    /// Number of position coordinates.
+    pub nq: usize,
+    /// Number of dofs.
+    pub nv: usize,
+    /// The optional outputs present.
+    pub outputs: OptionalOutputs,
+}
+
+impl Layout {
+    /// The layout of an FMU of `model` with `outputs`.
+    pub fn new(model: &Model, outputs: OptionalOutputs) -> Self {
+        Layout { nq: model.nq, nv: model.nv, outputs }
+    }
+
+    /// The blocks in value-reference order: (first value reference, length, variable of index k).
+    fn blocks(&self) -> impl Iterator<Item = (u32, usize, VariableOf<RealVariable>)> {
+        let o = self.outputs;
+        let blocks: [(usize, VariableOf<RealVariable>); 10] = [
+            (1, |_| RealVariable::Tolerance),
+            (1, |_| RealVariable::MaxStep),
+            (self.nv, RealVariable::Eps),
+            (self.nq, RealVariable::Theta),
+            (self.nv, RealVariable::Nu),
+            (if o.qvel { self.nv } else { 0 }, RealVariable::Qvel),
+            (usize::from(o.kinetic_energy), |_| RealVariable::KineticEnergy),
+            (usize::from(o.power), |_| RealVariable::Power),
+            (if o.momentum { 6 } else { 0 }, RealVariable::Momentum),
+            (usize::from(o.energy_residual), |_| RealVariable::EnergyResidual),
+        ];
+        numbered_blocks(METHOD_VR + 1, blocks)
+    }
+
+    /// The variable with value reference `vr`, if any.
+    pub fn real_variable(&self, vr: u32) -> Option<RealVariable> {
+        variable_at(self.blocks(), vr)
+    }
+
+    /// All Real variables with their value references, in order.
+    pub fn real_variables(&self) -> impl Iterator<Item = (u32, RealVariable)> {
+        every_variable(self.blocks())
+    }
+
+    /// The value reference of `variable`, if this layout has it.
+    pub fn value_reference(&self, variable: RealVariable) -> Option<u32> {
+        self.real_variables().find(|&(_, v)| v == variable).map(|(vr, _)| vr)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_optional_outputs() {
+        let all: OptionalOutputs = "qvel, kinetic_energy,power,momentum".parse().unwrap();
+        assert_eq!(all, OptionalOutputs { qvel: true, kinetic_energy: true, power: true, momentum: true, energy_residual: false });
+        assert_eq!("".parse::<OptionalOutputs>().unwrap(), OptionalOutputs::default());
+        assert_eq!("qvel,speed".parse::<OptionalOutputs>(), Err(UnknownOutput("speed".into())));
+        for name in OptionalOutputs::NAMES {
+            assert_ne!(name.parse::<OptionalOutputs>().unwrap(), OptionalOutputs::default(), "{name}");
+        }
+        assert!(UnknownOutput("x".into()).to_string().contains("energy_residual"));
+    }
+
+    #[test]
+    fn value_references_are_consecutive_and_decode() {
+        let layout = Layout { nq: 7, nv: 6, outputs: "qvel,power,momentum".parse().unwrap() };
+        let all: Vec<(u32, RealVariable)> = layout.real_variables().collect();
+        assert_eq!(all.len(), 2 + 6 + 7 + 6 + 6 + 1 + 6);
+        for (k, &(vr, variable)) in all.iter().enumerate() {
+            assert_eq!(vr, k as u32 + 1);
+            assert_eq!(layout.real_variable(vr), Some(variable));
+        }
+        assert_eq!(layout.real_variable(0), None, "vr 0 is the Integer method");
+        assert_eq!(layout.real_variable(all.len() as u32 + 1), None);
+        assert_eq!(layout.value_reference(RealVariable::Theta(0)), Some(9));
+        assert_eq!(layout.value_reference(RealVariable::KineticEnergy), None);
+    }
+
+    #[test]
+    fn method_values_round_trip() {
+        for method in Method::ALL {
+            assert_eq!(method_of_value(method_value(method)), Some(method));
+        }
+        assert_eq!(method_of_value(0), None);
+        assert_eq!(method_of_value(Method::ALL.len() as i32 + 1), None);
+    }
+}

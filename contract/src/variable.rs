@@ -1,0 +1,117 @@
+//! What kind of variable each FMU variable is. The exporter writes these
+//! values into the modelDescription (causality, variability, initial, min)
+//! and the FMU refuses a set from the same values, so what an importer
+//! reads and what the FMU enforces are one thing.
+
+/// FMI's causality, of the values nudyn uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Causality {
+    /// A parameter: set by the user, not by connections.
+    Parameter,
+    /// An input, set by the master from other FMUs' outputs.
+    Input,
+    /// An output.
+    Output,
+}
+
+/// FMI's variability, of the values nudyn uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Variability {
+    /// Set before initialization, then constant.
+    Fixed,
+    /// May change between steps.
+    Tunable,
+    /// Changes continuously in time.
+    Continuous,
+}
+
+/// The values a variable accepts, beyond being finite.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Range {
+    /// Any finite value.
+    Any,
+    /// Greater than zero.
+    Positive,
+    /// Zero or more (written as min="0").
+    NonNegative,
+}
+
+/// The nature of one variable.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Kind {
+    /// Causality.
+    pub causality: Causality,
+    /// Variability.
+    pub variability: Variability,
+    /// An output with initial="exact": the master chooses its value before
+    /// initialization (the plant's θ and ν, its initial state).
+    pub exact_start: bool,
+    /// The values it accepts.
+    pub range: Range,
+}
+
+impl Kind {
+    /// A parameter constant after initialization.
+    pub const fn fixed_parameter(range: Range) -> Kind {
+        Kind { causality: Causality::Parameter, variability: Variability::Fixed, exact_start: true, range }
+    }
+
+    /// A parameter that may change between steps.
+    pub const fn tunable_parameter(range: Range) -> Kind {
+        Kind { causality: Causality::Parameter, variability: Variability::Tunable, exact_start: true, range }
+    }
+
+    /// A continuous input.
+    pub const INPUT: Kind =
+        Kind { causality: Causality::Input, variability: Variability::Continuous, exact_start: false, range: Range::Any };
+
+    /// A continuous output whose start value the master may choose before initialization.
+    pub const STATE_OUTPUT: Kind =
+        Kind { causality: Causality::Output, variability: Variability::Continuous, exact_start: true, range: Range::Any };
+
+    /// A continuous output the FMU calculates.
+    pub const CALCULATED_OUTPUT: Kind =
+        Kind { causality: Causality::Output, variability: Variability::Continuous, exact_start: false, range: Range::Any };
+
+    /// Why the variable cannot be set now, if it cannot: "after
+    /// initialization" or "at all: it is a calculated output".
+    /// `initialized`: after fmi2ExitInitializationMode.
+    pub fn refuses_set(&self, initialized: bool) -> Option<&'static str> {
+        let fixed_after_start = self.variability == Variability::Fixed
+            || (self.causality == Causality::Output && self.exact_start);
+        match self.causality {
+            Causality::Output if !self.exact_start => Some("at all: it is a calculated output"),
+            _ if fixed_after_start && initialized => Some("after initialization"),
+            _ => None,
+        }
+    }
+
+    /// Whether `value` is in the variable's range (finiteness is checked apart).
+    pub fn accepts(&self, value: f64) -> bool {
+        match self.range {
+            Range::Any => true,
+            Range::Positive => value > 0.0,
+            Range::NonNegative => value >= 0.0,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn when_each_kind_may_be_set() {
+        let fixed = Kind::fixed_parameter(Range::Positive);
+        assert_eq!(fixed.refuses_set(false), None);
+        assert_eq!(fixed.refuses_set(true), Some("after initialization"));
+        let tunable = Kind::tunable_parameter(Range::NonNegative);
+        assert_eq!(tunable.refuses_set(true), None);
+        assert_eq!(Kind::INPUT.refuses_set(true), None);
+        assert_eq!(Kind::STATE_OUTPUT.refuses_set(false), None);
+        assert_eq!(Kind::STATE_OUTPUT.refuses_set(true), Some("after initialization"));
+        assert_eq!(Kind::CALCULATED_OUTPUT.refuses_set(false), Some("at all: it is a calculated output"));
+        assert!(fixed.accepts(1e-9) && !fixed.accepts(0.0));
+        assert!(tunable.accepts(0.0) && !tunable.accepts(-1.0));
+    }
+}

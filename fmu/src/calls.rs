@@ -1,0 +1,166 @@
+//! The argument checks every component shares, between the FMI layer's
+//! pointer and state checks and the component's own methods: value
+//! references, when a variable may be set and to what (from the contract's
+//! [`Kind`](nudyn_contract::variable::Kind)), what the capability flags
+//! allow, experiment and communication-step arguments.
+//!
+//! Every function checks all its arguments before the component changes
+//! anything, so a refused call leaves the instance as it was.
+
+use nudyn_contract::variable::{Causality, Range};
+
+use crate::component::{CallError, Component, StepError, StepReport, Variable};
+
+/// Relative tolerance on currentCommunicationPoint against the instance's
+/// time: masters compute communication points in their own way (FMPy: start + n·h).
+const TIME_TOLERANCE: f64 = 1e-9;
+
+fn real_variable(component: &dyn Component, vr: u32) -> Result<Variable, CallError> {
+    component.real_variable(vr).ok_or(CallError::UnknownValueReference { vr, kind: "Real" })
+}
+
+/// fmi2SetReal. `initialized`: after fmi2ExitInitializationMode. NaN and
+/// ±Inf, and finite values outside a variable's range, are out of range.
+pub fn set_real(component: &mut dyn Component, vrs: &[u32], values: &[f64], initialized: bool) -> Result<(), CallError> {
+    for (&vr, &value) in vrs.iter().zip(values) {
+        let Variable { name, kind } = real_variable(component, vr)?;
+        if let Some(when) = kind.refuses_set(initialized) {
+            return Err(CallError::NotSettable { name, vr, when });
+        }
+        if !value.is_finite() {
+            return Err(CallError::NonFinite { name, value });
+        }
+        if !kind.accepts(value) {
+            let must = if kind.range == Range::Positive { "positive" } else { "non-negative" };
+            return Err(CallError::OutOfRange { name, value, must });
+        }
+    }
+    component.set_reals(vrs, values);
+    Ok(())
+}
+
+/// fmi2GetReal. Every value is computed and checked before any is written:
+/// a value that overflowed (½|ν|² of a huge ν) is refused, never handed
+/// out, and the importer's buffer is left as it was.
+pub fn get_real(component: &mut dyn Component, vrs: &[u32], values: &mut [f64]) -> Result<(), CallError> {
+    for &vr in vrs {
+        real_variable(component, vr)?;
+    }
+    component.prepare_reals(vrs)?;
+    if let Some((vr, value)) = vrs.iter().map(|&vr| (vr, component.real_value(vr))).find(|(_, v)| !v.is_finite()) {
+        return Err(CallError::NonFiniteOutput { name: real_variable(component, vr)?.name, value });
+    }
+    for (value, &vr) in values.iter_mut().zip(vrs) {
+        *value = component.real_value(vr);
+    }
+    Ok(())
+}
+
+/// Refuses a derivative of an order other than 1, the only one served.
+fn first_order(name: &str, order: i32) -> Result<(), CallError> {
+    if order == 1 { Ok(()) } else { Err(CallError::DerivativeOrder { name: name.to_string(), order }) }
+}
+
+/// fmi2SetRealInputDerivatives: dε/dt of inputs, with canInterpolateInputs.
+pub fn set_input_derivatives(
+    component: &mut dyn Component,
+    vrs: &[u32],
+    orders: &[i32],
+    values: &[f64],
+) -> Result<(), CallError> {
+    let served = component.capabilities().can_interpolate_inputs;
+    for ((&vr, &order), &value) in vrs.iter().zip(orders).zip(values) {
+        let Variable { name, kind } = real_variable(component, vr)?;
+        if !served || kind.causality != Causality::Input {
+            return Err(CallError::NoDerivative { name, vr, what: "input" });
+        }
+        first_order(&name, order)?;
+        if !value.is_finite() {
+            return Err(CallError::NonFinite { name: format!("der({name})"), value });
+        }
+    }
+    if vrs.is_empty() {
+        return Ok(());
+    }
+    component.set_input_derivatives(vrs, values)
+}
+
+/// fmi2GetRealOutputDerivatives: the time derivatives of the state outputs
+/// (those whose start the master may choose: θ and ν), with
+/// maxOutputDerivativeOrder ≥ 1. Checked like fmi2GetReal's values.
+pub fn get_output_derivatives(
+    component: &mut dyn Component,
+    vrs: &[u32],
+    orders: &[i32],
+    values: &mut [f64],
+) -> Result<(), CallError> {
+    let served = component.capabilities().max_output_derivative_order >= 1;
+    for (&vr, &order) in vrs.iter().zip(orders) {
+        let Variable { name, kind } = real_variable(component, vr)?;
+        if !served || kind.causality != Causality::Output || !kind.exact_start {
+            return Err(CallError::NoDerivative { name, vr, what: "output" });
+        }
+        first_order(&name, order)?;
+    }
+    if vrs.is_empty() {
+        return Ok(());
+    }
+    component.prepare_output_derivatives()?;
+    let derivatives = vrs.iter().map(|&vr| (vr, component.output_derivative(vr)));
+    if let Some((vr, value)) = derivatives.clone().find(|(_, v)| !v.is_finite()) {
+        let name = format!("der({})", real_variable(component, vr)?.name);
+        return Err(CallError::NonFiniteOutput { name, value });
+    }
+    for (value, (_, derivative)) in values.iter_mut().zip(derivatives) {
+        *value = derivative;
+    }
+    Ok(())
+}
+
+/// fmi2SetupExperiment: refuses arguments no run can use (a non-finite
+/// start, a tolerance that is not positive, a stop time before the start).
+pub fn setup_experiment(
+    component: &mut dyn Component,
+    tolerance: Option<f64>,
+    start_time: f64,
+    stop_time: Option<f64>,
+) -> Result<(), CallError> {
+    if !start_time.is_finite() {
+        return Err(CallError::NonFinite { name: "startTime".into(), value: start_time });
+    }
+    if let Some(tolerance) = tolerance.filter(|t| !(t.is_finite() && *t > 0.0)) {
+        return Err(CallError::OutOfRange { name: "tolerance".into(), value: tolerance, must: "positive" });
+    }
+    if let Some(stop) = stop_time.filter(|s| !(s.is_finite() && *s >= start_time)) {
+        return Err(CallError::NonFinite { name: format!("stopTime (startTime = {start_time})"), value: stop });
+    }
+    component.setup_experiment(tolerance, start_time, stop_time);
+    Ok(())
+}
+
+/// What fmi2DoStep returns after its checks: a refused call, or the step's own outcome.
+pub enum Stepped {
+    /// The arguments were refused; nothing happened.
+    Refused(CallError),
+    /// The step ran and stopped inside the interval (fmi2Discard).
+    Failed(StepError),
+}
+
+/// fmi2DoStep: refuses a communication point other than the instance's
+/// time, a step that is not positive and finite, one the component cannot
+/// take, or one past the stop time; then steps.
+pub fn do_step(component: &mut dyn Component, time: f64, step: f64) -> Result<Option<StepReport>, Stepped> {
+    let now = component.time();
+    // No tolerance compares a non-finite communication point with the time.
+    if !time.is_finite() || (time - now).abs() > TIME_TOLERANCE * now.abs().max(1.0) {
+        return Err(Stepped::Refused(CallError::CommunicationPoint { expected: now, found: time }));
+    }
+    component.check_step_size(step).map_err(Stepped::Refused)?;
+    if !(step.is_finite() && step > 0.0) {
+        return Err(Stepped::Refused(CallError::StepSize(step)));
+    }
+    if let Some(stop_time) = component.stop_time().filter(|&stop| time + step > stop + TIME_TOLERANCE * stop.abs().max(1.0)) {
+        return Err(Stepped::Refused(CallError::PastStopTime { time, step, stop_time }));
+    }
+    component.do_step(time, step).map_err(Stepped::Failed)
+}

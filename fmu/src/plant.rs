@@ -1,0 +1,408 @@
+//! The plant: the vehicle's dynamics as an FMU component. It holds the
+//! compiled model from the FMU's resources, the state (θ, ν), the inputs ε
+//! and the parameters, and advances them with the core integrator.
+//!
+//! Outputs beyond θ and ν are computed when first read after a change of
+//! state, so outputs nobody reads cost nothing.
+
+use nudyn::dynamics::quantities::kinetic_energy;
+use nudyn::integrate::{Carry, Integrator, Method, Settings};
+use nudyn::model::{LinkJoint, Model};
+use nudyn::workspace::Workspace;
+use nudyn_contract::capabilities::Capabilities;
+use nudyn_contract::plant::{
+    CAPABILITIES, DEFAULT_MAX_STEP, DEFAULT_METHOD, DEFAULT_TOLERANCE, ENERGY_PROJECTION_VR, Layout, METHOD_VR,
+    PlantResource, RealVariable, method_of_value, method_value,
+};
+
+use crate::component::{CallError, Component, Loaded, StepError, StepReport, Variable};
+use crate::snapshot::{Snapshot, SnapshotError};
+use crate::state::Phase;
+
+/// The most internal steps of `max_step` one doStep may ask for: more would
+/// keep the host busy for hours (1e300 s, or `max_step` = 1e-300, forever),
+/// so such a step is refused up front.
+const MAX_INTERNAL_STEPS: f64 = 1e6;
+
+/// The values that determine the plant's future: what an FMU state saves.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlantState {
+    /// Current time (s).
+    pub time: f64,
+    /// Start time of the experiment (s).
+    pub start_time: f64,
+    /// Stop time, if the master declared one (s).
+    pub stop_time: Option<f64>,
+    /// Parameter `tolerance`.
+    pub tolerance: f64,
+    /// Parameter `max_step` (s).
+    pub max_step: f64,
+    /// Parameter `method`.
+    pub method: Method,
+    /// Parameter `energy_projection`.
+    pub energy_projection: bool,
+    /// The integrator's proposed next step and accumulated work.
+    pub carry: Carry,
+    /// K = ½|ν|² at initialization (J), for the energy residual.
+    pub initial_energy: f64,
+    /// θ (nq, qpos).
+    pub theta: Vec<f64>,
+    /// ν (nv).
+    pub nu: Vec<f64>,
+    /// The inputs ε (nv) as set at the current communication point.
+    pub eps: Vec<f64>,
+    /// dε/dt (nv) from fmi2SetRealInputDerivatives, for the next step only.
+    pub eps_rate: Vec<f64>,
+}
+
+impl PlantState {
+    /// The state just after instantiation: qpos0, at rest, no input.
+    fn initial(model: &Model) -> Self {
+        PlantState {
+            time: 0.0,
+            start_time: 0.0,
+            stop_time: None,
+            tolerance: DEFAULT_TOLERANCE,
+            max_step: DEFAULT_MAX_STEP,
+            method: DEFAULT_METHOD,
+            energy_projection: false,
+            carry: Carry::default(),
+            initial_energy: 0.0,
+            theta: model.qpos0.clone(),
+            nu: vec![0.0; model.nv],
+            eps: vec![0.0; model.nv],
+            eps_rate: vec![0.0; model.nv],
+        }
+    }
+}
+
+/// How far the workspace holds the passes for the current (θ, ν, ε).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum Evaluated {
+    Nothing,
+    /// θ̇ (qvel) and, if it is an output, the momentum.
+    Velocity,
+    /// ν̇ too.
+    Acceleration,
+}
+
+/// One plant instance.
+pub struct Plant {
+    model: Model,
+    layout: Layout,
+    guid: String,
+    ws: Workspace,
+    integrator: Integrator,
+    state: PlantState,
+    evaluated: Evaluated,
+    /// Momentum at the current state, when `evaluated` ≥ Velocity and it is an output.
+    momentum: [f64; 6],
+    /// Set when a step failed on a non-finite state: the master should stop
+    /// (fmi2GetBooleanStatus(fmi2Terminated)).
+    failed_for_good: bool,
+    /// The tolerance fmi2SetupExperiment passed, if it passed one: it
+    /// replaces the `tolerance` parameter at initialization.
+    experiment_tolerance: Option<f64>,
+}
+
+impl Plant {
+    /// The plant of a loaded resource.
+    pub fn load(loaded: Loaded<PlantResource>) -> Plant {
+        let layout = loaded.resource.layout();
+        let model = loaded.resource.model;
+        Plant {
+            layout,
+            guid: loaded.guid,
+            ws: model.workspace(),
+            integrator: Integrator::new(&model, DEFAULT_METHOD),
+            state: PlantState::initial(&model),
+            evaluated: Evaluated::Nothing,
+            momentum: [0.0; 6],
+            failed_for_good: false,
+            experiment_tolerance: None,
+            model,
+        }
+    }
+
+    /// Runs the passes needed for outputs beyond θ and ν, once per state.
+    fn evaluate(&mut self, needed: Evaluated) -> Result<(), CallError> {
+        if self.evaluated >= needed {
+            return Ok(());
+        }
+        let (model, s) = (&self.model, &self.state);
+        self.ws.set_configuration(model, &s.theta).map_err(CallError::Evaluate)?;
+        self.ws.set_nu(model, &s.nu).map_err(CallError::Evaluate)?;
+        if self.layout.outputs.momentum {
+            let momentum = self.ws.momentum(model).map_err(CallError::Evaluate)?;
+            self.momentum.iter_mut().zip(momentum.iter()).for_each(|(m, x)| *m = *x);
+        }
+        self.evaluated = Evaluated::Velocity;
+        if needed == Evaluated::Acceleration {
+            self.ws.compute_nu_dot(model, &s.eps).map_err(CallError::Evaluate)?;
+            self.evaluated = Evaluated::Acceleration;
+        }
+        Ok(())
+    }
+
+    /// d(qpos[k])/dt from the workspace's θ̇ (passes 0–2 done): q̇ = ½ q ⊗ (0, ω)
+    /// for a quaternion's entries.
+    fn qpos_rate(&self, k: usize) -> f64 {
+        let link = self.model.links.iter().rev().find(|l| l.qpos_adr <= k).expect("every coordinate belongs to a link");
+        let (q, w) = (&self.ws.theta.as_slice()[link.qpos_adr..], &self.ws.qvel.as_slice()[link.dof_adr..]);
+        match (link.joint, k - link.qpos_adr) {
+            (LinkJoint::Ball, 0) => -0.5 * (q[1] * w[0] + q[2] * w[1] + q[3] * w[2]),
+            (LinkJoint::Ball, 1) => 0.5 * (q[0] * w[0] + q[2] * w[2] - q[3] * w[1]),
+            (LinkJoint::Ball, 2) => 0.5 * (q[0] * w[1] + q[3] * w[0] - q[1] * w[2]),
+            (LinkJoint::Ball, _) => 0.5 * (q[0] * w[2] + q[1] * w[1] - q[2] * w[0]),
+            (_, i) => w[i],
+        }
+    }
+}
+
+impl Component for Plant {
+    fn capabilities(&self) -> Capabilities {
+        CAPABILITIES
+    }
+
+    fn reset(&mut self) {
+        self.state = PlantState::initial(&self.model);
+        self.evaluated = Evaluated::Nothing;
+        self.failed_for_good = false;
+        self.experiment_tolerance = None;
+    }
+
+    fn time(&self) -> f64 {
+        self.state.time
+    }
+
+    fn stop_time(&self) -> Option<f64> {
+        self.state.stop_time
+    }
+
+    /// The start time becomes the current time.
+    fn setup_experiment(&mut self, tolerance: Option<f64>, start_time: f64, stop_time: Option<f64>) {
+        self.experiment_tolerance = tolerance;
+        self.state.start_time = start_time;
+        self.state.time = start_time;
+        self.state.stop_time = stop_time;
+    }
+
+    /// Checks the initial state set by the master and normalizes its
+    /// quaternions, as MuJoCo does. A tolerance from fmi2SetupExperiment
+    /// takes the place of the `tolerance` parameter, which then reads back
+    /// the tolerance in effect.
+    fn initialize(&mut self) -> Result<(), CallError> {
+        self.ws.set_configuration(&self.model, &self.state.theta).map_err(CallError::InitialState)?;
+        self.ws.set_nu(&self.model, &self.state.nu).map_err(CallError::InitialState)?;
+        self.state.theta.copy_from_slice(self.ws.theta.as_slice());
+        if let Some(tolerance) = self.experiment_tolerance {
+            self.state.tolerance = tolerance;
+        }
+        self.state.carry = Carry::default();
+        self.state.initial_energy = kinetic_energy(&self.state.nu);
+        self.integrator.set_method(self.state.method);
+        self.evaluated = Evaluated::Nothing;
+        Ok(())
+    }
+
+    fn real_variable(&self, vr: u32) -> Option<Variable> {
+        self.layout.real_variable(vr).map(|v| Variable { name: v.name(), kind: v.kind() })
+    }
+
+    fn set_reals(&mut self, vrs: &[u32], values: &[f64]) {
+        let s = &mut self.state;
+        for (&vr, &value) in vrs.iter().zip(values) {
+            match self.layout.real_variable(vr).expect("checked by the caller") {
+                RealVariable::Tolerance => s.tolerance = value,
+                RealVariable::MaxStep => s.max_step = value,
+                RealVariable::Eps(k) => s.eps[k] = value,
+                RealVariable::Theta(k) => s.theta[k] = value,
+                RealVariable::Nu(k) => s.nu[k] = value,
+                variable => unreachable!("{variable:?} is a calculated output: the caller refuses it"),
+            }
+        }
+        self.evaluated = Evaluated::Nothing;
+    }
+
+    fn prepare_reals(&mut self, vrs: &[u32]) -> Result<(), CallError> {
+        let variables = vrs.iter().filter_map(|&vr| self.layout.real_variable(vr));
+        if variables.clone().any(|v| matches!(v, RealVariable::Qvel(_) | RealVariable::Momentum(_))) {
+            self.evaluate(Evaluated::Velocity)?;
+        }
+        Ok(())
+    }
+
+    fn real_value(&self, vr: u32) -> f64 {
+        let s = &self.state;
+        match self.layout.real_variable(vr).expect("checked by the caller") {
+            RealVariable::Tolerance => s.tolerance,
+            RealVariable::MaxStep => s.max_step,
+            RealVariable::Eps(k) => s.eps[k],
+            RealVariable::Theta(k) => s.theta[k],
+            RealVariable::Nu(k) => s.nu[k],
+            RealVariable::Qvel(k) => self.ws.qvel[k],
+            RealVariable::KineticEnergy => kinetic_energy(&s.nu),
+            RealVariable::Power => s.nu.iter().zip(&s.eps).map(|(n, e)| n * e).sum(),
+            RealVariable::Momentum(k) => self.momentum[k],
+            RealVariable::EnergyResidual => kinetic_energy(&s.nu) - s.initial_energy - s.carry.work,
+        }
+    }
+
+    /// The enumeration parameter `method`.
+    fn get_integer(&self, vrs: &[u32], values: &mut [i32]) -> Result<(), CallError> {
+        if let Some(&vr) = vrs.iter().find(|&&vr| vr != METHOD_VR) {
+            return Err(CallError::UnknownValueReference { vr, kind: "Integer" });
+        }
+        values.fill(method_value(self.state.method));
+        Ok(())
+    }
+
+    /// `method`, before initialization, to an item of its enumeration.
+    fn set_integer(&mut self, vrs: &[u32], values: &[i32], initialized: bool) -> Result<(), CallError> {
+        for (&vr, &value) in vrs.iter().zip(values) {
+            if vr != METHOD_VR {
+                return Err(CallError::UnknownValueReference { vr, kind: "Integer" });
+            }
+            if initialized {
+                return Err(CallError::NotSettable { name: "method".into(), vr, when: "after initialization" });
+            }
+            if method_of_value(value).is_none() {
+                return Err(CallError::UnknownMethod(value));
+            }
+        }
+        if let Some(method) = values.last().and_then(|&v| method_of_value(v)) {
+            self.state.method = method;
+        }
+        Ok(())
+    }
+
+    /// The only Boolean variable, the parameter `energy_projection`.
+    fn get_boolean(&self, vrs: &[u32], values: &mut [bool]) -> Result<(), CallError> {
+        if let Some(&vr) = vrs.iter().find(|&&vr| vr != ENERGY_PROJECTION_VR) {
+            return Err(CallError::UnknownValueReference { vr, kind: "Boolean" });
+        }
+        values.fill(self.state.energy_projection);
+        Ok(())
+    }
+
+    /// `energy_projection`, before initialization.
+    fn set_boolean(&mut self, vrs: &[u32], values: &[bool], initialized: bool) -> Result<(), CallError> {
+        for &vr in vrs {
+            if vr != ENERGY_PROJECTION_VR {
+                return Err(CallError::UnknownValueReference { vr, kind: "Boolean" });
+            }
+            if initialized {
+                return Err(CallError::NotSettable { name: "energy_projection".into(), vr, when: "after initialization" });
+            }
+        }
+        if let Some(&value) = values.last() {
+            self.state.energy_projection = value;
+        }
+        Ok(())
+    }
+
+    /// dε/dt for the next step.
+    fn set_input_derivatives(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), CallError> {
+        for (&vr, &value) in vrs.iter().zip(values) {
+            if let Some(RealVariable::Eps(k)) = self.layout.real_variable(vr) {
+                self.state.eps_rate[k] = value;
+            }
+        }
+        Ok(())
+    }
+
+    /// d(theta)/dt, the qpos rate, and d(nu)/dt = ν̇ at the current ε.
+    fn prepare_output_derivatives(&mut self) -> Result<(), CallError> {
+        self.evaluate(Evaluated::Acceleration)
+    }
+
+    fn output_derivative(&self, vr: u32) -> f64 {
+        match self.layout.real_variable(vr) {
+            Some(RealVariable::Theta(k)) => self.qpos_rate(k),
+            Some(RealVariable::Nu(k)) => self.ws.nu_dot[k],
+            variable => unreachable!("{variable:?} is not a state output: the caller refuses it"),
+        }
+    }
+
+    /// Refuses a finite step that would take more than [`MAX_INTERNAL_STEPS`] internal steps.
+    fn check_step_size(&self, step: f64) -> Result<(), CallError> {
+        let max_step = self.state.max_step;
+        let needed = step / max_step;
+        if step.is_finite() && needed > MAX_INTERNAL_STEPS {
+            return Err(CallError::TooLong { step, max_step, needed, limit: MAX_INTERNAL_STEPS });
+        }
+        Ok(())
+    }
+
+    /// Integrates from `time` to `time + step` with the chosen method
+    /// (internal steps independent of the communication step), with
+    /// ε(t) = ε + dε/dt·(t − time); the ramp applies to this step only.
+    /// If the integration stops inside the step, the state stays at the
+    /// last successful internal step and the time says where. A step that
+    /// completed only by relaxing the tolerance says so.
+    fn do_step(&mut self, time: f64, step: f64) -> Result<Option<StepReport>, StepError> {
+        let s = &mut self.state;
+        let settings = Settings { tolerance: s.tolerance, max_step: s.max_step, energy_projection: s.energy_projection };
+        let (eps, eps_rate) = (&s.eps, &s.eps_rate);
+        let applied = |t_stage: f64, out: &mut [f64]| {
+            for ((o, e), r) in out.iter_mut().zip(eps).zip(eps_rate) {
+                *o = e + r * (t_stage - time);
+            }
+        };
+        let (model, ws, integrator) = (&self.model, &mut self.ws, &mut self.integrator);
+        let relaxation_before = s.carry.relaxation;
+        let result =
+            integrator.advance(model, ws, &mut s.theta, &mut s.nu, (time, time + step), &settings, &mut s.carry, applied);
+        self.evaluated = Evaluated::Nothing;
+        match result {
+            Ok(stats) => {
+                s.time = time + step;
+                s.eps_rate.fill(0.0);
+                let relaxed = s.carry.relaxed_since(relaxation_before, time, s.tolerance);
+                Ok(Some(StepReport { stats, relaxed }))
+            }
+            Err(source) => {
+                s.time = source.reached();
+                self.failed_for_good = source.is_non_finite();
+                Err(StepError { time, step, source })
+            }
+        }
+    }
+
+    fn failed_for_good(&self) -> bool {
+        self.failed_for_good
+    }
+
+    fn snapshot(&self, phase: Phase) -> Result<Snapshot, CallError> {
+        Ok(Snapshot { phase, guid: self.guid.clone(), state: self.state.clone() })
+    }
+
+    /// Saves into `snapshot`, reusing its buffers.
+    fn save(&self, phase: Phase, snapshot: &mut Snapshot) -> Result<(), CallError> {
+        snapshot.phase = phase;
+        snapshot.guid.clone_from(&self.guid);
+        snapshot.state.clone_from(&self.state);
+        Ok(())
+    }
+
+    /// A state of another FMU is refused.
+    fn restore(&mut self, snapshot: &Snapshot) -> Result<(), CallError> {
+        let (nq, nv) = (snapshot.state.theta.len(), snapshot.state.nu.len());
+        if snapshot.guid != self.guid {
+            return Err(SnapshotError::ForeignGuid { found: snapshot.guid.clone(), expected: self.guid.clone() }.into());
+        }
+        if (nq, nv) != (self.model.nq, self.model.nv) {
+            let (expected_nq, expected_nv) = (self.model.nq, self.model.nv);
+            return Err(SnapshotError::Sizes { nq, nv, expected_nq, expected_nv }.into());
+        }
+        self.state.clone_from(&snapshot.state);
+        self.integrator.set_method(self.state.method);
+        self.evaluated = Evaluated::Nothing;
+        self.failed_for_good = false;
+        Ok(())
+    }
+
+    fn deserialize(&self, bytes: &[u8]) -> Result<Snapshot, CallError> {
+        Ok(Snapshot::deserialize(bytes, &self.guid, self.model.nq, self.model.nv)?)
+    }
+}
