@@ -67,6 +67,19 @@ pub enum JointKind {
 }
 
 impl JointKind {
+    /// Every kind.
+    pub const ALL: [JointKind; 4] = [JointKind::Hinge, JointKind::Slide, JointKind::Ball, JointKind::Free];
+
+    /// The MJCF name of the kind (`<joint type="...">`), also its JSON name.
+    pub fn name(self) -> &'static str {
+        match self {
+            JointKind::Hinge => "hinge",
+            JointKind::Slide => "slide",
+            JointKind::Ball => "ball",
+            JointKind::Free => "free",
+        }
+    }
+
     /// Number of position coordinates (qpos entries).
     pub fn nq(self) -> usize {
         match self {
@@ -110,4 +123,16 @@ pub struct Joint {
     pub armature: f64,
     /// Line of the joint element in the MJCF file (1-based).
     pub line: u32,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn json_names_are_the_mjcf_names() {
+        for kind in JointKind::ALL {
+            assert_eq!(serde_json::to_value(kind).unwrap(), kind.name());
+        }
+    }
 }

@@ -211,12 +211,11 @@ fn describe(model_path: &Path, json: bool) -> Result<()> {
     for joint in &description.joints {
         // 1-based FMU variable indices, as in theta[k] and nu[k].
         let range = |first: usize, n: usize| if n == 1 { format!("{}", first + 1) } else { format!("{}..{}", first + 1, first + n) };
-        let kind = serde_json::to_value(joint.kind)?;
         println!(
             "{:<24} {:<24} {:<6} {:>9} {:>9}",
             joint.name,
             joint.body,
-            kind.as_str().unwrap_or_default(),
+            joint.kind.name(),
             range(joint.qpos_adr, joint.nq),
             range(joint.dof_adr, joint.nv)
         );

@@ -109,12 +109,7 @@ impl Default for JointSettings {
 impl JointSettings {
     /// Overwrites the settings the element gives.
     pub fn apply(&mut self, element: &Element) -> Result<(), MjcfError> {
-        let kinds = [
-            ("hinge", JointKind::Hinge),
-            ("slide", JointKind::Slide),
-            ("ball", JointKind::Ball),
-            ("free", JointKind::Free),
-        ];
+        let kinds = JointKind::ALL.map(|kind| (kind.name(), kind));
         if let Some(kind) = element.keyword("type", &kinds)? {
             self.kind = kind;
         }

@@ -36,19 +36,19 @@ fn joint_entry(model: &Model, index: usize, qpos: bool) -> (String, &'static str
     let k = index - if qpos { joint.qpos_adr } else { joint.dof_adr };
     const AXES: [&str; 3] = ["x", "y", "z"];
     const QUAT: [&str; 4] = ["w", "x", "y", "z"];
-    let (kind, component, unit) = match (joint.kind, qpos) {
-        (JointKind::Hinge, true) => ("hinge", String::new(), "rad"),
-        (JointKind::Hinge, false) => ("hinge", String::new(), "rad/s"),
-        (JointKind::Slide, true) => ("slide", String::new(), "m"),
-        (JointKind::Slide, false) => ("slide", String::new(), "m/s"),
-        (JointKind::Ball, true) => ("ball", format!(", quaternion {}", QUAT[k]), "1"),
-        (JointKind::Ball, false) => ("ball", format!(", angular velocity {} in the body frame", AXES[k]), "rad/s"),
-        (JointKind::Free, true) if k < 3 => ("free", format!(", position {} in world", AXES[k]), "m"),
-        (JointKind::Free, true) => ("free", format!(", quaternion {}", QUAT[k - 3]), "1"),
-        (JointKind::Free, false) if k < 3 => ("free", format!(", linear velocity {} in world", AXES[k]), "m/s"),
-        (JointKind::Free, false) => ("free", format!(", angular velocity {} in the body frame", AXES[k - 3]), "rad/s"),
+    let (component, unit) = match (joint.kind, qpos) {
+        (JointKind::Hinge, true) => (String::new(), "rad"),
+        (JointKind::Hinge, false) => (String::new(), "rad/s"),
+        (JointKind::Slide, true) => (String::new(), "m"),
+        (JointKind::Slide, false) => (String::new(), "m/s"),
+        (JointKind::Ball, true) => (format!(", quaternion {}", QUAT[k]), "1"),
+        (JointKind::Ball, false) => (format!(", angular velocity {} in the body frame", AXES[k]), "rad/s"),
+        (JointKind::Free, true) if k < 3 => (format!(", position {} in world", AXES[k]), "m"),
+        (JointKind::Free, true) => (format!(", quaternion {}", QUAT[k - 3]), "1"),
+        (JointKind::Free, false) if k < 3 => (format!(", linear velocity {} in world", AXES[k]), "m/s"),
+        (JointKind::Free, false) => (format!(", angular velocity {} in the body frame", AXES[k - 3]), "rad/s"),
     };
-    (format!("{kind} joint '{}'{component}", joint.name), unit)
+    (format!("{} joint '{}'{component}", joint.kind.name(), joint.name), unit)
 }
 
 /// The description of `variable` in `modelDescription.xml`, naming the
