@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# nudyn's whole test suite: setup, Rust build and tests, Python tests
-# against MuJoCo, the FMU's memory and fuzz checks (briefly; see
-# scripts/stress-fmu.sh --long).  Fails if any step fails.
+# nudyn's whole test suite: setup, formatting and lints (rustfmt, clippy
+# with warnings denied), Rust build and tests, Python tests against MuJoCo,
+# the FMU's memory and fuzz checks (briefly; see scripts/stress-fmu.sh
+# --long).  Fails if any step fails.
 #
 #   bash scripts/test.sh
 set -euo pipefail
@@ -10,6 +11,10 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 
 bash scripts/setup.sh
+
+cargo fmt --all --check
+(cd fuzz && cargo fmt --check)
+cargo clippy --release --workspace --all-targets -- -D warnings
 
 cargo build --release --workspace
 cargo test --release --workspace
