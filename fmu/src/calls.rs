@@ -117,6 +117,11 @@ pub fn get_output_derivatives(
     Ok(())
 }
 
+/// Refuses the FMU-state functions of a component that does not declare canGetAndSetFMUstate.
+pub fn fmu_states(component: &dyn Component) -> Result<(), CallError> {
+    if component.capabilities().can_get_and_set_fmu_state { Ok(()) } else { Err(CallError::NoFmuState) }
+}
+
 /// fmi2SetupExperiment: refuses arguments no run can use (a non-finite
 /// start, a tolerance that is not positive, a stop time before the start).
 pub fn setup_experiment(

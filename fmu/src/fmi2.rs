@@ -665,6 +665,7 @@ pub unsafe extern "C" fn fmi2SetString(
 pub unsafe extern "C" fn fmi2GetFMUstate(c: fmi2Component, state: *mut fmi2FMUstate) -> fmi2Status {
     unsafe {
         enter(c, Function::GetFmuState, |instance| {
+            calls::fmu_states(&*instance.component)?;
             let state = state.as_mut().ok_or(FmiError::Null("FMUstate"))?;
             let phase = instance.phase;
             if state.is_null() {
@@ -684,6 +685,7 @@ pub unsafe extern "C" fn fmi2GetFMUstate(c: fmi2Component, state: *mut fmi2FMUst
 pub unsafe extern "C" fn fmi2SetFMUstate(c: fmi2Component, state: fmi2FMUstate) -> fmi2Status {
     unsafe {
         enter(c, Function::SetFmuState, |instance| {
+            calls::fmu_states(&*instance.component)?;
             let snapshot = snapshot(&instance.states, state)?;
             let phase = snapshot.phase;
             instance.component.restore(snapshot)?;
@@ -761,6 +763,7 @@ pub unsafe extern "C" fn fmi2DeSerializeFMUstate(
 ) -> fmi2Status {
     unsafe {
         enter(c, Function::DeSerializeFmuState, |instance| {
+            calls::fmu_states(&*instance.component)?;
             let state = state.as_mut().ok_or(FmiError::Null("FMUstate"))?;
             let existing = if state.is_null() { None } else { Some(snapshot(&instance.states, *state)? as *mut Snapshot) };
             let snapshot = instance.component.deserialize(slice(bytes as *const u8, size, "serializedState")?)?;
