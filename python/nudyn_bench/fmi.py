@@ -25,9 +25,9 @@ def fmpy_loop(package: FmuPackage, vehicle: Vehicle, step: float, steps: int, wi
     eps = np.zeros(package.nv)
     start = time.perf_counter()
     if with_io:
-        for _ in range(steps):
+        for n in range(steps):
             fmu.set_array("eps", eps)
-            fmu.step(step)
+            fmu.step(step, communication_point=n * step)
             fmu.array("theta")
             fmu.array("nu")
     else:

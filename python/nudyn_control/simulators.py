@@ -81,10 +81,10 @@ def run_fmpy(plant_fmu: Path, controller_fmu: Path, scenario: Scenario, workdir:
         plant.set_array("eps", held)
         for i in range(m):
             j = j0 + i
-            plant.step(h / m)
+            plant.step(h / m, communication_point=j * h / m)
             eps[j] = held
             theta[j + 1], nu[j + 1] = plant.array("theta"), plant.array("nu")
-        controller.step(h)
+        controller.step(h, communication_point=k * h)
     wall = time.perf_counter() - started
     plant.close()
     controller.close()

@@ -177,18 +177,22 @@ class Instance:
     def all_reals(self) -> np.ndarray:
         return self.get(self.package.reals)
 
-    def step(self, size: float) -> int:
-        """One fmi2DoStep from `time`; returns its status (fmi2OK or
-        fmi2Warning) and advances `time`. A discarded step raises, with
-        `time` moved to where the integration stopped
-        (fmi2LastSuccessfulTime); any other refusal leaves `time` as it was."""
+    def step(self, size: float, communication_point: float | None = None) -> int:
+        """One fmi2DoStep of `size` from `communication_point`, by default
+        `time` (where the last step ended); a master that counts its points
+        as k·h passes them, so that its steps do not depend on round-off
+        accumulated in `time`. Returns the status (fmi2OK or fmi2Warning)
+        and sets `time` to the step's end. A discarded step raises, with
+        `time` where the integration stopped (fmi2LastSuccessfulTime); any
+        other refusal leaves `time` as it was."""
+        start = self.time if communication_point is None else communication_point
         try:
-            status = self.fmu.fmi2DoStep(self.fmu.component, self.time, size, fmi2True)
+            status = self.fmu.fmi2DoStep(self.fmu.component, start, size, fmi2True)
         except FMICallException as refused:
             if refused.status == fmi2Discard:
                 self.time = self.last_successful_time()
             raise
-        self.time += size
+        self.time = start + size
         return status
 
     def last_successful_time(self) -> float:

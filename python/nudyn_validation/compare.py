@@ -205,7 +205,7 @@ def run_scenario(package: FmuPackage, model_path: Path, scenario: Scenario, sett
             start = time.perf_counter()
             try:
                 fmu.set_array("eps", eps)
-                fmu.step(h)
+                fmu.step(h, communication_point=t)
             except FMICallException as e:
                 raise ValidationError(
                     f"{scenario.name}: the FMU failed the step from t = {t:g} s: {e} ({fmu.log.last_problem()})"
