@@ -23,6 +23,7 @@ from fmpy.fmi2 import (
     fmi2True,
 )
 
+from .errors import DriverError
 from .package import FmuPackage
 
 STATUS_NAMES = {0: "fmi2OK", 1: "fmi2Warning", 2: "fmi2Discard", 3: "fmi2Error", 4: "fmi2Fatal", 5: "fmi2Pending"}
@@ -91,9 +92,13 @@ class Instance:
 
     Before fmi2EnterInitializationMode it sets `start` by variable name
     (parameters and start values; an Enumeration takes its item's name) and
-    the initial θ and ν (initial="exact"). `time` is the communication point
-    of the next step. `fmu` is FMPy's FMU2Slave, for the FMI calls this class
-    does not wrap; every failing call raises FMPy's FMICallException."""
+    the initial θ and ν (initial="exact"); a value the FMU refuses there is a
+    DriverError with the FMU's words, and the instance is freed. `logging_on`
+    is fmi2Instantiate's loggingOn: every log category, logCalls included
+    (whose fmi2DoStep messages count the internal steps). `time` is the
+    communication point of the next step. `fmu` is FMPy's FMU2Slave, for the
+    FMI calls this class does not wrap; every failing call after
+    initialization raises FMPy's FMICallException."""
 
     def __init__(
         self,
@@ -105,7 +110,7 @@ class Instance:
         nu: Iterable[float] | None = None,
         experiment_tolerance: float | None = None,
         stop_time: float | None = None,
-        log_calls: bool = False,
+        logging_on: bool = False,
     ):
         self.package = package
         values = dict(start or {})
@@ -121,11 +126,16 @@ class Instance:
             modelIdentifier=package.model_identifier,
             instanceName=name,
         )
-        self.fmu.instantiate(callbacks=self.log.callbacks, loggingOn=log_calls)
-        self.fmu.setupExperiment(tolerance=experiment_tolerance, startTime=0.0, stopTime=stop_time)
-        self._set_grouped(initial)
-        self.fmu.enterInitializationMode()
-        self.fmu.exitInitializationMode()
+        self.fmu.instantiate(callbacks=self.log.callbacks, loggingOn=logging_on)
+        try:
+            self.fmu.setupExperiment(tolerance=experiment_tolerance, startTime=0.0, stopTime=stop_time)
+            self._set_grouped(initial)
+            self.fmu.enterInitializationMode()
+            self.fmu.exitInitializationMode()
+        except FMICallException as refused:
+            # The caller never gets this instance, so it cannot free it.
+            self.fmu.freeInstance()
+            raise DriverError(f"{name}: {refused} {self.log.last_problem()}".rstrip()) from None
         self.time = 0.0
 
     def __enter__(self) -> Instance:

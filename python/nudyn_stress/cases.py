@@ -21,7 +21,6 @@ from nudyn_driver.package import FmuPackage
 from nudyn_driver.structure import VehicleStructure
 
 from . import plots, vehicles
-from .runs import OUTPUTS, Run, Setup, simulate, start_instance
 from .measures import (
     energy_residual,
     evaluation_cost,
@@ -32,6 +31,7 @@ from .measures import (
     sqrt_d,
     steps_per_second,
 )
+from .runs import OUTPUTS, Run, Setup, simulate, start_instance
 
 # The run every accuracy is measured against, where there is no exact
 # solution: DOP853 four orders of magnitude tighter than the default (at

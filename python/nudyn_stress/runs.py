@@ -46,9 +46,9 @@ class Setup:
 
 
 def start_instance(package: FmuPackage, setup: Setup, theta0, nu0) -> Instance:
-    """An instance at (θ₀, ν₀) with a Setup, logging its calls: fmi2DoStep's
-    messages give the internal step counts."""
-    return Instance(package, name="stress", start=setup.start(), theta=theta0, nu=nu0, log_calls=True)
+    """An instance at (θ₀, ν₀) with a Setup, logging on: fmi2DoStep's
+    logCalls messages give the internal step counts."""
+    return Instance(package, name="stress", start=setup.start(), theta=theta0, nu=nu0, logging_on=True)
 
 
 @dataclass
