@@ -54,10 +54,6 @@ class VehicleStructure:
         """θ index of each unit quaternion's w (q and −q are one rotation)."""
         return [j.quaternion_adr for j in self.joints if j.quaternion_adr is not None]
 
-    def qpos_of(self, kind: str) -> list[int]:
-        """θ indices of the joints of one kind."""
-        return [k for j in self.joints if j.kind == kind for k in j.qpos]
-
     @property
     def translational_dofs(self) -> list[int]:
         """ν indices measured in m/s: a free joint's first three (its linear
