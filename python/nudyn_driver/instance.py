@@ -85,6 +85,8 @@ class Log:
 
 
 Value = float | int | bool | str
+# (value references, values) by the type of FMI setter that takes them.
+Groups = dict[str, tuple[list[int], list[Value]]]
 
 
 class Instance:
@@ -149,10 +151,10 @@ class Instance:
         Integers and Enumerations, then the Booleans."""
         self._set_grouped(self._grouped(values))
 
-    def _grouped(self, values: Mapping[str, Value]) -> dict[str, tuple[list[int], list[Value]]]:
-        """(value references, values) by FMI setter type; enumeration items
-        by value. Unknown names and items raise here, before any FMI call."""
-        groups: dict[str, tuple[list[int], list[Value]]] = {"Real": ([], []), "Integer": ([], []), "Boolean": ([], [])}
+    def _grouped(self, values: Mapping[str, Value]) -> Groups:
+        """`values` by setter, enumeration items by value. Unknown names and
+        items raise here, before any FMI call."""
+        groups: Groups = {"Real": ([], []), "Integer": ([], []), "Boolean": ([], [])}
         for name, value in values.items():
             kind = self.package.variable(name).type
             if kind == "Enumeration":
@@ -164,7 +166,7 @@ class Instance:
             group.append(value)
         return groups
 
-    def _set_grouped(self, groups: dict[str, tuple[list[int], list[Value]]]) -> None:
+    def _set_grouped(self, groups: Groups) -> None:
         setters = {"Real": self.fmu.setReal, "Integer": self.fmu.setInteger, "Boolean": self.fmu.setBoolean}
         for kind, (refs, group) in groups.items():
             if refs:
