@@ -32,12 +32,11 @@ trap 'rm -rf "$WORK"' EXIT
 # --- memory ---------------------------------------------------------------------
 target/release/nudyn export examples/bus_arm7.xml -o "$WORK/bus.fmu" --outputs qvel,kinetic_energy,power,momentum \
     >/dev/null
-.venv/bin/python - "$WORK/bus.fmu" "$WORK/bus" >"$WORK/fmu.txt" <<'EOF'
-import sys, zipfile, xml.etree.ElementTree as ET
-zipfile.ZipFile(sys.argv[1]).extractall(sys.argv[2])
-root = ET.parse(f"{sys.argv[2]}/modelDescription.xml").getroot()
-reals = [v for v in root.find("ModelVariables") if v.find("Real") is not None]
-print(root.find("CoSimulation").get("modelIdentifier"), root.get("guid"), len(reals))
+PYTHONPATH=python .venv/bin/python - "$WORK/bus.fmu" "$WORK/bus" >"$WORK/fmu.txt" <<'EOF'
+import sys
+from nudyn_driver.package import FmuPackage
+fmu = FmuPackage.unzip(sys.argv[1], sys.argv[2])
+print(fmu.model_identifier, fmu.guid, len(fmu.reals))
 EOF
 read -r IDENTIFIER GUID REALS <"$WORK/fmu.txt"
 gcc -O1 -g -Wall -Wextra -Werror -o "$WORK/fmu_runs" tests/memory/fmu_runs.c -ldl -lm

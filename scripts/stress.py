@@ -17,7 +17,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "python"))
 
 from nudyn_stress.cases import CASES, Context  # noqa: E402  (needs the path above)
-from nudyn_stress.fmu import StressError  # noqa: E402
+from nudyn_driver.errors import DriverError  # noqa: E402
 from nudyn_stress.report import write  # noqa: E402
 
 
@@ -38,7 +38,7 @@ def main() -> int:
         start = time.perf_counter()
         try:
             result = CASES[name](ctx)
-        except StressError as e:
+        except DriverError as e:
             print(e, file=sys.stderr)
             return 2
         results.append(result)

@@ -4,12 +4,12 @@ Pinocchio's ABA (timed from Python, call overhead included and measured)."""
 
 from __future__ import annotations
 
-import json
-import subprocess
 import time
 from pathlib import Path
 
 import numpy as np
+
+from nudyn_driver.cli import run_json
 
 from .vehicles import Vehicle, mujoco_library
 
@@ -27,10 +27,7 @@ def eval_cost(bench: Path, vehicle: Vehicle, repetitions: int, batch_ms: float, 
         cmd.append("--shortcuts")
     if dense:
         cmd.append("--dense")
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise RuntimeError(f"`{' '.join(cmd)}` failed:\n{proc.stderr}")
-    return json.loads(proc.stdout)
+    return run_json(cmd)
 
 
 def _time_calls(call, repetitions: int, batch_s: float) -> list[float]:
@@ -136,7 +133,4 @@ def eval_cost_side_by_side(bench: Path, vehicles: list[Vehicle], repetitions: in
     cmd = [str(bench), "eval-cost-side-by-side", "--repetitions", str(repetitions), "--batch-ms", str(batch_ms)]
     for vehicle in vehicles:
         cmd += ["--model", str(vehicle.path), "--state", str(vehicle.state_path)]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise RuntimeError(f"`{' '.join(cmd)}` failed:\n{proc.stderr}")
-    return json.loads(proc.stdout)
+    return run_json(cmd)

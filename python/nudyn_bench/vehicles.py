@@ -13,6 +13,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from nudyn_driver.cli import Nudyn
 from nudyn_validation.mujoco_reference import MujocoFactor, load_model
 from nudyn_validation.scenarios import make_scenario
 
@@ -129,9 +130,7 @@ def prepare_chain_without_mujoco(links: int, path: Path, nudyn: Path, work: Path
     quat = rng.normal(size=4)
     qpos = np.concatenate([rng.uniform(-0.5, 0.5, 3), quat / np.linalg.norm(quat), rng.uniform(-0.5, 0.5, links)])
     qvel = rng.normal(0.0, np.concatenate([[0.05] * 3, [0.1] * 3, [0.2] * links]))
-    request = json.dumps({"theta": list(qpos), "qvel": list(qvel)})
-    proc = subprocess.run([str(nudyn), "eval", str(path)], input=request, capture_output=True, text=True, check=True)
-    nu = np.array(json.loads(proc.stdout)["nu"])
+    nu = np.array(Nudyn(nudyn).eval(path, {"theta": list(qpos), "qvel": list(qvel)})["nu"])
     state_path = work / f"chain{links}.state.json"
     state_path.write_text(json.dumps({"theta": list(qpos), "nu": list(nu), "qvel": list(qvel)}))
     return Vehicle(f"chain{links}", path, None, None, state_path, qpos, qvel, nu)

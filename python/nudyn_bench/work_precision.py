@@ -14,8 +14,6 @@ tight tolerance: an independent computation of the same motion."""
 
 from __future__ import annotations
 
-import json
-import subprocess
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,6 +22,7 @@ import mujoco
 import mujoco.rollout
 import numpy as np
 
+from nudyn_driver.cli import run_json
 from nudyn_validation.compare import quaternion_starts
 
 from .vehicles import Vehicle
@@ -147,10 +146,7 @@ def nudyn_runs(bench: Path, vehicle: Vehicle, runs: list[str], plan: Plan, sampl
         cmd.append("--no-samples")
     for run in runs:
         cmd += ["--run", run]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise RuntimeError(f"`{' '.join(cmd)}` failed:\n{proc.stderr}")
-    return json.loads(proc.stdout)
+    return run_json(cmd)
 
 
 def max_error(model: mujoco.MjModel, qpos, qvel, reference_qpos, reference_qvel) -> float:

@@ -19,15 +19,16 @@ integration does not depend on how its steps are cut (ε is held)."""
 from __future__ import annotations
 
 import math
-import subprocess
 import time
 import xml.sax.saxutils as xml
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from fmpy import extract, read_model_description
-from fmpy.fmi2 import FMU2Slave
+
+from nudyn_driver.cli import Nudyn
+from nudyn_driver.instance import Instance
+from nudyn_driver.package import FmuPackage
 
 from .scenarios import Scenario
 
@@ -51,75 +52,42 @@ class Trajectory:
 
 def export(nudyn: Path, scenario: Scenario, directory: Path) -> tuple[Path, Path]:
     """The plant FMU and the controller FMU of the scenario's vehicle."""
-    directory.mkdir(parents=True, exist_ok=True)
-    plant, controller = directory / "plant.fmu", directory / "controller.fmu"
-    commands = [[str(nudyn), "export", str(scenario.mjcf), "-o", str(plant)],
-                [str(nudyn), "export", str(scenario.mjcf), "--controller", "-o", str(controller)]]
-    if scenario.end_effector:
-        commands[1] += ["--end-effector", scenario.end_effector]
-    for command in commands:
-        proc = subprocess.run(command, capture_output=True, text=True)
-        if proc.returncode != 0:
-            raise RuntimeError(f"`{' '.join(command)}` failed:\n{proc.stderr}")
+    cli = Nudyn(nudyn)
+    plant = cli.export(scenario.mjcf, directory / "plant.fmu")
+    controller = cli.export(scenario.mjcf, directory / "controller.fmu", controller=True,
+                            end_effector=scenario.end_effector)
     return plant, controller
 
 
-def _count(description, prefix: str) -> int:
-    return sum(1 for v in description.modelVariables if v.name.startswith(prefix + "["))
-
-
-class _Fmu:
-    """An FMU2Slave with its value references by name."""
-
-    def __init__(self, path: Path, directory: Path, name: str):
-        self.description = read_model_description(str(path))
-        self.vr = {v.name: v.valueReference for v in self.description.modelVariables}
-        self.slave = FMU2Slave(guid=self.description.guid, unzipDirectory=extract(str(path), str(directory)),
-                               modelIdentifier=self.description.coSimulation.modelIdentifier, instanceName=name)
-
-    def refs(self, prefix: str, count: int) -> list[int]:
-        return [self.vr[f"{prefix}[{k}]"] for k in range(1, count + 1)]
-
-    def start(self, values: dict[str, float], stop_time: float) -> None:
-        self.slave.instantiate()
-        self.slave.setupExperiment(startTime=0.0, stopTime=stop_time)
-        if values:
-            self.slave.setReal([self.vr[n] for n in values], list(values.values()))
-        self.slave.enterInitializationMode()
-        self.slave.exitInitializationMode()
-
-
 def run_fmpy(plant_fmu: Path, controller_fmu: Path, scenario: Scenario, workdir: Path) -> Trajectory:
-    plant = _Fmu(plant_fmu, workdir / "fmpy_plant", "plant")
-    controller = _Fmu(controller_fmu, workdir / "fmpy_controller", "controller")
-    nq, nv = _count(plant.description, "theta"), _count(plant.description, "nu")
-    theta_refs, nu_refs, eps_refs = plant.refs("theta", nq), plant.refs("nu", nv), plant.refs("eps", nv)
-    inputs = controller.refs("theta", nq) + controller.refs("nu", nv)
-    outputs = controller.refs("eps", nv)
+    plant_package = FmuPackage.unzip(plant_fmu, workdir / "fmpy_plant")
+    controller_package = FmuPackage.unzip(controller_fmu, workdir / "fmpy_controller")
+    nq, nv = plant_package.nq, plant_package.nv
     h, m = scenario.step, scenario.substeps
     periods = round(scenario.duration / h)
     samples = periods * m
     theta, nu, eps = np.zeros((samples + 1, nq)), np.zeros((samples + 1, nv)), np.zeros((samples, nv))
 
     started = time.perf_counter()
-    plant.start(scenario.plant_start, scenario.duration)
-    controller.start(scenario.controller, scenario.duration)
-    theta[0], nu[0] = plant.slave.getReal(theta_refs), plant.slave.getReal(nu_refs)
+    plant = Instance(plant_package, name="plant", start=scenario.plant_start, stop_time=scenario.duration)
+    controller = Instance(controller_package, name="controller", start=scenario.controller,
+                          stop_time=scenario.duration)
+    theta[0], nu[0] = plant.array("theta"), plant.array("nu")
     for k in range(periods):
         j0 = k * m
-        controller.slave.setReal(inputs, [*theta[j0], *nu[j0]])
-        held = controller.slave.getReal(outputs)
-        plant.slave.setReal(eps_refs, held)
+        controller.set_array("theta", theta[j0])
+        controller.set_array("nu", nu[j0])
+        held = controller.array("eps")
+        plant.set_array("eps", held)
         for i in range(m):
             j = j0 + i
-            plant.slave.doStep(currentCommunicationPoint=j * h / m, communicationStepSize=h / m)
+            plant.step(h / m, communication_point=j * h / m)
             eps[j] = held
-            theta[j + 1], nu[j + 1] = plant.slave.getReal(theta_refs), plant.slave.getReal(nu_refs)
-        controller.slave.doStep(currentCommunicationPoint=k * h, communicationStepSize=h)
+            theta[j + 1], nu[j + 1] = plant.array("theta"), plant.array("nu")
+        controller.step(h, communication_point=k * h)
     wall = time.perf_counter() - started
-    for fmu in (plant, controller):
-        fmu.slave.terminate()
-        fmu.slave.freeInstance()
+    plant.close()
+    controller.close()
     return Trajectory("FMPy", np.arange(samples + 1) * h / m, theta, nu, eps, h, m, wall)
 
 
@@ -166,8 +134,8 @@ def run_libcosim(plant_fmu: Path, controller_fmu: Path, scenario: Scenario, work
     from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
     from libcosimpy.CosimObserver import CosimObserver
 
-    description = read_model_description(str(plant_fmu))
-    nq, nv = _count(description, "theta"), _count(description, "nu")
+    plant = FmuPackage.unzip(plant_fmu, workdir / "libcosim_plant")
+    nq, nv = plant.nq, plant.nv
     case = workdir / "libcosim"
     case.mkdir(parents=True, exist_ok=True)
     for fmu, name in ((plant_fmu, "plant.fmu"), (controller_fmu, "controller.fmu")):
@@ -182,17 +150,16 @@ def run_libcosim(plant_fmu: Path, controller_fmu: Path, scenario: Scenario, work
     execution = CosimExecution.from_osp_config_file(str(case))
     index = execution.slave_index_from_instance_name("plant")
     references = {v.name.decode(): v.reference for v in execution.slave_variables(index)}
-    theta_refs = [references[f"theta[{k}]"] for k in range(1, nq + 1)]
-    nu_refs = [references[f"nu[{k}]"] for k in range(1, nv + 1)]
-    eps_refs = [references[f"eps[{k}]"] for k in range(1, nv + 1)]
+    theta_refs, nu_refs, eps_refs = ([references[name] for name in plant.names(prefix)] for prefix in ("theta", "nu", "eps"))
     observer = CosimObserver.create_last_value()
     execution.add_observer(observer)
     theta, nu, eps = np.zeros((samples + 1, nq)), np.zeros((samples + 1, nv)), np.zeros((samples, nv))
     times = np.zeros(samples + 1)
-    start = {**{f"theta[{k + 1}]": float(x) for k, x in enumerate(_qpos0(description))},
-             **{f"nu[{k}]": 0.0 for k in range(1, nv + 1)}, **scenario.plant_start}
-    theta[0] = [start[f"theta[{k}]"] for k in range(1, nq + 1)]
-    nu[0] = [start[f"nu[{k}]"] for k in range(1, nv + 1)]
+    # The plant starts from the FMU's start values, overridden by the scenario's.
+    start = {name: value for prefix in ("theta", "nu") for name, value in zip(plant.names(prefix), plant.starts(prefix))}
+    start |= scenario.plant_start
+    theta[0] = [start[name] for name in plant.names("theta")]
+    nu[0] = [start[name] for name in plant.names("nu")]
     for j in range(samples):
         if not execution.step(1):
             raise RuntimeError(f"libcosim failed at step {j}")
@@ -206,6 +173,3 @@ def run_libcosim(plant_fmu: Path, controller_fmu: Path, scenario: Scenario, work
         raise RuntimeError(f"libcosim stopped at t = {times[-1]}, expected {scenario.duration}")
     return Trajectory("libcosim", times, theta, nu, eps, h, m, wall)
 
-
-def _qpos0(description) -> list[float]:
-    return [float(v.start) for v in description.modelVariables if v.name.startswith("theta[")]

@@ -14,8 +14,13 @@ from pathlib import Path
 
 import numpy as np
 
+from nudyn_driver.cli import Nudyn
+from nudyn_driver.errors import DriverError
+from nudyn_driver.instance import STATUS_NAMES, status_of
+from nudyn_driver.package import FmuPackage
+from nudyn_driver.structure import VehicleStructure
+
 from . import plots, vehicles
-from .fmu import FMI_STATUS, Instance, Package, Run, Setup, export, simulate
 from .measures import (
     energy_residual,
     evaluation_cost,
@@ -26,6 +31,7 @@ from .measures import (
     sqrt_d,
     steps_per_second,
 )
+from .runs import OUTPUTS, Run, Setup, simulate, start_instance
 
 # The run every accuracy is measured against, where there is no exact
 # solution: DOP853 four orders of magnitude tighter than the default (at
@@ -79,13 +85,26 @@ class Context:
     long: bool
     seed: int = 1
     _packages: dict = field(default_factory=dict)
+    _structures: dict = field(default_factory=dict)
 
-    def package(self, model: Path) -> Package:
+    @property
+    def cli(self) -> Nudyn:
+        # The FMU binary built with this nudyn, whatever NUDYN_FMU_LIB says.
+        library = self.nudyn.parent / "libnudyn_fmu.so"
+        return Nudyn(self.nudyn, library if library.is_file() else None)
+
+    def package(self, model: Path) -> FmuPackage:
         """The model exported (and unzipped) once, under out_dir/fmus."""
         if model not in self._packages:
-            fmu = export(self.nudyn, model, self.out_dir / "fmus" / f"{model.stem}.fmu")
-            self._packages[model] = Package(fmu, self.out_dir / "fmus" / model.stem)
+            fmu = self.cli.export(model, self.out_dir / "fmus" / f"{model.stem}.fmu", outputs=OUTPUTS)
+            self._packages[model] = FmuPackage.unzip(fmu, self.out_dir / "fmus" / model.stem)
         return self._packages[model]
+
+    def structure(self, model: Path) -> VehicleStructure:
+        """The model's joints and their θ/ν addresses (`nudyn describe`)."""
+        if model not in self._structures:
+            self._structures[model] = self.cli.describe(model)
+        return self._structures[model]
 
     @property
     def vehicles_dir(self) -> Path:
@@ -98,39 +117,30 @@ class Context:
         return np.random.default_rng(self.seed)
 
 
-def _theta_variables(package: Package):
-    return [v for v in package.description.modelVariables if v.name.startswith("theta[")]
-
-
-def _nu_variables(package: Package):
-    return [v for v in package.description.modelVariables if v.name.startswith("nu[")]
-
-
-def start_pose(package: Package, rng: np.random.Generator, hinge_offset: float = 0.5) -> np.ndarray:
+def start_pose(structure: VehicleStructure, rng: np.random.Generator, hinge_offset: float = 0.5) -> np.ndarray:
     """The model's pose with hinges offset by up to ±hinge_offset rad and
     random orientations of ball and free joints (free positions kept)."""
-    theta_vars = _theta_variables(package)
-    theta = np.array([float(v.start) for v in theta_vars])
-    for k, v in enumerate(theta_vars):
-        if "quaternion w" in v.description:
+    theta = np.array(structure.qpos0)
+    for joint in structure.joints:
+        if joint.quaternion_adr is not None:
             q = rng.normal(size=4)
-            theta[k : k + 4] = q / np.linalg.norm(q)
-        elif v.description.startswith("qpos of hinge"):
-            theta[k] += rng.uniform(-hinge_offset, hinge_offset)
+            theta[joint.quaternion_adr : joint.quaternion_adr + 4] = q / np.linalg.norm(q)
+        elif joint.kind == "hinge":
+            theta[joint.qpos_adr] += rng.uniform(-hinge_offset, hinge_offset)
     return theta
 
 
-def random_qvel(package: Package, rng: np.random.Generator, angular: float, linear: float) -> np.ndarray:
+def random_qvel(structure: VehicleStructure, rng: np.random.Generator, angular: float, linear: float) -> np.ndarray:
     """N(0, angular) rad/s per rotational dof, N(0, linear) m/s per
     translational one."""
-    scales = [linear if "linear velocity" in v.description else angular for v in _nu_variables(package)]
-    return rng.normal(0.0, scales)
+    translational = set(structure.translational_dofs)
+    return rng.normal(0.0, [linear if k in translational else angular for k in range(structure.nv)])
 
 
 def _outcome(run: Run) -> str:
     if run.completed:
         return "completed"
-    return f"{FMI_STATUS[run.status]} at t = {run.time[-1]:.4g} s"
+    return f"{STATUS_NAMES[run.status]} at t = {run.time[-1]:.4g} s"
 
 
 def _relaxed(run: Run) -> str:
@@ -165,9 +175,10 @@ def long_tumbling(ctx: Context) -> CaseResult:
     and without energy projection, and the FMU's defaults."""
     model = vehicles.BUS_ARM7
     package = ctx.package(model)
+    structure = ctx.structure(model)
     rng = ctx.rng()
-    theta0 = start_pose(package, rng)
-    nu0 = nu_of(ctx.nudyn, model, theta0, random_qvel(package, rng, angular=0.1, linear=0.05))
+    theta0 = start_pose(structure, rng)
+    nu0 = nu_of(ctx.nudyn, model, theta0, random_qvel(structure, rng, angular=0.1, linear=0.05))
     duration = 1e4 if ctx.long else 1e3
     comm_step = 10.0
     # max_step = the communication step: the tolerance alone sets the steps.
@@ -232,6 +243,7 @@ def _accuracy_case(ctx, model, key, title, checked, theta0, nu0, eps_law, durati
     held (fmi2Warning) and keep K and momentum to it, and their errors are
     reported, not judged."""
     package = ctx.package(model)
+    structure = ctx.structure(model)
     setups = [Setup("rk4"), Setup("dopri5"), Setup("dop853"), *extra_setups]
     rows, error_series, failures = [], {}, []
     numbers = {"spread": {}}
@@ -240,20 +252,20 @@ def _accuracy_case(ctx, model, key, title, checked, theta0, nu0, eps_law, durati
         spread = 0.0
         if round_off_probe is not None:
             probe = simulate(package, round_off_probe, theta0, nu0, duration, comm_step, law)
-            probe_error = scaled_error(probe, reference, package.quaternion_starts)
+            probe_error = scaled_error(probe, reference, structure.quaternion_starts)
             error_series[f"{round_off_probe.label()} (the spread), {label}"] = (np.array(probe.time[: len(probe_error)]),
                                                                                probe_error)
             spread = float(np.max(probe_error))
             numbers["spread"][label] = spread
-            rows.append(_row(probe, reference=reference, quaternion_starts=package.quaternion_starts,
+            rows.append(_row(probe, reference=reference, quaternion_starts=structure.quaternion_starts,
                              conserved=law is None, momentum_conserved=law is None,
                              note=f"{label}; round-off probe: its distance from the reference is the spread"))
         for setup in setups:
             run = simulate(package, setup, theta0, nu0, duration, comm_step, law)
-            row = _row(run, reference=reference, quaternion_starts=package.quaternion_starts,
+            row = _row(run, reference=reference, quaternion_starts=structure.quaternion_starts,
                        conserved=law is None, momentum_conserved=law is None, note=label)
             rows.append(row)
-            error = scaled_error(run, reference, package.quaternion_starts)
+            error = scaled_error(run, reference, structure.quaternion_starts)
             error_series[f"{setup.label()}, {label}"] = (np.array(run.time[: len(error)]), error)
             if not run.completed:
                 failures.append(f"{row.setup} ({label}): {row.outcome}")
@@ -300,8 +312,7 @@ def mujoco_agreement(ctx: Context, model: Path, duration: float = 2.0, method: s
     """The FMU (`method`, its defaults; rk4 at MuJoCo's step) against
     MuJoCo's RK4 at 1e-4 s on the validation's sine scenario: an independent
     check of the same dynamics."""
-    from nudyn_validation.compare import Settings, validate_model
-    from nudyn_validation.fmu_run import ValidationError
+    from nudyn_validation.compare import Settings, ValidationError, validate_model
 
     try:
         validation = validate_model(
@@ -309,7 +320,7 @@ def mujoco_agreement(ctx: Context, model: Path, duration: float = 2.0, method: s
             Settings(duration=duration, method=method,
                      fmu_parameters={"max_step": Settings.mujoco_step} if method == "rk4" else None),
         )
-    except ValidationError as e:
+    except (ValidationError, DriverError) as e:
         return {"duration": duration, "max_error": math.inf, "failure": str(e)}
     summary = validation.results[0].summary()
     return {
@@ -324,9 +335,10 @@ def mujoco_agreement(ctx: Context, model: Path, duration: float = 2.0, method: s
 def mass_ratio(ctx: Context) -> CaseResult:
     model = vehicles.mass_ratio(ctx.vehicles_dir)
     package = ctx.package(model)
+    structure = ctx.structure(model)
     rng = ctx.rng()
-    theta0 = start_pose(package, rng)
-    qvel = random_qvel(package, rng, angular=0.2, linear=0.05)
+    theta0 = start_pose(structure, rng)
+    qvel = random_qvel(structure, rng, angular=0.2, linear=0.05)
     qvel[-3:] = rng.normal(0.0, 2.0, 3)  # the tip whirls at a few rad/s
     nu0 = nu_of(ctx.nudyn, model, theta0, qvel)
     # ε that changes each dof's rate by ~0.1 rad/s in a second.
@@ -347,9 +359,10 @@ def long_chain(ctx: Context) -> CaseResult:
     links = 1000
     model = vehicles.chain(ctx.vehicles_dir, links)
     package = ctx.package(model)
+    structure = ctx.structure(model)
     rng = ctx.rng()
-    theta0 = start_pose(package, rng)
-    nu0 = nu_of(ctx.nudyn, model, theta0, random_qvel(package, rng, angular=0.02, linear=0.005))
+    theta0 = start_pose(structure, rng)
+    nu0 = nu_of(ctx.nudyn, model, theta0, random_qvel(structure, rng, angular=0.02, linear=0.005))
     duration, comm_step = (10.0, 0.1) if ctx.long else (3.0, 0.1)
     cost = evaluation_cost(package, theta0, nu0, steps=20)
     setups = [Setup("rk4"), Setup("dop853"), Setup("dop853", tolerance=1e-6), Setup("dopri5", tolerance=1e-6)]
@@ -406,11 +419,11 @@ def stiff_boom(ctx: Context) -> CaseResult:
     stiffness = 1e5
     model = vehicles.stiff_boom(ctx.vehicles_dir, stiffness)
     package = ctx.package(model)
+    structure = ctx.structure(model)
     rng = ctx.rng()
     omega = highest_modal_frequency(model)
-    theta0 = start_pose(package, rng, hinge_offset=0.0)
-    theta_vars = _theta_variables(package)
-    bends = [k for k, v in enumerate(theta_vars) if "boom_bend" in v.description]
+    theta0 = start_pose(structure, rng, hinge_offset=0.0)
+    bends = [k for joint in structure.joints if "boom_bend" in joint.name for k in joint.qpos]
     theta0[bends] += rng.uniform(-0.01, 0.01, len(bends))  # the boom released 10 mrad off its rest shape
     qvel = np.zeros(package.nv)
     qvel[3:6] = rng.normal(0.0, 0.05, 3)  # the bus tumbles slowly
@@ -431,7 +444,7 @@ def stiff_boom(ctx: Context) -> CaseResult:
     ]
     reference = simulate(package, Setup("dop853", tolerance=1e-12, max_step=1e-3), theta0, nu0, duration, comm_step)
     runs = [simulate(package, s, theta0, nu0, duration, comm_step) for s in setups]
-    rows = [_row(r, reference=reference, quaternion_starts=package.quaternion_starts, conserved=False) for r in runs]
+    rows = [_row(r, reference=reference, quaternion_starts=structure.quaternion_starts, conserved=False) for r in runs]
     failures = []
     for run, row in zip(runs, rows):
         finite = all(np.all(np.isfinite(x)) for x in (run.theta[-1], run.nu[-1]))
@@ -464,9 +477,10 @@ def stiff_boom(ctx: Context) -> CaseResult:
 def thin_rods(ctx: Context) -> CaseResult:
     model = vehicles.thin_rods(ctx.vehicles_dir)
     package = ctx.package(model)
+    structure = ctx.structure(model)
     rng = ctx.rng()
-    theta0 = start_pose(package, rng)
-    qvel = random_qvel(package, rng, angular=0.5, linear=0.05)
+    theta0 = start_pose(structure, rng)
+    qvel = random_qvel(structure, rng, angular=0.5, linear=0.05)
     qvel[3:6] = rng.normal(0.0, 0.05, 3)  # the bus tumbles slowly
     qvel[[6, 9, 12]] = 5.0  # each rod spins about its own axis at 5 rad/s
     nu0 = nu_of(ctx.nudyn, model, theta0, qvel)
@@ -603,29 +617,26 @@ def extreme_inputs(ctx: Context) -> CaseResult:
     """ε = 1e300, NaN, ±Inf on bus_arm7, then a sweep of |ε| = 10^k."""
     model = vehicles.BUS_ARM7
     package = ctx.package(model)
+    structure = ctx.structure(model)
     rng = ctx.rng()
-    theta0 = start_pose(package, rng)
-    nu0 = nu_of(ctx.nudyn, model, theta0, random_qvel(package, rng, angular=0.1, linear=0.05))
+    theta0 = start_pose(structure, rng)
+    nu0 = nu_of(ctx.nudyn, model, theta0, random_qvel(structure, rng, angular=0.1, linear=0.05))
     comm_step = 0.01
     rows, failures = [], []
     for method in ("rk4", "dopri5", "dop853"):
         for label, value in (("NaN", math.nan), ("+Inf", math.inf), ("-Inf", -math.inf), ("1e300", 1e300)):
-            instance = Instance(package, Setup(method), theta0, nu0)
-            try:
-                instance.do_step(comm_step)
+            with start_instance(package, Setup(method), theta0, nu0) as fmu:
+                fmu.step(comm_step)
                 eps = np.zeros(package.nv)
                 eps[7] = value
-                set_status = instance.set_eps(eps)
-                set_message = instance.log.last() if set_status else ""
-                step_status = instance.do_step(comm_step)
-                step_message = instance.log.last() if step_status else ""
-                after = instance.all_reals()
-                finite = bool(np.all(np.isfinite(after)))
-                reached = instance.last_successful_time() if step_status else instance.time
-                terminated = instance.terminated() if step_status else False
-            finally:
-                instance.close()
-            outcome = (f"setReal: {FMI_STATUS[set_status]}; doStep: {FMI_STATUS[step_status]}, "
+                set_status = status_of(fmu.set_array, "eps", eps)
+                set_message = fmu.log.last_problem() if set_status else ""
+                step_status = status_of(fmu.step, comm_step)
+                step_message = fmu.log.last_problem() if step_status else ""
+                finite = bool(np.all(np.isfinite(fmu.all_reals())))
+                reached = fmu.last_successful_time() if step_status else fmu.time
+                terminated = fmu.terminated() if step_status else False
+            outcome = (f"setReal: {STATUS_NAMES[set_status]}; doStep: {STATUS_NAMES[step_status]}, "
                        f"LastSuccessfulTime = {reached:g} s{', terminated' if terminated else ''}")
             message = set_message or step_message
             rows.append(Row(f"{method}, eps[8] = {label}", outcome, note=f"outputs finite: {finite}; “{message}”"))
@@ -634,11 +645,11 @@ def extreme_inputs(ctx: Context) -> CaseResult:
             if math.isfinite(value):
                 # Overflow: the step is discarded somewhere inside it.
                 if step_status != 2 or not (comm_step <= reached < 2 * comm_step):
-                    failures.append(f"{method} {label}: doStep gave {FMI_STATUS[step_status]} at {reached:g}")
+                    failures.append(f"{method} {label}: doStep gave {STATUS_NAMES[step_status]} at {reached:g}")
             elif set_status != 2 or step_status != 0:
                 # Refused: the value never reaches the FMU, which steps on with the ε it had.
-                failures.append(f"{method} {label}: setReal gave {FMI_STATUS[set_status]}, "
-                                f"then doStep {FMI_STATUS[step_status]}")
+                failures.append(f"{method} {label}: setReal gave {STATUS_NAMES[set_status]}, "
+                                f"then doStep {STATUS_NAMES[step_status]}")
     sweep = epsilon_sweep(package, theta0, nu0, comm_step)
     plots.sweep_figure(ctx.figure("extreme_inputs"), sweep, comm_step)
     return CaseResult(
@@ -651,20 +662,17 @@ def extreme_inputs(ctx: Context) -> CaseResult:
     )
 
 
-def epsilon_sweep(package: Package, theta0, nu0, comm_step: float) -> dict:
+def epsilon_sweep(package: FmuPackage, theta0, nu0, comm_step: float) -> dict:
     """For |ε| = 10^k on every dof: how far one doStep gets, by method."""
     exponents = list(range(0, 301, 20))
     sweep = {"exponents": exponents}
     for method in ("rk4", "dopri5", "dop853"):
         reached = []
         for k in exponents:
-            instance = Instance(package, Setup(method), theta0, nu0)
-            try:
-                instance.set_eps(np.full(package.nv, 10.0**k))
-                instance.do_step(comm_step)
-                reached.append(instance.time)
-            finally:
-                instance.close()
+            with start_instance(package, Setup(method), theta0, nu0) as fmu:
+                fmu.set_array("eps", np.full(package.nv, 10.0**k))
+                status_of(fmu.step, comm_step)
+                reached.append(fmu.time)
         sweep[method] = reached
     return sweep
 

@@ -7,13 +7,14 @@ first given the sign nearer the reference's (q and −q are one rotation)."""
 
 from __future__ import annotations
 
-import json
-import subprocess
 from pathlib import Path
 
 import numpy as np
 
-from .fmu import Package, Run, Setup, simulate
+from nudyn_driver.cli import Nudyn
+from nudyn_driver.package import FmuPackage
+
+from .runs import Run, Setup, simulate
 
 # Dynamics evaluations per internal step (first-same-as-last saves one of
 # Dormand–Prince 5(4)'s seven stages).
@@ -65,7 +66,7 @@ def scaled_error(run: Run, reference: Run, quaternion_starts: list[int]) -> np.n
     return np.maximum(theta_error.max(axis=1), nu_error.max(axis=1))
 
 
-def evaluation_cost(package: Package, theta0, nu0, steps: int = 200, step: float = 1e-3) -> float:
+def evaluation_cost(package: FmuPackage, theta0, nu0, steps: int = 200, step: float = 1e-3) -> float:
     """Seconds per dynamics evaluation, from RK4 (4 per step, no error
     control)."""
     run = simulate(package, Setup("rk4", max_step=step), theta0, nu0, steps * step, steps * step)
@@ -81,16 +82,9 @@ def steps_per_second(run: Run) -> float:
     return (run.steps_taken + run.steps_rejected) / simulated
 
 
-def nudyn_eval(nudyn: Path, model: Path, requests: list[dict]) -> list[dict]:
-    proc = subprocess.run(
-        [str(nudyn), "eval", str(model)], input=json.dumps(requests), capture_output=True, text=True, check=True
-    )
-    return json.loads(proc.stdout)
-
-
 def nu_of(nudyn: Path, model: Path, theta, qvel) -> np.ndarray:
     """ν = m*(θ) qvel, from `nudyn eval`."""
-    return np.array(nudyn_eval(nudyn, model, [{"theta": list(map(float, theta)), "qvel": list(map(float, qvel))}])[0]["nu"])
+    return np.array(Nudyn(nudyn).eval(model, [{"theta": list(map(float, theta)), "qvel": list(map(float, qvel))}])[0]["nu"])
 
 
 def sqrt_d(nudyn: Path, model: Path, theta, nv: int) -> np.ndarray:
@@ -98,4 +92,4 @@ def sqrt_d(nudyn: Path, model: Path, theta, nv: int) -> np.ndarray:
     lower triangular."""
     theta = list(map(float, theta))
     requests = [{"theta": theta, "qvel": list(map(float, unit))} for unit in np.eye(nv)]
-    return np.array([out["nu"][k] for k, out in enumerate(nudyn_eval(nudyn, model, requests))])
+    return np.array([out["nu"][k] for k, out in enumerate(Nudyn(nudyn).eval(model, requests))])

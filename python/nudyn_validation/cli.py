@@ -8,8 +8,9 @@ import os
 import sys
 from pathlib import Path
 
-from .compare import Settings, validate_model
-from .fmu_run import ValidationError
+from nudyn_driver.errors import DriverError
+
+from .compare import Settings, ValidationError, validate_model
 from .report import write
 from .scenarios import SCENARIO_NAMES
 
@@ -83,7 +84,7 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     try:
         validation = validate_model(args.model, out / f"{args.model.stem}.fmu", args.nudyn, args.scenario, settings)
-    except ValidationError as e:
+    except (ValidationError, DriverError) as e:
         print(f"validate: {e}", file=sys.stderr)
         return 2
     paths = write(validation, out)

@@ -19,10 +19,20 @@ import mujoco
 import numpy as np
 from fmpy.fmi1 import FMICallException
 
-from .fmu_run import FmuPackage, FmuVehicle, ValidationError, export_fmu
+from nudyn_driver.cli import Nudyn
+from nudyn_driver.instance import Instance
+from nudyn_driver.package import FmuPackage
+
 from .mujoco_reference import load_model
 from .mujoco_run import MujocoVehicle
 from .scenarios import Scenario, default_scenarios, make_scenario
+
+# The optional outputs the comparison reads besides theta and nu.
+EXTRA_OUTPUTS = ("kinetic_energy", "momentum")
+
+
+class ValidationError(Exception):
+    """A problem with the user's input or set-up, reported as a message."""
 
 
 @dataclass
@@ -175,13 +185,15 @@ def run_scenario(package: FmuPackage, model_path: Path, scenario: Scenario, sett
     mj = MujocoVehicle(model_path, h / substeps)
     mj.set_state(scenario.qpos0, scenario.qvel0)
     # The FMU starts from the same θ and from MuJoCo's ν of the same qvel.
-    fmu = FmuVehicle(package, settings.method, settings.parameters(), scenario.qpos0, mj.nu())
+    fmu = Instance(package, name="validation", start={"method": settings.method, **settings.parameters()},
+                   theta=scenario.qpos0, nu=mj.nu())
     fmu_samples, mj_samples = _Samples(), _Samples()
     held = []
 
     def sample():
-        theta = fmu.theta()
-        fmu_samples.add(theta, fmu.nu(), fmu.kinetic_energy(), fmu.momentum(), mj.potential_energy_at(theta))
+        theta = fmu.array("theta")
+        fmu_samples.add(theta, fmu.array("nu"), fmu.real("kinetic_energy"), fmu.array("momentum"),
+                        mj.potential_energy_at(theta))
         mj_samples.add(mj.theta(), mj.nu(), mj.kinetic_energy(), mj.momentum(), mj.potential_energy())
 
     try:
@@ -192,9 +204,12 @@ def run_scenario(package: FmuPackage, model_path: Path, scenario: Scenario, sett
             held.append(eps)
             start = time.perf_counter()
             try:
-                fmu.do_step(t, h, eps)
+                fmu.set_array("eps", eps)
+                fmu.step(h, communication_point=t)
             except FMICallException as e:
-                raise ValidationError(f"{scenario.name}: the FMU failed the step from t = {t:g} s: {e}") from None
+                raise ValidationError(
+                    f"{scenario.name}: the FMU failed the step from t = {t:g} s: {e} ({fmu.log.last_problem()})"
+                ) from None
             fmu_samples.wall_time += time.perf_counter() - start
             start = time.perf_counter()
             mj.advance(eps, substeps)
@@ -218,6 +233,13 @@ def run_scenario(package: FmuPackage, model_path: Path, scenario: Scenario, sett
         quaternion_starts=quaternion_starts(mj.model),
         energy_is_conserved=scenario.unforced and not mj.has_dampers,
     )
+
+
+def check_real_parameters(package: FmuPackage, parameters: dict[str, float]) -> None:
+    known = sorted(package.parameters("Real"))
+    unknown = sorted(set(parameters) - set(known))
+    if unknown:
+        raise ValidationError(f"the FMU has no Real parameter {', '.join(unknown)} (it has: {', '.join(known)})")
 
 
 @dataclass
@@ -244,7 +266,7 @@ def validate_model(
     settings = settings or Settings()
     settings.check()
     # nudyn's importer first: its messages name the unsupported element.
-    export_fmu(nudyn, model_path, fmu_path)
+    Nudyn(nudyn).export(model_path, fmu_path, outputs=EXTRA_OUTPUTS)
     try:
         model = load_model(model_path)
         names = scenario_names or default_scenarios(model)
@@ -252,7 +274,8 @@ def validate_model(
     except ValueError as e:
         raise ValidationError(str(e)) from None
     with tempfile.TemporaryDirectory(prefix="nudyn-fmu-") as unzip_dir:
-        package = FmuPackage(fmu_path, Path(unzip_dir))
+        package = FmuPackage.unzip(fmu_path, Path(unzip_dir))
+        check_real_parameters(package, settings.parameters())
         if (package.nq, package.nv) != (model.nq, model.nv):
             raise ValidationError(
                 f"the FMU has nq = {package.nq}, nv = {package.nv} but MuJoCo's model has "

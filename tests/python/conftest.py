@@ -1,6 +1,6 @@
-"""Shared fixtures for the Python tests: the example files, the nudyn binary,
-and a runner for `nudyn eval` that prints everything needed to debug a
-failure."""
+"""Shared fixtures for the Python tests: the example files, the nudyn binary
+and its FMU library, and a runner for `nudyn eval` that prints everything
+needed to debug a failure."""
 
 from __future__ import annotations
 
@@ -24,6 +24,8 @@ sys.path.insert(0, str(HERE))
 # The MuJoCo reference and the validation against the FMU are a package
 # outside tests/, shared with scripts/validate.py.
 sys.path.insert(0, str(ROOT / "python"))
+
+from nudyn_driver.cli import Nudyn  # noqa: E402  (needs the path above)
 
 
 def example_ids():
@@ -49,6 +51,27 @@ def nudyn():
             pytrace=False,
         )
     return path
+
+
+@pytest.fixture(scope="session")
+def fmu_library(nudyn):
+    """libnudyn_fmu.so beside the nudyn binary, built if needed (a plain
+    `cargo build --release` or `cargo test` does not build the cdylib)."""
+    if "NUDYN_FMU_LIB" in os.environ:
+        return Path(os.environ["NUDYN_FMU_LIB"])
+    profile_dir = nudyn.parent
+    cmd = ["cargo", "build", "-q", "-p", "nudyn-fmu", "--target-dir", str(profile_dir.parent)]
+    if profile_dir.name == "release":
+        cmd.append("--release")
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+    assert proc.returncode == 0, f"{' '.join(cmd)} failed:\n{proc.stderr}"
+    return profile_dir / "libnudyn_fmu.so"
+
+
+@pytest.fixture(scope="session")
+def cli(nudyn, fmu_library):
+    """The nudyn command line, exporting FMUs with the library above."""
+    return Nudyn(nudyn, fmu_library)
 
 
 def _reject_constant(name):

@@ -18,7 +18,8 @@ import sys
 from pathlib import Path
 
 from fmu_misuse import (DISCARD, DO_STEP_STATUS, ERROR, LAST_SUCCESSFUL_TIME, OK, PLAIN_ARGUMENTS, STEP,
-                        CaseFailed, FmuDir, Harness)
+                        CaseFailed, Harness)
+from nudyn_driver.package import FmuPackage  # noqa: E402  (on the path fmu_misuse sets)
 
 
 def initialized(h: Harness, start: dict | None = None):
@@ -143,7 +144,7 @@ def instantiation(h: Harness) -> None:
 
 
 def main(argv: list[str]) -> int:
-    controller, plant = FmuDir(Path(argv[0])), FmuDir(Path(argv[1]))
+    controller, plant = FmuPackage(Path(argv[0])), FmuPackage(Path(argv[1]))
     h = Harness(controller, plant)
     for case in (direct_feedthrough, refusals, sequence, instantiation):
         case(h)

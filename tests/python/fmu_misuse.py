@@ -25,9 +25,12 @@ import math
 import os
 import struct
 import sys
-import xml.etree.ElementTree as ET
 from collections import Counter
 from pathlib import Path
+
+# nudyn_driver lives outside tests/; this file also runs as a script.
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "python"))
+from nudyn_driver.package import FmuPackage  # noqa: E402  (needs the path above)
 
 OK, WARNING, DISCARD, ERROR, FATAL = 0, 1, 2, 3, 4
 # fmi2Instantiate has no status: a refusal is a NULL instance.
@@ -131,28 +134,13 @@ class CaseFailed(AssertionError):
     pass
 
 
-class FmuDir:
-    """An unzipped FMU: its binary, resources and model description."""
+def library(fmu: FmuPackage) -> Path:
+    """The FMU's binary, which the cases load with ctypes."""
+    return fmu.directory / "binaries" / "linux64" / f"{fmu.model_identifier}.so"
 
-    def __init__(self, directory: Path):
-        self.directory = directory
-        root = ET.parse(directory / "modelDescription.xml").getroot()
-        self.guid = root.get("guid")
-        self.identifier = root.find("CoSimulation").get("modelIdentifier")
-        self.library = directory / "binaries" / "linux64" / f"{self.identifier}.so"
-        self.vr = {}
-        self.reals = []
-        for variable in root.find("ModelVariables"):
-            self.vr[variable.get("name")] = int(variable.get("valueReference"))
-            if variable.find("Real") is not None:
-                self.reals.append(variable.get("name"))
 
-    @property
-    def uri(self) -> str:
-        return (self.directory / "resources").as_uri() + "/"
-
-    def names(self, prefix: str) -> list[str]:
-        return [n for n in self.reals if n.startswith(prefix + "[")]
+def resource_uri(fmu: FmuPackage) -> str:
+    return (fmu.directory / "resources").as_uri() + "/"
 
 
 class Harness:
@@ -160,10 +148,10 @@ class Harness:
     each call's status and message. `calls` records (function, status) for
     the table."""
 
-    def __init__(self, fmu: FmuDir, other: FmuDir | None = None):
+    def __init__(self, fmu: FmuPackage, other: FmuPackage | None = None):
         self.fmu = fmu
         self.other = other
-        self.lib = C.CDLL(str(fmu.library))
+        self.lib = C.CDLL(str(library(fmu)))
         for name, (restype, argtypes) in SIGNATURES.items():
             function = getattr(self.lib, name)
             function.restype, function.argtypes = restype, argtypes
@@ -171,7 +159,7 @@ class Harness:
         self._logger = LOGGER(self._log)
         self.callbacks = Callbacks(self._logger, ALLOCATE(), FREE(), STEP_FINISHED(), None)
         self.calls: list[tuple[str, int]] = []
-        self.live: list[tuple[int, FmuDir]] = []
+        self.live: list[tuple[int, FmuPackage]] = []
 
     def _log(self, _env, _name, status, category, message):
         self.messages.append((status, category.decode(), message.decode(errors="replace")))
@@ -206,11 +194,11 @@ class Harness:
 
     # --- instances ------------------------------------------------------------
 
-    def instantiate(self, fmu: FmuDir | None = None, *, guid=None, uri=None, name=b"misuse", kind=CO_SIMULATION,
+    def instantiate(self, fmu: FmuPackage | None = None, *, guid=None, uri=None, name=b"misuse", kind=CO_SIMULATION,
                     callbacks="default", logging_on=0):
         fmu = fmu or self.fmu
         guid = fmu.guid.encode() if guid is None else guid
-        uri = fmu.uri.encode() if uri is None else uri
+        uri = resource_uri(fmu).encode() if uri is None else uri
         callbacks = C.pointer(self.callbacks) if callbacks == "default" else callbacks
         c = self.lib.fmi2Instantiate(name, kind, guid, uri, callbacks, 0, logging_on)
         if c:
@@ -228,7 +216,7 @@ class Harness:
             if fragment not in self.log_text(before):
                 raise CaseFailed(f"fmi2Instantiate: expected {fragment!r} in the log, got:\n{self.log_text(before)}")
 
-    def initialized(self, fmu: FmuDir | None = None, start: dict | None = None):
+    def initialized(self, fmu: FmuPackage | None = None, start: dict | None = None):
         c = self.instantiate(fmu)
         if not c:
             raise CaseFailed(f"fmi2Instantiate failed:\n{self.log_text()}")
@@ -246,7 +234,7 @@ class Harness:
 
     # --- values ------------------------------------------------------------
 
-    def fmu_of(self, c) -> FmuDir:
+    def fmu_of(self, c) -> FmuPackage:
         return next(fmu for live, fmu in self.live if live == c)
 
     def set_real(self, status, c, values: dict, says=()):
@@ -874,7 +862,7 @@ def state_pointer_misuse(h: Harness):
 
 def run_case(name: str, fmu_dir: str, other_dir: str) -> dict:
     group, function = CASES[name]
-    h = Harness(FmuDir(Path(fmu_dir)), FmuDir(Path(other_dir)))
+    h = Harness(FmuPackage(Path(fmu_dir)), FmuPackage(Path(other_dir)))
     function(h)
     h.finish()
     return {"case": name, "group": group, "calls": h.calls}

@@ -15,11 +15,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from fmpy import extract, read_model_description
+from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
 import controller_misuse
 from conftest import ROOT
+from nudyn_driver.errors import CommandError
+from nudyn_driver.package import FmuPackage
 from nudyn_control import demo, scenarios
 from nudyn_control.analysis import analyse
 from nudyn_control.simulators import export, run_fmpy, run_libcosim, system_structure
@@ -69,18 +71,14 @@ def test_aggressive_rate_gain_raises_v_within_the_bound(nudyn, tmp_path):
 
 
 @pytest.fixture(scope="module")
-def controller_fmus(nudyn, tmp_path_factory):
+def controller_fmus(cli, tmp_path_factory):
     directory = tmp_path_factory.mktemp("controllers")
-    paths = {}
-    for label, extra in [("joints", []), ("pose", ["--end-effector", "end_effector"])]:
-        path = directory / f"{label}.fmu"
-        subprocess.run([str(nudyn), "export", str(ROOT / "examples/bus_arm7.xml"), "--controller", "-o", str(path),
-                        *extra], check=True, capture_output=True)
-        paths[label] = path
-    plant = directory / "plant.fmu"
-    subprocess.run([str(nudyn), "export", str(ROOT / "examples/bus_arm7.xml"), "-o", str(plant)], check=True)
-    paths["plant"] = plant
-    return paths
+    model = ROOT / "examples/bus_arm7.xml"
+    return {
+        "joints": cli.export(model, directory / "joints.fmu", controller=True),
+        "pose": cli.export(model, directory / "pose.fmu", controller=True, end_effector="end_effector"),
+        "plant": cli.export(model, directory / "plant.fmu"),
+    }
 
 
 def test_controller_fmus_validate_and_match_the_plant_by_name(controller_fmus):
@@ -113,9 +111,9 @@ def test_controller_fmus_validate_and_match_the_plant_by_name(controller_fmus):
 
 
 def test_controller_fmi_layer_refuses_misuse(controller_fmus, tmp_path):
-    controller = extract(str(controller_fmus["pose"]), str(tmp_path / "controller"))
-    plant = extract(str(controller_fmus["plant"]), str(tmp_path / "plant"))
-    proc = subprocess.run([sys.executable, controller_misuse.__file__, controller, plant],
+    controller = FmuPackage.unzip(controller_fmus["pose"], tmp_path / "controller")
+    plant = FmuPackage.unzip(controller_fmus["plant"], tmp_path / "plant")
+    proc = subprocess.run([sys.executable, controller_misuse.__file__, str(controller.directory), str(plant.directory)],
                           capture_output=True, text=True, timeout=120, cwd=Path(controller_misuse.__file__).parent)
     assert proc.returncode >= 0, f"crashed with signal {-proc.returncode}:\n{proc.stderr[-4000:]}"
     assert proc.returncode == 0, proc.stderr[-4000:]
@@ -123,18 +121,15 @@ def test_controller_fmi_layer_refuses_misuse(controller_fmus, tmp_path):
     assert counts["refused"] >= 40, counts
 
 
-def test_bad_controller_requests_are_clear_errors(nudyn, tmp_path):
-    def export_fails(*arguments: str) -> str:
-        proc = subprocess.run([str(nudyn), "export", *arguments, "-o", str(tmp_path / "x.fmu")],
-                              capture_output=True, text=True)
-        assert proc.returncode != 0
-        return proc.stderr
+def test_bad_controller_requests_are_clear_errors(cli, tmp_path):
+    def export_fails(**options) -> str:
+        with pytest.raises(CommandError) as failure:
+            cli.export(ROOT / "examples/bus_arm7.xml", tmp_path / "x.fmu", **options)
+        return failure.value.stderr
 
-    assert "no body named 'gripper'" in export_fails(str(ROOT / "examples/bus_arm7.xml"), "--controller",
-                                                     "--end-effector", "gripper")
-    assert "--controller" in export_fails(str(ROOT / "examples/bus_arm7.xml"), "--end-effector", "end_effector")
-    assert "cannot be used with" in export_fails(str(ROOT / "examples/bus_arm7.xml"), "--controller",
-                                                 "--outputs", "qvel")
+    assert "no body named 'gripper'" in export_fails(controller=True, end_effector="gripper")
+    assert "--controller" in export_fails(end_effector="end_effector")
+    assert "cannot be used with" in export_fails(controller=True, outputs=("qvel",))
 
 
 def test_system_structure_connects_every_variable_name_to_name():

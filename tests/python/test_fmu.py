@@ -6,98 +6,82 @@ reset, independent instances, and the rejections of the FMI layer."""
 from __future__ import annotations
 
 import json
-import os
 import re
 import shutil
-import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
-from fmpy import extract, read_model_description, simulate_fmu
+from fmpy import read_model_description, simulate_fmu
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import (
-    FMU2Slave,
-    fmi2CallbackFunctions,
-    fmi2CallbackLoggerTYPE,
-    fmi2LastSuccessfulTime,
-    fmi2OK,
-    fmi2Terminated,
-    fmi2True,
-    fmi2Warning,
-)
+from fmpy.fmi2 import FMU2Slave, fmi2LastSuccessfulTime, fmi2OK, fmi2Terminated, fmi2Warning
 from fmpy.validation import validate_fmu
 
 from conftest import EXAMPLES, ROOT, example_ids
+from nudyn_driver.instance import Instance, Log
+from nudyn_driver.package import FmuPackage
 
-ALL_OUTPUTS = "qvel,kinetic_energy,power,momentum,energy_residual"
+ALL_OUTPUTS = ("qvel", "kinetic_energy", "power", "momentum", "energy_residual")
 STEP = 0.01
 
 
 @pytest.fixture(scope="session")
-def fmu_library(nudyn):
-    """libnudyn_fmu.so beside the nudyn binary, built if needed (a plain
-    `cargo build --release` or `cargo test` does not build the cdylib)."""
-    if "NUDYN_FMU_LIB" in os.environ:
-        return Path(os.environ["NUDYN_FMU_LIB"])
-    profile_dir = nudyn.parent
-    cmd = ["cargo", "build", "-q", "-p", "nudyn-fmu", "--target-dir", str(profile_dir.parent)]
-    if profile_dir.name == "release":
-        cmd.append("--release")
-    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
-    assert proc.returncode == 0, f"{' '.join(cmd)} failed:\n{proc.stderr}"
-    return profile_dir / "libnudyn_fmu.so"
-
-
-def export(nudyn, fmu_library, model: Path, out: Path, *extra: str) -> Path:
-    cmd = [str(nudyn), "export", str(model), "-o", str(out), *extra]
-    env = {**os.environ, "NUDYN_FMU_LIB": str(fmu_library)}
-    proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
-    assert proc.returncode == 0, f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stderr}"
-    return out
-
-
-@pytest.fixture(scope="session")
-def exported(nudyn, fmu_library, tmp_path_factory):
+def exported(cli, tmp_path_factory):
     """Each example exported once with every optional output."""
     directory = tmp_path_factory.mktemp("fmus")
     return {
-        model.stem: export(nudyn, fmu_library, model, directory / f"{model.stem}.fmu", "--outputs", ALL_OUTPUTS)
-        for model in EXAMPLES
+        model.stem: cli.export(model, directory / f"{model.stem}.fmu", outputs=ALL_OUTPUTS) for model in EXAMPLES
     }
+
+
+@pytest.fixture(scope="session")
+def packages(exported, tmp_path_factory):
+    """Each exported example unzipped once."""
+    directory = tmp_path_factory.mktemp("unzipped")
+    return {name: FmuPackage.unzip(path, directory / name) for name, path in exported.items()}
+
+
+@pytest.fixture(scope="session")
+def structures(cli):
+    """Each example's joints and their θ/ν addresses (`nudyn describe`)."""
+    return {model.stem: cli.describe(model) for model in EXAMPLES}
 
 
 def variables(description, prefix: str):
     return [v for v in description.modelVariables if v.name.startswith(prefix + "[")]
 
 
-def initial_state(description, seed: int):
+def initial_state(structure, seed: int):
     """A tumbling start: qpos0 with hinge/slide offsets and random unit
     quaternions, random nu, constant random eps; as FMPy start values."""
     rng = np.random.default_rng(seed)
-    theta = variables(description, "theta")
+    quaternions = set(structure.quaternion_starts)
     start = {}
     k = 0
-    while k < len(theta):
-        if "quaternion w" in theta[k].description:
+    while k < structure.nq:
+        if k in quaternions:
             q = rng.normal(size=4)
             q /= np.linalg.norm(q)
-            start.update({theta[k + i].name: float(q[i]) for i in range(4)})
+            start.update({f"theta[{k + 1 + i}]": float(q[i]) for i in range(4)})
             k += 4
         else:
-            start[theta[k].name] = float(theta[k].start) + float(rng.uniform(-0.5, 0.5))
+            start[f"theta[{k + 1}]"] = structure.qpos0[k] + float(rng.uniform(-0.5, 0.5))
             k += 1
-    nu = {v.name: float(rng.uniform(-1, 1)) for v in variables(description, "nu")}
-    eps = [float(rng.uniform(-1, 1)) for _ in variables(description, "eps")]
+    nu = {f"nu[{k + 1}]": float(rng.uniform(-1, 1)) for k in range(structure.nv)}
+    eps = [float(rng.uniform(-1, 1)) for _ in range(structure.nv)]
     return start, nu, eps
 
 
-def core_trajectory(nudyn, model: Path, theta, nu, eps, step: float, stop: float, *options: str):
+def core_trajectory(cli, model: Path, theta, nu, eps, step: float, stop: float, *options: str):
     request = json.dumps({"theta": theta, "nu": nu, "eps": eps})
-    cmd = [str(nudyn), "simulate", str(model), "--step", repr(step), "--stop", repr(stop), *options]
-    proc = subprocess.run(cmd, input=request, capture_output=True, text=True)
-    assert proc.returncode == 0, f"{' '.join(cmd)} < {request} failed:\n{proc.stderr}"
-    return json.loads(proc.stdout)
+    stdout = cli.run("simulate", model, "--step", repr(step), "--stop", repr(stop), *options, stdin=request)
+    return json.loads(stdout)
+
+
+def advance(instance: Instance, steps: int = 1) -> None:
+    """`steps` communication steps of STEP."""
+    for _ in range(steps):
+        instance.step(STEP)
 
 
 @pytest.mark.parametrize("model", EXAMPLES, ids=example_ids())
@@ -119,8 +103,8 @@ def test_model_description_is_valid(model, exported):
     assert len(variables(description, "momentum")) == 6
 
 
-def test_outputs_not_chosen_do_not_exist(nudyn, fmu_library, tmp_path):
-    path = export(nudyn, fmu_library, ROOT / "examples/fixed_rig.xml", tmp_path / "rig.fmu", "--model-identifier", "rig")
+def test_outputs_not_chosen_do_not_exist(cli, tmp_path):
+    path = cli.export(ROOT / "examples/fixed_rig.xml", tmp_path / "rig.fmu", model_identifier="rig")
     description = read_model_description(str(path), validate=True)
     names = {v.name for v in description.modelVariables}
     assert description.coSimulation.modelIdentifier == "rig"
@@ -128,25 +112,17 @@ def test_outputs_not_chosen_do_not_exist(nudyn, fmu_library, tmp_path):
     assert {"theta[1]", "nu[1]", "eps[1]", "method", "tolerance", "max_step"} <= names
 
 
-def method_value(description, name: str) -> int:
-    """The value of the `method` enumeration item called `name`."""
-    method_type = next(t for t in description.typeDefinitions if t.name == "Method")
-    return next(int(item.value) for item in method_type.items if item.name == name)
-
-
-def fmu_run(path: Path, start, eps, stop: float, max_step: float, output_names):
+def fmu_run(package: FmuPackage, start, eps, stop: float, max_step: float, output_names):
     """simulate_fmu with RK4, the start values and a constant eps input table."""
-    description = read_model_description(str(path))
-    eps_names = [v.name for v in variables(description, "eps")]
     signals = np.array(
         [(0.0, *eps), (stop, *eps)],
-        dtype=[("time", np.float64)] + [(name, np.float64) for name in eps_names],
+        dtype=[("time", np.float64)] + [(name, np.float64) for name in package.names("eps")],
     )
     return simulate_fmu(
-        str(path),
+        str(package.directory),
         stop_time=stop,
         output_interval=STEP,
-        start_values={**start, "max_step": max_step, "method": method_value(description, "rk4")},
+        start_values={**start, "max_step": max_step, "method": package.methods["rk4"]},
         input=signals,
         output=output_names,
     )
@@ -154,19 +130,17 @@ def fmu_run(path: Path, start, eps, stop: float, max_step: float, output_names):
 
 @pytest.mark.parametrize("model", EXAMPLES, ids=example_ids())
 @pytest.mark.parametrize("substeps", [1, 4])
-def test_fmu_equals_core_integration(model, substeps, exported, nudyn):
+def test_fmu_equals_core_integration(model, substeps, packages, structures, cli):
     """The FMU's outputs equal `nudyn simulate` from the same state with the
     same RK4 step, to round-off."""
-    path = exported[model.stem]
-    description = read_model_description(str(path))
-    start, nu_start, eps = initial_state(description, seed=len(model.stem))
-    theta_names = [v.name for v in variables(description, "theta")]
-    nu_names = [v.name for v in variables(description, "nu")]
+    package = packages[model.stem]
+    start, nu_start, eps = initial_state(structures[model.stem], seed=len(model.stem))
+    theta_names, nu_names = package.names("theta"), package.names("nu")
     stop = 0.1
-    result = fmu_run(path, {**start, **nu_start}, eps, stop, STEP / substeps, theta_names + nu_names)
+    result = fmu_run(package, {**start, **nu_start}, eps, stop, STEP / substeps, theta_names + nu_names)
 
-    theta0 = [start.get(name, float(v.start)) for name, v in zip(theta_names, variables(description, "theta"))]
-    core = core_trajectory(nudyn, model, theta0, [nu_start[n] for n in nu_names], eps, STEP / substeps, stop)
+    theta0 = [start.get(name, value) for name, value in zip(theta_names, package.starts("theta"))]
+    core = core_trajectory(cli, model, theta0, [nu_start[n] for n in nu_names], eps, STEP / substeps, stop)
     core_theta = np.array(core["theta"])[::substeps]
     core_nu = np.array(core["nu"])[::substeps]
     fmu_theta = np.column_stack([result[n] for n in theta_names])
@@ -177,75 +151,15 @@ def test_fmu_equals_core_integration(model, substeps, exported, nudyn):
     assert not np.allclose(fmu_nu[-1], fmu_nu[0]), "the state must actually move"
 
 
-class Logged:
-    """An FMPy logger that keeps the messages."""
-
-    def __init__(self):
-        self.messages: list[tuple[int, str, str]] = []
-        self.callbacks = fmi2CallbackFunctions()
-        self.callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
-        self.callbacks.allocateMemory = fmi2CallbackFunctions._fields_[1][1](lambda n, size: None)
-        self.callbacks.freeMemory = fmi2CallbackFunctions._fields_[2][1](lambda p: None)
-
-    def _log(self, _env, _name, status, category, message):
-        self.messages.append((status, category.decode(), message.decode()))
-
-    def text(self) -> str:
-        return "\n".join(f"[{s}] {c}: {m}" for s, c, m in self.messages)
-
-
-class Slave:
-    """One FMU instance, initialized, with helpers by variable name."""
-
-    def __init__(self, path: Path, unzipdir: str, start=None, name="instance", experiment_tolerance=None, method=None,
-                 energy_projection=None):
-        self.description = read_model_description(str(path))
-        self.vr = {v.name: v.valueReference for v in self.description.modelVariables}
-        self.log = Logged()
-        self.fmu = FMU2Slave(
-            guid=self.description.guid,
-            unzipDirectory=unzipdir,
-            modelIdentifier=self.description.coSimulation.modelIdentifier,
-            instanceName=name,
-        )
-        self.fmu.instantiate(callbacks=self.log.callbacks)
-        self.fmu.setupExperiment(tolerance=experiment_tolerance, startTime=0.0)
-        if start:
-            self.set(start)
-        if method is not None:
-            self.fmu.setInteger([self.vr["method"]], [method_value(self.description, method)])
-        if energy_projection is not None:
-            self.fmu.setBoolean([self.vr["energy_projection"]], [energy_projection])
-        self.fmu.enterInitializationMode()
-        self.fmu.exitInitializationMode()
-        self.time = 0.0
-
-    def set(self, values: dict):
-        self.fmu.setReal([self.vr[n] for n in values], list(values.values()))
-
-    def get(self, names):
-        return np.array(self.fmu.getReal([self.vr[n] for n in names]))
-
-    def step(self, n=1):
-        for _ in range(n):
-            self.fmu.doStep(currentCommunicationPoint=self.time, communicationStepSize=STEP)
-            self.time += STEP
-
-    def all_reals(self):
-        return self.get([v.name for v in self.description.modelVariables if v.type == "Real"])
-
-
 @pytest.fixture
-def bus(exported, tmp_path):
-    path = exported["bus_arm7"]
-    unzipdir = extract(str(path), str(tmp_path / "unzipped"))
-    description = read_model_description(str(path))
-    start, nu, eps = initial_state(description, seed=7)
-    eps_values = {v.name: e for v, e in zip(variables(description, "eps"), eps)}
+def bus(packages, structures):
+    package = packages["bus_arm7"]
+    start, nu, eps = initial_state(structures["bus_arm7"], seed=7)
+    eps_values = dict(zip(package.names("eps"), eps))
     slaves = []
 
     def make(name="instance", with_start=True):
-        slave = Slave(path, unzipdir, {**start, **nu} if with_start else None, name=name)
+        slave = Instance(package, name=name, start={**start, **nu} if with_start else None)
         slave.set(eps_values)
         slaves.append(slave)
         return slave
@@ -258,17 +172,17 @@ def bus(exported, tmp_path):
 
 def test_fmu_state_round_trips_bit_exactly(bus):
     slave = bus()
-    slave.step(3)
+    advance(slave, 3)
     state = slave.fmu.getFMUstate()
     blob = slave.fmu.serializeFMUstate(state)
     saved = slave.all_reals()
-    slave.step(5)
+    advance(slave, 5)
     after = slave.all_reals()
 
     slave.fmu.setFMUstate(state)
     assert np.array_equal(slave.all_reals(), saved)
     slave.time = 3 * STEP
-    slave.step(5)
+    advance(slave, 5)
     assert np.array_equal(slave.all_reals(), after)
 
     restored = slave.fmu.deSerializeFMUstate(blob)
@@ -279,12 +193,12 @@ def test_fmu_state_round_trips_bit_exactly(bus):
     slave.fmu.freeFMUstate(state)
 
 
-def test_corrupt_or_foreign_states_are_rejected(bus, exported, tmp_path):
+def test_corrupt_or_foreign_states_are_rejected(bus, packages):
     """Each rejection is fmi2Error, so the instance enters the error state
     (FMI 2.0 §2.1.3); its values are unchanged, and restoring a state saved
     before lets it go on."""
     slave = bus()
-    slave.step(2)
+    advance(slave, 2)
     state = slave.fmu.getFMUstate()
     blob = bytearray(slave.fmu.serializeFMUstate(state))
     before = slave.all_reals()
@@ -296,8 +210,7 @@ def test_corrupt_or_foreign_states_are_rejected(bus, exported, tmp_path):
         slave.fmu.setFMUstate(state)
     assert "corrupted" in slave.log.text() and "truncated" in slave.log.text()
     # A state of another FMU (another GUID) is refused too.
-    rig_path = exported["fixed_rig"]
-    rig = Slave(rig_path, extract(str(rig_path), str(tmp_path / "rig")))
+    rig = Instance(packages["fixed_rig"])
     rig_blob = rig.fmu.serializeFMUstate(rig.fmu.getFMUstate())
     with pytest.raises(FMICallException):
         slave.fmu.deSerializeFMUstate(rig_blob)
@@ -305,14 +218,13 @@ def test_corrupt_or_foreign_states_are_rejected(bus, exported, tmp_path):
     assert np.array_equal(slave.all_reals(), before), "a rejected state changes nothing"
     slave.fmu.setFMUstate(state)
     slave.fmu.freeFMUstate(state)
-    slave.step(1)
+    advance(slave)
 
 
 def test_reset_then_rerun_is_identical(bus):
     slave = bus()
-    names = [v.name for v in slave.description.modelVariables if v.type == "Real"]
-    start = {n: float(x) for n, x in zip(names, slave.all_reals()) if n.startswith(("theta", "nu", "eps"))}
-    slave.step(10)
+    start = {n: float(x) for n, x in zip(slave.package.reals, slave.all_reals()) if n.startswith(("theta", "nu", "eps"))}
+    advance(slave, 10)
     first = slave.all_reals()
     slave.fmu.reset()
     slave.fmu.setupExperiment(startTime=0.0)
@@ -320,36 +232,36 @@ def test_reset_then_rerun_is_identical(bus):
     slave.fmu.enterInitializationMode()
     slave.fmu.exitInitializationMode()
     slave.time = 0.0
-    slave.step(10)
+    advance(slave, 10)
     assert np.array_equal(slave.all_reals(), first)
 
 
 def test_reset_returns_to_the_model_start(bus):
     slave = bus()
-    slave.step(2)
+    advance(slave, 2)
     slave.fmu.reset()
     slave.fmu.setupExperiment(startTime=0.0)
     slave.fmu.enterInitializationMode()
-    theta = [v for v in slave.description.modelVariables if v.name.startswith(("theta[", "nu[", "eps["))]
+    theta = [v for v in slave.package.variables.values() if v.name.startswith(("theta[", "nu[", "eps["))]
     assert np.array_equal(slave.get([v.name for v in theta]), [float(v.start) for v in theta])
     slave.fmu.exitInitializationMode()
 
 
 def test_two_instances_do_not_interfere(bus):
     alone = bus("alone")
-    alone.step(6)
+    advance(alone, 6)
     expected = alone.all_reals()
     a, b = bus("a"), bus("b", with_start=False)
     for _ in range(6):
-        a.step()
-        b.step()
+        advance(a)
+        advance(b)
     assert np.array_equal(a.all_reals(), expected)
     assert not np.array_equal(b.all_reals(), expected)
 
 
 def test_terminate_keeps_final_values_readable(bus):
     slave = bus()
-    slave.step(3)
+    advance(slave, 3)
     final = slave.all_reals()
     slave.fmu.terminate()
     assert np.array_equal(slave.all_reals(), final)
@@ -358,23 +270,17 @@ def test_terminate_keeps_final_values_readable(bus):
     assert "fmi2Terminate may not be called in state terminated" in slave.log.text()
 
 
-def test_output_derivatives(bus, nudyn):
+def test_output_derivatives(bus, cli):
     """d(nu)/dt is nu_dot of `nudyn eval`; d(theta)/dt of a hinge is its qvel."""
     slave = bus()
-    slave.step(2)
-    d = slave.description
-    theta_names = [v.name for v in variables(d, "theta")]
-    nu_names = [v.name for v in variables(d, "nu")]
-    eps_names = [v.name for v in variables(d, "eps")]
-    request = {"theta": list(slave.get(theta_names)), "nu": list(slave.get(nu_names)), "eps": list(slave.get(eps_names))}
-    proc = subprocess.run([str(nudyn), "eval", str(ROOT / "examples/bus_arm7.xml")], input=json.dumps(request),
-                          capture_output=True, text=True)
-    assert proc.returncode == 0, proc.stderr
-    expected = json.loads(proc.stdout)
-    nu_rate = slave.fmu.getRealOutputDerivatives([slave.vr[n] for n in nu_names], [1] * len(nu_names))
+    advance(slave, 2)
+    nu_names = slave.package.names("nu")
+    request = {p: list(slave.array(p)) for p in ("theta", "nu", "eps")}
+    expected = cli.eval(ROOT / "examples/bus_arm7.xml", request)
+    nu_rate = slave.fmu.getRealOutputDerivatives([slave.package.vr[n] for n in nu_names], [1] * len(nu_names))
     np.testing.assert_allclose(nu_rate, expected["nu_dot"], rtol=1e-12, atol=1e-12)
     # theta[8..14] are the arm's hinges, qvel[7..13].
-    theta_rate = slave.fmu.getRealOutputDerivatives([slave.vr[f"theta[{k}]"] for k in range(8, 15)], [1] * 7)
+    theta_rate = slave.fmu.getRealOutputDerivatives([slave.package.vr[f"theta[{k}]"] for k in range(8, 15)], [1] * 7)
     np.testing.assert_allclose(theta_rate, expected["qvel"][6:], rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(slave.get([f"qvel[{k}]" for k in range(1, 14)]), expected["qvel"], rtol=1e-12, atol=1e-12)
 
@@ -382,9 +288,9 @@ def test_output_derivatives(bus, nudyn):
 def test_input_ramp_changes_the_step(bus):
     """fmi2SetRealInputDerivatives makes eps ramp within the next step only."""
     held, ramped = bus("held"), bus("ramped")
-    ramped.fmu.setRealInputDerivatives([ramped.vr["eps[7]"]], [1], [50.0])
-    held.step()
-    ramped.step()
+    ramped.fmu.setRealInputDerivatives([ramped.package.vr["eps[7]"]], [1], [50.0])
+    advance(held)
+    advance(ramped)
     assert not np.array_equal(held.get(["nu[7]"]), ramped.get(["nu[7]"]))
     # After the step the ramp is over: both go on with the same held eps.
     state = held.fmu.getFMUstate()
@@ -393,28 +299,23 @@ def test_input_ramp_changes_the_step(bus):
     copy = ramped.fmu.deSerializeFMUstate(held_blob)
     ramped.fmu.setFMUstate(copy)
     ramped.fmu.freeFMUstate(copy)
-    held.step()
-    ramped.step()
+    advance(held)
+    advance(ramped)
     assert np.array_equal(held.all_reals(), ramped.all_reals())
 
 
-def test_input_ramp_equals_core_integration(bus, nudyn):
+def test_input_ramp_equals_core_integration(bus, cli):
     """One communication step of 4 internal steps with dε/dt set equals the
     core integration of ε(t) = ε + dε/dt·t with the same internal step."""
     slave = bus()
-    d = slave.description
-    names = {p: [v.name for v in variables(d, p)] for p in ("theta", "nu", "eps")}
-    state = {p: [float(x) for x in slave.get(n)] for p, n in names.items()}
-    rate = [float(x) for x in np.linspace(-20.0, 20.0, len(names["eps"]))]
-    slave.fmu.setRealInputDerivatives([slave.vr[n] for n in names["eps"]], [1] * len(rate), rate)
+    state = {p: [float(x) for x in slave.array(p)] for p in ("theta", "nu", "eps")}
+    rate = [float(x) for x in np.linspace(-20.0, 20.0, slave.package.nv)]
+    slave.fmu.setRealInputDerivatives(slave.package.refs("eps"), [1] * len(rate), rate)
     slave.fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=4e-3)
     request = json.dumps({**state, "eps_rate": rate})
-    cmd = [str(nudyn), "simulate", str(ROOT / "examples/bus_arm7.xml"), "--step", "1e-3", "--stop", "4e-3"]
-    proc = subprocess.run(cmd, input=request, capture_output=True, text=True)
-    assert proc.returncode == 0, proc.stderr
-    core = json.loads(proc.stdout)
-    np.testing.assert_allclose(slave.get(names["theta"]), core["theta"][-1], rtol=1e-13, atol=1e-13)
-    np.testing.assert_allclose(slave.get(names["nu"]), core["nu"][-1], rtol=1e-13, atol=1e-13)
+    core = json.loads(cli.run("simulate", ROOT / "examples/bus_arm7.xml", "--step", "1e-3", "--stop", "4e-3", stdin=request))
+    np.testing.assert_allclose(slave.array("theta"), core["theta"][-1], rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(slave.array("nu"), core["nu"][-1], rtol=1e-13, atol=1e-13)
 
 
 def test_rejections_are_logged_and_change_nothing(bus):
@@ -423,7 +324,7 @@ def test_rejections_are_logged_and_change_nothing(bus):
     before goes on (FMI 2.0 §2.1.3); a value out of its range passed to
     fmi2SetReal is fmi2Discard and the instance stays usable."""
     slave = bus()
-    slave.step(1)
+    advance(slave)
     before = slave.all_reals()
     saved = slave.fmu.getFMUstate()
     refusals = [
@@ -440,7 +341,7 @@ def test_rejections_are_logged_and_change_nothing(bus):
         assert refused.value.status == 3 and message in slave.log.text()
         assert np.array_equal(slave.all_reals(), before)
         with pytest.raises(FMICallException, match="error"):
-            slave.step(1)
+            advance(slave)
         assert "fmi2DoStep may not be called in state error" in slave.log.text()
         slave.fmu.setFMUstate(saved)
     with pytest.raises(FMICallException) as discarded:
@@ -448,7 +349,7 @@ def test_rejections_are_logged_and_change_nothing(bus):
     assert discarded.value.status == 2 and "eps[1] = NaN is not finite" in slave.log.text()
     assert np.array_equal(slave.all_reals(), before)
     slave.fmu.freeFMUstate(saved)
-    slave.step(1)
+    advance(slave)
 
 
 def test_non_finite_state_is_discarded_not_output(bus):
@@ -456,7 +357,7 @@ def test_non_finite_state_is_discarded_not_output(bus):
     slave.set({"eps[1]": 1e300, "eps[2]": -1e300})
     before = slave.all_reals()
     with pytest.raises(FMICallException) as failure:
-        slave.step()
+        advance(slave)
     assert failure.value.status == 2  # fmi2Discard
     assert slave.fmu.getBooleanStatus(fmi2Terminated)
     assert np.array_equal(slave.all_reals(), before)
@@ -470,9 +371,9 @@ def test_discarded_step_stops_where_the_integration_stopped(bus):
     """A ramp to an overflowing ε: the step gets partway, the state stays
     there, finite, and fmi2LastSuccessfulTime says where."""
     slave = bus()
-    slave.fmu.setRealInputDerivatives([slave.vr["eps[8]"]], [1], [1e20])
+    slave.fmu.setRealInputDerivatives([slave.package.vr["eps[8]"]], [1], [1e20])
     with pytest.raises(FMICallException) as failure:
-        slave.step()
+        advance(slave)
     assert failure.value.status == 2  # fmi2Discard
     reached = slave.fmu.getRealStatus(fmi2LastSuccessfulTime)
     assert 0.0 < reached < STEP
@@ -481,13 +382,11 @@ def test_discarded_step_stops_where_the_integration_stopped(bus):
     assert np.all(np.isfinite(slave.all_reals()))
 
 
-def test_guid_mismatch_fails_instantiation(exported, tmp_path):
-    path = exported["fixed_rig"]
-    unzipdir = extract(str(path), str(tmp_path / "unzipped"))
-    description = read_model_description(str(path))
-    log = Logged()
-    fmu = FMU2Slave(guid="{00000000-0000-0000-0000-000000000000}", unzipDirectory=unzipdir,
-                    modelIdentifier=description.coSimulation.modelIdentifier, instanceName="wrong")
+def test_guid_mismatch_fails_instantiation(packages):
+    package = packages["fixed_rig"]
+    log = Log()
+    fmu = FMU2Slave(guid="{00000000-0000-0000-0000-000000000000}", unzipDirectory=str(package.directory),
+                    modelIdentifier=package.model_identifier, instanceName="wrong")
     with pytest.raises(Exception):
         fmu.instantiate(callbacks=log.callbacks)
     assert "does not match the FMU's resources" in log.text()
@@ -498,8 +397,8 @@ def test_resource_location_with_spaces(exported, tmp_path):
     path = exported["fixed_rig"]
     unzipdir = tmp_path / "dir with spaces"
     shutil.unpack_archive(str(path), str(unzipdir), "zip")
-    slave = Slave(path, str(unzipdir))
-    slave.step(2)
+    slave = Instance(FmuPackage(unzipdir))
+    advance(slave, 2)
     assert np.all(np.isfinite(slave.all_reals()))
 
 
@@ -510,100 +409,90 @@ def test_logging_honours_set_debug_logging(bus):
         slave.fmu.getReal([99999])
     assert slave.log.messages == [], "all categories off"
     slave.fmu.setDebugLogging(True, ["logCalls", "logStatusError"])
-    slave.fmu.getReal([slave.vr["nu[1]"]])
+    slave.fmu.getReal([slave.package.vr["nu[1]"]])
     assert any(c == "logCalls" and "fmi2GetReal returned status 0" in m for _, c, m in slave.log.messages)
     with pytest.raises(FMICallException):
         slave.fmu.setDebugLogging(True, ["noSuchCategory"])
     assert "unknown log category 'noSuchCategory'" in slave.log.text()
 
 
-def test_setup_experiment_tolerance_replaces_the_parameter(exported, tmp_path):
-    path = exported["bus_arm7"]
-    unzipdir = extract(str(path), str(tmp_path / "unzipped"))
-    chosen = Slave(path, unzipdir, {"tolerance": 1e-10}, name="parameter")
-    assert chosen.get(["tolerance"])[0] == 1e-10
-    importer = Slave(path, unzipdir, {"tolerance": 1e-10}, name="importer", experiment_tolerance=1e-4)
-    assert importer.get(["tolerance"])[0] == 1e-4
+def test_setup_experiment_tolerance_replaces_the_parameter(packages):
+    package = packages["bus_arm7"]
+    chosen = Instance(package, name="parameter", start={"tolerance": 1e-10})
+    assert chosen.real("tolerance") == 1e-10
+    importer = Instance(package, name="importer", start={"tolerance": 1e-10}, experiment_tolerance=1e-4)
+    assert importer.real("tolerance") == 1e-4
     for slave in (chosen, importer):
-        slave.fmu.terminate()
-        slave.fmu.freeInstance()
+        slave.close()
 
 
 @pytest.mark.parametrize("method", ["dopri5", "dop853"])
-def test_adaptive_methods_meet_their_tolerance_through_fmi(exported, tmp_path, method):
+def test_adaptive_methods_meet_their_tolerance_through_fmi(packages, structures, method):
     """1 s of bus_arm7 tumbling under a constant eps, at tolerance 1e-8 (per
     second), against RK4 with 1e-4 s steps (error ~1e-14), through the FMU."""
-    path = exported["bus_arm7"]
-    unzipdir = extract(str(path), str(tmp_path / "unzipped"))
-    description = read_model_description(str(path))
-    start, nu, eps = initial_state(description, seed=3)
-    eps_values = {v.name: e for v, e in zip(variables(description, "eps"), eps)}
-    outputs = [v.name for v in variables(description, "theta") + variables(description, "nu")]
+    package = packages["bus_arm7"]
+    start, nu, eps = initial_state(structures["bus_arm7"], seed=3)
+    eps_values = dict(zip(package.names("eps"), eps))
+    outputs = package.names("theta") + package.names("nu")
 
     def trajectory(slave):
         slave.set(eps_values)
         rows = []
         for _ in range(100):
-            slave.step()
+            advance(slave)
             rows.append(slave.get(outputs))
-        slave.fmu.terminate()
-        slave.fmu.freeInstance()
+        slave.close()
         return np.array(rows)
 
-    reference = trajectory(Slave(path, unzipdir, {**start, **nu, "max_step": 1e-4}, name="rk4", method="rk4"))
-    adaptive = trajectory(Slave(path, unzipdir, {**start, **nu, "tolerance": 1e-8}, name=method, method=method))
+    reference = trajectory(Instance(package, name="rk4", start={**start, **nu, "max_step": 1e-4, "method": "rk4"}))
+    adaptive = trajectory(Instance(package, name=method, start={**start, **nu, "tolerance": 1e-8, "method": method}))
     error = np.max(np.abs(adaptive - reference) / (1 + np.abs(reference)))
     assert 0 < error <= 1.5e-8, error
 
 
-def test_energy_projection_keeps_kinetic_energy_through_fmi(exported, tmp_path):
+def test_energy_projection_keeps_kinetic_energy_through_fmi(packages, structures):
     """bus_arm7 tumbling without input for 20 s in 1 s communication steps
     at a loose tolerance: the energy residual shows the drift, and
     energy_projection removes it."""
-    path = exported["bus_arm7"]
-    unzipdir = extract(str(path), str(tmp_path / "unzipped"))
-    description = read_model_description(str(path))
-    start, nu, _ = initial_state(description, seed=4)
+    package = packages["bus_arm7"]
+    start, nu, _ = initial_state(structures["bus_arm7"], seed=4)
     drift = {}
     for projection in (False, True):
-        slave = Slave(path, unzipdir, {**start, **nu, "tolerance": 1e-3, "max_step": 1.0}, name=str(projection),
-                      energy_projection=projection)
-        k0 = slave.get(["kinetic_energy"])[0]
-        for n in range(20):
-            slave.fmu.doStep(currentCommunicationPoint=float(n), communicationStepSize=1.0)
+        slave = Instance(package, name=str(projection), start={**start, **nu, "tolerance": 1e-3, "max_step": 1.0,
+                                                               "energy_projection": projection})
+        k0 = slave.real("kinetic_energy")
+        for _ in range(20):
+            slave.step(1.0)
         k, residual = slave.get(["kinetic_energy", "energy_residual"])
         assert abs(residual - (k - k0)) <= 1e-12 * k0  # no force acts: the residual is the drift
         drift[projection] = abs(k - k0) / k0
-        slave.fmu.terminate()
-        slave.fmu.freeInstance()
+        slave.close()
     assert drift[False] > 1e-9, drift
     assert drift[True] < 1e-13, drift
     assert drift[False] > 1e4 * drift[True], drift
 
 
 @pytest.mark.parametrize("method", ["dopri5", "dop853"])
-def test_fmu_equals_core_integration_with_adaptive_methods(exported, nudyn, method):
+def test_fmu_equals_core_integration_with_adaptive_methods(packages, structures, cli, method):
     """The FMU's adaptive runs are `nudyn simulate`'s, to round-off: same
     steps, same carried step size across communication points."""
     model = next(m for m in EXAMPLES if m.stem == "bus_arm7")
-    path = exported["bus_arm7"]
-    description = read_model_description(str(path))
-    start, nu_start, eps = initial_state(description, seed=9)
-    theta_names = [v.name for v in variables(description, "theta")]
-    nu_names = [v.name for v in variables(description, "nu")]
+    package = packages["bus_arm7"]
+    start, nu_start, eps = initial_state(structures["bus_arm7"], seed=9)
+    theta_names, nu_names = package.names("theta"), package.names("nu")
     signals = np.array([(0.0, *eps), (1.0, *eps)],
-                       dtype=[("time", np.float64)] + [(v.name, np.float64) for v in variables(description, "eps")])
-    parameters = {"method": method_value(description, method), "tolerance": 1e-7, "max_step": 0.05}
-    result = simulate_fmu(str(path), stop_time=0.5, output_interval=STEP, start_values={**start, **nu_start, **parameters},
-                          input=signals, output=theta_names + nu_names)
-    theta0 = [start.get(name, float(v.start)) for name, v in zip(theta_names, variables(description, "theta"))]
-    core = core_trajectory(nudyn, model, theta0, [nu_start[n] for n in nu_names], eps, STEP, 0.5,
+                       dtype=[("time", np.float64)] + [(name, np.float64) for name in package.names("eps")])
+    parameters = {"method": package.methods[method], "tolerance": 1e-7, "max_step": 0.05}
+    result = simulate_fmu(str(package.directory), stop_time=0.5, output_interval=STEP,
+                          start_values={**start, **nu_start, **parameters}, input=signals, output=theta_names + nu_names)
+    theta0 = [start.get(name, value) for name, value in zip(theta_names, package.starts("theta"))]
+    core = core_trajectory(cli, model, theta0, [nu_start[n] for n in nu_names], eps, STEP, 0.5,
                            "--method", method, "--tolerance", "1e-7", "--max-step", "0.05")
     fmu = np.column_stack([result[n] for n in theta_names + nu_names])
     np.testing.assert_allclose(fmu, np.hstack([core["theta"], core["nu"]]), rtol=1e-13, atol=1e-13)
 
 
-def test_unattainable_tolerance_is_a_warning_not_a_failure(nudyn, fmu_library, tmp_path):
+def test_unattainable_tolerance_is_a_warning_not_a_failure(nudyn, cli, tmp_path):
     """Rods of inertia diag(1e-9, 1, 1): round-off in ν̇ exceeds 1e-8 per
     second at any step size. The steps complete with fmi2Warning, a
     logStatusWarning message says what tolerance was held instead, and the
@@ -611,18 +500,14 @@ def test_unattainable_tolerance_is_a_warning_not_a_failure(nudyn, fmu_library, t
     from nudyn_stress.measures import nu_of
 
     model = ROOT / "tests" / "fixtures" / "thin_rods.xml"
-    path = export(nudyn, fmu_library, model, tmp_path / "thin_rods.fmu")
-    description = read_model_description(str(path))
+    path = cli.export(model, tmp_path / "thin_rods.fmu")
     theta = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.9553, 0.0, 0.0, 0.2955, 0.9801, 0.0, 0.1987, 0.0, 0.0]
     qvel = np.random.default_rng(8).normal(0.0, 2.0, len(theta) - 3)
     nu = nu_of(nudyn, model, theta, qvel)
     start = {f"theta[{k + 1}]": x for k, x in enumerate(theta)} | {f"nu[{k + 1}]": x for k, x in enumerate(nu)}
-    slave = Slave(path, extract(str(path), str(tmp_path / "unzipped")), start, experiment_tolerance=1e-8,
-                  method="dop853")
-    statuses = []
-    for _ in range(50):
-        statuses.append(slave.fmu.fmi2DoStep(slave.fmu.component, slave.time, STEP, fmi2True))
-        slave.time += STEP
+    slave = Instance(FmuPackage.unzip(path, tmp_path / "unzipped"), start={**start, "method": "dop853"},
+                     experiment_tolerance=1e-8)
+    statuses = [slave.step(STEP) for _ in range(50)]
     assert fmi2Warning in statuses and set(statuses) <= {fmi2OK, fmi2Warning}, statuses
     warnings = [m for s, c, m in slave.log.messages if c == "logStatusWarning"]
     assert len(warnings) == statuses.count(fmi2Warning) and all(s == fmi2Warning for s, c, _ in slave.log.messages)

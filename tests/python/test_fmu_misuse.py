@@ -11,33 +11,31 @@ import os
 import subprocess
 import sys
 import threading
-from pathlib import Path
 
 import pytest
-from fmpy import extract
 
 import fmu_misuse
 from conftest import ROOT
-from test_fmu import export, fmu_library  # noqa: F401 (the fixture)
+from nudyn_driver.package import FmuPackage
 
 CASE_TIMEOUT = 120
 RESULTS: dict[str, dict] = {}
 
 
 @pytest.fixture(scope="session")
-def unzipped(nudyn, fmu_library, tmp_path_factory):
+def unzipped(cli, tmp_path_factory):
     """bus_arm7 with every optional output, and fixed_rig (the "other" FMU), unzipped."""
     directory = tmp_path_factory.mktemp("misuse")
-    bus = export(nudyn, fmu_library, ROOT / "examples/bus_arm7.xml", directory / "bus.fmu",
-                 "--outputs", "qvel,kinetic_energy,power,momentum")
-    rig = export(nudyn, fmu_library, ROOT / "examples/fixed_rig.xml", directory / "rig.fmu")
-    return Path(extract(str(bus), str(directory / "bus"))), Path(extract(str(rig), str(directory / "rig")))
+    bus = cli.export(ROOT / "examples/bus_arm7.xml", directory / "bus.fmu",
+                     outputs=("qvel", "kinetic_energy", "power", "momentum"))
+    rig = cli.export(ROOT / "examples/fixed_rig.xml", directory / "rig.fmu")
+    return FmuPackage.unzip(bus, directory / "bus"), FmuPackage.unzip(rig, directory / "rig")
 
 
 @pytest.mark.parametrize("name", list(fmu_misuse.CASES))
 def test_misuse_case(name, unzipped, tmp_path):
     bus, rig = unzipped
-    cmd = [sys.executable, fmu_misuse.__file__, "run", name, str(bus), str(rig)]
+    cmd = [sys.executable, fmu_misuse.__file__, "run", name, str(bus.directory), str(rig.directory)]
     env = {**os.environ, "MISUSE_SCRATCH": str(tmp_path)}
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=CASE_TIMEOUT, env=env)
@@ -57,12 +55,12 @@ def test_readme_table_is_current():
     assert table in readme, f"README.md's misuse table is out of date; it should read:\n\n{table}\n"
 
 
-def run_instance(fmu: fmu_misuse.FmuDir, lib: C.CDLL, seed: int, steps: int) -> bytes:
+def run_instance(fmu: FmuPackage, lib: C.CDLL, seed: int, steps: int) -> bytes:
     """One instance from a start that depends on `seed`: the bytes of every
     Real value after every step."""
     callbacks = fmu_misuse.Callbacks(fmu_misuse.LOGGER(), fmu_misuse.ALLOCATE(), fmu_misuse.FREE(),
                                      fmu_misuse.STEP_FINISHED(), None)
-    c = lib.fmi2Instantiate(f"thread{seed}".encode(), 1, fmu.guid.encode(), fmu.uri.encode(),
+    c = lib.fmi2Instantiate(f"thread{seed}".encode(), 1, fmu.guid.encode(), fmu_misuse.resource_uri(fmu).encode(),
                             C.pointer(callbacks), 0, 0)
     assert c
     assert lib.fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0.0) == 0
@@ -85,7 +83,7 @@ def run_instance(fmu: fmu_misuse.FmuDir, lib: C.CDLL, seed: int, steps: int) -> 
 def test_eight_threads_match_sequential_runs_bit_for_bit(unzipped):
     """ctypes releases the GIL during each call, so the 8 instances really
     step at the same time."""
-    fmu = fmu_misuse.FmuDir(unzipped[0])
+    fmu = unzipped[0]
     lib = fmu_misuse.Harness(fmu).lib
     steps = 100
     sequential = [run_instance(fmu, lib, seed, steps) for seed in range(8)]

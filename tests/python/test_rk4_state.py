@@ -15,12 +15,12 @@ from the textbook tableau on its own state."""
 from __future__ import annotations
 
 import json
-import subprocess
 
 import mujoco
 import numpy as np
 
 from conftest import EXAMPLES_DIR
+from nudyn_driver.cli import Nudyn
 from nudyn_validation.mujoco_reference import upper_factor
 
 MODEL = EXAMPLES_DIR / "bus_arm7.xml"
@@ -112,14 +112,9 @@ def nu_rates(mj, qpos, nu):
 
 def nudyn_rk4(nudyn, nu0):
     stop = STEP * STEPS
-    proc = subprocess.run(
-        [str(nudyn), "simulate", str(MODEL), "--step", str(stop), "--stop", str(stop), "--method", "rk4", "--max-step", str(STEP)],
-        input=json.dumps({"nu": list(nu0)}),
-        capture_output=True,
-        text=True,
-        check=True,
-    )
-    out = json.loads(proc.stdout)
+    stdout = Nudyn(nudyn).run("simulate", MODEL, "--step", str(stop), "--stop", str(stop), "--method", "rk4",
+                              "--max-step", str(STEP), stdin=json.dumps({"nu": list(nu0)}))
+    out = json.loads(stdout)
     return np.array(out["theta"][-1]), np.array(out["nu"][-1])
 
 
