@@ -1,0 +1,52 @@
+#!/usr/bin/env bash
+# Install what the tests need beyond the main job: first everything of
+# scripts/setup.sh, then (only what is missing)
+#
+#   - Debian: valgrind (scripts/stress-fmu.sh's memory check);
+#   - cargo-fuzz (cargo install --locked; scripts/stress-fmu.sh's fuzzing);
+#   - Python: requirements-test.txt's pins into .venv (pytest; libcosimpy
+#     for the closed-loop demos; pin and tqdm for scripts/bench.py).
+#
+# scripts/test.sh runs it. Idempotent like setup.sh: a rerun with
+# everything in place touches nothing.
+#
+# Environment: PYTHON, as for setup.sh.
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+VENV="$ROOT/.venv"
+REQ="$ROOT/requirements-test.txt"
+
+bash scripts/setup.sh
+
+as_root() {
+    if [ "$(id -u)" -eq 0 ]; then "$@"; else sudo "$@"; fi
+}
+
+# --- Debian packages --------------------------------------------------------
+if ! dpkg -s valgrind >/dev/null 2>&1; then
+    echo "setup-test: installing valgrind"
+    as_root apt-get update
+    as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y valgrind
+fi
+
+# --- cargo-fuzz (scripts/stress-fmu.sh) ----------------------------------------
+if ! cargo fuzz --version >/dev/null 2>&1; then
+    echo "setup-test: installing cargo-fuzz"
+    cargo install --locked cargo-fuzz
+fi
+
+# --- Python packages ----------------------------------------------------------
+# requirements-test.txt includes requirements.txt, so the stamp covers both:
+# reinstall when either changed since the last successful install, or the
+# test packages cannot be imported any more.
+stamp="$VENV/.requirements-test.sha256"
+want="$(cat "$ROOT/requirements.txt" "$REQ" | sha256sum | cut -d' ' -f1)"
+if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ] \
+    || ! "$VENV/bin/python" -c 'import pytest, libcosimpy, pinocchio, tqdm' >/dev/null 2>&1; then
+    echo "setup-test: installing Python packages from requirements-test.txt"
+    "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -r "$REQ"
+    echo "$want" >"$stamp"
+fi
+echo "setup-test: ok ($("$VENV/bin/python" -c 'import pytest, pinocchio; print("pytest", pytest.__version__, "pinocchio", pinocchio.__version__)'))"
