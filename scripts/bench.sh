@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Regenerate docs/bench/ (results.json, table.md, work_precision.png,
-# scaling.png): set up, build, and run every benchmark of the README's
-# "Performance" section. About 15 minutes on 2 cores; the machine should
+# scaling.png): set up, build, and run every benchmark of
+# docs/performance.md. About 15 minutes on 2 cores; the machine should
 # be otherwise idle, although every comparison is timed side by side.
 #
 #   bash scripts/bench.sh [--out DIR] [--quick]
@@ -10,6 +10,6 @@ set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 
-bash scripts/setup.sh
+bash scripts/setup-test.sh
 cargo build --release --workspace
 .venv/bin/python scripts/bench.py "$@"

@@ -18,6 +18,6 @@ case "${1:-}" in
     *) echo "usage: bash scripts/control-demo.sh detumble|arm" >&2; exit 2 ;;
 esac
 
-bash scripts/setup.sh
+bash scripts/setup-test.sh
 cargo build --release --workspace
 .venv/bin/python scripts/control_demo.py "$1"

@@ -1,5 +1,5 @@
 """One figure per case, written small (low dpi, a 64-colour palette) so
-that the ones shown in the README can be committed."""
+that the ones shown in docs/stress.md can be committed."""
 
 from __future__ import annotations
 

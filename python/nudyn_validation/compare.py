@@ -38,7 +38,7 @@ class ValidationError(Exception):
 @dataclass
 class Settings:
     """How both sides are run.  The defaults meet the tolerances on every
-    example with margin (the measurements are in the README)."""
+    example with margin (the measurements are in docs/validation.md)."""
 
     duration: float = 2.0
     communication_step: float = 0.01

@@ -43,7 +43,7 @@ use crate::workspace::Workspace;
 /// inside the stability limit of the sampled loop (c₁h < 2 when ε is held
 /// from the current sample, c₁h < 1 with one step of delay, as in a master
 /// that steps all FMUs in parallel), and the Lyapunov function's increase
-/// within a step is O((c₁h)²) of K (README, "Noninteracting control").
+/// within a step is O((c₁h)²) of K (docs/control.md, "The sample-and-hold bound").
 pub const DEFAULT_RATE_GAIN: f64 = 5.0;
 
 /// Default configuration gain c₂: 0, pure rate feedback (detumbling) until
