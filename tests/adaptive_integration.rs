@@ -5,7 +5,7 @@
 mod common;
 
 use common::{Rng, TreeOptions, random_theta, random_vehicle};
-use nudyn::integrate::{Carry, Integrator, Method, Settings};
+use nudyn::integrate::{Carry, Method, Settings, Simulation};
 use nudyn::model::Model;
 use nudyn::vehicle::{JointKind, Vehicle};
 
@@ -34,19 +34,16 @@ fn run(
     (interval, intervals): (f64, usize),
     eps_at: fn(f64, &mut [f64]),
 ) -> Run {
-    let mut ws = model.workspace();
-    let mut integrator = Integrator::new(model, method);
-    let (mut theta, mut nu) = start.clone();
-    let mut carry = Carry::default();
+    let mut sim = Simulation::new(model, method, settings);
+    (sim.state.theta, sim.state.nu) = start.clone();
     let mut states = Vec::new();
     let mut steps = 0;
-    for n in 0..intervals {
-        let span = (n as f64 * interval, (n + 1) as f64 * interval);
-        let stats = integrator.advance(model, &mut ws, &mut theta, &mut nu, span, &settings, &mut carry, eps_at).unwrap();
+    for n in 1..=intervals {
+        let stats = sim.advance_to(model, n as f64 * interval, eps_at).unwrap().stats;
         steps += stats.accepted + stats.rejected;
-        states.push((theta.clone(), nu.clone()));
+        states.push((sim.state.theta.clone(), sim.state.nu.clone()));
     }
-    Run { states, carry, steps }
+    Run { states, carry: sim.state.carry, steps }
 }
 
 /// Largest |x − reference| / (1 + |reference|) over all states.

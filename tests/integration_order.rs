@@ -24,7 +24,7 @@ fn simulate(model: &Model, method: Method, theta0: &[f64], nu0: &[f64], h: f64, 
     let mut integrator = Integrator::new(model, method);
     let (mut theta, mut nu) = (theta0.to_vec(), nu0.to_vec());
     for n in 0..steps {
-        integrator.step(model, &mut ws, &mut theta, &mut nu, n as f64 * h, h, smooth_eps).ok()?;
+        integrator.step(model, &mut ws, (&mut theta, &mut nu), (n as f64 * h, h), smooth_eps).ok()?;
     }
     Some((theta, nu))
 }
@@ -127,7 +127,7 @@ fn free_tumbling_conserves_norm_of_nu_and_momentum() {
     let (k0, p0) = invariants(&mut ws, &theta, &nu);
     let h = 1e-3;
     for n in 0..2000 {
-        integrator.step(&model, &mut ws, &mut theta, &mut nu, n as f64 * h, h, |_, e| e.copy_from_slice(&zero)).unwrap();
+        integrator.step(&model, &mut ws, (&mut theta, &mut nu), (n as f64 * h, h), |_, e| e.copy_from_slice(&zero)).unwrap();
     }
     let (k1, p1) = invariants(&mut ws, &theta, &nu);
     assert!((k1 - k0).abs() / k0 < 1e-9, "energy drift {:.3e}", (k1 - k0).abs() / k0);

@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
-use nudyn::integrate::{Carry, Integrator, Method, Settings};
+use nudyn::integrate::{Input, Method, Settings, Simulation};
 use nudyn::model::{Model, Shortcuts};
 use nudyn::workspace::Workspace;
 use serde::{Deserialize, Serialize};
@@ -324,7 +324,6 @@ fn simulate(model: &Model, state: &State, run: &str, duration: f64, sample: f64,
         bail!("--duration {duration} is not a multiple of --sample {sample}");
     }
     let mut ws = model.workspace();
-    let eps_at = |_: f64, out: &mut [f64]| out.fill(0.0);
     let mut result = SimulateResult {
         run: run.to_string(),
         seconds: Vec::new(),
@@ -338,26 +337,27 @@ fn simulate(model: &Model, state: &State, run: &str, duration: f64, sample: f64,
     let mut reached = intervals;
     // Preallocated outside the timed loop: the sampled (θ, ν).
     let mut trajectory = vec![(state.theta.clone(), state.nu.clone()); intervals + 1];
+    let zero = vec![0.0; model.nv];
+    let input = Input { eps: &zero, eps_rate: &zero };
+    let start_run = || {
+        let mut sim = Simulation::new(model, method, settings);
+        sim.state.theta.copy_from_slice(&state.theta);
+        sim.state.nu.copy_from_slice(&state.nu);
+        sim
+    };
     // Untimed, one sample long, as on MuJoCo's side: a run timed cold is slower.
-    {
-        let (mut theta, mut nu) = (state.theta.clone(), state.nu.clone());
-        // A failure here shows again, and is reported, in the timed run.
-        let _ = Integrator::new(model, method).advance(
-            model, &mut ws, &mut theta, &mut nu, (0.0, sample), &settings, &mut Carry::default(), eps_at,
-        );
-    }
+    // A failure here shows again, and is reported, in the timed run.
+    let _ = start_run().advance_to(model, sample, input);
     for _ in 0..repetitions {
-        let mut integrator = Integrator::new(model, method);
-        let mut carry = Carry::default();
-        let (mut theta, mut nu) = (state.theta.clone(), state.nu.clone());
+        let mut sim = start_run();
         let (mut accepted, mut rejected) = (0, 0);
         let start = Instant::now();
         for n in 0..intervals {
             let t = n as f64 * sample;
-            match integrator.advance(model, &mut ws, &mut theta, &mut nu, (t, t + sample), &settings, &mut carry, eps_at) {
-                Ok(stats) => {
-                    accepted += stats.accepted;
-                    rejected += stats.rejected;
+            match sim.advance_to(model, t + sample, input) {
+                Ok(advanced) => {
+                    accepted += advanced.stats.accepted;
+                    rejected += advanced.stats.rejected;
                 }
                 Err(error) => {
                     // Too large a step for the motion: a point of the curve all the same.
@@ -366,8 +366,8 @@ fn simulate(model: &Model, state: &State, run: &str, duration: f64, sample: f64,
                     break;
                 }
             }
-            trajectory[n + 1].0.copy_from_slice(&theta);
-            trajectory[n + 1].1.copy_from_slice(&nu);
+            trajectory[n + 1].0.copy_from_slice(&sim.state.theta);
+            trajectory[n + 1].1.copy_from_slice(&sim.state.nu);
         }
         result.seconds.push(start.elapsed().as_secs_f64());
         (result.accepted, result.rejected) = (accepted, rejected);

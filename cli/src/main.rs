@@ -8,7 +8,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use nudyn::control::ControlLaw;
 use nudyn::eval::{EvalRequest, EvalResponse, evaluate};
-use nudyn::integrate::{Carry, Integrator, Method, Settings};
+use nudyn::integrate::{Input, Method, Settings, Simulation};
 use nudyn::model::Model;
 use nudyn::vehicle::Vehicle;
 use nudyn_cli::export::controller::write_controller_fmu;
@@ -300,39 +300,39 @@ fn simulate(model_path: &Path, step: f64, stop: f64, method: Method, settings: &
     let mut input = String::new();
     std::io::stdin().read_to_string(&mut input).context("cannot read stdin")?;
     let request: SimulateRequest = serde_json::from_str(&input).context("stdin is not a valid simulate request")?;
-    let mut theta = request.theta.unwrap_or_else(|| model.qpos0.clone());
-    let mut nu = request.nu.unwrap_or_else(|| vec![0.0; model.nv]);
+    let mut sim = Simulation::new(&model, method, *settings);
+    if let Some(theta) = request.theta {
+        sim.state.theta = theta;
+    }
+    if let Some(nu) = request.nu {
+        sim.state.nu = nu;
+    }
     let eps = request.eps.unwrap_or_else(|| vec![0.0; model.nv]);
     let eps_rate = request.eps_rate.unwrap_or_else(|| vec![0.0; model.nv]);
     if eps_rate.len() != model.nv {
         bail!("eps_rate has {} entries, expected {}", eps_rate.len(), model.nv);
     }
-    let mut ws = model.workspace();
-    // Like the FMU at initialization: check the state and normalize its quaternions.
-    ws.set_configuration(&model, &theta)?;
-    ws.set_nu(&model, &nu)?;
-    ws.compute_nu_dot(&model, &eps)?;
-    theta.copy_from_slice(ws.theta.as_slice());
-    let mut integrator = Integrator::new(&model, method);
-    let mut carry = Carry::default();
-    let mut trajectory = Trajectory { time: vec![0.0], theta: vec![theta.clone()], nu: vec![nu.clone()] };
+    // Like the FMU at initialization: check the state and normalize its quaternions; check ε too.
+    sim.initialize(&model)?;
+    sim.evaluate_velocity(&model)?.compute_nu_dot(&model, &eps)?;
+    let mut trajectory =
+        Trajectory { time: vec![0.0], theta: vec![sim.state.theta.clone()], nu: vec![sim.state.nu.clone()] };
+    // ε(t) = eps + eps_rate·t, as the simulation's input over each step: its value at the step's start and its rate.
+    let mut eps_now = eps.clone();
     for n in 0..steps as usize {
         let t = n as f64 * step;
-        let eps_at = |t: f64, out: &mut [f64]| {
-            for ((o, e), r) in out.iter_mut().zip(&eps).zip(&eps_rate) {
-                *o = e + r * t;
-            }
-        };
-        let relaxation_before = carry.relaxation;
-        integrator
-            .advance(&model, &mut ws, &mut theta, &mut nu, (t, t + step), settings, &mut carry, eps_at)
-            .with_context(|| format!("the step from t = {t} failed"))?;
-        if let Some(relaxed) = carry.relaxed_since(relaxation_before, t, settings.tolerance) {
+        for ((now, e), r) in eps_now.iter_mut().zip(&eps).zip(&eps_rate) {
+            *now = e + r * t;
+        }
+        let input = Input { eps: &eps_now, eps_rate: &eps_rate };
+        let advanced =
+            sim.advance_to(&model, t + step, input).with_context(|| format!("the step from t = {t} failed"))?;
+        if let Some(relaxed) = advanced.relaxed {
             eprintln!("warning: {relaxed}");
         }
         trajectory.time.push(t + step);
-        trajectory.theta.push(theta.clone());
-        trajectory.nu.push(nu.clone());
+        trajectory.theta.push(sim.state.theta.clone());
+        trajectory.nu.push(sim.state.nu.clone());
     }
     println!("{}", serde_json::to_string(&trajectory)?);
     Ok(())

@@ -6,9 +6,8 @@
 //! state, so outputs nobody reads cost nothing.
 
 use nudyn::dynamics::quantities::kinetic_energy;
-use nudyn::integrate::{Carry, Integrator, Method, Settings};
+use nudyn::integrate::{Input, Method, RunState, Settings, Simulation};
 use nudyn::model::{LinkJoint, Model};
-use nudyn::workspace::Workspace;
 use nudyn_contract::capabilities::Capabilities;
 use nudyn_contract::plant::{
     CAPABILITIES, DEFAULT_MAX_STEP, DEFAULT_METHOD, DEFAULT_TOLERANCE, ENERGY_PROJECTION_VR, Layout, METHOD_VR,
@@ -27,54 +26,27 @@ const MAX_INTERNAL_STEPS: f64 = 1e6;
 /// The values that determine the plant's future: what an FMU state saves.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PlantState {
-    /// Current time (s).
-    pub time: f64,
+    /// Time, θ (nq, qpos), ν (nv) and the integrator's carry.
+    pub run: RunState,
+    /// Parameters `tolerance`, `max_step` and `energy_projection`.
+    pub settings: Settings,
+    /// Parameter `method`.
+    pub method: Method,
     /// Start time of the experiment (s).
     pub start_time: f64,
     /// Stop time, if the master declared one (s).
     pub stop_time: Option<f64>,
-    /// Parameter `tolerance`.
-    pub tolerance: f64,
-    /// Parameter `max_step` (s).
-    pub max_step: f64,
-    /// Parameter `method`.
-    pub method: Method,
-    /// Parameter `energy_projection`.
-    pub energy_projection: bool,
-    /// The integrator's proposed next step and accumulated work.
-    pub carry: Carry,
     /// K = ½|ν|² at initialization (J), for the energy residual.
     pub initial_energy: f64,
-    /// θ (nq, qpos).
-    pub theta: Vec<f64>,
-    /// ν (nv).
-    pub nu: Vec<f64>,
     /// The inputs ε (nv) as set at the current communication point.
     pub eps: Vec<f64>,
     /// dε/dt (nv) from fmi2SetRealInputDerivatives, for the next step only.
     pub eps_rate: Vec<f64>,
 }
 
-impl PlantState {
-    /// The state just after instantiation: qpos0, at rest, no input.
-    fn initial(model: &Model) -> Self {
-        PlantState {
-            time: 0.0,
-            start_time: 0.0,
-            stop_time: None,
-            tolerance: DEFAULT_TOLERANCE,
-            max_step: DEFAULT_MAX_STEP,
-            method: DEFAULT_METHOD,
-            energy_projection: false,
-            carry: Carry::default(),
-            initial_energy: 0.0,
-            theta: model.qpos0.clone(),
-            nu: vec![0.0; model.nv],
-            eps: vec![0.0; model.nv],
-            eps_rate: vec![0.0; model.nv],
-        }
-    }
-}
+/// The parameters' defaults.
+const DEFAULT_SETTINGS: Settings =
+    Settings { tolerance: DEFAULT_TOLERANCE, max_step: DEFAULT_MAX_STEP, energy_projection: false };
 
 /// How far the workspace holds the passes for the current (θ, ν, ε).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -91,9 +63,18 @@ pub struct Plant {
     model: Model,
     layout: Layout,
     guid: String,
-    ws: Workspace,
-    integrator: Integrator,
-    state: PlantState,
+    /// Time, θ, ν, the settings and method, the integrator and workspace.
+    sim: Simulation,
+    /// Start time of the experiment (s).
+    start_time: f64,
+    /// Stop time, if the master declared one (s).
+    stop_time: Option<f64>,
+    /// K = ½|ν|² at initialization (J), for the energy residual.
+    initial_energy: f64,
+    /// The inputs ε (nv) as set at the current communication point.
+    eps: Vec<f64>,
+    /// dε/dt (nv) from fmi2SetRealInputDerivatives, for the next step only.
+    eps_rate: Vec<f64>,
     evaluated: Evaluated,
     /// Momentum at the current state, when `evaluated` ≥ Velocity and it is an output.
     momentum: [f64; 6],
@@ -113,9 +94,12 @@ impl Plant {
         Plant {
             layout,
             guid: loaded.guid,
-            ws: model.workspace(),
-            integrator: Integrator::new(&model, DEFAULT_METHOD),
-            state: PlantState::initial(&model),
+            sim: Simulation::new(&model, DEFAULT_METHOD, DEFAULT_SETTINGS),
+            start_time: 0.0,
+            stop_time: None,
+            initial_energy: 0.0,
+            eps: vec![0.0; model.nv],
+            eps_rate: vec![0.0; model.nv],
             evaluated: Evaluated::Nothing,
             momentum: [0.0; 6],
             failed_for_good: false,
@@ -129,16 +113,15 @@ impl Plant {
         if self.evaluated >= needed {
             return Ok(());
         }
-        let (model, s) = (&self.model, &self.state);
-        self.ws.set_configuration(model, &s.theta).map_err(CallError::Evaluate)?;
-        self.ws.set_nu(model, &s.nu).map_err(CallError::Evaluate)?;
+        let model = &self.model;
+        let ws = self.sim.evaluate_velocity(model).map_err(CallError::Evaluate)?;
         if self.layout.outputs.momentum {
-            let momentum = self.ws.momentum(model).map_err(CallError::Evaluate)?;
+            let momentum = ws.momentum(model).map_err(CallError::Evaluate)?;
             self.momentum.iter_mut().zip(momentum.iter()).for_each(|(m, x)| *m = *x);
         }
         self.evaluated = Evaluated::Velocity;
         if needed == Evaluated::Acceleration {
-            self.ws.compute_nu_dot(model, &s.eps).map_err(CallError::Evaluate)?;
+            ws.compute_nu_dot(model, &self.eps).map_err(CallError::Evaluate)?;
             self.evaluated = Evaluated::Acceleration;
         }
         Ok(())
@@ -147,8 +130,9 @@ impl Plant {
     /// d(qpos[k])/dt from the workspace's θ̇ (passes 0–2 done): q̇ = ½ q ⊗ (0, ω)
     /// for a quaternion's entries.
     fn qpos_rate(&self, k: usize) -> f64 {
+        let ws = self.sim.workspace();
         let link = self.model.links.iter().rev().find(|l| l.qpos_adr <= k).expect("every coordinate belongs to a link");
-        let (q, w) = (&self.ws.theta.as_slice()[link.qpos_adr..], &self.ws.qvel.as_slice()[link.dof_adr..]);
+        let (q, w) = (&ws.theta.as_slice()[link.qpos_adr..], &ws.qvel.as_slice()[link.dof_adr..]);
         match (link.joint, k - link.qpos_adr) {
             (LinkJoint::Ball, 0) => -0.5 * (q[1] * w[0] + q[2] * w[1] + q[3] * w[2]),
             (LinkJoint::Ball, 1) => 0.5 * (q[0] * w[0] + q[2] * w[2] - q[3] * w[1]),
@@ -165,26 +149,31 @@ impl Component for Plant {
     }
 
     fn reset(&mut self) {
-        self.state = PlantState::initial(&self.model);
+        self.sim = Simulation::new(&self.model, DEFAULT_METHOD, DEFAULT_SETTINGS);
+        self.start_time = 0.0;
+        self.stop_time = None;
+        self.initial_energy = 0.0;
+        self.eps.fill(0.0);
+        self.eps_rate.fill(0.0);
         self.evaluated = Evaluated::Nothing;
         self.failed_for_good = false;
         self.experiment_tolerance = None;
     }
 
     fn time(&self) -> f64 {
-        self.state.time
+        self.sim.state.time
     }
 
     fn stop_time(&self) -> Option<f64> {
-        self.state.stop_time
+        self.stop_time
     }
 
     /// The start time becomes the current time.
     fn setup_experiment(&mut self, tolerance: Option<f64>, start_time: f64, stop_time: Option<f64>) {
         self.experiment_tolerance = tolerance;
-        self.state.start_time = start_time;
-        self.state.time = start_time;
-        self.state.stop_time = stop_time;
+        self.start_time = start_time;
+        self.sim.state.time = start_time;
+        self.stop_time = stop_time;
     }
 
     /// Checks the initial state set by the master and normalizes its
@@ -192,15 +181,11 @@ impl Component for Plant {
     /// takes the place of the `tolerance` parameter, which then reads back
     /// the tolerance in effect.
     fn initialize(&mut self) -> Result<(), CallError> {
-        self.ws.set_configuration(&self.model, &self.state.theta).map_err(CallError::InitialState)?;
-        self.ws.set_nu(&self.model, &self.state.nu).map_err(CallError::InitialState)?;
-        self.state.theta.copy_from_slice(self.ws.theta.as_slice());
+        self.sim.initialize(&self.model).map_err(CallError::InitialState)?;
         if let Some(tolerance) = self.experiment_tolerance {
-            self.state.tolerance = tolerance;
+            self.sim.settings.tolerance = tolerance;
         }
-        self.state.carry = Carry::default();
-        self.state.initial_energy = kinetic_energy(&self.state.nu);
-        self.integrator.set_method(self.state.method);
+        self.initial_energy = kinetic_energy(&self.sim.state.nu);
         self.evaluated = Evaluated::Nothing;
         Ok(())
     }
@@ -210,14 +195,14 @@ impl Component for Plant {
     }
 
     fn set_reals(&mut self, vrs: &[u32], values: &[f64]) {
-        let s = &mut self.state;
+        let (run, settings) = (&mut self.sim.state, &mut self.sim.settings);
         for (&vr, &value) in vrs.iter().zip(values) {
             match self.layout.real_variable(vr).expect("checked by the caller") {
-                RealVariable::Tolerance => s.tolerance = value,
-                RealVariable::MaxStep => s.max_step = value,
-                RealVariable::Eps(k) => s.eps[k] = value,
-                RealVariable::Theta(k) => s.theta[k] = value,
-                RealVariable::Nu(k) => s.nu[k] = value,
+                RealVariable::Tolerance => settings.tolerance = value,
+                RealVariable::MaxStep => settings.max_step = value,
+                RealVariable::Eps(k) => self.eps[k] = value,
+                RealVariable::Theta(k) => run.theta[k] = value,
+                RealVariable::Nu(k) => run.nu[k] = value,
                 variable => unreachable!("{variable:?} is a calculated output: the caller refuses it"),
             }
         }
@@ -225,26 +210,26 @@ impl Component for Plant {
     }
 
     fn prepare_reals(&mut self, vrs: &[u32]) -> Result<(), CallError> {
-        let variables = vrs.iter().filter_map(|&vr| self.layout.real_variable(vr));
-        if variables.clone().any(|v| matches!(v, RealVariable::Qvel(_) | RealVariable::Momentum(_))) {
+        let mut variables = vrs.iter().filter_map(|&vr| self.layout.real_variable(vr));
+        if variables.any(|v| matches!(v, RealVariable::Qvel(_) | RealVariable::Momentum(_))) {
             self.evaluate(Evaluated::Velocity)?;
         }
         Ok(())
     }
 
     fn real_value(&self, vr: u32) -> f64 {
-        let s = &self.state;
+        let (run, settings) = (&self.sim.state, &self.sim.settings);
         match self.layout.real_variable(vr).expect("checked by the caller") {
-            RealVariable::Tolerance => s.tolerance,
-            RealVariable::MaxStep => s.max_step,
-            RealVariable::Eps(k) => s.eps[k],
-            RealVariable::Theta(k) => s.theta[k],
-            RealVariable::Nu(k) => s.nu[k],
-            RealVariable::Qvel(k) => self.ws.qvel[k],
-            RealVariable::KineticEnergy => kinetic_energy(&s.nu),
-            RealVariable::Power => s.nu.iter().zip(&s.eps).map(|(n, e)| n * e).sum(),
+            RealVariable::Tolerance => settings.tolerance,
+            RealVariable::MaxStep => settings.max_step,
+            RealVariable::Eps(k) => self.eps[k],
+            RealVariable::Theta(k) => run.theta[k],
+            RealVariable::Nu(k) => run.nu[k],
+            RealVariable::Qvel(k) => self.sim.workspace().qvel[k],
+            RealVariable::KineticEnergy => kinetic_energy(&run.nu),
+            RealVariable::Power => run.nu.iter().zip(&self.eps).map(|(n, e)| n * e).sum(),
             RealVariable::Momentum(k) => self.momentum[k],
-            RealVariable::EnergyResidual => kinetic_energy(&s.nu) - s.initial_energy - s.carry.work,
+            RealVariable::EnergyResidual => kinetic_energy(&run.nu) - self.initial_energy - run.carry.work,
         }
     }
 
@@ -253,7 +238,7 @@ impl Component for Plant {
         if let Some(&vr) = vrs.iter().find(|&&vr| vr != METHOD_VR) {
             return Err(CallError::UnknownValueReference { vr, kind: "Integer" });
         }
-        values.fill(method_value(self.state.method));
+        values.fill(method_value(self.sim.method()));
         Ok(())
     }
 
@@ -271,7 +256,7 @@ impl Component for Plant {
             }
         }
         if let Some(method) = values.last().and_then(|&v| method_of_value(v)) {
-            self.state.method = method;
+            self.sim.set_method(method);
         }
         Ok(())
     }
@@ -281,7 +266,7 @@ impl Component for Plant {
         if let Some(&vr) = vrs.iter().find(|&&vr| vr != ENERGY_PROJECTION_VR) {
             return Err(CallError::UnknownValueReference { vr, kind: "Boolean" });
         }
-        values.fill(self.state.energy_projection);
+        values.fill(self.sim.settings.energy_projection);
         Ok(())
     }
 
@@ -296,7 +281,7 @@ impl Component for Plant {
             }
         }
         if let Some(&value) = values.last() {
-            self.state.energy_projection = value;
+            self.sim.settings.energy_projection = value;
         }
         Ok(())
     }
@@ -305,7 +290,7 @@ impl Component for Plant {
     fn set_input_derivatives(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), CallError> {
         for (&vr, &value) in vrs.iter().zip(values) {
             if let Some(RealVariable::Eps(k)) = self.layout.real_variable(vr) {
-                self.state.eps_rate[k] = value;
+                self.eps_rate[k] = value;
             }
         }
         Ok(())
@@ -319,14 +304,14 @@ impl Component for Plant {
     fn output_derivative(&self, vr: u32) -> f64 {
         match self.layout.real_variable(vr) {
             Some(RealVariable::Theta(k)) => self.qpos_rate(k),
-            Some(RealVariable::Nu(k)) => self.ws.nu_dot[k],
+            Some(RealVariable::Nu(k)) => self.sim.workspace().nu_dot[k],
             variable => unreachable!("{variable:?} is not a state output: the caller refuses it"),
         }
     }
 
     /// Refuses a finite step that would take more than [`MAX_INTERNAL_STEPS`] internal steps.
     fn check_step_size(&self, step: f64) -> Result<(), CallError> {
-        let max_step = self.state.max_step;
+        let max_step = self.sim.settings.max_step;
         let needed = step / max_step;
         if step.is_finite() && needed > MAX_INTERNAL_STEPS {
             return Err(CallError::TooLong { step, max_step, needed, limit: MAX_INTERNAL_STEPS });
@@ -341,28 +326,17 @@ impl Component for Plant {
     /// last successful internal step and the time says where. A step that
     /// completed only by relaxing the tolerance says so.
     fn do_step(&mut self, time: f64, step: f64) -> Result<Option<StepReport>, StepError> {
-        let s = &mut self.state;
-        let settings = Settings { tolerance: s.tolerance, max_step: s.max_step, energy_projection: s.energy_projection };
-        let (eps, eps_rate) = (&s.eps, &s.eps_rate);
-        let applied = |t_stage: f64, out: &mut [f64]| {
-            for ((o, e), r) in out.iter_mut().zip(eps).zip(eps_rate) {
-                *o = e + r * (t_stage - time);
-            }
-        };
-        let (model, ws, integrator) = (&self.model, &mut self.ws, &mut self.integrator);
-        let relaxation_before = s.carry.relaxation;
-        let result =
-            integrator.advance(model, ws, &mut s.theta, &mut s.nu, (time, time + step), &settings, &mut s.carry, applied);
+        // The master's communication point, within round-off of the plant's time, is where the step starts.
+        self.sim.state.time = time;
+        let input = Input { eps: &self.eps, eps_rate: &self.eps_rate };
+        let result = self.sim.advance_to(&self.model, time + step, input);
         self.evaluated = Evaluated::Nothing;
         match result {
-            Ok(stats) => {
-                s.time = time + step;
-                s.eps_rate.fill(0.0);
-                let relaxed = s.carry.relaxed_since(relaxation_before, time, s.tolerance);
-                Ok(Some(StepReport { stats, relaxed }))
+            Ok(advanced) => {
+                self.eps_rate.fill(0.0);
+                Ok(Some(StepReport { stats: advanced.stats, relaxed: advanced.relaxed }))
             }
             Err(source) => {
-                s.time = source.reached();
                 self.failed_for_good = source.is_non_finite();
                 Err(StepError { time, step, source })
             }
@@ -374,20 +348,39 @@ impl Component for Plant {
     }
 
     fn snapshot(&self, phase: Phase) -> Result<Snapshot, CallError> {
-        Ok(Snapshot { phase, guid: self.guid.clone(), state: self.state.clone() })
+        let state = PlantState {
+            run: self.sim.state.clone(),
+            settings: self.sim.settings,
+            method: self.sim.method(),
+            start_time: self.start_time,
+            stop_time: self.stop_time,
+            initial_energy: self.initial_energy,
+            eps: self.eps.clone(),
+            eps_rate: self.eps_rate.clone(),
+        };
+        Ok(Snapshot { phase, guid: self.guid.clone(), state })
     }
 
     /// Saves into `snapshot`, reusing its buffers.
     fn save(&self, phase: Phase, snapshot: &mut Snapshot) -> Result<(), CallError> {
         snapshot.phase = phase;
         snapshot.guid.clone_from(&self.guid);
-        snapshot.state.clone_from(&self.state);
+        let state = &mut snapshot.state;
+        state.run.clone_from(&self.sim.state);
+        state.settings = self.sim.settings;
+        state.method = self.sim.method();
+        state.start_time = self.start_time;
+        state.stop_time = self.stop_time;
+        state.initial_energy = self.initial_energy;
+        state.eps.clone_from(&self.eps);
+        state.eps_rate.clone_from(&self.eps_rate);
         Ok(())
     }
 
     /// A state of another FMU is refused.
     fn restore(&mut self, snapshot: &Snapshot) -> Result<(), CallError> {
-        let (nq, nv) = (snapshot.state.theta.len(), snapshot.state.nu.len());
+        let state = &snapshot.state;
+        let (nq, nv) = (state.run.theta.len(), state.run.nu.len());
         if snapshot.guid != self.guid {
             return Err(SnapshotError::ForeignGuid { found: snapshot.guid.clone(), expected: self.guid.clone() }.into());
         }
@@ -395,8 +388,14 @@ impl Component for Plant {
             let (expected_nq, expected_nv) = (self.model.nq, self.model.nv);
             return Err(SnapshotError::Sizes { nq, nv, expected_nq, expected_nv }.into());
         }
-        self.state.clone_from(&snapshot.state);
-        self.integrator.set_method(self.state.method);
+        self.sim.restore(&state.run);
+        self.sim.settings = state.settings;
+        self.sim.set_method(state.method);
+        self.start_time = state.start_time;
+        self.stop_time = state.stop_time;
+        self.initial_energy = state.initial_energy;
+        self.eps.clone_from(&state.eps);
+        self.eps_rate.clone_from(&state.eps_rate);
         self.evaluated = Evaluated::Nothing;
         self.failed_for_good = false;
         Ok(())

@@ -6,7 +6,7 @@
 //! (finite, positive settings), so that even a blob crafted with a valid
 //! checksum cannot put a NaN into the outputs.
 
-use nudyn::integrate::{Carry, Method};
+use nudyn::integrate::{Carry, Method, RunState, Settings};
 
 use crate::plant::PlantState;
 use crate::state::Phase;
@@ -117,7 +117,7 @@ impl Snapshot {
 
     /// The size of [`Snapshot::serialize`]'s output.
     pub fn serialized_size(&self) -> usize {
-        let (nq, nv) = (self.state.theta.len(), self.state.nu.len());
+        let (nq, nv) = (self.state.run.theta.len(), self.state.run.nu.len());
         MAGIC.len() + 4 + 4 + self.guid.len() + 4 + 4 + 4 + 8 * Self::scalar_count(nq, nv) + 8
     }
 
@@ -129,24 +129,24 @@ impl Snapshot {
         bytes.extend_from_slice(&VERSION.to_le_bytes());
         bytes.extend_from_slice(&(self.guid.len() as u32).to_le_bytes());
         bytes.extend_from_slice(self.guid.as_bytes());
-        bytes.extend_from_slice(&(s.theta.len() as u32).to_le_bytes());
-        bytes.extend_from_slice(&(s.nu.len() as u32).to_le_bytes());
+        bytes.extend_from_slice(&(s.run.theta.len() as u32).to_le_bytes());
+        bytes.extend_from_slice(&(s.run.nu.len() as u32).to_le_bytes());
         bytes.push(self.phase.code());
         bytes.push(u8::from(s.stop_time.is_some()));
         bytes.push(Method::ALL.iter().position(|&m| m == s.method).expect("listed") as u8);
-        bytes.push(u8::from(s.energy_projection));
+        bytes.push(u8::from(s.settings.energy_projection));
         let scalars = [
-            s.time,
+            s.run.time,
             s.start_time,
             s.stop_time.unwrap_or(0.0),
-            s.tolerance,
-            s.max_step,
-            s.carry.next_step,
-            s.carry.work,
+            s.settings.tolerance,
+            s.settings.max_step,
+            s.run.carry.next_step,
+            s.run.carry.work,
             s.initial_energy,
-            s.carry.relaxation,
+            s.run.carry.relaxation,
         ];
-        for x in scalars.iter().chain(&s.theta).chain(&s.nu).chain(&s.eps).chain(&s.eps_rate) {
+        for x in scalars.iter().chain(&s.run.theta).chain(&s.run.nu).chain(&s.eps).chain(&s.eps_rate) {
             bytes.extend_from_slice(&x.to_le_bytes());
         }
         let checksum = fnv1a(&bytes);
@@ -201,17 +201,17 @@ impl Snapshot {
             phase,
             guid: found_guid,
             state: PlantState {
-                time: settings[0],
+                run: RunState {
+                    time: settings[0],
+                    theta: theta.to_vec(),
+                    nu: nu.to_vec(),
+                    carry: Carry { next_step: settings[5], work: settings[6], relaxation: settings[8] },
+                },
+                settings: Settings { tolerance: settings[3], max_step: settings[4], energy_projection },
+                method,
                 start_time: settings[1],
                 stop_time: stop_time_defined.then_some(settings[2]),
-                tolerance: settings[3],
-                max_step: settings[4],
-                method,
-                energy_projection,
-                carry: Carry { next_step: settings[5], work: settings[6], relaxation: settings[8] },
                 initial_energy: settings[7],
-                theta: theta.to_vec(),
-                nu: nu.to_vec(),
                 eps: eps.to_vec(),
                 eps_rate: eps_rate.to_vec(),
             },
@@ -291,17 +291,17 @@ mod tests {
             phase: Phase::StepComplete,
             guid: GUID.to_string(),
             state: PlantState {
-                time: 0.1 + 0.2,
+                run: RunState {
+                    time: 0.1 + 0.2,
+                    theta: vec![1.0, 0.0, 0.0, 0.0, std::f64::consts::PI],
+                    nu: vec![1e-300, -0.0, 3.5, 7.25],
+                    carry: Carry { next_step: 2.5e-3, work: -0.75, relaxation: 3.0 },
+                },
+                settings: Settings { tolerance: 1e-6, max_step: 1e-3, energy_projection: true },
+                method: Method::Dopri5,
                 start_time: -1.5,
                 stop_time: Some(10.0),
-                tolerance: 1e-6,
-                max_step: 1e-3,
-                method: Method::Dopri5,
-                energy_projection: true,
-                carry: Carry { next_step: 2.5e-3, work: -0.75, relaxation: 3.0 },
                 initial_energy: 1.25,
-                theta: vec![1.0, 0.0, 0.0, 0.0, std::f64::consts::PI],
-                nu: vec![1e-300, -0.0, 3.5, 7.25],
                 eps: vec![0.5, 0.25, -1.0, 2.0],
                 eps_rate: vec![0.0, 1.0, 0.0, -3.0],
             },
@@ -322,7 +322,7 @@ mod tests {
             let bytes = serialized(&original);
             let back = Snapshot::deserialize(&bytes, GUID, 5, 4).unwrap();
             assert_eq!(back, original);
-            assert!(back.state.nu[1].is_sign_negative(), "-0.0 keeps its sign");
+            assert!(back.state.run.nu[1].is_sign_negative(), "-0.0 keeps its sign");
             assert_eq!(serialized(&back), bytes);
         }
     }
@@ -376,11 +376,11 @@ mod tests {
     #[test]
     fn rejects_values_a_state_cannot_hold_even_with_a_valid_checksum() {
         let mut nan_theta = sample();
-        nan_theta.state.theta[2] = f64::NAN;
+        nan_theta.state.run.theta[2] = f64::NAN;
         let mut zero_step = sample();
-        zero_step.state.max_step = 0.0;
+        zero_step.state.settings.max_step = 0.0;
         let mut infinite_time = sample();
-        infinite_time.state.time = f64::INFINITY;
+        infinite_time.state.run.time = f64::INFINITY;
         for (snapshot, what) in [(nan_theta, "a value of theta"), (zero_step, "max_step"), (infinite_time, "time")] {
             let error = Snapshot::deserialize(&serialized(&snapshot), GUID, 5, 4).unwrap_err();
             assert!(matches!(error, SnapshotError::Value { .. }) && error.to_string().contains(what), "{error}");

@@ -24,18 +24,18 @@
 //! any length of run; the rescaling is O(h^(p+1)), so orders are kept.
 
 use super::rkmk::{Integrator, retract};
+use super::simulation::Simulation;
 use super::tableau::ErrorEstimate;
 use crate::dynamics::DynamicsError;
 use crate::dynamics::quantities::kinetic_energy;
 use crate::model::{LinkJoint, Model};
-use crate::workspace::Workspace;
 
 /// How to integrate.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Settings {
     /// Relative (and absolute) local error tolerance of adaptive methods.
     pub tolerance: f64,
-    /// Longest internal step (s); RK4 takes equal steps of at most this.
+    /// Longest internal step (s); RK4 takes equal steps of at most integrator.
     pub max_step: f64,
     /// Rescale ν after each step to the energy balance (module docs).
     pub energy_projection: bool,
@@ -205,81 +205,53 @@ const ROUND_OFF_MARGIN: f64 = 10.0;
 /// Safety factor of the step-size controller.
 const SAFETY: f64 = 0.9;
 
-impl Integrator {
-    /// Integrates from `t0` to `t1`, moving `theta` (nq) and `nu` (nv) in
-    /// place; `eps_at(t, out)` writes the applied ε at time t.
-    #[allow(clippy::too_many_arguments)]
-    pub fn advance(
+impl Simulation {
+    /// Equal steps of at most `max_step` from the state's time to `t1`.
+    pub(super) fn advance_fixed(
         &mut self,
         model: &Model,
-        ws: &mut Workspace,
-        theta: &mut [f64],
-        nu: &mut [f64],
-        (t0, t1): (f64, f64),
-        settings: &Settings,
-        carry: &mut Carry,
-        mut eps_at: impl FnMut(f64, &mut [f64]),
-    ) -> Result<Stats, AdvanceError> {
-        // ε may have changed since the last interval.
-        self.first.valid = false;
-        if self.method.is_adaptive() {
-            self.advance_adaptive(model, ws, theta, nu, (t0, t1), settings, carry, &mut eps_at)
-        } else {
-            self.advance_fixed(model, ws, theta, nu, (t0, t1), settings, carry, &mut eps_at)
-        }
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn advance_fixed(
-        &mut self,
-        model: &Model,
-        ws: &mut Workspace,
-        theta: &mut [f64],
-        nu: &mut [f64],
-        (t0, t1): (f64, f64),
-        settings: &Settings,
-        carry: &mut Carry,
+        t1: f64,
         eps_at: &mut impl FnMut(f64, &mut [f64]),
     ) -> Result<Stats, AdvanceError> {
+        let Simulation { state, settings, integrator, ws } = self;
+        let (t0, theta, nu, carry) = (state.time, &mut state.theta[..], &mut state.nu[..], &mut state.carry);
         // The tolerance keeps an interval of exactly k·max_step (up to round-off) at k steps.
         let steps = ((t1 - t0) / settings.max_step * (1.0 - 1e-12)).ceil().max(1.0) as usize;
         let h = (t1 - t0) / steps as f64;
         for n in 0..steps {
             let t = t0 + n as f64 * h;
             let failed = |cause| AdvanceError::StepFailed { reached: t, step: h, cause };
-            self.attempt(model, ws, theta, nu, t, h, eps_at).map_err(failed)?;
-            if let Some(cause) = self.non_finite_result() {
+            integrator.attempt(model, ws, (theta, nu), (t, h), eps_at).map_err(failed)?;
+            if let Some(cause) = integrator.non_finite_result() {
                 return Err(failed(cause));
             }
-            self.accept_with_energy(model, theta, nu, h, settings, carry);
+            integrator.accept_with_energy(model, theta, nu, h, settings, carry);
         }
         carry.next_step = h;
         Ok(Stats { accepted: steps, rejected: 0 })
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn advance_adaptive(
+    /// Steps of an embedded pair under error control from the state's time to `t1`.
+    pub(super) fn advance_adaptive(
         &mut self,
         model: &Model,
-        ws: &mut Workspace,
-        theta: &mut [f64],
-        nu: &mut [f64],
-        (t0, t1): (f64, f64),
-        settings: &Settings,
-        carry: &mut Carry,
+        t1: f64,
         eps_at: &mut impl FnMut(f64, &mut [f64]),
     ) -> Result<Stats, AdvanceError> {
-        let tableau = self.method.tableau();
+        let t0 = self.state.time;
+        let h = if self.state.carry.next_step > 0.0 {
+            self.state.carry.next_step
+        } else {
+            self.initial_step(model, eps_at).map_err(|cause| AdvanceError::StepFailed { reached: t0, step: 0.0, cause })?
+        };
+        let Simulation { state, settings, integrator, ws } = self;
+        let (theta, nu, carry) = (&mut state.theta[..], &mut state.nu[..], &mut state.carry);
+        let tableau = integrator.method.tableau();
         let (shrink_limit, grow_limit) = tableau.factor_bounds;
         let tolerance = settings.tolerance;
         let mut stats = Stats::default();
         let mut t = t0;
-        let mut h = if carry.next_step > 0.0 {
-            carry.next_step
-        } else {
-            self.initial_step(model, ws, theta, nu, t0, settings, eps_at)
-                .map_err(|cause| AdvanceError::StepFailed { reached: t0, step: 0.0, cause })?
-        };
+        let mut h = h;
         // (step, per-second error) of the first of the rejections at this t,
         // and the least per-second error among them.
         let mut first_rejection: Option<(f64, f64)> = None;
@@ -298,8 +270,8 @@ impl Integrator {
             if stats.accepted + stats.rejected >= MAX_ADAPTIVE_STEPS {
                 return Err(AdvanceError::TooManySteps { reached: t, step, tolerance });
             }
-            let per_step = match self.attempt(model, ws, theta, nu, t, step, eps_at) {
-                Ok(()) => self.error_norm(model, theta, nu, tolerance),
+            let per_step = match integrator.attempt(model, ws, (theta, nu), (t, step), eps_at) {
+                Ok(()) => integrator.error_norm(model, theta, nu, tolerance),
                 Err(cause) => {
                     last_cause = Some(Overflow::Dynamics(cause));
                     f64::INFINITY
@@ -316,7 +288,7 @@ impl Integrator {
             // never looser than the classic per-step test.
             let error = (per_second / carry.relaxation.max(1.0)).max(per_step);
             if error <= 1.0 {
-                self.accept_with_energy(model, theta, nu, step, settings, carry);
+                integrator.accept_with_energy(model, theta, nu, step, settings, carry);
                 t = if step == remaining { t1 } else { t + step };
                 stats.accepted += 1;
                 let mut factor = (SAFETY * error.powf(-tableau.controller_exponent)).clamp(shrink_limit, grow_limit);
@@ -332,9 +304,9 @@ impl Integrator {
                 if error.is_finite() {
                     last_cause = None;
                 } else if last_cause.is_none() {
-                    last_cause = Some(match self.non_finite_result() {
+                    last_cause = Some(match integrator.non_finite_result() {
                         Some(cause) => Overflow::Dynamics(cause),
-                        None => Overflow::ErrorEstimate { largest_rate: self.largest_rate() },
+                        None => Overflow::ErrorEstimate { largest_rate: integrator.largest_rate() },
                     });
                 }
                 let factor = if error.is_finite() {
@@ -352,6 +324,52 @@ impl Integrator {
         Ok(stats)
     }
 
+
+    /// A starting step from the size of the solution, its rate and an Euler
+    /// probe of its second derivative (Hairer's starting-step heuristic);
+    /// leaves the start's rates as the first stage.
+    fn initial_step(&mut self, model: &Model, eps_at: &mut impl FnMut(f64, &mut [f64])) -> Result<f64, DynamicsError> {
+        let Simulation { state, settings, integrator, ws } = self;
+        let (t0, theta, nu) = (state.time, &state.theta[..], &state.nu[..]);
+        let tolerance = settings.tolerance;
+        eps_at(t0, integrator.eps_stage.as_mut_slice());
+        ws.set_configuration(model, theta)?;
+        ws.set_nu(model, nu)?;
+        ws.compute_nu_dot(model, integrator.eps_stage.as_slice())?;
+        integrator.first.qvel.copy_from(&ws.qvel);
+        integrator.first.nu_dot.copy_from(&ws.nu_dot);
+        integrator.first.valid = true;
+        let first = &integrator.first;
+        let size = start_norm(model, theta, nu, tolerance, |dof, position| (position, nu[dof]));
+        let rate = start_norm(model, theta, nu, tolerance, |dof, _| (first.qvel[dof], first.nu_dot[dof]));
+        // Overflowing norms (huge rates) make the heuristic meaningless: start
+        // small and let the error control decide.
+        let h0 = 0.01 * size / rate;
+        let h0 = if size < 1e-5 || rate < 1e-5 || !(h0 > 0.0 && h0.is_finite()) { 1e-6 } else { h0 };
+        let h0 = h0.min(settings.max_step);
+        // Explicit Euler probe to h0.
+        integrator.delta.copy_from(&integrator.first.qvel);
+        integrator.delta *= h0;
+        integrator.theta_stage.copy_from_slice(theta);
+        retract(model, integrator.theta_stage.as_mut_slice(), integrator.delta.as_slice());
+        integrator.nu_stage.copy_from_slice(nu);
+        integrator.nu_stage.axpy(h0, &integrator.first.nu_dot, 1.0);
+        eps_at(t0 + h0, integrator.eps_stage.as_mut_slice());
+        ws.set_configuration(model, integrator.theta_stage.as_slice())?;
+        ws.set_nu(model, integrator.nu_stage.as_slice())?;
+        ws.compute_nu_dot(model, integrator.eps_stage.as_slice())?;
+        let first = &integrator.first;
+        let change = |dof, _| (ws.qvel[dof] - first.qvel[dof], ws.nu_dot[dof] - first.nu_dot[dof]);
+        let curvature = start_norm(model, theta, nu, tolerance, change) / h0;
+        let largest = rate.max(curvature);
+        let order = integrator.method.tableau().order as f64;
+        let h1 = if largest <= 1e-15 { (h0 * 1e-3).max(1e-6) } else { (0.01 / largest).powf(1.0 / order) };
+        let h = (100.0 * h0).min(h1).min(settings.max_step);
+        Ok(if h > 0.0 { h } else { h0 })
+    }
+}
+
+impl Integrator {
     /// The largest |ν̇| over the attempted step's stages.
     fn largest_rate(&self) -> f64 {
         let stages = self.method.tableau().b.len();
@@ -405,56 +423,6 @@ impl Integrator {
         }
     }
 
-    /// A starting step from the size of the solution, its rate and an Euler
-    /// probe of its second derivative (Hairer's starting-step heuristic);
-    /// leaves the start's rates as the first stage.
-    #[allow(clippy::too_many_arguments)]
-    fn initial_step(
-        &mut self,
-        model: &Model,
-        ws: &mut Workspace,
-        theta: &[f64],
-        nu: &[f64],
-        t0: f64,
-        settings: &Settings,
-        eps_at: &mut impl FnMut(f64, &mut [f64]),
-    ) -> Result<f64, DynamicsError> {
-        let tolerance = settings.tolerance;
-        eps_at(t0, self.eps_stage.as_mut_slice());
-        ws.set_configuration(model, theta)?;
-        ws.set_nu(model, nu)?;
-        ws.compute_nu_dot(model, self.eps_stage.as_slice())?;
-        self.first.qvel.copy_from(&ws.qvel);
-        self.first.nu_dot.copy_from(&ws.nu_dot);
-        self.first.valid = true;
-        let first = &self.first;
-        let size = start_norm(model, theta, nu, tolerance, |dof, position| (position, nu[dof]));
-        let rate = start_norm(model, theta, nu, tolerance, |dof, _| (first.qvel[dof], first.nu_dot[dof]));
-        // Overflowing norms (huge rates) make the heuristic meaningless: start
-        // small and let the error control decide.
-        let h0 = 0.01 * size / rate;
-        let h0 = if size < 1e-5 || rate < 1e-5 || !(h0 > 0.0 && h0.is_finite()) { 1e-6 } else { h0 };
-        let h0 = h0.min(settings.max_step);
-        // Explicit Euler probe to h0.
-        self.delta.copy_from(&self.first.qvel);
-        self.delta *= h0;
-        self.theta_stage.copy_from_slice(theta);
-        retract(model, self.theta_stage.as_mut_slice(), self.delta.as_slice());
-        self.nu_stage.copy_from_slice(nu);
-        self.nu_stage.axpy(h0, &self.first.nu_dot, 1.0);
-        eps_at(t0 + h0, self.eps_stage.as_mut_slice());
-        ws.set_configuration(model, self.theta_stage.as_slice())?;
-        ws.set_nu(model, self.nu_stage.as_slice())?;
-        ws.compute_nu_dot(model, self.eps_stage.as_slice())?;
-        let first = &self.first;
-        let change = |dof, _| (ws.qvel[dof] - first.qvel[dof], ws.nu_dot[dof] - first.nu_dot[dof]);
-        let curvature = start_norm(model, theta, nu, tolerance, change) / h0;
-        let largest = rate.max(curvature);
-        let order = self.method.tableau().order as f64;
-        let h1 = if largest <= 1e-15 { (h0 * 1e-3).max(1e-6) } else { (0.01 / largest).powf(1.0 / order) };
-        let h = (100.0 * h0).min(h1).min(settings.max_step);
-        Ok(if h > 0.0 { h } else { h0 })
-    }
 }
 
 /// The RMS over the dofs of `value(dof, |coordinate|)`, a (Δ, ν) pair

@@ -1,11 +1,13 @@
 //! Time integration of (θ, ν): Runge–Kutta–Munthe-Kaas steps (`rkmk`) with
 //! the methods of `tableau`, driven over an interval with fixed or adaptive
-//! steps (`adaptive`).
+//! steps (`adaptive`) by one [`Simulation`] (`simulation`).
 
 mod adaptive;
 mod rkmk;
+mod simulation;
 mod tableau;
 
 pub use adaptive::{AdvanceError, Carry, MAX_ADAPTIVE_STEPS, Overflow, Settings, Stats, ToleranceRelaxed};
 pub use rkmk::{Integrator, retract};
+pub use simulation::{Advanced, Input, InputSignal, RunState, Simulation};
 pub use tableau::{DOP853, DOPRI5, ErrorEstimate, Method, RK4, Tableau};

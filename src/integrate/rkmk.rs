@@ -125,21 +125,19 @@ impl Integrator {
         self.first.valid = false;
     }
 
-    /// One step of size `h` from time `t` without error control: advances
-    /// `theta` (nq) and `nu` (nv) in place. `eps_at(t, out)` writes the
-    /// applied ε at time t. On error, `theta` and `nu` are unchanged.
+    /// One step `(t, h)`, of size `h` from time `t`, without error control:
+    /// advances `theta` (nq) and `nu` (nv) in place. `eps_at(t, out)` writes
+    /// the applied ε at time t. On error, `theta` and `nu` are unchanged.
     pub fn step(
         &mut self,
         model: &Model,
         ws: &mut Workspace,
-        theta: &mut [f64],
-        nu: &mut [f64],
-        t: f64,
-        h: f64,
+        (theta, nu): (&mut [f64], &mut [f64]),
+        (t, h): (f64, f64),
         mut eps_at: impl FnMut(f64, &mut [f64]),
     ) -> Result<(), DynamicsError> {
         self.first.valid = false;
-        self.attempt(model, ws, theta, nu, t, h, &mut eps_at)?;
+        self.attempt(model, ws, (theta, nu), (t, h), &mut eps_at)?;
         if let Some(cause) = self.non_finite_result() {
             return Err(cause);
         }
@@ -163,10 +161,8 @@ impl Integrator {
         &mut self,
         model: &Model,
         ws: &mut Workspace,
-        theta: &[f64],
-        nu: &[f64],
-        t: f64,
-        h: f64,
+        (theta, nu): (&[f64], &[f64]),
+        (t, h): (f64, f64),
         eps_at: &mut impl FnMut(f64, &mut [f64]),
     ) -> Result<(), DynamicsError> {
         let tableau = self.method.tableau();

@@ -1,0 +1,163 @@
+//! One simulation object for every caller that integrates a vehicle over
+//! time (the FMU, `nudyn simulate`, the benchmarks): the state that a run
+//! carries from one interval to the next, the settings, the preallocated
+//! integrator and workspace, and one input convention.
+
+use super::adaptive::{AdvanceError, Carry, Settings, Stats, ToleranceRelaxed};
+use super::rkmk::Integrator;
+use super::tableau::Method;
+use crate::dynamics::DynamicsError;
+use crate::model::Model;
+use crate::workspace::Workspace;
+
+/// What determines a run's future (what an FMU state saves of it).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunState {
+    /// The time (s).
+    pub time: f64,
+    /// θ (nq, MuJoCo's qpos).
+    pub theta: Vec<f64>,
+    /// ν (nv).
+    pub nu: Vec<f64>,
+    /// The step the error control proposes next, and the work done.
+    pub carry: Carry,
+}
+
+/// The applied input over one advance: ε(t) = eps + eps_rate·(t − t₀), t₀
+/// the time the advance starts from (a first-order hold, as FMI's input
+/// derivatives define it).
+#[derive(Clone, Copy, Debug)]
+pub struct Input<'a> {
+    /// ε at the start of the advance (nv).
+    pub eps: &'a [f64],
+    /// dε/dt over the advance (nv).
+    pub eps_rate: &'a [f64],
+}
+
+/// ε as a function of time over one advance: [`Input`], the convention of
+/// the FMU and `nudyn simulate`, or any function of time (a test's smooth signal).
+pub trait InputSignal {
+    /// Writes ε(t) into `out` (nv); `start` is the time the advance started from.
+    fn eps_at(&mut self, t: f64, start: f64, out: &mut [f64]);
+}
+
+impl InputSignal for Input<'_> {
+    fn eps_at(&mut self, t: f64, start: f64, out: &mut [f64]) {
+        for ((o, e), r) in out.iter_mut().zip(self.eps).zip(self.eps_rate) {
+            *o = e + r * (t - start);
+        }
+    }
+}
+
+impl<F: FnMut(f64, &mut [f64])> InputSignal for F {
+    fn eps_at(&mut self, t: f64, _start: f64, out: &mut [f64]) {
+        self(t, out)
+    }
+}
+
+/// What one advance did.
+#[derive(Debug)]
+pub struct Advanced {
+    /// The internal steps taken and rejected.
+    pub stats: Stats,
+    /// Set when the advance completed only by relaxing the tolerance.
+    pub relaxed: Option<ToleranceRelaxed>,
+}
+
+/// A vehicle's run: its state, settings and buffers. The model is passed
+/// to each call, as to the passes.
+#[derive(Clone, Debug)]
+pub struct Simulation {
+    /// Time, θ, ν and the carry; θ and ν may be set directly before
+    /// [`Simulation::initialize`].
+    pub state: RunState,
+    /// Tolerance, longest step, energy projection.
+    pub settings: Settings,
+    pub(super) integrator: Integrator,
+    pub(super) ws: Workspace,
+}
+
+impl Simulation {
+    /// A run of `model` at t = 0 from the pose drawn in the file (qpos0), at rest.
+    pub fn new(model: &Model, method: Method, settings: Settings) -> Self {
+        Simulation {
+            state: RunState { time: 0.0, theta: model.qpos0.clone(), nu: vec![0.0; model.nv], carry: Carry::default() },
+            settings,
+            integrator: Integrator::new(model, method),
+            ws: model.workspace(),
+        }
+    }
+
+    /// The integration method.
+    pub fn method(&self) -> Method {
+        self.integrator.method()
+    }
+
+    /// Changes the integration method.
+    pub fn set_method(&mut self, method: Method) {
+        self.integrator.set_method(method);
+    }
+
+    /// Checks θ and ν (sizes, finite, no zero quaternion), normalizes θ's
+    /// quaternions in place, as MuJoCo does, and starts the carry afresh.
+    pub fn initialize(&mut self, model: &Model) -> Result<(), DynamicsError> {
+        self.ws.set_configuration(model, &self.state.theta)?;
+        self.ws.set_nu(model, &self.state.nu)?;
+        self.state.theta.copy_from_slice(self.ws.theta.as_slice());
+        self.state.carry = Carry::default();
+        self.integrator.first.valid = false;
+        Ok(())
+    }
+
+    /// Integrates from the state's time to `t_end` with `input`. On
+    /// failure the state stays at the last successful internal step, and
+    /// its time says where.
+    pub fn advance_to(
+        &mut self,
+        model: &Model,
+        t_end: f64,
+        mut input: impl InputSignal,
+    ) -> Result<Advanced, AdvanceError> {
+        let t0 = self.state.time;
+        let mut eps_at = |t: f64, out: &mut [f64]| input.eps_at(t, t0, out);
+        // ε may have changed since the last interval.
+        self.integrator.first.valid = false;
+        let relaxation_before = self.state.carry.relaxation;
+        let result = if self.method().is_adaptive() {
+            self.advance_adaptive(model, t_end, &mut eps_at)
+        } else {
+            self.advance_fixed(model, t_end, &mut eps_at)
+        };
+        match result {
+            Ok(stats) => {
+                self.state.time = t_end;
+                let relaxed = self.state.carry.relaxed_since(relaxation_before, t0, self.settings.tolerance);
+                Ok(Advanced { stats, relaxed })
+            }
+            Err(error) => {
+                self.state.time = error.reached();
+                Err(error)
+            }
+        }
+    }
+
+    /// Replaces the state (an FMU state being restored).
+    pub fn restore(&mut self, state: &RunState) {
+        self.state.clone_from(state);
+        // The cached first stage belongs to the state replaced.
+        self.integrator.first.valid = false;
+    }
+
+    /// The workspace, holding the passes of the last evaluation.
+    pub fn workspace(&self) -> &Workspace {
+        &self.ws
+    }
+
+    /// Runs the passes up to θ̇ at the current state and hands out the
+    /// workspace, for outputs that need more (momentum, ν̇).
+    pub fn evaluate_velocity(&mut self, model: &Model) -> Result<&mut Workspace, DynamicsError> {
+        self.ws.set_configuration(model, &self.state.theta)?;
+        self.ws.set_nu(model, &self.state.nu)?;
+        Ok(&mut self.ws)
+    }
+}
