@@ -12,7 +12,9 @@ use nudyn::vehicle::{Body, Joint, JointKind, MassProperties, Vehicle};
 
 /// A chain of `links` hinge links on a free base, alternating hinge axes.
 fn hinge_chain(links: usize) -> Vehicle {
-    let mass = |m: f64| Some(MassProperties { mass: m, com: Vec3::new(0.0, 0.0, 0.1), inertia: Mat3::from_diagonal_element(0.01 * m) });
+    let mass = |m: f64| {
+        Some(MassProperties { mass: m, com: Vec3::new(0.0, 0.0, 0.1), inertia: Mat3::from_diagonal_element(0.01 * m) })
+    };
     let joint = |name: String, kind: JointKind, axis: Vec3| Joint {
         name,
         kind,

@@ -18,13 +18,13 @@
 //! command and its exporter `nudyn-cli`.
 #![warn(missing_docs)]
 
-pub mod math;
-pub mod mjcf;
-pub mod vehicle;
-pub mod dynamics;
 pub mod control;
 pub mod describe;
+pub mod dynamics;
 pub mod eval;
 pub mod integrate;
+pub mod math;
+pub mod mjcf;
 pub mod model;
+pub mod vehicle;
 pub mod workspace;

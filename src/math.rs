@@ -100,13 +100,10 @@ pub fn mul_cross_motion(m: &SpatialMat, v: &SpatialVec) -> SpatialMat {
 pub fn rigid_inertia(mass: f64, com: &Vec3, inertia_com: &Mat3) -> SpatialMat {
     let c = skew(com);
     let mut out = SpatialMat::zeros();
-    out.fixed_view_mut::<3, 3>(0, 0)
-        .copy_from(&(inertia_com + mass * c * c.transpose()));
+    out.fixed_view_mut::<3, 3>(0, 0).copy_from(&(inertia_com + mass * c * c.transpose()));
     out.fixed_view_mut::<3, 3>(0, 3).copy_from(&(mass * c));
-    out.fixed_view_mut::<3, 3>(3, 0)
-        .copy_from(&(mass * c.transpose()));
-    out.fixed_view_mut::<3, 3>(3, 3)
-        .copy_from(&(mass * Mat3::identity()));
+    out.fixed_view_mut::<3, 3>(3, 0).copy_from(&(mass * c.transpose()));
+    out.fixed_view_mut::<3, 3>(3, 3).copy_from(&(mass * Mat3::identity()));
     out
 }
 
@@ -147,10 +144,7 @@ impl Transform {
     /// ᶜX_ₐ = ᶜX_b · ᵇX_ₐ, with `self` = ᶜX_b and `inner` = ᵇX_ₐ.
     #[inline]
     pub fn compose(&self, inner: &Transform) -> Transform {
-        Transform {
-            rot: self.rot * inner.rot,
-            trans: inner.trans + inner.rot.transpose() * self.trans,
-        }
+        Transform { rot: self.rot * inner.rot, trans: inner.trans + inner.rot.transpose() * self.trans }
     }
 
     /// X m: a parent-frame motion vector in child coordinates.
@@ -174,8 +168,7 @@ impl Transform {
     pub fn motion_matrix(&self) -> SpatialMat {
         let mut out = SpatialMat::zeros();
         out.fixed_view_mut::<3, 3>(0, 0).copy_from(&self.rot);
-        out.fixed_view_mut::<3, 3>(3, 0)
-            .copy_from(&(-self.rot * skew(&self.trans)));
+        out.fixed_view_mut::<3, 3>(3, 0).copy_from(&(-self.rot * skew(&self.trans)));
         out.fixed_view_mut::<3, 3>(3, 3).copy_from(&self.rot);
         out
     }
@@ -249,7 +242,8 @@ mod tests {
 
     /// A random-looking but fixed symmetric 6×6 matrix and transform.
     fn sample() -> (SpatialMat, Transform, SpatialVec) {
-        let m = SpatialMat::from_fn(|i, j| ((i * 7 + j * 3) as f64 * 0.37).sin() + ((j * 7 + i * 3) as f64 * 0.37).sin());
+        let m =
+            SpatialMat::from_fn(|i, j| ((i * 7 + j * 3) as f64 * 0.37).sin() + ((j * 7 + i * 3) as f64 * 0.37).sin());
         let rot = nalgebra::Rotation3::from_euler_angles(0.3, -1.1, 2.0).into_inner();
         let x = Transform { rot, trans: Vec3::new(0.4, -0.2, 0.9) };
         (m, x, SpatialVec::new(0.5, -0.3, 0.8, 1.2, 0.1, -0.7))

@@ -142,8 +142,13 @@ fn energy_projection_keeps_kinetic_energy_in_free_tumbling() {
     };
     let (energy_free, momentum_free, work) = drift(false);
     let (energy_projected, momentum_projected, _) = drift(true);
-    eprintln!("relative drift after 200 s: K {energy_free:.1e} -> {energy_projected:.1e}, momentum {momentum_free:.1e} -> {momentum_projected:.1e}");
-    assert!(energy_free > 1e-10, "the unprojected run drifts measurably ({energy_free:.1e}), or this test shows nothing");
+    eprintln!(
+        "relative drift after 200 s: K {energy_free:.1e} -> {energy_projected:.1e}, momentum {momentum_free:.1e} -> {momentum_projected:.1e}"
+    );
+    assert!(
+        energy_free > 1e-10,
+        "the unprojected run drifts measurably ({energy_free:.1e}), or this test shows nothing"
+    );
     assert!(energy_projected < 1e-13, "projected K drift {energy_projected:.1e}");
     assert!(momentum_free.max(momentum_projected) < 200.0 * 1e-6, "{momentum_free:.1e}, {momentum_projected:.1e}");
     // No force acts, so the quadrature of the power is zero to round-off.

@@ -102,8 +102,13 @@ fn pose_error_is_position_and_rotation_vector_from_dense_kinematics() {
         let target_position = rng.vec3(2.0);
         let target_rotation = rng.unit_quat();
         parameters.target = vec![
-            target_position.x, target_position.y, target_position.z,
-            target_rotation.w, target_rotation.i, target_rotation.j, target_rotation.k,
+            target_position.x,
+            target_position.y,
+            target_position.z,
+            target_rotation.w,
+            target_rotation.i,
+            target_rotation.j,
+            target_rotation.k,
         ];
         let theta = random_theta(&mut rng, &vehicle);
         let mut cws = ControlWorkspace::new(&model, &law);
@@ -125,7 +130,13 @@ fn derivative(f: impl Fn(f64) -> f64, h: f64) -> f64 {
 }
 
 /// dU/dt along θ̇ = u must be −ν·g, ν = m*u, g the configuration term.
-fn check_gradient(vehicle: &Vehicle, model: &Model, law: &ControlLaw, parameters: &ControlParameters, rng: &mut Rng) -> Result<(), String> {
+fn check_gradient(
+    vehicle: &Vehicle,
+    model: &Model,
+    law: &ControlLaw,
+    parameters: &ControlParameters,
+    rng: &mut Rng,
+) -> Result<(), String> {
     let theta = random_theta(rng, vehicle);
     let qvel = rng.vec(model.nv, 1.0);
     let mut cws = ControlWorkspace::new(model, law);
@@ -157,7 +168,9 @@ fn the_configuration_term_is_minus_the_gradient_of_the_potential() {
         if let Ok(law) = ControlLaw::joints(&model) {
             let mut parameters = random_parameters(&mut rng, &model, &law);
             parameters.target = (0..law.ny()).map(|_| rng.uniform(-1.0, 1.0)).collect();
-            check_gradient(&vehicle, &model, &law, &parameters, &mut rng).map_err(|e| format!("seed {seed}, joints: {e}")).unwrap();
+            check_gradient(&vehicle, &model, &law, &parameters, &mut rng)
+                .map_err(|e| format!("seed {seed}, joints: {e}"))
+                .unwrap();
         }
         let body = rng.below(vehicle.bodies.len());
         let law = ControlLaw::pose(&vehicle, &model, &vehicle.bodies[body].name).unwrap();
@@ -166,7 +179,9 @@ fn the_configuration_term_is_minus_the_gradient_of_the_potential() {
         let axis = rng.unit_vec() * rng.uniform(0.0, 2.5);
         let target = rng.unit_quat() * UnitQuaternion::from_scaled_axis(axis);
         parameters.target = vec![0.3, -0.2, 0.5, target.w, target.i, target.j, target.k];
-        check_gradient(&vehicle, &model, &law, &parameters, &mut rng).map_err(|e| format!("seed {seed}, pose: {e}")).unwrap();
+        check_gradient(&vehicle, &model, &law, &parameters, &mut rng)
+            .map_err(|e| format!("seed {seed}, pose: {e}"))
+            .unwrap();
     }
 }
 
@@ -175,7 +190,9 @@ fn rate_feedback_alone_is_minus_c1_nu_and_the_target_term_vanishes_at_the_target
     let vehicle = vehicle(4);
     let model = Model::compile(&vehicle).unwrap();
     let mut rng = Rng::new(5);
-    for law in [ControlLaw::joints(&model).unwrap(), ControlLaw::pose(&vehicle, &model, &vehicle.bodies[1].name).unwrap()] {
+    for law in
+        [ControlLaw::joints(&model).unwrap(), ControlLaw::pose(&vehicle, &model, &vehicle.bodies[1].name).unwrap()]
+    {
         let mut parameters = random_parameters(&mut rng, &model, &law);
         let nu = rng.vec(model.nv, 1.0);
         let mut cws = ControlWorkspace::new(&model, &law);
@@ -220,7 +237,10 @@ fn bad_input_is_a_clear_error() {
     let mut bad = good.clone();
     bad.c1[2] = -1.0;
     assert_eq!(bad.check(&model, &law), Err(ControlError::NegativeGain { what: "c1", index: 2, value: -1.0 }));
-    assert_eq!(ControlError::NegativeGain { what: "c1", index: 2, value: -1.0 }.to_string(), "c1[3] = -1 is negative: gains must be non-negative");
+    assert_eq!(
+        ControlError::NegativeGain { what: "c1", index: 2, value: -1.0 }.to_string(),
+        "c1[3] = -1 is negative: gains must be non-negative"
+    );
     let mut bad = good.clone();
     bad.c2.push(1.0);
     assert_eq!(bad.check(&model, &law), Err(ControlError::Length { what: "c2", expected: 6, found: 7 }));

@@ -44,7 +44,11 @@ fn check_vehicle(vehicle: &Vehicle, rng: &mut Rng) -> Result<(), String> {
     // 2. θ̇ = ℓ*ν inverts ν = m*θ̇; ε = ℓT inverts T = mε; ε = m⁻¹T densely.
     ws.set_qvel(&model, &qvel).unwrap();
     let nu = ws.nu.clone();
-    fail("nu = m* qvel", rel_err(nu.as_slice(), (m.transpose() * DVector::from_column_slice(&qvel)).as_slice()), 1e-12)?;
+    fail(
+        "nu = m* qvel",
+        rel_err(nu.as_slice(), (m.transpose() * DVector::from_column_slice(&qvel)).as_slice()),
+        1e-12,
+    )?;
     ws.set_nu(&model, nu.as_slice()).unwrap();
     fail("qvel = l* nu round trip", rel_err(ws.qvel.as_slice(), &qvel), 1e-12)?;
     let mut eps = vec![0.0; model.nv];
@@ -70,11 +74,18 @@ fn check_vehicle(vehicle: &Vehicle, rng: &mut Rng) -> Result<(), String> {
     // 5. Momentum and |ν| are invariant with ε = 0 and no passive forces:
     // checked on the instantaneous rates, by central differences along the motion.
     let free_base = vehicle.bodies[0].joints.first().is_some_and(|j| j.kind == nudyn::vehicle::JointKind::Free);
-    if free_base && vehicle.gravity.norm() == 0.0 && vehicle.bodies.iter().all(|b| b.joints.iter().all(|j| j.stiffness == 0.0 && j.damping == 0.0)) {
+    if free_base
+        && vehicle.gravity.norm() == 0.0
+        && vehicle.bodies.iter().all(|b| b.joints.iter().all(|j| j.stiffness == 0.0 && j.damping == 0.0))
+    {
         let p = ws.momentum(&model).unwrap();
         let p_ref = common::momentum(vehicle, &theta, &qvel);
         fail("momentum", rel_err(p.as_slice(), &p_ref), 1e-12)?;
-        fail("kinetic energy", (ws.kinetic_energy() - 0.5 * qvel_m(&m_dense, &qvel)).abs() / ws.kinetic_energy().max(1.0), 1e-12)?;
+        fail(
+            "kinetic energy",
+            (ws.kinetic_energy() - 0.5 * qvel_m(&m_dense, &qvel)).abs() / ws.kinetic_energy().max(1.0),
+            1e-12,
+        )?;
         let zero = vec![0.0; model.nv];
         ws.compute_nu_dot(&model, &zero).unwrap();
         let nu_dot = ws.nu_dot.clone();
@@ -176,13 +187,19 @@ fn every_combination_of_shortcuts_on_one_dof_chains() {
     let mut rng = Rng::new(7);
     for combination in 0..16u32 {
         let present = |bit: u32| combination & (1 << bit) != 0;
-        let mut vehicle = random_vehicle(&mut rng, TreeOptions { bodies: 7, free_base: true, passive: true, chain: true });
-        vehicle.gravity = if present(0) { nalgebra::Vector3::new(0.3, -0.2, -9.81) } else { nalgebra::Vector3::zeros() };
+        let mut vehicle =
+            random_vehicle(&mut rng, TreeOptions { bodies: 7, free_base: true, passive: true, chain: true });
+        vehicle.gravity =
+            if present(0) { nalgebra::Vector3::new(0.3, -0.2, -9.81) } else { nalgebra::Vector3::zeros() };
         for (b, body) in vehicle.bodies.iter_mut().enumerate() {
             for joint in &mut body.joints {
                 if b > 0 {
                     // Only 1-dof joints past the base.
-                    joint.kind = if joint.kind == nudyn::vehicle::JointKind::Slide { joint.kind } else { nudyn::vehicle::JointKind::Hinge };
+                    joint.kind = if joint.kind == nudyn::vehicle::JointKind::Slide {
+                        joint.kind
+                    } else {
+                        nudyn::vehicle::JointKind::Hinge
+                    };
                 }
                 if !present(1) {
                     joint.stiffness = 0.0;

@@ -26,7 +26,10 @@ fn wrong_lengths_and_non_finite_entries_are_rejected() {
     );
     let mut theta = model.qpos0.clone();
     theta[2] = f64::NAN;
-    assert!(matches!(ws.set_configuration(&model, &theta), Err(DynamicsError::NonFinite { what: "theta", index: 2, .. })));
+    assert!(matches!(
+        ws.set_configuration(&model, &theta),
+        Err(DynamicsError::NonFinite { what: "theta", index: 2, .. })
+    ));
     ws.set_configuration(&model, &model.qpos0).unwrap();
     let mut nu = vec![0.0; model.nv];
     nu[1] = f64::INFINITY;
@@ -62,7 +65,10 @@ fn calls_out_of_order_are_rejected() {
     let (_, model) = free_vehicle();
     let mut ws = model.workspace();
     let zeros = vec![0.0; model.nv];
-    assert_eq!(ws.set_nu(&model, &zeros), Err(DynamicsError::OutOfOrder { call: "set_nu", needed: Stage::Configuration }));
+    assert_eq!(
+        ws.set_nu(&model, &zeros),
+        Err(DynamicsError::OutOfOrder { call: "set_nu", needed: Stage::Configuration })
+    );
     ws.set_configuration(&model, &model.qpos0).unwrap();
     assert_eq!(
         ws.compute_nu_dot(&model, &zeros),

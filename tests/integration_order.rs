@@ -127,7 +127,9 @@ fn free_tumbling_conserves_norm_of_nu_and_momentum() {
     let (k0, p0) = invariants(&mut ws, &theta, &nu);
     let h = 1e-3;
     for n in 0..2000 {
-        integrator.step(&model, &mut ws, (&mut theta, &mut nu), (n as f64 * h, h), |_, e| e.copy_from_slice(&zero)).unwrap();
+        integrator
+            .step(&model, &mut ws, (&mut theta, &mut nu), (n as f64 * h, h), |_, e| e.copy_from_slice(&zero))
+            .unwrap();
     }
     let (k1, p1) = invariants(&mut ws, &theta, &nu);
     assert!((k1 - k0).abs() / k0 < 1e-9, "energy drift {:.3e}", (k1 - k0).abs() / k0);

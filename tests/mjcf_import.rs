@@ -13,9 +13,7 @@ use nudyn::vehicle::{Body, Joint, JointKind, MassProperties, Vehicle};
 const TOL: f64 = 1e-12;
 
 fn fixture(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fixtures/mjcf")
-        .join(name)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/mjcf").join(name)
 }
 
 fn load(name: &str) -> Imported {
@@ -23,57 +21,32 @@ fn load(name: &str) -> Imported {
 }
 
 fn body<'a>(vehicle: &'a Vehicle, name: &str) -> &'a Body {
-    vehicle
-        .bodies
-        .iter()
-        .find(|b| b.name == name)
-        .unwrap_or_else(|| panic!("no body {name}"))
+    vehicle.bodies.iter().find(|b| b.name == name).unwrap_or_else(|| panic!("no body {name}"))
 }
 
 fn joint<'a>(vehicle: &'a Vehicle, name: &str) -> &'a Joint {
-    vehicle
-        .bodies
-        .iter()
-        .flat_map(|b| &b.joints)
-        .find(|j| j.name == name)
-        .unwrap_or_else(|| panic!("no joint {name}"))
+    vehicle.bodies.iter().flat_map(|b| &b.joints).find(|j| j.name == name).unwrap_or_else(|| panic!("no joint {name}"))
 }
 
 fn inertia(body: &Body) -> &MassProperties {
-    body.inertia
-        .as_ref()
-        .unwrap_or_else(|| panic!("{} is massless", body.name))
+    body.inertia.as_ref().unwrap_or_else(|| panic!("{} is massless", body.name))
 }
 
 fn assert_close(what: &str, actual: f64, expected: f64) {
-    assert!(
-        (actual - expected).abs() <= TOL * expected.abs().max(1.0),
-        "{what}: {actual} != {expected}"
-    );
+    assert!((actual - expected).abs() <= TOL * expected.abs().max(1.0), "{what}: {actual} != {expected}");
 }
 
 fn assert_vec(what: &str, actual: &Vec3, expected: Vec3) {
-    assert!(
-        (actual - expected).amax() <= TOL * expected.amax().max(1.0),
-        "{what}: {actual} != {expected}"
-    );
+    assert!((actual - expected).amax() <= TOL * expected.amax().max(1.0), "{what}: {actual} != {expected}");
 }
 
 fn assert_mat(what: &str, actual: &Mat3, expected: Mat3) {
-    assert!(
-        (actual - expected).amax() <= TOL * expected.amax().max(1.0),
-        "{what}: {actual} != {expected}"
-    );
+    assert!((actual - expected).amax() <= TOL * expected.amax().max(1.0), "{what}: {actual} != {expected}");
 }
 
 /// Compares quaternion coordinates, sign included (the importer keeps MuJoCo's).
 fn assert_quat(what: &str, actual: &Quat, expected: Quat) {
-    assert!(
-        (actual.coords - expected.coords).amax() <= TOL,
-        "{what}: {:?} != {:?}",
-        actual.coords,
-        expected.coords
-    );
+    assert!((actual.coords - expected.coords).amax() <= TOL, "{what}: {:?} != {:?}", actual.coords, expected.coords);
 }
 
 fn wxyz(w: f64, x: f64, y: f64, z: f64) -> Quat {
@@ -87,11 +60,7 @@ fn about(axis: Vec3, angle: f64) -> Quat {
 
 /// Solid box with half sizes a, b, c: m (b² + c²) / 3, ...
 fn box_moments(mass: f64, a: f64, b: f64, c: f64) -> Vec3 {
-    Vec3::new(
-        mass * (b * b + c * c) / 3.0,
-        mass * (a * a + c * c) / 3.0,
-        mass * (a * a + b * b) / 3.0,
-    )
+    Vec3::new(mass * (b * b + c * c) / 3.0, mass * (a * a + c * c) / 3.0, mass * (a * a + b * b) / 3.0)
 }
 
 /// Solid cylinder of radius r and half length h along z.
@@ -113,11 +82,7 @@ fn capsule_moments(mass: f64, r: f64, h: f64) -> Vec3 {
     // that leave the hemisphere's own offset (3r/8) in place.
     let shift = sphere_mass * (h * h + 2.0 * h * 3.0 * r / 8.0);
     let sphere = 2.0 * sphere_mass * r * r / 5.0;
-    Vec3::new(
-        cylinder.x + sphere + shift,
-        cylinder.y + sphere + shift,
-        cylinder.z + sphere,
-    )
+    Vec3::new(cylinder.x + sphere + shift, cylinder.y + sphere + shift, cylinder.z + sphere)
 }
 
 fn diag(v: Vec3) -> Mat3 {
@@ -139,11 +104,7 @@ fn box_arm_bodies_joints_and_box_inertia() {
     let m = inertia(base);
     assert_close("base.mass", m.mass, 6.0);
     assert_vec("base.com", &m.com, Vec3::zeros());
-    assert_mat(
-        "base.inertia",
-        &m.inertia,
-        diag(box_moments(6.0, 0.1, 0.2, 0.3)),
-    );
+    assert_mat("base.inertia", &m.inertia, diag(box_moments(6.0, 0.1, 0.2, 0.3)));
 
     let shoulder = joint(&vehicle, "shoulder");
     assert_eq!((shoulder.kind, shoulder.line), (JointKind::Hinge, 5));
@@ -151,10 +112,7 @@ fn box_arm_bodies_joints_and_box_inertia() {
     assert_vec("shoulder.axis", &shoulder.axis, Vec3::y());
     assert_close("shoulder.ref (30°)", shoulder.reference, PI / 6.0);
     assert_close("shoulder.springref (-45°)", shoulder.springref, -FRAC_PI_4);
-    assert_eq!(
-        (shoulder.stiffness, shoulder.damping, shoulder.armature),
-        (2.0, 0.5, 0.01)
-    );
+    assert_eq!((shoulder.stiffness, shoulder.damping, shoulder.armature), (2.0, 0.5, 0.01));
 
     let slider = body(&vehicle, "slider");
     assert_eq!(slider.parent, Some(0));
@@ -168,11 +126,7 @@ fn box_arm_bodies_joints_and_box_inertia() {
     let m = inertia(slider);
     assert_close("slider.mass", m.mass, sphere_mass);
     assert_vec("slider.com", &m.com, Vec3::new(0.0, 0.0, 0.2));
-    assert_mat(
-        "slider.inertia",
-        &m.inertia,
-        Mat3::identity() * 0.4 * sphere_mass * 0.01,
-    );
+    assert_mat("slider.inertia", &m.inertia, Mat3::identity() * 0.4 * sphere_mass * 0.01);
 }
 
 #[test]
@@ -183,10 +137,7 @@ fn every_orientation_form() {
         ("by_quat", wxyz(1.0, 0.0, 0.0, 1.0)),
         ("by_axisangle", wxyz(half.cos(), 0.0, 0.0, half.sin())),
         // Lowercase xyz: rotate about x, then about the rotated y.
-        (
-            "by_euler",
-            about(Vec3::x(), FRAC_PI_2) * about(Vec3::y(), FRAC_PI_2),
-        ),
+        ("by_euler", about(Vec3::x(), FRAC_PI_2) * about(Vec3::y(), FRAC_PI_2)),
         // x = (0 1 0); y = (-1 1 0) minus its x part = (-1 0 0); z = x × y = (0 0 1).
         ("by_xyaxes", about(Vec3::z(), FRAC_PI_2)),
         // The minimal rotation taking z to x is a quarter turn about y.
@@ -213,11 +164,7 @@ fn radians_and_mixed_euler_sequence() {
     let moments = box_moments(mass, 0.1, 0.2, 0.3);
     let m = inertia(turned);
     assert_close("mass", m.mass, mass);
-    assert_mat(
-        "inertia",
-        &m.inertia,
-        diag(Vec3::new(moments.x, moments.z, moments.y)),
-    );
+    assert_mat("inertia", &m.inertia, diag(Vec3::new(moments.x, moments.z, moments.y)));
 }
 
 #[test]
@@ -226,47 +173,27 @@ fn geom_shapes_fromto_and_sums() {
 
     let m = inertia(body(&vehicle, "capsule"));
     assert_close("capsule.mass", m.mass, 2.0);
-    assert_mat(
-        "capsule.inertia",
-        &m.inertia,
-        diag(capsule_moments(2.0, 0.05, 0.2)),
-    );
+    assert_mat("capsule.inertia", &m.inertia, diag(capsule_moments(2.0, 0.05, 0.2)));
 
     let mass = 2000.0 * PI * 0.05 * 0.05 * 0.4;
     let m = inertia(body(&vehicle, "cylinder"));
     assert_close("cylinder.mass", m.mass, mass);
-    assert_mat(
-        "cylinder.inertia",
-        &m.inertia,
-        diag(cylinder_moments(mass, 0.05, 0.2)),
-    );
+    assert_mat("cylinder.inertia", &m.inertia, diag(cylinder_moments(mass, 0.05, 0.2)));
 
     let m = inertia(body(&vehicle, "ellipsoid"));
     let (a, b, c) = (0.01, 0.04, 0.09);
-    assert_mat(
-        "ellipsoid.inertia",
-        &m.inertia,
-        diag(Vec3::new(b + c, a + c, a + b) * 3.0 / 5.0),
-    );
+    assert_mat("ellipsoid.inertia", &m.inertia, diag(Vec3::new(b + c, a + c, a + b) * 3.0 / 5.0));
 
     // fromto along x: centre halfway, the capsule's own z axis along body x.
     let m = inertia(body(&vehicle, "rod"));
     let moments = capsule_moments(1.0, 0.05, 0.2);
     assert_vec("rod.com", &m.com, Vec3::new(0.2, 0.0, 0.0));
-    assert_mat(
-        "rod.inertia",
-        &m.inertia,
-        diag(Vec3::new(moments.z, moments.x, moments.y)),
-    );
+    assert_mat("rod.inertia", &m.inertia, diag(Vec3::new(moments.z, moments.x, moments.y)));
 
     // A box given by fromto keeps its first size for x and y; z is half the length.
     let m = inertia(body(&vehicle, "beam"));
     assert_vec("beam.com", &m.com, Vec3::new(0.0, 0.0, 0.5));
-    assert_mat(
-        "beam.inertia",
-        &m.inertia,
-        diag(box_moments(1.0, 0.1, 0.1, 0.5)),
-    );
+    assert_mat("beam.inertia", &m.inertia, diag(box_moments(1.0, 0.1, 0.1, 0.5)));
 
     // Two spheres (1 kg at x = -0.5, 3 kg at x = 0.5); the group-3 box is
     // outside inertiagrouprange="0 2".
@@ -276,11 +203,7 @@ fn geom_shapes_fromto_and_sums() {
     let transfer = 1.0 * (-0.5 - com) * (-0.5 - com) + 3.0 * (0.5 - com) * (0.5 - com);
     assert_close("dumbbell.mass", m.mass, 4.0);
     assert_vec("dumbbell.com", &m.com, Vec3::new(com, 0.0, 0.0));
-    assert_mat(
-        "dumbbell.inertia",
-        &m.inertia,
-        diag(Vec3::new(own, own + transfer, own + transfer)),
-    );
+    assert_mat("dumbbell.inertia", &m.inertia, diag(Vec3::new(own, own + transfer, own + transfer)));
 
     // A geom without mass is left out, so the box alone is the body: its frame
     // and moments as they are (a quarter turn about z swaps x and y).
@@ -288,54 +211,33 @@ fn geom_shapes_fromto_and_sums() {
     let moments = box_moments(6.0, 0.1, 0.2, 0.3);
     assert_close("weightless_geom.mass", m.mass, 6.0);
     assert_vec("weightless_geom.com", &m.com, Vec3::new(-1.0, 0.0, 0.0));
-    assert_mat(
-        "weightless_geom.inertia",
-        &m.inertia,
-        diag(Vec3::new(moments.y, moments.x, moments.z)),
-    );
+    assert_mat("weightless_geom.inertia", &m.inertia, diag(Vec3::new(moments.y, moments.x, moments.z)));
 }
 
 #[test]
 fn default_classes_inherit_and_override() {
     let vehicle = load("defaults.xml").vehicle;
     let plain = joint(&vehicle, "plain_joint");
-    assert_eq!(
-        (plain.kind, plain.damping, plain.stiffness),
-        (JointKind::Hinge, 1.0, 3.0)
-    );
+    assert_eq!((plain.kind, plain.damping, plain.stiffness), (JointKind::Hinge, 1.0, 3.0));
     assert_vec("plain.axis", &plain.axis, Vec3::z());
     let box_mass = 100.0 * 8.0 * 0.1 * 0.2 * 0.3;
     let m = inertia(body(&vehicle, "plain"));
     assert_close("plain.mass", m.mass, box_mass);
-    assert_mat(
-        "plain.inertia",
-        &m.inertia,
-        diag(box_moments(box_mass, 0.1, 0.2, 0.3)),
-    );
+    assert_mat("plain.inertia", &m.inertia, diag(box_moments(box_mass, 0.1, 0.2, 0.3)));
 
     // childclass="arm": damping and axis from "arm", stiffness from "main".
     let elbow = joint(&vehicle, "elbow");
     assert_eq!((elbow.damping, elbow.stiffness), (2.0, 3.0));
     assert_vec("elbow.axis", &elbow.axis, Vec3::y());
     // The geom's own quat replaces the class's euler.
-    assert_mat(
-        "upper.inertia",
-        &inertia(body(&vehicle, "upper")).inertia,
-        diag(box_moments(box_mass, 0.1, 0.2, 0.3)),
-    );
+    assert_mat("upper.inertia", &inertia(body(&vehicle, "upper")).inertia, diag(box_moments(box_mass, 0.1, 0.2, 0.3)));
 
     // "lower" inherits childclass "arm" from its parent; class= overrides it.
     let main = joint(&vehicle, "lower_main");
-    assert_eq!(
-        (main.kind, main.damping, main.armature),
-        (JointKind::Hinge, 1.0, 0.0)
-    );
+    assert_eq!((main.kind, main.damping, main.armature), (JointKind::Hinge, 1.0, 0.0));
     assert_vec("lower_main.axis", &main.axis, Vec3::z());
     let wrist = joint(&vehicle, "lower_wrist");
-    assert_eq!(
-        (wrist.kind, wrist.damping, wrist.stiffness, wrist.armature),
-        (JointKind::Slide, 2.0, 3.0, 5.0)
-    );
+    assert_eq!((wrist.kind, wrist.damping, wrist.stiffness, wrist.armature), (JointKind::Slide, 2.0, 3.0, 5.0));
     assert_vec("lower_wrist.axis", &wrist.axis, Vec3::y());
     // size="0.4" replaces only the first size: (0.4, 0.2, 0.3); the euler
     // "0 0 90" from "arm" swaps x and y.
@@ -343,11 +245,7 @@ fn default_classes_inherit_and_override() {
     let moments = box_moments(mass, 0.4, 0.2, 0.3);
     let m = inertia(body(&vehicle, "lower"));
     assert_close("lower.mass", m.mass, mass);
-    assert_mat(
-        "lower.inertia",
-        &m.inertia,
-        diag(Vec3::new(moments.y, moments.x, moments.z)),
-    );
+    assert_mat("lower.inertia", &m.inertia, diag(Vec3::new(moments.y, moments.x, moments.z)));
 }
 
 #[test]
@@ -357,31 +255,19 @@ fn explicit_inertial() {
     assert_close("rotated.mass", m.mass, 4.0);
     assert_vec("rotated.com", &m.com, Vec3::new(0.1, 0.2, 0.3));
     // diag(1 2 3) turned a quarter turn about z; the box geom does not count.
-    assert_mat(
-        "rotated.inertia",
-        &m.inertia,
-        diag(Vec3::new(2.0, 1.0, 3.0)),
-    );
+    assert_mat("rotated.inertia", &m.inertia, diag(Vec3::new(2.0, 1.0, 3.0)));
 
     let m = inertia(body(&vehicle, "full"));
     assert_close("full.mass", m.mass, 2.0);
     assert_vec("full.com", &m.com, Vec3::new(0.0, 0.0, -0.5));
-    assert_mat(
-        "full.inertia",
-        &m.inertia,
-        Mat3::new(2.0, 0.1, -0.2, 0.1, 3.0, 0.3, -0.2, 0.3, 4.0),
-    );
+    assert_mat("full.inertia", &m.inertia, Mat3::new(2.0, 0.1, -0.2, 0.1, 3.0, 0.3, -0.2, 0.3, 4.0));
 
     // No inertial and no geoms: massless, though its welded child has mass.
     let hollow = body(&vehicle, "hollow");
     assert!(hollow.inertia.is_none() && hollow.joints.is_empty());
     let welded = body(&vehicle, "welded");
     assert_eq!(welded.parent, Some(2));
-    assert_close(
-        "welded.mass",
-        inertia(welded).mass,
-        1000.0 * 4.0 / 3.0 * PI * 0.125,
-    );
+    assert_close("welded.mass", inertia(welded).mass, 1000.0 * 4.0 / 3.0 * PI * 0.125);
 }
 
 #[test]
@@ -397,18 +283,10 @@ fn compiler_bounds_and_balance() {
     let vehicle = load("bounds.xml").vehicle;
     let m = inertia(body(&vehicle, "light"));
     assert_close("light.mass (boundmass)", m.mass, 0.5);
-    assert_mat(
-        "light.inertia (boundinertia)",
-        &m.inertia,
-        diag(Vec3::new(1.0, 1.0, 0.25)),
-    );
+    assert_mat("light.inertia (boundinertia)", &m.inertia, diag(Vec3::new(1.0, 1.0, 0.25)));
     // 1 + 1 < 3: balanceinertia sets all three to their mean.
     let m = inertia(body(&vehicle, "unbalanced"));
-    assert_mat(
-        "unbalanced.inertia",
-        &m.inertia,
-        Mat3::identity() * 5.0 / 3.0,
-    );
+    assert_mat("unbalanced.inertia", &m.inertia, Mat3::identity() * 5.0 / 3.0);
     // MuJoCo puts the bound mass of a body without geoms or inertial at the
     // body's position in its parent, taken as a point in the body frame.
     let m = inertia(body(&vehicle, "empty"));
@@ -435,29 +313,16 @@ fn disabled_gravity_springs_and_dampers() {
 fn free_ball_and_multiple_joints() {
     let vehicle = load("joints.xml").vehicle;
     let names: Vec<&str> = vehicle.bodies.iter().map(|b| b.name.as_str()).collect();
-    assert_eq!(
-        names,
-        ["floater", "drifter", "shoulder", "body3", "pedestal"]
-    );
+    assert_eq!(names, ["floater", "drifter", "shoulder", "body3", "pedestal"]);
     let parents: Vec<Option<usize>> = vehicle.bodies.iter().map(|b| b.parent).collect();
     assert_eq!(parents, [None, None, Some(1), Some(2), None]);
 
     // <freejoint> takes no defaults; <joint type="free"> does.
     let float = joint(&vehicle, "float");
-    assert_eq!(
-        (float.kind, float.damping, float.armature),
-        (JointKind::Free, 0.0, 0.0)
-    );
-    assert_quat(
-        "floater.quat",
-        &body(&vehicle, "floater").quat,
-        about(Vec3::z(), FRAC_PI_4),
-    );
+    assert_eq!((float.kind, float.damping, float.armature), (JointKind::Free, 0.0, 0.0));
+    assert_quat("floater.quat", &body(&vehicle, "floater").quat, about(Vec3::z(), FRAC_PI_4));
     let drift = joint(&vehicle, "drifter_joint0");
-    assert_eq!(
-        (drift.kind, drift.damping, drift.armature),
-        (JointKind::Free, 0.3, 0.2)
-    );
+    assert_eq!((drift.kind, drift.damping, drift.armature), (JointKind::Free, 0.3, 0.2));
 
     let ball = joint(&vehicle, "ball");
     assert_eq!((ball.kind, ball.reference), (JointKind::Ball, 0.0));
@@ -474,23 +339,15 @@ fn free_ball_and_multiple_joints() {
     let pedestal = body(&vehicle, "pedestal");
     assert!(pedestal.joints.is_empty());
     let mass = 1000.0 * PI * 0.09 * 0.2;
-    assert_mat(
-        "pedestal.inertia",
-        &inertia(pedestal).inertia,
-        diag(cylinder_moments(mass, 0.3, 0.1)),
-    );
+    assert_mat("pedestal.inertia", &inertia(pedestal).inertia, diag(cylinder_moments(mass, 0.3, 0.1)));
 }
 
 #[test]
 fn satellite() {
     let vehicle = load("satellite.xml").vehicle;
     assert_eq!(vehicle.gravity, Vec3::zeros());
-    let kinds: Vec<(&str, JointKind)> = vehicle
-        .bodies
-        .iter()
-        .flat_map(|b| &b.joints)
-        .map(|j| (j.name.as_str(), j.kind))
-        .collect();
+    let kinds: Vec<(&str, JointKind)> =
+        vehicle.bodies.iter().flat_map(|b| &b.joints).map(|j| (j.name.as_str(), j.kind)).collect();
     assert_eq!(
         kinds,
         [
@@ -506,28 +363,13 @@ fn satellite() {
     // The bus's <inertial> wins over its box geom.
     let bus = inertia(body(&vehicle, "bus"));
     assert_close("bus.mass", bus.mass, 250.0);
-    assert_mat(
-        "bus.inertia",
-        &bus.inertia,
-        Mat3::new(40.0, 0.5, -0.3, 0.5, 42.0, 0.2, -0.3, 0.2, 35.0),
-    );
+    assert_mat("bus.inertia", &bus.inertia, Mat3::new(40.0, 0.5, -0.3, 0.5, 42.0, 0.2, -0.3, 0.2, 35.0));
 
     let deploy = joint(&vehicle, "deploy_right");
-    assert_eq!(
-        (deploy.stiffness, deploy.damping, deploy.armature),
-        (0.2, 0.1, 0.01)
-    );
+    assert_eq!((deploy.stiffness, deploy.damping, deploy.armature), (0.2, 0.1, 0.01));
     assert_close("deploy_right.ref", deploy.reference, FRAC_PI_2);
-    assert_quat(
-        "array_right.quat",
-        &body(&vehicle, "array_right").quat,
-        about(Vec3::z(), PI),
-    );
-    assert_close(
-        "array_right.mass",
-        inertia(body(&vehicle, "array_right")).mass,
-        4.0,
-    );
+    assert_quat("array_right.quat", &body(&vehicle, "array_right").quat, about(Vec3::z(), PI));
+    assert_close("array_right.mass", inertia(body(&vehicle, "array_right")).mass, 4.0);
 
     // The hand: a cylinder along x (zaxis="1 0 0") and a box, summed.
     let hand = inertia(body(&vehicle, "hand"));
@@ -536,11 +378,7 @@ fn satellite() {
     let cylinder = cylinder_moments(m1, 0.06, 0.05);
     let cube = box_moments(m2, 0.02, 0.05, 0.03);
     let transfer = m1 * (x1 - com).powi(2) + m2 * (x2 - com).powi(2);
-    let expected = Vec3::new(
-        cylinder.z + cube.x,
-        cylinder.x + cube.y + transfer,
-        cylinder.y + cube.z + transfer,
-    );
+    let expected = Vec3::new(cylinder.z + cube.x, cylinder.x + cube.y + transfer, cylinder.y + cube.z + transfer);
     assert_close("hand.mass", hand.mass, m1 + m2);
     assert_vec("hand.com", &hand.com, Vec3::new(com, 0.0, 0.0));
     assert_mat("hand.inertia", &hand.inertia, diag(expected));
@@ -551,9 +389,7 @@ fn ignored_elements_warn_once_each() {
     let Imported { vehicle, warnings } = load("ignored.xml");
     assert_eq!(vehicle.bodies.len(), 1);
     let shown: Vec<String> = warnings.iter().map(ToString::to_string).collect();
-    let ignored = |line: u32, element: &str| {
-        format!("line {line}: <{element}>: ignored (no effect on the dynamics)")
-    };
+    let ignored = |line: u32, element: &str| format!("line {line}: <{element}>: ignored (no effect on the dynamics)");
     let expected = [
         ignored(3, "lengthrange"),
         ignored(5, "size"),
@@ -564,8 +400,7 @@ fn ignored_elements_warn_once_each() {
         ignored(17, "light name=\"sun\""),
         ignored(18, "geom name=\"floor\""),
         ignored(19, "camera name=\"overview\""),
-        "line 21: <joint name=\"hinge\">: joint limits are not modelled (range ignored)"
-            .to_string(),
+        "line 21: <joint name=\"hinge\">: joint limits are not modelled (range ignored)".to_string(),
         ignored(23, "site name=\"tip\""),
         ignored(24, "camera name=\"eye\""),
         "line 27: <contact>: ignored: nudyn models no contacts".to_string(),
@@ -580,10 +415,7 @@ fn ignored_elements_warn_once_each() {
     ];
     assert_eq!(shown, expected);
     let camera = &warnings[8];
-    assert_eq!(
-        (camera.line, camera.element.as_str()),
-        (19, "camera name=\"overview\"")
-    );
+    assert_eq!((camera.line, camera.element.as_str()), (19, "camera name=\"overview\""));
 }
 
 #[test]
@@ -597,17 +429,9 @@ fn settotalmass_scales_and_warns() {
     let Imported { vehicle, warnings } = parse_mjcf(xml).unwrap();
     let masses: Vec<f64> = vehicle.bodies.iter().map(|b| inertia(b).mass).collect();
     assert_eq!(masses, [2.5, 7.5]);
-    assert_close(
-        "scaled moment",
-        inertia(&vehicle.bodies[0]).inertia[(0, 0)],
-        2.5 * 0.4 * 0.01,
-    );
+    assert_close("scaled moment", inertia(&vehicle.bodies[0]).inertia[(0, 0)], 2.5 * 0.4 * 0.01);
     assert_eq!(warnings.len(), 1);
-    assert!(
-        warnings[0]
-            .to_string()
-            .starts_with("line 2: <compiler>: settotalmass is deprecated")
-    );
+    assert!(warnings[0].to_string().starts_with("line 2: <compiler>: settotalmass is deprecated"));
 }
 
 #[test]
@@ -747,17 +571,8 @@ fn malformed_inputs_are_rejected_with_element_and_line() {
             Err(error) => error,
         };
         let message = error.to_string();
-        assert!(
-            (case.variant)(&error),
-            "{}: unexpected variant {error:?}",
-            case.what
-        );
-        assert!(
-            message.contains(case.element),
-            "{}: {message:?} does not name {}",
-            case.what,
-            case.element
-        );
+        assert!((case.variant)(&error), "{}: unexpected variant {error:?}", case.what);
+        assert!(message.contains(case.element), "{}: {message:?} does not name {}", case.what, case.element);
         assert!(
             message.starts_with(&format!("line {}: ", case.line)),
             "{}: {message:?} is not at line {}",
@@ -772,12 +587,7 @@ fn malformed_inputs_are_rejected_with_element_and_line() {
 fn not_xml_at_all() {
     let error = parse_mjcf("this is not XML").unwrap_err();
     assert!(matches!(error, MjcfError::Xml { line: 1, .. }), "{error:?}");
-    assert!(
-        error
-            .to_string()
-            .starts_with("line 1, column 1: not well-formed XML"),
-        "{error}"
-    );
+    assert!(error.to_string().starts_with("line 1, column 1: not well-formed XML"), "{error}");
 
     let error = parse_mjcf("<mujoco>\n<worldbody>\n</mujoco>").unwrap_err();
     assert!(matches!(error, MjcfError::Xml { line: 3, .. }), "{error:?}");
@@ -787,8 +597,5 @@ fn not_xml_at_all() {
 fn error_message_shows_expected_and_found() {
     let xml = "<mujoco>\n<worldbody>\n<body>\n<geom size=\"1\"/>\n<joint name=\"j2\" axis=\"0 1\"/>\n</body>\n</worldbody>\n</mujoco>";
     let error = parse_mjcf(xml).unwrap_err();
-    assert_eq!(
-        error.to_string(),
-        "line 5: <joint name=\"j2\">: attribute 'axis' expects 3 numbers, found \"0 1\""
-    );
+    assert_eq!(error.to_string(), "line 5: <joint name=\"j2\">: attribute 'axis' expects 3 numbers, found \"0 1\"");
 }

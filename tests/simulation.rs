@@ -56,7 +56,9 @@ fn the_input_ramp_is_measured_from_the_start_of_each_advance() {
     held.advance_to(&model, h, Input { eps: &eps, eps_rate: &rate }).unwrap();
     let eps_at_h: Vec<f64> = eps.iter().zip(&rate).map(|(e, r)| e + r * h).collect();
     held.advance_to(&model, 2.0 * h, Input { eps: &eps_at_h, eps_rate: &rate }).unwrap();
-    for (a, b) in absolute.state.theta.iter().chain(&absolute.state.nu).zip(held.state.theta.iter().chain(&held.state.nu)) {
+    for (a, b) in
+        absolute.state.theta.iter().chain(&absolute.state.nu).zip(held.state.theta.iter().chain(&held.state.nu))
+    {
         assert!((a - b).abs() <= 1e-14 * (1.0 + a.abs()), "{a} against {b}");
     }
     // A rate that is ignored would leave ν where a constant ε puts it.

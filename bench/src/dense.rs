@@ -22,7 +22,9 @@ use nudyn::workspace::Workspace;
 /// Checks that the dense path covers the model's forces.
 pub fn check_supported(model: &Model) -> Result<()> {
     for link in &model.links {
-        if matches!(link.joint, LinkJoint::Ball | LinkJoint::Translation) && (link.stiffness != 0.0 || link.damping != 0.0) {
+        if matches!(link.joint, LinkJoint::Ball | LinkJoint::Translation)
+            && (link.stiffness != 0.0 || link.damping != 0.0)
+        {
             bail!("the dense path has no springs or dampers on ball and free joints (joint '{}')", link.joint_name);
         }
     }

@@ -134,7 +134,8 @@ fn main() -> Result<()> {
                 .zip(&states)
                 .map(|(model, state)| Ok((load_model(model)?, read_json::<State>(state)?)))
                 .collect::<Result<Vec<_>>>()?;
-            let result = eval_cost_side_by_side(&models, &vehicles, repetitions, Duration::from_secs_f64(batch_ms / 1e3))?;
+            let result =
+                eval_cost_side_by_side(&models, &vehicles, repetitions, Duration::from_secs_f64(batch_ms / 1e3))?;
             println!("{}", serde_json::to_string(&result)?);
         }
         Command::Simulate { model, state, duration, sample, runs, repetitions, no_samples } => {
@@ -182,7 +183,12 @@ fn without(model: &Model, name: &str) -> Model {
     general
 }
 
-fn eval_cost(model: &Model, state: &State, mujoco: Option<&(PathBuf, PathBuf)>, options: &CostOptions) -> Result<CostResult> {
+fn eval_cost(
+    model: &Model,
+    state: &State,
+    mujoco: Option<&(PathBuf, PathBuf)>,
+    options: &CostOptions,
+) -> Result<CostResult> {
     let eps = vec![0.0; model.nv];
     // Variants of the model: as compiled, then each shortcut it takes turned off, then none.
     let taken = model.shortcuts;
@@ -249,7 +255,13 @@ fn eval_cost(model: &Model, state: &State, mujoco: Option<&(PathBuf, PathBuf)>, 
 }
 
 /// A timed case of nudyn's ν̇: one `forward` from `state` with applied `eps`.
-fn forward_case<'a>(name: String, model: &'a Model, ws: &'a mut Workspace, state: &'a State, eps: &'a [f64]) -> Case<'a> {
+fn forward_case<'a>(
+    name: String,
+    model: &'a Model,
+    ws: &'a mut Workspace,
+    state: &'a State,
+    eps: &'a [f64],
+) -> Case<'a> {
     let (theta, nu) = (&state.theta, &state.nu);
     Case {
         name,
@@ -310,7 +322,15 @@ struct SimulateResult {
     qvel: Vec<Vec<f64>>,
 }
 
-fn simulate(model: &Model, state: &State, run: &str, duration: f64, sample: f64, repetitions: usize, samples: bool) -> Result<SimulateResult> {
+fn simulate(
+    model: &Model,
+    state: &State,
+    run: &str,
+    duration: f64,
+    sample: f64,
+    repetitions: usize,
+    samples: bool,
+) -> Result<SimulateResult> {
     let (method_name, value) = run.split_once(':').with_context(|| format!("--run {run}: expected METHOD:VALUE"))?;
     let method = Method::from_name(method_name).with_context(|| format!("--run {run}: unknown method"))?;
     let value: f64 = value.parse().with_context(|| format!("--run {run}: not a number"))?;

@@ -79,7 +79,9 @@ impl Api {
             let library = Library::new(path).with_context(|| format!("cannot load {}", path.display()))?;
             macro_rules! symbol {
                 ($name:literal) => {
-                    *library.get($name).with_context(|| format!("{} has no {}", path.display(), String::from_utf8_lossy(&$name[..$name.len() - 1])))?
+                    *library.get($name).with_context(|| {
+                        format!("{} has no {}", path.display(), String::from_utf8_lossy(&$name[..$name.len() - 1]))
+                    })?
                 };
             }
             Ok(Api {
@@ -123,7 +125,9 @@ impl<'a> Simulation<'a> {
             bail!("MuJoCo cannot load the binary model {}", path.display());
         }
         // SAFETY: `model` is a valid mjModel from mj_loadXML.
-        let (data, nq, nv) = unsafe { ((api.make_data)(model), (api.state_size)(model, STATE_QPOS), (api.state_size)(model, STATE_QVEL)) };
+        let (data, nq, nv) = unsafe {
+            ((api.make_data)(model), (api.state_size)(model, STATE_QPOS), (api.state_size)(model, STATE_QVEL))
+        };
         if data.is_null() {
             // SAFETY: not used after this.
             unsafe { (api.delete_model)(model) };
@@ -135,7 +139,13 @@ impl<'a> Simulation<'a> {
     /// Sets qpos and qvel (time and everything else as after mj_makeData).
     pub fn set_state(&mut self, qpos: &[f64], qvel: &[f64]) -> Result<()> {
         if qpos.len() != self.nq || qvel.len() != self.nv {
-            bail!("MuJoCo's model has nq = {}, nv = {}; the state has {} and {}", self.nq, self.nv, qpos.len(), qvel.len());
+            bail!(
+                "MuJoCo's model has nq = {}, nv = {}; the state has {} and {}",
+                self.nq,
+                self.nv,
+                qpos.len(),
+                qvel.len()
+            );
         }
         let state: Vec<f64> = qpos.iter().chain(qvel).copied().collect();
         // SAFETY: `state` has nq + nv entries, the size of the QPOS|QVEL state.

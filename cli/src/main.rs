@@ -210,7 +210,9 @@ fn describe(model_path: &Path, json: bool) -> Result<()> {
     println!("{:<24} {:<24} {:<6} {:>9} {:>9}", "joint", "body", "kind", "theta", "nu, eps");
     for joint in &description.joints {
         // 1-based FMU variable indices, as in theta[k] and nu[k].
-        let range = |first: usize, n: usize| if n == 1 { format!("{}", first + 1) } else { format!("{}..{}", first + 1, first + n) };
+        let range = |first: usize, n: usize| {
+            if n == 1 { format!("{}", first + 1) } else { format!("{}..{}", first + 1, first + n) }
+        };
         println!(
             "{:<24} {:<24} {:<6} {:>9} {:>9}",
             joint.name,
@@ -243,15 +245,18 @@ fn fmu_library() -> Result<PathBuf> {
 fn export(model_path: &Path, output: &Path, model_identifier: Option<String>, outputs: OptionalOutputs) -> Result<()> {
     let model = load_model(model_path)?;
     let stem = model_path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    let options = ExportOptions {
-        model_identifier: model_identifier.unwrap_or_else(|| model_identifier_from(&stem)),
-        outputs,
-    };
+    let options =
+        ExportOptions { model_identifier: model_identifier.unwrap_or_else(|| model_identifier_from(&stem)), outputs };
     let library = fmu_library()?;
     write_fmu(&model, &options, &library, output).with_context(|| format!("cannot export {}", output.display()))
 }
 
-fn export_controller(model_path: &Path, output: &Path, model_identifier: Option<String>, end_effector: Option<&str>) -> Result<()> {
+fn export_controller(
+    model_path: &Path,
+    output: &Path,
+    model_identifier: Option<String>,
+    end_effector: Option<&str>,
+) -> Result<()> {
     let (vehicle, model) = load_vehicle(model_path)?;
     let law = match end_effector {
         Some(body) => ControlLaw::pose(&vehicle, &model, body),

@@ -82,6 +82,7 @@ fn guid_follows_the_content() {
 fn bad_model_identifier_is_refused() {
     let dir = scratch("identifier");
     let options = ExportOptions { model_identifier: "my model".into(), outputs: OptionalOutputs::default() };
-    let error = write_fmu(&example("fixed_rig.xml"), &options, &dir.join("missing.so"), &dir.join("x.fmu")).unwrap_err();
+    let error =
+        write_fmu(&example("fixed_rig.xml"), &options, &dir.join("missing.so"), &dir.join("x.fmu")).unwrap_err();
     assert!(matches!(error, ExportError::ModelIdentifier(_)), "{error}");
 }

@@ -283,7 +283,10 @@ mod tests {
     #[test]
     fn parses_optional_outputs() {
         let all: OptionalOutputs = "qvel, kinetic_energy,power,momentum".parse().unwrap();
-        assert_eq!(all, OptionalOutputs { qvel: true, kinetic_energy: true, power: true, momentum: true, energy_residual: false });
+        assert_eq!(
+            all,
+            OptionalOutputs { qvel: true, kinetic_energy: true, power: true, momentum: true, energy_residual: false }
+        );
         assert_eq!("".parse::<OptionalOutputs>().unwrap(), OptionalOutputs::default());
         assert_eq!("qvel,speed".parse::<OptionalOutputs>(), Err(UnknownOutput("speed".into())));
         for name in OptionalOutputs::NAMES {

@@ -62,23 +62,35 @@ impl Kind {
     }
 
     /// A continuous input.
-    pub const INPUT: Kind =
-        Kind { causality: Causality::Input, variability: Variability::Continuous, exact_start: false, range: Range::Any };
+    pub const INPUT: Kind = Kind {
+        causality: Causality::Input,
+        variability: Variability::Continuous,
+        exact_start: false,
+        range: Range::Any,
+    };
 
     /// A continuous output whose start value the master may choose before initialization.
-    pub const STATE_OUTPUT: Kind =
-        Kind { causality: Causality::Output, variability: Variability::Continuous, exact_start: true, range: Range::Any };
+    pub const STATE_OUTPUT: Kind = Kind {
+        causality: Causality::Output,
+        variability: Variability::Continuous,
+        exact_start: true,
+        range: Range::Any,
+    };
 
     /// A continuous output the FMU calculates.
-    pub const CALCULATED_OUTPUT: Kind =
-        Kind { causality: Causality::Output, variability: Variability::Continuous, exact_start: false, range: Range::Any };
+    pub const CALCULATED_OUTPUT: Kind = Kind {
+        causality: Causality::Output,
+        variability: Variability::Continuous,
+        exact_start: false,
+        range: Range::Any,
+    };
 
     /// Why the variable cannot be set now, if it cannot: "after
     /// initialization" or "at all: it is a calculated output".
     /// `initialized`: after fmi2ExitInitializationMode.
     pub fn refuses_set(&self, initialized: bool) -> Option<&'static str> {
-        let fixed_after_start = self.variability == Variability::Fixed
-            || (self.causality == Causality::Output && self.exact_start);
+        let fixed_after_start =
+            self.variability == Variability::Fixed || (self.causality == Causality::Output && self.exact_start);
         match self.causality {
             Causality::Output if !self.exact_start => Some("at all: it is a calculated output"),
             _ if fixed_after_start && initialized => Some("after initialization"),

@@ -21,7 +21,12 @@ fn real_variable(component: &dyn Component, vr: u32) -> Result<Variable, CallErr
 
 /// fmi2SetReal. `initialized`: after fmi2ExitInitializationMode. NaN and
 /// ±Inf, and finite values outside a variable's range, are out of range.
-pub fn set_real(component: &mut dyn Component, vrs: &[u32], values: &[f64], initialized: bool) -> Result<(), CallError> {
+pub fn set_real(
+    component: &mut dyn Component,
+    vrs: &[u32],
+    values: &[f64],
+    initialized: bool,
+) -> Result<(), CallError> {
     for (&vr, &value) in vrs.iter().zip(values) {
         let Variable { name, kind } = real_variable(component, vr)?;
         if let Some(when) = kind.refuses_set(initialized) {
@@ -164,7 +169,9 @@ pub fn do_step(component: &mut dyn Component, time: f64, step: f64) -> Result<Op
     if !(step.is_finite() && step > 0.0) {
         return Err(Stepped::Refused(CallError::StepSize(step)));
     }
-    if let Some(stop_time) = component.stop_time().filter(|&stop| time + step > stop + TIME_TOLERANCE * stop.abs().max(1.0)) {
+    if let Some(stop_time) =
+        component.stop_time().filter(|&stop| time + step > stop + TIME_TOLERANCE * stop.abs().max(1.0))
+    {
         return Err(Stepped::Refused(CallError::PastStopTime { time, step, stop_time }));
     }
     component.do_step(time, step).map_err(Stepped::Failed)

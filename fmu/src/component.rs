@@ -185,7 +185,8 @@ fn read_resource<R: Resource>(
 ) -> Result<Loaded<R>, LoadError> {
     let path = directory.join(R::FILE);
     let bytes = std::fs::read(&path).map_err(|source| LoadError::Read { path: path.clone(), source })?;
-    let resource: R = serde_json::from_slice(&bytes).map_err(|source| LoadError::Parse { path: path.clone(), source })?;
+    let resource: R =
+        serde_json::from_slice(&bytes).map_err(|source| LoadError::Parse { path: path.clone(), source })?;
     if resource.format() != R::FORMAT {
         return Err(LoadError::Format { path, found: resource.format(), expected: R::FORMAT });
     }
@@ -328,7 +329,9 @@ pub enum CallError {
     #[error("communicationStepSize = {0} must be positive and finite")]
     StepSize(f64),
     /// The step needs more internal steps than the plant allows in one call.
-    #[error("communicationStepSize = {step} with max_step = {max_step} needs {needed:e} internal steps, more than {limit:e}")]
+    #[error(
+        "communicationStepSize = {step} with max_step = {max_step} needs {needed:e} internal steps, more than {limit:e}"
+    )]
     TooLong {
         /// The step.
         step: f64,

@@ -140,9 +140,7 @@ impl Logger {
         // SAFETY: the callback is the importer's fmi2CallbackLogger; every
         // string is NUL-terminated and outlives the call, and the format
         // has no conversions left to read arguments.
-        unsafe {
-            callback(self.environment, self.instance_name.as_ptr(), status, category.as_ptr(), message.as_ptr())
-        };
+        unsafe { callback(self.environment, self.instance_name.as_ptr(), status, category.as_ptr(), message.as_ptr()) };
     }
 
     fn log_status(&self, status: fmi2Status, message: &str) {
@@ -720,7 +718,11 @@ pub unsafe extern "C" fn fmi2FreeFMUstate(c: fmi2Component, state: *mut fmi2FMUs
 /// # Safety
 /// FMI 2.0 calling conventions.
 #[unsafe(no_mangle)]
-pub unsafe extern "C" fn fmi2SerializedFMUstateSize(c: fmi2Component, state: fmi2FMUstate, size: *mut usize) -> fmi2Status {
+pub unsafe extern "C" fn fmi2SerializedFMUstateSize(
+    c: fmi2Component,
+    state: fmi2FMUstate,
+    size: *mut usize,
+) -> fmi2Status {
     unsafe {
         enter(c, Function::SerializedFmuStateSize, |instance| {
             let snapshot = snapshot(&instance.states, state)?;
@@ -765,7 +767,8 @@ pub unsafe extern "C" fn fmi2DeSerializeFMUstate(
         enter(c, Function::DeSerializeFmuState, |instance| {
             calls::fmu_states(&*instance.component)?;
             let state = state.as_mut().ok_or(FmiError::Null("FMUstate"))?;
-            let existing = if state.is_null() { None } else { Some(snapshot(&instance.states, *state)? as *mut Snapshot) };
+            let existing =
+                if state.is_null() { None } else { Some(snapshot(&instance.states, *state)? as *mut Snapshot) };
             let snapshot = instance.component.deserialize(slice(bytes as *const u8, size, "serializedState")?)?;
             match existing {
                 // SAFETY: checked live above; nothing freed it since.
@@ -804,7 +807,8 @@ pub unsafe extern "C" fn fmi2SetRealInputDerivatives(
 ) -> fmi2Status {
     unsafe {
         enter(c, Function::SetRealInputDerivatives, |instance| {
-            let (vrs, orders, values) = (slice(vr, nvr, "vr")?, slice(order, nvr, "order")?, slice(value, nvr, "value")?);
+            let (vrs, orders, values) =
+                (slice(vr, nvr, "vr")?, slice(order, nvr, "order")?, slice(value, nvr, "value")?);
             Ok(calls::set_input_derivatives(&mut *instance.component, vrs, orders, values)?)
         })
     }
@@ -988,7 +992,9 @@ mod tests {
             stepFinished: None,
             componentEnvironment: std::ptr::null_mut(),
         };
-        unsafe { fmi2Instantiate(c"test".as_ptr(), fmi2Type_fmi2CoSimulation, guid.as_ptr(), uri.as_ptr(), &functions, 0, 0) }
+        unsafe {
+            fmi2Instantiate(c"test".as_ptr(), fmi2Type_fmi2CoSimulation, guid.as_ptr(), uri.as_ptr(), &functions, 0, 0)
+        }
     }
 
     fn phase(c: fmi2Component) -> Phase {

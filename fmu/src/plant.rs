@@ -277,7 +277,11 @@ impl Component for Plant {
                 return Err(CallError::UnknownValueReference { vr, kind: "Boolean" });
             }
             if initialized {
-                return Err(CallError::NotSettable { name: "energy_projection".into(), vr, when: "after initialization" });
+                return Err(CallError::NotSettable {
+                    name: "energy_projection".into(),
+                    vr,
+                    when: "after initialization",
+                });
             }
         }
         if let Some(&value) = values.last() {

@@ -188,9 +188,8 @@ impl Snapshot {
             return Err(SnapshotError::Checksum { found, computed });
         }
         // Fatal is never entered, so never saved.
-        let phase = Phase::from_code(phase_code)
-            .filter(|&p| p != Phase::Fatal)
-            .ok_or(SnapshotError::Phase(phase_code))?;
+        let phase =
+            Phase::from_code(phase_code).filter(|&p| p != Phase::Fatal).ok_or(SnapshotError::Phase(phase_code))?;
         let method = *Method::ALL.get(usize::from(method_index)).ok_or(SnapshotError::UnknownMethod(method_index))?;
         let (settings, vectors) = scalars.split_at(9);
         check_values(settings, vectors)?;
@@ -251,7 +250,9 @@ fn check_values(settings: &[f64], vectors: &[f64]) -> Result<(), SnapshotError> 
         }
     }
     match vectors.iter().find(|x| !x.is_finite()) {
-        Some(&value) => Err(SnapshotError::Value { what: "a value of theta, nu, eps or eps_rate", value, must: "finite" }),
+        Some(&value) => {
+            Err(SnapshotError::Value { what: "a value of theta, nu, eps or eps_rate", value, must: "finite" })
+        }
         None => Ok(()),
     }
 }
@@ -265,7 +266,8 @@ struct Reader<'a> {
 impl<'a> Reader<'a> {
     fn take(&mut self, n: usize) -> Result<&'a [u8], SnapshotError> {
         let end = self.at.checked_add(n).filter(|&end| end <= self.bytes.len());
-        let end = end.ok_or(SnapshotError::Truncated { expected: self.at.saturating_add(n), found: self.bytes.len() })?;
+        let end =
+            end.ok_or(SnapshotError::Truncated { expected: self.at.saturating_add(n), found: self.bytes.len() })?;
         let slice = &self.bytes[self.at..end];
         self.at = end;
         Ok(slice)
@@ -353,10 +355,7 @@ mod tests {
     #[test]
     fn rejects_foreign_blobs() {
         let bytes = serialized(&sample());
-        assert!(matches!(
-            Snapshot::deserialize(&bytes, "{other}", 5, 4),
-            Err(SnapshotError::ForeignGuid { .. })
-        ));
+        assert!(matches!(Snapshot::deserialize(&bytes, "{other}", 5, 4), Err(SnapshotError::ForeignGuid { .. })));
         assert!(matches!(Snapshot::deserialize(&bytes, GUID, 7, 6), Err(SnapshotError::Sizes { .. })));
         assert_eq!(Snapshot::deserialize(b"PK\x03\x04 not a state", GUID, 5, 4), Err(SnapshotError::BadMagic));
         let mut other_version = bytes.clone();

@@ -227,16 +227,11 @@ mod tests {
 
     #[test]
     fn fatal_allows_nothing_in_the_table() {
-        let in_fatal: Vec<Function> = [
-            Function::SetDebugLogging,
-            Function::Reset,
-            Function::GetReal,
-            Function::DoStep,
-            Function::GetFmuState,
-        ]
-        .into_iter()
-        .filter(|f| f.allowed_in(Phase::Fatal))
-        .collect();
+        let in_fatal: Vec<Function> =
+            [Function::SetDebugLogging, Function::Reset, Function::GetReal, Function::DoStep, Function::GetFmuState]
+                .into_iter()
+                .filter(|f| f.allowed_in(Phase::Fatal))
+                .collect();
         assert_eq!(in_fatal, []);
     }
 

@@ -12,25 +12,64 @@ use nudyn_fuzz::{bus, check_reals, instantiate};
 
 #[derive(Arbitrary, Debug)]
 enum Call {
-    SetupExperiment { tolerance: Option<f64>, start: f64, stop: Option<f64> },
+    SetupExperiment {
+        tolerance: Option<f64>,
+        start: f64,
+        stop: Option<f64>,
+    },
     EnterInitializationMode,
     ExitInitializationMode,
-    SetReal { vrs: Vec<u32>, values: Vec<f64> },
-    GetReal { vrs: Vec<u32> },
-    SetInteger { vr: u32, value: i32 },
-    GetInteger { vr: u32 },
-    SetInputDerivative { vr: u32, order: i32, value: f64 },
-    GetOutputDerivative { vr: u32, order: i32 },
+    SetReal {
+        vrs: Vec<u32>,
+        values: Vec<f64>,
+    },
+    GetReal {
+        vrs: Vec<u32>,
+    },
+    SetInteger {
+        vr: u32,
+        value: i32,
+    },
+    GetInteger {
+        vr: u32,
+    },
+    SetInputDerivative {
+        vr: u32,
+        order: i32,
+        value: f64,
+    },
+    GetOutputDerivative {
+        vr: u32,
+        order: i32,
+    },
     /// At the instance's last successful time plus `offset`.
-    DoStep { offset: f64, step: f64 },
+    DoStep {
+        offset: f64,
+        step: f64,
+    },
     CancelStep,
-    GetStatus { kind: u32 },
-    GetState { slot: u8 },
-    SetState { slot: u8 },
-    FreeState { slot: u8 },
+    GetStatus {
+        kind: u32,
+    },
+    GetState {
+        slot: u8,
+    },
+    SetState {
+        slot: u8,
+    },
+    FreeState {
+        slot: u8,
+    },
     /// Serializes a slot's state, truncated by `cut` bytes, into another slot.
-    Reserialize { from: u8, to: u8, cut: u8 },
-    SetDebugLogging { on: bool, category: u8 },
+    Reserialize {
+        from: u8,
+        to: u8,
+        cut: u8,
+    },
+    SetDebugLogging {
+        on: bool,
+        category: u8,
+    },
     Terminate,
     Reset,
 }
@@ -53,7 +92,14 @@ fuzz_target!(|scenario: Scenario| {
             let c = instances[usize::from(second)];
             match call {
                 Call::SetupExperiment { tolerance, start, stop } => {
-                    fmi2SetupExperiment(c, tolerance.is_some().into(), tolerance.unwrap_or(0.0), start, stop.is_some().into(), stop.unwrap_or(0.0));
+                    fmi2SetupExperiment(
+                        c,
+                        tolerance.is_some().into(),
+                        tolerance.unwrap_or(0.0),
+                        start,
+                        stop.is_some().into(),
+                        stop.unwrap_or(0.0),
+                    );
                 }
                 Call::EnterInitializationMode => _ = fmi2EnterInitializationMode(c),
                 Call::ExitInitializationMode => _ = fmi2ExitInitializationMode(c),
@@ -72,7 +118,9 @@ fuzz_target!(|scenario: Scenario| {
                     let mut value = 0;
                     fmi2GetInteger(c, &vr, 1, &mut value);
                 }
-                Call::SetInputDerivative { vr, order, value } => _ = fmi2SetRealInputDerivatives(c, &vr, 1, &order, &value),
+                Call::SetInputDerivative { vr, order, value } => {
+                    _ = fmi2SetRealInputDerivatives(c, &vr, 1, &order, &value)
+                }
                 Call::GetOutputDerivative { vr, order } => {
                     let mut value = 0.0;
                     if fmi2GetRealOutputDerivatives(c, &vr, 1, &order, &mut value) == fmi2Status_fmi2OK {
@@ -101,7 +149,12 @@ fuzz_target!(|scenario: Scenario| {
                         let mut blob = vec![0u8; size];
                         fmi2SerializeFMUstate(c, from, blob.as_mut_ptr() as *mut fmi2Byte, size);
                         let kept = size.saturating_sub(usize::from(cut));
-                        fmi2DeSerializeFMUstate(c, blob.as_ptr() as *const fmi2Byte, kept, &mut slots[usize::from(to) % SLOTS]);
+                        fmi2DeSerializeFMUstate(
+                            c,
+                            blob.as_ptr() as *const fmi2Byte,
+                            kept,
+                            &mut slots[usize::from(to) % SLOTS],
+                        );
                     }
                 }
                 Call::SetDebugLogging { on, category } => {

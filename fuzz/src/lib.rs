@@ -97,7 +97,9 @@ pub fn bus() -> &'static Fmu {
 pub fn instantiate(uri: &CStr, guid: &CStr) -> fmi2Component {
     let functions = callbacks();
     // SAFETY: valid C strings and callbacks that outlive the call (the FMU copies them).
-    unsafe { fmi2Instantiate(c"fuzz".as_ptr(), fmi2Type_fmi2CoSimulation, guid.as_ptr(), uri.as_ptr(), &functions, 0, 0) }
+    unsafe {
+        fmi2Instantiate(c"fuzz".as_ptr(), fmi2Type_fmi2CoSimulation, guid.as_ptr(), uri.as_ptr(), &functions, 0, 0)
+    }
 }
 
 /// Reads every Real variable (value references 1..=reals); a read that

@@ -12,10 +12,7 @@ mod common;
 fn main() -> Result<(), modeldescription::Error> {
     let model = common::arm();
     let problems = modeldescription::validate(&model);
-    assert!(
-        problems.is_empty(),
-        "the example breaks FMI 2.0 rules: {problems:#?}"
-    );
+    assert!(problems.is_empty(), "the example breaks FMI 2.0 rules: {problems:#?}");
     print!("{}", modeldescription::to_xml(&model)?);
     Ok(())
 }

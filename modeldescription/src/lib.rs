@@ -42,8 +42,7 @@ const XML_DECLARATION: &str = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
 /// semantic rules is written as it is.
 pub fn to_xml(model: &FmiModelDescription) -> Result<String, Error> {
     let mut document = String::from(XML_DECLARATION);
-    let mut serializer =
-        quick_xml::se::Serializer::with_root(&mut document, Some("fmiModelDescription"))?;
+    let mut serializer = quick_xml::se::Serializer::with_root(&mut document, Some("fmiModelDescription"))?;
     serializer.indent(' ', 2);
     model.serialize(serializer)?;
     document.push('\n');

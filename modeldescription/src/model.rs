@@ -25,11 +25,7 @@ pub struct FmiModelDescription {
     #[serde(rename = "@guid")]
     pub guid: String,
     /// `description`.
-    #[serde(
-        rename = "@description",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@description", default, skip_serializing_if = "Option::is_none")]
     pub description: Option<String>,
     /// `author`.
     #[serde(rename = "@author", default, skip_serializing_if = "Option::is_none")]
@@ -38,42 +34,22 @@ pub struct FmiModelDescription {
     #[serde(rename = "@version", default, skip_serializing_if = "Option::is_none")]
     pub version: Option<String>,
     /// `copyright`.
-    #[serde(
-        rename = "@copyright",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@copyright", default, skip_serializing_if = "Option::is_none")]
     pub copyright: Option<String>,
     /// `license`.
     #[serde(rename = "@license", default, skip_serializing_if = "Option::is_none")]
     pub license: Option<String>,
     /// `generationTool`.
-    #[serde(
-        rename = "@generationTool",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@generationTool", default, skip_serializing_if = "Option::is_none")]
     pub generation_tool: Option<String>,
     /// `generationDateAndTime`, an `xs:dateTime` such as `2024-01-31T12:00:00Z`.
-    #[serde(
-        rename = "@generationDateAndTime",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@generationDateAndTime", default, skip_serializing_if = "Option::is_none")]
     pub generation_date_and_time: Option<String>,
     /// `variableNamingConvention`; absent means flat.
-    #[serde(
-        rename = "@variableNamingConvention",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@variableNamingConvention", default, skip_serializing_if = "Option::is_none")]
     pub variable_naming_convention: Option<VariableNamingConvention>,
     /// `numberOfEventIndicators`.
-    #[serde(
-        rename = "@numberOfEventIndicators",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@numberOfEventIndicators", default, skip_serializing_if = "Option::is_none")]
     pub number_of_event_indicators: Option<u32>,
     /// `<CoSimulation>`: this crate models co-simulation FMUs only.
     #[serde(rename = "CoSimulation")]
@@ -95,19 +71,10 @@ pub struct FmiModelDescription {
     )]
     pub type_definitions: Vec<SimpleType>,
     /// Children of `<LogCategories>`.
-    #[serde(
-        rename = "LogCategories",
-        with = "xsd::log_categories",
-        default,
-        skip_serializing_if = "Vec::is_empty"
-    )]
+    #[serde(rename = "LogCategories", with = "xsd::log_categories", default, skip_serializing_if = "Vec::is_empty")]
     pub log_categories: Vec<Category>,
     /// `<DefaultExperiment>`.
-    #[serde(
-        rename = "DefaultExperiment",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "DefaultExperiment", default, skip_serializing_if = "Option::is_none")]
     pub default_experiment: Option<DefaultExperiment>,
     /// Children of `<ModelVariables>`; position `i` has ScalarVariable index
     /// `i + 1`, the index that `<ModelStructure>` refers to.
@@ -222,20 +189,10 @@ pub struct BaseUnit {
     #[serde(rename = "@rad", default, skip_serializing_if = "is_zero")]
     pub rad: i32,
     /// `factor`; absent means 1.
-    #[serde(
-        rename = "@factor",
-        with = "xsd::optional_double",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@factor", with = "xsd::optional_double", default, skip_serializing_if = "Option::is_none")]
     pub factor: Option<f64>,
     /// `offset`; absent means 0.
-    #[serde(
-        rename = "@offset",
-        with = "xsd::optional_double",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@offset", with = "xsd::optional_double", default, skip_serializing_if = "Option::is_none")]
     pub offset: Option<f64>,
 }
 
@@ -250,20 +207,10 @@ pub struct DisplayUnit {
     #[serde(rename = "@name")]
     pub name: String,
     /// `factor`; absent means 1.
-    #[serde(
-        rename = "@factor",
-        with = "xsd::optional_double",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@factor", with = "xsd::optional_double", default, skip_serializing_if = "Option::is_none")]
     pub factor: Option<f64>,
     /// `offset`; absent means 0.
-    #[serde(
-        rename = "@offset",
-        with = "xsd::optional_double",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@offset", with = "xsd::optional_double", default, skip_serializing_if = "Option::is_none")]
     pub offset: Option<f64>,
 }
 
@@ -275,11 +222,7 @@ pub struct SimpleType {
     #[serde(rename = "@name")]
     pub name: String,
     /// `description`.
-    #[serde(
-        rename = "@description",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@description", default, skip_serializing_if = "Option::is_none")]
     pub description: Option<String>,
     /// The one child element that gives the base type.
     #[serde(rename = "$value")]
@@ -312,49 +255,22 @@ pub struct RealType {
     #[serde(rename = "@unit", default, skip_serializing_if = "Option::is_none")]
     pub unit: Option<String>,
     /// `displayUnit`: a `<DisplayUnit>` name of `unit`.
-    #[serde(
-        rename = "@displayUnit",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@displayUnit", default, skip_serializing_if = "Option::is_none")]
     pub display_unit: Option<String>,
     /// `relativeQuantity`; absent means false.
-    #[serde(
-        rename = "@relativeQuantity",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@relativeQuantity", default, skip_serializing_if = "Option::is_none")]
     pub relative_quantity: Option<bool>,
     /// `min`.
-    #[serde(
-        rename = "@min",
-        with = "xsd::optional_double",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@min", with = "xsd::optional_double", default, skip_serializing_if = "Option::is_none")]
     pub min: Option<f64>,
     /// `max`.
-    #[serde(
-        rename = "@max",
-        with = "xsd::optional_double",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@max", with = "xsd::optional_double", default, skip_serializing_if = "Option::is_none")]
     pub max: Option<f64>,
     /// `nominal`.
-    #[serde(
-        rename = "@nominal",
-        with = "xsd::optional_double",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@nominal", with = "xsd::optional_double", default, skip_serializing_if = "Option::is_none")]
     pub nominal: Option<f64>,
     /// `unbounded`; absent means false.
-    #[serde(
-        rename = "@unbounded",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@unbounded", default, skip_serializing_if = "Option::is_none")]
     pub unbounded: Option<bool>,
 }
 
@@ -393,11 +309,7 @@ pub struct Item {
     #[serde(rename = "@value")]
     pub value: i32,
     /// `description`.
-    #[serde(
-        rename = "@description",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@description", default, skip_serializing_if = "Option::is_none")]
     pub description: Option<String>,
 }
 
@@ -408,11 +320,7 @@ pub struct Category {
     #[serde(rename = "@name")]
     pub name: String,
     /// `description`.
-    #[serde(
-        rename = "@description",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@description", default, skip_serializing_if = "Option::is_none")]
     pub description: Option<String>,
 }
 
@@ -420,36 +328,16 @@ pub struct Category {
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct DefaultExperiment {
     /// `startTime` in seconds.
-    #[serde(
-        rename = "@startTime",
-        with = "xsd::optional_double",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@startTime", with = "xsd::optional_double", default, skip_serializing_if = "Option::is_none")]
     pub start_time: Option<f64>,
     /// `stopTime` in seconds.
-    #[serde(
-        rename = "@stopTime",
-        with = "xsd::optional_double",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@stopTime", with = "xsd::optional_double", default, skip_serializing_if = "Option::is_none")]
     pub stop_time: Option<f64>,
     /// `tolerance`: relative tolerance of the internal solver.
-    #[serde(
-        rename = "@tolerance",
-        with = "xsd::optional_double",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@tolerance", with = "xsd::optional_double", default, skip_serializing_if = "Option::is_none")]
     pub tolerance: Option<f64>,
     /// `stepSize`: communication step size in seconds.
-    #[serde(
-        rename = "@stepSize",
-        with = "xsd::optional_double",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@stepSize", with = "xsd::optional_double", default, skip_serializing_if = "Option::is_none")]
     pub step_size: Option<f64>,
 }
 
@@ -463,11 +351,7 @@ pub struct ScalarVariable {
     #[serde(rename = "@valueReference")]
     pub value_reference: u32,
     /// `description`.
-    #[serde(
-        rename = "@description",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@description", default, skip_serializing_if = "Option::is_none")]
     pub description: Option<String>,
     /// `causality`; absent means local. Always written.
     #[serde(rename = "@causality", default)]
@@ -481,11 +365,7 @@ pub struct ScalarVariable {
     pub initial: Option<Initial>,
     /// `canHandleMultipleSetPerTimeInstant`: meaningful for Model Exchange
     /// inputs only, so a co-simulation-only FMU must leave it out.
-    #[serde(
-        rename = "@canHandleMultipleSetPerTimeInstant",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@canHandleMultipleSetPerTimeInstant", default, skip_serializing_if = "Option::is_none")]
     pub can_handle_multiple_set_per_time_instant: Option<bool>,
     /// The one child element that gives the variable's type.
     #[serde(rename = "$value")]
@@ -561,11 +441,7 @@ pub enum VariableKind {
 pub struct RealVariable {
     /// `declaredType`: a Real `<SimpleType>` name whose attributes are the
     /// defaults of this one's.
-    #[serde(
-        rename = "@declaredType",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@declaredType", default, skip_serializing_if = "Option::is_none")]
     pub declared_type: Option<String>,
     /// `quantity`.
     #[serde(rename = "@quantity", default, skip_serializing_if = "Option::is_none")]
@@ -574,65 +450,29 @@ pub struct RealVariable {
     #[serde(rename = "@unit", default, skip_serializing_if = "Option::is_none")]
     pub unit: Option<String>,
     /// `displayUnit`: a `<DisplayUnit>` name of the unit.
-    #[serde(
-        rename = "@displayUnit",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@displayUnit", default, skip_serializing_if = "Option::is_none")]
     pub display_unit: Option<String>,
     /// `relativeQuantity`; absent means false.
-    #[serde(
-        rename = "@relativeQuantity",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@relativeQuantity", default, skip_serializing_if = "Option::is_none")]
     pub relative_quantity: Option<bool>,
     /// `min`.
-    #[serde(
-        rename = "@min",
-        with = "xsd::optional_double",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@min", with = "xsd::optional_double", default, skip_serializing_if = "Option::is_none")]
     pub min: Option<f64>,
     /// `max`.
-    #[serde(
-        rename = "@max",
-        with = "xsd::optional_double",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@max", with = "xsd::optional_double", default, skip_serializing_if = "Option::is_none")]
     pub max: Option<f64>,
     /// `nominal`.
-    #[serde(
-        rename = "@nominal",
-        with = "xsd::optional_double",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@nominal", with = "xsd::optional_double", default, skip_serializing_if = "Option::is_none")]
     pub nominal: Option<f64>,
     /// `unbounded`; absent means false.
-    #[serde(
-        rename = "@unbounded",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@unbounded", default, skip_serializing_if = "Option::is_none")]
     pub unbounded: Option<bool>,
     /// `start`.
-    #[serde(
-        rename = "@start",
-        with = "xsd::optional_double",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@start", with = "xsd::optional_double", default, skip_serializing_if = "Option::is_none")]
     pub start: Option<f64>,
     /// `derivative`: 1-based ScalarVariable index of the variable this one
     /// is the time derivative of.
-    #[serde(
-        rename = "@derivative",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@derivative", default, skip_serializing_if = "Option::is_none")]
     pub derivative: Option<u32>,
     /// `reinit` (Model Exchange only); absent means false.
     #[serde(rename = "@reinit", default, skip_serializing_if = "Option::is_none")]
@@ -643,11 +483,7 @@ pub struct RealVariable {
 #[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct IntegerVariable {
     /// `declaredType`: an Integer `<SimpleType>` name.
-    #[serde(
-        rename = "@declaredType",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@declaredType", default, skip_serializing_if = "Option::is_none")]
     pub declared_type: Option<String>,
     /// `quantity`.
     #[serde(rename = "@quantity", default, skip_serializing_if = "Option::is_none")]
@@ -667,11 +503,7 @@ pub struct IntegerVariable {
 #[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct BooleanVariable {
     /// `declaredType`: a Boolean `<SimpleType>` name.
-    #[serde(
-        rename = "@declaredType",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@declaredType", default, skip_serializing_if = "Option::is_none")]
     pub declared_type: Option<String>,
     /// `start`.
     #[serde(rename = "@start", default, skip_serializing_if = "Option::is_none")]
@@ -682,11 +514,7 @@ pub struct BooleanVariable {
 #[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct StringVariable {
     /// `declaredType`: a String `<SimpleType>` name.
-    #[serde(
-        rename = "@declaredType",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@declaredType", default, skip_serializing_if = "Option::is_none")]
     pub declared_type: Option<String>,
     /// `start`.
     #[serde(rename = "@start", default, skip_serializing_if = "Option::is_none")]
@@ -718,28 +546,13 @@ pub struct EnumerationVariable {
 #[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct ModelStructure {
     /// `<Outputs>`: every output variable, in ScalarVariable order.
-    #[serde(
-        rename = "Outputs",
-        with = "xsd::unknowns",
-        default,
-        skip_serializing_if = "Vec::is_empty"
-    )]
+    #[serde(rename = "Outputs", with = "xsd::unknowns", default, skip_serializing_if = "Vec::is_empty")]
     pub outputs: Vec<Unknown>,
     /// `<Derivatives>`: the continuous state derivatives.
-    #[serde(
-        rename = "Derivatives",
-        with = "xsd::unknowns",
-        default,
-        skip_serializing_if = "Vec::is_empty"
-    )]
+    #[serde(rename = "Derivatives", with = "xsd::unknowns", default, skip_serializing_if = "Vec::is_empty")]
     pub derivatives: Vec<Unknown>,
     /// `<InitialUnknowns>`: the unknowns of Initialization Mode.
-    #[serde(
-        rename = "InitialUnknowns",
-        with = "xsd::unknowns",
-        default,
-        skip_serializing_if = "Vec::is_empty"
-    )]
+    #[serde(rename = "InitialUnknowns", with = "xsd::unknowns", default, skip_serializing_if = "Vec::is_empty")]
     pub initial_unknowns: Vec<Unknown>,
 }
 
@@ -752,18 +565,10 @@ pub struct Unknown {
     /// `dependencies`: 1-based ScalarVariable indices of the knowns it
     /// depends on, ascending. `None` means "depends on all knowns";
     /// `Some(vec![])` (written `dependencies=""`) means "depends on none".
-    #[serde(
-        rename = "@dependencies",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@dependencies", default, skip_serializing_if = "Option::is_none")]
     pub dependencies: Option<Vec<u32>>,
     /// `dependenciesKind`: one kind per entry of `dependencies`.
-    #[serde(
-        rename = "@dependenciesKind",
-        default,
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(rename = "@dependenciesKind", default, skip_serializing_if = "Option::is_none")]
     pub dependencies_kind: Option<Vec<DependencyKind>>,
 }
 
@@ -771,11 +576,7 @@ impl Unknown {
     /// An unknown at `index` with no dependency information (it may depend
     /// on every known).
     pub fn new(index: u32) -> Self {
-        Self {
-            index,
-            dependencies: None,
-            dependencies_kind: None,
-        }
+        Self { index, dependencies: None, dependencies_kind: None }
     }
 }
 

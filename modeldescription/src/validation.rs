@@ -102,9 +102,7 @@ pub enum Problem {
         value: i32,
     },
     /// A Real type's `unit` is not a `<Unit>`.
-    #[error(
-        "§2.2.3: type \"{type_name}\" has unit \"{unit}\", which <UnitDefinitions> does not define"
-    )]
+    #[error("§2.2.3: type \"{type_name}\" has unit \"{unit}\", which <UnitDefinitions> does not define")]
     UndefinedTypeUnit {
         /// Type name.
         type_name: String,
@@ -112,9 +110,7 @@ pub enum Problem {
         unit: String,
     },
     /// A Real type's `displayUnit` is not a `<DisplayUnit>` of its unit.
-    #[error(
-        "§2.2.3: type \"{type_name}\" has display unit \"{display_unit}\", which its unit does not define"
-    )]
+    #[error("§2.2.3: type \"{type_name}\" has display unit \"{display_unit}\", which its unit does not define")]
     UndefinedTypeDisplayUnit {
         /// Type name.
         type_name: String,
@@ -153,9 +149,7 @@ pub enum Problem {
     ///
     /// FMI 2.0 allows this for alias variables; nudyn's FMUs define no
     /// aliases, so a shared reference is reported as a generator bug.
-    #[error(
-        "§2.2.7: variables \"{first}\" and \"{second}\" share {base_type} value reference {value_reference}"
-    )]
+    #[error("§2.2.7: variables \"{first}\" and \"{second}\" share {base_type} value reference {value_reference}")]
     SharedValueReference {
         /// The base type whose references collide.
         base_type: BaseType,
@@ -168,9 +162,7 @@ pub enum Problem {
     },
     /// A causality/variability pair the standard forbids, e.g.
     /// constant input or continuous parameter.
-    #[error(
-        "§2.2.7: variable \"{variable}\" combines causality=\"{causality}\" with variability=\"{variability}\""
-    )]
+    #[error("§2.2.7: variable \"{variable}\" combines causality=\"{causality}\" with variability=\"{variability}\"")]
     IllegalCausalityVariability {
         /// Variable name.
         variable: String,
@@ -196,14 +188,10 @@ pub enum Problem {
         initial: Initial,
     },
     /// No `start` although `initial` is exact or approx, or the variable is an input.
-    #[error(
-        "§2.2.7: variable \"{0}\" needs a start value (initial exact/approx, or causality input)"
-    )]
+    #[error("§2.2.7: variable \"{0}\" needs a start value (initial exact/approx, or causality input)")]
     MissingStart(String),
     /// A `start` although `initial` is calculated or the variable is independent.
-    #[error(
-        "§2.2.7: variable \"{0}\" may not have a start value (initial calculated, or causality independent)"
-    )]
+    #[error("§2.2.7: variable \"{0}\" may not have a start value (initial calculated, or causality independent)")]
     UnexpectedStart(String),
     /// `variability="continuous"` on a variable that is not Real.
     #[error("§2.2.7: variable \"{0}\" is continuous but not Real")]
@@ -217,9 +205,7 @@ pub enum Problem {
         second: String,
     },
     /// `canHandleMultipleSetPerTimeInstant` in a co-simulation-only FMU.
-    #[error(
-        "§2.2.7: variable \"{0}\" has canHandleMultipleSetPerTimeInstant, which is for Model Exchange only"
-    )]
+    #[error("§2.2.7: variable \"{0}\" has canHandleMultipleSetPerTimeInstant, which is for Model Exchange only")]
     MultipleSetInCoSimulation(String),
     /// `declaredType` names no `<SimpleType>`.
     #[error(
@@ -232,9 +218,7 @@ pub enum Problem {
         declared_type: String,
     },
     /// `declaredType` names a `<SimpleType>` of another base type.
-    #[error(
-        "§2.2.7: variable \"{variable}\" declares type \"{declared_type}\" of another base type"
-    )]
+    #[error("§2.2.7: variable \"{variable}\" declares type \"{declared_type}\" of another base type")]
     DeclaredTypeMismatch {
         /// Variable name.
         variable: String,
@@ -242,9 +226,7 @@ pub enum Problem {
         declared_type: String,
     },
     /// A Real variable's `unit` is not a `<Unit>`.
-    #[error(
-        "§2.2.7: variable \"{variable}\" has unit \"{unit}\", which <UnitDefinitions> does not define"
-    )]
+    #[error("§2.2.7: variable \"{variable}\" has unit \"{unit}\", which <UnitDefinitions> does not define")]
     UndefinedUnit {
         /// Variable name.
         variable: String,
@@ -253,9 +235,7 @@ pub enum Problem {
     },
     /// A Real variable's `displayUnit` is not a `<DisplayUnit>` of its
     /// (own or declared) unit, or it has no unit.
-    #[error(
-        "§2.2.7: variable \"{variable}\" has display unit \"{display_unit}\", which its unit does not define"
-    )]
+    #[error("§2.2.7: variable \"{variable}\" has display unit \"{display_unit}\", which its unit does not define")]
     UndefinedDisplayUnit {
         /// Variable name.
         variable: String,
@@ -288,9 +268,7 @@ pub enum Problem {
         index: u32,
     },
     /// A `dependencies` entry outside `1..=number of variables`.
-    #[error(
-        "§2.2.8: <{list}> unknown {index} depends on {dependency}, which is no ScalarVariable index"
-    )]
+    #[error("§2.2.8: <{list}> unknown {index} depends on {dependency}, which is no ScalarVariable index")]
     DependencyOutOfRange {
         /// The list holding the unknown.
         list: StructureList,
@@ -316,9 +294,7 @@ pub enum Problem {
         index: u32,
     },
     /// `dependenciesKind` and `dependencies` of different lengths.
-    #[error(
-        "§2.2.8: <{list}> unknown {index} has {kinds} dependenciesKind entries for {dependencies} dependencies"
-    )]
+    #[error("§2.2.8: <{list}> unknown {index} has {kinds} dependenciesKind entries for {dependencies} dependencies")]
     DependenciesKindLengthMismatch {
         /// The list holding the unknown.
         list: StructureList,
@@ -354,9 +330,7 @@ pub enum Problem {
     #[error("§2.2.8: <Derivatives> lists variable {0} more than once")]
     DuplicateDerivative(u32),
     /// `<InitialUnknowns>` is not the required list.
-    #[error(
-        "§2.2.8: <InitialUnknowns> lists indices {actual:?}; the standard requires {expected:?}"
-    )]
+    #[error("§2.2.8: <InitialUnknowns> lists indices {actual:?}; the standard requires {expected:?}")]
     InitialUnknownsMismatch {
         /// Outputs and states/derivatives with initial approx or calculated,
         /// and calculated parameters, ascending.
@@ -382,38 +356,25 @@ pub fn validate(model: &FmiModelDescription) -> Vec<Problem> {
 /// Each name that occurs earlier in `names` too, once per repetition.
 fn repeated<'a>(names: impl IntoIterator<Item = &'a str>) -> Vec<String> {
     let mut seen = HashSet::new();
-    names
-        .into_iter()
-        .filter(|name| !seen.insert(*name))
-        .map(str::to_owned)
-        .collect()
+    names.into_iter().filter(|name| !seen.insert(*name)).map(str::to_owned).collect()
 }
 
 /// §2.2.2: unit names, and display unit names within a unit, are unique.
 fn check_units(model: &FmiModelDescription, problems: &mut Vec<Problem>) {
     let units = &model.unit_definitions;
-    problems.extend(
-        repeated(units.iter().map(|u| u.name.as_str()))
-            .into_iter()
-            .map(Problem::DuplicateUnit),
-    );
+    problems.extend(repeated(units.iter().map(|u| u.name.as_str())).into_iter().map(Problem::DuplicateUnit));
     for unit in units {
         let names = unit.display_units.iter().map(|d| d.name.as_str());
-        problems.extend(repeated(names).into_iter().map(|display_unit| {
-            Problem::DuplicateDisplayUnit {
-                unit: unit.name.clone(),
-                display_unit,
-            }
-        }));
+        problems.extend(
+            repeated(names)
+                .into_iter()
+                .map(|display_unit| Problem::DuplicateDisplayUnit { unit: unit.name.clone(), display_unit }),
+        );
     }
 }
 
 /// Whether `display_unit` is a `<DisplayUnit>` of the unit named `unit`.
-fn defines_display_unit(
-    model: &FmiModelDescription,
-    unit: Option<&str>,
-    display_unit: &str,
-) -> bool {
+fn defines_display_unit(model: &FmiModelDescription, unit: Option<&str>, display_unit: &str) -> bool {
     unit.and_then(|unit| model.unit_definitions.iter().find(|u| u.name == unit))
         .is_some_and(|unit| unit.display_units.iter().any(|d| d.name == display_unit))
 }
@@ -431,16 +392,8 @@ fn min_exceeds_max<T: PartialOrd>(min: Option<T>, max: Option<T>) -> bool {
 /// to defined units; `min <= max`.
 fn check_types(model: &FmiModelDescription, problems: &mut Vec<Problem>) {
     let types = &model.type_definitions;
-    problems.extend(
-        repeated(types.iter().map(|t| t.name.as_str()))
-            .into_iter()
-            .map(Problem::DuplicateType),
-    );
-    let variable_names: HashSet<&str> = model
-        .model_variables
-        .iter()
-        .map(|v| v.name.as_str())
-        .collect();
+    problems.extend(repeated(types.iter().map(|t| t.name.as_str())).into_iter().map(Problem::DuplicateType));
+    let variable_names: HashSet<&str> = model.model_variables.iter().map(|v| v.name.as_str()).collect();
     for simple_type in types {
         let type_name = &simple_type.name;
         if variable_names.contains(type_name.as_str()) {
@@ -451,10 +404,7 @@ fn check_types(model: &FmiModelDescription, problems: &mut Vec<Problem>) {
                 if let Some(unit) = &real.unit
                     && !defines_unit(model, unit)
                 {
-                    problems.push(Problem::UndefinedTypeUnit {
-                        type_name: type_name.clone(),
-                        unit: unit.clone(),
-                    });
+                    problems.push(Problem::UndefinedTypeUnit { type_name: type_name.clone(), unit: unit.clone() });
                 }
                 if let Some(display_unit) = &real.display_unit
                     && !defines_display_unit(model, real.unit.as_deref(), display_unit)
@@ -478,19 +428,15 @@ fn check_types(model: &FmiModelDescription, problems: &mut Vec<Problem>) {
                     problems.push(Problem::EmptyEnumeration(type_name.clone()));
                 }
                 let names = enumeration.items.iter().map(|item| item.name.as_str());
-                problems.extend(repeated(names).into_iter().map(|item| {
-                    Problem::DuplicateItemName {
-                        type_name: type_name.clone(),
-                        item,
-                    }
-                }));
+                problems.extend(
+                    repeated(names)
+                        .into_iter()
+                        .map(|item| Problem::DuplicateItemName { type_name: type_name.clone(), item }),
+                );
                 let mut values = HashSet::new();
                 for item in &enumeration.items {
                     if !values.insert(item.value) {
-                        problems.push(Problem::DuplicateItemValue {
-                            type_name: type_name.clone(),
-                            value: item.value,
-                        });
+                        problems.push(Problem::DuplicateItemValue { type_name: type_name.clone(), value: item.value });
                     }
                 }
             }
@@ -502,11 +448,7 @@ fn check_types(model: &FmiModelDescription, problems: &mut Vec<Problem>) {
 /// §2.2.4: category names are unique.
 fn check_log_categories(model: &FmiModelDescription, problems: &mut Vec<Problem>) {
     let names = model.log_categories.iter().map(|c| c.name.as_str());
-    problems.extend(
-        repeated(names)
-            .into_iter()
-            .map(Problem::DuplicateLogCategory),
-    );
+    problems.extend(repeated(names).into_iter().map(Problem::DuplicateLogCategory));
 }
 
 /// §2.2.5: the default experiment describes a non-empty interval with a
@@ -518,15 +460,9 @@ fn check_default_experiment(model: &FmiModelDescription, problems: &mut Vec<Prob
     if let (Some(start_time), Some(stop_time)) = (experiment.start_time, experiment.stop_time)
         && stop_time <= start_time
     {
-        problems.push(Problem::StopTimeNotAfterStartTime {
-            start_time,
-            stop_time,
-        });
+        problems.push(Problem::StopTimeNotAfterStartTime { start_time, stop_time });
     }
-    for (attribute, value) in [
-        ("tolerance", experiment.tolerance),
-        ("stepSize", experiment.step_size),
-    ] {
+    for (attribute, value) in [("tolerance", experiment.tolerance), ("stepSize", experiment.step_size)] {
         // NaN compares as `None`, so it is reported too.
         if let Some(value) = value
             && value.partial_cmp(&0.0) != Some(Ordering::Greater)
@@ -558,14 +494,10 @@ impl InitialRule {
         use Variability as V;
         match (causality, variability) {
             (C::Parameter, V::Fixed | V::Tunable) => Some(Self::ExactOnly),
-            (C::CalculatedParameter | C::Local, V::Fixed | V::Tunable) => {
-                Some(Self::ApproxOrCalculated)
-            }
+            (C::CalculatedParameter | C::Local, V::Fixed | V::Tunable) => Some(Self::ApproxOrCalculated),
             (C::Output | C::Local, V::Constant) => Some(Self::ExactOnly),
             (C::Output | C::Local, V::Discrete | V::Continuous) => Some(Self::Any),
-            (C::Input, V::Discrete | V::Continuous) | (C::Independent, V::Continuous) => {
-                Some(Self::Absent)
-            }
+            (C::Input, V::Discrete | V::Continuous) | (C::Independent, V::Continuous) => Some(Self::Absent),
             _ => None,
         }
     }
@@ -651,19 +583,12 @@ fn check_variables(model: &FmiModelDescription, problems: &mut Vec<Problem>) {
     if variables.is_empty() {
         problems.push(Problem::NoModelVariables);
     }
-    problems.extend(
-        repeated(variables.iter().map(|v| v.name.as_str()))
-            .into_iter()
-            .map(Problem::DuplicateVariableName),
-    );
+    problems
+        .extend(repeated(variables.iter().map(|v| v.name.as_str())).into_iter().map(Problem::DuplicateVariableName));
 
     let mut value_references: HashMap<(BaseType, u32), &str> = HashMap::new();
     let mut independent: Option<&str> = None;
-    let types: HashMap<&str, &SimpleType> = model
-        .type_definitions
-        .iter()
-        .map(|t| (t.name.as_str(), t))
-        .collect();
+    let types: HashMap<&str, &SimpleType> = model.type_definitions.iter().map(|t| (t.name.as_str(), t)).collect();
 
     for variable in variables {
         let name = &variable.name;
@@ -682,17 +607,14 @@ fn check_variables(model: &FmiModelDescription, problems: &mut Vec<Problem>) {
 
         if variable.causality == Causality::Independent {
             match independent {
-                Some(first) => problems.push(Problem::MultipleIndependent {
-                    first: first.to_owned(),
-                    second: name.clone(),
-                }),
+                Some(first) => {
+                    problems.push(Problem::MultipleIndependent { first: first.to_owned(), second: name.clone() })
+                }
                 None => independent = Some(name),
             }
         }
 
-        if variable.variability == Variability::Continuous
-            && !matches!(variable.kind, VariableKind::Real(_))
-        {
+        if variable.variability == Variability::Continuous && !matches!(variable.kind, VariableKind::Real(_)) {
             problems.push(Problem::ContinuousNotReal(name.clone()));
         }
 
@@ -734,28 +656,18 @@ fn check_initial_and_start(variable: &ScalarVariable, problems: &mut Vec<Problem
     let name = &variable.name;
     let (causality, variability) = (variable.causality, variable.variability);
     let Some(rule) = InitialRule::of(causality, variability) else {
-        problems.push(Problem::IllegalCausalityVariability {
-            variable: name.clone(),
-            causality,
-            variability,
-        });
+        problems.push(Problem::IllegalCausalityVariability { variable: name.clone(), causality, variability });
         return;
     };
     if let Some(initial) = variable.initial
         && !rule.allows(initial)
     {
-        problems.push(Problem::IllegalInitial {
-            variable: name.clone(),
-            causality,
-            variability,
-            initial,
-        });
+        problems.push(Problem::IllegalInitial { variable: name.clone(), causality, variability, initial });
         return;
     }
     let has_start = has_start(&variable.kind);
     let initial = effective_initial(variable);
-    let needs_start =
-        matches!(initial, Some(Initial::Exact | Initial::Approx)) || causality == Causality::Input;
+    let needs_start = matches!(initial, Some(Initial::Exact | Initial::Approx)) || causality == Causality::Input;
     let forbids_start = initial == Some(Initial::Calculated) || causality == Causality::Independent;
     if needs_start && !has_start {
         problems.push(Problem::MissingStart(name.clone()));
@@ -784,16 +696,10 @@ fn check_attributes(
             if let Some(unit) = &real.unit
                 && !defines_unit(model, unit)
             {
-                problems.push(Problem::UndefinedUnit {
-                    variable: name.clone(),
-                    unit: unit.clone(),
-                });
+                problems.push(Problem::UndefinedUnit { variable: name.clone(), unit: unit.clone() });
             }
             if let Some(display_unit) = &real.display_unit {
-                let unit = real
-                    .unit
-                    .as_deref()
-                    .or(declared.and_then(|d| d.unit.as_deref()));
+                let unit = real.unit.as_deref().or(declared.and_then(|d| d.unit.as_deref()));
                 if !defines_display_unit(model, unit, display_unit) {
                     problems.push(Problem::UndefinedDisplayUnit {
                         variable: name.clone(),
@@ -805,17 +711,11 @@ fn check_attributes(
                 && !variable_at(&model.model_variables, derivative)
                     .is_some_and(|t| matches!(t.kind, VariableKind::Real(_)))
             {
-                problems.push(Problem::InvalidDerivative {
-                    variable: name.clone(),
-                    derivative,
-                });
+                problems.push(Problem::InvalidDerivative { variable: name.clone(), derivative });
             }
             let min = real.min.or(declared.and_then(|d| d.min));
             let max = real.max.or(declared.and_then(|d| d.max));
-            (
-                min_exceeds_max(min, max),
-                out_of_range(real.start, min, max),
-            )
+            (min_exceeds_max(min, max), out_of_range(real.start, min, max))
         }
         (VariableKind::Integer(integer), declared) => {
             let declared = match declared {
@@ -824,10 +724,7 @@ fn check_attributes(
             };
             let min = integer.min.or(declared.and_then(|d| d.min));
             let max = integer.max.or(declared.and_then(|d| d.max));
-            (
-                min_exceeds_max(min, max),
-                out_of_range(integer.start, min, max),
-            )
+            (min_exceeds_max(min, max), out_of_range(integer.start, min, max))
         }
         (VariableKind::Enumeration(enumeration), _) => (
             min_exceeds_max(enumeration.min, enumeration.max),
@@ -849,11 +746,7 @@ fn variable_at(variables: &[ScalarVariable], index: u32) -> Option<&ScalarVariab
 
 /// 1-based ScalarVariable indices of `variables` that satisfy `keep`.
 fn indices_where(variables: &[ScalarVariable], keep: impl Fn(&ScalarVariable) -> bool) -> Vec<u32> {
-    (1u32..)
-        .zip(variables)
-        .filter(|(_, v)| keep(v))
-        .map(|(i, _)| i)
-        .collect()
+    (1u32..).zip(variables).filter(|(_, v)| keep(v)).map(|(i, _)| i).collect()
 }
 
 /// §2.2.8 rules on `<ModelStructure>`.
@@ -868,10 +761,7 @@ fn check_model_structure(model: &FmiModelDescription, problems: &mut Vec<Problem
     ] {
         for unknown in unknowns {
             if variable_at(variables, unknown.index).is_none() {
-                problems.push(Problem::IndexOutOfRange {
-                    list,
-                    index: unknown.index,
-                });
+                problems.push(Problem::IndexOutOfRange { list, index: unknown.index });
             }
             check_dependencies(list, unknown, variables, problems);
         }
@@ -882,10 +772,7 @@ fn check_model_structure(model: &FmiModelDescription, problems: &mut Vec<Problem
     let expected_outputs = indices_where(variables, |v| v.causality == Causality::Output);
     let outputs: Vec<u32> = structure.outputs.iter().map(|u| u.index).collect();
     if outputs != expected_outputs {
-        problems.push(Problem::OutputsMismatch {
-            expected: expected_outputs,
-            actual: outputs,
-        });
+        problems.push(Problem::OutputsMismatch { expected: expected_outputs, actual: outputs });
     }
 
     // Derivatives: each entry is a state derivative, i.e. has `derivative`.
@@ -896,10 +783,7 @@ fn check_model_structure(model: &FmiModelDescription, problems: &mut Vec<Problem
             problems.push(Problem::DuplicateDerivative(unknown.index));
         }
         match variable_at(variables, unknown.index).map(|v| &v.kind) {
-            Some(VariableKind::Real(RealVariable {
-                derivative: Some(state),
-                ..
-            })) => {
+            Some(VariableKind::Real(RealVariable { derivative: Some(state), .. })) => {
                 states_and_derivatives.extend([unknown.index, *state]);
             }
             Some(_) => problems.push(Problem::NotAStateDerivative(unknown.index)),
@@ -913,10 +797,7 @@ fn check_model_structure(model: &FmiModelDescription, problems: &mut Vec<Problem
     let expected_initial_unknowns = (1u32..)
         .zip(variables)
         .filter(|(index, variable)| {
-            let computed = matches!(
-                effective_initial(variable),
-                Some(Initial::Approx | Initial::Calculated)
-            );
+            let computed = matches!(effective_initial(variable), Some(Initial::Approx | Initial::Calculated));
             (variable.causality == Causality::Output && computed)
                 || variable.causality == Causality::CalculatedParameter
                 || (states_and_derivatives.contains(index) && computed)
@@ -925,10 +806,8 @@ fn check_model_structure(model: &FmiModelDescription, problems: &mut Vec<Problem
         .collect::<Vec<_>>();
     let initial_unknowns: Vec<u32> = structure.initial_unknowns.iter().map(|u| u.index).collect();
     if initial_unknowns != expected_initial_unknowns {
-        problems.push(Problem::InitialUnknownsMismatch {
-            expected: expected_initial_unknowns,
-            actual: initial_unknowns,
-        });
+        problems
+            .push(Problem::InitialUnknownsMismatch { expected: expected_initial_unknowns, actual: initial_unknowns });
     }
 }
 
@@ -943,9 +822,7 @@ fn check_dependencies(
 ) {
     let index = unknown.index;
     match (&unknown.dependencies, &unknown.dependencies_kind) {
-        (None, Some(_)) => {
-            problems.push(Problem::DependenciesKindWithoutDependencies { list, index })
-        }
+        (None, Some(_)) => problems.push(Problem::DependenciesKindWithoutDependencies { list, index }),
         (Some(dependencies), Some(kinds)) if dependencies.len() != kinds.len() => {
             problems.push(Problem::DependenciesKindLengthMismatch {
                 list,
@@ -959,11 +836,7 @@ fn check_dependencies(
     if let Some(dependencies) = &unknown.dependencies {
         for &dependency in dependencies {
             if variable_at(variables, dependency).is_none() {
-                problems.push(Problem::DependencyOutOfRange {
-                    list,
-                    index,
-                    dependency,
-                });
+                problems.push(Problem::DependencyOutOfRange { list, index, dependency });
             }
         }
         if dependencies.windows(2).any(|pair| pair[0] >= pair[1]) {

@@ -30,26 +30,18 @@ pub(crate) mod optional_double {
         }
     }
 
-    pub(crate) fn serialize<S: Serializer>(
-        value: &Option<f64>,
-        serializer: S,
-    ) -> Result<S::Ok, S::Error> {
+    pub(crate) fn serialize<S: Serializer>(value: &Option<f64>, serializer: S) -> Result<S::Ok, S::Error> {
         match value {
             Some(x) => serializer.collect_str(&XsdDouble(*x)),
             None => serializer.serialize_none(),
         }
     }
 
-    pub(crate) fn deserialize<'de, D: Deserializer<'de>>(
-        deserializer: D,
-    ) -> Result<Option<f64>, D::Error> {
+    pub(crate) fn deserialize<'de, D: Deserializer<'de>>(deserializer: D) -> Result<Option<f64>, D::Error> {
         let text = String::deserialize(deserializer)?;
         // Rust's parser accepts every xs:double lexical form, including
         // `INF`/`-INF`/`NaN` (it matches those case-insensitively).
-        text.trim()
-            .parse()
-            .map(Some)
-            .map_err(|_| D::Error::custom(format!("`{text}` is not an xs:double")))
+        text.trim().parse().map(Some).map_err(|_| D::Error::custom(format!("`{text}` is not an xs:double")))
     }
 }
 
@@ -78,16 +70,11 @@ macro_rules! wrapped_list {
                 items: Vec<$item>,
             }
 
-            pub(crate) fn serialize<S: Serializer>(
-                items: &[$item],
-                serializer: S,
-            ) -> Result<S::Ok, S::Error> {
+            pub(crate) fn serialize<S: Serializer>(items: &[$item], serializer: S) -> Result<S::Ok, S::Error> {
                 Wrapper { items }.serialize(serializer)
             }
 
-            pub(crate) fn deserialize<'de, D: Deserializer<'de>>(
-                deserializer: D,
-            ) -> Result<Vec<$item>, D::Error> {
+            pub(crate) fn deserialize<'de, D: Deserializer<'de>>(deserializer: D) -> Result<Vec<$item>, D::Error> {
                 Ok(OwnedWrapper::deserialize(deserializer)?.items)
             }
         }

@@ -19,14 +19,9 @@ fn assert_contains(xml: &str, expected: &str) {
 fn document_starts_with_the_xml_declaration_and_the_fmi2_root() {
     let xml = arm_xml();
     let mut lines = xml.lines();
-    assert_eq!(
-        lines.next(),
-        Some(r#"<?xml version="1.0" encoding="UTF-8"?>"#)
-    );
+    assert_eq!(lines.next(), Some(r#"<?xml version="1.0" encoding="UTF-8"?>"#));
     assert!(
-        lines.next().unwrap().starts_with(
-            r#"<fmiModelDescription fmiVersion="2.0" modelName="arm" guid="{8c4e810f-"#
-        )
+        lines.next().unwrap().starts_with(r#"<fmiModelDescription fmiVersion="2.0" modelName="arm" guid="{8c4e810f-"#)
     );
     assert!(xml.ends_with("</fmiModelDescription>\n"));
 }
@@ -73,38 +68,23 @@ fn units_write_only_non_default_exponents() {
     assert_contains(&xml, r#"<BaseUnit kg="1" m="2" s="-2"/>"#);
     assert_contains(&xml, r#"<BaseUnit s="-1" rad="1"/>"#);
     assert_contains(&xml, r#"<BaseUnit K="1" offset="273.15"/>"#);
-    assert_contains(
-        &xml,
-        r#"<DisplayUnit name="deg" factor="57.29577951308232"/>"#,
-    );
+    assert_contains(&xml, r#"<DisplayUnit name="deg" factor="57.29577951308232"/>"#);
 }
 
 #[test]
 fn type_definitions_hold_an_enumeration_with_items() {
     let xml = arm_xml();
     assert_contains(&xml, r#"<SimpleType name="IntegratorMethod" description="#);
-    assert_contains(
-        &xml,
-        r#"<Item name="euler" value="1" description="explicit Euler"/>"#,
-    );
+    assert_contains(&xml, r#"<Item name="euler" value="1" description="explicit Euler"/>"#);
     assert_contains(&xml, r#"<Real quantity="Mass" unit="kg" min="0"/>"#);
-    assert_contains(
-        &xml,
-        r#"<Enumeration declaredType="IntegratorMethod" start="2"/>"#,
-    );
+    assert_contains(&xml, r#"<Enumeration declaredType="IntegratorMethod" start="2"/>"#);
 }
 
 #[test]
 fn log_categories_and_default_experiment() {
     let xml = arm_xml();
-    assert_contains(
-        &xml,
-        r#"<Category name="logStatusError" description="errors"/>"#,
-    );
-    assert_contains(
-        &xml,
-        r#"<DefaultExperiment startTime="0" stopTime="10" tolerance="1e-6" stepSize="0.001"/>"#,
-    );
+    assert_contains(&xml, r#"<Category name="logStatusError" description="errors"/>"#);
+    assert_contains(&xml, r#"<DefaultExperiment startTime="0" stopTime="10" tolerance="1e-6" stepSize="0.001"/>"#);
 }
 
 #[test]
@@ -114,18 +94,12 @@ fn scalar_variables_use_fmi_attribute_names() {
         &xml,
         r#"<ScalarVariable name="q" valueReference="3" description="joint angle" causality="output" variability="continuous" initial="exact">"#,
     );
-    assert_contains(
-        &xml,
-        r#"<Real unit="rad/s" displayUnit="deg/s" start="0"/>"#,
-    );
+    assert_contains(&xml, r#"<Real unit="rad/s" displayUnit="deg/s" start="0"/>"#);
     assert_contains(&xml, r#"<Real unit="rad/s2" derivative="5"/>"#);
     assert_contains(&xml, r#"<Real declaredType="Mass" start="1.5"/>"#);
     assert_contains(&xml, r#"<Integer min="1" start="1"/>"#);
     assert_contains(&xml, r#"<Boolean/>"#);
-    assert_contains(
-        &xml,
-        r#"<String start="arm &lt;1&gt; &amp; &quot;2&quot;"/>"#,
-    );
+    assert_contains(&xml, r#"<String start="arm &lt;1&gt; &amp; &quot;2&quot;"/>"#);
     // An input takes no initial attribute.
     assert_contains(
         &xml,
@@ -153,11 +127,7 @@ fn enumeration_values_use_schema_spellings() {
         (Variability::Discrete, "discrete"),
         (Variability::Continuous, "continuous"),
     ];
-    let initials = [
-        (Initial::Exact, "exact"),
-        (Initial::Approx, "approx"),
-        (Initial::Calculated, "calculated"),
-    ];
+    let initials = [(Initial::Exact, "exact"), (Initial::Approx, "approx"), (Initial::Calculated, "calculated")];
     let kinds = [
         (DependencyKind::Dependent, "dependent"),
         (DependencyKind::Constant, "constant"),
@@ -169,18 +139,15 @@ fn enumeration_values_use_schema_spellings() {
         .iter()
         .zip(variabilities.iter().cycle())
         .zip(initials.iter().cycle())
-        .map(
-            |(((causality, _), (variability, _)), (initial, _))| ScalarVariable {
-                causality: *causality,
-                variability: *variability,
-                initial: Some(*initial),
-                ..template.clone()
-            },
-        )
+        .map(|(((causality, _), (variability, _)), (initial, _))| ScalarVariable {
+            causality: *causality,
+            variability: *variability,
+            initial: Some(*initial),
+            ..template.clone()
+        })
         .collect();
     model.model_structure.outputs[0].dependencies = Some(vec![1; kinds.len()]);
-    model.model_structure.outputs[0].dependencies_kind =
-        Some(kinds.iter().map(|(kind, _)| *kind).collect());
+    model.model_structure.outputs[0].dependencies_kind = Some(kinds.iter().map(|(kind, _)| *kind).collect());
     model.variable_naming_convention = Some(VariableNamingConvention::Flat);
     let xml = to_xml(&model).unwrap();
 
@@ -196,10 +163,7 @@ fn enumeration_values_use_schema_spellings() {
         assert_contains(&xml, &format!(r#"initial="{spelling}""#));
         assert_eq!(initial.to_string(), spelling);
     }
-    assert_contains(
-        &xml,
-        r#"dependencies="1 1 1 1 1" dependenciesKind="dependent constant fixed tunable discrete""#,
-    );
+    assert_contains(&xml, r#"dependencies="1 1 1 1 1" dependenciesKind="dependent constant fixed tunable discrete""#);
     for (kind, spelling) in kinds {
         assert_eq!(kind.to_string(), spelling);
     }
@@ -209,20 +173,14 @@ fn enumeration_values_use_schema_spellings() {
 #[test]
 fn model_structure_lists_unknowns_with_dependency_lists() {
     let xml = arm_xml();
-    assert_contains(
-        &xml,
-        "<ModelStructure>\n    <Outputs>\n      <Unknown index=\"4\"/>",
-    );
+    assert_contains(&xml, "<ModelStructure>\n    <Outputs>\n      <Unknown index=\"4\"/>");
     assert_contains(
         &xml,
         r#"<Unknown index="6" dependencies="2 4 5" dependenciesKind="constant dependent dependent"/>"#,
     );
     // An empty list means "depends on no known" and must stay distinct from
     // an absent attribute ("depends on all knowns").
-    assert_contains(
-        &xml,
-        r#"<Unknown index="10" dependencies="" dependenciesKind=""/>"#,
-    );
+    assert_contains(&xml, r#"<Unknown index="10" dependencies="" dependenciesKind=""/>"#);
     assert_contains(&xml, "<InitialUnknowns>");
 }
 
@@ -241,10 +199,8 @@ fn elements_follow_the_schema_sequence() {
         "<Derivatives>",
         "<InitialUnknowns>",
     ];
-    let positions: Vec<usize> = order
-        .iter()
-        .map(|tag| xml.find(tag).unwrap_or_else(|| panic!("{tag} missing")))
-        .collect();
+    let positions: Vec<usize> =
+        order.iter().map(|tag| xml.find(tag).unwrap_or_else(|| panic!("{tag} missing"))).collect();
     assert!(positions.is_sorted(), "{order:?} out of order:\n{xml}");
 }
 
@@ -257,14 +213,9 @@ fn empty_lists_leave_their_wrapper_elements_out() {
     model.log_categories.clear();
     model.model_structure = ModelStructure::default();
     let xml = to_xml(&model).unwrap();
-    for absent in [
-        "<UnitDefinitions",
-        "<TypeDefinitions",
-        "<LogCategories",
-        "<Outputs",
-        "<Derivatives",
-        "<InitialUnknowns",
-    ] {
+    for absent in
+        ["<UnitDefinitions", "<TypeDefinitions", "<LogCategories", "<Outputs", "<Derivatives", "<InitialUnknowns"]
+    {
         assert!(!xml.contains(absent), "{absent} written:\n{xml}");
     }
     assert_contains(&xml, "<ModelStructure/>");

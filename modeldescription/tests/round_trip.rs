@@ -41,9 +41,7 @@ fn model_without_optional_parts_reads_back_equal() {
 fn with_real_start(start: f64) -> FmiModelDescription {
     let mut model = common::arm();
     model.model_variables.truncate(3); // ..., the mass parameter m
-    let VariableKind::Real(real) = &mut model.model_variables[2].kind else {
-        unreachable!()
-    };
+    let VariableKind::Real(real) = &mut model.model_variables[2].kind else { unreachable!() };
     real.start = Some(start);
     model
 }
@@ -51,9 +49,7 @@ fn with_real_start(start: f64) -> FmiModelDescription {
 fn read_back_start(start: f64) -> f64 {
     let xml = to_xml(&with_real_start(start)).unwrap();
     let model = from_xml(&xml).unwrap();
-    let VariableKind::Real(real) = &model.model_variables[2].kind else {
-        unreachable!()
-    };
+    let VariableKind::Real(real) = &model.model_variables[2].kind else { unreachable!() };
     real.start.unwrap()
 }
 
@@ -78,11 +74,7 @@ fn floats_round_trip_bit_for_bit() {
     ];
     for value in values {
         let back = read_back_start(value);
-        assert_eq!(
-            back.to_bits(),
-            value.to_bits(),
-            "{value:e} came back as {back:e}"
-        );
+        assert_eq!(back.to_bits(), value.to_bits(), "{value:e} came back as {back:e}");
     }
     assert!(read_back_start(f64::NAN).is_nan());
 }
@@ -103,10 +95,7 @@ fn floats_are_written_short_and_as_xsd_doubles() {
         (f64::NAN, "start=\"NaN\""),
     ] {
         let xml = written(value);
-        assert!(
-            xml.contains(spelling),
-            "{value:e} should be written as {spelling}:\n{xml}"
-        );
+        assert!(xml.contains(spelling), "{value:e} should be written as {spelling}:\n{xml}");
     }
 }
 
@@ -140,36 +129,15 @@ const FOREIGN_DOCUMENT: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
 #[test]
 fn reading_applies_schema_defaults() {
     let model = from_xml(FOREIGN_DOCUMENT).unwrap();
-    assert!(
-        model
-            .co_simulation
-            .can_handle_variable_communication_step_size
-    );
+    assert!(model.co_simulation.can_handle_variable_communication_step_size);
     assert!(!model.co_simulation.can_interpolate_inputs);
     assert_eq!(model.co_simulation.max_output_derivative_order, 0);
     assert_eq!(model.variable_naming_convention, None);
-    let [x, u] = &model.model_variables[..] else {
-        panic!("two variables expected")
-    };
-    assert_eq!(
-        (x.causality, x.variability, x.initial),
-        (Causality::Local, Variability::Continuous, None)
-    );
-    assert_eq!(
-        x.kind,
-        VariableKind::Real(RealVariable {
-            derivative: Some(2),
-            ..RealVariable::default()
-        })
-    );
+    let [x, u] = &model.model_variables[..] else { panic!("two variables expected") };
+    assert_eq!((x.causality, x.variability, x.initial), (Causality::Local, Variability::Continuous, None));
+    assert_eq!(x.kind, VariableKind::Real(RealVariable { derivative: Some(2), ..RealVariable::default() }));
     assert_eq!(u.causality, Causality::Input);
-    assert_eq!(
-        u.kind,
-        VariableKind::Boolean(BooleanVariable {
-            declared_type: None,
-            start: Some(false)
-        })
-    );
+    assert_eq!(u.kind, VariableKind::Boolean(BooleanVariable { declared_type: None, start: Some(false) }));
     assert_eq!(model.model_structure, ModelStructure::default());
 }
 

@@ -15,11 +15,7 @@ fn problems_after(change: impl FnOnce(&mut FmiModelDescription)) -> Vec<Problem>
 }
 
 fn variable<'a>(model: &'a mut FmiModelDescription, name: &str) -> &'a mut ScalarVariable {
-    model
-        .model_variables
-        .iter_mut()
-        .find(|v| v.name == name)
-        .unwrap()
+    model.model_variables.iter_mut().find(|v| v.name == name).unwrap()
 }
 
 fn real<'a>(model: &'a mut FmiModelDescription, name: &str) -> &'a mut RealVariable {
@@ -37,12 +33,7 @@ fn integer<'a>(model: &'a mut FmiModelDescription, name: &str) -> &'a mut Intege
 }
 
 fn simple_type<'a>(model: &'a mut FmiModelDescription, name: &str) -> &'a mut SimpleTypeKind {
-    &mut model
-        .type_definitions
-        .iter_mut()
-        .find(|t| t.name == name)
-        .unwrap()
-        .kind
+    &mut model.type_definitions.iter_mut().find(|t| t.name == name).unwrap().kind
 }
 
 fn enumeration_items(model: &mut FmiModelDescription) -> &mut Vec<Item> {
@@ -114,13 +105,7 @@ fn duplicate_display_unit() {
         let rad = &mut m.unit_definitions[0];
         rad.display_units.push(rad.display_units[0].clone());
     });
-    assert_eq!(
-        problems,
-        vec![Problem::DuplicateDisplayUnit {
-            unit: name("rad"),
-            display_unit: name("deg")
-        }]
-    );
+    assert_eq!(problems, vec![Problem::DuplicateDisplayUnit { unit: name("rad"), display_unit: name("deg") }]);
 }
 
 // §2.2.3
@@ -142,58 +127,31 @@ fn type_named_like_a_variable() {
 #[test]
 fn enumeration_without_items() {
     let problems = problems_after(|m| enumeration_items(m).clear());
-    assert_eq!(
-        problems,
-        vec![Problem::EmptyEnumeration(name("IntegratorMethod"))]
-    );
+    assert_eq!(problems, vec![Problem::EmptyEnumeration(name("IntegratorMethod"))]);
 }
 
 #[test]
 fn duplicate_item_name() {
     let problems = problems_after(|m| enumeration_items(m)[1].name = name("euler"));
-    assert_eq!(
-        problems,
-        vec![Problem::DuplicateItemName {
-            type_name: name("IntegratorMethod"),
-            item: name("euler")
-        }]
-    );
+    assert_eq!(problems, vec![Problem::DuplicateItemName { type_name: name("IntegratorMethod"), item: name("euler") }]);
 }
 
 #[test]
 fn duplicate_item_value() {
     let problems = problems_after(|m| enumeration_items(m)[1].value = 1);
-    assert_eq!(
-        problems,
-        vec![Problem::DuplicateItemValue {
-            type_name: name("IntegratorMethod"),
-            value: 1
-        }]
-    );
+    assert_eq!(problems, vec![Problem::DuplicateItemValue { type_name: name("IntegratorMethod"), value: 1 }]);
 }
 
 #[test]
 fn type_with_undefined_unit() {
     let problems = problems_after(|m| mass_type(m).unit = Some(name("g")));
-    assert_eq!(
-        problems,
-        vec![Problem::UndefinedTypeUnit {
-            type_name: name("Mass"),
-            unit: name("g")
-        }]
-    );
+    assert_eq!(problems, vec![Problem::UndefinedTypeUnit { type_name: name("Mass"), unit: name("g") }]);
 }
 
 #[test]
 fn type_with_undefined_display_unit() {
     let problems = problems_after(|m| mass_type(m).display_unit = Some(name("lb")));
-    assert_eq!(
-        problems,
-        vec![Problem::UndefinedTypeDisplayUnit {
-            type_name: name("Mass"),
-            display_unit: name("lb")
-        }]
-    );
+    assert_eq!(problems, vec![Problem::UndefinedTypeDisplayUnit { type_name: name("Mass"), display_unit: name("lb") }]);
 }
 
 #[test]
@@ -202,11 +160,7 @@ fn type_with_min_above_max() {
         m.type_definitions.push(SimpleType {
             name: name("Count"),
             description: None,
-            kind: SimpleTypeKind::Integer(IntegerType {
-                quantity: None,
-                min: Some(5),
-                max: Some(1),
-            }),
+            kind: SimpleTypeKind::Integer(IntegerType { quantity: None, min: Some(5), max: Some(1) }),
         })
     });
     assert_eq!(problems, vec![Problem::TypeMinExceedsMax(name("Count"))]);
@@ -216,23 +170,14 @@ fn type_with_min_above_max() {
 #[test]
 fn duplicate_log_category() {
     let problems = problems_after(|m| m.log_categories[1].name = name("logStatusError"));
-    assert_eq!(
-        problems,
-        vec![Problem::DuplicateLogCategory(name("logStatusError"))]
-    );
+    assert_eq!(problems, vec![Problem::DuplicateLogCategory(name("logStatusError"))]);
 }
 
 // §2.2.5
 #[test]
 fn stop_time_not_after_start_time() {
     let problems = problems_after(|m| m.default_experiment.as_mut().unwrap().stop_time = Some(0.0));
-    assert_eq!(
-        problems,
-        vec![Problem::StopTimeNotAfterStartTime {
-            start_time: 0.0,
-            stop_time: 0.0
-        }]
-    );
+    assert_eq!(problems, vec![Problem::StopTimeNotAfterStartTime { start_time: 0.0, stop_time: 0.0 }]);
 }
 
 #[test]
@@ -245,14 +190,8 @@ fn non_positive_step_size_and_tolerance() {
     assert_eq!(
         problems,
         vec![
-            Problem::NonPositiveExperimentAttribute {
-                attribute: "tolerance",
-                value: -1e-6
-            },
-            Problem::NonPositiveExperimentAttribute {
-                attribute: "stepSize",
-                value: 0.0
-            },
+            Problem::NonPositiveExperimentAttribute { attribute: "tolerance", value: -1e-6 },
+            Problem::NonPositiveExperimentAttribute { attribute: "stepSize", value: 0.0 },
         ]
     );
 }
@@ -370,12 +309,8 @@ fn independent_variable_with_start() {
 // §2.2.7: variability, independent variable, Model Exchange attributes.
 #[test]
 fn continuous_boolean() {
-    let problems =
-        problems_after(|m| variable(m, "saturated").variability = Variability::Continuous);
-    assert_eq!(
-        problems,
-        vec![Problem::ContinuousNotReal(name("saturated"))]
-    );
+    let problems = problems_after(|m| variable(m, "saturated").variability = Variability::Continuous);
+    assert_eq!(problems, vec![Problem::ContinuousNotReal(name("saturated"))]);
 }
 
 #[test]
@@ -386,86 +321,45 @@ fn two_independent_variables() {
         second_time.value_reference = 100;
         m.model_variables.push(second_time);
     });
-    assert_eq!(
-        problems,
-        vec![Problem::MultipleIndependent {
-            first: name("time"),
-            second: name("t2")
-        }]
-    );
+    assert_eq!(problems, vec![Problem::MultipleIndependent { first: name("time"), second: name("t2") }]);
 }
 
 #[test]
 fn multiple_set_per_time_instant_in_co_simulation() {
-    let problems = problems_after(|m| {
-        variable(m, "tau").can_handle_multiple_set_per_time_instant = Some(false)
-    });
-    assert_eq!(
-        problems,
-        vec![Problem::MultipleSetInCoSimulation(name("tau"))]
-    );
+    let problems = problems_after(|m| variable(m, "tau").can_handle_multiple_set_per_time_instant = Some(false));
+    assert_eq!(problems, vec![Problem::MultipleSetInCoSimulation(name("tau"))]);
 }
 
 // §2.2.7: declared types and units.
 #[test]
 fn undefined_declared_type() {
     let problems = problems_after(|m| real(m, "m").declared_type = Some(name("Weight")));
-    assert_eq!(
-        problems,
-        vec![Problem::UndefinedDeclaredType {
-            variable: name("m"),
-            declared_type: name("Weight")
-        }]
-    );
+    assert_eq!(problems, vec![Problem::UndefinedDeclaredType { variable: name("m"), declared_type: name("Weight") }]);
 }
 
 #[test]
 fn declared_type_of_another_base_type() {
     let problems = problems_after(|m| integer(m, "steps").declared_type = Some(name("Mass")));
-    assert_eq!(
-        problems,
-        vec![Problem::DeclaredTypeMismatch {
-            variable: name("steps"),
-            declared_type: name("Mass")
-        }]
-    );
+    assert_eq!(problems, vec![Problem::DeclaredTypeMismatch { variable: name("steps"), declared_type: name("Mass") }]);
 }
 
 #[test]
 fn undefined_unit() {
     let problems = problems_after(|m| real(m, "q").unit = Some(name("deg")));
-    assert_eq!(
-        problems,
-        vec![Problem::UndefinedUnit {
-            variable: name("q"),
-            unit: name("deg")
-        }]
-    );
+    assert_eq!(problems, vec![Problem::UndefinedUnit { variable: name("q"), unit: name("deg") }]);
 }
 
 #[test]
 fn undefined_display_unit() {
     let problems = problems_after(|m| real(m, "q").display_unit = Some(name("grad")));
-    assert_eq!(
-        problems,
-        vec![Problem::UndefinedDisplayUnit {
-            variable: name("q"),
-            display_unit: name("grad")
-        }]
-    );
+    assert_eq!(problems, vec![Problem::UndefinedDisplayUnit { variable: name("q"), display_unit: name("grad") }]);
 }
 
 #[test]
 fn display_unit_of_the_declared_types_unit() {
     // m has no unit of its own: its display unit must belong to Mass's unit.
     let problems = problems_after(|m| real(m, "m").display_unit = Some(name("deg")));
-    assert_eq!(
-        problems,
-        vec![Problem::UndefinedDisplayUnit {
-            variable: name("m"),
-            display_unit: name("deg")
-        }]
-    );
+    assert_eq!(problems, vec![Problem::UndefinedDisplayUnit { variable: name("m"), display_unit: name("deg") }]);
 }
 
 // §2.2.7: bounds.
@@ -489,90 +383,52 @@ fn start_below_min_of_declared_type() {
 #[test]
 fn derivative_of_a_non_real_variable() {
     let problems = problems_after(|m| real(m, "der(q)").derivative = Some(8));
-    assert_eq!(
-        problems,
-        vec![Problem::InvalidDerivative {
-            variable: name("der(q)"),
-            derivative: 8
-        }]
-    );
+    assert_eq!(problems, vec![Problem::InvalidDerivative { variable: name("der(q)"), derivative: 8 }]);
 }
 
 #[test]
 fn derivative_out_of_range() {
     let problems = problems_after(|m| real(m, "der(q)").derivative = Some(0));
-    assert_eq!(
-        problems,
-        vec![Problem::InvalidDerivative {
-            variable: name("der(q)"),
-            derivative: 0
-        }]
-    );
+    assert_eq!(problems, vec![Problem::InvalidDerivative { variable: name("der(q)"), derivative: 0 }]);
 }
 
 // §2.2.8: indices and dependencies.
 #[test]
 fn unknown_index_out_of_range() {
     let problems = problems_after(|m| m.model_structure.derivatives.push(Unknown::new(0)));
-    assert_eq!(
-        problems,
-        vec![Problem::IndexOutOfRange {
-            list: StructureList::Derivatives,
-            index: 0
-        }]
-    );
+    assert_eq!(problems, vec![Problem::IndexOutOfRange { list: StructureList::Derivatives, index: 0 }]);
 }
 
 #[test]
 fn dependency_out_of_range() {
-    let problems = problems_after(|m| {
-        unknown(&mut m.model_structure.derivatives, DER_DQ).dependencies = Some(vec![TAU, Q, 13])
-    });
+    let problems =
+        problems_after(|m| unknown(&mut m.model_structure.derivatives, DER_DQ).dependencies = Some(vec![TAU, Q, 13]));
     assert_eq!(
         problems,
-        vec![Problem::DependencyOutOfRange {
-            list: StructureList::Derivatives,
-            index: DER_DQ,
-            dependency: 13
-        }]
+        vec![Problem::DependencyOutOfRange { list: StructureList::Derivatives, index: DER_DQ, dependency: 13 }]
     );
 }
 
 #[test]
 fn dependencies_not_ascending() {
-    let problems = problems_after(|m| {
-        unknown(&mut m.model_structure.derivatives, DER_DQ).dependencies = Some(vec![Q, TAU, DQ])
-    });
-    assert_eq!(
-        problems,
-        vec![Problem::DependenciesNotAscending {
-            list: StructureList::Derivatives,
-            index: DER_DQ
-        }]
-    );
+    let problems =
+        problems_after(|m| unknown(&mut m.model_structure.derivatives, DER_DQ).dependencies = Some(vec![Q, TAU, DQ]));
+    assert_eq!(problems, vec![Problem::DependenciesNotAscending { list: StructureList::Derivatives, index: DER_DQ }]);
 }
 
 #[test]
 fn dependencies_kind_without_dependencies() {
-    let problems =
-        problems_after(|m| unknown(&mut m.model_structure.outputs, DQ).dependencies = None);
+    let problems = problems_after(|m| unknown(&mut m.model_structure.outputs, DQ).dependencies = None);
     assert_eq!(
         problems,
-        vec![Problem::DependenciesKindWithoutDependencies {
-            list: StructureList::Outputs,
-            index: DQ
-        }]
+        vec![Problem::DependenciesKindWithoutDependencies { list: StructureList::Outputs, index: DQ }]
     );
 }
 
 #[test]
 fn dependencies_kind_of_other_length() {
     let problems = problems_after(|m| {
-        unknown(&mut m.model_structure.derivatives, DER_DQ)
-            .dependencies_kind
-            .as_mut()
-            .unwrap()
-            .pop();
+        unknown(&mut m.model_structure.derivatives, DER_DQ).dependencies_kind.as_mut().unwrap().pop();
     });
     assert_eq!(
         problems,
@@ -593,10 +449,7 @@ fn initial_unknown_with_tunable_dependency_kind() {
     });
     assert_eq!(
         problems,
-        vec![Problem::IllegalInitialUnknownDependencyKind {
-            index: INERTIA,
-            kind: DependencyKind::Tunable
-        }]
+        vec![Problem::IllegalInitialUnknownDependencyKind { index: INERTIA, kind: DependencyKind::Tunable }]
     );
 }
 
@@ -606,10 +459,7 @@ fn outputs_out_of_order() {
     let problems = problems_after(|m| m.model_structure.outputs.swap(0, 1));
     assert_eq!(
         problems,
-        vec![Problem::OutputsMismatch {
-            expected: vec![Q, DQ, SATURATED],
-            actual: vec![DQ, Q, SATURATED]
-        }]
+        vec![Problem::OutputsMismatch { expected: vec![Q, DQ, SATURATED], actual: vec![DQ, Q, SATURATED] }]
     );
 }
 
@@ -618,13 +468,7 @@ fn output_missing_from_outputs() {
     let problems = problems_after(|m| {
         m.model_structure.outputs.pop();
     });
-    assert_eq!(
-        problems,
-        vec![Problem::OutputsMismatch {
-            expected: vec![Q, DQ, SATURATED],
-            actual: vec![Q, DQ]
-        }]
-    );
+    assert_eq!(problems, vec![Problem::OutputsMismatch { expected: vec![Q, DQ, SATURATED], actual: vec![Q, DQ] }]);
 }
 
 #[test]
@@ -632,10 +476,7 @@ fn non_output_in_outputs() {
     let problems = problems_after(|m| m.model_structure.outputs.push(Unknown::new(INERTIA)));
     assert_eq!(
         problems,
-        vec![Problem::OutputsMismatch {
-            expected: vec![Q, DQ, SATURATED],
-            actual: vec![Q, DQ, SATURATED, INERTIA]
-        }]
+        vec![Problem::OutputsMismatch { expected: vec![Q, DQ, SATURATED], actual: vec![Q, DQ, SATURATED, INERTIA] }]
     );
 }
 
@@ -683,11 +524,7 @@ fn approx_state_missing_from_initial_unknowns() {
 
 #[test]
 fn exact_output_in_initial_unknowns() {
-    let problems = problems_after(|m| {
-        m.model_structure
-            .initial_unknowns
-            .insert(0, Unknown::new(Q))
-    });
+    let problems = problems_after(|m| m.model_structure.initial_unknowns.insert(0, Unknown::new(Q)));
     assert_eq!(
         problems,
         vec![Problem::InitialUnknownsMismatch {

@@ -142,11 +142,8 @@ impl BodyFrame {
         loop {
             let body = &vehicle.bodies[b];
             if !body.joints.is_empty() {
-                let link = model
-                    .links
-                    .iter()
-                    .rposition(|l| l.body_name == body.name)
-                    .expect("a body with joints has links");
+                let link =
+                    model.links.iter().rposition(|l| l.body_name == body.name).expect("a body with joints has links");
                 return Ok(BodyFrame { body: name.to_string(), link, offset });
             }
             // A welded body: its frame relative to its parent's, then on up.
@@ -355,7 +352,8 @@ impl ControlWorkspace {
     /// link, in link coordinates about the link origin, and zeroes the joint forces.
     fn load_wrench(&mut self, model: &Model, frame: &BodyFrame, wrench_world: &SpatialVec) {
         let body_from_world = frame.offset.compose(&self.ws.world_transforms(model)[frame.link]);
-        let in_body = spatial(&(body_from_world.rot * angular(wrench_world)), &(body_from_world.rot * linear(wrench_world)));
+        let in_body =
+            spatial(&(body_from_world.rot * angular(wrench_world)), &(body_from_world.rot * linear(wrench_world)));
         self.body_forces.fill(SpatialVec::zeros());
         // ᵇX_ₗᵀ f: from body coordinates to link coordinates about the link origin.
         self.body_forces[frame.link] = frame.offset.apply_transpose_force(&in_body);
@@ -399,7 +397,12 @@ impl ControlWorkspace {
                     self.error[3 + c] = -phi[c];
                 }
                 self.load_wrench(model, frame, &spatial(&(orientation * moment_body), &force));
-                self.ws.eps_from_forces(model, self.torque.as_slice(), Some(&self.body_forces), self.eps.as_mut_slice())?;
+                self.ws.eps_from_forces(
+                    model,
+                    self.torque.as_slice(),
+                    Some(&self.body_forces),
+                    self.eps.as_mut_slice(),
+                )?;
             }
         }
         for ((eps, c1), nu) in self.eps.iter_mut().zip(&parameters.c1).zip(nu) {

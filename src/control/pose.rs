@@ -17,8 +17,8 @@
 //! U is continuous there (it is even in φ), its gradient is not, as for any
 //! orientation error on SO(3).
 
-use crate::math::{Quat, Vec3, quat_difference, skew};
 use crate::math::Mat3;
+use crate::math::{Quat, Vec3, quat_difference, skew};
 
 /// Below this angle J_r⁻¹'s coefficient is its Taylor series (its closed
 /// form loses digits as 1/θ² − cot(θ/2)/(2θ) cancels).
@@ -50,7 +50,12 @@ mod tests {
     /// J_r(φ) δ = log(exp(φ)ᵀ exp(φ + δ)) / 1: check J_r⁻¹ against that.
     #[test]
     fn inverse_right_jacobian_matches_finite_differences() {
-        for phi in [Vec3::new(0.3, -1.1, 0.7), Vec3::new(1e-5, 2e-5, -1e-5), Vec3::new(0.0, 0.0, 3.0), Vec3::new(2.0, 1.0, -1.5)] {
+        for phi in [
+            Vec3::new(0.3, -1.1, 0.7),
+            Vec3::new(1e-5, 2e-5, -1e-5),
+            Vec3::new(0.0, 0.0, 3.0),
+            Vec3::new(2.0, 1.0, -1.5),
+        ] {
             let jr_inv_t = right_jacobian_inverse_transpose(&phi);
             let h = 1e-6;
             for c in 0..3 {

@@ -101,11 +101,8 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
         }
         p_force
     };
-    let u_force: SVector<f64, N> = if forces {
-        ws.tau_passive.fixed_rows::<N>(adr) - s.transpose() * p_force
-    } else {
-        SVector::zeros()
-    };
+    let u_force: SVector<f64, N> =
+        if forces { ws.tau_passive.fixed_rows::<N>(adr) - s.transpose() * p_force } else { SVector::zeros() };
     let eps_passive = r_inv * u_force;
 
     for k in 0..N {

@@ -192,7 +192,11 @@ pub const TOLERANCE_TIME: f64 = 1.0;
 /// in the rates not at all), while the step passes the classic per-step
 /// test. Round-off in the rates (ill-conditioned inertias, long chains) does
 /// not shrink with the step, so per-second control would shrink it to nothing.
-fn at_round_off_floor(per_step: f64, (step, per_second): (f64, f64), (first_step, first_per_second): (f64, f64)) -> bool {
+fn at_round_off_floor(
+    per_step: f64,
+    (step, per_second): (f64, f64),
+    (first_step, first_per_second): (f64, f64),
+) -> bool {
     let shrink = step / first_step;
     per_step <= 1.0 && shrink <= 0.5 && per_second >= first_per_second * shrink * shrink
 }
@@ -242,7 +246,11 @@ impl Simulation {
         let h = if self.state.carry.next_step > 0.0 {
             self.state.carry.next_step
         } else {
-            self.initial_step(model, eps_at).map_err(|cause| AdvanceError::StepFailed { reached: t0, step: 0.0, cause })?
+            self.initial_step(model, eps_at).map_err(|cause| AdvanceError::StepFailed {
+                reached: t0,
+                step: 0.0,
+                cause,
+            })?
         };
         let Simulation { state, settings, integrator, ws } = self;
         let (theta, nu, carry) = (&mut state.theta[..], &mut state.nu[..], &mut state.carry);
@@ -323,7 +331,6 @@ impl Simulation {
         carry.next_step = h;
         Ok(stats)
     }
-
 
     /// A starting step from the size of the solution, its rate and an Euler
     /// probe of its second derivative (Hairer's starting-step heuristic);
@@ -422,7 +429,6 @@ impl Integrator {
             _ => (high / n).sqrt(),
         }
     }
-
 }
 
 /// The RMS over the dofs of `value(dof, |coordinate|)`, a (Δ, ν) pair
@@ -455,4 +461,3 @@ fn positions<'a>(model: &'a Model, theta: &'a [f64]) -> impl Iterator<Item = (us
         })
     })
 }
-

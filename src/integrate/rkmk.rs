@@ -28,7 +28,8 @@ pub fn retract(model: &Model, theta: &mut [f64], delta: &[f64]) {
             LinkJoint::Hinge | LinkJoint::Slide => q[0] += d[0],
             LinkJoint::Translation => (0..3).for_each(|k| q[k] += d[k]),
             LinkJoint::Ball => {
-                let rotated = Quat::from_quaternion(quat_from_wxyz(q)) * Quat::from_scaled_axis(Vec3::new(d[0], d[1], d[2]));
+                let rotated =
+                    Quat::from_quaternion(quat_from_wxyz(q)) * Quat::from_scaled_axis(Vec3::new(d[0], d[1], d[2]));
                 quat_to_wxyz(&rotated, q);
             }
         }
@@ -148,10 +149,11 @@ impl Integrator {
     /// The first non-finite value of the attempted step, if any.
     pub(super) fn non_finite_result(&self) -> Option<DynamicsError> {
         let update = self.nu_next.iter().chain(self.delta.iter());
-        update
-            .enumerate()
-            .find(|(_, x)| !x.is_finite())
-            .map(|(index, &value)| DynamicsError::NonFinite { what: "integrated state", index, value })
+        update.enumerate().find(|(_, x)| !x.is_finite()).map(|(index, &value)| DynamicsError::NonFinite {
+            what: "integrated state",
+            index,
+            value,
+        })
     }
 
     /// Evaluates the stages of a step of size `h` from (θ, ν) at time `t`

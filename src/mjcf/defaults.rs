@@ -127,9 +127,7 @@ impl JointSettings {
         }
         element.overwrite_numbers("stiffness", &mut self.stiffness)?;
         element.overwrite_numbers("damping", &mut self.damping)?;
-        for (attribute, coefficients) in
-            [("stiffness", &self.stiffness), ("damping", &self.damping)]
-        {
+        for (attribute, coefficients) in [("stiffness", &self.stiffness), ("damping", &self.damping)] {
             if element.has(attribute) && coefficients[0] < 0.0 {
                 return Err(element.bad_value(attribute, "a non-negative first coefficient"));
             }
@@ -146,11 +144,7 @@ impl JointSettings {
         if let Some(springyield) = element.number("springyield")? {
             self.springyield = springyield;
         }
-        let limited = [
-            ("false", Limited::No),
-            ("true", Limited::Yes),
-            ("auto", Limited::Auto),
-        ];
+        let limited = [("false", Limited::No), ("true", Limited::Yes), ("auto", Limited::Auto)];
         if let Some(limited) = element.keyword("limited", &limited)? {
             self.limited = limited;
         }
@@ -299,14 +293,8 @@ pub(crate) const MAIN: usize = 0;
 impl Defaults {
     /// Only the "main" class, with MuJoCo's built-in settings.
     pub fn new() -> Self {
-        let main = DefaultClass {
-            joint: JointSettings::default(),
-            geom: GeomSettings::default(),
-        };
-        Self {
-            classes: vec![main],
-            by_name: HashMap::from([("main".to_string(), (MAIN, 0))]),
-        }
+        let main = DefaultClass { joint: JointSettings::default(), geom: GeomSettings::default() };
+        Self { classes: vec![main], by_name: HashMap::from([("main".to_string(), (MAIN, 0))]) }
     }
 
     /// The class with this index.
@@ -338,19 +326,14 @@ impl Defaults {
         let index = match parent {
             None => {
                 if element.text("class").is_some_and(|name| name != "main") {
-                    return Err(element
-                        .invalid("the top-level default class is \"main\" and cannot be renamed"));
+                    return Err(element.invalid("the top-level default class is \"main\" and cannot be renamed"));
                 }
                 MAIN
             }
             Some(parent) => {
-                let name = element
-                    .text("class")
-                    .ok_or_else(|| element.missing("class"))?;
+                let name = element.text("class").ok_or_else(|| element.missing("class"))?;
                 if name == "main" {
-                    return Err(
-                        element.invalid("\"main\" is the name of the top-level default class")
-                    );
+                    return Err(element.invalid("\"main\" is the name of the top-level default class"));
                 }
                 if let Some(&(_, first_line)) = self.by_name.get(name) {
                     return Err(MjcfError::DuplicateName {
@@ -382,11 +365,7 @@ impl Defaults {
                         return Err(child.repeated(first));
                     }
                     *seen = Some(child);
-                    let allowed: Vec<&str> = allowed
-                        .iter()
-                        .copied()
-                        .filter(|a| !NOT_IN_DEFAULTS.contains(a))
-                        .collect();
+                    let allowed: Vec<&str> = allowed.iter().copied().filter(|a| !NOT_IN_DEFAULTS.contains(a)).collect();
                     child.check_attributes(&allowed)?;
                     let class = &mut self.classes[index];
                     if child.tag() == "joint" {

@@ -57,19 +57,12 @@ impl<'a, 'input> Element<'a, 'input> {
     /// The child elements, skipping text and comments.
     pub fn children(&self) -> impl Iterator<Item = Element<'a, 'input>> + use<'a, 'input> {
         let lines = self.lines;
-        self.node
-            .children()
-            .filter(Node::is_element)
-            .map(move |node| Element::new(node, lines))
+        self.node.children().filter(Node::is_element).map(move |node| Element::new(node, lines))
     }
 
     /// Rejects any attribute not in `allowed`.
     pub fn check_attributes(&self, allowed: &[&str]) -> Result<(), MjcfError> {
-        match self
-            .node
-            .attributes()
-            .find(|a| !allowed.contains(&a.name()))
-        {
+        match self.node.attributes().find(|a| !allowed.contains(&a.name())) {
             Some(unknown) => Err(MjcfError::UnknownAttribute {
                 line: self.line,
                 element: self.label(),
@@ -102,11 +95,7 @@ impl<'a, 'input> Element<'a, 'input> {
     /// Between 1 and `N` finite numbers, written over the first entries of
     /// `target` (MuJoCo's rule for `size`, `stiffness` and `damping`: the
     /// entries not given keep their value from the default class).
-    pub fn overwrite_numbers<const N: usize>(
-        &self,
-        attribute: &str,
-        target: &mut [f64; N],
-    ) -> Result<(), MjcfError> {
+    pub fn overwrite_numbers<const N: usize>(&self, attribute: &str, target: &mut [f64; N]) -> Result<(), MjcfError> {
         if let Some(values) = self.number_list(attribute, 1, N)? {
             target[..values.len()].copy_from_slice(&values);
         }
@@ -127,10 +116,7 @@ impl<'a, 'input> Element<'a, 'input> {
     }
 
     /// `N` finite numbers, none negative.
-    pub fn non_negative_numbers<const N: usize>(
-        &self,
-        attribute: &str,
-    ) -> Result<Option<[f64; N]>, MjcfError> {
+    pub fn non_negative_numbers<const N: usize>(&self, attribute: &str) -> Result<Option<[f64; N]>, MjcfError> {
         match self.numbers::<N>(attribute)? {
             Some(values) if values.iter().any(|&x| x < 0.0) => {
                 Err(self.bad_value(attribute, &format!("{N} non-negative numbers")))
@@ -144,28 +130,18 @@ impl<'a, 'input> Element<'a, 'input> {
         let Some(text) = self.text(attribute) else {
             return Ok(None);
         };
-        let expected = if N == 1 {
-            "an integer".to_string()
-        } else {
-            format!("{N} integers")
-        };
+        let expected = if N == 1 { "an integer".to_string() } else { format!("{N} integers") };
         let values: Vec<i32> = text
             .split_ascii_whitespace()
             .map(str::parse)
             .collect::<Result<_, _>>()
             .map_err(|_| self.bad_value(attribute, &expected))?;
-        let values: [i32; N] = values
-            .try_into()
-            .map_err(|_| self.bad_value(attribute, &expected))?;
+        let values: [i32; N] = values.try_into().map_err(|_| self.bad_value(attribute, &expected))?;
         Ok(Some(values))
     }
 
     /// One of the keywords in `choices`.
-    pub fn keyword<T: Copy>(
-        &self,
-        attribute: &str,
-        choices: &[(&str, T)],
-    ) -> Result<Option<T>, MjcfError> {
+    pub fn keyword<T: Copy>(&self, attribute: &str, choices: &[(&str, T)]) -> Result<Option<T>, MjcfError> {
         let Some(text) = self.text(attribute) else {
             return Ok(None);
         };
@@ -184,12 +160,7 @@ impl<'a, 'input> Element<'a, 'input> {
     }
 
     /// Reads `min..=max` finite numbers.
-    fn number_list(
-        &self,
-        attribute: &str,
-        min: usize,
-        max: usize,
-    ) -> Result<Option<Vec<f64>>, MjcfError> {
+    fn number_list(&self, attribute: &str, min: usize, max: usize) -> Result<Option<Vec<f64>>, MjcfError> {
         let Some(text) = self.text(attribute) else {
             return Ok(None);
         };
@@ -207,11 +178,7 @@ impl<'a, 'input> Element<'a, 'input> {
             return Err(self.bad_value(attribute, &count));
         }
         if values.iter().any(|x| !x.is_finite()) {
-            let finite = if max == 1 {
-                "a finite number"
-            } else {
-                "finite numbers"
-            };
+            let finite = if max == 1 { "a finite number" } else { "finite numbers" };
             return Err(self.bad_value(attribute, finite));
         }
         Ok(Some(values))
@@ -230,11 +197,7 @@ impl<'a, 'input> Element<'a, 'input> {
 
     /// A required attribute is absent.
     pub fn missing(&self, attribute: &str) -> MjcfError {
-        MjcfError::MissingAttribute {
-            line: self.line,
-            element: self.label(),
-            attribute: attribute.to_string(),
-        }
+        MjcfError::MissingAttribute { line: self.line, element: self.label(), attribute: attribute.to_string() }
     }
 
     /// Two attributes given together that exclude each other.
@@ -249,41 +212,23 @@ impl<'a, 'input> Element<'a, 'input> {
 
     /// A construct whose effect on the dynamics nudyn does not model.
     pub fn unsupported(&self, reason: impl Into<String>) -> MjcfError {
-        MjcfError::Unsupported {
-            line: self.line,
-            element: self.label(),
-            reason: reason.into(),
-        }
+        MjcfError::Unsupported { line: self.line, element: self.label(), reason: reason.into() }
     }
 
     /// A rule of MuJoCo's compiler is broken.
     pub fn invalid(&self, reason: impl Into<String>) -> MjcfError {
-        MjcfError::Invalid {
-            line: self.line,
-            element: self.label(),
-            reason: reason.into(),
-        }
+        MjcfError::Invalid { line: self.line, element: self.label(), reason: reason.into() }
     }
 
     /// This element has no meaning inside its parent.
     pub fn unknown(&self) -> MjcfError {
-        let parent = self
-            .node
-            .parent_element()
-            .map_or("", |p| p.tag_name().name());
-        MjcfError::UnknownElement {
-            line: self.line,
-            element: self.label(),
-            parent: parent.to_string(),
-        }
+        let parent = self.node.parent_element().map_or("", |p| p.tag_name().name());
+        MjcfError::UnknownElement { line: self.line, element: self.label(), parent: parent.to_string() }
     }
 
     /// This element appears a second time where it may appear once.
     pub fn repeated(&self, first: &Element) -> MjcfError {
-        let parent = self
-            .node
-            .parent_element()
-            .map_or("", |p| p.tag_name().name());
+        let parent = self.node.parent_element().map_or("", |p| p.tag_name().name());
         MjcfError::Repeated {
             line: self.line,
             element: self.label(),
@@ -294,11 +239,7 @@ impl<'a, 'input> Element<'a, 'input> {
 
     /// A `class` or `childclass` naming no default class.
     pub fn unknown_class(&self, class: &str) -> MjcfError {
-        MjcfError::UnknownClass {
-            line: self.line,
-            element: self.label(),
-            class: class.to_string(),
-        }
+        MjcfError::UnknownClass { line: self.line, element: self.label(), class: class.to_string() }
     }
 
     /// The warning that this element is ignored. Sections that do change
@@ -316,11 +257,7 @@ impl<'a, 'input> Element<'a, 'input> {
 
     /// A warning about this element.
     pub fn warning(&self, message: impl Into<String>) -> MjcfWarning {
-        MjcfWarning {
-            line: self.line,
-            element: self.label(),
-            message: message.into(),
-        }
+        MjcfWarning { line: self.line, element: self.label(), message: message.into() }
     }
 }
 
@@ -338,7 +275,12 @@ mod tests {
         let lines = LineStarts::new(xml);
         let mut checked = 0;
         for node in document.descendants().filter(Node::is_element) {
-            assert_eq!(Element::new(node, &lines).line, document.text_pos_at(node.range().start).row, "{:?}", node.tag_name());
+            assert_eq!(
+                Element::new(node, &lines).line,
+                document.text_pos_at(node.range().start).row,
+                "{:?}",
+                node.tag_name()
+            );
             checked += 1;
         }
         assert_eq!(checked, 5);

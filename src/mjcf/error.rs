@@ -73,9 +73,7 @@ pub enum MjcfError {
     },
 
     /// An attribute's value is malformed or out of range.
-    #[error(
-        "line {line}: <{element}>: attribute '{attribute}' expects {expected}, found \"{found}\""
-    )]
+    #[error("line {line}: <{element}>: attribute '{attribute}' expects {expected}, found \"{found}\"")]
     BadValue {
         /// Line of the element.
         line: u32,
@@ -114,9 +112,7 @@ pub enum MjcfError {
     },
 
     /// An element that may appear only once in its parent appears again.
-    #[error(
-        "line {line}: <{element}>: may appear only once in <{parent}> (first at line {first_line})"
-    )]
+    #[error("line {line}: <{element}>: may appear only once in <{parent}> (first at line {first_line})")]
     Repeated {
         /// Line of the repetition.
         line: u32,
@@ -151,9 +147,7 @@ pub enum MjcfError {
     },
 
     /// Two bodies, two joints or two default classes with the same name.
-    #[error(
-        "line {line}: <{element}>: {kind} name \"{name}\" is already used at line {first_line}"
-    )]
+    #[error("line {line}: <{element}>: {kind} name \"{name}\" is already used at line {first_line}")]
     DuplicateName {
         /// Line of the second element.
         line: u32,

@@ -49,16 +49,12 @@ pub(crate) fn principal_moments(kind: GeomKind, size: &[f64; 3], mass: f64) -> V
             let transverse = mass * (3.0 * radius * radius + height * height) / 12.0;
             Vec3::new(transverse, transverse, mass * radius * radius / 2.0)
         }
-        GeomKind::Ellipsoid => Vec3::new(
-            mass * (b * b + c * c) / 5.0,
-            mass * (a * a + c * c) / 5.0,
-            mass * (a * a + b * b) / 5.0,
-        ),
-        GeomKind::Box => Vec3::new(
-            mass * (b * b + c * c) / 3.0,
-            mass * (a * a + c * c) / 3.0,
-            mass * (a * a + b * b) / 3.0,
-        ),
+        GeomKind::Ellipsoid => {
+            Vec3::new(mass * (b * b + c * c) / 5.0, mass * (a * a + c * c) / 5.0, mass * (a * a + b * b) / 5.0)
+        }
+        GeomKind::Box => {
+            Vec3::new(mass * (b * b + c * c) / 3.0, mass * (a * a + c * c) / 3.0, mass * (a * a + b * b) / 3.0)
+        }
         GeomKind::Plane | GeomKind::Hfield | GeomKind::Mesh | GeomKind::Sdf => Vec3::zeros(),
     }
 }
@@ -98,13 +94,7 @@ impl BodyInertia {
     pub fn from_principal(mass: f64, com: Vec3, quat: &Quat, principal: Vec3) -> Self {
         let axes = quat.to_rotation_matrix().into_inner();
         let tensor = axes * Mat3::from_diagonal(&principal) * axes.transpose();
-        Self {
-            mass,
-            com,
-            principal,
-            axes,
-            tensor,
-        }
+        Self { mass, com, principal, axes, tensor }
     }
 
     /// From a full tensor; MuJoCo requires its eigenvalues to be at least mjEPS.
@@ -113,13 +103,7 @@ impl BodyInertia {
         if eigen.eigenvalues.min() < EPS {
             return Err("inertia must have positive eigenvalues");
         }
-        Ok(Self {
-            mass,
-            com,
-            principal: eigen.eigenvalues,
-            axes: eigen.eigenvectors,
-            tensor,
-        })
+        Ok(Self { mass, com, principal: eigen.eigenvalues, axes: eigen.eigenvectors, tensor })
     }
 
     /// Sums geoms (each of mass above mjEPS): total mass, their common centre
@@ -127,12 +111,7 @@ impl BodyInertia {
     /// MuJoCo, a single geom's frame and moments are copied as they are.
     pub fn from_geoms(geoms: &[GeomMass]) -> Result<Self, &'static str> {
         if let [geom] = geoms {
-            return Ok(Self::from_principal(
-                geom.mass,
-                geom.pos,
-                &geom.quat,
-                geom.principal,
-            ));
+            return Ok(Self::from_principal(geom.mass, geom.pos, &geom.quat, geom.principal));
         }
         let mass: f64 = geoms.iter().map(|g| g.mass).sum();
         let com = geoms.iter().map(|g| g.mass * g.pos).sum::<Vec3>() / mass;

@@ -45,11 +45,7 @@ pub struct MjcfWarning {
 
 impl fmt::Display for MjcfWarning {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "line {}: <{}>: {}",
-            self.line, self.element, self.message
-        )
+        write!(f, "line {}: <{}>: {}", self.line, self.element, self.message)
     }
 }
 
@@ -60,9 +56,6 @@ pub fn parse_mjcf(xml: &str) -> Result<Imported, MjcfError> {
 
 /// Reads an MJCF file.
 pub fn load_mjcf(path: &Path) -> Result<Imported, MjcfError> {
-    let xml = std::fs::read_to_string(path).map_err(|source| MjcfError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let xml = std::fs::read_to_string(path).map_err(|source| MjcfError::Io { path: path.to_path_buf(), source })?;
     parse_mjcf(&xml)
 }

@@ -11,8 +11,7 @@ use crate::math::{Quat, Vec3};
 const EPS: f64 = 1e-14;
 
 /// The attributes that give an orientation; an element may use one of them.
-pub(crate) const ORIENTATION_ATTRIBUTES: [&str; 5] =
-    ["quat", "axisangle", "xyaxes", "zaxis", "euler"];
+pub(crate) const ORIENTATION_ATTRIBUTES: [&str; 5] = ["quat", "axisangle", "xyaxes", "zaxis", "euler"];
 
 /// How `<compiler>` says angles are written.
 #[derive(Clone, Copy, Debug)]
@@ -26,11 +25,7 @@ pub(crate) struct AngleConvention {
 impl AngleConvention {
     /// An angle in radians.
     pub fn radians(&self, angle: f64) -> f64 {
-        if self.degrees {
-            angle / 180.0 * std::f64::consts::PI
-        } else {
-            angle
-        }
+        if self.degrees { angle / 180.0 * std::f64::consts::PI } else { angle }
     }
 }
 
@@ -85,20 +80,17 @@ impl Orientation {
         let q = match *self {
             Orientation::Quat([w, x, y, z]) => Quaternion::new(w, x, y, z),
             Orientation::AxisAngle([x, y, z, angle]) => {
-                let axis =
-                    normalized(Vec3::new(x, y, z)).ok_or("the axis of 'axisangle' is too small")?;
+                let axis = normalized(Vec3::new(x, y, z)).ok_or("the axis of 'axisangle' is too small")?;
                 let half = angles.radians(angle) / 2.0;
                 Quaternion::from_parts(half.cos(), axis * half.sin())
             }
             Orientation::XyAxes([x0, x1, x2, y0, y1, y2]) => {
                 // Gram-Schmidt: y loses its component along x, z = x × y.
-                let x = normalized(Vec3::new(x0, x1, x2))
-                    .ok_or("the x axis of 'xyaxes' is too small")?;
+                let x = normalized(Vec3::new(x0, x1, x2)).ok_or("the x axis of 'xyaxes' is too small")?;
                 let y = Vec3::new(y0, y1, y2);
                 let y = normalized(y - x * x.dot(&y))
                     .ok_or("the y axis of 'xyaxes' is too small or parallel to the x axis")?;
-                let z =
-                    normalized(x.cross(&y)).ok_or("the axes of 'xyaxes' do not span a plane")?;
+                let z = normalized(x.cross(&y)).ok_or("the axes of 'xyaxes' do not span a plane")?;
                 frame_to_quaternion(&x, &y, &z)
             }
             Orientation::ZAxis([x, y, z]) => {
@@ -116,11 +108,7 @@ impl Orientation {
                     };
                     let rotation = Quaternion::from_parts(half.cos(), unit * half.sin());
                     // Rotating axes compose on the right, fixed axes on the left.
-                    q = if axis.is_ascii_lowercase() {
-                        q * rotation
-                    } else {
-                        rotation * q
-                    };
+                    q = if axis.is_ascii_lowercase() { q * rotation } else { rotation * q };
                 }
                 q
             }

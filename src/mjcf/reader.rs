@@ -5,15 +5,12 @@ use std::collections::HashMap;
 use roxmltree::Document;
 
 use super::defaults::{
-    Defaults, GEOM_ATTRIBUTES, GeomKind, GeomSettings, JOINT_ATTRIBUTES, JointSettings, Limited,
-    MAIN,
+    Defaults, GEOM_ATTRIBUTES, GeomKind, GeomSettings, JOINT_ATTRIBUTES, JointSettings, Limited, MAIN,
 };
 use super::element::{Element, LineStarts};
 use super::error::MjcfError;
 use super::inertia::{self, BodyInertia, EPS, GeomMass};
-use super::orientation::{
-    AngleConvention, ORIENTATION_ATTRIBUTES, Orientation, normalized, z_to_quaternion,
-};
+use super::orientation::{AngleConvention, ORIENTATION_ATTRIBUTES, Orientation, normalized, z_to_quaternion};
 use super::{Imported, MjcfWarning};
 use crate::math::{Mat3, Quat, Vec3};
 use crate::vehicle::{Body, Joint, JointKind, MassProperties, Vehicle};
@@ -145,10 +142,7 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
     let lines = LineStarts::new(xml);
     let root = Element::new(document.root_element(), &lines);
     if root.tag() != "mujoco" {
-        return Err(MjcfError::WrongRoot {
-            line: root.line,
-            element: root.label(),
-        });
+        return Err(MjcfError::WrongRoot { line: root.line, element: root.label() });
     }
     root.check_attributes(&["model"])?;
 
@@ -174,9 +168,7 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
             tag if IGNORED_SECTIONS.contains(&tag) => reader.warnings.push(section.ignored()),
             "tendon" | "equality" => match section.children().next() {
                 Some(first) if section.tag() == "tendon" => {
-                    return Err(
-                        first.unsupported("tendons (their forces and limits are not modelled)")
-                    );
+                    return Err(first.unsupported("tendons (their forces and limits are not modelled)"));
                 }
                 Some(first) => return Err(first.unsupported("equality constraints")),
                 None => reader.warnings.push(section.ignored()),
@@ -187,10 +179,7 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
         }
     }
     if !has_worldbody {
-        return Err(MjcfError::MissingWorldbody {
-            line: root.line,
-            element: root.label(),
-        });
+        return Err(MjcfError::MissingWorldbody { line: root.line, element: root.label() });
     }
 
     let name = root.text("model").unwrap_or("vehicle").to_string();
@@ -201,10 +190,7 @@ impl Reader {
     fn new() -> Self {
         Self {
             compiler: Compiler {
-                angles: AngleConvention {
-                    degrees: true,
-                    euler_seq: *b"xyz",
-                },
+                angles: AngleConvention { degrees: true, euler_seq: *b"xyz" },
                 inertia_from_geom: InertiaFromGeom::Auto,
                 inertia_groups: [0, 5],
                 bound_mass: 0.0,
@@ -235,8 +221,7 @@ impl Reader {
         match element.text("coordinate") {
             None | Some("local") => {}
             Some("global") => {
-                return Err(element
-                    .unsupported("coordinate=\"global\" (removed from MuJoCo in version 2.3.3)"));
+                return Err(element.unsupported("coordinate=\"global\" (removed from MuJoCo in version 2.3.3)"));
             }
             Some(_) => return Err(element.bad_value("coordinate", "\"local\"")),
         }
@@ -251,11 +236,8 @@ impl Reader {
                 .filter(|s: &[u8; 3]| s.iter().all(|c| b"xyzXYZ".contains(c)))
                 .ok_or_else(|| element.bad_value("eulerseq", "3 letters from x, y, z, X, Y, Z"))?;
         }
-        let sources = [
-            ("false", InertiaFromGeom::Never),
-            ("true", InertiaFromGeom::Always),
-            ("auto", InertiaFromGeom::Auto),
-        ];
+        let sources =
+            [("false", InertiaFromGeom::Never), ("true", InertiaFromGeom::Always), ("auto", InertiaFromGeom::Auto)];
         if let Some(source) = element.keyword("inertiafromgeom", &sources)? {
             compiler.inertia_from_geom = source;
         }
@@ -298,15 +280,12 @@ impl Reader {
             self.physics.gravity = Vec3::from(gravity);
         }
         if element.numbers::<3>("wind")?.is_some_and(|w| w != [0.0; 3]) {
-            return Err(
-                element.unsupported("wind acts through fluid forces, which nudyn does not model")
-            );
+            return Err(element.unsupported("wind acts through fluid forces, which nudyn does not model"));
         }
         for medium in ["density", "viscosity"] {
             if element.number(medium)?.is_some_and(|x| x != 0.0) {
-                return Err(element.unsupported(format!(
-                    "a nonzero medium {medium} adds fluid forces, which nudyn does not model"
-                )));
+                return Err(element
+                    .unsupported(format!("a nonzero medium {medium} adds fluid forces, which nudyn does not model")));
             }
         }
         let mut flag_seen: Option<Element> = None;
@@ -326,8 +305,7 @@ impl Reader {
                 }
             }
             if disabled.get("sleep") == Some(&false) {
-                return Err(child
-                    .unsupported("sleeping bodies (flag sleep=\"enable\") freeze the dynamics"));
+                return Err(child.unsupported("sleeping bodies (flag sleep=\"enable\") freeze the dynamics"));
             }
             let physics = &mut self.physics;
             for (flag, target) in [
@@ -386,23 +364,16 @@ impl Reader {
     ) -> Result<(), MjcfError> {
         element.check_attributes(BODY_ATTRIBUTES)?;
         if element.boolean("mocap")? == Some(true) {
-            return Err(
-                element.unsupported("mocap bodies are moved by the user, not by the dynamics")
-            );
+            return Err(element.unsupported("mocap bodies are moved by the user, not by the dynamics"));
         }
         if element.number("gravcomp")?.is_some_and(|g| g != 0.0) {
             return Err(element.unsupported("gravity compensation (gravcomp) is not modelled"));
         }
-        let class = self
-            .defaults
-            .lookup(element, "childclass")?
-            .unwrap_or(inherited_class);
+        let class = self.defaults.lookup(element, "childclass")?.unwrap_or(inherited_class);
         let pos = Vec3::from(element.numbers::<3>("pos")?.unwrap_or_default());
         let quat = self.resolve(element, &Orientation::read(element)?.unwrap_or_default())?;
         let index = self.bodies.len();
-        let name = element
-            .text("name")
-            .map_or_else(|| format!("body{index}"), str::to_string);
+        let name = element.text("name").map_or_else(|| format!("body{index}"), str::to_string);
         claim_name(&mut self.body_names, "body", &name, element)?;
 
         let mut inertial: Option<(Element, BodyInertia)> = None;
@@ -420,48 +391,25 @@ impl Reader {
                 "joint" => {
                     child.check_attributes(JOINT_ATTRIBUTES)?;
                     no_children(&child)?;
-                    let mut settings = self
-                        .defaults
-                        .class(self.class_of(&child, class)?)
-                        .joint
-                        .clone();
+                    let mut settings = self.defaults.class(self.class_of(&child, class)?).joint.clone();
                     settings.apply(&child)?;
-                    joints.push(JointElement {
-                        element: child,
-                        settings,
-                        align: Align::Auto,
-                    });
+                    joints.push(JointElement { element: child, settings, align: Align::Auto });
                 }
                 "freejoint" => {
                     // MuJoCo's <freejoint> takes no defaults.
                     child.check_attributes(&["name", "group", "align"])?;
                     no_children(&child)?;
-                    let aligns = [
-                        ("false", Align::No),
-                        ("true", Align::Yes),
-                        ("auto", Align::Auto),
-                    ];
+                    let aligns = [("false", Align::No), ("true", Align::Yes), ("auto", Align::Auto)];
                     let align = child.keyword("align", &aligns)?.unwrap_or(Align::Auto);
-                    let settings = JointSettings {
-                        kind: JointKind::Free,
-                        ..JointSettings::default()
-                    };
-                    joints.push(JointElement {
-                        element: child,
-                        settings,
-                        align,
-                    });
+                    let settings = JointSettings { kind: JointKind::Free, ..JointSettings::default() };
+                    joints.push(JointElement { element: child, settings, align });
                 }
                 "geom" => {
                     child.check_attributes(GEOM_ATTRIBUTES)?;
                     if let Some(grandchild) = child.children().next() {
                         return Err(unsupported_child(&grandchild));
                     }
-                    let mut settings = self
-                        .defaults
-                        .class(self.class_of(&child, class)?)
-                        .geom
-                        .clone();
+                    let mut settings = self.defaults.class(self.class_of(&child, class)?).geom.clone();
                     settings.apply(&child)?;
                     geoms.push((child, settings));
                 }
@@ -503,15 +451,7 @@ impl Reader {
         };
         let inertia = self.bound(element, inertia)?;
 
-        self.bodies.push(Body {
-            name,
-            parent,
-            pos,
-            quat,
-            inertia: None,
-            joints,
-            line: element.line,
-        });
+        self.bodies.push(Body { name, parent, pos, quat, inertia: None, joints, line: element.line });
         self.records.push(BodyRecord {
             line: element.line,
             label: element.label(),
@@ -530,41 +470,23 @@ impl Reader {
 
     /// The class of a joint or geom: its `class`, else its body's class.
     fn class_of(&self, element: &Element, body_class: usize) -> Result<usize, MjcfError> {
-        Ok(self
-            .defaults
-            .lookup(element, "class")?
-            .unwrap_or(body_class))
+        Ok(self.defaults.lookup(element, "class")?.unwrap_or(body_class))
     }
 
     fn resolve(&self, element: &Element, orientation: &Orientation) -> Result<Quat, MjcfError> {
-        orientation
-            .resolve(&self.compiler.angles)
-            .map_err(|reason| element.invalid(reason))
+        orientation.resolve(&self.compiler.angles).map_err(|reason| element.invalid(reason))
     }
 
     fn read_inertial(&self, element: &Element) -> Result<BodyInertia, MjcfError> {
         element.check_attributes(INERTIAL_ATTRIBUTES)?;
         no_children(element)?;
-        let com = Vec3::from(
-            element
-                .numbers::<3>("pos")?
-                .ok_or_else(|| element.missing("pos"))?,
-        );
-        let mass = element
-            .non_negative("mass")?
-            .ok_or_else(|| element.missing("mass"))?;
+        let com = Vec3::from(element.numbers::<3>("pos")?.ok_or_else(|| element.missing("pos"))?);
+        let mass = element.non_negative("mass")?.ok_or_else(|| element.missing("mass"))?;
         let orientation = Orientation::read(element)?;
         let Some([xx, yy, zz, xy, xz, yz]) = element.numbers::<6>("fullinertia")? else {
-            let principal = element
-                .non_negative_numbers::<3>("diaginertia")?
-                .unwrap_or_default();
+            let principal = element.non_negative_numbers::<3>("diaginertia")?.unwrap_or_default();
             let quat = self.resolve(element, &orientation.unwrap_or_default())?;
-            return Ok(BodyInertia::from_principal(
-                mass,
-                com,
-                &quat,
-                Vec3::from(principal),
-            ));
+            return Ok(BodyInertia::from_principal(mass, com, &quat, Vec3::from(principal)));
         };
         if let Some(attribute) = ORIENTATION_ATTRIBUTES.iter().find(|a| element.has(a)) {
             return Err(element.conflict("fullinertia", attribute));
@@ -573,8 +495,7 @@ impl Reader {
             return Err(element.conflict("fullinertia", "diaginertia"));
         }
         let tensor = Mat3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz);
-        BodyInertia::from_tensor(mass, com, tensor)
-            .map_err(|r| element.invalid(format!("fullinertia: {r}")))
+        BodyInertia::from_tensor(mass, com, tensor).map_err(|r| element.invalid(format!("fullinertia: {r}")))
     }
 
     /// Applies `boundmass`, `boundinertia` and MuJoCo's triangle inequality.
@@ -624,8 +545,7 @@ impl Reader {
                     settings.kind,
                     GeomKind::Capsule | GeomKind::Cylinder | GeomKind::Ellipsoid | GeomKind::Box
                 ) {
-                    return Err(element
-                        .invalid("'fromto' requires a capsule, cylinder, ellipsoid or box geom"));
+                    return Err(element.invalid("'fromto' requires a capsule, cylinder, ellipsoid or box geom"));
                 }
                 if settings.pos != [0.0; 3] {
                     return Err(element.conflict("pos", "fromto"));
@@ -633,23 +553,16 @@ impl Reader {
                 let from = Vec3::new(fromto[0], fromto[1], fromto[2]);
                 let to = Vec3::new(fromto[3], fromto[4], fromto[5]);
                 // MuJoCo's z axis points from 'to' towards 'from'.
-                let direction = normalized(from - to)
-                    .ok_or_else(|| element.invalid("the 'fromto' points coincide"))?;
+                let direction = normalized(from - to).ok_or_else(|| element.invalid("the 'fromto' points coincide"))?;
                 let half_length = (from - to).norm() / 2.0;
                 if matches!(settings.kind, GeomKind::Ellipsoid | GeomKind::Box) {
                     size = [size[0], size[0], half_length];
                 } else {
                     size[1] = half_length;
                 }
-                (
-                    (from + to) / 2.0,
-                    Quat::new_normalize(z_to_quaternion(&direction)),
-                )
+                ((from + to) / 2.0, Quat::new_normalize(z_to_quaternion(&direction)))
             }
-            None => (
-                Vec3::from(settings.pos),
-                self.resolve(element, &settings.orientation)?,
-            ),
+            None => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
         };
         // A geom fitted to a mesh gets its size from the mesh.
         if !settings.mesh {
@@ -658,11 +571,7 @@ impl Reader {
         if !contributes {
             return Ok(None);
         }
-        if matches!(
-            settings.kind,
-            GeomKind::Mesh | GeomKind::Sdf | GeomKind::Hfield
-        ) || settings.mesh
-        {
+        if matches!(settings.kind, GeomKind::Mesh | GeomKind::Sdf | GeomKind::Hfield) || settings.mesh {
             return Err(element.unsupported(
                 "the mass properties of mesh, sdf and height-field geoms are not computed; \
                  give the body an <inertial>, or put the geom in a group outside inertiagrouprange",
@@ -679,12 +588,7 @@ impl Reader {
             None => settings.density * volume,
         };
         let principal = inertia::principal_moments(settings.kind, &size, mass);
-        Ok(Some(GeomMass {
-            mass,
-            pos,
-            quat,
-            principal,
-        }))
+        Ok(Some(GeomMass { mass, pos, quat, principal }))
     }
 
     /// Checks a body's joints and turns them into [`Joint`]s.
@@ -700,17 +604,9 @@ impl Reader {
         let mut after_ball = false;
         let mut dofs = 0;
         for (k, joint) in elements.into_iter().enumerate() {
-            let JointElement {
-                element,
-                settings: s,
-                align,
-            } = joint;
+            let JointElement { element, settings: s, align } = joint;
             let origin = |attribute: &str| {
-                if element.has(attribute) {
-                    ""
-                } else {
-                    " (from its default class)"
-                }
+                if element.has(attribute) { "" } else { " (from its default class)" }
             };
             if s.frictionloss != 0.0 {
                 return Err(element.unsupported(format!(
@@ -727,13 +623,9 @@ impl Reader {
                 )));
             }
             if s.springyield != 0.0 {
-                return Err(element.unsupported(format!(
-                    "springyield{}: yielding springs",
-                    origin("springyield")
-                )));
+                return Err(element.unsupported(format!("springyield{}: yielding springs", origin("springyield"))));
             }
-            for (attribute, coefficients) in [("stiffness", &s.stiffness), ("damping", &s.damping)]
-            {
+            for (attribute, coefficients) in [("stiffness", &s.stiffness), ("damping", &s.damping)] {
                 if coefficients[1..] != [0.0; 2] {
                     return Err(element.unsupported(format!(
                         "nonlinear {attribute}{} (more than one coefficient)",
@@ -755,13 +647,9 @@ impl Reader {
                     return Err(element.invalid("a free joint must be the only joint of its body"));
                 }
                 if parent.is_some() {
-                    return Err(element.invalid(
-                        "a free joint must belong to a body directly inside <worldbody>",
-                    ));
+                    return Err(element.invalid("a free joint must belong to a body directly inside <worldbody>"));
                 }
-                if !has_child_bodies
-                    && (align == Align::Yes || (align == Align::Auto && self.compiler.align_free))
-                {
+                if !has_child_bodies && (align == Align::Yes || (align == Align::Auto && self.compiler.align_free)) {
                     return Err(element.unsupported(
                         "aligning the body frame with its inertial frame (freejoint align, compiler alignfree)",
                     ));
@@ -787,31 +675,17 @@ impl Reader {
                 JointKind::Slide => (s.reference, s.springref),
                 JointKind::Ball | JointKind::Free => (0.0, 0.0),
             };
-            let name = element
-                .text("name")
-                .map_or_else(|| format!("{body_name}_joint{k}"), str::to_string);
+            let name = element.text("name").map_or_else(|| format!("{body_name}_joint{k}"), str::to_string);
             claim_name(&mut self.joint_names, "joint", &name, &element)?;
             joints.push(Joint {
                 name,
                 kind: s.kind,
-                pos: if s.kind == JointKind::Free {
-                    Vec3::zeros()
-                } else {
-                    Vec3::from(s.pos)
-                },
+                pos: if s.kind == JointKind::Free { Vec3::zeros() } else { Vec3::from(s.pos) },
                 axis,
                 reference,
                 springref,
-                stiffness: if self.physics.spring_disabled {
-                    0.0
-                } else {
-                    s.stiffness[0]
-                },
-                damping: if self.physics.damper_disabled {
-                    0.0
-                } else {
-                    s.damping[0]
-                },
+                stiffness: if self.physics.spring_disabled { 0.0 } else { s.stiffness[0] },
+                damping: if self.physics.damper_disabled { 0.0 } else { s.damping[0] },
                 armature: s.armature,
                 line: element.line,
             });
@@ -820,22 +694,14 @@ impl Reader {
     }
 
     /// MuJoCo's checks of joint limits; limits themselves are only warned about.
-    fn check_limits(
-        &mut self,
-        element: &Element,
-        settings: &JointSettings,
-    ) -> Result<(), MjcfError> {
+    fn check_limits(&mut self, element: &Element, settings: &JointSettings) -> Result<(), MjcfError> {
         let [low, high] = settings.range;
-        if settings.limited == Limited::Auto
-            && settings.range != [0.0; 2]
-            && !self.compiler.autolimits
-        {
+        if settings.limited == Limited::Auto && settings.range != [0.0; 2] && !self.compiler.autolimits {
             return Err(element.invalid(
                 "'range' without 'limited' while <compiler autolimits=\"false\">; give 'limited' or remove 'range'",
             ));
         }
-        let limited =
-            settings.limited == Limited::Yes || (settings.limited == Limited::Auto && low < high);
+        let limited = settings.limited == Limited::Yes || (settings.limited == Limited::Auto && low < high);
         if !limited {
             return Ok(());
         }
@@ -846,15 +712,13 @@ impl Reader {
         } else if low >= high {
             return Err(element.invalid("the first 'range' value must be smaller than the second"));
         }
-        self.warnings
-            .push(element.warning("joint limits are not modelled (range ignored)"));
+        self.warnings.push(element.warning("joint limits are not modelled (range ignored)"));
         Ok(())
     }
 
     /// The checks that need the whole tree, `settotalmass`, and the vehicle.
     fn finish(mut self, name: String) -> Result<Imported, MjcfError> {
-        let valid =
-            |r: &BodyRecord| r.inertia.mass >= MIN_VALUE && r.inertia.principal.min() >= MIN_VALUE;
+        let valid = |r: &BodyRecord| r.inertia.mass >= MIN_VALUE && r.inertia.principal.min() >= MIN_VALUE;
         for record in self.records.iter().filter(|r| r.has_joints && !valid(r)) {
             // MuJoCo accepts it when a body welded below it carries the mass.
             let mut welded: Vec<usize> = record.children.clone();
@@ -896,26 +760,12 @@ impl Reader {
         for (body, record) in self.bodies.iter_mut().zip(&self.records) {
             let inertia = &record.inertia;
             let massless = inertia.mass == 0.0 && inertia.tensor == Mat3::zeros();
-            body.inertia = (!massless).then_some(MassProperties {
-                mass: inertia.mass,
-                com: inertia.com,
-                inertia: inertia.tensor,
-            });
+            body.inertia =
+                (!massless).then_some(MassProperties { mass: inertia.mass, com: inertia.com, inertia: inertia.tensor });
         }
         self.warnings.sort_by_key(|w| w.line);
-        let gravity = if self.physics.gravity_disabled {
-            Vec3::zeros()
-        } else {
-            self.physics.gravity
-        };
-        Ok(Imported {
-            vehicle: Vehicle {
-                name,
-                gravity,
-                bodies: self.bodies,
-            },
-            warnings: self.warnings,
-        })
+        let gravity = if self.physics.gravity_disabled { Vec3::zeros() } else { self.physics.gravity };
+        Ok(Imported { vehicle: Vehicle { name, gravity, bodies: self.bodies }, warnings: self.warnings })
     }
 }
 
@@ -931,10 +781,7 @@ fn check_size(element: &Element, kind: GeomKind, size: &[f64; 3]) -> Result<(), 
         GeomKind::Hfield | GeomKind::Mesh | GeomKind::Sdf => return Ok(()),
     };
     match used.into_iter().find(|&i| size[i] <= 0.0) {
-        Some(i) => Err(element.invalid(format!(
-            "size[{i}] of a {name} geom must be positive, found {}",
-            size[i]
-        ))),
+        Some(i) => Err(element.invalid(format!("size[{i}] of a {name} geom must be positive, found {}", size[i]))),
         None => Ok(()),
     }
 }

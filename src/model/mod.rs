@@ -271,17 +271,14 @@ impl Model {
                 Some(p) => attachments[p],
                 None => Attachment { link: None, offset: Transform::identity() },
             };
-            let body_in_parent =
-                Transform::from_pose(&body.quat.to_rotation_matrix().into_inner(), &body.pos);
+            let body_in_parent = Transform::from_pose(&body.quat.to_rotation_matrix().into_inner(), &body.pos);
             // The body frame before its joints move it, relative to the parent link.
             let mut inboard = Attachment { link: parent.link, offset: body_in_parent.compose(&parent.offset) };
 
             for joint in &body.joints {
-                for (what, value) in [
-                    ("armature", joint.armature),
-                    ("stiffness", joint.stiffness),
-                    ("damping", joint.damping),
-                ] {
+                for (what, value) in
+                    [("armature", joint.armature), ("stiffness", joint.stiffness), ("damping", joint.damping)]
+                {
                     if !(value.is_finite() && value >= 0.0) {
                         return Err(ModelError::BadParameter { joint: joint.name.clone(), what, value });
                     }
@@ -316,7 +313,8 @@ impl Model {
                         let world = Attachment { link: None, offset: Transform::identity() };
                         let t = push_link(&mut links, qpos0.len(), joint, &body.name, LinkJoint::Translation, world);
                         let at_translation = Attachment { link: Some(t), offset: Transform::identity() };
-                        let r = push_link(&mut links, qpos0.len() + 3, joint, &body.name, LinkJoint::Ball, at_translation);
+                        let r =
+                            push_link(&mut links, qpos0.len() + 3, joint, &body.name, LinkJoint::Ball, at_translation);
                         inboard = Attachment { link: Some(r), offset: Transform::identity() };
                         let q = body.quat;
                         let pose = [body.pos.x, body.pos.y, body.pos.z, q.w, q.i, q.j, q.k];
@@ -334,8 +332,8 @@ impl Model {
                 inboard.offset.add_inertia_to_parent(&inertia, &mut in_link, true);
                 l.rotational_inertia += in_link.fixed_view::<3, 3>(0, 0);
                 l.mass += mass_props.mass;
-                l.mass_moment += mass_props.mass
-                    * (inboard.offset.trans + inboard.offset.rot.transpose() * mass_props.com);
+                l.mass_moment +=
+                    mass_props.mass * (inboard.offset.trans + inboard.offset.rot.transpose() * mass_props.com);
             }
             attachments.push(inboard);
         }
@@ -474,7 +472,9 @@ mod tests {
         for body in &vehicle.bodies {
             let props = body.inertia.as_ref().unwrap();
             let x = match body.parent {
-                Some(_) => Transform::from_pose(&body.quat.to_rotation_matrix().into_inner(), &body.pos).motion_matrix(),
+                Some(_) => {
+                    Transform::from_pose(&body.quat.to_rotation_matrix().into_inner(), &body.pos).motion_matrix()
+                }
                 None => SpatialMat::identity(),
             };
             expected += x.transpose() * rigid_inertia(props.mass, &props.com, &props.inertia) * x;

@@ -229,7 +229,13 @@ pub fn passive(vehicle: &Vehicle, theta: &[f64], qvel: &[f64]) -> DVector<f64> {
 const FD_STEP: f64 = 1e-3;
 
 /// f'(0) to O(h⁴) from f(±h), f(±2h).
-fn central_difference(p1: &DMatrix<f64>, m1: &DMatrix<f64>, p2: &DMatrix<f64>, m2: &DMatrix<f64>, h: f64) -> DMatrix<f64> {
+fn central_difference(
+    p1: &DMatrix<f64>,
+    m1: &DMatrix<f64>,
+    p2: &DMatrix<f64>,
+    m2: &DMatrix<f64>,
+    h: f64,
+) -> DMatrix<f64> {
     (8.0 * (p1 - m1) - (p2 - m2)) / (12.0 * h)
 }
 
@@ -251,7 +257,8 @@ pub fn bias(vehicle: &Vehicle, theta: &[f64], qvel: &[f64]) -> (DVector<f64>, DV
         let jw_dot_u = central_difference(&p1[b].jw, &m1[b].jw, &p2[b].jw, &m2[b].jw, h) * &u;
         let w: V3 = (&t.jw * &u).fixed_rows::<3>(0).into_owned();
         let moment: V3 = t.inertia * jw_dot_u.fixed_rows::<3>(0) + w.cross(&(t.inertia * w));
-        h_vel += t.mass * t.jv.transpose() * jv_dot_u + t.jw.transpose() * DVector::from_column_slice(moment.as_slice());
+        h_vel +=
+            t.mass * t.jv.transpose() * jv_dot_u + t.jw.transpose() * DVector::from_column_slice(moment.as_slice());
         h_grav -= t.mass * t.jv.transpose() * DVector::from_column_slice(vehicle.gravity.as_slice());
     }
     (h_vel, h_grav)

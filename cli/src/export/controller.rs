@@ -41,7 +41,9 @@ fn quantity(model: &Model, law: &ControlLaw, k: usize) -> (String, &'static str,
 fn controller_description(model: &Model, law: &ControlLaw, variable: ControllerVariable) -> String {
     const QUATERNION: [&str; 4] = ["w", "x", "y", "z"];
     match variable {
-        ControllerVariable::RateGain(k) => format!("rate gain c1 of dof {} (1/s): eps[{0}] = -c1[{0}] nu[{0}] + ...", k + 1),
+        ControllerVariable::RateGain(k) => {
+            format!("rate gain c1 of dof {} (1/s): eps[{0}] = -c1[{0}] nu[{0}] + ...", k + 1)
+        }
         ControllerVariable::TargetGain(k) => {
             let (what, _, unit) = quantity(model, law, k);
             format!("gain c2 on the error of the {what} ({unit})")

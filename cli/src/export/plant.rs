@@ -133,7 +133,9 @@ pub fn model_description(model: &Model, options: &ExportOptions, guid: &str) -> 
     // 1-based ScalarVariable indices, as <ModelStructure> refers to them.
     let index_of = |variable: RealVariable| {
         let vr = layout.value_reference(variable).expect("the variable exists");
-        model_variables.iter().position(|v| v.value_reference == vr && v.name == variable.name()).expect("listed") as u32 + 1
+        model_variables.iter().position(|v| v.value_reference == vr && v.name == variable.name()).expect("listed")
+            as u32
+            + 1
     };
     let eps_indices: Vec<u32> = (0..model.nv).map(|k| index_of(RealVariable::Eps(k))).collect();
     let mut outputs = Vec::new();

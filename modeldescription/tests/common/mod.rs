@@ -40,26 +40,15 @@ fn variable(
 }
 
 fn real(unit: &str) -> RealVariable {
-    RealVariable {
-        unit: Some(unit.to_owned()),
-        ..RealVariable::default()
-    }
+    RealVariable { unit: Some(unit.to_owned()), ..RealVariable::default() }
 }
 
 fn unit(name: &str, base_unit: BaseUnit, display_units: Vec<DisplayUnit>) -> Unit {
-    Unit {
-        name: name.to_owned(),
-        base_unit: Some(base_unit),
-        display_units,
-    }
+    Unit { name: name.to_owned(), base_unit: Some(base_unit), display_units }
 }
 
 fn degrees(name: &str) -> DisplayUnit {
-    DisplayUnit {
-        name: name.to_owned(),
-        factor: Some(180.0 / std::f64::consts::PI),
-        offset: None,
-    }
+    DisplayUnit { name: name.to_owned(), factor: Some(180.0 / std::f64::consts::PI), offset: None }
 }
 
 /// A one-joint arm driven by a torque: independent time, an input,
@@ -76,16 +65,7 @@ pub fn arm() -> FmiModelDescription {
     let q = ScalarVariable {
         description: Some("joint angle".to_owned()),
         initial: Some(Initial::Exact),
-        ..variable(
-            "q",
-            3,
-            Output,
-            Continuous,
-            VariableKind::Real(RealVariable {
-                start: Some(0.1),
-                ..real("rad")
-            }),
-        )
+        ..variable("q", 3, Output, Continuous, VariableKind::Real(RealVariable { start: Some(0.1), ..real("rad") }))
     };
     let dq = ScalarVariable {
         initial: Some(Initial::Exact),
@@ -129,91 +109,23 @@ pub fn arm() -> FmiModelDescription {
             provides_directional_derivative: false,
         },
         unit_definitions: vec![
-            unit(
-                "rad",
-                BaseUnit {
-                    rad: 1,
-                    ..BaseUnit::default()
-                },
-                vec![degrees("deg")],
-            ),
-            unit(
-                "rad/s",
-                BaseUnit {
-                    rad: 1,
-                    s: -1,
-                    ..BaseUnit::default()
-                },
-                vec![degrees("deg/s")],
-            ),
-            unit(
-                "rad/s2",
-                BaseUnit {
-                    rad: 1,
-                    s: -2,
-                    ..BaseUnit::default()
-                },
-                vec![],
-            ),
-            unit(
-                "N.m",
-                BaseUnit {
-                    kg: 1,
-                    m: 2,
-                    s: -2,
-                    ..BaseUnit::default()
-                },
-                vec![],
-            ),
-            unit(
-                "kg",
-                BaseUnit {
-                    kg: 1,
-                    ..BaseUnit::default()
-                },
-                vec![],
-            ),
-            unit(
-                "kg.m2",
-                BaseUnit {
-                    kg: 1,
-                    m: 2,
-                    ..BaseUnit::default()
-                },
-                vec![],
-            ),
-            unit(
-                "s",
-                BaseUnit {
-                    s: 1,
-                    ..BaseUnit::default()
-                },
-                vec![],
-            ),
-            unit(
-                "degC",
-                BaseUnit {
-                    k: 1,
-                    offset: Some(273.15),
-                    ..BaseUnit::default()
-                },
-                vec![],
-            ),
+            unit("rad", BaseUnit { rad: 1, ..BaseUnit::default() }, vec![degrees("deg")]),
+            unit("rad/s", BaseUnit { rad: 1, s: -1, ..BaseUnit::default() }, vec![degrees("deg/s")]),
+            unit("rad/s2", BaseUnit { rad: 1, s: -2, ..BaseUnit::default() }, vec![]),
+            unit("N.m", BaseUnit { kg: 1, m: 2, s: -2, ..BaseUnit::default() }, vec![]),
+            unit("kg", BaseUnit { kg: 1, ..BaseUnit::default() }, vec![]),
+            unit("kg.m2", BaseUnit { kg: 1, m: 2, ..BaseUnit::default() }, vec![]),
+            unit("s", BaseUnit { s: 1, ..BaseUnit::default() }, vec![]),
+            unit("degC", BaseUnit { k: 1, offset: Some(273.15), ..BaseUnit::default() }, vec![]),
         ],
         type_definitions: vec![
             SimpleType {
                 name: "IntegratorMethod".to_owned(),
-                description: Some(
-                    "fixed-step integrator used inside one communication step".to_owned(),
-                ),
+                description: Some("fixed-step integrator used inside one communication step".to_owned()),
                 kind: SimpleTypeKind::Enumeration(EnumerationType {
                     quantity: None,
                     items: vec![
-                        Item {
-                            name: "euler".to_owned(),
-                            value: 1,
-                            description: Some("explicit Euler".to_owned()),
-                        },
+                        Item { name: "euler".to_owned(), value: 1, description: Some("explicit Euler".to_owned()) },
                         Item {
                             name: "rk4".to_owned(),
                             value: 2,
@@ -234,14 +146,8 @@ pub fn arm() -> FmiModelDescription {
             },
         ],
         log_categories: vec![
-            Category {
-                name: "logStatusError".to_owned(),
-                description: Some("errors".to_owned()),
-            },
-            Category {
-                name: "logAll".to_owned(),
-                description: None,
-            },
+            Category { name: "logStatusError".to_owned(), description: Some("errors".to_owned()) },
+            Category { name: "logAll".to_owned(), description: None },
         ],
         default_experiment: Some(DefaultExperiment {
             start_time: Some(0.0),
@@ -250,23 +156,8 @@ pub fn arm() -> FmiModelDescription {
             step_size: Some(1e-3),
         }),
         model_variables: vec![
-            variable(
-                "time",
-                0,
-                Independent,
-                Continuous,
-                VariableKind::Real(real("s")),
-            ),
-            variable(
-                "tau",
-                1,
-                Input,
-                Continuous,
-                VariableKind::Real(RealVariable {
-                    start: Some(0.0),
-                    ..real("N.m")
-                }),
-            ),
+            variable("time", 0, Independent, Continuous, VariableKind::Real(real("s"))),
+            variable("tau", 1, Input, Continuous, VariableKind::Real(RealVariable { start: Some(0.0), ..real("N.m") })),
             variable(
                 "m",
                 2,
@@ -285,20 +176,14 @@ pub fn arm() -> FmiModelDescription {
                 5,
                 Local,
                 Continuous,
-                VariableKind::Real(RealVariable {
-                    derivative: Some(DQ),
-                    ..real("rad/s2")
-                }),
+                VariableKind::Real(RealVariable { derivative: Some(DQ), ..real("rad/s2") }),
             ),
             variable(
                 "der(q)",
                 6,
                 Local,
                 Continuous,
-                VariableKind::Real(RealVariable {
-                    derivative: Some(Q),
-                    ..real("rad/s")
-                }),
+                VariableKind::Real(RealVariable { derivative: Some(Q), ..real("rad/s") }),
             ),
             variable(
                 "integrator",
@@ -318,35 +203,16 @@ pub fn arm() -> FmiModelDescription {
                 1,
                 Parameter,
                 Tunable,
-                VariableKind::Integer(IntegerVariable {
-                    min: Some(1),
-                    start: Some(1),
-                    ..IntegerVariable::default()
-                }),
+                VariableKind::Integer(IntegerVariable { min: Some(1), start: Some(1), ..IntegerVariable::default() }),
             ),
-            variable(
-                "saturated",
-                0,
-                Output,
-                Discrete,
-                VariableKind::Boolean(BooleanVariable::default()),
-            ),
-            variable(
-                "inertia",
-                7,
-                CalculatedParameter,
-                Fixed,
-                VariableKind::Real(real("kg.m2")),
-            ),
+            variable("saturated", 0, Output, Discrete, VariableKind::Boolean(BooleanVariable::default())),
+            variable("inertia", 7, CalculatedParameter, Fixed, VariableKind::Real(real("kg.m2"))),
             variable(
                 "label",
                 0,
                 Parameter,
                 Fixed,
-                VariableKind::String(StringVariable {
-                    declared_type: None,
-                    start: Some("arm <1> & \"2\"".to_owned()),
-                }),
+                VariableKind::String(StringVariable { declared_type: None, start: Some("arm <1> & \"2\"".to_owned()) }),
             ),
         ],
         model_structure: ModelStructure {
@@ -357,11 +223,7 @@ pub fn arm() -> FmiModelDescription {
                     dependencies: Some(vec![DQ]),
                     dependencies_kind: Some(vec![DependencyKind::Constant]),
                 },
-                Unknown {
-                    index: SATURATED,
-                    dependencies: Some(vec![]),
-                    dependencies_kind: Some(vec![]),
-                },
+                Unknown { index: SATURATED, dependencies: Some(vec![]), dependencies_kind: Some(vec![]) },
             ],
             derivatives: vec![
                 Unknown {
