@@ -63,7 +63,7 @@ pub struct Workspace {
     pub ia_reduced: Vec<SpatialMat>,
     /// G = U D⁻¹ (the paper's Kalman gain) — pass 1.
     pub gain: Vec<LinkCols>,
-    /// R, upper triangular with R Rᵀ = D (D^½ of DYNAMICS.md §3) — pass 1.
+    /// R, upper triangular with R Rᵀ = D (D^½ of docs/DYNAMICS.md §3) — pass 1.
     pub r_joint: Vec<Mat3>,
     /// R⁻¹ — pass 1.
     pub r_inv_joint: Vec<Mat3>,

@@ -1,4 +1,4 @@
-//! DYNAMICS.md §7 checks 1–5: the O(N) passes against the independent
+//! docs/DYNAMICS.md §7 checks 1–5: the O(N) passes against the independent
 //! dense reference in `common`, on random trees with every joint type.
 
 mod common;

@@ -1,6 +1,6 @@
 //! The Runge–Kutta–Munthe-Kaas step keeps each method's order on every
 //! joint type, adaptive runs meet their tolerance against a tight
-//! reference, and exact solutions conserve |ν| and momentum (DYNAMICS.md
+//! reference, and exact solutions conserve |ν| and momentum (docs/DYNAMICS.md
 //! §6, §7 check 5).
 
 mod common;

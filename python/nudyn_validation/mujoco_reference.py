@@ -1,9 +1,9 @@
 """Reference values of nudyn's quantities computed from MuJoCo alone.
 
 Nothing here uses nudyn: these are the independent numbers the tests compare
-`nudyn eval` against (DYNAMICS.md §3 and §7).
+`nudyn eval` against (docs/DYNAMICS.md §3 and §7).
 
-Conventions (DYNAMICS.md §2, MuJoCo's own):
+Conventions (docs/DYNAMICS.md §2, MuJoCo's own):
   theta = qpos (nq), qvel (nv) in MuJoCo's order and meaning.
   M(theta) = m m*  with m upper triangular, positive diagonal (parent-first),
   equivalently MuJoCo's reverse factor M = L^T diag(d) L (L unit lower

@@ -1,5 +1,5 @@
 //! Noninteracting control in the ν-coordinates: the paper's Control 1,
-//! with DYNAMICS.md §1's erratum for 1(b):
+//! with docs/DYNAMICS.md §1's erratum for 1(b):
 //!
 //!   (a) rate feedback          ε = −c₁ ν,
 //!   (b) configuration control  ε = −c₁ ν + ℓ(θ) Jᵀ(θ) c₂ (Ŷ − Y(θ)),
@@ -7,7 +7,7 @@
 //! c₁ (nv) and c₂ (ny) non-negative diagonal gains, J = ∂Y/∂θ the Jacobian
 //! of the controlled quantities Y (in qvel coordinates). ℓJᵀc₂ΔY is the ε of
 //! a generalized force Jᵀc₂ΔY, computed in O(N) by the inward pass of
-//! [`crate::dynamics::forces`] (DYNAMICS.md §5): joint forces for joint
+//! [`crate::dynamics::forces`] (docs/DYNAMICS.md §5): joint forces for joint
 //! targets, a body wrench for a pose target. No T = m ε is ever formed.
 //!
 //! Why (b) works: with U(θ) = ½ ΔYᵀ c₂ ΔY and θ̇ = ℓ*ν,

@@ -1,5 +1,5 @@
 //! Pass 1, tip to base (θ only): articulated-body inertias and the
-//! innovations factor (DYNAMICS.md §3, §4 pass 1).
+//! innovations factor (docs/DYNAMICS.md §3, §4 pass 1).
 //!
 //! I^A_i = I_i + Σ_children Xᵀ I^a_c X,  U = I^A S,  D = SᵀU + armature,
 //! D = R Rᵀ with R upper triangular,  G = U D⁻¹,  I^a = I^A − G Uᵀ.
@@ -14,7 +14,7 @@ use crate::workspace::Workspace;
 /// The upper-triangular R with R Rᵀ = D and a positive diagonal (the
 /// "reverse" Cholesky factor), or `None` if D is not positive definite.
 /// Written by hand: nalgebra's Cholesky gives the lower factor L Lᵀ, and
-/// the unique factor m of DYNAMICS.md §3 needs this one.
+/// the unique factor m of docs/DYNAMICS.md §3 needs this one.
 pub fn upper_cholesky<const N: usize>(d: &SMatrix<f64, N, N>) -> Option<SMatrix<f64, N, N>> {
     let mut r = SMatrix::<f64, N, N>::zeros();
     for j in (0..N).rev() {

@@ -1,4 +1,4 @@
-//! Pass 3, tip to base: ν̇ = ε − C(θ,ν) + ε_passive (DYNAMICS.md §4 pass 3).
+//! Pass 3, tip to base: ν̇ = ε − C(θ,ν) + ε_passive (docs/DYNAMICS.md §4 pass 3).
 //!
 //! Velocity-product terms:
 //!   p^A_i = V_i ×* I_i V_i + Σ_children Xᵀ p^a_c,   u_i = −Sᵀ p^A_i,

@@ -1,4 +1,4 @@
-//! ε from physical forces and physical torques from ε (DYNAMICS.md §5),
+//! ε from physical forces and physical torques from ε (docs/DYNAMICS.md §5),
 //! each one inward pass over the factor computed by pass 1.
 //!
 //! ε = ℓ(θ)(T + Jᵀf):  p_i = −f_i + Σ_children Xᵀ(p_c + G_c u_c),

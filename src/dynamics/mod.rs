@@ -1,4 +1,4 @@
-//! The O(N) passes of the diagonalized dynamics (DYNAMICS.md §4–§5) and
+//! The O(N) passes of the diagonalized dynamics (docs/DYNAMICS.md §4–§5) and
 //! the operators built from them.
 //!
 //! | pass | direction | input | fills |

@@ -5,7 +5,7 @@ use crate::math::SpatialVec;
 use crate::model::Model;
 use crate::workspace::{Stage, Workspace};
 
-/// K = ½|ν|² (paper (1.2), corrected: DYNAMICS.md §1).
+/// K = ½|ν|² (paper (1.2), corrected: docs/DYNAMICS.md §1).
 pub fn kinetic_energy(nu: &[f64]) -> f64 {
     0.5 * nu.iter().map(|x| x * x).sum::<f64>()
 }

@@ -1,5 +1,5 @@
 //! Pass 2, base to tip: velocities, and the maps between ν and θ̇
-//! (DYNAMICS.md §4 pass 2).
+//! (docs/DYNAMICS.md §4 pass 2).
 //!
 //! V⁺_i = X V_λ,  w_i = θ̇_i + G_iᵀV⁺_i = R_i⁻ᵀ ν_i,  V_i = V⁺_i + S θ̇_i.
 //! From ν this is θ̇ = ℓ*ν; from θ̇ it is ν = m*θ̇.

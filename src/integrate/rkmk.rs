@@ -1,4 +1,4 @@
-//! One explicit Runge–Kutta–Munthe-Kaas step of (θ, ν) (DYNAMICS.md §6).
+//! One explicit Runge–Kutta–Munthe-Kaas step of (θ, ν) (docs/DYNAMICS.md §6).
 //!
 //! Each step writes the configuration as θ = θₙ ⊕ Δ, where Δ (nv) is a
 //! displacement in the Lie algebra: Δθ for hinges and slides, Δp for the

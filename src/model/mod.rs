@@ -3,7 +3,7 @@
 //!
 //! Compilation turns the MJCF body tree into a parent-first array of
 //! *links*, one per joint, each with a constant motion subspace in its own
-//! frame (DYNAMICS.md §2):
+//! frame (docs/DYNAMICS.md §2):
 //! - a body with several joints becomes a chain of links; the frames
 //!   between its joints are massless and the body's inertia sits on the last;
 //! - a free joint becomes a world-aligned 3-dof translation link followed by
@@ -422,7 +422,7 @@ fn push_link(
     links.len() - 1
 }
 
-/// S for a joint, in the link frame (DYNAMICS.md §2): a hinge through `anchor`
+/// S for a joint, in the link frame (docs/DYNAMICS.md §2): a hinge through `anchor`
 /// moves the link origin with velocity θ̇ (anchor × axis).
 fn motion_subspace(joint: LinkJoint, axis: &Vec3, anchor: &Vec3) -> (usize, MotionSubspace) {
     let mut s = MotionSubspace::zeros();
