@@ -16,7 +16,7 @@ pub struct Description {
     pub nq: usize,
     /// Number of degrees of freedom (MuJoCo's nv).
     pub nv: usize,
-    /// Gravity (m/s², world axes).
+    /// Gravity acting on the vehicle (m/s², world axes): 0 where `<flag gravity="disable"/>` turns it off.
     pub gravity: [f64; 3],
     /// θ at the pose drawn in the file (MuJoCo's qpos0).
     pub qpos0: Vec<f64>,

@@ -1,6 +1,6 @@
 //! The `nudyn` command line.
 
-use std::io::Read;
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -196,25 +196,23 @@ fn eval(model_path: &Path) -> Result<()> {
         }
         request => serde_json::to_string(&answer(request)?)?,
     };
-    println!("{output}");
-    Ok(())
+    emit(&output)
 }
 
 fn describe(model_path: &Path, json: bool) -> Result<()> {
     let description = nudyn::describe::Description::of(&load_model(model_path)?);
     if json {
-        println!("{}", serde_json::to_string_pretty(&description)?);
-        return Ok(());
+        return emit(&serde_json::to_string_pretty(&description)?);
     }
-    println!("{}: nq = {}, nv = {}", description.name, description.nq, description.nv);
-    println!("{:<24} {:<24} {:<6} {:>9} {:>9}", "joint", "body", "kind", "theta", "nu, eps");
+    let mut table = format!("{}: nq = {}, nv = {}\n", description.name, description.nq, description.nv);
+    table += &format!("{:<24} {:<24} {:<6} {:>9} {:>9}", "joint", "body", "kind", "theta", "nu, eps");
     for joint in &description.joints {
         // 1-based FMU variable indices, as in theta[k] and nu[k].
         let range = |first: usize, n: usize| {
             if n == 1 { format!("{}", first + 1) } else { format!("{}..{}", first + 1, first + n) }
         };
-        println!(
-            "{:<24} {:<24} {:<6} {:>9} {:>9}",
+        table += &format!(
+            "\n{:<24} {:<24} {:<6} {:>9} {:>9}",
             joint.name,
             joint.body,
             joint.kind.name(),
@@ -222,7 +220,18 @@ fn describe(model_path: &Path, json: bool) -> Result<()> {
             range(joint.dof_adr, joint.nv)
         );
     }
-    Ok(())
+    emit(&table)
+}
+
+/// Writes `text` and a newline to standard output. A reader that closed
+/// the pipe early (`nudyn describe MODEL.xml | head -1`) has what it
+/// wanted: that is no error, and no panic.
+fn emit(text: &str) -> Result<()> {
+    let mut out = std::io::stdout().lock();
+    match writeln!(out, "{text}").and_then(|()| out.flush()) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        result => result.context("cannot write to standard output"),
+    }
 }
 
 /// The FMU binary: $NUDYN_FMU_LIB, or libnudyn_fmu.so beside this executable.
@@ -339,6 +348,5 @@ fn simulate(model_path: &Path, step: f64, stop: f64, method: Method, settings: &
         trajectory.theta.push(sim.state.theta.clone());
         trajectory.nu.push(sim.state.nu.clone());
     }
-    println!("{}", serde_json::to_string(&trajectory)?);
-    Ok(())
+    emit(&serde_json::to_string(&trajectory)?)
 }
