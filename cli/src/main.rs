@@ -131,6 +131,9 @@ fn main() -> ExitCode {
 }
 
 fn run(cli: Cli) -> Result<()> {
+    if let Command::Export { model, output, .. } = &cli.command {
+        refuse_overwriting_the_input(model, output)?;
+    }
     match cli.command {
         Command::Eval { model } => eval(&model),
         Command::Describe { model, json } => describe(&model, json),
@@ -145,6 +148,19 @@ fn run(cli: Cli) -> Result<()> {
             simulate(&model, step, stop, method, &settings)
         }
     }
+}
+
+/// Refuses an output path that names the MJCF file itself (`-o` mistyped):
+/// the export would replace the vehicle's only description.
+fn refuse_overwriting_the_input(model: &Path, output: &Path) -> Result<()> {
+    let same = match (std::fs::canonicalize(model), std::fs::canonicalize(output)) {
+        (Ok(model), Ok(output)) => model == output,
+        _ => false,
+    };
+    if same {
+        bail!("the output {} is the input MJCF file: choose another path for the FMU", output.display());
+    }
+    Ok(())
 }
 
 /// Imports and compiles an MJCF file, printing the importer's warnings.

@@ -189,9 +189,18 @@ fn write_archive<R: Resource>(
     let xml = md::to_xml(description)?;
     let library = std::fs::read(binary).map_err(|source| ExportError::Io { path: binary.to_path_buf(), source })?;
 
-    let file = std::fs::File::create(out).map_err(|source| ExportError::Io { path: out.to_path_buf(), source })?;
+    // Written to a temporary file beside `out`, synced, then renamed over
+    // it: a failure (a full disk) or a concurrent export never leaves a
+    // truncated or mixed archive, and an FMU already there survives a failure.
+    let directory = match out.parent() {
+        Some(parent) if !parent.as_os_str().is_empty() => parent,
+        _ => Path::new("."),
+    };
+    let io_error = |source| ExportError::Io { path: out.to_path_buf(), source };
+    let staged =
+        tempfile::Builder::new().prefix(".nudyn-export-").suffix(".fmu").tempfile_in(directory).map_err(io_error)?;
     let zip_error = |source| ExportError::Zip { path: out.to_path_buf(), source };
-    let mut archive = zip::ZipWriter::new(file);
+    let mut archive = zip::ZipWriter::new(staged.as_file());
     let options_for = |mode| {
         zip::write::SimpleFileOptions::default()
             .compression_method(zip::CompressionMethod::Deflated)
@@ -204,9 +213,14 @@ fn write_archive<R: Resource>(
     ];
     for (name, bytes, mode) in entries {
         archive.start_file(name, options_for(mode)).map_err(zip_error)?;
-        archive.write_all(bytes).map_err(|source| ExportError::Io { path: out.to_path_buf(), source })?;
+        archive.write_all(bytes).map_err(io_error)?;
     }
     archive.finish().map_err(zip_error)?;
+    staged.as_file().sync_all().map_err(io_error)?;
+    // The temporary file is private (0600); an FMU is read by whoever runs it.
+    #[cfg(unix)]
+    std::fs::set_permissions(staged.path(), std::os::unix::fs::PermissionsExt::from_mode(0o644)).map_err(io_error)?;
+    staged.persist(out).map_err(|error| io_error(error.error))?;
     Ok(())
 }
 

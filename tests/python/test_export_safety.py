@@ -1,0 +1,63 @@
+"""`nudyn export` never leaves a broken FMU behind: it writes a temporary
+file beside the output and renames it into place, so concurrent exports
+and failures leave either a whole archive or what was there before, and it
+refuses to overwrite the MJCF file it reads."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import zipfile
+from concurrent.futures import ThreadPoolExecutor
+
+from conftest import EXAMPLES_DIR
+
+MODEL = EXAMPLES_DIR / "fixed_rig.xml"
+
+
+def export(nudyn, fmu_library, model, output, *options):
+    env = {**os.environ, "NUDYN_FMU_LIB": str(fmu_library)}
+    return subprocess.run([str(nudyn), "export", str(model), "-o", str(output), *options],
+                          capture_output=True, text=True, env=env)
+
+
+def test_the_input_is_never_overwritten(nudyn, fmu_library, tmp_path):
+    model = tmp_path / "rig.xml"
+    model.write_bytes(MODEL.read_bytes())
+    for output in (model, tmp_path / "." / "rig.xml"):
+        proc = export(nudyn, fmu_library, model, output)
+        assert proc.returncode == 1 and "is the input MJCF file" in proc.stderr, proc.stderr
+    assert model.read_bytes() == MODEL.read_bytes()
+
+
+def test_concurrent_exports_to_one_path_leave_one_whole_archive(nudyn, fmu_library, tmp_path):
+    fmu = tmp_path / "rig.fmu"
+    option_sets = [(), ("--outputs", "qvel,kinetic_energy,power,momentum,energy_residual")] * 2
+    with ThreadPoolExecutor(max_workers=4) as pool:
+        runs = list(pool.map(lambda options: export(nudyn, fmu_library, MODEL, fmu, *options), option_sets))
+    assert all(run.returncode == 0 for run in runs), [run.stderr for run in runs]
+    with zipfile.ZipFile(fmu) as archive:
+        assert archive.testzip() is None
+        assert sorted(archive.namelist()) == ["binaries/linux64/fixed_rig.so", "modelDescription.xml", "resources/model.json"]
+    assert os.stat(fmu).st_mode & 0o777 == 0o644
+    assert [p.name for p in tmp_path.iterdir()] == ["rig.fmu"], "no temporary file is left behind"
+
+
+def test_a_failed_export_keeps_what_was_there(nudyn, fmu_library, tmp_path):
+    fmu = tmp_path / "rig.fmu"
+    assert export(nudyn, fmu_library, MODEL, fmu).returncode == 0
+    good = fmu.read_bytes()
+    # The binary cannot be read: refused before anything is written.
+    env = {**os.environ, "NUDYN_FMU_LIB": str(tmp_path / "missing.so")}
+    proc = subprocess.run([str(nudyn), "export", str(MODEL), "-o", str(fmu), "--outputs", "qvel"],
+                          capture_output=True, text=True, env=env)
+    assert proc.returncode == 1 and "missing.so" in proc.stderr
+    assert fmu.read_bytes() == good
+    # The archive is written but cannot take the output's place (a directory is there).
+    occupied = tmp_path / "occupied.fmu"
+    occupied.mkdir()
+    (occupied / "keep").write_text("kept")
+    proc = export(nudyn, fmu_library, MODEL, occupied)
+    assert proc.returncode == 1 and "occupied.fmu" in proc.stderr, proc.stderr
+    assert (occupied / "keep").read_text() == "kept"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["occupied.fmu", "rig.fmu"], "no temporary file is left"
