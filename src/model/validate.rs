@@ -79,6 +79,77 @@ pub enum InvalidModel {
     /// A shortcut that would skip a term the model has.
     #[error("the model takes the shortcut {0}, but it has that term")]
     Shortcut(&'static str),
+    /// A hinge or slide axis that is not a unit vector.
+    #[error("the axis of link {link} has length {length}: it must be a unit vector")]
+    Axis {
+        /// The link.
+        link: usize,
+        /// |axis|.
+        length: f64,
+    },
+    /// A placement whose rotation part is not a proper rotation.
+    #[error("x_tree of link {link} is not a rotation: |EᵀE − 1| = {deviation:e}, det E = {determinant}")]
+    Rotation {
+        /// The link.
+        link: usize,
+        /// The largest entry of |EᵀE − 1|.
+        deviation: f64,
+        /// det E.
+        determinant: f64,
+    },
+    /// A motion subspace that the link's joint, axis and anchor do not give.
+    #[error("the motion subspace of link {link} is not the one its joint, axis and anchor give")]
+    MotionSubspace {
+        /// The link.
+        link: usize,
+    },
+    /// An inertia no body can have.
+    #[error("the inertia of link {link} is {what}")]
+    Inertia {
+        /// The link.
+        link: usize,
+        /// What is wrong, with the numbers.
+        what: String,
+    },
+}
+
+/// Relative round-off allowed in the physical checks: far above what
+/// compilation and a JSON round trip leave, far below any real error.
+const PHYSICS_TOLERANCE: f64 = 1e-9;
+
+/// Checks that a link is physically possible: a unit axis, a proper
+/// rotation, the motion subspace of its joint, and a symmetric, positive
+/// semi-definite spatial inertia.
+fn check_physics(k: usize, link: &super::Link) -> Result<(), InvalidModel> {
+    if matches!(link.joint, LinkJoint::Hinge | LinkJoint::Slide) {
+        let length = link.axis.norm();
+        if (length - 1.0).abs() > PHYSICS_TOLERANCE {
+            return Err(InvalidModel::Axis { link: k, length });
+        }
+    }
+    let rot = &link.x_tree.rot;
+    let deviation = (rot.transpose() * rot - super::Mat3::identity()).amax();
+    let determinant = rot.determinant();
+    if deviation > PHYSICS_TOLERANCE || determinant <= 0.0 {
+        return Err(InvalidModel::Rotation { link: k, deviation, determinant });
+    }
+    let (_, expected) = super::motion_subspace(link.joint, &link.axis, &link.anchor);
+    let scale = 1.0 + link.anchor.amax();
+    if (link.motion_subspace - expected).amax() > PHYSICS_TOLERANCE * scale {
+        return Err(InvalidModel::MotionSubspace { link: k });
+    }
+    let inertia = &link.rotational_inertia;
+    let asymmetry = (inertia - inertia.transpose()).amax();
+    if asymmetry > PHYSICS_TOLERANCE * inertia.amax() {
+        return Err(InvalidModel::Inertia { link: k, what: format!("not symmetric (|I − Iᵀ| = {asymmetry:e})") });
+    }
+    let eigenvalues = link.spatial_inertia().symmetric_eigenvalues();
+    let (smallest, largest) = (eigenvalues.min(), eigenvalues.amax());
+    if smallest < -PHYSICS_TOLERANCE * largest {
+        let what = format!("not positive semi-definite (spatial inertia eigenvalue {smallest:e}, largest {largest:e})");
+        return Err(InvalidModel::Inertia { link: k, what });
+    }
+    Ok(())
 }
 
 /// (qpos count, dof count) of a link's joint.
@@ -146,6 +217,7 @@ fn validate(model: &Model) -> Result<(), InvalidModel> {
         non_negative(k, "stiffness", link.stiffness)?;
         non_negative(k, "damping", link.damping)?;
         non_negative(k, "mass", link.mass)?;
+        check_physics(k, link)?;
     }
     for (what, found, expected) in [
         ("nq", model.nq, nq),
@@ -229,6 +301,49 @@ mod tests {
         let mut model = example("flexible_boom.xml");
         model.gravity[2] = f64::INFINITY;
         assert!(matches!(validate(&model), Err(InvalidModel::Number { what: "gravity", .. })));
+    }
+
+    #[test]
+    fn physically_impossible_links_are_refused() {
+        let model = example("bus_arm7.xml");
+        let mut bent = model.clone();
+        bent.links[3].axis *= 1.5;
+        assert!(matches!(validate(&bent), Err(InvalidModel::Axis { link: 3, .. })));
+        let mut zero_axis = model.clone();
+        zero_axis.links[3].axis.fill(0.0);
+        assert!(matches!(validate(&zero_axis), Err(InvalidModel::Axis { link: 3, .. })));
+        let mut skewed = model.clone();
+        skewed.links[4].x_tree.rot[(0, 1)] += 0.01;
+        assert!(matches!(validate(&skewed), Err(InvalidModel::Rotation { link: 4, .. })));
+        let mut mirrored = model.clone();
+        mirrored.links[4].x_tree.rot.column_mut(0).neg_mut();
+        assert!(matches!(validate(&mirrored), Err(InvalidModel::Rotation { link: 4, .. })), "det E = -1");
+        let mut elsewhere = model.clone();
+        elsewhere.links[5].motion_subspace[(3, 0)] += 0.1;
+        assert_eq!(validate(&elsewhere), Err(InvalidModel::MotionSubspace { link: 5 }));
+        let mut asymmetric = model.clone();
+        asymmetric.links[2].rotational_inertia[(0, 1)] += 0.5;
+        assert!(matches!(validate(&asymmetric), Err(InvalidModel::Inertia { link: 2, .. })));
+        let mut indefinite = model.clone();
+        indefinite.links[2].rotational_inertia[(2, 2)] = -1.0;
+        let error = validate(&indefinite).unwrap_err();
+        assert!(error.to_string().contains("not positive semi-definite"), "{error}");
+        let mut negative_mass_moment = model;
+        // A centre of mass far outside a light body: no rotational inertia about it can hold.
+        negative_mass_moment.links[2].mass_moment *= 1e3;
+        assert!(matches!(validate(&negative_mass_moment), Err(InvalidModel::Inertia { link: 2, .. })));
+    }
+
+    #[test]
+    fn every_importer_fixture_that_compiles_is_valid() {
+        let fixtures = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures");
+        let files = std::fs::read_dir(fixtures.join("mjcf")).unwrap().map(|e| e.unwrap().path());
+        for path in files.chain([fixtures.join("thin_rods.xml")]) {
+            let Ok(imported) = crate::mjcf::load_mjcf(&path) else { continue };
+            if let Ok(model) = Model::compile(&imported.vehicle) {
+                assert_eq!(validate(&model), Ok(()), "{}", path.display());
+            }
+        }
     }
 
     #[test]

@@ -722,6 +722,13 @@ def corrupt_resources(h: Harness):
     bad_parent["model"]["links"][0]["parent"] = 5
     negative_mass = json.loads(original)
     negative_mass["model"]["links"][1]["mass"] = -1.0
+    # Physically impossible links: the loader checks the physics, not only the numbers.
+    asymmetric_inertia = json.loads(original)
+    asymmetric_inertia["model"]["links"][3]["rotational_inertia"][1] = 0.5
+    skewed_rotation = json.loads(original)
+    skewed_rotation["model"]["links"][3]["x_tree"]["rot"][1] = 0.3
+    zero_axis = json.loads(original)
+    zero_axis["model"]["links"][3]["axis"] = [0.0, 0.0, 0.0]
     document["format"] = 99
     variants = [
         (b"", "is not a nudyn FMU resource"),
@@ -732,6 +739,9 @@ def corrupt_resources(h: Harness):
         (json.dumps(wrong_nv).encode(), "nv is 1000000000000000"),
         (json.dumps(bad_parent).encode(), "link 0 has parent 5"),
         (json.dumps(negative_mass).encode(), "mass of link 1 is -1: must be finite and non-negative"),
+        (json.dumps(asymmetric_inertia).encode(), "inertia of link 3 is not symmetric"),
+        (json.dumps(skewed_rotation).encode(), "x_tree of link 3 is not a rotation"),
+        (json.dumps(zero_axis).encode(), "the axis of link 3 has length 0"),
         (original.replace(b"{", b"{ ", 1), "does not match the FMU's resources"),
     ]
     for k, (content, says) in enumerate(variants):
