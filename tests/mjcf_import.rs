@@ -398,7 +398,9 @@ fn ignored_elements_warn_once_each() {
         ignored(11, "site"),
         ignored(13, "asset"),
         ignored(17, "light name=\"sun\""),
-        ignored(18, "geom name=\"floor\""),
+        "line 18: <geom name=\"floor\">: ignored: fixed to the world, it moves no mass, and nudyn models no contacts \
+         (MuJoCo would make contacts with it)"
+            .to_string(),
         ignored(19, "camera name=\"overview\""),
         "line 21: <joint name=\"hinge\">: joint limits are not modelled (range ignored)".to_string(),
         ignored(23, "site name=\"tip\""),

@@ -251,6 +251,11 @@ impl<'a, 'input> Element<'a, 'input> {
                  MuJoCo's position and velocity actuators pull even at ctrl = 0",
             ),
             "contact" => self.warning("ignored: nudyn models no contacts"),
+            // Only geoms fixed to the world are ignored (a moving body's give its mass).
+            "geom" => self.warning(
+                "ignored: fixed to the world, it moves no mass, and nudyn models no contacts \
+                 (MuJoCo would make contacts with it)",
+            ),
             _ => self.warning("ignored (no effect on the dynamics)"),
         }
     }
