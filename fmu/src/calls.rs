@@ -141,8 +141,11 @@ pub fn setup_experiment(
     if let Some(tolerance) = tolerance.filter(|t| !(t.is_finite() && *t > 0.0)) {
         return Err(CallError::OutOfRange { name: "tolerance".into(), value: tolerance, must: "positive" });
     }
-    if let Some(stop) = stop_time.filter(|s| !(s.is_finite() && *s >= start_time)) {
-        return Err(CallError::NonFinite { name: format!("stopTime (startTime = {start_time})"), value: stop });
+    if let Some(stop) = stop_time.filter(|s| !s.is_finite()) {
+        return Err(CallError::NonFinite { name: "stopTime".into(), value: stop });
+    }
+    if let Some(stop) = stop_time.filter(|&s| s < start_time) {
+        return Err(CallError::StopBeforeStart { start_time, stop_time: stop });
     }
     component.setup_experiment(tolerance, start_time, stop_time);
     Ok(())

@@ -297,6 +297,14 @@ pub enum CallError {
         /// "positive" or "non-negative".
         must: &'static str,
     },
+    /// A stop time before the start time.
+    #[error("stopTime = {stop_time} is before startTime = {start_time}")]
+    StopBeforeStart {
+        /// startTime.
+        start_time: f64,
+        /// stopTime.
+        stop_time: f64,
+    },
     /// A `method` value that is not an item of the enumeration.
     #[error("method = {0} is not an item of the enumeration ({items})", items = method_items())]
     UnknownMethod(i32),

@@ -576,8 +576,8 @@ def parameters_out_of_range_are_discarded(h: Harness):
 def setup_experiment_out_of_range(h: Harness):
     c = h.instantiate()
     for args, says in [((0, 0.0, math.nan, 0, 0.0), "startTime = NaN"),
-                       ((0, 0.0, 0.0, 1, -1.0), "stopTime"),
-                       ((0, 0.0, 0.0, 1, math.inf), "stopTime"),
+                       ((0, 0.0, 0.0, 1, -1.0), "stopTime = -1 is before startTime = 0"),
+                       ((0, 0.0, 0.0, 1, math.inf), "stopTime = inf is not finite"),
                        ((1, -1e-6, 0.0, 0, 0.0), "tolerance")]:
         h.expect(ERROR, "fmi2SetupExperiment", c, *args, says=(says,))
         h.expect(OK, "fmi2Reset", c)
