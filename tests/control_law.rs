@@ -255,7 +255,7 @@ fn bad_input_is_a_clear_error() {
     let mut nu = vec![0.0; model.nv];
     nu[0] = f64::INFINITY;
     let err = cws.evaluate(&model, &law, &good, &model.qpos0, &nu).unwrap_err();
-    assert!(err.to_string().contains("nu[0] is not finite"), "{err}");
+    assert!(err.to_string().contains("nu[1] is not finite"), "{err}");
     let err = cws.evaluate(&model, &law, &good, &model.qpos0[1..], &vec![0.0; model.nv]).unwrap_err();
     assert!(err.to_string().contains("theta has"), "{err}");
 }

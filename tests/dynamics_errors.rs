@@ -44,7 +44,7 @@ fn zero_quaternion_names_the_joint() {
     theta[3..7].copy_from_slice(&[0.0; 4]);
     let err = ws.set_configuration(&model, &theta).unwrap_err();
     assert_eq!(err, DynamicsError::ZeroQuaternion { joint: vehicle.bodies[0].joints[0].name.clone(), qpos_adr: 3 });
-    assert!(err.to_string().contains("theta[3..7]"), "{err}");
+    assert!(err.to_string().contains("theta[4] to theta[7]"), "{err}");
 }
 
 #[test]

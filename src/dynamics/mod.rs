@@ -36,8 +36,9 @@ pub enum DynamicsError {
         /// Its actual length.
         found: usize,
     },
-    /// An input entry is NaN or infinite.
-    #[error("{what}[{index}] is not finite ({value})")]
+    /// An input entry is NaN or infinite. The message numbers entries from
+    /// 1, as the FMU's variables are named (`nu[1]` is entry 0).
+    #[error("{what}[{}] is not finite ({value})", index + 1)]
     NonFinite {
         /// Which vector.
         what: &'static str,
@@ -46,8 +47,8 @@ pub enum DynamicsError {
         /// The entry.
         value: f64,
     },
-    /// A quaternion in θ has zero norm.
-    #[error("theta[{qpos_adr}..{}] is a zero quaternion (joint '{joint}')", qpos_adr + 4)]
+    /// A quaternion in θ has zero norm (the message numbers from 1, as the FMU's variables).
+    #[error("theta[{}] to theta[{}] are a zero quaternion (joint '{joint}')", qpos_adr + 1, qpos_adr + 4)]
     ZeroQuaternion {
         /// Joint name.
         joint: String,
