@@ -84,6 +84,8 @@ enum Command {
     /// model's qpos0), "nu" (nv, default 0), "eps" (nv, default 0) and
     /// "eps_rate" (nv, default 0): ε(t) = eps + eps_rate·t. Output: {"time": [...], "theta": [[...], ...], "nu": [...]}
     /// at t = 0, H, 2H, ... up to the stop time.
+    // Negative numbers are values (`--step -0.01` is refused as negative, not taken for a flag).
+    #[command(allow_negative_numbers = true)]
     Simulate {
         /// The vehicle's MJCF file.
         model: PathBuf,
@@ -148,6 +150,12 @@ fn run(cli: Cli) -> Result<()> {
             simulate(&model, step, stop, method, &settings)
         }
     }
+}
+
+/// A number as a person reads it: plainly in the usual range, in exponent
+/// form beyond it (Rust's plain form of 1e-300 has 300 digits).
+fn number(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() || (1e-4..1e15).contains(&x.abs()) { format!("{x}") } else { format!("{x:e}") }
 }
 
 /// Refuses an output path that names the MJCF file itself (`-o` mistyped):
@@ -315,16 +323,16 @@ struct Trajectory {
 
 fn simulate(model_path: &Path, step: f64, stop: f64, method: Method, settings: &Settings) -> Result<()> {
     if !(step.is_finite() && step > 0.0 && stop.is_finite() && stop >= 0.0) {
-        bail!("--step must be positive and --stop non-negative, found {step} and {stop}");
+        bail!("--step must be positive and --stop non-negative, found {} and {}", number(step), number(stop));
     }
     for (name, value) in [("--tolerance", settings.tolerance), ("--max-step", settings.max_step)] {
         if !(value.is_finite() && value > 0.0) {
-            bail!("{name} must be positive, found {value}");
+            bail!("{name} must be positive, found {}", number(value));
         }
     }
     let steps = (stop / step).round();
     if ((steps * step - stop) / step).abs() > 1e-9 {
-        bail!("--stop {stop} is not a multiple of --step {step}");
+        bail!("--stop {} is not a multiple of --step {}", number(stop), number(step));
     }
     let model = load_model(model_path)?;
     let mut input = String::new();

@@ -31,3 +31,20 @@ def test_a_reader_that_stopped_reading_is_no_error(nudyn, name):
     finally:
         os.close(write_end)
     assert (proc.returncode, proc.stderr) == (0, "")
+
+
+@pytest.mark.parametrize(
+    "arguments, says",
+    [
+        (["--step", "-0.01", "--stop", "1"], "--step must be positive and --stop non-negative, found -0.01 and 1"),
+        (["--step", "1e-300", "--stop", "1"], "--stop 1 is not a multiple of --step 1e-300"),
+        (["--step", "0.01", "--stop", "1", "--max-step", "-0.5"], "--max-step must be positive, found -0.5"),
+    ],
+    ids=["negative step", "tiny step", "negative max step"],
+)
+def test_simulate_refuses_bad_steps_in_readable_words(nudyn, arguments, says):
+    """A negative value is a value, not a flag, and a tiny one is not printed with 300 digits."""
+    proc = subprocess.run([str(nudyn), "simulate", str(MODEL), *arguments], input="{}", capture_output=True,
+                          text=True)
+    assert proc.returncode == 1, proc.stderr
+    assert proc.stderr.strip() == f"nudyn: error: {says}"
