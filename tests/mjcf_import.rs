@@ -249,6 +249,15 @@ fn default_classes_inherit_and_override() {
 }
 
 #[test]
+fn a_nested_class_inherits_settings_written_after_it() {
+    let vehicle = load("default_order.xml").vehicle;
+    assert_eq!(joint(&vehicle, "hinge").damping, 3.0);
+    // A sphere of radius 0.2 (the inner size) at density 500 (the outer density).
+    let volume = 4.0 / 3.0 * PI * 0.2f64.powi(3);
+    assert_close("ball.mass", inertia(body(&vehicle, "ball")).mass, 500.0 * volume);
+}
+
+#[test]
 fn explicit_inertial() {
     let vehicle = load("inertial.xml").vehicle;
     let m = inertia(body(&vehicle, "rotated"));

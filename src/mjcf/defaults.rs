@@ -314,14 +314,31 @@ impl Defaults {
         }
     }
 
-    /// Reads a `<default>` element: a top-level one (`parent` is `None`)
-    /// adds to "main", a nested one defines a new class.
-    pub fn read(
+    /// Reads a top-level `<default>` element (it adds to "main") and the
+    /// classes nested in it. As MuJoCo does, a class's own settings are read
+    /// before its nested classes copy them, wherever the nested `<default>`
+    /// stands among its siblings. A work stack instead of recursion: nesting
+    /// may be deep, and the importer must not overflow the thread's stack.
+    pub fn read(&mut self, top: &Element, warnings: &mut Vec<MjcfWarning>) -> Result<(), MjcfError> {
+        let mut pending = vec![(*top, None)];
+        while let Some((element, parent)) = pending.pop() {
+            let index = self.read_class(&element, parent, warnings)?;
+            let nested = element.children().filter(|child| child.tag() == "default");
+            let nested: Vec<_> = nested.map(|child| (child, Some(index))).collect();
+            // Reversed so that the first nested class is read next.
+            pending.extend(nested.into_iter().rev());
+        }
+        Ok(())
+    }
+
+    /// Reads one `<default>` element without its nested classes; returns the
+    /// class it defines (or "main" for a top-level one, `parent` `None`).
+    fn read_class(
         &mut self,
         element: &Element,
         parent: Option<usize>,
         warnings: &mut Vec<MjcfWarning>,
-    ) -> Result<(), MjcfError> {
+    ) -> Result<usize, MjcfError> {
         element.check_attributes(&["class"])?;
         let index = match parent {
             None => {
@@ -374,11 +391,11 @@ impl Defaults {
                         class.geom.apply(&child)?;
                     }
                 }
-                "default" => self.read(&child, Some(index), warnings)?,
+                "default" => {}
                 tag if IGNORED_DEFAULTS.contains(&tag) => warnings.push(child.ignored()),
                 _ => return Err(child.unknown()),
             }
         }
-        Ok(())
+        Ok(index)
     }
 }

@@ -105,6 +105,17 @@ struct BodyRecord {
     children: Vec<usize>,
 }
 
+/// A body element waiting to be read, with what it inherits from its parent.
+struct PendingBody<'a> {
+    element: Element<'a, 'a>,
+    /// Index of the parent in the vehicle's bodies; `None` below `<worldbody>`.
+    parent: Option<usize>,
+    /// The nearest ancestor's `childclass`.
+    inherited_class: usize,
+    /// Whether a joint lies between the parent and the world.
+    parent_moving: bool,
+}
+
 /// `align` of a free joint.
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Align {
@@ -152,7 +163,7 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
         match section.tag() {
             "compiler" => reader.read_compiler(&section)?,
             "option" => reader.read_option(&section)?,
-            "default" => reader.defaults.read(&section, None, &mut reader.warnings)?,
+            "default" => reader.defaults.read(&section, &mut reader.warnings)?,
             _ => {}
         }
     }
@@ -340,7 +351,7 @@ impl Reader {
         section.check_attributes(&[])?;
         for child in section.children() {
             match child.tag() {
-                "body" => self.read_body(&child, None, MAIN, false)?,
+                "body" => self.read_body_tree(child)?,
                 "geom" | "site" | "camera" | "light" => self.warnings.push(child.ignored()),
                 "joint" | "freejoint" => {
                     return Err(child.invalid("the world body cannot have joints"));
@@ -352,16 +363,23 @@ impl Reader {
         Ok(())
     }
 
-    /// Reads a body and, after it, its descendants. `inherited_class` is the
-    /// nearest ancestor's `childclass`; `parent_moving` whether a joint lies
-    /// between the parent and the world.
-    fn read_body(
-        &mut self,
-        element: &Element,
-        parent: Option<usize>,
-        inherited_class: usize,
-        parent_moving: bool,
-    ) -> Result<(), MjcfError> {
+    /// Reads a child of `<worldbody>` and its descendants in document order
+    /// (parent before child). A work stack instead of recursion: a vehicle
+    /// file may nest bodies thousands deep, and the importer must not
+    /// overflow the thread's stack, which is small in a host's FMU thread.
+    fn read_body_tree<'a>(&mut self, top: Element<'a, 'a>) -> Result<(), MjcfError> {
+        let mut pending = vec![PendingBody { element: top, parent: None, inherited_class: MAIN, parent_moving: false }];
+        while let Some(body) = pending.pop() {
+            let children = self.read_body(&body)?;
+            // Reversed so that the first child is read next.
+            pending.extend(children.into_iter().rev());
+        }
+        Ok(())
+    }
+
+    /// Reads one body; returns its child bodies, still to be read.
+    fn read_body<'a>(&mut self, body: &PendingBody<'a>) -> Result<Vec<PendingBody<'a>>, MjcfError> {
+        let &PendingBody { ref element, parent, inherited_class, parent_moving } = body;
         element.check_attributes(BODY_ATTRIBUTES)?;
         if element.boolean("mocap")? == Some(true) {
             return Err(element.unsupported("mocap bodies are moved by the user, not by the dynamics"));
@@ -462,10 +480,10 @@ impl Reader {
         if let Some(parent) = parent {
             self.records[parent].children.push(index);
         }
-        for child in &child_bodies {
-            self.read_body(child, Some(index), class, moving)?;
-        }
-        Ok(())
+        Ok(child_bodies
+            .into_iter()
+            .map(|element| PendingBody { element, parent: Some(index), inherited_class: class, parent_moving: moving })
+            .collect())
     }
 
     /// The class of a joint or geom: its `class`, else its body's class.
