@@ -216,6 +216,41 @@ pub fn quat_from_wxyz(q: &[f64]) -> nalgebra::Quaternion<f64> {
     nalgebra::Quaternion::new(q[0], q[1], q[2], q[3])
 }
 
+/// Scales the (w, x, y, z) quaternion `q[..4]` to unit length in place and
+/// returns its norm before; `None`, and `q` untouched, when it is zero.
+///
+/// Any finite non-zero quaternion comes out a unit one to rounding, as
+/// `hypot` would give it: when the squares underflow (components near
+/// 1e-160) or overflow (near 1e160), the components are first divided by
+/// the largest one. The common case pays one range check.
+#[inline]
+pub fn normalize_wxyz(q: &mut [f64]) -> Option<f64> {
+    let q = &mut q[..4];
+    let squared: f64 = q.iter().map(|c| c * c).sum();
+    if (1e-290..=1e290).contains(&squared) {
+        let norm = squared.sqrt();
+        q.iter_mut().for_each(|c| *c /= norm);
+        return Some(norm);
+    }
+    let largest = q.iter().fold(0.0_f64, |m, c| m.max(c.abs()));
+    if largest == 0.0 || !largest.is_finite() {
+        return None;
+    }
+    q.iter_mut().for_each(|c| *c /= largest);
+    let scaled_norm = q.iter().map(|c| c * c).sum::<f64>().sqrt();
+    q.iter_mut().for_each(|c| *c /= scaled_norm);
+    Some(largest * scaled_norm)
+}
+
+/// The unit quaternion along the (w, x, y, z) quaternion `q`, scaled as
+/// [`normalize_wxyz`] does; `None` when `q` is zero.
+#[inline]
+pub fn unit_quat_from_wxyz(q: &[f64]) -> Option<Quat> {
+    let mut unit = [q[0], q[1], q[2], q[3]];
+    normalize_wxyz(&mut unit)?;
+    Some(Quat::new_unchecked(quat_from_wxyz(&unit)))
+}
+
 /// Writes a quaternion in MuJoCo's (w, x, y, z) order.
 #[inline]
 pub fn quat_to_wxyz(q: &Quat, out: &mut [f64]) {
@@ -239,6 +274,33 @@ pub fn quat_difference(qa: &Quat, qb: &Quat) -> Vec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn quaternions_normalize_exactly_at_any_finite_scale() {
+        let direction = [0.3, -0.5, 0.7, 0.1];
+        let norm = direction.iter().map(|c: &f64| c * c).sum::<f64>().sqrt();
+        let expected = direction.map(|c| c / norm);
+        // Powers of two scale exactly, except that at 2^-1050 the components are
+        // subnormal and keep only about 20 bits (the result can be no better).
+        for exponent in [-1050, -1000, -530, -10, 0, 10, 520, 1000, 1020] {
+            // In two factors: 2^-1050 alone would be computed as 1/2^1050 = 0.
+            let scale = 2f64.powi(exponent / 2) * 2f64.powi(exponent - exponent / 2);
+            let mut q = direction.map(|c| c * scale);
+            let before = normalize_wxyz(&mut q).unwrap();
+            let digits = if exponent < -1020 { 1e-5 } else { 1e-15 };
+            assert!((before / (norm * scale) - 1.0).abs() < digits, "2^{exponent}: norm {before:e}");
+            for (got, want) in q.iter().zip(&expected) {
+                assert!((got - want).abs() < digits, "2^{exponent}: {q:?}");
+            }
+            assert!((q.iter().map(|c| c * c).sum::<f64>() - 1.0).abs() < 4e-16, "2^{exponent}: {q:?}");
+        }
+        let mut huge = [f64::MAX; 4];
+        normalize_wxyz(&mut huge).unwrap();
+        assert_eq!(huge, [0.5; 4]);
+        let mut zero = [0.0, -0.0, 0.0, 0.0];
+        assert_eq!(normalize_wxyz(&mut zero), None);
+        assert_eq!(zero, [0.0, -0.0, 0.0, 0.0]);
+    }
 
     /// A random-looking but fixed symmetric 6×6 matrix and transform.
     fn sample() -> (SpatialMat, Transform, SpatialVec) {

@@ -61,6 +61,31 @@ fn unnormalized_quaternions_are_normalized_like_mujoco() {
 }
 
 #[test]
+fn quaternions_at_the_edges_of_floating_point_keep_their_direction() {
+    let (vehicle, model) = free_vehicle();
+    let mut rng = Rng::new(5);
+    let theta = random_theta(&mut rng, &vehicle);
+    let nu: Vec<f64> = (0..model.nv).map(|i| 0.1 + 0.05 * i as f64).collect();
+    let eps = vec![0.0; model.nv];
+    let mut ws = model.workspace();
+    nudyn::dynamics::forward(&model, &mut ws, &theta, &nu, &eps).unwrap();
+    let (unit_nu_dot, unit_momentum) = (ws.nu_dot.clone(), ws.momentum(&model).unwrap());
+    // Powers of two scale exactly, so the direction given is exactly the unit one's.
+    for scale in [2f64.powi(-530), 2f64.powi(-1000), 2f64.powi(520), 2f64.powi(1000)] {
+        let mut scaled = theta.clone();
+        scaled[3..7].iter_mut().for_each(|q| *q *= scale);
+        assert!(scaled[3..7].iter().all(|q| q.is_finite() && *q != 0.0));
+        nudyn::dynamics::forward(&model, &mut ws, &scaled, &nu, &eps).unwrap();
+        let unit = &ws.theta.as_slice()[3..7];
+        assert!((unit.iter().map(|q| q * q).sum::<f64>() - 1.0).abs() < 4e-16, "scale {scale:e}: {unit:?}");
+        assert!(common::rel_err(ws.theta.as_slice(), &theta) < 1e-15, "scale {scale:e}");
+        assert!(common::rel_err(ws.nu_dot.as_slice(), unit_nu_dot.as_slice()) < 1e-13, "scale {scale:e}");
+        let momentum = ws.momentum(&model).unwrap();
+        assert!((momentum - unit_momentum).norm() <= 1e-14 * unit_momentum.norm(), "scale {scale:e}");
+    }
+}
+
+#[test]
 fn calls_out_of_order_are_rejected() {
     let (_, model) = free_vehicle();
     let mut ws = model.workspace();

@@ -151,6 +151,23 @@ fn every_orientation_form() {
 }
 
 #[test]
+fn orientations_with_huge_or_tiny_numbers_keep_their_direction() {
+    // MuJoCo's own compiler squares these and overflows to a zero rotation.
+    let xml = "<mujoco><worldbody>\
+               <body name=\"huge_quat\" quat=\"1e300 0 0 1e300\"><geom size=\"1\"/></body>\
+               <body name=\"tiny_quat\" quat=\"1e-12 0 0 1e-12\"><geom size=\"1\"/></body>\
+               <body name=\"huge_zaxis\" zaxis=\"1e200 0 0\"><geom size=\"1\"/></body>\
+               <body name=\"huge_axisangle\" axisangle=\"0 0 1e300 90\"><geom size=\"1\"/></body>\
+               </worldbody></mujoco>";
+    let vehicle = parse_mjcf(xml).unwrap().vehicle;
+    let quarter_about_z = about(Vec3::z(), FRAC_PI_2);
+    assert_quat("huge_quat", &body(&vehicle, "huge_quat").quat, quarter_about_z);
+    assert_quat("tiny_quat", &body(&vehicle, "tiny_quat").quat, quarter_about_z);
+    assert_quat("huge_zaxis", &body(&vehicle, "huge_zaxis").quat, about(Vec3::y(), FRAC_PI_2));
+    assert_quat("huge_axisangle", &body(&vehicle, "huge_axisangle").quat, quarter_about_z);
+}
+
+#[test]
 fn radians_and_mixed_euler_sequence() {
     let vehicle = load("euler_radian.xml").vehicle;
     let turned = body(&vehicle, "turned");
@@ -482,6 +499,8 @@ const MALFORMED: &[Malformed] = &[
         xml: "<mujoco>\n<worldbody>\n<body>\n<joint/>\n<geom type=\"box\" size=\"1 -1 1\"/>\n</body>\n</worldbody>\n</mujoco>" },
     Malformed { what: "two orientations", variant: |e| matches!(e, MjcfError::ConflictingAttributes { .. }), element: "<body name=\"b\">", line: 3,
         xml: "<mujoco>\n<worldbody>\n<body name=\"b\" quat=\"1 0 0 0\" euler=\"0 0 1\">\n<geom size=\"1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "quaternion MuJoCo takes for the identity", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<body>", line: 3,
+        xml: "<mujoco>\n<worldbody>\n<body quat=\"1e-16 1e-16 0 0\">\n<geom size=\"1\"/>\n</body>\n</worldbody>\n</mujoco>" },
     Malformed { what: "zero quaternion", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<geom>", line: 4,
         xml: "<mujoco>\n<worldbody>\n<body>\n<geom size=\"1\" quat=\"0 0 0 0\"/>\n</body>\n</worldbody>\n</mujoco>" },
     Malformed { what: "unknown attribute", variant: |e| matches!(e, MjcfError::UnknownAttribute { .. }), element: "<joint>", line: 4,

@@ -33,7 +33,7 @@ use nalgebra::DVector;
 use serde::{Deserialize, Serialize};
 
 use crate::dynamics::DynamicsError;
-use crate::math::{Quat, SpatialVec, Transform, Vec3, angular, linear, quat_from_wxyz, spatial};
+use crate::math::{Quat, SpatialVec, Transform, Vec3, angular, linear, spatial, unit_quat_from_wxyz};
 use crate::model::{LinkJoint, Model};
 use crate::vehicle::Vehicle;
 use crate::workspace::Workspace;
@@ -287,7 +287,7 @@ impl ControlParameters {
                 return Err(ControlError::NegativeGain { what, index, value: gains[index] });
             }
         }
-        if matches!(law.objective, Objective::Pose(_)) && quat_from_wxyz(&self.target[3..7]).norm() == 0.0 {
+        if matches!(law.objective, Objective::Pose(_)) && unit_quat_from_wxyz(&self.target[3..7]).is_none() {
             return Err(ControlError::ZeroTargetQuaternion);
         }
         Ok(())
@@ -385,7 +385,8 @@ impl ControlWorkspace {
             Objective::Pose(frame) => {
                 let (position, orientation) = body_pose(model, &mut self.ws, frame);
                 let target = &parameters.target;
-                let target_orientation = Quat::from_quaternion(quat_from_wxyz(&target[3..7]));
+                // validate() refused a zero target quaternion.
+                let target_orientation = unit_quat_from_wxyz(&target[3..7]).unwrap_or_else(Quat::identity);
                 let position_error = Vec3::new(target[0], target[1], target[2]) - position;
                 let phi = pose::rotation_error(&orientation, &target_orientation);
                 let force = Vec3::new(c2[0], c2[1], c2[2]).component_mul(&position_error);

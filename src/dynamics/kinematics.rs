@@ -9,7 +9,7 @@
 use nalgebra::{Rotation3, Unit};
 
 use super::DynamicsError;
-use crate::math::{Mat3, Transform, Vec3, quat_from_wxyz};
+use crate::math::{Mat3, Transform, Vec3, normalize_wxyz, quat_from_wxyz};
 use crate::model::{Link, LinkJoint, Model};
 use crate::workspace::Workspace;
 
@@ -25,13 +25,10 @@ pub fn joint_transform(link: &Link, theta: &mut [f64]) -> Result<Transform, Dyna
         }
         LinkJoint::Slide => Transform::from_pose(&Mat3::identity(), &(link.axis * (q[0] - link.reference))),
         LinkJoint::Ball => {
-            let quat = quat_from_wxyz(q);
-            let norm = quat.norm();
-            if norm == 0.0 {
+            if normalize_wxyz(q).is_none() {
                 return Err(DynamicsError::ZeroQuaternion { joint: link.joint_name.clone(), qpos_adr: link.qpos_adr });
             }
-            let unit = nalgebra::UnitQuaternion::new_unchecked(quat / norm);
-            q[..4].iter_mut().for_each(|c| *c /= norm);
+            let unit = nalgebra::UnitQuaternion::new_unchecked(quat_from_wxyz(q));
             rotate_about_anchor(unit.to_rotation_matrix().into_inner())
         }
         LinkJoint::Translation => Transform::from_pose(&Mat3::identity(), &Vec3::new(q[0], q[1], q[2])),

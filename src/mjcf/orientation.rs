@@ -5,10 +5,14 @@ use nalgebra::Quaternion;
 
 use super::element::Element;
 use super::error::MjcfError;
-use crate::math::{Quat, Vec3};
+use crate::math::{Quat, Vec3, normalize_wxyz};
 
 /// MuJoCo's `mjEPS`: squared norms below it count as zero.
 const EPS: f64 = 1e-14;
+
+/// MuJoCo's `mjMINVAL`: its kinematics take a quaternion of smaller norm
+/// for the identity.
+const MIN_QUATERNION_NORM: f64 = 1e-15;
 
 /// The attributes that give an orientation; an element may use one of them.
 pub(crate) const ORIENTATION_ATTRIBUTES: [&str; 5] = ["quat", "axisangle", "xyaxes", "zaxis", "euler"];
@@ -32,7 +36,7 @@ impl AngleConvention {
 /// An orientation as written in the file.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) enum Orientation {
-    /// `quat="w x y z"`, not yet normalized.
+    /// `quat="w x y z"`, normalized.
     Quat([f64; 4]),
     /// `axisangle="x y z angle"`.
     AxisAngle([f64; 4]),
@@ -58,10 +62,18 @@ impl Orientation {
             return Err(element.conflict(first, second));
         }
         if let Some(q) = element.numbers::<4>("quat")? {
-            if q.iter().map(|x| x * x).sum::<f64>() < EPS {
-                return Err(element.bad_value("quat", "4 numbers that are not all zero"));
+            let mut unit = q;
+            match normalize_wxyz(&mut unit) {
+                None => return Err(element.bad_value("quat", "4 numbers that are not all zero")),
+                // MuJoCo's kinematics replace a quaternion this short by the identity.
+                Some(norm) if norm < MIN_QUATERNION_NORM => {
+                    return Err(element.bad_value(
+                        "quat",
+                        "a quaternion of norm at least 1e-15 (MuJoCo would take a shorter one for the identity)",
+                    ));
+                }
+                Some(_) => return Ok(Some(Orientation::Quat(unit))),
             }
-            return Ok(Some(Orientation::Quat(q)));
         }
         if let Some(v) = element.numbers::<4>("axisangle")? {
             return Ok(Some(Orientation::AxisAngle(v)));
@@ -117,9 +129,17 @@ impl Orientation {
     }
 }
 
-/// `v` scaled to unit length, or `None` when its squared norm is below mjEPS.
+/// `v` scaled to unit length, or `None` when its squared norm is below
+/// mjEPS. Divided by its largest component first, so that components near
+/// 1e±160 neither underflow nor overflow when squared.
 pub(crate) fn normalized(v: Vec3) -> Option<Vec3> {
-    (v.norm_squared() >= EPS).then(|| v / v.norm())
+    let largest = v.amax();
+    if largest == 0.0 {
+        return None;
+    }
+    let scaled = v / largest;
+    let scaled_norm = scaled.norm();
+    (largest * scaled_norm >= EPS.sqrt()).then(|| scaled / scaled_norm)
 }
 
 /// MuJoCo's minimal rotation taking (0, 0, 1) to the unit vector `v`

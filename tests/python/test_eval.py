@@ -173,3 +173,20 @@ def test_single_object_in_single_object_out(nudyn):
     for k in KEYS:
         assert np.allclose(single[k], batch[0][k], rtol=0, atol=0), k
     assert rel_err(single["nu"], ref.nu(qpos, qvel)) <= 1e-10
+
+
+@pytest.mark.parametrize("scale", [2.0**-530, 2.0**-1000, 2.0**520, 2.0**1000], ids=lambda s: f"{s:.0e}")
+def test_quaternions_at_the_edges_of_floating_point(nudyn, scale):
+    """A free base's quaternion scaled to near the underflow or overflow of
+    its squares is the same rotation (powers of two scale exactly): θ comes
+    back at unit length and the motion is the unit quaternion's, to rounding."""
+    path = EXAMPLES[0]
+    ref = Reference.from_file(path)
+    qpos, qvel, _ = ref.random_state(np.random.default_rng(5))
+    scaled = qpos.copy()
+    scaled[3:7] *= scale
+    unit, edge = (run_eval(nudyn, path, json.dumps({"theta": q.tolist(), "qvel": qvel.tolist()})).json()
+                  for q in (qpos, scaled))
+    assert abs(np.linalg.norm(edge["theta"][3:7]) - 1.0) <= 4e-16
+    for key in ("theta", "nu", "nu_dot", "momentum"):
+        assert rel_err(edge[key], unit[key]) <= 1e-14, key

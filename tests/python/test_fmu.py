@@ -170,6 +170,23 @@ def bus(packages, structures):
         slave.fmu.freeInstance()
 
 
+@pytest.mark.parametrize("scale", [1e-160, 1e160, 1e300], ids=lambda s: f"{s:.0e}")
+def test_start_quaternions_of_any_finite_scale_are_the_same_rotation(packages, structures, scale):
+    """The free base's start quaternion scaled by 1e-160 or 1e300 initializes
+    to the unit quaternion, with the same momentum as the unit one gives."""
+    package = packages["bus_arm7"]
+    start, nu, _ = initial_state(structures["bus_arm7"], seed=7)
+    quaternion = package.names("theta")[3:7]
+    scaled = {**start, **{name: start[name] * scale for name in quaternion}}
+    with Instance(package, start={**start, **nu}) as unit, Instance(package, start={**scaled, **nu}) as edge:
+        got, want = edge.array("theta"), unit.array("theta")
+        # 1e-160 and 1e300 scale with rounding: the direction given differs in the last bits.
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-15)
+        assert abs(np.linalg.norm(got[3:7]) - 1.0) <= 4e-16
+        momentum = unit.array("momentum")
+        assert np.linalg.norm(edge.array("momentum") - momentum) <= 1e-14 * np.linalg.norm(momentum)
+
+
 def test_fmu_state_round_trips_bit_exactly(bus):
     slave = bus()
     advance(slave, 3)
