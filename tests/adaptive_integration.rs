@@ -5,7 +5,7 @@
 mod common;
 
 use common::{Rng, TreeOptions, random_theta, random_vehicle};
-use nudyn::integrate::{Carry, Method, Settings, Simulation};
+use nudyn::integrate::{AdvanceError, Carry, MAX_ADAPTIVE_STEPS, Method, Settings, Simulation};
 use nudyn::model::Model;
 use nudyn::vehicle::{JointKind, Vehicle};
 
@@ -227,4 +227,38 @@ fn round_off_in_the_rates_relaxes_the_tolerance_and_says_so() {
         let k_drift = (energy(&result.states.last().unwrap().1) - k0).abs() / k0;
         assert!(k_drift <= attained * duration, "{method:?}: K drift {k_drift:.2e}, attained {attained:.2e}");
     }
+}
+
+/// A long interval of slow motion is work asked for, not a failure: from
+/// rest (springs only), 1310 s with max_step 0.01 s takes 131 000 steps,
+/// more than the 100 000 the error control alone may spend.
+#[test]
+fn a_long_interval_takes_the_steps_max_step_requires() {
+    let (_, model, (theta, _)) = vehicle(1);
+    let mut sim = Simulation::new(&model, Method::Dopri5, Settings { max_step: 0.01, ..settings(1e-8) });
+    (sim.state.theta, sim.state.nu) = (theta.clone(), vec![0.0; model.nv]);
+    sim.initialize(&model).unwrap();
+    let stats = sim.advance_to(&model, 1310.0, no_eps).unwrap().stats;
+    assert!(stats.accepted >= 131_000, "{stats:?}");
+    assert_eq!(sim.state.time, 1310.0);
+}
+
+/// Steps held short by the error control stop at the limit, with a message
+/// that says so and what lets the run through.
+#[test]
+fn an_error_control_that_holds_the_step_short_stops_at_the_limit() {
+    let (_, model, (theta, nu)) = vehicle(2);
+    let fast: Vec<f64> = nu.iter().map(|v| 300.0 * v).collect();
+    let mut sim = Simulation::new(&model, Method::Dopri5, Settings { max_step: f64::INFINITY, ..settings(1e-12) });
+    (sim.state.theta, sim.state.nu) = (theta, fast);
+    sim.initialize(&model).unwrap();
+    let error = sim.advance_to(&model, 1e3, no_eps).unwrap_err();
+    let message = error.to_string();
+    assert!(matches!(error, AdvanceError::TooManySteps { limit: MAX_ADAPTIVE_STEPS, .. }), "{message}");
+    assert!(
+        message.contains("too fast or stiff for tolerance 1e-12") && message.contains("looser tolerance"),
+        "{message}"
+    );
+    assert!(error.reached() > 0.0 && error.reached() < 1e3 && sim.state.time == error.reached(), "{message}");
+    assert!(sim.state.nu.iter().all(|v| v.is_finite()));
 }

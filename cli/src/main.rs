@@ -1,6 +1,6 @@
 //! The `nudyn` command line.
 
-use std::io::{Read, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -8,14 +8,17 @@ use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use nudyn::control::ControlLaw;
 use nudyn::eval::{EvalRequest, EvalResponse, evaluate};
-use nudyn::integrate::{Input, Method, Settings, Simulation};
+use nudyn::integrate::{Method, Settings};
 use nudyn::model::Model;
 use nudyn::vehicle::Vehicle;
 use nudyn_cli::export::controller::write_controller_fmu;
 use nudyn_cli::export::model_identifier_from;
 use nudyn_cli::export::plant::{ExportOptions, write_fmu};
 use nudyn_contract::plant::{DEFAULT_TOLERANCE, OptionalOutputs};
-use serde::{Deserialize, Serialize};
+use serde::Deserialize;
+use simulate::Format;
+
+mod simulate;
 
 #[derive(Parser)]
 #[command(name = "nudyn", version, about = "Diagonalized dynamics of robotic space vehicles, as FMI 2.0 FMUs")]
@@ -82,31 +85,37 @@ enum Command {
     ///
     /// Input on stdin: a JSON object with optional "theta" (nq, default the
     /// model's qpos0), "nu" (nv, default 0), "eps" (nv, default 0) and
-    /// "eps_rate" (nv, default 0): ε(t) = eps + eps_rate·t. Output: {"time": [...], "theta": [[...], ...], "nu": [...]}
-    /// at t = 0, H, 2H, ... up to the stop time.
-    // Negative numbers are values (`--step -0.01` is refused as negative, not taken for a flag).
-    #[command(allow_negative_numbers = true)]
+    /// "eps_rate" (nv, default 0): ε(t) = eps + eps_rate·t. Output, at
+    /// t = 0, H, 2H, ... up to the stop time: {"time": [...], "theta":
+    /// [[...], ...], "nu": [...]} at the end of the run, or with --format
+    /// csv a row per time as it is computed. On a terminal, a run that
+    /// lasts shows its progress on stderr.
+    // Numbers may be negative (`--step -0.01`, `--tolerance -1e-9` are refused
+    // as negative, not taken for flags): every option here takes a value.
     Simulate {
         /// The vehicle's MJCF file.
         model: PathBuf,
         /// The step H (s).
-        #[arg(long)]
+        #[arg(long, allow_hyphen_values = true)]
         step: f64,
         /// The stop time (s), a multiple of the step.
-        #[arg(long)]
+        #[arg(long, allow_hyphen_values = true)]
         stop: f64,
         /// Integration method: rk4 (fixed internal steps of --max-step), dopri5 or dop853 (adaptive).
         #[arg(long, default_value = "rk4", value_parser = parse_method)]
         method: Method,
         /// Error allowed per second of simulated time, relative to 1 + |value| (adaptive methods).
-        #[arg(long, default_value_t = DEFAULT_TOLERANCE)]
+        #[arg(long, default_value_t = DEFAULT_TOLERANCE, allow_hyphen_values = true)]
         tolerance: f64,
         /// Longest internal step (s); default: the step H.
-        #[arg(long)]
+        #[arg(long, allow_hyphen_values = true)]
         max_step: Option<f64>,
         /// Rescale nu after each internal step so that K follows the work done.
         #[arg(long)]
         energy_projection: bool,
+        /// Output format.
+        #[arg(long, value_enum, default_value = "json")]
+        format: Format,
     },
 }
 
@@ -126,10 +135,68 @@ fn main() -> ExitCode {
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("nudyn: error: {e:#}");
+            eprintln!("nudyn: error: {}", report(&e));
             ExitCode::FAILURE
         }
     }
+}
+
+/// The error and its causes, each said once: many errors (io errors with a
+/// path, the exporter's) already include their cause's words.
+fn report(error: &anyhow::Error) -> String {
+    let mut message = String::new();
+    for cause in error.chain() {
+        let text = cause.to_string();
+        if message.contains(&text) {
+            continue;
+        }
+        if !message.is_empty() {
+            message += ": ";
+        }
+        message += &text;
+    }
+    message
+}
+
+/// Parses JSON into `T`; a value of the wrong type is named by its place
+/// (`nu[3]`, 1-based like the FMU's variables).
+fn parse_json<T: serde::de::DeserializeOwned>(text: &str) -> Result<T> {
+    let mut parser = serde_json::Deserializer::from_str(text);
+    let value = serde_path_to_error::deserialize(&mut parser).map_err(|e| {
+        let place = place(e.path());
+        let inner = e.into_inner();
+        // JSON has no NaN or Infinity; say so rather than leave a bare syntax error.
+        let hint = if inner.is_syntax() && ["NaN", "Infinity"].iter().any(|t| text.contains(t)) {
+            " (JSON has no NaN or Infinity: every number must be finite)"
+        } else {
+            ""
+        };
+        match place {
+            Some(place) => anyhow::anyhow!("{place}: {inner}{hint}"),
+            None => anyhow::anyhow!("{inner}{hint}"),
+        }
+    })?;
+    parser.end()?;
+    Ok(value)
+}
+
+/// Where in a JSON document serde_path_to_error's path points: `nu[3]`
+/// (1-based entries), `[2].theta[1]` in an array of requests (whose
+/// requests are numbered 0-based, as in "request 2").
+fn place(path: &serde_path_to_error::Path) -> Option<String> {
+    use serde_path_to_error::Segment;
+    let mut place = String::new();
+    for (depth, segment) in path.iter().enumerate() {
+        match segment {
+            Segment::Seq { index } if depth == 0 => place += &format!("request {index}, "),
+            Segment::Seq { index } => place += &format!("[{}]", index + 1),
+            Segment::Map { key } if place.is_empty() || place.ends_with(", ") => place += key,
+            Segment::Map { key } => place += &format!(".{key}"),
+            Segment::Enum { variant } => place += &format!(".{variant}"),
+            Segment::Unknown => {}
+        }
+    }
+    (!place.is_empty()).then(|| place.trim_end_matches(", ").to_string())
 }
 
 fn run(cli: Cli) -> Result<()> {
@@ -145,9 +212,10 @@ fn run(cli: Cli) -> Result<()> {
         Command::Export { model, output, model_identifier, outputs, .. } => {
             export(&model, &output, model_identifier, outputs)
         }
-        Command::Simulate { model, step, stop, method, tolerance, max_step, energy_projection } => {
+        Command::Simulate { model, step, stop, method, tolerance, max_step, energy_projection, format } => {
             let settings = Settings { tolerance, max_step: max_step.unwrap_or(step), energy_projection };
-            simulate(&model, step, stop, method, &settings)
+            check_simulate_options(step, stop, &settings)?;
+            simulate::simulate(&load_model(&model)?, &simulate::Run { step, stop, method, settings, format })
         }
     }
 }
@@ -189,38 +257,55 @@ fn load_vehicle(path: &Path) -> Result<(Vehicle, Model)> {
 
 fn eval(model_path: &Path) -> Result<()> {
     let model = load_model(model_path)?;
-    let mut input = String::new();
-    std::io::stdin().read_to_string(&mut input).context("cannot read stdin")?;
-    let value: serde_json::Value = serde_json::from_str(&input).map_err(|e| {
-        // JSON has no NaN or Infinity; say so rather than leave a bare syntax error.
-        let hint = if ["NaN", "Infinity"].iter().any(|t| input.contains(t)) {
-            " (JSON has no NaN or Infinity: every number must be finite)"
-        } else {
-            ""
-        };
-        anyhow::anyhow!("stdin is not valid JSON: {e}{hint}")
-    })?;
+    let input = simulate::read_stdin("the states to evaluate")?;
+    let requests: Requests = parse_json(&input).context("standard input is not a valid eval request")?;
     let mut ws = model.workspace();
-    let mut answer = |request: serde_json::Value| -> Result<EvalResponse> {
-        let request: EvalRequest = serde_json::from_value(request)?;
-        let response = evaluate(&model, &mut ws, &request)?;
+    let mut answer = |request: &EvalRequest| -> Result<EvalResponse> {
+        let response = evaluate(&model, &mut ws, request)?;
         if !response.nu_dot.iter().chain(&response.qvel).all(|x| x.is_finite()) {
             bail!("the result is not finite: the state or inputs are too large");
         }
         Ok(response)
     };
-    let output = match value {
-        serde_json::Value::Array(requests) => {
+    let output = match requests {
+        Requests::Many(requests) => {
             let responses = requests
-                .into_iter()
+                .iter()
                 .enumerate()
                 .map(|(k, r)| answer(r).with_context(|| format!("request {k} (0-based)")))
                 .collect::<Result<Vec<_>>>()?;
             serde_json::to_string(&responses)?
         }
-        request => serde_json::to_string(&answer(request)?)?,
+        Requests::One(request) => serde_json::to_string(&answer(&request)?)?,
     };
     emit(&output)
+}
+
+/// `nudyn eval`'s input: one request or an array of them.
+enum Requests {
+    One(EvalRequest),
+    Many(Vec<EvalRequest>),
+}
+
+// By hand rather than `#[serde(untagged)]`, whose error for a bad field in
+// either form is only "did not match any variant".
+impl<'de> Deserialize<'de> for Requests {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> std::result::Result<Self, D::Error> {
+        struct Visitor;
+        impl<'de> serde::de::Visitor<'de> for Visitor {
+            type Value = Requests;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a request object or an array of them")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(self, map: A) -> std::result::Result<Requests, A::Error> {
+                EvalRequest::deserialize(serde::de::value::MapAccessDeserializer::new(map)).map(Requests::One)
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(self, seq: A) -> std::result::Result<Requests, A::Error> {
+                Vec::deserialize(serde::de::value::SeqAccessDeserializer::new(seq)).map(Requests::Many)
+            }
+        }
+        deserializer.deserialize_any(Visitor)
+    }
 }
 
 fn describe(model_path: &Path, json: bool) -> Result<()> {
@@ -303,25 +388,8 @@ fn export_controller(
         .with_context(|| format!("cannot export {}", output.display()))
 }
 
-/// `nudyn simulate`'s input.
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct SimulateRequest {
-    theta: Option<Vec<f64>>,
-    nu: Option<Vec<f64>>,
-    eps: Option<Vec<f64>>,
-    eps_rate: Option<Vec<f64>>,
-}
-
-/// `nudyn simulate`'s output: the state at each step.
-#[derive(Serialize)]
-struct Trajectory {
-    time: Vec<f64>,
-    theta: Vec<Vec<f64>>,
-    nu: Vec<Vec<f64>>,
-}
-
-fn simulate(model_path: &Path, step: f64, stop: f64, method: Method, settings: &Settings) -> Result<()> {
+/// Refuses `nudyn simulate` options that cannot describe a run.
+fn check_simulate_options(step: f64, stop: f64, settings: &Settings) -> Result<()> {
     if !(step.is_finite() && step > 0.0 && stop.is_finite() && stop >= 0.0) {
         bail!("--step must be positive and --stop non-negative, found {} and {}", number(step), number(stop));
     }
@@ -334,43 +402,5 @@ fn simulate(model_path: &Path, step: f64, stop: f64, method: Method, settings: &
     if ((steps * step - stop) / step).abs() > 1e-9 {
         bail!("--stop {} is not a multiple of --step {}", number(stop), number(step));
     }
-    let model = load_model(model_path)?;
-    let mut input = String::new();
-    std::io::stdin().read_to_string(&mut input).context("cannot read stdin")?;
-    let request: SimulateRequest = serde_json::from_str(&input).context("stdin is not a valid simulate request")?;
-    let mut sim = Simulation::new(&model, method, *settings);
-    if let Some(theta) = request.theta {
-        sim.state.theta = theta;
-    }
-    if let Some(nu) = request.nu {
-        sim.state.nu = nu;
-    }
-    let eps = request.eps.unwrap_or_else(|| vec![0.0; model.nv]);
-    let eps_rate = request.eps_rate.unwrap_or_else(|| vec![0.0; model.nv]);
-    if eps_rate.len() != model.nv {
-        bail!("eps_rate has {} entries, expected {}", eps_rate.len(), model.nv);
-    }
-    // Like the FMU at initialization: check the state and normalize its quaternions; check ε too.
-    sim.initialize(&model)?;
-    sim.evaluate_velocity(&model)?.compute_nu_dot(&model, &eps)?;
-    let mut trajectory =
-        Trajectory { time: vec![0.0], theta: vec![sim.state.theta.clone()], nu: vec![sim.state.nu.clone()] };
-    // ε(t) = eps + eps_rate·t, as the simulation's input over each step: its value at the step's start and its rate.
-    let mut eps_now = eps.clone();
-    for n in 0..steps as usize {
-        let t = n as f64 * step;
-        for ((now, e), r) in eps_now.iter_mut().zip(&eps).zip(&eps_rate) {
-            *now = e + r * t;
-        }
-        let input = Input { eps: &eps_now, eps_rate: &eps_rate };
-        let advanced =
-            sim.advance_to(&model, t + step, input).with_context(|| format!("the step from t = {t} failed"))?;
-        if let Some(relaxed) = advanced.relaxed {
-            eprintln!("warning: {relaxed}");
-        }
-        trajectory.time.push(t + step);
-        trajectory.theta.push(sim.state.theta.clone());
-        trajectory.nu.push(sim.state.nu.clone());
-    }
-    emit(&serde_json::to_string(&trajectory)?)
+    Ok(())
 }

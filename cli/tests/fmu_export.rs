@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 
 use nudyn::model::Model;
 use nudyn_cli::export::ExportError;
+use nudyn_cli::export::binary::FMI2_CO_SIMULATION_FUNCTIONS;
 use nudyn_cli::export::plant::{ExportOptions, write_fmu};
 use nudyn_contract::plant::{OptionalOutputs, PlantResource};
 use nudyn_contract::resource::Resource;
@@ -36,11 +37,28 @@ fn entries(archive: &Path) -> Vec<(String, Vec<u8>)> {
         .collect()
 }
 
+/// A shared library that exports the FMI 2.0 co-simulation functions (and
+/// does nothing), built with gcc: the exporter packs only such a library.
+fn stand_in_library(dir: &Path) -> PathBuf {
+    let source = dir.join("stand_in.c");
+    let functions: String =
+        FMI2_CO_SIMULATION_FUNCTIONS.iter().map(|name| format!("int {name}(void) {{ return 0; }}\n")).collect();
+    std::fs::write(&source, functions).unwrap();
+    let library = dir.join("libnudyn_fmu.so");
+    let status = std::process::Command::new("gcc")
+        .args(["-shared", "-fPIC", "-o"])
+        .arg(&library)
+        .arg(&source)
+        .status()
+        .expect("gcc runs");
+    assert!(status.success(), "gcc builds the stand-in library");
+    library
+}
+
 #[test]
 fn archive_holds_description_binary_and_resource() {
     let dir = scratch("archive");
-    let binary = dir.join("libnudyn_fmu.so");
-    std::fs::write(&binary, b"stand-in for the cdylib").unwrap();
+    let binary = stand_in_library(&dir);
     let model = example("bus_arm7.xml");
     let outputs: OptionalOutputs = "kinetic_energy,momentum".parse().unwrap();
     let options = ExportOptions { model_identifier: "bus".into(), outputs };
@@ -50,7 +68,7 @@ fn archive_holds_description_binary_and_resource() {
     let entries = entries(&fmu);
     let names: Vec<&str> = entries.iter().map(|(n, _)| n.as_str()).collect();
     assert_eq!(names, ["modelDescription.xml", "binaries/linux64/bus.so", "resources/model.json"]);
-    assert_eq!(entries[1].1, b"stand-in for the cdylib");
+    assert_eq!(entries[1].1, std::fs::read(&binary).unwrap());
 
     let xml = String::from_utf8(entries[0].1.clone()).unwrap();
     let description = modeldescription::from_xml(&xml).unwrap();
@@ -85,4 +103,17 @@ fn bad_model_identifier_is_refused() {
     let error =
         write_fmu(&example("fixed_rig.xml"), &options, &dir.join("missing.so"), &dir.join("x.fmu")).unwrap_err();
     assert!(matches!(error, ExportError::ModelIdentifier(_)), "{error}");
+}
+
+#[test]
+fn a_file_that_is_no_fmu_binary_is_refused_before_anything_is_written() {
+    let dir = scratch("not-a-binary");
+    let binary = dir.join("libnudyn_fmu.so");
+    std::fs::write(&binary, b"not a shared library").unwrap();
+    let options = ExportOptions { model_identifier: "rig".into(), outputs: OptionalOutputs::default() };
+    let fmu = dir.join("rig.fmu");
+    let error = write_fmu(&example("fixed_rig.xml"), &options, &binary, &fmu).unwrap_err();
+    assert!(matches!(error, ExportError::Binary { .. }), "{error}");
+    assert!(error.to_string().contains("it is not a shared library"), "{error}");
+    assert!(!fmu.exists());
 }

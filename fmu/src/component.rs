@@ -338,7 +338,8 @@ pub enum CallError {
     StepSize(f64),
     /// The step needs more internal steps than the plant allows in one call.
     #[error(
-        "communicationStepSize = {step} with max_step = {max_step} needs {needed:e} internal steps, more than {limit:e}"
+        "communicationStepSize = {step} with max_step = {max_step} needs {needed:e} internal steps, more than the \
+         {limit:e} one fmi2DoStep may take: a larger max_step or a shorter communication step lets it through"
     )]
     TooLong {
         /// The step.

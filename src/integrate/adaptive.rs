@@ -118,16 +118,23 @@ pub enum AdvanceError {
         /// What went wrong in the last attempt, if something overflowed rather than the error test failing.
         cause: Option<Overflow>,
     },
-    /// The interval needs more internal steps than one call may take.
+    /// The error control kept the steps so short that the interval needs
+    /// more of them than one call may take.
     #[error(
-        "{MAX_ADAPTIVE_STEPS} internal steps (the last {step:e} s) reached only t = {reached} s: \
-         the motion is too fast or stiff for tolerance {tolerance:e}"
+        "{limit} internal steps reached only t = {reached} s: the error control held the step to {step:e} s \
+         (max_step {max_step:e} s), as the motion is too fast or stiff for tolerance {tolerance:e}; \
+         a looser tolerance, or shorter intervals (each may take {MAX_ADAPTIVE_STEPS} steps beyond those \
+         max_step requires), lets it through"
     )]
     TooManySteps {
         /// Where the state stays.
         reached: f64,
         /// The last step size.
         step: f64,
+        /// The steps this call could take.
+        limit: usize,
+        /// The longest step allowed.
+        max_step: f64,
         /// The tolerance.
         tolerance: f64,
     },
@@ -174,10 +181,20 @@ pub enum Overflow {
     },
 }
 
-/// Most attempted steps in one call of an adaptive method, so that a host
-/// is never stalled by steps that progress only by round-off (as `nmax` in
-/// Hairer's codes).
+/// Most attempted steps in one call of an adaptive method beyond the
+/// interval / max_step that `max_step` itself requires, so that a host is
+/// never stalled by an error control that holds the step far below what
+/// was asked for (as `nmax` in Hairer's codes, but scaled with the interval:
+/// a long interval of slow motion is work asked for, not a failure).
 pub const MAX_ADAPTIVE_STEPS: usize = 100_000;
+
+/// The steps a call over `interval` may take: [`MAX_ADAPTIVE_STEPS`] beyond
+/// those that `max_step` requires.
+pub fn step_limit(interval: f64, max_step: f64) -> usize {
+    // `as` saturates: an unbounded max_step requires no steps, a tiny one usize::MAX.
+    let required = (interval / max_step).ceil() as usize;
+    MAX_ADAPTIVE_STEPS.saturating_add(required)
+}
 
 /// The tolerance is the error allowed per this much simulated time (s):
 /// each step's local error is held to tol·h/(1 s) ("error per unit step"),
@@ -268,6 +285,7 @@ impl Simulation {
         // Within this of t1 the interval is done: a step that small is only
         // round-off, and the smallest step allowed below could not take it.
         let end_slack = 16.0 * f64::EPSILON * t1.abs().max(1.0);
+        let limit = step_limit(t1 - t0, settings.max_step);
         while t1 - t > end_slack {
             let planned = h.min(settings.max_step);
             let remaining = t1 - t;
@@ -275,8 +293,9 @@ impl Simulation {
             if step < 16.0 * f64::EPSILON * t.abs().max(1.0) {
                 return Err(AdvanceError::StepTooSmall { reached: t, step, tolerance, cause: last_cause });
             }
-            if stats.accepted + stats.rejected >= MAX_ADAPTIVE_STEPS {
-                return Err(AdvanceError::TooManySteps { reached: t, step, tolerance });
+            if stats.accepted + stats.rejected >= limit {
+                let max_step = settings.max_step;
+                return Err(AdvanceError::TooManySteps { reached: t, step, limit, max_step, tolerance });
             }
             let per_step = match integrator.attempt(model, ws, (theta, nu), (t, step), eps_at) {
                 Ok(()) => integrator.error_norm(model, theta, nu, tolerance),

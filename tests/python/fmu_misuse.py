@@ -633,7 +633,7 @@ def bad_step_sizes(h: Harness):
     for step in (0.0, -STEP, -0.0, math.nan, math.inf, -math.inf):
         h.step(c, 0.0, ERROR, h=step, says=("communicationStepSize",))
         h.expect(OK, "fmi2SetFMUstate", c, saved)
-    h.step(c, 0.0, ERROR, h=1e300, says=("internal steps",))
+    h.step(c, 0.0, ERROR, h=1e300, says=("internal steps", "a larger max_step or a shorter communication step"))
     h.expect(OK, "fmi2SetFMUstate", c, saved)
     h.step(c, 0.0)
 
@@ -648,6 +648,32 @@ def tiny_max_step(h: Harness):
     h.expect(OK, "fmi2EnterInitializationMode", c)
     h.expect(OK, "fmi2ExitInitializationMode", c)
     h.step(c, 0.0, ERROR, says=("internal steps",))
+
+
+@case("long communication steps")
+def long_step_at_rest(h: Harness):
+    """One step of 1010 s of a vehicle at rest (as FMPy's simulate_fmu with a
+    huge stop time asks for) needs 101 000 internal steps of max_step = 0.01:
+    work asked for, done, not refused."""
+    c = h.initialized()
+    h.step(c, 0.0, OK, h=1010.0)
+    assert h.get_real(c, ["nu[1]"]) == [0.0]
+
+
+@case("long communication steps")
+def error_control_step_limit(h: Harness):
+    """A tumble at 300 rad/s with tolerance 1e-12 holds the error control's
+    steps far below max_step: after 100 000 steps the step is discarded,
+    with the reason and what lets it through."""
+    c = h.instantiate()
+    h.set_real(OK, c, {"tolerance": 1e-12, "max_step": 1e3})
+    h.expect(OK, "fmi2SetupExperiment", c, 0, 0.0, 0.0, 0, 0.0)
+    h.expect(OK, "fmi2EnterInitializationMode", c)
+    h.set_real(OK, c, {"nu[4]": 300.0, "nu[5]": -200.0, "nu[7]": 100.0})
+    h.expect(OK, "fmi2ExitInitializationMode", c)
+    h.step(c, 0.0, DISCARD, h=1e3, says=("100001 internal steps reached only", "too fast or stiff for tolerance 1e-12",
+                                         "a looser tolerance, or shorter intervals"))
+    assert 0.0 < h.last_successful_time(c) < 1e3
 
 
 @case("communication point that does not match")

@@ -72,10 +72,23 @@ def test_empty_input(nudyn):
 
 
 def test_non_number_entry(nudyn, good):
+    """A value of the wrong type is named by its place, 1-based like the
+    FMU's variables (qvel[2] is the second entry)."""
     req, _, _ = good
     req = dict(req)
-    req["qvel"] = ["fast"] + req["qvel"][1:]
-    expect_error(run_eval(nudyn, MODEL, json.dumps(req)), r"qvel|expected|number|invalid")
+    req["qvel"] = [0.1, "fast"] + req["qvel"][2:]
+    expect_error(run_eval(nudyn, MODEL, json.dumps(req)), r"qvel\[2\]: invalid type: string \"fast\", expected f64")
+
+
+def test_wrong_type_in_an_array_of_requests(nudyn, good):
+    req, _, _ = good
+    bad = {**req, "theta": {"w": 1}}
+    expect_error(run_eval(nudyn, MODEL, json.dumps([req, req, bad])), r"request 2, theta: invalid type: map")
+
+
+def test_unknown_field_is_named(nudyn, good):
+    req, _, _ = good
+    expect_error(run_eval(nudyn, MODEL, json.dumps({**req, "omega": [0.0]})), r"unknown field `omega`")
 
 
 def test_bad_element_in_array(nudyn, good):
@@ -88,4 +101,6 @@ def test_bad_element_in_array(nudyn, good):
 def test_missing_model_file(nudyn, good, tmp_path):
     req, _, _ = good
     missing = tmp_path / "no_such_vehicle.xml"
-    expect_error(run_eval(nudyn, missing, json.dumps(req)), r"no_such_vehicle")
+    result = run_eval(nudyn, missing, json.dumps(req))
+    expect_error(result, r"no_such_vehicle")
+    assert result.stderr.count("No such file or directory") == 1, "the OS error is said once"

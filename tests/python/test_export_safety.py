@@ -61,3 +61,47 @@ def test_a_failed_export_keeps_what_was_there(nudyn, fmu_library, tmp_path):
     assert proc.returncode == 1 and "occupied.fmu" in proc.stderr, proc.stderr
     assert (occupied / "keep").read_text() == "kept"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["occupied.fmu", "rig.fmu"], "no temporary file is left"
+
+
+def shared_library(tmp_path, name, functions):
+    """A shared library built with gcc, exporting `functions`."""
+    source = tmp_path / f"{name}.c"
+    source.write_text("".join(f"int {f}(void) {{ return 0; }}\n" for f in functions) or "int nothing;\n")
+    library = tmp_path / f"{name}.so"
+    subprocess.run(["gcc", "-shared", "-fPIC", "-o", str(library), str(source)], check=True)
+    return library
+
+
+def test_a_binary_that_cannot_be_the_fmus_is_refused(nudyn, fmu_library, tmp_path):
+    """NUDYN_FMU_LIB must name an x86_64 Linux shared library exporting the
+    FMI 2.0 co-simulation functions: anything else is refused before an
+    FMU is written, with what the file is instead."""
+    text = tmp_path / "passwd"
+    text.write_text("root:x:0:0:root:/root:/bin/bash\n")
+    relocatable = tmp_path / "object.o"
+    subprocess.run(["gcc", "-c", "-x", "c", "-o", str(relocatable), "-"], input="int f(void) { return 0; }\n",
+                   text=True, check=True)
+    partial = ["fmi2Instantiate", "fmi2DoStep"]
+    cases = {
+        text: "it is not a shared library",
+        relocatable: "it is an ELF file of kind Relocatable, not a shared library",
+        shared_library(tmp_path, "unrelated", []): "it is a shared library that exports none of the 34 FMI 2.0 co-simulation functions",
+        shared_library(tmp_path, "partial", partial): "it is a shared library that does not export 32 of the FMI 2.0 co-simulation functions "
+                                                      "(fmi2GetTypesPlatform, fmi2GetVersion,",
+    }
+    fmu = tmp_path / "rig.fmu"
+    for library, says in cases.items():
+        env = {**os.environ, "NUDYN_FMU_LIB": str(library)}
+        proc = subprocess.run([str(nudyn), "export", str(MODEL), "-o", str(fmu)], capture_output=True, text=True,
+                              env=env)
+        assert proc.returncode == 1, proc.stderr
+        assert f"{library} cannot be the FMU's binary: {says}" in proc.stderr, proc.stderr
+        assert not fmu.exists()
+    assert export(nudyn, fmu_library, MODEL, fmu).returncode == 0
+
+
+def test_an_os_error_is_said_once(nudyn, fmu_library, tmp_path):
+    proc = export(nudyn, fmu_library, MODEL, tmp_path / "missing" / "rig.fmu")
+    assert proc.returncode == 1
+    assert proc.stderr.strip() == (f"nudyn: error: cannot export {tmp_path}/missing/rig.fmu: {tmp_path}/missing: "
+                                   "No such file or directory (os error 2)")

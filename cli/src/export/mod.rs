@@ -5,6 +5,7 @@
 //! descriptions a person reads) and zips it with the binary and the
 //! resource file.
 
+pub mod binary;
 pub mod controller;
 pub mod plant;
 
@@ -40,6 +41,14 @@ pub enum ExportError {
         path: PathBuf,
         /// The cause.
         source: std::io::Error,
+    },
+    /// The file given as the FMU's binary cannot be one.
+    #[error("{} cannot be the FMU's binary: {reason}", path.display())]
+    Binary {
+        /// The file.
+        path: PathBuf,
+        /// What it is instead.
+        reason: String,
     },
     /// The archive cannot be written.
     #[error("cannot write {}: {source}", path.display())]
@@ -188,6 +197,8 @@ fn write_archive<R: Resource>(
     }
     let xml = md::to_xml(description)?;
     let library = std::fs::read(binary).map_err(|source| ExportError::Io { path: binary.to_path_buf(), source })?;
+    binary::check_linux64_library(&library)
+        .map_err(|reason| ExportError::Binary { path: binary.to_path_buf(), reason })?;
 
     // Written to a temporary file beside `out`, synced, then renamed over
     // it: a failure (a full disk) or a concurrent export never leaves a
@@ -197,8 +208,14 @@ fn write_archive<R: Resource>(
         _ => Path::new("."),
     };
     let io_error = |source| ExportError::Io { path: out.to_path_buf(), source };
-    let staged =
-        tempfile::Builder::new().prefix(".nudyn-export-").suffix(".fmu").tempfile_in(directory).map_err(io_error)?;
+    let directory_error = |source| ExportError::Io { path: directory.to_path_buf(), source };
+    std::fs::metadata(directory).map_err(directory_error)?;
+    let staged = tempfile::Builder::new()
+        .prefix(".nudyn-export-")
+        .suffix(".fmu")
+        .tempfile_in(directory)
+        // tempfile's message names the random file it tried, which means nothing to the user.
+        .map_err(|error| directory_error(std::io::Error::from(error.kind())))?;
     let zip_error = |source| ExportError::Zip { path: out.to_path_buf(), source };
     let mut archive = zip::ZipWriter::new(staged.as_file());
     let options_for = |mode| {
