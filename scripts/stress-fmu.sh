@@ -68,6 +68,28 @@ export RUSTC_BOOTSTRAP=1
 SEEDS="$WORK/seeds"
 mkdir -p "$SEEDS/mjcf_import" "$SEEDS/resource_loader" "$SEEDS/state_deserializer" "$SEEDS/call_sequence"
 cp examples/*.xml tests/fixtures/mjcf/*.xml "$SEEDS/mjcf_import/"
+# Deep trees (bodies and default classes 1500 levels deep) and orientations
+# at the edges of floating point.
+.venv/bin/python - "$SEEDS/mjcf_import" <<'SEEDS'
+import sys
+from pathlib import Path
+out = Path(sys.argv[1])
+depth = 1500
+bodies = "".join(f'<body pos="0 0 .1"><joint axis="1 0 0"/><geom size=".05"/>' for _ in range(depth))
+out.joinpath("deep_chain.xml").write_text(
+    f'<mujoco><worldbody><body><freejoint/><geom size=".1"/>{bodies}{"</body>" * (depth + 1)}</worldbody></mujoco>')
+classes = "".join(f'<default class="c{i}">' for i in range(depth))
+out.joinpath("deep_defaults.xml").write_text(
+    f'<mujoco><default><joint damping="1"/>{classes}{"</default>" * (depth + 1)}'
+    f'<worldbody><body><joint class="c{depth - 1}"/><geom size=".1"/></body></worldbody></mujoco>')
+def bodies_turned(orientations):
+    return "<mujoco><worldbody>" + "".join(
+        f'<body {o}><joint type="ball"/><geom size=".1"/></body>' for o in orientations) + "</worldbody></mujoco>"
+out.joinpath("extreme_orientations.xml").write_text(bodies_turned(
+    ['quat="1e300 0 0 1e300"', 'quat="1e-12 0 1e-12 0"', 'zaxis="1e200 0 1e200"', 'axisangle="1e300 0 0 30"',
+     'xyaxes="1e200 0 0 0 1e200 0"']))
+out.joinpath("tiny_quaternion.xml").write_text(bodies_turned(['quat="1e-16 0 0 5e-324"']))
+SEEDS
 cp "$WORK/bus/resources/model.json" "$SEEDS/resource_loader/bus_arm7.json"
 for example in fixed_rig flexible_boom; do
     target/release/nudyn export "examples/$example.xml" -o "$WORK/$example.fmu" >/dev/null
