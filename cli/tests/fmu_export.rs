@@ -75,8 +75,24 @@ fn archive_holds_description_binary_and_resource() {
     assert!(modeldescription::validate(&description).is_empty());
     assert_eq!(description.guid, PlantResource::new(model, outputs).guid(&entries[2].1));
     assert_eq!(description.co_simulation.model_identifier, "bus");
-    // method, energy_projection, tolerance, max_step, eps (13), theta (14), nu (13), kinetic_energy, momentum (6)
-    assert_eq!(description.model_variables.len(), 4 + 13 + 14 + 13 + 1 + 6);
+    // method, energy_projection, tolerance, max_step, eps (13), theta (14), nu (13), kinetic_energy, momentum (6),
+    // der(theta) (14), der(nu) (13)
+    assert_eq!(description.model_variables.len(), 4 + 13 + 14 + 13 + 1 + 6 + 14 + 13);
+    let me = description.model_exchange.as_ref().expect("model exchange is served");
+    assert_eq!((me.model_identifier.as_str(), me.completed_integrator_step_not_needed), ("bus", true));
+    let derivatives = &description.model_structure.derivatives;
+    assert_eq!(derivatives.len(), 14 + 13);
+    for (k, unknown) in derivatives.iter().enumerate() {
+        let derivative = &description.model_variables[unknown.index as usize - 1];
+        let state = match &derivative.kind {
+            modeldescription::VariableKind::Real(real) => real.derivative.expect("a derivative names its state"),
+            other => panic!("{other:?}"),
+        };
+        let state_name = &description.model_variables[state as usize - 1].name;
+        assert_eq!(derivative.name, format!("der({state_name})"));
+        let expected = if k < 14 { format!("theta[{}]", k + 1) } else { format!("nu[{}]", k - 13) };
+        assert_eq!(state_name, &expected);
+    }
     let theta8 = description.model_variables.iter().find(|v| v.name == "theta[8]").unwrap();
     assert!(theta8.description.as_deref().unwrap().contains("hinge joint"), "{:?}", theta8.description);
     assert!(theta8.description.as_deref().unwrap().ends_with("(rad)"), "{:?}", theta8.description);

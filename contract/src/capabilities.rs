@@ -1,5 +1,5 @@
-//! The co-simulation capability flags of each kind of nudyn FMU: the
-//! exporter writes them into `<CoSimulation>`, and the FMU refuses what
+//! The capability flags of each kind of nudyn FMU: the exporter writes them
+//! into `<CoSimulation>` and `<ModelExchange>`, and the FMU refuses what
 //! they deny from the same value.
 
 /// What an FMU can do, beyond the calls every FMU serves.
@@ -17,4 +17,6 @@ pub struct Capabilities {
     pub provides_directional_derivative: bool,
     /// canHandleVariableCommunicationStepSize.
     pub can_handle_variable_communication_step_size: bool,
+    /// Whether the FMU also serves model exchange (a `<ModelExchange>` element).
+    pub model_exchange: bool,
 }

@@ -26,6 +26,7 @@ pub const CAPABILITIES: Capabilities = Capabilities {
     can_serialize_fmu_state: false,
     provides_directional_derivative: false,
     can_handle_variable_communication_step_size: true,
+    model_exchange: false,
 };
 
 /// `resources/controller.json`: what the controller FMU loads.

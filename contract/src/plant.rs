@@ -49,7 +49,14 @@ pub fn method_items() -> String {
     Method::ALL.iter().map(|&m| format!("{} = {}", method_value(m), m.name())).collect::<Vec<_>>().join(", ")
 }
 
-/// What the plant FMU can do.
+/// What a plant FMU with `outputs` can do: model exchange, unless it has
+/// the energy residual, whose work integral only the FMU's own integration
+/// keeps.
+pub fn capabilities(outputs: OptionalOutputs) -> Capabilities {
+    Capabilities { model_exchange: !outputs.energy_residual, ..CAPABILITIES }
+}
+
+/// What the plant FMU can do, at most.
 pub const CAPABILITIES: Capabilities = Capabilities {
     can_interpolate_inputs: true,
     max_output_derivative_order: 1,
@@ -57,6 +64,7 @@ pub const CAPABILITIES: Capabilities = Capabilities {
     can_serialize_fmu_state: true,
     provides_directional_derivative: false,
     can_handle_variable_communication_step_size: true,
+    model_exchange: true,
 };
 
 /// The optional outputs chosen at export; those not chosen do not exist in
@@ -174,6 +182,10 @@ pub enum RealVariable {
     Momentum(usize),
     /// Optional output `energy_residual`.
     EnergyResidual,
+    /// `der(theta[k+1])`: the qpos rate, a state derivative of model exchange.
+    DerTheta(usize),
+    /// `der(nu[k+1])`: ν̇, a state derivative of model exchange.
+    DerNu(usize),
 }
 
 impl RealVariable {
@@ -190,6 +202,8 @@ impl RealVariable {
             RealVariable::Power => "power".into(),
             RealVariable::Momentum(k) => format!("momentum[{}]", k + 1),
             RealVariable::EnergyResidual => "energy_residual".into(),
+            RealVariable::DerTheta(k) => format!("der(theta[{}])", k + 1),
+            RealVariable::DerNu(k) => format!("der(nu[{}])", k + 1),
         }
     }
 
@@ -201,6 +215,7 @@ impl RealVariable {
             RealVariable::Tolerance | RealVariable::MaxStep => Kind::fixed_parameter(Range::Positive),
             RealVariable::Eps(_) => Kind::INPUT,
             RealVariable::Theta(_) | RealVariable::Nu(_) => Kind::STATE_OUTPUT,
+            RealVariable::DerTheta(_) | RealVariable::DerNu(_) => Kind::DERIVATIVE,
             _ => Kind::CALCULATED_OUTPUT,
         }
     }
@@ -216,16 +231,18 @@ impl RealVariable {
         }
     }
 
-    /// Whether the output feeds through from the inputs at a communication
-    /// point (only the power, ν·ε, does).
-    pub fn depends_on_inputs(self) -> bool {
-        self == RealVariable::Power
+    /// Whether it is a state derivative of model exchange.
+    pub fn is_derivative(self) -> bool {
+        matches!(self, RealVariable::DerTheta(_) | RealVariable::DerNu(_))
     }
 }
 
 /// The plant's Real variables and their value references: consecutive
 /// blocks after the two parameters, `tolerance` (1) and `max_step` (2), in
-/// the order eps, theta, nu, then the chosen optional outputs.
+/// the order eps, theta, nu, the chosen optional outputs, then the state
+/// derivatives der(theta) and der(nu) of model exchange, when the FMU serves
+/// it (last, so that the blocks before keep the value references they had
+/// before model exchange).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Layout {
     /// Number of position coordinates.
@@ -245,7 +262,8 @@ impl Layout {
     /// The blocks in value-reference order: (first value reference, length, variable of index k).
     fn blocks(&self) -> impl Iterator<Item = (u32, usize, VariableOf<RealVariable>)> {
         let o = self.outputs;
-        let blocks: [(usize, VariableOf<RealVariable>); 10] = [
+        let model_exchange = capabilities(o).model_exchange;
+        let blocks: [(usize, VariableOf<RealVariable>); 12] = [
             (1, |_| RealVariable::Tolerance),
             (1, |_| RealVariable::MaxStep),
             (self.nv, RealVariable::Eps),
@@ -256,6 +274,8 @@ impl Layout {
             (usize::from(o.power), |_| RealVariable::Power),
             (if o.momentum { 6 } else { 0 }, RealVariable::Momentum),
             (usize::from(o.energy_residual), |_| RealVariable::EnergyResidual),
+            (if model_exchange { self.nq } else { 0 }, RealVariable::DerTheta),
+            (if model_exchange { self.nv } else { 0 }, RealVariable::DerNu),
         ];
         numbered_blocks(METHOD_VR + 1, blocks)
     }
@@ -299,7 +319,8 @@ mod tests {
     fn value_references_are_consecutive_and_decode() {
         let layout = Layout { nq: 7, nv: 6, outputs: "qvel,power,momentum".parse().unwrap() };
         let all: Vec<(u32, RealVariable)> = layout.real_variables().collect();
-        assert_eq!(all.len(), 2 + 6 + 7 + 6 + 6 + 1 + 6);
+        // Parameters, eps, theta, nu, qvel, power, momentum, der(theta), der(nu).
+        assert_eq!(all.len(), 2 + 6 + 7 + 6 + 6 + 1 + 6 + 7 + 6);
         for (k, &(vr, variable)) in all.iter().enumerate() {
             assert_eq!(vr, k as u32 + 1);
             assert_eq!(layout.real_variable(vr), Some(variable));
@@ -308,6 +329,11 @@ mod tests {
         assert_eq!(layout.real_variable(all.len() as u32 + 1), None);
         assert_eq!(layout.value_reference(RealVariable::Theta(0)), Some(9));
         assert_eq!(layout.value_reference(RealVariable::KineticEnergy), None);
+        assert_eq!(layout.value_reference(RealVariable::DerNu(5)), Some(all.len() as u32));
+        // The energy residual's work integral is kept by the FMU's own integration only: no model exchange.
+        let residual = Layout { nq: 7, nv: 6, outputs: "energy_residual".parse().unwrap() };
+        assert!(residual.real_variables().all(|(_, v)| !v.is_derivative()));
+        assert!(!capabilities(residual.outputs).model_exchange);
     }
 
     #[test]

@@ -12,6 +12,8 @@ pub enum Causality {
     Input,
     /// An output.
     Output,
+    /// Neither input nor output: a state derivative of model exchange.
+    Local,
 }
 
 /// FMI's variability, of the values nudyn uses.
@@ -85,6 +87,14 @@ impl Kind {
         range: Range::Any,
     };
 
+    /// The time derivative of a continuous state (model exchange), calculated.
+    pub const DERIVATIVE: Kind = Kind {
+        causality: Causality::Local,
+        variability: Variability::Continuous,
+        exact_start: false,
+        range: Range::Any,
+    };
+
     /// Why the variable cannot be set now, if it cannot: "after
     /// initialization" or "at all: it is a calculated output".
     /// `initialized`: after fmi2ExitInitializationMode.
@@ -93,6 +103,7 @@ impl Kind {
             self.variability == Variability::Fixed || (self.causality == Causality::Output && self.exact_start);
         match self.causality {
             Causality::Output if !self.exact_start => Some("at all: it is a calculated output"),
+            Causality::Local => Some("at all: it is a state derivative, calculated"),
             _ if fixed_after_start && initialized => Some("after initialization"),
             _ => None,
         }

@@ -179,3 +179,69 @@ pub fn do_step(component: &mut dyn Component, time: f64, step: f64) -> Result<Op
     }
     component.do_step(time, step).map_err(Stepped::Failed)
 }
+
+/// The number of continuous states, checked against an array's length `n`.
+fn state_count(component: &dyn Component, what: &'static str, n: usize) -> Result<usize, CallError> {
+    let expected = component.continuous_state_count().ok_or(CallError::NotProvided("model exchange"))?;
+    if n != expected {
+        return Err(CallError::StateCount { what, found: n, expected });
+    }
+    Ok(expected)
+}
+
+/// fmi2SetContinuousStates: the count, and every value finite (a host
+/// whose integration blew up gets fmi2Discard, and the states stay).
+pub fn set_continuous_states(component: &mut dyn Component, x: &[f64]) -> Result<(), CallError> {
+    state_count(component, "x", x.len())?;
+    if let Some((index, &value)) = x.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        return Err(CallError::NonFiniteState { index, value });
+    }
+    component.set_continuous_states(x);
+    Ok(())
+}
+
+/// fmi2GetContinuousStates.
+pub fn get_continuous_states(component: &dyn Component, x: &mut [f64]) -> Result<(), CallError> {
+    state_count(component, "x", x.len())?;
+    component.continuous_states(x);
+    Ok(())
+}
+
+/// fmi2GetDerivatives: computed in full and checked finite before any is
+/// written, so that a refusal leaves the host's buffer as it was.
+pub fn get_derivatives(component: &mut dyn Component, dx: &mut [f64]) -> Result<(), CallError> {
+    let n = state_count(component, "derivatives", dx.len())?;
+    component.prepare_derivatives()?;
+    if let Some((index, value)) = (0..n).map(|i| (i, component.derivative(i))).find(|(_, v)| !v.is_finite()) {
+        return Err(CallError::NonFiniteOutput { name: format!("dx[{index}]/dt (0-based)"), value });
+    }
+    dx.iter_mut().enumerate().for_each(|(i, d)| *d = component.derivative(i));
+    Ok(())
+}
+
+/// fmi2GetNominalsOfContinuousStates: 1 for every state (angles, unit
+/// quaternions, positions in m and ν in √J are all of order one).
+pub fn get_nominals(component: &dyn Component, nominals: &mut [f64]) -> Result<(), CallError> {
+    state_count(component, "x_nominal", nominals.len())?;
+    nominals.fill(1.0);
+    Ok(())
+}
+
+/// fmi2GetEventIndicators: there are none.
+pub fn get_event_indicators(component: &dyn Component, n: usize) -> Result<(), CallError> {
+    component.continuous_state_count().ok_or(CallError::NotProvided("model exchange"))?;
+    if n != 0 {
+        return Err(CallError::EventIndicators(n));
+    }
+    Ok(())
+}
+
+/// fmi2SetTime: a finite time.
+pub fn set_time(component: &mut dyn Component, time: f64) -> Result<(), CallError> {
+    component.continuous_state_count().ok_or(CallError::NotProvided("model exchange"))?;
+    if !time.is_finite() {
+        return Err(CallError::NonFinite { name: "time".into(), value: time });
+    }
+    component.set_time(time);
+    Ok(())
+}

@@ -126,6 +126,31 @@ pub trait Component {
         false
     }
 
+    /// Model exchange: the number of continuous states; `None` when the
+    /// component does not serve model exchange.
+    fn continuous_state_count(&self) -> Option<usize> {
+        None
+    }
+
+    /// fmi2SetTime: the time at which the host evaluates next.
+    fn set_time(&mut self, _time: f64) {}
+
+    /// fmi2GetContinuousStates into `x` (checked to have the count).
+    fn continuous_states(&self, _x: &mut [f64]) {}
+
+    /// fmi2SetContinuousStates from `x` (checked: the count, finite values).
+    fn set_continuous_states(&mut self, _x: &[f64]) {}
+
+    /// Computes dx/dt at the current time, states and inputs (fmi2GetDerivatives).
+    fn prepare_derivatives(&mut self) -> Result<(), CallError> {
+        Err(CallError::NotProvided("model exchange"))
+    }
+
+    /// dx[i]/dt, after [`Component::prepare_derivatives`].
+    fn derivative(&self, _i: usize) -> f64 {
+        f64::NAN
+    }
+
     /// A new FMU state, taken in `phase` (only with canGetAndSetFMUstate).
     fn snapshot(&self, _phase: Phase) -> Result<Snapshot, CallError> {
         Err(CallError::NoFmuState)
@@ -297,6 +322,27 @@ pub enum CallError {
         /// "positive" or "non-negative".
         must: &'static str,
     },
+    /// An array of continuous states or derivatives of the wrong length.
+    #[error("{what} has {found} entries, but the FMU has {expected} continuous states")]
+    StateCount {
+        /// The argument.
+        what: &'static str,
+        /// Its length.
+        found: usize,
+        /// The number of continuous states.
+        expected: usize,
+    },
+    /// A continuous state that is NaN or ±Inf.
+    #[error("continuous state x[{index}] = {value} is not finite")]
+    NonFiniteState {
+        /// 0-based index into x.
+        index: usize,
+        /// The value.
+        value: f64,
+    },
+    /// Event indicators asked of an FMU that has none.
+    #[error("ni = {0}, but the FMU has no event indicators")]
+    EventIndicators(usize),
     /// A stop time before the start time.
     #[error("stopTime = {stop_time} is before startTime = {start_time}")]
     StopBeforeStart {
@@ -397,7 +443,13 @@ impl CallError {
     /// not positive, not an enumeration item): fmi2Discard from fmi2SetXXX
     /// (FMI 2.0 §2.1.3, footnote 3).
     pub fn is_out_of_range(&self) -> bool {
-        matches!(self, CallError::NonFinite { .. } | CallError::OutOfRange { .. } | CallError::UnknownMethod(_))
+        matches!(
+            self,
+            CallError::NonFinite { .. }
+                | CallError::OutOfRange { .. }
+                | CallError::UnknownMethod(_)
+                | CallError::NonFiniteState { .. }
+        )
     }
 }
 

@@ -1,5 +1,5 @@
-//! The generic FMI 2.0 co-simulation layer: every exported `fmi2*`
-//! function, and all of the crate's `unsafe`.
+//! The generic FMI 2.0 layer, co-simulation and model exchange: every
+//! exported `fmi2*` function, and all of the crate's `unsafe`.
 //!
 //! Each function checks its pointers, checks the instance's state against
 //! the table in [`crate::state`], then calls the instance's
@@ -61,9 +61,18 @@ enum FmiError {
         /// The state's name.
         phase: &'static str,
     },
-    /// fmi2Instantiate asked for model exchange.
-    #[error("fmuType = {0}: this FMU supports co-simulation (fmi2CoSimulation = 1) only")]
-    NotCoSimulation(fmi2Type),
+    /// fmi2Instantiate asked for an interface that is not one of FMI 2.0's.
+    #[error("fmuType = {0} is neither fmi2ModelExchange (0) nor fmi2CoSimulation (1)")]
+    UnknownType(fmi2Type),
+    /// fmi2Instantiate asked for model exchange of an FMU that does not serve it.
+    #[error(
+        "fmuType = fmi2ModelExchange: this FMU serves co-simulation (fmi2CoSimulation = 1) only (its \
+         modelDescription has no <ModelExchange>: a controller FMU, or a plant with the energy_residual output)"
+    )]
+    NoModelExchange,
+    /// fmi2SetFMUstate with a state saved by an instance of the other interface.
+    #[error("the FMU state was saved in state {0} of the other interface (co-simulation or model exchange)")]
+    OtherInterface(&'static str),
     /// A required pointer is NULL.
     #[error("{0} is NULL")]
     Null(&'static str),
@@ -153,9 +162,28 @@ impl Logger {
     }
 }
 
+/// The interface an instance was instantiated for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Interface {
+    ModelExchange,
+    CoSimulation,
+}
+
+impl Interface {
+    /// Whether `phase` is one of this interface's state machine.
+    fn has(self, phase: Phase) -> bool {
+        match phase {
+            Phase::StepComplete | Phase::StepFailed => self == Interface::CoSimulation,
+            Phase::EventMode | Phase::ContinuousTimeMode => self == Interface::ModelExchange,
+            _ => true,
+        }
+    }
+}
+
 /// One FMU instance: the logger, the state machine and the component (plant or controller).
 struct Instance {
     logger: Logger,
+    interface: Interface,
     phase: Phase,
     component: Box<dyn Component>,
     /// The FMU states handed out by this instance and not yet freed (addresses).
@@ -362,10 +390,12 @@ pub unsafe extern "C" fn fmi2Instantiate(
     // SAFETY: NUL-terminated by the standard when non-NULL.
     let name = unsafe { string(instance_name, "instanceName") }.unwrap_or_else(|_| "(NULL)".into());
     let logger = Logger::new(functions, CString::new(name.replace('\0', " ")).expect("NULs replaced"), logging_on != 0);
-    let instantiate = || -> Result<Box<dyn Component>, FmiError> {
-        if fmu_type != fmi2Type_fmi2CoSimulation {
-            return Err(FmiError::NotCoSimulation(fmu_type));
-        }
+    let instantiate = || -> Result<(Interface, Box<dyn Component>), FmiError> {
+        let interface = match fmu_type {
+            fmi2Type_fmi2ModelExchange => Interface::ModelExchange,
+            fmi2Type_fmi2CoSimulation => Interface::CoSimulation,
+            other => return Err(FmiError::UnknownType(other)),
+        };
         if instance_name.is_null() {
             return Err(FmiError::Null("instanceName"));
         }
@@ -373,12 +403,16 @@ pub unsafe extern "C" fn fmi2Instantiate(
         let guid = unsafe { string(fmu_guid, "fmuGUID") }?;
         // SAFETY: as above.
         let location = unsafe { string(fmu_resource_location, "fmuResourceLocation") }?;
-        Ok(component::load(&location, &guid)?)
+        let component = component::load(&location, &guid)?;
+        if interface == Interface::ModelExchange && component.continuous_state_count().is_none() {
+            return Err(FmiError::NoModelExchange);
+        }
+        Ok((interface, component))
     };
     match catch_unwind(AssertUnwindSafe(instantiate)) {
-        Ok(Ok(component)) => {
-            let instance =
-                Instance { logger, phase: Phase::Instantiated, component, states: BTreeSet::new(), warning: None };
+        Ok(Ok((interface, component))) => {
+            let phase = Phase::Instantiated;
+            let instance = Instance { logger, interface, phase, component, states: BTreeSet::new(), warning: None };
             let c = Box::into_raw(Box::new(instance));
             instances().insert(c as usize);
             c as fmi2Component
@@ -485,7 +519,10 @@ pub unsafe extern "C" fn fmi2ExitInitializationMode(c: fmi2Component) -> fmi2Sta
     unsafe {
         enter(c, Function::ExitInitializationMode, |instance| {
             instance.component.initialize()?;
-            instance.phase = Phase::StepComplete;
+            instance.phase = match instance.interface {
+                Interface::CoSimulation => Phase::StepComplete,
+                Interface::ModelExchange => Phase::EventMode,
+            };
             Ok(())
         })
     }
@@ -686,6 +723,9 @@ pub unsafe extern "C" fn fmi2SetFMUstate(c: fmi2Component, state: fmi2FMUstate) 
             calls::fmu_states(&*instance.component)?;
             let snapshot = snapshot(&instance.states, state)?;
             let phase = snapshot.phase;
+            if !instance.interface.has(phase) {
+                return Err(FmiError::OtherInterface(phase.name()));
+            }
             instance.component.restore(snapshot)?;
             // The state machine goes back to where the state was saved: this
             // is how a master leaves `error` (§2.1.3) or `stepFailed`.
@@ -770,6 +810,9 @@ pub unsafe extern "C" fn fmi2DeSerializeFMUstate(
             let existing =
                 if state.is_null() { None } else { Some(snapshot(&instance.states, *state)? as *mut Snapshot) };
             let snapshot = instance.component.deserialize(slice(bytes as *const u8, size, "serializedState")?)?;
+            if !instance.interface.has(snapshot.phase) {
+                return Err(FmiError::OtherInterface(snapshot.phase.name()));
+            }
             match existing {
                 // SAFETY: checked live above; nothing freed it since.
                 Some(existing) => *existing = snapshot,
@@ -950,8 +993,150 @@ pub unsafe extern "C" fn fmi2GetStringStatus(
     unsafe { enter(c, Function::GetStringStatus, |_| Err(FmiError::StatusUnavailable(kind))) }
 }
 
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2EnterEventMode(c: fmi2Component) -> fmi2Status {
+    unsafe {
+        enter(c, Function::EnterEventMode, |instance| {
+            instance.phase = Phase::EventMode;
+            Ok(())
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2NewDiscreteStates(c: fmi2Component, event_info: *mut fmi2EventInfo) -> fmi2Status {
+    unsafe {
+        enter(c, Function::NewDiscreteStates, |_| {
+            let event_info = event_info.as_mut().ok_or(FmiError::Null("fmi2eventInfo"))?;
+            // No discrete states, no time or state events: nothing ever changes at an event.
+            *event_info = fmi2EventInfo {
+                newDiscreteStatesNeeded: fmi2False as fmi2Boolean,
+                terminateSimulation: fmi2False as fmi2Boolean,
+                nominalsOfContinuousStatesChanged: fmi2False as fmi2Boolean,
+                valuesOfContinuousStatesChanged: fmi2False as fmi2Boolean,
+                nextEventTimeDefined: fmi2False as fmi2Boolean,
+                nextEventTime: 0.0,
+            };
+            Ok(())
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2EnterContinuousTimeMode(c: fmi2Component) -> fmi2Status {
+    unsafe {
+        enter(c, Function::EnterContinuousTimeMode, |instance| {
+            instance.phase = Phase::ContinuousTimeMode;
+            Ok(())
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2CompletedIntegratorStep(
+    c: fmi2Component,
+    _no_set_fmu_state_prior_to_current_point: fmi2Boolean,
+    enter_event_mode: *mut fmi2Boolean,
+    terminate_simulation: *mut fmi2Boolean,
+) -> fmi2Status {
+    unsafe {
+        enter(c, Function::CompletedIntegratorStep, |_| {
+            let enter_event_mode = enter_event_mode.as_mut().ok_or(FmiError::Null("enterEventMode"))?;
+            let terminate_simulation = terminate_simulation.as_mut().ok_or(FmiError::Null("terminateSimulation"))?;
+            // No step events.
+            *enter_event_mode = fmi2False as fmi2Boolean;
+            *terminate_simulation = fmi2False as fmi2Boolean;
+            Ok(())
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2SetTime(c: fmi2Component, time: fmi2Real) -> fmi2Status {
+    unsafe { enter(c, Function::SetTime, |instance| Ok(calls::set_time(&mut *instance.component, time)?)) }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2SetContinuousStates(c: fmi2Component, x: *const fmi2Real, nx: usize) -> fmi2Status {
+    unsafe {
+        enter(c, Function::SetContinuousStates, |instance| {
+            let x = slice(x, nx, "x")?;
+            calls::set_continuous_states(&mut *instance.component, x).map_err(out_of_range_discards)
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2GetDerivatives(c: fmi2Component, derivatives: *mut fmi2Real, nx: usize) -> fmi2Status {
+    unsafe {
+        enter(c, Function::GetDerivatives, |instance| {
+            let derivatives = slice_mut(derivatives, nx, "derivatives")?;
+            Ok(calls::get_derivatives(&mut *instance.component, derivatives)?)
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2GetEventIndicators(
+    c: fmi2Component,
+    _event_indicators: *mut fmi2Real,
+    ni: usize,
+) -> fmi2Status {
+    unsafe {
+        enter(c, Function::GetEventIndicators, |instance| Ok(calls::get_event_indicators(&*instance.component, ni)?))
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2GetContinuousStates(c: fmi2Component, x: *mut fmi2Real, nx: usize) -> fmi2Status {
+    unsafe {
+        enter(c, Function::GetContinuousStates, |instance| {
+            let x = slice_mut(x, nx, "x")?;
+            Ok(calls::get_continuous_states(&*instance.component, x)?)
+        })
+    }
+}
+
+/// # Safety
+/// FMI 2.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi2GetNominalsOfContinuousStates(
+    c: fmi2Component,
+    x_nominal: *mut fmi2Real,
+    nx: usize,
+) -> fmi2Status {
+    unsafe {
+        enter(c, Function::GetNominalsOfContinuousStates, |instance| {
+            let nominals = slice_mut(x_nominal, nx, "x_nominal")?;
+            Ok(calls::get_nominals(&*instance.component, nominals)?)
+        })
+    }
+}
+
 // The C types used above, named so that a signature mismatch with fmi-sys's
 // function-pointer types is a compile error.
+const _: [fmi2NewDiscreteStatesTYPE; 1] = [Some(fmi2NewDiscreteStates)];
+const _: [fmi2CompletedIntegratorStepTYPE; 1] = [Some(fmi2CompletedIntegratorStep)];
+const _: [fmi2GetDerivativesTYPE; 1] = [Some(fmi2GetDerivatives)];
+const _: [fmi2GetNominalsOfContinuousStatesTYPE; 1] = [Some(fmi2GetNominalsOfContinuousStates)];
 const _: [fmi2DoStepTYPE; 1] = [Some(fmi2DoStep)];
 const _: [fmi2InstantiateTYPE; 1] = [Some(fmi2Instantiate)];
 const _: [fmi2GetRealTYPE; 1] = [Some(fmi2GetReal)];

@@ -10,8 +10,8 @@ use nudyn::integrate::{Input, Method, RunState, Settings, Simulation};
 use nudyn::model::{LinkJoint, Model};
 use nudyn_contract::capabilities::Capabilities;
 use nudyn_contract::plant::{
-    CAPABILITIES, DEFAULT_MAX_STEP, DEFAULT_METHOD, DEFAULT_TOLERANCE, ENERGY_PROJECTION_VR, Layout, METHOD_VR,
-    PlantResource, RealVariable, method_of_value, method_value,
+    DEFAULT_MAX_STEP, DEFAULT_METHOD, DEFAULT_TOLERANCE, ENERGY_PROJECTION_VR, Layout, METHOD_VR, PlantResource,
+    RealVariable, capabilities, method_of_value, method_value,
 };
 
 use crate::component::{CallError, Component, Loaded, StepError, StepReport, Variable};
@@ -145,7 +145,7 @@ impl Plant {
 
 impl Component for Plant {
     fn capabilities(&self) -> Capabilities {
-        CAPABILITIES
+        capabilities(self.layout.outputs)
     }
 
     fn reset(&mut self) {
@@ -210,8 +210,10 @@ impl Component for Plant {
     }
 
     fn prepare_reals(&mut self, vrs: &[u32]) -> Result<(), CallError> {
-        let mut variables = vrs.iter().filter_map(|&vr| self.layout.real_variable(vr));
-        if variables.any(|v| matches!(v, RealVariable::Qvel(_) | RealVariable::Momentum(_))) {
+        let variables = || vrs.iter().filter_map(|&vr| self.layout.real_variable(vr));
+        if variables().any(RealVariable::is_derivative) {
+            self.evaluate(Evaluated::Acceleration)?;
+        } else if variables().any(|v| matches!(v, RealVariable::Qvel(_) | RealVariable::Momentum(_))) {
             self.evaluate(Evaluated::Velocity)?;
         }
         Ok(())
@@ -230,6 +232,8 @@ impl Component for Plant {
             RealVariable::Power => run.nu.iter().zip(&self.eps).map(|(n, e)| n * e).sum(),
             RealVariable::Momentum(k) => self.momentum[k],
             RealVariable::EnergyResidual => kinetic_energy(&run.nu) - self.initial_energy - run.carry.work,
+            RealVariable::DerTheta(k) => self.qpos_rate(k),
+            RealVariable::DerNu(k) => self.sim.workspace().nu_dot[k],
         }
     }
 
@@ -349,6 +353,42 @@ impl Component for Plant {
 
     fn failed_for_good(&self) -> bool {
         self.failed_for_good
+    }
+
+    /// x = (θ, ν): nq + nv states.
+    fn continuous_state_count(&self) -> Option<usize> {
+        capabilities(self.layout.outputs).model_exchange.then_some(self.model.nq + self.model.nv)
+    }
+
+    fn set_time(&mut self, time: f64) {
+        self.sim.state.time = time;
+    }
+
+    fn continuous_states(&self, x: &mut [f64]) {
+        let (theta, nu) = x.split_at_mut(self.model.nq);
+        theta.copy_from_slice(&self.sim.state.theta);
+        nu.copy_from_slice(&self.sim.state.nu);
+    }
+
+    /// Takes the host's states as they are: a quaternion the host's
+    /// integration moved off unit length stays so in x, and the passes use
+    /// it normalized, so the drift never changes the motion.
+    fn set_continuous_states(&mut self, x: &[f64]) {
+        let (theta, nu) = x.split_at(self.model.nq);
+        self.sim.state.theta.copy_from_slice(theta);
+        self.sim.state.nu.copy_from_slice(nu);
+        self.evaluated = Evaluated::Nothing;
+    }
+
+    fn prepare_derivatives(&mut self) -> Result<(), CallError> {
+        self.evaluate(Evaluated::Acceleration)
+    }
+
+    /// (θ̇, ν̇); a quaternion's rate is ½ q ⊗ (0, ω) of the normalized q,
+    /// orthogonal to q, so the host's integration does not grow the drift.
+    fn derivative(&self, i: usize) -> f64 {
+        let nq = self.model.nq;
+        if i < nq { self.qpos_rate(i) } else { self.sim.workspace().nu_dot[i - nq] }
     }
 
     fn snapshot(&self, phase: Phase) -> Result<Snapshot, CallError> {

@@ -386,7 +386,7 @@ mod tests {
         }
         let mut bytes = serialized(&sample());
         let phase_at = MAGIC.len() + 8 + GUID.len() + 8;
-        for code in [Phase::Fatal.code(), 7, 255] {
+        for code in [Phase::Fatal.code(), 9, 255] {
             bytes[phase_at] = code;
             bytes = with_valid_checksum(bytes);
             assert_eq!(Snapshot::deserialize(&bytes, GUID, 5, 4), Err(SnapshotError::Phase(code)));

@@ -1,5 +1,10 @@
-//! The FMI 2.0 co-simulation state machine (§4.2.4): the instance's states
-//! and, per function, the states it may be called in.
+//! The FMI 2.0 state machines of co-simulation (§4.2.4) and model exchange
+//! (§3.2.3): the instance's states and, per function, the states it may be
+//! called in. The two machines share instantiated, initializationMode,
+//! terminated and error; stepComplete and stepFailed belong to
+//! co-simulation, eventMode and continuousTimeMode to model exchange, so
+//! one table serves both (a model-exchange function is refused in every
+//! co-simulation state, and the other way round).
 //!
 //! doStep is synchronous (canRunAsynchronuously="false"), so the states
 //! stepInProgress and stepCanceled are never entered and not modelled.
@@ -21,11 +26,16 @@ pub enum Phase {
     Error,
     /// A function returned fmi2Fatal: only free remains.
     Fatal,
+    /// Model exchange: after fmi2ExitInitializationMode or fmi2EnterEventMode.
+    EventMode,
+    /// Model exchange: after fmi2EnterContinuousTimeMode, while the host integrates.
+    ContinuousTimeMode,
 }
 
 impl Phase {
-    /// Every state, in the order of their codes.
-    pub const ALL: [Phase; 7] = [
+    /// Every state, in the order of their codes (the model-exchange states
+    /// last, so that serialized FMU states of co-simulation keep their codes).
+    pub const ALL: [Phase; 9] = [
         Phase::Instantiated,
         Phase::InitializationMode,
         Phase::StepComplete,
@@ -33,10 +43,12 @@ impl Phase {
         Phase::Terminated,
         Phase::Error,
         Phase::Fatal,
+        Phase::EventMode,
+        Phase::ContinuousTimeMode,
     ];
 
-    const fn bit(self) -> u8 {
-        1 << self as u8
+    const fn bit(self) -> u16 {
+        1 << self as u16
     }
 
     /// The state's code in serialized FMU states.
@@ -59,18 +71,24 @@ impl Phase {
             Phase::Terminated => "terminated",
             Phase::Error => "error",
             Phase::Fatal => "fatal",
+            Phase::EventMode => "eventMode",
+            Phase::ContinuousTimeMode => "continuousTimeMode",
         }
     }
 }
 
-const INSTANTIATED: u8 = Phase::Instantiated.bit();
-const INIT: u8 = Phase::InitializationMode.bit();
-const STEP_COMPLETE: u8 = Phase::StepComplete.bit();
-const STEP_FAILED: u8 = Phase::StepFailed.bit();
-const TERMINATED: u8 = Phase::Terminated.bit();
-const ERROR: u8 = Phase::Error.bit();
+const INSTANTIATED: u16 = Phase::Instantiated.bit();
+const INIT: u16 = Phase::InitializationMode.bit();
+const STEP_COMPLETE: u16 = Phase::StepComplete.bit();
+const STEP_FAILED: u16 = Phase::StepFailed.bit();
+const TERMINATED: u16 = Phase::Terminated.bit();
+const ERROR: u16 = Phase::Error.bit();
+const EVENT: u16 = Phase::EventMode.bit();
+const CONTINUOUS: u16 = Phase::ContinuousTimeMode.bit();
+/// Initialized, co-simulation or model exchange.
+const RUNNING: u16 = STEP_COMPLETE | STEP_FAILED | EVENT | CONTINUOUS;
 /// Every state in which the instance is still usable or inspectable.
-const ALIVE: u8 = INSTANTIATED | INIT | STEP_COMPLETE | STEP_FAILED | TERMINATED | ERROR;
+const ALIVE: u16 = INSTANTIATED | INIT | RUNNING | TERMINATED | ERROR;
 
 /// The functions that take an instance, for the state table.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -105,6 +123,16 @@ pub enum Function {
     GetIntegerStatus,
     GetBooleanStatus,
     GetStringStatus,
+    EnterEventMode,
+    NewDiscreteStates,
+    EnterContinuousTimeMode,
+    CompletedIntegratorStep,
+    SetTime,
+    SetContinuousStates,
+    GetDerivatives,
+    GetEventIndicators,
+    GetContinuousStates,
+    GetNominalsOfContinuousStates,
 }
 
 impl Function {
@@ -141,27 +169,39 @@ impl Function {
             Function::GetIntegerStatus => "fmi2GetIntegerStatus",
             Function::GetBooleanStatus => "fmi2GetBooleanStatus",
             Function::GetStringStatus => "fmi2GetStringStatus",
+            Function::EnterEventMode => "fmi2EnterEventMode",
+            Function::NewDiscreteStates => "fmi2NewDiscreteStates",
+            Function::EnterContinuousTimeMode => "fmi2EnterContinuousTimeMode",
+            Function::CompletedIntegratorStep => "fmi2CompletedIntegratorStep",
+            Function::SetTime => "fmi2SetTime",
+            Function::SetContinuousStates => "fmi2SetContinuousStates",
+            Function::GetDerivatives => "fmi2GetDerivatives",
+            Function::GetEventIndicators => "fmi2GetEventIndicators",
+            Function::GetContinuousStates => "fmi2GetContinuousStates",
+            Function::GetNominalsOfContinuousStates => "fmi2GetNominalsOfContinuousStates",
         }
     }
 
-    /// The states in which the function may be called (FMI 2.0 §4.2.4).
-    /// fmi2FreeInstance is not in the table: it is accepted in every state,
-    /// `fatal` included, since releasing memory is always safe here and
-    /// refusing would only leak it.
-    fn allowed(self) -> u8 {
+    /// The states in which the function may be called (FMI 2.0 §4.2.4 and
+    /// §3.2.3). fmi2FreeInstance is not in the table: it is accepted in every
+    /// state, `fatal` included, since releasing memory is always safe here
+    /// and refusing would only leak it.
+    fn allowed(self) -> u16 {
         match self {
             Function::SetDebugLogging | Function::Reset => ALIVE,
             Function::GetFmuState | Function::SetFmuState | Function::FreeFmuState => ALIVE,
             Function::SerializedFmuStateSize | Function::SerializeFmuState | Function::DeSerializeFmuState => ALIVE,
             Function::SetupExperiment | Function::EnterInitializationMode => INSTANTIATED,
             Function::ExitInitializationMode => INIT,
-            Function::Terminate => STEP_COMPLETE | STEP_FAILED,
+            Function::Terminate => STEP_COMPLETE | STEP_FAILED | EVENT | CONTINUOUS,
             Function::GetReal | Function::GetInteger | Function::GetBoolean | Function::GetString => {
-                INIT | STEP_COMPLETE | STEP_FAILED | TERMINATED | ERROR
+                INIT | RUNNING | TERMINATED | ERROR
             }
-            Function::GetDirectionalDerivative => INIT | STEP_COMPLETE | STEP_FAILED | TERMINATED | ERROR,
-            Function::SetReal | Function::SetInteger | Function::SetBoolean | Function::SetString => {
-                INSTANTIATED | INIT | STEP_COMPLETE
+            Function::GetDirectionalDerivative => INIT | RUNNING | TERMINATED | ERROR,
+            Function::SetReal => INSTANTIATED | INIT | STEP_COMPLETE | EVENT | CONTINUOUS,
+            // Only Reals are continuous: the other types change at events (§3.2.3).
+            Function::SetInteger | Function::SetBoolean | Function::SetString => {
+                INSTANTIATED | INIT | STEP_COMPLETE | EVENT
             }
             Function::SetRealInputDerivatives => INSTANTIATED | INIT | STEP_COMPLETE,
             Function::GetRealOutputDerivatives => STEP_COMPLETE | STEP_FAILED | TERMINATED | ERROR,
@@ -173,6 +213,15 @@ impl Function {
             | Function::GetIntegerStatus
             | Function::GetBooleanStatus
             | Function::GetStringStatus => STEP_COMPLETE | STEP_FAILED | TERMINATED,
+            Function::EnterEventMode => EVENT | CONTINUOUS,
+            Function::NewDiscreteStates | Function::EnterContinuousTimeMode => EVENT,
+            Function::CompletedIntegratorStep | Function::SetContinuousStates => CONTINUOUS,
+            Function::SetTime => EVENT | CONTINUOUS,
+            Function::GetEventIndicators | Function::GetContinuousStates => {
+                INIT | EVENT | CONTINUOUS | TERMINATED | ERROR
+            }
+            Function::GetDerivatives => EVENT | CONTINUOUS | TERMINATED | ERROR,
+            Function::GetNominalsOfContinuousStates => INSTANTIATED | EVENT | CONTINUOUS | TERMINATED | ERROR,
         }
     }
 
@@ -204,7 +253,13 @@ mod tests {
         // the slave refuses theta/nu once initialized.
         assert_eq!(
             allowed_phases(Function::SetReal),
-            [Phase::Instantiated, Phase::InitializationMode, Phase::StepComplete]
+            [
+                Phase::Instantiated,
+                Phase::InitializationMode,
+                Phase::StepComplete,
+                Phase::EventMode,
+                Phase::ContinuousTimeMode
+            ]
         );
     }
 
@@ -222,7 +277,7 @@ mod tests {
         for phase in Phase::ALL {
             assert_eq!(Phase::from_code(phase.code()), Some(phase));
         }
-        assert_eq!(Phase::from_code(7), None);
+        assert_eq!(Phase::from_code(9), None);
     }
 
     #[test]
@@ -241,6 +296,22 @@ mod tests {
         assert!(!Function::DoStep.allowed_in(Phase::Error));
         assert!(!Function::SetReal.allowed_in(Phase::Error));
         assert!(!Function::Terminate.allowed_in(Phase::Error));
+    }
+
+    #[test]
+    fn model_exchange_sequence() {
+        assert_eq!(allowed_phases(Function::NewDiscreteStates), [Phase::EventMode]);
+        assert_eq!(allowed_phases(Function::EnterContinuousTimeMode), [Phase::EventMode]);
+        assert_eq!(allowed_phases(Function::SetContinuousStates), [Phase::ContinuousTimeMode]);
+        assert_eq!(allowed_phases(Function::CompletedIntegratorStep), [Phase::ContinuousTimeMode]);
+        assert_eq!(allowed_phases(Function::SetTime), [Phase::EventMode, Phase::ContinuousTimeMode]);
+        assert!(!Function::SetInteger.allowed_in(Phase::ContinuousTimeMode), "only Reals change continuously");
+        assert!(
+            !Function::DoStep.allowed_in(Phase::EventMode) && !Function::DoStep.allowed_in(Phase::ContinuousTimeMode)
+        );
+        for function in [Function::SetTime, Function::GetDerivatives, Function::EnterEventMode] {
+            assert!(!function.allowed_in(Phase::StepComplete), "{function:?} is model exchange only");
+        }
     }
 
     #[test]

@@ -51,8 +51,7 @@ pub fn to_xml(model: &FmiModelDescription) -> Result<String, Error> {
 
 /// Reads a `modelDescription.xml` document.
 ///
-/// Elements this crate does not model (`<ModelExchange>`,
-/// `<VendorAnnotations>`) are ignored. `<Annotations>` inside a
+/// Elements this crate does not model (`<VendorAnnotations>`) are ignored. `<Annotations>` inside a
 /// `<ScalarVariable>` are not supported and make reading fail.
 pub fn from_xml(document: &str) -> Result<FmiModelDescription, Error> {
     Ok(quick_xml::de::from_str(document)?)

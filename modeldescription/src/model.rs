@@ -51,7 +51,11 @@ pub struct FmiModelDescription {
     /// `numberOfEventIndicators`.
     #[serde(rename = "@numberOfEventIndicators", default, skip_serializing_if = "Option::is_none")]
     pub number_of_event_indicators: Option<u32>,
-    /// `<CoSimulation>`: this crate models co-simulation FMUs only.
+    /// `<ModelExchange>`, for an FMU that also serves model exchange (it
+    /// precedes `<CoSimulation>` in the schema's sequence).
+    #[serde(rename = "ModelExchange", default, skip_serializing_if = "Option::is_none")]
+    pub model_exchange: Option<ModelExchange>,
+    /// `<CoSimulation>`: every nudyn FMU serves co-simulation.
     #[serde(rename = "CoSimulation")]
     pub co_simulation: CoSimulation,
     /// Children of `<UnitDefinitions>`.
@@ -127,6 +131,35 @@ pub struct CoSimulation {
     /// `canRunAsynchronuously` (the standard's spelling).
     #[serde(rename = "@canRunAsynchronuously", default)]
     pub can_run_asynchronuously: bool,
+    /// `canBeInstantiatedOnlyOncePerProcess`.
+    #[serde(rename = "@canBeInstantiatedOnlyOncePerProcess", default)]
+    pub can_be_instantiated_only_once_per_process: bool,
+    /// `canNotUseMemoryManagementFunctions`.
+    #[serde(rename = "@canNotUseMemoryManagementFunctions", default)]
+    pub can_not_use_memory_management_functions: bool,
+    /// `canGetAndSetFMUstate`.
+    #[serde(rename = "@canGetAndSetFMUstate", default)]
+    pub can_get_and_set_fmu_state: bool,
+    /// `canSerializeFMUstate`.
+    #[serde(rename = "@canSerializeFMUstate", default)]
+    pub can_serialize_fmu_state: bool,
+    /// `providesDirectionalDerivative`.
+    #[serde(rename = "@providesDirectionalDerivative", default)]
+    pub provides_directional_derivative: bool,
+}
+
+/// `<ModelExchange>` (§3.3.1). The capability flags are always written.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ModelExchange {
+    /// `modelIdentifier`: the binary's file name stem and function prefix.
+    #[serde(rename = "@modelIdentifier")]
+    pub model_identifier: String,
+    /// `needsExecutionTool`.
+    #[serde(rename = "@needsExecutionTool", default)]
+    pub needs_execution_tool: bool,
+    /// `completedIntegratorStepNotNeeded`.
+    #[serde(rename = "@completedIntegratorStepNotNeeded", default)]
+    pub completed_integrator_step_not_needed: bool,
     /// `canBeInstantiatedOnlyOncePerProcess`.
     #[serde(rename = "@canBeInstantiatedOnlyOncePerProcess", default)]
     pub can_be_instantiated_only_once_per_process: bool,

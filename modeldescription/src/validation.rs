@@ -620,8 +620,8 @@ fn check_variables(model: &FmiModelDescription, problems: &mut Vec<Problem>) {
 
         check_initial_and_start(variable, problems);
 
-        // No <ModelExchange> is modelled, so the FMU is co-simulation only.
-        if variable.can_handle_multiple_set_per_time_instant.is_some() {
+        // The attribute belongs to model exchange (§2.2.7).
+        if model.model_exchange.is_none() && variable.can_handle_multiple_set_per_time_instant.is_some() {
             problems.push(Problem::MultipleSetInCoSimulation(name.clone()));
         }
 

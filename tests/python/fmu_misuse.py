@@ -91,6 +91,16 @@ SIGNATURES = {
     "fmi2GetIntegerStatus": (C.c_int, [comp, C.c_int, C.POINTER(C.c_int)]),
     "fmi2GetBooleanStatus": (C.c_int, [comp, C.c_int, C.POINTER(C.c_int)]),
     "fmi2GetStringStatus": (C.c_int, [comp, C.c_int, C.POINTER(C.c_char_p)]),
+    "fmi2EnterEventMode": (C.c_int, [comp]),
+    "fmi2NewDiscreteStates": (C.c_int, [comp, C.c_void_p]),
+    "fmi2EnterContinuousTimeMode": (C.c_int, [comp]),
+    "fmi2CompletedIntegratorStep": (C.c_int, [comp, C.c_int, C.POINTER(C.c_int), C.POINTER(C.c_int)]),
+    "fmi2SetTime": (C.c_int, [comp, C.c_double]),
+    "fmi2SetContinuousStates": (C.c_int, [comp, C.POINTER(C.c_double), C.c_size_t]),
+    "fmi2GetDerivatives": (C.c_int, [comp, C.POINTER(C.c_double), C.c_size_t]),
+    "fmi2GetEventIndicators": (C.c_int, [comp, C.POINTER(C.c_double), C.c_size_t]),
+    "fmi2GetContinuousStates": (C.c_int, [comp, C.POINTER(C.c_double), C.c_size_t]),
+    "fmi2GetNominalsOfContinuousStates": (C.c_int, [comp, C.POINTER(C.c_double), C.c_size_t]),
 }
 
 # The arguments after the component with which each function is otherwise
@@ -126,6 +136,16 @@ PLAIN_ARGUMENTS = {
     "fmi2ExitInitializationMode": (),
     "fmi2Terminate": (),
     "fmi2Reset": (),
+    "fmi2EnterEventMode": (),
+    "fmi2NewDiscreteStates": (C.cast(C.create_string_buffer(32), C.c_void_p),),
+    "fmi2EnterContinuousTimeMode": (),
+    "fmi2CompletedIntegratorStep": (1, C.pointer(C.c_int()), C.pointer(C.c_int())),
+    "fmi2SetTime": (0.0,),
+    "fmi2SetContinuousStates": (None, 0),
+    "fmi2GetDerivatives": (None, 0),
+    "fmi2GetEventIndicators": (None, 0),
+    "fmi2GetContinuousStates": (None, 0),
+    "fmi2GetNominalsOfContinuousStates": (None, 0),
 }
 COMPONENT_FUNCTIONS = sorted(PLAIN_ARGUMENTS)
 
@@ -676,6 +696,53 @@ def error_control_step_limit(h: Harness):
     assert 0.0 < h.last_successful_time(c) < 1e3
 
 
+@case("model exchange out of sequence or with wrong arrays")
+def model_exchange_misuse(h: Harness):
+    """The model-exchange state machine (FMI 2.0 §3.2.3), the lengths of
+    the state arrays, a NaN state (fmi2Discard: a host's integration blew
+    up; the states stay), and functions of the other interface."""
+    nx = len(h.fmu.names("theta")) + len(h.fmu.names("nu"))
+    x, dx = (C.c_double * nx)(), (C.c_double * nx)()
+    c = h.instantiate(kind=MODEL_EXCHANGE)
+    h.expect(ERROR, "fmi2GetDerivatives", c, dx, nx, says=("may not be called in state instantiated",))
+    h.expect(OK, "fmi2Reset", c)
+    h.expect(OK, "fmi2SetupExperiment", c, 0, 0.0, 0.0, 0, 0.0)
+    h.expect(OK, "fmi2EnterInitializationMode", c)
+    h.set_real(OK, c, {"nu[4]": 0.5})
+    h.expect(OK, "fmi2ExitInitializationMode", c)
+    in_event_mode = h.get_state(c)
+    for name, args in [("fmi2SetContinuousStates", (x, nx)), ("fmi2DoStep", (0.0, STEP, 1)),
+                       ("fmi2CompletedIntegratorStep", (1, C.pointer(C.c_int()), C.pointer(C.c_int())))]:
+        h.expect(ERROR, name, c, *args, says=("may not be called in state eventMode",))
+        h.expect(OK, "fmi2SetFMUstate", c, in_event_mode)
+    h.expect(OK, "fmi2EnterContinuousTimeMode", c)
+    in_continuous_time = h.get_state(c)
+    h.expect(OK, "fmi2GetContinuousStates", c, x, nx)
+    for name, n, says in [("fmi2GetContinuousStates", nx - 1, f"has {nx - 1} entries, but the FMU has {nx}"),
+                          ("fmi2GetDerivatives", nx + 1, f"has {nx + 1} entries"),
+                          ("fmi2GetNominalsOfContinuousStates", 0, f"has 0 entries, but the FMU has {nx}"),
+                          ("fmi2GetEventIndicators", 1, "no event indicators"),
+                          ("fmi2SetContinuousStates", nx, "x is NULL")]:
+        h.expect(ERROR, name, c, None if name == "fmi2SetContinuousStates" else dx, n, says=(says,))
+        h.expect(OK, "fmi2SetFMUstate", c, in_continuous_time)
+    h.expect(ERROR, "fmi2SetTime", c, math.nan, says=("time = NaN is not finite",))
+    h.expect(OK, "fmi2SetFMUstate", c, in_continuous_time)
+    bad = (C.c_double * nx)(*x)
+    bad[3] = math.nan
+    h.expect(DISCARD, "fmi2SetContinuousStates", c, bad, nx, says=("x[3] = NaN is not finite",))
+    after = (C.c_double * nx)()
+    h.expect(OK, "fmi2GetContinuousStates", c, after, nx)
+    assert list(after) == list(x), "a refused state changes nothing"
+    h.expect(OK, "fmi2SetTime", c, 0.5)
+    h.expect(OK, "fmi2GetDerivatives", c, dx, nx)
+    assert all(math.isfinite(d) for d in dx)
+    enter_event, terminate = C.c_int(7), C.c_int(7)
+    h.expect(OK, "fmi2CompletedIntegratorStep", c, 1, C.byref(enter_event), C.byref(terminate))
+    assert (enter_event.value, terminate.value) == (0, 0)
+    cs = h.initialized()
+    h.expect(ERROR, "fmi2SetTime", cs, 0.0, says=("may not be called in state stepComplete",))
+
+
 @case("communication point that does not match")
 def communication_point_mismatch(h: Harness):
     c = h.initialized()
@@ -709,9 +776,9 @@ def guid_mismatch(h: Harness):
 
 
 @case("GUID mismatch or wrong FMU type")
-def model_exchange_requested(h: Harness):
-    h.refused_instantiation("co-simulation", kind=MODEL_EXCHANGE)
-    h.refused_instantiation("co-simulation", kind=77)
+def unknown_fmu_type(h: Harness):
+    h.refused_instantiation("neither fmi2ModelExchange (0) nor fmi2CoSimulation (1)", kind=77)
+    h.refused_instantiation("neither fmi2ModelExchange (0) nor fmi2CoSimulation (1)", kind=-1)
 
 
 def with_resource(h: Harness, content: bytes | None, tmp: Path) -> bytes:
@@ -862,7 +929,10 @@ state_fault_case("forged_with_nan", lambda h, good: [with_checksum(good[:-16] + 
                  "must be finite")
 state_fault_case("forged_state_machine_state",
                  lambda h, good: [with_checksum(good[:header_length(h)] + bytes([k]) + good[header_length(h) + 1:])
-                                  for k in (6, 7, 255)], "state machine state")
+                                  for k in (6, 9, 255)], "state machine state")
+state_fault_case("forged_model_exchange_state",
+                 lambda h, good: [with_checksum(good[:header_length(h)] + bytes([k]) + good[header_length(h) + 1:])
+                                  for k in (7, 8)], "of the other interface")
 
 
 def other_fmu_blob(h: Harness) -> bytes:

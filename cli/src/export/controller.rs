@@ -14,7 +14,7 @@ use nudyn_contract::resource::Resource;
 use nudyn_contract::variable::Causality;
 
 use super::plant::description;
-use super::{ExportError, Header, check_model_identifier, co_simulation, real_variable, write_archive};
+use super::{ExportError, Header, check_model_identifier, real_variable, write_archive};
 
 /// What controlled quantity k is, and its unit, for descriptions.
 fn quantity(model: &Model, law: &ControlLaw, k: usize) -> (String, &'static str, &'static str) {
@@ -126,7 +126,8 @@ pub fn controller_model_description(
              eps = -c1 nu + l(theta) J^T(theta) c2 (Yhat - Y(theta)), Y = {target}",
             model.name, model.nq, model.nv
         ),
-        co_simulation: co_simulation(model_identifier, CAPABILITIES),
+        model_identifier: model_identifier.to_string(),
+        capabilities: CAPABILITIES,
     };
     let structure = md::ModelStructure { outputs, derivatives: Vec::new(), initial_unknowns };
     header.into_model_description(Vec::new(), model_variables, structure)

@@ -92,6 +92,7 @@ fn real_variable(name: String, vr: u32, description: String, kind: Kind, start: 
         Causality::Input => (md::Causality::Input, None),
         Causality::Output if kind.exact_start => (md::Causality::Output, Some(md::Initial::Exact)),
         Causality::Output => (md::Causality::Output, Some(md::Initial::Calculated)),
+        Causality::Local => (md::Causality::Local, Some(md::Initial::Calculated)),
     };
     let min = (kind.range == Range::NonNegative).then_some(0.0);
     md::ScalarVariable {
@@ -131,13 +132,30 @@ fn co_simulation(model_identifier: &str, capabilities: Capabilities) -> md::CoSi
     }
 }
 
+/// The `<ModelExchange>` element of an FMU with `capabilities`, if it serves model exchange.
+fn model_exchange(model_identifier: &str, capabilities: Capabilities) -> Option<md::ModelExchange> {
+    capabilities.model_exchange.then(|| md::ModelExchange {
+        model_identifier: model_identifier.to_string(),
+        needs_execution_tool: false,
+        // No step events: the host need not call fmi2CompletedIntegratorStep.
+        completed_integrator_step_not_needed: true,
+        can_be_instantiated_only_once_per_process: false,
+        can_not_use_memory_management_functions: true,
+        can_get_and_set_fmu_state: capabilities.can_get_and_set_fmu_state,
+        can_serialize_fmu_state: capabilities.can_serialize_fmu_state,
+        provides_directional_derivative: capabilities.provides_directional_derivative,
+    })
+}
+
 /// The modelDescription fields every nudyn FMU shares, around its own
-/// name, GUID, description, `<CoSimulation>`, types, variables and structure.
+/// name, GUID, description, `<ModelExchange>` and `<CoSimulation>`, types,
+/// variables and structure.
 struct Header {
     model_name: String,
     guid: String,
     description: String,
-    co_simulation: md::CoSimulation,
+    model_identifier: String,
+    capabilities: Capabilities,
 }
 
 impl Header {
@@ -159,8 +177,9 @@ impl Header {
             generation_tool: Some(format!("nudyn {}", env!("CARGO_PKG_VERSION"))),
             generation_date_and_time: None,
             variable_naming_convention: Some(md::VariableNamingConvention::Structured),
-            number_of_event_indicators: None,
-            co_simulation: self.co_simulation,
+            number_of_event_indicators: self.capabilities.model_exchange.then_some(0),
+            model_exchange: model_exchange(&self.model_identifier, self.capabilities),
+            co_simulation: co_simulation(&self.model_identifier, self.capabilities),
             unit_definitions: Vec::new(),
             type_definitions,
             log_categories: LogCategory::ALL

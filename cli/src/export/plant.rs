@@ -8,12 +8,12 @@ use nudyn::integrate::Method;
 use nudyn::model::Model;
 use nudyn::vehicle::JointKind;
 use nudyn_contract::plant::{
-    CAPABILITIES, DEFAULT_METHOD, ENERGY_PROJECTION_VR, Layout, METHOD_TYPE, METHOD_VR, OptionalOutputs, PlantResource,
-    RealVariable, method_value,
+    DEFAULT_METHOD, ENERGY_PROJECTION_VR, Layout, METHOD_TYPE, METHOD_VR, OptionalOutputs, PlantResource, RealVariable,
+    capabilities, method_value,
 };
 use nudyn_contract::resource::Resource;
 
-use super::{ExportError, Header, check_model_identifier, co_simulation, real_variable, write_archive};
+use super::{ExportError, Header, check_model_identifier, real_variable, write_archive};
 
 /// What `nudyn export` is asked for.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -89,6 +89,13 @@ pub fn description(model: &Model, variable: RealVariable) -> String {
         RealVariable::EnergyResidual => {
             "energy residual K - K(start) - integral of nu . nu_dot dt, the integration's energy error (J)".into()
         }
+        RealVariable::DerTheta(k) => {
+            let (joint, unit) = joint_entry(model, k, true);
+            format!("time derivative of the qpos of {joint} ({unit}/s)")
+        }
+        RealVariable::DerNu(k) => {
+            format!("nu_dot of dof {} of {} (sqrt(kg)*m/s^2)", k + 1, joint_entry(model, k, false).0)
+        }
     }
 }
 
@@ -125,32 +132,71 @@ pub fn model_description(model: &Model, options: &ExportOptions, guid: &str) -> 
         can_handle_multiple_set_per_time_instant: None,
         kind: md::VariableKind::Boolean(md::BooleanVariable { start: Some(false), ..Default::default() }),
     };
-    let reals = layout.real_variables().map(|(vr, variable)| {
-        real_variable(variable.name(), vr, description(model, variable), variable.kind(), variable.start(model))
-    });
-    let model_variables: Vec<md::ScalarVariable> = [method, energy_projection].into_iter().chain(reals).collect();
-
-    // 1-based ScalarVariable indices, as <ModelStructure> refers to them.
+    let capabilities = capabilities(options.outputs);
+    let reals: Vec<(u32, RealVariable)> = layout.real_variables().collect();
+    // 1-based ScalarVariable indices, as <ModelStructure> and `derivative` refer to them.
     let index_of = |variable: RealVariable| {
-        let vr = layout.value_reference(variable).expect("the variable exists");
-        model_variables.iter().position(|v| v.value_reference == vr && v.name == variable.name()).expect("listed")
-            as u32
-            + 1
+        2 + 1 + reals.iter().position(|&(_, v)| v == variable).expect("the variable is listed") as u32
     };
-    let eps_indices: Vec<u32> = (0..model.nv).map(|k| index_of(RealVariable::Eps(k))).collect();
+    let state_of = |variable: RealVariable| match variable {
+        RealVariable::DerTheta(k) => Some(index_of(RealVariable::Theta(k))),
+        RealVariable::DerNu(k) => Some(index_of(RealVariable::Nu(k))),
+        _ => None,
+    };
+    let scalar_variables = reals.iter().map(|&(vr, variable)| {
+        let mut scalar =
+            real_variable(variable.name(), vr, description(model, variable), variable.kind(), variable.start(model));
+        if let md::VariableKind::Real(real) = &mut scalar.kind {
+            real.derivative = state_of(variable);
+        }
+        scalar
+    });
+    let model_variables: Vec<md::ScalarVariable> =
+        [method, energy_projection].into_iter().chain(scalar_variables).collect();
+
+    // Dependencies on the knowns of model exchange (states and inputs),
+    // which for co-simulation say that no output but the power feeds
+    // through from the inputs.
+    let indices = |variable: fn(usize) -> RealVariable, n: usize| (0..n).map(move |k| index_of(variable(k)));
+    let theta_and_nu: Vec<u32> =
+        indices(RealVariable::Theta, model.nq).chain(indices(RealVariable::Nu, model.nv)).collect();
+    let nu: Vec<u32> = indices(RealVariable::Nu, model.nv).collect();
+    let eps: Vec<u32> = indices(RealVariable::Eps, model.nv).collect();
+    let sorted = |mut list: Vec<u32>| {
+        list.sort_unstable();
+        list
+    };
+    let dependencies = |variable: RealVariable| -> Vec<u32> {
+        match variable {
+            RealVariable::Theta(_) | RealVariable::Nu(_) => vec![index_of(variable)],
+            RealVariable::KineticEnergy => nu.clone(),
+            RealVariable::Power => sorted([nu.clone(), eps.clone()].concat()),
+            RealVariable::DerNu(k) => sorted([theta_and_nu.clone(), vec![index_of(RealVariable::Eps(k))]].concat()),
+            // θ̇ = ℓ*(θ)ν and the momentum depend on the configuration and every ν.
+            _ => theta_and_nu.clone(),
+        }
+    };
     let mut outputs = Vec::new();
+    let mut derivatives = Vec::new();
     let mut initial_unknowns = Vec::new();
-    for (_, variable) in layout.real_variables() {
+    for &(_, variable) in &reals {
         let kind = variable.kind();
-        if kind.causality != nudyn_contract::variable::Causality::Output {
+        let unknown = md::Unknown {
+            index: index_of(variable),
+            dependencies: Some(dependencies(variable)),
+            dependencies_kind: None,
+        };
+        if kind.causality == nudyn_contract::variable::Causality::Output {
+            outputs.push(unknown);
+        } else if variable.is_derivative() {
+            derivatives.push(unknown);
+        } else {
             continue;
         }
-        let index = index_of(variable);
-        let dependencies = if variable.depends_on_inputs() { eps_indices.clone() } else { Vec::new() };
-        outputs.push(md::Unknown { index, dependencies: Some(dependencies), dependencies_kind: None });
         if !kind.exact_start {
-            // Calculated outputs are initial unknowns; they may depend on every exact start value and input.
-            initial_unknowns.push(md::Unknown::new(index));
+            // Calculated outputs and the derivatives are initial unknowns;
+            // they may depend on every exact start value and input.
+            initial_unknowns.push(md::Unknown::new(index_of(variable)));
         }
     }
 
@@ -176,9 +222,10 @@ pub fn model_description(model: &Model, options: &ExportOptions, guid: &str) -> 
             "diagonalized dynamics of the vehicle '{}' (nq = {}, nv = {}): nu' + C(theta, nu) = eps",
             model.name, model.nq, model.nv
         ),
-        co_simulation: co_simulation(&options.model_identifier, CAPABILITIES),
+        model_identifier: options.model_identifier.clone(),
+        capabilities,
     };
-    let structure = md::ModelStructure { outputs, derivatives: Vec::new(), initial_unknowns };
+    let structure = md::ModelStructure { outputs, derivatives, initial_unknowns };
     header.into_model_description(vec![method_type], model_variables, structure)
 }
 

@@ -95,6 +95,7 @@ pub fn arm() -> FmiModelDescription {
         generation_date_and_time: Some("2024-01-31T12:00:00Z".to_owned()),
         variable_naming_convention: Some(VariableNamingConvention::Structured),
         number_of_event_indicators: Some(0),
+        model_exchange: None,
         co_simulation: CoSimulation {
             model_identifier: "arm".to_owned(),
             needs_execution_tool: false,
