@@ -15,7 +15,7 @@ use nudyn::model::Model;
 use crate::blocks::{VariableOf, every_variable, numbered_blocks, variable_at};
 use crate::capabilities::Capabilities;
 use crate::resource::Resource;
-use crate::variable::{Kind, Range};
+use crate::variable::{Causality, Kind, Range};
 
 /// What the controller FMU can do: nothing to save (its outputs are a
 /// function of inputs and parameters), no input or output derivatives.
@@ -67,6 +67,20 @@ impl Resource for ControllerResource {
     fn variable_names(&self) -> Vec<(u32, String)> {
         let layout = self.layout();
         layout.variables().map(|(vr, v)| (vr, layout.name(v))).collect()
+    }
+
+    fn dependencies(&self, vr: u32) -> Option<Vec<u32>> {
+        let layout = self.layout();
+        let inputs = |keep: fn(&ControllerVariable) -> bool| {
+            layout.variables().filter(|(_, v)| keep(v)).map(|(vr, _)| vr).collect::<Vec<u32>>()
+        };
+        match layout.variable(vr)? {
+            ControllerVariable::Eps(_) => Some(inputs(|v| v.kind().causality == Causality::Input)),
+            ControllerVariable::Potential | ControllerVariable::TargetError(_) => {
+                Some(inputs(|v| matches!(v, ControllerVariable::Theta(_))))
+            }
+            _ => None,
+        }
     }
 }
 

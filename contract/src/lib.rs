@@ -7,6 +7,7 @@
 //! - [`plant`]: the vehicle FMU's variables, value references, parameter
 //!   defaults and resource file;
 //! - [`controller`]: the controller FMU's likewise;
+//! - [`fmi3`]: the same variables as FMI 3.0 arrays, for both sides;
 //! - [`capabilities`]: the capability flags of each kind of FMU;
 //! - [`log`]: the log categories;
 //! - [`resource`]: the resource files and the content-derived GUID.
@@ -15,6 +16,7 @@
 mod blocks;
 pub mod capabilities;
 pub mod controller;
+pub mod fmi3;
 pub mod log;
 pub mod plant;
 pub mod resource;

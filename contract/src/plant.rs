@@ -18,8 +18,14 @@ use crate::variable::{Kind, Range};
 /// Value reference of the Integer (enumeration) parameter `method`.
 pub const METHOD_VR: u32 = 0;
 
+/// The name of the Integer (enumeration) parameter `method`.
+pub const METHOD_NAME: &str = "method";
+
 /// Value reference of the Boolean parameter `energy_projection`.
 pub const ENERGY_PROJECTION_VR: u32 = 0;
+
+/// The name of the Boolean parameter `energy_projection`.
+pub const ENERGY_PROJECTION_NAME: &str = "energy_projection";
 
 /// Default of the `method` parameter.
 pub const DEFAULT_METHOD: Method = Method::Dop853;
@@ -157,6 +163,22 @@ impl Resource for PlantResource {
     fn variable_names(&self) -> Vec<(u32, String)> {
         self.layout().real_variables().map(|(vr, variable)| (vr, variable.name())).collect()
     }
+
+    fn enumerations(&self) -> Vec<(u32, String)> {
+        vec![(METHOD_VR, METHOD_NAME.into())]
+    }
+
+    fn booleans(&self) -> Vec<(u32, String)> {
+        vec![(ENERGY_PROJECTION_VR, ENERGY_PROJECTION_NAME.into())]
+    }
+
+    fn dependencies(&self, vr: u32) -> Option<Vec<u32>> {
+        let layout = self.layout();
+        let knowns = layout.dependencies(layout.real_variable(vr)?)?;
+        let mut vrs: Vec<u32> = knowns.into_iter().filter_map(|known| layout.value_reference(known)).collect();
+        vrs.sort_unstable();
+        Some(vrs)
+    }
 }
 
 /// One Real variable of the plant; indices are 0-based here, 1-based in names.
@@ -288,6 +310,30 @@ impl Layout {
     /// All Real variables with their value references, in order.
     pub fn real_variables(&self) -> impl Iterator<Item = (u32, RealVariable)> {
         every_variable(self.blocks())
+    }
+
+    /// The knowns (states θ, ν and inputs ε) that the output or state
+    /// derivative `variable` depends on; `None` for a parameter, an input or
+    /// a state. For co-simulation this says that no output but the power
+    /// feeds through from the inputs.
+    pub fn dependencies(&self, variable: RealVariable) -> Option<Vec<RealVariable>> {
+        let theta = (0..self.nq).map(RealVariable::Theta);
+        let nu = (0..self.nv).map(RealVariable::Nu);
+        let eps = (0..self.nv).map(RealVariable::Eps);
+        let list = match variable {
+            RealVariable::Tolerance | RealVariable::MaxStep | RealVariable::Eps(_) => return None,
+            // The states themselves.
+            RealVariable::Theta(_) | RealVariable::Nu(_) => vec![variable],
+            RealVariable::KineticEnergy => nu.collect(),
+            RealVariable::Power => nu.chain(eps).collect(),
+            RealVariable::DerNu(k) => theta.chain(nu).chain([RealVariable::Eps(k)]).collect(),
+            // θ̇ = ℓ*(θ)ν, the momentum and the energy residual depend on the configuration and every ν.
+            RealVariable::Qvel(_)
+            | RealVariable::Momentum(_)
+            | RealVariable::EnergyResidual
+            | RealVariable::DerTheta(_) => theta.chain(nu).collect(),
+        };
+        Some(list)
     }
 
     /// The value reference of `variable`, if this layout has it.

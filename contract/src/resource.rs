@@ -9,6 +9,8 @@ use sha2::{Digest, Sha256};
 
 use nudyn::model::Model;
 
+use crate::fmi3::Fmi3Variables;
+
 /// A resource file of a nudyn FMU.
 pub trait Resource: Serialize + DeserializeOwned {
     /// Its file name in the FMU's `resources/` directory.
@@ -24,6 +26,26 @@ pub trait Resource: Serialize + DeserializeOwned {
 
     /// The FMU's variables (value reference, name) in value-reference order.
     fn variable_names(&self) -> Vec<(u32, String)>;
+
+    /// The FMI 2.0 Integer enumeration variables (value reference, name).
+    fn enumerations(&self) -> Vec<(u32, String)> {
+        Vec::new()
+    }
+
+    /// The FMI 2.0 Boolean variables (value reference, name).
+    fn booleans(&self) -> Vec<(u32, String)> {
+        Vec::new()
+    }
+
+    /// The knowns (states and inputs, by FMI 2.0 Real value reference,
+    /// ascending) the output or state derivative `vr` depends on; `None`
+    /// for a variable that is neither.
+    fn dependencies(&self, vr: u32) -> Option<Vec<u32>>;
+
+    /// The FMU's variables as FMI 3.0 declares them.
+    fn fmi3_variables(&self) -> Fmi3Variables {
+        Fmi3Variables::new(self.enumerations(), self.booleans(), self.variable_names())
+    }
 
     /// Its bytes as written into the FMU.
     fn to_json(&self) -> Result<Vec<u8>, serde_json::Error> {

@@ -11,7 +11,6 @@ use nudyn::model::{LinkJoint, Model};
 use nudyn_contract::controller::{CAPABILITIES, ControllerLayout, ControllerResource, ControllerVariable};
 use nudyn_contract::plant::RealVariable;
 use nudyn_contract::resource::Resource;
-use nudyn_contract::variable::Causality;
 
 use super::plant::description;
 use super::{ExportError, Header, check_model_identifier, real_variable, write_archive};
@@ -98,21 +97,14 @@ pub fn controller_model_description(
         .collect();
 
     // Value references start at 1 in variable order, so index = vr.
-    let indices = |pick: fn(&ControllerVariable) -> bool| -> Vec<u32> {
-        layout.variables().filter(|(_, v)| pick(v)).map(|(vr, _)| vr).collect()
-    };
-    let theta = indices(|v| matches!(v, ControllerVariable::Theta(_)));
-    let theta_and_nu = indices(|v| v.kind().causality == Causality::Input);
+    let resource = ControllerResource::new(model.clone(), law.clone());
     let mut outputs = Vec::new();
     let mut initial_unknowns = Vec::new();
-    for (vr, variable) in layout.variables() {
-        let dependencies = match variable {
-            ControllerVariable::Eps(_) => theta_and_nu.clone(),
-            ControllerVariable::Potential | ControllerVariable::TargetError(_) => theta.clone(),
-            _ => continue,
-        };
-        outputs.push(md::Unknown { index: vr, dependencies: Some(dependencies), dependencies_kind: None });
-        initial_unknowns.push(md::Unknown::new(vr));
+    for (vr, _) in layout.variables() {
+        if let Some(dependencies) = resource.dependencies(vr) {
+            outputs.push(md::Unknown { index: vr, dependencies: Some(dependencies), dependencies_kind: None });
+            initial_unknowns.push(md::Unknown::new(vr));
+        }
     }
     let target = match &law.objective {
         Objective::Joints(joints) => format!("the {} hinge and slide joint values", joints.len()),

@@ -154,28 +154,6 @@ pub fn model_description(model: &Model, options: &ExportOptions, guid: &str) -> 
     let model_variables: Vec<md::ScalarVariable> =
         [method, energy_projection].into_iter().chain(scalar_variables).collect();
 
-    // Dependencies on the knowns of model exchange (states and inputs),
-    // which for co-simulation say that no output but the power feeds
-    // through from the inputs.
-    let indices = |variable: fn(usize) -> RealVariable, n: usize| (0..n).map(move |k| index_of(variable(k)));
-    let theta_and_nu: Vec<u32> =
-        indices(RealVariable::Theta, model.nq).chain(indices(RealVariable::Nu, model.nv)).collect();
-    let nu: Vec<u32> = indices(RealVariable::Nu, model.nv).collect();
-    let eps: Vec<u32> = indices(RealVariable::Eps, model.nv).collect();
-    let sorted = |mut list: Vec<u32>| {
-        list.sort_unstable();
-        list
-    };
-    let dependencies = |variable: RealVariable| -> Vec<u32> {
-        match variable {
-            RealVariable::Theta(_) | RealVariable::Nu(_) => vec![index_of(variable)],
-            RealVariable::KineticEnergy => nu.clone(),
-            RealVariable::Power => sorted([nu.clone(), eps.clone()].concat()),
-            RealVariable::DerNu(k) => sorted([theta_and_nu.clone(), vec![index_of(RealVariable::Eps(k))]].concat()),
-            // θ̇ = ℓ*(θ)ν and the momentum depend on the configuration and every ν.
-            _ => theta_and_nu.clone(),
-        }
-    };
     let mut outputs = Vec::new();
     let mut derivatives = Vec::new();
     let mut initial_unknowns = Vec::new();
@@ -183,7 +161,11 @@ pub fn model_description(model: &Model, options: &ExportOptions, guid: &str) -> 
         let kind = variable.kind();
         let unknown = md::Unknown {
             index: index_of(variable),
-            dependencies: Some(dependencies(variable)),
+            dependencies: layout.dependencies(variable).map(|knowns| {
+                let mut indices: Vec<u32> = knowns.into_iter().map(index_of).collect();
+                indices.sort_unstable();
+                indices
+            }),
             dependencies_kind: None,
         };
         if kind.causality == nudyn_contract::variable::Causality::Output {

@@ -1,0 +1,217 @@
+//! The FMI 3.0 view of a nudyn FMU's variables.
+//!
+//! FMI 2.0 has scalar variables only, so the contract numbers scalars
+//! (`theta[3]` is one value reference). FMI 3.0 has arrays: a block of
+//! scalars named `base[1]` … `base[n]` becomes the 1-D array `base` with one
+//! value reference (`der(theta[k])` becomes `der(theta)`), and a scalar stays
+//! a scalar. The FMI 3.0 exporter and the FMI 3.0 layer of the binary both
+//! read this one table, so the modelDescription and the binary cannot
+//! disagree; the binary translates each FMI 3.0 value reference into the
+//! FMI 2.0 value references of its elements and runs the same checks and
+//! the same component.
+//!
+//! FMI 3.0 value references are unique across types (FMI 2.0's are per
+//! type): 0 is `time`, the independent variable; then the enumerations, the
+//! Booleans and the Float64 variables follow in the FMI 2.0 order.
+
+/// The value reference of `time`, the independent variable.
+pub const TIME_VR: u32 = 0;
+
+/// The name of the independent variable.
+pub const TIME_NAME: &str = "time";
+
+/// The FMI 3.0 type of a variable, of those nudyn uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ValueType {
+    /// `<Float64>`: an FMI 2.0 Real.
+    Float64,
+    /// `<Enumeration>` (read and written as Int64): an FMI 2.0 Integer enumeration.
+    Enumeration,
+    /// `<Boolean>`.
+    Boolean,
+}
+
+impl ValueType {
+    /// The FMI 3.0 type name, for messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            ValueType::Float64 => "Float64",
+            ValueType::Enumeration => "Enumeration",
+            ValueType::Boolean => "Boolean",
+        }
+    }
+}
+
+/// One FMI 3.0 variable: a scalar, or a 1-D array of consecutive FMI 2.0 scalars.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Fmi3Variable {
+    /// Its FMI 3.0 value reference.
+    pub value_reference: u32,
+    /// Its name: `theta`, `kinetic_energy`, `der(nu)`.
+    pub name: String,
+    /// Its type.
+    pub value_type: ValueType,
+    /// The FMI 2.0 value reference of its first element; the others follow.
+    pub first: u32,
+    /// The number of elements (1 for a scalar).
+    pub len: usize,
+    /// Whether it is an array (declared with a `<Dimension>`), even of one element.
+    pub array: bool,
+}
+
+impl Fmi3Variable {
+    /// The FMI 2.0 value references of its elements, in order.
+    pub fn elements(&self) -> impl Iterator<Item = u32> + use<> {
+        self.first..self.first + self.len as u32
+    }
+}
+
+/// Every FMI 3.0 variable of an FMU but `time`, by value reference.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Fmi3Variables {
+    /// Position i holds value reference i + 1.
+    variables: Vec<Fmi3Variable>,
+}
+
+/// `base[k]` → (`base`, k) and `der(base[k])` → (`der(base)`, k), for a 1-based k.
+fn array_element(name: &str) -> Option<(String, usize)> {
+    let (inner, wrap) = match name.strip_prefix("der(").and_then(|rest| rest.strip_suffix(')')) {
+        Some(inner) => (inner, true),
+        None => (name, false),
+    };
+    let (base, index) = inner.strip_suffix(']')?.split_once('[')?;
+    let k: usize = index.parse().ok().filter(|&k| k >= 1)?;
+    Some((if wrap { format!("der({base})") } else { base.to_string() }, k))
+}
+
+impl Fmi3Variables {
+    /// The table of an FMU with FMI 2.0 variables `enumerations`, `booleans`
+    /// and `reals`, each as (value reference, name) in value-reference order.
+    pub fn new(
+        enumerations: impl IntoIterator<Item = (u32, String)>,
+        booleans: impl IntoIterator<Item = (u32, String)>,
+        reals: impl IntoIterator<Item = (u32, String)>,
+    ) -> Self {
+        let mut variables: Vec<Fmi3Variable> = Vec::new();
+        let scalar = |value_type, (vr, name): (u32, String)| Fmi3Variable {
+            value_reference: 0,
+            name,
+            value_type,
+            first: vr,
+            len: 1,
+            array: false,
+        };
+        variables.extend(enumerations.into_iter().map(|v| scalar(ValueType::Enumeration, v)));
+        variables.extend(booleans.into_iter().map(|v| scalar(ValueType::Boolean, v)));
+        for (vr, name) in reals {
+            match array_element(&name) {
+                Some((base, k)) => {
+                    let continues = variables.last_mut().filter(|last| {
+                        last.array
+                            && last.value_type == ValueType::Float64
+                            && last.name == base
+                            && last.len + 1 == k
+                            && last.first + last.len as u32 == vr
+                    });
+                    match continues {
+                        Some(last) => last.len += 1,
+                        None => variables.push(Fmi3Variable {
+                            value_reference: 0,
+                            name: base,
+                            value_type: ValueType::Float64,
+                            first: vr,
+                            len: 1,
+                            array: true,
+                        }),
+                    }
+                }
+                None => variables.push(scalar(ValueType::Float64, (vr, name))),
+            }
+        }
+        for (i, variable) in variables.iter_mut().enumerate() {
+            variable.value_reference = TIME_VR + 1 + i as u32;
+        }
+        Fmi3Variables { variables }
+    }
+
+    /// The variable with FMI 3.0 value reference `vr` (`time` is not in the table).
+    pub fn get(&self, vr: u32) -> Option<&Fmi3Variable> {
+        usize::try_from(vr.checked_sub(TIME_VR + 1)?).ok().and_then(|i| self.variables.get(i))
+    }
+
+    /// Every variable, in value-reference order.
+    pub fn iter(&self) -> impl Iterator<Item = &Fmi3Variable> {
+        self.variables.iter()
+    }
+
+    /// The Float64 variable holding the FMI 2.0 Real `vr`, and the 0-based element index.
+    pub fn real_element(&self, vr: u32) -> Option<(&Fmi3Variable, usize)> {
+        self.variables
+            .iter()
+            .filter(|v| v.value_type == ValueType::Float64)
+            .find(|v| vr >= v.first && ((vr - v.first) as usize) < v.len)
+            .map(|v| (v, (vr - v.first) as usize))
+    }
+
+    /// The FMI 3.0 value reference of the variable named `name`.
+    pub fn value_reference(&self, name: &str) -> Option<u32> {
+        self.variables.iter().find(|v| v.name == name).map(|v| v.value_reference)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn named(vr: u32, name: &str) -> (u32, String) {
+        (vr, name.to_string())
+    }
+
+    #[test]
+    fn blocks_of_indexed_scalars_become_arrays() {
+        let reals = [
+            named(1, "tolerance"),
+            named(2, "eps[1]"),
+            named(3, "eps[2]"),
+            named(4, "theta[1]"),
+            named(5, "kinetic_energy"),
+            named(6, "der(theta[1])"),
+            named(7, "target_position[1]"),
+            named(8, "target_position[2]"),
+            named(9, "target_quaternion[1]"),
+        ];
+        let table = Fmi3Variables::new([named(0, "method")], [named(0, "energy_projection")], reals);
+        let summary: Vec<(u32, &str, ValueType, u32, usize, bool)> =
+            table.iter().map(|v| (v.value_reference, v.name.as_str(), v.value_type, v.first, v.len, v.array)).collect();
+        use ValueType::*;
+        assert_eq!(
+            summary,
+            [
+                (1, "method", Enumeration, 0, 1, false),
+                (2, "energy_projection", Boolean, 0, 1, false),
+                (3, "tolerance", Float64, 1, 1, false),
+                (4, "eps", Float64, 2, 2, true),
+                (5, "theta", Float64, 4, 1, true),
+                (6, "kinetic_energy", Float64, 5, 1, false),
+                (7, "der(theta)", Float64, 6, 1, true),
+                (8, "target_position", Float64, 7, 2, true),
+                (9, "target_quaternion", Float64, 9, 1, true),
+            ]
+        );
+        assert_eq!(table.get(TIME_VR), None);
+        assert_eq!(table.get(4).map(|v| v.name.as_str()), Some("eps"));
+        assert_eq!(table.get(10), None);
+        assert_eq!(table.real_element(3).map(|(v, k)| (v.value_reference, k)), Some((4, 1)));
+        assert_eq!(table.real_element(0), None, "FMI 2.0 Real vr 0 does not exist here");
+        assert_eq!(table.value_reference("der(theta)"), Some(7));
+    }
+
+    #[test]
+    fn element_names_parse() {
+        assert_eq!(array_element("nu[12]"), Some(("nu".into(), 12)));
+        assert_eq!(array_element("der(nu[3])"), Some(("der(nu)".into(), 3)));
+        assert_eq!(array_element("power"), None);
+        assert_eq!(array_element("x[0]"), None);
+        assert_eq!(array_element("x[a]"), None);
+    }
+}
