@@ -14,6 +14,8 @@ use nudyn::integrate::{AdvanceError, Stats, ToleranceRelaxed};
 use nudyn::model::InvalidModel;
 use nudyn_contract::capabilities::Capabilities;
 use nudyn_contract::controller::ControllerResource;
+use nudyn_contract::fmi3::Fmi3Variables;
+use nudyn_contract::plant::PlantResource;
 use nudyn_contract::plant::method_items;
 use nudyn_contract::resource::Resource;
 use nudyn_contract::variable::Kind;
@@ -22,7 +24,7 @@ use crate::controller::Controller;
 use crate::plant::Plant;
 use crate::snapshot::{Snapshot, SnapshotError};
 use crate::state::Phase;
-use crate::uri::{UriError, resource_directory};
+use crate::uri::UriError;
 
 /// A Real variable as the checks need it: its name, for messages, and its kind.
 #[derive(Clone, Debug, PartialEq)]
@@ -180,14 +182,18 @@ fn none_of(kind: &'static str, vrs: &[u32]) -> Result<(), CallError> {
     }
 }
 
-/// Loads the FMU's resources: the controller if `controller.json` is
-/// there, else the plant (whose loader reports a missing `model.json`).
-pub fn load(resource_location: &str, guid: &str) -> Result<Box<dyn Component>, LoadError> {
-    let directory = resource_directory(resource_location)?;
+/// Loads the FMU's resources from `directory`: the controller if
+/// `controller.json` is there, else the plant (whose loader reports a
+/// missing `model.json`); with the FMI 3.0 view of its variables.
+pub fn load(directory: &Path, guid: &str) -> Result<(Box<dyn Component>, Fmi3Variables), LoadError> {
     if directory.join(ControllerResource::FILE).is_file() {
-        Ok(Box::new(Controller::load(read_resource(&directory, guid, Controller::check_law)?)?))
+        let loaded = read_resource(directory, guid, Controller::check_law)?;
+        let variables = loaded.resource.fmi3_variables();
+        Ok((Box::new(Controller::load(loaded)?), variables))
     } else {
-        Ok(Box::new(Plant::load(read_resource(&directory, guid, |_, _| Ok(()))?)))
+        let loaded: Loaded<PlantResource> = read_resource(directory, guid, |_, _| Ok(()))?;
+        let variables = loaded.resource.fmi3_variables();
+        Ok((Box::new(Plant::load(loaded)), variables))
     }
 }
 

@@ -3,7 +3,9 @@
 //! resource file (`resources/model.json` or `resources/controller.json`);
 //! the exported symbols are the standard, unprefixed `fmi2*` names.
 //!
-//! - [`fmi2`]: the generic FMI layer, the only `unsafe` code;
+//! - [`layer`]: the generic FMI layer both versions share (instances,
+//!   the entry path, statuses, logging, FMU states); with [`fmi2`] and
+//!   [`fmi3`], the functions of each version, the only `unsafe` code;
 //! - [`state`]: the state machine's table of allowed calls;
 //! - [`calls`]: the argument checks every component shares;
 //! - [`component`]: the one interface of what an instance runs, its loader
@@ -17,6 +19,8 @@ mod calls;
 mod component;
 mod controller;
 pub mod fmi2;
+pub mod fmi3;
+mod layer;
 mod plant;
 mod snapshot;
 mod state;

@@ -1,5 +1,5 @@
 //! The FMI 2.0 state machines of co-simulation (§4.2.4) and model exchange
-//! (§3.2.3): the instance's states and, per function, the states it may be
+//! (§3.2.3), which FMI 3.0's follow for what nudyn serves (§4.2, §3.2): the instance's states and, per function, the states it may be
 //! called in. The two machines share instantiated, initializationMode,
 //! terminated and error; stepComplete and stepFailed belong to
 //! co-simulation, eventMode and continuousTimeMode to model exchange, so
@@ -8,6 +8,8 @@
 //!
 //! doStep is synchronous (canRunAsynchronuously="false"), so the states
 //! stepInProgress and stepCanceled are never entered and not modelled.
+
+use crate::layer::Interface;
 
 /// Where an instance is in its life.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -75,6 +77,16 @@ impl Phase {
             Phase::ContinuousTimeMode => "continuousTimeMode",
         }
     }
+
+    /// FMI 3.0's name of the state, for messages (co-simulation's states
+    /// are called stepMode and stepDiscarded there).
+    pub fn fmi3_name(self) -> &'static str {
+        match self {
+            Phase::StepComplete => "stepMode",
+            Phase::StepFailed => "stepDiscarded",
+            other => other.name(),
+        }
+    }
 }
 
 const INSTANTIATED: u16 = Phase::Instantiated.bit();
@@ -133,6 +145,15 @@ pub enum Function {
     GetEventIndicators,
     GetContinuousStates,
     GetNominalsOfContinuousStates,
+    /// FMI 3.0: the number of continuous states or event indicators.
+    GetNumberOf,
+    /// FMI 3.0: fmi3EnterStepMode (from co-simulation's event mode).
+    EnterStepMode,
+    /// FMI 3.0: fmi3GetNumberOfVariableDependencies and fmi3GetVariableDependencies.
+    GetVariableDependencies,
+    /// FMI 3.0: what the FMU does not provide (clocks, configuration mode,
+    /// evaluateDiscreteStates, scheduled execution): refused with the reason.
+    NotProvided,
 }
 
 impl Function {
@@ -179,6 +200,37 @@ impl Function {
             Function::GetEventIndicators => "fmi2GetEventIndicators",
             Function::GetContinuousStates => "fmi2GetContinuousStates",
             Function::GetNominalsOfContinuousStates => "fmi2GetNominalsOfContinuousStates",
+            Function::GetNumberOf => "fmi3GetNumberOf…",
+            Function::EnterStepMode => "fmi3EnterStepMode",
+            Function::GetVariableDependencies => "fmi3GetVariableDependencies",
+            Function::NotProvided => "(not provided)",
+        }
+    }
+
+    /// The interface the function belongs to, if only one.
+    pub fn interface(self) -> Option<Interface> {
+        match self {
+            Function::DoStep
+            | Function::CancelStep
+            | Function::GetStatus
+            | Function::GetRealStatus
+            | Function::GetIntegerStatus
+            | Function::GetBooleanStatus
+            | Function::GetStringStatus
+            | Function::SetRealInputDerivatives
+            | Function::GetRealOutputDerivatives
+            | Function::EnterStepMode => Some(Interface::CoSimulation),
+            Function::NewDiscreteStates
+            | Function::EnterContinuousTimeMode
+            | Function::CompletedIntegratorStep
+            | Function::SetTime
+            | Function::SetContinuousStates
+            | Function::GetDerivatives
+            | Function::GetEventIndicators
+            | Function::GetContinuousStates
+            | Function::GetNominalsOfContinuousStates
+            | Function::GetNumberOf => Some(Interface::ModelExchange),
+            _ => None,
         }
     }
 
@@ -222,6 +274,10 @@ impl Function {
             }
             Function::GetDerivatives => EVENT | CONTINUOUS | TERMINATED | ERROR,
             Function::GetNominalsOfContinuousStates => INSTANTIATED | EVENT | CONTINUOUS | TERMINATED | ERROR,
+            Function::GetNumberOf => INSTANTIATED | INIT | EVENT | CONTINUOUS | TERMINATED | ERROR,
+            // Co-simulation never enters event mode here (hasEventMode="false").
+            Function::EnterStepMode => 0,
+            Function::GetVariableDependencies | Function::NotProvided => ALIVE,
         }
     }
 
