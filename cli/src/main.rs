@@ -12,8 +12,8 @@ use nudyn::integrate::{Method, Settings};
 use nudyn::model::Model;
 use nudyn::vehicle::Vehicle;
 use nudyn_cli::export::controller::write_controller_fmu;
-use nudyn_cli::export::model_identifier_from;
 use nudyn_cli::export::plant::{ExportOptions, write_fmu};
+use nudyn_cli::export::{FmiVersion, model_identifier_from};
 use nudyn_contract::plant::{DEFAULT_TOLERANCE, OptionalOutputs};
 use serde::Deserialize;
 use simulate::Format;
@@ -39,7 +39,8 @@ enum Command {
         /// The vehicle's MJCF file.
         model: PathBuf,
     },
-    /// Export the vehicle as an FMI 2.0 co-simulation FMU.
+    /// Export the vehicle as an FMU: FMI 2.0 (default) or 3.0, co-simulation
+    /// and model exchange in one file.
     ///
     /// The FMU's binary is the `nudyn_fmu` library that
     /// `cargo build --release --workspace` puts beside the `nudyn`
@@ -67,6 +68,10 @@ enum Command {
         /// With --controller: Y is the pose (position and orientation) of this body.
         #[arg(long, requires = "controller", value_name = "BODY")]
         end_effector: Option<String>,
+        /// The FMI version: 2 (binaries/linux64, scalar variables eps[k], theta[k], ...)
+        /// or 3 (binaries/x86_64-linux, array variables eps, theta, ...).
+        #[arg(long, default_value = "2", value_name = "2|3")]
+        fmi_version: FmiVersion,
     },
     /// Print the vehicle's joints and where each sits in θ (qpos) and ν (qvel).
     ///
@@ -206,11 +211,11 @@ fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Eval { model } => eval(&model),
         Command::Describe { model, json } => describe(&model, json),
-        Command::Export { model, output, model_identifier, controller: true, end_effector, .. } => {
-            export_controller(&model, &output, model_identifier, end_effector.as_deref())
+        Command::Export { model, output, model_identifier, controller: true, end_effector, fmi_version, .. } => {
+            export_controller(&model, &output, model_identifier, end_effector.as_deref(), fmi_version)
         }
-        Command::Export { model, output, model_identifier, outputs, .. } => {
-            export(&model, &output, model_identifier, outputs)
+        Command::Export { model, output, model_identifier, outputs, fmi_version, .. } => {
+            export(&model, &output, model_identifier, outputs, fmi_version)
         }
         Command::Simulate { model, step, stop, method, tolerance, max_step, energy_projection, format } => {
             let settings = Settings { tolerance, max_step: max_step.unwrap_or(step), energy_projection };
@@ -360,11 +365,17 @@ fn fmu_library() -> Result<PathBuf> {
     Ok(library)
 }
 
-fn export(model_path: &Path, output: &Path, model_identifier: Option<String>, outputs: OptionalOutputs) -> Result<()> {
+fn export(
+    model_path: &Path,
+    output: &Path,
+    model_identifier: Option<String>,
+    outputs: OptionalOutputs,
+    fmi_version: FmiVersion,
+) -> Result<()> {
     let model = load_model(model_path)?;
     let stem = model_path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    let options =
-        ExportOptions { model_identifier: model_identifier.unwrap_or_else(|| model_identifier_from(&stem)), outputs };
+    let model_identifier = model_identifier.unwrap_or_else(|| model_identifier_from(&stem));
+    let options = ExportOptions { model_identifier, outputs, fmi_version };
     let library = fmu_library()?;
     write_fmu(&model, &options, &library, output).with_context(|| format!("cannot export {}", output.display()))
 }
@@ -374,6 +385,7 @@ fn export_controller(
     output: &Path,
     model_identifier: Option<String>,
     end_effector: Option<&str>,
+    fmi_version: FmiVersion,
 ) -> Result<()> {
     let (vehicle, model) = load_vehicle(model_path)?;
     let law = match end_effector {
@@ -384,7 +396,7 @@ fn export_controller(
     let stem = model_path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let identifier = model_identifier.unwrap_or_else(|| model_identifier_from(&format!("{stem}_controller")));
     let library = fmu_library()?;
-    write_controller_fmu(&model, &law, &identifier, &library, output)
+    write_controller_fmu(&model, &law, &identifier, fmi_version, &library, output)
         .with_context(|| format!("cannot export {}", output.display()))
 }
 

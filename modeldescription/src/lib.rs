@@ -12,6 +12,7 @@
 
 #![warn(missing_docs)]
 
+pub mod fmi3;
 mod model;
 mod validation;
 mod xsd;
@@ -41,6 +42,11 @@ const XML_DECLARATION: &str = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
 /// This does not call [`validate()`]: a model that breaks the standard's
 /// semantic rules is written as it is.
 pub fn to_xml(model: &FmiModelDescription) -> Result<String, Error> {
+    write_document(model)
+}
+
+/// `model` as an indented `<fmiModelDescription>` document after the XML declaration.
+fn write_document(model: &impl Serialize) -> Result<String, Error> {
     let mut document = String::from(XML_DECLARATION);
     let mut serializer = quick_xml::se::Serializer::with_root(&mut document, Some("fmiModelDescription"))?;
     serializer.indent(' ', 2);

@@ -13,7 +13,7 @@ pub(crate) mod optional_double {
     use serde::{Deserialize, Deserializer, Serializer, de::Error as _};
     use std::fmt;
 
-    struct XsdDouble(f64);
+    pub(crate) struct XsdDouble(pub(crate) f64);
 
     impl fmt::Display for XsdDouble {
         fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -42,6 +42,30 @@ pub(crate) mod optional_double {
         // Rust's parser accepts every xs:double lexical form, including
         // `INF`/`-INF`/`NaN` (it matches those case-insensitively).
         text.trim().parse().map(Some).map_err(|_| D::Error::custom(format!("`{text}` is not an xs:double")))
+    }
+}
+
+/// `xs:double` lists (FMI 3.0 array start values) held as `Option<Vec<f64>>`:
+/// space-separated, each value spelled as [`optional_double`] spells one.
+pub(crate) mod double_list {
+    use serde::{Deserialize, Deserializer, Serializer, de::Error as _};
+
+    use super::optional_double::XsdDouble;
+
+    pub(crate) fn serialize<S: Serializer>(values: &Option<Vec<f64>>, serializer: S) -> Result<S::Ok, S::Error> {
+        match values {
+            Some(values) => {
+                let text: Vec<String> = values.iter().map(|&x| XsdDouble(x).to_string()).collect();
+                serializer.serialize_str(&text.join(" "))
+            }
+            None => serializer.serialize_none(),
+        }
+    }
+
+    pub(crate) fn deserialize<'de, D: Deserializer<'de>>(deserializer: D) -> Result<Option<Vec<f64>>, D::Error> {
+        let text = String::deserialize(deserializer)?;
+        let values: Result<Vec<f64>, _> = text.split_whitespace().map(str::parse).collect();
+        values.map(Some).map_err(|_| D::Error::custom(format!("`{text}` is not a list of xs:double")))
     }
 }
 

@@ -13,7 +13,7 @@ use nudyn_contract::plant::RealVariable;
 use nudyn_contract::resource::Resource;
 
 use super::plant::description;
-use super::{ExportError, Header, check_model_identifier, real_variable, write_archive};
+use super::{Document, ExportError, FmiVersion, Header, check_model_identifier, fmi3, real_variable, write_archive};
 
 /// What controlled quantity k is, and its unit, for descriptions.
 fn quantity(model: &Model, law: &ControlLaw, k: usize) -> (String, &'static str, &'static str) {
@@ -79,6 +79,46 @@ fn controller_description(model: &Model, law: &ControlLaw, variable: ControllerV
     }
 }
 
+/// What the controller's modelDescription says of the FMU as a whole.
+fn header(model: &Model, law: &ControlLaw, model_identifier: &str, guid: &str) -> Header {
+    let target = match &law.objective {
+        Objective::Joints(joints) => format!("the {} hinge and slide joint values", joints.len()),
+        Objective::Pose(frame) => format!("the pose of body '{}'", frame.body),
+    };
+    Header {
+        model_name: format!("{}_controller", if model.name.is_empty() { model_identifier } else { &model.name }),
+        guid: guid.to_string(),
+        description: format!(
+            "noninteracting controller of the vehicle '{}' (nq = {}, nv = {}): \
+             eps = -c1 nu + l(theta) J^T(theta) c2 (Yhat - Y(theta)), Y = {target}",
+            model.name, model.nq, model.nv
+        ),
+        model_identifier: model_identifier.to_string(),
+        capabilities: CAPABILITIES,
+    }
+}
+
+/// The typed FMI 3.0 modelDescription of the controller FMU (not yet validated).
+pub fn controller_model_description3(
+    resource: &ControllerResource,
+    defaults: &ControlParameters,
+    model_identifier: &str,
+    guid: &str,
+) -> md::fmi3::Fmi3ModelDescription {
+    let (model, law) = (&resource.model, &resource.law);
+    let layout = resource.layout();
+    let real = |vr: u32| {
+        let variable = layout.variable(vr).expect("the table's Reals are the layout's");
+        fmi3::RealScalar {
+            kind: variable.kind(),
+            start: variable.start(model, defaults),
+            description: controller_description(model, law, variable),
+        }
+    };
+    let others = fmi3::Others { enumeration_types: Vec::new(), variables: Vec::new() };
+    fmi3::model_description(header(model, law, model_identifier, guid), &resource.fmi3_variables(), real, others)
+}
+
 /// The typed modelDescription of the controller FMU (validated when written).
 pub fn controller_model_description(
     model: &Model,
@@ -106,21 +146,7 @@ pub fn controller_model_description(
             initial_unknowns.push(md::Unknown::new(vr));
         }
     }
-    let target = match &law.objective {
-        Objective::Joints(joints) => format!("the {} hinge and slide joint values", joints.len()),
-        Objective::Pose(frame) => format!("the pose of body '{}'", frame.body),
-    };
-    let header = Header {
-        model_name: format!("{}_controller", if model.name.is_empty() { model_identifier } else { &model.name }),
-        guid: guid.to_string(),
-        description: format!(
-            "noninteracting controller of the vehicle '{}' (nq = {}, nv = {}): \
-             eps = -c1 nu + l(theta) J^T(theta) c2 (Yhat - Y(theta)), Y = {target}",
-            model.name, model.nq, model.nv
-        ),
-        model_identifier: model_identifier.to_string(),
-        capabilities: CAPABILITIES,
-    };
+    let header = header(model, law, model_identifier, guid);
     let structure = md::ModelStructure { outputs, derivatives: Vec::new(), initial_unknowns };
     header.into_model_description(Vec::new(), model_variables, structure)
 }
@@ -142,6 +168,7 @@ pub fn write_controller_fmu(
     model: &Model,
     law: &ControlLaw,
     model_identifier: &str,
+    fmi_version: FmiVersion,
     binary: &Path,
     out: &Path,
 ) -> Result<(), ControllerExportError> {
@@ -149,7 +176,15 @@ pub fn write_controller_fmu(
     let defaults = law.default_parameters(model)?;
     let resource = ControllerResource::new(model.clone(), law.clone());
     let bytes = resource.to_json().map_err(ExportError::from)?;
-    let description = controller_model_description(model, law, &defaults, model_identifier, &resource.guid(&bytes));
+    let guid = resource.guid(&bytes);
+    let description = match fmi_version {
+        FmiVersion::Fmi2 => {
+            Document::Fmi2(controller_model_description(model, law, &defaults, model_identifier, &guid))
+        }
+        FmiVersion::Fmi3 => {
+            Document::Fmi3(controller_model_description3(&resource, &defaults, model_identifier, &guid))
+        }
+    };
     write_archive::<ControllerResource>(&description, &bytes, binary, out)?;
     Ok(())
 }

@@ -1,12 +1,14 @@
 //! `nudyn export`: the FMU archive. The variables, value references,
 //! defaults, capability flags, log categories and GUID come from the
 //! `nudyn-contract` crate, which the FMU binary serves from; this module
-//! only writes them down as FMI 2.0 `modelDescription.xml` (with the
-//! descriptions a person reads) and zips it with the binary and the
-//! resource file.
+//! only writes them down as an FMI 2.0 or FMI 3.0 `modelDescription.xml`
+//! (with the descriptions a person reads) and zips it with the binary and
+//! the resource file. One binary serves both versions (it exports the fmi2
+//! and the fmi3 functions).
 
 pub mod binary;
 pub mod controller;
+mod fmi3;
 pub mod plant;
 
 use std::io::Write;
@@ -28,6 +30,9 @@ pub enum ExportError {
     /// The modelDescription breaks the standard's rules: a bug in this exporter.
     #[error("the generated modelDescription.xml breaks FMI 2.0 rules: {}", .0.iter().map(ToString::to_string).collect::<Vec<_>>().join("; "))]
     InvalidModelDescription(Vec<md::Problem>),
+    /// The FMI 3.0 modelDescription breaks the standard's rules: a bug in this exporter.
+    #[error("the generated modelDescription.xml breaks FMI 3.0 rules: {}", .0.iter().map(ToString::to_string).collect::<Vec<_>>().join("; "))]
+    InvalidFmi3ModelDescription(Vec<md::fmi3::Problem3>),
     /// The modelDescription cannot be written.
     #[error(transparent)]
     ModelDescription(#[from] md::Error),
@@ -58,6 +63,76 @@ pub enum ExportError {
         /// The cause.
         source: zip::result::ZipError,
     },
+}
+
+/// The FMI version of an exported FMU.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FmiVersion {
+    /// FMI 2.0: what every importer reads, OSP's libcosim included (the default).
+    #[default]
+    Fmi2,
+    /// FMI 3.0, with θ, ν and ε as arrays.
+    Fmi3,
+}
+
+/// Why `--fmi-version` cannot be read.
+#[derive(Debug, thiserror::Error, PartialEq)]
+#[error("unknown FMI version '{0}': expected 2 or 3")]
+pub struct UnknownFmiVersion(String);
+
+impl std::str::FromStr for FmiVersion {
+    type Err = UnknownFmiVersion;
+
+    fn from_str(text: &str) -> Result<Self, UnknownFmiVersion> {
+        match text.trim() {
+            "2" | "2.0" => Ok(FmiVersion::Fmi2),
+            "3" | "3.0" => Ok(FmiVersion::Fmi3),
+            other => Err(UnknownFmiVersion(other.to_string())),
+        }
+    }
+}
+
+/// A modelDescription of either version, validated when written.
+pub enum Document {
+    /// FMI 2.0.
+    Fmi2(md::FmiModelDescription),
+    /// FMI 3.0.
+    Fmi3(md::fmi3::Fmi3ModelDescription),
+}
+
+impl Document {
+    /// The document's text, after the standard's rules are checked.
+    fn xml(&self) -> Result<String, ExportError> {
+        match self {
+            Document::Fmi2(description) => {
+                let problems = md::validate(description);
+                if !problems.is_empty() {
+                    return Err(ExportError::InvalidModelDescription(problems));
+                }
+                Ok(md::to_xml(description)?)
+            }
+            Document::Fmi3(description) => {
+                let problems = md::fmi3::validate(description);
+                if !problems.is_empty() {
+                    return Err(ExportError::InvalidFmi3ModelDescription(problems));
+                }
+                Ok(md::fmi3::to_xml(description)?)
+            }
+        }
+    }
+
+    /// Where the binary goes in the archive (FMI 2.0 §2.5, FMI 3.0 §2.5.1).
+    fn binary_path(&self) -> String {
+        match self {
+            Document::Fmi2(description) => {
+                format!("binaries/linux64/{}.so", description.co_simulation.model_identifier)
+            }
+            Document::Fmi3(description) => {
+                let identifier = description.co_simulation.as_ref().map_or("", |cs| cs.model_identifier.as_str());
+                format!("binaries/x86_64-linux/{identifier}.so")
+            }
+        }
+    }
 }
 
 /// A model identifier from a name (e.g. the MJCF file stem): characters
@@ -203,18 +278,15 @@ impl Header {
 
 /// Writes the FMU archive `out`: `description` (validated first) as
 /// modelDescription.xml, `binary` (the `nudyn_fmu` cdylib) as
-/// `binaries/linux64/<modelIdentifier>.so`, and the resource file.
+/// `binaries/linux64/<modelIdentifier>.so` (FMI 3.0:
+/// `binaries/x86_64-linux/`), and the resource file.
 fn write_archive<R: Resource>(
-    description: &md::FmiModelDescription,
+    description: &Document,
     resource: &[u8],
     binary: &Path,
     out: &Path,
 ) -> Result<(), ExportError> {
-    let problems = md::validate(description);
-    if !problems.is_empty() {
-        return Err(ExportError::InvalidModelDescription(problems));
-    }
-    let xml = md::to_xml(description)?;
+    let xml = description.xml()?;
     let library = std::fs::read(binary).map_err(|source| ExportError::Io { path: binary.to_path_buf(), source })?;
     binary::check_linux64_library(&library)
         .map_err(|reason| ExportError::Binary { path: binary.to_path_buf(), reason })?;
@@ -244,7 +316,7 @@ fn write_archive<R: Resource>(
     };
     let entries = [
         ("modelDescription.xml".to_string(), xml.as_bytes(), 0o644),
-        (format!("binaries/linux64/{}.so", description.co_simulation.model_identifier), &library[..], 0o755),
+        (description.binary_path(), &library[..], 0o755),
         (R::archive_path(), resource, 0o644),
     ];
     for (name, bytes, mode) in entries {

@@ -4,16 +4,17 @@
 use std::path::Path;
 
 use modeldescription as md;
+use modeldescription::fmi3 as md3;
 use nudyn::integrate::Method;
 use nudyn::model::Model;
 use nudyn::vehicle::JointKind;
 use nudyn_contract::plant::{
-    DEFAULT_METHOD, ENERGY_PROJECTION_VR, Layout, METHOD_TYPE, METHOD_VR, OptionalOutputs, PlantResource, RealVariable,
-    capabilities, method_value,
+    DEFAULT_METHOD, ENERGY_PROJECTION_NAME, ENERGY_PROJECTION_VR, Layout, METHOD_NAME, METHOD_TYPE, METHOD_VR,
+    OptionalOutputs, PlantResource, RealVariable, capabilities, method_value,
 };
 use nudyn_contract::resource::Resource;
 
-use super::{ExportError, Header, check_model_identifier, real_variable, write_archive};
+use super::{Document, ExportError, FmiVersion, Header, check_model_identifier, fmi3, real_variable, write_archive};
 
 /// What `nudyn export` is asked for.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -22,6 +23,8 @@ pub struct ExportOptions {
     pub model_identifier: String,
     /// The optional outputs.
     pub outputs: OptionalOutputs,
+    /// The FMI version.
+    pub fmi_version: FmiVersion,
 }
 
 /// What one coordinate or dof is, for variable descriptions: the joint, its
@@ -65,7 +68,8 @@ pub fn description(model: &Model, variable: RealVariable) -> String {
     match variable {
         RealVariable::Tolerance => {
             "error allowed per second of simulated time, relative to 1 + |value|, for the adaptive methods; \
-             a tolerance passed to fmi2SetupExperiment replaces it (1)"
+             a tolerance passed at the start of the experiment (fmi2SetupExperiment, fmi3EnterInitializationMode) \
+             replaces it (1)"
                 .into()
         }
         RealVariable::MaxStep => "longest internal integration step (s)".into(),
@@ -99,13 +103,86 @@ pub fn description(model: &Model, variable: RealVariable) -> String {
     }
 }
 
+/// What the plant's modelDescription says of the FMU as a whole.
+fn header(model: &Model, options: &ExportOptions, guid: &str) -> Header {
+    Header {
+        model_name: if model.name.is_empty() { options.model_identifier.clone() } else { model.name.clone() },
+        guid: guid.to_string(),
+        description: format!(
+            "diagonalized dynamics of the vehicle '{}' (nq = {}, nv = {}): nu' + C(theta, nu) = eps",
+            model.name, model.nq, model.nv
+        ),
+        model_identifier: options.model_identifier.clone(),
+        capabilities: capabilities(options.outputs),
+    }
+}
+
+const METHOD_DESCRIPTION: &str = "integration method";
+
+const ENERGY_PROJECTION_DESCRIPTION: &str = "rescale nu after each internal step so that the kinetic energy follows \
+     the work done (keeps K exactly when no force acts)";
+
+/// The item description of `method` in the enumeration type.
+fn method_item_description(method: Method) -> String {
+    format!("{} (Munthe-Kaas on rotations)", method.description())
+}
+
+/// The typed FMI 3.0 modelDescription of the plant FMU (not yet validated).
+pub fn model_description3(resource: &PlantResource, options: &ExportOptions, guid: &str) -> md3::Fmi3ModelDescription {
+    let model = &resource.model;
+    let layout = resource.layout();
+    let table = resource.fmi3_variables();
+    let method_type = md3::EnumerationType {
+        name: METHOD_TYPE.into(),
+        description: Some(METHOD_DESCRIPTION.into()),
+        items: Method::ALL
+            .iter()
+            .map(|&method| md3::Item {
+                name: method.name().into(),
+                value: i64::from(method_value(method)),
+                description: Some(method_item_description(method)),
+            })
+            .collect(),
+    };
+    let vr = |name: &str| table.value_reference(name).expect("the plant's table has it");
+    let method = md3::Variable::Enumeration(md3::Enumeration {
+        name: METHOD_NAME.into(),
+        value_reference: vr(METHOD_NAME),
+        description: Some(METHOD_DESCRIPTION.into()),
+        causality: "parameter".into(),
+        variability: "fixed".into(),
+        initial: Some("exact".into()),
+        declared_type: METHOD_TYPE.into(),
+        start: Some(i64::from(method_value(DEFAULT_METHOD))),
+    });
+    let energy_projection = md3::Variable::Boolean(md3::Boolean {
+        name: ENERGY_PROJECTION_NAME.into(),
+        value_reference: vr(ENERGY_PROJECTION_NAME),
+        description: Some(ENERGY_PROJECTION_DESCRIPTION.into()),
+        causality: "parameter".into(),
+        variability: "fixed".into(),
+        initial: Some("exact".into()),
+        start: Some(false),
+    });
+    let others = fmi3::Others { enumeration_types: vec![method_type], variables: vec![method, energy_projection] };
+    let real = |vr: u32| {
+        let variable = layout.real_variable(vr).expect("the table's Reals are the layout's");
+        fmi3::RealScalar {
+            kind: variable.kind(),
+            start: variable.start(model),
+            description: description(model, variable),
+        }
+    };
+    fmi3::model_description(header(model, options, guid), &table, real, others)
+}
+
 /// The typed modelDescription of the plant FMU (not yet validated).
 pub fn model_description(model: &Model, options: &ExportOptions, guid: &str) -> md::FmiModelDescription {
     let layout = Layout::new(model, options.outputs);
     let method = md::ScalarVariable {
-        name: "method".into(),
+        name: METHOD_NAME.into(),
         value_reference: METHOD_VR,
-        description: Some("integration method".into()),
+        description: Some(METHOD_DESCRIPTION.into()),
         causality: md::Causality::Parameter,
         variability: md::Variability::Fixed,
         initial: Some(md::Initial::Exact),
@@ -119,20 +196,15 @@ pub fn model_description(model: &Model, options: &ExportOptions, guid: &str) -> 
         }),
     };
     let energy_projection = md::ScalarVariable {
-        name: "energy_projection".into(),
+        name: ENERGY_PROJECTION_NAME.into(),
         value_reference: ENERGY_PROJECTION_VR,
-        description: Some(
-            "rescale nu after each internal step so that the kinetic energy follows the work done \
-             (keeps K exactly when no force acts)"
-                .into(),
-        ),
+        description: Some(ENERGY_PROJECTION_DESCRIPTION.into()),
         causality: md::Causality::Parameter,
         variability: md::Variability::Fixed,
         initial: Some(md::Initial::Exact),
         can_handle_multiple_set_per_time_instant: None,
         kind: md::VariableKind::Boolean(md::BooleanVariable { start: Some(false), ..Default::default() }),
     };
-    let capabilities = capabilities(options.outputs);
     let reals: Vec<(u32, RealVariable)> = layout.real_variables().collect();
     // 1-based ScalarVariable indices, as <ModelStructure> and `derivative` refer to them.
     let index_of = |variable: RealVariable| {
@@ -184,7 +256,7 @@ pub fn model_description(model: &Model, options: &ExportOptions, guid: &str) -> 
 
     let method_type = md::SimpleType {
         name: METHOD_TYPE.into(),
-        description: Some("integration method".into()),
+        description: Some(METHOD_DESCRIPTION.into()),
         kind: md::SimpleTypeKind::Enumeration(md::EnumerationType {
             quantity: None,
             items: Method::ALL
@@ -192,21 +264,12 @@ pub fn model_description(model: &Model, options: &ExportOptions, guid: &str) -> 
                 .map(|&method| md::Item {
                     name: method.name().into(),
                     value: method_value(method),
-                    description: Some(format!("{} (Munthe-Kaas on rotations)", method.description())),
+                    description: Some(method_item_description(method)),
                 })
                 .collect(),
         }),
     };
-    let header = Header {
-        model_name: if model.name.is_empty() { options.model_identifier.clone() } else { model.name.clone() },
-        guid: guid.to_string(),
-        description: format!(
-            "diagonalized dynamics of the vehicle '{}' (nq = {}, nv = {}): nu' + C(theta, nu) = eps",
-            model.name, model.nq, model.nv
-        ),
-        model_identifier: options.model_identifier.clone(),
-        capabilities,
-    };
+    let header = header(model, options, guid);
     let structure = md::ModelStructure { outputs, derivatives, initial_unknowns };
     header.into_model_description(vec![method_type], model_variables, structure)
 }
@@ -218,6 +281,10 @@ pub fn write_fmu(model: &Model, options: &ExportOptions, binary: &Path, out: &Pa
     check_model_identifier(&options.model_identifier)?;
     let resource = PlantResource::new(model.clone(), options.outputs);
     let bytes = resource.to_json()?;
-    let description = model_description(model, options, &resource.guid(&bytes));
+    let guid = resource.guid(&bytes);
+    let description = match options.fmi_version {
+        FmiVersion::Fmi2 => Document::Fmi2(model_description(model, options, &guid)),
+        FmiVersion::Fmi3 => Document::Fmi3(model_description3(&resource, options, &guid)),
+    };
     write_archive::<PlantResource>(&description, &bytes, binary, out)
 }
