@@ -7,7 +7,8 @@ use std::path::{Path, PathBuf};
 
 use nudyn::model::Model;
 use nudyn_cli::export::ExportError;
-use nudyn_cli::export::binary::FMI2_CO_SIMULATION_FUNCTIONS;
+use nudyn_cli::export::FmiVersion;
+use nudyn_cli::export::binary::{FMI2_FUNCTIONS, FMI3_FUNCTIONS};
 use nudyn_cli::export::plant::{ExportOptions, write_fmu};
 use nudyn_contract::plant::{OptionalOutputs, PlantResource};
 use nudyn_contract::resource::Resource;
@@ -37,12 +38,15 @@ fn entries(archive: &Path) -> Vec<(String, Vec<u8>)> {
         .collect()
 }
 
-/// A shared library that exports the FMI 2.0 co-simulation functions (and
+/// A shared library that exports the FMI 2.0 and 3.0 functions (and
 /// does nothing), built with gcc: the exporter packs only such a library.
 fn stand_in_library(dir: &Path) -> PathBuf {
     let source = dir.join("stand_in.c");
-    let functions: String =
-        FMI2_CO_SIMULATION_FUNCTIONS.iter().map(|name| format!("int {name}(void) {{ return 0; }}\n")).collect();
+    let functions: String = FMI2_FUNCTIONS
+        .iter()
+        .chain(&FMI3_FUNCTIONS)
+        .map(|name| format!("int {name}(void) {{ return 0; }}\n"))
+        .collect();
     std::fs::write(&source, functions).unwrap();
     let library = dir.join("libnudyn_fmu.so");
     let status = std::process::Command::new("gcc")
@@ -61,7 +65,7 @@ fn archive_holds_description_binary_and_resource() {
     let binary = stand_in_library(&dir);
     let model = example("bus_arm7.xml");
     let outputs: OptionalOutputs = "kinetic_energy,momentum".parse().unwrap();
-    let options = ExportOptions { model_identifier: "bus".into(), outputs };
+    let options = ExportOptions { model_identifier: "bus".into(), outputs, fmi_version: FmiVersion::Fmi2 };
     let fmu = dir.join("bus.fmu");
     write_fmu(&model, &options, &binary, &fmu).unwrap();
 
@@ -115,7 +119,11 @@ fn guid_follows_the_content() {
 #[test]
 fn bad_model_identifier_is_refused() {
     let dir = scratch("identifier");
-    let options = ExportOptions { model_identifier: "my model".into(), outputs: OptionalOutputs::default() };
+    let options = ExportOptions {
+        model_identifier: "my model".into(),
+        outputs: OptionalOutputs::default(),
+        fmi_version: FmiVersion::Fmi2,
+    };
     let error =
         write_fmu(&example("fixed_rig.xml"), &options, &dir.join("missing.so"), &dir.join("x.fmu")).unwrap_err();
     assert!(matches!(error, ExportError::ModelIdentifier(_)), "{error}");
@@ -126,10 +134,61 @@ fn a_file_that_is_no_fmu_binary_is_refused_before_anything_is_written() {
     let dir = scratch("not-a-binary");
     let binary = dir.join("libnudyn_fmu.so");
     std::fs::write(&binary, b"not a shared library").unwrap();
-    let options = ExportOptions { model_identifier: "rig".into(), outputs: OptionalOutputs::default() };
+    let options = ExportOptions {
+        model_identifier: "rig".into(),
+        outputs: OptionalOutputs::default(),
+        fmi_version: FmiVersion::Fmi2,
+    };
     let fmu = dir.join("rig.fmu");
     let error = write_fmu(&example("fixed_rig.xml"), &options, &binary, &fmu).unwrap_err();
     assert!(matches!(error, ExportError::Binary { .. }), "{error}");
     assert!(error.to_string().contains("it is not a shared library"), "{error}");
     assert!(!fmu.exists());
+}
+
+#[test]
+fn fmi3_archive_declares_arrays_of_the_model_sizes() {
+    use modeldescription::fmi3::{Variable, from_xml, validate};
+    let dir = scratch("fmi3");
+    let binary = stand_in_library(&dir);
+    let model = example("bus_arm7.xml");
+    let outputs: OptionalOutputs = "qvel,momentum".parse().unwrap();
+    let options = ExportOptions { model_identifier: "bus".into(), outputs, fmi_version: FmiVersion::Fmi3 };
+    let fmu = dir.join("bus3.fmu");
+    write_fmu(&model, &options, &binary, &fmu).unwrap();
+
+    let entries = entries(&fmu);
+    let names: Vec<&str> = entries.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names, ["modelDescription.xml", "binaries/x86_64-linux/bus.so", "resources/model.json"]);
+    let description = from_xml(std::str::from_utf8(&entries[0].1).unwrap()).unwrap();
+    assert_eq!(validate(&description), []);
+    assert_eq!(description.instantiation_token, PlantResource::new(model.clone(), outputs).guid(&entries[2].1));
+    let sizes: Vec<(String, Option<u64>)> = description
+        .model_variables
+        .variables
+        .iter()
+        .map(|v| match v {
+            Variable::Float64(f) => (f.name.clone(), f.dimensions.first().map(|d| d.start)),
+            other => (other.common().name.to_string(), None),
+        })
+        .collect();
+    let (nq, nv) = (Some(model.nq as u64), Some(model.nv as u64));
+    let expected = [
+        ("time", None),
+        ("method", None),
+        ("energy_projection", None),
+        ("tolerance", None),
+        ("max_step", None),
+        ("eps", nv),
+        ("theta", nq),
+        ("nu", nv),
+        ("qvel", nv),
+        ("momentum", Some(6)),
+        ("der(theta)", nq),
+        ("der(nu)", nv),
+    ];
+    assert_eq!(sizes, expected.map(|(n, s)| (n.to_string(), s)));
+    // Value references are unique across types, time first.
+    let vrs: Vec<u32> = description.model_variables.variables.iter().map(|v| v.common().value_reference).collect();
+    assert_eq!(vrs, (0..expected.len() as u32).collect::<Vec<_>>());
 }

@@ -74,8 +74,8 @@ def shared_library(tmp_path, name, functions):
 
 def test_a_binary_that_cannot_be_the_fmus_is_refused(nudyn, fmu_library, tmp_path):
     """NUDYN_FMU_LIB must name an x86_64 Linux shared library exporting the
-    FMI 2.0 co-simulation functions: anything else is refused before an
-    FMU is written, with what the file is instead."""
+    functions of the FMI version: anything else is refused before an FMU is
+    written, with what the file is instead."""
     text = tmp_path / "passwd"
     text.write_text("root:x:0:0:root:/root:/bin/bash\n")
     relocatable = tmp_path / "object.o"
@@ -85,8 +85,8 @@ def test_a_binary_that_cannot_be_the_fmus_is_refused(nudyn, fmu_library, tmp_pat
     cases = {
         text: "it is not a shared library",
         relocatable: "it is an ELF file of kind Relocatable, not a shared library",
-        shared_library(tmp_path, "unrelated", []): "it is a shared library that exports none of the 34 FMI 2.0 co-simulation functions",
-        shared_library(tmp_path, "partial", partial): "it is a shared library that does not export 32 of the FMI 2.0 co-simulation functions "
+        shared_library(tmp_path, "unrelated", []): "it is a shared library that exports none of the 44 FMI 2.0 functions",
+        shared_library(tmp_path, "partial", partial): "it is a shared library that does not export 42 of the FMI 2.0 functions "
                                                       "(fmi2GetTypesPlatform, fmi2GetVersion,",
     }
     fmu = tmp_path / "rig.fmu"
@@ -97,6 +97,14 @@ def test_a_binary_that_cannot_be_the_fmus_is_refused(nudyn, fmu_library, tmp_pat
         assert proc.returncode == 1, proc.stderr
         assert f"{library} cannot be the FMU's binary: {says}" in proc.stderr, proc.stderr
         assert not fmu.exists()
+    # An FMI 2.0-only library cannot be an FMI 3.0 FMU's binary.
+    symbols = subprocess.run(["nm", "-D", "--defined-only", str(fmu_library)], capture_output=True, text=True,
+                             check=True).stdout.split()
+    fmi2_only = shared_library(tmp_path, "fmi2_only", [name for name in symbols if name.startswith("fmi2")])
+    env = {**os.environ, "NUDYN_FMU_LIB": str(fmi2_only)}
+    proc = subprocess.run([str(nudyn), "export", str(MODEL), "-o", str(fmu), "--fmi-version", "3"],
+                          capture_output=True, text=True, env=env)
+    assert proc.returncode == 1 and "exports none of the 75 FMI 3.0 functions" in proc.stderr, proc.stderr
     assert export(nudyn, fmu_library, MODEL, fmu).returncode == 0
 
 

@@ -121,6 +121,14 @@ impl Document {
         }
     }
 
+    /// The functions the binary must export, and the version's name.
+    fn functions(&self) -> (&'static [&'static str], &'static str) {
+        match self {
+            Document::Fmi2(_) => (&binary::FMI2_FUNCTIONS, "FMI 2.0"),
+            Document::Fmi3(_) => (&binary::FMI3_FUNCTIONS, "FMI 3.0"),
+        }
+    }
+
     /// Where the binary goes in the archive (FMI 2.0 §2.5, FMI 3.0 §2.5.1).
     fn binary_path(&self) -> String {
         match self {
@@ -288,7 +296,8 @@ fn write_archive<R: Resource>(
 ) -> Result<(), ExportError> {
     let xml = description.xml()?;
     let library = std::fs::read(binary).map_err(|source| ExportError::Io { path: binary.to_path_buf(), source })?;
-    binary::check_linux64_library(&library)
+    let (functions, version) = description.functions();
+    binary::check_linux64_library(&library, functions, version)
         .map_err(|reason| ExportError::Binary { path: binary.to_path_buf(), reason })?;
 
     // Written to a temporary file beside `out`, synced, then renamed over
