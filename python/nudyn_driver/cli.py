@@ -58,6 +58,7 @@ class Nudyn:
         controller: bool = False,
         end_effector: str | None = None,
         model_identifier: str | None = None,
+        fmi_version: int = 2,
     ) -> Path:
         """`nudyn export MODEL -o FMU` with the options given; makes FMU's
         directory if needed and returns the FMU's path."""
@@ -72,6 +73,8 @@ class Nudyn:
             arguments += ["--end-effector", end_effector]
         if model_identifier is not None:
             arguments += ["--model-identifier", model_identifier]
+        if fmi_version != 2:
+            arguments += ["--fmi-version", str(fmi_version)]
         self.run(*arguments)
         return fmu
 
