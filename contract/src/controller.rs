@@ -70,17 +70,7 @@ impl Resource for ControllerResource {
     }
 
     fn dependencies(&self, vr: u32) -> Option<Vec<u32>> {
-        let layout = self.layout();
-        let inputs = |keep: fn(&ControllerVariable) -> bool| {
-            layout.variables().filter(|(_, v)| keep(v)).map(|(vr, _)| vr).collect::<Vec<u32>>()
-        };
-        match layout.variable(vr)? {
-            ControllerVariable::Eps(_) => Some(inputs(|v| v.kind().causality == Causality::Input)),
-            ControllerVariable::Potential | ControllerVariable::TargetError(_) => {
-                Some(inputs(|v| matches!(v, ControllerVariable::Theta(_))))
-            }
-            _ => None,
-        }
+        self.layout().dependency_vrs(vr)
     }
 }
 
@@ -174,6 +164,22 @@ impl ControllerLayout {
             (self.ny, ControllerVariable::TargetError),
         ];
         numbered_blocks(1, blocks)
+    }
+
+    /// The value references of the inputs the output `vr` depends on,
+    /// ascending: ε on θ and ν, the potential and the target error on θ;
+    /// `None` for a variable that is not an output.
+    pub fn dependency_vrs(&self, vr: u32) -> Option<Vec<u32>> {
+        let inputs = |keep: fn(&ControllerVariable) -> bool| {
+            self.variables().filter(|(_, v)| keep(v)).map(|(vr, _)| vr).collect::<Vec<u32>>()
+        };
+        match self.variable(vr)? {
+            ControllerVariable::Eps(_) => Some(inputs(|v| v.kind().causality == Causality::Input)),
+            ControllerVariable::Potential | ControllerVariable::TargetError(_) => {
+                Some(inputs(|v| matches!(v, ControllerVariable::Theta(_))))
+            }
+            _ => None,
+        }
     }
 
     /// The variable with value reference `vr`, if any.

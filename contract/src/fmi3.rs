@@ -14,8 +14,6 @@
 //! type): 0 is `time`, the independent variable; then the enumerations, the
 //! Booleans and the Float64 variables follow in the FMI 2.0 order.
 
-use std::collections::BTreeMap;
-
 /// The value reference of `time`, the independent variable.
 pub const TIME_VR: u32 = 0;
 
@@ -68,14 +66,11 @@ impl Fmi3Variable {
     }
 }
 
-/// Every FMI 3.0 variable of an FMU but `time`, by value reference, and
-/// what its outputs and state derivatives depend on.
+/// Every FMI 3.0 variable of an FMU but `time`, by value reference.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Fmi3Variables {
     /// Position i holds value reference i + 1.
     variables: Vec<Fmi3Variable>,
-    /// FMI 2.0 Real value reference of an unknown → those of its knowns.
-    dependencies: BTreeMap<u32, Vec<u32>>,
 }
 
 /// One dependency of an element of an unknown on an element of a known, as
@@ -149,16 +144,7 @@ impl Fmi3Variables {
         for (i, variable) in variables.iter_mut().enumerate() {
             variable.value_reference = TIME_VR + 1 + i as u32;
         }
-        Fmi3Variables { variables, dependencies: BTreeMap::new() }
-    }
-
-    /// The same table with the dependencies of the Real unknowns: `dependencies(vr)`
-    /// lists the FMI 2.0 value references of the knowns of the Real `vr`.
-    pub fn with_dependencies(mut self, dependencies: impl Fn(u32) -> Option<Vec<u32>>) -> Self {
-        let reals =
-            self.variables.iter().filter(|v| v.value_type == ValueType::Float64).flat_map(Fmi3Variable::elements);
-        self.dependencies = reals.filter_map(|vr| Some((vr, dependencies(vr)?))).collect();
-        self
+        Fmi3Variables { variables }
     }
 
     /// The element index fmi3GetVariableDependencies gives element `k` (0-based) of `variable`.
@@ -167,14 +153,21 @@ impl Fmi3Variables {
     }
 
     /// The dependencies of the unknown with FMI 3.0 value reference `vr`,
-    /// element by element; `None` if it is not an unknown (an output or a
-    /// state derivative).
-    pub fn element_dependencies(&self, vr: u32) -> Option<Vec<ElementDependency>> {
-        let unknown = self.get(vr)?;
+    /// element by element, where `dependencies(e)` lists the FMI 2.0 value
+    /// references of the knowns of the FMI 2.0 Real `e` (the contract's
+    /// `Resource::dependencies`); `None` if it is not an unknown (an output
+    /// or a state derivative). Computed when asked: a table of every
+    /// element's knowns grows with the square of the vehicle's size.
+    pub fn element_dependencies(
+        &self,
+        vr: u32,
+        dependencies: impl Fn(u32) -> Option<Vec<u32>>,
+    ) -> Option<Vec<ElementDependency>> {
+        let unknown = self.get(vr).filter(|v| v.value_type == ValueType::Float64)?;
         let mut list = Vec::new();
         for (k, element) in unknown.elements().enumerate() {
-            for &known in self.dependencies.get(&element)? {
-                let (variable, j) = self.real_element(known).expect("knowns are Real variables of the table");
+            for known in dependencies(element)? {
+                let (variable, j) = self.real_element(known)?;
                 list.push(ElementDependency {
                     element: Self::element_index(unknown, k),
                     known: variable.value_reference,
@@ -186,8 +179,9 @@ impl Fmi3Variables {
     }
 
     /// The FMI 3.0 value references of the knowns of the unknown `vr`, ascending.
-    pub fn known_variables(&self, vr: u32) -> Option<Vec<u32>> {
-        let mut knowns: Vec<u32> = self.element_dependencies(vr)?.into_iter().map(|d| d.known).collect();
+    pub fn known_variables(&self, vr: u32, dependencies: impl Fn(u32) -> Option<Vec<u32>>) -> Option<Vec<u32>> {
+        let elements = self.element_dependencies(vr, dependencies)?;
+        let mut knowns: Vec<u32> = elements.into_iter().map(|d| d.known).collect();
         knowns.sort_unstable();
         knowns.dedup();
         Some(knowns)
@@ -265,14 +259,14 @@ mod tests {
         assert_eq!(table.value_reference("der(theta)"), Some(7));
 
         // kinetic_energy (Real 5) depends on eps[2] (Real 3) and tolerance (Real 1), say.
-        let table = table.with_dependencies(|vr| (vr == 5).then(|| vec![1, 3]));
+        let dependencies = |vr| (vr == 5).then(|| vec![1, 3]);
         let expected = [
             ElementDependency { element: 0, known: 3, known_element: 0 },
             ElementDependency { element: 0, known: 4, known_element: 2 },
         ];
-        assert_eq!(table.element_dependencies(6), Some(expected.to_vec()));
-        assert_eq!(table.known_variables(6), Some(vec![3, 4]));
-        assert_eq!(table.element_dependencies(4), None, "an input is no unknown");
+        assert_eq!(table.element_dependencies(6, dependencies), Some(expected.to_vec()));
+        assert_eq!(table.known_variables(6, dependencies), Some(vec![3, 4]));
+        assert_eq!(table.element_dependencies(4, dependencies), None, "an input is no unknown");
     }
 
     #[test]

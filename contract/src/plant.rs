@@ -173,11 +173,7 @@ impl Resource for PlantResource {
     }
 
     fn dependencies(&self, vr: u32) -> Option<Vec<u32>> {
-        let layout = self.layout();
-        let knowns = layout.dependencies(layout.real_variable(vr)?)?;
-        let mut vrs: Vec<u32> = knowns.into_iter().filter_map(|known| layout.value_reference(known)).collect();
-        vrs.sort_unstable();
-        Some(vrs)
+        self.layout().dependency_vrs(vr)
     }
 }
 
@@ -336,9 +332,35 @@ impl Layout {
         Some(list)
     }
 
-    /// The value reference of `variable`, if this layout has it.
+    /// [`Layout::dependencies`] by value reference: those of the knowns of
+    /// the Real `vr`, ascending.
+    pub fn dependency_vrs(&self, vr: u32) -> Option<Vec<u32>> {
+        let knowns = self.dependencies(self.real_variable(vr)?)?;
+        let mut vrs: Vec<u32> = knowns.into_iter().filter_map(|known| self.value_reference(known)).collect();
+        vrs.sort_unstable();
+        Some(vrs)
+    }
+
+    /// The value reference of `variable`, if this layout has it (in constant
+    /// time: dependency lists of large vehicles look up millions).
     pub fn value_reference(&self, variable: RealVariable) -> Option<u32> {
-        self.real_variables().find(|&(_, v)| v == variable).map(|(vr, _)| vr)
+        // The block of each variant, in the order of `blocks`.
+        let (block, k) = match variable {
+            RealVariable::Tolerance => (0, 0),
+            RealVariable::MaxStep => (1, 0),
+            RealVariable::Eps(k) => (2, k),
+            RealVariable::Theta(k) => (3, k),
+            RealVariable::Nu(k) => (4, k),
+            RealVariable::Qvel(k) => (5, k),
+            RealVariable::KineticEnergy => (6, 0),
+            RealVariable::Power => (7, 0),
+            RealVariable::Momentum(k) => (8, k),
+            RealVariable::EnergyResidual => (9, 0),
+            RealVariable::DerTheta(k) => (10, k),
+            RealVariable::DerNu(k) => (11, k),
+        };
+        let (first, len, _) = self.blocks().nth(block)?;
+        (k < len).then_some(first + k as u32)
     }
 }
 

@@ -45,7 +45,6 @@ pub trait Resource: Serialize + DeserializeOwned {
     /// The FMU's variables as FMI 3.0 declares them.
     fn fmi3_variables(&self) -> Fmi3Variables {
         Fmi3Variables::new(self.enumerations(), self.booleans(), self.variable_names())
-            .with_dependencies(|vr| self.dependencies(vr))
     }
 
     /// Its bytes as written into the FMU.

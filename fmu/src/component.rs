@@ -153,6 +153,10 @@ pub trait Component {
         f64::NAN
     }
 
+    /// The knowns (FMI 2.0 Real value references) the output or state
+    /// derivative `vr` depends on, as the modelDescription declares them.
+    fn dependencies(&self, vr: u32) -> Option<Vec<u32>>;
+
     /// A new FMU state, taken in `phase` (only with canGetAndSetFMUstate).
     fn snapshot(&self, _phase: Phase) -> Result<Snapshot, CallError> {
         Err(CallError::NoFmuState)

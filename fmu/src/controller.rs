@@ -102,6 +102,10 @@ impl Component for Controller {
         self.parameters.check(&self.model, &self.law).map_err(CallError::Control)
     }
 
+    fn dependencies(&self, vr: u32) -> Option<Vec<u32>> {
+        self.layout.dependency_vrs(vr)
+    }
+
     fn real_variable(&self, vr: u32) -> Option<Variable> {
         self.layout.variable(vr).map(|v| Variable { name: self.layout.name(v), kind: v.kind() })
     }

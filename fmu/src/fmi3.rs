@@ -16,7 +16,7 @@
 use std::ffi::c_char;
 
 use fmi_sys::fmi3::*;
-use nudyn_contract::fmi3::{Fmi3Variables, TIME_NAME, TIME_VR, ValueType};
+use nudyn_contract::fmi3::{ElementDependency, Fmi3Variables, TIME_NAME, TIME_VR, ValueType};
 
 use crate::calls;
 use crate::component::{self, CallError};
@@ -615,18 +615,16 @@ pub unsafe extern "C" fn fmi3GetNumberOfVariableDependencies(
     unsafe {
         enter(instance, Function::GetVariableDependencies, "fmi3GetNumberOfVariableDependencies", |instance| {
             let n = n_dependencies.as_mut().ok_or(FmiError::Null("nDependencies"))?;
-            *n = unknown_dependencies(&instance.fmi3, value_reference)?.len();
+            *n = unknown_dependencies(instance, value_reference)?.len();
             Ok(())
         })
     }
 }
 
 /// The element dependencies of the unknown `vr`, or why it has none to give.
-fn unknown_dependencies(
-    table: &Fmi3Variables,
-    vr: u32,
-) -> Result<Vec<nudyn_contract::fmi3::ElementDependency>, FmiError> {
-    match table.element_dependencies(vr) {
+fn unknown_dependencies(instance: &Instance, vr: u32) -> Result<Vec<ElementDependency>, FmiError> {
+    let table = &instance.fmi3;
+    match table.element_dependencies(vr, |element| instance.component.dependencies(element)) {
         Some(list) => Ok(list),
         None if vr == TIME_VR || table.get(vr).is_some() => Err(FmiError::Unsupported(
             "dependencies are given of outputs and continuous-state derivatives only (FMI 3.0 §2.2.10)",
@@ -649,7 +647,7 @@ pub unsafe extern "C" fn fmi3GetVariableDependencies(
 ) -> fmi3Status {
     unsafe {
         enter(instance, Function::GetVariableDependencies, "fmi3GetVariableDependencies", |instance| {
-            let list = unknown_dependencies(&instance.fmi3, dependent)?;
+            let list = unknown_dependencies(instance, dependent)?;
             if list.len() != n_dependencies {
                 return Err(FmiError::ValueCount { expected: list.len(), found: n_dependencies });
             }

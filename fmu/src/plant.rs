@@ -190,6 +190,10 @@ impl Component for Plant {
         Ok(())
     }
 
+    fn dependencies(&self, vr: u32) -> Option<Vec<u32>> {
+        self.layout.dependency_vrs(vr)
+    }
+
     fn real_variable(&self, vr: u32) -> Option<Variable> {
         self.layout.real_variable(vr).map(|v| Variable { name: v.name(), kind: v.kind() })
     }

@@ -56,6 +56,13 @@ def arguments(argv):
         help="set a Real parameter of the FMU by name (repeatable; with rk4, max_step defaults to "
         f"{defaults.parameters()['max_step']:g} s)",
     )
+    p.add_argument("--fmi-version", type=int, choices=(2, 3), default=defaults.fmi_version,
+                   help="the FMU's FMI version (default %(default)s)")
+    p.add_argument("--interface", choices=("cs", "me"), default=defaults.interface,
+                   help="co-simulation (the FMU's own integrator) or model exchange under FMPy's CVODE "
+                   "(default %(default)s)")
+    p.add_argument("--rtol", type=float, default=defaults.relative_tolerance,
+                   help="CVODE's relative tolerance with --interface me (default %(default)s)")
     p.add_argument("--seed", type=int, default=defaults.seed, help="seed of the initial state and the sine (default %(default)s)")
     p.add_argument("--out", type=Path, help="output directory (default out/validation/MODEL)")
     p.add_argument(
@@ -77,6 +84,9 @@ def main(argv=None) -> int:
         method=args.method,
         fmu_parameters=dict(args.fmu_parameter),
         seed=args.seed,
+        fmi_version=args.fmi_version,
+        interface=args.interface,
+        relative_tolerance=args.rtol,
     )
     if not args.model.is_file():
         print(f"validate: no such file: {args.model}", file=sys.stderr)

@@ -25,6 +25,7 @@ from nudyn_driver.package import FmuPackage
 
 from .mujoco_reference import load_model
 from .mujoco_run import MujocoVehicle
+from .runners import Fmi3CoSimulation, ModelExchange
 from .scenarios import Scenario, default_scenarios, make_scenario
 
 # The optional outputs the comparison reads besides theta and nu.
@@ -51,6 +52,13 @@ class Settings:
     # FMU Real parameters by name, over the defaults of parameters().
     fmu_parameters: dict | None = None
     seed: int = 1
+    # The FMU exported and the interface it is run through: "cs" (its own
+    # integrator) or "me" (FMPy's CVODE at relative_tolerance).
+    fmi_version: int = 2
+    interface: str = "cs"
+    # 1e-11: at 1e-10 CVODE's own global error on fixed_rig free motion is 5e-8, over the 1e-8
+    # tolerance (it falls 10x per decade of rtol; the FMU's derivatives are exact to round-off).
+    relative_tolerance: float = 1e-11
 
     def parameters(self) -> dict[str, float]:
         """RK4's internal step is the one above; an adaptive method keeps
@@ -178,15 +186,26 @@ class _Samples:
         return Trajectory(**{k: np.array(v) for k, v in self.rows.items()}, wall_time=self.wall_time)
 
 
-def run_scenario(package: FmuPackage, model_path: Path, scenario: Scenario, settings: Settings) -> ScenarioResult:
+def open_fmu(package: FmuPackage | None, fmu_path: Path, settings: Settings, theta, nu, unzip_dir: Path):
+    """The FMU initialized at (θ, ν), through the version and interface the settings ask for."""
+    start = {"method": settings.method, **settings.parameters()}
+    if settings.interface == "me":
+        return ModelExchange(fmu_path, unzip_dir, start=start, theta=theta, nu=nu,
+                             relative_tolerance=settings.relative_tolerance)
+    if settings.fmi_version == 3:
+        return Fmi3CoSimulation(fmu_path, unzip_dir, start=start, theta=theta, nu=nu)
+    return Instance(package, name="validation", start=start, theta=theta, nu=nu)
+
+
+def run_scenario(package: FmuPackage | None, model_path: Path, scenario: Scenario, settings: Settings,
+                 fmu_path: Path | None = None, unzip_dir: Path | None = None) -> ScenarioResult:
     """Run the FMU and MuJoCo in lockstep over settings.duration."""
     h = settings.communication_step
     steps, substeps = settings.communication_steps(), settings.mujoco_substeps()
     mj = MujocoVehicle(model_path, h / substeps)
     mj.set_state(scenario.qpos0, scenario.qvel0)
     # The FMU starts from the same θ and from MuJoCo's ν of the same qvel.
-    fmu = Instance(package, name="validation", start={"method": settings.method, **settings.parameters()},
-                   theta=scenario.qpos0, nu=mj.nu())
+    fmu = open_fmu(package, fmu_path, settings, scenario.qpos0, mj.nu(), unzip_dir)
     fmu_samples, mj_samples = _Samples(), _Samples()
     held = []
 
@@ -266,13 +285,18 @@ def validate_model(
     settings = settings or Settings()
     settings.check()
     # nudyn's importer first: its messages name the unsupported element.
-    Nudyn(nudyn).export(model_path, fmu_path, outputs=EXTRA_OUTPUTS)
+    Nudyn(nudyn).export(model_path, fmu_path, outputs=EXTRA_OUTPUTS, fmi_version=settings.fmi_version)
     try:
         model = load_model(model_path)
         names = scenario_names or default_scenarios(model)
         scenarios = [make_scenario(name, model, settings.seed) for name in names]
     except ValueError as e:
         raise ValidationError(str(e)) from None
+    if settings.fmi_version != 2 or settings.interface != "cs":
+        with tempfile.TemporaryDirectory(prefix="nudyn-fmu-") as unzip_dir:
+            results = [run_scenario(None, model_path, s, settings, fmu_path, Path(unzip_dir) / s.name)
+                       for s in scenarios]
+        return ModelValidation(model_path, fmu_path, settings, results)
     with tempfile.TemporaryDirectory(prefix="nudyn-fmu-") as unzip_dir:
         package = FmuPackage.unzip(fmu_path, Path(unzip_dir))
         check_real_parameters(package, settings.parameters())

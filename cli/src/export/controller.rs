@@ -116,7 +116,8 @@ pub fn controller_model_description3(
         }
     };
     let others = fmi3::Others { enumeration_types: Vec::new(), variables: Vec::new() };
-    fmi3::model_description(header(model, law, model_identifier, guid), &resource.fmi3_variables(), real, others)
+    let (table, dependencies) = (resource.fmi3_variables(), |vr| layout.dependency_vrs(vr));
+    fmi3::model_description(header(model, law, model_identifier, guid), &table, real, dependencies, others)
 }
 
 /// The typed modelDescription of the controller FMU (validated when written).

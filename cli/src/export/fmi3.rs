@@ -84,11 +84,13 @@ fn float64(table: &Fmi3Variables, variable: &Fmi3Variable, real: &impl Fn(u32) -
 }
 
 /// The FMI 3.0 modelDescription of an FMU whose variables are `table`,
-/// whose FMI 2.0 Real `vr` is `real(vr)`, with `others` beside them.
+/// whose FMI 2.0 Real `vr` is `real(vr)` and depends on the knowns
+/// `dependencies(vr)` (the contract's), with `others` beside them.
 pub fn model_description(
     header: Header,
     table: &Fmi3Variables,
     real: impl Fn(u32) -> RealScalar,
+    dependencies: impl Fn(u32) -> Option<Vec<u32>>,
     others: Others,
 ) -> md3::Fmi3ModelDescription {
     let time = md3::Variable::Float64(md3::Float64 {
@@ -111,7 +113,7 @@ pub fn model_description(
 
     let unknown = |float: &md3::Float64| md3::Unknown {
         value_reference: float.value_reference,
-        dependencies: table.known_variables(float.value_reference),
+        dependencies: table.known_variables(float.value_reference, &dependencies),
     };
     let mut structure = md3::ModelStructure::default();
     for float in &floats {

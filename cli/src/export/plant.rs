@@ -173,7 +173,8 @@ pub fn model_description3(resource: &PlantResource, options: &ExportOptions, gui
             description: description(model, variable),
         }
     };
-    fmi3::model_description(header(model, options, guid), &table, real, others)
+    let dependencies = |vr| layout.dependency_vrs(vr);
+    fmi3::model_description(header(model, options, guid), &table, real, dependencies, others)
 }
 
 /// The typed modelDescription of the plant FMU (not yet validated).
@@ -206,10 +207,9 @@ pub fn model_description(model: &Model, options: &ExportOptions, guid: &str) -> 
         kind: md::VariableKind::Boolean(md::BooleanVariable { start: Some(false), ..Default::default() }),
     };
     let reals: Vec<(u32, RealVariable)> = layout.real_variables().collect();
-    // 1-based ScalarVariable indices, as <ModelStructure> and `derivative` refer to them.
-    let index_of = |variable: RealVariable| {
-        2 + 1 + reals.iter().position(|&(_, v)| v == variable).expect("the variable is listed") as u32
-    };
+    // 1-based ScalarVariable indices, as <ModelStructure> and `derivative` refer to them: the
+    // Reals' value references run from 1 in ScalarVariable order, after method and energy_projection.
+    let index_of = |variable: RealVariable| 2 + layout.value_reference(variable).expect("the variable is listed");
     let state_of = |variable: RealVariable| match variable {
         RealVariable::DerTheta(k) => Some(index_of(RealVariable::Theta(k))),
         RealVariable::DerNu(k) => Some(index_of(RealVariable::Nu(k))),
