@@ -66,7 +66,8 @@ fi
 # them with RUSTC_BOOTSTRAP=1.
 export RUSTC_BOOTSTRAP=1
 SEEDS="$WORK/seeds"
-mkdir -p "$SEEDS/mjcf_import" "$SEEDS/resource_loader" "$SEEDS/state_deserializer" "$SEEDS/call_sequence"
+mkdir -p "$SEEDS/mjcf_import" "$SEEDS/resource_loader" "$SEEDS/state_deserializer" "$SEEDS/call_sequence" \
+    "$SEEDS/call_sequence_fmi3"
 cp examples/*.xml tests/fixtures/mjcf/*.xml "$SEEDS/mjcf_import/"
 # Deep trees (bodies and default classes 1500 levels deep) and orientations
 # at the edges of floating point.
@@ -98,8 +99,9 @@ for example in fixed_rig flexible_boom; do
 done
 printf '\x81' >"$SEEDS/state_deserializer/valid"
 printf 'call sequence seed: any bytes decode to calls' >"$SEEDS/call_sequence/text"
+printf 'fmi3 call sequence seed: any bytes decode to calls' >"$SEEDS/call_sequence_fmi3/text"
 
-for target in mjcf_import resource_loader state_deserializer call_sequence; do
+for target in mjcf_import resource_loader state_deserializer call_sequence call_sequence_fmi3; do
     mkdir -p "fuzz/corpus/$target"
     echo "stress-fmu: fuzzing $target for $FUZZ_SECONDS s"
     (cd fuzz && nice cargo fuzz run --release "$target" "corpus/$target" "$SEEDS/$target" -- \

@@ -120,7 +120,7 @@ pub enum FmiError {
     #[error("unknown log category '{0}' (known: {known})", known = LogCategory::known_names())]
     UnknownCategory(String),
     /// An FMU state that this instance did not hand out, or has freed.
-    #[error("FMU state {0:#x} is not a live FMU state of this instance (freed already, or from another instance)")]
+    #[error("FMUstate {0:#x} is not a live FMU state of this instance (freed already, or from another instance)")]
     UnknownState(usize),
     /// A value out of its range passed to a setter: Discard.
     #[error(transparent)]
@@ -334,7 +334,7 @@ impl Instance {
     /// The FMU state `state`, if this instance handed it out and has not freed it.
     fn snapshot<'a>(&self, state: *mut c_void) -> Result<&'a mut Snapshot, FmiError> {
         if state.is_null() {
-            return Err(FmiError::Null("FMU state"));
+            return Err(FmiError::Null("FMUstate"));
         }
         if !self.states.contains(&(state as usize)) {
             return Err(FmiError::UnknownState(state as usize));
@@ -591,7 +591,7 @@ pub unsafe fn set_debug_logging(
 pub unsafe fn get_fmu_state(instance: &mut Instance, state: *mut *mut c_void) -> Result<(), FmiError> {
     calls::fmu_states(&*instance.component)?;
     // SAFETY: by the contract above.
-    let state = unsafe { state.as_mut() }.ok_or(FmiError::Null("FMU state"))?;
+    let state = unsafe { state.as_mut() }.ok_or(FmiError::Null("FMUstate"))?;
     let phase = instance.phase;
     if state.is_null() {
         *state = instance.register(instance.component.snapshot(phase)?);
@@ -673,7 +673,7 @@ pub unsafe fn deserialize(
 ) -> Result<(), FmiError> {
     calls::fmu_states(&*instance.component)?;
     // SAFETY: by the contract above.
-    let state = unsafe { state.as_mut() }.ok_or(FmiError::Null("FMU state"))?;
+    let state = unsafe { state.as_mut() }.ok_or(FmiError::Null("FMUstate"))?;
     let existing = if state.is_null() { None } else { Some(instance.snapshot(*state)? as *mut Snapshot) };
     // SAFETY: by the contract above.
     let snapshot = instance.component.deserialize(unsafe { slice(bytes, size, "serializedState") }?)?;

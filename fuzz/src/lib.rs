@@ -56,6 +56,8 @@ pub fn callbacks() -> fmi2CallbackFunctions {
 /// An example's FMU: its resource URI, GUID and number of Real variables.
 pub struct Fmu {
     pub uri: CString,
+    /// The resource directory as a path (FMI 3.0 takes a path, not a URI).
+    pub path: CString,
     pub guid: CString,
     pub reals: u32,
     pub resource: Vec<u8>,
@@ -74,6 +76,7 @@ pub fn example_fmu(name: &str) -> Fmu {
     std::fs::write(dir.join(PlantResource::FILE), &json).expect("resource written");
     Fmu {
         uri: CString::new(format!("file://{}/", dir.display())).expect("no NUL"),
+        path: CString::new(format!("{}/", dir.display())).expect("no NUL"),
         guid: CString::new(resource.guid(&json)).expect("no NUL"),
         reals: resource.layout().real_variables().count() as u32,
         resource: json,
