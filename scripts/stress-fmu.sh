@@ -2,7 +2,8 @@
 # The FMU's memory and fuzz checks (the misuse suite and the concurrency
 # test are in tests/python/test_fmu_misuse.py):
 #
-#   - memory: tests/memory/fmu_runs.c, a plain C importer, under valgrind:
+#   - memory: tests/memory/fmu_runs.c and fmu3_runs.c, plain C importers of
+#     the FMI 2.0 and FMI 3.0 FMU (fmu3_runs: co-simulation and model exchange), under valgrind:
 #     instantiate → 1000 steps (with FMU states and a refused call) → free,
 #     1 time and RUNS times; nothing lost, and the memory in use at exit the
 #     same for both (no growth with the number of runs);
@@ -41,25 +42,53 @@ EOF
 read -r IDENTIFIER GUID REALS <"$WORK/fmu.txt"
 gcc -O1 -g -Wall -Wextra -Werror -o "$WORK/fmu_runs" tests/memory/fmu_runs.c -ldl -lm
 
-# Prints the bytes in use at exit; fails on any error or lost byte.
+# FMI 3.0: the same vehicle, co-simulation and model exchange.
+target/release/nudyn export examples/bus_arm7.xml -o "$WORK/bus3.fmu" --fmi-version 3 \
+    --outputs qvel,kinetic_energy,power,momentum >/dev/null
+.venv/bin/python - "$WORK/bus3.fmu" "$WORK/bus3" >"$WORK/fmu3.txt" <<'EOF'
+import math, sys
+from fmpy import extract, read_model_description
+extract(sys.argv[1], sys.argv[2])
+md = read_model_description(sys.argv[1])
+v = {x.name: x for x in md.modelVariables}
+size = lambda name: math.prod(int(d.start) for d in v[name].dimensions)
+print(md.coSimulation.modelIdentifier, md.instantiationToken, v["theta"].valueReference, size("theta"),
+      v["nu"].valueReference, size("nu"), v["der(nu)"].valueReference)
+EOF
+read -r IDENTIFIER3 TOKEN3 THETA_VR NQ NU_VR NV DER_NU_VR <"$WORK/fmu3.txt"
+gcc -O1 -g -Wall -Wextra -Werror -o "$WORK/fmu3_runs" tests/memory/fmu3_runs.c -ldl -lm
+
+# Runs an importer under valgrind: NAME RUNS, then the importer's command
+# line before its RUNS STEPS arguments. Prints the bytes in use at exit;
+# fails on any error or lost byte.
 in_use_after() {
-    local runs=$1 log="$WORK/valgrind-$1.txt"
+    local name=$1 runs=$2
+    shift 2
+    local log="$WORK/valgrind-$name-$runs.txt"
     if ! valgrind --leak-check=full --show-leak-kinds=definite,indirect,possible \
         --errors-for-leak-kinds=definite,indirect,possible --error-exitcode=99 \
-        "$WORK/fmu_runs" "$WORK/bus" "$IDENTIFIER" "$GUID" "$REALS" "$runs" 1000 >"$log" 2>&1; then
+        "$@" "$runs" 1000 >"$log" 2>&1; then
         cat "$log" >&2
-        echo "stress-fmu: valgrind found errors or leaks in $runs runs" >&2
+        echo "stress-fmu: valgrind found errors or leaks in $runs runs of $name" >&2
         return 1
     fi
     grep -o 'in use at exit: [0-9,]* bytes' "$log" | tr -dc '0-9'
 }
-one=$(in_use_after 1)
-many=$(in_use_after "$RUNS")
-echo "stress-fmu: valgrind: no errors, nothing lost; in use at exit after 1 run: $one bytes, after $RUNS runs: $many bytes"
-if [ "$one" != "$many" ]; then
-    echo "stress-fmu: memory in use at exit grows with the number of runs" >&2
-    exit 1
-fi
+for version in fmi2 fmi3; do
+    if [ "$version" = fmi2 ]; then
+        importer=("$WORK/fmu_runs" "$WORK/bus" "$IDENTIFIER" "$GUID" "$REALS")
+    else
+        importer=("$WORK/fmu3_runs" "$WORK/bus3" "$IDENTIFIER3" "$TOKEN3" "$THETA_VR" "$NQ" "$NU_VR" "$NV" "$DER_NU_VR")
+    fi
+    one=$(in_use_after "$version" 1 "${importer[@]}")
+    many=$(in_use_after "$version" "$RUNS" "${importer[@]}")
+    echo "stress-fmu: valgrind ($version): no errors, nothing lost; in use at exit after 1 run: $one bytes," \
+        "after $RUNS runs: $many bytes"
+    if [ "$one" != "$many" ]; then
+        echo "stress-fmu: memory in use at exit grows with the number of runs ($version)" >&2
+        exit 1
+    fi
+done
 
 # --- fuzzing --------------------------------------------------------------------
 # cargo fuzz needs nightly flags (-Zsanitizer); the stable toolchain accepts

@@ -137,7 +137,10 @@ pub enum FmiError {
     #[error("status kind {0} is not available")]
     StatusUnavailable(c_uint),
     /// Directional derivatives are not provided (providesDirectionalDerivative(s)="false").
-    #[error("directional and adjoint derivatives are not provided (the modelDescription declares them false)")]
+    #[error(
+        "directional and adjoint derivatives are not provided (providesDirectionalDerivative=\"false\" in the \
+         modelDescription)"
+    )]
     NoDirectionalDerivatives,
     /// An FMI 3.0 value reference of another type than the function's.
     #[error("value reference {vr} is the {declared} variable '{name}', not a variable of type {asked}")]
