@@ -47,7 +47,7 @@ def size(variable) -> int:
 
 
 @pytest.mark.parametrize("name", example_ids())
-def test_fmpy_validates_plant_and_controller(fmus, name):
+def test_fmpy_validates_and_runs_plant_and_controller(fmus, name):
     plant, controller = fmus[name], fmus[f"{name}_controller"]
     assert validate_fmu(str(plant)) == []
     assert validate_fmu(str(controller)) == []
@@ -60,6 +60,14 @@ def test_fmpy_validates_plant_and_controller(fmus, name):
     assert size(by_name["der(theta)"]) == nq
     assert [d.variable.name for d in description.derivatives] == ["der(theta)", "der(nu)"]
     assert read_model_description(str(controller)).modelExchange is None
+    # FMPy runs each interface: 0.1 s from a moving start.
+    nu = [0.1] * nv
+    for interface in ("CoSimulation", "ModelExchange"):
+        result = simulate_fmu(str(plant), fmi_type=interface, stop_time=0.1, output_interval=0.05,
+                              start_values={"nu": nu}, output=["theta", "nu"])
+        assert np.all(np.isfinite(np.array(result["nu"].tolist()))) and len(result) == 3, interface
+    result = simulate_fmu(str(controller), stop_time=0.1, output_interval=0.05, output=["eps"])
+    assert np.all(np.isfinite(np.array(result["eps"].tolist())))
 
 
 def test_co_simulation_gives_the_fmi2_numbers_to_the_bit(fmus):
