@@ -1,14 +1,15 @@
-//! Random sequences of FMI calls on two instances of the bus FMU, with
-//! arbitrary arguments (value references, values, times, step sizes, FMU
-//! state handles): every call returns a status, and every Real value read
-//! with fmi2OK is finite.
+//! Random sequences of FMI 2.0 calls on three instances of the bus FMU, two
+//! for co-simulation and one for model exchange, with arbitrary arguments
+//! (value references, values, times, step sizes, continuous states, FMU
+//! state handles): every call returns a status, and every Real value or
+//! derivative read with fmi2OK is finite.
 #![no_main]
 
 use arbitrary::Arbitrary;
 use fmi_sys::fmi2::*;
 use libfuzzer_sys::fuzz_target;
 use nudyn_fmu::fmi2::*;
-use nudyn_fuzz::{bus, check_reals, instantiate};
+use nudyn_fuzz::{bus, check_reals, instantiate, instantiate_as};
 
 #[derive(Arbitrary, Debug)]
 enum Call {
@@ -72,24 +73,51 @@ enum Call {
     },
     Terminate,
     Reset,
+    EnterEventMode,
+    NewDiscreteStates,
+    EnterContinuousTimeMode,
+    CompletedIntegratorStep,
+    SetTime {
+        time: f64,
+    },
+    SetContinuousStates {
+        x: Vec<f64>,
+    },
+    GetContinuousStates {
+        n: u8,
+    },
+    GetDerivatives {
+        n: u8,
+    },
+    GetNominals {
+        n: u8,
+    },
+    GetEventIndicators {
+        n: u8,
+    },
 }
 
 #[derive(Arbitrary, Debug)]
 struct Scenario {
-    calls: Vec<(bool, Call)>,
+    /// The instance: 0 and 1 co-simulation, 2 model exchange (the rest wrap).
+    calls: Vec<(u8, Call)>,
 }
 
 const SLOTS: usize = 4;
 
 fuzz_target!(|scenario: Scenario| {
     let fmu = bus();
-    let instances = [instantiate(&fmu.uri, &fmu.guid), instantiate(&fmu.uri, &fmu.guid)];
+    let instances = [
+        instantiate(&fmu.uri, &fmu.guid),
+        instantiate(&fmu.uri, &fmu.guid),
+        instantiate_as(fmi2Type_fmi2ModelExchange, &fmu.uri, &fmu.guid),
+    ];
     let mut slots: [fmi2FMUstate; SLOTS] = [std::ptr::null_mut(); SLOTS];
     // SAFETY: the arrays passed are as long as the counts; instances live until the end.
     unsafe {
-        for (second, call) in scenario.calls.into_iter().take(64) {
-            // A state handle may be used with the other instance: it must be refused, not read.
-            let c = instances[usize::from(second)];
+        for (which, call) in scenario.calls.into_iter().take(64) {
+            // A state handle may be used with another instance: it must be refused, not read.
+            let c = instances[usize::from(which) % instances.len()];
             match call {
                 Call::SetupExperiment { tolerance, start, stop } => {
                     fmi2SetupExperiment(
@@ -164,6 +192,36 @@ fuzz_target!(|scenario: Scenario| {
                 }
                 Call::Terminate => _ = fmi2Terminate(c),
                 Call::Reset => _ = fmi2Reset(c),
+                Call::EnterEventMode => _ = fmi2EnterEventMode(c),
+                Call::NewDiscreteStates => {
+                    let mut info = std::mem::zeroed::<fmi2EventInfo>();
+                    fmi2NewDiscreteStates(c, &mut info);
+                }
+                Call::EnterContinuousTimeMode => _ = fmi2EnterContinuousTimeMode(c),
+                Call::CompletedIntegratorStep => {
+                    let (mut event, mut terminate) = (0, 0);
+                    fmi2CompletedIntegratorStep(c, 1, &mut event, &mut terminate);
+                }
+                Call::SetTime { time } => _ = fmi2SetTime(c, time),
+                Call::SetContinuousStates { x } => _ = fmi2SetContinuousStates(c, x.as_ptr(), x.len()),
+                Call::GetContinuousStates { n } => {
+                    let mut x = vec![0.0; usize::from(n)];
+                    fmi2GetContinuousStates(c, x.as_mut_ptr(), x.len());
+                }
+                Call::GetDerivatives { n } => {
+                    let mut dx = vec![0.0; usize::from(n)];
+                    if fmi2GetDerivatives(c, dx.as_mut_ptr(), dx.len()) == fmi2Status_fmi2OK {
+                        assert!(dx.iter().all(|d| d.is_finite()), "derivatives {dx:?}");
+                    }
+                }
+                Call::GetNominals { n } => {
+                    let mut nominals = vec![0.0; usize::from(n)];
+                    fmi2GetNominalsOfContinuousStates(c, nominals.as_mut_ptr(), nominals.len());
+                }
+                Call::GetEventIndicators { n } => {
+                    let mut indicators = vec![0.0; usize::from(n)];
+                    fmi2GetEventIndicators(c, indicators.as_mut_ptr(), indicators.len());
+                }
             }
         }
         for c in instances {

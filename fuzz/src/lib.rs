@@ -96,13 +96,16 @@ pub fn bus() -> &'static Fmu {
     BUS.get_or_init(|| example_fmu("bus_arm7"))
 }
 
-/// Instantiates `fmu`; NULL if refused.
+/// Instantiates `fmu` for co-simulation; NULL if refused.
 pub fn instantiate(uri: &CStr, guid: &CStr) -> fmi2Component {
+    instantiate_as(fmi2Type_fmi2CoSimulation, uri, guid)
+}
+
+/// Instantiates `fmu` for the interface `kind`; NULL if refused.
+pub fn instantiate_as(kind: fmi2Type, uri: &CStr, guid: &CStr) -> fmi2Component {
     let functions = callbacks();
     // SAFETY: valid C strings and callbacks that outlive the call (the FMU copies them).
-    unsafe {
-        fmi2Instantiate(c"fuzz".as_ptr(), fmi2Type_fmi2CoSimulation, guid.as_ptr(), uri.as_ptr(), &functions, 0, 0)
-    }
+    unsafe { fmi2Instantiate(c"fuzz".as_ptr(), kind, guid.as_ptr(), uri.as_ptr(), &functions, 0, 0) }
 }
 
 /// Reads every Real variable (value references 1..=reals); a read that
