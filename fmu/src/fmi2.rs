@@ -148,16 +148,7 @@ pub unsafe extern "C" fn fmi2EnterInitializationMode(c: fmi2Component) -> fmi2St
 /// FMI 2.0 calling conventions.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi2ExitInitializationMode(c: fmi2Component) -> fmi2Status {
-    unsafe {
-        enter(c, Function::ExitInitializationMode, |instance| {
-            instance.component.initialize()?;
-            instance.phase = match instance.interface {
-                Interface::CoSimulation => Phase::StepComplete,
-                Interface::ModelExchange => Phase::EventMode,
-            };
-            Ok(())
-        })
-    }
+    unsafe { enter(c, Function::ExitInitializationMode, layer::exit_initialization_mode) }
 }
 
 /// # Safety
@@ -176,13 +167,7 @@ pub unsafe extern "C" fn fmi2Terminate(c: fmi2Component) -> fmi2Status {
 /// FMI 2.0 calling conventions.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi2Reset(c: fmi2Component) -> fmi2Status {
-    unsafe {
-        enter(c, Function::Reset, |instance| {
-            instance.component.reset();
-            instance.phase = Phase::Instantiated;
-            Ok(())
-        })
-    }
+    unsafe { enter(c, Function::Reset, layer::reset) }
 }
 
 /// # Safety

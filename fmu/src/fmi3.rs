@@ -263,12 +263,7 @@ pub unsafe extern "C" fn fmi3EnterInitializationMode(
 pub unsafe extern "C" fn fmi3ExitInitializationMode(instance: fmi3Instance) -> fmi3Status {
     unsafe {
         enter(instance, Function::ExitInitializationMode, "fmi3ExitInitializationMode", |instance| {
-            instance.component.initialize()?;
-            instance.phase = match instance.interface {
-                Interface::CoSimulation => Phase::StepComplete,
-                Interface::ModelExchange => Phase::EventMode,
-            };
-            Ok(())
+            layer::exit_initialization_mode(instance)
         })
     }
 }
@@ -301,13 +296,7 @@ pub unsafe extern "C" fn fmi3Terminate(instance: fmi3Instance) -> fmi3Status {
 /// FMI 3.0 calling conventions.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi3Reset(instance: fmi3Instance) -> fmi3Status {
-    unsafe {
-        enter(instance, Function::Reset, "fmi3Reset", |instance| {
-            instance.component.reset();
-            instance.phase = Phase::Instantiated;
-            Ok(())
-        })
-    }
+    unsafe { enter(instance, Function::Reset, "fmi3Reset", layer::reset) }
 }
 
 /// # Safety

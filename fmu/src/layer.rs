@@ -691,6 +691,24 @@ pub unsafe fn deserialize(
     Ok(())
 }
 
+/// ExitInitializationMode: whatever was set must make a run; then the
+/// first state of the interface's running machine.
+pub fn exit_initialization_mode(instance: &mut Instance) -> Result<(), FmiError> {
+    instance.component.initialize()?;
+    instance.phase = match instance.interface {
+        Interface::CoSimulation => Phase::StepComplete,
+        Interface::ModelExchange => Phase::EventMode,
+    };
+    Ok(())
+}
+
+/// Reset: back to the state just after instantiation.
+pub fn reset(instance: &mut Instance) -> Result<(), FmiError> {
+    instance.component.reset();
+    instance.phase = Phase::Instantiated;
+    Ok(())
+}
+
 /// DoStep: the step, or its refusal; a step that stopped inside the
 /// interval leaves the instance in stepFailed (FMI 3.0: stepDiscarded).
 pub fn do_step(instance: &mut Instance, time: f64, step: f64, name: &str) -> Result<(), FmiError> {
