@@ -3,7 +3,7 @@
 # test are in tests/python/test_fmu_misuse.py):
 #
 #   - memory: tests/memory/fmu_runs.c and fmu3_runs.c, plain C importers of
-#     the FMI 2.0 and FMI 3.0 FMU (fmu3_runs: co-simulation and model exchange), under valgrind:
+#     the FMI 2.0 and FMI 3.0 FMU (co-simulation and model exchange), under valgrind:
 #     instantiate → 1000 steps (with FMU states and a refused call) → free,
 #     1 time and RUNS times; nothing lost, and the memory in use at exit the
 #     same for both (no growth with the number of runs);
@@ -37,9 +37,9 @@ PYTHONPATH=python .venv/bin/python - "$WORK/bus.fmu" "$WORK/bus" >"$WORK/fmu.txt
 import sys
 from nudyn_driver.package import FmuPackage
 fmu = FmuPackage.unzip(sys.argv[1], sys.argv[2])
-print(fmu.model_identifier, fmu.guid, len(fmu.reals))
+print(fmu.model_identifier, fmu.guid, len(fmu.reals), fmu.nq + fmu.nv)
 EOF
-read -r IDENTIFIER GUID REALS <"$WORK/fmu.txt"
+read -r IDENTIFIER GUID REALS NX <"$WORK/fmu.txt"
 gcc -O1 -g -Wall -Wextra -Werror -o "$WORK/fmu_runs" tests/memory/fmu_runs.c -ldl -lm
 
 # FMI 3.0: the same vehicle, co-simulation and model exchange.
@@ -76,7 +76,7 @@ in_use_after() {
 }
 for version in fmi2 fmi3; do
     if [ "$version" = fmi2 ]; then
-        importer=("$WORK/fmu_runs" "$WORK/bus" "$IDENTIFIER" "$GUID" "$REALS")
+        importer=("$WORK/fmu_runs" "$WORK/bus" "$IDENTIFIER" "$GUID" "$REALS" "$NX")
     else
         importer=("$WORK/fmu3_runs" "$WORK/bus3" "$IDENTIFIER3" "$TOKEN3" "$THETA_VR" "$NQ" "$NU_VR" "$NV" "$DER_NU_VR")
     fi

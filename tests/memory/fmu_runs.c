@@ -1,10 +1,12 @@
 /* A plain C importer of a nudyn FMU, for valgrind: RUNS times, one
  * instance is instantiated, initialized, stepped STEPS times (reading every
  * Real value, saving and restoring FMU states, making a refused call), and
- * freed. Under valgrind, the memory still in use at exit must not grow with
- * RUNS, and nothing may be lost.
+ * freed; then a model exchange instance takes STEPS explicit Euler steps
+ * through the continuous-state functions, and is freed. Under valgrind, the
+ * memory still in use at exit must not grow with RUNS, and nothing may be
+ * lost.
  *
- *   fmu_runs UNZIPPED_FMU_DIR MODEL_IDENTIFIER GUID N_REALS RUNS STEPS
+ *   fmu_runs UNZIPPED_FMU_DIR MODEL_IDENTIFIER GUID N_REALS NX RUNS STEPS
  *
  * Exit status 0 when every call returned the expected status and every
  * value read was finite. */
@@ -26,7 +28,13 @@ typedef struct {
     void *componentEnvironment;
 } fmi2CallbackFunctions;
 
-enum { fmi2OK = 0, fmi2Error = 3, fmi2CoSimulation = 1 };
+enum { fmi2OK = 0, fmi2Error = 3, fmi2ModelExchange = 0, fmi2CoSimulation = 1 };
+
+typedef struct {
+    int newDiscreteStatesNeeded, terminateSimulation, nominalsOfContinuousStatesChanged,
+        valuesOfContinuousStatesChanged, nextEventTimeDefined;
+    double nextEventTime;
+} fmi2EventInfo;
 
 static int logged;
 
@@ -54,13 +62,13 @@ static void *symbol(void *library, const char *name) {
     } while (0)
 
 int main(int argc, char **argv) {
-    if (argc != 7) {
-        fprintf(stderr, "usage: %s UNZIPPED_FMU_DIR MODEL_IDENTIFIER GUID N_REALS RUNS STEPS\n", argv[0]);
+    if (argc != 8) {
+        fprintf(stderr, "usage: %s UNZIPPED_FMU_DIR MODEL_IDENTIFIER GUID N_REALS NX RUNS STEPS\n", argv[0]);
         return 2;
     }
     const char *dir = argv[1], *identifier = argv[2], *guid = argv[3];
-    size_t n_reals = strtoul(argv[4], NULL, 10);
-    int runs = atoi(argv[5]), steps = atoi(argv[6]);
+    size_t n_reals = strtoul(argv[4], NULL, 10), nx = strtoul(argv[5], NULL, 10);
+    int runs = atoi(argv[6]), steps = atoi(argv[7]);
 
     char path[4096], uri[4096];
     snprintf(path, sizeof path, "%s/binaries/linux64/%s.so", dir, identifier);
@@ -86,12 +94,20 @@ int main(int argc, char **argv) {
     fmi2Status (*serialize)(fmi2Component, fmi2FMUstate, char *, size_t) = symbol(library, "fmi2SerializeFMUstate");
     fmi2Status (*deserialize)(fmi2Component, const char *, size_t, fmi2FMUstate *) = symbol(library, "fmi2DeSerializeFMUstate");
     fmi2Status (*terminate)(fmi2Component) = symbol(library, "fmi2Terminate");
+    fmi2Status (*new_discrete_states)(fmi2Component, fmi2EventInfo *) = symbol(library, "fmi2NewDiscreteStates");
+    fmi2Status (*continuous)(fmi2Component) = symbol(library, "fmi2EnterContinuousTimeMode");
+    fmi2Status (*set_time)(fmi2Component, double) = symbol(library, "fmi2SetTime");
+    fmi2Status (*get_x)(fmi2Component, double *, size_t) = symbol(library, "fmi2GetContinuousStates");
+    fmi2Status (*set_x)(fmi2Component, const double *, size_t) = symbol(library, "fmi2SetContinuousStates");
+    fmi2Status (*get_dx)(fmi2Component, double *, size_t) = symbol(library, "fmi2GetDerivatives");
+    fmi2Status (*completed)(fmi2Component, int, int *, int *) = symbol(library, "fmi2CompletedIntegratorStep");
 
     fmi2CallbackFunctions callbacks = {logger, NULL, NULL, NULL, NULL};
     /* Value references 1.. are the Real variables (0 is the Integer `method`). */
     unsigned *vrs = malloc(n_reals * sizeof *vrs);
     double *values = malloc(n_reals * sizeof *values);
     for (size_t k = 0; k < n_reals; k++) vrs[k] = (unsigned)(k + 1);
+    double *x = malloc(nx * sizeof *x), *dx = malloc(nx * sizeof *dx);
     const double h = 0.01;
 
     for (int run = 0; run < runs; run++) {
@@ -134,9 +150,41 @@ int main(int argc, char **argv) {
         CHECK(terminate(c), fmi2OK);
         if (run % 2 == 0) CHECK(free_state(c, &saved), fmi2OK); /* else fmi2FreeInstance frees it */
         free_instance(c);
+
+        fmi2Component m = instantiate("valgrind-me", fmi2ModelExchange, guid, uri, &callbacks, 0, 0);
+        if (!m) {
+            fprintf(stderr, "fmi2Instantiate (model exchange) failed\n");
+            return 1;
+        }
+        CHECK(setup(m, 0, 0.0, 0.0, 0, 0.0), fmi2OK);
+        CHECK(enter(m), fmi2OK);
+        CHECK(set_real(m, &start_vrs[1], 1, &start[1]), fmi2OK);
+        CHECK(exit_init(m), fmi2OK);
+        fmi2EventInfo info;
+        CHECK(new_discrete_states(m, &info), fmi2OK);
+        CHECK(continuous(m), fmi2OK);
+        CHECK(get_x(m, x, nx), fmi2OK);
+        int event = 0, stop = 0;
+        for (int k = 0; k < steps; k++) {
+            CHECK(set_time(m, k * 1e-4), fmi2OK);
+            CHECK(set_x(m, x, nx), fmi2OK);
+            CHECK(get_dx(m, dx, nx), fmi2OK);
+            for (size_t i = 0; i < nx; i++) {
+                if (!isfinite(dx[i])) {
+                    fprintf(stderr, "derivative %zu = %g at step %d\n", i, dx[i], k);
+                    return 1;
+                }
+                x[i] += 1e-4 * dx[i];
+            }
+            CHECK(completed(m, 1, &event, &stop), fmi2OK);
+        }
+        CHECK(get_dx(m, dx, nx - 1), fmi2Error); /* the wrong count */
+        free_instance(m);
     }
     free(vrs);
     free(values);
+    free(x);
+    free(dx);
     dlclose(library);
     printf("%d runs of %d steps, %d messages logged\n", runs, steps, logged);
     return 0;
