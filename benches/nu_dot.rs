@@ -8,7 +8,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use nudyn::dynamics::forward;
 use nudyn::math::{Mat3, Quat, Vec3};
 use nudyn::model::Model;
-use nudyn::vehicle::{Body, Joint, JointKind, MassProperties, Vehicle};
+use nudyn::vehicle::{Actuation, Body, Joint, JointKind, MassProperties, Vehicle};
 
 /// A chain of `links` hinge links on a free base, alternating hinge axes.
 fn hinge_chain(links: usize) -> Vehicle {
@@ -25,6 +25,7 @@ fn hinge_chain(links: usize) -> Vehicle {
         stiffness: 0.0,
         damping: 0.0,
         armature: 0.0,
+        actuator_force_range: None,
         line: 0,
     };
     let mut bodies = vec![Body {
@@ -48,7 +49,8 @@ fn hinge_chain(links: usize) -> Vehicle {
             line: 0,
         });
     }
-    Vehicle { name: format!("chain{links}"), gravity: Vec3::zeros(), bodies }
+    let (sites, actuators, actuation) = (Vec::new(), Vec::new(), Actuation::default());
+    Vehicle { name: format!("chain{links}"), gravity: Vec3::zeros(), bodies, sites, actuators, actuation }
 }
 
 /// A deterministic, non-trivial state: every coordinate and velocity nonzero.

@@ -5,7 +5,7 @@
 use serde::Serialize;
 
 use crate::model::Model;
-use crate::vehicle::JointKind;
+use crate::vehicle::{ActuatorKind, BiasType, GainType, JointKind};
 
 /// The structure of a compiled vehicle.
 #[derive(Clone, Debug, Serialize)]
@@ -22,6 +22,37 @@ pub struct Description {
     pub qpos0: Vec<f64>,
     /// The joints in MuJoCo's order (that of qpos and qvel).
     pub joints: Vec<JointDescription>,
+    /// The actuators in MuJoCo's order (that of ctrl).
+    pub actuators: Vec<ActuatorDescription>,
+}
+
+/// One actuator: what it is, what it acts on, and its limits.
+#[derive(Clone, Debug, Serialize)]
+pub struct ActuatorDescription {
+    /// The actuator's name; `None` (JSON null) when it has none.
+    pub name: Option<String>,
+    /// The element it was written with: general, motor, position, velocity or damper.
+    pub kind: ActuatorKind,
+    /// Its transmission: "joint", "jointinparent" or "site".
+    pub transmission: String,
+    /// The joint's or site's name.
+    pub target: String,
+    /// The reference site of a site transmission.
+    pub refsite: Option<String>,
+    /// MuJoCo's gear.
+    pub gear: [f64; 6],
+    /// The ctrl range when ctrl is clamped to one (`null` when unlimited).
+    pub ctrlrange: Option<[f64; 2]>,
+    /// The force range when the force is clamped to one.
+    pub forcerange: Option<[f64; 2]>,
+    /// MuJoCo's gaintype: fixed or affine.
+    pub gaintype: GainType,
+    /// gainprm[0..3] (gain = gainprm[0], or affine in length and velocity).
+    pub gainprm: [f64; 3],
+    /// MuJoCo's biastype: none or affine.
+    pub biastype: BiasType,
+    /// biasprm[0..3], a damping ratio resolved into −kv.
+    pub biasprm: [f64; 3],
 }
 
 /// One joint: which entries of θ and ν it owns.
@@ -66,6 +97,24 @@ impl Description {
                 },
             })
             .collect();
+        let actuators = model
+            .actuators
+            .iter()
+            .map(|actuator| ActuatorDescription {
+                name: actuator.name.clone(),
+                kind: actuator.kind,
+                transmission: actuator.target.attribute.clone(),
+                target: actuator.target.name.clone(),
+                refsite: actuator.target.refsite.clone(),
+                gear: actuator.gear,
+                ctrlrange: actuator.ctrl_range,
+                forcerange: actuator.force_range,
+                gaintype: actuator.gain_type,
+                gainprm: actuator.gain,
+                biastype: actuator.bias_type,
+                biasprm: actuator.bias,
+            })
+            .collect();
         Description {
             name: model.name.clone(),
             nq: model.nq,
@@ -73,6 +122,7 @@ impl Description {
             gravity: [model.gravity.x, model.gravity.y, model.gravity.z],
             qpos0: model.qpos0.clone(),
             joints,
+            actuators,
         }
     }
 }

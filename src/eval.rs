@@ -21,6 +21,9 @@ pub struct EvalRequest {
     pub eps: Option<Vec<f64>>,
     /// Physical joint torques and forces (nv, MuJoCo's qfrc_applied); default 0.
     pub torque: Option<Vec<f64>>,
+    /// The actuators' controls (nu, MuJoCo's ctrl); without it the actuators
+    /// apply no force.
+    pub ctrl: Option<Vec<f64>>,
 }
 
 /// The dynamics at one state.
@@ -32,7 +35,7 @@ pub struct EvalResponse {
     pub qvel: Vec<f64>,
     /// ν = m*θ̇.
     pub nu: Vec<f64>,
-    /// ν̇ = ε − C(θ,ν) + eps_passive.
+    /// ν̇ = ε + eps_actuator − C(θ,ν) + eps_passive.
     pub nu_dot: Vec<f64>,
     /// C(θ,ν): the velocity-product terms.
     pub coriolis: Vec<f64>,
@@ -46,6 +49,24 @@ pub struct EvalResponse {
     pub power: f64,
     /// Spatial momentum of the vehicle: angular (about the world origin) then linear, world frame.
     pub momentum: [f64; 6],
+    /// What the actuators do, when the request gives `ctrl`.
+    #[serde(flatten)]
+    pub actuators: Option<ActuatorResponse>,
+}
+
+/// The actuators at the request's ctrl (MuJoCo's names).
+#[derive(Clone, Debug, Serialize)]
+pub struct ActuatorResponse {
+    /// MuJoCo's actuator_length (nu).
+    pub actuator_length: Vec<f64>,
+    /// MuJoCo's actuator_velocity (nu).
+    pub actuator_velocity: Vec<f64>,
+    /// MuJoCo's actuator_force (nu): gain · ctrl + bias, clamped.
+    pub actuator_force: Vec<f64>,
+    /// T, MuJoCo's qfrc_actuator (nv).
+    pub qfrc_actuator: Vec<f64>,
+    /// ε = ℓT of the actuators (nv).
+    pub eps_actuator: Vec<f64>,
 }
 
 /// Why a request could not be evaluated.
@@ -75,7 +96,24 @@ pub fn evaluate(model: &Model, ws: &mut Workspace, request: &EvalRequest) -> Res
         ws.eps_from_forces(model, torque, None, &mut eps_torque)?;
         eps.iter_mut().zip(&eps_torque).for_each(|(e, t)| *e += t);
     }
-    ws.compute_nu_dot(model, &eps)?;
+    let actuators = match &request.ctrl {
+        Some(ctrl) => {
+            ws.compute_actuation(model, ctrl)?;
+            Some(ActuatorResponse {
+                actuator_length: ws.actuator_length.as_slice().to_vec(),
+                actuator_velocity: ws.actuator_velocity.as_slice().to_vec(),
+                actuator_force: ws.actuator_force.as_slice().to_vec(),
+                qfrc_actuator: ws.qfrc_actuator.as_slice().to_vec(),
+                eps_actuator: ws.eps_actuator.as_slice().to_vec(),
+            })
+        }
+        None => None,
+    };
+    let applied: Vec<f64> = match &actuators {
+        Some(a) => eps.iter().zip(&a.eps_actuator).map(|(e, a)| e + a).collect(),
+        None => eps.clone(),
+    };
+    ws.compute_nu_dot(model, &applied)?;
     let momentum = ws.momentum(model)?;
     Ok(EvalResponse {
         theta: ws.theta.as_slice().to_vec(),
@@ -88,5 +126,6 @@ pub fn evaluate(model: &Model, ws: &mut Workspace, request: &EvalRequest) -> Res
         eps_passive: ws.eps_passive.as_slice().to_vec(),
         kinetic_energy: ws.kinetic_energy(),
         momentum: std::array::from_fn(|k| momentum[k]),
+        actuators,
     })
 }

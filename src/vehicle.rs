@@ -5,6 +5,8 @@
 //! This is what the importer produces and what [`crate::model::Model::compile`]
 //! turns into the compiled model; it still mirrors the MJCF body tree
 //! (bodies without joints are kept, several joints per body are allowed).
+//! Actuators are kept as MuJoCo's general actuator they stand for, with their
+//! transmission target named; the compiler resolves targets into dofs and links.
 
 use crate::math::{Mat3, Quat, Vec3};
 
@@ -18,6 +20,12 @@ pub struct Vehicle {
     /// Bodies in MJCF document order (depth-first, parent before child),
     /// not including the world body.
     pub bodies: Vec<Body>,
+    /// Sites in MJCF document order (MuJoCo's site order).
+    pub sites: Vec<Site>,
+    /// Actuators in MJCF document order (MuJoCo's actuator order, that of `ctrl`).
+    pub actuators: Vec<Actuator>,
+    /// `<option>` settings for all actuators.
+    pub actuation: Actuation,
 }
 
 /// One `<body>`.
@@ -121,8 +129,149 @@ pub struct Joint {
     pub damping: f64,
     /// Armature (rotor inertia) added to every dof of the joint.
     pub armature: f64,
+    /// Limits of the total actuator force on the joint (MuJoCo's
+    /// `actuatorfrcrange` when `actuatorfrclimited`; hinge and slide only).
+    pub actuator_force_range: Option<[f64; 2]>,
     /// Line of the joint element in the MJCF file (1-based).
     pub line: u32,
+}
+
+/// One `<site>`: a frame fixed to a body, where actuators apply forces.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Site {
+    /// The site's name; sites without one cannot be referred to.
+    pub name: Option<String>,
+    /// Index of its body in [`Vehicle::bodies`]; `None` for a site of `<worldbody>`.
+    pub body: Option<usize>,
+    /// Position of the site frame in the body frame.
+    pub pos: Vec3,
+    /// Orientation of the site frame in the body frame.
+    pub quat: Quat,
+    /// Line of the `<site>` element in the MJCF file (1-based).
+    pub line: u32,
+}
+
+/// The actuator element an actuator was written with (MuJoCo's `mjtActuator`,
+/// the kinds nudyn models).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ActuatorKind {
+    /// `<general>`.
+    General,
+    /// `<motor>`: force = ctrl.
+    Motor,
+    /// `<position>`: force = kp (ctrl − length) − kv velocity.
+    Position,
+    /// `<velocity>`: force = kv (ctrl − velocity).
+    Velocity,
+    /// `<damper>`: force = −kv velocity ctrl.
+    Damper,
+}
+
+impl ActuatorKind {
+    /// The MJCF element name, also its JSON name.
+    pub fn name(self) -> &'static str {
+        match self {
+            ActuatorKind::General => "general",
+            ActuatorKind::Motor => "motor",
+            ActuatorKind::Position => "position",
+            ActuatorKind::Velocity => "velocity",
+            ActuatorKind::Damper => "damper",
+        }
+    }
+}
+
+/// Where an actuator's force goes (MuJoCo's transmission).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Transmission {
+    /// `joint` or `jointinparent`: a generalized force on the joint's dofs.
+    Joint {
+        /// The joint's name.
+        joint: String,
+        /// `jointinparent`: the rotation axes of a ball or free joint's gear
+        /// are in the parent frame (the world, for a free joint).
+        in_parent: bool,
+    },
+    /// `site`: a force and torque at the site, along axes of the site frame,
+    /// or with `refsite` of the reference site's frame, with the opposite
+    /// force and torque on the reference site's body.
+    Site {
+        /// Index of the site in [`Vehicle::sites`].
+        site: usize,
+        /// Index of the reference site in [`Vehicle::sites`].
+        refsite: Option<usize>,
+    },
+}
+
+/// How the gain of an actuator depends on its state (MuJoCo's `gaintype`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum GainType {
+    /// gain = gainprm[0].
+    Fixed,
+    /// gain = gainprm[0] + gainprm[1] length + gainprm[2] velocity.
+    Affine,
+}
+
+/// How the bias of an actuator depends on its state (MuJoCo's `biastype`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BiasType {
+    /// bias = 0.
+    None,
+    /// bias = biasprm[0] + biasprm[1] length + biasprm[2] velocity.
+    Affine,
+}
+
+/// One actuator as MuJoCo's general actuator: force = gain · ctrl + bias,
+/// applied through its transmission scaled by `gear`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Actuator {
+    /// The actuator's name, if it has one.
+    pub name: Option<String>,
+    /// The element it was written with.
+    pub kind: ActuatorKind,
+    /// Where the force goes.
+    pub transmission: Transmission,
+    /// `gear`: for a hinge or slide only the first entry; for a ball joint
+    /// the first three (a rotation axis); for free joints and sites a
+    /// translation axis then a rotation axis.
+    pub gear: [f64; 6],
+    /// `gaintype`.
+    pub gain_type: GainType,
+    /// The first three of `gainprm` (the only ones fixed and affine gains use).
+    pub gain: [f64; 3],
+    /// `biastype`.
+    pub bias_type: BiasType,
+    /// The first three of `biasprm`. As in MuJoCo, a positive `biasprm[2]`
+    /// of a position-like actuator (gainprm[0] = −biasprm[1]) is a damping
+    /// ratio, turned into a damping by [`crate::model::Model::compile`].
+    pub bias: [f64; 3],
+    /// `ctrlrange` when `ctrllimited` (resolved as MuJoCo does, including `autolimits`).
+    pub ctrl_range: Option<[f64; 2]>,
+    /// `forcerange` when `forcelimited`.
+    pub force_range: Option<[f64; 2]>,
+    /// Whether `<option actuatorgroupdisable>` disables the actuator's group
+    /// (its force is then 0, clamped to `forcerange`).
+    pub group_disabled: bool,
+    /// Line of the actuator element in the MJCF file (1-based).
+    pub line: u32,
+}
+
+/// `<option>` settings that apply to all actuators.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Actuation {
+    /// `<flag actuation="disable"/>` turns every actuator force off.
+    pub enabled: bool,
+    /// `<flag clampctrl="disable"/>` turns the clamping of ctrl to `ctrlrange` off.
+    pub clamp_ctrl: bool,
+}
+
+impl Default for Actuation {
+    /// MuJoCo's defaults: actuation on, ctrl clamped.
+    fn default() -> Self {
+        Actuation { enabled: true, clamp_ctrl: true }
+    }
 }
 
 #[cfg(test)]
@@ -132,6 +281,10 @@ mod tests {
     #[test]
     fn json_names_are_the_mjcf_names() {
         for kind in JointKind::ALL {
+            assert_eq!(serde_json::to_value(kind).unwrap(), kind.name());
+        }
+        use ActuatorKind::*;
+        for kind in [General, Motor, Position, Velocity, Damper] {
             assert_eq!(serde_json::to_value(kind).unwrap(), kind.name());
         }
     }

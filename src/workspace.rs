@@ -95,6 +95,21 @@ pub struct Workspace {
     pub coriolis: DVector<f64>,
     /// ν̇ = ε − C + eps_passive — pass 3.
     pub nu_dot: DVector<f64>,
+
+    /// Whether some actuator applies wrenches to links (fixed by the model).
+    pub actuators_apply_wrenches: bool,
+    /// MuJoCo's actuator_length (nu) — compute_actuation.
+    pub actuator_length: DVector<f64>,
+    /// MuJoCo's actuator_velocity (nu) — compute_actuation.
+    pub actuator_velocity: DVector<f64>,
+    /// MuJoCo's actuator_force (nu) — compute_actuation.
+    pub actuator_force: DVector<f64>,
+    /// Wrenches of site actuators on each link (link coordinates) — compute_actuation.
+    pub link_wrench: Vec<SpatialVec>,
+    /// T of the actuators, MuJoCo's qfrc_actuator (nv) — compute_actuation.
+    pub qfrc_actuator: DVector<f64>,
+    /// ε = ℓT of the actuators (nv) — compute_actuation.
+    pub eps_actuator: DVector<f64>,
 }
 
 impl Workspace {
@@ -111,6 +126,8 @@ impl Workspace {
                 accumulation[i].opens_parent = true;
             }
         }
+        let nu = model.actuators.len();
+        let actuators_apply_wrenches = model.actuators.iter().any(|a| a.transmission.applies_wrenches());
         Workspace {
             stage: Stage::Empty,
             accumulation,
@@ -135,6 +152,13 @@ impl Workspace {
             eps_passive: dof(),
             coriolis: dof(),
             nu_dot: dof(),
+            actuators_apply_wrenches,
+            actuator_length: DVector::zeros(nu),
+            actuator_velocity: DVector::zeros(nu),
+            actuator_force: DVector::zeros(nu),
+            link_wrench: vec![SpatialVec::zeros(); if actuators_apply_wrenches { n } else { 0 }],
+            qfrc_actuator: dof(),
+            eps_actuator: dof(),
         }
     }
 }

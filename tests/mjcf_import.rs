@@ -421,7 +421,6 @@ fn ignored_elements_warn_once_each() {
         ignored(5, "size"),
         ignored(6, "statistic"),
         ignored(7, "visual"),
-        ignored(11, "site"),
         ignored(13, "asset"),
         ignored(17, "light name=\"sun\""),
         "line 18: <geom name=\"floor\">: ignored: fixed to the world, it moves no mass, and nudyn models no contacts \
@@ -429,21 +428,20 @@ fn ignored_elements_warn_once_each() {
             .to_string(),
         ignored(19, "camera name=\"overview\""),
         "line 21: <joint name=\"hinge\">: joint limits are not modelled (range ignored)".to_string(),
-        ignored(23, "site name=\"tip\""),
         ignored(24, "camera name=\"eye\""),
         "line 27: <contact>: ignored: nudyn models no contacts".to_string(),
         ignored(30, "equality"),
-        "line 31: <actuator>: ignored: nudyn applies no actuator forces (drive the joints through eps); \
-         MuJoCo's position and velocity actuators pull even at ctrl = 0"
-            .to_string(),
         ignored(34, "sensor"),
         ignored(37, "keyframe"),
         ignored(40, "custom"),
         ignored(43, "extension"),
     ];
     assert_eq!(shown, expected);
-    let camera = &warnings[8];
+    let camera = &warnings[7];
     assert_eq!((camera.line, camera.element.as_str()), (19, "camera name=\"overview\""));
+    // Sites and actuators are read, not ignored.
+    assert_eq!(vehicle.sites.len(), 1);
+    assert_eq!(vehicle.actuators.len(), 1);
 }
 
 #[test]

@@ -32,9 +32,11 @@ enum Command {
     /// Evaluate ν̇, C(θ,ν), ε, energy and momentum for JSON states read on stdin.
     ///
     /// Input: one object, or an array of objects, with "theta" (nq), "nu" or
-    /// "qvel" (nv), and optionally "eps" and "torque" (nv). Output: one JSON
-    /// object per input with theta, qvel, nu, nu_dot, coriolis, eps,
-    /// eps_passive, kinetic_energy, power, momentum.
+    /// "qvel" (nv), and optionally "eps" and "torque" (nv) and "ctrl" (nu,
+    /// the actuators' controls). Output: one JSON object per input with theta,
+    /// qvel, nu, nu_dot, coriolis, eps, eps_passive, kinetic_energy, power,
+    /// momentum, and with "ctrl" actuator_length, actuator_velocity,
+    /// actuator_force, qfrc_actuator, eps_actuator.
     Eval {
         /// The vehicle's MJCF file.
         model: PathBuf,
@@ -73,11 +75,15 @@ enum Command {
         #[arg(long, default_value = "2", value_name = "2|3")]
         fmi_version: FmiVersion,
     },
-    /// Print the vehicle's joints and where each sits in θ (qpos) and ν (qvel).
+    /// Print the vehicle's joints and where each sits in θ (qpos) and ν (qvel),
+    /// and its actuators in ctrl order.
     ///
     /// With --json: {"name", "nq", "nv", "gravity", "qpos0", "joints": [{"name",
-    /// "body", "kind", "qpos_adr", "nq", "dof_adr", "nv", "quaternion_adr"}]},
-    /// addresses 0-based (FMU variable theta[qpos_adr + 1] is the joint's first).
+    /// "body", "kind", "qpos_adr", "nq", "dof_adr", "nv", "quaternion_adr"}],
+    /// "actuators": [{"name", "kind", "transmission", "target", "refsite",
+    /// "gear", "ctrlrange", "forcerange", "gaintype", "gainprm", "biastype",
+    /// "biasprm"}]}, addresses 0-based (FMU variable theta[qpos_adr + 1] is the
+    /// joint's first).
     Describe {
         /// The vehicle's MJCF file.
         model: PathBuf,
@@ -333,6 +339,24 @@ fn describe(model_path: &Path, json: bool) -> Result<()> {
             range(joint.qpos_adr, joint.nq),
             range(joint.dof_adr, joint.nv)
         );
+    }
+    if !description.actuators.is_empty() {
+        table += &format!("\n\n{} actuators (ctrl order)\n", description.actuators.len());
+        table += &format!("{:<5} {:<24} {:<9} {:<36} {}", "ctrl", "actuator", "kind", "transmission", "ctrlrange");
+        for (k, actuator) in description.actuators.iter().enumerate() {
+            let transmission = match &actuator.refsite {
+                Some(refsite) => format!("{} {} (refsite {refsite})", actuator.transmission, actuator.target),
+                None => format!("{} {}", actuator.transmission, actuator.target),
+            };
+            let range = actuator.ctrlrange.map_or("unlimited".to_string(), |[low, high]| format!("{low} .. {high}"));
+            table += &format!(
+                "\n{:<5} {:<24} {:<9} {:<36} {range}",
+                k + 1,
+                actuator.name.as_deref().unwrap_or("-"),
+                actuator.kind.name(),
+                transmission
+            );
+        }
     }
     emit(&table)
 }

@@ -8,9 +8,9 @@
 use nalgebra::SVector;
 
 use super::{DynamicsError, accumulate, block, check_input, check_length, cols, require};
-use crate::math::SpatialVec;
+use crate::math::{SpatialVec, Transform};
 use crate::model::Model;
-use crate::workspace::{Stage, Workspace};
+use crate::workspace::{Accumulation, Stage, Workspace};
 
 /// Which way the recursion runs.
 #[derive(Clone, Copy)]
@@ -68,6 +68,33 @@ fn inward_pass(
         match model.links[i].ndof {
             1 => inward_link::<1>(model, ws, i, direction, input, body_forces, out),
             _ => inward_link::<3>(model, ws, i, direction, input, body_forces, out),
+        }
+    }
+}
+
+/// T += Σ Jᵢᵀfᵢ, the joint forces of per-link wrenches `wrenches` (link
+/// coordinates, about the link origin): p_i = f_i + Σ_children Xᵀ p_c,
+/// T_i += S_iᵀ p_i. `p` holds each link's share from its children
+/// (set by the first child the pass reaches, so it needs no clearing).
+pub(crate) fn add_joint_forces_of_wrenches(
+    model: &Model,
+    x_parent: &[Transform],
+    accumulation: &[Accumulation],
+    p: &mut [SpatialVec],
+    wrenches: &[SpatialVec],
+    torque: &mut [f64],
+) {
+    for i in (0..model.links.len()).rev() {
+        let link = &model.links[i];
+        let mut total = wrenches[i];
+        if accumulation[i].has_children {
+            total += p[i];
+        }
+        for k in 0..link.ndof {
+            torque[link.dof_adr + k] += link.motion_subspace.column(k).dot(&total);
+        }
+        if let Some(parent) = link.parent {
+            accumulate(&mut p[parent], x_parent[i].apply_transpose_force(&total), accumulation[i].opens_parent);
         }
     }
 }

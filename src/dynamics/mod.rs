@@ -9,8 +9,10 @@
 //! | 3 [`bias`] | tip → base | ε | ν̇, C(θ,ν), ε of passive forces and gravity |
 //!
 //! [`forces`] maps physical joint torques and body wrenches to ε and back;
+//! [`actuation`] computes the actuators' forces and their ε;
 //! [`quantities`] gives kinetic energy, power and momentum.
 
+pub mod actuation;
 pub mod articulated;
 pub mod bias;
 pub mod forces;

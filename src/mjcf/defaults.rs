@@ -1,16 +1,19 @@
-//! `<default>` classes and the joint and geom settings they carry.
+//! `<default>` classes and the joint, geom, site and actuator settings they
+//! carry.
 //!
-//! As in MuJoCo, a class starts as a copy of its parent class, its `<joint>`
-//! and `<geom>` children overwrite the attributes they give, and an element
-//! starts as a copy of its class and overwrites the attributes it gives.
+//! As in MuJoCo, a class starts as a copy of its parent class, its `<joint>`,
+//! `<geom>` and `<site>` children overwrite the attributes they give, and an
+//! element starts as a copy of its class and overwrites the attributes it
+//! gives. Actuator defaults follow MuJoCo 4.0's own rules (`super::actuator`).
 
 use std::collections::HashMap;
 
 use super::MjcfWarning;
+use super::actuator::{self, ActuatorSettings};
 use super::element::Element;
 use super::error::MjcfError;
 use super::orientation::Orientation;
-use crate::vehicle::JointKind;
+use crate::vehicle::{ActuatorKind, JointKind};
 
 /// Attributes of `<joint>` in a body (MuJoCo 4.0 schema).
 #[rustfmt::skip]
@@ -31,17 +34,21 @@ pub(crate) const GEOM_ATTRIBUTES: &[&str] = &[
     "castshadow",
 ];
 
-/// `<joint>` and `<geom>` inside `<default>` take everything but these.
+/// Attributes of `<site>` in a body (MuJoCo 4.0 schema).
+#[rustfmt::skip]
+pub(crate) const SITE_ATTRIBUTES: &[&str] = &[
+    "name", "class", "type", "group", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler", "size",
+    "material", "mesh", "rgba", "fromto", "user",
+];
+
+/// `<joint>`, `<geom>` and `<site>` inside `<default>` take everything but these.
 const NOT_IN_DEFAULTS: [&str; 2] = ["name", "class"];
 
 /// Children of `<default>` that configure elements without effect on the
 /// dynamics.
 #[rustfmt::skip]
-const IGNORED_DEFAULTS: &[&str] = &[
-    "site", "camera", "light", "mesh", "material", "texture", "pair", "equality", "tendon", "general",
-    "motor", "position", "velocity", "intvelocity", "orientation", "pid", "damper", "cylinder",
-    "muscle", "adhesion", "dcmotor",
-];
+const IGNORED_DEFAULTS: &[&str] =
+    &["camera", "light", "mesh", "material", "texture", "pair", "equality", "tendon"];
 
 /// Whether a joint or tendon has limits (`limited`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -83,6 +90,10 @@ pub(crate) struct JointSettings {
     pub limited: Limited,
     /// `range`.
     pub range: [f64; 2],
+    /// `actuatorfrclimited`.
+    pub actuator_force_limited: Limited,
+    /// `actuatorfrcrange`.
+    pub actuator_force_range: [f64; 2],
 }
 
 impl Default for JointSettings {
@@ -102,6 +113,8 @@ impl Default for JointSettings {
             springyield: 0.0,
             limited: Limited::Auto,
             range: [0.0; 2],
+            actuator_force_limited: Limited::Auto,
+            actuator_force_range: [0.0; 2],
         }
     }
 }
@@ -150,6 +163,12 @@ impl JointSettings {
         }
         if let Some(range) = element.numbers("range")? {
             self.range = range;
+        }
+        if let Some(limited) = element.keyword("actuatorfrclimited", &limited)? {
+            self.actuator_force_limited = limited;
+        }
+        if let Some(range) = element.numbers("actuatorfrcrange")? {
+            self.actuator_force_range = range;
         }
         Ok(())
     }
@@ -271,6 +290,74 @@ impl GeomSettings {
     }
 }
 
+/// MuJoCo's site types.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum SiteKind {
+    /// `sphere`, MuJoCo's default.
+    Sphere,
+    /// `capsule`.
+    Capsule,
+    /// `ellipsoid`.
+    Ellipsoid,
+    /// `cylinder`.
+    Cylinder,
+    /// `box`.
+    Box,
+}
+
+/// A site's attributes that place it, as a class or an element sets them.
+#[derive(Clone, Debug)]
+pub(crate) struct SiteSettings {
+    /// `type`.
+    pub kind: SiteKind,
+    /// `pos`.
+    pub pos: [f64; 3],
+    /// `quat` or one of its alternatives.
+    pub orientation: Orientation,
+    /// `fromto`.
+    pub fromto: Option<[f64; 6]>,
+    /// Whether `mesh` fits the site to a mesh asset (which moves its frame).
+    pub mesh: bool,
+}
+
+impl Default for SiteSettings {
+    /// MuJoCo's built-in site defaults.
+    fn default() -> Self {
+        Self { kind: SiteKind::Sphere, pos: [0.0; 3], orientation: Orientation::default(), fromto: None, mesh: false }
+    }
+}
+
+impl SiteSettings {
+    /// Overwrites the settings the element gives.
+    pub fn apply(&mut self, element: &Element) -> Result<(), MjcfError> {
+        let kinds = [
+            ("sphere", SiteKind::Sphere),
+            ("capsule", SiteKind::Capsule),
+            ("ellipsoid", SiteKind::Ellipsoid),
+            ("cylinder", SiteKind::Cylinder),
+            ("box", SiteKind::Box),
+        ];
+        if let Some(kind) = element.keyword("type", &kinds)? {
+            self.kind = kind;
+        }
+        if let Some(pos) = element.numbers("pos")? {
+            self.pos = pos;
+        }
+        if let Some(orientation) = Orientation::read(element)? {
+            self.orientation = orientation;
+        }
+        if let Some(fromto) = element.numbers("fromto")? {
+            self.fromto = Some(fromto);
+        }
+        // Read for their syntax; they do not move the site.
+        element.integers::<1>("group")?;
+        element.overwrite_numbers("size", &mut [0.0; 3])?;
+        element.numbers::<4>("rgba")?;
+        self.mesh |= element.has("mesh");
+        Ok(())
+    }
+}
+
 /// One `<default>` class.
 #[derive(Clone, Debug)]
 pub(crate) struct DefaultClass {
@@ -278,11 +365,18 @@ pub(crate) struct DefaultClass {
     pub joint: JointSettings,
     /// Settings a `<geom>` of this class starts from.
     pub geom: GeomSettings,
+    /// Settings a `<site>` of this class starts from.
+    pub site: SiteSettings,
+    /// The class's actuator default, which every actuator element of the
+    /// class starts from.
+    pub actuator: ActuatorSettings,
 }
 
 /// All default classes; index 0 is "main".
 pub(crate) struct Defaults {
     classes: Vec<DefaultClass>,
+    /// Each class's parent class (`None` for "main").
+    parents: Vec<Option<usize>>,
     /// Class name → (index, line of its `<default>`).
     by_name: HashMap<String, (usize, u32)>,
 }
@@ -293,13 +387,32 @@ pub(crate) const MAIN: usize = 0;
 impl Defaults {
     /// Only the "main" class, with MuJoCo's built-in settings.
     pub fn new() -> Self {
-        let main = DefaultClass { joint: JointSettings::default(), geom: GeomSettings::default() };
-        Self { classes: vec![main], by_name: HashMap::from([("main".to_string(), (MAIN, 0))]) }
+        let main = DefaultClass {
+            joint: JointSettings::default(),
+            geom: GeomSettings::default(),
+            site: SiteSettings::default(),
+            actuator: ActuatorSettings::default(),
+        };
+        Self { classes: vec![main], parents: vec![None], by_name: HashMap::from([("main".to_string(), (MAIN, 0))]) }
     }
 
     /// The class with this index.
     pub fn class(&self, index: usize) -> &DefaultClass {
         &self.classes[index]
+    }
+
+    /// Where a shortcut of `kind` in class `index` takes the parameters its
+    /// element does not give: the nearest of the class and its ancestors
+    /// whose actuator default lends them (MuJoCo 4.0), if any.
+    pub fn lender(&self, index: usize, kind: ActuatorKind) -> Option<&ActuatorSettings> {
+        let mut class = Some(index);
+        while let Some(k) = class {
+            if self.classes[k].actuator.lends_parameters_to(kind) {
+                return Some(&self.classes[k].actuator);
+            }
+            class = self.parents[k];
+        }
+        None
     }
 
     /// The index of the class named by the element's attribute (`class` or
@@ -362,38 +475,51 @@ impl Defaults {
                     });
                 }
                 self.classes.push(self.classes[parent].clone());
+                self.parents.push(Some(parent));
                 let index = self.classes.len() - 1;
                 self.by_name.insert(name.to_string(), (index, element.line));
                 index
             }
         };
 
-        let mut joint_seen: Option<Element> = None;
-        let mut geom_seen: Option<Element> = None;
+        // MuJoCo's schema allows each of these children once per class.
+        let mut seen: Vec<Element> = Vec::new();
         for child in element.children() {
+            if let Some(first) = seen.iter().find(|e| e.tag() == child.tag()) {
+                return Err(child.repeated(first));
+            }
             match child.tag() {
-                "joint" | "geom" => {
-                    let (seen, allowed) = if child.tag() == "joint" {
-                        (&mut joint_seen, JOINT_ATTRIBUTES)
-                    } else {
-                        (&mut geom_seen, GEOM_ATTRIBUTES)
+                "joint" | "geom" | "site" => {
+                    let allowed = match child.tag() {
+                        "joint" => JOINT_ATTRIBUTES,
+                        "geom" => GEOM_ATTRIBUTES,
+                        _ => SITE_ATTRIBUTES,
                     };
-                    if let Some(first) = seen {
-                        return Err(child.repeated(first));
-                    }
-                    *seen = Some(child);
                     let allowed: Vec<&str> = allowed.iter().copied().filter(|a| !NOT_IN_DEFAULTS.contains(a)).collect();
                     child.check_attributes(&allowed)?;
                     let class = &mut self.classes[index];
-                    if child.tag() == "joint" {
-                        class.joint.apply(&child)?;
-                    } else {
-                        class.geom.apply(&child)?;
+                    match child.tag() {
+                        "joint" => class.joint.apply(&child)?,
+                        "geom" => class.geom.apply(&child)?,
+                        _ => class.site.apply(&child)?,
                     }
                 }
                 "default" => {}
                 tag if IGNORED_DEFAULTS.contains(&tag) => warnings.push(child.ignored()),
-                _ => return Err(child.unknown()),
+                tag => match actuator::kind_of(tag) {
+                    Some(kind) => {
+                        child.check_attributes(&actuator::attributes(kind, true))?;
+                        let lender = self.lender(index, kind).cloned();
+                        self.classes[index].actuator.apply(kind, &child, lender.as_ref())?;
+                    }
+                    None => match actuator::refusal(tag) {
+                        Some(reason) => return Err(child.unsupported(reason)),
+                        None => return Err(child.unknown()),
+                    },
+                },
+            }
+            if child.tag() != "default" {
+                seen.push(child);
             }
         }
         Ok(index)

@@ -140,6 +140,15 @@ impl<'a, 'input> Element<'a, 'input> {
         Ok(Some(values))
     }
 
+    /// Any number of integers.
+    pub fn integer_list(&self, attribute: &str) -> Result<Option<Vec<i32>>, MjcfError> {
+        let Some(text) = self.text(attribute) else {
+            return Ok(None);
+        };
+        let values = text.split_ascii_whitespace().map(str::parse).collect::<Result<_, _>>();
+        values.map(Some).map_err(|_| self.bad_value(attribute, "integers"))
+    }
+
     /// One of the keywords in `choices`.
     pub fn keyword<T: Copy>(&self, attribute: &str, choices: &[(&str, T)]) -> Result<Option<T>, MjcfError> {
         let Some(text) = self.text(attribute) else {
@@ -246,10 +255,6 @@ impl<'a, 'input> Element<'a, 'input> {
     /// MuJoCo's dynamics say how nudyn's differ.
     pub fn ignored(&self) -> MjcfWarning {
         match self.tag() {
-            "actuator" => self.warning(
-                "ignored: nudyn applies no actuator forces (drive the joints through eps); \
-                 MuJoCo's position and velocity actuators pull even at ctrl = 0",
-            ),
             "contact" => self.warning("ignored: nudyn models no contacts"),
             // Only geoms fixed to the world are ignored (a moving body's give its mass).
             "geom" => self.warning(

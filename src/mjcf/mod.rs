@@ -2,12 +2,14 @@
 //! defaults, orientations, angle units and geom-derived mass properties
 //! exactly as MuJoCo 4.0's compiler does.
 //!
-//! Elements without effect on the dynamics (cameras, lights, sites,
-//! actuators, sensors, visual settings…) are ignored with a warning each;
-//! elements that would change the dynamics in ways nudyn does not model
-//! (tendons, equality constraints, flexible bodies, fluid forces, friction
-//! loss…) are rejected with an [`MjcfError`] naming the element and its line.
+//! Elements without effect on the dynamics (cameras, lights, sensors,
+//! visual settings…) are ignored with a warning each; elements that would
+//! change the dynamics in ways nudyn does not model (tendons, equality
+//! constraints, flexible bodies, fluid forces, friction loss, actuators with
+//! activation states…) are rejected with an [`MjcfError`] naming the element
+//! and its line. Sites and actuators are read: actuators act through `ctrl`.
 
+mod actuator;
 mod defaults;
 mod element;
 mod error;

@@ -4,8 +4,10 @@ use std::collections::HashMap;
 
 use roxmltree::Document;
 
+use super::actuator;
 use super::defaults::{
-    Defaults, GEOM_ATTRIBUTES, GeomKind, GeomSettings, JOINT_ATTRIBUTES, JointSettings, Limited, MAIN,
+    Defaults, GEOM_ATTRIBUTES, GeomKind, GeomSettings, JOINT_ATTRIBUTES, JointSettings, Limited, MAIN, SITE_ATTRIBUTES,
+    SiteKind,
 };
 use super::element::{Element, LineStarts};
 use super::error::MjcfError;
@@ -13,7 +15,10 @@ use super::inertia::{self, BodyInertia, EPS, GeomMass};
 use super::orientation::{AngleConvention, ORIENTATION_ATTRIBUTES, Orientation, normalized, z_to_quaternion};
 use super::{Imported, MjcfWarning};
 use crate::math::{Mat3, Quat, Vec3};
-use crate::vehicle::{Body, Joint, JointKind, MassProperties, Vehicle};
+use crate::vehicle::{
+    Actuation, Actuator, ActuatorKind, BiasType, Body, GainType, Joint, JointKind, MassProperties, Site, Transmission,
+    Vehicle,
+};
 
 /// MuJoCo's `mjMINVAL`: the least mass and principal moment of a moving body.
 const MIN_VALUE: f64 = 1e-15;
@@ -61,7 +66,10 @@ const FLAG_ATTRIBUTES: &[&str] = &[
 /// Top-level sections without effect on the dynamics.
 #[rustfmt::skip]
 const IGNORED_SECTIONS: &[&str] =
-    &["size", "statistic", "visual", "asset", "contact", "actuator", "sensor", "keyframe", "custom", "extension"];
+    &["size", "statistic", "visual", "asset", "contact", "sensor", "keyframe", "custom", "extension"];
+
+/// MuJoCo's actuator groups that `actuatorgroupdisable` can disable: 0 to 30.
+const ACTUATOR_GROUPS: std::ops::RangeInclusive<i32> = 0..=30;
 
 /// Where `<compiler inertiafromgeom>` takes a body's mass properties from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -94,6 +102,17 @@ struct Physics {
     gravity_disabled: bool,
     spring_disabled: bool,
     damper_disabled: bool,
+    actuation: Actuation,
+    /// The actuator groups `actuatorgroupdisable` lists.
+    disabled_actuator_groups: Vec<i32>,
+}
+
+/// What an actuator needs to know of a joint it may name.
+struct JointTarget {
+    kind: JointKind,
+    /// `range` as MuJoCo's compiler leaves it: in radians for a limited hinge
+    /// when angles are in degrees, as written otherwise (for `inheritrange`).
+    range: [f64; 2],
 }
 
 /// What the checks after the whole tree is read need to know of a body.
@@ -141,6 +160,13 @@ struct Reader {
     records: Vec<BodyRecord>,
     body_names: HashMap<String, u32>,
     joint_names: HashMap<String, u32>,
+    joint_targets: HashMap<String, JointTarget>,
+    sites: Vec<Site>,
+    /// Whether each site is fitted to a mesh (which moves its frame).
+    site_fitted_to_mesh: Vec<bool>,
+    site_names: HashMap<String, u32>,
+    actuators: Vec<Actuator>,
+    actuator_names: HashMap<String, u32>,
 }
 
 /// Reads an MJCF document.
@@ -169,6 +195,7 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
     }
 
     let mut has_worldbody = false;
+    let mut actuator_sections = Vec::new();
     for section in root.children() {
         match section.tag() {
             "compiler" | "option" | "default" => {}
@@ -176,6 +203,8 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
                 has_worldbody = true;
                 reader.read_worldbody(&section)?;
             }
+            // Read once every joint and site is known, wherever the section stands.
+            "actuator" => actuator_sections.push(section),
             tag if IGNORED_SECTIONS.contains(&tag) => reader.warnings.push(section.ignored()),
             "tendon" | "equality" => match section.children().next() {
                 Some(first) if section.tag() == "tendon" => {
@@ -191,6 +220,9 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
     }
     if !has_worldbody {
         return Err(MjcfError::MissingWorldbody { line: root.line, element: root.label() });
+    }
+    for section in &actuator_sections {
+        reader.read_actuators(section)?;
     }
 
     let name = root.text("model").unwrap_or("vehicle").to_string();
@@ -216,6 +248,8 @@ impl Reader {
                 gravity_disabled: false,
                 spring_disabled: false,
                 damper_disabled: false,
+                actuation: Actuation::default(),
+                disabled_actuator_groups: Vec::new(),
             },
             defaults: Defaults::new(),
             warnings: Vec::new(),
@@ -223,6 +257,12 @@ impl Reader {
             records: Vec::new(),
             body_names: HashMap::new(),
             joint_names: HashMap::new(),
+            joint_targets: HashMap::new(),
+            sites: Vec::new(),
+            site_fitted_to_mesh: Vec::new(),
+            site_names: HashMap::new(),
+            actuators: Vec::new(),
+            actuator_names: HashMap::new(),
         }
     }
 
@@ -290,6 +330,12 @@ impl Reader {
         if let Some(gravity) = element.numbers::<3>("gravity")? {
             self.physics.gravity = Vec3::from(gravity);
         }
+        if let Some(groups) = element.integer_list("actuatorgroupdisable")? {
+            if groups.iter().any(|g| !ACTUATOR_GROUPS.contains(g)) {
+                return Err(element.bad_value("actuatorgroupdisable", "actuator groups from 0 to 30"));
+            }
+            self.physics.disabled_actuator_groups = groups;
+        }
         if element.numbers::<3>("wind")?.is_some_and(|w| w != [0.0; 3]) {
             return Err(element.unsupported("wind acts through fluid forces, which nudyn does not model"));
         }
@@ -328,6 +374,13 @@ impl Reader {
                     *target = off;
                 }
             }
+            for (flag, target) in
+                [("actuation", &mut physics.actuation.enabled), ("clampctrl", &mut physics.actuation.clamp_ctrl)]
+            {
+                if let Some(&off) = disabled.get(flag) {
+                    *target = !off;
+                }
+            }
         }
         Ok(())
     }
@@ -352,7 +405,8 @@ impl Reader {
         for child in section.children() {
             match child.tag() {
                 "body" => self.read_body_tree(child)?,
-                "geom" | "site" | "camera" | "light" => self.warnings.push(child.ignored()),
+                "site" => self.read_site(&child, MAIN, None)?,
+                "geom" | "camera" | "light" => self.warnings.push(child.ignored()),
                 "joint" | "freejoint" => {
                     return Err(child.invalid("the world body cannot have joints"));
                 }
@@ -431,7 +485,8 @@ impl Reader {
                     settings.apply(&child)?;
                     geoms.push((child, settings));
                 }
-                "site" | "camera" | "light" => self.warnings.push(child.ignored()),
+                "site" => self.read_site(&child, class, Some(index))?,
+                "camera" | "light" => self.warnings.push(child.ignored()),
                 "body" => child_bodies.push(child),
                 _ => return Err(unsupported_child(&child)),
             }
@@ -486,9 +541,34 @@ impl Reader {
             .collect())
     }
 
-    /// The class of a joint or geom: its `class`, else its body's class.
+    /// The class of a joint, geom or site: its `class`, else its body's class.
     fn class_of(&self, element: &Element, body_class: usize) -> Result<usize, MjcfError> {
         Ok(self.defaults.lookup(element, "class")?.unwrap_or(body_class))
+    }
+
+    /// Reads a `<site>` of body `body` (`None`: the world body).
+    fn read_site(&mut self, element: &Element, body_class: usize, body: Option<usize>) -> Result<(), MjcfError> {
+        element.check_attributes(SITE_ATTRIBUTES)?;
+        no_children(element)?;
+        let mut settings = self.defaults.class(self.class_of(element, body_class)?).site.clone();
+        settings.apply(element)?;
+        let (pos, quat) = match settings.fromto {
+            Some(fromto) => {
+                if settings.kind == SiteKind::Sphere {
+                    return Err(element.invalid("'fromto' requires a capsule, cylinder, ellipsoid or box site"));
+                }
+                let (pos, quat, _) = fromto_frame(element, &fromto, &settings.pos)?;
+                (pos, quat)
+            }
+            None => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
+        };
+        let name = element.text("name").map(str::to_string);
+        if let Some(name) = &name {
+            claim_name(&mut self.site_names, "site", name, element)?;
+        }
+        self.sites.push(Site { name, body, pos, quat, line: element.line });
+        self.site_fitted_to_mesh.push(settings.mesh);
+        Ok(())
     }
 
     fn resolve(&self, element: &Element, orientation: &Orientation) -> Result<Quat, MjcfError> {
@@ -565,20 +645,13 @@ impl Reader {
                 ) {
                     return Err(element.invalid("'fromto' requires a capsule, cylinder, ellipsoid or box geom"));
                 }
-                if settings.pos != [0.0; 3] {
-                    return Err(element.conflict("pos", "fromto"));
-                }
-                let from = Vec3::new(fromto[0], fromto[1], fromto[2]);
-                let to = Vec3::new(fromto[3], fromto[4], fromto[5]);
-                // MuJoCo's z axis points from 'to' towards 'from'.
-                let direction = normalized(from - to).ok_or_else(|| element.invalid("the 'fromto' points coincide"))?;
-                let half_length = (from - to).norm() / 2.0;
+                let (pos, quat, half_length) = fromto_frame(element, &fromto, &settings.pos)?;
                 if matches!(settings.kind, GeomKind::Ellipsoid | GeomKind::Box) {
                     size = [size[0], size[0], half_length];
                 } else {
                     size[1] = half_length;
                 }
-                ((from + to) / 2.0, Quat::new_normalize(z_to_quaternion(&direction)))
+                (pos, quat)
             }
             None => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
         };
@@ -693,8 +766,14 @@ impl Reader {
                 JointKind::Slide => (s.reference, s.springref),
                 JointKind::Ball | JointKind::Free => (0.0, 0.0),
             };
+            let actuator_force_range = self.actuator_force_range(&element, &s)?;
             let name = element.text("name").map_or_else(|| format!("{body_name}_joint{k}"), str::to_string);
             claim_name(&mut self.joint_names, "joint", &name, &element)?;
+            let range = match s.kind {
+                JointKind::Hinge if self.joint_limited(&s) => s.range.map(|x| self.compiler.angles.radians(x)),
+                _ => s.range,
+            };
+            self.joint_targets.insert(name.clone(), JointTarget { kind: s.kind, range });
             joints.push(Joint {
                 name,
                 kind: s.kind,
@@ -705,10 +784,17 @@ impl Reader {
                 stiffness: if self.physics.spring_disabled { 0.0 } else { s.stiffness[0] },
                 damping: if self.physics.damper_disabled { 0.0 } else { s.damping[0] },
                 armature: s.armature,
+                actuator_force_range,
                 line: element.line,
             });
         }
         Ok(joints)
+    }
+
+    /// Whether a joint other than a free one has limits (MuJoCo's rule).
+    fn joint_limited(&self, settings: &JointSettings) -> bool {
+        let [low, high] = settings.range;
+        settings.limited == Limited::Yes || (settings.limited == Limited::Auto && low < high)
     }
 
     /// MuJoCo's checks of joint limits; limits themselves are only warned about.
@@ -719,8 +805,7 @@ impl Reader {
                 "'range' without 'limited' while <compiler autolimits=\"false\">; give 'limited' or remove 'range'",
             ));
         }
-        let limited = settings.limited == Limited::Yes || (settings.limited == Limited::Auto && low < high);
-        if !limited {
+        if !self.joint_limited(settings) {
             return Ok(());
         }
         if settings.kind == JointKind::Ball {
@@ -732,6 +817,207 @@ impl Reader {
         }
         self.warnings.push(element.warning("joint limits are not modelled (range ignored)"));
         Ok(())
+    }
+
+    /// A hinge or slide joint's limits on the total actuator force
+    /// (`actuatorfrclimited`, `actuatorfrcrange`); ball and free joints have none.
+    fn actuator_force_range(&self, element: &Element, settings: &JointSettings) -> Result<Option<[f64; 2]>, MjcfError> {
+        if matches!(settings.kind, JointKind::Ball | JointKind::Free) {
+            return Ok(None);
+        }
+        self.limits(element, "actuatorfrc", settings.actuator_force_limited, settings.actuator_force_range)
+    }
+
+    /// MuJoCo's rule for an `<prefix>limited` and `<prefix>range` pair: with
+    /// "auto", limited when the range is not empty (a range given without the
+    /// flag is an error under `autolimits="false"`); a limited range must be
+    /// increasing.
+    fn limits(
+        &self,
+        element: &Element,
+        prefix: &str,
+        limited: Limited,
+        range: [f64; 2],
+    ) -> Result<Option<[f64; 2]>, MjcfError> {
+        if limited == Limited::Auto && range != [0.0; 2] && !self.compiler.autolimits {
+            return Err(element.invalid(format!(
+                "'{prefix}range' without '{prefix}limited' while <compiler autolimits=\"false\">; \
+                 give '{prefix}limited' or remove '{prefix}range'"
+            )));
+        }
+        let on = limited == Limited::Yes || (limited == Limited::Auto && range[0] < range[1]);
+        if on && range[0] >= range[1] {
+            return Err(element.invalid(format!(
+                "invalid '{prefix}range' {} {}: the first value must be smaller than the second",
+                range[0], range[1]
+            )));
+        }
+        Ok(on.then_some(range))
+    }
+
+    /// Reads an `<actuator>` section.
+    fn read_actuators(&mut self, section: &Element) -> Result<(), MjcfError> {
+        section.check_attributes(&[])?;
+        for child in section.children() {
+            match actuator::kind_of(child.tag()) {
+                Some(kind) => self.read_actuator(&child, kind)?,
+                None => match actuator::refusal(child.tag()) {
+                    Some(reason) => return Err(child.unsupported(reason)),
+                    None => return Err(child.unknown()),
+                },
+            }
+        }
+        Ok(())
+    }
+
+    /// Reads one actuator element into MuJoCo's general actuator, with
+    /// MuJoCo's compiler checks, refusing what nudyn does not model.
+    fn read_actuator(&mut self, element: &Element, kind: ActuatorKind) -> Result<(), MjcfError> {
+        element.check_attributes(&actuator::attributes(kind, false))?;
+        no_children(element)?;
+        let class = self.defaults.lookup(element, "class")?.unwrap_or(MAIN);
+        let mut settings = self.defaults.class(class).actuator.clone();
+        settings.apply(kind, element, self.defaults.lender(class, kind))?;
+        let transmission = self.transmission(element)?;
+
+        if settings.dyntype != "none" {
+            return Err(element.unsupported(format!(
+                "dyntype \"{}\": the actuator has an activation state, which nudyn does not integrate",
+                settings.dyntype
+            )));
+        }
+        let gain_type = match settings.gaintype {
+            "fixed" => GainType::Fixed,
+            "affine" => GainType::Affine,
+            other => {
+                return Err(element.unsupported(format!("gaintype \"{other}\" (nudyn models fixed and affine gains)")));
+            }
+        };
+        let bias_type = match settings.biastype {
+            "none" => BiasType::None,
+            "affine" => BiasType::Affine,
+            other => {
+                return Err(element.unsupported(format!("biastype \"{other}\" (nudyn models none and affine biases)")));
+            }
+        };
+        if settings.delay > 0.0 {
+            return Err(element.unsupported("delay: the force would follow a ctrl history, which nudyn does not keep"));
+        }
+        if settings.armature != 0.0 || settings.damping != [0.0; 3] {
+            return Err(element.unsupported(
+                "actuator armature and damping; give the joint armature·gear² and damping·gear² instead",
+            ));
+        }
+        match settings.actdim {
+            2.. => return Err(element.invalid("actdim > 1 is only allowed for dyntype \"user\" and \"dcmotor\"")),
+            1 => return Err(element.invalid("invalid actdim 1 in stateless actuator")),
+            _ => {}
+        }
+
+        // A position servo may take its ctrlrange from its joint's range.
+        let position_like = gain_type == GainType::Fixed
+            && bias_type == BiasType::Affine
+            && settings.gainprm[0] == -settings.biasprm[1];
+        if position_like && settings.inheritrange > 0.0 {
+            let Transmission::Joint { joint, .. } = &transmission else {
+                return Err(element.invalid("inheritrange can only be used with joint and tendon transmission"));
+            };
+            let target = &self.joint_targets[joint];
+            if !matches!(target.kind, JointKind::Hinge | JointKind::Slide) {
+                return Err(element.invalid("inheritrange can only be used with hinge and slide joints"));
+            }
+            let [low, high] = target.range;
+            if low == high {
+                return Err(element.invalid(format!("inheritrange used but target '{joint}' has no range defined")));
+            }
+            let (mean, radius) = (0.5 * (high + low), 0.5 * (high - low) * settings.inheritrange);
+            settings.ctrlrange = [mean - radius, mean + radius];
+        }
+        let force_range = self.limits(element, "force", settings.forcelimited, settings.forcerange)?;
+        let ctrl_range = self.limits(element, "ctrl", settings.ctrllimited, settings.ctrlrange)?;
+        if self.limits(element, "act", settings.actlimited, settings.actrange)?.is_some() {
+            return Err(element.invalid("actrange specified but dyntype is 'none'"));
+        }
+
+        let name = element.text("name").map(str::to_string);
+        if let Some(name) = &name {
+            claim_name(&mut self.actuator_names, "actuator", name, element)?;
+        }
+        let group = settings.group;
+        self.actuators.push(Actuator {
+            name,
+            kind,
+            transmission,
+            gear: settings.gear,
+            gain_type,
+            gain: [settings.gainprm[0], settings.gainprm[1], settings.gainprm[2]],
+            bias_type,
+            bias: [settings.biasprm[0], settings.biasprm[1], settings.biasprm[2]],
+            ctrl_range,
+            force_range,
+            group_disabled: ACTUATOR_GROUPS.contains(&group) && self.physics.disabled_actuator_groups.contains(&group),
+            line: element.line,
+        });
+        Ok(())
+    }
+
+    /// The transmission an actuator element names: a joint, or a site with
+    /// an optional reference site. Tendon, slider-crank and body
+    /// transmissions are refused.
+    fn transmission(&self, element: &Element) -> Result<Transmission, MjcfError> {
+        for (attribute, reason) in [
+            ("tendon", "tendon transmissions (nudyn models no tendons)"),
+            ("cranksite", "slider-crank transmissions"),
+            ("slidersite", "slider-crank transmissions"),
+            ("body", "body transmissions act through contacts, which nudyn does not model"),
+        ] {
+            if element.has(attribute) {
+                return Err(element.unsupported(reason));
+            }
+        }
+        let mut targets = ["joint", "jointinparent", "site"].into_iter().filter(|a| element.has(a));
+        let target = targets.next();
+        if let (Some(first), Some(second)) = (target, targets.next()) {
+            return Err(element.conflict(first, second));
+        }
+        if element.has("cranklength") && target.is_some() {
+            return Err(element.invalid("cranklength and slidersite can only be used in slidercrank transmission"));
+        }
+        if element.has("refsite") && target != Some("site") {
+            return Err(element.invalid("refsite can only be used with site transmission"));
+        }
+        let Some(target) = target else {
+            return Err(element.invalid("missing transmission target for actuator"));
+        };
+        let name = element.text(target).unwrap_or_default();
+        if target != "site" {
+            if !self.joint_targets.contains_key(name) {
+                return Err(element.invalid(format!("unknown transmission target '{name}' for actuator")));
+            }
+            return Ok(Transmission::Joint { joint: name.to_string(), in_parent: target == "jointinparent" });
+        }
+        let site = self.site_named(element, "site")?;
+        let refsite = match element.has("refsite") {
+            true => Some(self.site_named(element, "refsite")?),
+            false => None,
+        };
+        Ok(Transmission::Site { site, refsite })
+    }
+
+    /// The index of the site the attribute names; a site fitted to a mesh is
+    /// refused (the mesh would move its frame).
+    fn site_named(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError> {
+        let name = element.text(attribute).unwrap_or_default();
+        let Some(index) = self.sites.iter().position(|s| s.name.as_deref() == Some(name)) else {
+            return Err(element.invalid(format!("unknown {attribute} '{name}' for actuator")));
+        };
+        if self.site_fitted_to_mesh[index] {
+            return Err(element.unsupported(format!(
+                "{attribute} '{name}' (line {}) is fitted to a mesh, which would move its frame",
+                self.sites[index].line
+            )));
+        }
+        Ok(index)
     }
 
     /// The checks that need the whole tree, `settotalmass`, and the vehicle.
@@ -783,8 +1069,30 @@ impl Reader {
         }
         self.warnings.sort_by_key(|w| w.line);
         let gravity = if self.physics.gravity_disabled { Vec3::zeros() } else { self.physics.gravity };
-        Ok(Imported { vehicle: Vehicle { name, gravity, bodies: self.bodies }, warnings: self.warnings })
+        let vehicle = Vehicle {
+            name,
+            gravity,
+            bodies: self.bodies,
+            sites: self.sites,
+            actuators: self.actuators,
+            actuation: self.physics.actuation,
+        };
+        Ok(Imported { vehicle, warnings: self.warnings })
     }
+}
+
+/// The frame MuJoCo gives a geom or site with `fromto`: centred between the
+/// two points, its z axis pointing from the second towards the first; and
+/// the half distance between the points. A `pos` beside it is refused.
+fn fromto_frame(element: &Element, fromto: &[f64; 6], pos: &[f64; 3]) -> Result<(Vec3, Quat, f64), MjcfError> {
+    if *pos != [0.0; 3] {
+        return Err(element.conflict("pos", "fromto"));
+    }
+    let from = Vec3::new(fromto[0], fromto[1], fromto[2]);
+    let to = Vec3::new(fromto[3], fromto[4], fromto[5]);
+    let direction = normalized(from - to).ok_or_else(|| element.invalid("the 'fromto' points coincide"))?;
+    let half_length = (from - to).norm() / 2.0;
+    Ok(((from + to) / 2.0, Quat::new_normalize(z_to_quaternion(&direction)), half_length))
 }
 
 /// MuJoCo's size check: the sizes a primitive uses must be positive.

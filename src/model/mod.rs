@@ -14,14 +14,21 @@
 //! The links' order is MuJoCo's dof order, so link `k`'s dofs are the
 //! qvel entries `dof_adr..dof_adr + ndof` and its coordinates the qpos
 //! entries `qpos_adr..`.
+//!
+//! Actuators keep MuJoCo's order (that of ctrl); their transmissions become
+//! dof addresses or site frames fixed to links (`actuator`).
+
+use std::collections::HashMap;
 
 use nalgebra::SMatrix;
 use serde::{Deserialize, Serialize};
 
 use crate::math::{Mat3, SpatialMat, SpatialVec, Transform, Vec3, angular, linear, rigid_inertia, skew, spatial};
-use crate::vehicle::{JointKind, Vehicle};
+use crate::vehicle::{Actuation, JointKind, Transmission, Vehicle};
 
+mod actuator;
 mod validate;
+pub use actuator::{Actuator, ActuatorTarget, ActuatorTransmission, DofForceLimit, SiteFrame};
 pub use validate::InvalidModel;
 
 /// Motion subspace storage: up to three columns, the first `ndof` used.
@@ -207,6 +214,15 @@ pub struct Model {
     /// The terms the passes skip; none when absent from a model file.
     #[serde(default)]
     pub shortcuts: Shortcuts,
+    /// Actuators in MuJoCo's order (that of ctrl).
+    #[serde(default)]
+    pub actuators: Vec<Actuator>,
+    /// Joint limits on the total actuator force at a dof.
+    #[serde(default)]
+    pub actuator_force_limits: Vec<DofForceLimit>,
+    /// Whether actuators act at all, and whether ctrl is clamped.
+    #[serde(default)]
+    pub actuation: Actuation,
 }
 
 /// Why a vehicle cannot be compiled.
@@ -235,6 +251,16 @@ pub enum ModelError {
     Singular {
         /// Joint name.
         joint: String,
+    },
+    /// An actuator that cannot be compiled.
+    #[error("{actuator} (line {line}): {reason}")]
+    Actuator {
+        /// The actuator: its element and name, or its index.
+        actuator: String,
+        /// MJCF line.
+        line: u32,
+        /// What is wrong.
+        reason: String,
     },
     /// A parameter that must be finite and non-negative is not.
     #[error("joint '{joint}': {what} must be finite and non-negative, found {value}")]
@@ -343,7 +369,17 @@ impl Model {
         }
         let nv = dof_count(&links);
         let shortcuts = Shortcuts::of(&links, &vehicle.gravity);
-        let model = Model {
+        let actuators = compile_actuators(vehicle, &links, &joints, &attachments);
+        let actuator_force_limits = vehicle
+            .bodies
+            .iter()
+            .flat_map(|body| &body.joints)
+            .zip(&joints)
+            .filter_map(|(joint, info)| {
+                joint.actuator_force_range.map(|range| DofForceLimit { dof: info.dof_adr, range })
+            })
+            .collect();
+        let mut model = Model {
             name: vehicle.name.clone(),
             nq: qpos0.len(),
             nv,
@@ -353,9 +389,13 @@ impl Model {
             qpos0,
             qpos_spring,
             shortcuts,
+            actuators,
+            actuator_force_limits,
+            actuation: vehicle.actuation,
         };
         model.validate()?;
         model.check_positive_definite()?;
+        model.resolve_damping_ratios()?;
         Ok(model)
     }
 
@@ -375,6 +415,117 @@ impl Model {
             _ => Ok(()),
         }
     }
+}
+
+/// The actuators of `vehicle` with their transmissions resolved: joints into
+/// dof and θ addresses, sites into frames on the links that carry them
+/// (`attachments`, per body). The importer has checked every name.
+fn compile_actuators(
+    vehicle: &Vehicle,
+    links: &[Link],
+    joints: &[JointInfo],
+    attachments: &[Attachment],
+) -> Vec<Actuator> {
+    let sites: Vec<SiteFrame> = vehicle
+        .sites
+        .iter()
+        .map(|site| {
+            let in_body = Transform::from_pose(&site.quat.to_rotation_matrix().into_inner(), &site.pos);
+            match site.body {
+                Some(body) => {
+                    SiteFrame { link: attachments[body].link, frame: in_body.compose(&attachments[body].offset) }
+                }
+                None => SiteFrame { link: None, frame: in_body },
+            }
+        })
+        .collect();
+    let joint_index: HashMap<&str, &JointInfo> = joints.iter().map(|j| (j.name.as_str(), j)).collect();
+    let site_name = |k: usize| vehicle.sites[k].name.clone().unwrap_or_default();
+    vehicle
+        .actuators
+        .iter()
+        .map(|actuator| {
+            let (target, transmission) = match &actuator.transmission {
+                Transmission::Joint { joint, in_parent } => {
+                    let info = joint_index[joint.as_str()];
+                    let (dof, qpos, in_parent) = (info.dof_adr, info.qpos_adr, *in_parent);
+                    let transmission = match info.kind {
+                        JointKind::Hinge | JointKind::Slide => ActuatorTransmission::Scalar { dof, qpos },
+                        JointKind::Ball => ActuatorTransmission::Ball { dof, qpos, in_parent },
+                        JointKind::Free => ActuatorTransmission::Free { dof, qpos: qpos + 3, in_parent },
+                    };
+                    let attribute = if in_parent { "jointinparent" } else { "joint" };
+                    (ActuatorTarget { attribute: attribute.into(), name: joint.clone(), refsite: None }, transmission)
+                }
+                Transmission::Site { site, refsite } => {
+                    let transmission = match refsite {
+                        None => ActuatorTransmission::Site { site: sites[*site] },
+                        Some(reference) => ActuatorTransmission::RelativeSite {
+                            site: sites[*site],
+                            reference: sites[*reference],
+                            common_link: common_link(links, sites[*site].link, sites[*reference].link),
+                        },
+                    };
+                    let target = ActuatorTarget {
+                        attribute: "site".into(),
+                        name: site_name(*site),
+                        refsite: refsite.map(site_name),
+                    };
+                    (target, transmission)
+                }
+            };
+            let mut compiled = Actuator {
+                name: actuator.name.clone(),
+                kind: actuator.kind,
+                target,
+                transmission,
+                gear: actuator.gear,
+                gain_type: actuator.gain_type,
+                gain: actuator.gain,
+                bias_type: actuator.bias_type,
+                bias: actuator.bias,
+                ctrl_range: actuator.ctrl_range,
+                force_range: actuator.force_range,
+                enabled: !actuator.group_disabled,
+                setpoint_period: 0.0,
+                line: actuator.line,
+            };
+            compiled.setpoint_period = setpoint_period(&compiled);
+            compiled
+        })
+        .collect()
+}
+
+/// MuJoCo's period of a position servo's setpoint on a rotation whose
+/// length wraps: 2π·|rotation gear| on a ball joint, or on a reference site
+/// with a purely rotational gear; 0 otherwise.
+fn setpoint_period(actuator: &Actuator) -> f64 {
+    if !actuator.is_position_servo() {
+        return 0.0;
+    }
+    let turn = 2.0 * std::f64::consts::PI;
+    match actuator.transmission {
+        ActuatorTransmission::Ball { .. } => turn * actuator.gear_translation().norm(),
+        ActuatorTransmission::RelativeSite { .. } if actuator.gear_translation() == Vec3::zeros() => {
+            turn * actuator.gear_rotation().norm()
+        }
+        _ => 0.0,
+    }
+}
+
+/// The deepest link that is `a` or an ancestor of it and `b` or an ancestor
+/// of it; `None` when either is the world or they share no link.
+fn common_link(links: &[Link], a: Option<usize>, b: Option<usize>) -> Option<usize> {
+    let (mut a, mut b) = (a?, b?);
+    // Parents precede their children: step up from the later of the two.
+    while a != b {
+        if a > b {
+            a = links[a].parent?;
+        } else {
+            b = links[b].parent?;
+        }
+    }
+    Some(a)
 }
 
 /// Dofs taken by `links`: the next link's first dof.

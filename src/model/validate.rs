@@ -8,7 +8,8 @@
 //! a file must be refused at instantiation with a message, not crash, hang
 //! or allocate without bound later.
 
-use super::{LinkJoint, Model};
+use super::{ActuatorTransmission, LinkJoint, Model, SiteFrame};
+use crate::math::Transform;
 
 /// What is wrong with a compiled model.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -111,6 +112,14 @@ pub enum InvalidModel {
         /// What is wrong, with the numbers.
         what: String,
     },
+    /// An actuator whose transmission or force law the links do not support.
+    #[error("actuator {actuator}: {what}")]
+    Actuator {
+        /// The actuator's index.
+        actuator: usize,
+        /// What is wrong.
+        what: String,
+    },
 }
 
 /// Relative round-off allowed in the physical checks: far above what
@@ -150,6 +159,58 @@ fn check_physics(k: usize, link: &super::Link) -> Result<(), InvalidModel> {
         return Err(InvalidModel::Inertia { link: k, what });
     }
     Ok(())
+}
+
+/// An increasing finite range, or `what` it is for.
+fn check_range(what: &'static str, range: [f64; 2]) -> Result<(), &'static str> {
+    if range.iter().all(|x| x.is_finite()) && range[0] < range[1] { Ok(()) } else { Err(what) }
+}
+
+/// Checks actuator `k` against the links: its dofs and θ entries belong to
+/// a joint of its transmission's kind, its links exist, its site frames are
+/// proper placements, and its numbers are finite with increasing ranges.
+fn validate_actuator(model: &Model, k: usize) -> Result<(), String> {
+    let actuator = &model.actuators[k];
+    let link_at = |dof: usize| model.links.binary_search_by_key(&dof, |l| l.dof_adr).ok().map(|i| &model.links[i]);
+    let joint_at = |dof: usize, qpos: usize, joint: LinkJoint| {
+        link_at(dof).is_some_and(|l| l.joint == joint && l.qpos_adr == qpos)
+    };
+    let site_ok =
+        |site: &SiteFrame| site.link.is_none_or(|l| l < model.links.len()) && placement_is_proper(&site.frame);
+    let fits = match &actuator.transmission {
+        ActuatorTransmission::Scalar { dof, qpos } => {
+            joint_at(*dof, *qpos, LinkJoint::Hinge) || joint_at(*dof, *qpos, LinkJoint::Slide)
+        }
+        ActuatorTransmission::Ball { dof, qpos, .. } => joint_at(*dof, *qpos, LinkJoint::Ball),
+        ActuatorTransmission::Free { dof, qpos, .. } => {
+            joint_at(*dof, *qpos - 3, LinkJoint::Translation) && joint_at(*dof + 3, *qpos, LinkJoint::Ball)
+        }
+        ActuatorTransmission::Site { site } => site_ok(site),
+        ActuatorTransmission::RelativeSite { site, reference, common_link } => {
+            site_ok(site) && site_ok(reference) && common_link.is_none_or(|l| l < model.links.len())
+        }
+    };
+    if !fits {
+        return Err("its transmission does not match the links".to_string());
+    }
+    let numbers = actuator.gear.iter().chain(&actuator.gain).chain(&actuator.bias);
+    if !numbers.chain([&actuator.setpoint_period]).all(|x| x.is_finite()) || actuator.setpoint_period < 0.0 {
+        return Err("gear, gain, bias and setpoint period must be finite".to_string());
+    }
+    for (what, range) in [("ctrl range", actuator.ctrl_range), ("force range", actuator.force_range)] {
+        if let Some(range) = range {
+            check_range(what, range).map_err(|what| format!("its {what} must be finite and increasing"))?;
+        }
+    }
+    Ok(())
+}
+
+/// A placement with finite numbers and a proper rotation.
+fn placement_is_proper(placement: &Transform) -> bool {
+    let rot = &placement.rot;
+    placement.rot.iter().chain(placement.trans.iter()).all(|x| x.is_finite())
+        && (rot.transpose() * rot - super::Mat3::identity()).amax() <= PHYSICS_TOLERANCE
+        && rot.determinant() > 0.0
 }
 
 /// (qpos count, dof count) of a link's joint.
@@ -235,6 +296,25 @@ fn validate(model: &Model) -> Result<(), InvalidModel> {
     finite(0, "gravity", model.gravity.iter())?;
     finite(0, "qpos0", &model.qpos0)?;
     finite(0, "qpos_spring", &model.qpos_spring)?;
+    for k in 0..model.actuators.len() {
+        validate_actuator(model, k).map_err(|what| InvalidModel::Actuator { actuator: k, what })?;
+    }
+    for limit in &model.actuator_force_limits {
+        let joint = model.links.iter().find(|l| l.dof_adr == limit.dof).map(|l| l.joint);
+        if !matches!(joint, Some(LinkJoint::Hinge | LinkJoint::Slide)) {
+            return Err(InvalidModel::Size {
+                what: "a dof with an actuator force limit",
+                found: limit.dof,
+                expected: nv,
+            });
+        }
+        check_range("actuator force limit", limit.range).map_err(|what| InvalidModel::Number {
+            link: 0,
+            what,
+            value: limit.range[0],
+            non_negative: false,
+        })?;
+    }
     match model.shortcuts.not_allowed_for(model) {
         Some(shortcut) => Err(InvalidModel::Shortcut(shortcut)),
         None => Ok(()),

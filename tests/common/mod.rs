@@ -11,7 +11,7 @@
 #![allow(dead_code)]
 
 use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, Unit, UnitQuaternion, Vector3};
-use nudyn::vehicle::{Body, Joint, JointKind, MassProperties, Vehicle};
+use nudyn::vehicle::{Actuation, Body, Joint, JointKind, MassProperties, Vehicle};
 
 pub type V3 = Vector3<f64>;
 pub type M3 = Matrix3<f64>;
@@ -384,6 +384,7 @@ pub fn joint(rng: &mut Rng, name: String, kind: JointKind) -> Joint {
         stiffness: 0.0,
         damping: 0.0,
         armature: if rng.below(2) == 0 { rng.uniform(0.0, 0.5) } else { 0.0 },
+        actuator_force_range: None,
         line: 0,
     }
 }
@@ -453,7 +454,14 @@ pub fn random_vehicle(rng: &mut Rng, opts: TreeOptions) -> Vehicle {
         bodies.push(body);
     }
     let gravity = if opts.passive { V3::new(0.3, -0.2, -9.81) } else { V3::zeros() };
-    Vehicle { name: "random".into(), gravity, bodies }
+    Vehicle {
+        name: "random".into(),
+        gravity,
+        bodies,
+        sites: Vec::new(),
+        actuators: Vec::new(),
+        actuation: Actuation::default(),
+    }
 }
 
 /// A random configuration (unit quaternions) for a vehicle.

@@ -1,0 +1,318 @@
+//! Actuators (docs/DYNAMICS.md §5): MuJoCo's transmission (actuator length,
+//! velocity and moment arms), force law and generalized force T (its
+//! `qfrc_actuator`), and the ε = ℓT they produce, in O(N).
+//!
+//! A joint transmission puts its moment arms straight on the joint's dofs.
+//! A site transmission is a wrench on the link carrying the site (and, with
+//! a reference site, the opposite wrench on the reference's link); one
+//! inward pass turns all wrenches into joint forces, T_i = S_iᵀ Σ_subtree f,
+//! and another maps T to ε. Nothing forms a Jacobian or the mass matrix.
+//! An actuator's velocity is its moment arms times θ̇, as in MuJoCo: for a
+//! wrench f on a link moving with V, f·V.
+
+use nalgebra::Rotation3;
+
+use super::{DynamicsError, check_input, check_length, forces, require};
+use crate::math::{Mat3, Quat, SpatialVec, Transform, Vec3, quat_difference, quat_from_wxyz, spatial};
+use crate::model::{Actuator, ActuatorTransmission, Model, SiteFrame};
+use crate::vehicle::{BiasType, GainType};
+use crate::workspace::{Stage, Workspace};
+
+/// Where a unit force of one actuator goes.
+enum Moment {
+    /// Moment arms on `count` consecutive dofs from `dof`.
+    Dofs { dof: usize, arms: [f64; 6], count: usize },
+    /// Wrenches on links (link coordinates, about the link origin).
+    Wrenches { wrenches: [(usize, SpatialVec); 3], count: usize },
+}
+
+/// An actuator's transmission at the current state.
+struct Transmitted {
+    length: f64,
+    velocity: f64,
+    moment: Moment,
+}
+
+impl Moment {
+    /// Wrenches collected on the links that exist (a site on the world moves nothing).
+    fn wrenches(candidates: [(Option<usize>, SpatialVec); 3]) -> Moment {
+        let mut wrenches = [(0, SpatialVec::zeros()); 3];
+        let mut count = 0;
+        for (link, wrench) in candidates {
+            if let Some(link) = link {
+                wrenches[count] = (link, wrench);
+                count += 1;
+            }
+        }
+        Moment::Wrenches { wrenches, count }
+    }
+}
+
+/// The rotation vector of a unit quaternion, its angle in [−π, π] (MuJoCo's
+/// `mju_quat2Vel` with unit time).
+fn rotation_vector(q: &Quat) -> Vec3 {
+    quat_difference(q, &Quat::identity())
+}
+
+/// The rotation of a unit (w, x, y, z) quaternion in θ (set_configuration normalized it).
+fn rotation_at(theta: &[f64], qpos: usize) -> Quat {
+    Quat::new_unchecked(quat_from_wxyz(&theta[qpos..qpos + 4]))
+}
+
+/// A site's placement in the world, ˢX₀, from its link's.
+fn site_in_world(site: &SiteFrame, x_world: &[Transform]) -> Transform {
+    match site.link {
+        Some(link) => site.frame.compose(&x_world[link]),
+        None => site.frame,
+    }
+}
+
+/// The wrench of force `f` through the site's origin and torque `n` (both in
+/// world axes) on the site's link, in link coordinates about the link origin.
+fn wrench_at_site(site: &SiteFrame, x_world: &[Transform], n: &Vec3, f: &Vec3) -> (Option<usize>, SpatialVec) {
+    let Some(link) = site.link else {
+        return (None, SpatialVec::zeros());
+    };
+    let to_link = &x_world[link].rot;
+    let (n, f) = (to_link * n, to_link * f);
+    // The site's origin in link coordinates.
+    let r = site.frame.trans;
+    (Some(link), spatial(&(n + r.cross(&f)), &f))
+}
+
+/// Length, velocity and unit moment of `actuator` at the workspace's state
+/// (world placements must be current for a reference site).
+fn transmit(ws: &Workspace, actuator: &Actuator) -> Transmitted {
+    let theta = ws.theta.as_slice();
+    let qvel = ws.qvel.as_slice();
+    let gear = &actuator.gear;
+    let dot = |arms: &[f64], dof: usize| arms.iter().zip(&qvel[dof..]).map(|(a, v)| a * v).sum::<f64>();
+    match actuator.transmission {
+        ActuatorTransmission::Scalar { dof, qpos } => {
+            let arms = [gear[0], 0.0, 0.0, 0.0, 0.0, 0.0];
+            Transmitted {
+                length: theta[qpos] * gear[0],
+                velocity: qvel[dof] * gear[0],
+                moment: Moment::Dofs { dof, arms, count: 1 },
+            }
+        }
+        ActuatorTransmission::Ball { dof, qpos, in_parent } => {
+            let rotation = rotation_at(theta, qpos);
+            let gear = actuator.gear_translation();
+            // The child-frame axis: a parent-frame gear turns with the joint.
+            let axis = if in_parent { rotation.inverse_transform_vector(&gear) } else { gear };
+            let arms = [axis.x, axis.y, axis.z, 0.0, 0.0, 0.0];
+            Transmitted {
+                length: rotation_vector(&rotation).dot(&axis),
+                velocity: dot(&arms[..3], dof),
+                moment: Moment::Dofs { dof, arms, count: 3 },
+            }
+        }
+        ActuatorTransmission::Free { dof, qpos, in_parent } => {
+            let torque_axis = actuator.gear_rotation();
+            let axis =
+                if in_parent { rotation_at(theta, qpos).inverse_transform_vector(&torque_axis) } else { torque_axis };
+            let arms = [gear[0], gear[1], gear[2], axis.x, axis.y, axis.z];
+            Transmitted { length: 0.0, velocity: dot(&arms, dof), moment: Moment::Dofs { dof, arms, count: 6 } }
+        }
+        ActuatorTransmission::Site { site } => {
+            let Some(link) = site.link else {
+                return Transmitted { length: 0.0, velocity: 0.0, moment: Moment::wrenches(Default::default()) };
+            };
+            // The gear in site coordinates, moved to the link origin.
+            let in_site = spatial(&actuator.gear_rotation(), &actuator.gear_translation());
+            let wrench = site.frame.apply_transpose_force(&in_site);
+            Transmitted {
+                length: 0.0,
+                velocity: wrench.dot(&ws.v_body[link]),
+                moment: Moment::wrenches([
+                    (Some(link), wrench),
+                    (None, SpatialVec::zeros()),
+                    (None, SpatialVec::zeros()),
+                ]),
+            }
+        }
+        ActuatorTransmission::RelativeSite { site, reference, common_link } => {
+            relative_site(ws, actuator, &site, &reference, common_link)
+        }
+    }
+}
+
+/// A site transmission measured in a reference site's frame (MuJoCo's
+/// `refsite`): length = gear · (the site's position in the reference frame,
+/// and the rotation vector from the reference to the site's orientation);
+/// force and torque along the reference frame's axes, at the site and
+/// opposite at the reference site, and on their common link the torque
+/// that cancels the pair's couple there (MuJoCo clears those moment arms).
+fn relative_site(
+    ws: &Workspace,
+    actuator: &Actuator,
+    site: &SiteFrame,
+    reference: &SiteFrame,
+    common_link: Option<usize>,
+) -> Transmitted {
+    let x_world = ws.x_world.as_slice();
+    let (at_site, at_reference) = (site_in_world(site, x_world), site_in_world(reference, x_world));
+    // Rotations site → world (columns: the site's axes in world).
+    let (site_axes, reference_axes): (Mat3, Mat3) = (at_site.rot.transpose(), at_reference.rot.transpose());
+    let (gear_translation, gear_rotation) = (actuator.gear_translation(), actuator.gear_rotation());
+    let offset = at_site.trans - at_reference.trans;
+    let mut length = 0.0;
+    if gear_translation != Vec3::zeros() {
+        length += (reference_axes.transpose() * offset).dot(&gear_translation);
+    }
+    if gear_rotation != Vec3::zeros() {
+        let orientation = |axes: &Mat3| Quat::from_rotation_matrix(&Rotation3::from_matrix_unchecked(*axes));
+        length += quat_difference(&orientation(&site_axes), &orientation(&reference_axes)).dot(&gear_rotation);
+    }
+    let force = reference_axes * gear_translation;
+    let torque = reference_axes * gear_rotation;
+    let (on_site, on_reference) =
+        (wrench_at_site(site, x_world, &torque, &force), wrench_at_site(reference, x_world, &(-torque), &(-force)));
+    let couple = offset.cross(&force);
+    let correction = match common_link {
+        Some(link) => (Some(link), spatial(&(x_world[link].rot * -couple), &Vec3::zeros())),
+        None => (None, SpatialVec::zeros()),
+    };
+    let candidates = [on_site, on_reference, correction];
+    let velocity = candidates.iter().filter_map(|(link, w)| link.map(|l| w.dot(&ws.v_body[l]))).sum();
+    Transmitted { length, velocity, moment: Moment::wrenches(candidates) }
+}
+
+/// MuJoCo's force of a stateless actuator: ctrl clamped to its range (unless
+/// `<flag clampctrl="disable"/>`), gain · ctrl + bias (the setpoint of a
+/// rotation servo taken nearest the length), clamped to the force range; a
+/// disabled group gives 0, still clamped.
+fn actuator_force(actuator: &Actuator, clamp_ctrl: bool, ctrl: f64, length: f64, velocity: f64) -> f64 {
+    let mut force = 0.0;
+    if actuator.enabled {
+        let ctrl = match actuator.ctrl_range {
+            Some([low, high]) if clamp_ctrl => clip(ctrl, low, high),
+            _ => ctrl,
+        };
+        let [g0, g1, g2] = actuator.gain;
+        let gain = match actuator.gain_type {
+            GainType::Fixed => g0,
+            GainType::Affine => g0 + g1 * length + g2 * velocity,
+        };
+        let [b0, b1, b2] = actuator.bias;
+        let bias = match actuator.bias_type {
+            BiasType::None => 0.0,
+            BiasType::Affine => b0 + b1 * length + b2 * velocity,
+        };
+        let period = actuator.setpoint_period;
+        let input = if period > 0.0 { ctrl - period * ((ctrl - length) / period).round() } else { ctrl };
+        force = gain * input + bias;
+    }
+    match actuator.force_range {
+        Some([low, high]) => clip(force, low, high),
+        None => force,
+    }
+}
+
+/// MuJoCo's `mju_clip`.
+fn clip(x: f64, low: f64, high: f64) -> f64 {
+    if x < low {
+        low
+    } else if x > high {
+        high
+    } else {
+        x
+    }
+}
+
+/// Adds `force` times the unit moment to the dof forces or link wrenches.
+fn apply(moment: &Moment, force: f64, qfrc: &mut [f64], link_wrench: &mut [SpatialVec]) {
+    match moment {
+        Moment::Dofs { dof, arms, count } => {
+            for (slot, arm) in qfrc[*dof..*dof + count].iter_mut().zip(arms) {
+                *slot += arm * force;
+            }
+        }
+        Moment::Wrenches { wrenches, count } => {
+            for (link, wrench) in &wrenches[..*count] {
+                link_wrench[*link] += wrench * force;
+            }
+        }
+    }
+}
+
+impl Workspace {
+    /// The actuators at `ctrl` (nu, MuJoCo's `d.ctrl`): fills
+    /// `actuator_length`, `actuator_velocity`, `actuator_force`,
+    /// `qfrc_actuator` (T) and `eps_actuator` (ℓT). Needs the velocities.
+    pub fn compute_actuation(&mut self, model: &Model, ctrl: &[f64]) -> Result<(), DynamicsError> {
+        require(self, Stage::Velocity, "compute_actuation")?;
+        check_input("ctrl", ctrl, model.actuators.len())?;
+        self.prepare_transmissions(model);
+        let actuation = model.actuation;
+        for (k, actuator) in model.actuators.iter().enumerate() {
+            let transmitted = transmit(self, actuator);
+            self.actuator_length[k] = transmitted.length;
+            self.actuator_velocity[k] = transmitted.velocity;
+            if !actuation.enabled {
+                self.actuator_force[k] = 0.0;
+                continue;
+            }
+            let force =
+                actuator_force(actuator, actuation.clamp_ctrl, ctrl[k], transmitted.length, transmitted.velocity);
+            self.actuator_force[k] = force;
+            apply(&transmitted.moment, force, self.qfrc_actuator.as_mut_slice(), &mut self.link_wrench);
+        }
+        if actuation.enabled {
+            self.collect_wrenches(model);
+            for limit in &model.actuator_force_limits {
+                let [low, high] = limit.range;
+                self.qfrc_actuator[limit.dof] = clip(self.qfrc_actuator[limit.dof], low, high);
+            }
+        }
+        let (qfrc, mut eps) = (std::mem::take(&mut self.qfrc_actuator), std::mem::take(&mut self.eps_actuator));
+        let result = self.eps_from_forces(model, qfrc.as_slice(), None, eps.as_mut_slice());
+        (self.qfrc_actuator, self.eps_actuator) = (qfrc, eps);
+        result
+    }
+
+    /// The generalized force of a unit force of actuator `k` (its moment
+    /// arms, MuJoCo's `actuator_moment` row) into `moment` (nv). Needs the
+    /// velocities; leaves `qfrc_actuator` holding the same.
+    pub fn actuator_moment(&mut self, model: &Model, k: usize, moment: &mut [f64]) -> Result<(), DynamicsError> {
+        require(self, Stage::Velocity, "actuator_moment")?;
+        check_length("output", moment, model.nv)?;
+        if k >= model.actuators.len() {
+            return Err(DynamicsError::Length { what: "actuator index", expected: model.actuators.len(), found: k });
+        }
+        self.prepare_transmissions(model);
+        let transmitted = transmit(self, &model.actuators[k]);
+        apply(&transmitted.moment, 1.0, self.qfrc_actuator.as_mut_slice(), &mut self.link_wrench);
+        self.collect_wrenches(model);
+        moment.copy_from_slice(self.qfrc_actuator.as_slice());
+        Ok(())
+    }
+
+    /// Clears T and the link wrenches, and brings the world placements up
+    /// to date when a reference site needs them.
+    fn prepare_transmissions(&mut self, model: &Model) {
+        self.qfrc_actuator.fill(0.0);
+        if self.actuators_apply_wrenches {
+            self.link_wrench.fill(SpatialVec::zeros());
+        }
+        let relative = |a: &Actuator| matches!(a.transmission, ActuatorTransmission::RelativeSite { .. });
+        if model.actuators.iter().any(relative) {
+            self.world_transforms(model);
+        }
+    }
+
+    /// T += Σ Jᵀf of the link wrenches, when any actuator applies wrenches.
+    fn collect_wrenches(&mut self, model: &Model) {
+        if self.actuators_apply_wrenches {
+            forces::add_joint_forces_of_wrenches(
+                model,
+                &self.x_parent,
+                &self.accumulation,
+                &mut self.p_scratch_body,
+                &self.link_wrench,
+                self.qfrc_actuator.as_mut_slice(),
+            );
+        }
+    }
+}

@@ -1,0 +1,378 @@
+//! Actuator elements, in `<actuator>` and in `<default>`: `<general>` and the
+//! shortcuts `<motor>`, `<position>`, `<velocity>` and `<damper>`, resolved
+//! into MuJoCo's one general actuator as MuJoCo 4.0's parser does.
+//!
+//! MuJoCo 4.0's rules for defaults (its Modeling chapter, "Shortcuts"): a
+//! default class has a single actuator default, written with `<general>` or
+//! a shortcut. An actuator inherits its class's mechanical attributes
+//! (`gear`, `ctrlrange`, ...) whatever the default was written with. A
+//! shortcut sets its whole table of gain, bias and dynamics parameters; its
+//! own parameters (`kp`, `kv`, ...) come from the element, else from the
+//! nearest class (this one, then its ancestors) whose default was written
+//! with the same shortcut, or with `<general>` of the shortcut's gain type
+//! (whose raw parameters are read as the shortcut's), else from the
+//! shortcut's documented defaults. `<general>` overwrites only the
+//! attributes it gives.
+
+use super::defaults::Limited;
+use super::element::Element;
+use super::error::MjcfError;
+use crate::vehicle::ActuatorKind;
+
+/// Attributes every actuator element reads into the general actuator, in
+/// `<actuator>` and in `<default>` (MuJoCo 4.0 schema; `ctrllimited` is not
+/// an attribute of `<damper>`, whose ctrl is always limited).
+#[rustfmt::skip]
+const COMMON_ATTRIBUTES: &[&str] = &[
+    "group", "nsample", "interp", "delay", "ctrllimited", "ctrlrange", "forcelimited", "forcerange",
+    "lengthrange", "gear", "cranklength", "user", "damping", "armature",
+];
+
+/// Attributes that only `<general>` has, besides the common ones.
+#[rustfmt::skip]
+const GENERAL_ATTRIBUTES: &[&str] = &[
+    "actdim", "actearly", "actlimited", "actrange", "biasprm", "biastype", "dynprm", "dyntype", "ffrange",
+    "gainprm", "gaintype", "inheritrange", "input", "velrange",
+];
+
+/// Attributes that name the transmission target (not allowed in `<default>`).
+#[rustfmt::skip]
+const TARGET_ATTRIBUTES: &[&str] =
+    &["name", "class", "joint", "jointinparent", "site", "refsite", "tendon", "cranksite", "slidersite", "body"];
+
+/// The actuator kinds an element tag stands for, among those nudyn models.
+pub(crate) fn kind_of(tag: &str) -> Option<ActuatorKind> {
+    Some(match tag {
+        "general" => ActuatorKind::General,
+        "motor" => ActuatorKind::Motor,
+        "position" => ActuatorKind::Position,
+        "velocity" => ActuatorKind::Velocity,
+        "damper" => ActuatorKind::Damper,
+        _ => return None,
+    })
+}
+
+/// Why nudyn refuses an actuator element MuJoCo has; `None` for a tag that
+/// is no actuator element at all.
+pub(crate) fn refusal(tag: &str) -> Option<&'static str> {
+    Some(match tag {
+        "intvelocity" => {
+            "intvelocity actuators integrate their ctrl into an activation state, which nudyn does not integrate"
+        }
+        "cylinder" => "cylinder actuators filter their ctrl into an activation state, which nudyn does not integrate",
+        "muscle" => "muscle actuators (activation dynamics and muscle force curves)",
+        "adhesion" => "adhesion actuators act through contacts, which nudyn does not model",
+        "pid" => "pid actuators (their inputs and integral and slew states)",
+        "orientation" => "orientation servos (three outputs on a geodesic error)",
+        "dcmotor" => "dcmotor actuators (electrical and thermal states)",
+        "plugin" => "actuator plugins",
+        _ => return None,
+    })
+}
+
+/// The attributes an actuator element of `kind` may have.
+pub(crate) fn attributes(kind: ActuatorKind, in_default: bool) -> Vec<&'static str> {
+    let mut allowed: Vec<&'static str> = COMMON_ATTRIBUTES.to_vec();
+    match kind {
+        ActuatorKind::General => allowed.extend(GENERAL_ATTRIBUTES),
+        ActuatorKind::Motor => {}
+        ActuatorKind::Position => allowed.extend(["kp", "kv", "dampratio", "timeconst", "inheritrange"]),
+        ActuatorKind::Velocity => allowed.push("kv"),
+        ActuatorKind::Damper => {
+            allowed.retain(|a| *a != "ctrllimited");
+            allowed.push("kv");
+        }
+    }
+    if !in_default {
+        allowed.extend(TARGET_ATTRIBUTES);
+    }
+    allowed
+}
+
+/// MuJoCo's `gaintype` keywords.
+const GAIN_TYPES: [(&str, &str); 7] = [
+    ("fixed", "fixed"),
+    ("affine", "affine"),
+    ("muscle", "muscle"),
+    ("dcmotor", "dcmotor"),
+    ("pid", "pid"),
+    ("so3", "so3"),
+    ("user", "user"),
+];
+
+/// MuJoCo's `biastype` keywords.
+const BIAS_TYPES: [(&str, &str); 6] = [
+    ("none", "none"),
+    ("affine", "affine"),
+    ("muscle", "muscle"),
+    ("dcmotor", "dcmotor"),
+    ("so3", "so3"),
+    ("user", "user"),
+];
+
+/// MuJoCo's `dyntype` keywords.
+const DYNAMICS_TYPES: [(&str, &str); 8] = [
+    ("none", "none"),
+    ("integrator", "integrator"),
+    ("filter", "filter"),
+    ("filterexact", "filterexact"),
+    ("pid", "pid"),
+    ("dcmotor", "dcmotor"),
+    ("muscle", "muscle"),
+    ("user", "user"),
+];
+
+/// MuJoCo's general actuator as a class or an element sets it (the fields
+/// of `mjsActuator` that matter here, and the element it was written with).
+#[derive(Clone, Debug)]
+pub(crate) struct ActuatorSettings {
+    /// The element that last wrote the gain, bias and dynamics parameters.
+    pub written_with: ActuatorKind,
+    /// `gaintype` keyword.
+    pub gaintype: &'static str,
+    /// `gainprm`.
+    pub gainprm: [f64; 10],
+    /// `biastype` keyword.
+    pub biastype: &'static str,
+    /// `biasprm`.
+    pub biasprm: [f64; 10],
+    /// `dyntype` keyword.
+    pub dyntype: &'static str,
+    /// `dynprm`.
+    pub dynprm: [f64; 10],
+    /// `actdim` (−1: from `dyntype`).
+    pub actdim: i32,
+    /// `gear`.
+    pub gear: [f64; 6],
+    /// `ctrllimited`.
+    pub ctrllimited: Limited,
+    /// `ctrlrange`.
+    pub ctrlrange: [f64; 2],
+    /// `forcelimited`.
+    pub forcelimited: Limited,
+    /// `forcerange`.
+    pub forcerange: [f64; 2],
+    /// `actlimited`.
+    pub actlimited: Limited,
+    /// `actrange`.
+    pub actrange: [f64; 2],
+    /// `inheritrange`.
+    pub inheritrange: f64,
+    /// `damping` (reflected damping on the target).
+    pub damping: [f64; 3],
+    /// `armature` (reflected inertia on the target).
+    pub armature: f64,
+    /// `group`.
+    pub group: i32,
+    /// `delay`.
+    pub delay: f64,
+}
+
+impl Default for ActuatorSettings {
+    /// MuJoCo's built-in general actuator: a unit-gain motor.
+    fn default() -> Self {
+        let mut gainprm = [0.0; 10];
+        gainprm[0] = 1.0;
+        let mut dynprm = [0.0; 10];
+        dynprm[0] = 1.0;
+        Self {
+            written_with: ActuatorKind::General,
+            gaintype: "fixed",
+            gainprm,
+            biastype: "none",
+            biasprm: [0.0; 10],
+            dyntype: "none",
+            dynprm,
+            actdim: -1,
+            gear: [1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            ctrllimited: Limited::Auto,
+            ctrlrange: [0.0; 2],
+            forcelimited: Limited::Auto,
+            forcerange: [0.0; 2],
+            actlimited: Limited::Auto,
+            actrange: [0.0; 2],
+            inheritrange: 0.0,
+            damping: [0.0; 3],
+            armature: 0.0,
+            group: 0,
+            delay: 0.0,
+        }
+    }
+}
+
+/// The gain type of a shortcut's table: a `<general>` default of this gain
+/// type lends the shortcut its parameters.
+fn shortcut_gain_type(kind: ActuatorKind) -> &'static str {
+    match kind {
+        ActuatorKind::Damper => "affine",
+        _ => "fixed",
+    }
+}
+
+impl ActuatorSettings {
+    /// Whether a shortcut of `kind` takes its parameters from these settings.
+    pub fn lends_parameters_to(&self, kind: ActuatorKind) -> bool {
+        self.written_with == kind
+            || (self.written_with == ActuatorKind::General && self.gaintype == shortcut_gain_type(kind))
+    }
+
+    /// Overwrites the settings with what an element of `kind` gives. `lender`
+    /// is where a shortcut's parameters come from when the element does not
+    /// give them (see [`ActuatorSettings::lends_parameters_to`]).
+    pub fn apply(
+        &mut self,
+        kind: ActuatorKind,
+        element: &Element,
+        lender: Option<&ActuatorSettings>,
+    ) -> Result<(), MjcfError> {
+        self.apply_common(element)?;
+        match kind {
+            ActuatorKind::General => self.apply_general(element)?,
+            ActuatorKind::Motor => self.set_table("fixed", &[1.0], "none", &[], None),
+            ActuatorKind::Position => self.apply_position(element, lender)?,
+            ActuatorKind::Velocity => {
+                let kv = match element.number("kv")? {
+                    Some(kv) => kv,
+                    None => lender.map_or(1.0, |l| l.gainprm[0]),
+                };
+                self.set_table("fixed", &[kv], "affine", &[0.0, 0.0, -kv], None);
+            }
+            ActuatorKind::Damper => {
+                let kv = match element.number("kv")? {
+                    Some(kv) => kv,
+                    None => lender.map_or(0.0, |l| -l.gainprm[2]),
+                };
+                if kv < 0.0 {
+                    return Err(element.invalid("damping coefficient cannot be negative"));
+                }
+                self.set_table("affine", &[0.0, 0.0, -kv], "none", &[], None);
+                self.ctrllimited = Limited::Yes;
+                if self.ctrlrange.iter().any(|&x| x < 0.0) {
+                    return Err(element.invalid("damper control range cannot be negative"));
+                }
+            }
+        }
+        self.written_with = kind;
+        Ok(())
+    }
+
+    /// Attributes all actuator elements share.
+    fn apply_common(&mut self, element: &Element) -> Result<(), MjcfError> {
+        if let Some([group]) = element.integers("group")? {
+            self.group = group;
+        }
+        // Read for their syntax: without a delay they change nothing nudyn computes.
+        element.integers::<1>("nsample")?;
+        element.keyword("interp", &[("zoh", ()), ("linear", ()), ("cubic", ())])?;
+        element.numbers::<2>("lengthrange")?;
+        element.number("cranklength")?;
+        if let Some(delay) = element.number("delay")? {
+            self.delay = delay;
+        }
+        let limited = [("false", Limited::No), ("true", Limited::Yes), ("auto", Limited::Auto)];
+        for (attribute, target) in [
+            ("ctrllimited", &mut self.ctrllimited),
+            ("forcelimited", &mut self.forcelimited),
+            ("actlimited", &mut self.actlimited),
+        ] {
+            if let Some(value) = element.keyword(attribute, &limited)? {
+                *target = value;
+            }
+        }
+        if element.has("ctrlrange") && element.has("inheritrange") {
+            return Err(element.invalid("ctrlrange and inheritrange cannot both be defined"));
+        }
+        if let Some(range) = element.numbers("ctrlrange")? {
+            self.ctrlrange = range;
+            // A range written here overrides one the class would inherit.
+            self.inheritrange = 0.0;
+        }
+        if let Some(range) = element.numbers("forcerange")? {
+            self.forcerange = range;
+        }
+        if let Some(range) = element.numbers("actrange")? {
+            self.actrange = range;
+        }
+        if let Some(inheritrange) = element.number("inheritrange")? {
+            self.inheritrange = inheritrange;
+        }
+        element.overwrite_numbers("gear", &mut self.gear)?;
+        element.overwrite_numbers("damping", &mut self.damping)?;
+        if let Some(armature) = element.number("armature")? {
+            self.armature = armature;
+        }
+        Ok(())
+    }
+
+    /// The attributes only `<general>` has; the others keep their values.
+    fn apply_general(&mut self, element: &Element) -> Result<(), MjcfError> {
+        if let Some(gaintype) = element.keyword("gaintype", &GAIN_TYPES)? {
+            self.gaintype = gaintype;
+        }
+        if let Some(biastype) = element.keyword("biastype", &BIAS_TYPES)? {
+            self.biastype = biastype;
+        }
+        if let Some(dyntype) = element.keyword("dyntype", &DYNAMICS_TYPES)? {
+            self.dyntype = dyntype;
+        }
+        element.overwrite_numbers("gainprm", &mut self.gainprm)?;
+        element.overwrite_numbers("biasprm", &mut self.biasprm)?;
+        element.overwrite_numbers("dynprm", &mut self.dynprm)?;
+        if let Some([actdim]) = element.integers("actdim")? {
+            self.actdim = actdim;
+        }
+        element.boolean("actearly")?;
+        element.numbers::<2>("velrange")?;
+        element.numbers::<2>("ffrange")?;
+        Ok(())
+    }
+
+    /// `<position>`: gain kp, bias (0, −kp, −kv), and a filter when timeconst > 0.
+    fn apply_position(&mut self, element: &Element, lender: Option<&ActuatorSettings>) -> Result<(), MjcfError> {
+        let kp = match element.number("kp")? {
+            Some(kp) => kp,
+            None => lender.map_or(1.0, |l| l.gainprm[0]),
+        };
+        // biasprm[2] holds −kv, or a positive damping ratio (resolved by the compiler).
+        let damping = match (element.number("kv")?, element.number("dampratio")?) {
+            (Some(_), Some(_)) => return Err(element.invalid("kv and dampratio cannot both be defined")),
+            (Some(kv), None) if kv < 0.0 => return Err(element.invalid("kv cannot be negative")),
+            (Some(kv), None) => -kv,
+            (None, Some(ratio)) if ratio < 0.0 => return Err(element.invalid("dampratio cannot be negative")),
+            (None, Some(ratio)) => ratio,
+            (None, None) => lender.map_or(0.0, |l| l.biasprm[2]),
+        };
+        let timeconst = match element.number("timeconst")? {
+            Some(t) if t < 0.0 => return Err(element.invalid("timeconst cannot be negative")),
+            Some(t) => t,
+            None => lender.filter(|l| l.dyntype == "filterexact").map_or(0.0, |l| l.dynprm[0]),
+        };
+        self.set_table("fixed", &[kp], "affine", &[0.0, -kp, damping], (timeconst > 0.0).then_some(timeconst));
+        Ok(())
+    }
+
+    /// A shortcut's table: the gain and bias types and parameters (the
+    /// parameters not listed are 0), no activation, or a filter with this
+    /// time constant.
+    fn set_table(
+        &mut self,
+        gaintype: &'static str,
+        gain: &[f64],
+        biastype: &'static str,
+        bias: &[f64],
+        filter: Option<f64>,
+    ) {
+        self.gaintype = gaintype;
+        self.gainprm = [0.0; 10];
+        self.gainprm[..gain.len()].copy_from_slice(gain);
+        self.biastype = biastype;
+        self.biasprm = [0.0; 10];
+        self.biasprm[..bias.len()].copy_from_slice(bias);
+        self.dynprm = [0.0; 10];
+        (self.dyntype, self.dynprm[0]) = match filter {
+            Some(timeconst) => ("filterexact", timeconst),
+            None => ("none", 1.0),
+        };
+        self.actdim = -1;
+    }
+}

@@ -1,0 +1,214 @@
+//! Compiled actuators: each actuator's transmission resolved into dofs or
+//! link frames, its force law, and its limits, in MuJoCo's actuator order.
+//!
+//! The force law is MuJoCo's for a stateless actuator (its Computation
+//! chapter, "Actuation model"): with L and V the actuator length and
+//! velocity, force = gain(L, V) · ctrl + bias(L, V), clamped to `forcerange`;
+//! the generalized force is the transmission's moment arms times the force.
+
+use serde::{Deserialize, Serialize};
+
+use super::{Model, ModelError};
+use crate::math::{Transform, Vec3};
+use crate::vehicle::{ActuatorKind, BiasType, GainType};
+
+/// MuJoCo's `mjMINVAL`: below it, J M⁻¹ Jᵀ counts as zero (no reflected mass).
+const MIN_VALUE: f64 = 1e-15;
+
+/// A site's frame as the passes see it: fixed to a link, or to the world.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SiteFrame {
+    /// The link carrying the site; `None` for a site fixed to the world.
+    pub link: Option<usize>,
+    /// ˢX_ₗ: the site frame relative to the link frame (or to the world).
+    pub frame: Transform,
+}
+
+/// How an actuator's force reaches the dofs (MuJoCo's transmission).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "type")]
+pub enum ActuatorTransmission {
+    /// A hinge or slide joint: length gear₀·θ, moment arm gear₀ on its dof.
+    Scalar {
+        /// The joint's dof.
+        dof: usize,
+        /// The joint's θ entry.
+        qpos: usize,
+    },
+    /// A ball joint: the gear's first three entries are a rotation axis in
+    /// the child frame (`in_parent`: in the parent frame, carried into the
+    /// child frame by the joint's rotation); length = axis · rotation vector.
+    Ball {
+        /// The joint's first dof.
+        dof: usize,
+        /// The joint's quaternion (w first) in θ.
+        qpos: usize,
+        /// `jointinparent`.
+        in_parent: bool,
+    },
+    /// A free joint: a force along the gear's first three entries (world
+    /// axes) and a torque about the last three (body axes, or with
+    /// `in_parent` world axes); length 0.
+    Free {
+        /// The joint's first dof (the translation's).
+        dof: usize,
+        /// The joint's quaternion (w first) in θ.
+        qpos: usize,
+        /// `jointinparent`.
+        in_parent: bool,
+    },
+    /// A site: a force along the gear's first three entries and a torque
+    /// about the last three, in the site frame; length 0.
+    Site {
+        /// The site.
+        site: SiteFrame,
+    },
+    /// A site with a reference site: the force and torque along axes of the
+    /// reference site's frame, at the site and, opposite, at the reference
+    /// site; the length measures the site in the reference frame. As MuJoCo
+    /// clears the moment arms of the dofs that move both sites together, a
+    /// torque cancels the couple the pair exerts on their common link.
+    RelativeSite {
+        /// The site.
+        site: SiteFrame,
+        /// The reference site.
+        reference: SiteFrame,
+        /// The deepest link that moves both sites, if any.
+        common_link: Option<usize>,
+    },
+}
+
+impl ActuatorTransmission {
+    /// Whether the transmission applies wrenches to links (else forces on dofs).
+    pub fn applies_wrenches(&self) -> bool {
+        matches!(self, ActuatorTransmission::Site { .. } | ActuatorTransmission::RelativeSite { .. })
+    }
+}
+
+/// What an actuator acts on, by name (for descriptions).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ActuatorTarget {
+    /// "joint", "jointinparent" or "site": MuJoCo's attribute.
+    pub attribute: String,
+    /// The joint's or site's name.
+    pub name: String,
+    /// The reference site's name.
+    pub refsite: Option<String>,
+}
+
+/// One compiled actuator.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Actuator {
+    /// The actuator's name, if it has one.
+    pub name: Option<String>,
+    /// The element it was written with.
+    pub kind: ActuatorKind,
+    /// What it acts on.
+    pub target: ActuatorTarget,
+    /// How its force reaches the dofs.
+    pub transmission: ActuatorTransmission,
+    /// MuJoCo's `gear`.
+    pub gear: [f64; 6],
+    /// The gain's type.
+    pub gain_type: GainType,
+    /// gainprm[0..3].
+    pub gain: [f64; 3],
+    /// The bias's type.
+    pub bias_type: BiasType,
+    /// biasprm[0..3], with a damping ratio already turned into a damping.
+    pub bias: [f64; 3],
+    /// The ctrl range when ctrl is limited.
+    pub ctrl_range: Option<[f64; 2]>,
+    /// The force range when the force is limited.
+    pub force_range: Option<[f64; 2]>,
+    /// False when `<option actuatorgroupdisable>` disables the actuator's group.
+    pub enabled: bool,
+    /// For a position servo on a rotation (a ball joint, or a reference site
+    /// with a purely rotational gear), whose length wraps at ±π·|gear|: the
+    /// period 2π·|gear| on which MuJoCo takes the setpoint nearest the
+    /// length; 0 for every other actuator.
+    pub setpoint_period: f64,
+    /// Line of the actuator element in the MJCF file (1-based).
+    pub line: u32,
+}
+
+impl Actuator {
+    /// The actuator as messages name it: its element and name, or its index.
+    pub fn label(&self, index: usize) -> String {
+        match &self.name {
+            Some(name) => format!("{} '{name}'", self.kind.name()),
+            None => format!("{} {index}", self.kind.name()),
+        }
+    }
+
+    /// Whether MuJoCo takes it for a position servo: fixed gain kp, affine
+    /// bias with biasprm[1] = −kp (its `dampratio` and setpoint wrapping apply).
+    pub fn is_position_servo(&self) -> bool {
+        self.gain_type == GainType::Fixed && self.bias_type == BiasType::Affine && self.gain[0] == -self.bias[1]
+    }
+
+    /// Whether MuJoCo's compiler reads biasprm[2] as a damping ratio: a
+    /// positive biasprm[2] when gainprm[0] = −biasprm[1], whatever the types.
+    pub fn has_damping_ratio(&self) -> bool {
+        self.gain[0] == -self.bias[1] && self.bias[2] > 0.0
+    }
+
+    /// The gear's translation part.
+    pub fn gear_translation(&self) -> Vec3 {
+        Vec3::new(self.gear[0], self.gear[1], self.gear[2])
+    }
+
+    /// The gear's rotation part.
+    pub fn gear_rotation(&self) -> Vec3 {
+        Vec3::new(self.gear[3], self.gear[4], self.gear[5])
+    }
+}
+
+/// A joint's limits on the total actuator force at its dof (MuJoCo's
+/// `actuatorfrcrange`, hinge and slide joints only).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DofForceLimit {
+    /// The joint's dof.
+    pub dof: usize,
+    /// The force range.
+    pub range: [f64; 2],
+}
+
+impl Model {
+    /// Turns damping ratios into dampings as MuJoCo's compiler does:
+    /// kv = ratio · 2√(kp·m), with m = (J M⁻¹ Jᵀ)⁻¹ the mass the actuator
+    /// moves at qpos0, J its moment arms. With M = m m*, J M⁻¹ Jᵀ = |ℓJᵀ|²:
+    /// the ε of a unit force, from the passes.
+    pub(super) fn resolve_damping_ratios(&mut self) -> Result<(), ModelError> {
+        let pending: Vec<usize> =
+            (0..self.actuators.len()).filter(|&k| self.actuators[k].has_damping_ratio()).collect();
+        if pending.is_empty() {
+            return Ok(());
+        }
+        let failed = |actuator: &Actuator, k: usize, reason: String| ModelError::Actuator {
+            actuator: actuator.label(k),
+            line: actuator.line,
+            reason,
+        };
+        let mut ws = self.workspace();
+        let (mut moment, mut eps) = (vec![0.0; self.nv], vec![0.0; self.nv]);
+        let first = pending[0];
+        ws.set_configuration(self, &self.qpos0)
+            .and_then(|()| ws.set_qvel(self, &eps))
+            .map_err(|e| failed(&self.actuators[first], first, e.to_string()))?;
+        for k in pending {
+            ws.actuator_moment(self, k, &mut moment)
+                .and_then(|()| ws.eps_from_forces(self, &moment, None, &mut eps))
+                .map_err(|e| failed(&self.actuators[k], k, e.to_string()))?;
+            let inverse_mass: f64 = eps.iter().map(|e| e * e).sum();
+            let mass = if inverse_mass > MIN_VALUE { 1.0 / inverse_mass } else { 0.0 };
+            let actuator = &mut self.actuators[k];
+            let kp = actuator.gain[0];
+            if kp < 0.0 {
+                return Err(failed(actuator, k, format!("dampratio needs kp >= 0, found kp = {kp}")));
+            }
+            actuator.bias[2] = -(actuator.bias[2] * 2.0 * (kp * mass).sqrt());
+        }
+        Ok(())
+    }
+}
