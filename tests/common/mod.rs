@@ -31,7 +31,7 @@ pub struct Kinematics {
     pub body_pos: Vec<V3>,
     dofs: Vec<DofMotion>,
     /// For each body, the dofs that move it (ancestors' and its own).
-    body_dofs: Vec<Vec<usize>>,
+    pub body_dofs: Vec<Vec<usize>>,
 }
 
 pub fn nq_nv(vehicle: &Vehicle) -> (usize, usize) {
