@@ -122,21 +122,21 @@ fn dense_transmission(vehicle: &Vehicle, k: &Kinematics, theta: &[f64], actuator
             match found.expect("the joint exists") {
                 JointKind::Hinge | JointKind::Slide => {
                     arms[dof] = g[0];
-                    return (theta[qpos] * g[0], arms);
+                    (theta[qpos] * g[0], arms)
                 }
                 JointKind::Ball => {
                     let q = quat(qpos);
                     // A parent-frame axis in the child frame.
                     let axis = if *in_parent { q.inverse() * translation } else { translation };
                     arms.rows_mut(dof, 3).copy_from(&axis);
-                    return (q.scaled_axis().dot(&axis), arms);
+                    (q.scaled_axis().dot(&axis), arms)
                 }
                 JointKind::Free => {
                     let q = quat(qpos + 3);
                     let axis = if *in_parent { q.inverse() * rotation } else { rotation };
                     arms.rows_mut(dof, 3).copy_from(&translation);
                     arms.rows_mut(dof + 3, 3).copy_from(&axis);
-                    return (0.0, arms);
+                    (0.0, arms)
                 }
             }
         }
