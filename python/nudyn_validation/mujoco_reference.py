@@ -18,7 +18,7 @@ Conventions (docs/DYNAMICS.md §2, MuJoCo's own):
   body and carries no momentum here.
 
 Every function that takes (model, ...) works on a `Reference` wrapper that
-owns an MjModel with contacts and constraints disabled and a scratch MjData.
+owns an MjModel with contacts, constraints and actuators disabled and a scratch MjData.
 """
 
 from __future__ import annotations
@@ -47,12 +47,17 @@ def central_diff(f, h: float):
     ) / (60 * h)
 
 
-def load_model(path: str | Path) -> mujoco.MjModel:
-    """Load an MJCF file with contacts and constraints disabled."""
+def load_model(path: str | Path, actuation: bool = False) -> mujoco.MjModel:
+    """Load an MJCF file with contacts and constraints disabled, and its
+    actuators too unless `actuation`: nudyn's eval without ctrl and its FMU
+    (which has no ctrl inputs yet) apply no actuator force, while MuJoCo's
+    position and velocity actuators pull even at ctrl = 0."""
     model = mujoco.MjModel.from_xml_path(str(path))
     model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT) | int(
         mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
     )
+    if not actuation:
+        model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
     return model
 
 

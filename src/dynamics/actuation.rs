@@ -240,31 +240,37 @@ fn apply(moment: &Moment, force: f64, qfrc: &mut [f64], link_wrench: &mut [Spati
 impl Workspace {
     /// The actuators at `ctrl` (nu, MuJoCo's `d.ctrl`): fills
     /// `actuator_length`, `actuator_velocity`, `actuator_force`,
-    /// `qfrc_actuator` (T) and `eps_actuator` (ℓT). Needs the velocities.
+    /// `qfrc_actuator` (T) and `eps_actuator` (ℓT); with
+    /// `<flag actuation="disable"/>` all but the lengths are zero, as in
+    /// MuJoCo. Needs the velocities.
     pub fn compute_actuation(&mut self, model: &Model, ctrl: &[f64]) -> Result<(), DynamicsError> {
         require(self, Stage::Velocity, "compute_actuation")?;
         check_input("ctrl", ctrl, model.actuators.len())?;
-        self.prepare_transmissions(model);
         let actuation = model.actuation;
+        self.prepare_transmissions(model);
+        if !actuation.enabled {
+            // MuJoCo then computes the lengths only.
+            for (k, actuator) in model.actuators.iter().enumerate() {
+                self.actuator_length[k] = transmit(self, actuator).length;
+            }
+            for buffer in [&mut self.actuator_velocity, &mut self.actuator_force, &mut self.eps_actuator] {
+                buffer.fill(0.0);
+            }
+            return Ok(());
+        }
         for (k, actuator) in model.actuators.iter().enumerate() {
             let transmitted = transmit(self, actuator);
             self.actuator_length[k] = transmitted.length;
             self.actuator_velocity[k] = transmitted.velocity;
-            if !actuation.enabled {
-                self.actuator_force[k] = 0.0;
-                continue;
-            }
             let force =
                 actuator_force(actuator, actuation.clamp_ctrl, ctrl[k], transmitted.length, transmitted.velocity);
             self.actuator_force[k] = force;
             apply(&transmitted.moment, force, self.qfrc_actuator.as_mut_slice(), &mut self.link_wrench);
         }
-        if actuation.enabled {
-            self.collect_wrenches(model);
-            for limit in &model.actuator_force_limits {
-                let [low, high] = limit.range;
-                self.qfrc_actuator[limit.dof] = clip(self.qfrc_actuator[limit.dof], low, high);
-            }
+        self.collect_wrenches(model);
+        for limit in &model.actuator_force_limits {
+            let [low, high] = limit.range;
+            self.qfrc_actuator[limit.dof] = clip(self.qfrc_actuator[limit.dof], low, high);
         }
         let (qfrc, mut eps) = (std::mem::take(&mut self.qfrc_actuator), std::mem::take(&mut self.eps_actuator));
         let result = self.eps_from_forces(model, qfrc.as_slice(), None, eps.as_mut_slice());
