@@ -335,7 +335,7 @@ mod tests {
 
     #[test]
     fn compiled_examples_pass() {
-        for name in ["bus_arm7.xml", "flexible_boom.xml", "fixed_rig.xml", "chain60.xml"] {
+        for name in ["bus_arm7.xml", "flexible_boom.xml", "fixed_rig.xml", "chain60.xml", "servicer.xml"] {
             assert_eq!(validate(&example(name)), Ok(()), "{name}");
         }
     }

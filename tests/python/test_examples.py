@@ -29,8 +29,10 @@ def test_loads_and_is_documented(path):
     assert m.nv > 0 and np.all(m.body_mass[1:] >= 0)
     text = path.read_text()
     assert text.lstrip().startswith("<!--"), "each example opens with a comment saying what it is"
-    for banned in ("tendon", "equality", "range=", "limited", "frictionloss", "mesh", "actuator"):
-        assert banned not in text, f"{path.name} uses {banned}, a feature outside the supported set"
+    # Joint limits (" range=", "limited") are outside the supported set;
+    # actuators' ctrlrange and forcerange are inside it.
+    for banned in ("tendon", "equality", " range=", "limited", "frictionloss", "mesh"):
+        assert banned not in text, f"{path.name} uses {banned.strip()}, a feature outside the supported set"
 
 
 def test_bus_arm7():
@@ -69,3 +71,23 @@ def test_chain60_is_generated():
     assert out == (EXAMPLES_DIR / "chain60.xml").read_text(), (
         "examples/chain60.xml is out of date: python3 scripts/gen_chain.py > examples/chain60.xml"
     )
+
+
+def test_servicer():
+    m = load("servicer")
+    assert m.jnt_type[0] == FREE and list(m.jnt_type[1:]) == [HINGE] * 7
+    assert not np.any(m.opt.gravity)
+    site, joint = int(mujoco.mjtTrn.mjTRN_SITE), int(mujoco.mjtTrn.mjTRN_JOINT)
+    thrusters = [i for i in range(m.nu) if m.actuator_trntype[i] == site]
+    assert len(thrusters) == 8
+    for i in thrusters:
+        # A thrust along the nozzle site's -z axis, never negative.
+        assert list(m.actuator_gear[i]) == [0, 0, -1, 0, 0, 0] and m.actuator_ctrlrange[i][0] == 0
+    wheels = [i for i in range(m.nu) if m.actuator_trntype[i] == joint and m.actuator_biastype[i] == 0]
+    d = mujoco.MjData(m)
+    mujoco.mj_kinematics(m, d)
+    # Motors on hinges about the bus's x, y and z axes (the bus sits at the identity).
+    axes = np.array([d.xaxis[m.actuator_trnid[i, 0]] for i in wheels])
+    np.testing.assert_allclose(axes, np.eye(3), atol=1e-12)
+    servos = [i for i in range(m.nu) if m.actuator_gainprm[i, 0] == -m.actuator_biasprm[i, 1] != 0]
+    assert len(servos) == 4 and all(m.actuator_biasprm[i, 2] < 0 for i in servos), "position servos with damping"
