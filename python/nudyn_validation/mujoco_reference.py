@@ -47,17 +47,12 @@ def central_diff(f, h: float):
     ) / (60 * h)
 
 
-def load_model(path: str | Path, actuation: bool = False) -> mujoco.MjModel:
-    """Load an MJCF file with contacts and constraints disabled, and its
-    actuators too unless `actuation`: nudyn's eval without ctrl and its FMU
-    (which has no ctrl inputs yet) apply no actuator force, while MuJoCo's
-    position and velocity actuators pull even at ctrl = 0."""
+def load_model(path: str | Path) -> mujoco.MjModel:
+    """Load an MJCF file with contacts and constraints disabled."""
     model = mujoco.MjModel.from_xml_path(str(path))
     model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT) | int(
         mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
     )
-    if not actuation:
-        model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
     return model
 
 
@@ -70,7 +65,12 @@ class Reference:
 
     @classmethod
     def from_file(cls, path: str | Path) -> "Reference":
+        """The reference of an MJCF file, its actuators off: nudyn's eval
+        without ctrl applies no actuator force, while MuJoCo's position and
+        velocity actuators pull even at ctrl = 0. (mjDSBL_ACTUATION also
+        skips mjcb_control, which the reference does not use.)"""
         model = load_model(path)
+        model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
         return cls(model, mujoco.MjData(model))
 
     @property

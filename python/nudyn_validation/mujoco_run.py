@@ -42,10 +42,11 @@ class MujocoVehicle:
         self.model.opt.timestep = step
         # data.energy = (potential: gravity and springs, kinetic ½ qvelᵀ M qvel).
         self.model.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_ENERGY)
-        # nudyn ignores actuators (`nudyn export` warns): the FMU's only
-        # input is ε.  MuJoCo's actuators are silenced to match; a position
-        # servo would otherwise pull on its joint even at ctrl = 0.  (Not
-        # with mjDSBL_ACTUATION: that also skips the control callback.)
+        # The FMU's only input is ε (it has no ctrl inputs yet), so its
+        # actuators apply no force.  MuJoCo's actuators are silenced to
+        # match; a position servo would otherwise pull on its joint even at
+        # ctrl = 0.  (Not with mjDSBL_ACTUATION: that also skips the control
+        # callback.)
         self.model.actuator_gainprm[:] = 0.0
         self.model.actuator_biasprm[:] = 0.0
         self.data = mujoco.MjData(self.model)

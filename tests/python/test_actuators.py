@@ -70,7 +70,7 @@ class ActuatedRun:
     def __init__(self, path, nudyn):
         self.path = path
         self.ref = Reference.from_file(path)  # actuators off: nu_dot under a given T
-        self.model = load_model(path, actuation=True)
+        self.model = load_model(path)
         data = mujoco.MjData(self.model)
         rng = np.random.default_rng(zlib.crc32(path.stem.encode()))
         self.cases = []
