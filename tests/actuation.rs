@@ -6,6 +6,9 @@
 
 mod common;
 
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
 use common::{Kinematics, Rng, TreeOptions, V3, kinematics, point_jacobian, random_theta, random_vehicle, rel_err};
 use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, UnitQuaternion};
 use nudyn::model::Model;
@@ -224,4 +227,46 @@ fn actuation_needs_the_velocities_and_nu_controls() {
     assert_eq!(error.to_string(), "ctrl[3] is not finite (NaN)");
     ws.compute_actuation(&model, &ctrl).unwrap();
     assert!(ws.qfrc_actuator.iter().chain(ws.eps_actuator.iter()).all(|x| *x == 0.0));
+}
+
+/// Counts the allocations of the current thread while `COUNTING` is set
+/// (the test harness runs tests on several threads).
+struct CountingAllocator;
+
+thread_local! {
+    static COUNTING: Cell<bool> = const { Cell::new(false) };
+    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+}
+
+unsafe impl GlobalAlloc for CountingAllocator {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        if COUNTING.with(Cell::get) {
+            ALLOCATIONS.with(|n| n.set(n.get() + 1));
+        }
+        unsafe { System.alloc(layout) }
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: CountingAllocator = CountingAllocator;
+
+#[test]
+fn actuation_does_not_allocate() {
+    let mut rng = Rng::new(11);
+    let vehicle = actuated_vehicle(&mut rng, true);
+    let model = Model::compile(&vehicle).unwrap();
+    let mut ws = model.workspace();
+    let theta = random_theta(&mut rng, &vehicle);
+    let (qvel, ctrl) = (rng.vec(model.nv, 1.0), rng.vec(model.actuators.len(), 1.0));
+    ws.set_configuration(&model, &theta).unwrap();
+    ws.set_qvel(&model, &qvel).unwrap();
+    COUNTING.with(|c| c.set(true));
+    let result = ws.compute_actuation(&model, &ctrl);
+    COUNTING.with(|c| c.set(false));
+    result.unwrap();
+    assert_eq!(ALLOCATIONS.with(Cell::get), 0, "compute_actuation allocated");
 }
