@@ -112,6 +112,12 @@ pub enum InvalidModel {
         /// What is wrong, with the numbers.
         what: String,
     },
+    /// A joint's actuator force limit off a hinge or slide dof, or not a range.
+    #[error("the actuator force limit at dof {dof} is not on a hinge or slide joint, or not an increasing range")]
+    ActuatorForceLimit {
+        /// The dof.
+        dof: usize,
+    },
     /// An actuator whose transmission or force law the links do not support.
     #[error("actuator {actuator}: {what}")]
     Actuator {
@@ -161,9 +167,9 @@ fn check_physics(k: usize, link: &super::Link) -> Result<(), InvalidModel> {
     Ok(())
 }
 
-/// An increasing finite range, or `what` it is for.
-fn check_range(what: &'static str, range: [f64; 2]) -> Result<(), &'static str> {
-    if range.iter().all(|x| x.is_finite()) && range[0] < range[1] { Ok(()) } else { Err(what) }
+/// Whether a range is finite and increasing.
+fn is_range(range: [f64; 2]) -> bool {
+    range.iter().all(|x| x.is_finite()) && range[0] < range[1]
 }
 
 /// Checks actuator `k` against the links: its dofs and θ entries belong to
@@ -198,8 +204,8 @@ fn validate_actuator(model: &Model, k: usize) -> Result<(), String> {
         return Err("gear, gain, bias and setpoint period must be finite".to_string());
     }
     for (what, range) in [("ctrl range", actuator.ctrl_range), ("force range", actuator.force_range)] {
-        if let Some(range) = range {
-            check_range(what, range).map_err(|what| format!("its {what} must be finite and increasing"))?;
+        if range.is_some_and(|range| !is_range(range)) {
+            return Err(format!("its {what} must be finite and increasing"));
         }
     }
     Ok(())
@@ -301,19 +307,9 @@ fn validate(model: &Model) -> Result<(), InvalidModel> {
     }
     for limit in &model.actuator_force_limits {
         let joint = model.links.iter().find(|l| l.dof_adr == limit.dof).map(|l| l.joint);
-        if !matches!(joint, Some(LinkJoint::Hinge | LinkJoint::Slide)) {
-            return Err(InvalidModel::Size {
-                what: "a dof with an actuator force limit",
-                found: limit.dof,
-                expected: nv,
-            });
+        if !matches!(joint, Some(LinkJoint::Hinge | LinkJoint::Slide)) || !is_range(limit.range) {
+            return Err(InvalidModel::ActuatorForceLimit { dof: limit.dof });
         }
-        check_range("actuator force limit", limit.range).map_err(|what| InvalidModel::Number {
-            link: 0,
-            what,
-            value: limit.range[0],
-            non_negative: false,
-        })?;
     }
     match model.shortcuts.not_allowed_for(model) {
         Some(shortcut) => Err(InvalidModel::Shortcut(shortcut)),
@@ -424,6 +420,32 @@ mod tests {
                 assert_eq!(validate(&model), Ok(()), "{}", path.display());
             }
         }
+    }
+
+    #[test]
+    fn actuators_that_do_not_fit_the_links_are_refused() {
+        let model = example("servicer.xml");
+        assert_eq!(validate(&model), Ok(()));
+        // Actuator 8 is the x wheel's motor, on a hinge's dof.
+        let mut moved = model.clone();
+        if let ActuatorTransmission::Scalar { dof, .. } = &mut moved.actuators[8].transmission {
+            *dof = 0;
+        }
+        assert!(matches!(validate(&moved), Err(InvalidModel::Actuator { actuator: 8, .. })));
+        let mut no_link = model.clone();
+        if let ActuatorTransmission::Site { site } = &mut no_link.actuators[0].transmission {
+            site.link = Some(99);
+        }
+        assert!(matches!(validate(&no_link), Err(InvalidModel::Actuator { actuator: 0, .. })));
+        let mut reversed = model.clone();
+        reversed.actuators[12].ctrl_range = Some([1.0, -1.0]);
+        assert!(matches!(validate(&reversed), Err(InvalidModel::Actuator { actuator: 12, .. })));
+        let mut nan = model.clone();
+        nan.actuators[3].gear[2] = f64::NAN;
+        assert!(matches!(validate(&nan), Err(InvalidModel::Actuator { actuator: 3, .. })));
+        let mut limit = model;
+        limit.actuator_force_limits.push(crate::model::DofForceLimit { dof: 2, range: [-1.0, 1.0] });
+        assert_eq!(validate(&limit), Err(InvalidModel::ActuatorForceLimit { dof: 2 }));
     }
 
     #[test]
