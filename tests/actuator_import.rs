@@ -37,7 +37,7 @@ fn site_index(vehicle: &Vehicle, name: &str) -> usize {
 #[test]
 fn every_kind_reads_into_its_general_actuator() {
     let Imported { vehicle, .. } = load("kinds.xml");
-    assert_eq!(vehicle.actuators.len(), 19);
+    assert_eq!(vehicle.actuators.len(), 20);
     let (fixed, affine) = (GainType::Fixed, GainType::Affine);
     let (none, biased) = (BiasType::None, BiasType::Affine);
 
@@ -79,6 +79,7 @@ fn every_kind_reads_into_its_general_actuator() {
     assert_eq!(actuator(&vehicle, "wrist_parent").transmission, joint("wrist", true));
     assert_eq!(actuator(&vehicle, "bus_parent").transmission, joint("bus_free", true));
     assert_eq!(actuator(&vehicle, "bus_parent").gear, [-0.4, 0.3, 1.0, 0.5, -0.6, 0.2]);
+    assert_eq!(actuator(&vehicle, "slide_rate").transmission, joint("slide", true));
 
     let reach = actuator(&vehicle, "reach");
     let (tip, elbow) = (site_index(&vehicle, "tool_tip"), site_index(&vehicle, "elbow_site"));
