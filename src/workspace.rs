@@ -110,6 +110,8 @@ pub struct Workspace {
     pub qfrc_actuator: DVector<f64>,
     /// ε = ℓT of the actuators (nv) — compute_actuation.
     pub eps_actuator: DVector<f64>,
+    /// The ε pass 3 applied: the input's plus the actuators' (nv) — compute_nu_dot_actuated.
+    pub eps_applied: DVector<f64>,
 }
 
 impl Workspace {
@@ -159,6 +161,7 @@ impl Workspace {
             link_wrench: vec![SpatialVec::zeros(); if actuators_apply_wrenches { n } else { 0 }],
             qfrc_actuator: dof(),
             eps_actuator: dof(),
+            eps_applied: dof(),
         }
     }
 }

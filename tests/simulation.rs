@@ -29,7 +29,7 @@ fn one_advance_equals_two_halves_with_fixed_steps() {
     let model = bus();
     let eps = vec![0.2; model.nv];
     let zero = vec![0.0; model.nv];
-    let input = Input { eps: &eps, eps_rate: &zero };
+    let input = Input { eps: &eps, eps_rate: &zero, ctrl: &[], ctrl_rate: &[] };
     let mut whole = moving(&model, Method::Rk4, RK4);
     let mut halves = whole.clone();
     whole.advance_to(&model, 4e-3, input).unwrap();
@@ -53,9 +53,9 @@ fn the_input_ramp_is_measured_from_the_start_of_each_advance() {
     absolute.advance_to(&model, 2.0 * h, signal).unwrap();
     // ... and as two holds, the second from ε(h) with the same rate.
     let mut held = moving(&model, Method::Rk4, RK4);
-    held.advance_to(&model, h, Input { eps: &eps, eps_rate: &rate }).unwrap();
+    held.advance_to(&model, h, Input { eps: &eps, eps_rate: &rate, ctrl: &[], ctrl_rate: &[] }).unwrap();
     let eps_at_h: Vec<f64> = eps.iter().zip(&rate).map(|(e, r)| e + r * h).collect();
-    held.advance_to(&model, 2.0 * h, Input { eps: &eps_at_h, eps_rate: &rate }).unwrap();
+    held.advance_to(&model, 2.0 * h, Input { eps: &eps_at_h, eps_rate: &rate, ctrl: &[], ctrl_rate: &[] }).unwrap();
     for (a, b) in
         absolute.state.theta.iter().chain(&absolute.state.nu).zip(held.state.theta.iter().chain(&held.state.nu))
     {
@@ -64,7 +64,7 @@ fn the_input_ramp_is_measured_from_the_start_of_each_advance() {
     // A rate that is ignored would leave ν where a constant ε puts it.
     let mut constant = moving(&model, Method::Rk4, RK4);
     let zero = vec![0.0; model.nv];
-    constant.advance_to(&model, 2.0 * h, Input { eps: &eps, eps_rate: &zero }).unwrap();
+    constant.advance_to(&model, 2.0 * h, Input { eps: &eps, eps_rate: &zero, ctrl: &[], ctrl_rate: &[] }).unwrap();
     let moved = constant.state.nu.iter().zip(&held.state.nu).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
     assert!(moved > 1e-7, "the ramp changed ν by only {moved}");
 }
@@ -74,7 +74,7 @@ fn a_restored_state_repeats_its_run_exactly() {
     let model = bus();
     let eps = vec![0.05; model.nv];
     let zero = vec![0.0; model.nv];
-    let input = Input { eps: &eps, eps_rate: &zero };
+    let input = Input { eps: &eps, eps_rate: &zero, ctrl: &[], ctrl_rate: &[] };
     let mut sim = moving(&model, Method::Dop853, ADAPTIVE);
     sim.advance_to(&model, 0.1, input).unwrap();
     let saved = sim.state.clone();

@@ -358,7 +358,7 @@ fn simulate(
     // Preallocated outside the timed loop: the sampled (θ, ν).
     let mut trajectory = vec![(state.theta.clone(), state.nu.clone()); intervals + 1];
     let zero = vec![0.0; model.nv];
-    let input = Input { eps: &zero, eps_rate: &zero };
+    let input = Input { eps: &zero, eps_rate: &zero, ctrl: &[], ctrl_rate: &[] };
     let start_run = || {
         let mut sim = Simulation::new(model, method, settings);
         sim.state.theta.copy_from_slice(&state.theta);

@@ -45,6 +45,7 @@ struct Request {
     nu: Option<Vec<f64>>,
     eps: Option<Vec<f64>>,
     eps_rate: Option<Vec<f64>>,
+    ctrl: Option<Vec<f64>>,
 }
 
 /// A run shorter than this shows no progress bar (it would only flicker).
@@ -80,9 +81,12 @@ pub fn simulate(model: &Model, run: &Run) -> Result<()> {
     if eps_rate.len() != model.nv {
         bail!("eps_rate has {} entries, expected {}", eps_rate.len(), model.nv);
     }
-    // Like the FMU at initialization: check the state and normalize its quaternions; check ε too.
+    // The actuators' controls, held over the run (MuJoCo's d.ctrl; 0 by default, as there).
+    let ctrl = request.ctrl.unwrap_or_else(|| vec![0.0; model.actuators.len()]);
+    let ctrl_rate = vec![0.0; ctrl.len()];
+    // Like the FMU at initialization: check the state and normalize its quaternions; check ε and ctrl too.
     sim.initialize(model)?;
-    sim.evaluate_velocity(model)?.compute_nu_dot(model, &eps)?;
+    sim.evaluate_velocity(model)?.compute_nu_dot_actuated(model, &eps, &ctrl)?;
 
     let steps = (run.stop / run.step).round() as u64;
     let mut writer = Writer::new(run.format, model)?;
@@ -97,7 +101,7 @@ pub fn simulate(model: &Model, run: &Run) -> Result<()> {
         for ((now, e), r) in eps_now.iter_mut().zip(&eps).zip(&eps_rate) {
             *now = e + r * t;
         }
-        let input = Input { eps: &eps_now, eps_rate: &eps_rate };
+        let input = Input { eps: &eps_now, eps_rate: &eps_rate, ctrl: &ctrl, ctrl_rate: &ctrl_rate };
         let advanced = sim.advance_to(model, t + run.step, input).with_context(|| {
             progress.finish();
             format!("the step from t = {t} failed")

@@ -2,7 +2,8 @@
 //! parameter defaults, capabilities and resource file.
 //!
 //! Variables follow MuJoCo's qpos/qvel order with 1-based structured names
-//! (`theta[1]`): inputs `eps[1..nv]`, outputs `theta[1..nq]` and
+//! (`theta[1]`): inputs `eps[1..nv]` and, for a vehicle with actuators,
+//! `ctrl[1..nu]` in MuJoCo's actuator order; outputs `theta[1..nq]` and
 //! `nu[1..nv]`, and the optional outputs chosen at export.
 
 use serde::{Deserialize, Serialize};
@@ -186,6 +187,8 @@ pub enum RealVariable {
     MaxStep,
     /// Input `eps[k+1]`.
     Eps(usize),
+    /// Input `ctrl[k+1]`: the control of actuator k (MuJoCo's `d.ctrl`).
+    Ctrl(usize),
     /// Output `theta[k+1]` (qpos).
     Theta(usize),
     /// Output `nu[k+1]`.
@@ -213,6 +216,7 @@ impl RealVariable {
             RealVariable::Tolerance => "tolerance".into(),
             RealVariable::MaxStep => "max_step".into(),
             RealVariable::Eps(k) => format!("eps[{}]", k + 1),
+            RealVariable::Ctrl(k) => format!("ctrl[{}]", k + 1),
             RealVariable::Theta(k) => format!("theta[{}]", k + 1),
             RealVariable::Nu(k) => format!("nu[{}]", k + 1),
             RealVariable::Qvel(k) => format!("qvel[{}]", k + 1),
@@ -231,7 +235,7 @@ impl RealVariable {
     pub fn kind(self) -> Kind {
         match self {
             RealVariable::Tolerance | RealVariable::MaxStep => Kind::fixed_parameter(Range::Positive),
-            RealVariable::Eps(_) => Kind::INPUT,
+            RealVariable::Eps(_) | RealVariable::Ctrl(_) => Kind::INPUT,
             RealVariable::Theta(_) | RealVariable::Nu(_) => Kind::STATE_OUTPUT,
             RealVariable::DerTheta(_) | RealVariable::DerNu(_) => Kind::DERIVATIVE,
             _ => Kind::CALCULATED_OUTPUT,
@@ -243,7 +247,7 @@ impl RealVariable {
         match self {
             RealVariable::Tolerance => Some(DEFAULT_TOLERANCE),
             RealVariable::MaxStep => Some(DEFAULT_MAX_STEP),
-            RealVariable::Eps(_) | RealVariable::Nu(_) => Some(0.0),
+            RealVariable::Eps(_) | RealVariable::Ctrl(_) | RealVariable::Nu(_) => Some(0.0),
             RealVariable::Theta(k) => Some(model.qpos0[k]),
             _ => None,
         }
@@ -257,7 +261,7 @@ impl RealVariable {
 
 /// The plant's Real variables and their value references: consecutive
 /// blocks after the two parameters, `tolerance` (1) and `max_step` (2), in
-/// the order eps, theta, nu, the chosen optional outputs, then the state
+/// the order eps, ctrl, theta, nu, the chosen optional outputs, then the state
 /// derivatives der(theta) and der(nu) of model exchange, when the FMU serves
 /// it (last, so that the blocks before keep the value references they had
 /// before model exchange).
@@ -267,6 +271,8 @@ pub struct Layout {
     pub nq: usize,
     /// Number of dofs.
     pub nv: usize,
+    /// Number of actuators (MuJoCo's nu).
+    pub nu: usize,
     /// The optional outputs present.
     pub outputs: OptionalOutputs,
 }
@@ -274,17 +280,18 @@ pub struct Layout {
 impl Layout {
     /// The layout of an FMU of `model` with `outputs`.
     pub fn new(model: &Model, outputs: OptionalOutputs) -> Self {
-        Layout { nq: model.nq, nv: model.nv, outputs }
+        Layout { nq: model.nq, nv: model.nv, nu: model.actuators.len(), outputs }
     }
 
     /// The blocks in value-reference order: (first value reference, length, variable of index k).
     fn blocks(&self) -> impl Iterator<Item = (u32, usize, VariableOf<RealVariable>)> {
         let o = self.outputs;
         let model_exchange = capabilities(o).model_exchange;
-        let blocks: [(usize, VariableOf<RealVariable>); 12] = [
+        let blocks: [(usize, VariableOf<RealVariable>); 13] = [
             (1, |_| RealVariable::Tolerance),
             (1, |_| RealVariable::MaxStep),
             (self.nv, RealVariable::Eps),
+            (self.nu, RealVariable::Ctrl),
             (self.nq, RealVariable::Theta),
             (self.nv, RealVariable::Nu),
             (if o.qvel { self.nv } else { 0 }, RealVariable::Qvel),
@@ -308,7 +315,7 @@ impl Layout {
         every_variable(self.blocks())
     }
 
-    /// The knowns (states θ, ν and inputs ε) that the output or state
+    /// The knowns (states θ, ν and inputs ε, ctrl) that the output or state
     /// derivative `variable` depends on; `None` for a parameter, an input or
     /// a state. For co-simulation this says that no output but the power
     /// feeds through from the inputs.
@@ -316,13 +323,17 @@ impl Layout {
         let theta = (0..self.nq).map(RealVariable::Theta);
         let nu = (0..self.nv).map(RealVariable::Nu);
         let eps = (0..self.nv).map(RealVariable::Eps);
+        let ctrl = (0..self.nu).map(RealVariable::Ctrl);
         let list = match variable {
-            RealVariable::Tolerance | RealVariable::MaxStep | RealVariable::Eps(_) => return None,
+            RealVariable::Tolerance | RealVariable::MaxStep | RealVariable::Eps(_) | RealVariable::Ctrl(_) => {
+                return None;
+            }
             // The states themselves.
             RealVariable::Theta(_) | RealVariable::Nu(_) => vec![variable],
             RealVariable::KineticEnergy => nu.collect(),
             RealVariable::Power => nu.chain(eps).collect(),
-            RealVariable::DerNu(k) => theta.chain(nu).chain([RealVariable::Eps(k)]).collect(),
+            // Every actuator's ε reaches every dof through ℓ in general.
+            RealVariable::DerNu(k) => theta.chain(nu).chain([RealVariable::Eps(k)]).chain(ctrl).collect(),
             // θ̇ = ℓ*(θ)ν, the momentum and the energy residual depend on the configuration and every ν.
             RealVariable::Qvel(_)
             | RealVariable::Momentum(_)
@@ -349,15 +360,16 @@ impl Layout {
             RealVariable::Tolerance => (0, 0),
             RealVariable::MaxStep => (1, 0),
             RealVariable::Eps(k) => (2, k),
-            RealVariable::Theta(k) => (3, k),
-            RealVariable::Nu(k) => (4, k),
-            RealVariable::Qvel(k) => (5, k),
-            RealVariable::KineticEnergy => (6, 0),
-            RealVariable::Power => (7, 0),
-            RealVariable::Momentum(k) => (8, k),
-            RealVariable::EnergyResidual => (9, 0),
-            RealVariable::DerTheta(k) => (10, k),
-            RealVariable::DerNu(k) => (11, k),
+            RealVariable::Ctrl(k) => (3, k),
+            RealVariable::Theta(k) => (4, k),
+            RealVariable::Nu(k) => (5, k),
+            RealVariable::Qvel(k) => (6, k),
+            RealVariable::KineticEnergy => (7, 0),
+            RealVariable::Power => (8, 0),
+            RealVariable::Momentum(k) => (9, k),
+            RealVariable::EnergyResidual => (10, 0),
+            RealVariable::DerTheta(k) => (11, k),
+            RealVariable::DerNu(k) => (12, k),
         };
         let (first, len, _) = self.blocks().nth(block)?;
         (k < len).then_some(first + k as u32)
@@ -385,21 +397,27 @@ mod tests {
 
     #[test]
     fn value_references_are_consecutive_and_decode() {
-        let layout = Layout { nq: 7, nv: 6, outputs: "qvel,power,momentum".parse().unwrap() };
+        let layout = Layout { nq: 7, nv: 6, nu: 2, outputs: "qvel,power,momentum".parse().unwrap() };
         let all: Vec<(u32, RealVariable)> = layout.real_variables().collect();
-        // Parameters, eps, theta, nu, qvel, power, momentum, der(theta), der(nu).
-        assert_eq!(all.len(), 2 + 6 + 7 + 6 + 6 + 1 + 6 + 7 + 6);
+        // Parameters, eps, ctrl, theta, nu, qvel, power, momentum, der(theta), der(nu).
+        assert_eq!(all.len(), 2 + 6 + 2 + 7 + 6 + 6 + 1 + 6 + 7 + 6);
         for (k, &(vr, variable)) in all.iter().enumerate() {
             assert_eq!(vr, k as u32 + 1);
             assert_eq!(layout.real_variable(vr), Some(variable));
         }
         assert_eq!(layout.real_variable(0), None, "vr 0 is the Integer method");
         assert_eq!(layout.real_variable(all.len() as u32 + 1), None);
-        assert_eq!(layout.value_reference(RealVariable::Theta(0)), Some(9));
+        assert_eq!(layout.value_reference(RealVariable::Ctrl(1)), Some(10));
+        assert_eq!(layout.value_reference(RealVariable::Theta(0)), Some(11));
+        assert_eq!(layout.value_reference(RealVariable::Ctrl(2)), None);
+        // ν̇ feels every control; the outputs but the power none.
+        let der_nu = layout.dependencies(RealVariable::DerNu(0)).unwrap();
+        assert!(der_nu.contains(&RealVariable::Ctrl(0)) && der_nu.contains(&RealVariable::Ctrl(1)));
+        assert!(!layout.dependencies(RealVariable::Qvel(0)).unwrap().contains(&RealVariable::Ctrl(0)));
         assert_eq!(layout.value_reference(RealVariable::KineticEnergy), None);
         assert_eq!(layout.value_reference(RealVariable::DerNu(5)), Some(all.len() as u32));
         // The energy residual's work integral is kept by the FMU's own integration only: no model exchange.
-        let residual = Layout { nq: 7, nv: 6, outputs: "energy_residual".parse().unwrap() };
+        let residual = Layout { nq: 7, nv: 6, nu: 0, outputs: "energy_residual".parse().unwrap() };
         assert!(residual.real_variables().all(|(_, v)| !v.is_derivative()));
         assert!(!capabilities(residual.outputs).model_exchange);
     }

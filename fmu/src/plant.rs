@@ -1,6 +1,7 @@
 //! The plant: the vehicle's dynamics as an FMU component. It holds the
 //! compiled model from the FMU's resources, the state (θ, ν), the inputs ε
-//! and the parameters, and advances them with the core integrator.
+//! and the actuators' controls, and the parameters, and advances them with
+//! the core integrator.
 //!
 //! Outputs beyond θ and ν are computed when first read after a change of
 //! state, so outputs nobody reads cost nothing.
@@ -15,7 +16,7 @@ use nudyn_contract::plant::{
 };
 
 use crate::component::{CallError, Component, Loaded, StepError, StepReport, Variable};
-use crate::snapshot::{Snapshot, SnapshotError};
+use crate::snapshot::{Sizes, Snapshot, SnapshotError};
 use crate::state::Phase;
 
 /// The most internal steps of `max_step` one doStep may ask for: more would
@@ -42,6 +43,10 @@ pub struct PlantState {
     pub eps: Vec<f64>,
     /// dε/dt (nv) from fmi2SetRealInputDerivatives, for the next step only.
     pub eps_rate: Vec<f64>,
+    /// The actuators' controls (nu) as set at the current communication point.
+    pub ctrl: Vec<f64>,
+    /// Their rates (nu), for the next step only.
+    pub ctrl_rate: Vec<f64>,
 }
 
 /// The parameters' defaults.
@@ -75,6 +80,10 @@ pub struct Plant {
     eps: Vec<f64>,
     /// dε/dt (nv) from fmi2SetRealInputDerivatives, for the next step only.
     eps_rate: Vec<f64>,
+    /// The actuators' controls (nu, MuJoCo's `d.ctrl`) as set at the current communication point.
+    ctrl: Vec<f64>,
+    /// Their rates (nu), for the next step only.
+    ctrl_rate: Vec<f64>,
     evaluated: Evaluated,
     /// Momentum at the current state, when `evaluated` ≥ Velocity and it is an output.
     momentum: [f64; 6],
@@ -100,6 +109,8 @@ impl Plant {
             initial_energy: 0.0,
             eps: vec![0.0; model.nv],
             eps_rate: vec![0.0; model.nv],
+            ctrl: vec![0.0; model.actuators.len()],
+            ctrl_rate: vec![0.0; model.actuators.len()],
             evaluated: Evaluated::Nothing,
             momentum: [0.0; 6],
             failed_for_good: false,
@@ -121,10 +132,15 @@ impl Plant {
         }
         self.evaluated = Evaluated::Velocity;
         if needed == Evaluated::Acceleration {
-            ws.compute_nu_dot(model, &self.eps).map_err(CallError::Evaluate)?;
+            ws.compute_nu_dot_actuated(model, &self.eps, &self.ctrl).map_err(CallError::Evaluate)?;
             self.evaluated = Evaluated::Acceleration;
         }
         Ok(())
+    }
+
+    /// The sizes of the state an FMU state of this plant holds.
+    fn sizes(&self) -> Sizes {
+        Sizes { nq: self.model.nq, nv: self.model.nv, nu: self.model.actuators.len() }
     }
 
     /// d(qpos[k])/dt from the workspace's θ̇ (passes 0–2 done): q̇ = ½ q ⊗ (0, ω)
@@ -155,6 +171,8 @@ impl Component for Plant {
         self.initial_energy = 0.0;
         self.eps.fill(0.0);
         self.eps_rate.fill(0.0);
+        self.ctrl.fill(0.0);
+        self.ctrl_rate.fill(0.0);
         self.evaluated = Evaluated::Nothing;
         self.failed_for_good = false;
         self.experiment_tolerance = None;
@@ -205,6 +223,7 @@ impl Component for Plant {
                 RealVariable::Tolerance => settings.tolerance = value,
                 RealVariable::MaxStep => settings.max_step = value,
                 RealVariable::Eps(k) => self.eps[k] = value,
+                RealVariable::Ctrl(k) => self.ctrl[k] = value,
                 RealVariable::Theta(k) => run.theta[k] = value,
                 RealVariable::Nu(k) => run.nu[k] = value,
                 variable => unreachable!("{variable:?} is a calculated output: the caller refuses it"),
@@ -229,6 +248,7 @@ impl Component for Plant {
             RealVariable::Tolerance => settings.tolerance,
             RealVariable::MaxStep => settings.max_step,
             RealVariable::Eps(k) => self.eps[k],
+            RealVariable::Ctrl(k) => self.ctrl[k],
             RealVariable::Theta(k) => run.theta[k],
             RealVariable::Nu(k) => run.nu[k],
             RealVariable::Qvel(k) => self.sim.workspace().qvel[k],
@@ -298,17 +318,19 @@ impl Component for Plant {
         Ok(())
     }
 
-    /// dε/dt for the next step.
+    /// dε/dt and the controls' rates for the next step.
     fn set_input_derivatives(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), CallError> {
         for (&vr, &value) in vrs.iter().zip(values) {
-            if let Some(RealVariable::Eps(k)) = self.layout.real_variable(vr) {
-                self.eps_rate[k] = value;
+            match self.layout.real_variable(vr) {
+                Some(RealVariable::Eps(k)) => self.eps_rate[k] = value,
+                Some(RealVariable::Ctrl(k)) => self.ctrl_rate[k] = value,
+                _ => {}
             }
         }
         Ok(())
     }
 
-    /// d(theta)/dt, the qpos rate, and d(nu)/dt = ν̇ at the current ε.
+    /// d(theta)/dt, the qpos rate, and d(nu)/dt = ν̇ at the current inputs.
     fn prepare_output_derivatives(&mut self) -> Result<(), CallError> {
         self.evaluate(Evaluated::Acceleration)
     }
@@ -333,19 +355,21 @@ impl Component for Plant {
 
     /// Integrates from `time` to `time + step` with the chosen method
     /// (internal steps independent of the communication step), with
-    /// ε(t) = ε + dε/dt·(t − time); the ramp applies to this step only.
+    /// ε(t) = ε + dε/dt·(t − time), and the controls likewise; the ramps
+    /// apply to this step only.
     /// If the integration stops inside the step, the state stays at the
     /// last successful internal step and the time says where. A step that
     /// completed only by relaxing the tolerance says so.
     fn do_step(&mut self, time: f64, step: f64) -> Result<Option<StepReport>, StepError> {
         // The master's communication point, within round-off of the plant's time, is where the step starts.
         self.sim.state.time = time;
-        let input = Input { eps: &self.eps, eps_rate: &self.eps_rate };
+        let input = Input { eps: &self.eps, eps_rate: &self.eps_rate, ctrl: &self.ctrl, ctrl_rate: &self.ctrl_rate };
         let result = self.sim.advance_to(&self.model, time + step, input);
         self.evaluated = Evaluated::Nothing;
         match result {
             Ok(advanced) => {
                 self.eps_rate.fill(0.0);
+                self.ctrl_rate.fill(0.0);
                 Ok(Some(StepReport { stats: advanced.stats, relaxed: advanced.relaxed }))
             }
             Err(source) => {
@@ -405,6 +429,8 @@ impl Component for Plant {
             initial_energy: self.initial_energy,
             eps: self.eps.clone(),
             eps_rate: self.eps_rate.clone(),
+            ctrl: self.ctrl.clone(),
+            ctrl_rate: self.ctrl_rate.clone(),
         };
         Ok(Snapshot { phase, guid: self.guid.clone(), state })
     }
@@ -422,19 +448,21 @@ impl Component for Plant {
         state.initial_energy = self.initial_energy;
         state.eps.clone_from(&self.eps);
         state.eps_rate.clone_from(&self.eps_rate);
+        state.ctrl.clone_from(&self.ctrl);
+        state.ctrl_rate.clone_from(&self.ctrl_rate);
         Ok(())
     }
 
     /// A state of another FMU is refused.
     fn restore(&mut self, snapshot: &Snapshot) -> Result<(), CallError> {
         let state = &snapshot.state;
-        let (nq, nv) = (state.run.theta.len(), state.run.nu.len());
+        let sizes = Sizes { nq: state.run.theta.len(), nv: state.run.nu.len(), nu: state.ctrl.len() };
         if snapshot.guid != self.guid {
             return Err(SnapshotError::ForeignGuid { found: snapshot.guid.clone(), expected: self.guid.clone() }.into());
         }
-        if (nq, nv) != (self.model.nq, self.model.nv) {
-            let (expected_nq, expected_nv) = (self.model.nq, self.model.nv);
-            return Err(SnapshotError::Sizes { nq, nv, expected_nq, expected_nv }.into());
+        let expected = self.sizes();
+        if sizes != expected {
+            return Err(SnapshotError::Sizes { found: sizes, expected }.into());
         }
         self.sim.restore(&state.run);
         self.sim.settings = state.settings;
@@ -444,12 +472,14 @@ impl Component for Plant {
         self.initial_energy = state.initial_energy;
         self.eps.clone_from(&state.eps);
         self.eps_rate.clone_from(&state.eps_rate);
+        self.ctrl.clone_from(&state.ctrl);
+        self.ctrl_rate.clone_from(&state.ctrl_rate);
         self.evaluated = Evaluated::Nothing;
         self.failed_for_good = false;
         Ok(())
     }
 
     fn deserialize(&self, bytes: &[u8]) -> Result<Snapshot, CallError> {
-        Ok(Snapshot::deserialize(bytes, &self.guid, self.model.nq, self.model.nv)?)
+        Ok(Snapshot::deserialize(bytes, &self.guid, self.sizes())?)
     }
 }

@@ -15,8 +15,25 @@ use crate::state::Phase;
 const MAGIC: &[u8; 8] = b"nudynFMS";
 /// Version of the byte layout below (2: the state machine's state; 3: the
 /// integration method, energy projection, carried step, work and K₀; 4: the
-/// error control's relaxation).
-const VERSION: u32 = 4;
+/// error control's relaxation; 5: the actuators' controls and their rates).
+const VERSION: u32 = 5;
+
+/// The sizes of a plant's state: a blob is restored only into a plant of the same.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Sizes {
+    /// Position coordinates (θ).
+    pub nq: usize,
+    /// Dofs (ν, ε).
+    pub nv: usize,
+    /// Actuators (ctrl).
+    pub nu: usize,
+}
+
+impl std::fmt::Display for Sizes {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "nq = {}, nv = {}, nu = {}", self.nq, self.nv, self.nu)
+    }
+}
 
 /// A saved state of one FMU (its GUID names the FMU it belongs to).
 #[derive(Clone, Debug, PartialEq)]
@@ -66,16 +83,12 @@ pub enum SnapshotError {
         expected: String,
     },
     /// Sizes that do not match this FMU.
-    #[error("serialized FMU state has nq = {nq}, nv = {nv}, expected nq = {expected_nq}, nv = {expected_nv}")]
+    #[error("serialized FMU state has {found}, expected {expected}")]
     Sizes {
-        /// The blob's nq.
-        nq: usize,
-        /// The blob's nv.
-        nv: usize,
-        /// This FMU's nq.
-        expected_nq: usize,
-        /// This FMU's nv.
-        expected_nv: usize,
+        /// The blob's.
+        found: Sizes,
+        /// This FMU's.
+        expected: Sizes,
     },
     /// A method number that names no method.
     #[error("serialized FMU state names integration method number {0}, which does not exist")]
@@ -109,16 +122,21 @@ fn fnv1a(bytes: &[u8]) -> u64 {
 }
 
 impl Snapshot {
-    /// Number of scalars after the header: eight times, settings and
-    /// integration values, then theta, nu, eps, eps_rate.
-    fn scalar_count(nq: usize, nv: usize) -> usize {
-        9 + nq + 3 * nv
+    /// Number of scalars after the header: nine times, settings and
+    /// integration values, then theta, nu, eps, eps_rate, ctrl, ctrl_rate.
+    fn scalar_count(sizes: Sizes) -> usize {
+        9 + sizes.nq + 3 * sizes.nv + 2 * sizes.nu
+    }
+
+    /// The sizes of the saved state.
+    fn sizes(&self) -> Sizes {
+        let s = &self.state;
+        Sizes { nq: s.run.theta.len(), nv: s.run.nu.len(), nu: s.ctrl.len() }
     }
 
     /// The size of [`Snapshot::serialize`]'s output.
     pub fn serialized_size(&self) -> usize {
-        let (nq, nv) = (self.state.run.theta.len(), self.state.run.nu.len());
-        MAGIC.len() + 4 + 4 + self.guid.len() + 4 + 4 + 4 + 8 * Self::scalar_count(nq, nv) + 8
+        MAGIC.len() + 4 + 4 + self.guid.len() + 3 * 4 + 4 + 8 * Self::scalar_count(self.sizes()) + 8
     }
 
     /// Writes the state into `out`, which must be [`Snapshot::serialized_size`] bytes long.
@@ -131,6 +149,7 @@ impl Snapshot {
         bytes.extend_from_slice(self.guid.as_bytes());
         bytes.extend_from_slice(&(s.run.theta.len() as u32).to_le_bytes());
         bytes.extend_from_slice(&(s.run.nu.len() as u32).to_le_bytes());
+        bytes.extend_from_slice(&(s.ctrl.len() as u32).to_le_bytes());
         bytes.push(self.phase.code());
         bytes.push(u8::from(s.stop_time.is_some()));
         bytes.push(Method::ALL.iter().position(|&m| m == s.method).expect("listed") as u8);
@@ -146,7 +165,8 @@ impl Snapshot {
             s.initial_energy,
             s.run.carry.relaxation,
         ];
-        for x in scalars.iter().chain(&s.run.theta).chain(&s.run.nu).chain(&s.eps).chain(&s.eps_rate) {
+        let vectors = [&s.run.theta, &s.run.nu, &s.eps, &s.eps_rate, &s.ctrl, &s.ctrl_rate];
+        for x in scalars.iter().chain(vectors.into_iter().flatten()) {
             bytes.extend_from_slice(&x.to_le_bytes());
         }
         let checksum = fnv1a(&bytes);
@@ -155,8 +175,8 @@ impl Snapshot {
     }
 
     /// Reads a blob written by [`Snapshot::serialize`] for the FMU with
-    /// `guid` and sizes `nq`, `nv`; checks everything before returning.
-    pub fn deserialize(bytes: &[u8], guid: &str, nq: usize, nv: usize) -> Result<Snapshot, SnapshotError> {
+    /// `guid` and `sizes`; checks everything before returning.
+    pub fn deserialize(bytes: &[u8], guid: &str, sizes: Sizes) -> Result<Snapshot, SnapshotError> {
         let mut reader = Reader { bytes, at: 0 };
         if reader.take(MAGIC.len())? != MAGIC {
             return Err(SnapshotError::BadMagic);
@@ -170,14 +190,15 @@ impl Snapshot {
         if found_guid != guid {
             return Err(SnapshotError::ForeignGuid { found: found_guid, expected: guid.to_string() });
         }
-        let (found_nq, found_nv) = (reader.u32()? as usize, reader.u32()? as usize);
-        if (found_nq, found_nv) != (nq, nv) {
-            return Err(SnapshotError::Sizes { nq: found_nq, nv: found_nv, expected_nq: nq, expected_nv: nv });
+        let found = Sizes { nq: reader.u32()? as usize, nv: reader.u32()? as usize, nu: reader.u32()? as usize };
+        if found != sizes {
+            return Err(SnapshotError::Sizes { found, expected: sizes });
         }
+        let Sizes { nq, nv, nu: controls } = sizes;
         let flags = reader.take(4)?;
         let (phase_code, stop_time_defined, method_index, energy_projection) =
             (flags[0], flags[1] != 0, flags[2], flags[3] != 0);
-        let scalars: Vec<f64> = (0..Self::scalar_count(nq, nv)).map(|_| reader.f64()).collect::<Result<_, _>>()?;
+        let scalars: Vec<f64> = (0..Self::scalar_count(sizes)).map(|_| reader.f64()).collect::<Result<_, _>>()?;
         let contents_len = reader.at;
         let found = u64::from_le_bytes(reader.take(8)?.try_into().expect("8 bytes"));
         if reader.at != bytes.len() {
@@ -195,7 +216,9 @@ impl Snapshot {
         check_values(settings, vectors)?;
         let (theta, rest) = vectors.split_at(nq);
         let (nu, rest) = rest.split_at(nv);
-        let (eps, eps_rate) = rest.split_at(nv);
+        let (eps, rest) = rest.split_at(nv);
+        let (eps_rate, rest) = rest.split_at(nv);
+        let (ctrl, ctrl_rate) = rest.split_at(controls);
         Ok(Snapshot {
             phase,
             guid: found_guid,
@@ -213,6 +236,8 @@ impl Snapshot {
                 initial_energy: settings[7],
                 eps: eps.to_vec(),
                 eps_rate: eps_rate.to_vec(),
+                ctrl: ctrl.to_vec(),
+                ctrl_rate: ctrl_rate.to_vec(),
             },
         })
     }
@@ -251,7 +276,7 @@ fn check_values(settings: &[f64], vectors: &[f64]) -> Result<(), SnapshotError> 
     }
     match vectors.iter().find(|x| !x.is_finite()) {
         Some(&value) => {
-            Err(SnapshotError::Value { what: "a value of theta, nu, eps or eps_rate", value, must: "finite" })
+            Err(SnapshotError::Value { what: "a value of theta, nu, eps, ctrl or their rates", value, must: "finite" })
         }
         None => Ok(()),
     }
@@ -287,6 +312,7 @@ mod tests {
     use super::*;
 
     const GUID: &str = "{01234567-89ab-cdef-0123-456789abcdef}";
+    const SIZES: Sizes = Sizes { nq: 5, nv: 4, nu: 2 };
 
     fn sample() -> Snapshot {
         Snapshot {
@@ -306,6 +332,8 @@ mod tests {
                 initial_energy: 1.25,
                 eps: vec![0.5, 0.25, -1.0, 2.0],
                 eps_rate: vec![0.0, 1.0, 0.0, -3.0],
+                ctrl: vec![-2.5, 0.125],
+                ctrl_rate: vec![4.0, 0.0],
             },
         }
     }
@@ -322,7 +350,7 @@ mod tests {
             let mut original = sample();
             original.state.stop_time = stop_time;
             let bytes = serialized(&original);
-            let back = Snapshot::deserialize(&bytes, GUID, 5, 4).unwrap();
+            let back = Snapshot::deserialize(&bytes, GUID, SIZES).unwrap();
             assert_eq!(back, original);
             assert!(back.state.run.nu[1].is_sign_negative(), "-0.0 keeps its sign");
             assert_eq!(serialized(&back), bytes);
@@ -333,11 +361,11 @@ mod tests {
     fn rejects_every_truncation_and_extension() {
         let bytes = serialized(&sample());
         for len in 0..bytes.len() {
-            assert!(Snapshot::deserialize(&bytes[..len], GUID, 5, 4).is_err(), "truncated to {len}");
+            assert!(Snapshot::deserialize(&bytes[..len], GUID, SIZES).is_err(), "truncated to {len}");
         }
         let mut longer = bytes.clone();
         longer.push(0);
-        assert!(matches!(Snapshot::deserialize(&longer, GUID, 5, 4), Err(SnapshotError::TrailingBytes { .. })));
+        assert!(matches!(Snapshot::deserialize(&longer, GUID, SIZES), Err(SnapshotError::TrailingBytes { .. })));
     }
 
     #[test]
@@ -347,7 +375,7 @@ mod tests {
             for bit in 0..8 {
                 let mut corrupt = bytes.clone();
                 corrupt[byte] ^= 1 << bit;
-                assert!(Snapshot::deserialize(&corrupt, GUID, 5, 4).is_err(), "byte {byte} bit {bit}");
+                assert!(Snapshot::deserialize(&corrupt, GUID, SIZES).is_err(), "byte {byte} bit {bit}");
             }
         }
     }
@@ -355,13 +383,15 @@ mod tests {
     #[test]
     fn rejects_foreign_blobs() {
         let bytes = serialized(&sample());
-        assert!(matches!(Snapshot::deserialize(&bytes, "{other}", 5, 4), Err(SnapshotError::ForeignGuid { .. })));
-        assert!(matches!(Snapshot::deserialize(&bytes, GUID, 7, 6), Err(SnapshotError::Sizes { .. })));
-        assert_eq!(Snapshot::deserialize(b"PK\x03\x04 not a state", GUID, 5, 4), Err(SnapshotError::BadMagic));
+        assert!(matches!(Snapshot::deserialize(&bytes, "{other}", SIZES), Err(SnapshotError::ForeignGuid { .. })));
+        for other in [Sizes { nq: 7, nv: 6, nu: 2 }, Sizes { nu: 0, ..SIZES }] {
+            assert!(matches!(Snapshot::deserialize(&bytes, GUID, other), Err(SnapshotError::Sizes { .. })));
+        }
+        assert_eq!(Snapshot::deserialize(b"PK\x03\x04 not a state", GUID, SIZES), Err(SnapshotError::BadMagic));
         let mut other_version = bytes.clone();
         other_version[8..12].copy_from_slice(&(VERSION + 1).to_le_bytes());
         let found = VERSION + 1;
-        assert_eq!(Snapshot::deserialize(&other_version, GUID, 5, 4), Err(SnapshotError::Version { found }));
+        assert_eq!(Snapshot::deserialize(&other_version, GUID, SIZES), Err(SnapshotError::Version { found }));
     }
 
     /// A blob whose checksum is made to match, as a deliberate forgery would.
@@ -380,16 +410,20 @@ mod tests {
         zero_step.state.settings.max_step = 0.0;
         let mut infinite_time = sample();
         infinite_time.state.run.time = f64::INFINITY;
-        for (snapshot, what) in [(nan_theta, "a value of theta"), (zero_step, "max_step"), (infinite_time, "time")] {
-            let error = Snapshot::deserialize(&serialized(&snapshot), GUID, 5, 4).unwrap_err();
+        let mut nan_ctrl = sample();
+        nan_ctrl.state.ctrl_rate[1] = f64::NAN;
+        for (snapshot, what) in
+            [(nan_theta, "a value of theta"), (zero_step, "max_step"), (infinite_time, "time"), (nan_ctrl, "ctrl")]
+        {
+            let error = Snapshot::deserialize(&serialized(&snapshot), GUID, SIZES).unwrap_err();
             assert!(matches!(error, SnapshotError::Value { .. }) && error.to_string().contains(what), "{error}");
         }
         let mut bytes = serialized(&sample());
-        let phase_at = MAGIC.len() + 8 + GUID.len() + 8;
+        let phase_at = MAGIC.len() + 8 + GUID.len() + 12;
         for code in [Phase::Fatal.code(), 9, 255] {
             bytes[phase_at] = code;
             bytes = with_valid_checksum(bytes);
-            assert_eq!(Snapshot::deserialize(&bytes, GUID, 5, 4), Err(SnapshotError::Phase(code)));
+            assert_eq!(Snapshot::deserialize(&bytes, GUID, SIZES), Err(SnapshotError::Phase(code)));
         }
     }
 }

@@ -39,7 +39,7 @@ def arguments(argv):
         "--scenario",
         action="append",
         choices=SCENARIO_NAMES,
-        help="run only this scenario (repeatable; default: all that apply, 'gravity' only with gravity)",
+        help="run only this scenario (repeatable; default: all that apply, 'gravity' only with gravity, 'actuated' only with actuators)",
     )
     p.add_argument("--duration", type=float, default=defaults.duration, help="seconds (default %(default)s)")
     p.add_argument(

@@ -105,6 +105,7 @@ class ScenarioResult:
     scenario: Scenario
     time: np.ndarray  # (n + 1,)
     eps: np.ndarray  # (n, nv): ε held over [t_k, t_k+1]
+    ctrl: np.ndarray | None  # (n, nu): the controls held likewise, where the scenario sets them
     fmu: Trajectory
     mujoco: Trajectory
     quaternion_starts: list[int]  # qpos index of each quaternion (w, x, y, z)
@@ -207,7 +208,7 @@ def run_scenario(package: FmuPackage | None, model_path: Path, scenario: Scenari
     # The FMU starts from the same θ and from MuJoCo's ν of the same qvel.
     fmu = open_fmu(package, fmu_path, settings, scenario.qpos0, mj.nu(), unzip_dir)
     fmu_samples, mj_samples = _Samples(), _Samples()
-    held = []
+    held, held_ctrl = [], []
 
     def sample():
         theta = fmu.array("theta")
@@ -221,9 +222,13 @@ def run_scenario(package: FmuPackage | None, model_path: Path, scenario: Scenari
             t = k * h
             eps = np.asarray(scenario.eps_law(t, fmu_samples.rows["nu"][-1]), float)
             held.append(eps)
+            ctrl = None if scenario.ctrl_law is None else np.asarray(scenario.ctrl_law(k), float)
+            held_ctrl.append(ctrl)
             start = time.perf_counter()
             try:
                 fmu.set_array("eps", eps)
+                if ctrl is not None:
+                    fmu.set_array("ctrl", ctrl)
                 fmu.step(h, communication_point=t)
             except FMICallException as e:
                 raise ValidationError(
@@ -231,7 +236,7 @@ def run_scenario(package: FmuPackage | None, model_path: Path, scenario: Scenari
                 ) from None
             fmu_samples.wall_time += time.perf_counter() - start
             start = time.perf_counter()
-            mj.advance(eps, substeps)
+            mj.advance(eps, substeps, ctrl)
             mj_samples.wall_time += time.perf_counter() - start
             problem = mj.instability()
             if problem:
@@ -247,10 +252,11 @@ def run_scenario(package: FmuPackage | None, model_path: Path, scenario: Scenari
         scenario=scenario,
         time=h * np.arange(steps + 1),
         eps=np.array(held),
+        ctrl=None if scenario.ctrl_law is None else np.array(held_ctrl),
         fmu=fmu_samples.trajectory(),
         mujoco=mj_samples.trajectory(),
         quaternion_starts=quaternion_starts(mj.model),
-        energy_is_conserved=scenario.unforced and not mj.has_dampers,
+        energy_is_conserved=scenario.unforced and mj.conserves_energy_unforced,
     )
 
 

@@ -42,13 +42,8 @@ class MujocoVehicle:
         self.model.opt.timestep = step
         # data.energy = (potential: gravity and springs, kinetic ½ qvelᵀ M qvel).
         self.model.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_ENERGY)
-        # The FMU's only input is ε (it has no ctrl inputs yet), so its
-        # actuators apply no force.  MuJoCo's actuators are silenced to
-        # match; a position servo would otherwise pull on its joint even at
-        # ctrl = 0.  (Not with mjDSBL_ACTUATION: that also skips the control
-        # callback.)
-        self.model.actuator_gainprm[:] = 0.0
-        self.model.actuator_biasprm[:] = 0.0
+        # The actuators act, as in the FMU (whose ctrl inputs are MuJoCo's
+        # d.ctrl): a position servo pulls on its joint even at ctrl = 0.
         self.data = mujoco.MjData(self.model)
         self.factor = MujocoFactor(self.model)
         self.held_eps = np.zeros(self.model.nv)
@@ -63,10 +58,11 @@ class MujocoVehicle:
     def _apply_held_eps(self, model, data) -> None:
         data.qfrc_applied[:] = self.factor.torque(data, self.held_eps)
 
-    def advance(self, eps, substeps: int) -> None:
+    def advance(self, eps, substeps: int, ctrl=None) -> None:
         """Integrate over one communication step of `substeps` MuJoCo steps
-        with ε held at eps."""
+        with ε held at eps and the actuators' controls at ctrl (default 0)."""
         self.held_eps[:] = eps
+        self.data.ctrl[:] = 0.0 if ctrl is None else ctrl
         with control_callback(self._apply_held_eps):
             for _ in range(substeps):
                 mujoco.mj_step(self.model, self.data)
@@ -109,8 +105,11 @@ class MujocoVehicle:
         return float(self._scratch.energy[0])
 
     @property
-    def has_dampers(self) -> bool:
-        return has_dampers(self.model)
+    def conserves_energy_unforced(self) -> bool:
+        """Whether K + U is conserved with ε = 0 and ctrl = 0: no joint
+        damping, and no actuator that pulls at ctrl = 0 (a position or
+        velocity servo is a spring and a damper)."""
+        return not has_dampers(self.model) and not actuators_pull_at_rest(self.model)
 
 
 def _enabled(model: mujoco.MjModel, disable_bit) -> bool:
@@ -123,3 +122,10 @@ def has_gravity(model: mujoco.MjModel) -> bool:
 
 def has_dampers(model: mujoco.MjModel) -> bool:
     return bool(np.any(model.dof_damping > 0.0)) and _enabled(model, mujoco.mjtDisableBit.mjDSBL_DAMPER)
+
+
+def actuators_pull_at_rest(model: mujoco.MjModel) -> bool:
+    """Whether some enabled actuator applies a force at ctrl = 0 (an affine bias)."""
+    affine = model.actuator_biastype == int(mujoco.mjtBias.mjBIAS_AFFINE)
+    biased = np.any(model.actuator_biasprm[:, :3] != 0.0, axis=1)
+    return bool(np.any(affine & biased)) and _enabled(model, mujoco.mjtDisableBit.mjDSBL_ACTUATION)

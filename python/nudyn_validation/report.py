@@ -106,7 +106,7 @@ def table(validation: ModelValidation) -> str:
         "Errors are max over time and components, absolute (θ: quaternions up to sign; momentum: "
         "angular and linear, about the world origin). Energy drift is max |E(t) − E(0)|, "
         "E = K + potential energy of gravity and springs, where E is conserved "
-        "(ε = 0 and no joint damping). Times are the integration's wall time; MuJoCo's includes "
+        "(ε = 0, no joint damping and no servo pulling at ctrl = 0). Times are the integration's wall time; MuJoCo's includes "
         "the Python control callback at every RK4 stage.",
         "Scenarios: "
         + "; ".join(f"**{r.scenario.name}**: {r.scenario.description}" for r in validation.results)

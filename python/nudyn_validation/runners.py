@@ -136,8 +136,8 @@ class _NoInputs:
 
 class ModelExchange(_Reading):
     """A model-exchange FMU (FMI 2.0 or 3.0) integrated by FMPy's CVODE at
-    `relative_tolerance`, restarted at a communication point when the
-    held ε jumps there (when it does)."""
+    `relative_tolerance`, restarted at a communication point when a held
+    input (ε, ctrl) jumps there (when one does)."""
 
     def __init__(self, fmu_path: Path, unzip_dir: Path, *, start: dict, theta, nu, relative_tolerance: float):
         description = read_model_description(str(fmu_path))
@@ -168,7 +168,7 @@ class ModelExchange(_Reading):
             derivatives = self.fmu.getDerivatives
         self.fmu.enterContinuousTimeMode()
         self.nx = self.variables.size("theta") + self.variables.size("nu")
-        self.held = [0.0] * self.variables.size("eps")
+        self.held: dict[str, list[float]] = {}
         self.restart = False
         self.solver = CVodeSolver(
             nx=self.nx, nz=0, get_x=self.fmu.getContinuousStates, set_x=self.fmu.setContinuousStates,
@@ -179,9 +179,10 @@ class ModelExchange(_Reading):
 
     def set_array(self, name: str, values) -> None:
         values = [float(v) for v in values]
-        if name == "eps" and values != self.held:
+        if values != self.held.get(name, [0.0] * len(values)):
             # The solver's history does not hold across a jump in the inputs.
-            self.restart, self.held = True, values
+            self.restart = True
+            self.held[name] = values
         super().set_array(name, values)
 
     def step(self, size: float, communication_point: float) -> None:

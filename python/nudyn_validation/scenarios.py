@@ -11,7 +11,11 @@ realistically in a couple of seconds:
               joints a random orientation (free: position qpos0 ± 0.5 m);
   sine ε:     ε_k = a_k sin(2π f_k t + φ_k), a_k = √d_k · (velocity scale
               of dof k) / 1 s, i.e. the diagonalized force that changes
-              the dof's rate by its scale in about a second.
+              the dof's rate by its scale in about a second;
+  ctrl:       0 (MuJoCo's d.ctrl at rest: position servos hold their
+              joints at 0) except in 'actuated', where each communication
+              step holds a fresh draw, uniform in ctrlrange where the
+              actuator is limited, N(0, 1) in its own units where not.
 """
 
 from __future__ import annotations
@@ -32,10 +36,13 @@ FORCED_TOLERANCE = 1e-6
 # Rate-damping gain of ε = −c ν (1/s): ν decays like e^{−t}.
 DAMPING_GAIN = 1.0
 
-SCENARIO_NAMES = ("tumble", "sine", "damping", "gravity")
+SCENARIO_NAMES = ("tumble", "sine", "damping", "gravity", "actuated")
 
 # ε as a function of (time, the FMU's ν at that communication point).
 EpsLaw = Callable[[float, np.ndarray], np.ndarray]
+
+# The actuators' controls (MuJoCo's d.ctrl) held from a communication point, by its index.
+CtrlLaw = Callable[[int], np.ndarray]
 
 
 @dataclass
@@ -46,6 +53,7 @@ class Scenario:
     qvel0: np.ndarray
     eps_law: EpsLaw
     unforced: bool
+    ctrl_law: CtrlLaw | None = None
     tolerance: float = field(init=False)
 
     def __post_init__(self):
@@ -132,6 +140,18 @@ def make_scenario(name: str, model: mujoco.MjModel, seed: int) -> Scenario:
             lambda t, nu: -DAMPING_GAIN * nu,
             False,
         )
+    if name == "actuated":
+        if model.nu == 0:
+            raise ValueError("scenario 'actuated' needs a model with actuators (it has none)")
+        return Scenario(
+            name,
+            "random ctrl held over each communication step (inside ctrlrange where limited), ε = 0",
+            qpos0,
+            qvel0,
+            lambda t, nu: zero,
+            False,
+            ctrl_law=random_ctrl(model, seed),
+        )
     if name == "gravity":
         if not has_gravity(model):
             raise ValueError("scenario 'gravity' needs a model with gravity (it has none, or it is disabled)")
@@ -141,6 +161,28 @@ def make_scenario(name: str, model: mujoco.MjModel, seed: int) -> Scenario:
     raise ValueError(f"unknown scenario '{name}' (known: {', '.join(SCENARIO_NAMES)})")
 
 
+def random_ctrl(model: mujoco.MjModel, seed: int) -> CtrlLaw:
+    """Controls drawn afresh for each communication step k, from (seed, k)
+    alone: uniform in ctrlrange for a limited actuator, N(0, 1) otherwise."""
+    limited = model.actuator_ctrllimited.astype(bool)
+    low, high = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]
+
+    def ctrl(k: int) -> np.ndarray:
+        rng = np.random.default_rng([seed, k])
+        return np.where(limited, rng.uniform(low, high), rng.normal(0.0, 1.0, model.nu))
+
+    return ctrl
+
+
+def applies(name: str, model: mujoco.MjModel) -> bool:
+    """'gravity' needs gravity, 'actuated' actuators; the others apply to every model."""
+    if name == "gravity":
+        return has_gravity(model)
+    if name == "actuated":
+        return model.nu > 0
+    return True
+
+
 def default_scenarios(model: mujoco.MjModel) -> list[str]:
-    """Every scenario that applies: 'gravity' only when the model has gravity."""
-    return [name for name in SCENARIO_NAMES if name != "gravity" or has_gravity(model)]
+    """Every scenario that applies to the model."""
+    return [name for name in SCENARIO_NAMES if applies(name, model)]

@@ -278,6 +278,25 @@ impl Workspace {
         result
     }
 
+    /// Pass 3 with the actuators: ν̇ for the applied `eps` (nv) plus the ε of
+    /// the actuators at `ctrl` (nu, MuJoCo's `d.ctrl`), as the FMU and the
+    /// integrators apply them. A vehicle without actuators goes straight to
+    /// pass 3, so it costs what it did before actuators existed.
+    pub fn compute_nu_dot_actuated(&mut self, model: &Model, eps: &[f64], ctrl: &[f64]) -> Result<(), DynamicsError> {
+        if model.actuators.is_empty() {
+            return self.compute_nu_dot(model, eps);
+        }
+        check_input("eps", eps, model.nv)?;
+        self.compute_actuation(model, ctrl)?;
+        let mut applied = std::mem::take(&mut self.eps_applied);
+        for ((total, input), actuator) in applied.iter_mut().zip(eps).zip(self.eps_actuator.iter()) {
+            *total = input + actuator;
+        }
+        let result = self.compute_nu_dot(model, applied.as_slice());
+        self.eps_applied = applied;
+        result
+    }
+
     /// The generalized force of a unit force of actuator `k` (its moment
     /// arms, MuJoCo's `actuator_moment` row) into `moment` (nv). Needs the
     /// velocities; leaves `qfrc_actuator` holding the same.

@@ -232,7 +232,7 @@ impl Simulation {
         &mut self,
         model: &Model,
         t1: f64,
-        eps_at: &mut impl FnMut(f64, &mut [f64]),
+        inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<Stats, AdvanceError> {
         let Simulation { state, settings, integrator, ws } = self;
         let (t0, theta, nu, carry) = (state.time, &mut state.theta[..], &mut state.nu[..], &mut state.carry);
@@ -242,7 +242,7 @@ impl Simulation {
         for n in 0..steps {
             let t = t0 + n as f64 * h;
             let failed = |cause| AdvanceError::StepFailed { reached: t, step: h, cause };
-            integrator.attempt(model, ws, (theta, nu), (t, h), eps_at).map_err(failed)?;
+            integrator.attempt(model, ws, (theta, nu), (t, h), inputs_at).map_err(failed)?;
             if let Some(cause) = integrator.non_finite_result() {
                 return Err(failed(cause));
             }
@@ -257,13 +257,13 @@ impl Simulation {
         &mut self,
         model: &Model,
         t1: f64,
-        eps_at: &mut impl FnMut(f64, &mut [f64]),
+        inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<Stats, AdvanceError> {
         let t0 = self.state.time;
         let h = if self.state.carry.next_step > 0.0 {
             self.state.carry.next_step
         } else {
-            self.initial_step(model, eps_at).map_err(|cause| AdvanceError::StepFailed {
+            self.initial_step(model, inputs_at).map_err(|cause| AdvanceError::StepFailed {
                 reached: t0,
                 step: 0.0,
                 cause,
@@ -297,7 +297,7 @@ impl Simulation {
                 let max_step = settings.max_step;
                 return Err(AdvanceError::TooManySteps { reached: t, step, limit, max_step, tolerance });
             }
-            let per_step = match integrator.attempt(model, ws, (theta, nu), (t, step), eps_at) {
+            let per_step = match integrator.attempt(model, ws, (theta, nu), (t, step), inputs_at) {
                 Ok(()) => integrator.error_norm(model, theta, nu, tolerance),
                 Err(cause) => {
                     last_cause = Some(Overflow::Dynamics(cause));
@@ -354,14 +354,18 @@ impl Simulation {
     /// A starting step from the size of the solution, its rate and an Euler
     /// probe of its second derivative (Hairer's starting-step heuristic);
     /// leaves the start's rates as the first stage.
-    fn initial_step(&mut self, model: &Model, eps_at: &mut impl FnMut(f64, &mut [f64])) -> Result<f64, DynamicsError> {
+    fn initial_step(
+        &mut self,
+        model: &Model,
+        inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
+    ) -> Result<f64, DynamicsError> {
         let Simulation { state, settings, integrator, ws } = self;
         let (t0, theta, nu) = (state.time, &state.theta[..], &state.nu[..]);
         let tolerance = settings.tolerance;
-        eps_at(t0, integrator.eps_stage.as_mut_slice());
+        inputs_at(t0, integrator.eps_stage.as_mut_slice(), integrator.ctrl_stage.as_mut_slice());
         ws.set_configuration(model, theta)?;
         ws.set_nu(model, nu)?;
-        ws.compute_nu_dot(model, integrator.eps_stage.as_slice())?;
+        ws.compute_nu_dot_actuated(model, integrator.eps_stage.as_slice(), integrator.ctrl_stage.as_slice())?;
         integrator.first.qvel.copy_from(&ws.qvel);
         integrator.first.nu_dot.copy_from(&ws.nu_dot);
         integrator.first.valid = true;
@@ -380,10 +384,10 @@ impl Simulation {
         retract(model, integrator.theta_stage.as_mut_slice(), integrator.delta.as_slice());
         integrator.nu_stage.copy_from_slice(nu);
         integrator.nu_stage.axpy(h0, &integrator.first.nu_dot, 1.0);
-        eps_at(t0 + h0, integrator.eps_stage.as_mut_slice());
+        inputs_at(t0 + h0, integrator.eps_stage.as_mut_slice(), integrator.ctrl_stage.as_mut_slice());
         ws.set_configuration(model, integrator.theta_stage.as_slice())?;
         ws.set_nu(model, integrator.nu_stage.as_slice())?;
-        ws.compute_nu_dot(model, integrator.eps_stage.as_slice())?;
+        ws.compute_nu_dot_actuated(model, integrator.eps_stage.as_slice(), integrator.ctrl_stage.as_slice())?;
         let first = &integrator.first;
         let change = |dof, _| (ws.qvel[dof] - first.qvel[dof], ws.nu_dot[dof] - first.nu_dot[dof]);
         let curvature = start_norm(model, theta, nu, tolerance, change) / h0;

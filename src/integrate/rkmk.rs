@@ -90,6 +90,7 @@ pub struct Integrator {
     pub(super) nu_stage: DVector<f64>,
     pub(super) theta_stage: DVector<f64>,
     pub(super) eps_stage: DVector<f64>,
+    pub(super) ctrl_stage: DVector<f64>,
 }
 
 impl Integrator {
@@ -112,6 +113,7 @@ impl Integrator {
             nu_stage: DVector::zeros(nv),
             theta_stage: DVector::zeros(model.nq),
             eps_stage: DVector::zeros(nv),
+            ctrl_stage: DVector::zeros(model.actuators.len()),
         }
     }
 
@@ -128,7 +130,8 @@ impl Integrator {
 
     /// One step `(t, h)`, of size `h` from time `t`, without error control:
     /// advances `theta` (nq) and `nu` (nv) in place. `eps_at(t, out)` writes
-    /// the applied ε at time t. On error, `theta` and `nu` are unchanged.
+    /// the applied ε at time t; the actuators' controls stay 0. On error,
+    /// `theta` and `nu` are unchanged.
     pub fn step(
         &mut self,
         model: &Model,
@@ -138,7 +141,7 @@ impl Integrator {
         mut eps_at: impl FnMut(f64, &mut [f64]),
     ) -> Result<(), DynamicsError> {
         self.first.valid = false;
-        self.attempt(model, ws, (theta, nu), (t, h), &mut eps_at)?;
+        self.attempt(model, ws, (theta, nu), (t, h), &mut |t, eps, _ctrl| eps_at(t, eps))?;
         if let Some(cause) = self.non_finite_result() {
             return Err(cause);
         }
@@ -165,7 +168,7 @@ impl Integrator {
         ws: &mut Workspace,
         (theta, nu): (&[f64], &[f64]),
         (t, h): (f64, f64),
-        eps_at: &mut impl FnMut(f64, &mut [f64]),
+        inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<(), DynamicsError> {
         let tableau = self.method.tableau();
         let last = tableau.b.len() - 1;
@@ -186,10 +189,10 @@ impl Integrator {
             }
             self.theta_stage.copy_from_slice(theta);
             retract(model, self.theta_stage.as_mut_slice(), self.delta.as_slice());
-            eps_at(t + tableau.c[i] * h, self.eps_stage.as_mut_slice());
+            inputs_at(t + tableau.c[i] * h, self.eps_stage.as_mut_slice(), self.ctrl_stage.as_mut_slice());
             ws.set_configuration(model, self.theta_stage.as_slice())?;
             ws.set_nu(model, self.nu_stage.as_slice())?;
-            ws.compute_nu_dot(model, self.eps_stage.as_slice())?;
+            ws.compute_nu_dot_actuated(model, self.eps_stage.as_slice(), self.ctrl_stage.as_slice())?;
             self.k_nu[i].copy_from(&ws.nu_dot);
             self.k_delta[i].copy_from(&ws.qvel);
             self.stage_power[i] = ws.nu_dot.dot(&self.nu_stage);

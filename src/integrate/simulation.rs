@@ -23,29 +23,48 @@ pub struct RunState {
     pub carry: Carry,
 }
 
-/// The applied input over one advance: ε(t) = eps + eps_rate·(t − t₀), t₀
-/// the time the advance starts from (a first-order hold, as FMI's input
-/// derivatives define it).
+/// The applied input over one advance: ε(t) = eps + eps_rate·(t − t₀) and
+/// ctrl(t) = ctrl + ctrl_rate·(t − t₀), t₀ the time the advance starts from
+/// (a first-order hold, as FMI's input derivatives define it).
 #[derive(Clone, Copy, Debug)]
 pub struct Input<'a> {
     /// ε at the start of the advance (nv).
     pub eps: &'a [f64],
     /// dε/dt over the advance (nv).
     pub eps_rate: &'a [f64],
+    /// The actuators' controls at the start of the advance (nu, MuJoCo's `d.ctrl`).
+    pub ctrl: &'a [f64],
+    /// Their rates over the advance (nu).
+    pub ctrl_rate: &'a [f64],
 }
 
-/// ε as a function of time over one advance: [`Input`], the convention of
-/// the FMU and `nudyn simulate`, or any function of time (a test's smooth signal).
+/// The inputs as functions of time over one advance: [`Input`], the
+/// convention of the FMU and `nudyn simulate`, or any function of time for
+/// ε (a test's smooth signal), with the controls at 0.
 pub trait InputSignal {
     /// Writes ε(t) into `out` (nv); `start` is the time the advance started from.
     fn eps_at(&mut self, t: f64, start: f64, out: &mut [f64]);
+
+    /// Writes the actuators' controls at t into `out` (nu); 0 unless the signal has them.
+    fn ctrl_at(&mut self, _t: f64, _start: f64, out: &mut [f64]) {
+        out.fill(0.0);
+    }
+}
+
+/// A first-order hold: `value + rate·elapsed` into `out`.
+fn hold(out: &mut [f64], value: &[f64], rate: &[f64], elapsed: f64) {
+    for ((o, v), r) in out.iter_mut().zip(value).zip(rate) {
+        *o = v + r * elapsed;
+    }
 }
 
 impl InputSignal for Input<'_> {
     fn eps_at(&mut self, t: f64, start: f64, out: &mut [f64]) {
-        for ((o, e), r) in out.iter_mut().zip(self.eps).zip(self.eps_rate) {
-            *o = e + r * (t - start);
-        }
+        hold(out, self.eps, self.eps_rate, t - start);
+    }
+
+    fn ctrl_at(&mut self, t: f64, start: f64, out: &mut [f64]) {
+        hold(out, self.ctrl, self.ctrl_rate, t - start);
     }
 }
 
@@ -119,14 +138,17 @@ impl Simulation {
         mut input: impl InputSignal,
     ) -> Result<Advanced, AdvanceError> {
         let t0 = self.state.time;
-        let mut eps_at = |t: f64, out: &mut [f64]| input.eps_at(t, t0, out);
+        let mut inputs_at = |t: f64, eps: &mut [f64], ctrl: &mut [f64]| {
+            input.eps_at(t, t0, eps);
+            input.ctrl_at(t, t0, ctrl);
+        };
         // ε may have changed since the last interval.
         self.integrator.first.valid = false;
         let relaxation_before = self.state.carry.relaxation;
         let result = if self.method().is_adaptive() {
-            self.advance_adaptive(model, t_end, &mut eps_at)
+            self.advance_adaptive(model, t_end, &mut inputs_at)
         } else {
-            self.advance_fixed(model, t_end, &mut eps_at)
+            self.advance_fixed(model, t_end, &mut inputs_at)
         };
         match result {
             Ok(stats) => {

@@ -76,6 +76,7 @@ pub fn description(model: &Model, variable: RealVariable) -> String {
         RealVariable::Eps(k) => {
             format!("diagonalized force eps of dof {} of {} (sqrt(kg)*m/s^2)", k + 1, joint_entry(model, k, false).0)
         }
+        RealVariable::Ctrl(k) => control_description(model, k),
         RealVariable::Theta(k) => {
             let (joint, unit) = joint_entry(model, k, true);
             format!("qpos of {joint} ({unit})")
@@ -101,6 +102,34 @@ pub fn description(model: &Model, variable: RealVariable) -> String {
             format!("nu_dot of dof {} of {} (sqrt(kg)*m/s^2)", k + 1, joint_entry(model, k, false).0)
         }
     }
+}
+
+/// The description of `ctrl[k+1]`: the actuator, its transmission, gear
+/// and limits, as MuJoCo applies them (the unit is the actuator's own: a
+/// force for a motor, a length for a position servo).
+fn control_description(model: &Model, k: usize) -> String {
+    let actuator = &model.actuators[k];
+    let target = &actuator.target;
+    let mut text =
+        format!("control (MuJoCo's ctrl) of actuator {}: {} '{}'", actuator.label(k), target.attribute, target.name);
+    if let Some(refsite) = &target.refsite {
+        text += &format!(" relative to site '{refsite}'");
+    }
+    let gear: Vec<String> = actuator.gear.iter().map(|g| g.to_string()).collect();
+    text += &format!(", gear ({})", gear.join(", "));
+    match actuator.ctrl_range {
+        Some([low, high]) if model.actuation.clamp_ctrl => text += &format!(", clamped to ctrlrange [{low}, {high}]"),
+        _ => {}
+    }
+    if let Some([low, high]) = actuator.force_range {
+        text += &format!(", force clamped to forcerange [{low}, {high}]");
+    }
+    if !model.actuation.enabled {
+        text += "; inactive: the file disables actuation";
+    } else if !actuator.enabled {
+        text += "; inactive: the file disables its group";
+    }
+    text
 }
 
 /// What the plant's modelDescription says of the FMU as a whole.
