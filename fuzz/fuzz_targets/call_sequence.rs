@@ -1,4 +1,4 @@
-//! Random sequences of FMI 2.0 calls on three instances of the bus FMU, two
+//! Random sequences of FMI 2.0 calls on three instances of the servicer FMU (with actuators), two
 //! for co-simulation and one for model exchange, with arbitrary arguments
 //! (value references, values, times, step sizes, continuous states, FMU
 //! state handles): every call returns a status, and every Real value or
@@ -9,7 +9,7 @@ use arbitrary::Arbitrary;
 use fmi_sys::fmi2::*;
 use libfuzzer_sys::fuzz_target;
 use nudyn_fmu::fmi2::*;
-use nudyn_fuzz::{bus, check_reals, instantiate, instantiate_as};
+use nudyn_fuzz::{check_reals, instantiate, instantiate_as, servicer};
 
 #[derive(Arbitrary, Debug)]
 enum Call {
@@ -106,7 +106,7 @@ struct Scenario {
 const SLOTS: usize = 4;
 
 fuzz_target!(|scenario: Scenario| {
-    let fmu = bus();
+    let fmu = servicer();
     let instances = [
         instantiate(&fmu.uri, &fmu.guid),
         instantiate(&fmu.uri, &fmu.guid),

@@ -1,5 +1,5 @@
 //! Random sequences of FMI 3.0 calls on a co-simulation and a model
-//! exchange instance of the bus FMU, with arbitrary arguments (value
+//! exchange instance of the servicer FMU (with actuators), with arbitrary arguments (value
 //! references, value counts, values, times, states, FMU state handles):
 //! every call returns a status, and every Float64 read with fmi3OK is finite.
 #![no_main]
@@ -8,7 +8,7 @@ use arbitrary::Arbitrary;
 use fmi_sys::fmi3::*;
 use libfuzzer_sys::fuzz_target;
 use nudyn_fmu::fmi3::*;
-use nudyn_fuzz::bus;
+use nudyn_fuzz::servicer;
 
 #[derive(Arbitrary, Debug)]
 enum Call {
@@ -93,7 +93,7 @@ fn all_finite(values: &[f64]) -> bool {
 }
 
 fuzz_target!(|scenario: Scenario| {
-    let fmu = bus();
+    let fmu = servicer();
     // SAFETY: valid C strings; no logger.
     let instances = unsafe {
         let token = fmu.guid.as_ptr();

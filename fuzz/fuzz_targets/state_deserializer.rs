@@ -10,18 +10,18 @@ use std::sync::OnceLock;
 use fmi_sys::fmi2::*;
 use libfuzzer_sys::fuzz_target;
 use nudyn_fmu::fmi2::*;
-use nudyn_fuzz::{bus, check_reals, instantiate};
+use nudyn_fuzz::{check_reals, instantiate, servicer};
 
 /// FNV-1a, the blob's checksum (fmu/src/snapshot.rs).
 fn fnv1a(bytes: &[u8]) -> u64 {
     bytes.iter().fold(0xcbf2_9ce4_8422_2325, |hash, &b| (hash ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3))
 }
 
-/// A valid serialized state of the bus FMU after two steps.
+/// A valid serialized state of the servicer FMU (with actuators) after two steps.
 fn valid_blob() -> &'static [u8] {
     static BLOB: OnceLock<Vec<u8>> = OnceLock::new();
     BLOB.get_or_init(|| unsafe {
-        let c = instantiate(&bus().uri, &bus().guid);
+        let c = instantiate(&servicer().uri, &servicer().guid);
         fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0.0);
         fmi2EnterInitializationMode(c);
         fmi2ExitInitializationMode(c);
@@ -56,7 +56,7 @@ fuzz_target!(|data: &[u8]| {
         }
         blob
     };
-    let fmu = bus();
+    let fmu = servicer();
     let c = instantiate(&fmu.uri, &fmu.guid);
     // SAFETY: a live instance, freed once at the end.
     unsafe {

@@ -90,10 +90,13 @@ pub fn scratch_dir(name: &str) -> PathBuf {
     dir
 }
 
-/// The bus example's FMU, made once.
-pub fn bus() -> &'static Fmu {
-    static BUS: OnceLock<Fmu> = OnceLock::new();
-    BUS.get_or_init(|| example_fmu("bus_arm7"))
+/// The FMU the call-sequence and state targets drive, made once: the
+/// servicer example (a free bus with three wheels and a 4-dof arm, nq = 14
+/// and nv = 13 as bus_arm7, and 15 actuators), so that the `ctrl` inputs
+/// are fuzzed with the rest.
+pub fn servicer() -> &'static Fmu {
+    static SERVICER: OnceLock<Fmu> = OnceLock::new();
+    SERVICER.get_or_init(|| example_fmu("servicer"))
 }
 
 /// Instantiates `fmu` for co-simulation; NULL if refused.

@@ -169,7 +169,8 @@ def random_ctrl(model: mujoco.MjModel, seed: int) -> CtrlLaw:
 
     def ctrl(k: int) -> np.ndarray:
         rng = np.random.default_rng([seed, k])
-        return np.where(limited, rng.uniform(low, high), rng.normal(0.0, 1.0, model.nu))
+        unit, normal = rng.uniform(0.0, 1.0, model.nu), rng.normal(0.0, 1.0, model.nu)
+        return np.where(limited, low + unit * (high - low), normal)
 
     return ctrl
 

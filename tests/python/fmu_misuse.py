@@ -567,18 +567,35 @@ def cancel_step_and_status_queries(h: Harness):
 
 # --- values out of range -----------------------------------------------------------
 
-@case("NaN, ±Inf in ε and parameters")
+@case("NaN, ±Inf in ε, ctrl and parameters")
 def non_finite_inputs_are_discarded(h: Harness):
     c = h.initialized()
     before = h.get_real(c)
     for value in (math.nan, math.inf, -math.inf):
         h.set_real(DISCARD, c, {"eps[1]": value}, says=("eps[1]", "is not finite"))
         h.set_real(DISCARD, c, {"eps[2]": 0.5, "eps[3]": value}, says=("eps[3]",))
+        h.set_real(DISCARD, c, {"ctrl[1]": value}, says=("ctrl[1]", "is not finite"))
+        h.set_real(DISCARD, c, {"ctrl[9]": 0.1, "ctrl[15]": value}, says=("ctrl[15]",))
     assert h.get_real(c) == before, "a discarded value is not taken, not even partly"
     h.step(c, 0.0)
 
 
-@case("NaN, ±Inf in ε and parameters")
+@case("NaN, ±Inf in ε, ctrl and parameters")
+def out_of_range_ctrl_is_clamped(h: Harness):
+    """A control beyond its ctrlrange, however large, is taken and clamped
+    as MuJoCo clamps d.ctrl: the step is the one at the range's end."""
+    clamped = h.initialized()
+    h.set_real(OK, clamped, {"ctrl[1]": 1e300, "ctrl[9]": -1e300, "ctrl[14]": 1e300})
+    h.step(clamped, 0.0)
+    at_limits = h.initialized()
+    h.set_real(OK, at_limits, {"ctrl[1]": 22.0, "ctrl[9]": -0.2, "ctrl[14]": 0.2})
+    h.step(at_limits, 0.0)
+    states = h.fmu.names("theta") + h.fmu.names("nu")
+    assert h.get_real(clamped, states) == h.get_real(at_limits, states)
+    assert all(math.isfinite(x) for x in h.get_real(clamped))
+
+
+@case("NaN, ±Inf in ε, ctrl and parameters")
 def parameters_out_of_range_are_discarded(h: Harness):
     c = h.instantiate()
     for name, value, says in [("max_step", 0.0, "must be positive"), ("max_step", -1e-3, "must be positive"),
@@ -592,7 +609,7 @@ def parameters_out_of_range_are_discarded(h: Harness):
     h.step(c, 0.0)
 
 
-@case("NaN, ±Inf in ε and parameters")
+@case("NaN, ±Inf in ε, ctrl and parameters")
 def setup_experiment_out_of_range(h: Harness):
     c = h.instantiate()
     for args, says in [((0, 0.0, math.nan, 0, 0.0), "startTime = NaN"),
@@ -628,7 +645,8 @@ def huge_initial_state(h: Harness):
     c = h.instantiate()
     h.expect(OK, "fmi2SetupExperiment", c, 0, 0.0, 0.0, 0, 0.0)
     h.expect(OK, "fmi2EnterInitializationMode", c)
-    h.set_real(OK, c, {"nu[7]": 1e300, "nu[8]": -1e300})
+    # The shoulder's two dofs (the servicer's 7 to 9 are its wheels).
+    h.set_real(OK, c, {"nu[10]": 1e300, "nu[11]": -1e300})
     h.expect(OK, "fmi2ExitInitializationMode", c)
     saved = h.get_state(c)
     energy = (C.c_double * 1)(-1.0)
@@ -637,8 +655,8 @@ def huge_initial_state(h: Harness):
     assert energy[0] == -1.0, "nothing is written into the buffer"
     h.expect(OK, "fmi2SetFMUstate", c, saved)
     rate = (C.c_double * 1)(-1.0)
-    h.expect(ERROR, "fmi2GetRealOutputDerivatives", c, (C.c_uint * 1)(h.fmu.vr["nu[7]"]), 1, (C.c_int * 1)(1), rate,
-             says=("der(nu[7])", "not finite"))
+    h.expect(ERROR, "fmi2GetRealOutputDerivatives", c, (C.c_uint * 1)(h.fmu.vr["nu[10]"]), 1, (C.c_int * 1)(1), rate,
+             says=("der(nu[10])", "not finite"))
     assert rate[0] == -1.0
     h.expect(OK, "fmi2SetFMUstate", c, saved)
     h.get_real(c, h.fmu.names("theta") + h.fmu.names("nu"))
@@ -918,7 +936,7 @@ def with_checksum(blob: bytes) -> bytes:
 
 
 def header_length(h: Harness) -> int:
-    return 8 + 4 + 4 + len(h.fmu.guid) + 4 + 4
+    return 8 + 4 + 4 + len(h.fmu.guid) + 4 + 4 + 4  # magic, version, GUID, nq, nv, nu
 
 
 state_fault_case("truncated_at_every_length", lambda h, good: [good[:n] for n in range(len(good))], "truncated")

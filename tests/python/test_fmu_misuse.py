@@ -24,9 +24,10 @@ RESULTS: dict[str, dict] = {}
 
 @pytest.fixture(scope="session")
 def unzipped(cli, tmp_path_factory):
-    """bus_arm7 with every optional output, and fixed_rig (the "other" FMU), unzipped."""
+    """servicer (bus_arm7's sizes, with actuators) with every optional output, and fixed_rig
+    (the "other" FMU), unzipped."""
     directory = tmp_path_factory.mktemp("misuse")
-    bus = cli.export(ROOT / "examples/bus_arm7.xml", directory / "bus.fmu",
+    bus = cli.export(ROOT / "examples/servicer.xml", directory / "bus.fmu",
                      outputs=("qvel", "kinetic_energy", "power", "momentum"))
     rig = cli.export(ROOT / "examples/fixed_rig.xml", directory / "rig.fmu")
     return FmuPackage.unzip(bus, directory / "bus"), FmuPackage.unzip(rig, directory / "rig")

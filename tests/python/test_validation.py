@@ -37,7 +37,7 @@ def validated(nudyn, tmp_path_factory):
 
 
 def test_every_kind_of_scenario_is_run():
-    assert {name for _, name in CASES} == {"tumble", "sine", "damping", "gravity"}
+    assert {name for _, name in CASES} == {"tumble", "sine", "damping", "gravity", "actuated"}
     assert ("fixed_rig", "gravity") in {(p.stem, n) for p, n in CASES}
 
 
