@@ -34,6 +34,8 @@ fn hinge_chain(links: usize) -> Vehicle {
         pos: Vec3::zeros(),
         quat: Quat::identity(),
         inertia: mass(100.0),
+        inertial_pos: Vec3::zeros(),
+        inertial_quat: Some(Quat::identity()),
         joints: vec![joint("base".into(), JointKind::Free, Vec3::z())],
         line: 0,
     }];
@@ -45,12 +47,14 @@ fn hinge_chain(links: usize) -> Vehicle {
             pos: Vec3::new(0.0, 0.0, 0.2),
             quat: Quat::identity(),
             inertia: mass(1.0),
+            inertial_pos: Vec3::zeros(),
+            inertial_quat: Some(Quat::identity()),
             joints: vec![joint(format!("hinge{k}"), JointKind::Hinge, axis)],
             line: 0,
         });
     }
-    let (sites, actuators, actuation) = (Vec::new(), Vec::new(), Actuation::default());
-    Vehicle { name: format!("chain{links}"), gravity: Vec3::zeros(), bodies, sites, actuators, actuation }
+    let (sites, actuators, sensors, actuation) = (Vec::new(), Vec::new(), Vec::new(), Actuation::default());
+    Vehicle { name: format!("chain{links}"), gravity: Vec3::zeros(), bodies, sites, actuators, sensors, actuation }
 }
 
 /// A deterministic, non-trivial state: every coordinate and velocity nonzero.

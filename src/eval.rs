@@ -22,8 +22,10 @@ pub struct EvalRequest {
     /// Physical joint torques and forces (nv, MuJoCo's qfrc_applied); default 0.
     pub torque: Option<Vec<f64>>,
     /// The actuators' controls (nu, MuJoCo's ctrl); without it the actuators
-    /// apply no force.
+    /// apply no force (and the sensors read them at ctrl = 0, MuJoCo's default).
     pub ctrl: Option<Vec<f64>>,
+    /// The time the `clock` sensors read (s); default 0.
+    pub time: Option<f64>,
 }
 
 /// The dynamics at one state.
@@ -39,6 +41,8 @@ pub struct EvalResponse {
     pub nu_dot: Vec<f64>,
     /// C(θ,ν): the velocity-product terms.
     pub coriolis: Vec<f64>,
+    /// θ̈ (MuJoCo's qacc).
+    pub qacc: Vec<f64>,
     /// Total applied ε: the request's `eps` plus ℓ·torque.
     pub eps: Vec<f64>,
     /// ε of springs, dampers and gravity.
@@ -52,6 +56,9 @@ pub struct EvalResponse {
     /// What the actuators do, when the request gives `ctrl`.
     #[serde(flatten)]
     pub actuators: Option<ActuatorResponse>,
+    /// MuJoCo's sensordata, when the model has sensors.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sensordata: Option<Vec<f64>>,
 }
 
 /// The actuators at the request's ctrl (MuJoCo's names).
@@ -114,18 +121,27 @@ pub fn evaluate(model: &Model, ws: &mut Workspace, request: &EvalRequest) -> Res
         None => eps.clone(),
     };
     ws.compute_nu_dot(model, &applied)?;
+    ws.compute_accelerations(model)?;
     let momentum = ws.momentum(model)?;
-    Ok(EvalResponse {
+    let mut response = EvalResponse {
         theta: ws.theta.as_slice().to_vec(),
         qvel: ws.qvel.as_slice().to_vec(),
         nu: ws.nu.as_slice().to_vec(),
         nu_dot: ws.nu_dot.as_slice().to_vec(),
         coriolis: ws.coriolis.as_slice().to_vec(),
+        qacc: ws.qacc.as_slice().to_vec(),
         power: ws.power(&eps),
-        eps,
         eps_passive: ws.eps_passive.as_slice().to_vec(),
         kinetic_energy: ws.kinetic_energy(),
         momentum: std::array::from_fn(|k| momentum[k]),
         actuators,
-    })
+        sensordata: None,
+        eps,
+    };
+    if !model.sensors.is_empty() {
+        let ctrl = request.ctrl.clone().unwrap_or_else(|| vec![0.0; model.actuators.len()]);
+        ws.compute_sensors(model, &response.eps, &ctrl, request.time.unwrap_or(0.0))?;
+        response.sensordata = Some(ws.sensordata.as_slice().to_vec());
+    }
+    Ok(response)
 }

@@ -24,6 +24,8 @@ pub struct Vehicle {
     pub sites: Vec<Site>,
     /// Actuators in MJCF document order (MuJoCo's actuator order, that of `ctrl`).
     pub actuators: Vec<Actuator>,
+    /// Sensors in MJCF document order (MuJoCo's sensor order, that of `sensordata`).
+    pub sensors: Vec<Sensor>,
     /// `<option>` settings for all actuators.
     pub actuation: Actuation,
 }
@@ -41,6 +43,13 @@ pub struct Body {
     pub quat: Quat,
     /// Mass properties in the body frame; `None` for a massless body.
     pub inertia: Option<MassProperties>,
+    /// The origin of the body's inertial frame in the body frame (MuJoCo's
+    /// `body_ipos`), which sensors of objtype "body" measure.
+    pub inertial_pos: Vec3,
+    /// The inertial frame's orientation (MuJoCo's `body_iquat`); `None` when
+    /// MuJoCo takes its axes from an eigen-decomposition (a full inertia
+    /// tensor, several geoms), whose order and signs nudyn does not reproduce.
+    pub inertial_quat: Option<Quat>,
     /// The body's joints, in document order (MuJoCo applies them in this order).
     pub joints: Vec<Joint>,
     /// Line of the `<body>` element in the MJCF file (1-based).
@@ -255,6 +264,192 @@ pub struct Actuator {
     /// (its force is then 0, clamped to `forcerange`).
     pub group_disabled: bool,
     /// Line of the actuator element in the MJCF file (1-based).
+    pub line: u32,
+}
+
+/// The sensor types nudyn models (MuJoCo's `mjtSensor`, by MJCF element).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SensorKind {
+    /// A hinge or slide joint's position.
+    JointPos,
+    /// A hinge or slide joint's velocity.
+    JointVel,
+    /// A ball joint's unit quaternion.
+    BallQuat,
+    /// A ball joint's angular velocity (its three dofs).
+    BallAngVel,
+    /// An object's position (in the world, or in the reference frame).
+    FramePos,
+    /// An object's orientation quaternion.
+    FrameQuat,
+    /// An object's x axis.
+    FrameXAxis,
+    /// An object's y axis.
+    FrameYAxis,
+    /// An object's z axis.
+    FrameZAxis,
+    /// An object's linear velocity.
+    FrameLinVel,
+    /// An object's angular velocity.
+    FrameAngVel,
+    /// An object's linear acceleration, gravity included as an accelerometer feels it.
+    FrameLinAcc,
+    /// An object's angular acceleration.
+    FrameAngAcc,
+    /// A subtree's centre of mass.
+    SubtreeCom,
+    /// The velocity of a subtree's centre of mass.
+    SubtreeLinVel,
+    /// A subtree's angular momentum about its centre of mass.
+    SubtreeAngMom,
+    /// A site's angular velocity in the site frame.
+    Gyro,
+    /// A site's linear velocity in the site frame.
+    Velocimeter,
+    /// A site's linear acceleration in the site frame, gravity included.
+    Accelerometer,
+    /// An actuator's force.
+    ActuatorFrc,
+    /// The actuators' total force on a hinge or slide joint.
+    JointActuatorFrc,
+    /// An actuator's length.
+    ActuatorPos,
+    /// An actuator's velocity.
+    ActuatorVel,
+    /// The simulation time.
+    Clock,
+}
+
+impl SensorKind {
+    /// Every kind, in MuJoCo's `mjtSensor` order.
+    pub const ALL: [SensorKind; 24] = {
+        use SensorKind::*;
+        [
+            Accelerometer,
+            Velocimeter,
+            Gyro,
+            JointPos,
+            JointVel,
+            ActuatorPos,
+            ActuatorVel,
+            ActuatorFrc,
+            JointActuatorFrc,
+            BallQuat,
+            BallAngVel,
+            FramePos,
+            FrameQuat,
+            FrameXAxis,
+            FrameYAxis,
+            FrameZAxis,
+            FrameLinVel,
+            FrameAngVel,
+            FrameLinAcc,
+            FrameAngAcc,
+            SubtreeCom,
+            SubtreeLinVel,
+            SubtreeAngMom,
+            Clock,
+        ]
+    };
+
+    /// The MJCF element name, also its JSON name.
+    pub fn name(self) -> &'static str {
+        use SensorKind::*;
+        match self {
+            JointPos => "jointpos",
+            JointVel => "jointvel",
+            BallQuat => "ballquat",
+            BallAngVel => "ballangvel",
+            FramePos => "framepos",
+            FrameQuat => "framequat",
+            FrameXAxis => "framexaxis",
+            FrameYAxis => "frameyaxis",
+            FrameZAxis => "framezaxis",
+            FrameLinVel => "framelinvel",
+            FrameAngVel => "frameangvel",
+            FrameLinAcc => "framelinacc",
+            FrameAngAcc => "frameangacc",
+            SubtreeCom => "subtreecom",
+            SubtreeLinVel => "subtreelinvel",
+            SubtreeAngMom => "subtreeangmom",
+            Gyro => "gyro",
+            Velocimeter => "velocimeter",
+            Accelerometer => "accelerometer",
+            ActuatorFrc => "actuatorfrc",
+            JointActuatorFrc => "jointactuatorfrc",
+            ActuatorPos => "actuatorpos",
+            ActuatorVel => "actuatorvel",
+            Clock => "clock",
+        }
+    }
+
+    /// The kind an MJCF element stands for.
+    pub fn from_name(tag: &str) -> Option<SensorKind> {
+        SensorKind::ALL.into_iter().find(|kind| kind.name() == tag)
+    }
+
+    /// Number of sensordata entries.
+    pub fn dim(self) -> usize {
+        use SensorKind::*;
+        match self {
+            JointPos | JointVel | ActuatorFrc | JointActuatorFrc | ActuatorPos | ActuatorVel | Clock => 1,
+            BallQuat | FrameQuat => 4,
+            _ => 3,
+        }
+    }
+
+    /// Whether the values are unit vectors or quaternions (MuJoCo's axis and
+    /// quaternion data types), to which MuJoCo applies no cutoff.
+    pub fn is_direction(self) -> bool {
+        use SensorKind::*;
+        matches!(self, BallQuat | FrameQuat | FrameXAxis | FrameYAxis | FrameZAxis)
+    }
+}
+
+/// Which frame of an object a frame sensor measures (MuJoCo's `objtype`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FrameObject {
+    /// A body's inertial frame (objtype "body"); `None`: the world body.
+    Body(Option<usize>),
+    /// A body's own frame (objtype "xbody"); `None`: the world body.
+    XBody(Option<usize>),
+    /// A site (objtype "site").
+    Site(usize),
+}
+
+/// What a sensor measures.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SensorTarget {
+    /// A joint, by name.
+    Joint(String),
+    /// An actuator, by index in [`Vehicle::actuators`].
+    Actuator(usize),
+    /// A frame, with the frame it is measured in (`reftype`/`refname`), if any.
+    Frame {
+        /// The frame measured.
+        object: FrameObject,
+        /// The reference frame.
+        reference: Option<FrameObject>,
+    },
+    /// The subtree of a body (`None`: the world body, the whole vehicle).
+    Subtree(Option<usize>),
+    /// Nothing (the clock).
+    None,
+}
+
+/// One sensor.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sensor {
+    /// The sensor's name, if it has one.
+    pub name: Option<String>,
+    /// Its type.
+    pub kind: SensorKind,
+    /// What it measures.
+    pub target: SensorTarget,
+    /// MuJoCo's `cutoff`: when positive, each value is clamped to ±cutoff.
+    pub cutoff: f64,
+    /// Line of the sensor element in the MJCF file (1-based).
     pub line: u32,
 }
 

@@ -5,7 +5,7 @@
 
 use nalgebra::{DVector, SMatrix};
 
-use crate::math::{Mat3, SpatialMat, SpatialVec, Transform};
+use crate::math::{Mat3, Quat, SpatialMat, SpatialVec, Transform};
 use crate::model::Model;
 
 /// 6×3 storage for per-link 6×ndof quantities (first `ndof` columns used).
@@ -95,6 +95,13 @@ pub struct Workspace {
     pub coriolis: DVector<f64>,
     /// ν̇ = ε − C + eps_passive — pass 3.
     pub nu_dot: DVector<f64>,
+    /// ν̇'s terms from the factor's rates, Ṙᵀw + RᵀĠᵀV⁺ — pass 3.
+    pub factor_rates: DVector<f64>,
+    /// θ̈ in dof space (MuJoCo's qacc) — compute_accelerations.
+    pub qacc: DVector<f64>,
+    /// A: link spatial acceleration in link coordinates, the world at rest
+    /// (gravity not included) — compute_accelerations.
+    pub a_body: Vec<SpatialVec>,
 
     /// Whether some actuator applies wrenches to links (fixed by the model).
     pub actuators_apply_wrenches: bool,
@@ -112,6 +119,12 @@ pub struct Workspace {
     pub eps_actuator: DVector<f64>,
     /// The ε pass 3 applied: the input's plus the actuators' (nv) — compute_nu_dot_actuated.
     pub eps_applied: DVector<f64>,
+
+    /// MuJoCo's sensordata — compute_sensors.
+    pub sensordata: DVector<f64>,
+    /// Each link's orientation in the world as MuJoCo composes `xquat`,
+    /// when a framequat sensor needs it — compute_sensors.
+    pub link_quats: Vec<Quat>,
 }
 
 impl Workspace {
@@ -154,6 +167,9 @@ impl Workspace {
             eps_passive: dof(),
             coriolis: dof(),
             nu_dot: dof(),
+            factor_rates: dof(),
+            qacc: dof(),
+            a_body: vec![SpatialVec::zeros(); n],
             actuators_apply_wrenches,
             actuator_length: DVector::zeros(nu),
             actuator_velocity: DVector::zeros(nu),
@@ -162,6 +178,8 @@ impl Workspace {
             qfrc_actuator: dof(),
             eps_actuator: dof(),
             eps_applied: dof(),
+            sensordata: DVector::zeros(model.sensors.iter().map(|s| s.dim()).sum()),
+            link_quats: vec![Quat::identity(); model.link_tree_quats.len()],
         }
     }
 }

@@ -273,6 +273,8 @@ fn a_welded_end_effector_is_carried_by_its_link() {
         pos: rng.vec3(0.4),
         quat: rng.unit_quat(),
         inertia: Some(common::random_mass(&mut rng)),
+        inertial_pos: Default::default(),
+        inertial_quat: None,
         joints: Vec::new(),
         line: 0,
     });

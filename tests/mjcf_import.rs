@@ -431,7 +431,6 @@ fn ignored_elements_warn_once_each() {
         ignored(24, "camera name=\"eye\""),
         "line 27: <contact>: ignored: nudyn models no contacts".to_string(),
         ignored(30, "equality"),
-        ignored(34, "sensor"),
         ignored(37, "keyframe"),
         ignored(40, "custom"),
         ignored(43, "extension"),
@@ -439,9 +438,10 @@ fn ignored_elements_warn_once_each() {
     assert_eq!(shown, expected);
     let camera = &warnings[7];
     assert_eq!((camera.line, camera.element.as_str()), (19, "camera name=\"overview\""));
-    // Sites and actuators are read, not ignored.
+    // Sites, actuators and sensors are read, not ignored.
     assert_eq!(vehicle.sites.len(), 1);
     assert_eq!(vehicle.actuators.len(), 1);
+    assert_eq!(vehicle.sensors.len(), 1);
 }
 
 #[test]

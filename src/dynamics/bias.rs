@@ -83,7 +83,10 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
     let d_dot = s.transpose() * ia_dot_s;
     let gain_t_dot = d_inv * (ia_dot_s.transpose() - d_dot * gain.transpose());
     let r_dot = r * upper_half(&(r_inv * d_dot * r_inv.transpose()));
-    let minus_c = r_inv * u + r_dot.transpose() * w + r.transpose() * (gain_t_dot * v_plus);
+    // ν̇'s terms from the factor's rates, Ṙᵀw + RᵀĠᵀV⁺: the outward
+    // acceleration pass takes them out of ν̇ again (acceleration.rs).
+    let factor_rate = r_dot.transpose() * w + r.transpose() * (gain_t_dot * v_plus);
+    let minus_c = r_inv * u + factor_rate;
 
     // Springs, dampers and gravity.
     let p_force = if !forces {
@@ -107,6 +110,7 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
 
     for k in 0..N {
         ws.coriolis[adr + k] = -minus_c[k];
+        ws.factor_rates[adr + k] = factor_rate[k];
         ws.eps_passive[adr + k] = eps_passive[k];
         ws.nu_dot[adr + k] = eps[adr + k] + eps_passive[k] + minus_c[k];
     }

@@ -10,14 +10,18 @@
 //!
 //! [`forces`] maps physical joint torques and body wrenches to ε and back;
 //! [`actuation`] computes the actuators' forces and their ε;
+//! [`acceleration`] gives θ̈ and the links' accelerations after pass 3;
+//! [`sensors`] evaluates MuJoCo's sensors;
 //! [`quantities`] gives kinetic energy, power and momentum.
 
+pub mod acceleration;
 pub mod actuation;
 pub mod articulated;
 pub mod bias;
 pub mod forces;
 pub mod kinematics;
 pub mod quantities;
+pub mod sensors;
 pub mod velocity;
 
 use nalgebra::SMatrix;

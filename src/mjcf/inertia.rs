@@ -87,6 +87,10 @@ pub(crate) struct BodyInertia {
     pub axes: Mat3,
     /// Inertia tensor about the centre of mass, in body axes.
     pub tensor: Mat3,
+    /// The orientation of the principal axes as the file gives it (MuJoCo's
+    /// `body_iquat`); `None` when the axes come from an eigen-decomposition,
+    /// whose order and signs are nalgebra's, not MuJoCo's.
+    pub quat: Option<Quat>,
 }
 
 impl BodyInertia {
@@ -94,7 +98,7 @@ impl BodyInertia {
     pub fn from_principal(mass: f64, com: Vec3, quat: &Quat, principal: Vec3) -> Self {
         let axes = quat.to_rotation_matrix().into_inner();
         let tensor = axes * Mat3::from_diagonal(&principal) * axes.transpose();
-        Self { mass, com, principal, axes, tensor }
+        Self { mass, com, principal, axes, tensor, quat: Some(*quat) }
     }
 
     /// From a full tensor; MuJoCo requires its eigenvalues to be at least mjEPS.
@@ -103,7 +107,7 @@ impl BodyInertia {
         if eigen.eigenvalues.min() < EPS {
             return Err("inertia must have positive eigenvalues");
         }
-        Ok(Self { mass, com, principal: eigen.eigenvalues, axes: eigen.eigenvectors, tensor })
+        Ok(Self { mass, com, principal: eigen.eigenvalues, axes: eigen.eigenvectors, tensor, quat: None })
     }
 
     /// Sums geoms (each of mass above mjEPS): total mass, their common centre

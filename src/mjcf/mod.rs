@@ -16,6 +16,7 @@ mod error;
 mod inertia;
 mod orientation;
 mod reader;
+mod sensor;
 
 use std::fmt;
 use std::path::Path;

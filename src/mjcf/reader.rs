@@ -13,11 +13,12 @@ use super::element::{Element, LineStarts};
 use super::error::MjcfError;
 use super::inertia::{self, BodyInertia, EPS, GeomMass};
 use super::orientation::{AngleConvention, ORIENTATION_ATTRIBUTES, Orientation, normalized, z_to_quaternion};
+use super::sensor::{self, SensorTargets};
 use super::{Imported, MjcfWarning};
 use crate::math::{Mat3, Quat, Vec3};
 use crate::vehicle::{
-    Actuation, Actuator, ActuatorKind, BiasType, Body, GainType, Joint, JointKind, MassProperties, Site, Transmission,
-    Vehicle,
+    Actuation, Actuator, ActuatorKind, BiasType, Body, GainType, Joint, JointKind, MassProperties, Sensor, SensorKind,
+    Site, Transmission, Vehicle,
 };
 
 /// MuJoCo's `mjMINVAL`: the least mass and principal moment of a moving body.
@@ -66,7 +67,7 @@ const FLAG_ATTRIBUTES: &[&str] = &[
 /// Top-level sections without effect on the dynamics.
 #[rustfmt::skip]
 const IGNORED_SECTIONS: &[&str] =
-    &["size", "statistic", "visual", "asset", "contact", "sensor", "keyframe", "custom", "extension"];
+    &["size", "statistic", "visual", "asset", "contact", "keyframe", "custom", "extension"];
 
 /// MuJoCo's actuator groups that `actuatorgroupdisable` can disable: 0 to 30.
 const ACTUATOR_GROUPS: std::ops::RangeInclusive<i32> = 0..=30;
@@ -167,6 +168,8 @@ struct Reader {
     site_names: HashMap<String, u32>,
     actuators: Vec<Actuator>,
     actuator_names: HashMap<String, u32>,
+    sensors: Vec<Sensor>,
+    sensor_names: HashMap<String, u32>,
 }
 
 /// Reads an MJCF document.
@@ -196,6 +199,7 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
 
     let mut has_worldbody = false;
     let mut actuator_sections = Vec::new();
+    let mut sensor_sections = Vec::new();
     for section in root.children() {
         match section.tag() {
             "compiler" | "option" | "default" => {}
@@ -205,6 +209,7 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
             }
             // Read once every joint and site is known, wherever the section stands.
             "actuator" => actuator_sections.push(section),
+            "sensor" => sensor_sections.push(section),
             tag if IGNORED_SECTIONS.contains(&tag) => reader.warnings.push(section.ignored()),
             "tendon" | "equality" => match section.children().next() {
                 Some(first) if section.tag() == "tendon" => {
@@ -223,6 +228,10 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
     }
     for section in &actuator_sections {
         reader.read_actuators(section)?;
+    }
+    // After the actuators, which sensors may name.
+    for section in &sensor_sections {
+        reader.read_sensors(section)?;
     }
 
     let name = root.text("model").unwrap_or("vehicle").to_string();
@@ -263,6 +272,8 @@ impl Reader {
             site_names: HashMap::new(),
             actuators: Vec::new(),
             actuator_names: HashMap::new(),
+            sensors: Vec::new(),
+            sensor_names: HashMap::new(),
         }
     }
 
@@ -524,7 +535,17 @@ impl Reader {
         };
         let inertia = self.bound(element, inertia)?;
 
-        self.bodies.push(Body { name, parent, pos, quat, inertia: None, joints, line: element.line });
+        self.bodies.push(Body {
+            name,
+            parent,
+            pos,
+            quat,
+            inertia: None,
+            inertial_pos: Vec3::zeros(),
+            inertial_quat: None,
+            joints,
+            line: element.line,
+        });
         self.records.push(BodyRecord {
             line: element.line,
             label: element.label(),
@@ -856,6 +877,24 @@ impl Reader {
     }
 
     /// Reads an `<actuator>` section.
+    fn read_sensors(&mut self, section: &Element) -> Result<(), MjcfError> {
+        section.check_attributes(&[])?;
+        for child in section.children() {
+            let Some(kind) = SensorKind::from_name(child.tag()) else {
+                return Err(match sensor::refusal(child.tag()) {
+                    Some(reason) => child.unsupported(reason),
+                    None => child.unknown(),
+                });
+            };
+            let read = sensor::read(&child, kind, self)?;
+            if let Some(name) = &read.name {
+                claim_name(&mut self.sensor_names, "sensor", name, &child)?;
+            }
+            self.sensors.push(read);
+        }
+        Ok(())
+    }
+
     fn read_actuators(&mut self, section: &Element) -> Result<(), MjcfError> {
         section.check_attributes(&[])?;
         for child in section.children() {
@@ -996,9 +1035,9 @@ impl Reader {
             }
             return Ok(Transmission::Joint { joint: name.to_string(), in_parent: target == "jointinparent" });
         }
-        let site = self.site_named(element, "site")?;
+        let site = self.site_named(element, "site", "actuator")?;
         let refsite = match element.has("refsite") {
-            true => Some(self.site_named(element, "refsite")?),
+            true => Some(self.site_named(element, "refsite", "actuator")?),
             false => None,
         };
         Ok(Transmission::Site { site, refsite })
@@ -1006,10 +1045,10 @@ impl Reader {
 
     /// The index of the site the attribute names; a site fitted to a mesh is
     /// refused (the mesh would move its frame).
-    fn site_named(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError> {
+    fn site_named(&self, element: &Element, attribute: &str, user: &str) -> Result<usize, MjcfError> {
         let name = element.text(attribute).unwrap_or_default();
         let Some(index) = self.sites.iter().position(|s| s.name.as_deref() == Some(name)) else {
-            return Err(element.invalid(format!("unknown {attribute} '{name}' for actuator")));
+            return Err(element.invalid(format!("unknown {attribute} '{name}' for {user}")));
         };
         if self.site_fitted_to_mesh[index] {
             return Err(element.unsupported(format!(
@@ -1066,6 +1105,8 @@ impl Reader {
             let massless = inertia.mass == 0.0 && inertia.tensor == Mat3::zeros();
             body.inertia =
                 (!massless).then_some(MassProperties { mass: inertia.mass, com: inertia.com, inertia: inertia.tensor });
+            body.inertial_pos = inertia.com;
+            body.inertial_quat = inertia.quat;
         }
         self.warnings.sort_by_key(|w| w.line);
         let gravity = if self.physics.gravity_disabled { Vec3::zeros() } else { self.physics.gravity };
@@ -1075,6 +1116,7 @@ impl Reader {
             bodies: self.bodies,
             sites: self.sites,
             actuators: self.actuators,
+            sensors: self.sensors,
             actuation: self.physics.actuation,
         };
         Ok(Imported { vehicle, warnings: self.warnings })
@@ -1109,6 +1151,39 @@ fn check_size(element: &Element, kind: GeomKind, size: &[f64; 3]) -> Result<(), 
     match used.into_iter().find(|&i| size[i] <= 0.0) {
         Some(i) => Err(element.invalid(format!("size[{i}] of a {name} geom must be positive, found {}", size[i]))),
         None => Ok(()),
+    }
+}
+
+impl SensorTargets for Reader {
+    fn joint_kind(&self, element: &Element, attribute: &str) -> Result<JointKind, MjcfError> {
+        let name = element.text(attribute).unwrap_or_default();
+        match self.joint_targets.get(name) {
+            Some(joint) => Ok(joint.kind),
+            None => Err(element.invalid(format!("unknown joint '{name}' in sensor"))),
+        }
+    }
+
+    fn body(&self, element: &Element, attribute: &str) -> Result<Option<usize>, MjcfError> {
+        let name = element.text(attribute).unwrap_or_default();
+        if name == "world" {
+            return Ok(None);
+        }
+        match self.body_names.contains_key(name) {
+            true => Ok(self.bodies.iter().position(|b| b.name == name)),
+            false => Err(element.invalid(format!("unknown body '{name}' in sensor"))),
+        }
+    }
+
+    fn site(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError> {
+        self.site_named(element, attribute, "sensor")
+    }
+
+    fn actuator(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError> {
+        let name = element.text(attribute).unwrap_or_default();
+        match self.actuators.iter().position(|a| a.name.as_deref() == Some(name)) {
+            Some(index) => Ok(index),
+            None => Err(element.invalid(format!("unknown actuator '{name}' in sensor"))),
+        }
     }
 }
 

@@ -23,12 +23,14 @@ use std::collections::HashMap;
 use nalgebra::SMatrix;
 use serde::{Deserialize, Serialize};
 
-use crate::math::{Mat3, SpatialMat, SpatialVec, Transform, Vec3, angular, linear, rigid_inertia, skew, spatial};
-use crate::vehicle::{Actuation, JointKind, Transmission, Vehicle};
+use crate::math::{Mat3, Quat, SpatialMat, SpatialVec, Transform, Vec3, angular, linear, rigid_inertia, skew, spatial};
+use crate::vehicle::{Actuation, JointKind, SensorKind, Transmission, Vehicle};
 
 mod actuator;
+mod sensor;
 mod validate;
 pub use actuator::{Actuator, ActuatorTarget, ActuatorTransmission, DofForceLimit, SiteFrame};
+pub use sensor::{BodyMass, Sensor, SensorSource};
 pub use validate::InvalidModel;
 
 /// Motion subspace storage: up to three columns, the first `ndof` used.
@@ -223,6 +225,17 @@ pub struct Model {
     /// Whether actuators act at all, and whether ctrl is clamped.
     #[serde(default)]
     pub actuation: Actuation,
+    /// Sensors in MuJoCo's order (that of sensordata).
+    #[serde(default)]
+    pub sensors: Vec<Sensor>,
+    /// The bodies' masses on their links, in body order, when a subtree
+    /// sensor needs them (else empty).
+    #[serde(default)]
+    pub body_masses: Vec<BodyMass>,
+    /// Each link's `x_tree` rotation as a quaternion composed as MuJoCo
+    /// composes `xquat`, when a framequat sensor needs it (else empty).
+    #[serde(default)]
+    pub link_tree_quats: Vec<Quat>,
 }
 
 /// Why a vehicle cannot be compiled.
@@ -262,6 +275,16 @@ pub enum ModelError {
         /// What is wrong.
         reason: String,
     },
+    /// A sensor that cannot be compiled.
+    #[error("{sensor} (line {line}): {reason}")]
+    Sensor {
+        /// The sensor: its element and name, or its index.
+        sensor: String,
+        /// MJCF line.
+        line: u32,
+        /// What is wrong.
+        reason: String,
+    },
     /// A parameter that must be finite and non-negative is not.
     #[error("joint '{joint}': {what} must be finite and non-negative, found {value}")]
     BadParameter {
@@ -276,11 +299,21 @@ pub enum ModelError {
 
 /// What a body frame is rigidly attached to during compilation.
 #[derive(Clone, Copy)]
-struct Attachment {
+pub(super) struct Attachment {
     /// The link carrying the body, or `None` for the world.
-    link: Option<usize>,
+    pub link: Option<usize>,
     /// ᵇᵒᵈʸX_ₗᵢₙₖ: the body frame relative to that link frame.
-    offset: Transform,
+    pub offset: Transform,
+    /// The offset's rotation as the product of the body quaternions on the
+    /// way, as MuJoCo composes `xquat` (so a frame quaternion gets its sign).
+    pub quat: Quat,
+}
+
+impl Attachment {
+    /// A body frame that is the frame of `link`.
+    fn at(link: Option<usize>) -> Attachment {
+        Attachment { link, offset: Transform::identity(), quat: Quat::identity() }
+    }
 }
 
 impl Model {
@@ -291,15 +324,20 @@ impl Model {
         let mut qpos0 = Vec::new();
         let mut qpos_spring = Vec::new();
         let mut attachments: Vec<Attachment> = Vec::with_capacity(vehicle.bodies.len());
+        let mut tree_quats = Vec::new();
 
         for body in &vehicle.bodies {
             let parent = match body.parent {
                 Some(p) => attachments[p],
-                None => Attachment { link: None, offset: Transform::identity() },
+                None => Attachment::at(None),
             };
             let body_in_parent = Transform::from_pose(&body.quat.to_rotation_matrix().into_inner(), &body.pos);
             // The body frame before its joints move it, relative to the parent link.
-            let mut inboard = Attachment { link: parent.link, offset: body_in_parent.compose(&parent.offset) };
+            let mut inboard = Attachment {
+                link: parent.link,
+                offset: body_in_parent.compose(&parent.offset),
+                quat: parent.quat * body.quat,
+            };
 
             for joint in &body.joints {
                 for (what, value) in
@@ -320,14 +358,16 @@ impl Model {
                     JointKind::Hinge | JointKind::Slide => {
                         let kind = if joint.kind == JointKind::Hinge { LinkJoint::Hinge } else { LinkJoint::Slide };
                         let k = push_link(&mut links, qpos0.len(), joint, &body.name, kind, inboard);
+                        tree_quats.push(inboard.quat);
                         links[k].reference = joint.reference;
-                        inboard = Attachment { link: Some(k), offset: Transform::identity() };
+                        inboard = Attachment::at(Some(k));
                         qpos0.push(joint.reference);
                         qpos_spring.push(joint.springref);
                     }
                     JointKind::Ball => {
                         let k = push_link(&mut links, qpos0.len(), joint, &body.name, LinkJoint::Ball, inboard);
-                        inboard = Attachment { link: Some(k), offset: Transform::identity() };
+                        tree_quats.push(inboard.quat);
+                        inboard = Attachment::at(Some(k));
                         qpos0.extend([1.0, 0.0, 0.0, 0.0]);
                         qpos_spring.extend([1.0, 0.0, 0.0, 0.0]);
                     }
@@ -336,12 +376,13 @@ impl Model {
                             return Err(ModelError::MisplacedFreeJoint { joint: joint.name.clone(), line: joint.line });
                         }
                         // qpos holds the body pose in world directly: the tree offset is absorbed.
-                        let world = Attachment { link: None, offset: Transform::identity() };
+                        let world = Attachment::at(None);
                         let t = push_link(&mut links, qpos0.len(), joint, &body.name, LinkJoint::Translation, world);
-                        let at_translation = Attachment { link: Some(t), offset: Transform::identity() };
+                        let at_translation = Attachment::at(Some(t));
                         let r =
                             push_link(&mut links, qpos0.len() + 3, joint, &body.name, LinkJoint::Ball, at_translation);
-                        inboard = Attachment { link: Some(r), offset: Transform::identity() };
+                        tree_quats.extend([Quat::identity(), Quat::identity()]);
+                        inboard = Attachment::at(Some(r));
                         let q = body.quat;
                         let pose = [body.pos.x, body.pos.y, body.pos.z, q.w, q.i, q.j, q.k];
                         qpos0.extend(pose);
@@ -369,7 +410,13 @@ impl Model {
         }
         let nv = dof_count(&links);
         let shortcuts = Shortcuts::of(&links, &vehicle.gravity);
-        let actuators = compile_actuators(vehicle, &links, &joints, &attachments);
+        let sites = site_frames(vehicle, &attachments);
+        let actuators = compile_actuators(vehicle, &links, &joints, &sites);
+        let sensors = sensor::compile_sensors(vehicle, &joints, &attachments, &sites)?;
+        let needs_body_masses = sensors.iter().any(|s| matches!(s.source, SensorSource::Subtree { .. }));
+        let body_masses = if needs_body_masses { sensor::body_masses(vehicle, &attachments) } else { Vec::new() };
+        let needs_quats = sensors.iter().any(|s| s.kind == SensorKind::FrameQuat);
+        let link_tree_quats = if needs_quats { tree_quats } else { Vec::new() };
         let actuator_force_limits = vehicle
             .bodies
             .iter()
@@ -392,6 +439,9 @@ impl Model {
             actuators,
             actuator_force_limits,
             actuation: vehicle.actuation,
+            sensors,
+            body_masses,
+            link_tree_quats,
         };
         model.validate()?;
         model.check_positive_definite()?;
@@ -417,16 +467,9 @@ impl Model {
     }
 }
 
-/// The actuators of `vehicle` with their transmissions resolved: joints into
-/// dof and θ addresses, sites into frames on the links that carry them
-/// (`attachments`, per body). The importer has checked every name.
-fn compile_actuators(
-    vehicle: &Vehicle,
-    links: &[Link],
-    joints: &[JointInfo],
-    attachments: &[Attachment],
-) -> Vec<Actuator> {
-    let sites: Vec<SiteFrame> = vehicle
+/// The sites' frames on the links that carry them (`attachments`, per body).
+fn site_frames(vehicle: &Vehicle, attachments: &[Attachment]) -> Vec<SiteFrame> {
+    vehicle
         .sites
         .iter()
         .map(|site| {
@@ -438,7 +481,13 @@ fn compile_actuators(
                 None => SiteFrame { link: None, frame: in_body },
             }
         })
-        .collect();
+        .collect()
+}
+
+/// The actuators of `vehicle` with their transmissions resolved: joints into
+/// dof and θ addresses, sites into their frames on links. The importer has
+/// checked every name.
+fn compile_actuators(vehicle: &Vehicle, links: &[Link], joints: &[JointInfo], sites: &[SiteFrame]) -> Vec<Actuator> {
     let joint_index: HashMap<&str, &JointInfo> = joints.iter().map(|j| (j.name.as_str(), j)).collect();
     let site_name = |k: usize| vehicle.sites[k].name.clone().unwrap_or_default();
     vehicle

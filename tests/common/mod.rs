@@ -441,6 +441,8 @@ pub fn random_vehicle(rng: &mut Rng, opts: TreeOptions) -> Vehicle {
             pos: rng.vec3(0.5),
             quat: rng.unit_quat(),
             inertia: Some(random_mass(rng)),
+            inertial_pos: V3::zeros(),
+            inertial_quat: None,
             joints,
             line: 0,
         };
@@ -460,6 +462,7 @@ pub fn random_vehicle(rng: &mut Rng, opts: TreeOptions) -> Vehicle {
         bodies,
         sites: Vec::new(),
         actuators: Vec::new(),
+        sensors: Vec::new(),
         actuation: Actuation::default(),
     }
 }

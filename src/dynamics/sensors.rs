@@ -1,0 +1,267 @@
+//! MuJoCo's sensors (its Computation chapter and MJCF reference, "sensor"),
+//! evaluated at the workspace's state into `sensordata`, in MuJoCo's order
+//! and layout.
+//!
+//! Frames come from the links' world placements and velocities; the
+//! acceleration sensors from the outward pass after pass 3 with the world
+//! accelerating at −g, as MuJoCo's accelerometer reads (a body at rest on
+//! the ground reads +g up, one in free fall reads 0). A body point's
+//! classical acceleration is the spatial one at the point plus ω × v.
+//! Quaternions are composed link by link as MuJoCo composes `xquat`, so
+//! that a framequat has MuJoCo's sign.
+
+use nalgebra::Unit;
+
+use super::{DynamicsError, require};
+use crate::math::{Mat3, Quat, Vec3, angular, linear, quat_from_wxyz};
+use crate::model::{LinkJoint, Model, SensorSource, SiteFrame};
+use crate::vehicle::SensorKind;
+use crate::workspace::{Stage, Workspace};
+
+/// What the model's sensors need computed beyond the velocities.
+struct Needs {
+    /// θ̈ and the link accelerations (and so pass 3 with the actuators).
+    acceleration: bool,
+    /// The actuators' lengths, velocities and forces.
+    actuation: bool,
+    /// The links' world quaternions.
+    quaternions: bool,
+}
+
+impl Needs {
+    fn of(model: &Model) -> Needs {
+        use SensorKind::*;
+        let any = |kinds: &[SensorKind]| model.sensors.iter().any(|s| kinds.contains(&s.kind));
+        Needs {
+            acceleration: any(&[FrameLinAcc, FrameAngAcc, Accelerometer]),
+            actuation: any(&[ActuatorFrc, ActuatorPos, ActuatorVel, JointActuatorFrc]),
+            quaternions: any(&[FrameQuat]),
+        }
+    }
+}
+
+/// A frame's placement and motion in the world.
+struct FrameMotion {
+    /// Rotation frame → world (MuJoCo's xmat: the frame's axes as columns).
+    rot: Mat3,
+    /// Origin.
+    pos: Vec3,
+    /// Angular velocity.
+    omega: Vec3,
+    /// Velocity of the origin.
+    vel: Vec3,
+}
+
+impl Workspace {
+    /// MuJoCo's `sensordata` at the workspace's state, the inputs `eps` (nv)
+    /// and `ctrl` (nu) held and the time `time`: acceleration and actuator
+    /// sensors depend on the inputs, and their passes run here. Needs the
+    /// velocities.
+    pub fn compute_sensors(
+        &mut self,
+        model: &Model,
+        eps: &[f64],
+        ctrl: &[f64],
+        time: f64,
+    ) -> Result<(), DynamicsError> {
+        require(self, Stage::Velocity, "compute_sensors")?;
+        if model.sensors.is_empty() {
+            return Ok(());
+        }
+        let needs = Needs::of(model);
+        if needs.acceleration {
+            self.compute_nu_dot_actuated(model, eps, ctrl)?;
+            self.compute_accelerations(model)?;
+        } else if needs.actuation {
+            self.compute_actuation(model, ctrl)?;
+        }
+        self.world_transforms(model);
+        if needs.quaternions {
+            self.link_quaternions(model);
+        }
+        let mut sensordata = std::mem::take(&mut self.sensordata);
+        for sensor in &model.sensors {
+            let values = &mut sensordata.as_mut_slice()[sensor.adr..sensor.adr + sensor.dim()];
+            self.read_sensor(model, sensor.kind, &sensor.source, time, values);
+            if sensor.cutoff > 0.0 {
+                values.iter_mut().for_each(|v| *v = v.clamp(-sensor.cutoff, sensor.cutoff));
+            }
+        }
+        self.sensordata = sensordata;
+        Ok(())
+    }
+
+    /// One sensor's values into `out` (its dim entries).
+    fn read_sensor(&self, model: &Model, kind: SensorKind, source: &SensorSource, time: f64, out: &mut [f64]) {
+        use SensorKind::*;
+        match *source {
+            SensorSource::Joint { dof, qpos } => match kind {
+                JointPos => out[0] = self.theta[qpos],
+                BallQuat => out.copy_from_slice(&self.theta.as_slice()[qpos..qpos + 4]),
+                JointVel => out[0] = self.qvel[dof],
+                BallAngVel => out.copy_from_slice(&self.qvel.as_slice()[dof..dof + 3]),
+                _ => out[0] = self.qfrc_actuator[dof],
+            },
+            SensorSource::Actuator { actuator } => {
+                out[0] = match kind {
+                    ActuatorPos => self.actuator_length[actuator],
+                    ActuatorVel => self.actuator_velocity[actuator],
+                    _ => self.actuator_force[actuator],
+                }
+            }
+            SensorSource::Frame { object, reference, quats } => {
+                self.read_frame(model, kind, &object, reference.as_ref(), &quats, out)
+            }
+            SensorSource::Subtree { first, end } => write3(out, &self.subtree(model, kind, first, end)),
+            SensorSource::Clock => out[0] = time,
+        }
+    }
+
+    /// A frame sensor's values.
+    fn read_frame(
+        &self,
+        model: &Model,
+        kind: SensorKind,
+        object: &SiteFrame,
+        reference_frame: Option<&SiteFrame>,
+        quats: &[Quat; 2],
+        out: &mut [f64],
+    ) {
+        use SensorKind::*;
+        if kind == FrameQuat {
+            let mut quat = self.world_quaternion(object, &quats[0]);
+            if let Some(reference) = reference_frame {
+                quat = self.world_quaternion(reference, &quats[1]).conjugate() * quat;
+            }
+            out.copy_from_slice(&[quat.w, quat.i, quat.j, quat.k]);
+            return;
+        }
+        let frame = self.frame_motion(object);
+        let reference = reference_frame.map(|r| self.frame_motion(r));
+        // A world vector in the reference frame's axes, if any.
+        let in_reference = |v: Vec3| match &reference {
+            Some(r) => r.rot.transpose() * v,
+            None => v,
+        };
+        let value = match kind {
+            FramePos => match &reference {
+                Some(r) => r.rot.transpose() * (frame.pos - r.pos),
+                None => frame.pos,
+            },
+            FrameXAxis => in_reference(frame.rot.column(0).into_owned()),
+            FrameYAxis => in_reference(frame.rot.column(1).into_owned()),
+            FrameZAxis => in_reference(frame.rot.column(2).into_owned()),
+            // As an observer moving with the reference frame sees it.
+            FrameLinVel => match &reference {
+                Some(r) => r.rot.transpose() * (frame.vel - r.vel - r.omega.cross(&(frame.pos - r.pos))),
+                None => frame.vel,
+            },
+            FrameAngVel => in_reference(frame.omega - reference.as_ref().map_or(Vec3::zeros(), |r| r.omega)),
+            Gyro => frame.rot.transpose() * frame.omega,
+            Velocimeter => frame.rot.transpose() * frame.vel,
+            FrameAngAcc => self.frame_acceleration(model, object, &frame).0,
+            FrameLinAcc => self.frame_acceleration(model, object, &frame).1,
+            _ => frame.rot.transpose() * self.frame_acceleration(model, object, &frame).1,
+        };
+        write3(out, &value);
+    }
+
+    /// A frame's placement and velocity in the world.
+    fn frame_motion(&self, frame: &SiteFrame) -> FrameMotion {
+        let Some(link) = frame.link else {
+            return FrameMotion {
+                rot: frame.frame.rot.transpose(),
+                pos: frame.frame.trans,
+                omega: Vec3::zeros(),
+                vel: Vec3::zeros(),
+            };
+        };
+        let in_world = frame.frame.compose(&self.x_world[link]);
+        let to_world = self.x_world[link].rot.transpose();
+        let v = &self.v_body[link];
+        let omega = angular(v);
+        // The frame origin's velocity, in link coordinates.
+        let vel = linear(v) + omega.cross(&frame.frame.trans);
+        FrameMotion { rot: in_world.rot.transpose(), pos: in_world.trans, omega: to_world * omega, vel: to_world * vel }
+    }
+
+    /// A frame's angular acceleration and its origin's linear acceleration,
+    /// in the world, the world accelerating at −g.
+    fn frame_acceleration(&self, model: &Model, frame: &SiteFrame, motion: &FrameMotion) -> (Vec3, Vec3) {
+        let Some(link) = frame.link else {
+            return (Vec3::zeros(), -model.gravity);
+        };
+        let to_world = self.x_world[link].rot.transpose();
+        let a = &self.a_body[link];
+        let r = frame.frame.trans;
+        let angular_acc = angular(a);
+        // The spatial acceleration at the frame origin, then the classical one.
+        let at_origin = linear(a) + angular_acc.cross(&r);
+        let linear_acc = to_world * at_origin + motion.omega.cross(&motion.vel) - model.gravity;
+        (to_world * angular_acc, linear_acc)
+    }
+
+    /// A frame's orientation in the world as MuJoCo composes it.
+    fn world_quaternion(&self, frame: &SiteFrame, in_link: &Quat) -> Quat {
+        match frame.link {
+            Some(link) => self.link_quats[link] * in_link,
+            None => *in_link,
+        }
+    }
+
+    /// The links' world quaternions, base to tip: parent, tree offset, joint.
+    fn link_quaternions(&mut self, model: &Model) {
+        for (i, link) in model.links.iter().enumerate() {
+            let joint = match link.joint {
+                LinkJoint::Hinge => {
+                    Quat::from_axis_angle(&Unit::new_unchecked(link.axis), self.theta[link.qpos_adr] - link.reference)
+                }
+                LinkJoint::Ball => {
+                    Quat::new_unchecked(quat_from_wxyz(&self.theta.as_slice()[link.qpos_adr..link.qpos_adr + 4]))
+                }
+                LinkJoint::Slide | LinkJoint::Translation => Quat::identity(),
+            };
+            let parent = link.parent.map_or(Quat::identity(), |p| self.link_quats[p]);
+            self.link_quats[i] = Quat::new_normalize((parent * model.link_tree_quats[i] * joint).into_inner());
+        }
+    }
+
+    /// A subtree's centre of mass, the velocity of its centre of mass, or
+    /// its angular momentum about its centre of mass (world axes).
+    fn subtree(&self, model: &Model, kind: SensorKind, first: usize, end: usize) -> Vec3 {
+        let bodies = &model.body_masses[first..end];
+        // Each body's centre of mass and its velocity, in the world.
+        let state = |body: &crate::model::BodyMass| match body.link {
+            Some(link) => {
+                let x = &self.x_world[link];
+                let v = &self.v_body[link];
+                let to_world = x.rot.transpose();
+                let velocity = to_world * (linear(v) + angular(v).cross(&body.com));
+                (x.trans + to_world * body.com, velocity, to_world * angular(v), to_world)
+            }
+            None => (body.com, Vec3::zeros(), Vec3::zeros(), Mat3::identity()),
+        };
+        let mass: f64 = bodies.iter().map(|b| b.mass).sum();
+        let weighted = |pick: &dyn Fn(&crate::model::BodyMass) -> Vec3| -> Vec3 {
+            bodies.iter().map(|b| b.mass * pick(b)).sum::<Vec3>() / mass
+        };
+        let com = if mass > 0.0 { weighted(&|b| state(b).0) } else { Vec3::zeros() };
+        match kind {
+            SensorKind::SubtreeCom => com,
+            SensorKind::SubtreeLinVel if mass > 0.0 => weighted(&|b| state(b).1),
+            SensorKind::SubtreeLinVel => Vec3::zeros(),
+            _ => bodies
+                .iter()
+                .map(|b| {
+                    let (pos, vel, omega, to_world) = state(b);
+                    to_world * b.inertia * to_world.transpose() * omega + b.mass * (pos - com).cross(&vel)
+                })
+                .sum(),
+        }
+    }
+}
+
+/// Writes a 3-vector.
+fn write3(out: &mut [f64], v: &Vec3) {
+    out.copy_from_slice(v.as_slice());
+}

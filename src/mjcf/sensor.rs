@@ -1,0 +1,162 @@
+//! Sensor elements in `<sensor>`: what each measures, with MuJoCo 4.0's
+//! compiler checks, and the refusal of the sensor types nudyn does not
+//! compute (so that `sensordata` keeps MuJoCo's layout or the import stops).
+
+use super::element::Element;
+use super::error::MjcfError;
+use crate::vehicle::{FrameObject, JointKind, Sensor, SensorKind, SensorTarget};
+
+/// Attributes every sensor element has (MuJoCo 4.0 schema).
+const COMMON_ATTRIBUTES: &[&str] = &["name", "noise", "cutoff", "user", "nsample", "interp", "delay", "interval"];
+
+/// The objects sensors name, as the importer knows them; each lookup gives
+/// the error that names the element and attribute.
+pub(crate) trait SensorTargets {
+    /// The kind of the joint the attribute names.
+    fn joint_kind(&self, element: &Element, attribute: &str) -> Result<JointKind, MjcfError>;
+    /// The body the attribute names; `None` for "world".
+    fn body(&self, element: &Element, attribute: &str) -> Result<Option<usize>, MjcfError>;
+    /// The site the attribute names.
+    fn site(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError>;
+    /// The actuator the attribute names.
+    fn actuator(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError>;
+}
+
+/// Why nudyn refuses a sensor element MuJoCo has; `None` for a tag that is
+/// no sensor element at all.
+pub(crate) fn refusal(tag: &str) -> Option<&'static str> {
+    Some(match tag {
+        "touch" | "rangefinder" | "contact" | "tactile" | "insidesite" | "geomdist" | "geomnormal" | "geomfromto" => {
+            "the sensor measures contacts or geometry, which nudyn does not model"
+        }
+        "force" | "torque" => "force and torque sensors measure constraint forces, which nudyn does not compute",
+        "magnetometer" | "camprojection" => "the sensor type is not computed by nudyn",
+        "tendonpos" | "tendonvel" | "tendonactuatorfrc" | "tendonlimitpos" | "tendonlimitvel" | "tendonlimitfrc" => {
+            "tendons are not modelled"
+        }
+        "jointlimitpos" | "jointlimitvel" | "jointlimitfrc" => "joint limits are not modelled",
+        "e_potential" | "e_kinetic" => "energy sensors are not computed by nudyn (the FMU has kinetic_energy)",
+        "user" | "plugin" => "user and plugin sensors are computed by code nudyn does not have",
+        _ => return None,
+    })
+}
+
+/// The attributes of a sensor type besides the common ones.
+fn own_attributes(kind: SensorKind) -> &'static [&'static str] {
+    use SensorKind::*;
+    match kind {
+        Gyro | Velocimeter | Accelerometer => &["site"],
+        JointPos | JointVel | BallQuat | BallAngVel | JointActuatorFrc => &["joint"],
+        ActuatorPos | ActuatorVel | ActuatorFrc => &["actuator"],
+        FrameLinAcc | FrameAngAcc => &["objtype", "objname"],
+        FramePos | FrameQuat | FrameXAxis | FrameYAxis | FrameZAxis | FrameLinVel | FrameAngVel => {
+            &["objtype", "objname", "reftype", "refname"]
+        }
+        SubtreeCom | SubtreeLinVel | SubtreeAngMom => &["body"],
+        Clock => &[],
+    }
+}
+
+/// Reads one sensor element of a type nudyn computes.
+pub(crate) fn read(element: &Element, kind: SensorKind, targets: &impl SensorTargets) -> Result<Sensor, MjcfError> {
+    let allowed: Vec<&str> = COMMON_ATTRIBUTES.iter().chain(own_attributes(kind)).copied().collect();
+    element.check_attributes(&allowed)?;
+    if let Some(child) = element.children().next() {
+        return Err(child.unknown());
+    }
+    for attribute in ["noise", "cutoff"] {
+        if element.number(attribute)?.is_some_and(|v| v < 0.0) {
+            return Err(element.invalid(format!("negative {attribute} in sensor")));
+        }
+    }
+    let cutoff = element.number("cutoff")?.unwrap_or(0.0);
+    if cutoff > 0.0 && kind.is_direction() {
+        return Err(element.invalid("cutoff applied to axis or quaternion datatype in sensor"));
+    }
+    // `interval` is a period and an optional phase: the period decides.
+    for attribute in ["delay", "interval"] {
+        let first = element.text(attribute).and_then(|text| text.split_whitespace().next());
+        let value = match first.map(str::parse::<f64>) {
+            None => 0.0,
+            Some(Ok(value)) if value.is_finite() => value,
+            Some(_) => return Err(element.bad_value(attribute, "a finite number")),
+        };
+        if value > 0.0 {
+            return Err(element.unsupported(format!(
+                "{attribute}: the sensor would report from a history of values, which nudyn does not keep"
+            )));
+        }
+    }
+    let target = target(element, kind, targets)?;
+    Ok(Sensor { name: element.text("name").map(str::to_string), kind, target, cutoff, line: element.line })
+}
+
+/// What the sensor measures, checked as MuJoCo's compiler does.
+fn target(element: &Element, kind: SensorKind, targets: &impl SensorTargets) -> Result<SensorTarget, MjcfError> {
+    use SensorKind::*;
+    let required = |attribute: &str| match element.has(attribute) {
+        true => Ok(()),
+        false => Err(element.missing(attribute)),
+    };
+    Ok(match kind {
+        JointPos | JointVel | JointActuatorFrc | BallQuat | BallAngVel => {
+            required("joint")?;
+            let joint_kind = targets.joint_kind(element, "joint")?;
+            let ball = matches!(kind, BallQuat | BallAngVel);
+            match (ball, joint_kind) {
+                (true, JointKind::Ball) | (false, JointKind::Hinge | JointKind::Slide) => {}
+                (true, _) => return Err(element.invalid("joint must be ball in sensor")),
+                (false, _) => return Err(element.invalid("joint must be slide or hinge in sensor")),
+            }
+            SensorTarget::Joint(element.text("joint").unwrap_or_default().to_string())
+        }
+        ActuatorPos | ActuatorVel | ActuatorFrc => {
+            required("actuator")?;
+            SensorTarget::Actuator(targets.actuator(element, "actuator")?)
+        }
+        Gyro | Velocimeter | Accelerometer => {
+            required("site")?;
+            SensorTarget::Frame { object: FrameObject::Site(targets.site(element, "site")?), reference: None }
+        }
+        SubtreeCom | SubtreeLinVel | SubtreeAngMom => {
+            required("body")?;
+            SensorTarget::Subtree(targets.body(element, "body")?)
+        }
+        Clock => SensorTarget::None,
+        _ => {
+            let object = frame_object(element, "objtype", "objname", targets)?;
+            let reference = match (element.has("reftype"), element.has("refname")) {
+                (false, false) => None,
+                (true, true) => Some(frame_object(element, "reftype", "refname", targets)?),
+                _ => {
+                    return Err(element.invalid("attributes 'reftype', 'refname' must be specified together"));
+                }
+            };
+            SensorTarget::Frame { object, reference }
+        }
+    })
+}
+
+/// The frame `type_attribute` and `name_attribute` name.
+fn frame_object(
+    element: &Element,
+    type_attribute: &str,
+    name_attribute: &str,
+    targets: &impl SensorTargets,
+) -> Result<FrameObject, MjcfError> {
+    let objtype = element.text(type_attribute).ok_or_else(|| element.missing(type_attribute))?;
+    if !element.has(name_attribute) {
+        return Err(element.missing(name_attribute));
+    }
+    Ok(match objtype {
+        "body" => FrameObject::Body(targets.body(element, name_attribute)?),
+        "xbody" => FrameObject::XBody(targets.body(element, name_attribute)?),
+        "site" => FrameObject::Site(targets.site(element, name_attribute)?),
+        "geom" | "camera" => {
+            return Err(element.unsupported(format!(
+                "{type_attribute} \"{objtype}\": nudyn keeps no {objtype} frames; put a site where the {objtype} is"
+            )));
+        }
+        _ => return Err(element.bad_value(type_attribute, "body, xbody, geom, site or camera")),
+    })
+}
