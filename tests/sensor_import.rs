@@ -1,0 +1,156 @@
+//! The importer's sensors: what each reads resolves to the named joint,
+//! actuator, frame or subtree, in document order; sensordata's layout is
+//! MuJoCo's; and every sensor nudyn refuses or MuJoCo's compiler rejects is
+//! named with its element, line and reason (the messages MuJoCo 4.0 gives
+//! where it rejects the file too). tests/python/test_sensors.py checks the
+//! values against MuJoCo.
+
+use nudyn::mjcf::parse_mjcf;
+use nudyn::model::{Model, ModelError, SensorSource};
+use nudyn::vehicle::{FrameObject, SensorKind, SensorTarget};
+
+/// A hinge arm with a welded tool (several geoms: eigen-derived inertial
+/// axes), a site, an actuator, and the given sensors.
+fn scene(sensors: &str) -> String {
+    format!(
+        r#"<mujoco>
+  <worldbody>
+    <site name="anchor"/>
+    <body name="arm">
+      <joint name="hinge" axis="0 1 0"/>
+      <geom type="box" size="0.1 0.2 0.3" pos="0.2 0 0"/>
+      <geom type="sphere" size="0.1" pos="0 0.3 0"/>
+      <site name="tip" pos="0.4 0 0"/>
+      <body name="ball_link" pos="0.5 0 0">
+        <joint name="ball" type="ball"/>
+        <geom type="sphere" size="0.1"/>
+      </body>
+    </body>
+  </worldbody>
+  <actuator><motor name="drive" joint="hinge"/></actuator>
+  <sensor>
+{sensors}
+  </sensor>
+</mujoco>"#
+    )
+}
+
+fn refused(sensors: &str) -> String {
+    match parse_mjcf(&scene(sensors)) {
+        Err(error) => error.to_string(),
+        Ok(imported) => match Model::compile(&imported.vehicle) {
+            Err(error) => error.to_string(),
+            Ok(_) => panic!("accepted: {sensors}"),
+        },
+    }
+}
+
+#[test]
+fn sensors_resolve_in_document_order_with_mujocos_layout() {
+    let sensors = r#"
+    <jointpos name="angle" joint="hinge"/>
+    <ballquat joint="ball"/>
+    <framepos objtype="site" objname="tip" reftype="xbody" refname="world"/>
+    <subtreecom body="arm"/>
+    <actuatorfrc actuator="drive"/>
+    <clock/>"#;
+    let vehicle = parse_mjcf(&scene(sensors)).unwrap().vehicle;
+    let kinds: Vec<SensorKind> = vehicle.sensors.iter().map(|s| s.kind).collect();
+    use SensorKind::*;
+    assert_eq!(kinds, [JointPos, BallQuat, FramePos, SubtreeCom, ActuatorFrc, Clock]);
+    assert_eq!(vehicle.sensors[0].name.as_deref(), Some("angle"));
+    assert_eq!(vehicle.sensors[0].target, SensorTarget::Joint("hinge".into()));
+    assert_eq!(
+        vehicle.sensors[2].target,
+        SensorTarget::Frame { object: FrameObject::Site(1), reference: Some(FrameObject::XBody(None)) }
+    );
+    assert_eq!(vehicle.sensors[3].target, SensorTarget::Subtree(Some(0)));
+    assert_eq!(vehicle.sensors[4].target, SensorTarget::Actuator(0));
+
+    let model = Model::compile(&vehicle).unwrap();
+    let addresses: Vec<usize> = model.sensors.iter().map(|s| s.adr).collect();
+    assert_eq!(addresses, [0, 1, 5, 8, 11, 12]);
+    assert_eq!(model.workspace().sensordata.len(), 13);
+    assert_eq!(model.sensors[1].source, SensorSource::Joint { dof: 1, qpos: 1 });
+    assert_eq!(model.sensors[3].source, SensorSource::Subtree { first: 0, end: 2 });
+    assert_eq!(model.sensors[2].target, "site 'tip' in the frame of body 'world'");
+}
+
+#[test]
+fn a_vehicle_without_sensors_keeps_no_sensor_data() {
+    let model = Model::compile(&parse_mjcf(&scene("")).unwrap().vehicle).unwrap();
+    assert!(model.sensors.is_empty() && model.body_masses.is_empty() && model.link_tree_quats.is_empty());
+    assert_eq!(model.workspace().sensordata.len(), 0);
+}
+
+#[test]
+fn sensor_types_nudyn_does_not_compute_are_refused_by_name_and_line() {
+    for (element, why) in [
+        (r#"<touch site="tip"/>"#, "contacts or geometry"),
+        (r#"<rangefinder site="tip"/>"#, "contacts or geometry"),
+        (r#"<force site="tip"/>"#, "constraint forces"),
+        (r#"<torque site="tip"/>"#, "constraint forces"),
+        (r#"<magnetometer site="tip"/>"#, "not computed"),
+        (r#"<tendonpos tendon="t"/>"#, "tendons"),
+        (r#"<jointlimitfrc joint="hinge"/>"#, "joint limits"),
+        (r#"<e_kinetic/>"#, "energy sensors"),
+        (r#"<user dim="1"/>"#, "user and plugin"),
+    ] {
+        let message = refused(element);
+        let tag = element[1..].split([' ', '/']).next().unwrap();
+        assert!(message.contains("line 17") && message.contains(tag) && message.contains(why), "{element}: {message}");
+    }
+    let unknown = refused("<thermometer/>");
+    assert!(unknown.contains("thermometer") && unknown.contains("line 17"), "{unknown}");
+}
+
+#[test]
+fn frames_nudyn_does_not_keep_are_refused() {
+    let geom = refused(r#"<framepos objtype="geom" objname="g"/>"#);
+    assert!(geom.contains("objtype \"geom\"") && geom.contains("put a site"), "{geom}");
+    let camera = refused(r#"<framequat objtype="site" objname="tip" reftype="camera" refname="c"/>"#);
+    assert!(camera.contains("reftype \"camera\""), "{camera}");
+    // The arm's inertial axes come from an eigen-decomposition: refused where they are measured...
+    let axes = refused(r#"<framexaxis objtype="body" objname="arm"/>"#);
+    assert!(axes.contains("framexaxis 0 (line 17)") && axes.contains("eigen-decomposition"), "{axes}");
+    let reference = refused(r#"<framepos name="p" objtype="site" objname="tip" reftype="body" refname="arm"/>"#);
+    assert!(reference.contains("framepos 'p'") && reference.contains("objtype \"xbody\""), "{reference}");
+    // ...and accepted where only its origin matters.
+    let vehicle = parse_mjcf(&scene(r#"<framepos objtype="body" objname="arm"/>"#)).unwrap().vehicle;
+    assert!(Model::compile(&vehicle).is_ok());
+}
+
+#[test]
+fn what_mujocos_compiler_rejects_is_rejected_with_its_reason() {
+    for (element, expected) in [
+        (r#"<jointpos joint="ball"/>"#, "joint must be slide or hinge in sensor"),
+        (r#"<ballquat joint="hinge"/>"#, "joint must be ball in sensor"),
+        (r#"<jointpos joint="nope"/>"#, "unknown joint 'nope' in sensor"),
+        (r#"<gyro site="nope"/>"#, "unknown site 'nope' for sensor"),
+        (r#"<actuatorfrc actuator="nope"/>"#, "unknown actuator 'nope' in sensor"),
+        (r#"<subtreecom body="nope"/>"#, "unknown body 'nope' in sensor"),
+        (r#"<framequat objtype="site" objname="tip" cutoff="1"/>"#, "cutoff applied to axis or quaternion"),
+        (r#"<jointpos joint="hinge" cutoff="-1"/>"#, "negative cutoff"),
+        (r#"<jointpos joint="hinge" noise="-1"/>"#, "negative noise"),
+        (
+            r#"<framepos objtype="site" objname="tip" reftype="site"/>"#,
+            "'reftype', 'refname' must be specified together",
+        ),
+        (r#"<framepos objname="tip"/>"#, "objtype"),
+        (r#"<gyro/>"#, "site"),
+        (r#"<framelinacc objtype="site" objname="tip" reftype="site" refname="anchor"/>"#, "reftype"),
+        (r#"<jointpos joint="hinge" delay="0.1"/>"#, "history"),
+        (r#"<jointpos joint="hinge" interval="0.01 0"/>"#, "history"),
+        (r#"<framepos objtype="thing" objname="tip"/>"#, "body, xbody, geom, site or camera"),
+    ] {
+        let message = refused(element);
+        assert!(message.contains("line 17") && message.contains(expected), "{element}: {message}");
+    }
+    let twice = refused("<jointpos name=\"a\" joint=\"hinge\"/>\n<jointvel name=\"a\" joint=\"hinge\"/>");
+    assert!(twice.contains("line 18") && twice.contains("\"a\"") && twice.contains("line 17"), "{twice}");
+    assert!(parse_mjcf(&scene("<clock/>")).is_ok());
+    assert!(matches!(
+        Model::compile(&parse_mjcf(&scene(r#"<framezaxis objtype="body" objname="arm"/>"#)).unwrap().vehicle),
+        Err(ModelError::Sensor { line: 17, .. })
+    ));
+}
