@@ -4,12 +4,14 @@
 //! Variables follow MuJoCo's qpos/qvel order with 1-based structured names
 //! (`theta[1]`): inputs `eps[1..nv]` and, for a vehicle with actuators,
 //! `ctrl[1..nu]` in MuJoCo's actuator order; outputs `theta[1..nq]` and
-//! `nu[1..nv]`, and the optional outputs chosen at export.
+//! `nu[1..nv]`, for a vehicle with sensors `sensordata[1..n]` in MuJoCo's
+//! sensor order and layout, and the optional outputs chosen at export.
 
 use serde::{Deserialize, Serialize};
 
 use nudyn::integrate::Method;
 use nudyn::model::Model;
+use nudyn::vehicle::SensorKind;
 
 use crate::blocks::{VariableOf, every_variable, numbered_blocks, variable_at};
 use crate::capabilities::Capabilities;
@@ -193,6 +195,8 @@ pub enum RealVariable {
     Theta(usize),
     /// Output `nu[k+1]`.
     Nu(usize),
+    /// Output `sensordata[k+1]` (MuJoCo's `d.sensordata`).
+    Sensordata(usize),
     /// Optional output `qvel[k+1]`.
     Qvel(usize),
     /// Optional output `kinetic_energy`.
@@ -219,6 +223,7 @@ impl RealVariable {
             RealVariable::Ctrl(k) => format!("ctrl[{}]", k + 1),
             RealVariable::Theta(k) => format!("theta[{}]", k + 1),
             RealVariable::Nu(k) => format!("nu[{}]", k + 1),
+            RealVariable::Sensordata(k) => format!("sensordata[{}]", k + 1),
             RealVariable::Qvel(k) => format!("qvel[{}]", k + 1),
             RealVariable::KineticEnergy => "kinetic_energy".into(),
             RealVariable::Power => "power".into(),
@@ -259,13 +264,44 @@ impl RealVariable {
     }
 }
 
+/// What a sensor's values depend on, besides time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SensorDependence {
+    /// Nothing the FMU knows (the clock).
+    Nothing,
+    /// The configuration θ.
+    Configuration,
+    /// θ and ν.
+    Motion,
+    /// θ, ν and the controls (actuator forces).
+    Controls,
+    /// θ, ν and every input (accelerations: ε and ctrl feed through).
+    Inputs,
+}
+
+impl SensorDependence {
+    /// What a sensor of `kind` depends on.
+    pub fn of(kind: SensorKind) -> SensorDependence {
+        use SensorKind::*;
+        match kind {
+            Clock => SensorDependence::Nothing,
+            JointPos | BallQuat | FramePos | FrameQuat | FrameXAxis | FrameYAxis | FrameZAxis | SubtreeCom
+            | ActuatorPos => SensorDependence::Configuration,
+            JointVel | BallAngVel | FrameLinVel | FrameAngVel | SubtreeLinVel | SubtreeAngMom | Gyro | Velocimeter
+            | ActuatorVel => SensorDependence::Motion,
+            ActuatorFrc | JointActuatorFrc => SensorDependence::Controls,
+            FrameLinAcc | FrameAngAcc | Accelerometer => SensorDependence::Inputs,
+        }
+    }
+}
+
 /// The plant's Real variables and their value references: consecutive
 /// blocks after the two parameters, `tolerance` (1) and `max_step` (2), in
-/// the order eps, ctrl, theta, nu, the chosen optional outputs, then the state
+/// the order eps, ctrl, theta, nu, sensordata, the chosen optional outputs, then the state
 /// derivatives der(theta) and der(nu) of model exchange, when the FMU serves
 /// it (last, so that the blocks before keep the value references they had
 /// before model exchange).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Layout {
     /// Number of position coordinates.
     pub nq: usize,
@@ -273,6 +309,8 @@ pub struct Layout {
     pub nv: usize,
     /// Number of actuators (MuJoCo's nu).
     pub nu: usize,
+    /// What each sensordata entry depends on (MuJoCo's nsensordata entries).
+    pub sensordata: Vec<SensorDependence>,
     /// The optional outputs present.
     pub outputs: OptionalOutputs,
 }
@@ -280,20 +318,23 @@ pub struct Layout {
 impl Layout {
     /// The layout of an FMU of `model` with `outputs`.
     pub fn new(model: &Model, outputs: OptionalOutputs) -> Self {
-        Layout { nq: model.nq, nv: model.nv, nu: model.actuators.len(), outputs }
+        let sensordata =
+            model.sensors.iter().flat_map(|s| std::iter::repeat_n(SensorDependence::of(s.kind), s.dim())).collect();
+        Layout { nq: model.nq, nv: model.nv, nu: model.actuators.len(), sensordata, outputs }
     }
 
     /// The blocks in value-reference order: (first value reference, length, variable of index k).
     fn blocks(&self) -> impl Iterator<Item = (u32, usize, VariableOf<RealVariable>)> {
         let o = self.outputs;
         let model_exchange = capabilities(o).model_exchange;
-        let blocks: [(usize, VariableOf<RealVariable>); 13] = [
+        let blocks: [(usize, VariableOf<RealVariable>); 14] = [
             (1, |_| RealVariable::Tolerance),
             (1, |_| RealVariable::MaxStep),
             (self.nv, RealVariable::Eps),
             (self.nu, RealVariable::Ctrl),
             (self.nq, RealVariable::Theta),
             (self.nv, RealVariable::Nu),
+            (self.sensordata.len(), RealVariable::Sensordata),
             (if o.qvel { self.nv } else { 0 }, RealVariable::Qvel),
             (usize::from(o.kinetic_energy), |_| RealVariable::KineticEnergy),
             (usize::from(o.power), |_| RealVariable::Power),
@@ -334,6 +375,13 @@ impl Layout {
             RealVariable::Power => nu.chain(eps).collect(),
             // Every actuator's ε reaches every dof through ℓ in general.
             RealVariable::DerNu(k) => theta.chain(nu).chain([RealVariable::Eps(k)]).chain(ctrl).collect(),
+            RealVariable::Sensordata(k) => match self.sensordata[k] {
+                SensorDependence::Nothing => Vec::new(),
+                SensorDependence::Configuration => theta.collect(),
+                SensorDependence::Motion => theta.chain(nu).collect(),
+                SensorDependence::Controls => theta.chain(nu).chain(ctrl).collect(),
+                SensorDependence::Inputs => theta.chain(nu).chain(eps).chain(ctrl).collect(),
+            },
             // θ̇ = ℓ*(θ)ν, the momentum and the energy residual depend on the configuration and every ν.
             RealVariable::Qvel(_)
             | RealVariable::Momentum(_)
@@ -363,13 +411,14 @@ impl Layout {
             RealVariable::Ctrl(k) => (3, k),
             RealVariable::Theta(k) => (4, k),
             RealVariable::Nu(k) => (5, k),
-            RealVariable::Qvel(k) => (6, k),
-            RealVariable::KineticEnergy => (7, 0),
-            RealVariable::Power => (8, 0),
-            RealVariable::Momentum(k) => (9, k),
-            RealVariable::EnergyResidual => (10, 0),
-            RealVariable::DerTheta(k) => (11, k),
-            RealVariable::DerNu(k) => (12, k),
+            RealVariable::Sensordata(k) => (6, k),
+            RealVariable::Qvel(k) => (7, k),
+            RealVariable::KineticEnergy => (8, 0),
+            RealVariable::Power => (9, 0),
+            RealVariable::Momentum(k) => (10, k),
+            RealVariable::EnergyResidual => (11, 0),
+            RealVariable::DerTheta(k) => (12, k),
+            RealVariable::DerNu(k) => (13, k),
         };
         let (first, len, _) = self.blocks().nth(block)?;
         (k < len).then_some(first + k as u32)
@@ -397,7 +446,8 @@ mod tests {
 
     #[test]
     fn value_references_are_consecutive_and_decode() {
-        let layout = Layout { nq: 7, nv: 6, nu: 2, outputs: "qvel,power,momentum".parse().unwrap() };
+        let layout =
+            Layout { nq: 7, nv: 6, nu: 2, sensordata: Vec::new(), outputs: "qvel,power,momentum".parse().unwrap() };
         let all: Vec<(u32, RealVariable)> = layout.real_variables().collect();
         // Parameters, eps, ctrl, theta, nu, qvel, power, momentum, der(theta), der(nu).
         assert_eq!(all.len(), 2 + 6 + 2 + 7 + 6 + 6 + 1 + 6 + 7 + 6);
@@ -417,7 +467,8 @@ mod tests {
         assert_eq!(layout.value_reference(RealVariable::KineticEnergy), None);
         assert_eq!(layout.value_reference(RealVariable::DerNu(5)), Some(all.len() as u32));
         // The energy residual's work integral is kept by the FMU's own integration only: no model exchange.
-        let residual = Layout { nq: 7, nv: 6, nu: 0, outputs: "energy_residual".parse().unwrap() };
+        let residual =
+            Layout { nq: 7, nv: 6, nu: 0, sensordata: Vec::new(), outputs: "energy_residual".parse().unwrap() };
         assert!(residual.real_variables().all(|(_, v)| !v.is_derivative()));
         assert!(!capabilities(residual.outputs).model_exchange);
     }

@@ -61,6 +61,8 @@ enum Evaluated {
     Velocity,
     /// ν̇ too.
     Acceleration,
+    /// The sensors too.
+    Sensors,
 }
 
 /// One plant instance.
@@ -125,15 +127,20 @@ impl Plant {
             return Ok(());
         }
         let model = &self.model;
+        let time = self.sim.state.time;
         let ws = self.sim.evaluate_velocity(model).map_err(CallError::Evaluate)?;
         if self.layout.outputs.momentum {
             let momentum = ws.momentum(model).map_err(CallError::Evaluate)?;
             self.momentum.iter_mut().zip(momentum.iter()).for_each(|(m, x)| *m = *x);
         }
         self.evaluated = Evaluated::Velocity;
-        if needed == Evaluated::Acceleration {
+        if needed >= Evaluated::Acceleration {
             ws.compute_nu_dot_actuated(model, &self.eps, &self.ctrl).map_err(CallError::Evaluate)?;
             self.evaluated = Evaluated::Acceleration;
+        }
+        if needed == Evaluated::Sensors {
+            ws.compute_sensors(model, &self.eps, &self.ctrl, time).map_err(CallError::Evaluate)?;
+            self.evaluated = Evaluated::Sensors;
         }
         Ok(())
     }
@@ -234,7 +241,9 @@ impl Component for Plant {
 
     fn prepare_reals(&mut self, vrs: &[u32]) -> Result<(), CallError> {
         let variables = || vrs.iter().filter_map(|&vr| self.layout.real_variable(vr));
-        if variables().any(RealVariable::is_derivative) {
+        if variables().any(|v| matches!(v, RealVariable::Sensordata(_))) {
+            self.evaluate(Evaluated::Sensors)?;
+        } else if variables().any(RealVariable::is_derivative) {
             self.evaluate(Evaluated::Acceleration)?;
         } else if variables().any(|v| matches!(v, RealVariable::Qvel(_) | RealVariable::Momentum(_))) {
             self.evaluate(Evaluated::Velocity)?;
@@ -251,6 +260,7 @@ impl Component for Plant {
             RealVariable::Ctrl(k) => self.ctrl[k],
             RealVariable::Theta(k) => run.theta[k],
             RealVariable::Nu(k) => run.nu[k],
+            RealVariable::Sensordata(k) => self.sim.workspace().sensordata[k],
             RealVariable::Qvel(k) => self.sim.workspace().qvel[k],
             RealVariable::KineticEnergy => kinetic_energy(&run.nu),
             RealVariable::Power => run.nu.iter().zip(&self.eps).map(|(n, e)| n * e).sum(),
@@ -390,6 +400,8 @@ impl Component for Plant {
 
     fn set_time(&mut self, time: f64) {
         self.sim.state.time = time;
+        // The clock sensors read the time.
+        self.evaluated = self.evaluated.min(Evaluated::Acceleration);
     }
 
     fn continuous_states(&self, x: &mut [f64]) {

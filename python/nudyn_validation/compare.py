@@ -97,6 +97,7 @@ class Trajectory:
     kinetic_energy: np.ndarray  # (n + 1,)
     momentum: np.ndarray  # (n + 1, 6)
     energy: np.ndarray  # (n + 1,) K + U
+    sensordata: np.ndarray  # (n + 1, nsensordata): at the state reached, with the inputs held
     wall_time: float  # seconds spent integrating
 
 
@@ -124,6 +125,12 @@ class ScenarioResult:
     def nu_error(self) -> np.ndarray:
         return np.max(np.abs(self.fmu.nu - self.mujoco.nu), axis=1)
 
+    def sensordata_error(self) -> np.ndarray:
+        """max_k |s_fmu − s_mujoco| / max(1, |s_mujoco|) at each time."""
+        reference = self.mujoco.sensordata
+        scaled = np.abs(self.fmu.sensordata - reference) / np.maximum(1.0, np.abs(reference))
+        return np.max(scaled, axis=1, initial=0.0)
+
     def kinetic_energy_error(self) -> np.ndarray:
         return np.abs(self.fmu.kinetic_energy - self.mujoco.kinetic_energy)
 
@@ -139,11 +146,13 @@ class ScenarioResult:
 
     def summary(self) -> dict:
         theta_error, nu_error = float(np.max(self.theta_error())), float(np.max(self.nu_error()))
+        sensordata_error = float(np.max(self.sensordata_error()))
         return {
             "scenario": self.scenario.name,
             "description": self.scenario.description,
             "max_theta_error": theta_error,
             "max_nu_error": nu_error,
+            "max_sensordata_error": sensordata_error,
             "max_kinetic_energy_error": float(np.max(self.kinetic_energy_error())),
             "max_momentum_error": float(np.max(self.momentum_error())),
             "kinetic_energy_start": float(self.mujoco.kinetic_energy[0]),
@@ -152,7 +161,7 @@ class ScenarioResult:
             "fmu_seconds": self.fmu.wall_time,
             "mujoco_seconds": self.mujoco.wall_time,
             "tolerance": self.scenario.tolerance,
-            "passed": max(theta_error, nu_error) <= self.scenario.tolerance,
+            "passed": max(theta_error, nu_error, sensordata_error) <= self.scenario.tolerance,
         }
 
 
@@ -170,11 +179,13 @@ class _Samples:
     """Collects one side's samples, then freezes them into a Trajectory."""
 
     def __init__(self):
-        self.rows: dict[str, list] = {k: [] for k in ("theta", "nu", "kinetic_energy", "momentum", "energy")}
+        keys = ("theta", "nu", "kinetic_energy", "momentum", "energy", "sensordata")
+        self.rows: dict[str, list] = {k: [] for k in keys}
         self.wall_time = 0.0
 
-    def add(self, theta, nu, kinetic_energy, momentum, potential_energy):
+    def add(self, theta, nu, kinetic_energy, momentum, potential_energy, sensordata):
         for key, value in (
+            ("sensordata", sensordata),
             ("theta", theta),
             ("nu", nu),
             ("kinetic_energy", kinetic_energy),
@@ -213,8 +224,9 @@ def run_scenario(package: FmuPackage | None, model_path: Path, scenario: Scenari
     def sample():
         theta = fmu.array("theta")
         fmu_samples.add(theta, fmu.array("nu"), fmu.real("kinetic_energy"), fmu.array("momentum"),
-                        mj.potential_energy_at(theta))
-        mj_samples.add(mj.theta(), mj.nu(), mj.kinetic_energy(), mj.momentum(), mj.potential_energy())
+                        mj.potential_energy_at(theta), fmu.array("sensordata"))
+        mj_samples.add(mj.theta(), mj.nu(), mj.kinetic_energy(), mj.momentum(), mj.potential_energy(),
+                       mj.data.sensordata.copy())
 
     try:
         sample()

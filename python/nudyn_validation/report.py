@@ -84,9 +84,9 @@ def table(validation: ModelValidation) -> str:
         f"`{validation.model_path.name}`, {s.duration:g} s, communication step {s.communication_step:g} s; "
         f"FMU: method {s.method}, {params}; MuJoCo: RK4, step {s.mujoco_step:g} s.",
         "",
-        "| scenario | max θ error | max ν error | max K error (J) | max momentum error | "
-        "energy drift FMU / MuJoCo (J) | FMU time (s) | MuJoCo time (s) | tolerance θ, ν | |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| scenario | max θ error | max ν error | max sensordata error | max K error (J) | max momentum error | "
+        "energy drift FMU / MuJoCo (J) | FMU time (s) | MuJoCo time (s) | tolerance θ, ν, sensors | |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for result in validation.results:
         x = result.summary()
@@ -95,8 +95,9 @@ def table(validation: ModelValidation) -> str:
             if x["energy_drift_fmu"] is not None
             else "—"
         )
+        sensors = _number(x["max_sensordata_error"]) if result.mujoco.sensordata.size else "—"
         lines.append(
-            f"| {x['scenario']} | {_number(x['max_theta_error'])} | {_number(x['max_nu_error'])} | "
+            f"| {x['scenario']} | {_number(x['max_theta_error'])} | {_number(x['max_nu_error'])} | {sensors} | "
             f"{_number(x['max_kinetic_energy_error'])} | {_number(x['max_momentum_error'])} | {drift} | "
             f"{x['fmu_seconds']:.2f} | {x['mujoco_seconds']:.2f} | {x['tolerance']:.0e} | "
             f"{'pass' if x['passed'] else '**FAIL**'} |"
@@ -104,7 +105,8 @@ def table(validation: ModelValidation) -> str:
     lines += [
         "",
         "Errors are max over time and components, absolute (θ: quaternions up to sign; momentum: "
-        "angular and linear, about the world origin). Energy drift is max |E(t) − E(0)|, "
+        "angular and linear, about the world origin; sensordata: relative to max(1, |value|), MuJoCo's "
+        "sensors evaluated at the state reached with the inputs held). Energy drift is max |E(t) − E(0)|, "
         "E = K + potential energy of gravity and springs, where E is conserved "
         "(ε = 0, no joint damping and no servo pulling at ctrl = 0). Times are the integration's wall time; MuJoCo's includes "
         "the Python control callback at every RK4 stage.",

@@ -49,6 +49,9 @@ class _Variables:
             k += 1
         return found or [self.by_name[name].valueReference]
 
+    def has(self, name: str) -> bool:
+        return name in self.by_name or f"{name}[1]" in self.by_name
+
     def size(self, name: str) -> int:
         if self.version == 3:
             variable = self.by_name[name]
@@ -88,6 +91,8 @@ class _Reading:
     variables: _Variables
 
     def array(self, name: str) -> np.ndarray:
+        if not self.variables.has(name):  # an array of no entries (no sensors, no actuators)
+            return np.zeros(0)
         refs, n = self.variables.references(name), self.variables.size(name)
         if self.variables.version == 3:
             return np.array(self.fmu.getFloat64(refs, n))

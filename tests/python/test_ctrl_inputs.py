@@ -28,7 +28,9 @@ from nudyn_validation.compare import Settings, validate_model
 from nudyn_validation.mujoco_reference import load_model
 from nudyn_validation.scenarios import FORCED_TOLERANCE
 
-FIXTURES = sorted((ROOT / "tests" / "fixtures" / "actuators").glob("*.xml"))
+FIXTURES = sorted((ROOT / "tests" / "fixtures" / "actuators").glob("*.xml")) + sorted(
+    (ROOT / "tests" / "fixtures" / "sensors").glob("*.xml")
+)
 ACTUATED = [path for path in FIXTURES if load_model(path).nu > 0]
 SERVICER = ROOT / "examples" / "servicer.xml"
 
@@ -39,6 +41,10 @@ def check_actuated(model_path, fmu_path, nudyn, settings=None):
     report = json.dumps(x, indent=1)
     assert x["tolerance"] == FORCED_TOLERANCE
     assert x["max_theta_error"] <= FORCED_TOLERANCE and x["max_nu_error"] <= FORCED_TOLERANCE, report
+    # Every sensordata entry, MuJoCo's evaluated at the state reached with the ctrl held.
+    nsensordata = load_model(model_path).nsensordata
+    assert result.fmu.sensordata.shape == result.mujoco.sensordata.shape == (201, nsensordata)
+    assert x["max_sensordata_error"] <= FORCED_TOLERANCE, report
     assert result.ctrl.shape == (200, load_model(model_path).nu) and np.any(result.ctrl != 0.0)
     return result
 
@@ -90,7 +96,8 @@ def test_ports_are_mujocos_actuators_in_order(servicer):
         assert f"clamped to ctrlrange [{low:g}, {high:g}]" in variable.description, variable.description
     assert "motor 'thr_aft_pp': site 'thr_aft_pp', gear (0, 0, -1, 0, 0, 0)" in controls[0].description
     assert "position 'elbow': joint 'elbow'" in controls[13].description
-    # ν̇ depends on every control; θ̇, θ, ν and the optional outputs on none.
+    # ν̇ and the accelerometer depend on every control; θ̇, θ, ν, the other
+    # sensors and the optional outputs on none.
     names = [v.name for v in description.modelVariables]
     control_indices = {names.index(v.name) + 1 for v in controls}
     with zipfile.ZipFile(fmu) as archive:
@@ -98,7 +105,9 @@ def test_ports_are_mujocos_actuators_in_order(servicer):
     unknowns = [*structure.find("Derivatives"), *structure.find("Outputs")]
     for unknown in unknowns:
         dependencies = set(map(int, (unknown.get("dependencies") or "").split()))
-        if names[int(unknown.get("index")) - 1].startswith("der(nu["):
+        variable = description.modelVariables[int(unknown.get("index")) - 1]
+        # The accelerometer feeds through from the controls, as ν̇ does.
+        if variable.name.startswith("der(nu[") or "'specific_force'" in (variable.description or ""):
             assert control_indices <= dependencies
         else:
             assert not control_indices & dependencies

@@ -50,6 +50,7 @@ def test_fmu_moves_like_mujoco(path, scenario, validated):
     report = json.dumps(x, indent=1)
     assert x["max_theta_error"] <= tolerance, report
     assert x["max_nu_error"] <= tolerance, report
+    assert x["max_sensordata_error"] <= tolerance, report
     # K and the momentum follow from θ and ν: the same tolerance, relative
     # to their size.
     k_scale = max(1.0, float(np.max(result.mujoco.kinetic_energy)))

@@ -6,8 +6,8 @@ use std::path::Path;
 use modeldescription as md;
 use modeldescription::fmi3 as md3;
 use nudyn::integrate::Method;
-use nudyn::model::Model;
-use nudyn::vehicle::JointKind;
+use nudyn::model::{Model, SensorSource};
+use nudyn::vehicle::{JointKind, SensorKind};
 use nudyn_contract::plant::{
     DEFAULT_METHOD, ENERGY_PROJECTION_NAME, ENERGY_PROJECTION_VR, Layout, METHOD_NAME, METHOD_TYPE, METHOD_VR,
     OptionalOutputs, PlantResource, RealVariable, capabilities, method_value,
@@ -84,6 +84,7 @@ pub fn description(model: &Model, variable: RealVariable) -> String {
         RealVariable::Nu(k) => {
             format!("diagonalized velocity nu of dof {} of {} (sqrt(kg)*m/s)", k + 1, joint_entry(model, k, false).0)
         }
+        RealVariable::Sensordata(k) => sensor_description(model, k),
         RealVariable::Qvel(k) => {
             let (joint, unit) = joint_entry(model, k, false);
             format!("qvel of {joint} ({unit})")
@@ -130,6 +131,66 @@ fn control_description(model: &Model, k: usize) -> String {
         text += "; inactive: the file disables its group";
     }
     text
+}
+
+/// The description of `sensordata[k+1]`: the sensor, what it measures, the
+/// component and the unit.
+fn sensor_description(model: &Model, k: usize) -> String {
+    use SensorKind::*;
+    let (index, sensor) = model
+        .sensors
+        .iter()
+        .enumerate()
+        .find(|(_, s)| s.adr <= k && k < s.adr + s.dim())
+        .expect("every sensordata entry belongs to a sensor");
+    let j = k - sensor.adr;
+    let component = match sensor.dim() {
+        1 => String::new(),
+        4 => format!(", quaternion {}", ["w", "x", "y", "z"][j]),
+        _ => format!(", {}", ["x", "y", "z"][j]),
+    };
+    let joint_is_slide = || match sensor.source {
+        SensorSource::Joint { dof, .. } => {
+            model.joints.iter().any(|joint| joint.dof_adr == dof && joint.kind == JointKind::Slide)
+        }
+        _ => false,
+    };
+    let (meaning, unit) = match sensor.kind {
+        JointPos if joint_is_slide() => ("position", "m"),
+        JointPos => ("angle", "rad"),
+        JointVel if joint_is_slide() => ("velocity", "m/s"),
+        JointVel => ("angular velocity", "rad/s"),
+        BallQuat => ("orientation", "1"),
+        BallAngVel => ("angular velocity in the child body frame", "rad/s"),
+        FramePos => ("position", "m"),
+        FrameQuat => ("orientation", "1"),
+        FrameXAxis => ("x axis", "1"),
+        FrameYAxis => ("y axis", "1"),
+        FrameZAxis => ("z axis", "1"),
+        FrameLinVel => ("linear velocity", "m/s"),
+        FrameAngVel => ("angular velocity", "rad/s"),
+        FrameLinAcc => ("linear acceleration minus gravity, world axes", "m/s^2"),
+        FrameAngAcc => ("angular acceleration, world axes", "rad/s^2"),
+        SubtreeCom => ("centre of mass, world axes", "m"),
+        SubtreeLinVel => ("velocity of the centre of mass, world axes", "m/s"),
+        SubtreeAngMom => ("angular momentum about its centre of mass, world axes", "kg*m^2/s"),
+        Gyro => ("angular velocity in the site frame", "rad/s"),
+        Velocimeter => ("linear velocity in the site frame", "m/s"),
+        Accelerometer => ("linear acceleration minus gravity in the site frame", "m/s^2"),
+        ActuatorFrc => ("force", "N or N*m: the actuator's own, before gear"),
+        JointActuatorFrc if joint_is_slide() => ("total actuator force", "N"),
+        JointActuatorFrc => ("total actuator torque", "N*m"),
+        ActuatorPos => ("length", "m or rad times gear"),
+        ActuatorVel => ("velocity", "m/s or rad/s times gear"),
+        Clock => ("simulation time", "s"),
+    };
+    let frame = match (&sensor.source, sensor.kind) {
+        (SensorSource::Frame { reference: None, .. }, FramePos | FrameQuat | FrameXAxis | FrameYAxis | FrameZAxis)
+        | (SensorSource::Frame { reference: None, .. }, FrameLinVel | FrameAngVel) => ", world axes",
+        _ => "",
+    };
+    let cutoff = if sensor.cutoff > 0.0 { format!(", clamped to +-{}", sensor.cutoff) } else { String::new() };
+    format!("sensor {}: {meaning} of {}{frame}{component}{cutoff} ({unit})", sensor.label(index), sensor.target)
 }
 
 /// What the plant's modelDescription says of the FMU as a whole.
