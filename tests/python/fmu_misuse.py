@@ -550,6 +550,34 @@ def terminate_twice_and_after(h: Harness):
 
 
 @case("out of sequence")
+def sensors_read_before_initialization(h: Harness):
+    """sensordata is calculated: refused before initialization mode, and
+    at a start state the dynamics cannot evaluate it says why; once the
+    state is valid the same read works and gives finite values."""
+    c = h.instantiate()
+    sensors = h.fmu_of(c).names("sensordata")
+    assert len(sensors) == 30, "the servicer's sensors"
+    h.get_real(c, sensors, status=ERROR)
+    assert "state instantiated" in h.log_text(), h.log_text()
+    h.expect(OK, "fmi2Reset", c)
+    h.expect(OK, "fmi2SetupExperiment", c, 0, 0.0, 0.0, 0, 0.0)
+    h.expect(OK, "fmi2EnterInitializationMode", c)
+    # theta[4..7] is the bus's quaternion: zero, no rotation to measure.
+    h.set_real(OK, c, {f"theta[{k}]": 0.0 for k in range(4, 8)})
+    since = len(h.messages)
+    h.get_real(c, sensors, status=ERROR)
+    assert "zero quaternion" in h.log_text(since), h.log_text(since)
+    h.expect(OK, "fmi2Reset", c)
+    h.expect(OK, "fmi2SetupExperiment", c, 0, 0.0, 0.0, 0, 0.0)
+    h.expect(OK, "fmi2EnterInitializationMode", c)
+    values = h.get_real(c, sensors)
+    assert all(math.isfinite(v) for v in values) and values[0] == 1.0, values
+    h.expect(OK, "fmi2ExitInitializationMode", c)
+    h.step(c, 0.0)
+    assert all(math.isfinite(v) for v in h.get_real(c, sensors))
+
+
+@case("out of sequence")
 def cancel_step_and_status_queries(h: Harness):
     c = h.initialized()
     saved = h.get_state(c)
