@@ -70,6 +70,29 @@ def test_aggressive_rate_gain_raises_v_within_the_bound(nudyn, tmp_path):
             assert 0.3 < np.max(analysis.increase / analysis.bound) <= 1.0, summary
 
 
+def test_the_controller_closes_the_loop_on_a_vehicle_with_actuators(nudyn, tmp_path):
+    """The servicer's plant has ctrl inputs and sensordata outputs besides
+    eps, theta and nu: the controller's eps still connects by name, and its
+    rate feedback detumbles the vehicle while the arm servos hold the arm
+    (ctrl 0) — in FMPy and in libcosim."""
+    mjcf = ROOT / "examples/servicer.xml"
+    # Free joint (linear world, angular body), three wheels, four arm joints.
+    qvel = [0.02, -0.01, 0.03, 0.2, -0.15, 0.1, 3.0, -2.0, 1.0, 0.2, -0.1, 0.15, 0.3]
+    scenario = scenarios.Scenario(
+        name="servicer_detumble", title="servicer detumble", mjcf=mjcf, end_effector=None, duration=2.0,
+        step=0.01, substeps=2, plant_start=scenarios._nu_start(mjcf, qvel),
+    )
+    plant, controller = export(nudyn, scenario, tmp_path)
+    plant_variables = {v.name for v in read_model_description(str(plant)).modelVariables}
+    assert {"ctrl[1]", "sensordata[1]", "eps[13]"} <= plant_variables
+    for runner in (run_fmpy, run_libcosim):
+        trajectory = runner(plant, controller, scenario, tmp_path)
+        start, end = np.linalg.norm(trajectory.nu[0]), np.linalg.norm(trajectory.nu[-1])
+        # c1 = 5/s on every dof: |nu| would fall by e^-10 in 2 s; the servos pulling the arm back slow it.
+        assert end < 1e-2 * start, f"{trajectory.simulator}: |nu| from {start:.3g} to {end:.3g}"
+        assert np.all(np.isfinite(trajectory.eps)) and np.any(trajectory.eps != 0.0)
+
+
 @pytest.fixture(scope="module")
 def controller_fmus(cli, tmp_path_factory):
     directory = tmp_path_factory.mktemp("controllers")
