@@ -115,7 +115,9 @@ pub struct Workspace {
     pub link_wrench: Vec<SpatialVec>,
     /// T of the actuators, MuJoCo's qfrc_actuator (nv) — compute_actuation.
     pub qfrc_actuator: DVector<f64>,
-    /// ε = ℓT of the actuators (nv) — compute_actuation.
+    /// T of the actuators and the wrench inputs together (nv) — compute_actuation.
+    pub qfrc_total: DVector<f64>,
+    /// ε = ℓT of the actuators and the wrench inputs (nv) — compute_actuation.
     pub eps_actuator: DVector<f64>,
     /// The ε pass 3 applied: the input's plus the actuators' (nv) — compute_nu_dot_actuated.
     pub eps_applied: DVector<f64>,
@@ -176,6 +178,7 @@ impl Workspace {
             actuator_force: DVector::zeros(nu),
             link_wrench: vec![SpatialVec::zeros(); if actuators_apply_wrenches { n } else { 0 }],
             qfrc_actuator: dof(),
+            qfrc_total: dof(),
             eps_actuator: dof(),
             eps_applied: dof(),
             sensordata: DVector::zeros(model.sensors.iter().map(|s| s.dim()).sum()),

@@ -61,6 +61,11 @@ enum Command {
         /// Optional outputs, comma-separated.
         #[arg(long, default_value = "", conflicts_with = "controller", help = outputs_help())]
         outputs: OptionalOutputs,
+        /// Add inputs xfrc_applied[1..6n] for an external wrench (world-frame
+        /// force, then torque, at the centre of mass; MuJoCo's xfrc_applied)
+        /// on each of these bodies, comma-separated.
+        #[arg(long, value_name = "BODY[,BODY...]", value_delimiter = ',', conflicts_with = "controller")]
+        wrench_inputs: Vec<String>,
         /// Write the controller FMU of the vehicle instead of the plant:
         /// inputs theta, nu; output eps = -c1 nu + l J^T c2 (Yhat - Y);
         /// Y = every hinge and slide joint value, or the pose of --end-effector.
@@ -220,8 +225,8 @@ fn run(cli: Cli) -> Result<()> {
         Command::Export { model, output, model_identifier, controller: true, end_effector, fmi_version, .. } => {
             export_controller(&model, &output, model_identifier, end_effector.as_deref(), fmi_version)
         }
-        Command::Export { model, output, model_identifier, outputs, fmi_version, .. } => {
-            export(&model, &output, model_identifier, outputs, fmi_version)
+        Command::Export { model, output, model_identifier, outputs, fmi_version, wrench_inputs, .. } => {
+            export(&model, &output, model_identifier, outputs, &wrench_inputs, fmi_version)
         }
         Command::Simulate { model, step, stop, method, tolerance, max_step, energy_projection, format } => {
             let settings = Settings { tolerance, max_step: max_step.unwrap_or(step), energy_projection };
@@ -394,9 +399,12 @@ fn export(
     output: &Path,
     model_identifier: Option<String>,
     outputs: OptionalOutputs,
+    wrench_inputs: &[String],
     fmi_version: FmiVersion,
 ) -> Result<()> {
-    let model = load_model(model_path)?;
+    let (vehicle, _) = load_vehicle(model_path)?;
+    let model = Model::compile_with_wrench_inputs(&vehicle, wrench_inputs)
+        .with_context(|| format!("cannot compile {}", model_path.display()))?;
     let stem = model_path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let model_identifier = model_identifier.unwrap_or_else(|| model_identifier_from(&stem));
     let options = ExportOptions { model_identifier, outputs, fmi_version };

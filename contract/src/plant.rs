@@ -191,6 +191,9 @@ pub enum RealVariable {
     Eps(usize),
     /// Input `ctrl[k+1]`: the control of actuator k (MuJoCo's `d.ctrl`).
     Ctrl(usize),
+    /// Input `xfrc_applied[k+1]`: component k % 6 of the wrench on wrench
+    /// body k / 6 (MuJoCo's `xfrc_applied`: force, then torque, world axes).
+    XfrcApplied(usize),
     /// Output `theta[k+1]` (qpos).
     Theta(usize),
     /// Output `nu[k+1]`.
@@ -221,6 +224,7 @@ impl RealVariable {
             RealVariable::MaxStep => "max_step".into(),
             RealVariable::Eps(k) => format!("eps[{}]", k + 1),
             RealVariable::Ctrl(k) => format!("ctrl[{}]", k + 1),
+            RealVariable::XfrcApplied(k) => format!("xfrc_applied[{}]", k + 1),
             RealVariable::Theta(k) => format!("theta[{}]", k + 1),
             RealVariable::Nu(k) => format!("nu[{}]", k + 1),
             RealVariable::Sensordata(k) => format!("sensordata[{}]", k + 1),
@@ -240,7 +244,7 @@ impl RealVariable {
     pub fn kind(self) -> Kind {
         match self {
             RealVariable::Tolerance | RealVariable::MaxStep => Kind::fixed_parameter(Range::Positive),
-            RealVariable::Eps(_) | RealVariable::Ctrl(_) => Kind::INPUT,
+            RealVariable::Eps(_) | RealVariable::Ctrl(_) | RealVariable::XfrcApplied(_) => Kind::INPUT,
             RealVariable::Theta(_) | RealVariable::Nu(_) => Kind::STATE_OUTPUT,
             RealVariable::DerTheta(_) | RealVariable::DerNu(_) => Kind::DERIVATIVE,
             _ => Kind::CALCULATED_OUTPUT,
@@ -252,7 +256,9 @@ impl RealVariable {
         match self {
             RealVariable::Tolerance => Some(DEFAULT_TOLERANCE),
             RealVariable::MaxStep => Some(DEFAULT_MAX_STEP),
-            RealVariable::Eps(_) | RealVariable::Ctrl(_) | RealVariable::Nu(_) => Some(0.0),
+            RealVariable::Eps(_) | RealVariable::Ctrl(_) | RealVariable::XfrcApplied(_) | RealVariable::Nu(_) => {
+                Some(0.0)
+            }
             RealVariable::Theta(k) => Some(model.qpos0[k]),
             _ => None,
         }
@@ -297,7 +303,7 @@ impl SensorDependence {
 
 /// The plant's Real variables and their value references: consecutive
 /// blocks after the two parameters, `tolerance` (1) and `max_step` (2), in
-/// the order eps, ctrl, theta, nu, sensordata, the chosen optional outputs, then the state
+/// the order eps, ctrl, xfrc_applied, theta, nu, sensordata, the chosen optional outputs, then the state
 /// derivatives der(theta) and der(nu) of model exchange, when the FMU serves
 /// it (last, so that the blocks before keep the value references they had
 /// before model exchange).
@@ -309,6 +315,8 @@ pub struct Layout {
     pub nv: usize,
     /// Number of actuators (MuJoCo's nu).
     pub nu: usize,
+    /// Number of wrench inputs (six per wrench body).
+    pub wrench_inputs: usize,
     /// What each sensordata entry depends on (MuJoCo's nsensordata entries).
     pub sensordata: Vec<SensorDependence>,
     /// The optional outputs present.
@@ -320,18 +328,26 @@ impl Layout {
     pub fn new(model: &Model, outputs: OptionalOutputs) -> Self {
         let sensordata =
             model.sensors.iter().flat_map(|s| std::iter::repeat_n(SensorDependence::of(s.kind), s.dim())).collect();
-        Layout { nq: model.nq, nv: model.nv, nu: model.actuators.len(), sensordata, outputs }
+        Layout {
+            nq: model.nq,
+            nv: model.nv,
+            nu: model.mjcf_actuator_count(),
+            wrench_inputs: 6 * model.wrench_bodies.len(),
+            sensordata,
+            outputs,
+        }
     }
 
     /// The blocks in value-reference order: (first value reference, length, variable of index k).
     fn blocks(&self) -> impl Iterator<Item = (u32, usize, VariableOf<RealVariable>)> {
         let o = self.outputs;
         let model_exchange = capabilities(o).model_exchange;
-        let blocks: [(usize, VariableOf<RealVariable>); 14] = [
+        let blocks: [(usize, VariableOf<RealVariable>); 15] = [
             (1, |_| RealVariable::Tolerance),
             (1, |_| RealVariable::MaxStep),
             (self.nv, RealVariable::Eps),
             (self.nu, RealVariable::Ctrl),
+            (self.wrench_inputs, RealVariable::XfrcApplied),
             (self.nq, RealVariable::Theta),
             (self.nv, RealVariable::Nu),
             (self.sensordata.len(), RealVariable::Sensordata),
@@ -365,8 +381,13 @@ impl Layout {
         let nu = (0..self.nv).map(RealVariable::Nu);
         let eps = (0..self.nv).map(RealVariable::Eps);
         let ctrl = (0..self.nu).map(RealVariable::Ctrl);
+        let wrenches = (0..self.wrench_inputs).map(RealVariable::XfrcApplied);
         let list = match variable {
-            RealVariable::Tolerance | RealVariable::MaxStep | RealVariable::Eps(_) | RealVariable::Ctrl(_) => {
+            RealVariable::Tolerance
+            | RealVariable::MaxStep
+            | RealVariable::Eps(_)
+            | RealVariable::Ctrl(_)
+            | RealVariable::XfrcApplied(_) => {
                 return None;
             }
             // The states themselves.
@@ -374,13 +395,15 @@ impl Layout {
             RealVariable::KineticEnergy => nu.collect(),
             RealVariable::Power => nu.chain(eps).collect(),
             // Every actuator's ε reaches every dof through ℓ in general.
-            RealVariable::DerNu(k) => theta.chain(nu).chain([RealVariable::Eps(k)]).chain(ctrl).collect(),
+            RealVariable::DerNu(k) => {
+                theta.chain(nu).chain([RealVariable::Eps(k)]).chain(ctrl).chain(wrenches).collect()
+            }
             RealVariable::Sensordata(k) => match self.sensordata[k] {
                 SensorDependence::Nothing => Vec::new(),
                 SensorDependence::Configuration => theta.collect(),
                 SensorDependence::Motion => theta.chain(nu).collect(),
                 SensorDependence::Controls => theta.chain(nu).chain(ctrl).collect(),
-                SensorDependence::Inputs => theta.chain(nu).chain(eps).chain(ctrl).collect(),
+                SensorDependence::Inputs => theta.chain(nu).chain(eps).chain(ctrl).chain(wrenches).collect(),
             },
             // θ̇ = ℓ*(θ)ν, the momentum and the energy residual depend on the configuration and every ν.
             RealVariable::Qvel(_)
@@ -409,16 +432,17 @@ impl Layout {
             RealVariable::MaxStep => (1, 0),
             RealVariable::Eps(k) => (2, k),
             RealVariable::Ctrl(k) => (3, k),
-            RealVariable::Theta(k) => (4, k),
-            RealVariable::Nu(k) => (5, k),
-            RealVariable::Sensordata(k) => (6, k),
-            RealVariable::Qvel(k) => (7, k),
-            RealVariable::KineticEnergy => (8, 0),
-            RealVariable::Power => (9, 0),
-            RealVariable::Momentum(k) => (10, k),
-            RealVariable::EnergyResidual => (11, 0),
-            RealVariable::DerTheta(k) => (12, k),
-            RealVariable::DerNu(k) => (13, k),
+            RealVariable::XfrcApplied(k) => (4, k),
+            RealVariable::Theta(k) => (5, k),
+            RealVariable::Nu(k) => (6, k),
+            RealVariable::Sensordata(k) => (7, k),
+            RealVariable::Qvel(k) => (8, k),
+            RealVariable::KineticEnergy => (9, 0),
+            RealVariable::Power => (10, 0),
+            RealVariable::Momentum(k) => (11, k),
+            RealVariable::EnergyResidual => (12, 0),
+            RealVariable::DerTheta(k) => (13, k),
+            RealVariable::DerNu(k) => (14, k),
         };
         let (first, len, _) = self.blocks().nth(block)?;
         (k < len).then_some(first + k as u32)
@@ -446,8 +470,14 @@ mod tests {
 
     #[test]
     fn value_references_are_consecutive_and_decode() {
-        let layout =
-            Layout { nq: 7, nv: 6, nu: 2, sensordata: Vec::new(), outputs: "qvel,power,momentum".parse().unwrap() };
+        let layout = Layout {
+            nq: 7,
+            nv: 6,
+            nu: 2,
+            wrench_inputs: 0,
+            sensordata: Vec::new(),
+            outputs: "qvel,power,momentum".parse().unwrap(),
+        };
         let all: Vec<(u32, RealVariable)> = layout.real_variables().collect();
         // Parameters, eps, ctrl, theta, nu, qvel, power, momentum, der(theta), der(nu).
         assert_eq!(all.len(), 2 + 6 + 2 + 7 + 6 + 6 + 1 + 6 + 7 + 6);
@@ -467,8 +497,14 @@ mod tests {
         assert_eq!(layout.value_reference(RealVariable::KineticEnergy), None);
         assert_eq!(layout.value_reference(RealVariable::DerNu(5)), Some(all.len() as u32));
         // The energy residual's work integral is kept by the FMU's own integration only: no model exchange.
-        let residual =
-            Layout { nq: 7, nv: 6, nu: 0, sensordata: Vec::new(), outputs: "energy_residual".parse().unwrap() };
+        let residual = Layout {
+            nq: 7,
+            nv: 6,
+            nu: 0,
+            wrench_inputs: 0,
+            sensordata: Vec::new(),
+            outputs: "energy_residual".parse().unwrap(),
+        };
         assert!(residual.real_variables().all(|(_, v)| !v.is_derivative()));
         assert!(!capabilities(residual.outputs).model_exchange);
     }

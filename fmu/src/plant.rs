@@ -231,6 +231,7 @@ impl Component for Plant {
                 RealVariable::MaxStep => settings.max_step = value,
                 RealVariable::Eps(k) => self.eps[k] = value,
                 RealVariable::Ctrl(k) => self.ctrl[k] = value,
+                RealVariable::XfrcApplied(k) => self.ctrl[self.layout.nu + k] = value,
                 RealVariable::Theta(k) => run.theta[k] = value,
                 RealVariable::Nu(k) => run.nu[k] = value,
                 variable => unreachable!("{variable:?} is a calculated output: the caller refuses it"),
@@ -258,6 +259,7 @@ impl Component for Plant {
             RealVariable::MaxStep => settings.max_step,
             RealVariable::Eps(k) => self.eps[k],
             RealVariable::Ctrl(k) => self.ctrl[k],
+            RealVariable::XfrcApplied(k) => self.ctrl[self.layout.nu + k],
             RealVariable::Theta(k) => run.theta[k],
             RealVariable::Nu(k) => run.nu[k],
             RealVariable::Sensordata(k) => self.sim.workspace().sensordata[k],
@@ -334,6 +336,7 @@ impl Component for Plant {
             match self.layout.real_variable(vr) {
                 Some(RealVariable::Eps(k)) => self.eps_rate[k] = value,
                 Some(RealVariable::Ctrl(k)) => self.ctrl_rate[k] = value,
+                Some(RealVariable::XfrcApplied(k)) => self.ctrl_rate[self.layout.nu + k] = value,
                 _ => {}
             }
         }

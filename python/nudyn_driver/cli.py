@@ -59,6 +59,7 @@ class Nudyn:
         end_effector: str | None = None,
         model_identifier: str | None = None,
         fmi_version: int = 2,
+        wrench_inputs: Iterable[str] = (),
     ) -> Path:
         """`nudyn export MODEL -o FMU` with the options given; makes FMU's
         directory if needed and returns the FMU's path."""
@@ -75,6 +76,8 @@ class Nudyn:
             arguments += ["--model-identifier", model_identifier]
         if fmi_version != 2:
             arguments += ["--fmi-version", str(fmi_version)]
+        if wrench_inputs:
+            arguments += ["--wrench-inputs", ",".join(wrench_inputs)]
         self.run(*arguments)
         return fmu
 

@@ -64,6 +64,12 @@ def arguments(argv):
     p.add_argument("--rtol", type=float, default=defaults.relative_tolerance,
                    help="CVODE's relative tolerance with --interface me (default %(default)s)")
     p.add_argument("--seed", type=int, default=defaults.seed, help="seed of the initial state and the sine (default %(default)s)")
+    p.add_argument(
+        "--wrench-inputs",
+        default="",
+        metavar="BODY[,BODY...]",
+        help="export the FMU with wrench inputs on these bodies and run the 'wrenched' scenario on them",
+    )
     p.add_argument("--out", type=Path, help="output directory (default out/validation/MODEL)")
     p.add_argument(
         "--nudyn",
@@ -87,6 +93,7 @@ def main(argv=None) -> int:
         fmi_version=args.fmi_version,
         interface=args.interface,
         relative_tolerance=args.rtol,
+        wrench_bodies=tuple(b for b in args.wrench_inputs.split(",") if b),
     )
     if not args.model.is_file():
         print(f"validate: no such file: {args.model}", file=sys.stderr)

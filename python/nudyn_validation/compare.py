@@ -59,6 +59,9 @@ class Settings:
     # 1e-11: at 1e-10 CVODE's own global error on fixed_rig free motion is 5e-8, over the 1e-8
     # tolerance (it falls 10x per decade of rtol; the FMU's derivatives are exact to round-off).
     relative_tolerance: float = 1e-11
+    # Bodies exported with --wrench-inputs (their wrenches are inputs; the
+    # 'wrenched' scenario drives them).
+    wrench_bodies: tuple[str, ...] = ()
 
     def parameters(self) -> dict[str, float]:
         """RK4's internal step is the one above; an adaptive method keeps
@@ -236,11 +239,14 @@ def run_scenario(package: FmuPackage | None, model_path: Path, scenario: Scenari
             held.append(eps)
             ctrl = None if scenario.ctrl_law is None else np.asarray(scenario.ctrl_law(k), float)
             held_ctrl.append(ctrl)
+            wrenches = None if scenario.wrench_law is None else scenario.wrench_law(k)
             start = time.perf_counter()
             try:
                 fmu.set_array("eps", eps)
                 if ctrl is not None:
                     fmu.set_array("ctrl", ctrl)
+                if wrenches is not None:
+                    fmu.set_array("xfrc_applied", wrenches.ravel())
                 fmu.step(h, communication_point=t)
             except FMICallException as e:
                 raise ValidationError(
@@ -248,7 +254,7 @@ def run_scenario(package: FmuPackage | None, model_path: Path, scenario: Scenari
                 ) from None
             fmu_samples.wall_time += time.perf_counter() - start
             start = time.perf_counter()
-            mj.advance(eps, substeps, ctrl)
+            mj.advance(eps, substeps, ctrl, dict(zip(scenario.wrench_bodies, wrenches)) if wrenches is not None else None)
             mj_samples.wall_time += time.perf_counter() - start
             problem = mj.instability()
             if problem:
@@ -303,11 +309,12 @@ def validate_model(
     settings = settings or Settings()
     settings.check()
     # nudyn's importer first: its messages name the unsupported element.
-    Nudyn(nudyn).export(model_path, fmu_path, outputs=EXTRA_OUTPUTS, fmi_version=settings.fmi_version)
+    Nudyn(nudyn).export(model_path, fmu_path, outputs=EXTRA_OUTPUTS, fmi_version=settings.fmi_version,
+                        wrench_inputs=settings.wrench_bodies)
     try:
         model = load_model(model_path)
-        names = scenario_names or default_scenarios(model)
-        scenarios = [make_scenario(name, model, settings.seed) for name in names]
+        names = scenario_names or default_scenarios(model, settings.wrench_bodies)
+        scenarios = [make_scenario(name, model, settings.seed, settings.wrench_bodies) for name in names]
     except ValueError as e:
         raise ValidationError(str(e)) from None
     if settings.fmi_version != 2 or settings.interface != "cs":

@@ -58,11 +58,15 @@ class MujocoVehicle:
     def _apply_held_eps(self, model, data) -> None:
         data.qfrc_applied[:] = self.factor.torque(data, self.held_eps)
 
-    def advance(self, eps, substeps: int, ctrl=None) -> None:
+    def advance(self, eps, substeps: int, ctrl=None, wrenches=None) -> None:
         """Integrate over one communication step of `substeps` MuJoCo steps
-        with ε held at eps and the actuators' controls at ctrl (default 0)."""
+        with ε held at eps, the actuators' controls at ctrl (default 0) and
+        the external wrenches at `wrenches` ({body: 6 values}, MuJoCo's
+        xfrc_applied; default none)."""
         self.held_eps[:] = eps
         self.data.ctrl[:] = 0.0 if ctrl is None else ctrl
+        for body, wrench in (wrenches or {}).items():
+            self.data.xfrc_applied[self.model.body(body).id] = wrench
         with control_callback(self._apply_held_eps):
             for _ in range(substeps):
                 mujoco.mj_step(self.model, self.data)

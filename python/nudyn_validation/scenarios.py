@@ -15,7 +15,11 @@ realistically in a couple of seconds:
   ctrl:       0 (MuJoCo's d.ctrl at rest: position servos hold their
               joints at 0) except in 'actuated', where each communication
               step holds a fresh draw, uniform in ctrlrange where the
-              actuator is limited, N(0, 1) in its own units where not.
+              actuator is limited, N(0, 1) in its own units where not;
+  wrenches:   in 'wrenched', on the bodies exported with --wrench-inputs,
+              each communication step holds a fresh world-frame force
+              ~ N(0, 0.1 m) N and torque ~ N(0, 0.05 m) N m per component,
+              m the mass of the body's subtree (MuJoCo's xfrc_applied).
 """
 
 from __future__ import annotations
@@ -36,13 +40,16 @@ FORCED_TOLERANCE = 1e-6
 # Rate-damping gain of ε = −c ν (1/s): ν decays like e^{−t}.
 DAMPING_GAIN = 1.0
 
-SCENARIO_NAMES = ("tumble", "sine", "damping", "gravity", "actuated")
+SCENARIO_NAMES = ("tumble", "sine", "damping", "gravity", "actuated", "wrenched")
 
 # ε as a function of (time, the FMU's ν at that communication point).
 EpsLaw = Callable[[float, np.ndarray], np.ndarray]
 
 # The actuators' controls (MuJoCo's d.ctrl) held from a communication point, by its index.
 CtrlLaw = Callable[[int], np.ndarray]
+# The wrenches on the wrench bodies (one row of 6 per body, MuJoCo's
+# xfrc_applied) held from a communication point, by its index.
+WrenchLaw = Callable[[int], np.ndarray]
 
 
 @dataclass
@@ -54,6 +61,8 @@ class Scenario:
     eps_law: EpsLaw
     unforced: bool
     ctrl_law: CtrlLaw | None = None
+    wrench_bodies: tuple[str, ...] = ()
+    wrench_law: WrenchLaw | None = None
     tolerance: float = field(init=False)
 
     def __post_init__(self):
@@ -100,7 +109,7 @@ def sqrt_d_at(model: mujoco.MjModel, qpos) -> np.ndarray:
     return MujocoFactor(model).sqrt_d(data)
 
 
-def make_scenario(name: str, model: mujoco.MjModel, seed: int) -> Scenario:
+def make_scenario(name: str, model: mujoco.MjModel, seed: int, wrench_bodies: tuple[str, ...] = ()) -> Scenario:
     """The scenario called name (one of SCENARIO_NAMES) for this model; the
     same seed gives the same pose, velocities and sine for every scenario."""
     rng = np.random.default_rng(seed)
@@ -152,6 +161,19 @@ def make_scenario(name: str, model: mujoco.MjModel, seed: int) -> Scenario:
             False,
             ctrl_law=random_ctrl(model, seed),
         )
+    if name == "wrenched":
+        if not wrench_bodies:
+            raise ValueError("scenario 'wrenched' needs bodies exported with --wrench-inputs")
+        return Scenario(
+            name,
+            f"random wrenches on {', '.join(wrench_bodies)} held over each communication step (xfrc_applied), ε = 0",
+            qpos0,
+            qvel0,
+            lambda t, nu: zero,
+            False,
+            wrench_bodies=tuple(wrench_bodies),
+            wrench_law=random_wrenches(model, wrench_bodies, seed),
+        )
     if name == "gravity":
         if not has_gravity(model):
             raise ValueError("scenario 'gravity' needs a model with gravity (it has none, or it is disabled)")
@@ -175,15 +197,30 @@ def random_ctrl(model: mujoco.MjModel, seed: int) -> CtrlLaw:
     return ctrl
 
 
-def applies(name: str, model: mujoco.MjModel) -> bool:
-    """'gravity' needs gravity, 'actuated' actuators; the others apply to every model."""
+def random_wrenches(model: mujoco.MjModel, bodies, seed: int) -> WrenchLaw:
+    """Wrenches drawn afresh for each communication step k, from (seed, k)
+    alone, scaled by the mass each body carries."""
+    masses = np.array([model.body_subtreemass[model.body(name).id] for name in bodies])
+    scale = np.column_stack([np.repeat(0.1 * masses[:, None], 3, 1), np.repeat(0.05 * masses[:, None], 3, 1)])
+
+    def wrenches(k: int) -> np.ndarray:
+        return np.random.default_rng([seed, k, 6]).normal(0.0, 1.0, scale.shape) * scale
+
+    return wrenches
+
+
+def applies(name: str, model: mujoco.MjModel, wrench_bodies: tuple[str, ...] = ()) -> bool:
+    """'gravity' needs gravity, 'actuated' actuators, 'wrenched' wrench
+    bodies; the others apply to every model."""
     if name == "gravity":
         return has_gravity(model)
     if name == "actuated":
         return model.nu > 0
+    if name == "wrenched":
+        return bool(wrench_bodies)
     return True
 
 
-def default_scenarios(model: mujoco.MjModel) -> list[str]:
+def default_scenarios(model: mujoco.MjModel, wrench_bodies: tuple[str, ...] = ()) -> list[str]:
     """Every scenario that applies to the model."""
-    return [name for name in SCENARIO_NAMES if applies(name, model)]
+    return [name for name in SCENARIO_NAMES if applies(name, model, wrench_bodies)]

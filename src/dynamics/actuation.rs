@@ -238,44 +238,66 @@ fn apply(moment: &Moment, force: f64, qfrc: &mut [f64], link_wrench: &mut [Spati
 }
 
 impl Workspace {
-    /// The actuators at `ctrl` (nu, MuJoCo's `d.ctrl`): fills
+    /// The actuators at `ctrl` (MuJoCo's `d.ctrl`, then the wrench inputs'
+    /// six values per body, MuJoCo's `xfrc_applied`): fills
     /// `actuator_length`, `actuator_velocity`, `actuator_force`,
-    /// `qfrc_actuator` (T) and `eps_actuator` (ℓT); with
-    /// `<flag actuation="disable"/>` all but the lengths are zero, as in
-    /// MuJoCo. Needs the velocities.
+    /// `qfrc_actuator` (T of the MJCF's actuators) and `eps_actuator`
+    /// (ℓ(T + Jᵀ xfrc)); with `<flag actuation="disable"/>` the MJCF's
+    /// actuators have lengths only, as in MuJoCo. Needs the velocities.
     pub fn compute_actuation(&mut self, model: &Model, ctrl: &[f64]) -> Result<(), DynamicsError> {
         require(self, Stage::Velocity, "compute_actuation")?;
         check_input("ctrl", ctrl, model.actuators.len())?;
         let actuation = model.actuation;
+        let mjcf_count = model.mjcf_actuator_count();
         self.prepare_transmissions(model);
-        if !actuation.enabled {
-            // MuJoCo then computes the lengths only.
-            for (k, actuator) in model.actuators.iter().enumerate() {
-                self.actuator_length[k] = transmit(self, actuator).length;
-            }
-            for buffer in [&mut self.actuator_velocity, &mut self.actuator_force, &mut self.eps_actuator] {
-                buffer.fill(0.0);
-            }
-            return Ok(());
-        }
-        for (k, actuator) in model.actuators.iter().enumerate() {
+        for (k, actuator) in model.actuators[..mjcf_count].iter().enumerate() {
             let transmitted = transmit(self, actuator);
             self.actuator_length[k] = transmitted.length;
+            if !actuation.enabled {
+                // MuJoCo then computes the lengths only.
+                (self.actuator_velocity[k], self.actuator_force[k]) = (0.0, 0.0);
+                continue;
+            }
             self.actuator_velocity[k] = transmitted.velocity;
             let force =
                 actuator_force(actuator, actuation.clamp_ctrl, ctrl[k], transmitted.length, transmitted.velocity);
             self.actuator_force[k] = force;
             apply(&transmitted.moment, force, self.qfrc_actuator.as_mut_slice(), &mut self.link_wrench);
         }
-        self.collect_wrenches(model);
+        let mut qfrc = std::mem::take(&mut self.qfrc_actuator);
+        self.collect_wrenches(model, qfrc.as_mut_slice());
         for limit in &model.actuator_force_limits {
             let [low, high] = limit.range;
-            self.qfrc_actuator[limit.dof] = clip(self.qfrc_actuator[limit.dof], low, high);
+            qfrc[limit.dof] = clip(qfrc[limit.dof], low, high);
         }
-        let (qfrc, mut eps) = (std::mem::take(&mut self.qfrc_actuator), std::mem::take(&mut self.eps_actuator));
-        let result = self.eps_from_forces(model, qfrc.as_slice(), None, eps.as_mut_slice());
-        (self.qfrc_actuator, self.eps_actuator) = (qfrc, eps);
+        self.qfrc_actuator = qfrc;
+        let mut total = std::mem::take(&mut self.qfrc_total);
+        total.copy_from(&self.qfrc_actuator);
+        if mjcf_count < model.actuators.len() {
+            self.add_wrench_inputs(model, &ctrl[mjcf_count..], total.as_mut_slice());
+        }
+        let mut eps = std::mem::take(&mut self.eps_actuator);
+        let result = self.eps_from_forces(model, total.as_slice(), None, eps.as_mut_slice());
+        (self.qfrc_total, self.eps_actuator) = (total, eps);
         result
+    }
+
+    /// Adds the generalized force of the wrench inputs (`values`: six per
+    /// body, MuJoCo's `xfrc_applied`) to `qfrc`. They are not actuators to
+    /// MuJoCo: outside `qfrc_actuator`, its joint limits and its
+    /// `actuation="disable"` flag.
+    fn add_wrench_inputs(&mut self, model: &Model, values: &[f64], qfrc: &mut [f64]) {
+        self.link_wrench.fill(SpatialVec::zeros());
+        let first = model.mjcf_actuator_count();
+        for (k, actuator) in model.actuators[first..].iter().enumerate() {
+            let transmitted = transmit(self, actuator);
+            let index = first + k;
+            self.actuator_length[index] = transmitted.length;
+            self.actuator_velocity[index] = transmitted.velocity;
+            self.actuator_force[index] = values[k];
+            apply(&transmitted.moment, values[k], qfrc, &mut self.link_wrench);
+        }
+        self.collect_wrenches(model, qfrc);
     }
 
     /// Pass 3 with the actuators: ν̇ for the applied `eps` (nv) plus the ε of
@@ -308,9 +330,11 @@ impl Workspace {
         }
         self.prepare_transmissions(model);
         let transmitted = transmit(self, &model.actuators[k]);
-        apply(&transmitted.moment, 1.0, self.qfrc_actuator.as_mut_slice(), &mut self.link_wrench);
-        self.collect_wrenches(model);
-        moment.copy_from_slice(self.qfrc_actuator.as_slice());
+        let mut qfrc = std::mem::take(&mut self.qfrc_actuator);
+        apply(&transmitted.moment, 1.0, qfrc.as_mut_slice(), &mut self.link_wrench);
+        self.collect_wrenches(model, qfrc.as_mut_slice());
+        moment.copy_from_slice(qfrc.as_slice());
+        self.qfrc_actuator = qfrc;
         Ok(())
     }
 
@@ -327,8 +351,8 @@ impl Workspace {
         }
     }
 
-    /// T += Σ Jᵀf of the link wrenches, when any actuator applies wrenches.
-    fn collect_wrenches(&mut self, model: &Model) {
+    /// `qfrc` += Σ Jᵀf of the link wrenches, when any actuator applies wrenches.
+    fn collect_wrenches(&mut self, model: &Model, qfrc: &mut [f64]) {
         if self.actuators_apply_wrenches {
             forces::add_joint_forces_of_wrenches(
                 model,
@@ -336,7 +360,7 @@ impl Workspace {
                 &self.accumulation,
                 &mut self.p_scratch_body,
                 &self.link_wrench,
-                self.qfrc_actuator.as_mut_slice(),
+                qfrc,
             );
         }
     }

@@ -24,7 +24,7 @@ use nalgebra::SMatrix;
 use serde::{Deserialize, Serialize};
 
 use crate::math::{Mat3, Quat, SpatialMat, SpatialVec, Transform, Vec3, angular, linear, rigid_inertia, skew, spatial};
-use crate::vehicle::{Actuation, JointKind, SensorKind, Transmission, Vehicle};
+use crate::vehicle::{Actuation, ActuatorKind, BiasType, GainType, JointKind, SensorKind, Transmission, Vehicle};
 
 mod actuator;
 mod sensor;
@@ -236,6 +236,12 @@ pub struct Model {
     /// composes `xquat`, when a framequat sensor needs it (else empty).
     #[serde(default)]
     pub link_tree_quats: Vec<Quat>,
+    /// The bodies that take an external wrench as input (MuJoCo's
+    /// `xfrc_applied`), in input order. Each adds six actuators after the
+    /// MJCF's: a force along the world's x, y, z at the body's centre of
+    /// mass, then a torque about them, their ctrl the wrench's components.
+    #[serde(default)]
+    pub wrench_bodies: Vec<String>,
 }
 
 /// Why a vehicle cannot be compiled.
@@ -285,6 +291,12 @@ pub enum ModelError {
         /// What is wrong.
         reason: String,
     },
+    /// A body named for wrench inputs that cannot take one.
+    #[error("--wrench-inputs: {reason}")]
+    WrenchBody {
+        /// What is wrong.
+        reason: String,
+    },
     /// A parameter that must be finite and non-negative is not.
     #[error("joint '{joint}': {what} must be finite and non-negative, found {value}")]
     BadParameter {
@@ -319,6 +331,17 @@ impl Attachment {
 impl Model {
     /// Compiles a vehicle description into the link array.
     pub fn compile(vehicle: &Vehicle) -> Result<Model, ModelError> {
+        Model::compile_with_wrench_inputs(vehicle, &[])
+    }
+
+    /// MuJoCo's nu: the MJCF's actuators, without the wrench inputs' six per body.
+    pub fn mjcf_actuator_count(&self) -> usize {
+        self.actuators.len() - 6 * self.wrench_bodies.len()
+    }
+
+    /// Compiles a vehicle with external wrench inputs on the named bodies
+    /// (see [`Model::wrench_bodies`]).
+    pub fn compile_with_wrench_inputs(vehicle: &Vehicle, wrench_bodies: &[String]) -> Result<Model, ModelError> {
         let mut links: Vec<Link> = Vec::new();
         let mut joints = Vec::new();
         let mut qpos0 = Vec::new();
@@ -411,7 +434,10 @@ impl Model {
         let nv = dof_count(&links);
         let shortcuts = Shortcuts::of(&links, &vehicle.gravity);
         let sites = site_frames(vehicle, &attachments);
-        let actuators = compile_actuators(vehicle, &links, &joints, &sites);
+        let mut actuators = compile_actuators(vehicle, &links, &joints, &sites);
+        for name in wrench_bodies {
+            actuators.extend(wrench_actuators(vehicle, &attachments, name)?);
+        }
         let sensors = sensor::compile_sensors(vehicle, &joints, &attachments, &sites)?;
         let needs_body_masses = sensors.iter().any(|s| matches!(s.source, SensorSource::Subtree { .. }));
         let body_masses = if needs_body_masses { sensor::body_masses(vehicle, &attachments) } else { Vec::new() };
@@ -442,6 +468,7 @@ impl Model {
             sensors,
             body_masses,
             link_tree_quats,
+            wrench_bodies: wrench_bodies.to_vec(),
         };
         model.validate()?;
         model.check_positive_definite()?;
@@ -543,6 +570,54 @@ fn compile_actuators(vehicle: &Vehicle, links: &[Link], joints: &[JointInfo], si
             compiled
         })
         .collect()
+}
+
+/// The six actuators of a wrench input on body `name`: unit forces along
+/// the world's axes at the body's centre of mass (MuJoCo's `xipos`), then
+/// unit torques about them. Each is a site transmission measured in the
+/// world's frame (a reference site fixed to the world takes no reaction),
+/// which is exactly MuJoCo's `xfrc_applied`.
+fn wrench_actuators(vehicle: &Vehicle, attachments: &[Attachment], name: &str) -> Result<Vec<Actuator>, ModelError> {
+    let Some(index) = vehicle.bodies.iter().position(|b| b.name == name) else {
+        let known: Vec<&str> = vehicle.bodies.iter().map(|b| b.name.as_str()).collect();
+        return Err(ModelError::WrenchBody {
+            reason: format!("no body '{name}' in the vehicle (its bodies: {})", known.join(", ")),
+        });
+    };
+    let at = attachments[index];
+    if at.link.is_none() {
+        return Err(ModelError::WrenchBody {
+            reason: format!("body '{name}' is fixed to the world: a wrench on it moves nothing"),
+        });
+    }
+    let centre = Transform::from_pose(&Mat3::identity(), &vehicle.bodies[index].inertial_pos);
+    let site = SiteFrame { link: at.link, frame: centre.compose(&at.offset) };
+    let world = SiteFrame { link: None, frame: Transform::identity() };
+    const COMPONENTS: [&str; 6] = ["force x", "force y", "force z", "torque x", "torque y", "torque z"];
+    Ok(COMPONENTS
+        .iter()
+        .enumerate()
+        .map(|(k, component)| {
+            let mut gear = [0.0; 6];
+            gear[k] = 1.0;
+            Actuator {
+                name: Some(format!("{component} on '{name}'")),
+                kind: ActuatorKind::General,
+                target: ActuatorTarget { attribute: "xfrc_applied".into(), name: name.to_string(), refsite: None },
+                transmission: ActuatorTransmission::RelativeSite { site, reference: world, common_link: None },
+                gear,
+                gain_type: GainType::Fixed,
+                gain: [1.0, 0.0, 0.0],
+                bias_type: BiasType::None,
+                bias: [0.0; 3],
+                ctrl_range: None,
+                force_range: None,
+                enabled: true,
+                setpoint_period: 0.0,
+                line: 0,
+            }
+        })
+        .collect())
 }
 
 /// MuJoCo's period of a position servo's setpoint on a rotation whose

@@ -8,8 +8,9 @@
 //! a file must be refused at instantiation with a message, not crash, hang
 //! or allocate without bound later.
 
-use super::{ActuatorTransmission, LinkJoint, Model, SiteFrame};
+use super::{ActuatorTransmission, LinkJoint, Model, SensorSource, SiteFrame};
 use crate::math::Transform;
+use crate::vehicle::SensorKind;
 
 /// What is wrong with a compiled model.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -125,6 +126,24 @@ pub enum InvalidModel {
         actuator: usize,
         /// What is wrong.
         what: String,
+    },
+    /// More wrench bodies than actuators to carry their inputs.
+    #[error("{bodies} wrench bodies need {needed} actuators, the model has {found}")]
+    WrenchInputs {
+        /// Number of wrench bodies.
+        bodies: usize,
+        /// Actuators they need (six each).
+        needed: usize,
+        /// Actuators in the model.
+        found: usize,
+    },
+    /// A sensor that reads outside the model.
+    #[error("sensor {sensor}: {what}")]
+    Sensor {
+        /// The sensor's index.
+        sensor: usize,
+        /// What is wrong.
+        what: &'static str,
     },
 }
 
@@ -305,6 +324,11 @@ fn validate(model: &Model) -> Result<(), InvalidModel> {
     for k in 0..model.actuators.len() {
         validate_actuator(model, k).map_err(|what| InvalidModel::Actuator { actuator: k, what })?;
     }
+    let (bodies, found) = (model.wrench_bodies.len(), model.actuators.len());
+    if bodies.checked_mul(6).is_none_or(|needed| needed > found) {
+        return Err(InvalidModel::WrenchInputs { bodies, needed: bodies.saturating_mul(6), found });
+    }
+    validate_sensors(model)?;
     for limit in &model.actuator_force_limits {
         let joint = model.links.iter().find(|l| l.dof_adr == limit.dof).map(|l| l.joint);
         if !matches!(joint, Some(LinkJoint::Hinge | LinkJoint::Slide)) || !is_range(limit.range) {
@@ -315,6 +339,91 @@ fn validate(model: &Model) -> Result<(), InvalidModel> {
         Some(shortcut) => Err(InvalidModel::Shortcut(shortcut)),
         None => Ok(()),
     }
+}
+
+/// Every sensor reads inside the model, at its place in sensordata.
+fn validate_sensors(model: &Model) -> Result<(), InvalidModel> {
+    let links = model.links.len();
+    let frame_ok = |frame: &SiteFrame| frame.link.is_none_or(|l| l < links) && frame_is_finite(&frame.frame);
+    if !(model.link_tree_quats.is_empty() || model.link_tree_quats.len() == links)
+        || model.link_tree_quats.iter().any(|q| !q.coords.iter().all(|x| x.is_finite()))
+    {
+        return Err(InvalidModel::Sensor { sensor: 0, what: "link_tree_quats do not match the links" });
+    }
+    if model.body_masses.iter().any(|b| {
+        b.link.is_some_and(|l| l >= links)
+            || !(b.mass.is_finite() && b.mass >= 0.0)
+            || !b.com.iter().chain(b.inertia.iter()).all(|x| x.is_finite())
+    }) {
+        return Err(InvalidModel::Sensor { sensor: 0, what: "a body mass is not valid" });
+    }
+    let mut adr = 0;
+    for (k, sensor) in model.sensors.iter().enumerate() {
+        let fail = |what| Err(InvalidModel::Sensor { sensor: k, what });
+        if sensor.adr != adr {
+            return fail("its address does not follow the previous sensor's");
+        }
+        adr += sensor.dim();
+        if !(sensor.cutoff.is_finite() && sensor.cutoff >= 0.0) {
+            return fail("cutoff must be finite and non-negative");
+        }
+        use SensorKind::*;
+        let kind_matches = match &sensor.source {
+            SensorSource::Joint { .. } => {
+                matches!(sensor.kind, JointPos | JointVel | BallQuat | BallAngVel | JointActuatorFrc)
+            }
+            SensorSource::Actuator { .. } => matches!(sensor.kind, ActuatorFrc | ActuatorPos | ActuatorVel),
+            SensorSource::Subtree { .. } => matches!(sensor.kind, SubtreeCom | SubtreeLinVel | SubtreeAngMom),
+            SensorSource::Clock => sensor.kind == Clock,
+            SensorSource::Frame { .. } => !matches!(
+                sensor.kind,
+                JointPos
+                    | JointVel
+                    | BallQuat
+                    | BallAngVel
+                    | JointActuatorFrc
+                    | ActuatorFrc
+                    | ActuatorPos
+                    | ActuatorVel
+                    | SubtreeCom
+                    | SubtreeLinVel
+                    | SubtreeAngMom
+                    | Clock
+            ),
+        };
+        if !kind_matches {
+            return fail("its type does not read what its source gives");
+        }
+        let (nq, nv) = (model.nq, model.nv);
+        let fits = match &sensor.source {
+            SensorSource::Joint { dof, qpos } => {
+                let (coordinates, dofs) = match sensor.kind {
+                    BallQuat | BallAngVel => (4, 3),
+                    _ => (1, 1),
+                };
+                qpos.checked_add(coordinates).is_some_and(|end| end <= nq)
+                    && dof.checked_add(dofs).is_some_and(|end| end <= nv)
+            }
+            SensorSource::Actuator { actuator } => *actuator < model.mjcf_actuator_count(),
+            SensorSource::Frame { object, reference, quats } => {
+                frame_ok(object)
+                    && reference.as_ref().is_none_or(frame_ok)
+                    && quats.iter().all(|q| q.coords.iter().all(|x| x.is_finite()))
+                    && (sensor.kind != FrameQuat || model.link_tree_quats.len() == links)
+            }
+            SensorSource::Subtree { first, end } => first <= end && *end <= model.body_masses.len(),
+            SensorSource::Clock => true,
+        };
+        if !fits {
+            return fail("it reads outside the model");
+        }
+    }
+    Ok(())
+}
+
+/// Whether a fixed frame's numbers are all finite.
+fn frame_is_finite(frame: &Transform) -> bool {
+    frame.rot.iter().chain(frame.trans.iter()).all(|x| x.is_finite())
 }
 
 #[cfg(test)]

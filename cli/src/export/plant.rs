@@ -77,6 +77,15 @@ pub fn description(model: &Model, variable: RealVariable) -> String {
             format!("diagonalized force eps of dof {} of {} (sqrt(kg)*m/s^2)", k + 1, joint_entry(model, k, false).0)
         }
         RealVariable::Ctrl(k) => control_description(model, k),
+        RealVariable::XfrcApplied(k) => {
+            const COMPONENTS: [&str; 6] =
+                ["force x (N)", "force y (N)", "force z (N)", "torque x (N*m)", "torque y (N*m)", "torque z (N*m)"];
+            format!(
+                "external wrench on body '{}' (MuJoCo's xfrc_applied), world axes, at its centre of mass: {}",
+                model.wrench_bodies[k / 6],
+                COMPONENTS[k % 6]
+            )
+        }
         RealVariable::Theta(k) => {
             let (joint, unit) = joint_entry(model, k, true);
             format!("qpos of {joint} ({unit})")
