@@ -65,10 +65,11 @@ pub struct Fmu {
 
 /// `examples/NAME.xml` with every optional output, its resources written
 /// under the system's temporary directory once per process.
-pub fn example_fmu(name: &str) -> Fmu {
+pub fn example_fmu(name: &str, wrench_bodies: &[&str]) -> Fmu {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../examples").join(format!("{name}.xml"));
     let vehicle = nudyn::mjcf::load_mjcf(&path).expect("example imports").vehicle;
-    let model = nudyn::model::Model::compile(&vehicle).expect("example compiles");
+    let wrench_bodies: Vec<String> = wrench_bodies.iter().map(|b| b.to_string()).collect();
+    let model = nudyn::model::Model::compile_with_wrench_inputs(&vehicle, &wrench_bodies).expect("example compiles");
     let outputs: OptionalOutputs = "qvel,kinetic_energy,power,momentum".parse().expect("known outputs");
     let resource = PlantResource::new(model, outputs);
     let json = resource.to_json().expect("serializable");
@@ -92,11 +93,12 @@ pub fn scratch_dir(name: &str) -> PathBuf {
 
 /// The FMU the call-sequence and state targets drive, made once: the
 /// servicer example (a free bus with three wheels and a 4-dof arm, nq = 14
-/// and nv = 13 as bus_arm7, and 15 actuators), so that the `ctrl` inputs
-/// are fuzzed with the rest.
+/// and nv = 13 as bus_arm7, 15 actuators and 14 sensors) with wrench
+/// inputs on the bus and the hand, so that the `ctrl` and `xfrc_applied`
+/// inputs and the `sensordata` outputs are fuzzed with the rest.
 pub fn servicer() -> &'static Fmu {
     static SERVICER: OnceLock<Fmu> = OnceLock::new();
-    SERVICER.get_or_init(|| example_fmu("servicer"))
+    SERVICER.get_or_init(|| example_fmu("servicer", &["bus", "hand"]))
 }
 
 /// Instantiates `fmu` for co-simulation; NULL if refused.
