@@ -121,6 +121,13 @@ pub struct Workspace {
     pub eps_actuator: DVector<f64>,
     /// The ε pass 3 applied: the input's plus the actuators' (nv) — compute_nu_dot_actuated.
     pub eps_applied: DVector<f64>,
+    /// The inputs of the last compute_nu_dot_actuated: ε (nv) and ctrl.
+    pub eps_input: DVector<f64>,
+    /// See `eps_input`.
+    pub ctrl_input: DVector<f64>,
+    /// Whether pass 3 is that of `eps_input` and `ctrl_input` (cleared by
+    /// every other pass 3), so that the sensors need not run it again.
+    pub inputs_applied: bool,
 
     /// MuJoCo's sensordata — compute_sensors.
     pub sensordata: DVector<f64>,
@@ -181,6 +188,9 @@ impl Workspace {
             qfrc_total: dof(),
             eps_actuator: dof(),
             eps_applied: dof(),
+            eps_input: dof(),
+            ctrl_input: DVector::zeros(nu),
+            inputs_applied: false,
             sensordata: DVector::zeros(model.sensors.iter().map(|s| s.dim()).sum()),
             link_quats: vec![Quat::identity(); model.link_tree_quats.len()],
         }

@@ -231,9 +231,37 @@ fn eval_cost(
         }
     }
 
+    // The physical ports: the same state with the actuators at a fixed
+    // ctrl, then with the sensors evaluated too; and the vehicle stripped of
+    // both, which must cost what "nudyn" costs.
+    let ported = !model.actuators.is_empty() || !model.sensors.is_empty();
+    let stripped = stripped_of_ports(model);
+    let mut stripped_ws = stripped.workspace();
+    let ctrl = mid_range_ctrl(model);
+    let (mut actuated_ws, mut sensed_ws) = (model.workspace(), model.workspace());
+
     let mut cases: Vec<Case> = Vec::new();
     for ((name, m), ws) in variants.iter().zip(workspaces.iter_mut()) {
         cases.push(forward_case(name.clone(), m, ws, state, &eps));
+    }
+    if ported {
+        cases.push(forward_case(
+            "nudyn stripped of actuators and sensors".into(),
+            &stripped,
+            &mut stripped_ws,
+            state,
+            &eps,
+        ));
+        cases.push(ported_case("nudyn with actuators".into(), model, &mut actuated_ws, state, &eps, &ctrl, false));
+        cases.push(ported_case(
+            "nudyn with actuators and sensors".into(),
+            model,
+            &mut sensed_ws,
+            state,
+            &eps,
+            &ctrl,
+            true,
+        ));
     }
     for (pipeline, simulation) in simulations.iter_mut() {
         let pipeline = *pipeline;
@@ -267,6 +295,48 @@ fn forward_case<'a>(
         name,
         call: Box::new(move || {
             nudyn::dynamics::forward(model, ws, std::hint::black_box(theta), nu, eps).expect("the state evaluates");
+        }),
+    }
+}
+
+/// The model without actuators, sensors and wrench inputs.
+fn stripped_of_ports(model: &Model) -> Model {
+    let mut stripped = model.clone();
+    stripped.actuators.clear();
+    stripped.actuator_force_limits.clear();
+    stripped.wrench_bodies.clear();
+    stripped.sensors.clear();
+    stripped.body_masses.clear();
+    stripped.link_tree_quats.clear();
+    stripped
+}
+
+/// A fixed ctrl that makes every actuator act: the middle of a limited
+/// range, 0.5 otherwise.
+fn mid_range_ctrl(model: &Model) -> Vec<f64> {
+    model.actuators.iter().map(|a| a.ctrl_range.map_or(0.5, |[low, high]| 0.5 * (low + high))).collect()
+}
+
+/// A timed case of ν̇ with the actuators at `ctrl` (passes 0–3 and the
+/// actuation), and with `sensors` the sensors too.
+fn ported_case<'a>(
+    name: String,
+    model: &'a Model,
+    ws: &'a mut Workspace,
+    state: &'a State,
+    eps: &'a [f64],
+    ctrl: &'a [f64],
+    sensors: bool,
+) -> Case<'a> {
+    Case {
+        name,
+        call: Box::new(move || {
+            ws.set_configuration(model, std::hint::black_box(&state.theta)).expect("the state evaluates");
+            ws.set_nu(model, &state.nu).expect("the state evaluates");
+            ws.compute_nu_dot_actuated(model, eps, ctrl).expect("the state evaluates");
+            if sensors {
+                ws.compute_sensors(model, eps, ctrl, 0.0).expect("the state evaluates");
+            }
         }),
     }
 }

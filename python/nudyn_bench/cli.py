@@ -26,7 +26,7 @@ from tqdm import tqdm
 from . import cost, fmi, report, work_precision
 from .vehicles import ROOT, chain_model, prepare, prepare_chain_without_mujoco, write_chain
 
-EXAMPLES = ["bus_arm7", "flexible_boom", "fixed_rig", "chain60"]
+EXAMPLES = ["bus_arm7", "flexible_boom", "fixed_rig", "chain60", "servicer"]
 # Pinocchio 4.1's MJCF reader took all 24 GB of memory on the 1000-link chain.
 PINOCCHIO_MAX_LINKS = 500
 PINOCCHIO_TOO_DEEP = f"not run past {PINOCCHIO_MAX_LINKS} links: Pinocchio's MJCF reader ran out of memory (24 GB) on 1000"
@@ -46,7 +46,7 @@ class Sizes:
     """How much each section runs."""
 
     def __init__(self, quick: bool):
-        self.examples = ["bus_arm7", "fixed_rig"] if quick else EXAMPLES
+        self.examples = ["bus_arm7", "fixed_rig", "servicer"] if quick else EXAMPLES
         self.chains = [10, 20] if quick else [10, 20, 50, 100, 200, 500, 1000, 2000]
         # The scaling target's pair, also timed side by side.
         self.scaling_pair = (10, 20) if quick else (200, 2000)

@@ -29,6 +29,14 @@ def paired_ratio(numerator, denominator) -> float:
     return float(np.median(np.asarray(numerator) / np.asarray(denominator)))
 
 
+# The cases `nudyn-bench eval-cost` times for a vehicle with actuators or sensors.
+PORT_CASES = {
+    "stripped of actuators and sensors": "nudyn stripped of actuators and sensors",
+    "with actuators": "nudyn with actuators",
+    "with actuators and sensors": "nudyn with actuators and sensors",
+}
+
+
 def cost_row(entry: dict) -> dict:
     ns = entry["nanoseconds"]
     row = {"nv": entry["nv"], "nudyn_ns": median(ns["nudyn"])}
@@ -52,6 +60,12 @@ def cost_row(entry: dict) -> dict:
             row["shortcuts"][shortcut] = paired_ratio(ns[name], ns["nudyn"])
     if "nudyn without shortcuts" in ns:
         row["shortcuts"]["all"] = paired_ratio(ns["nudyn without shortcuts"], ns["nudyn"])
+    # What the physical ports cost: time of each case over plain ν̇.
+    row["ports"] = {
+        name: paired_ratio(ns[case], ns["nudyn"])
+        for name, case in PORT_CASES.items()
+        if case in ns
+    }
     return row
 
 
@@ -201,6 +215,17 @@ def table(results: dict) -> str:
     for name, r in s["eval_cost"].items():
         cells = [_ratio(r["shortcuts"].get(k)) if k in r["shortcuts"] else "not taken" for k in SHORTCUTS + ["all"]]
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    ported = {name: r["ports"] for name, r in s["eval_cost"].items() if r.get("ports")}
+    if ported:
+        lines += [
+            "",
+            "### What the actuators and sensors cost (time / time of ν̇ alone, same state)",
+            "",
+            "| vehicle | " + " | ".join(PORT_CASES) + " |",
+            "|---|" + "---|" * len(PORT_CASES),
+        ]
+        for name, ports in ported.items():
+            lines.append(f"| {name} | " + " | ".join(_ratio(ports.get(k)) for k in PORT_CASES) + " |")
     sc = s["scaling"]
     lines += [
         "",

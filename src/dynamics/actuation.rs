@@ -305,18 +305,33 @@ impl Workspace {
     /// integrators apply them. A vehicle without actuators goes straight to
     /// pass 3, so it costs what it did before actuators existed.
     pub fn compute_nu_dot_actuated(&mut self, model: &Model, eps: &[f64], ctrl: &[f64]) -> Result<(), DynamicsError> {
+        check_length("ctrl", ctrl, model.actuators.len())?;
         if model.actuators.is_empty() {
-            return self.compute_nu_dot(model, eps);
+            self.compute_nu_dot(model, eps)?;
+        } else {
+            check_input("eps", eps, model.nv)?;
+            self.compute_actuation(model, ctrl)?;
+            let mut applied = std::mem::take(&mut self.eps_applied);
+            for ((total, input), actuator) in applied.iter_mut().zip(eps).zip(self.eps_actuator.iter()) {
+                *total = input + actuator;
+            }
+            let result = self.compute_nu_dot(model, applied.as_slice());
+            self.eps_applied = applied;
+            result?;
         }
-        check_input("eps", eps, model.nv)?;
-        self.compute_actuation(model, ctrl)?;
-        let mut applied = std::mem::take(&mut self.eps_applied);
-        for ((total, input), actuator) in applied.iter_mut().zip(eps).zip(self.eps_actuator.iter()) {
-            *total = input + actuator;
-        }
-        let result = self.compute_nu_dot(model, applied.as_slice());
-        self.eps_applied = applied;
-        result
+        self.eps_input.copy_from_slice(eps);
+        self.ctrl_input.copy_from_slice(ctrl);
+        self.inputs_applied = true;
+        Ok(())
+    }
+
+    /// Whether pass 3 is done for exactly these inputs, with the actuators
+    /// (by [`Workspace::compute_nu_dot_actuated`]).
+    pub(crate) fn nu_dot_is_for(&self, eps: &[f64], ctrl: &[f64]) -> bool {
+        self.stage == Stage::Acceleration
+            && self.inputs_applied
+            && self.eps_input.as_slice() == eps
+            && self.ctrl_input.as_slice() == ctrl
     }
 
     /// The generalized force of a unit force of actuator `k` (its moment

@@ -175,6 +175,7 @@ impl Workspace {
         check_input("eps", eps, model.nv)?;
         bias::bias_pass(model, self, eps);
         self.stage = Stage::Acceleration;
+        self.inputs_applied = false;
         Ok(())
     }
 }

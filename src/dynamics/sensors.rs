@@ -70,7 +70,9 @@ impl Workspace {
         }
         let needs = Needs::of(model);
         if needs.acceleration {
-            self.compute_nu_dot_actuated(model, eps, ctrl)?;
+            if !self.nu_dot_is_for(eps, ctrl) {
+                self.compute_nu_dot_actuated(model, eps, ctrl)?;
+            }
             self.compute_accelerations(model)?;
         } else if needs.actuation {
             self.compute_actuation(model, ctrl)?;

@@ -39,6 +39,13 @@ def test_quick_benchmark_writes_results_table_and_plots(tmp_path):
         assert scenario["reference_check"]["difference"] < 1e-8
     assert set(summary["targets"]) == {"nu_dot_not_slower_than_mj_forward", "half_of_mujoco_best_at_1e-6", "linear_scaling"}
     assert "### Targets" in (tmp_path / "table.md").read_text()
+    # The servicer's actuators and sensors are timed against its plain ν̇; a
+    # vehicle without them has no such cases.
+    ports = summary["eval_cost"]["servicer"]["ports"]
+    assert set(ports) == {"stripped of actuators and sensors", "with actuators", "with actuators and sensors"}
+    assert all(ratio > 0 for ratio in ports.values())
+    assert not summary["eval_cost"]["bus_arm7"]["ports"]
+    assert "### What the actuators and sensors cost" in (tmp_path / "table.md").read_text()
 
 
 def test_chains_built_for_mujoco_equal_the_generated_files():
