@@ -36,6 +36,7 @@ fn hinge_chain(links: usize) -> Vehicle {
         inertia: mass(100.0),
         inertial_pos: Vec3::zeros(),
         inertial_quat: Some(Quat::identity()),
+        mass_unknown: false,
         joints: vec![joint("base".into(), JointKind::Free, Vec3::z())],
         line: 0,
     }];

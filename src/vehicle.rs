@@ -50,6 +50,10 @@ pub struct Body {
     /// MuJoCo takes its axes from an eigen-decomposition (a full inertia
     /// tensor, several geoms), whose order and signs nudyn does not reproduce.
     pub inertial_quat: Option<Quat>,
+    /// Whether the body's mass is left out because it is fixed to the
+    /// world and its geoms' mass would come from mesh, sdf or height-field
+    /// assets (which nudyn does not read).
+    pub mass_unknown: bool,
     /// The body's joints, in document order (MuJoCo applies them in this order).
     pub joints: Vec<Joint>,
     /// Line of the `<body>` element in the MJCF file (1-based).

@@ -275,6 +275,7 @@ fn a_welded_end_effector_is_carried_by_its_link() {
         inertia: Some(common::random_mass(&mut rng)),
         inertial_pos: Default::default(),
         inertial_quat: None,
+        mass_unknown: false,
         joints: Vec::new(),
         line: 0,
     });

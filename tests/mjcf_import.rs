@@ -8,6 +8,7 @@ use std::path::PathBuf;
 use nalgebra::{Quaternion, UnitQuaternion};
 use nudyn::math::{Mat3, Quat, Vec3};
 use nudyn::mjcf::{Imported, MjcfError, load_mjcf, parse_mjcf};
+use nudyn::model::Model;
 use nudyn::vehicle::{Body, Joint, JointKind, MassProperties, Vehicle};
 
 const TOL: f64 = 1e-12;
@@ -626,4 +627,40 @@ fn error_message_shows_expected_and_found() {
     let xml = "<mujoco>\n<worldbody>\n<body>\n<geom size=\"1\"/>\n<joint name=\"j2\" axis=\"0 1\"/>\n</body>\n</worldbody>\n</mujoco>";
     let error = parse_mjcf(xml).unwrap_err();
     assert_eq!(error.to_string(), "line 5: <joint name=\"j2\">: attribute 'axis' expects 3 numbers, found \"0 1\"");
+}
+
+#[test]
+fn bodies_fixed_to_the_world_need_no_mass_so_their_mesh_files_are_never_read() {
+    // The fixture's mesh file exists (for MuJoCo); nudyn gets one that does not.
+    let xml =
+        std::fs::read_to_string(fixture("static_meshes.xml")).unwrap().replace("meshes/rock.obj", "no/such/rock.stl");
+    let Imported { vehicle, warnings } = parse_mjcf(&xml).unwrap();
+    let names: Vec<&str> = vehicle.bodies.iter().map(|b| b.name.as_str()).collect();
+    assert_eq!(names, ["asteroid", "boulder", "fixture", "lander"]);
+    let unknown: Vec<&str> = vehicle.bodies.iter().filter(|b| b.mass_unknown).map(|b| b.name.as_str()).collect();
+    assert_eq!(unknown, ["asteroid", "boulder", "fixture"]);
+    // The fixture's box still has its mass; the lander is untouched.
+    assert!(body(&vehicle, "fixture").inertia.as_ref().is_some_and(|m| m.mass > 0.0));
+    assert_eq!(body(&vehicle, "lander").inertia.as_ref().unwrap().mass, 300.0);
+    let shown: Vec<String> = warnings.iter().map(ToString::to_string).collect();
+    let mesh_warnings = shown.iter().filter(|w| w.contains("its mass is not computed")).count();
+    assert_eq!(mesh_warnings, 3, "{shown:#?}");
+    // It compiles, and its sensors measure against the static bodies...
+    let model = Model::compile(&vehicle).unwrap();
+    assert_eq!((model.nq, model.nv, model.sensors.len()), (7, 6, 2));
+    // ...but a subtree that would count an uncomputed mass is refused.
+    let xml = xml.replace(r#"<subtreecom body="lander"/>"#, r#"<subtreecom body="asteroid"/>"#);
+    let refused = Model::compile(&parse_mjcf(&xml).unwrap().vehicle).unwrap_err().to_string();
+    assert!(refused.contains("subtree of body 'asteroid' holds body 'asteroid'"), "{refused}");
+}
+
+#[test]
+fn a_moving_body_shaped_by_a_mesh_is_refused_until_it_has_an_inertial() {
+    let moving = r#"<mujoco><asset><mesh name="hull" file="hull.stl"/></asset><worldbody>
+        <body name="probe"><freejoint/><geom name="shell" type="mesh" mesh="hull"/></body></worldbody></mujoco>"#;
+    let message = parse_mjcf(moving).unwrap_err().to_string();
+    assert!(message.contains(r#"<geom name="shell">"#) && message.contains("give the body an <inertial>"), "{message}");
+    let with_inertial =
+        moving.replace("<freejoint/>", r#"<freejoint/><inertial pos="0 0 0" mass="5" diaginertia="1 1 1"/>"#);
+    assert_eq!(parse_mjcf(&with_inertial).unwrap().vehicle.bodies[0].inertia.as_ref().unwrap().mass, 5.0);
 }

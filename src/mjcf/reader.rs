@@ -514,9 +514,19 @@ impl Reader {
             InertiaFromGeom::Auto => explicit.is_none(),
         };
         let mut selected = Vec::new();
+        let mut mass_unknown = false;
         for (geom, settings) in &geoms {
             let [low, high] = self.compiler.inertia_groups;
             let contributes = from_geoms && (low..=high).contains(&settings.group);
+            let shaped_by_asset =
+                matches!(settings.kind, GeomKind::Mesh | GeomKind::Sdf | GeomKind::Hfield) || settings.mesh;
+            if contributes && shaped_by_asset && !moving {
+                mass_unknown = true;
+                self.warnings.push(geom.warning(
+                    "its mass is not computed: the body is fixed to the world, so it moves nothing \
+                     (a subtree sensor that would count it is refused)",
+                ));
+            }
             // MuJoCo leaves out geoms of mass up to mjEPS.
             if let Some(mass) = self.geom_mass(geom, settings, moving, contributes)?
                 && mass.mass > EPS
@@ -543,6 +553,7 @@ impl Reader {
             inertia: None,
             inertial_pos: Vec3::zeros(),
             inertial_quat: None,
+            mass_unknown,
             joints,
             line: element.line,
         });
@@ -683,7 +694,13 @@ impl Reader {
         if !contributes {
             return Ok(None);
         }
-        if matches!(settings.kind, GeomKind::Mesh | GeomKind::Sdf | GeomKind::Hfield) || settings.mesh {
+        let shaped_by_asset =
+            matches!(settings.kind, GeomKind::Mesh | GeomKind::Sdf | GeomKind::Hfield) || settings.mesh;
+        // A body that cannot move needs no mass: its mesh is never read.
+        if shaped_by_asset && !moving {
+            return Ok(None);
+        }
+        if shaped_by_asset {
             return Err(element.unsupported(
                 "the mass properties of mesh, sdf and height-field geoms are not computed; \
                  give the body an <inertial>, or put the geom in a group outside inertiagrouprange",

@@ -174,6 +174,13 @@ pub(super) fn compile_sensors(
                     Some(root) => (*root, subtree_end(vehicle, *root), vehicle.bodies[*root].name.clone()),
                     None => (0, vehicle.bodies.len(), "world".to_string()),
                 };
+                if let Some(unknown) = vehicle.bodies[first..end].iter().find(|b| b.mass_unknown) {
+                    return Err(refused(format!(
+                        "the subtree of body '{name}' holds body '{}', fixed to the world with mesh, sdf or \
+                         height-field geoms whose mass nudyn does not compute",
+                        unknown.name
+                    )));
+                }
                 (SensorSource::Subtree { first, end }, format!("subtree of body '{name}'"))
             }
             SensorTarget::None => (SensorSource::Clock, "time".to_string()),

@@ -443,6 +443,7 @@ pub fn random_vehicle(rng: &mut Rng, opts: TreeOptions) -> Vehicle {
             inertia: Some(random_mass(rng)),
             inertial_pos: V3::zeros(),
             inertial_quat: None,
+            mass_unknown: false,
             joints,
             line: 0,
         };
