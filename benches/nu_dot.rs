@@ -50,6 +50,7 @@ fn hinge_chain(links: usize) -> Vehicle {
             inertia: mass(1.0),
             inertial_pos: Vec3::zeros(),
             inertial_quat: Some(Quat::identity()),
+            mass_unknown: false,
             joints: vec![joint(format!("hinge{k}"), JointKind::Hinge, axis)],
             line: 0,
         });
