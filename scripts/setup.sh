@@ -8,7 +8,10 @@
 #     python3-venv if the interpreter cannot make a venv (only what is
 #     missing: checked with dpkg -s);
 #   - Python: a venv at .venv (repo root) with requirements.txt's pins
-#     (mujoco, fmpy, numpy, matplotlib).
+#     (mujoco, fmpy, numpy, matplotlib, dask, pyarrow, tqdm); the
+#     repository's python/ packages on the venv's path (a .pth file, so
+#     that Dask workers started from the venv import them too) and the
+#     command .venv/bin/nudyn-campaign.
 #
 # The tests need more (valgrind, cargo-fuzz, requirements-test.txt):
 # scripts/setup-test.sh runs this script and then installs those.
@@ -49,9 +52,21 @@ fi
 stamp="$VENV/.requirements.sha256"
 want="$(sha256sum "$REQ" | cut -d' ' -f1)"
 if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ] \
-    || ! "$VENV/bin/python" -c 'import mujoco, fmpy, numpy, matplotlib' >/dev/null 2>&1; then
+    || ! "$VENV/bin/python" -c 'import mujoco, fmpy, numpy, matplotlib, dask.distributed, pyarrow, tqdm' >/dev/null 2>&1; then
     echo "setup: installing Python packages from requirements.txt"
     "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -r "$REQ"
     echo "$want" >"$stamp"
+fi
+# --- The repository's Python packages and nudyn-campaign ----------------------
+site="$("$VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
+if [ "$(cat "$site/nudyn.pth" 2>/dev/null)" != "$ROOT/python" ]; then
+    echo "$ROOT/python" >"$site/nudyn.pth"
+fi
+command="$VENV/bin/nudyn-campaign"
+wanted="#!/bin/sh
+exec \"$VENV/bin/python\" -m nudyn_campaign \"\$@\""
+if [ "$(cat "$command" 2>/dev/null)" != "$wanted" ]; then
+    printf '%s\n' "$wanted" >"$command"
+    chmod +x "$command"
 fi
 echo "setup: ok ($("$VENV/bin/python" -c 'import mujoco, numpy; print("mujoco", mujoco.__version__, "numpy", numpy.__version__)'))"

@@ -129,16 +129,42 @@ class Instance:
             instanceName=name,
         )
         self.fmu.instantiate(callbacks=self.log.callbacks, loggingOn=logging_on)
+        self.name, self.experiment_tolerance, self.stop_time = name, experiment_tolerance, stop_time
         try:
-            self.fmu.setupExperiment(tolerance=experiment_tolerance, startTime=0.0, stopTime=stop_time)
+            self._initialize(initial)
+        except DriverError:
+            # The caller never gets this instance, so it cannot free it.
+            self.fmu.freeInstance()
+            raise
+
+    def _initialize(self, initial: Groups) -> None:
+        try:
+            self.fmu.setupExperiment(tolerance=self.experiment_tolerance, startTime=0.0, stopTime=self.stop_time)
             self._set_grouped(initial)
             self.fmu.enterInitializationMode()
             self.fmu.exitInitializationMode()
         except FMICallException as refused:
-            # The caller never gets this instance, so it cannot free it.
-            self.fmu.freeInstance()
-            raise DriverError(f"{name}: {refused} {self.log.last_problem()}".rstrip()) from None
+            raise DriverError(f"{self.name}: {refused} {self.log.last_problem()}".rstrip()) from None
         self.time = 0.0
+
+    def reset(
+        self,
+        start: Mapping[str, Value] | None = None,
+        theta: Iterable[float] | None = None,
+        nu: Iterable[float] | None = None,
+    ) -> None:
+        """fmi2Reset, then a fresh initialization with these values, as at
+        construction: one instance serves many runs (no re-instantiation,
+        no re-extraction). A refused value is a DriverError; the instance
+        stays usable for the next reset."""
+        values = dict(start or {})
+        if theta is not None:
+            values.update(zip(self.package.names("theta"), map(float, theta)))
+        if nu is not None:
+            values.update(zip(self.package.names("nu"), map(float, nu)))
+        initial = self._grouped(values)
+        self.fmu.reset()
+        self._initialize(initial)
 
     def __enter__(self) -> Instance:
         return self

@@ -1,0 +1,7 @@
+"""`nudyn-campaign CAMPAIGN.toml --out DIR [--cases N] [--workers N] [--scheduler ADDRESS]`."""
+
+import sys
+
+from .cli import main
+
+sys.exit(main())

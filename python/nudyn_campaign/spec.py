@@ -1,0 +1,229 @@
+"""The campaign file (TOML): what to fly, how long, and what to disperse.
+
+    [campaign]
+    name = "detumble"            # default: the file's name
+    model = "../bus_arm7.xml"    # MJCF, relative to this file
+    seed = 2026                  # campaign seed: case k draws from (seed, k)
+    cases = 1000
+    duration = 10.0              # s
+    step = 0.05                  # communication step, s
+    controller = true            # close the loop with nudyn's controller FMU
+    end_effector = "hand"        # optional: the controller's pose objective
+    wrench_bodies = ["bus"]      # optional: plant inputs xfrc_applied (nudyn export --wrench-inputs)
+    settle_threshold = 0.01      # |ν| (√J) below which the vehicle counts as settled
+    trajectories = false         # also write each case's trajectory
+    metrics = ["mymodule:extra"] # optional: functions(trajectory) -> {name: value}
+
+    [plant]                      # fixed plant parameters (tolerance, method, max_step)
+    method = "dop853"
+
+    [controller]                 # fixed controller parameters (c1, c2, targets)
+    c2 = 0.0
+
+    [dispersions]                # target = { distribution = parameters }
+    "qvel[4:6]" = { normal = [0.0, 0.3] }
+    "controller.c1" = { grid = [0.5, 1.0, 2.0, 4.0] }
+
+Targets: the start values theta[k] and nu[k], or qvel[k] (turned into ν at
+the drawn θ); the constant inputs eps[k], ctrl[k], xfrc_applied[k];
+plant.NAME and controller.NAME parameters (an array parameter such as
+controller.c1 without an index sets every entry). `[a:b]` is the entries a
+to b (1-based, inclusive), each drawn on its own. Distributions: uniform
+[low, high], normal [mean, sd], choice [values...] (drawn), grid [values...]
+(not drawn: case k takes the grids' values in turn, the first grid
+fastest, so a grid of G values sweeps every G-th case).
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+DISTRIBUTIONS = ("uniform", "normal", "choice", "grid")
+INPUTS = ("eps", "ctrl", "xfrc_applied")
+STATES = ("theta", "nu", "qvel")
+_TARGET = re.compile(r"^(?:(plant|controller)\.)?([A-Za-z_][A-Za-z0-9_]*)(?:\[(\d+)(?::(\d+))?\])?$")
+
+
+class CampaignError(ValueError):
+    """A campaign file that cannot be run, with the key and what is wrong."""
+
+
+@dataclass(frozen=True)
+class Dispersion:
+    """One dispersed quantity: the variables it sets and how it is drawn."""
+
+    key: str  # as written in the file
+    scope: str  # "plant" (start values, inputs, parameters) or "controller"
+    names: tuple[str, ...]  # the FMU variables it sets ("qvel[k]" for qvel)
+    distribution: str
+    parameters: tuple[float, ...]
+
+
+@dataclass
+class Campaign:
+    path: Path
+    name: str
+    model: Path
+    seed: int
+    cases: int
+    duration: float
+    step: float
+    controller: bool = False
+    end_effector: str | None = None
+    wrench_bodies: tuple[str, ...] = ()
+    settle_threshold: float = 0.01
+    trajectories: bool = False
+    metrics: tuple[str, ...] = ()
+    plant_parameters: dict = field(default_factory=dict)
+    controller_parameters: dict = field(default_factory=dict)
+    dispersions: tuple[Dispersion, ...] = ()
+
+    @property
+    def steps(self) -> int:
+        return round(self.duration / self.step)
+
+    def columns(self) -> list[str]:
+        """The drawn values' columns, in draw order."""
+        return [dispersion.key for dispersion in self.dispersions]
+
+    def as_dict(self) -> dict:
+        """A plain description for the workers (no paths they may not share)."""
+        return {
+            "name": self.name,
+            "duration": self.duration,
+            "step": self.step,
+            "controller": self.controller,
+            "settle_threshold": self.settle_threshold,
+            "trajectories": self.trajectories,
+            "metrics": list(self.metrics),
+            "plant_parameters": dict(self.plant_parameters),
+            "controller_parameters": dict(self.controller_parameters),
+        }
+
+
+def _number(value, key: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+        raise CampaignError(f"{key}: expected a finite number, found {value!r}")
+    return float(value)
+
+
+def _dispersion(key: str, value) -> Dispersion:
+    match = _TARGET.match(key)
+    if match is None:
+        raise CampaignError(
+            f"dispersions.{key}: not a target; write theta[k], nu[k], qvel[k], eps[k], ctrl[k], "
+            "xfrc_applied[k] (or [a:b]), plant.NAME or controller.NAME"
+        )
+    scope, base, first, last = match.groups()
+    if scope is None and base not in STATES + INPUTS:
+        raise CampaignError(f"dispersions.{key}: '{base}' is no start value or input; a parameter needs plant. or controller.")
+    if scope is None and first is None:
+        raise CampaignError(f"dispersions.{key}: give the entry, e.g. {base}[1] or {base}[1:3]")
+    if not isinstance(value, dict) or len(value) != 1:
+        raise CampaignError(f"dispersions.{key}: expected one distribution, e.g. {{ uniform = [0, 1] }}, found {value!r}")
+    (distribution, parameters), = value.items()
+    if distribution not in DISTRIBUTIONS:
+        raise CampaignError(f"dispersions.{key}: unknown distribution '{distribution}' (known: {', '.join(DISTRIBUTIONS)})")
+    if not isinstance(parameters, list) or not parameters:
+        raise CampaignError(f"dispersions.{key}.{distribution}: expected a list of numbers")
+    parameters = tuple(_number(p, f"dispersions.{key}.{distribution}") for p in parameters)
+    if distribution in ("uniform", "normal") and len(parameters) != 2:
+        raise CampaignError(f"dispersions.{key}.{distribution}: expected two numbers, found {len(parameters)}")
+    if distribution == "uniform" and not parameters[0] <= parameters[1]:
+        raise CampaignError(f"dispersions.{key}.uniform: low {parameters[0]} exceeds high {parameters[1]}")
+    if distribution == "normal" and parameters[1] < 0:
+        raise CampaignError(f"dispersions.{key}.normal: negative standard deviation {parameters[1]}")
+    if first is None:
+        names = (base,)
+    else:
+        a, b = int(first), int(last or first)
+        if not 1 <= a <= b:
+            raise CampaignError(f"dispersions.{key}: entries count from 1 and a range runs upward")
+        names = tuple(f"{base}[{k}]" for k in range(a, b + 1))
+    return Dispersion(key, scope or "plant", names, distribution, parameters)
+
+
+def load(path: str | Path) -> Campaign:
+    """Reads and checks a campaign file."""
+    path = Path(path)
+    try:
+        document = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise CampaignError(f"no such campaign file: {path}") from None
+    except tomllib.TOMLDecodeError as error:
+        raise CampaignError(f"{path}: not valid TOML: {error}") from None
+    unknown = set(document) - {"campaign", "plant", "controller", "dispersions"}
+    if unknown:
+        raise CampaignError(f"unknown section(s) {', '.join(sorted(unknown))} (known: campaign, plant, controller, dispersions)")
+    section = document.get("campaign", {})
+    known = {"name", "model", "seed", "cases", "duration", "step", "controller", "end_effector", "wrench_bodies",
+             "settle_threshold", "trajectories", "metrics"}
+    if set(section) - known:
+        raise CampaignError(f"campaign: unknown key(s) {', '.join(sorted(set(section) - known))}")
+    for required in ("model", "cases", "duration", "step"):
+        if required not in section:
+            raise CampaignError(f"campaign.{required} is missing")
+    model = (path.parent / section["model"]).resolve()
+    if not model.is_file():
+        raise CampaignError(f"campaign.model: no such file {model}")
+    cases = section["cases"]
+    if not isinstance(cases, int) or cases < 1:
+        raise CampaignError(f"campaign.cases: expected a positive integer, found {cases!r}")
+    duration, step = _number(section["duration"], "campaign.duration"), _number(section["step"], "campaign.step")
+    if not (step > 0 and duration > 0 and abs(round(duration / step) * step - duration) <= 1e-9 * duration):
+        raise CampaignError(f"campaign.step: {step} must be positive and divide campaign.duration {duration}")
+    controller = bool(section.get("controller", False))
+    end_effector = section.get("end_effector")
+    if end_effector is not None and not controller:
+        raise CampaignError("campaign.end_effector needs campaign.controller = true")
+    dispersions = tuple(_dispersion(key, value) for key, value in document.get("dispersions", {}).items())
+    if not controller and any(d.scope == "controller" for d in dispersions):
+        raise CampaignError("dispersions of controller parameters need campaign.controller = true")
+    for name, values in (("plant", document.get("plant", {})), ("controller", document.get("controller", {}))):
+        for key, value in values.items():
+            if not isinstance(value, (int, float, str, bool)):
+                raise CampaignError(f"{name}.{key}: expected a number, a name or true/false, found {value!r}")
+    return Campaign(
+        path=path,
+        name=str(section.get("name", path.stem)),
+        model=model,
+        seed=int(section.get("seed", 0)),
+        cases=cases,
+        duration=duration,
+        step=step,
+        controller=controller,
+        end_effector=end_effector,
+        wrench_bodies=tuple(section.get("wrench_bodies", ())),
+        settle_threshold=_number(section.get("settle_threshold", 0.01), "campaign.settle_threshold"),
+        trajectories=bool(section.get("trajectories", False)),
+        metrics=tuple(section.get("metrics", ())),
+        plant_parameters=dict(document.get("plant", {})),
+        controller_parameters=dict(document.get("controller", {})),
+        dispersions=dispersions,
+    )
+
+
+def draw(campaign: Campaign, case: int) -> dict[str, float | list[float]]:
+    """Case `case`'s drawn values by key (a range's values as a list), from
+    (campaign seed, case) alone: any case reruns alone to the same numbers."""
+    rng = np.random.default_rng([campaign.seed, case])
+    grid_index = case
+    values: dict = {}
+    for dispersion in campaign.dispersions:
+        count, p = len(dispersion.names), dispersion.parameters
+        if dispersion.distribution == "grid":
+            drawn = [p[grid_index % len(p)]] * count
+            grid_index //= len(p)
+        elif dispersion.distribution == "uniform":
+            drawn = rng.uniform(p[0], p[1], count).tolist()
+        elif dispersion.distribution == "normal":
+            drawn = rng.normal(p[0], p[1], count).tolist()
+        else:
+            drawn = [p[i] for i in rng.integers(0, len(p), count)]
+        values[dispersion.key] = drawn[0] if count == 1 else drawn
+    return values

@@ -1,0 +1,232 @@
+"""nudyn-campaign (python/nudyn_campaign) on Dask: the same table on one
+worker, on two, and on a real scheduler with two worker processes on
+loopback (one killed mid-campaign); failed cases recorded, never lost;
+resume after an interruption; any case rerun alone; clear errors for bad
+campaign files. Small flights (bus_arm7, 1 s), so the file runs in about a
+minute on two cores."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import pytest
+
+from conftest import ROOT
+from nudyn_campaign import CampaignError, CampaignInterrupted, load, run_campaign
+from nudyn_campaign.runner import export
+from nudyn_campaign.cases import run_chunk
+from nudyn_campaign.spec import draw
+
+CLOSED_LOOP = """
+[campaign]
+name = "small_detumble"
+model = "{model}"
+seed = 7
+cases = 12
+duration = 1.0
+step = 0.05
+controller = true
+settle_threshold = 2.0
+
+[plant]
+tolerance = 1e-6
+
+[dispersions]
+"qvel[4:6]" = {{ normal = [0.0, 0.3] }}
+"qvel[7]" = {{ uniform = [-0.3, 0.3] }}
+"controller.c1" = {{ grid = [1.0, 4.0] }}
+"""
+
+# Open loop, some cases with a huge held ε: the FMU discards their first step.
+WITH_FAILURES = """
+[campaign]
+model = "{model}"
+seed = 3
+cases = 16
+duration = 0.5
+step = 0.05
+
+[dispersions]
+"nu[4]" = {{ normal = [0.0, 0.5] }}
+"eps[10]" = {{ choice = [0.0, 0.1, 1e300] }}
+"""
+
+
+def write(tmp_path: Path, text: str, name: str = "campaign.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(text.format(model=ROOT / "examples" / "bus_arm7.xml"))
+    return path
+
+
+def rows(table) -> str:
+    """The table's rows, NaN-safe and exact (repr of every float)."""
+    return json.dumps(table.to_pylist(), sort_keys=True)
+
+
+@pytest.fixture(scope="module")
+def one_worker(nudyn, tmp_path_factory):
+    directory = tmp_path_factory.mktemp("campaign")
+    path = write(directory, CLOSED_LOOP)
+    return path, run_campaign(path, directory / "one", workers=1, nudyn=nudyn, progress=False)
+
+
+def test_every_case_is_a_row_with_its_draws_and_metrics(one_worker):
+    path, table = one_worker
+    assert table.column("case").to_pylist() == list(range(12))
+    assert set(table.column("status").to_pylist()) == {"ok"}
+    assert table.column("controller.c1").to_pylist() == [1.0, 4.0] * 6
+    campaign = load(path)
+    assert table.column("qvel[4:6]").to_pylist()[5] == draw(campaign, 5)["qvel[4:6]"]
+    for metric in ("peak_nu", "final_nu", "final_error", "control_effort"):
+        assert all(v > 0 for v in table.column(metric).to_pylist()), metric
+    # The higher gain damps faster: every c1 = 4 case ends slower than it started by more.
+    by_gain = {}
+    for row in table.to_pylist():
+        by_gain.setdefault(row["controller.c1"], []).append(row["final_nu"] / row["peak_nu"])
+    assert max(by_gain[4.0]) < min(by_gain[1.0])
+    out = path.parent / "one"
+    assert rows(pq.read_table(out / "results.parquet")) == rows(table)
+    report = (out / "report.md").read_text()
+    assert "12 of 12 cases run: 12 ok" in report and "## Against controller.c1" in report
+    assert (out / "metrics.png").stat().st_size > 0 and (out / "controller.c1.png").stat().st_size > 0
+
+
+def test_two_workers_give_the_same_table(one_worker, nudyn, tmp_path):
+    path, table = one_worker
+    two = run_campaign(path, tmp_path / "two", workers=2, nudyn=nudyn, progress=False)
+    assert rows(two) == rows(table)
+
+
+def test_any_case_reruns_alone_to_the_same_numbers(one_worker, nudyn, tmp_path):
+    path, table = one_worker
+    campaign = load(path)
+    fmus = export(campaign, tmp_path, nudyn)
+    spec = {**campaign.as_dict(), "targets": [(d.key, d.scope, list(d.names)) for d in campaign.dispersions]}
+    (alone,) = run_chunk(spec, fmus.plant, fmus.controller, campaign.model.read_text(), [(9, draw(campaign, 9))])
+    assert json.dumps(alone, sort_keys=True) == json.dumps(table.to_pylist()[9], sort_keys=True)
+
+
+def test_failed_cases_are_recorded_and_the_rest_complete(nudyn, tmp_path):
+    table = run_campaign(write(tmp_path, WITH_FAILURES), tmp_path / "out", workers=2, nudyn=nudyn, progress=False)
+    assert table.num_rows == 16
+    huge = [row for row in table.to_pylist() if row["eps[10]"] == 1e300]
+    fine = [row for row in table.to_pylist() if row["eps[10]"] != 1e300]
+    assert huge and fine
+    assert all(row["status"] == "discard" and "fmi2DoStep" in row["message"] for row in huge), huge[0]
+    assert all(row["status"] == "ok" and row["message"] == "" for row in fine)
+    assert "## Failed cases" in (tmp_path / "out" / "report.md").read_text()
+
+
+def test_an_interrupted_campaign_resumes_with_the_missing_cases_only(one_worker, nudyn, tmp_path):
+    path, table = one_worker
+    out = tmp_path / "resumed"
+    with pytest.raises(CampaignInterrupted):
+        run_campaign(path, out, workers=1, nudyn=nudyn, progress=False, stop_after_chunks=1)
+    parts = sorted((out / "parts").glob("part-*.parquet"))
+    assert len(parts) == 1
+    first = {part: part.stat().st_mtime_ns for part in parts}
+    done = pq.read_table(parts[0]).num_rows
+    assert 0 < done < 12
+    resumed = run_campaign(path, out, workers=1, nudyn=nudyn, progress=False)
+    assert rows(resumed) == rows(table)
+    # The finished part was not run again.
+    assert all(part.stat().st_mtime_ns == mtime for part, mtime in first.items())
+    assert len(list((out / "parts").glob("part-*.parquet"))) > 1
+
+
+def _dask(*arguments, env) -> subprocess.Popen:
+    return subprocess.Popen([str(Path(sys.executable).parent / "dask"), *arguments], env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+
+
+def test_a_real_scheduler_with_a_worker_killed_mid_campaign(one_worker, nudyn, tmp_path):
+    """`dask scheduler` and two `dask worker` processes on loopback: the
+    campaign through --scheduler gives the same table; with one worker
+    killed once the first chunks are in, every case is still there."""
+    path, table = one_worker
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "python")}
+    scheduler_file = tmp_path / "scheduler.json"
+    processes = [_dask("scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                       "--scheduler-file", str(scheduler_file), env=env)]
+    try:
+        for _ in range(600):
+            if scheduler_file.exists() and scheduler_file.stat().st_size:
+                break
+            time.sleep(0.1)
+        address = json.loads(scheduler_file.read_text())["address"]
+        workers = [_dask("worker", address, "--nthreads", "1", "--no-dashboard", "--name", f"w{k}", env=env)
+                   for k in range(2)]
+        processes += workers
+        same = run_campaign(path, tmp_path / "cluster", scheduler=address, nudyn=nudyn, progress=False)
+        assert rows(same) == rows(table)
+
+        # A longer campaign; kill a worker once the first chunks are written.
+        out = tmp_path / "killed"
+        cli = subprocess.Popen([sys.executable, "-m", "nudyn_campaign", str(path), "--out", str(out), "--cases", "60",
+                                "--scheduler", address, "--no-progress", "--nudyn", str(nudyn)],
+                               env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        for _ in range(600):
+            if len(list((out / "parts").glob("part-*.parquet"))) >= 2 or cli.poll() is not None:
+                break
+            time.sleep(0.05)
+        os.killpg(workers[0].pid, signal.SIGKILL)
+        stdout, stderr = cli.communicate(timeout=600)
+        assert cli.returncode == 0, stderr[-3000:]
+        killed = pq.read_table(out / "results.parquet")
+        assert killed.column("case").to_pylist() == list(range(60))
+        assert set(killed.column("status").to_pylist()) == {"ok"}
+        assert rows(killed.slice(0, 12)) == rows(table)
+    finally:
+        for process in processes:
+            if process.poll() is None:
+                os.killpg(process.pid, signal.SIGKILL)
+                process.wait()
+
+
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        ("[campaign]\nmodel = '{model}'\ncases = 2\nduration = 1.0\n", "campaign.step is missing"),
+        ("[campaign]\nmodel = '{model}'\ncases = 2\nduration = 1.0\nstep = 0.3\n", "must be positive and divide"),
+        ("[campaign]\nmodel = 'nope.xml'\ncases = 2\nduration = 1.0\nstep = 0.5\n", "campaign.model: no such file"),
+        ("[campaign]\nmodel = '{model}'\ncases = 2\nduration = 1.0\nstep = 0.5\nspeed = 3\n", "unknown key(s) speed"),
+        ("[campaign]\nmodel = '{model}'\ncases = 2\nduration = 1.0\nstep = 0.5\n[dispersions]\n'omega[1]' = {{ normal = [0, 1] }}\n",
+         "'omega' is no start value or input"),
+        ("[campaign]\nmodel = '{model}'\ncases = 2\nduration = 1.0\nstep = 0.5\n[dispersions]\n'nu[1]' = {{ gauss = [0, 1] }}\n",
+         "unknown distribution 'gauss'"),
+        ("[campaign]\nmodel = '{model}'\ncases = 2\nduration = 1.0\nstep = 0.5\n[dispersions]\n'nu[1]' = {{ uniform = [2, 1] }}\n",
+         "low 2.0 exceeds high 1.0"),
+        ("[campaign]\nmodel = '{model}'\ncases = 2\nduration = 1.0\nstep = 0.5\n[dispersions]\n'controller.c1' = {{ grid = [1] }}\n",
+         "need campaign.controller = true"),
+    ],
+)
+def test_bad_campaign_files_are_clear_errors(text, expected, tmp_path):
+    path = write(tmp_path, text)
+    with pytest.raises(CampaignError, match=None) as error:
+        load(path)
+    assert expected in str(error.value), str(error.value)
+    proc = subprocess.run([sys.executable, "-m", "nudyn_campaign", str(path), "--out", str(tmp_path / "o")],
+                          capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(ROOT / "python")})
+    assert proc.returncode == 2 and expected in proc.stderr, proc.stderr
+
+
+def test_a_metric_of_the_users_own(nudyn, tmp_path, monkeypatch):
+    (tmp_path / "my_metrics.py").write_text(
+        "import numpy as np\n"
+        "def spin(flight):\n"
+        "    n = flight.reached\n"
+        "    return {'max_base_spin': float(np.max(np.abs(flight.nu[:n, 3:6])))}\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(tmp_path), os.environ.get("PYTHONPATH", "")]))
+    text = WITH_FAILURES.replace("step = 0.05", "step = 0.05\nmetrics = [\"my_metrics:spin\"]").replace("1e300", "0.2")
+    table = run_campaign(write(tmp_path, text), tmp_path / "out", cases=4, workers=1, nudyn=nudyn, progress=False)
+    spins = table.column("max_base_spin").to_pylist()
+    assert len(spins) == 4 and all(s >= abs(n) for s, n in zip(spins, table.column("nu[4]").to_pylist()))
