@@ -87,8 +87,9 @@ class _NonFinite(Exception):
 class _Flight:
     """One case's samples at the communication points."""
 
-    def __init__(self, steps: int, nv: int, controller: bool):
+    def __init__(self, steps: int, nv: int, nu: int, controller: bool):
         self.time = np.zeros(steps + 1)
+        self.ctrl = np.zeros((steps, nu))  # the actuators' controls held over each step
         self.nu = np.full((steps + 1, nv), np.nan)
         self.kinetic_energy = np.full(steps + 1, np.nan)
         self.momentum = np.full((steps + 1, 6), np.nan)
@@ -131,7 +132,8 @@ def run_chunk(spec: dict, plant_fmu: bytes, controller_fmu: bytes | None, mjcf: 
                     velocity[index] = value
                 nu = reference.nu(theta, velocity)
             start = {name: value for name, value in start.items() if not name.startswith("theta[")}
-            flight = _Flight(round(spec["duration"] / spec["step"]), reference.model.nv, controller_package is not None)
+            steps = round(spec["duration"] / spec["step"])
+            flight = _Flight(steps, reference.model.nv, len(plant_package.names("ctrl")), controller_package is not None)
             try:
                 if plant is None:
                     plant = Instance(plant_package, name="plant", start=start, theta=theta, nu=nu)
@@ -175,12 +177,28 @@ def run_chunk(spec: dict, plant_fmu: bytes, controller_fmu: bytes | None, mjcf: 
     return rows
 
 
+def _held(points: list, t: float, tolerance: float) -> float | None:
+    """A schedule's value at communication point t (None before its first time)."""
+    value = None
+    for time, point in points:
+        if time <= t + tolerance:
+            value = point
+    return value
+
+
 def _fly(spec: dict, flight: _Flight, plant: Instance, controller: Instance | None) -> None:
     h, steps = spec["step"], round(spec["duration"] / spec["step"])
+    schedules = spec["schedules"]
     flight.sample(0, plant, controller)
     for k in range(steps):
         t = k * h
         flight.time[k] = t
+        scheduled = {name: _held(points, t, 1e-9 * h) for name, points in schedules.items()}
+        scheduled = {name: value for name, value in scheduled.items() if value is not None}
+        if scheduled:
+            plant.set(scheduled)
+        if flight.ctrl.shape[1]:
+            flight.ctrl[k] = plant.array("ctrl")
         if controller is not None:
             controller.set_array("theta", plant.array("theta"))
             controller.set_array("nu", plant.array("nu"))

@@ -8,7 +8,10 @@ points (a failed case has the samples up to where it stopped):
                      joint error, when the loop is closed);
   energy_drift       max |K − K(0)| (J), meaningful for unforced flights;
   momentum_drift     max |p − p(0)| over the six components;
-  control_effort     ∫ |ε| dt of the controller's ε (√J), when closed.
+  control_effort     ∫ |ε| dt of the controller's ε (√J), when closed;
+  impulse            per actuator, ∫ |ctrl_k| dt of the controls held (a
+                     list; N s for a thruster whose ctrl is its thrust),
+                     when the plant has actuators.
 """
 
 from __future__ import annotations
@@ -34,6 +37,9 @@ def metrics(flight, settle_threshold: float, step: float) -> dict[str, float]:
     momentum = flight.momentum[:n]
     closed = flight.target_error is not None
     effort = float(np.sum(np.linalg.norm(flight.eps[: n - 1], axis=1)) * step) if closed else float("nan")
+    impulse = {}
+    if flight.ctrl.shape[1]:
+        impulse["impulse"] = (np.sum(np.abs(flight.ctrl[: n - 1]), axis=0) * step).tolist()
     return {
         "settling_time": settling,
         "peak_nu": float(np.max(speed)),
@@ -42,4 +48,5 @@ def metrics(flight, settle_threshold: float, step: float) -> dict[str, float]:
         "energy_drift": float(np.max(np.abs(energy - energy[0]))),
         "momentum_drift": float(np.max(np.abs(momentum - momentum[0]))),
         "control_effort": effort,
+        **impulse,
     }

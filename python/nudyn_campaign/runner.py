@@ -147,7 +147,7 @@ def _run(client, campaign, worker_spec, fmus, missing, out, progress, stop_after
                 trajectory = row.pop("_trajectory", None)
                 if trajectory is not None:
                     _write_atomically(pa.table(trajectory), out / "trajectories" / f"case-{row['case']:06d}.parquet")
-            columns = list(rows[0])
+            columns = list(dict.fromkeys(key for row in rows for key in row))
             _write_atomically(_table(rows, columns), out / "parts" / f"part-{rows[0]['case']:06d}.parquet")
             failed += sum(row["status"] != "ok" for row in rows)
             bar.update(len(rows))

@@ -24,6 +24,9 @@
     "qvel[4:6]" = { normal = [0.0, 0.3] }
     "controller.c1" = { grid = [0.5, 1.0, 2.0, 4.0] }
 
+    [schedules]                  # plant inputs over time: [time, value] pairs,
+    "ctrl[1]" = [[0.0, 22.0], [2.0, 0.0]]  # each value held from its time on
+
 Targets: the start values theta[k] and nu[k], or qvel[k] (turned into ν at
 the drawn θ); the constant inputs eps[k], ctrl[k], xfrc_applied[k];
 plant.NAME and controller.NAME parameters (an array parameter such as
@@ -31,7 +34,10 @@ controller.c1 without an index sets every entry). `[a:b]` is the entries a
 to b (1-based, inclusive), each drawn on its own. Distributions: uniform
 [low, high], normal [mean, sd], choice [values...] (drawn), grid [values...]
 (not drawn: case k takes the grids' values in turn, the first grid
-fastest, so a grid of G values sweeps every G-th case).
+fastest, so a grid of G values sweeps every G-th case). A schedule sets an
+input (eps[k], ctrl[k], xfrc_applied[k]) at the communication points from
+its times on, the same in every case; before its first time the input
+keeps its start value (0, or a dispersed one).
 """
 
 from __future__ import annotations
@@ -82,6 +88,8 @@ class Campaign:
     plant_parameters: dict = field(default_factory=dict)
     controller_parameters: dict = field(default_factory=dict)
     dispersions: tuple[Dispersion, ...] = ()
+    # Input name -> ((time, value), ...) ascending in time.
+    schedules: dict = field(default_factory=dict)
 
     @property
     def steps(self) -> int:
@@ -103,6 +111,7 @@ class Campaign:
             "metrics": list(self.metrics),
             "plant_parameters": dict(self.plant_parameters),
             "controller_parameters": dict(self.controller_parameters),
+            "schedules": {name: [list(point) for point in points] for name, points in self.schedules.items()},
         }
 
 
@@ -157,9 +166,11 @@ def load(path: str | Path) -> Campaign:
         raise CampaignError(f"no such campaign file: {path}") from None
     except tomllib.TOMLDecodeError as error:
         raise CampaignError(f"{path}: not valid TOML: {error}") from None
-    unknown = set(document) - {"campaign", "plant", "controller", "dispersions"}
+    unknown = set(document) - {"campaign", "plant", "controller", "dispersions", "schedules"}
     if unknown:
-        raise CampaignError(f"unknown section(s) {', '.join(sorted(unknown))} (known: campaign, plant, controller, dispersions)")
+        raise CampaignError(
+            f"unknown section(s) {', '.join(sorted(unknown))} (known: campaign, plant, controller, dispersions, schedules)"
+        )
     section = document.get("campaign", {})
     known = {"name", "model", "seed", "cases", "duration", "step", "controller", "end_effector", "wrench_bodies",
              "settle_threshold", "trajectories", "metrics"}
@@ -188,6 +199,7 @@ def load(path: str | Path) -> Campaign:
         for key, value in values.items():
             if not isinstance(value, (int, float, str, bool)):
                 raise CampaignError(f"{name}.{key}: expected a number, a name or true/false, found {value!r}")
+    schedules = {key: _schedule(key, value) for key, value in document.get("schedules", {}).items()}
     return Campaign(
         path=path,
         name=str(section.get("name", path.stem)),
@@ -205,7 +217,20 @@ def load(path: str | Path) -> Campaign:
         plant_parameters=dict(document.get("plant", {})),
         controller_parameters=dict(document.get("controller", {})),
         dispersions=dispersions,
+        schedules=schedules,
     )
+
+
+def _schedule(key: str, points) -> tuple[tuple[float, float], ...]:
+    match = _TARGET.match(key)
+    if match is None or match.group(1) or match.group(2) not in INPUTS or match.group(3) is None or match.group(4):
+        raise CampaignError(f"schedules.{key}: a schedule sets one input entry: eps[k], ctrl[k] or xfrc_applied[k]")
+    if not isinstance(points, list) or not points or not all(isinstance(p, list) and len(p) == 2 for p in points):
+        raise CampaignError(f"schedules.{key}: expected [[time, value], ...], found {points!r}")
+    parsed = tuple((_number(t, f"schedules.{key}"), _number(v, f"schedules.{key}")) for t, v in points)
+    if any(b[0] <= a[0] for a, b in zip(parsed, parsed[1:])):
+        raise CampaignError(f"schedules.{key}: the times must increase")
+    return parsed
 
 
 def draw(campaign: Campaign, case: int) -> dict[str, float | list[float]]:

@@ -230,3 +230,42 @@ def test_a_metric_of_the_users_own(nudyn, tmp_path, monkeypatch):
     table = run_campaign(write(tmp_path, text), tmp_path / "out", cases=4, workers=1, nudyn=nudyn, progress=False)
     spins = table.column("max_base_spin").to_pylist()
     assert len(spins) == 4 and all(s >= abs(n) for s, n in zip(spins, table.column("nu[4]").to_pylist()))
+
+
+SERVICER_BURNS = """
+[campaign]
+model = "{servicer}"
+seed = 11
+cases = 4
+duration = 3.0
+step = 0.05
+
+[dispersions]
+"ctrl[9]" = {{ uniform = [-0.2, 0.2] }}
+"nu[4]" = {{ normal = [0.0, 0.1] }}
+
+[schedules]
+# The four aft thrusters at full thrust for 2 s, then off.
+"ctrl[1]" = [[0.0, 22.0], [2.0, 0.0]]
+"ctrl[2]" = [[0.0, 22.0], [2.0, 0.0]]
+"ctrl[3]" = [[0.0, 22.0], [2.0, 0.0]]
+"ctrl[4]" = [[0.0, 22.0], [2.0, 0.0]]
+"""
+
+
+def test_input_schedules_and_the_impulse_per_actuator(nudyn, tmp_path):
+    path = tmp_path / "burns.toml"
+    path.write_text(SERVICER_BURNS.format(servicer=ROOT / "examples" / "servicer.xml"))
+    table = run_campaign(path, tmp_path / "out", workers=1, nudyn=nudyn, progress=False)
+    assert set(table.column("status").to_pylist()) == {"ok"}
+    for row in table.to_pylist():
+        impulse = row["impulse"]
+        assert len(impulse) == 15
+        # 22 N for 2 s on each aft thruster; the fore ones never fired.
+        assert impulse[:4] == pytest.approx([44.0] * 4, rel=1e-12) and impulse[4:8] == [0.0] * 4
+        # The wheel's dispersed torque, held for 3 s.
+        assert impulse[8] == pytest.approx(abs(row["ctrl[9]"]) * 3.0, rel=1e-12)
+    with pytest.raises(CampaignError, match="the times must increase"):
+        bad = tmp_path / "bad.toml"
+        bad.write_text(SERVICER_BURNS.format(servicer=ROOT / "examples" / "servicer.xml").replace("[2.0, 0.0]]", "[0.0, 0.0]]", 1))
+        load(bad)
