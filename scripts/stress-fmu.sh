@@ -97,7 +97,10 @@ export RUSTC_BOOTSTRAP=1
 SEEDS="$WORK/seeds"
 mkdir -p "$SEEDS/mjcf_import" "$SEEDS/resource_loader" "$SEEDS/state_deserializer" "$SEEDS/call_sequence" \
     "$SEEDS/call_sequence_fmi3"
-cp examples/*.xml tests/fixtures/mjcf/*.xml "$SEEDS/mjcf_import/"
+for file in examples/*.xml tests/fixtures/{mjcf,actuators,sensors}/*.xml; do
+    # Named by directory too: fixture names repeat across directories.
+    cp "$file" "$SEEDS/mjcf_import/$(basename "$(dirname "$file")")_$(basename "$file")"
+done
 # Deep trees (bodies and default classes 1500 levels deep) and orientations
 # at the edges of floating point.
 .venv/bin/python - "$SEEDS/mjcf_import" <<'SEEDS'
@@ -121,8 +124,12 @@ out.joinpath("extreme_orientations.xml").write_text(bodies_turned(
 out.joinpath("tiny_quaternion.xml").write_text(bodies_turned(['quat="1e-16 0 0 5e-324"']))
 SEEDS
 cp "$WORK/bus/resources/model.json" "$SEEDS/resource_loader/bus_arm7.json"
-for example in fixed_rig flexible_boom; do
-    target/release/nudyn export "examples/$example.xml" -o "$WORK/$example.fmu" >/dev/null
+# The servicer with its actuators, sensors and wrench inputs: every part of
+# a model file the loader validates.
+for example in fixed_rig flexible_boom servicer; do
+    wrenches=()
+    [ "$example" = servicer ] && wrenches=(--wrench-inputs bus,hand)
+    target/release/nudyn export "examples/$example.xml" -o "$WORK/$example.fmu" "${wrenches[@]}" >/dev/null
     .venv/bin/python -c "import sys, zipfile; sys.stdout.buffer.write(zipfile.ZipFile(sys.argv[1]).read('resources/model.json'))" \
         "$WORK/$example.fmu" >"$SEEDS/resource_loader/$example.json"
 done
