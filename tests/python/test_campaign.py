@@ -269,3 +269,14 @@ def test_input_schedules_and_the_impulse_per_actuator(nudyn, tmp_path):
         bad = tmp_path / "bad.toml"
         bad.write_text(SERVICER_BURNS.format(servicer=ROOT / "examples" / "servicer.xml").replace("[2.0, 0.0]]", "[0.0, 0.0]]", 1))
         load(bad)
+
+
+def test_trajectories_are_written_per_case_when_asked(nudyn, tmp_path):
+    text = WITH_FAILURES.replace("step = 0.05", "step = 0.05\ntrajectories = true")
+    table = run_campaign(write(tmp_path, text), tmp_path / "out", cases=5, workers=1, nudyn=nudyn, progress=False)
+    for row in table.to_pylist():
+        trajectory = pq.read_table(tmp_path / "out" / "trajectories" / f"case-{row['case']:06d}.parquet")
+        assert trajectory.column_names[:2] == ["time", "nu[1]"] and "nu[13]" in trajectory.column_names
+        # A flight that ran has its 11 samples; a discarded one stops at its start.
+        assert trajectory.num_rows == (11 if row["status"] == "ok" else 1), row
+        assert trajectory.column("nu[4]").to_pylist()[0] == row["nu[4]"]
