@@ -33,6 +33,7 @@ plant.NAME and controller.NAME parameters (an array parameter such as
 controller.c1 without an index sets every entry). `[a:b]` is the entries a
 to b (1-based, inclusive), each drawn on its own. Distributions: uniform
 [low, high], normal [mean, sd], choice [values...] (drawn), grid [values...]
+(choice and grid also take names: plant.method = { grid = ["rk4", "dop853"] })
 (not drawn: case k takes the grids' values in turn, the first grid
 fastest, so a grid of G values sweeps every G-th case). A schedule sets an
 input (eps[k], ctrl[k], xfrc_applied[k]) at the communication points from
@@ -140,7 +141,11 @@ def _dispersion(key: str, value) -> Dispersion:
         raise CampaignError(f"dispersions.{key}: unknown distribution '{distribution}' (known: {', '.join(DISTRIBUTIONS)})")
     if not isinstance(parameters, list) or not parameters:
         raise CampaignError(f"dispersions.{key}.{distribution}: expected a list of numbers")
-    parameters = tuple(_number(p, f"dispersions.{key}.{distribution}") for p in parameters)
+    if distribution in ("choice", "grid") and all(isinstance(p, str) for p in parameters):
+        # Items of an enumeration, e.g. plant.method = { grid = ["rk4", "dop853"] }.
+        parameters = tuple(parameters)
+    else:
+        parameters = tuple(_number(p, f"dispersions.{key}.{distribution}") for p in parameters)
     if distribution in ("uniform", "normal") and len(parameters) != 2:
         raise CampaignError(f"dispersions.{key}.{distribution}: expected two numbers, found {len(parameters)}")
     if distribution == "uniform" and not parameters[0] <= parameters[1]:

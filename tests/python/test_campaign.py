@@ -280,3 +280,12 @@ def test_trajectories_are_written_per_case_when_asked(nudyn, tmp_path):
         # A flight that ran has its 11 samples; a discarded one stops at its start.
         assert trajectory.num_rows == (11 if row["status"] == "ok" else 1), row
         assert trajectory.column("nu[4]").to_pylist()[0] == row["nu[4]"]
+
+
+def test_the_integration_method_is_a_dispersion_too(nudyn, tmp_path):
+    text = WITH_FAILURES.replace("1e300", "0.2") + '"plant.method" = {{ grid = ["rk4", "dop853"] }}\n'
+    table = run_campaign(write(tmp_path, text), tmp_path / "out", cases=4, workers=1, nudyn=nudyn, progress=False)
+    assert table.column("plant.method").to_pylist() == ["rk4", "dop853"] * 2
+    assert set(table.column("status").to_pylist()) == {"ok"}
+    with pytest.raises(CampaignError, match="expected a finite number"):
+        load(write(tmp_path, WITH_FAILURES + '"plant.tolerance" = {{ uniform = ["a", "b"] }}\n', "bad.toml"))
