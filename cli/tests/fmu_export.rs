@@ -71,7 +71,10 @@ fn archive_holds_description_binary_and_resource() {
 
     let entries = entries(&fmu);
     let names: Vec<&str> = entries.iter().map(|(n, _)| n.as_str()).collect();
-    assert_eq!(names, ["modelDescription.xml", "binaries/linux64/bus.so", "resources/model.json"]);
+    assert_eq!(
+        names,
+        ["modelDescription.xml", "binaries/linux64/bus.so", "resources/model.json", "documentation/index.html"]
+    );
     assert_eq!(entries[1].1, std::fs::read(&binary).unwrap());
 
     let xml = String::from_utf8(entries[0].1.clone()).unwrap();
@@ -159,7 +162,10 @@ fn fmi3_archive_declares_arrays_of_the_model_sizes() {
 
     let entries = entries(&fmu);
     let names: Vec<&str> = entries.iter().map(|(n, _)| n.as_str()).collect();
-    assert_eq!(names, ["modelDescription.xml", "binaries/x86_64-linux/bus.so", "resources/model.json"]);
+    assert_eq!(
+        names,
+        ["modelDescription.xml", "binaries/x86_64-linux/bus.so", "resources/model.json", "documentation/index.html"]
+    );
     let description = from_xml(std::str::from_utf8(&entries[0].1).unwrap()).unwrap();
     assert_eq!(validate(&description), []);
     assert_eq!(description.instantiation_token, PlantResource::new(model.clone(), outputs).guid(&entries[2].1));

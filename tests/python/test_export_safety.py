@@ -38,7 +38,9 @@ def test_concurrent_exports_to_one_path_leave_one_whole_archive(nudyn, fmu_libra
     assert all(run.returncode == 0 for run in runs), [run.stderr for run in runs]
     with zipfile.ZipFile(fmu) as archive:
         assert archive.testzip() is None
-        assert sorted(archive.namelist()) == ["binaries/linux64/fixed_rig.so", "modelDescription.xml", "resources/model.json"]
+        assert sorted(archive.namelist()) == [
+            "binaries/linux64/fixed_rig.so", "documentation/index.html", "modelDescription.xml", "resources/model.json"
+        ]
     assert os.stat(fmu).st_mode & 0o777 == 0o644
     assert [p.name for p in tmp_path.iterdir()] == ["rig.fmu"], "no temporary file is left behind"
 

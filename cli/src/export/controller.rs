@@ -13,7 +13,10 @@ use nudyn_contract::plant::RealVariable;
 use nudyn_contract::resource::Resource;
 
 use super::plant::description;
-use super::{Document, ExportError, FmiVersion, Header, check_model_identifier, fmi3, real_variable, write_archive};
+use super::{
+    Document, ExportError, FmiVersion, Header, check_model_identifier, documentation, fmi3, real_variable,
+    write_archive,
+};
 
 /// What controlled quantity k is, and its unit, for descriptions.
 fn quantity(model: &Model, law: &ControlLaw, k: usize) -> (String, &'static str, &'static str) {
@@ -186,6 +189,7 @@ pub fn write_controller_fmu(
             Document::Fmi3(controller_model_description3(&resource, &defaults, model_identifier, &guid))
         }
     };
-    write_archive::<ControllerResource>(&description, &bytes, binary, out)?;
+    let documentation = documentation::index_html(model, &description, "controller");
+    write_archive::<ControllerResource>(&description, &bytes, &documentation, binary, out)?;
     Ok(())
 }

@@ -8,6 +8,7 @@
 
 pub mod binary;
 pub mod controller;
+mod documentation;
 mod fmi3;
 pub mod plant;
 
@@ -291,6 +292,7 @@ impl Header {
 fn write_archive<R: Resource>(
     description: &Document,
     resource: &[u8],
+    documentation: &str,
     binary: &Path,
     out: &Path,
 ) -> Result<(), ExportError> {
@@ -327,6 +329,7 @@ fn write_archive<R: Resource>(
         ("modelDescription.xml".to_string(), xml.as_bytes(), 0o644),
         (description.binary_path(), &library[..], 0o755),
         (R::archive_path(), resource, 0o644),
+        ("documentation/index.html".to_string(), documentation.as_bytes(), 0o644),
     ];
     for (name, bytes, mode) in entries {
         archive.start_file(name, options_for(mode)).map_err(zip_error)?;

@@ -14,7 +14,10 @@ use nudyn_contract::plant::{
 };
 use nudyn_contract::resource::Resource;
 
-use super::{Document, ExportError, FmiVersion, Header, check_model_identifier, fmi3, real_variable, write_archive};
+use super::{
+    Document, ExportError, FmiVersion, Header, check_model_identifier, documentation, fmi3, real_variable,
+    write_archive,
+};
 
 /// What `nudyn export` is asked for.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -385,5 +388,6 @@ pub fn write_fmu(model: &Model, options: &ExportOptions, binary: &Path, out: &Pa
         FmiVersion::Fmi2 => Document::Fmi2(model_description(model, options, &guid)),
         FmiVersion::Fmi3 => Document::Fmi3(model_description3(&resource, options, &guid)),
     };
-    write_archive::<PlantResource>(&description, &bytes, binary, out)
+    let documentation = documentation::index_html(model, &description, "plant");
+    write_archive::<PlantResource>(&description, &bytes, &documentation, binary, out)
 }
