@@ -2,7 +2,10 @@
 # Install what the tests need beyond the main job: first everything of
 # scripts/setup.sh, then (only what is missing)
 #
-#   - Debian: valgrind (scripts/stress-fmu.sh's memory check);
+#   - Debian: valgrind (scripts/stress-fmu.sh's memory check), wine64 and
+#     gcc-mingw-w64-x86-64 (tests/python/test_win64.py runs the win64 binary
+#     under wine; scripts/build-windows.sh installs the rest of the Windows
+#     build);
 #   - cargo-fuzz (cargo install --locked; scripts/stress-fmu.sh's fuzzing);
 #   - Python: requirements-test.txt's pins into .venv (pytest; libcosimpy
 #     for the closed-loop demos; pin and tqdm for scripts/bench.py).
@@ -25,10 +28,14 @@ as_root() {
 }
 
 # --- Debian packages --------------------------------------------------------
-if ! dpkg -s valgrind >/dev/null 2>&1; then
-    echo "setup-test: installing valgrind"
+missing=()
+for package in valgrind wine64 gcc-mingw-w64-x86-64; do
+    dpkg -s "$package" >/dev/null 2>&1 || missing+=("$package")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+    echo "setup-test: installing ${missing[*]}"
     as_root apt-get update
-    as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y valgrind
+    as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y "${missing[@]}"
 fi
 
 # --- cargo-fuzz (scripts/stress-fmu.sh) ----------------------------------------

@@ -13,7 +13,7 @@ use nudyn::model::Model;
 use nudyn::vehicle::Vehicle;
 use nudyn_cli::export::controller::write_controller_fmu;
 use nudyn_cli::export::plant::{ExportOptions, write_fmu};
-use nudyn_cli::export::{FmiVersion, model_identifier_from};
+use nudyn_cli::export::{FmiVersion, Platform, PlatformBinary, model_identifier_from};
 use nudyn_contract::plant::{DEFAULT_TOLERANCE, OptionalOutputs};
 use serde::Deserialize;
 use simulate::Format;
@@ -44,10 +44,13 @@ enum Command {
     /// Export the vehicle as an FMU: FMI 2.0 (default) or 3.0, co-simulation
     /// and model exchange in one file.
     ///
-    /// The FMU's binary is the `nudyn_fmu` library that
-    /// `cargo build --release --workspace` puts beside the `nudyn`
-    /// executable (libnudyn_fmu.so); the environment variable NUDYN_FMU_LIB
-    /// overrides where it is looked for.
+    /// The FMU carries the `nudyn_fmu` library of every platform built:
+    /// linux64 is the libnudyn_fmu.so that `cargo build --release
+    /// --workspace` puts beside the `nudyn` executable (NUDYN_FMU_LIB
+    /// overrides it); win64 is the nudyn_fmu.dll that
+    /// scripts/build-windows.sh puts in target/share/nudyn/binaries/win64
+    /// (NUDYN_FMU_BINARIES overrides that folder). Debug sections are left
+    /// out. The command says which platforms it packed.
     Export {
         /// The vehicle's MJCF file.
         model: PathBuf,
@@ -377,21 +380,60 @@ fn emit(text: &str) -> Result<()> {
     }
 }
 
-/// The FMU binary: $NUDYN_FMU_LIB, or libnudyn_fmu.so beside this executable.
-fn fmu_library() -> Result<PathBuf> {
-    if let Some(path) = std::env::var_os("NUDYN_FMU_LIB") {
-        return Ok(PathBuf::from(path));
-    }
+/// The `nudyn_fmu` library built for each platform, linux64 first.
+///
+/// linux64: $NUDYN_FMU_LIB, else libnudyn_fmu.so beside this executable
+/// (where cargo builds it), else in the binaries folder. Other platforms:
+/// in the binaries folder, `<platform>/<library>` (win64/nudyn_fmu.dll). The
+/// binaries folder is $NUDYN_FMU_BINARIES, else `share/nudyn/binaries` in
+/// the folder above this executable's: `target/` for cargo's build (where
+/// scripts/build-windows.sh puts the DLL), the environment's prefix for the
+/// wheel.
+fn fmu_binaries() -> Result<Vec<PlatformBinary>> {
     let exe = std::env::current_exe().context("cannot locate the nudyn executable")?;
-    let library = exe.with_file_name("libnudyn_fmu.so");
-    if !library.is_file() {
-        bail!(
-            "the FMU binary {} is missing: build it with `cargo build --release --workspace`, \
-             or point NUDYN_FMU_LIB at libnudyn_fmu.so",
-            library.display()
-        );
+    let folder = match std::env::var_os("NUDYN_FMU_BINARIES") {
+        Some(folder) => PathBuf::from(folder),
+        None => exe.parent().and_then(Path::parent).unwrap_or(Path::new("/")).join("share/nudyn/binaries"),
+    };
+    let in_folder = |platform: Platform| folder.join(platform.fmi2_folder()).join(platform.built_library_name());
+    let linux64 = match std::env::var_os("NUDYN_FMU_LIB") {
+        Some(path) => PathBuf::from(path),
+        None => {
+            let beside = exe.with_file_name(Platform::Linux64.built_library_name());
+            let candidates = [beside.clone(), in_folder(Platform::Linux64)];
+            let Some(found) = candidates.into_iter().find(|path| path.is_file()) else {
+                bail!(
+                    "the FMU binary {} is missing: build it with `cargo build --release --workspace`, \
+                     or point NUDYN_FMU_LIB at libnudyn_fmu.so",
+                    beside.display()
+                );
+            };
+            found
+        }
+    };
+    let mut binaries = vec![PlatformBinary { platform: Platform::Linux64, path: linux64 }];
+    for platform in Platform::ALL.into_iter().filter(|&p| p != Platform::Linux64) {
+        let path = in_folder(platform);
+        if path.is_file() {
+            binaries.push(PlatformBinary { platform, path });
+        }
     }
-    Ok(library)
+    Ok(binaries)
+}
+
+/// What an export says it wrote: the platforms packed, and those not built.
+fn report_platforms(output: &Path, binaries: &[PlatformBinary]) -> Result<()> {
+    let packed: Vec<String> = binaries.iter().map(|b| b.platform.to_string()).collect();
+    let missing: Vec<String> = Platform::ALL
+        .into_iter()
+        .filter(|p| binaries.iter().all(|b| b.platform != *p))
+        .map(|p| p.to_string())
+        .collect();
+    let mut line = format!("wrote {} with binaries for {}", output.display(), packed.join(", "));
+    if !missing.is_empty() {
+        line += &format!(" (not built: {}; scripts/build-windows.sh builds win64)", missing.join(", "));
+    }
+    emit(&line)
 }
 
 fn export(
@@ -408,8 +450,9 @@ fn export(
     let stem = model_path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let model_identifier = model_identifier.unwrap_or_else(|| model_identifier_from(&stem));
     let options = ExportOptions { model_identifier, outputs, fmi_version };
-    let library = fmu_library()?;
-    write_fmu(&model, &options, &library, output).with_context(|| format!("cannot export {}", output.display()))
+    let binaries = fmu_binaries()?;
+    write_fmu(&model, &options, &binaries, output).with_context(|| format!("cannot export {}", output.display()))?;
+    report_platforms(output, &binaries)
 }
 
 fn export_controller(
@@ -427,9 +470,10 @@ fn export_controller(
     .with_context(|| format!("cannot build the controller of {}", model_path.display()))?;
     let stem = model_path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let identifier = model_identifier.unwrap_or_else(|| model_identifier_from(&format!("{stem}_controller")));
-    let library = fmu_library()?;
-    write_controller_fmu(&model, &law, &identifier, fmi_version, &library, output)
-        .with_context(|| format!("cannot export {}", output.display()))
+    let binaries = fmu_binaries()?;
+    write_controller_fmu(&model, &law, &identifier, fmi_version, &binaries, output)
+        .with_context(|| format!("cannot export {}", output.display()))?;
+    report_platforms(output, &binaries)
 }
 
 /// Refuses `nudyn simulate` options that cannot describe a run.

@@ -7,9 +7,9 @@ use std::path::{Path, PathBuf};
 
 use nudyn::model::Model;
 use nudyn_cli::export::ExportError;
-use nudyn_cli::export::FmiVersion;
 use nudyn_cli::export::binary::{FMI2_FUNCTIONS, FMI3_FUNCTIONS};
 use nudyn_cli::export::plant::{ExportOptions, write_fmu};
+use nudyn_cli::export::{FmiVersion, Platform, PlatformBinary};
 use nudyn_contract::plant::{OptionalOutputs, PlantResource};
 use nudyn_contract::resource::Resource;
 
@@ -38,9 +38,19 @@ fn entries(archive: &Path) -> Vec<(String, Vec<u8>)> {
         .collect()
 }
 
+/// `binary` as the FMU's only platform binary.
+fn linux64(binary: &Path) -> [PlatformBinary; 1] {
+    [PlatformBinary { platform: Platform::Linux64, path: binary.to_path_buf() }]
+}
+
 /// A shared library that exports the FMI 2.0 and 3.0 functions (and
 /// does nothing), built with gcc: the exporter packs only such a library.
 fn stand_in_library(dir: &Path) -> PathBuf {
+    stand_in_library_with(dir, &[])
+}
+
+/// The stand-in library, built with more gcc flags.
+fn stand_in_library_with(dir: &Path, flags: &[&str]) -> PathBuf {
     let source = dir.join("stand_in.c");
     let functions: String = FMI2_FUNCTIONS
         .iter()
@@ -50,7 +60,9 @@ fn stand_in_library(dir: &Path) -> PathBuf {
     std::fs::write(&source, functions).unwrap();
     let library = dir.join("libnudyn_fmu.so");
     let status = std::process::Command::new("gcc")
-        .args(["-shared", "-fPIC", "-o"])
+        .args(["-shared", "-fPIC"])
+        .args(flags)
+        .arg("-o")
         .arg(&library)
         .arg(&source)
         .status()
@@ -67,7 +79,7 @@ fn archive_holds_description_binary_and_resource() {
     let outputs: OptionalOutputs = "kinetic_energy,momentum".parse().unwrap();
     let options = ExportOptions { model_identifier: "bus".into(), outputs, fmi_version: FmiVersion::Fmi2 };
     let fmu = dir.join("bus.fmu");
-    write_fmu(&model, &options, &binary, &fmu).unwrap();
+    write_fmu(&model, &options, &linux64(&binary), &fmu).unwrap();
 
     let entries = entries(&fmu);
     let names: Vec<&str> = entries.iter().map(|(n, _)| n.as_str()).collect();
@@ -127,8 +139,8 @@ fn bad_model_identifier_is_refused() {
         outputs: OptionalOutputs::default(),
         fmi_version: FmiVersion::Fmi2,
     };
-    let error =
-        write_fmu(&example("fixed_rig.xml"), &options, &dir.join("missing.so"), &dir.join("x.fmu")).unwrap_err();
+    let error = write_fmu(&example("fixed_rig.xml"), &options, &linux64(&dir.join("missing.so")), &dir.join("x.fmu"))
+        .unwrap_err();
     assert!(matches!(error, ExportError::ModelIdentifier(_)), "{error}");
 }
 
@@ -143,7 +155,7 @@ fn a_file_that_is_no_fmu_binary_is_refused_before_anything_is_written() {
         fmi_version: FmiVersion::Fmi2,
     };
     let fmu = dir.join("rig.fmu");
-    let error = write_fmu(&example("fixed_rig.xml"), &options, &binary, &fmu).unwrap_err();
+    let error = write_fmu(&example("fixed_rig.xml"), &options, &linux64(&binary), &fmu).unwrap_err();
     assert!(matches!(error, ExportError::Binary { .. }), "{error}");
     assert!(error.to_string().contains("it is not a shared library"), "{error}");
     assert!(!fmu.exists());
@@ -158,7 +170,7 @@ fn fmi3_archive_declares_arrays_of_the_model_sizes() {
     let outputs: OptionalOutputs = "qvel,momentum".parse().unwrap();
     let options = ExportOptions { model_identifier: "bus".into(), outputs, fmi_version: FmiVersion::Fmi3 };
     let fmu = dir.join("bus3.fmu");
-    write_fmu(&model, &options, &binary, &fmu).unwrap();
+    write_fmu(&model, &options, &linux64(&binary), &fmu).unwrap();
 
     let entries = entries(&fmu);
     let names: Vec<&str> = entries.iter().map(|(n, _)| n.as_str()).collect();
@@ -197,4 +209,35 @@ fn fmi3_archive_declares_arrays_of_the_model_sizes() {
     // Value references are unique across types, time first.
     let vrs: Vec<u32> = description.model_variables.variables.iter().map(|v| v.common().value_reference).collect();
     assert_eq!(vrs, (0..expected.len() as u32).collect::<Vec<_>>());
+}
+
+#[test]
+fn debug_sections_stay_out_of_the_fmu() {
+    use object::{Object, ObjectSection};
+    let dir = scratch("debug-sections");
+    let binary = stand_in_library_with(&dir, &["-g"]);
+    let section_names = |bytes: &[u8]| -> Vec<String> {
+        let file = object::File::parse(bytes).expect("an ELF file");
+        file.sections().map(|s| s.name().unwrap_or_default().to_string()).collect()
+    };
+    let built = std::fs::read(&binary).unwrap();
+    assert!(section_names(&built).iter().any(|name| name.starts_with(".debug_")), "gcc -g writes debug sections");
+    let options = ExportOptions {
+        model_identifier: "rig".into(),
+        outputs: OptionalOutputs::default(),
+        fmi_version: FmiVersion::Fmi2,
+    };
+    let fmu = dir.join("rig.fmu");
+    write_fmu(&example("fixed_rig.xml"), &options, &linux64(&binary), &fmu).unwrap();
+    let packed = entries(&fmu).into_iter().find(|(name, _)| name == "binaries/linux64/rig.so").unwrap().1;
+    let names = section_names(&packed);
+    assert!(!names.iter().any(|name| name.starts_with(".debug_")), "{names:?}");
+    assert!(packed.len() < built.len());
+    // What stays is the library: every FMI function still exported, the code to the byte.
+    nudyn_cli::export::binary::check_library(Platform::Linux64, &packed, &FMI2_FUNCTIONS, "FMI 2.0").unwrap();
+    let text = |bytes: &[u8]| {
+        let file = object::File::parse(bytes).unwrap();
+        file.section_by_name(".text").unwrap().data().unwrap().to_vec()
+    };
+    assert_eq!(text(&packed), text(&built));
 }

@@ -31,6 +31,9 @@ pub struct Fmi3ModelDescription {
     /// `generationTool`.
     #[serde(rename = "@generationTool", default, skip_serializing_if = "Option::is_none")]
     pub generation_tool: Option<String>,
+    /// `generationDateAndTime`: xs:dateTime, e.g. 2026-11-25T10:00:00Z.
+    #[serde(rename = "@generationDateAndTime", default, skip_serializing_if = "Option::is_none")]
+    pub generation_date_and_time: Option<String>,
     /// `variableNamingConvention`: "flat" or "structured".
     #[serde(rename = "@variableNamingConvention", default, skip_serializing_if = "Option::is_none")]
     pub variable_naming_convention: Option<String>,

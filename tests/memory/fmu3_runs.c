@@ -1,4 +1,5 @@
-/* A plain C importer of a nudyn FMI 3.0 FMU, for valgrind: RUNS times, a
+/* A plain C importer of a nudyn FMI 3.0 FMU, for valgrind and, built with
+ * mingw, for the x86_64-windows binary under wine: RUNS times, a
  * co-simulation instance is initialized and stepped STEPS times (reading θ
  * and ν, saving, serializing and restoring FMU states, asking the variable
  * dependencies, making refused calls), and a model exchange instance is
@@ -6,12 +7,19 @@
  * functions; both are freed. Under valgrind, the memory still in use at
  * exit must not grow with RUNS, and nothing may be lost.
  *
- *   fmu3_runs UNZIPPED_FMU_DIR MODEL_IDENTIFIER TOKEN THETA_VR NQ NU_VR NV DER_NU_VR RUNS STEPS
+ *   fmu3_runs UNZIPPED_FMU_DIR MODEL_IDENTIFIER TOKEN THETA_VR NQ NU_VR NV DER_NU_VR RUNS STEPS [TRACE]
+ *
+ * TRACE: a file that receives θ and ν after every co-simulation step of the
+ * first run, then the model exchange states at its end, as native doubles.
  *
  * Exit status 0 when every call returned the expected status and every
  * value read was finite. */
 
+#ifdef _WIN32
+#include <windows.h>
+#else
 #include <dlfcn.h>
+#endif
 #include <math.h>
 #include <stdbool.h>
 #include <stdio.h>
@@ -32,8 +40,20 @@ static void logger(void *env, fmi3Status status, const char *category, const cha
     logged++;
 }
 
+#ifdef _WIN32
+#define LIBRARY_PATH "%s/binaries/x86_64-windows/%s.dll"
+static void *open_library(const char *path) { return (void *)LoadLibraryA(path); }
+static void *symbol_address(void *library, const char *name) { return (void *)GetProcAddress((HMODULE)library, name); }
+static void close_library(void *library) { FreeLibrary((HMODULE)library); }
+#else
+#define LIBRARY_PATH "%s/binaries/x86_64-linux/%s.so"
+static void *open_library(const char *path) { return dlopen(path, RTLD_NOW | RTLD_LOCAL); }
+static void *symbol_address(void *library, const char *name) { return dlsym(library, name); }
+static void close_library(void *library) { dlclose(library); }
+#endif
+
 static void *symbol(void *library, const char *name) {
-    void *f = dlsym(library, name);
+    void *f = symbol_address(library, name);
     if (!f) {
         fprintf(stderr, "missing symbol %s\n", name);
         exit(2);
@@ -61,8 +81,9 @@ static int all_finite(const double *values, size_t n, const char *what, int step
 }
 
 int main(int argc, char **argv) {
-    if (argc != 11) {
-        fprintf(stderr, "usage: %s DIR MODEL_IDENTIFIER TOKEN THETA_VR NQ NU_VR NV DER_NU_VR RUNS STEPS\n", argv[0]);
+    if (argc != 11 && argc != 12) {
+        fprintf(stderr, "usage: %s DIR MODEL_IDENTIFIER TOKEN THETA_VR NQ NU_VR NV DER_NU_VR RUNS STEPS [TRACE]\n",
+                argv[0]);
         return 2;
     }
     const char *dir = argv[1], *identifier = argv[2], *token = argv[3];
@@ -71,11 +92,16 @@ int main(int argc, char **argv) {
     int runs = atoi(argv[9]), steps = atoi(argv[10]);
 
     char path[4096], resources[4096];
-    snprintf(path, sizeof path, "%s/binaries/x86_64-linux/%s.so", dir, identifier);
+    snprintf(path, sizeof path, LIBRARY_PATH, dir, identifier);
     snprintf(resources, sizeof resources, "%s/resources/", dir);
-    void *library = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    void *library = open_library(path);
     if (!library) {
-        fprintf(stderr, "dlopen %s: %s\n", path, dlerror());
+        fprintf(stderr, "cannot load %s\n", path);
+        return 2;
+    }
+    FILE *trace = NULL;
+    if (argc == 12 && !(trace = fopen(argv[11], "wb"))) {
+        fprintf(stderr, "cannot write %s\n", argv[11]);
         return 2;
     }
     fmi3Instance (*instantiate_cs)(const char *, const char *, const char *, bool, bool, bool, bool, const unsigned *,
@@ -136,6 +162,10 @@ int main(int argc, char **argv) {
             CHECK(do_step(c, k * h, h, true, &event, &terminate_now, &early, &last), fmi3OK);
             CHECK(get_f64(c, state_vrs, 2, values, nx), fmi3OK);
             if (!all_finite(values, nx, "theta and nu", k)) return 1;
+            if (trace && run == 0 && fwrite(values, sizeof *values, nx, trace) != nx) {
+                fprintf(stderr, "cannot write the trace\n");
+                return 2;
+            }
             if (k % 100 == 0) {
                 CHECK(get_state(c, &saved), fmi3OK); /* the second time it overwrites */
                 size_t size = 0;
@@ -182,11 +212,19 @@ int main(int argc, char **argv) {
             if (!all_finite(dx, nx, "derivatives", k)) return 1;
             for (size_t i = 0; i < nx; i++) x[i] += 1e-4 * dx[i];
         }
+        if (trace && run == 0 && fwrite(x, sizeof *x, nx, trace) != nx) {
+            fprintf(stderr, "cannot write the trace\n");
+            return 2;
+        }
         CHECK(get_dx(m, dx, nx - 1), fmi3Error); /* the wrong count */
         free_instance(m);
     }
     free(values), free(x), free(dx), free(nu0);
-    dlclose(library);
+    if (trace && fclose(trace) != 0) {
+        fprintf(stderr, "cannot write the trace\n");
+        return 2;
+    }
+    close_library(library);
     printf("%d runs of %d steps, %d messages logged\n", runs, steps, logged);
     return 0;
 }

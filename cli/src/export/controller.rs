@@ -14,8 +14,8 @@ use nudyn_contract::resource::Resource;
 
 use super::plant::description;
 use super::{
-    Document, ExportError, FmiVersion, Header, check_model_identifier, documentation, fmi3, real_variable,
-    write_archive,
+    Document, ExportError, FmiVersion, Header, PlatformBinary, check_model_identifier, documentation, fmi3,
+    generation_date_and_time, real_variable, write_archive,
 };
 
 /// What controlled quantity k is, and its unit, for descriptions.
@@ -98,6 +98,7 @@ fn header(model: &Model, law: &ControlLaw, model_identifier: &str, guid: &str) -
         ),
         model_identifier: model_identifier.to_string(),
         capabilities: CAPABILITIES,
+        generated: generation_date_and_time(),
     }
 }
 
@@ -166,14 +167,14 @@ pub enum ControllerExportError {
     Export(#[from] ExportError),
 }
 
-/// Writes the controller FMU `out` for `model` with `law`; `binary` is the
-/// `nudyn_fmu` cdylib, as for the plant.
+/// Writes the controller FMU `out` for `model` with `law`; `binaries` are
+/// the `nudyn_fmu` cdylib built for each platform, as for the plant.
 pub fn write_controller_fmu(
     model: &Model,
     law: &ControlLaw,
     model_identifier: &str,
     fmi_version: FmiVersion,
-    binary: &Path,
+    binaries: &[PlatformBinary],
     out: &Path,
 ) -> Result<(), ControllerExportError> {
     check_model_identifier(model_identifier)?;
@@ -190,6 +191,6 @@ pub fn write_controller_fmu(
         }
     };
     let documentation = documentation::index_html(model, &description, "controller");
-    write_archive::<ControllerResource>(&description, &bytes, &documentation, binary, out)?;
+    write_archive::<ControllerResource>(&description, &bytes, &documentation, binaries, out)?;
     Ok(())
 }

@@ -163,6 +163,7 @@ pub fn model_description(
         instantiation_token: header.guid,
         description: Some(header.description),
         generation_tool: Some(format!("nudyn {}", env!("CARGO_PKG_VERSION"))),
+        generation_date_and_time: Some(header.generated),
         variable_naming_convention: Some("structured".into()),
         model_exchange,
         co_simulation: Some(co_simulation),

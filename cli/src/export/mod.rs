@@ -22,6 +22,8 @@ use nudyn_contract::resource::Resource;
 use nudyn_contract::variable::{Causality, Kind, Range, Variability};
 use nudyn_contract::{DEFAULT_STEP_SIZE, DEFAULT_STOP_TIME};
 
+pub use binary::Platform;
+
 /// Why an FMU cannot be written.
 #[derive(Debug, thiserror::Error)]
 pub enum ExportError {
@@ -130,17 +132,19 @@ impl Document {
         }
     }
 
-    /// Where the binary goes in the archive (FMI 2.0 §2.5, FMI 3.0 §2.5.1).
-    fn binary_path(&self) -> String {
-        match self {
+    /// Where the binary for `platform` goes in the archive (FMI 2.0 §2.5,
+    /// FMI 3.0 §2.5.1).
+    fn binary_path(&self, platform: Platform) -> String {
+        let (folder, identifier) = match self {
             Document::Fmi2(description) => {
-                format!("binaries/linux64/{}.so", description.co_simulation.model_identifier)
+                (platform.fmi2_folder(), description.co_simulation.model_identifier.as_str())
             }
-            Document::Fmi3(description) => {
-                let identifier = description.co_simulation.as_ref().map_or("", |cs| cs.model_identifier.as_str());
-                format!("binaries/x86_64-linux/{identifier}.so")
-            }
-        }
+            Document::Fmi3(description) => (
+                platform.fmi3_folder(),
+                description.co_simulation.as_ref().map_or("", |cs| cs.model_identifier.as_str()),
+            ),
+        };
+        format!("binaries/{folder}/{identifier}.{}", platform.library_extension())
     }
 }
 
@@ -240,6 +244,21 @@ struct Header {
     description: String,
     model_identifier: String,
     capabilities: Capabilities,
+    /// `generationDateAndTime`: [`generation_date_and_time`].
+    generated: String,
+}
+
+/// When the FMU is generated, as xs:dateTime in UTC (2026-11-25T10:00:00Z):
+/// now, or the time SOURCE_DATE_EPOCH gives (seconds since 1970), so that
+/// an archive can be rebuilt byte for byte (reproducible-builds.org's
+/// convention; a value that is not a number of seconds is not used).
+pub fn generation_date_and_time() -> String {
+    let fixed = std::env::var("SOURCE_DATE_EPOCH").ok().and_then(|seconds| seconds.trim().parse::<u64>().ok());
+    let time = match fixed {
+        Some(seconds) => std::time::UNIX_EPOCH + std::time::Duration::from_secs(seconds),
+        None => std::time::SystemTime::now(),
+    };
+    humantime::format_rfc3339_seconds(time).to_string()
 }
 
 impl Header {
@@ -259,7 +278,7 @@ impl Header {
             copyright: None,
             license: None,
             generation_tool: Some(format!("nudyn {}", env!("CARGO_PKG_VERSION"))),
-            generation_date_and_time: None,
+            generation_date_and_time: Some(self.generated.clone()),
             variable_naming_convention: Some(md::VariableNamingConvention::Structured),
             number_of_event_indicators: self.capabilities.model_exchange.then_some(0),
             model_exchange: model_exchange(&self.model_identifier, self.capabilities),
@@ -285,22 +304,38 @@ impl Header {
     }
 }
 
+/// A built `nudyn_fmu` library and the platform it is for.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlatformBinary {
+    /// The platform.
+    pub platform: Platform,
+    /// The library file.
+    pub path: PathBuf,
+}
+
 /// Writes the FMU archive `out`: `description` (validated first) as
-/// modelDescription.xml, `binary` (the `nudyn_fmu` cdylib) as
-/// `binaries/linux64/<modelIdentifier>.so` (FMI 3.0:
-/// `binaries/x86_64-linux/`), and the resource file.
+/// modelDescription.xml, each of `binaries` (the `nudyn_fmu` cdylib built
+/// for a platform, checked, without debug sections) as e.g.
+/// `binaries/linux64/<modelIdentifier>.so` or `binaries/win64/<modelIdentifier>.dll`
+/// (FMI 3.0: `binaries/x86_64-linux/`, `binaries/x86_64-windows/`), the
+/// resource file and the documentation.
 fn write_archive<R: Resource>(
     description: &Document,
     resource: &[u8],
     documentation: &str,
-    binary: &Path,
+    binaries: &[PlatformBinary],
     out: &Path,
 ) -> Result<(), ExportError> {
     let xml = description.xml()?;
-    let library = std::fs::read(binary).map_err(|source| ExportError::Io { path: binary.to_path_buf(), source })?;
     let (functions, version) = description.functions();
-    binary::check_linux64_library(&library, functions, version)
-        .map_err(|reason| ExportError::Binary { path: binary.to_path_buf(), reason })?;
+    let mut libraries = Vec::with_capacity(binaries.len());
+    for PlatformBinary { platform, path } in binaries {
+        let binary_error = |reason| ExportError::Binary { path: path.clone(), reason };
+        let library = std::fs::read(path).map_err(|source| ExportError::Io { path: path.clone(), source })?;
+        binary::check_library(*platform, &library, functions, version).map_err(binary_error)?;
+        let library = binary::without_debug_sections(*platform, library).map_err(binary_error)?;
+        libraries.push((description.binary_path(*platform), library));
+    }
 
     // Written to a temporary file beside `out`, synced, then renamed over
     // it: a failure (a full disk) or a concurrent export never leaves a
@@ -325,12 +360,10 @@ fn write_archive<R: Resource>(
             .compression_method(zip::CompressionMethod::Deflated)
             .unix_permissions(mode)
     };
-    let entries = [
-        ("modelDescription.xml".to_string(), xml.as_bytes(), 0o644),
-        (description.binary_path(), &library[..], 0o755),
-        (R::archive_path(), resource, 0o644),
-        ("documentation/index.html".to_string(), documentation.as_bytes(), 0o644),
-    ];
+    let mut entries = vec![("modelDescription.xml".to_string(), xml.as_bytes(), 0o644)];
+    entries.extend(libraries.iter().map(|(name, library)| (name.clone(), &library[..], 0o755)));
+    entries.push((R::archive_path(), resource, 0o644));
+    entries.push(("documentation/index.html".to_string(), documentation.as_bytes(), 0o644));
     for (name, bytes, mode) in entries {
         archive.start_file(name, options_for(mode)).map_err(zip_error)?;
         archive.write_all(bytes).map_err(io_error)?;

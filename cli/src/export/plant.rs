@@ -15,8 +15,8 @@ use nudyn_contract::plant::{
 use nudyn_contract::resource::Resource;
 
 use super::{
-    Document, ExportError, FmiVersion, Header, check_model_identifier, documentation, fmi3, real_variable,
-    write_archive,
+    Document, ExportError, FmiVersion, Header, PlatformBinary, check_model_identifier, documentation, fmi3,
+    generation_date_and_time, real_variable, write_archive,
 };
 
 /// What `nudyn export` is asked for.
@@ -216,6 +216,7 @@ fn header(model: &Model, options: &ExportOptions, guid: &str) -> Header {
         ),
         model_identifier: options.model_identifier.clone(),
         capabilities: capabilities(options.outputs),
+        generated: generation_date_and_time(),
     }
 }
 
@@ -377,9 +378,15 @@ pub fn model_description(model: &Model, options: &ExportOptions, guid: &str) -> 
 }
 
 /// Writes the plant FMU `out` of `model`: modelDescription.xml (validated
-/// first), `binaries/linux64/<modelIdentifier>.so` copied from `binary`
-/// (the `nudyn_fmu` cdylib) and `resources/model.json`.
-pub fn write_fmu(model: &Model, options: &ExportOptions, binary: &Path, out: &Path) -> Result<(), ExportError> {
+/// first), the `nudyn_fmu` cdylib built for each platform of `binaries`
+/// (e.g. `binaries/linux64/<modelIdentifier>.so`), `resources/model.json`
+/// and `documentation/index.html`.
+pub fn write_fmu(
+    model: &Model,
+    options: &ExportOptions,
+    binaries: &[PlatformBinary],
+    out: &Path,
+) -> Result<(), ExportError> {
     check_model_identifier(&options.model_identifier)?;
     let resource = PlantResource::new(model.clone(), options.outputs);
     let bytes = resource.to_json()?;
@@ -389,5 +396,5 @@ pub fn write_fmu(model: &Model, options: &ExportOptions, binary: &Path, out: &Pa
         FmiVersion::Fmi3 => Document::Fmi3(model_description3(&resource, options, &guid)),
     };
     let documentation = documentation::index_html(model, &description, "plant");
-    write_archive::<PlantResource>(&description, &bytes, &documentation, binary, out)
+    write_archive::<PlantResource>(&description, &bytes, &documentation, binaries, out)
 }
