@@ -2,7 +2,8 @@
 # nudyn's whole test suite: setup, formatting and lints (rustfmt, clippy
 # with warnings denied), Rust build and tests, Python tests against MuJoCo,
 # the FMU's memory and fuzz checks (briefly; see scripts/stress-fmu.sh
-# --long), the win64 binary under wine.  Fails if any step fails.
+# --long), the win64 binary under wine, the wheel in a fresh venv.  Fails if
+# any step fails.
 #
 #   bash scripts/test.sh
 set -euo pipefail
@@ -21,6 +22,8 @@ cargo test --release --workspace
 # The win64 FMU binary: every FMU the tests export carries it, and
 # tests/python/test_win64.py runs it under wine.
 bash scripts/build-windows.sh
+# The wheel (both platforms' binaries): tests/python/test_wheel.py installs it.
+bash scripts/build-wheel.sh
 
 NUDYN_BIN=target/release/nudyn \
     .venv/bin/python -m pytest tests/python -q

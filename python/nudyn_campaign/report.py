@@ -59,7 +59,7 @@ def write_report(campaign, table: pa.Table, out: Path) -> None:
         settling = _values(table, "settling_time")
         order = np.argsort(np.where(np.isfinite(settling), settling, np.inf))[::-1][:WORST]
         keys = campaign.columns()
-        lines += ["", f"## Worst cases (longest settling time; never settled first)", "",
+        lines += ["", "## Worst cases (longest settling time; never settled first)", "",
                   "| case | settling_time | peak_nu | " + " | ".join(keys) + " |",
                   "|---|---|---|" + "---|" * len(keys)]
         rows = table.to_pylist()

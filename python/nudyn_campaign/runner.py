@@ -20,12 +20,14 @@ import pyarrow.parquet as pq
 from tqdm import tqdm
 
 from nudyn_driver.cli import Nudyn
+from nudyn_driver.locations import nudyn_binary
 
 from . import spec as specs
 from .cases import run_chunk
 from .metrics import NAMES
 
-ROOT = Path(__file__).resolve().parents[2]
+# The folder holding these packages: python/ of a checkout, site-packages of the wheel.
+PACKAGES = Path(__file__).resolve().parents[1]
 # The plant's outputs the metrics read besides theta and nu.
 PLANT_OUTPUTS = ("kinetic_energy", "momentum")
 
@@ -79,7 +81,7 @@ def _client(workers: int | None, scheduler: str | None):
     if scheduler is not None:
         return Client(scheduler), None
     # Worker processes import nudyn_campaign from the repository's python/.
-    paths = [str(ROOT / "python"), *filter(None, os.environ.get("PYTHONPATH", "").split(os.pathsep))]
+    paths = [str(PACKAGES), *filter(None, os.environ.get("PYTHONPATH", "").split(os.pathsep))]
     os.environ["PYTHONPATH"] = os.pathsep.join(dict.fromkeys(paths))
     cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
                            dashboard_address=None)
@@ -104,7 +106,7 @@ def run_campaign(
         campaign.cases = cases
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    nudyn = Path(nudyn or os.environ.get("NUDYN_BIN", ROOT / "target" / "release" / "nudyn"))
+    nudyn = Path(nudyn or nudyn_binary())
     fmus = export(campaign, out, nudyn)
     done = finished_cases(out)
     missing = [k for k in range(campaign.cases) if k not in done]

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from pathlib import Path
 
@@ -21,7 +20,9 @@ from fmpy import read_model_description  # noqa: E402
 
 from .analysis import Analysis, analyse  # noqa: E402
 from .reference import LawParameters, ReferenceLaw  # noqa: E402
-from .scenarios import ROOT, SCENARIOS, Scenario  # noqa: E402
+from nudyn_driver.locations import CHECKOUT, IN_CHECKOUT, nudyn_binary, output_dir  # noqa: E402
+
+from .scenarios import SCENARIOS, Scenario  # noqa: E402
 from .simulators import export, run_fmpy, run_libcosim  # noqa: E402
 
 # V may exceed its value at the step's start by at most the bound, up to
@@ -125,17 +126,17 @@ def table(scenario: Scenario, analyses: list[Analysis], passed: dict[str, dict[s
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="control_demo.py", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("scenario", choices=sorted(SCENARIOS))
-    parser.add_argument("--nudyn", type=Path, default=Path(os.environ.get("NUDYN_BIN", ROOT / "target/release/nudyn")))
+    parser.add_argument("--nudyn", type=Path, default=nudyn_binary())
     parser.add_argument("--plot", type=Path, help="the picture (default docs/control/SCENARIO.png)")
     parser.add_argument("--out", type=Path, help="FMUs, OspSystemStructure.xml, results.json (default out/control/SCENARIO)")
     args = parser.parse_args(argv)
     scenario = SCENARIOS[args.scenario]()
-    out = args.out or ROOT / "out" / "control" / scenario.name
+    out = args.out or output_dir("control", scenario.name)
     analyses, structure = run(scenario, args.nudyn.resolve(), out)
     passed = {a.simulator: checks(scenario, a) for a in analyses}
-    picture = args.plot or ROOT / "docs" / "control" / f"{scenario.name}.png"
+    picture = args.plot or (CHECKOUT / "docs" / "control" if IN_CHECKOUT else out) / f"{scenario.name}.png"
     plot(scenario, analyses, picture)
     results = {"scenario": scenario.name, "title": scenario.title,
                "runs": [{**a.summary(), "checks": passed[a.simulator]} for a in analyses]}

@@ -10,9 +10,9 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from nudyn_driver.locations import examples_dir
 from nudyn_validation.mujoco_reference import Reference
 
-ROOT = Path(__file__).resolve().parents[2]
 
 
 @dataclass
@@ -46,7 +46,7 @@ def _nu_start(mjcf: Path, qvel) -> dict[str, float]:
 def detumble() -> Scenario:
     """bus_arm7 spinning and drifting with its arm swinging; rate feedback
     with the controller FMU's default gains (c1 = 5/s on every dof, c2 = 0)."""
-    mjcf = ROOT / "examples" / "bus_arm7.xml"
+    mjcf = examples_dir() / "bus_arm7.xml"
     # Free joint: linear velocity (world), angular velocity (body); then the 7 arm joints.
     qvel = [0.05, -0.02, 0.03, 0.3, -0.2, 0.4, 0.2, -0.3, 0.25, 0.4, -0.2, 0.3, -0.5]
     return Scenario(
@@ -75,7 +75,7 @@ def arm() -> Scenario:
     """bus_arm7 at rest; the end effector is driven to a pose 1.1 m and
     0.95 rad away while the free-floating base has no target (it is only damped
     by the c1 term and ends where the motion leaves it)."""
-    mjcf = ROOT / "examples" / "bus_arm7.xml"
+    mjcf = examples_dir() / "bus_arm7.xml"
     model = mujoco.MjModel.from_xml_path(str(mjcf))
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,11 +33,11 @@ import numpy as np  # noqa: E402
 
 from nudyn_driver.cli import Nudyn  # noqa: E402
 from nudyn_driver.instance import Instance  # noqa: E402
+from nudyn_driver.locations import examples_dir, nudyn_binary, output_dir  # noqa: E402
 from nudyn_driver.package import FmuPackage  # noqa: E402
 from nudyn_validation.mujoco_run import MujocoVehicle  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[2]
-SERVICER = ROOT / "examples" / "servicer.xml"
+SERVICER = examples_dir() / "servicer.xml"
 COMMUNICATION_STEP = 0.01
 MUJOCO_SUBSTEPS = 10  # MuJoCo's RK4 at 1 ms
 AGREEMENT = 1e-6
@@ -196,8 +195,8 @@ def run(nudyn: Path, out: Path, duration: float) -> tuple[Flight, dict]:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--duration", type=float, default=28.0, help="simulated seconds (default %(default)s)")
-    p.add_argument("--out", type=Path, default=ROOT / "out" / "thruster-demo", help="output directory")
-    p.add_argument("--nudyn", type=Path, default=Path(os.environ.get("NUDYN_BIN", ROOT / "target" / "release" / "nudyn")))
+    p.add_argument("--out", type=Path, default=output_dir("thruster-demo"), help="output directory")
+    p.add_argument("--nudyn", type=Path, default=nudyn_binary())
     args = p.parse_args(argv)
     _, result = run(args.nudyn, args.out, args.duration)
     for key, value in result.items():

@@ -4,17 +4,16 @@ MuJoCo on the same MJCF, and write the evidence (PNG, table.md, results.json).""
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
 from nudyn_driver.errors import DriverError
+from nudyn_driver.locations import nudyn_binary, output_dir
 
 from .compare import Settings, ValidationError, validate_model
 from .report import write
 from .scenarios import SCENARIO_NAMES
 
-ROOT = Path(__file__).resolve().parents[2]
 
 
 def parse_parameter(text: str) -> tuple[str, float]:
@@ -30,7 +29,6 @@ def parse_parameter(text: str) -> tuple[str, float]:
 def arguments(argv):
     defaults = Settings()
     p = argparse.ArgumentParser(
-        prog="validate.py",
         description="Export MODEL.xml as an FMU with nudyn, run it in FMPy and MuJoCo from the same "
         "state with the same held inputs, and compare theta, nu, kinetic energy and momentum.",
     )
@@ -74,7 +72,7 @@ def arguments(argv):
     p.add_argument(
         "--nudyn",
         type=Path,
-        default=Path(os.environ.get("NUDYN_BIN", ROOT / "target" / "release" / "nudyn")),
+        default=nudyn_binary(),
         help="the nudyn binary (default $NUDYN_BIN or target/release/nudyn)",
     )
     return p.parse_args(argv)
@@ -82,7 +80,7 @@ def arguments(argv):
 
 def main(argv=None) -> int:
     args = arguments(argv)
-    out = args.out or ROOT / "out" / "validation" / args.model.stem
+    out = args.out or output_dir("validation", args.model.stem)
     settings = Settings(
         duration=args.duration,
         communication_step=args.comm_step,
