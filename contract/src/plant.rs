@@ -33,8 +33,10 @@ pub const ENERGY_PROJECTION_NAME: &str = "energy_projection";
 /// Default of the `method` parameter.
 pub const DEFAULT_METHOD: Method = Method::Dop853;
 
-/// Default of the `max_step` parameter (s): the longest internal step.
-pub const DEFAULT_MAX_STEP: f64 = 1e-2;
+/// Default of the `max_step` parameter (s), the longest internal step: 0,
+/// the method's own bound (none for the adaptive methods, whose error
+/// control and the communication step decide; 0.01 s for RK4).
+pub const DEFAULT_MAX_STEP: f64 = 0.0;
 
 /// Default of the `tolerance` parameter.
 pub const DEFAULT_TOLERANCE: f64 = 1e-8;
@@ -243,7 +245,8 @@ impl RealVariable {
     /// initial state.
     pub fn kind(self) -> Kind {
         match self {
-            RealVariable::Tolerance | RealVariable::MaxStep => Kind::fixed_parameter(Range::Positive),
+            RealVariable::Tolerance => Kind::fixed_parameter(Range::Positive),
+            RealVariable::MaxStep => Kind::fixed_parameter(Range::NonNegative),
             RealVariable::Eps(_) | RealVariable::Ctrl(_) | RealVariable::XfrcApplied(_) => Kind::INPUT,
             RealVariable::Theta(_) | RealVariable::Nu(_) => Kind::STATE_OUTPUT,
             RealVariable::DerTheta(_) | RealVariable::DerNu(_) => Kind::DERIVATIVE,

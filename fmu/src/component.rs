@@ -394,19 +394,11 @@ pub enum CallError {
     StepSize(f64),
     /// The step needs more internal steps than the plant allows in one call.
     #[error(
-        "communicationStepSize = {step} with max_step = {max_step} needs {needed:e} internal steps, more than the \
-         {limit:e} one fmi2DoStep may take: a larger max_step or a shorter communication step lets it through"
+        "communicationStepSize = {step} with steps of at most {max_step} s (max_step) needs {needed:e} internal steps, \
+         more than the {limit:e} one fmi2DoStep may take: a larger max_step or a shorter communication step lets it through",
+        step = .0.interval, max_step = .0.max_step, needed = .0.needed, limit = nudyn::integrate::MAX_STEPS as f64
     )]
-    TooLong {
-        /// The step.
-        step: f64,
-        /// The parameter max_step.
-        max_step: f64,
-        /// step / max_step.
-        needed: f64,
-        /// The most internal steps one doStep may take.
-        limit: f64,
-    },
+    TooLong(nudyn::integrate::IntervalTooLong),
     /// The step would pass the declared stop time.
     #[error("the step from t = {time} by {step} passes stopTime = {stop_time}")]
     PastStopTime {

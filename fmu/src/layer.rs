@@ -21,7 +21,7 @@
 //!   stay where they were; the standards' text does not allow continuing,
 //!   so neither do we.)
 //! - Discard refuses a value out of its range passed to a setter (NaN, ±Inf,
-//!   a non-positive `max_step`, an unknown `method` item; FMI 2.0 §2.1.3
+//!   a negative `max_step`, an unknown `method` item; FMI 2.0 §2.1.3
 //!   footnote 3): the value is not taken and the instance stays in its
 //!   state. doStep returns it for a step that failed, and FMI 2.0's status
 //!   functions for a status they cannot give.

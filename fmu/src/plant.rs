@@ -19,11 +19,6 @@ use crate::component::{CallError, Component, Loaded, StepError, StepReport, Vari
 use crate::snapshot::{Sizes, Snapshot, SnapshotError};
 use crate::state::Phase;
 
-/// The most internal steps of `max_step` one doStep may ask for: more would
-/// keep the host busy for hours (1e300 s, or `max_step` = 1e-300, forever),
-/// so such a step is refused up front.
-const MAX_INTERNAL_STEPS: f64 = 1e6;
-
 /// The values that determine the plant's future: what an FMU state saves.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PlantState {
@@ -356,14 +351,10 @@ impl Component for Plant {
         }
     }
 
-    /// Refuses a finite step that would take more than [`MAX_INTERNAL_STEPS`] internal steps.
+    /// Refuses a step that `max_step` alone would cut into more internal
+    /// steps than one advance may take (`nudyn::integrate::MAX_STEPS`).
     fn check_step_size(&self, step: f64) -> Result<(), CallError> {
-        let max_step = self.sim.settings.max_step;
-        let needed = step / max_step;
-        if step.is_finite() && needed > MAX_INTERNAL_STEPS {
-            return Err(CallError::TooLong { step, max_step, needed, limit: MAX_INTERNAL_STEPS });
-        }
-        Ok(())
+        self.sim.settings.check_interval(self.sim.method(), step).map_err(CallError::TooLong)
     }
 
     /// Integrates from `time` to `time + step` with the chosen method

@@ -6,7 +6,8 @@
 //! (finite, positive settings), so that even a blob crafted with a valid
 //! checksum cannot put a NaN into the outputs.
 
-use nudyn::integrate::{Carry, Method, RunState, Settings};
+use nudyn::integrate::{Carry, RunState, Settings};
+use nudyn_contract::plant::{method_of_value, method_value};
 
 use crate::plant::PlantState;
 use crate::state::Phase;
@@ -15,8 +16,9 @@ use crate::state::Phase;
 const MAGIC: &[u8; 8] = b"nudynFMS";
 /// Version of the byte layout below (2: the state machine's state; 3: the
 /// integration method, energy projection, carried step, work and K₀; 4: the
-/// error control's relaxation; 5: the actuators' controls and their rates).
-const VERSION: u32 = 5;
+/// error control's relaxation; 5: the actuators' controls and their rates;
+/// 6: the method as the FMU's `method` value, max_step 0 allowed).
+const VERSION: u32 = 6;
 
 /// The sizes of a plant's state: a blob is restored only into a plant of the same.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -90,8 +92,8 @@ pub enum SnapshotError {
         /// This FMU's.
         expected: Sizes,
     },
-    /// A method number that names no method.
-    #[error("serialized FMU state names integration method number {0}, which does not exist")]
+    /// A `method` value that names no method.
+    #[error("serialized FMU state names integration method value {0}, which does not exist")]
     UnknownMethod(u8),
     /// A state machine state that a saved state cannot have.
     #[error("serialized FMU state has state machine state {0}, which is not one a state can be saved in")]
@@ -152,7 +154,7 @@ impl Snapshot {
         bytes.extend_from_slice(&(s.ctrl.len() as u32).to_le_bytes());
         bytes.push(self.phase.code());
         bytes.push(u8::from(s.stop_time.is_some()));
-        bytes.push(Method::ALL.iter().position(|&m| m == s.method).expect("listed") as u8);
+        bytes.push(method_value(s.method) as u8);
         bytes.push(u8::from(s.settings.energy_projection));
         let scalars = [
             s.run.time,
@@ -196,7 +198,7 @@ impl Snapshot {
         }
         let Sizes { nq, nv, nu: controls } = sizes;
         let flags = reader.take(4)?;
-        let (phase_code, stop_time_defined, method_index, energy_projection) =
+        let (phase_code, stop_time_defined, method_value_byte, energy_projection) =
             (flags[0], flags[1] != 0, flags[2], flags[3] != 0);
         let scalars: Vec<f64> = (0..Self::scalar_count(sizes)).map(|_| reader.f64()).collect::<Result<_, _>>()?;
         let contents_len = reader.at;
@@ -211,7 +213,8 @@ impl Snapshot {
         // Fatal is never entered, so never saved.
         let phase =
             Phase::from_code(phase_code).filter(|&p| p != Phase::Fatal).ok_or(SnapshotError::Phase(phase_code))?;
-        let method = *Method::ALL.get(usize::from(method_index)).ok_or(SnapshotError::UnknownMethod(method_index))?;
+        let method =
+            method_of_value(i32::from(method_value_byte)).ok_or(SnapshotError::UnknownMethod(method_value_byte))?;
         let (settings, vectors) = scalars.split_at(9);
         check_values(settings, vectors)?;
         let (theta, rest) = vectors.split_at(nq);
@@ -244,7 +247,7 @@ impl Snapshot {
 }
 
 /// Checks what fmi2SetupExperiment and fmi2SetReal would have refused:
-/// every value finite, `tolerance` and `max_step` positive, the carried
+/// every value finite, `tolerance` positive, `max_step`, the carried
 /// step, K₀ and the relaxation not negative. (The stop time
 /// is checked even when it is not defined: the writer stores 0 then.)
 fn check_values(settings: &[f64], vectors: &[f64]) -> Result<(), SnapshotError> {
@@ -264,12 +267,10 @@ fn check_values(settings: &[f64], vectors: &[f64]) -> Result<(), SnapshotError> 
             return Err(SnapshotError::Value { what, value, must: "finite" });
         }
     }
-    for (&what, &value) in NAMES[3..5].iter().zip(&settings[3..5]) {
-        if value <= 0.0 {
-            return Err(SnapshotError::Value { what, value, must: "positive" });
-        }
+    if settings[3] <= 0.0 {
+        return Err(SnapshotError::Value { what: NAMES[3], value: settings[3], must: "positive" });
     }
-    for (&what, &value) in [5, 7, 8].map(|i| (&NAMES[i], &settings[i])) {
+    for (&what, &value) in [4, 5, 7, 8].map(|i| (&NAMES[i], &settings[i])) {
         if value < 0.0 {
             return Err(SnapshotError::Value { what, value, must: "non-negative" });
         }
@@ -309,6 +310,8 @@ impl<'a> Reader<'a> {
 
 #[cfg(test)]
 mod tests {
+    use nudyn::integrate::Method;
+
     use super::*;
 
     const GUID: &str = "{01234567-89ab-cdef-0123-456789abcdef}";
@@ -406,14 +409,14 @@ mod tests {
     fn rejects_values_a_state_cannot_hold_even_with_a_valid_checksum() {
         let mut nan_theta = sample();
         nan_theta.state.run.theta[2] = f64::NAN;
-        let mut zero_step = sample();
-        zero_step.state.settings.max_step = 0.0;
+        let mut negative_step = sample();
+        negative_step.state.settings.max_step = -1e-3;
         let mut infinite_time = sample();
         infinite_time.state.run.time = f64::INFINITY;
         let mut nan_ctrl = sample();
         nan_ctrl.state.ctrl_rate[1] = f64::NAN;
         for (snapshot, what) in
-            [(nan_theta, "a value of theta"), (zero_step, "max_step"), (infinite_time, "time"), (nan_ctrl, "ctrl")]
+            [(nan_theta, "a value of theta"), (negative_step, "max_step"), (infinite_time, "time"), (nan_ctrl, "ctrl")]
         {
             let error = Snapshot::deserialize(&serialized(&snapshot), GUID, SIZES).unwrap_err();
             assert!(matches!(error, SnapshotError::Value { .. }) && error.to_string().contains(what), "{error}");

@@ -50,7 +50,7 @@ LEGEND = (
     "(where K is conserved). Momentum drift: max(|ΔL|/|L₀|, |Δp|/|p₀|). Energy residual: max |K − K₀ − ∫ν·ν̇ dt| / K₀, "
     "the integration's energy error. Steps/s: internal steps (taken and rejected) per simulated second, as the "
     "FMU reports them in its logCalls messages. "
-    "Wall: seconds spent in fmi2DoStep. Defaults: dop853, tolerance 1e-8 per second, max_step 0.01 s."
+    "Wall: seconds spent in fmi2DoStep. Defaults: dop853, tolerance 1e-8 per second, no max_step."
 )
 
 

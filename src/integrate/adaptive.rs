@@ -25,7 +25,7 @@
 
 use super::rkmk::{Integrator, retract};
 use super::simulation::Simulation;
-use super::tableau::ErrorEstimate;
+use super::tableau::{ErrorEstimate, Method, Tableau};
 use crate::dynamics::DynamicsError;
 use crate::dynamics::quantities::kinetic_energy;
 use crate::model::{LinkJoint, Model};
@@ -35,10 +35,60 @@ use crate::model::{LinkJoint, Model};
 pub struct Settings {
     /// Relative (and absolute) local error tolerance of adaptive methods.
     pub tolerance: f64,
-    /// Longest internal step (s); RK4 takes equal steps of at most integrator.
+    /// Longest internal step (s); RK4 takes equal steps of at most this.
+    /// 0 means the method's own bound ([`Settings::step_bound`]).
     pub max_step: f64,
     /// Rescale ν after each step to the energy balance (module docs).
     pub energy_projection: bool,
+}
+
+/// RK4's step when `max_step` is 0 (s).
+pub const DEFAULT_FIXED_STEP: f64 = 0.01;
+
+/// The most internal steps one advance may attempt (accepted and rejected),
+/// whatever the method, as `nmax` in Hairer's codes: an interval that
+/// `max_step` alone would cut into more is refused before any step, and an
+/// error control that holds the step far below what the interval needs
+/// stops there, so that a host is never stalled for long.
+pub const MAX_STEPS: usize = 100_000;
+
+impl Settings {
+    /// The longest internal step of `method` (s): `max_step`, or if that is
+    /// 0, none for an adaptive method (the error control and the interval
+    /// decide) and [`DEFAULT_FIXED_STEP`] for RK4.
+    pub fn step_bound(&self, method: Method) -> f64 {
+        match (self.max_step > 0.0, method.is_adaptive()) {
+            (true, _) => self.max_step,
+            (false, true) => f64::INFINITY,
+            (false, false) => DEFAULT_FIXED_STEP,
+        }
+    }
+
+    /// Refuses an interval for which the step bound alone requires more than
+    /// [`MAX_STEPS`] steps, before any is taken.
+    pub fn check_interval(&self, method: Method, interval: f64) -> Result<(), IntervalTooLong> {
+        let max_step = self.step_bound(method);
+        let needed = interval / max_step;
+        if needed > MAX_STEPS as f64 {
+            return Err(IntervalTooLong { interval, max_step, needed });
+        }
+        Ok(())
+    }
+}
+
+/// An interval that the step bound would cut into more than [`MAX_STEPS`] steps.
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "an interval of {interval} s with steps of at most {max_step} s needs {needed:e} internal steps, more than \
+     the {MAX_STEPS:e} one advance may take: a larger max_step or a shorter interval lets it through"
+)]
+pub struct IntervalTooLong {
+    /// The interval asked for (s).
+    pub interval: f64,
+    /// The longest step in effect (s).
+    pub max_step: f64,
+    /// interval / max_step.
+    pub needed: f64,
 }
 
 /// What one interval hands to the next, beyond (θ, ν) and the time: part of
@@ -119,24 +169,27 @@ pub enum AdvanceError {
         cause: Option<Overflow>,
     },
     /// The error control kept the steps so short that the interval needs
-    /// more of them than one call may take.
+    /// more of them than one advance may take.
     #[error(
-        "{limit} internal steps reached only t = {reached} s: the error control held the step to {step:e} s \
-         (max_step {max_step:e} s), as the motion is too fast or stiff for tolerance {tolerance:e}; \
-         a looser tolerance, or shorter intervals (each may take {MAX_ADAPTIVE_STEPS} steps beyond those \
-         max_step requires), lets it through"
+        "{MAX_STEPS} internal steps reached only t = {reached} s: the error control held the step to {step:e} s, \
+         as the motion is too fast or stiff for tolerance {tolerance:e}; \
+         a looser tolerance, or shorter intervals (each may take {MAX_STEPS} steps), lets it through"
     )]
     TooManySteps {
         /// Where the state stays.
         reached: f64,
         /// The last step size.
         step: f64,
-        /// The steps this call could take.
-        limit: usize,
-        /// The longest step allowed.
-        max_step: f64,
         /// The tolerance.
         tolerance: f64,
+    },
+    /// The step bound alone asks for too many steps: refused before any is taken.
+    #[error("{cause}")]
+    TooLong {
+        /// Where the state stays: the interval's start.
+        reached: f64,
+        /// How many steps the bound asks for.
+        cause: IntervalTooLong,
     },
     /// A fixed step failed (a non-finite value).
     #[error("the step from t = {reached} s by {step:e} s failed: {cause}")]
@@ -162,6 +215,7 @@ impl AdvanceError {
         match self {
             AdvanceError::StepTooSmall { reached, .. }
             | AdvanceError::TooManySteps { reached, .. }
+            | AdvanceError::TooLong { reached, .. }
             | AdvanceError::StepFailed { reached, .. } => *reached,
         }
     }
@@ -179,21 +233,6 @@ pub enum Overflow {
         /// The largest |ν̇| over the stages.
         largest_rate: f64,
     },
-}
-
-/// Most attempted steps in one call of an adaptive method beyond the
-/// interval / max_step that `max_step` itself requires, so that a host is
-/// never stalled by an error control that holds the step far below what
-/// was asked for (as `nmax` in Hairer's codes, but scaled with the interval:
-/// a long interval of slow motion is work asked for, not a failure).
-pub const MAX_ADAPTIVE_STEPS: usize = 100_000;
-
-/// The steps a call over `interval` may take: [`MAX_ADAPTIVE_STEPS`] beyond
-/// those that `max_step` requires.
-pub fn step_limit(interval: f64, max_step: f64) -> usize {
-    // `as` saturates: an unbounded max_step requires no steps, a tiny one usize::MAX.
-    let required = (interval / max_step).ceil() as usize;
-    MAX_ADAPTIVE_STEPS.saturating_add(required)
 }
 
 /// The tolerance is the error allowed per this much simulated time (s):
@@ -226,6 +265,20 @@ const ROUND_OFF_MARGIN: f64 = 10.0;
 /// Safety factor of the step-size controller.
 const SAFETY: f64 = 0.9;
 
+/// The factor the next step is the last attempted one times, from its
+/// scaled error (≤ 1 passed): the classic (error)^(−1/(q+1)) rule with a
+/// safety factor, within the tableau's bounds; it never grows the step right
+/// after a rejection (`after_rejection`, which a rejected step itself is),
+/// and a non-finite error shrinks it as far as allowed.
+fn step_factor(error: f64, tableau: &Tableau, after_rejection: bool) -> f64 {
+    let (shrink_limit, grow_limit) = tableau.factor_bounds;
+    if !error.is_finite() {
+        return shrink_limit;
+    }
+    let factor = (SAFETY * error.powf(-tableau.controller_exponent)).clamp(shrink_limit, grow_limit);
+    if after_rejection { factor.min(1.0) } else { factor }
+}
+
 impl Simulation {
     /// Equal steps of at most `max_step` from the state's time to `t1`.
     pub(super) fn advance_fixed(
@@ -234,10 +287,11 @@ impl Simulation {
         t1: f64,
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<Stats, AdvanceError> {
-        let Simulation { state, settings, integrator, ws } = self;
+        let Simulation { state, settings, integrator, ws, .. } = self;
         let (t0, theta, nu, carry) = (state.time, &mut state.theta[..], &mut state.nu[..], &mut state.carry);
+        let max_step = settings.step_bound(integrator.method);
         // The tolerance keeps an interval of exactly k·max_step (up to round-off) at k steps.
-        let steps = ((t1 - t0) / settings.max_step * (1.0 - 1e-12)).ceil().max(1.0) as usize;
+        let steps = ((t1 - t0) / max_step * (1.0 - 1e-12)).ceil().max(1.0) as usize;
         let h = (t1 - t0) / steps as f64;
         for n in 0..steps {
             let t = t0 + n as f64 * h;
@@ -269,10 +323,9 @@ impl Simulation {
                 cause,
             })?
         };
-        let Simulation { state, settings, integrator, ws } = self;
+        let Simulation { state, settings, integrator, ws, .. } = self;
         let (theta, nu, carry) = (&mut state.theta[..], &mut state.nu[..], &mut state.carry);
         let tableau = integrator.method.tableau();
-        let (shrink_limit, grow_limit) = tableau.factor_bounds;
         let tolerance = settings.tolerance;
         let mut stats = Stats::default();
         let mut t = t0;
@@ -285,17 +338,16 @@ impl Simulation {
         // Within this of t1 the interval is done: a step that small is only
         // round-off, and the smallest step allowed below could not take it.
         let end_slack = 16.0 * f64::EPSILON * t1.abs().max(1.0);
-        let limit = step_limit(t1 - t0, settings.max_step);
+        let max_step = settings.step_bound(integrator.method);
         while t1 - t > end_slack {
-            let planned = h.min(settings.max_step);
+            let planned = h.min(max_step);
             let remaining = t1 - t;
             let step = if planned >= remaining { remaining } else { planned };
             if step < 16.0 * f64::EPSILON * t.abs().max(1.0) {
                 return Err(AdvanceError::StepTooSmall { reached: t, step, tolerance, cause: last_cause });
             }
-            if stats.accepted + stats.rejected >= limit {
-                let max_step = settings.max_step;
-                return Err(AdvanceError::TooManySteps { reached: t, step, limit, max_step, tolerance });
+            if stats.accepted + stats.rejected >= MAX_STEPS {
+                return Err(AdvanceError::TooManySteps { reached: t, step, tolerance });
             }
             let per_step = match integrator.attempt(model, ws, (theta, nu), (t, step), inputs_at) {
                 Ok(()) => integrator.error_norm(model, theta, nu, tolerance),
@@ -318,11 +370,7 @@ impl Simulation {
                 integrator.accept_with_energy(model, theta, nu, step, settings, carry);
                 t = if step == remaining { t1 } else { t + step };
                 stats.accepted += 1;
-                let mut factor = (SAFETY * error.powf(-tableau.controller_exponent)).clamp(shrink_limit, grow_limit);
-                if first_rejection.is_some() {
-                    factor = factor.min(1.0);
-                }
-                // A step cut short to land on t1 says little about the next one.
+                let factor = step_factor(error, tableau, first_rejection.is_some());
                 h = if step < planned { (step * factor).max(planned) } else { step * factor };
                 first_rejection = None;
                 least_rejected = f64::INFINITY;
@@ -336,11 +384,7 @@ impl Simulation {
                         None => Overflow::ErrorEstimate { largest_rate: integrator.largest_rate() },
                     });
                 }
-                let factor = if error.is_finite() {
-                    (SAFETY * error.powf(-tableau.controller_exponent)).max(shrink_limit)
-                } else {
-                    shrink_limit
-                };
+                let factor = step_factor(error, tableau, true);
                 h = step * factor;
                 stats.rejected += 1;
                 first_rejection.get_or_insert((step, per_second));
@@ -359,7 +403,7 @@ impl Simulation {
         model: &Model,
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<f64, DynamicsError> {
-        let Simulation { state, settings, integrator, ws } = self;
+        let Simulation { state, settings, integrator, ws, .. } = self;
         let (t0, theta, nu) = (state.time, &state.theta[..], &state.nu[..]);
         let tolerance = settings.tolerance;
         inputs_at(t0, integrator.eps_stage.as_mut_slice(), integrator.ctrl_stage.as_mut_slice());
@@ -376,7 +420,8 @@ impl Simulation {
         // small and let the error control decide.
         let h0 = 0.01 * size / rate;
         let h0 = if size < 1e-5 || rate < 1e-5 || !(h0 > 0.0 && h0.is_finite()) { 1e-6 } else { h0 };
-        let h0 = h0.min(settings.max_step);
+        let max_step = settings.step_bound(integrator.method);
+        let h0 = h0.min(max_step);
         // Explicit Euler probe to h0.
         integrator.delta.copy_from(&integrator.first.qvel);
         integrator.delta *= h0;
@@ -394,7 +439,7 @@ impl Simulation {
         let largest = rate.max(curvature);
         let order = integrator.method.tableau().order as f64;
         let h1 = if largest <= 1e-15 { (h0 * 1e-3).max(1e-6) } else { (0.01 / largest).powf(1.0 / order) };
-        let h = (100.0 * h0).min(h1).min(settings.max_step);
+        let h = (100.0 * h0).min(h1).min(max_step);
         Ok(if h > 0.0 { h } else { h0 })
     }
 }

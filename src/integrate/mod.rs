@@ -7,7 +7,9 @@ mod rkmk;
 mod simulation;
 mod tableau;
 
-pub use adaptive::{AdvanceError, Carry, MAX_ADAPTIVE_STEPS, Overflow, Settings, Stats, ToleranceRelaxed};
+pub use adaptive::{
+    AdvanceError, Carry, DEFAULT_FIXED_STEP, IntervalTooLong, MAX_STEPS, Overflow, Settings, Stats, ToleranceRelaxed,
+};
 pub use rkmk::{Integrator, retract};
 pub use simulation::{Advanced, Input, InputSignal, RunState, Simulation};
 pub use tableau::{DOP853, DOPRI5, ErrorEstimate, Method, RK4, Tableau};

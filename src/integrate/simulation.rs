@@ -49,6 +49,11 @@ pub trait InputSignal {
     fn ctrl_at(&mut self, _t: f64, _start: f64, out: &mut [f64]) {
         out.fill(0.0);
     }
+
+    /// Whether ε and the controls are the same at every t of the advance.
+    fn is_constant(&self) -> bool {
+        false
+    }
 }
 
 /// A first-order hold: `value + rate·elapsed` into `out`.
@@ -65,6 +70,10 @@ impl InputSignal for Input<'_> {
 
     fn ctrl_at(&mut self, t: f64, start: f64, out: &mut [f64]) {
         hold(out, self.ctrl, self.ctrl_rate, t - start);
+    }
+
+    fn is_constant(&self) -> bool {
+        self.eps_rate.iter().chain(self.ctrl_rate).all(|&r| r == 0.0)
     }
 }
 
@@ -94,6 +103,10 @@ pub struct Simulation {
     pub settings: Settings,
     pub(super) integrator: Integrator,
     pub(super) ws: Workspace,
+    /// ε and the controls (nv + nu) of the last advance, when they were
+    /// constant over it: an advance with the same constant input may start
+    /// from the rates its last stage left ("first same as last").
+    pub(super) held_input: Option<Vec<f64>>,
 }
 
 impl Simulation {
@@ -104,6 +117,7 @@ impl Simulation {
             settings,
             integrator: Integrator::new(model, method),
             ws: model.workspace(),
+            held_input: None,
         }
     }
 
@@ -138,14 +152,18 @@ impl Simulation {
         mut input: impl InputSignal,
     ) -> Result<Advanced, AdvanceError> {
         let t0 = self.state.time;
+        // The cached first stage holds only if the input is the same constant as over the last advance.
+        if !self.keeps_held_input(&mut input, t0) {
+            self.integrator.first.valid = false;
+        }
         let mut inputs_at = |t: f64, eps: &mut [f64], ctrl: &mut [f64]| {
             input.eps_at(t, t0, eps);
             input.ctrl_at(t, t0, ctrl);
         };
-        // ε may have changed since the last interval.
-        self.integrator.first.valid = false;
         let relaxation_before = self.state.carry.relaxation;
-        let result = if self.method().is_adaptive() {
+        let result = if let Err(cause) = self.settings.check_interval(self.method(), t_end - t0) {
+            Err(AdvanceError::TooLong { reached: t0, cause })
+        } else if self.method().is_adaptive() {
             self.advance_adaptive(model, t_end, &mut inputs_at)
         } else {
             self.advance_fixed(model, t_end, &mut inputs_at)
@@ -161,6 +179,25 @@ impl Simulation {
                 Err(error)
             }
         }
+    }
+
+    /// Whether `input` is constant and equal to the last advance's constant
+    /// input; records it as the held input (or that there is none). Allocates
+    /// only at the first constant input of a run.
+    fn keeps_held_input(&mut self, input: &mut impl InputSignal, t0: f64) -> bool {
+        if !input.is_constant() {
+            self.held_input = None;
+            return false;
+        }
+        let (eps, ctrl) = (self.integrator.eps_stage.as_mut_slice(), self.integrator.ctrl_stage.as_mut_slice());
+        input.eps_at(t0, t0, eps);
+        input.ctrl_at(t0, t0, ctrl);
+        let now = eps.iter().chain(ctrl.iter());
+        let same = self.held_input.as_ref().is_some_and(|held| held.iter().eq(now.clone()));
+        let held = self.held_input.get_or_insert_with(Vec::new);
+        held.clear();
+        held.extend(now);
+        same
     }
 
     /// Replaces the state (an FMU state being restored).

@@ -75,7 +75,11 @@ pub fn description(model: &Model, variable: RealVariable) -> String {
              replaces it (1)"
                 .into()
         }
-        RealVariable::MaxStep => "longest internal integration step (s)".into(),
+        RealVariable::MaxStep => format!(
+            "longest internal integration step (s); 0: none for dopri5 and dop853 (the error control and the \
+             communication step decide), {} s for rk4",
+            nudyn::integrate::DEFAULT_FIXED_STEP
+        ),
         RealVariable::Eps(k) => {
             format!("diagonalized force eps of dof {} of {} (sqrt(kg)*m/s^2)", k + 1, joint_entry(model, k, false).0)
         }
