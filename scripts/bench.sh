@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
 # Regenerate docs/bench/ (results.json, table.md, work_precision.png,
+# tolerance.json, tolerance.md, tolerance.png,
 # scaling.png): set up, build, and run every benchmark of
 # docs/performance.md. About 15 minutes on 2 cores; the machine should
 # be otherwise idle, although every comparison is timed side by side.
@@ -13,3 +14,4 @@ cd "$ROOT"
 bash scripts/setup-test.sh
 cargo build --release --workspace
 .venv/bin/python scripts/bench.py "$@"
+.venv/bin/python scripts/bench_tolerance.py "$@"

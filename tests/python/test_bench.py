@@ -48,6 +48,31 @@ def test_quick_benchmark_writes_results_table_and_plots(tmp_path):
     assert "### What the actuators and sensors cost" in (tmp_path / "table.md").read_text()
 
 
+def test_quick_tolerance_benchmark_writes_table_and_plot(tmp_path):
+    """`scripts/bench_tolerance.py --quick`: its outputs, and its reference
+    checked against the FMU's own tight run (never a speed)."""
+    bin_dir = nudyn_bin().parent
+    proc = subprocess.run(
+        [sys.executable, str(ROOT / "scripts" / "bench_tolerance.py"), "--quick", "--out", str(tmp_path),
+         "--bin-dir", str(bin_dir)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=ROOT,
+        env={**os.environ, "PYTHONWARNINGS": "ignore"},
+    )
+    assert proc.returncode == 0, f"bench_tolerance.py failed\nstdout: {proc.stdout}\nstderr: {proc.stderr[-4000:]}"
+    for name in ("tolerance.json", "tolerance.md", "tolerance.png"):
+        assert (tmp_path / name).stat().st_size > 0, name
+    results = json.loads((tmp_path / "tolerance.json").read_text())
+    assert results["quick"] is True and set(results["examples"]) == {"bus_arm7", "fixed_rig"}
+    for example in results["examples"].values():
+        assert example["reference_check"] < 1e-7
+        for entry in example["fmu"].values():
+            assert entry["steps"] >= 4 and entry["error"] < 10 * entry["tolerance"], entry
+            assert 0.0 <= entry["outside_share"] < 1.0
+
+
 def test_chains_built_for_mujoco_equal_the_generated_files():
     """MuJoCo cannot read bodies nested 500 deep, so the benchmark builds its
     chains with MuJoCo's model editor: they must be gen_chain.py's chains."""

@@ -1,0 +1,36 @@
+"""The tolerance a user sets decides the cost: through the FMU in FMPy,
+with the FMU's defaults apart from `method` and `tolerance`, over 10 s of
+the validation's tumble in 0.1 s communication steps, the internal steps
+fmi2DoStep reports (logCalls) never grow as the tolerance loosens, and
+fall between 1e-10 and 1e-4, on every example. What they cost in time is
+measured by the benchmark (docs/performance.md), not here."""
+
+from __future__ import annotations
+
+import pytest
+
+from conftest import EXAMPLES, example_ids
+from nudyn_bench.vehicles import prepare
+from nudyn_driver.instance import Instance
+from nudyn_driver.package import FmuPackage
+
+TOLERANCES = [1e-10, 1e-8, 1e-6, 1e-4]
+COMMUNICATION_STEP, STEPS = 0.1, 100
+
+
+@pytest.mark.parametrize("model", EXAMPLES, ids=example_ids())
+def test_cost_falls_as_the_tolerance_loosens(model, cli, tmp_path):
+    vehicle = prepare(model.stem, model, tmp_path)
+    package = FmuPackage.unzip(cli.export(model, tmp_path / f"{model.stem}.fmu"), tmp_path / model.stem)
+    for method in ("dopri5", "dop853"):
+        steps = []
+        for tolerance in TOLERANCES:
+            start = {"method": method, "tolerance": tolerance}
+            with Instance(package, start=start, theta=vehicle.qpos, nu=vehicle.nu, logging_on=True) as fmu:
+                for n in range(STEPS):
+                    fmu.step(COMMUNICATION_STEP, communication_point=n * COMMUNICATION_STEP)
+                taken, rejected = fmu.log.internal_steps()
+            steps.append(taken + rejected)
+        report = ", ".join(f"{t:g}: {s}" for t, s in zip(TOLERANCES, steps))
+        assert all(tight >= loose for tight, loose in zip(steps, steps[1:])), f"{method}: {report}"
+        assert steps[0] > steps[-1], f"{method}: {report}"
