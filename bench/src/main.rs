@@ -405,7 +405,8 @@ fn simulate(
     let method = Method::from_name(method_name).with_context(|| format!("--run {run}: unknown method"))?;
     let value: f64 = value.parse().with_context(|| format!("--run {run}: not a number"))?;
     let settings = if method.is_adaptive() {
-        Settings { tolerance: value, max_step: sample, energy_projection: false }
+        // No max_step, as the FMU's default: the sample points bound the steps.
+        Settings { tolerance: value, max_step: 0.0, energy_projection: false }
     } else {
         Settings { tolerance: 1.0, max_step: value, energy_projection: false }
     };

@@ -344,7 +344,7 @@ impl Simulation {
             let remaining = t1 - t;
             // Two even steps rather than a full one and a sliver: a step cut
             // to a sliver to land on t1 costs as much as a full one.
-            let step = if planned >= remaining {
+            let step = if planned + end_slack >= remaining {
                 remaining
             } else if 2.0 * planned > remaining {
                 0.5 * remaining
