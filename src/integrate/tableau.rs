@@ -319,6 +319,49 @@ mod tests {
         }
     }
 
+    /// |R(iy)| of a tableau on y' = λy with hλ = iy: the amplification of an
+    /// undamped oscillation of frequency ω by one step h = y/ω.
+    fn amplification(t: &Tableau, y: f64) -> f64 {
+        use nalgebra::Complex;
+        let z = Complex::new(0.0, y);
+        let mut stages: Vec<Complex<f64>> = Vec::with_capacity(t.b.len());
+        for row in t.a {
+            let sum: Complex<f64> = row.iter().zip(&stages).map(|(a, s)| s * *a).sum();
+            stages.push(Complex::new(1.0, 0.0) + z * sum);
+        }
+        let weighted: Complex<f64> = t.b.iter().zip(&stages).map(|(b, s)| s * *b).sum();
+        (Complex::new(1.0, 0.0) + z * weighted).norm()
+    }
+
+    /// The largest h·ω below which a method does not amplify an undamped
+    /// oscillation: what limits explicit steps on a stiff, undamped mode
+    /// (docs/integration.md, "Stiff vehicles"). RK4's is 2√2 exactly, which
+    /// checks the scan. DOPRI5 is stable only up to about 1, and beyond it
+    /// amplifies slowly at first (by 1.4e-6 per step at 1, 3 % at 2).
+    #[test]
+    fn stability_bounds_on_the_imaginary_axis() {
+        let bound = |t: &Tableau| {
+            let mut y = 0.0;
+            while amplification(t, y + 1e-4) <= 1.0 + 1e-12 {
+                y += 1e-4;
+            }
+            y
+        };
+        let rk4 = bound(&RK4);
+        assert!((rk4 - 2.0 * 2f64.sqrt()).abs() < 2e-4, "{rk4}");
+        let dop853 = bound(&DOP853);
+        assert!(dop853 > rk4, "DOP853 stable up to {dop853}");
+        let dopri5 = bound(&DOPRI5);
+        assert!(dopri5 > 0.5, "DOPRI5 stable up to {dopri5}");
+        let growth = |y| amplification(&DOPRI5, y) - 1.0;
+        println!(
+            "h·ω bounds: rk4 {rk4:.2}, dop853 {dop853:.2}, dopri5 {dopri5:.2} (|R| − 1 at 1, 2, 3: {:.1e}, {:.1e}, {:.1e})",
+            growth(1.0),
+            growth(2.0),
+            growth(3.0)
+        );
+    }
+
     #[test]
     fn names_round_trip() {
         for method in Method::ALL {
