@@ -66,14 +66,23 @@ def git_commit() -> str:
     return proc.stdout.strip() or "unknown"
 
 
+def binaries(bin_dir: Path, prog: str) -> tuple[Path, Path] | None:
+    """(nudyn-bench, nudyn) in `bin_dir`, or None after saying which is missing."""
+    bench, nudyn = bin_dir / "nudyn-bench", bin_dir / "nudyn"
+    for binary in (bench, nudyn):
+        if not binary.is_file():
+            print(f"{prog}: {binary} is missing: run `cargo build --release --workspace`", file=sys.stderr)
+            return None
+    return bench, nudyn
+
+
 def main(argv=None) -> int:
     args = arguments(argv)
     sizes = Sizes(args.quick)
-    bench, nudyn = args.bin_dir / "nudyn-bench", args.bin_dir / "nudyn"
-    for binary in (bench, nudyn):
-        if not binary.is_file():
-            print(f"bench.py: {binary} is missing: run `cargo build --release --workspace`", file=sys.stderr)
-            return 2
+    found = binaries(args.bin_dir, "bench.py")
+    if found is None:
+        return 2
+    bench, nudyn = found
     args.out.mkdir(parents=True, exist_ok=True)
     import pinocchio
 

@@ -41,6 +41,7 @@ from nudyn_driver.instance import Instance  # noqa: E402
 from nudyn_driver.package import FmuPackage  # noqa: E402
 from nudyn_validation.compare import quaternion_starts  # noqa: E402
 
+from .cli import binaries, git_commit  # noqa: E402
 from .report import median  # noqa: E402
 from .vehicles import ROOT, Vehicle, prepare  # noqa: E402
 from .work_precision import MujocoRuns, Plan, nudyn_runs, time_at_error  # noqa: E402
@@ -209,13 +210,10 @@ def main(argv=None) -> int:
     parser.add_argument("--bin-dir", type=Path, default=ROOT / "target" / "release", help="where nudyn and nudyn-bench are")
     args = parser.parse_args(argv)
     sizes = Sizes(args.quick)
-    bench, nudyn = args.bin_dir / "nudyn-bench", args.bin_dir / "nudyn"
-    for binary in (bench, nudyn):
-        if not binary.is_file():
-            print(f"bench_tolerance.py: {binary} is missing: run `cargo build --release --workspace`", file=sys.stderr)
-            return 2
-    from .cli import git_commit
-
+    found = binaries(args.bin_dir, "bench_tolerance.py")
+    if found is None:
+        return 2
+    bench, nudyn = found
     results = {
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "commit": git_commit(),

@@ -13,17 +13,21 @@ import sys
 from conftest import ROOT, nudyn_bin
 
 
-def test_quick_benchmark_writes_results_table_and_plots(tmp_path):
-    bin_dir = nudyn_bin().parent
+def run_quick(script: str, out) -> None:
+    """scripts/SCRIPT --quick --out OUT with this checkout's binaries."""
     proc = subprocess.run(
-        [sys.executable, str(ROOT / "scripts" / "bench.py"), "--quick", "--out", str(tmp_path), "--bin-dir", str(bin_dir)],
+        [sys.executable, str(ROOT / "scripts" / script), "--quick", "--out", str(out), "--bin-dir", str(nudyn_bin().parent)],
         capture_output=True,
         text=True,
         timeout=600,
         cwd=ROOT,
         env={**os.environ, "PYTHONWARNINGS": "ignore"},
     )
-    assert proc.returncode == 0, f"bench.py failed\nstdout: {proc.stdout}\nstderr: {proc.stderr[-4000:]}"
+    assert proc.returncode == 0, f"{script} failed\nstdout: {proc.stdout}\nstderr: {proc.stderr[-4000:]}"
+
+
+def test_quick_benchmark_writes_results_table_and_plots(tmp_path):
+    run_quick("bench.py", tmp_path)
     for name in ("results.json", "table.md", "scaling.png", "work_precision.png"):
         assert (tmp_path / name).stat().st_size > 0, name
     results = json.loads((tmp_path / "results.json").read_text())
@@ -51,17 +55,7 @@ def test_quick_benchmark_writes_results_table_and_plots(tmp_path):
 def test_quick_tolerance_benchmark_writes_table_and_plot(tmp_path):
     """`scripts/bench_tolerance.py --quick`: its outputs, and its reference
     checked against the FMU's own tight run (never a speed)."""
-    bin_dir = nudyn_bin().parent
-    proc = subprocess.run(
-        [sys.executable, str(ROOT / "scripts" / "bench_tolerance.py"), "--quick", "--out", str(tmp_path),
-         "--bin-dir", str(bin_dir)],
-        capture_output=True,
-        text=True,
-        timeout=600,
-        cwd=ROOT,
-        env={**os.environ, "PYTHONWARNINGS": "ignore"},
-    )
-    assert proc.returncode == 0, f"bench_tolerance.py failed\nstdout: {proc.stdout}\nstderr: {proc.stderr[-4000:]}"
+    run_quick("bench_tolerance.py", tmp_path)
     for name in ("tolerance.json", "tolerance.md", "tolerance.png"):
         assert (tmp_path / name).stat().st_size > 0, name
     results = json.loads((tmp_path / "tolerance.json").read_text())
