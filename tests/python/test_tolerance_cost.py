@@ -2,8 +2,10 @@
 with the FMU's defaults apart from `method` and `tolerance`, over 10 s of
 the validation's tumble in 0.1 s communication steps, the internal steps
 fmi2DoStep reports (logCalls) never grow as the tolerance loosens, and
-fall between 1e-10 and 1e-4, on every example. What they cost in time is
-measured by the benchmark (docs/performance.md), not here."""
+fall between the tightest and 1e-4, on every example (dopri5 from 1e-8:
+at 1e-10 a 5th-order method takes 45 000 steps on chain60, which only
+lengthens the test). What they cost in time is measured by the benchmark
+(docs/performance.md), not here."""
 
 from __future__ import annotations
 
@@ -14,7 +16,7 @@ from nudyn_bench.vehicles import prepare
 from nudyn_driver.instance import Instance
 from nudyn_driver.package import FmuPackage
 
-TOLERANCES = [1e-10, 1e-8, 1e-6, 1e-4]
+TOLERANCES = {"dopri5": [1e-8, 1e-6, 1e-4], "dop853": [1e-10, 1e-8, 1e-6, 1e-4]}
 COMMUNICATION_STEP, STEPS = 0.1, 100
 
 
@@ -22,15 +24,15 @@ COMMUNICATION_STEP, STEPS = 0.1, 100
 def test_cost_falls_as_the_tolerance_loosens(model, cli, tmp_path):
     vehicle = prepare(model.stem, model, tmp_path)
     package = FmuPackage.unzip(cli.export(model, tmp_path / f"{model.stem}.fmu"), tmp_path / model.stem)
-    for method in ("dopri5", "dop853"):
+    for method, tolerances in TOLERANCES.items():
         steps = []
-        for tolerance in TOLERANCES:
+        for tolerance in tolerances:
             start = {"method": method, "tolerance": tolerance}
             with Instance(package, start=start, theta=vehicle.qpos, nu=vehicle.nu, logging_on=True) as fmu:
                 for n in range(STEPS):
                     fmu.step(COMMUNICATION_STEP, communication_point=n * COMMUNICATION_STEP)
                 taken, rejected = fmu.log.internal_steps()
             steps.append(taken + rejected)
-        report = ", ".join(f"{t:g}: {s}" for t, s in zip(TOLERANCES, steps))
+        report = ", ".join(f"{t:g}: {s}" for t, s in zip(tolerances, steps))
         assert all(tight >= loose for tight, loose in zip(steps, steps[1:])), f"{method}: {report}"
         assert steps[0] > steps[-1], f"{method}: {report}"
