@@ -76,11 +76,16 @@ def scaled_error(model: mujoco.MjModel, qpos, qvel, reference_qpos, reference_qv
     return float(largest) if np.isfinite(largest) else float("inf")
 
 
-def fmu_loop(package: FmuPackage, vehicle: Vehicle, tolerance: float, sizes: Sizes, read: str) -> tuple[float, list, list]:
-    """Seconds of the doStep loop, and θ and `read` (nu or qvel) at every communication point."""
+def fmu_loop(
+    package: FmuPackage, vehicle: Vehicle, tolerance: float, sizes: Sizes, read: str, logging: bool = False
+) -> tuple[float, list, list, tuple[int, int]]:
+    """Seconds of the doStep loop, θ and `read` (nu or qvel) at every
+    communication point, and with `logging` the internal steps (taken,
+    rejected) from fmi2DoStep's logCalls reports ((0, 0) without: logging
+    costs time, so timed runs go without it)."""
     steps = int(round(sizes.duration / sizes.communication_step))
     h = sizes.communication_step
-    with Instance(package, start={"tolerance": tolerance}, theta=vehicle.qpos, nu=vehicle.nu) as fmu:
+    with Instance(package, start={"tolerance": tolerance}, theta=vehicle.qpos, nu=vehicle.nu, logging_on=logging) as fmu:
         theta, other = [fmu.array("theta")], [fmu.array(read)]
         start = time.perf_counter()
         for n in range(steps):
@@ -88,16 +93,7 @@ def fmu_loop(package: FmuPackage, vehicle: Vehicle, tolerance: float, sizes: Siz
             theta.append(fmu.array("theta"))
             other.append(fmu.array(read))
         seconds = time.perf_counter() - start
-    return seconds, theta, other
-
-
-def internal_steps(package: FmuPackage, vehicle: Vehicle, tolerance: float, sizes: Sizes) -> tuple[int, int]:
-    """(taken, rejected) over the run, from fmi2DoStep's logCalls reports (an untimed run)."""
-    h = sizes.communication_step
-    with Instance(package, start={"tolerance": tolerance}, theta=vehicle.qpos, nu=vehicle.nu, logging_on=True) as fmu:
-        for n in range(int(round(sizes.duration / h))):
-            fmu.step(h, communication_point=n * h)
-        return fmu.log.internal_steps()
+        return seconds, theta, other, fmu.log.internal_steps()
 
 
 def example(name: str, nudyn: Path, bench: Path, work: Path, sizes: Sizes) -> dict:
@@ -112,12 +108,11 @@ def example(name: str, nudyn: Path, bench: Path, work: Path, sizes: Sizes) -> di
     def error(qpos, qvel):
         return scaled_error(vehicle.model, qpos, qvel, reference_qpos, reference_qvel)
 
-    _, theta, qvel = fmu_loop(package, vehicle, 1e-12, sizes, "qvel")
+    _, theta, qvel, _ = fmu_loop(package, vehicle, 1e-12, sizes, "qvel")
     reference_check = error(theta, qvel)
     fmu = {}
     for tolerance in sizes.tolerances:
-        _, theta, qvel = fmu_loop(package, vehicle, tolerance, sizes, "qvel")
-        taken, rejected = internal_steps(package, vehicle, tolerance, sizes)
+        _, theta, qvel, (taken, rejected) = fmu_loop(package, vehicle, tolerance, sizes, "qvel", logging=True)
         fmu[f"{tolerance:g}"] = {"tolerance": tolerance, "error": error(theta, qvel), "steps": taken,
                                  "rejected": rejected, "seconds": [], "native_seconds": []}
     mujoco_runs = {f"{h:g}": {"step": h, "seconds": []} for h in sizes.mujoco_steps}

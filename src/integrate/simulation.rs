@@ -103,10 +103,12 @@ pub struct Simulation {
     pub settings: Settings,
     pub(super) integrator: Integrator,
     pub(super) ws: Workspace,
-    /// ε and the controls (nv + nu) of the last advance, when they were
-    /// constant over it: an advance with the same constant input may start
-    /// from the rates its last stage left ("first same as last").
-    pub(super) held_input: Option<Vec<f64>>,
+    /// ε and the controls (nv + nu) of the last advance, meaningful when
+    /// `input_was_constant`: an advance with the same constant input may
+    /// start from the rates its last stage left ("first same as last").
+    held_input: Vec<f64>,
+    /// Whether the last advance's input was constant over it.
+    input_was_constant: bool,
 }
 
 impl Simulation {
@@ -117,7 +119,8 @@ impl Simulation {
             settings,
             integrator: Integrator::new(model, method),
             ws: model.workspace(),
-            held_input: None,
+            held_input: vec![0.0; model.nv + model.actuators.len()],
+            input_was_constant: false,
         }
     }
 
@@ -182,21 +185,20 @@ impl Simulation {
     }
 
     /// Whether `input` is constant and equal to the last advance's constant
-    /// input; records it as the held input (or that there is none). Allocates
-    /// only at the first constant input of a run.
+    /// input; records it as the held input (in place: no allocation).
     fn keeps_held_input(&mut self, input: &mut impl InputSignal, t0: f64) -> bool {
-        if !input.is_constant() {
-            self.held_input = None;
+        let was_constant = std::mem::replace(&mut self.input_was_constant, input.is_constant());
+        if !self.input_was_constant {
             return false;
         }
         let (eps, ctrl) = (self.integrator.eps_stage.as_mut_slice(), self.integrator.ctrl_stage.as_mut_slice());
         input.eps_at(t0, t0, eps);
         input.ctrl_at(t0, t0, ctrl);
-        let now = eps.iter().chain(ctrl.iter());
-        let same = self.held_input.as_ref().is_some_and(|held| held.iter().eq(now.clone()));
-        let held = self.held_input.get_or_insert_with(Vec::new);
-        held.clear();
-        held.extend(now);
+        let mut same = was_constant;
+        for (held, &now) in self.held_input.iter_mut().zip(eps.iter().chain(ctrl.iter())) {
+            same &= *held == now;
+            *held = now;
+        }
         same
     }
 
