@@ -87,6 +87,13 @@ fn bench_model(c: &mut Criterion, name: &str, model: &Model) {
         ws.set_nu(model, &nu).unwrap();
         b.iter(|| ws.compute_nu_dot(model, black_box(&eps)).unwrap())
     });
+    // θ̈ instead of ν̇ (the integrators' state (θ, θ̇)): pass 3 without the
+    // factor's rates, then the outward pass.
+    c.bench_function(&format!("passes/{name}/3 bias without rates + accelerations"), |b| {
+        ws.set_configuration(model, &theta).unwrap();
+        ws.set_nu(model, &nu).unwrap();
+        b.iter(|| ws.compute_qacc(model, black_box(&eps)).unwrap())
+    });
 }
 
 fn benches(c: &mut Criterion) {

@@ -20,6 +20,9 @@ pub enum Stage {
     Configuration,
     /// Pass 2 done: velocities known.
     Velocity,
+    /// Pass 3 without the factor's rates: enough for θ̈
+    /// (`compute_accelerations`), not for ν̇ or C.
+    JointRates,
     /// Pass 3 done: ν̇ and C known.
     Acceleration,
 }
@@ -95,8 +98,9 @@ pub struct Workspace {
     pub coriolis: DVector<f64>,
     /// ν̇ = ε − C + eps_passive — pass 3.
     pub nu_dot: DVector<f64>,
-    /// ν̇'s terms from the factor's rates, Ṙᵀw + RᵀĠᵀV⁺ — pass 3.
-    pub factor_rates: DVector<f64>,
+    /// ν̇ less its terms from the factor's rates (Ṙᵀw + RᵀĠᵀV⁺):
+    /// ε + ε_passive + R⁻¹u, what θ̈ needs — pass 3, with or without the rates.
+    pub nu_dot_joint: DVector<f64>,
     /// θ̈ in dof space (MuJoCo's qacc) — compute_accelerations.
     pub qacc: DVector<f64>,
     /// A: link spatial acceleration in link coordinates, the world at rest
@@ -176,7 +180,7 @@ impl Workspace {
             eps_passive: dof(),
             coriolis: dof(),
             nu_dot: dof(),
-            factor_rates: dof(),
+            nu_dot_joint: dof(),
             qacc: dof(),
             a_body: vec![SpatialVec::zeros(); n],
             actuators_apply_wrenches,

@@ -75,6 +75,11 @@ fn check_vehicle(vehicle: &Vehicle, rng: &mut Rng) -> Result<(), String> {
     let qacc_dense = common::forward_dynamics(vehicle, &theta, &qvel, &torque);
     // (As for ν̇, the dense solve loses digits on the 200-body chain.)
     fail("qacc", rel_err(ws.qacc.as_slice(), qacc_dense.as_slice()), 1e-7)?;
+    // θ̈ without ν̇ (pass 3 without the factor's rates): the same θ̈.
+    let qacc_after_nu_dot = ws.qacc.clone();
+    ws.set_nu(&model, nu.as_slice()).unwrap();
+    ws.compute_qacc(&model, &eps).unwrap();
+    fail("qacc without the factor's rates", rel_err(ws.qacc.as_slice(), qacc_after_nu_dot.as_slice()), 1e-12)?;
 
     // 5. Momentum and |ν| are invariant with ε = 0 and no passive forces:
     // checked on the instantaneous rates, by central differences along the motion.

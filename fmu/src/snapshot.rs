@@ -17,8 +17,9 @@ const MAGIC: &[u8; 8] = b"nudynFMS";
 /// Version of the byte layout below (2: the state machine's state; 3: the
 /// integration method, energy projection, carried step, work and K₀; 4: the
 /// error control's relaxation; 5: the actuators' controls and their rates;
-/// 6: the method as the FMU's `method` value, max_step 0 allowed).
-const VERSION: u32 = 6;
+/// 6: the method as the FMU's `method` value, max_step 0 allowed; 7: θ̇,
+/// which the integrator advances).
+const VERSION: u32 = 7;
 
 /// The sizes of a plant's state: a blob is restored only into a plant of the same.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -125,9 +126,9 @@ fn fnv1a(bytes: &[u8]) -> u64 {
 
 impl Snapshot {
     /// Number of scalars after the header: nine times, settings and
-    /// integration values, then theta, nu, eps, eps_rate, ctrl, ctrl_rate.
+    /// integration values, then theta, nu, qvel, eps, eps_rate, ctrl, ctrl_rate.
     fn scalar_count(sizes: Sizes) -> usize {
-        9 + sizes.nq + 3 * sizes.nv + 2 * sizes.nu
+        9 + sizes.nq + 4 * sizes.nv + 2 * sizes.nu
     }
 
     /// The sizes of the saved state.
@@ -167,7 +168,7 @@ impl Snapshot {
             s.initial_energy,
             s.run.carry.relaxation,
         ];
-        let vectors = [&s.run.theta, &s.run.nu, &s.eps, &s.eps_rate, &s.ctrl, &s.ctrl_rate];
+        let vectors = [&s.run.theta, &s.run.nu, &s.run.qvel, &s.eps, &s.eps_rate, &s.ctrl, &s.ctrl_rate];
         for x in scalars.iter().chain(vectors.into_iter().flatten()) {
             bytes.extend_from_slice(&x.to_le_bytes());
         }
@@ -219,6 +220,7 @@ impl Snapshot {
         check_values(settings, vectors)?;
         let (theta, rest) = vectors.split_at(nq);
         let (nu, rest) = rest.split_at(nv);
+        let (qvel, rest) = rest.split_at(nv);
         let (eps, rest) = rest.split_at(nv);
         let (eps_rate, rest) = rest.split_at(nv);
         let (ctrl, ctrl_rate) = rest.split_at(controls);
@@ -230,6 +232,7 @@ impl Snapshot {
                     time: settings[0],
                     theta: theta.to_vec(),
                     nu: nu.to_vec(),
+                    qvel: qvel.to_vec(),
                     carry: Carry { next_step: settings[5], work: settings[6], relaxation: settings[8] },
                 },
                 settings: Settings { tolerance: settings[3], max_step: settings[4], energy_projection },
@@ -326,6 +329,7 @@ mod tests {
                     time: 0.1 + 0.2,
                     theta: vec![1.0, 0.0, 0.0, 0.0, std::f64::consts::PI],
                     nu: vec![1e-300, -0.0, 3.5, 7.25],
+                    qvel: vec![2e-300, -0.0, 1.75, -0.5],
                     carry: Carry { next_step: 2.5e-3, work: -0.75, relaxation: 3.0 },
                 },
                 settings: Settings { tolerance: 1e-6, max_step: 1e-3, energy_projection: true },

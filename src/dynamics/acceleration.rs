@@ -2,11 +2,12 @@
 //! spatial accelerations, for the acceleration sensors (docs/DYNAMICS.md §5).
 //!
 //! Pass 3 gives ν̇_i = R_i⁻¹u_i + (Ṙ_iᵀw_i + R_iᵀĠ_iᵀV⁺_i) with u_i the
-//! joint term of the whole force recursion, and stores the bracket
-//! (`factor_rates`). The articulated-body algorithm's joint equation then
+//! joint term of the whole force recursion, and stores ν̇ without the
+//! bracket (`nu_dot_joint`, which pass 3 can also give alone, without the
+//! factor's rates). The articulated-body algorithm's joint equation then
 //! gives θ̈ without another inward pass:
 //!
-//!   θ̈_i = D_i⁻¹u_i − G_iᵀ(X A_λ + c_i) = R_i⁻ᵀ(ν̇_i − factor_rate_i) − G_iᵀ(X A_λ + c_i),
+//!   θ̈_i = D_i⁻¹u_i − G_iᵀ(X A_λ + c_i) = R_i⁻ᵀ nu_dot_joint_i − G_iᵀ(X A_λ + c_i),
 //!   A_i = X A_λ + c_i + S_i θ̈_i,   c_i = V⁺_i × S_i θ̇_i.
 
 use nalgebra::SVector;
@@ -26,17 +27,17 @@ fn acceleration_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize
     };
     let v_joint = s * ws.qvel.fixed_rows::<N>(adr);
     let a_passed = a_plus + cross_motion(&ws.v_plus_body[i], &v_joint);
-    let joint_term: SVector<f64, N> = ws.nu_dot.fixed_rows::<N>(adr) - ws.factor_rates.fixed_rows::<N>(adr);
+    let joint_term: SVector<f64, N> = ws.nu_dot_joint.fixed_rows::<N>(adr).into_owned();
     let qacc = block::<N>(&ws.r_inv_joint[i]).transpose() * joint_term - cols::<N>(&ws.gain[i]).transpose() * a_passed;
     ws.qacc.fixed_rows_mut::<N>(adr).copy_from(&qacc);
     ws.a_body[i] = a_passed + s * qacc;
 }
 
 impl Workspace {
-    /// θ̈ (`qacc`) and the link accelerations (`a_body`) for the ν̇ of the
-    /// last pass 3. Needs pass 3.
+    /// θ̈ (`qacc`) and the link accelerations (`a_body`) for the inputs of
+    /// the last pass 3 (with or without the factor's rates). Needs pass 3.
     pub fn compute_accelerations(&mut self, model: &Model) -> Result<(), DynamicsError> {
-        require(self, Stage::Acceleration, "compute_accelerations")?;
+        require(self, Stage::JointRates, "compute_accelerations")?;
         for i in 0..model.links.len() {
             match model.links[i].ndof {
                 1 => acceleration_link::<1>(model, self, i),

@@ -305,20 +305,38 @@ impl Workspace {
     /// integrators apply them. A vehicle without actuators goes straight to
     /// pass 3, so it costs what it did before actuators existed.
     pub fn compute_nu_dot_actuated(&mut self, model: &Model, eps: &[f64], ctrl: &[f64]) -> Result<(), DynamicsError> {
+        self.with_actuators(model, eps, ctrl, Self::compute_nu_dot)
+    }
+
+    /// θ̈ for the same inputs as [`Workspace::compute_nu_dot_actuated`],
+    /// without ν̇ ([`Workspace::compute_qacc`]).
+    pub fn compute_qacc_actuated(&mut self, model: &Model, eps: &[f64], ctrl: &[f64]) -> Result<(), DynamicsError> {
+        self.with_actuators(model, eps, ctrl, Self::compute_qacc)
+    }
+
+    /// Runs `pass` with ε = `eps` plus the actuators' at `ctrl`, leaving
+    /// that total in `eps_applied`.
+    fn with_actuators(
+        &mut self,
+        model: &Model,
+        eps: &[f64],
+        ctrl: &[f64],
+        pass: fn(&mut Self, &Model, &[f64]) -> Result<(), DynamicsError>,
+    ) -> Result<(), DynamicsError> {
         check_length("ctrl", ctrl, model.actuators.len())?;
+        check_input("eps", eps, model.nv)?;
+        let mut applied = std::mem::take(&mut self.eps_applied);
         if model.actuators.is_empty() {
-            self.compute_nu_dot(model, eps)?;
+            applied.copy_from_slice(eps);
         } else {
-            check_input("eps", eps, model.nv)?;
             self.compute_actuation(model, ctrl)?;
-            let mut applied = std::mem::take(&mut self.eps_applied);
             for ((total, input), actuator) in applied.iter_mut().zip(eps).zip(self.eps_actuator.iter()) {
                 *total = input + actuator;
             }
-            let result = self.compute_nu_dot(model, applied.as_slice());
-            self.eps_applied = applied;
-            result?;
         }
+        let result = pass(self, model, applied.as_slice());
+        self.eps_applied = applied;
+        result?;
         self.eps_input.copy_from_slice(eps);
         self.ctrl_input.copy_from_slice(ctrl);
         self.inputs_applied = true;

@@ -55,23 +55,29 @@ fn upper_half<const N: usize>(x: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
 }
 
 /// Pass 3 for one link with N dofs; `forces`: whether to run the recursion
-/// of springs, dampers and gravity (else their ε is zero).
-fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &[f64], forces: bool) {
+/// of springs, dampers and gravity (else their ε is zero); `RATES`: whether
+/// to add the factor's rates and so complete ν̇ and C (else only the joint
+/// terms that θ̈ needs, without the İ^A recursion).
+fn bias_link<const N: usize, const RATES: bool>(
+    model: &Model,
+    ws: &mut Workspace,
+    i: usize,
+    eps: &[f64],
+    forces: bool,
+) {
     let link = &model.links[i];
     let adr = link.dof_adr;
     let s = cols::<N>(&link.motion_subspace);
     let gain = cols::<N>(&ws.gain[i]);
     let r = block::<N>(&ws.r_joint[i]);
     let r_inv = block::<N>(&ws.r_inv_joint[i]);
-    let d_inv = r_inv.transpose() * r_inv;
-    let w: SVector<f64, N> = ws.w_joint.fixed_rows::<N>(adr).into_owned();
     let (v, v_plus) = (ws.v_body[i], ws.v_plus_body[i]);
     // v_J = S θ̇ and c = V × v_J = V⁺ × v_J, recomputed rather than stored
     // by pass 2: two fewer per-link arrays to stream on long chains.
     let v_joint = s * ws.qvel.fixed_rows::<N>(adr);
     let has_children = ws.accumulation[i].has_children;
     // İ^A is zero for a link without children (its own inertia is constant in its frame).
-    let ia_dot = has_children.then(|| &ws.ia_dot_body[i]);
+    let ia_dot = (RATES && has_children).then(|| &ws.ia_dot_body[i]);
 
     // Velocity-product terms.
     let mut p_bias = cross_force(&v, &link.inertia_times(&v));
@@ -79,14 +85,17 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
         p_bias += ws.p_bias_body[i];
     }
     let u: SVector<f64, N> = -(s.transpose() * p_bias);
-    let ia_dot_s: SMatrix<f64, 6, N> = ia_dot.map_or_else(SMatrix::zeros, |ia_dot| ia_dot * s);
-    let d_dot = s.transpose() * ia_dot_s;
-    let gain_t_dot = d_inv * (ia_dot_s.transpose() - d_dot * gain.transpose());
-    let r_dot = r * upper_half(&(r_inv * d_dot * r_inv.transpose()));
-    // ν̇'s terms from the factor's rates, Ṙᵀw + RᵀĠᵀV⁺: the outward
-    // acceleration pass takes them out of ν̇ again (acceleration.rs).
-    let factor_rate = r_dot.transpose() * w + r.transpose() * (gain_t_dot * v_plus);
-    let minus_c = r_inv * u + factor_rate;
+    let joint_bias = r_inv * u;
+    // ν̇'s terms from the factor's rates, Ṙᵀw + RᵀĠᵀV⁺, which θ̈ does not need.
+    let rates = RATES.then(|| {
+        let d_inv = r_inv.transpose() * r_inv;
+        let w: SVector<f64, N> = ws.w_joint.fixed_rows::<N>(adr).into_owned();
+        let ia_dot_s: SMatrix<f64, 6, N> = ia_dot.map_or_else(SMatrix::zeros, |ia_dot| ia_dot * s);
+        let d_dot = s.transpose() * ia_dot_s;
+        let gain_t_dot = d_inv * (ia_dot_s.transpose() - d_dot * gain.transpose());
+        let r_dot = r * upper_half(&(r_inv * d_dot * r_inv.transpose()));
+        (r_dot.transpose() * w + r.transpose() * (gain_t_dot * v_plus), ia_dot_s, d_dot)
+    });
 
     // Springs, dampers and gravity.
     let p_force = if !forces {
@@ -109,10 +118,15 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
     let eps_passive = r_inv * u_force;
 
     for k in 0..N {
-        ws.coriolis[adr + k] = -minus_c[k];
-        ws.factor_rates[adr + k] = factor_rate[k];
         ws.eps_passive[adr + k] = eps_passive[k];
-        ws.nu_dot[adr + k] = eps[adr + k] + eps_passive[k] + minus_c[k];
+        ws.nu_dot_joint[adr + k] = eps[adr + k] + eps_passive[k] + joint_bias[k];
+    }
+    if let Some((factor_rate, ..)) = &rates {
+        for k in 0..N {
+            let minus_c = joint_bias[k] + factor_rate[k];
+            ws.coriolis[adr + k] = -minus_c;
+            ws.nu_dot[adr + k] = eps[adr + k] + eps_passive[k] + minus_c;
+        }
     }
 
     if let Some(p) = link.parent {
@@ -125,6 +139,7 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
             accumulate(&mut ws.p_force_body[p], x.apply_transpose_force(&(p_force + gain * u_force)), opens_parent);
         }
 
+        let Some((_, ia_dot_s, d_dot)) = rates else { return };
         // The child's term İ^a + v_J ×* I^a − I^a v_J × as İ^A − Q − Qᵀ:
         // İ^a = (1 − G Sᵀ) İ^A (1 − G Sᵀ)ᵀ = İ^A − G A′ᵀ − A′ Gᵀ with
         // A′ = İ^A S − ½ G Ḋ (rank-N updates instead of two 6×6 products),
@@ -140,16 +155,19 @@ fn bias_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, eps: &
     }
 }
 
-/// Pass 3 over all links; `eps` is the applied ε (nv).
-pub(crate) fn bias_pass(model: &Model, ws: &mut Workspace, eps: &[f64]) {
+/// Pass 3 over all links; `eps` is the applied ε (nv). With `RATES` it
+/// gives ν̇ and C; without, only the joint terms of ν̇ (`nu_dot_joint`),
+/// from which the outward pass of acceleration.rs gives θ̈ (the
+/// articulated-body algorithm's cost, without the İ^A recursion).
+pub(crate) fn bias_pass<const RATES: bool>(model: &Model, ws: &mut Workspace, eps: &[f64]) {
     let forces = !model.shortcuts.no_passive_forces();
     if forces {
         passive_forces(model, ws);
     }
     for i in (0..model.links.len()).rev() {
         match model.links[i].ndof {
-            1 => bias_link::<1>(model, ws, i, eps, forces),
-            _ => bias_link::<3>(model, ws, i, eps, forces),
+            1 => bias_link::<1, RATES>(model, ws, i, eps, forces),
+            _ => bias_link::<3, RATES>(model, ws, i, eps, forces),
         }
     }
 }

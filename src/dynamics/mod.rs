@@ -6,7 +6,7 @@
 //! | 0 [`kinematics`] | within pass 1; world placements base → tip | θ | link transforms |
 //! | 1 [`articulated`] | tip → base | θ | I^a, R = D^½, G |
 //! | 2 [`velocity`] | base → tip | ν or θ̇ | V, θ̇ = ℓ*ν or ν = m*θ̇ |
-//! | 3 [`bias`] | tip → base | ε | ν̇, C(θ,ν), ε of passive forces and gravity |
+//! | 3 [`bias`] | tip → base | ε | ν̇, C(θ,ν), ε of passive forces and gravity (or without the factor's rates, only what θ̈ needs) |
 //!
 //! [`forces`] maps physical joint torques and body wrenches to ε and back;
 //! [`actuation`] computes the actuators' forces and their ε;
@@ -173,9 +173,22 @@ impl Workspace {
     pub fn compute_nu_dot(&mut self, model: &Model, eps: &[f64]) -> Result<(), DynamicsError> {
         require(self, Stage::Velocity, "compute_nu_dot")?;
         check_input("eps", eps, model.nv)?;
-        bias::bias_pass(model, self, eps);
+        bias::bias_pass::<true>(model, self, eps);
         self.stage = Stage::Acceleration;
         self.inputs_applied = false;
         Ok(())
+    }
+
+    /// θ̈ (`qacc`) for applied `eps` (nv) without ν̇: pass 3 without the
+    /// factor's rates, then the outward pass of [`acceleration`]. The
+    /// articulated-body algorithm's cost; ν̇ and C stay unset.
+    pub fn compute_qacc(&mut self, model: &Model, eps: &[f64]) -> Result<(), DynamicsError> {
+        require(self, Stage::Velocity, "compute_qacc")?;
+        check_input("eps", eps, model.nv)?;
+        self.stage = Stage::Velocity;
+        bias::bias_pass::<false>(model, self, eps);
+        self.stage = Stage::JointRates;
+        self.inputs_applied = false;
+        self.compute_accelerations(model)
     }
 }

@@ -29,6 +29,7 @@ use super::tableau::{ErrorEstimate, Method, Tableau};
 use crate::dynamics::DynamicsError;
 use crate::dynamics::quantities::kinetic_energy;
 use crate::model::{LinkJoint, Model};
+use crate::workspace::Workspace;
 
 /// How to integrate.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -228,9 +229,9 @@ pub enum Overflow {
     #[error(transparent)]
     Dynamics(#[from] DynamicsError),
     /// The result is finite but its error estimate is not.
-    #[error("the error estimate is not finite: the rates reach |nu_dot| = {largest_rate:e}")]
+    #[error("the error estimate is not finite: the rates reach |qacc| = {largest_rate:e}")]
     ErrorEstimate {
-        /// The largest |ν̇| over the stages.
+        /// The largest |θ̈| over the stages.
         largest_rate: f64,
     },
 }
@@ -288,7 +289,7 @@ impl Simulation {
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<Stats, AdvanceError> {
         let Simulation { state, settings, integrator, ws, .. } = self;
-        let (t0, theta, nu, carry) = (state.time, &mut state.theta[..], &mut state.nu[..], &mut state.carry);
+        let (t0, theta, qvel, carry) = (state.time, &mut state.theta[..], &mut state.qvel[..], &mut state.carry);
         let max_step = settings.step_bound(integrator.method);
         // The tolerance keeps an interval of exactly k·max_step (up to round-off) at k steps.
         let steps = ((t1 - t0) / max_step * (1.0 - 1e-12)).ceil().max(1.0) as usize;
@@ -296,11 +297,11 @@ impl Simulation {
         for n in 0..steps {
             let t = t0 + n as f64 * h;
             let failed = |cause| AdvanceError::StepFailed { reached: t, step: h, cause };
-            integrator.attempt(model, ws, (theta, nu), (t, h), inputs_at).map_err(failed)?;
+            integrator.attempt(model, ws, (theta, qvel), (t, h), inputs_at).map_err(failed)?;
             if let Some(cause) = integrator.non_finite_result() {
                 return Err(failed(cause));
             }
-            integrator.accept_with_energy(model, theta, nu, h, settings, carry);
+            integrator.accept_with_energy(model, ws, (theta, qvel), h, settings, carry).map_err(failed)?;
         }
         carry.next_step = h;
         Ok(Stats { accepted: steps, rejected: 0 })
@@ -324,7 +325,7 @@ impl Simulation {
             })?
         };
         let Simulation { state, settings, integrator, ws, .. } = self;
-        let (theta, nu, carry) = (&mut state.theta[..], &mut state.nu[..], &mut state.carry);
+        let (theta, qvel, carry) = (&mut state.theta[..], &mut state.qvel[..], &mut state.carry);
         let tableau = integrator.method.tableau();
         let tolerance = settings.tolerance;
         let mut stats = Stats::default();
@@ -357,8 +358,8 @@ impl Simulation {
             if stats.accepted + stats.rejected >= MAX_STEPS {
                 return Err(AdvanceError::TooManySteps { reached: t, step, tolerance });
             }
-            let per_step = match integrator.attempt(model, ws, (theta, nu), (t, step), inputs_at) {
-                Ok(()) => integrator.error_norm(model, theta, nu, tolerance),
+            let per_step = match integrator.attempt(model, ws, (theta, qvel), (t, step), inputs_at) {
+                Ok(()) => integrator.error_norm(model, ws, theta, tolerance),
                 Err(cause) => {
                     last_cause = Some(Overflow::Dynamics(cause));
                     f64::INFINITY
@@ -375,7 +376,8 @@ impl Simulation {
             // never looser than the classic per-step test.
             let error = (per_second / carry.relaxation.max(1.0)).max(per_step);
             if error <= 1.0 {
-                integrator.accept_with_energy(model, theta, nu, step, settings, carry);
+                let failed = |cause| AdvanceError::StepFailed { reached: t, step, cause };
+                integrator.accept_with_energy(model, ws, (theta, qvel), step, settings, carry).map_err(failed)?;
                 t = if step == remaining { t1 } else { t + step };
                 stats.accepted += 1;
                 let factor = step_factor(error, tableau, first_rejection.is_some());
@@ -412,18 +414,19 @@ impl Simulation {
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<f64, DynamicsError> {
         let Simulation { state, settings, integrator, ws, .. } = self;
-        let (t0, theta, nu) = (state.time, &state.theta[..], &state.nu[..]);
+        let (t0, theta, qvel) = (state.time, &state.theta[..], &state.qvel[..]);
         let tolerance = settings.tolerance;
-        inputs_at(t0, integrator.eps_stage.as_mut_slice(), integrator.ctrl_stage.as_mut_slice());
-        ws.set_configuration(model, theta)?;
-        ws.set_nu(model, nu)?;
-        ws.compute_nu_dot_actuated(model, integrator.eps_stage.as_slice(), integrator.ctrl_stage.as_slice())?;
+        integrator.theta_stage.copy_from_slice(theta);
+        integrator.qvel_stage.copy_from_slice(qvel);
+        let power = integrator.evaluate_stage(model, ws, t0, inputs_at)?;
         integrator.first.qvel.copy_from(&ws.qvel);
-        integrator.first.nu_dot.copy_from(&ws.nu_dot);
+        integrator.first.qacc.copy_from(&ws.qacc);
+        integrator.first.nu.copy_from(&ws.nu);
+        integrator.first.power = power;
         integrator.first.valid = true;
         let first = &integrator.first;
-        let size = start_norm(model, theta, nu, tolerance, |dof, position| (position, nu[dof]));
-        let rate = start_norm(model, theta, nu, tolerance, |dof, _| (first.qvel[dof], first.nu_dot[dof]));
+        let size = start_norm(model, theta, qvel, tolerance, |dof, position| (position, qvel[dof]));
+        let rate = start_norm(model, theta, qvel, tolerance, |dof, _| (first.qvel[dof], first.qacc[dof]));
         // Overflowing norms (huge rates) make the heuristic meaningless: start
         // small and let the error control decide.
         let h0 = 0.01 * size / rate;
@@ -433,17 +436,12 @@ impl Simulation {
         // Explicit Euler probe to h0.
         integrator.delta.copy_from(&integrator.first.qvel);
         integrator.delta *= h0;
-        integrator.theta_stage.copy_from_slice(theta);
         retract(model, integrator.theta_stage.as_mut_slice(), integrator.delta.as_slice());
-        integrator.nu_stage.copy_from_slice(nu);
-        integrator.nu_stage.axpy(h0, &integrator.first.nu_dot, 1.0);
-        inputs_at(t0 + h0, integrator.eps_stage.as_mut_slice(), integrator.ctrl_stage.as_mut_slice());
-        ws.set_configuration(model, integrator.theta_stage.as_slice())?;
-        ws.set_nu(model, integrator.nu_stage.as_slice())?;
-        ws.compute_nu_dot_actuated(model, integrator.eps_stage.as_slice(), integrator.ctrl_stage.as_slice())?;
+        integrator.qvel_stage.axpy(h0, &integrator.first.qacc, 1.0);
+        integrator.evaluate_stage(model, ws, t0 + h0, inputs_at)?;
         let first = &integrator.first;
-        let change = |dof, _| (ws.qvel[dof] - first.qvel[dof], ws.nu_dot[dof] - first.nu_dot[dof]);
-        let curvature = start_norm(model, theta, nu, tolerance, change) / h0;
+        let change = |dof, _| (ws.qvel[dof] - first.qvel[dof], ws.qacc[dof] - first.qacc[dof]);
+        let curvature = start_norm(model, theta, qvel, tolerance, change) / h0;
         let largest = rate.max(curvature);
         let order = integrator.method.tableau().order as f64;
         let h1 = if largest <= 1e-15 { (h0 * 1e-3).max(1e-6) } else { (0.01 / largest).powf(1.0 / order) };
@@ -453,37 +451,40 @@ impl Simulation {
 }
 
 impl Integrator {
-    /// The largest |ν̇| over the attempted step's stages.
+    /// The largest |θ̈| over the attempted step's stages.
     fn largest_rate(&self) -> f64 {
         let stages = self.method.tableau().b.len();
-        self.k_nu[..stages].iter().flat_map(|k| k.iter()).fold(0.0, |m: f64, x| m.max(x.abs()))
+        self.k_qvel[..stages].iter().flat_map(|k| k.iter()).fold(0.0, |m: f64, x| m.max(x.abs()))
     }
 
-    /// Takes the attempted step, adds its work to `carry`, and projects ν
-    /// onto the energy balance if asked.
+    /// Takes the attempted step, adds its work to `carry`, and projects θ̇
+    /// onto the energy balance if asked (K = ½|m*θ̇|², so scaling θ̇ scales ν).
     fn accept_with_energy(
         &mut self,
         model: &Model,
-        theta: &mut [f64],
-        nu: &mut [f64],
+        ws: &mut Workspace,
+        (theta, qvel): (&mut [f64], &mut [f64]),
         h: f64,
         settings: &Settings,
         carry: &mut Carry,
-    ) {
+    ) -> Result<(), DynamicsError> {
         let work = self.step_work(h);
-        let energy_before = kinetic_energy(nu);
-        self.accept(model, theta, nu);
+        let energy_before = kinetic_energy(self.first.nu.as_slice());
+        self.accept(model, theta, qvel);
         carry.work += work;
         if settings.energy_projection {
+            ws.set_configuration(model, theta)?;
+            ws.set_qvel(model, qvel)?;
             let target = energy_before + work;
-            let energy = kinetic_energy(nu);
+            let energy = kinetic_energy(ws.nu.as_slice());
             if target > 0.0 && energy > 0.0 {
                 let scale = (target / energy).sqrt();
-                nu.iter_mut().for_each(|x| *x *= scale);
-                // The cached last stage was evaluated at the unprojected ν.
+                qvel.iter_mut().for_each(|x| *x *= scale);
+                // The cached last stage was evaluated at the unprojected θ̇.
                 self.first.valid = false;
             }
         }
+        Ok(())
     }
 
     /// The scaled max norm of the attempted step's error estimate: ≤ 1
@@ -491,16 +492,32 @@ impl Integrator {
     /// errors coordinate by coordinate, and an RMS over 2·nv components lets
     /// one coordinate's error be up to √(2nv) times the tolerance (on a
     /// 60-link chain the error delivered was 60–270 times the tolerance).
-    fn error_norm(&self, model: &Model, theta: &[f64], nu: &[f64], tolerance: f64) -> f64 {
-        let (mut high, mut low) = (0.0_f64, 0.0_f64);
-        for (dof, position) in positions(model, theta) {
-            let position = position.map_or(0.0, |y| y.abs().max((y + self.delta[dof]).abs()));
-            let scale_delta = tolerance * (1.0 + position);
-            let scale_nu = tolerance * (1.0 + nu[dof].abs().max(self.nu_next[dof].abs()));
-            high = high.max((self.error_delta[dof] / scale_delta).abs()).max((self.error_nu[dof] / scale_nu).abs());
-            low =
-                low.max((self.error_delta_low[dof] / scale_delta).abs()).max((self.error_nu_low[dof] / scale_nu).abs());
+    /// The velocity part is measured on ν, as users read it: θ̇'s error
+    /// estimate mapped by m* at the last stage's configuration (pass 2 on
+    /// the estimate, which overwrites the workspace's velocities).
+    fn error_norm(&self, model: &Model, ws: &mut Workspace, theta: &[f64], tolerance: f64) -> f64 {
+        let estimates = match self.method.tableau().error {
+            ErrorEstimate::Dop853 { .. } => 2,
+            _ => 1,
+        };
+        let mut norms = [0.0_f64; 2];
+        for (k, norm) in norms.iter_mut().enumerate().take(estimates) {
+            let (error_delta, error_qvel) = if k == 0 {
+                (&self.error_delta, &self.error_qvel)
+            } else {
+                (&self.error_delta_low, &self.error_qvel_low)
+            };
+            if ws.set_qvel(model, error_qvel.as_slice()).is_err() {
+                return f64::INFINITY;
+            }
+            for (dof, position) in positions(model, theta) {
+                let position = position.map_or(0.0, |y| y.abs().max((y + self.delta[dof]).abs()));
+                let scale_delta = tolerance * (1.0 + position);
+                let scale_nu = tolerance * (1.0 + self.nu_size[dof]);
+                *norm = norm.max((error_delta[dof] / scale_delta).abs()).max((ws.nu[dof] / scale_nu).abs());
+            }
         }
+        let [high, low] = norms;
         match self.method.tableau().error {
             // The 5th-order estimate, damped where the 3rd-order one is much larger (Hairer's DOP853).
             ErrorEstimate::Dop853 { .. } => {
@@ -512,21 +529,21 @@ impl Integrator {
     }
 }
 
-/// The RMS over the dofs of `value(dof, |coordinate|)`, a (Δ, ν) pair
-/// scaled by tol·(1 + |θ|) and tol·(1 + |ν|) at the step's start: the
+/// The RMS over the dofs of `value(dof, |coordinate|)`, a (Δ, θ̇) pair
+/// scaled by tol·(1 + |θ|) and tol·(1 + |θ̇|) at the step's start: the
 /// norm of the starting-step heuristic.
 fn start_norm(
     model: &Model,
     theta: &[f64],
-    nu: &[f64],
+    qvel: &[f64],
     tolerance: f64,
     value: impl Fn(usize, f64) -> (f64, f64),
 ) -> f64 {
     let sum: f64 = positions(model, theta)
         .map(|(dof, position)| {
             let position = position.map_or(0.0, f64::abs);
-            let (delta, nu_part) = value(dof, position);
-            (delta / (tolerance * (1.0 + position))).powi(2) + (nu_part / (tolerance * (1.0 + nu[dof].abs()))).powi(2)
+            let (delta, rate) = value(dof, position);
+            (delta / (tolerance * (1.0 + position))).powi(2) + (rate / (tolerance * (1.0 + qvel[dof].abs()))).powi(2)
         })
         .sum();
     (sum / (2.0 * model.nv as f64)).sqrt()

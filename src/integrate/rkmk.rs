@@ -1,11 +1,11 @@
-//! One explicit Runge–Kutta–Munthe-Kaas step of (θ, ν) (docs/DYNAMICS.md §6).
+//! One explicit Runge–Kutta–Munthe-Kaas step of (θ, θ̇) (docs/DYNAMICS.md §6).
 //!
 //! Each step writes the configuration as θ = θₙ ⊕ Δ, where Δ (nv) is a
 //! displacement in the Lie algebra: Δθ for hinges and slides, Δp for the
 //! translation of a free joint, and a body-frame rotation vector Θ for ball
 //! and free-joint rotations (q = qₙ · exp(Θ)). Δ obeys an ordinary ODE,
 //!     Δ̇ = dexp⁻¹₋Θ(θ̇) = θ̇ + ½ Θ×ω + c(|Θ|) Θ×(Θ×ω)   on rotations,
-//! so any Runge–Kutta tableau applied to (Δ, ν) keeps its order on every
+//! so any Runge–Kutta tableau applied to (Δ, θ̇) keeps its order on every
 //! joint type. No crate offers this on a product of vector spaces and unit
 //! quaternions (the ODE crates integrate vectors), hence this module.
 
@@ -58,39 +58,56 @@ fn dexp_inv(theta: &Vec3, omega: &Vec3) -> Vec3 {
 pub(super) struct FirstStage {
     /// θ̇ (qvel) at the step's start.
     pub qvel: DVector<f64>,
-    /// ν̇ at the step's start.
-    pub nu_dot: DVector<f64>,
-    /// Whether the two hold the rates at the current start of step.
+    /// θ̈ at the step's start.
+    pub qacc: DVector<f64>,
+    /// ν = m*θ̇ at the step's start.
+    pub nu: DVector<f64>,
+    /// ν·ν̇ there.
+    pub power: f64,
+    /// Whether these hold the rates at the current start of step.
     pub valid: bool,
 }
 
 /// Preallocated stage storage for one integrator instance, and the result
 /// of the last step attempted.
+///
+/// The integrated state is (θ, θ̇), not (θ, ν): θ̈ costs the
+/// articulated-body algorithm's passes, about 0.6 of ν̇ (which adds the
+/// factor's rates), and on the examples RK4's error constant on (θ, θ̇) is
+/// smaller (docs/integration.md, "The integrated state"). ν is formed from
+/// θ̇ where a caller reads it, and the error control still measures ν.
 #[derive(Clone, Debug)]
 pub struct Integrator {
     pub(super) method: Method,
     /// Δ-rates of the stages.
     k_delta: Vec<DVector<f64>>,
-    /// ν-rates of the stages.
-    pub(super) k_nu: Vec<DVector<f64>>,
+    /// θ̈ of the stages.
+    pub(super) k_qvel: Vec<DVector<f64>>,
     /// ν·ν̇ at each stage: the power of all forces, since ν·C = 0.
     stage_power: [f64; MAX_STAGES],
-    /// The step's Δ and ν (after `attempt`).
+    /// The step's Δ and θ̇ (after `attempt`).
     pub(super) delta: DVector<f64>,
-    pub(super) nu_next: DVector<f64>,
-    /// The local error estimates of Δ and ν (h-scaled), and for DOP853 those
+    pub(super) qvel_next: DVector<f64>,
+    /// The local error estimates of Δ and θ̇ (h-scaled), and for DOP853 those
     /// of its 3rd-order estimator.
     pub(super) error_delta: DVector<f64>,
-    pub(super) error_nu: DVector<f64>,
+    pub(super) error_qvel: DVector<f64>,
     pub(super) error_delta_low: DVector<f64>,
-    pub(super) error_nu_low: DVector<f64>,
+    pub(super) error_qvel_low: DVector<f64>,
+    /// The largest |ν| at the first and last stages, per dof: the scale of
+    /// ν's error.
+    pub(super) nu_size: DVector<f64>,
     pub(super) first: FirstStage,
-    /// θ̇ at the last stage before dexp⁻¹, for "first same as last".
+    /// θ̇ at the last stage before dexp⁻¹, and ν and the power there, for
+    /// "first same as last".
     last_qvel: DVector<f64>,
-    pub(super) nu_stage: DVector<f64>,
+    last_nu: DVector<f64>,
+    pub(super) qvel_stage: DVector<f64>,
     pub(super) theta_stage: DVector<f64>,
     pub(super) eps_stage: DVector<f64>,
     pub(super) ctrl_stage: DVector<f64>,
+    /// θ̇ for [`Integrator::step`], which takes and gives ν.
+    step_qvel: DVector<f64>,
 }
 
 impl Integrator {
@@ -100,20 +117,29 @@ impl Integrator {
         Integrator {
             method,
             k_delta: vec![DVector::zeros(nv); MAX_STAGES],
-            k_nu: vec![DVector::zeros(nv); MAX_STAGES],
+            k_qvel: vec![DVector::zeros(nv); MAX_STAGES],
             stage_power: [0.0; MAX_STAGES],
             delta: DVector::zeros(nv),
-            nu_next: DVector::zeros(nv),
+            qvel_next: DVector::zeros(nv),
             error_delta: DVector::zeros(nv),
-            error_nu: DVector::zeros(nv),
+            error_qvel: DVector::zeros(nv),
             error_delta_low: DVector::zeros(nv),
-            error_nu_low: DVector::zeros(nv),
-            first: FirstStage { qvel: DVector::zeros(nv), nu_dot: DVector::zeros(nv), valid: false },
+            error_qvel_low: DVector::zeros(nv),
+            nu_size: DVector::zeros(nv),
+            first: FirstStage {
+                qvel: DVector::zeros(nv),
+                qacc: DVector::zeros(nv),
+                nu: DVector::zeros(nv),
+                power: 0.0,
+                valid: false,
+            },
             last_qvel: DVector::zeros(nv),
-            nu_stage: DVector::zeros(nv),
+            last_nu: DVector::zeros(nv),
+            qvel_stage: DVector::zeros(nv),
             theta_stage: DVector::zeros(model.nq),
             eps_stage: DVector::zeros(nv),
             ctrl_stage: DVector::zeros(model.actuators.len()),
+            step_qvel: DVector::zeros(nv),
         }
     }
 
@@ -141,17 +167,38 @@ impl Integrator {
         mut eps_at: impl FnMut(f64, &mut [f64]),
     ) -> Result<(), DynamicsError> {
         self.first.valid = false;
-        self.attempt(model, ws, (theta, nu), (t, h), &mut |t, eps, _ctrl| eps_at(t, eps))?;
+        ws.set_configuration(model, theta)?;
+        ws.set_nu(model, nu)?;
+        let mut qvel = std::mem::take(&mut self.step_qvel);
+        qvel.copy_from(&ws.qvel);
+        let result = self.step_qvel(model, ws, (theta, qvel.as_mut_slice()), (t, h), &mut eps_at);
+        if result.is_ok() {
+            nu_of_qvel(model, ws, theta, qvel.as_slice(), nu)?;
+        }
+        self.step_qvel = qvel;
+        result
+    }
+
+    /// [`Integrator::step`] on (θ, θ̇).
+    fn step_qvel(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        (theta, qvel): (&mut [f64], &mut [f64]),
+        (t, h): (f64, f64),
+        eps_at: &mut impl FnMut(f64, &mut [f64]),
+    ) -> Result<(), DynamicsError> {
+        self.attempt(model, ws, (theta, qvel), (t, h), &mut |t, eps, _ctrl| eps_at(t, eps))?;
         if let Some(cause) = self.non_finite_result() {
             return Err(cause);
         }
-        self.accept(model, theta, nu);
+        self.accept(model, theta, qvel);
         Ok(())
     }
 
     /// The first non-finite value of the attempted step, if any.
     pub(super) fn non_finite_result(&self) -> Option<DynamicsError> {
-        let update = self.nu_next.iter().chain(self.delta.iter());
+        let update = self.qvel_next.iter().chain(self.delta.iter());
         update.enumerate().find(|(_, x)| !x.is_finite()).map(|(index, &value)| DynamicsError::NonFinite {
             what: "integrated state",
             index,
@@ -159,14 +206,31 @@ impl Integrator {
         })
     }
 
-    /// Evaluates the stages of a step of size `h` from (θ, ν) at time `t`
-    /// and forms the step (`delta`, `nu_next`) and its error estimates,
+    /// θ̈ and ν at (`theta_stage`, `qvel_stage`) with the inputs at time `t`,
+    /// and the power of the forces there (ν·ν̇ = ν·(ε + ε_passive), as ν·C = 0).
+    pub(super) fn evaluate_stage(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        t: f64,
+        inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
+    ) -> Result<f64, DynamicsError> {
+        inputs_at(t, self.eps_stage.as_mut_slice(), self.ctrl_stage.as_mut_slice());
+        ws.set_configuration(model, self.theta_stage.as_slice())?;
+        ws.set_qvel(model, self.qvel_stage.as_slice())?;
+        ws.compute_qacc_actuated(model, self.eps_stage.as_slice(), self.ctrl_stage.as_slice())?;
+        let forces = ws.eps_applied.iter().zip(ws.eps_passive.iter());
+        Ok(ws.nu.iter().zip(forces).map(|(nu, (applied, passive))| nu * (applied + passive)).sum())
+    }
+
+    /// Evaluates the stages of a step of size `h` from (θ, θ̇) at time `t`
+    /// and forms the step (`delta`, `qvel_next`) and its error estimates,
     /// without moving the state. Stage 1 comes from `first` when valid.
     pub(super) fn attempt(
         &mut self,
         model: &Model,
         ws: &mut Workspace,
-        (theta, nu): (&[f64], &[f64]),
+        (theta, qvel): (&[f64], &[f64]),
         (t, h): (f64, f64),
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<(), DynamicsError> {
@@ -175,34 +239,38 @@ impl Integrator {
         for (i, row) in tableau.a.iter().enumerate() {
             if i == 0 && self.first.valid {
                 self.k_delta[0].copy_from(&self.first.qvel);
-                self.k_nu[0].copy_from(&self.first.nu_dot);
-                self.stage_power[0] = self.first.nu_dot.iter().zip(nu).map(|(a, b)| a * b).sum();
+                self.k_qvel[0].copy_from(&self.first.qacc);
+                self.stage_power[0] = self.first.power;
+                self.nu_size.zip_apply(&self.first.nu, |size, nu| *size = nu.abs());
                 continue;
             }
             self.delta.fill(0.0);
-            self.nu_stage.copy_from_slice(nu);
+            self.qvel_stage.copy_from_slice(qvel);
             for (j, a) in row.iter().enumerate() {
                 if *a != 0.0 {
                     self.delta.axpy(h * a, &self.k_delta[j], 1.0);
-                    self.nu_stage.axpy(h * a, &self.k_nu[j], 1.0);
+                    self.qvel_stage.axpy(h * a, &self.k_qvel[j], 1.0);
                 }
             }
             self.theta_stage.copy_from_slice(theta);
             retract(model, self.theta_stage.as_mut_slice(), self.delta.as_slice());
-            inputs_at(t + tableau.c[i] * h, self.eps_stage.as_mut_slice(), self.ctrl_stage.as_mut_slice());
-            ws.set_configuration(model, self.theta_stage.as_slice())?;
-            ws.set_nu(model, self.nu_stage.as_slice())?;
-            ws.compute_nu_dot_actuated(model, self.eps_stage.as_slice(), self.ctrl_stage.as_slice())?;
-            self.k_nu[i].copy_from(&ws.nu_dot);
+            self.stage_power[i] = self.evaluate_stage(model, ws, t + tableau.c[i] * h, inputs_at)?;
+            self.k_qvel[i].copy_from(&ws.qacc);
             self.k_delta[i].copy_from(&ws.qvel);
-            self.stage_power[i] = ws.nu_dot.dot(&self.nu_stage);
             if i == 0 {
                 self.first.qvel.copy_from(&ws.qvel);
-                self.first.nu_dot.copy_from(&ws.nu_dot);
+                self.first.qacc.copy_from(&ws.qacc);
+                self.first.nu.copy_from(&ws.nu);
+                self.first.power = self.stage_power[0];
                 self.first.valid = true;
+                self.nu_size.zip_apply(&ws.nu, |size, nu| *size = nu.abs());
             }
-            if i == last && tableau.first_same_as_last {
-                self.last_qvel.copy_from(&ws.qvel);
+            if i == last {
+                self.nu_size.zip_apply(&ws.nu, |size, nu| *size = size.max(nu.abs()));
+                if tableau.first_same_as_last {
+                    self.last_qvel.copy_from(&ws.qvel);
+                    self.last_nu.copy_from(&ws.nu);
+                }
             }
             for link in model.links.iter().filter(|l| l.joint == LinkJoint::Ball) {
                 let a = link.dof_adr;
@@ -214,19 +282,20 @@ impl Integrator {
         // The same operations as a stage's, so that a "first same as last"
         // method's last stage is evaluated exactly at the step's result.
         self.delta.fill(0.0);
-        self.nu_next.copy_from_slice(nu);
-        accumulate(&self.k_delta, &self.k_nu, tableau.b, h, &mut self.delta, &mut self.nu_next);
+        self.qvel_next.copy_from_slice(qvel);
+        accumulate(&self.k_delta, &self.k_qvel, tableau.b, h, &mut self.delta, &mut self.qvel_next);
         let estimators = match tableau.error {
             ErrorEstimate::None => [None, None],
             ErrorEstimate::Embedded(weights) => [Some(weights), None],
             ErrorEstimate::Dop853 { fifth, third } => [Some(fifth), Some(third)],
         };
-        let errors = [(&mut self.error_delta, &mut self.error_nu), (&mut self.error_delta_low, &mut self.error_nu_low)];
-        for (weights, (delta, nu)) in estimators.into_iter().zip(errors) {
+        let errors =
+            [(&mut self.error_delta, &mut self.error_qvel), (&mut self.error_delta_low, &mut self.error_qvel_low)];
+        for (weights, (delta, qvel)) in estimators.into_iter().zip(errors) {
             if let Some(weights) = weights {
                 delta.fill(0.0);
-                nu.fill(0.0);
-                accumulate(&self.k_delta, &self.k_nu, weights, h, delta, nu);
+                qvel.fill(0.0);
+                accumulate(&self.k_delta, &self.k_qvel, weights, h, delta, qvel);
             }
         }
         Ok(())
@@ -241,32 +310,48 @@ impl Integrator {
 
     /// Moves the state to the attempted step's result; for a "first same as
     /// last" method the last stage becomes the next step's first.
-    pub(super) fn accept(&mut self, model: &Model, theta: &mut [f64], nu: &mut [f64]) {
+    pub(super) fn accept(&mut self, model: &Model, theta: &mut [f64], qvel: &mut [f64]) {
         retract(model, theta, self.delta.as_slice());
-        nu.copy_from_slice(self.nu_next.as_slice());
+        qvel.copy_from_slice(self.qvel_next.as_slice());
         let tableau = self.method.tableau();
         self.first.valid = tableau.first_same_as_last;
         if tableau.first_same_as_last {
             let last = tableau.b.len() - 1;
             self.first.qvel.copy_from(&self.last_qvel);
-            self.first.nu_dot.copy_from(&self.k_nu[last]);
+            self.first.qacc.copy_from(&self.k_qvel[last]);
+            self.first.nu.copy_from(&self.last_nu);
+            self.first.power = self.stage_power[last];
         }
     }
 }
 
-/// Adds the (Δ, ν) increments h·Σ wᵢkᵢ of the stages with weights `w`.
+/// ν = m*(θ) θ̇ into `nu`.
+pub(super) fn nu_of_qvel(
+    model: &Model,
+    ws: &mut Workspace,
+    theta: &[f64],
+    qvel: &[f64],
+    nu: &mut [f64],
+) -> Result<(), DynamicsError> {
+    ws.set_configuration(model, theta)?;
+    ws.set_qvel(model, qvel)?;
+    nu.copy_from_slice(ws.nu.as_slice());
+    Ok(())
+}
+
+/// Adds the (Δ, θ̇) increments h·Σ wᵢkᵢ of the stages with weights `w`.
 fn accumulate(
     k_delta: &[DVector<f64>],
-    k_nu: &[DVector<f64>],
+    k_qvel: &[DVector<f64>],
     w: &[f64],
     h: f64,
     delta: &mut DVector<f64>,
-    nu: &mut DVector<f64>,
+    qvel: &mut DVector<f64>,
 ) {
     for (i, w) in w.iter().enumerate() {
         if *w != 0.0 {
             delta.axpy(h * w, &k_delta[i], 1.0);
-            nu.axpy(h * w, &k_nu[i], 1.0);
+            qvel.axpy(h * w, &k_qvel[i], 1.0);
         }
     }
 }

@@ -1,10 +1,11 @@
 //! One simulation object for every caller that integrates a vehicle over
 //! time (the FMU, `nudyn simulate`, the benchmarks): the state that a run
 //! carries from one interval to the next, the settings, the preallocated
-//! integrator and workspace, and one input convention.
+//! integrator and workspace, and one input convention. Callers read and
+//! set (θ, ν); the integrator advances (θ, θ̇) (rkmk.rs says why).
 
 use super::adaptive::{AdvanceError, Carry, Settings, Stats, ToleranceRelaxed};
-use super::rkmk::Integrator;
+use super::rkmk::{Integrator, nu_of_qvel};
 use super::tableau::Method;
 use crate::dynamics::DynamicsError;
 use crate::model::Model;
@@ -19,6 +20,12 @@ pub struct RunState {
     pub theta: Vec<f64>,
     /// ν (nv).
     pub nu: Vec<f64>,
+    /// θ̇ (nv, MuJoCo's qvel), which the integrator advances: ν = m*(θ)θ̇ up
+    /// to round-off. Kept rather than formed from ν at each advance so that
+    /// a run continues from bit for bit the θ̇ it reached, whether or not it
+    /// was saved and restored in between; an advance forms it again if θ or
+    /// ν were changed from outside.
+    pub qvel: Vec<f64>,
     /// The step the error control proposes next, and the work done.
     pub carry: Carry,
 }
@@ -109,18 +116,28 @@ pub struct Simulation {
     held_input: Vec<f64>,
     /// Whether the last advance's input was constant over it.
     input_was_constant: bool,
+    /// θ and ν (nq + nv) when `state.qvel` was last formed or advanced,
+    /// to tell whether a caller has changed them since.
+    qvel_belongs_to: Vec<f64>,
 }
 
 impl Simulation {
     /// A run of `model` at t = 0 from the pose drawn in the file (qpos0), at rest.
     pub fn new(model: &Model, method: Method, settings: Settings) -> Self {
         Simulation {
-            state: RunState { time: 0.0, theta: model.qpos0.clone(), nu: vec![0.0; model.nv], carry: Carry::default() },
+            state: RunState {
+                time: 0.0,
+                theta: model.qpos0.clone(),
+                nu: vec![0.0; model.nv],
+                qvel: vec![0.0; model.nv],
+                carry: Carry::default(),
+            },
             settings,
             integrator: Integrator::new(model, method),
             ws: model.workspace(),
             held_input: vec![0.0; model.nv + model.actuators.len()],
             input_was_constant: false,
+            qvel_belongs_to: model.qpos0.iter().copied().chain(std::iter::repeat_n(0.0, model.nv)).collect(),
         }
     }
 
@@ -142,7 +159,28 @@ impl Simulation {
         self.state.theta.copy_from_slice(self.ws.theta.as_slice());
         self.state.carry = Carry::default();
         self.integrator.first.valid = false;
+        self.form_qvel();
         Ok(())
+    }
+
+    /// θ̇ from the workspace's last pass 2, which was given (θ, ν), and
+    /// records which (θ, ν) it belongs to.
+    fn form_qvel(&mut self) {
+        self.state.qvel.copy_from_slice(self.ws.qvel.as_slice());
+        self.record_qvel_owner();
+    }
+
+    fn record_qvel_owner(&mut self) {
+        let (theta, nu) = self.qvel_belongs_to.split_at_mut(self.state.theta.len());
+        theta.copy_from_slice(&self.state.theta);
+        nu.copy_from_slice(&self.state.nu);
+    }
+
+    /// Whether θ or ν were changed since θ̇ was formed or advanced (bitwise).
+    fn qvel_is_stale(&self) -> bool {
+        let (theta, nu) = self.qvel_belongs_to.split_at(self.state.theta.len());
+        let differs = |a: &[f64], b: &[f64]| a.iter().zip(b).any(|(x, y)| x.to_bits() != y.to_bits());
+        differs(theta, &self.state.theta) || differs(nu, &self.state.nu)
     }
 
     /// Integrates from the state's time to `t_end` with `input`. On
@@ -155,6 +193,17 @@ impl Simulation {
         mut input: impl InputSignal,
     ) -> Result<Advanced, AdvanceError> {
         let t0 = self.state.time;
+        if self.qvel_is_stale() {
+            let formed = self
+                .ws
+                .set_configuration(model, &self.state.theta)
+                .and_then(|()| self.ws.set_nu(model, &self.state.nu));
+            if let Err(cause) = formed {
+                return Err(AdvanceError::StepFailed { reached: t0, step: 0.0, cause });
+            }
+            self.form_qvel();
+            self.integrator.first.valid = false;
+        }
         // The cached first stage holds only if the input is the same constant as over the last advance.
         if !self.keeps_held_input(&mut input, t0) {
             self.integrator.first.valid = false;
@@ -170,6 +219,14 @@ impl Simulation {
             self.advance_adaptive(model, t_end, &mut inputs_at)
         } else {
             self.advance_fixed(model, t_end, &mut inputs_at)
+        };
+        // ν where the run stands, whether it reached t_end or not.
+        let state = &mut self.state;
+        let formed = nu_of_qvel(model, &mut self.ws, &state.theta, &state.qvel, &mut state.nu);
+        self.record_qvel_owner();
+        let result = match (result, formed) {
+            (Ok(_), Err(cause)) => Err(AdvanceError::StepFailed { reached: t_end, step: 0.0, cause }),
+            (result, _) => result,
         };
         match result {
             Ok(stats) => {
@@ -207,6 +264,7 @@ impl Simulation {
         self.state.clone_from(state);
         // The cached first stage belongs to the state replaced.
         self.integrator.first.valid = false;
+        self.record_qvel_owner();
     }
 
     /// The workspace, holding the passes of the last evaluation.
