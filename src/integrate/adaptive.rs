@@ -1,12 +1,13 @@
-//! Advancing (θ, ν) over an interval [t₀, t₁]: equal fixed steps for RK4,
+//! Advancing (θ, θ̇) over an interval [t₀, t₁]: equal fixed steps for RK4,
 //! or adaptive steps of an embedded pair under error control (Hairer,
 //! Nørsett & Wanner I, §II.4: the scaled error norm, the step-size
 //! controller, and the starting step).
 //!
-//! The error is measured on the step's (Δ, ν) increments, with the scale
-//! tol·(1 + |y|) per component (relative and absolute tolerance both `tol`):
-//! y is ν, a hinge or slide coordinate or a free joint's position; rotations
-//! (rotation vectors of ball and free joints) are measured absolutely, in rad.
+//! The error is measured on the step's Δ and ν increments (θ̇'s mapped by
+//! m*), with the scale tol·(1 + |y|) per component (relative and absolute
+//! tolerance both `tol`): y is ν, a hinge or slide coordinate or a free
+//! joint's position; rotations (rotation vectors of ball and free joints)
+//! are measured absolutely, in rad.
 //! A step passes when its error is within tol·h/(1 s) (`TOLERANCE_TIME`).
 //!
 //! Round-off in the rates does not shrink with the step: on an
@@ -17,7 +18,7 @@
 //! relaxation`, reported by the caller), never beyond tol per step; a run
 //! that cannot hold even that stops with `StepTooSmall`.
 //!
-//! With `energy_projection`, ν is rescaled after each step so that
+//! With `energy_projection`, θ̇ (so ν = m*θ̇) is rescaled after each step so that
 //! K = ½|ν|² equals K before the step plus the step's quadrature of the
 //! power ν·ν̇ (= ν·(ε + passive forces), since ν·C = 0). With ε = 0 and no
 //! passive forces that power is zero, so K is then kept to round-off for
@@ -92,7 +93,7 @@ pub struct IntervalTooLong {
     pub needed: f64,
 }
 
-/// What one interval hands to the next, beyond (θ, ν) and the time: part of
+/// What one interval hands to the next, beyond (θ, θ̇) and the time: part of
 /// the integration's state, so that a saved and restored run repeats exactly.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Carry {
@@ -150,7 +151,7 @@ pub struct Stats {
     pub rejected: usize,
 }
 
-/// Why an interval could not be completed. (θ, ν) and the carry are left at
+/// Why an interval could not be completed. (θ, θ̇, ν) and the carry are left at
 /// the last successful internal step, at time `reached`.
 #[derive(Debug, thiserror::Error)]
 pub enum AdvanceError {
@@ -211,7 +212,7 @@ impl AdvanceError {
         matches!(self, AdvanceError::StepFailed { .. } | AdvanceError::StepTooSmall { cause: Some(_), .. })
     }
 
-    /// The time of the last successful internal step, where (θ, ν) are.
+    /// The time of the last successful internal step, where (θ, θ̇, ν) are.
     pub fn reached(&self) -> f64 {
         match self {
             AdvanceError::StepTooSmall { reached, .. }

@@ -1,4 +1,4 @@
-//! Time integration of (θ, ν): Runge–Kutta–Munthe-Kaas steps (`rkmk`) with
+//! Time integration of (θ, θ̇), read and set as (θ, ν): Runge–Kutta–Munthe-Kaas steps (`rkmk`) with
 //! the methods of `tableau`, driven over an interval with fixed or adaptive
 //! steps (`adaptive`) by one [`Simulation`] (`simulation`).
 
