@@ -176,8 +176,12 @@ impl Simulation {
         nu.copy_from_slice(&self.state.nu);
     }
 
-    /// Whether θ or ν were changed since θ̇ was formed or advanced (bitwise).
+    /// Whether θ or ν were changed since θ̇ was formed or advanced (bitwise),
+    /// or replaced by vectors of other lengths (which forming θ̇ refuses).
     fn qvel_is_stale(&self) -> bool {
+        if self.state.theta.len() + self.state.nu.len() != self.qvel_belongs_to.len() {
+            return true;
+        }
         let (theta, nu) = self.qvel_belongs_to.split_at(self.state.theta.len());
         let differs = |a: &[f64], b: &[f64]| a.iter().zip(b).any(|(x, y)| x.to_bits() != y.to_bits());
         differs(theta, &self.state.theta) || differs(nu, &self.state.nu)
