@@ -224,9 +224,16 @@ impl Simulation {
         } else {
             self.advance_fixed(model, t_end, &mut inputs_at)
         };
-        // ν where the run stands, whether it reached t_end or not.
+        // ν where the run stands, whether it reached t_end or not; a run
+        // that took no step keeps its ν bit for bit (m*ℓ* is the identity
+        // only to round-off).
+        let reached = result.as_ref().map_or_else(AdvanceError::reached, |_| t_end);
         let state = &mut self.state;
-        let formed = nu_of_qvel(model, &mut self.ws, &state.theta, &state.qvel, &mut state.nu);
+        let formed = if reached > t0 {
+            nu_of_qvel(model, &mut self.ws, &state.theta, &state.qvel, &mut state.nu)
+        } else {
+            Ok(())
+        };
         self.record_qvel_owner();
         let result = match (result, formed) {
             (Ok(_), Err(cause)) => Err(AdvanceError::StepFailed { reached: t_end, step: 0.0, cause }),
