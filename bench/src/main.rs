@@ -240,9 +240,13 @@ fn eval_cost(
     let ctrl = mid_range_ctrl(model);
     let (mut actuated_ws, mut sensed_ws) = (model.workspace(), model.workspace());
 
+    let mut qacc_ws = model.workspace();
     let mut cases: Vec<Case> = Vec::new();
     for ((name, m), ws) in variants.iter().zip(workspaces.iter_mut()) {
         cases.push(forward_case(name.clone(), m, ws, state, &eps));
+    }
+    if let Some(qvel) = &state.qvel {
+        cases.push(qacc_case(model, &mut qacc_ws, &state.theta, qvel, &eps));
     }
     if ported {
         cases.push(forward_case(
@@ -280,6 +284,25 @@ fn eval_cost(
     let times = timing::interleaved(&mut cases, options.repetitions, options.batch);
     let nanoseconds = cases.iter().map(|c| c.name.clone()).zip(times).collect();
     Ok(CostResult { nv: model.nv, shortcuts: taken, nanoseconds, dense_difference })
+}
+
+/// The integrators' rate: θ̈ from θ and θ̇ (passes 0–2 from θ̇, pass 3
+/// without the factor's rates, the outward pass), as each stage evaluates it.
+fn qacc_case<'a>(
+    model: &'a Model,
+    ws: &'a mut Workspace,
+    theta: &'a [f64],
+    qvel: &'a [f64],
+    eps: &'a [f64],
+) -> Case<'a> {
+    Case {
+        name: "nudyn qacc (integrator stage)".to_string(),
+        call: Box::new(move || {
+            ws.set_configuration(model, std::hint::black_box(theta)).expect("the state evaluates");
+            ws.set_qvel(model, qvel).expect("the state evaluates");
+            ws.compute_qacc(model, eps).expect("the state evaluates");
+        }),
+    }
 }
 
 /// A timed case of nudyn's ν̇: one `forward` from `state` with applied `eps`.
