@@ -72,7 +72,7 @@ pub(super) struct FirstStage {
 /// of the last step attempted.
 ///
 /// The integrated state is (θ, θ̇), not (θ, ν): θ̈ costs the
-/// articulated-body algorithm's passes, about 0.6 of ν̇ (which adds the
+/// articulated-body algorithm's passes, 0.6–0.7 of ν̇ (which adds the
 /// factor's rates), and on the examples RK4's error constant on (θ, θ̇) is
 /// smaller (docs/integration.md, "The integrated state"). ν is formed from
 /// θ̇ where a caller reads it, and the error control still measures ν.
