@@ -167,10 +167,8 @@ impl Integrator {
         mut eps_at: impl FnMut(f64, &mut [f64]),
     ) -> Result<(), DynamicsError> {
         self.first.valid = false;
-        ws.set_configuration(model, theta)?;
-        ws.set_nu(model, nu)?;
+        qvel_of_nu(model, ws, theta, nu, self.step_qvel.as_mut_slice())?;
         let mut qvel = std::mem::take(&mut self.step_qvel);
-        qvel.copy_from(&ws.qvel);
         let result = self.step_qvel(model, ws, (theta, qvel.as_mut_slice()), (t, h), &mut eps_at);
         if result.is_ok() {
             nu_of_qvel(model, ws, theta, qvel.as_slice(), nu)?;
@@ -323,6 +321,20 @@ impl Integrator {
             self.first.power = self.stage_power[last];
         }
     }
+}
+
+/// θ̇ = ℓ*(θ) ν into `qvel`.
+pub(super) fn qvel_of_nu(
+    model: &Model,
+    ws: &mut Workspace,
+    theta: &[f64],
+    nu: &[f64],
+    qvel: &mut [f64],
+) -> Result<(), DynamicsError> {
+    ws.set_configuration(model, theta)?;
+    ws.set_nu(model, nu)?;
+    qvel.copy_from_slice(ws.qvel.as_slice());
+    Ok(())
 }
 
 /// ν = m*(θ) θ̇ into `nu`.

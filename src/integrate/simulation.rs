@@ -5,7 +5,7 @@
 //! set (θ, ν); the integrator advances (θ, θ̇) (rkmk.rs says why).
 
 use super::adaptive::{AdvanceError, Carry, Settings, Stats, ToleranceRelaxed};
-use super::rkmk::{Integrator, nu_of_qvel};
+use super::rkmk::{Integrator, nu_of_qvel, qvel_of_nu};
 use super::tableau::Method;
 use crate::dynamics::DynamicsError;
 use crate::model::Model;
@@ -159,15 +159,9 @@ impl Simulation {
         self.state.theta.copy_from_slice(self.ws.theta.as_slice());
         self.state.carry = Carry::default();
         self.integrator.first.valid = false;
-        self.form_qvel();
-        Ok(())
-    }
-
-    /// θ̇ from the workspace's last pass 2, which was given (θ, ν), and
-    /// records which (θ, ν) it belongs to.
-    fn form_qvel(&mut self) {
         self.state.qvel.copy_from_slice(self.ws.qvel.as_slice());
         self.record_qvel_owner();
+        Ok(())
     }
 
     fn record_qvel_owner(&mut self) {
@@ -198,14 +192,11 @@ impl Simulation {
     ) -> Result<Advanced, AdvanceError> {
         let t0 = self.state.time;
         if self.qvel_is_stale() {
-            let formed = self
-                .ws
-                .set_configuration(model, &self.state.theta)
-                .and_then(|()| self.ws.set_nu(model, &self.state.nu));
-            if let Err(cause) = formed {
+            let state = &mut self.state;
+            if let Err(cause) = qvel_of_nu(model, &mut self.ws, &state.theta, &state.nu, &mut state.qvel) {
                 return Err(AdvanceError::StepFailed { reached: t0, step: 0.0, cause });
             }
-            self.form_qvel();
+            self.record_qvel_owner();
             self.integrator.first.valid = false;
         }
         // The cached first stage holds only if the input is the same constant as over the last advance.
@@ -229,10 +220,16 @@ impl Simulation {
         // only to round-off).
         let reached = result.as_ref().map_or_else(AdvanceError::reached, |_| t_end);
         let state = &mut self.state;
-        let formed = if reached > t0 {
-            nu_of_qvel(model, &mut self.ws, &state.theta, &state.qvel, &mut state.nu)
-        } else {
+        let formed = if reached <= t0 {
             Ok(())
+        } else if self.integrator.first.valid {
+            // The cached first stage was evaluated at the state reached (a
+            // "first same as last" step's last stage, or the start of a
+            // failed attempt): its ν is m*θ̇ there, bit for bit.
+            state.nu.copy_from_slice(self.integrator.first.nu.as_slice());
+            Ok(())
+        } else {
+            nu_of_qvel(model, &mut self.ws, &state.theta, &state.qvel, &mut state.nu)
         };
         self.record_qvel_owner();
         let result = match (result, formed) {
