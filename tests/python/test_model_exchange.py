@@ -106,20 +106,17 @@ def test_a_hosts_fixed_step_rk4_converges_to_the_fmus_own_solution(fmus, tmp_pat
     derivatives the FMU reports are those of the motion it integrates. (Its
     own RK4 advances θ̇, another 4th-order solution at equal steps.)"""
     start = {"nu[1]": 0.3, "nu[2]": -0.5, "nu[4]": 1.0}
-    names = None
-    errors = []
-    cs = None
+    hosts = []
     for k, h in enumerate([2e-3, 1e-3]):
         package, fmu = model_exchange_instance(fmus["fixed_rig"], tmp_path / f"h{k}", start)
         names = package.names("theta") + package.names("nu")
-        host = rk4_on_model_exchange(fmu, get_states(fmu, len(names)), h, round(0.1 / h))
+        hosts.append(rk4_on_model_exchange(fmu, get_states(fmu, len(names)), h, round(0.1 / h)))
         fmu.terminate()
         fmu.freeInstance()
-        if cs is None:
-            cs = simulate_fmu(str(fmus["fixed_rig"]), stop_time=0.1, output_interval=0.1,
-                              start_values={**start, "tolerance": 1e-13}, output=names)
-        own = np.array([cs[name][-1] for name in names])
-        errors.append(np.max(np.abs(host - own)))
+    cs = simulate_fmu(str(fmus["fixed_rig"]), stop_time=0.1, output_interval=0.1,
+                      start_values={**start, "tolerance": 1e-13}, output=names)
+    own = np.array([cs[name][-1] for name in names])
+    errors = [np.max(np.abs(host - own)) for host in hosts]
     assert errors[1] < 1e-8, errors
     assert errors[0] / errors[1] > 12, errors
 
