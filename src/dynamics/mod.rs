@@ -185,7 +185,6 @@ impl Workspace {
     pub fn compute_qacc(&mut self, model: &Model, eps: &[f64]) -> Result<(), DynamicsError> {
         require(self, Stage::Velocity, "compute_qacc")?;
         check_input("eps", eps, model.nv)?;
-        self.stage = Stage::Velocity;
         bias::bias_pass::<false>(model, self, eps);
         self.stage = Stage::JointRates;
         self.inputs_applied = false;
