@@ -102,18 +102,21 @@ fn highest_ratio(method: Method, tolerance: f64) -> f64 {
 /// for tolerances 1e-4 to 1e-10 (docs/integration.md), or below only where
 /// the run takes about one step per communication step, the least it can,
 /// so that accuracy beyond the tolerance costs nothing. A tighter
-/// tolerance never takes fewer steps.
+/// tolerance never takes fewer steps. ROS34PW2, of order 3 and meant for
+/// stiff vehicles at moderate tolerances, is held to the band from 1e-4 to
+/// 1e-8 (below, it takes 10⁵ steps and more on these trees).
 #[test]
 fn the_error_delivered_tracks_the_tolerance() {
     let intervals = (0.1, 100);
-    let tolerances = [1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10];
+    let all_tolerances = [1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10];
     let mut outside = Vec::new();
     for seed in [3, 4, 5, 6] {
         let (_, model, start) = vehicle(seed);
         let reference = reference(&model, &start, intervals, smooth_eps);
-        for method in [Method::Dopri5, Method::Dop853] {
+        for method in [Method::Dopri5, Method::Dop853, Method::Ros34pw2] {
             let mut previous_steps = 0;
-            for tolerance in tolerances {
+            let tolerances = if method == Method::Ros34pw2 { &all_tolerances[..5] } else { &all_tolerances[..] };
+            for &tolerance in tolerances {
                 let result = run(&model, &start, method, settings(tolerance), intervals, smooth_eps);
                 let ratio = scaled_error(&result, &reference) / tolerance;
                 let case = format!(

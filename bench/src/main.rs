@@ -87,7 +87,7 @@ enum Command {
         /// integrator's `advance`, as one FMU doStep.
         #[arg(long, default_value_t = 0.1)]
         sample: f64,
-        /// Runs, as METHOD:VALUE — rk4:STEP, dopri5:TOLERANCE or dop853:TOLERANCE.
+        /// Runs, as METHOD:VALUE — rk4:STEP, or dopri5, dop853 or ros34pw2 with :TOLERANCE.
         #[arg(long = "run", required = true)]
         runs: Vec<String>,
         /// Timed repetitions of each run.
@@ -405,9 +405,12 @@ struct SimulateResult {
     run: String,
     /// Wall time of each repetition (s): the integration only.
     seconds: Vec<f64>,
-    /// Steps accepted and rejected in the (last) run.
+    /// Steps accepted and rejected in the (last) run, evaluations of the
+    /// rates, and the times a Rosenbrock method formed its W.
     accepted: usize,
     rejected: usize,
+    evaluations: usize,
+    jacobians: usize,
     /// Why the run stopped early, if it did (then the samples end there).
     failed: Option<String>,
     time: Vec<f64>,
@@ -443,6 +446,8 @@ fn simulate(
         seconds: Vec::new(),
         accepted: 0,
         rejected: 0,
+        evaluations: 0,
+        jacobians: 0,
         failed: None,
         time: Vec::new(),
         qpos: Vec::new(),
@@ -464,7 +469,7 @@ fn simulate(
     let _ = start_run().advance_to(model, sample, input);
     for _ in 0..repetitions {
         let mut sim = start_run();
-        let (mut accepted, mut rejected) = (0, 0);
+        let (mut accepted, mut rejected, mut evaluations, mut jacobians) = (0, 0, 0, 0);
         let start = Instant::now();
         for n in 0..intervals {
             let t = n as f64 * sample;
@@ -472,6 +477,8 @@ fn simulate(
                 Ok(advanced) => {
                     accepted += advanced.stats.accepted;
                     rejected += advanced.stats.rejected;
+                    evaluations += advanced.stats.evaluations;
+                    jacobians += advanced.stats.jacobians;
                 }
                 Err(error) => {
                     // Too large a step for the motion: a point of the curve all the same.
@@ -484,7 +491,8 @@ fn simulate(
             trajectory[n + 1].1.copy_from_slice(&sim.state.nu);
         }
         result.seconds.push(start.elapsed().as_secs_f64());
-        (result.accepted, result.rejected) = (accepted, rejected);
+        (result.accepted, result.rejected, result.evaluations, result.jacobians) =
+            (accepted, rejected, evaluations, jacobians);
     }
     if samples {
         for (n, (theta, nu)) in trajectory.iter().enumerate().take(reached + 1) {

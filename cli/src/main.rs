@@ -120,7 +120,8 @@ enum Command {
         /// The stop time (s), a multiple of the step.
         #[arg(long, allow_hyphen_values = true)]
         stop: f64,
-        /// Integration method: rk4 (fixed internal steps of --max-step), dopri5 or dop853 (adaptive).
+        /// Integration method: rk4 (fixed internal steps of --max-step), dopri5, dop853 or ros34pw2 (adaptive;
+        /// ros34pw2 is implicit, for stiff vehicles).
         #[arg(long, default_value = "rk4", value_parser = parse_method)]
         method: Method,
         /// Error allowed per second of simulated time, relative to 1 + |value| (adaptive methods).

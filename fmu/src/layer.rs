@@ -722,8 +722,11 @@ pub fn do_step(instance: &mut Instance, time: f64, step: f64, name: &str) -> Res
         }
     };
     if instance.logger.enabled(LogCategory::Calls) {
-        let nudyn::integrate::Stats { accepted, rejected } = report.stats;
-        let message = format!("{name}: {accepted} internal steps taken, {rejected} rejected");
+        let nudyn::integrate::Stats { accepted, rejected, jacobians, .. } = report.stats;
+        let mut message = format!("{name}: {accepted} internal steps taken, {rejected} rejected");
+        if jacobians > 0 {
+            message += &format!(", W formed {jacobians} times");
+        }
         instance.logger.log(Status::Ok, LogCategory::Calls, &message);
     }
     instance.warning = report.relaxed.map(|relaxed| format!("{name}: {relaxed}"));

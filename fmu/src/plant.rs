@@ -291,7 +291,7 @@ impl Component for Plant {
             }
         }
         if let Some(method) = values.last().and_then(|&v| method_of_value(v)) {
-            self.sim.set_method(method);
+            self.sim.set_method(&self.model, method);
         }
         Ok(())
     }
@@ -472,7 +472,7 @@ impl Component for Plant {
         }
         self.sim.restore(&state.run);
         self.sim.settings = state.settings;
-        self.sim.set_method(state.method);
+        self.sim.set_method(&self.model, state.method);
         self.start_time = state.start_time;
         self.stop_time = state.stop_time;
         self.initial_energy = state.initial_energy;

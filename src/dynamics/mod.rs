@@ -67,6 +67,12 @@ pub enum DynamicsError {
         /// Link index.
         link: usize,
     },
+    /// A Rosenbrock step's linear system has no unique solution at this step size.
+    #[error("the implicit step's linear system (I/(hγ) − J) is singular at step {step:e} s")]
+    SingularStep {
+        /// hγ, the step times the method's γ.
+        step: f64,
+    },
     /// A pass was called before the passes it depends on.
     #[error("{call} needs {needed:?} computed first")]
     OutOfOrder {

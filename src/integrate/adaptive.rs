@@ -26,7 +26,7 @@
 
 use super::rkmk::{Integrator, retract};
 use super::simulation::Simulation;
-use super::tableau::{ErrorEstimate, Method, Tableau};
+use super::tableau::{ErrorEstimate, ErrorPer, Method, Scheme, StepControl};
 use crate::dynamics::DynamicsError;
 use crate::dynamics::quantities::kinetic_energy;
 use crate::model::{LinkJoint, Model};
@@ -149,6 +149,10 @@ pub struct Stats {
     pub accepted: usize,
     /// Steps rejected by the error control.
     pub rejected: usize,
+    /// Evaluations of the rates θ̈, the integration's unit of cost.
+    pub evaluations: usize,
+    /// Times a Rosenbrock method formed its matrix W (2·nv of the evaluations each).
+    pub jacobians: usize,
 }
 
 /// Why an interval could not be completed. (θ, θ̇, ν) and the carry are left at
@@ -272,12 +276,12 @@ const SAFETY: f64 = 0.9;
 /// safety factor, within the tableau's bounds; it never grows the step right
 /// after a rejection (`after_rejection`, which a rejected step itself is),
 /// and a non-finite error shrinks it as far as allowed.
-fn step_factor(error: f64, tableau: &Tableau, after_rejection: bool) -> f64 {
-    let (shrink_limit, grow_limit) = tableau.factor_bounds;
+fn step_factor(error: f64, control: &StepControl, after_rejection: bool) -> f64 {
+    let (shrink_limit, grow_limit) = control.factor_bounds;
     if !error.is_finite() {
         return shrink_limit;
     }
-    let factor = (SAFETY * error.powf(-tableau.controller_exponent)).clamp(shrink_limit, grow_limit);
+    let factor = (SAFETY * error.powf(-control.controller_exponent)).clamp(shrink_limit, grow_limit);
     if after_rejection { factor.min(1.0) } else { factor }
 }
 
@@ -295,6 +299,7 @@ impl Simulation {
         // The tolerance keeps an interval of exactly k·max_step (up to round-off) at k steps.
         let steps = ((t1 - t0) / max_step * (1.0 - 1e-12)).ceil().max(1.0) as usize;
         let h = (t1 - t0) / steps as f64;
+        let evaluations_before = integrator.evaluations;
         for n in 0..steps {
             let t = t0 + n as f64 * h;
             let failed = |cause| AdvanceError::StepFailed { reached: t, step: h, cause };
@@ -305,7 +310,12 @@ impl Simulation {
             integrator.accept_with_energy(model, ws, (theta, qvel), h, settings, carry).map_err(failed)?;
         }
         carry.next_step = h;
-        Ok(Stats { accepted: steps, rejected: 0 })
+        Ok(Stats {
+            accepted: steps,
+            rejected: 0,
+            evaluations: integrator.evaluations - evaluations_before,
+            jacobians: 0,
+        })
     }
 
     /// Steps of an embedded pair under error control from the state's time to `t1`.
@@ -316,6 +326,7 @@ impl Simulation {
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<Stats, AdvanceError> {
         let t0 = self.state.time;
+        let (evaluations_before, jacobians_before) = (self.integrator.evaluations, self.integrator.jacobians);
         let h = if self.state.carry.next_step > 0.0 {
             self.state.carry.next_step
         } else {
@@ -327,7 +338,7 @@ impl Simulation {
         };
         let Simulation { state, settings, integrator, ws, .. } = self;
         let (theta, qvel, carry) = (&mut state.theta[..], &mut state.qvel[..], &mut state.carry);
-        let tableau = integrator.method.tableau();
+        let control = integrator.method.control();
         let tolerance = settings.tolerance;
         let mut stats = Stats::default();
         let mut t = t0;
@@ -366,8 +377,13 @@ impl Simulation {
                     f64::INFINITY
                 }
             };
-            let per_second = per_step / (step / TOLERANCE_TIME).min(1.0);
+            // A method held per step has no per-second error, and so no round-off floor below it.
+            let (per_second, per_unit_step) = match control.error_per {
+                ErrorPer::UnitStep => (per_step / (step / TOLERANCE_TIME).min(1.0), true),
+                ErrorPer::Step { share } => (per_step / share, false),
+            };
             if let Some(first_rejected) = first_rejection
+                && per_unit_step
                 && at_round_off_floor(per_step, (step, per_second), first_rejected)
             {
                 // The least error seen is the one least mixed with truncation error.
@@ -381,7 +397,7 @@ impl Simulation {
                 integrator.accept_with_energy(model, ws, (theta, qvel), step, settings, carry).map_err(failed)?;
                 t = if step == remaining { t1 } else { t + step };
                 stats.accepted += 1;
-                let factor = step_factor(error, tableau, first_rejection.is_some());
+                let factor = step_factor(error, control, first_rejection.is_some());
                 h = if step < planned { (step * factor).max(planned) } else { step * factor };
                 first_rejection = None;
                 least_rejected = f64::INFINITY;
@@ -395,7 +411,7 @@ impl Simulation {
                         None => Overflow::ErrorEstimate { largest_rate: integrator.largest_rate() },
                     });
                 }
-                let factor = step_factor(error, tableau, true);
+                let factor = step_factor(error, control, true);
                 h = step * factor;
                 stats.rejected += 1;
                 first_rejection.get_or_insert((step, per_second));
@@ -403,6 +419,8 @@ impl Simulation {
             }
         }
         carry.next_step = h;
+        stats.evaluations = integrator.evaluations - evaluations_before;
+        stats.jacobians = integrator.jacobians - jacobians_before;
         Ok(stats)
     }
 
@@ -417,14 +435,7 @@ impl Simulation {
         let Simulation { state, settings, integrator, ws, .. } = self;
         let (t0, theta, qvel) = (state.time, &state.theta[..], &state.qvel[..]);
         let tolerance = settings.tolerance;
-        integrator.theta_stage.copy_from_slice(theta);
-        integrator.qvel_stage.copy_from_slice(qvel);
-        let power = integrator.evaluate_stage(model, ws, t0, inputs_at)?;
-        integrator.first.qvel.copy_from(&ws.qvel);
-        integrator.first.qacc.copy_from(&ws.qacc);
-        integrator.first.nu.copy_from(&ws.nu);
-        integrator.first.power = power;
-        integrator.first.valid = true;
+        integrator.evaluate_start(model, ws, (theta, qvel), t0, inputs_at)?;
         let first = &integrator.first;
         let size = start_norm(model, theta, qvel, tolerance, |dof, position| (position, qvel[dof]));
         let rate = start_norm(model, theta, qvel, tolerance, |dof, _| (first.qvel[dof], first.qacc[dof]));
@@ -444,7 +455,7 @@ impl Simulation {
         let change = |dof, _| (ws.qvel[dof] - first.qvel[dof], ws.qacc[dof] - first.qacc[dof]);
         let curvature = start_norm(model, theta, qvel, tolerance, change) / h0;
         let largest = rate.max(curvature);
-        let order = integrator.method.tableau().order as f64;
+        let order = integrator.method.control().order as f64;
         let h1 = if largest <= 1e-15 { (h0 * 1e-3).max(1e-6) } else { (0.01 / largest).powf(1.0 / order) };
         let h = (100.0 * h0).min(h1).min(max_step);
         Ok(if h > 0.0 { h } else { h0 })
@@ -454,8 +465,7 @@ impl Simulation {
 impl Integrator {
     /// The largest |θ̈| over the attempted step's stages.
     fn largest_rate(&self) -> f64 {
-        let stages = self.method.tableau().b.len();
-        self.k_qvel[..stages].iter().flat_map(|k| k.iter()).fold(0.0, |m: f64, x| m.max(x.abs()))
+        self.k_qvel[..self.method.stages()].iter().flat_map(|k| k.iter()).fold(0.0, |m: f64, x| m.max(x.abs()))
     }
 
     /// Takes the attempted step, adds its work to `carry`, and projects θ̇
@@ -497,10 +507,9 @@ impl Integrator {
     /// estimate mapped by m* at the last stage's configuration (pass 2 on
     /// the estimate, which overwrites the workspace's velocities).
     fn error_norm(&self, model: &Model, ws: &mut Workspace, theta: &[f64], tolerance: f64) -> f64 {
-        let estimates = match self.method.tableau().error {
-            ErrorEstimate::Dop853 { .. } => 2,
-            _ => 1,
-        };
+        let two_estimates =
+            matches!(self.method.scheme(), Scheme::Explicit(t) if matches!(t.error, ErrorEstimate::Dop853 { .. }));
+        let estimates = if two_estimates { 2 } else { 1 };
         let mut norms = [0.0_f64; 2];
         for (k, norm) in norms.iter_mut().enumerate().take(estimates) {
             let (error_delta, error_qvel) = if k == 0 {
@@ -519,13 +528,12 @@ impl Integrator {
             }
         }
         let [high, low] = norms;
-        match self.method.tableau().error {
+        if two_estimates {
             // The 5th-order estimate, damped where the 3rd-order one is much larger (Hairer's DOP853).
-            ErrorEstimate::Dop853 { .. } => {
-                let denominator = high * high + 0.01 * low * low;
-                if denominator > 0.0 { high * high / denominator.sqrt() } else { 0.0 }
-            }
-            _ => high,
+            let denominator = high * high + 0.01 * low * low;
+            if denominator > 0.0 { high * high / denominator.sqrt() } else { 0.0 }
+        } else {
+            high
         }
     }
 }
@@ -552,7 +560,7 @@ fn start_norm(
 
 /// Each dof with the coordinate it moves, if that is a vector coordinate
 /// (hinge, slide, free-joint position); rotations have none.
-fn positions<'a>(model: &'a Model, theta: &'a [f64]) -> impl Iterator<Item = (usize, Option<f64>)> + 'a {
+pub(super) fn positions<'a>(model: &'a Model, theta: &'a [f64]) -> impl Iterator<Item = (usize, Option<f64>)> + 'a {
     model.links.iter().flat_map(move |link| {
         (0..link.ndof).map(move |k| {
             let position = (link.joint != LinkJoint::Ball).then(|| theta[link.qpos_adr + k]);

@@ -1,9 +1,10 @@
 //! Time integration of (θ, θ̇), read and set as (θ, ν): Runge–Kutta–Munthe-Kaas steps (`rkmk`) with
-//! the methods of `tableau`, driven over an interval with fixed or adaptive
+//! the methods of `tableau`, explicit or Rosenbrock (`rosenbrock`), driven over an interval with fixed or adaptive
 //! steps (`adaptive`) by one [`Simulation`] (`simulation`).
 
 mod adaptive;
 mod rkmk;
+mod rosenbrock;
 mod simulation;
 mod tableau;
 
@@ -12,4 +13,7 @@ pub use adaptive::{
 };
 pub use rkmk::{Integrator, retract};
 pub use simulation::{Advanced, Input, InputSignal, RunState, Simulation};
-pub use tableau::{DOP853, DOPRI5, ErrorEstimate, Method, RK4, Tableau};
+pub use tableau::{
+    DOP853, DOPRI5, ErrorEstimate, ErrorPer, Method, RK4, ROS34PW2, ROSENBROCK_STAGES, Rosenbrock, RosenbrockStages,
+    Scheme, StepControl, Tableau,
+};

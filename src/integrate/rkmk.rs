@@ -11,7 +11,8 @@
 
 use nalgebra::DVector;
 
-use super::tableau::{ErrorEstimate, Method};
+use super::rosenbrock::Linearization;
+use super::tableau::{ErrorEstimate, Method, Scheme};
 use crate::dynamics::DynamicsError;
 use crate::math::{Quat, Vec3, quat_from_wxyz, quat_to_wxyz};
 use crate::model::{LinkJoint, Model};
@@ -38,7 +39,7 @@ pub fn retract(model: &Model, theta: &mut [f64], delta: &[f64]) {
 
 /// dexp⁻¹₋Θ(ω): the rate of the body-frame rotation vector Θ of q = qₙ·exp(Θ)
 /// when the body-frame angular velocity is ω.
-fn dexp_inv(theta: &Vec3, omega: &Vec3) -> Vec3 {
+pub(super) fn dexp_inv(theta: &Vec3, omega: &Vec3) -> Vec3 {
     let angle2 = theta.norm_squared();
     // c = (1 − (a/2)cot(a/2))/a², by its series near 0 where the closed form cancels.
     let c = if angle2 < 1e-6 {
@@ -80,11 +81,11 @@ pub(super) struct FirstStage {
 pub struct Integrator {
     pub(super) method: Method,
     /// Δ-rates of the stages.
-    k_delta: Vec<DVector<f64>>,
+    pub(super) k_delta: Vec<DVector<f64>>,
     /// θ̈ of the stages.
     pub(super) k_qvel: Vec<DVector<f64>>,
     /// ν·ν̇ at each stage: the power of all forces, since ν·C = 0.
-    stage_power: [f64; MAX_STAGES],
+    pub(super) stage_power: [f64; MAX_STAGES],
     /// The step's Δ and θ̇ (after `attempt`).
     pub(super) delta: DVector<f64>,
     pub(super) qvel_next: DVector<f64>,
@@ -108,6 +109,11 @@ pub struct Integrator {
     pub(super) ctrl_stage: DVector<f64>,
     /// θ̇ for [`Integrator::step`], which takes and gives ν.
     step_qvel: DVector<f64>,
+    /// A Rosenbrock method's Jacobian and linear algebra (empty for explicit methods).
+    pub(super) linear: Linearization,
+    /// How many times it has evaluated the rates, and formed W, ever.
+    pub(super) evaluations: usize,
+    pub(super) jacobians: usize,
 }
 
 impl Integrator {
@@ -140,7 +146,18 @@ impl Integrator {
             eps_stage: DVector::zeros(nv),
             ctrl_stage: DVector::zeros(model.actuators.len()),
             step_qvel: DVector::zeros(nv),
+            linear: linearization(model, method),
+            evaluations: 0,
+            jacobians: 0,
         }
+    }
+
+    /// Drops a Rosenbrock method's W, so that the next step forms it anew:
+    /// at the start of each advance, so that a run restored at a
+    /// communication point continues exactly as the run saved there.
+    pub(super) fn release_jacobian(&mut self) {
+        self.linear.held = false;
+        self.linear.fresh = false;
     }
 
     /// The method it integrates with.
@@ -148,10 +165,15 @@ impl Integrator {
         self.method
     }
 
-    /// Changes the method (the stage storage fits every method).
-    pub fn set_method(&mut self, method: Method) {
+    /// Changes the method (the explicit stage storage fits every method; a
+    /// Rosenbrock method's is allocated here).
+    pub fn set_method(&mut self, model: &Model, method: Method) {
         self.method = method;
         self.first.valid = false;
+        if !matches!(method.scheme(), Scheme::Rosenbrock(r) if self.linear.fits(model, r)) {
+            self.linear = linearization(model, method);
+        }
+        self.release_jacobian();
     }
 
     /// One step `(t, h)`, of size `h` from time `t`, without error control:
@@ -167,6 +189,7 @@ impl Integrator {
         mut eps_at: impl FnMut(f64, &mut [f64]),
     ) -> Result<(), DynamicsError> {
         self.first.valid = false;
+        self.release_jacobian();
         qvel_of_nu(model, ws, theta, nu, self.step_qvel.as_mut_slice())?;
         let mut qvel = std::mem::take(&mut self.step_qvel);
         let result = self.step_qvel(model, ws, (theta, qvel.as_mut_slice()), (t, h), &mut eps_at);
@@ -213,6 +236,7 @@ impl Integrator {
         t: f64,
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<f64, DynamicsError> {
+        self.evaluations += 1;
         inputs_at(t, self.eps_stage.as_mut_slice(), self.ctrl_stage.as_mut_slice());
         ws.set_configuration(model, self.theta_stage.as_slice())?;
         ws.set_qvel(model, self.qvel_stage.as_slice())?;
@@ -232,7 +256,10 @@ impl Integrator {
         (t, h): (f64, f64),
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<(), DynamicsError> {
-        let tableau = self.method.tableau();
+        let tableau = match self.method.scheme() {
+            Scheme::Explicit(tableau) => tableau,
+            Scheme::Rosenbrock(_) => return self.attempt_rosenbrock(model, ws, (theta, qvel), (t, h), inputs_at),
+        };
         let last = tableau.b.len() - 1;
         for (i, row) in tableau.a.iter().enumerate() {
             if i == 0 && self.first.valid {
@@ -270,12 +297,7 @@ impl Integrator {
                     self.last_nu.copy_from(&ws.nu);
                 }
             }
-            for link in model.links.iter().filter(|l| l.joint == LinkJoint::Ball) {
-                let a = link.dof_adr;
-                let rotation = Vec3::new(self.delta[a], self.delta[a + 1], self.delta[a + 2]);
-                let omega = Vec3::new(ws.qvel[a], ws.qvel[a + 1], ws.qvel[a + 2]);
-                self.k_delta[i].fixed_rows_mut::<3>(a).copy_from(&dexp_inv(&rotation, &omega));
-            }
+            self.rotation_rates(model, i, ws);
         }
         // The same operations as a stage's, so that a "first same as last"
         // method's last stage is evaluated exactly at the step's result.
@@ -299,11 +321,46 @@ impl Integrator {
         Ok(())
     }
 
+    /// Stage `i`'s Δ-rates on ball joints: dexp⁻¹₋Δ(ω) at the stage's Δ
+    /// (`delta`) and θ̇ (the workspace's), in place of θ̇ itself.
+    pub(super) fn rotation_rates(&mut self, model: &Model, i: usize, ws: &Workspace) {
+        for link in model.links.iter().filter(|l| l.joint == LinkJoint::Ball) {
+            let a = link.dof_adr;
+            let rotation = Vec3::new(self.delta[a], self.delta[a + 1], self.delta[a + 2]);
+            let omega = Vec3::new(ws.qvel[a], ws.qvel[a + 1], ws.qvel[a + 2]);
+            self.k_delta[i].fixed_rows_mut::<3>(a).copy_from(&dexp_inv(&rotation, &omega));
+        }
+    }
+
+    /// Evaluates the rates at the step's start (θ, θ̇, t) into `first`.
+    pub(super) fn evaluate_start(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        (theta, qvel): (&[f64], &[f64]),
+        t: f64,
+        inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
+    ) -> Result<(), DynamicsError> {
+        self.theta_stage.copy_from_slice(theta);
+        self.qvel_stage.copy_from_slice(qvel);
+        let power = self.evaluate_stage(model, ws, t, inputs_at)?;
+        self.first.qvel.copy_from(&ws.qvel);
+        self.first.qacc.copy_from(&ws.qacc);
+        self.first.nu.copy_from(&ws.nu);
+        self.first.power = power;
+        self.first.valid = true;
+        self.linear.fresh = false;
+        Ok(())
+    }
+
     /// h·Σ bᵢ(νᵢ·ν̇ᵢ): the step's quadrature of the power, which is the
     /// change of K = ½|ν|² along the exact solution.
     pub(super) fn step_work(&self, h: f64) -> f64 {
-        let b = self.method.tableau().b;
-        h * b.iter().zip(&self.stage_power).map(|(b, p)| b * p).sum::<f64>()
+        let weights = match self.method.scheme() {
+            Scheme::Explicit(tableau) => tableau.b,
+            Scheme::Rosenbrock(method) => method.power_weights,
+        };
+        h * weights.iter().zip(&self.stage_power).map(|(w, p)| w * p).sum::<f64>()
     }
 
     /// Moves the state to the attempted step's result; for a "first same as
@@ -311,15 +368,24 @@ impl Integrator {
     pub(super) fn accept(&mut self, model: &Model, theta: &mut [f64], qvel: &mut [f64]) {
         retract(model, theta, self.delta.as_slice());
         qvel.copy_from_slice(self.qvel_next.as_slice());
-        let tableau = self.method.tableau();
-        self.first.valid = tableau.first_same_as_last;
-        if tableau.first_same_as_last {
-            let last = tableau.b.len() - 1;
+        self.linear.fresh = false;
+        let first_same_as_last = matches!(self.method.scheme(), Scheme::Explicit(t) if t.first_same_as_last);
+        self.first.valid = first_same_as_last;
+        if first_same_as_last {
+            let last = self.method.stages() - 1;
             self.first.qvel.copy_from(&self.last_qvel);
             self.first.qacc.copy_from(&self.k_qvel[last]);
             self.first.nu.copy_from(&self.last_nu);
             self.first.power = self.stage_power[last];
         }
+    }
+}
+
+/// A Rosenbrock method's storage, or none for an explicit method.
+fn linearization(model: &Model, method: Method) -> Linearization {
+    match method.scheme() {
+        Scheme::Rosenbrock(r) => Linearization::new(model, r),
+        Scheme::Explicit(_) => Linearization::default(),
     }
 }
 

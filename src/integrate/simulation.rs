@@ -147,8 +147,8 @@ impl Simulation {
     }
 
     /// Changes the integration method.
-    pub fn set_method(&mut self, method: Method) {
-        self.integrator.set_method(method);
+    pub fn set_method(&mut self, model: &Model, method: Method) {
+        self.integrator.set_method(model, method);
     }
 
     /// Checks θ and ν (sizes, finite, no zero quaternion), normalizes θ's
@@ -191,6 +191,7 @@ impl Simulation {
         mut input: impl InputSignal,
     ) -> Result<Advanced, AdvanceError> {
         let t0 = self.state.time;
+        self.integrator.release_jacobian();
         if self.qvel_is_stale() {
             let state = &mut self.state;
             if let Err(cause) = qvel_of_nu(model, &mut self.ws, &state.theta, &state.nu, &mut state.qvel) {

@@ -21,6 +21,33 @@ pub enum ErrorEstimate {
     },
 }
 
+/// A method's order and the constants of its step-size controller.
+#[derive(Clone, Copy, Debug)]
+pub struct StepControl {
+    /// Order of the solution.
+    pub order: u32,
+    /// The error estimate per unit step scales as h^(1/exponent): the
+    /// controller takes the new step as h·(1/err)^exponent.
+    pub controller_exponent: f64,
+    /// Bounds on the factor by which one step may shrink or grow the next.
+    pub factor_bounds: (f64, f64),
+    /// What each step's error estimate is held to.
+    pub error_per: ErrorPer,
+}
+
+/// What each step's error estimate is held to (adaptive.rs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ErrorPer {
+    /// tol·h/(1 s): the error per unit step, so that a second's errors sum
+    /// to about tol.
+    UnitStep,
+    /// tol·share, whatever the step, as stiff solvers hold it.
+    Step {
+        /// The share of the tolerance one step may take.
+        share: f64,
+    },
+}
+
 /// A Butcher tableau of an explicit Runge–Kutta method, with its error
 /// estimator and step-size controller constants.
 #[derive(Clone, Copy, Debug)]
@@ -31,15 +58,10 @@ pub struct Tableau {
     pub b: &'static [f64],
     /// Nodes.
     pub c: &'static [f64],
-    /// Order of the solution.
-    pub order: u32,
     /// Local error estimator.
     pub error: ErrorEstimate,
-    /// The error estimate per unit step scales as h^(1/exponent): the
-    /// controller takes the new step as h·(1/err)^exponent.
-    pub controller_exponent: f64,
-    /// Bounds on the factor by which one step may shrink or grow the next.
-    pub factor_bounds: (f64, f64),
+    /// Order and step-size controller.
+    pub control: StepControl,
     /// Whether the last stage is evaluated at the step's result ("first same
     /// as last"), so that it is the next step's first stage.
     pub first_same_as_last: bool,
@@ -50,10 +72,13 @@ pub const RK4: Tableau = Tableau {
     a: &[&[], &[0.5], &[0.0, 0.5], &[0.0, 0.0, 1.0]],
     b: &[1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0],
     c: &[0.0, 0.5, 0.5, 1.0],
-    order: 4,
     error: ErrorEstimate::None,
-    controller_exponent: 0.0,
-    factor_bounds: (1.0, 1.0),
+    control: StepControl {
+        order: 4,
+        controller_exponent: 0.0,
+        factor_bounds: (1.0, 1.0),
+        error_per: ErrorPer::UnitStep,
+    },
     first_same_as_last: false,
 };
 
@@ -70,7 +95,6 @@ pub const DOPRI5: Tableau = Tableau {
     ],
     b: &[35.0 / 384.0, 0.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0, 0.0],
     c: &[0.0, 1.0 / 5.0, 3.0 / 10.0, 4.0 / 5.0, 8.0 / 9.0, 1.0, 1.0],
-    order: 5,
     // b − b̂, with b̂ the 4th-order weights.
     error: ErrorEstimate::Embedded(&[
         71.0 / 57600.0,
@@ -81,8 +105,12 @@ pub const DOPRI5: Tableau = Tableau {
         22.0 / 525.0,
         -1.0 / 40.0,
     ]),
-    controller_exponent: 1.0 / 4.0,
-    factor_bounds: (0.2, 10.0),
+    control: StepControl {
+        order: 5,
+        controller_exponent: 1.0 / 4.0,
+        factor_bounds: (0.2, 10.0),
+        error_per: ErrorPer::UnitStep,
+    },
     first_same_as_last: true,
 };
 
@@ -225,12 +253,159 @@ pub const DOP853: Tableau = Tableau {
     a: &dop853::A,
     b: &dop853::B,
     c: &dop853::C,
-    order: 8,
     error: ErrorEstimate::Dop853 { fifth: &dop853::FIFTH, third: &dop853::THIRD },
-    controller_exponent: 1.0 / 7.0,
-    factor_bounds: (1.0 / 3.0, 6.0),
+    control: StepControl {
+        order: 8,
+        controller_exponent: 1.0 / 7.0,
+        factor_bounds: (1.0 / 3.0, 6.0),
+        error_per: ErrorPer::UnitStep,
+    },
     first_same_as_last: false,
 };
+
+/// A Rosenbrock–W method as published (Hairer & Wanner, Solving Ordinary
+/// Differential Equations II, §IV.7):
+///     (I − hγW) kᵢ = h f(tₙ + αᵢh, yₙ + Σⱼ αᵢⱼkⱼ) + hW Σⱼ γᵢⱼkⱼ,
+///     yₙ₊₁ = yₙ + Σ bᵢkᵢ, error estimate Σ (bᵢ − b̂ᵢ)kᵢ,
+/// with αᵢ = Σⱼ αᵢⱼ. A W-method keeps its order whatever the matrix W
+/// (the Jacobian ∂f/∂y only makes it stable on stiff modes), so W may be
+/// an approximate Jacobian kept over several steps, and the time
+/// derivative ∂f/∂t that a Rosenbrock method needs is left out.
+#[derive(Clone, Copy, Debug)]
+pub struct Rosenbrock {
+    /// The diagonal γ.
+    pub gamma: f64,
+    /// Strictly lower-triangular αᵢⱼ, row i has i entries.
+    pub alpha: &'static [&'static [f64]],
+    /// Strictly lower-triangular γᵢⱼ, row i has i entries.
+    pub gamma_below: &'static [&'static [f64]],
+    /// Solution weights.
+    pub b: &'static [f64],
+    /// Weights of the embedded solution.
+    pub b_hat: &'static [f64],
+    /// Weights of a quadrature of the power over the step, on the stages'
+    /// points.
+    pub power_weights: &'static [f64],
+    /// Order and step-size controller.
+    pub control: StepControl,
+}
+
+/// The most stages of a Rosenbrock method.
+pub const ROSENBROCK_STAGES: usize = 4;
+
+/// A Rosenbrock method's coefficients in the form that needs no product
+/// with W (Hairer & Wanner II, §IV.7, (7.25)): with Γ = (γᵢⱼ) including
+/// the diagonal and uᵢ = Σⱼ γᵢⱼkⱼ,
+///     (I/(hγ) − W) uᵢ = f(tₙ + αᵢh, yₙ + Σⱼ aᵢⱼuⱼ) + Σⱼ (cᵢⱼ/h)uⱼ,
+///     yₙ₊₁ = yₙ + Σ mᵢuᵢ, error estimate Σ eᵢuᵢ,
+/// where (aᵢⱼ) = (αᵢⱼ)Γ⁻¹, (cᵢⱼ) = diag(1/γ) − Γ⁻¹, m = bᵀΓ⁻¹ and
+/// e = (b − b̂)ᵀΓ⁻¹.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RosenbrockStages {
+    /// Number of stages.
+    pub stages: usize,
+    /// The diagonal γ.
+    pub gamma: f64,
+    /// The stage arguments' weights aᵢⱼ (strictly lower).
+    pub a: [[f64; ROSENBROCK_STAGES]; ROSENBROCK_STAGES],
+    /// The right-hand sides' weights cᵢⱼ (strictly lower).
+    pub c: [[f64; ROSENBROCK_STAGES]; ROSENBROCK_STAGES],
+    /// Time nodes αᵢ.
+    pub nodes: [f64; ROSENBROCK_STAGES],
+    /// Solution weights mᵢ.
+    pub m: [f64; ROSENBROCK_STAGES],
+    /// Error estimate weights eᵢ.
+    pub e: [f64; ROSENBROCK_STAGES],
+}
+
+impl Rosenbrock {
+    /// Its coefficients in the form of [`RosenbrockStages`].
+    // Triangular matrix products read as the formulas do with indices.
+    #[allow(clippy::needless_range_loop)]
+    pub fn stages(&self) -> RosenbrockStages {
+        let n = self.b.len();
+        assert!(n <= ROSENBROCK_STAGES, "at most {ROSENBROCK_STAGES} stages");
+        // Γ⁻¹ by forward substitution, column by column (Γ is lower triangular).
+        let gamma = |i: usize, j: usize| if i == j { self.gamma } else { self.gamma_below[i][j] };
+        let mut inverse = [[0.0; ROSENBROCK_STAGES]; ROSENBROCK_STAGES];
+        for j in 0..n {
+            for i in j..n {
+                let identity = if i == j { 1.0 } else { 0.0 };
+                let sum: f64 = (j..i).map(|k| gamma(i, k) * inverse[k][j]).sum();
+                inverse[i][j] = (identity - sum) / self.gamma;
+            }
+        }
+        let mut stages = RosenbrockStages { stages: n, gamma: self.gamma, ..Default::default() };
+        for i in 0..n {
+            stages.nodes[i] = self.alpha[i].iter().sum();
+            for j in 0..i {
+                stages.a[i][j] = (j..i).map(|k| self.alpha[i][k] * inverse[k][j]).sum();
+                stages.c[i][j] = -inverse[i][j];
+            }
+        }
+        for j in 0..n {
+            stages.m[j] = (j..n).map(|k| self.b[k] * inverse[k][j]).sum();
+            stages.e[j] = (j..n).map(|k| (self.b[k] - self.b_hat[k]) * inverse[k][j]).sum();
+        }
+        stages
+    }
+}
+
+// ROS34PW2's coefficients, with the digits Rang and Angermann publish.
+#[allow(clippy::excessive_precision)]
+mod ros34pw2 {
+    pub const GAMMA: f64 = 4.3586652150845900e-01;
+    pub const ALPHA: [&[f64]; 4] =
+        [&[], &[8.7173304301691801e-01], &[8.4457060015369423e-01, -1.1299064236484185e-01], &[0.0, 0.0, 1.0]];
+    pub const GAMMA_BELOW: [&[f64]; 4] = [
+        &[],
+        &[-8.7173304301691801e-01],
+        &[-9.0338057013044082e-01, 5.4180672388095326e-02],
+        &[2.4212380706095346e-01, -1.2232505839045147e+00, 5.4526025533510214e-01],
+    ];
+    pub const B: [f64; 4] = [2.4212380706095346e-01, -1.2232505839045147e+00, 1.5452602553351020e+00, GAMMA];
+    pub const B_HAT: [f64; 4] =
+        [3.7810903145819369e-01, -9.6042292212423178e-02, 5.0000000000000000e-01, 2.1793326075422950e-01];
+}
+
+/// ROS34PW2 (Rang & Angermann, BIT 45, 2005): a Rosenbrock–W method with 4
+/// stages and 4 evaluations of f, order 3 for any W, an embedded order-2
+/// estimate, L-stable and stiffly accurate (its solution is its last
+/// stage's argument plus that stage's u, so stiff components are damped,
+/// never amplified, at any h).
+pub const ROS34PW2: Rosenbrock = Rosenbrock {
+    gamma: ros34pw2::GAMMA,
+    alpha: &ros34pw2::ALPHA,
+    gamma_below: &ros34pw2::GAMMA_BELOW,
+    b: &ros34pw2::B,
+    b_hat: &ros34pw2::B_HAT,
+    // The trapezoid rule between the step's start and stage 4 (at t + h,
+    // at the solution up to that stage's u): no stage point is more exact.
+    power_weights: &[0.5, 0.0, 0.0, 0.5],
+    // Held per step, as stiff solvers hold theirs: its estimate is the
+    // order-2 solution's error, O(h³), so per unit step (O(h²) ≤ tol) a
+    // vehicle's fast, damped transient holds the step to nanoseconds (on
+    // the damped stiff boom of docs/integration.md). Per step, the order-3
+    // solution it propagates errs by O(h⁴), so the global error, O(h³), is
+    // proportional to the tolerance; the share puts it within the band of
+    // the adaptive methods on the random trees of tests/adaptive_integration.rs
+    // (docs/integration.md, "Stiff vehicles").
+    control: StepControl {
+        order: 3,
+        controller_exponent: 1.0 / 3.0,
+        factor_bounds: (0.2, 6.0),
+        error_per: ErrorPer::Step { share: 1.0 / 30.0 },
+    },
+};
+
+/// How a method forms a step.
+#[derive(Clone, Copy, Debug)]
+pub enum Scheme {
+    /// Explicit Runge–Kutta stages.
+    Explicit(&'static Tableau),
+    /// Linearly implicit stages with the Jacobian of the rates.
+    Rosenbrock(&'static Rosenbrock),
+}
 
 /// The integration methods, as the FMU's `method` parameter names them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -241,18 +416,37 @@ pub enum Method {
     Dopri5,
     /// Dormand–Prince 8(5,3), adaptive.
     Dop853,
+    /// ROS34PW2, an L-stable Rosenbrock–W method of order 3, adaptive.
+    Ros34pw2,
 }
 
 impl Method {
-    /// Every method, in the order of the FMU's enumeration (values 1, 2, 3).
-    pub const ALL: [Method; 3] = [Method::Rk4, Method::Dopri5, Method::Dop853];
+    /// Every method, in the order of the FMU's enumeration (values 1, 2, 3, 4).
+    pub const ALL: [Method; 4] = [Method::Rk4, Method::Dopri5, Method::Dop853, Method::Ros34pw2];
 
-    /// The method's tableau.
-    pub fn tableau(self) -> &'static Tableau {
+    /// How it forms a step.
+    pub fn scheme(self) -> Scheme {
         match self {
-            Method::Rk4 => &RK4,
-            Method::Dopri5 => &DOPRI5,
-            Method::Dop853 => &DOP853,
+            Method::Rk4 => Scheme::Explicit(&RK4),
+            Method::Dopri5 => Scheme::Explicit(&DOPRI5),
+            Method::Dop853 => Scheme::Explicit(&DOP853),
+            Method::Ros34pw2 => Scheme::Rosenbrock(&ROS34PW2),
+        }
+    }
+
+    /// Its order and step-size controller.
+    pub fn control(self) -> &'static StepControl {
+        match self.scheme() {
+            Scheme::Explicit(tableau) => &tableau.control,
+            Scheme::Rosenbrock(method) => &method.control,
+        }
+    }
+
+    /// The number of stages of a step.
+    pub fn stages(self) -> usize {
+        match self.scheme() {
+            Scheme::Explicit(tableau) => tableau.b.len(),
+            Scheme::Rosenbrock(method) => method.b.len(),
         }
     }
 
@@ -262,6 +456,7 @@ impl Method {
             Method::Rk4 => "rk4",
             Method::Dopri5 => "dopri5",
             Method::Dop853 => "dop853",
+            Method::Ros34pw2 => "ros34pw2",
         }
     }
 
@@ -271,6 +466,10 @@ impl Method {
             Method::Rk4 => "classical 4th-order Runge-Kutta, fixed internal step max_step",
             Method::Dopri5 => "Dormand-Prince 5(4), adaptive to tolerance, steps at most max_step",
             Method::Dop853 => "Dormand-Prince 8(5,3), adaptive to tolerance, steps at most max_step",
+            Method::Ros34pw2 => {
+                "ROS34PW2, L-stable Rosenbrock-W of order 3 for stiff vehicles (Jacobian by finite differences), \
+                 adaptive to tolerance, steps at most max_step"
+            }
         }
     }
 
@@ -281,12 +480,17 @@ impl Method {
 
     /// Whether it adapts its step to a tolerance.
     pub fn is_adaptive(self) -> bool {
-        !matches!(self.tableau().error, ErrorEstimate::None)
+        match self.scheme() {
+            Scheme::Explicit(tableau) => !matches!(tableau.error, ErrorEstimate::None),
+            Scheme::Rosenbrock(_) => true,
+        }
     }
 }
 
 #[cfg(test)]
 mod tests {
+    use nalgebra::Complex;
+
     use super::*;
 
     /// Row sums of a equal c, and the weights of the solution and of every
@@ -295,7 +499,7 @@ mod tests {
     #[test]
     fn tableaus_are_consistent() {
         for method in Method::ALL {
-            let t = method.tableau();
+            let Scheme::Explicit(t) = method.scheme() else { continue };
             assert_eq!(t.a.len(), t.b.len());
             assert_eq!(t.c.len(), t.b.len());
             for (i, row) in t.a.iter().enumerate() {
@@ -322,7 +526,6 @@ mod tests {
     /// |R(iy)| of a tableau on y' = λy with hλ = iy: the amplification of an
     /// undamped oscillation of frequency ω by one step h = y/ω.
     fn amplification(t: &Tableau, y: f64) -> f64 {
-        use nalgebra::Complex;
         let z = Complex::new(0.0, y);
         let mut stages: Vec<Complex<f64>> = Vec::with_capacity(t.b.len());
         for row in t.a {
@@ -360,6 +563,52 @@ mod tests {
             growth(2.0),
             growth(3.0)
         );
+    }
+
+    /// R(z, w) of a Rosenbrock–W method on y' = λy with z = hλ, run with
+    /// W = μ, w = hμ (the Jacobian when w = z), from its stage form.
+    fn rosenbrock_amplification(stages: &RosenbrockStages, z: Complex<f64>, w: Complex<f64>) -> Complex<f64> {
+        let (one, gamma_inverse) = (Complex::new(1.0, 0.0), 1.0 / stages.gamma);
+        let mut u: Vec<Complex<f64>> = Vec::new();
+        for i in 0..stages.stages {
+            let argument = one + (0..i).map(|j| u[j] * stages.a[i][j]).sum::<Complex<f64>>();
+            let rhs = z * argument + (0..i).map(|j| u[j] * stages.c[i][j]).sum::<Complex<f64>>();
+            u.push(rhs / (gamma_inverse - w));
+        }
+        one + (0..stages.stages).map(|i| u[i] * stages.m[i]).sum::<Complex<f64>>()
+    }
+
+    /// ROS34PW2's published coefficients, through the stage form, give
+    /// order 3 on the test equation with W the Jacobian and with W far
+    /// from it (the error of R against eᶻ falls 16-fold as h halves), an
+    /// order-2 estimate, and L-stability: |R| ≤ 1 on the imaginary axis
+    /// and R → 0 at −∞, so a stiff mode is damped at any step.
+    #[test]
+    fn ros34pw2_is_third_order_for_any_w_and_l_stable() {
+        let stages = ROS34PW2.stages();
+        let lambda = Complex::new(1.0, 0.0);
+        for mu in [lambda, Complex::new(-3.0, 0.5), Complex::new(0.0, 0.0)] {
+            let error = |h: f64| (rosenbrock_amplification(&stages, lambda * h, mu * h) - h.exp()).norm();
+            let ratio = error(0.02) / error(0.01);
+            assert!((14.0..18.0).contains(&ratio), "W = {mu}: error ratio {ratio}, 16 for order 3");
+        }
+        for y in (0..2000).map(|k| 10f64.powf(-2.0 + k as f64 * 0.004)) {
+            let z = Complex::new(0.0, y);
+            let r = rosenbrock_amplification(&stages, z, z).norm();
+            assert!(r <= 1.0 + 1e-12, "|R({y}i)| = {r}");
+        }
+        for x in [1e4, 1e8, 1e12] {
+            let z = Complex::new(-x, 0.0);
+            let r = rosenbrock_amplification(&stages, z, z).norm();
+            assert!(r < 10.0 / x, "|R(−{x})| = {r}");
+        }
+        let low = RosenbrockStages { m: std::array::from_fn(|i| stages.m[i] - stages.e[i]), ..stages };
+        let estimate = |h: f64| {
+            let z = lambda * h;
+            (rosenbrock_amplification(&stages, z, z) - rosenbrock_amplification(&low, z, z)).norm()
+        };
+        let ratio = estimate(0.02) / estimate(0.01);
+        assert!((7.0..9.0).contains(&ratio), "estimate ratio {ratio}, 8 for an order-2 estimate");
     }
 
     #[test]

@@ -76,8 +76,8 @@ pub fn description(model: &Model, variable: RealVariable) -> String {
                 .into()
         }
         RealVariable::MaxStep => format!(
-            "longest internal integration step (s); 0: none for dopri5 and dop853 (the error control and the \
-             communication step decide), {} s for rk4",
+            "longest internal integration step (s); 0: none for the adaptive methods dopri5, dop853 and ros34pw2 \
+             (the error control and the communication step decide), {} s for rk4",
             nudyn::integrate::DEFAULT_FIXED_STEP
         ),
         RealVariable::Eps(k) => {

@@ -1,0 +1,340 @@
+//! One step of a Rosenbrock–W method (tableau.rs, [`Rosenbrock`]) on
+//! (Δ, θ̇), for vehicles whose stiffest mode limits explicit steps
+//! (docs/integration.md, "Stiff vehicles").
+//!
+//! The ODE is rkmk.rs's: y = (Δ, θ̇) from (0, θ̇ₙ), with
+//! f = (dexp⁻¹₋Δ(θ̇), θ̈(θₙ ⊕ Δ, θ̇, t)). Its matrix W is
+//!     W = [ 0  I ]   A = ∂θ̈/∂Δ, B = ∂θ̈/∂θ̇ by forward differences
+//!         [ A  B ]   (2·nv evaluations of θ̈),
+//! the Jacobian but for the small, non-stiff block of dexp⁻¹ on ball
+//! joints (−½[ω]×), which a W-method does not need. W is formed at the
+//! start of each advance and kept over its steps until a step with an
+//! older W is rejected; then it is formed again at that step's start.
+//! Each stage's system (cI − W)u = r, c = 1/(hγ), is reduced to nv
+//! unknowns by eliminating the Δ rows:
+//!     (cI − B − A/c) u_θ̇ = r_θ̇ + A r_Δ / c,   u_Δ = (r_Δ + u_θ̇)/c,
+//! so a step size costs one LU of an nv × nv matrix. The LU is written here
+//! because nalgebra's allocates, and the hot path must not.
+
+use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+
+use super::adaptive::positions;
+use super::rkmk::{Integrator, retract};
+use super::tableau::{ROSENBROCK_STAGES, Rosenbrock, RosenbrockStages};
+use crate::dynamics::DynamicsError;
+use crate::math::Vec3;
+use crate::model::{LinkJoint, Model};
+use crate::workspace::Workspace;
+
+/// The relative size of a forward-difference probe: √ε balances truncation
+/// against round-off in the difference.
+const PROBE: f64 = 1.4901161193847656e-8;
+
+/// W, its factored iteration matrix, and the stage storage of a Rosenbrock
+/// step. Empty (no storage) unless the method is a Rosenbrock method.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Linearization {
+    /// The method's coefficients in stage form.
+    stages: RosenbrockStages,
+    /// ∂θ̈/∂Δ (nv × nv).
+    qacc_by_delta: DMatrix<f64>,
+    /// ∂θ̈/∂θ̇ (nv × nv).
+    qacc_by_qvel: DMatrix<f64>,
+    /// Whether W holds derivatives formed in this advance.
+    pub(super) held: bool,
+    /// Whether they were formed at the current step's start.
+    pub(super) fresh: bool,
+    /// The first dof of each ball joint's rotation, and (cI − D)⁻¹ there
+    /// for the current step: D = −½[ω]× is dexp⁻¹'s derivative in Δ.
+    ball_dofs: Vec<usize>,
+    ball_blocks: Vec<Matrix3<f64>>,
+    /// P r_Δ.
+    projected: DVector<f64>,
+    /// cI − B − A/c, LU-factored in place (unit L below the diagonal), and
+    /// the row interchanged with each row in turn.
+    lu: DMatrix<f64>,
+    pivots: Vec<usize>,
+    /// The stages' u: their Δ and θ̇ parts.
+    u_delta: Vec<DVector<f64>>,
+    u_qvel: Vec<DVector<f64>>,
+    /// A stage's right-hand side, solved in place into its u.
+    rhs_delta: DVector<f64>,
+    rhs_qvel: DVector<f64>,
+}
+
+impl Linearization {
+    /// Storage for `method` on `model`.
+    pub(super) fn new(model: &Model, method: &Rosenbrock) -> Self {
+        let nv = model.nv;
+        Linearization {
+            stages: method.stages(),
+            qacc_by_delta: DMatrix::zeros(nv, nv),
+            qacc_by_qvel: DMatrix::zeros(nv, nv),
+            held: false,
+            fresh: false,
+            lu: DMatrix::zeros(nv, nv),
+            pivots: vec![0; nv],
+            u_delta: vec![DVector::zeros(nv); ROSENBROCK_STAGES],
+            u_qvel: vec![DVector::zeros(nv); ROSENBROCK_STAGES],
+            rhs_delta: DVector::zeros(nv),
+            rhs_qvel: DVector::zeros(nv),
+            ball_dofs: model.links.iter().filter(|l| l.joint == LinkJoint::Ball).map(|l| l.dof_adr).collect(),
+            ball_blocks: vec![Matrix3::zeros(); model.links.iter().filter(|l| l.joint == LinkJoint::Ball).count()],
+            projected: DVector::zeros(nv),
+        }
+    }
+
+    /// Whether it is the storage for `method` on `model`.
+    pub(super) fn fits(&self, model: &Model, method: &Rosenbrock) -> bool {
+        self.pivots.len() == model.nv && self.stages == method.stages()
+    }
+
+    /// Factors cI − B − AP at θ̇ₙ = `qvel`.
+    fn factor(&mut self, qvel: &[f64], c: f64) -> Result<(), DynamicsError> {
+        let by_delta = &self.qacc_by_delta;
+        self.lu.zip_zip_apply(&self.qacc_by_qvel, by_delta, |m, by_qvel, by_delta| *m = -by_qvel - by_delta / c);
+        for j in 0..self.lu.nrows() {
+            self.lu[(j, j)] += c;
+        }
+        for (&dof, block) in self.ball_dofs.iter().zip(self.ball_blocks.iter_mut()) {
+            let omega = Vec3::new(qvel[dof], qvel[dof + 1], qvel[dof + 2]);
+            // Eigenvalues c and c ± i|ω|/2: invertible for every c > 0.
+            *block = (Matrix3::identity() * c + 0.5 * omega.cross_matrix()).try_inverse().unwrap_or_default();
+            let correction = *block - Matrix3::identity() / c;
+            for row in 0..self.lu.nrows() {
+                let a = Vector3::new(by_delta[(row, dof)], by_delta[(row, dof + 1)], by_delta[(row, dof + 2)]);
+                let product = correction.transpose() * a;
+                (0..3).for_each(|k| self.lu[(row, dof + k)] -= product[k]);
+            }
+        }
+        lu_factor(&mut self.lu, &mut self.pivots).map_err(|_| DynamicsError::SingularStep { step: 1.0 / c })
+    }
+
+    /// Solves the stage system for the right-hand side in (`rhs_delta`,
+    /// `rhs_qvel`), leaving u there.
+    fn solve(&mut self, c: f64) {
+        self.project(c);
+        self.rhs_qvel.gemv(1.0, &self.qacc_by_delta, &self.projected, 1.0);
+        lu_solve(&self.lu, &self.pivots, &mut self.rhs_qvel);
+        self.rhs_delta += &self.rhs_qvel;
+        self.project(c);
+        self.rhs_delta.copy_from(&self.projected);
+    }
+
+    /// `projected` = P `rhs_delta`.
+    fn project(&mut self, c: f64) {
+        self.projected.copy_from(&self.rhs_delta);
+        self.projected /= c;
+        for (&dof, block) in self.ball_dofs.iter().zip(&self.ball_blocks) {
+            let x = block * self.rhs_delta.fixed_rows::<3>(dof);
+            self.projected.fixed_rows_mut::<3>(dof).copy_from(&x);
+        }
+    }
+}
+
+/// A zero or non-finite pivot.
+struct SingularMatrix;
+
+/// LU factorization with partial pivoting, in place.
+fn lu_factor(m: &mut DMatrix<f64>, pivots: &mut [usize]) -> Result<(), SingularMatrix> {
+    let n = m.nrows();
+    for k in 0..n {
+        let pivot = (k..n).max_by(|&i, &j| m[(i, k)].abs().total_cmp(&m[(j, k)].abs())).unwrap_or(k);
+        pivots[k] = pivot;
+        if pivot != k {
+            m.swap_rows(k, pivot);
+        }
+        let diagonal = m[(k, k)];
+        if diagonal == 0.0 || !diagonal.is_finite() {
+            return Err(SingularMatrix);
+        }
+        for i in k + 1..n {
+            m[(i, k)] /= diagonal;
+        }
+        for j in k + 1..n {
+            let factor = m[(k, j)];
+            if factor != 0.0 {
+                for i in k + 1..n {
+                    m[(i, j)] -= m[(i, k)] * factor;
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Solves LU x = b with the factors of [`lu_factor`], in place.
+fn lu_solve(lu: &DMatrix<f64>, pivots: &[usize], b: &mut DVector<f64>) {
+    let n = lu.nrows();
+    for (k, &pivot) in pivots.iter().enumerate() {
+        b.swap_rows(k, pivot);
+    }
+    for j in 0..n {
+        let x = b[j];
+        if x != 0.0 {
+            for i in j + 1..n {
+                b[i] -= lu[(i, j)] * x;
+            }
+        }
+    }
+    for j in (0..n).rev() {
+        b[j] /= lu[(j, j)];
+        let x = b[j];
+        for i in 0..j {
+            b[i] -= lu[(i, j)] * x;
+        }
+    }
+}
+
+impl Integrator {
+    /// The Rosenbrock counterpart of `attempt`: forms the step (`delta`,
+    /// `qvel_next`) of size `h` from (θ, θ̇) at `t` and its error estimate,
+    /// without moving the state.
+    pub(super) fn attempt_rosenbrock(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        (theta, qvel): (&[f64], &[f64]),
+        (t, h): (f64, f64),
+        inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
+    ) -> Result<(), DynamicsError> {
+        if !self.first.valid {
+            self.evaluate_start(model, ws, (theta, qvel), t, inputs_at)?;
+        } else if !self.linear.fresh {
+            // Another attempt from this start: the last was rejected, or
+            // nothing was tried from here yet. An older W may be why.
+            self.linear.held = false;
+        }
+        let mut linear = std::mem::take(&mut self.linear);
+        let result = self.rosenbrock_stages(model, ws, &mut linear, (theta, qvel), (t, h), inputs_at);
+        self.linear = linear;
+        result
+    }
+
+    fn rosenbrock_stages(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        linear: &mut Linearization,
+        (theta, qvel): (&[f64], &[f64]),
+        (t, h): (f64, f64),
+        inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
+    ) -> Result<(), DynamicsError> {
+        if !linear.held {
+            self.linearize(model, ws, linear, (theta, qvel), t, inputs_at)?;
+        }
+        let stages = linear.stages;
+        let c = 1.0 / (h * stages.gamma);
+        linear.factor(qvel, c)?;
+        let last = stages.stages - 1;
+        self.nu_size.zip_apply(&self.first.nu, |size, nu| *size = nu.abs());
+        for i in 0..stages.stages {
+            // The stage's rates f, kept in k_delta/k_qvel as for an explicit step.
+            if i == 0 {
+                self.k_delta[0].copy_from(&self.first.qvel);
+                self.k_qvel[0].copy_from(&self.first.qacc);
+                self.stage_power[0] = self.first.power;
+            } else {
+                self.delta.fill(0.0);
+                self.qvel_stage.copy_from_slice(qvel);
+                for j in 0..i {
+                    self.delta.axpy(stages.a[i][j], &linear.u_delta[j], 1.0);
+                    self.qvel_stage.axpy(stages.a[i][j], &linear.u_qvel[j], 1.0);
+                }
+                self.theta_stage.copy_from_slice(theta);
+                retract(model, self.theta_stage.as_mut_slice(), self.delta.as_slice());
+                self.stage_power[i] = self.evaluate_stage(model, ws, t + stages.nodes[i] * h, inputs_at)?;
+                self.k_qvel[i].copy_from(&ws.qacc);
+                self.k_delta[i].copy_from(&ws.qvel);
+                self.rotation_rates(model, i, ws);
+                if i == last {
+                    self.nu_size.zip_apply(&ws.nu, |size, nu| *size = size.max(nu.abs()));
+                }
+            }
+            linear.rhs_delta.copy_from(&self.k_delta[i]);
+            linear.rhs_qvel.copy_from(&self.k_qvel[i]);
+            for j in 0..i {
+                linear.rhs_delta.axpy(stages.c[i][j] / h, &linear.u_delta[j], 1.0);
+                linear.rhs_qvel.axpy(stages.c[i][j] / h, &linear.u_qvel[j], 1.0);
+            }
+            linear.solve(c);
+            linear.u_delta[i].copy_from(&linear.rhs_delta);
+            linear.u_qvel[i].copy_from(&linear.rhs_qvel);
+        }
+        self.delta.fill(0.0);
+        self.qvel_next.copy_from_slice(qvel);
+        self.error_delta.fill(0.0);
+        self.error_qvel.fill(0.0);
+        for i in 0..stages.stages {
+            self.delta.axpy(stages.m[i], &linear.u_delta[i], 1.0);
+            self.qvel_next.axpy(stages.m[i], &linear.u_qvel[i], 1.0);
+            self.error_delta.axpy(stages.e[i], &linear.u_delta[i], 1.0);
+            self.error_qvel.axpy(stages.e[i], &linear.u_qvel[i], 1.0);
+        }
+        Ok(())
+    }
+
+    /// W's derivatives at the step's start (θ, θ̇, t), by forward
+    /// differences from the first stage: each Δ and θ̇ component is probed
+    /// by √ε of its size (at least √ε).
+    fn linearize(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        linear: &mut Linearization,
+        (theta, qvel): (&[f64], &[f64]),
+        t: f64,
+        inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
+    ) -> Result<(), DynamicsError> {
+        for (dof, position) in positions(model, theta) {
+            let probe = PROBE * position.map_or(1.0, |y| y.abs().max(1.0));
+            self.delta.fill(0.0);
+            self.delta[dof] = probe;
+            self.theta_stage.copy_from_slice(theta);
+            retract(model, self.theta_stage.as_mut_slice(), self.delta.as_slice());
+            self.qvel_stage.copy_from_slice(qvel);
+            self.evaluate_stage(model, ws, t, inputs_at)?;
+            difference(linear.qacc_by_delta.column_mut(dof).iter_mut(), &ws.qacc, &self.first.qacc, probe);
+
+            let moved = qvel[dof] + PROBE * qvel[dof].abs().max(1.0);
+            self.theta_stage.copy_from_slice(theta);
+            self.qvel_stage.copy_from_slice(qvel);
+            self.qvel_stage[dof] = moved;
+            self.evaluate_stage(model, ws, t, inputs_at)?;
+            let probe = moved - qvel[dof];
+            difference(linear.qacc_by_qvel.column_mut(dof).iter_mut(), &ws.qacc, &self.first.qacc, probe);
+        }
+        linear.held = true;
+        linear.fresh = true;
+        self.jacobians += 1;
+        Ok(())
+    }
+}
+
+/// out = (probed − base) / probe.
+fn difference<'a>(out: impl Iterator<Item = &'a mut f64>, probed: &DVector<f64>, base: &DVector<f64>, probe: f64) {
+    for ((o, p), b) in out.zip(probed.iter()).zip(base.iter()) {
+        *o = (p - b) / probe;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The in-place LU solves a system that needs pivoting as a dense solve
+    /// would, and reports a singular one.
+    #[test]
+    fn lu_solves_with_pivoting() {
+        let m = DMatrix::from_row_slice(3, 3, &[0.0, 2.0, 1.0, 1.0, 1.0, 0.0, 3.0, 0.0, 1.0]);
+        let x = DVector::from_vec(vec![1.0, -2.0, 0.5]);
+        let mut b = &m * &x;
+        let mut lu = m.clone();
+        let mut pivots = vec![0; 3];
+        assert!(lu_factor(&mut lu, &mut pivots).is_ok());
+        lu_solve(&lu, &pivots, &mut b);
+        assert!((b - x).norm() < 1e-14);
+        let mut singular = DMatrix::from_row_slice(2, 2, &[1.0, 2.0, 2.0, 4.0]);
+        assert!(lu_factor(&mut singular, &mut pivots[..2]).is_err());
+    }
+}
