@@ -59,9 +59,9 @@ fn scaled_error(run: &Run, reference: &Run) -> f64 {
 
 /// Measured over 10 s: at 1e-4, ROS34PW2 takes a fifth of DOP853's
 /// evaluations (W formed at each communication point and after rejections
-/// included: 13 945 against 68 333), at 1e-6 two thirds (45 627 against
-/// 70 979); DOP853 rejects a quarter of its attempts, as its steps cross
-/// its stability bound and come back, ROS34PW2 1–4 %. Both deliver the
+/// included: 14 900 against 68 333), at 1e-6 0.7 (49 425 against 70 979);
+/// DOP853 rejects a quarter of its attempts, as its steps cross its
+/// stability bound and come back, ROS34PW2 1–4 %. Both deliver the
 /// tolerance.
 #[test]
 fn an_l_stable_method_takes_a_stiff_damped_boom_in_fewer_evaluations() {

@@ -70,7 +70,7 @@ pub enum DynamicsError {
     /// A Rosenbrock step's linear system has no unique solution at this step size.
     #[error("the implicit step's linear system (I/(hγ) − J) is singular at step {step:e} s")]
     SingularStep {
-        /// hγ, the step times the method's γ.
+        /// The step size (s).
         step: f64,
     },
     /// A pass was called before the passes it depends on.

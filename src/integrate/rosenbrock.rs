@@ -16,14 +16,13 @@
 //! so a step size costs one LU of an nv × nv matrix. The LU is written here
 //! because nalgebra's allocates, and the hot path must not.
 
-use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use nalgebra::{DMatrix, DVector};
 
 use super::adaptive::positions;
 use super::rkmk::{Integrator, retract};
 use super::tableau::{ROSENBROCK_STAGES, Rosenbrock, RosenbrockStages};
 use crate::dynamics::DynamicsError;
-use crate::math::Vec3;
-use crate::model::{LinkJoint, Model};
+use crate::model::Model;
 use crate::workspace::Workspace;
 
 /// The relative size of a forward-difference probe: √ε balances truncation
@@ -44,12 +43,6 @@ pub(super) struct Linearization {
     pub(super) held: bool,
     /// Whether they were formed at the current step's start.
     pub(super) fresh: bool,
-    /// The first dof of each ball joint's rotation, and (cI − D)⁻¹ there
-    /// for the current step: D = −½[ω]× is dexp⁻¹'s derivative in Δ.
-    ball_dofs: Vec<usize>,
-    ball_blocks: Vec<Matrix3<f64>>,
-    /// P r_Δ.
-    projected: DVector<f64>,
     /// cI − B − A/c, LU-factored in place (unit L below the diagonal), and
     /// the row interchanged with each row in turn.
     lu: DMatrix<f64>,
@@ -78,9 +71,6 @@ impl Linearization {
             u_qvel: vec![DVector::zeros(nv); ROSENBROCK_STAGES],
             rhs_delta: DVector::zeros(nv),
             rhs_qvel: DVector::zeros(nv),
-            ball_dofs: model.links.iter().filter(|l| l.joint == LinkJoint::Ball).map(|l| l.dof_adr).collect(),
-            ball_blocks: vec![Matrix3::zeros(); model.links.iter().filter(|l| l.joint == LinkJoint::Ball).count()],
-            projected: DVector::zeros(nv),
         }
     }
 
@@ -89,46 +79,23 @@ impl Linearization {
         self.pivots.len() == model.nv && self.stages == method.stages()
     }
 
-    /// Factors cI − B − AP at θ̇ₙ = `qvel`.
-    fn factor(&mut self, qvel: &[f64], c: f64) -> Result<(), DynamicsError> {
+    /// Factors cI − B − A/c.
+    fn factor(&mut self, c: f64) -> Result<(), SingularMatrix> {
         let by_delta = &self.qacc_by_delta;
         self.lu.zip_zip_apply(&self.qacc_by_qvel, by_delta, |m, by_qvel, by_delta| *m = -by_qvel - by_delta / c);
         for j in 0..self.lu.nrows() {
             self.lu[(j, j)] += c;
         }
-        for (&dof, block) in self.ball_dofs.iter().zip(self.ball_blocks.iter_mut()) {
-            let omega = Vec3::new(qvel[dof], qvel[dof + 1], qvel[dof + 2]);
-            // Eigenvalues c and c ± i|ω|/2: invertible for every c > 0.
-            *block = (Matrix3::identity() * c + 0.5 * omega.cross_matrix()).try_inverse().unwrap_or_default();
-            let correction = *block - Matrix3::identity() / c;
-            for row in 0..self.lu.nrows() {
-                let a = Vector3::new(by_delta[(row, dof)], by_delta[(row, dof + 1)], by_delta[(row, dof + 2)]);
-                let product = correction.transpose() * a;
-                (0..3).for_each(|k| self.lu[(row, dof + k)] -= product[k]);
-            }
-        }
-        lu_factor(&mut self.lu, &mut self.pivots).map_err(|_| DynamicsError::SingularStep { step: 1.0 / c })
+        lu_factor(&mut self.lu, &mut self.pivots)
     }
 
     /// Solves the stage system for the right-hand side in (`rhs_delta`,
     /// `rhs_qvel`), leaving u there.
     fn solve(&mut self, c: f64) {
-        self.project(c);
-        self.rhs_qvel.gemv(1.0, &self.qacc_by_delta, &self.projected, 1.0);
+        self.rhs_qvel.gemv(1.0 / c, &self.qacc_by_delta, &self.rhs_delta, 1.0);
         lu_solve(&self.lu, &self.pivots, &mut self.rhs_qvel);
         self.rhs_delta += &self.rhs_qvel;
-        self.project(c);
-        self.rhs_delta.copy_from(&self.projected);
-    }
-
-    /// `projected` = P `rhs_delta`.
-    fn project(&mut self, c: f64) {
-        self.projected.copy_from(&self.rhs_delta);
-        self.projected /= c;
-        for (&dof, block) in self.ball_dofs.iter().zip(&self.ball_blocks) {
-            let x = block * self.rhs_delta.fixed_rows::<3>(dof);
-            self.projected.fixed_rows_mut::<3>(dof).copy_from(&x);
-        }
+        self.rhs_delta /= c;
     }
 }
 
@@ -225,7 +192,7 @@ impl Integrator {
         }
         let stages = linear.stages;
         let c = 1.0 / (h * stages.gamma);
-        linear.factor(qvel, c)?;
+        linear.factor(c).map_err(|_| DynamicsError::SingularStep { step: h })?;
         let last = stages.stages - 1;
         self.nu_size.zip_apply(&self.first.nu, |size, nu| *size = nu.abs());
         for i in 0..stages.stages {

@@ -394,7 +394,7 @@ pub const ROS34PW2: Rosenbrock = Rosenbrock {
         order: 3,
         controller_exponent: 1.0 / 3.0,
         factor_bounds: (0.2, 6.0),
-        error_per: ErrorPer::Step { share: 1.0 / 30.0 },
+        error_per: ErrorPer::Step { share: 1.0 / 40.0 },
     },
 };
 
