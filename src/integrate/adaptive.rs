@@ -1,14 +1,16 @@
 //! Advancing (θ, θ̇) over an interval [t₀, t₁]: equal fixed steps for RK4,
-//! or adaptive steps of an embedded pair under error control (Hairer,
-//! Nørsett & Wanner I, §II.4: the scaled error norm, the step-size
-//! controller, and the starting step).
+//! or adaptive steps of an embedded pair, explicit or Rosenbrock, under
+//! error control (Hairer, Nørsett & Wanner I, §II.4: the scaled error norm,
+//! the step-size controller, and the starting step).
 //!
 //! The error is measured on the step's Δ and ν increments (θ̇'s mapped by
 //! m*), with the scale tol·(1 + |y|) per component (relative and absolute
 //! tolerance both `tol`): y is ν, a hinge or slide coordinate or a free
 //! joint's position; rotations (rotation vectors of ball and free joints)
 //! are measured absolutely, in rad.
-//! A step passes when its error is within tol·h/(1 s) (`TOLERANCE_TIME`).
+//! A step passes when its error is within tol·h/(1 s) (`TOLERANCE_TIME`),
+//! or for a method held per step ([`ErrorPer::Step`], ROS34PW2) within a
+//! share of tol.
 //!
 //! Round-off in the rates does not shrink with the step: on an
 //! ill-conditioned vehicle (near-singular inertias, very long chains) it can
@@ -22,7 +24,8 @@
 //! K = ½|ν|² equals K before the step plus the step's quadrature of the
 //! power ν·ν̇ (= ν·(ε + passive forces), since ν·C = 0). With ε = 0 and no
 //! passive forces that power is zero, so K is then kept to round-off for
-//! any length of run; the rescaling is O(h^(p+1)), so orders are kept.
+//! any length of run; the rescaling is O(h^(p+1)), so orders are kept
+//! (ROS34PW2's quadrature, the trapezoid rule, is O(h³)).
 
 use super::rkmk::{Integrator, retract};
 use super::simulation::Simulation;

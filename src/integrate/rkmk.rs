@@ -39,7 +39,7 @@ pub fn retract(model: &Model, theta: &mut [f64], delta: &[f64]) {
 
 /// dexp⁻¹₋Θ(ω): the rate of the body-frame rotation vector Θ of q = qₙ·exp(Θ)
 /// when the body-frame angular velocity is ω.
-pub(super) fn dexp_inv(theta: &Vec3, omega: &Vec3) -> Vec3 {
+fn dexp_inv(theta: &Vec3, omega: &Vec3) -> Vec3 {
     let angle2 = theta.norm_squared();
     // c = (1 − (a/2)cot(a/2))/a², by its series near 0 where the closed form cancels.
     let c = if angle2 < 1e-6 {
