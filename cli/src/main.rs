@@ -124,7 +124,8 @@ enum Command {
         /// ros34pw2 is implicit, for stiff vehicles).
         #[arg(long, default_value = "rk4", value_parser = parse_method)]
         method: Method,
-        /// Error allowed per second of simulated time, relative to 1 + |value| (adaptive methods).
+        /// Error allowed per second of simulated time, relative to 1 + |value| (adaptive methods; ros34pw2:
+        /// 1/40 of it per internal step).
         #[arg(long, default_value_t = DEFAULT_TOLERANCE, allow_hyphen_values = true)]
         tolerance: f64,
         /// Longest internal step (s); default: the step H.

@@ -70,7 +70,8 @@ pub fn description(model: &Model, variable: RealVariable) -> String {
     ];
     match variable {
         RealVariable::Tolerance => {
-            "error allowed per second of simulated time, relative to 1 + |value|, for the adaptive methods; \
+            "error allowed per second of simulated time, relative to 1 + |value|, for the adaptive methods \
+             (ros34pw2: 1/40 of it per internal step); \
              a tolerance passed at the start of the experiment (fmi2SetupExperiment, fmi3EnterInitializationMode) \
              replaces it (1)"
                 .into()
