@@ -97,7 +97,7 @@ def stiff_figure(path: Path, runs, reference, bends, omega: float, title: str) -
 
 def sweep_figure(path: Path, sweep: dict, comm_step: float) -> Path:
     fig, ax = plt.subplots(figsize=(7, 3.5))
-    for method in ("rk4", "dopri5", "dop853"):
+    for method in (key for key in sweep if key != "exponents"):
         ax.plot(sweep["exponents"], np.array(sweep[method]) / comm_step, "o-", ms=3, lw=1, label=method)
     ax.set_xlabel("log10 |ε| (every dof)", fontsize=8)
     ax.set_ylabel("fraction of the doStep completed", fontsize=8)
