@@ -70,17 +70,18 @@ def test_fmpy_validates_and_runs_plant_and_controller(fmus, name):
     assert np.all(np.isfinite(np.array(result["eps"].tolist())))
 
 
-def test_co_simulation_gives_the_fmi2_numbers_to_the_bit(fmus):
+@pytest.mark.parametrize("method", [2, 4], ids=["dopri5", "ros34pw2"])
+def test_co_simulation_gives_the_fmi2_numbers_to_the_bit(fmus, method):
     """The same run of the tumbling bus through FMI 2.0 and FMI 3.0: θ and ν
     are equal to the last bit at every communication point."""
     nu = [0.0] * 13
     nu[3], nu[4], nu[7], nu[11] = 0.5, -0.2, 0.2, -0.3
     three = simulate_fmu(str(fmus["bus_arm7"]), stop_time=1, output_interval=0.05,
-                         start_values={"nu": nu, "method": 2}, output=["theta", "nu", "qvel"])
+                         start_values={"nu": nu, "method": method}, output=["theta", "nu", "qvel"])
     two_start = {f"nu[{k + 1}]": v for k, v in enumerate(nu) if v}
     names2 = [f"theta[{k}]" for k in range(1, 15)] + [f"nu[{k}]" for k in range(1, 14)]
     two = simulate_fmu(str(fmus["fmi2"]), stop_time=1, output_interval=0.05,
-                       start_values={**two_start, "method": 2}, output=names2)
+                       start_values={**two_start, "method": method}, output=names2)
     theta3 = np.array(three["theta"].tolist())
     nu3 = np.array(three["nu"].tolist())
     theta2 = np.column_stack([two[f"theta[{k}]"] for k in range(1, 15)])
