@@ -9,6 +9,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import fmi2OK
 
 from nudyn_driver.instance import Instance, status_of
@@ -71,12 +72,23 @@ class Run:
     held_tolerance: float | None = None  # set when the FMU relaxed the tolerance
 
     def sample(self, instance: Instance) -> None:
+        """Reads the state and the outputs; an output the FMU refuses (with
+        fmi2Error: K, say, overflows on a state that an unstable run left
+        huge but finite) is recorded as NaN, and the refusal kept as the
+        run's message."""
+        def read(get, name, series):
+            try:
+                return get(name)
+            except FMICallException:
+                self.message = self.message or instance.log.last_problem()
+                return np.full_like(series[-1], np.nan) if series else np.nan
+
         self.time.append(instance.time)
-        self.theta.append(instance.array("theta"))
-        self.nu.append(instance.array("nu"))
-        self.kinetic_energy.append(instance.real("kinetic_energy"))
-        self.momentum.append(instance.array("momentum"))
-        self.energy_residual.append(instance.real("energy_residual"))
+        for get, name, series in ((instance.array, "theta", self.theta), (instance.array, "nu", self.nu),
+                                  (instance.real, "kinetic_energy", self.kinetic_energy),
+                                  (instance.array, "momentum", self.momentum),
+                                  (instance.real, "energy_residual", self.energy_residual)):
+            series.append(read(get, name, series))
 
     @property
     def completed(self) -> bool:
@@ -109,9 +121,10 @@ def simulate(package: FmuPackage, setup: Setup, theta0, nu0, duration: float, co
             run.status = status_of(fmu.step, comm_step)
             run.wall_time += time.perf_counter() - start
             run.do_steps += 1
-            run.sample(fmu)
             if run.status != fmi2OK:
                 run.message = fmu.log.last_problem()
+            run.sample(fmu)
+            if run.status != fmi2OK:
                 break
     finally:
         run.steps_taken, run.steps_rejected = fmu.log.internal_steps()
