@@ -263,10 +263,7 @@ impl Integrator {
         let last = tableau.b.len() - 1;
         for (i, row) in tableau.a.iter().enumerate() {
             if i == 0 && self.first.valid {
-                self.k_delta[0].copy_from(&self.first.qvel);
-                self.k_qvel[0].copy_from(&self.first.qacc);
-                self.stage_power[0] = self.first.power;
-                self.nu_size.zip_apply(&self.first.nu, |size, nu| *size = nu.abs());
+                self.first_as_stage_one();
                 continue;
             }
             self.delta.fill(0.0);
@@ -277,17 +274,9 @@ impl Integrator {
                     self.qvel_stage.axpy(h * a, &self.k_qvel[j], 1.0);
                 }
             }
-            self.theta_stage.copy_from_slice(theta);
-            retract(model, self.theta_stage.as_mut_slice(), self.delta.as_slice());
-            self.stage_power[i] = self.evaluate_stage(model, ws, t + tableau.c[i] * h, inputs_at)?;
-            self.k_qvel[i].copy_from(&ws.qacc);
-            self.k_delta[i].copy_from(&ws.qvel);
+            self.evaluate_stage_rates(model, ws, theta, i, t + tableau.c[i] * h, inputs_at)?;
             if i == 0 {
-                self.first.qvel.copy_from(&ws.qvel);
-                self.first.qacc.copy_from(&ws.qacc);
-                self.first.nu.copy_from(&ws.nu);
-                self.first.power = self.stage_power[0];
-                self.first.valid = true;
+                self.keep_as_first(ws, self.stage_power[0]);
                 self.nu_size.zip_apply(&ws.nu, |size, nu| *size = nu.abs());
             }
             if i == last {
@@ -297,7 +286,6 @@ impl Integrator {
                     self.last_nu.copy_from(&ws.nu);
                 }
             }
-            self.rotation_rates(model, i, ws);
         }
         // The same operations as a stage's, so that a "first same as last"
         // method's last stage is evaluated exactly at the step's result.
@@ -321,15 +309,51 @@ impl Integrator {
         Ok(())
     }
 
-    /// Stage `i`'s Δ-rates on ball joints: dexp⁻¹₋Δ(ω) at the stage's Δ
-    /// (`delta`) and θ̇ (the workspace's), in place of θ̇ itself.
-    pub(super) fn rotation_rates(&mut self, model: &Model, i: usize, ws: &Workspace) {
+    /// Evaluates stage `i` at θ ⊕ `delta` and θ̇ = `qvel_stage` (both formed
+    /// by the caller), at time `t`: its θ̈ into `k_qvel[i]`, its Δ-rates into
+    /// `k_delta[i]` and its power into `stage_power[i]`; the workspace keeps
+    /// the stage's passes.
+    pub(super) fn evaluate_stage_rates(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        theta: &[f64],
+        i: usize,
+        t: f64,
+        inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
+    ) -> Result<(), DynamicsError> {
+        self.theta_stage.copy_from_slice(theta);
+        retract(model, self.theta_stage.as_mut_slice(), self.delta.as_slice());
+        self.stage_power[i] = self.evaluate_stage(model, ws, t, inputs_at)?;
+        self.k_qvel[i].copy_from(&ws.qacc);
+        // Δ̇ = θ̇, but dexp⁻¹₋Δ(ω) on ball joints.
+        self.k_delta[i].copy_from(&ws.qvel);
         for link in model.links.iter().filter(|l| l.joint == LinkJoint::Ball) {
             let a = link.dof_adr;
             let rotation = Vec3::new(self.delta[a], self.delta[a + 1], self.delta[a + 2]);
             let omega = Vec3::new(ws.qvel[a], ws.qvel[a + 1], ws.qvel[a + 2]);
             self.k_delta[i].fixed_rows_mut::<3>(a).copy_from(&dexp_inv(&rotation, &omega));
         }
+        Ok(())
+    }
+
+    /// Stage 1 from the rates cached at the step's start; ν's error scale
+    /// starts from their ν.
+    pub(super) fn first_as_stage_one(&mut self) {
+        self.k_delta[0].copy_from(&self.first.qvel);
+        self.k_qvel[0].copy_from(&self.first.qacc);
+        self.stage_power[0] = self.first.power;
+        self.nu_size.zip_apply(&self.first.nu, |size, nu| *size = nu.abs());
+    }
+
+    /// Caches the rates the workspace holds, with their `power`, as the
+    /// step's first stage.
+    fn keep_as_first(&mut self, ws: &Workspace, power: f64) {
+        self.first.qvel.copy_from(&ws.qvel);
+        self.first.qacc.copy_from(&ws.qacc);
+        self.first.nu.copy_from(&ws.nu);
+        self.first.power = power;
+        self.first.valid = true;
     }
 
     /// Evaluates the rates at the step's start (θ, θ̇, t) into `first`.
@@ -344,11 +368,8 @@ impl Integrator {
         self.theta_stage.copy_from_slice(theta);
         self.qvel_stage.copy_from_slice(qvel);
         let power = self.evaluate_stage(model, ws, t, inputs_at)?;
-        self.first.qvel.copy_from(&ws.qvel);
-        self.first.qacc.copy_from(&ws.qacc);
-        self.first.nu.copy_from(&ws.nu);
-        self.first.power = power;
-        self.first.valid = true;
+        self.keep_as_first(ws, power);
+        // Any W held was formed at another start.
         self.linear.fresh = false;
         Ok(())
     }
@@ -368,7 +389,6 @@ impl Integrator {
     pub(super) fn accept(&mut self, model: &Model, theta: &mut [f64], qvel: &mut [f64]) {
         retract(model, theta, self.delta.as_slice());
         qvel.copy_from_slice(self.qvel_next.as_slice());
-        self.linear.fresh = false;
         let first_same_as_last = matches!(self.method.scheme(), Scheme::Explicit(t) if t.first_same_as_last);
         self.first.valid = first_same_as_last;
         if first_same_as_last {

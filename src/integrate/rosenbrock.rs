@@ -194,13 +194,10 @@ impl Integrator {
         let c = 1.0 / (h * stages.gamma);
         linear.factor(c).map_err(|_| DynamicsError::SingularStep { step: h })?;
         let last = stages.stages - 1;
-        self.nu_size.zip_apply(&self.first.nu, |size, nu| *size = nu.abs());
         for i in 0..stages.stages {
             // The stage's rates f, kept in k_delta/k_qvel as for an explicit step.
             if i == 0 {
-                self.k_delta[0].copy_from(&self.first.qvel);
-                self.k_qvel[0].copy_from(&self.first.qacc);
-                self.stage_power[0] = self.first.power;
+                self.first_as_stage_one();
             } else {
                 self.delta.fill(0.0);
                 self.qvel_stage.copy_from_slice(qvel);
@@ -208,12 +205,7 @@ impl Integrator {
                     self.delta.axpy(stages.a[i][j], &linear.u_delta[j], 1.0);
                     self.qvel_stage.axpy(stages.a[i][j], &linear.u_qvel[j], 1.0);
                 }
-                self.theta_stage.copy_from_slice(theta);
-                retract(model, self.theta_stage.as_mut_slice(), self.delta.as_slice());
-                self.stage_power[i] = self.evaluate_stage(model, ws, t + stages.nodes[i] * h, inputs_at)?;
-                self.k_qvel[i].copy_from(&ws.qacc);
-                self.k_delta[i].copy_from(&ws.qvel);
-                self.rotation_rates(model, i, ws);
+                self.evaluate_stage_rates(model, ws, theta, i, t + stages.nodes[i] * h, inputs_at)?;
                 if i == last {
                     self.nu_size.zip_apply(&ws.nu, |size, nu| *size = size.max(nu.abs()));
                 }

@@ -26,8 +26,9 @@ pub enum ErrorEstimate {
 pub struct StepControl {
     /// Order of the solution.
     pub order: u32,
-    /// The error estimate per unit step scales as h^(1/exponent): the
-    /// controller takes the new step as h·(1/err)^exponent.
+    /// The error estimate, as it is held (`error_per`), scales as
+    /// h^(1/exponent): the controller takes the new step as
+    /// h·(1/err)^exponent.
     pub controller_exponent: f64,
     /// Bounds on the factor by which one step may shrink or grow the next.
     pub factor_bounds: (f64, f64),
