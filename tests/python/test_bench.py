@@ -62,7 +62,9 @@ def test_quick_tolerance_benchmark_writes_table_and_plot(tmp_path):
     assert results["quick"] is True and set(results["examples"]) == {"bus_arm7", "fixed_rig"}
     for example in results["examples"].values():
         assert example["reference_check"] < 1e-7
+        assert example["fmpy_reads_seconds"] > 0
         for entry in example["fmu"].values():
+            assert isinstance(entry["target_below_reads"], bool)
             assert entry["steps"] >= 4 and entry["error"] < 10 * entry["tolerance"], entry
             assert 0.0 <= entry["outside_share"] < 1.0
 
