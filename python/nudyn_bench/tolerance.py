@@ -153,7 +153,8 @@ def example(name: str, nudyn: Path, bench: Path, work: Path, sizes: Sizes) -> di
         entry["outside_share"] = max(0.0, 1.0 - median(entry["native_seconds"]) / fmu_seconds)
         mujoco_seconds = entry["mujoco_seconds_at_target"]
         entry["fmu_over_mujoco"] = fmu_seconds / mujoco_seconds if mujoco_seconds else None
-        entry["target_below_reads"] = bool(mujoco_seconds) and 0.5 * mujoco_seconds < reads
+        # Above 1, no FMU could meet the target in this loop.
+        entry["reads_over_target"] = reads / (0.5 * mujoco_seconds) if mujoco_seconds else None
     return {"nv": vehicle.model.nv, "fmpy_reads_seconds": reads, "reference": f"MuJoCo RK4 at {sizes.reference_step:g} s",
             "reference_check": reference_check, "fmu": fmu, "mujoco_rk4": mujoco_runs}
 
@@ -166,8 +167,7 @@ def verdict(entry: dict) -> str:
         return f"{ratio:.2f}"
     if ratio <= 0.5:
         return f"{ratio:.2f} (met)"
-    # The target is out of any FMU's reach when FMPy's reads alone exceed it.
-    return f"{ratio:.2f} (**not met**" + ("; the target is below FMPy's reads alone)" if entry["target_below_reads"] else ")")
+    return f"{ratio:.2f} (**not met**; FMPy's reads alone take {100 * entry['reads_over_target']:.0f} % of the target)"
 
 
 def table(results: dict) -> str:
