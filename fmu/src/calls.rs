@@ -7,7 +7,7 @@
 //! Every function checks all its arguments before the component changes
 //! anything, so a refused call leaves the instance as it was.
 
-use nudyn_contract::variable::{Causality, Range};
+use nudyn_contract::variable::{Causality, Kind, Range};
 
 use crate::component::{CallError, Component, StepError, StepReport, Variable};
 
@@ -19,6 +19,10 @@ fn real_variable(component: &dyn Component, vr: u32) -> Result<Variable, CallErr
     component.real_variable(vr).ok_or(CallError::UnknownValueReference { vr, kind: "Real" })
 }
 
+fn real_kind(component: &dyn Component, vr: u32) -> Result<Kind, CallError> {
+    component.real_kind(vr).ok_or(CallError::UnknownValueReference { vr, kind: "Real" })
+}
+
 /// fmi2SetReal. `initialized`: after fmi2ExitInitializationMode. NaN and
 /// ±Inf, and finite values outside a variable's range, are out of range.
 pub fn set_real(
@@ -28,16 +32,17 @@ pub fn set_real(
     initialized: bool,
 ) -> Result<(), CallError> {
     for (&vr, &value) in vrs.iter().zip(values) {
-        let Variable { name, kind } = real_variable(component, vr)?;
+        let kind = real_kind(component, vr)?;
+        let name = || real_variable(component, vr).map(|variable| variable.name);
         if let Some(when) = kind.refuses_set(initialized) {
-            return Err(CallError::NotSettable { name, vr, when });
+            return Err(CallError::NotSettable { name: name()?, vr, when });
         }
         if !value.is_finite() {
-            return Err(CallError::NonFinite { name, value });
+            return Err(CallError::NonFinite { name: name()?, value });
         }
         if !kind.accepts(value) {
             let must = if kind.range == Range::Positive { "positive" } else { "non-negative" };
-            return Err(CallError::OutOfRange { name, value, must });
+            return Err(CallError::OutOfRange { name: name()?, value, must });
         }
     }
     component.set_reals(vrs, values);
@@ -49,7 +54,7 @@ pub fn set_real(
 /// out, and the importer's buffer is left as it was.
 pub fn get_real(component: &mut dyn Component, vrs: &[u32], values: &mut [f64]) -> Result<(), CallError> {
     for &vr in vrs {
-        real_variable(component, vr)?;
+        real_kind(component, vr)?;
     }
     component.prepare_reals(vrs)?;
     if let Some((vr, value)) = vrs.iter().map(|&vr| (vr, component.real_value(vr))).find(|(_, v)| !v.is_finite()) {

@@ -69,6 +69,13 @@ pub trait Component {
     /// The Real variable with value reference `vr`, if there is one.
     fn real_variable(&self, vr: u32) -> Option<Variable>;
 
+    /// The kind of the Real variable with value reference `vr`, if there is
+    /// one: the check on every value of fmi2GetReal and fmi2SetReal, which
+    /// needs the name only to report a refusal.
+    fn real_kind(&self, vr: u32) -> Option<Kind> {
+        self.real_variable(vr).map(|variable| variable.kind)
+    }
+
     /// Takes Real values that passed every check (fmi2SetReal).
     fn set_reals(&mut self, vrs: &[u32], values: &[f64]);
 

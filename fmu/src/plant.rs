@@ -14,6 +14,7 @@ use nudyn_contract::plant::{
     DEFAULT_MAX_STEP, DEFAULT_METHOD, DEFAULT_TOLERANCE, ENERGY_PROJECTION_VR, Layout, METHOD_VR, PlantResource,
     RealVariable, capabilities, method_of_value, method_value,
 };
+use nudyn_contract::variable::Kind;
 
 use crate::component::{CallError, Component, Loaded, StepError, StepReport, Variable};
 use crate::snapshot::{Sizes, Snapshot, SnapshotError};
@@ -64,6 +65,10 @@ enum Evaluated {
 pub struct Plant {
     model: Model,
     layout: Layout,
+    /// The Real variables in value-reference order from `METHOD_VR + 1`,
+    /// looked up on every get and set (the layout's own lookup walks its
+    /// blocks and is meant for writing the modelDescription).
+    reals: Vec<RealVariable>,
     guid: String,
     /// Time, θ, ν, the settings and method, the integrator and workspace.
     sim: Simulation,
@@ -97,8 +102,10 @@ impl Plant {
     pub fn load(loaded: Loaded<PlantResource>) -> Plant {
         let layout = loaded.resource.layout();
         let model = loaded.resource.model;
+        let reals = layout.real_variables().map(|(_, variable)| variable).collect();
         Plant {
             layout,
+            reals,
             guid: loaded.guid,
             sim: Simulation::new(&model, DEFAULT_METHOD, DEFAULT_SETTINGS),
             start_time: 0.0,
@@ -114,6 +121,12 @@ impl Plant {
             experiment_tolerance: None,
             model,
         }
+    }
+
+    /// The Real variable with value reference `vr`, if any.
+    fn real(&self, vr: u32) -> Option<RealVariable> {
+        let index = vr.checked_sub(METHOD_VR + 1)?;
+        self.reals.get(index as usize).copied()
     }
 
     /// Runs the passes needed for outputs beyond θ and ν, once per state.
@@ -215,13 +228,18 @@ impl Component for Plant {
     }
 
     fn real_variable(&self, vr: u32) -> Option<Variable> {
-        self.layout.real_variable(vr).map(|v| Variable { name: v.name(), kind: v.kind() })
+        self.real(vr).map(|v| Variable { name: v.name(), kind: v.kind() })
+    }
+
+    fn real_kind(&self, vr: u32) -> Option<Kind> {
+        self.real(vr).map(RealVariable::kind)
     }
 
     fn set_reals(&mut self, vrs: &[u32], values: &[f64]) {
-        let (run, settings) = (&mut self.sim.state, &mut self.sim.settings);
         for (&vr, &value) in vrs.iter().zip(values) {
-            match self.layout.real_variable(vr).expect("checked by the caller") {
+            let variable = self.real(vr).expect("checked by the caller");
+            let (run, settings) = (&mut self.sim.state, &mut self.sim.settings);
+            match variable {
                 RealVariable::Tolerance => settings.tolerance = value,
                 RealVariable::MaxStep => settings.max_step = value,
                 RealVariable::Eps(k) => self.eps[k] = value,
@@ -236,7 +254,7 @@ impl Component for Plant {
     }
 
     fn prepare_reals(&mut self, vrs: &[u32]) -> Result<(), CallError> {
-        let variables = || vrs.iter().filter_map(|&vr| self.layout.real_variable(vr));
+        let variables = || vrs.iter().filter_map(|&vr| self.real(vr));
         if variables().any(|v| matches!(v, RealVariable::Sensordata(_))) {
             self.evaluate(Evaluated::Sensors)?;
         } else if variables().any(RealVariable::is_derivative) {
@@ -249,7 +267,7 @@ impl Component for Plant {
 
     fn real_value(&self, vr: u32) -> f64 {
         let (run, settings) = (&self.sim.state, &self.sim.settings);
-        match self.layout.real_variable(vr).expect("checked by the caller") {
+        match self.real(vr).expect("checked by the caller") {
             RealVariable::Tolerance => settings.tolerance,
             RealVariable::MaxStep => settings.max_step,
             RealVariable::Eps(k) => self.eps[k],
@@ -328,7 +346,7 @@ impl Component for Plant {
     /// dε/dt and the controls' rates for the next step.
     fn set_input_derivatives(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), CallError> {
         for (&vr, &value) in vrs.iter().zip(values) {
-            match self.layout.real_variable(vr) {
+            match self.real(vr) {
                 Some(RealVariable::Eps(k)) => self.eps_rate[k] = value,
                 Some(RealVariable::Ctrl(k)) => self.ctrl_rate[k] = value,
                 Some(RealVariable::XfrcApplied(k)) => self.ctrl_rate[self.layout.nu + k] = value,
@@ -344,7 +362,7 @@ impl Component for Plant {
     }
 
     fn output_derivative(&self, vr: u32) -> f64 {
-        match self.layout.real_variable(vr) {
+        match self.real(vr) {
             Some(RealVariable::Theta(k)) => self.qpos_rate(k),
             Some(RealVariable::Nu(k)) => self.sim.workspace().nu_dot[k],
             variable => unreachable!("{variable:?} is not a state output: the caller refuses it"),
