@@ -104,7 +104,7 @@ fn highest_ratio(method: Method, tolerance: f64) -> f64 {
 /// so that accuracy beyond the tolerance costs nothing. A tighter
 /// tolerance never takes fewer steps. ROS34PW2, of order 3 and meant for
 /// stiff vehicles at moderate tolerances, is held to the band from 1e-4 to
-/// 1e-8 (measured: 2.0–13.8 × the tolerance, nearly proportional; at 1e-10
+/// 1e-8 (measured: 0.8–10.1 × the tolerance, nearly proportional; at 1e-10
 /// it would take 10⁵ steps on these trees).
 #[test]
 fn the_error_delivered_tracks_the_tolerance() {

@@ -5,7 +5,7 @@
 
 use std::path::Path;
 
-use nudyn::integrate::{Input, Method, Settings, Simulation};
+use nudyn::integrate::{HeldJacobian, Input, Method, Settings, Simulation};
 use nudyn::model::Model;
 
 fn bus() -> Model {
@@ -80,10 +80,42 @@ fn a_restored_state_repeats_its_run_exactly() {
     let saved = sim.state.clone();
     sim.advance_to(&model, 0.3, input).unwrap();
     let first = sim.state.clone();
-    sim.restore(&saved);
+    sim.restore(&saved, &HeldJacobian::default());
     sim.advance_to(&model, 0.3, input).unwrap();
     assert_eq!(sim.state, first, "same steps, same carried step size, same result");
     assert!(first.carry.next_step > 0.0);
+}
+
+/// ROS34PW2 keeps its W from one advance to the next, and a state restored
+/// with the W saved beside it repeats the run bit for bit; restored without
+/// it, the run forms W at another step and ends elsewhere.
+#[test]
+fn a_rosenbrock_run_carries_w_across_advances_and_restores_it() {
+    let model = bus();
+    let eps = vec![0.05; model.nv];
+    let zero = vec![0.0; model.nv];
+    let input = Input { eps: &eps, eps_rate: &zero, ctrl: &[], ctrl_rate: &[] };
+    let settings = Settings { tolerance: 1e-5, max_step: 0.0, energy_projection: false };
+    let mut sim = moving(&model, Method::Ros34pw2, settings);
+    let (mut advances, mut formed) = (0, 0);
+    for k in 1..=20 {
+        formed += sim.advance_to(&model, 0.01 * k as f64, input).unwrap().stats.jacobians;
+        advances += 1;
+    }
+    assert!(formed < advances / 2, "W formed {formed} times in {advances} advances");
+    let saved = sim.state.clone();
+    let mut w = HeldJacobian::default();
+    sim.save_jacobian(&mut w);
+    assert_eq!(w.derivatives.len(), 2 * model.nv * model.nv);
+    let end = 0.2 + 0.05;
+    sim.advance_to(&model, end, input).unwrap();
+    let first = sim.state.clone();
+    sim.restore(&saved, &w);
+    sim.advance_to(&model, end, input).unwrap();
+    assert_eq!(sim.state, first, "restored with its W");
+    sim.restore(&saved, &HeldJacobian::default());
+    sim.advance_to(&model, end, input).unwrap();
+    assert_ne!(sim.state.theta, first.theta, "restored without W, which is then formed at the advance's start");
 }
 
 #[test]

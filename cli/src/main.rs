@@ -125,7 +125,7 @@ enum Command {
         #[arg(long, default_value = "rk4", value_parser = parse_method)]
         method: Method,
         /// Error allowed per second of simulated time, relative to 1 + |value| (adaptive methods; ros34pw2:
-        /// 1/40 of it per internal step).
+        /// 1/80 of it per internal step).
         #[arg(long, default_value_t = DEFAULT_TOLERANCE, allow_hyphen_values = true)]
         tolerance: f64,
         /// Longest internal step (s); default: the step H.

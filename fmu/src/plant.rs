@@ -7,7 +7,7 @@
 //! state, so outputs nobody reads cost nothing.
 
 use nudyn::dynamics::quantities::kinetic_energy;
-use nudyn::integrate::{Input, Method, RunState, Settings, Simulation};
+use nudyn::integrate::{HeldJacobian, Input, Method, RunState, Settings, Simulation};
 use nudyn::model::{LinkJoint, Model};
 use nudyn_contract::capabilities::Capabilities;
 use nudyn_contract::plant::{
@@ -43,6 +43,9 @@ pub struct PlantState {
     pub ctrl: Vec<f64>,
     /// Their rates (nu), for the next step only.
     pub ctrl_rate: Vec<f64>,
+    /// The W a Rosenbrock method holds for its next step: restored with
+    /// the rest, the run continues bit for bit.
+    pub jacobian: HeldJacobian,
 }
 
 /// The parameters' defaults.
@@ -455,8 +458,11 @@ impl Component for Plant {
             eps_rate: self.eps_rate.clone(),
             ctrl: self.ctrl.clone(),
             ctrl_rate: self.ctrl_rate.clone(),
+            jacobian: HeldJacobian::default(),
         };
-        Ok(Snapshot { phase, guid: self.guid.clone(), state })
+        let mut snapshot = Snapshot { phase, guid: self.guid.clone(), state };
+        self.sim.save_jacobian(&mut snapshot.state.jacobian);
+        Ok(snapshot)
     }
 
     /// Saves into `snapshot`, reusing its buffers.
@@ -474,6 +480,7 @@ impl Component for Plant {
         state.eps_rate.clone_from(&self.eps_rate);
         state.ctrl.clone_from(&self.ctrl);
         state.ctrl_rate.clone_from(&self.ctrl_rate);
+        self.sim.save_jacobian(&mut state.jacobian);
         Ok(())
     }
 
@@ -488,9 +495,10 @@ impl Component for Plant {
         if sizes != expected {
             return Err(SnapshotError::Sizes { found: sizes, expected }.into());
         }
-        self.sim.restore(&state.run);
         self.sim.settings = state.settings;
+        // The method first: changing it drops W, which the restore then holds.
         self.sim.set_method(&self.model, state.method);
+        self.sim.restore(&state.run, &state.jacobian);
         self.start_time = state.start_time;
         self.stop_time = state.stop_time;
         self.initial_energy = state.initial_energy;

@@ -1,12 +1,13 @@
 //! FMU states (fmi2GetFMUstate) and their byte format
 //! (fmi2SerializeFMUstate): a versioned header naming the FMU, the sizes,
-//! the state machine's state, the values as little-endian f64, and an
-//! FNV-1a checksum, so that a truncated, corrupted or foreign blob is
+//! the state machine's state, the values as little-endian f64 (with, for a
+//! Rosenbrock method that holds one, its W: 2·nv² more), and an FNV-1a
+//! checksum, so that a truncated, corrupted or foreign blob is
 //! rejected before anything is restored. The values are checked too
 //! (finite, positive settings), so that even a blob crafted with a valid
 //! checksum cannot put a NaN into the outputs.
 
-use nudyn::integrate::{Carry, RunState, Settings};
+use nudyn::integrate::{Carry, HeldJacobian, RunState, Scheme, Settings};
 use nudyn_contract::plant::{method_of_value, method_value};
 
 use crate::plant::PlantState;
@@ -18,8 +19,8 @@ const MAGIC: &[u8; 8] = b"nudynFMS";
 /// integration method, energy projection, carried step, work and K₀; 4: the
 /// error control's relaxation; 5: the actuators' controls and their rates;
 /// 6: the method as the FMU's `method` value, max_step 0 allowed; 7: θ̇,
-/// which the integrator advances).
-const VERSION: u32 = 7;
+/// which the integrator advances; 8: the W a Rosenbrock method holds).
+const VERSION: u32 = 8;
 
 /// The sizes of a plant's state: a blob is restored only into a plant of the same.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -96,6 +97,9 @@ pub enum SnapshotError {
     /// A `method` value that names no method.
     #[error("serialized FMU state names integration method value {0}, which does not exist")]
     UnknownMethod(u8),
+    /// A W saved with a method that holds none.
+    #[error("serialized FMU state holds a Jacobian W, which integration method '{0}' does not use")]
+    JacobianWithoutRosenbrock(&'static str),
     /// A state machine state that a saved state cannot have.
     #[error("serialized FMU state has state machine state {0}, which is not one a state can be saved in")]
     Phase(u8),
@@ -139,7 +143,8 @@ impl Snapshot {
 
     /// The size of [`Snapshot::serialize`]'s output.
     pub fn serialized_size(&self) -> usize {
-        MAGIC.len() + 4 + 4 + self.guid.len() + 3 * 4 + 4 + 8 * Self::scalar_count(self.sizes()) + 8
+        let scalars = Self::scalar_count(self.sizes()) + self.state.jacobian.derivatives.len();
+        MAGIC.len() + 4 + 4 + self.guid.len() + 3 * 4 + FLAGS + 4 + 8 * scalars + 8
     }
 
     /// Writes the state into `out`, which must be [`Snapshot::serialized_size`] bytes long.
@@ -157,6 +162,8 @@ impl Snapshot {
         bytes.push(u8::from(s.stop_time.is_some()));
         bytes.push(method_value(s.method) as u8);
         bytes.push(u8::from(s.settings.energy_projection));
+        bytes.push(u8::from(!s.jacobian.derivatives.is_empty()));
+        bytes.extend_from_slice(&s.jacobian.age.to_le_bytes());
         let scalars = [
             s.run.time,
             s.start_time,
@@ -168,7 +175,8 @@ impl Snapshot {
             s.initial_energy,
             s.run.carry.relaxation,
         ];
-        let vectors = [&s.run.theta, &s.run.nu, &s.run.qvel, &s.eps, &s.eps_rate, &s.ctrl, &s.ctrl_rate];
+        let w = &s.jacobian.derivatives;
+        let vectors = [&s.run.theta, &s.run.nu, &s.run.qvel, &s.eps, &s.eps_rate, &s.ctrl, &s.ctrl_rate, w];
         for x in scalars.iter().chain(vectors.into_iter().flatten()) {
             bytes.extend_from_slice(&x.to_le_bytes());
         }
@@ -198,10 +206,13 @@ impl Snapshot {
             return Err(SnapshotError::Sizes { found, expected: sizes });
         }
         let Sizes { nq, nv, nu: controls } = sizes;
-        let flags = reader.take(4)?;
-        let (phase_code, stop_time_defined, method_value_byte, energy_projection) =
-            (flags[0], flags[1] != 0, flags[2], flags[3] != 0);
-        let scalars: Vec<f64> = (0..Self::scalar_count(sizes)).map(|_| reader.f64()).collect::<Result<_, _>>()?;
+        let flags = reader.take(FLAGS)?;
+        let (phase_code, stop_time_defined, method_value_byte, energy_projection, holds_jacobian) =
+            (flags[0], flags[1] != 0, flags[2], flags[3] != 0, flags[4] != 0);
+        let jacobian_age = reader.u32()?;
+        let jacobian_len = if holds_jacobian { 2 * nv * nv } else { 0 };
+        let scalars: Vec<f64> =
+            (0..Self::scalar_count(sizes) + jacobian_len).map(|_| reader.f64()).collect::<Result<_, _>>()?;
         let contents_len = reader.at;
         let found = u64::from_le_bytes(reader.take(8)?.try_into().expect("8 bytes"));
         if reader.at != bytes.len() {
@@ -216,6 +227,9 @@ impl Snapshot {
             Phase::from_code(phase_code).filter(|&p| p != Phase::Fatal).ok_or(SnapshotError::Phase(phase_code))?;
         let method =
             method_of_value(i32::from(method_value_byte)).ok_or(SnapshotError::UnknownMethod(method_value_byte))?;
+        if holds_jacobian && !matches!(method.scheme(), Scheme::Rosenbrock(_)) {
+            return Err(SnapshotError::JacobianWithoutRosenbrock(method.name()));
+        }
         let (settings, vectors) = scalars.split_at(9);
         check_values(settings, vectors)?;
         let (theta, rest) = vectors.split_at(nq);
@@ -223,7 +237,8 @@ impl Snapshot {
         let (qvel, rest) = rest.split_at(nv);
         let (eps, rest) = rest.split_at(nv);
         let (eps_rate, rest) = rest.split_at(nv);
-        let (ctrl, ctrl_rate) = rest.split_at(controls);
+        let (ctrl, rest) = rest.split_at(controls);
+        let (ctrl_rate, jacobian) = rest.split_at(controls);
         Ok(Snapshot {
             phase,
             guid: found_guid,
@@ -244,10 +259,16 @@ impl Snapshot {
                 eps_rate: eps_rate.to_vec(),
                 ctrl: ctrl.to_vec(),
                 ctrl_rate: ctrl_rate.to_vec(),
+                jacobian: HeldJacobian { derivatives: jacobian.to_vec(), age: jacobian_age },
             },
         })
     }
 }
+
+/// Header bytes after the sizes: the state machine's state, whether a stop
+/// time is defined, the method, energy projection, whether W is held. W's
+/// age (steps accepted with it, a u32) follows them.
+const FLAGS: usize = 5;
 
 /// Checks what fmi2SetupExperiment and fmi2SetReal would have refused:
 /// every value finite, `tolerance` positive, `max_step`, the carried
@@ -279,9 +300,11 @@ fn check_values(settings: &[f64], vectors: &[f64]) -> Result<(), SnapshotError> 
         }
     }
     match vectors.iter().find(|x| !x.is_finite()) {
-        Some(&value) => {
-            Err(SnapshotError::Value { what: "a value of theta, nu, eps, ctrl or their rates", value, must: "finite" })
-        }
+        Some(&value) => Err(SnapshotError::Value {
+            what: "a value of theta, nu, eps, ctrl, their rates or W",
+            value,
+            must: "finite",
+        }),
         None => Ok(()),
     }
 }
@@ -341,8 +364,19 @@ mod tests {
                 eps_rate: vec![0.0, 1.0, 0.0, -3.0],
                 ctrl: vec![-2.5, 0.125],
                 ctrl_rate: vec![4.0, 0.0],
+                jacobian: HeldJacobian::default(),
             },
         }
+    }
+
+    /// The sample as a Rosenbrock run holding W.
+    fn sample_holding_w() -> Snapshot {
+        let mut snapshot = sample();
+        snapshot.state.method = Method::Ros34pw2;
+        let nv = snapshot.state.run.nu.len();
+        snapshot.state.jacobian =
+            HeldJacobian { derivatives: (0..2 * nv * nv).map(|k| (k as f64 - 7.5) * 0.125).collect(), age: 17 };
+        snapshot
     }
 
     fn serialized(snapshot: &Snapshot) -> Vec<u8> {
@@ -353,8 +387,8 @@ mod tests {
 
     #[test]
     fn round_trips_bit_exactly() {
-        for stop_time in [Some(10.0), None] {
-            let mut original = sample();
+        for (stop_time, base) in [(Some(10.0), sample()), (None, sample()), (Some(10.0), sample_holding_w())] {
+            let mut original = base;
             original.state.stop_time = stop_time;
             let bytes = serialized(&original);
             let back = Snapshot::deserialize(&bytes, GUID, SIZES).unwrap();
@@ -366,7 +400,7 @@ mod tests {
 
     #[test]
     fn rejects_every_truncation_and_extension() {
-        let bytes = serialized(&sample());
+        let bytes = serialized(&sample_holding_w());
         for len in 0..bytes.len() {
             assert!(Snapshot::deserialize(&bytes[..len], GUID, SIZES).is_err(), "truncated to {len}");
         }
@@ -377,7 +411,7 @@ mod tests {
 
     #[test]
     fn rejects_every_single_bit_flip() {
-        let bytes = serialized(&sample());
+        let bytes = serialized(&sample_holding_w());
         for byte in 0..bytes.len() {
             for bit in 0..8 {
                 let mut corrupt = bytes.clone();
@@ -419,9 +453,15 @@ mod tests {
         infinite_time.state.run.time = f64::INFINITY;
         let mut nan_ctrl = sample();
         nan_ctrl.state.ctrl_rate[1] = f64::NAN;
-        for (snapshot, what) in
-            [(nan_theta, "a value of theta"), (negative_step, "max_step"), (infinite_time, "time"), (nan_ctrl, "ctrl")]
-        {
+        let mut infinite_w = sample_holding_w();
+        infinite_w.state.jacobian.derivatives[5] = f64::NEG_INFINITY;
+        for (snapshot, what) in [
+            (nan_theta, "a value of theta"),
+            (negative_step, "max_step"),
+            (infinite_time, "time"),
+            (nan_ctrl, "ctrl"),
+            (infinite_w, "W"),
+        ] {
             let error = Snapshot::deserialize(&serialized(&snapshot), GUID, SIZES).unwrap_err();
             assert!(matches!(error, SnapshotError::Value { .. }) && error.to_string().contains(what), "{error}");
         }
@@ -432,5 +472,11 @@ mod tests {
             bytes = with_valid_checksum(bytes);
             assert_eq!(Snapshot::deserialize(&bytes, GUID, SIZES), Err(SnapshotError::Phase(code)));
         }
+        let mut explicit_with_w = sample_holding_w();
+        explicit_with_w.state.method = Method::Dop853;
+        assert_eq!(
+            Snapshot::deserialize(&serialized(&explicit_with_w), GUID, SIZES),
+            Err(SnapshotError::JacobianWithoutRosenbrock("dop853"))
+        );
     }
 }

@@ -12,8 +12,9 @@ pub use adaptive::{
     AdvanceError, Carry, DEFAULT_FIXED_STEP, IntervalTooLong, MAX_STEPS, Overflow, Settings, Stats, ToleranceRelaxed,
 };
 pub use rkmk::{Integrator, retract};
+pub use rosenbrock::{HeldJacobian, W_MAX_AGE};
 pub use simulation::{Advanced, Input, InputSignal, RunState, Simulation};
 pub use tableau::{
-    DOP853, DOPRI5, ErrorEstimate, ErrorPer, Method, RK4, ROS34PW2, ROSENBROCK_STAGES, Rosenbrock, RosenbrockStages,
-    Scheme, StepControl, Tableau,
+    DOP853, DOPRI5, ErrorEstimate, ErrorPer, Method, RK4, ROS34PW2, ROS34PW2_SHARE, ROSENBROCK_STAGES, Rosenbrock,
+    RosenbrockStages, Scheme, StepControl, Tableau,
 };

@@ -152,9 +152,7 @@ impl Integrator {
         }
     }
 
-    /// Drops a Rosenbrock method's W, so that the next step forms it anew:
-    /// at the start of each advance, so that a run restored at a
-    /// communication point continues exactly as the run saved there.
+    /// Drops a Rosenbrock method's W, so that the next step forms it anew.
     pub(super) fn release_jacobian(&mut self) {
         self.linear.held = false;
         self.linear.fresh = false;
@@ -391,6 +389,7 @@ impl Integrator {
         qvel.copy_from_slice(self.qvel_next.as_slice());
         let first_same_as_last = matches!(self.method.scheme(), Scheme::Explicit(t) if t.first_same_as_last);
         self.first.valid = first_same_as_last;
+        self.linear.age = self.linear.age.saturating_add(1);
         if first_same_as_last {
             let last = self.method.stages() - 1;
             self.first.qvel.copy_from(&self.last_qvel);

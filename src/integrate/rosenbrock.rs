@@ -8,8 +8,10 @@
 //!         [ A  B ]   (2·nv evaluations of θ̈),
 //! the Jacobian but for the small, non-stiff block of dexp⁻¹ on ball
 //! joints (−½[ω]×), which a W-method does not need. W is formed at the
-//! start of each advance and kept over its steps until a step with an
-//! older W is rejected; then it is formed again at that step's start.
+//! first step and kept over the steps that follow, across advances (it is
+//! part of an FMU state: [`HeldJacobian`]), until a step with an older W is
+//! rejected or [`W_MAX_AGE`] steps were accepted with it; then it is formed
+//! again at that step's start.
 //! Each stage's system (cI − W)u = r, c = 1/(hγ), is reduced to nv
 //! unknowns by eliminating the Δ rows:
 //!     (cI − B − A/c) u_θ̇ = r_θ̇ + A r_Δ / c,   u_Δ = (r_Δ + u_θ̇)/c,
@@ -25,6 +27,26 @@ use crate::dynamics::DynamicsError;
 use crate::model::Model;
 use crate::workspace::Workspace;
 
+/// The most steps accepted with one W. Any W keeps a W-method's order, but
+/// one formed far back in the motion can hold the step far below what a
+/// fresh one allows, without a rejection to show it: on the damped stiff
+/// boom at 1e-6, a W kept for 10⁵ steps held them 25 times shorter. Limits
+/// of 25 and 50 steps cost 4–20 % more evaluations there (W formed more
+/// often); from 100 to 400 the count levels off. (CVODE reuses its
+/// Jacobian for at most 51 steps, but also re-forms it when its Newton
+/// iteration converges slowly, a sign a W-method does not have.)
+pub const W_MAX_AGE: u32 = 100;
+
+/// The W a Rosenbrock method holds, as saved with a state so that a run
+/// restored from it forms W again exactly when the saved run would have.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct HeldJacobian {
+    /// ∂θ̈/∂Δ then ∂θ̈/∂θ̇, nv × nv each, column-major; empty when none is held.
+    pub derivatives: Vec<f64>,
+    /// Steps accepted with it since it was formed.
+    pub age: u32,
+}
+
 /// The relative size of a forward-difference probe: √ε balances truncation
 /// against round-off in the difference.
 const PROBE: f64 = 1.4901161193847656e-8;
@@ -39,10 +61,12 @@ pub(super) struct Linearization {
     qacc_by_delta: DMatrix<f64>,
     /// ∂θ̈/∂θ̇ (nv × nv).
     qacc_by_qvel: DMatrix<f64>,
-    /// Whether W holds derivatives formed in this advance.
+    /// Whether W holds derivatives (formed at some earlier step's start).
     pub(super) held: bool,
     /// Whether they were formed at the current step's start.
     pub(super) fresh: bool,
+    /// Steps accepted since they were formed.
+    pub(super) age: u32,
     /// cI − B − A/c, LU-factored in place (unit L below the diagonal), and
     /// the row interchanged with each row in turn.
     lu: DMatrix<f64>,
@@ -65,6 +89,7 @@ impl Linearization {
             qacc_by_qvel: DMatrix::zeros(nv, nv),
             held: false,
             fresh: false,
+            age: 0,
             lu: DMatrix::zeros(nv, nv),
             pivots: vec![0; nv],
             u_delta: vec![DVector::zeros(nv); ROSENBROCK_STAGES],
@@ -77,6 +102,29 @@ impl Linearization {
     /// Whether it is the storage for `method` on `model`.
     pub(super) fn fits(&self, model: &Model, method: &Rosenbrock) -> bool {
         self.pivots.len() == model.nv && self.stages == method.stages()
+    }
+
+    /// W as held, into `out` (its buffer reused).
+    fn save(&self, out: &mut HeldJacobian) {
+        out.derivatives.clear();
+        if self.held {
+            out.derivatives.extend(self.qacc_by_delta.iter().chain(self.qacc_by_qvel.iter()));
+        }
+        out.age = if self.held { self.age } else { 0 };
+    }
+
+    /// Holds what `save` wrote, if it is an nv × nv pair for this storage;
+    /// otherwise holds none.
+    fn hold(&mut self, saved: &HeldJacobian) {
+        let block = self.qacc_by_delta.len();
+        self.held = !saved.derivatives.is_empty() && saved.derivatives.len() == 2 * block;
+        self.fresh = false;
+        self.age = saved.age;
+        if self.held {
+            let (by_delta, by_qvel) = saved.derivatives.split_at(block);
+            self.qacc_by_delta.as_mut_slice().copy_from_slice(by_delta);
+            self.qacc_by_qvel.as_mut_slice().copy_from_slice(by_qvel);
+        }
     }
 
     /// Factors cI − B − A/c.
@@ -154,6 +202,16 @@ fn lu_solve(lu: &DMatrix<f64>, pivots: &[usize], b: &mut DVector<f64>) {
 }
 
 impl Integrator {
+    /// The W a Rosenbrock method holds for its next step, into `out`.
+    pub(super) fn save_jacobian(&self, out: &mut HeldJacobian) {
+        self.linear.save(out);
+    }
+
+    /// Holds a W that [`Integrator::save_jacobian`] wrote.
+    pub(super) fn hold_jacobian(&mut self, saved: &HeldJacobian) {
+        self.linear.hold(saved);
+    }
+
     /// The Rosenbrock counterpart of `attempt`: forms the step (`delta`,
     /// `qvel_next`) of size `h` from (θ, θ̇) at `t` and its error estimate,
     /// without moving the state.
@@ -170,6 +228,9 @@ impl Integrator {
         } else if !self.linear.fresh {
             // Another attempt from this start: the last was rejected, or
             // nothing was tried from here yet. An older W may be why.
+            self.linear.held = false;
+        }
+        if self.linear.age >= W_MAX_AGE {
             self.linear.held = false;
         }
         let mut linear = std::mem::take(&mut self.linear);
@@ -265,6 +326,7 @@ impl Integrator {
         }
         linear.held = true;
         linear.fresh = true;
+        linear.age = 0;
         self.jacobians += 1;
         Ok(())
     }

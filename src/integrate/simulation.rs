@@ -6,6 +6,7 @@
 
 use super::adaptive::{AdvanceError, Carry, Settings, Stats, ToleranceRelaxed};
 use super::rkmk::{Integrator, nu_of_qvel, qvel_of_nu};
+use super::rosenbrock::HeldJacobian;
 use super::tableau::Method;
 use crate::dynamics::DynamicsError;
 use crate::model::Model;
@@ -159,6 +160,7 @@ impl Simulation {
         self.state.theta.copy_from_slice(self.ws.theta.as_slice());
         self.state.carry = Carry::default();
         self.integrator.first.valid = false;
+        self.integrator.release_jacobian();
         self.state.qvel.copy_from_slice(self.ws.qvel.as_slice());
         self.record_qvel_owner();
         Ok(())
@@ -191,7 +193,6 @@ impl Simulation {
         mut input: impl InputSignal,
     ) -> Result<Advanced, AdvanceError> {
         let t0 = self.state.time;
-        self.integrator.release_jacobian();
         if self.qvel_is_stale() {
             let state = &mut self.state;
             if let Err(cause) = qvel_of_nu(model, &mut self.ws, &state.theta, &state.nu, &mut state.qvel) {
@@ -268,9 +269,20 @@ impl Simulation {
         same
     }
 
-    /// Replaces the state (an FMU state being restored).
-    pub fn restore(&mut self, state: &RunState) {
+    /// The W a Rosenbrock method holds for its next advance, into `out`
+    /// (its buffer reused). Save it with the state: a run restored with it
+    /// forms W again exactly when the saved run would have, and so
+    /// continues bit for bit.
+    pub fn save_jacobian(&self, out: &mut HeldJacobian) {
+        self.integrator.save_jacobian(out);
+    }
+
+    /// Replaces the state and the W saved with it (an FMU state being
+    /// restored; no derivatives, or derivatives that do not fit the method,
+    /// hold none).
+    pub fn restore(&mut self, state: &RunState, jacobian: &HeldJacobian) {
         self.state.clone_from(state);
+        self.integrator.hold_jacobian(jacobian);
         // The cached first stage belongs to the state replaced.
         self.integrator.first.valid = false;
         self.record_qvel_owner();

@@ -69,13 +69,13 @@ pub fn description(model: &Model, variable: RealVariable) -> String {
         "linear momentum z (kg*m/s)",
     ];
     match variable {
-        RealVariable::Tolerance => {
+        RealVariable::Tolerance => format!(
             "error allowed per second of simulated time, relative to 1 + |value|, for the adaptive methods \
-             (ros34pw2: 1/40 of it per internal step); \
+             (ros34pw2: 1/{} of it per internal step); \
              a tolerance passed at the start of the experiment (fmi2SetupExperiment, fmi3EnterInitializationMode) \
-             replaces it (1)"
-                .into()
-        }
+             replaces it (1)",
+            (1.0 / nudyn::integrate::ROS34PW2_SHARE).round()
+        ),
         RealVariable::MaxStep => format!(
             "longest internal integration step (s); 0: none for the adaptive methods dopri5, dop853 and ros34pw2 \
              (the error control and the communication step decide), {} s for rk4",
