@@ -383,7 +383,8 @@ impl Integrator {
     }
 
     /// Moves the state to the attempted step's result; for a "first same as
-    /// last" method the last stage becomes the next step's first.
+    /// last" method the last stage becomes the next step's first. A held W
+    /// has served one more step.
     pub(super) fn accept(&mut self, model: &Model, theta: &mut [f64], qvel: &mut [f64]) {
         retract(model, theta, self.delta.as_slice());
         qvel.copy_from_slice(self.qvel_next.as_slice());

@@ -279,7 +279,7 @@ impl Simulation {
 
     /// Replaces the state and the W saved with it (an FMU state being
     /// restored; no derivatives, or derivatives that do not fit the method,
-    /// hold none).
+    /// hold none). Set the saved method first: changing the method drops W.
     pub fn restore(&mut self, state: &RunState, jacobian: &HeldJacobian) {
         self.state.clone_from(state);
         self.integrator.hold_jacobian(jacobian);
