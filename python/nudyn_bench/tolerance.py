@@ -63,6 +63,11 @@ class Sizes:
         self.mujoco_steps = [0.1, 0.01] if quick else [0.1 / k for k in (1, 2, 4, 5, 10, 20, 40, 50, 100, 200, 400, 1000)]
         self.repetitions = 1 if quick else 5
 
+    @property
+    def communication_points(self) -> int:
+        """The doSteps (and reads after them) of one run."""
+        return int(round(self.duration / self.communication_step))
+
 
 def scaled_error(model: mujoco.MjModel, qpos, qvel, reference_qpos, reference_qvel) -> float:
     """max |x − x_ref| / (1 + |x_ref|) over the samples, quaternions up to sign."""
@@ -83,12 +88,11 @@ def fmu_loop(
     communication point, and with `logging` the internal steps (taken,
     rejected) from fmi2DoStep's logCalls reports ((0, 0) without: logging
     costs time, so timed runs go without it)."""
-    steps = int(round(sizes.duration / sizes.communication_step))
     h = sizes.communication_step
     with Instance(package, start={"tolerance": tolerance}, theta=vehicle.qpos, nu=vehicle.nu, logging_on=logging) as fmu:
         theta, other = [fmu.array("theta")], [fmu.array(read)]
         start = time.perf_counter()
-        for n in range(steps):
+        for n in range(sizes.communication_points):
             fmu.step(h, communication_point=n * h)
             theta.append(fmu.array("theta"))
             other.append(fmu.array(read))
@@ -100,11 +104,10 @@ def fmpy_reads(package: FmuPackage, vehicle: Vehicle, sizes: Sizes) -> float:
     """Seconds of the loop's reads alone (θ and ν at every communication
     point, no doStep): what this master costs whatever the FMU does in its
     steps, so a lower bound on any FMU's time in this loop."""
-    steps = int(round(sizes.duration / sizes.communication_step))
     with Instance(package, start={"tolerance": 1e-6}, theta=vehicle.qpos, nu=vehicle.nu) as fmu:
         fmu.array("theta"), fmu.array("nu")  # warm-up
         start = time.perf_counter()
-        for _ in range(steps):
+        for _ in range(sizes.communication_points):
             fmu.array("theta")
             fmu.array("nu")
         return time.perf_counter() - start
