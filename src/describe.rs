@@ -4,8 +4,9 @@
 
 use serde::Serialize;
 
+use crate::math::Quat;
 use crate::model::Model;
-use crate::vehicle::{ActuatorKind, BiasType, GainType, JointKind};
+use crate::vehicle::{ActuatorKind, BiasType, GainType, JointKind, Vehicle};
 
 /// The structure of a compiled vehicle.
 #[derive(Clone, Debug, Serialize)]
@@ -24,6 +25,27 @@ pub struct Description {
     pub joints: Vec<JointDescription>,
     /// The actuators in MuJoCo's order (that of ctrl).
     pub actuators: Vec<ActuatorDescription>,
+    /// The bodies in MuJoCo's order, without the world body.
+    pub bodies: Vec<BodyDescription>,
+}
+
+/// One body's mass properties, as MuJoCo's compiled model holds them.
+#[derive(Clone, Debug, Serialize)]
+pub struct BodyDescription {
+    /// The body's name (MuJoCo's, or the one nudyn gives an unnamed body).
+    pub name: String,
+    /// Mass (MuJoCo's body_mass).
+    pub mass: f64,
+    /// Principal moments of inertia (body_inertia).
+    pub inertia: [f64; 3],
+    /// Centre of mass in the body frame (body_ipos).
+    pub ipos: [f64; 3],
+    /// Orientation of the principal axes in the body frame, w x y z
+    /// (body_iquat); `null` when not known.
+    pub iquat: Option<[f64; 4]>,
+    /// Whether the mass of some of its geoms is left out (sdf and
+    /// height-field geoms of a body fixed to the world, which moves nothing).
+    pub mass_unknown: bool,
 }
 
 /// One actuator: what it is, what it acts on, and its limits.
@@ -77,8 +99,8 @@ pub struct JointDescription {
 }
 
 impl Description {
-    /// The description of `model`.
-    pub fn of(model: &Model) -> Self {
+    /// The description of `model`, compiled from `vehicle`.
+    pub fn of(vehicle: &Vehicle, model: &Model) -> Self {
         let joints = model
             .joints
             .iter()
@@ -123,6 +145,30 @@ impl Description {
             qpos0: model.qpos0.clone(),
             joints,
             actuators,
+            bodies: vehicle.bodies.iter().map(describe_body).collect(),
         }
+    }
+}
+
+/// A body's mass properties; the principal moments are the tensor's
+/// diagonal in the principal axes.
+fn describe_body(body: &crate::vehicle::Body) -> BodyDescription {
+    let quat = body.inertial_quat.unwrap_or_else(Quat::identity);
+    let (mass, inertia) = match &body.inertia {
+        Some(props) => {
+            let axes = quat.to_rotation_matrix().into_inner();
+            let principal = (axes.transpose() * props.inertia * axes).diagonal();
+            (props.mass, [principal.x, principal.y, principal.z])
+        }
+        None => (0.0, [0.0; 3]),
+    };
+    let pos = body.inertial_pos;
+    BodyDescription {
+        name: body.name.clone(),
+        mass,
+        inertia,
+        ipos: [pos.x, pos.y, pos.z],
+        iquat: body.inertial_quat.map(|q| [q.w, q.i, q.j, q.k]),
+        mass_unknown: body.mass_unknown,
     }
 }

@@ -46,13 +46,14 @@ pub struct Body {
     /// The origin of the body's inertial frame in the body frame (MuJoCo's
     /// `body_ipos`), which sensors of objtype "body" measure.
     pub inertial_pos: Vec3,
-    /// The inertial frame's orientation (MuJoCo's `body_iquat`); `None` when
-    /// MuJoCo takes its axes from an eigen-decomposition (a full inertia
-    /// tensor, several geoms), whose order and signs nudyn does not reproduce.
+    /// The inertial frame's orientation (MuJoCo's `body_iquat`, as the file
+    /// gives it or from MuJoCo's eigen-decomposition, which the importer
+    /// reproduces); `None` when not known (a vehicle built by hand), which
+    /// sensors that measure these axes refuse.
     pub inertial_quat: Option<Quat>,
     /// Whether the body's mass is left out because it is fixed to the
-    /// world and its geoms' mass would come from mesh, sdf or height-field
-    /// assets (which nudyn does not read).
+    /// world and its geoms' mass would come from sdf or height-field assets
+    /// or from primitives fitted to a mesh (which nudyn does not compute).
     pub mass_unknown: bool,
     /// The body's joints, in document order (MuJoCo applies them in this order).
     pub joints: Vec<Joint>,

@@ -422,7 +422,7 @@ fn ignored_elements_warn_once_each() {
         ignored(5, "size"),
         ignored(6, "statistic"),
         ignored(7, "visual"),
-        ignored(13, "asset"),
+        ignored(14, "texture name=\"grid\""),
         ignored(17, "light name=\"sun\""),
         "line 18: <geom name=\"floor\">: ignored: fixed to the world, it moves no mass, and nudyn models no contacts \
          (MuJoCo would make contacts with it)"
@@ -524,10 +524,10 @@ const MALFORMED: &[Malformed] = &[
         xml: "<mujoco>\n<worldbody>\n<body>\n<geom size=\"1\"/>\n<joint type=\"free\"/>\n<joint/>\n</body>\n</worldbody>\n</mujoco>" },
     Malformed { what: "ball followed by hinge", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<joint name=\"h\">", line: 6,
         xml: "<mujoco>\n<worldbody>\n<body>\n<geom size=\"1\"/>\n<joint type=\"ball\"/>\n<joint name=\"h\"/>\n</body>\n</worldbody>\n</mujoco>" },
-    Malformed { what: "mesh geom without inertial", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<geom name=\"hull\">", line: 8,
-        xml: "<mujoco>\n<asset>\n<mesh name=\"m\" vertex=\"0 0 0 1 0 0 0 1 0 0 0 1\"/>\n</asset>\n<worldbody>\n<body>\n<joint/>\n<geom name=\"hull\" type=\"mesh\" mesh=\"m\"/>\n</body>\n</worldbody>\n</mujoco>" },
-    Malformed { what: "shell inertia", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<geom>", line: 5,
-        xml: "<mujoco>\n<worldbody>\n<body>\n<joint/>\n<geom size=\"1\" shellinertia=\"true\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "mesh of three vertices", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<mesh name=\"m\">", line: 3,
+        xml: "<mujoco>\n<asset>\n<mesh name=\"m\" vertex=\"0 0 0 1 0 0 0 1 0\"/>\n</asset>\n<worldbody>\n<body>\n<joint/>\n<geom name=\"hull\" type=\"mesh\" mesh=\"m\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "shell inertia on a mesh geom", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<geom>", line: 8,
+        xml: "<mujoco>\n<asset>\n<mesh name=\"m\" vertex=\"0 0 0 1 0 0 0 1 0 0 0 1\"/>\n</asset>\n<worldbody>\n<body>\n<joint/>\n<geom type=\"mesh\" mesh=\"m\" shellinertia=\"true\"/>\n</body>\n</worldbody>\n</mujoco>" },
     Malformed { what: "missing worldbody", variant: |e| matches!(e, MjcfError::MissingWorldbody { .. }), element: "<mujoco>", line: 2,
         xml: "<?xml version=\"1.0\"?>\n<mujoco model=\"m\">\n<option timestep=\"0.01\"/>\n</mujoco>" },
     Malformed { what: "wrong root", variant: |e| matches!(e, MjcfError::WrongRoot { .. }), element: "<robot name=\"r\">", line: 1,
@@ -630,37 +630,48 @@ fn error_message_shows_expected_and_found() {
 }
 
 #[test]
-fn bodies_fixed_to_the_world_need_no_mass_so_their_mesh_files_are_never_read() {
-    // The fixture's mesh file exists (for MuJoCo); nudyn gets one that does not.
-    let xml =
-        std::fs::read_to_string(fixture("static_meshes.xml")).unwrap().replace("meshes/rock.obj", "no/such/rock.stl");
-    let Imported { vehicle, warnings } = parse_mjcf(&xml).unwrap();
+fn bodies_fixed_to_the_world_get_their_mesh_mass_but_not_their_height_field_mass() {
+    let Imported { vehicle, warnings } = load("static_meshes.xml");
     let names: Vec<&str> = vehicle.bodies.iter().map(|b| b.name.as_str()).collect();
     assert_eq!(names, ["asteroid", "boulder", "fixture", "lander"]);
     let unknown: Vec<&str> = vehicle.bodies.iter().filter(|b| b.mass_unknown).map(|b| b.name.as_str()).collect();
-    assert_eq!(unknown, ["asteroid", "boulder", "fixture"]);
+    assert_eq!(unknown, ["fixture"]);
+    // The rock's mass is computed (its value is checked against MuJoCo in
+    // tests/python/test_mesh_inertia.py).
+    assert!(body(&vehicle, "asteroid").inertia.as_ref().is_some_and(|m| m.mass > 0.0));
     // The fixture's box still has its mass; the lander is untouched.
     assert!(body(&vehicle, "fixture").inertia.as_ref().is_some_and(|m| m.mass > 0.0));
     assert_eq!(body(&vehicle, "lander").inertia.as_ref().unwrap().mass, 300.0);
     let shown: Vec<String> = warnings.iter().map(ToString::to_string).collect();
-    let mesh_warnings = shown.iter().filter(|w| w.contains("its mass is not computed")).count();
-    assert_eq!(mesh_warnings, 3, "{shown:#?}");
-    // It compiles, and its sensors measure against the static bodies...
-    let model = Model::compile(&vehicle).unwrap();
-    assert_eq!((model.nq, model.nv, model.sensors.len()), (7, 6, 2));
-    // ...but a subtree that would count an uncomputed mass is refused.
-    let xml = xml.replace(r#"<subtreecom body="lander"/>"#, r#"<subtreecom body="asteroid"/>"#);
-    let refused = Model::compile(&parse_mjcf(&xml).unwrap().vehicle).unwrap_err().to_string();
-    assert!(refused.contains("subtree of body 'asteroid' holds body 'asteroid'"), "{refused}");
+    let unknown_warnings = shown.iter().filter(|w| w.contains("its mass is not computed")).count();
+    assert_eq!(unknown_warnings, 1, "{shown:#?}");
+    // A subtree sensor may now count the asteroid, but not the height field's
+    // uncomputed mass. The variants are written beside the fixture, where its
+    // mesh file is found.
+    let path = fixture("static_meshes.xml");
+    let xml = std::fs::read_to_string(&path).unwrap();
+    let compile = |subtree: &str| {
+        let variant = path.with_file_name(format!("static_meshes_{subtree}.xml"));
+        std::fs::write(
+            &variant,
+            xml.replace(r#"<subtreecom body="lander"/>"#, &format!(r#"<subtreecom body="{subtree}"/>"#)),
+        )
+        .unwrap();
+        let imported = load_mjcf(&variant);
+        std::fs::remove_file(&variant).unwrap();
+        Model::compile(&imported.unwrap().vehicle)
+    };
+    assert!(compile("asteroid").is_ok());
+    let refused = compile("fixture").unwrap_err().to_string();
+    assert!(refused.contains("subtree of body 'fixture' holds body 'fixture'"), "{refused}");
 }
 
 #[test]
-fn a_moving_body_shaped_by_a_mesh_is_refused_until_it_has_an_inertial() {
-    let moving = r#"<mujoco><asset><mesh name="hull" file="hull.stl"/></asset><worldbody>
+fn a_missing_mesh_file_is_an_error_naming_the_file() {
+    let moving = r#"<mujoco><asset><mesh name="hull" file="no/such/hull.stl"/></asset><worldbody>
         <body name="probe"><freejoint/><geom name="shell" type="mesh" mesh="hull"/></body></worldbody></mujoco>"#;
-    let message = parse_mjcf(moving).unwrap_err().to_string();
-    assert!(message.contains(r#"<geom name="shell">"#) && message.contains("give the body an <inertial>"), "{message}");
-    let with_inertial =
-        moving.replace("<freejoint/>", r#"<freejoint/><inertial pos="0 0 0" mass="5" diaginertia="1 1 1"/>"#);
-    assert_eq!(parse_mjcf(&with_inertial).unwrap().vehicle.bodies[0].inertia.as_ref().unwrap().mass, 5.0);
+    let error = parse_mjcf(moving).unwrap_err();
+    assert!(matches!(error, MjcfError::Invalid { .. }), "{error:?}");
+    let message = error.to_string();
+    assert!(message.contains(r#"<mesh name="hull">"#) && message.contains("no/such/hull.stl"), "{message}");
 }

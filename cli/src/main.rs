@@ -330,7 +330,8 @@ impl<'de> Deserialize<'de> for Requests {
 }
 
 fn describe(model_path: &Path, json: bool) -> Result<()> {
-    let description = nudyn::describe::Description::of(&load_model(model_path)?);
+    let (vehicle, model) = load_vehicle(model_path)?;
+    let description = nudyn::describe::Description::of(&vehicle, &model);
     if json {
         return emit(&serde_json::to_string_pretty(&description)?);
     }

@@ -12,6 +12,7 @@ use super::MjcfWarning;
 use super::actuator::{self, ActuatorSettings};
 use super::element::Element;
 use super::error::MjcfError;
+use super::mesh::{MESH_DEFAULT_ATTRIBUTES, MeshSettings};
 use super::orientation::Orientation;
 use crate::vehicle::{ActuatorKind, JointKind};
 
@@ -48,7 +49,7 @@ const NOT_IN_DEFAULTS: [&str; 2] = ["name", "class"];
 /// dynamics.
 #[rustfmt::skip]
 const IGNORED_DEFAULTS: &[&str] =
-    &["camera", "light", "mesh", "material", "texture", "pair", "equality", "tendon"];
+    &["camera", "light", "material", "texture", "pair", "equality", "tendon"];
 
 /// Whether a joint or tendon has limits (`limited`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -218,9 +219,12 @@ pub(crate) struct GeomSettings {
     pub shell_inertia: bool,
     /// `group`.
     pub group: i32,
-    /// Whether `mesh` names a mesh asset (the geom's shape, or the shape a
+    /// The mesh asset `mesh` names (the geom's shape, or the shape a
     /// primitive is fitted to).
-    pub mesh: bool,
+    pub mesh: Option<String>,
+    /// `contype` and `conaffinity`: a geom with either not 0 collides, and
+    /// MuJoCo builds its mesh's convex hull.
+    pub contype: [i32; 2],
     /// Whether `hfield` names a height-field asset.
     pub hfield: bool,
 }
@@ -238,7 +242,8 @@ impl Default for GeomSettings {
             density: 1000.0,
             shell_inertia: false,
             group: 0,
-            mesh: false,
+            mesh: None,
+            contype: [1, 1],
             hfield: false,
         }
     }
@@ -284,7 +289,14 @@ impl GeomSettings {
         if let Some([group]) = element.integers("group")? {
             self.group = group;
         }
-        self.mesh |= element.has("mesh");
+        if let Some(mesh) = element.text("mesh") {
+            self.mesh = Some(mesh.to_string());
+        }
+        for (k, attribute) in ["contype", "conaffinity"].into_iter().enumerate() {
+            if let Some([bits]) = element.integers(attribute)? {
+                self.contype[k] = bits;
+            }
+        }
         self.hfield |= element.has("hfield");
         Ok(())
     }
@@ -370,6 +382,8 @@ pub(crate) struct DefaultClass {
     /// The class's actuator default, which every actuator element of the
     /// class starts from.
     pub actuator: ActuatorSettings,
+    /// Settings a `<mesh>` asset of this class starts from.
+    pub mesh: MeshSettings,
 }
 
 /// All default classes; index 0 is "main".
@@ -392,6 +406,7 @@ impl Defaults {
             geom: GeomSettings::default(),
             site: SiteSettings::default(),
             actuator: ActuatorSettings::default(),
+            mesh: MeshSettings::default(),
         };
         Self { classes: vec![main], parents: vec![None], by_name: HashMap::from([("main".to_string(), (MAIN, 0))]) }
     }
@@ -503,6 +518,13 @@ impl Defaults {
                         "geom" => class.geom.apply(&child)?,
                         _ => class.site.apply(&child)?,
                     }
+                }
+                "mesh" => {
+                    child.check_attributes(MESH_DEFAULT_ATTRIBUTES)?;
+                    if let Some(grandchild) = child.children().next() {
+                        return Err(grandchild.unknown());
+                    }
+                    self.classes[index].mesh.apply(&child)?;
                 }
                 "default" => {}
                 tag if IGNORED_DEFAULTS.contains(&tag) => warnings.push(child.ignored()),

@@ -14,6 +14,7 @@ mod defaults;
 mod element;
 mod error;
 mod inertia;
+mod mesh;
 mod orientation;
 mod reader;
 mod sensor;
@@ -52,13 +53,14 @@ impl fmt::Display for MjcfWarning {
     }
 }
 
-/// Reads an MJCF document.
+/// Reads an MJCF document; mesh files are found relative to the current
+/// directory.
 pub fn parse_mjcf(xml: &str) -> Result<Imported, MjcfError> {
-    reader::read(xml)
+    reader::read(xml, None)
 }
 
 /// Reads an MJCF file.
 pub fn load_mjcf(path: &Path) -> Result<Imported, MjcfError> {
     let xml = std::fs::read_to_string(path).map_err(|source| MjcfError::Io { path: path.to_path_buf(), source })?;
-    parse_mjcf(&xml)
+    reader::read(&xml, path.parent())
 }

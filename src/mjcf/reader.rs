@@ -1,6 +1,7 @@
 //! Walks an MJCF document and builds the [`Vehicle`].
 
 use std::collections::HashMap;
+use std::path::{Path, PathBuf};
 
 use roxmltree::Document;
 
@@ -11,7 +12,8 @@ use super::defaults::{
 };
 use super::element::{Element, LineStarts};
 use super::error::MjcfError;
-use super::inertia::{self, BodyInertia, EPS, GeomMass};
+use super::inertia::{self, BodyInertia, EPS, GeomMass, mul_quat, quat_array, quat_to_mat};
+use super::mesh::{self, MESH_ATTRIBUTES, Meshes};
 use super::orientation::{AngleConvention, ORIENTATION_ATTRIBUTES, Orientation, normalized, z_to_quaternion};
 use super::sensor::{self, SensorTargets};
 use super::{Imported, MjcfWarning};
@@ -67,7 +69,7 @@ const FLAG_ATTRIBUTES: &[&str] = &[
 /// Top-level sections without effect on the dynamics.
 #[rustfmt::skip]
 const IGNORED_SECTIONS: &[&str] =
-    &["size", "statistic", "visual", "asset", "contact", "keyframe", "custom", "extension"];
+    &["size", "statistic", "visual", "contact", "keyframe", "custom", "extension"];
 
 /// MuJoCo's actuator groups that `actuatorgroupdisable` can disable: 0 to 30.
 const ACTUATOR_GROUPS: std::ops::RangeInclusive<i32> = 0..=30;
@@ -95,6 +97,10 @@ struct Compiler {
     align_free: bool,
     /// `settotalmass` when positive, with the warning it earns.
     total_mass: Option<(f64, MjcfWarning)>,
+    /// `meshdir`, `assetdir` and `strippath`, for finding mesh files.
+    meshdir: Option<String>,
+    assetdir: Option<String>,
+    strip_path: bool,
 }
 
 /// `<option>` settings that matter here.
@@ -170,10 +176,14 @@ struct Reader {
     actuator_names: HashMap<String, u32>,
     sensors: Vec<Sensor>,
     sensor_names: HashMap<String, u32>,
+    /// The directory of the model file, which mesh paths start from.
+    model_dir: Option<PathBuf>,
+    /// The `<mesh>` assets, processed.
+    meshes: Meshes,
 }
 
-/// Reads an MJCF document.
-pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
+/// Reads an MJCF document; `model_dir` is the directory of its file.
+pub(crate) fn read(xml: &str, model_dir: Option<&Path>) -> Result<Imported, MjcfError> {
     let document = Document::parse(xml).map_err(|e| MjcfError::Xml {
         line: e.pos().row,
         column: e.pos().col,
@@ -187,6 +197,7 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
     root.check_attributes(&["model"])?;
 
     let mut reader = Reader::new();
+    reader.model_dir = model_dir.map(Path::to_path_buf);
     // MuJoCo applies these wherever they appear, even after <worldbody>.
     for section in root.children() {
         match section.tag() {
@@ -196,13 +207,17 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
             _ => {}
         }
     }
+    // Meshes once the compiler's directories and the default classes are known.
+    for section in root.children().filter(|s| s.tag() == "asset") {
+        reader.read_assets(&section)?;
+    }
 
     let mut has_worldbody = false;
     let mut actuator_sections = Vec::new();
     let mut sensor_sections = Vec::new();
     for section in root.children() {
         match section.tag() {
-            "compiler" | "option" | "default" => {}
+            "compiler" | "option" | "default" | "asset" => {}
             "worldbody" => {
                 has_worldbody = true;
                 reader.read_worldbody(&section)?;
@@ -251,6 +266,9 @@ impl Reader {
                 autolimits: true,
                 align_free: false,
                 total_mass: None,
+                meshdir: None,
+                assetdir: None,
+                strip_path: false,
             },
             physics: Physics {
                 gravity: Vec3::new(0.0, 0.0, -9.81),
@@ -274,6 +292,8 @@ impl Reader {
             actuator_names: HashMap::new(),
             sensors: Vec::new(),
             sensor_names: HashMap::new(),
+            model_dir: None,
+            meshes: Meshes::new(),
         }
     }
 
@@ -317,6 +337,11 @@ impl Reader {
         }
         if let Some(autolimits) = element.boolean("autolimits")? {
             compiler.autolimits = autolimits;
+        }
+        compiler.meshdir = element.text("meshdir").map(str::to_string).or(compiler.meshdir.take());
+        compiler.assetdir = element.text("assetdir").map(str::to_string).or(compiler.assetdir.take());
+        if let Some(strip) = element.boolean("strippath")? {
+            compiler.strip_path = strip;
         }
         if let Some(align) = element.boolean("alignfree")? {
             compiler.align_free = align;
@@ -392,6 +417,53 @@ impl Reader {
                     *target = !off;
                 }
             }
+        }
+        Ok(())
+    }
+
+    /// Reads an `<asset>` section: meshes are processed, the other assets
+    /// (textures, materials, height fields, skins) ignored with a warning.
+    fn read_assets(&mut self, section: &Element) -> Result<(), MjcfError> {
+        section.check_attributes(&[])?;
+        if section.children().next().is_none() {
+            self.warnings.push(section.ignored());
+        }
+        for child in section.children() {
+            if child.tag() != "mesh" {
+                self.warnings.push(child.ignored());
+                continue;
+            }
+            child.check_attributes(MESH_ATTRIBUTES)?;
+            let class = self.defaults.lookup(&child, "class")?.unwrap_or(MAIN);
+            let compiler = &self.compiler;
+            let path = child.text("file").map(|file| {
+                let file = match compiler.strip_path {
+                    true => file.rsplit(['/', '\\']).next().unwrap_or(file),
+                    false => file,
+                };
+                let (meshdir, assetdir) = (compiler.meshdir.as_deref(), compiler.assetdir.as_deref());
+                mesh::mesh_path(self.model_dir.as_deref(), meshdir, assetdir, file)
+            });
+            // MuJoCo names a mesh without a name after its file.
+            let name = match (child.text("name"), child.text("file")) {
+                (Some(name), _) => name.to_string(),
+                (None, Some(file)) => {
+                    let file = file.rsplit(['/', '\\']).next().unwrap_or(file);
+                    file.rsplit_once('.').map_or(file, |(stem, _)| stem).to_string()
+                }
+                (None, None) => return Err(child.missing("name")),
+            };
+            if let Some(first) = self.meshes.get(&name) {
+                return Err(MjcfError::DuplicateName {
+                    line: child.line,
+                    element: child.label(),
+                    kind: "mesh",
+                    name,
+                    first_line: first.line,
+                });
+            }
+            let processed = mesh::read(&child, &self.defaults.class(class).mesh, path)?;
+            self.meshes.insert(name, processed);
         }
         Ok(())
     }
@@ -518,9 +590,7 @@ impl Reader {
         for (geom, settings) in &geoms {
             let [low, high] = self.compiler.inertia_groups;
             let contributes = from_geoms && (low..=high).contains(&settings.group);
-            let shaped_by_asset =
-                matches!(settings.kind, GeomKind::Mesh | GeomKind::Sdf | GeomKind::Hfield) || settings.mesh;
-            if contributes && shaped_by_asset && !moving {
+            if contributes && mass_not_computed(settings) && !moving {
                 mass_unknown = true;
                 self.warnings.push(geom.warning(
                     "its mass is not computed: the body is fixed to the world, so it moves nothing \
@@ -659,7 +729,7 @@ impl Reader {
         moving: bool,
         contributes: bool,
     ) -> Result<Option<GeomMass>, MjcfError> {
-        if matches!(settings.kind, GeomKind::Mesh | GeomKind::Sdf) && !settings.mesh {
+        if matches!(settings.kind, GeomKind::Mesh | GeomKind::Sdf) && settings.mesh.is_none() {
             return Err(element.missing("mesh"));
         }
         if settings.kind == GeomKind::Hfield && !settings.hfield {
@@ -688,35 +758,66 @@ impl Reader {
             None => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
         };
         // A geom fitted to a mesh gets its size from the mesh.
-        if !settings.mesh {
+        if settings.mesh.is_none() {
             check_size(element, settings.kind, &size)?;
         }
+        let mesh = match (settings.kind, &settings.mesh) {
+            (GeomKind::Mesh, Some(name)) => {
+                let mesh = self.meshes.get(name).ok_or_else(|| element.invalid(format!("unknown mesh '{name}'")))?;
+                if settings.contype != [0, 0]
+                    && let Some(reason) = &mesh.hull_error
+                {
+                    return Err(element.invalid(format!(
+                        "mesh '{name}' (line {}): {reason}; MuJoCo needs the hull of a colliding geom's mesh \
+                         (contype or conaffinity not 0)",
+                        mesh.line
+                    )));
+                }
+                if settings.shell_inertia {
+                    return Err(element.invalid("for mesh geoms, inertia should be specified in the mesh asset"));
+                }
+                Some(mesh)
+            }
+            _ => None,
+        };
         if !contributes {
             return Ok(None);
         }
-        let shaped_by_asset =
-            matches!(settings.kind, GeomKind::Mesh | GeomKind::Sdf | GeomKind::Hfield) || settings.mesh;
-        // A body that cannot move needs no mass: its mesh is never read.
-        if shaped_by_asset && !moving {
+        // A body that cannot move needs no mass: its sdf or height field is never read.
+        if mass_not_computed(settings) && !moving {
             return Ok(None);
         }
-        if shaped_by_asset {
+        if mass_not_computed(settings) {
             return Err(element.unsupported(
-                "the mass properties of mesh, sdf and height-field geoms are not computed; \
-                 give the body an <inertial>, or put the geom in a group outside inertiagrouprange",
+                "the mass properties of sdf and height-field geoms, and of primitives fitted to a mesh, are \
+                 not computed; give the body an <inertial>, or put the geom in a group outside inertiagrouprange",
             ));
         }
-        if settings.shell_inertia {
-            return Err(element.unsupported("shell inertia (shellinertia=\"true\")"));
-        }
-        let volume = inertia::volume(settings.kind, &size);
+        let (pos, quat, volume) = match mesh {
+            // The geom's frame absorbs the mesh frame (MuJoCo's mjuu_frameaccum).
+            Some(mesh) => {
+                let geom_quat = quat_array(&quat);
+                let rotation = quat_to_mat(&geom_quat);
+                let p = &mesh.pos;
+                let offset: [f64; 3] = std::array::from_fn(|r| {
+                    rotation[3 * r] * p[0] + rotation[3 * r + 1] * p[1] + rotation[3 * r + 2] * p[2]
+                });
+                let [w, x, y, z] = mul_quat(&geom_quat, &mesh.quat);
+                let quat = Quat::new_unchecked(nalgebra::Quaternion::new(w, x, y, z));
+                (pos + Vec3::from(offset), quat, mesh.volume)
+            }
+            None => (pos, quat, inertia::volume(settings.kind, &size, settings.shell_inertia)),
+        };
         let mass = match settings.mass {
             Some(mass) if volume > EPS => mass,
             // MuJoCo ignores a given mass when the volume is zero.
             Some(_) => 0.0,
             None => settings.density * volume,
         };
-        let principal = inertia::principal_moments(settings.kind, &size, mass);
+        let principal = match mesh {
+            Some(mesh) => Vec3::from(mesh.principal_moments(mass)),
+            None => inertia::principal_moments(settings.kind, &size, mass, settings.shell_inertia),
+        };
         Ok(Some(GeomMass { mass, pos, quat, principal }))
     }
 
@@ -1123,7 +1224,7 @@ impl Reader {
             body.inertia =
                 (!massless).then_some(MassProperties { mass: inertia.mass, com: inertia.com, inertia: inertia.tensor });
             body.inertial_pos = inertia.com;
-            body.inertial_quat = inertia.quat;
+            body.inertial_quat = Some(inertia.quat);
         }
         self.warnings.sort_by_key(|w| w.line);
         let gravity = if self.physics.gravity_disabled { Vec3::zeros() } else { self.physics.gravity };
@@ -1152,6 +1253,13 @@ fn fromto_frame(element: &Element, fromto: &[f64; 6], pos: &[f64; 3]) -> Result<
     let direction = normalized(from - to).ok_or_else(|| element.invalid("the 'fromto' points coincide"))?;
     let half_length = (from - to).norm() / 2.0;
     Ok(((from + to) / 2.0, Quat::new_normalize(z_to_quaternion(&direction)), half_length))
+}
+
+/// Whether a geom's mass would come from an asset nudyn does not read: an
+/// sdf, a height field, or a primitive fitted to a mesh.
+fn mass_not_computed(settings: &GeomSettings) -> bool {
+    let fitted = settings.mesh.is_some() && !matches!(settings.kind, GeomKind::Mesh | GeomKind::Sdf);
+    matches!(settings.kind, GeomKind::Sdf | GeomKind::Hfield) || fitted
 }
 
 /// MuJoCo's size check: the sizes a primitive uses must be positive.

@@ -253,10 +253,8 @@ fn frame_of(
                 (None, false) => Quat::identity(),
                 (None, true) => {
                     return Err(format!(
-                        "the axes of body '{}''s inertial frame come from an eigen-decomposition of its inertia \
-                         (a full inertia tensor, or several geoms), whose order and signs nudyn does not \
-                         reproduce; measure objtype \"xbody\" or a site instead, or give <inertial> with \
-                         diaginertia and an orientation",
+                        "the axes of body '{}''s inertial frame are not known (the vehicle was not imported \
+                         from MJCF); measure objtype \"xbody\" or a site instead",
                         body.name
                     ));
                 }

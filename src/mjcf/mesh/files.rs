@@ -1,0 +1,252 @@
+//! The mesh files MuJoCo 4.0 reads, read as MuJoCo reads them: binary STL
+//! (its STL decoder reads no ASCII STL), Wavefront OBJ (its decoder is
+//! tinyobjloader: the first shape's faces, quads split along their shorter
+//! diagonal, every `v` line a vertex), and MuJoCo's own MSH.
+//!
+//! Vertices stay single precision, as MuJoCo keeps them until it processes
+//! the mesh. The readers are written here rather than taken from a crate:
+//! the formats are small, and the rules that change mass properties (which
+//! vertices count, how quads split, what is refused) are MuJoCo's own.
+
+use std::collections::HashMap;
+
+/// Vertices and triangles as MuJoCo holds them before processing.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(crate) struct RawMesh {
+    /// Vertex positions.
+    pub vertices: Vec<[f32; 3]>,
+    /// Triangles as indices into `vertices` (not yet checked); empty when
+    /// the faces are to come from the convex hull.
+    pub faces: Vec<[i64; 3]>,
+}
+
+/// The mesh formats, told apart by the file's extension as MuJoCo does.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum MeshFormat {
+    /// `.stl`.
+    Stl,
+    /// `.obj`.
+    Obj,
+    /// `.msh`.
+    Msh,
+}
+
+impl MeshFormat {
+    /// The format of a file name, by its extension.
+    pub fn of(file: &str) -> Option<Self> {
+        let extension = file.rsplit_once('.')?.1;
+        match extension {
+            "stl" | "STL" => Some(Self::Stl),
+            "obj" | "OBJ" => Some(Self::Obj),
+            "msh" | "MSH" => Some(Self::Msh),
+            _ => None,
+        }
+    }
+}
+
+/// Reads a binary STL file: an 80-byte header, the number of triangles, and
+/// 50 bytes per triangle (normal, three vertices, attribute). MuJoCo merges
+/// vertices with identical bit patterns.
+pub(crate) fn read_stl(bytes: &[u8]) -> Result<RawMesh, String> {
+    if bytes.is_empty() {
+        return Err("the STL file is empty".into());
+    }
+    if bytes.len() < 84 {
+        return Err("invalid header in STL file".into());
+    }
+    let count = i32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]);
+    if !(1..=200_000).contains(&count) {
+        return Err(format!(
+            "the number of faces should be between 1 and 200000, found {count}; perhaps this is an \
+             ASCII STL file, which MuJoCo does not read (convert it to binary STL)"
+        ));
+    }
+    let count = count as usize;
+    if bytes.len() - 84 != 50 * count {
+        return Err(format!(
+            "wrong size: {} triangles need {} bytes, the file has {}; perhaps this is an ASCII STL file, \
+             which MuJoCo does not read (convert it to binary STL)",
+            count,
+            84 + 50 * count,
+            bytes.len()
+        ));
+    }
+    let mut mesh = RawMesh::default();
+    let mut index_of: HashMap<[u32; 3], i64> = HashMap::new();
+    for triangle in bytes[84..].chunks_exact(50) {
+        let mut face = [0; 3];
+        for (corner, slot) in face.iter_mut().enumerate() {
+            let at = 12 * (corner + 1);
+            let bits: [u32; 3] = std::array::from_fn(|k| {
+                let b = &triangle[at + 4 * k..at + 4 * k + 4];
+                u32::from_le_bytes([b[0], b[1], b[2], b[3]])
+            });
+            let vertex = bits.map(f32::from_bits);
+            if vertex.iter().any(|x| x.abs() > 2f32.powi(30)) {
+                return Err("a vertex exceeds MuJoCo's bound of 2^30".into());
+            }
+            *slot = *index_of.entry(bits).or_insert_with(|| {
+                mesh.vertices.push(vertex);
+                mesh.vertices.len() as i64 - 1
+            });
+        }
+        mesh.faces.push(face);
+    }
+    Ok(mesh)
+}
+
+/// Reads a Wavefront OBJ file: every `v` line is a vertex; the faces of the
+/// first shape (up to the first `o` or `g` line after a face) are the mesh's,
+/// triangles as they are and quads split along their shorter diagonal
+/// (tinyobjloader's rule, which MuJoCo's decoder relies on). Polygons of
+/// more than four vertices are refused.
+pub(crate) fn read_obj(text: &str) -> Result<RawMesh, String> {
+    let mut mesh = RawMesh::default();
+    let mut first_shape_done = false;
+    for (number, line) in text.lines().enumerate() {
+        let line_number = number + 1;
+        let mut tokens = line.split_ascii_whitespace();
+        match tokens.next() {
+            Some("v") => {
+                let values: Vec<f64> = tokens
+                    .take(3)
+                    .map(str::parse)
+                    .collect::<Result<_, _>>()
+                    .map_err(|_| format!("line {line_number}: a vertex needs three numbers"))?;
+                let [x, y, z] = values[..] else {
+                    return Err(format!("line {line_number}: a vertex needs three numbers"));
+                };
+                mesh.vertices.push([x as f32, y as f32, z as f32]);
+            }
+            Some("o" | "g") if !mesh.faces.is_empty() => first_shape_done = true,
+            Some("f") if !first_shape_done => {
+                let corners = tokens
+                    .map(|token| vertex_index(token, mesh.vertices.len()))
+                    .collect::<Option<Vec<i64>>>()
+                    .ok_or_else(|| format!("line {line_number}: a face corner is not a valid vertex reference"))?;
+                match corners[..] {
+                    [a, b, c] => mesh.faces.push([a, b, c]),
+                    [a, b, c, d] => mesh.faces.extend(split_quad(&mesh.vertices, [a, b, c, d])),
+                    _ => {
+                        return Err(format!(
+                            "line {line_number}: a face of {} vertices (nudyn reads triangles and quads)",
+                            corners.len()
+                        ));
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(mesh)
+}
+
+/// The 0-based vertex of a face corner `v`, `v/t`, `v//n` or `v/t/n`
+/// (negative: counted back from the last vertex read so far).
+fn vertex_index(token: &str, vertices_so_far: usize) -> Option<i64> {
+    let index: i64 = token.split('/').next()?.parse().ok()?;
+    match index {
+        0 => None,
+        i if i > 0 => Some(i - 1),
+        i => Some(vertices_so_far as i64 + i),
+    }
+}
+
+/// tinyobjloader's split of a quad into two triangles, along the shorter
+/// diagonal in single precision (0–2 when strictly shorter, else 1–3).
+fn split_quad(vertices: &[[f32; 3]], quad: [i64; 4]) -> [[i64; 3]; 2] {
+    let [a, b, c, d] = quad;
+    let position = |i: i64| usize::try_from(i).ok().and_then(|i| vertices.get(i).copied());
+    let squared = |p: [f32; 3], q: [f32; 3]| {
+        let e = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
+        e[0] * e[0] + e[1] * e[1] + e[2] * e[2]
+    };
+    match (position(a), position(b), position(c), position(d)) {
+        (Some(pa), Some(pb), Some(pc), Some(pd)) if squared(pa, pc) >= squared(pb, pd) => [[a, b, d], [b, c, d]],
+        // Out-of-range corners are reported when the faces are checked.
+        _ => [[a, b, c], [a, c, d]],
+    }
+}
+
+/// Reads MuJoCo's MSH format: four little-endian int32 counts (vertices,
+/// normals, texture coordinates, faces), then float32 vertices, normals and
+/// texture coordinates and int32 faces.
+pub(crate) fn read_msh(bytes: &[u8]) -> Result<RawMesh, String> {
+    if bytes.is_empty() {
+        return Err("the MSH file is empty".into());
+    }
+    if bytes.len() < 16 {
+        return Err("missing header in MSH file".into());
+    }
+    let int_at = |at: usize| i32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
+    let [nvert, nnormal, ntexcoord, nface] = [0, 4, 8, 12].map(int_at);
+    if nvert < 4
+        || nface < 0
+        || nnormal < 0
+        || ntexcoord < 0
+        || (nnormal > 0 && nnormal != nvert)
+        || (ntexcoord > 0 && ntexcoord != nvert)
+    {
+        return Err(format!(
+            "invalid sizes in MSH file: {nvert} vertices, {nnormal} normals, {ntexcoord} texture coordinates, \
+             {nface} faces"
+        ));
+    }
+    let [nvert, nnormal, ntexcoord, nface] = [nvert, nnormal, ntexcoord, nface].map(|n| n as usize);
+    let expected = 16 + 4 * (3 * nvert + 3 * nnormal + 2 * ntexcoord + 3 * nface);
+    if bytes.len() != expected {
+        return Err(format!(
+            "unexpected file size in MSH file: {} bytes where the header needs {expected}",
+            bytes.len()
+        ));
+    }
+    let float_at = |at: usize| f32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
+    let vertices = (0..nvert).map(|v| std::array::from_fn(|k| float_at(16 + 4 * (3 * v + k)))).collect();
+    let faces_at = 16 + 4 * (3 * nvert + 3 * nnormal + 2 * ntexcoord);
+    let faces = (0..nface).map(|f| std::array::from_fn(|k| i64::from(int_at(faces_at + 4 * (3 * f + k))))).collect();
+    Ok(RawMesh { vertices, faces })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quads_split_along_the_shorter_diagonal() {
+        let vertices = [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 1.0, 0.0], [1.5, 1.0, 0.5]];
+        // 0–2 is longer than 1–3.
+        assert_eq!(split_quad(&vertices, [0, 1, 2, 3]), [[0, 1, 3], [1, 2, 3]]);
+        let vertices = [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]];
+        assert_eq!(split_quad(&vertices, [0, 1, 2, 3]), [[0, 1, 2], [0, 2, 3]]);
+    }
+
+    #[test]
+    fn truncated_and_ascii_stl_are_refused() {
+        assert!(read_stl(b"").unwrap_err().contains("empty"));
+        assert!(read_stl(b"solid x").unwrap_err().contains("header"));
+        let mut ascii = b"solid cube\n".to_vec();
+        ascii.resize(200, b' ');
+        assert!(read_stl(&ascii).unwrap_err().contains("ASCII"));
+    }
+
+    #[test]
+    fn obj_takes_the_first_shape_and_every_vertex() {
+        let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 5 5 5\no a\nf 1 3 2\nf -4 -3 -1\ng b\nf 1 2 3\n";
+        let mesh = read_obj(text).unwrap();
+        assert_eq!(mesh.vertices.len(), 5);
+        assert_eq!(mesh.faces, vec![[0, 2, 1], [1, 2, 4]]);
+        assert!(read_obj("v 0 0 0\nf 1 2 3 4 5\n").unwrap_err().contains("5 vertices"));
+        assert!(read_obj("v 0 0\n").unwrap_err().contains("three numbers"));
+        assert!(read_obj("f 1/2/3 0 2\n").unwrap_err().contains("vertex reference"));
+    }
+
+    #[test]
+    fn msh_sizes_are_checked() {
+        assert!(read_msh(&[0; 8]).unwrap_err().contains("header"));
+        let mut header = Vec::new();
+        for n in [4i32, 0, 0, 1] {
+            header.extend(n.to_le_bytes());
+        }
+        assert!(read_msh(&header).unwrap_err().contains("unexpected file size"));
+    }
+}

@@ -1,0 +1,592 @@
+//! Mesh assets and their mass properties, computed as MuJoCo 4.0's compiler
+//! does (`mjCMesh::Process`): the file read as MuJoCo reads it
+//! ([`files`]), `refpos`, `refquat` and `scale` applied, then the volume (or
+//! the surface area with `inertia="shell"`), the centre of mass and the
+//! inertia of the unit-density solid, whose centre and principal axes
+//! (MuJoCo's `mjuu_eig3`) become the mesh frame that a mesh geom's frame
+//! absorbs.
+//!
+//! The four `inertia` modes differ in which triangles count and how:
+//! `legacy` (MuJoCo's default) adds every triangle's tetrahedron to the
+//! centroid of the surface with a positive volume, so a non-convex or open
+//! mesh weighs more than its solid; `exact` adds them signed (the
+//! divergence theorem, exact for a closed, consistently oriented mesh,
+//! which MuJoCo checks); `convex` integrates the convex hull ([`hull`]);
+//! `shell` spreads the mass over the surface.
+
+mod files;
+mod hull;
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use files::{MeshFormat, RawMesh};
+
+use super::element::Element;
+use super::error::MjcfError;
+use super::inertia::{self, Eigen, eig3, quat_to_mat};
+use crate::math::Mat3;
+
+/// MuJoCo's `mjMINVAL`.
+const MIN_VALUE: f64 = 1e-15;
+
+/// Attributes of `<mesh>` in `<asset>` (MuJoCo 4.0 schema).
+#[rustfmt::skip]
+pub(crate) const MESH_ATTRIBUTES: &[&str] = &[
+    "name", "class", "content_type", "file", "vertex", "normal", "texcoord", "face", "refpos",
+    "refquat", "scale", "smoothnormal", "maxhullvert", "inertia", "builtin", "params", "material",
+];
+
+/// Attributes of `<mesh>` in `<default>`.
+pub(crate) const MESH_DEFAULT_ATTRIBUTES: &[&str] = &["scale", "maxhullvert", "inertia"];
+
+/// How a mesh's mass is distributed (`<mesh inertia>`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum MeshInertia {
+    /// `legacy`, MuJoCo's default: every triangle's volume counted positive.
+    Legacy,
+    /// `convex`: the convex hull's volume.
+    Convex,
+    /// `exact`: the signed volume of a closed mesh.
+    Exact,
+    /// `shell`: the mass on the surface.
+    Shell,
+}
+
+/// The `<mesh>` attributes that a default class sets.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct MeshSettings {
+    /// `scale`.
+    pub scale: [f64; 3],
+    /// `inertia`.
+    pub inertia: MeshInertia,
+    /// `maxhullvert` (-1: no limit).
+    pub max_hull_vertices: i32,
+}
+
+impl Default for MeshSettings {
+    /// MuJoCo's built-in mesh defaults.
+    fn default() -> Self {
+        Self { scale: [1.0; 3], inertia: MeshInertia::Legacy, max_hull_vertices: -1 }
+    }
+}
+
+impl MeshSettings {
+    /// Overwrites the settings the element gives.
+    pub fn apply(&mut self, element: &Element) -> Result<(), MjcfError> {
+        if let Some(scale) = element.numbers("scale")? {
+            self.scale = scale;
+        }
+        let modes = [
+            ("legacy", MeshInertia::Legacy),
+            ("convex", MeshInertia::Convex),
+            ("exact", MeshInertia::Exact),
+            ("shell", MeshInertia::Shell),
+        ];
+        if let Some(mode) = element.keyword("inertia", &modes)? {
+            self.inertia = mode;
+        }
+        if let Some([limit]) = element.integers("maxhullvert")? {
+            if limit != -1 && limit < 4 {
+                return Err(element.invalid("maxhullvert must be larger than 3"));
+            }
+            self.max_hull_vertices = limit;
+        }
+        Ok(())
+    }
+}
+
+/// A processed mesh asset: what its geoms need.
+#[derive(Clone, Debug)]
+pub(crate) struct Mesh {
+    /// Line of the `<mesh>` element.
+    pub line: u32,
+    /// The mesh frame in the mesh's file coordinates (after `refpos`,
+    /// `refquat` and `scale`): the centre of mass (MuJoCo's `mesh_pos`)…
+    pub pos: [f64; 3],
+    /// …and the principal axes (`mesh_quat`, w x y z).
+    pub quat: [f64; 4],
+    /// Volume, or surface area for `inertia="shell"`.
+    pub volume: f64,
+    /// Half sizes of the box with the mesh's unit-density inertia (MuJoCo's
+    /// inertia box), from which a geom's moments follow.
+    pub box_half: [f64; 3],
+    /// Why MuJoCo could not build the convex hull it needs for collisions
+    /// (flat, collinear or repeated vertices), if it could not.
+    pub hull_error: Option<String>,
+}
+
+impl Mesh {
+    /// A geom's principal moments for its mass (MuJoCo's `SetInertia` for
+    /// meshes).
+    pub fn principal_moments(&self, mass: f64) -> [f64; 3] {
+        let [a, b, c] = self.box_half;
+        [mass * (b * b + c * c) / 3.0, mass * (a * a + c * c) / 3.0, mass * (a * a + b * b) / 3.0]
+    }
+}
+
+/// Where a mesh file is: `file` relative to `meshdir` (or, without it,
+/// `assetdir`), both relative to the model file's directory unless absolute.
+// The importer's other path settings (<include>, texturedir) will share
+// this rule.
+pub(crate) fn mesh_path(
+    model_dir: Option<&Path>,
+    meshdir: Option<&str>,
+    assetdir: Option<&str>,
+    file: &str,
+) -> PathBuf {
+    let dir = model_dir.map(Path::to_path_buf).unwrap_or_default();
+    let dir = match meshdir.or(assetdir) {
+        Some(sub) => dir.join(sub),
+        None => dir,
+    };
+    dir.join(file)
+}
+
+/// Reads and processes a `<mesh>` asset with its class's settings.
+pub(crate) fn read(element: &Element, defaults: &MeshSettings, file_path: Option<PathBuf>) -> Result<Mesh, MjcfError> {
+    for (attribute, reason) in [
+        ("builtin", "built-in meshes (write the mesh out to a file)"),
+        ("content_type", "content_type (nudyn tells STL, OBJ and MSH files apart by their extension)"),
+    ] {
+        if element.has(attribute) {
+            return Err(element.unsupported(reason));
+        }
+    }
+    if let Some(child) = element.children().next() {
+        return Err(child.unsupported("mesh plugins"));
+    }
+    let mut settings = defaults.clone();
+    settings.apply(element)?;
+    let refpos = element.numbers::<3>("refpos")?.unwrap_or_default();
+    let refquat = element.numbers::<4>("refquat")?.unwrap_or([1.0, 0.0, 0.0, 0.0]);
+    let file = element.text("file");
+
+    let mut raw = RawMesh::default();
+    if let (Some(file), Some(path)) = (file, &file_path) {
+        let format = MeshFormat::of(file)
+            .ok_or_else(|| element.unsupported(format!("mesh file '{file}': nudyn reads .stl, .obj and .msh files")))?;
+        let bytes = std::fs::read(path)
+            .map_err(|e| element.invalid(format!("cannot read mesh file '{}': {e}", path.display())))?;
+        let in_file = |reason: String| element.invalid(format!("mesh file '{}': {reason}", path.display()));
+        raw = match format {
+            MeshFormat::Stl => files::read_stl(&bytes),
+            MeshFormat::Obj => std::str::from_utf8(&bytes)
+                .map_err(|_| "the OBJ file is not UTF-8 text".to_string())
+                .and_then(files::read_obj),
+            MeshFormat::Msh => files::read_msh(&bytes),
+        }
+        .map_err(in_file)?;
+    }
+    if let Some(text) = element.text("vertex") {
+        if !raw.vertices.is_empty() {
+            return Err(element.invalid("repeated vertex specification (both 'file' and 'vertex')"));
+        }
+        let values: Vec<f32> = parse_list(text).ok_or_else(|| element.bad_value("vertex", "numbers"))?;
+        if !values.len().is_multiple_of(3) {
+            return Err(element.invalid("vertex data must be a multiple of 3"));
+        }
+        raw.vertices = values.chunks_exact(3).map(|v| [v[0], v[1], v[2]]).collect();
+    }
+    if let Some(text) = element.text("face") {
+        if !raw.faces.is_empty() {
+            return Err(element.invalid("repeated face specification (both 'file' and 'face')"));
+        }
+        let values: Vec<i64> = parse_list(text).ok_or_else(|| element.bad_value("face", "integers"))?;
+        if !values.len().is_multiple_of(3) {
+            return Err(element.invalid("face data must be a multiple of 3"));
+        }
+        raw.faces = values.chunks_exact(3).map(|f| [f[0], f[1], f[2]]).collect();
+    }
+    let source = match (file, &file_path) {
+        (Some(_), Some(path)) => format!("mesh file '{}'", path.display()),
+        _ => "mesh".to_string(),
+    };
+    process(raw, &settings, refpos, refquat)
+        .map(|mesh| Mesh { line: element.line, ..mesh })
+        .map_err(|reason| element.invalid(format!("{source}: {reason}")))
+}
+
+/// Parses whitespace-separated values.
+fn parse_list<T: std::str::FromStr>(text: &str) -> Option<Vec<T>> {
+    text.split_ascii_whitespace().map(|s| s.parse().ok()).collect()
+}
+
+/// MuJoCo's `triangle`: area, unit normal (left as the raw cross product for
+/// a face below mjMINVAL, whose area is then 0) and centre.
+fn triangle(a: &[f64; 3], b: &[f64; 3], c: &[f64; 3]) -> (f64, [f64; 3], [f64; 3]) {
+    let center = std::array::from_fn(|k| (a[k] + b[k] + c[k]) / 3.0);
+    let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+    let mut normal = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+    let length = (normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]).sqrt();
+    if length < MIN_VALUE {
+        return (0.0, normal, center);
+    }
+    normal = normal.map(|n| n / length);
+    (0.5 * length, normal, center)
+}
+
+fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// MuJoCo's checks before it asks qhull for a hull: a second distinct
+/// vertex, a third off their line, a fourth off their plane.
+fn hull_precondition(vertices: &[[f64; 3]]) -> Result<(), String> {
+    let distance = |a: &[f64; 3], b: &[f64; 3]| {
+        let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+        dot(&d, &d).sqrt()
+    };
+    let first = &vertices[0];
+    let Some((second, length1)) =
+        vertices.iter().enumerate().skip(1).map(|(i, v)| (i, distance(v, first))).find(|&(_, l)| l > MIN_VALUE)
+    else {
+        return Err("its vertices are all in one place: no convex hull (consider a small sphere)".into());
+    };
+    let edge1: [f64; 3] = std::array::from_fn(|k| vertices[second][k] - first[k]);
+    let mut plane = None;
+    for (i, v) in vertices.iter().enumerate().skip(1) {
+        if i == second {
+            continue;
+        }
+        let edge2: [f64; 3] = std::array::from_fn(|k| v[k] - first[k]);
+        let length2 = dot(&edge2, &edge2).sqrt();
+        if length2 < MIN_VALUE {
+            continue;
+        }
+        let normal = [
+            edge1[1] * edge2[2] - edge1[2] * edge2[1],
+            edge1[2] * edge2[0] - edge1[0] * edge2[2],
+            edge1[0] * edge2[1] - edge1[1] * edge2[0],
+        ];
+        let norm = dot(&normal, &normal).sqrt();
+        if norm > MIN_VALUE * length1 * length2 {
+            plane = Some(normal.map(|n| n / norm));
+            break;
+        }
+    }
+    let Some(normal) = plane else {
+        return Err("its vertices are collinear: no convex hull (consider a thin capsule)".into());
+    };
+    let offset = dot(&normal, first);
+    if vertices.iter().all(|v| (dot(&normal, v) - offset).abs() <= MIN_VALUE * length1) {
+        return Err("its vertices are coplanar: no convex hull (consider a thin box)".into());
+    }
+    Ok(())
+}
+
+/// `mjCMesh::Process` up to the mesh frame, for the mass properties.
+fn process(raw: RawMesh, settings: &MeshSettings, refpos: [f64; 3], refquat: [f64; 4]) -> Result<Mesh, String> {
+    if raw.vertices.len() < 4 {
+        return Err(format!("at least 4 vertices required, found {}", raw.vertices.len()));
+    }
+    if let Some(i) = raw.vertices.iter().position(|v| v.iter().any(|x| !x.is_finite())) {
+        return Err(format!("vertex {i} is not finite"));
+    }
+    let count = raw.vertices.len() as i64;
+    let mut faces = Vec::with_capacity(raw.faces.len());
+    for (f, face) in raw.faces.iter().enumerate() {
+        if let Some(&v) = face.iter().find(|&&v| v < 0 || v >= count) {
+            return Err(format!("in face {f}, vertex index {v} does not exist"));
+        }
+        faces.push(face.map(|v| v as usize));
+    }
+    let mut vertices: Vec<[f64; 3]> = raw.vertices.iter().map(|v| v.map(f64::from)).collect();
+
+    // Two faces running along the same edge in the same direction.
+    let mut half_edges = Vec::new();
+    for &[a, b, c] in &faces {
+        if triangle(&vertices[a], &vertices[b], &vertices[c]).0 > MIN_VALUE.sqrt() {
+            half_edges.extend([(a, b), (b, c), (c, a)]);
+        }
+    }
+    half_edges.sort_unstable();
+    if settings.inertia == MeshInertia::Exact
+        && let Some(pair) = half_edges.windows(2).find(|pair| pair[0] == pair[1])
+    {
+        let (a, b) = pair[0];
+        return Err(format!(
+            "faces have inconsistent orientation (an edge from vertex {} to vertex {} is in two faces, \
+             counted from 1); inertia=\"exact\" needs a closed, consistently oriented mesh",
+            a + 1,
+            b + 1
+        ));
+    }
+
+    let hull_error = hull_precondition(&vertices).err();
+    let needs_hull = settings.inertia == MeshInertia::Convex || faces.is_empty();
+    let mut hull_faces = if needs_hull {
+        if let Some(error) = &hull_error {
+            return Err(error.clone());
+        }
+        let hull = hull::convex_hull(&vertices).ok_or("its vertices are coplanar: no convex hull")?;
+        let mut hull_vertices: Vec<usize> = hull.iter().flatten().copied().collect();
+        hull_vertices.sort_unstable();
+        hull_vertices.dedup();
+        let limit = settings.max_hull_vertices;
+        if limit > -1 && hull_vertices.len() > limit as usize {
+            return Err(format!(
+                "its convex hull has {} vertices, more than maxhullvert=\"{limit}\": MuJoCo would simplify \
+                 the hull with qhull, which nudyn does not reproduce; raise maxhullvert or remove it",
+                hull_vertices.len()
+            ));
+        }
+        hull
+    } else {
+        Vec::new()
+    };
+    if faces.is_empty() {
+        faces = hull_faces.clone();
+    }
+    // A mirroring scale turns the faces inside out: reverse them.
+    if settings.scale[0] * settings.scale[1] * settings.scale[2] <= 0.0 {
+        for face in faces.iter_mut().chain(&mut hull_faces) {
+            face.swap(1, 2);
+        }
+    }
+
+    apply_transformations(&mut vertices, settings.scale, refpos, refquat);
+
+    // Centroid of the surface, the apex of every triangle's tetrahedron.
+    let mut face_center = [0.0; 3];
+    let mut total_area = 0.0;
+    for &[a, b, c] in &faces {
+        let (area, _, center) = triangle(&vertices[a], &vertices[b], &vertices[c]);
+        for k in 0..3 {
+            face_center[k] += area * center[k];
+        }
+        total_area += area;
+    }
+    if total_area < MIN_VALUE {
+        return Err(format!("mesh surface area is too small ({total_area})"));
+    }
+    face_center = face_center.map(|x| x / total_area);
+
+    let mode = settings.inertia;
+    let integrated = if mode == MeshInertia::Convex { &hull_faces } else { &faces };
+    let com = if mode == MeshInertia::Shell {
+        surface_centroid(&vertices, &faces, &face_center)
+    } else {
+        let (volume, com) = volume_centroid(&vertices, integrated, &face_center, mode);
+        if volume < MIN_VALUE {
+            return Err(if volume < 0.0 {
+                format!("mesh volume is negative ({volume}): its triangles are misoriented")
+            } else {
+                format!("mesh volume is too small ({volume}); try inertia=\"shell\"")
+            });
+        }
+        com
+    };
+    let (volume, tensor) = unit_inertia(&vertices, integrated, &com, mode);
+
+    let (eigenvalues, quat) = eig3(&tensor, Eigen::Mesh);
+    let [e0, e1, e2] = eigenvalues;
+    if e2 <= 0.0 {
+        return Err("an eigenvalue of the mesh inertia is not positive".into());
+    }
+    let (atol, rtol) = (1e-9, 1e-6);
+    if e0 + e1 < e2 * (1.0 - rtol) - atol || e0 + e2 < e1 * (1.0 - rtol) - atol || e1 + e2 < e0 * (1.0 - rtol) - atol {
+        return Err(format!("the eigenvalues of the mesh inertia {e0} {e1} {e2} violate A + B >= C"));
+    }
+    let box_half = [
+        0.5 * (6.0 * (e1 + e2 - e0) / volume).sqrt(),
+        0.5 * (6.0 * (e0 + e2 - e1) / volume).sqrt(),
+        0.5 * (6.0 * (e0 + e1 - e2) / volume).sqrt(),
+    ];
+    Ok(Mesh { line: 0, pos: com, quat, volume, box_half, hull_error })
+}
+
+/// `refpos` subtracted, `refquat`'s inverse rotation, then `scale`.
+fn apply_transformations(vertices: &mut [[f64; 3]], scale: [f64; 3], refpos: [f64; 3], refquat: [f64; 4]) {
+    if refpos != [0.0; 3] {
+        for v in vertices.iter_mut() {
+            for k in 0..3 {
+                v[k] -= refpos[k];
+            }
+        }
+    }
+    if refquat != [1.0, 0.0, 0.0, 0.0] {
+        let m = quat_to_mat(&inertia::normalize4(refquat));
+        for v in vertices.iter_mut() {
+            *v = [
+                m[0] * v[0] + m[3] * v[1] + m[6] * v[2],
+                m[1] * v[0] + m[4] * v[1] + m[7] * v[2],
+                m[2] * v[0] + m[5] * v[1] + m[8] * v[2],
+            ];
+        }
+    }
+    if scale != [1.0; 3] {
+        for v in vertices.iter_mut() {
+            for k in 0..3 {
+                v[k] *= scale[k];
+            }
+        }
+    }
+}
+
+/// Volume and centre of mass from the tetrahedra of the triangles and
+/// `apex` (volumes taken positive in legacy mode; MuJoCo's
+/// `ComputeVolume`).
+fn volume_centroid(vertices: &[[f64; 3]], faces: &[[usize; 3]], apex: &[f64; 3], mode: MeshInertia) -> (f64, [f64; 3]) {
+    let mut total = 0.0;
+    let mut com = [0.0; 3];
+    for &[a, b, c] in faces {
+        let (area, normal, center) = triangle(&vertices[a], &vertices[b], &vertices[c]);
+        let offset = [center[0] - apex[0], center[1] - apex[1], center[2] - apex[2]];
+        let mut volume = dot(&offset, &normal) * area / 3.0;
+        if mode == MeshInertia::Legacy {
+            volume = volume.abs();
+        }
+        total += volume;
+        for k in 0..3 {
+            com[k] += volume * (center[k] * 3.0 / 4.0 + apex[k] / 4.0);
+        }
+    }
+    if total >= MIN_VALUE {
+        com = com.map(|x| x / total);
+    }
+    (total, com)
+}
+
+/// Surface area's centre (MuJoCo's `ComputeSurfaceArea`, which weights each
+/// triangle's centre as a tetrahedron's with `apex`).
+fn surface_centroid(vertices: &[[f64; 3]], faces: &[[usize; 3]], apex: &[f64; 3]) -> [f64; 3] {
+    let mut total = 0.0;
+    let mut com = [0.0; 3];
+    for &[a, b, c] in faces {
+        let (area, _, center) = triangle(&vertices[a], &vertices[b], &vertices[c]);
+        total += area;
+        for k in 0..3 {
+            com[k] += area * (center[k] * 3.0 / 4.0 + apex[k] / 4.0);
+        }
+    }
+    if total >= MIN_VALUE { com.map(|x| x / total) } else { com }
+}
+
+/// The unit-density inertia about `com` and the volume (or area) again,
+/// from each triangle's tetrahedron to `com` (or the triangle itself for a
+/// shell): MuJoCo's `ComputeInertia`.
+fn unit_inertia(vertices: &[[f64; 3]], faces: &[[usize; 3]], com: &[f64; 3], mode: MeshInertia) -> (f64, Mat3) {
+    let centered: Vec<[f64; 3]> = vertices.iter().map(|v| [v[0] - com[0], v[1] - com[1], v[2] - com[2]]).collect();
+    const PAIRS: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
+    let divisor = if mode == MeshInertia::Shell { 12.0 } else { 20.0 };
+    let mut products = [0.0; 6];
+    let mut total = 0.0;
+    for &[a, b, c] in faces {
+        let (d, e, f) = (&centered[a], &centered[b], &centered[c]);
+        let (area, normal, center) = triangle(d, e, f);
+        let mut volume = if mode == MeshInertia::Shell { area } else { dot(&center, &normal) * area / 3.0 };
+        if mode == MeshInertia::Legacy {
+            volume = volume.abs();
+        }
+        total += volume;
+        for (j, &(p, q)) in PAIRS.iter().enumerate() {
+            products[j] += volume / divisor
+                * (2.0 * (d[p] * d[q] + e[p] * e[q] + f[p] * f[q])
+                    + d[p] * e[q]
+                    + d[q] * e[p]
+                    + d[p] * f[q]
+                    + d[q] * f[p]
+                    + e[p] * f[q]
+                    + e[q] * f[p]);
+        }
+    }
+    let [xx, yy, zz, xy, xz, yz] = products;
+    let tensor = Mat3::new(yy + zz, -xy, -xz, -xy, xx + zz, -yz, -xz, -yz, xx + yy);
+    (total, tensor)
+}
+
+/// Mesh assets by name.
+pub(crate) type Meshes = HashMap<String, Mesh>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cube() -> RawMesh {
+        let vertices = (0..8).map(|k| [(k & 1) as f32, ((k >> 1) & 1) as f32, ((k >> 2) & 1) as f32]).collect();
+        // Outward quads, split into triangles.
+        let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+        let faces = quads.iter().flat_map(|&[a, b, c, d]| [[a, b, c], [a, c, d]]).collect();
+        RawMesh { vertices, faces }
+    }
+
+    fn settings(inertia: MeshInertia) -> MeshSettings {
+        MeshSettings { inertia, ..MeshSettings::default() }
+    }
+
+    fn close(a: f64, b: f64) -> bool {
+        (a - b).abs() <= 1e-14 * b.abs().max(1.0)
+    }
+
+    #[test]
+    fn unit_cube_in_every_solid_mode() {
+        for mode in [MeshInertia::Legacy, MeshInertia::Exact, MeshInertia::Convex] {
+            let mesh = process(cube(), &settings(mode), [0.0; 3], [1.0, 0.0, 0.0, 0.0]).unwrap();
+            assert!(close(mesh.volume, 1.0), "{mode:?}: {}", mesh.volume);
+            assert!(mesh.pos.iter().all(|&x| close(x, 0.5)), "{mode:?}: {:?}", mesh.pos);
+            // A unit cube of mass 1: 1/6 about every axis through its centre.
+            assert!(mesh.principal_moments(1.0).iter().all(|&i| close(i, 1.0 / 6.0)));
+        }
+    }
+
+    #[test]
+    fn unit_cube_shell() {
+        let mesh = process(cube(), &settings(MeshInertia::Shell), [0.0; 3], [1.0, 0.0, 0.0, 0.0]).unwrap();
+        assert!(close(mesh.volume, 6.0));
+        // Six unit plates of mass 1/6: the two across the axis 1/36 each, the
+        // four along it 1/72 + 1/24 each; 5/18 in all.
+        assert!(mesh.principal_moments(1.0).iter().all(|&i| close(i, 5.0 / 18.0)), "{:?}", mesh.principal_moments(1.0));
+    }
+
+    #[test]
+    fn tetrahedron_against_its_closed_form() {
+        // The corner tetrahedron of edge a = 2 (the origin and a along each
+        // axis): volume a³/6, centroid a/4 on each axis, and over the solid
+        // ∫x² = a⁵/60 and ∫xy = a⁵/120 about the origin.
+        let raw = RawMesh {
+            vertices: vec![[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 2.0]],
+            faces: vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+        };
+        let mesh = process(raw, &settings(MeshInertia::Exact), [0.0; 3], [1.0, 0.0, 0.0, 0.0]).unwrap();
+        let a: f64 = 2.0;
+        let volume = a.powi(3) / 6.0;
+        assert!(close(mesh.volume, volume));
+        assert!(mesh.pos.iter().all(|&x| close(x, a / 4.0)));
+        // Second moments about the centroid: ∫x² − V c², ∫xy − V c².
+        let (c, xx, xy) = (a / 4.0, a.powi(5) / 60.0, a.powi(5) / 120.0);
+        let (sxx, sxy) = (xx - volume * c * c, xy - volume * c * c);
+        let tensor = Mat3::new(2.0 * sxx, -sxy, -sxy, -sxy, 2.0 * sxx, -sxy, -sxy, -sxy, 2.0 * sxx);
+        let expected = nalgebra::SymmetricEigen::new(tensor).eigenvalues;
+        let mut expected: Vec<f64> = expected.iter().copied().collect();
+        expected.sort_by(|x, y| y.total_cmp(x));
+        let moments = mesh.principal_moments(volume);
+        for (got, want) in moments.iter().zip(&expected) {
+            assert!((got - want).abs() < 1e-13, "{moments:?} vs {expected:?}");
+        }
+    }
+
+    #[test]
+    fn misoriented_and_degenerate_meshes_are_refused() {
+        let mut flipped = cube();
+        flipped.faces[0].swap(1, 2);
+        let error = process(flipped, &settings(MeshInertia::Exact), [0.0; 3], [1.0, 0.0, 0.0, 0.0]).unwrap_err();
+        assert!(error.contains("inconsistent orientation"), "{error}");
+        let mut inside_out = cube();
+        for face in &mut inside_out.faces {
+            face.swap(1, 2);
+        }
+        let error = process(inside_out, &settings(MeshInertia::Exact), [0.0; 3], [1.0, 0.0, 0.0, 0.0]).unwrap_err();
+        assert!(error.contains("negative"), "{error}");
+        let flat = RawMesh {
+            vertices: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]],
+            faces: vec![],
+        };
+        let error = process(flat, &settings(MeshInertia::Legacy), [0.0; 3], [1.0, 0.0, 0.0, 0.0]).unwrap_err();
+        assert!(error.contains("coplanar"), "{error}");
+        let out_of_range = RawMesh { faces: vec![[0, 1, 8]], ..cube() };
+        let error = process(out_of_range, &settings(MeshInertia::Legacy), [0.0; 3], [1.0, 0.0, 0.0, 0.0]).unwrap_err();
+        assert!(error.contains("vertex index 8"), "{error}");
+    }
+}
