@@ -567,6 +567,57 @@ mod tests {
         }
     }
 
+    /// The committed fixtures (tests/fixtures/meshes), read by format.
+    fn fixture(name: &str) -> RawMesh {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/meshes").join(name);
+        let bytes = std::fs::read(&path).unwrap();
+        match MeshFormat::of(name).unwrap() {
+            MeshFormat::Stl => files::read_stl(&bytes),
+            MeshFormat::Obj => files::read_obj(std::str::from_utf8(&bytes).unwrap()),
+            MeshFormat::Msh => files::read_msh(&bytes),
+        }
+        .unwrap()
+    }
+
+    #[test]
+    fn every_format_reads_the_same_geometry() {
+        for shape in ["cube", "tetrahedron", "l_shape", "open_box"] {
+            let meshes = ["stl", "obj", "msh"].map(|format| fixture(&format!("{shape}.{format}")));
+            // The same triangles, whatever the order of the vertices.
+            let triangles = |mesh: &RawMesh| {
+                let mut corners: Vec<[[u32; 3]; 3]> =
+                    mesh.faces.iter().map(|f| f.map(|v| mesh.vertices[v as usize].map(f32::to_bits))).collect();
+                corners.sort_unstable();
+                corners
+            };
+            assert_eq!(triangles(&meshes[0]), triangles(&meshes[1]), "{shape}: STL and OBJ");
+            assert_eq!(triangles(&meshes[0]), triangles(&meshes[2]), "{shape}: STL and MSH");
+            for mode in [MeshInertia::Legacy, MeshInertia::Exact, MeshInertia::Convex, MeshInertia::Shell] {
+                let [a, b, c] =
+                    meshes.clone().map(|m| process(m, &settings(mode), [0.0; 3], [1.0, 0.0, 0.0, 0.0]).unwrap());
+                for other in [&b, &c] {
+                    assert!(close(a.volume, other.volume), "{shape} {mode:?}");
+                    assert!(a.pos.iter().zip(&other.pos).all(|(x, y)| (x - y).abs() < 1e-14), "{shape} {mode:?}");
+                    assert!(a.box_half.iter().zip(&other.box_half).all(|(x, y)| close(*x, *y)), "{shape} {mode:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_l_shape_tells_the_modes_apart() {
+        // Legacy counts the tetrahedra the surface centroid sees from behind
+        // positive; the hull fills the notch. Exact: 12 squares of 0.125² by 0.375.
+        let volume =
+            |mode| process(fixture("l_shape.stl"), &settings(mode), [0.0; 3], [1.0, 0.0, 0.0, 0.0]).unwrap().volume;
+        let exact = 7.0 * 0.125 * 0.125 * 0.375;
+        assert!(close(volume(MeshInertia::Exact), exact));
+        // The hull: the square 0.5 × 0.5 less the triangle beyond the notch's diagonal.
+        let hull_area = 0.25 - 0.5 * 0.375 * 0.375;
+        assert!(close(volume(MeshInertia::Convex), hull_area * 0.375));
+        assert!(volume(MeshInertia::Legacy) > exact * (1.0 + 1e-6));
+    }
+
     #[test]
     fn misoriented_and_degenerate_meshes_are_refused() {
         let mut flipped = cube();
