@@ -379,6 +379,9 @@ fn process(raw: RawMesh, settings: &MeshSettings, refpos: [f64; 3], refquat: [f6
         com
     };
     let (volume, tensor) = unit_inertia(&vertices, integrated, &com, mode);
+    if !volume.is_finite() || tensor.iter().any(|x| !x.is_finite()) {
+        return Err("its volume or inertia overflows: the mesh is too large".into());
+    }
 
     let (eigenvalues, quat) = eig3(&tensor, Eigen::Mesh);
     let [e0, e1, e2] = eigenvalues;
@@ -619,6 +622,43 @@ mod tests {
     }
 
     #[test]
+    fn arbitrary_bytes_give_errors_not_panics() {
+        // A fixed linear congruential sequence: damaged fixtures and noise.
+        let mut state: u64 = 0x9e37_79b9_7f4a_7c15;
+        let mut next = move || {
+            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            (state >> 33) as u32
+        };
+        let sources = ["cube.stl", "l_shape.msh", "open_box.obj"].map(|name| {
+            std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/meshes").join(name)).unwrap()
+        });
+        for round in 0..3000 {
+            let mut bytes = sources[round % 3].clone();
+            for _ in 0..1 + next() % 8 {
+                let at = next() as usize % bytes.len();
+                bytes[at] = match round % 3 {
+                    // Text damage stays within what an OBJ file is made of.
+                    2 => b"0123456789 -./vfog\n"[next() as usize % 19],
+                    _ => next() as u8,
+                };
+            }
+            if round % 7 == 0 {
+                bytes.truncate(next() as usize % bytes.len());
+            }
+            let read = match round % 3 {
+                0 => files::read_stl(&bytes),
+                1 => files::read_msh(&bytes),
+                _ => files::read_obj(&String::from_utf8_lossy(&bytes)),
+            };
+            if let Ok(raw) = read {
+                for mode in [MeshInertia::Legacy, MeshInertia::Convex, MeshInertia::Exact, MeshInertia::Shell] {
+                    let _ = process(raw.clone(), &settings(mode), [0.0; 3], [1.0, 0.0, 0.0, 0.0]);
+                }
+            }
+        }
+    }
+
+    #[test]
     fn misoriented_and_degenerate_meshes_are_refused() {
         let mut flipped = cube();
         flipped.faces[0].swap(1, 2);
@@ -636,6 +676,9 @@ mod tests {
         };
         let error = process(flat, &settings(MeshInertia::Legacy), [0.0; 3], [1.0, 0.0, 0.0, 0.0]).unwrap_err();
         assert!(error.contains("coplanar"), "{error}");
+        let huge = MeshSettings { scale: [1e120; 3], ..MeshSettings::default() };
+        let error = process(cube(), &huge, [0.0; 3], [1.0, 0.0, 0.0, 0.0]).unwrap_err();
+        assert!(error.contains("overflows"), "{error}");
         let out_of_range = RawMesh { faces: vec![[0, 1, 8]], ..cube() };
         let error = process(out_of_range, &settings(MeshInertia::Legacy), [0.0; 3], [1.0, 0.0, 0.0, 0.0]).unwrap_err();
         assert!(error.contains("vertex index 8"), "{error}");
