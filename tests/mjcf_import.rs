@@ -646,20 +646,13 @@ fn bodies_fixed_to_the_world_get_their_mesh_mass_but_not_their_height_field_mass
     let unknown_warnings = shown.iter().filter(|w| w.contains("its mass is not computed")).count();
     assert_eq!(unknown_warnings, 1, "{shown:#?}");
     // A subtree sensor may now count the asteroid, but not the height field's
-    // uncomputed mass. The variants are written beside the fixture, where its
-    // mesh file is found.
+    // uncomputed mass (the variants name the mesh file by its absolute path).
     let path = fixture("static_meshes.xml");
-    let xml = std::fs::read_to_string(&path).unwrap();
+    let rock = path.with_file_name("meshes/rock.obj");
+    let xml = std::fs::read_to_string(&path).unwrap().replace("meshes/rock.obj", rock.to_str().unwrap());
     let compile = |subtree: &str| {
-        let variant = path.with_file_name(format!("static_meshes_{subtree}.xml"));
-        std::fs::write(
-            &variant,
-            xml.replace(r#"<subtreecom body="lander"/>"#, &format!(r#"<subtreecom body="{subtree}"/>"#)),
-        )
-        .unwrap();
-        let imported = load_mjcf(&variant);
-        std::fs::remove_file(&variant).unwrap();
-        Model::compile(&imported.unwrap().vehicle)
+        let variant = xml.replace(r#"<subtreecom body="lander"/>"#, &format!(r#"<subtreecom body="{subtree}"/>"#));
+        Model::compile(&parse_mjcf(&variant).unwrap().vehicle)
     };
     assert!(compile("asteroid").is_ok());
     let refused = compile("fixture").unwrap_err().to_string();
