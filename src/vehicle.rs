@@ -28,6 +28,8 @@ pub struct Vehicle {
     pub sensors: Vec<Sensor>,
     /// `<option>` settings for all actuators.
     pub actuation: Actuation,
+    /// `<option>` settings of MuJoCo's constraint model.
+    pub constraint_options: ConstraintOptions,
 }
 
 /// One `<body>`.
@@ -145,6 +147,8 @@ pub struct Joint {
     /// Limits of the total actuator force on the joint (MuJoCo's
     /// `actuatorfrcrange` when `actuatorfrclimited`; hinge and slide only).
     pub actuator_force_range: Option<[f64; 2]>,
+    /// Friction loss and limits: constraint forces.
+    pub constraints: JointConstraints,
     /// Line of the joint element in the MJCF file (1-based).
     pub line: u32,
 }
@@ -470,6 +474,64 @@ impl Default for Actuation {
     /// MuJoCo's defaults: actuation on, ctrl clamped.
     fn default() -> Self {
         Actuation { enabled: true, clamp_ctrl: true }
+    }
+}
+
+/// MuJoCo's soft-constraint parameters of one constraint: `solref`
+/// (time constant and damping ratio, or stiffness and damping when
+/// negative) and `solimp` (the impedance's dmin, dmax, width, midpoint,
+/// power).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SoftConstraint {
+    /// `solref`.
+    pub solref: [f64; 2],
+    /// `solimp`.
+    pub solimp: [f64; 5],
+}
+
+impl Default for SoftConstraint {
+    /// MuJoCo's defaults: solref (0.02, 1), solimp (0.9, 0.95, 0.001, 0.5, 2).
+    fn default() -> Self {
+        SoftConstraint { solref: [0.02, 1.0], solimp: [0.9, 0.95, 0.001, 0.5, 2.0] }
+    }
+}
+
+/// A joint's constraint forces, as MuJoCo builds them from its attributes
+/// and the `<flag>`s that leave them on.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct JointConstraints {
+    /// `frictionloss` on each of the joint's dofs (N m or N); 0 for none.
+    pub frictionloss: f64,
+    /// `solreffriction`, `solimpfriction`.
+    pub friction: SoftConstraint,
+    /// The joint's limits, when it is limited (hinge, slide and ball).
+    pub limit: Option<JointLimit>,
+}
+
+/// A joint's `range` as a constraint: one-sided, active within `margin`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JointLimit {
+    /// `range` in rad or m (a ball joint limits its rotation angle by the larger value).
+    pub range: [f64; 2],
+    /// `margin`: the distance to the limit at which the constraint becomes active.
+    pub margin: f64,
+    /// `solreflimit`, `solimplimit`.
+    pub soft: SoftConstraint,
+}
+
+/// `<option>` settings of MuJoCo's constraint model that change its forces.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ConstraintOptions {
+    /// `timestep` (s): with `refsafe` on, a constraint's time constant is at least twice it.
+    pub timestep: f64,
+    /// `<flag refsafe>`.
+    pub refsafe: bool,
+}
+
+impl Default for ConstraintOptions {
+    /// MuJoCo's defaults: timestep 0.002 s, refsafe on.
+    fn default() -> Self {
+        ConstraintOptions { timestep: 0.002, refsafe: true }
     }
 }
 

@@ -428,7 +428,6 @@ fn ignored_elements_warn_once_each() {
          (MuJoCo would make contacts with it)"
             .to_string(),
         ignored(19, "camera name=\"overview\""),
-        "line 21: <joint name=\"hinge\">: joint limits are not modelled (range ignored)".to_string(),
         ignored(24, "camera name=\"eye\""),
         "line 27: <contact>: ignored: nudyn models no contacts".to_string(),
         ignored(30, "equality"),
@@ -514,10 +513,6 @@ const MALFORMED: &[Malformed] = &[
         xml: "<mujoco>\n<worldbody>\n<body>\n<joint name=\"a\"/>\n<geom size=\"1\"/>\n</body>\n</worldbody>\n<tendon>\n<fixed name=\"t\"><joint joint=\"a\" coef=\"1\"/></fixed>\n</tendon>\n</mujoco>" },
     Malformed { what: "equality", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<weld>", line: 8,
         xml: "<mujoco>\n<worldbody>\n<body name=\"a\">\n<freejoint/><geom size=\"1\"/>\n</body>\n</worldbody>\n<equality>\n<weld body1=\"a\"/>\n</equality>\n</mujoco>" },
-    Malformed { what: "frictionloss", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<joint name=\"j\">", line: 4,
-        xml: "<mujoco>\n<worldbody>\n<body>\n<joint name=\"j\" frictionloss=\"0.1\"/>\n<geom size=\"1\"/>\n</body>\n</worldbody>\n</mujoco>" },
-    Malformed { what: "frictionloss from a default class", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<joint>", line: 8,
-        xml: "<mujoco>\n<default>\n<joint frictionloss=\"0.1\"/>\n</default>\n<worldbody>\n<body>\n<geom size=\"1\"/>\n<joint/>\n</body>\n</worldbody>\n</mujoco>" },
     Malformed { what: "free joint in a nested body", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<freejoint>", line: 6,
         xml: "<mujoco>\n<worldbody>\n<body>\n<geom size=\"1\"/>\n<body>\n<freejoint/>\n<geom size=\"1\"/>\n</body>\n</body>\n</worldbody>\n</mujoco>" },
     Malformed { what: "free joint with another joint", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<joint>", line: 5,

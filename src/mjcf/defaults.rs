@@ -13,7 +13,7 @@ use super::actuator::{self, ActuatorSettings};
 use super::element::Element;
 use super::error::MjcfError;
 use super::orientation::Orientation;
-use crate::vehicle::{ActuatorKind, JointKind};
+use crate::vehicle::{ActuatorKind, JointKind, SoftConstraint};
 
 /// Attributes of `<joint>` in a body (MuJoCo 4.0 schema).
 #[rustfmt::skip]
@@ -94,6 +94,12 @@ pub(crate) struct JointSettings {
     pub actuator_force_limited: Limited,
     /// `actuatorfrcrange`.
     pub actuator_force_range: [f64; 2],
+    /// `margin`.
+    pub margin: f64,
+    /// `solreflimit`, `solimplimit`.
+    pub limit_soft: SoftConstraint,
+    /// `solreffriction`, `solimpfriction`.
+    pub friction_soft: SoftConstraint,
 }
 
 impl Default for JointSettings {
@@ -115,6 +121,9 @@ impl Default for JointSettings {
             range: [0.0; 2],
             actuator_force_limited: Limited::Auto,
             actuator_force_range: [0.0; 2],
+            margin: 0.0,
+            limit_soft: SoftConstraint::default(),
+            friction_soft: SoftConstraint::default(),
         }
     }
 }
@@ -170,6 +179,22 @@ impl JointSettings {
         if let Some(range) = element.numbers("actuatorfrcrange")? {
             self.actuator_force_range = range;
         }
+        if let Some(margin) = element.number("margin")? {
+            self.margin = margin;
+        }
+        self.limit_soft.apply(element, "solreflimit", "solimplimit")?;
+        self.friction_soft.apply(element, "solreffriction", "solimpfriction")?;
+        Ok(())
+    }
+}
+
+impl SoftConstraint {
+    /// Overwrites `solref` and `solimp` from the attributes named. MuJoCo
+    /// reads fewer numbers than the attribute holds as the leading ones
+    /// (solimp's last two are often left out); it refuses non-finite ones.
+    fn apply(&mut self, element: &Element, solref: &str, solimp: &str) -> Result<(), MjcfError> {
+        element.overwrite_numbers(solref, &mut self.solref)?;
+        element.overwrite_numbers(solimp, &mut self.solimp)?;
         Ok(())
     }
 }

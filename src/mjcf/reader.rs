@@ -17,8 +17,8 @@ use super::sensor::{self, SensorTargets};
 use super::{Imported, MjcfWarning};
 use crate::math::{Mat3, Quat, Vec3};
 use crate::vehicle::{
-    Actuation, Actuator, ActuatorKind, BiasType, Body, GainType, Joint, JointKind, MassProperties, Sensor, SensorKind,
-    Site, Transmission, Vehicle,
+    Actuation, Actuator, ActuatorKind, BiasType, Body, ConstraintOptions, GainType, Joint, JointConstraints, JointKind,
+    JointLimit, MassProperties, Sensor, SensorKind, Site, Transmission, Vehicle,
 };
 
 /// MuJoCo's `mjMINVAL`: the least mass and principal moment of a moving body.
@@ -106,13 +106,18 @@ struct Physics {
     actuation: Actuation,
     /// The actuator groups `actuatorgroupdisable` lists.
     disabled_actuator_groups: Vec<i32>,
+    constraint_options: ConstraintOptions,
+    /// `<flag constraint="disable">`: no constraint forces at all.
+    constraint_disabled: bool,
+    frictionloss_disabled: bool,
+    limit_disabled: bool,
 }
 
 /// What an actuator needs to know of a joint it may name.
 struct JointTarget {
     kind: JointKind,
     /// `range` as MuJoCo's compiler leaves it: in radians for a limited hinge
-    /// when angles are in degrees, as written otherwise (for `inheritrange`).
+    /// or ball joint when angles are in degrees, as written otherwise.
     range: [f64; 2],
 }
 
@@ -259,6 +264,10 @@ impl Reader {
                 damper_disabled: false,
                 actuation: Actuation::default(),
                 disabled_actuator_groups: Vec::new(),
+                constraint_options: ConstraintOptions::default(),
+                constraint_disabled: false,
+                frictionloss_disabled: false,
+                limit_disabled: false,
             },
             defaults: Defaults::new(),
             warnings: Vec::new(),
@@ -341,6 +350,12 @@ impl Reader {
         if let Some(gravity) = element.numbers::<3>("gravity")? {
             self.physics.gravity = Vec3::from(gravity);
         }
+        if let Some(timestep) = element.number("timestep")? {
+            if timestep <= 0.0 {
+                return Err(element.bad_value("timestep", "a positive time step"));
+            }
+            self.physics.constraint_options.timestep = timestep;
+        }
         if let Some(groups) = element.integer_list("actuatorgroupdisable")? {
             if groups.iter().any(|g| !ACTUATOR_GROUPS.contains(g)) {
                 return Err(element.bad_value("actuatorgroupdisable", "actuator groups from 0 to 30"));
@@ -380,6 +395,9 @@ impl Reader {
                 ("gravity", &mut physics.gravity_disabled),
                 ("spring", &mut physics.spring_disabled),
                 ("damper", &mut physics.damper_disabled),
+                ("constraint", &mut physics.constraint_disabled),
+                ("frictionloss", &mut physics.frictionloss_disabled),
+                ("limit", &mut physics.limit_disabled),
             ] {
                 if let Some(&off) = disabled.get(flag) {
                     *target = off;
@@ -737,13 +755,6 @@ impl Reader {
             let origin = |attribute: &str| {
                 if element.has(attribute) { "" } else { " (from its default class)" }
             };
-            if s.frictionloss != 0.0 {
-                return Err(element.unsupported(format!(
-                    "frictionloss={}{}: friction loss is a constraint force, which nudyn does not model",
-                    s.frictionloss,
-                    origin("frictionloss")
-                )));
-            }
             if s.springdamper != [0.0; 2] {
                 return Err(element.unsupported(format!(
                     "springdamper{}: it derives stiffness and damping from the compiled mass matrix; \
@@ -808,7 +819,9 @@ impl Reader {
             let name = element.text("name").map_or_else(|| format!("{body_name}_joint{k}"), str::to_string);
             claim_name(&mut self.joint_names, "joint", &name, &element)?;
             let range = match s.kind {
-                JointKind::Hinge if self.joint_limited(&s) => s.range.map(|x| self.compiler.angles.radians(x)),
+                JointKind::Hinge | JointKind::Ball if self.joint_limited(&s) => {
+                    s.range.map(|x| self.compiler.angles.radians(x))
+                }
                 _ => s.range,
             };
             self.joint_targets.insert(name.clone(), JointTarget { kind: s.kind, range });
@@ -823,10 +836,28 @@ impl Reader {
                 damping: if self.physics.damper_disabled { 0.0 } else { s.damping[0] },
                 armature: s.armature,
                 actuator_force_range,
+                constraints: self.joint_constraints(&s, range),
                 line: element.line,
             });
         }
         Ok(joints)
+    }
+
+    /// The joint's friction loss and limits as constraints, less what the
+    /// `<flag>`s turn off (`range` in radians for hinges).
+    fn joint_constraints(&self, settings: &JointSettings, range: [f64; 2]) -> JointConstraints {
+        let physics = &self.physics;
+        let on = |disabled: bool| !physics.constraint_disabled && !disabled;
+        let limited = settings.kind != JointKind::Free && self.joint_limited(settings);
+        JointConstraints {
+            frictionloss: if on(physics.frictionloss_disabled) { settings.frictionloss } else { 0.0 },
+            friction: settings.friction_soft,
+            limit: (limited && on(physics.limit_disabled)).then_some(JointLimit {
+                range,
+                margin: settings.margin,
+                soft: settings.limit_soft,
+            }),
+        }
     }
 
     /// Whether a joint other than a free one has limits (MuJoCo's rule).
@@ -835,7 +866,7 @@ impl Reader {
         settings.limited == Limited::Yes || (settings.limited == Limited::Auto && low < high)
     }
 
-    /// MuJoCo's checks of joint limits; limits themselves are only warned about.
+    /// MuJoCo's checks of joint limits.
     fn check_limits(&mut self, element: &Element, settings: &JointSettings) -> Result<(), MjcfError> {
         let [low, high] = settings.range;
         if settings.limited == Limited::Auto && settings.range != [0.0; 2] && !self.compiler.autolimits {
@@ -853,7 +884,6 @@ impl Reader {
         } else if low >= high {
             return Err(element.invalid("the first 'range' value must be smaller than the second"));
         }
-        self.warnings.push(element.warning("joint limits are not modelled (range ignored)"));
         Ok(())
     }
 
@@ -1135,6 +1165,7 @@ impl Reader {
             actuators: self.actuators,
             sensors: self.sensors,
             actuation: self.physics.actuation,
+            constraint_options: self.physics.constraint_options,
         };
         Ok(Imported { vehicle, warnings: self.warnings })
     }
