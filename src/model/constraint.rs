@@ -129,14 +129,15 @@ impl Model {
         }
         let mut invweight = vec![0.0; self.nv];
         for joint in &self.joints {
-            let groups: &[std::ops::Range<usize>] = match joint.kind {
-                JointKind::Free => &[0..3, 3..6],
-                JointKind::Ball => &[0..3],
-                JointKind::Hinge | JointKind::Slide => &[0..1],
+            // (first dof, count) of each group MuJoCo averages over.
+            let groups: &[(usize, usize)] = match joint.kind {
+                JointKind::Free => &[(0, 3), (3, 3)],
+                JointKind::Ball => &[(0, 3)],
+                JointKind::Hinge | JointKind::Slide => &[(0, 1)],
             };
-            for group in groups {
-                let dofs = joint.dof_adr + group.start..joint.dof_adr + group.end;
-                let mean = diagonal[dofs.clone()].iter().sum::<f64>() / group.len() as f64;
+            for &(first, count) in groups {
+                let dofs = joint.dof_adr + first..joint.dof_adr + first + count;
+                let mean = diagonal[dofs.clone()].iter().sum::<f64>() / count as f64;
                 invweight[dofs].fill(mean);
             }
         }
