@@ -70,6 +70,22 @@ impl Constraints {
         self.friction.len() + limit_rows
     }
 
+    /// What the constraints are, in words, for an FMU's descriptions:
+    /// `None` without any.
+    pub fn summary(&self) -> Option<String> {
+        if self.is_empty() {
+            return None;
+        }
+        let mut kinds = Vec::new();
+        if !self.friction.is_empty() {
+            kinds.push(format!("joint friction loss on {} dofs", self.friction.len()));
+        }
+        if !self.limits.is_empty() {
+            kinds.push(format!("limits on {} joints", self.limits.len()));
+        }
+        Some(format!("constraint forces as MuJoCo's soft constraints: {}", kinds.join(", ")))
+    }
+
     /// The constraints of `vehicle`'s joints, whose compiled `joints` are
     /// in the same order.
     pub(super) fn of(vehicle: &Vehicle, joints: &[JointInfo]) -> Result<Constraints, ModelError> {

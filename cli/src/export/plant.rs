@@ -215,10 +215,16 @@ fn header(model: &Model, options: &ExportOptions, guid: &str) -> Header {
     Header {
         model_name: if model.name.is_empty() { options.model_identifier.clone() } else { model.name.clone() },
         guid: guid.to_string(),
-        description: format!(
-            "diagonalized dynamics of the vehicle '{}' (nq = {}, nv = {}): nu' + C(theta, nu) = eps",
-            model.name, model.nq, model.nv
-        ),
+        description: match model.constraints.summary() {
+            None => format!(
+                "diagonalized dynamics of the vehicle '{}' (nq = {}, nv = {}): nu' + C(theta, nu) = eps",
+                model.name, model.nq, model.nv
+            ),
+            Some(constraints) => format!(
+                "diagonalized dynamics of the vehicle '{}' (nq = {}, nv = {}): nu' + C(theta, nu) = eps + eps_c; {}",
+                model.name, model.nq, model.nv, constraints
+            ),
+        },
         model_identifier: options.model_identifier.clone(),
         capabilities: capabilities(options.outputs),
         generated: generation_date_and_time(),
