@@ -40,7 +40,7 @@ use std::cell::Cell;
 use std::collections::BTreeSet;
 use std::ffi::{CStr, CString, c_char, c_uint, c_void};
 use std::panic::{AssertUnwindSafe, catch_unwind};
-use std::sync::{Mutex, Once, PoisonError};
+use std::sync::{Mutex, OnceLock, PoisonError};
 
 use fmi_sys::{fmi2, fmi3};
 use nudyn_contract::fmi3::Fmi3Variables;
@@ -457,22 +457,28 @@ thread_local! {
     static PANIC_LOCATION: Cell<Option<String>> = const { Cell::new(None) };
 }
 
+/// The panic hook there was before [`guarded`] installed its own.
+type Hook = Box<dyn Fn(&std::panic::PanicHookInfo<'_>) + Sync + Send>;
+static PREVIOUS_HOOK: OnceLock<Hook> = OnceLock::new();
+
 /// Runs `body`; a panic becomes an `Err` with its message and location,
 /// for the importer's logger. The default panic hook would print them on
 /// the host's stderr, so a hook installed on first use keeps panics inside
 /// a guard quiet and passes any other (a Rust host's own, when this crate
-/// is linked as a library) to the hook that was there before.
+/// is linked as a library) to the hook that was there before. Neither
+/// hook allocates (the default hook and this one capture nothing), so a
+/// host that unloads the library (dlclose) loses no memory to them.
 fn guarded<R>(body: impl FnOnce() -> R) -> Result<R, String> {
-    static QUIET_HOOK: Once = Once::new();
-    QUIET_HOOK.call_once(|| {
+    PREVIOUS_HOOK.get_or_init(|| {
         let previous = std::panic::take_hook();
-        std::panic::set_hook(Box::new(move |info| {
-            if GUARD_DEPTH.get() == 0 {
-                previous(info);
-            } else {
+        std::panic::set_hook(Box::new(|info| {
+            if GUARD_DEPTH.get() > 0 {
                 PANIC_LOCATION.set(info.location().map(ToString::to_string));
+            } else if let Some(previous) = PREVIOUS_HOOK.get() {
+                previous(info);
             }
         }));
+        previous
     });
     GUARD_DEPTH.set(GUARD_DEPTH.get() + 1);
     let result = catch_unwind(AssertUnwindSafe(body));
