@@ -28,7 +28,6 @@ GROUP = "FMI 3.0: counts 0, n−1, n+1, 2³¹, 2⁴⁰, 2⁶³"
 LOGGER = C.CFUNCTYPE(None, C.c_void_p, C.c_int, C.c_char_p, C.c_char_p)
 inst = C.c_void_p
 size = C.c_size_t
-ptr = C.c_void_p  # every array is passed as an address: the cases choose the element types
 
 
 def wrong_counts(n: int) -> list[int]:
