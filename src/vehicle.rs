@@ -321,6 +321,12 @@ pub enum SensorKind {
     ActuatorFrc,
     /// The actuators' total force on a hinge or slide joint.
     JointActuatorFrc,
+    /// A joint's distance to its active limit less the margin (0 with no active limit row).
+    JointLimitPos,
+    /// The velocity of a joint's active limit row.
+    JointLimitVel,
+    /// The force of a joint's active limit row.
+    JointLimitFrc,
     /// An actuator's length.
     ActuatorPos,
     /// An actuator's velocity.
@@ -331,7 +337,7 @@ pub enum SensorKind {
 
 impl SensorKind {
     /// Every kind, in MuJoCo's `mjtSensor` order.
-    pub const ALL: [SensorKind; 24] = {
+    pub const ALL: [SensorKind; 27] = {
         use SensorKind::*;
         [
             Accelerometer,
@@ -343,6 +349,9 @@ impl SensorKind {
             ActuatorVel,
             ActuatorFrc,
             JointActuatorFrc,
+            JointLimitPos,
+            JointLimitVel,
+            JointLimitFrc,
             BallQuat,
             BallAngVel,
             FramePos,
@@ -386,6 +395,9 @@ impl SensorKind {
             Accelerometer => "accelerometer",
             ActuatorFrc => "actuatorfrc",
             JointActuatorFrc => "jointactuatorfrc",
+            JointLimitPos => "jointlimitpos",
+            JointLimitVel => "jointlimitvel",
+            JointLimitFrc => "jointlimitfrc",
             ActuatorPos => "actuatorpos",
             ActuatorVel => "actuatorvel",
             Clock => "clock",
@@ -402,6 +414,7 @@ impl SensorKind {
         use SensorKind::*;
         match self {
             JointPos | JointVel | ActuatorFrc | JointActuatorFrc | ActuatorPos | ActuatorVel | Clock => 1,
+            JointLimitPos | JointLimitVel | JointLimitFrc => 1,
             BallQuat | FrameQuat => 4,
             _ => 3,
         }

@@ -92,7 +92,6 @@ fn sensor_types_nudyn_does_not_compute_are_refused_by_name_and_line() {
         (r#"<torque site="tip"/>"#, "constraint forces"),
         (r#"<magnetometer site="tip"/>"#, "not computed"),
         (r#"<tendonpos tendon="t"/>"#, "tendons"),
-        (r#"<jointlimitfrc joint="hinge"/>"#, "joint limits"),
         (r#"<e_kinetic/>"#, "energy sensors"),
         (r#"<user dim="1"/>"#, "user and plugin"),
     ] {
@@ -126,6 +125,8 @@ fn what_mujocos_compiler_rejects_is_rejected_with_its_reason() {
         (r#"<jointpos joint="ball"/>"#, "joint must be slide or hinge in sensor"),
         (r#"<ballquat joint="hinge"/>"#, "joint must be ball in sensor"),
         (r#"<jointpos joint="nope"/>"#, "unknown joint 'nope' in sensor"),
+        (r#"<jointlimitfrc joint="hinge"/>"#, "joint must be limited in sensor"),
+        (r#"<jointlimitpos joint="nope"/>"#, "unknown joint 'nope' in sensor"),
         (r#"<gyro site="nope"/>"#, "unknown site 'nope' for sensor"),
         (r#"<actuatorfrc actuator="nope"/>"#, "unknown actuator 'nope' in sensor"),
         (r#"<subtreecom body="nope"/>"#, "unknown body 'nope' in sensor"),

@@ -119,6 +119,8 @@ struct JointTarget {
     /// `range` as MuJoCo's compiler leaves it: in radians for a limited hinge
     /// or ball joint when angles are in degrees, as written otherwise.
     range: [f64; 2],
+    /// Whether the joint is limited (MuJoCo's jnt_limited, before any flag).
+    limited: bool,
 }
 
 /// What the checks after the whole tree is read need to know of a body.
@@ -824,7 +826,8 @@ impl Reader {
                 }
                 _ => s.range,
             };
-            self.joint_targets.insert(name.clone(), JointTarget { kind: s.kind, range });
+            let limited = s.kind != JointKind::Free && self.joint_limited(&s);
+            self.joint_targets.insert(name.clone(), JointTarget { kind: s.kind, range, limited });
             joints.push(Joint {
                 name,
                 kind: s.kind,
@@ -1107,6 +1110,12 @@ impl Reader {
     }
 
     /// The checks that need the whole tree, `settotalmass`, and the vehicle.
+    /// The joint a sensor's attribute names.
+    fn sensed_joint(&self, element: &Element, attribute: &str) -> Result<&JointTarget, MjcfError> {
+        let name = element.text(attribute).unwrap_or_default();
+        self.joint_targets.get(name).ok_or_else(|| element.invalid(format!("unknown joint '{name}' in sensor")))
+    }
+
     fn finish(mut self, name: String) -> Result<Imported, MjcfError> {
         let valid = |r: &BodyRecord| r.inertia.mass >= MIN_VALUE && r.inertia.principal.min() >= MIN_VALUE;
         for record in self.records.iter().filter(|r| r.has_joints && !valid(r)) {
@@ -1204,11 +1213,11 @@ fn check_size(element: &Element, kind: GeomKind, size: &[f64; 3]) -> Result<(), 
 
 impl SensorTargets for Reader {
     fn joint_kind(&self, element: &Element, attribute: &str) -> Result<JointKind, MjcfError> {
-        let name = element.text(attribute).unwrap_or_default();
-        match self.joint_targets.get(name) {
-            Some(joint) => Ok(joint.kind),
-            None => Err(element.invalid(format!("unknown joint '{name}' in sensor"))),
-        }
+        Ok(self.sensed_joint(element, attribute)?.kind)
+    }
+
+    fn joint_limited(&self, element: &Element, attribute: &str) -> Result<bool, MjcfError> {
+        Ok(self.sensed_joint(element, attribute)?.limited)
     }
 
     fn body(&self, element: &Element, attribute: &str) -> Result<Option<usize>, MjcfError> {

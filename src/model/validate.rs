@@ -422,7 +422,17 @@ fn validate_sensors(model: &Model) -> Result<(), InvalidModel> {
         use SensorKind::*;
         let kind_matches = match &sensor.source {
             SensorSource::Joint { .. } => {
-                matches!(sensor.kind, JointPos | JointVel | BallQuat | BallAngVel | JointActuatorFrc)
+                matches!(
+                    sensor.kind,
+                    JointPos
+                        | JointVel
+                        | BallQuat
+                        | BallAngVel
+                        | JointActuatorFrc
+                        | JointLimitPos
+                        | JointLimitVel
+                        | JointLimitFrc
+                )
             }
             SensorSource::Actuator { .. } => matches!(sensor.kind, ActuatorFrc | ActuatorPos | ActuatorVel),
             SensorSource::Subtree { .. } => matches!(sensor.kind, SubtreeCom | SubtreeLinVel | SubtreeAngMom),
@@ -434,6 +444,9 @@ fn validate_sensors(model: &Model) -> Result<(), InvalidModel> {
                     | BallQuat
                     | BallAngVel
                     | JointActuatorFrc
+                    | JointLimitPos
+                    | JointLimitVel
+                    | JointLimitFrc
                     | ActuatorFrc
                     | ActuatorPos
                     | ActuatorVel

@@ -65,6 +65,7 @@ def evaluated(nudyn):
                 "efc_force": data.efc_force.copy(),
                 "efc_type": data.efc_type.copy(),
                 "efc_frictionloss": data.efc_frictionloss.copy(),
+                "sensordata": data.sensordata.copy(),
                 "qacc_unconstrained": None,
             }
         )
@@ -92,6 +93,16 @@ def test_qacc_and_qfrc_constraint_match_mujoco(evaluated):
     for k, (reference, answer) in enumerate(zip(references, out)):
         assert relative(answer["qacc"], reference["qacc"]) < 1e-9, f"state {k}"
         assert relative(answer["qfrc_constraint"], reference["qfrc_constraint"]) < 1e-8, f"state {k}"
+
+
+def test_sensors_read_the_limit_rows_as_mujocos(evaluated):
+    """jointlimitpos, jointlimitvel, jointlimitfrc (and an accelerometer,
+    which feels the constraint forces) equal MuJoCo's sensordata."""
+    references, out = evaluated
+    for k, (reference, answer) in enumerate(zip(references, out)):
+        assert relative(answer["sensordata"], reference["sensordata"]) < 1e-8, f"state {k}"
+    limit_forces = np.array([r["sensordata"][[2, 4, 7, 10]] for r in references])
+    assert np.count_nonzero(limit_forces) > 10 and np.count_nonzero(limit_forces == 0) > 10
 
 
 def test_rows_are_mujocos_rows_in_its_order(evaluated):
@@ -137,6 +148,7 @@ def test_fmu_runs_into_its_limits_like_mujoco(nudyn, tmp_path):
         report = json.dumps(x, indent=1)
         assert x["max_theta_error"] <= tolerance, report
         assert x["max_nu_error"] <= tolerance, report
+        assert x["max_sensordata_error"] <= tolerance, report
         theta = result.mujoco.theta
         for j in limited:
             low, high = model.jnt_range[j]
@@ -144,3 +156,6 @@ def test_fmu_runs_into_its_limits_like_mujoco(nudyn, tmp_path):
             q = theta[:, model.jnt_qposadr[j]]
             reached += int(np.any((q - low < margin) | (high - q < margin)))
     assert reached >= 2, "the scenarios must drive some joint into its limit"
+    actuated = next(r for r in validation.results if r.scenario.name == "actuated")
+    limit_forces = actuated.mujoco.sensordata[:, [2, 4, 7, 10]]
+    assert np.count_nonzero(limit_forces) > 0, "jointlimitfrc must read a limit's force on the way"
