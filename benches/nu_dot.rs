@@ -67,6 +67,7 @@ fn hinge_chain(links: usize) -> Vehicle {
         sensors,
         actuation,
         constraint_options,
+        equalities: Vec::new(),
     }
 }
 

@@ -94,13 +94,19 @@ pub struct ConstraintResponse {
 /// One active constraint row.
 #[derive(Clone, Debug, Serialize)]
 pub struct ConstraintRowReport {
-    /// "friction" (friction loss) or "limit".
+    /// "equality", "friction" (friction loss) or "limit".
     pub kind: RowKind,
-    /// The joint it acts on.
-    pub joint: String,
+    /// The equality constraint it belongs to (its element and name or index).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub equality: Option<String>,
+    /// The joint it acts on (friction loss and limits).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub joint: Option<String>,
     /// Its dof (friction loss), or the joint's first dof (limit).
-    pub dof: usize,
-    /// Distance to the limit, negative past it (MuJoCo's efc_pos; 0 for friction loss).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dof: Option<usize>,
+    /// Distance to the limit, negative past it, or the equality's violation
+    /// along this row (MuJoCo's efc_pos; 0 for friction loss).
     pub distance: f64,
     /// Its velocity J θ̇ (efc_vel).
     pub velocity: f64,
@@ -110,18 +116,19 @@ pub struct ConstraintRowReport {
 
 impl ConstraintResponse {
     fn of(model: &Model, rows: &ConstraintRows) -> Self {
-        let joint_of_dof = |dof: usize| {
-            model.joints.iter().rev().find(|j| j.dof_adr <= dof).map_or_else(String::new, |j| j.name.clone())
-        };
+        let joint_of_dof = |dof: usize| model.joints.iter().rev().find(|j| j.dof_adr <= dof).map(|j| j.name.clone());
         let constraint_rows = (0..rows.count)
             .map(|k| {
-                let dof = match rows.kind[k] {
-                    RowKind::Friction => model.constraints.friction[rows.id[k]].dof,
-                    RowKind::Limit => model.constraints.limits[rows.id[k]].dof,
+                let constraints = &model.constraints;
+                let (equality, dof) = match rows.kind[k] {
+                    RowKind::Equality => (Some(constraints.equalities[rows.id[k]].label.clone()), None),
+                    RowKind::Friction => (None, Some(constraints.friction[rows.id[k]].dof)),
+                    RowKind::Limit => (None, Some(constraints.limits[rows.id[k]].dof)),
                 };
                 ConstraintRowReport {
                     kind: rows.kind[k],
-                    joint: joint_of_dof(dof),
+                    equality,
+                    joint: dof.and_then(joint_of_dof),
                     dof,
                     distance: rows.distance[k],
                     velocity: rows.velocity[k],

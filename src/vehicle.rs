@@ -30,6 +30,8 @@ pub struct Vehicle {
     pub actuation: Actuation,
     /// `<option>` settings of MuJoCo's constraint model.
     pub constraint_options: ConstraintOptions,
+    /// Equality constraints in document order (MuJoCo's equality order).
+    pub equalities: Vec<Equality>,
 }
 
 /// One `<body>`.
@@ -530,6 +532,63 @@ pub struct JointLimit {
     pub margin: f64,
     /// `solreflimit`, `solimplimit`.
     pub soft: SoftConstraint,
+}
+
+/// One `<equality>` constraint.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Equality {
+    /// Its name, if it has one.
+    pub name: Option<String>,
+    /// What it holds together.
+    pub kind: EqualityKind,
+    /// `active`: whether it acts from the start (nudyn cannot switch it later).
+    pub active: bool,
+    /// `solref`, `solimp`.
+    pub soft: SoftConstraint,
+    /// Line of the element in the MJCF file (1-based).
+    pub line: u32,
+}
+
+/// The two frames a connect or weld constraint holds together.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum EqualityObjects {
+    /// Two bodies (indices into [`Vehicle::bodies`]; `None` for the world).
+    Bodies(Option<usize>, Option<usize>),
+    /// Two sites (indices into [`Vehicle::sites`]).
+    Sites(usize, usize),
+}
+
+/// The kinds of equality constraint nudyn models.
+#[derive(Clone, Debug, PartialEq)]
+pub enum EqualityKind {
+    /// `<connect>`: a point of each frame held together (a ball joint closing a loop).
+    Connect {
+        /// The frames.
+        objects: EqualityObjects,
+        /// `anchor`: the point in body1's frame (body semantics only).
+        anchor: Vec3,
+    },
+    /// `<weld>`: the frames held at a fixed relative pose.
+    Weld {
+        /// The frames.
+        objects: EqualityObjects,
+        /// `anchor`: the point in body2's frame (body semantics only).
+        anchor: Vec3,
+        /// `relpose`: body2's pose in body1's frame; `None` (a zero
+        /// quaternion) takes the pose of qpos0.
+        relpose: Option<(Vec3, Quat)>,
+        /// `torquescale`: the weight of the rotation rows.
+        torquescale: f64,
+    },
+    /// `<joint>`: joint1's value a quartic of joint2's, both from qpos0.
+    Joint {
+        /// `joint1`.
+        joint1: String,
+        /// `joint2`, if given.
+        joint2: Option<String>,
+        /// `polycoef`.
+        polycoef: [f64; 5],
+    },
 }
 
 /// `<option>` settings of MuJoCo's constraint model that change its forces.

@@ -30,6 +30,8 @@ const IMPEDANCE_BOUNDS: (f64, f64) = (0.0001, 0.9999);
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum RowKind {
+    /// An equality constraint's row: f free.
+    Equality,
     /// Friction loss of a dof: |f| ≤ frictionloss.
     Friction,
     /// A joint limit: f ≥ 0.
@@ -51,8 +53,18 @@ pub struct ConstraintRows {
     pub jacobian: Vec<f64>,
     /// E = m⁻¹Jᵀ, laid out like `jacobian`.
     pub eps_columns: Vec<f64>,
-    /// Distance to the limit (MuJoCo's efc_pos; 0 for friction).
+    /// Distance to the limit, or an equality row's violation (MuJoCo's
+    /// efc_pos; 0 for friction).
     pub distance: Vec<f64>,
+    /// What the impedance is a function of: the distance, or the norm of
+    /// a connect's or weld's whole violation (MuJoCo's `getposdim`).
+    pub violation: Vec<f64>,
+    /// MuJoCo's approximation of the row's diagonal of A (efc_diagApprox
+    /// before the impedance adjusts it).
+    pub diagonal_estimate: Vec<f64>,
+    /// J̇θ̇ of a connect's or weld's row (0 for the others), which MuJoCo
+    /// takes out of the reference acceleration.
+    pub jdot_v: Vec<f64>,
     /// MuJoCo's efc_margin.
     pub margin: Vec<f64>,
     /// J θ̇ (efc_vel).
@@ -75,6 +87,11 @@ pub struct ConstraintRows {
     pub solver: BoxQp,
     /// The most rows that can be active (fixed by the model).
     pub max_rows: usize,
+    /// Per-link scratch: the wrenches whose joint forces are an equality
+    /// row of J.
+    pub link_wrenches: Vec<crate::math::SpatialVec>,
+    /// Per-link scratch: spatial accelerations at θ̈ = 0 (for J̇θ̇).
+    pub bias_acceleration: Vec<crate::math::SpatialVec>,
     /// MuJoCo's qfrc_constraint = Jᵀf (nv).
     pub qfrc_constraint: Vec<f64>,
     /// ε_c = m⁻¹Jᵀf (nv).
@@ -86,6 +103,7 @@ impl ConstraintRows {
     pub fn new(model: &Model) -> Self {
         let rows = model.constraints.max_rows();
         let nv = model.nv;
+        let has_equalities = !model.constraints.equalities.is_empty();
         let per_row = vec![0.0; rows];
         ConstraintRows {
             count: 0,
@@ -94,6 +112,9 @@ impl ConstraintRows {
             jacobian: vec![0.0; rows * nv],
             eps_columns: vec![0.0; rows * nv],
             distance: per_row.clone(),
+            violation: per_row.clone(),
+            diagonal_estimate: per_row.clone(),
+            jdot_v: per_row.clone(),
             margin: per_row.clone(),
             velocity: per_row.clone(),
             aref: per_row.clone(),
@@ -105,31 +126,41 @@ impl ConstraintRows {
             gradient: per_row,
             solver: BoxQp::new(rows),
             max_rows: rows,
+            link_wrenches: vec![crate::math::SpatialVec::zeros(); if has_equalities { model.links.len() } else { 0 }],
+            bias_acceleration: vec![
+                crate::math::SpatialVec::zeros();
+                if has_equalities { model.links.len() } else { 0 }
+            ],
             qfrc_constraint: vec![0.0; if rows > 0 { nv } else { 0 }],
             eps_constraint: vec![0.0; if rows > 0 { nv } else { 0 }],
         }
     }
 
-    /// Opens row `count` with J = 0 and returns its index.
-    fn push(&mut self, nv: usize, kind: RowKind, id: usize, distance: f64, margin: f64) -> usize {
+    /// Opens row `count` with J = 0, free bounds and no J̇θ̇, and returns its index.
+    pub(super) fn push(&mut self, nv: usize, kind: RowKind, id: usize, distance: f64, margin: f64) -> usize {
         let k = self.count;
         self.count += 1;
         self.kind[k] = kind;
         self.id[k] = id;
         self.distance[k] = distance;
+        self.violation[k] = distance;
         self.margin[k] = margin;
+        self.jdot_v[k] = 0.0;
+        (self.lower[k], self.upper[k]) = (f64::NEG_INFINITY, f64::INFINITY);
         self.jacobian[k * nv..(k + 1) * nv].fill(0.0);
         k
     }
 
-    /// The active rows at configuration `theta` (quaternions normalized).
-    fn instantiate(&mut self, model: &Model, theta: &[f64]) {
+    /// The friction and limit rows at configuration `theta` (quaternions
+    /// normalized), after the equality rows.
+    fn instantiate_friction_and_limits(&mut self, model: &Model, theta: &[f64]) {
         let nv = model.nv;
-        self.count = 0;
+        let weights = &model.constraints.dof_invweight0;
         for (index, friction) in model.constraints.friction.iter().enumerate() {
             let k = self.push(nv, RowKind::Friction, index, 0.0, 0.0);
             self.jacobian[k * nv + friction.dof] = 1.0;
             (self.lower[k], self.upper[k]) = (-friction.frictionloss, friction.frictionloss);
+            self.diagonal_estimate[k] = weights[friction.dof];
         }
         for (index, limit) in model.constraints.limits.iter().enumerate() {
             match limit.kind {
@@ -158,6 +189,7 @@ impl ConstraintRows {
         for k in 0..self.count {
             if self.kind[k] == RowKind::Limit {
                 (self.lower[k], self.upper[k]) = (0.0, f64::INFINITY);
+                self.diagonal_estimate[k] = weights[model.constraints.limits[self.id[k]].dof];
             }
         }
     }
@@ -268,31 +300,28 @@ impl Workspace {
 
     fn solve_constraints(&mut self, model: &Model, rows: &mut ConstraintRows) -> Result<(), DynamicsError> {
         let nv = model.nv;
-        rows.instantiate(model, self.theta.as_slice());
+        rows.count = 0;
+        self.instantiate_equalities(model, rows);
+        rows.instantiate_friction_and_limits(model, self.theta.as_slice());
         let n = rows.count;
         for k in 0..n {
             let column = k * nv..(k + 1) * nv;
             self.eps_from_forces(model, &rows.jacobian[column.clone()], None, &mut rows.eps_columns[column])?;
         }
-        let weights = &model.constraints.dof_invweight0;
         for k in 0..n {
             let jacobian = &rows.jacobian[k * nv..(k + 1) * nv];
             let dot = |v: &[f64]| jacobian.iter().zip(v).map(|(a, b)| a * b).sum::<f64>();
             rows.velocity[k] = dot(self.qvel.as_slice());
-            let (soft, diagonal_estimate) = match rows.kind[k] {
-                RowKind::Friction => {
-                    let friction = &model.constraints.friction[rows.id[k]];
-                    (friction.soft, weights[friction.dof])
-                }
-                RowKind::Limit => {
-                    let limit = &model.constraints.limits[rows.id[k]];
-                    (limit.soft, weights[limit.dof])
-                }
+            let soft = match rows.kind[k] {
+                RowKind::Equality => model.constraints.equalities[rows.id[k]].soft,
+                RowKind::Friction => model.constraints.friction[rows.id[k]].soft,
+                RowKind::Limit => model.constraints.limits[rows.id[k]].soft,
             };
-            let imp = impedance(&soft.solimp, rows.distance[k], rows.margin[k]);
+            let imp = impedance(&soft.solimp, rows.violation[k], rows.margin[k]);
             let (stiffness, damping) = stiffness_damping(model, &soft, rows.kind[k] == RowKind::Friction);
-            rows.regularizer[k] = ((1.0 - imp) * diagonal_estimate / imp).max(MIN_VALUE);
+            rows.regularizer[k] = ((1.0 - imp) * rows.diagonal_estimate[k] / imp).max(MIN_VALUE);
             rows.aref[k] = -damping * rows.velocity[k] - stiffness * imp * (rows.distance[k] - rows.margin[k]);
+            rows.aref[k] -= rows.jdot_v[k];
             rows.gradient[k] = dot(self.qacc.as_slice()) - rows.aref[k];
         }
         // A + R: A = EᵀE.

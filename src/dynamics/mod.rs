@@ -20,6 +20,7 @@ pub mod articulated;
 pub mod bias;
 pub mod box_qp;
 pub mod constraint;
+mod equality;
 pub mod forces;
 pub mod kinematics;
 pub mod quantities;

@@ -11,6 +11,7 @@ use std::collections::HashMap;
 use super::MjcfWarning;
 use super::actuator::{self, ActuatorSettings};
 use super::element::Element;
+use super::equality::{self, EqualitySettings};
 use super::error::MjcfError;
 use super::orientation::Orientation;
 use crate::vehicle::{ActuatorKind, JointKind, SoftConstraint};
@@ -48,7 +49,7 @@ const NOT_IN_DEFAULTS: [&str; 2] = ["name", "class"];
 /// dynamics.
 #[rustfmt::skip]
 const IGNORED_DEFAULTS: &[&str] =
-    &["camera", "light", "mesh", "material", "texture", "pair", "equality", "tendon"];
+    &["camera", "light", "mesh", "material", "texture", "pair", "tendon"];
 
 /// Whether a joint or tendon has limits (`limited`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -395,6 +396,8 @@ pub(crate) struct DefaultClass {
     /// The class's actuator default, which every actuator element of the
     /// class starts from.
     pub actuator: ActuatorSettings,
+    /// Settings an `<equality>` element of this class starts from.
+    pub equality: EqualitySettings,
 }
 
 /// All default classes; index 0 is "main".
@@ -417,6 +420,7 @@ impl Defaults {
             geom: GeomSettings::default(),
             site: SiteSettings::default(),
             actuator: ActuatorSettings::default(),
+            equality: EqualitySettings::default(),
         };
         Self { classes: vec![main], parents: vec![None], by_name: HashMap::from([("main".to_string(), (MAIN, 0))]) }
     }
@@ -528,6 +532,10 @@ impl Defaults {
                         "geom" => class.geom.apply(&child)?,
                         _ => class.site.apply(&child)?,
                     }
+                }
+                "equality" => {
+                    child.check_attributes(equality::DEFAULT_ATTRIBUTES)?;
+                    self.classes[index].equality.apply(&child)?;
                 }
                 "default" => {}
                 tag if IGNORED_DEFAULTS.contains(&tag) => warnings.push(child.ignored()),

@@ -12,6 +12,7 @@
 mod actuator;
 mod defaults;
 mod element;
+mod equality;
 mod error;
 mod inertia;
 mod orientation;

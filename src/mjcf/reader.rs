@@ -10,6 +10,7 @@ use super::defaults::{
     SiteKind,
 };
 use super::element::{Element, LineStarts};
+use super::equality::{self, EqualityTargets};
 use super::error::MjcfError;
 use super::inertia::{self, BodyInertia, EPS, GeomMass};
 use super::orientation::{AngleConvention, ORIENTATION_ATTRIBUTES, Orientation, normalized, z_to_quaternion};
@@ -17,8 +18,8 @@ use super::sensor::{self, SensorTargets};
 use super::{Imported, MjcfWarning};
 use crate::math::{Mat3, Quat, Vec3};
 use crate::vehicle::{
-    Actuation, Actuator, ActuatorKind, BiasType, Body, ConstraintOptions, GainType, Joint, JointConstraints, JointKind,
-    JointLimit, MassProperties, Sensor, SensorKind, Site, Transmission, Vehicle,
+    Actuation, Actuator, ActuatorKind, BiasType, Body, ConstraintOptions, Equality, GainType, Joint, JointConstraints,
+    JointKind, JointLimit, MassProperties, Sensor, SensorKind, Site, Transmission, Vehicle,
 };
 
 /// MuJoCo's `mjMINVAL`: the least mass and principal moment of a moving body.
@@ -111,6 +112,7 @@ struct Physics {
     constraint_disabled: bool,
     frictionloss_disabled: bool,
     limit_disabled: bool,
+    equality_disabled: bool,
 }
 
 /// What an actuator needs to know of a joint it may name.
@@ -177,6 +179,7 @@ struct Reader {
     actuator_names: HashMap<String, u32>,
     sensors: Vec<Sensor>,
     sensor_names: HashMap<String, u32>,
+    equalities: Vec<Equality>,
 }
 
 /// Reads an MJCF document.
@@ -207,6 +210,7 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
     let mut has_worldbody = false;
     let mut actuator_sections = Vec::new();
     let mut sensor_sections = Vec::new();
+    let mut equality_sections = Vec::new();
     for section in root.children() {
         match section.tag() {
             "compiler" | "option" | "default" => {}
@@ -218,13 +222,12 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
             "actuator" => actuator_sections.push(section),
             "sensor" => sensor_sections.push(section),
             tag if IGNORED_SECTIONS.contains(&tag) => reader.warnings.push(section.ignored()),
-            "tendon" | "equality" => match section.children().next() {
-                Some(first) if section.tag() == "tendon" => {
-                    return Err(first.unsupported("tendons (their forces and limits are not modelled)"));
-                }
-                Some(first) => return Err(first.unsupported("equality constraints")),
+            "tendon" => match section.children().next() {
+                Some(first) => return Err(first.unsupported("tendons (their forces and limits are not modelled)")),
                 None => reader.warnings.push(section.ignored()),
             },
+            // Read once every body, site and joint is known.
+            "equality" => equality_sections.push(section),
             "deformable" => reader.read_deformable(&section)?,
             "include" => return Err(unsupported_child(&section)),
             _ => return Err(section.unknown()),
@@ -232,6 +235,9 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
     }
     if !has_worldbody {
         return Err(MjcfError::MissingWorldbody { line: root.line, element: root.label() });
+    }
+    for section in &equality_sections {
+        reader.read_equalities(section)?;
     }
     for section in &actuator_sections {
         reader.read_actuators(section)?;
@@ -270,6 +276,7 @@ impl Reader {
                 constraint_disabled: false,
                 frictionloss_disabled: false,
                 limit_disabled: false,
+                equality_disabled: false,
             },
             defaults: Defaults::new(),
             warnings: Vec::new(),
@@ -285,6 +292,7 @@ impl Reader {
             actuator_names: HashMap::new(),
             sensors: Vec::new(),
             sensor_names: HashMap::new(),
+            equalities: Vec::new(),
         }
     }
 
@@ -400,6 +408,7 @@ impl Reader {
                 ("constraint", &mut physics.constraint_disabled),
                 ("frictionloss", &mut physics.frictionloss_disabled),
                 ("limit", &mut physics.limit_disabled),
+                ("equality", &mut physics.equality_disabled),
             ] {
                 if let Some(&off) = disabled.get(flag) {
                     *target = off;
@@ -927,6 +936,20 @@ impl Reader {
     }
 
     /// Reads an `<actuator>` section.
+    /// The `<equality>` section: each element read as MuJoCo reads it; the
+    /// constraints kept unless a `<flag>` turns them off.
+    fn read_equalities(&mut self, section: &Element) -> Result<(), MjcfError> {
+        section.check_attributes(&[])?;
+        for element in section.children() {
+            let settings = self.defaults.class(self.class_of(&element, MAIN)?).equality.clone();
+            let equality = equality::read(&element, settings, self)?;
+            if !(self.physics.constraint_disabled || self.physics.equality_disabled) {
+                self.equalities.push(equality);
+            }
+        }
+        Ok(())
+    }
+
     fn read_sensors(&mut self, section: &Element) -> Result<(), MjcfError> {
         section.check_attributes(&[])?;
         for child in section.children() {
@@ -1175,6 +1198,7 @@ impl Reader {
             sensors: self.sensors,
             actuation: self.physics.actuation,
             constraint_options: self.physics.constraint_options,
+            equalities: std::mem::take(&mut self.equalities),
         };
         Ok(Imported { vehicle, warnings: self.warnings })
     }
@@ -1208,6 +1232,31 @@ fn check_size(element: &Element, kind: GeomKind, size: &[f64; 3]) -> Result<(), 
     match used.into_iter().find(|&i| size[i] <= 0.0) {
         Some(i) => Err(element.invalid(format!("size[{i}] of a {name} geom must be positive, found {}", size[i]))),
         None => Ok(()),
+    }
+}
+
+impl EqualityTargets for Reader {
+    fn equality_body(&self, element: &Element, attribute: &str) -> Result<Option<usize>, MjcfError> {
+        let name = element.text(attribute).unwrap_or_default();
+        if name == "world" {
+            return Ok(None);
+        }
+        match self.bodies.iter().position(|b| b.name == name) {
+            Some(index) if self.body_names.contains_key(name) => Ok(Some(index)),
+            _ => Err(element.invalid(format!("unknown body '{name}' in equality constraint"))),
+        }
+    }
+
+    fn equality_site(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError> {
+        self.site_named(element, attribute, "equality constraint")
+    }
+
+    fn equality_joint(&self, element: &Element, attribute: &str) -> Result<JointKind, MjcfError> {
+        let name = element.text(attribute).unwrap_or_default();
+        self.joint_targets
+            .get(name)
+            .map(|joint| joint.kind)
+            .ok_or_else(|| element.invalid(format!("unknown joint '{name}' in equality constraint")))
     }
 }
 

@@ -31,7 +31,7 @@ mod constraint;
 mod sensor;
 mod validate;
 pub use actuator::{Actuator, ActuatorTarget, ActuatorTransmission, DofForceLimit, SiteFrame};
-pub use constraint::{Constraints, DofFriction, Limit};
+pub use constraint::{CompiledEquality, Constraints, DofFriction, EqualityRows, Limit};
 pub use sensor::{BodyMass, Sensor, SensorSource};
 pub use validate::InvalidModel;
 
@@ -296,6 +296,16 @@ pub enum ModelError {
         /// What is wrong.
         reason: String,
     },
+    /// An equality constraint that cannot be compiled.
+    #[error("{equality} (line {line}): {reason}")]
+    Equality {
+        /// The element and its name or index.
+        equality: String,
+        /// MJCF line.
+        line: u32,
+        /// What is wrong.
+        reason: String,
+    },
     /// A body named for wrench inputs that cannot take one.
     #[error("--wrench-inputs: {reason}")]
     WrenchBody {
@@ -481,7 +491,7 @@ impl Model {
         model.check_positive_definite()?;
         model.resolve_damping_ratios()?;
         model.constraints = constraints;
-        model.compute_invweights()?;
+        model.compile_constraints_in_qpos0(vehicle, &attachments, &sites)?;
         Ok(model)
     }
 

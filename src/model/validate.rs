@@ -8,7 +8,7 @@
 //! a file must be refused at instantiation with a message, not crash, hang
 //! or allocate without bound later.
 
-use super::{ActuatorTransmission, LinkJoint, Model, SensorSource, SiteFrame};
+use super::{ActuatorTransmission, EqualityRows, LinkJoint, Model, SensorSource, SiteFrame};
 use crate::math::Transform;
 use crate::vehicle::{JointKind, SensorKind};
 
@@ -376,6 +376,34 @@ pub(super) fn validate_constraints(model: &Model) -> Result<(), String> {
                 "the limit of joint '{}' does not fit it or has numbers that are not finite",
                 joint.name
             ));
+        }
+    }
+    for equality in &constraints.equalities {
+        let bad = || format!("equality {} lies outside the model or has numbers that are not finite", equality.label);
+        let finite = |values: &[f64]| values.iter().all(|x| x.is_finite());
+        let frame_ok = |frame: &super::SiteFrame| {
+            frame.link.is_none_or(|l| l < model.links.len())
+                && finite(frame.frame.rot.as_slice())
+                && finite(frame.frame.trans.as_slice())
+        };
+        let ok = match &equality.rows {
+            EqualityRows::Connect { frames, anchors, invweight } => {
+                frames.iter().all(frame_ok) && anchors.iter().all(|a| finite(a.as_slice())) && invweight.is_finite()
+            }
+            EqualityRows::Weld { frames, anchors, relative, torquescale, invweight } => {
+                frames.iter().all(frame_ok)
+                    && anchors.iter().all(|a| finite(a.as_slice()))
+                    && finite(relative.coords.as_slice())
+                    && torquescale.is_finite()
+                    && finite(invweight)
+            }
+            EqualityRows::Joint { first, second, polycoef, invweight } => {
+                let inside = |[dof, qpos]: [usize; 2]| dof < model.nv && qpos < model.nq;
+                inside(*first) && second.is_none_or(inside) && finite(polycoef) && invweight.is_finite()
+            }
+        };
+        if !ok || !soft_ok(&equality.soft) {
+            return Err(bad());
         }
     }
     let weights = &constraints.dof_invweight0;

@@ -467,6 +467,7 @@ pub fn random_vehicle(rng: &mut Rng, opts: TreeOptions) -> Vehicle {
         sensors: Vec::new(),
         actuation: Actuation::default(),
         constraint_options: Default::default(),
+        equalities: Vec::new(),
     }
 }
 
