@@ -554,7 +554,7 @@ const MALFORMED: &[Malformed] = &[
         xml: "<mujoco>\n<compiler eulerseq=\"xyw\"/>\n<worldbody/>\n</mujoco>" },
     Malformed { what: "frame", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<frame>", line: 3,
         xml: "<mujoco>\n<worldbody>\n<frame pos=\"1 0 0\">\n<body><geom size=\"1\"/></body>\n</frame>\n</worldbody>\n</mujoco>" },
-    Malformed { what: "include", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<include>", line: 2,
+    Malformed { what: "include of a missing file", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<include>", line: 2,
         xml: "<mujoco>\n<include file=\"arm.xml\"/>\n<worldbody/>\n</mujoco>" },
     Malformed { what: "composite", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<composite>", line: 4,
         xml: "<mujoco>\n<worldbody>\n<body>\n<composite type=\"cable\" count=\"4 1 1\"/>\n</body>\n</worldbody>\n</mujoco>" },

@@ -13,13 +13,14 @@ mod actuator;
 mod defaults;
 mod element;
 mod error;
+mod include;
 mod inertia;
 mod orientation;
 mod reader;
 mod sensor;
 
 use std::fmt;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 pub use error::MjcfError;
 
@@ -37,7 +38,10 @@ pub struct Imported {
 /// Something in the file that the importer ignored.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct MjcfWarning {
-    /// 1-based line of the element.
+    /// The included file the element is in (`<include>`); `None` for the
+    /// main file.
+    pub file: Option<PathBuf>,
+    /// 1-based line of the element in its file.
     pub line: u32,
     /// The element: its tag, with its `name` attribute when it has one
     /// (e.g. `camera name="top"`).
@@ -48,17 +52,22 @@ pub struct MjcfWarning {
 
 impl fmt::Display for MjcfWarning {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if let Some(file) = &self.file {
+            write!(f, "{}: ", file.display())?;
+        }
         write!(f, "line {}: <{}>: {}", self.line, self.element, self.message)
     }
 }
 
-/// Reads an MJCF document.
+/// Reads an MJCF document; the files it includes (`<include file>`) are
+/// looked for relative to the current directory.
 pub fn parse_mjcf(xml: &str) -> Result<Imported, MjcfError> {
-    reader::read(xml)
+    reader::read(xml, None)
 }
 
-/// Reads an MJCF file.
+/// Reads an MJCF file and the files it includes, which are looked for
+/// relative to its directory as MuJoCo looks for them.
 pub fn load_mjcf(path: &Path) -> Result<Imported, MjcfError> {
     let xml = std::fs::read_to_string(path).map_err(|source| MjcfError::Io { path: path.to_path_buf(), source })?;
-    parse_mjcf(&xml)
+    reader::read(&xml, Some(path))
 }

@@ -1,6 +1,7 @@
 //! Walks an MJCF document and builds the [`Vehicle`].
 
 use std::collections::HashMap;
+use std::path::{Path, PathBuf};
 
 use roxmltree::Document;
 
@@ -11,6 +12,7 @@ use super::defaults::{
 };
 use super::element::{Element, LineStarts};
 use super::error::MjcfError;
+use super::include::{self, Sources};
 use super::inertia::{self, BodyInertia, EPS, GeomMass};
 use super::orientation::{AngleConvention, ORIENTATION_ATTRIBUTES, Orientation, normalized, z_to_quaternion};
 use super::sensor::{self, SensorTargets};
@@ -95,6 +97,10 @@ struct Compiler {
     align_free: bool,
     /// `settotalmass` when positive, with the warning it earns.
     total_mass: Option<(f64, MjcfWarning)>,
+    /// Where mesh files are: `meshdir`, else `assetdir`, relative to the model's directory.
+    mesh_dir: String,
+    /// `strippath`: asset file names lose their directories.
+    strip_path: bool,
 }
 
 /// `<option>` settings that matter here.
@@ -170,10 +176,37 @@ struct Reader {
     actuator_names: HashMap<String, u32>,
     sensors: Vec<Sensor>,
     sensor_names: HashMap<String, u32>,
+    /// The files the model is read from, for the paths of its assets.
+    sources: Sources,
+    /// Each `<mesh>` asset's name and the path of its file.
+    mesh_files: HashMap<String, PathBuf>,
 }
 
-/// Reads an MJCF document.
-pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
+/// Reads an MJCF document, from the file `path` if it comes from one (the
+/// files it includes are looked for from there).
+pub(crate) fn read(xml: &str, path: Option<&Path>) -> Result<Imported, MjcfError> {
+    let assembled = include::assemble(xml, path)?;
+    let sources = assembled.sources;
+    let mut imported = read_merged(&assembled.text, &sources).map_err(|e| sources.place_error(e))?;
+    // Lines of the merged text back to lines of their files.
+    imported.warnings = imported.warnings.into_iter().map(|w| sources.place_warning(w)).collect();
+    let vehicle = &mut imported.vehicle;
+    let lines = vehicle
+        .bodies
+        .iter_mut()
+        .flat_map(|b| std::iter::once(&mut b.line).chain(b.joints.iter_mut().map(|j| &mut j.line)));
+    let lines = lines
+        .chain(vehicle.sites.iter_mut().map(|s| &mut s.line))
+        .chain(vehicle.actuators.iter_mut().map(|a| &mut a.line))
+        .chain(vehicle.sensors.iter_mut().map(|s| &mut s.line));
+    for line in lines {
+        *line = sources.line_in_file(*line);
+    }
+    Ok(imported)
+}
+
+/// Reads the document with its includes merged in.
+fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
     let document = Document::parse(xml).map_err(|e| MjcfError::Xml {
         line: e.pos().row,
         column: e.pos().col,
@@ -186,7 +219,7 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
     }
     root.check_attributes(&["model"])?;
 
-    let mut reader = Reader::new();
+    let mut reader = Reader::new(sources.clone());
     // MuJoCo applies these wherever they appear, even after <worldbody>.
     for section in root.children() {
         match section.tag() {
@@ -195,6 +228,11 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
             "default" => reader.defaults.read(&section, &mut reader.warnings)?,
             _ => {}
         }
+    }
+
+    // Once the compiler's directories are known.
+    for section in root.children().filter(|section| section.tag() == "asset") {
+        reader.read_mesh_files(&section);
     }
 
     let mut has_worldbody = false;
@@ -219,7 +257,6 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
                 None => reader.warnings.push(section.ignored()),
             },
             "deformable" => reader.read_deformable(&section)?,
-            "include" => return Err(unsupported_child(&section)),
             _ => return Err(section.unknown()),
         }
     }
@@ -239,7 +276,7 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
 }
 
 impl Reader {
-    fn new() -> Self {
+    fn new(sources: Sources) -> Self {
         Self {
             compiler: Compiler {
                 angles: AngleConvention { degrees: true, euler_seq: *b"xyz" },
@@ -251,6 +288,8 @@ impl Reader {
                 autolimits: true,
                 align_free: false,
                 total_mass: None,
+                mesh_dir: String::new(),
+                strip_path: false,
             },
             physics: Physics {
                 gravity: Vec3::new(0.0, 0.0, -9.81),
@@ -274,6 +313,8 @@ impl Reader {
             actuator_names: HashMap::new(),
             sensors: Vec::new(),
             sensor_names: HashMap::new(),
+            sources,
+            mesh_files: HashMap::new(),
         }
     }
 
@@ -326,6 +367,15 @@ impl Reader {
                 "settotalmass is deprecated in MuJoCo; all masses and inertias are scaled so the total mass is {total}"
             ));
             compiler.total_mass = (total > 0.0).then_some((total, warning));
+        }
+        // MuJoCo reads assetdir first, so that meshdir wins.
+        for attribute in ["assetdir", "meshdir"] {
+            if let Some(dir) = element.text(attribute) {
+                compiler.mesh_dir = dir.to_string();
+            }
+        }
+        if let Some(strip) = element.boolean("strippath")? {
+            compiler.strip_path = strip;
         }
         for child in element.children() {
             match child.tag() {
@@ -394,6 +444,26 @@ impl Reader {
             }
         }
         Ok(())
+    }
+
+    /// Records where the files of the `<mesh>` assets are. The section is
+    /// otherwise ignored (a mesh's shape matters only through the mass of the
+    /// geoms that use it).
+    fn read_mesh_files(&mut self, section: &Element) {
+        for mesh in section.children().filter(|child| child.tag() == "mesh") {
+            let Some(file) = mesh.text("file") else { continue };
+            let file = match self.compiler.strip_path {
+                true => Path::new(file).file_name().and_then(|f| f.to_str()).unwrap_or(file),
+                false => file,
+            };
+            // MuJoCo names a mesh without a name after its file.
+            let name = mesh.text("name").map_or_else(
+                || Path::new(file).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
+                str::to_string,
+            );
+            let path = self.sources.asset_path(&self.compiler.mesh_dir, file, mesh.line);
+            self.mesh_files.insert(name, path);
+        }
     }
 
     fn read_deformable(&mut self, section: &Element) -> Result<(), MjcfError> {
@@ -701,10 +771,12 @@ impl Reader {
             return Ok(None);
         }
         if shaped_by_asset {
-            return Err(element.unsupported(
-                "the mass properties of mesh, sdf and height-field geoms are not computed; \
-                 give the body an <inertial>, or put the geom in a group outside inertiagrouprange",
-            ));
+            let file = element.text("mesh").and_then(|mesh| self.mesh_files.get(mesh));
+            let file = file.map(|path| format!(" (mesh file {})", path.display())).unwrap_or_default();
+            return Err(element.unsupported(format!(
+                "the mass properties of mesh, sdf and height-field geoms are not computed{file}; \
+                 give the body an <inertial>, or put the geom in a group outside inertiagrouprange"
+            )));
         }
         if settings.shell_inertia {
             return Err(element.unsupported("shell inertia (shellinertia=\"true\")"));
@@ -1239,7 +1311,6 @@ fn unsupported_child(element: &Element) -> MjcfError {
         "frame" => "frames (write the frame's pose into the elements it contains)",
         "replicate" => "replicated subtrees (write the copies out)",
         "attach" => "attaching another model",
-        "include" => "included files (merge the file into this one)",
         "composite" | "flexcomp" => "composite and flexible objects",
         "plugin" => "plugins",
         _ => return element.unknown(),

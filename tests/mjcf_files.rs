@@ -1,0 +1,170 @@
+//! Model files as their authors publish them: `<include>`d files, `<frame>`s,
+//! mocap bodies and `<compiler fusestatic>`, read as MuJoCo 4.0 reads them.
+//! The numbers (poses, inertias, qacc, sensordata) are compared with
+//! MuJoCo's in tests/python through the fixtures; here, the structure and
+//! the refusals.
+
+use std::path::{Path, PathBuf};
+
+use nudyn::mjcf::{Imported, MjcfError, load_mjcf, parse_mjcf};
+use nudyn::vehicle::Vehicle;
+
+fn fixture(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/mjcf").join(name)
+}
+
+fn load(name: &str) -> Imported {
+    load_mjcf(&fixture(name)).unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+/// The vehicle with every line set to 0, to compare models written differently.
+fn without_lines(mut vehicle: Vehicle) -> Vehicle {
+    for body in &mut vehicle.bodies {
+        body.line = 0;
+        body.joints.iter_mut().for_each(|j| j.line = 0);
+    }
+    vehicle.sites.iter_mut().for_each(|s| s.line = 0);
+    vehicle.actuators.iter_mut().for_each(|a| a.line = 0);
+    vehicle.sensors.iter_mut().for_each(|s| s.line = 0);
+    vehicle
+}
+
+/// includes.xml written as one file.
+const INCLUDES_MERGED: &str = r#"<mujoco model="includes">
+  <compiler angle="radian"/>
+  <option gravity="0 0 0"/>
+  <default>
+    <joint damping="0.5"/>
+    <default class="link">
+      <geom type="capsule" size="0.05" density="2000"/>
+    </default>
+  </default>
+  <worldbody>
+    <body name="bus" pos="0.1 0 0">
+      <freejoint/>
+      <geom type="box" size="0.5 0.4 0.3" mass="100"/>
+      <body name="link1" pos="0.5 0 0" euler="0 0 0.3" childclass="link">
+        <joint name="shoulder" axis="0 0 1"/>
+        <geom fromto="0 0 0 0.4 0 0"/>
+        <camera name="arm_camera" pos="0.2 0 0.1"/>
+        <body name="link2" pos="0.4 0 0">
+          <joint name="wrist" axis="0 1 0"/>
+          <geom fromto="0 0 0 0.3 0 0"/>
+          <site name="tip" pos="0.3 0 0"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    <motor name="shoulder_motor" joint="shoulder"/>
+    <motor name="wrist_motor" joint="wrist" gear="2"/>
+  </actuator>
+</mujoco>"#;
+
+#[test]
+fn included_files_merge_in_place_as_if_written_in_the_main_file() {
+    let Imported { vehicle, warnings } = load("includes.xml");
+    let merged = parse_mjcf(INCLUDES_MERGED).unwrap().vehicle;
+    assert_eq!(without_lines(vehicle.clone()), without_lines(merged));
+    // Lines are those of each element's own file.
+    let wrist = &vehicle.bodies[2];
+    assert_eq!((wrist.name.as_str(), wrist.line, wrist.joints[0].line), ("link2", 2, 3));
+    assert_eq!(vehicle.sites[0].line, 5);
+    assert_eq!(vehicle.actuators[1].line, 4);
+    // A warning from an included file names it.
+    let camera = warnings.iter().find(|w| w.element.contains("arm_camera")).unwrap();
+    assert_eq!(camera.line, 5);
+    assert!(camera.file.as_deref().is_some_and(|f| f.ends_with("include/arm.xml")), "{camera:?}");
+    assert!(camera.to_string().contains("include/arm.xml: line 5: <camera name=\"arm_camera\">"), "{camera}");
+}
+
+/// The error for a file of include/bad/, unwrapped from the included file it
+/// is in when `in_file` names one.
+fn refusal(name: &str, in_file: Option<&str>) -> (MjcfError, String) {
+    let error = load_mjcf(&fixture("include/bad").join(name)).unwrap_err();
+    let shown = error.to_string();
+    let inner = match (error, in_file) {
+        (MjcfError::Included { path, error }, Some(file)) => {
+            assert!(path.ends_with(file), "{shown}: not in {file}");
+            *error
+        }
+        (error, None) => error,
+        (error, Some(file)) => panic!("{error:?} does not say it is in {file}"),
+    };
+    (inner, shown)
+}
+
+fn assert_at(error: &MjcfError, line: u32, element: &str) {
+    match error {
+        MjcfError::Invalid { line: l, element: e, .. }
+        | MjcfError::UnknownAttribute { line: l, element: e, .. }
+        | MjcfError::DuplicateName { line: l, element: e, .. }
+        | MjcfError::MissingAttribute { line: l, element: e, .. } => {
+            assert_eq!((*l, e.as_str()), (line, element), "{error}")
+        }
+        other => panic!("unexpected {other:?}"),
+    }
+}
+
+#[test]
+fn an_include_cycle_is_refused_where_it_closes() {
+    let (error, shown) = refusal("cycle.xml", Some("cycle_part.xml"));
+    assert_at(&error, 3, "include");
+    assert!(shown.contains("include cycle:") && shown.contains("cycle.xml includes"), "{shown}");
+}
+
+#[test]
+fn a_missing_file_is_refused_with_the_places_looked_in() {
+    let (error, shown) = refusal("missing.xml", Some("missing_part.xml"));
+    assert_at(&error, 3, "include");
+    assert!(shown.contains("cannot open 'nowhere.xml'"), "{shown}");
+    let looked = Path::new("include").join("bad").join("nowhere.xml");
+    assert!(shown.contains(&looked.display().to_string()), "{shown}");
+}
+
+#[test]
+fn a_file_included_twice_is_refused_as_mujoco_refuses_it() {
+    let (error, shown) = refusal("twice.xml", None);
+    assert_at(&error, 4, "include");
+    assert!(shown.contains("'part.xml' is already included at line 3"), "{shown}");
+}
+
+#[test]
+fn an_include_with_children_or_without_elements_is_refused() {
+    let (error, _) = refusal("children.xml", None);
+    assert_at(&error, 3, "include");
+    let (error, shown) = refusal("empty.xml", None);
+    assert_at(&error, 3, "include");
+    assert!(shown.contains("has no element below its root <mujoco>"), "{shown}");
+}
+
+#[test]
+fn errors_in_an_included_file_name_it_and_its_line() {
+    let (error, shown) = refusal("error_inside.xml", Some("typo_part.xml"));
+    assert_at(&error, 3, "joint name=\"j\"");
+    assert!(shown.ends_with("typo_part.xml: line 3: <joint name=\"j\">: unknown attribute 'axiz'"), "{shown}");
+
+    let (error, shown) = refusal("malformed.xml", Some("malformed_part.xml"));
+    assert!(matches!(error, MjcfError::Xml { line: 4, .. }), "{shown}");
+
+    // A name used in two files says where the first is.
+    let (error, shown) = refusal("duplicate.xml", Some("part.xml"));
+    assert_at(&error, 2, "body name=\"part\"");
+    assert!(shown.contains("body name \"part\" is already used at line 3 of"), "{shown}");
+}
+
+#[test]
+fn mesh_files_are_found_where_mujoco_looks_for_them() {
+    // In meshdir, below the model's directory (cargo runs the tests in the
+    // package's): the refusal of a moving body's mesh says which file.
+    let xml = r#"<mujoco><compiler assetdir="elsewhere" meshdir="tests/fixtures/mjcf/meshes"/>
+        <asset><mesh file="rock.obj"/></asset>
+        <worldbody><body><freejoint/><geom type="mesh" mesh="rock"/></body></worldbody></mujoco>"#;
+    let shown = parse_mjcf(xml).unwrap_err().to_string();
+    let expected = Path::new("tests/fixtures/mjcf/meshes").join("rock.obj");
+    assert!(shown.contains(&format!("(mesh file {})", expected.display())), "{shown}");
+    // Not there: beside the included file that names it.
+    let (_, shown) = refusal("mesh.xml", None);
+    let expected = Path::new("include/bad/sub").join("hull.stl");
+    assert!(shown.contains(&expected.display().to_string()), "{shown}");
+}
