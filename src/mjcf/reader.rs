@@ -19,8 +19,8 @@ use super::sensor::{self, SensorTargets};
 use super::{Imported, MjcfWarning};
 use crate::math::{Mat3, Quat, Vec3};
 use crate::vehicle::{
-    Actuation, Actuator, ActuatorKind, BiasType, Body, GainType, Joint, JointKind, MassProperties, Sensor, SensorKind,
-    Site, Transmission, Vehicle,
+    Actuation, Actuator, ActuatorKind, BiasType, Body, FrameObject, GainType, Joint, JointKind, MassProperties, Sensor,
+    SensorKind, SensorTarget, Site, Transmission, Vehicle,
 };
 
 /// MuJoCo's `mjMINVAL`: the least mass and principal moment of a moving body.
@@ -32,6 +32,10 @@ const BODY_ATTRIBUTES: &[&str] = &[
     "name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler", "mocap", "gravcomp",
     "user", "sleep", "simple", "fuse",
 ];
+
+/// Attributes of `<frame>`.
+#[rustfmt::skip]
+const FRAME_ATTRIBUTES: &[&str] = &["name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler"];
 
 /// Attributes of `<inertial>`.
 #[rustfmt::skip]
@@ -101,6 +105,8 @@ struct Compiler {
     mesh_dir: String,
     /// `strippath`: asset file names lose their directories.
     strip_path: bool,
+    /// `fusestatic`: bodies without joints merge into their parents.
+    fuse_static: bool,
 }
 
 /// `<option>` settings that matter here.
@@ -140,6 +146,26 @@ struct PendingBody<'a> {
     inherited_class: usize,
     /// Whether a joint lies between the parent and the world.
     parent_moving: bool,
+    /// The pose of the `<frame>`s around the body, in its parent.
+    frame: Option<Pose>,
+}
+
+/// A pose in a parent frame: position, then orientation.
+type Pose = (Vec3, Quat);
+
+/// The pose `inner`, given in the frame `outer` places, in `outer`'s parent
+/// (MuJoCo's `mjuu_frameaccumChild`).
+fn compose(outer: &Pose, inner: &Pose) -> Pose {
+    (outer.0 + outer.1 * inner.0, outer.1 * inner.1)
+}
+
+/// A child element of a body or of the world body, with what the `<frame>`s
+/// around it give it: their composed pose (`None` outside any frame) and
+/// the default class.
+struct Placed<'a> {
+    element: Element<'a, 'a>,
+    frame: Option<Pose>,
+    class: usize,
 }
 
 /// `align` of a free joint.
@@ -180,6 +206,11 @@ struct Reader {
     sources: Sources,
     /// Each `<mesh>` asset's name and the path of its file.
     mesh_files: HashMap<String, PathBuf>,
+    /// The names of the mocap bodies, in MuJoCo's mocap order.
+    mocap_bodies: Vec<String>,
+    /// Bodies named by an ignored element (a camera's or light's `target`, a
+    /// contact `<exclude>`), which `fusestatic` keeps.
+    named_elsewhere: Vec<String>,
 }
 
 /// Reads an MJCF document, from the file `path` if it comes from one (the
@@ -234,10 +265,15 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
     for section in root.children().filter(|section| section.tag() == "asset") {
         reader.read_mesh_files(&section);
     }
+    for exclude in root.children().filter(|s| s.tag() == "contact").flat_map(|s| s.children()) {
+        let bodies = ["body1", "body2"].iter().filter_map(|a| exclude.text(a).filter(|_| exclude.tag() == "exclude"));
+        reader.named_elsewhere.extend(bodies.map(str::to_string));
+    }
 
     let mut has_worldbody = false;
     let mut actuator_sections = Vec::new();
     let mut sensor_sections = Vec::new();
+    let mut keyframe_sections = Vec::new();
     for section in root.children() {
         match section.tag() {
             "compiler" | "option" | "default" => {}
@@ -248,12 +284,17 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
             // Read once every joint and site is known, wherever the section stands.
             "actuator" => actuator_sections.push(section),
             "sensor" => sensor_sections.push(section),
+            // Checked once the sizes are known, then ignored.
+            "keyframe" => {
+                keyframe_sections.push(section);
+                reader.warnings.push(section.ignored());
+            }
             tag if IGNORED_SECTIONS.contains(&tag) => reader.warnings.push(section.ignored()),
             "tendon" | "equality" => match section.children().next() {
                 Some(first) if section.tag() == "tendon" => {
                     return Err(first.unsupported("tendons (their forces and limits are not modelled)"));
                 }
-                Some(first) => return Err(first.unsupported("equality constraints")),
+                Some(first) => return Err(reader.equality_refusal(&first)),
                 None => reader.warnings.push(section.ignored()),
             },
             "deformable" => reader.read_deformable(&section)?,
@@ -269,6 +310,9 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
     // After the actuators, which sensors may name.
     for section in &sensor_sections {
         reader.read_sensors(section)?;
+    }
+    for section in &keyframe_sections {
+        reader.check_keyframes(section)?;
     }
 
     let name = root.text("model").unwrap_or("vehicle").to_string();
@@ -290,6 +334,7 @@ impl Reader {
                 total_mass: None,
                 mesh_dir: String::new(),
                 strip_path: false,
+                fuse_static: false,
             },
             physics: Physics {
                 gravity: Vec3::new(0.0, 0.0, -9.81),
@@ -315,6 +360,8 @@ impl Reader {
             sensor_names: HashMap::new(),
             sources,
             mesh_files: HashMap::new(),
+            mocap_bodies: Vec::new(),
+            named_elsewhere: Vec::new(),
         }
     }
 
@@ -376,6 +423,9 @@ impl Reader {
         }
         if let Some(strip) = element.boolean("strippath")? {
             compiler.strip_path = strip;
+        }
+        if let Some(fuse) = element.boolean("fusestatic")? {
+            compiler.fuse_static = fuse;
         }
         for child in element.children() {
             match child.tag() {
@@ -483,11 +533,14 @@ impl Reader {
     fn read_worldbody(&mut self, section: &Element) -> Result<(), MjcfError> {
         // MuJoCo: "World body cannot have attributes".
         section.check_attributes(&[])?;
-        for child in section.children() {
+        for Placed { element: child, frame, class } in self.placed_children(section, MAIN)? {
             match child.tag() {
-                "body" => self.read_body_tree(child)?,
-                "site" => self.read_site(&child, MAIN, None)?,
-                "geom" | "camera" | "light" => self.warnings.push(child.ignored()),
+                "body" => self.read_body_tree(child, frame, class)?,
+                "site" => self.read_site(&child, class, None, frame)?,
+                "geom" | "camera" | "light" => {
+                    self.named_elsewhere.extend(child.text("target").map(str::to_string));
+                    self.warnings.push(child.ignored());
+                }
                 "joint" | "freejoint" => {
                     return Err(child.invalid("the world body cannot have joints"));
                 }
@@ -502,8 +555,9 @@ impl Reader {
     /// (parent before child). A work stack instead of recursion: a vehicle
     /// file may nest bodies thousands deep, and the importer must not
     /// overflow the thread's stack, which is small in a host's FMU thread.
-    fn read_body_tree<'a>(&mut self, top: Element<'a, 'a>) -> Result<(), MjcfError> {
-        let mut pending = vec![PendingBody { element: top, parent: None, inherited_class: MAIN, parent_moving: false }];
+    fn read_body_tree<'a>(&mut self, top: Element<'a, 'a>, frame: Option<Pose>, class: usize) -> Result<(), MjcfError> {
+        let mut pending =
+            vec![PendingBody { element: top, parent: None, inherited_class: class, parent_moving: false, frame }];
         while let Some(body) = pending.pop() {
             let children = self.read_body(&body)?;
             // Reversed so that the first child is read next.
@@ -514,17 +568,18 @@ impl Reader {
 
     /// Reads one body; returns its child bodies, still to be read.
     fn read_body<'a>(&mut self, body: &PendingBody<'a>) -> Result<Vec<PendingBody<'a>>, MjcfError> {
-        let &PendingBody { ref element, parent, inherited_class, parent_moving } = body;
+        let &PendingBody { ref element, parent, inherited_class, parent_moving, frame } = body;
         element.check_attributes(BODY_ATTRIBUTES)?;
-        if element.boolean("mocap")? == Some(true) {
-            return Err(element.unsupported("mocap bodies are moved by the user, not by the dynamics"));
-        }
-        if element.number("gravcomp")?.is_some_and(|g| g != 0.0) {
-            return Err(element.unsupported("gravity compensation (gravcomp) is not modelled"));
+        let mocap = element.boolean("mocap")? == Some(true);
+        // Without gravity MuJoCo's compensating force is exactly zero.
+        let gravity = !self.physics.gravity_disabled && self.physics.gravity != Vec3::zeros();
+        if gravity && element.number("gravcomp")?.is_some_and(|g| g != 0.0) {
+            return Err(element.unsupported("gravity compensation (gravcomp) under gravity is not modelled"));
         }
         let class = self.defaults.lookup(element, "childclass")?.unwrap_or(inherited_class);
-        let pos = Vec3::from(element.numbers::<3>("pos")?.unwrap_or_default());
-        let quat = self.resolve(element, &Orientation::read(element)?.unwrap_or_default())?;
+        let own_pos = Vec3::from(element.numbers::<3>("pos")?.unwrap_or_default());
+        let own_quat = self.resolve(element, &Orientation::read(element)?.unwrap_or_default())?;
+        let (pos, quat) = frame.map_or((own_pos, own_quat), |frame| compose(&frame, &(own_pos, own_quat)));
         let index = self.bodies.len();
         let name = element.text("name").map_or_else(|| format!("body{index}"), str::to_string);
         claim_name(&mut self.body_names, "body", &name, element)?;
@@ -533,19 +588,27 @@ impl Reader {
         let mut joints = Vec::new();
         let mut geoms = Vec::new();
         let mut child_bodies = Vec::new();
-        for child in element.children() {
+        for Placed { element: child, frame, class } in self.placed_children(element, class)? {
             match child.tag() {
                 "inertial" => {
                     if let Some((first, _)) = &inertial {
                         return Err(child.repeated(first));
                     }
-                    inertial = Some((child, self.read_inertial(&child)?));
+                    let mut read = self.read_inertial(&child)?;
+                    if let Some(frame) = frame {
+                        read.place(&frame.0, &frame.1);
+                    }
+                    inertial = Some((child, read));
                 }
                 "joint" => {
                     child.check_attributes(JOINT_ATTRIBUTES)?;
                     no_children(&child)?;
                     let mut settings = self.defaults.class(self.class_of(&child, class)?).joint.clone();
                     settings.apply(&child)?;
+                    if let Some((at, turn)) = frame {
+                        settings.pos = (at + turn * Vec3::from(settings.pos)).into();
+                        settings.axis = (turn * Vec3::from(settings.axis)).into();
+                    }
                     joints.push(JointElement { element: child, settings, align: Align::Auto });
                 }
                 "freejoint" => {
@@ -564,16 +627,34 @@ impl Reader {
                     }
                     let mut settings = self.defaults.class(self.class_of(&child, class)?).geom.clone();
                     settings.apply(&child)?;
-                    geoms.push((child, settings));
+                    geoms.push((child, settings, frame));
                 }
-                "site" => self.read_site(&child, class, Some(index))?,
-                "camera" | "light" => self.warnings.push(child.ignored()),
-                "body" => child_bodies.push(child),
+                "site" => self.read_site(&child, class, Some(index), frame)?,
+                "camera" | "light" => {
+                    self.named_elsewhere.extend(child.text("target").map(str::to_string));
+                    self.warnings.push(child.ignored());
+                }
+                "body" => child_bodies.push(PendingBody {
+                    element: child,
+                    parent: Some(index),
+                    inherited_class: class,
+                    parent_moving: false,
+                    frame,
+                }),
                 _ => return Err(unsupported_child(&child)),
             }
         }
 
         let has_joints = !joints.is_empty();
+        // A mocap body stays where the file puts it, since nudyn takes no
+        // mocap poses: a body welded to the world, as MuJoCo's is until its
+        // mocap_pos or mocap_quat is changed.
+        if mocap {
+            if has_joints || parent.is_some() {
+                return Err(element.invalid(format!("mocap body '{name}' is not a fixed child of world")));
+            }
+            self.mocap_bodies.push(name.clone());
+        }
         let moving = parent_moving || has_joints;
         let joints = self.build_joints(&name, parent, joints, !child_bodies.is_empty())?;
 
@@ -585,7 +666,7 @@ impl Reader {
         };
         let mut selected = Vec::new();
         let mut mass_unknown = false;
-        for (geom, settings) in &geoms {
+        for (geom, settings, frame) in &geoms {
             let [low, high] = self.compiler.inertia_groups;
             let contributes = from_geoms && (low..=high).contains(&settings.group);
             let shaped_by_asset =
@@ -598,7 +679,7 @@ impl Reader {
                 ));
             }
             // MuJoCo leaves out geoms of mass up to mjEPS.
-            if let Some(mass) = self.geom_mass(geom, settings, moving, contributes)?
+            if let Some(mass) = self.geom_mass(geom, settings, frame.as_ref(), moving, contributes)?
                 && mass.mass > EPS
             {
                 selected.push(mass);
@@ -610,8 +691,9 @@ impl Reader {
             explicit
         } else {
             // MuJoCo puts the inertial frame of a body without mass at the body's
-            // own pose in its parent; it matters once boundmass gives it mass.
-            BodyInertia::from_principal(0.0, pos, &quat, Vec3::zeros())
+            // own pose in its parent, before any <frame> around it; it matters
+            // once boundmass gives it mass.
+            BodyInertia::from_principal(0.0, own_pos, &own_quat, Vec3::zeros())
         };
         let inertia = self.bound(element, inertia)?;
 
@@ -637,10 +719,38 @@ impl Reader {
         if let Some(parent) = parent {
             self.records[parent].children.push(index);
         }
-        Ok(child_bodies
+        Ok(child_bodies.into_iter().map(|child| PendingBody { parent_moving: moving, ..child }).collect())
+    }
+
+    /// The children of a body (or of the world body) of class `class`, with
+    /// the elements inside its `<frame>`s, nested or not, in their place in
+    /// document order: MuJoCo's frames vanish when it compiles a model, their
+    /// pose composed into their children's and their `childclass` handed on.
+    fn placed_children<'a>(&self, parent: &Element<'a, 'a>, class: usize) -> Result<Vec<Placed<'a>>, MjcfError> {
+        let mut placed = Vec::new();
+        // Reversed, so that the first child comes off the stack first.
+        let mut pending: Vec<Placed<'a>> = parent
+            .children()
+            .collect::<Vec<_>>()
             .into_iter()
-            .map(|element| PendingBody { element, parent: Some(index), inherited_class: class, parent_moving: moving })
-            .collect())
+            .rev()
+            .map(|element| Placed { element, frame: None, class })
+            .collect();
+        while let Some(item) = pending.pop() {
+            if item.element.tag() != "frame" {
+                placed.push(item);
+                continue;
+            }
+            let frame = &item.element;
+            frame.check_attributes(FRAME_ATTRIBUTES)?;
+            let class = self.defaults.lookup(frame, "childclass")?.unwrap_or(item.class);
+            let pos = Vec3::from(frame.numbers::<3>("pos")?.unwrap_or_default());
+            let quat = self.resolve(frame, &Orientation::read(frame)?.unwrap_or_default())?;
+            let pose = item.frame.map_or((pos, quat), |outer| compose(&outer, &(pos, quat)));
+            let children: Vec<_> = frame.children().collect();
+            pending.extend(children.into_iter().rev().map(|element| Placed { element, frame: Some(pose), class }));
+        }
+        Ok(placed)
     }
 
     /// The class of a joint, geom or site: its `class`, else its body's class.
@@ -649,7 +759,13 @@ impl Reader {
     }
 
     /// Reads a `<site>` of body `body` (`None`: the world body).
-    fn read_site(&mut self, element: &Element, body_class: usize, body: Option<usize>) -> Result<(), MjcfError> {
+    fn read_site(
+        &mut self,
+        element: &Element,
+        body_class: usize,
+        body: Option<usize>,
+        frame: Option<Pose>,
+    ) -> Result<(), MjcfError> {
         element.check_attributes(SITE_ATTRIBUTES)?;
         no_children(element)?;
         let mut settings = self.defaults.class(self.class_of(element, body_class)?).site.clone();
@@ -664,6 +780,7 @@ impl Reader {
             }
             None => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
         };
+        let (pos, quat) = frame.map_or((pos, quat), |frame| compose(&frame, &(pos, quat)));
         let name = element.text("name").map(str::to_string);
         if let Some(name) = &name {
             claim_name(&mut self.site_names, "site", name, element)?;
@@ -726,6 +843,7 @@ impl Reader {
         &self,
         element: &Element,
         settings: &GeomSettings,
+        frame: Option<&Pose>,
         moving: bool,
         contributes: bool,
     ) -> Result<Option<GeomMass>, MjcfError> {
@@ -757,6 +875,7 @@ impl Reader {
             }
             None => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
         };
+        let (pos, quat) = frame.map_or((pos, quat), |frame| compose(frame, &(pos, quat)));
         // A geom fitted to a mesh gets its size from the mesh.
         if !settings.mesh {
             check_size(element, settings.kind, &size)?;
@@ -963,6 +1082,59 @@ impl Reader {
             )));
         }
         Ok(on.then_some(range))
+    }
+
+    /// Why an element of `<equality>` is refused.
+    fn equality_refusal(&self, element: &Element) -> MjcfError {
+        let tag = element.tag();
+        let site_body = |name: &str| {
+            let site = self.sites.iter().find(|s| s.name.as_deref() == Some(name))?;
+            site.body.map(|b| self.bodies[b].name.as_str())
+        };
+        let bodies = ["body1", "body2"].iter().filter_map(|a| element.text(a));
+        let bodies = bodies.chain(["site1", "site2"].iter().filter_map(|a| element.text(a).and_then(site_body)));
+        match bodies.into_iter().find(|body| self.mocap_bodies.iter().any(|m| m == body)) {
+            Some(body) => element.unsupported(format!(
+                "<equality>/<{tag}> to mocap body '{body}': nudyn takes no mocap poses for the constraint to follow"
+            )),
+            None => element.unsupported(format!("<equality>/<{tag}>: equality constraints are not modelled")),
+        }
+    }
+
+    /// MuJoCo's checks of the `<key>`s of a `<keyframe>` section: each
+    /// vector given has the model's size. nudyn does not use keyframes.
+    fn check_keyframes(&self, section: &Element) -> Result<(), MjcfError> {
+        section.check_attributes(&[])?;
+        let joints = self.bodies.iter().flat_map(|b| &b.joints);
+        let (nq, nv) = joints.fold((0, 0), |(nq, nv), j| (nq + j.kind.nq(), nv + j.kind.nv()));
+        let nmocap = self.mocap_bodies.len();
+        // Activation states are refused, so na is 0.
+        let sizes = [
+            ("qpos", nq),
+            ("qvel", nv),
+            ("act", 0),
+            ("mpos", 3 * nmocap),
+            ("mquat", 4 * nmocap),
+            ("ctrl", self.actuators.len()),
+        ];
+        for key in section.children() {
+            if key.tag() != "key" {
+                return Err(key.unknown());
+            }
+            key.check_attributes(&["name", "time", "qpos", "qvel", "act", "mpos", "mquat", "ctrl"])?;
+            no_children(&key)?;
+            key.number("time")?;
+            for (attribute, size) in sizes {
+                let Some(text) = key.text(attribute) else { continue };
+                let values: Result<Vec<f64>, _> = text.split_ascii_whitespace().map(str::parse).collect();
+                let given = values.map_err(|_| key.bad_value(attribute, "numbers"))?.len();
+                // An empty list counts as not given.
+                if given != 0 && given != size {
+                    return Err(key.invalid(format!("invalid {attribute} size, expected {size}, got {given}")));
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Reads an `<actuator>` section.
@@ -1174,6 +1346,10 @@ impl Reader {
             }
         }
 
+        if self.compiler.fuse_static {
+            self.fuse_static()?;
+        }
+
         if let Some((total, warning)) = self.compiler.total_mass.take() {
             let sum: f64 = self.records.iter().map(|r| r.inertia.mass).sum();
             if sum < MIN_VALUE {
@@ -1209,6 +1385,93 @@ impl Reader {
             actuation: self.physics.actuation,
         };
         Ok(Imported { vehicle, warnings: self.warnings })
+    }
+}
+
+impl Reader {
+    /// `<compiler fusestatic="true">` as MuJoCo 4.0 applies it
+    /// (`mjCModel::FuseStatic`), in body order: a body without joints, not
+    /// mocap and not named by anything that refers to bodies (a sensor, a
+    /// camera's or light's target, a contact exclusion) disappears into its
+    /// parent. Its mass properties join the parent's (unless the parent is
+    /// the world, or its mass is below mjMINVAL), its child bodies and sites
+    /// become the parent's, placed where they were. The parent's inertial
+    /// frame moves: sensors of objtype "body" on it measure the merged one.
+    fn fuse_static(&mut self) -> Result<(), MjcfError> {
+        let mut referenced = vec![false; self.bodies.len()];
+        for sensor in &self.sensors {
+            match &sensor.target {
+                SensorTarget::Frame { object, reference } => {
+                    for object in std::iter::once(object).chain(reference) {
+                        if let FrameObject::Body(Some(body)) | FrameObject::XBody(Some(body)) = object {
+                            referenced[*body] = true;
+                        }
+                    }
+                }
+                SensorTarget::Subtree(Some(body)) => referenced[*body] = true,
+                _ => {}
+            }
+        }
+        let kept: Vec<bool> = (self.bodies.iter().zip(&referenced))
+            .map(|(body, &referenced)| {
+                let named = self.named_elsewhere.contains(&body.name) || self.mocap_bodies.contains(&body.name);
+                referenced || named || !body.joints.is_empty()
+            })
+            .collect();
+
+        for index in kept.iter().enumerate().filter(|(_, kept)| !**kept).map(|(index, _)| index) {
+            let pose = (self.bodies[index].pos, self.bodies[index].quat);
+            let parent = self.bodies[index].parent;
+            if let Some(parent) = parent {
+                let fused = &self.records[index];
+                if fused.inertia.mass >= MIN_VALUE {
+                    let merged = self.records[parent].inertia.merged(&fused.inertia, &pose.0, &pose.1);
+                    self.records[parent].inertia = merged.map_err(|reason| MjcfError::Invalid {
+                        line: fused.line,
+                        element: fused.label.clone(),
+                        reason: format!("error '{reason}' in fusing static body inertias"),
+                    })?;
+                }
+                self.bodies[parent].mass_unknown |= self.bodies[index].mass_unknown;
+            }
+            for child in self.bodies.iter_mut().filter(|b| b.parent == Some(index)) {
+                child.parent = parent;
+                (child.pos, child.quat) = compose(&pose, &(child.pos, child.quat));
+            }
+            for site in self.sites.iter_mut().filter(|s| s.body == Some(index)) {
+                site.body = parent;
+                (site.pos, site.quat) = compose(&pose, &(site.pos, site.quat));
+            }
+        }
+
+        // Renumber the bodies left.
+        let mut new_index = Vec::with_capacity(kept.len());
+        let mut next = 0;
+        for &keep in &kept {
+            new_index.push(keep.then_some(next));
+            next += usize::from(keep);
+        }
+        let renumber = |body: &mut Option<usize>| *body = body.and_then(|b| new_index[b]);
+        let mut keep = kept.iter().copied();
+        self.bodies.retain(|_| keep.next().unwrap_or(true));
+        let mut keep = kept.iter().copied();
+        self.records.retain(|_| keep.next().unwrap_or(true));
+        self.bodies.iter_mut().for_each(|b| renumber(&mut b.parent));
+        self.sites.iter_mut().for_each(|s| renumber(&mut s.body));
+        for sensor in &mut self.sensors {
+            match &mut sensor.target {
+                SensorTarget::Frame { object, reference } => {
+                    for object in std::iter::once(object).chain(reference.as_mut()) {
+                        if let FrameObject::Body(body) | FrameObject::XBody(body) = object {
+                            renumber(body);
+                        }
+                    }
+                }
+                SensorTarget::Subtree(body) => renumber(body),
+                _ => {}
+            }
+        }
+        Ok(())
     }
 }
 
@@ -1308,7 +1571,6 @@ fn no_children(element: &Element) -> Result<(), MjcfError> {
 /// sections are expected.
 fn unsupported_child(element: &Element) -> MjcfError {
     let reason = match element.tag() {
-        "frame" => "frames (write the frame's pose into the elements it contains)",
         "replicate" => "replicated subtrees (write the copies out)",
         "attach" => "attaching another model",
         "composite" | "flexcomp" => "composite and flexible objects",
