@@ -168,3 +168,137 @@ fn mesh_files_are_found_where_mujoco_looks_for_them() {
     let expected = Path::new("include/bad/sub").join("hull.stl");
     assert!(shown.contains(&expected.display().to_string()), "{shown}");
 }
+
+/// Poses compared to round-off (the numbers themselves are MuJoCo's in
+/// tests/python through the fixtures).
+fn assert_pose(what: &str, pos: &nudyn::math::Vec3, expected: [f64; 3]) {
+    let expected = nudyn::math::Vec3::from(expected);
+    assert!((pos - expected).amax() < 1e-12, "{what}: {pos} != {expected}");
+}
+
+#[test]
+fn frames_place_their_children_and_vanish() {
+    let xml = r#"<mujoco><compiler angle="radian"/>
+        <default><default class="heavy"><geom density="8000"/></default></default>
+        <worldbody>
+          <frame pos="1 0 0" euler="0 0 1.5707963267948966">
+            <site name="s" pos="1 0 0"/>
+            <frame pos="0 0 1" childclass="heavy">
+              <body name="b" pos="1 0 0">
+                <joint name="j" pos="0 0 0" axis="1 0 0"/>
+                <frame pos="0 0 2"><geom size="0.1"/></frame>
+              </body>
+            </frame>
+          </frame>
+        </worldbody></mujoco>"#;
+    let vehicle = parse_mjcf(xml).unwrap().vehicle;
+    // The frame turns x into y: the site at (1, 1, 0), the body at (1, 1, 1).
+    assert_pose("site", &vehicle.sites[0].pos, [1.0, 1.0, 0.0]);
+    let body = &vehicle.bodies[0];
+    assert_pose("body", &body.pos, [1.0, 1.0, 1.0]);
+    assert!((body.quat.angle() - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+    // The body's own joint is in its frame; its geom is 2 up, of the frame's class.
+    assert_pose("joint axis", &body.joints[0].axis, [1.0, 0.0, 0.0]);
+    let mass = body.inertia.as_ref().unwrap();
+    assert_pose("centre of mass", &mass.com, [0.0, 0.0, 2.0]);
+    assert!((mass.mass - 8000.0 * 4.0 / 3.0 * std::f64::consts::PI * 1e-3).abs() < 1e-9);
+}
+
+#[test]
+fn a_mocap_body_is_fixed_to_the_world_where_the_file_puts_it() {
+    let Imported { vehicle, .. } = load("mocap.xml");
+    let target = &vehicle.bodies[0];
+    assert_eq!((target.name.as_str(), target.parent, target.joints.len()), ("target", None, 0));
+    assert_pose("target", &target.pos, [1.0, 2.0, 3.0]);
+    // Below another body, or with a joint, MuJoCo refuses it.
+    let nested = r#"<mujoco><worldbody><body name="a"><freejoint/><geom size="1"/>
+        <body name="m" mocap="true"><geom size="1"/></body></body></worldbody></mujoco>"#;
+    let shown = parse_mjcf(nested).unwrap_err().to_string();
+    assert!(shown.contains("line 2: <body name=\"m\">: mocap body 'm' is not a fixed child of world"), "{shown}");
+}
+
+#[test]
+fn an_equality_constraint_is_refused_as_one_and_a_weld_to_a_mocap_body_says_so() {
+    let with = |constraint: &str| {
+        format!(
+            r#"<mujoco><worldbody><body name="m" mocap="true"><geom size="1"/><site name="ms"/></body>
+            <body name="a"><freejoint/><geom size="1"/></body>
+            <body name="b"><joint name="j1"/><geom size="1"/><body><joint name="j2"/><geom size="1"/></body></body>
+            </worldbody><equality>{constraint}</equality></mujoco>"#
+        )
+    };
+    let shown = parse_mjcf(&with(r#"<joint joint1="j1" joint2="j2"/>"#)).unwrap_err().to_string();
+    assert_eq!(shown, "line 4: <joint>: not supported: <equality>/<joint>: equality constraints are not modelled");
+    for weld in [r#"<weld body1="a" body2="m"/>"#, r#"<weld site1="ms" site2="ms"/>"#] {
+        let shown = parse_mjcf(&with(weld)).unwrap_err().to_string();
+        assert!(shown.contains("<equality>/<weld> to mocap body 'm': nudyn takes no mocap poses"), "{shown}");
+    }
+}
+
+#[test]
+fn gravity_compensation_is_accepted_where_it_is_zero() {
+    let with = |option: &str| {
+        format!(
+            r#"<mujoco>{option}<worldbody><body gravcomp="1"><freejoint/><geom size="1"/></body></worldbody></mujoco>"#
+        )
+    };
+    assert!(parse_mjcf(&with(r#"<option gravity="0 0 0"/>"#)).is_ok());
+    assert!(parse_mjcf(&with(r#"<option><flag gravity="disable"/></option>"#)).is_ok());
+    let shown = parse_mjcf(&with("")).unwrap_err().to_string();
+    assert!(shown.contains("gravity compensation (gravcomp) under gravity is not modelled"), "{shown}");
+}
+
+#[test]
+fn a_ctrlrange_beside_inheritrange_zero_is_accepted_as_mujoco_accepts_it() {
+    let with = |inheritrange: &str| {
+        format!(
+            r#"<mujoco><worldbody><body><joint name="j" range="-1 1"/><geom size="1"/></body></worldbody>
+            <actuator><position joint="j" kp="10" ctrlrange="-0.5 0.5" inheritrange="{inheritrange}"/></actuator></mujoco>"#
+        )
+    };
+    let vehicle = parse_mjcf(&with("0")).unwrap().vehicle;
+    assert_eq!(vehicle.actuators[0].ctrl_range, Some([-0.5, 0.5]));
+    let shown = parse_mjcf(&with("1")).unwrap_err().to_string();
+    assert!(shown.ends_with("ctrlrange and inheritrange cannot both be defined"), "{shown}");
+}
+
+#[test]
+fn keyframes_of_the_wrong_size_are_refused_as_mujoco_refuses_them() {
+    assert!(load_mjcf(&fixture("mocap.xml")).is_ok());
+    let xml = std::fs::read_to_string(fixture("mocap.xml")).unwrap();
+    for (good, bad, message) in [
+        ("qpos=\"0.1 0 0 1 1 0 0 0\"", "qpos=\"0.1 0 0 1\"", "invalid qpos size, expected 8, got 4"),
+        ("qvel=\"0 0 0 0 0 0 0.1\"", "qvel=\"0\"", "invalid qvel size, expected 7, got 1"),
+        ("mpos=\"1 2 3\"", "mpos=\"1 2 3 4 5 6\"", "invalid mpos size, expected 3, got 6"),
+        ("mquat=\"1 0 0 0\"", "mquat=\"1 0 0 0\" ctrl=\"1\"", "invalid ctrl size, expected 0, got 1"),
+        ("mquat=\"1 0 0 0\"", "mquat=\"1 0 0 0\" act=\"1\"", "invalid act size, expected 0, got 1"),
+    ] {
+        let shown = parse_mjcf(&xml.replace(good, bad)).unwrap_err().to_string();
+        assert!(shown.ends_with(&format!("<key name=\"start\">: {message}")), "{shown}");
+    }
+}
+
+#[test]
+fn fusestatic_merges_bodies_without_joints_unless_something_names_them() {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/sensors/fusestatic.xml");
+    let vehicle = load_mjcf(&path).unwrap().vehicle;
+    let names: Vec<&str> = vehicle.bodies.iter().map(|b| b.name.as_str()).collect();
+    // The stand into the world, the panel and mast into the bus; the camera
+    // mount stays (a sensor names it).
+    assert_eq!(names, ["bus", "antenna", "camera_mount"]);
+    assert_eq!(vehicle.bodies[1].parent, Some(0));
+    let bus = vehicle.bodies[0].inertia.as_ref().unwrap();
+    assert!((bus.mass - 55.5).abs() < 1e-12, "{}", bus.mass);
+    // The panel's site moved to the bus, where it was.
+    assert_eq!(vehicle.sites[0].body, Some(0));
+    // Without fusestatic, every body stays.
+    let xml = std::fs::read_to_string(&path).unwrap().replace("fusestatic=\"true\"", "fusestatic=\"false\"");
+    assert_eq!(parse_mjcf(&xml).unwrap().vehicle.bodies.len(), 6);
+    // A camera aiming at the panel keeps it.
+    let aimed = xml.replace("fusestatic=\"false\"", "fusestatic=\"true\"").replace(
+        "<body name=\"camera_mount\" pos=\"-0.5 0 0\">",
+        "<body name=\"camera_mount\" pos=\"-0.5 0 0\"><camera mode=\"targetbody\" target=\"panel\"/>",
+    );
+    let kept: Vec<String> = parse_mjcf(&aimed).unwrap().vehicle.bodies.into_iter().map(|b| b.name).collect();
+    assert_eq!(kept, ["bus", "panel", "antenna", "camera_mount"]);
+}
