@@ -2,12 +2,16 @@
 //! defaults, orientations, angle units and geom-derived mass properties
 //! exactly as MuJoCo 4.0's compiler does.
 //!
-//! Elements without effect on the dynamics (cameras, lights, sensors,
-//! visual settings…) are ignored with a warning each; elements that would
-//! change the dynamics in ways nudyn does not model (tendons, equality
+//! Elements without effect on the dynamics (cameras, lights, visual
+//! settings…) are ignored with a warning each; elements that would change
+//! the dynamics in ways nudyn does not model (tendons, equality
 //! constraints, flexible bodies, fluid forces, friction loss, actuators with
 //! activation states…) are rejected with an [`MjcfError`] naming the element
-//! and its line. Sites and actuators are read: actuators act through `ctrl`.
+//! and its line (and its file, when it is in an included one). Sites,
+//! actuators and sensors are read: actuators act through `ctrl`.
+//! `<include>`d files are merged in, `<frame>`s composed into what they
+//! place, mocap bodies fixed to the world, and `<compiler fusestatic>`
+//! applied, as MuJoCo 4.0 does.
 
 mod actuator;
 mod defaults;
