@@ -302,3 +302,17 @@ fn fusestatic_merges_bodies_without_joints_unless_something_names_them() {
     let kept: Vec<String> = parse_mjcf(&aimed).unwrap().vehicle.bodies.into_iter().map(|b| b.name).collect();
     assert_eq!(kept, ["bus", "panel", "antenna", "camera_mount"]);
 }
+
+#[test]
+fn alignfree_moves_a_free_body_frame_to_its_inertial_frame() {
+    let xml = r#"<mujoco><compiler alignfree="true"/><worldbody>
+        <body name="b" pos="1 0 0"><freejoint/><geom size="0.1" pos="0.5 0 0"/><site name="s" pos="0.5 0 1"/></body>
+        <body name="kept" pos="0 1 0"><freejoint align="false"/><geom size="0.1" pos="0.5 0 0"/></body>
+        </worldbody></mujoco>"#;
+    let vehicle = parse_mjcf(xml).unwrap().vehicle;
+    let aligned = &vehicle.bodies[0];
+    assert_pose("aligned body", &aligned.pos, [1.5, 0.0, 0.0]);
+    assert_pose("its centre of mass", &aligned.inertia.as_ref().unwrap().com, [0.0, 0.0, 0.0]);
+    assert_pose("its site", &vehicle.sites[0].pos, [0.0, 0.0, 1.0]);
+    assert_pose("body left as written", &vehicle.bodies[1].pos, [0.0, 1.0, 0.0]);
+}

@@ -584,8 +584,6 @@ const MALFORMED: &[Malformed] = &[
         xml: "<mujoco>\n<worldbody>\n<body>\n<geom size=\"1\"/>\n<joint stiffness=\"1 0.5\"/>\n</body>\n</worldbody>\n</mujoco>" },
     Malformed { what: "joint in the world body", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<joint>", line: 3,
         xml: "<mujoco>\n<worldbody>\n<joint/>\n</worldbody>\n</mujoco>" },
-    Malformed { what: "free joint aligned to the inertial frame", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<freejoint>", line: 4,
-        xml: "<mujoco>\n<worldbody>\n<body>\n<freejoint align=\"true\"/>\n<geom size=\"1\" pos=\"1 0 0\"/>\n</body>\n</worldbody>\n</mujoco>" },
     Malformed { what: "range without limited or autolimits", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<joint>", line: 6,
         xml: "<mujoco>\n<compiler autolimits=\"false\"/>\n<worldbody>\n<body>\n<geom size=\"1\"/>\n<joint range=\"-1 1\"/>\n</body>\n</worldbody>\n</mujoco>" },
     Malformed { what: "nested default without class", variant: |e| matches!(e, MjcfError::MissingAttribute { .. }), element: "<default>", line: 3,

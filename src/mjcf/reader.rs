@@ -656,7 +656,14 @@ impl Reader {
             self.mocap_bodies.push(name.clone());
         }
         let moving = parent_moving || has_joints;
-        let joints = self.build_joints(&name, parent, joints, !child_bodies.is_empty())?;
+        // MuJoCo's condition for moving the body frame to the inertial frame.
+        let aligned = match joints.as_slice() {
+            [only] if only.settings.kind == JointKind::Free && child_bodies.is_empty() => {
+                only.align == Align::Yes || (only.align == Align::Auto && self.compiler.align_free)
+            }
+            _ => false,
+        };
+        let joints = self.build_joints(&name, parent, joints)?;
 
         let explicit = inertial.map(|(_, inertia)| inertia);
         let from_geoms = match self.compiler.inertia_from_geom {
@@ -696,6 +703,10 @@ impl Reader {
             BodyInertia::from_principal(0.0, own_pos, &own_quat, Vec3::zeros())
         };
         let inertia = self.bound(element, inertia)?;
+        let ((pos, quat), inertia) = match aligned {
+            true => self.align_free(index, (pos, quat), inertia),
+            false => ((pos, quat), inertia),
+        };
 
         self.bodies.push(Body {
             name,
@@ -720,6 +731,24 @@ impl Reader {
             self.records[parent].children.push(index);
         }
         Ok(child_bodies.into_iter().map(|child| PendingBody { parent_moving: moving, ..child }).collect())
+    }
+
+    /// A free body without children aligned with its inertial frame
+    /// (`<freejoint align>`, `<compiler alignfree>`): MuJoCo moves the body
+    /// frame there, so that the free joint's qpos is the inertial frame's
+    /// pose, and re-expresses the body's sites in it. Returns the body's new
+    /// pose in its parent and its mass properties in the new frame.
+    fn align_free(&mut self, index: usize, pose: Pose, inertia: BodyInertia) -> (Pose, BodyInertia) {
+        let (principal, axes) = match inertia.quat {
+            Some(quat) => (inertia.principal, quat),
+            None => inertia::principal_axes(&inertia.tensor),
+        };
+        let inverse = (-(axes.inverse() * inertia.com), axes.inverse());
+        for site in self.sites.iter_mut().filter(|s| s.body == Some(index)) {
+            (site.pos, site.quat) = compose(&inverse, &(site.pos, site.quat));
+        }
+        let aligned = BodyInertia::from_principal(inertia.mass, Vec3::zeros(), &Quat::identity(), principal);
+        (compose(&pose, &(inertia.com, axes)), aligned)
     }
 
     /// The children of a body (or of the world body) of class `class`, with
@@ -917,14 +946,13 @@ impl Reader {
         body_name: &str,
         parent: Option<usize>,
         elements: Vec<JointElement>,
-        has_child_bodies: bool,
     ) -> Result<Vec<Joint>, MjcfError> {
         let count = elements.len();
         let mut joints = Vec::with_capacity(count);
         let mut after_ball = false;
         let mut dofs = 0;
         for (k, joint) in elements.into_iter().enumerate() {
-            let JointElement { element, settings: s, align } = joint;
+            let JointElement { element, settings: s, .. } = joint;
             let origin = |attribute: &str| {
                 if element.has(attribute) { "" } else { " (from its default class)" }
             };
@@ -968,11 +996,6 @@ impl Reader {
                 }
                 if parent.is_some() {
                     return Err(element.invalid("a free joint must belong to a body directly inside <worldbody>"));
-                }
-                if !has_child_bodies && (align == Align::Yes || (align == Align::Auto && self.compiler.align_free)) {
-                    return Err(element.unsupported(
-                        "aligning the body frame with its inertial frame (freejoint align, compiler alignfree)",
-                    ));
                 }
             } else {
                 self.check_limits(&element, &s)?;
