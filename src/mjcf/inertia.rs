@@ -3,8 +3,6 @@
 
 use std::f64::consts::PI;
 
-use nalgebra::SymmetricEigen;
-
 use super::defaults::GeomKind;
 use crate::math::{Mat3, Quat, Vec3};
 
@@ -87,10 +85,9 @@ pub(crate) struct BodyInertia {
     pub axes: Mat3,
     /// Inertia tensor about the centre of mass, in body axes.
     pub tensor: Mat3,
-    /// The orientation of the principal axes as the file gives it (MuJoCo's
-    /// `body_iquat`); `None` when the axes come from an eigen-decomposition,
-    /// whose order and signs are nalgebra's, not MuJoCo's.
-    pub quat: Option<Quat>,
+    /// The orientation of the principal axes (MuJoCo's `body_iquat`), as
+    /// the file gives it or as MuJoCo's eigen-solver finds it.
+    pub quat: Quat,
 }
 
 impl BodyInertia {
@@ -98,16 +95,19 @@ impl BodyInertia {
     pub fn from_principal(mass: f64, com: Vec3, quat: &Quat, principal: Vec3) -> Self {
         let axes = quat.to_rotation_matrix().into_inner();
         let tensor = axes * Mat3::from_diagonal(&principal) * axes.transpose();
-        Self { mass, com, principal, axes, tensor, quat: Some(*quat) }
+        Self { mass, com, principal, axes, tensor, quat: *quat }
     }
 
-    /// From a full tensor; MuJoCo requires its eigenvalues to be at least mjEPS.
+    /// From a full tensor, with the principal moments and axes MuJoCo's
+    /// eigen-solver finds (its order and signs); MuJoCo requires the
+    /// moments to be at least mjEPS.
     pub fn from_tensor(mass: f64, com: Vec3, tensor: Mat3) -> Result<Self, &'static str> {
-        let eigen = SymmetricEigen::new(tensor);
-        if eigen.eigenvalues.min() < EPS {
+        let (principal, quat) = principal_axes(&tensor);
+        if principal.min() < EPS {
             return Err("inertia must have positive eigenvalues");
         }
-        Ok(Self { mass, com, principal: eigen.eigenvalues, axes: eigen.eigenvectors, tensor, quat: None })
+        let axes = quat.to_rotation_matrix().into_inner();
+        Ok(Self { mass, com, principal, axes, tensor, quat })
     }
 
     /// Sums geoms (each of mass above mjEPS): total mass, their common centre
@@ -144,7 +144,7 @@ impl BodyInertia {
         self.com = pos + rotation * self.com;
         self.axes = rotation * self.axes;
         self.tensor = rotation * self.tensor * rotation.transpose();
-        self.quat = self.quat.map(|q| quat * q);
+        self.quat = quat * self.quat;
     }
 
     /// These mass properties with `other`'s, given in a frame at `pos` and
@@ -158,8 +158,8 @@ impl BodyInertia {
         let moved = mat_vec(&quat_to_mat(&frame), &[other.com.x, other.com.y, other.com.z]);
         let other_com = [pos.x + moved[0], pos.y + moved[1], pos.z + moved[2]];
         let parts = [
-            (self.mass, [self.com.x, self.com.y, self.com.z], self.quat.map(|q| wxyz(&q)), self),
-            (other.mass, other_com, other.quat.map(|q| mul_quat(&frame, &wxyz(&q))), other),
+            (self.mass, [self.com.x, self.com.y, self.com.z], wxyz(&self.quat)),
+            (other.mass, other_com, mul_quat(&frame, &wxyz(&other.quat))),
         ];
         let mass = 0.0 + parts[0].0 + parts[1].0;
         // MuJoCo's mjMINVAL.
@@ -175,14 +175,8 @@ impl BodyInertia {
         let com = com.map(|c| c / mass);
         // Entries xx, yy, zz, xy, xz, yz.
         let mut total = [0.0; 6];
-        for (part_mass, part_com, part_quat, part) in &parts {
-            let own = match part_quat {
-                Some(q) => global_inertia(&[part.principal.x, part.principal.y, part.principal.z], q),
-                None => {
-                    let t = &part.tensor;
-                    [t[(0, 0)], t[(1, 1)], t[(2, 2)], t[(0, 1)], t[(0, 2)], t[(1, 2)]]
-                }
-            };
+        for ((part_mass, part_com, part_quat), part) in parts.iter().zip([self, other]) {
+            let own = global_inertia(&[part.principal.x, part.principal.y, part.principal.z], part_quat);
             let d = [part_com[0] - com[0], part_com[1] - com[1], part_com[2] - com[2]];
             let offset = [
                 part_mass * (d[1] * d[1] + d[2] * d[2]),

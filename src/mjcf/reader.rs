@@ -739,10 +739,7 @@ impl Reader {
     /// pose, and re-expresses the body's sites in it. Returns the body's new
     /// pose in its parent and its mass properties in the new frame.
     fn align_free(&mut self, index: usize, pose: Pose, inertia: BodyInertia) -> (Pose, BodyInertia) {
-        let (principal, axes) = match inertia.quat {
-            Some(quat) => (inertia.principal, quat),
-            None => inertia::principal_axes(&inertia.tensor),
-        };
+        let (principal, axes) = (inertia.principal, inertia.quat);
         let inverse = (-(axes.inverse() * inertia.com), axes.inverse());
         for site in self.sites.iter_mut().filter(|s| s.body == Some(index)) {
             (site.pos, site.quat) = compose(&inverse, &(site.pos, site.quat));
@@ -1394,7 +1391,7 @@ impl Reader {
             body.inertia =
                 (!massless).then_some(MassProperties { mass: inertia.mass, com: inertia.com, inertia: inertia.tensor });
             body.inertial_pos = inertia.com;
-            body.inertial_quat = inertia.quat;
+            body.inertial_quat = Some(inertia.quat);
         }
         self.warnings.sort_by_key(|w| w.line);
         let gravity = if self.physics.gravity_disabled { Vec3::zeros() } else { self.physics.gravity };
