@@ -88,8 +88,8 @@ impl Sources {
         included.map_or(in_dir, |beside| beside.join(file))
     }
 
-    /// The included file holding line `line` of the merged text; `None` for
-    /// the main file.
+    /// The path of file `file` when it is an included one; `None` for the
+    /// main file.
     fn included_file(&self, file: usize) -> Option<PathBuf> {
         if file == 0 { None } else { self.files[file].clone() }
     }
