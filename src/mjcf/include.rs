@@ -150,7 +150,7 @@ pub(crate) fn assemble<'a>(xml: &'a str, path: Option<&Path>) -> Result<Assemble
         },
         text: String::new(),
         lines: 1,
-        chain: path.map(|p| vec![identity(p)]).unwrap_or_default(),
+        chain: path.map(|p| vec![(identity(p), p.to_path_buf())]).unwrap_or_default(),
         included: Vec::new(),
     };
     // Most files include nothing: read them as they are.
@@ -175,8 +175,9 @@ struct Merger {
     text: String,
     /// Its number of lines (1 + its newlines).
     lines: u32,
-    /// The files being included, outermost first (to name a cycle).
-    chain: Vec<PathBuf>,
+    /// The files being included, outermost first (to name a cycle): each
+    /// one's identity and its path as found.
+    chain: Vec<(PathBuf, PathBuf)>,
     /// Each file included so far: its identity, and where it was included
     /// (the including file's index and the `<include>`'s line).
     included: Vec<(PathBuf, usize, u32)>,
@@ -241,9 +242,9 @@ impl Merger {
         };
         let path = self.find(from, &include.file).map_err(at)?;
         let id = identity(&path);
-        if let Some(start) = self.chain.iter().position(|p| *p == id) {
-            let mut cycle: Vec<String> = self.chain[start..].iter().map(|p| p.display().to_string()).collect();
-            cycle.push(id.display().to_string());
+        if let Some(start) = self.chain.iter().position(|(p, _)| *p == id) {
+            let mut cycle: Vec<String> = self.chain[start..].iter().map(|(_, p)| p.display().to_string()).collect();
+            cycle.push(path.display().to_string());
             return Err(at(format!("include cycle: {}", cycle.join(" includes "))));
         }
         if let Some((_, file, line)) = self.included.iter().find(|(p, ..)| *p == id) {
@@ -271,7 +272,7 @@ impl Merger {
         };
         let region = first.range().start..last.unwrap_or(first).range().end;
         let includes = includes_in(&document, &lines).map_err(in_file)?;
-        self.chain.push(id);
+        self.chain.push((id, path.clone()));
         self.merge(file, &text, &lines, &includes, region)?;
         self.chain.pop();
         Ok(())
@@ -282,7 +283,10 @@ impl Merger {
     fn find(&self, from: usize, name: &str) -> Result<PathBuf, String> {
         let mut looked = vec![self.sources.model_dir.join(name)];
         if let Some(dir) = self.sources.files[from].as_deref().and_then(Path::parent).filter(|_| from != 0) {
-            looked.push(dir.join(name));
+            let beside = dir.join(name);
+            if identity(&beside) != identity(&looked[0]) {
+                looked.push(beside);
+            }
         }
         match looked.iter().find(|p| p.is_file()) {
             Some(found) => Ok(found.clone()),
