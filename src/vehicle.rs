@@ -50,9 +50,10 @@ pub struct Body {
     /// The origin of the body's inertial frame in the body frame (MuJoCo's
     /// `body_ipos`), which sensors of objtype "body" measure.
     pub inertial_pos: Vec3,
-    /// The inertial frame's orientation (MuJoCo's `body_iquat`); `None` when
-    /// MuJoCo takes its axes from an eigen-decomposition (a full inertia
-    /// tensor, several geoms), whose order and signs nudyn does not reproduce.
+    /// The inertial frame's orientation (MuJoCo's `body_iquat`). The importer
+    /// always gives it (as written, or as MuJoCo's eigen-solver finds it for a
+    /// full inertia tensor or several geoms); `None` leaves it unknown, and
+    /// sensors that measure its axes are then refused.
     pub inertial_quat: Option<Quat>,
     /// Whether the body's mass is left out because it is fixed to the
     /// world and its geoms' mass would come from mesh, sdf or height-field
@@ -589,6 +590,24 @@ pub enum EqualityKind {
         /// `polycoef`.
         polycoef: [f64; 5],
     },
+}
+
+impl EqualityKind {
+    /// The frames a connect or weld holds (`None` for a joint coupling).
+    pub fn objects(&self) -> Option<EqualityObjects> {
+        match self {
+            EqualityKind::Connect { objects, .. } | EqualityKind::Weld { objects, .. } => Some(*objects),
+            EqualityKind::Joint { .. } => None,
+        }
+    }
+
+    /// The same, to renumber bodies.
+    pub(crate) fn objects_mut(&mut self) -> Option<&mut EqualityObjects> {
+        match self {
+            EqualityKind::Connect { objects, .. } | EqualityKind::Weld { objects, .. } => Some(objects),
+            EqualityKind::Joint { .. } => None,
+        }
+    }
 }
 
 /// `<option>` settings of MuJoCo's constraint model that change its forces.

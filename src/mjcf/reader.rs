@@ -1,6 +1,7 @@
 //! Walks an MJCF document and builds the [`Vehicle`].
 
 use std::collections::HashMap;
+use std::path::{Path, PathBuf};
 
 use roxmltree::Document;
 
@@ -12,14 +13,16 @@ use super::defaults::{
 use super::element::{Element, LineStarts};
 use super::equality::{self, EqualityTargets};
 use super::error::MjcfError;
+use super::include::{self, Sources};
 use super::inertia::{self, BodyInertia, EPS, GeomMass};
 use super::orientation::{AngleConvention, ORIENTATION_ATTRIBUTES, Orientation, normalized, z_to_quaternion};
 use super::sensor::{self, SensorTargets};
 use super::{Imported, MjcfWarning};
 use crate::math::{Mat3, Quat, Vec3};
 use crate::vehicle::{
-    Actuation, Actuator, ActuatorKind, BiasType, Body, ConstraintOptions, Equality, GainType, Joint, JointConstraints,
-    JointKind, JointLimit, MassProperties, Sensor, SensorKind, Site, Transmission, Vehicle,
+    Actuation, Actuator, ActuatorKind, BiasType, Body, ConstraintOptions, Equality, EqualityObjects, FrameObject,
+    GainType, Joint, JointConstraints, JointKind, JointLimit, MassProperties, Sensor, SensorKind, SensorTarget, Site,
+    Transmission, Vehicle,
 };
 
 /// MuJoCo's `mjMINVAL`: the least mass and principal moment of a moving body.
@@ -31,6 +34,10 @@ const BODY_ATTRIBUTES: &[&str] = &[
     "name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler", "mocap", "gravcomp",
     "user", "sleep", "simple", "fuse",
 ];
+
+/// Attributes of `<frame>`.
+#[rustfmt::skip]
+const FRAME_ATTRIBUTES: &[&str] = &["name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler"];
 
 /// Attributes of `<inertial>`.
 #[rustfmt::skip]
@@ -96,6 +103,12 @@ struct Compiler {
     align_free: bool,
     /// `settotalmass` when positive, with the warning it earns.
     total_mass: Option<(f64, MjcfWarning)>,
+    /// Where mesh files are: `meshdir`, else `assetdir`, relative to the model's directory.
+    mesh_dir: String,
+    /// `strippath`: asset file names lose their directories.
+    strip_path: bool,
+    /// `fusestatic`: bodies without joints merge into their parents.
+    fuse_static: bool,
 }
 
 /// `<option>` settings that matter here.
@@ -143,6 +156,26 @@ struct PendingBody<'a> {
     inherited_class: usize,
     /// Whether a joint lies between the parent and the world.
     parent_moving: bool,
+    /// The pose of the `<frame>`s around the body, in its parent.
+    frame: Option<Pose>,
+}
+
+/// A pose in a parent frame: position, then orientation.
+type Pose = (Vec3, Quat);
+
+/// The pose `inner`, given in the frame `outer` places, in `outer`'s parent
+/// (MuJoCo's `mjuu_frameaccumChild`).
+fn compose(outer: &Pose, inner: &Pose) -> Pose {
+    (outer.0 + outer.1 * inner.0, outer.1 * inner.1)
+}
+
+/// A child element of a body or of the world body, with what the `<frame>`s
+/// around it give it: their composed pose (`None` outside any frame) and
+/// the default class.
+struct Placed<'a> {
+    element: Element<'a, 'a>,
+    frame: Option<Pose>,
+    class: usize,
 }
 
 /// `align` of a free joint.
@@ -180,10 +213,42 @@ struct Reader {
     sensors: Vec<Sensor>,
     sensor_names: HashMap<String, u32>,
     equalities: Vec<Equality>,
+    /// The files the model is read from, for the paths of its assets.
+    sources: Sources,
+    /// Each `<mesh>` asset's name and the path of its file.
+    mesh_files: HashMap<String, PathBuf>,
+    /// The names of the mocap bodies, in MuJoCo's mocap order.
+    mocap_bodies: Vec<String>,
+    /// Bodies named by an ignored element (a camera's or light's `target`, a
+    /// contact `<exclude>`), which `fusestatic` keeps.
+    named_elsewhere: Vec<String>,
 }
 
-/// Reads an MJCF document.
-pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
+/// Reads an MJCF document, from the file `path` if it comes from one (the
+/// files it includes are looked for from there).
+pub(crate) fn read(xml: &str, path: Option<&Path>) -> Result<Imported, MjcfError> {
+    let assembled = include::assemble(xml, path)?;
+    let sources = assembled.sources;
+    let mut imported = read_merged(&assembled.text, &sources).map_err(|e| sources.place_error(e))?;
+    // Lines of the merged text back to lines of their files.
+    imported.warnings = imported.warnings.into_iter().map(|w| sources.place_warning(w)).collect();
+    let vehicle = &mut imported.vehicle;
+    let lines = vehicle
+        .bodies
+        .iter_mut()
+        .flat_map(|b| std::iter::once(&mut b.line).chain(b.joints.iter_mut().map(|j| &mut j.line)));
+    let lines = lines
+        .chain(vehicle.sites.iter_mut().map(|s| &mut s.line))
+        .chain(vehicle.actuators.iter_mut().map(|a| &mut a.line))
+        .chain(vehicle.sensors.iter_mut().map(|s| &mut s.line));
+    for line in lines {
+        *line = sources.line_in_file(*line);
+    }
+    Ok(imported)
+}
+
+/// Reads the document with its includes merged in.
+fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
     let document = Document::parse(xml).map_err(|e| MjcfError::Xml {
         line: e.pos().row,
         column: e.pos().col,
@@ -196,7 +261,7 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
     }
     root.check_attributes(&["model"])?;
 
-    let mut reader = Reader::new();
+    let mut reader = Reader::new(sources.clone());
     // MuJoCo applies these wherever they appear, even after <worldbody>.
     for section in root.children() {
         match section.tag() {
@@ -207,10 +272,20 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
         }
     }
 
+    // Once the compiler's directories are known.
+    for section in root.children().filter(|section| section.tag() == "asset") {
+        reader.read_mesh_files(&section);
+    }
+    for exclude in root.children().filter(|s| s.tag() == "contact").flat_map(|s| s.children()) {
+        let bodies = ["body1", "body2"].iter().filter_map(|a| exclude.text(a).filter(|_| exclude.tag() == "exclude"));
+        reader.named_elsewhere.extend(bodies.map(str::to_string));
+    }
+
     let mut has_worldbody = false;
     let mut actuator_sections = Vec::new();
     let mut sensor_sections = Vec::new();
     let mut equality_sections = Vec::new();
+    let mut keyframe_sections = Vec::new();
     for section in root.children() {
         match section.tag() {
             "compiler" | "option" | "default" => {}
@@ -221,6 +296,11 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
             // Read once every joint and site is known, wherever the section stands.
             "actuator" => actuator_sections.push(section),
             "sensor" => sensor_sections.push(section),
+            // Checked once the sizes are known, then ignored.
+            "keyframe" => {
+                keyframe_sections.push(section);
+                reader.warnings.push(section.ignored());
+            }
             tag if IGNORED_SECTIONS.contains(&tag) => reader.warnings.push(section.ignored()),
             "tendon" => match section.children().next() {
                 Some(first) => return Err(first.unsupported("tendons (their forces and limits are not modelled)")),
@@ -229,7 +309,6 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
             // Read once every body, site and joint is known.
             "equality" => equality_sections.push(section),
             "deformable" => reader.read_deformable(&section)?,
-            "include" => return Err(unsupported_child(&section)),
             _ => return Err(section.unknown()),
         }
     }
@@ -246,13 +325,16 @@ pub(crate) fn read(xml: &str) -> Result<Imported, MjcfError> {
     for section in &sensor_sections {
         reader.read_sensors(section)?;
     }
+    for section in &keyframe_sections {
+        reader.check_keyframes(section)?;
+    }
 
     let name = root.text("model").unwrap_or("vehicle").to_string();
     reader.finish(name)
 }
 
 impl Reader {
-    fn new() -> Self {
+    fn new(sources: Sources) -> Self {
         Self {
             compiler: Compiler {
                 angles: AngleConvention { degrees: true, euler_seq: *b"xyz" },
@@ -264,6 +346,9 @@ impl Reader {
                 autolimits: true,
                 align_free: false,
                 total_mass: None,
+                mesh_dir: String::new(),
+                strip_path: false,
+                fuse_static: false,
             },
             physics: Physics {
                 gravity: Vec3::new(0.0, 0.0, -9.81),
@@ -293,6 +378,10 @@ impl Reader {
             sensors: Vec::new(),
             sensor_names: HashMap::new(),
             equalities: Vec::new(),
+            sources,
+            mesh_files: HashMap::new(),
+            mocap_bodies: Vec::new(),
+            named_elsewhere: Vec::new(),
         }
     }
 
@@ -345,6 +434,18 @@ impl Reader {
                 "settotalmass is deprecated in MuJoCo; all masses and inertias are scaled so the total mass is {total}"
             ));
             compiler.total_mass = (total > 0.0).then_some((total, warning));
+        }
+        // MuJoCo reads assetdir first, so that meshdir wins.
+        for attribute in ["assetdir", "meshdir"] {
+            if let Some(dir) = element.text(attribute) {
+                compiler.mesh_dir = dir.to_string();
+            }
+        }
+        if let Some(strip) = element.boolean("strippath")? {
+            compiler.strip_path = strip;
+        }
+        if let Some(fuse) = element.boolean("fusestatic")? {
+            compiler.fuse_static = fuse;
         }
         for child in element.children() {
             match child.tag() {
@@ -425,6 +526,26 @@ impl Reader {
         Ok(())
     }
 
+    /// Records where the files of the `<mesh>` assets are. The section is
+    /// otherwise ignored (a mesh's shape matters only through the mass of the
+    /// geoms that use it).
+    fn read_mesh_files(&mut self, section: &Element) {
+        for mesh in section.children().filter(|child| child.tag() == "mesh") {
+            let Some(file) = mesh.text("file") else { continue };
+            let file = match self.compiler.strip_path {
+                true => Path::new(file).file_name().and_then(|f| f.to_str()).unwrap_or(file),
+                false => file,
+            };
+            // MuJoCo names a mesh without a name after its file.
+            let name = mesh.text("name").map_or_else(
+                || Path::new(file).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
+                str::to_string,
+            );
+            let path = self.sources.asset_path(&self.compiler.mesh_dir, file, mesh.line);
+            self.mesh_files.insert(name, path);
+        }
+    }
+
     fn read_deformable(&mut self, section: &Element) -> Result<(), MjcfError> {
         if section.children().next().is_none() {
             self.warnings.push(section.ignored());
@@ -442,11 +563,14 @@ impl Reader {
     fn read_worldbody(&mut self, section: &Element) -> Result<(), MjcfError> {
         // MuJoCo: "World body cannot have attributes".
         section.check_attributes(&[])?;
-        for child in section.children() {
+        for Placed { element: child, frame, class } in self.placed_children(section, MAIN)? {
             match child.tag() {
-                "body" => self.read_body_tree(child)?,
-                "site" => self.read_site(&child, MAIN, None)?,
-                "geom" | "camera" | "light" => self.warnings.push(child.ignored()),
+                "body" => self.read_body_tree(child, frame, class)?,
+                "site" => self.read_site(&child, class, None, frame)?,
+                "geom" | "camera" | "light" => {
+                    self.named_elsewhere.extend(child.text("target").map(str::to_string));
+                    self.warnings.push(child.ignored());
+                }
                 "joint" | "freejoint" => {
                     return Err(child.invalid("the world body cannot have joints"));
                 }
@@ -461,8 +585,9 @@ impl Reader {
     /// (parent before child). A work stack instead of recursion: a vehicle
     /// file may nest bodies thousands deep, and the importer must not
     /// overflow the thread's stack, which is small in a host's FMU thread.
-    fn read_body_tree<'a>(&mut self, top: Element<'a, 'a>) -> Result<(), MjcfError> {
-        let mut pending = vec![PendingBody { element: top, parent: None, inherited_class: MAIN, parent_moving: false }];
+    fn read_body_tree<'a>(&mut self, top: Element<'a, 'a>, frame: Option<Pose>, class: usize) -> Result<(), MjcfError> {
+        let mut pending =
+            vec![PendingBody { element: top, parent: None, inherited_class: class, parent_moving: false, frame }];
         while let Some(body) = pending.pop() {
             let children = self.read_body(&body)?;
             // Reversed so that the first child is read next.
@@ -473,17 +598,18 @@ impl Reader {
 
     /// Reads one body; returns its child bodies, still to be read.
     fn read_body<'a>(&mut self, body: &PendingBody<'a>) -> Result<Vec<PendingBody<'a>>, MjcfError> {
-        let &PendingBody { ref element, parent, inherited_class, parent_moving } = body;
+        let &PendingBody { ref element, parent, inherited_class, parent_moving, frame } = body;
         element.check_attributes(BODY_ATTRIBUTES)?;
-        if element.boolean("mocap")? == Some(true) {
-            return Err(element.unsupported("mocap bodies are moved by the user, not by the dynamics"));
-        }
-        if element.number("gravcomp")?.is_some_and(|g| g != 0.0) {
-            return Err(element.unsupported("gravity compensation (gravcomp) is not modelled"));
+        let mocap = element.boolean("mocap")? == Some(true);
+        // Without gravity MuJoCo's compensating force is exactly zero.
+        let gravity = !self.physics.gravity_disabled && self.physics.gravity != Vec3::zeros();
+        if gravity && element.number("gravcomp")?.is_some_and(|g| g != 0.0) {
+            return Err(element.unsupported("gravity compensation (gravcomp) under gravity is not modelled"));
         }
         let class = self.defaults.lookup(element, "childclass")?.unwrap_or(inherited_class);
-        let pos = Vec3::from(element.numbers::<3>("pos")?.unwrap_or_default());
-        let quat = self.resolve(element, &Orientation::read(element)?.unwrap_or_default())?;
+        let own_pos = Vec3::from(element.numbers::<3>("pos")?.unwrap_or_default());
+        let own_quat = self.resolve(element, &Orientation::read(element)?.unwrap_or_default())?;
+        let (pos, quat) = frame.map_or((own_pos, own_quat), |frame| compose(&frame, &(own_pos, own_quat)));
         let index = self.bodies.len();
         let name = element.text("name").map_or_else(|| format!("body{index}"), str::to_string);
         claim_name(&mut self.body_names, "body", &name, element)?;
@@ -492,19 +618,27 @@ impl Reader {
         let mut joints = Vec::new();
         let mut geoms = Vec::new();
         let mut child_bodies = Vec::new();
-        for child in element.children() {
+        for Placed { element: child, frame, class } in self.placed_children(element, class)? {
             match child.tag() {
                 "inertial" => {
                     if let Some((first, _)) = &inertial {
                         return Err(child.repeated(first));
                     }
-                    inertial = Some((child, self.read_inertial(&child)?));
+                    let mut read = self.read_inertial(&child)?;
+                    if let Some(frame) = frame {
+                        read.place(&frame.0, &frame.1);
+                    }
+                    inertial = Some((child, read));
                 }
                 "joint" => {
                     child.check_attributes(JOINT_ATTRIBUTES)?;
                     no_children(&child)?;
                     let mut settings = self.defaults.class(self.class_of(&child, class)?).joint.clone();
                     settings.apply(&child)?;
+                    if let Some((at, turn)) = frame {
+                        settings.pos = (at + turn * Vec3::from(settings.pos)).into();
+                        settings.axis = (turn * Vec3::from(settings.axis)).into();
+                    }
                     joints.push(JointElement { element: child, settings, align: Align::Auto });
                 }
                 "freejoint" => {
@@ -523,18 +657,43 @@ impl Reader {
                     }
                     let mut settings = self.defaults.class(self.class_of(&child, class)?).geom.clone();
                     settings.apply(&child)?;
-                    geoms.push((child, settings));
+                    geoms.push((child, settings, frame));
                 }
-                "site" => self.read_site(&child, class, Some(index))?,
-                "camera" | "light" => self.warnings.push(child.ignored()),
-                "body" => child_bodies.push(child),
+                "site" => self.read_site(&child, class, Some(index), frame)?,
+                "camera" | "light" => {
+                    self.named_elsewhere.extend(child.text("target").map(str::to_string));
+                    self.warnings.push(child.ignored());
+                }
+                "body" => child_bodies.push(PendingBody {
+                    element: child,
+                    parent: Some(index),
+                    inherited_class: class,
+                    parent_moving: false,
+                    frame,
+                }),
                 _ => return Err(unsupported_child(&child)),
             }
         }
 
         let has_joints = !joints.is_empty();
+        // A mocap body stays where the file puts it, since nudyn takes no
+        // mocap poses: a body welded to the world, as MuJoCo's is until its
+        // mocap_pos or mocap_quat is changed.
+        if mocap {
+            if has_joints || parent.is_some() {
+                return Err(element.invalid(format!("mocap body '{name}' is not a fixed child of world")));
+            }
+            self.mocap_bodies.push(name.clone());
+        }
         let moving = parent_moving || has_joints;
-        let joints = self.build_joints(&name, parent, joints, !child_bodies.is_empty())?;
+        // MuJoCo's condition for moving the body frame to the inertial frame.
+        let aligned = match joints.as_slice() {
+            [only] if only.settings.kind == JointKind::Free && child_bodies.is_empty() => {
+                only.align == Align::Yes || (only.align == Align::Auto && self.compiler.align_free)
+            }
+            _ => false,
+        };
+        let joints = self.build_joints(&name, parent, joints)?;
 
         let explicit = inertial.map(|(_, inertia)| inertia);
         let from_geoms = match self.compiler.inertia_from_geom {
@@ -544,7 +703,7 @@ impl Reader {
         };
         let mut selected = Vec::new();
         let mut mass_unknown = false;
-        for (geom, settings) in &geoms {
+        for (geom, settings, frame) in &geoms {
             let [low, high] = self.compiler.inertia_groups;
             let contributes = from_geoms && (low..=high).contains(&settings.group);
             let shaped_by_asset =
@@ -557,7 +716,7 @@ impl Reader {
                 ));
             }
             // MuJoCo leaves out geoms of mass up to mjEPS.
-            if let Some(mass) = self.geom_mass(geom, settings, moving, contributes)?
+            if let Some(mass) = self.geom_mass(geom, settings, frame.as_ref(), moving, contributes)?
                 && mass.mass > EPS
             {
                 selected.push(mass);
@@ -569,10 +728,15 @@ impl Reader {
             explicit
         } else {
             // MuJoCo puts the inertial frame of a body without mass at the body's
-            // own pose in its parent; it matters once boundmass gives it mass.
-            BodyInertia::from_principal(0.0, pos, &quat, Vec3::zeros())
+            // own pose in its parent, before any <frame> around it; it matters
+            // once boundmass gives it mass.
+            BodyInertia::from_principal(0.0, own_pos, &own_quat, Vec3::zeros())
         };
         let inertia = self.bound(element, inertia)?;
+        let ((pos, quat), inertia) = match aligned {
+            true => self.align_free(index, (pos, quat), inertia),
+            false => ((pos, quat), inertia),
+        };
 
         self.bodies.push(Body {
             name,
@@ -596,10 +760,53 @@ impl Reader {
         if let Some(parent) = parent {
             self.records[parent].children.push(index);
         }
-        Ok(child_bodies
+        Ok(child_bodies.into_iter().map(|child| PendingBody { parent_moving: moving, ..child }).collect())
+    }
+
+    /// A free body without children aligned with its inertial frame
+    /// (`<freejoint align>`, `<compiler alignfree>`): MuJoCo moves the body
+    /// frame there, so that the free joint's qpos is the inertial frame's
+    /// pose, and re-expresses the body's sites in it. Returns the body's new
+    /// pose in its parent and its mass properties in the new frame.
+    fn align_free(&mut self, index: usize, pose: Pose, inertia: BodyInertia) -> (Pose, BodyInertia) {
+        let (principal, axes) = (inertia.principal, inertia.quat);
+        let inverse = (-(axes.inverse() * inertia.com), axes.inverse());
+        for site in self.sites.iter_mut().filter(|s| s.body == Some(index)) {
+            (site.pos, site.quat) = compose(&inverse, &(site.pos, site.quat));
+        }
+        let aligned = BodyInertia::from_principal(inertia.mass, Vec3::zeros(), &Quat::identity(), principal);
+        (compose(&pose, &(inertia.com, axes)), aligned)
+    }
+
+    /// The children of a body (or of the world body) of class `class`, with
+    /// the elements inside its `<frame>`s, nested or not, in their place in
+    /// document order: MuJoCo's frames vanish when it compiles a model, their
+    /// pose composed into their children's and their `childclass` handed on.
+    fn placed_children<'a>(&self, parent: &Element<'a, 'a>, class: usize) -> Result<Vec<Placed<'a>>, MjcfError> {
+        let mut placed = Vec::new();
+        // Reversed, so that the first child comes off the stack first.
+        let mut pending: Vec<Placed<'a>> = parent
+            .children()
+            .collect::<Vec<_>>()
             .into_iter()
-            .map(|element| PendingBody { element, parent: Some(index), inherited_class: class, parent_moving: moving })
-            .collect())
+            .rev()
+            .map(|element| Placed { element, frame: None, class })
+            .collect();
+        while let Some(item) = pending.pop() {
+            if item.element.tag() != "frame" {
+                placed.push(item);
+                continue;
+            }
+            let frame = &item.element;
+            frame.check_attributes(FRAME_ATTRIBUTES)?;
+            let class = self.defaults.lookup(frame, "childclass")?.unwrap_or(item.class);
+            let pos = Vec3::from(frame.numbers::<3>("pos")?.unwrap_or_default());
+            let quat = self.resolve(frame, &Orientation::read(frame)?.unwrap_or_default())?;
+            let pose = item.frame.map_or((pos, quat), |outer| compose(&outer, &(pos, quat)));
+            let children: Vec<_> = frame.children().collect();
+            pending.extend(children.into_iter().rev().map(|element| Placed { element, frame: Some(pose), class }));
+        }
+        Ok(placed)
     }
 
     /// The class of a joint, geom or site: its `class`, else its body's class.
@@ -608,7 +815,13 @@ impl Reader {
     }
 
     /// Reads a `<site>` of body `body` (`None`: the world body).
-    fn read_site(&mut self, element: &Element, body_class: usize, body: Option<usize>) -> Result<(), MjcfError> {
+    fn read_site(
+        &mut self,
+        element: &Element,
+        body_class: usize,
+        body: Option<usize>,
+        frame: Option<Pose>,
+    ) -> Result<(), MjcfError> {
         element.check_attributes(SITE_ATTRIBUTES)?;
         no_children(element)?;
         let mut settings = self.defaults.class(self.class_of(element, body_class)?).site.clone();
@@ -623,6 +836,7 @@ impl Reader {
             }
             None => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
         };
+        let (pos, quat) = frame.map_or((pos, quat), |frame| compose(&frame, &(pos, quat)));
         let name = element.text("name").map(str::to_string);
         if let Some(name) = &name {
             claim_name(&mut self.site_names, "site", name, element)?;
@@ -685,6 +899,7 @@ impl Reader {
         &self,
         element: &Element,
         settings: &GeomSettings,
+        frame: Option<&Pose>,
         moving: bool,
         contributes: bool,
     ) -> Result<Option<GeomMass>, MjcfError> {
@@ -716,6 +931,7 @@ impl Reader {
             }
             None => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
         };
+        let (pos, quat) = frame.map_or((pos, quat), |frame| compose(frame, &(pos, quat)));
         // A geom fitted to a mesh gets its size from the mesh.
         if !settings.mesh {
             check_size(element, settings.kind, &size)?;
@@ -730,10 +946,12 @@ impl Reader {
             return Ok(None);
         }
         if shaped_by_asset {
-            return Err(element.unsupported(
-                "the mass properties of mesh, sdf and height-field geoms are not computed; \
-                 give the body an <inertial>, or put the geom in a group outside inertiagrouprange",
-            ));
+            let file = element.text("mesh").and_then(|mesh| self.mesh_files.get(mesh));
+            let file = file.map(|path| format!(" (mesh file {})", path.display())).unwrap_or_default();
+            return Err(element.unsupported(format!(
+                "the mass properties of mesh, sdf and height-field geoms are not computed{file}; \
+                 give the body an <inertial>, or put the geom in a group outside inertiagrouprange"
+            )));
         }
         if settings.shell_inertia {
             return Err(element.unsupported("shell inertia (shellinertia=\"true\")"));
@@ -755,14 +973,13 @@ impl Reader {
         body_name: &str,
         parent: Option<usize>,
         elements: Vec<JointElement>,
-        has_child_bodies: bool,
     ) -> Result<Vec<Joint>, MjcfError> {
         let count = elements.len();
         let mut joints = Vec::with_capacity(count);
         let mut after_ball = false;
         let mut dofs = 0;
         for (k, joint) in elements.into_iter().enumerate() {
-            let JointElement { element, settings: s, align } = joint;
+            let JointElement { element, settings: s, .. } = joint;
             let origin = |attribute: &str| {
                 if element.has(attribute) { "" } else { " (from its default class)" }
             };
@@ -799,11 +1016,6 @@ impl Reader {
                 }
                 if parent.is_some() {
                     return Err(element.invalid("a free joint must belong to a body directly inside <worldbody>"));
-                }
-                if !has_child_bodies && (align == Align::Yes || (align == Align::Auto && self.compiler.align_free)) {
-                    return Err(element.unsupported(
-                        "aligning the body frame with its inertial frame (freejoint align, compiler alignfree)",
-                    ));
                 }
             } else {
                 self.check_limits(&element, &s)?;
@@ -935,12 +1147,68 @@ impl Reader {
         Ok(on.then_some(range))
     }
 
+    /// Why an element of `<equality>` is refused.
+    /// An equality constraint to a mocap body, refused: its pose is an
+    /// input MuJoCo's users set, which an FMU does not take.
+    fn mocap_equality_refusal(&self, element: &Element) -> Option<MjcfError> {
+        let tag = element.tag();
+        let site_body = |name: &str| {
+            let site = self.sites.iter().find(|s| s.name.as_deref() == Some(name))?;
+            site.body.map(|b| self.bodies[b].name.as_str())
+        };
+        let bodies = ["body1", "body2"].iter().filter_map(|a| element.text(a));
+        let bodies = bodies.chain(["site1", "site2"].iter().filter_map(|a| element.text(a).and_then(site_body)));
+        let body = bodies.into_iter().find(|body| self.mocap_bodies.iter().any(|m| m == body))?;
+        Some(element.unsupported(format!(
+            "<equality>/<{tag}> to mocap body '{body}': nudyn takes no mocap poses for the constraint to follow"
+        )))
+    }
+
+    /// MuJoCo's checks of the `<key>`s of a `<keyframe>` section: each
+    /// vector given has the model's size. nudyn does not use keyframes.
+    fn check_keyframes(&self, section: &Element) -> Result<(), MjcfError> {
+        section.check_attributes(&[])?;
+        let joints = self.bodies.iter().flat_map(|b| &b.joints);
+        let (nq, nv) = joints.fold((0, 0), |(nq, nv), j| (nq + j.kind.nq(), nv + j.kind.nv()));
+        let nmocap = self.mocap_bodies.len();
+        // Activation states are refused, so na is 0.
+        let sizes = [
+            ("qpos", nq),
+            ("qvel", nv),
+            ("act", 0),
+            ("mpos", 3 * nmocap),
+            ("mquat", 4 * nmocap),
+            ("ctrl", self.actuators.len()),
+        ];
+        for key in section.children() {
+            if key.tag() != "key" {
+                return Err(key.unknown());
+            }
+            key.check_attributes(&["name", "time", "qpos", "qvel", "act", "mpos", "mquat", "ctrl"])?;
+            no_children(&key)?;
+            key.number("time")?;
+            for (attribute, size) in sizes {
+                let Some(text) = key.text(attribute) else { continue };
+                let values: Result<Vec<f64>, _> = text.split_ascii_whitespace().map(str::parse).collect();
+                let given = values.map_err(|_| key.bad_value(attribute, "numbers"))?.len();
+                // An empty list counts as not given.
+                if given != 0 && given != size {
+                    return Err(key.invalid(format!("invalid {attribute} size, expected {size}, got {given}")));
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// Reads an `<actuator>` section.
     /// The `<equality>` section: each element read as MuJoCo reads it; the
     /// constraints kept unless a `<flag>` turns them off.
     fn read_equalities(&mut self, section: &Element) -> Result<(), MjcfError> {
         section.check_attributes(&[])?;
         for element in section.children() {
+            if let Some(refusal) = self.mocap_equality_refusal(&element) {
+                return Err(refusal);
+            }
             let settings = self.defaults.class(self.class_of(&element, MAIN)?).equality.clone();
             let equality = equality::read(&element, settings, self)?;
             if !(self.physics.constraint_disabled || self.physics.equality_disabled) {
@@ -1164,6 +1432,10 @@ impl Reader {
             }
         }
 
+        if self.compiler.fuse_static {
+            self.fuse_static()?;
+        }
+
         if let Some((total, warning)) = self.compiler.total_mass.take() {
             let sum: f64 = self.records.iter().map(|r| r.inertia.mass).sum();
             if sum < MIN_VALUE {
@@ -1185,7 +1457,7 @@ impl Reader {
             body.inertia =
                 (!massless).then_some(MassProperties { mass: inertia.mass, com: inertia.com, inertia: inertia.tensor });
             body.inertial_pos = inertia.com;
-            body.inertial_quat = inertia.quat;
+            body.inertial_quat = Some(inertia.quat);
         }
         self.warnings.sort_by_key(|w| w.line);
         let gravity = if self.physics.gravity_disabled { Vec3::zeros() } else { self.physics.gravity };
@@ -1201,6 +1473,107 @@ impl Reader {
             equalities: std::mem::take(&mut self.equalities),
         };
         Ok(Imported { vehicle, warnings: self.warnings })
+    }
+}
+
+impl Reader {
+    /// `<compiler fusestatic="true">` as MuJoCo 4.0 applies it
+    /// (`mjCModel::FuseStatic`), in body order: a body without joints, not
+    /// mocap and not named by anything that refers to bodies (a sensor, a
+    /// camera's or light's target, a contact exclusion) disappears into its
+    /// parent. Its mass properties join the parent's (unless the parent is
+    /// the world, or its mass is below mjMINVAL), its child bodies and sites
+    /// become the parent's, placed where they were. The parent's inertial
+    /// frame moves: sensors of objtype "body" on it measure the merged one.
+    fn fuse_static(&mut self) -> Result<(), MjcfError> {
+        let mut referenced = vec![false; self.bodies.len()];
+        for sensor in &self.sensors {
+            match &sensor.target {
+                SensorTarget::Frame { object, reference } => {
+                    for object in std::iter::once(object).chain(reference) {
+                        if let FrameObject::Body(Some(body)) | FrameObject::XBody(Some(body)) = object {
+                            referenced[*body] = true;
+                        }
+                    }
+                }
+                SensorTarget::Subtree(Some(body)) => referenced[*body] = true,
+                _ => {}
+            }
+        }
+        // MuJoCo keeps a body an equality constraint names.
+        for equality in &self.equalities {
+            if let Some(EqualityObjects::Bodies(first, second)) = equality.kind.objects() {
+                for body in [first, second].into_iter().flatten() {
+                    referenced[body] = true;
+                }
+            }
+        }
+        let kept: Vec<bool> = (self.bodies.iter().zip(&referenced))
+            .map(|(body, &referenced)| {
+                let named = self.named_elsewhere.contains(&body.name) || self.mocap_bodies.contains(&body.name);
+                referenced || named || !body.joints.is_empty()
+            })
+            .collect();
+
+        for index in kept.iter().enumerate().filter(|(_, kept)| !**kept).map(|(index, _)| index) {
+            let pose = (self.bodies[index].pos, self.bodies[index].quat);
+            let parent = self.bodies[index].parent;
+            if let Some(parent) = parent {
+                let fused = &self.records[index];
+                if fused.inertia.mass >= MIN_VALUE {
+                    let merged = self.records[parent].inertia.merged(&fused.inertia, &pose.0, &pose.1);
+                    self.records[parent].inertia = merged.map_err(|reason| MjcfError::Invalid {
+                        line: fused.line,
+                        element: fused.label.clone(),
+                        reason: format!("error '{reason}' in fusing static body inertias"),
+                    })?;
+                }
+                self.bodies[parent].mass_unknown |= self.bodies[index].mass_unknown;
+            }
+            for child in self.bodies.iter_mut().filter(|b| b.parent == Some(index)) {
+                child.parent = parent;
+                (child.pos, child.quat) = compose(&pose, &(child.pos, child.quat));
+            }
+            for site in self.sites.iter_mut().filter(|s| s.body == Some(index)) {
+                site.body = parent;
+                (site.pos, site.quat) = compose(&pose, &(site.pos, site.quat));
+            }
+        }
+
+        // Renumber the bodies left.
+        let mut new_index = Vec::with_capacity(kept.len());
+        let mut next = 0;
+        for &keep in &kept {
+            new_index.push(keep.then_some(next));
+            next += usize::from(keep);
+        }
+        let renumber = |body: &mut Option<usize>| *body = body.and_then(|b| new_index[b]);
+        let mut keep = kept.iter().copied();
+        self.bodies.retain(|_| keep.next().unwrap_or(true));
+        let mut keep = kept.iter().copied();
+        self.records.retain(|_| keep.next().unwrap_or(true));
+        self.bodies.iter_mut().for_each(|b| renumber(&mut b.parent));
+        self.sites.iter_mut().for_each(|s| renumber(&mut s.body));
+        for sensor in &mut self.sensors {
+            match &mut sensor.target {
+                SensorTarget::Frame { object, reference } => {
+                    for object in std::iter::once(object).chain(reference.as_mut()) {
+                        if let FrameObject::Body(body) | FrameObject::XBody(body) = object {
+                            renumber(body);
+                        }
+                    }
+                }
+                SensorTarget::Subtree(body) => renumber(body),
+                _ => {}
+            }
+        }
+        for equality in &mut self.equalities {
+            if let Some(EqualityObjects::Bodies(first, second)) = equality.kind.objects_mut() {
+                renumber(first);
+                renumber(second);
+            }
+        }
+        Ok(())
     }
 }
 
@@ -1325,10 +1698,8 @@ fn no_children(element: &Element) -> Result<(), MjcfError> {
 /// sections are expected.
 fn unsupported_child(element: &Element) -> MjcfError {
     let reason = match element.tag() {
-        "frame" => "frames (write the frame's pose into the elements it contains)",
         "replicate" => "replicated subtrees (write the copies out)",
         "attach" => "attaching another model",
-        "include" => "included files (merge the file into this one)",
         "composite" | "flexcomp" => "composite and flexible objects",
         "plugin" => "plugins",
         _ => return element.unknown(),
