@@ -26,6 +26,7 @@ fn hinge_chain(links: usize) -> Vehicle {
         damping: 0.0,
         armature: 0.0,
         actuator_force_range: None,
+        constraints: Default::default(),
         line: 0,
     };
     let mut bodies = vec![Body {
@@ -56,7 +57,18 @@ fn hinge_chain(links: usize) -> Vehicle {
         });
     }
     let (sites, actuators, sensors, actuation) = (Vec::new(), Vec::new(), Vec::new(), Actuation::default());
-    Vehicle { name: format!("chain{links}"), gravity: Vec3::zeros(), bodies, sites, actuators, sensors, actuation }
+    let constraint_options = Default::default();
+    Vehicle {
+        name: format!("chain{links}"),
+        gravity: Vec3::zeros(),
+        bodies,
+        sites,
+        actuators,
+        sensors,
+        actuation,
+        constraint_options,
+        equalities: Vec::new(),
+    }
 }
 
 /// A deterministic, non-trivial state: every coordinate and velocity nonzero.

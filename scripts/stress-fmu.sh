@@ -4,7 +4,7 @@
 #
 #   - memory: tests/memory/fmu_runs.c and fmu3_runs.c, plain C importers of
 #     the FMI 2.0 and FMI 3.0 FMU (co-simulation and model exchange), under valgrind:
-#     instantiate → 1000 steps (with FMU states and a refused call) → free,
+#     instantiate → 1000 steps (with FMU states, refused calls, huge counts) → free,
 #     1 time and RUNS times; nothing lost, and the memory in use at exit the
 #     same for both (no growth with the number of runs);
 #   - fuzzing: each cargo fuzz target (fuzz/) for SECONDS seconds, seeded

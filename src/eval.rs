@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::dynamics::DynamicsError;
+use crate::dynamics::constraint::{ConstraintRows, RowKind};
 use crate::model::Model;
 use crate::workspace::Workspace;
 
@@ -37,7 +38,7 @@ pub struct EvalResponse {
     pub qvel: Vec<f64>,
     /// ν = m*θ̇.
     pub nu: Vec<f64>,
-    /// ν̇ = ε + eps_actuator − C(θ,ν) + eps_passive.
+    /// ν̇ = ε + eps_actuator + eps_constraint − C(θ,ν) + eps_passive.
     pub nu_dot: Vec<f64>,
     /// C(θ,ν): the velocity-product terms.
     pub coriolis: Vec<f64>,
@@ -56,6 +57,9 @@ pub struct EvalResponse {
     /// What the actuators do, when the request gives `ctrl`.
     #[serde(flatten)]
     pub actuators: Option<ActuatorResponse>,
+    /// The constraint forces, when the model has friction loss or limits.
+    #[serde(flatten)]
+    pub constraints: Option<ConstraintResponse>,
     /// MuJoCo's sensordata, when the model has sensors.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sensordata: Option<Vec<f64>>,
@@ -74,6 +78,70 @@ pub struct ActuatorResponse {
     pub qfrc_actuator: Vec<f64>,
     /// ε = ℓT of the actuators (nv).
     pub eps_actuator: Vec<f64>,
+}
+
+/// The constraint forces at the request's state (MuJoCo's names).
+#[derive(Clone, Debug, Serialize)]
+pub struct ConstraintResponse {
+    /// Jᵀf, MuJoCo's qfrc_constraint (nv).
+    pub qfrc_constraint: Vec<f64>,
+    /// ε_c = m⁻¹Jᵀf = ℓ·qfrc_constraint (nv).
+    pub eps_constraint: Vec<f64>,
+    /// The active rows in MuJoCo's order (that of efc_force).
+    pub constraint_rows: Vec<ConstraintRowReport>,
+}
+
+/// One active constraint row.
+#[derive(Clone, Debug, Serialize)]
+pub struct ConstraintRowReport {
+    /// "equality", "friction" (friction loss) or "limit".
+    pub kind: RowKind,
+    /// The equality constraint it belongs to (its element and name or index).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub equality: Option<String>,
+    /// The joint it acts on (friction loss and limits).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub joint: Option<String>,
+    /// Its dof (friction loss), or the joint's first dof (limit).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dof: Option<usize>,
+    /// Distance to the limit, negative past it, or the equality's violation
+    /// along this row (MuJoCo's efc_pos; 0 for friction loss).
+    pub distance: f64,
+    /// Its velocity J θ̇ (efc_vel).
+    pub velocity: f64,
+    /// Its force (efc_force).
+    pub force: f64,
+}
+
+impl ConstraintResponse {
+    fn of(model: &Model, rows: &ConstraintRows) -> Self {
+        let joint_of_dof = |dof: usize| model.joints.iter().rev().find(|j| j.dof_adr <= dof).map(|j| j.name.clone());
+        let constraint_rows = (0..rows.count)
+            .map(|k| {
+                let constraints = &model.constraints;
+                let (equality, dof) = match rows.kind[k] {
+                    RowKind::Equality => (Some(constraints.equalities[rows.id[k]].label.clone()), None),
+                    RowKind::Friction => (None, Some(constraints.friction[rows.id[k]].dof)),
+                    RowKind::Limit => (None, Some(constraints.limits[rows.id[k]].dof)),
+                };
+                ConstraintRowReport {
+                    kind: rows.kind[k],
+                    equality,
+                    joint: dof.and_then(joint_of_dof),
+                    dof,
+                    distance: rows.distance[k],
+                    velocity: rows.velocity[k],
+                    force: rows.force[k],
+                }
+            })
+            .collect();
+        ConstraintResponse {
+            qfrc_constraint: rows.qfrc_constraint.clone(),
+            eps_constraint: rows.eps_constraint.clone(),
+            constraint_rows,
+        }
+    }
 }
 
 /// Why a request could not be evaluated.
@@ -116,9 +184,15 @@ pub fn evaluate(model: &Model, ws: &mut Workspace, request: &EvalRequest) -> Res
         }
         None => None,
     };
-    let applied: Vec<f64> = match &actuators {
+    let mut applied: Vec<f64> = match &actuators {
         Some(a) => eps.iter().zip(&a.eps_actuator).map(|(e, a)| e + a).collect(),
         None => eps.clone(),
+    };
+    let constraints = if model.constraints.is_empty() {
+        None
+    } else {
+        ws.add_constraint_eps(model, &mut applied)?;
+        Some(ConstraintResponse::of(model, &ws.constraint_rows))
     };
     ws.compute_nu_dot(model, &applied)?;
     ws.compute_accelerations(model)?;
@@ -135,6 +209,7 @@ pub fn evaluate(model: &Model, ws: &mut Workspace, request: &EvalRequest) -> Res
         kinetic_energy: ws.kinetic_energy(),
         momentum: std::array::from_fn(|k| momentum[k]),
         actuators,
+        constraints,
         sensordata: None,
         eps,
     };

@@ -28,6 +28,10 @@ pub struct Vehicle {
     pub sensors: Vec<Sensor>,
     /// `<option>` settings for all actuators.
     pub actuation: Actuation,
+    /// `<option>` settings of MuJoCo's constraint model.
+    pub constraint_options: ConstraintOptions,
+    /// Equality constraints in document order (MuJoCo's equality order).
+    pub equalities: Vec<Equality>,
 }
 
 /// One `<body>`.
@@ -46,10 +50,10 @@ pub struct Body {
     /// The origin of the body's inertial frame in the body frame (MuJoCo's
     /// `body_ipos`), which sensors of objtype "body" measure.
     pub inertial_pos: Vec3,
-    /// The inertial frame's orientation (MuJoCo's `body_iquat`, as the file
-    /// gives it or from MuJoCo's eigen-decomposition, which the importer
-    /// reproduces); `None` when not known (a vehicle built by hand), which
-    /// sensors that measure these axes refuse.
+    /// The inertial frame's orientation (MuJoCo's `body_iquat`). The importer
+    /// always gives it (as written, or as MuJoCo's eigen-decomposition finds
+    /// it for a full inertia tensor, several geoms or a mesh); `None` leaves
+    /// it unknown, and sensors that measure its axes are then refused.
     pub inertial_quat: Option<Quat>,
     /// Whether the body's mass is left out because it is fixed to the
     /// world and its geoms' mass would come from sdf or height-field assets
@@ -146,6 +150,8 @@ pub struct Joint {
     /// Limits of the total actuator force on the joint (MuJoCo's
     /// `actuatorfrcrange` when `actuatorfrclimited`; hinge and slide only).
     pub actuator_force_range: Option<[f64; 2]>,
+    /// Friction loss and limits: constraint forces.
+    pub constraints: JointConstraints,
     /// Line of the joint element in the MJCF file (1-based).
     pub line: u32,
 }
@@ -318,6 +324,12 @@ pub enum SensorKind {
     ActuatorFrc,
     /// The actuators' total force on a hinge or slide joint.
     JointActuatorFrc,
+    /// A joint's distance to its active limit less the margin (0 with no active limit row).
+    JointLimitPos,
+    /// The velocity of a joint's active limit row.
+    JointLimitVel,
+    /// The force of a joint's active limit row.
+    JointLimitFrc,
     /// An actuator's length.
     ActuatorPos,
     /// An actuator's velocity.
@@ -328,7 +340,7 @@ pub enum SensorKind {
 
 impl SensorKind {
     /// Every kind, in MuJoCo's `mjtSensor` order.
-    pub const ALL: [SensorKind; 24] = {
+    pub const ALL: [SensorKind; 27] = {
         use SensorKind::*;
         [
             Accelerometer,
@@ -340,6 +352,9 @@ impl SensorKind {
             ActuatorVel,
             ActuatorFrc,
             JointActuatorFrc,
+            JointLimitPos,
+            JointLimitVel,
+            JointLimitFrc,
             BallQuat,
             BallAngVel,
             FramePos,
@@ -383,6 +398,9 @@ impl SensorKind {
             Accelerometer => "accelerometer",
             ActuatorFrc => "actuatorfrc",
             JointActuatorFrc => "jointactuatorfrc",
+            JointLimitPos => "jointlimitpos",
+            JointLimitVel => "jointlimitvel",
+            JointLimitFrc => "jointlimitfrc",
             ActuatorPos => "actuatorpos",
             ActuatorVel => "actuatorvel",
             Clock => "clock",
@@ -399,6 +417,7 @@ impl SensorKind {
         use SensorKind::*;
         match self {
             JointPos | JointVel | ActuatorFrc | JointActuatorFrc | ActuatorPos | ActuatorVel | Clock => 1,
+            JointLimitPos | JointLimitVel | JointLimitFrc => 1,
             BallQuat | FrameQuat => 4,
             _ => 3,
         }
@@ -471,6 +490,139 @@ impl Default for Actuation {
     /// MuJoCo's defaults: actuation on, ctrl clamped.
     fn default() -> Self {
         Actuation { enabled: true, clamp_ctrl: true }
+    }
+}
+
+/// MuJoCo's soft-constraint parameters of one constraint: `solref`
+/// (time constant and damping ratio, or stiffness and damping when
+/// negative) and `solimp` (the impedance's dmin, dmax, width, midpoint,
+/// power).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SoftConstraint {
+    /// `solref`.
+    pub solref: [f64; 2],
+    /// `solimp`.
+    pub solimp: [f64; 5],
+}
+
+impl Default for SoftConstraint {
+    /// MuJoCo's defaults: solref (0.02, 1), solimp (0.9, 0.95, 0.001, 0.5, 2).
+    fn default() -> Self {
+        SoftConstraint { solref: [0.02, 1.0], solimp: [0.9, 0.95, 0.001, 0.5, 2.0] }
+    }
+}
+
+/// A joint's constraint forces, as MuJoCo builds them from its attributes
+/// and the `<flag>`s that leave them on.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct JointConstraints {
+    /// `frictionloss` on each of the joint's dofs (N m or N); 0 for none.
+    pub frictionloss: f64,
+    /// `solreffriction`, `solimpfriction`.
+    pub friction: SoftConstraint,
+    /// The joint's limits, when it is limited (hinge, slide and ball).
+    pub limit: Option<JointLimit>,
+}
+
+/// A joint's `range` as a constraint: one-sided, active within `margin`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JointLimit {
+    /// `range` in rad or m (a ball joint limits its rotation angle by the larger value).
+    pub range: [f64; 2],
+    /// `margin`: the distance to the limit at which the constraint becomes active.
+    pub margin: f64,
+    /// `solreflimit`, `solimplimit`.
+    pub soft: SoftConstraint,
+}
+
+/// One `<equality>` constraint.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Equality {
+    /// Its name, if it has one.
+    pub name: Option<String>,
+    /// What it holds together.
+    pub kind: EqualityKind,
+    /// `active`: whether it acts from the start (nudyn cannot switch it later).
+    pub active: bool,
+    /// `solref`, `solimp`.
+    pub soft: SoftConstraint,
+    /// Line of the element in the MJCF file (1-based).
+    pub line: u32,
+}
+
+/// The two frames a connect or weld constraint holds together.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum EqualityObjects {
+    /// Two bodies (indices into [`Vehicle::bodies`]; `None` for the world).
+    Bodies(Option<usize>, Option<usize>),
+    /// Two sites (indices into [`Vehicle::sites`]).
+    Sites(usize, usize),
+}
+
+/// The kinds of equality constraint nudyn models.
+#[derive(Clone, Debug, PartialEq)]
+pub enum EqualityKind {
+    /// `<connect>`: a point of each frame held together (a ball joint closing a loop).
+    Connect {
+        /// The frames.
+        objects: EqualityObjects,
+        /// `anchor`: the point in body1's frame (body semantics only).
+        anchor: Vec3,
+    },
+    /// `<weld>`: the frames held at a fixed relative pose.
+    Weld {
+        /// The frames.
+        objects: EqualityObjects,
+        /// `anchor`: the point in body2's frame (body semantics only).
+        anchor: Vec3,
+        /// `relpose`: body2's pose in body1's frame; `None` (a zero
+        /// quaternion) takes the pose of qpos0.
+        relpose: Option<(Vec3, Quat)>,
+        /// `torquescale`: the weight of the rotation rows.
+        torquescale: f64,
+    },
+    /// `<joint>`: joint1's value a quartic of joint2's, both from qpos0.
+    Joint {
+        /// `joint1`.
+        joint1: String,
+        /// `joint2`, if given.
+        joint2: Option<String>,
+        /// `polycoef`.
+        polycoef: [f64; 5],
+    },
+}
+
+impl EqualityKind {
+    /// The frames a connect or weld holds (`None` for a joint coupling).
+    pub fn objects(&self) -> Option<EqualityObjects> {
+        match self {
+            EqualityKind::Connect { objects, .. } | EqualityKind::Weld { objects, .. } => Some(*objects),
+            EqualityKind::Joint { .. } => None,
+        }
+    }
+
+    /// The same, to renumber bodies.
+    pub(crate) fn objects_mut(&mut self) -> Option<&mut EqualityObjects> {
+        match self {
+            EqualityKind::Connect { objects, .. } | EqualityKind::Weld { objects, .. } => Some(objects),
+            EqualityKind::Joint { .. } => None,
+        }
+    }
+}
+
+/// `<option>` settings of MuJoCo's constraint model that change its forces.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ConstraintOptions {
+    /// `timestep` (s): with `refsafe` on, a constraint's time constant is at least twice it.
+    pub timestep: f64,
+    /// `<flag refsafe>`.
+    pub refsafe: bool,
+}
+
+impl Default for ConstraintOptions {
+    /// MuJoCo's defaults: timestep 0.002 s, refsafe on.
+    fn default() -> Self {
+        ConstraintOptions { timestep: 0.002, refsafe: true }
     }
 }
 

@@ -5,6 +5,7 @@
 
 use nalgebra::{DVector, SMatrix};
 
+use crate::dynamics::constraint::ConstraintRows;
 use crate::math::{Mat3, Quat, SpatialMat, SpatialVec, Transform};
 use crate::model::Model;
 
@@ -123,7 +124,8 @@ pub struct Workspace {
     pub qfrc_total: DVector<f64>,
     /// ε = ℓT of the actuators and the wrench inputs (nv) — compute_actuation.
     pub eps_actuator: DVector<f64>,
-    /// The ε pass 3 applied: the input's plus the actuators' (nv) — compute_nu_dot_actuated.
+    /// The ε pass 3 applied: the input's plus the actuators' and the
+    /// constraints' (nv) — compute_nu_dot_actuated.
     pub eps_applied: DVector<f64>,
     /// The inputs of the last compute_nu_dot_actuated: ε (nv) and ctrl.
     pub eps_input: DVector<f64>,
@@ -132,6 +134,9 @@ pub struct Workspace {
     /// Whether pass 3 is that of `eps_input` and `ctrl_input` (cleared by
     /// every other pass 3), so that the sensors need not run it again.
     pub inputs_applied: bool,
+
+    /// The active constraint rows and their forces — add_constraint_eps.
+    pub constraint_rows: ConstraintRows,
 
     /// MuJoCo's sensordata — compute_sensors.
     pub sensordata: DVector<f64>,
@@ -195,6 +200,7 @@ impl Workspace {
             eps_input: dof(),
             ctrl_input: DVector::zeros(nu),
             inputs_applied: false,
+            constraint_rows: ConstraintRows::new(model),
             sensordata: DVector::zeros(model.sensors.iter().map(|s| s.dim()).sum()),
             link_quats: vec![Quat::identity(); model.link_tree_quats.len()],
         }

@@ -92,7 +92,6 @@ fn sensor_types_nudyn_does_not_compute_are_refused_by_name_and_line() {
         (r#"<torque site="tip"/>"#, "constraint forces"),
         (r#"<magnetometer site="tip"/>"#, "not computed"),
         (r#"<tendonpos tendon="t"/>"#, "tendons"),
-        (r#"<jointlimitfrc joint="hinge"/>"#, "joint limits"),
         (r#"<e_kinetic/>"#, "energy sensors"),
         (r#"<user dim="1"/>"#, "user and plugin"),
     ] {
@@ -112,7 +111,8 @@ fn frames_nudyn_does_not_keep_are_refused() {
     assert!(camera.contains("reftype \"camera\""), "{camera}");
     // The arm's inertial axes come from MuJoCo's eigen-decomposition, which
     // nudyn reproduces: sensors on them are computed (their values are
-    // MuJoCo's in tests/python/test_mesh_inertia.py).
+    // MuJoCo's in tests/python/test_mesh_inertia.py, and
+    // tests/fixtures/sensors/eigen_axes.xml compares them with MuJoCo's).
     for sensor in [
         r#"<framexaxis objtype="body" objname="arm"/>"#,
         r#"<framepos name="p" objtype="site" objname="tip" reftype="body" refname="arm"/>"#,
@@ -129,6 +129,8 @@ fn what_mujocos_compiler_rejects_is_rejected_with_its_reason() {
         (r#"<jointpos joint="ball"/>"#, "joint must be slide or hinge in sensor"),
         (r#"<ballquat joint="hinge"/>"#, "joint must be ball in sensor"),
         (r#"<jointpos joint="nope"/>"#, "unknown joint 'nope' in sensor"),
+        (r#"<jointlimitfrc joint="hinge"/>"#, "joint must be limited in sensor"),
+        (r#"<jointlimitpos joint="nope"/>"#, "unknown joint 'nope' in sensor"),
         (r#"<gyro site="nope"/>"#, "unknown site 'nope' for sensor"),
         (r#"<actuatorfrc actuator="nope"/>"#, "unknown actuator 'nope' in sensor"),
         (r#"<subtreecom body="nope"/>"#, "unknown body 'nope' in sensor"),
@@ -152,4 +154,8 @@ fn what_mujocos_compiler_rejects_is_rejected_with_its_reason() {
     let twice = refused("<jointpos name=\"a\" joint=\"hinge\"/>\n<jointvel name=\"a\" joint=\"hinge\"/>");
     assert!(twice.contains("line 18") && twice.contains("\"a\"") && twice.contains("line 17"), "{twice}");
     assert!(parse_mjcf(&scene("<clock/>")).is_ok());
+    // The arm's inertial axes are MuJoCo's, so its z axis is measured.
+    assert!(
+        Model::compile(&parse_mjcf(&scene(r#"<framezaxis objtype="body" objname="arm"/>"#)).unwrap().vehicle).is_ok()
+    );
 }

@@ -295,11 +295,12 @@ impl SensorDependence {
         match kind {
             Clock => SensorDependence::Nothing,
             JointPos | BallQuat | FramePos | FrameQuat | FrameXAxis | FrameYAxis | FrameZAxis | SubtreeCom
-            | ActuatorPos => SensorDependence::Configuration,
+            | ActuatorPos | JointLimitPos => SensorDependence::Configuration,
             JointVel | BallAngVel | FrameLinVel | FrameAngVel | SubtreeLinVel | SubtreeAngMom | Gyro | Velocimeter
-            | ActuatorVel => SensorDependence::Motion,
+            | ActuatorVel | JointLimitVel => SensorDependence::Motion,
             ActuatorFrc | JointActuatorFrc => SensorDependence::Controls,
-            FrameLinAcc | FrameAngAcc | Accelerometer => SensorDependence::Inputs,
+            // A limit's force solves one problem with every input's ε.
+            FrameLinAcc | FrameAngAcc | Accelerometer | JointLimitFrc => SensorDependence::Inputs,
         }
     }
 }

@@ -186,7 +186,7 @@ pub fn do_step(component: &mut dyn Component, time: f64, step: f64) -> Result<Op
 }
 
 /// The number of continuous states, checked against an array's length `n`.
-fn state_count(component: &dyn Component, what: &'static str, n: usize) -> Result<usize, CallError> {
+pub fn state_count(component: &dyn Component, what: &'static str, n: usize) -> Result<usize, CallError> {
     let expected = component.continuous_state_count().ok_or(CallError::NotProvided("model exchange"))?;
     if n != expected {
         return Err(CallError::StateCount { what, found: n, expected });

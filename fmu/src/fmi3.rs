@@ -53,30 +53,62 @@ fn refuse(table: &Fmi3Variables, vr: u32, asked: &'static str) -> FmiError {
     }
 }
 
-/// The elements of the variable `vr`, checked to be of `asked` type, as
-/// FMI 2.0 value references (`None`: time).
-fn variable_elements(table: &Fmi3Variables, vr: u32, asked: ValueType) -> Result<Vec<Option<u32>>, FmiError> {
+/// The value references of a getter or setter of `n_values` values,
+/// refused unread if they are more than the values (every variable has at
+/// least one): a count past the end of the array is not followed.
+///
+/// # Safety
+/// A non-NULL `ptr` points to `n_value_references` value references.
+unsafe fn reference_array<'a>(
+    ptr: *const fmi3ValueReference,
+    n_value_references: usize,
+    n_values: usize,
+) -> Result<&'a [u32], FmiError> {
+    if n_value_references > n_values {
+        return Err(FmiError::MoreReferencesThanValues { n_value_references, n_values });
+    }
+    // SAFETY: by the contract above.
+    unsafe { slice(ptr, n_value_references, "valueReferences") }
+}
+
+/// The number of elements of the variable `vr`, checked to be of `asked` type.
+fn variable_len(table: &Fmi3Variables, vr: u32, asked: ValueType) -> Result<usize, FmiError> {
     match table.get(vr) {
-        Some(variable) if variable.value_type == asked => Ok(variable.elements().map(Some).collect()),
-        None if vr == TIME_VR && asked == ValueType::Float64 => Ok(vec![None]),
+        Some(variable) if variable.value_type == asked => Ok(variable.len),
+        None if vr == TIME_VR && asked == ValueType::Float64 => Ok(1),
         _ => Err(refuse(table, vr, asked.name())),
     }
 }
 
-/// The elements `vrs` name, as [`variable_elements`] gives them; refused
-/// unless they add up to `n_values`.
+/// Refuses `vrs` unless they are all of `asked` type and name `n_values`
+/// values together. Counted, not collected: nothing is allocated before
+/// `n_values`, the caller's number, is known to be the arrays' size.
+fn check_count(table: &Fmi3Variables, vrs: &[u32], asked: ValueType, n_values: usize) -> Result<(), FmiError> {
+    let mut expected = 0usize;
+    for &vr in vrs {
+        expected = expected.saturating_add(variable_len(table, vr, asked)?);
+    }
+    if expected != n_values {
+        return Err(FmiError::ValueCount { expected, found: n_values });
+    }
+    Ok(())
+}
+
+/// The elements of `vrs`, checked by [`check_count`] to be `n_values`, as
+/// FMI 2.0 value references (`None`: time).
 fn elements(
     table: &Fmi3Variables,
     vrs: &[u32],
     asked: ValueType,
     n_values: usize,
 ) -> Result<Vec<Option<u32>>, FmiError> {
+    check_count(table, vrs, asked, n_values)?;
     let mut elements = Vec::with_capacity(n_values);
     for &vr in vrs {
-        elements.extend(variable_elements(table, vr, asked)?);
-    }
-    if elements.len() != n_values {
-        return Err(FmiError::ValueCount { expected: elements.len(), found: n_values });
+        match table.get(vr) {
+            Some(variable) => elements.extend(variable.elements().map(Some)),
+            None => elements.push(None),
+        }
     }
     Ok(elements)
 }
@@ -86,9 +118,14 @@ fn settable(elements: &[Option<u32>]) -> Result<Vec<u32>, FmiError> {
     elements.iter().map(|e| e.ok_or(FmiError::SetTime)).collect()
 }
 
-/// A getter or setter of a type nudyn has no variables of: refused for any value reference.
-fn none_of(table: &Fmi3Variables, vrs: &[u32], asked: &'static str) -> Result<(), FmiError> {
-    match vrs.first() {
+/// A getter or setter of a type nudyn has no variables of: refused for any
+/// value reference, of which only the first is read.
+///
+/// # Safety
+/// A non-NULL `vrs` points to `n` value references.
+unsafe fn none_of(table: &Fmi3Variables, vrs: *const u32, n: usize, asked: &'static str) -> Result<(), FmiError> {
+    // SAFETY: by the contract above.
+    match unsafe { slice(vrs, n.min(1), "valueReferences") }?.first() {
         Some(&vr) => Err(refuse(table, vr, asked)),
         None => Ok(()),
     }
@@ -311,9 +348,9 @@ pub unsafe extern "C" fn fmi3GetFloat64(
 ) -> fmi3Status {
     unsafe {
         enter(instance, Function::GetReal, "fmi3GetFloat64", |instance| {
-            let vrs = slice(value_references, n_value_references, "valueReferences")?;
-            let values = slice_mut(values, n_values, "values")?;
+            let vrs = reference_array(value_references, n_value_references, n_values)?;
             let elements = elements(&instance.fmi3, vrs, ValueType::Float64, n_values)?;
+            let values = slice_mut(values, n_values, "values")?;
             let reals: Vec<u32> = elements.iter().flatten().copied().collect();
             let mut read = vec![0.0; reals.len()];
             calls::get_real(&mut *instance.component, &reals, &mut read)?;
@@ -341,9 +378,9 @@ pub unsafe extern "C" fn fmi3SetFloat64(
 ) -> fmi3Status {
     unsafe {
         enter(instance, Function::SetReal, "fmi3SetFloat64", |instance| {
-            let vrs = slice(value_references, n_value_references, "valueReferences")?;
-            let values = slice(values, n_values, "values")?;
+            let vrs = reference_array(value_references, n_value_references, n_values)?;
             let reals = settable(&elements(&instance.fmi3, vrs, ValueType::Float64, n_values)?)?;
+            let values = slice(values, n_values, "values")?;
             let initialized = initialized(instance.phase);
             calls::set_real(&mut *instance.component, &reals, values, initialized).map_err(out_of_range_discards)
         })
@@ -362,9 +399,9 @@ pub unsafe extern "C" fn fmi3GetInt64(
 ) -> fmi3Status {
     unsafe {
         enter(instance, Function::GetInteger, "fmi3GetInt64", |instance| {
-            let vrs = slice(value_references, n_value_references, "valueReferences")?;
-            let values = slice_mut(values, n_values, "values")?;
+            let vrs = reference_array(value_references, n_value_references, n_values)?;
             let integers = settable(&elements(&instance.fmi3, vrs, ValueType::Enumeration, n_values)?)?;
+            let values = slice_mut(values, n_values, "values")?;
             let mut read = vec![0; integers.len()];
             instance.component.get_integer(&integers, &mut read)?;
             values.iter_mut().zip(read).for_each(|(value, read)| *value = i64::from(read));
@@ -385,9 +422,9 @@ pub unsafe extern "C" fn fmi3SetInt64(
 ) -> fmi3Status {
     unsafe {
         enter(instance, Function::SetInteger, "fmi3SetInt64", |instance| {
-            let vrs = slice(value_references, n_value_references, "valueReferences")?;
-            let values = slice(values, n_values, "values")?;
+            let vrs = reference_array(value_references, n_value_references, n_values)?;
             let integers = settable(&elements(&instance.fmi3, vrs, ValueType::Enumeration, n_values)?)?;
+            let values = slice(values, n_values, "values")?;
             let mut narrowed = Vec::with_capacity(values.len());
             for (&vr, &value) in integers.iter().zip(values) {
                 let name = instance.fmi3.iter().find(|v| v.value_type == ValueType::Enumeration && v.first == vr);
@@ -412,9 +449,9 @@ pub unsafe extern "C" fn fmi3GetBoolean(
 ) -> fmi3Status {
     unsafe {
         enter(instance, Function::GetBoolean, "fmi3GetBoolean", |instance| {
-            let vrs = slice(value_references, n_value_references, "valueReferences")?;
-            let values = slice_mut(values, n_values, "values")?;
+            let vrs = reference_array(value_references, n_value_references, n_values)?;
             let booleans = settable(&elements(&instance.fmi3, vrs, ValueType::Boolean, n_values)?)?;
+            let values = slice_mut(values, n_values, "values")?;
             let mut read = vec![false; booleans.len()];
             instance.component.get_boolean(&booleans, &mut read)?;
             values.copy_from_slice(&read);
@@ -435,10 +472,10 @@ pub unsafe extern "C" fn fmi3SetBoolean(
 ) -> fmi3Status {
     unsafe {
         enter(instance, Function::SetBoolean, "fmi3SetBoolean", |instance| {
-            let vrs = slice(value_references, n_value_references, "valueReferences")?;
+            let vrs = reference_array(value_references, n_value_references, n_values)?;
+            let booleans = settable(&elements(&instance.fmi3, vrs, ValueType::Boolean, n_values)?)?;
             // Read as bytes: a C bool that is neither 0 nor 1 is true, not undefined behaviour.
             let values = slice(values as *const u8, n_values, "values")?;
-            let booleans = settable(&elements(&instance.fmi3, vrs, ValueType::Boolean, n_values)?)?;
             let flags: Vec<bool> = values.iter().map(|&v| v != 0).collect();
             Ok(instance.component.set_boolean(&booleans, &flags, initialized(instance.phase))?)
         })
@@ -461,7 +498,7 @@ macro_rules! no_variables_of_type {
         ) -> fmi3Status {
             unsafe {
                 enter(instance, Function::$table, stringify!($function), |instance| {
-                    none_of(&instance.fmi3, slice(value_references, n_value_references, "valueReferences")?, $type_name)
+                    none_of(&instance.fmi3, value_references, n_value_references, $type_name)
                 })
             }
         }
@@ -502,7 +539,7 @@ pub unsafe extern "C" fn fmi3GetBinary(
 ) -> fmi3Status {
     unsafe {
         enter(instance, Function::GetString, "fmi3GetBinary", |instance| {
-            none_of(&instance.fmi3, slice(value_references, n_value_references, "valueReferences")?, "Binary")
+            none_of(&instance.fmi3, value_references, n_value_references, "Binary")
         })
     }
 }
@@ -520,7 +557,7 @@ pub unsafe extern "C" fn fmi3SetBinary(
 ) -> fmi3Status {
     unsafe {
         enter(instance, Function::SetString, "fmi3SetBinary", |instance| {
-            none_of(&instance.fmi3, slice(value_references, n_value_references, "valueReferences")?, "Binary")
+            none_of(&instance.fmi3, value_references, n_value_references, "Binary")
         })
     }
 }
@@ -536,7 +573,7 @@ pub unsafe extern "C" fn fmi3GetClock(
 ) -> fmi3Status {
     unsafe {
         enter(instance, Function::GetReal, "fmi3GetClock", |instance| {
-            none_of(&instance.fmi3, slice(value_references, n_value_references, "valueReferences")?, "Clock")
+            none_of(&instance.fmi3, value_references, n_value_references, "Clock")
         })
     }
 }
@@ -552,7 +589,7 @@ pub unsafe extern "C" fn fmi3SetClock(
 ) -> fmi3Status {
     unsafe {
         enter(instance, Function::SetReal, "fmi3SetClock", |instance| {
-            none_of(&instance.fmi3, slice(value_references, n_value_references, "valueReferences")?, "Clock")
+            none_of(&instance.fmi3, value_references, n_value_references, "Clock")
         })
     }
 }
@@ -571,7 +608,7 @@ macro_rules! no_clocks {
         ) -> fmi3Status {
             unsafe {
                 enter(instance, Function::NotProvided, stringify!($function), |instance| {
-                    none_of(&instance.fmi3, slice(value_references, n_value_references, "valueReferences")?, "Clock")
+                    none_of(&instance.fmi3, value_references, n_value_references, "Clock")
                 })
             }
         }
@@ -876,6 +913,8 @@ pub unsafe extern "C" fn fmi3SetContinuousStates(
 ) -> fmi3Status {
     unsafe {
         enter(instance, Function::SetContinuousStates, "fmi3SetContinuousStates", |instance| {
+            // The count first: no slice is made of a length that is not the array's.
+            calls::state_count(&*instance.component, "x", n_continuous_states)?;
             let x = slice(continuous_states, n_continuous_states, "continuousStates")?;
             calls::set_continuous_states(&mut *instance.component, x).map_err(out_of_range_discards)
         })
@@ -892,6 +931,8 @@ pub unsafe extern "C" fn fmi3GetContinuousStateDerivatives(
 ) -> fmi3Status {
     unsafe {
         enter(instance, Function::GetDerivatives, "fmi3GetContinuousStateDerivatives", |instance| {
+            // The count first: no slice is made of a length that is not the array's.
+            calls::state_count(&*instance.component, "derivatives", n_continuous_states)?;
             let derivatives = slice_mut(derivatives, n_continuous_states, "derivatives")?;
             Ok(calls::get_derivatives(&mut *instance.component, derivatives)?)
         })
@@ -923,6 +964,8 @@ pub unsafe extern "C" fn fmi3GetContinuousStates(
 ) -> fmi3Status {
     unsafe {
         enter(instance, Function::GetContinuousStates, "fmi3GetContinuousStates", |instance| {
+            // The count first: no slice is made of a length that is not the array's.
+            calls::state_count(&*instance.component, "x", n_continuous_states)?;
             let x = slice_mut(continuous_states, n_continuous_states, "continuousStates")?;
             Ok(calls::get_continuous_states(&*instance.component, x)?)
         })
@@ -939,6 +982,8 @@ pub unsafe extern "C" fn fmi3GetNominalsOfContinuousStates(
 ) -> fmi3Status {
     unsafe {
         enter(instance, Function::GetNominalsOfContinuousStates, "fmi3GetNominalsOfContinuousStates", |instance| {
+            // The count first: no slice is made of a length that is not the array's.
+            calls::state_count(&*instance.component, "x_nominal", n_continuous_states)?;
             let nominals = slice_mut(nominals, n_continuous_states, "nominals")?;
             Ok(calls::get_nominals(&*instance.component, nominals)?)
         })
@@ -997,19 +1042,16 @@ pub unsafe extern "C" fn fmi3GetOutputDerivatives(
 ) -> fmi3Status {
     unsafe {
         enter(instance, Function::GetRealOutputDerivatives, "fmi3GetOutputDerivatives", |instance| {
-            let vrs = slice(value_references, n_value_references, "valueReferences")?;
+            let vrs = reference_array(value_references, n_value_references, n_values)?;
             let orders = slice(orders, n_value_references, "orders")?;
+            let table = &instance.fmi3;
+            let reals = settable(&elements(table, vrs, ValueType::Float64, n_values)?)?;
+            let element_orders: Vec<i32> = vrs
+                .iter()
+                .zip(orders)
+                .flat_map(|(&vr, &order)| std::iter::repeat_n(order, table.get(vr).map_or(1, |v| v.len)))
+                .collect();
             let values = slice_mut(values, n_values, "values")?;
-            let mut reals = Vec::with_capacity(n_values);
-            let mut element_orders = Vec::with_capacity(n_values);
-            for (&vr, &order) in vrs.iter().zip(orders) {
-                let elements = settable(&variable_elements(&instance.fmi3, vr, ValueType::Float64)?)?;
-                element_orders.extend(std::iter::repeat_n(order, elements.len()));
-                reals.extend(elements);
-            }
-            if reals.len() != n_values {
-                return Err(FmiError::ValueCount { expected: reals.len(), found: n_values });
-            }
             Ok(calls::get_output_derivatives(&mut *instance.component, &reals, &element_orders, values)?)
         })
     }

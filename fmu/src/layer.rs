@@ -8,8 +8,10 @@
 //! table in [`crate::state`], then calls the instance's [`Component`]
 //! through the shared argument checks of [`crate::calls`] inside
 //! `catch_unwind` (a panic becomes an error status, never an abort of the
-//! host), and turns the result into a status, logging every rejection with
-//! the values involved.
+//! host, and its message goes to the importer's logger, not to the host's
+//! stderr), and turns the result into a status, logging every rejection
+//! with the values involved. No array is made, read or allocated for a
+//! count before the count is checked.
 //!
 //! What a refusal does to the instance (FMI 2.0 §2.1.3, FMI 3.0 §2.2.3):
 //! - Error ("the simulation cannot be continued with this FMU instance")
@@ -34,10 +36,11 @@
 //! the allocator hands to a new instance cannot be told from it; the
 //! standards leave calls after freeing an instance undefined.)
 
+use std::cell::Cell;
 use std::collections::BTreeSet;
 use std::ffi::{CStr, CString, c_char, c_uint, c_void};
 use std::panic::{AssertUnwindSafe, catch_unwind};
-use std::sync::{Mutex, PoisonError};
+use std::sync::{Mutex, OnceLock, PoisonError};
 
 use fmi_sys::{fmi2, fmi3};
 use nudyn_contract::fmi3::Fmi3Variables;
@@ -154,6 +157,26 @@ pub enum FmiError {
         /// The function's type.
         asked: &'static str,
     },
+    /// An array length whose bytes exceed what any array can hold (isize::MAX).
+    #[error("{what} has {n} elements: more than any array can hold")]
+    TooLong {
+        /// The array's C name.
+        what: &'static str,
+        /// The length passed.
+        n: usize,
+    },
+    /// More value references than values: every variable has at least one
+    /// value, so the value references cannot all be read.
+    #[error("nValueReferences = {n_value_references} is more than nValues = {n_values}")]
+    MoreReferencesThanValues {
+        /// nValueReferences.
+        n_value_references: usize,
+        /// nValues.
+        n_values: usize,
+    },
+    /// SetDebugLogging named more categories than the FMU has.
+    #[error("nCategories = {0} is more than the {known} log categories the FMU has", known = LogCategory::ALL.len())]
+    TooManyCategories(usize),
     /// FMI 3.0's nValues does not match the value references' sizes.
     #[error("nValues = {found}, but the value references name {expected} values")]
     ValueCount {
@@ -402,7 +425,7 @@ pub unsafe fn free(c: *mut c_void) {
     // SAFETY: `c` came from Box::into_raw in `register` and was live until just now.
     let instance = unsafe { Box::from_raw(c as *mut Instance) };
     // Dropping frees plain Rust data; guard anyway so nothing unwinds into C.
-    let _ = catch_unwind(AssertUnwindSafe(move || drop(instance)));
+    let _ = guarded(move || drop(instance));
 }
 
 /// The instance `c` points to, if it is a live one.
@@ -419,12 +442,51 @@ unsafe fn instance<'a>(c: *mut c_void) -> Option<&'a mut Instance> {
 }
 
 /// The text of a panic payload.
-pub fn panic_message(payload: &(dyn std::any::Any + Send)) -> &str {
+fn panic_message(payload: &(dyn std::any::Any + Send)) -> &str {
     payload
         .downcast_ref::<&str>()
         .copied()
         .or_else(|| payload.downcast_ref::<String>().map(String::as_str))
         .unwrap_or("(no message)")
+}
+
+thread_local! {
+    /// How many guarded calls this thread is inside (a host's logger may call back in).
+    static GUARD_DEPTH: Cell<u32> = const { Cell::new(0) };
+    /// Where the last panic inside a guard was raised, for its log message.
+    static PANIC_LOCATION: Cell<Option<String>> = const { Cell::new(None) };
+}
+
+/// The panic hook there was before [`guarded`] installed its own.
+type Hook = Box<dyn Fn(&std::panic::PanicHookInfo<'_>) + Sync + Send>;
+static PREVIOUS_HOOK: OnceLock<Hook> = OnceLock::new();
+
+/// Runs `body`; a panic becomes an `Err` with its message and location,
+/// for the importer's logger. The default panic hook would print them on
+/// the host's stderr, so a hook installed on first use keeps panics inside
+/// a guard quiet and passes any other (a Rust host's own, when this crate
+/// is linked as a library) to the hook that was there before. Neither
+/// hook allocates (the default hook and this one capture nothing), so a
+/// host that unloads the library (dlclose) loses no memory to them.
+fn guarded<R>(body: impl FnOnce() -> R) -> Result<R, String> {
+    PREVIOUS_HOOK.get_or_init(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(|info| {
+            if GUARD_DEPTH.get() > 0 {
+                PANIC_LOCATION.set(info.location().map(ToString::to_string));
+            } else if let Some(previous) = PREVIOUS_HOOK.get() {
+                previous(info);
+            }
+        }));
+        previous
+    });
+    GUARD_DEPTH.set(GUARD_DEPTH.get() + 1);
+    let result = catch_unwind(AssertUnwindSafe(body));
+    GUARD_DEPTH.set(GUARD_DEPTH.get() - 1);
+    result.map_err(|payload| {
+        let location = PANIC_LOCATION.take().map_or_else(String::new, |at| format!(" at {at}"));
+        format!("internal error (panic{location}): {}", panic_message(&*payload))
+    })
 }
 
 /// Runs an instantiation: a panic or an error is logged and makes no instance.
@@ -433,7 +495,7 @@ pub fn instantiate(
     function: &'static str,
     make: impl FnOnce() -> Result<(Version, Interface, Box<dyn Component>, Fmi3Variables), FmiError>,
 ) -> *mut c_void {
-    match catch_unwind(AssertUnwindSafe(make)) {
+    match guarded(make) {
         Ok(Ok((version, interface, component, fmi3))) => {
             register(Instance::new(logger, version, interface, component, fmi3))
         }
@@ -441,9 +503,8 @@ pub fn instantiate(
             logger.log_status(Status::Error, &format!("{function}: {error}"));
             std::ptr::null_mut()
         }
-        Err(payload) => {
-            let message = format!("{function}: internal error (panic): {}", panic_message(&*payload));
-            logger.log_status(Status::Error, &message);
+        Err(panic) => {
+            logger.log_status(Status::Error, &format!("{function}: {panic}"));
             std::ptr::null_mut()
         }
     }
@@ -474,7 +535,7 @@ pub unsafe fn enter(
             other: instance.interface.name(),
         }))
     } else if function.allowed_in(instance.phase) {
-        catch_unwind(AssertUnwindSafe(|| body(&mut *instance)))
+        guarded(|| body(&mut *instance))
     } else {
         Ok(Err(FmiError::IllegalState { function: name, phase: instance.phase_name() }))
     };
@@ -494,10 +555,9 @@ pub unsafe fn enter(
             instance.logger.log_status(status, &format!("{name}: {error}"));
             status
         }
-        Err(payload) => {
+        Err(panic) => {
             instance.phase = Phase::Error;
-            let message = format!("{name}: internal error (panic): {}", panic_message(&*payload));
-            instance.logger.log_status(Status::Error, &message);
+            instance.logger.log_status(Status::Error, &format!("{name}: {panic}"));
             Status::Error
         }
     };
@@ -505,6 +565,15 @@ pub unsafe fn enter(
         instance.logger.log(status, LogCategory::Calls, &format!("{name} returned status {}", status.code()));
     }
     status
+}
+
+/// Refuses a length `n` of `T`s that no array can have (more than
+/// isize::MAX bytes), which a slice may not be made of.
+fn fits<T>(n: usize, what: &'static str) -> Result<(), FmiError> {
+    match n.checked_mul(size_of::<T>()) {
+        Some(bytes) if bytes <= isize::MAX as usize => Ok(()),
+        _ => Err(FmiError::TooLong { what, n }),
+    }
 }
 
 /// A slice from a C array; NULL is accepted for an empty one.
@@ -518,6 +587,7 @@ pub unsafe fn slice<'a, T>(ptr: *const T, n: usize, what: &'static str) -> Resul
     if ptr.is_null() {
         return Err(FmiError::Null(what));
     }
+    fits::<T>(n, what)?;
     // SAFETY: non-NULL, and `n` elements by the contract above.
     Ok(unsafe { std::slice::from_raw_parts(ptr, n) })
 }
@@ -533,6 +603,7 @@ pub unsafe fn slice_mut<'a, T>(ptr: *mut T, n: usize, what: &'static str) -> Res
     if ptr.is_null() {
         return Err(FmiError::Null(what));
     }
+    fits::<T>(n, what)?;
     // SAFETY: non-NULL, and `n` writable elements by the contract above.
     Ok(unsafe { std::slice::from_raw_parts_mut(ptr, n) })
 }
@@ -570,6 +641,11 @@ pub unsafe fn set_debug_logging(
     n: usize,
     categories: *const *const c_char,
 ) -> Result<(), FmiError> {
+    // Naming a category twice is no use; more names than categories would
+    // only be a count that runs past the array.
+    if n > LogCategory::ALL.len() {
+        return Err(FmiError::TooManyCategories(n));
+    }
     // SAFETY: by the contract above.
     let categories = unsafe { slice(categories, n, "categories") }?;
     let mut indices = Vec::with_capacity(categories.len());
@@ -731,4 +807,53 @@ pub fn do_step(instance: &mut Instance, time: f64, step: f64, name: &str) -> Res
     }
     instance.warning = report.relaxed.map(|relaxed| format!("{name}: {relaxed}"));
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use std::process::Command;
+
+    use super::*;
+
+    /// An FMI 3.0 logger that appends each message to the `Vec<String>` its environment points to.
+    unsafe extern "C" fn collect(
+        environment: fmi3::fmi3InstanceEnvironment,
+        _status: fmi3::fmi3Status,
+        _category: fmi3::fmi3String,
+        message: fmi3::fmi3String,
+    ) {
+        // SAFETY: the environment is the test's Vec, the message a NUL-terminated string.
+        let (messages, message) = unsafe { (&mut *(environment as *mut Vec<String>), CStr::from_ptr(message)) };
+        messages.push(message.to_string_lossy().into_owned());
+    }
+
+    /// The panic hook prints to the process's stderr, which the test
+    /// harness does not capture: the test runs itself in a child process
+    /// and reads the child's stderr.
+    #[test]
+    fn a_panic_goes_to_the_logger_with_its_location_and_never_to_stderr() {
+        const CHILD: &str = "NUDYN_FMU_PANIC_CHILD";
+        if std::env::var_os(CHILD).is_some() {
+            let mut messages = Vec::<String>::new();
+            let logger = Logger::fmi3(Some(collect), &mut messages as *mut Vec<String> as *mut c_void, true);
+            let made = instantiate(logger, "fmi3InstantiateCoSimulation", || panic!("deliberate"));
+            assert!(made.is_null());
+            println!("logged: {}", messages.join(" | "));
+            return;
+        }
+        let test = "layer::tests::a_panic_goes_to_the_logger_with_its_location_and_never_to_stderr";
+        let child = Command::new(std::env::current_exe().expect("the test binary"))
+            .args(["--exact", test, "--nocapture", "--test-threads=1"])
+            .env(CHILD, "1")
+            .output()
+            .expect("the test binary runs");
+        let (stdout, stderr) = (String::from_utf8_lossy(&child.stdout), String::from_utf8_lossy(&child.stderr));
+        assert!(child.status.success(), "child failed:\n{stdout}\n{stderr}");
+        assert!(
+            stdout.contains("logged: fmi3InstantiateCoSimulation: internal error (panic at fmu/src/layer.rs:")
+                && stdout.contains("): deliberate"),
+            "{stdout}"
+        );
+        assert!(!stderr.contains("deliberate") && !stderr.contains("panicked"), "on stderr:\n{stderr}");
+    }
 }

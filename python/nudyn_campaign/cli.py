@@ -8,6 +8,7 @@ from pathlib import Path
 
 from nudyn_driver.errors import DriverError
 
+from .files import OutputError
 from .runner import CampaignInterrupted, run_campaign
 from .spec import CampaignError
 
@@ -31,7 +32,7 @@ def main(argv=None) -> int:
     try:
         table = run_campaign(args.campaign, args.out, cases=args.cases, workers=args.workers,
                              scheduler=args.scheduler, nudyn=args.nudyn, progress=not args.no_progress)
-    except (CampaignError, DriverError, CampaignInterrupted) as error:
+    except (CampaignError, DriverError, CampaignInterrupted, OutputError) as error:
         print(f"nudyn-campaign: {error}", file=sys.stderr)
         return 2
     failed = sum(status != "ok" for status in table.column("status").to_pylist())

@@ -16,6 +16,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pyarrow as pa  # noqa: E402
 
+from .files import write_atomically  # noqa: E402
 from .metrics import NAMES  # noqa: E402
 
 WORST = 10
@@ -73,7 +74,7 @@ def write_report(campaign, table: pa.Table, out: Path) -> None:
         lines += _grid_section(table, dispersion.key, metrics, out)
     _plot_metrics(table, metrics, out / "metrics.png")
     lines += ["", "![histograms and CDFs of the metrics](metrics.png)", ""]
-    (out / "report.md").write_text("\n".join(lines))
+    write_atomically(out / "report.md", lambda temporary: temporary.write_text("\n".join(lines)))
 
 
 def _short(value) -> str:
@@ -107,7 +108,7 @@ def _grid_section(table: pa.Table, key: str, metrics: list[str], out: Path) -> l
     axis.legend()
     figure.tight_layout()
     name = f"{_file_name(key)}.png"
-    figure.savefig(out / name, dpi=110)
+    write_atomically(out / name, lambda temporary: figure.savefig(temporary, dpi=110, format="png"))
     plt.close(figure)
     return lines + ["", f"![settling time against {key}]({name})"]
 
@@ -122,5 +123,5 @@ def _plot_metrics(table: pa.Table, metrics: list[str], path: Path) -> None:
         axes[row, 1].plot(np.sort(v), np.linspace(0, 1, v.size), drawstyle="steps-post")
         axes[row, 1].set_ylabel("CDF")
     figure.tight_layout()
-    figure.savefig(path, dpi=100)
+    write_atomically(path, lambda temporary: figure.savefig(temporary, dpi=100, format="png"))
     plt.close(figure)

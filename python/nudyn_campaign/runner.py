@@ -24,6 +24,7 @@ from nudyn_driver.locations import nudyn_binary
 
 from . import spec as specs
 from .cases import run_chunk
+from .files import write_atomically
 from .metrics import NAMES
 
 # The folder holding these packages: python/ of a checkout, site-packages of the wheel.
@@ -67,12 +68,9 @@ def _table(rows: list[dict], columns: list[str]) -> pa.Table:
     return pa.table({column: [row.get(column) for row in rows] for column in columns})
 
 
-def _write_atomically(table: pa.Table, path: Path) -> None:
-    """A part is either absent or complete: written beside, then renamed."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    partial = path.with_suffix(".partial")
-    pq.write_table(table, partial)
-    os.replace(partial, path)
+def _write_parquet(table: pa.Table, path: Path) -> None:
+    """A file is either absent or complete, and only a regular file is replaced (files.py)."""
+    write_atomically(path, lambda temporary: pq.write_table(table, temporary))
 
 
 def _client(workers: int | None, scheduler: str | None):
@@ -148,9 +146,9 @@ def _run(client, campaign, worker_spec, fmus, missing, out, progress, stop_after
             for row in rows:
                 trajectory = row.pop("_trajectory", None)
                 if trajectory is not None:
-                    _write_atomically(pa.table(trajectory), out / "trajectories" / f"case-{row['case']:06d}.parquet")
+                    _write_parquet(pa.table(trajectory), out / "trajectories" / f"case-{row['case']:06d}.parquet")
             columns = list(dict.fromkeys(key for row in rows for key in row))
-            _write_atomically(_table(rows, columns), out / "parts" / f"part-{rows[0]['case']:06d}.parquet")
+            _write_parquet(_table(rows, columns), out / "parts" / f"part-{rows[0]['case']:06d}.parquet")
             failed += sum(row["status"] != "ok" for row in rows)
             bar.update(len(rows))
             bar.set_postfix(failed=failed, rate=f"{bar.n - already:.0f}/{time.perf_counter() - started:.1f}s")
@@ -170,7 +168,7 @@ def consolidate(campaign: specs.Campaign, out: Path, columns: list[str]) -> pa.T
     # A rerun with fewer --cases keeps the finished parts but reports only its own cases.
     table = table.filter(pc.less(table["case"], campaign.cases)) if parts else table
     table = table.sort_by("case")
-    pq.write_table(table, out / "results.parquet")
+    _write_parquet(table, out / "results.parquet")
     from .report import write_report
 
     write_report(campaign, table, out)

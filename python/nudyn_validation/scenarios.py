@@ -86,7 +86,12 @@ def velocity_scales(model: mujoco.MjModel) -> np.ndarray:
 
 
 def offset_pose(model: mujoco.MjModel, rng: np.random.Generator) -> np.ndarray:
+    """A random pose near qpos0; qpos0 itself for a model with active
+    equality constraints, which hold in the pose the file was written in
+    (a random pose would start every weld and connect far from holding)."""
     qpos = model.qpos0.copy()
+    if np.any(model.eq_active0):
+        return qpos
     for j in range(model.njnt):
         a, kind = model.jnt_qposadr[j], model.jnt_type[j]
         if kind == mujoco.mjtJoint.mjJNT_FREE:

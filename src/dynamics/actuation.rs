@@ -314,8 +314,8 @@ impl Workspace {
         self.with_actuators(model, eps, ctrl, Self::compute_qacc)
     }
 
-    /// Runs `pass` with ε = `eps` plus the actuators' at `ctrl`, leaving
-    /// that total in `eps_applied`.
+    /// Runs `pass` with ε = `eps` plus the actuators' at `ctrl` and the
+    /// constraint forces' ε_c, leaving that total in `eps_applied`.
     fn with_actuators(
         &mut self,
         model: &Model,
@@ -334,7 +334,11 @@ impl Workspace {
                 *total = input + actuator;
             }
         }
-        let result = pass(self, model, applied.as_slice());
+        let mut result = Ok(());
+        if !model.constraints.is_empty() {
+            result = self.add_constraint_eps(model, applied.as_mut_slice());
+        }
+        let result = result.and_then(|()| pass(self, model, applied.as_slice()));
         self.eps_applied = applied;
         result?;
         self.eps_input.copy_from_slice(eps);

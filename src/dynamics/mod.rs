@@ -18,6 +18,9 @@ pub mod acceleration;
 pub mod actuation;
 pub mod articulated;
 pub mod bias;
+pub mod box_qp;
+pub mod constraint;
+mod equality;
 pub mod forces;
 pub mod kinematics;
 pub mod quantities;
@@ -72,6 +75,13 @@ pub enum DynamicsError {
     SingularStep {
         /// The step size (s).
         step: f64,
+    },
+    /// The constraint forces' problem could not be solved (its matrix lost
+    /// positive definiteness to overflow, or the working sets cycled).
+    #[error("the constraint forces of {rows} active rows could not be solved for")]
+    ConstraintSolver {
+        /// Active constraint rows.
+        rows: usize,
     },
     /// A pass was called before the passes it depends on.
     #[error("{call} needs {needed:?} computed first")]

@@ -12,6 +12,7 @@
 
 use nalgebra::Unit;
 
+use super::constraint::RowKind;
 use super::{DynamicsError, require};
 use crate::math::{Mat3, Quat, Vec3, angular, linear, quat_from_wxyz};
 use crate::model::{LinkJoint, Model, SensorSource, SiteFrame};
@@ -26,6 +27,8 @@ struct Needs {
     actuation: bool,
     /// The links' world quaternions.
     quaternions: bool,
+    /// The constraint rows and their forces.
+    constraints: bool,
 }
 
 impl Needs {
@@ -36,6 +39,7 @@ impl Needs {
             acceleration: any(&[FrameLinAcc, FrameAngAcc, Accelerometer]),
             actuation: any(&[ActuatorFrc, ActuatorPos, ActuatorVel, JointActuatorFrc]),
             quaternions: any(&[FrameQuat]),
+            constraints: any(&[JointLimitPos, JointLimitVel, JointLimitFrc]),
         }
     }
 }
@@ -69,7 +73,7 @@ impl Workspace {
             return Ok(());
         }
         let needs = Needs::of(model);
-        if needs.acceleration {
+        if needs.acceleration || needs.constraints {
             if !self.nu_dot_is_for(eps, ctrl) {
                 self.compute_nu_dot_actuated(model, eps, ctrl)?;
             }
@@ -102,6 +106,7 @@ impl Workspace {
                 BallQuat => out.copy_from_slice(&self.theta.as_slice()[qpos..qpos + 4]),
                 JointVel => out[0] = self.qvel[dof],
                 BallAngVel => out.copy_from_slice(&self.qvel.as_slice()[dof..dof + 3]),
+                JointLimitPos | JointLimitVel | JointLimitFrc => out[0] = self.limit_row_reading(model, kind, dof),
                 _ => out[0] = self.qfrc_actuator[dof],
             },
             SensorSource::Actuator { actuator } => {
@@ -116,6 +121,21 @@ impl Workspace {
             }
             SensorSource::Subtree { first, end } => write3(out, &self.subtree(model, kind, first, end)),
             SensorSource::Clock => out[0] = time,
+        }
+    }
+
+    /// MuJoCo's joint limit sensors: the distance less the margin, the
+    /// velocity or the force of the joint's first active limit row, 0 when
+    /// none is active.
+    fn limit_row_reading(&self, model: &Model, kind: SensorKind, dof: usize) -> f64 {
+        let rows = &self.constraint_rows;
+        let limits = &model.constraints.limits;
+        let row = (0..rows.count).find(|&k| rows.kind[k] == RowKind::Limit && limits[rows.id[k]].dof == dof);
+        match (row, kind) {
+            (None, _) => 0.0,
+            (Some(k), SensorKind::JointLimitPos) => rows.distance[k] - rows.margin[k],
+            (Some(k), SensorKind::JointLimitVel) => rows.velocity[k],
+            (Some(k), _) => rows.force[k],
         }
     }
 

@@ -279,7 +279,9 @@ impl ActuatorSettings {
                 *target = value;
             }
         }
-        if element.has("ctrlrange") && element.has("inheritrange") {
+        // MuJoCo objects only to a range inherited (inheritrange > 0) beside
+        // one written on the same element.
+        if element.has("ctrlrange") && element.number("inheritrange")?.is_some_and(|r| r > 0.0) {
             return Err(element.invalid("ctrlrange and inheritrange cannot both be defined"));
         }
         if let Some(range) = element.numbers("ctrlrange")? {

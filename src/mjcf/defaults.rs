@@ -11,10 +11,11 @@ use std::collections::HashMap;
 use super::MjcfWarning;
 use super::actuator::{self, ActuatorSettings};
 use super::element::Element;
+use super::equality::{self, EqualitySettings};
 use super::error::MjcfError;
 use super::mesh::{MESH_DEFAULT_ATTRIBUTES, MeshSettings};
 use super::orientation::Orientation;
-use crate::vehicle::{ActuatorKind, JointKind};
+use crate::vehicle::{ActuatorKind, JointKind, SoftConstraint};
 
 /// Attributes of `<joint>` in a body (MuJoCo 4.0 schema).
 #[rustfmt::skip]
@@ -49,7 +50,7 @@ const NOT_IN_DEFAULTS: [&str; 2] = ["name", "class"];
 /// dynamics.
 #[rustfmt::skip]
 const IGNORED_DEFAULTS: &[&str] =
-    &["camera", "light", "material", "texture", "pair", "equality", "tendon"];
+    &["camera", "light", "material", "texture", "pair", "tendon"];
 
 /// Whether a joint or tendon has limits (`limited`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -95,6 +96,12 @@ pub(crate) struct JointSettings {
     pub actuator_force_limited: Limited,
     /// `actuatorfrcrange`.
     pub actuator_force_range: [f64; 2],
+    /// `margin`.
+    pub margin: f64,
+    /// `solreflimit`, `solimplimit`.
+    pub limit_soft: SoftConstraint,
+    /// `solreffriction`, `solimpfriction`.
+    pub friction_soft: SoftConstraint,
 }
 
 impl Default for JointSettings {
@@ -116,6 +123,9 @@ impl Default for JointSettings {
             range: [0.0; 2],
             actuator_force_limited: Limited::Auto,
             actuator_force_range: [0.0; 2],
+            margin: 0.0,
+            limit_soft: SoftConstraint::default(),
+            friction_soft: SoftConstraint::default(),
         }
     }
 }
@@ -171,6 +181,22 @@ impl JointSettings {
         if let Some(range) = element.numbers("actuatorfrcrange")? {
             self.actuator_force_range = range;
         }
+        if let Some(margin) = element.number("margin")? {
+            self.margin = margin;
+        }
+        self.limit_soft.apply(element, "solreflimit", "solimplimit")?;
+        self.friction_soft.apply(element, "solreffriction", "solimpfriction")?;
+        Ok(())
+    }
+}
+
+impl SoftConstraint {
+    /// Overwrites `solref` and `solimp` from the attributes named. MuJoCo
+    /// reads fewer numbers than the attribute holds as the leading ones
+    /// (solimp's last two are often left out); it refuses non-finite ones.
+    fn apply(&mut self, element: &Element, solref: &str, solimp: &str) -> Result<(), MjcfError> {
+        element.overwrite_numbers(solref, &mut self.solref)?;
+        element.overwrite_numbers(solimp, &mut self.solimp)?;
         Ok(())
     }
 }
@@ -384,6 +410,8 @@ pub(crate) struct DefaultClass {
     pub actuator: ActuatorSettings,
     /// Settings a `<mesh>` asset of this class starts from.
     pub mesh: MeshSettings,
+    /// Settings an `<equality>` element of this class starts from.
+    pub equality: EqualitySettings,
 }
 
 /// All default classes; index 0 is "main".
@@ -407,6 +435,7 @@ impl Defaults {
             site: SiteSettings::default(),
             actuator: ActuatorSettings::default(),
             mesh: MeshSettings::default(),
+            equality: EqualitySettings::default(),
         };
         Self { classes: vec![main], parents: vec![None], by_name: HashMap::from([("main".to_string(), (MAIN, 0))]) }
     }
@@ -525,6 +554,10 @@ impl Defaults {
                         return Err(grandchild.unknown());
                     }
                     self.classes[index].mesh.apply(&child)?;
+                }
+                "equality" => {
+                    child.check_attributes(equality::DEFAULT_ATTRIBUTES)?;
+                    self.classes[index].equality.apply(&child)?;
                 }
                 "default" => {}
                 tag if IGNORED_DEFAULTS.contains(&tag) => warnings.push(child.ignored()),

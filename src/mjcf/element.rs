@@ -19,7 +19,7 @@ impl LineStarts {
     }
 
     /// The 1-based line holding byte `offset`.
-    fn line_of(&self, offset: usize) -> u32 {
+    pub fn line_of(&self, offset: usize) -> u32 {
         u32::try_from(self.0.partition_point(|&start| start <= offset)).unwrap_or(u32::MAX)
     }
 }
@@ -267,7 +267,7 @@ impl<'a, 'input> Element<'a, 'input> {
 
     /// A warning about this element.
     pub fn warning(&self, message: impl Into<String>) -> MjcfWarning {
-        MjcfWarning { line: self.line, element: self.label(), message: message.into() }
+        MjcfWarning { file: None, line: self.line, element: self.label(), message: message.into() }
     }
 }
 

@@ -7,7 +7,8 @@ use std::path::PathBuf;
 /// Every variant found in the document names the element (its tag, with its
 /// `name` attribute when it has one, e.g. `joint name="j2"`) and the 1-based
 /// line of the element's start tag; `Display` starts with
-/// `line N: <element>: `.
+/// `line N: <element>: `, preceded by the file's path when the element is in
+/// an included file ([`MjcfError::Included`]).
 #[derive(Debug, thiserror::Error)]
 pub enum MjcfError {
     /// The file could not be read.
@@ -161,6 +162,16 @@ pub enum MjcfError {
         first_line: u32,
     },
 
+    /// An error in a file the model includes (`<include file>`): the
+    /// error's line is a line of that file.
+    #[error("{}: {error}", path.display())]
+    Included {
+        /// The included file.
+        path: PathBuf,
+        /// The error found in it.
+        error: Box<MjcfError>,
+    },
+
     /// A model MuJoCo's compiler itself rejects (the reason says which rule).
     #[error("line {line}: <{element}>: {reason}")]
     Invalid {
@@ -171,4 +182,27 @@ pub enum MjcfError {
         /// The rule broken.
         reason: String,
     },
+}
+
+impl MjcfError {
+    /// The line the error names, if it names one (not for an error in an
+    /// included file, whose line is already that file's).
+    pub(crate) fn line_mut(&mut self) -> Option<&mut u32> {
+        match self {
+            MjcfError::Io { .. } | MjcfError::Included { .. } => None,
+            MjcfError::Xml { line, .. }
+            | MjcfError::WrongRoot { line, .. }
+            | MjcfError::MissingWorldbody { line, .. }
+            | MjcfError::UnknownAttribute { line, .. }
+            | MjcfError::MissingAttribute { line, .. }
+            | MjcfError::BadValue { line, .. }
+            | MjcfError::ConflictingAttributes { line, .. }
+            | MjcfError::UnknownElement { line, .. }
+            | MjcfError::Repeated { line, .. }
+            | MjcfError::Unsupported { line, .. }
+            | MjcfError::UnknownClass { line, .. }
+            | MjcfError::DuplicateName { line, .. }
+            | MjcfError::Invalid { line, .. } => Some(line),
+        }
+    }
 }

@@ -191,16 +191,16 @@ impl BodyInertia {
         Self { mass, com, principal, axes, tensor, quat: *quat }
     }
 
-    /// From a full tensor, with MuJoCo's principal axes (`mjuu_fullInertia`);
-    /// MuJoCo requires its eigenvalues to be at least mjEPS.
+    /// From a full tensor, with the principal moments and axes MuJoCo's
+    /// eigen-solver finds (its order and signs); MuJoCo requires the
+    /// moments to be at least mjEPS.
     pub fn from_tensor(mass: f64, com: Vec3, tensor: Mat3) -> Result<Self, &'static str> {
-        let (principal, quat) = eig3(&tensor, Eigen::Body);
-        if principal[2] < EPS {
+        let (principal, quat) = principal_axes(&tensor, Eigen::Body);
+        if principal.min() < EPS {
             return Err("inertia must have positive eigenvalues");
         }
-        let quat = Quat::new_unchecked(Quaternion::new(quat[0], quat[1], quat[2], quat[3]));
-        let axes = Mat3::from_row_slice(&quat_to_mat(&quat_array(&quat)));
-        Ok(Self { mass, com, principal: Vec3::from(principal), axes, tensor, quat })
+        let axes = quat.to_rotation_matrix().into_inner();
+        Ok(Self { mass, com, principal, axes, tensor, quat })
     }
 
     /// Sums geoms (each of mass above mjEPS): total mass, their common centre
@@ -239,6 +239,58 @@ impl BodyInertia {
     pub fn set_principal(&mut self, principal: Vec3) {
         self.principal = principal;
         self.tensor = self.axes * Mat3::from_diagonal(&principal) * self.axes.transpose();
+    }
+
+    /// Moves the mass properties, given in a frame at `pos` and `quat` in the
+    /// body frame, into the body frame.
+    pub fn place(&mut self, pos: &Vec3, quat: &Quat) {
+        let rotation = quat.to_rotation_matrix().into_inner();
+        self.com = pos + rotation * self.com;
+        self.axes = rotation * self.axes;
+        self.tensor = rotation * self.tensor * rotation.transpose();
+        self.quat = quat * self.quat;
+    }
+
+    /// These mass properties with `other`'s, given in a frame at `pos` and
+    /// `quat` in this body's frame, added as MuJoCo's
+    /// `mjCBody::AccumulateInertia` adds them for `fusestatic`: the summed
+    /// tensor's axes and moments from MuJoCo's eigen-solver, with the
+    /// arithmetic following MuJoCo's step by step, for its very axes.
+    pub fn merged(&self, other: &BodyInertia, pos: &Vec3, quat: &Quat) -> Result<Self, &'static str> {
+        let frame = quat_array(quat);
+        let moved = mat_vec(&quat_to_mat(&frame), &[other.com.x, other.com.y, other.com.z]);
+        let other_com = [pos.x + moved[0], pos.y + moved[1], pos.z + moved[2]];
+        let parts = [
+            (self.mass, [self.com.x, self.com.y, self.com.z], quat_array(&self.quat)),
+            (other.mass, other_com, mul_quat(&frame, &quat_array(&other.quat))),
+        ];
+        let mass = 0.0 + parts[0].0 + parts[1].0;
+        // MuJoCo's mjMINVAL.
+        if mass < 1e-15 {
+            return Ok(Self::from_principal(0.0, Vec3::zeros(), &Quat::identity(), Vec3::zeros()));
+        }
+        let mut com = [0.0; 3];
+        for (part_mass, part_com, ..) in &parts {
+            for k in 0..3 {
+                com[k] += part_mass * part_com[k];
+            }
+        }
+        let com = com.map(|c| c / mass);
+        // Entries xx, yy, zz, xy, xz, yz.
+        let mut total = [0.0; 6];
+        for ((part_mass, part_com, part_quat), part) in parts.iter().zip([self, other]) {
+            let own = global_inertia(&[part.principal.x, part.principal.y, part.principal.z], part_quat);
+            let offset = off_center(*part_mass, &[part_com[0] - com[0], part_com[1] - com[1], part_com[2] - com[2]]);
+            for k in 0..6 {
+                total[k] += own[k] + offset[k];
+            }
+        }
+        let [xx, yy, zz, xy, xz, yz] = total;
+        let (principal, quat) = principal_axes(&Mat3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz), Eigen::Body);
+        if principal.min() < EPS {
+            return Err("inertia must have positive eigenvalues");
+        }
+        Ok(Self::from_principal(mass, Vec3::from(com), &quat, principal))
     }
 
     /// Scales mass and inertia (MuJoCo's `settotalmass`).
@@ -308,6 +360,20 @@ fn mul_mat(a: &[f64; 9], b: &[f64; 9]) -> [f64; 9] {
     out
 }
 
+/// MuJoCo's `mjuu_transposemat`.
+fn transpose(m: &[f64; 9]) -> [f64; 9] {
+    [m[0], m[3], m[6], m[1], m[4], m[7], m[2], m[5], m[8]]
+}
+
+/// MuJoCo's `mjuu_mulvecmat`: the matrix times the vector.
+fn mat_vec(m: &[f64; 9], v: &[f64; 3]) -> [f64; 3] {
+    [
+        m[0] * v[0] + m[1] * v[1] + m[2] * v[2],
+        m[3] * v[0] + m[4] * v[1] + m[5] * v[2],
+        m[6] * v[0] + m[7] * v[1] + m[8] * v[2],
+    ]
+}
+
 /// MuJoCo's `mjuu_globalinertia`: principal moments along the axes of
 /// `quat` as a tensor (xx, yy, zz, xy, xz, yz).
 fn global_inertia(local: &[f64; 3], quat: &[f64; 4]) -> [f64; 6] {
@@ -345,96 +411,80 @@ fn off_center(mass: f64, d: &[f64; 3]) -> [f64; 6] {
     ]
 }
 
-/// Which of MuJoCo 4.0's two eigen-decompositions to follow.
+/// Which of MuJoCo 4.0's stopping rules the eigen-solver follows.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Eigen {
-    /// The compiler's `mjuu_eig3`, which the mesh frame comes from: it stops
-    /// while off-diagonal terms are still near 1e-7 of the diagonal.
-    Mesh,
-    /// The engine's `mju_eig3`, which a body's principal axes come from
-    /// (`fullinertia`, several geoms): it converges fully, with tolerances
-    /// relative to the matrix.
+    /// A body's principal axes (`fullinertia`, several geoms, `fusestatic`):
+    /// until the off-diagonal entries are below 4e-15 of the tensor's
+    /// largest entry.
     Body,
+    /// A mesh's frame: MuJoCo 4.0 stops while the largest off-diagonal entry
+    /// is still near 1e-7 of the largest diagonal one. Its source was not at
+    /// hand; the stop (below 9.5e-8) was fitted to its mesh frames, which it
+    /// reproduces to 1e-9 on every fixture of tests/python/test_mesh_inertia.py
+    /// and on 397 of 400 random tetrahedra (the four inertia modes; the
+    /// others within 7e-8), where MuJoCo 3's rule missed about one in ten by
+    /// up to 3e-6. The moments agree to rounding either way.
+    Mesh,
 }
 
-/// MuJoCo's eigen-decomposition of a symmetric matrix: eigenvalues in
-/// decreasing order and the rotation whose columns are the eigenvectors, as
-/// a quaternion (w, x, y, z). Jacobi rotations accumulated in a quaternion,
-/// then sorted by quarter turns, so that the axes come out in MuJoCo's
-/// order and with MuJoCo's signs.
-///
-/// The source read was MuJoCo 3's, which stopped once a rotation's cosine
-/// was within 1e-12 of 1 and told eigenvalues apart by 1e-12 absolute;
-/// MuJoCo 4.0 does otherwise, and its source was not at hand. Here both
-/// kinds take the half-angle sine from t·c and tell eigenvalues apart by
-/// 1e-12 of their sum. For [`Eigen::Body`] the stop at 1e-15 of the
-/// diagonal's size reproduces 4.0's `mju_eig3` to 3e-15 on random matrices
-/// scaled from 1e-6 to 1e6 (measured through MuJoCo's Python bindings). For
-/// [`Eigen::Mesh`] the stop (an off-diagonal term below 9.5e-8 of the
-/// largest diagonal one) was fitted to MuJoCo 4.0's mesh frames: they agree
-/// to 1e-9 on every fixture of tests/python/test_mesh_inertia.py and on 398
-/// of 400 random tetrahedra (the four inertia modes; the other two by 1e-7),
-/// where MuJoCo 3's rule missed about one in ten by up to 3e-6. The moments
-/// agree to rounding either way.
-pub(crate) fn eig3(matrix: &Mat3, kind: Eigen) -> ([f64; 3], [f64; 4]) {
+/// The principal moments (decreasing) and axes of a symmetric tensor as
+/// MuJoCo 4.0 finds them (`mjuu_eig3`: Jacobi rotations accumulated in a
+/// quaternion until `kind`'s stop, then sorted by quarter turns), with its
+/// arithmetic, so that the axes' order and signs, hence a body's inertial
+/// frame (`body_iquat`) and a mesh's frame, are MuJoCo's. For bodies this
+/// gives MuJoCo's `body_iquat` bit for bit on random full tensors scaled
+/// from 1e-6 to 1e6, two nearly equal moments among them.
+pub(crate) fn principal_axes(tensor: &Mat3, kind: Eigen) -> (Vec3, Quat) {
     const MESH_STOP: f64 = 9.5e-8;
-    const STOP: f64 = 1e-15;
-    const DISTINCT: f64 = 1e-12;
-    let mat: [f64; 9] = std::array::from_fn(|k| matrix[(k / 3, k % 3)]);
+    let scale = tensor.amax();
+    let matrix: [f64; 9] = std::array::from_fn(|k| tensor[(k / 3, k % 3)]);
     let mut quat = [1.0, 0.0, 0.0, 0.0];
-    let mut eigval = [0.0; 3];
+    let mut moments = [0.0; 3];
     for _ in 0..500 {
-        let vectors = quat_to_mat(&quat);
-        let transposed: [f64; 9] = std::array::from_fn(|k| vectors[3 * (k % 3) + k / 3]);
-        let d = mul_mat(&mul_mat(&transposed, &mat), &vectors);
-        eigval = [d[0], d[4], d[8]];
-
-        // The largest off-diagonal element, and the axis it rotates about.
-        let (row, col, axis) = if d[1].abs() > d[2].abs() && d[1].abs() > d[5].abs() {
+        let axes = quat_to_mat(&quat);
+        let d = mul_mat(&mul_mat(&transpose(&axes), &matrix), &axes);
+        moments = [d[0], d[4], d[8]];
+        // The largest off-diagonal element (row, column) and the axis it turns about.
+        let (row, column, axis) = if d[1].abs() > d[2].abs() && d[1].abs() > d[5].abs() {
             (0, 1, 2)
         } else if d[2].abs() > d[5].abs() {
             (0, 2, 1)
         } else {
             (1, 2, 0)
         };
-        let off = d[3 * row + col];
-        let limit = match kind {
+        let off = d[3 * row + column];
+        let tolerance = match kind {
+            Eigen::Body => 4e-15 * scale,
             Eigen::Mesh => MESH_STOP * d[0].abs().max(d[4].abs()).max(d[8].abs()),
-            Eigen::Body => STOP * (d[0].abs() + d[4].abs() + d[8].abs()),
         };
-        // NaN stops too.
-        if off == 0.0 || off.abs() < limit || off.is_nan() {
+        if off.abs() <= tolerance {
             break;
         }
-        // 2×2 symmetric Schur decomposition: tan θ = t, cos θ = c.
-        let tau = (d[4 * col] - d[4 * row]) / (2.0 * off);
+        // The 2x2 symmetric Schur decomposition, as a turn about `axis`.
+        let tau = (d[4 * column] - d[4 * row]) / (2.0 * off);
         let t =
             if tau >= 0.0 { 1.0 / (tau + (1.0 + tau * tau).sqrt()) } else { -1.0 / (-tau + (1.0 + tau * tau).sqrt()) };
-        let c = 1.0 / (1.0 + t * t).sqrt();
-        // sin(θ/2) = sin θ / (2 cos(θ/2)), accurate for small angles.
-        let half_sine = t.abs() * c / (2.0 * (1.0 + c)).sqrt();
-        let mut rotation = [0.0; 4];
-        rotation[axis + 1] = if tau >= 0.0 { -half_sine } else { half_sine };
-        if axis == 1 {
-            rotation[axis + 1] = -rotation[axis + 1];
-        }
-        rotation[0] = (1.0 - rotation[axis + 1] * rotation[axis + 1]).sqrt();
-        quat = normalize4(mul_quat(&quat, &normalize4(rotation)));
+        // The tangent of half the angle, for the turn's quaternion.
+        let half = t / (1.0 + (1.0 + t * t).sqrt());
+        let mut turn = [1.0 / (1.0 + half * half).sqrt(), 0.0, 0.0, 0.0];
+        turn[axis + 1] = if axis == 1 { half } else { -half } * turn[0];
+        quat = normalize4(mul_quat(&quat, &turn));
     }
-
-    // Decreasing order by bubble sort (lead indices 0, 1, 0), each swap a
-    // quarter turn about the third axis.
-    let distinct = DISTINCT * (eigval[0].abs() + eigval[1].abs() + eigval[2].abs());
+    // Decreasing order, by quarter turns (bubble sort over the pairs 0, 1,
+    // 0), leaving moments within 1e-12 of the largest entry as they are.
+    let tie = 1e-12 * scale;
     for j in 0..3 {
         let lead = j % 2;
-        if eigval[lead] + distinct < eigval[lead + 1] {
-            eigval.swap(lead, lead + 1);
-            // MuJoCo's literal, not FRAC_1_SQRT_2 (they differ in the last bits).
+        if moments[lead] + tie < moments[lead + 1] {
+            moments.swap(lead, lead + 1);
+            // MuJoCo's literal for cos(π/4), which differs from FRAC_1_SQRT_2 in the last bits.
             #[allow(clippy::approx_constant)]
             let mut turn = [0.707106781186548, 0.0, 0.0, 0.0];
             turn[(lead + 2) % 3 + 1] = turn[0];
             quat = normalize4(mul_quat(&quat, &turn));
         }
     }
-    (eigval, quat)
+    let [w, x, y, z] = quat;
+    (Vec3::from(moments), Quat::new_unchecked(Quaternion::new(w, x, y, z)))
 }

@@ -2,17 +2,23 @@
 //! defaults, orientations, angle units and geom-derived mass properties
 //! exactly as MuJoCo 4.0's compiler does.
 //!
-//! Elements without effect on the dynamics (cameras, lights, sensors,
-//! visual settings…) are ignored with a warning each; elements that would
-//! change the dynamics in ways nudyn does not model (tendons, equality
+//! Elements without effect on the dynamics (cameras, lights, visual
+//! settings…) are ignored with a warning each; elements that would change
+//! the dynamics in ways nudyn does not model (tendons, equality
 //! constraints, flexible bodies, fluid forces, friction loss, actuators with
 //! activation states…) are rejected with an [`MjcfError`] naming the element
-//! and its line. Sites and actuators are read: actuators act through `ctrl`.
+//! and its line (and its file, when it is in an included one). Sites,
+//! actuators and sensors are read: actuators act through `ctrl`.
+//! `<include>`d files are merged in, `<frame>`s composed into what they
+//! place, mocap bodies fixed to the world, and `<compiler fusestatic>`
+//! applied, as MuJoCo 4.0 does.
 
 mod actuator;
 mod defaults;
 mod element;
+mod equality;
 mod error;
+mod include;
 mod inertia;
 mod mesh;
 mod orientation;
@@ -20,7 +26,7 @@ mod reader;
 mod sensor;
 
 use std::fmt;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 pub use error::MjcfError;
 
@@ -38,7 +44,10 @@ pub struct Imported {
 /// Something in the file that the importer ignored.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct MjcfWarning {
-    /// 1-based line of the element.
+    /// The included file the element is in (`<include>`); `None` for the
+    /// main file.
+    pub file: Option<PathBuf>,
+    /// 1-based line of the element in its file.
     pub line: u32,
     /// The element: its tag, with its `name` attribute when it has one
     /// (e.g. `camera name="top"`).
@@ -49,18 +58,22 @@ pub struct MjcfWarning {
 
 impl fmt::Display for MjcfWarning {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if let Some(file) = &self.file {
+            write!(f, "{}: ", file.display())?;
+        }
         write!(f, "line {}: <{}>: {}", self.line, self.element, self.message)
     }
 }
 
-/// Reads an MJCF document; mesh files are found relative to the current
-/// directory.
+/// Reads an MJCF document; the files it includes (`<include file>`) and its
+/// mesh files are looked for relative to the current directory.
 pub fn parse_mjcf(xml: &str) -> Result<Imported, MjcfError> {
     reader::read(xml, None)
 }
 
-/// Reads an MJCF file.
+/// Reads an MJCF file and the files it includes, which are looked for
+/// relative to its directory as MuJoCo looks for them.
 pub fn load_mjcf(path: &Path) -> Result<Imported, MjcfError> {
     let xml = std::fs::read_to_string(path).map_err(|source| MjcfError::Io { path: path.to_path_buf(), source })?;
-    reader::read(&xml, path.parent())
+    reader::read(&xml, Some(path))
 }

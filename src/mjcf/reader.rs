@@ -1,7 +1,7 @@
 //! Walks an MJCF document and builds the [`Vehicle`].
 
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use roxmltree::Document;
 
@@ -11,7 +11,9 @@ use super::defaults::{
     SiteKind,
 };
 use super::element::{Element, LineStarts};
+use super::equality::{self, EqualityTargets};
 use super::error::MjcfError;
+use super::include::{self, Sources};
 use super::inertia::{self, BodyInertia, EPS, GeomMass, mul_quat, quat_array, quat_to_mat};
 use super::mesh::{self, MESH_ATTRIBUTES, Meshes};
 use super::orientation::{AngleConvention, ORIENTATION_ATTRIBUTES, Orientation, normalized, z_to_quaternion};
@@ -19,8 +21,9 @@ use super::sensor::{self, SensorTargets};
 use super::{Imported, MjcfWarning};
 use crate::math::{Mat3, Quat, Vec3};
 use crate::vehicle::{
-    Actuation, Actuator, ActuatorKind, BiasType, Body, GainType, Joint, JointKind, MassProperties, Sensor, SensorKind,
-    Site, Transmission, Vehicle,
+    Actuation, Actuator, ActuatorKind, BiasType, Body, ConstraintOptions, Equality, EqualityObjects, FrameObject,
+    GainType, Joint, JointConstraints, JointKind, JointLimit, MassProperties, Sensor, SensorKind, SensorTarget, Site,
+    Transmission, Vehicle,
 };
 
 /// MuJoCo's `mjMINVAL`: the least mass and principal moment of a moving body.
@@ -32,6 +35,10 @@ const BODY_ATTRIBUTES: &[&str] = &[
     "name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler", "mocap", "gravcomp",
     "user", "sleep", "simple", "fuse",
 ];
+
+/// Attributes of `<frame>`.
+#[rustfmt::skip]
+const FRAME_ATTRIBUTES: &[&str] = &["name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler"];
 
 /// Attributes of `<inertial>`.
 #[rustfmt::skip]
@@ -97,10 +104,12 @@ struct Compiler {
     align_free: bool,
     /// `settotalmass` when positive, with the warning it earns.
     total_mass: Option<(f64, MjcfWarning)>,
-    /// `meshdir`, `assetdir` and `strippath`, for finding mesh files.
-    meshdir: Option<String>,
-    assetdir: Option<String>,
+    /// Where mesh files are: `meshdir`, else `assetdir`, relative to the model's directory.
+    mesh_dir: String,
+    /// `strippath`: asset file names lose their directories.
     strip_path: bool,
+    /// `fusestatic`: bodies without joints merge into their parents.
+    fuse_static: bool,
 }
 
 /// `<option>` settings that matter here.
@@ -112,14 +121,22 @@ struct Physics {
     actuation: Actuation,
     /// The actuator groups `actuatorgroupdisable` lists.
     disabled_actuator_groups: Vec<i32>,
+    constraint_options: ConstraintOptions,
+    /// `<flag constraint="disable">`: no constraint forces at all.
+    constraint_disabled: bool,
+    frictionloss_disabled: bool,
+    limit_disabled: bool,
+    equality_disabled: bool,
 }
 
 /// What an actuator needs to know of a joint it may name.
 struct JointTarget {
     kind: JointKind,
     /// `range` as MuJoCo's compiler leaves it: in radians for a limited hinge
-    /// when angles are in degrees, as written otherwise (for `inheritrange`).
+    /// or ball joint when angles are in degrees, as written otherwise.
     range: [f64; 2],
+    /// Whether the joint is limited (MuJoCo's jnt_limited, before any flag).
+    limited: bool,
 }
 
 /// What the checks after the whole tree is read need to know of a body.
@@ -140,6 +157,26 @@ struct PendingBody<'a> {
     inherited_class: usize,
     /// Whether a joint lies between the parent and the world.
     parent_moving: bool,
+    /// The pose of the `<frame>`s around the body, in its parent.
+    frame: Option<Pose>,
+}
+
+/// A pose in a parent frame: position, then orientation.
+type Pose = (Vec3, Quat);
+
+/// The pose `inner`, given in the frame `outer` places, in `outer`'s parent
+/// (MuJoCo's `mjuu_frameaccumChild`).
+fn compose(outer: &Pose, inner: &Pose) -> Pose {
+    (outer.0 + outer.1 * inner.0, outer.1 * inner.1)
+}
+
+/// A child element of a body or of the world body, with what the `<frame>`s
+/// around it give it: their composed pose (`None` outside any frame) and
+/// the default class.
+struct Placed<'a> {
+    element: Element<'a, 'a>,
+    frame: Option<Pose>,
+    class: usize,
 }
 
 /// `align` of a free joint.
@@ -176,14 +213,43 @@ struct Reader {
     actuator_names: HashMap<String, u32>,
     sensors: Vec<Sensor>,
     sensor_names: HashMap<String, u32>,
-    /// The directory of the model file, which mesh paths start from.
-    model_dir: Option<PathBuf>,
+    equalities: Vec<Equality>,
+    /// The files the model is read from, for the paths of its assets.
+    sources: Sources,
     /// The `<mesh>` assets, processed.
     meshes: Meshes,
+    /// The names of the mocap bodies, in MuJoCo's mocap order.
+    mocap_bodies: Vec<String>,
+    /// Bodies named by an ignored element (a camera's or light's `target`, a
+    /// contact `<exclude>`), which `fusestatic` keeps.
+    named_elsewhere: Vec<String>,
 }
 
-/// Reads an MJCF document; `model_dir` is the directory of its file.
-pub(crate) fn read(xml: &str, model_dir: Option<&Path>) -> Result<Imported, MjcfError> {
+/// Reads an MJCF document, from the file `path` if it comes from one (the
+/// files it includes are looked for from there).
+pub(crate) fn read(xml: &str, path: Option<&Path>) -> Result<Imported, MjcfError> {
+    let assembled = include::assemble(xml, path)?;
+    let sources = assembled.sources;
+    let mut imported = read_merged(&assembled.text, &sources).map_err(|e| sources.place_error(e))?;
+    // Lines of the merged text back to lines of their files.
+    imported.warnings = imported.warnings.into_iter().map(|w| sources.place_warning(w)).collect();
+    let vehicle = &mut imported.vehicle;
+    let lines = vehicle
+        .bodies
+        .iter_mut()
+        .flat_map(|b| std::iter::once(&mut b.line).chain(b.joints.iter_mut().map(|j| &mut j.line)));
+    let lines = lines
+        .chain(vehicle.sites.iter_mut().map(|s| &mut s.line))
+        .chain(vehicle.actuators.iter_mut().map(|a| &mut a.line))
+        .chain(vehicle.sensors.iter_mut().map(|s| &mut s.line));
+    for line in lines {
+        *line = sources.line_in_file(*line);
+    }
+    Ok(imported)
+}
+
+/// Reads the document with its includes merged in.
+fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
     let document = Document::parse(xml).map_err(|e| MjcfError::Xml {
         line: e.pos().row,
         column: e.pos().col,
@@ -196,8 +262,7 @@ pub(crate) fn read(xml: &str, model_dir: Option<&Path>) -> Result<Imported, Mjcf
     }
     root.check_attributes(&["model"])?;
 
-    let mut reader = Reader::new();
-    reader.model_dir = model_dir.map(Path::to_path_buf);
+    let mut reader = Reader::new(sources.clone());
     // MuJoCo applies these wherever they appear, even after <worldbody>.
     for section in root.children() {
         match section.tag() {
@@ -208,13 +273,19 @@ pub(crate) fn read(xml: &str, model_dir: Option<&Path>) -> Result<Imported, Mjcf
         }
     }
     // Meshes once the compiler's directories and the default classes are known.
-    for section in root.children().filter(|s| s.tag() == "asset") {
+    for section in root.children().filter(|section| section.tag() == "asset") {
         reader.read_assets(&section)?;
+    }
+    for exclude in root.children().filter(|s| s.tag() == "contact").flat_map(|s| s.children()) {
+        let bodies = ["body1", "body2"].iter().filter_map(|a| exclude.text(a).filter(|_| exclude.tag() == "exclude"));
+        reader.named_elsewhere.extend(bodies.map(str::to_string));
     }
 
     let mut has_worldbody = false;
     let mut actuator_sections = Vec::new();
     let mut sensor_sections = Vec::new();
+    let mut equality_sections = Vec::new();
+    let mut keyframe_sections = Vec::new();
     for section in root.children() {
         match section.tag() {
             "compiler" | "option" | "default" | "asset" => {}
@@ -225,21 +296,27 @@ pub(crate) fn read(xml: &str, model_dir: Option<&Path>) -> Result<Imported, Mjcf
             // Read once every joint and site is known, wherever the section stands.
             "actuator" => actuator_sections.push(section),
             "sensor" => sensor_sections.push(section),
+            // Checked once the sizes are known, then ignored.
+            "keyframe" => {
+                keyframe_sections.push(section);
+                reader.warnings.push(section.ignored());
+            }
             tag if IGNORED_SECTIONS.contains(&tag) => reader.warnings.push(section.ignored()),
-            "tendon" | "equality" => match section.children().next() {
-                Some(first) if section.tag() == "tendon" => {
-                    return Err(first.unsupported("tendons (their forces and limits are not modelled)"));
-                }
-                Some(first) => return Err(first.unsupported("equality constraints")),
+            "tendon" => match section.children().next() {
+                Some(first) => return Err(first.unsupported("tendons (their forces and limits are not modelled)")),
                 None => reader.warnings.push(section.ignored()),
             },
+            // Read once every body, site and joint is known.
+            "equality" => equality_sections.push(section),
             "deformable" => reader.read_deformable(&section)?,
-            "include" => return Err(unsupported_child(&section)),
             _ => return Err(section.unknown()),
         }
     }
     if !has_worldbody {
         return Err(MjcfError::MissingWorldbody { line: root.line, element: root.label() });
+    }
+    for section in &equality_sections {
+        reader.read_equalities(section)?;
     }
     for section in &actuator_sections {
         reader.read_actuators(section)?;
@@ -248,13 +325,16 @@ pub(crate) fn read(xml: &str, model_dir: Option<&Path>) -> Result<Imported, Mjcf
     for section in &sensor_sections {
         reader.read_sensors(section)?;
     }
+    for section in &keyframe_sections {
+        reader.check_keyframes(section)?;
+    }
 
     let name = root.text("model").unwrap_or("vehicle").to_string();
     reader.finish(name)
 }
 
 impl Reader {
-    fn new() -> Self {
+    fn new(sources: Sources) -> Self {
         Self {
             compiler: Compiler {
                 angles: AngleConvention { degrees: true, euler_seq: *b"xyz" },
@@ -266,9 +346,9 @@ impl Reader {
                 autolimits: true,
                 align_free: false,
                 total_mass: None,
-                meshdir: None,
-                assetdir: None,
+                mesh_dir: String::new(),
                 strip_path: false,
+                fuse_static: false,
             },
             physics: Physics {
                 gravity: Vec3::new(0.0, 0.0, -9.81),
@@ -277,6 +357,11 @@ impl Reader {
                 damper_disabled: false,
                 actuation: Actuation::default(),
                 disabled_actuator_groups: Vec::new(),
+                constraint_options: ConstraintOptions::default(),
+                constraint_disabled: false,
+                frictionloss_disabled: false,
+                limit_disabled: false,
+                equality_disabled: false,
             },
             defaults: Defaults::new(),
             warnings: Vec::new(),
@@ -292,8 +377,11 @@ impl Reader {
             actuator_names: HashMap::new(),
             sensors: Vec::new(),
             sensor_names: HashMap::new(),
-            model_dir: None,
+            equalities: Vec::new(),
+            sources,
             meshes: Meshes::new(),
+            mocap_bodies: Vec::new(),
+            named_elsewhere: Vec::new(),
         }
     }
 
@@ -338,11 +426,6 @@ impl Reader {
         if let Some(autolimits) = element.boolean("autolimits")? {
             compiler.autolimits = autolimits;
         }
-        compiler.meshdir = element.text("meshdir").map(str::to_string).or(compiler.meshdir.take());
-        compiler.assetdir = element.text("assetdir").map(str::to_string).or(compiler.assetdir.take());
-        if let Some(strip) = element.boolean("strippath")? {
-            compiler.strip_path = strip;
-        }
         if let Some(align) = element.boolean("alignfree")? {
             compiler.align_free = align;
         }
@@ -351,6 +434,18 @@ impl Reader {
                 "settotalmass is deprecated in MuJoCo; all masses and inertias are scaled so the total mass is {total}"
             ));
             compiler.total_mass = (total > 0.0).then_some((total, warning));
+        }
+        // MuJoCo reads assetdir first, so that meshdir wins.
+        for attribute in ["assetdir", "meshdir"] {
+            if let Some(dir) = element.text(attribute) {
+                compiler.mesh_dir = dir.to_string();
+            }
+        }
+        if let Some(strip) = element.boolean("strippath")? {
+            compiler.strip_path = strip;
+        }
+        if let Some(fuse) = element.boolean("fusestatic")? {
+            compiler.fuse_static = fuse;
         }
         for child in element.children() {
             match child.tag() {
@@ -365,6 +460,12 @@ impl Reader {
         element.check_attributes(OPTION_ATTRIBUTES)?;
         if let Some(gravity) = element.numbers::<3>("gravity")? {
             self.physics.gravity = Vec3::from(gravity);
+        }
+        if let Some(timestep) = element.number("timestep")? {
+            if timestep <= 0.0 {
+                return Err(element.bad_value("timestep", "a positive time step"));
+            }
+            self.physics.constraint_options.timestep = timestep;
         }
         if let Some(groups) = element.integer_list("actuatorgroupdisable")? {
             if groups.iter().any(|g| !ACTUATOR_GROUPS.contains(g)) {
@@ -405,6 +506,10 @@ impl Reader {
                 ("gravity", &mut physics.gravity_disabled),
                 ("spring", &mut physics.spring_disabled),
                 ("damper", &mut physics.damper_disabled),
+                ("constraint", &mut physics.constraint_disabled),
+                ("frictionloss", &mut physics.frictionloss_disabled),
+                ("limit", &mut physics.limit_disabled),
+                ("equality", &mut physics.equality_disabled),
             ] {
                 if let Some(&off) = disabled.get(flag) {
                     *target = off;
@@ -435,14 +540,13 @@ impl Reader {
             }
             child.check_attributes(MESH_ATTRIBUTES)?;
             let class = self.defaults.lookup(&child, "class")?.unwrap_or(MAIN);
-            let compiler = &self.compiler;
+            // Where MuJoCo reads the file: in meshdir, or beside the included file naming it.
             let path = child.text("file").map(|file| {
-                let file = match compiler.strip_path {
+                let file = match self.compiler.strip_path {
                     true => file.rsplit(['/', '\\']).next().unwrap_or(file),
                     false => file,
                 };
-                let (meshdir, assetdir) = (compiler.meshdir.as_deref(), compiler.assetdir.as_deref());
-                mesh::mesh_path(self.model_dir.as_deref(), meshdir, assetdir, file)
+                self.sources.asset_path(&self.compiler.mesh_dir, file, child.line)
             });
             // MuJoCo names a mesh without a name after its file.
             let name = match (child.text("name"), child.text("file")) {
@@ -485,11 +589,14 @@ impl Reader {
     fn read_worldbody(&mut self, section: &Element) -> Result<(), MjcfError> {
         // MuJoCo: "World body cannot have attributes".
         section.check_attributes(&[])?;
-        for child in section.children() {
+        for Placed { element: child, frame, class } in self.placed_children(section, MAIN)? {
             match child.tag() {
-                "body" => self.read_body_tree(child)?,
-                "site" => self.read_site(&child, MAIN, None)?,
-                "geom" | "camera" | "light" => self.warnings.push(child.ignored()),
+                "body" => self.read_body_tree(child, frame, class)?,
+                "site" => self.read_site(&child, class, None, frame)?,
+                "geom" | "camera" | "light" => {
+                    self.named_elsewhere.extend(child.text("target").map(str::to_string));
+                    self.warnings.push(child.ignored());
+                }
                 "joint" | "freejoint" => {
                     return Err(child.invalid("the world body cannot have joints"));
                 }
@@ -504,8 +611,9 @@ impl Reader {
     /// (parent before child). A work stack instead of recursion: a vehicle
     /// file may nest bodies thousands deep, and the importer must not
     /// overflow the thread's stack, which is small in a host's FMU thread.
-    fn read_body_tree<'a>(&mut self, top: Element<'a, 'a>) -> Result<(), MjcfError> {
-        let mut pending = vec![PendingBody { element: top, parent: None, inherited_class: MAIN, parent_moving: false }];
+    fn read_body_tree<'a>(&mut self, top: Element<'a, 'a>, frame: Option<Pose>, class: usize) -> Result<(), MjcfError> {
+        let mut pending =
+            vec![PendingBody { element: top, parent: None, inherited_class: class, parent_moving: false, frame }];
         while let Some(body) = pending.pop() {
             let children = self.read_body(&body)?;
             // Reversed so that the first child is read next.
@@ -516,17 +624,18 @@ impl Reader {
 
     /// Reads one body; returns its child bodies, still to be read.
     fn read_body<'a>(&mut self, body: &PendingBody<'a>) -> Result<Vec<PendingBody<'a>>, MjcfError> {
-        let &PendingBody { ref element, parent, inherited_class, parent_moving } = body;
+        let &PendingBody { ref element, parent, inherited_class, parent_moving, frame } = body;
         element.check_attributes(BODY_ATTRIBUTES)?;
-        if element.boolean("mocap")? == Some(true) {
-            return Err(element.unsupported("mocap bodies are moved by the user, not by the dynamics"));
-        }
-        if element.number("gravcomp")?.is_some_and(|g| g != 0.0) {
-            return Err(element.unsupported("gravity compensation (gravcomp) is not modelled"));
+        let mocap = element.boolean("mocap")? == Some(true);
+        // Without gravity MuJoCo's compensating force is exactly zero.
+        let gravity = !self.physics.gravity_disabled && self.physics.gravity != Vec3::zeros();
+        if gravity && element.number("gravcomp")?.is_some_and(|g| g != 0.0) {
+            return Err(element.unsupported("gravity compensation (gravcomp) under gravity is not modelled"));
         }
         let class = self.defaults.lookup(element, "childclass")?.unwrap_or(inherited_class);
-        let pos = Vec3::from(element.numbers::<3>("pos")?.unwrap_or_default());
-        let quat = self.resolve(element, &Orientation::read(element)?.unwrap_or_default())?;
+        let own_pos = Vec3::from(element.numbers::<3>("pos")?.unwrap_or_default());
+        let own_quat = self.resolve(element, &Orientation::read(element)?.unwrap_or_default())?;
+        let (pos, quat) = frame.map_or((own_pos, own_quat), |frame| compose(&frame, &(own_pos, own_quat)));
         let index = self.bodies.len();
         let name = element.text("name").map_or_else(|| format!("body{index}"), str::to_string);
         claim_name(&mut self.body_names, "body", &name, element)?;
@@ -535,19 +644,27 @@ impl Reader {
         let mut joints = Vec::new();
         let mut geoms = Vec::new();
         let mut child_bodies = Vec::new();
-        for child in element.children() {
+        for Placed { element: child, frame, class } in self.placed_children(element, class)? {
             match child.tag() {
                 "inertial" => {
                     if let Some((first, _)) = &inertial {
                         return Err(child.repeated(first));
                     }
-                    inertial = Some((child, self.read_inertial(&child)?));
+                    let mut read = self.read_inertial(&child)?;
+                    if let Some(frame) = frame {
+                        read.place(&frame.0, &frame.1);
+                    }
+                    inertial = Some((child, read));
                 }
                 "joint" => {
                     child.check_attributes(JOINT_ATTRIBUTES)?;
                     no_children(&child)?;
                     let mut settings = self.defaults.class(self.class_of(&child, class)?).joint.clone();
                     settings.apply(&child)?;
+                    if let Some((at, turn)) = frame {
+                        settings.pos = (at + turn * Vec3::from(settings.pos)).into();
+                        settings.axis = (turn * Vec3::from(settings.axis)).into();
+                    }
                     joints.push(JointElement { element: child, settings, align: Align::Auto });
                 }
                 "freejoint" => {
@@ -566,18 +683,43 @@ impl Reader {
                     }
                     let mut settings = self.defaults.class(self.class_of(&child, class)?).geom.clone();
                     settings.apply(&child)?;
-                    geoms.push((child, settings));
+                    geoms.push((child, settings, frame));
                 }
-                "site" => self.read_site(&child, class, Some(index))?,
-                "camera" | "light" => self.warnings.push(child.ignored()),
-                "body" => child_bodies.push(child),
+                "site" => self.read_site(&child, class, Some(index), frame)?,
+                "camera" | "light" => {
+                    self.named_elsewhere.extend(child.text("target").map(str::to_string));
+                    self.warnings.push(child.ignored());
+                }
+                "body" => child_bodies.push(PendingBody {
+                    element: child,
+                    parent: Some(index),
+                    inherited_class: class,
+                    parent_moving: false,
+                    frame,
+                }),
                 _ => return Err(unsupported_child(&child)),
             }
         }
 
         let has_joints = !joints.is_empty();
+        // A mocap body stays where the file puts it, since nudyn takes no
+        // mocap poses: a body welded to the world, as MuJoCo's is until its
+        // mocap_pos or mocap_quat is changed.
+        if mocap {
+            if has_joints || parent.is_some() {
+                return Err(element.invalid(format!("mocap body '{name}' is not a fixed child of world")));
+            }
+            self.mocap_bodies.push(name.clone());
+        }
         let moving = parent_moving || has_joints;
-        let joints = self.build_joints(&name, parent, joints, !child_bodies.is_empty())?;
+        // MuJoCo's condition for moving the body frame to the inertial frame.
+        let aligned = match joints.as_slice() {
+            [only] if only.settings.kind == JointKind::Free && child_bodies.is_empty() => {
+                only.align == Align::Yes || (only.align == Align::Auto && self.compiler.align_free)
+            }
+            _ => false,
+        };
+        let joints = self.build_joints(&name, parent, joints)?;
 
         let explicit = inertial.map(|(_, inertia)| inertia);
         let from_geoms = match self.compiler.inertia_from_geom {
@@ -587,7 +729,7 @@ impl Reader {
         };
         let mut selected = Vec::new();
         let mut mass_unknown = false;
-        for (geom, settings) in &geoms {
+        for (geom, settings, frame) in &geoms {
             let [low, high] = self.compiler.inertia_groups;
             let contributes = from_geoms && (low..=high).contains(&settings.group);
             if contributes && mass_not_computed(settings) && !moving {
@@ -598,7 +740,7 @@ impl Reader {
                 ));
             }
             // MuJoCo leaves out geoms of mass up to mjEPS.
-            if let Some(mass) = self.geom_mass(geom, settings, moving, contributes)?
+            if let Some(mass) = self.geom_mass(geom, settings, frame.as_ref(), moving, contributes)?
                 && mass.mass > EPS
             {
                 selected.push(mass);
@@ -610,10 +752,15 @@ impl Reader {
             explicit
         } else {
             // MuJoCo puts the inertial frame of a body without mass at the body's
-            // own pose in its parent; it matters once boundmass gives it mass.
-            BodyInertia::from_principal(0.0, pos, &quat, Vec3::zeros())
+            // own pose in its parent, before any <frame> around it; it matters
+            // once boundmass gives it mass.
+            BodyInertia::from_principal(0.0, own_pos, &own_quat, Vec3::zeros())
         };
         let inertia = self.bound(element, inertia)?;
+        let ((pos, quat), inertia) = match aligned {
+            true => self.align_free(index, (pos, quat), inertia),
+            false => ((pos, quat), inertia),
+        };
 
         self.bodies.push(Body {
             name,
@@ -637,10 +784,53 @@ impl Reader {
         if let Some(parent) = parent {
             self.records[parent].children.push(index);
         }
-        Ok(child_bodies
+        Ok(child_bodies.into_iter().map(|child| PendingBody { parent_moving: moving, ..child }).collect())
+    }
+
+    /// A free body without children aligned with its inertial frame
+    /// (`<freejoint align>`, `<compiler alignfree>`): MuJoCo moves the body
+    /// frame there, so that the free joint's qpos is the inertial frame's
+    /// pose, and re-expresses the body's sites in it. Returns the body's new
+    /// pose in its parent and its mass properties in the new frame.
+    fn align_free(&mut self, index: usize, pose: Pose, inertia: BodyInertia) -> (Pose, BodyInertia) {
+        let (principal, axes) = (inertia.principal, inertia.quat);
+        let inverse = (-(axes.inverse() * inertia.com), axes.inverse());
+        for site in self.sites.iter_mut().filter(|s| s.body == Some(index)) {
+            (site.pos, site.quat) = compose(&inverse, &(site.pos, site.quat));
+        }
+        let aligned = BodyInertia::from_principal(inertia.mass, Vec3::zeros(), &Quat::identity(), principal);
+        (compose(&pose, &(inertia.com, axes)), aligned)
+    }
+
+    /// The children of a body (or of the world body) of class `class`, with
+    /// the elements inside its `<frame>`s, nested or not, in their place in
+    /// document order: MuJoCo's frames vanish when it compiles a model, their
+    /// pose composed into their children's and their `childclass` handed on.
+    fn placed_children<'a>(&self, parent: &Element<'a, 'a>, class: usize) -> Result<Vec<Placed<'a>>, MjcfError> {
+        let mut placed = Vec::new();
+        // Reversed, so that the first child comes off the stack first.
+        let mut pending: Vec<Placed<'a>> = parent
+            .children()
+            .collect::<Vec<_>>()
             .into_iter()
-            .map(|element| PendingBody { element, parent: Some(index), inherited_class: class, parent_moving: moving })
-            .collect())
+            .rev()
+            .map(|element| Placed { element, frame: None, class })
+            .collect();
+        while let Some(item) = pending.pop() {
+            if item.element.tag() != "frame" {
+                placed.push(item);
+                continue;
+            }
+            let frame = &item.element;
+            frame.check_attributes(FRAME_ATTRIBUTES)?;
+            let class = self.defaults.lookup(frame, "childclass")?.unwrap_or(item.class);
+            let pos = Vec3::from(frame.numbers::<3>("pos")?.unwrap_or_default());
+            let quat = self.resolve(frame, &Orientation::read(frame)?.unwrap_or_default())?;
+            let pose = item.frame.map_or((pos, quat), |outer| compose(&outer, &(pos, quat)));
+            let children: Vec<_> = frame.children().collect();
+            pending.extend(children.into_iter().rev().map(|element| Placed { element, frame: Some(pose), class }));
+        }
+        Ok(placed)
     }
 
     /// The class of a joint, geom or site: its `class`, else its body's class.
@@ -649,7 +839,13 @@ impl Reader {
     }
 
     /// Reads a `<site>` of body `body` (`None`: the world body).
-    fn read_site(&mut self, element: &Element, body_class: usize, body: Option<usize>) -> Result<(), MjcfError> {
+    fn read_site(
+        &mut self,
+        element: &Element,
+        body_class: usize,
+        body: Option<usize>,
+        frame: Option<Pose>,
+    ) -> Result<(), MjcfError> {
         element.check_attributes(SITE_ATTRIBUTES)?;
         no_children(element)?;
         let mut settings = self.defaults.class(self.class_of(element, body_class)?).site.clone();
@@ -664,6 +860,7 @@ impl Reader {
             }
             None => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
         };
+        let (pos, quat) = frame.map_or((pos, quat), |frame| compose(&frame, &(pos, quat)));
         let name = element.text("name").map(str::to_string);
         if let Some(name) = &name {
             claim_name(&mut self.site_names, "site", name, element)?;
@@ -726,6 +923,7 @@ impl Reader {
         &self,
         element: &Element,
         settings: &GeomSettings,
+        frame: Option<&Pose>,
         moving: bool,
         contributes: bool,
     ) -> Result<Option<GeomMass>, MjcfError> {
@@ -757,6 +955,7 @@ impl Reader {
             }
             None => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
         };
+        let (pos, quat) = frame.map_or((pos, quat), |frame| compose(frame, &(pos, quat)));
         // A geom fitted to a mesh gets its size from the mesh.
         if settings.mesh.is_none() {
             check_size(element, settings.kind, &size)?;
@@ -827,24 +1026,16 @@ impl Reader {
         body_name: &str,
         parent: Option<usize>,
         elements: Vec<JointElement>,
-        has_child_bodies: bool,
     ) -> Result<Vec<Joint>, MjcfError> {
         let count = elements.len();
         let mut joints = Vec::with_capacity(count);
         let mut after_ball = false;
         let mut dofs = 0;
         for (k, joint) in elements.into_iter().enumerate() {
-            let JointElement { element, settings: s, align } = joint;
+            let JointElement { element, settings: s, .. } = joint;
             let origin = |attribute: &str| {
                 if element.has(attribute) { "" } else { " (from its default class)" }
             };
-            if s.frictionloss != 0.0 {
-                return Err(element.unsupported(format!(
-                    "frictionloss={}{}: friction loss is a constraint force, which nudyn does not model",
-                    s.frictionloss,
-                    origin("frictionloss")
-                )));
-            }
             if s.springdamper != [0.0; 2] {
                 return Err(element.unsupported(format!(
                     "springdamper{}: it derives stiffness and damping from the compiled mass matrix; \
@@ -879,11 +1070,6 @@ impl Reader {
                 if parent.is_some() {
                     return Err(element.invalid("a free joint must belong to a body directly inside <worldbody>"));
                 }
-                if !has_child_bodies && (align == Align::Yes || (align == Align::Auto && self.compiler.align_free)) {
-                    return Err(element.unsupported(
-                        "aligning the body frame with its inertial frame (freejoint align, compiler alignfree)",
-                    ));
-                }
             } else {
                 self.check_limits(&element, &s)?;
             }
@@ -909,10 +1095,13 @@ impl Reader {
             let name = element.text("name").map_or_else(|| format!("{body_name}_joint{k}"), str::to_string);
             claim_name(&mut self.joint_names, "joint", &name, &element)?;
             let range = match s.kind {
-                JointKind::Hinge if self.joint_limited(&s) => s.range.map(|x| self.compiler.angles.radians(x)),
+                JointKind::Hinge | JointKind::Ball if self.joint_limited(&s) => {
+                    s.range.map(|x| self.compiler.angles.radians(x))
+                }
                 _ => s.range,
             };
-            self.joint_targets.insert(name.clone(), JointTarget { kind: s.kind, range });
+            let limited = s.kind != JointKind::Free && self.joint_limited(&s);
+            self.joint_targets.insert(name.clone(), JointTarget { kind: s.kind, range, limited });
             joints.push(Joint {
                 name,
                 kind: s.kind,
@@ -924,10 +1113,28 @@ impl Reader {
                 damping: if self.physics.damper_disabled { 0.0 } else { s.damping[0] },
                 armature: s.armature,
                 actuator_force_range,
+                constraints: self.joint_constraints(&s, range),
                 line: element.line,
             });
         }
         Ok(joints)
+    }
+
+    /// The joint's friction loss and limits as constraints, less what the
+    /// `<flag>`s turn off (`range` in radians for hinges).
+    fn joint_constraints(&self, settings: &JointSettings, range: [f64; 2]) -> JointConstraints {
+        let physics = &self.physics;
+        let on = |disabled: bool| !physics.constraint_disabled && !disabled;
+        let limited = settings.kind != JointKind::Free && self.joint_limited(settings);
+        JointConstraints {
+            frictionloss: if on(physics.frictionloss_disabled) { settings.frictionloss } else { 0.0 },
+            friction: settings.friction_soft,
+            limit: (limited && on(physics.limit_disabled)).then_some(JointLimit {
+                range,
+                margin: settings.margin,
+                soft: settings.limit_soft,
+            }),
+        }
     }
 
     /// Whether a joint other than a free one has limits (MuJoCo's rule).
@@ -936,7 +1143,7 @@ impl Reader {
         settings.limited == Limited::Yes || (settings.limited == Limited::Auto && low < high)
     }
 
-    /// MuJoCo's checks of joint limits; limits themselves are only warned about.
+    /// MuJoCo's checks of joint limits.
     fn check_limits(&mut self, element: &Element, settings: &JointSettings) -> Result<(), MjcfError> {
         let [low, high] = settings.range;
         if settings.limited == Limited::Auto && settings.range != [0.0; 2] && !self.compiler.autolimits {
@@ -954,7 +1161,6 @@ impl Reader {
         } else if low >= high {
             return Err(element.invalid("the first 'range' value must be smaller than the second"));
         }
-        self.warnings.push(element.warning("joint limits are not modelled (range ignored)"));
         Ok(())
     }
 
@@ -994,7 +1200,77 @@ impl Reader {
         Ok(on.then_some(range))
     }
 
+    /// Why an element of `<equality>` is refused.
+    /// An equality constraint to a mocap body, refused: its pose is an
+    /// input MuJoCo's users set, which an FMU does not take.
+    fn mocap_equality_refusal(&self, element: &Element) -> Option<MjcfError> {
+        let tag = element.tag();
+        let site_body = |name: &str| {
+            let site = self.sites.iter().find(|s| s.name.as_deref() == Some(name))?;
+            site.body.map(|b| self.bodies[b].name.as_str())
+        };
+        let bodies = ["body1", "body2"].iter().filter_map(|a| element.text(a));
+        let bodies = bodies.chain(["site1", "site2"].iter().filter_map(|a| element.text(a).and_then(site_body)));
+        let body = bodies.into_iter().find(|body| self.mocap_bodies.iter().any(|m| m == body))?;
+        Some(element.unsupported(format!(
+            "<equality>/<{tag}> to mocap body '{body}': nudyn takes no mocap poses for the constraint to follow"
+        )))
+    }
+
+    /// MuJoCo's checks of the `<key>`s of a `<keyframe>` section: each
+    /// vector given has the model's size. nudyn does not use keyframes.
+    fn check_keyframes(&self, section: &Element) -> Result<(), MjcfError> {
+        section.check_attributes(&[])?;
+        let joints = self.bodies.iter().flat_map(|b| &b.joints);
+        let (nq, nv) = joints.fold((0, 0), |(nq, nv), j| (nq + j.kind.nq(), nv + j.kind.nv()));
+        let nmocap = self.mocap_bodies.len();
+        // Activation states are refused, so na is 0.
+        let sizes = [
+            ("qpos", nq),
+            ("qvel", nv),
+            ("act", 0),
+            ("mpos", 3 * nmocap),
+            ("mquat", 4 * nmocap),
+            ("ctrl", self.actuators.len()),
+        ];
+        for key in section.children() {
+            if key.tag() != "key" {
+                return Err(key.unknown());
+            }
+            key.check_attributes(&["name", "time", "qpos", "qvel", "act", "mpos", "mquat", "ctrl"])?;
+            no_children(&key)?;
+            key.number("time")?;
+            for (attribute, size) in sizes {
+                let Some(text) = key.text(attribute) else { continue };
+                let values: Result<Vec<f64>, _> = text.split_ascii_whitespace().map(str::parse).collect();
+                let given = values.map_err(|_| key.bad_value(attribute, "numbers"))?.len();
+                // An empty list counts as not given.
+                if given != 0 && given != size {
+                    return Err(key.invalid(format!("invalid {attribute} size, expected {size}, got {given}")));
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// Reads an `<actuator>` section.
+    /// The `<equality>` section: each element read as MuJoCo reads it; the
+    /// constraints kept unless a `<flag>` turns them off.
+    fn read_equalities(&mut self, section: &Element) -> Result<(), MjcfError> {
+        section.check_attributes(&[])?;
+        for element in section.children() {
+            if let Some(refusal) = self.mocap_equality_refusal(&element) {
+                return Err(refusal);
+            }
+            let settings = self.defaults.class(self.class_of(&element, MAIN)?).equality.clone();
+            let equality = equality::read(&element, settings, self)?;
+            if !(self.physics.constraint_disabled || self.physics.equality_disabled) {
+                self.equalities.push(equality);
+            }
+        }
+        Ok(())
+    }
+
     fn read_sensors(&mut self, section: &Element) -> Result<(), MjcfError> {
         section.check_attributes(&[])?;
         for child in section.children() {
@@ -1178,6 +1454,12 @@ impl Reader {
     }
 
     /// The checks that need the whole tree, `settotalmass`, and the vehicle.
+    /// The joint a sensor's attribute names.
+    fn sensed_joint(&self, element: &Element, attribute: &str) -> Result<&JointTarget, MjcfError> {
+        let name = element.text(attribute).unwrap_or_default();
+        self.joint_targets.get(name).ok_or_else(|| element.invalid(format!("unknown joint '{name}' in sensor")))
+    }
+
     fn finish(mut self, name: String) -> Result<Imported, MjcfError> {
         let valid = |r: &BodyRecord| r.inertia.mass >= MIN_VALUE && r.inertia.principal.min() >= MIN_VALUE;
         for record in self.records.iter().filter(|r| r.has_joints && !valid(r)) {
@@ -1201,6 +1483,10 @@ impl Reader {
                         .to_string(),
                 });
             }
+        }
+
+        if self.compiler.fuse_static {
+            self.fuse_static()?;
         }
 
         if let Some((total, warning)) = self.compiler.total_mass.take() {
@@ -1236,8 +1522,111 @@ impl Reader {
             actuators: self.actuators,
             sensors: self.sensors,
             actuation: self.physics.actuation,
+            constraint_options: self.physics.constraint_options,
+            equalities: std::mem::take(&mut self.equalities),
         };
         Ok(Imported { vehicle, warnings: self.warnings })
+    }
+}
+
+impl Reader {
+    /// `<compiler fusestatic="true">` as MuJoCo 4.0 applies it
+    /// (`mjCModel::FuseStatic`), in body order: a body without joints, not
+    /// mocap and not named by anything that refers to bodies (a sensor, a
+    /// camera's or light's target, a contact exclusion) disappears into its
+    /// parent. Its mass properties join the parent's (unless the parent is
+    /// the world, or its mass is below mjMINVAL), its child bodies and sites
+    /// become the parent's, placed where they were. The parent's inertial
+    /// frame moves: sensors of objtype "body" on it measure the merged one.
+    fn fuse_static(&mut self) -> Result<(), MjcfError> {
+        let mut referenced = vec![false; self.bodies.len()];
+        for sensor in &self.sensors {
+            match &sensor.target {
+                SensorTarget::Frame { object, reference } => {
+                    for object in std::iter::once(object).chain(reference) {
+                        if let FrameObject::Body(Some(body)) | FrameObject::XBody(Some(body)) = object {
+                            referenced[*body] = true;
+                        }
+                    }
+                }
+                SensorTarget::Subtree(Some(body)) => referenced[*body] = true,
+                _ => {}
+            }
+        }
+        // MuJoCo keeps a body an equality constraint names.
+        for equality in &self.equalities {
+            if let Some(EqualityObjects::Bodies(first, second)) = equality.kind.objects() {
+                for body in [first, second].into_iter().flatten() {
+                    referenced[body] = true;
+                }
+            }
+        }
+        let kept: Vec<bool> = (self.bodies.iter().zip(&referenced))
+            .map(|(body, &referenced)| {
+                let named = self.named_elsewhere.contains(&body.name) || self.mocap_bodies.contains(&body.name);
+                referenced || named || !body.joints.is_empty()
+            })
+            .collect();
+
+        for index in kept.iter().enumerate().filter(|(_, kept)| !**kept).map(|(index, _)| index) {
+            let pose = (self.bodies[index].pos, self.bodies[index].quat);
+            let parent = self.bodies[index].parent;
+            if let Some(parent) = parent {
+                let fused = &self.records[index];
+                if fused.inertia.mass >= MIN_VALUE {
+                    let merged = self.records[parent].inertia.merged(&fused.inertia, &pose.0, &pose.1);
+                    self.records[parent].inertia = merged.map_err(|reason| MjcfError::Invalid {
+                        line: fused.line,
+                        element: fused.label.clone(),
+                        reason: format!("error '{reason}' in fusing static body inertias"),
+                    })?;
+                }
+                self.bodies[parent].mass_unknown |= self.bodies[index].mass_unknown;
+            }
+            for child in self.bodies.iter_mut().filter(|b| b.parent == Some(index)) {
+                child.parent = parent;
+                (child.pos, child.quat) = compose(&pose, &(child.pos, child.quat));
+            }
+            for site in self.sites.iter_mut().filter(|s| s.body == Some(index)) {
+                site.body = parent;
+                (site.pos, site.quat) = compose(&pose, &(site.pos, site.quat));
+            }
+        }
+
+        // Renumber the bodies left.
+        let mut new_index = Vec::with_capacity(kept.len());
+        let mut next = 0;
+        for &keep in &kept {
+            new_index.push(keep.then_some(next));
+            next += usize::from(keep);
+        }
+        let renumber = |body: &mut Option<usize>| *body = body.and_then(|b| new_index[b]);
+        let mut keep = kept.iter().copied();
+        self.bodies.retain(|_| keep.next().unwrap_or(true));
+        let mut keep = kept.iter().copied();
+        self.records.retain(|_| keep.next().unwrap_or(true));
+        self.bodies.iter_mut().for_each(|b| renumber(&mut b.parent));
+        self.sites.iter_mut().for_each(|s| renumber(&mut s.body));
+        for sensor in &mut self.sensors {
+            match &mut sensor.target {
+                SensorTarget::Frame { object, reference } => {
+                    for object in std::iter::once(object).chain(reference.as_mut()) {
+                        if let FrameObject::Body(body) | FrameObject::XBody(body) = object {
+                            renumber(body);
+                        }
+                    }
+                }
+                SensorTarget::Subtree(body) => renumber(body),
+                _ => {}
+            }
+        }
+        for equality in &mut self.equalities {
+            if let Some(EqualityObjects::Bodies(first, second)) = equality.kind.objects_mut() {
+                renumber(first);
+                renumber(second);
+            }
+        }
+        Ok(())
     }
 }
 
@@ -1279,13 +1668,38 @@ fn check_size(element: &Element, kind: GeomKind, size: &[f64; 3]) -> Result<(), 
     }
 }
 
+impl EqualityTargets for Reader {
+    fn equality_body(&self, element: &Element, attribute: &str) -> Result<Option<usize>, MjcfError> {
+        let name = element.text(attribute).unwrap_or_default();
+        if name == "world" {
+            return Ok(None);
+        }
+        match self.bodies.iter().position(|b| b.name == name) {
+            Some(index) if self.body_names.contains_key(name) => Ok(Some(index)),
+            _ => Err(element.invalid(format!("unknown body '{name}' in equality constraint"))),
+        }
+    }
+
+    fn equality_site(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError> {
+        self.site_named(element, attribute, "equality constraint")
+    }
+
+    fn equality_joint(&self, element: &Element, attribute: &str) -> Result<JointKind, MjcfError> {
+        let name = element.text(attribute).unwrap_or_default();
+        self.joint_targets
+            .get(name)
+            .map(|joint| joint.kind)
+            .ok_or_else(|| element.invalid(format!("unknown joint '{name}' in equality constraint")))
+    }
+}
+
 impl SensorTargets for Reader {
     fn joint_kind(&self, element: &Element, attribute: &str) -> Result<JointKind, MjcfError> {
-        let name = element.text(attribute).unwrap_or_default();
-        match self.joint_targets.get(name) {
-            Some(joint) => Ok(joint.kind),
-            None => Err(element.invalid(format!("unknown joint '{name}' in sensor"))),
-        }
+        Ok(self.sensed_joint(element, attribute)?.kind)
+    }
+
+    fn joint_limited(&self, element: &Element, attribute: &str) -> Result<bool, MjcfError> {
+        Ok(self.sensed_joint(element, attribute)?.limited)
     }
 
     fn body(&self, element: &Element, attribute: &str) -> Result<Option<usize>, MjcfError> {
@@ -1344,10 +1758,8 @@ fn no_children(element: &Element) -> Result<(), MjcfError> {
 /// sections are expected.
 fn unsupported_child(element: &Element) -> MjcfError {
     let reason = match element.tag() {
-        "frame" => "frames (write the frame's pose into the elements it contains)",
         "replicate" => "replicated subtrees (write the copies out)",
         "attach" => "attaching another model",
-        "include" => "included files (merge the file into this one)",
         "composite" | "flexcomp" => "composite and flexible objects",
         "plugin" => "plugins",
         _ => return element.unknown(),

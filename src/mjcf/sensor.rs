@@ -14,6 +14,8 @@ const COMMON_ATTRIBUTES: &[&str] = &["name", "noise", "cutoff", "user", "nsample
 pub(crate) trait SensorTargets {
     /// The kind of the joint the attribute names.
     fn joint_kind(&self, element: &Element, attribute: &str) -> Result<JointKind, MjcfError>;
+    /// Whether the joint the attribute names is limited.
+    fn joint_limited(&self, element: &Element, attribute: &str) -> Result<bool, MjcfError>;
     /// The body the attribute names; `None` for "world".
     fn body(&self, element: &Element, attribute: &str) -> Result<Option<usize>, MjcfError>;
     /// The site the attribute names.
@@ -34,7 +36,6 @@ pub(crate) fn refusal(tag: &str) -> Option<&'static str> {
         "tendonpos" | "tendonvel" | "tendonactuatorfrc" | "tendonlimitpos" | "tendonlimitvel" | "tendonlimitfrc" => {
             "tendons are not modelled"
         }
-        "jointlimitpos" | "jointlimitvel" | "jointlimitfrc" => "joint limits are not modelled",
         "e_potential" | "e_kinetic" => "energy sensors are not computed by nudyn (the FMU has kinetic_energy)",
         "user" | "plugin" => "user and plugin sensors are computed by code nudyn does not have",
         _ => return None,
@@ -47,6 +48,7 @@ fn own_attributes(kind: SensorKind) -> &'static [&'static str] {
     match kind {
         Gyro | Velocimeter | Accelerometer => &["site"],
         JointPos | JointVel | BallQuat | BallAngVel | JointActuatorFrc => &["joint"],
+        JointLimitPos | JointLimitVel | JointLimitFrc => &["joint"],
         ActuatorPos | ActuatorVel | ActuatorFrc => &["actuator"],
         FrameLinAcc | FrameAngAcc => &["objtype", "objname"],
         FramePos | FrameQuat | FrameXAxis | FrameYAxis | FrameZAxis | FrameLinVel | FrameAngVel => {
@@ -107,6 +109,13 @@ fn target(element: &Element, kind: SensorKind, targets: &impl SensorTargets) -> 
                 (true, JointKind::Ball) | (false, JointKind::Hinge | JointKind::Slide) => {}
                 (true, _) => return Err(element.invalid("joint must be ball in sensor")),
                 (false, _) => return Err(element.invalid("joint must be slide or hinge in sensor")),
+            }
+            SensorTarget::Joint(element.text("joint").unwrap_or_default().to_string())
+        }
+        JointLimitPos | JointLimitVel | JointLimitFrc => {
+            required("joint")?;
+            if !targets.joint_limited(element, "joint")? {
+                return Err(element.invalid("joint must be limited in sensor"));
             }
             SensorTarget::Joint(element.text("joint").unwrap_or_default().to_string())
         }

@@ -27,9 +27,11 @@ use crate::math::{Mat3, Quat, SpatialMat, SpatialVec, Transform, Vec3, angular, 
 use crate::vehicle::{Actuation, ActuatorKind, BiasType, GainType, JointKind, SensorKind, Transmission, Vehicle};
 
 mod actuator;
+mod constraint;
 mod sensor;
 mod validate;
 pub use actuator::{Actuator, ActuatorTarget, ActuatorTransmission, DofForceLimit, SiteFrame};
+pub use constraint::{CompiledEquality, Constraints, DofFriction, EqualityRows, Limit};
 pub use sensor::{BodyMass, Sensor, SensorSource};
 pub use validate::InvalidModel;
 
@@ -242,6 +244,9 @@ pub struct Model {
     /// mass, then a torque about them, their ctrl the wrench's components.
     #[serde(default)]
     pub wrench_bodies: Vec<String>,
+    /// Friction loss and joint limits: MuJoCo's constraint rows.
+    #[serde(default)]
+    pub constraints: Constraints,
 }
 
 /// Why a vehicle cannot be compiled.
@@ -286,6 +291,16 @@ pub enum ModelError {
     Sensor {
         /// The sensor: its element and name, or its index.
         sensor: String,
+        /// MJCF line.
+        line: u32,
+        /// What is wrong.
+        reason: String,
+    },
+    /// An equality constraint that cannot be compiled.
+    #[error("{equality} (line {line}): {reason}")]
+    Equality {
+        /// The element and its name or index.
+        equality: String,
         /// MJCF line.
         line: u32,
         /// What is wrong.
@@ -452,6 +467,7 @@ impl Model {
                 joint.actuator_force_range.map(|range| DofForceLimit { dof: info.dof_adr, range })
             })
             .collect();
+        let constraints = Constraints::of(vehicle, &joints)?;
         let mut model = Model {
             name: vehicle.name.clone(),
             nq: qpos0.len(),
@@ -469,10 +485,13 @@ impl Model {
             body_masses,
             link_tree_quats,
             wrench_bodies: wrench_bodies.to_vec(),
+            constraints: Constraints::default(),
         };
         model.validate()?;
         model.check_positive_definite()?;
         model.resolve_damping_ratios()?;
+        model.constraints = constraints;
+        model.compile_constraints_in_qpos0(vehicle, &attachments, &sites)?;
         Ok(model)
     }
 
@@ -485,11 +504,17 @@ impl Model {
     /// inertia in the initial configuration.
     fn check_positive_definite(&self) -> Result<(), ModelError> {
         let mut ws = self.workspace();
-        match ws.set_configuration(self, &self.qpos0) {
-            Err(crate::dynamics::DynamicsError::Singular { link }) => {
-                Err(ModelError::Singular { joint: self.links[link].joint_name.clone() })
+        ws.set_configuration(self, &self.qpos0).map_err(|e| self.singular(e))
+    }
+
+    /// A failed evaluation in qpos0 while compiling: only a singular
+    /// articulated inertia can fail there, once the model is valid.
+    fn singular(&self, error: crate::dynamics::DynamicsError) -> ModelError {
+        match error {
+            crate::dynamics::DynamicsError::Singular { link } => {
+                ModelError::Singular { joint: self.links[link].joint_name.clone() }
             }
-            _ => Ok(()),
+            other => ModelError::Invalid(InvalidModel::Evaluation(other.to_string())),
         }
     }
 }

@@ -8,9 +8,9 @@
 //! a file must be refused at instantiation with a message, not crash, hang
 //! or allocate without bound later.
 
-use super::{ActuatorTransmission, LinkJoint, Model, SensorSource, SiteFrame};
+use super::{ActuatorTransmission, EqualityRows, LinkJoint, Model, SensorSource, SiteFrame};
 use crate::math::Transform;
-use crate::vehicle::SensorKind;
+use crate::vehicle::{JointKind, SensorKind};
 
 /// What is wrong with a compiled model.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -137,6 +137,13 @@ pub enum InvalidModel {
         /// Actuators in the model.
         found: usize,
     },
+    /// A constraint row that lies outside the model or has numbers MuJoCo
+    /// could not use.
+    #[error("constraint: {0}")]
+    Constraint(String),
+    /// An evaluation in qpos0 failed while compiling.
+    #[error("evaluation in qpos0 failed: {0}")]
+    Evaluation(String),
     /// A sensor that reads outside the model.
     #[error("sensor {sensor}: {what}")]
     Sensor {
@@ -329,6 +336,7 @@ fn validate(model: &Model) -> Result<(), InvalidModel> {
         return Err(InvalidModel::WrenchInputs { bodies, needed: bodies.saturating_mul(6), found });
     }
     validate_sensors(model)?;
+    validate_constraints(model).map_err(InvalidModel::Constraint)?;
     for limit in &model.actuator_force_limits {
         let joint = model.links.iter().find(|l| l.dof_adr == limit.dof).map(|l| l.joint);
         if !matches!(joint, Some(LinkJoint::Hinge | LinkJoint::Slide)) || !is_range(limit.range) {
@@ -339,6 +347,78 @@ fn validate(model: &Model) -> Result<(), InvalidModel> {
         Some(shortcut) => Err(InvalidModel::Shortcut(shortcut)),
         None => Ok(()),
     }
+}
+
+/// Every constraint row lies on a joint of its kind, with finite numbers
+/// and MuJoCo's invweights when there are rows.
+pub(super) fn validate_constraints(model: &Model) -> Result<(), String> {
+    let constraints = &model.constraints;
+    let soft_ok = |soft: &crate::vehicle::SoftConstraint| soft.solref.iter().chain(&soft.solimp).all(|x| x.is_finite());
+    for friction in &constraints.friction {
+        if friction.dof >= model.nv || !(friction.frictionloss.is_finite() && friction.frictionloss > 0.0) {
+            return Err(format!("friction loss at dof {} is {}", friction.dof, friction.frictionloss));
+        }
+        if !soft_ok(&friction.soft) {
+            return Err(format!("friction loss at dof {}: solref or solimp not finite", friction.dof));
+        }
+    }
+    for limit in &constraints.limits {
+        let joint =
+            model.joints.get(limit.joint).ok_or(format!("limit on joint {}, which does not exist", limit.joint))?;
+        let fits = joint.kind == limit.kind
+            && joint.qpos_adr == limit.qpos
+            && joint.dof_adr == limit.dof
+            && matches!(limit.kind, JointKind::Hinge | JointKind::Slide | JointKind::Ball);
+        let ranged = limit.range.iter().all(|x| x.is_finite())
+            && (limit.kind == JointKind::Ball || limit.range[0] < limit.range[1]);
+        if !fits || !ranged || !limit.margin.is_finite() || !soft_ok(&limit.soft) {
+            return Err(format!(
+                "the limit of joint '{}' does not fit it or has numbers that are not finite",
+                joint.name
+            ));
+        }
+    }
+    for equality in &constraints.equalities {
+        let bad = || format!("equality {} lies outside the model or has numbers that are not finite", equality.label);
+        let finite = |values: &[f64]| values.iter().all(|x| x.is_finite());
+        let frame_ok = |frame: &super::SiteFrame| {
+            frame.link.is_none_or(|l| l < model.links.len())
+                && finite(frame.frame.rot.as_slice())
+                && finite(frame.frame.trans.as_slice())
+        };
+        let ok = match &equality.rows {
+            EqualityRows::Connect { frames, anchors, invweight } => {
+                frames.iter().all(frame_ok) && anchors.iter().all(|a| finite(a.as_slice())) && invweight.is_finite()
+            }
+            EqualityRows::Weld { frames, anchors, relative, torquescale, invweight } => {
+                frames.iter().all(frame_ok)
+                    && anchors.iter().all(|a| finite(a.as_slice()))
+                    && finite(relative.coords.as_slice())
+                    && torquescale.is_finite()
+                    && finite(invweight)
+            }
+            EqualityRows::Joint { first, second, polycoef, invweight } => {
+                let inside = |[dof, qpos]: [usize; 2]| dof < model.nv && qpos < model.nq;
+                inside(*first) && second.is_none_or(inside) && finite(polycoef) && invweight.is_finite()
+            }
+        };
+        if !ok || !soft_ok(&equality.soft) {
+            return Err(bad());
+        }
+    }
+    let weights = &constraints.dof_invweight0;
+    let expected = if constraints.is_empty() { 0 } else { model.nv };
+    if weights.len() != expected || weights.iter().any(|w| !(w.is_finite() && *w >= 0.0)) {
+        return Err(format!(
+            "dof_invweight0 has {} entries (expected {expected}), or one not finite and non-negative",
+            weights.len()
+        ));
+    }
+    let timestep = constraints.options.timestep;
+    if !(timestep.is_finite() && timestep > 0.0) {
+        return Err(format!("timestep {timestep} is not positive"));
+    }
+    Ok(())
 }
 
 /// Every sensor reads inside the model, at its place in sensordata.
@@ -370,7 +450,17 @@ fn validate_sensors(model: &Model) -> Result<(), InvalidModel> {
         use SensorKind::*;
         let kind_matches = match &sensor.source {
             SensorSource::Joint { .. } => {
-                matches!(sensor.kind, JointPos | JointVel | BallQuat | BallAngVel | JointActuatorFrc)
+                matches!(
+                    sensor.kind,
+                    JointPos
+                        | JointVel
+                        | BallQuat
+                        | BallAngVel
+                        | JointActuatorFrc
+                        | JointLimitPos
+                        | JointLimitVel
+                        | JointLimitFrc
+                )
             }
             SensorSource::Actuator { .. } => matches!(sensor.kind, ActuatorFrc | ActuatorPos | ActuatorVel),
             SensorSource::Subtree { .. } => matches!(sensor.kind, SubtreeCom | SubtreeLinVel | SubtreeAngMom),
@@ -382,6 +472,9 @@ fn validate_sensors(model: &Model) -> Result<(), InvalidModel> {
                     | BallQuat
                     | BallAngVel
                     | JointActuatorFrc
+                    | JointLimitPos
+                    | JointLimitVel
+                    | JointLimitFrc
                     | ActuatorFrc
                     | ActuatorPos
                     | ActuatorVel

@@ -385,6 +385,7 @@ pub fn joint(rng: &mut Rng, name: String, kind: JointKind) -> Joint {
         damping: 0.0,
         armature: if rng.below(2) == 0 { rng.uniform(0.0, 0.5) } else { 0.0 },
         actuator_force_range: None,
+        constraints: Default::default(),
         line: 0,
     }
 }
@@ -465,6 +466,8 @@ pub fn random_vehicle(rng: &mut Rng, opts: TreeOptions) -> Vehicle {
         actuators: Vec::new(),
         sensors: Vec::new(),
         actuation: Actuation::default(),
+        constraint_options: Default::default(),
+        equalities: Vec::new(),
     }
 }
 

@@ -179,6 +179,11 @@ int main(int argc, char **argv) {
                 CHECK(free_state(c, &copy), fmi3OK);
                 CHECK(get_f64(c, state_vrs, 2, values, nx - 1), fmi3Error); /* nValues short */
                 CHECK(set_state(c, saved), fmi3OK);
+                /* Huge counts: refused before anything is read or allocated (2^40 once aborted the host). */
+                CHECK(get_f64(c, state_vrs, 2, values, (size_t)1 << 40), fmi3Error);
+                CHECK(set_state(c, saved), fmi3OK);
+                CHECK(get_f64(c, state_vrs, (size_t)1 << 63, values, nx), fmi3Error);
+                CHECK(set_state(c, saved), fmi3OK);
             }
         }
         CHECK(terminate(c), fmi3OK);

@@ -1029,6 +1029,12 @@ def run_case(name: str, fmu_dir: str, other_dir: str) -> dict:
     return {"case": name, "group": group, "calls": h.calls}
 
 
+def status_name(function: str, status: int) -> str:
+    """fmi2Error for an FMI 2.0 function, fmi3Error for an FMI 3.0 one."""
+    name = STATUS_NAMES[status]
+    return name.replace("fmi2", "fmi3") if function.startswith("fmi3") else name
+
+
 def table(results: list[dict]) -> str:
     """The README's table: per group, the cases, the calls they made, and
     the statuses of those the FMU refused (fmi2FreeInstance, which returns
@@ -1038,7 +1044,7 @@ def table(results: list[dict]) -> str:
         row = rows.setdefault(result["group"], {"cases": 0, "calls": 0, "refusals": Counter()})
         row["cases"] += 1
         row["calls"] += len(result["calls"])
-        row["refusals"].update(STATUS_NAMES[s] for _, s in result["calls"] if s != OK)
+        row["refusals"].update(status_name(f, s) for f, s in result["calls"] if s != OK)
 
     def statuses(counter: Counter) -> str:
         return ", ".join(f"{count} {status}" for status, count in sorted(counter.items())) or "none"

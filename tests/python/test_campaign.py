@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+import stat
 import subprocess
 import sys
 import time
@@ -20,7 +21,8 @@ import pytest
 
 from conftest import ROOT
 from nudyn_campaign import CampaignError, CampaignInterrupted, load, run_campaign
-from nudyn_campaign.runner import export
+from nudyn_campaign.files import OutputError
+from nudyn_campaign.runner import consolidate, export
 from nudyn_campaign.cases import run_chunk
 from nudyn_campaign.spec import draw
 
@@ -289,3 +291,25 @@ def test_the_integration_method_is_a_dispersion_too(nudyn, tmp_path):
     assert set(table.column("status").to_pylist()) == {"ok"}
     with pytest.raises(CampaignError, match="expected a finite number"):
         load(write(tmp_path, WITH_FAILURES + '"plant.tolerance" = {{ uniform = ["a", "b"] }}\n', "bad.toml"))
+
+
+def test_only_a_regular_file_or_a_new_path_is_replaced(tmp_path):
+    """The results are written as `nudyn export` writes an FMU
+    (nudyn_campaign/files.py): a FIFO in their place is refused and stays a
+    FIFO (opening it to write would have waited for a reader for ever), a
+    symbolic link is written through, and no temporary file is left."""
+    campaign = load(write(tmp_path, CLOSED_LOOP))
+    out = tmp_path / "out"
+    out.mkdir()
+    fifo = out / "results.parquet"
+    os.mkfifo(fifo)
+    with pytest.raises(OutputError, match=f"{fifo} is a FIFO, not a regular file"):
+        consolidate(campaign, out, ["case"])
+    assert stat.S_ISFIFO(os.lstat(fifo).st_mode)
+    fifo.unlink()
+    elsewhere = tmp_path / "elsewhere.md"
+    elsewhere.write_text("old")
+    (out / "report.md").symlink_to(elsewhere)
+    assert consolidate(campaign, out, ["case"]).num_rows == 0
+    assert (out / "report.md").is_symlink() and elsewhere.read_text().startswith("# Campaign small_detumble")
+    assert sorted(p.name for p in out.iterdir()) == ["metrics.png", "report.md", "results.parquet"]

@@ -6,6 +6,7 @@ refuses to overwrite the MJCF file it reads."""
 from __future__ import annotations
 
 import os
+import stat
 import subprocess
 import zipfile
 from concurrent.futures import ThreadPoolExecutor
@@ -64,6 +65,28 @@ def test_a_failed_export_keeps_what_was_there(nudyn, fmu_library, tmp_path):
     assert proc.returncode == 1 and "occupied.fmu" in proc.stderr, proc.stderr
     assert (occupied / "keep").read_text() == "kept"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["occupied.fmu", "rig.fmu"], "no temporary file is left"
+
+
+def test_only_a_regular_file_or_a_new_path_is_replaced(nudyn, fmu_library, tmp_path):
+    """The temporary file is never renamed over anything else: a FIFO stays
+    a FIFO (so would a device node: as root, `-o /dev/null` once became a
+    regular file), and a symbolic link to an FMU is written through."""
+    fifo = tmp_path / "pipe.fmu"
+    os.mkfifo(fifo)
+    proc = export(nudyn, fmu_library, MODEL, fifo)
+    assert proc.returncode == 1, proc.stderr
+    assert f"{fifo} is a FIFO, not a regular file: nudyn writes only regular files and new paths" in proc.stderr
+    assert stat.S_ISFIFO(os.lstat(fifo).st_mode)
+    to_fifo = tmp_path / "to_pipe.fmu"
+    to_fifo.symlink_to(fifo)
+    proc = export(nudyn, fmu_library, MODEL, to_fifo)
+    assert proc.returncode == 1 and f"{to_fifo} is a FIFO" in proc.stderr, proc.stderr
+    fmu, link = tmp_path / "rig.fmu", tmp_path / "link.fmu"
+    fmu.write_bytes(b"old")
+    link.symlink_to(fmu)
+    assert export(nudyn, fmu_library, MODEL, link).returncode == 0
+    assert link.is_symlink() and zipfile.is_zipfile(fmu)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link.fmu", "pipe.fmu", "rig.fmu", "to_pipe.fmu"]
 
 
 def shared_library(tmp_path, name, functions):

@@ -11,9 +11,11 @@ import os
 import subprocess
 import sys
 import threading
+import zipfile
 
 import pytest
 
+import fmi3_misuse
 import fmu_misuse
 from conftest import ROOT
 from nudyn_driver.package import FmuPackage
@@ -33,25 +35,52 @@ def unzipped(cli, tmp_path_factory):
     return FmuPackage.unzip(bus, directory / "bus"), FmuPackage.unzip(rig, directory / "rig")
 
 
-@pytest.mark.parametrize("name", list(fmu_misuse.CASES))
-def test_misuse_case(name, unzipped, tmp_path):
-    bus, rig = unzipped
-    cmd = [sys.executable, fmu_misuse.__file__, "run", name, str(bus.directory), str(rig.directory)]
-    env = {**os.environ, "MISUSE_SCRATCH": str(tmp_path)}
+@pytest.fixture(scope="session")
+def unzipped_fmi3(cli, tmp_path_factory):
+    """servicer's FMI 3.0 plant and controller, unzipped."""
+    directory = tmp_path_factory.mktemp("misuse3")
+    made = []
+    for name, controller in (("plant", False), ("controller", True)):
+        fmu = cli.export(ROOT / "examples/servicer.xml", directory / f"{name}.fmu", controller=controller,
+                         fmi_version=3)
+        with zipfile.ZipFile(fmu) as archive:
+            archive.extractall(directory / name)
+        made.append(directory / name)
+    return made
+
+
+def run_case(name: str, cmd: list[str], env: dict) -> None:
+    """One case in a process of its own: no signal, no hang, exit 0, and
+    nothing on stderr (a panic's message goes to the logger, never to the host's stderr)."""
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=CASE_TIMEOUT, env=env)
     except subprocess.TimeoutExpired:
         pytest.fail(f"{name} hung (no answer in {CASE_TIMEOUT} s)")
     assert proc.returncode >= 0, f"{name} crashed with signal {-proc.returncode}:\n{proc.stderr[-4000:]}"
     assert proc.returncode == 0, f"{name} failed:\n{proc.stderr[-4000:]}"
+    assert proc.stderr == "", f"{name} wrote to stderr:\n{proc.stderr[-4000:]}"
     RESULTS[name] = json.loads(proc.stdout)
+
+
+@pytest.mark.parametrize("name", list(fmu_misuse.CASES))
+def test_misuse_case(name, unzipped, tmp_path):
+    bus, rig = unzipped
+    cmd = [sys.executable, fmu_misuse.__file__, "run", name, str(bus.directory), str(rig.directory)]
+    run_case(name, cmd, {**os.environ, "MISUSE_SCRATCH": str(tmp_path)})
+
+
+@pytest.mark.parametrize("name", list(fmi3_misuse.CASES))
+def test_fmi3_misuse_case(name, unzipped_fmi3):
+    plant, controller = unzipped_fmi3
+    run_case(name, [sys.executable, fmi3_misuse.__file__, "run", name, str(plant), str(controller)], dict(os.environ))
 
 
 def test_readme_table_is_current():
     """Runs after the cases (file order); skipped when only some ran."""
-    if set(RESULTS) != set(fmu_misuse.CASES):
+    cases = [*fmu_misuse.CASES, *fmi3_misuse.CASES]
+    if set(RESULTS) != set(cases):
         pytest.skip("not every misuse case ran in this session")
-    table = fmu_misuse.table([RESULTS[name] for name in fmu_misuse.CASES])
+    table = fmu_misuse.table([RESULTS[name] for name in cases])
     readme = (ROOT / "README.md").read_text()
     assert table in readme, f"README.md's misuse table is out of date; it should read:\n\n{table}\n"
 

@@ -152,6 +152,27 @@ def test_fullinertia_principal_axes(nudyn, tmp_path):
         compare(nudyn, mesh_scene(tmp_path, f'file="{MESHES / "cube.stl"}"', inertial), f"fullinertia {full}")
 
 
+def test_random_full_tensors(nudyn, tmp_path):
+    """Seeded random full tensors scaled from 1e-6 to 1e6, one in three
+    with two moments 1e-9 apart (where the axes in their plane are the
+    eigen-solver's choice): body_iquat must be MuJoCo's to 1e-9 in every
+    case, which a solver stopping by another rule misses."""
+    rng = np.random.default_rng(3)
+    bodies = []
+    for k in range(60):
+        second = rng.uniform(0.05, 1, 3)
+        if k % 3 == 0:
+            second[1] = second[0] * (1 + 1e-9)
+        moments = np.array([second[1] + second[2], second[0] + second[2], second[0] + second[1]])
+        axes, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        t = axes @ np.diag(moments * 10 ** rng.uniform(-6, 6)) @ axes.T
+        full = " ".join(repr(float(x)) for x in [t[0, 0], t[1, 1], t[2, 2], t[0, 1], t[0, 2], t[1, 2]])
+        bodies.append(f'<body name="b{k}" pos="{k} 0 0"><freejoint/><inertial pos="0 0 0" mass="1" fullinertia="{full}"/></body>')
+    path = tmp_path / "full_tensors.xml"
+    path.write_text(f"<mujoco><worldbody>{''.join(bodies)}</worldbody></mujoco>")
+    compare(nudyn, path, "random full tensors")
+
+
 def test_ascii_stl_is_refused_like_mujoco(nudyn, tmp_path):
     path = mesh_scene(tmp_path, f'file="{MESHES / "cube_ascii.stl"}"')
     both_refuse(nudyn, path, "ASCII", "ASCII")

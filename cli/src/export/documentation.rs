@@ -121,6 +121,14 @@ pub fn index_html(model: &Model, description: &Document, what: &str) -> String {
          wrench inputs (MuJoCo's <code>xfrc_applied</code>).</p>"
             .into(),
     );
+    line(match model.constraints.summary() {
+        Some(constraints) => format!(
+            "<p>Constraints: {} (<code>ν̇ + C(θ, ν) = ε + ε_c</code>, <code>ε_c = ℓ(θ) Jᵀ f</code>, f solving \
+             MuJoCo's constraint problem exactly). Contacts are not modelled.</p>",
+            escape(&constraints)
+        ),
+        None => "<p>Constraints: none (no joint friction loss or limits). Contacts are not modelled.</p>".into(),
+    });
     line("<h2>Joints in θ and ν order</h2>".into());
     line("<table><tr><th>joint</th><th>body</th><th>kind</th><th>theta</th><th>nu, eps</th></tr>".into());
     for joint in &model.joints {

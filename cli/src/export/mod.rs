@@ -58,6 +58,9 @@ pub enum ExportError {
         /// What it is instead.
         reason: String,
     },
+    /// The output path cannot be replaced (crate::output).
+    #[error(transparent)]
+    Output(#[from] crate::output::OutputError),
     /// The archive cannot be written.
     #[error("cannot write {}: {source}", path.display())]
     Zip {
@@ -337,44 +340,27 @@ fn write_archive<R: Resource>(
         libraries.push((description.binary_path(*platform), library));
     }
 
-    // Written to a temporary file beside `out`, synced, then renamed over
-    // it: a failure (a full disk) or a concurrent export never leaves a
-    // truncated or mixed archive, and an FMU already there survives a failure.
-    let directory = match out.parent() {
-        Some(parent) if !parent.as_os_str().is_empty() => parent,
-        _ => Path::new("."),
-    };
-    let io_error = |source| ExportError::Io { path: out.to_path_buf(), source };
-    let directory_error = |source| ExportError::Io { path: directory.to_path_buf(), source };
-    std::fs::metadata(directory).map_err(directory_error)?;
-    let staged = tempfile::Builder::new()
-        .prefix(".nudyn-export-")
-        .suffix(".fmu")
-        .tempfile_in(directory)
-        // tempfile's message names the random file it tried, which means nothing to the user.
-        .map_err(|error| directory_error(std::io::Error::from(error.kind())))?;
-    let zip_error = |source| ExportError::Zip { path: out.to_path_buf(), source };
-    let mut archive = zip::ZipWriter::new(staged.as_file());
-    let options_for = |mode| {
-        zip::write::SimpleFileOptions::default()
-            .compression_method(zip::CompressionMethod::Deflated)
-            .unix_permissions(mode)
-    };
-    let mut entries = vec![("modelDescription.xml".to_string(), xml.as_bytes(), 0o644)];
-    entries.extend(libraries.iter().map(|(name, library)| (name.clone(), &library[..], 0o755)));
-    entries.push((R::archive_path(), resource, 0o644));
-    entries.push(("documentation/index.html".to_string(), documentation.as_bytes(), 0o644));
-    for (name, bytes, mode) in entries {
-        archive.start_file(name, options_for(mode)).map_err(zip_error)?;
-        archive.write_all(bytes).map_err(io_error)?;
-    }
-    archive.finish().map_err(zip_error)?;
-    staged.as_file().sync_all().map_err(io_error)?;
-    // The temporary file is private (0600); an FMU is read by whoever runs it.
-    #[cfg(unix)]
-    std::fs::set_permissions(staged.path(), std::os::unix::fs::PermissionsExt::from_mode(0o644)).map_err(io_error)?;
-    staged.persist(out).map_err(|error| io_error(error.error))?;
-    Ok(())
+    // Replaced whole or not at all, and only if it is a regular file or new (crate::output).
+    crate::output::write_atomically(out, |staged| {
+        let io_error = |source| ExportError::Io { path: out.to_path_buf(), source };
+        let zip_error = |source| ExportError::Zip { path: out.to_path_buf(), source };
+        let mut archive = zip::ZipWriter::new(staged);
+        let options_for = |mode| {
+            zip::write::SimpleFileOptions::default()
+                .compression_method(zip::CompressionMethod::Deflated)
+                .unix_permissions(mode)
+        };
+        let mut entries = vec![("modelDescription.xml".to_string(), xml.as_bytes(), 0o644)];
+        entries.extend(libraries.iter().map(|(name, library)| (name.clone(), &library[..], 0o755)));
+        entries.push((R::archive_path(), resource, 0o644));
+        entries.push(("documentation/index.html".to_string(), documentation.as_bytes(), 0o644));
+        for (name, bytes, mode) in entries {
+            archive.start_file(name, options_for(mode)).map_err(zip_error)?;
+            archive.write_all(bytes).map_err(io_error)?;
+        }
+        archive.finish().map_err(zip_error)?;
+        Ok(())
+    })
 }
 
 #[cfg(test)]

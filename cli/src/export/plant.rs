@@ -197,6 +197,12 @@ fn sensor_description(model: &Model, k: usize) -> String {
         ActuatorFrc => ("force", "N or N*m: the actuator's own, before gear"),
         JointActuatorFrc if joint_is_slide() => ("total actuator force", "N"),
         JointActuatorFrc => ("total actuator torque", "N*m"),
+        JointLimitPos if joint_is_slide() => ("distance to the active limit less its margin (0: none active)", "m"),
+        JointLimitPos => ("distance to the active limit less its margin (0: none active)", "rad"),
+        JointLimitVel if joint_is_slide() => ("velocity of the active limit row (0: none active)", "m/s"),
+        JointLimitVel => ("velocity of the active limit row (0: none active)", "rad/s"),
+        JointLimitFrc if joint_is_slide() => ("force of the active limit row (0: none active)", "N"),
+        JointLimitFrc => ("torque of the active limit row (0: none active)", "N*m"),
         ActuatorPos => ("length", "m or rad times gear"),
         ActuatorVel => ("velocity", "m/s or rad/s times gear"),
         Clock => ("simulation time", "s"),
@@ -215,10 +221,16 @@ fn header(model: &Model, options: &ExportOptions, guid: &str) -> Header {
     Header {
         model_name: if model.name.is_empty() { options.model_identifier.clone() } else { model.name.clone() },
         guid: guid.to_string(),
-        description: format!(
-            "diagonalized dynamics of the vehicle '{}' (nq = {}, nv = {}): nu' + C(theta, nu) = eps",
-            model.name, model.nq, model.nv
-        ),
+        description: match model.constraints.summary() {
+            None => format!(
+                "diagonalized dynamics of the vehicle '{}' (nq = {}, nv = {}): nu' + C(theta, nu) = eps",
+                model.name, model.nq, model.nv
+            ),
+            Some(constraints) => format!(
+                "diagonalized dynamics of the vehicle '{}' (nq = {}, nv = {}): nu' + C(theta, nu) = eps + eps_c; {}",
+                model.name, model.nq, model.nv, constraints
+            ),
+        },
         model_identifier: options.model_identifier.clone(),
         capabilities: capabilities(options.outputs),
         generated: generation_date_and_time(),

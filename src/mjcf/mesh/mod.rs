@@ -18,13 +18,13 @@ mod files;
 mod hull;
 
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use files::{MeshFormat, RawMesh};
 
 use super::element::Element;
 use super::error::MjcfError;
-use super::inertia::{self, Eigen, eig3, quat_to_mat};
+use super::inertia::{self, Eigen, principal_axes, quat_array, quat_to_mat};
 use crate::math::Mat3;
 
 /// MuJoCo's `mjMINVAL`.
@@ -123,24 +123,6 @@ impl Mesh {
         let [a, b, c] = self.box_half;
         [mass * (b * b + c * c) / 3.0, mass * (a * a + c * c) / 3.0, mass * (a * a + b * b) / 3.0]
     }
-}
-
-/// Where a mesh file is: `file` relative to `meshdir` (or, without it,
-/// `assetdir`), both relative to the model file's directory unless absolute.
-// The importer's other path settings (<include>, texturedir) will share
-// this rule.
-pub(crate) fn mesh_path(
-    model_dir: Option<&Path>,
-    meshdir: Option<&str>,
-    assetdir: Option<&str>,
-    file: &str,
-) -> PathBuf {
-    let dir = model_dir.map(Path::to_path_buf).unwrap_or_default();
-    let dir = match meshdir.or(assetdir) {
-        Some(sub) => dir.join(sub),
-        None => dir,
-    };
-    dir.join(file)
 }
 
 /// Reads and processes a `<mesh>` asset with its class's settings.
@@ -383,8 +365,8 @@ fn process(raw: RawMesh, settings: &MeshSettings, refpos: [f64; 3], refquat: [f6
         return Err("its volume or inertia overflows: the mesh is too large".into());
     }
 
-    let (eigenvalues, quat) = eig3(&tensor, Eigen::Mesh);
-    let [e0, e1, e2] = eigenvalues;
+    let (eigenvalues, quat) = principal_axes(&tensor, Eigen::Mesh);
+    let (quat, [e0, e1, e2]) = (quat_array(&quat), eigenvalues.into());
     if e2 <= 0.0 {
         return Err("an eigenvalue of the mesh inertia is not positive".into());
     }
@@ -506,6 +488,7 @@ pub(crate) type Meshes = HashMap<String, Mesh>;
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::path::Path;
 
     fn cube() -> RawMesh {
         let vertices = (0..8).map(|k| [(k & 1) as f32, ((k >> 1) & 1) as f32, ((k >> 2) & 1) as f32]).collect();

@@ -1,0 +1,268 @@
+//! The constraint forces' convex problem: minimize ½fᵀHf + gᵀf subject to
+//! lower ≤ f ≤ upper, with H symmetric positive definite (A + R: R > 0 makes
+//! it so) and 0 within the bounds.
+//!
+//! A primal active-set method: from f = 0 it solves for the free entries
+//! with the bounded ones held, steps as far as the bounds allow, holds the
+//! bound that blocks, and frees the held bound whose multiplier has the
+//! wrong sign once no bound blocks. The objective falls at every step and
+//! the working sets never repeat, so it ends, at the problem's unique
+//! minimizer to round-off: what MuJoCo's solvers approach to their
+//! tolerance. Written here because the rows are few and dense and the
+//! solve must not allocate; no crate offers a bounded QP with caller-owned
+//! buffers.
+
+use super::DynamicsError;
+
+/// Where an entry stands in the working set.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Held {
+    /// Free: solved for.
+    Free,
+    /// Held at its lower bound.
+    Lower,
+    /// Held at its upper bound.
+    Upper,
+}
+
+/// Buffers for [`BoxQp::solve`], sized for the most rows.
+#[derive(Clone, Debug, Default)]
+pub struct BoxQp {
+    /// Each entry's place in the working set (after a solve: the final one).
+    pub held: Vec<Held>,
+    free: Vec<usize>,
+    factor: Vec<f64>,
+    target: Vec<f64>,
+}
+
+impl BoxQp {
+    /// Buffers for up to `rows` entries.
+    pub fn new(rows: usize) -> Self {
+        BoxQp {
+            held: vec![Held::Free; rows],
+            free: Vec::with_capacity(rows),
+            factor: vec![0.0; rows * rows],
+            target: vec![0.0; rows],
+        }
+    }
+
+    /// Solves for the first `n` entries: `h` is n×n, row-major with row
+    /// stride `stride`; the answer goes to `f`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn solve(
+        &mut self,
+        n: usize,
+        h: &[f64],
+        stride: usize,
+        g: &[f64],
+        lower: &[f64],
+        upper: &[f64],
+        f: &mut [f64],
+    ) -> Result<(), DynamicsError> {
+        let at = |i: usize, j: usize| h[i * stride + j];
+        f[..n].fill(0.0);
+        self.held[..n].fill(Held::Free);
+        // Each working set is visited once; this bound is far above what a
+        // solve takes and only stops a loop that round-off could start.
+        let limit = 50 + 10 * n * n;
+        for _ in 0..limit {
+            // The minimizer over the free entries, the held ones fixed.
+            self.free.clear();
+            self.free.extend((0..n).filter(|&i| self.held[i] == Held::Free));
+            let m = self.free.len();
+            for (a, &i) in self.free.iter().enumerate() {
+                let held_part: f64 = (0..n).filter(|&j| self.held[j] != Held::Free).map(|j| at(i, j) * f[j]).sum();
+                self.target[a] = -(g[i] + held_part);
+                for (b, &j) in self.free.iter().enumerate() {
+                    self.factor[a * m + b] = at(i, j);
+                }
+            }
+            cholesky_solve(&mut self.factor[..m * m], m, &mut self.target[..m])?;
+
+            // Step towards it as far as the bounds allow.
+            let mut step = 1.0;
+            let mut blocking = None;
+            for (a, &i) in self.free.iter().enumerate() {
+                let change = self.target[a] - f[i];
+                let (bound, side) = if change < 0.0 { (lower[i], Held::Lower) } else { (upper[i], Held::Upper) };
+                if change != 0.0 && bound.is_finite() {
+                    let reach = (bound - f[i]) / change;
+                    if reach < step {
+                        step = reach.max(0.0);
+                        blocking = Some((i, side, bound));
+                    }
+                }
+            }
+            for (a, &i) in self.free.iter().enumerate() {
+                f[i] += step * (self.target[a] - f[i]);
+            }
+            if let Some((i, side, bound)) = blocking {
+                f[i] = bound;
+                self.held[i] = side;
+                continue;
+            }
+
+            // At the minimizer of this working set: free the held entry
+            // whose gradient points into the box the most.
+            let scale = g[..n].iter().fold(1.0_f64, |s, x| s.max(x.abs()));
+            let mut release = None;
+            let mut worst = 1e-14 * scale;
+            for i in (0..n).filter(|&i| self.held[i] != Held::Free) {
+                let gradient: f64 = g[i] + (0..n).map(|j| at(i, j) * f[j]).sum::<f64>();
+                let wrong_way = if self.held[i] == Held::Lower { -gradient } else { gradient };
+                if wrong_way > worst {
+                    worst = wrong_way;
+                    release = Some(i);
+                }
+            }
+            match release {
+                Some(i) => self.held[i] = Held::Free,
+                None => return Ok(()),
+            }
+        }
+        Err(DynamicsError::ConstraintSolver { rows: n })
+    }
+}
+
+/// Solves S x = b in place (b becomes x) for symmetric positive definite S
+/// (m×m, row-major), by its Cholesky factor S = L Lᵀ written over S.
+fn cholesky_solve(s: &mut [f64], m: usize, b: &mut [f64]) -> Result<(), DynamicsError> {
+    for j in 0..m {
+        let mut diagonal = s[j * m + j];
+        for k in 0..j {
+            diagonal -= s[j * m + k] * s[j * m + k];
+        }
+        if diagonal.is_nan() || diagonal <= 0.0 {
+            return Err(DynamicsError::ConstraintSolver { rows: m });
+        }
+        let root = diagonal.sqrt();
+        s[j * m + j] = root;
+        for i in j + 1..m {
+            let mut value = s[i * m + j];
+            for k in 0..j {
+                value -= s[i * m + k] * s[j * m + k];
+            }
+            s[i * m + j] = value / root;
+        }
+    }
+    for i in 0..m {
+        let mut value = b[i];
+        for k in 0..i {
+            value -= s[i * m + k] * b[k];
+        }
+        b[i] = value / s[i * m + i];
+    }
+    for i in (0..m).rev() {
+        let mut value = b[i];
+        for k in i + 1..m {
+            value -= s[k * m + i] * b[k];
+        }
+        b[i] = value / s[i * m + i];
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Brute force: the minimizer is the best of every assignment of each
+    /// entry to free, lower or upper whose free solve lies in the box.
+    fn brute_force(n: usize, h: &[f64], g: &[f64], lower: &[f64], upper: &[f64]) -> Vec<f64> {
+        let objective = |f: &[f64]| {
+            let mut value = 0.0;
+            for i in 0..n {
+                value += g[i] * f[i];
+                for j in 0..n {
+                    value += 0.5 * f[i] * h[i * n + j] * f[j];
+                }
+            }
+            value
+        };
+        let mut best: Option<(f64, Vec<f64>)> = None;
+        for code in 0..3usize.pow(n as u32) {
+            let mut f = vec![0.0; n];
+            let mut free = Vec::new();
+            let mut c = code;
+            let mut feasible = true;
+            for i in 0..n {
+                match c % 3 {
+                    0 => free.push(i),
+                    1 => f[i] = lower[i],
+                    _ => f[i] = upper[i],
+                }
+                feasible &= f[i].is_finite();
+                c /= 3;
+            }
+            if !feasible {
+                continue;
+            }
+            let m = free.len();
+            let mut s = vec![0.0; m * m];
+            let mut b = vec![0.0; m];
+            for (a, &i) in free.iter().enumerate() {
+                b[a] = -g[i] - (0..n).filter(|j| !free.contains(j)).map(|j| h[i * n + j] * f[j]).sum::<f64>();
+                for (bb, &j) in free.iter().enumerate() {
+                    s[a * m + bb] = h[i * n + j];
+                }
+            }
+            cholesky_solve(&mut s, m, &mut b).unwrap();
+            for (a, &i) in free.iter().enumerate() {
+                f[i] = b[a];
+            }
+            if (0..n).any(|i| f[i] < lower[i] - 1e-12 || f[i] > upper[i] + 1e-12) {
+                continue;
+            }
+            let value = objective(&f);
+            if best.as_ref().is_none_or(|(v, _)| value < *v) {
+                best = Some((value, f));
+            }
+        }
+        best.unwrap().1
+    }
+
+    #[test]
+    fn finds_the_minimizer_of_random_box_problems() {
+        let mut state = 0x2545f4914f6cdd1d_u64;
+        let mut uniform = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        for trial in 0..300 {
+            let n = 1 + trial % 6;
+            // H = BᵀB + diag(r): A + R as the constraints build it.
+            let b: Vec<f64> = (0..n * n).map(|_| uniform()).collect();
+            let mut h = vec![0.0; n * n];
+            for i in 0..n {
+                for j in 0..n {
+                    h[i * n + j] = (0..n).map(|k| b[k * n + i] * b[k * n + j]).sum();
+                }
+                h[i * n + i] += 0.01 + uniform().abs();
+            }
+            let g: Vec<f64> = (0..n).map(|_| 3.0 * uniform()).collect();
+            let (mut lower, mut upper) = (vec![0.0; n], vec![0.0; n]);
+            for i in 0..n {
+                (lower[i], upper[i]) = match trial % 3 {
+                    0 => (f64::NEG_INFINITY, f64::INFINITY),
+                    1 => (0.0, f64::INFINITY),
+                    _ => {
+                        let width = uniform().abs();
+                        (-width, width)
+                    }
+                };
+                if (i + trial) % 4 == 0 {
+                    (lower[i], upper[i]) = (0.0, f64::INFINITY);
+                }
+            }
+            let mut qp = BoxQp::new(n);
+            let mut f = vec![0.0; n];
+            qp.solve(n, &h, n, &g, &lower, &upper, &mut f).unwrap();
+            let expected = brute_force(n, &h, &g, &lower, &upper);
+            for i in 0..n {
+                assert!((f[i] - expected[i]).abs() < 1e-10, "trial {trial}: {f:?} against {expected:?}");
+            }
+        }
+    }
+}

@@ -1,0 +1,351 @@
+//! Constraint forces as MuJoCo computes them (docs/DYNAMICS.md §8), put
+//! on the diagonalized dynamics as ε_c = m⁻¹Jᵀf, so that
+//! ν̇ + C(θ, ν) = ε + ε_c keeps its form.
+//!
+//! For a state whose passes 0–2 are done, with ε applied:
+//! 1. θ̈ without constraints (MuJoCo's qacc_smooth): pass 3 and the outward pass;
+//! 2. the active rows in MuJoCo's order (friction loss by dof, then limits
+//!    by joint, a hinge's or slide's lower side first): J, distance, margin;
+//! 3. E = m⁻¹Jᵀ, one inward pass per row, and A = J M⁻¹ Jᵀ = EᵀE (as
+//!    M⁻¹ = m⁻ᵀm⁻¹: no dense M, no factorization beyond the passes');
+//! 4. impedance, regularizer R and reference acceleration aref from
+//!    solref/solimp (MuJoCo's `mj_makeImpedance`, `mj_referenceConstraint`);
+//! 5. f minimizing ½fᵀ(A + R)f + fᵀ(J·qacc_smooth − aref) in the box each
+//!    row allows ([`super::box_qp`]): the dual of MuJoCo's problem, whose
+//!    unique minimizer all its solvers approach;
+//! 6. ε_c = E f and MuJoCo's qfrc_constraint = Jᵀf.
+
+use super::box_qp::BoxQp;
+use super::{DynamicsError, require};
+use crate::model::Model;
+use crate::vehicle::{JointKind, SoftConstraint};
+use crate::workspace::{Stage, Workspace};
+
+/// MuJoCo's smallest denominator (mjMINVAL).
+const MIN_VALUE: f64 = 1e-15;
+/// MuJoCo's bounds on the impedance (mjMINIMP, mjMAXIMP).
+const IMPEDANCE_BOUNDS: (f64, f64) = (0.0001, 0.9999);
+
+/// What a row constrains (MuJoCo's `efc_type`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RowKind {
+    /// An equality constraint's row: f free.
+    Equality,
+    /// Friction loss of a dof: |f| ≤ frictionloss.
+    Friction,
+    /// A joint limit: f ≥ 0.
+    Limit,
+}
+
+/// The rows active at the current state and their forces — filled by
+/// [`Workspace::add_constraint_eps`]; entries past `count` are stale.
+#[derive(Clone, Debug, Default)]
+pub struct ConstraintRows {
+    /// Active rows.
+    pub count: usize,
+    /// Each row's kind.
+    pub kind: Vec<RowKind>,
+    /// Each row's constraint: its index into `Model::constraints`' friction
+    /// or limit list.
+    pub id: Vec<usize>,
+    /// Jᵀ: row k of J is entries k·nv .. (k+1)·nv.
+    pub jacobian: Vec<f64>,
+    /// E = m⁻¹Jᵀ, laid out like `jacobian`.
+    pub eps_columns: Vec<f64>,
+    /// Distance to the limit, or an equality row's violation (MuJoCo's
+    /// efc_pos; 0 for friction).
+    pub distance: Vec<f64>,
+    /// What the impedance is a function of: the distance, or the norm of
+    /// a connect's or weld's whole violation (MuJoCo's `getposdim`).
+    pub violation: Vec<f64>,
+    /// MuJoCo's approximation of the row's diagonal of A (efc_diagApprox
+    /// before the impedance adjusts it).
+    pub diagonal_estimate: Vec<f64>,
+    /// J̇θ̇ of a connect's or weld's row (0 for the others), which MuJoCo
+    /// takes out of the reference acceleration.
+    pub jdot_v: Vec<f64>,
+    /// MuJoCo's efc_margin.
+    pub margin: Vec<f64>,
+    /// J θ̇ (efc_vel).
+    pub velocity: Vec<f64>,
+    /// Reference acceleration (efc_aref).
+    pub aref: Vec<f64>,
+    /// Regularizer R (efc_R).
+    pub regularizer: Vec<f64>,
+    /// The box of each force.
+    pub lower: Vec<f64>,
+    /// See `lower`.
+    pub upper: Vec<f64>,
+    /// The forces f (efc_force).
+    pub force: Vec<f64>,
+    /// A + R, row-major with stride `max_rows`.
+    pub hessian: Vec<f64>,
+    /// J·qacc_smooth − aref.
+    pub gradient: Vec<f64>,
+    /// The solver's buffers.
+    pub solver: BoxQp,
+    /// The most rows that can be active (fixed by the model).
+    pub max_rows: usize,
+    /// Per-link scratch: the wrenches whose joint forces are an equality
+    /// row of J.
+    pub link_wrenches: Vec<crate::math::SpatialVec>,
+    /// Per-link scratch: spatial accelerations at θ̈ = 0 (for J̇θ̇).
+    pub bias_acceleration: Vec<crate::math::SpatialVec>,
+    /// MuJoCo's qfrc_constraint = Jᵀf (nv).
+    pub qfrc_constraint: Vec<f64>,
+    /// ε_c = m⁻¹Jᵀf (nv).
+    pub eps_constraint: Vec<f64>,
+}
+
+impl ConstraintRows {
+    /// Buffers for `model`'s constraints.
+    pub fn new(model: &Model) -> Self {
+        let rows = model.constraints.max_rows();
+        let nv = model.nv;
+        let has_equalities = !model.constraints.equalities.is_empty();
+        let per_row = vec![0.0; rows];
+        ConstraintRows {
+            count: 0,
+            kind: vec![RowKind::Friction; rows],
+            id: vec![0; rows],
+            jacobian: vec![0.0; rows * nv],
+            eps_columns: vec![0.0; rows * nv],
+            distance: per_row.clone(),
+            violation: per_row.clone(),
+            diagonal_estimate: per_row.clone(),
+            jdot_v: per_row.clone(),
+            margin: per_row.clone(),
+            velocity: per_row.clone(),
+            aref: per_row.clone(),
+            regularizer: per_row.clone(),
+            lower: per_row.clone(),
+            upper: per_row.clone(),
+            force: per_row.clone(),
+            hessian: vec![0.0; rows * rows],
+            gradient: per_row,
+            solver: BoxQp::new(rows),
+            max_rows: rows,
+            link_wrenches: vec![crate::math::SpatialVec::zeros(); if has_equalities { model.links.len() } else { 0 }],
+            bias_acceleration: vec![
+                crate::math::SpatialVec::zeros();
+                if has_equalities { model.links.len() } else { 0 }
+            ],
+            qfrc_constraint: vec![0.0; if rows > 0 { nv } else { 0 }],
+            eps_constraint: vec![0.0; if rows > 0 { nv } else { 0 }],
+        }
+    }
+
+    /// Opens row `count` with J = 0, free bounds and no J̇θ̇, and returns its index.
+    pub(super) fn push(&mut self, nv: usize, kind: RowKind, id: usize, distance: f64, margin: f64) -> usize {
+        let k = self.count;
+        self.count += 1;
+        self.kind[k] = kind;
+        self.id[k] = id;
+        self.distance[k] = distance;
+        self.violation[k] = distance;
+        self.margin[k] = margin;
+        self.jdot_v[k] = 0.0;
+        (self.lower[k], self.upper[k]) = (f64::NEG_INFINITY, f64::INFINITY);
+        self.jacobian[k * nv..(k + 1) * nv].fill(0.0);
+        k
+    }
+
+    /// The friction and limit rows at configuration `theta` (quaternions
+    /// normalized), after the equality rows.
+    fn instantiate_friction_and_limits(&mut self, model: &Model, theta: &[f64]) {
+        let nv = model.nv;
+        let weights = &model.constraints.dof_invweight0;
+        for (index, friction) in model.constraints.friction.iter().enumerate() {
+            let k = self.push(nv, RowKind::Friction, index, 0.0, 0.0);
+            self.jacobian[k * nv + friction.dof] = 1.0;
+            (self.lower[k], self.upper[k]) = (-friction.frictionloss, friction.frictionloss);
+            self.diagonal_estimate[k] = weights[friction.dof];
+        }
+        for (index, limit) in model.constraints.limits.iter().enumerate() {
+            match limit.kind {
+                JointKind::Ball => {
+                    let (angle, axis) = rotation_angle_axis(&theta[limit.qpos..limit.qpos + 4]);
+                    let distance = limit.range[0].max(limit.range[1]) - angle;
+                    if distance < limit.margin {
+                        let k = self.push(nv, RowKind::Limit, index, distance, limit.margin);
+                        for (c, a) in axis.iter().enumerate() {
+                            self.jacobian[k * nv + limit.dof + c] = -a;
+                        }
+                    }
+                }
+                _ => {
+                    let value = theta[limit.qpos];
+                    for (side, bound) in [(-1.0, limit.range[0]), (1.0, limit.range[1])] {
+                        let distance = side * (bound - value);
+                        if distance < limit.margin {
+                            let k = self.push(nv, RowKind::Limit, index, distance, limit.margin);
+                            self.jacobian[k * nv + limit.dof] = -side;
+                        }
+                    }
+                }
+            }
+        }
+        for k in 0..self.count {
+            if self.kind[k] == RowKind::Limit {
+                (self.lower[k], self.upper[k]) = (0.0, f64::INFINITY);
+                self.diagonal_estimate[k] = weights[model.constraints.limits[self.id[k]].dof];
+            }
+        }
+    }
+}
+
+/// A unit quaternion's rotation angle in [0, π] and the unit axis it turns
+/// about, as MuJoCo's `mju_quat2Vel` and `mju_normalize3` give them (the
+/// axis is x when the angle vanishes).
+fn rotation_angle_axis(q: &[f64]) -> (f64, [f64; 3]) {
+    let sine_norm = (q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
+    let mut axis = if sine_norm < MIN_VALUE { [1.0, 0.0, 0.0] } else { [q[1], q[2], q[3]].map(|x| x / sine_norm) };
+    let mut angle = 2.0 * sine_norm.atan2(q[0]);
+    if angle > std::f64::consts::PI {
+        angle -= 2.0 * std::f64::consts::PI;
+    }
+    if angle.abs() < MIN_VALUE {
+        return (angle.abs(), [1.0, 0.0, 0.0]);
+    }
+    if angle < 0.0 {
+        axis = axis.map(|x| -x);
+    }
+    (angle.abs(), axis)
+}
+
+/// MuJoCo's `getsolparam` clamps and its `getimpedance`: the impedance at
+/// `distance` from the limit with `margin`.
+fn impedance(solimp: &[f64; 5], distance: f64, margin: f64) -> f64 {
+    let (low, high) = IMPEDANCE_BOUNDS;
+    let dmin = solimp[0].clamp(low, high);
+    let dmax = solimp[1].clamp(low, high);
+    let width = solimp[2].max(0.0);
+    let midpoint = solimp[3].clamp(low, high);
+    let power = solimp[4].max(1.0);
+    if dmin == dmax || width <= MIN_VALUE {
+        return 0.5 * (dmin + dmax);
+    }
+    let x = ((distance - margin) / width).abs();
+    if x >= 1.0 {
+        return dmax;
+    }
+    if x <= 0.0 {
+        return dmin;
+    }
+    let y = if power == 1.0 {
+        x
+    } else if x <= midpoint {
+        raise(x, power) / raise(midpoint, power - 1.0)
+    } else {
+        1.0 - raise(1.0 - x, power) / raise(1.0 - midpoint, power - 1.0)
+    };
+    dmin + y * (dmax - dmin)
+}
+
+/// aᵇ, exact for the common powers 1 and 2 as MuJoCo computes them.
+fn raise(a: f64, b: f64) -> f64 {
+    match b {
+        1.0 => a,
+        2.0 => a * a,
+        _ => a.powf(b),
+    }
+}
+
+/// The reference's stiffness K and damping B (MuJoCo's `mj_makeImpedance`):
+/// from a time constant and damping ratio (solref positive, the time
+/// constant at least two time steps with refsafe), or given directly
+/// (negative). A friction row has no stiffness.
+fn stiffness_damping(model: &Model, soft: &SoftConstraint, friction: bool) -> (f64, f64) {
+    let options = &model.constraints.options;
+    let mut solref = soft.solref;
+    // MuJoCo replaces a mixed-sign solref with its default, with a warning.
+    if (solref[0] > 0.0) != (solref[1] > 0.0) {
+        solref = SoftConstraint::default().solref;
+    }
+    if options.refsafe && solref[0] > 0.0 {
+        solref[0] = solref[0].max(2.0 * options.timestep);
+    }
+    let dmax = soft.solimp[1].clamp(IMPEDANCE_BOUNDS.0, IMPEDANCE_BOUNDS.1);
+    let stiffness = if friction {
+        0.0
+    } else if solref[0] > 0.0 {
+        1.0 / (dmax * dmax * solref[0] * solref[0] * solref[1] * solref[1]).max(MIN_VALUE)
+    } else {
+        -solref[0] / (dmax * dmax).max(MIN_VALUE)
+    };
+    let damping =
+        if solref[1] > 0.0 { 2.0 / (dmax * solref[0]).max(MIN_VALUE) } else { -solref[1] / dmax.max(MIN_VALUE) };
+    (stiffness, damping)
+}
+
+impl Workspace {
+    /// Adds ε_c, the constraint forces' ε, to `applied` (the applied ε,
+    /// actuators included) and leaves the rows and forces in
+    /// `constraint_rows`. Needs the velocities; runs pass 3 for θ̈ without
+    /// constraints, so the caller runs pass 3 again on the new `applied`.
+    pub fn add_constraint_eps(&mut self, model: &Model, applied: &mut [f64]) -> Result<(), DynamicsError> {
+        require(self, Stage::Velocity, "add_constraint_eps")?;
+        self.compute_qacc(model, applied)?;
+        let mut rows = std::mem::take(&mut self.constraint_rows);
+        let result = self.solve_constraints(model, &mut rows);
+        if result.is_ok() {
+            for (total, constraint) in applied.iter_mut().zip(&rows.eps_constraint) {
+                *total += constraint;
+            }
+        }
+        self.constraint_rows = rows;
+        result
+    }
+
+    fn solve_constraints(&mut self, model: &Model, rows: &mut ConstraintRows) -> Result<(), DynamicsError> {
+        let nv = model.nv;
+        rows.count = 0;
+        self.instantiate_equalities(model, rows);
+        rows.instantiate_friction_and_limits(model, self.theta.as_slice());
+        let n = rows.count;
+        for k in 0..n {
+            let column = k * nv..(k + 1) * nv;
+            self.eps_from_forces(model, &rows.jacobian[column.clone()], None, &mut rows.eps_columns[column])?;
+        }
+        for k in 0..n {
+            let jacobian = &rows.jacobian[k * nv..(k + 1) * nv];
+            let dot = |v: &[f64]| jacobian.iter().zip(v).map(|(a, b)| a * b).sum::<f64>();
+            rows.velocity[k] = dot(self.qvel.as_slice());
+            let soft = match rows.kind[k] {
+                RowKind::Equality => model.constraints.equalities[rows.id[k]].soft,
+                RowKind::Friction => model.constraints.friction[rows.id[k]].soft,
+                RowKind::Limit => model.constraints.limits[rows.id[k]].soft,
+            };
+            let imp = impedance(&soft.solimp, rows.violation[k], rows.margin[k]);
+            let (stiffness, damping) = stiffness_damping(model, &soft, rows.kind[k] == RowKind::Friction);
+            rows.regularizer[k] = ((1.0 - imp) * rows.diagonal_estimate[k] / imp).max(MIN_VALUE);
+            rows.aref[k] = -damping * rows.velocity[k] - stiffness * imp * (rows.distance[k] - rows.margin[k]);
+            rows.aref[k] -= rows.jdot_v[k];
+            rows.gradient[k] = dot(self.qacc.as_slice()) - rows.aref[k];
+        }
+        // A + R: A = EᵀE.
+        let stride = rows.max_rows;
+        for i in 0..n {
+            let e_i = &rows.eps_columns[i * nv..(i + 1) * nv];
+            for j in 0..=i {
+                let e_j = &rows.eps_columns[j * nv..(j + 1) * nv];
+                let a: f64 = e_i.iter().zip(e_j).map(|(x, y)| x * y).sum();
+                rows.hessian[i * stride + j] = a;
+                rows.hessian[j * stride + i] = a;
+            }
+            rows.hessian[i * stride + i] += rows.regularizer[i];
+        }
+        rows.solver.solve(n, &rows.hessian, stride, &rows.gradient, &rows.lower, &rows.upper, &mut rows.force)?;
+        rows.eps_constraint.fill(0.0);
+        rows.qfrc_constraint.fill(0.0);
+        for k in 0..n {
+            let force = rows.force[k];
+            for d in 0..nv {
+                rows.eps_constraint[d] += rows.eps_columns[k * nv + d] * force;
+                rows.qfrc_constraint[d] += rows.jacobian[k * nv + d] * force;
+            }
+        }
+        Ok(())
+    }
+}

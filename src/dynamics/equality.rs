@@ -1,0 +1,229 @@
+//! Equality constraints' rows as MuJoCo instantiates them
+//! (`mj_instantiateEquality`, `mj_Jdotv`; docs/DYNAMICS.md §8): a
+//! connect's three rows, a weld's six, a joint coupling's one, each with
+//! its violation, its Jacobian row and, for connect and weld, J̇θ̇.
+//!
+//! A connect's or weld's Jacobian row for a world direction is the joint
+//! force of a unit world force (or torque) on frame 1's point less the same
+//! on frame 2's: one inward pass of [`super::forces`] per row, no body
+//! Jacobian formed. J̇θ̇ is the points' acceleration with θ̈ = 0, from one
+//! outward pass of the velocity-product accelerations.
+
+use nalgebra::Quaternion;
+
+use super::constraint::{ConstraintRows, RowKind};
+use super::forces::add_joint_forces_of_wrenches;
+use crate::math::{Quat, SpatialVec, Transform, Vec3, angular, cross_motion, linear, spatial};
+use crate::model::{EqualityRows, Model, SiteFrame};
+use crate::workspace::Workspace;
+
+/// A frame of an equality at the current state, in the world.
+struct FramePoint {
+    /// The link carrying it (`None`: the world).
+    link: Option<usize>,
+    /// The anchor point in link coordinates (world coordinates without a link).
+    in_link: Vec3,
+    /// The anchor point in the world.
+    position: Vec3,
+    /// The frame's orientation (frame → world).
+    orientation: Quat,
+    /// The link's angular velocity, world axes.
+    omega: Vec3,
+    /// The point's acceleration with θ̈ = 0, world axes.
+    bias_acceleration: Vec3,
+    /// The link's angular acceleration with θ̈ = 0, world axes.
+    bias_angular_acceleration: Vec3,
+}
+
+impl Workspace {
+    /// Appends the active equality rows in MuJoCo's order (before the
+    /// friction and limit rows). Needs the velocities.
+    pub(super) fn instantiate_equalities(&mut self, model: &Model, rows: &mut ConstraintRows) {
+        let equalities = &model.constraints.equalities;
+        if equalities.is_empty() {
+            return;
+        }
+        self.world_transforms(model);
+        if equalities.iter().any(|e| !matches!(e.rows, EqualityRows::Joint { .. })) {
+            self.bias_accelerations(model, &mut rows.bias_acceleration);
+        }
+        let nv = model.nv;
+        for (index, equality) in equalities.iter().enumerate() {
+            match &equality.rows {
+                EqualityRows::Joint { first, second, polycoef: c, invweight } => {
+                    let offset = |[_, qpos]: [usize; 2]| self.theta[qpos] - model.qpos0[qpos];
+                    let (violation, slope) = match second {
+                        Some(second) => {
+                            let x = offset(*second);
+                            let value = c[1] * x + c[2] * x * x + c[3] * x * x * x + c[4] * x * x * x * x;
+                            let slope = c[1] + 2.0 * c[2] * x + 3.0 * c[3] * x * x + 4.0 * c[4] * x * x * x;
+                            (offset(*first) - c[0] - value, slope)
+                        }
+                        None => (offset(*first) - c[0], 0.0),
+                    };
+                    let k = rows.push(nv, RowKind::Equality, index, violation, 0.0);
+                    rows.jacobian[k * nv + first[0]] = 1.0;
+                    if let Some([dof, _]) = second {
+                        rows.jacobian[k * nv + dof] -= slope;
+                    }
+                    rows.diagonal_estimate[k] = *invweight;
+                }
+                EqualityRows::Connect { frames, anchors, invweight } => {
+                    let [one, two] = [0, 1].map(|i| self.frame_point(&frames[i], &anchors[i], &rows.bias_acceleration));
+                    let offset = one.position - two.position;
+                    let first = rows.count;
+                    for axis in 0..3 {
+                        let k = rows.push(nv, RowKind::Equality, index, offset[axis], 0.0);
+                        rows.violation[k] = offset.norm();
+                        rows.diagonal_estimate[k] = *invweight;
+                        rows.jdot_v[k] = one.bias_acceleration[axis] - two.bias_acceleration[axis];
+                        self.jacobian_row(model, rows, k, [&one, &two], Vec3::ith(axis, 1.0), false);
+                    }
+                    debug_assert_eq!(rows.count, first + 3);
+                }
+                EqualityRows::Weld { frames, anchors, relative, torquescale, invweight } => {
+                    let [one, two] = [0, 1].map(|i| self.frame_point(&frames[i], &anchors[i], &rows.bias_acceleration));
+                    let target = one.orientation.into_inner() * relative.into_inner();
+                    let inverse_two = two.orientation.into_inner().conjugate();
+                    let rotation_error = (inverse_two * target).imag() * *torquescale;
+                    let offset = one.position - two.position;
+                    let violation = (offset.norm_squared() + rotation_error.norm_squared()).sqrt();
+                    let first = rows.count;
+                    for axis in 0..6 {
+                        let value = if axis < 3 { offset[axis] } else { rotation_error[axis - 3] };
+                        let k = rows.push(nv, RowKind::Equality, index, value, 0.0);
+                        rows.violation[k] = violation;
+                        rows.diagonal_estimate[k] = invweight[axis / 3];
+                        self.jacobian_row(model, rows, k, [&one, &two], Vec3::ith(axis % 3, 1.0), axis >= 3);
+                    }
+                    for axis in 0..3 {
+                        rows.jdot_v[first + axis] = one.bias_acceleration[axis] - two.bias_acceleration[axis];
+                    }
+                    // The rotation rows are M(J_ω1 − J_ω2) with M·a = ½ vec(q₂⁻¹ (0, a) q₁ q_rel)·torquescale.
+                    let half_scaled = 0.5 * torquescale;
+                    let map = |a: &Vec3| (inverse_two * pure(a) * target).imag() * half_scaled;
+                    let columns = [0, 1, 2].map(|c| map(&Vec3::ith(c, 1.0)));
+                    for d in 0..nv {
+                        let u = Vec3::from_fn(|c, _| rows.jacobian[(first + 3 + c) * nv + d]);
+                        let mapped = columns[0] * u[0] + columns[1] * u[1] + columns[2] * u[2];
+                        for r in 0..3 {
+                            rows.jacobian[(first + 3 + r) * nv + d] = mapped[r];
+                        }
+                    }
+                    // MuJoCo's J̇θ̇ of those rows: the product rule on that
+                    // expression, with q̇ = ½ (0, ω) q for the world ω.
+                    let relative_rate = |q: &Quaternion<f64>, omega: &Vec3| pure(omega) * q * 0.5;
+                    let omega_difference = one.omega - two.omega;
+                    let target_rate = relative_rate(&one.orientation.into_inner(), &one.omega) * relative.into_inner();
+                    let inverse_two_rate = relative_rate(&two.orientation.into_inner(), &two.omega).conjugate();
+                    let angular_difference = one.bias_angular_acceleration - two.bias_angular_acceleration;
+                    let sum = inverse_two_rate * pure(&omega_difference) * target
+                        + inverse_two * pure(&angular_difference) * target
+                        + inverse_two * pure(&omega_difference) * target_rate;
+                    let rotational = sum.imag() * half_scaled;
+                    for r in 0..3 {
+                        rows.jdot_v[first + 3 + r] = rotational[r];
+                    }
+                }
+            }
+        }
+    }
+
+    /// Row `k` of J: the joint forces of a unit world force along
+    /// `direction` (or a unit torque about it, `torque`) on frame one's
+    /// point less the same on frame two's.
+    fn jacobian_row(
+        &mut self,
+        model: &Model,
+        rows: &mut ConstraintRows,
+        k: usize,
+        points: [&FramePoint; 2],
+        direction: Vec3,
+        torque: bool,
+    ) {
+        let nv = model.nv;
+        for (point, sign) in points.into_iter().zip([1.0, -1.0]) {
+            if let Some(link) = point.link {
+                let local = self.x_world[link].rot * direction * sign;
+                let wrench = if torque {
+                    spatial(&local, &Vec3::zeros())
+                } else {
+                    spatial(&point.in_link.cross(&local), &local)
+                };
+                rows.link_wrenches[link] += wrench;
+            }
+        }
+        add_joint_forces_of_wrenches(
+            model,
+            &self.x_parent,
+            &self.accumulation,
+            &mut self.p_scratch_body,
+            &rows.link_wrenches,
+            &mut rows.jacobian[k * nv..(k + 1) * nv],
+        );
+        for point in points {
+            if let Some(link) = point.link {
+                rows.link_wrenches[link] = SpatialVec::zeros();
+            }
+        }
+    }
+
+    /// Where an equality's frame and point are, and how they move.
+    fn frame_point(&self, frame: &SiteFrame, anchor: &Vec3, bias: &[SpatialVec]) -> FramePoint {
+        let in_frame = frame.frame.trans + frame.frame.rot.transpose() * anchor;
+        let Some(link) = frame.link else {
+            return FramePoint {
+                link: None,
+                in_link: in_frame,
+                position: in_frame,
+                orientation: orientation(&frame.frame),
+                omega: Vec3::zeros(),
+                bias_acceleration: Vec3::zeros(),
+                bias_angular_acceleration: Vec3::zeros(),
+            };
+        };
+        let world = &self.x_world[link];
+        let to_world = world.rot.transpose();
+        let velocity = &self.v_body[link];
+        let (omega, linear_velocity) = (angular(velocity), linear(velocity));
+        let a = &bias[link];
+        // A body point's classical acceleration: the spatial one at the point plus ω × v.
+        let point_acceleration =
+            linear(a) + angular(a).cross(&in_frame) + omega.cross(&(linear_velocity + omega.cross(&in_frame)));
+        FramePoint {
+            link: Some(link),
+            in_link: in_frame,
+            position: world.trans + to_world * in_frame,
+            orientation: orientation(&frame.frame.compose(world)),
+            omega: to_world * omega,
+            bias_acceleration: to_world * point_acceleration,
+            bias_angular_acceleration: to_world * angular(a),
+        }
+    }
+
+    /// The links' spatial accelerations with θ̈ = 0 and the world at rest,
+    /// base to tip: A⁰_i = X A⁰_λ + V⁺_i × S_i θ̇_i.
+    fn bias_accelerations(&self, model: &Model, out: &mut [SpatialVec]) {
+        for (i, link) in model.links.iter().enumerate() {
+            let mut joint_velocity = SpatialVec::zeros();
+            for c in 0..link.ndof {
+                joint_velocity += link.motion_subspace.column(c) * self.qvel[link.dof_adr + c];
+            }
+            let passed = match link.parent {
+                Some(p) => self.x_parent[i].apply_motion(&out[p]),
+                None => SpatialVec::zeros(),
+            };
+            out[i] = passed + cross_motion(&self.v_plus_body[i], &joint_velocity);
+        }
+    }
+}
+
+/// The quaternion (0, v).
+fn pure(v: &Vec3) -> Quaternion<f64> {
+    Quaternion::new(0.0, v.x, v.y, v.z)
+}
+
+/// A placement's orientation (frame → world) as a unit quaternion.
+fn orientation(placement: &Transform) -> Quat {
+    Quat::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(placement.rot.transpose()))
+}

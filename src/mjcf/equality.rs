@@ -1,0 +1,159 @@
+//! `<equality>`: connect, weld and joint constraints, with MuJoCo 4.0's
+//! attributes, defaults and compiler checks. Tendon and flex equalities are
+//! refused (nudyn models neither tendons nor flexes).
+
+use super::element::Element;
+use super::error::MjcfError;
+use crate::math::{Quat, Vec3};
+use crate::vehicle::{Equality, EqualityKind, EqualityObjects, JointKind, SoftConstraint};
+
+/// Attributes every equality element has (MuJoCo 4.0 schema).
+const COMMON_ATTRIBUTES: &[&str] = &["name", "class", "active", "solref", "solimp"];
+
+/// Attributes an `<equality>` default class may set.
+pub(crate) const DEFAULT_ATTRIBUTES: &[&str] = &["active", "solref", "solimp"];
+
+/// What an equality element starts from: its class's settings.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct EqualitySettings {
+    /// `active`.
+    pub active: bool,
+    /// `solref`, `solimp`.
+    pub soft: SoftConstraint,
+}
+
+impl Default for EqualitySettings {
+    /// MuJoCo's defaults: active, solref (0.02, 1), solimp (0.9, 0.95, 0.001, 0.5, 2).
+    fn default() -> Self {
+        EqualitySettings { active: true, soft: SoftConstraint::default() }
+    }
+}
+
+impl EqualitySettings {
+    /// Overwrites the settings the element gives.
+    pub fn apply(&mut self, element: &Element) -> Result<(), MjcfError> {
+        if let Some(active) = element.boolean("active")? {
+            self.active = active;
+        }
+        element.overwrite_numbers("solref", &mut self.soft.solref)?;
+        element.overwrite_numbers("solimp", &mut self.soft.solimp)?;
+        Ok(())
+    }
+}
+
+/// The objects equality elements name, as the importer knows them; each
+/// lookup gives the error that names the element and attribute.
+pub(crate) trait EqualityTargets {
+    /// The body the attribute names: `None` for "world".
+    fn equality_body(&self, element: &Element, attribute: &str) -> Result<Option<usize>, MjcfError>;
+    /// The site the attribute names.
+    fn equality_site(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError>;
+    /// The kind of the joint the attribute names.
+    fn equality_joint(&self, element: &Element, attribute: &str) -> Result<JointKind, MjcfError>;
+}
+
+/// Reads one element of `<equality>` whose class settings are `settings`.
+pub(crate) fn read(
+    element: &Element,
+    mut settings: EqualitySettings,
+    targets: &impl EqualityTargets,
+) -> Result<Equality, MjcfError> {
+    let own: &[&str] = match element.tag() {
+        "connect" => &["body1", "body2", "site1", "site2", "anchor"],
+        "weld" => &["body1", "body2", "site1", "site2", "anchor", "relpose", "torquescale"],
+        "joint" => &["joint1", "joint2", "polycoef"],
+        "tendon" | "flex" | "flexvert" | "flexstrain" => {
+            return Err(element.unsupported(format!(
+                "<equality>/<{}>: an equality constraint on a {} (nudyn models neither tendons nor flexes)",
+                element.tag(),
+                if element.tag() == "tendon" { "tendon" } else { "flex" }
+            )));
+        }
+        _ => return Err(element.unknown()),
+    };
+    let allowed: Vec<&str> = COMMON_ATTRIBUTES.iter().chain(own).copied().collect();
+    element.check_attributes(&allowed)?;
+    if let Some(child) = element.children().next() {
+        return Err(child.unknown());
+    }
+    settings.apply(element)?;
+    let kind = match element.tag() {
+        "joint" => {
+            let joint1 = element.text("joint1").ok_or_else(|| element.missing("joint1"))?;
+            let scalar = |attribute: &str| match targets.equality_joint(element, attribute)? {
+                JointKind::Hinge | JointKind::Slide => Ok(()),
+                _ => Err(element.invalid(format!("{attribute} must be a hinge or slide joint in equality constraint"))),
+            };
+            scalar("joint1")?;
+            let joint2 = element.text("joint2");
+            if joint2.is_some() {
+                scalar("joint2")?;
+            }
+            let mut polycoef = [0.0, 1.0, 0.0, 0.0, 0.0];
+            element.overwrite_numbers("polycoef", &mut polycoef)?;
+            EqualityKind::Joint { joint1: joint1.to_string(), joint2: joint2.map(str::to_string), polycoef }
+        }
+        tag => {
+            let objects = objects(element, targets)?;
+            let mut anchor = [0.0; 3];
+            element.overwrite_numbers("anchor", &mut anchor)?;
+            if tag == "connect" {
+                if matches!(objects, EqualityObjects::Bodies(..)) && !element.has("anchor") {
+                    return Err(element.missing("anchor"));
+                }
+                EqualityKind::Connect { objects, anchor: Vec3::from(anchor) }
+            } else {
+                let mut relpose = [0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+                element.overwrite_numbers("relpose", &mut relpose)?;
+                let quat = [relpose[3], relpose[4], relpose[5], relpose[6]];
+                let relpose = (quat != [0.0; 4]).then(|| {
+                    let q = Quat::from_quaternion(nalgebra::Quaternion::new(quat[0], quat[1], quat[2], quat[3]));
+                    (Vec3::new(relpose[0], relpose[1], relpose[2]), q)
+                });
+                let torquescale = element.number("torquescale")?.unwrap_or(1.0);
+                EqualityKind::Weld { objects, anchor: Vec3::from(anchor), relpose, torquescale }
+            }
+        }
+    };
+    Ok(Equality {
+        name: element.text("name").map(str::to_string),
+        kind,
+        active: settings.active,
+        soft: settings.soft,
+        line: element.line,
+    })
+}
+
+/// The frames a connect or weld holds: two bodies (body2 the world when
+/// left out) or two sites, not a mix, not a body with itself.
+fn objects(element: &Element, targets: &impl EqualityTargets) -> Result<EqualityObjects, MjcfError> {
+    let with_bodies = element.has("body1") || element.has("body2");
+    let with_sites = element.has("site1") || element.has("site2");
+    let objects = match (with_bodies, with_sites) {
+        (true, true) => return Err(element.invalid("body and site semantics cannot be mixed in equality constraint")),
+        (false, false) => return Err(element.invalid("either body1 or site1 must be given in equality constraint")),
+        (true, false) => {
+            if !element.has("body1") {
+                return Err(element.missing("body1"));
+            }
+            let body2 = if element.has("body2") { targets.equality_body(element, "body2")? } else { None };
+            EqualityObjects::Bodies(targets.equality_body(element, "body1")?, body2)
+        }
+        (false, true) => {
+            for attribute in ["site1", "site2"] {
+                if !element.has(attribute) {
+                    return Err(element.missing(attribute));
+                }
+            }
+            EqualityObjects::Sites(targets.equality_site(element, "site1")?, targets.equality_site(element, "site2")?)
+        }
+    };
+    let same = match objects {
+        EqualityObjects::Bodies(a, b) => a == b,
+        EqualityObjects::Sites(a, b) => a == b,
+    };
+    if same {
+        return Err(element.invalid("an equality constraint must join two different frames"));
+    }
+    Ok(objects)
+}

@@ -1,0 +1,100 @@
+//! Constraint forces on the diagonalized dynamics (docs/DYNAMICS.md §8):
+//! friction loss only takes energy out, the `<flag>`s switch rows off as
+//! MuJoCo's do, the compiled constraints survive the FMU's JSON and a
+//! corrupted one is refused. (Agreement with MuJoCo is in
+//! tests/python/test_constraints.py.)
+
+use std::path::Path;
+
+use nudyn::integrate::{Input, Method, Settings, Simulation};
+use nudyn::mjcf::parse_mjcf;
+use nudyn::model::{InvalidModel, Model};
+
+/// A free bus with a hinge, a slide and a ball joint, each with friction
+/// loss, no gravity, dampers or limits: only the constraints take energy.
+fn frictional(flags: &str) -> Model {
+    let xml = format!(
+        r#"<mujoco>
+  <option gravity="0 0 0"><flag {flags}/></option>
+  <default><joint frictionloss="0.4"/></default>
+  <worldbody>
+    <body name="bus"><freejoint/><inertial pos="0 0 0" mass="50" diaginertia="4 5 6"/>
+      <body name="a" pos="0.5 0 0"><joint name="hinge" axis="0 1 0" range="-0.3 0.3"/>
+        <inertial pos="0.2 0 0" mass="2" diaginertia="0.02 0.03 0.04"/>
+        <body name="b" pos="0.4 0 0"><joint name="slide" type="slide" axis="1 0 0"/>
+          <inertial pos="0.1 0 0" mass="1" diaginertia="0.01 0.01 0.01"/>
+          <body name="c" pos="0.2 0 0"><joint name="ball" type="ball"/>
+            <inertial pos="0.05 0.02 0" mass="0.5" diaginertia="0.002 0.003 0.004"/>
+          </body>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>"#
+    );
+    Model::compile(&parse_mjcf(&xml).unwrap().vehicle).unwrap()
+}
+
+#[test]
+fn friction_loss_only_takes_energy_out() {
+    // With the hinge limit disabled, friction loss is the only constraint.
+    let model = frictional(r#"limit="disable""#);
+    assert_eq!((model.constraints.friction.len(), model.constraints.limits.len()), (5, 0));
+    let settings = Settings { tolerance: 1.0, max_step: 1e-4, energy_projection: false };
+    let mut sim = Simulation::new(&model, Method::Rk4, settings);
+    sim.state.nu.iter_mut().enumerate().for_each(|(k, x)| *x = 0.8 * (1.7 * k as f64 + 0.3).sin());
+    sim.initialize(&model).unwrap();
+    let zero = vec![0.0; model.nv];
+    let input = Input { eps: &zero, eps_rate: &zero, ctrl: &[], ctrl_rate: &[] };
+    let kinetic = |sim: &Simulation| 0.5 * sim.state.nu.iter().map(|v| v * v).sum::<f64>();
+    let start = kinetic(&sim);
+    let mut last = start;
+    for k in 1..=1000 {
+        sim.advance_to(&model, k as f64 * 2e-3, input).unwrap();
+        let now = kinetic(&sim);
+        assert!(now <= last + 1e-12 * start, "K rose from {last} to {now} at step {k}");
+        // The constraint's power ν·ε_c = θ̇·qfrc_constraint is never positive.
+        let ws = sim.workspace();
+        let rows = &ws.constraint_rows;
+        let power: f64 = ws.qvel.iter().zip(&rows.qfrc_constraint).map(|(v, f)| v * f).sum();
+        assert!(power <= 1e-12 * start, "friction loss put power {power} in at step {k}");
+        last = now;
+    }
+    assert!(last < 0.5 * start, "friction loss dissipated too little: K {start} → {last}");
+}
+
+#[test]
+fn flags_switch_constraint_rows_off_as_mujoco_does() {
+    let count = |m: &Model| (m.constraints.friction.len(), m.constraints.limits.len());
+    assert_eq!(count(&frictional(r#"gravity="disable""#)), (5, 1));
+    assert_eq!(count(&frictional(r#"frictionloss="disable""#)), (0, 1));
+    assert_eq!(count(&frictional(r#"limit="disable""#)), (5, 0));
+    assert_eq!(count(&frictional(r#"constraint="disable""#)), (0, 0));
+    // No rows: no invweights, no buffers, the passes skip the constraints.
+    let none = frictional(r#"constraint="disable""#);
+    assert!(none.constraints.dof_invweight0.is_empty() && none.workspace().constraint_rows.max_rows == 0);
+}
+
+#[test]
+fn constraints_round_trip_through_json_and_a_corrupted_one_is_refused() {
+    let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/constraints/limited_arm.xml");
+    let model = Model::compile(&nudyn::mjcf::load_mjcf(&fixture).unwrap().vehicle).unwrap();
+    assert!(!model.constraints.is_empty());
+    let json = serde_json::to_string(&model).unwrap();
+    let back: Model = serde_json::from_str(&json).unwrap();
+    assert_eq!(back, model);
+    back.validate().unwrap();
+
+    let mut outside = model.clone();
+    outside.constraints.friction[0].dof = model.nv;
+    assert!(matches!(outside.validate(), Err(InvalidModel::Constraint(_))));
+    let mut wrong_joint = model.clone();
+    wrong_joint.constraints.limits[0].dof += 1;
+    assert!(matches!(wrong_joint.validate(), Err(InvalidModel::Constraint(_))));
+    let mut no_weights = model.clone();
+    no_weights.constraints.dof_invweight0.clear();
+    assert!(matches!(no_weights.validate(), Err(InvalidModel::Constraint(_))));
+    let mut nan = model;
+    nan.constraints.limits[0].soft.solimp[2] = f64::NAN;
+    assert!(matches!(nan.validate(), Err(InvalidModel::Constraint(_))));
+}

@@ -1,0 +1,329 @@
+//! Model files as their authors publish them: `<include>`d files, `<frame>`s,
+//! mocap bodies and `<compiler fusestatic>`, read as MuJoCo 4.0 reads them.
+//! The numbers (poses, inertias, qacc, sensordata) are compared with
+//! MuJoCo's in tests/python through the fixtures; here, the structure and
+//! the refusals.
+
+use std::path::{Path, PathBuf};
+
+use nudyn::mjcf::{Imported, MjcfError, load_mjcf, parse_mjcf};
+use nudyn::vehicle::Vehicle;
+
+fn fixture(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/mjcf").join(name)
+}
+
+fn load(name: &str) -> Imported {
+    load_mjcf(&fixture(name)).unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+/// The vehicle with every line set to 0, to compare models written differently.
+fn without_lines(mut vehicle: Vehicle) -> Vehicle {
+    for body in &mut vehicle.bodies {
+        body.line = 0;
+        body.joints.iter_mut().for_each(|j| j.line = 0);
+    }
+    vehicle.sites.iter_mut().for_each(|s| s.line = 0);
+    vehicle.actuators.iter_mut().for_each(|a| a.line = 0);
+    vehicle.sensors.iter_mut().for_each(|s| s.line = 0);
+    vehicle
+}
+
+/// includes.xml written as one file.
+const INCLUDES_MERGED: &str = r#"<mujoco model="includes">
+  <compiler angle="radian"/>
+  <option gravity="0 0 0"/>
+  <default>
+    <joint damping="0.5"/>
+    <default class="link">
+      <geom type="capsule" size="0.05" density="2000"/>
+    </default>
+  </default>
+  <worldbody>
+    <body name="bus" pos="0.1 0 0">
+      <freejoint/>
+      <geom type="box" size="0.5 0.4 0.3" mass="100"/>
+      <body name="link1" pos="0.5 0 0" euler="0 0 0.3" childclass="link">
+        <joint name="shoulder" axis="0 0 1"/>
+        <geom fromto="0 0 0 0.4 0 0"/>
+        <camera name="arm_camera" pos="0.2 0 0.1"/>
+        <body name="link2" pos="0.4 0 0">
+          <joint name="wrist" axis="0 1 0"/>
+          <geom fromto="0 0 0 0.3 0 0"/>
+          <site name="tip" pos="0.3 0 0"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    <motor name="shoulder_motor" joint="shoulder"/>
+    <motor name="wrist_motor" joint="wrist" gear="2"/>
+  </actuator>
+</mujoco>"#;
+
+#[test]
+fn included_files_merge_in_place_as_if_written_in_the_main_file() {
+    let Imported { vehicle, warnings } = load("includes.xml");
+    let merged = parse_mjcf(INCLUDES_MERGED).unwrap().vehicle;
+    assert_eq!(without_lines(vehicle.clone()), without_lines(merged));
+    // Lines are those of each element's own file.
+    let wrist = &vehicle.bodies[2];
+    assert_eq!((wrist.name.as_str(), wrist.line, wrist.joints[0].line), ("link2", 2, 3));
+    assert_eq!(vehicle.sites[0].line, 5);
+    assert_eq!(vehicle.actuators[1].line, 4);
+    // A warning from an included file names it.
+    let camera = warnings.iter().find(|w| w.element.contains("arm_camera")).unwrap();
+    assert_eq!(camera.line, 5);
+    assert!(camera.file.as_deref().is_some_and(|f| f.ends_with("include/arm.xml")), "{camera:?}");
+    assert!(camera.to_string().contains("include/arm.xml: line 5: <camera name=\"arm_camera\">"), "{camera}");
+}
+
+/// The error for a file of include/bad/, unwrapped from the included file it
+/// is in when `in_file` names one.
+fn refusal(name: &str, in_file: Option<&str>) -> (MjcfError, String) {
+    let error = load_mjcf(&fixture("include/bad").join(name)).unwrap_err();
+    let shown = error.to_string();
+    let inner = match (error, in_file) {
+        (MjcfError::Included { path, error }, Some(file)) => {
+            assert!(path.ends_with(file), "{shown}: not in {file}");
+            *error
+        }
+        (error, None) => error,
+        (error, Some(file)) => panic!("{error:?} does not say it is in {file}"),
+    };
+    (inner, shown)
+}
+
+fn assert_at(error: &MjcfError, line: u32, element: &str) {
+    match error {
+        MjcfError::Invalid { line: l, element: e, .. }
+        | MjcfError::UnknownAttribute { line: l, element: e, .. }
+        | MjcfError::DuplicateName { line: l, element: e, .. }
+        | MjcfError::MissingAttribute { line: l, element: e, .. } => {
+            assert_eq!((*l, e.as_str()), (line, element), "{error}")
+        }
+        other => panic!("unexpected {other:?}"),
+    }
+}
+
+#[test]
+fn an_include_cycle_is_refused_where_it_closes() {
+    let (error, shown) = refusal("cycle.xml", Some("cycle_part.xml"));
+    assert_at(&error, 3, "include");
+    assert!(shown.contains("include cycle:") && shown.contains("cycle.xml includes"), "{shown}");
+}
+
+#[test]
+fn a_missing_file_is_refused_with_the_places_looked_in() {
+    let (error, shown) = refusal("missing.xml", Some("missing_part.xml"));
+    assert_at(&error, 3, "include");
+    assert!(shown.contains("cannot open 'nowhere.xml'"), "{shown}");
+    let looked = Path::new("include").join("bad").join("nowhere.xml");
+    assert!(shown.contains(&looked.display().to_string()), "{shown}");
+}
+
+#[test]
+fn a_file_included_twice_is_refused_as_mujoco_refuses_it() {
+    let (error, shown) = refusal("twice.xml", None);
+    assert_at(&error, 4, "include");
+    assert!(shown.contains("'part.xml' is already included at line 3"), "{shown}");
+}
+
+#[test]
+fn an_include_with_children_or_without_elements_is_refused() {
+    let (error, _) = refusal("children.xml", None);
+    assert_at(&error, 3, "include");
+    let (error, shown) = refusal("empty.xml", None);
+    assert_at(&error, 3, "include");
+    assert!(shown.contains("has no element below its root <mujoco>"), "{shown}");
+}
+
+#[test]
+fn errors_in_an_included_file_name_it_and_its_line() {
+    let (error, shown) = refusal("error_inside.xml", Some("typo_part.xml"));
+    assert_at(&error, 3, "joint name=\"j\"");
+    assert!(shown.ends_with("typo_part.xml: line 3: <joint name=\"j\">: unknown attribute 'axiz'"), "{shown}");
+
+    let (error, shown) = refusal("malformed.xml", Some("malformed_part.xml"));
+    assert!(matches!(error, MjcfError::Xml { line: 4, .. }), "{shown}");
+
+    // A name used in two files says where the first is.
+    let (error, shown) = refusal("duplicate.xml", Some("part.xml"));
+    assert_at(&error, 2, "body name=\"part\"");
+    assert!(shown.contains("body name \"part\" is already used at line 3 of"), "{shown}");
+}
+
+#[test]
+fn mesh_files_are_found_where_mujoco_looks_for_them() {
+    // In meshdir, below the model's directory (cargo runs the tests in the
+    // package's), which wins over assetdir: the tetrahedron is read there,
+    // and its mass is its volume (det[v2-v1, v3-v1, v4-v1] / 6, of the
+    // single-precision vertices MuJoCo keeps) at 1000 kg/m³.
+    let xml = |assetdir: &str, meshdir: &str| {
+        format!(
+            r#"<mujoco><compiler assetdir="{assetdir}" meshdir="{meshdir}"/>
+            <asset><mesh file="rock.obj"/></asset>
+            <worldbody><body><freejoint/><geom type="mesh" mesh="rock"/></body></worldbody></mujoco>"#
+        )
+    };
+    let vehicle = parse_mjcf(&xml("elsewhere", "tests/fixtures/mjcf/meshes")).unwrap().vehicle;
+    let v = |x: f64| f64::from(x as f32);
+    let volume = (v(1.2) * (v(0.9) * v(1.1) - v(0.1) * v(0.3)) - v(0.1) * (v(0.3) * v(1.1) - v(0.1) * v(0.4))) / 6.0;
+    let mass = vehicle.bodies[0].inertia.as_ref().unwrap().mass;
+    assert!((mass - 1000.0 * volume).abs() < 1e-10, "{mass}");
+    // Not in meshdir: the error names the file looked for.
+    let shown = parse_mjcf(&xml("tests/fixtures/mjcf/meshes", "elsewhere")).unwrap_err().to_string();
+    assert!(shown.contains(&Path::new("elsewhere").join("rock.obj").display().to_string()), "{shown}");
+    // Not there: beside the included file that names it.
+    let (_, shown) = refusal("mesh.xml", None);
+    let expected = Path::new("include/bad/sub").join("hull.stl");
+    assert!(shown.contains(&expected.display().to_string()), "{shown}");
+}
+
+/// Poses compared to round-off (the numbers themselves are MuJoCo's in
+/// tests/python through the fixtures).
+fn assert_pose(what: &str, pos: &nudyn::math::Vec3, expected: [f64; 3]) {
+    let expected = nudyn::math::Vec3::from(expected);
+    assert!((pos - expected).amax() < 1e-12, "{what}: {pos} != {expected}");
+}
+
+#[test]
+fn frames_place_their_children_and_vanish() {
+    let xml = r#"<mujoco><compiler angle="radian"/>
+        <default><default class="heavy"><geom density="8000"/></default></default>
+        <worldbody>
+          <frame pos="1 0 0" euler="0 0 1.5707963267948966">
+            <site name="s" pos="1 0 0"/>
+            <frame pos="0 0 1" childclass="heavy">
+              <body name="b" pos="1 0 0">
+                <joint name="j" pos="0 0 0" axis="1 0 0"/>
+                <frame pos="0 0 2"><geom size="0.1"/></frame>
+              </body>
+            </frame>
+          </frame>
+        </worldbody></mujoco>"#;
+    let vehicle = parse_mjcf(xml).unwrap().vehicle;
+    // The frame turns x into y: the site at (1, 1, 0), the body at (1, 1, 1).
+    assert_pose("site", &vehicle.sites[0].pos, [1.0, 1.0, 0.0]);
+    let body = &vehicle.bodies[0];
+    assert_pose("body", &body.pos, [1.0, 1.0, 1.0]);
+    assert!((body.quat.angle() - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+    // The body's own joint is in its frame; its geom is 2 up, of the frame's class.
+    assert_pose("joint axis", &body.joints[0].axis, [1.0, 0.0, 0.0]);
+    let mass = body.inertia.as_ref().unwrap();
+    assert_pose("centre of mass", &mass.com, [0.0, 0.0, 2.0]);
+    assert!((mass.mass - 8000.0 * 4.0 / 3.0 * std::f64::consts::PI * 1e-3).abs() < 1e-9);
+}
+
+#[test]
+fn a_mocap_body_is_fixed_to_the_world_where_the_file_puts_it() {
+    let Imported { vehicle, .. } = load("mocap.xml");
+    let target = &vehicle.bodies[0];
+    assert_eq!((target.name.as_str(), target.parent, target.joints.len()), ("target", None, 0));
+    assert_pose("target", &target.pos, [1.0, 2.0, 3.0]);
+    // Below another body, or with a joint, MuJoCo refuses it.
+    let nested = r#"<mujoco><worldbody><body name="a"><freejoint/><geom size="1"/>
+        <body name="m" mocap="true"><geom size="1"/></body></body></worldbody></mujoco>"#;
+    let shown = parse_mjcf(nested).unwrap_err().to_string();
+    assert!(shown.contains("line 2: <body name=\"m\">: mocap body 'm' is not a fixed child of world"), "{shown}");
+}
+
+#[test]
+fn an_equality_constraint_is_read_and_a_weld_to_a_mocap_body_is_refused_as_such() {
+    let with = |constraint: &str| {
+        format!(
+            r#"<mujoco><worldbody><body name="m" mocap="true"><geom size="1"/><site name="ms"/></body>
+            <body name="a"><freejoint/><geom size="1"/></body>
+            <body name="b"><joint name="j1"/><geom size="1"/><body><joint name="j2"/><geom size="1"/></body></body>
+            </worldbody><equality>{constraint}</equality></mujoco>"#
+        )
+    };
+    let coupled = parse_mjcf(&with(r#"<joint joint1="j1" joint2="j2"/>"#)).unwrap().vehicle;
+    assert_eq!(coupled.equalities.len(), 1);
+    for weld in [r#"<weld body1="a" body2="m"/>"#, r#"<weld site1="ms" site2="ms"/>"#] {
+        let shown = parse_mjcf(&with(weld)).unwrap_err().to_string();
+        assert!(shown.contains("<equality>/<weld> to mocap body 'm': nudyn takes no mocap poses"), "{shown}");
+    }
+}
+
+#[test]
+fn gravity_compensation_is_accepted_where_it_is_zero() {
+    let with = |option: &str| {
+        format!(
+            r#"<mujoco>{option}<worldbody><body gravcomp="1"><freejoint/><geom size="1"/></body></worldbody></mujoco>"#
+        )
+    };
+    assert!(parse_mjcf(&with(r#"<option gravity="0 0 0"/>"#)).is_ok());
+    assert!(parse_mjcf(&with(r#"<option><flag gravity="disable"/></option>"#)).is_ok());
+    let shown = parse_mjcf(&with("")).unwrap_err().to_string();
+    assert!(shown.contains("gravity compensation (gravcomp) under gravity is not modelled"), "{shown}");
+}
+
+#[test]
+fn a_ctrlrange_beside_inheritrange_zero_is_accepted_as_mujoco_accepts_it() {
+    let with = |inheritrange: &str| {
+        format!(
+            r#"<mujoco><worldbody><body><joint name="j" range="-1 1"/><geom size="1"/></body></worldbody>
+            <actuator><position joint="j" kp="10" ctrlrange="-0.5 0.5" inheritrange="{inheritrange}"/></actuator></mujoco>"#
+        )
+    };
+    let vehicle = parse_mjcf(&with("0")).unwrap().vehicle;
+    assert_eq!(vehicle.actuators[0].ctrl_range, Some([-0.5, 0.5]));
+    let shown = parse_mjcf(&with("1")).unwrap_err().to_string();
+    assert!(shown.ends_with("ctrlrange and inheritrange cannot both be defined"), "{shown}");
+}
+
+#[test]
+fn keyframes_of_the_wrong_size_are_refused_as_mujoco_refuses_them() {
+    assert!(load_mjcf(&fixture("mocap.xml")).is_ok());
+    let xml = std::fs::read_to_string(fixture("mocap.xml")).unwrap();
+    for (good, bad, message) in [
+        ("qpos=\"0.1 0 0 1 1 0 0 0\"", "qpos=\"0.1 0 0 1\"", "invalid qpos size, expected 8, got 4"),
+        ("qvel=\"0 0 0 0 0 0 0.1\"", "qvel=\"0\"", "invalid qvel size, expected 7, got 1"),
+        ("mpos=\"1 2 3\"", "mpos=\"1 2 3 4 5 6\"", "invalid mpos size, expected 3, got 6"),
+        ("mquat=\"1 0 0 0\"", "mquat=\"1 0 0 0\" ctrl=\"1\"", "invalid ctrl size, expected 0, got 1"),
+        ("mquat=\"1 0 0 0\"", "mquat=\"1 0 0 0\" act=\"1\"", "invalid act size, expected 0, got 1"),
+    ] {
+        let shown = parse_mjcf(&xml.replace(good, bad)).unwrap_err().to_string();
+        assert!(shown.ends_with(&format!("<key name=\"start\">: {message}")), "{shown}");
+    }
+}
+
+#[test]
+fn fusestatic_merges_bodies_without_joints_unless_something_names_them() {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/sensors/fusestatic.xml");
+    let vehicle = load_mjcf(&path).unwrap().vehicle;
+    let names: Vec<&str> = vehicle.bodies.iter().map(|b| b.name.as_str()).collect();
+    // The stand into the world, the panel and mast into the bus; the camera
+    // mount stays (a sensor names it).
+    assert_eq!(names, ["bus", "antenna", "camera_mount"]);
+    assert_eq!(vehicle.bodies[1].parent, Some(0));
+    let bus = vehicle.bodies[0].inertia.as_ref().unwrap();
+    assert!((bus.mass - 55.5).abs() < 1e-12, "{}", bus.mass);
+    // The panel's site moved to the bus, where it was.
+    assert_eq!(vehicle.sites[0].body, Some(0));
+    // Without fusestatic, every body stays.
+    let xml = std::fs::read_to_string(&path).unwrap().replace("fusestatic=\"true\"", "fusestatic=\"false\"");
+    assert_eq!(parse_mjcf(&xml).unwrap().vehicle.bodies.len(), 6);
+    // A camera aiming at the panel keeps it.
+    let aimed = xml.replace("fusestatic=\"false\"", "fusestatic=\"true\"").replace(
+        "<body name=\"camera_mount\" pos=\"-0.5 0 0\">",
+        "<body name=\"camera_mount\" pos=\"-0.5 0 0\"><camera mode=\"targetbody\" target=\"panel\"/>",
+    );
+    let kept: Vec<String> = parse_mjcf(&aimed).unwrap().vehicle.bodies.into_iter().map(|b| b.name).collect();
+    assert_eq!(kept, ["bus", "panel", "antenna", "camera_mount"]);
+}
+
+#[test]
+fn alignfree_moves_a_free_body_frame_to_its_inertial_frame() {
+    let xml = r#"<mujoco><compiler alignfree="true"/><worldbody>
+        <body name="b" pos="1 0 0"><freejoint/><geom size="0.1" pos="0.5 0 0"/><site name="s" pos="0.5 0 1"/></body>
+        <body name="kept" pos="0 1 0"><freejoint align="false"/><geom size="0.1" pos="0.5 0 0"/></body>
+        </worldbody></mujoco>"#;
+    let vehicle = parse_mjcf(xml).unwrap().vehicle;
+    let aligned = &vehicle.bodies[0];
+    assert_pose("aligned body", &aligned.pos, [1.5, 0.0, 0.0]);
+    assert_pose("its centre of mass", &aligned.inertia.as_ref().unwrap().com, [0.0, 0.0, 0.0]);
+    assert_pose("its site", &vehicle.sites[0].pos, [0.0, 0.0, 1.0]);
+    assert_pose("body left as written", &vehicle.bodies[1].pos, [0.0, 1.0, 0.0]);
+}

@@ -1,0 +1,209 @@
+"""Constraint forces (equality constraints, joint friction loss and limits)
+against MuJoCo.
+
+tests/fixtures/constraints/limited_arm.xml flies a bus with a 5-dof arm
+whose joints carry friction loss, hinge, slide and ball limits (margins,
+per-joint and per-class solref/solimp, a direct solref);
+docked_servicer.xml adds a client vehicle welded to the bus, a tool held by
+a connect, a site weld with a torque scale and a joint coupling. MuJoCo's
+constraint solver is run to round-off (nudyn_validation.mujoco_reference.
+load_model), so both sides solve the same convex problem to its optimum.
+"""
+
+from __future__ import annotations
+
+import json
+
+import mujoco
+import numpy as np
+import pytest
+
+from conftest import ROOT, run_eval
+from nudyn_validation.compare import validate_model
+from nudyn_validation.mujoco_reference import load_model
+from nudyn_validation.scenarios import FORCED_TOLERANCE, UNFORCED_TOLERANCE
+
+FIXTURES = {name: ROOT / "tests" / "fixtures" / "constraints" / f"{name}.xml" for name in ("limited_arm", "docked_servicer")}
+FIXTURE = FIXTURES["limited_arm"]
+N_STATES = 60
+
+
+def random_states(model: mujoco.MjModel, rng: np.random.Generator):
+    """qpos with every limited joint spread over its range and 10 % beyond
+    it on each side (ball joints up to 1.2 rad against a 40° cone), and
+    velocities that are zero in one state out of five (friction loss at rest)."""
+    for k in range(N_STATES):
+        qpos = model.qpos0.copy()
+        for j in range(model.njnt):
+            a = model.jnt_qposadr[j]
+            kind = model.jnt_type[j]
+            if kind == mujoco.mjtJoint.mjJNT_FREE:
+                qpos[a : a + 3] += rng.normal(0, 0.3, 3)
+                q = rng.normal(size=4)
+                qpos[a + 3 : a + 7] = q / np.linalg.norm(q)
+            elif kind == mujoco.mjtJoint.mjJNT_BALL:
+                axis = rng.normal(size=3)
+                angle = rng.uniform(0, 1.2)
+                qpos[a : a + 4] = [np.cos(angle / 2), *(np.sin(angle / 2) * axis / np.linalg.norm(axis))]
+            else:
+                low, high = model.jnt_range[j]
+                qpos[a] = rng.uniform(low - 0.1 * (high - low), high + 0.1 * (high - low))
+        qvel = rng.normal(0, 0.5, model.nv) if k % 5 else np.zeros(model.nv)
+        yield qpos, qvel
+
+
+_evaluated: dict = {}
+
+
+@pytest.fixture(params=list(FIXTURES))
+def evaluated(request, nudyn):
+    """(MuJoCo's data per state, nudyn eval's answer per state) for a fixture."""
+    if request.param not in _evaluated:
+        _evaluated[request.param] = evaluate(FIXTURES[request.param], nudyn)
+    return _evaluated[request.param]
+
+
+def evaluate(path, nudyn):
+    model = load_model(path)
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(34)
+    references, requests = [], []
+    for qpos, qvel in random_states(model, rng):
+        data.qpos[:], data.qvel[:] = qpos, qvel
+        mujoco.mj_forward(model, data)
+        references.append(
+            {
+                "qacc": data.qacc.copy(),
+                "qfrc_constraint": data.qfrc_constraint.copy(),
+                "efc_force": data.efc_force.copy(),
+                "efc_type": data.efc_type.copy(),
+                "efc_frictionloss": data.efc_frictionloss.copy(),
+                "sensordata": data.sensordata.copy(),
+                "qacc_unconstrained": None,
+            }
+        )
+        requests.append({"theta": qpos.tolist(), "qvel": qvel.tolist()})
+    # The same states with MuJoCo's constraints off: how far a model
+    # without them would be (the check below must be able to fail).
+    model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
+    for reference, request in zip(references, requests):
+        data.qpos[:], data.qvel[:] = request["theta"], request["qvel"]
+        mujoco.mj_forward(model, data)
+        reference["qacc_unconstrained"] = data.qacc.copy()
+    result = run_eval(nudyn, path, json.dumps(requests))
+    out = result.json()
+    assert isinstance(out, list) and len(out) == N_STATES, result.describe()
+    return references, out
+
+
+def relative(a, b) -> float:
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    return float(np.max(np.abs(a - b)) / max(1.0, float(np.max(np.abs(b)))))
+
+
+def test_qacc_and_qfrc_constraint_match_mujoco(evaluated):
+    references, out = evaluated
+    for k, (reference, answer) in enumerate(zip(references, out)):
+        assert relative(answer["qacc"], reference["qacc"]) < 1e-9, f"state {k}"
+        assert relative(answer["qfrc_constraint"], reference["qfrc_constraint"]) < 1e-8, f"state {k}"
+
+
+def test_sensors_read_the_limit_rows_as_mujocos(evaluated):
+    """jointlimitpos, jointlimitvel, jointlimitfrc (and an accelerometer,
+    which feels the constraint forces) equal MuJoCo's sensordata."""
+    references, out = evaluated
+    for k, (reference, answer) in enumerate(zip(references, out)):
+        assert relative(answer["sensordata"], reference["sensordata"]) < 1e-8, f"state {k}"
+    limit_forces = np.array([r["sensordata"][:5] for r in references])
+    assert np.count_nonzero(limit_forces) > 10 and np.count_nonzero(limit_forces == 0) > 10
+
+
+def test_rows_are_mujocos_rows_in_its_order(evaluated):
+    references, out = evaluated
+    kinds = {
+        int(mujoco.mjtConstraint.mjCNSTR_EQUALITY): "equality",
+        int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF): "friction",
+        int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT): "limit",
+    }
+    for k, (reference, answer) in enumerate(zip(references, out)):
+        rows = answer["constraint_rows"]
+        assert [r["kind"] for r in rows] == [kinds[int(t)] for t in reference["efc_type"]], f"state {k}"
+        forces = np.array([r["force"] for r in rows])
+        # A weld's rotation rows measure the vector part of a quaternion
+        # product: nudyn takes the frames' quaternions from rotation
+        # matrices, MuJoCo composes them body by body, so the three rows
+        # may come out negated, their forces with them (Jᵀf is the same,
+        # checked above). Compare those three up to that sign.
+        for first in weld_rotation_rows(rows):
+            block = slice(first, first + 3)
+            if np.dot(forces[block], reference["efc_force"][block]) < 0:
+                forces[block] *= -1
+        assert relative(forces, reference["efc_force"]) < 1e-8, f"state {k}"
+
+
+def weld_rotation_rows(rows) -> list[int]:
+    """The first of each weld's three rotation rows (rows 3–5 of its six)."""
+    starts, k = [], 0
+    while k < len(rows):
+        label = rows[k].get("equality", "")
+        count = sum(1 for r in rows[k : k + 6] if r.get("equality") == label) if label else 1
+        if label.startswith("<weld>"):
+            starts.append(k + 3)
+            k += 6
+        else:
+            k += count if label else 1
+    return starts
+
+
+def test_the_states_cover_every_regime(nudyn):
+    """On limited_arm: limits active and inactive, friction loss saturated
+    and not; and in every state where a row pushes, a model without
+    constraints would be off. (On docked_servicer the random states pull
+    the welds far apart: their forces saturate every friction row.)"""
+    if "limited_arm" not in _evaluated:
+        _evaluated["limited_arm"] = evaluate(FIXTURE, nudyn)
+    references, out = _evaluated["limited_arm"]
+    limit_counts = [sum(r["kind"] == "limit" for r in a["constraint_rows"]) for a in out]
+    assert min(limit_counts) == 0 and max(limit_counts) >= 3
+    saturated = sliding = 0
+    for reference in references:
+        friction = reference["efc_frictionloss"] > 0
+        at_bound = np.isclose(np.abs(reference["efc_force"][friction]), reference["efc_frictionloss"][friction])
+        saturated += int(np.sum(at_bound))
+        sliding += int(np.sum(~at_bound))
+    assert saturated > 10 and sliding > 10
+    pushing = [r for r in references if np.max(np.abs(r["efc_force"])) > 1e-3]
+    assert len(pushing) > N_STATES // 2
+    for reference in pushing:
+        assert relative(reference["qacc_unconstrained"], reference["qacc"]) > 1e-4
+
+
+@pytest.mark.parametrize("name", list(FIXTURES))
+def test_fmu_runs_into_its_limits_like_mujoco(name, nudyn, tmp_path):
+    """Every scenario of scripts/validate.py on the fixture (RK4 at 1e-4 s on
+    both sides, 2 s; the docked servicer from qpos0, where its equalities
+    hold): θ, ν and sensordata within the validation's tolerances, with
+    limits reached along the way."""
+    FIXTURE = FIXTURES[name]
+    validation = validate_model(FIXTURE, tmp_path / f"{name}.fmu", nudyn)
+    model = load_model(FIXTURE)
+    limited = [j for j in range(model.njnt) if model.jnt_limited[j] and model.jnt_type[j] != mujoco.mjtJoint.mjJNT_BALL]
+    reached = 0
+    for result in validation.results:
+        x = result.summary()
+        tolerance = UNFORCED_TOLERANCE if result.scenario.name in ("tumble", "gravity") else FORCED_TOLERANCE
+        report = json.dumps(x, indent=1)
+        assert x["max_theta_error"] <= tolerance, report
+        assert x["max_nu_error"] <= tolerance, report
+        assert x["max_sensordata_error"] <= tolerance, report
+        theta = result.mujoco.theta
+        for j in limited:
+            low, high = model.jnt_range[j]
+            margin = model.jnt_margin[j]
+            q = theta[:, model.jnt_qposadr[j]]
+            reached += int(np.any((q - low < margin) | (high - q < margin)))
+    assert reached >= 2, "the scenarios must drive some joint into its limit"
+    actuated = next(r for r in validation.results if r.scenario.name == "actuated")
+    frc = [k for k in range(load_model(FIXTURE).nsensor) if load_model(FIXTURE).sensor_type[k] == mujoco.mjtSensor.mjSENS_JOINTLIMITFRC]
+    limit_forces = actuated.mujoco.sensordata[:, [load_model(FIXTURE).sensor_adr[k] for k in frc]]
+    assert np.count_nonzero(limit_forces) > 0, "jointlimitfrc must read a limit's force on the way"
