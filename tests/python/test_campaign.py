@@ -405,6 +405,10 @@ def test_a_rerun_resumes_only_rows_flown_from_the_same_campaign(nudyn, tmp_path)
         ('"plant.method" = {{ grid = ["rk4", "euler"] }}', "the plant FMU has no method 'euler' (it has rk4,"),
         ('"plant.kinetic_energy" = {{ uniform = [0, 1] }}', "the plant FMU computes 'kinetic_energy' (an output)"),
         ('"plant.gain" = {{ uniform = [0, 1] }}', "dispersions.plant.gain: the plant FMU has no variable 'gain'"),
+        ('"nu[4]" = {{ normal = [0, 1] }}\n[schedules]\n"eps[99]" = [[0.0, 1.0]]',
+         "schedules.eps[99]: the plant FMU has eps[1] to eps[13] only"),
+        ('"nu[4]" = {{ normal = [0, 1] }}\n[plant]\nmax_steps = 10', "plant.max_steps: the plant FMU has no variable 'max_steps'"),
+        ('"nu[4]" = {{ normal = [0, 1] }}\n[controller]\nc1 = 1.0', "controller.c1: [controller] needs campaign.controller = true"),
     ],
 )
 def test_targets_the_fmu_cannot_take_are_refused_before_any_case(dispersion, expected, nudyn, tmp_path):
