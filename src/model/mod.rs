@@ -450,7 +450,14 @@ impl Model {
         let shortcuts = Shortcuts::of(&links, &vehicle.gravity);
         let sites = site_frames(vehicle, &attachments);
         let mut actuators = compile_actuators(vehicle, &links, &joints, &sites);
-        for name in wrench_bodies {
+        for (k, name) in wrench_bodies.iter().enumerate() {
+            // Two wrenches on one body would be two sets of inputs that add up:
+            // MuJoCo's xfrc_applied is one wrench per body.
+            if wrench_bodies[..k].contains(name) {
+                return Err(ModelError::WrenchBody {
+                    reason: format!("body '{name}' is named twice: a body takes one wrench (six inputs)"),
+                });
+            }
             actuators.extend(wrench_actuators(vehicle, &attachments, name)?);
         }
         let sensors = sensor::compile_sensors(vehicle, &joints, &attachments, &sites)?;
