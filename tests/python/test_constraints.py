@@ -240,3 +240,38 @@ def test_the_fmu_outputs_qfrc_constraint(nudyn, tmp_path):
     Nudyn(nudyn).export(ROOT / "examples" / "bus_arm7.xml", plain, outputs=("qfrc_constraint",))
     result = simulate_fmu(plain, stop_time=1e-2, output_interval=1e-2, output=["qfrc_constraint[7]"])
     assert np.all(result["qfrc_constraint[7]"] == 0.0)
+
+
+def test_export_disable_leaves_constraint_kinds_out(nudyn, tmp_path):
+    """`nudyn export --disable KIND,...` drops those rows as MuJoCo's flags
+    do: the FMU's modelDescription names what is left, and with every kind
+    disabled its qfrc_constraint stays 0 where the full FMU's does not."""
+    import subprocess
+    import zipfile
+
+    from fmpy import simulate_fmu
+
+    def export(name, *disable):
+        fmu = tmp_path / f"{name}.fmu"
+        options = ["--disable", ",".join(disable)] if disable else []
+        command = [str(nudyn), "export", str(FIXTURES["docked_servicer"]), "-o", str(fmu), "--outputs", "qfrc_constraint", *options]
+        subprocess.run(command, check=True, capture_output=True)
+        with zipfile.ZipFile(fmu) as archive:
+            description = archive.read("modelDescription.xml").decode()
+        return fmu, description
+
+    _, limits_only = export("limits", "equality", "frictionloss")
+    assert "limits on 5 joints" in limits_only and "equality" not in limits_only.split("eps_c;")[1].split('"')[0]
+    assert "friction loss" not in limits_only
+    full, _ = export("full")
+    none, description = export("none", "equality", "frictionloss", "limit")
+    assert "eps_c" not in description
+    names = [f"qfrc_constraint[{i + 1}]" for i in range(6, 12)]
+    start = {"nu[7]": 0.5, "nu[9]": -0.3}
+    for fmu, moves in ((full, True), (none, False)):
+        result = simulate_fmu(fmu, stop_time=0.05, output_interval=0.01, start_values=start, output=names)
+        forces = np.array([result[name] for name in names])
+        assert (np.max(np.abs(forces)) > 0.1) == moves, fmu.name
+
+    refused = subprocess.run([str(nudyn), "export", str(FIXTURES["docked_servicer"]), "-o", str(tmp_path / "x.fmu"), "--disable", "contact"], capture_output=True, text=True)
+    assert refused.returncode == 2 and "unknown constraint kind 'contact'" in refused.stderr
