@@ -25,7 +25,7 @@ from nudyn_validation.scenarios import FORCED_TOLERANCE, UNFORCED_TOLERANCE
 
 FIXTURES = {name: ROOT / "tests" / "fixtures" / "constraints" / f"{name}.xml" for name in ("limited_arm", "docked_servicer")}
 FIXTURE = FIXTURES["limited_arm"]
-N_STATES = 60
+N_STATES = 100
 
 
 def random_states(model: mujoco.MjModel, rng: np.random.Generator):
