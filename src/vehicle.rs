@@ -32,6 +32,8 @@ pub struct Vehicle {
     pub constraint_options: ConstraintOptions,
     /// Equality constraints in document order (MuJoCo's equality order).
     pub equalities: Vec<Equality>,
+    /// `<flag sensor="disable"/>`: MuJoCo computes no sensor, and sensordata stays 0.
+    pub sensors_disabled: bool,
 }
 
 /// One `<body>`.

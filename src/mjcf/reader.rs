@@ -126,6 +126,8 @@ struct Physics {
     frictionloss_disabled: bool,
     limit_disabled: bool,
     equality_disabled: bool,
+    /// `<flag sensor="disable">`: sensordata stays 0.
+    sensor_disabled: bool,
 }
 
 /// What an actuator needs to know of a joint it may name.
@@ -362,6 +364,7 @@ impl Reader {
                 frictionloss_disabled: false,
                 limit_disabled: false,
                 equality_disabled: false,
+                sensor_disabled: false,
             },
             defaults: Defaults::new(),
             warnings: Vec::new(),
@@ -510,6 +513,7 @@ impl Reader {
                 ("frictionloss", &mut physics.frictionloss_disabled),
                 ("limit", &mut physics.limit_disabled),
                 ("equality", &mut physics.equality_disabled),
+                ("sensor", &mut physics.sensor_disabled),
             ] {
                 if let Some(&off) = disabled.get(flag) {
                     *target = off;
@@ -686,6 +690,12 @@ impl Reader {
             self.mocap_bodies.push(name.clone());
         }
         let moving = parent_moving || has_joints;
+        // MuJoCo 4.0's keywords, and its rule for a sleep policy.
+        element.keyword("fuse", &[("auto", ()), ("false", ())])?;
+        let policies = [("auto", false), ("never", true), ("allowed", true), ("init", true)];
+        if element.keyword("sleep", &policies)? == Some(true) && !(has_joints && !parent_moving) {
+            return Err(element.invalid("sleep policy only allowed for movable root bodies"));
+        }
         // MuJoCo's condition for moving the body frame to the inertial frame.
         let aligned = match joints.as_slice() {
             [only] if only.settings.kind == JointKind::Free && child_bodies.is_empty() => {
@@ -1471,6 +1481,7 @@ impl Reader {
             actuation: self.physics.actuation,
             constraint_options: self.physics.constraint_options,
             equalities: std::mem::take(&mut self.equalities),
+            sensors_disabled: self.physics.sensor_disabled,
         };
         Ok(Imported { vehicle, warnings: self.warnings })
     }

@@ -247,6 +247,10 @@ pub struct Model {
     /// Friction loss and joint limits: MuJoCo's constraint rows.
     #[serde(default)]
     pub constraints: Constraints,
+    /// `<flag sensor="disable"/>`: the sensors keep their places in
+    /// sensordata, which stays 0 as MuJoCo leaves it.
+    #[serde(default)]
+    pub sensors_disabled: bool,
 }
 
 /// Why a vehicle cannot be compiled.
@@ -493,6 +497,7 @@ impl Model {
             link_tree_quats,
             wrench_bodies: wrench_bodies.to_vec(),
             constraints: Constraints::default(),
+            sensors_disabled: vehicle.sensors_disabled,
         };
         model.validate()?;
         model.check_positive_definite()?;
