@@ -693,7 +693,8 @@ impl Reader {
         // MuJoCo 4.0's keywords, and its rule for a sleep policy.
         element.keyword("fuse", &[("auto", ()), ("false", ())])?;
         let policies = [("auto", false), ("never", true), ("allowed", true), ("init", true)];
-        if element.keyword("sleep", &policies)? == Some(true) && !(has_joints && !parent_moving) {
+        let movable_root = has_joints && !parent_moving;
+        if element.keyword("sleep", &policies)? == Some(true) && !movable_root {
             return Err(element.invalid("sleep policy only allowed for movable root bodies"));
         }
         // MuJoCo's condition for moving the body frame to the inertial frame.
