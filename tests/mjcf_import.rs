@@ -670,3 +670,26 @@ fn a_moving_body_shaped_by_a_mesh_is_refused_until_it_has_an_inertial() {
         moving.replace("<freejoint/>", r#"<freejoint/><inertial pos="0 0 0" mass="5" diaginertia="1 1 1"/>"#);
     assert_eq!(parse_mjcf(&with_inertial).unwrap().vehicle.bodies[0].inertia.as_ref().unwrap().mass, 5.0);
 }
+
+#[test]
+fn unnamed_elements_cannot_be_named_and_do_not_take_a_file_s_names() {
+    // Body 0 is unnamed; the file names body 1 "body0", the name nudyn
+    // makes up for body 0. MuJoCo accepts it; so must nudyn.
+    let xml = r#"<mujoco><worldbody>
+<body><freejoint/><geom size="1"/>
+<body name="body0"><joint name="body0_joint0"/><geom size="1"/></body>
+<body><joint/><geom size="1"/></body>
+</body></worldbody></mujoco>"#;
+    let vehicle = parse_mjcf(xml).unwrap().vehicle;
+    let names: Vec<&str> = vehicle.bodies.iter().map(|b| b.name.as_str()).collect();
+    assert_eq!(names, ["body0_unnamed", "body0", "body2"]);
+    let joints: Vec<&str> = vehicle.bodies.iter().flat_map(|b| &b.joints).map(|j| j.name.as_str()).collect();
+    assert_eq!(joints, ["body0_joint0_unnamed", "body0_joint0", "body2_joint0"]);
+    // A name nudyn made up is no name to refer to.
+    let sensed = xml.replace("</mujoco>", r#"<sensor><jointpos joint="body2_joint0"/></sensor></mujoco>"#);
+    let refused = parse_mjcf(&sensed).unwrap_err().to_string();
+    assert!(refused.contains("unknown joint 'body2_joint0' in sensor"), "{refused}");
+    let sensed = xml.replace("</mujoco>", r#"<sensor><subtreecom body="body2"/></sensor></mujoco>"#);
+    let refused = parse_mjcf(&sensed).unwrap_err().to_string();
+    assert!(refused.contains("unknown body 'body2' in sensor"), "{refused}");
+}

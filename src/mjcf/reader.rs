@@ -215,6 +215,8 @@ struct Reader {
     sensors: Vec<Sensor>,
     sensor_names: HashMap<String, u32>,
     equalities: Vec<Equality>,
+    /// The bodies the file leaves unnamed.
+    unnamed_bodies: Vec<usize>,
     /// The files the model is read from, for the paths of its assets.
     sources: Sources,
     /// Each `<mesh>` asset's name and the path of its file.
@@ -381,6 +383,7 @@ impl Reader {
             sensors: Vec::new(),
             sensor_names: HashMap::new(),
             equalities: Vec::new(),
+            unnamed_bodies: Vec::new(),
             sources,
             mesh_files: HashMap::new(),
             mocap_bodies: Vec::new(),
@@ -582,7 +585,30 @@ impl Reader {
                 _ => return Err(unsupported_child(&child)),
             }
         }
+        self.set_apart_unnamed();
         Ok(())
+    }
+
+    /// Gives the names made up for unnamed bodies and joints a suffix where
+    /// they equal a name the file gives (or each other), so that no two
+    /// bodies or joints share a name in descriptions and messages.
+    fn set_apart_unnamed(&mut self) {
+        let mut taken: std::collections::HashSet<String> = self.body_names.keys().cloned().collect();
+        for &index in &self.unnamed_bodies {
+            let name = &mut self.bodies[index].name;
+            while !taken.insert(name.clone()) {
+                name.push_str("_unnamed");
+            }
+        }
+        let mut taken: std::collections::HashSet<String> = self.joint_names.keys().cloned().collect();
+        for joint in self.bodies.iter_mut().flat_map(|b| &mut b.joints) {
+            // A named joint is the one its name was claimed for, at its line.
+            if self.joint_names.get(&joint.name) != Some(&joint.line) {
+                while !taken.insert(joint.name.clone()) {
+                    joint.name.push_str("_unnamed");
+                }
+            }
+        }
     }
 
     /// Reads a child of `<worldbody>` and its descendants in document order
@@ -615,8 +641,18 @@ impl Reader {
         let own_quat = self.resolve(element, &Orientation::read(element)?.unwrap_or_default())?;
         let (pos, quat) = frame.map_or((own_pos, own_quat), |frame| compose(&frame, &(own_pos, own_quat)));
         let index = self.bodies.len();
-        let name = element.text("name").map_or_else(|| format!("body{index}"), str::to_string);
-        claim_name(&mut self.body_names, "body", &name, element)?;
+        // An unnamed body gets a name for messages and descriptions, which
+        // nothing can refer to (MuJoCo's unnamed elements have none).
+        let name = match element.text("name") {
+            Some(name) => {
+                claim_name(&mut self.body_names, "body", name, element)?;
+                name.to_string()
+            }
+            None => {
+                self.unnamed_bodies.push(index);
+                format!("body{index}")
+            }
+        };
 
         let mut inertial: Option<(Element, BodyInertia)> = None;
         let mut joints = Vec::new();
@@ -1050,8 +1086,11 @@ impl Reader {
                 JointKind::Ball | JointKind::Free => (0.0, 0.0),
             };
             let actuator_force_range = self.actuator_force_range(&element, &s)?;
-            let name = element.text("name").map_or_else(|| format!("{body_name}_joint{k}"), str::to_string);
-            claim_name(&mut self.joint_names, "joint", &name, &element)?;
+            let named = element.text("name");
+            let name = named.map_or_else(|| format!("{body_name}_joint{k}"), str::to_string);
+            if named.is_some() {
+                claim_name(&mut self.joint_names, "joint", &name, &element)?;
+            }
             let range = match s.kind {
                 JointKind::Hinge | JointKind::Ball if self.joint_limited(&s) => {
                     s.range.map(|x| self.compiler.angles.radians(x))
@@ -1059,7 +1098,9 @@ impl Reader {
                 _ => s.range,
             };
             let limited = s.kind != JointKind::Free && self.joint_limited(&s);
-            self.joint_targets.insert(name.clone(), JointTarget { kind: s.kind, range, limited });
+            if named.is_some() {
+                self.joint_targets.insert(name.clone(), JointTarget { kind: s.kind, range, limited });
+            }
             joints.push(Joint {
                 name,
                 kind: s.kind,
