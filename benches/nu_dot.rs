@@ -68,6 +68,7 @@ fn hinge_chain(links: usize) -> Vehicle {
         actuation,
         constraint_options,
         equalities: Vec::new(),
+        sensors_disabled: false,
     }
 }
 

@@ -188,13 +188,13 @@ pub fn evaluate(model: &Model, ws: &mut Workspace, request: &EvalRequest) -> Res
         Some(a) => eps.iter().zip(&a.eps_actuator).map(|(e, a)| e + a).collect(),
         None => eps.clone(),
     };
+    ws.compute_nu_dot(model, &applied)?;
     let constraints = if model.constraints.is_empty() {
         None
     } else {
-        ws.add_constraint_eps(model, &mut applied)?;
+        ws.apply_constraint_forces(model, &mut applied)?;
         Some(ConstraintResponse::of(model, &ws.constraint_rows))
     };
-    ws.compute_nu_dot(model, &applied)?;
     ws.compute_accelerations(model)?;
     let momentum = ws.momentum(model)?;
     let mut response = EvalResponse {

@@ -32,6 +32,8 @@ pub struct Vehicle {
     pub constraint_options: ConstraintOptions,
     /// Equality constraints in document order (MuJoCo's equality order).
     pub equalities: Vec<Equality>,
+    /// `<flag sensor="disable"/>`: MuJoCo computes no sensor, and sensordata stays 0.
+    pub sensors_disabled: bool,
 }
 
 /// One `<body>`.
@@ -590,6 +592,57 @@ pub enum EqualityKind {
         /// `polycoef`.
         polycoef: [f64; 5],
     },
+}
+
+/// The kinds of constraint a user can leave out of a model, as MuJoCo's
+/// `<flag equality|frictionloss|limit="disable">` leave them out.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ConstraintKind {
+    /// Equality constraints.
+    Equality,
+    /// Joint friction loss.
+    FrictionLoss,
+    /// Joint limits.
+    Limit,
+}
+
+impl ConstraintKind {
+    /// Every kind, by its flag's name.
+    pub const ALL: [(&str, ConstraintKind); 3] = [
+        ("equality", ConstraintKind::Equality),
+        ("frictionloss", ConstraintKind::FrictionLoss),
+        ("limit", ConstraintKind::Limit),
+    ];
+}
+
+impl std::str::FromStr for ConstraintKind {
+    type Err = String;
+
+    fn from_str(name: &str) -> Result<Self, String> {
+        let found = ConstraintKind::ALL.iter().find(|(flag, _)| *flag == name.trim());
+        found.map(|&(_, kind)| kind).ok_or_else(|| {
+            let names: Vec<&str> = ConstraintKind::ALL.iter().map(|(flag, _)| *flag).collect();
+            format!("unknown constraint kind '{name}': expected one of {}", names.join(", "))
+        })
+    }
+}
+
+impl Vehicle {
+    /// Leaves out the constraints of `kind`, as the MJCF's
+    /// `<flag {kind}="disable"/>` would.
+    pub fn disable_constraints(&mut self, kind: ConstraintKind) {
+        match kind {
+            ConstraintKind::Equality => self.equalities.clear(),
+            ConstraintKind::FrictionLoss | ConstraintKind::Limit => {
+                for joint in self.bodies.iter_mut().flat_map(|b| &mut b.joints) {
+                    match kind {
+                        ConstraintKind::FrictionLoss => joint.constraints.frictionloss = 0.0,
+                        _ => joint.constraints.limit = None,
+                    }
+                }
+            }
+        }
+    }
 }
 
 impl EqualityKind {

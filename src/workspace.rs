@@ -135,7 +135,7 @@ pub struct Workspace {
     /// every other pass 3), so that the sensors need not run it again.
     pub inputs_applied: bool,
 
-    /// The active constraint rows and their forces — add_constraint_eps.
+    /// The active constraint rows and their forces — apply_constraint_forces.
     pub constraint_rows: ConstraintRows,
 
     /// MuJoCo's sensordata — compute_sensors.

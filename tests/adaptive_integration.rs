@@ -5,7 +5,7 @@
 mod common;
 
 use common::{Rng, TreeOptions, random_theta, random_vehicle};
-use nudyn::integrate::{AdvanceError, Carry, MAX_STEPS, Method, Settings, Simulation};
+use nudyn::integrate::{AdvanceError, Carry, Input, MAX_STEPS, Method, Settings, Simulation, ToleranceRelaxed};
 use nudyn::model::Model;
 use nudyn::vehicle::{JointKind, Vehicle};
 
@@ -255,6 +255,64 @@ fn round_off_in_the_rates_relaxes_the_tolerance_and_says_so() {
         let k_drift = (energy(&result.states.last().unwrap().1) - k0).abs() / k0;
         assert!(k_drift <= attained * duration, "{method:?}: K drift {k_drift:.2e}, attained {attained:.2e}");
     }
+    // The warning blames round-off here, where the motion stays bounded (K is invariant).
+    let mut sim = Simulation::new(&model, Method::Dop853, settings(tolerance));
+    (sim.state.theta, sim.state.nu) = start.clone();
+    let warnings: Vec<ToleranceRelaxed> =
+        (1..=20).filter_map(|n| sim.advance_to(&model, n as f64 * 0.05, no_eps).unwrap().relaxed).collect();
+    assert!(!warnings.is_empty());
+    for warning in &warnings {
+        let message = warning.to_string();
+        eprintln!("{message}");
+        assert!(!message.contains("diverges"), "{message}");
+        assert!(
+            message.starts_with("tolerance 1e-9 per second is below what round-off in this vehicle's rates allows")
+        );
+        assert!(message.contains(&format!("held to {:e} per second, relative to 1 + |x|", warning.attained)));
+    }
+}
+
+/// A sampled loop around the vehicle whose gain is too high for its
+/// communication step: ε = −c₁ν sampled and held over h = 0.01 s with
+/// c₁h = 3, so |ν| is multiplied by about |1 − c₁h| = 2 each step and the
+/// arm's rates grow faster still (Coriolis terms grow as |ν|²). The error
+/// estimate then stops falling as the step is cut (the motion outruns every
+/// step), which the round-off test takes for round-off; the warning used to
+/// say "below what round-off in this vehicle's rates allows". It must say
+/// that the motion diverges, by how much the rates grew, and what error
+/// is held relative to the state's size.
+#[test]
+fn a_diverging_loop_is_not_blamed_on_round_off() {
+    let imported = nudyn::mjcf::load_mjcf(std::path::Path::new("examples/bus_arm7.xml")).unwrap();
+    let model = Model::compile(&imported.vehicle).unwrap();
+    let mut sim = Simulation::new(&model, Method::Dop853, settings(1e-8));
+    sim.state.nu = vec![0.1; model.nv];
+    sim.initialize(&model).unwrap();
+    let speed = |nu: &[f64]| nu.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let start_speed = speed(&sim.state.nu);
+    let (h, c1) = (0.01, 300.0);
+    let (no_rate, no_ctrl) = (vec![0.0; model.nv], vec![0.0; model.actuators.len()]);
+    let mut eps = vec![0.0; model.nv];
+    for k in 1..=40 {
+        eps.iter_mut().zip(&sim.state.nu).for_each(|(e, nu)| *e = -c1 * nu);
+        let input = Input { eps: &eps, eps_rate: &no_rate, ctrl: &no_ctrl, ctrl_rate: &no_ctrl };
+        let advanced = sim.advance_to(&model, k as f64 * h, input).unwrap_or_else(|e| panic!("step {k}: {e}"));
+        if let Some(warning) = advanced.relaxed {
+            let grown = speed(&sim.state.nu) / start_speed;
+            let message = warning.to_string();
+            eprintln!("{message}");
+            assert!(grown > 1e4, "|ν| grew only {grown:.1e}-fold by the warning: {message}");
+            let factor = message
+                .strip_prefix("the motion diverges: the rates grew ")
+                .and_then(|rest| rest.split_once("-fold since the start"))
+                .and_then(|(factor, _)| factor.parse::<f64>().ok());
+            assert!(factor.is_some_and(|factor| factor > grown), "{message}");
+            assert!(message.contains("an unstable loop around the FMU") && !message.contains("round-off"), "{message}");
+            assert!(message.contains(&format!("held to {:e} per second, relative to 1 + |x|", warning.attained)));
+            return;
+        }
+    }
+    panic!("no warning in 40 steps: |ν| = {:.1e}", speed(&sim.state.nu));
 }
 
 /// A long interval of slow motion is work asked for, not a failure: from

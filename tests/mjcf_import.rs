@@ -510,6 +510,12 @@ const MALFORMED: &[Malformed] = &[
         xml: "<mujoco>\n<physics/>\n<worldbody/>\n</mujoco>" },
     Malformed { what: "tendon", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<fixed name=\"t\">", line: 9,
         xml: "<mujoco>\n<worldbody>\n<body>\n<joint name=\"a\"/>\n<geom size=\"1\"/>\n</body>\n</worldbody>\n<tendon>\n<fixed name=\"t\"><joint joint=\"a\" coef=\"1\"/></fixed>\n</tendon>\n</mujoco>" },
+    Malformed { what: "sleep policy on a moving child", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<body>", line: 5,
+        xml: "<mujoco>\n<worldbody>\n<body name=\"a\">\n<freejoint/><geom size=\"1\"/>\n<body sleep=\"never\">\n<joint/><geom size=\"1\"/>\n</body>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "sleep policy on a static body", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<body>", line: 3,
+        xml: "<mujoco>\n<worldbody>\n<body sleep=\"init\">\n<geom size=\"1\"/>\n<body>\n<joint/><geom size=\"1\"/>\n</body>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "fuse=true", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<body>", line: 3,
+        xml: "<mujoco>\n<worldbody>\n<body fuse=\"true\">\n<freejoint/><geom size=\"1\"/>\n</body>\n</worldbody>\n</mujoco>" },
     Malformed { what: "tendon equality", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<tendon>", line: 8,
         xml: "<mujoco>\n<worldbody>\n<body name=\"a\">\n<freejoint/><geom size=\"1\"/>\n</body>\n</worldbody>\n<equality>\n<tendon tendon1=\"t\"/>\n</equality>\n</mujoco>" },
     Malformed { what: "weld of a body with itself", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<weld>", line: 8,
@@ -667,4 +673,27 @@ fn a_missing_mesh_file_is_an_error_naming_the_file() {
     assert!(matches!(error, MjcfError::Invalid { .. }), "{error:?}");
     let message = error.to_string();
     assert!(message.contains(r#"<mesh name="hull">"#) && message.contains("no/such/hull.stl"), "{message}");
+}
+
+#[test]
+fn unnamed_elements_cannot_be_named_and_do_not_take_a_file_s_names() {
+    // Body 0 is unnamed; the file names body 1 "body0", the name nudyn
+    // makes up for body 0. MuJoCo accepts it; so must nudyn.
+    let xml = r#"<mujoco><worldbody>
+<body><freejoint/><geom size="1"/>
+<body name="body0"><joint name="body0_joint0"/><geom size="1"/></body>
+<body><joint/><geom size="1"/></body>
+</body></worldbody></mujoco>"#;
+    let vehicle = parse_mjcf(xml).unwrap().vehicle;
+    let names: Vec<&str> = vehicle.bodies.iter().map(|b| b.name.as_str()).collect();
+    assert_eq!(names, ["body0_unnamed", "body0", "body2"]);
+    let joints: Vec<&str> = vehicle.bodies.iter().flat_map(|b| &b.joints).map(|j| j.name.as_str()).collect();
+    assert_eq!(joints, ["body0_joint0_unnamed", "body0_joint0", "body2_joint0"]);
+    // A name nudyn made up is no name to refer to.
+    let sensed = xml.replace("</mujoco>", r#"<sensor><jointpos joint="body2_joint0"/></sensor></mujoco>"#);
+    let refused = parse_mjcf(&sensed).unwrap_err().to_string();
+    assert!(refused.contains("unknown joint 'body2_joint0' in sensor"), "{refused}");
+    let sensed = xml.replace("</mujoco>", r#"<sensor><subtreecom body="body2"/></sensor></mujoco>"#);
+    let refused = parse_mjcf(&sensed).unwrap_err().to_string();
+    assert!(refused.contains("unknown body 'body2' in sensor"), "{refused}");
 }

@@ -159,3 +159,25 @@ fn what_mujocos_compiler_rejects_is_rejected_with_its_reason() {
         Model::compile(&parse_mjcf(&scene(r#"<framezaxis objtype="body" objname="arm"/>"#)).unwrap().vehicle).is_ok()
     );
 }
+
+#[test]
+fn the_sensor_flag_leaves_sensordata_at_zero_as_mujoco_does() {
+    let sensors = r#"<jointpos joint="hinge"/><framepos objtype="site" objname="tip"/><clock/>"#;
+    let read = |xml: String| {
+        let model = Model::compile(&parse_mjcf(&xml).unwrap().vehicle).unwrap();
+        let mut ws = model.workspace();
+        let mut theta = model.qpos0.clone();
+        theta[0] = 0.4;
+        ws.set_configuration(&model, &theta).unwrap();
+        ws.set_qvel(&model, &vec![0.3; model.nv]).unwrap();
+        ws.compute_sensors(&model, &vec![0.0; model.nv], &vec![0.0; model.actuators.len()], 2.0).unwrap();
+        (model.sensors.len(), ws.sensordata.iter().copied().collect::<Vec<f64>>())
+    };
+    let (count, on) = read(scene(sensors));
+    assert!(count == 3 && on.iter().filter(|v| **v != 0.0).count() >= 3, "{on:?}");
+    let disabled = scene(sensors).replace("<mujoco>", r#"<mujoco><option><flag sensor="disable"/></option>"#);
+    let (count, off) = read(disabled);
+    // The layout stays (sensordata keeps its entries), the values stay 0.
+    assert_eq!((count, off.len()), (3, on.len()));
+    assert!(off.iter().all(|v| *v == 0.0), "{off:?}");
+}

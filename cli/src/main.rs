@@ -10,7 +10,7 @@ use nudyn::control::ControlLaw;
 use nudyn::eval::{EvalRequest, EvalResponse, evaluate};
 use nudyn::integrate::{Method, Settings};
 use nudyn::model::Model;
-use nudyn::vehicle::Vehicle;
+use nudyn::vehicle::{ConstraintKind, Vehicle};
 use nudyn_cli::export::controller::write_controller_fmu;
 use nudyn_cli::export::plant::{ExportOptions, write_fmu};
 use nudyn_cli::export::{FmiVersion, Platform, PlatformBinary, model_identifier_from};
@@ -69,6 +69,11 @@ enum Command {
         /// on each of these bodies, comma-separated.
         #[arg(long, value_name = "BODY[,BODY...]", value_delimiter = ',', conflicts_with = "controller")]
         wrench_inputs: Vec<String>,
+        /// Leave these constraint kinds out of the plant, as the MJCF's
+        /// <flag KIND="disable"/> would: equality, frictionloss, limit
+        /// (comma-separated). The FMU's description says what it carries.
+        #[arg(long, value_name = "KIND[,KIND...]", value_delimiter = ',', conflicts_with = "controller")]
+        disable: Vec<ConstraintKind>,
         /// Write the controller FMU of the vehicle instead of the plant:
         /// inputs theta, nu; output eps = -c1 nu + l J^T c2 (Yhat - Y);
         /// Y = every hinge and slide joint value, or the pose of --end-effector.
@@ -230,8 +235,9 @@ fn run(cli: Cli) -> Result<()> {
         Command::Export { model, output, model_identifier, controller: true, end_effector, fmi_version, .. } => {
             export_controller(&model, &output, model_identifier, end_effector.as_deref(), fmi_version)
         }
-        Command::Export { model, output, model_identifier, outputs, fmi_version, wrench_inputs, .. } => {
-            export(&model, &output, model_identifier, outputs, &wrench_inputs, fmi_version)
+        Command::Export { model, output, model_identifier, outputs, fmi_version, wrench_inputs, disable, .. } => {
+            let options = PlantOptions { model_identifier, outputs, wrench_inputs, disable, fmi_version };
+            export(&model, &output, options)
         }
         Command::Simulate { model, step, stop, method, tolerance, max_step, energy_projection, format } => {
             let settings = Settings { tolerance, max_step: max_step.unwrap_or(step), energy_projection };
@@ -268,12 +274,18 @@ fn load_model(path: &Path) -> Result<Model> {
 /// The vehicle as imported (body names and offsets, for a controller's
 /// end effector) and compiled, printing the importer's warnings.
 fn load_vehicle(path: &Path) -> Result<(Vehicle, Model)> {
+    let vehicle = import_vehicle(path)?;
+    let model = Model::compile(&vehicle).with_context(|| format!("cannot compile {}", path.display()))?;
+    Ok((vehicle, model))
+}
+
+/// The vehicle as imported, printing the importer's warnings.
+fn import_vehicle(path: &Path) -> Result<Vehicle> {
     let imported = nudyn::mjcf::load_mjcf(path).with_context(|| format!("cannot import {}", path.display()))?;
     for warning in &imported.warnings {
         eprintln!("nudyn: warning: {}: {warning}", path.display());
     }
-    let model = Model::compile(&imported.vehicle).with_context(|| format!("cannot compile {}", path.display()))?;
-    Ok((imported.vehicle, model))
+    Ok(imported.vehicle)
 }
 
 fn eval(model_path: &Path) -> Result<()> {
@@ -439,20 +451,25 @@ fn report_platforms(output: &Path, binaries: &[PlatformBinary]) -> Result<()> {
     emit(&line)
 }
 
-fn export(
-    model_path: &Path,
-    output: &Path,
+/// What `nudyn export` is asked for a plant FMU.
+struct PlantOptions {
     model_identifier: Option<String>,
     outputs: OptionalOutputs,
-    wrench_inputs: &[String],
+    wrench_inputs: Vec<String>,
+    disable: Vec<ConstraintKind>,
     fmi_version: FmiVersion,
-) -> Result<()> {
-    let (vehicle, _) = load_vehicle(model_path)?;
-    let model = Model::compile_with_wrench_inputs(&vehicle, wrench_inputs)
+}
+
+fn export(model_path: &Path, output: &Path, plant: PlantOptions) -> Result<()> {
+    let mut vehicle = import_vehicle(model_path)?;
+    for &kind in &plant.disable {
+        vehicle.disable_constraints(kind);
+    }
+    let model = Model::compile_with_wrench_inputs(&vehicle, &plant.wrench_inputs)
         .with_context(|| format!("cannot compile {}", model_path.display()))?;
     let stem = model_path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    let model_identifier = model_identifier.unwrap_or_else(|| model_identifier_from(&stem));
-    let options = ExportOptions { model_identifier, outputs, fmi_version };
+    let model_identifier = plant.model_identifier.unwrap_or_else(|| model_identifier_from(&stem));
+    let options = ExportOptions { model_identifier, outputs: plant.outputs, fmi_version: plant.fmi_version };
     let binaries = fmu_binaries()?;
     write_fmu(&model, &options, &binaries, output).with_context(|| format!("cannot export {}", output.display()))?;
     report_platforms(output, &binaries)

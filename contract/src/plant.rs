@@ -93,11 +93,14 @@ pub struct OptionalOutputs {
     /// `energy_residual`: K − K₀ − ∫ν·ν̇ dt, the integration's energy error.
     #[serde(default)]
     pub energy_residual: bool,
+    /// `qfrc_constraint[1..nv]`: MuJoCo's qfrc_constraint, the constraint forces' joint forces.
+    #[serde(default)]
+    pub qfrc_constraint: bool,
 }
 
 impl OptionalOutputs {
     /// The name of every optional output, as `--outputs` takes them.
-    pub const NAMES: [&str; 5] = ["qvel", "kinetic_energy", "power", "momentum", "energy_residual"];
+    pub const NAMES: [&str; 6] = ["qvel", "kinetic_energy", "power", "momentum", "energy_residual", "qfrc_constraint"];
 
     /// The flag of the output `name`, if it is one of [`OptionalOutputs::NAMES`].
     fn flag(&mut self, name: &str) -> Option<&mut bool> {
@@ -107,6 +110,7 @@ impl OptionalOutputs {
             "power" => Some(&mut self.power),
             "momentum" => Some(&mut self.momentum),
             "energy_residual" => Some(&mut self.energy_residual),
+            "qfrc_constraint" => Some(&mut self.qfrc_constraint),
             _ => None,
         }
     }
@@ -212,6 +216,8 @@ pub enum RealVariable {
     Momentum(usize),
     /// Optional output `energy_residual`.
     EnergyResidual,
+    /// Optional output `qfrc_constraint[k+1]` (MuJoCo's `d.qfrc_constraint`).
+    QfrcConstraint(usize),
     /// `der(theta[k+1])`: the qpos rate, a state derivative of model exchange.
     DerTheta(usize),
     /// `der(nu[k+1])`: ν̇, a state derivative of model exchange.
@@ -235,6 +241,7 @@ impl RealVariable {
             RealVariable::Power => "power".into(),
             RealVariable::Momentum(k) => format!("momentum[{}]", k + 1),
             RealVariable::EnergyResidual => "energy_residual".into(),
+            RealVariable::QfrcConstraint(k) => format!("qfrc_constraint[{}]", k + 1),
             RealVariable::DerTheta(k) => format!("der(theta[{}])", k + 1),
             RealVariable::DerNu(k) => format!("der(nu[{}])", k + 1),
         }
@@ -346,7 +353,7 @@ impl Layout {
     fn blocks(&self) -> impl Iterator<Item = (u32, usize, VariableOf<RealVariable>)> {
         let o = self.outputs;
         let model_exchange = capabilities(o).model_exchange;
-        let blocks: [(usize, VariableOf<RealVariable>); 15] = [
+        let blocks: [(usize, VariableOf<RealVariable>); 16] = [
             (1, |_| RealVariable::Tolerance),
             (1, |_| RealVariable::MaxStep),
             (self.nv, RealVariable::Eps),
@@ -360,6 +367,7 @@ impl Layout {
             (usize::from(o.power), |_| RealVariable::Power),
             (if o.momentum { 6 } else { 0 }, RealVariable::Momentum),
             (usize::from(o.energy_residual), |_| RealVariable::EnergyResidual),
+            (if o.qfrc_constraint { self.nv } else { 0 }, RealVariable::QfrcConstraint),
             (if model_exchange { self.nq } else { 0 }, RealVariable::DerTheta),
             (if model_exchange { self.nv } else { 0 }, RealVariable::DerNu),
         ];
@@ -398,6 +406,8 @@ impl Layout {
             RealVariable::Theta(_) | RealVariable::Nu(_) => vec![variable],
             RealVariable::KineticEnergy => nu.collect(),
             RealVariable::Power => nu.chain(eps).collect(),
+            // One problem couples every row to every input's ε.
+            RealVariable::QfrcConstraint(_) => theta.chain(nu).chain(eps).chain(ctrl).chain(wrenches).collect(),
             // Every actuator's ε reaches every dof through ℓ in general.
             RealVariable::DerNu(k) => {
                 theta.chain(nu).chain([RealVariable::Eps(k)]).chain(ctrl).chain(wrenches).collect()
@@ -445,8 +455,9 @@ impl Layout {
             RealVariable::Power => (10, 0),
             RealVariable::Momentum(k) => (11, k),
             RealVariable::EnergyResidual => (12, 0),
-            RealVariable::DerTheta(k) => (13, k),
-            RealVariable::DerNu(k) => (14, k),
+            RealVariable::QfrcConstraint(k) => (13, k),
+            RealVariable::DerTheta(k) => (14, k),
+            RealVariable::DerNu(k) => (15, k),
         };
         let (first, len, _) = self.blocks().nth(block)?;
         (k < len).then_some(first + k as u32)
@@ -462,7 +473,14 @@ mod tests {
         let all: OptionalOutputs = "qvel, kinetic_energy,power,momentum".parse().unwrap();
         assert_eq!(
             all,
-            OptionalOutputs { qvel: true, kinetic_energy: true, power: true, momentum: true, energy_residual: false }
+            OptionalOutputs {
+                qvel: true,
+                kinetic_energy: true,
+                power: true,
+                momentum: true,
+                energy_residual: false,
+                qfrc_constraint: false
+            }
         );
         assert_eq!("".parse::<OptionalOutputs>().unwrap(), OptionalOutputs::default());
         assert_eq!("qvel,speed".parse::<OptionalOutputs>(), Err(UnknownOutput("speed".into())));

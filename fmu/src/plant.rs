@@ -260,7 +260,7 @@ impl Component for Plant {
         let variables = || vrs.iter().filter_map(|&vr| self.real(vr));
         if variables().any(|v| matches!(v, RealVariable::Sensordata(_))) {
             self.evaluate(Evaluated::Sensors)?;
-        } else if variables().any(RealVariable::is_derivative) {
+        } else if variables().any(|v| v.is_derivative() || matches!(v, RealVariable::QfrcConstraint(_))) {
             self.evaluate(Evaluated::Acceleration)?;
         } else if variables().any(|v| matches!(v, RealVariable::Qvel(_) | RealVariable::Momentum(_))) {
             self.evaluate(Evaluated::Velocity)?;
@@ -284,6 +284,10 @@ impl Component for Plant {
             RealVariable::Power => run.nu.iter().zip(&self.eps).map(|(n, e)| n * e).sum(),
             RealVariable::Momentum(k) => self.momentum[k],
             RealVariable::EnergyResidual => kinetic_energy(&run.nu) - self.initial_energy - run.carry.work,
+            // A vehicle without constraints keeps no rows: its constraint forces are 0.
+            RealVariable::QfrcConstraint(k) => {
+                self.sim.workspace().constraint_rows.qfrc_constraint.get(k).copied().unwrap_or(0.0)
+            }
             RealVariable::DerTheta(k) => self.qpos_rate(k),
             RealVariable::DerNu(k) => self.sim.workspace().nu_dot[k],
         }

@@ -19,8 +19,9 @@ const MAGIC: &[u8; 8] = b"nudynFMS";
 /// integration method, energy projection, carried step, work and K₀; 4: the
 /// error control's relaxation; 5: the actuators' controls and their rates;
 /// 6: the method as the FMU's `method` value, max_step 0 allowed; 7: θ̇,
-/// which the integrator advances; 8: the W a Rosenbrock method holds).
-const VERSION: u32 = 8;
+/// which the integrator advances; 8: the W a Rosenbrock method holds; 9:
+/// the rates at the run's start, which a relaxation's warning compares with).
+const VERSION: u32 = 9;
 
 /// The sizes of a plant's state: a blob is restored only into a plant of the same.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -129,10 +130,10 @@ fn fnv1a(bytes: &[u8]) -> u64 {
 }
 
 impl Snapshot {
-    /// Number of scalars after the header: nine times, settings and
+    /// Number of scalars after the header: ten times, settings and
     /// integration values, then theta, nu, qvel, eps, eps_rate, ctrl, ctrl_rate.
     fn scalar_count(sizes: Sizes) -> usize {
-        9 + sizes.nq + 4 * sizes.nv + 2 * sizes.nu
+        SCALARS + sizes.nq + 4 * sizes.nv + 2 * sizes.nu
     }
 
     /// The sizes of the saved state.
@@ -174,6 +175,7 @@ impl Snapshot {
             s.run.carry.work,
             s.initial_energy,
             s.run.carry.relaxation,
+            s.run.carry.start_rates,
         ];
         let w = &s.jacobian.derivatives;
         let vectors = [&s.run.theta, &s.run.nu, &s.run.qvel, &s.eps, &s.eps_rate, &s.ctrl, &s.ctrl_rate, w];
@@ -230,7 +232,7 @@ impl Snapshot {
         if holds_jacobian && !matches!(method.scheme(), Scheme::Rosenbrock(_)) {
             return Err(SnapshotError::JacobianWithoutRosenbrock(method.name()));
         }
-        let (settings, vectors) = scalars.split_at(9);
+        let (settings, vectors) = scalars.split_at(SCALARS);
         check_values(settings, vectors)?;
         let (theta, rest) = vectors.split_at(nq);
         let (nu, rest) = rest.split_at(nv);
@@ -248,7 +250,12 @@ impl Snapshot {
                     theta: theta.to_vec(),
                     nu: nu.to_vec(),
                     qvel: qvel.to_vec(),
-                    carry: Carry { next_step: settings[5], work: settings[6], relaxation: settings[8] },
+                    carry: Carry {
+                        next_step: settings[5],
+                        work: settings[6],
+                        relaxation: settings[8],
+                        start_rates: settings[9],
+                    },
                 },
                 settings: Settings { tolerance: settings[3], max_step: settings[4], energy_projection },
                 method,
@@ -270,12 +277,15 @@ impl Snapshot {
 /// age (steps accepted with it, a u32) follows them.
 const FLAGS: usize = 5;
 
+/// The scalars before the vectors: times, settings and integration values.
+const SCALARS: usize = 10;
+
 /// Checks what fmi2SetupExperiment and fmi2SetReal would have refused:
 /// every value finite, `tolerance` positive, `max_step`, the carried
-/// step, K₀ and the relaxation not negative. (The stop time
-/// is checked even when it is not defined: the writer stores 0 then.)
+/// step, K₀, the relaxation and the start's rates not negative. (The stop
+/// time is checked even when it is not defined: the writer stores 0 then.)
 fn check_values(settings: &[f64], vectors: &[f64]) -> Result<(), SnapshotError> {
-    const NAMES: [&str; 9] = [
+    const NAMES: [&str; SCALARS] = [
         "time",
         "start_time",
         "stop_time",
@@ -285,6 +295,7 @@ fn check_values(settings: &[f64], vectors: &[f64]) -> Result<(), SnapshotError> 
         "work",
         "initial energy",
         "relaxation",
+        "start rates",
     ];
     for (&what, &value) in NAMES.iter().zip(settings) {
         if !value.is_finite() {
@@ -294,7 +305,7 @@ fn check_values(settings: &[f64], vectors: &[f64]) -> Result<(), SnapshotError> 
     if settings[3] <= 0.0 {
         return Err(SnapshotError::Value { what: NAMES[3], value: settings[3], must: "positive" });
     }
-    for (&what, &value) in [4, 5, 7, 8].map(|i| (&NAMES[i], &settings[i])) {
+    for (&what, &value) in [4, 5, 7, 8, 9].map(|i| (&NAMES[i], &settings[i])) {
         if value < 0.0 {
             return Err(SnapshotError::Value { what, value, must: "non-negative" });
         }
@@ -353,7 +364,7 @@ mod tests {
                     theta: vec![1.0, 0.0, 0.0, 0.0, std::f64::consts::PI],
                     nu: vec![1e-300, -0.0, 3.5, 7.25],
                     qvel: vec![2e-300, -0.0, 1.75, -0.5],
-                    carry: Carry { next_step: 2.5e-3, work: -0.75, relaxation: 3.0 },
+                    carry: Carry { next_step: 2.5e-3, work: -0.75, relaxation: 3.0, start_rates: 42.5 },
                 },
                 settings: Settings { tolerance: 1e-6, max_step: 1e-3, energy_projection: true },
                 method: Method::Dopri5,

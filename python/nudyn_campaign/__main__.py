@@ -1,4 +1,4 @@
-"""`nudyn-campaign CAMPAIGN.toml --out DIR [--cases N] [--workers N] [--scheduler ADDRESS]`."""
+"""`nudyn-campaign CAMPAIGN.toml --out DIR [--cases N] [--workers N] [--scheduler ADDRESS] [--overwrite]`."""
 
 import sys
 

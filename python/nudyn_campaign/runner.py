@@ -8,8 +8,12 @@ rows as it finishes (so an interrupted campaign resumes where it stopped).
 
 from __future__ import annotations
 
+import importlib
+import logging
 import math
 import os
+import signal
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,10 +25,13 @@ from tqdm import tqdm
 
 from nudyn_driver.cli import Nudyn
 from nudyn_driver.locations import nudyn_binary
+from nudyn_driver.package import FmuPackage
 
+from . import provenance, variables
 from . import spec as specs
 from .cases import run_chunk
-from .files import write_atomically
+from .files import OutputError, write_atomically
+from .spec import CampaignError
 from .metrics import NAMES
 
 # The folder holding these packages: python/ of a checkout, site-packages of the wheel.
@@ -74,16 +81,78 @@ def _write_parquet(table: pa.Table, path: Path) -> None:
 
 
 def _client(workers: int | None, scheduler: str | None):
+    import dask.config
     from dask.distributed import Client, LocalCluster
 
     if scheduler is not None:
-        return Client(scheduler), None
+        try:
+            return Client(scheduler), None
+        except (OSError, TimeoutError, ValueError) as error:
+            timeout = dask.config.get("distributed.comm.timeouts.connect")
+            raise CampaignError(
+                f"--scheduler {scheduler}: no Dask scheduler answered: {error} "
+                f"(the wait, {timeout}, is DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT)"
+            ) from None
     # Worker processes import nudyn_campaign from the repository's python/.
     paths = [str(PACKAGES), *filter(None, os.environ.get("PYTHONPATH", "").split(os.pathsep))]
     os.environ["PYTHONPATH"] = os.pathsep.join(dict.fromkeys(paths))
-    cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                           dashboard_address=None)
+    # The worker processes ignore SIGINT (a Ctrl-C reaches the whole process
+    # group): the driver alone stops on it, and closes them.
+    handler = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=logging.ERROR)
+    finally:
+        signal.signal(signal.SIGINT, handler)
     return Client(cluster), cluster
+
+
+def _quiet_dask() -> None:
+    """Dask's complaints about a cluster closed in the middle of its work say nothing more."""
+    for name in ("distributed", "tornado", "asyncio"):
+        logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+
+
+def prepare_out(out: Path) -> None:
+    """OUT as a directory that can be written, or an OutputError naming the path and what is wrong."""
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"--out {out}: is a file, not a directory")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out):
+            pass
+    except OSError as error:
+        parent = next((p for p in out.parents if p.exists()), None)
+        if parent is not None and not parent.is_dir():
+            raise OutputError(f"--out {out}: cannot be created: {parent} is a file, not a directory") from None
+        raise OutputError(f"--out {out}: cannot be written: {error.strerror or error}") from None
+
+
+def check_metrics(campaign: specs.Campaign) -> None:
+    """Each `module:function` of campaign.metrics imports here, as it must on the workers."""
+    for name in campaign.metrics:
+        module, _, attribute = name.partition(":")
+        try:
+            function = getattr(importlib.import_module(module), attribute)
+        except ImportError as error:
+            raise CampaignError(f"campaign.metrics: '{name}': cannot import {module}: {error}") from None
+        except AttributeError:
+            raise CampaignError(f"campaign.metrics: '{name}': module {module} has no {attribute}") from None
+        if not callable(function):
+            raise CampaignError(f"campaign.metrics: '{name}' is not a function")
+
+
+def _packages(fmus: Fmus, scratch: Path) -> tuple[FmuPackage, FmuPackage | None]:
+    """The FMUs unzipped into `scratch`, for their variables."""
+    packages = []
+    for kind, fmu in (("plant", fmus.plant), ("controller", fmus.controller)):
+        if fmu is None:
+            packages.append(None)
+            continue
+        archive = scratch / f"{kind}.fmu"
+        archive.write_bytes(fmu)
+        packages.append(FmuPackage.unzip(archive, scratch / kind))
+    return packages[0], packages[1]
 
 
 def run_campaign(
@@ -96,16 +165,30 @@ def run_campaign(
     nudyn: str | Path | None = None,
     progress: bool = True,
     stop_after_chunks: int | None = None,
+    overwrite: bool = False,
 ) -> pa.Table:
     """Runs (or resumes) the campaign; returns the results table, also
-    written to OUT/results.parquet with the report beside it."""
+    written to OUT/results.parquet with the report beside it. A rerun
+    resumes only rows flown from the same campaign (provenance.py);
+    `overwrite` removes rows of another and starts afresh."""
     campaign = specs.load(campaign_path)
     if cases is not None:
+        if cases < 1:
+            raise CampaignError(f"--cases: expected at least 1 case, found {cases}")
         campaign.cases = cases
+    if workers is not None and workers < 1:
+        raise CampaignError(f"--workers: expected at least 1 worker process, found {workers}")
+    check_metrics(campaign)
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    prepare_out(out)
     nudyn = Path(nudyn or nudyn_binary())
-    fmus = export(campaign, out, nudyn)
+    with tempfile.TemporaryDirectory(prefix="nudyn-campaign-") as scratch:
+        fmus = export(campaign, Path(scratch), nudyn)
+        variables.check(campaign, *_packages(fmus, Path(scratch)))
+    provenance.resume_or_start(out, provenance.flown_from(campaign, fmus.plant, fmus.controller), overwrite)
+    for name, fmu in (("plant.fmu", fmus.plant), ("controller.fmu", fmus.controller)):
+        if fmu is not None:
+            write_atomically(out / "fmus" / name, lambda temporary, fmu=fmu: temporary.write_bytes(fmu))
     done = finished_cases(out)
     missing = [k for k in range(campaign.cases) if k not in done]
     worker_spec = {
@@ -117,6 +200,9 @@ def run_campaign(
         client, cluster = _client(workers, scheduler)
         try:
             _run(client, campaign, worker_spec, fmus, missing, out, progress, stop_after_chunks, len(done))
+        except KeyboardInterrupt:
+            _quiet_dask()
+            raise
         finally:
             client.close()
             if cluster is not None:

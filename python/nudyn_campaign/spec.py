@@ -35,7 +35,8 @@ to b (1-based, inclusive), each drawn on its own. Distributions: uniform
 [low, high], normal [mean, sd], choice [values...] (drawn), grid [values...]
 (choice and grid also take names: plant.method = { grid = ["rk4", "dop853"] })
 (not drawn: case k takes the grids' values in turn, the first grid
-fastest, so a grid of G values sweeps every G-th case). A schedule sets an
+fastest, so a grid of G values sweeps every G-th case). Each variable is
+dispersed by one key at most (qvel and nu never together). A schedule sets an
 input (eps[k], ctrl[k], xfrc_applied[k]) at the communication points from
 its times on, the same in every case; before its first time the input
 keeps its start value (0, or a dispersed one).
@@ -53,6 +54,7 @@ import numpy as np
 DISTRIBUTIONS = ("uniform", "normal", "choice", "grid")
 INPUTS = ("eps", "ctrl", "xfrc_applied")
 STATES = ("theta", "nu", "qvel")
+_METRIC = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$")
 _TARGET = re.compile(r"^(?:(plant|controller)\.)?([A-Za-z_][A-Za-z0-9_]*)(?:\[(\d+)(?::(\d+))?\])?$")
 
 
@@ -200,6 +202,10 @@ def load(path: str | Path) -> Campaign:
     dispersions = tuple(_dispersion(key, value) for key, value in document.get("dispersions", {}).items())
     if not controller and any(d.scope == "controller" for d in dispersions):
         raise CampaignError("dispersions of controller parameters need campaign.controller = true")
+    _refuse_overlaps(dispersions)
+    metrics = section.get("metrics", [])
+    if not isinstance(metrics, list) or not all(isinstance(m, str) and _METRIC.match(m) for m in metrics):
+        raise CampaignError(f"campaign.metrics: expected a list of \"module:function\" names, found {metrics!r}")
     for name, values in (("plant", document.get("plant", {})), ("controller", document.get("controller", {}))):
         for key, value in values.items():
             if not isinstance(value, (int, float, str, bool)):
@@ -218,12 +224,50 @@ def load(path: str | Path) -> Campaign:
         wrench_bodies=tuple(section.get("wrench_bodies", ())),
         settle_threshold=_number(section.get("settle_threshold", 0.01), "campaign.settle_threshold"),
         trajectories=bool(section.get("trajectories", False)),
-        metrics=tuple(section.get("metrics", ())),
+        metrics=tuple(metrics),
         plant_parameters=dict(document.get("plant", {})),
         controller_parameters=dict(document.get("controller", {})),
         dispersions=dispersions,
         schedules=schedules,
     )
+
+
+def _entries(dispersion: Dispersion) -> set[tuple[str, str, int | None]]:
+    """The FMU variables a dispersion sets, as (scope, array or parameter
+    name, 1-based entry or None for every entry); plant.theta[k] is theta[k]."""
+    entries = set()
+    for name in dispersion.names:
+        base, _, index = name.partition("[")
+        entries.add((dispersion.scope, base, int(index[:-1]) if index else None))
+    return entries
+
+
+def _refuse_overlaps(dispersions: tuple[Dispersion, ...]) -> None:
+    """Two dispersions that set the same variable would fly one value and
+    record both: refused, naming both keys. qvel and nu both set ν (qvel is
+    turned into ν at the drawn θ, every entry at once), so they never go
+    together."""
+    for i, first in enumerate(dispersions):
+        for second in dispersions[i + 1 :]:
+            bases = {_entries(first).pop()[1], _entries(second).pop()[1]}
+            if bases == {"qvel", "nu"} and first.scope == second.scope == "plant":
+                raise CampaignError(
+                    f"dispersions: '{first.key}' and '{second.key}' both set the start velocity ν "
+                    "(qvel is turned into ν, every entry at once): disperse qvel or nu, not both"
+                )
+            shared = sorted(
+                (base, a if a is not None else b)
+                for scope, base, a in _entries(first)
+                for other_scope, other_base, b in _entries(second)
+                if (scope, base) == (other_scope, other_base) and (a is None or b is None or a == b)
+            )
+            if shared:
+                base, index = shared[0]
+                what = f"{base}[{index}]" if index is not None else base
+                raise CampaignError(
+                    f"dispersions: '{first.key}' and '{second.key}' both set {first.scope} variable {what}: "
+                    "a case would fly one value and record two; disperse each variable once"
+                )
 
 
 def _schedule(key: str, points) -> tuple[tuple[float, float], ...]:

@@ -334,11 +334,10 @@ impl Workspace {
                 *total = input + actuator;
             }
         }
-        let mut result = Ok(());
-        if !model.constraints.is_empty() {
-            result = self.add_constraint_eps(model, applied.as_mut_slice());
+        let mut result = pass(self, model, applied.as_slice());
+        if result.is_ok() && !model.constraints.is_empty() {
+            result = self.apply_constraint_forces(model, applied.as_mut_slice());
         }
-        let result = result.and_then(|()| pass(self, model, applied.as_slice()));
         self.eps_applied = applied;
         result?;
         self.eps_input.copy_from_slice(eps);

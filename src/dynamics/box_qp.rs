@@ -2,13 +2,16 @@
 //! lower ≤ f ≤ upper, with H symmetric positive definite (A + R: R > 0 makes
 //! it so) and 0 within the bounds.
 //!
-//! A primal active-set method: from f = 0 it solves for the free entries
-//! with the bounded ones held, steps as far as the bounds allow, holds the
-//! bound that blocks, and frees the held bound whose multiplier has the
-//! wrong sign once no bound blocks. The objective falls at every step and
-//! the working sets never repeat, so it ends, at the problem's unique
-//! minimizer to round-off: what MuJoCo's solvers approach to their
-//! tolerance. Written here because the rows are few and dense and the
+//! A primal active-set method: from a feasible start (the held entries at
+//! their bounds, the free ones at 0) it solves for the free entries with
+//! the held ones fixed, steps as far as the bounds allow, holds the bound
+//! that blocks, and frees the held bound whose multiplier has the wrong
+//! sign once no bound blocks. The objective falls at every step and the
+//! working sets never repeat, so it ends, at the problem's unique minimizer
+//! to round-off: what MuJoCo's solvers approach to their tolerance. The
+//! start can be the last solve's working set (`warm`), which along a
+//! trajectory is mostly the answer's already: one factorization instead of
+//! one per bound reached. Written here because the rows are few and dense and the
 //! solve must not allocate; no crate offers a bounded QP with caller-owned
 //! buffers.
 
@@ -47,7 +50,9 @@ impl BoxQp {
     }
 
     /// Solves for the first `n` entries: `h` is n×n, row-major with row
-    /// stride `stride`; the answer goes to `f`.
+    /// stride `stride`; the answer goes to `f`. With `warm`, it starts from
+    /// the working set `held` holds (the last solve's, for rows of the same
+    /// meaning), else from every entry free.
     #[allow(clippy::too_many_arguments)]
     pub fn solve(
         &mut self,
@@ -58,10 +63,22 @@ impl BoxQp {
         lower: &[f64],
         upper: &[f64],
         f: &mut [f64],
+        warm: bool,
     ) -> Result<(), DynamicsError> {
         let at = |i: usize, j: usize| h[i * stride + j];
-        f[..n].fill(0.0);
-        self.held[..n].fill(Held::Free);
+        if !warm {
+            self.held[..n].fill(Held::Free);
+        }
+        for i in 0..n {
+            f[i] = match self.held[i] {
+                Held::Lower if lower[i].is_finite() => lower[i],
+                Held::Upper if upper[i].is_finite() => upper[i],
+                _ => {
+                    self.held[i] = Held::Free;
+                    0.0
+                }
+            };
+        }
         // Each working set is visited once; this bound is far above what a
         // solve takes and only stops a loop that round-off could start.
         let limit = 50 + 10 * n * n;
@@ -258,10 +275,18 @@ mod tests {
             }
             let mut qp = BoxQp::new(n);
             let mut f = vec![0.0; n];
-            qp.solve(n, &h, n, &g, &lower, &upper, &mut f).unwrap();
+            qp.solve(n, &h, n, &g, &lower, &upper, &mut f, false).unwrap();
             let expected = brute_force(n, &h, &g, &lower, &upper);
             for i in 0..n {
                 assert!((f[i] - expected[i]).abs() < 1e-10, "trial {trial}: {f:?} against {expected:?}");
+            }
+            // From any working set (here a scrambled one) it reaches the same minimizer.
+            for (i, held) in qp.held[..n].iter_mut().enumerate() {
+                *held = [Held::Free, Held::Lower, Held::Upper][(i + trial) % 3];
+            }
+            qp.solve(n, &h, n, &g, &lower, &upper, &mut f, true).unwrap();
+            for i in 0..n {
+                assert!((f[i] - expected[i]).abs() < 1e-10, "warm, trial {trial}: {f:?} against {expected:?}");
             }
         }
     }

@@ -83,13 +83,13 @@ pub struct ConstraintRows {
     pub hessian: Vec<f64>,
     /// J·qacc_smooth − aref.
     pub gradient: Vec<f64>,
-    /// The solver's buffers.
+    /// The solver's buffers; its working set is the last solve's.
     pub solver: BoxQp,
+    /// The rows of the last solve (kind and constraint), whose working set
+    /// starts the next solve when the rows are the same.
+    last_rows: Vec<(RowKind, usize)>,
     /// The most rows that can be active (fixed by the model).
     pub max_rows: usize,
-    /// Per-link scratch: the wrenches whose joint forces are an equality
-    /// row of J.
-    pub link_wrenches: Vec<crate::math::SpatialVec>,
     /// Per-link scratch: spatial accelerations at θ̈ = 0 (for J̇θ̇).
     pub bias_acceleration: Vec<crate::math::SpatialVec>,
     /// MuJoCo's qfrc_constraint = Jᵀf (nv).
@@ -125,8 +125,8 @@ impl ConstraintRows {
             hessian: vec![0.0; rows * rows],
             gradient: per_row,
             solver: BoxQp::new(rows),
+            last_rows: Vec::with_capacity(rows),
             max_rows: rows,
-            link_wrenches: vec![crate::math::SpatialVec::zeros(); if has_equalities { model.links.len() } else { 0 }],
             bias_acceleration: vec![
                 crate::math::SpatialVec::zeros();
                 if has_equalities { model.links.len() } else { 0 }
@@ -280,22 +280,33 @@ fn stiffness_damping(model: &Model, soft: &SoftConstraint, friction: bool) -> (f
 }
 
 impl Workspace {
-    /// Adds ε_c, the constraint forces' ε, to `applied` (the applied ε,
-    /// actuators included) and leaves the rows and forces in
-    /// `constraint_rows`. Needs the velocities; runs pass 3 for θ̈ without
-    /// constraints, so the caller runs pass 3 again on the new `applied`.
-    pub fn add_constraint_eps(&mut self, model: &Model, applied: &mut [f64]) -> Result<(), DynamicsError> {
-        require(self, Stage::Velocity, "add_constraint_eps")?;
-        self.compute_qacc(model, applied)?;
+    /// Puts the constraint forces on a pass 3 just run for `applied` (the
+    /// applied ε, actuators included): solves for them with that pass's θ̈
+    /// as MuJoCo's qacc_smooth, adds their ε_c to `applied`, to ν̇ (when the
+    /// pass had the factor's rates) and to ν̇'s joint part, and runs the
+    /// outward pass again for θ̈. ε enters ν̇ additively, so pass 3 need not
+    /// run again. The rows and forces stay in `constraint_rows`.
+    pub fn apply_constraint_forces(&mut self, model: &Model, applied: &mut [f64]) -> Result<(), DynamicsError> {
+        require(self, Stage::JointRates, "apply_constraint_forces")?;
+        // compute_qacc (stage JointRates) has run the outward pass already.
+        if self.stage == Stage::Acceleration {
+            self.compute_accelerations(model)?;
+        }
         let mut rows = std::mem::take(&mut self.constraint_rows);
         let result = self.solve_constraints(model, &mut rows);
         if result.is_ok() {
-            for (total, constraint) in applied.iter_mut().zip(&rows.eps_constraint) {
-                *total += constraint;
+            let with_rates = self.stage == Stage::Acceleration;
+            for (d, constraint) in rows.eps_constraint.iter().enumerate() {
+                applied[d] += constraint;
+                self.nu_dot_joint[d] += constraint;
+                if with_rates {
+                    self.nu_dot[d] += constraint;
+                }
             }
         }
         self.constraint_rows = rows;
-        result
+        result?;
+        self.compute_accelerations(model)
     }
 
     fn solve_constraints(&mut self, model: &Model, rows: &mut ConstraintRows) -> Result<(), DynamicsError> {
@@ -336,7 +347,13 @@ impl Workspace {
             }
             rows.hessian[i * stride + i] += rows.regularizer[i];
         }
-        rows.solver.solve(n, &rows.hessian, stride, &rows.gradient, &rows.lower, &rows.upper, &mut rows.force)?;
+        let same_rows = rows.last_rows.len() == n && (0..n).all(|k| rows.last_rows[k] == (rows.kind[k], rows.id[k]));
+        if !same_rows {
+            rows.last_rows.clear();
+            rows.last_rows.extend((0..n).map(|k| (rows.kind[k], rows.id[k])));
+        }
+        let (gradient, lower, upper) = (&rows.gradient, &rows.lower, &rows.upper);
+        rows.solver.solve(n, &rows.hessian, stride, gradient, lower, upper, &mut rows.force, same_rows)?;
         rows.eps_constraint.fill(0.0);
         rows.qfrc_constraint.fill(0.0);
         for k in 0..n {

@@ -3,17 +3,15 @@
 //! connect's three rows, a weld's six, a joint coupling's one, each with
 //! its violation, its Jacobian row and, for connect and weld, J̇θ̇.
 //!
-//! A connect's or weld's Jacobian row for a world direction is the joint
-//! force of a unit world force (or torque) on frame 1's point less the same
-//! on frame 2's: one inward pass of [`super::forces`] per row, no body
-//! Jacobian formed. J̇θ̇ is the points' acceleration with θ̈ = 0, from one
-//! outward pass of the velocity-product accelerations.
+//! A connect's or weld's Jacobian rows come from a walk up each frame's
+//! ancestors, each dof's motion subspace column moving the point. J̇θ̇ is
+//! the points' acceleration with θ̈ = 0, from one outward pass of the
+//! velocity-product accelerations.
 
 use nalgebra::Quaternion;
 
 use super::constraint::{ConstraintRows, RowKind};
-use super::forces::add_joint_forces_of_wrenches;
-use crate::math::{Quat, SpatialVec, Transform, Vec3, angular, cross_motion, linear, spatial};
+use crate::math::{Quat, SpatialVec, Transform, Vec3, angular, cross_motion, linear};
 use crate::model::{EqualityRows, Model, SiteFrame};
 use crate::workspace::Workspace;
 
@@ -21,8 +19,6 @@ use crate::workspace::Workspace;
 struct FramePoint {
     /// The link carrying it (`None`: the world).
     link: Option<usize>,
-    /// The anchor point in link coordinates (world coordinates without a link).
-    in_link: Vec3,
     /// The anchor point in the world.
     position: Vec3,
     /// The frame's orientation (frame → world).
@@ -77,9 +73,8 @@ impl Workspace {
                         rows.violation[k] = offset.norm();
                         rows.diagonal_estimate[k] = *invweight;
                         rows.jdot_v[k] = one.bias_acceleration[axis] - two.bias_acceleration[axis];
-                        self.jacobian_row(model, rows, k, [&one, &two], Vec3::ith(axis, 1.0), false);
                     }
-                    debug_assert_eq!(rows.count, first + 3);
+                    self.jacobian_rows(model, rows, first, [&one, &two], false);
                 }
                 EqualityRows::Weld { frames, anchors, relative, torquescale, invweight } => {
                     let [one, two] = [0, 1].map(|i| self.frame_point(&frames[i], &anchors[i], &rows.bias_acceleration));
@@ -94,8 +89,8 @@ impl Workspace {
                         let k = rows.push(nv, RowKind::Equality, index, value, 0.0);
                         rows.violation[k] = violation;
                         rows.diagonal_estimate[k] = invweight[axis / 3];
-                        self.jacobian_row(model, rows, k, [&one, &two], Vec3::ith(axis % 3, 1.0), axis >= 3);
                     }
+                    self.jacobian_rows(model, rows, first, [&one, &two], true);
                     for axis in 0..3 {
                         rows.jdot_v[first + axis] = one.bias_acceleration[axis] - two.bias_acceleration[axis];
                     }
@@ -129,41 +124,42 @@ impl Workspace {
         }
     }
 
-    /// Row `k` of J: the joint forces of a unit world force along
-    /// `direction` (or a unit torque about it, `torque`) on frame one's
-    /// point less the same on frame two's.
-    fn jacobian_row(
-        &mut self,
+    /// Rows `first..first + 3` of J (and with `rotation` the next three):
+    /// the world velocity of frame one's point (and its angular velocity)
+    /// that a unit rate of each dof gives, less frame two's: for each dof on
+    /// a frame's way to the world, its motion subspace column (ω, v) moves
+    /// the point at v + ω × p in that link's coordinates.
+    fn jacobian_rows(
+        &self,
         model: &Model,
         rows: &mut ConstraintRows,
-        k: usize,
+        first: usize,
         points: [&FramePoint; 2],
-        direction: Vec3,
-        torque: bool,
+        rotation: bool,
     ) {
         let nv = model.nv;
         for (point, sign) in points.into_iter().zip([1.0, -1.0]) {
-            if let Some(link) = point.link {
-                let local = self.x_world[link].rot * direction * sign;
-                let wrench = if torque {
-                    spatial(&local, &Vec3::zeros())
-                } else {
-                    spatial(&point.in_link.cross(&local), &local)
-                };
-                rows.link_wrenches[link] += wrench;
-            }
-        }
-        add_joint_forces_of_wrenches(
-            model,
-            &self.x_parent,
-            &self.accumulation,
-            &mut self.p_scratch_body,
-            &rows.link_wrenches,
-            &mut rows.jacobian[k * nv..(k + 1) * nv],
-        );
-        for point in points {
-            if let Some(link) = point.link {
-                rows.link_wrenches[link] = SpatialVec::zeros();
+            let mut next = point.link;
+            while let Some(a) = next {
+                let link = &model.links[a];
+                let placement = &self.x_world[a];
+                let to_world = placement.rot.transpose();
+                let in_link = placement.rot * (point.position - placement.trans);
+                for c in 0..link.ndof {
+                    let column = link.motion_subspace.column(c);
+                    let omega = Vec3::new(column[0], column[1], column[2]);
+                    let velocity = Vec3::new(column[3], column[4], column[5]);
+                    let translation = to_world * (velocity + omega.cross(&in_link)) * sign;
+                    let turn = to_world * omega * sign;
+                    let dof = link.dof_adr + c;
+                    for r in 0..3 {
+                        rows.jacobian[(first + r) * nv + dof] += translation[r];
+                        if rotation {
+                            rows.jacobian[(first + 3 + r) * nv + dof] += turn[r];
+                        }
+                    }
+                }
+                next = link.parent;
             }
         }
     }
@@ -174,7 +170,6 @@ impl Workspace {
         let Some(link) = frame.link else {
             return FramePoint {
                 link: None,
-                in_link: in_frame,
                 position: in_frame,
                 orientation: orientation(&frame.frame),
                 omega: Vec3::zeros(),
@@ -192,7 +187,6 @@ impl Workspace {
             linear(a) + angular(a).cross(&in_frame) + omega.cross(&(linear_velocity + omega.cross(&in_frame)));
         FramePoint {
             link: Some(link),
-            in_link: in_frame,
             position: world.trans + to_world * in_frame,
             orientation: orientation(&frame.frame.compose(world)),
             omega: to_world * omega,

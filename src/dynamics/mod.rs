@@ -139,7 +139,9 @@ pub(crate) fn cols<const N: usize>(m: &SMatrix<f64, 6, 3>) -> SMatrix<f64, 6, N>
     m.fixed_columns::<N>(0).into_owned()
 }
 
-/// All passes for one state: ν̇ = ε − C(θ,ν) + ε_passive, in O(N).
+/// All passes for one state: ν̇ = ε − C(θ,ν) + ε_passive, in O(N),
+/// without actuators or constraint forces (`Workspace::compute_nu_dot_actuated`
+/// applies both).
 ///
 /// After it returns, the workspace holds θ̇ (`qvel`), `nu_dot`, `coriolis`
 /// and `eps_passive`.

@@ -69,7 +69,8 @@ impl Workspace {
         time: f64,
     ) -> Result<(), DynamicsError> {
         require(self, Stage::Velocity, "compute_sensors")?;
-        if model.sensors.is_empty() {
+        if model.sensors.is_empty() || model.sensors_disabled {
+            // Nothing was ever written there: sensordata stays 0.
             return Ok(());
         }
         let needs = Needs::of(model);

@@ -109,6 +109,10 @@ pub struct Carry {
     /// steps are accepted at tolerance × this (1 when it has not; 0 before
     /// the first step means 1).
     pub relaxation: f64,
+    /// The largest |θ̈| of the run's first step that had any (0 before):
+    /// the size the rates are measured against when the tolerance has to be
+    /// relaxed ([`ToleranceRelaxed`]).
+    pub start_rates: f64,
 }
 
 impl Carry {
@@ -119,23 +123,29 @@ impl Carry {
     }
 
     /// Whether the relaxation grew past `before` in the interval from `time`,
-    /// and then what the caller must be told.
-    pub fn relaxed_since(&self, before: f64, time: f64, tolerance: f64) -> Option<ToleranceRelaxed> {
+    /// and then what the caller must be told; `rates` is the largest |θ̈|
+    /// where the interval ended.
+    pub fn relaxed_since(&self, before: f64, time: f64, tolerance: f64, rates: f64) -> Option<ToleranceRelaxed> {
         (self.relaxation > before.max(1.0)).then(|| ToleranceRelaxed {
             time,
             tolerance,
             attained: self.attained_tolerance(tolerance),
+            rates,
+            start_rates: self.start_rates,
         })
     }
 }
 
+/// Rates this many times their size at the start of the run mean that the
+/// motion itself runs away, not that round-off limits the vehicle: an error
+/// estimate that does not fall as the step is cut is then truncation error
+/// of a motion faster than any step (a sampled loop with a gain too high
+/// for its communication step grows |ν| by a factor each step), which the
+/// round-off test cannot tell from round-off.
+pub const DIVERGING_GROWTH: f64 = 100.0;
+
 /// An interval completed only by relaxing the tolerance (the FMU's fmi2Warning).
-#[derive(Debug, thiserror::Error)]
-#[error(
-    "tolerance {tolerance:e} per second is below what round-off in this vehicle's rates allows: \
-     from the step at t = {time} s on, the error is held to {attained:e} per second \
-     (and to {tolerance:e} per internal step)"
-)]
+#[derive(Debug)]
 pub struct ToleranceRelaxed {
     /// The start of the interval.
     pub time: f64,
@@ -143,7 +153,56 @@ pub struct ToleranceRelaxed {
     pub tolerance: f64,
     /// The tolerance held.
     pub attained: f64,
+    /// The largest |θ̈| where the interval ended.
+    pub rates: f64,
+    /// The largest |θ̈| of the run's first step ([`Carry::start_rates`]).
+    pub start_rates: f64,
 }
+
+impl ToleranceRelaxed {
+    /// How many times the rates have grown since the start (infinite from rest).
+    pub fn growth(&self) -> f64 {
+        self.rates / self.start_rates
+    }
+
+    /// Whether the motion runs away rather than round-off limiting the vehicle.
+    pub fn diverges(&self) -> bool {
+        self.growth() >= DIVERGING_GROWTH
+    }
+}
+
+impl std::fmt::Display for ToleranceRelaxed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let ToleranceRelaxed { time, tolerance, attained, rates, start_rates } = *self;
+        if self.diverges() {
+            write!(
+                f,
+                "the motion diverges: the rates grew {:.1e}-fold since the start (largest |qacc| {start_rates:.2e}, \
+                 now {rates:.2e}), as in an unstable loop around the FMU (a gain too high for the communication \
+                 step); tolerance {tolerance:e} per second cannot be held in it",
+                self.growth()
+            )?;
+        } else {
+            write!(
+                f,
+                "tolerance {tolerance:e} per second is below what round-off in this vehicle's rates allows \
+                 (largest |qacc| {rates:.2e}, {:.2}× its size at the start)",
+                self.growth()
+            )?;
+        }
+        write!(
+            f,
+            ": from the step at t = {time} s on, the error is held to {attained:e} per second, relative to \
+             1 + |x| for each coordinate and velocity x"
+        )?;
+        if attained >= 1e-3 {
+            write!(f, " ({:.3}% of a large x per second)", 100.0 * attained)?;
+        }
+        write!(f, ", and to {tolerance:e} per internal step")
+    }
+}
+
+impl std::error::Error for ToleranceRelaxed {}
 
 /// Counts of one call to `advance`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -400,6 +459,9 @@ impl Simulation {
                 integrator.accept_with_energy(model, ws, (theta, qvel), step, settings, carry).map_err(failed)?;
                 t = if step == remaining { t1 } else { t + step };
                 stats.accepted += 1;
+                if carry.start_rates == 0.0 {
+                    carry.start_rates = integrator.largest_rate();
+                }
                 let factor = step_factor(error, control, first_rejection.is_some());
                 h = if step < planned { (step * factor).max(planned) } else { step * factor };
                 first_rejection = None;
@@ -467,7 +529,7 @@ impl Simulation {
 
 impl Integrator {
     /// The largest |θ̈| over the attempted step's stages.
-    fn largest_rate(&self) -> f64 {
+    pub(super) fn largest_rate(&self) -> f64 {
         self.k_qvel[..self.method.stages()].iter().flat_map(|k| k.iter()).fold(0.0, |m: f64, x| m.max(x.abs()))
     }
 

@@ -127,6 +127,8 @@ struct Physics {
     frictionloss_disabled: bool,
     limit_disabled: bool,
     equality_disabled: bool,
+    /// `<flag sensor="disable">`: sensordata stays 0.
+    sensor_disabled: bool,
 }
 
 /// What an actuator needs to know of a joint it may name.
@@ -214,6 +216,8 @@ struct Reader {
     sensors: Vec<Sensor>,
     sensor_names: HashMap<String, u32>,
     equalities: Vec<Equality>,
+    /// The bodies the file leaves unnamed.
+    unnamed_bodies: Vec<usize>,
     /// The files the model is read from, for the paths of its assets.
     sources: Sources,
     /// The `<mesh>` assets, processed.
@@ -362,6 +366,7 @@ impl Reader {
                 frictionloss_disabled: false,
                 limit_disabled: false,
                 equality_disabled: false,
+                sensor_disabled: false,
             },
             defaults: Defaults::new(),
             warnings: Vec::new(),
@@ -378,6 +383,7 @@ impl Reader {
             sensors: Vec::new(),
             sensor_names: HashMap::new(),
             equalities: Vec::new(),
+            unnamed_bodies: Vec::new(),
             sources,
             meshes: Meshes::new(),
             mocap_bodies: Vec::new(),
@@ -510,6 +516,7 @@ impl Reader {
                 ("frictionloss", &mut physics.frictionloss_disabled),
                 ("limit", &mut physics.limit_disabled),
                 ("equality", &mut physics.equality_disabled),
+                ("sensor", &mut physics.sensor_disabled),
             ] {
                 if let Some(&off) = disabled.get(flag) {
                     *target = off;
@@ -604,7 +611,30 @@ impl Reader {
                 _ => return Err(unsupported_child(&child)),
             }
         }
+        self.set_apart_unnamed();
         Ok(())
+    }
+
+    /// Gives the names made up for unnamed bodies and joints a suffix where
+    /// they equal a name the file gives (or each other), so that no two
+    /// bodies or joints share a name in descriptions and messages.
+    fn set_apart_unnamed(&mut self) {
+        let mut taken: std::collections::HashSet<String> = self.body_names.keys().cloned().collect();
+        for &index in &self.unnamed_bodies {
+            let name = &mut self.bodies[index].name;
+            while !taken.insert(name.clone()) {
+                name.push_str("_unnamed");
+            }
+        }
+        let mut taken: std::collections::HashSet<String> = self.joint_names.keys().cloned().collect();
+        for joint in self.bodies.iter_mut().flat_map(|b| &mut b.joints) {
+            // A named joint is the one its name was claimed for, at its line.
+            if self.joint_names.get(&joint.name) != Some(&joint.line) {
+                while !taken.insert(joint.name.clone()) {
+                    joint.name.push_str("_unnamed");
+                }
+            }
+        }
     }
 
     /// Reads a child of `<worldbody>` and its descendants in document order
@@ -637,8 +667,18 @@ impl Reader {
         let own_quat = self.resolve(element, &Orientation::read(element)?.unwrap_or_default())?;
         let (pos, quat) = frame.map_or((own_pos, own_quat), |frame| compose(&frame, &(own_pos, own_quat)));
         let index = self.bodies.len();
-        let name = element.text("name").map_or_else(|| format!("body{index}"), str::to_string);
-        claim_name(&mut self.body_names, "body", &name, element)?;
+        // An unnamed body gets a name for messages and descriptions, which
+        // nothing can refer to (MuJoCo's unnamed elements have none).
+        let name = match element.text("name") {
+            Some(name) => {
+                claim_name(&mut self.body_names, "body", name, element)?;
+                name.to_string()
+            }
+            None => {
+                self.unnamed_bodies.push(index);
+                format!("body{index}")
+            }
+        };
 
         let mut inertial: Option<(Element, BodyInertia)> = None;
         let mut joints = Vec::new();
@@ -712,6 +752,13 @@ impl Reader {
             self.mocap_bodies.push(name.clone());
         }
         let moving = parent_moving || has_joints;
+        // MuJoCo 4.0's keywords, and its rule for a sleep policy.
+        element.keyword("fuse", &[("auto", ()), ("false", ())])?;
+        let policies = [("auto", false), ("never", true), ("allowed", true), ("init", true)];
+        let movable_root = has_joints && !parent_moving;
+        if element.keyword("sleep", &policies)? == Some(true) && !movable_root {
+            return Err(element.invalid("sleep policy only allowed for movable root bodies"));
+        }
         // MuJoCo's condition for moving the body frame to the inertial frame.
         let aligned = match joints.as_slice() {
             [only] if only.settings.kind == JointKind::Free && child_bodies.is_empty() => {
@@ -1092,8 +1139,11 @@ impl Reader {
                 JointKind::Ball | JointKind::Free => (0.0, 0.0),
             };
             let actuator_force_range = self.actuator_force_range(&element, &s)?;
-            let name = element.text("name").map_or_else(|| format!("{body_name}_joint{k}"), str::to_string);
-            claim_name(&mut self.joint_names, "joint", &name, &element)?;
+            let named = element.text("name");
+            let name = named.map_or_else(|| format!("{body_name}_joint{k}"), str::to_string);
+            if named.is_some() {
+                claim_name(&mut self.joint_names, "joint", &name, &element)?;
+            }
             let range = match s.kind {
                 JointKind::Hinge | JointKind::Ball if self.joint_limited(&s) => {
                     s.range.map(|x| self.compiler.angles.radians(x))
@@ -1101,7 +1151,9 @@ impl Reader {
                 _ => s.range,
             };
             let limited = s.kind != JointKind::Free && self.joint_limited(&s);
-            self.joint_targets.insert(name.clone(), JointTarget { kind: s.kind, range, limited });
+            if named.is_some() {
+                self.joint_targets.insert(name.clone(), JointTarget { kind: s.kind, range, limited });
+            }
             joints.push(Joint {
                 name,
                 kind: s.kind,
@@ -1524,6 +1576,7 @@ impl Reader {
             actuation: self.physics.actuation,
             constraint_options: self.physics.constraint_options,
             equalities: std::mem::take(&mut self.equalities),
+            sensors_disabled: self.physics.sensor_disabled,
         };
         Ok(Imported { vehicle, warnings: self.warnings })
     }

@@ -247,6 +247,10 @@ pub struct Model {
     /// Friction loss and joint limits: MuJoCo's constraint rows.
     #[serde(default)]
     pub constraints: Constraints,
+    /// `<flag sensor="disable"/>`: the sensors keep their places in
+    /// sensordata, which stays 0 as MuJoCo leaves it.
+    #[serde(default)]
+    pub sensors_disabled: bool,
 }
 
 /// Why a vehicle cannot be compiled.
@@ -450,7 +454,14 @@ impl Model {
         let shortcuts = Shortcuts::of(&links, &vehicle.gravity);
         let sites = site_frames(vehicle, &attachments);
         let mut actuators = compile_actuators(vehicle, &links, &joints, &sites);
-        for name in wrench_bodies {
+        for (k, name) in wrench_bodies.iter().enumerate() {
+            // Two wrenches on one body would be two sets of inputs that add up:
+            // MuJoCo's xfrc_applied is one wrench per body.
+            if wrench_bodies[..k].contains(name) {
+                return Err(ModelError::WrenchBody {
+                    reason: format!("body '{name}' is named twice: a body takes one wrench (six inputs)"),
+                });
+            }
             actuators.extend(wrench_actuators(vehicle, &attachments, name)?);
         }
         let sensors = sensor::compile_sensors(vehicle, &joints, &attachments, &sites)?;
@@ -486,6 +497,7 @@ impl Model {
             link_tree_quats,
             wrench_bodies: wrench_bodies.to_vec(),
             constraints: Constraints::default(),
+            sensors_disabled: vehicle.sensors_disabled,
         };
         model.validate()?;
         model.check_positive_definite()?;

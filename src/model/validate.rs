@@ -448,41 +448,29 @@ fn validate_sensors(model: &Model) -> Result<(), InvalidModel> {
             return fail("cutoff must be finite and non-negative");
         }
         use SensorKind::*;
+        let reads_a_joint = matches!(
+            sensor.kind,
+            JointPos
+                | JointVel
+                | BallQuat
+                | BallAngVel
+                | JointActuatorFrc
+                | JointLimitPos
+                | JointLimitVel
+                | JointLimitFrc
+        );
         let kind_matches = match &sensor.source {
-            SensorSource::Joint { .. } => {
-                matches!(
-                    sensor.kind,
-                    JointPos
-                        | JointVel
-                        | BallQuat
-                        | BallAngVel
-                        | JointActuatorFrc
-                        | JointLimitPos
-                        | JointLimitVel
-                        | JointLimitFrc
-                )
-            }
+            SensorSource::Joint { .. } => reads_a_joint,
             SensorSource::Actuator { .. } => matches!(sensor.kind, ActuatorFrc | ActuatorPos | ActuatorVel),
             SensorSource::Subtree { .. } => matches!(sensor.kind, SubtreeCom | SubtreeLinVel | SubtreeAngMom),
             SensorSource::Clock => sensor.kind == Clock,
-            SensorSource::Frame { .. } => !matches!(
-                sensor.kind,
-                JointPos
-                    | JointVel
-                    | BallQuat
-                    | BallAngVel
-                    | JointActuatorFrc
-                    | JointLimitPos
-                    | JointLimitVel
-                    | JointLimitFrc
-                    | ActuatorFrc
-                    | ActuatorPos
-                    | ActuatorVel
-                    | SubtreeCom
-                    | SubtreeLinVel
-                    | SubtreeAngMom
-                    | Clock
-            ),
+            SensorSource::Frame { .. } => {
+                !reads_a_joint
+                    && !matches!(
+                        sensor.kind,
+                        ActuatorFrc | ActuatorPos | ActuatorVel | SubtreeCom | SubtreeLinVel | SubtreeAngMom | Clock
+                    )
+            }
         };
         if !kind_matches {
             return fail("its type does not read what its source gives");

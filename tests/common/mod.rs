@@ -468,6 +468,7 @@ pub fn random_vehicle(rng: &mut Rng, opts: TreeOptions) -> Vehicle {
         actuation: Actuation::default(),
         constraint_options: Default::default(),
         equalities: Vec::new(),
+        sensors_disabled: false,
     }
 }
 

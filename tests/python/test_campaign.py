@@ -67,6 +67,19 @@ def write(tmp_path: Path, text: str, name: str = "campaign.toml") -> Path:
     return path
 
 
+def campaign_command(*arguments, env=None) -> subprocess.CompletedProcess:
+    """`nudyn-campaign ARGUMENTS` run to its end."""
+    return subprocess.run([sys.executable, "-m", "nudyn_campaign", *map(str, arguments)], capture_output=True,
+                          text=True, env={**os.environ, "PYTHONPATH": str(ROOT / "python"), **(env or {})})
+
+
+def one_line_error(proc: subprocess.CompletedProcess, expected: str) -> None:
+    """Exit status 2 and one line on stderr, naming what is wrong: no traceback."""
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.count("\n") == 1 and proc.stderr.startswith("nudyn-campaign: "), proc.stderr
+    assert expected in proc.stderr, proc.stderr
+
+
 def rows(table) -> str:
     """The table's rows, NaN-safe and exact (repr of every float)."""
     return json.dumps(table.to_pylist(), sort_keys=True)
@@ -207,6 +220,21 @@ def test_a_real_scheduler_with_a_worker_killed_mid_campaign(one_worker, nudyn, t
          "low 2.0 exceeds high 1.0"),
         ("[campaign]\nmodel = '{model}'\ncases = 2\nduration = 1.0\nstep = 0.5\n[dispersions]\n'controller.c1' = {{ grid = [1] }}\n",
          "need campaign.controller = true"),
+        # Overlapping dispersions would record a value the flight never used.
+        ("[campaign]\nmodel = '{model}'\ncases = 2\nduration = 1.0\nstep = 0.5\n[dispersions]\n"
+         "'nu[1:3]' = {{ normal = [0, 1] }}\n'nu[2]' = {{ normal = [5, 1] }}\n",
+         "'nu[1:3]' and 'nu[2]' both set plant variable nu[2]"),
+        ("[campaign]\nmodel = '{model}'\ncases = 2\nduration = 1.0\nstep = 0.5\n[dispersions]\n"
+         "'nu[1]' = {{ normal = [0, 1] }}\n'qvel[1]' = {{ normal = [5, 1] }}\n",
+         "'nu[1]' and 'qvel[1]' both set the start velocity ν"),
+        ("[campaign]\nmodel = '{model}'\ncases = 2\nduration = 1.0\nstep = 0.5\ncontroller = true\n[dispersions]\n"
+         "'controller.c1' = {{ grid = [1, 2] }}\n'controller.c1[3]' = {{ uniform = [0, 1] }}\n",
+         "'controller.c1' and 'controller.c1[3]' both set controller variable c1[3]"),
+        ("[campaign]\nmodel = '{model}'\ncases = 2\nduration = 1.0\nstep = 0.5\n[dispersions]\n"
+         "'theta[2]' = {{ normal = [0, 1] }}\n'plant.theta[2]' = {{ normal = [5, 1] }}\n",
+         "'theta[2]' and 'plant.theta[2]' both set plant variable theta[2]"),
+        ("[campaign]\nmodel = '{model}'\ncases = 2\nduration = 1.0\nstep = 0.5\nmetrics = ['no_colon']\n",
+         "campaign.metrics: expected a list of \"module:function\" names"),
     ],
 )
 def test_bad_campaign_files_are_clear_errors(text, expected, tmp_path):
@@ -214,8 +242,7 @@ def test_bad_campaign_files_are_clear_errors(text, expected, tmp_path):
     with pytest.raises(CampaignError, match=None) as error:
         load(path)
     assert expected in str(error.value), str(error.value)
-    proc = subprocess.run([sys.executable, "-m", "nudyn_campaign", str(path), "--out", str(tmp_path / "o")],
-                          capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(ROOT / "python")})
+    proc = campaign_command(path, "--out", tmp_path / "o")
     assert proc.returncode == 2 and expected in proc.stderr, proc.stderr
 
 
@@ -313,3 +340,142 @@ def test_only_a_regular_file_or_a_new_path_is_replaced(tmp_path):
     assert consolidate(campaign, out, ["case"]).num_rows == 0
     assert (out / "report.md").is_symlink() and elsewhere.read_text().startswith("# Campaign small_detumble")
     assert sorted(p.name for p in out.iterdir()) == ["metrics.png", "report.md", "results.parquet"]
+
+
+# Open loop, short and small: what the resume and refusal tests fly.
+SHORT = """
+[campaign]
+model = "{model}"
+seed = 3
+cases = 4
+duration = 0.2
+step = 0.05
+
+[dispersions]
+"nu[4]" = {{ normal = [0.0, 0.5] }}
+"""
+
+
+def test_a_rerun_resumes_only_rows_flown_from_the_same_campaign(nudyn, tmp_path):
+    """OUT/campaign.json records what the rows were flown from: a rerun
+    with another seed, another dispersion or another plant FMU is refused
+    with what differs (it used to report the old rows as the new campaign's,
+    or end in a KeyError), and leaves the rows alone; --overwrite starts
+    afresh; the same campaign with more cases resumes."""
+    path = write(tmp_path, SHORT)
+    out = tmp_path / "out"
+    first = run_campaign(path, out, workers=1, nudyn=nudyn, progress=False)
+    parts = {part: part.stat().st_mtime_ns for part in (out / "parts").glob("part-*.parquet")}
+    changes = [
+        (SHORT.replace("seed = 3", "seed = 4"), "seed: 3 → 4"),
+        (SHORT.replace('"nu[4]"', '"nu[5]"'), 'dispersions.nu[4]: {"normal": [0.0, 0.5]} → none; dispersions.nu[5]: none →'),
+        (SHORT.replace("0.5]", "0.7]"), 'dispersions.nu[4]: {"normal": [0.0, 0.5]} → {"normal": [0.0, 0.7]}'),
+        (SHORT.replace("step = 0.05", 'step = 0.05\nwrench_bodies = ["bus"]'), "plant FMU: "),
+    ]
+    for text, expected in changes:
+        changed = write(tmp_path, text, "changed.toml")
+        with pytest.raises(CampaignError, match="holds the rows of another campaign") as error:
+            run_campaign(changed, out, workers=1, nudyn=nudyn, progress=False)
+        assert expected in str(error.value) and "--overwrite" in str(error.value), str(error.value)
+        one_line_error(campaign_command(changed, "--out", out), expected)
+    assert {part: part.stat().st_mtime_ns for part in (out / "parts").glob("part-*.parquet")} == parts
+    assert rows(pq.read_table(out / "results.parquet")) == rows(first)
+
+    reseeded = write(tmp_path, SHORT.replace("seed = 3", "seed = 4"), "reseeded.toml")
+    afresh = run_campaign(reseeded, out, workers=1, nudyn=nudyn, progress=False, overwrite=True)
+    assert afresh.column("nu[4]").to_pylist() == [draw(load(reseeded), k)["nu[4]"] for k in range(4)]
+    assert afresh.column("nu[4]").to_pylist() != first.column("nu[4]").to_pylist()
+    assert "campaign seed 4" in (out / "report.md").read_text()
+    more = run_campaign(reseeded, out, cases=6, workers=1, nudyn=nudyn, progress=False)
+    assert rows(more.slice(0, 4)) == rows(afresh) and more.num_rows == 6
+
+    # Rows from before the record existed are not taken for anyone's.
+    (out / "campaign.json").unlink()
+    with pytest.raises(CampaignError, match="no record of what they were flown from"):
+        run_campaign(reseeded, out, workers=1, nudyn=nudyn, progress=False)
+
+
+@pytest.mark.parametrize(
+    "dispersion, expected",
+    [
+        ('"theta[99]" = {{ normal = [0, 1] }}', "dispersions.theta[99]: the plant FMU has theta[1] to theta[14] only"),
+        ('"qvel[14]" = {{ normal = [0, 1] }}', "dispersions.qvel[14]: the plant FMU has qvel[1] to qvel[13] only"),
+        ('"plant.tolerance" = {{ grid = ["tight", "loose"] }}',
+         "dispersions.plant.tolerance: plant variable 'tolerance' takes a number (Real), not the names 'tight', 'loose'"),
+        ('"plant.method" = {{ grid = ["rk4", "euler"] }}', "the plant FMU has no method 'euler' (it has rk4,"),
+        ('"plant.kinetic_energy" = {{ uniform = [0, 1] }}', "the plant FMU computes 'kinetic_energy' (an output)"),
+        ('"plant.gain" = {{ uniform = [0, 1] }}', "dispersions.plant.gain: the plant FMU has no variable 'gain'"),
+        ('"nu[4]" = {{ normal = [0, 1] }}\n[schedules]\n"eps[99]" = [[0.0, 1.0]]',
+         "schedules.eps[99]: the plant FMU has eps[1] to eps[13] only"),
+        ('"nu[4]" = {{ normal = [0, 1] }}\n[plant]\nmax_steps = 10', "plant.max_steps: the plant FMU has no variable 'max_steps'"),
+        ('"nu[4]" = {{ normal = [0, 1] }}\n[controller]\nc1 = 1.0', "controller.c1: [controller] needs campaign.controller = true"),
+    ],
+)
+def test_targets_the_fmu_cannot_take_are_refused_before_any_case(dispersion, expected, nudyn, tmp_path):
+    """Checked against the exported FMU's variables: theta[99] crashed the
+    driver with an IndexError from inside a Dask task, names on a number
+    ended in a traceback."""
+    path = write(tmp_path, SHORT.partition("[dispersions]")[0] + "[dispersions]\n" + dispersion + "\n")
+    with pytest.raises(CampaignError) as error:
+        run_campaign(path, tmp_path / "out", workers=1, nudyn=nudyn, progress=False)
+    assert expected in str(error.value), str(error.value)
+    one_line_error(campaign_command(path, "--out", tmp_path / "out", "--nudyn", nudyn), expected)
+    assert not (tmp_path / "out" / "parts").exists()
+
+
+def test_bad_outputs_metrics_schedulers_and_worker_counts_are_one_line_errors(nudyn, tmp_path):
+    path = write(tmp_path, SHORT)
+    a_file = tmp_path / "a_file"
+    a_file.write_text("")
+    for out, expected in [
+        (a_file, f"--out {a_file}: is a file, not a directory"),
+        (a_file / "sub" / "dir", f"--out {a_file / 'sub' / 'dir'}: cannot be created: {a_file} is a file"),
+        (Path("/proc/self/nudyn-campaign"), "--out /proc/self/nudyn-campaign: cannot be written: No such file or directory"),
+    ]:
+        one_line_error(campaign_command(path, "--out", out, "--nudyn", nudyn), expected)
+    assert a_file.read_text() == ""
+
+    missing = write(tmp_path, SHORT.replace("step = 0.05", 'step = 0.05\nmetrics = ["no_such_module:spin"]'), "m.toml")
+    one_line_error(campaign_command(missing, "--out", tmp_path / "m", "--nudyn", nudyn),
+                   "campaign.metrics: 'no_such_module:spin': cannot import no_such_module")
+
+    # Nothing listens on a port just closed; Dask waits the configured connect timeout, then gives up.
+    import socket
+
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    started = time.perf_counter()
+    proc = campaign_command(path, "--out", tmp_path / "s", "--nudyn", nudyn, "--scheduler", f"tcp://127.0.0.1:{port}",
+                            env={"DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT": "1s"})
+    one_line_error(proc, f"--scheduler tcp://127.0.0.1:{port}: no Dask scheduler answered")
+    assert time.perf_counter() - started < 20
+
+    proc = campaign_command(path, "--out", tmp_path / "w", "--workers", "0")
+    assert proc.returncode == 2 and "--workers must be at least 1" in proc.stderr, proc.stderr
+    with pytest.raises(CampaignError, match="--workers: expected at least 1 worker process, found 0"):
+        run_campaign(path, tmp_path / "w", workers=0, nudyn=nudyn, progress=False)
+
+
+def test_ctrl_c_ends_with_how_to_resume_and_the_rerun_completes(nudyn, tmp_path):
+    """SIGINT to the command's process group (what Ctrl-C in a terminal
+    sends, to the Dask workers too) once the first chunk is written: one
+    line, status 130, no traceback from the driver or the workers; the
+    rerun flies the rest."""
+    path = write(tmp_path, SHORT.replace("cases = 4", "cases = 80").replace("duration = 0.2", "duration = 1.0"))
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "nudyn_campaign", str(path), "--out", str(out), "--workers", "2",
+               "--no-progress", "--nudyn", str(nudyn)]
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            env={**os.environ, "PYTHONPATH": str(ROOT / "python")})
+    for _ in range(1200):
+        if list((out / "parts").glob("part-*.parquet")) or proc.poll() is not None:
+            break
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 130, stderr
+    assert stderr == f"nudyn-campaign: interrupted; rerun to resume ({out})\n", stderr
+    assert len(list((out / "parts").glob("part-*.parquet"))) < 8
+    done = run_campaign(path, out, workers=2, nudyn=nudyn, progress=False)
+    assert done.column("case").to_pylist() == list(range(80))

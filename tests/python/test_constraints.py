@@ -25,7 +25,7 @@ from nudyn_validation.scenarios import FORCED_TOLERANCE, UNFORCED_TOLERANCE
 
 FIXTURES = {name: ROOT / "tests" / "fixtures" / "constraints" / f"{name}.xml" for name in ("limited_arm", "docked_servicer")}
 FIXTURE = FIXTURES["limited_arm"]
-N_STATES = 60
+N_STATES = 100
 
 
 def random_states(model: mujoco.MjModel, rng: np.random.Generator):
@@ -207,3 +207,71 @@ def test_fmu_runs_into_its_limits_like_mujoco(name, nudyn, tmp_path):
     frc = [k for k in range(load_model(FIXTURE).nsensor) if load_model(FIXTURE).sensor_type[k] == mujoco.mjtSensor.mjSENS_JOINTLIMITFRC]
     limit_forces = actuated.mujoco.sensordata[:, [load_model(FIXTURE).sensor_adr[k] for k in frc]]
     assert np.count_nonzero(limit_forces) > 0, "jointlimitfrc must read a limit's force on the way"
+
+
+def test_the_fmu_outputs_qfrc_constraint(nudyn, tmp_path):
+    """`--outputs qfrc_constraint` gives MuJoCo's qfrc_constraint at the
+    FMU's state: equal to nudyn eval's there, and to MuJoCo's to 1e-8;
+    zero for a vehicle without constraints."""
+    from fmpy import simulate_fmu
+
+    from nudyn_driver.cli import Nudyn
+
+    model = load_model(FIXTURES["docked_servicer"])
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(7)
+    data.qvel[:] = rng.normal(0, 0.3, model.nv)
+    data.ctrl[:] = rng.uniform(-1, 1, model.nu)
+    mujoco.mj_forward(model, data)
+    answer = run_eval(nudyn, FIXTURES["docked_servicer"], json.dumps({"theta": data.qpos.tolist(), "qvel": data.qvel.tolist(), "ctrl": data.ctrl.tolist()})).json()
+    fmu = tmp_path / "docked.fmu"
+    Nudyn(nudyn).export(FIXTURES["docked_servicer"], fmu, outputs=("qfrc_constraint",))
+    start = {f"theta[{i + 1}]": v for i, v in enumerate(data.qpos)}
+    start.update({f"nu[{i + 1}]": v for i, v in enumerate(answer["nu"])})
+    start.update({f"ctrl[{i + 1}]": v for i, v in enumerate(data.ctrl)})
+    names = [f"qfrc_constraint[{i + 1}]" for i in range(model.nv)]
+    result = simulate_fmu(fmu, stop_time=1e-3, output_interval=1e-3, start_values=start, output=names)
+    at_start = np.array([result[name][0] for name in names])
+    assert relative(at_start, answer["qfrc_constraint"]) < 1e-12
+    assert relative(at_start, data.qfrc_constraint) < 1e-8
+    assert np.max(np.abs(at_start)) > 1.0
+
+    plain = tmp_path / "plain.fmu"
+    Nudyn(nudyn).export(ROOT / "examples" / "bus_arm7.xml", plain, outputs=("qfrc_constraint",))
+    result = simulate_fmu(plain, stop_time=1e-2, output_interval=1e-2, output=["qfrc_constraint[7]"])
+    assert np.all(result["qfrc_constraint[7]"] == 0.0)
+
+
+def test_export_disable_leaves_constraint_kinds_out(nudyn, tmp_path):
+    """`nudyn export --disable KIND,...` drops those rows as MuJoCo's flags
+    do: the FMU's modelDescription names what is left, and with every kind
+    disabled its qfrc_constraint stays 0 where the full FMU's does not."""
+    import subprocess
+    import zipfile
+
+    from fmpy import simulate_fmu
+
+    def export(name, *disable):
+        fmu = tmp_path / f"{name}.fmu"
+        options = ["--disable", ",".join(disable)] if disable else []
+        command = [str(nudyn), "export", str(FIXTURES["docked_servicer"]), "-o", str(fmu), "--outputs", "qfrc_constraint", *options]
+        subprocess.run(command, check=True, capture_output=True)
+        with zipfile.ZipFile(fmu) as archive:
+            description = archive.read("modelDescription.xml").decode()
+        return fmu, description
+
+    _, limits_only = export("limits", "equality", "frictionloss")
+    assert "limits on 5 joints" in limits_only and "equality" not in limits_only.split("eps_c;")[1].split('"')[0]
+    assert "friction loss" not in limits_only
+    full, _ = export("full")
+    none, description = export("none", "equality", "frictionloss", "limit")
+    assert "eps_c" not in description
+    names = [f"qfrc_constraint[{i + 1}]" for i in range(6, 12)]
+    start = {"nu[7]": 0.5, "nu[9]": -0.3}
+    for fmu, moves in ((full, True), (none, False)):
+        result = simulate_fmu(fmu, stop_time=0.05, output_interval=0.01, start_values=start, output=names)
+        forces = np.array([result[name] for name in names])
+        assert (np.max(np.abs(forces)) > 0.1) == moves, fmu.name
+
+    refused = subprocess.run([str(nudyn), "export", str(FIXTURES["docked_servicer"]), "-o", str(tmp_path / "x.fmu"), "--disable", "contact"], capture_output=True, text=True)
+    assert refused.returncode == 2 and "unknown constraint kind 'contact'" in refused.stderr

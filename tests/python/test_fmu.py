@@ -538,7 +538,46 @@ def test_unattainable_tolerance_is_a_warning_not_a_failure(nudyn, cli, tmp_path)
     assert len(warnings) == statuses.count(fmi2Warning) and all(s == fmi2Warning for s, c, _ in slave.log.messages)
     held = [float(re.search(r"held to ([0-9.e+-]+) per second", m).group(1)) for m in warnings]
     assert all("tolerance 1e-8 per second is below what round-off" in m for m in warnings), warnings[0]
+    assert not any("diverges" in m for m in warnings), warnings[0]
     assert held == sorted(held) and held[0] > 1e-8, held
     assert slave.fmu.getRealStatus(fmi2LastSuccessfulTime) == pytest.approx(50 * STEP)
     assert np.all(np.isfinite(slave.all_reals()))
     slave.fmu.freeInstance()
+
+
+def test_a_diverging_closed_loop_is_not_blamed_on_round_off(cli, tmp_path):
+    """The plant and its controller FMU in a Gauss–Seidel loop at h = 0.01 s
+    with c1 = 300 /s: c1·h = 3 is past the sampled loop's limit of 2, so |ν|
+    doubles each step. The plant's warning used to blame round-off in the
+    vehicle's rates ("tolerance 1e-8 per second is below what round-off ...
+    allows"); it must say the motion diverges, by how much the rates grew,
+    and the error held relative to the state's size."""
+    model = EXAMPLES[0].parent / "bus_arm7.xml"
+    plant_package = FmuPackage.unzip(cli.export(model, tmp_path / "plant.fmu"), tmp_path / "plant")
+    controller_package = FmuPackage.unzip(cli.export(model, tmp_path / "controller.fmu", controller=True),
+                                          tmp_path / "controller")
+    plant = Instance(plant_package, name="plant", nu=[0.1] * plant_package.nv)
+    controller = Instance(controller_package, name="controller",
+                          start={name: 300.0 for name in controller_package.names("c1")})
+    start = np.linalg.norm(plant.array("nu"))
+    try:
+        for k in range(40):
+            controller.set_array("theta", plant.array("theta"))
+            controller.set_array("nu", plant.array("nu"))
+            plant.set_array("eps", controller.array("eps"))
+            if plant.step(STEP, communication_point=k * STEP) == fmi2Warning:
+                break
+            controller.step(STEP, communication_point=k * STEP)
+        else:
+            pytest.fail(f"no warning in 40 steps: |nu| = {np.linalg.norm(plant.array('nu')):.1e}")
+        grown = np.linalg.norm(plant.array("nu")) / start
+        (warning,) = [m for _, c, m in plant.log.messages if c == "logStatusWarning"]
+        assert grown > 1e4, grown
+        assert warning.startswith("fmi2DoStep: the motion diverges: the rates grew "), warning
+        factor = float(re.search(r"grew (\S+)-fold since the start", warning).group(1))
+        assert factor > grown and "an unstable loop around the FMU" in warning and "round-off" not in warning, warning
+        assert re.search(r"held to \S+ per second, relative to 1 \+ \|x\| for each coordinate and velocity x", warning)
+        assert plant.log.held_tolerance() > 1e-8
+    finally:
+        plant.close()
+        controller.close()

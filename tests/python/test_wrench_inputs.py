@@ -96,6 +96,9 @@ def test_without_the_option_there_are_no_wrench_inputs(cli, tmp_path):
     [
         (["--wrench-inputs", "nope"], "no body 'nope' in the vehicle (its bodies: bus, wheel_x"),
         (["--wrench-inputs", "bus,nope"], "no body 'nope'"),
+        # Two wrenches on one body used to be two sets of inputs, added.
+        (["--wrench-inputs", "bus,wheel_x,bus"], "--wrench-inputs: body 'bus' is named twice"),
+        (["--wrench-inputs", "bus", "--wrench-inputs", "bus"], "--wrench-inputs: body 'bus' is named twice"),
         (["--wrench-inputs", "bus", "--controller"], "cannot be used with"),
     ],
 )

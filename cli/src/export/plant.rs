@@ -112,6 +112,11 @@ pub fn description(model: &Model, variable: RealVariable) -> String {
         RealVariable::EnergyResidual => {
             "energy residual K - K(start) - integral of nu . nu_dot dt, the integration's energy error (J)".into()
         }
+        RealVariable::QfrcConstraint(k) => {
+            let (joint, unit) = joint_entry(model, k, false);
+            let force_unit = if unit.contains("rad") { "N*m" } else { "N" };
+            format!("constraint force (MuJoCo's qfrc_constraint) on {joint} ({force_unit})")
+        }
         RealVariable::DerTheta(k) => {
             let (joint, unit) = joint_entry(model, k, true);
             format!("time derivative of the qpos of {joint} ({unit}/s)")
