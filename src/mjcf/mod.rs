@@ -4,9 +4,8 @@
 //!
 //! Elements without effect on the dynamics (cameras, lights, visual
 //! settings…) are ignored with a warning each; elements that would change
-//! the dynamics in ways nudyn does not model (tendons, equality
-//! constraints, flexible bodies, fluid forces, friction loss, actuators with
-//! activation states…) are rejected with an [`MjcfError`] naming the element
+//! the dynamics in ways nudyn does not model (tendons, flexible bodies,
+//! fluid forces, actuators with activation states…) are rejected with an [`MjcfError`] naming the element
 //! and its line (and its file, when it is in an included one). Sites,
 //! actuators and sensors are read: actuators act through `ctrl`.
 //! `<include>`d files are merged in, `<frame>`s composed into what they
