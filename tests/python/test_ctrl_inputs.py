@@ -50,7 +50,9 @@ def check_actuated(model_path, fmu_path, nudyn, settings=None):
 
 
 def test_every_actuator_file_is_covered():
-    assert len(ACTUATED) == len(FIXTURES) >= 4
+    # Every actuator fixture has actuators; the sensor fixtures may have none.
+    actuator_files = sorted((ROOT / "tests" / "fixtures" / "actuators").glob("*.xml"))
+    assert set(actuator_files) <= set(ACTUATED) and len(ACTUATED) >= 4
     assert any(load_model(path).nu > 0 for path in EXAMPLES), "test_validation.py runs 'actuated' on an example"
 
 
