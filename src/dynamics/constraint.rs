@@ -2,10 +2,11 @@
 //! on the diagonalized dynamics as ε_c = m⁻¹Jᵀf, so that
 //! ν̇ + C(θ, ν) = ε + ε_c keeps its form.
 //!
-//! For a state whose passes 0–2 are done, with ε applied:
-//! 1. θ̈ without constraints (MuJoCo's qacc_smooth): pass 3 and the outward pass;
-//! 2. the active rows in MuJoCo's order (friction loss by dof, then limits
-//!    by joint, a hinge's or slide's lower side first): J, distance, margin;
+//! For a state whose pass 3 has just run with the applied ε:
+//! 1. θ̈ without constraints (MuJoCo's qacc_smooth): that pass's outward pass;
+//! 2. the active rows in MuJoCo's order (equality constraints, friction loss
+//!    by dof, then limits by joint, a hinge's or slide's lower side first):
+//!    J, distance, margin (equality.rs builds the equality rows);
 //! 3. E = m⁻¹Jᵀ, one inward pass per row, and A = J M⁻¹ Jᵀ = EᵀE (as
 //!    M⁻¹ = m⁻ᵀm⁻¹: no dense M, no factorization beyond the passes');
 //! 4. impedance, regularizer R and reference acceleration aref from
@@ -13,7 +14,9 @@
 //! 5. f minimizing ½fᵀ(A + R)f + fᵀ(J·qacc_smooth − aref) in the box each
 //!    row allows ([`super::box_qp`]): the dual of MuJoCo's problem, whose
 //!    unique minimizer all its solvers approach;
-//! 6. ε_c = E f and MuJoCo's qfrc_constraint = Jᵀf.
+//! 6. ε_c = E f and MuJoCo's qfrc_constraint = Jᵀf; ε_c is added to the
+//!    pass's ν̇ and θ̈'s joint term (ε enters ν̇ additively), and the outward
+//!    pass gives θ̈.
 
 use super::box_qp::BoxQp;
 use super::{DynamicsError, require};
