@@ -54,7 +54,9 @@ impl ControllerResource {
 
 impl Resource for ControllerResource {
     const FILE: &'static str = "controller.json";
-    const FORMAT: u32 = 1;
+    // 2: the compiled model gained constraints and sensors_disabled
+    // (2026-11-26); a format-1 reader would silently drop them.
+    const FORMAT: u32 = 2;
 
     fn format(&self) -> u32 {
         self.format
