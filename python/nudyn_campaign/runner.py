@@ -14,6 +14,7 @@ import math
 import os
 import signal
 import tempfile
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -107,6 +108,12 @@ def _client(workers: int | None, scheduler: str | None):
     return Client(cluster), cluster
 
 
+def _interrupt_quietly(signum, frame) -> None:
+    """SIGINT during a run: Dask quiet first, then the interrupt."""
+    _quiet_dask()
+    raise KeyboardInterrupt
+
+
 def _quiet_dask() -> None:
     """Dask's complaints about a cluster closed in the middle of its work say nothing more."""
     for name in ("distributed", "tornado", "asyncio"):
@@ -198,12 +205,17 @@ def run_campaign(
     columns = ["case", *campaign.columns(), *NAMES]
     if missing:
         client, cluster = _client(workers, scheduler)
+        # Dask's loop thread logs its own complaint about the wait that
+        # Ctrl-C breaks, racing the KeyboardInterrupt: quiet it before the
+        # interrupt is raised, in the signal handler itself.
+        # (Python takes signal handlers in the main thread only.)
+        main_thread = threading.current_thread() is threading.main_thread()
+        interrupt = signal.signal(signal.SIGINT, _interrupt_quietly) if main_thread else None
         try:
             _run(client, campaign, worker_spec, fmus, missing, out, progress, stop_after_chunks, len(done))
-        except KeyboardInterrupt:
-            _quiet_dask()
-            raise
         finally:
+            if main_thread:
+                signal.signal(signal.SIGINT, interrupt)
             client.close()
             if cluster is not None:
                 cluster.close()
