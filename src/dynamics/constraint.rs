@@ -291,12 +291,24 @@ impl Workspace {
     /// run again. The rows and forces stay in `constraint_rows`.
     pub fn apply_constraint_forces(&mut self, model: &Model, applied: &mut [f64]) -> Result<(), DynamicsError> {
         require(self, Stage::JointRates, "apply_constraint_forces")?;
-        // compute_qacc (stage JointRates) has run the outward pass already.
-        if self.stage == Stage::Acceleration {
-            self.compute_accelerations(model)?;
-        }
         let mut rows = std::mem::take(&mut self.constraint_rows);
-        let result = self.solve_constraints(model, &mut rows);
+        rows.count = 0;
+        self.instantiate_equalities(model, &mut rows);
+        rows.instantiate_friction_and_limits(model, self.theta.as_slice());
+        if rows.count == 0 {
+            // No row active (limits away, no friction loss or equality):
+            // the pass already run is the answer.
+            rows.eps_constraint.fill(0.0);
+            rows.qfrc_constraint.fill(0.0);
+            self.constraint_rows = rows;
+            return Ok(());
+        }
+        // compute_qacc (stage JointRates) has run the outward pass already.
+        let mut result = Ok(());
+        if self.stage == Stage::Acceleration {
+            result = self.compute_accelerations(model);
+        }
+        let result = result.and_then(|()| self.solve_constraints(model, &mut rows));
         if result.is_ok() {
             let with_rates = self.stage == Stage::Acceleration;
             for (d, constraint) in rows.eps_constraint.iter().enumerate() {
@@ -312,11 +324,9 @@ impl Workspace {
         self.compute_accelerations(model)
     }
 
+    /// The forces of the instantiated rows, with the outward pass's θ̈ as qacc_smooth.
     fn solve_constraints(&mut self, model: &Model, rows: &mut ConstraintRows) -> Result<(), DynamicsError> {
         let nv = model.nv;
-        rows.count = 0;
-        self.instantiate_equalities(model, rows);
-        rows.instantiate_friction_and_limits(model, self.theta.as_slice());
         let n = rows.count;
         for k in 0..n {
             let column = k * nv..(k + 1) * nv;
