@@ -13,6 +13,7 @@ use nudyn::model::Model;
 use nudyn::vehicle::{ConstraintKind, Vehicle};
 use nudyn_cli::export::controller::write_controller_fmu;
 use nudyn_cli::export::plant::{ExportOptions, write_fmu};
+use nudyn_cli::export::system::{SystemOptions, write_system};
 use nudyn_cli::export::{FmiVersion, Platform, PlatformBinary, model_identifier_from};
 use nudyn_contract::plant::{DEFAULT_TOLERANCE, OptionalOutputs};
 use serde::Deserialize;
@@ -143,6 +144,40 @@ enum Command {
         #[arg(long, value_enum, default_value = "json")]
         format: Format,
     },
+    /// Write the plant and its controller as one SSP 1.0 system file
+    /// (docs/systems.md): SystemStructure.ssd connecting plant θ, ν to the
+    /// controller and the controller's ε to the plant, both FMUs in
+    /// resources/, and the values of --set in a ParameterValues file per
+    /// component. FMPy (fmpy.ssp.simulation.simulate_ssp) and OSP's
+    /// libcosim (CosimExecution.from_ssp_file) run it.
+    // Numbers may be negative (`--set plant.nu[4]=-0.5`, `--step -1` is refused as negative).
+    System {
+        /// The vehicle's MJCF file.
+        model: PathBuf,
+        /// The .ssp file to write.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// The controller's Y is the pose of this body (default: every hinge and slide joint).
+        #[arg(long, value_name = "BODY")]
+        end_effector: Option<String>,
+        /// The FMI version of both FMUs: 2 (the SSP importers run FMI 2.0 components only).
+        #[arg(long, default_value = "2", value_name = "2|3")]
+        fmi_version: FmiVersion,
+        /// The plant's optional outputs, comma-separated.
+        #[arg(long, default_value = "", help = outputs_help())]
+        outputs: OptionalOutputs,
+        /// The DefaultExperiment's communication step H (s); libcosim's fixed step.
+        #[arg(long, default_value_t = 0.01, allow_hyphen_values = true)]
+        step: f64,
+        /// The DefaultExperiment's stop time (s), a multiple of the step.
+        #[arg(long, default_value_t = 10.0, allow_hyphen_values = true)]
+        stop: f64,
+        /// A start value of either component: plant.NAME=VALUE or
+        /// controller.NAME=VALUE (an array's name without index sets every
+        /// entry: controller.c1=2); repeat for several.
+        #[arg(long = "set", value_name = "COMPONENT.NAME=VALUE", allow_hyphen_values = true)]
+        sets: Vec<String>,
+    },
 }
 
 /// `--outputs`' help, from the contract's list of optional outputs.
@@ -226,7 +261,7 @@ fn place(path: &serde_path_to_error::Path) -> Option<String> {
 }
 
 fn run(cli: Cli) -> Result<()> {
-    if let Command::Export { model, output, .. } = &cli.command {
+    if let Command::Export { model, output, .. } | Command::System { model, output, .. } = &cli.command {
         refuse_overwriting_the_input(model, output)?;
     }
     match cli.command {
@@ -238,6 +273,18 @@ fn run(cli: Cli) -> Result<()> {
         Command::Export { model, output, model_identifier, outputs, fmi_version, wrench_inputs, disable, .. } => {
             let options = PlantOptions { model_identifier, outputs, wrench_inputs, disable, fmi_version };
             export(&model, &output, options)
+        }
+        Command::System { model, output, end_effector, fmi_version, outputs, step, stop, sets } => {
+            let stem = model.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+            let options = SystemOptions {
+                plant_identifier: model_identifier_from(&stem),
+                controller_identifier: model_identifier_from(&format!("{stem}_controller")),
+                plant: ExportOptions { model_identifier: model_identifier_from(&stem), outputs, fmi_version },
+                step,
+                stop,
+                sets,
+            };
+            system(&model, &output, end_effector.as_deref(), &options)
         }
         Command::Simulate { model, step, stop, method, tolerance, max_step, energy_projection, format } => {
             let settings = Settings { tolerance, max_step: max_step.unwrap_or(step), energy_projection };
@@ -494,6 +541,24 @@ fn export_controller(
     write_controller_fmu(&model, &law, &identifier, fmi_version, &binaries, output)
         .with_context(|| format!("cannot export {}", output.display()))?;
     report_platforms(output, &binaries)
+}
+
+fn system(model_path: &Path, output: &Path, end_effector: Option<&str>, options: &SystemOptions) -> Result<()> {
+    let (vehicle, model) = load_vehicle(model_path)?;
+    let law = match end_effector {
+        Some(body) => ControlLaw::pose(&vehicle, &model, body),
+        None => ControlLaw::joints(&model),
+    }
+    .with_context(|| format!("cannot build the controller of {}", model_path.display()))?;
+    let binaries = fmu_binaries()?;
+    let values = write_system(&model, &law, options, &binaries, output)
+        .with_context(|| format!("cannot write {}", output.display()))?;
+    let set: usize = values.values().map(|v| v.len()).sum();
+    report_platforms(output, &binaries)?;
+    if set > 0 {
+        emit(&format!("{set} start values set (resources/*.ssv; the plant's also in plant.fmu)"))?;
+    }
+    Ok(())
 }
 
 /// Refuses `nudyn simulate` options that cannot describe a run.

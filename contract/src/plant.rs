@@ -7,6 +7,8 @@
 //! `nu[1..nv]`, for a vehicle with sensors `sensordata[1..n]` in MuJoCo's
 //! sensor order and layout, and the optional outputs chosen at export.
 
+use std::collections::BTreeMap;
+
 use serde::{Deserialize, Serialize};
 
 use nudyn::integrate::Method;
@@ -16,7 +18,7 @@ use nudyn::vehicle::SensorKind;
 use crate::blocks::{VariableOf, every_variable, numbered_blocks, variable_at};
 use crate::capabilities::Capabilities;
 use crate::resource::Resource;
-use crate::variable::{Kind, Range};
+use crate::variable::{Kind, Range, StartError, check_start};
 
 /// Value reference of the Integer (enumeration) parameter `method`.
 pub const METHOD_VR: u32 = 0;
@@ -141,14 +143,39 @@ pub struct PlantResource {
     pub format: u32,
     /// The optional outputs the FMU provides.
     pub outputs: OptionalOutputs,
+    /// Start values chosen at export (a system file's `--set plant.NAME`),
+    /// by variable name: the FMU takes them as its own, before any set.
+    pub starts: BTreeMap<String, f64>,
     /// The compiled vehicle.
     pub model: Model,
 }
 
 impl PlantResource {
-    /// The resource of an FMU of `model` with `outputs`.
+    /// The resource of an FMU of `model` with `outputs` and the variables' default starts.
     pub fn new(model: Model, outputs: OptionalOutputs) -> Self {
-        PlantResource { format: Self::FORMAT, outputs, model }
+        PlantResource { format: Self::FORMAT, outputs, starts: BTreeMap::new(), model }
+    }
+
+    /// The same FMU with start values `starts` (variable name → value)
+    /// replacing the defaults; refused, naming the variable, if one is not
+    /// a variable with a start value or its value is not one it accepts.
+    pub fn with_starts(mut self, starts: BTreeMap<String, f64>) -> Result<Self, StartError> {
+        let layout = self.layout();
+        for (name, &value) in &starts {
+            let variable = layout
+                .real_variables()
+                .map(|(_, variable)| variable)
+                .find(|variable| &variable.name() == name)
+                .ok_or_else(|| StartError::Unknown(name.clone()))?;
+            check_start(name, variable.kind(), variable.start(&self.model).is_some(), value)?;
+        }
+        self.starts = starts;
+        Ok(self)
+    }
+
+    /// The start value of `variable`: the one chosen at export, else its default.
+    pub fn start(&self, variable: RealVariable) -> Option<f64> {
+        self.starts.get(&variable.name()).copied().or_else(|| variable.start(&self.model))
     }
 
     /// The layout of its variables.
@@ -161,7 +188,9 @@ impl Resource for PlantResource {
     const FILE: &'static str = "model.json";
     // 2: the compiled model gained constraints and sensors_disabled
     // (2026-11-26); a format-1 reader would silently drop them.
-    const FORMAT: u32 = 2;
+    // 3: start values chosen at export (`starts`), which a format-2 reader
+    // would silently ignore.
+    const FORMAT: u32 = 3;
 
     fn format(&self) -> u32 {
         self.format

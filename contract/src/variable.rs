@@ -119,6 +119,49 @@ impl Kind {
     }
 }
 
+/// Why a start value chosen before export cannot be used.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum StartError {
+    /// No variable has this name.
+    #[error("no variable is named {0}")]
+    Unknown(String),
+    /// The variable has no start value to choose (a calculated output).
+    #[error("{name} has no start value: it is {what}")]
+    NoStart {
+        /// The variable.
+        name: String,
+        /// What it is.
+        what: &'static str,
+    },
+    /// The value is outside the variable's range.
+    #[error("{name} = {value} is refused: it must be {must}")]
+    OutOfRange {
+        /// The variable.
+        name: String,
+        /// The value refused.
+        value: f64,
+        /// What the value must be.
+        must: &'static str,
+    },
+}
+
+/// Checks a start value chosen for the variable `name` of kind `kind`
+/// (`has_start`: whether it has a start value at all), as the FMU would
+/// check the same value set before initialization.
+pub fn check_start(name: &str, kind: Kind, has_start: bool, value: f64) -> Result<(), StartError> {
+    if !has_start {
+        let what = if kind.causality == Causality::Local { "a state derivative" } else { "a calculated output" };
+        return Err(StartError::NoStart { name: name.to_string(), what });
+    }
+    let must = match kind.range {
+        _ if !value.is_finite() => "finite",
+        Range::Positive if value <= 0.0 => "positive",
+        Range::NonNegative if value < 0.0 => "non-negative",
+        _ => return Ok(()),
+    };
+    Err(StartError::OutOfRange { name: name.to_string(), value, must })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -98,15 +98,22 @@ pub struct Plant {
     /// The tolerance fmi2SetupExperiment passed, if it passed one: it
     /// replaces the `tolerance` parameter at initialization.
     experiment_tolerance: Option<f64>,
+    /// The start values chosen at export (value reference, value), set at
+    /// instantiation and at every reset.
+    starts: (Vec<u32>, Vec<f64>),
 }
 
 impl Plant {
     /// The plant of a loaded resource.
     pub fn load(loaded: Loaded<PlantResource>) -> Plant {
         let layout = loaded.resource.layout();
+        let starts = layout
+            .real_variables()
+            .filter_map(|(vr, variable)| loaded.resource.starts.get(&variable.name()).map(|&value| (vr, value)))
+            .unzip();
         let model = loaded.resource.model;
         let reals = layout.real_variables().map(|(_, variable)| variable).collect();
-        Plant {
+        let mut plant = Plant {
             layout,
             reals,
             guid: loaded.guid,
@@ -122,8 +129,18 @@ impl Plant {
             momentum: [0.0; 6],
             failed_for_good: false,
             experiment_tolerance: None,
+            starts,
             model,
-        }
+        };
+        plant.set_starts();
+        plant
+    }
+
+    /// Sets the start values chosen at export, as a master's set would.
+    fn set_starts(&mut self) {
+        let (vrs, values) = std::mem::take(&mut self.starts);
+        self.set_reals(&vrs, &values);
+        self.starts = (vrs, values);
     }
 
     /// The Real variable with value reference `vr`, if any.
@@ -194,6 +211,7 @@ impl Component for Plant {
         self.evaluated = Evaluated::Nothing;
         self.failed_for_good = false;
         self.experiment_tolerance = None;
+        self.set_starts();
     }
 
     fn time(&self) -> f64 {

@@ -11,6 +11,7 @@ pub mod controller;
 mod documentation;
 mod fmi3;
 pub mod plant;
+pub mod system;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};

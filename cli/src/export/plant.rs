@@ -294,7 +294,7 @@ pub fn model_description3(resource: &PlantResource, options: &ExportOptions, gui
         let variable = layout.real_variable(vr).expect("the table's Reals are the layout's");
         fmi3::RealScalar {
             kind: variable.kind(),
-            start: variable.start(model),
+            start: resource.start(variable),
             description: description(model, variable),
         }
     };
@@ -303,7 +303,8 @@ pub fn model_description3(resource: &PlantResource, options: &ExportOptions, gui
 }
 
 /// The typed modelDescription of the plant FMU (not yet validated).
-pub fn model_description(model: &Model, options: &ExportOptions, guid: &str) -> md::FmiModelDescription {
+pub fn model_description(resource: &PlantResource, options: &ExportOptions, guid: &str) -> md::FmiModelDescription {
+    let model = &resource.model;
     let layout = Layout::new(model, options.outputs);
     let method = md::ScalarVariable {
         name: METHOD_NAME.into(),
@@ -342,7 +343,7 @@ pub fn model_description(model: &Model, options: &ExportOptions, guid: &str) -> 
     };
     let scalar_variables = reals.iter().map(|&(vr, variable)| {
         let mut scalar =
-            real_variable(variable.name(), vr, description(model, variable), variable.kind(), variable.start(model));
+            real_variable(variable.name(), vr, description(model, variable), variable.kind(), resource.start(variable));
         if let md::VariableKind::Real(real) = &mut scalar.kind {
             real.derivative = state_of(variable);
         }
@@ -409,14 +410,24 @@ pub fn write_fmu(
     binaries: &[PlatformBinary],
     out: &Path,
 ) -> Result<(), ExportError> {
+    write_plant_fmu(&PlantResource::new(model.clone(), options.outputs), options, binaries, out)
+}
+
+/// Writes the plant FMU `out` of `resource` (its model, optional outputs
+/// and start values) as [`write_fmu`] does.
+pub fn write_plant_fmu(
+    resource: &PlantResource,
+    options: &ExportOptions,
+    binaries: &[PlatformBinary],
+    out: &Path,
+) -> Result<(), ExportError> {
     check_model_identifier(&options.model_identifier)?;
-    let resource = PlantResource::new(model.clone(), options.outputs);
     let bytes = resource.to_json()?;
     let guid = resource.guid(&bytes);
     let description = match options.fmi_version {
-        FmiVersion::Fmi2 => Document::Fmi2(model_description(model, options, &guid)),
-        FmiVersion::Fmi3 => Document::Fmi3(model_description3(&resource, options, &guid)),
+        FmiVersion::Fmi2 => Document::Fmi2(model_description(resource, options, &guid)),
+        FmiVersion::Fmi3 => Document::Fmi3(model_description3(resource, options, &guid)),
     };
-    let documentation = documentation::index_html(model, &description, "plant");
+    let documentation = documentation::index_html(&resource.model, &description, "plant");
     write_archive::<PlantResource>(&description, &bytes, &documentation, binaries, out)
 }
