@@ -106,12 +106,13 @@ class _Flight:
         self.reached = k + 1
 
 
-def run_chunk(spec: dict, plant_fmu: bytes, controller_fmu: bytes | None, mjcf: str, cases: list[tuple[int, dict]]) -> list[dict]:
+def run_chunk(spec: dict, plant_fmu: bytes, controller_fmu: bytes | None, mjcf: str | None, cases: list[tuple[int, dict]]) -> list[dict]:
     """Rows (drawn values, metrics, status, message) of `cases`: pairs of
-    the case index and its drawn values."""
+    the case index and its drawn values. `mjcf` (for qvel) is None for a
+    system file's FMUs."""
     plant_package = _package(plant_fmu)
     controller_package = _package(controller_fmu) if controller_fmu is not None else None
-    reference = _reference(mjcf)
+    reference = _reference(mjcf) if mjcf is not None else None
     names = {key: (scope, tuple(variables)) for key, scope, variables in spec["targets"]}
     custom = [_function(name) for name in spec["metrics"]]
     plant = controller = None
@@ -121,19 +122,20 @@ def run_chunk(spec: dict, plant_fmu: bytes, controller_fmu: bytes | None, mjcf: 
             row = {"case": case, **{key: value for key, value in drawn.items()}}
             plant_values, controller_values, qvel = _split(drawn, names)
             start = {**spec["plant_parameters"], **plant_values}
-            theta = reference.model.qpos0.copy()
+            # The plant's own start (qpos0, or a system file's values).
+            theta = np.array(plant_package.starts("theta"))
             for name, value in start.items():
                 if name.startswith("theta["):
                     theta[int(name[6:-1]) - 1] = value
             nu = None
             if qvel:
-                velocity = np.zeros(reference.model.nv)
+                velocity = np.zeros(plant_package.nv)
                 for index, value in qvel.items():
                     velocity[index] = value
                 nu = reference.nu(theta, velocity)
             start = {name: value for name, value in start.items() if not name.startswith("theta[")}
             steps = round(spec["duration"] / spec["step"])
-            flight = _Flight(steps, reference.model.nv, len(plant_package.names("ctrl")), controller_package is not None)
+            flight = _Flight(steps, plant_package.nv, len(plant_package.names("ctrl")), controller_package is not None)
             try:
                 if plant is None:
                     plant = Instance(plant_package, name="plant", start=start, theta=theta, nu=nu)

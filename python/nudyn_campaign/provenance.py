@@ -45,6 +45,7 @@ def flown_from(campaign: Campaign, plant_fmu: bytes, controller_fmu: bytes | Non
         "duration": campaign.duration,
         "step": campaign.step,
         "controller": campaign.controller,
+        "system": campaign.system.name if campaign.system else None,
         "end_effector": campaign.end_effector,
         "wrench_bodies": list(campaign.wrench_bodies),
         "settle_threshold": campaign.settle_threshold,

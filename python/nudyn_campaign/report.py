@@ -38,7 +38,7 @@ def write_report(campaign, table: pa.Table, out: Path) -> None:
         f"# Campaign {campaign.name}",
         "",
         f"{table.num_rows} of {campaign.cases} cases run: {ok} ok, {table.num_rows - ok} failed. "
-        f"Model {campaign.model.name}, {campaign.duration:g} s at a {campaign.step:g} s communication step"
+        f"Model {campaign.source.name}, {campaign.duration:g} s at a {campaign.step:g} s communication step"
         + (", closed loop with the controller FMU" if campaign.controller else "")
         + f"; campaign seed {campaign.seed}.",
         "",

@@ -52,7 +52,10 @@ class Fmus:
 
 
 def export(campaign: specs.Campaign, out: Path, nudyn: Path) -> Fmus:
-    """The plant FMU (and the controller's, for a closed loop) in out/fmus/."""
+    """The plant FMU (and the controller's, for a closed loop) in out/fmus/,
+    or the system file's."""
+    if campaign.system:
+        return _system_fmus(campaign.system)
     cli = Nudyn(nudyn)
     directory = out / "fmus"
     plant = cli.export(campaign.model, directory / "plant.fmu", outputs=PLANT_OUTPUTS,
@@ -62,6 +65,24 @@ def export(campaign: specs.Campaign, out: Path, nudyn: Path) -> Fmus:
         controller = cli.export(campaign.model, directory / "controller.fmu", controller=True,
                                 end_effector=campaign.end_effector)
     return Fmus(plant.read_bytes(), controller.read_bytes() if controller else None)
+
+
+def _system_fmus(path: Path) -> Fmus:
+    """The FMUs of a `nudyn system` file, whose plant must have the outputs the metrics read."""
+    import zipfile
+
+    from nudyn_driver import ssp
+
+    system = ssp.read(path)
+    with zipfile.ZipFile(path) as archive:
+        plant, controller = (archive.read(system.sources[name]) for name in ("plant", "controller"))
+    with tempfile.TemporaryDirectory() as directory:
+        package = ssp.package(system, "plant", Path(directory))
+        missing = [name for name in PLANT_OUTPUTS if name not in package.variables and not package.names(name)]
+    if missing:
+        raise CampaignError(f"campaign.system: the plant of {path.name} has no output {', '.join(missing)}, which the "
+                            f"metrics read: write it with `nudyn system ... --outputs {','.join(PLANT_OUTPUTS)}`")
+    return Fmus(plant, controller)
 
 
 def finished_cases(out: Path) -> set[int]:
@@ -228,7 +249,7 @@ def _run(client, campaign, worker_spec, fmus, missing, out, progress, stop_after
     workers = max(1, len(client.scheduler_info().get("workers", {})))
     size = max(1, min(50, math.ceil(len(missing) / (4 * workers))))
     chunks = [missing[i : i + size] for i in range(0, len(missing), size)]
-    mjcf = campaign.model.read_text()
+    mjcf = campaign.model.read_text() if campaign.model else None
     plant = client.scatter(fmus.plant, broadcast=True, hash=False)
     controller = client.scatter(fmus.controller, broadcast=True, hash=False) if fmus.controller else None
     futures = [

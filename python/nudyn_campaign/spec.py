@@ -3,6 +3,8 @@
     [campaign]
     name = "detumble"            # default: the file's name
     model = "../bus_arm7.xml"    # MJCF, relative to this file
+    # or: system = "loop.ssp"    # a `nudyn system` file: its plant and controller FMUs,
+    #                            # its values, and (unless given) its stop time and step
     seed = 2026                  # campaign seed: case k draws from (seed, k)
     cases = 1000
     duration = 10.0              # s
@@ -40,6 +42,14 @@ dispersed by one key at most (qvel and nu never together). A schedule sets an
 input (eps[k], ctrl[k], xfrc_applied[k]) at the communication points from
 its times on, the same in every case; before its first time the input
 keeps its start value (0, or a dispersed one).
+
+With `system`, the FMUs are the archive's (exported with `--outputs
+kinetic_energy,momentum`, which the metrics read), the loop is closed, its
+controller values are fixed parameters under the file's own [controller],
+its plant values are the plant FMU's start values, and its
+DefaultExperiment gives duration and step where the file does not; qvel
+needs the MJCF (MuJoCo turns it into ν) and is refused, as are the export
+options end_effector and wrench_bodies (the archive fixed them).
 """
 
 from __future__ import annotations
@@ -77,7 +87,8 @@ class Dispersion:
 class Campaign:
     path: Path
     name: str
-    model: Path
+    # The MJCF, or None when the campaign flies a system file.
+    model: Path | None
     seed: int
     cases: int
     duration: float
@@ -93,6 +104,13 @@ class Campaign:
     dispersions: tuple[Dispersion, ...] = ()
     # Input name -> ((time, value), ...) ascending in time.
     schedules: dict = field(default_factory=dict)
+    # The `nudyn system` file flown instead of the MJCF's export, if any.
+    system: Path | None = None
+
+    @property
+    def source(self) -> Path:
+        """The file the vehicle comes from: the system file or the MJCF."""
+        return self.system or self.model
 
     @property
     def steps(self) -> int:
@@ -179,23 +197,28 @@ def load(path: str | Path) -> Campaign:
             f"unknown section(s) {', '.join(sorted(unknown))} (known: campaign, plant, controller, dispersions, schedules)"
         )
     section = document.get("campaign", {})
-    known = {"name", "model", "seed", "cases", "duration", "step", "controller", "end_effector", "wrench_bodies",
+    known = {"name", "model", "system", "seed", "cases", "duration", "step", "controller", "end_effector", "wrench_bodies",
              "settle_threshold", "trajectories", "metrics"}
     if set(section) - known:
         raise CampaignError(f"campaign: unknown key(s) {', '.join(sorted(set(section) - known))}")
-    for required in ("model", "cases", "duration", "step"):
-        if required not in section:
-            raise CampaignError(f"campaign.{required} is missing")
-    model = (path.parent / section["model"]).resolve()
-    if not model.is_file():
-        raise CampaignError(f"campaign.model: no such file {model}")
+    system, system_values = _system(path, section)
+    required = ("cases",) if system else ("model", "cases", "duration", "step")
+    for key in required:
+        if key not in section:
+            raise CampaignError(f"campaign.{key} is missing")
+    model = None
+    if not system:
+        model = (path.parent / section["model"]).resolve()
+        if not model.is_file():
+            raise CampaignError(f"campaign.model: no such file {model}")
     cases = section["cases"]
     if not isinstance(cases, int) or cases < 1:
         raise CampaignError(f"campaign.cases: expected a positive integer, found {cases!r}")
-    duration, step = _number(section["duration"], "campaign.duration"), _number(section["step"], "campaign.step")
+    duration = _number(section.get("duration", system_values and system_values.stop_time), "campaign.duration")
+    step = _number(section.get("step", system_values and system_values.step), "campaign.step")
     if not (step > 0 and duration > 0 and abs(round(duration / step) * step - duration) <= 1e-9 * duration):
         raise CampaignError(f"campaign.step: {step} must be positive and divide campaign.duration {duration}")
-    controller = bool(section.get("controller", False))
+    controller = bool(section.get("controller", False)) or system is not None
     end_effector = section.get("end_effector")
     if end_effector is not None and not controller:
         raise CampaignError("campaign.end_effector needs campaign.controller = true")
@@ -203,6 +226,9 @@ def load(path: str | Path) -> Campaign:
     if not controller and any(d.scope == "controller" for d in dispersions):
         raise CampaignError("dispersions of controller parameters need campaign.controller = true")
     _refuse_overlaps(dispersions)
+    if system and any(name.startswith("qvel[") for d in dispersions for name in d.names):
+        raise CampaignError("dispersions of qvel need campaign.model (MuJoCo turns qvel into nu): "
+                            "with campaign.system, disperse nu")
     metrics = section.get("metrics", [])
     if not isinstance(metrics, list) or not all(isinstance(m, str) and _METRIC.match(m) for m in metrics):
         raise CampaignError(f"campaign.metrics: expected a list of \"module:function\" names, found {metrics!r}")
@@ -226,10 +252,30 @@ def load(path: str | Path) -> Campaign:
         trajectories=bool(section.get("trajectories", False)),
         metrics=tuple(metrics),
         plant_parameters=dict(document.get("plant", {})),
-        controller_parameters=dict(document.get("controller", {})),
+        controller_parameters={**(system_values.values.get("controller", {}) if system_values else {}),
+                               **document.get("controller", {})},
         dispersions=dispersions,
         schedules=schedules,
+        system=system,
     )
+
+
+def _system(path: Path, section: dict):
+    """The system file `campaign.system` names and what it holds, or (None, None)."""
+    if "system" not in section:
+        return None, None
+    from nudyn_driver import ssp
+
+    clashes = [key for key in ("model", "controller", "end_effector", "wrench_bodies") if key in section]
+    if clashes:
+        raise CampaignError(f"campaign.system fixes the vehicle and the loop: remove campaign.{clashes[0]}")
+    system = (path.parent / section["system"]).resolve()
+    try:
+        return system, ssp.read(system)
+    except FileNotFoundError:
+        raise CampaignError(f"campaign.system: no such file {system}") from None
+    except (KeyError, AttributeError, ValueError, OSError) as error:
+        raise CampaignError(f"campaign.system: {system} is not a nudyn system file: {error!r}") from None
 
 
 def _entries(dispersion: Dispersion) -> set[tuple[str, str, int | None]]:

@@ -19,7 +19,7 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 
-from conftest import ROOT
+from conftest import EXAMPLES_DIR, ROOT
 from nudyn_campaign import CampaignError, CampaignInterrupted, load, run_campaign
 from nudyn_campaign.files import OutputError
 from nudyn_campaign.runner import consolidate, export
@@ -479,3 +479,48 @@ def test_ctrl_c_ends_with_how_to_resume_and_the_rerun_completes(nudyn, tmp_path)
     assert len(list((out / "parts").glob("part-*.parquet"))) < 8
     done = run_campaign(path, out, workers=2, nudyn=nudyn, progress=False)
     assert done.column("case").to_pylist() == list(range(80))
+
+
+SYSTEM_CAMPAIGN = """
+[campaign]
+SOURCE
+cases = 4
+seed = 7
+[plant]
+method = "rk4"
+[dispersions]
+"nu[4:6]" = {{ normal = [0.0, 0.3] }}
+"controller.c2" = {{ grid = [0.0, 1.0] }}
+"""
+
+
+def test_a_system_file_is_flown_as_its_mjcf_with_the_same_values(nudyn, tmp_path):
+    """`campaign.system`: the archive's FMUs, its controller values and its
+    experiment, with the same rows as the MJCF's campaign given the same
+    values by hand (and different rows without them: the values count)."""
+    ssp_file = tmp_path / "loop.ssp"
+    subprocess.run([str(nudyn), "system", str(EXAMPLES_DIR / "bus_arm7.xml"), "-o", str(ssp_file), "--stop", "3",
+                    "--step", "0.1", "--outputs", "kinetic_energy,momentum", "--set", "controller.c1=2"],
+                   check=True, capture_output=True)
+    system = run_campaign(write(tmp_path, SYSTEM_CAMPAIGN.replace("SOURCE", 'system = "loop.ssp"')), tmp_path / "system",
+                          workers=1, nudyn=nudyn, progress=False)
+    by_hand = SYSTEM_CAMPAIGN.replace("SOURCE", 'model = "{model}"\ncontroller = true\nduration = 3.0\nstep = 0.1')
+    by_hand += "[controller]\nc1 = 2.0\n"
+    mjcf = run_campaign(write(tmp_path, by_hand, "by_hand.toml"), tmp_path / "mjcf", workers=1, nudyn=nudyn,
+                        progress=False)
+    default_gain = run_campaign(write(tmp_path, by_hand.replace("c1 = 2.0", "c1 = 5.0"), "default.toml"),
+                                tmp_path / "default", workers=1, nudyn=nudyn, progress=False)
+    assert set(system.column("status").to_pylist()) == {"ok"}
+    for column in ("final_nu", "peak_nu", "energy_drift", "nu[4:6]", "controller.c2"):
+        assert system.column(column).to_pylist() == mjcf.column(column).to_pylist(), column
+    assert system.column("final_nu").to_pylist() != default_gain.column("final_nu").to_pylist()
+
+
+@pytest.mark.parametrize("line, expected", [
+    ('system = "loop.ssp"\nend_effector = "hand"', "campaign.system fixes the vehicle and the loop: remove campaign.end_effector"),
+    ('system = "missing.ssp"', "campaign.system: no such file"),
+])
+def test_bad_system_campaigns_are_clear_errors(line, expected, tmp_path):
+    (tmp_path / "loop.ssp").write_bytes(b"")
+    with pytest.raises(CampaignError, match=expected):
+        load(write(tmp_path, f"[campaign]\n{line}\ncases = 2\n"))
