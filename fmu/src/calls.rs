@@ -51,19 +51,20 @@ pub fn set_real(
 
 /// fmi2GetReal. Every value is computed and checked before any is written:
 /// a value that overflowed (½|ν|² of a huge ν) is refused, never handed
-/// out, and the importer's buffer is left as it was.
-pub fn get_real(component: &mut dyn Component, vrs: &[u32], values: &mut [f64]) -> Result<(), CallError> {
+/// out, and the importer's buffer is left as it was. Returns the warning
+/// the call completes with, if any.
+pub fn get_real(component: &mut dyn Component, vrs: &[u32], values: &mut [f64]) -> Result<Option<String>, CallError> {
     for &vr in vrs {
         real_kind(component, vr)?;
     }
-    component.prepare_reals(vrs)?;
+    let warning = component.prepare_reals(vrs)?;
     if let Some((vr, value)) = vrs.iter().map(|&vr| (vr, component.real_value(vr))).find(|(_, v)| !v.is_finite()) {
         return Err(CallError::NonFiniteOutput { name: real_variable(component, vr)?.name, value });
     }
     for (value, &vr) in values.iter_mut().zip(vrs) {
         *value = component.real_value(vr);
     }
-    Ok(())
+    Ok(warning)
 }
 
 /// Refuses a derivative of an order other than 1, the only one served.

@@ -79,8 +79,9 @@ pub trait Component {
     /// Takes Real values that passed every check (fmi2SetReal).
     fn set_reals(&mut self, vrs: &[u32], values: &[f64]);
 
-    /// Computes what reading `vrs` needs (known variables), once per change.
-    fn prepare_reals(&mut self, vrs: &[u32]) -> Result<(), CallError>;
+    /// Computes what reading `vrs` needs (known variables), once per change;
+    /// a message is a warning the call completes with.
+    fn prepare_reals(&mut self, vrs: &[u32]) -> Result<Option<String>, CallError>;
 
     /// The value of the known Real variable `vr`, after [`Component::prepare_reals`].
     fn real_value(&self, vr: u32) -> f64;

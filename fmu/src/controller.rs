@@ -7,7 +7,7 @@
 use std::path::Path;
 
 use nudyn::control::{ControlLaw, ControlParameters, ControlWorkspace};
-use nudyn::model::Model;
+use nudyn::model::{LinkJoint, Model};
 use nudyn_contract::capabilities::Capabilities;
 use nudyn_contract::controller::{CAPABILITIES, ControllerLayout, ControllerResource, ControllerVariable};
 
@@ -24,6 +24,8 @@ pub struct Controller {
     parameters: ControlParameters,
     /// Input θ (nq).
     theta: Vec<f64>,
+    /// θ as the law reads it: a zero quaternion as the identity.
+    theta_read: Vec<f64>,
     /// Input ν (nv).
     nu: Vec<f64>,
     time: f64,
@@ -53,6 +55,7 @@ impl Controller {
             parameters: defaults.clone(),
             defaults,
             theta: model.qpos0.clone(),
+            theta_read: model.qpos0.clone(),
             nu: vec![0.0; model.nv],
             time: 0.0,
             stop_time: None,
@@ -65,6 +68,27 @@ impl Controller {
 
     fn variable(&self, vr: u32) -> ControllerVariable {
         self.layout.variable(vr).expect("checked by the caller")
+    }
+
+    /// Copies θ into `theta_read`, a quaternion of zeros as the identity
+    /// (MuJoCo's reading of one): a master that starts its connections at 0
+    /// (FMPy's SSP runner) hands the controller such a θ before the plant's
+    /// first output reaches it. Returns the warning that says so.
+    fn read_theta(&mut self) -> Option<String> {
+        self.theta_read.copy_from_slice(&self.theta);
+        let mut zero = Vec::new();
+        // A free joint's rotation is a ball link of its own.
+        for link in self.model.links.iter().filter(|link| link.joint == LinkJoint::Ball) {
+            let start = link.qpos_adr;
+            let quaternion = &mut self.theta_read[start..start + 4];
+            if quaternion.iter().all(|&c| c == 0.0) {
+                quaternion.copy_from_slice(&[1.0, 0.0, 0.0, 0.0]);
+                zero.push(format!("theta[{}] to theta[{}] (joint '{}')", start + 1, start + 4, link.joint_name));
+            }
+        }
+        let verb = if zero.len() == 1 { "is" } else { "are each" };
+        (!zero.is_empty())
+            .then(|| format!("{} {verb} a zero quaternion, read as the identity as MuJoCo reads one", zero.join(", ")))
     }
 }
 
@@ -126,21 +150,23 @@ impl Component for Controller {
 
     /// Outputs are the law at the current inputs and parameters (direct
     /// feedthrough: no step needed after fmi2SetReal).
-    fn prepare_reals(&mut self, vrs: &[u32]) -> Result<(), CallError> {
+    fn prepare_reals(&mut self, vrs: &[u32]) -> Result<Option<String>, CallError> {
         let needs_outputs = vrs.iter().any(|&vr| {
             matches!(
                 self.variable(vr),
                 ControllerVariable::Eps(_) | ControllerVariable::Potential | ControllerVariable::TargetError(_)
             )
         });
+        let mut warning = None;
         if needs_outputs && !self.evaluated {
             self.parameters.check(&self.model, &self.law).map_err(CallError::Control)?;
+            warning = self.read_theta();
             self.cws
-                .evaluate(&self.model, &self.law, &self.parameters, &self.theta, &self.nu)
+                .evaluate(&self.model, &self.law, &self.parameters, &self.theta_read, &self.nu)
                 .map_err(CallError::Control)?;
             self.evaluated = true;
         }
-        Ok(())
+        Ok(warning)
     }
 
     fn real_value(&self, vr: u32) -> f64 {

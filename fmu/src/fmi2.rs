@@ -183,7 +183,9 @@ pub unsafe extern "C" fn fmi2GetReal(
         enter(c, Function::GetReal, |instance| {
             let vrs = slice(vr, nvr, "vr")?;
             let values = slice_mut(value, nvr, "value")?;
-            Ok(calls::get_real(&mut *instance.component, vrs, values)?)
+            instance.warning =
+                calls::get_real(&mut *instance.component, vrs, values)?.map(|w| format!("fmi2GetReal: {w}"));
+            Ok(())
         })
     }
 }

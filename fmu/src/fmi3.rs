@@ -353,7 +353,8 @@ pub unsafe extern "C" fn fmi3GetFloat64(
             let values = slice_mut(values, n_values, "values")?;
             let reals: Vec<u32> = elements.iter().flatten().copied().collect();
             let mut read = vec![0.0; reals.len()];
-            calls::get_real(&mut *instance.component, &reals, &mut read)?;
+            let warning = calls::get_real(&mut *instance.component, &reals, &mut read)?;
+            instance.warning = warning.map(|w| format!("fmi3GetFloat64: {w}"));
             let mut read = read.into_iter();
             for (value, element) in values.iter_mut().zip(&elements) {
                 *value = match element {

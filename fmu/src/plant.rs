@@ -274,7 +274,7 @@ impl Component for Plant {
         self.evaluated = Evaluated::Nothing;
     }
 
-    fn prepare_reals(&mut self, vrs: &[u32]) -> Result<(), CallError> {
+    fn prepare_reals(&mut self, vrs: &[u32]) -> Result<Option<String>, CallError> {
         let variables = || vrs.iter().filter_map(|&vr| self.real(vr));
         if variables().any(|v| matches!(v, RealVariable::Sensordata(_))) {
             self.evaluate(Evaluated::Sensors)?;
@@ -283,7 +283,7 @@ impl Component for Plant {
         } else if variables().any(|v| matches!(v, RealVariable::Qvel(_) | RealVariable::Momentum(_))) {
             self.evaluate(Evaluated::Velocity)?;
         }
-        Ok(())
+        Ok(None)
     }
 
     fn real_value(&self, vr: u32) -> f64 {

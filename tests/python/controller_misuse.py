@@ -17,7 +17,7 @@ import math
 import sys
 from pathlib import Path
 
-from fmu_misuse import (DISCARD, DO_STEP_STATUS, ERROR, LAST_SUCCESSFUL_TIME, OK, PLAIN_ARGUMENTS, STEP,
+from fmu_misuse import (DISCARD, DO_STEP_STATUS, ERROR, LAST_SUCCESSFUL_TIME, OK, PLAIN_ARGUMENTS, STEP, WARNING,
                         CaseFailed, Harness)
 from nudyn_driver.package import FmuPackage  # noqa: E402  (on the path fmu_misuse sets)
 
@@ -48,6 +48,23 @@ def direct_feedthrough(h: Harness) -> None:
     if h.get_real(c, ["eps[4]"]) != [-3.0]:
         raise CaseFailed("a tunable gain set between steps did not act")
     h.step(c, STEP)
+    h.expect(OK, "fmi2Terminate", c)
+
+
+def zero_quaternion_input(h: Harness) -> None:
+    """θ with the bus's quaternion all zeros (what a master that starts its
+    connections at 0 hands over first) is read as the identity, as MuJoCo
+    reads it, with a warning; the same read at the identity is silent."""
+    c = initialized(h, start={"c2[1]": 3.0, "c2[5]": 2.0, "nu[4]": 0.5})
+    outputs = ["eps[4]", "eps[5]", "eps[8]", "potential"]
+    h.set_real(OK, c, {f"theta[{k}]": 0.0 for k in range(4, 8)})
+    since = len(h.messages)
+    zero = h.get_real(c, outputs, status=WARNING)
+    if "theta[4] to theta[7] (joint 'bus_free') is a zero quaternion, read as the identity" not in h.log_text(since):
+        raise CaseFailed(f"no warning for a zero quaternion: {h.log_text(since)}")
+    h.set_real(OK, c, {"theta[4]": 1.0})
+    if h.get_real(c, outputs) != zero:
+        raise CaseFailed("a zero quaternion was not read as the identity")
     h.expect(OK, "fmi2Terminate", c)
 
 
@@ -146,7 +163,7 @@ def instantiation(h: Harness) -> None:
 def main(argv: list[str]) -> int:
     controller, plant = FmuPackage(Path(argv[0])), FmuPackage(Path(argv[1]))
     h = Harness(controller, plant)
-    for case in (direct_feedthrough, refusals, sequence, instantiation):
+    for case in (direct_feedthrough, zero_quaternion_input, refusals, sequence, instantiation):
         case(h)
     h.finish()
     print(json.dumps({"calls": len(h.calls), "refused": sum(1 for _, s in h.calls if s != OK)}))
