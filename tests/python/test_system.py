@@ -107,17 +107,19 @@ def test_fmpy_detumbles_as_the_driver_steps_it(detumble):
     assert speed[steps] < speed[0] * 1e-3
 
 
-def test_servicer_reaches_its_target_pose_in_libcosim(nudyn, fmu_library, tmp_path):
+def test_servicer_reaches_its_target_pose_in_libcosim_and_fmpy(nudyn, fmu_library, tmp_path):
     """Control 1(b): the hand back to its pose at qpos0 from a bent arm."""
     gains = ["--set", "controller.c2[1]=600", "--set", "controller.c2[2]=600", "--set", "controller.c2[3]=600",
              "--set", "controller.c2[4]=20", "--set", "controller.c2[5]=20", "--set", "controller.c2[6]=10"]
     system = write_system(nudyn, EXAMPLES / "servicer.xml", tmp_path / "servicer.ssp", "--end-effector", "hand",
                           "--stop", "20", "--step", "0.02", "--set", "plant.theta[12]=-0.3",
                           "--set", "plant.theta[13]=0.4", *gains)
-    run = ssp.run_libcosim(system)
-    reference = ssp.run_loop(system, "libcosim")
-    assert np.abs(run.nu - reference.nu).max() < 1e-12
-    assert np.abs(run.theta - reference.theta).max() < 1e-12
+    runs = [ssp.run_libcosim(system), ssp.run_fmpy(system)]
+    steps = round(system.stop_time / system.step)
+    for run in runs:
+        reference = ssp.run_loop(system, run.master)
+        assert np.abs(run.nu[: steps + 1] - reference.nu).max() < 1e-12, run.master
+        assert np.abs(run.theta[: steps + 1] - reference.theta).max() < 1e-12, run.master
 
     controller = ssp.package(system, "controller", tmp_path / "check")
 
@@ -127,7 +129,8 @@ def test_servicer_reaches_its_target_pose_in_libcosim(nudyn, fmu_library, tmp_pa
             instance.set_array("nu", nu)
             return np.linalg.norm(instance.array("target_error"))
 
-    assert pose_error(run.theta[-1], run.nu[-1]) < 1e-2 * pose_error(run.theta[0], run.nu[0])
+    for run in runs:
+        assert pose_error(run.theta[steps], run.nu[steps]) < 1e-2 * pose_error(run.theta[0], run.nu[0]), run.master
 
 
 @pytest.mark.parametrize("value, message", [
