@@ -77,6 +77,23 @@ fn sensors_resolve_in_document_order_with_mujocos_layout() {
 }
 
 #[test]
+fn force_and_torque_sensors_read_the_subtree_of_their_sites_body() {
+    let sensors = r#"<force site="tip"/><torque site="anchor"/>"#;
+    let model = Model::compile(&parse_mjcf(&scene(sensors)).unwrap().vehicle).unwrap();
+    let range = |k: usize| match model.sensors[k].source {
+        SensorSource::Interaction { first, end, .. } => (first, end),
+        ref other => panic!("{other:?}"),
+    };
+    // The arm's subtree holds the ball link too; a site on the world reads every body.
+    assert_eq!(range(0), (0, 2));
+    assert_eq!(range(1), (0, 2));
+    assert_eq!(model.sensors[0].target, "body 'arm' at site 'tip'");
+    assert_eq!(model.sensors[1].target, "the world body at site 'anchor'");
+    assert_eq!(model.body_masses.len(), 2);
+    assert_eq!(model.workspace().body_wrench.len(), 2);
+}
+
+#[test]
 fn a_vehicle_without_sensors_keeps_no_sensor_data() {
     let model = Model::compile(&parse_mjcf(&scene("")).unwrap().vehicle).unwrap();
     assert!(model.sensors.is_empty() && model.body_masses.is_empty() && model.link_tree_quats.is_empty());
@@ -88,8 +105,6 @@ fn sensor_types_nudyn_does_not_compute_are_refused_by_name_and_line() {
     for (element, why) in [
         (r#"<touch site="tip"/>"#, "contacts or geometry"),
         (r#"<rangefinder site="tip"/>"#, "contacts or geometry"),
-        (r#"<force site="tip"/>"#, "constraint forces"),
-        (r#"<torque site="tip"/>"#, "constraint forces"),
         (r#"<magnetometer site="tip"/>"#, "not computed"),
         (r#"<tendonpos tendon="t"/>"#, "tendons"),
         (r#"<e_kinetic/>"#, "energy sensors"),
@@ -132,6 +147,9 @@ fn what_mujocos_compiler_rejects_is_rejected_with_its_reason() {
         (r#"<jointlimitfrc joint="hinge"/>"#, "joint must be limited in sensor"),
         (r#"<jointlimitpos joint="nope"/>"#, "unknown joint 'nope' in sensor"),
         (r#"<gyro site="nope"/>"#, "unknown site 'nope' for sensor"),
+        (r#"<force site="nope"/>"#, "unknown site 'nope' for sensor"),
+        (r#"<torque/>"#, "site"),
+        (r#"<force site="tip" objtype="site"/>"#, "objtype"),
         (r#"<actuatorfrc actuator="nope"/>"#, "unknown actuator 'nope' in sensor"),
         (r#"<subtreecom body="nope"/>"#, "unknown body 'nope' in sensor"),
         (r#"<framequat objtype="site" objname="tip" cutoff="1"/>"#, "cutoff applied to axis or quaternion"),
