@@ -9,7 +9,8 @@ friction loss). Here both files fly through their FMU (RK4 at 1e-4 s on
 both sides): docked_servicer for 5 s of random ctrl (the issue's figure),
 force_torque under random ctrl and under random wrench inputs (MuJoCo's
 xfrc_applied, which the sensors must take out as MuJoCo does) on a link,
-on the body welded to it and on the tool.
+on the body welded to it and on the tool, and through FMI 3.0 and model
+exchange.
 """
 
 from __future__ import annotations
@@ -67,14 +68,20 @@ def test_docked_servicer_reads_its_forces_like_mujoco_over_5_s(nudyn, tmp_path):
 
 @pytest.mark.parametrize(
     "scenario, settings",
-    [("actuated", {}), ("wrenched", {"wrench_bodies": ("forearm", "camera", "tool")})],
-    ids=["actuated", "wrenched"],
+    [
+        ("actuated", {}),
+        ("wrenched", {"wrench_bodies": ("forearm", "camera", "tool")}),
+        ("actuated", {"fmi_version": 3}),
+        ("actuated", {"interface": "me"}),
+    ],
+    ids=["actuated", "wrenched", "fmi3", "model_exchange"],
 )
 def test_an_arm_under_gravity_reads_its_forces_like_mujoco(scenario, settings, nudyn, tmp_path):
     """Under gravity, with a thruster on the tool, and with wrench inputs on
     a link, on the body welded to it and on the tool: every force and torque
     sensor (on the world, the pedestal fixed to it, each link, the welded
-    camera) agrees with MuJoCo's through the flight."""
+    camera) agrees with MuJoCo's through the flight, through FMI 2.0 and 3.0
+    co-simulation and model exchange (FMPy's CVODE)."""
     result = check(ARM, scenario, tmp_path / "arm.fmu", nudyn, **settings)
     columns = force_torque_columns(load_model(ARM))
     assert np.max(np.abs(result.mujoco.sensordata[:, columns])) > 10.0
