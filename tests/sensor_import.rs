@@ -199,3 +199,36 @@ fn the_sensor_flag_leaves_sensordata_at_zero_as_mujoco_does() {
     assert_eq!((count, off.len()), (3, on.len()));
     assert!(off.iter().all(|v| *v == 0.0), "{off:?}");
 }
+
+/// Independent of MuJoCo: an arm turning about a vertical axis, at rest
+/// under gravity, hangs on its base, whose force sensor then reads the
+/// weight it carries straight up and whose torque sensor that weight's
+/// moment about the site; a free-falling body reads nothing.
+#[test]
+fn force_and_torque_sensors_read_the_weight_a_body_carries() {
+    let xml = r#"<mujoco><worldbody>
+      <body name="base" pos="0 0 1">
+        <joint name="turn" axis="0 0 1"/>
+        <inertial pos="0.1 0 0" mass="2" diaginertia="0.1 0.1 0.1"/>
+        <site name="root" pos="0 0 0.1"/>
+        <body name="arm" pos="0.5 0 0"><inertial pos="0.2 0.1 0" mass="3" diaginertia="0.1 0.1 0.1"/></body>
+      </body>
+      <body name="drifter" pos="3 0 0"><freejoint/><inertial pos="0 0 0" mass="5" diaginertia="1 1 1"/>
+        <site name="on_drifter" pos="0.2 0 0"/></body>
+    </worldbody>
+    <sensor><force site="root"/><torque site="root"/><force site="on_drifter"/><torque site="on_drifter"/></sensor>
+    </mujoco>"#;
+    let model = Model::compile(&parse_mjcf(xml).unwrap().vehicle).unwrap();
+    let mut ws = model.workspace();
+    ws.set_configuration(&model, &model.qpos0).unwrap();
+    ws.set_qvel(&model, &vec![0.0; model.nv]).unwrap();
+    ws.compute_sensors(&model, &vec![0.0; model.nv], &[], 0.0).unwrap();
+    let s = ws.sensordata.as_slice();
+    let weight = 5.0 * 9.81;
+    // The bodies' centre of mass relative to the site: (2·0.1 + 3·0.7, 3·0.1, −0.1)/5.
+    let arm = [(2.0 * 0.1 + 3.0 * 0.7) / 5.0, 3.0 * 0.1 / 5.0, -0.1];
+    let expected = [0.0, 0.0, weight, arm[1] * weight, -arm[0] * weight, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+    for (k, (value, expected)) in s.iter().zip(expected).enumerate() {
+        assert!((value - expected).abs() < 1e-12, "sensordata[{k}] = {value}, expected {expected}");
+    }
+}
