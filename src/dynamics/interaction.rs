@@ -5,7 +5,9 @@
 //! The force a body's subtree takes through the body's joint is what moves
 //! the subtree less what else pushes on it:
 //!
-//!     f_int(b) = Σ_{c ∈ subtree(b)} (I_c a_c + v_c ×* I_c v_c − f_ext,c),
+//! ```text
+//! f_int(b) = Σ_{c ∈ subtree(b)} (I_c a_c + v_c ×* I_c v_c − f_ext,c),
+//! ```
 //!
 //! with the accelerations a of the constrained motion (θ̈ after the
 //! constraint forces) and the world accelerating at −g, so that weight
@@ -20,8 +22,8 @@
 
 use super::constraint::RowKind;
 use super::equality::{orientation, weld_rotation_map};
-use crate::math::{Mat3, SpatialVec, Transform, Vec3, angular, linear, spatial};
-use crate::model::{EqualityRows, Model, SiteFrame};
+use crate::math::{Mat3, Transform, Vec3, angular, linear, spatial};
+use crate::model::{ActuatorTransmission, EqualityRows, Model, SiteFrame};
 use crate::vehicle::SensorKind;
 use crate::workspace::Workspace;
 
@@ -60,13 +62,20 @@ impl Workspace {
     }
 
     /// The wrench inputs: MuJoCo's `xfrc_applied`, a world force and torque
-    /// at the body's centre of mass (six actuators after the MJCF's).
+    /// at the body's centre of mass (`xipos`), where their six actuators
+    /// after the MJCF's put them.
     fn subtract_wrench_inputs(&mut self, model: &Model) {
         let first = model.mjcf_actuator_count();
         for (w, &b) in model.interaction_bodies.wrench_inputs.iter().enumerate() {
-            let input = &self.actuator_force.as_slice()[first + 6 * w..first + 6 * w + 6];
-            self.body_wrench[b] -=
-                SpatialVec::from_column_slice(&[input[3], input[4], input[5], input[0], input[1], input[2]]);
+            let adr = first + 6 * w;
+            let input = &self.actuator_force.as_slice()[adr..adr + 6];
+            let (force, torque) = (Vec3::new(input[0], input[1], input[2]), Vec3::new(input[3], input[4], input[5]));
+            let point = match &model.actuators[adr].transmission {
+                ActuatorTransmission::RelativeSite { site, .. } => self.in_world(site).trans,
+                _ => self.body_com[b],
+            };
+            let about_com = torque + (point - self.body_com[b]).cross(&force);
+            self.body_wrench[b] -= spatial(&about_com, &force);
         }
     }
 
