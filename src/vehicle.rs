@@ -322,6 +322,12 @@ pub enum SensorKind {
     Velocimeter,
     /// A site's linear acceleration in the site frame, gravity included.
     Accelerometer,
+    /// The force the site's body takes from its parent (MuJoCo's
+    /// `cfrc_int`), in the site frame.
+    Force,
+    /// The torque the site's body takes from its parent, about the site,
+    /// in the site frame.
+    Torque,
     /// An actuator's force.
     ActuatorFrc,
     /// The actuators' total force on a hinge or slide joint.
@@ -342,12 +348,14 @@ pub enum SensorKind {
 
 impl SensorKind {
     /// Every kind, in MuJoCo's `mjtSensor` order.
-    pub const ALL: [SensorKind; 27] = {
+    pub const ALL: [SensorKind; 29] = {
         use SensorKind::*;
         [
             Accelerometer,
             Velocimeter,
             Gyro,
+            Force,
+            Torque,
             JointPos,
             JointVel,
             ActuatorPos,
@@ -398,6 +406,8 @@ impl SensorKind {
             Gyro => "gyro",
             Velocimeter => "velocimeter",
             Accelerometer => "accelerometer",
+            Force => "force",
+            Torque => "torque",
             ActuatorFrc => "actuatorfrc",
             JointActuatorFrc => "jointactuatorfrc",
             JointLimitPos => "jointlimitpos",

@@ -6,8 +6,8 @@
 use nalgebra::{DVector, SMatrix};
 
 use crate::dynamics::constraint::ConstraintRows;
-use crate::math::{Mat3, Quat, SpatialMat, SpatialVec, Transform};
-use crate::model::Model;
+use crate::math::{Mat3, Quat, SpatialMat, SpatialVec, Transform, Vec3};
+use crate::model::{Model, SensorSource};
 
 /// 6×3 storage for per-link 6×ndof quantities (first `ndof` columns used).
 pub type LinkCols = SMatrix<f64, 6, 3>;
@@ -143,6 +143,12 @@ pub struct Workspace {
     /// Each link's orientation in the world as MuJoCo composes `xquat`,
     /// when a framequat sensor needs it — compute_sensors.
     pub link_quats: Vec<Quat>,
+    /// Each body's inertial force less the external forces on it (world
+    /// axes, torque about its centre of mass), when a force or torque
+    /// sensor needs it — compute_sensors.
+    pub body_wrench: Vec<SpatialVec>,
+    /// Each body's centre of mass in the world, with `body_wrench`.
+    pub body_com: Vec<Vec3>,
 }
 
 impl Workspace {
@@ -161,6 +167,11 @@ impl Workspace {
         }
         let nu = model.actuators.len();
         let actuators_apply_wrenches = model.actuators.iter().any(|a| a.transmission.applies_wrenches());
+        let interaction_bodies = if model.sensors.iter().any(|s| matches!(s.source, SensorSource::Interaction { .. })) {
+            model.body_masses.len()
+        } else {
+            0
+        };
         Workspace {
             stage: Stage::Empty,
             accumulation,
@@ -203,6 +214,8 @@ impl Workspace {
             constraint_rows: ConstraintRows::new(model),
             sensordata: DVector::zeros(model.sensors.iter().map(|s| s.dim()).sum()),
             link_quats: vec![Quat::identity(); model.link_tree_quats.len()],
+            body_wrench: vec![SpatialVec::zeros(); interaction_bodies],
+            body_com: vec![Vec3::zeros(); interaction_bodies],
         }
     }
 }

@@ -295,8 +295,9 @@ fn fusestatic_merges_bodies_without_joints_unless_something_names_them() {
     let vehicle = load_mjcf(&path).unwrap().vehicle;
     let names: Vec<&str> = vehicle.bodies.iter().map(|b| b.name.as_str()).collect();
     // The stand into the world, the panel and mast into the bus; the camera
-    // mount stays (a sensor names it).
-    assert_eq!(names, ["bus", "antenna", "camera_mount"]);
+    // mount stays (a sensor names it), and so do the boom and the unnamed
+    // pod (force and torque sensors read their sites).
+    assert_eq!(names, ["bus", "antenna", "camera_mount", "boom", "body7"]);
     assert_eq!(vehicle.bodies[1].parent, Some(0));
     let bus = vehicle.bodies[0].inertia.as_ref().unwrap();
     assert!((bus.mass - 55.5).abs() < 1e-12, "{}", bus.mass);
@@ -304,14 +305,14 @@ fn fusestatic_merges_bodies_without_joints_unless_something_names_them() {
     assert_eq!(vehicle.sites[0].body, Some(0));
     // Without fusestatic, every body stays.
     let xml = std::fs::read_to_string(&path).unwrap().replace("fusestatic=\"true\"", "fusestatic=\"false\"");
-    assert_eq!(parse_mjcf(&xml).unwrap().vehicle.bodies.len(), 6);
+    assert_eq!(parse_mjcf(&xml).unwrap().vehicle.bodies.len(), 8);
     // A camera aiming at the panel keeps it.
     let aimed = xml.replace("fusestatic=\"false\"", "fusestatic=\"true\"").replace(
         "<body name=\"camera_mount\" pos=\"-0.5 0 0\">",
         "<body name=\"camera_mount\" pos=\"-0.5 0 0\"><camera mode=\"targetbody\" target=\"panel\"/>",
     );
     let kept: Vec<String> = parse_mjcf(&aimed).unwrap().vehicle.bodies.into_iter().map(|b| b.name).collect();
-    assert_eq!(kept, ["bus", "panel", "antenna", "camera_mount"]);
+    assert_eq!(kept, ["bus", "panel", "antenna", "camera_mount", "boom", "body7"]);
 }
 
 #[test]

@@ -663,6 +663,20 @@ fn bodies_fixed_to_the_world_get_their_mesh_mass_but_not_their_height_field_mass
     assert!(compile("asteroid").is_ok());
     let refused = compile("fixture").unwrap_err().to_string();
     assert!(refused.contains("subtree of body 'fixture' holds body 'fixture'"), "{refused}");
+    // A force sensor on the world body counts every body's weight: the
+    // height field's uncomputed mass would count under gravity, not without.
+    let on_the_world = |option: &str| {
+        let variant = xml
+            .replace("<worldbody>", &format!("{option}<worldbody><site name=\"origin\"/>"))
+            .replace(r#"<subtreecom body="lander"/>"#, r#"<force site="origin"/>"#);
+        Model::compile(&parse_mjcf(&variant).unwrap().vehicle)
+    };
+    let refused = on_the_world("").unwrap_err().to_string();
+    assert!(
+        refused.contains("subtree of the world body holds body 'fixture'") && refused.contains("weight"),
+        "{refused}"
+    );
+    assert!(on_the_world(r#"<option gravity="0 0 0"/>"#).is_ok());
 }
 
 #[test]

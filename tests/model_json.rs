@@ -32,3 +32,25 @@ fn every_example_compiles_and_round_trips() {
     }
     assert!(count >= 4, "expected the bundled examples, found {count}");
 }
+
+/// A model file whose force sensors would read outside it (a body index
+/// past the bodies, an equality without its bodies) is refused by the
+/// loader's check, never read at a wrong address.
+#[test]
+fn a_model_whose_force_sensors_name_missing_bodies_is_refused() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/constraints/docked_servicer.xml");
+    let model = Model::compile(&nudyn::mjcf::load_mjcf(&path).unwrap().vehicle).unwrap();
+    assert_eq!(model.validate(), Ok(()));
+    assert_eq!(model.interaction_bodies.equalities.len(), model.constraints.equalities.len());
+    let mut past_the_bodies = model.clone();
+    past_the_bodies.interaction_bodies.equalities[0][1] = Some(model.body_masses.len());
+    let refused = past_the_bodies.validate().unwrap_err().to_string();
+    assert!(refused.contains("reads outside the model"), "{refused}");
+    let mut unpaired = model.clone();
+    unpaired.interaction_bodies.equalities.pop();
+    let refused = unpaired.validate().unwrap_err().to_string();
+    assert!(refused.contains("bodies of every equality"), "{refused}");
+    let mut wrench_on_nothing = model;
+    wrench_on_nothing.interaction_bodies.wrench_inputs.push(0);
+    assert!(wrench_on_nothing.validate().is_err());
+}

@@ -77,6 +77,23 @@ fn sensors_resolve_in_document_order_with_mujocos_layout() {
 }
 
 #[test]
+fn force_and_torque_sensors_read_the_subtree_of_their_sites_body() {
+    let sensors = r#"<force site="tip"/><torque site="anchor"/>"#;
+    let model = Model::compile(&parse_mjcf(&scene(sensors)).unwrap().vehicle).unwrap();
+    let range = |k: usize| match model.sensors[k].source {
+        SensorSource::Interaction { first, end, .. } => (first, end),
+        ref other => panic!("{other:?}"),
+    };
+    // The arm's subtree holds the ball link too; a site on the world reads every body.
+    assert_eq!(range(0), (0, 2));
+    assert_eq!(range(1), (0, 2));
+    assert_eq!(model.sensors[0].target, "body 'arm' at site 'tip'");
+    assert_eq!(model.sensors[1].target, "the world body at site 'anchor'");
+    assert_eq!(model.body_masses.len(), 2);
+    assert_eq!(model.workspace().body_wrench.len(), 2);
+}
+
+#[test]
 fn a_vehicle_without_sensors_keeps_no_sensor_data() {
     let model = Model::compile(&parse_mjcf(&scene("")).unwrap().vehicle).unwrap();
     assert!(model.sensors.is_empty() && model.body_masses.is_empty() && model.link_tree_quats.is_empty());
@@ -88,8 +105,6 @@ fn sensor_types_nudyn_does_not_compute_are_refused_by_name_and_line() {
     for (element, why) in [
         (r#"<touch site="tip"/>"#, "contacts or geometry"),
         (r#"<rangefinder site="tip"/>"#, "contacts or geometry"),
-        (r#"<force site="tip"/>"#, "constraint forces"),
-        (r#"<torque site="tip"/>"#, "constraint forces"),
         (r#"<magnetometer site="tip"/>"#, "not computed"),
         (r#"<tendonpos tendon="t"/>"#, "tendons"),
         (r#"<e_kinetic/>"#, "energy sensors"),
@@ -132,6 +147,9 @@ fn what_mujocos_compiler_rejects_is_rejected_with_its_reason() {
         (r#"<jointlimitfrc joint="hinge"/>"#, "joint must be limited in sensor"),
         (r#"<jointlimitpos joint="nope"/>"#, "unknown joint 'nope' in sensor"),
         (r#"<gyro site="nope"/>"#, "unknown site 'nope' for sensor"),
+        (r#"<force site="nope"/>"#, "unknown site 'nope' for sensor"),
+        (r#"<torque/>"#, "site"),
+        (r#"<force site="tip" objtype="site"/>"#, "objtype"),
         (r#"<actuatorfrc actuator="nope"/>"#, "unknown actuator 'nope' in sensor"),
         (r#"<subtreecom body="nope"/>"#, "unknown body 'nope' in sensor"),
         (r#"<framequat objtype="site" objname="tip" cutoff="1"/>"#, "cutoff applied to axis or quaternion"),
@@ -180,4 +198,37 @@ fn the_sensor_flag_leaves_sensordata_at_zero_as_mujoco_does() {
     // The layout stays (sensordata keeps its entries), the values stay 0.
     assert_eq!((count, off.len()), (3, on.len()));
     assert!(off.iter().all(|v| *v == 0.0), "{off:?}");
+}
+
+/// Independent of MuJoCo: an arm turning about a vertical axis, at rest
+/// under gravity, hangs on its base, whose force sensor then reads the
+/// weight it carries straight up and whose torque sensor that weight's
+/// moment about the site; a free-falling body reads nothing.
+#[test]
+fn force_and_torque_sensors_read_the_weight_a_body_carries() {
+    let xml = r#"<mujoco><worldbody>
+      <body name="base" pos="0 0 1">
+        <joint name="turn" axis="0 0 1"/>
+        <inertial pos="0.1 0 0" mass="2" diaginertia="0.1 0.1 0.1"/>
+        <site name="root" pos="0 0 0.1"/>
+        <body name="arm" pos="0.5 0 0"><inertial pos="0.2 0.1 0" mass="3" diaginertia="0.1 0.1 0.1"/></body>
+      </body>
+      <body name="drifter" pos="3 0 0"><freejoint/><inertial pos="0 0 0" mass="5" diaginertia="1 1 1"/>
+        <site name="on_drifter" pos="0.2 0 0"/></body>
+    </worldbody>
+    <sensor><force site="root"/><torque site="root"/><force site="on_drifter"/><torque site="on_drifter"/></sensor>
+    </mujoco>"#;
+    let model = Model::compile(&parse_mjcf(xml).unwrap().vehicle).unwrap();
+    let mut ws = model.workspace();
+    ws.set_configuration(&model, &model.qpos0).unwrap();
+    ws.set_qvel(&model, &vec![0.0; model.nv]).unwrap();
+    ws.compute_sensors(&model, &vec![0.0; model.nv], &[], 0.0).unwrap();
+    let s = ws.sensordata.as_slice();
+    let weight = 5.0 * 9.81;
+    // The bodies' centre of mass relative to the site: (2·0.1 + 3·0.7, 3·0.1, −0.1)/5.
+    let arm = [(2.0 * 0.1 + 3.0 * 0.7) / 5.0, 3.0 * 0.1 / 5.0, -0.1];
+    let expected = [0.0, 0.0, weight, arm[1] * weight, -arm[0] * weight, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+    for (k, (value, expected)) in s.iter().zip(expected).enumerate() {
+        assert!((value - expected).abs() < 1e-12, "sensordata[{k}] = {value}, expected {expected}");
+    }
 }

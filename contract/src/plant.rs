@@ -188,8 +188,9 @@ impl Resource for PlantResource {
     const FILE: &'static str = "model.json";
     // 2: the compiled model gained constraints and sensors_disabled
     // (2026-11-26); a format-1 reader would silently drop them.
-    // 3: start values chosen at export (`starts`), which a format-2 reader
-    // would silently ignore.
+    // 3: start values chosen at export (`starts`), force and torque sensors
+    // and interaction_bodies (2026-11-26), which a format-2 reader would
+    // silently ignore.
     const FORMAT: u32 = 3;
 
     fn format(&self) -> u32 {
@@ -337,8 +338,9 @@ impl SensorDependence {
             JointVel | BallAngVel | FrameLinVel | FrameAngVel | SubtreeLinVel | SubtreeAngMom | Gyro | Velocimeter
             | ActuatorVel | JointLimitVel => SensorDependence::Motion,
             ActuatorFrc | JointActuatorFrc => SensorDependence::Controls,
-            // A limit's force solves one problem with every input's ε.
-            FrameLinAcc | FrameAngAcc | Accelerometer | JointLimitFrc => SensorDependence::Inputs,
+            // A limit's force solves one problem with every input's ε; a
+            // body's interaction force takes the accelerations.
+            FrameLinAcc | FrameAngAcc | Accelerometer | JointLimitFrc | Force | Torque => SensorDependence::Inputs,
         }
     }
 }

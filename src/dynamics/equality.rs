@@ -94,10 +94,8 @@ impl Workspace {
                     for axis in 0..3 {
                         rows.jdot_v[first + axis] = one.bias_acceleration[axis] - two.bias_acceleration[axis];
                     }
-                    // The rotation rows are M(J_ω1 − J_ω2) with M·a = ½ vec(q₂⁻¹ (0, a) q₁ q_rel)·torquescale.
+                    let columns = weld_rotation_map(&one.orientation, &two.orientation, relative, *torquescale);
                     let half_scaled = 0.5 * torquescale;
-                    let map = |a: &Vec3| (inverse_two * pure(a) * target).imag() * half_scaled;
-                    let columns = [0, 1, 2].map(|c| map(&Vec3::ith(c, 1.0)));
                     for d in 0..nv {
                         let u = Vec3::from_fn(|c, _| rows.jacobian[(first + 3 + c) * nv + d]);
                         let mapped = columns[0] * u[0] + columns[1] * u[1] + columns[2] * u[2];
@@ -212,12 +210,21 @@ impl Workspace {
     }
 }
 
+/// The columns of M, a weld's rotation rows being M(J_ω1 − J_ω2) with
+/// M·a = ½ vec(q₂⁻¹ (0, a) q₁ q_rel)·torquescale for the frames'
+/// orientations q₁, q₂ (frame → world) and the relative pose q_rel.
+pub(super) fn weld_rotation_map(one: &Quat, two: &Quat, relative: &Quat, torquescale: f64) -> [Vec3; 3] {
+    let target = one.into_inner() * relative.into_inner();
+    let inverse_two = two.into_inner().conjugate();
+    [0, 1, 2].map(|c| (inverse_two * pure(&Vec3::ith(c, 1.0)) * target).imag() * (0.5 * torquescale))
+}
+
 /// The quaternion (0, v).
 fn pure(v: &Vec3) -> Quaternion<f64> {
     Quaternion::new(0.0, v.x, v.y, v.z)
 }
 
 /// A placement's orientation (frame → world) as a unit quaternion.
-fn orientation(placement: &Transform) -> Quat {
+pub(super) fn orientation(placement: &Transform) -> Quat {
     Quat::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(placement.rot.transpose()))
 }

@@ -11,7 +11,8 @@
 //! [`forces`] maps physical joint torques and body wrenches to ε and back;
 //! [`actuation`] computes the actuators' forces and their ε;
 //! [`acceleration`] gives θ̈ and the links' accelerations after pass 3;
-//! [`sensors`] evaluates MuJoCo's sensors;
+//! [`sensors`] evaluates MuJoCo's sensors, `interaction` the bodies'
+//! interaction forces that its force and torque sensors read;
 //! [`quantities`] gives kinetic energy, power and momentum.
 
 pub mod acceleration;
@@ -22,6 +23,7 @@ pub mod box_qp;
 pub mod constraint;
 mod equality;
 pub mod forces;
+mod interaction;
 pub mod kinematics;
 pub mod quantities;
 pub mod sensors;

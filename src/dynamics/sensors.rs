@@ -29,6 +29,8 @@ struct Needs {
     quaternions: bool,
     /// The constraint rows and their forces.
     constraints: bool,
+    /// The bodies' interaction forces (which need all of the above but the quaternions).
+    interaction: bool,
 }
 
 impl Needs {
@@ -40,6 +42,7 @@ impl Needs {
             actuation: any(&[ActuatorFrc, ActuatorPos, ActuatorVel, JointActuatorFrc]),
             quaternions: any(&[FrameQuat]),
             constraints: any(&[JointLimitPos, JointLimitVel, JointLimitFrc]),
+            interaction: any(&[Force, Torque]),
         }
     }
 }
@@ -74,7 +77,7 @@ impl Workspace {
             return Ok(());
         }
         let needs = Needs::of(model);
-        if needs.acceleration || needs.constraints {
+        if needs.acceleration || needs.constraints || needs.interaction {
             if !self.nu_dot_is_for(eps, ctrl) {
                 self.compute_nu_dot_actuated(model, eps, ctrl)?;
             }
@@ -85,6 +88,9 @@ impl Workspace {
         self.world_transforms(model);
         if needs.quaternions {
             self.link_quaternions(model);
+        }
+        if needs.interaction {
+            self.body_interaction_wrenches(model);
         }
         let mut sensordata = std::mem::take(&mut self.sensordata);
         for sensor in &model.sensors {
@@ -121,6 +127,9 @@ impl Workspace {
                 self.read_frame(model, kind, &object, reference.as_ref(), &quats, out)
             }
             SensorSource::Subtree { first, end } => write3(out, &self.subtree(model, kind, first, end)),
+            SensorSource::Interaction { site, first, end } => {
+                write3(out, &self.interaction_reading(kind, &site, first, end))
+            }
             SensorSource::Clock => out[0] = time,
         }
     }

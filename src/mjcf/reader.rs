@@ -1585,9 +1585,10 @@ impl Reader {
 impl Reader {
     /// `<compiler fusestatic="true">` as MuJoCo 4.0 applies it
     /// (`mjCModel::FuseStatic`), in body order: a body without joints, not
-    /// mocap and not named by anything that refers to bodies (a sensor, a
-    /// camera's or light's target, a contact exclusion) disappears into its
-    /// parent. Its mass properties join the parent's (unless the parent is
+    /// mocap, not named by anything that refers to bodies (a sensor, a
+    /// camera's or light's target, a contact exclusion) and carrying no site
+    /// a force or torque sensor reads disappears into its parent. Its mass
+    /// properties join the parent's (unless the parent is
     /// the world, or its mass is below mjMINVAL), its child bodies and sites
     /// become the parent's, placed where they were. The parent's inertial
     /// frame moves: sensors of objtype "body" on it measure the merged one.
@@ -1595,6 +1596,15 @@ impl Reader {
         let mut referenced = vec![false; self.bodies.len()];
         for sensor in &self.sensors {
             match &sensor.target {
+                // MuJoCo 4.0 keeps the body a force or torque sensor's site is
+                // on, named or not: the sensor reads that body's interaction force.
+                SensorTarget::Frame { object: FrameObject::Site(site), .. }
+                    if matches!(sensor.kind, SensorKind::Force | SensorKind::Torque) =>
+                {
+                    if let Some(body) = self.sites[*site].body {
+                        referenced[body] = true;
+                    }
+                }
                 SensorTarget::Frame { object, reference } => {
                     for object in std::iter::once(object).chain(reference) {
                         if let FrameObject::Body(Some(body)) | FrameObject::XBody(Some(body)) = object {

@@ -31,7 +31,6 @@ pub(crate) fn refusal(tag: &str) -> Option<&'static str> {
         "touch" | "rangefinder" | "contact" | "tactile" | "insidesite" | "geomdist" | "geomnormal" | "geomfromto" => {
             "the sensor measures contacts or geometry, which nudyn does not model"
         }
-        "force" | "torque" => "force and torque sensors measure constraint forces, which nudyn does not compute",
         "magnetometer" | "camprojection" => "the sensor type is not computed by nudyn",
         "tendonpos" | "tendonvel" | "tendonactuatorfrc" | "tendonlimitpos" | "tendonlimitvel" | "tendonlimitfrc" => {
             "tendons are not modelled"
@@ -46,7 +45,7 @@ pub(crate) fn refusal(tag: &str) -> Option<&'static str> {
 fn own_attributes(kind: SensorKind) -> &'static [&'static str] {
     use SensorKind::*;
     match kind {
-        Gyro | Velocimeter | Accelerometer => &["site"],
+        Gyro | Velocimeter | Accelerometer | Force | Torque => &["site"],
         JointPos | JointVel | BallQuat | BallAngVel | JointActuatorFrc => &["joint"],
         JointLimitPos | JointLimitVel | JointLimitFrc => &["joint"],
         ActuatorPos | ActuatorVel | ActuatorFrc => &["actuator"],
@@ -123,7 +122,7 @@ fn target(element: &Element, kind: SensorKind, targets: &impl SensorTargets) -> 
             required("actuator")?;
             SensorTarget::Actuator(targets.actuator(element, "actuator")?)
         }
-        Gyro | Velocimeter | Accelerometer => {
+        Gyro | Velocimeter | Accelerometer | Force | Torque => {
             required("site")?;
             SensorTarget::Frame { object: FrameObject::Site(targets.site(element, "site")?), reference: None }
         }

@@ -28,10 +28,12 @@ use crate::vehicle::{Actuation, ActuatorKind, BiasType, GainType, JointKind, Sen
 
 mod actuator;
 mod constraint;
+mod interaction;
 mod sensor;
 mod validate;
 pub use actuator::{Actuator, ActuatorTarget, ActuatorTransmission, DofForceLimit, SiteFrame};
 pub use constraint::{CompiledEquality, Constraints, DofFriction, EqualityRows, Limit};
+pub use interaction::InteractionBodies;
 pub use sensor::{BodyMass, Sensor, SensorSource};
 pub use validate::InvalidModel;
 
@@ -230,8 +232,8 @@ pub struct Model {
     /// Sensors in MuJoCo's order (that of sensordata).
     #[serde(default)]
     pub sensors: Vec<Sensor>,
-    /// The bodies' masses on their links, in body order, when a subtree
-    /// sensor needs them (else empty).
+    /// The bodies' masses on their links, in body order, when a subtree,
+    /// force or torque sensor needs them (else empty).
     #[serde(default)]
     pub body_masses: Vec<BodyMass>,
     /// Each link's `x_tree` rotation as a quaternion composed as MuJoCo
@@ -247,6 +249,10 @@ pub struct Model {
     /// Friction loss and joint limits: MuJoCo's constraint rows.
     #[serde(default)]
     pub constraints: Constraints,
+    /// The bodies external forces act on, when a force or torque sensor
+    /// needs them (else empty).
+    #[serde(default)]
+    pub interaction_bodies: InteractionBodies,
     /// `<flag sensor="disable"/>`: the sensors keep their places in
     /// sensordata, which stays 0 as MuJoCo leaves it.
     #[serde(default)]
@@ -465,8 +471,14 @@ impl Model {
             actuators.extend(wrench_actuators(vehicle, &attachments, name)?);
         }
         let sensors = sensor::compile_sensors(vehicle, &joints, &attachments, &sites)?;
-        let needs_body_masses = sensors.iter().any(|s| matches!(s.source, SensorSource::Subtree { .. }));
+        let needs_interaction = sensors.iter().any(|s| matches!(s.source, SensorSource::Interaction { .. }));
+        let needs_body_masses =
+            needs_interaction || sensors.iter().any(|s| matches!(s.source, SensorSource::Subtree { .. }));
         let body_masses = if needs_body_masses { sensor::body_masses(vehicle, &attachments) } else { Vec::new() };
+        let interaction_bodies = match needs_interaction {
+            true => InteractionBodies::of(vehicle, wrench_bodies),
+            false => InteractionBodies::default(),
+        };
         let needs_quats = sensors.iter().any(|s| s.kind == SensorKind::FrameQuat);
         let link_tree_quats = if needs_quats { tree_quats } else { Vec::new() };
         let actuator_force_limits = vehicle
@@ -497,6 +509,7 @@ impl Model {
             link_tree_quats,
             wrench_bodies: wrench_bodies.to_vec(),
             constraints: Constraints::default(),
+            interaction_bodies,
             sensors_disabled: vehicle.sensors_disabled,
         };
         model.validate()?;

@@ -44,6 +44,18 @@ pub enum SensorSource {
         /// One past its last body.
         end: usize,
     },
+    /// The interaction force of a site's body with its parent (force and
+    /// torque sensors): the sum over the body's subtree, the bodies
+    /// `first..end` of [`Model::body_masses`](super::Model::body_masses)
+    /// (every body for a site on the world).
+    Interaction {
+        /// The site, whose frame the force and torque are expressed in.
+        site: SiteFrame,
+        /// The subtree's root body.
+        first: usize,
+        /// One past its last body.
+        end: usize,
+    },
     /// The simulation time.
     Clock,
 }
@@ -147,6 +159,26 @@ pub(super) fn compile_sensors(
                 let actuator = &vehicle.actuators[*k];
                 let name = actuator.name.clone().unwrap_or_default();
                 (SensorSource::Actuator { actuator: *k }, format!("actuator '{name}'"))
+            }
+            SensorTarget::Frame { object: FrameObject::Site(index), .. }
+                if matches!(sensor.kind, SensorKind::Force | SensorKind::Torque) =>
+            {
+                let site = &vehicle.sites[*index];
+                let (first, end, body) = match site.body {
+                    Some(body) => (body, subtree_end(vehicle, body), format!("body '{}'", vehicle.bodies[body].name)),
+                    None => (0, vehicle.bodies.len(), "the world body".to_string()),
+                };
+                // A body fixed to the world bears its weight: MuJoCo counts it.
+                let weighed = vehicle.gravity != Vec3::zeros();
+                if let Some(unknown) = vehicle.bodies[first..end].iter().find(|b| b.mass_unknown && weighed) {
+                    return Err(refused(format!(
+                        "the subtree of {body} holds body '{}', fixed to the world with mesh, sdf or height-field \
+                         geoms whose mass nudyn does not compute, and its weight would count",
+                        unknown.name
+                    )));
+                }
+                let name = site.name.clone().unwrap_or_default();
+                (SensorSource::Interaction { site: sites[*index], first, end }, format!("{body} at site '{name}'"))
             }
             SensorTarget::Frame { object, reference } => {
                 let uses_object_axes = matches!(

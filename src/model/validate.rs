@@ -354,6 +354,13 @@ fn validate(model: &Model) -> Result<(), InvalidModel> {
 pub(super) fn validate_constraints(model: &Model) -> Result<(), String> {
     let constraints = &model.constraints;
     let soft_ok = |soft: &crate::vehicle::SoftConstraint| soft.solref.iter().chain(&soft.solimp).all(|x| x.is_finite());
+    let reads_interaction = model.sensors.iter().any(|s| matches!(s.source, SensorSource::Interaction { .. }));
+    if reads_interaction
+        && !constraints.equalities.is_empty()
+        && model.interaction_bodies.equalities.len() != constraints.equalities.len()
+    {
+        return Err("the force and torque sensors do not know the bodies of every equality".to_string());
+    }
     for friction in &constraints.friction {
         if friction.dof >= model.nv || !(friction.frictionloss.is_finite() && friction.frictionloss > 0.0) {
             return Err(format!("friction loss at dof {} is {}", friction.dof, friction.frictionloss));
@@ -463,12 +470,21 @@ fn validate_sensors(model: &Model) -> Result<(), InvalidModel> {
             SensorSource::Joint { .. } => reads_a_joint,
             SensorSource::Actuator { .. } => matches!(sensor.kind, ActuatorFrc | ActuatorPos | ActuatorVel),
             SensorSource::Subtree { .. } => matches!(sensor.kind, SubtreeCom | SubtreeLinVel | SubtreeAngMom),
+            SensorSource::Interaction { .. } => matches!(sensor.kind, Force | Torque),
             SensorSource::Clock => sensor.kind == Clock,
             SensorSource::Frame { .. } => {
                 !reads_a_joint
                     && !matches!(
                         sensor.kind,
-                        ActuatorFrc | ActuatorPos | ActuatorVel | SubtreeCom | SubtreeLinVel | SubtreeAngMom | Clock
+                        ActuatorFrc
+                            | ActuatorPos
+                            | ActuatorVel
+                            | SubtreeCom
+                            | SubtreeLinVel
+                            | SubtreeAngMom
+                            | Force
+                            | Torque
+                            | Clock
                     )
             }
         };
@@ -493,6 +509,9 @@ fn validate_sensors(model: &Model) -> Result<(), InvalidModel> {
                     && (sensor.kind != FrameQuat || model.link_tree_quats.len() == links)
             }
             SensorSource::Subtree { first, end } => first <= end && *end <= model.body_masses.len(),
+            SensorSource::Interaction { site, first, end } => {
+                frame_ok(site) && first <= end && *end <= model.body_masses.len() && interaction_bodies_ok(model)
+            }
             SensorSource::Clock => true,
         };
         if !fits {
@@ -500,6 +519,17 @@ fn validate_sensors(model: &Model) -> Result<(), InvalidModel> {
         }
     }
     Ok(())
+}
+
+/// Whether the bodies of the wrench inputs and equalities are the model's,
+/// one per wrench body (that each equality has its pair is
+/// [`validate_constraints`]' to check, once the equalities are compiled).
+fn interaction_bodies_ok(model: &Model) -> bool {
+    let bodies = &model.interaction_bodies;
+    let inside = |b: &usize| *b < model.body_masses.len();
+    bodies.wrench_inputs.len() == model.wrench_bodies.len()
+        && bodies.wrench_inputs.iter().all(inside)
+        && bodies.equalities.iter().flatten().flatten().all(inside)
 }
 
 /// Whether a fixed frame's numbers are all finite.

@@ -110,7 +110,9 @@ def test_qacc_and_qfrc_constraint_match_mujoco(evaluated):
 
 def test_sensors_read_the_limit_rows_as_mujocos(evaluated):
     """jointlimitpos, jointlimitvel, jointlimitfrc (and an accelerometer,
-    which feels the constraint forces) equal MuJoCo's sensordata."""
+    which feels the constraint forces, and docked_servicer's force and
+    torque sensors, which feel the welds and the connect) equal MuJoCo's
+    sensordata."""
     references, out = evaluated
     for k, (reference, answer) in enumerate(zip(references, out)):
         assert relative(answer["sensordata"], reference["sensordata"]) < 1e-8, f"state {k}"

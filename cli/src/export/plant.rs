@@ -199,6 +199,8 @@ fn sensor_description(model: &Model, k: usize) -> String {
         Gyro => ("angular velocity in the site frame", "rad/s"),
         Velocimeter => ("linear velocity in the site frame", "m/s"),
         Accelerometer => ("linear acceleration minus gravity in the site frame", "m/s^2"),
+        Force => ("interaction force with the parent (site axes)", "N"),
+        Torque => ("interaction torque with the parent about the site (site axes)", "N*m"),
         ActuatorFrc => ("force", "N or N*m: the actuator's own, before gear"),
         JointActuatorFrc if joint_is_slide() => ("total actuator force", "N"),
         JointActuatorFrc => ("total actuator torque", "N*m"),

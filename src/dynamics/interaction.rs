@@ -1,0 +1,145 @@
+//! MuJoCo's interaction force of a body with its parent (`cfrc_int`, from
+//! `mj_rnePostConstraint`), which the force and torque sensors read
+//! (docs/DYNAMICS.md §8, "Force and torque sensors").
+//!
+//! The force a body's subtree takes through the body's joint is what moves
+//! the subtree less what else pushes on it:
+//!
+//! ```text
+//! f_int(b) = Σ_{c ∈ subtree(b)} (I_c a_c + v_c ×* I_c v_c − f_ext,c),
+//! ```
+//!
+//! with the accelerations a of the constrained motion (θ̈ after the
+//! constraint forces) and the world accelerating at −g, so that weight
+//! counts as a force the joint carries. f_ext is MuJoCo's `cfrc_ext`: the
+//! wrench inputs (`xfrc_applied`) at the body's centre of mass and the
+//! forces of connect and weld rows at their anchor points; actuator,
+//! spring, damper, friction-loss and limit forces act through joints and
+//! stay inside f_int. A link may carry several MuJoCo bodies (welded
+//! bodies, fusestatic): each body's share is taken on its own, from the
+//! link's motion and the body's own mass, so that a sensor on a welded
+//! body reads its own subtree.
+
+use super::constraint::RowKind;
+use super::equality::{orientation, weld_rotation_map};
+use crate::math::{Mat3, Transform, Vec3, angular, linear, spatial};
+use crate::model::{ActuatorTransmission, EqualityRows, Model, SiteFrame};
+use crate::vehicle::SensorKind;
+use crate::workspace::Workspace;
+
+impl Workspace {
+    /// Each body's inertial force less the external forces on it, in world
+    /// axes about its centre of mass, into `body_wrench` and `body_com`.
+    /// Needs the link accelerations, the actuators' forces and the
+    /// constraint rows of the current inputs, and current world placements.
+    pub(super) fn body_interaction_wrenches(&mut self, model: &Model) {
+        for (b, body) in model.body_masses.iter().enumerate() {
+            let (com, wrench) = match body.link {
+                // Fixed to the world: it accelerates at −g and bears its weight.
+                None => (body.com, spatial(&Vec3::zeros(), &(-body.mass * model.gravity))),
+                Some(link) => {
+                    let placement = &self.x_world[link];
+                    let to_world = placement.rot.transpose();
+                    let (v, a) = (&self.v_body[link], &self.a_body[link]);
+                    let omega = angular(v);
+                    let alpha = angular(a);
+                    let c = body.com;
+                    // Newton–Euler about the centre of mass, link axes: the
+                    // spatial acceleration at c plus ω × v_c, and −g.
+                    let velocity = linear(v) + omega.cross(&c);
+                    let acceleration =
+                        linear(a) + alpha.cross(&c) + omega.cross(&velocity) - placement.rot * model.gravity;
+                    let torque = body.inertia * alpha + omega.cross(&(body.inertia * omega));
+                    let com = placement.trans + to_world * c;
+                    (com, spatial(&(to_world * torque), &(to_world * (body.mass * acceleration))))
+                }
+            };
+            self.body_com[b] = com;
+            self.body_wrench[b] = wrench;
+        }
+        self.subtract_wrench_inputs(model);
+        self.subtract_equality_forces(model);
+    }
+
+    /// The wrench inputs: MuJoCo's `xfrc_applied`, a world force and torque
+    /// at the body's centre of mass (`xipos`), where their six actuators
+    /// after the MJCF's put them.
+    fn subtract_wrench_inputs(&mut self, model: &Model) {
+        let first = model.mjcf_actuator_count();
+        for (w, &b) in model.interaction_bodies.wrench_inputs.iter().enumerate() {
+            let adr = first + 6 * w;
+            let input = &self.actuator_force.as_slice()[adr..adr + 6];
+            let (force, torque) = (Vec3::new(input[0], input[1], input[2]), Vec3::new(input[3], input[4], input[5]));
+            let point = match &model.actuators[adr].transmission {
+                ActuatorTransmission::RelativeSite { site, .. } => self.in_world(site).trans,
+                _ => self.body_com[b],
+            };
+            let about_com = torque + (point - self.body_com[b]).cross(&force);
+            self.body_wrench[b] -= spatial(&about_com, &force);
+        }
+    }
+
+    /// The forces of the active connect and weld rows: +f at frame one's
+    /// point on its body, −f at frame two's on its body. A weld's torque is
+    /// what its rotation rows apply, Mᵀf for rows M(J_ω1 − J_ω2) (MuJoCo
+    /// 4.0 takes it so too), which is the same whichever sign the rows'
+    /// quaternions have.
+    fn subtract_equality_forces(&mut self, model: &Model) {
+        let rows = &self.constraint_rows;
+        let mut k = 0;
+        while k < rows.count && rows.kind[k] == RowKind::Equality {
+            let equality = &model.constraints.equalities[rows.id[k]];
+            let bodies = model.interaction_bodies.equalities[rows.id[k]];
+            let force = |r: usize| Vec3::new(rows.force[r], rows.force[r + 1], rows.force[r + 2]);
+            let (frames, anchors, torque) = match &equality.rows {
+                EqualityRows::Connect { frames, anchors, .. } => (frames, anchors, Vec3::zeros()),
+                EqualityRows::Weld { frames, anchors, relative, torquescale, .. } => {
+                    let [one, two] = frames.map(|f| orientation(&self.in_world(&f)));
+                    let map = weld_rotation_map(&one, &two, relative, *torquescale);
+                    let f = force(k + 3);
+                    (frames, anchors, Vec3::new(map[0].dot(&f), map[1].dot(&f), map[2].dot(&f)))
+                }
+                EqualityRows::Joint { .. } => {
+                    k += 1;
+                    continue;
+                }
+            };
+            let f = force(k);
+            for (i, sign) in [(0, 1.0), (1, -1.0)] {
+                let Some(b) = bodies[i] else { continue };
+                let placement = self.in_world(&frames[i]);
+                let point = placement.trans + placement.rot.transpose() * anchors[i];
+                let about_com = torque + (point - self.body_com[b]).cross(&f);
+                self.body_wrench[b] -= sign * spatial(&about_com, &f);
+            }
+            k += equality.rows.count();
+        }
+    }
+
+    /// A frame's placement in the world, ᶠX₀.
+    fn in_world(&self, frame: &SiteFrame) -> Transform {
+        match frame.link {
+            Some(link) => frame.frame.compose(&self.x_world[link]),
+            None => frame.frame,
+        }
+    }
+
+    /// A force or torque sensor's reading: the interaction force of the
+    /// bodies `first..end` (a subtree) in the site frame, the torque about
+    /// the site. Needs [`Workspace::body_interaction_wrenches`].
+    pub(super) fn interaction_reading(&self, kind: SensorKind, site: &SiteFrame, first: usize, end: usize) -> Vec3 {
+        let placement = self.in_world(site);
+        let (mut force, mut torque) = (Vec3::zeros(), Vec3::zeros());
+        for b in first..end {
+            let f = linear(&self.body_wrench[b]);
+            force += f;
+            torque += angular(&self.body_wrench[b]) + (self.body_com[b] - placement.trans).cross(&f);
+        }
+        // ᶠX₀'s rotation takes world axes to the site's.
+        let to_site: Mat3 = placement.rot;
+        match kind {
+            SensorKind::Force => to_site * force,
+            _ => to_site * torque,
+        }
+    }
+}
