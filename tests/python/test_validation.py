@@ -119,7 +119,7 @@ def test_command_writes_picture_table_and_numbers(nudyn, tmp_path):
         "gravity",
     ]
     table = (out / "table.md").read_text()
-    assert table.count("| pass |") == 4 and table in proc.stdout
+    assert table.count("| agrees |") == 4 and table in proc.stdout
 
 
 def test_command_passes_on_the_importers_message(nudyn, tmp_path):
