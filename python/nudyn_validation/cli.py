@@ -48,6 +48,9 @@ def arguments(argv):
                         help="comma-separated forms to run (default %(default)s)")
     corpus.add_argument("--exclude", action="append", default=[], metavar="GLOB",
                         help="leave out models whose path below DIR matches (repeatable)")
+    corpus.add_argument("--resume", action="store_true",
+                        help="keep the rows of the last corpus.json in --out (same settings) that neither "
+                        "failed nor timed out, and run the others")
     p.add_argument(
         "--scenario",
         action="append",
@@ -103,11 +106,11 @@ def corpus_main(args, settings: Settings) -> int:
     try:
         settings.check()
         rows = run_corpus(args.corpus, out, args.nudyn, settings, jobs=args.jobs, timeout=args.timeout,
-                          states=args.states, forms=forms, exclude=args.exclude)
+                          states=args.states, forms=forms, exclude=args.exclude, resume=args.resume)
     except (CorpusError, ValidationError) as e:
         print(f"validate: {e}", file=sys.stderr)
         return 2
-    paths = write_report(rows, settings, args.corpus, out)
+    paths = write_report(rows, settings, args.states, args.corpus, out)
     print(f"table:   {paths['table']}")
     print(f"numbers: {paths['json']}")
     if any(r.verdict == "disagrees" for r in rows):

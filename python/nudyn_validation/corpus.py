@@ -51,6 +51,9 @@ FILES_ABSENT = "files absent"
 MUJOCO_REFUSES = "MuJoCo cannot load"
 REFUSED = "refused"
 FAILED = "failed"
+# The trajectory could not be compared: MuJoCo's own run at this step
+# blows up too (a model too stiff for the step, as when the FMU failed).
+UNSTABLE = "unstable at this step"
 TIMED_OUT = "timed out"
 
 # The elements a scene adds without adding anything that moves or acts.
@@ -268,6 +271,26 @@ def evaluation_error(nudyn, model_path: Path, model, states: int, seed: int) -> 
     return float(max(errors))
 
 
+def mujoco_alone_unstable(path: Path, scenario_name: str, settings) -> str | None:
+    """MuJoCo's own run of the scenario (ε = 0, its ctrl), alone: the
+    first bad-state warning it raises and when, or None when it runs through."""
+    from .mujoco_reference import load_model
+    from .mujoco_run import MujocoVehicle
+    from .scenarios import make_scenario
+
+    scenario = make_scenario(scenario_name, load_model(path), settings.seed)
+    h, substeps = settings.communication_step, settings.mujoco_substeps()
+    mj = MujocoVehicle(path, h / substeps)
+    mj.set_state(scenario.qpos0, scenario.qvel0)
+    zero = np.zeros(mj.model.nv)
+    for k in range(settings.communication_steps()):
+        mj.advance(zero, substeps, None if scenario.ctrl_law is None else scenario.ctrl_law(k))
+        problem = mj.instability()
+        if problem or not np.all(np.isfinite(mj.data.qvel)):
+            return f"{problem or 'non-finite qvel'} before t = {(k + 1) * h:g} s"
+    return None
+
+
 def run_job(model: Path, form: str, corpus: Path, out: Path, nudyn_path: Path, settings, states: int) -> Row:
     """Steps 1–4 of the module doc for one model in one form."""
     import time
@@ -314,7 +337,11 @@ def run_job(model: Path, form: str, corpus: Path, out: Path, nudyn_path: Path, s
     try:
         validation = run_scenarios(path, fmu, [row.scenario], settings)
     except (ValidationError, DriverError) as e:
-        return done(FAILED, f"trajectory: {str(e).splitlines()[0]}")
+        message = f"trajectory: {str(e).splitlines()[0]}"
+        mujoco_problem = mujoco_alone_unstable(path, row.scenario, settings)
+        if mujoco_problem:
+            return done("exported", f"{message}; MuJoCo alone: {mujoco_problem}", verdict=UNSTABLE)
+        return done("exported", f"{message}; MuJoCo alone runs", verdict=DISAGREES)
     summary = validation.results[0].summary()
     row.trajectory_error = max(summary["max_theta_error"], summary["max_nu_error"], summary["max_sensordata_error"])
     row.twin_divergence = summary["max_twin_divergence"]
@@ -328,11 +355,12 @@ def run_job(model: Path, form: str, corpus: Path, out: Path, nudyn_path: Path, s
 # --- the whole corpus ------------------------------------------------------
 
 
-def _job_command(model: Path, form: str, corpus: Path, out: Path, nudyn: Path, settings, states: int) -> list[str]:
+def _job_command(model: Path, form: str, corpus: Path, out: Path, nudyn: Path, settings, states: int,
+                 row_file: Path) -> list[str]:
     return [
         sys.executable, "-m", "nudyn_validation.corpus", str(model), form, str(corpus), str(out), str(nudyn),
-        json.dumps({"duration": settings.duration, "communication_step": settings.communication_step,
-                    "mujoco_step": settings.mujoco_step, "seed": settings.seed, "states": states}),
+        str(row_file),
+        json.dumps(run_settings(settings, states)),
     ]
 
 
@@ -342,16 +370,18 @@ def _run_in_process(model: Path, form: str, corpus: Path, out: Path, nudyn: Path
     package_root = str(Path(__file__).resolve().parents[1])
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([package_root, os.environ.get("PYTHONPATH", "")])}
     name = str(model.relative_to(corpus))
+    # The row comes back in a file: MuJoCo prints its warnings on stdout.
+    row_file = out / "models" / name.removesuffix(".xml") / f"{form}.json"
+    row_file.unlink(missing_ok=True)
     try:
-        proc = subprocess.run(_job_command(model, form, corpus, out, nudyn, settings, states), capture_output=True,
-                              text=True, timeout=timeout, env=env)
+        proc = subprocess.run(_job_command(model, form, corpus, out, nudyn, settings, states, row_file),
+                              capture_output=True, text=True, timeout=timeout, env=env)
     except subprocess.TimeoutExpired:
         return Row(model=name, form=form, status=TIMED_OUT, message=f"after {timeout:g} s", verdict=TIMED_OUT)
-    lines = proc.stdout.strip().splitlines()
-    if proc.returncode != 0 or not lines:
+    if proc.returncode != 0 or not row_file.is_file():
         last = (proc.stderr.strip().splitlines() or [f"exit status {proc.returncode}"])[-1]
         return Row(model=name, form=form, status=FAILED, message=last, verdict=FAILED)
-    return Row(**json.loads(lines[-1]))
+    return Row(**json.loads(row_file.read_text()))
 
 
 def refusal_cause(message: str) -> str:
@@ -364,9 +394,30 @@ def refusal_cause(message: str) -> str:
     return re.sub(r"'[^']*'", "'…'", text)
 
 
+def run_settings(settings, states: int) -> dict:
+    """What a row's numbers depend on besides the model and the binaries."""
+    return {"duration": settings.duration, "communication_step": settings.communication_step,
+            "mujoco_step": settings.mujoco_step, "seed": settings.seed, "states": states}
+
+
+def previous_rows(out: Path, settings, states: int) -> dict[tuple[str, str], Row]:
+    """The rows of out/corpus.json run with the same settings, except those
+    that failed or timed out: what --resume keeps."""
+    path = out / "corpus.json"
+    if not path.is_file():
+        return {}
+    previous = json.loads(path.read_text())
+    if previous.get("settings") != run_settings(settings, states):
+        raise CorpusError(f"{path} was run with other settings ({previous.get('settings')}): "
+                          "rerun without --resume, or with the same settings")
+    return {(r["model"], r["form"]): Row(**r) for r in previous["rows"] if r["verdict"] not in (FAILED, TIMED_OUT)}
+
+
 def run_corpus(corpus: Path, out: Path, nudyn: Path, settings, *, jobs: int = 1, timeout: float = 600.0,
-               states: int = 10, forms=FORMS, exclude=(), progress=print) -> list[Row]:
-    """Every entry point of the corpus in every form; the rows in model order."""
+               states: int = 10, forms=FORMS, exclude=(), resume: bool = False, progress=print) -> list[Row]:
+    """Every entry point of the corpus in every form; the rows in model
+    order.  With `resume`, the rows of the last report in `out` are kept
+    (previous_rows) and only the others run."""
     if not corpus.is_dir():
         raise CorpusError(f"no such directory: {corpus}")
     corpus = corpus.resolve()
@@ -376,18 +427,26 @@ def run_corpus(corpus: Path, out: Path, nudyn: Path, settings, *, jobs: int = 1,
         raise CorpusError(f"no MJCF model under {corpus}")
     out.mkdir(parents=True, exist_ok=True)
     tasks = [(m, f) for m in models for f in forms]
-    progress(f"corpus: {len(models)} models, {len(tasks)} jobs, {jobs} at a time")
-    rows: dict[tuple[Path, str], Row] = {}
+    kept = previous_rows(out, settings, states) if resume else {}
+    rows: dict[tuple[Path, str], Row] = {
+        t: kept[str(t[0].relative_to(corpus)), t[1]] for t in tasks if (str(t[0].relative_to(corpus)), t[1]) in kept
+    }
+    progress(f"corpus: {len(models)} models, {len(tasks)} jobs ({len(rows)} kept from the last run), "
+             f"{jobs} at a time")
 
     def one(task):
-        row = _run_in_process(*task, corpus, out.resolve(), nudyn.resolve(), settings, states, timeout)
+        try:
+            row = _run_in_process(*task, corpus, out.resolve(), nudyn.resolve(), settings, states, timeout)
+        except Exception as e:  # noqa: BLE001  (one job's surprise must not lose the others' rows)
+            row = Row(model=str(task[0].relative_to(corpus)), form=task[1], status=FAILED, message=repr(e),
+                      verdict=FAILED)
         rows[task] = row
         progress(f"[{len(rows)}/{len(tasks)}] {row.model} ({row.form}): {row.verdict}"
                  + (f" — {row.message}" if row.message else ""))
         return row
 
     with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
-        list(pool.map(one, tasks))
+        list(pool.map(one, [t for t in tasks if t not in rows]))
     return [rows[t] for t in tasks]
 
 
@@ -448,23 +507,25 @@ def markdown(rows: list[Row], settings, corpus: Path) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_report(rows: list[Row], settings, corpus: Path, out: Path) -> dict[str, Path]:
+def write_report(rows: list[Row], settings, states: int, corpus: Path, out: Path) -> dict[str, Path]:
     paths = {"table": out / "corpus.md", "json": out / "corpus.json"}
     paths["table"].write_text(markdown(rows, settings, corpus))
-    paths["json"].write_text(json.dumps({"corpus": str(corpus), "summary": summary(rows),
-                                         "rows": [asdict(r) for r in rows]}, indent=1) + "\n")
+    numbers = {"corpus": str(corpus), "settings": run_settings(settings, states), "summary": summary(rows),
+               "rows": [asdict(r) for r in rows]}
+    paths["json"].write_text(json.dumps(numbers, indent=1) + "\n")
     return paths
 
 
 def _job_main(argv: list[str]) -> int:
-    """The child process of one job: prints its Row as one JSON line."""
+    """The child process of one job: writes its Row as JSON to the file named."""
     from .compare import Settings
 
-    model, form, corpus, out, nudyn, options = argv
+    model, form, corpus, out, nudyn, row_file, options = argv
     options = json.loads(options)
     states = options.pop("states")
     row = run_job(Path(model), form, Path(corpus), Path(out), Path(nudyn), Settings(**options), states)
-    print(json.dumps(asdict(row)))
+    Path(row_file).parent.mkdir(parents=True, exist_ok=True)
+    Path(row_file).write_text(json.dumps(asdict(row)) + "\n")
     return 0
 
 

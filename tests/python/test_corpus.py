@@ -1,7 +1,8 @@
 """`nudyn-validate --corpus DIR` (nudyn_validation.corpus) on a corpus of
 our own (tests/fixtures/corpus: a model that exports and agrees, a scene
-around it, a model that includes its arm, a refused one and one whose mesh
-file is absent), and the judgement of a trajectory against MuJoCo's twin."""
+around it, a model that includes its arm, a refused one, one whose mesh
+file is absent and one too stiff for the step), and the judgement of a
+trajectory against MuJoCo's twin."""
 
 from __future__ import annotations
 
@@ -44,7 +45,7 @@ def test_entry_points_are_the_models_not_their_parts_or_scenes():
     """servo_arm.xml is included by servo.xml; scene.xml only surrounds
     pendulum.xml, which stays the model."""
     found = [p.relative_to(CORPUS.resolve()).as_posix() for p in entry_points(CORPUS)]
-    assert found == ["absent_mesh.xml", "pendulum/pendulum.xml", "servo/servo.xml", "windy.xml"]
+    assert found == ["absent_mesh.xml", "pendulum/pendulum.xml", "servo/servo.xml", "stiff.xml", "windy.xml"]
 
 
 def test_bus_form_mounts_the_model_on_a_free_bus(tmp_path):
@@ -66,17 +67,21 @@ def test_bus_form_mounts_the_model_on_a_free_bus(tmp_path):
             assert bus.body(name).mass[0] == pytest.approx(published.body(b).mass[0], rel=1e-15)
 
 
-def test_corpus_command_writes_the_table(nudyn, tmp_path):
-    out = tmp_path / "corpus"
-    proc = subprocess.run(
+def run_corpus_command(nudyn, out, *extra):
+    return subprocess.run(
         [sys.executable, str(ROOT / "scripts" / "validate.py"), "--corpus", str(CORPUS), "--duration", "0.2",
-         "--states", "4", "--out", str(out), "--nudyn", str(nudyn)],
+         "--states", "4", "--out", str(out), "--nudyn", str(nudyn), *extra],
         capture_output=True, text=True, cwd=ROOT,
     )
+
+
+def test_corpus_command_writes_the_table(nudyn, tmp_path):
+    out = tmp_path / "corpus"
+    proc = run_corpus_command(nudyn, out)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     numbers = json.loads((out / "corpus.json").read_text())
     rows = {(r["model"], r["form"]): r for r in numbers["rows"]}
-    assert len(rows) == 8
+    assert len(rows) == 10
     for form in ("published", "bus"):
         for model in ("pendulum/pendulum.xml", "servo/servo.xml"):
             row = rows[model, form]
@@ -87,15 +92,27 @@ def test_corpus_command_writes_the_table(nudyn, tmp_path):
         windy = rows["windy.xml", form]
         assert windy["status"] == windy["verdict"] == "refused" and "wind" in windy["message"], windy
         assert windy["message"].startswith("line "), windy
+        # Too stiff for the step: MuJoCo's own run blows up too, which the row says.
+        stiff = rows["stiff.xml", form]
+        assert stiff["verdict"] == "unstable at this step" and stiff["evaluation_error"] < 1e-12, stiff
+        assert "MuJoCo alone: mjWARN_BAD" in stiff["message"], stiff
         absent = rows["absent_mesh.xml", form]
         assert absent["verdict"] == "files absent" and "no_such_hull.stl" in absent["message"], absent
-        assert numbers["summary"]["verdicts"][form] == {AGREES: 2, "files absent": 1, "refused": 1}
+        assert numbers["summary"]["verdicts"][form] == {
+            AGREES: 2, "files absent": 1, "refused": 1, "unstable at this step": 1
+        }
         assert list(numbers["summary"]["refusals"][form]) == [
             "<option>: not supported: wind acts through fluid forces, which nudyn does not model"
         ]
     table = (out / "corpus.md").read_text()
     assert table.count(f"| {AGREES} |") == 4 + 1  # four rows, and the summary's line
     assert "| windy.xml | bus | 6 | refused: line" in table
+    # --resume keeps every row that neither failed nor timed out: nothing runs again.
+    resumed = run_corpus_command(nudyn, out, "--resume")
+    assert resumed.returncode == 0 and "10 jobs (10 kept from the last run)" in resumed.stdout, resumed.stdout
+    assert json.loads((out / "corpus.json").read_text())["rows"] == numbers["rows"]
+    other = run_corpus_command(nudyn, out, "--resume", "--seed", "2")
+    assert other.returncode == 2 and "was run with other settings" in other.stderr, other.stderr
 
 
 def test_a_wrong_model_is_caught(cli, tmp_path):
