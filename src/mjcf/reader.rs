@@ -97,6 +97,10 @@ pub(crate) const UNSUPPORTED_CHILDREN: &[(&str, &str)] = &[
     ("plugin", "plugins"),
 ];
 
+/// Children of bodies (and of the world body) without effect on the
+/// dynamics; in the world body, geoms too (they belong to no moving body).
+pub(crate) const IGNORED_IN_BODIES: &[&str] = &["camera", "light"];
+
 /// MuJoCo's actuator groups that `actuatorgroupdisable` can disable: 0 to 30.
 const ACTUATOR_GROUPS: std::ops::RangeInclusive<i32> = 0..=30;
 
@@ -619,7 +623,7 @@ impl Reader {
             match child.tag() {
                 "body" => self.read_body_tree(child, frame, class)?,
                 "site" => self.read_site(&child, class, None, frame)?,
-                "geom" | "camera" | "light" => {
+                tag if tag == "geom" || IGNORED_IN_BODIES.contains(&tag) => {
                     self.named_elsewhere.extend(child.text("target").map(str::to_string));
                     self.warnings.push(child.ignored());
                 }
@@ -745,7 +749,7 @@ impl Reader {
                     geoms.push((child, settings, frame));
                 }
                 "site" => self.read_site(&child, class, Some(index), frame)?,
-                "camera" | "light" => {
+                tag if IGNORED_IN_BODIES.contains(&tag) => {
                     self.named_elsewhere.extend(child.text("target").map(str::to_string));
                     self.warnings.push(child.ignored());
                 }
