@@ -29,13 +29,24 @@ import os
 import re
 import subprocess
 import sys
+import time
 import xml.etree.ElementTree as ET
 from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+import mujoco
 import numpy as np
+
+from nudyn_driver.cli import Nudyn
+from nudyn_driver.errors import CommandError, DriverError
+
+from .compare import EXTRA_OUTPUTS, Settings, ValidationError, run_scenarios
+from .judgement import DISAGREES
+from .mujoco_reference import load_model
+from .mujoco_run import MujocoVehicle
+from .scenarios import make_scenario, offset_pose, random_ctrl, velocity_scales
 
 # Issue 33's bar on single evaluations: qacc within 1e-9 of max(1, |qacc|).
 EVALUATION_TOLERANCE = 1e-9
@@ -246,11 +257,7 @@ def _mujoco_cannot_open(message: str) -> bool:
 def evaluation_error(nudyn, model_path: Path, model, states: int, seed: int) -> float:
     """The largest |qacc_nudyn − qacc_MuJoCo| / max(1, |qacc_MuJoCo|) over
     `states` random states, each with random controls."""
-    import mujoco
-
-    from .scenarios import offset_pose, random_ctrl, velocity_scales
-
-    rng = np.random.default_rng([seed, 33])
+    rng = np.random.default_rng([seed, 33])  # a stream of its own, apart from the scenarios' draws
     controls = random_ctrl(model, seed)
     data = mujoco.MjData(model)
     requests, expected = [], []
@@ -274,10 +281,6 @@ def evaluation_error(nudyn, model_path: Path, model, states: int, seed: int) -> 
 def mujoco_alone_unstable(path: Path, scenario_name: str, settings) -> str | None:
     """MuJoCo's own run of the scenario (ε = 0, its ctrl), alone: the
     first bad-state warning it raises and when, or None when it runs through."""
-    from .mujoco_reference import load_model
-    from .mujoco_run import MujocoVehicle
-    from .scenarios import make_scenario
-
     scenario = make_scenario(scenario_name, load_model(path), settings.seed)
     h, substeps = settings.communication_step, settings.mujoco_substeps()
     mj = MujocoVehicle(path, h / substeps)
@@ -293,15 +296,6 @@ def mujoco_alone_unstable(path: Path, scenario_name: str, settings) -> str | Non
 
 def run_job(model: Path, form: str, corpus: Path, out: Path, nudyn_path: Path, settings, states: int) -> Row:
     """Steps 1–4 of the module doc for one model in one form."""
-    import time
-
-    from nudyn_driver.cli import Nudyn
-    from nudyn_driver.errors import CommandError, DriverError
-
-    from .compare import EXTRA_OUTPUTS, ValidationError, run_scenarios
-    from .judgement import DISAGREES
-    from .mujoco_reference import load_model
-
     started = time.perf_counter()
     row = Row(model=str(model.relative_to(corpus)), form=form, status=FAILED)
     work = out / "models" / row.model.removesuffix(".xml") / form
@@ -518,8 +512,6 @@ def write_report(rows: list[Row], settings, states: int, corpus: Path, out: Path
 
 def _job_main(argv: list[str]) -> int:
     """The child process of one job: writes its Row as JSON to the file named."""
-    from .compare import Settings
-
     model, form, corpus, out, nudyn, row_file, options = argv
     options = json.loads(options)
     states = options.pop("states")
