@@ -379,13 +379,14 @@ def _run_in_process(model: Path, form: str, corpus: Path, out: Path, nudyn: Path
 
 
 def refusal_cause(message: str) -> str:
-    """A refusal's message without its file, line and names: what groups
-    refusals of the same feature.  'cannot import a.xml: line 3: <fixed
+    """A refusal's message without its files, lines, names and numbers: what
+    groups refusals of the same feature.  'cannot import a.xml: line 3: <fixed
     name="t">: not supported: tendons' gives '<fixed>: not supported: tendons'."""
     text = re.sub(r"^cannot import [^:]*: (?:[^:]*\.xml: )?", "", message)
-    text = re.sub(r"^line \d+: ", "", text)
+    text = re.sub(r"\bline \d+: ", "", text)
     text = re.sub(r"<(\w+)[^>]*>", r"<\1>", text)
-    return re.sub(r"'[^']*'", "'…'", text)
+    text = re.sub(r"'[^']*'", "'…'", text)
+    return re.sub(r"(?<![\w.])-?\d+(?:\.\d+)?(?:e-?\d+)?(?![\w.])", "N", text)
 
 
 def run_settings(settings, states: int) -> dict:

@@ -16,7 +16,14 @@ import pytest
 
 from conftest import ROOT
 from nudyn_validation.compare import EXTRA_OUTPUTS, Settings, run_scenarios
-from nudyn_validation.corpus import BUS_MASS, BUS_NAME, entry_points, evaluation_error, mount_on_bus
+from nudyn_validation.corpus import (
+    BUS_MASS,
+    BUS_NAME,
+    entry_points,
+    evaluation_error,
+    mount_on_bus,
+    refusal_cause,
+)
 from nudyn_validation.judgement import AGREES, CHAOTIC, DISAGREES, judge, passes
 from nudyn_validation.mujoco_reference import load_model
 
@@ -39,6 +46,19 @@ PENDULUM = CORPUS / "pendulum" / "pendulum.xml"
 def test_judgement(error, twin, verdict):
     assert judge(error, twin, 1e-6) == verdict
     assert passes(verdict) == (verdict != DISAGREES)
+
+
+def test_refusals_group_by_feature():
+    """Files, lines, names, quoted paths and numbers are left out of a
+    refusal's cause, so that two files refused for one feature count together."""
+    faces = [
+        "line 35: <mesh name=\"camera\">: mesh file '/a/camera.obj': line 25418: a face of 11 vertices (reads quads)",
+        "cannot import b.xml: line 21: <mesh name=\"mount\">: mesh file '/b/m.obj': line 7: a face of 24 vertices (reads quads)",
+    ]
+    assert {refusal_cause(m) for m in faces} == {"<mesh>: mesh file '…': a face of N vertices (reads quads)"}
+    assert refusal_cause("line 3: <option>: not supported: a nonzero medium 1.2e-3 adds fluid forces") == (
+        "<option>: not supported: a nonzero medium N adds fluid forces"
+    )
 
 
 def test_entry_points_are_the_models_not_their_parts_or_scenes():
