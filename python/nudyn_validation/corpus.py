@@ -448,6 +448,11 @@ def run_corpus(corpus: Path, out: Path, nudyn: Path, settings, *, jobs: int = 1,
 # --- the report ------------------------------------------------------------
 
 
+def _markdown_text(text: str) -> str:
+    """Text shown as written in a markdown table: element tags are not HTML."""
+    return text.replace("&", "&amp;").replace("<", "&lt;").replace("|", "\\|")
+
+
 def _number(x: float | None) -> str:
     return "—" if x is None else f"{x:.1e}"
 
@@ -484,7 +489,7 @@ def markdown(rows: list[Row], settings, corpus: Path) -> str:
     for form, causes in s["refusals"].items():
         if causes:
             lines += ["", f"Refusals ({form}), by cause:", ""]
-            lines += [f"- {count} × {cause}" for cause, count in causes.items()]
+            lines += [f"- {count} × {_markdown_text(cause)}" for cause, count in causes.items()]
     lines += [
         "",
         "## Every model",
@@ -493,7 +498,7 @@ def markdown(rows: list[Row], settings, corpus: Path) -> str:
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
-        exported = "yes" if r.status == "exported" else f"{r.status}: {r.message}".replace("|", "\\|")
+        exported = "yes" if r.status == "exported" else _markdown_text(f"{r.status}: {r.message}")
         lines.append(
             f"| {r.model} | {r.form} | {r.nv if r.nv is not None else '—'} | {exported} | "
             f"{_number(r.evaluation_error)} | {r.scenario or '—'} | {_number(r.trajectory_error)} | "

@@ -126,7 +126,7 @@ def test_corpus_command_writes_the_table(nudyn, tmp_path):
         ]
     table = (out / "corpus.md").read_text()
     assert table.count(f"| {AGREES} |") == 4 + 1  # four rows, and the summary's line
-    assert "| windy.xml | bus | 6 | refused: line" in table
+    assert "| windy.xml | bus | 6 | refused: line 2: &lt;option>: not supported: wind" in table
     # --resume keeps every row that neither failed nor timed out: nothing runs again.
     resumed = run_corpus_command(nudyn, out, "--resume")
     assert resumed.returncode == 0 and "10 jobs (10 kept from the last run)" in resumed.stdout, resumed.stdout
