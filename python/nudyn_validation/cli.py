@@ -13,6 +13,7 @@ from nudyn_driver.locations import nudyn_binary, output_dir
 
 from .compare import Settings, ValidationError, validate_model
 from .corpus import FORMS, CorpusError, run_corpus, write_report
+from .judgement import DISAGREES
 from .report import write
 from .scenarios import SCENARIO_NAMES
 
@@ -113,7 +114,7 @@ def corpus_main(args, settings: Settings) -> int:
     paths = write_report(rows, settings, args.states, args.corpus, out)
     print(f"table:   {paths['table']}")
     print(f"numbers: {paths['json']}")
-    if any(r.verdict == "disagrees" for r in rows):
+    if any(r.verdict == DISAGREES for r in rows):
         print("validate: some model disagrees with MuJoCo (see the table)", file=sys.stderr)
         return 1
     return 0
