@@ -1,5 +1,6 @@
 """`scripts/validate.py MODEL.xml`: export the FMU, run it in FMPy against
-MuJoCo on the same MJCF, and write the evidence (PNG, table.md, results.json)."""
+MuJoCo on the same MJCF, and write the evidence (PNG, table.md, results.json);
+`--corpus DIR`: the same judgement on every model under DIR (corpus.py)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,8 @@ from nudyn_driver.errors import DriverError
 from nudyn_driver.locations import nudyn_binary, output_dir
 
 from .compare import Settings, ValidationError, validate_model
+from .corpus import FORMS, CorpusError, run_corpus, write_report
+from .judgement import DISAGREES
 from .report import write
 from .scenarios import SCENARIO_NAMES
 
@@ -32,7 +35,23 @@ def arguments(argv):
         description="Export MODEL.xml as an FMU with nudyn, run it in FMPy and MuJoCo from the same "
         "state with the same held inputs, and compare theta, nu, kinetic energy and momentum.",
     )
-    p.add_argument("model", type=Path, help="MJCF file")
+    p.add_argument("model", type=Path, nargs="?", help="MJCF file (or --corpus DIR)")
+    corpus = p.add_argument_group("corpus", "every model under a directory (docs/validation.md#a-corpus-of-models)")
+    corpus.add_argument("--corpus", type=Path, metavar="DIR",
+                        help="export every model entry point under DIR, as published and on a free bus, and check "
+                        "evaluations and a trajectory against MuJoCo; writes corpus.md and corpus.json")
+    corpus.add_argument("--jobs", type=int, default=1, help="models run at a time (default %(default)s)")
+    corpus.add_argument("--timeout", type=float, default=600.0,
+                        help="seconds one model in one form may take (default %(default)s)")
+    corpus.add_argument("--states", type=int, default=10,
+                        help="random states of the single evaluations (default %(default)s)")
+    corpus.add_argument("--forms", default=",".join(FORMS),
+                        help="comma-separated forms to run (default %(default)s)")
+    corpus.add_argument("--exclude", action="append", default=[], metavar="GLOB",
+                        help="leave out models whose path below DIR matches (repeatable)")
+    corpus.add_argument("--resume", action="store_true",
+                        help="keep the rows of the last corpus.json in --out (same settings) that neither "
+                        "failed nor timed out, and run the others")
     p.add_argument(
         "--scenario",
         action="append",
@@ -78,9 +97,34 @@ def arguments(argv):
     return p.parse_args(argv)
 
 
+def corpus_main(args, settings: Settings) -> int:
+    forms = tuple(f for f in args.forms.split(",") if f)
+    unknown = sorted(set(forms) - set(FORMS))
+    if unknown or not forms:
+        print(f"validate: unknown form {', '.join(unknown) or '(none)'} (known: {', '.join(FORMS)})", file=sys.stderr)
+        return 2
+    out = args.out or output_dir("corpus", args.corpus.resolve().name)
+    try:
+        settings.check()
+        rows = run_corpus(args.corpus, out, args.nudyn, settings, jobs=args.jobs, timeout=args.timeout,
+                          states=args.states, forms=forms, exclude=args.exclude, resume=args.resume)
+    except (CorpusError, ValidationError) as e:
+        print(f"validate: {e}", file=sys.stderr)
+        return 2
+    paths = write_report(rows, settings, args.states, args.corpus, out)
+    print(f"table:   {paths['table']}")
+    print(f"numbers: {paths['json']}")
+    if any(r.verdict == DISAGREES for r in rows):
+        print("validate: some model disagrees with MuJoCo (see the table)", file=sys.stderr)
+        return 1
+    return 0
+
+
 def main(argv=None) -> int:
     args = arguments(argv)
-    out = args.out or output_dir("validation", args.model.stem)
+    if (args.model is None) == (args.corpus is None):
+        print("validate: give either MODEL.xml or --corpus DIR", file=sys.stderr)
+        return 2
     settings = Settings(
         duration=args.duration,
         communication_step=args.comm_step,
@@ -93,6 +137,9 @@ def main(argv=None) -> int:
         relative_tolerance=args.rtol,
         wrench_bodies=tuple(b for b in args.wrench_inputs.split(",") if b),
     )
+    if args.corpus is not None:
+        return corpus_main(args, settings)
+    out = args.out or output_dir("validation", args.model.stem)
     if not args.model.is_file():
         print(f"validate: no such file: {args.model}", file=sys.stderr)
         return 2

@@ -5,7 +5,9 @@ At each communication point t_k the scenario's ε_k is computed (from the
 FMU's ν for closed loops), given to both, and held until t_k + Δt.  Both
 sides are sampled at every communication point: θ, ν, the kinetic energy,
 the momentum and, for the energy drift, K + U (U: MuJoCo's potential energy
-of gravity and springs).
+of gravity and springs).  MuJoCo's twin, the same run from qvel moved by
+TWIN_NUDGE, runs beside them with the same inputs: how far it drifts from
+MuJoCo is what the model's sensitivity at this step allows (judgement.py).
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from nudyn_driver.cli import Nudyn
 from nudyn_driver.instance import Instance
 from nudyn_driver.package import FmuPackage
 
+from .judgement import TWIN_NUDGE, judge, passes
 from .mujoco_reference import load_model
 from .mujoco_run import MujocoVehicle
 from .runners import Fmi3CoSimulation, ModelExchange
@@ -112,27 +115,36 @@ class ScenarioResult:
     ctrl: np.ndarray | None  # (n, nu): the controls held likewise, where the scenario sets them
     fmu: Trajectory
     mujoco: Trajectory
+    twin: Trajectory  # MuJoCo again, from qvel + TWIN_NUDGE, with the same inputs
     quaternion_starts: list[int]  # qpos index of each quaternion (w, x, y, z)
     energy_is_conserved: bool
 
-    def theta_error(self) -> np.ndarray:
-        """max_k |θ_fmu − θ_mujoco| at each time, each FMU quaternion first
-        given the sign nearer MuJoCo's (q and −q are the same rotation)."""
-        fmu = self.fmu.theta.copy()
+    def theta_error(self, side: Trajectory | None = None) -> np.ndarray:
+        """max_k |θ_side − θ_mujoco| at each time (side: the FMU unless
+        given), each quaternion of the side first given the sign nearer
+        MuJoCo's (q and −q are the same rotation)."""
+        theta = (side or self.fmu).theta.copy()
         for a in self.quaternion_starts:
             block = slice(a, a + 4)
-            flip = np.sum(fmu[:, block] * self.mujoco.theta[:, block], axis=1) < 0.0
-            fmu[flip, block] *= -1.0
-        return np.max(np.abs(fmu - self.mujoco.theta), axis=1)
+            flip = np.sum(theta[:, block] * self.mujoco.theta[:, block], axis=1) < 0.0
+            theta[flip, block] *= -1.0
+        return np.max(np.abs(theta - self.mujoco.theta), axis=1, initial=0.0)
 
-    def nu_error(self) -> np.ndarray:
-        return np.max(np.abs(self.fmu.nu - self.mujoco.nu), axis=1)
+    def nu_error(self, side: Trajectory | None = None) -> np.ndarray:
+        return np.max(np.abs((side or self.fmu).nu - self.mujoco.nu), axis=1, initial=0.0)
 
-    def sensordata_error(self) -> np.ndarray:
-        """max_k |s_fmu − s_mujoco| / max(1, |s_mujoco|) at each time."""
+    def sensordata_error(self, side: Trajectory | None = None) -> np.ndarray:
+        """max_k |s_side − s_mujoco| / max(1, |s_mujoco|) at each time."""
         reference = self.mujoco.sensordata
-        scaled = np.abs(self.fmu.sensordata - reference) / np.maximum(1.0, np.abs(reference))
+        scaled = np.abs((side or self.fmu).sensordata - reference) / np.maximum(1.0, np.abs(reference))
         return np.max(scaled, axis=1, initial=0.0)
+
+    def twin_divergence(self) -> np.ndarray:
+        """The twin's distance from MuJoCo at each time, in the norm of the
+        FMU's error: the largest of θ, ν and sensordata differences."""
+        return np.maximum.reduce(
+            [self.theta_error(self.twin), self.nu_error(self.twin), self.sensordata_error(self.twin)]
+        )
 
     def kinetic_energy_error(self) -> np.ndarray:
         return np.abs(self.fmu.kinetic_energy - self.mujoco.kinetic_energy)
@@ -150,6 +162,9 @@ class ScenarioResult:
     def summary(self) -> dict:
         theta_error, nu_error = float(np.max(self.theta_error())), float(np.max(self.nu_error()))
         sensordata_error = float(np.max(self.sensordata_error()))
+        error = max(theta_error, nu_error, sensordata_error)
+        twin = float(np.max(self.twin_divergence()))
+        verdict = judge(error, twin, self.scenario.tolerance)
         return {
             "scenario": self.scenario.name,
             "description": self.scenario.description,
@@ -164,7 +179,9 @@ class ScenarioResult:
             "fmu_seconds": self.fmu.wall_time,
             "mujoco_seconds": self.mujoco.wall_time,
             "tolerance": self.scenario.tolerance,
-            "passed": max(theta_error, nu_error, sensordata_error) <= self.scenario.tolerance,
+            "max_twin_divergence": twin,
+            "verdict": verdict,
+            "passed": passes(verdict),
         }
 
 
@@ -219,17 +236,20 @@ def run_scenario(package: FmuPackage | None, model_path: Path, scenario: Scenari
     steps, substeps = settings.communication_steps(), settings.mujoco_substeps()
     mj = MujocoVehicle(model_path, h / substeps)
     mj.set_state(scenario.qpos0, scenario.qvel0)
+    twin = MujocoVehicle(model_path, h / substeps)
+    twin.set_state(scenario.qpos0, scenario.qvel0 + TWIN_NUDGE)
     # The FMU starts from the same θ and from MuJoCo's ν of the same qvel.
     fmu = open_fmu(package, fmu_path, settings, scenario.qpos0, mj.nu(), unzip_dir)
-    fmu_samples, mj_samples = _Samples(), _Samples()
+    fmu_samples, mj_samples, twin_samples = _Samples(), _Samples(), _Samples()
     held, held_ctrl = [], []
 
     def sample():
         theta = fmu.array("theta")
         fmu_samples.add(theta, fmu.array("nu"), fmu.real("kinetic_energy"), fmu.array("momentum"),
                         mj.potential_energy_at(theta), fmu.array("sensordata"))
-        mj_samples.add(mj.theta(), mj.nu(), mj.kinetic_energy(), mj.momentum(), mj.potential_energy(),
-                       mj.data.sensordata.copy())
+        for side, samples in ((mj, mj_samples), (twin, twin_samples)):
+            samples.add(side.theta(), side.nu(), side.kinetic_energy(), side.momentum(), side.potential_energy(),
+                        side.data.sensordata.copy())
 
     try:
         sample()
@@ -253,15 +273,18 @@ def run_scenario(package: FmuPackage | None, model_path: Path, scenario: Scenari
                     f"{scenario.name}: the FMU failed the step from t = {t:g} s: {e} ({fmu.log.last_problem()})"
                 ) from None
             fmu_samples.wall_time += time.perf_counter() - start
+            wrench_by_body = None if wrenches is None else dict(zip(scenario.wrench_bodies, wrenches))
             start = time.perf_counter()
-            mj.advance(eps, substeps, ctrl, dict(zip(scenario.wrench_bodies, wrenches)) if wrenches is not None else None)
+            mj.advance(eps, substeps, ctrl, wrench_by_body)
             mj_samples.wall_time += time.perf_counter() - start
-            problem = mj.instability()
-            if problem:
-                raise ValidationError(
-                    f"{scenario.name}: MuJoCo's simulation became unstable ({problem}) "
-                    f"between t = {t:g} s and {t + h:g} s; try a smaller --mujoco-step"
-                )
+            twin.advance(eps, substeps, ctrl, wrench_by_body)
+            for label, side in (("", mj), ("'s twin", twin)):
+                problem = side.instability()
+                if problem:
+                    raise ValidationError(
+                        f"{scenario.name}: MuJoCo{label}'s simulation became unstable ({problem}) "
+                        f"between t = {t:g} s and {t + h:g} s; try a smaller --mujoco-step"
+                    )
             sample()
     finally:
         fmu.close()
@@ -273,6 +296,7 @@ def run_scenario(package: FmuPackage | None, model_path: Path, scenario: Scenari
         ctrl=None if scenario.ctrl_law is None else np.array(held_ctrl),
         fmu=fmu_samples.trajectory(),
         mujoco=mj_samples.trajectory(),
+        twin=twin_samples.trajectory(),
         quaternion_starts=quaternion_starts(mj.model),
         energy_is_conserved=scenario.unforced and mj.conserves_energy_unforced,
     )
@@ -311,6 +335,15 @@ def validate_model(
     # nudyn's importer first: its messages name the unsupported element.
     Nudyn(nudyn).export(model_path, fmu_path, outputs=EXTRA_OUTPUTS, fmi_version=settings.fmi_version,
                         wrench_inputs=settings.wrench_bodies)
+    return run_scenarios(model_path, fmu_path, scenario_names, settings)
+
+
+def run_scenarios(
+    model_path: Path, fmu_path: Path, scenario_names: list[str] | None, settings: Settings
+) -> ModelValidation:
+    """Run the scenarios on an FMU exported from model_path with
+    EXTRA_OUTPUTS (and the settings' FMI version and wrench inputs)."""
+    settings.check()
     try:
         model = load_model(model_path)
         names = scenario_names or default_scenarios(model, settings.wrench_bodies)

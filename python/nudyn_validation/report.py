@@ -16,6 +16,7 @@ import numpy as np
 from PIL import Image  # matplotlib's own dependency
 
 from .compare import ModelValidation, ScenarioResult
+from .judgement import AGREES, CHAOTIC, DISAGREES, TWIN_FACTOR, TWIN_NUDGE
 
 # Trajectory panels show the components that move most, so that a few lines
 # stay readable on vehicles with dozens of dofs.
@@ -43,6 +44,7 @@ def _error_panel(ax, result: ScenarioResult):
         (result.nu_error(), "ν"),
         (result.kinetic_energy_error(), "K"),
         (result.momentum_error(), "momentum"),
+        (result.twin_divergence(), "MuJoCo's twin"),
     ):
         ax.semilogy(result.time, np.maximum(values, floor), lw=1.2, label=label)
     ax.axhline(result.scenario.tolerance, color="k", ls="--", lw=0.8, label="θ, ν tolerance")
@@ -85,8 +87,9 @@ def table(validation: ModelValidation) -> str:
         f"FMU: method {s.method}, {params}; MuJoCo: RK4, step {s.mujoco_step:g} s.",
         "",
         "| scenario | max θ error | max ν error | max sensordata error | max K error (J) | max momentum error | "
-        "energy drift FMU / MuJoCo (J) | FMU time (s) | MuJoCo time (s) | tolerance θ, ν, sensors | |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "energy drift FMU / MuJoCo (J) | FMU time (s) | MuJoCo time (s) | tolerance θ, ν, sensors | "
+        "MuJoCo's twin divergence | |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for result in validation.results:
         x = result.summary()
@@ -100,7 +103,7 @@ def table(validation: ModelValidation) -> str:
             f"| {x['scenario']} | {_number(x['max_theta_error'])} | {_number(x['max_nu_error'])} | {sensors} | "
             f"{_number(x['max_kinetic_energy_error'])} | {_number(x['max_momentum_error'])} | {drift} | "
             f"{x['fmu_seconds']:.2f} | {x['mujoco_seconds']:.2f} | {x['tolerance']:.0e} | "
-            f"{'pass' if x['passed'] else '**FAIL**'} |"
+            f"{_number(x['max_twin_divergence'])} | {x['verdict'] if x['passed'] else '**' + x['verdict'] + '**'} |"
         )
     lines += [
         "",
@@ -109,7 +112,11 @@ def table(validation: ModelValidation) -> str:
         "sensors evaluated at the state reached with the inputs held). Energy drift is max |E(t) − E(0)|, "
         "E = K + potential energy of gravity and springs, where E is conserved "
         "(ε = 0, no joint damping and no servo pulling at ctrl = 0). Times are the integration's wall time; MuJoCo's includes "
-        "the Python control callback at every RK4 stage.",
+        "the Python control callback at every RK4 stage. MuJoCo's twin is its same run from qvel moved by "
+        f"{TWIN_NUDGE:g} in every component; its divergence is its largest θ, ν or sensordata distance from MuJoCo. "
+        f"Verdict: {AGREES} when the largest θ, ν or sensordata error is within the tolerance; {CHAOTIC} when "
+        f"it is not but is within {TWIN_FACTOR:g} × the twin's divergence (MuJoCo cannot hold its own run "
+        f"to the tolerance at this step either); {DISAGREES} otherwise.",
         "Scenarios: "
         + "; ".join(f"**{r.scenario.name}**: {r.scenario.description}" for r in validation.results)
         + ".",

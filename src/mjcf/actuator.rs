@@ -23,51 +23,54 @@ use crate::vehicle::ActuatorKind;
 /// `<actuator>` and in `<default>` (MuJoCo 4.0 schema; `ctrllimited` is not
 /// an attribute of `<damper>`, whose ctrl is always limited).
 #[rustfmt::skip]
-const COMMON_ATTRIBUTES: &[&str] = &[
+pub(crate) const COMMON_ATTRIBUTES: &[&str] = &[
     "group", "nsample", "interp", "delay", "ctrllimited", "ctrlrange", "forcelimited", "forcerange",
     "lengthrange", "gear", "cranklength", "user", "damping", "armature",
 ];
 
 /// Attributes that only `<general>` has, besides the common ones.
 #[rustfmt::skip]
-const GENERAL_ATTRIBUTES: &[&str] = &[
+pub(crate) const GENERAL_ATTRIBUTES: &[&str] = &[
     "actdim", "actearly", "actlimited", "actrange", "biasprm", "biastype", "dynprm", "dyntype", "ffrange",
     "gainprm", "gaintype", "inheritrange", "input", "velrange",
 ];
 
 /// Attributes that name the transmission target (not allowed in `<default>`).
 #[rustfmt::skip]
-const TARGET_ATTRIBUTES: &[&str] =
+pub(crate) const TARGET_ATTRIBUTES: &[&str] =
     &["name", "class", "joint", "jointinparent", "site", "refsite", "tendon", "cranksite", "slidersite", "body"];
+
+/// The actuator elements nudyn models, and the kind each stands for.
+pub(crate) const ACTUATOR_KINDS: &[(&str, ActuatorKind)] = &[
+    ("general", ActuatorKind::General),
+    ("motor", ActuatorKind::Motor),
+    ("position", ActuatorKind::Position),
+    ("velocity", ActuatorKind::Velocity),
+    ("damper", ActuatorKind::Damper),
+];
 
 /// The actuator kinds an element tag stands for, among those nudyn models.
 pub(crate) fn kind_of(tag: &str) -> Option<ActuatorKind> {
-    Some(match tag {
-        "general" => ActuatorKind::General,
-        "motor" => ActuatorKind::Motor,
-        "position" => ActuatorKind::Position,
-        "velocity" => ActuatorKind::Velocity,
-        "damper" => ActuatorKind::Damper,
-        _ => return None,
-    })
+    ACTUATOR_KINDS.iter().find(|(name, _)| *name == tag).map(|(_, kind)| *kind)
 }
+
+/// The actuator elements MuJoCo has that nudyn refuses, and why.
+#[rustfmt::skip]
+pub(crate) const REFUSED_ACTUATORS: &[(&str, &str)] = &[
+    ("intvelocity", "intvelocity actuators integrate their ctrl into an activation state, which nudyn does not integrate"),
+    ("cylinder", "cylinder actuators filter their ctrl into an activation state, which nudyn does not integrate"),
+    ("muscle", "muscle actuators (activation dynamics and muscle force curves)"),
+    ("adhesion", "adhesion actuators act through contacts, which nudyn does not model"),
+    ("pid", "pid actuators (their inputs and integral and slew states)"),
+    ("orientation", "orientation servos (three outputs on a geodesic error)"),
+    ("dcmotor", "dcmotor actuators (electrical and thermal states)"),
+    ("plugin", "actuator plugins"),
+];
 
 /// Why nudyn refuses an actuator element MuJoCo has; `None` for a tag that
 /// is no actuator element at all.
 pub(crate) fn refusal(tag: &str) -> Option<&'static str> {
-    Some(match tag {
-        "intvelocity" => {
-            "intvelocity actuators integrate their ctrl into an activation state, which nudyn does not integrate"
-        }
-        "cylinder" => "cylinder actuators filter their ctrl into an activation state, which nudyn does not integrate",
-        "muscle" => "muscle actuators (activation dynamics and muscle force curves)",
-        "adhesion" => "adhesion actuators act through contacts, which nudyn does not model",
-        "pid" => "pid actuators (their inputs and integral and slew states)",
-        "orientation" => "orientation servos (three outputs on a geodesic error)",
-        "dcmotor" => "dcmotor actuators (electrical and thermal states)",
-        "plugin" => "actuator plugins",
-        _ => return None,
-    })
+    REFUSED_ACTUATORS.iter().find(|(refused, _)| *refused == tag).map(|(_, reason)| *reason)
 }
 
 /// The attributes an actuator element of `kind` may have.

@@ -49,7 +49,7 @@ const NOT_IN_DEFAULTS: [&str; 2] = ["name", "class"];
 /// Children of `<default>` that configure elements without effect on the
 /// dynamics.
 #[rustfmt::skip]
-const IGNORED_DEFAULTS: &[&str] =
+pub(crate) const IGNORED_DEFAULTS: &[&str] =
     &["camera", "light", "material", "texture", "pair", "tendon"];
 
 /// Whether a joint or tendon has limits (`limited`).

@@ -8,7 +8,7 @@ use crate::math::{Quat, Vec3};
 use crate::vehicle::{Equality, EqualityKind, EqualityObjects, JointKind, SoftConstraint};
 
 /// Attributes every equality element has (MuJoCo 4.0 schema).
-const COMMON_ATTRIBUTES: &[&str] = &["name", "class", "active", "solref", "solimp"];
+pub(crate) const COMMON_ATTRIBUTES: &[&str] = &["name", "class", "active", "solref", "solimp"];
 
 /// Attributes an `<equality>` default class may set.
 pub(crate) const DEFAULT_ATTRIBUTES: &[&str] = &["active", "solref", "solimp"];
@@ -53,23 +53,31 @@ pub(crate) trait EqualityTargets {
 }
 
 /// Reads one element of `<equality>` whose class settings are `settings`.
+/// The equality elements nudyn models, with their own attributes.
+pub(crate) const EQUALITY_ATTRIBUTES: &[(&str, &[&str])] = &[
+    ("connect", &["body1", "body2", "site1", "site2", "anchor"]),
+    ("weld", &["body1", "body2", "site1", "site2", "anchor", "relpose", "torquescale"]),
+    ("joint", &["joint1", "joint2", "polycoef"]),
+];
+
+/// The equality elements MuJoCo has that nudyn refuses: on tendons and flexes.
+pub(crate) const REFUSED_EQUALITIES: &[&str] = &["tendon", "flex", "flexvert", "flexstrain"];
+
 pub(crate) fn read(
     element: &Element,
     mut settings: EqualitySettings,
     targets: &impl EqualityTargets,
 ) -> Result<Equality, MjcfError> {
-    let own: &[&str] = match element.tag() {
-        "connect" => &["body1", "body2", "site1", "site2", "anchor"],
-        "weld" => &["body1", "body2", "site1", "site2", "anchor", "relpose", "torquescale"],
-        "joint" => &["joint1", "joint2", "polycoef"],
-        "tendon" | "flex" | "flexvert" | "flexstrain" => {
+    let own = match EQUALITY_ATTRIBUTES.iter().find(|(tag, _)| *tag == element.tag()) {
+        Some((_, own)) => *own,
+        None if REFUSED_EQUALITIES.contains(&element.tag()) => {
             return Err(element.unsupported(format!(
                 "<equality>/<{}>: an equality constraint on a {} (nudyn models neither tendons nor flexes)",
                 element.tag(),
                 if element.tag() == "tendon" { "tendon" } else { "flex" }
             )));
         }
-        _ => return Err(element.unknown()),
+        None => return Err(element.unknown()),
     };
     let allowed: Vec<&str> = COMMON_ATTRIBUTES.iter().chain(own).copied().collect();
     element.check_attributes(&allowed)?;

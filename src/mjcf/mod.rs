@@ -23,11 +23,13 @@ mod mesh;
 mod orientation;
 mod reader;
 mod sensor;
+mod support;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
 
 pub use error::MjcfError;
+pub use support::support_table;
 
 use crate::vehicle::Vehicle;
 

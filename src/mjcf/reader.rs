@@ -31,23 +31,23 @@ const MIN_VALUE: f64 = 1e-15;
 
 /// Attributes of `<body>`.
 #[rustfmt::skip]
-const BODY_ATTRIBUTES: &[&str] = &[
+pub(crate) const BODY_ATTRIBUTES: &[&str] = &[
     "name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler", "mocap", "gravcomp",
     "user", "sleep", "simple", "fuse",
 ];
 
 /// Attributes of `<frame>`.
 #[rustfmt::skip]
-const FRAME_ATTRIBUTES: &[&str] = &["name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler"];
+pub(crate) const FRAME_ATTRIBUTES: &[&str] = &["name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler"];
 
 /// Attributes of `<inertial>`.
 #[rustfmt::skip]
-const INERTIAL_ATTRIBUTES: &[&str] =
+pub(crate) const INERTIAL_ATTRIBUTES: &[&str] =
     &["pos", "mass", "diaginertia", "fullinertia", "quat", "axisangle", "xyaxes", "zaxis", "euler"];
 
 /// Attributes of `<compiler>`.
 #[rustfmt::skip]
-const COMPILER_ATTRIBUTES: &[&str] = &[
+pub(crate) const COMPILER_ATTRIBUTES: &[&str] = &[
     "alignfree", "angle", "assetdir", "autolimits", "balanceinertia", "boundinertia", "boundmass",
     "conflict", "coordinate", "discardvisual", "eulerseq", "fitaabb", "fusestatic", "inertiafromgeom",
     "inertiagrouprange", "meshdir", "passthrough", "savecanonical", "savecompiled", "saveinertial",
@@ -56,7 +56,7 @@ const COMPILER_ATTRIBUTES: &[&str] = &[
 
 /// Attributes of `<option>`.
 #[rustfmt::skip]
-const OPTION_ATTRIBUTES: &[&str] = &[
+pub(crate) const OPTION_ATTRIBUTES: &[&str] = &[
     "actuatorgroupdisable", "ccd_iterations", "ccd_tolerance", "cone", "density", "gravity", "impratio",
     "integrator", "iterations", "jacobian", "ls_iterations", "ls_tolerance", "magnetic",
     "noslip_iterations", "noslip_tolerance", "o_friction", "o_margin", "o_solimp", "o_solref",
@@ -66,7 +66,7 @@ const OPTION_ATTRIBUTES: &[&str] = &[
 
 /// Attributes of `<flag>`; all take "enable" or "disable".
 #[rustfmt::skip]
-const FLAG_ATTRIBUTES: &[&str] = &[
+pub(crate) const FLAG_ATTRIBUTES: &[&str] = &[
     "actuation", "autoreset", "clampctrl", "constraint", "contact", "damper", "diagexact", "energy",
     "equality", "eulerdamp", "filterparent", "frictionloss", "fwdinv", "gravity", "invdiscrete", "ipc",
     "island", "limit", "midphase", "multiccd", "nativeccd", "override", "refsafe", "sensor", "sleep",
@@ -75,8 +75,31 @@ const FLAG_ATTRIBUTES: &[&str] = &[
 
 /// Top-level sections without effect on the dynamics.
 #[rustfmt::skip]
-const IGNORED_SECTIONS: &[&str] =
+pub(crate) const IGNORED_SECTIONS: &[&str] =
     &["size", "statistic", "visual", "contact", "keyframe", "custom", "extension"];
+
+/// Actuator attributes naming a transmission nudyn refuses, and why.
+#[rustfmt::skip]
+pub(crate) const REFUSED_TRANSMISSIONS: &[(&str, &str)] = &[
+    ("tendon", "tendon transmissions (nudyn models no tendons)"),
+    ("cranksite", "slider-crank transmissions"),
+    ("slidersite", "slider-crank transmissions"),
+    ("body", "body transmissions act through contacts, which nudyn does not model"),
+];
+
+/// Elements nudyn refuses where bodies or sections are expected, and why.
+#[rustfmt::skip]
+pub(crate) const UNSUPPORTED_CHILDREN: &[(&str, &str)] = &[
+    ("replicate", "replicated subtrees (write the copies out)"),
+    ("attach", "attaching another model"),
+    ("composite", "composite and flexible objects"),
+    ("flexcomp", "composite and flexible objects"),
+    ("plugin", "plugins"),
+];
+
+/// Children of bodies (and of the world body) without effect on the
+/// dynamics; in the world body, geoms too (they belong to no moving body).
+pub(crate) const IGNORED_IN_BODIES: &[&str] = &["camera", "light"];
 
 /// MuJoCo's actuator groups that `actuatorgroupdisable` can disable: 0 to 30.
 const ACTUATOR_GROUPS: std::ops::RangeInclusive<i32> = 0..=30;
@@ -600,7 +623,7 @@ impl Reader {
             match child.tag() {
                 "body" => self.read_body_tree(child, frame, class)?,
                 "site" => self.read_site(&child, class, None, frame)?,
-                "geom" | "camera" | "light" => {
+                tag if tag == "geom" || IGNORED_IN_BODIES.contains(&tag) => {
                     self.named_elsewhere.extend(child.text("target").map(str::to_string));
                     self.warnings.push(child.ignored());
                 }
@@ -726,7 +749,7 @@ impl Reader {
                     geoms.push((child, settings, frame));
                 }
                 "site" => self.read_site(&child, class, Some(index), frame)?,
-                "camera" | "light" => {
+                tag if IGNORED_IN_BODIES.contains(&tag) => {
                     self.named_elsewhere.extend(child.text("target").map(str::to_string));
                     self.warnings.push(child.ignored());
                 }
@@ -1450,14 +1473,9 @@ impl Reader {
     /// an optional reference site. Tendon, slider-crank and body
     /// transmissions are refused.
     fn transmission(&self, element: &Element) -> Result<Transmission, MjcfError> {
-        for (attribute, reason) in [
-            ("tendon", "tendon transmissions (nudyn models no tendons)"),
-            ("cranksite", "slider-crank transmissions"),
-            ("slidersite", "slider-crank transmissions"),
-            ("body", "body transmissions act through contacts, which nudyn does not model"),
-        ] {
+        for (attribute, reason) in REFUSED_TRANSMISSIONS {
             if element.has(attribute) {
-                return Err(element.unsupported(reason));
+                return Err(element.unsupported(*reason));
             }
         }
         let mut targets = ["joint", "jointinparent", "site"].into_iter().filter(|a| element.has(a));
@@ -1820,12 +1838,8 @@ fn no_children(element: &Element) -> Result<(), MjcfError> {
 /// The error for an element that nudyn does not read where bodies or
 /// sections are expected.
 fn unsupported_child(element: &Element) -> MjcfError {
-    let reason = match element.tag() {
-        "replicate" => "replicated subtrees (write the copies out)",
-        "attach" => "attaching another model",
-        "composite" | "flexcomp" => "composite and flexible objects",
-        "plugin" => "plugins",
-        _ => return element.unknown(),
-    };
-    element.unsupported(reason)
+    match UNSUPPORTED_CHILDREN.iter().find(|(tag, _)| *tag == element.tag()) {
+        Some((_, reason)) => element.unsupported(*reason),
+        None => element.unknown(),
+    }
 }

@@ -7,7 +7,8 @@ use super::error::MjcfError;
 use crate::vehicle::{FrameObject, JointKind, Sensor, SensorKind, SensorTarget};
 
 /// Attributes every sensor element has (MuJoCo 4.0 schema).
-const COMMON_ATTRIBUTES: &[&str] = &["name", "noise", "cutoff", "user", "nsample", "interp", "delay", "interval"];
+pub(crate) const COMMON_ATTRIBUTES: &[&str] =
+    &["name", "noise", "cutoff", "user", "nsample", "interp", "delay", "interval"];
 
 /// The objects sensors name, as the importer knows them; each lookup gives
 /// the error that names the element and attribute.
@@ -24,25 +25,26 @@ pub(crate) trait SensorTargets {
     fn actuator(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError>;
 }
 
+/// The sensor elements MuJoCo has that nudyn refuses, and why.
+#[rustfmt::skip]
+pub(crate) const REFUSED_SENSORS: &[(&[&str], &str)] = &[
+    (&["touch", "rangefinder", "contact", "tactile", "insidesite", "geomdist", "geomnormal", "geomfromto"],
+     "the sensor measures contacts or geometry, which nudyn does not model"),
+    (&["magnetometer", "camprojection"], "the sensor type is not computed by nudyn"),
+    (&["tendonpos", "tendonvel", "tendonactuatorfrc", "tendonlimitpos", "tendonlimitvel", "tendonlimitfrc"],
+     "tendons are not modelled"),
+    (&["e_potential", "e_kinetic"], "energy sensors are not computed by nudyn (the FMU has kinetic_energy)"),
+    (&["user", "plugin"], "user and plugin sensors are computed by code nudyn does not have"),
+];
+
 /// Why nudyn refuses a sensor element MuJoCo has; `None` for a tag that is
 /// no sensor element at all.
 pub(crate) fn refusal(tag: &str) -> Option<&'static str> {
-    Some(match tag {
-        "touch" | "rangefinder" | "contact" | "tactile" | "insidesite" | "geomdist" | "geomnormal" | "geomfromto" => {
-            "the sensor measures contacts or geometry, which nudyn does not model"
-        }
-        "magnetometer" | "camprojection" => "the sensor type is not computed by nudyn",
-        "tendonpos" | "tendonvel" | "tendonactuatorfrc" | "tendonlimitpos" | "tendonlimitvel" | "tendonlimitfrc" => {
-            "tendons are not modelled"
-        }
-        "e_potential" | "e_kinetic" => "energy sensors are not computed by nudyn (the FMU has kinetic_energy)",
-        "user" | "plugin" => "user and plugin sensors are computed by code nudyn does not have",
-        _ => return None,
-    })
+    REFUSED_SENSORS.iter().find(|(tags, _)| tags.contains(&tag)).map(|(_, reason)| *reason)
 }
 
 /// The attributes of a sensor type besides the common ones.
-fn own_attributes(kind: SensorKind) -> &'static [&'static str] {
+pub(crate) fn own_attributes(kind: SensorKind) -> &'static [&'static str] {
     use SensorKind::*;
     match kind {
         Gyro | Velocimeter | Accelerometer | Force | Torque => &["site"],

@@ -1,0 +1,100 @@
+//! The table of MJCF support in docs/mjcf-support.md, rendered from the
+//! importer's own lists (the attributes each element accepts, the
+//! sections and default children it ignores, the elements it refuses and
+//! why), so that the table says what the importer does.
+//! `tests/mjcf_support.rs` fails when the file differs from it.
+
+use std::fmt::Write;
+
+use super::{actuator, defaults, equality, mesh, reader, sensor};
+use crate::vehicle::SensorKind;
+
+/// docs/mjcf-support.md: element and attribute, read or ignored with a
+/// warning or refused with the importer's reason.
+pub fn support_table() -> String {
+    let mut out = String::from(
+        "# MJCF support\n\n\
+         Generated from the importer's own lists (`src/mjcf/support.rs`; \
+         `NUDYN_WRITE_DOCS=1 cargo test --release -p nudyn --test mjcf_support` rewrites it, \
+         and the test fails while this file differs). What nudyn does with each element of a \
+         MuJoCo 4.0 model file:\n\n\
+         - **read**: the element and the attributes listed are accepted; an attribute or element \
+         not listed anywhere here is refused as unknown, naming the element and line. The lists do \
+         not tell an attribute nudyn models from one it accepts because it has no effect on what \
+         nudyn computes (contact, rendering and solver settings): [cli.md](cli.md) says what is \
+         modelled. The refusals of particular values (a nonzero `wind`, `gravcomp` under gravity, \
+         a `gaintype` other than fixed and affine, …) are in the importer's messages. Known gap: \
+         `noslip_iterations` is accepted and not modelled (MuJoCo's no-slip pass changes the \
+         friction-loss forces).\n\
+         - **ignored with a warning**: no effect on the dynamics; each occurrence gives one warning.\n\
+         - **refused**: the import stops with the reason below.\n",
+    );
+
+    out.push_str("\n## Sections ignored with a warning\n\n");
+    out.push_str("| section | |\n|---|---|\n");
+    for section in reader::IGNORED_SECTIONS {
+        let _ = writeln!(out, "| `<{section}>` | ignored with a warning |");
+    }
+    out.push_str("\nIn `<default>`, these children are ignored with a warning: ");
+    out.push_str(&code_list(defaults::IGNORED_DEFAULTS, true));
+    out.push_str(". In bodies and in the world body: ");
+    out.push_str(&code_list(reader::IGNORED_IN_BODIES, true));
+    out.push_str("; in the world body, `<geom>` too (it belongs to no moving body).\n");
+
+    out.push_str("\n## Elements read, and their attributes\n\n");
+    out.push_str("| element | attributes |\n|---|---|\n");
+    let elements: [(&str, &[&str]); 10] = [
+        ("compiler", reader::COMPILER_ATTRIBUTES),
+        ("option", reader::OPTION_ATTRIBUTES),
+        ("option/flag", reader::FLAG_ATTRIBUTES),
+        ("body", reader::BODY_ATTRIBUTES),
+        ("frame", reader::FRAME_ATTRIBUTES),
+        ("inertial", reader::INERTIAL_ATTRIBUTES),
+        ("joint", defaults::JOINT_ATTRIBUTES),
+        ("geom", defaults::GEOM_ATTRIBUTES),
+        ("site", defaults::SITE_ATTRIBUTES),
+        ("asset/mesh", mesh::MESH_ATTRIBUTES),
+    ];
+    for (element, attributes) in elements {
+        let _ = writeln!(out, "| `<{element}>` | {} |", code_list(attributes, false));
+    }
+    for (tag, kind) in actuator::ACTUATOR_KINDS {
+        let _ = writeln!(out, "| `<actuator>/<{tag}>` | {} |", code_list(&actuator::attributes(*kind, false), false));
+    }
+    for kind in SensorKind::ALL {
+        let attributes: Vec<&str> =
+            sensor::COMMON_ATTRIBUTES.iter().chain(sensor::own_attributes(kind)).copied().collect();
+        let _ = writeln!(out, "| `<sensor>/<{}>` | {} |", kind.name(), code_list(&attributes, false));
+    }
+    for (tag, own) in equality::EQUALITY_ATTRIBUTES {
+        let attributes: Vec<&str> = equality::COMMON_ATTRIBUTES.iter().chain(own.iter()).copied().collect();
+        let _ = writeln!(out, "| `<equality>/<{tag}>` | {} |", code_list(&attributes, false));
+    }
+
+    out.push_str("\n## Refused\n\n| element or attribute | reason |\n|---|---|\n");
+    for (tag, reason) in reader::UNSUPPORTED_CHILDREN {
+        let _ = writeln!(out, "| `<{tag}>` | {reason} |");
+    }
+    for (tag, reason) in actuator::REFUSED_ACTUATORS {
+        let _ = writeln!(out, "| `<actuator>/<{tag}>` | {reason} |");
+    }
+    for (attribute, reason) in reader::REFUSED_TRANSMISSIONS {
+        let _ = writeln!(out, "| actuator `{attribute}=` | {reason} |");
+    }
+    for (tags, reason) in sensor::REFUSED_SENSORS {
+        for tag in *tags {
+            let _ = writeln!(out, "| `<sensor>/<{tag}>` | {reason} |");
+        }
+    }
+    for tag in equality::REFUSED_EQUALITIES {
+        let _ = writeln!(out, "| `<equality>/<{tag}>` | an equality constraint on a tendon or a flex |");
+    }
+    out
+}
+
+/// `a`, `b`, … (as elements `<a>` when `elements`).
+fn code_list(names: &[&str], elements: bool) -> String {
+    let quoted: Vec<String> =
+        names.iter().map(|n| if elements { format!("`<{n}>`") } else { format!("`{n}`") }).collect();
+    quoted.join(", ")
+}
