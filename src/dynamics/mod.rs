@@ -9,6 +9,7 @@
 //! | 3 [`bias`] | tip → base | ε | ν̇, C(θ,ν), ε of passive forces and gravity (or without the factor's rates, only what θ̈ needs) |
 //!
 //! [`forces`] maps physical joint torques and body wrenches to ε and back;
+//! `gravity_compensation` gives MuJoCo's `qfrc_gravcomp` with the configuration;
 //! [`actuation`] computes the actuators' forces and their ε;
 //! [`acceleration`] gives θ̈ and the links' accelerations after pass 3;
 //! [`sensors`] evaluates MuJoCo's sensors;
@@ -22,6 +23,7 @@ pub mod box_qp;
 pub mod constraint;
 mod equality;
 pub mod forces;
+mod gravity_compensation;
 pub mod kinematics;
 pub mod quantities;
 pub mod sensors;
@@ -162,6 +164,9 @@ impl Workspace {
         articulated::articulated_pass(model, self)?;
         if !model.shortcuts.no_gravity {
             kinematics::world_transforms_pass(model, self);
+        }
+        if !model.gravity_compensation.is_empty() {
+            gravity_compensation::gravity_compensation_pass(model, self);
         }
         self.stage = Stage::Configuration;
         Ok(())

@@ -657,11 +657,10 @@ impl Reader {
         let &PendingBody { ref element, parent, inherited_class, parent_moving, frame } = body;
         element.check_attributes(BODY_ATTRIBUTES)?;
         let mocap = element.boolean("mocap")? == Some(true);
-        // Without gravity MuJoCo's compensating force is exactly zero.
-        let gravity = !self.physics.gravity_disabled && self.physics.gravity != Vec3::zeros();
-        if gravity && element.number("gravcomp")?.is_some_and(|g| g != 0.0) {
-            return Err(element.unsupported("gravity compensation (gravcomp) under gravity is not modelled"));
-        }
+        // MuJoCo's passive stage, where the compensation is computed, stops
+        // before it when both springs and dampers are disabled.
+        let passive = !(self.physics.spring_disabled && self.physics.damper_disabled);
+        let gravcomp = if passive { element.number("gravcomp")?.unwrap_or(0.0) } else { 0.0 };
         let class = self.defaults.lookup(element, "childclass")?.unwrap_or(inherited_class);
         let own_pos = Vec3::from(element.numbers::<3>("pos")?.unwrap_or_default());
         let own_quat = self.resolve(element, &Orientation::read(element)?.unwrap_or_default())?;
@@ -819,6 +818,7 @@ impl Reader {
             inertial_quat: None,
             mass_unknown,
             joints,
+            gravcomp,
             line: element.line,
         });
         self.records.push(BodyRecord {
@@ -1165,6 +1165,7 @@ impl Reader {
                 damping: if self.physics.damper_disabled { 0.0 } else { s.damping[0] },
                 armature: s.armature,
                 actuator_force_range,
+                actuator_gravcomp: s.actuator_gravcomp,
                 constraints: self.joint_constraints(&s, range),
                 line: element.line,
             });
