@@ -657,10 +657,7 @@ impl Reader {
         let &PendingBody { ref element, parent, inherited_class, parent_moving, frame } = body;
         element.check_attributes(BODY_ATTRIBUTES)?;
         let mocap = element.boolean("mocap")? == Some(true);
-        // MuJoCo's passive stage, where the compensation is computed, stops
-        // before it when both springs and dampers are disabled.
-        let passive = !(self.physics.spring_disabled && self.physics.damper_disabled);
-        let gravcomp = if passive { element.number("gravcomp")?.unwrap_or(0.0) } else { 0.0 };
+        let gravcomp = element.number("gravcomp")?.unwrap_or(0.0);
         let class = self.defaults.lookup(element, "childclass")?.unwrap_or(inherited_class);
         let own_pos = Vec3::from(element.numbers::<3>("pos")?.unwrap_or_default());
         let own_quat = self.resolve(element, &Orientation::read(element)?.unwrap_or_default())?;
@@ -1565,6 +1562,12 @@ impl Reader {
             body.inertial_pos = inertia.com;
             body.inertial_quat = Some(inertia.quat);
         }
+        // MuJoCo's passive stage, which computes the gravity compensation,
+        // stops before it when springs and dampers are both disabled (the
+        // compensation still decided what fusestatic fused).
+        if self.physics.spring_disabled && self.physics.damper_disabled {
+            self.bodies.iter_mut().for_each(|body| body.gravcomp = 0.0);
+        }
         self.warnings.sort_by_key(|w| w.line);
         let gravity = if self.physics.gravity_disabled { Vec3::zeros() } else { self.physics.gravity };
         let vehicle = Vehicle {
@@ -1586,9 +1589,10 @@ impl Reader {
 impl Reader {
     /// `<compiler fusestatic="true">` as MuJoCo 4.0 applies it
     /// (`mjCModel::FuseStatic`), in body order: a body without joints, not
-    /// mocap and not named by anything that refers to bodies (a sensor, a
-    /// camera's or light's target, a contact exclusion) disappears into its
-    /// parent. Its mass properties join the parent's (unless the parent is
+    /// mocap, not named by anything that refers to bodies (a sensor, a
+    /// camera's or light's target, a contact exclusion) and not with a mass
+    /// under another gravcomp than its parent's (unless that is the world)
+    /// disappears into its parent. Its mass properties join the parent's (unless the parent is
     /// the world, or its mass is below mjMINVAL), its child bodies and sites
     /// become the parent's, placed where they were. The parent's inertial
     /// frame moves: sensors of objtype "body" on it measure the merged one.
@@ -1615,12 +1619,22 @@ impl Reader {
                 }
             }
         }
-        let kept: Vec<bool> = (self.bodies.iter().zip(&referenced))
-            .map(|(body, &referenced)| {
-                let named = self.named_elsewhere.contains(&body.name) || self.mocap_bodies.contains(&body.name);
-                referenced || named || !body.joints.is_empty()
-            })
-            .collect();
+        // Bodies in document order; `host`: the body each one's mass ends
+        // up in once fused (itself if kept, None for the world).
+        let mut kept = Vec::with_capacity(self.bodies.len());
+        let mut host: Vec<Option<usize>> = Vec::with_capacity(self.bodies.len());
+        for (index, body) in self.bodies.iter().enumerate() {
+            let parent_host = body.parent.and_then(|p| host[p]);
+            let named = self.named_elsewhere.contains(&body.name) || self.mocap_bodies.contains(&body.name);
+            // MuJoCo 4.0 keeps a body whose mass its host would compensate
+            // otherwise (found by trying it: its published source does not
+            // have this yet).
+            let compensated_otherwise = parent_host.is_some_and(|p| self.bodies[p].gravcomp != body.gravcomp)
+                && self.records[index].inertia.mass >= MIN_VALUE;
+            let keep = referenced[index] || named || !body.joints.is_empty() || compensated_otherwise;
+            kept.push(keep);
+            host.push(if keep { Some(index) } else { parent_host });
+        }
 
         for index in kept.iter().enumerate().filter(|(_, kept)| !**kept).map(|(index, _)| index) {
             let pose = (self.bodies[index].pos, self.bodies[index].quat);

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import re
+import subprocess
 
 import mujoco
 import numpy as np
@@ -156,8 +157,12 @@ UNCOMPENSATED = {
 }
 # Variants where MuJoCo drops the share routed to the actuators.
 UNROUTED = {"actuation_disabled": with_flag('actuation="disable"'), "no_actuators": without_actuators}
+def fused(text: str) -> str:
+    return text.replace("<option ", '<compiler fusestatic="true"/>\n  <option ', 1)
+
+
 # Variants where it still applies all of it.
-COMPENSATED = {"springs_disabled": with_flag('spring="disable"')}
+COMPENSATED = {"springs_disabled": with_flag('spring="disable"'), "fusestatic": fused}
 
 
 @pytest.mark.parametrize("name", [*UNCOMPENSATED, *UNROUTED, *COMPENSATED])
@@ -174,11 +179,28 @@ def test_what_turns_compensation_off_as_in_mujoco(name, nudyn, tmp_path):
             assert relative(answer["qfrc_gravcomp"], reference["qfrc_gravcomp"]) < 1e-12, f"state {k}"
     if name in UNROUTED:
         # The rule matters: were the share a passive force, θ̈ would differ.
-        unrouted = 'actuatorgravcomp="false"'
-        passive = variant(tmp_path, f"{name}_passive", lambda text: edit(text).replace('actuatorgravcomp="true"', unrouted))
+        routed, unrouted = 'actuatorgravcomp="true"', 'actuatorgravcomp="false"'
+        passive = variant(tmp_path, f"{name}_passive", lambda text: edit(text).replace(routed, unrouted))
         passive_references, _ = evaluate(passive, nudyn)
         for reference, other in zip(references, passive_references):
             assert relative(reference["qacc"], other["qacc"]) > 1e-6
+
+def test_fusestatic_fuses_what_mujoco_fuses(nudyn, tmp_path):
+    """MuJoCo 4.0 fuses a welded body only where its parent's gravcomp
+    compensates its mass alike: the lamp (1 under 1) goes, the camera (1
+    under 0.5) stays; with springs and dampers disabled (no compensation at
+    all) the same bodies stay."""
+    passive_off = with_flag('spring="disable" damper="disable"')
+    for name, edit in (("fused", fused), ("fused_off", lambda text: passive_off(fused(text)))):
+        path = variant(tmp_path, name, edit)
+        model = load_model(path)
+        described = subprocess.run([nudyn, "describe", "--json", path], capture_output=True, text=True, check=True)
+        described = json.loads(described.stdout)
+        names = [model.body(i).name for i in range(1, model.nbody)]
+        assert [b["name"] for b in described["bodies"]] == names
+        assert "camera" in names and "lamp" not in names
+        np.testing.assert_allclose([b["mass"] for b in described["bodies"]], model.body_mass[1:], rtol=1e-15)
+
 
 def test_zero_gravity_gives_exactly_no_compensation(nudyn, tmp_path):
     """Without gravity, a file with gravcomp gives nudyn eval's every number
