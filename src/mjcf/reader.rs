@@ -39,6 +39,7 @@ const BODY_ATTRIBUTES: &[&str] = &[
 /// Attributes of `<frame>`.
 #[rustfmt::skip]
 const FRAME_ATTRIBUTES: &[&str] = &["name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler"];
+const REPLICATE_ATTRIBUTES: &[&str] = &["count", "sep", "offset", "euler", "childclass"];
 
 /// Attributes of `<inertial>`.
 #[rustfmt::skip]
@@ -161,6 +162,8 @@ struct PendingBody<'a> {
     parent_moving: bool,
     /// The pose of the `<frame>`s around the body, in its parent.
     frame: Option<Pose>,
+    /// The suffix the `<replicate>`s around it give the names in it.
+    suffix: String,
 }
 
 /// A pose in a parent frame: position, then orientation.
@@ -179,6 +182,8 @@ struct Placed<'a> {
     element: Element<'a, 'a>,
     frame: Option<Pose>,
     class: usize,
+    /// The suffix of `<replicate>` copies for its name and those below it.
+    suffix: String,
 }
 
 /// `align` of a free joint.
@@ -194,6 +199,8 @@ struct JointElement<'a, 'input> {
     element: Element<'a, 'input>,
     settings: JointSettings,
     align: Align,
+    /// The `<replicate>` suffix of its name.
+    suffix: String,
 }
 
 /// What the walk through the document has gathered so far.
@@ -596,10 +603,10 @@ impl Reader {
     fn read_worldbody(&mut self, section: &Element) -> Result<(), MjcfError> {
         // MuJoCo: "World body cannot have attributes".
         section.check_attributes(&[])?;
-        for Placed { element: child, frame, class } in self.placed_children(section, MAIN)? {
+        for Placed { element: child, frame, class, suffix } in self.placed_children(section, MAIN, "")? {
             match child.tag() {
-                "body" => self.read_body_tree(child, frame, class)?,
-                "site" => self.read_site(&child, class, None, frame)?,
+                "body" => self.read_body_tree(child, frame, class, suffix)?,
+                "site" => self.read_site(&child, class, None, frame, &suffix)?,
                 "geom" | "camera" | "light" => {
                     self.named_elsewhere.extend(child.text("target").map(str::to_string));
                     self.warnings.push(child.ignored());
@@ -641,9 +648,21 @@ impl Reader {
     /// (parent before child). A work stack instead of recursion: a vehicle
     /// file may nest bodies thousands deep, and the importer must not
     /// overflow the thread's stack, which is small in a host's FMU thread.
-    fn read_body_tree<'a>(&mut self, top: Element<'a, 'a>, frame: Option<Pose>, class: usize) -> Result<(), MjcfError> {
-        let mut pending =
-            vec![PendingBody { element: top, parent: None, inherited_class: class, parent_moving: false, frame }];
+    fn read_body_tree<'a>(
+        &mut self,
+        top: Element<'a, 'a>,
+        frame: Option<Pose>,
+        class: usize,
+        suffix: String,
+    ) -> Result<(), MjcfError> {
+        let mut pending = vec![PendingBody {
+            element: top,
+            parent: None,
+            inherited_class: class,
+            parent_moving: false,
+            frame,
+            suffix,
+        }];
         while let Some(body) = pending.pop() {
             let children = self.read_body(&body)?;
             // Reversed so that the first child is read next.
@@ -654,7 +673,7 @@ impl Reader {
 
     /// Reads one body; returns its child bodies, still to be read.
     fn read_body<'a>(&mut self, body: &PendingBody<'a>) -> Result<Vec<PendingBody<'a>>, MjcfError> {
-        let &PendingBody { ref element, parent, inherited_class, parent_moving, frame } = body;
+        let &PendingBody { ref element, parent, inherited_class, parent_moving, frame, ref suffix } = body;
         element.check_attributes(BODY_ATTRIBUTES)?;
         let mocap = element.boolean("mocap")? == Some(true);
         let gravcomp = element.number("gravcomp")?.unwrap_or(0.0);
@@ -667,8 +686,9 @@ impl Reader {
         // nothing can refer to (MuJoCo's unnamed elements have none).
         let name = match element.text("name") {
             Some(name) => {
-                claim_name(&mut self.body_names, "body", name, element)?;
-                name.to_string()
+                let name = format!("{name}{suffix}");
+                claim_name(&mut self.body_names, "body", &name, element)?;
+                name
             }
             None => {
                 self.unnamed_bodies.push(index);
@@ -680,7 +700,7 @@ impl Reader {
         let mut joints = Vec::new();
         let mut geoms = Vec::new();
         let mut child_bodies = Vec::new();
-        for Placed { element: child, frame, class } in self.placed_children(element, class)? {
+        for Placed { element: child, frame, class, suffix } in self.placed_children(element, class, suffix)? {
             match child.tag() {
                 "inertial" => {
                     if let Some((first, _)) = &inertial {
@@ -701,7 +721,7 @@ impl Reader {
                         settings.pos = (at + turn * Vec3::from(settings.pos)).into();
                         settings.axis = (turn * Vec3::from(settings.axis)).into();
                     }
-                    joints.push(JointElement { element: child, settings, align: Align::Auto });
+                    joints.push(JointElement { element: child, settings, align: Align::Auto, suffix });
                 }
                 "freejoint" => {
                     // MuJoCo's <freejoint> takes no defaults.
@@ -710,7 +730,7 @@ impl Reader {
                     let aligns = [("false", Align::No), ("true", Align::Yes), ("auto", Align::Auto)];
                     let align = child.keyword("align", &aligns)?.unwrap_or(Align::Auto);
                     let settings = JointSettings { kind: JointKind::Free, ..JointSettings::default() };
-                    joints.push(JointElement { element: child, settings, align });
+                    joints.push(JointElement { element: child, settings, align, suffix });
                 }
                 "geom" => {
                     child.check_attributes(GEOM_ATTRIBUTES)?;
@@ -721,7 +741,7 @@ impl Reader {
                     settings.apply(&child)?;
                     geoms.push((child, settings, frame));
                 }
-                "site" => self.read_site(&child, class, Some(index), frame)?,
+                "site" => self.read_site(&child, class, Some(index), frame, &suffix)?,
                 "camera" | "light" => {
                     self.named_elsewhere.extend(child.text("target").map(str::to_string));
                     self.warnings.push(child.ignored());
@@ -732,6 +752,7 @@ impl Reader {
                     inherited_class: class,
                     parent_moving: false,
                     frame,
+                    suffix,
                 }),
                 _ => return Err(unsupported_child(&child)),
             }
@@ -847,10 +868,18 @@ impl Reader {
     }
 
     /// The children of a body (or of the world body) of class `class`, with
-    /// the elements inside its `<frame>`s, nested or not, in their place in
-    /// document order: MuJoCo's frames vanish when it compiles a model, their
-    /// pose composed into their children's and their `childclass` handed on.
-    fn placed_children<'a>(&self, parent: &Element<'a, 'a>, class: usize) -> Result<Vec<Placed<'a>>, MjcfError> {
+    /// the elements inside its `<frame>`s and `<replicate>`s, nested or not,
+    /// in their place in document order: MuJoCo's frames vanish when it
+    /// compiles a model, their pose composed into their children's and their
+    /// `childclass` handed on; a replicate is the same as its copies, each
+    /// in a frame of its own, their names suffixed (`suffix`: that of the
+    /// replicates around `parent`).
+    fn placed_children<'a>(
+        &self,
+        parent: &Element<'a, 'a>,
+        class: usize,
+        suffix: &str,
+    ) -> Result<Vec<Placed<'a>>, MjcfError> {
         let mut placed = Vec::new();
         // Reversed, so that the first child comes off the stack first.
         let mut pending: Vec<Placed<'a>> = parent
@@ -858,23 +887,72 @@ impl Reader {
             .collect::<Vec<_>>()
             .into_iter()
             .rev()
-            .map(|element| Placed { element, frame: None, class })
+            .map(|element| Placed { element, frame: None, class, suffix: suffix.to_string() })
             .collect();
         while let Some(item) = pending.pop() {
-            if item.element.tag() != "frame" {
-                placed.push(item);
-                continue;
+            let copies = match item.element.tag() {
+                "frame" => self.frame_pose(&item)?,
+                "replicate" => self.replicate_poses(&item)?,
+                _ => {
+                    placed.push(item);
+                    continue;
+                }
+            };
+            let container = &item.element;
+            let class = self.defaults.lookup(container, "childclass")?.unwrap_or(item.class);
+            let children: Vec<_> = container.children().collect();
+            for (pose, copy_suffix) in copies.into_iter().rev() {
+                let pose = item.frame.map_or(pose, |outer| compose(&outer, &pose));
+                // MuJoCo appends an inner replicate's suffix first.
+                let suffix = format!("{copy_suffix}{}", item.suffix);
+                pending.extend(children.iter().rev().map(|&element| Placed {
+                    element,
+                    frame: Some(pose),
+                    class,
+                    suffix: suffix.clone(),
+                }));
             }
-            let frame = &item.element;
-            frame.check_attributes(FRAME_ATTRIBUTES)?;
-            let class = self.defaults.lookup(frame, "childclass")?.unwrap_or(item.class);
-            let pos = Vec3::from(frame.numbers::<3>("pos")?.unwrap_or_default());
-            let quat = self.resolve(frame, &Orientation::read(frame)?.unwrap_or_default())?;
-            let pose = item.frame.map_or((pos, quat), |outer| compose(&outer, &(pos, quat)));
-            let children: Vec<_> = frame.children().collect();
-            pending.extend(children.into_iter().rev().map(|element| Placed { element, frame: Some(pose), class }));
         }
         Ok(placed)
+    }
+
+    /// A `<frame>`'s pose in its parent, as one copy without a suffix.
+    fn frame_pose(&self, item: &Placed) -> Result<Vec<(Pose, String)>, MjcfError> {
+        let frame = &item.element;
+        frame.check_attributes(FRAME_ATTRIBUTES)?;
+        let pos = Vec3::from(frame.numbers::<3>("pos")?.unwrap_or_default());
+        let quat = self.resolve(frame, &Orientation::read(frame)?.unwrap_or_default())?;
+        Ok(vec![((pos, quat), String::new())])
+    }
+
+    /// The poses and name suffixes of a `<replicate>`'s copies, as MuJoCo
+    /// 4.0 makes them (`mjXReader::Body`): copy i turned by i·euler (the
+    /// compiler's angle unit and sequence), at p_i with p_0 = 0 and
+    /// p_{i+1} = p_i + q^i · offset (q: the turn of one copy), its suffix
+    /// `sep` and i padded with zeros to the digits of `count`.
+    fn replicate_poses(&self, item: &Placed) -> Result<Vec<(Pose, String)>, MjcfError> {
+        let replicate = &item.element;
+        replicate.check_attributes(REPLICATE_ATTRIBUTES)?;
+        let [count] = replicate.integers::<1>("count")?.ok_or_else(|| replicate.missing("count"))?;
+        if count <= 0 {
+            return Err(replicate.bad_value("count", "a positive number of copies"));
+        }
+        let offset = Vec3::from(replicate.numbers::<3>("offset")?.unwrap_or_default());
+        let euler = replicate.numbers::<3>("euler")?.unwrap_or_default();
+        let separator = replicate.text("sep").unwrap_or_default();
+        let step = self.resolve(replicate, &Orientation::Euler(euler))?;
+        let digits = count.to_string().len();
+        let (mut pos, mut turned) = (Vec3::zeros(), Quat::identity());
+        let mut copies = Vec::with_capacity(count as usize);
+        for i in 0..count {
+            // MuJoCo resolves i·euler afresh for each copy's orientation,
+            // and accumulates the turn only for the positions.
+            let quat = self.resolve(replicate, &Orientation::Euler(euler.map(|angle| f64::from(i) * angle)))?;
+            copies.push(((pos, quat), format!("{separator}{i:0digits$}")));
+            pos += turned * offset;
+            turned *= step;
+        }
+        Ok(copies)
     }
 
     /// The class of a joint, geom or site: its `class`, else its body's class.
@@ -889,6 +967,7 @@ impl Reader {
         body_class: usize,
         body: Option<usize>,
         frame: Option<Pose>,
+        suffix: &str,
     ) -> Result<(), MjcfError> {
         element.check_attributes(SITE_ATTRIBUTES)?;
         no_children(element)?;
@@ -905,7 +984,7 @@ impl Reader {
             None => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
         };
         let (pos, quat) = frame.map_or((pos, quat), |frame| compose(&frame, &(pos, quat)));
-        let name = element.text("name").map(str::to_string);
+        let name = element.text("name").map(|name| format!("{name}{suffix}"));
         if let Some(name) = &name {
             claim_name(&mut self.site_names, "site", name, element)?;
         }
@@ -1076,7 +1155,7 @@ impl Reader {
         let mut after_ball = false;
         let mut dofs = 0;
         for (k, joint) in elements.into_iter().enumerate() {
-            let JointElement { element, settings: s, .. } = joint;
+            let JointElement { element, settings: s, suffix, .. } = joint;
             let origin = |attribute: &str| {
                 if element.has(attribute) { "" } else { " (from its default class)" }
             };
@@ -1137,7 +1216,7 @@ impl Reader {
             };
             let actuator_force_range = self.actuator_force_range(&element, &s)?;
             let named = element.text("name");
-            let name = named.map_or_else(|| format!("{body_name}_joint{k}"), str::to_string);
+            let name = named.map_or_else(|| format!("{body_name}_joint{k}"), |name| format!("{name}{suffix}"));
             if named.is_some() {
                 claim_name(&mut self.joint_names, "joint", &name, &element)?;
             }
@@ -1826,7 +1905,6 @@ fn no_children(element: &Element) -> Result<(), MjcfError> {
 /// sections are expected.
 fn unsupported_child(element: &Element) -> MjcfError {
     let reason = match element.tag() {
-        "replicate" => "replicated subtrees (write the copies out)",
         "attach" => "attaching another model",
         "composite" | "flexcomp" => "composite and flexible objects",
         "plugin" => "plugins",
