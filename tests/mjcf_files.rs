@@ -346,3 +346,22 @@ fn alignfree_moves_a_free_body_frame_to_its_inertial_frame() {
     assert_pose("its site", &vehicle.sites[0].pos, [0.0, 0.0, 1.0]);
     assert_pose("body left as written", &vehicle.bodies[1].pos, [0.0, 1.0, 0.0]);
 }
+
+#[test]
+fn a_name_inside_a_replicate_is_refused_with_its_copies_names() {
+    // MuJoCo would copy the sensor for each copy of the site; nudyn says so.
+    let with = |sensed: &str| {
+        format!(
+            r#"<mujoco><worldbody><body name="bus"><freejoint/><geom size="1"/>
+            <replicate count="12" sep="_"><body name="arm"><joint/><geom size="1"/><site name="tip"/></body></replicate>
+            </body></worldbody><sensor><framepos objtype="site" objname="{sensed}"/></sensor></mujoco>"#
+        )
+    };
+    let shown = parse_mjcf(&with("tip")).unwrap_err().to_string();
+    assert!(shown.contains("unknown objname 'tip' for sensor: it is inside a <replicate>"), "{shown}");
+    assert!(shown.contains("named 'tip_00' and so on"), "{shown}");
+    let vehicle = parse_mjcf(&with("tip_11")).unwrap().vehicle;
+    let names: Vec<&str> = vehicle.bodies.iter().map(|b| b.name.as_str()).collect();
+    assert_eq!(names[1..4], ["arm_00", "arm_01", "arm_02"]);
+    assert_eq!(names.len(), 13);
+}

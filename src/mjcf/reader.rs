@@ -234,6 +234,8 @@ struct Reader {
     /// Bodies named by an ignored element (a camera's or light's `target`, a
     /// contact `<exclude>`), which `fusestatic` keeps.
     named_elsewhere: Vec<String>,
+    /// The names given inside `<replicate>`s, each with its first copy's name.
+    replicated: HashMap<String, String>,
 }
 
 /// Reads an MJCF document, from the file `path` if it comes from one (the
@@ -395,6 +397,7 @@ impl Reader {
             meshes: Meshes::new(),
             mocap_bodies: Vec::new(),
             named_elsewhere: Vec::new(),
+            replicated: HashMap::new(),
         }
     }
 
@@ -686,9 +689,9 @@ impl Reader {
         // nothing can refer to (MuJoCo's unnamed elements have none).
         let name = match element.text("name") {
             Some(name) => {
-                let name = format!("{name}{suffix}");
-                claim_name(&mut self.body_names, "body", &name, element)?;
-                name
+                let copy = self.replicated_name(name, suffix);
+                claim_name(&mut self.body_names, "body", &copy, element)?;
+                copy
             }
             None => {
                 self.unnamed_bodies.push(index);
@@ -984,7 +987,7 @@ impl Reader {
             None => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
         };
         let (pos, quat) = frame.map_or((pos, quat), |frame| compose(&frame, &(pos, quat)));
-        let name = element.text("name").map(|name| format!("{name}{suffix}"));
+        let name = element.text("name").map(|name| self.replicated_name(name, suffix));
         if let Some(name) = &name {
             claim_name(&mut self.site_names, "site", name, element)?;
         }
@@ -1216,7 +1219,8 @@ impl Reader {
             };
             let actuator_force_range = self.actuator_force_range(&element, &s)?;
             let named = element.text("name");
-            let name = named.map_or_else(|| format!("{body_name}_joint{k}"), |name| format!("{name}{suffix}"));
+            let name =
+                named.map_or_else(|| format!("{body_name}_joint{k}"), |name| self.replicated_name(name, &suffix));
             if named.is_some() {
                 claim_name(&mut self.joint_names, "joint", &name, &element)?;
             }
@@ -1554,7 +1558,7 @@ impl Reader {
         let name = element.text(target).unwrap_or_default();
         if target != "site" {
             if !self.joint_targets.contains_key(name) {
-                return Err(element.invalid(format!("unknown transmission target '{name}' for actuator")));
+                return Err(self.unknown(element, &format!("transmission target '{name}' for actuator"), name));
             }
             return Ok(Transmission::Joint { joint: name.to_string(), in_parent: target == "jointinparent" });
         }
@@ -1566,12 +1570,37 @@ impl Reader {
         Ok(Transmission::Site { site, refsite })
     }
 
+    /// The name of an element in a `<replicate>` copy (`suffix` empty
+    /// outside replicates), remembered for [`Reader::unknown`].
+    fn replicated_name(&mut self, name: &str, suffix: &str) -> String {
+        let copy = format!("{name}{suffix}");
+        if !suffix.is_empty() {
+            self.replicated.entry(name.to_string()).or_insert_with(|| copy.clone());
+        }
+        copy
+    }
+
+    /// The error for a reference to `name`, which names nothing of its kind
+    /// (`described`: the kind, the name and where it stands). MuJoCo copies
+    /// an element naming something inside a `<replicate>` for each copy;
+    /// nudyn does not, and says so.
+    fn unknown(&self, element: &Element, described: &str, name: &str) -> MjcfError {
+        let hint = match self.replicated.get(name) {
+            Some(copy) => format!(
+                ": it is inside a <replicate>, whose copies are named '{copy}' and so on; nudyn does not copy \
+                 the elements that name it (MuJoCo does): name a copy instead"
+            ),
+            None => String::new(),
+        };
+        element.invalid(format!("unknown {described}{hint}"))
+    }
+
     /// The index of the site the attribute names; a site fitted to a mesh is
     /// refused (the mesh would move its frame).
     fn site_named(&self, element: &Element, attribute: &str, user: &str) -> Result<usize, MjcfError> {
         let name = element.text(attribute).unwrap_or_default();
         let Some(index) = self.sites.iter().position(|s| s.name.as_deref() == Some(name)) else {
-            return Err(element.invalid(format!("unknown {attribute} '{name}' for {user}")));
+            return Err(self.unknown(element, &format!("{attribute} '{name}' for {user}"), name));
         };
         if self.site_fitted_to_mesh[index] {
             return Err(element.unsupported(format!(
@@ -1586,7 +1615,7 @@ impl Reader {
     /// The joint a sensor's attribute names.
     fn sensed_joint(&self, element: &Element, attribute: &str) -> Result<&JointTarget, MjcfError> {
         let name = element.text(attribute).unwrap_or_default();
-        self.joint_targets.get(name).ok_or_else(|| element.invalid(format!("unknown joint '{name}' in sensor")))
+        self.joint_targets.get(name).ok_or_else(|| self.unknown(element, &format!("joint '{name}' in sensor"), name))
     }
 
     fn finish(mut self, name: String) -> Result<Imported, MjcfError> {
@@ -1823,7 +1852,7 @@ impl EqualityTargets for Reader {
         }
         match self.bodies.iter().position(|b| b.name == name) {
             Some(index) if self.body_names.contains_key(name) => Ok(Some(index)),
-            _ => Err(element.invalid(format!("unknown body '{name}' in equality constraint"))),
+            _ => Err(self.unknown(element, &format!("body '{name}' in equality constraint"), name)),
         }
     }
 
@@ -1836,7 +1865,7 @@ impl EqualityTargets for Reader {
         self.joint_targets
             .get(name)
             .map(|joint| joint.kind)
-            .ok_or_else(|| element.invalid(format!("unknown joint '{name}' in equality constraint")))
+            .ok_or_else(|| self.unknown(element, &format!("joint '{name}' in equality constraint"), name))
     }
 }
 
@@ -1856,7 +1885,7 @@ impl SensorTargets for Reader {
         }
         match self.body_names.contains_key(name) {
             true => Ok(self.bodies.iter().position(|b| b.name == name)),
-            false => Err(element.invalid(format!("unknown body '{name}' in sensor"))),
+            false => Err(self.unknown(element, &format!("body '{name}' in sensor"), name)),
         }
     }
 
