@@ -39,6 +39,8 @@ const BODY_ATTRIBUTES: &[&str] = &[
 /// Attributes of `<frame>`.
 #[rustfmt::skip]
 const FRAME_ATTRIBUTES: &[&str] = &["name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler"];
+
+/// Attributes of `<replicate>`.
 const REPLICATE_ATTRIBUTES: &[&str] = &["count", "sep", "offset", "euler", "childclass"];
 
 /// Attributes of `<inertial>`.
