@@ -26,6 +26,7 @@ fn hinge_chain(links: usize) -> Vehicle {
         damping: 0.0,
         armature: 0.0,
         actuator_force_range: None,
+        actuator_gravcomp: false,
         constraints: Default::default(),
         line: 0,
     };
@@ -39,6 +40,7 @@ fn hinge_chain(links: usize) -> Vehicle {
         inertial_quat: Some(Quat::identity()),
         mass_unknown: false,
         joints: vec![joint("base".into(), JointKind::Free, Vec3::z())],
+        gravcomp: 0.0,
         line: 0,
     }];
     for k in 1..=links {
@@ -53,6 +55,7 @@ fn hinge_chain(links: usize) -> Vehicle {
             inertial_quat: Some(Quat::identity()),
             mass_unknown: false,
             joints: vec![joint(format!("hinge{k}"), JointKind::Hinge, axis)],
+            gravcomp: 0.0,
             line: 0,
         });
     }

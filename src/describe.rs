@@ -34,6 +34,10 @@ pub struct Description {
 pub struct BodyDescription {
     /// The body's name (MuJoCo's, or the one nudyn gives an unnamed body).
     pub name: String,
+    /// The body frame's position in its parent's (body_pos).
+    pub pos: [f64; 3],
+    /// The body frame's orientation in its parent's, w x y z (body_quat).
+    pub quat: [f64; 4],
     /// Mass (MuJoCo's body_mass).
     pub mass: f64,
     /// Principal moments of inertia (body_inertia).
@@ -163,8 +167,11 @@ fn describe_body(body: &crate::vehicle::Body) -> BodyDescription {
         None => (0.0, [0.0; 3]),
     };
     let pos = body.inertial_pos;
+    let (at, turn) = (body.pos, body.quat);
     BodyDescription {
         name: body.name.clone(),
+        pos: [at.x, at.y, at.z],
+        quat: [turn.w, turn.i, turn.j, turn.k],
         mass,
         inertia,
         ipos: [pos.x, pos.y, pos.z],

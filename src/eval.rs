@@ -46,8 +46,14 @@ pub struct EvalResponse {
     pub qacc: Vec<f64>,
     /// Total applied ε: the request's `eps` plus ℓ·torque.
     pub eps: Vec<f64>,
-    /// ε of springs, dampers and gravity.
+    /// ε of springs, dampers, gravity and the gravity compensation not
+    /// routed to the actuators.
     pub eps_passive: Vec<f64>,
+    /// MuJoCo's qfrc_gravcomp (nv), when the model has gravity compensation:
+    /// its share on `actuatorgravcomp` joints is inside `qfrc_actuator`
+    /// (given `ctrl`), the rest a passive force.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub qfrc_gravcomp: Option<Vec<f64>>,
     /// K = ½|ν|².
     pub kinetic_energy: f64,
     /// Power of the applied ε, ν·ε.
@@ -206,6 +212,7 @@ pub fn evaluate(model: &Model, ws: &mut Workspace, request: &EvalRequest) -> Res
         qacc: ws.qacc.as_slice().to_vec(),
         power: ws.power(&eps),
         eps_passive: ws.eps_passive.as_slice().to_vec(),
+        qfrc_gravcomp: (!model.gravity_compensation.is_empty()).then(|| ws.qfrc_gravcomp.as_slice().to_vec()),
         kinetic_energy: ws.kinetic_energy(),
         momentum: std::array::from_fn(|k| momentum[k]),
         actuators,

@@ -63,6 +63,10 @@ pub struct Body {
     pub mass_unknown: bool,
     /// The body's joints, in document order (MuJoCo applies them in this order).
     pub joints: Vec<Joint>,
+    /// MuJoCo's `gravcomp`: a force of −gravcomp · mass · gravity at the
+    /// centre of mass (its `qfrc_gravcomp`); 0 when MuJoCo computes no
+    /// passive force (`<flag spring="disable" damper="disable"/>`).
+    pub gravcomp: f64,
     /// Line of the `<body>` element in the MJCF file (1-based).
     pub line: u32,
 }
@@ -152,6 +156,10 @@ pub struct Joint {
     /// Limits of the total actuator force on the joint (MuJoCo's
     /// `actuatorfrcrange` when `actuatorfrclimited`; hinge and slide only).
     pub actuator_force_range: Option<[f64; 2]>,
+    /// MuJoCo's `actuatorgravcomp`: the gravity compensation on the joint's
+    /// dofs is an actuator force (inside `qfrc_actuator` and its limits),
+    /// not a passive one.
+    pub actuator_gravcomp: bool,
     /// Friction loss and limits: constraint forces.
     pub constraints: JointConstraints,
     /// Line of the joint element in the MJCF file (1-based).

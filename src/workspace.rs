@@ -91,7 +91,13 @@ pub struct Workspace {
     pub p_scratch_body: Vec<SpatialVec>,
     /// Children's share of İ^A — pass 3.
     pub ia_dot_body: Vec<SpatialMat>,
-    /// Passive joint forces: springs and dampers — pass 3.
+    /// Gravity compensation on each link (link coordinates), nonzero on the
+    /// compensated links only; empty without compensation — set_configuration.
+    pub gravcomp_wrench: Vec<SpatialVec>,
+    /// MuJoCo's qfrc_gravcomp (nv), zero without compensation — set_configuration.
+    pub qfrc_gravcomp: DVector<f64>,
+    /// Passive joint forces: springs, dampers and the gravity compensation
+    /// not routed to the actuators — pass 3.
     pub tau_passive: DVector<f64>,
     /// ε of the passive forces and gravity, ℓ(θ)(τ_passive + Jᵀf_gravity) — pass 3.
     pub eps_passive: DVector<f64>,
@@ -192,6 +198,8 @@ impl Workspace {
             p_force_body: vec![SpatialVec::zeros(); n],
             p_scratch_body: vec![SpatialVec::zeros(); n],
             ia_dot_body: vec![SpatialMat::zeros(); n],
+            gravcomp_wrench: vec![SpatialVec::zeros(); if model.gravity_compensation.is_empty() { 0 } else { n }],
+            qfrc_gravcomp: dof(),
             tau_passive: dof(),
             eps_passive: dof(),
             coriolis: dof(),

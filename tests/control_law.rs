@@ -277,6 +277,7 @@ fn a_welded_end_effector_is_carried_by_its_link() {
         inertial_quat: None,
         mass_unknown: false,
         joints: Vec::new(),
+        gravcomp: 0.0,
         line: 0,
     });
     let model = Model::compile(&vehicle).unwrap();

@@ -247,16 +247,35 @@ fn an_equality_constraint_is_read_and_a_weld_to_a_mocap_body_is_refused_as_such(
 }
 
 #[test]
-fn gravity_compensation_is_accepted_where_it_is_zero() {
-    let with = |option: &str| {
+fn gravity_compensation_is_read_as_mujoco_reads_it() {
+    // actuatorgravcomp from a default class and on the joint itself;
+    // gravcomp on a body only (it has no default). MuJoCo's passive stage,
+    // which computes the compensation, is skipped when both springs and
+    // dampers are disabled: then there is none.
+    let with = |flag: &str| {
         format!(
-            r#"<mujoco>{option}<worldbody><body gravcomp="1"><freejoint/><geom size="1"/></body></worldbody></mujoco>"#
+            r#"<mujoco><option>{flag}</option>
+            <default><default class="servo"><joint actuatorgravcomp="true"/></default></default>
+            <worldbody><body name="a" gravcomp="0.5"><freejoint/><geom size="1"/>
+              <body name="b" gravcomp="-2"><joint name="b1" class="servo"/><joint name="b2" actuatorgravcomp="false" class="servo"/><geom size="1"/>
+                <body name="c"><joint name="c" type="ball"/><geom size="1"/></body></body></body>
+            </worldbody></mujoco>"#
         )
     };
-    assert!(parse_mjcf(&with(r#"<option gravity="0 0 0"/>"#)).is_ok());
-    assert!(parse_mjcf(&with(r#"<option><flag gravity="disable"/></option>"#)).is_ok());
-    let shown = parse_mjcf(&with("")).unwrap_err().to_string();
-    assert!(shown.contains("gravity compensation (gravcomp) under gravity is not modelled"), "{shown}");
+    let vehicle = parse_mjcf(&with("")).unwrap().vehicle;
+    let gravcomp: Vec<f64> = vehicle.bodies.iter().map(|b| b.gravcomp).collect();
+    assert_eq!(gravcomp, [0.5, -2.0, 0.0]);
+    let routed: Vec<(&str, bool)> =
+        vehicle.bodies.iter().flat_map(|b| &b.joints).map(|j| (j.name.as_str(), j.actuator_gravcomp)).collect();
+    assert_eq!(routed, [("a_joint0", false), ("b1", true), ("b2", false), ("c", false)]);
+    for (flag, kept) in [
+        (r#"<flag spring="disable"/>"#, true),
+        (r#"<flag damper="disable"/>"#, true),
+        (r#"<flag spring="disable" damper="disable"/>"#, false),
+    ] {
+        let vehicle = parse_mjcf(&with(flag)).unwrap().vehicle;
+        assert_eq!(vehicle.bodies[0].gravcomp, if kept { 0.5 } else { 0.0 }, "{flag}");
+    }
 }
 
 #[test]
@@ -327,4 +346,23 @@ fn alignfree_moves_a_free_body_frame_to_its_inertial_frame() {
     assert_pose("its centre of mass", &aligned.inertia.as_ref().unwrap().com, [0.0, 0.0, 0.0]);
     assert_pose("its site", &vehicle.sites[0].pos, [0.0, 0.0, 1.0]);
     assert_pose("body left as written", &vehicle.bodies[1].pos, [0.0, 1.0, 0.0]);
+}
+
+#[test]
+fn a_name_inside_a_replicate_is_refused_with_its_copies_names() {
+    // MuJoCo would copy the sensor for each copy of the site; nudyn says so.
+    let with = |sensed: &str| {
+        format!(
+            r#"<mujoco><worldbody><body name="bus"><freejoint/><geom size="1"/>
+            <replicate count="12" sep="_"><body name="arm"><joint/><geom size="1"/><site name="tip"/></body></replicate>
+            </body></worldbody><sensor><framepos objtype="site" objname="{sensed}"/></sensor></mujoco>"#
+        )
+    };
+    let shown = parse_mjcf(&with("tip")).unwrap_err().to_string();
+    assert!(shown.contains("unknown objname 'tip' for sensor: it is inside a <replicate>"), "{shown}");
+    assert!(shown.contains("named 'tip_00' and so on"), "{shown}");
+    let vehicle = parse_mjcf(&with("tip_11")).unwrap().vehicle;
+    let names: Vec<&str> = vehicle.bodies.iter().map(|b| b.name.as_str()).collect();
+    assert_eq!(names[1..4], ["arm_00", "arm_01", "arm_02"]);
+    assert_eq!(names.len(), 13);
 }

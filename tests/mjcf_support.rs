@@ -27,7 +27,7 @@ fn the_table_names_what_the_importer_refuses_and_reads() {
     let table = support_table();
     // A refusal of each kind, with the importer's reason, and a read element.
     for line in [
-        "| `<replicate>` | replicated subtrees (write the copies out) |",
+        "| `<attach>` | attaching another model |",
         "| `<actuator>/<muscle>` | muscle actuators (activation dynamics and muscle force curves) |",
         "| `<sensor>/<magnetometer>` | the sensor type is not computed by nudyn |",
         "| `<keyframe>` | ignored with a warning |",

@@ -36,8 +36,9 @@ enum Command {
     /// "qvel" (nv), and optionally "eps" and "torque" (nv) and "ctrl" (nu,
     /// the actuators' controls). Output: one JSON object per input with theta,
     /// qvel, nu, nu_dot, coriolis, eps, eps_passive, kinetic_energy, power,
-    /// momentum, and with "ctrl" actuator_length, actuator_velocity,
-    /// actuator_force, qfrc_actuator, eps_actuator.
+    /// momentum (qfrc_gravcomp with gravity compensation), and with "ctrl"
+    /// actuator_length, actuator_velocity, actuator_force, qfrc_actuator,
+    /// eps_actuator.
     Eval {
         /// The vehicle's MJCF file.
         model: PathBuf,

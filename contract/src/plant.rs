@@ -189,8 +189,8 @@ impl Resource for PlantResource {
     // 2: the compiled model gained constraints and sensors_disabled
     // (2026-11-26); a format-1 reader would silently drop them.
     // 3: start values chosen at export (`starts`), force and torque sensors
-    // and interaction_bodies (2026-11-26), which a format-2 reader would
-    // silently ignore.
+    // and interaction_bodies, gravity_compensation (2026-11-26), which a
+    // format-2 reader would silently ignore.
     const FORMAT: u32 = 3;
 
     fn format(&self) -> u32 {

@@ -111,9 +111,14 @@ class MujocoVehicle:
     @property
     def conserves_energy_unforced(self) -> bool:
         """Whether K + U is conserved with ε = 0 and ctrl = 0: no joint
-        damping, and no actuator that pulls at ctrl = 0 (a position or
-        velocity servo is a spring and a damper)."""
-        return not has_dampers(self.model) and not actuators_pull_at_rest(self.model)
+        damping, no actuator that pulls at ctrl = 0 (a position or
+        velocity servo is a spring and a damper), and no gravity
+        compensation (MuJoCo's U leaves its work out)."""
+        return (
+            not has_dampers(self.model)
+            and not actuators_pull_at_rest(self.model)
+            and not has_gravity_compensation(self.model)
+        )
 
 
 def _enabled(model: mujoco.MjModel, disable_bit) -> bool:
@@ -122,6 +127,15 @@ def _enabled(model: mujoco.MjModel, disable_bit) -> bool:
 
 def has_gravity(model: mujoco.MjModel) -> bool:
     return bool(np.any(model.opt.gravity != 0.0)) and _enabled(model, mujoco.mjtDisableBit.mjDSBL_GRAVITY)
+
+
+def has_gravity_compensation(model: mujoco.MjModel) -> bool:
+    """Whether MuJoCo applies gravity compensation: some body with gravcomp
+    > 0 under gravity, and its passive stage not skipped (springs and
+    dampers not both disabled)."""
+    bits = mujoco.mjtDisableBit
+    passive = _enabled(model, bits.mjDSBL_SPRING) or _enabled(model, bits.mjDSBL_DAMPER)
+    return bool(np.any(model.body_gravcomp > 0.0)) and has_gravity(model) and passive
 
 
 def has_dampers(model: mujoco.MjModel) -> bool:

@@ -241,7 +241,8 @@ impl Workspace {
     /// The actuators at `ctrl` (MuJoCo's `d.ctrl`, then the wrench inputs'
     /// six values per body, MuJoCo's `xfrc_applied`): fills
     /// `actuator_length`, `actuator_velocity`, `actuator_force`,
-    /// `qfrc_actuator` (T of the MJCF's actuators) and `eps_actuator`
+    /// `qfrc_actuator` (T of the MJCF's actuators, with the gravity
+    /// compensation of `actuatorgravcomp` joints) and `eps_actuator`
     /// (ℓ(T + Jᵀ xfrc)); with `<flag actuation="disable"/>` the MJCF's
     /// actuators have lengths only, as in MuJoCo. Needs the velocities.
     pub fn compute_actuation(&mut self, model: &Model, ctrl: &[f64]) -> Result<(), DynamicsError> {
@@ -266,6 +267,13 @@ impl Workspace {
         }
         let mut qfrc = std::mem::take(&mut self.qfrc_actuator);
         self.collect_wrenches(model, qfrc.as_mut_slice());
+        // MuJoCo adds the compensation of `actuatorgravcomp` joints before
+        // the joints' limits, and only when some MJCF actuator acts.
+        if actuation.enabled && mjcf_count > 0 {
+            for &dof in &model.gravity_compensation.actuator_dofs {
+                qfrc[dof] += self.qfrc_gravcomp[dof];
+            }
+        }
         for limit in &model.actuator_force_limits {
             let [low, high] = limit.range;
             qfrc[limit.dof] = clip(qfrc[limit.dof], low, high);

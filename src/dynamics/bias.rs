@@ -7,7 +7,7 @@
 //!   Ḋ = Sᵀ İ^A S,  Ġᵀ = D⁻¹(Sᵀ İ^A − Ḋ Gᵀ),  Ṙ = R Φ(R⁻¹ Ḋ R⁻ᵀ),
 //!   İ^a_i = (1 − G Sᵀ) İ^A (1 − G Sᵀ)ᵀ,
 //!   −C_i = R⁻¹ u_i + Ṙᵀ w_i + Rᵀ Ġᵀ V⁺_i.
-//! Forces (springs, dampers, gravity) run the same inward recursion without
+//! Forces (springs, dampers, gravity, its compensation) run the same inward recursion without
 //! velocities: u_i = τ_i − Sᵀ p_i, p^a = p + G u, ε_passive,i = R⁻¹ u_i;
 //! a vehicle with none of them (`Shortcuts::no_passive_forces`) skips it.
 
@@ -20,7 +20,9 @@ use crate::workspace::Workspace;
 
 /// Springs −k(θ − θ_spring) and dampers −b θ̇, as MuJoCo applies them
 /// (ball and free-joint rotations: −k times the rotation vector from the
-/// spring pose, in the body frame). Each term is skipped when no joint has it.
+/// spring pose, in the body frame), and the gravity compensation of the
+/// joints without `actuatorgravcomp` (MuJoCo's qfrc_passive). Each term is
+/// skipped when no joint has it.
 pub(crate) fn passive_forces(model: &Model, ws: &mut Workspace) {
     let shortcuts = model.shortcuts;
     for link in &model.links {
@@ -41,6 +43,14 @@ pub(crate) fn passive_forces(model: &Model, ws: &mut Workspace) {
             let dof = link.dof_adr + k;
             let damper = if shortcuts.no_dampers { 0.0 } else { link.damping * ws.qvel[dof] };
             ws.tau_passive[dof] = -link.stiffness * spring[k] - damper;
+        }
+    }
+    if !model.gravity_compensation.is_empty() {
+        let mut routed = model.gravity_compensation.actuator_dofs.iter().peekable();
+        for dof in 0..model.nv {
+            if routed.next_if_eq(&&dof).is_none() {
+                ws.tau_passive[dof] += ws.qfrc_gravcomp[dof];
+            }
         }
     }
 }

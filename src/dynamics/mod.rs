@@ -9,6 +9,7 @@
 //! | 3 [`bias`] | tip → base | ε | ν̇, C(θ,ν), ε of passive forces and gravity (or without the factor's rates, only what θ̈ needs) |
 //!
 //! [`forces`] maps physical joint torques and body wrenches to ε and back;
+//! `gravity_compensation` gives MuJoCo's `qfrc_gravcomp` with the configuration;
 //! [`actuation`] computes the actuators' forces and their ε;
 //! [`acceleration`] gives θ̈ and the links' accelerations after pass 3;
 //! [`sensors`] evaluates MuJoCo's sensors, `interaction` the bodies'
@@ -23,6 +24,7 @@ pub mod box_qp;
 pub mod constraint;
 mod equality;
 pub mod forces;
+mod gravity_compensation;
 mod interaction;
 pub mod kinematics;
 pub mod quantities;
@@ -164,6 +166,9 @@ impl Workspace {
         articulated::articulated_pass(model, self)?;
         if !model.shortcuts.no_gravity {
             kinematics::world_transforms_pass(model, self);
+        }
+        if !model.gravity_compensation.is_empty() {
+            gravity_compensation::gravity_compensation_pass(model, self);
         }
         self.stage = Stage::Configuration;
         Ok(())

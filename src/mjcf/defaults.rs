@@ -96,6 +96,8 @@ pub(crate) struct JointSettings {
     pub actuator_force_limited: Limited,
     /// `actuatorfrcrange`.
     pub actuator_force_range: [f64; 2],
+    /// `actuatorgravcomp`.
+    pub actuator_gravcomp: bool,
     /// `margin`.
     pub margin: f64,
     /// `solreflimit`, `solimplimit`.
@@ -123,6 +125,7 @@ impl Default for JointSettings {
             range: [0.0; 2],
             actuator_force_limited: Limited::Auto,
             actuator_force_range: [0.0; 2],
+            actuator_gravcomp: false,
             margin: 0.0,
             limit_soft: SoftConstraint::default(),
             friction_soft: SoftConstraint::default(),
@@ -180,6 +183,9 @@ impl JointSettings {
         }
         if let Some(range) = element.numbers("actuatorfrcrange")? {
             self.actuator_force_range = range;
+        }
+        if let Some(through_actuators) = element.boolean("actuatorgravcomp")? {
+            self.actuator_gravcomp = through_actuators;
         }
         if let Some(margin) = element.number("margin")? {
             self.margin = margin;

@@ -40,6 +40,9 @@ pub(crate) const BODY_ATTRIBUTES: &[&str] = &[
 #[rustfmt::skip]
 pub(crate) const FRAME_ATTRIBUTES: &[&str] = &["name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler"];
 
+/// Attributes of `<replicate>`.
+pub(crate) const REPLICATE_ATTRIBUTES: &[&str] = &["count", "sep", "offset", "euler", "childclass"];
+
 /// Attributes of `<inertial>`.
 #[rustfmt::skip]
 pub(crate) const INERTIAL_ATTRIBUTES: &[&str] =
@@ -90,7 +93,6 @@ pub(crate) const REFUSED_TRANSMISSIONS: &[(&str, &str)] = &[
 /// Elements nudyn refuses where bodies or sections are expected, and why.
 #[rustfmt::skip]
 pub(crate) const UNSUPPORTED_CHILDREN: &[(&str, &str)] = &[
-    ("replicate", "replicated subtrees (write the copies out)"),
     ("attach", "attaching another model"),
     ("composite", "composite and flexible objects"),
     ("flexcomp", "composite and flexible objects"),
@@ -184,6 +186,8 @@ struct PendingBody<'a> {
     parent_moving: bool,
     /// The pose of the `<frame>`s around the body, in its parent.
     frame: Option<Pose>,
+    /// The suffix the `<replicate>`s around it give the names in it.
+    suffix: String,
 }
 
 /// A pose in a parent frame: position, then orientation.
@@ -202,6 +206,8 @@ struct Placed<'a> {
     element: Element<'a, 'a>,
     frame: Option<Pose>,
     class: usize,
+    /// The suffix of `<replicate>` copies for its name and those below it.
+    suffix: String,
 }
 
 /// `align` of a free joint.
@@ -217,6 +223,8 @@ struct JointElement<'a, 'input> {
     element: Element<'a, 'input>,
     settings: JointSettings,
     align: Align,
+    /// The `<replicate>` suffix of its name.
+    suffix: String,
 }
 
 /// What the walk through the document has gathered so far.
@@ -250,6 +258,8 @@ struct Reader {
     /// Bodies named by an ignored element (a camera's or light's `target`, a
     /// contact `<exclude>`), which `fusestatic` keeps.
     named_elsewhere: Vec<String>,
+    /// The names given inside `<replicate>`s, each with its first copy's name.
+    replicated: HashMap<String, String>,
 }
 
 /// Reads an MJCF document, from the file `path` if it comes from one (the
@@ -411,6 +421,7 @@ impl Reader {
             meshes: Meshes::new(),
             mocap_bodies: Vec::new(),
             named_elsewhere: Vec::new(),
+            replicated: HashMap::new(),
         }
     }
 
@@ -619,10 +630,10 @@ impl Reader {
     fn read_worldbody(&mut self, section: &Element) -> Result<(), MjcfError> {
         // MuJoCo: "World body cannot have attributes".
         section.check_attributes(&[])?;
-        for Placed { element: child, frame, class } in self.placed_children(section, MAIN)? {
+        for Placed { element: child, frame, class, suffix } in self.placed_children(section, MAIN, "")? {
             match child.tag() {
-                "body" => self.read_body_tree(child, frame, class)?,
-                "site" => self.read_site(&child, class, None, frame)?,
+                "body" => self.read_body_tree(child, frame, class, suffix)?,
+                "site" => self.read_site(&child, class, None, frame, &suffix)?,
                 tag if tag == "geom" || IGNORED_IN_BODIES.contains(&tag) => {
                     self.named_elsewhere.extend(child.text("target").map(str::to_string));
                     self.warnings.push(child.ignored());
@@ -664,9 +675,21 @@ impl Reader {
     /// (parent before child). A work stack instead of recursion: a vehicle
     /// file may nest bodies thousands deep, and the importer must not
     /// overflow the thread's stack, which is small in a host's FMU thread.
-    fn read_body_tree<'a>(&mut self, top: Element<'a, 'a>, frame: Option<Pose>, class: usize) -> Result<(), MjcfError> {
-        let mut pending =
-            vec![PendingBody { element: top, parent: None, inherited_class: class, parent_moving: false, frame }];
+    fn read_body_tree<'a>(
+        &mut self,
+        top: Element<'a, 'a>,
+        frame: Option<Pose>,
+        class: usize,
+        suffix: String,
+    ) -> Result<(), MjcfError> {
+        let mut pending = vec![PendingBody {
+            element: top,
+            parent: None,
+            inherited_class: class,
+            parent_moving: false,
+            frame,
+            suffix,
+        }];
         while let Some(body) = pending.pop() {
             let children = self.read_body(&body)?;
             // Reversed so that the first child is read next.
@@ -677,14 +700,10 @@ impl Reader {
 
     /// Reads one body; returns its child bodies, still to be read.
     fn read_body<'a>(&mut self, body: &PendingBody<'a>) -> Result<Vec<PendingBody<'a>>, MjcfError> {
-        let &PendingBody { ref element, parent, inherited_class, parent_moving, frame } = body;
+        let &PendingBody { ref element, parent, inherited_class, parent_moving, frame, ref suffix } = body;
         element.check_attributes(BODY_ATTRIBUTES)?;
         let mocap = element.boolean("mocap")? == Some(true);
-        // Without gravity MuJoCo's compensating force is exactly zero.
-        let gravity = !self.physics.gravity_disabled && self.physics.gravity != Vec3::zeros();
-        if gravity && element.number("gravcomp")?.is_some_and(|g| g != 0.0) {
-            return Err(element.unsupported("gravity compensation (gravcomp) under gravity is not modelled"));
-        }
+        let gravcomp = element.number("gravcomp")?.unwrap_or(0.0);
         let class = self.defaults.lookup(element, "childclass")?.unwrap_or(inherited_class);
         let own_pos = Vec3::from(element.numbers::<3>("pos")?.unwrap_or_default());
         let own_quat = self.resolve(element, &Orientation::read(element)?.unwrap_or_default())?;
@@ -694,8 +713,9 @@ impl Reader {
         // nothing can refer to (MuJoCo's unnamed elements have none).
         let name = match element.text("name") {
             Some(name) => {
-                claim_name(&mut self.body_names, "body", name, element)?;
-                name.to_string()
+                let copy = self.replicated_name(name, suffix);
+                claim_name(&mut self.body_names, "body", &copy, element)?;
+                copy
             }
             None => {
                 self.unnamed_bodies.push(index);
@@ -707,7 +727,7 @@ impl Reader {
         let mut joints = Vec::new();
         let mut geoms = Vec::new();
         let mut child_bodies = Vec::new();
-        for Placed { element: child, frame, class } in self.placed_children(element, class)? {
+        for Placed { element: child, frame, class, suffix } in self.placed_children(element, class, suffix)? {
             match child.tag() {
                 "inertial" => {
                     if let Some((first, _)) = &inertial {
@@ -728,7 +748,7 @@ impl Reader {
                         settings.pos = (at + turn * Vec3::from(settings.pos)).into();
                         settings.axis = (turn * Vec3::from(settings.axis)).into();
                     }
-                    joints.push(JointElement { element: child, settings, align: Align::Auto });
+                    joints.push(JointElement { element: child, settings, align: Align::Auto, suffix });
                 }
                 "freejoint" => {
                     // MuJoCo's <freejoint> takes no defaults.
@@ -737,7 +757,7 @@ impl Reader {
                     let aligns = [("false", Align::No), ("true", Align::Yes), ("auto", Align::Auto)];
                     let align = child.keyword("align", &aligns)?.unwrap_or(Align::Auto);
                     let settings = JointSettings { kind: JointKind::Free, ..JointSettings::default() };
-                    joints.push(JointElement { element: child, settings, align });
+                    joints.push(JointElement { element: child, settings, align, suffix });
                 }
                 "geom" => {
                     child.check_attributes(GEOM_ATTRIBUTES)?;
@@ -748,7 +768,7 @@ impl Reader {
                     settings.apply(&child)?;
                     geoms.push((child, settings, frame));
                 }
-                "site" => self.read_site(&child, class, Some(index), frame)?,
+                "site" => self.read_site(&child, class, Some(index), frame, &suffix)?,
                 tag if IGNORED_IN_BODIES.contains(&tag) => {
                     self.named_elsewhere.extend(child.text("target").map(str::to_string));
                     self.warnings.push(child.ignored());
@@ -759,6 +779,7 @@ impl Reader {
                     inherited_class: class,
                     parent_moving: false,
                     frame,
+                    suffix,
                 }),
                 _ => return Err(unsupported_child(&child)),
             }
@@ -842,6 +863,7 @@ impl Reader {
             inertial_quat: None,
             mass_unknown,
             joints,
+            gravcomp,
             line: element.line,
         });
         self.records.push(BodyRecord {
@@ -873,10 +895,18 @@ impl Reader {
     }
 
     /// The children of a body (or of the world body) of class `class`, with
-    /// the elements inside its `<frame>`s, nested or not, in their place in
-    /// document order: MuJoCo's frames vanish when it compiles a model, their
-    /// pose composed into their children's and their `childclass` handed on.
-    fn placed_children<'a>(&self, parent: &Element<'a, 'a>, class: usize) -> Result<Vec<Placed<'a>>, MjcfError> {
+    /// the elements inside its `<frame>`s and `<replicate>`s, nested or not,
+    /// in their place in document order: MuJoCo's frames vanish when it
+    /// compiles a model, their pose composed into their children's and their
+    /// `childclass` handed on; a replicate is the same as its copies, each
+    /// in a frame of its own, their names suffixed (`suffix`: that of the
+    /// replicates around `parent`).
+    fn placed_children<'a>(
+        &self,
+        parent: &Element<'a, 'a>,
+        class: usize,
+        suffix: &str,
+    ) -> Result<Vec<Placed<'a>>, MjcfError> {
         let mut placed = Vec::new();
         // Reversed, so that the first child comes off the stack first.
         let mut pending: Vec<Placed<'a>> = parent
@@ -884,23 +914,72 @@ impl Reader {
             .collect::<Vec<_>>()
             .into_iter()
             .rev()
-            .map(|element| Placed { element, frame: None, class })
+            .map(|element| Placed { element, frame: None, class, suffix: suffix.to_string() })
             .collect();
         while let Some(item) = pending.pop() {
-            if item.element.tag() != "frame" {
-                placed.push(item);
-                continue;
+            let copies = match item.element.tag() {
+                "frame" => self.frame_pose(&item)?,
+                "replicate" => self.replicate_poses(&item)?,
+                _ => {
+                    placed.push(item);
+                    continue;
+                }
+            };
+            let container = &item.element;
+            let class = self.defaults.lookup(container, "childclass")?.unwrap_or(item.class);
+            let children: Vec<_> = container.children().collect();
+            for (pose, copy_suffix) in copies.into_iter().rev() {
+                let pose = item.frame.map_or(pose, |outer| compose(&outer, &pose));
+                // MuJoCo appends an inner replicate's suffix first.
+                let suffix = format!("{copy_suffix}{}", item.suffix);
+                pending.extend(children.iter().rev().map(|&element| Placed {
+                    element,
+                    frame: Some(pose),
+                    class,
+                    suffix: suffix.clone(),
+                }));
             }
-            let frame = &item.element;
-            frame.check_attributes(FRAME_ATTRIBUTES)?;
-            let class = self.defaults.lookup(frame, "childclass")?.unwrap_or(item.class);
-            let pos = Vec3::from(frame.numbers::<3>("pos")?.unwrap_or_default());
-            let quat = self.resolve(frame, &Orientation::read(frame)?.unwrap_or_default())?;
-            let pose = item.frame.map_or((pos, quat), |outer| compose(&outer, &(pos, quat)));
-            let children: Vec<_> = frame.children().collect();
-            pending.extend(children.into_iter().rev().map(|element| Placed { element, frame: Some(pose), class }));
         }
         Ok(placed)
+    }
+
+    /// A `<frame>`'s pose in its parent, as one copy without a suffix.
+    fn frame_pose(&self, item: &Placed) -> Result<Vec<(Pose, String)>, MjcfError> {
+        let frame = &item.element;
+        frame.check_attributes(FRAME_ATTRIBUTES)?;
+        let pos = Vec3::from(frame.numbers::<3>("pos")?.unwrap_or_default());
+        let quat = self.resolve(frame, &Orientation::read(frame)?.unwrap_or_default())?;
+        Ok(vec![((pos, quat), String::new())])
+    }
+
+    /// The poses and name suffixes of a `<replicate>`'s copies, as MuJoCo
+    /// 4.0 makes them (`mjXReader::Body`): copy i turned by i·euler (the
+    /// compiler's angle unit and sequence), at p_i with p_0 = 0 and
+    /// p_{i+1} = p_i + q^i · offset (q: the turn of one copy), its suffix
+    /// `sep` and i padded with zeros to the digits of `count`.
+    fn replicate_poses(&self, item: &Placed) -> Result<Vec<(Pose, String)>, MjcfError> {
+        let replicate = &item.element;
+        replicate.check_attributes(REPLICATE_ATTRIBUTES)?;
+        let [count] = replicate.integers::<1>("count")?.ok_or_else(|| replicate.missing("count"))?;
+        if count <= 0 {
+            return Err(replicate.bad_value("count", "a positive number of copies"));
+        }
+        let offset = Vec3::from(replicate.numbers::<3>("offset")?.unwrap_or_default());
+        let euler = replicate.numbers::<3>("euler")?.unwrap_or_default();
+        let separator = replicate.text("sep").unwrap_or_default();
+        let step = self.resolve(replicate, &Orientation::Euler(euler))?;
+        let digits = count.to_string().len();
+        let (mut pos, mut turned) = (Vec3::zeros(), Quat::identity());
+        let mut copies = Vec::with_capacity(count as usize);
+        for i in 0..count {
+            // MuJoCo resolves i·euler afresh for each copy's orientation,
+            // and accumulates the turn only for the positions.
+            let quat = self.resolve(replicate, &Orientation::Euler(euler.map(|angle| f64::from(i) * angle)))?;
+            copies.push(((pos, quat), format!("{separator}{i:0digits$}")));
+            pos += turned * offset;
+            turned *= step;
+        }
+        Ok(copies)
     }
 
     /// The class of a joint, geom or site: its `class`, else its body's class.
@@ -915,6 +994,7 @@ impl Reader {
         body_class: usize,
         body: Option<usize>,
         frame: Option<Pose>,
+        suffix: &str,
     ) -> Result<(), MjcfError> {
         element.check_attributes(SITE_ATTRIBUTES)?;
         no_children(element)?;
@@ -931,7 +1011,7 @@ impl Reader {
             None => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
         };
         let (pos, quat) = frame.map_or((pos, quat), |frame| compose(&frame, &(pos, quat)));
-        let name = element.text("name").map(str::to_string);
+        let name = element.text("name").map(|name| self.replicated_name(name, suffix));
         if let Some(name) = &name {
             claim_name(&mut self.site_names, "site", name, element)?;
         }
@@ -1102,7 +1182,7 @@ impl Reader {
         let mut after_ball = false;
         let mut dofs = 0;
         for (k, joint) in elements.into_iter().enumerate() {
-            let JointElement { element, settings: s, .. } = joint;
+            let JointElement { element, settings: s, suffix, .. } = joint;
             let origin = |attribute: &str| {
                 if element.has(attribute) { "" } else { " (from its default class)" }
             };
@@ -1163,7 +1243,8 @@ impl Reader {
             };
             let actuator_force_range = self.actuator_force_range(&element, &s)?;
             let named = element.text("name");
-            let name = named.map_or_else(|| format!("{body_name}_joint{k}"), str::to_string);
+            let name =
+                named.map_or_else(|| format!("{body_name}_joint{k}"), |name| self.replicated_name(name, &suffix));
             if named.is_some() {
                 claim_name(&mut self.joint_names, "joint", &name, &element)?;
             }
@@ -1188,6 +1269,7 @@ impl Reader {
                 damping: if self.physics.damper_disabled { 0.0 } else { s.damping[0] },
                 armature: s.armature,
                 actuator_force_range,
+                actuator_gravcomp: s.actuator_gravcomp,
                 constraints: self.joint_constraints(&s, range),
                 line: element.line,
             });
@@ -1495,7 +1577,7 @@ impl Reader {
         let name = element.text(target).unwrap_or_default();
         if target != "site" {
             if !self.joint_targets.contains_key(name) {
-                return Err(element.invalid(format!("unknown transmission target '{name}' for actuator")));
+                return Err(self.unknown(element, &format!("transmission target '{name}' for actuator"), name));
             }
             return Ok(Transmission::Joint { joint: name.to_string(), in_parent: target == "jointinparent" });
         }
@@ -1507,12 +1589,37 @@ impl Reader {
         Ok(Transmission::Site { site, refsite })
     }
 
+    /// The name of an element in a `<replicate>` copy (`suffix` empty
+    /// outside replicates), remembered for [`Reader::unknown`].
+    fn replicated_name(&mut self, name: &str, suffix: &str) -> String {
+        let copy = format!("{name}{suffix}");
+        if !suffix.is_empty() {
+            self.replicated.entry(name.to_string()).or_insert_with(|| copy.clone());
+        }
+        copy
+    }
+
+    /// The error for a reference to `name`, which names nothing of its kind
+    /// (`described`: the kind, the name and where it stands). MuJoCo copies
+    /// an element naming something inside a `<replicate>` for each copy;
+    /// nudyn does not, and says so.
+    fn unknown(&self, element: &Element, described: &str, name: &str) -> MjcfError {
+        let hint = match self.replicated.get(name) {
+            Some(copy) => format!(
+                ": it is inside a <replicate>, whose copies are named '{copy}' and so on; nudyn does not copy \
+                 the elements that name it (MuJoCo does): name a copy instead"
+            ),
+            None => String::new(),
+        };
+        element.invalid(format!("unknown {described}{hint}"))
+    }
+
     /// The index of the site the attribute names; a site fitted to a mesh is
     /// refused (the mesh would move its frame).
     fn site_named(&self, element: &Element, attribute: &str, user: &str) -> Result<usize, MjcfError> {
         let name = element.text(attribute).unwrap_or_default();
         let Some(index) = self.sites.iter().position(|s| s.name.as_deref() == Some(name)) else {
-            return Err(element.invalid(format!("unknown {attribute} '{name}' for {user}")));
+            return Err(self.unknown(element, &format!("{attribute} '{name}' for {user}"), name));
         };
         if self.site_fitted_to_mesh[index] {
             return Err(element.unsupported(format!(
@@ -1527,7 +1634,7 @@ impl Reader {
     /// The joint a sensor's attribute names.
     fn sensed_joint(&self, element: &Element, attribute: &str) -> Result<&JointTarget, MjcfError> {
         let name = element.text(attribute).unwrap_or_default();
-        self.joint_targets.get(name).ok_or_else(|| element.invalid(format!("unknown joint '{name}' in sensor")))
+        self.joint_targets.get(name).ok_or_else(|| self.unknown(element, &format!("joint '{name}' in sensor"), name))
     }
 
     fn finish(mut self, name: String) -> Result<Imported, MjcfError> {
@@ -1582,6 +1689,12 @@ impl Reader {
             body.inertial_pos = inertia.com;
             body.inertial_quat = Some(inertia.quat);
         }
+        // MuJoCo's passive stage, which computes the gravity compensation,
+        // stops before it when springs and dampers are both disabled (the
+        // compensation still decided what fusestatic fused).
+        if self.physics.spring_disabled && self.physics.damper_disabled {
+            self.bodies.iter_mut().for_each(|body| body.gravcomp = 0.0);
+        }
         self.warnings.sort_by_key(|w| w.line);
         let gravity = if self.physics.gravity_disabled { Vec3::zeros() } else { self.physics.gravity };
         let vehicle = Vehicle {
@@ -1604,9 +1717,10 @@ impl Reader {
     /// `<compiler fusestatic="true">` as MuJoCo 4.0 applies it
     /// (`mjCModel::FuseStatic`), in body order: a body without joints, not
     /// mocap, not named by anything that refers to bodies (a sensor, a
-    /// camera's or light's target, a contact exclusion) and carrying no site
-    /// a force or torque sensor reads disappears into its parent. Its mass
-    /// properties join the parent's (unless the parent is
+    /// camera's or light's target, a contact exclusion), carrying no site a
+    /// force or torque sensor reads, and not with a mass under another
+    /// gravcomp than its parent's (unless that is the world) disappears
+    /// into its parent. Its mass properties join the parent's (unless the parent is
     /// the world, or its mass is below mjMINVAL), its child bodies and sites
     /// become the parent's, placed where they were. The parent's inertial
     /// frame moves: sensors of objtype "body" on it measure the merged one.
@@ -1642,12 +1756,22 @@ impl Reader {
                 }
             }
         }
-        let kept: Vec<bool> = (self.bodies.iter().zip(&referenced))
-            .map(|(body, &referenced)| {
-                let named = self.named_elsewhere.contains(&body.name) || self.mocap_bodies.contains(&body.name);
-                referenced || named || !body.joints.is_empty()
-            })
-            .collect();
+        // Bodies in document order; `host`: the body each one's mass ends
+        // up in once fused (itself if kept, None for the world).
+        let mut kept = Vec::with_capacity(self.bodies.len());
+        let mut host: Vec<Option<usize>> = Vec::with_capacity(self.bodies.len());
+        for (index, body) in self.bodies.iter().enumerate() {
+            let parent_host = body.parent.and_then(|p| host[p]);
+            let named = self.named_elsewhere.contains(&body.name) || self.mocap_bodies.contains(&body.name);
+            // MuJoCo 4.0 keeps a body whose mass its host would compensate
+            // otherwise (found by trying it: its published source does not
+            // have this yet).
+            let compensated_otherwise = parent_host.is_some_and(|p| self.bodies[p].gravcomp != body.gravcomp)
+                && self.records[index].inertia.mass >= MIN_VALUE;
+            let keep = referenced[index] || named || !body.joints.is_empty() || compensated_otherwise;
+            kept.push(keep);
+            host.push(if keep { Some(index) } else { parent_host });
+        }
 
         for index in kept.iter().enumerate().filter(|(_, kept)| !**kept).map(|(index, _)| index) {
             let pose = (self.bodies[index].pos, self.bodies[index].quat);
@@ -1757,7 +1881,7 @@ impl EqualityTargets for Reader {
         }
         match self.bodies.iter().position(|b| b.name == name) {
             Some(index) if self.body_names.contains_key(name) => Ok(Some(index)),
-            _ => Err(element.invalid(format!("unknown body '{name}' in equality constraint"))),
+            _ => Err(self.unknown(element, &format!("body '{name}' in equality constraint"), name)),
         }
     }
 
@@ -1770,7 +1894,7 @@ impl EqualityTargets for Reader {
         self.joint_targets
             .get(name)
             .map(|joint| joint.kind)
-            .ok_or_else(|| element.invalid(format!("unknown joint '{name}' in equality constraint")))
+            .ok_or_else(|| self.unknown(element, &format!("joint '{name}' in equality constraint"), name))
     }
 }
 
@@ -1790,7 +1914,7 @@ impl SensorTargets for Reader {
         }
         match self.body_names.contains_key(name) {
             true => Ok(self.bodies.iter().position(|b| b.name == name)),
-            false => Err(element.invalid(format!("unknown body '{name}' in sensor"))),
+            false => Err(self.unknown(element, &format!("body '{name}' in sensor"), name)),
         }
     }
 

@@ -22,7 +22,7 @@ pub fn support_table() -> String {
          not listed anywhere here is refused as unknown, naming the element and line. The lists do \
          not tell an attribute nudyn models from one it accepts because it has no effect on what \
          nudyn computes (contact, rendering and solver settings): [cli.md](cli.md) says what is \
-         modelled. The refusals of particular values (a nonzero `wind`, `gravcomp` under gravity, \
+         modelled. The refusals of particular values (a nonzero `wind`, \
          a `gaintype` other than fixed and affine, …) are in the importer's messages. Known gap: \
          `noslip_iterations` is accepted and not modelled (MuJoCo's no-slip pass changes the \
          friction-loss forces).\n\
@@ -43,12 +43,13 @@ pub fn support_table() -> String {
 
     out.push_str("\n## Elements read, and their attributes\n\n");
     out.push_str("| element | attributes |\n|---|---|\n");
-    let elements: [(&str, &[&str]); 10] = [
+    let elements: [(&str, &[&str]); 11] = [
         ("compiler", reader::COMPILER_ATTRIBUTES),
         ("option", reader::OPTION_ATTRIBUTES),
         ("option/flag", reader::FLAG_ATTRIBUTES),
         ("body", reader::BODY_ATTRIBUTES),
         ("frame", reader::FRAME_ATTRIBUTES),
+        ("replicate", reader::REPLICATE_ATTRIBUTES),
         ("inertial", reader::INERTIAL_ATTRIBUTES),
         ("joint", defaults::JOINT_ATTRIBUTES),
         ("geom", defaults::GEOM_ATTRIBUTES),

@@ -28,11 +28,13 @@ use crate::vehicle::{Actuation, ActuatorKind, BiasType, GainType, JointKind, Sen
 
 mod actuator;
 mod constraint;
+mod gravity_compensation;
 mod interaction;
 mod sensor;
 mod validate;
 pub use actuator::{Actuator, ActuatorTarget, ActuatorTransmission, DofForceLimit, SiteFrame};
 pub use constraint::{CompiledEquality, Constraints, DofFriction, EqualityRows, Limit};
+pub use gravity_compensation::{CompensatedLink, GravityCompensation};
 pub use interaction::InteractionBodies;
 pub use sensor::{BodyMass, Sensor, SensorSource};
 pub use validate::InvalidModel;
@@ -257,6 +259,9 @@ pub struct Model {
     /// sensordata, which stays 0 as MuJoCo leaves it.
     #[serde(default)]
     pub sensors_disabled: bool,
+    /// Body `gravcomp` and joint `actuatorgravcomp`: MuJoCo's gravity compensation.
+    #[serde(default)]
+    pub gravity_compensation: GravityCompensation,
 }
 
 /// Why a vehicle cannot be compiled.
@@ -373,6 +378,7 @@ impl Model {
         let mut qpos_spring = Vec::new();
         let mut attachments: Vec<Attachment> = Vec::with_capacity(vehicle.bodies.len());
         let mut tree_quats = Vec::new();
+        let mut compensation = GravityCompensation::default();
 
         for body in &vehicle.bodies {
             let parent = match body.parent {
@@ -447,8 +453,9 @@ impl Model {
                 inboard.offset.add_inertia_to_parent(&inertia, &mut in_link, true);
                 l.rotational_inertia += in_link.fixed_view::<3, 3>(0, 0);
                 l.mass += mass_props.mass;
-                l.mass_moment +=
-                    mass_props.mass * (inboard.offset.trans + inboard.offset.rot.transpose() * mass_props.com);
+                let com = inboard.offset.trans + inboard.offset.rot.transpose() * mass_props.com;
+                l.mass_moment += mass_props.mass * com;
+                compensation.add_body(link, body.gravcomp, mass_props.mass, &com);
             }
             attachments.push(inboard);
         }
@@ -491,6 +498,14 @@ impl Model {
             })
             .collect();
         let constraints = Constraints::of(vehicle, &joints)?;
+        let actuator_gravcomp_dofs = vehicle
+            .bodies
+            .iter()
+            .flat_map(|body| &body.joints)
+            .zip(&joints)
+            .filter(|(joint, _)| joint.actuator_gravcomp)
+            .flat_map(|(joint, info)| info.dof_adr..info.dof_adr + joint.kind.nv())
+            .collect();
         let mut model = Model {
             name: vehicle.name.clone(),
             nq: qpos0.len(),
@@ -511,6 +526,7 @@ impl Model {
             constraints: Constraints::default(),
             interaction_bodies,
             sensors_disabled: vehicle.sensors_disabled,
+            gravity_compensation: compensation.applied(vehicle, actuator_gravcomp_dofs),
         };
         model.validate()?;
         model.check_positive_definite()?;

@@ -141,6 +141,10 @@ pub enum InvalidModel {
     /// could not use.
     #[error("constraint: {0}")]
     Constraint(String),
+    /// Gravity compensation on links or dofs the model does not have, or
+    /// with numbers that are not finite.
+    #[error("gravity compensation: {0}")]
+    GravityCompensation(String),
     /// An evaluation in qpos0 failed while compiling.
     #[error("evaluation in qpos0 failed: {0}")]
     Evaluation(String),
@@ -337,6 +341,7 @@ fn validate(model: &Model) -> Result<(), InvalidModel> {
     }
     validate_sensors(model)?;
     validate_constraints(model).map_err(InvalidModel::Constraint)?;
+    validate_gravity_compensation(model).map_err(InvalidModel::GravityCompensation)?;
     for limit in &model.actuator_force_limits {
         let joint = model.links.iter().find(|l| l.dof_adr == limit.dof).map(|l| l.joint);
         if !matches!(joint, Some(LinkJoint::Hinge | LinkJoint::Slide)) || !is_range(limit.range) {
@@ -426,6 +431,35 @@ pub(super) fn validate_constraints(model: &Model) -> Result<(), String> {
         return Err(format!("timestep {timestep} is not positive"));
     }
     Ok(())
+}
+
+/// The compensated links and the dofs routed to the actuators lie inside
+/// the model, ascending and each once, with finite numbers, and only under gravity.
+fn validate_gravity_compensation(model: &Model) -> Result<(), String> {
+    let compensation = &model.gravity_compensation;
+    if compensation.is_empty() {
+        return match compensation.actuator_dofs.is_empty() {
+            true => Ok(()),
+            false => Err("dofs are routed to the actuators, but no link is compensated".to_string()),
+        };
+    }
+    if model.gravity == crate::math::Vec3::zeros() {
+        return Err("compensated links without gravity".to_string());
+    }
+    let ascending = |values: &[usize], end: usize| {
+        values.windows(2).all(|pair| pair[0] < pair[1]) && values.last().is_none_or(|&last| last < end)
+    };
+    let links: Vec<usize> = compensation.links.iter().map(|c| c.link).collect();
+    if !ascending(&links, model.links.len()) {
+        return Err("the compensated links are not ascending links of the model".to_string());
+    }
+    if !ascending(&compensation.actuator_dofs, model.nv) {
+        return Err("the dofs routed to the actuators are not ascending dofs of the model".to_string());
+    }
+    match compensation.links.iter().find(|c| !(c.mass.is_finite() && c.mass_moment.iter().all(|x| x.is_finite()))) {
+        Some(c) => Err(format!("the compensated mass or mass moment of link {} is not finite", c.link)),
+        None => Ok(()),
+    }
 }
 
 /// Every sensor reads inside the model, at its place in sensordata.
@@ -666,6 +700,29 @@ mod tests {
         let mut limit = model;
         limit.actuator_force_limits.push(crate::model::DofForceLimit { dof: 2, range: [-1.0, 1.0] });
         assert_eq!(validate(&limit), Err(InvalidModel::ActuatorForceLimit { dof: 2 }));
+    }
+
+    #[test]
+    fn gravity_compensation_outside_the_model_is_refused() {
+        let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/gravcomp/arm_on_bus.xml");
+        let model = Model::compile(&crate::mjcf::load_mjcf(&path).unwrap().vehicle).unwrap();
+        assert_eq!(validate(&model), Ok(()));
+        assert!(!model.gravity_compensation.is_empty() && !model.gravity_compensation.actuator_dofs.is_empty());
+        let refused = |edit: &dyn Fn(&mut Model)| {
+            let mut edited = model.clone();
+            edit(&mut edited);
+            matches!(validate(&edited), Err(InvalidModel::GravityCompensation(_)))
+        };
+        assert!(refused(&|m| m.gravity_compensation.links[0].link = 99));
+        assert!(refused(&|m| m.gravity_compensation.links.swap(0, 1)));
+        assert!(refused(&|m| m.gravity_compensation.links[1].mass_moment.y = f64::NAN));
+        assert!(refused(&|m| m.gravity_compensation.actuator_dofs.push(m.nv)));
+        assert!(refused(&|m| m.gravity_compensation.actuator_dofs.insert(0, 8)));
+        assert!(refused(&|m| m.gravity_compensation.links.clear()));
+        assert!(refused(&|m| {
+            m.gravity = crate::math::Vec3::zeros();
+            m.shortcuts.no_gravity = true;
+        }));
     }
 
     #[test]

@@ -385,6 +385,7 @@ pub fn joint(rng: &mut Rng, name: String, kind: JointKind) -> Joint {
         damping: 0.0,
         armature: if rng.below(2) == 0 { rng.uniform(0.0, 0.5) } else { 0.0 },
         actuator_force_range: None,
+        actuator_gravcomp: false,
         constraints: Default::default(),
         line: 0,
     }
@@ -446,6 +447,7 @@ pub fn random_vehicle(rng: &mut Rng, opts: TreeOptions) -> Vehicle {
             inertial_quat: None,
             mass_unknown: false,
             joints,
+            gravcomp: 0.0,
             line: 0,
         };
         if b == 0 && opts.free_base {
