@@ -688,12 +688,16 @@ pub struct ConstraintOptions {
     pub timestep: f64,
     /// `<flag refsafe>`.
     pub refsafe: bool,
+    /// `noslip_iterations`: MuJoCo's no-slip pass over the friction rows
+    /// after its solver, which nudyn does not run (a model with friction
+    /// rows and a pass is refused at compilation).
+    pub noslip_iterations: u32,
 }
 
 impl Default for ConstraintOptions {
-    /// MuJoCo's defaults: timestep 0.002 s, refsafe on.
+    /// MuJoCo's defaults: timestep 0.002 s, refsafe on, no no-slip pass.
     fn default() -> Self {
-        ConstraintOptions { timestep: 0.002, refsafe: true }
+        ConstraintOptions { timestep: 0.002, refsafe: true, noslip_iterations: 0 }
     }
 }
 

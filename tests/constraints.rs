@@ -13,9 +13,14 @@ use nudyn::model::{InvalidModel, Model};
 /// A free bus with a hinge, a slide and a ball joint, each with friction
 /// loss, no gravity, dampers or limits: only the constraints take energy.
 fn frictional(flags: &str) -> Model {
+    frictional_with(flags, "").unwrap()
+}
+
+/// [`frictional`] with more `<option>` attributes, compiled or refused.
+fn frictional_with(flags: &str, options: &str) -> Result<Model, nudyn::model::ModelError> {
     let xml = format!(
         r#"<mujoco>
-  <option gravity="0 0 0"><flag {flags}/></option>
+  <option gravity="0 0 0" {options}><flag {flags}/></option>
   <default><joint frictionloss="0.4"/></default>
   <worldbody>
     <body name="bus"><freejoint/><inertial pos="0 0 0" mass="50" diaginertia="4 5 6"/>
@@ -32,7 +37,18 @@ fn frictional(flags: &str) -> Model {
   </worldbody>
 </mujoco>"#
     );
-    Model::compile(&parse_mjcf(&xml).unwrap().vehicle).unwrap()
+    Model::compile(&parse_mjcf(&xml).unwrap().vehicle)
+}
+
+#[test]
+fn a_no_slip_pass_over_friction_rows_is_refused() {
+    // MuJoCo's no-slip pass changes friction-loss forces (checked against
+    // mj_forward: efc_force -0.105 without it, -0.117 with 3 iterations).
+    let refused = frictional_with(r#"gravity="disable""#, r#"noslip_iterations="3""#).unwrap_err().to_string();
+    assert!(refused.contains(r#"<option noslip_iterations="3">"#) && refused.contains("(5 here)"), "{refused}");
+    // Without friction rows it changes nothing nudyn computes.
+    assert!(frictional_with(r#"frictionloss="disable""#, r#"noslip_iterations="3""#).is_ok());
+    assert!(frictional_with("", r#"noslip_iterations="0""#).is_ok());
 }
 
 #[test]

@@ -507,6 +507,10 @@ impl Reader {
             }
             self.physics.constraint_options.timestep = timestep;
         }
+        if let Some([iterations]) = element.integers::<1>("noslip_iterations")? {
+            self.physics.constraint_options.noslip_iterations = u32::try_from(iterations)
+                .map_err(|_| element.bad_value("noslip_iterations", "a non-negative number of iterations"))?;
+        }
         if let Some(groups) = element.integer_list("actuatorgroupdisable")? {
             if groups.iter().any(|g| !ACTUATOR_GROUPS.contains(g)) {
                 return Err(element.bad_value("actuatorgroupdisable", "actuator groups from 0 to 30"));

@@ -23,9 +23,9 @@ pub fn support_table() -> String {
          not tell an attribute nudyn models from one it accepts because it has no effect on what \
          nudyn computes (contact, rendering and solver settings): [cli.md](cli.md) says what is \
          modelled. The refusals of particular values (a nonzero `wind`, \
-         a `gaintype` other than fixed and affine, …) are in the importer's messages. Known gap: \
-         `noslip_iterations` is accepted and not modelled (MuJoCo's no-slip pass changes the \
-         friction-loss forces).\n\
+         a `gaintype` other than fixed and affine, …) are in the importer's messages. A \
+         `noslip_iterations` above 0 is refused in a model with friction-loss rows (MuJoCo's no-slip \
+         pass changes their forces).\n\
          - **ignored with a warning**: no effect on the dynamics; each occurrence gives one warning.\n\
          - **refused**: the import stops with the reason below.\n",
     );
