@@ -91,7 +91,7 @@ fn sensor_types_nudyn_does_not_compute_are_refused_by_name_and_line() {
         (r#"<force site="tip"/>"#, "constraint forces"),
         (r#"<torque site="tip"/>"#, "constraint forces"),
         (r#"<magnetometer site="tip"/>"#, "not computed"),
-        (r#"<tendonpos tendon="t"/>"#, "tendons"),
+        (r#"<tendonpos tendon="t"/>"#, "unknown tendon 't'"),
         (r#"<e_kinetic/>"#, "energy sensors"),
         (r#"<user dim="1"/>"#, "user and plugin"),
     ] {

@@ -56,7 +56,9 @@ impl Resource for ControllerResource {
     const FILE: &'static str = "controller.json";
     // 2: the compiled model gained constraints and sensors_disabled
     // (2026-11-26); a format-1 reader would silently drop them.
-    const FORMAT: u32 = 2;
+    // 3: it gained tendons (and their constraint rows), which a format-2
+    // reader would drop the same way.
+    const FORMAT: u32 = 3;
 
     fn format(&self) -> u32 {
         self.format

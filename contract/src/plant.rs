@@ -161,7 +161,9 @@ impl Resource for PlantResource {
     const FILE: &'static str = "model.json";
     // 2: the compiled model gained constraints and sensors_disabled
     // (2026-11-26); a format-1 reader would silently drop them.
-    const FORMAT: u32 = 2;
+    // 3: it gained tendons (and their constraint rows), which a format-2
+    // reader would drop the same way.
+    const FORMAT: u32 = 3;
 
     fn format(&self) -> u32 {
         self.format
@@ -304,12 +306,12 @@ impl SensorDependence {
         match kind {
             Clock => SensorDependence::Nothing,
             JointPos | BallQuat | FramePos | FrameQuat | FrameXAxis | FrameYAxis | FrameZAxis | SubtreeCom
-            | ActuatorPos | JointLimitPos => SensorDependence::Configuration,
+            | ActuatorPos | JointLimitPos | TendonPos | TendonLimitPos => SensorDependence::Configuration,
             JointVel | BallAngVel | FrameLinVel | FrameAngVel | SubtreeLinVel | SubtreeAngMom | Gyro | Velocimeter
-            | ActuatorVel | JointLimitVel => SensorDependence::Motion,
-            ActuatorFrc | JointActuatorFrc => SensorDependence::Controls,
+            | ActuatorVel | JointLimitVel | TendonVel | TendonLimitVel => SensorDependence::Motion,
+            ActuatorFrc | JointActuatorFrc | TendonActuatorFrc => SensorDependence::Controls,
             // A limit's force solves one problem with every input's ε.
-            FrameLinAcc | FrameAngAcc | Accelerometer | JointLimitFrc => SensorDependence::Inputs,
+            FrameLinAcc | FrameAngAcc | Accelerometer | JointLimitFrc | TendonLimitFrc => SensorDependence::Inputs,
         }
     }
 }

@@ -25,6 +25,7 @@ pub mod forces;
 pub mod kinematics;
 pub mod quantities;
 pub mod sensors;
+pub mod tendon;
 pub mod velocity;
 
 use nalgebra::SMatrix;
@@ -163,6 +164,9 @@ impl Workspace {
         if !model.shortcuts.no_gravity {
             kinematics::world_transforms_pass(model, self);
         }
+        if !model.tendons.is_empty() {
+            self.tendon_kinematics(model);
+        }
         self.stage = Stage::Configuration;
         Ok(())
     }
@@ -173,6 +177,9 @@ impl Workspace {
         check_input("nu", nu, model.nv)?;
         self.nu.copy_from_slice(nu);
         velocity::velocity_pass(model, self, velocity::Given::Nu);
+        if !model.tendons.is_empty() {
+            self.tendon_velocities(model);
+        }
         self.stage = Stage::Velocity;
         Ok(())
     }
@@ -183,6 +190,9 @@ impl Workspace {
         check_input("qvel", qvel, model.nv)?;
         self.qvel.copy_from_slice(qvel);
         velocity::velocity_pass(model, self, velocity::Given::Qvel);
+        if !model.tendons.is_empty() {
+            self.tendon_velocities(model);
+        }
         self.stage = Stage::Velocity;
         Ok(())
     }

@@ -18,12 +18,13 @@ use super::inertia::{self, BodyInertia, EPS, GeomMass, mul_quat, quat_array, qua
 use super::mesh::{self, MESH_ATTRIBUTES, Meshes};
 use super::orientation::{AngleConvention, ORIENTATION_ATTRIBUTES, Orientation, normalized, z_to_quaternion};
 use super::sensor::{self, SensorTargets};
+use super::tendon::{self, TendonFlags, TendonTargets};
 use super::{Imported, MjcfWarning};
 use crate::math::{Mat3, Quat, Vec3};
 use crate::vehicle::{
     Actuation, Actuator, ActuatorKind, BiasType, Body, ConstraintOptions, Equality, EqualityObjects, FrameObject,
     GainType, Joint, JointConstraints, JointKind, JointLimit, MassProperties, Sensor, SensorKind, SensorTarget, Site,
-    Transmission, Vehicle,
+    Tendon, Transmission, Vehicle,
 };
 
 /// MuJoCo's `mjMINVAL`: the least mass and principal moment of a moving body.
@@ -216,6 +217,10 @@ struct Reader {
     sensors: Vec<Sensor>,
     sensor_names: HashMap<String, u32>,
     equalities: Vec<Equality>,
+    tendons: Vec<Tendon>,
+    tendon_names: HashMap<String, u32>,
+    /// Whether each tendon is limited (MuJoCo's tendon_limited, before any flag).
+    tendon_limited: Vec<bool>,
     /// The bodies the file leaves unnamed.
     unnamed_bodies: Vec<usize>,
     /// The files the model is read from, for the paths of its assets.
@@ -245,7 +250,8 @@ pub(crate) fn read(xml: &str, path: Option<&Path>) -> Result<Imported, MjcfError
     let lines = lines
         .chain(vehicle.sites.iter_mut().map(|s| &mut s.line))
         .chain(vehicle.actuators.iter_mut().map(|a| &mut a.line))
-        .chain(vehicle.sensors.iter_mut().map(|s| &mut s.line));
+        .chain(vehicle.sensors.iter_mut().map(|s| &mut s.line))
+        .chain(vehicle.tendons.iter_mut().map(|t| &mut t.line));
     for line in lines {
         *line = sources.line_in_file(*line);
     }
@@ -289,6 +295,7 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
     let mut actuator_sections = Vec::new();
     let mut sensor_sections = Vec::new();
     let mut equality_sections = Vec::new();
+    let mut tendon_sections = Vec::new();
     let mut keyframe_sections = Vec::new();
     for section in root.children() {
         match section.tag() {
@@ -306,10 +313,8 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
                 reader.warnings.push(section.ignored());
             }
             tag if IGNORED_SECTIONS.contains(&tag) => reader.warnings.push(section.ignored()),
-            "tendon" => match section.children().next() {
-                Some(first) => return Err(first.unsupported("tendons (their forces and limits are not modelled)")),
-                None => reader.warnings.push(section.ignored()),
-            },
+            // Read once every joint and site is known.
+            "tendon" => tendon_sections.push(section),
             // Read once every body, site and joint is known.
             "equality" => equality_sections.push(section),
             "deformable" => reader.read_deformable(&section)?,
@@ -318,6 +323,10 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
     }
     if !has_worldbody {
         return Err(MjcfError::MissingWorldbody { line: root.line, element: root.label() });
+    }
+    // Before the equalities, actuators and sensors, which may name tendons.
+    for section in &tendon_sections {
+        reader.read_tendons(section)?;
     }
     for section in &equality_sections {
         reader.read_equalities(section)?;
@@ -383,6 +392,9 @@ impl Reader {
             sensors: Vec::new(),
             sensor_names: HashMap::new(),
             equalities: Vec::new(),
+            tendons: Vec::new(),
+            tendon_names: HashMap::new(),
+            tendon_limited: Vec::new(),
             unnamed_bodies: Vec::new(),
             sources,
             meshes: Meshes::new(),
@@ -1323,6 +1335,39 @@ impl Reader {
         Ok(())
     }
 
+    /// The `<tendon>` section: each `<fixed>` or `<spatial>` read as MuJoCo
+    /// reads it, less what the `<flag>`s turn off.
+    fn read_tendons(&mut self, section: &Element) -> Result<(), MjcfError> {
+        section.check_attributes(&[])?;
+        let physics = &self.physics;
+        let flags = TendonFlags {
+            autolimits: self.compiler.autolimits,
+            spring_disabled: physics.spring_disabled,
+            damper_disabled: physics.damper_disabled,
+            frictionloss_disabled: physics.constraint_disabled || physics.frictionloss_disabled,
+            limit_disabled: physics.constraint_disabled || physics.limit_disabled,
+        };
+        for element in section.children() {
+            let settings = self.defaults.class(self.class_of(&element, MAIN)?).tendon.clone();
+            let (read, limited) = tendon::read(&element, settings, self, flags)?;
+            if let Some(name) = &read.name {
+                claim_name(&mut self.tendon_names, "tendon", name, &element)?;
+            }
+            self.tendons.push(read);
+            self.tendon_limited.push(limited);
+        }
+        Ok(())
+    }
+
+    /// The index of the tendon the attribute names.
+    fn tendon_named(&self, element: &Element, attribute: &str, user: &str) -> Result<usize, MjcfError> {
+        let name = element.text(attribute).unwrap_or_default();
+        self.tendons
+            .iter()
+            .position(|t| t.name.as_deref() == Some(name))
+            .ok_or_else(|| element.invalid(format!("unknown tendon '{name}' in {user}")))
+    }
+
     fn read_sensors(&mut self, section: &Element) -> Result<(), MjcfError> {
         section.check_attributes(&[])?;
         for child in section.children() {
@@ -1404,16 +1449,24 @@ impl Reader {
             && bias_type == BiasType::Affine
             && settings.gainprm[0] == -settings.biasprm[1];
         if position_like && settings.inheritrange > 0.0 {
-            let Transmission::Joint { joint, .. } = &transmission else {
-                return Err(element.invalid("inheritrange can only be used with joint and tendon transmission"));
+            let (name, [low, high]) = match &transmission {
+                Transmission::Joint { joint, .. } => {
+                    let target = &self.joint_targets[joint];
+                    if !matches!(target.kind, JointKind::Hinge | JointKind::Slide) {
+                        return Err(element.invalid("inheritrange can only be used with hinge and slide joints"));
+                    }
+                    (joint.as_str(), target.range)
+                }
+                Transmission::Tendon { tendon } => {
+                    let tendon = &self.tendons[*tendon];
+                    (tendon.name.as_deref().unwrap_or_default(), tendon.range)
+                }
+                Transmission::Site { .. } => {
+                    return Err(element.invalid("inheritrange can only be used with joint and tendon transmission"));
+                }
             };
-            let target = &self.joint_targets[joint];
-            if !matches!(target.kind, JointKind::Hinge | JointKind::Slide) {
-                return Err(element.invalid("inheritrange can only be used with hinge and slide joints"));
-            }
-            let [low, high] = target.range;
             if low == high {
-                return Err(element.invalid(format!("inheritrange used but target '{joint}' has no range defined")));
+                return Err(element.invalid(format!("inheritrange used but target '{name}' has no range defined")));
             }
             let (mean, radius) = (0.5 * (high + low), 0.5 * (high - low) * settings.inheritrange);
             settings.ctrlrange = [mean - radius, mean + radius];
@@ -1451,7 +1504,6 @@ impl Reader {
     /// transmissions are refused.
     fn transmission(&self, element: &Element) -> Result<Transmission, MjcfError> {
         for (attribute, reason) in [
-            ("tendon", "tendon transmissions (nudyn models no tendons)"),
             ("cranksite", "slider-crank transmissions"),
             ("slidersite", "slider-crank transmissions"),
             ("body", "body transmissions act through contacts, which nudyn does not model"),
@@ -1460,7 +1512,7 @@ impl Reader {
                 return Err(element.unsupported(reason));
             }
         }
-        let mut targets = ["joint", "jointinparent", "site"].into_iter().filter(|a| element.has(a));
+        let mut targets = ["joint", "jointinparent", "tendon", "site"].into_iter().filter(|a| element.has(a));
         let target = targets.next();
         if let (Some(first), Some(second)) = (target, targets.next()) {
             return Err(element.conflict(first, second));
@@ -1475,6 +1527,9 @@ impl Reader {
             return Err(element.invalid("missing transmission target for actuator"));
         };
         let name = element.text(target).unwrap_or_default();
+        if target == "tendon" {
+            return Ok(Transmission::Tendon { tendon: self.tendon_named(element, "tendon", "actuator")? });
+        }
         if target != "site" {
             if !self.joint_targets.contains_key(name) {
                 return Err(element.invalid(format!("unknown transmission target '{name}' for actuator")));
@@ -1577,6 +1632,7 @@ impl Reader {
             constraint_options: self.physics.constraint_options,
             equalities: std::mem::take(&mut self.equalities),
             sensors_disabled: self.physics.sensor_disabled,
+            tendons: std::mem::take(&mut self.tendons),
         };
         Ok(Imported { vehicle, warnings: self.warnings })
     }
@@ -1737,6 +1793,10 @@ impl EqualityTargets for Reader {
         self.site_named(element, attribute, "equality constraint")
     }
 
+    fn equality_tendon(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError> {
+        self.tendon_named(element, attribute, "equality constraint")
+    }
+
     fn equality_joint(&self, element: &Element, attribute: &str) -> Result<JointKind, MjcfError> {
         let name = element.text(attribute).unwrap_or_default();
         self.joint_targets
@@ -1746,7 +1806,29 @@ impl EqualityTargets for Reader {
     }
 }
 
+impl TendonTargets for Reader {
+    fn tendon_joint(&self, element: &Element, attribute: &str) -> Result<JointKind, MjcfError> {
+        let name = element.text(attribute).unwrap_or_default();
+        self.joint_targets
+            .get(name)
+            .map(|joint| joint.kind)
+            .ok_or_else(|| element.invalid(format!("unknown joint '{name}' in tendon")))
+    }
+
+    fn tendon_site(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError> {
+        self.site_named(element, attribute, "tendon")
+    }
+}
+
 impl SensorTargets for Reader {
+    fn tendon(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError> {
+        self.tendon_named(element, attribute, "sensor")
+    }
+
+    fn tendon_limited(&self, element: &Element, attribute: &str) -> Result<bool, MjcfError> {
+        Ok(self.tendon_limited[self.tendon_named(element, attribute, "sensor")?])
+    }
+
     fn joint_kind(&self, element: &Element, attribute: &str) -> Result<JointKind, MjcfError> {
         Ok(self.sensed_joint(element, attribute)?.kind)
     }

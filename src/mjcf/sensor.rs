@@ -22,6 +22,10 @@ pub(crate) trait SensorTargets {
     fn site(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError>;
     /// The actuator the attribute names.
     fn actuator(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError>;
+    /// The tendon the attribute names.
+    fn tendon(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError>;
+    /// Whether the tendon the attribute names is limited.
+    fn tendon_limited(&self, element: &Element, attribute: &str) -> Result<bool, MjcfError>;
 }
 
 /// Why nudyn refuses a sensor element MuJoCo has; `None` for a tag that is
@@ -33,9 +37,6 @@ pub(crate) fn refusal(tag: &str) -> Option<&'static str> {
         }
         "force" | "torque" => "force and torque sensors measure constraint forces, which nudyn does not compute",
         "magnetometer" | "camprojection" => "the sensor type is not computed by nudyn",
-        "tendonpos" | "tendonvel" | "tendonactuatorfrc" | "tendonlimitpos" | "tendonlimitvel" | "tendonlimitfrc" => {
-            "tendons are not modelled"
-        }
         "e_potential" | "e_kinetic" => "energy sensors are not computed by nudyn (the FMU has kinetic_energy)",
         "user" | "plugin" => "user and plugin sensors are computed by code nudyn does not have",
         _ => return None,
@@ -50,6 +51,7 @@ fn own_attributes(kind: SensorKind) -> &'static [&'static str] {
         JointPos | JointVel | BallQuat | BallAngVel | JointActuatorFrc => &["joint"],
         JointLimitPos | JointLimitVel | JointLimitFrc => &["joint"],
         ActuatorPos | ActuatorVel | ActuatorFrc => &["actuator"],
+        TendonPos | TendonVel | TendonActuatorFrc | TendonLimitPos | TendonLimitVel | TendonLimitFrc => &["tendon"],
         FrameLinAcc | FrameAngAcc => &["objtype", "objname"],
         FramePos | FrameQuat | FrameXAxis | FrameYAxis | FrameZAxis | FrameLinVel | FrameAngVel => {
             &["objtype", "objname", "reftype", "refname"]
@@ -122,6 +124,17 @@ fn target(element: &Element, kind: SensorKind, targets: &impl SensorTargets) -> 
         ActuatorPos | ActuatorVel | ActuatorFrc => {
             required("actuator")?;
             SensorTarget::Actuator(targets.actuator(element, "actuator")?)
+        }
+        TendonPos | TendonVel | TendonActuatorFrc => {
+            required("tendon")?;
+            SensorTarget::Tendon(targets.tendon(element, "tendon")?)
+        }
+        TendonLimitPos | TendonLimitVel | TendonLimitFrc => {
+            required("tendon")?;
+            if !targets.tendon_limited(element, "tendon")? {
+                return Err(element.invalid("tendon must be limited in sensor"));
+            }
+            SensorTarget::Tendon(targets.tendon(element, "tendon")?)
         }
         Gyro | Velocimeter | Accelerometer => {
             required("site")?;

@@ -29,10 +29,12 @@ use crate::vehicle::{Actuation, ActuatorKind, BiasType, GainType, JointKind, Sen
 mod actuator;
 mod constraint;
 mod sensor;
+mod tendon;
 mod validate;
 pub use actuator::{Actuator, ActuatorTarget, ActuatorTransmission, DofForceLimit, SiteFrame};
-pub use constraint::{CompiledEquality, Constraints, DofFriction, EqualityRows, Limit};
+pub use constraint::{CompiledEquality, Constraints, DofFriction, EqualityRows, Limit, TendonFriction, TendonLimit};
 pub use sensor::{BodyMass, Sensor, SensorSource};
+pub use tendon::{FixedTerm, Path, PathStop, Tendon};
 pub use validate::InvalidModel;
 
 /// Motion subspace storage: up to three columns, the first `ndof` used.
@@ -251,6 +253,9 @@ pub struct Model {
     /// sensordata, which stays 0 as MuJoCo leaves it.
     #[serde(default)]
     pub sensors_disabled: bool,
+    /// Tendons in MuJoCo's order.
+    #[serde(default)]
+    pub tendons: Vec<Tendon>,
 }
 
 /// Why a vehicle cannot be compiled.
@@ -453,6 +458,7 @@ impl Model {
         let nv = dof_count(&links);
         let shortcuts = Shortcuts::of(&links, &vehicle.gravity);
         let sites = site_frames(vehicle, &attachments);
+        let tendons = tendon::compile_tendons(vehicle, &joints, &sites);
         let mut actuators = compile_actuators(vehicle, &links, &joints, &sites);
         for (k, name) in wrench_bodies.iter().enumerate() {
             // Two wrenches on one body would be two sets of inputs that add up:
@@ -498,9 +504,11 @@ impl Model {
             wrench_bodies: wrench_bodies.to_vec(),
             constraints: Constraints::default(),
             sensors_disabled: vehicle.sensors_disabled,
+            tendons,
         };
         model.validate()?;
         model.check_positive_definite()?;
+        model.compile_tendons_in_qpos0(vehicle)?;
         model.resolve_damping_ratios()?;
         model.constraints = constraints;
         model.compile_constraints_in_qpos0(vehicle, &attachments, &sites)?;
@@ -569,6 +577,11 @@ fn compile_actuators(vehicle: &Vehicle, links: &[Link], joints: &[JointInfo], si
                     };
                     let attribute = if in_parent { "jointinparent" } else { "joint" };
                     (ActuatorTarget { attribute: attribute.into(), name: joint.clone(), refsite: None }, transmission)
+                }
+                Transmission::Tendon { tendon } => {
+                    let name = vehicle.tendons[*tendon].name.clone().unwrap_or_default();
+                    let target = ActuatorTarget { attribute: "tendon".into(), name, refsite: None };
+                    (target, ActuatorTransmission::Tendon { tendon: *tendon })
                 }
                 Transmission::Site { site, refsite } => {
                     let transmission = match refsite {
