@@ -64,8 +64,27 @@ fn the_finger_compiles_with_mujocos_spring_lengths_and_qpos0_data() {
     }
     let [low, high] = model.actuators[0].ctrl_range.unwrap();
     assert!((low + 1.2).abs() < 1e-15 && (high - 1.2).abs() < 1e-15);
+    // MuJoCo's biasprm[2] from dampratio 0.7: −0.7·2√(kp·m), m = 1/(J M⁻¹ Jᵀ) in qpos0.
+    assert!((model.actuators[0].bias[2] / -0.17028135707728473 - 1.0).abs() < 1e-12, "{}", model.actuators[0].bias[2]);
     assert_eq!(model.constraints.tendon_friction.len(), 1);
     assert_eq!(model.constraints.tendon_limits.len(), 1);
+}
+
+#[test]
+fn a_compiled_model_with_a_tendon_outside_it_is_refused() {
+    let model = Model::compile(&load_mjcf(&fixture("tendon_finger.xml")).unwrap().vehicle).unwrap();
+    let mut off_the_dofs = model.clone();
+    if let Path::Fixed { terms } = &mut off_the_dofs.tendons[0].path {
+        terms[0].dof = model.nv;
+    }
+    let mut no_such_tendon = model.clone();
+    no_such_tendon.constraints.tendon_limits[0].tendon = 7;
+    let mut not_finite = model.clone();
+    not_finite.tendons[1].spring_length[0] = f64::NAN;
+    for (what, broken) in [("dof", off_the_dofs), ("limit", no_such_tendon), ("spring", not_finite)] {
+        let error = broken.validate().expect_err(what).to_string();
+        assert!(error.contains("tendon"), "{what}: {error}");
+    }
 }
 
 #[test]
