@@ -680,8 +680,26 @@ pub enum TendonPath {
 pub enum PathPoint {
     /// A site, by index in [`Vehicle::sites`].
     Site(usize),
+    /// `<geom geom>`: the segment between the sites around it wraps
+    /// around this sphere or cylinder.
+    Geom(WrapGeom),
     /// `<pulley divisor>`: a new branch; the lengths after it count 1/divisor.
     Pulley(f64),
+}
+
+/// A sphere or cylinder geom a tendon wraps around.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WrapGeom {
+    /// Index of its body in [`Vehicle::bodies`]; `None` for the world body.
+    pub body: Option<usize>,
+    /// Position in the body frame.
+    pub pos: Vec3,
+    /// Orientation in the body frame (a cylinder's axis is its z).
+    pub quat: Quat,
+    /// `size[0]`: the radius.
+    pub radius: f64,
+    /// A cylinder (else a sphere).
+    pub cylinder: bool,
 }
 
 /// The kinds of constraint a user can leave out of a model, as MuJoCo's

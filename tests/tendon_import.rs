@@ -22,7 +22,7 @@ fn scene(tendons: &str, rest: &str) -> String {
 <site name="s0" pos="0.1 0 0"/>
 <body name="arm" pos="0.5 0 0">
 <joint name="hinge" axis="0 1 0"/><joint name="slide" type="slide" axis="1 0 0"/>
-<geom name="g" size="0.1"/><site name="s1" pos="0.3 0 0"/>
+<geom name="g" size="0.1"/><geom name="box" type="box" size="0.1 0.1 0.1"/><site name="s1" pos="0.3 0 0"/>
 <body pos="0.3 0 0"><joint name="ball" type="ball"/><geom size="0.1"/></body></body></body>
 </worldbody>
 <tendon>
@@ -147,7 +147,34 @@ const REFUSALS: &[(&str, &str, &str, u32, &str)] = &[
         11,
         "neighbour that is not a pulley",
     ),
-    (r#"<spatial name="t"><site site="s0"/><geom geom="g"/><site site="s1"/></spatial>"#, "", "<geom>", 11, "wrapping"),
+    (
+        r#"<spatial name="t"><site site="s0"/><geom geom="g" sidesite="s1"/><site site="s1"/></spatial>"#,
+        "",
+        "<geom>",
+        11,
+        "sidesite",
+    ),
+    (
+        r#"<spatial name="t"><site site="s0"/><geom geom="box"/><site site="s1"/></spatial>"#,
+        "",
+        "<geom>",
+        11,
+        "not sphere or cylinder",
+    ),
+    (
+        r#"<spatial name="t"><site site="s0"/><geom geom="h"/><site site="s1"/></spatial>"#,
+        "",
+        "<geom>",
+        11,
+        "unknown geom 'h'",
+    ),
+    (
+        r#"<spatial name="t"><site site="s0"/><site site="s1"/><geom geom="g"/></spatial>"#,
+        "",
+        "<spatial name=\"t\">",
+        11,
+        "not between two sites",
+    ),
     (
         r#"<fixed name="t" armature="0.1"><joint joint="hinge" coef="1"/></fixed>"#,
         "",

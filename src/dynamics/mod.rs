@@ -27,6 +27,7 @@ pub mod quantities;
 pub mod sensors;
 pub mod tendon;
 pub mod velocity;
+mod wrap;
 
 use nalgebra::SMatrix;
 

@@ -6,13 +6,27 @@
 //! of a unit tension: along each straight segment p₀ → p₁ (between sites of
 //! different bodies), the unit force u = (p₁ − p₀)/|p₁ − p₀| pulls the
 //! point p₁ and −u the point p₀, dL/dt = u·(ṗ₁ − ṗ₀); one inward pass turns
-//! these point forces into joint forces, T_i = S_iᵀ Σ_subtree f. O(N) per tendon.
+//! these point forces into joint forces, T_i = S_iᵀ Σ_subtree f. O(N) per
+//! tendon. A segment wrapped around a geom (`wrap`) pulls the points where
+//! it meets the geom, which move with the geom's link.
 
-use super::actuation::{site_in_world, wrench_at_site};
+use super::actuation::site_in_world;
 use super::forces::add_joint_forces_of_wrenches;
-use crate::math::{SpatialVec, Vec3};
+use super::wrap;
+use crate::math::{SpatialVec, Transform, Vec3, spatial};
 use crate::model::{Model, Path, PathStop};
 use crate::workspace::Workspace;
+
+/// A point of a spatial tendon's path in the world, and what carries it.
+#[derive(Clone, Copy)]
+struct PathPoint {
+    /// The link moving it (`None`: the world).
+    link: Option<usize>,
+    /// The MJCF body carrying it.
+    body: Option<usize>,
+    /// Its world position.
+    at: Vec3,
+}
 
 /// MuJoCo's `mjMINVAL`: a shorter segment has no direction.
 const MIN_VALUE: f64 = 1e-15;
@@ -47,39 +61,64 @@ impl Workspace {
 
     /// A spatial tendon's length, and its moment arms into `moment` (nv),
     /// as MuJoCo's `mj_tendon` walks the path: a pulley sets the divisor of
-    /// the segments after it and starts a new branch.
+    /// the segments after it and starts a new branch; a site, geom, site
+    /// triple wraps (two straight segments to the geom's surface and the arc
+    /// between, the arc's points moving with the geom), or runs straight
+    /// when the segment misses the geom.
     fn spatial_tendon(&mut self, model: &Model, stops: &[PathStop], moment: &mut [f64]) -> f64 {
         self.tendon_wrench.fill(SpatialVec::zeros());
         let mut divisor = 1.0;
         let mut length = 0.0;
         let mut pulls = false;
-        for pair in stops.windows(2) {
-            let (from, to) = match pair {
-                [PathStop::Pulley { divisor: d }, _] => {
+        let mut j = 0;
+        while j + 1 < stops.len() {
+            let (from, next) = match (&stops[j], &stops[j + 1]) {
+                (PathStop::Pulley { divisor: d }, _) => {
                     divisor = *d;
+                    j += 1;
                     continue;
                 }
-                [PathStop::Site { frame: from, body: b0 }, PathStop::Site { frame: to, body: b1 }] => {
-                    ((from, b0), (to, b1))
-                }
                 // A site before a pulley ends its branch.
-                _ => continue,
+                (_, PathStop::Pulley { .. }) => {
+                    j += 1;
+                    continue;
+                }
+                (PathStop::Site { frame, body }, next) => ((frame, *body), next),
+                // The importer puts a geom between two sites only.
+                (PathStop::Geom { .. }, _) => unreachable!("a geom follows a site"),
             };
-            let p0 = site_in_world(from.0, &self.x_world).trans;
-            let p1 = site_in_world(to.0, &self.x_world).trans;
-            let difference = p1 - p0;
-            let distance = difference.norm();
-            length += distance / divisor;
-            if from.1 == to.1 {
-                continue;
-            }
-            // MuJoCo's mju_normalize3: a vanishing segment points along x.
-            let direction = if distance < MIN_VALUE { Vec3::x() } else { difference / distance };
-            let force = direction / divisor;
-            for (site, f) in [(from.0, -force), (to.0, force)] {
-                if let (Some(link), wrench) = wrench_at_site(site, &self.x_world, &Vec3::zeros(), &f) {
-                    self.tendon_wrench[link] += wrench;
-                    pulls = true;
+            let start = PathPoint { link: from.0.link, body: from.1, at: site_in_world(from.0, &self.x_world).trans };
+            let site_point = |stop: &PathStop, x_world: &[Transform]| match stop {
+                PathStop::Site { frame, body } => {
+                    PathPoint { link: frame.link, body: *body, at: site_in_world(frame, x_world).trans }
+                }
+                _ => unreachable!("the importer ends a wrap at a site"),
+            };
+            match next {
+                PathStop::Geom { frame, body, radius, cylinder } => {
+                    let end = site_point(&stops[j + 2], &self.x_world);
+                    let geom = site_in_world(frame, &self.x_world);
+                    match wrap::wrap(&start.at, &end.at, &geom, *radius, *cylinder) {
+                        Some((arc, first, second)) => {
+                            let on_geom = |at: Vec3| PathPoint { link: frame.link, body: *body, at };
+                            let points = [start, on_geom(first), on_geom(second), end];
+                            length += ((first - start.at).norm() + arc + (end.at - second).norm()) / divisor;
+                            for pair in points.windows(2) {
+                                pulls |= self.pull_segment(&pair[0], &pair[1], divisor);
+                            }
+                        }
+                        None => {
+                            length += (end.at - start.at).norm() / divisor;
+                            pulls |= self.pull_segment(&start, &end, divisor);
+                        }
+                    }
+                    j += 2;
+                }
+                _ => {
+                    let end = site_point(next, &self.x_world);
+                    length += (end.at - start.at).norm() / divisor;
+                    pulls |= self.pull_segment(&start, &end, divisor);
+                    j += 1;
                 }
             }
         }
@@ -94,6 +133,32 @@ impl Workspace {
             );
         }
         length
+    }
+
+    /// Adds the unit tension's point forces of the straight segment
+    /// `from → to` (its direction over `divisor` at `to`, the opposite at
+    /// `from`) to the links' wrenches; MuJoCo leaves out a segment within one
+    /// body. Whether some link took a force.
+    fn pull_segment(&mut self, from: &PathPoint, to: &PathPoint, divisor: f64) -> bool {
+        if from.body == to.body {
+            return false;
+        }
+        let difference = to.at - from.at;
+        let distance = difference.norm();
+        // MuJoCo's mju_normalize3: a vanishing segment points along x.
+        let direction = if distance < MIN_VALUE { Vec3::x() } else { difference * (1.0 / distance) };
+        let force = direction / divisor;
+        let mut pulls = false;
+        for (point, f) in [(from, -force), (to, force)] {
+            if let Some(link) = point.link {
+                // The point force in link coordinates, about the link origin.
+                let x = &self.x_world[link];
+                let (r, f) = (x.rot * (point.at - x.trans), x.rot * f);
+                self.tendon_wrench[link] += spatial(&r.cross(&f), &f);
+                pulls = true;
+            }
+        }
+        pulls
     }
 
     /// Every tendon's velocity J θ̇ (`set_nu` and `set_qvel` run it when the

@@ -23,8 +23,8 @@ use super::{Imported, MjcfWarning};
 use crate::math::{Mat3, Quat, Vec3};
 use crate::vehicle::{
     Actuation, Actuator, ActuatorKind, BiasType, Body, ConstraintOptions, Equality, EqualityObjects, FrameObject,
-    GainType, Joint, JointConstraints, JointKind, JointLimit, MassProperties, Sensor, SensorKind, SensorTarget, Site,
-    Tendon, Transmission, Vehicle,
+    GainType, Joint, JointConstraints, JointKind, JointLimit, MassProperties, PathPoint, Sensor, SensorKind,
+    SensorTarget, Site, Tendon, TendonPath, Transmission, Vehicle, WrapGeom,
 };
 
 /// MuJoCo's `mjMINVAL`: the least mass and principal moment of a moving body.
@@ -221,6 +221,9 @@ struct Reader {
     tendon_names: HashMap<String, u32>,
     /// Whether each tendon is limited (MuJoCo's tendon_limited, before any flag).
     tendon_limited: Vec<bool>,
+    /// The named geoms, for tendons to wrap around: their type, and their
+    /// frame when a sphere or cylinder.
+    named_geoms: HashMap<String, (GeomKind, Option<WrapGeom>)>,
     /// The bodies the file leaves unnamed.
     unnamed_bodies: Vec<usize>,
     /// The files the model is read from, for the paths of its assets.
@@ -395,6 +398,7 @@ impl Reader {
             tendons: Vec::new(),
             tendon_names: HashMap::new(),
             tendon_limited: Vec::new(),
+            named_geoms: HashMap::new(),
             unnamed_bodies: Vec::new(),
             sources,
             meshes: Meshes::new(),
@@ -612,6 +616,12 @@ impl Reader {
             match child.tag() {
                 "body" => self.read_body_tree(child, frame, class)?,
                 "site" => self.read_site(&child, class, None, frame)?,
+                "geom" if child.has("name") => {
+                    let mut settings = self.defaults.class(self.class_of(&child, class)?).geom.clone();
+                    settings.apply(&child)?;
+                    self.name_geom(&child, &settings, frame.as_ref(), None)?;
+                    self.warnings.push(child.ignored());
+                }
                 "geom" | "camera" | "light" => {
                     self.named_elsewhere.extend(child.text("target").map(str::to_string));
                     self.warnings.push(child.ignored());
@@ -789,6 +799,7 @@ impl Reader {
         let mut selected = Vec::new();
         let mut mass_unknown = false;
         for (geom, settings, frame) in &geoms {
+            self.name_geom(geom, settings, frame.as_ref(), Some(index))?;
             let [low, high] = self.compiler.inertia_groups;
             let contributes = from_geoms && (low..=high).contains(&settings.group);
             if contributes && mass_not_computed(settings) && !moving {
@@ -974,6 +985,38 @@ impl Reader {
             inertia.set_principal(Vec3::repeat(p.sum() / 3.0));
         }
         Ok(inertia)
+    }
+
+    /// Registers a named geom of `body` (`None`: the world) for tendons to
+    /// wrap around: its type, and a sphere's or cylinder's frame in the body.
+    fn name_geom(
+        &mut self,
+        element: &Element,
+        settings: &GeomSettings,
+        frame: Option<&Pose>,
+        body: Option<usize>,
+    ) -> Result<(), MjcfError> {
+        let Some(name) = element.text("name") else { return Ok(()) };
+        let wrap = match settings.kind {
+            GeomKind::Sphere | GeomKind::Cylinder if settings.mesh.is_none() => {
+                let (pos, quat) = match settings.fromto {
+                    Some(fromto) if settings.kind == GeomKind::Cylinder => {
+                        let (pos, quat, _) = fromto_frame(element, &fromto, &settings.pos)?;
+                        (pos, quat)
+                    }
+                    _ => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
+                };
+                let (pos, quat) = frame.map_or((pos, quat), |frame| compose(frame, &(pos, quat)));
+                if settings.size[0] <= 0.0 {
+                    return Err(element.invalid(format!("size[0] must be positive, found {}", settings.size[0])));
+                }
+                let cylinder = settings.kind == GeomKind::Cylinder;
+                Some(WrapGeom { body, pos, quat, radius: settings.size[0], cylinder })
+            }
+            _ => None,
+        };
+        self.named_geoms.insert(name.to_string(), (settings.kind, wrap));
+        Ok(())
     }
 
     /// The geom's mass, frame and principal moments when it contributes to its
@@ -1700,6 +1743,10 @@ impl Reader {
                 site.body = parent;
                 (site.pos, site.quat) = compose(&pose, &(site.pos, site.quat));
             }
+            for geom in wrap_geoms_mut(&mut self.tendons).filter(|g| g.body == Some(index)) {
+                geom.body = parent;
+                (geom.pos, geom.quat) = compose(&pose, &(geom.pos, geom.quat));
+            }
         }
 
         // Renumber the bodies left.
@@ -1716,6 +1763,7 @@ impl Reader {
         self.records.retain(|_| keep.next().unwrap_or(true));
         self.bodies.iter_mut().for_each(|b| renumber(&mut b.parent));
         self.sites.iter_mut().for_each(|s| renumber(&mut s.body));
+        wrap_geoms_mut(&mut self.tendons).for_each(|g| renumber(&mut g.body));
         for sensor in &mut self.sensors {
             match &mut sensor.target {
                 SensorTarget::Frame { object, reference } => {
@@ -1751,6 +1799,20 @@ fn fromto_frame(element: &Element, fromto: &[f64; 6], pos: &[f64; 3]) -> Result<
     let direction = normalized(from - to).ok_or_else(|| element.invalid("the 'fromto' points coincide"))?;
     let half_length = (from - to).norm() / 2.0;
     Ok(((from + to) / 2.0, Quat::new_normalize(z_to_quaternion(&direction)), half_length))
+}
+
+/// The geoms the tendons wrap around.
+fn wrap_geoms_mut(tendons: &mut [Tendon]) -> impl Iterator<Item = &mut WrapGeom> {
+    tendons
+        .iter_mut()
+        .flat_map(|tendon| match &mut tendon.path {
+            TendonPath::Spatial(points) => points.as_mut_slice(),
+            TendonPath::Fixed(_) => &mut [],
+        })
+        .filter_map(|point| match point {
+            PathPoint::Geom(geom) => Some(geom),
+            _ => None,
+        })
 }
 
 /// Whether a geom's mass would come from an asset nudyn does not read: an
@@ -1817,6 +1879,18 @@ impl TendonTargets for Reader {
 
     fn tendon_site(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError> {
         self.site_named(element, attribute, "tendon")
+    }
+
+    fn tendon_geom(&self, element: &Element, attribute: &str) -> Result<WrapGeom, MjcfError> {
+        let name = element.text(attribute).unwrap_or_default();
+        match self.named_geoms.get(name) {
+            None => Err(element.invalid(format!("unknown geom '{name}' in tendon"))),
+            Some((_, Some(geom))) => Ok(*geom),
+            Some((kind, None)) => Err(element.invalid(format!(
+                "geom '{name}' in tendon is not sphere or cylinder (it is {kind:?}{})",
+                if *kind == GeomKind::Sphere || *kind == GeomKind::Cylinder { " fitted to a mesh" } else { "" }
+            ))),
+        }
     }
 }
 

@@ -1,11 +1,12 @@
 //! `<tendon>`: fixed tendons (a linear combination of hinge and slide
 //! joint values) and spatial tendons through sites, with MuJoCo 4.0's
-//! attributes, defaults and compiler checks. Wrapping around geoms is refused.
+//! attributes, defaults and compiler checks, wrapping around sphere and
+//! cylinder geoms included.
 
 use super::defaults::Limited;
 use super::element::Element;
 use super::error::MjcfError;
-use crate::vehicle::{JointKind, JointLimit, PathPoint, SoftConstraint, Tendon, TendonPath};
+use crate::vehicle::{JointKind, JointLimit, PathPoint, SoftConstraint, Tendon, TendonPath, WrapGeom};
 
 /// Attributes `<fixed>` has (MuJoCo 4.0 schema); `<spatial>` adds [`SPATIAL_ONLY`].
 const FIXED_ATTRIBUTES: &[&str] = &[
@@ -161,6 +162,8 @@ pub(crate) trait TendonTargets {
     fn tendon_joint(&self, element: &Element, attribute: &str) -> Result<JointKind, MjcfError>;
     /// The site the attribute names.
     fn tendon_site(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError>;
+    /// The sphere or cylinder geom the attribute names.
+    fn tendon_geom(&self, element: &Element, attribute: &str) -> Result<WrapGeom, MjcfError>;
 }
 
 /// What the `<flag>`s and `<compiler>` leave of a tendon's terms.
@@ -271,8 +274,8 @@ fn fixed_path(element: &Element, targets: &impl TendonTargets) -> Result<TendonP
     Ok(TendonPath::Fixed(terms))
 }
 
-/// A `<spatial>` tendon's `<site>` and `<pulley>` children, checked as
-/// MuJoCo checks the path; `<geom>` wrapping is refused.
+/// A `<spatial>` tendon's `<site>`, `<geom>` and `<pulley>` children,
+/// checked as MuJoCo checks the path.
 fn spatial_path(element: &Element, targets: &impl TendonTargets) -> Result<TendonPath, MjcfError> {
     let mut points = Vec::new();
     for child in element.children() {
@@ -293,9 +296,19 @@ fn spatial_path(element: &Element, targets: &impl TendonTargets) -> Result<Tendo
                 points.push(PathPoint::Pulley(divisor));
             }
             "geom" => {
-                return Err(child.unsupported(
-                    "wrapping a spatial tendon around a geom (only straight segments between sites are modelled)",
-                ));
+                child.check_attributes(&["geom", "sidesite"])?;
+                if !child.has("geom") {
+                    return Err(child.missing("geom"));
+                }
+                let geom = targets.tendon_geom(&child, "geom")?;
+                if child.has("sidesite") {
+                    targets.tendon_site(&child, "sidesite")?;
+                    return Err(child.unsupported(
+                        "sidesite: MuJoCo 4.0 chooses the side to wrap on by a rule nudyn does not reproduce \
+                         (the rule in its published source picks another side, or none, in 26 of 1200 states we sampled); wrap without a side site",
+                    ));
+                }
+                points.push(PathPoint::Geom(geom));
             }
             _ => return Err(child.unknown()),
         }
@@ -304,8 +317,9 @@ fn spatial_path(element: &Element, targets: &impl TendonTargets) -> Result<Tendo
         return Err(element.invalid("a spatial tendon's path must contain at least two objects"));
     }
     // MuJoCo's checks: no pulley after a pulley or at the end, every site
-    // beside a site, and no site twice in a row.
+    // beside a site, no site twice in a row, a geom between two sites.
     let is_pulley = |k: usize| matches!(points[k], PathPoint::Pulley(_));
+    let is_site = |k: usize| matches!(points[k], PathPoint::Site(_));
     let last = points.len() - 1;
     for k in 0..=last {
         match points[k] {
@@ -324,7 +338,10 @@ fn spatial_path(element: &Element, targets: &impl TendonTargets) -> Result<Tendo
                     return Err(element.invalid(format!("site {k} is repeated in the tendon's path")));
                 }
             }
-            PathPoint::Pulley(_) => {}
+            PathPoint::Geom { .. } if k == 0 || k == last || !is_site(k - 1) || !is_site(k + 1) => {
+                return Err(element.invalid(format!("geom {k} of the tendon's path is not between two sites")));
+            }
+            PathPoint::Pulley(_) | PathPoint::Geom { .. } => {}
         }
     }
     Ok(TendonPath::Spatial(points))

@@ -458,7 +458,7 @@ impl Model {
         let nv = dof_count(&links);
         let shortcuts = Shortcuts::of(&links, &vehicle.gravity);
         let sites = site_frames(vehicle, &attachments);
-        let tendons = tendon::compile_tendons(vehicle, &joints, &sites);
+        let tendons = tendon::compile_tendons(vehicle, &joints, &sites, &attachments);
         let mut actuators = compile_actuators(vehicle, &links, &joints, &sites);
         for (k, name) in wrench_bodies.iter().enumerate() {
             // Two wrenches on one body would be two sets of inputs that add up:

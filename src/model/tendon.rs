@@ -6,7 +6,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{InvalidModel, JointInfo, LinkJoint, Model, ModelError, SiteFrame};
+use super::{Attachment, InvalidModel, JointInfo, LinkJoint, Model, ModelError, SiteFrame};
+use crate::math::Transform;
 use crate::vehicle::{PathPoint, TendonPath, Vehicle};
 
 /// One compiled tendon.
@@ -91,6 +92,17 @@ pub enum PathStop {
         /// segment between two sites of one body no moment arms.
         body: Option<usize>,
     },
+    /// A sphere or cylinder the segment between the sites around it wraps around.
+    Geom {
+        /// The geom's frame on its link (a cylinder's axis is its z).
+        frame: SiteFrame,
+        /// The MJCF body carrying it.
+        body: Option<usize>,
+        /// Its radius.
+        radius: f64,
+        /// A cylinder (else a sphere).
+        cylinder: bool,
+    },
     /// A pulley: the segments after it count 1/divisor.
     Pulley {
         /// `divisor`.
@@ -101,7 +113,12 @@ pub enum PathStop {
 /// The tendons of `vehicle`, their joints resolved against the compiled
 /// `joints` and their sites at `sites`; the qpos0 lengths are filled by
 /// [`Model::compile_tendons_in_qpos0`]. The importer has checked every name.
-pub(super) fn compile_tendons(vehicle: &Vehicle, joints: &[JointInfo], sites: &[SiteFrame]) -> Vec<Tendon> {
+pub(super) fn compile_tendons(
+    vehicle: &Vehicle,
+    joints: &[JointInfo],
+    sites: &[SiteFrame],
+    attachments: &[Attachment],
+) -> Vec<Tendon> {
     vehicle
         .tendons
         .iter()
@@ -124,6 +141,18 @@ pub(super) fn compile_tendons(vehicle: &Vehicle, joints: &[JointInfo], sites: &[
                                 PathStop::Site { frame: sites[site], body: vehicle.sites[site].body }
                             }
                             PathPoint::Pulley(divisor) => PathStop::Pulley { divisor },
+                            PathPoint::Geom(geom) => {
+                                let in_body =
+                                    Transform::from_pose(&geom.quat.to_rotation_matrix().into_inner(), &geom.pos);
+                                let frame = match geom.body {
+                                    Some(b) => SiteFrame {
+                                        link: attachments[b].link,
+                                        frame: in_body.compose(&attachments[b].offset),
+                                    },
+                                    None => SiteFrame { link: None, frame: in_body },
+                                };
+                                PathStop::Geom { frame, body: geom.body, radius: geom.radius, cylinder: geom.cylinder }
+                            }
                         })
                         .collect(),
                 },
@@ -194,11 +223,26 @@ pub(super) fn validate_tendon(model: &Model, k: usize) -> Result<(), String> {
                             && super::validate::placement_is_proper(&frame.frame)
                     }
                     PathStop::Pulley { divisor } => divisor.is_finite() && *divisor > 0.0,
+                    PathStop::Geom { frame, radius, .. } => {
+                        frame.link.is_none_or(|l| l < model.links.len())
+                            && super::validate::placement_is_proper(&frame.frame)
+                            && radius.is_finite()
+                            && *radius > 0.0
+                    }
                 })
         }
     };
     if !fits {
         return Err("its path does not match the links".to_string());
+    }
+    if let Path::Spatial { stops } = &tendon.path {
+        let site = |k: Option<usize>| k.and_then(|k| stops.get(k)).is_some_and(|s| matches!(s, PathStop::Site { .. }));
+        let bracketed = (0..stops.len())
+            .filter(|&k| matches!(stops[k], PathStop::Geom { .. }))
+            .all(|k| site(k.checked_sub(1)) && site(Some(k + 1)));
+        if !bracketed {
+            return Err("a geom of its path is not between two sites".to_string());
+        }
     }
     let numbers = [tendon.stiffness, tendon.damping, tendon.length0, tendon.invweight0];
     if !numbers.iter().chain(&tendon.spring_length).all(|x| x.is_finite()) {
