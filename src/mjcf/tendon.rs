@@ -1,7 +1,7 @@
 //! `<tendon>`: fixed tendons (a linear combination of hinge and slide
 //! joint values) and spatial tendons through sites, with MuJoCo 4.0's
 //! attributes, defaults and compiler checks, wrapping around sphere and
-//! cylinder geoms included.
+//! cylinder geoms included (without a side site, which is refused).
 
 use super::defaults::Limited;
 use super::element::Element;
