@@ -183,6 +183,13 @@ const REFUSALS: &[(&str, &str, &str, u32, &str)] = &[
         "armature",
     ),
     (
+        r#"<fixed name="t" actuatorfrcrange="-1 1"><joint joint="hinge" coef="1"/></fixed>"#,
+        "",
+        "<fixed name=\"t\">",
+        11,
+        "actuatorfrcrange",
+    ),
+    (
         r#"<fixed name="t" stiffness="1 2"><joint joint="hinge" coef="1"/></fixed>"#,
         "",
         "<fixed name=\"t\">",

@@ -215,6 +215,19 @@ pub(crate) fn read(
             );
         }
     }
+    let [low, high] = settings.actuator_force_range;
+    let force_limited = match settings.actuator_force_limited {
+        Limited::Yes => true,
+        Limited::No => false,
+        Limited::Auto => flags.autolimits && low < high,
+    };
+    if force_limited {
+        return Err(element.unsupported(format!(
+            "actuatorfrcrange{}: MuJoCo scales the forces of the tendon's actuators to keep their sum in the \
+             range, which nudyn does not model",
+            origin("actuatorfrcrange")
+        )));
+    }
     let [low, high] = settings.spring_length;
     let unset = low == -1.0 && high == -1.0;
     if !unset && low > high {
