@@ -72,6 +72,7 @@ fn hinge_chain(links: usize) -> Vehicle {
         constraint_options,
         equalities: Vec::new(),
         sensors_disabled: false,
+        tendons: Vec::new(),
     }
 }
 

@@ -105,6 +105,9 @@ pub struct ConstraintRowReport {
     /// The equality constraint it belongs to (its element and name or index).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub equality: Option<String>,
+    /// The tendon it acts on (tendon friction loss and limits).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tendon: Option<String>,
     /// The joint it acts on (friction loss and limits).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub joint: Option<String>,
@@ -130,10 +133,18 @@ impl ConstraintResponse {
                     RowKind::Equality => (Some(constraints.equalities[rows.id[k]].label.clone()), None),
                     RowKind::Friction => (None, Some(constraints.friction[rows.id[k]].dof)),
                     RowKind::Limit => (None, Some(constraints.limits[rows.id[k]].dof)),
+                    RowKind::TendonFriction | RowKind::TendonLimit => (None, None),
                 };
+                let tendon = match rows.kind[k] {
+                    RowKind::TendonFriction => Some(constraints.tendon_friction[rows.id[k]].tendon),
+                    RowKind::TendonLimit => Some(constraints.tendon_limits[rows.id[k]].tendon),
+                    _ => None,
+                };
+                let tendon = tendon.map(|t| model.tendons[t].label(t));
                 ConstraintRowReport {
                     kind: rows.kind[k],
                     equality,
+                    tendon,
                     joint: dof.and_then(joint_of_dof),
                     dof,
                     distance: rows.distance[k],

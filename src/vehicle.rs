@@ -34,6 +34,8 @@ pub struct Vehicle {
     pub equalities: Vec<Equality>,
     /// `<flag sensor="disable"/>`: MuJoCo computes no sensor, and sensordata stays 0.
     pub sensors_disabled: bool,
+    /// Tendons in document order (MuJoCo's tendon order).
+    pub tendons: Vec<Tendon>,
 }
 
 /// One `<body>`.
@@ -231,6 +233,11 @@ pub enum Transmission {
         /// Index of the reference site in [`Vehicle::sites`].
         refsite: Option<usize>,
     },
+    /// `tendon`: the tendon's length times gear[0], its moment arms times gear[0].
+    Tendon {
+        /// Index of the tendon in [`Vehicle::tendons`].
+        tendon: usize,
+    },
 }
 
 /// How the gain of an actuator depends on its state (MuJoCo's `gaintype`).
@@ -346,6 +353,18 @@ pub enum SensorKind {
     JointLimitVel,
     /// The force of a joint's active limit row.
     JointLimitFrc,
+    /// A tendon's length.
+    TendonPos,
+    /// A tendon's velocity.
+    TendonVel,
+    /// The total force of the actuators on a tendon (their scalar forces).
+    TendonActuatorFrc,
+    /// A tendon's distance to its active limit less the margin (0 with no active limit row).
+    TendonLimitPos,
+    /// The velocity of a tendon's active limit row.
+    TendonLimitVel,
+    /// The force of a tendon's active limit row.
+    TendonLimitFrc,
     /// An actuator's length.
     ActuatorPos,
     /// An actuator's velocity.
@@ -356,7 +375,7 @@ pub enum SensorKind {
 
 impl SensorKind {
     /// Every kind, in MuJoCo's `mjtSensor` order.
-    pub const ALL: [SensorKind; 29] = {
+    pub const ALL: [SensorKind; 35] = {
         use SensorKind::*;
         [
             Accelerometer,
@@ -373,6 +392,12 @@ impl SensorKind {
             JointLimitPos,
             JointLimitVel,
             JointLimitFrc,
+            TendonPos,
+            TendonVel,
+            TendonActuatorFrc,
+            TendonLimitPos,
+            TendonLimitVel,
+            TendonLimitFrc,
             BallQuat,
             BallAngVel,
             FramePos,
@@ -421,6 +446,12 @@ impl SensorKind {
             JointLimitPos => "jointlimitpos",
             JointLimitVel => "jointlimitvel",
             JointLimitFrc => "jointlimitfrc",
+            TendonPos => "tendonpos",
+            TendonVel => "tendonvel",
+            TendonActuatorFrc => "tendonactuatorfrc",
+            TendonLimitPos => "tendonlimitpos",
+            TendonLimitVel => "tendonlimitvel",
+            TendonLimitFrc => "tendonlimitfrc",
             ActuatorPos => "actuatorpos",
             ActuatorVel => "actuatorvel",
             Clock => "clock",
@@ -438,6 +469,7 @@ impl SensorKind {
         match self {
             JointPos | JointVel | ActuatorFrc | JointActuatorFrc | ActuatorPos | ActuatorVel | Clock => 1,
             JointLimitPos | JointLimitVel | JointLimitFrc => 1,
+            TendonPos | TendonVel | TendonActuatorFrc | TendonLimitPos | TendonLimitVel | TendonLimitFrc => 1,
             BallQuat | FrameQuat => 4,
             _ => 3,
         }
@@ -478,6 +510,8 @@ pub enum SensorTarget {
     },
     /// The subtree of a body (`None`: the world body, the whole vehicle).
     Subtree(Option<usize>),
+    /// A tendon, by index in [`Vehicle::tendons`].
+    Tendon(usize),
     /// Nothing (the clock).
     None,
 }
@@ -610,6 +644,80 @@ pub enum EqualityKind {
         /// `polycoef`.
         polycoef: [f64; 5],
     },
+    /// `<tendon>`: tendon1's length a quartic of tendon2's, both from their
+    /// lengths in qpos0.
+    Tendon {
+        /// `tendon1`, by index in [`Vehicle::tendons`].
+        tendon1: usize,
+        /// `tendon2`, if given.
+        tendon2: Option<usize>,
+        /// `polycoef`.
+        polycoef: [f64; 5],
+    },
+}
+
+/// One `<tendon>` element: `<fixed>` or `<spatial>`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Tendon {
+    /// Its name, if it has one.
+    pub name: Option<String>,
+    /// Its path.
+    pub path: TendonPath,
+    /// `stiffness` (N/m, or N m per unit of a fixed tendon's length).
+    pub stiffness: f64,
+    /// `damping`.
+    pub damping: f64,
+    /// `springlength`: the deadband of lengths at which the spring is at
+    /// rest (one value: a point); `None` (MuJoCo's −1) takes the tendon's
+    /// length in the spring pose (qpos_spring).
+    pub spring_length: Option<[f64; 2]>,
+    /// `frictionloss`: a friction-loss constraint row when positive.
+    pub frictionloss: f64,
+    /// `solreffriction`, `solimpfriction`.
+    pub friction: SoftConstraint,
+    /// The tendon's length limits, when it is limited.
+    pub limit: Option<JointLimit>,
+    /// `range` as written (an actuator's `inheritrange` reads it).
+    pub range: [f64; 2],
+    /// Line of the element in the MJCF file (1-based).
+    pub line: u32,
+}
+
+/// The path a tendon's length is measured along.
+#[derive(Clone, Debug, PartialEq)]
+pub enum TendonPath {
+    /// `<fixed>`: Σ coef · qpos over hinge and slide joints, by name.
+    Fixed(Vec<(String, f64)>),
+    /// `<spatial>`: straight segments between consecutive sites, pulleys
+    /// splitting the path into branches.
+    Spatial(Vec<PathPoint>),
+}
+
+/// One element of a spatial tendon's path.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PathPoint {
+    /// A site, by index in [`Vehicle::sites`].
+    Site(usize),
+    /// `<geom geom>`: the segment between the sites around it wraps
+    /// around this sphere or cylinder.
+    Geom(WrapGeom),
+    /// `<pulley divisor>`: a new branch; the lengths after it count 1/divisor.
+    Pulley(f64),
+}
+
+/// A sphere or cylinder geom a tendon wraps around.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WrapGeom {
+    /// Index of its body in [`Vehicle::bodies`]; `None` for the world body.
+    pub body: Option<usize>,
+    /// Position in the body frame.
+    pub pos: Vec3,
+    /// Orientation in the body frame (a cylinder's axis is its z).
+    pub quat: Quat,
+    /// `size[0]`: the radius.
+    pub radius: f64,
+    /// A cylinder (else a sphere).
+    pub cylinder: bool,
 }
 
 /// The kinds of constraint a user can leave out of a model, as MuJoCo's
@@ -658,6 +766,12 @@ impl Vehicle {
                         _ => joint.constraints.limit = None,
                     }
                 }
+                for tendon in &mut self.tendons {
+                    match kind {
+                        ConstraintKind::FrictionLoss => tendon.frictionloss = 0.0,
+                        _ => tendon.limit = None,
+                    }
+                }
             }
         }
     }
@@ -668,7 +782,7 @@ impl EqualityKind {
     pub fn objects(&self) -> Option<EqualityObjects> {
         match self {
             EqualityKind::Connect { objects, .. } | EqualityKind::Weld { objects, .. } => Some(*objects),
-            EqualityKind::Joint { .. } => None,
+            EqualityKind::Joint { .. } | EqualityKind::Tendon { .. } => None,
         }
     }
 
@@ -676,7 +790,7 @@ impl EqualityKind {
     pub(crate) fn objects_mut(&mut self) -> Option<&mut EqualityObjects> {
         match self {
             EqualityKind::Connect { objects, .. } | EqualityKind::Weld { objects, .. } => Some(objects),
-            EqualityKind::Joint { .. } => None,
+            EqualityKind::Joint { .. } | EqualityKind::Tendon { .. } => None,
         }
     }
 }

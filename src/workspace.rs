@@ -141,6 +141,17 @@ pub struct Workspace {
     /// every other pass 3), so that the sensors need not run it again.
     pub inputs_applied: bool,
 
+    /// Each tendon's length (MuJoCo's ten_length) — set_configuration.
+    pub tendon_length: DVector<f64>,
+    /// Each tendon's moment arms, row k the entries k·nv .. (k+1)·nv
+    /// (MuJoCo's ten_J, dense) — set_configuration.
+    pub tendon_moment: Vec<f64>,
+    /// Each tendon's velocity J θ̇ (MuJoCo's ten_velocity) — pass 2.
+    pub tendon_velocity: DVector<f64>,
+    /// Per-link scratch of the spatial tendons' unit forces (empty without
+    /// spatial tendons) — set_configuration.
+    pub tendon_wrench: Vec<SpatialVec>,
+
     /// The active constraint rows and their forces — apply_constraint_forces.
     pub constraint_rows: ConstraintRows,
 
@@ -178,6 +189,7 @@ impl Workspace {
         } else {
             0
         };
+        let spatial_tendons = model.tendons.iter().any(|t| matches!(t.path, crate::model::Path::Spatial { .. }));
         Workspace {
             stage: Stage::Empty,
             accumulation,
@@ -219,6 +231,10 @@ impl Workspace {
             eps_input: dof(),
             ctrl_input: DVector::zeros(nu),
             inputs_applied: false,
+            tendon_length: DVector::zeros(model.tendons.len()),
+            tendon_moment: vec![0.0; model.tendons.len() * model.nv],
+            tendon_velocity: DVector::zeros(model.tendons.len()),
+            tendon_wrench: vec![SpatialVec::zeros(); if spatial_tendons { n } else { 0 }],
             constraint_rows: ConstraintRows::new(model),
             sensordata: DVector::zeros(model.sensors.iter().map(|s| s.dim()).sum()),
             link_quats: vec![Quat::identity(); model.link_tree_quats.len()],

@@ -143,6 +143,7 @@ fn dense_transmission(vehicle: &Vehicle, k: &Kinematics, theta: &[f64], actuator
                 }
             }
         }
+        Transmission::Tendon { .. } => unreachable!("the random vehicles have no tendons"),
         Transmission::Site { site, refsite: None } => {
             let (r, _) = site_pose(vehicle, k, *site);
             let (jw, jv) = site_jacobian(vehicle, k, *site, nv);

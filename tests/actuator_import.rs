@@ -204,7 +204,7 @@ const REFUSED: &[Refused] = &[
         actuators: r#"<dcmotor joint="h"/>"# },
     Refused { what: "plugin", variant: unsupported, element: "<plugin>", reason: "plugins",
         actuators: r#"<plugin joint="h" plugin="p"/>"# },
-    Refused { what: "tendon transmission", variant: unsupported, element: "<motor>", reason: "tendon",
+    Refused { what: "unknown tendon", variant: invalid, element: "<motor>", reason: "unknown tendon 't'",
         actuators: r#"<motor tendon="t"/>"# },
     Refused { what: "slider-crank", variant: unsupported, element: "<motor>", reason: "slider-crank",
         actuators: r#"<motor cranksite="s" slidersite="s" cranklength="1"/>"# },

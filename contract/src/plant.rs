@@ -189,8 +189,9 @@ impl Resource for PlantResource {
     // 2: the compiled model gained constraints and sensors_disabled
     // (2026-11-26); a format-1 reader would silently drop them.
     // 3: start values chosen at export (`starts`), force and torque sensors
-    // and interaction_bodies, gravity_compensation (2026-11-26), which a
-    // format-2 reader would silently ignore.
+    // and interaction_bodies, gravity_compensation, tendons and their
+    // constraint rows (2026-11-26), which a format-2 reader would silently
+    // ignore.
     const FORMAT: u32 = 3;
 
     fn format(&self) -> u32 {
@@ -334,13 +335,15 @@ impl SensorDependence {
         match kind {
             Clock => SensorDependence::Nothing,
             JointPos | BallQuat | FramePos | FrameQuat | FrameXAxis | FrameYAxis | FrameZAxis | SubtreeCom
-            | ActuatorPos | JointLimitPos => SensorDependence::Configuration,
+            | ActuatorPos | JointLimitPos | TendonPos | TendonLimitPos => SensorDependence::Configuration,
             JointVel | BallAngVel | FrameLinVel | FrameAngVel | SubtreeLinVel | SubtreeAngMom | Gyro | Velocimeter
-            | ActuatorVel | JointLimitVel => SensorDependence::Motion,
-            ActuatorFrc | JointActuatorFrc => SensorDependence::Controls,
+            | ActuatorVel | JointLimitVel | TendonVel | TendonLimitVel => SensorDependence::Motion,
+            ActuatorFrc | JointActuatorFrc | TendonActuatorFrc => SensorDependence::Controls,
             // A limit's force solves one problem with every input's ε; a
             // body's interaction force takes the accelerations.
-            FrameLinAcc | FrameAngAcc | Accelerometer | JointLimitFrc | Force | Torque => SensorDependence::Inputs,
+            FrameLinAcc | FrameAngAcc | Accelerometer | JointLimitFrc | TendonLimitFrc | Force | Torque => {
+                SensorDependence::Inputs
+            }
         }
     }
 }

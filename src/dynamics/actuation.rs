@@ -24,6 +24,8 @@ enum Moment {
     Dofs { dof: usize, arms: [f64; 6], count: usize },
     /// Wrenches on links (link coordinates, about the link origin).
     Wrenches { wrenches: [(usize, SpatialVec); 3], count: usize },
+    /// A tendon's moment arms times `gear`.
+    Tendon { tendon: usize, gear: f64 },
 }
 
 /// An actuator's transmission at the current state.
@@ -60,7 +62,7 @@ fn rotation_at(theta: &[f64], qpos: usize) -> Quat {
 }
 
 /// A site's placement in the world, ˢX₀, from its link's.
-fn site_in_world(site: &SiteFrame, x_world: &[Transform]) -> Transform {
+pub(super) fn site_in_world(site: &SiteFrame, x_world: &[Transform]) -> Transform {
     match site.link {
         Some(link) => site.frame.compose(&x_world[link]),
         None => site.frame,
@@ -69,7 +71,12 @@ fn site_in_world(site: &SiteFrame, x_world: &[Transform]) -> Transform {
 
 /// The wrench of force `f` through the site's origin and torque `n` (both in
 /// world axes) on the site's link, in link coordinates about the link origin.
-fn wrench_at_site(site: &SiteFrame, x_world: &[Transform], n: &Vec3, f: &Vec3) -> (Option<usize>, SpatialVec) {
+pub(super) fn wrench_at_site(
+    site: &SiteFrame,
+    x_world: &[Transform],
+    n: &Vec3,
+    f: &Vec3,
+) -> (Option<usize>, SpatialVec) {
     let Some(link) = site.link else {
         return (None, SpatialVec::zeros());
     };
@@ -135,6 +142,11 @@ fn transmit(ws: &Workspace, actuator: &Actuator) -> Transmitted {
         ActuatorTransmission::RelativeSite { site, reference, common_link } => {
             relative_site(ws, actuator, &site, &reference, common_link)
         }
+        ActuatorTransmission::Tendon { tendon } => Transmitted {
+            length: ws.tendon_length[tendon] * gear[0],
+            velocity: ws.tendon_velocity[tendon] * gear[0],
+            moment: Moment::Tendon { tendon, gear: gear[0] },
+        },
     }
 }
 
@@ -221,8 +233,9 @@ fn clip(x: f64, low: f64, high: f64) -> f64 {
     }
 }
 
-/// Adds `force` times the unit moment to the dof forces or link wrenches.
-fn apply(moment: &Moment, force: f64, qfrc: &mut [f64], link_wrench: &mut [SpatialVec]) {
+/// Adds `force` times the unit moment to the dof forces or link wrenches
+/// (`tendon_moment`: the tendons' moment arms, nv per tendon).
+fn apply(moment: &Moment, force: f64, qfrc: &mut [f64], link_wrench: &mut [SpatialVec], tendon_moment: &[f64]) {
     match moment {
         Moment::Dofs { dof, arms, count } => {
             for (slot, arm) in qfrc[*dof..*dof + count].iter_mut().zip(arms) {
@@ -232,6 +245,13 @@ fn apply(moment: &Moment, force: f64, qfrc: &mut [f64], link_wrench: &mut [Spati
         Moment::Wrenches { wrenches, count } => {
             for (link, wrench) in &wrenches[..*count] {
                 link_wrench[*link] += wrench * force;
+            }
+        }
+        Moment::Tendon { tendon, gear } => {
+            let nv = qfrc.len();
+            let arms = &tendon_moment[tendon * nv..(tendon + 1) * nv];
+            for (slot, arm) in qfrc.iter_mut().zip(arms) {
+                *slot += arm * gear * force;
             }
         }
     }
@@ -263,7 +283,13 @@ impl Workspace {
             let force =
                 actuator_force(actuator, actuation.clamp_ctrl, ctrl[k], transmitted.length, transmitted.velocity);
             self.actuator_force[k] = force;
-            apply(&transmitted.moment, force, self.qfrc_actuator.as_mut_slice(), &mut self.link_wrench);
+            apply(
+                &transmitted.moment,
+                force,
+                self.qfrc_actuator.as_mut_slice(),
+                &mut self.link_wrench,
+                &self.tendon_moment,
+            );
         }
         let mut qfrc = std::mem::take(&mut self.qfrc_actuator);
         self.collect_wrenches(model, qfrc.as_mut_slice());
@@ -303,7 +329,7 @@ impl Workspace {
             self.actuator_length[index] = transmitted.length;
             self.actuator_velocity[index] = transmitted.velocity;
             self.actuator_force[index] = values[k];
-            apply(&transmitted.moment, values[k], qfrc, &mut self.link_wrench);
+            apply(&transmitted.moment, values[k], qfrc, &mut self.link_wrench, &self.tendon_moment);
         }
         self.collect_wrenches(model, qfrc);
     }
@@ -375,7 +401,7 @@ impl Workspace {
         self.prepare_transmissions(model);
         let transmitted = transmit(self, &model.actuators[k]);
         let mut qfrc = std::mem::take(&mut self.qfrc_actuator);
-        apply(&transmitted.moment, 1.0, qfrc.as_mut_slice(), &mut self.link_wrench);
+        apply(&transmitted.moment, 1.0, qfrc.as_mut_slice(), &mut self.link_wrench, &self.tendon_moment);
         self.collect_wrenches(model, qfrc.as_mut_slice());
         moment.copy_from_slice(qfrc.as_slice());
         self.qfrc_actuator = qfrc;

@@ -9,7 +9,9 @@
 //!   −C_i = R⁻¹ u_i + Ṙᵀ w_i + Rᵀ Ġᵀ V⁺_i.
 //! Forces (springs, dampers, gravity, its compensation) run the same inward recursion without
 //! velocities: u_i = τ_i − Sᵀ p_i, p^a = p + G u, ε_passive,i = R⁻¹ u_i;
-//! a vehicle with none of them (`Shortcuts::no_passive_forces`) skips it.
+//! a tendon's spring and damper enter τ as Jᵀf (`tendon`); a vehicle with
+//! none of them (`Shortcuts::no_passive_forces`, no tendon spring or
+//! damper) skips it.
 
 use nalgebra::{SMatrix, SVector};
 
@@ -170,9 +172,13 @@ fn bias_link<const N: usize, const RATES: bool>(
 /// from which the outward pass of acceleration.rs gives θ̈ (the
 /// articulated-body algorithm's cost, without the İ^A recursion).
 pub(crate) fn bias_pass<const RATES: bool>(model: &Model, ws: &mut Workspace, eps: &[f64]) {
-    let forces = !model.shortcuts.no_passive_forces();
+    let tendon_forces = model.tendons.iter().any(|t| t.has_passive_force());
+    let forces = !model.shortcuts.no_passive_forces() || tendon_forces;
     if forces {
         passive_forces(model, ws);
+        if tendon_forces {
+            super::tendon::add_passive_forces(model, ws);
+        }
     }
     for i in (0..model.links.len()).rev() {
         match model.links[i].ndof {

@@ -39,6 +39,19 @@ pub enum RowKind {
     Friction,
     /// A joint limit: f ≥ 0.
     Limit,
+    /// Friction loss of a tendon: |f| ≤ frictionloss.
+    #[serde(rename = "tendon_friction")]
+    TendonFriction,
+    /// A tendon limit: f ≥ 0.
+    #[serde(rename = "tendon_limit")]
+    TendonLimit,
+}
+
+impl RowKind {
+    /// Whether the row is a friction loss (no stiffness in its reference).
+    fn is_friction(self) -> bool {
+        matches!(self, RowKind::Friction | RowKind::TendonFriction)
+    }
 }
 
 /// The rows active at the current state and their forces — filled by
@@ -155,8 +168,9 @@ impl ConstraintRows {
     }
 
     /// The friction and limit rows at configuration `theta` (quaternions
-    /// normalized), after the equality rows.
-    fn instantiate_friction_and_limits(&mut self, model: &Model, theta: &[f64]) {
+    /// normalized), after the equality rows: the dofs' friction, the
+    /// tendons', the joints' limits, the tendons' (MuJoCo's order).
+    fn instantiate_friction_and_limits(&mut self, model: &Model, theta: &[f64], tendons: &TendonState) {
         let nv = model.nv;
         let weights = &model.constraints.dof_invweight0;
         for (index, friction) in model.constraints.friction.iter().enumerate() {
@@ -164,6 +178,12 @@ impl ConstraintRows {
             self.jacobian[k * nv + friction.dof] = 1.0;
             (self.lower[k], self.upper[k]) = (-friction.frictionloss, friction.frictionloss);
             self.diagonal_estimate[k] = weights[friction.dof];
+        }
+        for (index, friction) in model.constraints.tendon_friction.iter().enumerate() {
+            let k = self.push(nv, RowKind::TendonFriction, index, 0.0, 0.0);
+            self.jacobian[k * nv..(k + 1) * nv].copy_from_slice(tendons.moment(friction.tendon));
+            (self.lower[k], self.upper[k]) = (-friction.frictionloss, friction.frictionloss);
+            self.diagonal_estimate[k] = model.tendons[friction.tendon].invweight0;
         }
         for (index, limit) in model.constraints.limits.iter().enumerate() {
             match limit.kind {
@@ -195,6 +215,35 @@ impl ConstraintRows {
                 self.diagonal_estimate[k] = weights[model.constraints.limits[self.id[k]].dof];
             }
         }
+        for (index, limit) in model.constraints.tendon_limits.iter().enumerate() {
+            let value = tendons.length[limit.tendon];
+            for (side, bound) in [(-1.0, limit.range[0]), (1.0, limit.range[1])] {
+                let distance = side * (bound - value);
+                if distance < limit.margin {
+                    let k = self.push(nv, RowKind::TendonLimit, index, distance, limit.margin);
+                    for (entry, arm) in self.jacobian[k * nv..(k + 1) * nv].iter_mut().zip(tendons.moment(limit.tendon))
+                    {
+                        *entry = arm * -side;
+                    }
+                    (self.lower[k], self.upper[k]) = (0.0, f64::INFINITY);
+                    self.diagonal_estimate[k] = model.tendons[limit.tendon].invweight0;
+                }
+            }
+        }
+    }
+}
+
+/// The tendons' lengths and moment arms at the state, as the rows read them.
+struct TendonState<'a> {
+    length: &'a [f64],
+    moments: &'a [f64],
+    nv: usize,
+}
+
+impl TendonState<'_> {
+    /// Tendon `k`'s moment arms.
+    fn moment(&self, k: usize) -> &[f64] {
+        &self.moments[k * self.nv..(k + 1) * self.nv]
     }
 }
 
@@ -294,7 +343,8 @@ impl Workspace {
         let mut rows = std::mem::take(&mut self.constraint_rows);
         rows.count = 0;
         self.instantiate_equalities(model, &mut rows);
-        rows.instantiate_friction_and_limits(model, self.theta.as_slice());
+        let tendons = TendonState { length: self.tendon_length.as_slice(), moments: &self.tendon_moment, nv: model.nv };
+        rows.instantiate_friction_and_limits(model, self.theta.as_slice(), &tendons);
         if rows.count == 0 {
             // No row active (limits away, no friction loss or equality):
             // the pass already run is the answer.
@@ -340,9 +390,11 @@ impl Workspace {
                 RowKind::Equality => model.constraints.equalities[rows.id[k]].soft,
                 RowKind::Friction => model.constraints.friction[rows.id[k]].soft,
                 RowKind::Limit => model.constraints.limits[rows.id[k]].soft,
+                RowKind::TendonFriction => model.constraints.tendon_friction[rows.id[k]].soft,
+                RowKind::TendonLimit => model.constraints.tendon_limits[rows.id[k]].soft,
             };
             let imp = impedance(&soft.solimp, rows.violation[k], rows.margin[k]);
-            let (stiffness, damping) = stiffness_damping(model, &soft, rows.kind[k] == RowKind::Friction);
+            let (stiffness, damping) = stiffness_damping(model, &soft, rows.kind[k].is_friction());
             rows.regularizer[k] = ((1.0 - imp) * rows.diagonal_estimate[k] / imp).max(MIN_VALUE);
             rows.aref[k] = -damping * rows.velocity[k] - stiffness * imp * (rows.distance[k] - rows.margin[k]);
             rows.aref[k] -= rows.jdot_v[k];

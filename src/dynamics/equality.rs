@@ -1,6 +1,6 @@
 //! Equality constraints' rows as MuJoCo instantiates them
 //! (`mj_instantiateEquality`, `mj_Jdotv`; docs/DYNAMICS.md §8): a
-//! connect's three rows, a weld's six, a joint coupling's one, each with
+//! connect's three rows, a weld's six, a joint or tendon coupling's one, each with
 //! its violation, its Jacobian row and, for connect and weld, J̇θ̇.
 //!
 //! A connect's or weld's Jacobian rows come from a walk up each frame's
@@ -40,7 +40,7 @@ impl Workspace {
             return;
         }
         self.world_transforms(model);
-        if equalities.iter().any(|e| !matches!(e.rows, EqualityRows::Joint { .. })) {
+        if equalities.iter().any(|e| !matches!(e.rows, EqualityRows::Joint { .. } | EqualityRows::Tendon { .. })) {
             self.bias_accelerations(model, &mut rows.bias_acceleration);
         }
         let nv = model.nv;
@@ -61,6 +61,27 @@ impl Workspace {
                     rows.jacobian[k * nv + first[0]] = 1.0;
                     if let Some([dof, _]) = second {
                         rows.jacobian[k * nv + dof] -= slope;
+                    }
+                    rows.diagonal_estimate[k] = *invweight;
+                }
+                EqualityRows::Tendon { first, second, polycoef: c, invweight } => {
+                    let offset = |k: usize| self.tendon_length[k] - model.tendons[k].length0;
+                    let (violation, slope) = match second {
+                        Some(second) => {
+                            let x = offset(*second);
+                            let value = c[1] * x + c[2] * x * x + c[3] * x * x * x + c[4] * x * x * x * x;
+                            let slope = c[1] + 2.0 * c[2] * x + 3.0 * c[3] * x * x + 4.0 * c[4] * x * x * x;
+                            (offset(*first) - c[0] - value, slope)
+                        }
+                        None => (offset(*first) - c[0], 0.0),
+                    };
+                    let k = rows.push(nv, RowKind::Equality, index, violation, 0.0);
+                    let row = &mut rows.jacobian[k * nv..(k + 1) * nv];
+                    row.copy_from_slice(self.tendon_moment_row(model, *first));
+                    if let Some(second) = second {
+                        for (entry, arm) in row.iter_mut().zip(self.tendon_moment_row(model, *second)) {
+                            *entry += -slope * arm;
+                        }
                     }
                     rows.diagonal_estimate[k] = *invweight;
                 }

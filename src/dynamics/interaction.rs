@@ -99,7 +99,8 @@ impl Workspace {
                     let f = force(k + 3);
                     (frames, anchors, Vec3::new(map[0].dot(&f), map[1].dot(&f), map[2].dot(&f)))
                 }
-                EqualityRows::Joint { .. } => {
+                // Joint couplings and tendon equalities act through joints: inside the sum.
+                EqualityRows::Joint { .. } | EqualityRows::Tendon { .. } => {
                     k += 1;
                     continue;
                 }

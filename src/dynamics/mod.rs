@@ -29,7 +29,9 @@ mod interaction;
 pub mod kinematics;
 pub mod quantities;
 pub mod sensors;
+pub mod tendon;
 pub mod velocity;
+mod wrap;
 
 use nalgebra::SMatrix;
 
@@ -170,6 +172,9 @@ impl Workspace {
         if !model.gravity_compensation.is_empty() {
             gravity_compensation::gravity_compensation_pass(model, self);
         }
+        if !model.tendons.is_empty() {
+            self.tendon_kinematics(model);
+        }
         self.stage = Stage::Configuration;
         Ok(())
     }
@@ -180,6 +185,9 @@ impl Workspace {
         check_input("nu", nu, model.nv)?;
         self.nu.copy_from_slice(nu);
         velocity::velocity_pass(model, self, velocity::Given::Nu);
+        if !model.tendons.is_empty() {
+            self.tendon_velocities(model);
+        }
         self.stage = Stage::Velocity;
         Ok(())
     }
@@ -190,6 +198,9 @@ impl Workspace {
         check_input("qvel", qvel, model.nv)?;
         self.qvel.copy_from_slice(qvel);
         velocity::velocity_pass(model, self, velocity::Given::Qvel);
+        if !model.tendons.is_empty() {
+            self.tendon_velocities(model);
+        }
         self.stage = Stage::Velocity;
         Ok(())
     }

@@ -39,9 +39,16 @@ impl Needs {
         let any = |kinds: &[SensorKind]| model.sensors.iter().any(|s| kinds.contains(&s.kind));
         Needs {
             acceleration: any(&[FrameLinAcc, FrameAngAcc, Accelerometer]),
-            actuation: any(&[ActuatorFrc, ActuatorPos, ActuatorVel, JointActuatorFrc]),
+            actuation: any(&[ActuatorFrc, ActuatorPos, ActuatorVel, JointActuatorFrc, TendonActuatorFrc]),
             quaternions: any(&[FrameQuat]),
-            constraints: any(&[JointLimitPos, JointLimitVel, JointLimitFrc]),
+            constraints: any(&[
+                JointLimitPos,
+                JointLimitVel,
+                JointLimitFrc,
+                TendonLimitPos,
+                TendonLimitVel,
+                TendonLimitFrc,
+            ]),
             interaction: any(&[Force, Torque]),
         }
     }
@@ -130,7 +137,35 @@ impl Workspace {
             SensorSource::Interaction { site, first, end } => {
                 write3(out, &self.interaction_reading(kind, &site, first, end))
             }
+            SensorSource::Tendon { tendon } => {
+                out[0] = match kind {
+                    TendonPos => self.tendon_length[tendon],
+                    TendonVel => self.tendon_velocity[tendon],
+                    TendonActuatorFrc => {
+                        let on_tendon = |a: &&crate::model::Actuator| {
+                            a.transmission == crate::model::ActuatorTransmission::Tendon { tendon }
+                        };
+                        let actuators = model.actuators.iter().enumerate().filter(|(_, a)| on_tendon(a));
+                        actuators.map(|(k, _)| self.actuator_force[k]).sum()
+                    }
+                    _ => self.tendon_limit_row_reading(model, kind, tendon),
+                }
+            }
             SensorSource::Clock => out[0] = time,
+        }
+    }
+
+    /// MuJoCo's tendon limit sensors, as [`Workspace::limit_row_reading`] for joints.
+    fn tendon_limit_row_reading(&self, model: &Model, kind: SensorKind, tendon: usize) -> f64 {
+        let rows = &self.constraint_rows;
+        let limits = &model.constraints.tendon_limits;
+        let row =
+            (0..rows.count).find(|&k| rows.kind[k] == RowKind::TendonLimit && limits[rows.id[k]].tendon == tendon);
+        match (row, kind) {
+            (None, _) => 0.0,
+            (Some(k), SensorKind::TendonLimitPos) => rows.distance[k] - rows.margin[k],
+            (Some(k), SensorKind::TendonLimitVel) => rows.velocity[k],
+            (Some(k), _) => rows.force[k],
         }
     }
 

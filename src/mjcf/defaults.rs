@@ -15,6 +15,7 @@ use super::equality::{self, EqualitySettings};
 use super::error::MjcfError;
 use super::mesh::{MESH_DEFAULT_ATTRIBUTES, MeshSettings};
 use super::orientation::Orientation;
+use super::tendon::{self, TendonSettings};
 use crate::vehicle::{ActuatorKind, JointKind, SoftConstraint};
 
 /// Attributes of `<joint>` in a body (MuJoCo 4.0 schema).
@@ -50,7 +51,7 @@ const NOT_IN_DEFAULTS: [&str; 2] = ["name", "class"];
 /// dynamics.
 #[rustfmt::skip]
 pub(crate) const IGNORED_DEFAULTS: &[&str] =
-    &["camera", "light", "material", "texture", "pair", "tendon"];
+    &["camera", "light", "material", "texture", "pair"];
 
 /// Whether a joint or tendon has limits (`limited`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -200,7 +201,7 @@ impl SoftConstraint {
     /// Overwrites `solref` and `solimp` from the attributes named. MuJoCo
     /// reads fewer numbers than the attribute holds as the leading ones
     /// (solimp's last two are often left out); it refuses non-finite ones.
-    fn apply(&mut self, element: &Element, solref: &str, solimp: &str) -> Result<(), MjcfError> {
+    pub(crate) fn apply(&mut self, element: &Element, solref: &str, solimp: &str) -> Result<(), MjcfError> {
         element.overwrite_numbers(solref, &mut self.solref)?;
         element.overwrite_numbers(solimp, &mut self.solimp)?;
         Ok(())
@@ -418,6 +419,8 @@ pub(crate) struct DefaultClass {
     pub mesh: MeshSettings,
     /// Settings an `<equality>` element of this class starts from.
     pub equality: EqualitySettings,
+    /// Settings a `<fixed>` or `<spatial>` tendon of this class starts from.
+    pub tendon: TendonSettings,
 }
 
 /// All default classes; index 0 is "main".
@@ -442,6 +445,7 @@ impl Defaults {
             actuator: ActuatorSettings::default(),
             mesh: MeshSettings::default(),
             equality: EqualitySettings::default(),
+            tendon: TendonSettings::default(),
         };
         Self { classes: vec![main], parents: vec![None], by_name: HashMap::from([("main".to_string(), (MAIN, 0))]) }
     }
@@ -564,6 +568,10 @@ impl Defaults {
                 "equality" => {
                     child.check_attributes(equality::DEFAULT_ATTRIBUTES)?;
                     self.classes[index].equality.apply(&child)?;
+                }
+                "tendon" => {
+                    child.check_attributes(tendon::DEFAULT_ATTRIBUTES)?;
+                    self.classes[index].tendon.apply(&child)?;
                 }
                 "default" => {}
                 tag if IGNORED_DEFAULTS.contains(&tag) => warnings.push(child.ignored()),

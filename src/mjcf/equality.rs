@@ -1,6 +1,6 @@
-//! `<equality>`: connect, weld and joint constraints, with MuJoCo 4.0's
-//! attributes, defaults and compiler checks. Tendon and flex equalities are
-//! refused (nudyn models neither tendons nor flexes).
+//! `<equality>`: connect, weld, joint and tendon constraints, with MuJoCo
+//! 4.0's attributes, defaults and compiler checks. Flex equalities are
+//! refused (nudyn models no flexes).
 
 use super::element::Element;
 use super::error::MjcfError;
@@ -48,6 +48,8 @@ pub(crate) trait EqualityTargets {
     fn equality_body(&self, element: &Element, attribute: &str) -> Result<Option<usize>, MjcfError>;
     /// The site the attribute names.
     fn equality_site(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError>;
+    /// The tendon the attribute names.
+    fn equality_tendon(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError>;
     /// The kind of the joint the attribute names.
     fn equality_joint(&self, element: &Element, attribute: &str) -> Result<JointKind, MjcfError>;
 }
@@ -58,10 +60,11 @@ pub(crate) const EQUALITY_ATTRIBUTES: &[(&str, &[&str])] = &[
     ("connect", &["body1", "body2", "site1", "site2", "anchor"]),
     ("weld", &["body1", "body2", "site1", "site2", "anchor", "relpose", "torquescale"]),
     ("joint", &["joint1", "joint2", "polycoef"]),
+    ("tendon", &["tendon1", "tendon2", "polycoef"]),
 ];
 
-/// The equality elements MuJoCo has that nudyn refuses: on tendons and flexes.
-pub(crate) const REFUSED_EQUALITIES: &[&str] = &["tendon", "flex", "flexvert", "flexstrain"];
+/// The equality elements MuJoCo has that nudyn refuses: on flexes.
+pub(crate) const REFUSED_EQUALITIES: &[&str] = &["flex", "flexvert", "flexstrain"];
 
 pub(crate) fn read(
     element: &Element,
@@ -72,9 +75,8 @@ pub(crate) fn read(
         Some((_, own)) => *own,
         None if REFUSED_EQUALITIES.contains(&element.tag()) => {
             return Err(element.unsupported(format!(
-                "<equality>/<{}>: an equality constraint on a {} (nudyn models neither tendons nor flexes)",
-                element.tag(),
-                if element.tag() == "tendon" { "tendon" } else { "flex" }
+                "<equality>/<{}>: an equality constraint on a flex (nudyn models no flexes)",
+                element.tag()
             )));
         }
         None => return Err(element.unknown()),
@@ -100,6 +102,22 @@ pub(crate) fn read(
             let mut polycoef = [0.0, 1.0, 0.0, 0.0, 0.0];
             element.overwrite_numbers("polycoef", &mut polycoef)?;
             EqualityKind::Joint { joint1: joint1.to_string(), joint2: joint2.map(str::to_string), polycoef }
+        }
+        "tendon" => {
+            if !element.has("tendon1") {
+                return Err(element.missing("tendon1"));
+            }
+            let tendon1 = targets.equality_tendon(element, "tendon1")?;
+            let tendon2 = match element.has("tendon2") {
+                true => Some(targets.equality_tendon(element, "tendon2")?),
+                false => None,
+            };
+            if tendon2 == Some(tendon1) {
+                return Err(element.invalid("tendon1 and tendon2 name the same tendon in equality constraint"));
+            }
+            let mut polycoef = [0.0, 1.0, 0.0, 0.0, 0.0];
+            element.overwrite_numbers("polycoef", &mut polycoef)?;
+            EqualityKind::Tendon { tendon1, tendon2, polycoef }
         }
         tag => {
             let objects = objects(element, targets)?;

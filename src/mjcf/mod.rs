@@ -4,7 +4,7 @@
 //!
 //! Elements without effect on the dynamics (cameras, lights, visual
 //! settings…) are ignored with a warning each; elements that would change
-//! the dynamics in ways nudyn does not model (tendons, flexible bodies,
+//! the dynamics in ways nudyn does not model (a tendon wrap's side site, flexible bodies,
 //! fluid forces, actuators with activation states…) are rejected with an [`MjcfError`] naming the element
 //! and its line (and its file, when it is in an included one). Sites,
 //! actuators and sensors are read: actuators act through `ctrl`.
@@ -24,6 +24,7 @@ mod orientation;
 mod reader;
 mod sensor;
 mod support;
+mod tendon;
 
 use std::fmt;
 use std::path::{Path, PathBuf};

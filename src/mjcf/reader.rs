@@ -18,12 +18,13 @@ use super::inertia::{self, BodyInertia, EPS, GeomMass, mul_quat, quat_array, qua
 use super::mesh::{self, MESH_ATTRIBUTES, Meshes};
 use super::orientation::{AngleConvention, ORIENTATION_ATTRIBUTES, Orientation, normalized, z_to_quaternion};
 use super::sensor::{self, SensorTargets};
+use super::tendon::{self, TendonFlags, TendonTargets};
 use super::{Imported, MjcfWarning};
 use crate::math::{Mat3, Quat, Vec3};
 use crate::vehicle::{
     Actuation, Actuator, ActuatorKind, BiasType, Body, ConstraintOptions, Equality, EqualityObjects, FrameObject,
-    GainType, Joint, JointConstraints, JointKind, JointLimit, MassProperties, Sensor, SensorKind, SensorTarget, Site,
-    Transmission, Vehicle,
+    GainType, Joint, JointConstraints, JointKind, JointLimit, MassProperties, PathPoint, Sensor, SensorKind,
+    SensorTarget, Site, Tendon, TendonPath, Transmission, Vehicle, WrapGeom,
 };
 
 /// MuJoCo's `mjMINVAL`: the least mass and principal moment of a moving body.
@@ -84,7 +85,6 @@ pub(crate) const IGNORED_SECTIONS: &[&str] =
 /// Actuator attributes naming a transmission nudyn refuses, and why.
 #[rustfmt::skip]
 pub(crate) const REFUSED_TRANSMISSIONS: &[(&str, &str)] = &[
-    ("tendon", "tendon transmissions (nudyn models no tendons)"),
     ("cranksite", "slider-crank transmissions"),
     ("slidersite", "slider-crank transmissions"),
     ("body", "body transmissions act through contacts, which nudyn does not model"),
@@ -247,6 +247,13 @@ struct Reader {
     sensors: Vec<Sensor>,
     sensor_names: HashMap<String, u32>,
     equalities: Vec<Equality>,
+    tendons: Vec<Tendon>,
+    tendon_names: HashMap<String, u32>,
+    /// Whether each tendon is limited (MuJoCo's tendon_limited, before any flag).
+    tendon_limited: Vec<bool>,
+    /// The named geoms, for tendons to wrap around: their type, and their
+    /// frame when a sphere or cylinder.
+    named_geoms: HashMap<String, (GeomKind, Option<WrapGeom>)>,
     /// The bodies the file leaves unnamed.
     unnamed_bodies: Vec<usize>,
     /// The files the model is read from, for the paths of its assets.
@@ -278,7 +285,8 @@ pub(crate) fn read(xml: &str, path: Option<&Path>) -> Result<Imported, MjcfError
     let lines = lines
         .chain(vehicle.sites.iter_mut().map(|s| &mut s.line))
         .chain(vehicle.actuators.iter_mut().map(|a| &mut a.line))
-        .chain(vehicle.sensors.iter_mut().map(|s| &mut s.line));
+        .chain(vehicle.sensors.iter_mut().map(|s| &mut s.line))
+        .chain(vehicle.tendons.iter_mut().map(|t| &mut t.line));
     for line in lines {
         *line = sources.line_in_file(*line);
     }
@@ -322,6 +330,7 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
     let mut actuator_sections = Vec::new();
     let mut sensor_sections = Vec::new();
     let mut equality_sections = Vec::new();
+    let mut tendon_sections = Vec::new();
     let mut keyframe_sections = Vec::new();
     for section in root.children() {
         match section.tag() {
@@ -339,10 +348,8 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
                 reader.warnings.push(section.ignored());
             }
             tag if IGNORED_SECTIONS.contains(&tag) => reader.warnings.push(section.ignored()),
-            "tendon" => match section.children().next() {
-                Some(first) => return Err(first.unsupported("tendons (their forces and limits are not modelled)")),
-                None => reader.warnings.push(section.ignored()),
-            },
+            // Read once every joint and site is known.
+            "tendon" => tendon_sections.push(section),
             // Read once every body, site and joint is known.
             "equality" => equality_sections.push(section),
             "deformable" => reader.read_deformable(&section)?,
@@ -351,6 +358,10 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
     }
     if !has_worldbody {
         return Err(MjcfError::MissingWorldbody { line: root.line, element: root.label() });
+    }
+    // Before the equalities, actuators and sensors, which may name tendons.
+    for section in &tendon_sections {
+        reader.read_tendons(section)?;
     }
     for section in &equality_sections {
         reader.read_equalities(section)?;
@@ -416,6 +427,10 @@ impl Reader {
             sensors: Vec::new(),
             sensor_names: HashMap::new(),
             equalities: Vec::new(),
+            tendons: Vec::new(),
+            tendon_names: HashMap::new(),
+            tendon_limited: Vec::new(),
+            named_geoms: HashMap::new(),
             unnamed_bodies: Vec::new(),
             sources,
             meshes: Meshes::new(),
@@ -638,6 +653,12 @@ impl Reader {
             match child.tag() {
                 "body" => self.read_body_tree(child, frame, class, suffix)?,
                 "site" => self.read_site(&child, class, None, frame, &suffix)?,
+                "geom" if child.has("name") => {
+                    let mut settings = self.defaults.class(self.class_of(&child, class)?).geom.clone();
+                    settings.apply(&child)?;
+                    self.name_geom(&child, &settings, frame.as_ref(), None)?;
+                    self.warnings.push(child.ignored());
+                }
                 tag if tag == "geom" || IGNORED_IN_BODIES.contains(&tag) => {
                     self.named_elsewhere.extend(child.text("target").map(str::to_string));
                     self.warnings.push(child.ignored());
@@ -825,6 +846,7 @@ impl Reader {
         let mut selected = Vec::new();
         let mut mass_unknown = false;
         for (geom, settings, frame) in &geoms {
+            self.name_geom(geom, settings, frame.as_ref(), Some(index))?;
             let [low, high] = self.compiler.inertia_groups;
             let contributes = from_geoms && (low..=high).contains(&settings.group);
             if contributes && mass_not_computed(settings) && !moving {
@@ -1069,6 +1091,38 @@ impl Reader {
             inertia.set_principal(Vec3::repeat(p.sum() / 3.0));
         }
         Ok(inertia)
+    }
+
+    /// Registers a named geom of `body` (`None`: the world) for tendons to
+    /// wrap around: its type, and a sphere's or cylinder's frame in the body.
+    fn name_geom(
+        &mut self,
+        element: &Element,
+        settings: &GeomSettings,
+        frame: Option<&Pose>,
+        body: Option<usize>,
+    ) -> Result<(), MjcfError> {
+        let Some(name) = element.text("name") else { return Ok(()) };
+        let wrap = match settings.kind {
+            GeomKind::Sphere | GeomKind::Cylinder if settings.mesh.is_none() => {
+                let (pos, quat) = match settings.fromto {
+                    Some(fromto) if settings.kind == GeomKind::Cylinder => {
+                        let (pos, quat, _) = fromto_frame(element, &fromto, &settings.pos)?;
+                        (pos, quat)
+                    }
+                    _ => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
+                };
+                let (pos, quat) = frame.map_or((pos, quat), |frame| compose(frame, &(pos, quat)));
+                if settings.size[0] <= 0.0 {
+                    return Err(element.invalid(format!("size[0] must be positive, found {}", settings.size[0])));
+                }
+                let cylinder = settings.kind == GeomKind::Cylinder;
+                Some(WrapGeom { body, pos, quat, radius: settings.size[0], cylinder })
+            }
+            _ => None,
+        };
+        self.named_geoms.insert(name.to_string(), (settings.kind, wrap));
+        Ok(())
     }
 
     /// The geom's mass, frame and principal moments when it contributes to its
@@ -1432,6 +1486,39 @@ impl Reader {
         Ok(())
     }
 
+    /// The `<tendon>` section: each `<fixed>` or `<spatial>` read as MuJoCo
+    /// reads it, less what the `<flag>`s turn off.
+    fn read_tendons(&mut self, section: &Element) -> Result<(), MjcfError> {
+        section.check_attributes(&[])?;
+        let physics = &self.physics;
+        let flags = TendonFlags {
+            autolimits: self.compiler.autolimits,
+            spring_disabled: physics.spring_disabled,
+            damper_disabled: physics.damper_disabled,
+            frictionloss_disabled: physics.constraint_disabled || physics.frictionloss_disabled,
+            limit_disabled: physics.constraint_disabled || physics.limit_disabled,
+        };
+        for element in section.children() {
+            let settings = self.defaults.class(self.class_of(&element, MAIN)?).tendon.clone();
+            let (read, limited) = tendon::read(&element, settings, self, flags)?;
+            if let Some(name) = &read.name {
+                claim_name(&mut self.tendon_names, "tendon", name, &element)?;
+            }
+            self.tendons.push(read);
+            self.tendon_limited.push(limited);
+        }
+        Ok(())
+    }
+
+    /// The index of the tendon the attribute names.
+    fn tendon_named(&self, element: &Element, attribute: &str, user: &str) -> Result<usize, MjcfError> {
+        let name = element.text(attribute).unwrap_or_default();
+        self.tendons
+            .iter()
+            .position(|t| t.name.as_deref() == Some(name))
+            .ok_or_else(|| element.invalid(format!("unknown tendon '{name}' in {user}")))
+    }
+
     fn read_sensors(&mut self, section: &Element) -> Result<(), MjcfError> {
         section.check_attributes(&[])?;
         for child in section.children() {
@@ -1513,16 +1600,24 @@ impl Reader {
             && bias_type == BiasType::Affine
             && settings.gainprm[0] == -settings.biasprm[1];
         if position_like && settings.inheritrange > 0.0 {
-            let Transmission::Joint { joint, .. } = &transmission else {
-                return Err(element.invalid("inheritrange can only be used with joint and tendon transmission"));
+            let (name, [low, high]) = match &transmission {
+                Transmission::Joint { joint, .. } => {
+                    let target = &self.joint_targets[joint];
+                    if !matches!(target.kind, JointKind::Hinge | JointKind::Slide) {
+                        return Err(element.invalid("inheritrange can only be used with hinge and slide joints"));
+                    }
+                    (joint.as_str(), target.range)
+                }
+                Transmission::Tendon { tendon } => {
+                    let tendon = &self.tendons[*tendon];
+                    (tendon.name.as_deref().unwrap_or_default(), tendon.range)
+                }
+                Transmission::Site { .. } => {
+                    return Err(element.invalid("inheritrange can only be used with joint and tendon transmission"));
+                }
             };
-            let target = &self.joint_targets[joint];
-            if !matches!(target.kind, JointKind::Hinge | JointKind::Slide) {
-                return Err(element.invalid("inheritrange can only be used with hinge and slide joints"));
-            }
-            let [low, high] = target.range;
             if low == high {
-                return Err(element.invalid(format!("inheritrange used but target '{joint}' has no range defined")));
+                return Err(element.invalid(format!("inheritrange used but target '{name}' has no range defined")));
             }
             let (mean, radius) = (0.5 * (high + low), 0.5 * (high - low) * settings.inheritrange);
             settings.ctrlrange = [mean - radius, mean + radius];
@@ -1564,7 +1659,7 @@ impl Reader {
                 return Err(element.unsupported(*reason));
             }
         }
-        let mut targets = ["joint", "jointinparent", "site"].into_iter().filter(|a| element.has(a));
+        let mut targets = ["joint", "jointinparent", "tendon", "site"].into_iter().filter(|a| element.has(a));
         let target = targets.next();
         if let (Some(first), Some(second)) = (target, targets.next()) {
             return Err(element.conflict(first, second));
@@ -1579,6 +1674,9 @@ impl Reader {
             return Err(element.invalid("missing transmission target for actuator"));
         };
         let name = element.text(target).unwrap_or_default();
+        if target == "tendon" {
+            return Ok(Transmission::Tendon { tendon: self.tendon_named(element, "tendon", "actuator")? });
+        }
         if target != "site" {
             if !self.joint_targets.contains_key(name) {
                 return Err(self.unknown(element, &format!("transmission target '{name}' for actuator"), name));
@@ -1712,6 +1810,7 @@ impl Reader {
             constraint_options: self.physics.constraint_options,
             equalities: std::mem::take(&mut self.equalities),
             sensors_disabled: self.physics.sensor_disabled,
+            tendons: std::mem::take(&mut self.tendons),
         };
         Ok(Imported { vehicle, warnings: self.warnings })
     }
@@ -1800,6 +1899,10 @@ impl Reader {
                 site.body = parent;
                 (site.pos, site.quat) = compose(&pose, &(site.pos, site.quat));
             }
+            for geom in wrap_geoms_mut(&mut self.tendons).filter(|g| g.body == Some(index)) {
+                geom.body = parent;
+                (geom.pos, geom.quat) = compose(&pose, &(geom.pos, geom.quat));
+            }
         }
 
         // Renumber the bodies left.
@@ -1816,6 +1919,7 @@ impl Reader {
         self.records.retain(|_| keep.next().unwrap_or(true));
         self.bodies.iter_mut().for_each(|b| renumber(&mut b.parent));
         self.sites.iter_mut().for_each(|s| renumber(&mut s.body));
+        wrap_geoms_mut(&mut self.tendons).for_each(|g| renumber(&mut g.body));
         for sensor in &mut self.sensors {
             match &mut sensor.target {
                 SensorTarget::Frame { object, reference } => {
@@ -1851,6 +1955,20 @@ fn fromto_frame(element: &Element, fromto: &[f64; 6], pos: &[f64; 3]) -> Result<
     let direction = normalized(from - to).ok_or_else(|| element.invalid("the 'fromto' points coincide"))?;
     let half_length = (from - to).norm() / 2.0;
     Ok(((from + to) / 2.0, Quat::new_normalize(z_to_quaternion(&direction)), half_length))
+}
+
+/// The geoms the tendons wrap around.
+fn wrap_geoms_mut(tendons: &mut [Tendon]) -> impl Iterator<Item = &mut WrapGeom> {
+    tendons
+        .iter_mut()
+        .flat_map(|tendon| match &mut tendon.path {
+            TendonPath::Spatial(points) => points.as_mut_slice(),
+            TendonPath::Fixed(_) => &mut [],
+        })
+        .filter_map(|point| match point {
+            PathPoint::Geom(geom) => Some(geom),
+            _ => None,
+        })
 }
 
 /// Whether a geom's mass would come from an asset nudyn does not read: an
@@ -1893,6 +2011,10 @@ impl EqualityTargets for Reader {
         self.site_named(element, attribute, "equality constraint")
     }
 
+    fn equality_tendon(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError> {
+        self.tendon_named(element, attribute, "equality constraint")
+    }
+
     fn equality_joint(&self, element: &Element, attribute: &str) -> Result<JointKind, MjcfError> {
         let name = element.text(attribute).unwrap_or_default();
         self.joint_targets
@@ -1902,7 +2024,41 @@ impl EqualityTargets for Reader {
     }
 }
 
+impl TendonTargets for Reader {
+    fn tendon_joint(&self, element: &Element, attribute: &str) -> Result<JointKind, MjcfError> {
+        let name = element.text(attribute).unwrap_or_default();
+        self.joint_targets
+            .get(name)
+            .map(|joint| joint.kind)
+            .ok_or_else(|| element.invalid(format!("unknown joint '{name}' in tendon")))
+    }
+
+    fn tendon_site(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError> {
+        self.site_named(element, attribute, "tendon")
+    }
+
+    fn tendon_geom(&self, element: &Element, attribute: &str) -> Result<WrapGeom, MjcfError> {
+        let name = element.text(attribute).unwrap_or_default();
+        match self.named_geoms.get(name) {
+            None => Err(element.invalid(format!("unknown geom '{name}' in tendon"))),
+            Some((_, Some(geom))) => Ok(*geom),
+            Some((kind, None)) => Err(element.invalid(format!(
+                "geom '{name}' in tendon is not sphere or cylinder (it is {kind:?}{})",
+                if *kind == GeomKind::Sphere || *kind == GeomKind::Cylinder { " fitted to a mesh" } else { "" }
+            ))),
+        }
+    }
+}
+
 impl SensorTargets for Reader {
+    fn tendon(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError> {
+        self.tendon_named(element, attribute, "sensor")
+    }
+
+    fn tendon_limited(&self, element: &Element, attribute: &str) -> Result<bool, MjcfError> {
+        Ok(self.tendon_limited[self.tendon_named(element, attribute, "sensor")?])
+    }
+
     fn joint_kind(&self, element: &Element, attribute: &str) -> Result<JointKind, MjcfError> {
         Ok(self.sensed_joint(element, attribute)?.kind)
     }

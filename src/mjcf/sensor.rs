@@ -23,6 +23,10 @@ pub(crate) trait SensorTargets {
     fn site(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError>;
     /// The actuator the attribute names.
     fn actuator(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError>;
+    /// The tendon the attribute names.
+    fn tendon(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError>;
+    /// Whether the tendon the attribute names is limited.
+    fn tendon_limited(&self, element: &Element, attribute: &str) -> Result<bool, MjcfError>;
 }
 
 /// The sensor elements MuJoCo has that nudyn refuses, and why.
@@ -31,8 +35,6 @@ pub(crate) const REFUSED_SENSORS: &[(&[&str], &str)] = &[
     (&["touch", "rangefinder", "contact", "tactile", "insidesite", "geomdist", "geomnormal", "geomfromto"],
      "the sensor measures contacts or geometry, which nudyn does not model"),
     (&["magnetometer", "camprojection"], "the sensor type is not computed by nudyn"),
-    (&["tendonpos", "tendonvel", "tendonactuatorfrc", "tendonlimitpos", "tendonlimitvel", "tendonlimitfrc"],
-     "tendons are not modelled"),
     (&["e_potential", "e_kinetic"], "energy sensors are not computed by nudyn (the FMU has kinetic_energy)"),
     (&["user", "plugin"], "user and plugin sensors are computed by code nudyn does not have"),
 ];
@@ -51,6 +53,7 @@ pub(crate) fn own_attributes(kind: SensorKind) -> &'static [&'static str] {
         JointPos | JointVel | BallQuat | BallAngVel | JointActuatorFrc => &["joint"],
         JointLimitPos | JointLimitVel | JointLimitFrc => &["joint"],
         ActuatorPos | ActuatorVel | ActuatorFrc => &["actuator"],
+        TendonPos | TendonVel | TendonActuatorFrc | TendonLimitPos | TendonLimitVel | TendonLimitFrc => &["tendon"],
         FrameLinAcc | FrameAngAcc => &["objtype", "objname"],
         FramePos | FrameQuat | FrameXAxis | FrameYAxis | FrameZAxis | FrameLinVel | FrameAngVel => {
             &["objtype", "objname", "reftype", "refname"]
@@ -123,6 +126,17 @@ fn target(element: &Element, kind: SensorKind, targets: &impl SensorTargets) -> 
         ActuatorPos | ActuatorVel | ActuatorFrc => {
             required("actuator")?;
             SensorTarget::Actuator(targets.actuator(element, "actuator")?)
+        }
+        TendonPos | TendonVel | TendonActuatorFrc => {
+            required("tendon")?;
+            SensorTarget::Tendon(targets.tendon(element, "tendon")?)
+        }
+        TendonLimitPos | TendonLimitVel | TendonLimitFrc => {
+            required("tendon")?;
+            if !targets.tendon_limited(element, "tendon")? {
+                return Err(element.invalid("tendon must be limited in sensor"));
+            }
+            SensorTarget::Tendon(targets.tendon(element, "tendon")?)
         }
         Gyro | Velocimeter | Accelerometer | Force | Torque => {
             required("site")?;

@@ -76,6 +76,11 @@ pub enum ActuatorTransmission {
         /// The deepest link that moves both sites, if any.
         common_link: Option<usize>,
     },
+    /// A tendon: length gear₀·L, moment arms gear₀·J.
+    Tendon {
+        /// The tendon (index into [`Model::tendons`](super::Model::tendons)).
+        tendon: usize,
+    },
 }
 
 impl ActuatorTransmission {
@@ -88,9 +93,9 @@ impl ActuatorTransmission {
 /// What an actuator acts on, by name (for descriptions).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ActuatorTarget {
-    /// "joint", "jointinparent" or "site": MuJoCo's attribute.
+    /// "joint", "jointinparent", "tendon" or "site": MuJoCo's attribute.
     pub attribute: String,
-    /// The joint's or site's name.
+    /// The joint's, tendon's or site's name.
     pub name: String,
     /// The reference site's name.
     pub refsite: Option<String>,

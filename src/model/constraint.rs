@@ -1,6 +1,6 @@
 //! The constraints MuJoCo builds for what nudyn's trees hold, compiled:
-//! equality constraints (connect, weld, joint coupling), the friction loss
-//! of each dof and the joints' limits (docs/DYNAMICS.md §8). Which rows are active at a state, and their
+//! equality constraints (connect, weld, joint and tendon couplings), the
+//! friction loss of each dof and tendon, and the joints' and tendons' limits (docs/DYNAMICS.md §8). Which rows are active at a state, and their
 //! forces, are [`crate::dynamics::constraint`]'s.
 
 use serde::{Deserialize, Serialize};
@@ -24,6 +24,14 @@ pub struct Constraints {
     /// Limited joints in joint order (`mjCNSTR_LIMIT_JOINT` rows: up to two
     /// for a hinge or slide, one for a ball).
     pub limits: Vec<Limit>,
+    /// Friction loss of tendons, in tendon order (`mjCNSTR_FRICTION_TENDON`
+    /// rows, after the dofs').
+    #[serde(default)]
+    pub tendon_friction: Vec<TendonFriction>,
+    /// Limited tendons in tendon order (`mjCNSTR_LIMIT_TENDON` rows, up to
+    /// two each, after the joints').
+    #[serde(default)]
+    pub tendon_limits: Vec<TendonLimit>,
     /// The `<option>` settings their forces depend on.
     pub options: ConstraintOptions,
     /// MuJoCo's `dof_invweight0` (nv; empty without constraints): the mean
@@ -83,6 +91,17 @@ pub enum EqualityRows {
         /// MuJoCo's `dof_invweight0` of the two joints, summed (set with the invweights).
         invweight: f64,
     },
+    /// One row: L₁ − L₁⁰ − p(L₂ − L₂⁰) of two tendons' lengths, L⁰ in qpos0.
+    Tendon {
+        /// Tendon 1 (index into [`Model::tendons`]).
+        first: usize,
+        /// Tendon 2, if any.
+        second: Option<usize>,
+        /// `polycoef`.
+        polycoef: [f64; 5],
+        /// MuJoCo's `tendon_invweight0` of the two tendons, summed.
+        invweight: f64,
+    },
 }
 
 impl EqualityRows {
@@ -91,7 +110,7 @@ impl EqualityRows {
         match self {
             EqualityRows::Connect { .. } => 3,
             EqualityRows::Weld { .. } => 6,
-            EqualityRows::Joint { .. } => 1,
+            EqualityRows::Joint { .. } | EqualityRows::Tendon { .. } => 1,
         }
     }
 }
@@ -104,6 +123,30 @@ pub struct DofFriction {
     /// The joint's `frictionloss`: the largest force the row can apply.
     pub frictionloss: f64,
     /// `solreffriction`, `solimpfriction`.
+    pub soft: SoftConstraint,
+}
+
+/// Friction loss on one tendon.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TendonFriction {
+    /// The tendon (index into [`Model::tendons`]).
+    pub tendon: usize,
+    /// Its `frictionloss`: the largest force the row can apply.
+    pub frictionloss: f64,
+    /// `solreffriction`, `solimpfriction`.
+    pub soft: SoftConstraint,
+}
+
+/// A limited tendon.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TendonLimit {
+    /// The tendon (index into [`Model::tendons`]).
+    pub tendon: usize,
+    /// `range` of its length.
+    pub range: [f64; 2],
+    /// `margin`.
+    pub margin: f64,
+    /// `solreflimit`, `solimplimit`.
     pub soft: SoftConstraint,
 }
 
@@ -129,15 +172,20 @@ pub struct Limit {
 impl Constraints {
     /// Whether the vehicle has no constraint at all.
     pub fn is_empty(&self) -> bool {
-        self.equalities.is_empty() && self.friction.is_empty() && self.limits.is_empty()
+        self.equalities.is_empty()
+            && self.friction.is_empty()
+            && self.limits.is_empty()
+            && self.tendon_friction.is_empty()
+            && self.tendon_limits.is_empty()
     }
 
-    /// The most rows that can be active at once: one per friction dof, two
-    /// per hinge or slide limit (both sides within a wide margin), one per ball.
+    /// The most rows that can be active at once: one per friction dof or
+    /// tendon, two per hinge, slide or tendon limit (both sides within a wide
+    /// margin), one per ball.
     pub fn max_rows(&self) -> usize {
         let limit_rows: usize = self.limits.iter().map(|l| if l.kind == JointKind::Ball { 1 } else { 2 }).sum();
         let equality_rows: usize = self.equalities.iter().map(|e| e.rows.count()).sum();
-        equality_rows + self.friction.len() + limit_rows
+        equality_rows + self.friction.len() + limit_rows + self.tendon_friction.len() + 2 * self.tendon_limits.len()
     }
 
     /// What the constraints are, in words, for an FMU's descriptions:
@@ -156,6 +204,12 @@ impl Constraints {
         }
         if !self.limits.is_empty() {
             kinds.push(format!("limits on {} joints", self.limits.len()));
+        }
+        if !self.tendon_friction.is_empty() {
+            kinds.push(format!("tendon friction loss on {} tendons", self.tendon_friction.len()));
+        }
+        if !self.tendon_limits.is_empty() {
+            kinds.push(format!("limits on {} tendons", self.tendon_limits.len()));
         }
         Some(format!("constraint forces as MuJoCo's soft constraints: {}", kinds.join(", ")))
     }
@@ -195,6 +249,35 @@ impl Constraints {
             }
         }
         // MuJoCo orders friction rows by dof: joints come in dof order already.
+        for (index, tendon) in vehicle.tendons.iter().enumerate() {
+            let bad = |what: &'static str, value: f64| ModelError::BadParameter {
+                joint: format!("tendon {}", tendon.name.as_deref().unwrap_or(&index.to_string())),
+                what,
+                value,
+            };
+            if !tendon.frictionloss.is_finite() {
+                return Err(bad("frictionloss", tendon.frictionloss));
+            }
+            // MuJoCo makes a row of a positive friction loss only.
+            if tendon.frictionloss > 0.0 {
+                constraints.tendon_friction.push(TendonFriction {
+                    tendon: index,
+                    frictionloss: tendon.frictionloss,
+                    soft: tendon.friction,
+                });
+            }
+            if let Some(limit) = &tendon.limit {
+                if !limit.margin.is_finite() {
+                    return Err(bad("margin", limit.margin));
+                }
+                constraints.tendon_limits.push(TendonLimit {
+                    tendon: index,
+                    range: limit.range,
+                    margin: limit.margin,
+                    soft: limit.soft,
+                });
+            }
+        }
         Ok(constraints)
     }
 }
@@ -366,6 +449,11 @@ impl Model {
                 let invweight = weights[first[0]] + second.map_or(0.0, |s| weights[s[0]]);
                 EqualityRows::Joint { first, second, polycoef: *polycoef, invweight }
             }
+            EqualityKind::Tendon { tendon1, tendon2, polycoef } => {
+                let weight = |k: usize| self.tendons[k].invweight0;
+                let invweight = weight(*tendon1) + tendon2.map_or(0.0, weight);
+                EqualityRows::Tendon { first: *tendon1, second: *tendon2, polycoef: *polycoef, invweight }
+            }
         };
         Ok(rows)
     }
@@ -382,6 +470,7 @@ fn equality_label(equality: &Equality, index: usize) -> String {
         EqualityKind::Connect { .. } => "connect",
         EqualityKind::Weld { .. } => "weld",
         EqualityKind::Joint { .. } => "joint",
+        EqualityKind::Tendon { .. } => "tendon",
     };
     match &equality.name {
         Some(name) => format!("<{tag}> '{name}'"),

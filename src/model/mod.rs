@@ -31,12 +31,14 @@ mod constraint;
 mod gravity_compensation;
 mod interaction;
 mod sensor;
+mod tendon;
 mod validate;
 pub use actuator::{Actuator, ActuatorTarget, ActuatorTransmission, DofForceLimit, SiteFrame};
-pub use constraint::{CompiledEquality, Constraints, DofFriction, EqualityRows, Limit};
+pub use constraint::{CompiledEquality, Constraints, DofFriction, EqualityRows, Limit, TendonFriction, TendonLimit};
 pub use gravity_compensation::{CompensatedLink, GravityCompensation};
 pub use interaction::InteractionBodies;
 pub use sensor::{BodyMass, Sensor, SensorSource};
+pub use tendon::{FixedTerm, Path, PathStop, Tendon};
 pub use validate::InvalidModel;
 
 /// Motion subspace storage: up to three columns, the first `ndof` used.
@@ -262,6 +264,9 @@ pub struct Model {
     /// Body `gravcomp` and joint `actuatorgravcomp`: MuJoCo's gravity compensation.
     #[serde(default)]
     pub gravity_compensation: GravityCompensation,
+    /// Tendons in MuJoCo's order.
+    #[serde(default)]
+    pub tendons: Vec<Tendon>,
 }
 
 /// Why a vehicle cannot be compiled.
@@ -478,6 +483,7 @@ impl Model {
         let nv = dof_count(&links);
         let shortcuts = Shortcuts::of(&links, &vehicle.gravity);
         let sites = site_frames(vehicle, &attachments);
+        let tendons = tendon::compile_tendons(vehicle, &joints, &sites, &attachments);
         let mut actuators = compile_actuators(vehicle, &links, &joints, &sites);
         for (k, name) in wrench_bodies.iter().enumerate() {
             // Two wrenches on one body would be two sets of inputs that add up:
@@ -539,13 +545,16 @@ impl Model {
             interaction_bodies,
             sensors_disabled: vehicle.sensors_disabled,
             gravity_compensation: compensation.applied(vehicle, actuator_gravcomp_dofs),
+            tendons,
         };
         model.validate()?;
         model.check_positive_definite()?;
+        model.compile_tendons_in_qpos0(vehicle)?;
         model.resolve_damping_ratios()?;
         model.constraints = constraints;
         model.compile_constraints_in_qpos0(vehicle, &attachments, &sites)?;
-        let (iterations, rows) = (vehicle.constraint_options.noslip_iterations, model.constraints.friction.len());
+        let rows = model.constraints.friction.len() + model.constraints.tendon_friction.len();
+        let iterations = vehicle.constraint_options.noslip_iterations;
         if iterations > 0 && rows > 0 {
             return Err(ModelError::NoSlip { iterations, rows });
         }
@@ -614,6 +623,11 @@ fn compile_actuators(vehicle: &Vehicle, links: &[Link], joints: &[JointInfo], si
                     };
                     let attribute = if in_parent { "jointinparent" } else { "joint" };
                     (ActuatorTarget { attribute: attribute.into(), name: joint.clone(), refsite: None }, transmission)
+                }
+                Transmission::Tendon { tendon } => {
+                    let name = vehicle.tendons[*tendon].name.clone().unwrap_or_default();
+                    let target = ActuatorTarget { attribute: "tendon".into(), name, refsite: None };
+                    (target, ActuatorTransmission::Tendon { tendon: *tendon })
                 }
                 Transmission::Site { site, refsite } => {
                     let transmission = match refsite {

@@ -56,6 +56,11 @@ pub enum SensorSource {
         /// One past its last body.
         end: usize,
     },
+    /// A tendon.
+    Tendon {
+        /// The tendon (index into [`Model::tendons`](super::Model::tendons)).
+        tendon: usize,
+    },
     /// The simulation time.
     Clock,
 }
@@ -214,6 +219,10 @@ pub(super) fn compile_sensors(
                     )));
                 }
                 (SensorSource::Subtree { first, end }, format!("subtree of body '{name}'"))
+            }
+            SensorTarget::Tendon(k) => {
+                let name = vehicle.tendons[*k].name.clone().unwrap_or_default();
+                (SensorSource::Tendon { tendon: *k }, format!("tendon '{name}'"))
             }
             SensorTarget::None => (SensorSource::Clock, "time".to_string()),
         };

@@ -127,6 +127,14 @@ pub enum InvalidModel {
         /// What is wrong.
         what: String,
     },
+    /// A tendon whose path lies outside the model or whose numbers are not finite.
+    #[error("tendon {tendon}: {what}")]
+    Tendon {
+        /// The tendon's index.
+        tendon: usize,
+        /// What is wrong.
+        what: String,
+    },
     /// More wrench bodies than actuators to carry their inputs.
     #[error("{bodies} wrench bodies need {needed} actuators, the model has {found}")]
     WrenchInputs {
@@ -225,6 +233,7 @@ fn validate_actuator(model: &Model, k: usize) -> Result<(), String> {
         ActuatorTransmission::RelativeSite { site, reference, common_link } => {
             site_ok(site) && site_ok(reference) && common_link.is_none_or(|l| l < model.links.len())
         }
+        ActuatorTransmission::Tendon { tendon } => *tendon < model.tendons.len(),
     };
     if !fits {
         return Err("its transmission does not match the links".to_string());
@@ -242,7 +251,7 @@ fn validate_actuator(model: &Model, k: usize) -> Result<(), String> {
 }
 
 /// A placement with finite numbers and a proper rotation.
-fn placement_is_proper(placement: &Transform) -> bool {
+pub(super) fn placement_is_proper(placement: &Transform) -> bool {
     let rot = &placement.rot;
     placement.rot.iter().chain(placement.trans.iter()).all(|x| x.is_finite())
         && (rot.transpose() * rot - super::Mat3::identity()).amax() <= PHYSICS_TOLERANCE
@@ -332,6 +341,9 @@ fn validate(model: &Model) -> Result<(), InvalidModel> {
     finite(0, "gravity", model.gravity.iter())?;
     finite(0, "qpos0", &model.qpos0)?;
     finite(0, "qpos_spring", &model.qpos_spring)?;
+    for k in 0..model.tendons.len() {
+        super::tendon::validate_tendon(model, k).map_err(|what| InvalidModel::Tendon { tendon: k, what })?;
+    }
     for k in 0..model.actuators.len() {
         validate_actuator(model, k).map_err(|what| InvalidModel::Actuator { actuator: k, what })?;
     }
@@ -413,9 +425,32 @@ pub(super) fn validate_constraints(model: &Model) -> Result<(), String> {
                 let inside = |[dof, qpos]: [usize; 2]| dof < model.nv && qpos < model.nq;
                 inside(*first) && second.is_none_or(inside) && finite(polycoef) && invweight.is_finite()
             }
+            EqualityRows::Tendon { first, second, polycoef, invweight } => {
+                let inside = |k: usize| k < model.tendons.len();
+                inside(*first) && second.is_none_or(inside) && finite(polycoef) && invweight.is_finite()
+            }
         };
         if !ok || !soft_ok(&equality.soft) {
             return Err(bad());
+        }
+    }
+    for friction in &constraints.tendon_friction {
+        let ok = friction.tendon < model.tendons.len()
+            && friction.frictionloss.is_finite()
+            && friction.frictionloss > 0.0
+            && soft_ok(&friction.soft);
+        if !ok {
+            return Err(format!("friction loss of tendon {} is outside the model or not finite", friction.tendon));
+        }
+    }
+    for limit in &constraints.tendon_limits {
+        let ok = limit.tendon < model.tendons.len()
+            && limit.range.iter().all(|x| x.is_finite())
+            && limit.range[0] < limit.range[1]
+            && limit.margin.is_finite()
+            && soft_ok(&limit.soft);
+        if !ok {
+            return Err(format!("the limit of tendon {} is outside the model or not a finite range", limit.tendon));
         }
     }
     let weights = &constraints.dof_invweight0;
@@ -500,14 +535,20 @@ fn validate_sensors(model: &Model) -> Result<(), InvalidModel> {
                 | JointLimitVel
                 | JointLimitFrc
         );
+        let reads_a_tendon = matches!(
+            sensor.kind,
+            TendonPos | TendonVel | TendonActuatorFrc | TendonLimitPos | TendonLimitVel | TendonLimitFrc
+        );
         let kind_matches = match &sensor.source {
             SensorSource::Joint { .. } => reads_a_joint,
+            SensorSource::Tendon { .. } => reads_a_tendon,
             SensorSource::Actuator { .. } => matches!(sensor.kind, ActuatorFrc | ActuatorPos | ActuatorVel),
             SensorSource::Subtree { .. } => matches!(sensor.kind, SubtreeCom | SubtreeLinVel | SubtreeAngMom),
             SensorSource::Interaction { .. } => matches!(sensor.kind, Force | Torque),
             SensorSource::Clock => sensor.kind == Clock,
             SensorSource::Frame { .. } => {
                 !reads_a_joint
+                    && !reads_a_tendon
                     && !matches!(
                         sensor.kind,
                         ActuatorFrc
@@ -546,6 +587,7 @@ fn validate_sensors(model: &Model) -> Result<(), InvalidModel> {
             SensorSource::Interaction { site, first, end } => {
                 frame_ok(site) && first <= end && *end <= model.body_masses.len() && interaction_bodies_ok(model)
             }
+            SensorSource::Tendon { tendon } => *tendon < model.tendons.len(),
             SensorSource::Clock => true,
         };
         if !fits {

@@ -471,6 +471,7 @@ pub fn random_vehicle(rng: &mut Rng, opts: TreeOptions) -> Vehicle {
         constraint_options: Default::default(),
         equalities: Vec::new(),
         sensors_disabled: false,
+        tendons: Vec::new(),
     }
 }
 

@@ -128,12 +128,13 @@ def test_command_writes_picture_table_and_numbers(nudyn, tmp_path):
 def test_command_passes_on_the_importers_message(nudyn, tmp_path):
     model = tmp_path / "tendon.xml"
     model.write_text(
-        '<mujoco><worldbody><body><joint name="j"/><geom size="0.1"/></body></worldbody>'
-        '<tendon><fixed name="t"><joint joint="j" coef="1"/></fixed></tendon></mujoco>'
+        '<mujoco><worldbody><body><joint name="j"/><geom name="g" size="0.1"/><site name="s"/></body>'
+        '<site name="w" pos="1 0 0"/></worldbody><tendon><spatial name="t"><site site="s"/>'
+        '<geom geom="g" sidesite="w"/><site site="w"/></spatial></tendon></mujoco>'
     )
     proc = run_command(model, "--out", tmp_path / "out", "--nudyn", nudyn)
     assert proc.returncode == 2
-    assert "tendons" in proc.stderr and "line 1" in proc.stderr
+    assert "sidesite" in proc.stderr and "line 1" in proc.stderr
 
 
 @pytest.mark.parametrize(

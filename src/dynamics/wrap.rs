@@ -1,0 +1,163 @@
+//! A spatial tendon's segment wrapped around a sphere or a cylinder, with
+//! MuJoCo's geometry (its `mju_wrap`, engine_util_misc.c): the segment
+//! between two sites, seen in the geom's frame, is projected onto a plane
+//! (through the sites and the sphere's centre; the cylinder's x-y plane),
+//! wrapped around the circle there along the tangent lines from each site,
+//! and, for a cylinder, lifted back along its axis as a helix, the shorter
+//! way round. No wrap when the straight segment misses the circle. (Side
+//! sites, which choose the side, are refused by the importer.)
+
+use crate::math::{Transform, Vec3};
+
+/// MuJoCo's `mjMINVAL`.
+const MIN_VALUE: f64 = 1e-15;
+
+/// A 2D point.
+type Point = [f64; 2];
+
+/// The wrap of `x0 → x1` (world points) around a sphere or cylinder of
+/// `radius` placed at `geom` (world → geom frame): the arc's length and the
+/// two points where the tendon meets the geom (world), or `None` when it
+/// runs straight.
+pub(super) fn wrap(x0: &Vec3, x1: &Vec3, geom: &Transform, radius: f64, cylinder: bool) -> Option<(f64, Vec3, Vec3)> {
+    let local = |x: &Vec3| geom.rot * (x - geom.trans);
+    let (p0, p1) = (local(x0), local(x1));
+    if p0.norm() < MIN_VALUE || p1.norm() < MIN_VALUE {
+        return None;
+    }
+    let (axis0, axis1) = if cylinder { (Vec3::x(), Vec3::y()) } else { sphere_plane(&p0, &p1) };
+    let ends = [p0.dot(&axis0), p0.dot(&axis1), p1.dot(&axis0), p1.dot(&axis1)];
+    let (length, points) = wrap_circle(&ends, radius)?;
+    let lift = |k: usize| axis0 * points[2 * k] + axis1 * points[2 * k + 1];
+    let (mut q0, mut q1) = (lift(0), lift(1));
+    let mut length = length;
+    if cylinder {
+        // The helix: heights in proportion to the path length up to each point.
+        let planar = |p: &Vec3, q: &Vec3| ((p.x - q.x) * (p.x - q.x) + (p.y - q.y) * (p.y - q.y)).sqrt();
+        let (to_first, from_second) = (planar(&p0, &q0), planar(&p1, &q1));
+        let total = to_first + length + from_second;
+        q0.z = p0.z + (p1.z - p0.z) * to_first / total;
+        q1.z = p0.z + (p1.z - p0.z) * (to_first + length) / total;
+        let height = (q1.z - q0.z).abs();
+        length = (length * length + height * height).sqrt();
+    }
+    let world = |q: &Vec3| geom.rot.transpose() * q + geom.trans;
+
+    Some((length, world(&q0), world(&q1)))
+}
+
+/// The plane of a sphere wrap: its first axis towards `p0`, its second in
+/// the plane of `p0`, `p1` and the centre (any plane through `p0` when the
+/// three are aligned, chosen as MuJoCo chooses it).
+fn sphere_plane(p0: &Vec3, p1: &Vec3) -> (Vec3, Vec3) {
+    let axis0 = normalized(p0);
+    let mut normal = p0.cross(p1);
+    if normal.norm() < MIN_VALUE {
+        let a = axis0.abs();
+        let largest = if a.y > a.x && a.y > a.z {
+            1
+        } else if a.z > a.x && a.z > a.y {
+            2
+        } else {
+            0
+        };
+        let mut other = Vec3::new(1.0, 1.0, 1.0);
+        other[largest] = 0.0;
+        normal = axis0.cross(&other);
+    }
+    let normal = normalized(&normal);
+    (axis0, normalized(&normal.cross(&axis0)))
+}
+
+/// MuJoCo's `mju_normalize3`: x along the unit x axis when it vanishes.
+fn normalized(v: &Vec3) -> Vec3 {
+    let norm = v.norm();
+    if norm < MIN_VALUE { Vec3::x() } else { v * (1.0 / norm) }
+}
+
+/// MuJoCo's `mju_normalize` of a 2D vector.
+fn normalize2(v: &mut Point) -> f64 {
+    let norm = (v[0] * v[0] + v[1] * v[1]).sqrt();
+    if norm < MIN_VALUE {
+        *v = [1.0, 0.0];
+    } else {
+        let inverse = 1.0 / norm;
+        v[0] *= inverse;
+        v[1] *= inverse;
+    }
+    norm
+}
+
+/// Whether the 2D segments a₁a₂ and b₁b₂ cross (parallel ones never do).
+fn segments_cross(a1: &[f64], a2: &[f64], b1: &[f64], b2: &[f64]) -> bool {
+    let det = (b2[1] - b1[1]) * (a2[0] - a1[0]) - (b2[0] - b1[0]) * (a2[1] - a1[1]);
+    if det.abs() < MIN_VALUE {
+        return false;
+    }
+    let s = ((b2[0] - b1[0]) * (a1[1] - b1[1]) - (b2[1] - b1[1]) * (a1[0] - b1[0])) / det;
+    let t = ((a2[0] - a1[0]) * (a1[1] - b1[1]) - (a2[1] - a1[1]) * (a1[0] - b1[0])) / det;
+    (0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&t)
+}
+
+/// The arc from `p0` to `p1` on the circle of `radius`, the long way round
+/// when the tangents' orientation says so (`second`: the second of the two
+/// tangent solutions).
+fn arc_length(p0: &Point, p1: &Point, second: bool, radius: f64) -> f64 {
+    let (mut u0, mut u1) = (*p0, *p1);
+    normalize2(&mut u0);
+    normalize2(&mut u1);
+    let mut angle = (u0[0] * u1[0] + u0[1] * u1[1]).clamp(-1.0, 1.0).acos();
+    let cross = p0[1] * p1[0] - p0[0] * p1[1];
+    if (cross > 0.0 && second) || (cross < 0.0 && !second) {
+        angle = 2.0 * std::f64::consts::PI - angle;
+    }
+    radius * angle
+}
+
+/// The wrap around a circle of the 2D segment `ends` (x₀, y₀, x₁, y₁):
+/// the arc's length and its end points (x, y, x, y), or `None` when the
+/// segment does not cross the circle.
+fn wrap_circle(ends: &[f64; 4], radius: f64) -> Option<(f64, [f64; 4])> {
+    let square0 = ends[0] * ends[0] + ends[1] * ends[1];
+    let square1 = ends[2] * ends[2] + ends[3] * ends[3];
+    let square_radius = radius * radius;
+    if square0 < square_radius || square1 < square_radius || radius < MIN_VALUE {
+        return None;
+    }
+    let difference = [ends[2] - ends[0], ends[3] - ends[1]];
+    let dd = difference[0] * difference[0] + difference[1] * difference[1];
+    if dd < MIN_VALUE {
+        return None;
+    }
+    // The segment's point nearest the centre.
+    let a = (-(difference[0] * ends[0] + difference[1] * ends[1]) / dd).clamp(0.0, 1.0);
+    let nearest = [a * difference[0] + ends[0], a * difference[1] + ends[1]];
+    if nearest[0] * nearest[0] + nearest[1] * nearest[1] > square_radius {
+        return None;
+    }
+    let root0 = (square0 - square_radius).sqrt();
+    let root1 = (square1 - square_radius).sqrt();
+    // The two pairs of tangent points, and how good each is: the shorter
+    // chord; crossing tangents are worst.
+    let mut solutions = [[0.0; 4]; 2];
+    let mut goodness = [0.0; 2];
+    for (i, sign) in [1.0, -1.0].into_iter().enumerate() {
+        let s = &mut solutions[i];
+        s[0] = (ends[0] * square_radius + sign * radius * ends[1] * root0) / square0;
+        s[1] = (ends[1] * square_radius - sign * radius * ends[0] * root0) / square0;
+        s[2] = (ends[2] * square_radius - sign * radius * ends[3] * root1) / square1;
+        s[3] = (ends[3] * square_radius + sign * radius * ends[2] * root1) / square1;
+        let chord = [s[0] - s[2], s[1] - s[3]];
+        goodness[i] = -(chord[0] * chord[0] + chord[1] * chord[1]);
+        if segments_cross(&ends[0..2], &s[0..2], &ends[2..4], &s[2..4]) {
+            goodness[i] = -10000.0;
+        }
+    }
+    let i = if goodness[0] > goodness[1] { 0 } else { 1 };
+    let chosen = solutions[i];
+    if segments_cross(&ends[0..2], &chosen[0..2], &ends[2..4], &chosen[2..4]) {
+        return None;
+    }
+    let length = arc_length(&[chosen[0], chosen[1]], &[chosen[2], chosen[3]], i == 1, radius);
+    Some((length, chosen))
+}

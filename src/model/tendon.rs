@@ -1,0 +1,252 @@
+//! Compiled tendons: each path resolved into θ and dof addresses (fixed
+//! tendons) or site frames on links (spatial tendons), with the lengths
+//! MuJoCo computes in qpos0 and in the spring pose (docs/DYNAMICS.md §9).
+//! Their lengths, moment arms and velocities at a state are
+//! [`crate::dynamics::tendon`]'s.
+
+use serde::{Deserialize, Serialize};
+
+use super::{Attachment, InvalidModel, JointInfo, LinkJoint, Model, ModelError, SiteFrame};
+use crate::math::Transform;
+use crate::vehicle::{PathPoint, TendonPath, Vehicle};
+
+/// One compiled tendon.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Tendon {
+    /// Its name, if it has one.
+    pub name: Option<String>,
+    /// What its length is measured along.
+    pub path: Path,
+    /// `stiffness`.
+    pub stiffness: f64,
+    /// `damping`.
+    pub damping: f64,
+    /// The lengths between which the spring is at rest (MuJoCo's
+    /// `tendon_lengthspring`, its −1 resolved in the spring pose).
+    pub spring_length: [f64; 2],
+    /// The length in qpos0 (MuJoCo's `tendon_length0`), from which a tendon
+    /// equality measures.
+    pub length0: f64,
+    /// J M⁻¹ Jᵀ in qpos0 (MuJoCo's `tendon_invweight0`), the scale of its
+    /// constraint rows' regularizer.
+    pub invweight0: f64,
+    /// Line of the element in the MJCF file (1-based).
+    pub line: u32,
+}
+
+impl Tendon {
+    /// The tendon as messages name it: its element and name, or its index.
+    pub fn label(&self, index: usize) -> String {
+        let element = match self.path {
+            Path::Fixed { .. } => "fixed",
+            Path::Spatial { .. } => "spatial",
+        };
+        match &self.name {
+            Some(name) => format!("<{element}> tendon '{name}'"),
+            None => format!("<{element}> tendon {index}"),
+        }
+    }
+
+    /// Whether its spring or damper can push (MuJoCo skips it otherwise).
+    pub fn has_passive_force(&self) -> bool {
+        self.stiffness != 0.0 || self.damping != 0.0
+    }
+}
+
+/// A tendon's path, compiled.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "type")]
+pub enum Path {
+    /// Σ coef · θ over hinge and slide joints: constant moment arms.
+    Fixed {
+        /// The joints and their coefficients.
+        terms: Vec<FixedTerm>,
+    },
+    /// Straight segments between consecutive sites.
+    Spatial {
+        /// The sites and pulleys, in order.
+        stops: Vec<PathStop>,
+    },
+}
+
+/// One joint of a fixed tendon.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FixedTerm {
+    /// The joint's θ entry.
+    pub qpos: usize,
+    /// The joint's dof.
+    pub dof: usize,
+    /// `coef`.
+    pub coef: f64,
+}
+
+/// One element of a spatial tendon's path.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "type")]
+pub enum PathStop {
+    /// A site on its link (or the world).
+    Site {
+        /// The site's frame.
+        frame: SiteFrame,
+        /// The MJCF body carrying it (`None`: the world): MuJoCo gives a
+        /// segment between two sites of one body no moment arms.
+        body: Option<usize>,
+    },
+    /// A sphere or cylinder the segment between the sites around it wraps around.
+    Geom {
+        /// The geom's frame on its link (a cylinder's axis is its z).
+        frame: SiteFrame,
+        /// The MJCF body carrying it.
+        body: Option<usize>,
+        /// Its radius.
+        radius: f64,
+        /// A cylinder (else a sphere).
+        cylinder: bool,
+    },
+    /// A pulley: the segments after it count 1/divisor.
+    Pulley {
+        /// `divisor`.
+        divisor: f64,
+    },
+}
+
+/// The tendons of `vehicle`, their joints resolved against the compiled
+/// `joints` and their sites at `sites`; the qpos0 lengths are filled by
+/// [`Model::compile_tendons_in_qpos0`]. The importer has checked every name.
+pub(super) fn compile_tendons(
+    vehicle: &Vehicle,
+    joints: &[JointInfo],
+    sites: &[SiteFrame],
+    attachments: &[Attachment],
+) -> Vec<Tendon> {
+    vehicle
+        .tendons
+        .iter()
+        .map(|tendon| {
+            let path = match &tendon.path {
+                TendonPath::Fixed(terms) => Path::Fixed {
+                    terms: terms
+                        .iter()
+                        .map(|(name, coef)| {
+                            let joint = joints.iter().find(|j| &j.name == name).expect("the importer checked it");
+                            FixedTerm { qpos: joint.qpos_adr, dof: joint.dof_adr, coef: *coef }
+                        })
+                        .collect(),
+                },
+                TendonPath::Spatial(points) => Path::Spatial {
+                    stops: points
+                        .iter()
+                        .map(|point| match *point {
+                            PathPoint::Site(site) => {
+                                PathStop::Site { frame: sites[site], body: vehicle.sites[site].body }
+                            }
+                            PathPoint::Pulley(divisor) => PathStop::Pulley { divisor },
+                            PathPoint::Geom(geom) => {
+                                let in_body =
+                                    Transform::from_pose(&geom.quat.to_rotation_matrix().into_inner(), &geom.pos);
+                                let frame = match geom.body {
+                                    Some(b) => SiteFrame {
+                                        link: attachments[b].link,
+                                        frame: in_body.compose(&attachments[b].offset),
+                                    },
+                                    None => SiteFrame { link: None, frame: in_body },
+                                };
+                                PathStop::Geom { frame, body: geom.body, radius: geom.radius, cylinder: geom.cylinder }
+                            }
+                        })
+                        .collect(),
+                },
+            };
+            Tendon {
+                name: tendon.name.clone(),
+                path,
+                stiffness: tendon.stiffness,
+                damping: tendon.damping,
+                // Resolved in the spring pose when the file leaves it to MuJoCo (−1).
+                spring_length: tendon.spring_length.unwrap_or_default(),
+                length0: 0.0,
+                invweight0: 0.0,
+                line: tendon.line,
+            }
+        })
+        .collect()
+}
+
+impl Model {
+    /// What MuJoCo's `mj_setConst` computes for tendons: each tendon's
+    /// length and J M⁻¹ Jᵀ = |m⁻¹Jᵀ|² in qpos0, and, where the file leaves
+    /// `springlength` to it, its length in the spring pose. Nothing without tendons.
+    pub(super) fn compile_tendons_in_qpos0(&mut self, vehicle: &Vehicle) -> Result<(), ModelError> {
+        if self.tendons.is_empty() {
+            return Ok(());
+        }
+        let singular = |e| self.singular(e);
+        let mut ws = self.workspace();
+        ws.set_configuration(self, &self.qpos0).map_err(singular)?;
+        let mut eps = vec![0.0; self.nv];
+        let mut qpos0 = Vec::with_capacity(self.tendons.len());
+        for k in 0..self.tendons.len() {
+            let moment = &ws.tendon_moment[k * self.nv..(k + 1) * self.nv].to_vec();
+            ws.eps_from_forces(self, moment, None, &mut eps).map_err(singular)?;
+            qpos0.push((ws.tendon_length[k], eps.iter().map(|e| e * e).sum::<f64>()));
+        }
+        ws.set_configuration(self, &self.qpos_spring).map_err(singular)?;
+        for (k, tendon) in self.tendons.iter_mut().enumerate() {
+            (tendon.length0, tendon.invweight0) = qpos0[k];
+            if vehicle.tendons[k].spring_length.is_none() {
+                tendon.spring_length = [ws.tendon_length[k]; 2];
+            }
+        }
+        for k in 0..self.tendons.len() {
+            validate_tendon(self, k).map_err(|what| ModelError::Invalid(InvalidModel::Tendon { tendon: k, what }))?;
+        }
+        Ok(())
+    }
+}
+
+/// Checks tendon `k` against the links: a fixed tendon's terms on hinge or
+/// slide joints, a spatial tendon's sites on existing links with proper
+/// placements, positive divisors, finite numbers.
+pub(super) fn validate_tendon(model: &Model, k: usize) -> Result<(), String> {
+    let tendon = &model.tendons[k];
+    let scalar_joint = |term: &FixedTerm| {
+        let link = model.links.iter().find(|l| l.dof_adr == term.dof);
+        link.is_some_and(|l| matches!(l.joint, LinkJoint::Hinge | LinkJoint::Slide) && l.qpos_adr == term.qpos)
+    };
+    let fits = match &tendon.path {
+        Path::Fixed { terms } => !terms.is_empty() && terms.iter().all(|t| scalar_joint(t) && t.coef.is_finite()),
+        Path::Spatial { stops } => {
+            stops.len() >= 2
+                && stops.iter().all(|stop| match stop {
+                    PathStop::Site { frame, .. } => {
+                        frame.link.is_none_or(|l| l < model.links.len())
+                            && super::validate::placement_is_proper(&frame.frame)
+                    }
+                    PathStop::Pulley { divisor } => divisor.is_finite() && *divisor > 0.0,
+                    PathStop::Geom { frame, radius, .. } => {
+                        frame.link.is_none_or(|l| l < model.links.len())
+                            && super::validate::placement_is_proper(&frame.frame)
+                            && radius.is_finite()
+                            && *radius > 0.0
+                    }
+                })
+        }
+    };
+    if !fits {
+        return Err("its path does not match the links".to_string());
+    }
+    if let Path::Spatial { stops } = &tendon.path {
+        let site = |k: Option<usize>| k.and_then(|k| stops.get(k)).is_some_and(|s| matches!(s, PathStop::Site { .. }));
+        let bracketed = (0..stops.len())
+            .filter(|&k| matches!(stops[k], PathStop::Geom { .. }))
+            .all(|k| site(k.checked_sub(1)) && site(Some(k + 1)));
+        if !bracketed {
+            return Err("a geom of its path is not between two sites".to_string());
+        }
+    }
+    let numbers = [tendon.stiffness, tendon.damping, tendon.length0, tendon.invweight0];
+    if !numbers.iter().chain(&tendon.spring_length).all(|x| x.is_finite()) {
+        return Err("stiffness, damping, spring length and qpos0 data must be finite".to_string());
+    }
+    Ok(())
+}

@@ -1,0 +1,203 @@
+"""Tendons against MuJoCo.
+
+tests/fixtures/tendons/tendon_finger.xml flies a bus with a 3-joint finger
+coupled by a fixed tendon (spring with a deadband, damper, friction loss,
+range) and pulled by a spatial tendon through sites on the bus and each
+phalanx (with a pulley), a position servo on the fixed tendon with an
+inherited ctrlrange and a motor on the spatial one; tendon_limits.xml a bus
+with an arm whose spatial and fixed tendons carry limits and friction loss
+beside joint friction and a joint limit, and two tendon equalities;
+tendon_wrap.xml spatial tendons wrapping around a cylinder and two spheres,
+with and without side sites. MuJoCo's
+constraint solver is run to round-off (nudyn_validation.mujoco_reference.
+load_model), so both sides solve the same problem to its optimum.
+"""
+
+from __future__ import annotations
+
+import json
+
+import mujoco
+import numpy as np
+import pytest
+
+from conftest import ROOT, run_eval
+from nudyn_validation.compare import validate_model
+from nudyn_validation.mujoco_reference import load_model
+from nudyn_validation.scenarios import FORCED_TOLERANCE, UNFORCED_TOLERANCE
+
+FIXTURES = {
+    name: ROOT / "tests" / "fixtures" / "tendons" / f"{name}.xml"
+    for name in ("tendon_finger", "tendon_limits", "tendon_wrap")
+}
+N_STATES = 60
+KINDS = {
+    int(mujoco.mjtConstraint.mjCNSTR_EQUALITY): "equality",
+    int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF): "friction",
+    int(mujoco.mjtConstraint.mjCNSTR_FRICTION_TENDON): "tendon_friction",
+    int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT): "limit",
+    int(mujoco.mjtConstraint.mjCNSTR_LIMIT_TENDON): "tendon_limit",
+}
+
+
+def random_states(model: mujoco.MjModel, rng: np.random.Generator):
+    """The bus anywhere, the arm's joints spread by 0.8 rad (or m) about
+    qpos0 so that tendons cross their ranges, random velocities and controls
+    beyond their ranges; one state in five near qpos0 at rest without
+    controls, where friction loss holds the arm (its rows inside their box)."""
+    for k in range(N_STATES):
+        at_rest = k % 5 == 0
+        qpos = model.qpos0.copy()
+        qpos[:3] += rng.normal(0, 0.3, 3)
+        q = rng.normal(size=4)
+        qpos[3:7] = q / np.linalg.norm(q)
+        qpos[7:] += rng.normal(0, 0.01 if at_rest else 0.8, model.nq - 7)
+        qvel = np.zeros(model.nv) if at_rest else rng.normal(0, 0.5, model.nv)
+        ctrl = np.zeros(model.nu) if at_rest else rng.uniform(-1.5, 1.5, model.nu)
+        yield qpos, qvel, ctrl
+
+
+_evaluated: dict = {}
+
+
+@pytest.fixture(params=list(FIXTURES))
+def evaluated(request, nudyn):
+    """(MuJoCo's data per state, nudyn eval's answer per state) for a fixture."""
+    if request.param not in _evaluated:
+        _evaluated[request.param] = evaluate(FIXTURES[request.param], nudyn)
+    return _evaluated[request.param]
+
+
+def evaluate(path, nudyn):
+    model = load_model(path)
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(33)
+    references, requests = [], []
+    for qpos, qvel, ctrl in random_states(model, rng):
+        data.qpos[:], data.qvel[:], data.ctrl[:] = qpos, qvel, ctrl
+        mujoco.mj_forward(model, data)
+        references.append(
+            {
+                "qacc": data.qacc.copy(),
+                "qfrc_constraint": data.qfrc_constraint.copy(),
+                "qfrc_passive": data.qfrc_passive.copy(),
+                "efc_type": data.efc_type.copy(),
+                "efc_force": data.efc_force.copy(),
+                "ten_length": data.ten_length.copy(),
+                "ten_velocity": data.ten_velocity.copy(),
+                "ten_wrapnum": data.ten_wrapnum.copy(),
+                "sensordata": data.sensordata.copy(),
+            }
+        )
+        requests.append({"theta": qpos.tolist(), "qvel": qvel.tolist(), "ctrl": ctrl.tolist()})
+    # The same states without the tendons' springs and dampers: how far a
+    # model that left them out would be (the check below must be able to fail).
+    model.tendon_stiffness[:] = 0
+    model.tendon_damping[:] = 0
+    for reference, request in zip(references, requests):
+        data.qpos[:], data.qvel[:], data.ctrl[:] = request["theta"], request["qvel"], request["ctrl"]
+        mujoco.mj_forward(model, data)
+        reference["qacc_without_tendon_springs"] = data.qacc.copy()
+    result = run_eval(nudyn, path, json.dumps(requests))
+    out = result.json()
+    assert isinstance(out, list) and len(out) == N_STATES, result.describe()
+    return references, out
+
+
+def relative(a, b) -> float:
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    return float(np.max(np.abs(a - b)) / max(1.0, float(np.max(np.abs(b)))))
+
+
+def test_qacc_and_qfrc_constraint_match_mujoco(evaluated):
+    references, out = evaluated
+    for k, (reference, answer) in enumerate(zip(references, out)):
+        assert relative(answer["qacc"], reference["qacc"]) < 1e-12, f"state {k}"
+        # A vehicle without constraint rows reports none (MuJoCo's is then 0).
+        qfrc_constraint = answer.get("qfrc_constraint", np.zeros_like(reference["qfrc_constraint"]))
+        assert relative(qfrc_constraint, reference["qfrc_constraint"]) < 1e-12, f"state {k}"
+
+
+def test_tendon_springs_and_dampers_count(evaluated):
+    """Where MuJoCo's tendon springs and dampers push, a model without them
+    is off by far more than the agreement above."""
+    references, _ = evaluated
+    if not any(r["qfrc_passive"].any() for r in references):
+        pytest.skip("no tendon spring")
+    moved = [relative(r["qacc_without_tendon_springs"], r["qacc"]) for r in references]
+    assert min(moved) > 1e-6, min(moved)
+
+
+def test_tendon_sensors_equal_mujocos_sensordata(evaluated):
+    """tendonpos, tendonvel, tendonactuatorfrc and the tendon limit sensors
+    (with actuator sensors on tendon transmissions) equal MuJoCo's."""
+    references, out = evaluated
+    for k, (reference, answer) in enumerate(zip(references, out)):
+        assert relative(answer["sensordata"], reference["sensordata"]) < 1e-12, f"state {k}"
+
+
+def test_rows_are_mujocos_rows_in_its_order(evaluated):
+    references, out = evaluated
+    for k, (reference, answer) in enumerate(zip(references, out)):
+        rows = answer.get("constraint_rows", [])
+        assert [r["kind"] for r in rows] == [KINDS[int(t)] for t in reference["efc_type"]], f"state {k}"
+        forces = np.array([r["force"] for r in rows])
+        assert not rows or relative(forces, reference["efc_force"]) < 1e-10, f"state {k}"
+
+
+def test_the_states_cover_every_tendon_row(nudyn):
+    """Tendon limits active and not, on both sides of the rows' order;
+    tendon friction loss saturated and sliding; both equalities present."""
+    for name in FIXTURES:
+        if name not in _evaluated:
+            _evaluated[name] = evaluate(FIXTURES[name], nudyn)
+    _, limits = _evaluated["tendon_limits"]
+    kinds = [[r["kind"] for r in a["constraint_rows"]] for a in limits]
+    assert min(k.count("tendon_limit") for k in kinds) == 0 and max(k.count("tendon_limit") for k in kinds) >= 1
+    assert all(k.count("equality") == 2 for k in kinds)
+    strap = [r for a in limits for r in a["constraint_rows"] if r.get("tendon") == "<spatial> tendon 'strap'"]
+    assert {r["kind"] for r in strap} == {"tendon_friction", "tendon_limit"}
+    friction = [r["force"] for a in limits + _evaluated["tendon_finger"][1] for r in a["constraint_rows"] if r["kind"] == "tendon_friction"]
+    saturated = sum(np.isclose(abs(f), 8) or np.isclose(abs(f), 0.3) for f in friction)
+    assert saturated > 10 and len(friction) - saturated > 5
+
+
+def test_the_states_wrap_each_tendon_and_not(nudyn):
+    """On tendon_wrap, each tendon runs around its geom in some states and
+    straight past it in others (MuJoCo's ten_wrapnum: two more points when
+    wrapped), so both branches of the wrap are compared above."""
+    if "tendon_wrap" not in _evaluated:
+        _evaluated["tendon_wrap"] = evaluate(FIXTURES["tendon_wrap"], nudyn)
+    references, _ = _evaluated["tendon_wrap"]
+    counts = np.array([r["ten_wrapnum"] for r in references])
+    for tendon in range(counts.shape[1]):
+        assert len(set(counts[:, tendon])) == 2, (tendon, sorted(set(counts[:, tendon])))
+
+
+@pytest.mark.parametrize("name", list(FIXTURES))
+def test_fmu_runs_with_its_tendons_like_mujoco(name, nudyn, tmp_path):
+    """Every scenario of scripts/validate.py (RK4 at 1e-4 s on both sides,
+    2 s): θ, ν and sensordata within the validation's tolerances; on
+    tendon_limits with a tendon limit reached on the way."""
+    fixture = FIXTURES[name]
+    validation = validate_model(fixture, tmp_path / f"{name}.fmu", nudyn)
+    model = load_model(fixture)
+    data = mujoco.MjData(model)
+    reached = 0
+    for result in validation.results:
+        x = result.summary()
+        tolerance = UNFORCED_TOLERANCE if result.scenario.name in ("tumble", "gravity") else FORCED_TOLERANCE
+        report = json.dumps(x, indent=1)
+        assert x["max_theta_error"] <= tolerance, report
+        assert x["max_nu_error"] <= tolerance, report
+        assert x["max_sensordata_error"] <= tolerance, report
+        for qpos in result.mujoco.theta:
+            data.qpos[:] = qpos
+            mujoco.mj_kinematics(model, data)
+            mujoco.mj_comPos(model, data)
+            mujoco.mj_tendon(model, data)
+            low, high = model.tendon_range[:, 0] + model.tendon_margin, model.tendon_range[:, 1] - model.tendon_margin
+            limited = model.tendon_limited.astype(bool)
+            reached += int(np.any(limited & ((data.ten_length < low) | (data.ten_length > high))))
+    if name == "tendon_limits":
+        assert reached > 0, "the scenarios must drive some tendon into its limit"

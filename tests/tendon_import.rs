@@ -1,0 +1,259 @@
+//! Tendons from MJCF: what the importer and the compiler make of them, and
+//! the refusals, each naming the element, its line and why (MuJoCo 4.0
+//! refuses the same files, unless the message says nudyn does not model it).
+//! The dynamics are checked against MuJoCo in tests/python/test_tendons.py.
+
+use std::path::PathBuf;
+
+use nudyn::mjcf::{MjcfError, load_mjcf, parse_mjcf};
+use nudyn::model::{Model, Path};
+
+fn fixture(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/tendons").join(name)
+}
+
+/// A hinge, a slide and a ball joint on a free body, two sites and a geom;
+/// `tendons` goes into `<tendon>` (line 11 onwards), `rest` after it.
+fn scene(tendons: &str, rest: &str) -> String {
+    format!(
+        r#"<mujoco>
+<worldbody>
+<body name="base"><freejoint/><geom size="0.2"/>
+<site name="s0" pos="0.1 0 0"/>
+<body name="arm" pos="0.5 0 0">
+<joint name="hinge" axis="0 1 0"/><joint name="slide" type="slide" axis="1 0 0"/>
+<geom name="g" size="0.1"/><geom name="box" type="box" size="0.1 0.1 0.1"/><site name="s1" pos="0.3 0 0"/>
+<body pos="0.3 0 0"><joint name="ball" type="ball"/><geom size="0.1"/></body></body></body>
+</worldbody>
+<tendon>
+{tendons}
+</tendon>
+{rest}
+</mujoco>"#
+    )
+}
+
+fn refused(tendons: &str, rest: &str) -> MjcfError {
+    match parse_mjcf(&scene(tendons, rest)) {
+        Err(error) => error,
+        Ok(_) => panic!("accepted: {tendons} {rest}"),
+    }
+}
+
+#[test]
+fn the_finger_compiles_with_mujocos_spring_lengths_and_qpos0_data() {
+    let imported = load_mjcf(&fixture("tendon_finger.xml")).unwrap();
+    let model = Model::compile(&imported.vehicle).unwrap();
+    assert_eq!(model.tendons.len(), 3);
+    assert!(matches!(model.tendons[0].path, Path::Fixed { ref terms } if terms.len() == 3));
+    assert!(matches!(model.tendons[1].path, Path::Spatial { ref stops } if stops.len() == 8));
+    // Default classes: "cable" gives the spatial tendon its stiffness and
+    // damping, main its stiffness to the others.
+    let stiffness: Vec<f64> = model.tendons.iter().map(|t| t.stiffness).collect();
+    assert_eq!(stiffness, [3.0, 40.0, 3.0]);
+    assert_eq!(model.tendons[1].damping, 0.5);
+    // MuJoCo 4.0's tendon_lengthspring, tendon_length0, tendon_invweight0
+    // and the servo's inherited ctrlrange for this file (its Python bindings).
+    let spring: Vec<[f64; 2]> = model.tendons.iter().map(|t| t.spring_length).collect();
+    assert_eq!(spring, [[-0.1, 0.2], [0.55, 0.55], [0.0, 0.0]]);
+    let length0 = [0.0, 0.7754528418821949, 0.0];
+    let invweight0 = [135.1922704231635, 9.1227239431221, 38.68817018198323];
+    for (k, tendon) in model.tendons.iter().enumerate() {
+        assert!((tendon.length0 - length0[k]).abs() < 1e-14, "{k}: {}", tendon.length0);
+        assert!((tendon.invweight0 / invweight0[k] - 1.0).abs() < 1e-12, "{k}: {}", tendon.invweight0);
+    }
+    let [low, high] = model.actuators[0].ctrl_range.unwrap();
+    assert!((low + 1.2).abs() < 1e-15 && (high - 1.2).abs() < 1e-15);
+    // MuJoCo's biasprm[2] from dampratio 0.7: −0.7·2√(kp·m), m = 1/(J M⁻¹ Jᵀ) in qpos0.
+    assert!((model.actuators[0].bias[2] / -0.17028135707728473 - 1.0).abs() < 1e-12, "{}", model.actuators[0].bias[2]);
+    assert_eq!(model.constraints.tendon_friction.len(), 1);
+    assert_eq!(model.constraints.tendon_limits.len(), 1);
+}
+
+#[test]
+fn a_compiled_model_with_a_tendon_outside_it_is_refused() {
+    let model = Model::compile(&load_mjcf(&fixture("tendon_finger.xml")).unwrap().vehicle).unwrap();
+    let mut off_the_dofs = model.clone();
+    if let Path::Fixed { terms } = &mut off_the_dofs.tendons[0].path {
+        terms[0].dof = model.nv;
+    }
+    let mut no_such_tendon = model.clone();
+    no_such_tendon.constraints.tendon_limits[0].tendon = 7;
+    let mut not_finite = model.clone();
+    not_finite.tendons[1].spring_length[0] = f64::NAN;
+    for (what, broken) in [("dof", off_the_dofs), ("limit", no_such_tendon), ("spring", not_finite)] {
+        let error = broken.validate().expect_err(what).to_string();
+        assert!(error.contains("tendon"), "{what}: {error}");
+    }
+}
+
+#[test]
+fn a_vehicle_without_tendons_carries_no_tendon_buffers() {
+    let model = Model::compile(&parse_mjcf(&scene("", "")).unwrap().vehicle).unwrap();
+    let ws = model.workspace();
+    assert!(model.tendons.is_empty() && ws.tendon_moment.is_empty() && ws.tendon_wrench.is_empty());
+}
+
+#[test]
+fn flags_leave_tendon_terms_out_as_mujocos() {
+    let xml = scene(
+        r#"<fixed name="t" stiffness="2" damping="1" frictionloss="0.5" range="-1 1">
+<joint joint="hinge" coef="1"/></fixed>"#,
+        "",
+    )
+    .replace(
+        "<mujoco>",
+        r#"<mujoco><option><flag spring="disable" damper="disable" frictionloss="disable" limit="disable"/></option>"#,
+    );
+    let model = Model::compile(&parse_mjcf(&xml).unwrap().vehicle).unwrap();
+    let tendon = &model.tendons[0];
+    assert_eq!((tendon.stiffness, tendon.damping), (0.0, 0.0));
+    assert!(model.constraints.is_empty());
+}
+
+/// (tendons, rest, element, line, words the message must hold)
+const REFUSALS: &[(&str, &str, &str, u32, &str)] = &[
+    (
+        r#"<fixed name="t"><joint joint="elbow" coef="1"/></fixed>"#,
+        "",
+        "<joint>",
+        11,
+        "unknown joint 'elbow' in tendon",
+    ),
+    (r#"<fixed name="t"><joint joint="ball" coef="1"/></fixed>"#, "", "<joint>", 11, "must be slide or hinge"),
+    (r#"<fixed name="t"><joint joint="hinge"/></fixed>"#, "", "<joint>", 11, "coef"),
+    (
+        r#"<fixed name="t"><joint joint="hinge" coef="1"/><joint joint="hinge" coef="2"/></fixed>"#,
+        "",
+        "<joint>",
+        11,
+        "repeated",
+    ),
+    (r#"<fixed name="t"/>"#, "", "<fixed name=\"t\">", 11, "cannot be empty"),
+    (r#"<spatial name="t"><site site="s0"/></spatial>"#, "", "<spatial name=\"t\">", 11, "at least two"),
+    (r#"<spatial name="t"><site site="s0"/><site site="s9"/></spatial>"#, "", "<site>", 11, "unknown site 's9'"),
+    (r#"<spatial name="t"><site site="s0"/><site site="s0"/></spatial>"#, "", "<spatial name=\"t\">", 11, "repeated"),
+    (
+        r#"<spatial name="t"><site site="s0"/><site site="s1"/><pulley divisor="2"/></spatial>"#,
+        "",
+        "<spatial name=\"t\">",
+        11,
+        "end with a pulley",
+    ),
+    (
+        r#"<spatial name="t"><site site="s0"/><pulley divisor="2"/><site site="s1"/></spatial>"#,
+        "",
+        "<spatial name=\"t\">",
+        11,
+        "neighbour that is not a pulley",
+    ),
+    (
+        r#"<spatial name="t"><site site="s0"/><geom geom="g" sidesite="s1"/><site site="s1"/></spatial>"#,
+        "",
+        "<geom>",
+        11,
+        "sidesite",
+    ),
+    (
+        r#"<spatial name="t"><site site="s0"/><geom geom="box"/><site site="s1"/></spatial>"#,
+        "",
+        "<geom>",
+        11,
+        "not sphere or cylinder",
+    ),
+    (
+        r#"<spatial name="t"><site site="s0"/><geom geom="h"/><site site="s1"/></spatial>"#,
+        "",
+        "<geom>",
+        11,
+        "unknown geom 'h'",
+    ),
+    (
+        r#"<spatial name="t"><site site="s0"/><site site="s1"/><geom geom="g"/></spatial>"#,
+        "",
+        "<spatial name=\"t\">",
+        11,
+        "not between two sites",
+    ),
+    (
+        r#"<fixed name="t" armature="0.1"><joint joint="hinge" coef="1"/></fixed>"#,
+        "",
+        "<fixed name=\"t\">",
+        11,
+        "armature",
+    ),
+    (
+        r#"<fixed name="t" actuatorfrcrange="-1 1"><joint joint="hinge" coef="1"/></fixed>"#,
+        "",
+        "<fixed name=\"t\">",
+        11,
+        "actuatorfrcrange",
+    ),
+    (
+        r#"<fixed name="t" stiffness="1 2"><joint joint="hinge" coef="1"/></fixed>"#,
+        "",
+        "<fixed name=\"t\">",
+        11,
+        "nonlinear stiffness",
+    ),
+    (
+        r#"<fixed name="t" springlength="0.3 0.1"><joint joint="hinge" coef="1"/></fixed>"#,
+        "",
+        "<fixed name=\"t\">",
+        11,
+        "invalid springlength",
+    ),
+    (
+        r#"<fixed name="t" limited="true"><joint joint="hinge" coef="1"/></fixed>"#,
+        "",
+        "<fixed name=\"t\">",
+        11,
+        "invalid limits",
+    ),
+    (
+        r#"<fixed name="t"><joint joint="hinge" coef="1"/></fixed>"#,
+        r#"<actuator><position tendon="t" kp="1" inheritrange="1"/></actuator>"#,
+        "<position>",
+        13,
+        "no range",
+    ),
+    (
+        r#"<fixed name="t"><joint joint="hinge" coef="1"/></fixed>"#,
+        r#"<sensor><tendonlimitfrc tendon="t"/></sensor>"#,
+        "<tendonlimitfrc>",
+        13,
+        "tendon must be limited",
+    ),
+    (
+        r#"<fixed name="t"><joint joint="hinge" coef="1"/></fixed>"#,
+        r#"<equality><tendon tendon1="t" tendon2="t"/></equality>"#,
+        "<tendon>",
+        13,
+        "same tendon",
+    ),
+    (
+        r#"<fixed name="t"><joint joint="hinge" coef="1"/></fixed>"#,
+        r#"<sensor><tendonpos tendon="u"/></sensor>"#,
+        "<tendonpos>",
+        13,
+        "unknown tendon 'u'",
+    ),
+];
+
+#[test]
+fn bad_tendons_are_refused_with_element_line_and_reason() {
+    for &(tendons, rest, element, line, words) in REFUSALS {
+        let error = refused(tendons, rest);
+        let message = error.to_string();
+        assert!(
+            message.contains(element) && message.contains(&format!("line {line}")) && message.contains(words),
+            "{tendons} {rest}: {message}"
+        );
+    }
+    let twice = refused(
+        r#"<fixed name="t"><joint joint="hinge" coef="1"/></fixed>
+<fixed name="t"><joint joint="slide" coef="1"/></fixed>"#,
+        "",
+    );
+    assert!(matches!(twice, MjcfError::DuplicateName { line: 12, .. }), "{twice}");
+}
