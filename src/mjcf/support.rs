@@ -6,7 +6,7 @@
 
 use std::fmt::Write;
 
-use super::{actuator, defaults, equality, mesh, reader, sensor};
+use super::{actuator, defaults, equality, mesh, reader, sensor, tendon};
 use crate::vehicle::SensorKind;
 
 /// docs/mjcf-support.md: element and attribute, read or ignored with a
@@ -58,6 +58,14 @@ pub fn support_table() -> String {
     ];
     for (element, attributes) in elements {
         let _ = writeln!(out, "| `<{element}>` | {} |", code_list(attributes, false));
+    }
+    let spatial: Vec<&str> = tendon::FIXED_ATTRIBUTES.iter().chain(tendon::SPATIAL_ONLY).copied().collect();
+    for (element, attributes) in [("fixed", tendon::FIXED_ATTRIBUTES), ("spatial", &spatial)] {
+        let _ = writeln!(out, "| `<tendon>/<{element}>` | {} |", code_list(attributes, false));
+    }
+    for (path, attributes) in tendon::PATH_ELEMENTS {
+        let (parent, child) = path.split_once('/').expect("parent/child");
+        let _ = writeln!(out, "| `<{parent}>/<{child}>` | {} |", code_list(attributes, false));
     }
     for (tag, kind) in actuator::ACTUATOR_KINDS {
         let _ = writeln!(out, "| `<actuator>/<{tag}>` | {} |", code_list(&actuator::attributes(*kind, false), false));

@@ -9,7 +9,7 @@ use super::error::MjcfError;
 use crate::vehicle::{JointKind, JointLimit, PathPoint, SoftConstraint, Tendon, TendonPath, WrapGeom};
 
 /// Attributes `<fixed>` has (MuJoCo 4.0 schema); `<spatial>` adds [`SPATIAL_ONLY`].
-const FIXED_ATTRIBUTES: &[&str] = &[
+pub(crate) const FIXED_ATTRIBUTES: &[&str] = &[
     "name",
     "class",
     "group",
@@ -32,7 +32,20 @@ const FIXED_ATTRIBUTES: &[&str] = &[
 ];
 
 /// Attributes only `<spatial>` has: how it is drawn.
-const SPATIAL_ONLY: &[&str] = &["width", "material", "rgba"];
+pub(crate) const SPATIAL_ONLY: &[&str] = &["width", "material", "rgba"];
+
+/// The path elements of each tendon and their attributes.
+pub(crate) const PATH_ELEMENTS: &[(&str, &[&str])] = &[
+    ("fixed/joint", &["joint", "coef"]),
+    ("spatial/site", &["site"]),
+    ("spatial/pulley", &["divisor"]),
+    ("spatial/geom", &["geom", "sidesite"]),
+];
+
+/// The attributes of the path element `path` (a key of [`PATH_ELEMENTS`]).
+fn path_attributes(path: &str) -> &'static [&'static str] {
+    PATH_ELEMENTS.iter().find(|(p, _)| *p == path).map(|(_, a)| *a).expect("a listed path element")
+}
 
 /// Attributes a `<tendon>` default class may set.
 pub(crate) const DEFAULT_ATTRIBUTES: &[&str] = &[
@@ -270,7 +283,7 @@ fn fixed_path(element: &Element, targets: &impl TendonTargets) -> Result<TendonP
         if child.tag() != "joint" {
             return Err(child.unknown());
         }
-        child.check_attributes(&["joint", "coef"])?;
+        child.check_attributes(path_attributes("fixed/joint"))?;
         let name = child.text("joint").ok_or_else(|| child.missing("joint"))?;
         let coef = child.number("coef")?.ok_or_else(|| child.missing("coef"))?;
         if !matches!(targets.tendon_joint(&child, "joint")?, JointKind::Hinge | JointKind::Slide) {
@@ -294,14 +307,14 @@ fn spatial_path(element: &Element, targets: &impl TendonTargets) -> Result<Tendo
     for child in element.children() {
         match child.tag() {
             "site" => {
-                child.check_attributes(&["site"])?;
+                child.check_attributes(path_attributes("spatial/site"))?;
                 if !child.has("site") {
                     return Err(child.missing("site"));
                 }
                 points.push(PathPoint::Site(targets.tendon_site(&child, "site")?));
             }
             "pulley" => {
-                child.check_attributes(&["divisor"])?;
+                child.check_attributes(path_attributes("spatial/pulley"))?;
                 let divisor = child.number("divisor")?.ok_or_else(|| child.missing("divisor"))?;
                 if divisor <= 0.0 {
                     return Err(child.bad_value("divisor", "a positive number"));
@@ -309,7 +322,7 @@ fn spatial_path(element: &Element, targets: &impl TendonTargets) -> Result<Tendo
                 points.push(PathPoint::Pulley(divisor));
             }
             "geom" => {
-                child.check_attributes(&["geom", "sidesite"])?;
+                child.check_attributes(path_attributes("spatial/geom"))?;
                 if !child.has("geom") {
                     return Err(child.missing("geom"));
                 }
