@@ -1,0 +1,113 @@
+"""What each adaptive method costs per tolerance, integrated natively
+(`nudyn-bench simulate`, no FMI layer): every example for 10 s of the
+validation's tumble in 0.1 s advances (communication steps), at tolerances
+1e-4 … 1e-10. Per run: the error delivered (largest |x − x_ref| / (1 +
+|x_ref|) over qpos, quaternions up to sign, and qvel at the advances'
+ends, against the same integrator's dop853 at 1e-13), the steps taken and
+rejected, the θ̈ evaluations and the median time of 5 repetitions. The
+cheapest method at each tolerance is what `method = auto` should pick.
+
+    .venv/bin/python scripts/bench_methods.py [--out docs/bench] [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import platform
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from nudyn_driver.cli import run_json
+
+from .cli import binaries, git_commit
+from .report import median
+from .tolerance import scaled_error
+from .vehicles import ROOT, Vehicle, prepare
+
+EXAMPLES = ["bus_arm7", "fixed_rig", "flexible_boom", "servicer", "chain60"]
+METHODS = ["bs3", "tsit5", "dopri5", "dop853"]
+TOLERANCES = [1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10]
+# bs3's order 3 takes 10⁵–10⁶ steps in 10 s below these on the faster
+# examples, which only lengthens the run: it is never the cheapest there.
+BS3_TIGHTEST = {"chain60": 1e-5, "flexible_boom": 1e-5}
+BS3_TIGHTEST_DEFAULT = 1e-8
+
+
+def simulate(bench: Path, vehicle: Vehicle, run: str, duration: float, repetitions: int) -> dict:
+    cmd = [str(bench), "simulate", str(vehicle.path), "--state", str(vehicle.state_path), "--duration", str(duration),
+           "--sample", "0.1", "--repetitions", str(repetitions), "--run", run]
+    return run_json(cmd)[0]
+
+
+def example(name: str, bench: Path, work: Path, quick: bool) -> dict:
+    vehicle = prepare(name, ROOT / "examples" / f"{name}.xml", work)
+    duration, repetitions = (0.4, 1) if quick else (10.0, 5)
+    reference = simulate(bench, vehicle, "dop853:1e-13", duration, 1)
+    ref_qpos, ref_qvel = reference["qpos"], reference["qvel"]
+    runs = []
+    for method in METHODS:
+        for tolerance in TOLERANCES[:2] if quick else TOLERANCES:
+            if method == "bs3" and tolerance < BS3_TIGHTEST.get(name, BS3_TIGHTEST_DEFAULT):
+                continue
+            run = simulate(bench, vehicle, f"{method}:{tolerance:g}", duration, repetitions)
+            error = scaled_error(vehicle.model, run["qpos"], run["qvel"], np.array(ref_qpos), np.array(ref_qvel))
+            runs.append({"method": method, "tolerance": tolerance, "error": error, "accepted": run["accepted"],
+                         "rejected": run["rejected"], "evaluations": run["evaluations"], "seconds": run["seconds"]})
+    return {"runs": runs}
+
+
+def table(results: dict) -> str:
+    lines = [f"# Each method's cost per tolerance ({results['date']}, {results['commit']})", "",
+             "Native integration (`nudyn-bench simulate`), 10 s in 0.1 s advances; error / tolerance, "
+             "steps (rejected), θ̈ evaluations, median ms; **bold**: the least time at that tolerance.", ""]
+    for name, ex in results["examples"].items():
+        lines += [f"## {name}", "", "| tolerance | " + " | ".join(METHODS) + " |", "|---" * (len(METHODS) + 1) + "|"]
+        for tolerance in sorted({r["tolerance"] for r in ex["runs"]}, reverse=True):
+            cells = {r["method"]: r for r in ex["runs"] if r["tolerance"] == tolerance}
+            fastest = min(cells.values(), key=lambda r: median(r["seconds"]))["method"]
+            row = []
+            for method in METHODS:
+                r = cells.get(method)
+                if r is None:
+                    row.append("")
+                    continue
+                ms = f"{1e3 * median(r['seconds']):.2f}"
+                row.append(f"{r['error'] / tolerance:.2g}, {r['accepted']} ({r['rejected']}), {r['evaluations']}, "
+                           + (f"**{ms}**" if method == fastest else ms))
+            lines.append(f"| {tolerance:g} | " + " | ".join(row) + " |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="bench_methods.py", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "bench", help="where methods.{json,md} go")
+    parser.add_argument("--quick", action="store_true", help="tiny sizes, for a smoke test: the numbers mean nothing")
+    parser.add_argument("--bin-dir", type=Path, default=ROOT / "target" / "release", help="where nudyn-bench is")
+    args = parser.parse_args(argv)
+    found = binaries(args.bin_dir, "bench_methods.py")
+    if found is None:
+        return 2
+    bench, _ = found
+    results = {
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "commit": git_commit(),
+        "quick": args.quick,
+        "machine": platform.platform(),
+        "examples": {},
+    }
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in EXAMPLES[:2] if args.quick else EXAMPLES:
+            print(f"bench_methods: {name}", file=sys.stderr, flush=True)
+            results["examples"][name] = example(name, bench, Path(tmp), args.quick)
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "methods.json").write_text(json.dumps(results, indent=1) + "\n")
+    (args.out / "methods.md").write_text(table(results))
+    print(table(results))
+    return 0
