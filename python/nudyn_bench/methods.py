@@ -7,6 +7,13 @@ ends, against the same integrator's dop853 at 1e-13), the steps taken and
 rejected, the θ̈ evaluations and the median time of 5 repetitions. The
 cheapest method at each tolerance is what `method = auto` should pick.
 
+Beside them, timed in the same repetitions, MuJoCo's RK4 (`mujoco.rollout`)
+under the rule of issue 36: a co-simulation master stops it at every
+communication point, so its step is the largest of 0.1 s / k (k = 1, 2,
+4, 5, 10, …, 1000: each divides the communication step) whose error
+reaches the looser of the tolerance and the method's error. The ratio
+method / MuJoCo is the integrators' alone: no FMI calls on either side.
+
     .venv/bin/python scripts/bench_methods.py [--out docs/bench] [--quick]
 """
 
@@ -28,6 +35,7 @@ from .cli import binaries, git_commit
 from .report import median
 from .tolerance import scaled_error
 from .vehicles import ROOT, Vehicle, prepare
+from .work_precision import MujocoRuns, Plan
 
 EXAMPLES = ["bus_arm7", "fixed_rig", "flexible_boom", "servicer", "chain60"]
 METHODS = ["bs3", "tsit5", "dopri5", "dop853"]
@@ -36,6 +44,9 @@ TOLERANCES = [1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10]
 # examples, which only lengthens the run: it is never the cheapest there.
 BS3_TIGHTEST = {"chain60": 1e-5, "flexible_boom": 1e-5}
 BS3_TIGHTEST_DEFAULT = 1e-8
+
+
+MUJOCO_STEPS = [0.1 / k for k in (1, 2, 4, 5, 10, 20, 40, 50, 100, 200, 400, 1000)]
 
 
 def simulate(bench: Path, vehicle: Vehicle, run: str, duration: float, repetitions: int) -> dict:
@@ -48,23 +59,45 @@ def example(name: str, bench: Path, work: Path, quick: bool) -> dict:
     vehicle = prepare(name, ROOT / "examples" / f"{name}.xml", work)
     duration, repetitions = (0.4, 1) if quick else (10.0, 5)
     reference = simulate(bench, vehicle, "dop853:1e-13", duration, 1)
-    ref_qpos, ref_qvel = reference["qpos"], reference["qvel"]
+    ref_qpos, ref_qvel = np.array(reference["qpos"]), np.array(reference["qvel"])
     runs = []
     for method in METHODS:
         for tolerance in TOLERANCES[:2] if quick else TOLERANCES:
             if method == "bs3" and tolerance < BS3_TIGHTEST.get(name, BS3_TIGHTEST_DEFAULT):
                 continue
-            run = simulate(bench, vehicle, f"{method}:{tolerance:g}", duration, repetitions)
-            error = scaled_error(vehicle.model, run["qpos"], run["qvel"], np.array(ref_qpos), np.array(ref_qvel))
+            run = simulate(bench, vehicle, f"{method}:{tolerance:g}", duration, 1)
+            error = scaled_error(vehicle.model, run["qpos"], run["qvel"], ref_qpos, ref_qvel)
             runs.append({"method": method, "tolerance": tolerance, "error": error, "accepted": run["accepted"],
-                         "rejected": run["rejected"], "evaluations": run["evaluations"], "seconds": run["seconds"]})
-    return {"runs": runs}
+                         "rejected": run["rejected"], "evaluations": run["evaluations"], "seconds": []})
+    mujoco = MujocoRuns(vehicle)
+    plan = Plan(duration, 0.1, 0.0, 0.0, [], [], [], [])
+    ladder = MUJOCO_STEPS[:3] if quick else MUJOCO_STEPS
+    rk4 = []
+    for step in ladder:
+        _, qpos, qvel = mujoco.run("RK4", step, plan)
+        rk4.append({"step": step, "error": scaled_error(vehicle.model, qpos, qvel, ref_qpos, ref_qvel), "seconds": []})
+    # Interleaved, so that the machine's load falls alike on both sides.
+    for _ in range(repetitions):
+        for run in runs:
+            timed = simulate(bench, vehicle, f"{run['method']}:{run['tolerance']:g}", duration, 1)
+            run["seconds"].append(timed["seconds"][0])
+        for entry in rk4:
+            entry["seconds"].append(mujoco.run("RK4", entry["step"], plan)[0])
+    for run in runs:
+        target = max(run["error"], run["tolerance"])
+        reaching = [entry for entry in rk4 if entry["error"] <= target]
+        run["mujoco_step"] = max(entry["step"] for entry in reaching) if reaching else None
+        mujoco_seconds = next((median(e["seconds"]) for e in rk4 if e["step"] == run["mujoco_step"]), None)
+        run["over_mujoco"] = median(run["seconds"]) / mujoco_seconds if mujoco_seconds else None
+    return {"runs": runs, "mujoco_rk4": rk4}
 
 
 def table(results: dict) -> str:
     lines = [f"# Each method's cost per tolerance ({results['date']}, {results['commit']})", "",
              "Native integration (`nudyn-bench simulate`), 10 s in 0.1 s advances; error / tolerance, "
-             "steps (rejected), θ̈ evaluations, median ms; **bold**: the least time at that tolerance.", ""]
+             "steps (rejected), θ̈ evaluations, median ms, and that time over MuJoCo RK4's at the largest step "
+             "dividing 0.1 s that reaches max(error, tolerance) (— where none does); **bold**: the least time "
+             "at that tolerance." + (" **Quick run: the numbers mean nothing.**" if results["quick"] else ""), ""]
     for name, ex in results["examples"].items():
         lines += [f"## {name}", "", "| tolerance | " + " | ".join(METHODS) + " |", "|---" * (len(METHODS) + 1) + "|"]
         for tolerance in sorted({r["tolerance"] for r in ex["runs"]}, reverse=True):
@@ -77,8 +110,9 @@ def table(results: dict) -> str:
                     row.append("")
                     continue
                 ms = f"{1e3 * median(r['seconds']):.2f}"
+                ratio = "—" if r["over_mujoco"] is None else f"{r['over_mujoco']:.2f}"
                 row.append(f"{r['error'] / tolerance:.2g}, {r['accepted']} ({r['rejected']}), {r['evaluations']}, "
-                           + (f"**{ms}**" if method == fastest else ms))
+                           + (f"**{ms}**" if method == fastest else ms) + f", {ratio}")
             lines.append(f"| {tolerance:g} | " + " | ".join(row) + " |")
         lines.append("")
     return "\n".join(lines)

@@ -80,6 +80,8 @@ def test_quick_methods_benchmark_writes_its_table(tmp_path):
         assert {run["method"] for run in example["runs"]} == {"bs3", "tsit5", "dopri5", "dop853"}
         for run in example["runs"]:
             assert run["accepted"] >= 4 and run["evaluations"] > 0 and run["error"] < 10 * run["tolerance"], run
+            assert run["over_mujoco"] is None or run["over_mujoco"] > 0, run
+        assert all(entry["error"] < 1 for entry in example["mujoco_rk4"])
 
 
 def test_chains_built_for_mujoco_equal_the_generated_files():
