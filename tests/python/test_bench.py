@@ -81,6 +81,7 @@ def test_quick_methods_benchmark_writes_its_table(tmp_path):
         for run in example["runs"]:
             assert run["accepted"] >= 4 and run["evaluations"] > 0 and run["error"] < 10 * run["tolerance"], run
             assert run["over_mujoco"] is None or run["over_mujoco"] > 0, run
+            assert len(run["host_seconds"]) == 1 and run["host_seconds"][0] > 0, run
         assert all(entry["error"] < 1 for entry in example["mujoco_rk4"])
 
 
