@@ -78,7 +78,8 @@ static double seconds_now(void) {
 
 int main(int argc, char **argv) {
     if (argc < 8) {
-        fprintf(stderr, "usage: %s DIR MODEL_IDENTIFIER GUID COMM_STEP STEPS REPETITIONS READ_VRS [i:VR=V | r:VR=V]...\n",
+        fprintf(stderr,
+                "usage: %s DIR MODEL_IDENTIFIER GUID COMM_STEP STEPS REPETITIONS READ_VRS [i:VR=V | r:VR=V]...\n",
                 argv[0]);
         return 2;
     }
@@ -95,7 +96,8 @@ int main(int argc, char **argv) {
     for (int k = 8; k < argc; k++) {
         char kind = argv[k][0], *rest;
         unsigned vr = (unsigned)strtoul(argv[k] + 2, &rest, 10);
-        if (argv[k][1] != ':' || *rest != '=' || (kind != 'i' && kind != 'r') || ints >= MAX_SETS || reals >= MAX_SETS) {
+        int malformed = argv[k][1] != ':' || *rest != '=' || (kind != 'i' && kind != 'r');
+        if (malformed || ints >= MAX_SETS || reals >= MAX_SETS) {
             fprintf(stderr, "cannot read the setting %s (i:VR=VALUE or r:VR=VALUE)\n", argv[k]);
             return 2;
         }
