@@ -15,3 +15,4 @@ bash scripts/setup-test.sh
 cargo build --release --workspace
 .venv/bin/python scripts/bench.py "$@"
 .venv/bin/python scripts/bench_tolerance.py "$@"
+.venv/bin/python scripts/bench_methods.py "$@"

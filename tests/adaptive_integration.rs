@@ -90,9 +90,10 @@ fn reference(model: &Model, start: &(Vec<f64>, Vec<f64>), intervals: (f64, usize
 /// communication step and its error estimate (of θ̇, mapped to ν by m*,
 /// without the change of m* over the step) falls short (measured: up to
 /// 41× at 1e-4 and 23× at 1e-5 in a third of the steps the ν-state took
-/// for 17×; docs/integration.md).
+/// for 17×; docs/integration.md), and TSIT5 and BS3 there too, for the
+/// same reason (measured: up to 23× and 26×).
 fn highest_ratio(method: Method, tolerance: f64) -> f64 {
-    if method == Method::Dopri5 && tolerance >= 1e-5 { 50.0 } else { 20.0 }
+    if matches!(method, Method::Dopri5 | Method::Tsit5 | Method::Bs3) && tolerance >= 1e-5 { 50.0 } else { 20.0 }
 }
 
 /// The error delivered tracks the tolerance asked. Over 10 s of a 6-body
@@ -105,7 +106,9 @@ fn highest_ratio(method: Method, tolerance: f64) -> f64 {
 /// tolerance never takes fewer steps. ROS34PW2, of order 3 and meant for
 /// stiff vehicles at moderate tolerances, is held to the band from 1e-4 to
 /// 1e-8 (measured: 0.8–10.1 × the tolerance, nearly proportional; at 1e-10
-/// it would take 10⁵ steps on these trees).
+/// it would take 10⁵ steps on these trees). BS3, of order 3 and meant for
+/// slow motion at loose tolerances, from 1e-4 to 1e-7 (measured: 0.3–26 ×
+/// the tolerance; below, 10⁵ steps and more).
 #[test]
 fn the_error_delivered_tracks_the_tolerance() {
     let intervals = (0.1, 100);
@@ -114,9 +117,13 @@ fn the_error_delivered_tracks_the_tolerance() {
     for seed in [3, 4, 5, 6] {
         let (_, model, start) = vehicle(seed);
         let reference = reference(&model, &start, intervals, smooth_eps);
-        for method in [Method::Dopri5, Method::Dop853, Method::Ros34pw2] {
+        for method in [Method::Dopri5, Method::Dop853, Method::Ros34pw2, Method::Bs3, Method::Tsit5] {
             let mut previous_steps = 0;
-            let tolerances = if method == Method::Ros34pw2 { &all_tolerances[..5] } else { &all_tolerances[..] };
+            let tolerances = match method {
+                Method::Ros34pw2 => &all_tolerances[..5],
+                Method::Bs3 => &all_tolerances[..4],
+                _ => &all_tolerances[..],
+            };
             for &tolerance in tolerances {
                 let result = run(&model, &start, method, settings(tolerance), intervals, smooth_eps);
                 let ratio = scaled_error(&result, &reference) / tolerance;

@@ -99,7 +99,14 @@ fn vehicle_with(kind: JointKind, free_base: bool, seed: u64) -> Vehicle {
 /// p + 2 above.
 #[test]
 fn every_method_keeps_its_order_on_every_joint_type() {
-    let methods = [(Method::Rk4, 4.0), (Method::Dopri5, 5.0), (Method::Dop853, 8.0), (Method::Ros34pw2, 3.0)];
+    let methods = [
+        (Method::Rk4, 4.0),
+        (Method::Dopri5, 5.0),
+        (Method::Dop853, 8.0),
+        (Method::Ros34pw2, 3.0),
+        (Method::Bs3, 3.0),
+        (Method::Tsit5, 5.0),
+    ];
     for (method, expected) in methods {
         for (kind, free_base) in JOINT_CASES {
             let order = observed_order(&vehicle_with(kind, free_base, 11), method, 5);

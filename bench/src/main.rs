@@ -87,7 +87,7 @@ enum Command {
         /// integrator's `advance`, as one FMU doStep.
         #[arg(long, default_value_t = 0.1)]
         sample: f64,
-        /// Runs, as METHOD:VALUE — rk4:STEP, or dopri5, dop853 or ros34pw2 with :TOLERANCE.
+        /// Runs, as METHOD:VALUE — rk4:STEP, or dopri5, dop853, ros34pw2, bs3 or tsit5 with :TOLERANCE.
         #[arg(long = "run", required = true)]
         runs: Vec<String>,
         /// Timed repetitions of each run.

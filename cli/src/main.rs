@@ -127,8 +127,8 @@ enum Command {
         /// The stop time (s), a multiple of the step.
         #[arg(long, allow_hyphen_values = true)]
         stop: f64,
-        /// Integration method: rk4 (fixed internal steps of --max-step), dopri5, dop853 or ros34pw2 (adaptive;
-        /// ros34pw2 is implicit, for stiff vehicles).
+        /// Integration method: rk4 (fixed internal steps of --max-step), dopri5, dop853, ros34pw2, bs3 or tsit5
+        /// (adaptive; ros34pw2 is implicit, for stiff vehicles; bs3 the cheapest per step, for loose tolerances).
         #[arg(long, default_value = "rk4", value_parser = parse_method)]
         method: Method,
         /// Error allowed per second of simulated time, relative to 1 + |value| (adaptive methods; ros34pw2:

@@ -1,7 +1,9 @@
 //! The Runge–Kutta methods nudyn integrates with: Butcher tableaus and, for
 //! the adaptive pairs, their error estimators and step-size controllers.
 //! Coefficients are the published ones (Hairer, Nørsett & Wanner, Solving
-//! Ordinary Differential Equations I, 2nd ed., §II.5 and §II.10).
+//! Ordinary Differential Equations I, 2nd ed., §II.5 and §II.10; Bogacki &
+//! Shampine, Appl. Math. Lett. 2, 1989; Tsitouras, Comput. Math. Appl. 62,
+//! 2011), checked against the order conditions in the tests below.
 
 /// How a method estimates the local error of a step from its stages.
 #[derive(Clone, Copy, Debug)]
@@ -106,6 +108,72 @@ pub const DOPRI5: Tableau = Tableau {
         22.0 / 525.0,
         -1.0 / 40.0,
     ]),
+    control: StepControl {
+        order: 5,
+        controller_exponent: 1.0 / 4.0,
+        factor_bounds: (0.2, 10.0),
+        error_per: ErrorPer::UnitStep,
+    },
+    first_same_as_last: true,
+};
+
+/// Bogacki–Shampine 3(2): 4 stages, first same as last, so 3 evaluations
+/// per step, the cheapest step of the pairs: for slow motion or loose
+/// tolerances, where a step per communication step already meets the
+/// tolerance.
+pub const BS3: Tableau = Tableau {
+    a: &[&[], &[0.5], &[0.0, 0.75], &[2.0 / 9.0, 1.0 / 3.0, 4.0 / 9.0]],
+    b: &[2.0 / 9.0, 1.0 / 3.0, 4.0 / 9.0, 0.0],
+    c: &[0.0, 0.5, 0.75, 1.0],
+    // b − b̂, with b̂ = (7/24, 1/4, 1/3, 1/8) the 2nd-order weights.
+    error: ErrorEstimate::Embedded(&[-5.0 / 72.0, 1.0 / 12.0, 1.0 / 9.0, -1.0 / 8.0]),
+    // The estimate is of order 2: its local error O(h³), per unit step O(h²).
+    control: StepControl {
+        order: 3,
+        controller_exponent: 1.0 / 2.0,
+        factor_bounds: (0.2, 10.0),
+        error_per: ErrorPer::UnitStep,
+    },
+    first_same_as_last: true,
+};
+
+// Tsitouras 5(4)'s coefficients, with the digits of his Table 1 (the first
+// column from the row sums, as he gives it).
+#[allow(clippy::excessive_precision)]
+mod tsit5 {
+    pub const C: [f64; 7] = [0.0, 0.161, 0.327, 0.9, 0.9800255409045097, 1.0, 1.0];
+    pub const B: [f64; 7] =
+        [0.09646076681806523, 0.01, 0.4798896504144996, 1.379008574103742, -3.290069515436081, 2.324710524099774, 0.0];
+    pub const A: [&[f64]; 7] = [
+        &[],
+        &[0.161],
+        &[-0.008480655492356989, 0.335480655492357],
+        &[2.897153057105493, -6.359448489975075, 4.362295432869581],
+        &[5.325864828439257, -11.74888356406283, 7.495539342889836, -0.09249506636175525],
+        &[5.86145544294642, -12.92096931784711, 8.159367898576159, -0.071584973281401, -0.02826905039406838],
+        &B_STAGES,
+    ];
+    const B_STAGES: [f64; 6] = [B[0], B[1], B[2], B[3], B[4], B[5]];
+    /// b − b̂, with b̂ the 4th-order weights.
+    pub const ERROR: [f64; 7] = [
+        0.001780011052226,
+        0.000816434459657,
+        -0.007880878010262,
+        0.144711007173263,
+        -0.582357165452555,
+        0.458082105929187,
+        -1.0 / 66.0,
+    ];
+}
+
+/// Tsitouras 5(4): 7 stages, first same as last, so 6 evaluations per step
+/// as DOPRI5, with coefficients chosen for a smaller error of the 5th-order
+/// solution instead of the simplifying assumptions DOPRI5 satisfies.
+pub const TSIT5: Tableau = Tableau {
+    a: &tsit5::A,
+    b: &tsit5::B,
+    c: &tsit5::C,
+    error: ErrorEstimate::Embedded(&tsit5::ERROR),
     control: StepControl {
         order: 5,
         controller_exponent: 1.0 / 4.0,
@@ -424,11 +492,17 @@ pub enum Method {
     Dop853,
     /// ROS34PW2, an L-stable Rosenbrock–W method of order 3, adaptive.
     Ros34pw2,
+    /// Bogacki–Shampine 3(2), adaptive.
+    Bs3,
+    /// Tsitouras 5(4), adaptive.
+    Tsit5,
 }
 
 impl Method {
-    /// Every method, in the order of the FMU's enumeration (values 1, 2, 3, 4).
-    pub const ALL: [Method; 4] = [Method::Rk4, Method::Dopri5, Method::Dop853, Method::Ros34pw2];
+    /// Every method, in the order of the FMU's enumeration (values 1 to 6:
+    /// new methods are appended, so that a value keeps naming its method).
+    pub const ALL: [Method; 6] =
+        [Method::Rk4, Method::Dopri5, Method::Dop853, Method::Ros34pw2, Method::Bs3, Method::Tsit5];
 
     /// How it forms a step.
     pub fn scheme(self) -> Scheme {
@@ -437,6 +511,8 @@ impl Method {
             Method::Dopri5 => Scheme::Explicit(&DOPRI5),
             Method::Dop853 => Scheme::Explicit(&DOP853),
             Method::Ros34pw2 => Scheme::Rosenbrock(&ROS34PW2),
+            Method::Bs3 => Scheme::Explicit(&BS3),
+            Method::Tsit5 => Scheme::Explicit(&TSIT5),
         }
     }
 
@@ -463,6 +539,8 @@ impl Method {
             Method::Dopri5 => "dopri5",
             Method::Dop853 => "dop853",
             Method::Ros34pw2 => "ros34pw2",
+            Method::Bs3 => "bs3",
+            Method::Tsit5 => "tsit5",
         }
     }
 
@@ -476,6 +554,8 @@ impl Method {
                 "ROS34PW2, L-stable Rosenbrock-W of order 3 for stiff vehicles (Jacobian by finite differences), \
                  adaptive to tolerance, steps at most max_step"
             }
+            Method::Bs3 => "Bogacki-Shampine 3(2), adaptive to tolerance, steps at most max_step",
+            Method::Tsit5 => "Tsitouras 5(4), adaptive to tolerance, steps at most max_step",
         }
     }
 
@@ -526,6 +606,102 @@ mod tests {
             // Second-order condition Σ bᵢcᵢ = ½.
             let bc: f64 = t.b.iter().zip(t.c).map(|(b, c)| b * c).sum();
             assert!((bc - 0.5).abs() < 1e-14, "{method:?}: {bc}");
+        }
+    }
+
+    /// A rooted tree, as the trees hanging from its root (in canonical order).
+    #[derive(Clone, Debug, PartialEq)]
+    struct Tree(Vec<Tree>);
+
+    impl Tree {
+        fn order(&self) -> usize {
+            1 + self.0.iter().map(Tree::order).sum::<usize>()
+        }
+
+        /// γ(t) = |t| Π γ(children): the exact solution's coefficient is 1/γ.
+        fn density(&self) -> f64 {
+            self.order() as f64 * self.0.iter().map(Tree::density).product::<f64>()
+        }
+
+        /// Φᵢ(t) per stage i = Π over children u of Σⱼ aᵢⱼ Φⱼ(u): the
+        /// elementary weights, whose b-weighted sum must be 1/γ(t).
+        fn weights(&self, a: &[&[f64]]) -> Vec<f64> {
+            let mut product = vec![1.0; a.len()];
+            for child in &self.0 {
+                let inner = child.weights(a);
+                for (i, row) in a.iter().enumerate() {
+                    product[i] *= row.iter().zip(&inner).map(|(a, phi)| a * phi).sum::<f64>();
+                }
+            }
+            product
+        }
+    }
+
+    /// Every rooted tree of order 1 to `highest`, each once: a root with a
+    /// multiset of smaller trees, taken in non-increasing index order.
+    fn rooted_trees(highest: usize) -> Vec<Tree> {
+        fn children(all: &[Tree], left: usize, below: usize, chosen: &mut Vec<Tree>, out: &mut Vec<Tree>) {
+            if left == 0 {
+                out.push(Tree(chosen.clone()));
+                return;
+            }
+            for index in 0..below {
+                if all[index].order() <= left {
+                    chosen.push(all[index].clone());
+                    children(all, left - all[index].order(), index + 1, chosen, out);
+                    chosen.pop();
+                }
+            }
+        }
+        let mut all = Vec::new();
+        for order in 1..=highest {
+            let mut new = Vec::new();
+            children(&all, order - 1, all.len(), &mut Vec::new(), &mut new);
+            all.extend(new);
+        }
+        all
+    }
+
+    /// The largest |Σ wᵢΦᵢ(t) − 1/γ(t)| over the trees of exactly `order`.
+    fn order_defect(a: &[&[f64]], w: &[f64], trees: &[Tree], order: usize) -> f64 {
+        trees
+            .iter()
+            .filter(|t| t.order() == order)
+            .map(|t| (t.weights(a).iter().zip(w).map(|(phi, w)| phi * w).sum::<f64>() - 1.0 / t.density()).abs())
+            .fold(0.0, f64::max)
+    }
+
+    /// Every explicit method's solution satisfies all the order conditions
+    /// (one per rooted tree: 200 up to order 8) of its order and misses one
+    /// of the next, and every embedded solution (b minus an estimator's
+    /// weights) those of its own order: a mistyped coefficient of a, b or
+    /// an estimator breaks some condition by far more than round-off.
+    #[test]
+    fn tableaus_satisfy_their_order_conditions() {
+        let trees = rooted_trees(9);
+        let count = |order| trees.iter().filter(|t| t.order() == order).count();
+        assert_eq!((1..=9).map(count).collect::<Vec<_>>(), [1, 1, 2, 4, 9, 20, 48, 115, 286]);
+        for method in Method::ALL {
+            let Scheme::Explicit(t) = method.scheme() else { continue };
+            let order = t.control.order as usize;
+            for k in 1..=order {
+                let defect = order_defect(t.a, t.b, &trees, k);
+                assert!(defect < 1e-13, "{method:?}: order-{k} conditions off by {defect:e}");
+            }
+            let next = order_defect(t.a, t.b, &trees, order + 1);
+            assert!(next > 1e-6, "{method:?} is of order {} as well ({next:e})", order + 1);
+            let embedded: Vec<(&[f64], usize)> = match t.error {
+                ErrorEstimate::None => vec![],
+                ErrorEstimate::Embedded(e) => vec![(e, order - 1)],
+                ErrorEstimate::Dop853 { fifth, third } => vec![(fifth, 5), (third, 3)],
+            };
+            for (e, embedded_order) in embedded {
+                let b_hat: Vec<f64> = t.b.iter().zip(e).map(|(b, e)| b - e).collect();
+                for k in 1..=embedded_order {
+                    let defect = order_defect(t.a, &b_hat, &trees, k);
+                    assert!(defect < 1e-13, "{method:?}: order-{embedded_order} estimate off by {defect:e} at {k}");
+                }
+            }
         }
     }
 

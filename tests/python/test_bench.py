@@ -69,6 +69,22 @@ def test_quick_tolerance_benchmark_writes_table_and_plot(tmp_path):
             assert 0.0 <= entry["outside_share"] < 1.0
 
 
+def test_quick_methods_benchmark_writes_its_table(tmp_path):
+    """`scripts/bench_methods.py --quick`: every adaptive method runs at each
+    tolerance and meets it (never a speed)."""
+    run_quick("bench_methods.py", tmp_path)
+    assert (tmp_path / "methods.md").stat().st_size > 0
+    results = json.loads((tmp_path / "methods.json").read_text())
+    assert results["quick"] is True and set(results["examples"]) == {"bus_arm7", "fixed_rig"}
+    for example in results["examples"].values():
+        assert {run["method"] for run in example["runs"]} == {"bs3", "tsit5", "dopri5", "dop853"}
+        for run in example["runs"]:
+            assert run["accepted"] >= 4 and run["evaluations"] > 0 and run["error"] < 10 * run["tolerance"], run
+            assert run["over_mujoco"] is None or run["over_mujoco"] > 0, run
+            assert len(run["host_seconds"]) == 1 and run["host_seconds"][0] > 0, run
+        assert all(entry["error"] < 1 for entry in example["mujoco_rk4"])
+
+
 def test_chains_built_for_mujoco_equal_the_generated_files():
     """MuJoCo cannot read bodies nested 500 deep, so the benchmark builds its
     chains with MuJoCo's model editor: they must be gen_chain.py's chains."""

@@ -77,7 +77,7 @@ pub fn description(model: &Model, variable: RealVariable) -> String {
             (1.0 / nudyn::integrate::ROS34PW2_SHARE).round()
         ),
         RealVariable::MaxStep => format!(
-            "longest internal integration step (s); 0: none for the adaptive methods dopri5, dop853 and ros34pw2 \
+            "longest internal integration step (s); 0: none for the adaptive methods dopri5, dop853, ros34pw2, bs3 and tsit5 \
              (the error control and the communication step decide), {} s for rk4",
             nudyn::integrate::DEFAULT_FIXED_STEP
         ),
