@@ -91,16 +91,6 @@ def test_each_shape_format_and_mode(nudyn, tmp_path, shape, fmt, mode):
     compare(nudyn, path, f"{shape}.{fmt} inertia={mode}")
 
 
-@pytest.mark.parametrize("mode", MODES)
-@pytest.mark.parametrize("shape", ["hex_prism", "l_ngon"])
-def test_obj_polygons_of_more_than_four_corners(nudyn, tmp_path, shape, mode):
-    """Hexagon caps, convex and L-shaped: cut into triangles that cover each
-    once, in every mode (a fan over the L's reflex corner covers part of it
-    twice, which legacy's and shell's unsigned sums count twice)."""
-    path = mesh_scene(tmp_path, f'file="{MESHES / f"{shape}.obj"}" inertia="{mode}"')
-    compare(nudyn, path, f"{shape}.obj inertia={mode}")
-
-
 def test_the_modes_differ_where_they_should(nudyn, tmp_path):
     """On the L-shape legacy, convex and exact give three different masses
     (so the cases above tell the modes apart); on the cube they agree."""

@@ -1,8 +1,7 @@
 //! The mesh files MuJoCo 4.0 reads, read as MuJoCo reads them: binary STL
 //! (its STL decoder reads no ASCII STL), Wavefront OBJ (its decoder is
 //! tinyobjloader: the first shape's faces, quads split along their shorter
-//! diagonal, larger polygons into triangles, every `v` line a vertex), and
-//! MuJoCo's own MSH.
+//! diagonal, every `v` line a vertex), and MuJoCo's own MSH.
 //!
 //! Vertices stay single precision, as MuJoCo keeps them until it processes
 //! the mesh. The readers are written here rather than taken from a crate:
@@ -99,11 +98,8 @@ pub(crate) fn read_stl(bytes: &[u8]) -> Result<RawMesh, String> {
 /// Reads a Wavefront OBJ file: every `v` line is a vertex; the faces of the
 /// first shape (up to the first `o` or `g` line after a face) are the mesh's,
 /// triangles as they are and quads split along their shorter diagonal
-/// (tinyobjloader's rule, which MuJoCo's decoder relies on); a polygon of
-/// five corners or more as a fan from its first corner: the signed
-/// triangles of any fan cover a planar polygon, convex or not, with the
-/// same surface integrals, so the mass properties are the polygon's
-/// whichever way tinyobjloader cuts it (tests/python/test_mesh_inertia.py).
+/// (tinyobjloader's rule, which MuJoCo's decoder relies on). Polygons of
+/// more than four vertices are refused.
 pub(crate) fn read_obj(text: &str) -> Result<RawMesh, String> {
     let mut mesh = RawMesh::default();
     let mut first_shape_done = false;
@@ -131,15 +127,12 @@ pub(crate) fn read_obj(text: &str) -> Result<RawMesh, String> {
                 match corners[..] {
                     [a, b, c] => mesh.faces.push([a, b, c]),
                     [a, b, c, d] => mesh.faces.extend(split_quad(&mesh.vertices, [a, b, c, d])),
-                    [_, _, _, _, _, ..] => {
-                        mesh.faces.extend(triangulate_polygon(&mesh.vertices, &corners).ok_or_else(|| {
-                            format!(
-                                "line {line_number}: a face of {} vertices that is not a simple polygon",
-                                corners.len()
-                            )
-                        })?)
+                    _ => {
+                        return Err(format!(
+                            "line {line_number}: a face of {} vertices (nudyn reads triangles and quads)",
+                            corners.len()
+                        ));
                     }
-                    _ => return Err(format!("line {line_number}: a face needs three vertices at least")),
                 }
             }
             _ => {}
@@ -157,57 +150,6 @@ fn vertex_index(token: &str, vertices_so_far: usize) -> Option<i64> {
         i if i > 0 => Some(i - 1),
         i => Some(vertices_so_far as i64 + i),
     }
-}
-
-/// Triangles covering the polygon `corners` once, in its winding (ear
-/// clipping in the plane its Newell normal is most aligned with); `None`
-/// for a polygon with no ear (self-intersecting). Corners out of range
-/// give a fan, reported when the faces are checked.
-fn triangulate_polygon(vertices: &[[f32; 3]], corners: &[i64]) -> Option<Vec<[i64; 3]>> {
-    let fan = || Some(corners[1..].windows(2).map(|pair| [corners[0], pair[0], pair[1]]).collect());
-    let Some(points) = corners
-        .iter()
-        .map(|&i| usize::try_from(i).ok().and_then(|i| vertices.get(i)).map(|p| p.map(f64::from)))
-        .collect::<Option<Vec<[f64; 3]>>>()
-    else {
-        return fan();
-    };
-    let mut normal = [0.0; 3];
-    for (k, p) in points.iter().enumerate() {
-        let q = points[(k + 1) % points.len()];
-        normal[0] += (p[1] - q[1]) * (p[2] + q[2]);
-        normal[1] += (p[2] - q[2]) * (p[0] + q[0]);
-        normal[2] += (p[0] - q[0]) * (p[1] + q[1]);
-    }
-    let axis = (0..3).max_by(|&a, &b| normal[a].abs().total_cmp(&normal[b].abs())).expect("three axes");
-    let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
-    // Counter-clockwise in (u, v) when the normal points along +axis.
-    let sign = if normal[axis] < 0.0 { -1.0 } else { 1.0 };
-    let flat: Vec<[f64; 2]> = points.iter().map(|p| [p[u], p[v]]).collect();
-    let cross = |a: usize, b: usize, c: usize| {
-        let (a, b, c) = (flat[a], flat[b], flat[c]);
-        sign * ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]))
-    };
-    let mut left: Vec<usize> = (0..corners.len()).collect();
-    let mut triangles = Vec::with_capacity(corners.len() - 2);
-    while left.len() > 3 {
-        let n = left.len();
-        let ear = (0..n).find(|&k| {
-            let (a, b, c) = (left[(k + n - 1) % n], left[k], left[(k + 1) % n]);
-            let turn = cross(a, b, c);
-            // A straight corner cuts off a triangle of no area, which covers nothing.
-            turn == 0.0
-                || turn > 0.0
-                    && left.iter().all(|&p| {
-                        [a, b, c].contains(&p) || cross(a, b, p) < 0.0 || cross(b, c, p) < 0.0 || cross(c, a, p) < 0.0
-                    })
-        })?;
-        let (a, b, c) = (left[(ear + n - 1) % n], left[ear], left[(ear + 1) % n]);
-        triangles.push([corners[a], corners[b], corners[c]]);
-        left.remove(ear);
-    }
-    triangles.push([corners[left[0]], corners[left[1]], corners[left[2]]]);
-    Some(triangles)
 }
 
 /// tinyobjloader's split of a quad into two triangles, along the shorter
