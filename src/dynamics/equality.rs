@@ -48,15 +48,7 @@ impl Workspace {
             match &equality.rows {
                 EqualityRows::Joint { first, second, polycoef: c, invweight } => {
                     let offset = |[_, qpos]: [usize; 2]| self.theta[qpos] - model.qpos0[qpos];
-                    let (violation, slope) = match second {
-                        Some(second) => {
-                            let x = offset(*second);
-                            let value = c[1] * x + c[2] * x * x + c[3] * x * x * x + c[4] * x * x * x * x;
-                            let slope = c[1] + 2.0 * c[2] * x + 3.0 * c[3] * x * x + 4.0 * c[4] * x * x * x;
-                            (offset(*first) - c[0] - value, slope)
-                        }
-                        None => (offset(*first) - c[0], 0.0),
-                    };
+                    let (violation, slope) = polynomial_coupling(c, offset(*first), second.map(offset));
                     let k = rows.push(nv, RowKind::Equality, index, violation, 0.0);
                     rows.jacobian[k * nv + first[0]] = 1.0;
                     if let Some([dof, _]) = second {
@@ -66,15 +58,7 @@ impl Workspace {
                 }
                 EqualityRows::Tendon { first, second, polycoef: c, invweight } => {
                     let offset = |k: usize| self.tendon_length[k] - model.tendons[k].length0;
-                    let (violation, slope) = match second {
-                        Some(second) => {
-                            let x = offset(*second);
-                            let value = c[1] * x + c[2] * x * x + c[3] * x * x * x + c[4] * x * x * x * x;
-                            let slope = c[1] + 2.0 * c[2] * x + 3.0 * c[3] * x * x + 4.0 * c[4] * x * x * x;
-                            (offset(*first) - c[0] - value, slope)
-                        }
-                        None => (offset(*first) - c[0], 0.0),
-                    };
+                    let (violation, slope) = polynomial_coupling(c, offset(*first), second.map(offset));
                     let k = rows.push(nv, RowKind::Equality, index, violation, 0.0);
                     let row = &mut rows.jacobian[k * nv..(k + 1) * nv];
                     row.copy_from_slice(self.tendon_moment_row(model, *first));
@@ -248,4 +232,19 @@ fn pure(v: &Vec3) -> Quaternion<f64> {
 /// A placement's orientation (frame → world) as a unit quaternion.
 pub(super) fn orientation(placement: &Transform) -> Quat {
     Quat::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(placement.rot.transpose()))
+}
+
+/// A joint or tendon coupling's violation y₁ − p(y₂), p the polynomial of
+/// `polycoef` c (p(y₂) = c₀ + c₁y₂ + … + c₄y₂⁴; c₀ alone without a second
+/// object), and the slope p′(y₂) its Jacobian row takes; y are offsets
+/// from qpos0.
+fn polynomial_coupling(c: &[f64; 5], first: f64, second: Option<f64>) -> (f64, f64) {
+    match second {
+        Some(x) => {
+            let value = c[1] * x + c[2] * x * x + c[3] * x * x * x + c[4] * x * x * x * x;
+            let slope = c[1] + 2.0 * c[2] * x + 3.0 * c[3] * x * x + 4.0 * c[4] * x * x * x;
+            (first - c[0] - value, slope)
+        }
+        None => (first - c[0], 0.0),
+    }
 }
