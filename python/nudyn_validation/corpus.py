@@ -7,6 +7,10 @@ of its own (a per-job timeout; `--jobs` of them at a time):
   1. MuJoCo loads the file (contacts off, as everywhere in the validation);
      a file it cannot load is reported as such: "files absent" when it
      cannot open a file the model names (a mesh missing from the copy).
+     With `strip_absent_meshes`, such a model is run instead without the
+     meshes whose files are absent and the geoms made of them
+     (`strip_absent_meshes`); its verdict says so, since a body whose mass
+     came from those meshes is lighter on both sides than as published.
   2. `nudyn export` writes the FMU; a refusal is reported with the first
      line of nudyn's message.
   3. Single evaluations: at random states (pose, rates and controls drawn
@@ -218,6 +222,63 @@ def mount_on_bus(model: Path, out: Path) -> Path:
     return out
 
 
+# --- a copy without the meshes that are absent ----------------------------
+
+STRIPPED = "absent meshes stripped"
+
+
+def _mesh_directory(root: ET.Element, model_dir: Path) -> Path:
+    """Where MuJoCo looks for mesh files: meshdir, else assetdir, else the
+    model's directory (relative ones from the model's directory)."""
+    directory = model_dir
+    for compiler in root.iter("compiler"):
+        value = compiler.get("meshdir") or compiler.get("assetdir")
+        if value is not None:
+            directory = model_dir / value
+    return directory
+
+
+def strip_absent_meshes(model: Path, out: Path) -> list[str]:
+    """Write `out`: the model (includes merged, asset directories made
+    absolute) without the <mesh> assets whose files are absent, the geoms
+    made of them and the contact pairs naming those geoms.  Returns the
+    names of the meshes taken out; nothing is written when there are none."""
+    root = ET.parse(model).getroot()
+    model_dir = model.resolve().parent
+    _inline_includes(root, model_dir, model_dir)
+    mesh_dir = _mesh_directory(root, model_dir)
+    absent = set()
+    for asset in root.iter("asset"):
+        for mesh in list(asset.findall("mesh")):
+            name = mesh.get("file")
+            if name and not (mesh_dir / name).is_file():
+                absent.add(mesh.get("name") or Path(name).stem)
+                asset.remove(mesh)
+    if not absent:
+        return []
+    removed_geoms = set()
+    for parent in list(root.iter()):
+        for child in list(parent):
+            if child.tag == "geom" and child.get("mesh") in absent:
+                removed_geoms.add(child.get("name"))
+                parent.remove(child)
+    for contact in root.iter("contact"):
+        for pair in list(contact.findall("pair")):
+            if {pair.get("geom1"), pair.get("geom2")} & (removed_geoms - {None}):
+                contact.remove(pair)
+    for compiler in root.iter("compiler"):
+        for attribute in ("meshdir", "texturedir", "assetdir"):
+            value = compiler.get(attribute)
+            if value is not None:
+                compiler.set(attribute, str(model_dir / value))
+    if all(c.get("assetdir") is None for c in root.iter("compiler")):
+        compiler = ET.Element("compiler", assetdir=str(model_dir))
+        root.insert(0, compiler)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    ET.ElementTree(root).write(out, encoding="unicode")
+    return sorted(absent)
+
+
 # --- one job ---------------------------------------------------------------
 
 
@@ -240,6 +301,7 @@ class Row:
     trajectory_verdict: str | None = None
     verdict: str = ""
     seconds: float | None = None
+    stripped_meshes: list[str] | None = None  # the absent meshes taken out (strip_absent_meshes)
 
 
 def _first_error_line(stderr: str) -> str:
@@ -294,8 +356,10 @@ def mujoco_alone_unstable(path: Path, scenario_name: str, settings) -> str | Non
     return None
 
 
-def run_job(model: Path, form: str, corpus: Path, out: Path, nudyn_path: Path, settings, states: int) -> Row:
-    """Steps 1–4 of the module doc for one model in one form."""
+def run_job(model: Path, form: str, corpus: Path, out: Path, nudyn_path: Path, settings, states: int,
+            strip: bool = False) -> Row:
+    """Steps 1–4 of the module doc for one model in one form; with `strip`,
+    a model whose mesh files are absent runs without them."""
     started = time.perf_counter()
     row = Row(model=str(model.relative_to(corpus)), form=form, status=FAILED)
     work = out / "models" / row.model.removesuffix(".xml") / form
@@ -303,9 +367,16 @@ def run_job(model: Path, form: str, corpus: Path, out: Path, nudyn_path: Path, s
 
     def done(status: str, message: str = "", verdict: str | None = None) -> Row:
         row.status, row.message, row.verdict = status, message, verdict or status
+        if row.stripped_meshes:
+            row.verdict += f", {STRIPPED}"
         row.seconds = time.perf_counter() - started
         return row
 
+    if strip:
+        stripped = work / f"{model.stem}.stripped.xml"
+        row.stripped_meshes = strip_absent_meshes(model, stripped) or None
+        if row.stripped_meshes:
+            model = stripped
     try:
         path = mount_on_bus(model, work / model.name) if form == "bus" else model
     except (ET.ParseError, OSError, CorpusError) as e:
@@ -350,16 +421,16 @@ def run_job(model: Path, form: str, corpus: Path, out: Path, nudyn_path: Path, s
 
 
 def _job_command(model: Path, form: str, corpus: Path, out: Path, nudyn: Path, settings, states: int,
-                 row_file: Path) -> list[str]:
+                 strip: bool, row_file: Path) -> list[str]:
     return [
         sys.executable, "-m", "nudyn_validation.corpus", str(model), form, str(corpus), str(out), str(nudyn),
         str(row_file),
-        json.dumps(run_settings(settings, states)),
+        json.dumps(run_settings(settings, states, strip)),
     ]
 
 
 def _run_in_process(model: Path, form: str, corpus: Path, out: Path, nudyn: Path, settings, states: int,
-                    timeout: float) -> Row:
+                    strip: bool, timeout: float) -> Row:
     """One job in a child process (a crash or a hang costs that job only)."""
     package_root = str(Path(__file__).resolve().parents[1])
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([package_root, os.environ.get("PYTHONPATH", "")])}
@@ -368,7 +439,7 @@ def _run_in_process(model: Path, form: str, corpus: Path, out: Path, nudyn: Path
     row_file = out / "models" / name.removesuffix(".xml") / f"{form}.json"
     row_file.unlink(missing_ok=True)
     try:
-        proc = subprocess.run(_job_command(model, form, corpus, out, nudyn, settings, states, row_file),
+        proc = subprocess.run(_job_command(model, form, corpus, out, nudyn, settings, states, strip, row_file),
                               capture_output=True, text=True, timeout=timeout, env=env)
     except subprocess.TimeoutExpired:
         return Row(model=name, form=form, status=TIMED_OUT, message=f"after {timeout:g} s", verdict=TIMED_OUT)
@@ -389,27 +460,29 @@ def refusal_cause(message: str) -> str:
     return re.sub(r"(?<![\w.])-?\d+(?:\.\d+)?(?:e-?\d+)?(?![\w.])", "N", text)
 
 
-def run_settings(settings, states: int) -> dict:
+def run_settings(settings, states: int, strip: bool = False) -> dict:
     """What a row's numbers depend on besides the model and the binaries."""
     return {"duration": settings.duration, "communication_step": settings.communication_step,
-            "mujoco_step": settings.mujoco_step, "seed": settings.seed, "states": states}
+            "mujoco_step": settings.mujoco_step, "seed": settings.seed, "states": states,
+            "strip_absent_meshes": strip}
 
 
-def previous_rows(out: Path, settings, states: int) -> dict[tuple[str, str], Row]:
+def previous_rows(out: Path, settings, states: int, strip: bool = False) -> dict[tuple[str, str], Row]:
     """The rows of out/corpus.json run with the same settings, except those
     that failed or timed out: what --resume keeps."""
     path = out / "corpus.json"
     if not path.is_file():
         return {}
     previous = json.loads(path.read_text())
-    if previous.get("settings") != run_settings(settings, states):
+    if previous.get("settings") != run_settings(settings, states, strip):
         raise CorpusError(f"{path} was run with other settings ({previous.get('settings')}): "
                           "rerun without --resume, or with the same settings")
     return {(r["model"], r["form"]): Row(**r) for r in previous["rows"] if r["verdict"] not in (FAILED, TIMED_OUT)}
 
 
 def run_corpus(corpus: Path, out: Path, nudyn: Path, settings, *, jobs: int = 1, timeout: float = 600.0,
-               states: int = 10, forms=FORMS, exclude=(), resume: bool = False, progress=print) -> list[Row]:
+               states: int = 10, forms=FORMS, exclude=(), resume: bool = False, strip_absent_meshes: bool = False,
+               progress=print) -> list[Row]:
     """Every entry point of the corpus in every form; the rows in model
     order.  With `resume`, the rows of the last report in `out` are kept
     (previous_rows) and only the others run."""
@@ -422,7 +495,7 @@ def run_corpus(corpus: Path, out: Path, nudyn: Path, settings, *, jobs: int = 1,
         raise CorpusError(f"no MJCF model under {corpus}")
     out.mkdir(parents=True, exist_ok=True)
     tasks = [(m, f) for m in models for f in forms]
-    kept = previous_rows(out, settings, states) if resume else {}
+    kept = previous_rows(out, settings, states, strip_absent_meshes) if resume else {}
     rows: dict[tuple[Path, str], Row] = {
         t: kept[str(t[0].relative_to(corpus)), t[1]] for t in tasks if (str(t[0].relative_to(corpus)), t[1]) in kept
     }
@@ -431,7 +504,8 @@ def run_corpus(corpus: Path, out: Path, nudyn: Path, settings, *, jobs: int = 1,
 
     def one(task):
         try:
-            row = _run_in_process(*task, corpus, out.resolve(), nudyn.resolve(), settings, states, timeout)
+            row = _run_in_process(*task, corpus, out.resolve(), nudyn.resolve(), settings, states,
+                                  strip_absent_meshes, timeout)
         except Exception as e:  # noqa: BLE001  (one job's surprise must not lose the others' rows)
             row = Row(model=str(task[0].relative_to(corpus)), form=task[1], status=FAILED, message=repr(e),
                       verdict=FAILED)
@@ -507,10 +581,11 @@ def markdown(rows: list[Row], settings, corpus: Path) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_report(rows: list[Row], settings, states: int, corpus: Path, out: Path) -> dict[str, Path]:
+def write_report(rows: list[Row], settings, states: int, corpus: Path, out: Path,
+                 strip: bool = False) -> dict[str, Path]:
     paths = {"table": out / "corpus.md", "json": out / "corpus.json"}
     paths["table"].write_text(markdown(rows, settings, corpus))
-    numbers = {"corpus": str(corpus), "settings": run_settings(settings, states), "summary": summary(rows),
+    numbers = {"corpus": str(corpus), "settings": run_settings(settings, states, strip), "summary": summary(rows),
                "rows": [asdict(r) for r in rows]}
     paths["json"].write_text(json.dumps(numbers, indent=1) + "\n")
     return paths
@@ -520,8 +595,8 @@ def _job_main(argv: list[str]) -> int:
     """The child process of one job: writes its Row as JSON to the file named."""
     model, form, corpus, out, nudyn, row_file, options = argv
     options = json.loads(options)
-    states = options.pop("states")
-    row = run_job(Path(model), form, Path(corpus), Path(out), Path(nudyn), Settings(**options), states)
+    states, strip = options.pop("states"), options.pop("strip_absent_meshes")
+    row = run_job(Path(model), form, Path(corpus), Path(out), Path(nudyn), Settings(**options), states, strip)
     Path(row_file).parent.mkdir(parents=True, exist_ok=True)
     Path(row_file).write_text(json.dumps(asdict(row)) + "\n")
     return 0

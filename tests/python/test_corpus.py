@@ -24,6 +24,7 @@ from nudyn_validation.corpus import (
     mount_on_bus,
     refusal_cause,
 )
+from nudyn_validation.corpus import STRIPPED
 from nudyn_validation.judgement import AGREES, CHAOTIC, DISAGREES, judge, passes
 from nudyn_validation.mujoco_reference import load_model
 
@@ -65,7 +66,8 @@ def test_entry_points_are_the_models_not_their_parts_or_scenes():
     """servo_arm.xml is included by servo.xml; scene.xml only surrounds
     pendulum.xml, which stays the model."""
     found = [p.relative_to(CORPUS.resolve()).as_posix() for p in entry_points(CORPUS)]
-    assert found == ["absent_mesh.xml", "pendulum/pendulum.xml", "servo/servo.xml", "stiff.xml", "windy.xml"]
+    assert found == ["absent_mesh.xml", "absent_visual_mesh.xml", "pendulum/pendulum.xml", "servo/servo.xml",
+                     "stiff.xml", "windy.xml"]
 
 
 def test_bus_form_mounts_the_model_on_a_free_bus(tmp_path):
@@ -101,7 +103,7 @@ def test_corpus_command_writes_the_table(nudyn, tmp_path):
     assert proc.returncode == 0, proc.stdout + proc.stderr
     numbers = json.loads((out / "corpus.json").read_text())
     rows = {(r["model"], r["form"]): r for r in numbers["rows"]}
-    assert len(rows) == 10
+    assert len(rows) == 12
     for form in ("published", "bus"):
         for model in ("pendulum/pendulum.xml", "servo/servo.xml"):
             row = rows[model, form]
@@ -118,8 +120,9 @@ def test_corpus_command_writes_the_table(nudyn, tmp_path):
         assert "MuJoCo alone: mjWARN_BAD" in stiff["message"], stiff
         absent = rows["absent_mesh.xml", form]
         assert absent["verdict"] == "files absent" and "no_such_hull.stl" in absent["message"], absent
+        assert rows["absent_visual_mesh.xml", form]["verdict"] == "files absent"
         assert numbers["summary"]["verdicts"][form] == {
-            AGREES: 2, "files absent": 1, "refused": 1, "unstable at this step": 1
+            AGREES: 2, "files absent": 2, "refused": 1, "unstable at this step": 1
         }
         assert list(numbers["summary"]["refusals"][form]) == [
             "<option>: not supported: wind acts through fluid forces, which nudyn does not model"
@@ -129,10 +132,37 @@ def test_corpus_command_writes_the_table(nudyn, tmp_path):
     assert "| windy.xml | bus | 6 | refused: line 2: &lt;option>: not supported: wind" in table
     # --resume keeps every row that neither failed nor timed out: nothing runs again.
     resumed = run_corpus_command(nudyn, out, "--resume")
-    assert resumed.returncode == 0 and "10 jobs (10 kept from the last run)" in resumed.stdout, resumed.stdout
+    assert resumed.returncode == 0 and "12 jobs (12 kept from the last run)" in resumed.stdout, resumed.stdout
     assert json.loads((out / "corpus.json").read_text())["rows"] == numbers["rows"]
     other = run_corpus_command(nudyn, out, "--resume", "--seed", "2")
     assert other.returncode == 2 and "was run with other settings" in other.stderr, other.stderr
+
+
+def test_absent_meshes_are_stripped_on_request(nudyn, tmp_path):
+    """With --strip-absent-meshes a model runs without the meshes whose
+    files are absent, and its verdict says so: the pendulum whose links
+    carry their own inertia agrees; the free hull whose only mass was its
+    mesh is left massless, which MuJoCo refuses to load."""
+    out = tmp_path / "corpus"
+    proc = run_corpus_command(nudyn, out, "--strip-absent-meshes", "--exclude", "[!a]*", "--exclude", "*/*")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    numbers = json.loads((out / "corpus.json").read_text())
+    assert numbers["settings"]["strip_absent_meshes"] is True
+    rows = {(r["model"], r["form"]): r for r in numbers["rows"]}
+    assert {model for model, _ in rows} == {"absent_mesh.xml", "absent_visual_mesh.xml"}
+    for form in ("published", "bus"):
+        pendulum = rows["absent_visual_mesh.xml", form]
+        assert pendulum["verdict"] == f"{AGREES}, {STRIPPED}", pendulum
+        assert pendulum["stripped_meshes"] == ["link_visual", "no_such_tip"], pendulum
+        assert pendulum["evaluation_error"] < 1e-12 and pendulum["nv"] == (2 if form == "published" else 8)
+    hull = rows["absent_mesh.xml", "published"]
+    assert hull["verdict"] == f"MuJoCo cannot load, {STRIPPED}" and "mass" in hull["message"], hull
+    # On the bus the hull lost its free joint: a massless part of the bus is no fault.
+    assert rows["absent_mesh.xml", "bus"]["verdict"] == f"{AGREES}, {STRIPPED}"
+    # The stripped file keeps everything else: the dynamics as published.
+    stripped = load_model(out / "models" / "absent_visual_mesh" / "published" / "absent_visual_mesh.stripped.xml")
+    assert stripped.ngeom == 1 and stripped.npair == 0 and stripped.nmesh == 0
+    np.testing.assert_array_equal(stripped.body_mass[1:], [1.5, 0.8])
 
 
 def test_a_wrong_model_is_caught(cli, tmp_path):
