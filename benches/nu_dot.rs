@@ -64,6 +64,7 @@ fn hinge_chain(links: usize) -> Vehicle {
     Vehicle {
         name: format!("chain{links}"),
         gravity: Vec3::zeros(),
+        magnetic: Vec3::zeros(),
         bodies,
         sites,
         actuators,

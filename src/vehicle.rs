@@ -17,6 +17,8 @@ pub struct Vehicle {
     pub name: String,
     /// Gravity in world coordinates (zero when `<flag gravity="disable"/>`).
     pub gravity: Vec3,
+    /// The magnetic field in world coordinates (`<option magnetic>`), which magnetometers read.
+    pub magnetic: Vec3,
     /// Bodies in MJCF document order (depth-first, parent before child),
     /// not including the world body.
     pub bodies: Vec<Body>,
@@ -343,6 +345,8 @@ pub enum SensorKind {
     /// The torque the site's body takes from its parent, about the site,
     /// in the site frame.
     Torque,
+    /// The magnetic field (`<option magnetic>`) in the site frame.
+    Magnetometer,
     /// An actuator's force.
     ActuatorFrc,
     /// The actuators' total force on a hinge or slide joint.
@@ -375,7 +379,7 @@ pub enum SensorKind {
 
 impl SensorKind {
     /// Every kind, in MuJoCo's `mjtSensor` order.
-    pub const ALL: [SensorKind; 35] = {
+    pub const ALL: [SensorKind; 36] = {
         use SensorKind::*;
         [
             Accelerometer,
@@ -383,6 +387,7 @@ impl SensorKind {
             Gyro,
             Force,
             Torque,
+            Magnetometer,
             JointPos,
             JointVel,
             ActuatorPos,
@@ -441,6 +446,7 @@ impl SensorKind {
             Accelerometer => "accelerometer",
             Force => "force",
             Torque => "torque",
+            Magnetometer => "magnetometer",
             ActuatorFrc => "actuatorfrc",
             JointActuatorFrc => "jointactuatorfrc",
             JointLimitPos => "jointlimitpos",

@@ -29,7 +29,7 @@ fn the_table_names_what_the_importer_refuses_and_reads() {
     for line in [
         "| `<attach>` | attaching another model |",
         "| `<actuator>/<muscle>` | muscle actuators (activation dynamics and muscle force curves) |",
-        "| `<sensor>/<magnetometer>` | the sensor type is not computed by nudyn |",
+        "| `<sensor>/<camprojection>` | the sensor type is not computed by nudyn |",
         "| `<keyframe>` | ignored with a warning |",
     ] {
         assert!(table.contains(line), "missing: {line}");

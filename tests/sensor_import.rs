@@ -105,7 +105,7 @@ fn sensor_types_nudyn_does_not_compute_are_refused_by_name_and_line() {
     for (element, why) in [
         (r#"<touch site="tip"/>"#, "contacts or geometry"),
         (r#"<rangefinder site="tip"/>"#, "contacts or geometry"),
-        (r#"<magnetometer site="tip"/>"#, "not computed"),
+        (r#"<camprojection site="tip" camera="c"/>"#, "not computed"),
         (r#"<tendonpos tendon="t"/>"#, "unknown tendon 't'"),
         (r#"<e_kinetic/>"#, "energy sensors"),
         (r#"<user dim="1"/>"#, "user and plugin"),

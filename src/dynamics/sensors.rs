@@ -226,6 +226,7 @@ impl Workspace {
             FrameAngVel => in_reference(frame.omega - reference.as_ref().map_or(Vec3::zeros(), |r| r.omega)),
             Gyro => frame.rot.transpose() * frame.omega,
             Velocimeter => frame.rot.transpose() * frame.vel,
+            Magnetometer => frame.rot.transpose() * model.magnetic,
             FrameAngAcc => self.frame_acceleration(model, object, &frame).0,
             FrameLinAcc => self.frame_acceleration(model, object, &frame).1,
             _ => frame.rot.transpose() * self.frame_acceleration(model, object, &frame).1,

@@ -140,6 +140,7 @@ struct Compiler {
 /// `<option>` settings that matter here.
 struct Physics {
     gravity: Vec3,
+    magnetic: Vec3,
     gravity_disabled: bool,
     spring_disabled: bool,
     damper_disabled: bool,
@@ -400,6 +401,8 @@ impl Reader {
             },
             physics: Physics {
                 gravity: Vec3::new(0.0, 0.0, -9.81),
+                // MuJoCo's default field.
+                magnetic: Vec3::new(0.0, -0.5, 0.0),
                 gravity_disabled: false,
                 spring_disabled: false,
                 damper_disabled: false,
@@ -515,6 +518,9 @@ impl Reader {
         element.check_attributes(OPTION_ATTRIBUTES)?;
         if let Some(gravity) = element.numbers::<3>("gravity")? {
             self.physics.gravity = Vec3::from(gravity);
+        }
+        if let Some(magnetic) = element.numbers::<3>("magnetic")? {
+            self.physics.magnetic = Vec3::from(magnetic);
         }
         if let Some(timestep) = element.number("timestep")? {
             if timestep <= 0.0 {
@@ -1802,6 +1808,7 @@ impl Reader {
         let vehicle = Vehicle {
             name,
             gravity,
+            magnetic: self.physics.magnetic,
             bodies: self.bodies,
             sites: self.sites,
             actuators: self.actuators,

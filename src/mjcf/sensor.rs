@@ -34,7 +34,7 @@ pub(crate) trait SensorTargets {
 pub(crate) const REFUSED_SENSORS: &[(&[&str], &str)] = &[
     (&["touch", "rangefinder", "contact", "tactile", "insidesite", "geomdist", "geomnormal", "geomfromto"],
      "the sensor measures contacts or geometry, which nudyn does not model"),
-    (&["magnetometer", "camprojection"], "the sensor type is not computed by nudyn"),
+    (&["camprojection"], "the sensor type is not computed by nudyn"),
     (&["e_potential", "e_kinetic"], "energy sensors are not computed by nudyn (the FMU has kinetic_energy)"),
     (&["user", "plugin"], "user and plugin sensors are computed by code nudyn does not have"),
 ];
@@ -49,7 +49,7 @@ pub(crate) fn refusal(tag: &str) -> Option<&'static str> {
 pub(crate) fn own_attributes(kind: SensorKind) -> &'static [&'static str] {
     use SensorKind::*;
     match kind {
-        Gyro | Velocimeter | Accelerometer | Force | Torque => &["site"],
+        Gyro | Velocimeter | Accelerometer | Force | Torque | Magnetometer => &["site"],
         JointPos | JointVel | BallQuat | BallAngVel | JointActuatorFrc => &["joint"],
         JointLimitPos | JointLimitVel | JointLimitFrc => &["joint"],
         ActuatorPos | ActuatorVel | ActuatorFrc => &["actuator"],
@@ -138,7 +138,7 @@ fn target(element: &Element, kind: SensorKind, targets: &impl SensorTargets) -> 
             }
             SensorTarget::Tendon(targets.tendon(element, "tendon")?)
         }
-        Gyro | Velocimeter | Accelerometer | Force | Torque => {
+        Gyro | Velocimeter | Accelerometer | Force | Torque | Magnetometer => {
             required("site")?;
             SensorTarget::Frame { object: FrameObject::Site(targets.site(element, "site")?), reference: None }
         }

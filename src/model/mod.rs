@@ -213,6 +213,9 @@ pub struct Model {
     pub nv: usize,
     /// Gravity in world coordinates.
     pub gravity: Vec3,
+    /// The magnetic field in world coordinates, which magnetometers read.
+    #[serde(default)]
+    pub magnetic: Vec3,
     /// Links in parent-first (MuJoCo dof) order.
     pub links: Vec<Link>,
     /// MJCF joints in qpos order.
@@ -529,6 +532,7 @@ impl Model {
             nq: qpos0.len(),
             nv,
             gravity: vehicle.gravity,
+            magnetic: vehicle.magnetic,
             links,
             joints,
             qpos0,

@@ -463,6 +463,7 @@ pub fn random_vehicle(rng: &mut Rng, opts: TreeOptions) -> Vehicle {
     Vehicle {
         name: "random".into(),
         gravity,
+        magnetic: V3::zeros(),
         bodies,
         sites: Vec::new(),
         actuators: Vec::new(),

@@ -4,7 +4,7 @@ The fixtures in tests/fixtures/sensors/ and the examples with sensors cover
 every sensor type nudyn computes (jointpos, jointvel, ballquat, ballangvel,
 framepos, framequat, framexaxis/yaxis/zaxis, framelinvel, frameangvel,
 framelinacc, frameangacc, subtreecom, subtreelinvel, subtreeangmom, gyro,
-velocimeter, accelerometer, force, torque, actuatorfrc, jointactuatorfrc,
+velocimeter, accelerometer, force, torque, magnetometer, actuatorfrc, jointactuatorfrc,
 actuatorpos, actuatorvel, clock) on every kind of frame (objtype body, xbody and site;
 moving, welded and world bodies; with and without a reference frame), with
 cutoffs, gravity on and off, actuators and applied forces. For random
@@ -94,7 +94,7 @@ def test_the_fixtures_cover_every_sensor_type_and_frame_kind():
     expected = {
         "JOINTPOS", "JOINTVEL", "BALLQUAT", "BALLANGVEL", "FRAMEPOS", "FRAMEQUAT", "FRAMEXAXIS", "FRAMEYAXIS",
         "FRAMEZAXIS", "FRAMELINVEL", "FRAMEANGVEL", "FRAMELINACC", "FRAMEANGACC", "SUBTREECOM", "SUBTREELINVEL",
-        "SUBTREEANGMOM", "GYRO", "VELOCIMETER", "ACCELEROMETER", "FORCE", "TORQUE", "ACTUATORFRC", "JOINTACTFRC", "ACTUATORPOS",
+        "SUBTREEANGMOM", "GYRO", "VELOCIMETER", "ACCELEROMETER", "FORCE", "TORQUE", "MAGNETOMETER", "ACTUATORFRC", "JOINTACTFRC", "ACTUATORPOS",
         "ACTUATORVEL", "CLOCK",
     }
     assert {f"mjSENS_{t}" for t in expected} <= types

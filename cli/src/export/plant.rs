@@ -198,6 +198,7 @@ fn sensor_description(model: &Model, k: usize) -> String {
         SubtreeAngMom => ("angular momentum about its centre of mass, world axes", "kg*m^2/s"),
         Gyro => ("angular velocity in the site frame", "rad/s"),
         Velocimeter => ("linear velocity in the site frame", "m/s"),
+        Magnetometer => ("magnetic field in the site frame", "T"),
         Accelerometer => ("linear acceleration minus gravity in the site frame", "m/s^2"),
         Force => ("interaction force with the parent (site axes)", "N"),
         Torque => ("interaction torque with the parent about the site (site axes)", "N*m"),
