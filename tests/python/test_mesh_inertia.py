@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import subprocess
+import sys
 
 import mujoco
 import numpy as np
@@ -224,6 +225,29 @@ def test_mesh_defaults_and_meshdir(nudyn, tmp_path):
     path = tmp_path / "defaults.xml"
     path.write_text(xml)
     compare(nudyn, path)
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_content_type_and_upper_case_extensions(nudyn, tmp_path, fmt):
+    """A mesh file with an upper-case extension and each content_type, read
+    as MuJoCo 4.0 reads it: model/vnd.mujoco.msh reads MSH whatever the
+    extension, another well-formed type leaves it to the extension and
+    finds nothing for an .msh file, a malformed type is no type. Where
+    MuJoCo refuses, nudyn refuses too."""
+    upper = tmp_path / f"L_{fmt}.{fmt.upper()}"
+    upper.write_bytes((MESHES / f"l_shape.{fmt}").read_bytes())
+    for content_type in ["model/stl", "model/obj", "model/vnd.mujoco.msh", "model/ply", "model/x;a=b", "foo"]:
+        path = mesh_scene(tmp_path, f'file="{upper}" content_type="{content_type}" inertia="exact"')
+        label = f"{upper.name} as {content_type}"
+        try:
+            # A fresh process: MuJoCo caches a mesh by its file name, whatever its content_type.
+            subprocess.run([sys.executable, "-c", f"import mujoco; mujoco.MjModel.from_xml_path({str(path)!r})"],
+                           check=True, capture_output=True)
+        except subprocess.CalledProcessError:
+            proc = describe(nudyn, path)
+            assert proc.returncode != 0, f"{label}: nudyn accepted what MuJoCo refuses"
+            continue
+        compare(nudyn, path, label)
 
 
 @pytest.mark.parametrize("path", EXAMPLES + IMPORTER_FIXTURES + SENSOR_FIXTURES, ids=lambda p: p.stem)

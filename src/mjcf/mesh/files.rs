@@ -20,7 +20,8 @@ pub(crate) struct RawMesh {
     pub faces: Vec<[i64; 3]>,
 }
 
-/// The mesh formats, told apart by the file's extension as MuJoCo does.
+/// The mesh formats, told apart by the file's extension and `content_type`
+/// as MuJoCo 4.0 does.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum MeshFormat {
     /// `.stl`.
@@ -32,15 +33,44 @@ pub(crate) enum MeshFormat {
 }
 
 impl MeshFormat {
-    /// The format of a file name, by its extension.
+    /// The format of a file name, by its extension (in any case, as
+    /// MuJoCo compares them).
     pub fn of(file: &str) -> Option<Self> {
-        let extension = file.rsplit_once('.')?.1;
-        match extension {
-            "stl" | "STL" => Some(Self::Stl),
-            "obj" | "OBJ" => Some(Self::Obj),
-            "msh" | "MSH" => Some(Self::Msh),
+        let extension = file.rsplit_once('.')?.1.to_ascii_lowercase();
+        match extension.as_str() {
+            "stl" => Some(Self::Stl),
+            "obj" => Some(Self::Obj),
+            "msh" => Some(Self::Msh),
             _ => None,
         }
+    }
+
+    /// The format MuJoCo 4.0 reads a mesh file in, given its `content_type`
+    /// (as observed with each format and type): a well-formed type
+    /// ("type/subtype", then optionally ";parameter=value") that is
+    /// model/vnd.mujoco.msh reads MSH whatever the extension; any other
+    /// well-formed type leaves STL and OBJ to the extension and finds no
+    /// reader for an .msh file; a malformed or absent one leaves it all to
+    /// the extension.
+    pub fn of_mesh(file: &str, content_type: Option<&str>) -> Option<Self> {
+        match content_type.and_then(media_type) {
+            Some("model/vnd.mujoco.msh") => Some(Self::Msh),
+            Some(_) => Self::of(file).filter(|format| *format != Self::Msh),
+            None => Self::of(file),
+        }
+    }
+}
+
+/// The "type/subtype" of a well-formed content type, by MuJoCo's rule: a
+/// '/' that is not last, and a ';' only after it, followed by an '='.
+fn media_type(content_type: &str) -> Option<&str> {
+    let slash = content_type.find('/').filter(|&n| n + 1 < content_type.len())?;
+    match content_type.find(';') {
+        None => Some(content_type),
+        Some(semicolon) if semicolon > slash && content_type.find('=').is_some_and(|eq| eq > semicolon) => {
+            Some(&content_type[..semicolon])
+        }
+        Some(_) => None,
     }
 }
 

@@ -127,13 +127,8 @@ impl Mesh {
 
 /// Reads and processes a `<mesh>` asset with its class's settings.
 pub(crate) fn read(element: &Element, defaults: &MeshSettings, file_path: Option<PathBuf>) -> Result<Mesh, MjcfError> {
-    for (attribute, reason) in [
-        ("builtin", "built-in meshes (write the mesh out to a file)"),
-        ("content_type", "content_type (nudyn tells STL, OBJ and MSH files apart by their extension)"),
-    ] {
-        if element.has(attribute) {
-            return Err(element.unsupported(reason));
-        }
+    if element.has("builtin") {
+        return Err(element.unsupported("built-in meshes (write the mesh out to a file)"));
     }
     if let Some(child) = element.children().next() {
         return Err(child.unsupported("mesh plugins"));
@@ -146,8 +141,13 @@ pub(crate) fn read(element: &Element, defaults: &MeshSettings, file_path: Option
 
     let mut raw = RawMesh::default();
     if let (Some(file), Some(path)) = (file, &file_path) {
-        let format = MeshFormat::of(file)
-            .ok_or_else(|| element.unsupported(format!("mesh file '{file}': nudyn reads .stl, .obj and .msh files")))?;
+        let content_type = element.text("content_type");
+        let format = MeshFormat::of_mesh(file, content_type).ok_or_else(|| match content_type {
+            Some(content_type) if MeshFormat::of(file).is_some() => {
+                element.invalid(format!("no decoder found for mesh file '{file}' with content_type '{content_type}'"))
+            }
+            _ => element.unsupported(format!("mesh file '{file}': nudyn reads .stl, .obj and .msh files")),
+        })?;
         let bytes = std::fs::read(path)
             .map_err(|e| element.invalid(format!("cannot read mesh file '{}': {e}", path.display())))?;
         let in_file = |reason: String| element.invalid(format!("mesh file '{}': {reason}", path.display()));
