@@ -5,8 +5,8 @@ At each communication point t_k the scenario's ε_k is computed (from the
 FMU's ν for closed loops), given to both, and held until t_k + Δt.  Both
 sides are sampled at every communication point: θ, ν, the kinetic energy,
 the momentum and, for the energy drift, K + U (U: MuJoCo's potential energy
-of gravity and springs).  MuJoCo's twin, the same run from qvel moved by
-TWIN_NUDGE, runs beside them with the same inputs: how far it drifts from
+of gravity and springs).  MuJoCo's twins, the same run from qvel moved by
+±TWIN_NUDGE, run beside them with the same inputs: how far they drift from
 MuJoCo is what the model's sensitivity at this step allows (judgement.py).
 """
 
@@ -25,7 +25,7 @@ from nudyn_driver.cli import Nudyn
 from nudyn_driver.instance import Instance
 from nudyn_driver.package import FmuPackage
 
-from .judgement import TWIN_NUDGE, judge, passes
+from .judgement import TWINS, judge, passes, twin_nudges
 from .mujoco_reference import load_model
 from .mujoco_run import MujocoVehicle
 from .runners import Fmi3CoSimulation, ModelExchange
@@ -65,6 +65,8 @@ class Settings:
     # Bodies exported with --wrench-inputs (their wrenches are inputs; the
     # 'wrenched' scenario drives them).
     wrench_bodies: tuple[str, ...] = ()
+    # MuJoCo's twins (judgement.TWINS); each costs one more MuJoCo run.
+    twins: int = TWINS
 
     def parameters(self) -> dict[str, float]:
         """RK4's internal step is the one above; an adaptive method keeps
@@ -115,7 +117,7 @@ class ScenarioResult:
     ctrl: np.ndarray | None  # (n, nu): the controls held likewise, where the scenario sets them
     fmu: Trajectory
     mujoco: Trajectory
-    twin: Trajectory  # MuJoCo again, from qvel + TWIN_NUDGE, with the same inputs
+    twins: list[Trajectory]  # MuJoCo again, from qvel + each of twin_nudges, with the same inputs
     quaternion_starts: list[int]  # qpos index of each quaternion (w, x, y, z)
     energy_is_conserved: bool
 
@@ -140,10 +142,11 @@ class ScenarioResult:
         return np.max(scaled, axis=1, initial=0.0)
 
     def twin_divergence(self) -> np.ndarray:
-        """The twin's distance from MuJoCo at each time, in the norm of the
-        FMU's error: the largest of θ, ν and sensordata differences."""
+        """The twins' largest distance from MuJoCo at each time, in the norm
+        of the FMU's error: the largest of θ, ν and sensordata differences."""
         return np.maximum.reduce(
-            [self.theta_error(self.twin), self.nu_error(self.twin), self.sensordata_error(self.twin)]
+            [e for twin in self.twins for e in (self.theta_error(twin), self.nu_error(twin),
+                                                self.sensordata_error(twin))]
         )
 
     def kinetic_energy_error(self) -> np.ndarray:
@@ -236,18 +239,20 @@ def run_scenario(package: FmuPackage | None, model_path: Path, scenario: Scenari
     steps, substeps = settings.communication_steps(), settings.mujoco_substeps()
     mj = MujocoVehicle(model_path, h / substeps)
     mj.set_state(scenario.qpos0, scenario.qvel0)
-    twin = MujocoVehicle(model_path, h / substeps)
-    twin.set_state(scenario.qpos0, scenario.qvel0 + TWIN_NUDGE)
+    twins = []
+    for nudge in twin_nudges(len(scenario.qvel0), settings.seed, settings.twins):
+        twins.append(MujocoVehicle(model_path, h / substeps))
+        twins[-1].set_state(scenario.qpos0, scenario.qvel0 + nudge)
     # The FMU starts from the same θ and from MuJoCo's ν of the same qvel.
     fmu = open_fmu(package, fmu_path, settings, scenario.qpos0, mj.nu(), unzip_dir)
-    fmu_samples, mj_samples, twin_samples = _Samples(), _Samples(), _Samples()
+    fmu_samples, mj_samples, twin_samples = _Samples(), _Samples(), [_Samples() for _ in twins]
     held, held_ctrl = [], []
 
     def sample():
         theta = fmu.array("theta")
         fmu_samples.add(theta, fmu.array("nu"), fmu.real("kinetic_energy"), fmu.array("momentum"),
                         mj.potential_energy_at(theta), fmu.array("sensordata"))
-        for side, samples in ((mj, mj_samples), (twin, twin_samples)):
+        for side, samples in ((mj, mj_samples), *zip(twins, twin_samples)):
             samples.add(side.theta(), side.nu(), side.kinetic_energy(), side.momentum(), side.potential_energy(),
                         side.data.sensordata.copy())
 
@@ -277,8 +282,9 @@ def run_scenario(package: FmuPackage | None, model_path: Path, scenario: Scenari
             start = time.perf_counter()
             mj.advance(eps, substeps, ctrl, wrench_by_body)
             mj_samples.wall_time += time.perf_counter() - start
-            twin.advance(eps, substeps, ctrl, wrench_by_body)
-            for label, side in (("", mj), ("'s twin", twin)):
+            for twin in twins:
+                twin.advance(eps, substeps, ctrl, wrench_by_body)
+            for label, side in (("", mj), *(("'s twin", twin) for twin in twins)):
                 problem = side.instability()
                 if problem:
                     raise ValidationError(
@@ -296,7 +302,7 @@ def run_scenario(package: FmuPackage | None, model_path: Path, scenario: Scenari
         ctrl=None if scenario.ctrl_law is None else np.array(held_ctrl),
         fmu=fmu_samples.trajectory(),
         mujoco=mj_samples.trajectory(),
-        twin=twin_samples.trajectory(),
+        twins=[samples.trajectory() for samples in twin_samples],
         quaternion_starts=quaternion_starts(mj.model),
         energy_is_conserved=scenario.unforced and mj.conserves_energy_unforced,
     )

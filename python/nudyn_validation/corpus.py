@@ -463,7 +463,7 @@ def refusal_cause(message: str) -> str:
 def run_settings(settings, states: int, strip: bool = False) -> dict:
     """What a row's numbers depend on besides the model and the binaries."""
     return {"duration": settings.duration, "communication_step": settings.communication_step,
-            "mujoco_step": settings.mujoco_step, "seed": settings.seed, "states": states,
+            "mujoco_step": settings.mujoco_step, "seed": settings.seed, "twins": settings.twins, "states": states,
             "strip_absent_meshes": strip}
 
 
@@ -550,7 +550,7 @@ def markdown(rows: list[Row], settings, corpus: Path) -> str:
         f"max(1, |qacc|) (bar {EVALUATION_TOLERANCE:g}). Trajectory: {settings.duration:g} s, RK4 at "
         f"{settings.mujoco_step:g} s on both sides, communication step {settings.communication_step:g} s, "
         "random ctrl (`actuated`) or free motion (`tumble`); error: max θ, ν or sensordata difference; "
-        "twin: MuJoCo's own run from qvel moved by 1e-13.",
+        f"twins: MuJoCo's own run from qvel moved by ±1e-13 ({settings.twins} of them, the largest divergence counts).",
         "",
         "## Summary",
         "",

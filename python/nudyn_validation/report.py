@@ -16,7 +16,7 @@ import numpy as np
 from PIL import Image  # matplotlib's own dependency
 
 from .compare import ModelValidation, ScenarioResult
-from .judgement import AGREES, CHAOTIC, DISAGREES, TWIN_FACTOR, TWIN_NUDGE
+from .judgement import AGREES, CHAOTIC, DISAGREES, TWIN_FACTOR, TWIN_NUDGE, TWINS
 
 # Trajectory panels show the components that move most, so that a few lines
 # stay readable on vehicles with dozens of dofs.
@@ -112,8 +112,9 @@ def table(validation: ModelValidation) -> str:
         "sensors evaluated at the state reached with the inputs held). Energy drift is max |E(t) − E(0)|, "
         "E = K + potential energy of gravity and springs, where E is conserved "
         "(ε = 0, no joint damping and no servo pulling at ctrl = 0). Times are the integration's wall time; MuJoCo's includes "
-        "the Python control callback at every RK4 stage. MuJoCo's twin is its same run from qvel moved by "
-        f"{TWIN_NUDGE:g} in every component; its divergence is its largest θ, ν or sensordata distance from MuJoCo. "
+        "the Python control callback at every RK4 stage. MuJoCo's twins are its same run from qvel moved by "
+        f"±{TWIN_NUDGE:g} in every component ({TWINS} of them, the signs drawn differently); the twin divergence is "
+        "their largest θ, ν or sensordata distance from MuJoCo. "
         f"Verdict: {AGREES} when the largest θ, ν or sensordata error is within the tolerance; {CHAOTIC} when "
         f"it is not but is within {TWIN_FACTOR:g} × the twin's divergence (MuJoCo cannot hold its own run "
         f"to the tolerance at this step either); {DISAGREES} otherwise.",

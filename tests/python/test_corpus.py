@@ -25,7 +25,8 @@ from nudyn_validation.corpus import (
     refusal_cause,
 )
 from nudyn_validation.corpus import STRIPPED
-from nudyn_validation.judgement import AGREES, CHAOTIC, DISAGREES, judge, passes
+from nudyn_driver.cli import Nudyn
+from nudyn_validation.judgement import AGREES, CHAOTIC, DISAGREES, TWIN_NUDGE, TWINS, judge, passes, twin_nudges
 from nudyn_validation.mujoco_reference import load_model
 
 CORPUS = ROOT / "tests" / "fixtures" / "corpus"
@@ -47,6 +48,27 @@ PENDULUM = CORPUS / "pendulum" / "pendulum.xml"
 def test_judgement(error, twin, verdict):
     assert judge(error, twin, 1e-6) == verdict
     assert passes(verdict) == (verdict != DISAGREES)
+
+
+def test_twins_start_apart_in_different_directions():
+    nudges = twin_nudges(5, seed=1)
+    assert len(nudges) == TWINS == 3
+    assert all(np.all(np.abs(n) == TWIN_NUDGE) for n in nudges)
+    assert np.all(nudges[0] > 0) and np.all(nudges[1] < 0) and len(set(np.sign(nudges[2]))) == 2
+    np.testing.assert_array_equal(twin_nudges(5, seed=1)[2], nudges[2])  # a run repeats its draw
+
+
+def test_the_twin_divergence_is_the_largest_twins(nudyn, tmp_path):
+    """Each twin is a MuJoCo run of its own; the divergence judged is the
+    largest of theirs at each time."""
+    fmu = tmp_path / "pendulum.fmu"
+    Nudyn(nudyn).export(PENDULUM, fmu, outputs=EXTRA_OUTPUTS)
+    settings = Settings(duration=0.3)
+    result = run_scenarios(PENDULUM, fmu, ["actuated"], settings).results[0]
+    assert len(result.twins) == TWINS
+    each = [np.max(np.abs(t.nu - result.mujoco.nu), axis=1) for t in result.twins]
+    assert len({float(np.max(e)) for e in each}) == TWINS  # the twins did run apart
+    assert np.all(result.twin_divergence() >= np.maximum.reduce(each))
 
 
 def test_refusals_group_by_feature():
