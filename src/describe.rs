@@ -6,7 +6,7 @@ use serde::Serialize;
 
 use crate::math::Quat;
 use crate::model::Model;
-use crate::vehicle::{ActuatorKind, BiasType, GainType, JointKind, Vehicle};
+use crate::vehicle::{ActuatorKind, BiasType, GainType, JointKind, PathPoint, TendonPath, Vehicle};
 
 /// The structure of a compiled vehicle.
 #[derive(Clone, Debug, Serialize)]
@@ -27,6 +27,70 @@ pub struct Description {
     pub actuators: Vec<ActuatorDescription>,
     /// The bodies in MuJoCo's order, without the world body.
     pub bodies: Vec<BodyDescription>,
+    /// The tendons in MuJoCo's order.
+    pub tendons: Vec<TendonDescription>,
+}
+
+/// One tendon: its path and the forces it carries, as MuJoCo's compiled
+/// model holds them.
+#[derive(Clone, Debug, Serialize)]
+pub struct TendonDescription {
+    /// The tendon's name; `None` (JSON null) when it has none.
+    pub name: Option<String>,
+    /// The element it was written with: fixed or spatial.
+    pub kind: &'static str,
+    /// A fixed tendon's joints and coefficients (empty for a spatial one).
+    pub joints: Vec<TendonJoint>,
+    /// A spatial tendon's sites, wrapping geoms and pulleys in order (empty for a fixed one).
+    pub path: Vec<TendonPathPoint>,
+    /// Length in qpos0 (tendon_length0).
+    pub length0: f64,
+    /// The lengths between which the spring is at rest (tendon_lengthspring).
+    pub springlength: [f64; 2],
+    /// Stiffness.
+    pub stiffness: f64,
+    /// Damping.
+    pub damping: f64,
+    /// Friction loss (0: none).
+    pub frictionloss: f64,
+    /// The length range when the tendon is limited (`null` otherwise).
+    pub range: Option<[f64; 2]>,
+}
+
+/// One joint of a fixed tendon.
+#[derive(Clone, Debug, Serialize)]
+pub struct TendonJoint {
+    /// The joint's name.
+    pub joint: String,
+    /// Its coefficient.
+    pub coef: f64,
+}
+
+/// One element of a spatial tendon's path.
+#[derive(Clone, Debug, Serialize)]
+#[serde(rename_all = "snake_case", tag = "type")]
+pub enum TendonPathPoint {
+    /// A site.
+    Site {
+        /// The site's name.
+        name: Option<String>,
+        /// The body carrying it ("world" for the world body).
+        body: String,
+    },
+    /// A sphere or cylinder the tendon wraps around.
+    Geom {
+        /// The body carrying it ("world" for the world body).
+        body: String,
+        /// sphere or cylinder.
+        shape: &'static str,
+        /// Its radius.
+        radius: f64,
+    },
+    /// A pulley: the path after it counts 1/divisor.
+    Pulley {
+        /// Its divisor.
+        divisor: f64,
+    },
 }
 
 /// One body's mass properties, as MuJoCo's compiled model holds them.
@@ -150,7 +214,54 @@ impl Description {
             joints,
             actuators,
             bodies: vehicle.bodies.iter().map(describe_body).collect(),
+            tendons: vehicle.tendons.iter().zip(&model.tendons).map(|(t, c)| describe_tendon(vehicle, t, c)).collect(),
         }
+    }
+}
+
+/// A tendon as written (`tendon`) and compiled (`compiled`: its qpos0
+/// length and resolved spring lengths).
+fn describe_tendon(
+    vehicle: &Vehicle,
+    tendon: &crate::vehicle::Tendon,
+    compiled: &crate::model::Tendon,
+) -> TendonDescription {
+    let body_name = |body: Option<usize>| body.map_or("world".to_string(), |b| vehicle.bodies[b].name.clone());
+    let (kind, joints, path) = match &tendon.path {
+        TendonPath::Fixed(terms) => {
+            let joints = terms.iter().map(|(joint, coef)| TendonJoint { joint: joint.clone(), coef: *coef }).collect();
+            ("fixed", joints, Vec::new())
+        }
+        TendonPath::Spatial(points) => {
+            let path = points
+                .iter()
+                .map(|point| match *point {
+                    PathPoint::Site(site) => {
+                        let site = &vehicle.sites[site];
+                        TendonPathPoint::Site { name: site.name.clone(), body: body_name(site.body) }
+                    }
+                    PathPoint::Geom(geom) => TendonPathPoint::Geom {
+                        body: body_name(geom.body),
+                        shape: if geom.cylinder { "cylinder" } else { "sphere" },
+                        radius: geom.radius,
+                    },
+                    PathPoint::Pulley(divisor) => TendonPathPoint::Pulley { divisor },
+                })
+                .collect();
+            ("spatial", Vec::new(), path)
+        }
+    };
+    TendonDescription {
+        name: tendon.name.clone(),
+        kind,
+        joints,
+        path,
+        length0: compiled.length0,
+        springlength: compiled.spring_length,
+        stiffness: tendon.stiffness,
+        damping: tendon.damping,
+        frictionloss: tendon.frictionloss,
+        range: tendon.limit.as_ref().map(|limit| limit.range),
     }
 }
 

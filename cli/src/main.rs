@@ -429,6 +429,19 @@ fn describe(model_path: &Path, json: bool) -> Result<()> {
             );
         }
     }
+    if !description.tendons.is_empty() {
+        table += &format!("\n\n{} tendons\n", description.tendons.len());
+        table += &format!("{:<24} {:<8} {:>12} {}", "tendon", "kind", "length0", "range");
+        for tendon in &description.tendons {
+            let range = tendon.range.map_or("unlimited".to_string(), |[low, high]| format!("{low} .. {high}"));
+            table += &format!(
+                "\n{:<24} {:<8} {:>12.6} {range}",
+                tendon.name.as_deref().unwrap_or("-"),
+                tendon.kind,
+                tendon.length0
+            );
+        }
+    }
     emit(&table)
 }
 

@@ -10,7 +10,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from conftest import EXAMPLES, IMPORTER_FIXTURES, example_ids
+from conftest import EXAMPLES, IMPORTER_FIXTURES, ROOT, example_ids
 
 KINDS = {
     int(mujoco.mjtJoint.mjJNT_FREE): "free",
@@ -43,3 +43,44 @@ def test_joints_and_addresses_are_mujocos(nudyn, path):
             assert joint["body"] == body
         expected_quaternion = {"free": m.jnt_qposadr[j] + 3, "ball": m.jnt_qposadr[j]}.get(kind)
         assert joint["quaternion_adr"] == expected_quaternion
+
+
+TENDON_FIXTURES = sorted((ROOT / "tests" / "fixtures" / "tendons").glob("*.xml"))
+
+
+@pytest.mark.parametrize("path", TENDON_FIXTURES, ids=lambda p: p.stem)
+def test_tendons_are_mujocos(nudyn, path):
+    """Each tendon's kind, joints and coefficients or path, qpos0 length,
+    spring lengths, stiffness, damping, friction loss and range, against
+    MuJoCo's compiled model."""
+    proc = subprocess.run([str(nudyn), "describe", str(path), "--json"], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    tendons = json.loads(proc.stdout)["tendons"]
+    m = mujoco.MjModel.from_xml_path(str(path))
+    assert len(tendons) == m.ntendon > 0
+    wrap_kinds = {int(mujoco.mjtWrap.mjWRAP_JOINT): "joint", int(mujoco.mjtWrap.mjWRAP_SITE): "site",
+                  int(mujoco.mjtWrap.mjWRAP_SPHERE): "geom", int(mujoco.mjtWrap.mjWRAP_CYLINDER): "geom",
+                  int(mujoco.mjtWrap.mjWRAP_PULLEY): "pulley"}
+    for t, tendon in enumerate(tendons):
+        assert tendon["name"] == (mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_TENDON, t) or None)
+        wraps = range(m.tendon_adr[t], m.tendon_adr[t] + m.tendon_num[t])
+        kinds = [wrap_kinds[int(m.wrap_type[w])] for w in wraps]
+        if tendon["kind"] == "fixed":
+            assert set(kinds) == {"joint"} and not tendon["path"]
+            assert [j["joint"] for j in tendon["joints"]] == [m.joint(m.wrap_objid[w]).name for w in wraps]
+            np.testing.assert_array_equal([j["coef"] for j in tendon["joints"]], m.wrap_prm[list(wraps)])
+        else:
+            assert [p["type"] for p in tendon["path"]] == kinds and not tendon["joints"]
+            for w, point in zip(wraps, tendon["path"]):
+                if point["type"] == "site":
+                    assert point["name"] == (m.site(m.wrap_objid[w]).name or None)
+                elif point["type"] == "geom":
+                    assert point["radius"] == m.geom_size[m.wrap_objid[w]][0]
+                    assert point["shape"] == ("cylinder" if m.wrap_type[w] == mujoco.mjtWrap.mjWRAP_CYLINDER else "sphere")
+                else:
+                    assert point["divisor"] == m.wrap_prm[w]
+        assert tendon["length0"] == pytest.approx(m.tendon_length0[t], rel=1e-13, abs=1e-15)
+        np.testing.assert_allclose(tendon["springlength"], m.tendon_lengthspring[t], rtol=1e-13, atol=1e-15)
+        assert (tendon["stiffness"], tendon["damping"]) == (m.tendon_stiffness[t], m.tendon_damping[t])
+        assert tendon["frictionloss"] == m.tendon_frictionloss[t]
+        assert tendon["range"] == (list(m.tendon_range[t]) if m.tendon_limited[t] else None)
