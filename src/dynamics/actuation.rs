@@ -293,16 +293,17 @@ impl Workspace {
         }
         let mut qfrc = std::mem::take(&mut self.qfrc_actuator);
         self.collect_wrenches(model, qfrc.as_mut_slice());
-        // MuJoCo adds the compensation of `actuatorgravcomp` joints before
-        // the joints' limits, and only when some MJCF actuator acts.
+        // MuJoCo's actuation stage returns before these when no MJCF
+        // actuator acts: the compensation of `actuatorgravcomp` joints,
+        // then the joints' limits (a range without 0 would move a 0).
         if actuation.enabled && mjcf_count > 0 {
             for &dof in &model.gravity_compensation.actuator_dofs {
                 qfrc[dof] += self.qfrc_gravcomp[dof];
             }
-        }
-        for limit in &model.actuator_force_limits {
-            let [low, high] = limit.range;
-            qfrc[limit.dof] = clip(qfrc[limit.dof], low, high);
+            for limit in &model.actuator_force_limits {
+                let [low, high] = limit.range;
+                qfrc[limit.dof] = clip(qfrc[limit.dof], low, high);
+            }
         }
         self.qfrc_actuator = qfrc;
         let mut total = std::mem::take(&mut self.qfrc_total);

@@ -140,6 +140,25 @@ def test_without_ctrl_there_are_no_actuator_outputs(nudyn):
     assert rel_err(out["nu_dot"], ref.nu_dot(qpos, qvel)) <= 1e-6
 
 
+@pytest.mark.parametrize("flag, actuators", [("", True), ('<flag actuation="disable"/>', True), ("", False)])
+def test_a_force_range_without_zero_binds_only_while_actuators_act(nudyn, tmp_path, flag, actuators):
+    """actuatorfrcrange="0.5 1" moves a zero actuator force to 0.5 while an
+    actuator acts; with actuation disabled or no actuator at all MuJoCo
+    returns before the clamp, and the joint takes no force."""
+    motor = '<actuator><motor joint="j"/></actuator>' if actuators else ""
+    path = tmp_path / "range_without_zero.xml"
+    path.write_text(f"""<mujoco><option>{flag}</option><worldbody><body>
+  <joint name="j" axis="0 1 0" actuatorfrcrange="0.5 1"/><geom size="0.1" pos="0 0 -1"/>
+</body></worldbody>{motor}</mujoco>""")
+    model = mujoco.MjModel.from_xml_path(str(path))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    request = {"theta": [0.0], "qvel": [0.0], **({"ctrl": [0.0]} if actuators else {})}
+    out = run_eval(nudyn, path, json.dumps(request)).json()
+    assert abs(out["qacc"][0] - data.qacc[0]) <= 1e-15, (out["qacc"], data.qacc)
+    assert data.qacc[0] != 0.0 if actuators and not flag else data.qacc[0] == 0.0
+
+
 def test_ctrl_of_the_wrong_length_is_refused(nudyn):
     path = FIXTURES[0]
     model = mujoco.MjModel.from_xml_path(str(path))
