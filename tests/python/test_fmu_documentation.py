@@ -6,6 +6,7 @@ back as written)."""
 
 from __future__ import annotations
 
+import html
 import json
 import subprocess
 import zipfile
@@ -70,6 +71,23 @@ def test_the_fmu_documents_its_joints_and_variables(cli, nudyn, tmp_path, contro
         assert int(row[1]) == v.valueReference and row[2] == v.causality, row
         assert row[5] == (v.description or ""), row
     assert validate_fmu(str(fmu)) == []
+
+
+def paragraphs(fmu) -> str:
+    """The page as text: its markup with the entities read."""
+    with zipfile.ZipFile(fmu) as archive:
+        return html.unescape(archive.read("documentation/index.html").decode())
+
+
+def test_the_page_names_gravity_compensation_and_tendons(cli, tmp_path):
+    """A vehicle with them says so; one without says nothing of them."""
+    gravcomp = paragraphs(cli.export(ROOT / "tests" / "fixtures" / "gravcomp" / "arm_on_bus.xml", tmp_path / "g.fmu"))
+    assert "Gravity compensation: MuJoCo's <code>qfrc_gravcomp</code>" in gravcomp
+    assert "actuator force (<code>actuatorgravcomp</code>)" in gravcomp
+    tendons = paragraphs(cli.export(ROOT / "tests" / "fixtures" / "tendons" / "tendon_wrap.xml", tmp_path / "t.fmu"))
+    assert "Tendons: <spatial> tendon 'flexor', <spatial> tendon 'strap', <spatial> tendon 'cord' (" in tendons
+    plain = paragraphs(cli.export(ROOT / "examples" / "fixed_rig.xml", tmp_path / "r.fmu"))
+    assert "Gravity compensation" not in plain and "Tendons:" not in plain
 
 
 def test_markup_in_names_is_escaped(cli, tmp_path):

@@ -129,6 +129,26 @@ pub fn index_html(model: &Model, description: &Document, what: &str) -> String {
         ),
         None => "<p>Constraints: none (no joint friction loss or limits). Contacts are not modelled.</p>".into(),
     });
+    if !model.gravity_compensation.is_empty() {
+        let through_actuators = match model.gravity_compensation.actuator_dofs.len() {
+            0 => String::new(),
+            n => format!(", the share of {n} dofs applied as actuator force (<code>actuatorgravcomp</code>)"),
+        };
+        line(format!(
+            "<p>Gravity compensation: MuJoCo's <code>qfrc_gravcomp</code> of the bodies with \
+             <code>gravcomp</code>, on {} links{through_actuators}.</p>",
+            model.gravity_compensation.links.len()
+        ));
+    }
+    if !model.tendons.is_empty() {
+        let names: Vec<String> =
+            model.tendons.iter().enumerate().map(|(k, tendon)| escape(&tendon.label(k))).collect();
+        line(format!(
+            "<p>Tendons: {} (their springs, dampers and actuators act through their moment arms, \
+             as in MuJoCo).</p>",
+            names.join(", ")
+        ));
+    }
     line("<h2>Joints in θ and ν order</h2>".into());
     line("<table><tr><th>joint</th><th>body</th><th>kind</th><th>theta</th><th>nu, eps</th></tr>".into());
     for joint in &model.joints {
