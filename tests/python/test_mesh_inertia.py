@@ -91,6 +91,28 @@ def test_each_shape_format_and_mode(nudyn, tmp_path, shape, fmt, mode):
     compare(nudyn, path, f"{shape}.{fmt} inertia={mode}")
 
 
+POLYGON_SHAPES = ["hex_prism", "l_ngon", "l_ngon_offset", "collinear_prism", "warped_pentagon"]
+
+
+@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize("shape", POLYGON_SHAPES)
+def test_obj_polygons_of_more_than_four_corners(nudyn, tmp_path, shape, mode):
+    """Prisms whose caps are polygons of 5 to 8 corners, cut as MuJoCo's
+    tinyobjloader cuts them: a fan over the L's reflex corner (covering
+    part of it twice, which legacy's and shell's unsigned sums count
+    twice), and with the L away from the origin only part of the cap. What
+    MuJoCo refuses in a mode, nudyn must refuse too."""
+    path = mesh_scene(tmp_path, f'file="{MESHES / f"{shape}.obj"}" inertia="{mode}"')
+    label = f"{shape}.obj inertia={mode}"
+    try:
+        mujoco.MjModel.from_xml_path(str(path))
+    except ValueError as refusal:
+        proc = describe(nudyn, path)
+        assert proc.returncode != 0, f"{label}: nudyn accepted what MuJoCo refuses ({refusal})"
+        return
+    compare(nudyn, path, label)
+
+
 def test_the_modes_differ_where_they_should(nudyn, tmp_path):
     """On the L-shape legacy, convex and exact give three different masses
     (so the cases above tell the modes apart); on the cube they agree."""
