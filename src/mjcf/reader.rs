@@ -135,6 +135,9 @@ struct Compiler {
     strip_path: bool,
     /// `fusestatic`: bodies without joints merge into their parents.
     fuse_static: bool,
+    /// `fitaabb`: primitives fitted to a mesh hold its bounding box rather
+    /// than match its inertia box.
+    fit_aabb: bool,
 }
 
 /// `<option>` settings that matter here.
@@ -397,6 +400,7 @@ impl Reader {
                 mesh_dir: String::new(),
                 strip_path: false,
                 fuse_static: false,
+                fit_aabb: false,
             },
             physics: Physics {
                 gravity: Vec3::new(0.0, 0.0, -9.81),
@@ -477,6 +481,9 @@ impl Reader {
         }
         if let Some(balance) = element.boolean("balanceinertia")? {
             compiler.balance_inertia = balance;
+        }
+        if let Some(fit_aabb) = element.boolean("fitaabb")? {
+            compiler.fit_aabb = fit_aabb;
         }
         if let Some(autolimits) = element.boolean("autolimits")? {
             compiler.autolimits = autolimits;
@@ -1164,19 +1171,36 @@ impl Reader {
             None => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
         };
         let (pos, quat) = frame.map_or((pos, quat), |frame| compose(frame, &(pos, quat)));
-        // A geom fitted to a mesh gets its size from the mesh.
-        if settings.mesh.is_none() {
-            check_size(element, settings.kind, &size)?;
-        }
-        let mesh = match (settings.kind, &settings.mesh) {
-            (GeomKind::Mesh, Some(name)) => {
-                let mesh = self.meshes.get(name).ok_or_else(|| element.invalid(format!("unknown mesh '{name}'")))?;
+        let mesh = match &settings.mesh {
+            Some(name) => {
+                if settings.fromto.is_some() {
+                    return Err(element.invalid("fromto cannot be used with a mesh"));
+                }
+                Some(self.meshes.get(name).ok_or_else(|| element.invalid(format!("unknown mesh '{name}'")))?)
+            }
+            None => None,
+        };
+        let (pos, quat) = match (settings.kind, mesh) {
+            (GeomKind::Mesh | GeomKind::Sdf, _) | (_, None) => (pos, quat),
+            // A primitive with a mesh is sized and placed by it, then forgets it.
+            (kind, Some(mesh)) => {
+                let (fitted, center) = mesh
+                    .fit(kind, size, self.compiler.fit_aabb, settings.fit_scale)
+                    .ok_or_else(|| element.invalid(format!("a {kind:?} geom cannot be fitted to a mesh")))?;
+                size = fitted;
+                absorb_frame(pos, quat, &mesh.frame_point(&center), &mesh.quat)
+            }
+        };
+        check_size(element, settings.kind, &size)?;
+        let mesh = match (settings.kind, mesh) {
+            (GeomKind::Mesh, Some(mesh)) => {
                 if settings.contype != [0, 0]
                     && let Some(reason) = &mesh.hull_error
                 {
                     return Err(element.invalid(format!(
-                        "mesh '{name}' (line {}): {reason}; MuJoCo needs the hull of a colliding geom's mesh \
+                        "mesh '{}' (line {}): {reason}; MuJoCo needs the hull of a colliding geom's mesh \
                          (contype or conaffinity not 0)",
+                        settings.mesh.as_deref().unwrap_or_default(),
                         mesh.line
                     )));
                 }
@@ -1196,22 +1220,15 @@ impl Reader {
         }
         if mass_not_computed(settings) {
             return Err(element.unsupported(
-                "the mass properties of sdf and height-field geoms, and of primitives fitted to a mesh, are \
-                 not computed; give the body an <inertial>, or put the geom in a group outside inertiagrouprange",
+                "the mass properties of sdf and height-field geoms are not computed; give the body an \
+                 <inertial>, or put the geom in a group outside inertiagrouprange",
             ));
         }
         let (pos, quat, volume) = match mesh {
             // The geom's frame absorbs the mesh frame (MuJoCo's mjuu_frameaccum).
             Some(mesh) => {
-                let geom_quat = quat_array(&quat);
-                let rotation = quat_to_mat(&geom_quat);
-                let p = &mesh.pos;
-                let offset: [f64; 3] = std::array::from_fn(|r| {
-                    rotation[3 * r] * p[0] + rotation[3 * r + 1] * p[1] + rotation[3 * r + 2] * p[2]
-                });
-                let [w, x, y, z] = mul_quat(&geom_quat, &mesh.quat);
-                let quat = Quat::new_unchecked(nalgebra::Quaternion::new(w, x, y, z));
-                (pos + Vec3::from(offset), quat, mesh.volume)
+                let (pos, quat) = absorb_frame(pos, quat, &mesh.pos, &mesh.quat);
+                (pos, quat, mesh.volume)
             }
             None => (pos, quat, inertia::volume(settings.kind, &size, settings.shell_inertia)),
         };
@@ -1972,10 +1989,21 @@ fn wrap_geoms_mut(tendons: &mut [Tendon]) -> impl Iterator<Item = &mut WrapGeom>
 }
 
 /// Whether a geom's mass would come from an asset nudyn does not read: an
-/// sdf, a height field, or a primitive fitted to a mesh.
+/// sdf or a height field.
 fn mass_not_computed(settings: &GeomSettings) -> bool {
-    let fitted = settings.mesh.is_some() && !matches!(settings.kind, GeomKind::Mesh | GeomKind::Sdf);
-    matches!(settings.kind, GeomKind::Sdf | GeomKind::Hfield) || fitted
+    matches!(settings.kind, GeomKind::Sdf | GeomKind::Hfield)
+}
+
+/// A geom frame (`pos`, `quat`) that takes in a frame given inside it
+/// (MuJoCo's `mjuu_frameaccum`).
+fn absorb_frame(pos: Vec3, quat: Quat, inner_pos: &[f64; 3], inner_quat: &[f64; 4]) -> (Vec3, Quat) {
+    let geom_quat = quat_array(&quat);
+    let rotation = quat_to_mat(&geom_quat);
+    let p = inner_pos;
+    let offset: [f64; 3] =
+        std::array::from_fn(|r| rotation[3 * r] * p[0] + rotation[3 * r + 1] * p[1] + rotation[3 * r + 2] * p[2]);
+    let [w, x, y, z] = mul_quat(&geom_quat, inner_quat);
+    (pos + Vec3::from(offset), Quat::new_unchecked(nalgebra::Quaternion::new(w, x, y, z)))
 }
 
 /// MuJoCo's size check: the sizes a primitive uses must be positive.
