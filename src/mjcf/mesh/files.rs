@@ -143,9 +143,7 @@ pub(crate) fn read_obj(text: &str) -> Result<RawMesh, String> {
                                     corners.len()
                                 )
                             })?;
-                        mesh.faces.extend(
-                            clip_ears(&points).into_iter().map(|triangle| triangle.map(|k| corners[k])),
-                        );
+                        mesh.faces.extend(clip_ears(&points).into_iter().map(|triangle| triangle.map(|k| corners[k])));
                     }
                     _ => return Err(format!("line {line_number}: a face needs three vertices at least")),
                 }
@@ -330,7 +328,8 @@ mod tests {
     #[test]
     fn polygons_are_cut_as_tinyobjloader_cuts_them() {
         // A hexagon around the origin: every ear passes, a fan from corner 0.
-        let hexagon = [[1.0, 0.0, 0.0], [0.5, 0.8, 0.0], [-0.5, 0.8, 0.0], [-1.0, 0.0, 0.0], [-0.5, -0.8, 0.0], [0.5, -0.8, 0.0]];
+        let hexagon =
+            [[1.0, 0.0, 0.0], [0.5, 0.8, 0.0], [-0.5, 0.8, 0.0], [-1.0, 0.0, 0.0], [-0.5, -0.8, 0.0], [0.5, -0.8, 0.0]];
         assert_eq!(clip_ears(&hexagon), [[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 5]]);
         // A non-convex octagon away from the origin: MuJoCo 4.0 keeps these
         // three triangles (its mesh_face), a part of the polygon.

@@ -22,8 +22,8 @@ use std::path::PathBuf;
 
 use files::{MeshFormat, RawMesh};
 
-use super::element::Element;
 use super::defaults::GeomKind;
+use super::element::Element;
 use super::error::MjcfError;
 use super::inertia::{self, Eigen, principal_axes, quat_array, quat_to_mat};
 use crate::math::Mat3;
