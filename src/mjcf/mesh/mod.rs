@@ -725,4 +725,45 @@ mod tests {
         let error = process(out_of_range, &settings(MeshInertia::Legacy), [0.0; 3], [1.0, 0.0, 0.0, 0.0]).unwrap_err();
         assert!(error.contains("vertex index 8"), "{error}");
     }
+
+    #[test]
+    fn primitives_fitted_to_the_l_shape_take_mujocos_sizes_and_frames() {
+        // MuJoCo 4.0's geom_size and geom_pos for each kind with fitscale="1.25"
+        // and no size of its own, fitted to l_shape.stl (legacy) in a geom at
+        // the body's origin, whose geom_quat is the mesh frame's
+        // (0.6532814824381892, 0.6532814824381892, 0.2705980500730989, 0.2705980500730989).
+        let mesh =
+            process(fixture("l_shape.stl"), &settings(MeshInertia::Legacy), [0.0; 3], [1.0, 0.0, 0.0, 0.0]).unwrap();
+        let quat = [0.6532814824381892, 0.6532814824381892, 0.2705980500730989, 0.2705980500730989];
+        assert!((0..4).all(|k| (mesh.quat[k] - quat[k]).abs() < 1e-12), "{:?}", mesh.quat);
+        let inertia_box = (
+            [0.177138295958748, 0.17713829595874808, 0.1875],
+            [
+                (GeomKind::Sphere, [0.2660792379140948, 0.0, 0.0]),
+                (GeomKind::Capsule, [0.2147914344804019, 0.2612591275412797, 0.0]),
+                (GeomKind::Cylinder, [0.2147914344804019, 0.3686548447814807, 0.0]),
+                (GeomKind::Ellipsoid, [0.20441064831216976, 0.22517222064863399, 0.3686548447814807]),
+                (GeomKind::Box, [0.20441064831216976, 0.22517222064863399, 0.3686548447814807]),
+            ],
+        );
+        let bounding_box = (
+            [0.15625, 0.15624999999999992, 0.1875],
+            [
+                (GeomKind::Sphere, [0.4419417382415935, 0.0, 0.0]),
+                (GeomKind::Capsule, [0.2762135864009959, 0.16572815184059758, 0.0]),
+                (GeomKind::Cylinder, [0.2762135864009959, 0.4419417382415935, 0.0]),
+                (GeomKind::Ellipsoid, [0.2762135864009959, 0.2343750000000007, 0.4419417382415935]),
+                (GeomKind::Box, [0.2762135864009959, 0.2343750000000007, 0.4419417382415935]),
+            ],
+        );
+        for (fit_aabb, (pos, sizes)) in [(false, inertia_box), (true, bounding_box)] {
+            for (kind, size) in sizes {
+                let (fitted, center) = mesh.fit(kind, [0.0; 3], fit_aabb, 1.25).unwrap();
+                assert!((0..3).all(|k| (fitted[k] - size[k]).abs() <= 1e-12 * size[0]), "{kind:?} {fitted:?}");
+                let at = mesh.frame_point(&center);
+                assert!((0..3).all(|k| (at[k] - pos[k]).abs() <= 1e-12), "{kind:?} at {at:?}");
+            }
+        }
+        assert_eq!(mesh.fit(GeomKind::Plane, [1.0; 3], false, 1.0), None);
+    }
 }
