@@ -1100,6 +1100,25 @@ impl Reader {
         Ok(inertia)
     }
 
+    /// A primitive's size and frame once fitted to its mesh: MuJoCo's
+    /// compiler sizes and places it by the mesh, then forgets the mesh.
+    fn fit_to_mesh(
+        &self,
+        element: &Element,
+        settings: &GeomSettings,
+        mesh: &mesh::Mesh,
+        size: [f64; 3],
+        pos: Vec3,
+        quat: Quat,
+    ) -> Result<([f64; 3], Vec3, Quat), MjcfError> {
+        let kind = settings.kind;
+        let (fitted, center) = mesh
+            .fit(kind, size, self.compiler.fit_aabb, settings.fit_scale)
+            .ok_or_else(|| element.invalid(format!("a {kind:?} geom cannot be fitted to a mesh")))?;
+        let (pos, quat) = absorb_frame(pos, quat, &mesh.frame_point(&center), &mesh.quat);
+        Ok((fitted, pos, quat))
+    }
+
     /// Registers a named geom of `body` (`None`: the world) for tendons to
     /// wrap around: its type, and a sphere's or cylinder's frame in the body.
     fn name_geom(
@@ -1111,8 +1130,11 @@ impl Reader {
     ) -> Result<(), MjcfError> {
         let Some(name) = element.text("name") else { return Ok(()) };
         let wrap = match settings.kind {
-            GeomKind::Sphere | GeomKind::Cylinder if settings.mesh.is_none() => {
+            GeomKind::Sphere | GeomKind::Cylinder => {
                 let (pos, quat) = match settings.fromto {
+                    Some(_) if settings.mesh.is_some() => {
+                        return Err(element.invalid("fromto cannot be used with a mesh"));
+                    }
                     Some(fromto) if settings.kind == GeomKind::Cylinder => {
                         let (pos, quat, _) = fromto_frame(element, &fromto, &settings.pos)?;
                         (pos, quat)
@@ -1120,11 +1142,19 @@ impl Reader {
                     _ => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
                 };
                 let (pos, quat) = frame.map_or((pos, quat), |frame| compose(frame, &(pos, quat)));
-                if settings.size[0] <= 0.0 {
-                    return Err(element.invalid(format!("size[0] must be positive, found {}", settings.size[0])));
+                let (size, pos, quat) = match &settings.mesh {
+                    Some(name) => {
+                        let mesh =
+                            self.meshes.get(name).ok_or_else(|| element.invalid(format!("unknown mesh '{name}'")))?;
+                        self.fit_to_mesh(element, settings, mesh, settings.size, pos, quat)?
+                    }
+                    None => (settings.size, pos, quat),
+                };
+                if size[0] <= 0.0 {
+                    return Err(element.invalid(format!("size[0] must be positive, found {}", size[0])));
                 }
                 let cylinder = settings.kind == GeomKind::Cylinder;
-                Some(WrapGeom { body, pos, quat, radius: settings.size[0], cylinder })
+                Some(WrapGeom { body, pos, quat, radius: size[0], cylinder })
             }
             _ => None,
         };
@@ -1182,13 +1212,10 @@ impl Reader {
         };
         let (pos, quat) = match (settings.kind, mesh) {
             (GeomKind::Mesh | GeomKind::Sdf, _) | (_, None) => (pos, quat),
-            // A primitive with a mesh is sized and placed by it, then forgets it.
-            (kind, Some(mesh)) => {
-                let (fitted, center) = mesh
-                    .fit(kind, size, self.compiler.fit_aabb, settings.fit_scale)
-                    .ok_or_else(|| element.invalid(format!("a {kind:?} geom cannot be fitted to a mesh")))?;
+            (_, Some(mesh)) => {
+                let (fitted, pos, quat) = self.fit_to_mesh(element, settings, mesh, size, pos, quat)?;
                 size = fitted;
-                absorb_frame(pos, quat, &mesh.frame_point(&center), &mesh.quat)
+                (pos, quat)
             }
         };
         check_size(element, settings.kind, &size)?;
@@ -2070,10 +2097,9 @@ impl TendonTargets for Reader {
         match self.named_geoms.get(name) {
             None => Err(element.invalid(format!("unknown geom '{name}' in tendon"))),
             Some((_, Some(geom))) => Ok(*geom),
-            Some((kind, None)) => Err(element.invalid(format!(
-                "geom '{name}' in tendon is not sphere or cylinder (it is {kind:?}{})",
-                if *kind == GeomKind::Sphere || *kind == GeomKind::Cylinder { " fitted to a mesh" } else { "" }
-            ))),
+            Some((kind, None)) => {
+                Err(element.invalid(format!("geom '{name}' in tendon is not sphere or cylinder (it is {kind:?})")))
+            }
         }
     }
 }
