@@ -63,7 +63,7 @@ pub struct Body {
     pub inertial_quat: Option<Quat>,
     /// Whether the body's mass is left out because it is fixed to the
     /// world and its geoms' mass would come from sdf or height-field assets
-    /// or from primitives fitted to a mesh (which nudyn does not compute).
+    /// (which nudyn does not compute).
     pub mass_unknown: bool,
     /// The body's joints, in document order (MuJoCo applies them in this order).
     pub joints: Vec<Joint>,

@@ -255,6 +255,8 @@ pub(crate) struct GeomSettings {
     /// The mesh asset `mesh` names (the geom's shape, or the shape a
     /// primitive is fitted to).
     pub mesh: Option<String>,
+    /// `fitscale`: the factor on a fitted primitive's size.
+    pub fit_scale: f64,
     /// `contype` and `conaffinity`: a geom with either not 0 collides, and
     /// MuJoCo builds its mesh's convex hull.
     pub contype: [i32; 2],
@@ -276,6 +278,7 @@ impl Default for GeomSettings {
             shell_inertia: false,
             group: 0,
             mesh: None,
+            fit_scale: 1.0,
             contype: [1, 1],
             hfield: false,
         }
@@ -324,6 +327,9 @@ impl GeomSettings {
         }
         if let Some(mesh) = element.text("mesh") {
             self.mesh = Some(mesh.to_string());
+        }
+        if let Some([fit_scale]) = element.numbers("fitscale")? {
+            self.fit_scale = fit_scale;
         }
         for (k, attribute) in ["contype", "conaffinity"].into_iter().enumerate() {
             if let Some([bits]) = element.integers(attribute)? {

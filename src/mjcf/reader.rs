@@ -135,6 +135,9 @@ struct Compiler {
     strip_path: bool,
     /// `fusestatic`: bodies without joints merge into their parents.
     fuse_static: bool,
+    /// `fitaabb`: primitives fitted to a mesh hold its bounding box rather
+    /// than match its inertia box.
+    fit_aabb: bool,
 }
 
 /// `<option>` settings that matter here.
@@ -398,6 +401,7 @@ impl Reader {
                 mesh_dir: String::new(),
                 strip_path: false,
                 fuse_static: false,
+                fit_aabb: false,
             },
             physics: Physics {
                 gravity: Vec3::new(0.0, 0.0, -9.81),
@@ -480,6 +484,9 @@ impl Reader {
         }
         if let Some(balance) = element.boolean("balanceinertia")? {
             compiler.balance_inertia = balance;
+        }
+        if let Some(fit_aabb) = element.boolean("fitaabb")? {
+            compiler.fit_aabb = fit_aabb;
         }
         if let Some(autolimits) = element.boolean("autolimits")? {
             compiler.autolimits = autolimits;
@@ -1099,6 +1106,25 @@ impl Reader {
         Ok(inertia)
     }
 
+    /// A primitive's size and frame once fitted to its mesh: MuJoCo's
+    /// compiler sizes and places it by the mesh, then forgets the mesh.
+    fn fit_to_mesh(
+        &self,
+        element: &Element,
+        settings: &GeomSettings,
+        mesh: &mesh::Mesh,
+        size: [f64; 3],
+        pos: Vec3,
+        quat: Quat,
+    ) -> Result<([f64; 3], Vec3, Quat), MjcfError> {
+        let kind = settings.kind;
+        let (fitted, center) = mesh
+            .fit(kind, size, self.compiler.fit_aabb, settings.fit_scale)
+            .ok_or_else(|| element.invalid(format!("a {kind:?} geom cannot be fitted to a mesh")))?;
+        let (pos, quat) = absorb_frame(pos, quat, &mesh.frame_point(&center), &mesh.quat);
+        Ok((fitted, pos, quat))
+    }
+
     /// Registers a named geom of `body` (`None`: the world) for tendons to
     /// wrap around: its type, and a sphere's or cylinder's frame in the body.
     fn name_geom(
@@ -1110,8 +1136,11 @@ impl Reader {
     ) -> Result<(), MjcfError> {
         let Some(name) = element.text("name") else { return Ok(()) };
         let wrap = match settings.kind {
-            GeomKind::Sphere | GeomKind::Cylinder if settings.mesh.is_none() => {
+            GeomKind::Sphere | GeomKind::Cylinder => {
                 let (pos, quat) = match settings.fromto {
+                    Some(_) if settings.mesh.is_some() => {
+                        return Err(element.invalid("fromto cannot be used with a mesh"));
+                    }
                     Some(fromto) if settings.kind == GeomKind::Cylinder => {
                         let (pos, quat, _) = fromto_frame(element, &fromto, &settings.pos)?;
                         (pos, quat)
@@ -1119,11 +1148,19 @@ impl Reader {
                     _ => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
                 };
                 let (pos, quat) = frame.map_or((pos, quat), |frame| compose(frame, &(pos, quat)));
-                if settings.size[0] <= 0.0 {
-                    return Err(element.invalid(format!("size[0] must be positive, found {}", settings.size[0])));
+                let (size, pos, quat) = match &settings.mesh {
+                    Some(name) => {
+                        let mesh =
+                            self.meshes.get(name).ok_or_else(|| element.invalid(format!("unknown mesh '{name}'")))?;
+                        self.fit_to_mesh(element, settings, mesh, settings.size, pos, quat)?
+                    }
+                    None => (settings.size, pos, quat),
+                };
+                if size[0] <= 0.0 {
+                    return Err(element.invalid(format!("size[0] must be positive, found {}", size[0])));
                 }
                 let cylinder = settings.kind == GeomKind::Cylinder;
-                Some(WrapGeom { body, pos, quat, radius: settings.size[0], cylinder })
+                Some(WrapGeom { body, pos, quat, radius: size[0], cylinder })
             }
             _ => None,
         };
@@ -1170,19 +1207,33 @@ impl Reader {
             None => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
         };
         let (pos, quat) = frame.map_or((pos, quat), |frame| compose(frame, &(pos, quat)));
-        // A geom fitted to a mesh gets its size from the mesh.
-        if settings.mesh.is_none() {
-            check_size(element, settings.kind, &size)?;
-        }
-        let mesh = match (settings.kind, &settings.mesh) {
-            (GeomKind::Mesh, Some(name)) => {
-                let mesh = self.meshes.get(name).ok_or_else(|| element.invalid(format!("unknown mesh '{name}'")))?;
+        let mesh = match &settings.mesh {
+            Some(name) => {
+                if settings.fromto.is_some() {
+                    return Err(element.invalid("fromto cannot be used with a mesh"));
+                }
+                Some(self.meshes.get(name).ok_or_else(|| element.invalid(format!("unknown mesh '{name}'")))?)
+            }
+            None => None,
+        };
+        let (pos, quat) = match (settings.kind, mesh) {
+            (GeomKind::Mesh | GeomKind::Sdf, _) | (_, None) => (pos, quat),
+            (_, Some(mesh)) => {
+                let (fitted, pos, quat) = self.fit_to_mesh(element, settings, mesh, size, pos, quat)?;
+                size = fitted;
+                (pos, quat)
+            }
+        };
+        check_size(element, settings.kind, &size)?;
+        let mesh = match (settings.kind, mesh) {
+            (GeomKind::Mesh, Some(mesh)) => {
                 if settings.contype != [0, 0]
                     && let Some(reason) = &mesh.hull_error
                 {
                     return Err(element.invalid(format!(
-                        "mesh '{name}' (line {}): {reason}; MuJoCo needs the hull of a colliding geom's mesh \
+                        "mesh '{}' (line {}): {reason}; MuJoCo needs the hull of a colliding geom's mesh \
                          (contype or conaffinity not 0)",
+                        settings.mesh.as_deref().unwrap_or_default(),
                         mesh.line
                     )));
                 }
@@ -1202,22 +1253,15 @@ impl Reader {
         }
         if mass_not_computed(settings) {
             return Err(element.unsupported(
-                "the mass properties of sdf and height-field geoms, and of primitives fitted to a mesh, are \
-                 not computed; give the body an <inertial>, or put the geom in a group outside inertiagrouprange",
+                "the mass properties of sdf and height-field geoms are not computed; give the body an \
+                 <inertial>, or put the geom in a group outside inertiagrouprange",
             ));
         }
         let (pos, quat, volume) = match mesh {
             // The geom's frame absorbs the mesh frame (MuJoCo's mjuu_frameaccum).
             Some(mesh) => {
-                let geom_quat = quat_array(&quat);
-                let rotation = quat_to_mat(&geom_quat);
-                let p = &mesh.pos;
-                let offset: [f64; 3] = std::array::from_fn(|r| {
-                    rotation[3 * r] * p[0] + rotation[3 * r + 1] * p[1] + rotation[3 * r + 2] * p[2]
-                });
-                let [w, x, y, z] = mul_quat(&geom_quat, &mesh.quat);
-                let quat = Quat::new_unchecked(nalgebra::Quaternion::new(w, x, y, z));
-                (pos + Vec3::from(offset), quat, mesh.volume)
+                let (pos, quat) = absorb_frame(pos, quat, &mesh.pos, &mesh.quat);
+                (pos, quat, mesh.volume)
             }
             None => (pos, quat, inertia::volume(settings.kind, &size, settings.shell_inertia)),
         };
@@ -1979,10 +2023,21 @@ fn wrap_geoms_mut(tendons: &mut [Tendon]) -> impl Iterator<Item = &mut WrapGeom>
 }
 
 /// Whether a geom's mass would come from an asset nudyn does not read: an
-/// sdf, a height field, or a primitive fitted to a mesh.
+/// sdf or a height field.
 fn mass_not_computed(settings: &GeomSettings) -> bool {
-    let fitted = settings.mesh.is_some() && !matches!(settings.kind, GeomKind::Mesh | GeomKind::Sdf);
-    matches!(settings.kind, GeomKind::Sdf | GeomKind::Hfield) || fitted
+    matches!(settings.kind, GeomKind::Sdf | GeomKind::Hfield)
+}
+
+/// A geom frame (`pos`, `quat`) that takes in a frame given inside it
+/// (MuJoCo's `mjuu_frameaccum`).
+fn absorb_frame(pos: Vec3, quat: Quat, inner_pos: &[f64; 3], inner_quat: &[f64; 4]) -> (Vec3, Quat) {
+    let geom_quat = quat_array(&quat);
+    let rotation = quat_to_mat(&geom_quat);
+    let p = inner_pos;
+    let offset: [f64; 3] =
+        std::array::from_fn(|r| rotation[3 * r] * p[0] + rotation[3 * r + 1] * p[1] + rotation[3 * r + 2] * p[2]);
+    let [w, x, y, z] = mul_quat(&geom_quat, inner_quat);
+    (pos + Vec3::from(offset), Quat::new_unchecked(nalgebra::Quaternion::new(w, x, y, z)))
 }
 
 /// MuJoCo's size check: the sizes a primitive uses must be positive.
@@ -2049,10 +2104,9 @@ impl TendonTargets for Reader {
         match self.named_geoms.get(name) {
             None => Err(element.invalid(format!("unknown geom '{name}' in tendon"))),
             Some((_, Some(geom))) => Ok(*geom),
-            Some((kind, None)) => Err(element.invalid(format!(
-                "geom '{name}' in tendon is not sphere or cylinder (it is {kind:?}{})",
-                if *kind == GeomKind::Sphere || *kind == GeomKind::Cylinder { " fitted to a mesh" } else { "" }
-            ))),
+            Some((kind, None)) => {
+                Err(element.invalid(format!("geom '{name}' in tendon is not sphere or cylinder (it is {kind:?})")))
+            }
         }
     }
 }

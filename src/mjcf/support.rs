@@ -25,7 +25,13 @@ pub fn support_table() -> String {
          modelled. The refusals of particular values (a nonzero `wind`, \
          a `gaintype` other than fixed and affine, …) are in the importer's messages. A \
          `noslip_iterations` above 0 is refused in a model with friction-loss rows (MuJoCo's no-slip \
-         pass changes their forces).\n\
+         pass changes their forces). Mesh files (`<mesh file>`): binary STL, MSH and OBJ, whose \
+         triangles are read as written, quads split along their shorter diagonal and polygons of five \
+         corners or more cut by tinyobjloader's ear clipping as MuJoCo 4.0's reader cuts them (a \
+         polygon that refers to a vertex defined after it is refused). A sphere, capsule, cylinder, \
+         ellipsoid or box `<geom>` with a `mesh` is fitted to the mesh as MuJoCo's compiler fits it \
+         (its inertia box, or its bounding box with `<compiler fitaabb=\"true\">`, times `fitscale`), \
+         and takes that primitive's mass.\n\
          - **ignored with a warning**: no effect on the dynamics; each occurrence gives one warning.\n\
          - **refused**: the import stops with the reason below.\n",
     );

@@ -92,6 +92,59 @@ def test_each_shape_format_and_mode(nudyn, tmp_path, shape, fmt, mode):
     compare(nudyn, path, f"{shape}.{fmt} inertia={mode}")
 
 
+POLYGON_SHAPES = ["hex_prism", "l_ngon", "l_ngon_offset", "collinear_prism", "warped_pentagon"]
+
+
+@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize("shape", POLYGON_SHAPES)
+def test_obj_polygons_of_more_than_four_corners(nudyn, tmp_path, shape, mode):
+    """Prisms whose caps are polygons of 5 to 8 corners, cut as MuJoCo's
+    tinyobjloader cuts them: a fan over the L's reflex corner (covering
+    part of it twice, which legacy's and shell's unsigned sums count
+    twice), and with the L away from the origin only part of the cap. What
+    MuJoCo refuses in a mode, nudyn must refuse too."""
+    path = mesh_scene(tmp_path, f'file="{MESHES / f"{shape}.obj"}" inertia="{mode}"')
+    label = f"{shape}.obj inertia={mode}"
+    try:
+        mujoco.MjModel.from_xml_path(str(path))
+    except ValueError as refusal:
+        proc = describe(nudyn, path)
+        assert proc.returncode != 0, f"{label}: nudyn accepted what MuJoCo refuses ({refusal})"
+        return
+    compare(nudyn, path, label)
+
+
+FITTED_KINDS = ["sphere", "capsule", "cylinder", "ellipsoid", "box"]
+
+
+@pytest.mark.parametrize("fitaabb", ["false", "true"])
+@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize("shape", ["l_shape.stl", "tetrahedron.obj", "cube.msh", "l_ngon_offset.obj"])
+def test_primitives_fitted_to_meshes(nudyn, tmp_path, shape, mode, fitaabb):
+    """A primitive geom with a mesh takes its size from the mesh's inertia
+    box (or, with <compiler fitaabb>, its bounding box in the mesh frame,
+    and its centre), times fitscale, and the mesh frame: each kind alone
+    beside a box, plain, scaled and with a shell, with its own size and a
+    mass. The body's mass properties follow from the fitted size, position
+    and orientation; a capsule the box leaves no length is refused by both."""
+    for kind in FITTED_KINDS:
+        for extra in ["", 'fitscale="1.3" shellinertia="true"', 'size="0.2 0.3 0.4" mass="2"']:
+            geoms = (f'<geom type="{kind}" mesh="m" pos="0.05 -0.1 0.2" euler="0 30 60" {extra}/>'
+                     '<geom type="box" size="0.1 0.2 0.05" pos="0.2 0.2 -0.1" euler="15 0 45"/>')
+            path = mesh_scene(tmp_path, f'file="{MESHES / shape}" inertia="{mode}"', geoms)
+            path.write_text(path.read_text().replace("<mujoco model=\"mesh_scene\">",
+                                                     f'<mujoco model="mesh_scene"><compiler fitaabb="{fitaabb}"/>'))
+            label = f"{kind} fitted to {shape} inertia={mode} fitaabb={fitaabb} {extra}"
+            try:
+                mujoco.MjModel.from_xml_path(str(path))
+            except ValueError as refusal:
+                proc = describe(nudyn, path)
+                assert proc.returncode != 0, f"{label}: nudyn accepted what MuJoCo refuses ({refusal})"
+                assert "must be positive" in proc.stderr, proc.stderr
+                continue
+            compare(nudyn, path, label)
+
+
 def test_the_modes_differ_where_they_should(nudyn, tmp_path):
     """On the L-shape legacy, convex and exact give three different masses
     (so the cases above tell the modes apart); on the cube they agree."""

@@ -8,7 +8,9 @@ inherited ctrlrange and a motor on the spatial one; tendon_limits.xml a bus
 with an arm whose spatial and fixed tendons carry limits and friction loss
 beside joint friction and a joint limit, and two tendon equalities;
 tendon_wrap.xml spatial tendons wrapping around a cylinder and two spheres,
-with and without side sites. MuJoCo's
+with and without side sites; tendon_wrap_fitted.xml the same with the
+cylinder and a sphere fitted to meshes (their radius and frame from the
+mesh, as MuJoCo's compiler fits them). MuJoCo's
 constraint solver is run to round-off (nudyn_validation.mujoco_reference.
 load_model), so both sides solve the same problem to its optimum.
 """
@@ -28,7 +30,7 @@ from nudyn_validation.scenarios import FORCED_TOLERANCE, UNFORCED_TOLERANCE
 
 FIXTURES = {
     name: ROOT / "tests" / "fixtures" / "tendons" / f"{name}.xml"
-    for name in ("tendon_finger", "tendon_limits", "tendon_wrap")
+    for name in ("tendon_finger", "tendon_limits", "tendon_wrap", "tendon_wrap_fitted")
 }
 N_STATES = 60
 KINDS = {
@@ -162,13 +164,14 @@ def test_the_states_cover_every_tendon_row(nudyn):
     assert saturated > 10 and len(friction) - saturated > 5
 
 
-def test_the_states_wrap_each_tendon_and_not(nudyn):
-    """On tendon_wrap, each tendon runs around its geom in some states and
-    straight past it in others (MuJoCo's ten_wrapnum: two more points when
-    wrapped), so both branches of the wrap are compared above."""
-    if "tendon_wrap" not in _evaluated:
-        _evaluated["tendon_wrap"] = evaluate(FIXTURES["tendon_wrap"], nudyn)
-    references, _ = _evaluated["tendon_wrap"]
+@pytest.mark.parametrize("name", ["tendon_wrap", "tendon_wrap_fitted"])
+def test_the_states_wrap_each_tendon_and_not(nudyn, name):
+    """On the wrap fixtures, each tendon runs around its geom in some states
+    and straight past it in others (MuJoCo's ten_wrapnum: two more points
+    when wrapped), so both branches of the wrap are compared above."""
+    if name not in _evaluated:
+        _evaluated[name] = evaluate(FIXTURES[name], nudyn)
+    references, _ = _evaluated[name]
     counts = np.array([r["ten_wrapnum"] for r in references])
     for tendon in range(counts.shape[1]):
         assert len(set(counts[:, tendon])) == 2, (tendon, sorted(set(counts[:, tendon])))

@@ -1,7 +1,8 @@
 //! The mesh files MuJoCo 4.0 reads, read as MuJoCo reads them: binary STL
 //! (its STL decoder reads no ASCII STL), Wavefront OBJ (its decoder is
 //! tinyobjloader: the first shape's faces, quads split along their shorter
-//! diagonal, every `v` line a vertex), and MuJoCo's own MSH.
+//! diagonal, larger polygons cut by its ear clipping, every `v` line a
+//! vertex), and MuJoCo's own MSH.
 //!
 //! Vertices stay single precision, as MuJoCo keeps them until it processes
 //! the mesh. The readers are written here rather than taken from a crate:
@@ -127,9 +128,9 @@ pub(crate) fn read_stl(bytes: &[u8]) -> Result<RawMesh, String> {
 
 /// Reads a Wavefront OBJ file: every `v` line is a vertex; the faces of the
 /// first shape (up to the first `o` or `g` line after a face) are the mesh's,
-/// triangles as they are and quads split along their shorter diagonal
-/// (tinyobjloader's rule, which MuJoCo's decoder relies on). Polygons of
-/// more than four vertices are refused.
+/// triangles as they are, quads split along their shorter diagonal and
+/// larger polygons cut as [`clip_ears`] does (tinyobjloader's rules, which
+/// MuJoCo's decoder relies on).
 pub(crate) fn read_obj(text: &str) -> Result<RawMesh, String> {
     let mut mesh = RawMesh::default();
     let mut first_shape_done = false;
@@ -157,12 +158,24 @@ pub(crate) fn read_obj(text: &str) -> Result<RawMesh, String> {
                 match corners[..] {
                     [a, b, c] => mesh.faces.push([a, b, c]),
                     [a, b, c, d] => mesh.faces.extend(split_quad(&mesh.vertices, [a, b, c, d])),
-                    _ => {
-                        return Err(format!(
-                            "line {line_number}: a face of {} vertices (nudyn reads triangles and quads)",
-                            corners.len()
-                        ));
+                    [_, _, _, _, _, ..] => {
+                        // tinyobjloader cuts a polygon with the vertices read when its
+                        // shape ends; nudyn cuts it where it stands, which is the same
+                        // only if every corner is read by then.
+                        let points = corners
+                            .iter()
+                            .map(|&i| usize::try_from(i).ok().and_then(|i| mesh.vertices.get(i).copied()))
+                            .collect::<Option<Vec<[f32; 3]>>>()
+                            .ok_or_else(|| {
+                                format!(
+                                    "line {line_number}: a face of {} vertices refers to a vertex not defined \
+                                     before it (nudyn cuts such polygons only with their vertices known)",
+                                    corners.len()
+                                )
+                            })?;
+                        mesh.faces.extend(clip_ears(&points).into_iter().map(|triangle| triangle.map(|k| corners[k])));
                     }
+                    _ => return Err(format!("line {line_number}: a face needs three vertices at least")),
                 }
             }
             _ => {}
@@ -196,6 +209,98 @@ fn split_quad(vertices: &[[f32; 3]], quad: [i64; 4]) -> [[i64; 3]; 2] {
         // Out-of-range corners are reported when the faces are checked.
         _ => [[a, b, c], [a, c, d]],
     }
+}
+
+/// The triangles, as positions in `points`, into which tinyobjloader (as
+/// compiled into MuJoCo 4.0, without its optional earcut) cuts a polygon of
+/// five corners or more. Its ear clipping, in single precision, is not a
+/// proper triangulation, and MuJoCo integrates exactly what it leaves:
+///
+/// - The plane: the first corner k (from 0) where |e0 × e1| has a component
+///   above f32::EPSILON, with e0 = p[k+1] − p[k], e1 = p[k+2] − p[k+1],
+///   picks the axes: (y, z) when that component is x and strictly the
+///   largest; else (x, y) when z is strictly the largest, else (x, z). With
+///   no such corner, (y, z).
+/// - From a guess g = 0 in the remaining cycle, the candidate ear is the
+///   corners g, g+1, g+2. It is passed over (g += 1) when its turn
+///   e0 × e1 times the signed area of the triangle (origin, p[g], p[g+1])
+///   is negative: the test compares with the origin, not with the
+///   polygon's winding, so convex corners are passed over too; or when a
+///   further corner of the cycle lies inside it by the even-odd crossing
+///   test. Otherwise it is emitted and corner g+1 leaves the cycle (g
+///   stays).
+/// - The cycle's size gives the number of guesses allowed without removing
+///   a corner (one fewer on the first round); when they run out, the
+///   corners left are dropped. The last three form the final triangle.
+///
+/// tests/python/test_mesh_inertia.py compares the mass properties with
+/// MuJoCo's on polygons this cuts in full and in part.
+fn clip_ears(points: &[[f32; 3]]) -> Vec<[usize; 3]> {
+    let count = points.len();
+    let mut axes = [1, 2];
+    for k in 0..count {
+        let [p0, p1, p2] = [k, k + 1, k + 2].map(|i| points[i % count]);
+        let e0 = [p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]];
+        let e1 = [p2[0] - p1[0], p2[1] - p1[1], p2[2] - p1[2]];
+        let cx = (e0[1] * e1[2] - e0[2] * e1[1]).abs();
+        let cy = (e0[2] * e1[0] - e0[0] * e1[2]).abs();
+        let cz = (e0[0] * e1[1] - e0[1] * e1[0]).abs();
+        if cx > f32::EPSILON || cy > f32::EPSILON || cz > f32::EPSILON {
+            if !(cx > cy && cx > cz) {
+                axes = if cz > cx && cz > cy { [0, 1] } else { [0, 2] };
+            }
+            break;
+        }
+    }
+    let flat = |i: usize| [points[i][axes[0]], points[i][axes[1]]];
+    let mut cycle: Vec<usize> = (0..count).collect();
+    let mut triangles = Vec::with_capacity(count - 2);
+    let mut guess = 0;
+    let mut guesses_left = count;
+    let mut size_before = count;
+    while cycle.len() > 3 && guesses_left > 0 {
+        let size = cycle.len();
+        if guess >= size {
+            guess -= size;
+        }
+        if size == size_before {
+            guesses_left -= 1;
+        } else {
+            size_before = size;
+            guesses_left = size;
+        }
+        let ear = [0, 1, 2].map(|k| cycle[(guess + k) % size]);
+        let [a, b, c] = ear.map(flat);
+        let turn = (b[0] - a[0]) * (c[1] - b[1]) - (b[1] - a[1]) * (c[0] - b[0]);
+        let area_from_origin = (a[0] * b[1] - a[1] * b[0]) * 0.5;
+        let crosses_inside = || (3..size).any(|k| crossings_inside([a, b, c], flat(cycle[(guess + k) % size])));
+        if turn * area_from_origin < 0.0 || crosses_inside() {
+            guess += 1;
+            continue;
+        }
+        triangles.push(ear);
+        cycle.remove((guess + 1) % size);
+    }
+    if let [a, b, c] = cycle[..] {
+        triangles.push([a, b, c]);
+    }
+    triangles
+}
+
+/// The even-odd crossing test tinyobjloader uses (W. Randolph Franklin's
+/// pnpoly) for a point in a triangle, in single precision: points on an
+/// edge fall in or out by rounding.
+fn crossings_inside(triangle: [[f32; 2]; 3], point: [f32; 2]) -> bool {
+    let mut inside = false;
+    for (i, j) in [(0, 2), (1, 0), (2, 1)] {
+        let (pi, pj) = (triangle[i], triangle[j]);
+        if (pi[1] > point[1]) != (pj[1] > point[1])
+            && point[0] < (pj[0] - pi[0]) * (point[1] - pi[1]) / (pj[1] - pi[1]) + pi[0]
+        {
+            inside = !inside;
+        }
+    }
+    inside
 }
 
 /// Reads MuJoCo's MSH format: four little-endian int32 counts (vertices,
@@ -251,6 +356,29 @@ mod tests {
     }
 
     #[test]
+    fn polygons_are_cut_as_tinyobjloader_cuts_them() {
+        // A hexagon around the origin: every ear passes, a fan from corner 0.
+        let hexagon =
+            [[1.0, 0.0, 0.0], [0.5, 0.8, 0.0], [-0.5, 0.8, 0.0], [-1.0, 0.0, 0.0], [-0.5, -0.8, 0.0], [0.5, -0.8, 0.0]];
+        assert_eq!(clip_ears(&hexagon), [[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 5]]);
+        // A non-convex octagon away from the origin: MuJoCo 4.0 keeps these
+        // three triangles (its mesh_face), a part of the polygon.
+        let octagon = [
+            [1.661503, 0.06516655, 2.5037863],
+            [0.6883801, 0.768698, 2.5037863],
+            [1.3455006, 0.7726478, 2.5037863],
+            [1.3143071, 0.91906196, 2.5037863],
+            [1.5398933, 1.2994828, 2.5037863],
+            [1.5998256, 1.4555191, 2.5037863],
+            [1.9395537, 1.6061885, 2.5037863],
+            [2.3156548, 1.4126376, 2.5037863],
+        ];
+        assert_eq!(clip_ears(&octagon), [[3, 4, 5], [5, 6, 7], [5, 7, 0]]);
+        let text = "v 1 0 0\nv 0.5 0.8 0\nv -0.5 0.8 0\nv -1 0 0\nv -0.5 -0.8 0\nv 0.5 -0.8 0\nf 2 3 4 5 6 1\n";
+        assert_eq!(read_obj(text).unwrap().faces, [[1, 2, 3], [1, 3, 4], [1, 4, 5], [1, 5, 0]]);
+    }
+
+    #[test]
     fn truncated_and_ascii_stl_are_refused() {
         assert!(read_stl(b"").unwrap_err().contains("empty"));
         assert!(read_stl(b"solid x").unwrap_err().contains("header"));
@@ -265,7 +393,8 @@ mod tests {
         let mesh = read_obj(text).unwrap();
         assert_eq!(mesh.vertices.len(), 5);
         assert_eq!(mesh.faces, vec![[0, 2, 1], [1, 2, 4]]);
-        assert!(read_obj("v 0 0 0\nf 1 2 3 4 5\n").unwrap_err().contains("5 vertices"));
+        assert!(read_obj("v 0 0 0\nf 1 2 3 4 5\n").unwrap_err().contains("not defined before it"));
+        assert!(read_obj("v 0 0 0\nv 1 0 0\nf 1 2\n").unwrap_err().contains("three vertices"));
         assert!(read_obj("v 0 0\n").unwrap_err().contains("three numbers"));
         assert!(read_obj("f 1/2/3 0 2\n").unwrap_err().contains("vertex reference"));
     }

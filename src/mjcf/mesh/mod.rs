@@ -22,6 +22,7 @@ use std::path::PathBuf;
 
 use files::{MeshFormat, RawMesh};
 
+use super::defaults::GeomKind;
 use super::element::Element;
 use super::error::MjcfError;
 use super::inertia::{self, Eigen, principal_axes, quat_array, quat_to_mat};
@@ -111,6 +112,9 @@ pub(crate) struct Mesh {
     /// Half sizes of the box with the mesh's unit-density inertia (MuJoCo's
     /// inertia box), from which a geom's moments follow.
     pub box_half: [f64; 3],
+    /// The corners (lowest, highest) of the box aligned with the mesh frame
+    /// that holds every vertex, in that frame (MuJoCo's `aamm`).
+    pub aabb: [[f64; 3]; 2],
     /// Why MuJoCo could not build the convex hull it needs for collisions
     /// (flat, collinear or repeated vertices), if it could not.
     pub hull_error: Option<String>,
@@ -122,6 +126,50 @@ impl Mesh {
     pub fn principal_moments(&self, mass: f64) -> [f64; 3] {
         let [a, b, c] = self.box_half;
         [mass * (b * b + c * c) / 3.0, mass * (a * a + c * c) / 3.0, mass * (a * a + b * b) / 3.0]
+    }
+
+    /// A point given in the mesh frame, in the mesh's file coordinates.
+    pub fn frame_point(&self, point: &[f64; 3]) -> [f64; 3] {
+        let m = quat_to_mat(&self.quat);
+        std::array::from_fn(|r| m[3 * r] * point[0] + m[3 * r + 1] * point[1] + m[3 * r + 2] * point[2] + self.pos[r])
+    }
+
+    /// The size of a primitive geom fitted to this mesh, and its centre in
+    /// the mesh frame (MuJoCo's `mjCMesh::FitGeom`). From the inertia box:
+    /// a sphere's radius is the mean of the three half sizes; a cylinder's
+    /// radius the mean of the first two and its half length the third; a
+    /// capsule's the same radius and the third less half the radius (not
+    /// below 0); an ellipsoid's or box's the half sizes; centred on the
+    /// mesh frame. With `<compiler fitaabb>`, from the box `aabb` instead,
+    /// centred on it: the smallest primitive whose own box holds it (a
+    /// capsule's half length less its radius). The sizes a type does not use
+    /// keep the geom's own; all three are then scaled by `fitscale`. `None`
+    /// for a geom type that cannot be fitted.
+    pub fn fit(
+        &self,
+        kind: GeomKind,
+        mut size: [f64; 3],
+        fit_aabb: bool,
+        fit_scale: f64,
+    ) -> Option<([f64; 3], [f64; 3])> {
+        let ([a, b, c], center) = if fit_aabb {
+            let [low, high] = self.aabb;
+            let center: [f64; 3] = std::array::from_fn(|k| (low[k] + high[k]) / 2.0);
+            (std::array::from_fn(|k| high[k] - center[k]), center)
+        } else {
+            (self.box_half, [0.0; 3])
+        };
+        match (kind, fit_aabb) {
+            (GeomKind::Sphere, true) => size[0] = a.max(b).max(c),
+            (GeomKind::Sphere, false) => size[0] = (a + b + c) / 3.0,
+            (GeomKind::Cylinder, true) => size[..2].copy_from_slice(&[a.max(b), c]),
+            (GeomKind::Cylinder, false) => size[..2].copy_from_slice(&[(a + b) / 2.0, c]),
+            (GeomKind::Capsule, true) => size[..2].copy_from_slice(&[a.max(b), c - a.max(b)]),
+            (GeomKind::Capsule, false) => size[..2].copy_from_slice(&[(a + b) / 2.0, (c - (a + b) / 4.0).max(0.0)]),
+            (GeomKind::Ellipsoid | GeomKind::Box, _) => size = [a, b, c],
+            (GeomKind::Plane | GeomKind::Hfield | GeomKind::Mesh | GeomKind::Sdf, _) => return None,
+        }
+        Some((size.map(|x| x * fit_scale), center))
     }
 }
 
@@ -379,7 +427,18 @@ fn process(raw: RawMesh, settings: &MeshSettings, refpos: [f64; 3], refquat: [f6
         0.5 * (6.0 * (e0 + e2 - e1) / volume).sqrt(),
         0.5 * (6.0 * (e0 + e1 - e2) / volume).sqrt(),
     ];
-    Ok(Mesh { line: 0, pos: com, quat, volume, box_half, hull_error })
+    // Every vertex in the mesh frame: moved to the centre, rotated back.
+    let rotation = quat_to_mat(&quat);
+    let mut aabb: [[f64; 3]; 2] = [[1e10; 3], [-1e10; 3]];
+    for v in &vertices {
+        let d = [v[0] - com[0], v[1] - com[1], v[2] - com[2]];
+        for k in 0..3 {
+            let local = rotation[k] * d[0] + rotation[3 + k] * d[1] + rotation[6 + k] * d[2];
+            aabb[0][k] = aabb[0][k].min(local);
+            aabb[1][k] = aabb[1][k].max(local);
+        }
+    }
+    Ok(Mesh { line: 0, pos: com, quat, volume, box_half, aabb, hull_error })
 }
 
 /// `refpos` subtracted, `refquat`'s inverse rotation, then `scale`.
@@ -665,5 +724,46 @@ mod tests {
         let out_of_range = RawMesh { faces: vec![[0, 1, 8]], ..cube() };
         let error = process(out_of_range, &settings(MeshInertia::Legacy), [0.0; 3], [1.0, 0.0, 0.0, 0.0]).unwrap_err();
         assert!(error.contains("vertex index 8"), "{error}");
+    }
+
+    #[test]
+    fn primitives_fitted_to_the_l_shape_take_mujocos_sizes_and_frames() {
+        // MuJoCo 4.0's geom_size and geom_pos for each kind with fitscale="1.25"
+        // and no size of its own, fitted to l_shape.stl (legacy) in a geom at
+        // the body's origin, whose geom_quat is the mesh frame's
+        // (0.6532814824381892, 0.6532814824381892, 0.2705980500730989, 0.2705980500730989).
+        let mesh =
+            process(fixture("l_shape.stl"), &settings(MeshInertia::Legacy), [0.0; 3], [1.0, 0.0, 0.0, 0.0]).unwrap();
+        let quat = [0.6532814824381892, 0.6532814824381892, 0.2705980500730989, 0.2705980500730989];
+        assert!((0..4).all(|k| (mesh.quat[k] - quat[k]).abs() < 1e-12), "{:?}", mesh.quat);
+        let inertia_box = (
+            [0.177138295958748, 0.17713829595874808, 0.1875],
+            [
+                (GeomKind::Sphere, [0.2660792379140948, 0.0, 0.0]),
+                (GeomKind::Capsule, [0.2147914344804019, 0.2612591275412797, 0.0]),
+                (GeomKind::Cylinder, [0.2147914344804019, 0.3686548447814807, 0.0]),
+                (GeomKind::Ellipsoid, [0.20441064831216976, 0.22517222064863399, 0.3686548447814807]),
+                (GeomKind::Box, [0.20441064831216976, 0.22517222064863399, 0.3686548447814807]),
+            ],
+        );
+        let bounding_box = (
+            [0.15625, 0.15624999999999992, 0.1875],
+            [
+                (GeomKind::Sphere, [0.4419417382415935, 0.0, 0.0]),
+                (GeomKind::Capsule, [0.2762135864009959, 0.16572815184059758, 0.0]),
+                (GeomKind::Cylinder, [0.2762135864009959, 0.4419417382415935, 0.0]),
+                (GeomKind::Ellipsoid, [0.2762135864009959, 0.2343750000000007, 0.4419417382415935]),
+                (GeomKind::Box, [0.2762135864009959, 0.2343750000000007, 0.4419417382415935]),
+            ],
+        );
+        for (fit_aabb, (pos, sizes)) in [(false, inertia_box), (true, bounding_box)] {
+            for (kind, size) in sizes {
+                let (fitted, center) = mesh.fit(kind, [0.0; 3], fit_aabb, 1.25).unwrap();
+                assert!((0..3).all(|k| (fitted[k] - size[k]).abs() <= 1e-12 * size[0]), "{kind:?} {fitted:?}");
+                let at = mesh.frame_point(&center);
+                assert!((0..3).all(|k| (at[k] - pos[k]).abs() <= 1e-12), "{kind:?} at {at:?}");
+            }
+        }
+        assert_eq!(mesh.fit(GeomKind::Plane, [1.0; 3], false, 1.0), None);
     }
 }
