@@ -669,7 +669,7 @@ impl Reader {
                 "geom" if child.has("name") => {
                     let mut settings = self.defaults.class(self.class_of(&child, class)?).geom.clone();
                     settings.apply(&child)?;
-                    self.name_geom(&child, &settings, frame.as_ref(), None)?;
+                    self.name_geom(&child, &settings, frame.as_ref(), None, &suffix)?;
                     self.warnings.push(child.ignored());
                 }
                 tag if tag == "geom" || IGNORED_IN_BODIES.contains(&tag) => {
@@ -804,7 +804,7 @@ impl Reader {
                     }
                     let mut settings = self.defaults.class(self.class_of(&child, class)?).geom.clone();
                     settings.apply(&child)?;
-                    geoms.push((child, settings, frame));
+                    geoms.push((child, settings, frame, suffix));
                 }
                 "site" => self.read_site(&child, class, Some(index), frame, &suffix)?,
                 tag if IGNORED_IN_BODIES.contains(&tag) => {
@@ -858,8 +858,8 @@ impl Reader {
         };
         let mut selected = Vec::new();
         let mut mass_unknown = false;
-        for (geom, settings, frame) in &geoms {
-            self.name_geom(geom, settings, frame.as_ref(), Some(index))?;
+        for (geom, settings, frame, suffix) in &geoms {
+            self.name_geom(geom, settings, frame.as_ref(), Some(index), suffix)?;
             let [low, high] = self.compiler.inertia_groups;
             let contributes = from_geoms && (low..=high).contains(&settings.group);
             if contributes && mass_not_computed(settings) && !moving {
@@ -1133,8 +1133,10 @@ impl Reader {
         settings: &GeomSettings,
         frame: Option<&Pose>,
         body: Option<usize>,
+        suffix: &str,
     ) -> Result<(), MjcfError> {
         let Some(name) = element.text("name") else { return Ok(()) };
+        let name = self.replicated_name(name, suffix);
         let wrap = match settings.kind {
             GeomKind::Sphere | GeomKind::Cylinder => {
                 let (pos, quat) = match settings.fromto {
@@ -1164,7 +1166,7 @@ impl Reader {
             }
             _ => None,
         };
-        self.named_geoms.insert(name.to_string(), (settings.kind, wrap));
+        self.named_geoms.insert(name, (settings.kind, wrap));
         Ok(())
     }
 

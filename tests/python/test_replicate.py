@@ -37,8 +37,9 @@ def test_copies_are_mujocos_bodies_and_joints(nudyn):
 
 
 def test_dynamics_match_mujoco(nudyn):
-    """θ̈ and sensordata (a frame on a replicated site, a replicated joint)
-    at random states, with the motor on a replicated joint driven."""
+    """θ̈ and sensordata (a frame on a replicated site, a replicated joint,
+    a tendon between replicated sites around a replicated geom) at random
+    states, with the motor on a replicated joint driven."""
     model = load_model(FIXTURE)
     data = mujoco.MjData(model)
     rng = np.random.default_rng(8)
