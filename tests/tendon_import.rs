@@ -176,11 +176,18 @@ const REFUSALS: &[(&str, &str, &str, u32, &str)] = &[
         "not between two sites",
     ),
     (
-        r#"<fixed name="t" armature="0.1"><joint joint="hinge" coef="1"/></fixed>"#,
+        r#"<fixed name="t" armature="-0.1"><joint joint="hinge" coef="1"/></fixed>"#,
         "",
         "<fixed name=\"t\">",
         11,
-        "armature",
+        "armature cannot be negative",
+    ),
+    (
+        r#"<spatial name="t" armature="0.1"><site site="s0"/><geom geom="g"/><site site="s1"/></spatial>"#,
+        "",
+        "<spatial name=\"t\">",
+        11,
+        "geom wrapping not supported by tendon armature",
     ),
     (
         r#"<fixed name="t" actuatorfrcrange="-1 1"><joint joint="hinge" coef="1"/></fixed>"#,

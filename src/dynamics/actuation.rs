@@ -369,7 +369,7 @@ impl Workspace {
             }
         }
         let mut result = pass(self, model, applied.as_slice());
-        if result.is_ok() && !model.constraints.is_empty() {
+        if result.is_ok() && model.couples_beyond_tree() {
             result = self.apply_constraint_forces(model, applied.as_mut_slice());
         }
         self.eps_applied = applied;

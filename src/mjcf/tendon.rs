@@ -211,13 +211,6 @@ pub(crate) fn read(
     element.check_attributes(&allowed)?;
     settings.apply(element)?;
     let origin = |attribute: &str| if element.has(attribute) { "" } else { " (from its default class)" };
-    if settings.armature != 0.0 {
-        return Err(element.unsupported(format!(
-            "armature{}: tendon armature adds a·JᵀJ to the mass matrix, which is then no longer a tree's \
-             and has no factor m m* from the O(N) passes",
-            origin("armature")
-        )));
-    }
     if settings.springyield != 0.0 {
         return Err(element.unsupported(format!("springyield{}: yielding springs", origin("springyield"))));
     }
@@ -256,12 +249,21 @@ pub(crate) fn read(
         return Err(element
             .invalid(format!("invalid limits in tendon: range ({range_low}, {range_high}) must have lower < upper")));
     }
+    if settings.armature < 0.0 {
+        return Err(element.invalid(format!("tendon armature cannot be negative{}", origin("armature"))));
+    }
     let path = if spatial { spatial_path(element, targets)? } else { fixed_path(element, targets)? };
+    let wraps = matches!(&path, TendonPath::Spatial(points) if points.iter().any(|p| matches!(p, PathPoint::Geom(_))));
+    if settings.armature > 0.0 && wraps {
+        // MuJoCo 4.0 refuses the file: its J̇θ̇ of a wrapped path is not written.
+        return Err(element.invalid(format!("geom wrapping not supported by tendon armature{}", origin("armature"))));
+    }
     let tendon = Tendon {
         name: element.text("name").map(str::to_string),
         path,
         stiffness: if flags.spring_disabled { 0.0 } else { settings.stiffness[0] },
         damping: if flags.damper_disabled { 0.0 } else { settings.damping[0] },
+        armature: settings.armature,
         spring_length: (!unset).then_some(settings.spring_length),
         frictionloss: if flags.frictionloss_disabled { 0.0 } else { settings.frictionloss },
         friction: settings.friction_soft,
