@@ -8,7 +8,9 @@ inherited ctrlrange and a motor on the spatial one; tendon_limits.xml a bus
 with an arm whose spatial and fixed tendons carry limits and friction loss
 beside joint friction and a joint limit, and two tendon equalities;
 tendon_wrap.xml spatial tendons wrapping around a cylinder and two spheres,
-with and without side sites. MuJoCo's
+with and without side sites; tendon_armature.xml two arms on a bus whose
+tendons carry armature, along one chain, across both arms and through a
+pulley, with limits, friction loss, equalities and tendon actuators. MuJoCo's
 constraint solver is run to round-off (nudyn_validation.mujoco_reference.
 load_model), so both sides solve the same problem to its optimum.
 """
@@ -28,7 +30,7 @@ from nudyn_validation.scenarios import FORCED_TOLERANCE, UNFORCED_TOLERANCE
 
 FIXTURES = {
     name: ROOT / "tests" / "fixtures" / "tendons" / f"{name}.xml"
-    for name in ("tendon_finger", "tendon_limits", "tendon_wrap")
+    for name in ("tendon_finger", "tendon_limits", "tendon_wrap", "tendon_armature")
 }
 N_STATES = 60
 KINDS = {
@@ -98,10 +100,53 @@ def evaluate(path, nudyn):
         data.qpos[:], data.qvel[:], data.ctrl[:] = request["theta"], request["qvel"], request["ctrl"]
         mujoco.mj_forward(model, data)
         reference["qacc_without_tendon_springs"] = data.qacc.copy()
+    if model.tendon_armature.any():
+        add_armature_references(model, references, requests)
     result = run_eval(nudyn, path, json.dumps(requests))
     out = result.json()
     assert isinstance(out, list) and len(out) == N_STATES, result.describe()
     return references, out
+
+
+def add_armature_references(model, references, requests) -> None:
+    """What the tendons' armature does in MuJoCo at each state, without
+    springs: its unconstrained acceleration (qacc_smooth); that of a mass
+    matrix taking the whole a·JᵀJ (MuJoCo keeps a·J_iJ_j only where dof i
+    and dof j lie on one chain); that without the armature's bias a·J(J̇θ̇);
+    and that without the armature at all (the compiled constants kept)."""
+    data = mujoco.MjData(model)
+    moments = np.zeros((model.ntendon, model.nv))
+    armature = model.tendon_armature.copy()
+    for reference, request in zip(references, requests):
+        data.qpos[:], data.qvel[:], data.ctrl[:] = request["theta"], request["qvel"], request["ctrl"]
+        mujoco.mj_forward(model, data)
+        mass = np.zeros((model.nv, model.nv))
+        mujoco.mj_fullM(model, data, mass)
+        mujoco.mju_sparse2dense(moments, data.ten_J, model.ten_J_rownnz, model.ten_J_rowadr, model.ten_J_colind)
+        smooth, force, bias = data.qacc_smooth.copy(), data.qfrc_smooth.copy(), data.qfrc_bias.copy()
+        model.tendon_armature[:] = 0
+        mujoco.mj_forward(model, data)
+        tree_mass = np.zeros((model.nv, model.nv))
+        mujoco.mj_fullM(model, data, tree_mass)
+        armature_bias = bias - data.qfrc_bias
+        reference["qacc_smooth"] = smooth
+        reference["qacc_smooth_dense"] = np.linalg.solve(tree_mass + moments.T @ np.diag(armature) @ moments, force)
+        reference["qacc_smooth_without_bias"] = np.linalg.solve(mass, force + armature_bias)
+        reference["qacc_smooth_without_armature"] = data.qacc_smooth.copy()
+        model.tendon_armature[:] = armature
+
+
+def test_tendon_armature_counts_as_mujoco_applies_it(nudyn):
+    """On tendon_armature, nudyn's agreement above (1e-12) could not come
+    from leaving out the armature, from the whole a·JᵀJ in place of
+    MuJoCo's tree-sparse share of it, or from leaving out its bias a·J(J̇θ̇):
+    each moves MuJoCo's own unconstrained acceleration by far more."""
+    if "tendon_armature" not in _evaluated:
+        _evaluated["tendon_armature"] = evaluate(FIXTURES["tendon_armature"], nudyn)
+    references, _ = _evaluated["tendon_armature"]
+    for variant in ("qacc_smooth_without_armature", "qacc_smooth_dense", "qacc_smooth_without_bias"):
+        moved = [relative(r[variant], r["qacc_smooth"]) for r in references if r["qacc_smooth"].any()]
+        assert np.median(moved) > 1e-4, (variant, np.median(moved))
 
 
 def relative(a, b) -> float:
