@@ -57,10 +57,7 @@ impl TendonInertiaState {
         if k == 0 {
             return Self::default();
         }
-        let spatial = model
-            .tendon_inertia
-            .iter()
-            .any(|t| matches!(model.tendons[t.tendon].path, Path::Spatial { .. }));
+        let spatial = model.tendon_inertia.iter().any(|t| matches!(model.tendons[t.tendon].path, Path::Spatial { .. }));
         let rows = model.constraints.max_rows();
         TendonInertiaState {
             columns: vec![0.0; k * model.nv],
@@ -147,9 +144,7 @@ impl Workspace {
             let arms = &self.tendon_moment[term.tendon * nv..(term.tendon + 1) * nv];
             // The term's dof, those before it in its joint, then every ancestor link's.
             let link = &model.links[term.link];
-            for d in link.dof_adr..=term.dof {
-                column[d] = arms[d];
-            }
+            column[link.dof_adr..=term.dof].copy_from_slice(&arms[link.dof_adr..=term.dof]);
             let mut parent = link.parent;
             while let Some(p) = parent {
                 let link = &model.links[p];
@@ -157,7 +152,12 @@ impl Workspace {
                     .copy_from_slice(&arms[link.dof_adr..link.dof_adr + link.ndof]);
                 parent = link.parent;
             }
-            eps_of_torque(model, self, &state.columns[k * nv..(k + 1) * nv], &mut state.eps_columns[k * nv..(k + 1) * nv]);
+            eps_of_torque(
+                model,
+                self,
+                &state.columns[k * nv..(k + 1) * nv],
+                &mut state.eps_columns[k * nv..(k + 1) * nv],
+            );
         }
         let k = model.tendon_inertia.len();
         for i in 0..k {
@@ -249,13 +249,13 @@ impl Workspace {
         let mut b = std::mem::take(&mut state.force);
         for r in 0..count {
             let row = &eps_columns[r * nv..(r + 1) * nv];
-            for t in 0..k {
-                b[t] = dot(state.eps_column(nv, t), row);
-                state.projection[t * stride + r] = b[t];
+            for (t, value) in b.iter_mut().enumerate() {
+                *value = dot(state.eps_column(nv, t), row);
+                state.projection[t * stride + r] = *value;
             }
             state.solve(model, &mut b);
-            for t in 0..k {
-                state.projection_solved[t * stride + r] = b[t];
+            for (t, value) in b.iter().enumerate() {
+                state.projection_solved[t * stride + r] = *value;
             }
         }
         state.force = b;
