@@ -190,11 +190,18 @@ const REFUSALS: &[(&str, &str, &str, u32, &str)] = &[
         "geom wrapping not supported by tendon armature",
     ),
     (
-        r#"<fixed name="t" actuatorfrcrange="-1 1"><joint joint="hinge" coef="1"/></fixed>"#,
+        r#"<fixed name="t" actuatorfrcrange="0.5 1"><joint joint="hinge" coef="1"/></fixed>"#,
         "",
         "<fixed name=\"t\">",
         11,
-        "actuatorfrcrange",
+        "invalid actuatorfrcrange",
+    ),
+    (
+        r#"<fixed name="t" actuatorfrclimited="true"><joint joint="hinge" coef="1"/></fixed>"#,
+        "",
+        "<fixed name=\"t\">",
+        11,
+        "invalid actuatorfrcrange",
     ),
     (
         r#"<fixed name="t" stiffness="1 2"><joint joint="hinge" coef="1"/></fixed>"#,

@@ -225,12 +225,19 @@ pub(crate) fn read(
     let force_limited = match settings.actuator_force_limited {
         Limited::Yes => true,
         Limited::No => false,
-        Limited::Auto => flags.autolimits && low < high,
+        Limited::Auto if !flags.autolimits && (low, high) != (0.0, 0.0) => {
+            return Err(element.invalid(format!(
+                "tendon has actuatorfrcrange{} but not actuatorfrclimited while <compiler autolimits=\"false\">; \
+                 give actuatorfrclimited or remove actuatorfrcrange",
+                origin("actuatorfrcrange")
+            )));
+        }
+        Limited::Auto => low < high,
     };
-    if force_limited {
-        return Err(element.unsupported(format!(
-            "actuatorfrcrange{}: MuJoCo scales the forces of the tendon's actuators to keep their sum in the \
-             range, which nudyn does not model",
+    // MuJoCo's: the sum is scaled into the range, which must hold zero.
+    if force_limited && (low >= high || low > 0.0 || high < 0.0) {
+        return Err(element.invalid(format!(
+            "invalid actuatorfrcrange in tendon{}: ({low}, {high}) must have lower < upper and hold 0",
             origin("actuatorfrcrange")
         )));
     }
@@ -264,6 +271,7 @@ pub(crate) fn read(
         stiffness: if flags.spring_disabled { 0.0 } else { settings.stiffness[0] },
         damping: if flags.damper_disabled { 0.0 } else { settings.damping[0] },
         armature: settings.armature,
+        actuator_force_range: force_limited.then_some(settings.actuator_force_range),
         spring_length: (!unset).then_some(settings.spring_length),
         frictionloss: if flags.frictionloss_disabled { 0.0 } else { settings.frictionloss },
         friction: settings.friction_soft,

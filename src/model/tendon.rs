@@ -24,6 +24,10 @@ pub struct Tendon {
     /// `armature`: MuJoCo adds armature·JᵀJ to the mass matrix, within its
     /// tree sparsity ([`InertiaTerm`]).
     pub armature: f64,
+    /// `actuatorfrcrange` when limited: the forces of the tendon's actuators
+    /// are scaled alike to bring their sum into it, before each one's
+    /// `forcerange` (MuJoCo's `mj_fwdActuation`).
+    pub actuator_force_range: Option<[f64; 2]>,
     /// The lengths between which the spring is at rest (MuJoCo's
     /// `tendon_lengthspring`, its −1 resolved in the spring pose).
     pub spring_length: [f64; 2],
@@ -166,6 +170,7 @@ pub(super) fn compile_tendons(
                 stiffness: tendon.stiffness,
                 damping: tendon.damping,
                 armature: tendon.armature,
+                actuator_force_range: tendon.actuator_force_range,
                 // Resolved in the spring pose when the file leaves it to MuJoCo (−1).
                 spring_length: tendon.spring_length.unwrap_or_default(),
                 length0: 0.0,
@@ -255,6 +260,9 @@ pub(super) fn validate_tendon(model: &Model, k: usize) -> Result<(), String> {
     }
     if tendon.armature < 0.0 {
         return Err("its armature is negative".to_string());
+    }
+    if tendon.actuator_force_range.is_some_and(|[low, high]| !(low <= 0.0 && 0.0 <= high && low < high)) {
+        return Err("its actuator force range must hold 0 and be increasing".to_string());
     }
     if tendon.armature > 0.0
         && let Path::Spatial { stops } = &tendon.path

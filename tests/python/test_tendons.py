@@ -10,7 +10,9 @@ beside joint friction and a joint limit, and two tendon equalities;
 tendon_wrap.xml spatial tendons wrapping around a cylinder and two spheres,
 with and without side sites; tendon_armature.xml two arms on a bus whose
 tendons carry armature, along one chain, across both arms and through a
-pulley, with limits, friction loss, equalities and tendon actuators. MuJoCo's
+pulley, with limits, friction loss, equalities and tendon actuators;
+tendon_force_range.xml an arm whose tendons' actuators are held to the
+tendons' actuatorfrcrange. MuJoCo's
 constraint solver is run to round-off (nudyn_validation.mujoco_reference.
 load_model), so both sides solve the same problem to its optimum.
 """
@@ -30,7 +32,7 @@ from nudyn_validation.scenarios import FORCED_TOLERANCE, UNFORCED_TOLERANCE
 
 FIXTURES = {
     name: ROOT / "tests" / "fixtures" / "tendons" / f"{name}.xml"
-    for name in ("tendon_finger", "tendon_limits", "tendon_wrap", "tendon_armature")
+    for name in ("tendon_finger", "tendon_limits", "tendon_wrap", "tendon_armature", "tendon_force_range")
 }
 N_STATES = 60
 KINDS = {
@@ -102,6 +104,12 @@ def evaluate(path, nudyn):
         reference["qacc_without_tendon_springs"] = data.qacc.copy()
     if model.tendon_armature.any():
         add_armature_references(model, references, requests)
+    if model.tendon_actfrclimited.any():
+        model.tendon_actfrclimited[:] = 0
+        for reference, request in zip(references, requests):
+            data.qpos[:], data.qvel[:], data.ctrl[:] = request["theta"], request["qvel"], request["ctrl"]
+            mujoco.mj_forward(model, data)
+            reference["qacc_without_tendon_force_ranges"] = data.qacc.copy()
     result = run_eval(nudyn, path, json.dumps(requests))
     out = result.json()
     assert isinstance(out, list) and len(out) == N_STATES, result.describe()
@@ -147,6 +155,18 @@ def test_tendon_armature_counts_as_mujoco_applies_it(nudyn):
     for variant in ("qacc_smooth_without_armature", "qacc_smooth_dense", "qacc_smooth_without_bias"):
         moved = [relative(r[variant], r["qacc_smooth"]) for r in references if r["qacc_smooth"].any()]
         assert np.median(moved) > 1e-4, (variant, np.median(moved))
+
+
+def test_tendon_force_ranges_bind_in_some_states(nudyn):
+    """On tendon_force_range, MuJoCo's scaling of the tendons' actuator
+    forces changes qacc in some states (by far more than the agreement
+    above) and leaves it alone in others, so both are compared."""
+    if "tendon_force_range" not in _evaluated:
+        _evaluated["tendon_force_range"] = evaluate(FIXTURES["tendon_force_range"], nudyn)
+    references, _ = _evaluated["tendon_force_range"]
+    # Both without the tendons' springs (evaluate takes them out first).
+    moved = [relative(r["qacc_without_tendon_force_ranges"], r["qacc_without_tendon_springs"]) for r in references]
+    assert sum(m > 1e-3 for m in moved) >= 10 and sum(m == 0 for m in moved) >= 5, sorted(moved)
 
 
 def relative(a, b) -> float:
