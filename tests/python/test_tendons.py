@@ -157,6 +157,19 @@ def test_tendon_armature_counts_as_mujoco_applies_it(nudyn):
         assert np.median(moved) > 1e-4, (variant, np.median(moved))
 
 
+def test_tendon_armature_enters_nu_dot_as_its_own_eps(nudyn):
+    """ν̇ = ε + ε_actuator + ε_tendon_inertia + ε_c − C + ε_passive, the
+    armature's share reported apart (nudyn's ν stays the tree's)."""
+    if "tendon_armature" not in _evaluated:
+        _evaluated["tendon_armature"] = evaluate(FIXTURES["tendon_armature"], nudyn)
+    _, out = _evaluated["tendon_armature"]
+    for k, answer in enumerate(out):
+        parts = ("eps", "eps_actuator", "eps_tendon_inertia", "eps_constraint", "eps_passive")
+        total = sum(np.array(answer[p]) for p in parts) - np.array(answer["coriolis"])
+        assert relative(total, answer["nu_dot"]) < 1e-13, f"state {k}"
+        assert np.any(np.array(answer["eps_tendon_inertia"]) != 0) or not np.any(answer["qvel"]), f"state {k}"
+
+
 def test_tendon_force_ranges_bind_in_some_states(nudyn):
     """On tendon_force_range, MuJoCo's scaling of the tendons' actuator
     forces changes qacc in some states (by far more than the agreement
