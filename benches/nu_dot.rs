@@ -1,5 +1,7 @@
 //! Cost of one ν̇ evaluation (all four passes) on each bundled example and
-//! on a 200-body hinge chain on a free base, and of each pass alone.
+//! on a 200-body hinge chain on a free base, and of each pass alone; and of
+//! one integrator stage (actuators, tendons, constraints) on the tendon
+//! fixtures, with and without tendon armature.
 
 use std::hint::black_box;
 use std::path::Path;
@@ -114,7 +116,31 @@ fn bench_model(c: &mut Criterion, name: &str, model: &Model) {
     });
 }
 
+/// One stage of the integrators as `rkmk` evaluates it: configuration,
+/// velocities, then θ̈ with the actuators, the tendons' armature and the
+/// constraint forces.
+fn bench_stage(c: &mut Criterion, name: &str, model: &Model) {
+    let mut ws = model.workspace();
+    let (theta, qvel, eps) = state(model);
+    let ctrl: Vec<f64> = (0..model.actuators.len()).map(|k| 0.5 * ((k as f64) * 0.9).cos()).collect();
+    c.bench_function(&format!("stage/{name} (nv={})", model.nv), |b| {
+        b.iter(|| {
+            ws.set_configuration(model, black_box(&theta)).unwrap();
+            ws.set_qvel(model, black_box(&qvel)).unwrap();
+            ws.compute_qacc_actuated(model, black_box(&eps), black_box(&ctrl)).unwrap()
+        })
+    });
+}
+
 fn benches(c: &mut Criterion) {
+    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/tendons");
+    for name in ["tendon_finger", "tendon_limits", "tendon_armature"] {
+        // A fixture an older importer refuses is not timed (before/after runs).
+        match nudyn::mjcf::load_mjcf(&fixtures.join(format!("{name}.xml"))) {
+            Ok(imported) => bench_stage(c, name, &Model::compile(&imported.vehicle).expect("fixture compiles")),
+            Err(error) => eprintln!("{name}: not timed ({error})"),
+        }
+    }
     let examples = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples");
     let mut files: Vec<_> = std::fs::read_dir(&examples)
         .expect("examples/ exists")

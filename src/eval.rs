@@ -38,7 +38,7 @@ pub struct EvalResponse {
     pub qvel: Vec<f64>,
     /// ν = m*θ̇.
     pub nu: Vec<f64>,
-    /// ν̇ = ε + eps_actuator + eps_constraint − C(θ,ν) + eps_passive.
+    /// ν̇ = ε + eps_actuator + eps_tendon_inertia + eps_constraint − C(θ,ν) + eps_passive.
     pub nu_dot: Vec<f64>,
     /// C(θ,ν): the velocity-product terms.
     pub coriolis: Vec<f64>,
@@ -63,6 +63,10 @@ pub struct EvalResponse {
     /// What the actuators do, when the request gives `ctrl`.
     #[serde(flatten)]
     pub actuators: Option<ActuatorResponse>,
+    /// ε_a of the tendons' armature, when a tendon has armature: the ε of
+    /// the force −Jᵀ·a·L̈ the tendons' own inertia puts on the joints.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub eps_tendon_inertia: Option<Vec<f64>>,
     /// The constraint forces, when the model has friction loss or limits.
     #[serde(flatten)]
     pub constraints: Option<ConstraintResponse>,
@@ -206,12 +210,11 @@ pub fn evaluate(model: &Model, ws: &mut Workspace, request: &EvalRequest) -> Res
         None => eps.clone(),
     };
     ws.compute_nu_dot(model, &applied)?;
-    let constraints = if model.constraints.is_empty() {
-        None
-    } else {
+    if model.couples_beyond_tree() {
         ws.apply_constraint_forces(model, &mut applied)?;
-        Some(ConstraintResponse::of(model, &ws.constraint_rows))
-    };
+    }
+    let constraints = (!model.constraints.is_empty()).then(|| ConstraintResponse::of(model, &ws.constraint_rows));
+    let eps_tendon_inertia = (!model.tendon_inertia.is_empty()).then(|| ws.tendon_inertia.eps.clone());
     ws.compute_accelerations(model)?;
     let momentum = ws.momentum(model)?;
     let mut response = EvalResponse {
@@ -227,6 +230,7 @@ pub fn evaluate(model: &Model, ws: &mut Workspace, request: &EvalRequest) -> Res
         kinetic_energy: ws.kinetic_energy(),
         momentum: std::array::from_fn(|k| momentum[k]),
         actuators,
+        eps_tendon_inertia,
         constraints,
         sensordata: None,
         eps,

@@ -673,6 +673,12 @@ pub struct Tendon {
     pub stiffness: f64,
     /// `damping`.
     pub damping: f64,
+    /// `armature`: the inertia a·L̇² / 2 of the tendon itself (MuJoCo adds
+    /// a·JᵀJ to the mass matrix).
+    pub armature: f64,
+    /// `actuatorfrcrange` when limited: MuJoCo scales the forces of the
+    /// tendon's actuators alike to bring their sum into it.
+    pub actuator_force_range: Option<[f64; 2]>,
     /// `springlength`: the deadband of lengths at which the spring is at
     /// rest (one value: a point); `None` (MuJoCo's −1) takes the tendon's
     /// length in the spring pose (qpos_spring).

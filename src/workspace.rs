@@ -5,6 +5,7 @@
 
 use nalgebra::{DVector, SMatrix};
 
+use crate::dynamics::TendonInertiaState;
 use crate::dynamics::constraint::ConstraintRows;
 use crate::math::{Mat3, Quat, SpatialMat, SpatialVec, Transform, Vec3};
 use crate::model::{Model, SensorSource};
@@ -151,7 +152,13 @@ pub struct Workspace {
     /// Per-link scratch of the spatial tendons' unit forces (empty without
     /// spatial tendons) — set_configuration.
     pub tendon_wrench: Vec<SpatialVec>,
+    /// Each tendon's sum of its actuators' forces before their force range
+    /// (empty when no tendon has an `actuatorfrcrange`) — compute_actuation.
+    pub tendon_actuator_total: Vec<f64>,
 
+    /// The tendons' armature: its columns and factors — set_configuration;
+    /// its forces and ε — apply_constraint_forces.
+    pub tendon_inertia: TendonInertiaState,
     /// The active constraint rows and their forces — apply_constraint_forces.
     pub constraint_rows: ConstraintRows,
 
@@ -235,6 +242,15 @@ impl Workspace {
             tendon_moment: vec![0.0; model.tendons.len() * model.nv],
             tendon_velocity: DVector::zeros(model.tendons.len()),
             tendon_wrench: vec![SpatialVec::zeros(); if spatial_tendons { n } else { 0 }],
+            tendon_actuator_total: vec![
+                0.0;
+                if model.tendons.iter().any(|t| t.actuator_force_range.is_some()) {
+                    model.tendons.len()
+                } else {
+                    0
+                }
+            ],
+            tendon_inertia: TendonInertiaState::new(model),
             constraint_rows: ConstraintRows::new(model),
             sensordata: DVector::zeros(model.sensors.iter().map(|s| s.dim()).sum()),
             link_quats: vec![Quat::identity(); model.link_tree_quats.len()],

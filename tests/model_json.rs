@@ -54,3 +54,23 @@ fn a_model_whose_force_sensors_name_missing_bodies_is_refused() {
     wrench_on_nothing.interaction_bodies.wrench_inputs.push(0);
     assert!(wrench_on_nothing.validate().is_err());
 }
+
+/// A model file whose tendon armature terms are not those of its tendons
+/// (a term moved to another dof, a weight changed, the armature negative)
+/// is refused by the loader's check: the terms index the workspace's buffers.
+#[test]
+fn a_model_whose_tendon_armature_terms_were_edited_is_refused() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/tendons/tendon_armature.xml");
+    let model = Model::compile(&nudyn::mjcf::load_mjcf(&path).unwrap().vehicle).unwrap();
+    assert_eq!(model.validate(), Ok(()));
+    let mut moved = model.clone();
+    moved.tendon_inertia[0].dof = model.nv;
+    assert_eq!(moved.validate(), Err(nudyn::model::InvalidModel::TendonInertia));
+    let mut reweighted = model.clone();
+    reweighted.tendon_inertia[1].weight *= 2.0;
+    assert_eq!(reweighted.validate(), Err(nudyn::model::InvalidModel::TendonInertia));
+    let mut negative = model;
+    negative.tendons[0].armature = -1.0;
+    let refused = negative.validate().unwrap_err().to_string();
+    assert!(refused.contains("armature is negative"), "{refused}");
+}

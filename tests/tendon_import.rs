@@ -176,18 +176,32 @@ const REFUSALS: &[(&str, &str, &str, u32, &str)] = &[
         "not between two sites",
     ),
     (
-        r#"<fixed name="t" armature="0.1"><joint joint="hinge" coef="1"/></fixed>"#,
+        r#"<fixed name="t" armature="-0.1"><joint joint="hinge" coef="1"/></fixed>"#,
         "",
         "<fixed name=\"t\">",
         11,
-        "armature",
+        "armature cannot be negative",
     ),
     (
-        r#"<fixed name="t" actuatorfrcrange="-1 1"><joint joint="hinge" coef="1"/></fixed>"#,
+        r#"<spatial name="t" armature="0.1"><site site="s0"/><geom geom="g"/><site site="s1"/></spatial>"#,
+        "",
+        "<spatial name=\"t\">",
+        11,
+        "geom wrapping not supported by tendon armature",
+    ),
+    (
+        r#"<fixed name="t" actuatorfrcrange="0.5 1"><joint joint="hinge" coef="1"/></fixed>"#,
         "",
         "<fixed name=\"t\">",
         11,
-        "actuatorfrcrange",
+        "invalid actuatorfrcrange",
+    ),
+    (
+        r#"<fixed name="t" actuatorfrclimited="true"><joint joint="hinge" coef="1"/></fixed>"#,
+        "",
+        "<fixed name=\"t\">",
+        11,
+        "invalid actuatorfrcrange",
     ),
     (
         r#"<fixed name="t" stiffness="1 2"><joint joint="hinge" coef="1"/></fixed>"#,
@@ -256,4 +270,98 @@ fn bad_tendons_are_refused_with_element_line_and_reason() {
         "",
     );
     assert!(matches!(twice, MjcfError::DuplicateName { line: 12, .. }), "{twice}");
+}
+
+/// Whether dof `a` is dof `b`, or one is the other's ancestor in MuJoCo's dof tree.
+fn on_one_chain(model: &Model, a: usize, b: usize) -> bool {
+    let link_of = |d: usize| model.links.iter().position(|l| (l.dof_adr..l.dof_adr + l.ndof).contains(&d)).unwrap();
+    let above = |lower: usize, upper: usize| {
+        let (low, up) = (link_of(lower), link_of(upper));
+        if low == up {
+            return upper <= lower;
+        }
+        let mut parent = model.links[low].parent;
+        while let Some(p) = parent {
+            if p == up {
+                return true;
+            }
+            parent = model.links[p].parent;
+        }
+        false
+    };
+    above(a, b) || above(b, a)
+}
+
+#[test]
+fn armature_terms_sum_to_mujocos_tree_sparse_share_of_a_jt_j() {
+    let imported = load_mjcf(&fixture("tendon_armature.xml")).unwrap();
+    let model = Model::compile(&imported.vehicle).unwrap();
+    let nv = model.nv;
+    // One term on the chain, two leaves across the arms (no common dof),
+    // and two leaves and their fork (the bus's last dof) for the sling.
+    let count = |k: usize| model.tendon_inertia.iter().filter(|t| t.tendon == k).count();
+    assert_eq!([count(0), count(1), count(2), count(3)], [1, 2, 3, 0]);
+    let mut ws = model.workspace();
+    for step in 0..5 {
+        let theta: Vec<f64> =
+            model.qpos0.iter().enumerate().map(|(k, q)| q + 0.3 * ((k * 7 + step * 3) as f64).sin()).collect();
+        ws.set_configuration(&model, &theta).unwrap();
+        for (k, tendon) in model.tendons.iter().enumerate() {
+            let arms = ws.tendon_moment_row(&model, k).to_vec();
+            let mut sum = vec![0.0; nv * nv];
+            for term in model.tendon_inertia.iter().filter(|t| t.tendon == k) {
+                let kept: Vec<f64> = (0..nv)
+                    .map(|d| if on_one_chain(&model, d, term.dof) && d <= term.dof { arms[d] } else { 0.0 })
+                    .collect();
+                for i in 0..nv {
+                    for j in 0..nv {
+                        sum[i * nv + j] += term.weight * kept[i] * kept[j];
+                    }
+                }
+            }
+            for i in 0..nv {
+                for j in 0..nv {
+                    let masked = if on_one_chain(&model, i, j) { tendon.armature * arms[i] * arms[j] } else { 0.0 };
+                    assert!(
+                        (sum[i * nv + j] - masked).abs() < 1e-14,
+                        "tendon {k}, ({i}, {j}): {} vs {masked}",
+                        sum[i * nv + j]
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn armature_compiles_to_mujocos_qpos0_data() {
+    let imported = load_mjcf(&fixture("tendon_armature.xml")).unwrap();
+    let model = Model::compile(&imported.vehicle).unwrap();
+    // MuJoCo 4.0's tendon_invweight0, dof_invweight0 and the servo's kv from
+    // dampratio for this file (its Python bindings): all from M with the
+    // tendons' armature (without it they are far off: kv 9.51).
+    let tendon = [7.812835940626739, 8.0813756031482, 0.1395629824230771, 60.694970737099204];
+    let dof = [
+        0.015829077160967552,
+        0.015829077160967552,
+        0.015829077160967552,
+        0.1786949239242169,
+        0.1786949239242169,
+        0.1786949239242169,
+        2.671319098371625,
+        4.07682515385095,
+        60.694970737099204,
+        23.685102542372977,
+        23.685102542372977,
+        23.685102542372977,
+        0.2503399872806316,
+    ];
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs().max(1.0);
+    for (t, expected) in model.tendons.iter().zip(tendon) {
+        assert!(close(t.invweight0, expected), "{} vs {expected}", t.invweight0);
+    }
+    for (found, expected) in model.constraints.dof_invweight0.iter().zip(dof) {
+        assert!(close(*found, expected), "{found} vs {expected}");
+    }
+    assert!(close(model.actuators[0].bias[2], -16.75937862944914), "{}", model.actuators[0].bias[2]);
 }

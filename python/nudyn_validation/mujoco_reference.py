@@ -26,6 +26,7 @@ problem solved to round-off (see load_model).
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -314,7 +315,12 @@ class MujocoFactor:
     qLD is stored in the sparse row format of M (model.M_rownnz, M_rowadr,
     M_colind): row i holds L[i, j] for the dofs j < i that M couples to i,
     and d[i] at column i.  The index arrays are built once; each product is
-    then two vectorized gathers and a bincount (O(nnz), no dense matrix)."""
+    then two vectorized gathers and a bincount (O(nnz), no dense matrix).
+
+    With tendon armature MuJoCo's M holds the tendons' inertia too, while
+    nudyn's ν = m*θ̇ and ε = m⁻¹T are the tree's (docs/DYNAMICS.md §9): the
+    factor is then that of the same model without the tendons' armature,
+    built by MuJoCo at each state."""
 
     def __init__(self, model: mujoco.MjModel):
         self.nv = model.nv
@@ -327,27 +333,46 @@ class MujocoFactor:
         self._off = np.flatnonzero(~on_diagonal)
         self._off_rows = rows[self._off]
         self._off_cols = cols[self._off]
+        self._tree = None
+        if model.ntendon and model.tendon_armature.any():
+            tree = copy.deepcopy(model)
+            tree.tendon_armature[:] = 0
+            self._tree = (tree, mujoco.MjData(tree))
+
+    def _ld(self, data: mujoco.MjData) -> np.ndarray:
+        """qLD of the tree's M at data's qpos."""
+        if self._tree is None:
+            return data.qLD
+        tree, scratch = self._tree
+        scratch.qpos[:] = data.qpos
+        mujoco.mj_kinematics(tree, scratch)
+        mujoco.mj_comPos(tree, scratch)
+        mujoco.mj_makeM(tree, scratch)
+        mujoco.mj_factorM(tree, scratch)
+        return scratch.qLD
 
     def sqrt_d(self, data: mujoco.MjData) -> np.ndarray:
-        return np.sqrt(data.qLD[self._diag])
+        return np.sqrt(self._ld(data)[self._diag])
 
     def lower(self, data: mujoco.MjData) -> np.ndarray:
         """Dense L (unit lower triangular), for checks."""
         L = np.eye(self.nv)
-        L[self._off_rows, self._off_cols] = data.qLD[self._off]
+        L[self._off_rows, self._off_cols] = self._ld(data)[self._off]
         return L
 
     def nu(self, data: mujoco.MjData, qvel) -> np.ndarray:
         """nu = m* qvel = diag(sqrt d) L qvel."""
         qvel = np.asarray(qvel, float)
-        below = data.qLD[self._off] * qvel[self._off_cols]
-        return self.sqrt_d(data) * (qvel + np.bincount(self._off_rows, below, self.nv))
+        ld = self._ld(data)
+        below = ld[self._off] * qvel[self._off_cols]
+        return np.sqrt(ld[self._diag]) * (qvel + np.bincount(self._off_rows, below, self.nv))
 
     def torque(self, data: mujoco.MjData, eps) -> np.ndarray:
         """T = m eps = L^T diag(sqrt d) eps: the joint torques whose
         diagonalized force is eps."""
-        scaled = self.sqrt_d(data) * np.asarray(eps, float)
-        above = data.qLD[self._off] * scaled[self._off_rows]
+        ld = self._ld(data)
+        scaled = np.sqrt(ld[self._diag]) * np.asarray(eps, float)
+        above = ld[self._off] * scaled[self._off_rows]
         return scaled + np.bincount(self._off_cols, above, self.nv)
 
 

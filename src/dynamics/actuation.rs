@@ -191,11 +191,11 @@ fn relative_site(
     Transmitted { length, velocity, moment: Moment::wrenches(candidates) }
 }
 
-/// MuJoCo's force of a stateless actuator: ctrl clamped to its range (unless
-/// `<flag clampctrl="disable"/>`), gain · ctrl + bias (the setpoint of a
-/// rotation servo taken nearest the length), clamped to the force range; a
-/// disabled group gives 0, still clamped.
-fn actuator_force(actuator: &Actuator, clamp_ctrl: bool, ctrl: f64, length: f64, velocity: f64) -> f64 {
+/// MuJoCo's force of a stateless actuator before its force range: ctrl
+/// clamped to its range (unless `<flag clampctrl="disable"/>`), then
+/// gain · ctrl plus bias (the setpoint of a rotation servo taken nearest the
+/// length); a disabled group gives 0 ([`clamp_force`] still clamps it).
+fn unclamped_force(actuator: &Actuator, clamp_ctrl: bool, ctrl: f64, length: f64, velocity: f64) -> f64 {
     let mut force = 0.0;
     if actuator.enabled {
         let ctrl = match actuator.ctrl_range {
@@ -216,9 +216,25 @@ fn actuator_force(actuator: &Actuator, clamp_ctrl: bool, ctrl: f64, length: f64,
         let input = if period > 0.0 { ctrl - period * ((ctrl - length) / period).round() } else { ctrl };
         force = gain * input + bias;
     }
+    force
+}
+
+/// The actuator's force clamped to its `forcerange`.
+fn clamp_force(actuator: &Actuator, force: f64) -> f64 {
     match actuator.force_range {
         Some([low, high]) => clip(force, low, high),
         None => force,
+    }
+}
+
+/// What MuJoCo multiplies each force of a tendon's actuators by when their
+/// sum `total` lies outside the tendon's `actuatorfrcrange`: the near end
+/// of the range over the sum, so that the scaled forces sum to it.
+fn tendon_force_scale(range: Option<[f64; 2]>, total: f64) -> f64 {
+    match range {
+        Some([low, _]) if total != 0.0 && total < low => low / total,
+        Some([_, high]) if total != 0.0 && total > high => high / total,
+        _ => 1.0,
     }
 }
 
@@ -271,6 +287,9 @@ impl Workspace {
         let actuation = model.actuation;
         let mjcf_count = model.mjcf_actuator_count();
         self.prepare_transmissions(model);
+        if actuation.enabled && !self.tendon_actuator_total.is_empty() {
+            self.sum_tendon_actuator_forces(model, actuation.clamp_ctrl, ctrl);
+        }
         for (k, actuator) in model.actuators[..mjcf_count].iter().enumerate() {
             let transmitted = transmit(self, actuator);
             self.actuator_length[k] = transmitted.length;
@@ -280,8 +299,15 @@ impl Workspace {
                 continue;
             }
             self.actuator_velocity[k] = transmitted.velocity;
-            let force =
-                actuator_force(actuator, actuation.clamp_ctrl, ctrl[k], transmitted.length, transmitted.velocity);
+            let mut force =
+                unclamped_force(actuator, actuation.clamp_ctrl, ctrl[k], transmitted.length, transmitted.velocity);
+            if let ActuatorTransmission::Tendon { tendon } = actuator.transmission
+                && !self.tendon_actuator_total.is_empty()
+            {
+                force *=
+                    tendon_force_scale(model.tendons[tendon].actuator_force_range, self.tendon_actuator_total[tendon]);
+            }
+            let force = clamp_force(actuator, force);
             self.actuator_force[k] = force;
             apply(
                 &transmitted.moment,
@@ -315,6 +341,21 @@ impl Workspace {
         let result = self.eps_from_forces(model, total.as_slice(), None, eps.as_mut_slice());
         (self.qfrc_total, self.eps_actuator) = (total, eps);
         result
+    }
+
+    /// The sum of the forces (before their `forcerange`) of each tendon's
+    /// actuators, for the tendons with an `actuatorfrcrange`.
+    fn sum_tendon_actuator_forces(&mut self, model: &Model, clamp_ctrl: bool, ctrl: &[f64]) {
+        self.tendon_actuator_total.fill(0.0);
+        for (k, actuator) in model.actuators[..model.mjcf_actuator_count()].iter().enumerate() {
+            if let ActuatorTransmission::Tendon { tendon } = actuator.transmission
+                && model.tendons[tendon].actuator_force_range.is_some()
+            {
+                let transmitted = transmit(self, actuator);
+                self.tendon_actuator_total[tendon] +=
+                    unclamped_force(actuator, clamp_ctrl, ctrl[k], transmitted.length, transmitted.velocity);
+            }
+        }
     }
 
     /// Adds the generalized force of the wrench inputs (`values`: six per
@@ -370,7 +411,7 @@ impl Workspace {
             }
         }
         let mut result = pass(self, model, applied.as_slice());
-        if result.is_ok() && !model.constraints.is_empty() {
+        if result.is_ok() && model.couples_beyond_tree() {
             result = self.apply_constraint_forces(model, applied.as_mut_slice());
         }
         self.eps_applied = applied;

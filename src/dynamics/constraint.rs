@@ -8,7 +8,8 @@
 //!    by dof, then limits by joint, a hinge's or slide's lower side first):
 //!    J, distance, margin (equality.rs builds the equality rows);
 //! 3. E = m⁻¹Jᵀ, one inward pass per row, and A = J M⁻¹ Jᵀ = EᵀE (as
-//!    M⁻¹ = m⁻ᵀm⁻¹: no dense M, no factorization beyond the passes');
+//!    M⁻¹ = m⁻ᵀm⁻¹: no dense M, no factorization beyond the passes'); with
+//!    tendon armature, both made those of M_a (`tendon_inertia`);
 //! 4. impedance, regularizer R and reference acceleration aref from
 //!    solref/solimp (MuJoCo's `mj_makeImpedance`, `mj_referenceConstraint`);
 //! 5. f minimizing ½fᵀ(A + R)f + fᵀ(J·qacc_smooth − aref) in the box each
@@ -332,14 +333,19 @@ fn stiffness_damping(model: &Model, soft: &SoftConstraint, friction: bool) -> (f
 }
 
 impl Workspace {
-    /// Puts the constraint forces on a pass 3 just run for `applied` (the
-    /// applied ε, actuators included): solves for them with that pass's θ̈
-    /// as MuJoCo's qacc_smooth, adds their ε_c to `applied`, to ν̇ (when the
-    /// pass had the factor's rates) and to ν̇'s joint part, and runs the
-    /// outward pass again for θ̈. ε enters ν̇ additively, so pass 3 need not
+    /// Puts the forces beyond the tree's on a pass 3 just run for `applied`
+    /// (the applied ε, actuators included): first the tendons' armature
+    /// (`tendon_inertia`), which makes MuJoCo's qacc_smooth, then the
+    /// constraint forces solved for with that θ̈ and the mass matrix with
+    /// the armature. Each one's ε is added to `applied`, to ν̇ (when the
+    /// pass had the factor's rates) and to ν̇'s joint part, and the outward
+    /// pass runs again for θ̈. ε enters ν̇ additively, so pass 3 need not
     /// run again. The rows and forces stay in `constraint_rows`.
     pub fn apply_constraint_forces(&mut self, model: &Model, applied: &mut [f64]) -> Result<(), DynamicsError> {
         require(self, Stage::JointRates, "apply_constraint_forces")?;
+        if !model.tendon_inertia.is_empty() {
+            self.apply_tendon_inertia(model, applied)?;
+        }
         let mut rows = std::mem::take(&mut self.constraint_rows);
         rows.count = 0;
         self.instantiate_equalities(model, &mut rows);
@@ -353,9 +359,9 @@ impl Workspace {
             self.constraint_rows = rows;
             return Ok(());
         }
-        // compute_qacc (stage JointRates) has run the outward pass already.
+        // compute_qacc (stage JointRates) and the armature have run the outward pass already.
         let mut result = Ok(());
-        if self.stage == Stage::Acceleration {
+        if self.stage == Stage::Acceleration && model.tendon_inertia.is_empty() {
             result = self.compute_accelerations(model);
         }
         let result = result.and_then(|()| self.solve_constraints(model, &mut rows));
@@ -411,6 +417,9 @@ impl Workspace {
                 rows.hessian[j * stride + i] = a;
             }
             rows.hessian[i * stride + i] += rows.regularizer[i];
+        }
+        if !model.tendon_inertia.is_empty() {
+            self.tendon_inertia_on_rows(model, n, &mut rows.eps_columns, &mut rows.hessian, stride);
         }
         let same_rows = rows.last_rows.len() == n && (0..n).all(|k| rows.last_rows[k] == (rows.kind[k], rows.id[k]));
         if !same_rows {

@@ -200,7 +200,7 @@ impl Workspace {
 
     /// The links' spatial accelerations with θ̈ = 0 and the world at rest,
     /// base to tip: A⁰_i = X A⁰_λ + V⁺_i × S_i θ̇_i.
-    fn bias_accelerations(&self, model: &Model, out: &mut [SpatialVec]) {
+    pub(super) fn bias_accelerations(&self, model: &Model, out: &mut [SpatialVec]) {
         for (i, link) in model.links.iter().enumerate() {
             let mut joint_velocity = SpatialVec::zeros();
             for c in 0..link.ndof {

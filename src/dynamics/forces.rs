@@ -72,6 +72,12 @@ fn inward_pass(
     }
 }
 
+/// ε = ℓ(θ)T for joint torques `torque`, for passes that have just set the
+/// configuration (no stage or length checks: the caller's buffers are the model's).
+pub(super) fn eps_of_torque(model: &Model, ws: &mut Workspace, torque: &[f64], eps: &mut [f64]) {
+    inward_pass(model, ws, Direction::EpsFromTorque, torque, None, eps);
+}
+
 /// T += Σ Jᵢᵀfᵢ, the joint forces of per-link wrenches `wrenches` (link
 /// coordinates, about the link origin): p_i = f_i + Σ_children Xᵀ p_c,
 /// T_i += S_iᵀ p_i. `p` holds each link's share from its children

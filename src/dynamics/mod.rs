@@ -30,8 +30,11 @@ pub mod kinematics;
 pub mod quantities;
 pub mod sensors;
 pub mod tendon;
+mod tendon_inertia;
 pub mod velocity;
 mod wrap;
+
+pub use tendon_inertia::TendonInertiaState;
 
 use nalgebra::SMatrix;
 
@@ -89,6 +92,11 @@ pub enum DynamicsError {
         /// Active constraint rows.
         rows: usize,
     },
+    /// The mass matrix with the tendons' armature is singular (MuJoCo adds
+    /// that armature only within the tree's sparsity, which need not keep
+    /// the matrix positive definite).
+    #[error("the mass matrix with the tendons' armature is singular")]
+    TendonInertia,
     /// A pass was called before the passes it depends on.
     #[error("{call} needs {needed:?} computed first")]
     OutOfOrder {
@@ -174,6 +182,9 @@ impl Workspace {
         }
         if !model.tendons.is_empty() {
             self.tendon_kinematics(model);
+        }
+        if !model.tendon_inertia.is_empty() {
+            self.tendon_inertia_configuration(model)?;
         }
         self.stage = Stage::Configuration;
         Ok(())

@@ -211,13 +211,6 @@ pub(crate) fn read(
     element.check_attributes(&allowed)?;
     settings.apply(element)?;
     let origin = |attribute: &str| if element.has(attribute) { "" } else { " (from its default class)" };
-    if settings.armature != 0.0 {
-        return Err(element.unsupported(format!(
-            "armature{}: tendon armature adds a·JᵀJ to the mass matrix, which is then no longer a tree's \
-             and has no factor m m* from the O(N) passes",
-            origin("armature")
-        )));
-    }
     if settings.springyield != 0.0 {
         return Err(element.unsupported(format!("springyield{}: yielding springs", origin("springyield"))));
     }
@@ -232,12 +225,19 @@ pub(crate) fn read(
     let force_limited = match settings.actuator_force_limited {
         Limited::Yes => true,
         Limited::No => false,
-        Limited::Auto => flags.autolimits && low < high,
+        Limited::Auto if !flags.autolimits && (low, high) != (0.0, 0.0) => {
+            return Err(element.invalid(format!(
+                "tendon has actuatorfrcrange{} but not actuatorfrclimited while <compiler autolimits=\"false\">; \
+                 give actuatorfrclimited or remove actuatorfrcrange",
+                origin("actuatorfrcrange")
+            )));
+        }
+        Limited::Auto => low < high,
     };
-    if force_limited {
-        return Err(element.unsupported(format!(
-            "actuatorfrcrange{}: MuJoCo scales the forces of the tendon's actuators to keep their sum in the \
-             range, which nudyn does not model",
+    // MuJoCo's: the sum is scaled into the range, which must hold zero.
+    if force_limited && (low >= high || low > 0.0 || high < 0.0) {
+        return Err(element.invalid(format!(
+            "invalid actuatorfrcrange in tendon{}: ({low}, {high}) must have lower < upper and hold 0",
             origin("actuatorfrcrange")
         )));
     }
@@ -256,12 +256,22 @@ pub(crate) fn read(
         return Err(element
             .invalid(format!("invalid limits in tendon: range ({range_low}, {range_high}) must have lower < upper")));
     }
+    if settings.armature < 0.0 {
+        return Err(element.invalid(format!("tendon armature cannot be negative{}", origin("armature"))));
+    }
     let path = if spatial { spatial_path(element, targets)? } else { fixed_path(element, targets)? };
+    let wraps = matches!(&path, TendonPath::Spatial(points) if points.iter().any(|p| matches!(p, PathPoint::Geom(_))));
+    if settings.armature > 0.0 && wraps {
+        // MuJoCo 4.0 refuses the file: its J̇θ̇ of a wrapped path is not written.
+        return Err(element.invalid(format!("geom wrapping not supported by tendon armature{}", origin("armature"))));
+    }
     let tendon = Tendon {
         name: element.text("name").map(str::to_string),
         path,
         stiffness: if flags.spring_disabled { 0.0 } else { settings.stiffness[0] },
         damping: if flags.damper_disabled { 0.0 } else { settings.damping[0] },
+        armature: settings.armature,
+        actuator_force_range: force_limited.then_some(settings.actuator_force_range),
         spring_length: (!unset).then_some(settings.spring_length),
         frictionloss: if flags.frictionloss_disabled { 0.0 } else { settings.frictionloss },
         friction: settings.friction_soft,

@@ -183,7 +183,8 @@ impl Model {
     /// Turns damping ratios into dampings as MuJoCo's compiler does:
     /// kv = ratio · 2√(kp·m), with m = (J M⁻¹ Jᵀ)⁻¹ the mass the actuator
     /// moves at qpos0, J its moment arms. With M = m m*, J M⁻¹ Jᵀ = |ℓJᵀ|²:
-    /// the ε of a unit force, from the passes.
+    /// the ε of a unit force, from the passes (less the tendons' armature's
+    /// share: MuJoCo's M includes it).
     pub(super) fn resolve_damping_ratios(&mut self) -> Result<(), ModelError> {
         let pending: Vec<usize> =
             (0..self.actuators.len()).filter(|&k| self.actuators[k].has_damping_ratio()).collect();
@@ -205,7 +206,7 @@ impl Model {
             ws.actuator_moment(self, k, &mut moment)
                 .and_then(|()| ws.eps_from_forces(self, &moment, None, &mut eps))
                 .map_err(|e| failed(&self.actuators[k], k, e.to_string()))?;
-            let inverse_mass: f64 = eps.iter().map(|e| e * e).sum();
+            let inverse_mass = ws.inverse_mass_quadratic(self, &eps);
             let mass = if inverse_mass > MIN_VALUE { 1.0 / inverse_mass } else { 0.0 };
             let actuator = &mut self.actuators[k];
             let kp = actuator.gain[0];

@@ -315,7 +315,8 @@ impl Model {
 
     /// MuJoCo's `dof_invweight0`: the mean diagonal of M⁻¹ over each
     /// joint's dofs (a free joint's translation and rotation apart), with
-    /// diag(M⁻¹)_d = |m⁻¹ e_d|² since M⁻¹ = m⁻ᵀ m⁻¹.
+    /// diag(M⁻¹)_d = |m⁻¹ e_d|² since M⁻¹ = m⁻ᵀ m⁻¹ (less the tendons'
+    /// armature's share: MuJoCo's M includes it).
     fn dof_invweight0(&self, ws: &mut Workspace) -> Result<Vec<f64>, DynamicsError> {
         let (mut unit, mut eps) = (vec![0.0; self.nv], vec![0.0; self.nv]);
         let mut diagonal = vec![0.0; self.nv];
@@ -323,7 +324,7 @@ impl Model {
             unit[d] = 1.0;
             ws.eps_from_forces(self, &unit, None, &mut eps)?;
             unit[d] = 0.0;
-            *entry = eps.iter().map(|e| e * e).sum();
+            *entry = ws.inverse_mass_quadratic(self, &eps);
         }
         let mut invweight = vec![0.0; self.nv];
         for joint in &self.joints {
@@ -369,7 +370,7 @@ impl Model {
                 };
                 // Cannot fail: the configuration is set and the lengths are the model's.
                 if ws.eps_from_forces(self, &zero, Some(&wrenches), &mut eps).is_ok() {
-                    *mean += eps.iter().map(|e| e * e).sum::<f64>() / 3.0;
+                    *mean += ws.inverse_mass_quadratic(self, &eps) / 3.0;
                 }
             }
         }

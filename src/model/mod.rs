@@ -38,7 +38,7 @@ pub use constraint::{CompiledEquality, Constraints, DofFriction, EqualityRows, L
 pub use gravity_compensation::{CompensatedLink, GravityCompensation};
 pub use interaction::InteractionBodies;
 pub use sensor::{BodyMass, Sensor, SensorSource};
-pub use tendon::{FixedTerm, Path, PathStop, Tendon};
+pub use tendon::{FixedTerm, InertiaTerm, Path, PathStop, Tendon};
 pub use validate::InvalidModel;
 
 /// Motion subspace storage: up to three columns, the first `ndof` used.
@@ -270,6 +270,10 @@ pub struct Model {
     /// Tendons in MuJoCo's order.
     #[serde(default)]
     pub tendons: Vec<Tendon>,
+    /// The tendons' armature in the mass matrix, as MuJoCo adds it (empty
+    /// when no tendon has armature): derived from `tendons` and the links.
+    #[serde(default)]
+    pub tendon_inertia: Vec<InertiaTerm>,
 }
 
 /// Why a vehicle cannot be compiled.
@@ -550,7 +554,9 @@ impl Model {
             sensors_disabled: vehicle.sensors_disabled,
             gravity_compensation: compensation.applied(vehicle, actuator_gravcomp_dofs),
             tendons,
+            tendon_inertia: Vec::new(),
         };
+        model.tendon_inertia = tendon::inertia_terms(&model);
         model.validate()?;
         model.check_positive_definite()?;
         model.compile_tendons_in_qpos0(vehicle)?;
@@ -563,6 +569,12 @@ impl Model {
             return Err(ModelError::NoSlip { iterations, rows });
         }
         Ok(model)
+    }
+
+    /// Whether forces beyond the tree's passes act: the tendons' armature
+    /// or constraint rows ([`crate::workspace::Workspace::apply_constraint_forces`]).
+    pub fn couples_beyond_tree(&self) -> bool {
+        !self.tendon_inertia.is_empty() || !self.constraints.is_empty()
     }
 
     /// A fresh workspace for this model.

@@ -21,6 +21,13 @@ pub struct Tendon {
     pub stiffness: f64,
     /// `damping`.
     pub damping: f64,
+    /// `armature`: MuJoCo adds armature·JᵀJ to the mass matrix, within its
+    /// tree sparsity ([`InertiaTerm`]).
+    pub armature: f64,
+    /// `actuatorfrcrange` when limited: the forces of the tendon's actuators
+    /// are scaled alike to bring their sum into it, before each one's
+    /// `forcerange` (MuJoCo's `mj_fwdActuation`).
+    pub actuator_force_range: Option<[f64; 2]>,
     /// The lengths between which the spring is at rest (MuJoCo's
     /// `tendon_lengthspring`, its −1 resolved in the spring pose).
     pub spring_length: [f64; 2],
@@ -162,6 +169,8 @@ pub(super) fn compile_tendons(
                 path,
                 stiffness: tendon.stiffness,
                 damping: tendon.damping,
+                armature: tendon.armature,
+                actuator_force_range: tendon.actuator_force_range,
                 // Resolved in the spring pose when the file leaves it to MuJoCo (−1).
                 spring_length: tendon.spring_length.unwrap_or_default(),
                 length0: 0.0,
@@ -174,7 +183,8 @@ pub(super) fn compile_tendons(
 
 impl Model {
     /// What MuJoCo's `mj_setConst` computes for tendons: each tendon's
-    /// length and J M⁻¹ Jᵀ = |m⁻¹Jᵀ|² in qpos0, and, where the file leaves
+    /// length and J M⁻¹ Jᵀ in qpos0 (|m⁻¹Jᵀ|², less the tendons' armature's
+    /// share: MuJoCo's M includes it), and, where the file leaves
     /// `springlength` to it, its length in the spring pose. Nothing without tendons.
     pub(super) fn compile_tendons_in_qpos0(&mut self, vehicle: &Vehicle) -> Result<(), ModelError> {
         if self.tendons.is_empty() {
@@ -188,7 +198,7 @@ impl Model {
         for k in 0..self.tendons.len() {
             let moment = &ws.tendon_moment[k * self.nv..(k + 1) * self.nv].to_vec();
             ws.eps_from_forces(self, moment, None, &mut eps).map_err(singular)?;
-            qpos0.push((ws.tendon_length[k], eps.iter().map(|e| e * e).sum::<f64>()));
+            qpos0.push((ws.tendon_length[k], ws.inverse_mass_quadratic(self, &eps)));
         }
         ws.set_configuration(self, &self.qpos_spring).map_err(singular)?;
         for (k, tendon) in self.tendons.iter_mut().enumerate() {
@@ -244,9 +254,105 @@ pub(super) fn validate_tendon(model: &Model, k: usize) -> Result<(), String> {
             return Err("a geom of its path is not between two sites".to_string());
         }
     }
-    let numbers = [tendon.stiffness, tendon.damping, tendon.length0, tendon.invweight0];
+    let numbers = [tendon.stiffness, tendon.damping, tendon.armature, tendon.length0, tendon.invweight0];
     if !numbers.iter().chain(&tendon.spring_length).all(|x| x.is_finite()) {
-        return Err("stiffness, damping, spring length and qpos0 data must be finite".to_string());
+        return Err("stiffness, damping, armature, spring length and qpos0 data must be finite".to_string());
+    }
+    if tendon.armature < 0.0 {
+        return Err("its armature is negative".to_string());
+    }
+    if tendon.actuator_force_range.is_some_and(|[low, high]| !(low <= 0.0 && 0.0 <= high && low < high)) {
+        return Err("its actuator force range must hold 0 and be increasing".to_string());
+    }
+    if tendon.armature > 0.0
+        && let Path::Spatial { stops } = &tendon.path
+        && stops.iter().any(|s| matches!(s, PathStop::Geom { .. }))
+    {
+        return Err("it has armature and wraps a geom, which MuJoCo refuses".to_string());
     }
     Ok(())
+}
+
+/// One term of the tendons' armature as MuJoCo adds it to the mass matrix.
+///
+/// MuJoCo adds a·J_iJ_j only where M has room in its tree sparsity: for
+/// dofs i, j one of which is the other's ancestor (or i = j); the coupling
+/// of two dofs on different branches is dropped. Over the tree that the
+/// tendon's dofs S form (each dof's parent its nearest ancestor in S), that
+/// masked a·JᵀJ is Σ_v a·(1 − children(v))·U_vᵀU_v, U_v the moment arms kept
+/// on v and its ancestors only: a pair (i, j), j below i, lies in the U_v of
+/// every v below j, and the weights of a subtree sum to its nodes less its
+/// edges, 1. Only the leaves (+a) and the forks (−a per child beyond the
+/// first) are terms, so a tendon whose dofs lie on one chain is the one term
+/// a·JᵀJ. The same weights sum the U_v to J, so the bias a·J(J̇θ̇) is
+/// Σ_v a·(1 − children(v))·U_v(J̇θ̇) too.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct InertiaTerm {
+    /// The tendon.
+    pub tendon: usize,
+    /// The dof v whose ancestors (and itself) keep the tendon's moment arms.
+    pub dof: usize,
+    /// Its link.
+    pub link: usize,
+    /// a·(1 − children(v)).
+    pub weight: f64,
+}
+
+/// The armature terms of the model's tendons, in tendon order (none when no
+/// tendon has armature).
+pub(super) fn inertia_terms(model: &Model) -> Vec<InertiaTerm> {
+    let mut terms = Vec::new();
+    // Each dof's link, and its parent in MuJoCo's dof tree: the dof before
+    // it in a multi-dof joint, else the last dof of the parent link.
+    let mut dof_link = vec![0; model.nv];
+    let mut dof_parent = vec![None; model.nv];
+    for (l, link) in model.links.iter().enumerate() {
+        for c in 0..link.ndof {
+            let dof = link.dof_adr + c;
+            dof_link[dof] = l;
+            dof_parent[dof] = match (c, link.parent) {
+                (0, Some(p)) => Some(model.links[p].dof_adr + model.links[p].ndof - 1),
+                (0, None) => None,
+                _ => Some(dof - 1),
+            };
+        }
+    }
+    for (k, tendon) in model.tendons.iter().enumerate() {
+        if tendon.armature == 0.0 {
+            continue;
+        }
+        let mut in_support = vec![false; model.nv];
+        match &tendon.path {
+            Path::Fixed { terms } => terms.iter().for_each(|t| in_support[t.dof] = true),
+            Path::Spatial { stops } => {
+                for stop in stops {
+                    if let PathStop::Site { frame: SiteFrame { link: Some(l), .. }, .. } = stop {
+                        let link = &model.links[*l];
+                        let mut dof = (link.ndof > 0).then(|| link.dof_adr + link.ndof - 1);
+                        while let Some(d) = dof {
+                            in_support[d] = true;
+                            dof = dof_parent[d];
+                        }
+                    }
+                }
+            }
+        }
+        let mut children = vec![0usize; model.nv];
+        for d in 0..model.nv {
+            if in_support[d] {
+                let mut up = dof_parent[d];
+                while let Some(u) = up.filter(|&u| !in_support[u]) {
+                    up = dof_parent[u];
+                }
+                if let Some(u) = up {
+                    children[u] += 1;
+                }
+            }
+        }
+        for d in (0..model.nv).filter(|&d| in_support[d] && children[d] != 1) {
+            let weight = tendon.armature * (1.0 - children[d] as f64);
+            terms.push(InertiaTerm { tendon: k, dof: d, link: dof_link[d], weight });
+        }
+    }
+    terms
 }

@@ -127,6 +127,9 @@ pub enum InvalidModel {
         /// What is wrong.
         what: String,
     },
+    /// Tendon armature terms that are not those of the tendons and links.
+    #[error("the tendons' armature terms do not match the tendons and links")]
+    TendonInertia,
     /// A tendon whose path lies outside the model or whose numbers are not finite.
     #[error("tendon {tendon}: {what}")]
     Tendon {
@@ -343,6 +346,9 @@ fn validate(model: &Model) -> Result<(), InvalidModel> {
     finite(0, "qpos_spring", &model.qpos_spring)?;
     for k in 0..model.tendons.len() {
         super::tendon::validate_tendon(model, k).map_err(|what| InvalidModel::Tendon { tendon: k, what })?;
+    }
+    if model.tendon_inertia != super::tendon::inertia_terms(model) {
+        return Err(InvalidModel::TendonInertia);
     }
     for k in 0..model.actuators.len() {
         validate_actuator(model, k).map_err(|what| InvalidModel::Actuator { actuator: k, what })?;

@@ -10,7 +10,11 @@ beside joint friction and a joint limit, and two tendon equalities;
 tendon_wrap.xml spatial tendons wrapping around a cylinder and two spheres,
 with and without side sites; tendon_wrap_fitted.xml the same with the
 cylinder and a sphere fitted to meshes (their radius and frame from the
-mesh, as MuJoCo's compiler fits them). MuJoCo's
+mesh, as MuJoCo's compiler fits them); tendon_armature.xml two arms on a
+bus whose tendons carry armature, along one chain, across both arms and
+through a pulley, with limits, friction loss, equalities and tendon
+actuators; tendon_force_range.xml an arm whose tendons' actuators are held
+to the tendons' actuatorfrcrange. MuJoCo's
 constraint solver is run to round-off (nudyn_validation.mujoco_reference.
 load_model), so both sides solve the same problem to its optimum.
 """
@@ -30,7 +34,8 @@ from nudyn_validation.scenarios import FORCED_TOLERANCE, UNFORCED_TOLERANCE
 
 FIXTURES = {
     name: ROOT / "tests" / "fixtures" / "tendons" / f"{name}.xml"
-    for name in ("tendon_finger", "tendon_limits", "tendon_wrap", "tendon_wrap_fitted")
+    for name in ("tendon_finger", "tendon_limits", "tendon_wrap", "tendon_wrap_fitted", "tendon_armature",
+                 "tendon_force_range")
 }
 N_STATES = 60
 KINDS = {
@@ -100,10 +105,84 @@ def evaluate(path, nudyn):
         data.qpos[:], data.qvel[:], data.ctrl[:] = request["theta"], request["qvel"], request["ctrl"]
         mujoco.mj_forward(model, data)
         reference["qacc_without_tendon_springs"] = data.qacc.copy()
+    if model.tendon_armature.any():
+        add_armature_references(model, references, requests)
+    if model.tendon_actfrclimited.any():
+        model.tendon_actfrclimited[:] = 0
+        for reference, request in zip(references, requests):
+            data.qpos[:], data.qvel[:], data.ctrl[:] = request["theta"], request["qvel"], request["ctrl"]
+            mujoco.mj_forward(model, data)
+            reference["qacc_without_tendon_force_ranges"] = data.qacc.copy()
     result = run_eval(nudyn, path, json.dumps(requests))
     out = result.json()
     assert isinstance(out, list) and len(out) == N_STATES, result.describe()
     return references, out
+
+
+def add_armature_references(model, references, requests) -> None:
+    """What the tendons' armature does in MuJoCo at each state, without
+    springs: its unconstrained acceleration (qacc_smooth); that of a mass
+    matrix taking the whole a·JᵀJ (MuJoCo keeps a·J_iJ_j only where dof i
+    and dof j lie on one chain); that without the armature's bias a·J(J̇θ̇);
+    and that without the armature at all (the compiled constants kept)."""
+    data = mujoco.MjData(model)
+    moments = np.zeros((model.ntendon, model.nv))
+    armature = model.tendon_armature.copy()
+    for reference, request in zip(references, requests):
+        data.qpos[:], data.qvel[:], data.ctrl[:] = request["theta"], request["qvel"], request["ctrl"]
+        mujoco.mj_forward(model, data)
+        mass = np.zeros((model.nv, model.nv))
+        mujoco.mj_fullM(model, data, mass)
+        mujoco.mju_sparse2dense(moments, data.ten_J, model.ten_J_rownnz, model.ten_J_rowadr, model.ten_J_colind)
+        smooth, force, bias = data.qacc_smooth.copy(), data.qfrc_smooth.copy(), data.qfrc_bias.copy()
+        model.tendon_armature[:] = 0
+        mujoco.mj_forward(model, data)
+        tree_mass = np.zeros((model.nv, model.nv))
+        mujoco.mj_fullM(model, data, tree_mass)
+        armature_bias = bias - data.qfrc_bias
+        reference["qacc_smooth"] = smooth
+        reference["qacc_smooth_dense"] = np.linalg.solve(tree_mass + moments.T @ np.diag(armature) @ moments, force)
+        reference["qacc_smooth_without_bias"] = np.linalg.solve(mass, force + armature_bias)
+        reference["qacc_smooth_without_armature"] = data.qacc_smooth.copy()
+        model.tendon_armature[:] = armature
+
+
+def test_tendon_armature_counts_as_mujoco_applies_it(nudyn):
+    """On tendon_armature, nudyn's agreement above (1e-12) could not come
+    from leaving out the armature, from the whole a·JᵀJ in place of
+    MuJoCo's tree-sparse share of it, or from leaving out its bias a·J(J̇θ̇):
+    each moves MuJoCo's own unconstrained acceleration by far more."""
+    if "tendon_armature" not in _evaluated:
+        _evaluated["tendon_armature"] = evaluate(FIXTURES["tendon_armature"], nudyn)
+    references, _ = _evaluated["tendon_armature"]
+    for variant in ("qacc_smooth_without_armature", "qacc_smooth_dense", "qacc_smooth_without_bias"):
+        moved = [relative(r[variant], r["qacc_smooth"]) for r in references if r["qacc_smooth"].any()]
+        assert np.median(moved) > 1e-4, (variant, np.median(moved))
+
+
+def test_tendon_armature_enters_nu_dot_as_its_own_eps(nudyn):
+    """ν̇ = ε + ε_actuator + ε_tendon_inertia + ε_c − C + ε_passive, the
+    armature's share reported apart (nudyn's ν stays the tree's)."""
+    if "tendon_armature" not in _evaluated:
+        _evaluated["tendon_armature"] = evaluate(FIXTURES["tendon_armature"], nudyn)
+    _, out = _evaluated["tendon_armature"]
+    for k, answer in enumerate(out):
+        parts = ("eps", "eps_actuator", "eps_tendon_inertia", "eps_constraint", "eps_passive")
+        total = sum(np.array(answer[p]) for p in parts) - np.array(answer["coriolis"])
+        assert relative(total, answer["nu_dot"]) < 1e-13, f"state {k}"
+        assert np.any(np.array(answer["eps_tendon_inertia"]) != 0) or not np.any(answer["qvel"]), f"state {k}"
+
+
+def test_tendon_force_ranges_bind_in_some_states(nudyn):
+    """On tendon_force_range, MuJoCo's scaling of the tendons' actuator
+    forces changes qacc in some states (by far more than the agreement
+    above) and leaves it alone in others, so both are compared."""
+    if "tendon_force_range" not in _evaluated:
+        _evaluated["tendon_force_range"] = evaluate(FIXTURES["tendon_force_range"], nudyn)
+    references, _ = _evaluated["tendon_force_range"]
+    # Both without the tendons' springs (evaluate takes them out first).
+    moved = [relative(r["qacc_without_tendon_force_ranges"], r["qacc_without_tendon_springs"]) for r in references]
+    assert sum(m > 1e-3 for m in moved) >= 10 and sum(m == 0 for m in moved) >= 5, sorted(moved)
 
 
 def relative(a, b) -> float:

@@ -1,0 +1,342 @@
+//! Tendon armature as MuJoCo 4.0 applies it (docs/DYNAMICS.md §9), on the
+//! tree's factor: the mass matrix is M_a = M + U C Uᵀ (U the columns of the
+//! model's [`InertiaTerm`]s, C their weights), and the bias gains
+//! Σ a·J(J̇θ̇) = U C β, β each term's tendon's J̇θ̇.
+//!
+//! The tree's passes give θ̈₀ = M⁻¹(T − h). The armature's force on the tree,
+//! −U f with f = C(Uᵀθ̈ + β), makes M θ̈ = M θ̈₀ − U f, so θ̈ = θ̈₀ − M⁻¹U f and
+//!
+//!   (I + C G) f = C (Uᵀθ̈₀ + β),   G = UᵀM⁻¹U = EᵀE,   E = m⁻¹U,
+//!
+//! with ε_a = −E f its ε. For the constraint rows (E_c = m⁻¹J_cᵀ) the solver
+//! needs M_a⁻¹: by Woodbury, J_c M_a⁻¹ J_cᵀ = E_cᵀE_c − PᵀZ and the rows' ε
+//! columns are E_c − E Z, with P = EᵀE_c and Z = (I + C G)⁻¹ C P.
+//! I + C G is k × k (k terms) and invertible exactly when M_a is.
+
+use super::DynamicsError;
+use super::actuation::site_in_world;
+use super::forces::eps_of_torque;
+use crate::math::{SpatialVec, Vec3, angular, linear};
+use crate::model::{Model, Path, PathStop};
+use crate::workspace::{Stage, Workspace};
+
+/// MuJoCo's `mjMINVAL`: a shorter segment has no direction.
+const MIN_VALUE: f64 = 1e-15;
+
+/// Buffers of the tendons' armature (all empty when no tendon has any).
+#[derive(Clone, Debug, Default)]
+pub struct TendonInertiaState {
+    /// U: term k's moment arms are entries k·nv .. (k+1)·nv.
+    columns: Vec<f64>,
+    /// E = m⁻¹U, laid out like `columns`.
+    eps_columns: Vec<f64>,
+    /// The LU factors of I + C G (row-major, k × k, unit lower part below the diagonal).
+    factors: Vec<f64>,
+    /// The LU factorization's row exchanges.
+    pivots: Vec<usize>,
+    /// Each tendon's J̇θ̇ (MuJoCo's `mj_tendonDot` with θ̇).
+    jdot_qvel: Vec<f64>,
+    /// Per term: the right-hand side, then the armature's forces f.
+    force: Vec<f64>,
+    /// Per term: scratch of `tendon_inertia_change`.
+    scratch: Vec<f64>,
+    /// Per link: spatial accelerations at θ̈ = 0 (empty without spatial tendons with armature).
+    bias_acceleration: Vec<SpatialVec>,
+    /// P = EᵀE_c, k × max_rows, row-major with stride max_rows.
+    projection: Vec<f64>,
+    /// Z = (I + C G)⁻¹ C P, laid out like `projection`.
+    projection_solved: Vec<f64>,
+    /// The armature's ε_a = −E f (nv).
+    pub eps: Vec<f64>,
+}
+
+impl TendonInertiaState {
+    /// Buffers for `model`.
+    pub fn new(model: &Model) -> Self {
+        let k = model.tendon_inertia.len();
+        if k == 0 {
+            return Self::default();
+        }
+        let spatial = model.tendon_inertia.iter().any(|t| matches!(model.tendons[t.tendon].path, Path::Spatial { .. }));
+        let rows = model.constraints.max_rows();
+        TendonInertiaState {
+            columns: vec![0.0; k * model.nv],
+            eps_columns: vec![0.0; k * model.nv],
+            factors: vec![0.0; k * k],
+            pivots: vec![0; k],
+            jdot_qvel: vec![0.0; model.tendons.len()],
+            force: vec![0.0; k],
+            scratch: vec![0.0; k],
+            bias_acceleration: vec![SpatialVec::zeros(); if spatial { model.links.len() } else { 0 }],
+            projection: vec![0.0; k * rows],
+            projection_solved: vec![0.0; k * rows],
+            eps: vec![0.0; model.nv],
+        }
+    }
+
+    /// Solves (I + C G) x = C b in place, `b` one value per term.
+    fn solve(&self, model: &Model, b: &mut [f64]) {
+        let k = b.len();
+        for (value, term) in b.iter_mut().zip(&model.tendon_inertia) {
+            *value *= term.weight;
+        }
+        for i in 0..k {
+            b.swap(i, self.pivots[i]);
+            for j in 0..i {
+                b[i] -= self.factors[i * k + j] * b[j];
+            }
+        }
+        for i in (0..k).rev() {
+            for j in i + 1..k {
+                b[i] -= self.factors[i * k + j] * b[j];
+            }
+            b[i] /= self.factors[i * k + i];
+        }
+    }
+
+    /// Term `k`'s ε column E_k.
+    fn eps_column(&self, nv: usize, k: usize) -> &[f64] {
+        &self.eps_columns[k * nv..(k + 1) * nv]
+    }
+}
+
+/// Factors the k × k matrix `a` (row-major) in place as P·A = L·U with
+/// partial pivoting; false when a pivot vanishes (M_a singular).
+fn lu_factor(a: &mut [f64], pivots: &mut [usize]) -> bool {
+    let k = pivots.len();
+    for c in 0..k {
+        let pivot = (c..k).max_by(|&i, &j| a[i * k + c].abs().total_cmp(&a[j * k + c].abs())).unwrap_or(c);
+        pivots[c] = pivot;
+        if pivot != c {
+            for j in 0..k {
+                a.swap(c * k + j, pivot * k + j);
+            }
+        }
+        let diagonal = a[c * k + c];
+        if diagonal == 0.0 || !diagonal.is_finite() {
+            return false;
+        }
+        for i in c + 1..k {
+            let factor = a[i * k + c] / diagonal;
+            a[i * k + c] = factor;
+            for j in c + 1..k {
+                a[i * k + j] -= factor * a[c * k + j];
+            }
+        }
+    }
+    true
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+impl Workspace {
+    /// The armature's columns U and E = m⁻¹U and the factors of I + C G at
+    /// the configuration of pass 1 (`set_configuration` runs it after the
+    /// tendons' kinematics when some tendon has armature).
+    pub(super) fn tendon_inertia_configuration(&mut self, model: &Model) -> Result<(), DynamicsError> {
+        let nv = model.nv;
+        let mut state = std::mem::take(&mut self.tendon_inertia);
+        for (k, term) in model.tendon_inertia.iter().enumerate() {
+            let column = &mut state.columns[k * nv..(k + 1) * nv];
+            column.fill(0.0);
+            let arms = &self.tendon_moment[term.tendon * nv..(term.tendon + 1) * nv];
+            // The term's dof, those before it in its joint, then every ancestor link's.
+            let link = &model.links[term.link];
+            column[link.dof_adr..=term.dof].copy_from_slice(&arms[link.dof_adr..=term.dof]);
+            let mut parent = link.parent;
+            while let Some(p) = parent {
+                let link = &model.links[p];
+                column[link.dof_adr..link.dof_adr + link.ndof]
+                    .copy_from_slice(&arms[link.dof_adr..link.dof_adr + link.ndof]);
+                parent = link.parent;
+            }
+            eps_of_torque(
+                model,
+                self,
+                &state.columns[k * nv..(k + 1) * nv],
+                &mut state.eps_columns[k * nv..(k + 1) * nv],
+            );
+        }
+        let k = model.tendon_inertia.len();
+        for i in 0..k {
+            for j in 0..k {
+                let g = dot(state.eps_column(nv, i), state.eps_column(nv, j));
+                state.factors[i * k + j] = f64::from(u8::from(i == j)) + model.tendon_inertia[i].weight * g;
+            }
+        }
+        let invertible = lu_factor(&mut state.factors, &mut state.pivots);
+        self.tendon_inertia = state;
+        if invertible { Ok(()) } else { Err(DynamicsError::TendonInertia) }
+    }
+
+    /// xᵀM_a⁻¹x less xᵀM⁻¹x for the ε = m⁻¹x of a generalized force x at
+    /// the configuration: −pᵀ(I + C G)⁻¹C p with p = Eᵀε. Zero without armature.
+    pub fn tendon_inertia_change(&mut self, model: &Model, eps: &[f64]) -> f64 {
+        let k = model.tendon_inertia.len();
+        if k == 0 {
+            return 0.0;
+        }
+        let state = &mut self.tendon_inertia;
+        let mut z = std::mem::take(&mut state.scratch);
+        let mut change = 0.0;
+        for (i, value) in z.iter_mut().enumerate() {
+            *value = dot(state.eps_column(model.nv, i), eps);
+        }
+        state.force.copy_from_slice(&z);
+        state.solve(model, &mut z);
+        change -= dot(&state.force, &z);
+        state.scratch = z;
+        change
+    }
+
+    /// xᵀM_a⁻¹x for the ε = m⁻¹x of a generalized force x: |ε|², less what
+    /// the tendons' armature takes off (M_a = M + its terms).
+    pub fn inverse_mass_quadratic(&mut self, model: &Model, eps: &[f64]) -> f64 {
+        dot(eps, eps) + self.tendon_inertia_change(model, eps)
+    }
+
+    /// Puts the tendons' armature on a pass 3 just run for `applied`: the
+    /// force f of (I + C G) f = C(Uᵀθ̈₀ + β) with that pass's θ̈₀, its
+    /// ε_a = −E f added to `applied`, to ν̇ (when the pass had the factor's
+    /// rates) and to ν̇'s joint part, and the outward pass run again for θ̈.
+    pub(super) fn apply_tendon_inertia(&mut self, model: &Model, applied: &mut [f64]) -> Result<(), DynamicsError> {
+        let nv = model.nv;
+        if self.stage == Stage::Acceleration {
+            self.compute_accelerations(model)?;
+        }
+        self.tendon_jdot_qvel(model);
+        let mut state = std::mem::take(&mut self.tendon_inertia);
+        let mut force = std::mem::take(&mut state.force);
+        for (k, term) in model.tendon_inertia.iter().enumerate() {
+            force[k] = dot(&state.columns[k * nv..(k + 1) * nv], self.qacc.as_slice()) + state.jdot_qvel[term.tendon];
+        }
+        state.solve(model, &mut force);
+        state.eps.fill(0.0);
+        for (k, f) in force.iter().enumerate() {
+            for (e, column) in state.eps.iter_mut().zip(&state.eps_columns[k * nv..(k + 1) * nv]) {
+                *e -= column * f;
+            }
+        }
+        state.force = force;
+        let with_rates = self.stage == Stage::Acceleration;
+        for (d, e) in state.eps.iter().enumerate() {
+            applied[d] += e;
+            self.nu_dot_joint[d] += e;
+            if with_rates {
+                self.nu_dot[d] += e;
+            }
+        }
+        self.tendon_inertia = state;
+        self.compute_accelerations(model)
+    }
+
+    /// Turns the tree's A = E_cᵀE_c of `count` rows (`hessian`, stride
+    /// `stride`, lower triangle mirrored) and the rows' ε columns
+    /// `eps_columns` (nv each) into those of M_a: A − PᵀZ and E_c − E Z.
+    pub(super) fn tendon_inertia_on_rows(
+        &mut self,
+        model: &Model,
+        count: usize,
+        eps_columns: &mut [f64],
+        hessian: &mut [f64],
+        stride: usize,
+    ) {
+        let nv = model.nv;
+        let k = model.tendon_inertia.len();
+        let mut state = std::mem::take(&mut self.tendon_inertia);
+        let mut b = std::mem::take(&mut state.force);
+        for r in 0..count {
+            let row = &eps_columns[r * nv..(r + 1) * nv];
+            for (t, value) in b.iter_mut().enumerate() {
+                *value = dot(state.eps_column(nv, t), row);
+                state.projection[t * stride + r] = *value;
+            }
+            state.solve(model, &mut b);
+            for (t, value) in b.iter().enumerate() {
+                state.projection_solved[t * stride + r] = *value;
+            }
+        }
+        state.force = b;
+        for i in 0..count {
+            for j in 0..=i {
+                let change: f64 =
+                    (0..k).map(|t| state.projection[t * stride + i] * state.projection_solved[t * stride + j]).sum();
+                hessian[i * stride + j] -= change;
+                if j != i {
+                    hessian[j * stride + i] -= change;
+                }
+            }
+        }
+        for r in 0..count {
+            for t in 0..k {
+                let z = state.projection_solved[t * stride + r];
+                for (e, column) in eps_columns[r * nv..(r + 1) * nv].iter_mut().zip(state.eps_column(nv, t)) {
+                    *e -= column * z;
+                }
+            }
+        }
+        self.tendon_inertia = state;
+    }
+
+    /// J̇θ̇ of every tendon with armature, as MuJoCo's `mj_tendonDot`: zero
+    /// for a fixed tendon; along each straight segment of a spatial one
+    /// (between sites of different bodies, over the pulley's divisor),
+    /// u·(a₁ − a₀) + |Δv − u(u·Δv)|²/|Δp| with a the sites' accelerations at
+    /// θ̈ = 0, Δv their velocities' difference, u the segment's direction.
+    fn tendon_jdot_qvel(&mut self, model: &Model) {
+        let mut state = std::mem::take(&mut self.tendon_inertia);
+        if !state.bias_acceleration.is_empty() {
+            self.world_transforms(model);
+            self.bias_accelerations(model, &mut state.bias_acceleration);
+        }
+        for term in &model.tendon_inertia {
+            let Path::Spatial { stops } = &model.tendons[term.tendon].path else {
+                state.jdot_qvel[term.tendon] = 0.0;
+                continue;
+            };
+            let mut total = 0.0;
+            let mut divisor = 1.0;
+            for pair in stops.windows(2) {
+                match pair {
+                    [PathStop::Pulley { divisor: d }, _] => divisor = *d,
+                    [PathStop::Site { frame: f0, body: b0 }, PathStop::Site { frame: f1, body: b1 }] if b0 != b1 => {
+                        let [(p0, v0, a0), (p1, v1, a1)] =
+                            [f0, f1].map(|f| self.site_motion(f, &state.bias_acceleration));
+                        let difference = p1 - p0;
+                        let distance = difference.norm();
+                        let (velocity, acceleration) = (v1 - v0, a1 - a0);
+                        total += if distance < MIN_VALUE {
+                            acceleration.x
+                        } else {
+                            let u = difference / distance;
+                            let along = u.dot(&velocity);
+                            u.dot(&acceleration) + (velocity.norm_squared() - along * along) / distance
+                        } / divisor;
+                    }
+                    // A pulley's neighbours, a segment within one body; geoms
+                    // are refused with armature.
+                    _ => {}
+                }
+            }
+            state.jdot_qvel[term.tendon] = total;
+        }
+        self.tendon_inertia = state;
+    }
+
+    /// A site's world position, velocity and acceleration at θ̈ = 0.
+    fn site_motion(&self, site: &crate::model::SiteFrame, bias: &[SpatialVec]) -> (Vec3, Vec3, Vec3) {
+        let at = site_in_world(site, &self.x_world).trans;
+        let Some(link) = site.link else { return (at, Vec3::zeros(), Vec3::zeros()) };
+        let r = site.frame.trans;
+        let to_world = self.x_world[link].rot.transpose();
+        let velocity = &self.v_body[link];
+        let (omega, v) = (angular(velocity), linear(velocity));
+        let point_velocity = v + omega.cross(&r);
+        let a = &bias[link];
+        // A body point's classical acceleration: the spatial one at the point plus ω × v.
+        let acceleration = linear(a) + angular(a).cross(&r) + omega.cross(&point_velocity);
+        (at, to_world * point_velocity, to_world * acceleration)
+    }
+}
