@@ -19,7 +19,12 @@ Every timing is a median over the repetitions, which interleave all runs
 of a vehicle so the machine's load falls alike on each. The trees' line is
 the median over the trees of each tree's value.
 
-    .venv/bin/python scripts/bench_auto.py [--out docs/bench] [--quick]
+With `--work-precision` it also redraws the work-precision plot of
+docs/performance.md with every explicit method and `auto`
+(`work_precision_auto.png` and `.json`: bus_arm7's tumble and fast
+tumble, as `scripts/bench.py` runs them).
+
+    .venv/bin/python scripts/bench_auto.py [--out docs/bench] [--quick] [--work-precision]
 """
 
 from __future__ import annotations
@@ -39,7 +44,8 @@ from nudyn_driver.cli import Nudyn, run_json
 from nudyn_driver.instance import Instance
 from nudyn_driver.package import FmuPackage
 
-from . import native_host
+from . import cli, native_host, report
+from . import work_precision as work_precision_runs
 from .cli import binaries, git_commit
 from .report import median
 from .tolerance import scaled_error
@@ -164,24 +170,42 @@ def table(results: dict) -> str:
     return "\n".join(lines)
 
 
+def work_precision(bench: Path, out: Path, quick: bool, stamp: dict) -> None:
+    """bench.py's work-precision sections with every explicit method and auto."""
+    results = {**stamp, "work_precision": {}}
+    sizes = cli.Sizes(quick)
+    with tempfile.TemporaryDirectory() as tmp:
+        for scenario in work_precision_runs.SCENARIOS:
+            print(f"bench_auto: work-precision, {scenario}", file=sys.stderr, flush=True)
+            cli.work_precision_section(results, bench, scenario, Path(tmp), sizes)
+    results["summary"] = {name: report.work_precision_summary(wp) for name, wp in results["work_precision"].items()}
+    (out / "work_precision_auto.json").write_text(json.dumps(results, indent=1) + "\n")
+    report.plot_work_precision(results, out / "work_precision_auto.png")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="bench_auto.py", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "bench", help="where auto.{json,md} go")
     parser.add_argument("--quick", action="store_true", help="tiny sizes, for a smoke test: the numbers mean nothing")
     parser.add_argument("--bin-dir", type=Path, default=ROOT / "target" / "release", help="where nudyn-bench is")
+    parser.add_argument("--work-precision", action="store_true", help="only the work-precision plot with every method")
     args = parser.parse_args(argv)
     found = binaries(args.bin_dir, "bench_auto.py")
     if found is None:
         return 2
     bench, nudyn = found
-    results = {
+    stamp = {
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "commit": git_commit(),
         "quick": args.quick,
         "machine": platform.platform(),
-        "vehicles": {},
     }
+    args.out.mkdir(parents=True, exist_ok=True)
+    if args.work_precision:
+        work_precision(bench, args.out, args.quick, stamp)
+        return 0
+    results = {**stamp, "vehicles": {}}
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         host = native_host.build(work)
@@ -192,7 +216,6 @@ def main(argv=None) -> int:
             print(f"bench_auto: {name}", file=sys.stderr, flush=True)
             vehicle = prepare(name, path, work)
             results["vehicles"][name] = vehicle_runs(vehicle, bench, nudyn, host, work, args.quick)
-    args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "auto.json").write_text(json.dumps(results, indent=1) + "\n")
     (args.out / "auto.md").write_text(table(results))
     print(table(results))
