@@ -262,7 +262,7 @@ impl Snapshot {
         let (settings, rest) = scalars.split_at(SCALARS);
         let (choice, vectors) = rest.split_at(CHOICE_SCALARS);
         check_values(settings, vectors)?;
-        if let Some(&value) = choice.iter().find(|x| !(**x >= 0.0)) {
+        if let Some(&value) = choice.iter().find(|x| x.is_nan() || **x < 0.0) {
             return Err(SnapshotError::Value { what: "a value auto measured", value, must: "non-negative" });
         }
         let auto_choice = chosen.map(|method| AutoChoice {

@@ -125,7 +125,7 @@ impl Pace {
     /// The pace of a vehicle whose probe step erred by `error_per_second`.
     pub fn of(error_per_second: f64) -> Pace {
         // A non-finite probe (a start too fast for the interval) is fast.
-        if !(error_per_second <= LOOSE * ONE_STEP_SHARE) {
+        if error_per_second.is_nan() || error_per_second > LOOSE * ONE_STEP_SHARE {
             Pace::Fast
         } else if error_per_second <= TIGHT * ONE_STEP_SHARE {
             Pace::Slow
