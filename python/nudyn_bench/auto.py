@@ -81,7 +81,7 @@ def fmpy_seconds(package: FmuPackage, vehicle: Vehicle, settings: dict, steps: i
 def vehicle_runs(vehicle: Vehicle, bench: Path, nudyn: Path, host: Path, work: Path, quick: bool) -> dict:
     package = FmuPackage.unzip(Nudyn(nudyn).export(vehicle.path, work / f"{vehicle.name}.fmu"),
                                work / f"{vehicle.name}_fmu")
-    duration, repetitions = (0.4, 1) if quick else (10.0, 3)
+    duration, repetitions = (0.4, 1) if quick else (10.0, 5)
     steps = round(duration / STEP)
     reference = simulate(bench, vehicle, "dop853:1e-13", duration)
     ref_qpos, ref_qvel = np.array(reference["qpos"]), np.array(reference["qvel"])
