@@ -17,3 +17,4 @@ cargo build --release --workspace
 .venv/bin/python scripts/bench_tolerance.py "$@"
 .venv/bin/python scripts/bench_methods.py "$@"
 .venv/bin/python scripts/bench_auto.py "$@"
+.venv/bin/python scripts/bench_auto.py --work-precision "$@"
