@@ -5,7 +5,9 @@
 mod common;
 
 use common::{Rng, TreeOptions, random_theta, random_vehicle};
-use nudyn::integrate::{AdvanceError, Carry, Input, MAX_STEPS, Method, Settings, Simulation, ToleranceRelaxed};
+use nudyn::integrate::{
+    AdvanceError, Carry, Input, MAX_STEPS, Method, MethodSetting, Settings, Simulation, ToleranceRelaxed,
+};
 use nudyn::model::Model;
 use nudyn::vehicle::{JointKind, Vehicle};
 
@@ -23,13 +25,17 @@ struct Run {
     states: Vec<(Vec<f64>, Vec<f64>)>,
     carry: Carry,
     steps: usize,
+    /// Evaluations of the rates.
+    evaluations: usize,
+    /// The method in effect at the end (what `auto` ran with).
+    ended_with: Method,
 }
 
 /// `intervals` intervals of `interval` s with `method` and `settings`.
 fn run(
     model: &Model,
     start: &(Vec<f64>, Vec<f64>),
-    method: Method,
+    method: impl Into<MethodSetting>,
     settings: Settings,
     (interval, intervals): (f64, usize),
     eps_at: fn(f64, &mut [f64]),
@@ -37,13 +43,14 @@ fn run(
     let mut sim = Simulation::new(model, method, settings);
     (sim.state.theta, sim.state.nu) = start.clone();
     let mut states = Vec::new();
-    let mut steps = 0;
+    let (mut steps, mut evaluations) = (0, 0);
     for n in 1..=intervals {
         let stats = sim.advance_to(model, n as f64 * interval, eps_at).unwrap().stats;
         steps += stats.accepted + stats.rejected;
+        evaluations += stats.evaluations;
         states.push((sim.state.theta.clone(), sim.state.nu.clone()));
     }
-    Run { states, carry: sim.state.carry, steps }
+    Run { states, carry: sim.state.carry, steps, evaluations, ended_with: sim.method() }
 }
 
 /// Largest |x − reference| / (1 + |reference|) over all states.
@@ -91,9 +98,10 @@ fn reference(model: &Model, start: &(Vec<f64>, Vec<f64>), intervals: (f64, usize
 /// without the change of m* over the step) falls short (measured: up to
 /// 41× at 1e-4 and 23× at 1e-5 in a third of the steps the ν-state took
 /// for 17×; docs/integration.md), and TSIT5 and BS3 there too, for the
-/// same reason (measured: up to 23× and 26×).
-fn highest_ratio(method: Method, tolerance: f64) -> f64 {
-    if matches!(method, Method::Dopri5 | Method::Tsit5 | Method::Bs3) && tolerance >= 1e-5 { 50.0 } else { 20.0 }
+/// same reason (measured: up to 23× and 26×). `auto` is held to 20.
+fn highest_ratio(method: MethodSetting, tolerance: f64) -> f64 {
+    let loose_pair = matches!(method, MethodSetting::Fixed(Method::Dopri5 | Method::Tsit5 | Method::Bs3));
+    if loose_pair && tolerance >= 1e-5 { 50.0 } else { 20.0 }
 }
 
 /// The error delivered tracks the tolerance asked. Over 10 s of a 6-body
@@ -103,12 +111,17 @@ fn highest_ratio(method: Method, tolerance: f64) -> f64 {
 /// for tolerances 1e-4 to 1e-10 (docs/integration.md), or below only where
 /// the run takes about one step per communication step, the least it can,
 /// so that accuracy beyond the tolerance costs nothing. A tighter
-/// tolerance never takes fewer steps. ROS34PW2, of order 3 and meant for
+/// tolerance never takes fewer steps (`auto`, whose method changes with
+/// the tolerance, never more than 1 % fewer evaluations of the rates: where
+/// it starts with `tsit5` and moves up to `dop853` after the second
+/// communication step, the detour costs 0.2–0.6 % more than `dop853` from
+/// the start at the next tighter tolerance on two of these trees). ROS34PW2, of order 3 and meant for
 /// stiff vehicles at moderate tolerances, is held to the band from 1e-4 to
 /// 1e-8 (measured: 0.8–10.1 × the tolerance, nearly proportional; at 1e-10
 /// it would take 10⁵ steps on these trees). BS3, of order 3 and meant for
 /// slow motion at loose tolerances, from 1e-4 to 1e-7 (measured: 0.3–26 ×
-/// the tolerance; below, 10⁵ steps and more).
+/// the tolerance; below, 10⁵ steps and more). `auto`, at every tolerance,
+/// to the band of `dop853`.
 #[test]
 fn the_error_delivered_tracks_the_tolerance() {
     let intervals = (0.1, 100);
@@ -117,32 +130,39 @@ fn the_error_delivered_tracks_the_tolerance() {
     for seed in [3, 4, 5, 6] {
         let (_, model, start) = vehicle(seed);
         let reference = reference(&model, &start, intervals, smooth_eps);
-        for method in [Method::Dopri5, Method::Dop853, Method::Ros34pw2, Method::Bs3, Method::Tsit5] {
-            let mut previous_steps = 0;
+        let methods =
+            [Method::Dopri5, Method::Dop853, Method::Ros34pw2, Method::Bs3, Method::Tsit5].map(MethodSetting::from);
+        for method in methods.into_iter().chain([MethodSetting::Auto]) {
+            let mut previous_cost = 0;
             let tolerances = match method {
-                Method::Ros34pw2 => &all_tolerances[..5],
-                Method::Bs3 => &all_tolerances[..4],
+                MethodSetting::Fixed(Method::Ros34pw2) => &all_tolerances[..5],
+                MethodSetting::Fixed(Method::Bs3) => &all_tolerances[..4],
                 _ => &all_tolerances[..],
             };
             for &tolerance in tolerances {
                 let result = run(&model, &start, method, settings(tolerance), intervals, smooth_eps);
                 let ratio = scaled_error(&result, &reference) / tolerance;
                 let case = format!(
-                    "seed {seed}, {method:?} at {tolerance:e}: error {ratio:.2} × tolerance in {} steps",
-                    result.steps
+                    "seed {seed}, {} ({}) at {tolerance:e}: error {ratio:.2} × tolerance in {} steps, {} evaluations",
+                    method.name(),
+                    result.ended_with.name(),
+                    result.steps,
+                    result.evaluations
                 );
                 println!("{case}");
                 let fewest_steps = result.steps <= intervals.1 + intervals.1 / 10;
                 if ratio > highest_ratio(method, tolerance) || (ratio < 0.02 && !fewest_steps) {
                     outside.push(case.clone());
                 }
-                if result.steps < previous_steps {
-                    outside.push(format!("{case}, fewer than at the looser tolerance"));
+                let cost = if method == MethodSetting::Auto { result.evaluations } else { result.steps };
+                let slack = if method == MethodSetting::Auto { 1.01 } else { 1.0 };
+                if (cost as f64) * slack < previous_cost as f64 {
+                    outside.push(format!("{case}, cheaper than at the looser tolerance"));
                 }
                 if result.carry.relaxation != 0.0 {
                     println!("  relaxed {:.1}-fold for round-off", result.carry.relaxation);
                 }
-                previous_steps = result.steps;
+                previous_cost = cost;
             }
         }
     }

@@ -80,7 +80,7 @@ fn a_restored_state_repeats_its_run_exactly() {
     let saved = sim.state.clone();
     sim.advance_to(&model, 0.3, input).unwrap();
     let first = sim.state.clone();
-    sim.restore(&saved, &HeldJacobian::default());
+    sim.restore(&model, &saved, &HeldJacobian::default());
     sim.advance_to(&model, 0.3, input).unwrap();
     assert_eq!(sim.state, first, "same steps, same carried step size, same result");
     assert!(first.carry.next_step > 0.0);
@@ -110,10 +110,10 @@ fn a_rosenbrock_run_carries_w_across_advances_and_restores_it() {
     let end = 0.2 + 0.05;
     sim.advance_to(&model, end, input).unwrap();
     let first = sim.state.clone();
-    sim.restore(&saved, &w);
+    sim.restore(&model, &saved, &w);
     sim.advance_to(&model, end, input).unwrap();
     assert_eq!(sim.state, first, "restored with its W");
-    sim.restore(&saved, &HeldJacobian::default());
+    sim.restore(&model, &saved, &HeldJacobian::default());
     sim.advance_to(&model, end, input).unwrap();
     assert_ne!(sim.state.theta, first.theta, "restored without W, which is then formed at the advance's start");
 }

@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
-use nudyn::integrate::{Input, Method, Settings, Simulation};
+use nudyn::integrate::{Input, MethodSetting, Settings, Simulation};
 use nudyn::model::{Model, Shortcuts};
 use nudyn::workspace::Workspace;
 use serde::{Deserialize, Serialize};
@@ -87,7 +87,7 @@ enum Command {
         /// integrator's `advance`, as one FMU doStep.
         #[arg(long, default_value_t = 0.1)]
         sample: f64,
-        /// Runs, as METHOD:VALUE — rk4:STEP, or dopri5, dop853, ros34pw2, bs3 or tsit5 with :TOLERANCE.
+        /// Runs, as METHOD:VALUE — rk4:STEP, or dopri5, dop853, ros34pw2, bs3, tsit5 or auto with :TOLERANCE.
         #[arg(long = "run", required = true)]
         runs: Vec<String>,
         /// Timed repetitions of each run.
@@ -413,6 +413,10 @@ struct SimulateResult {
     jacobians: usize,
     /// Why the run stopped early, if it did (then the samples end there).
     failed: Option<String>,
+    /// With `auto`: the method it chose at the start and ended with, and its log messages.
+    chosen: Option<&'static str>,
+    ended_with: Option<&'static str>,
+    choice: Vec<String>,
     time: Vec<f64>,
     qpos: Vec<Vec<f64>>,
     qvel: Vec<Vec<f64>>,
@@ -428,9 +432,9 @@ fn simulate(
     samples: bool,
 ) -> Result<SimulateResult> {
     let (method_name, value) = run.split_once(':').with_context(|| format!("--run {run}: expected METHOD:VALUE"))?;
-    let method = Method::from_name(method_name).with_context(|| format!("--run {run}: unknown method"))?;
+    let method = MethodSetting::from_name(method_name).with_context(|| format!("--run {run}: unknown method"))?;
     let value: f64 = value.parse().with_context(|| format!("--run {run}: not a number"))?;
-    let settings = if method.is_adaptive() {
+    let settings = if !matches!(method, MethodSetting::Fixed(m) if !m.is_adaptive()) {
         // No max_step, as the FMU's default: the sample points bound the steps.
         Settings { tolerance: value, max_step: 0.0, energy_projection: false }
     } else {
@@ -449,6 +453,9 @@ fn simulate(
         evaluations: 0,
         jacobians: 0,
         failed: None,
+        chosen: None,
+        ended_with: None,
+        choice: Vec::new(),
         time: Vec::new(),
         qpos: Vec::new(),
         qvel: Vec::new(),
@@ -469,6 +476,7 @@ fn simulate(
     let _ = start_run().advance_to(model, sample, input);
     for _ in 0..repetitions {
         let mut sim = start_run();
+        result.choice.clear();
         let (mut accepted, mut rejected, mut evaluations, mut jacobians) = (0, 0, 0, 0);
         let start = Instant::now();
         for n in 0..intervals {
@@ -479,6 +487,13 @@ fn simulate(
                     rejected += advanced.stats.rejected;
                     evaluations += advanced.stats.evaluations;
                     jacobians += advanced.stats.jacobians;
+                    if let Some(choice) = advanced.chose {
+                        result.chosen = Some(choice.method.name());
+                        result.choice.push(choice.to_string());
+                    }
+                    if let Some(moved) = advanced.moved {
+                        result.choice.push(moved.to_string());
+                    }
                 }
                 Err(error) => {
                     // Too large a step for the motion: a point of the curve all the same.
@@ -491,6 +506,7 @@ fn simulate(
             trajectory[n + 1].1.copy_from_slice(&sim.state.nu);
         }
         result.seconds.push(start.elapsed().as_secs_f64());
+        result.ended_with = sim.state.auto_choice.map(|choice| choice.method.name());
         (result.accepted, result.rejected, result.evaluations, result.jacobians) =
             (accepted, rejected, evaluations, jacobians);
     }

@@ -8,14 +8,14 @@ use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use nudyn::control::ControlLaw;
 use nudyn::eval::{EvalRequest, EvalResponse, evaluate};
-use nudyn::integrate::{Method, Settings};
+use nudyn::integrate::{MethodSetting, Settings};
 use nudyn::model::Model;
 use nudyn::vehicle::{ConstraintKind, Vehicle};
 use nudyn_cli::export::controller::write_controller_fmu;
-use nudyn_cli::export::plant::{ExportOptions, write_fmu};
+use nudyn_cli::export::plant::{ExportOptions, write_plant_fmu};
 use nudyn_cli::export::system::{SystemOptions, write_system};
 use nudyn_cli::export::{FmiVersion, Platform, PlatformBinary, model_identifier_from};
-use nudyn_contract::plant::{DEFAULT_TOLERANCE, OptionalOutputs};
+use nudyn_contract::plant::{DEFAULT_METHOD, DEFAULT_TOLERANCE, OptionalOutputs, PlantResource};
 use serde::Deserialize;
 use simulate::Format;
 
@@ -76,6 +76,11 @@ enum Command {
         /// (comma-separated). The FMU's description says what it carries.
         #[arg(long, value_name = "KIND[,KIND...]", value_delimiter = ',', conflicts_with = "controller")]
         disable: Vec<ConstraintKind>,
+        /// The start value of the FMU's `method` parameter: rk4, dopri5,
+        /// dop853 (default), ros34pw2, bs3, tsit5, or auto (the FMU chooses
+        /// from the tolerance and the vehicle's motion, and logs its choice).
+        #[arg(long, value_parser = parse_method, conflicts_with = "controller", default_value = DEFAULT_METHOD.name())]
+        method: MethodSetting,
         /// Write the controller FMU of the vehicle instead of the plant:
         /// inputs theta, nu; output eps = -c1 nu + l J^T c2 (Yhat - Y);
         /// Y = every hinge and slide joint value, or the pose of --end-effector.
@@ -128,9 +133,11 @@ enum Command {
         #[arg(long, allow_hyphen_values = true)]
         stop: f64,
         /// Integration method: rk4 (fixed internal steps of --max-step), dopri5, dop853, ros34pw2, bs3 or tsit5
-        /// (adaptive; ros34pw2 is implicit, for stiff vehicles; bs3 the cheapest per step, for loose tolerances).
+        /// (adaptive; ros34pw2 is implicit, for stiff vehicles; bs3 the cheapest per step, for loose tolerances),
+        /// or auto (the cheapest of bs3, tsit5 and dop853 for the tolerance and the motion over the first step,
+        /// chosen as the FMU's auto chooses and said on stderr).
         #[arg(long, default_value = "rk4", value_parser = parse_method)]
-        method: Method,
+        method: MethodSetting,
         /// Error allowed per second of simulated time, relative to 1 + |value| (adaptive methods; ros34pw2:
         /// 1/80 of it per internal step).
         #[arg(long, default_value_t = DEFAULT_TOLERANCE, allow_hyphen_values = true)]
@@ -186,9 +193,9 @@ fn outputs_help() -> String {
     format!("Optional outputs, comma-separated: {}", OptionalOutputs::NAMES.join(", "))
 }
 
-fn parse_method(name: &str) -> Result<Method, String> {
-    Method::from_name(name).ok_or_else(|| {
-        let names: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
+fn parse_method(name: &str) -> Result<MethodSetting, String> {
+    MethodSetting::from_name(name).ok_or_else(|| {
+        let names: Vec<&str> = MethodSetting::ALL.iter().map(|m| m.name()).collect();
         format!("unknown method '{name}' (known: {})", names.join(", "))
     })
 }
@@ -271,8 +278,18 @@ fn run(cli: Cli) -> Result<()> {
         Command::Export { model, output, model_identifier, controller: true, end_effector, fmi_version, .. } => {
             export_controller(&model, &output, model_identifier, end_effector.as_deref(), fmi_version)
         }
-        Command::Export { model, output, model_identifier, outputs, fmi_version, wrench_inputs, disable, .. } => {
-            let options = PlantOptions { model_identifier, outputs, wrench_inputs, disable, fmi_version };
+        Command::Export {
+            model,
+            output,
+            model_identifier,
+            outputs,
+            fmi_version,
+            wrench_inputs,
+            disable,
+            method,
+            ..
+        } => {
+            let options = PlantOptions { model_identifier, outputs, wrench_inputs, disable, fmi_version, method };
             export(&model, &output, options)
         }
         Command::System { model, output, end_effector, fmi_version, outputs, step, stop, sets } => {
@@ -519,6 +536,7 @@ struct PlantOptions {
     wrench_inputs: Vec<String>,
     disable: Vec<ConstraintKind>,
     fmi_version: FmiVersion,
+    method: MethodSetting,
 }
 
 fn export(model_path: &Path, output: &Path, plant: PlantOptions) -> Result<()> {
@@ -532,7 +550,9 @@ fn export(model_path: &Path, output: &Path, plant: PlantOptions) -> Result<()> {
     let model_identifier = plant.model_identifier.unwrap_or_else(|| model_identifier_from(&stem));
     let options = ExportOptions { model_identifier, outputs: plant.outputs, fmi_version: plant.fmi_version };
     let binaries = fmu_binaries()?;
-    write_fmu(&model, &options, &binaries, output).with_context(|| format!("cannot export {}", output.display()))?;
+    let resource = PlantResource { method: plant.method, ..PlantResource::new(model, plant.outputs) };
+    write_plant_fmu(&resource, &options, &binaries, output)
+        .with_context(|| format!("cannot export {}", output.display()))?;
     report_platforms(output, &binaries)
 }
 

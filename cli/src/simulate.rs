@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use nudyn::integrate::{Input, Method, Settings, Simulation};
+use nudyn::integrate::{Input, MethodSetting, Settings, Simulation};
 use nudyn::model::Model;
 use serde::Deserialize;
 
@@ -29,8 +29,8 @@ pub struct Run {
     pub step: f64,
     /// The stop time (s), a multiple of H.
     pub stop: f64,
-    /// The integration method.
-    pub method: Method,
+    /// The integration method, or `auto`.
+    pub method: MethodSetting,
     /// Its settings.
     pub settings: Settings,
     /// The output format.
@@ -106,6 +106,12 @@ pub fn simulate(model: &Model, run: &Run) -> Result<()> {
             progress.finish();
             format!("the step from t = {t} failed")
         })?;
+        if let Some(choice) = advanced.chose {
+            progress.suspend(|| eprintln!("nudyn: {choice}"));
+        }
+        if let Some(moved) = advanced.moved {
+            progress.suspend(|| eprintln!("nudyn: {moved}"));
+        }
         if let Some(relaxed) = advanced.relaxed {
             progress.suspend(|| eprintln!("nudyn: warning: {relaxed}"));
         }

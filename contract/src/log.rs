@@ -16,12 +16,20 @@ pub enum LogCategory {
     Calls,
     /// A call that completed with fmi2Warning.
     Warning,
+    /// The method `auto` chose, and why.
+    MethodChoice,
 }
 
 impl LogCategory {
     /// Every category, in the order of the modelDescription's `<LogCategories>`.
-    pub const ALL: [LogCategory; 5] =
-        [LogCategory::Discard, LogCategory::Error, LogCategory::Fatal, LogCategory::Calls, LogCategory::Warning];
+    pub const ALL: [LogCategory; 6] = [
+        LogCategory::Discard,
+        LogCategory::Error,
+        LogCategory::Fatal,
+        LogCategory::Calls,
+        LogCategory::Warning,
+        LogCategory::MethodChoice,
+    ];
 
     /// The category's name, as in the modelDescription and fmi2SetDebugLogging.
     pub fn name(self) -> &'static str {
@@ -31,6 +39,7 @@ impl LogCategory {
             LogCategory::Fatal => "logStatusFatal",
             LogCategory::Calls => "logCalls",
             LogCategory::Warning => "logStatusWarning",
+            LogCategory::MethodChoice => "logMethodChoice",
         }
     }
 
@@ -42,6 +51,7 @@ impl LogCategory {
             LogCategory::Fatal => "unrecoverable failures",
             LogCategory::Calls => "every call and its status (debug)",
             LogCategory::Warning => "a step that completed at a looser tolerance than asked",
+            LogCategory::MethodChoice => "the integration method that method = auto chose, and why",
         }
     }
 
@@ -56,7 +66,7 @@ impl LogCategory {
     }
 
     /// Whether the category is on when an instance starts: every status
-    /// category, and the debug category only with loggingOn.
+    /// category and the method choice, and the debug category only with loggingOn.
     pub fn on_at_start(self, logging_on: bool) -> bool {
         self != LogCategory::Calls || logging_on
     }

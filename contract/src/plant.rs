@@ -11,7 +11,7 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
-use nudyn::integrate::Method;
+use nudyn::integrate::{Method, MethodSetting};
 use nudyn::model::Model;
 use nudyn::vehicle::SensorKind;
 
@@ -33,7 +33,7 @@ pub const ENERGY_PROJECTION_VR: u32 = 0;
 pub const ENERGY_PROJECTION_NAME: &str = "energy_projection";
 
 /// Default of the `method` parameter.
-pub const DEFAULT_METHOD: Method = Method::Dop853;
+pub const DEFAULT_METHOD: MethodSetting = MethodSetting::Fixed(Method::Dop853);
 
 /// Default of the `max_step` parameter (s), the longest internal step: 0,
 /// the method's own bound (none for the adaptive methods, whose error
@@ -47,19 +47,20 @@ pub const DEFAULT_TOLERANCE: f64 = 1e-8;
 pub const METHOD_TYPE: &str = "Method";
 
 /// The value of `method` in the FMU's enumeration: 1-based, as FMI
-/// enumerations usually are, in the order of [`Method::ALL`].
-pub fn method_value(method: Method) -> i32 {
-    Method::ALL.iter().position(|&m| m == method).expect("listed") as i32 + 1
+/// enumerations usually are, in the order of [`MethodSetting::ALL`].
+pub fn method_value(setting: impl Into<MethodSetting>) -> i32 {
+    let setting = setting.into();
+    MethodSetting::ALL.iter().position(|&m| m == setting).expect("listed") as i32 + 1
 }
 
-/// The method of an enumeration value, if it is one.
-pub fn method_of_value(value: i32) -> Option<Method> {
-    usize::try_from(value - 1).ok().and_then(|i| Method::ALL.get(i).copied())
+/// The method setting of an enumeration value, if it is one.
+pub fn method_of_value(value: i32) -> Option<MethodSetting> {
+    usize::try_from(value - 1).ok().and_then(|i| MethodSetting::ALL.get(i).copied())
 }
 
 /// "1 = rk4, 2 = dopri5, ...": the enumeration's items, for messages.
 pub fn method_items() -> String {
-    Method::ALL.iter().map(|&m| format!("{} = {}", method_value(m), m.name())).collect::<Vec<_>>().join(", ")
+    MethodSetting::ALL.iter().map(|&m| format!("{} = {}", method_value(m), m.name())).collect::<Vec<_>>().join(", ")
 }
 
 /// What a plant FMU with `outputs` can do: model exchange, unless it has
@@ -146,6 +147,8 @@ pub struct PlantResource {
     /// Start values chosen at export (a system file's `--set plant.NAME`),
     /// by variable name: the FMU takes them as its own, before any set.
     pub starts: BTreeMap<String, f64>,
+    /// The start of the `method` parameter chosen at export (`--method`).
+    pub method: MethodSetting,
     /// The compiled vehicle.
     pub model: Model,
 }
@@ -153,7 +156,7 @@ pub struct PlantResource {
 impl PlantResource {
     /// The resource of an FMU of `model` with `outputs` and the variables' default starts.
     pub fn new(model: Model, outputs: OptionalOutputs) -> Self {
-        PlantResource { format: Self::FORMAT, outputs, starts: BTreeMap::new(), model }
+        PlantResource { format: Self::FORMAT, outputs, starts: BTreeMap::new(), method: DEFAULT_METHOD, model }
     }
 
     /// The same FMU with start values `starts` (variable name → value)
@@ -192,7 +195,9 @@ impl Resource for PlantResource {
     // and interaction_bodies, gravity_compensation, tendons and their
     // constraint rows (2026-11-26), which a format-2 reader would silently
     // ignore.
-    const FORMAT: u32 = 3;
+    // 4: the start of `method` chosen at export (`method`, 2026-11-26),
+    // which a format-3 reader would silently replace by its default.
+    const FORMAT: u32 = 4;
 
     fn format(&self) -> u32 {
         self.format
@@ -569,10 +574,14 @@ mod tests {
 
     #[test]
     fn method_values_round_trip() {
-        for method in Method::ALL {
+        for method in MethodSetting::ALL {
             assert_eq!(method_of_value(method_value(method)), Some(method));
         }
         assert_eq!(method_of_value(0), None);
-        assert_eq!(method_of_value(Method::ALL.len() as i32 + 1), None);
+        assert_eq!(method_of_value(MethodSetting::ALL.len() as i32 + 1), None);
+        // Appended, never renumbered: the values a shipped FMU's users set.
+        assert_eq!(method_value(Method::Dop853), 3);
+        assert_eq!(method_value(Method::Tsit5), 6);
+        assert_eq!(method_value(MethodSetting::Auto), 7);
     }
 }

@@ -10,7 +10,7 @@
 use std::path::{Path, PathBuf};
 
 use nudyn::dynamics::DynamicsError;
-use nudyn::integrate::{AdvanceError, Stats, ToleranceRelaxed};
+use nudyn::integrate::{AdvanceError, AutoChoice, AutoMove, Stats, ToleranceRelaxed};
 use nudyn::model::InvalidModel;
 use nudyn_contract::capabilities::Capabilities;
 use nudyn_contract::controller::ControllerResource;
@@ -42,6 +42,10 @@ pub struct StepReport {
     pub stats: Stats,
     /// Set when the tolerance had to be relaxed (fmi2Warning).
     pub relaxed: Option<ToleranceRelaxed>,
+    /// Set when `method = auto` chose the method in this step.
+    pub chose: Option<AutoChoice>,
+    /// Set when `method = auto` moved up one order after this step.
+    pub moved: Option<AutoMove>,
 }
 
 /// What an FMU instance runs. Methods are called only after the checks of

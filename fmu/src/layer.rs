@@ -797,12 +797,21 @@ pub fn do_step(instance: &mut Instance, time: f64, step: f64, name: &str) -> Res
             return Err(error.into());
         }
     };
+    if instance.logger.enabled(LogCategory::MethodChoice) {
+        if let Some(choice) = report.chose {
+            instance.logger.log(Status::Ok, LogCategory::MethodChoice, &format!("{name}: {choice}"));
+        }
+        if let Some(moved) = report.moved {
+            instance.logger.log(Status::Ok, LogCategory::MethodChoice, &format!("{name}: {moved}"));
+        }
+    }
     if instance.logger.enabled(LogCategory::Calls) {
-        let nudyn::integrate::Stats { accepted, rejected, jacobians, .. } = report.stats;
+        let nudyn::integrate::Stats { accepted, rejected, jacobians, evaluations } = report.stats;
         let mut message = format!("{name}: {accepted} internal steps taken, {rejected} rejected");
         if jacobians > 0 {
             message += &format!(", W formed {jacobians} times");
         }
+        message += &format!(", {evaluations} evaluations of the rates");
         instance.logger.log(Status::Ok, LogCategory::Calls, &message);
     }
     instance.warning = report.relaxed.map(|relaxed| format!("{name}: {relaxed}"));

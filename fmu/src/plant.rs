@@ -7,12 +7,12 @@
 //! state, so outputs nobody reads cost nothing.
 
 use nudyn::dynamics::quantities::kinetic_energy;
-use nudyn::integrate::{HeldJacobian, Input, Method, RunState, Settings, Simulation};
+use nudyn::integrate::{HeldJacobian, Input, MethodSetting, RunState, Settings, Simulation};
 use nudyn::model::{LinkJoint, Model};
 use nudyn_contract::capabilities::Capabilities;
 use nudyn_contract::plant::{
-    DEFAULT_MAX_STEP, DEFAULT_METHOD, DEFAULT_TOLERANCE, ENERGY_PROJECTION_VR, Layout, METHOD_VR, PlantResource,
-    RealVariable, capabilities, method_of_value, method_value,
+    DEFAULT_MAX_STEP, DEFAULT_TOLERANCE, ENERGY_PROJECTION_VR, Layout, METHOD_VR, PlantResource, RealVariable,
+    capabilities, method_of_value, method_value,
 };
 use nudyn_contract::variable::Kind;
 
@@ -27,8 +27,8 @@ pub struct PlantState {
     pub run: RunState,
     /// Parameters `tolerance`, `max_step` and `energy_projection`.
     pub settings: Settings,
-    /// Parameter `method`.
-    pub method: Method,
+    /// Parameter `method`; what `auto` chose is in `run`.
+    pub method: MethodSetting,
     /// Start time of the experiment (s).
     pub start_time: f64,
     /// Stop time, if the master declared one (s).
@@ -101,6 +101,8 @@ pub struct Plant {
     /// The start values chosen at export (value reference, value), set at
     /// instantiation and at every reset.
     starts: (Vec<u32>, Vec<f64>),
+    /// The start of `method` chosen at export.
+    start_method: MethodSetting,
 }
 
 impl Plant {
@@ -111,13 +113,13 @@ impl Plant {
             .real_variables()
             .filter_map(|(vr, variable)| loaded.resource.starts.get(&variable.name()).map(|&value| (vr, value)))
             .unzip();
-        let model = loaded.resource.model;
+        let (model, start_method) = (loaded.resource.model, loaded.resource.method);
         let reals = layout.real_variables().map(|(_, variable)| variable).collect();
         let mut plant = Plant {
             layout,
             reals,
             guid: loaded.guid,
-            sim: Simulation::new(&model, DEFAULT_METHOD, DEFAULT_SETTINGS),
+            sim: Simulation::new(&model, start_method, DEFAULT_SETTINGS),
             start_time: 0.0,
             stop_time: None,
             initial_energy: 0.0,
@@ -130,6 +132,7 @@ impl Plant {
             failed_for_good: false,
             experiment_tolerance: None,
             starts,
+            start_method,
             model,
         };
         plant.set_starts();
@@ -200,7 +203,7 @@ impl Component for Plant {
     }
 
     fn reset(&mut self) {
-        self.sim = Simulation::new(&self.model, DEFAULT_METHOD, DEFAULT_SETTINGS);
+        self.sim = Simulation::new(&self.model, self.start_method, DEFAULT_SETTINGS);
         self.start_time = 0.0;
         self.stop_time = None;
         self.initial_energy = 0.0;
@@ -316,7 +319,7 @@ impl Component for Plant {
         if let Some(&vr) = vrs.iter().find(|&&vr| vr != METHOD_VR) {
             return Err(CallError::UnknownValueReference { vr, kind: "Integer" });
         }
-        values.fill(method_value(self.sim.method()));
+        values.fill(method_value(self.sim.method_setting()));
         Ok(())
     }
 
@@ -417,7 +420,12 @@ impl Component for Plant {
             Ok(advanced) => {
                 self.eps_rate.fill(0.0);
                 self.ctrl_rate.fill(0.0);
-                Ok(Some(StepReport { stats: advanced.stats, relaxed: advanced.relaxed }))
+                Ok(Some(StepReport {
+                    stats: advanced.stats,
+                    relaxed: advanced.relaxed,
+                    chose: advanced.chose,
+                    moved: advanced.moved,
+                }))
             }
             Err(source) => {
                 self.failed_for_good = source.is_non_finite();
@@ -472,7 +480,7 @@ impl Component for Plant {
         let state = PlantState {
             run: self.sim.state.clone(),
             settings: self.sim.settings,
-            method: self.sim.method(),
+            method: self.sim.method_setting(),
             start_time: self.start_time,
             stop_time: self.stop_time,
             initial_energy: self.initial_energy,
@@ -494,7 +502,7 @@ impl Component for Plant {
         let state = &mut snapshot.state;
         state.run.clone_from(&self.sim.state);
         state.settings = self.sim.settings;
-        state.method = self.sim.method();
+        state.method = self.sim.method_setting();
         state.start_time = self.start_time;
         state.stop_time = self.stop_time;
         state.initial_energy = self.initial_energy;
@@ -520,7 +528,7 @@ impl Component for Plant {
         self.sim.settings = state.settings;
         // The method first: changing it drops W, which the restore then holds.
         self.sim.set_method(&self.model, state.method);
-        self.sim.restore(&state.run, &state.jacobian);
+        self.sim.restore(&self.model, &state.run, &state.jacobian);
         self.start_time = state.start_time;
         self.stop_time = state.stop_time;
         self.initial_energy = state.initial_energy;

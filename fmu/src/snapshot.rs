@@ -7,7 +7,7 @@
 //! (finite, positive settings), so that even a blob crafted with a valid
 //! checksum cannot put a NaN into the outputs.
 
-use nudyn::integrate::{Carry, HeldJacobian, RunState, Scheme, Settings};
+use nudyn::integrate::{AutoChoice, Carry, HeldJacobian, MethodSetting, RunState, Scheme, Settings};
 use nudyn_contract::plant::{method_of_value, method_value};
 
 use crate::plant::PlantState;
@@ -20,8 +20,9 @@ const MAGIC: &[u8; 8] = b"nudynFMS";
 /// error control's relaxation; 5: the actuators' controls and their rates;
 /// 6: the method as the FMU's `method` value, max_step 0 allowed; 7: θ̇,
 /// which the integrator advances; 8: the W a Rosenbrock method holds; 9:
-/// the rates at the run's start, which a relaxation's warning compares with).
-const VERSION: u32 = 9;
+/// the rates at the run's start, which a relaxation's warning compares with;
+/// 10: what `method = auto` chose and measured).
+const VERSION: u32 = 10;
 
 /// The sizes of a plant's state: a blob is restored only into a plant of the same.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -98,6 +99,14 @@ pub enum SnapshotError {
     /// A `method` value that names no method.
     #[error("serialized FMU state names integration method value {0}, which does not exist")]
     UnknownMethod(u8),
+    /// A choice of `auto` saved with a method named by the user, or naming a method `auto` never chooses.
+    #[error("serialized FMU state holds a choice of method auto (value {chosen}) with method value {method}")]
+    ChoiceWithoutAuto {
+        /// The `method` value.
+        method: u8,
+        /// The chosen method's value.
+        chosen: u8,
+    },
     /// A W saved with a method that holds none.
     #[error("serialized FMU state holds a Jacobian W, which integration method '{0}' does not use")]
     JacobianWithoutRosenbrock(&'static str),
@@ -144,7 +153,7 @@ impl Snapshot {
 
     /// The size of [`Snapshot::serialize`]'s output.
     pub fn serialized_size(&self) -> usize {
-        let scalars = Self::scalar_count(self.sizes()) + self.state.jacobian.derivatives.len();
+        let scalars = Self::scalar_count(self.sizes()) + CHOICE_SCALARS + self.state.jacobian.derivatives.len();
         MAGIC.len() + 4 + 4 + self.guid.len() + 3 * 4 + FLAGS + 4 + 8 * scalars + 8
     }
 
@@ -164,6 +173,7 @@ impl Snapshot {
         bytes.push(method_value(s.method) as u8);
         bytes.push(u8::from(s.settings.energy_projection));
         bytes.push(u8::from(!s.jacobian.derivatives.is_empty()));
+        bytes.push(s.run.auto_choice.map_or(0, |choice| method_value(choice.method) as u8));
         bytes.extend_from_slice(&s.jacobian.age.to_le_bytes());
         let scalars = [
             s.run.time,
@@ -177,9 +187,11 @@ impl Snapshot {
             s.run.carry.relaxation,
             s.run.carry.start_rates,
         ];
+        let choice =
+            s.run.auto_choice.map_or([0.0; CHOICE_SCALARS], |c| [c.probe_step, c.error_per_second, c.tolerance]);
         let w = &s.jacobian.derivatives;
         let vectors = [&s.run.theta, &s.run.nu, &s.run.qvel, &s.eps, &s.eps_rate, &s.ctrl, &s.ctrl_rate, w];
-        for x in scalars.iter().chain(vectors.into_iter().flatten()) {
+        for x in scalars.iter().chain(&choice).chain(vectors.into_iter().flatten()) {
             bytes.extend_from_slice(&x.to_le_bytes());
         }
         let checksum = fnv1a(&bytes);
@@ -209,12 +221,13 @@ impl Snapshot {
         }
         let Sizes { nq, nv, nu: controls } = sizes;
         let flags = reader.take(FLAGS)?;
-        let (phase_code, stop_time_defined, method_value_byte, energy_projection, holds_jacobian) =
-            (flags[0], flags[1] != 0, flags[2], flags[3] != 0, flags[4] != 0);
+        let (phase_code, stop_time_defined, method_value_byte, energy_projection, holds_jacobian, chosen_byte) =
+            (flags[0], flags[1] != 0, flags[2], flags[3] != 0, flags[4] != 0, flags[5]);
         let jacobian_age = reader.u32()?;
         let jacobian_len = if holds_jacobian { 2 * nv * nv } else { 0 };
-        let scalars: Vec<f64> =
-            (0..Self::scalar_count(sizes) + jacobian_len).map(|_| reader.f64()).collect::<Result<_, _>>()?;
+        let scalars: Vec<f64> = (0..Self::scalar_count(sizes) + CHOICE_SCALARS + jacobian_len)
+            .map(|_| reader.f64())
+            .collect::<Result<_, _>>()?;
         let contents_len = reader.at;
         let found = u64::from_le_bytes(reader.take(8)?.try_into().expect("8 bytes"));
         if reader.at != bytes.len() {
@@ -229,11 +242,35 @@ impl Snapshot {
             Phase::from_code(phase_code).filter(|&p| p != Phase::Fatal).ok_or(SnapshotError::Phase(phase_code))?;
         let method =
             method_of_value(i32::from(method_value_byte)).ok_or(SnapshotError::UnknownMethod(method_value_byte))?;
-        if holds_jacobian && !matches!(method.scheme(), Scheme::Rosenbrock(_)) {
-            return Err(SnapshotError::JacobianWithoutRosenbrock(method.name()));
+        let chosen = match (method, chosen_byte) {
+            (_, 0) => None,
+            (MethodSetting::Auto, value) => match method_of_value(i32::from(value)) {
+                Some(MethodSetting::Fixed(chosen)) if chosen.is_adaptive() => Some(chosen),
+                _ => return Err(SnapshotError::ChoiceWithoutAuto { method: method_value_byte, chosen: value }),
+            },
+            (MethodSetting::Fixed(_), value) => {
+                return Err(SnapshotError::ChoiceWithoutAuto { method: method_value_byte, chosen: value });
+            }
+        };
+        let in_effect = match method {
+            MethodSetting::Fixed(method) => Some(method),
+            MethodSetting::Auto => chosen,
+        };
+        if holds_jacobian && !in_effect.is_some_and(|m| matches!(m.scheme(), Scheme::Rosenbrock(_))) {
+            return Err(SnapshotError::JacobianWithoutRosenbrock(in_effect.map_or("auto", |m| m.name())));
         }
-        let (settings, vectors) = scalars.split_at(SCALARS);
+        let (settings, rest) = scalars.split_at(SCALARS);
+        let (choice, vectors) = rest.split_at(CHOICE_SCALARS);
         check_values(settings, vectors)?;
+        if let Some(&value) = choice.iter().find(|x| x.is_nan() || **x < 0.0) {
+            return Err(SnapshotError::Value { what: "a value auto measured", value, must: "non-negative" });
+        }
+        let auto_choice = chosen.map(|method| AutoChoice {
+            method,
+            probe_step: choice[0],
+            error_per_second: choice[1],
+            tolerance: choice[2],
+        });
         let (theta, rest) = vectors.split_at(nq);
         let (nu, rest) = rest.split_at(nv);
         let (qvel, rest) = rest.split_at(nv);
@@ -256,6 +293,7 @@ impl Snapshot {
                         relaxation: settings[8],
                         start_rates: settings[9],
                     },
+                    auto_choice,
                 },
                 settings: Settings { tolerance: settings[3], max_step: settings[4], energy_projection },
                 method,
@@ -273,9 +311,14 @@ impl Snapshot {
 }
 
 /// Header bytes after the sizes: the state machine's state, whether a stop
-/// time is defined, the method, energy projection, whether W is held. W's
-/// age (steps accepted with it, a u32) follows them.
-const FLAGS: usize = 5;
+/// time is defined, the method, energy projection, whether W is held, the
+/// method `auto` chose (0: none yet). W's age (steps accepted with it, a
+/// u32) follows them.
+const FLAGS: usize = 6;
+
+/// What `auto` measured, after the scalars (0 before it has chosen): the
+/// probe's step, its error per second, the tolerance.
+const CHOICE_SCALARS: usize = 3;
 
 /// The scalars before the vectors: times, settings and integration values.
 const SCALARS: usize = 10;
@@ -365,9 +408,10 @@ mod tests {
                     nu: vec![1e-300, -0.0, 3.5, 7.25],
                     qvel: vec![2e-300, -0.0, 1.75, -0.5],
                     carry: Carry { next_step: 2.5e-3, work: -0.75, relaxation: 3.0, start_rates: 42.5 },
+                    auto_choice: None,
                 },
                 settings: Settings { tolerance: 1e-6, max_step: 1e-3, energy_projection: true },
-                method: Method::Dopri5,
+                method: Method::Dopri5.into(),
                 start_time: -1.5,
                 stop_time: Some(10.0),
                 initial_energy: 1.25,
@@ -383,10 +427,19 @@ mod tests {
     /// The sample as a Rosenbrock run holding W.
     fn sample_holding_w() -> Snapshot {
         let mut snapshot = sample();
-        snapshot.state.method = Method::Ros34pw2;
+        snapshot.state.method = Method::Ros34pw2.into();
         let nv = snapshot.state.run.nu.len();
         snapshot.state.jacobian =
             HeldJacobian { derivatives: (0..2 * nv * nv).map(|k| (k as f64 - 7.5) * 0.125).collect(), age: 17 };
+        snapshot
+    }
+
+    /// The sample as a run whose method `auto` has chosen.
+    fn sample_with_choice() -> Snapshot {
+        let mut snapshot = sample();
+        snapshot.state.method = MethodSetting::Auto;
+        snapshot.state.run.auto_choice =
+            Some(AutoChoice { method: Method::Bs3, probe_step: 0.1, error_per_second: 3.5e-14, tolerance: 1e-6 });
         snapshot
     }
 
@@ -398,7 +451,9 @@ mod tests {
 
     #[test]
     fn round_trips_bit_exactly() {
-        for (stop_time, base) in [(Some(10.0), sample()), (None, sample()), (Some(10.0), sample_holding_w())] {
+        let bases =
+            [(Some(10.0), sample()), (None, sample()), (Some(10.0), sample_holding_w()), (None, sample_with_choice())];
+        for (stop_time, base) in bases {
             let mut original = base;
             original.state.stop_time = stop_time;
             let bytes = serialized(&original);
@@ -484,10 +539,16 @@ mod tests {
             assert_eq!(Snapshot::deserialize(&bytes, GUID, SIZES), Err(SnapshotError::Phase(code)));
         }
         let mut explicit_with_w = sample_holding_w();
-        explicit_with_w.state.method = Method::Dop853;
+        explicit_with_w.state.method = Method::Dop853.into();
         assert_eq!(
             Snapshot::deserialize(&serialized(&explicit_with_w), GUID, SIZES),
             Err(SnapshotError::JacobianWithoutRosenbrock("dop853"))
+        );
+        let mut choice_without_auto = sample_with_choice();
+        choice_without_auto.state.method = Method::Tsit5.into();
+        assert_eq!(
+            Snapshot::deserialize(&serialized(&choice_without_auto), GUID, SIZES),
+            Err(SnapshotError::ChoiceWithoutAuto { method: 6, chosen: 5 })
         );
     }
 }

@@ -15,7 +15,7 @@ tight tolerance: an independent computation of the same motion."""
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import mujoco
@@ -47,6 +47,10 @@ class Plan:
     first_order_steps: list[float]
     dopri5_tolerances: list[float]
     dop853_tolerances: list[float]
+    # The pairs added for issue 36 and `method = auto` (bs3 stops where it needs 10⁵ steps and more).
+    bs3_tolerances: list[float] = field(default_factory=list)
+    tsit5_tolerances: list[float] = field(default_factory=list)
+    auto_tolerances: list[float] = field(default_factory=list)
 
 
 # The starts: the validation's tumble (seed 1), and the same with rates ten
@@ -64,6 +68,9 @@ FULL = Plan(
     first_order_steps=[0.01, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5],
     dopri5_tolerances=[1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10],
     dop853_tolerances=[1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11],
+    bs3_tolerances=[1e-3, 1e-4, 1e-5, 1e-6, 1e-7],
+    tsit5_tolerances=[1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10],
+    auto_tolerances=[1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11],
 )
 QUICK = Plan(
     duration=0.2,
@@ -74,6 +81,9 @@ QUICK = Plan(
     first_order_steps=[0.01],
     dopri5_tolerances=[1e-4],
     dop853_tolerances=[1e-6],
+    bs3_tolerances=[1e-4],
+    tsit5_tolerances=[1e-4],
+    auto_tolerances=[1e-6],
 )
 
 
@@ -165,6 +175,9 @@ def nudyn_run_names(plan: Plan) -> list[str]:
         [f"rk4:{h:g}" for h in plan.rk4_steps]
         + [f"dopri5:{t:g}" for t in plan.dopri5_tolerances]
         + [f"dop853:{t:g}" for t in plan.dop853_tolerances]
+        + [f"bs3:{t:g}" for t in plan.bs3_tolerances]
+        + [f"tsit5:{t:g}" for t in plan.tsit5_tolerances]
+        + [f"auto:{t:g}" for t in plan.auto_tolerances]
     )
 
 

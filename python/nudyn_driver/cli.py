@@ -60,6 +60,7 @@ class Nudyn:
         model_identifier: str | None = None,
         fmi_version: int = 2,
         wrench_inputs: Iterable[str] = (),
+        method: str | None = None,
     ) -> Path:
         """`nudyn export MODEL -o FMU` with the options given; makes FMU's
         directory if needed and returns the FMU's path."""
@@ -78,6 +79,8 @@ class Nudyn:
             arguments += ["--fmi-version", str(fmi_version)]
         if wrench_inputs:
             arguments += ["--wrench-inputs", ",".join(wrench_inputs)]
+        if method is not None:
+            arguments += ["--method", method]
         self.run(*arguments)
         return fmu
 

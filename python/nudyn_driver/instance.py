@@ -46,6 +46,7 @@ class Log:
 
     INTERNAL_STEPS = re.compile(r"fmi2DoStep: (\d+) internal steps taken, (\d+) rejected")
     HELD_TOLERANCE = re.compile(r"held to (\S+) per second")
+    EVALUATIONS = re.compile(r"fmi2DoStep: .*, (\d+) evaluations of the rates$")
 
     def __init__(self):
         self.messages: list[tuple[int, str, str]] = []
@@ -75,6 +76,15 @@ class Log:
                 taken += int(steps.group(1))
                 rejected += int(steps.group(2))
         return taken, rejected
+
+    def evaluations(self) -> int:
+        """The evaluations of the rates over every doStep logged."""
+        return sum(int(found.group(1)) for _, category, message in self.messages
+                   if category == "logCalls" and (found := self.EVALUATIONS.match(message)))
+
+    def method_choices(self) -> list[str]:
+        """What `method = auto` chose and where it moved up, in order."""
+        return [message for _, category, message in self.messages if category == "logMethodChoice"]
 
     def held_tolerance(self) -> float | None:
         """The per-second tolerance the FMU last said it held instead of the

@@ -582,7 +582,7 @@ impl Integrator {
     /// The velocity part is measured on ν, as users read it: θ̇'s error
     /// estimate mapped by m* at the last stage's configuration (pass 2 on
     /// the estimate, which overwrites the workspace's velocities).
-    fn error_norm(&self, model: &Model, ws: &mut Workspace, theta: &[f64], tolerance: f64) -> f64 {
+    pub(super) fn error_norm(&self, model: &Model, ws: &mut Workspace, theta: &[f64], tolerance: f64) -> f64 {
         let two_estimates =
             matches!(self.method.scheme(), Scheme::Explicit(t) if matches!(t.error, ErrorEstimate::Dop853 { .. }));
         let estimates = if two_estimates { 2 } else { 1 };

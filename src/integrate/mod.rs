@@ -1,8 +1,9 @@
 //! Time integration of (θ, θ̇), read and set as (θ, ν): Runge–Kutta–Munthe-Kaas steps (`rkmk`) with
 //! the methods of `tableau`, explicit or Rosenbrock (`rosenbrock`), driven over an interval with fixed or adaptive
-//! steps (`adaptive`) by one [`Simulation`] (`simulation`).
+//! steps (`adaptive`) by one [`Simulation`] (`simulation`), with a method named or chosen by the run (`auto`).
 
 mod adaptive;
+mod auto;
 mod rkmk;
 mod rosenbrock;
 mod simulation;
@@ -11,6 +12,7 @@ mod tableau;
 pub use adaptive::{
     AdvanceError, Carry, DEFAULT_FIXED_STEP, IntervalTooLong, MAX_STEPS, Overflow, Settings, Stats, ToleranceRelaxed,
 };
+pub use auto::{AutoChoice, AutoMove, MOVE_UP_ATTEMPTS, MethodSetting, PROBE_METHOD, Pace, order_up};
 pub use rkmk::{Integrator, retract};
 pub use rosenbrock::{HeldJacobian, W_MAX_AGE};
 pub use simulation::{Advanced, Input, InputSignal, RunState, Simulation};

@@ -4,7 +4,8 @@
 //! integrator and workspace, and one input convention. Callers read and
 //! set (θ, ν); the integrator advances (θ, θ̇) (rkmk.rs says why).
 
-use super::adaptive::{AdvanceError, Carry, Settings, Stats, ToleranceRelaxed};
+use super::adaptive::{AdvanceError, Carry, Settings, Stats, TOLERANCE_TIME, ToleranceRelaxed};
+use super::auto::{AutoChoice, AutoMove, MOVE_UP_ATTEMPTS, MethodSetting, PROBE_METHOD, order_up};
 use super::rkmk::{Integrator, nu_of_qvel, qvel_of_nu};
 use super::rosenbrock::HeldJacobian;
 use super::tableau::Method;
@@ -29,6 +30,8 @@ pub struct RunState {
     pub qvel: Vec<f64>,
     /// The step the error control proposes next, and the work done.
     pub carry: Carry,
+    /// What `auto` chose, once it has (the method it runs with from then on).
+    pub auto_choice: Option<AutoChoice>,
 }
 
 /// The applied input over one advance: ε(t) = eps + eps_rate·(t − t₀) and
@@ -98,6 +101,10 @@ pub struct Advanced {
     pub stats: Stats,
     /// Set when the advance completed only by relaxing the tolerance.
     pub relaxed: Option<ToleranceRelaxed>,
+    /// Set when `auto` chose the method at the start of this advance.
+    pub chose: Option<AutoChoice>,
+    /// Set when `auto` moved up one order after this advance.
+    pub moved: Option<AutoMove>,
 }
 
 /// A vehicle's run: its state, settings and buffers. The model is passed
@@ -109,6 +116,8 @@ pub struct Simulation {
     pub state: RunState,
     /// Tolerance, longest step, energy projection.
     pub settings: Settings,
+    /// The method asked for: one named, or `auto`, which runs [`PROBE_METHOD`] until it has chosen.
+    setting: MethodSetting,
     pub(super) integrator: Integrator,
     pub(super) ws: Workspace,
     /// ε and the controls (nv + nu) of the last advance, meaningful when
@@ -124,7 +133,8 @@ pub struct Simulation {
 
 impl Simulation {
     /// A run of `model` at t = 0 from the pose drawn in the file (qpos0), at rest.
-    pub fn new(model: &Model, method: Method, settings: Settings) -> Self {
+    pub fn new(model: &Model, setting: impl Into<MethodSetting>, settings: Settings) -> Self {
+        let setting = setting.into();
         Simulation {
             state: RunState {
                 time: 0.0,
@@ -132,9 +142,11 @@ impl Simulation {
                 nu: vec![0.0; model.nv],
                 qvel: vec![0.0; model.nv],
                 carry: Carry::default(),
+                auto_choice: None,
             },
             settings,
-            integrator: Integrator::new(model, method),
+            setting,
+            integrator: Integrator::new(model, method_before_choice(setting)),
             ws: model.workspace(),
             held_input: vec![0.0; model.nv + model.actuators.len()],
             input_was_constant: false,
@@ -142,14 +154,22 @@ impl Simulation {
         }
     }
 
-    /// The integration method.
+    /// The integration method in effect: the one named, or the one `auto`
+    /// chose ([`PROBE_METHOD`] until it has).
     pub fn method(&self) -> Method {
         self.integrator.method()
     }
 
-    /// Changes the integration method.
-    pub fn set_method(&mut self, model: &Model, method: Method) {
-        self.integrator.set_method(model, method);
+    /// The method asked for.
+    pub fn method_setting(&self) -> MethodSetting {
+        self.setting
+    }
+
+    /// Changes the method asked for; `auto` chooses again at the next advance.
+    pub fn set_method(&mut self, model: &Model, setting: impl Into<MethodSetting>) {
+        self.setting = setting.into();
+        self.state.auto_choice = None;
+        self.integrator.set_method(model, method_before_choice(self.setting));
     }
 
     /// Checks θ and ν (sizes, finite, no zero quaternion), normalizes θ's
@@ -159,6 +179,9 @@ impl Simulation {
         self.ws.set_nu(model, &self.state.nu)?;
         self.state.theta.copy_from_slice(self.ws.theta.as_slice());
         self.state.carry = Carry::default();
+        if self.state.auto_choice.take().is_some() {
+            self.integrator.set_method(model, PROBE_METHOD);
+        }
         self.integrator.first.valid = false;
         self.integrator.release_jacobian();
         self.state.qvel.copy_from_slice(self.ws.qvel.as_slice());
@@ -210,12 +233,23 @@ impl Simulation {
             input.ctrl_at(t, t0, ctrl);
         };
         let relaxation_before = self.state.carry.relaxation;
+        let evaluations_before = self.integrator.evaluations;
+        let mut chose = None;
         let result = if let Err(cause) = self.settings.check_interval(self.method(), t_end - t0) {
             Err(AdvanceError::TooLong { reached: t0, cause })
-        } else if self.method().is_adaptive() {
-            self.advance_adaptive(model, t_end, &mut inputs_at)
         } else {
-            self.advance_fixed(model, t_end, &mut inputs_at)
+            if self.setting == MethodSetting::Auto && self.state.auto_choice.is_none() && t_end > t0 {
+                let choice = self.choose_method(model, t_end, &mut inputs_at);
+                self.state.auto_choice = Some(choice);
+                chose = Some(choice);
+            }
+            let probe_evaluations = self.integrator.evaluations - evaluations_before;
+            let result = if self.method().is_adaptive() {
+                self.advance_adaptive(model, t_end, &mut inputs_at)
+            } else {
+                self.advance_fixed(model, t_end, &mut inputs_at)
+            };
+            result.map(|stats| Stats { evaluations: stats.evaluations + probe_evaluations, ..stats })
         };
         // ν where the run stands, whether it reached t_end or not; a run
         // that took no step keeps its ν bit for bit (m*ℓ* is the identity
@@ -243,7 +277,8 @@ impl Simulation {
                 self.state.time = t_end;
                 let rates = self.integrator.largest_rate();
                 let relaxed = self.state.carry.relaxed_since(relaxation_before, t0, self.settings.tolerance, rates);
-                Ok(Advanced { stats, relaxed })
+                let moved = if chose.is_none() { self.move_up_if_dear(model, t0, &stats) } else { None };
+                Ok(Advanced { stats, relaxed, chose, moved })
             }
             Err(error) => {
                 self.state.time = error.reached();
@@ -281,12 +316,54 @@ impl Simulation {
     /// Replaces the state and the W saved with it (an FMU state being
     /// restored; no derivatives, or derivatives that do not fit the method,
     /// hold none). Set the saved method first: changing the method drops W.
-    pub fn restore(&mut self, state: &RunState, jacobian: &HeldJacobian) {
+    pub fn restore(&mut self, model: &Model, state: &RunState, jacobian: &HeldJacobian) {
         self.state.clone_from(state);
+        if self.setting == MethodSetting::Auto {
+            let method = state.auto_choice.map_or(PROBE_METHOD, |choice| choice.method);
+            self.integrator.set_method(model, method);
+        }
         self.integrator.hold_jacobian(jacobian);
         // The cached first stage belongs to the state replaced.
         self.integrator.first.valid = false;
         self.record_qvel_owner();
+    }
+
+    /// `auto`'s choice for an advance to `t_end` from the state: one
+    /// DOP853 step over the interval (or `max_step`), attempted and not
+    /// taken, measures how fast the vehicle moves for it (auto.rs). The
+    /// start's rates it evaluated serve the chosen method's first step.
+    fn choose_method(
+        &mut self,
+        model: &Model,
+        t_end: f64,
+        inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
+    ) -> AutoChoice {
+        let Simulation { state, settings, integrator, ws, .. } = self;
+        let (t0, theta, qvel) = (state.time, &state.theta[..], &state.qvel[..]);
+        let step = (t_end - t0).min(settings.step_bound(PROBE_METHOD));
+        // The error relative to 1 + |x| itself: the norm with tolerance 1.
+        let error_per_step = match integrator.attempt(model, ws, (theta, qvel), (t0, step), inputs_at) {
+            Ok(()) => integrator.error_norm(model, ws, theta, 1.0),
+            Err(_) => f64::INFINITY,
+        };
+        let choice = AutoChoice::new(step, error_per_step / (step / TOLERANCE_TIME).min(1.0), settings.tolerance);
+        let start_evaluated = integrator.first.valid;
+        integrator.set_method(model, choice.method);
+        integrator.first.valid = start_evaluated;
+        choice
+    }
+
+    /// After an advance from `t0` that `auto` did not choose in: moves a
+    /// run up one order when the advance took [`MOVE_UP_ATTEMPTS`] steps
+    /// or more (auto.rs).
+    fn move_up_if_dear(&mut self, model: &Model, t0: f64, stats: &Stats) -> Option<AutoMove> {
+        let choice = self.state.auto_choice.as_mut()?;
+        let attempts = stats.accepted + stats.rejected;
+        let to = order_up(choice.method).filter(|_| attempts >= MOVE_UP_ATTEMPTS)?;
+        let moved = AutoMove { from: choice.method, to, time: t0, attempts };
+        choice.method = to;
+        self.integrator.set_method(model, to);
+        Some(moved)
     }
 
     /// The workspace, holding the passes of the last evaluation.
@@ -300,5 +377,13 @@ impl Simulation {
         self.ws.set_configuration(model, &self.state.theta)?;
         self.ws.set_nu(model, &self.state.nu)?;
         Ok(&mut self.ws)
+    }
+}
+
+/// The method a run with `setting` integrates with before `auto` has chosen.
+fn method_before_choice(setting: MethodSetting) -> Method {
+    match setting {
+        MethodSetting::Fixed(method) => method,
+        MethodSetting::Auto => PROBE_METHOD,
     }
 }

@@ -630,7 +630,7 @@ def parameters_out_of_range_are_discarded(h: Harness):
                               ("tolerance", math.nan, "not finite"), ("theta[8]", math.inf, "not finite"),
                               ("nu[1]", -math.inf, "not finite")]:
         h.set_real(DISCARD, c, {name: value}, says=(name if name != "max_step" else "max_step", says))
-    h.expect(DISCARD, "fmi2SetInteger", c, (C.c_uint * 1)(0), 1, (C.c_int * 1)(7), says=("method = 7",))
+    h.expect(DISCARD, "fmi2SetInteger", c, (C.c_uint * 1)(0), 1, (C.c_int * 1)(8), says=("method = 8",))
     h.expect(OK, "fmi2SetupExperiment", c, 0, 0.0, 0.0, 0, 0.0)
     h.expect(OK, "fmi2EnterInitializationMode", c)
     h.expect(OK, "fmi2ExitInitializationMode", c)

@@ -85,6 +85,44 @@ def test_quick_methods_benchmark_writes_its_table(tmp_path):
         assert all(entry["error"] < 1 for entry in example["mujoco_rk4"])
 
 
+def test_quick_auto_benchmark_writes_its_table(tmp_path):
+    """`scripts/bench_auto.py --quick`: auto and dop853 run on an example
+    and a random tree, meet the tolerance, and say what auto chose (never a
+    speed)."""
+    run_quick("bench_auto.py", tmp_path)
+    assert "median of 1 trees" in (tmp_path / "auto.md").read_text()
+    results = json.loads((tmp_path / "auto.json").read_text())
+    assert results["quick"] is True and set(results["vehicles"]) == {"bus_arm7", "tree0"}
+    for vehicle in results["vehicles"].values():
+        for run in vehicle["runs"]:
+            assert run["accepted"] >= 4 and run["error"] < 10 * run["tolerance"], run
+            assert (run["chosen"] is not None) == (run["method"] == "auto"), run
+            assert run["host_seconds"][0] > 0 and run["fmpy_seconds"][0] > 0, run
+        assert all(entry["error"] < 1 for entry in vehicle["mujoco_rk4"])
+
+
+def test_random_trees_are_read_alike_by_mujoco_and_nudyn(nudyn, tmp_path):
+    """The benchmark's random trees: MuJoCo and nudyn read the same
+    joints, and MuJoCo's mass matrix factor gives nudyn's ν from its qvel."""
+    import mujoco
+    import numpy as np
+
+    from nudyn_bench.trees import write_tree
+    from nudyn_driver.cli import Nudyn
+    from nudyn_validation.mujoco_reference import MujocoFactor
+
+    for seed in range(3):
+        path = write_tree(seed, tmp_path / f"tree{seed}.xml")
+        model = mujoco.MjModel.from_xml_path(str(path))
+        data = mujoco.MjData(model)
+        rng = np.random.default_rng(seed)
+        data.qvel[:] = rng.uniform(-1.0, 1.0, model.nv)
+        mujoco.mj_forward(model, data)
+        got = Nudyn(nudyn).eval(path, {"theta": list(map(float, data.qpos)), "qvel": list(map(float, data.qvel))})
+        want = MujocoFactor(model).nu(data, data.qvel)
+        np.testing.assert_allclose(got["nu"], want, rtol=0, atol=1e-10)
+
+
 def test_chains_built_for_mujoco_equal_the_generated_files():
     """MuJoCo cannot read bodies nested 500 deep, so the benchmark builds its
     chains with MuJoCo's model editor: they must be gen_chain.py's chains."""

@@ -188,7 +188,7 @@ def test_start_quaternions_of_any_finite_scale_are_the_same_rotation(packages, s
         assert np.linalg.norm(edge.array("momentum") - momentum) <= 1e-14 * np.linalg.norm(momentum)
 
 
-@pytest.mark.parametrize("method", ["dop853", "ros34pw2", "bs3", "tsit5"])
+@pytest.mark.parametrize("method", ["dop853", "ros34pw2", "bs3", "tsit5", "auto"])
 def test_fmu_state_round_trips_bit_exactly(bus, method):
     """With ros34pw2 too, whose matrix W is kept across communication
     points and so is part of the state: restored from the object or from
@@ -497,7 +497,7 @@ def test_energy_projection_keeps_kinetic_energy_through_fmi(packages, structures
     assert drift[False] > 1e4 * drift[True], drift
 
 
-@pytest.mark.parametrize("method", ["dopri5", "dop853", "ros34pw2", "bs3", "tsit5"])
+@pytest.mark.parametrize("method", ["dopri5", "dop853", "ros34pw2", "bs3", "tsit5", "auto"])
 def test_fmu_equals_core_integration_with_adaptive_methods(packages, structures, cli, method):
     """The FMU's adaptive runs are `nudyn simulate`'s, to round-off: same
     steps, same carried step size across communication points."""

@@ -38,3 +38,23 @@ def test_cost_falls_as_the_tolerance_loosens(model, cli, tmp_path):
         report = ", ".join(f"{t:g}: {s}" for t, s in zip(tolerances, steps))
         assert all(tight >= loose for tight, loose in zip(steps, steps[1:])), f"{method}: {report}"
         assert steps[0] > steps[-1], f"{method}: {report}"
+
+
+@pytest.mark.parametrize("model", EXAMPLES, ids=example_ids())
+def test_auto_costs_no_more_at_a_looser_tolerance(model, cli, tmp_path):
+    """`method = auto` changes method with the tolerance, so its cost is
+    counted in evaluations of the rates, not steps: they never grow as the
+    tolerance loosens from 1e-10 to 1e-4."""
+    vehicle = prepare(model.stem, model, tmp_path)
+    package = FmuPackage.unzip(cli.export(model, tmp_path / f"{model.stem}.fmu"), tmp_path / model.stem)
+    tolerances = [1e-10, 1e-9, 1e-8, 1e-7, 1e-6, 1e-5, 1e-4]
+    evaluations = []
+    for tolerance in tolerances:
+        with Instance(package, start={"method": "auto", "tolerance": tolerance}, theta=vehicle.qpos, nu=vehicle.nu,
+                      logging_on=True) as fmu:
+            for n in range(STEPS):
+                fmu.step(COMMUNICATION_STEP, communication_point=n * COMMUNICATION_STEP)
+            evaluations.append(fmu.log.evaluations())
+    report = ", ".join(f"{t:g}: {e}" for t, e in zip(tolerances, evaluations))
+    assert all(tight >= loose for tight, loose in zip(evaluations, evaluations[1:])), report
+    assert evaluations[0] > evaluations[-1], report

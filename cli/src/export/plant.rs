@@ -5,12 +5,12 @@ use std::path::Path;
 
 use modeldescription as md;
 use modeldescription::fmi3 as md3;
-use nudyn::integrate::Method;
+use nudyn::integrate::MethodSetting;
 use nudyn::model::{Model, SensorSource};
 use nudyn::vehicle::{JointKind, SensorKind};
 use nudyn_contract::plant::{
-    DEFAULT_METHOD, ENERGY_PROJECTION_NAME, ENERGY_PROJECTION_VR, Layout, METHOD_NAME, METHOD_TYPE, METHOD_VR,
-    OptionalOutputs, PlantResource, RealVariable, capabilities, method_value,
+    ENERGY_PROJECTION_NAME, ENERGY_PROJECTION_VR, Layout, METHOD_NAME, METHOD_TYPE, METHOD_VR, OptionalOutputs,
+    PlantResource, RealVariable, capabilities, method_value,
 };
 use nudyn_contract::resource::Resource;
 
@@ -257,7 +257,7 @@ const ENERGY_PROJECTION_DESCRIPTION: &str = "rescale nu after each internal step
      the work done (keeps K exactly when no force acts)";
 
 /// The item description of `method` in the enumeration type.
-fn method_item_description(method: Method) -> String {
+fn method_item_description(method: MethodSetting) -> String {
     format!("{} (Munthe-Kaas on rotations)", method.description())
 }
 
@@ -269,7 +269,7 @@ pub fn model_description3(resource: &PlantResource, options: &ExportOptions, gui
     let method_type = md3::EnumerationType {
         name: METHOD_TYPE.into(),
         description: Some(METHOD_DESCRIPTION.into()),
-        items: Method::ALL
+        items: MethodSetting::ALL
             .iter()
             .map(|&method| md3::Item {
                 name: method.name().into(),
@@ -287,7 +287,7 @@ pub fn model_description3(resource: &PlantResource, options: &ExportOptions, gui
         variability: "fixed".into(),
         initial: Some("exact".into()),
         declared_type: METHOD_TYPE.into(),
-        start: Some(i64::from(method_value(DEFAULT_METHOD))),
+        start: Some(i64::from(method_value(resource.method))),
     });
     let energy_projection = md3::Variable::Boolean(md3::Boolean {
         name: ENERGY_PROJECTION_NAME.into(),
@@ -328,7 +328,7 @@ pub fn model_description(resource: &PlantResource, options: &ExportOptions, guid
             quantity: None,
             min: None,
             max: None,
-            start: Some(method_value(DEFAULT_METHOD)),
+            start: Some(method_value(resource.method)),
         }),
     };
     let energy_projection = md::ScalarVariable {
@@ -394,7 +394,7 @@ pub fn model_description(resource: &PlantResource, options: &ExportOptions, guid
         description: Some(METHOD_DESCRIPTION.into()),
         kind: md::SimpleTypeKind::Enumeration(md::EnumerationType {
             quantity: None,
-            items: Method::ALL
+            items: MethodSetting::ALL
                 .iter()
                 .map(|&method| md::Item {
                     name: method.name().into(),

@@ -1,0 +1,292 @@
+//! `auto`: the run chooses its method, once, before its first step, from
+//! the tolerance and how fast the vehicle moves for its communication step
+//! (docs/integration.md, "The cost of each method per tolerance").
+//!
+//! The measure is one DOP853 step over the whole first interval from the
+//! start, attempted and not taken: its error estimate per second, relative
+//! to 1 + |x| (the tolerance's own scale), is E. DOP853 stays at one step
+//! per communication step at tolerance τ exactly when its controller's
+//! next step is not shorter, E ≤ SAFETY⁷·τ (adaptive.rs). The benchmark's
+//! rule, in those terms:
+//! - fast (more than one DOP853 step per interval even at 1e-4): `dop853`;
+//! - slow (one DOP853 step per interval even at 1e-10): `bs3` at loose
+//!   tolerances (around 1e-4), `tsit5` down to about 1e-9, `dop853` below;
+//! - in between: `tsit5` down to about 1e-6, `dop853` below.
+//!
+//! The tolerance bounds lie halfway (in log) between the tolerances the
+//! benchmark measured.
+//!
+//! The start can mislead: a motion that speeds up later (a long chain whose
+//! swing grows) looks slower than it is. So a run that chose `bs3` or
+//! `tsit5` moves up one order (to `tsit5`, then `dop853`) after any later
+//! communication step that took [`MOVE_UP_ATTEMPTS`] attempted steps or
+//! more: at that count the method's evaluations (9 for `bs3`, 18 for
+//! `tsit5`) exceed one step of the next (6, 12). The first communication
+//! step is not judged: its first step is the starting step's guess.
+
+use super::tableau::Method;
+
+/// How a run's method is set: named by the user (never overridden), or
+/// chosen by the run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MethodSetting {
+    /// This method.
+    Fixed(Method),
+    /// The cheapest for the tolerance and the vehicle, chosen at the first advance.
+    Auto,
+}
+
+impl MethodSetting {
+    /// Every setting, in the order of the FMU's enumeration (values 1 to 7):
+    /// `auto` comes after the methods, so that no value is renumbered.
+    pub const ALL: [MethodSetting; 7] = [
+        MethodSetting::Fixed(Method::Rk4),
+        MethodSetting::Fixed(Method::Dopri5),
+        MethodSetting::Fixed(Method::Dop853),
+        MethodSetting::Fixed(Method::Ros34pw2),
+        MethodSetting::Fixed(Method::Bs3),
+        MethodSetting::Fixed(Method::Tsit5),
+        MethodSetting::Auto,
+    ];
+
+    /// Its name, as in the FMU's enumeration and the CLI.
+    pub fn name(self) -> &'static str {
+        match self {
+            MethodSetting::Fixed(method) => method.name(),
+            MethodSetting::Auto => "auto",
+        }
+    }
+
+    /// One line for people.
+    pub fn description(self) -> &'static str {
+        match self {
+            MethodSetting::Fixed(method) => method.description(),
+            MethodSetting::Auto => {
+                "the cheapest of bs3, tsit5 and dop853 for the tolerance and for how fast the vehicle moves over \
+                 the first communication step, chosen once before the first step and logged"
+            }
+        }
+    }
+
+    /// The setting of a name.
+    pub fn from_name(name: &str) -> Option<MethodSetting> {
+        MethodSetting::ALL.into_iter().find(|m| m.name() == name)
+    }
+}
+
+/// Written by name, as `"auto"` or `"dop853"` (the FMU's resource file).
+impl serde::Serialize for MethodSetting {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_str(self.name())
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for MethodSetting {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let name = String::deserialize(deserializer)?;
+        MethodSetting::from_name(&name).ok_or_else(|| {
+            let names: Vec<&str> = MethodSetting::ALL.iter().map(|m| m.name()).collect();
+            serde::de::Error::custom(format!("unknown method '{name}' (known: {})", names.join(", ")))
+        })
+    }
+}
+
+impl From<Method> for MethodSetting {
+    fn from(method: Method) -> Self {
+        MethodSetting::Fixed(method)
+    }
+}
+
+/// The method `auto` measures the vehicle with, and runs until it has chosen.
+pub const PROBE_METHOD: Method = Method::Dop853;
+
+/// How fast the vehicle moves for its communication step, as DOP853 sees it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Pace {
+    /// DOP853 needs more than one step per communication step at 1e-4.
+    Fast,
+    /// DOP853 needs one step per communication step at 1e-4, more at 1e-10.
+    Between,
+    /// DOP853 needs one step per communication step at 1e-10.
+    Slow,
+}
+
+/// The tolerances that bound the pace classes (the loosest and tightest
+/// the rule was measured at).
+const LOOSE: f64 = 1e-4;
+const TIGHT: f64 = 1e-10;
+
+/// DOP853's error per second E over one step of the interval stays within
+/// τ·this exactly when its controller (safety 0.9, exponent 1/7) proposes
+/// no shorter step next: the condition for one step per interval.
+const ONE_STEP_SHARE: f64 = 0.478_296_9; // 0.9⁷
+
+impl Pace {
+    /// The pace of a vehicle whose probe step erred by `error_per_second`.
+    pub fn of(error_per_second: f64) -> Pace {
+        // A non-finite probe (a start too fast for the interval) is fast.
+        if error_per_second.is_nan() || error_per_second > LOOSE * ONE_STEP_SHARE {
+            Pace::Fast
+        } else if error_per_second <= TIGHT * ONE_STEP_SHARE {
+            Pace::Slow
+        } else {
+            Pace::Between
+        }
+    }
+
+    /// The cheapest method at `tolerance` for a vehicle of this pace.
+    pub fn method(self, tolerance: f64) -> Method {
+        // Halfway in log between the measured tolerances 1e-4 and 1e-5, 1e-6 and 1e-7, 1e-9 and 1e-10.
+        match self {
+            Pace::Fast => Method::Dop853,
+            Pace::Slow if tolerance >= 10f64.powf(-4.5) => Method::Bs3,
+            Pace::Slow if tolerance >= 10f64.powf(-9.5) => Method::Tsit5,
+            Pace::Between if tolerance >= 10f64.powf(-6.5) => Method::Tsit5,
+            Pace::Slow | Pace::Between => Method::Dop853,
+        }
+    }
+
+    /// How the log says it.
+    fn words(self) -> &'static str {
+        match self {
+            Pace::Fast => {
+                "fast for the communication step (DOP853 needs more than one step per communication step at 1e-4)"
+            }
+            Pace::Between => "between (DOP853 needs one step per communication step at 1e-4 and more at 1e-10)",
+            Pace::Slow => "slow for the communication step (DOP853 needs one step per communication step at 1e-10)",
+        }
+    }
+}
+
+/// Attempted steps in one communication step from which a run that `auto`
+/// set to `bs3` or `tsit5` moves up one order.
+pub const MOVE_UP_ATTEMPTS: usize = 3;
+
+/// The method one order up that `auto` moves to from `method`, if any.
+pub fn order_up(method: Method) -> Option<Method> {
+    match method {
+        Method::Bs3 => Some(Method::Tsit5),
+        Method::Tsit5 => Some(Method::Dop853),
+        _ => None,
+    }
+}
+
+/// `auto` moving a run up one order (module docs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AutoMove {
+    /// The method it ran with.
+    pub from: Method,
+    /// The method it runs with from now on.
+    pub to: Method,
+    /// The start of the communication step that asked for it (s).
+    pub time: f64,
+    /// The steps that communication step attempted.
+    pub attempts: usize,
+}
+
+impl std::fmt::Display for AutoMove {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let AutoMove { from, to, time, attempts } = *self;
+        write!(
+            f,
+            "method auto moved from {} to {} after the communication step from t = {time} s: {} attempted \
+             {attempts} steps there, costing more than one step of {}",
+            from.name(),
+            to.name(),
+            from.name(),
+            to.name()
+        )
+    }
+}
+
+/// What `auto` measured and chose: part of the run's state.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AutoChoice {
+    /// The method chosen, or moved up to since.
+    pub method: Method,
+    /// The probe's step (s): the first interval, or `max_step` if shorter.
+    pub probe_step: f64,
+    /// DOP853's error estimate per second over that step, relative to 1 + |x|.
+    pub error_per_second: f64,
+    /// The tolerance it was chosen for.
+    pub tolerance: f64,
+}
+
+impl AutoChoice {
+    /// The choice for a probe step of `probe_step` that erred by `error_per_second`, at `tolerance`.
+    pub fn new(probe_step: f64, error_per_second: f64, tolerance: f64) -> Self {
+        let method = Pace::of(error_per_second).method(tolerance);
+        AutoChoice { method, probe_step, error_per_second, tolerance }
+    }
+
+    /// The vehicle's pace as measured.
+    pub fn pace(&self) -> Pace {
+        Pace::of(self.error_per_second)
+    }
+}
+
+impl std::fmt::Display for AutoChoice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let AutoChoice { method, probe_step, error_per_second, tolerance } = *self;
+        write!(
+            f,
+            "method auto chose {} for tolerance {tolerance:e}: one DOP853 step of {probe_step} s from the start errs by \
+             {error_per_second:.1e} per second, so the motion is {}",
+            method.name(),
+            self.pace().words()
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::tableau::Scheme;
+    use super::*;
+
+    /// The rule as measured on the examples (docs/integration.md).
+    #[test]
+    fn the_rule_by_pace_and_tolerance() {
+        let tolerances = [1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10];
+        let picks = |pace: Pace| tolerances.map(|tol| pace.method(tol));
+        use Method::{Bs3, Dop853, Tsit5};
+        assert_eq!(picks(Pace::Fast), [Dop853; 7]);
+        assert_eq!(picks(Pace::Slow), [Bs3, Tsit5, Tsit5, Tsit5, Tsit5, Tsit5, Dop853]);
+        assert_eq!(picks(Pace::Between), [Tsit5, Tsit5, Tsit5, Dop853, Dop853, Dop853, Dop853]);
+    }
+
+    /// One DOP853 step per interval at τ exactly when 0.9·(τ/E)^(1/7) ≥ 1.
+    #[test]
+    fn pace_bounds_are_the_one_step_condition() {
+        assert!((ONE_STEP_SHARE - 0.9f64.powi(7)).abs() < 1e-7);
+        assert_eq!(Pace::of(0.47e-4), Pace::Between);
+        assert_eq!(Pace::of(0.49e-4), Pace::Fast);
+        assert_eq!(Pace::of(0.47e-10), Pace::Slow);
+        assert_eq!(Pace::of(0.49e-10), Pace::Between);
+        assert_eq!(Pace::of(f64::NAN), Pace::Fast);
+        assert_eq!(Pace::of(f64::INFINITY), Pace::Fast);
+    }
+
+    #[test]
+    fn moves_up_one_order_to_dop853() {
+        assert_eq!(order_up(Method::Bs3), Some(Method::Tsit5));
+        assert_eq!(order_up(Method::Tsit5), Some(Method::Dop853));
+        assert_eq!(order_up(Method::Dop853), None);
+        // From MOVE_UP_ATTEMPTS steps on, the method costs more than one step of the next.
+        for (from, to) in [(Method::Bs3, Method::Tsit5), (Method::Tsit5, Method::Dop853)] {
+            let per_step = |method: Method| match method.scheme() {
+                Scheme::Explicit(t) => t.b.len() - usize::from(t.first_same_as_last),
+                Scheme::Rosenbrock(_) => unreachable!("auto chooses explicit methods"),
+            };
+            let cost = |method: Method, steps: usize| steps * per_step(method);
+            assert!(cost(from, MOVE_UP_ATTEMPTS) > cost(to, 1) && cost(from, MOVE_UP_ATTEMPTS - 1) <= cost(to, 1));
+        }
+    }
+
+    #[test]
+    fn names_round_trip() {
+        for setting in MethodSetting::ALL {
+            assert_eq!(MethodSetting::from_name(setting.name()), Some(setting));
+        }
+        assert_eq!(MethodSetting::from_name("fastest"), None);
+    }
+}

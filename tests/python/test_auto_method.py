@@ -1,0 +1,136 @@
+"""`method = auto` through the FMU: it picks by the rule measured on the
+examples (docs/integration.md, "The cost of each method per tolerance")
+and says so in a logMethodChoice message, a method the user names is never
+replaced, and what it chose and moved up to is part of the FMU state. From
+the benchmark's tumbling starts, in 0.1 s communication steps."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+
+import numpy as np
+import pytest
+
+from conftest import EXAMPLES_DIR
+from nudyn_bench.vehicles import prepare
+from nudyn_driver.instance import Instance
+from nudyn_driver.package import FmuPackage
+
+STEP = 0.1
+CHOSE = re.compile(r"fmi2DoStep: method auto chose (\w+) for tolerance")
+MOVED = re.compile(r"fmi2DoStep: method auto moved from (\w+) to (\w+) after the communication step from t = (\S+) s")
+
+
+@pytest.fixture(scope="module")
+def examples(cli, tmp_path_factory):
+    """name -> (package, vehicle) for the examples used here."""
+    work = tmp_path_factory.mktemp("auto")
+    found = {}
+    for name in ["bus_arm7", "fixed_rig", "chain60"]:
+        model = EXAMPLES_DIR / f"{name}.xml"
+        package = FmuPackage.unzip(cli.export(model, work / f"{name}.fmu"), work / name)
+        found[name] = (package, prepare(name, model, work))
+    return found
+
+
+def run(example, steps: int, **start) -> Instance:
+    package, vehicle = example
+    fmu = Instance(package, start=start, theta=vehicle.qpos, nu=vehicle.nu, logging_on=True)
+    for _ in range(steps):
+        fmu.step(STEP)
+    return fmu
+
+
+@pytest.mark.parametrize(("name", "tolerance", "chosen"), [
+    # bus_arm7's tumble is slow for 0.1 s: one DOP853 step per communication step at every tolerance.
+    ("bus_arm7", 1e-4, "bs3"), ("bus_arm7", 1e-6, "tsit5"), ("bus_arm7", 1e-9, "tsit5"), ("bus_arm7", 1e-10, "dop853"),
+    # fixed_rig's is fast: more than one DOP853 step per communication step even at 1e-4.
+    ("fixed_rig", 1e-4, "dop853"), ("fixed_rig", 1e-8, "dop853"),
+])
+def test_auto_picks_by_the_rule_and_says_why(examples, name, tolerance, chosen):
+    with run(examples[name], 1, method="auto", tolerance=tolerance) as fmu:
+        (message,) = fmu.log.method_choices()
+        assert CHOSE.match(message).group(1) == chosen, message
+        assert ("slow" if name == "bus_arm7" else "fast") in message, message
+        # The parameter keeps the user's setting; the choice is in the log.
+        assert fmu.fmu.getInteger([fmu.package.vr["method"]]) == [fmu.package.enumeration_value("method", "auto")]
+
+
+def test_a_start_that_misleads_is_corrected_by_moving_up(examples):
+    """chain60 starts slower than it moves: auto picks tsit5 from the start
+    at 1e-4, which then takes 11 steps in the next communication step, and
+    moves up to dop853: over 5 s within 5 % of dop853's evaluations (measured
+    2846 against 2830), where tsit5 alone takes more (3272)."""
+    evaluations = {}
+    for method in ["auto", "dop853", "tsit5"]:
+        with run(examples["chain60"], 50, method=method, tolerance=1e-4) as fmu:
+            evaluations[method] = fmu.log.evaluations()
+            choices = fmu.log.method_choices()
+            if method == "auto":
+                assert CHOSE.match(choices[0]).group(1) == "tsit5", choices
+                assert MOVED.match(choices[1]).groups() == ("tsit5", "dop853", "0.1"), choices
+            else:
+                # A method the user names is never replaced.
+                assert choices == []
+    assert evaluations["auto"] < 1.05 * evaluations["dop853"] < evaluations["tsit5"], evaluations
+
+
+def test_the_choice_is_part_of_the_fmu_state(examples):
+    """States saved before auto chose, after it chose and after it moved up,
+    restored into the same instance or deserialized into another, continue
+    bit for bit as the run that saved them; and the same run twice gives the
+    same bits."""
+    package, vehicle = examples["chain60"]
+    start = {"method": "auto", "tolerance": 1e-4}
+    total = 4
+    with run(examples["chain60"], 0, **start) as fmu, run(examples["chain60"], 0, **start) as other:
+        saved = {}
+        for n in range(total + 1):
+            state = fmu.fmu.getFMUstate()
+            saved[n] = (state, fmu.fmu.serializeFMUstate(state))
+            if n < total:
+                fmu.step(STEP)
+        end = fmu.all_reals()
+        assert len(fmu.log.method_choices()) == 2, "chose at the first step, moved up after the second"
+        for n in [0, 1, 3]:
+            state, blob = saved[n]
+            fmu.fmu.setFMUstate(state)
+            fmu.time = n * STEP
+            for _ in range(total - n):
+                fmu.step(STEP)
+            assert np.array_equal(fmu.all_reals(), end), f"restored at step {n}"
+            restored = other.fmu.deSerializeFMUstate(blob)
+            other.fmu.setFMUstate(restored)
+            other.time = n * STEP
+            for _ in range(total - n):
+                other.step(STEP)
+            assert np.array_equal(other.all_reals(), end), f"deserialized at step {n}"
+            other.fmu.freeFMUstate(restored)
+        for state, _ in saved.values():
+            fmu.fmu.freeFMUstate(state)
+    with run(examples["chain60"], total, **start) as again:
+        assert np.array_equal(again.all_reals(), end)
+
+
+def test_simulate_says_what_auto_chose(cli, examples):
+    _, vehicle = examples["bus_arm7"]
+    request = {"theta": list(map(float, vehicle.qpos)), "nu": list(map(float, vehicle.nu))}
+    proc = subprocess.run([str(cli.binary), "simulate", str(EXAMPLES_DIR / "bus_arm7.xml"), "--step", "0.1", "--stop",
+                           "0.3", "--method", "auto", "--tolerance", "1e-6"], input=json.dumps(request),
+                          capture_output=True, text=True, check=True)
+    assert "nudyn: method auto chose tsit5 for tolerance 1e-6" in proc.stderr, proc.stderr
+
+
+def test_export_method_sets_the_start_value(cli, examples, tmp_path):
+    """`nudyn export --method auto`: the modelDescription's start of
+    `method` is auto's value, and the FMU chooses without being told."""
+    _, vehicle = examples["bus_arm7"]
+    path = cli.export(EXAMPLES_DIR / "bus_arm7.xml", tmp_path / "auto.fmu", method="auto")
+    package = FmuPackage.unzip(path, tmp_path / "auto")
+    auto = package.enumeration_value("method", "auto")
+    assert auto == 7 and package.enumeration_value("method", "tsit5") == 6
+    assert package.variable("method").start == str(auto)
+    with run((package, vehicle), 1, tolerance=1e-6) as fmu:
+        assert CHOSE.match(fmu.log.method_choices()[0]).group(1) == "tsit5"
