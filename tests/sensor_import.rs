@@ -232,3 +232,56 @@ fn force_and_torque_sensors_read_the_weight_a_body_carries() {
         assert!((value - expected).abs() < 1e-12, "sensordata[{k}] = {value}, expected {expected}");
     }
 }
+
+/// A free base with a two-link arm, a spatial tendon from the base to the
+/// second link with the given attributes, and a force sensor on `site`.
+fn tendon_scene(tendon: &str, site: &str) -> String {
+    format!(
+        r#"<mujoco>
+  <worldbody>
+    <body name="base">
+      <freejoint/>
+      <geom type="box" size="0.3 0.3 0.3"/>
+      <site name="anchor" pos="0.3 0 0.1"/>
+      <body name="upper" pos="0.4 0 0">
+        <joint axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0.4 0 0" size="0.03"/>
+        <site name="elbow_site" pos="0 0 0"/>
+        <site name="upper_mid" pos="0.2 0 0.03"/>
+        <body name="lower" pos="0.4 0 0">
+          <joint axis="0 1 0"/>
+          <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+          <site name="wrist" pos="0 0 0"/>
+          <site name="lower_mid" pos="0.15 0 0.03"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <tendon>
+    <spatial name="cable" {tendon}><site site="anchor"/><site site="upper_mid"/><site site="lower_mid"/></spatial>
+  </tendon>
+  <sensor><force site="{site}"/></sensor>
+</mujoco>"#
+    )
+}
+
+#[test]
+fn a_force_sensor_whose_subtree_a_pulling_spatial_tendon_crosses_is_refused() {
+    let compiled = |tendon: &str, site: &str| Model::compile(&parse_mjcf(&tendon_scene(tendon, site)).unwrap().vehicle);
+    // The cable's spring pulls the upper arm's subtree from the base: MuJoCo
+    // counts that force as external, which nudyn does not subtract.
+    for (tendon, site) in [
+        (r#"stiffness="40""#, "elbow_site"),
+        (r#"damping="2""#, "wrist"),
+        (r#"frictionloss="1""#, "elbow_site"),
+        (r#"range="0 2" limited="true""#, "wrist"),
+    ] {
+        let message = compiled(tendon, site).unwrap_err().to_string();
+        assert!(message.contains("spatial tendon 'cable' pulls on the subtree of body"), "{tendon}: {message}");
+        assert!(message.contains("force 0 (line 24)"), "{message}");
+    }
+    // Every point of the cable is inside the base's subtree; a cable that
+    // carries no force pulls on nothing.
+    assert!(compiled(r#"stiffness="40""#, "anchor").is_ok());
+    assert!(compiled("", "elbow_site").is_ok());
+}

@@ -340,7 +340,9 @@ impl SensorDependence {
         match kind {
             Clock => SensorDependence::Nothing,
             JointPos | BallQuat | FramePos | FrameQuat | FrameXAxis | FrameYAxis | FrameZAxis | SubtreeCom
-            | ActuatorPos | JointLimitPos | TendonPos | TendonLimitPos | Magnetometer => SensorDependence::Configuration,
+            | ActuatorPos | JointLimitPos | TendonPos | TendonLimitPos | Magnetometer => {
+                SensorDependence::Configuration
+            }
             JointVel | BallAngVel | FrameLinVel | FrameAngVel | SubtreeLinVel | SubtreeAngMom | Gyro | Velocimeter
             | ActuatorVel | JointLimitVel | TendonVel | TendonLimitVel => SensorDependence::Motion,
             ActuatorFrc | JointActuatorFrc | TendonActuatorFrc => SensorDependence::Controls,

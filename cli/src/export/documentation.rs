@@ -141,8 +141,7 @@ pub fn index_html(model: &Model, description: &Document, what: &str) -> String {
         ));
     }
     if !model.tendons.is_empty() {
-        let names: Vec<String> =
-            model.tendons.iter().enumerate().map(|(k, tendon)| escape(&tendon.label(k))).collect();
+        let names: Vec<String> = model.tendons.iter().enumerate().map(|(k, tendon)| escape(&tendon.label(k))).collect();
         line(format!(
             "<p>Tendons: {} (their springs, dampers and actuators act through their moment arms, \
              as in MuJoCo).</p>",
