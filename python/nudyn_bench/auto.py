@@ -30,9 +30,7 @@ tumble, as `scripts/bench.py` runs them).
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
-import platform
 import sys
 import tempfile
 import time
@@ -46,7 +44,7 @@ from nudyn_driver.package import FmuPackage
 
 from . import cli, native_host, report
 from . import work_precision as work_precision_runs
-from .cli import binaries, git_commit
+from .cli import binaries, run_stamp
 from .report import median
 from .tolerance import scaled_error
 from .trees import write_tree
@@ -195,12 +193,7 @@ def main(argv=None) -> int:
     if found is None:
         return 2
     bench, nudyn = found
-    stamp = {
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "commit": git_commit(),
-        "quick": args.quick,
-        "machine": platform.platform(),
-    }
+    stamp = run_stamp(args.quick)
     args.out.mkdir(parents=True, exist_ok=True)
     if args.work_precision:
         work_precision(bench, args.out, args.quick, stamp)

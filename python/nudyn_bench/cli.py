@@ -66,6 +66,17 @@ def git_commit() -> str:
     return proc.stdout.strip() or "unknown"
 
 
+def run_stamp(quick: bool) -> dict:
+    """What every benchmark's numbers are stamped with: when, from which
+    commit, whether they are a smoke test's, and on what machine."""
+    return {
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "commit": git_commit(),
+        "quick": quick,
+        "machine": platform.platform(),
+    }
+
+
 def binaries(bin_dir: Path, prog: str) -> tuple[Path, Path] | None:
     """(nudyn-bench, nudyn) in `bin_dir`, or None after saying which is missing."""
     bench, nudyn = bin_dir / "nudyn-bench", bin_dir / "nudyn"

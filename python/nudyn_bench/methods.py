@@ -24,9 +24,7 @@ its ratio to MuJoCo's time: the one the issue judges.
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
-import platform
 import sys
 import tempfile
 from pathlib import Path
@@ -38,7 +36,7 @@ from nudyn_driver.package import FmuPackage
 
 from . import native_host
 
-from .cli import binaries, git_commit
+from .cli import binaries, run_stamp
 from .report import median
 from .tolerance import scaled_error
 from .vehicles import ROOT, Vehicle, prepare
@@ -147,10 +145,7 @@ def main(argv=None) -> int:
         return 2
     bench, nudyn = found
     results = {
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "commit": git_commit(),
-        "quick": args.quick,
-        "machine": platform.platform(),
+        **run_stamp(args.quick),
         "examples": {},
     }
     with tempfile.TemporaryDirectory() as tmp:

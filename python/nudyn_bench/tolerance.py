@@ -21,9 +21,7 @@ same integration (timed in Rust).
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
-import platform
 import sys
 import tempfile
 import time
@@ -41,7 +39,7 @@ from nudyn_driver.instance import Instance  # noqa: E402
 from nudyn_driver.package import FmuPackage  # noqa: E402
 from nudyn_validation.compare import quaternion_starts  # noqa: E402
 
-from .cli import binaries, git_commit  # noqa: E402
+from .cli import binaries, run_stamp  # noqa: E402
 from .report import median  # noqa: E402
 from .vehicles import ROOT, Vehicle, prepare  # noqa: E402
 from .work_precision import MujocoRuns, Plan, nudyn_runs, time_at_error  # noqa: E402
@@ -239,10 +237,7 @@ def main(argv=None) -> int:
         return 2
     bench, nudyn = found
     results = {
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "commit": git_commit(),
-        "quick": args.quick,
-        "machine": platform.platform(),
+        **run_stamp(args.quick),
         "mujoco": mujoco.__version__,
         "duration": sizes.duration,
         "communication_step": sizes.communication_step,
