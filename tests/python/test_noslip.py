@@ -1,8 +1,8 @@
 """MuJoCo's no-slip pass on friction-loss rows against mj_forward.
 
 tests/fixtures/constraints/noslip_trees.xml has three kinematic trees with
-friction loss on hinge, slide and ball dofs, limits and a joint coupling
-that makes two of the trees one island. Copies of it set
+friction loss on hinge, slide and ball dofs and on a tendon, limits and a
+joint coupling that makes two of the trees one island. Copies of it set
 noslip_iterations, noslip_tolerance and the island flag; MuJoCo's main
 solver runs to round-off (load_model), so the pass starts from the same
 forces on both sides.
@@ -100,7 +100,7 @@ def test_the_settings_and_states_decide(tmp_path):
     """The settings above give different answers (so each is checked for
     itself): one sweep against several, an early stop against none, and at
     tolerance 1e-2 islands against one group; the states have limit rows
-    and the coupling's row."""
+    the coupling's row and the tendon's friction row."""
     model = load_model(variant(tmp_path, 3, 1e-6, True))
     states = list(random_states(model, np.random.default_rng(5)))
 
@@ -118,6 +118,7 @@ def test_the_settings_and_states_decide(tmp_path):
     kinds = [set(a[3]) for a in mujoco_answers(model, states)]
     assert sum(int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT) in k for k in kinds) > N_STATES // 4
     assert all(int(mujoco.mjtConstraint.mjCNSTR_EQUALITY) in k for k in kinds)
+    assert all(int(mujoco.mjtConstraint.mjCNSTR_FRICTION_TENDON) in k for k in kinds)
 
 
 def test_the_fmu_runs_the_pass(nudyn, tmp_path):
