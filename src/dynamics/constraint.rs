@@ -52,7 +52,7 @@ pub enum RowKind {
 
 impl RowKind {
     /// Whether the row is a friction loss (no stiffness in its reference).
-    fn is_friction(self) -> bool {
+    pub(super) fn is_friction(self) -> bool {
         matches!(self, RowKind::Friction | RowKind::TendonFriction)
     }
 }

@@ -132,7 +132,7 @@ impl Workspace {
     pub(super) fn no_slip_pass(&mut self, model: &Model, rows: &mut ConstraintRows) -> Result<(), DynamicsError> {
         let options = &model.constraints.options;
         let n = rows.count;
-        let is_friction = |k: usize| matches!(rows.kind[k], RowKind::Friction | RowKind::TendonFriction);
+        let is_friction = |k: usize| rows.kind[k].is_friction();
         if options.noslip_iterations == 0 || !(0..n).any(is_friction) {
             return Ok(());
         }
@@ -190,7 +190,7 @@ fn sweep_island(
             }
         }
         for i in 0..n {
-            if !in_island(i) || !matches!(rows.kind[i], RowKind::Friction | RowKind::TendonFriction) {
+            if !in_island(i) || !rows.kind[i].is_friction() {
                 continue;
             }
             let hessian = &rows.hessian[i * stride..i * stride + n];
