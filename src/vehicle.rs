@@ -814,16 +814,40 @@ pub struct ConstraintOptions {
     pub timestep: f64,
     /// `<flag refsafe>`.
     pub refsafe: bool,
-    /// `noslip_iterations`: MuJoCo's no-slip pass over the friction rows
-    /// after its solver, which nudyn does not run (a model with friction
-    /// rows and a pass is refused at compilation).
+    /// `noslip_iterations`: the most sweeps of MuJoCo's no-slip pass over
+    /// the friction-loss rows after its solver (0: no pass).
     pub noslip_iterations: u32,
+    /// `noslip_tolerance`: the pass stops once a sweep's scaled cost
+    /// improvement falls below it.
+    #[serde(default = "default_noslip_tolerance")]
+    pub noslip_tolerance: f64,
+    /// `<flag island>`: whether MuJoCo runs the no-slip pass island by
+    /// island (each with its own stopping rule) or over all rows at once.
+    #[serde(default = "default_islands")]
+    pub islands: bool,
+}
+
+/// MuJoCo's default `noslip_tolerance`.
+fn default_noslip_tolerance() -> f64 {
+    1e-6
+}
+
+/// Islands are on unless `<flag island="disable">`.
+fn default_islands() -> bool {
+    true
 }
 
 impl Default for ConstraintOptions {
-    /// MuJoCo's defaults: timestep 0.002 s, refsafe on, no no-slip pass.
+    /// MuJoCo's defaults: timestep 0.002 s, refsafe on, no no-slip pass
+    /// (tolerance 1e-6), islands on.
     fn default() -> Self {
-        ConstraintOptions { timestep: 0.002, refsafe: true, noslip_iterations: 0 }
+        ConstraintOptions {
+            timestep: 0.002,
+            refsafe: true,
+            noslip_iterations: 0,
+            noslip_tolerance: default_noslip_tolerance(),
+            islands: default_islands(),
+        }
     }
 }
 

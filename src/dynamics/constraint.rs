@@ -15,11 +15,14 @@
 //! 5. f minimizing ½fᵀ(A + R)f + fᵀ(J·qacc_smooth − aref) in the box each
 //!    row allows ([`super::box_qp`]): the dual of MuJoCo's problem, whose
 //!    unique minimizer all its solvers approach;
-//! 6. ε_c = E f and MuJoCo's qfrc_constraint = Jᵀf; ε_c is added to the
+//! 6. MuJoCo's no-slip pass on the friction-loss rows, when the model asks
+//!    for it ([`super::noslip`]);
+//! 7. ε_c = E f and MuJoCo's qfrc_constraint = Jᵀf; ε_c is added to the
 //!    pass's ν̇ and θ̈'s joint term (ε enters ν̇ additively), and the outward
 //!    pass gives θ̈.
 
 use super::box_qp::BoxQp;
+use super::noslip::NoSlipBuffers;
 use super::{DynamicsError, require};
 use crate::model::Model;
 use crate::vehicle::{JointKind, SoftConstraint};
@@ -50,7 +53,7 @@ pub enum RowKind {
 
 impl RowKind {
     /// Whether the row is a friction loss (no stiffness in its reference).
-    fn is_friction(self) -> bool {
+    pub(super) fn is_friction(self) -> bool {
         matches!(self, RowKind::Friction | RowKind::TendonFriction)
     }
 }
@@ -113,6 +116,8 @@ pub struct ConstraintRows {
     pub qfrc_constraint: Vec<f64>,
     /// ε_c = m⁻¹Jᵀf (nv).
     pub eps_constraint: Vec<f64>,
+    /// The no-slip pass's buffers.
+    pub(super) no_slip: NoSlipBuffers,
 }
 
 impl ConstraintRows {
@@ -150,6 +155,7 @@ impl ConstraintRows {
             ],
             qfrc_constraint: vec![0.0; if rows > 0 { nv } else { 0 }],
             eps_constraint: vec![0.0; if rows > 0 { nv } else { 0 }],
+            no_slip: NoSlipBuffers::new(model),
         }
     }
 
@@ -428,6 +434,7 @@ impl Workspace {
         }
         let (gradient, lower, upper) = (&rows.gradient, &rows.lower, &rows.upper);
         rows.solver.solve(n, &rows.hessian, stride, gradient, lower, upper, &mut rows.force, same_rows)?;
+        self.no_slip_pass(model, rows)?;
         rows.eps_constraint.fill(0.0);
         rows.qfrc_constraint.fill(0.0);
         for k in 0..n {

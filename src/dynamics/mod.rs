@@ -27,6 +27,7 @@ pub mod forces;
 mod gravity_compensation;
 mod interaction;
 pub mod kinematics;
+mod noslip;
 pub mod quantities;
 pub mod sensors;
 pub mod tendon;

@@ -539,6 +539,9 @@ impl Reader {
             self.physics.constraint_options.noslip_iterations = u32::try_from(iterations)
                 .map_err(|_| element.bad_value("noslip_iterations", "a non-negative number of iterations"))?;
         }
+        if let Some(tolerance) = element.number("noslip_tolerance")? {
+            self.physics.constraint_options.noslip_tolerance = tolerance;
+        }
         if let Some(groups) = element.integer_list("actuatorgroupdisable")? {
             if groups.iter().any(|g| !ACTUATOR_GROUPS.contains(g)) {
                 return Err(element.bad_value("actuatorgroupdisable", "actuator groups from 0 to 30"));
@@ -574,6 +577,9 @@ impl Reader {
                 return Err(child.unsupported("sleeping bodies (flag sleep=\"enable\") freeze the dynamics"));
             }
             let physics = &mut self.physics;
+            if let Some(&off) = disabled.get("island") {
+                physics.constraint_options.islands = !off;
+            }
             for (flag, target) in [
                 ("gravity", &mut physics.gravity_disabled),
                 ("spring", &mut physics.spring_disabled),

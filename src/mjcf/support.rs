@@ -23,9 +23,9 @@ pub fn support_table() -> String {
          not tell an attribute nudyn models from one it accepts because it has no effect on what \
          nudyn computes (contact, rendering and solver settings): [cli.md](cli.md) says what is \
          modelled. The refusals of particular values (a nonzero `wind`, \
-         a `gaintype` other than fixed and affine, …) are in the importer's messages. A \
-         `noslip_iterations` above 0 is refused in a model with friction-loss rows (MuJoCo's no-slip \
-         pass changes their forces). Mesh files (`<mesh file>`): binary STL, MSH and OBJ, whose \
+         a `gaintype` other than fixed and affine, …) are in the importer's messages. \
+         `noslip_iterations`, `noslip_tolerance` and `<flag island>` are modelled: MuJoCo's no-slip \
+         pass over the friction-loss rows runs as MuJoCo 4.0 runs it. Mesh files (`<mesh file>`): binary STL, MSH and OBJ, whose \
          triangles are read as written, quads split along their shorter diagonal and polygons of five \
          corners or more cut by tinyobjloader's ear clipping as MuJoCo 4.0's reader cuts them (a \
          polygon that refers to a vertex defined after it is refused). A sphere, capsule, cylinder, \

@@ -339,18 +339,6 @@ pub enum ModelError {
         /// What is wrong.
         reason: String,
     },
-    /// MuJoCo's no-slip pass would change friction-loss forces.
-    #[error(
-        "<option noslip_iterations=\"{iterations}\">: MuJoCo's no-slip pass changes the forces of its \
-         friction-loss rows ({rows} here) after its solver, which nudyn does not model: set noslip_iterations \
-         to 0, or leave friction loss out (<flag frictionloss=\"disable\"/>, nudyn export --disable frictionloss)"
-    )]
-    NoSlip {
-        /// `noslip_iterations`.
-        iterations: u32,
-        /// The friction-loss rows the pass would change.
-        rows: usize,
-    },
     /// A parameter that must be finite and non-negative is not.
     #[error("joint '{joint}': {what} must be finite and non-negative, found {value}")]
     BadParameter {
@@ -563,11 +551,6 @@ impl Model {
         model.resolve_damping_ratios()?;
         model.constraints = constraints;
         model.compile_constraints_in_qpos0(vehicle, &attachments, &sites)?;
-        let rows = model.constraints.friction.len() + model.constraints.tendon_friction.len();
-        let iterations = vehicle.constraint_options.noslip_iterations;
-        if iterations > 0 && rows > 0 {
-            return Err(ModelError::NoSlip { iterations, rows });
-        }
         Ok(model)
     }
 

@@ -1,0 +1,216 @@
+//! MuJoCo's no-slip pass (docs/DYNAMICS.md §8): after the constraint
+//! forces are solved for, projected Gauss-Seidel sweeps over the
+//! friction-loss rows move each force to the minimizer of the cost *without*
+//! its regularizer, clamped to ±frictionloss, the other forces held. MuJoCo
+//! 4.0 runs it island by island: an island is a connected group of
+//! kinematic trees (subtrees hanging from the world) joined by rows that
+//! reach into several of them, and each island stops on its own once a
+//! sweep's cost improvement, divided by the trace of its trees' M at the
+//! state, falls below `noslip_tolerance`. With `<flag island="disable">`
+//! all rows are one group and the trace is M's.
+
+use super::DynamicsError;
+use super::constraint::{ConstraintRows, RowKind};
+use crate::model::Model;
+use crate::vehicle::ConstraintOptions;
+use crate::workspace::Workspace;
+
+/// MuJoCo's smallest denominator (mjMINVAL).
+const MIN_VALUE: f64 = 1e-15;
+/// A row whose Jacobian reaches no dof: in no island.
+const NO_TREE: usize = usize::MAX;
+
+/// The pass's buffers (empty for a model that never runs it).
+#[derive(Clone, Debug, Default)]
+pub struct NoSlipBuffers {
+    /// Each dof's kinematic tree, named by the link at its root.
+    dof_tree: Vec<usize>,
+    /// Union-find parents over trees (indexed by link; only roots used).
+    tree_parent: Vec<usize>,
+    /// Each row's island (its representative tree), or [`NO_TREE`].
+    row_island: Vec<usize>,
+    /// diag(M) at the state.
+    mass_diagonal: Vec<f64>,
+    /// A unit ε and the torque m ε it gives: one column of m.
+    unit: Vec<f64>,
+    column: Vec<f64>,
+}
+
+impl NoSlipBuffers {
+    /// Buffers for `model` when it runs the pass (iterations > 0 and
+    /// friction-loss rows), else none.
+    pub fn new(model: &Model) -> Self {
+        let constraints = &model.constraints;
+        let has_friction = !constraints.friction.is_empty() || !constraints.tendon_friction.is_empty();
+        if constraints.options.noslip_iterations == 0 || !has_friction {
+            return NoSlipBuffers::default();
+        }
+        let mut dof_tree = vec![0; model.nv];
+        for (i, link) in model.links.iter().enumerate() {
+            let mut root = i;
+            while let Some(parent) = model.links[root].parent {
+                root = parent;
+            }
+            dof_tree[link.dof_adr..link.dof_adr + link.ndof].fill(root);
+        }
+        let nv = model.nv;
+        NoSlipBuffers {
+            dof_tree,
+            tree_parent: (0..model.links.len()).collect(),
+            row_island: vec![NO_TREE; constraints.max_rows()],
+            mass_diagonal: vec![0.0; nv],
+            unit: vec![0.0; nv],
+            column: vec![0.0; nv],
+        }
+    }
+
+    /// The representative of `tree`'s group, halving paths on the way.
+    fn find(&mut self, mut tree: usize) -> usize {
+        while self.tree_parent[tree] != tree {
+            self.tree_parent[tree] = self.tree_parent[self.tree_parent[tree]];
+            tree = self.tree_parent[tree];
+        }
+        tree
+    }
+
+    fn union(&mut self, one: usize, two: usize) {
+        let (one, two) = (self.find(one), self.find(two));
+        self.tree_parent[one.max(two)] = one.min(two);
+    }
+
+    /// Each row's island: trees a row reaches into are joined, and so are
+    /// those of an equality constraint's rows together (MuJoCo joins the
+    /// two bodies' trees even where one row's Jacobian vanishes in one).
+    fn assign_islands(&mut self, rows: &ConstraintRows, nv: usize, islands: bool) {
+        for (t, parent) in self.tree_parent.iter_mut().enumerate() {
+            *parent = t;
+        }
+        for k in 0..rows.count {
+            let jacobian = &rows.jacobian[k * nv..(k + 1) * nv];
+            let mut first = NO_TREE;
+            for d in (0..nv).filter(|&d| jacobian[d] != 0.0) {
+                let tree = self.dof_tree[d];
+                if first == NO_TREE {
+                    first = tree;
+                } else {
+                    self.union(first, tree);
+                }
+            }
+            let same_equality = k > 0 && rows.kind[k] == RowKind::Equality && rows.kind[k - 1] == RowKind::Equality;
+            if same_equality && rows.id[k] == rows.id[k - 1] && first != NO_TREE {
+                match self.row_island[k - 1] {
+                    NO_TREE => {}
+                    previous => self.union(previous, first),
+                }
+            }
+            self.row_island[k] = first;
+        }
+        for k in 0..rows.count {
+            self.row_island[k] = match (self.row_island[k], islands) {
+                (NO_TREE, _) => NO_TREE,
+                (_, false) => 0,
+                (tree, true) => self.find(tree),
+            };
+        }
+    }
+
+    /// The trace of M over `island`'s trees (over every dof without islands).
+    fn island_inertia(&mut self, island: usize, islands: bool) -> f64 {
+        let mut trace = 0.0;
+        for d in 0..self.dof_tree.len() {
+            if !islands || self.find(self.dof_tree[d]) == island {
+                trace += self.mass_diagonal[d];
+            }
+        }
+        trace
+    }
+}
+
+impl Workspace {
+    /// Runs MuJoCo's no-slip pass on the solved forces in `rows` when the
+    /// model asks for it and a friction-loss row is active.
+    pub(super) fn no_slip_pass(&mut self, model: &Model, rows: &mut ConstraintRows) -> Result<(), DynamicsError> {
+        let options = &model.constraints.options;
+        let n = rows.count;
+        let is_friction = |k: usize| rows.kind[k].is_friction();
+        if options.noslip_iterations == 0 || !(0..n).any(is_friction) {
+            return Ok(());
+        }
+        let nv = model.nv;
+        let mut pass = std::mem::take(&mut rows.no_slip);
+        // diag(M) = Σⱼ (m eⱼ)², as M = m mᵀ: one inward pass per dof.
+        pass.mass_diagonal.fill(0.0);
+        let mut result = Ok(());
+        for j in 0..nv {
+            pass.unit[j] = 1.0;
+            result = self.torque_from_eps(model, &pass.unit, &mut pass.column);
+            pass.unit[j] = 0.0;
+            if result.is_err() {
+                break;
+            }
+            for (entry, m) in pass.mass_diagonal.iter_mut().zip(&pass.column) {
+                *entry += m * m;
+            }
+        }
+        if result.is_ok() {
+            pass.assign_islands(rows, nv, options.islands);
+            for first in 0..n {
+                let island = pass.row_island[first];
+                if island == NO_TREE || (0..first).any(|k| pass.row_island[k] == island) {
+                    continue;
+                }
+                let scale = 1.0 / pass.island_inertia(island, options.islands);
+                sweep_island(rows, &pass.row_island, island, scale, options);
+            }
+        }
+        rows.no_slip = pass;
+        result
+    }
+}
+
+/// Gauss-Seidel sweeps over `island`'s friction rows until its scaled
+/// improvement falls below `noslip_tolerance` or `noslip_iterations` sweeps
+/// have run.
+fn sweep_island(
+    rows: &mut ConstraintRows,
+    row_island: &[usize],
+    island: usize,
+    scale: f64,
+    options: &ConstraintOptions,
+) {
+    let n = rows.count;
+    let stride = rows.max_rows;
+    let in_island = |k: usize| row_island[k] == island;
+    for iteration in 0..options.noslip_iterations {
+        let mut improvement = 0.0;
+        if iteration == 0 {
+            // The main solver's cost counts ½ f R f, which this pass's does not.
+            for k in (0..n).filter(|&k| in_island(k)) {
+                improvement += 0.5 * rows.force[k] * rows.force[k] * rows.regularizer[k];
+            }
+        }
+        for i in 0..n {
+            if !in_island(i) || !rows.kind[i].is_friction() {
+                continue;
+            }
+            let hessian = &rows.hessian[i * stride..i * stride + n];
+            let coupled: f64 = hessian.iter().zip(&rows.force[..n]).map(|(h, f)| h * f).sum();
+            let residual = coupled + rows.gradient[i] - rows.regularizer[i] * rows.force[i];
+            let inverse_diagonal = 1.0 / (hessian[i] - rows.regularizer[i]).max(MIN_VALUE);
+            let old = rows.force[i];
+            let mut force = old - residual * inverse_diagonal;
+            if force < rows.lower[i] {
+                force = rows.lower[i];
+            } else if force > rows.upper[i] {
+                force = rows.upper[i];
+            }
+            rows.force[i] = force;
+            let delta = force - old;
+            improvement -= 0.5 * delta * delta / inverse_diagonal + delta * residual;
+        }
+        improvement *= scale;
+        if improvement < options.noslip_tolerance {
+            break;
+        }
+    }
+}
