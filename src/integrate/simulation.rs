@@ -241,7 +241,7 @@ impl Simulation {
         match result {
             Ok(stats) => {
                 self.state.time = t_end;
-                let rates = self.integrator.largest_rate();
+                let rates = || self.integrator.largest_rate();
                 let relaxed = self.state.carry.relaxed_since(relaxation_before, t0, self.settings.tolerance, rates);
                 Ok(Advanced { stats, relaxed })
             }
