@@ -174,9 +174,11 @@ impl Transform {
     }
 
     /// `slot` = Xᵀ I X (if `replace`) or `slot` += Xᵀ I X: a child-frame
-    /// inertia (or its derivative) in parent coordinates, written block by
-    /// block into the slot, so the inward passes accumulate without a 6×6
-    /// temporary.
+    /// inertia (or its derivative) in parent coordinates. The term is
+    /// assembled whole and added to the slot in one 6×6 operation: the
+    /// parent reads the slot right after (the next link of a chain), and a
+    /// slot written block by block, each block's columns half a 6-column,
+    /// is read back by loads that straddle two writes and wait for them.
     ///
     /// `inertia` must be symmetric, [A B; Bᵀ C] in (angular, linear)
     /// blocks; its lower-left block is not read. By blocks rather than as
@@ -213,13 +215,14 @@ impl Transform {
         ]);
         let b_parent = b + r_c;
         let a_parent = symmetric(a + r_bt + r_bt.transpose() - r_c_r);
+        let mut term = SpatialMat::zeros();
         for (row, col, block) in [(0, 0, a_parent), (0, 3, b_parent), (3, 0, b_parent.transpose()), (3, 3, c)] {
-            let mut target = slot.fixed_view_mut::<3, 3>(row, col);
-            if replace {
-                target.copy_from(&block);
-            } else {
-                target += block;
-            }
+            term.fixed_view_mut::<3, 3>(row, col).copy_from(&block);
+        }
+        if replace {
+            *slot = term;
+        } else {
+            *slot += term;
         }
     }
 }
