@@ -174,15 +174,20 @@ impl Transform {
     }
 
     /// `slot` = Xᵀ I X (if `replace`) or `slot` += Xᵀ I X: a child-frame
-    /// inertia (or its derivative) in parent coordinates, written block by
-    /// block into the slot, so the inward passes accumulate without a 6×6
-    /// temporary.
+    /// inertia (or its derivative) in parent coordinates. The term is
+    /// assembled whole and added to the slot in one 6×6 operation: the
+    /// parent reads the slot right after (the next link of a chain), and a
+    /// slot written block by block, each block's columns half a 6-column,
+    /// is read back by loads that straddle two writes and wait for them.
     ///
     /// `inertia` must be symmetric, [A B; Bᵀ C] in (angular, linear)
     /// blocks; its lower-left block is not read. By blocks rather than as
     /// 6×6 products (this congruence is the passes' largest cost): with
     /// X = diag(E, E)·[1 0; −r× 1], first A′ = EᵀAE, B′ = EᵀBE, C′ = EᵀCE,
     /// then Xᵀ I X = [A′ + r×B′ᵀ + (r×B′ᵀ)ᵀ − r×C′r×,  B′ + r×C′;  ·,  C′].
+    /// The products with r× are cross products, which round as the 3×3
+    /// products with the skew matrix do (the same two terms, summed in the
+    /// same order) without multiplying its three zeros.
     ///
     /// The term is exactly symmetric (its diagonal blocks are symmetrized): the
     /// passes accumulate these along the tree, and formulas that rely on
@@ -194,18 +199,30 @@ impl Transform {
         let a = e_t * inertia.fixed_view::<3, 3>(0, 0) * e;
         let b = e_t * inertia.fixed_view::<3, 3>(0, 3) * e;
         let c = symmetric(e_t * inertia.fixed_view::<3, 3>(3, 3) * e);
-        let r = skew(&self.trans);
-        let r_c = r * c;
-        let r_bt = r * b.transpose();
+        let r = &self.trans;
+        // r×C′ column by column; r×B′ᵀ has column j = r × (row j of B′);
+        // row i of (r×C′)(r×) is (row i of r×C′) × r, as xᵀ(r×) = (x × r)ᵀ.
+        let r_c = Mat3::from_columns(&[r.cross(&c.column(0)), r.cross(&c.column(1)), r.cross(&c.column(2))]);
+        let r_bt = Mat3::from_columns(&[
+            r.cross(&b.row(0).transpose()),
+            r.cross(&b.row(1).transpose()),
+            r.cross(&b.row(2).transpose()),
+        ]);
+        let r_c_r = Mat3::from_rows(&[
+            r_c.row(0).transpose().cross(r).transpose(),
+            r_c.row(1).transpose().cross(r).transpose(),
+            r_c.row(2).transpose().cross(r).transpose(),
+        ]);
         let b_parent = b + r_c;
-        let a_parent = symmetric(a + r_bt + r_bt.transpose() - r_c * r);
+        let a_parent = symmetric(a + r_bt + r_bt.transpose() - r_c_r);
+        let mut term = SpatialMat::zeros();
         for (row, col, block) in [(0, 0, a_parent), (0, 3, b_parent), (3, 0, b_parent.transpose()), (3, 3, c)] {
-            let mut target = slot.fixed_view_mut::<3, 3>(row, col);
-            if replace {
-                target.copy_from(&block);
-            } else {
-                target += block;
-            }
+            term.fixed_view_mut::<3, 3>(row, col).copy_from(&block);
+        }
+        if replace {
+            *slot = term;
+        } else {
+            *slot += term;
         }
     }
 }

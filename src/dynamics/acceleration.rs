@@ -17,12 +17,15 @@ use crate::math::{SpatialVec, cross_motion};
 use crate::model::Model;
 use crate::workspace::{Stage, Workspace};
 
-fn acceleration_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize) {
+/// The outward pass for one link with N dofs, whose parent's A is
+/// `a_parent`; returns its A.
+#[inline(always)]
+fn acceleration_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, a_parent: &SpatialVec) -> SpatialVec {
     let link = &model.links[i];
     let adr = link.dof_adr;
     let s = cols::<N>(&link.motion_subspace);
     let a_plus = match link.parent {
-        Some(p) => ws.x_parent[i].apply_motion(&ws.a_body[p]),
+        Some(_) => ws.x_parent[i].apply_motion(a_parent),
         None => SpatialVec::zeros(),
     };
     let v_joint = s * ws.qvel.fixed_rows::<N>(adr);
@@ -30,7 +33,9 @@ fn acceleration_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize
     let joint_term: SVector<f64, N> = ws.nu_dot_joint.fixed_rows::<N>(adr).into_owned();
     let qacc = block::<N>(&ws.r_inv_joint[i]).transpose() * joint_term - cols::<N>(&ws.gain[i]).transpose() * a_passed;
     ws.qacc.fixed_rows_mut::<N>(adr).copy_from(&qacc);
-    ws.a_body[i] = a_passed + s * qacc;
+    let a = a_passed + s * qacc;
+    ws.a_body[i] = a;
+    a
 }
 
 impl Workspace {
@@ -38,11 +43,18 @@ impl Workspace {
     /// the last pass 3 (with or without the factor's rates). Needs pass 3.
     pub fn compute_accelerations(&mut self, model: &Model) -> Result<(), DynamicsError> {
         require(self, Stage::JointRates, "compute_accelerations")?;
+        // The parent's A in registers when it is the previous link, as pass 2 hands over V.
+        let mut a_previous = SpatialVec::zeros();
         for i in 0..model.links.len() {
-            match model.links[i].ndof {
-                1 => acceleration_link::<1>(model, self, i),
-                _ => acceleration_link::<3>(model, self, i),
-            }
+            let a_parent = match model.links[i].parent {
+                Some(p) if p + 1 == i => a_previous,
+                Some(p) => self.a_body[p],
+                None => SpatialVec::zeros(),
+            };
+            a_previous = match model.links[i].ndof {
+                1 => acceleration_link::<1>(model, self, i, &a_parent),
+                _ => acceleration_link::<3>(model, self, i, &a_parent),
+            };
         }
         Ok(())
     }

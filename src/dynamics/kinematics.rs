@@ -14,7 +14,9 @@ use crate::model::{Link, LinkJoint, Model};
 use crate::workspace::Workspace;
 
 /// ⁱX_F: the link frame relative to its joint's inboard frame, for `theta`.
-/// Quaternions are normalized in `theta` (as MuJoCo does).
+/// Quaternions are normalized in `theta` (as MuJoCo does). Inlined into
+/// pass 1, which would otherwise take the transform back through memory.
+#[inline]
 pub fn joint_transform(link: &Link, theta: &mut [f64]) -> Result<Transform, DynamicsError> {
     let q = &mut theta[link.qpos_adr..];
     let rotate_about_anchor = |rot: Mat3| Transform::from_pose(&rot, &(link.anchor - rot * link.anchor));

@@ -20,11 +20,18 @@ pub(crate) enum Given {
     Qvel,
 }
 
-fn velocity_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, given: Given) {
+/// Pass 2 for one link with N dofs, whose parent's V is `v_parent`; returns its V.
+fn velocity_link<const N: usize>(
+    model: &Model,
+    ws: &mut Workspace,
+    i: usize,
+    given: Given,
+    v_parent: &SpatialVec,
+) -> SpatialVec {
     let link = &model.links[i];
     let adr = link.dof_adr;
     let v_plus = match link.parent {
-        Some(p) => ws.x_parent[i].apply_motion(&ws.v_body[p]),
+        Some(_) => ws.x_parent[i].apply_motion(v_parent),
         None => SpatialVec::zeros(),
     };
     let gain_t = cols::<N>(&ws.gain[i]).transpose();
@@ -46,15 +53,27 @@ fn velocity_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, gi
     ws.qvel.fixed_rows_mut::<N>(adr).copy_from(&qvel);
     ws.w_joint.fixed_rows_mut::<N>(adr).copy_from(&w);
     ws.v_plus_body[i] = v_plus;
-    ws.v_body[i] = v_plus + cols::<N>(&link.motion_subspace) * qvel;
+    let v = v_plus + cols::<N>(&link.motion_subspace) * qvel;
+    ws.v_body[i] = v;
+    v
 }
 
 /// Pass 2 over all links.
 pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, given: Given) {
+    // The previous link's V, handed over in registers when it is the
+    // parent (as along a chain): read back from `v_body` right after its
+    // store, its linear half straddles two of the store's 16-byte writes,
+    // which stalls the load until they retire.
+    let mut v_previous = SpatialVec::zeros();
     for i in 0..model.links.len() {
-        match model.links[i].ndof {
-            1 => velocity_link::<1>(model, ws, i, given),
-            _ => velocity_link::<3>(model, ws, i, given),
-        }
+        let v_parent = match model.links[i].parent {
+            Some(p) if p + 1 == i => v_previous,
+            Some(p) => ws.v_body[p],
+            None => SpatialVec::zeros(),
+        };
+        v_previous = match model.links[i].ndof {
+            1 => velocity_link::<1>(model, ws, i, given, &v_parent),
+            _ => velocity_link::<3>(model, ws, i, given, &v_parent),
+        };
     }
 }

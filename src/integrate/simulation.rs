@@ -275,7 +275,7 @@ impl Simulation {
         match result {
             Ok(stats) => {
                 self.state.time = t_end;
-                let rates = self.integrator.largest_rate();
+                let rates = || self.integrator.largest_rate();
                 let relaxed = self.state.carry.relaxed_since(relaxation_before, t0, self.settings.tolerance, rates);
                 let moved = if chose.is_none() { self.move_up_if_dear(model, t0, &stats) } else { None };
                 Ok(Advanced { stats, relaxed, chose, moved })
