@@ -43,8 +43,7 @@ fn frictional_with(flags: &str, options: &str) -> Result<Model, nudyn::model::Mo
 #[test]
 fn a_no_slip_pass_over_friction_rows_compiles_with_its_settings() {
     // Once refused; its agreement with MuJoCo is in tests/python/test_noslip.py.
-    let model =
-        frictional_with(r#"island="disable""#, r#"noslip_iterations="3" noslip_tolerance="1e-4""#).unwrap();
+    let model = frictional_with(r#"island="disable""#, r#"noslip_iterations="3" noslip_tolerance="1e-4""#).unwrap();
     let options = model.constraints.options;
     assert_eq!((options.noslip_iterations, options.noslip_tolerance, options.islands), (3, 1e-4, false));
     let defaults = frictional("").constraints.options;
