@@ -303,6 +303,26 @@ def test_content_type_and_upper_case_extensions(nudyn, tmp_path, fmt):
         compare(nudyn, path, label)
 
 
+@pytest.mark.parametrize("corners", [100, 101, 215])
+def test_polygons_of_more_than_100_corners_leave_no_triangles(nudyn, tmp_path, corners):
+    """MuJoCo 4.0 cuts an OBJ polygon of up to 100 corners and keeps nothing
+    of a larger one (Menagerie's stretch_3 gripper has one of 215): a
+    pyramid on such a base is its sides alone, in every mode."""
+    rng = np.random.default_rng(corners)
+    angles = np.sort(rng.uniform(0, 2 * np.pi, corners))
+    radii = 0.1 * (1 + 0.3 * rng.uniform(size=corners))
+    # An elongated base: principal axes well apart, so that they are well defined.
+    lines = [f"v {r * np.cos(a) + 0.3:.9g} {0.5 * r * np.sin(a) + 0.2:.9g} 0.05" for a, r in zip(angles, radii)]
+    lines += ["v 0.3 0.2 -0.05", "f " + " ".join(str(k + 1) for k in range(corners))]
+    lines += [f"f {(k + 1) % corners + 1} {k + 1} {corners + 1}" for k in range(corners)]
+    (tmp_path / "pyramid.obj").write_text("\n".join(lines) + "\n")
+    for mode in ["legacy", "exact", "shell"]:
+        path = mesh_scene(tmp_path, f'file="{tmp_path / "pyramid.obj"}" inertia="{mode}"')
+        model = mujoco.MjModel.from_xml_path(str(path))
+        assert (model.mesh_facenum[0] > corners) == (corners <= 100)
+        compare(nudyn, path, f"{corners}-corner base, {mode}")
+
+
 @pytest.mark.parametrize("path", EXAMPLES + IMPORTER_FIXTURES + SENSOR_FIXTURES, ids=lambda p: p.stem)
 def test_every_fixture_and_example(nudyn, path):
     proc = describe(nudyn, path)

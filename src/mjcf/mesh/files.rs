@@ -158,6 +158,10 @@ pub(crate) fn read_obj(text: &str) -> Result<RawMesh, String> {
                 match corners[..] {
                     [a, b, c] => mesh.faces.push([a, b, c]),
                     [a, b, c, d] => mesh.faces.extend(split_quad(&mesh.vertices, [a, b, c, d])),
+                    // MuJoCo 4.0 keeps no triangle of a polygon of more than
+                    // MAX_CUT_CORNERS corners (observed: regular and irregular
+                    // polygons of 101 corners and more leave nothing, of 100 are cut).
+                    _ if corners.len() > MAX_CUT_CORNERS => {}
                     [_, _, _, _, _, ..] => {
                         // tinyobjloader cuts a polygon with the vertices read when its
                         // shape ends; nudyn cuts it where it stands, which is the same
@@ -210,6 +214,9 @@ fn split_quad(vertices: &[[f32; 3]], quad: [i64; 4]) -> [[i64; 3]; 2] {
         _ => [[a, b, c], [a, c, d]],
     }
 }
+
+/// The most corners of an OBJ polygon that MuJoCo 4.0 cuts into triangles.
+const MAX_CUT_CORNERS: usize = 100;
 
 /// The triangles, as positions in `points`, into which tinyobjloader (as
 /// compiled into MuJoCo 4.0, without its optional earcut) cuts a polygon of
