@@ -45,6 +45,7 @@ from nudyn_driver.package import FmuPackage
 from . import cli, native_host, report
 from . import work_precision as work_precision_runs
 from .cli import binaries, run_stamp
+from .methods import mujoco_reaching
 from .report import median
 from .tolerance import scaled_error
 from .trees import write_tree
@@ -107,10 +108,7 @@ def vehicle_runs(vehicle: Vehicle, bench: Path, nudyn: Path, host: Path, work: P
         for entry in rk4:
             entry["seconds"].append(mujoco.run("RK4", entry["step"], plan)[0])
     for run in runs:
-        target = max(run["error"], run["tolerance"])
-        reaching = [entry for entry in rk4 if entry["error"] <= target]
-        run["mujoco_step"] = max(entry["step"] for entry in reaching) if reaching else None
-        mujoco_seconds = next((median(e["seconds"]) for e in rk4 if e["step"] == run["mujoco_step"]), None)
+        run["mujoco_step"], mujoco_seconds = mujoco_reaching(run, rk4)
         run["mujoco_seconds"] = mujoco_seconds
         run["host_over_mujoco"] = median(run["host_seconds"]) / mujoco_seconds if mujoco_seconds else None
         run["fmpy_over_mujoco"] = median(run["fmpy_seconds"]) / mujoco_seconds if mujoco_seconds else None
