@@ -7,7 +7,7 @@
 //! (finite, positive settings), so that even a blob crafted with a valid
 //! checksum cannot put a NaN into the outputs.
 
-use nudyn::integrate::{AutoChoice, Carry, HeldJacobian, MethodSetting, RunState, Scheme, Settings};
+use nudyn::integrate::{AutoChoice, Carry, HeldJacobian, MOVE_UP_WINDOW, MethodSetting, RunState, Scheme, Settings};
 use nudyn_contract::plant::{method_of_value, method_value};
 
 use crate::plant::PlantState;
@@ -21,8 +21,9 @@ const MAGIC: &[u8; 8] = b"nudynFMS";
 /// 6: the method as the FMU's `method` value, max_step 0 allowed; 7: θ̇,
 /// which the integrator advances; 8: the W a Rosenbrock method holds; 9:
 /// the rates at the run's start, which a relaxation's warning compares with;
-/// 10: what `method = auto` chose and measured).
-const VERSION: u32 = 10;
+/// 10: what `method = auto` chose and measured; 11: the attempts of the
+/// communication steps `auto` weighs its next move on).
+const VERSION: u32 = 11;
 
 /// The sizes of a plant's state: a blob is restored only into a plant of the same.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -187,8 +188,13 @@ impl Snapshot {
             s.run.carry.relaxation,
             s.run.carry.start_rates,
         ];
-        let choice =
-            s.run.auto_choice.map_or([0.0; CHOICE_SCALARS], |c| [c.probe_step, c.error_per_second, c.tolerance]);
+        let mut choice = [0.0; CHOICE_SCALARS];
+        if let Some(c) = s.run.auto_choice {
+            choice[..3].copy_from_slice(&[c.probe_step, c.error_per_second, c.tolerance]);
+            for (slot, &attempts) in choice[3..].iter_mut().zip(&c.earlier_attempts) {
+                *slot = attempts as f64;
+            }
+        }
         let w = &s.jacobian.derivatives;
         let vectors = [&s.run.theta, &s.run.nu, &s.run.qvel, &s.eps, &s.eps_rate, &s.ctrl, &s.ctrl_rate, w];
         for x in scalars.iter().chain(&choice).chain(vectors.into_iter().flatten()) {
@@ -265,11 +271,19 @@ impl Snapshot {
         if let Some(&value) = choice.iter().find(|x| x.is_nan() || **x < 0.0) {
             return Err(SnapshotError::Value { what: "a value auto measured", value, must: "non-negative" });
         }
+        let mut earlier_attempts = [0; MOVE_UP_WINDOW - 1];
+        for (slot, &value) in earlier_attempts.iter_mut().zip(&choice[3..]) {
+            if value.fract() != 0.0 || value > u32::MAX as f64 {
+                return Err(SnapshotError::Value { what: "a step count auto weighs", value, must: "a whole number" });
+            }
+            *slot = value as usize;
+        }
         let auto_choice = chosen.map(|method| AutoChoice {
             method,
             probe_step: choice[0],
             error_per_second: choice[1],
             tolerance: choice[2],
+            earlier_attempts,
         });
         let (theta, rest) = vectors.split_at(nq);
         let (nu, rest) = rest.split_at(nv);
@@ -317,8 +331,9 @@ impl Snapshot {
 const FLAGS: usize = 6;
 
 /// What `auto` measured, after the scalars (0 before it has chosen): the
-/// probe's step, its error per second, the tolerance.
-const CHOICE_SCALARS: usize = 3;
+/// probe's step, its error per second, the tolerance, and the steps
+/// attempted in the communication steps it weighs with the next.
+const CHOICE_SCALARS: usize = 3 + MOVE_UP_WINDOW - 1;
 
 /// The scalars before the vectors: times, settings and integration values.
 const SCALARS: usize = 10;
@@ -438,8 +453,13 @@ mod tests {
     fn sample_with_choice() -> Snapshot {
         let mut snapshot = sample();
         snapshot.state.method = MethodSetting::Auto;
-        snapshot.state.run.auto_choice =
-            Some(AutoChoice { method: Method::Bs3, probe_step: 0.1, error_per_second: 3.5e-14, tolerance: 1e-6 });
+        snapshot.state.run.auto_choice = Some(AutoChoice {
+            method: Method::Bs3,
+            probe_step: 0.1,
+            error_per_second: 3.5e-14,
+            tolerance: 1e-6,
+            earlier_attempts: [0, 1, 3, 2],
+        });
         snapshot
     }
 
@@ -544,6 +564,12 @@ mod tests {
             Snapshot::deserialize(&serialized(&explicit_with_w), GUID, SIZES),
             Err(SnapshotError::JacobianWithoutRosenbrock("dop853"))
         );
+        let mut bytes = serialized(&sample_with_choice());
+        let newer_attempts_at = MAGIC.len() + 8 + GUID.len() + 12 + FLAGS + 4 + (SCALARS + CHOICE_SCALARS - 1) * 8;
+        assert_eq!(bytes[newer_attempts_at..newer_attempts_at + 8], 2.0f64.to_le_bytes());
+        bytes[newer_attempts_at..newer_attempts_at + 8].copy_from_slice(&1.5f64.to_le_bytes());
+        let error = Snapshot::deserialize(&with_valid_checksum(bytes), GUID, SIZES).unwrap_err();
+        assert!(error.to_string().contains("a step count auto weighs"), "{error}");
         let mut choice_without_auto = sample_with_choice();
         choice_without_auto.state.method = Method::Tsit5.into();
         assert_eq!(

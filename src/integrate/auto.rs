@@ -18,13 +18,22 @@
 //!
 //! The start can mislead: a motion that speeds up later (a long chain whose
 //! swing grows) looks slower than it is. So a run that chose `bs3` or
-//! `tsit5` moves up one order (to `tsit5`, then `dop853`) after any later
-//! communication step that took [`MOVE_UP_ATTEMPTS`] attempted steps or
-//! more: at that count the method's evaluations (9 for `bs3`, 18 for
-//! `tsit5`) exceed one step of the next (6, 12). The first communication
-//! step is not judged: its first step is the starting step's guess.
+//! `tsit5` moves up one order (to `tsit5`, then `dop853`) when its
+//! attempted steps over the last [`MOVE_UP_WINDOW`] communication steps
+//! cost more than one step of the next method in each of them: more than
+//! two attempts per communication step on average (a step of `bs3` costs
+//! 3 evaluations, of `tsit5` 6, of `dop853` 12). A lone communication step
+//! of three attempts (one full-interval step rejected, then two) is the
+//! controller probing the edge of one step per interval, and a few
+//! communication steps of two or three a passing phase, not a faster
+//! motion: a move is for the rest of the run, and judged on one or three
+//! communication steps it took bus_arm7 at 1e-7 to `dop853` for its last
+//! 2 s (758 evaluations, where `tsit5` throughout takes 632). The first
+//! communication step is not judged: its first step is the starting
+//! step's guess. The window grows from the second, judged alone (a start
+//! that misled is caught at once), and starts afresh after a move.
 
-use super::tableau::Method;
+use super::tableau::{Method, Scheme};
 
 /// How a run's method is set: named by the user (never overridden), or
 /// chosen by the run.
@@ -158,9 +167,27 @@ impl Pace {
     }
 }
 
-/// Attempted steps in one communication step from which a run that `auto`
-/// set to `bs3` or `tsit5` moves up one order.
-pub const MOVE_UP_ATTEMPTS: usize = 3;
+/// Communication steps over which `auto` weighs a run's attempted steps
+/// (this one and the ones before it, back to the run's second or its last move).
+pub const MOVE_UP_WINDOW: usize = 5;
+
+/// Whether a run with `method` moves up after communication steps that
+/// attempted `attempts` steps each (the window, judged ones only): when
+/// their evaluations exceed one step of the next method per communication step.
+pub fn moves_up(method: Method, attempts: &[usize]) -> Option<Method> {
+    let to = order_up(method)?;
+    let total: usize = attempts.iter().sum();
+    (total * evaluations_per_step(method) > attempts.len() * evaluations_per_step(to)).then_some(to)
+}
+
+/// θ̈ evaluations of one step of an explicit method (its last stage reused
+/// as the next step's first where it is "first same as last").
+fn evaluations_per_step(method: Method) -> usize {
+    match method.scheme() {
+        Scheme::Explicit(t) => t.b.len() - usize::from(t.first_same_as_last),
+        Scheme::Rosenbrock(_) => unreachable!("auto chooses explicit methods"),
+    }
+}
 
 /// The method one order up that `auto` moves to from `method`, if any.
 pub fn order_up(method: Method) -> Option<Method> {
@@ -180,20 +207,24 @@ pub struct AutoMove {
     pub to: Method,
     /// The start of the communication step that asked for it (s).
     pub time: f64,
-    /// The steps that communication step attempted.
-    pub attempts: usize,
+    /// The steps attempted in the window's communication steps, oldest
+    /// first; the last `judged` of them were judged (the others are 0).
+    pub attempts: [usize; MOVE_UP_WINDOW],
+    /// How many communication steps the window held.
+    pub judged: usize,
 }
 
 impl std::fmt::Display for AutoMove {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let AutoMove { from, to, time, attempts } = *self;
+        let AutoMove { from, to, time, attempts, judged } = *self;
         write!(
             f,
             "method auto moved from {} to {} after the communication step from t = {time} s: {} attempted \
-             {attempts} steps there, costing more than one step of {}",
+             {:?} steps in the last {judged} communication steps, costing more than one step of {} in each",
             from.name(),
             to.name(),
             from.name(),
+            &attempts[MOVE_UP_WINDOW - judged..],
             to.name()
         )
     }
@@ -210,13 +241,40 @@ pub struct AutoChoice {
     pub error_per_second: f64,
     /// The tolerance it was chosen for.
     pub tolerance: f64,
+    /// Steps attempted in the judged communication steps before the last
+    /// one, since the second or the last move, newest last (0: none).
+    pub earlier_attempts: [usize; MOVE_UP_WINDOW - 1],
 }
 
 impl AutoChoice {
     /// The choice for a probe step of `probe_step` that erred by `error_per_second`, at `tolerance`.
     pub fn new(probe_step: f64, error_per_second: f64, tolerance: f64) -> Self {
         let method = Pace::of(error_per_second).method(tolerance);
-        AutoChoice { method, probe_step, error_per_second, tolerance }
+        AutoChoice { method, probe_step, error_per_second, tolerance, earlier_attempts: [0; MOVE_UP_WINDOW - 1] }
+    }
+
+    /// Judges a communication step from `time` that attempted `attempts`
+    /// steps: moves up one order (and starts the window afresh) when the
+    /// window asks for it, else remembers the count.
+    pub fn judge(&mut self, time: f64, attempts: usize) -> Option<AutoMove> {
+        // Counts enter at the back, so the ones held are the last nonzero ones.
+        let mut window = [0; MOVE_UP_WINDOW];
+        window[..MOVE_UP_WINDOW - 1].copy_from_slice(&self.earlier_attempts);
+        window[MOVE_UP_WINDOW - 1] = attempts;
+        let judged = 1 + self.earlier_attempts.iter().filter(|&&n| n > 0).count();
+        match moves_up(self.method, &window[MOVE_UP_WINDOW - judged..]) {
+            Some(to) => {
+                let moved = AutoMove { from: self.method, to, time, attempts: window, judged };
+                self.method = to;
+                self.earlier_attempts = [0; MOVE_UP_WINDOW - 1];
+                Some(moved)
+            }
+            None => {
+                self.earlier_attempts.rotate_left(1);
+                self.earlier_attempts[MOVE_UP_WINDOW - 2] = attempts;
+                None
+            }
+        }
     }
 
     /// The vehicle's pace as measured.
@@ -227,7 +285,7 @@ impl AutoChoice {
 
 impl std::fmt::Display for AutoChoice {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let AutoChoice { method, probe_step, error_per_second, tolerance } = *self;
+        let AutoChoice { method, probe_step, error_per_second, tolerance, .. } = *self;
         write!(
             f,
             "method auto chose {} for tolerance {tolerance:e}: one DOP853 step of {probe_step} s from the start errs by \
@@ -240,7 +298,6 @@ impl std::fmt::Display for AutoChoice {
 
 #[cfg(test)]
 mod tests {
-    use super::super::tableau::Scheme;
     use super::*;
 
     /// The rule as measured on the examples (docs/integration.md).
@@ -271,15 +328,45 @@ mod tests {
         assert_eq!(order_up(Method::Bs3), Some(Method::Tsit5));
         assert_eq!(order_up(Method::Tsit5), Some(Method::Dop853));
         assert_eq!(order_up(Method::Dop853), None);
-        // From MOVE_UP_ATTEMPTS steps on, the method costs more than one step of the next.
+        // Each step of the next method costs twice one of the method before.
+        assert_eq!([Method::Bs3, Method::Tsit5, Method::Dop853].map(evaluations_per_step), [3, 6, 12]);
         for (from, to) in [(Method::Bs3, Method::Tsit5), (Method::Tsit5, Method::Dop853)] {
-            let per_step = |method: Method| match method.scheme() {
-                Scheme::Explicit(t) => t.b.len() - usize::from(t.first_same_as_last),
-                Scheme::Rosenbrock(_) => unreachable!("auto chooses explicit methods"),
-            };
-            let cost = |method: Method, steps: usize| steps * per_step(method);
-            assert!(cost(from, MOVE_UP_ATTEMPTS) > cost(to, 1) && cost(from, MOVE_UP_ATTEMPTS - 1) <= cost(to, 1));
+            assert_eq!(moves_up(from, &[3]), Some(to), "three attempts judged alone");
+            assert_eq!(moves_up(from, &[2]), None);
+            assert_eq!(moves_up(from, &[1, 1, 3]), None, "one probe of the edge among single steps");
+            assert_eq!(moves_up(from, &[1, 3, 3]), Some(to));
+            assert_eq!(moves_up(from, &[3, 1, 3]), Some(to), "7 attempts in 3 communication steps");
+            assert_eq!(moves_up(from, &[2, 2, 2]), None, "as dear as one step of the next");
         }
+        assert_eq!(moves_up(Method::Dop853, &[9, 9, 9]), None);
+    }
+
+    /// The window as the FMU carries it from one communication step to the next.
+    #[test]
+    fn judging_keeps_a_window_and_restarts_it_after_a_move() {
+        let mut choice = AutoChoice::new(0.1, 1e-12, 1e-7);
+        assert_eq!(choice.method, Method::Tsit5);
+        for (k, attempts) in [1, 1, 3, 2, 2].into_iter().enumerate() {
+            assert_eq!(choice.judge(0.1 * (k + 1) as f64, attempts), None, "9 attempts in 5 communication steps");
+        }
+        assert_eq!(choice.earlier_attempts, [1, 3, 2, 2]);
+        let moved = choice.judge(0.6, 4).expect("3, 2, 2, 4 after a 1: 12 attempts in 5");
+        assert_eq!(
+            (moved.from, moved.to, moved.attempts, moved.judged),
+            (Method::Tsit5, Method::Dop853, [1, 3, 2, 2, 4], 5)
+        );
+        assert_eq!(choice.method, Method::Dop853);
+        assert_eq!(choice.earlier_attempts, [0; MOVE_UP_WINDOW - 1]);
+        assert!(
+            moved.to_string().contains("attempted [1, 3, 2, 2, 4] steps in the last 5 communication steps"),
+            "{moved}"
+        );
+        let mut fresh = AutoChoice::new(0.1, 1e-12, 1e-4);
+        assert_eq!(fresh.method, Method::Bs3);
+        assert_eq!(fresh.judge(0.1, 2), None);
+        let moved = fresh.judge(0.2, 5).expect("7 attempts in 2 communication steps");
+        assert_eq!((moved.attempts, moved.judged), ([0, 0, 0, 2, 5], 2));
+        assert_eq!(fresh.judge(0.3, 3).map(|m| m.to), Some(Method::Dop853), "the window restarted at the move");
     }
 
     #[test]

@@ -12,7 +12,7 @@ mod tableau;
 pub use adaptive::{
     AdvanceError, Carry, DEFAULT_FIXED_STEP, IntervalTooLong, MAX_STEPS, Overflow, Settings, Stats, ToleranceRelaxed,
 };
-pub use auto::{AutoChoice, AutoMove, MOVE_UP_ATTEMPTS, MethodSetting, PROBE_METHOD, Pace, order_up};
+pub use auto::{AutoChoice, AutoMove, MOVE_UP_WINDOW, MethodSetting, PROBE_METHOD, Pace, moves_up, order_up};
 pub use rkmk::{Integrator, retract};
 pub use rosenbrock::{HeldJacobian, W_MAX_AGE};
 pub use simulation::{Advanced, Input, InputSignal, RunState, Simulation};

@@ -5,7 +5,7 @@
 //! set (θ, ν); the integrator advances (θ, θ̇) (rkmk.rs says why).
 
 use super::adaptive::{AdvanceError, Carry, Settings, Stats, TOLERANCE_TIME, ToleranceRelaxed};
-use super::auto::{AutoChoice, AutoMove, MOVE_UP_ATTEMPTS, MethodSetting, PROBE_METHOD, order_up};
+use super::auto::{AutoChoice, AutoMove, MethodSetting, PROBE_METHOD};
 use super::rkmk::{Integrator, nu_of_qvel, qvel_of_nu};
 use super::rosenbrock::HeldJacobian;
 use super::tableau::Method;
@@ -354,15 +354,11 @@ impl Simulation {
     }
 
     /// After an advance from `t0` that `auto` did not choose in: moves a
-    /// run up one order when the advance took [`MOVE_UP_ATTEMPTS`] steps
-    /// or more (auto.rs).
+    /// run up one order when its last communication steps' attempts ask
+    /// for it (auto.rs).
     fn move_up_if_dear(&mut self, model: &Model, t0: f64, stats: &Stats) -> Option<AutoMove> {
-        let choice = self.state.auto_choice.as_mut()?;
-        let attempts = stats.accepted + stats.rejected;
-        let to = order_up(choice.method).filter(|_| attempts >= MOVE_UP_ATTEMPTS)?;
-        let moved = AutoMove { from: choice.method, to, time: t0, attempts };
-        choice.method = to;
-        self.integrator.set_method(model, to);
+        let moved = self.state.auto_choice.as_mut()?.judge(t0, stats.accepted + stats.rejected)?;
+        self.integrator.set_method(model, moved.to);
         Some(moved)
     }
 
