@@ -84,7 +84,10 @@ fn factor_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize) -> R
         (r, r_inv, d_inv)
     };
     let gain = u * d_inv;
-    ws.ia_reduced[i] = ia - gain * u.transpose();
+    // Only a parent takes in I^a (passes 1 and 3); a base link has none.
+    if link.parent.is_some() {
+        ws.ia_reduced[i] = ia - gain * u.transpose();
+    }
     ws.gain[i].fixed_columns_mut::<N>(0).copy_from(&gain);
     write_block(&mut ws.r_joint[i], &r);
     write_block(&mut ws.r_inv_joint[i], &r_inv);

@@ -145,11 +145,13 @@ pub(crate) fn accumulate<T: std::ops::AddAssign>(slot: &mut T, value: T, opens_p
 }
 
 /// An N×N block of a padded 3×3 matrix.
+#[inline(always)]
 pub(crate) fn block<const N: usize>(m: &nalgebra::Matrix3<f64>) -> SMatrix<f64, N, N> {
     m.fixed_view::<N, N>(0, 0).into_owned()
 }
 
 /// The first N columns of a padded 6×3 matrix.
+#[inline(always)]
 pub(crate) fn cols<const N: usize>(m: &SMatrix<f64, 6, 3>) -> SMatrix<f64, 6, N> {
     m.fixed_columns::<N>(0).into_owned()
 }
