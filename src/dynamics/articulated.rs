@@ -7,7 +7,7 @@
 use nalgebra::SMatrix;
 
 use super::{DynamicsError, cols, kinematics};
-use crate::math::Mat3;
+use crate::math::{Mat3, SpatialMat};
 use crate::model::Model;
 use crate::workspace::Workspace;
 
@@ -59,10 +59,8 @@ pub fn upper_triangular_inverse<const N: usize>(r: &SMatrix<f64, N, N>) -> SMatr
 fn factor_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize) -> Result<(), DynamicsError> {
     let link = &model.links[i];
     let s = cols::<N>(&link.motion_subspace);
-    let mut ia = link.spatial_inertia();
-    if ws.accumulation[i].has_children {
-        ia += ws.ia_reduced[i];
-    }
+    let mut ia = if ws.accumulation[i].has_children { ws.ia_reduced[i] } else { SpatialMat::zeros() };
+    link.add_spatial_inertia_to(&mut ia);
     let u = ia * s;
     let mut d = s.transpose() * u;
     if !model.shortcuts.no_armature {
