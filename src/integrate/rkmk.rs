@@ -267,25 +267,25 @@ impl Integrator {
                 continue;
             }
             self.delta.fill(0.0);
-            self.qvel_stage.copy_from_slice(qvel);
+            self.qvel_stage.as_mut_slice().copy_from_slice(qvel);
             accumulate(&self.k_delta, &self.k_qvel, row, h, &mut self.delta, &mut self.qvel_stage);
             self.evaluate_stage_rates(model, ws, theta, i, t + tableau.c[i] * h, inputs_at)?;
             if i == 0 {
                 self.keep_as_first(ws, self.stage_power[0]);
-                self.nu_size.zip_apply(&ws.nu, |size, nu| *size = nu.abs());
+                set_abs(&mut self.nu_size, &ws.nu);
             }
             if i == last {
-                self.nu_size.zip_apply(&ws.nu, |size, nu| *size = size.max(nu.abs()));
+                max_abs(&mut self.nu_size, &ws.nu);
                 if tableau.first_same_as_last {
-                    self.last_qvel.copy_from(&ws.qvel);
-                    self.last_nu.copy_from(&ws.nu);
+                    copy(&mut self.last_qvel, &ws.qvel);
+                    copy(&mut self.last_nu, &ws.nu);
                 }
             }
         }
         // The same operations as a stage's, so that a "first same as last"
         // method's last stage is evaluated exactly at the step's result.
         self.delta.fill(0.0);
-        self.qvel_next.copy_from_slice(qvel);
+        self.qvel_next.as_mut_slice().copy_from_slice(qvel);
         accumulate(&self.k_delta, &self.k_qvel, tableau.b, h, &mut self.delta, &mut self.qvel_next);
         let estimators = match tableau.error {
             ErrorEstimate::None => [None, None],
@@ -317,12 +317,12 @@ impl Integrator {
         t: f64,
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<(), DynamicsError> {
-        self.theta_stage.copy_from_slice(theta);
+        self.theta_stage.as_mut_slice().copy_from_slice(theta);
         retract(model, self.theta_stage.as_mut_slice(), self.delta.as_slice());
         self.stage_power[i] = self.evaluate_stage(model, ws, t, inputs_at)?;
-        self.k_qvel[i].copy_from(&ws.qacc);
+        copy(&mut self.k_qvel[i], &ws.qacc);
         // Δ̇ = θ̇, but dexp⁻¹₋Δ(ω) on ball joints.
-        self.k_delta[i].copy_from(&ws.qvel);
+        copy(&mut self.k_delta[i], &ws.qvel);
         for link in model.links.iter().filter(|l| l.joint == LinkJoint::Ball) {
             let a = link.dof_adr;
             let rotation = Vec3::new(self.delta[a], self.delta[a + 1], self.delta[a + 2]);
@@ -335,18 +335,18 @@ impl Integrator {
     /// Stage 1 from the rates cached at the step's start; ν's error scale
     /// starts from their ν.
     pub(super) fn first_as_stage_one(&mut self) {
-        self.k_delta[0].copy_from(&self.first.qvel);
-        self.k_qvel[0].copy_from(&self.first.qacc);
+        copy(&mut self.k_delta[0], &self.first.qvel);
+        copy(&mut self.k_qvel[0], &self.first.qacc);
         self.stage_power[0] = self.first.power;
-        self.nu_size.zip_apply(&self.first.nu, |size, nu| *size = nu.abs());
+        set_abs(&mut self.nu_size, &self.first.nu);
     }
 
     /// Caches the rates the workspace holds, with their `power`, as the
     /// step's first stage.
     fn keep_as_first(&mut self, ws: &Workspace, power: f64) {
-        self.first.qvel.copy_from(&ws.qvel);
-        self.first.qacc.copy_from(&ws.qacc);
-        self.first.nu.copy_from(&ws.nu);
+        copy(&mut self.first.qvel, &ws.qvel);
+        copy(&mut self.first.qacc, &ws.qacc);
+        copy(&mut self.first.nu, &ws.nu);
         self.first.power = power;
         self.first.valid = true;
     }
@@ -360,8 +360,8 @@ impl Integrator {
         t: f64,
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<(), DynamicsError> {
-        self.theta_stage.copy_from_slice(theta);
-        self.qvel_stage.copy_from_slice(qvel);
+        self.theta_stage.as_mut_slice().copy_from_slice(theta);
+        self.qvel_stage.as_mut_slice().copy_from_slice(qvel);
         let power = self.evaluate_stage(model, ws, t, inputs_at)?;
         self.keep_as_first(ws, power);
         // Any W held was formed at another start.
@@ -390,9 +390,9 @@ impl Integrator {
         self.linear.age = self.linear.age.saturating_add(1);
         if first_same_as_last {
             let last = self.method.stages() - 1;
-            self.first.qvel.copy_from(&self.last_qvel);
-            self.first.qacc.copy_from(&self.k_qvel[last]);
-            self.first.nu.copy_from(&self.last_nu);
+            copy(&mut self.first.qvel, &self.last_qvel);
+            copy(&mut self.first.qacc, &self.k_qvel[last]);
+            copy(&mut self.first.nu, &self.last_nu);
             self.first.power = self.stage_power[last];
         }
     }
@@ -432,6 +432,21 @@ pub(super) fn nu_of_qvel(
     ws.set_qvel(model, qvel)?;
     nu.copy_from_slice(ws.nu.as_slice());
     Ok(())
+}
+
+/// `to = from` as one memcpy (nalgebra's `copy_from` copies entry by entry).
+fn copy(to: &mut DVector<f64>, from: &DVector<f64>) {
+    to.as_mut_slice().copy_from_slice(from.as_slice());
+}
+
+/// size = |ν|, on slices (nalgebra's `zip_apply` steps by a runtime stride).
+fn set_abs(size: &mut DVector<f64>, nu: &DVector<f64>) {
+    size.as_mut_slice().iter_mut().zip(nu.as_slice()).for_each(|(size, nu)| *size = nu.abs());
+}
+
+/// size = max(size, |ν|), on slices.
+pub(super) fn max_abs(size: &mut DVector<f64>, nu: &DVector<f64>) {
+    size.as_mut_slice().iter_mut().zip(nu.as_slice()).for_each(|(size, nu)| *size = size.max(nu.abs()));
 }
 
 /// Adds the (Δ, θ̇) increments h·Σ wᵢkᵢ of the stages with weights `w`.
