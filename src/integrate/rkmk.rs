@@ -24,11 +24,13 @@ const MAX_STAGES: usize = 12;
 /// θₙ ⊕ Δ: moves `theta` (nq) by the algebra displacement `delta` (nv), in place.
 pub fn retract(model: &Model, theta: &mut [f64], delta: &[f64]) {
     for link in &model.links {
+        // Fixed-size sub-slices: one bounds check per joint, not per coordinate.
         let (q, d) = (&mut theta[link.qpos_adr..], &delta[link.dof_adr..]);
         match link.joint {
             LinkJoint::Hinge | LinkJoint::Slide => q[0] += d[0],
-            LinkJoint::Translation => (0..3).for_each(|k| q[k] += d[k]),
+            LinkJoint::Translation => q[..3].iter_mut().zip(&d[..3]).for_each(|(q, d)| *q += d),
             LinkJoint::Ball => {
+                let (q, d) = (&mut q[..4], &d[..3]);
                 let rotated =
                     Quat::from_quaternion(quat_from_wxyz(q)) * Quat::from_scaled_axis(Vec3::new(d[0], d[1], d[2]));
                 quat_to_wxyz(&rotated, q);
@@ -325,9 +327,9 @@ impl Integrator {
         copy(&mut self.k_delta[i], &ws.qvel);
         for link in model.links.iter().filter(|l| l.joint == LinkJoint::Ball) {
             let a = link.dof_adr;
-            let rotation = Vec3::new(self.delta[a], self.delta[a + 1], self.delta[a + 2]);
-            let omega = Vec3::new(ws.qvel[a], ws.qvel[a + 1], ws.qvel[a + 2]);
-            self.k_delta[i].fixed_rows_mut::<3>(a).copy_from(&dexp_inv(&rotation, &omega));
+            let (delta, qvel) = (&self.delta.as_slice()[a..a + 3], &ws.qvel.as_slice()[a..a + 3]);
+            let rate = dexp_inv(&Vec3::new(delta[0], delta[1], delta[2]), &Vec3::new(qvel[0], qvel[1], qvel[2]));
+            self.k_delta[i].as_mut_slice()[a..a + 3].copy_from_slice(rate.as_slice());
         }
         Ok(())
     }
