@@ -603,11 +603,14 @@ impl Integrator {
             if ws.set_qvel(model, error_qvel.as_slice()).is_err() {
                 return f64::INFINITY;
             }
+            // Slices: nalgebra's indexing is checked against both dimensions.
+            let (delta, nu_size) = (self.delta.as_slice(), self.nu_size.as_slice());
+            let (error_delta, error_nu) = (error_delta.as_slice(), ws.nu.as_slice());
             for (dof, position) in positions(model, theta) {
-                let position = position.map_or(0.0, |y| y.abs().max((y + self.delta[dof]).abs()));
+                let position = position.map_or(0.0, |y| y.abs().max((y + delta[dof]).abs()));
                 let scale_delta = tolerance * (1.0 + position);
-                let scale_nu = tolerance * (1.0 + self.nu_size[dof]);
-                *norm = norm.max((error_delta[dof] / scale_delta).abs()).max((ws.nu[dof] / scale_nu).abs());
+                let scale_nu = tolerance * (1.0 + nu_size[dof]);
+                *norm = norm.max((error_delta[dof] / scale_delta).abs()).max((error_nu[dof] / scale_nu).abs());
             }
         }
         let [high, low] = norms;

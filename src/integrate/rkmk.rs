@@ -24,11 +24,13 @@ const MAX_STAGES: usize = 12;
 /// θₙ ⊕ Δ: moves `theta` (nq) by the algebra displacement `delta` (nv), in place.
 pub fn retract(model: &Model, theta: &mut [f64], delta: &[f64]) {
     for link in &model.links {
+        // Fixed-size sub-slices: one bounds check per joint, not per coordinate.
         let (q, d) = (&mut theta[link.qpos_adr..], &delta[link.dof_adr..]);
         match link.joint {
             LinkJoint::Hinge | LinkJoint::Slide => q[0] += d[0],
-            LinkJoint::Translation => (0..3).for_each(|k| q[k] += d[k]),
+            LinkJoint::Translation => q[..3].iter_mut().zip(&d[..3]).for_each(|(q, d)| *q += d),
             LinkJoint::Ball => {
+                let (q, d) = (&mut q[..4], &d[..3]);
                 let rotated =
                     Quat::from_quaternion(quat_from_wxyz(q)) * Quat::from_scaled_axis(Vec3::new(d[0], d[1], d[2]));
                 quat_to_wxyz(&rotated, q);
@@ -239,8 +241,10 @@ impl Integrator {
         ws.set_configuration(model, self.theta_stage.as_slice())?;
         ws.set_qvel(model, self.qvel_stage.as_slice())?;
         ws.compute_qacc_actuated(model, self.eps_stage.as_slice(), self.ctrl_stage.as_slice())?;
-        let forces = ws.eps_applied.iter().zip(ws.eps_passive.iter());
-        Ok(ws.nu.iter().zip(forces).map(|(nu, (applied, passive))| nu * (applied + passive)).sum())
+        // On slices: nalgebra's iterators step by a runtime stride (2 % of all
+        // instructions on bus_arm7 went here).
+        let forces = ws.eps_applied.as_slice().iter().zip(ws.eps_passive.as_slice());
+        Ok(ws.nu.as_slice().iter().zip(forces).map(|(nu, (applied, passive))| nu * (applied + passive)).sum())
     }
 
     /// Evaluates the stages of a step of size `h` from (θ, θ̇) at time `t`
@@ -265,30 +269,25 @@ impl Integrator {
                 continue;
             }
             self.delta.fill(0.0);
-            self.qvel_stage.copy_from_slice(qvel);
-            for (j, a) in row.iter().enumerate() {
-                if *a != 0.0 {
-                    self.delta.axpy(h * a, &self.k_delta[j], 1.0);
-                    self.qvel_stage.axpy(h * a, &self.k_qvel[j], 1.0);
-                }
-            }
+            self.qvel_stage.as_mut_slice().copy_from_slice(qvel);
+            accumulate(&self.k_delta, &self.k_qvel, row, h, &mut self.delta, &mut self.qvel_stage);
             self.evaluate_stage_rates(model, ws, theta, i, t + tableau.c[i] * h, inputs_at)?;
             if i == 0 {
                 self.keep_as_first(ws, self.stage_power[0]);
-                self.nu_size.zip_apply(&ws.nu, |size, nu| *size = nu.abs());
+                set_abs(&mut self.nu_size, &ws.nu);
             }
             if i == last {
-                self.nu_size.zip_apply(&ws.nu, |size, nu| *size = size.max(nu.abs()));
+                max_abs(&mut self.nu_size, &ws.nu);
                 if tableau.first_same_as_last {
-                    self.last_qvel.copy_from(&ws.qvel);
-                    self.last_nu.copy_from(&ws.nu);
+                    copy(&mut self.last_qvel, &ws.qvel);
+                    copy(&mut self.last_nu, &ws.nu);
                 }
             }
         }
         // The same operations as a stage's, so that a "first same as last"
         // method's last stage is evaluated exactly at the step's result.
         self.delta.fill(0.0);
-        self.qvel_next.copy_from_slice(qvel);
+        self.qvel_next.as_mut_slice().copy_from_slice(qvel);
         accumulate(&self.k_delta, &self.k_qvel, tableau.b, h, &mut self.delta, &mut self.qvel_next);
         let estimators = match tableau.error {
             ErrorEstimate::None => [None, None],
@@ -320,17 +319,17 @@ impl Integrator {
         t: f64,
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<(), DynamicsError> {
-        self.theta_stage.copy_from_slice(theta);
+        self.theta_stage.as_mut_slice().copy_from_slice(theta);
         retract(model, self.theta_stage.as_mut_slice(), self.delta.as_slice());
         self.stage_power[i] = self.evaluate_stage(model, ws, t, inputs_at)?;
-        self.k_qvel[i].copy_from(&ws.qacc);
+        copy(&mut self.k_qvel[i], &ws.qacc);
         // Δ̇ = θ̇, but dexp⁻¹₋Δ(ω) on ball joints.
-        self.k_delta[i].copy_from(&ws.qvel);
+        copy(&mut self.k_delta[i], &ws.qvel);
         for link in model.links.iter().filter(|l| l.joint == LinkJoint::Ball) {
             let a = link.dof_adr;
-            let rotation = Vec3::new(self.delta[a], self.delta[a + 1], self.delta[a + 2]);
-            let omega = Vec3::new(ws.qvel[a], ws.qvel[a + 1], ws.qvel[a + 2]);
-            self.k_delta[i].fixed_rows_mut::<3>(a).copy_from(&dexp_inv(&rotation, &omega));
+            let (delta, qvel) = (&self.delta.as_slice()[a..a + 3], &ws.qvel.as_slice()[a..a + 3]);
+            let rate = dexp_inv(&Vec3::new(delta[0], delta[1], delta[2]), &Vec3::new(qvel[0], qvel[1], qvel[2]));
+            self.k_delta[i].as_mut_slice()[a..a + 3].copy_from_slice(rate.as_slice());
         }
         Ok(())
     }
@@ -338,18 +337,18 @@ impl Integrator {
     /// Stage 1 from the rates cached at the step's start; ν's error scale
     /// starts from their ν.
     pub(super) fn first_as_stage_one(&mut self) {
-        self.k_delta[0].copy_from(&self.first.qvel);
-        self.k_qvel[0].copy_from(&self.first.qacc);
+        copy(&mut self.k_delta[0], &self.first.qvel);
+        copy(&mut self.k_qvel[0], &self.first.qacc);
         self.stage_power[0] = self.first.power;
-        self.nu_size.zip_apply(&self.first.nu, |size, nu| *size = nu.abs());
+        set_abs(&mut self.nu_size, &self.first.nu);
     }
 
     /// Caches the rates the workspace holds, with their `power`, as the
     /// step's first stage.
     fn keep_as_first(&mut self, ws: &Workspace, power: f64) {
-        self.first.qvel.copy_from(&ws.qvel);
-        self.first.qacc.copy_from(&ws.qacc);
-        self.first.nu.copy_from(&ws.nu);
+        copy(&mut self.first.qvel, &ws.qvel);
+        copy(&mut self.first.qacc, &ws.qacc);
+        copy(&mut self.first.nu, &ws.nu);
         self.first.power = power;
         self.first.valid = true;
     }
@@ -363,8 +362,8 @@ impl Integrator {
         t: f64,
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<(), DynamicsError> {
-        self.theta_stage.copy_from_slice(theta);
-        self.qvel_stage.copy_from_slice(qvel);
+        self.theta_stage.as_mut_slice().copy_from_slice(theta);
+        self.qvel_stage.as_mut_slice().copy_from_slice(qvel);
         let power = self.evaluate_stage(model, ws, t, inputs_at)?;
         self.keep_as_first(ws, power);
         // Any W held was formed at another start.
@@ -393,9 +392,9 @@ impl Integrator {
         self.linear.age = self.linear.age.saturating_add(1);
         if first_same_as_last {
             let last = self.method.stages() - 1;
-            self.first.qvel.copy_from(&self.last_qvel);
-            self.first.qacc.copy_from(&self.k_qvel[last]);
-            self.first.nu.copy_from(&self.last_nu);
+            copy(&mut self.first.qvel, &self.last_qvel);
+            copy(&mut self.first.qacc, &self.k_qvel[last]);
+            copy(&mut self.first.nu, &self.last_nu);
             self.first.power = self.stage_power[last];
         }
     }
@@ -437,6 +436,21 @@ pub(super) fn nu_of_qvel(
     Ok(())
 }
 
+/// `to = from` as one memcpy (nalgebra's `copy_from` copies entry by entry).
+fn copy(to: &mut DVector<f64>, from: &DVector<f64>) {
+    to.as_mut_slice().copy_from_slice(from.as_slice());
+}
+
+/// size = |ν|, on slices (nalgebra's `zip_apply` steps by a runtime stride).
+fn set_abs(size: &mut DVector<f64>, nu: &DVector<f64>) {
+    size.as_mut_slice().iter_mut().zip(nu.as_slice()).for_each(|(size, nu)| *size = nu.abs());
+}
+
+/// size = max(size, |ν|), on slices.
+pub(super) fn max_abs(size: &mut DVector<f64>, nu: &DVector<f64>) {
+    size.as_mut_slice().iter_mut().zip(nu.as_slice()).for_each(|(size, nu)| *size = size.max(nu.abs()));
+}
+
 /// Adds the (Δ, θ̇) increments h·Σ wᵢkᵢ of the stages with weights `w`.
 fn accumulate(
     k_delta: &[DVector<f64>],
@@ -448,8 +462,16 @@ fn accumulate(
 ) {
     for (i, w) in w.iter().enumerate() {
         if *w != 0.0 {
-            delta.axpy(h * w, &k_delta[i], 1.0);
-            qvel.axpy(h * w, &k_qvel[i], 1.0);
+            add_scaled(delta.as_mut_slice(), h * w, k_delta[i].as_slice());
+            add_scaled(qvel.as_mut_slice(), h * w, k_qvel[i].as_slice());
         }
+    }
+}
+
+/// y += a·x on slices, which the compiler vectorizes (nalgebra's axpy steps
+/// by a runtime stride); a·x + y is exactly what axpy(a, x, 1) forms.
+fn add_scaled(y: &mut [f64], a: f64, x: &[f64]) {
+    for (y, x) in y.iter_mut().zip(x) {
+        *y += a * x;
     }
 }

@@ -21,7 +21,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::adaptive::positions;
-use super::rkmk::{Integrator, retract};
+use super::rkmk::{Integrator, max_abs, retract};
 use super::tableau::{ROSENBROCK_STAGES, Rosenbrock, RosenbrockStages};
 use crate::dynamics::DynamicsError;
 use crate::model::Model;
@@ -268,7 +268,7 @@ impl Integrator {
                 }
                 self.evaluate_stage_rates(model, ws, theta, i, t + stages.nodes[i] * h, inputs_at)?;
                 if i == last {
-                    self.nu_size.zip_apply(&ws.nu, |size, nu| *size = size.max(nu.abs()));
+                    max_abs(&mut self.nu_size, &ws.nu);
                 }
             }
             linear.rhs_delta.copy_from(&self.k_delta[i]);
