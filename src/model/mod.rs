@@ -128,7 +128,8 @@ impl Link {
             sum[(row + 3, row + 3)] += self.mass;
         }
         // h× = [0 −h₃ h₂; h₃ 0 −h₁; −h₂ h₁ 0] top right, its transpose bottom left.
-        for (row, col, value) in [(0, 1, -h[2]), (0, 2, h[1]), (1, 0, h[2]), (1, 2, -h[0]), (2, 0, -h[1]), (2, 1, h[0])] {
+        for (row, col, value) in [(0, 1, -h[2]), (0, 2, h[1]), (1, 0, h[2]), (1, 2, -h[0]), (2, 0, -h[1]), (2, 1, h[0])]
+        {
             sum[(row, col + 3)] += value;
             sum[(col + 3, row)] += value;
         }
