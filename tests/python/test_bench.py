@@ -143,7 +143,9 @@ def test_chains_built_for_mujoco_equal_the_generated_files():
 def test_quick_fmusim_benchmark_agrees_with_the_native_host(tmp_path):
     """`scripts/bench_fmusim.py --quick` with the fmusim NUDYN_FMUSIM names:
     it runs the FMU to the end, and its last θ and ν are the native host's
-    to the digits fmusim prints (never a speed)."""
+    (never a speed). fmusim steps to (n + 1) * 0.1 from n * 0.1, the host by
+    0.1 from n * 0.1: from the sixth step (6 * 0.1 != 0.5 + 0.1) the
+    FMU's targets differ by an ulp, so only closeness is asked."""
     proc = subprocess.run(
         [sys.executable, str(ROOT / "scripts" / "bench_fmusim.py"), "--quick", "--out", str(tmp_path),
          "--bin-dir", str(nudyn_bin().parent), "--fmusim", os.environ["NUDYN_FMUSIM"]],
@@ -154,5 +156,5 @@ def test_quick_fmusim_benchmark_agrees_with_the_native_host(tmp_path):
     runs = results["vehicles"]["bus_arm7"]["runs"]
     assert len(runs) == 4
     for run in runs:
-        assert abs(run["fmusim_end_time"] - 0.4) < 1e-12 and run["end_equal_to_16_digits"], run
+        assert abs(run["fmusim_end_time"] - 0.4) < 1e-12 and run["end_max_difference"] < 1e-12, run
         assert run["fmusim_seconds"][0] > 0 and run["host_seconds"][0] > 0, run
