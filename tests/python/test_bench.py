@@ -10,6 +10,8 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 from conftest import ROOT, nudyn_bin
 
 
@@ -135,3 +137,24 @@ def test_chains_built_for_mujoco_equal_the_generated_files():
     assert (built.nq, built.nv) == (read.nq, read.nv)
     for field in ("body_mass", "body_inertia", "body_ipos", "body_iquat", "body_pos", "body_quat", "jnt_axis", "dof_armature", "dof_damping", "qpos0"):
         assert np.allclose(getattr(built, field), getattr(read, field), rtol=0, atol=1e-15), field
+
+
+@pytest.mark.skipif(not os.environ.get("NUDYN_FMUSIM"), reason="no fmusim given (NUDYN_FMUSIM=PATH)")
+def test_quick_fmusim_benchmark_agrees_with_the_native_host(tmp_path):
+    """`scripts/bench_fmusim.py --quick` with the fmusim NUDYN_FMUSIM names:
+    it runs the FMU to the end, and its last θ and ν are the native host's
+    (never a speed). fmusim steps to (n + 1) * 0.1 from n * 0.1, the host by
+    0.1 from n * 0.1: from the sixth step (6 * 0.1 != 0.5 + 0.1) the
+    FMU's targets differ by an ulp, so only closeness is asked."""
+    proc = subprocess.run(
+        [sys.executable, str(ROOT / "scripts" / "bench_fmusim.py"), "--quick", "--out", str(tmp_path),
+         "--bin-dir", str(nudyn_bin().parent), "--fmusim", os.environ["NUDYN_FMUSIM"]],
+        capture_output=True, text=True, timeout=600, cwd=ROOT, env={**os.environ, "PYTHONWARNINGS": "ignore"},
+    )
+    assert proc.returncode == 0, f"stdout: {proc.stdout}\nstderr: {proc.stderr[-4000:]}"
+    results = json.loads((tmp_path / "fmusim.json").read_text())
+    runs = results["vehicles"]["bus_arm7"]["runs"]
+    assert len(runs) == 4
+    for run in runs:
+        assert abs(run["fmusim_end_time"] - 0.4) < 1e-12 and run["end_max_difference"] < 1e-12, run
+        assert run["fmusim_seconds"][0] > 0 and run["host_seconds"][0] > 0, run
