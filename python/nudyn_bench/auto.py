@@ -66,6 +66,16 @@ def simulate(bench: Path, vehicle: Vehicle, run: str, duration: float) -> dict:
     return run_json(cmd)[0]
 
 
+def exported_with_reference(vehicle: Vehicle, bench: Path, nudyn: Path, work: Path,
+                            duration: float) -> tuple[FmuPackage, np.ndarray, np.ndarray]:
+    """The vehicle's FMU, unpacked, and the reference run the errors are
+    measured against (dop853 at 1e-13): its qpos and qvel."""
+    package = FmuPackage.unzip(Nudyn(nudyn).export(vehicle.path, work / f"{vehicle.name}.fmu"),
+                               work / f"{vehicle.name}_fmu")
+    reference = simulate(bench, vehicle, "dop853:1e-13", duration)
+    return package, np.array(reference["qpos"]), np.array(reference["qvel"])
+
+
 def fmpy_seconds(package: FmuPackage, vehicle: Vehicle, settings: dict, steps: int) -> float:
     """The FMU in FMPy: one doStep and reads of θ and ν per communication step, timed."""
     with Instance(package, start=settings, theta=vehicle.qpos, nu=vehicle.nu) as fmu:
@@ -78,12 +88,9 @@ def fmpy_seconds(package: FmuPackage, vehicle: Vehicle, settings: dict, steps: i
 
 
 def vehicle_runs(vehicle: Vehicle, bench: Path, nudyn: Path, host: Path, work: Path, quick: bool) -> dict:
-    package = FmuPackage.unzip(Nudyn(nudyn).export(vehicle.path, work / f"{vehicle.name}.fmu"),
-                               work / f"{vehicle.name}_fmu")
     duration, repetitions = (0.4, 1) if quick else (10.0, 5)
     steps = round(duration / STEP)
-    reference = simulate(bench, vehicle, "dop853:1e-13", duration)
-    ref_qpos, ref_qvel = np.array(reference["qpos"]), np.array(reference["qvel"])
+    package, ref_qpos, ref_qvel = exported_with_reference(vehicle, bench, nudyn, work, duration)
     runs = []
     for method in METHODS:
         for tolerance in TOLERANCES[:2] if quick else TOLERANCES:

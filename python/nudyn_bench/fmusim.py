@@ -37,13 +37,10 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
-from nudyn_driver.cli import Nudyn
 from nudyn_driver.package import FmuPackage
 
 from . import native_host
-from .auto import EXAMPLES, METHODS, MUJOCO_STEPS, STEP, simulate
+from .auto import EXAMPLES, METHODS, MUJOCO_STEPS, STEP, exported_with_reference, simulate
 from .cli import binaries, run_stamp
 from .methods import mujoco_reaching
 from .report import median
@@ -97,12 +94,10 @@ def last_row(output: Path) -> tuple[float, list[float]]:
 
 def vehicle_runs(vehicle: Vehicle, bench: Path, nudyn: Path, host: Path, fmusim: Path, work: Path,
                  quick: bool, repetitions: int) -> dict:
-    fmu = Nudyn(nudyn).export(vehicle.path, work / f"{vehicle.name}.fmu")
-    package = FmuPackage.unzip(fmu, work / f"{vehicle.name}_fmu")
     duration = 0.4 if quick else 10.0
     steps = round(duration / STEP)
-    reference = simulate(bench, vehicle, "dop853:1e-13", duration)
-    ref_qpos, ref_qvel = np.array(reference["qpos"]), np.array(reference["qvel"])
+    package, ref_qpos, ref_qvel = exported_with_reference(vehicle, bench, nudyn, work, duration)
+    fmu = work / f"{vehicle.name}.fmu"
     runs = []
     for method in METHODS:
         for tolerance in TOLERANCES[:2] if quick else TOLERANCES:
