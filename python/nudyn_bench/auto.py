@@ -45,18 +45,16 @@ from nudyn_driver.package import FmuPackage
 from . import cli, native_host, report
 from . import work_precision as work_precision_runs
 from .cli import binaries, run_stamp
-from .methods import mujoco_reaching
+from .methods import mujoco_reaching, rk4_ladder
 from .report import median
 from .tolerance import scaled_error
 from .trees import write_tree
 from .vehicles import ROOT, Vehicle, prepare
-from .work_precision import MujocoRuns, Plan
 
 EXAMPLES = ["bus_arm7", "fixed_rig", "flexible_boom", "servicer", "chain60"]
 TREES = 10
 METHODS = ["auto", "dop853"]
 TOLERANCES = [1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10]
-MUJOCO_STEPS = [0.1 / k for k in (1, 2, 4, 5, 10, 20, 40, 50, 100, 200, 400, 1000)]
 STEP = 0.1
 
 
@@ -101,12 +99,7 @@ def vehicle_runs(vehicle: Vehicle, bench: Path, nudyn: Path, host: Path, work: P
                 "accepted": run["accepted"], "rejected": run["rejected"], "evaluations": run["evaluations"],
                 "chosen": run["chosen"], "ended_with": run["ended_with"], "host_seconds": [], "fmpy_seconds": [],
             })
-    mujoco = MujocoRuns(vehicle)
-    plan = Plan(duration, STEP, 0.0, 0.0, [], [], [], [])
-    rk4 = []
-    for step in MUJOCO_STEPS[:3] if quick else MUJOCO_STEPS:
-        _, qpos, qvel = mujoco.run("RK4", step, plan)
-        rk4.append({"step": step, "error": scaled_error(vehicle.model, qpos, qvel, ref_qpos, ref_qvel), "seconds": []})
+    mujoco, plan, rk4 = rk4_ladder(vehicle, duration, ref_qpos, ref_qvel, quick)
     for _ in range(repetitions):
         for run in runs:
             settings = {"method": run["method"], "tolerance": run["tolerance"]}

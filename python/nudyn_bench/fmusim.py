@@ -40,13 +40,12 @@ from pathlib import Path
 from nudyn_driver.package import FmuPackage
 
 from . import native_host
-from .auto import EXAMPLES, METHODS, MUJOCO_STEPS, STEP, exported_with_reference, simulate
+from .auto import EXAMPLES, METHODS, STEP, exported_with_reference, simulate
 from .cli import binaries, run_stamp
-from .methods import mujoco_reaching
+from .methods import mujoco_reaching, rk4_ladder
 from .report import median
 from .tolerance import scaled_error
 from .vehicles import ROOT, Vehicle, prepare
-from .work_precision import MujocoRuns, Plan
 
 TOLERANCES = [1e-4, 1e-6, 1e-8, 1e-10]
 
@@ -115,12 +114,7 @@ def vehicle_runs(vehicle: Vehicle, bench: Path, nudyn: Path, host: Path, fmusim:
                                         Path(f"{stem}_0.log")),
                 "csv": Path(f"{stem}.csv"), "log": Path(f"{stem}.log"),
             })
-    mujoco = MujocoRuns(vehicle)
-    plan = Plan(duration, STEP, 0.0, 0.0, [], [], [], [])
-    rk4 = []
-    for step in MUJOCO_STEPS[:3] if quick else MUJOCO_STEPS:
-        _, qpos, qvel = mujoco.run("RK4", step, plan)
-        rk4.append({"step": step, "error": scaled_error(vehicle.model, qpos, qvel, ref_qpos, ref_qvel), "seconds": []})
+    mujoco, plan, rk4 = rk4_ladder(vehicle, duration, ref_qpos, ref_qvel, quick)
     host_last = {}
     for _ in range(repetitions):
         for run in runs:

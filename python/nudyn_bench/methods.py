@@ -60,6 +60,20 @@ def simulate(bench: Path, vehicle: Vehicle, run: str, duration: float, repetitio
     return run_json(cmd)[0]
 
 
+def rk4_ladder(vehicle: Vehicle, duration: float, ref_qpos: np.ndarray, ref_qvel: np.ndarray,
+               quick: bool) -> tuple[MujocoRuns, Plan, list[dict]]:
+    """MuJoCo's RK4 at each step of the ladder (its first three when
+    `quick`) over `duration` in 0.1 s samples: the runs, their plan, and per
+    step its error against the reference, with an empty list for its times."""
+    mujoco = MujocoRuns(vehicle)
+    plan = Plan(duration, 0.1, 0.0, 0.0, [], [], [], [])
+    rk4 = []
+    for step in MUJOCO_STEPS[:3] if quick else MUJOCO_STEPS:
+        _, qpos, qvel = mujoco.run("RK4", step, plan)
+        rk4.append({"step": step, "error": scaled_error(vehicle.model, qpos, qvel, ref_qpos, ref_qvel), "seconds": []})
+    return mujoco, plan, rk4
+
+
 def mujoco_reaching(run: dict, rk4: list[dict]) -> tuple[float | None, float | None]:
     """MuJoCo's RK4 under the issue's rule for a run: the longest of the
     steps timed (`rk4`, each with its error and seconds) whose error is
@@ -89,13 +103,7 @@ def example(name: str, bench: Path, nudyn: Path, host: Path, work: Path, quick: 
             runs.append({"method": method, "tolerance": tolerance, "error": error, "accepted": run["accepted"],
                          "rejected": run["rejected"], "evaluations": run["evaluations"], "seconds": [],
                          "host_seconds": []})
-    mujoco = MujocoRuns(vehicle)
-    plan = Plan(duration, 0.1, 0.0, 0.0, [], [], [], [])
-    ladder = MUJOCO_STEPS[:3] if quick else MUJOCO_STEPS
-    rk4 = []
-    for step in ladder:
-        _, qpos, qvel = mujoco.run("RK4", step, plan)
-        rk4.append({"step": step, "error": scaled_error(vehicle.model, qpos, qvel, ref_qpos, ref_qvel), "seconds": []})
+    mujoco, plan, rk4 = rk4_ladder(vehicle, duration, ref_qpos, ref_qvel, quick)
     # Interleaved, so that the machine's load falls alike on both sides.
     for _ in range(repetitions):
         for run in runs:
