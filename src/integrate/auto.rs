@@ -255,8 +255,13 @@ impl AutoChoice {
 
     /// Judges a communication step from `time` that attempted `attempts`
     /// steps: moves up one order (and starts the window afresh) when the
-    /// window asks for it, else remembers the count.
+    /// window asks for it, else remembers the count. An advance of no
+    /// length attempts nothing and is not judged: a count of 0 in the window
+    /// means "not judged", which keeps the judged counts the last ones.
     pub fn judge(&mut self, time: f64, attempts: usize) -> Option<AutoMove> {
+        if attempts == 0 {
+            return None;
+        }
         // Counts enter at the back, so the ones held are the last nonzero ones.
         let mut window = [0; MOVE_UP_WINDOW];
         window[..MOVE_UP_WINDOW - 1].copy_from_slice(&self.earlier_attempts);
@@ -350,6 +355,8 @@ mod tests {
             assert_eq!(choice.judge(0.1 * (k + 1) as f64, attempts), None, "9 attempts in 5 communication steps");
         }
         assert_eq!(choice.earlier_attempts, [1, 3, 2, 2]);
+        assert_eq!(choice.judge(0.5, 0), None);
+        assert_eq!(choice.earlier_attempts, [1, 3, 2, 2], "an advance of no length is not judged");
         let moved = choice.judge(0.6, 4).expect("3, 2, 2, 4 after a 1: 12 attempts in 5");
         assert_eq!(
             (moved.from, moved.to, moved.attempts, moved.judged),
