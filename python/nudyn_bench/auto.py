@@ -16,8 +16,12 @@ judges it: on every example and on 10 random six-body trees (trees.py),
   and the FMU's error; both ratios to its time.
 
 Every timing is a median over the repetitions, which interleave all runs
-of a vehicle so the machine's load falls alike on each. The trees' line is
-the median over the trees of each tree's value.
+of a vehicle so the machine's load falls alike on each. Each repetition
+of a run times MuJoCo's run at its step right after the FMU's, and each
+ratio is the median of these pairs' ratios: the speed of the shared
+machines drifts (MuJoCo's 10 s of bus_arm7 at 0.05 s took 2.3 ms in one
+session and 3.1–3.3 ms in the next), and the two runs of a pair see the
+same. The trees' line is the median over the trees of each tree's value.
 
 With `--work-precision` it also redraws the work-precision plot of
 docs/performance.md with every explicit method and `auto`
@@ -45,7 +49,7 @@ from nudyn_driver.package import FmuPackage
 from . import cli, native_host, report
 from . import work_precision as work_precision_runs
 from .cli import binaries, run_stamp
-from .methods import mujoco_reaching, rk4_ladder
+from .methods import reaching_entry, rk4_ladder
 from .report import median
 from .tolerance import scaled_error
 from .trees import write_tree
@@ -100,19 +104,25 @@ def vehicle_runs(vehicle: Vehicle, bench: Path, nudyn: Path, host: Path, work: P
                 "chosen": run["chosen"], "ended_with": run["ended_with"], "host_seconds": [], "fmpy_seconds": [],
             })
     mujoco, plan, rk4 = rk4_ladder(vehicle, duration, ref_qpos, ref_qvel, quick)
+    for run in runs:
+        reaching = reaching_entry(run, rk4)
+        run["mujoco_step"] = reaching and reaching["step"]
+        run["paired_mujoco_seconds"] = []
     for _ in range(repetitions):
         for run in runs:
             settings = {"method": run["method"], "tolerance": run["tolerance"]}
             run["host_seconds"].append(native_host.run(host, package, vehicle, settings, STEP, steps)["seconds"][0])
             run["fmpy_seconds"].append(fmpy_seconds(package, vehicle, settings, steps))
-        for entry in rk4:
-            entry["seconds"].append(mujoco.run("RK4", entry["step"], plan)[0])
+            if run["mujoco_step"] is not None:
+                run["paired_mujoco_seconds"].append(mujoco.run("RK4", run["mujoco_step"], plan)[0])
     for run in runs:
-        run["mujoco_step"], mujoco_seconds = mujoco_reaching(run, rk4)
-        run["mujoco_seconds"] = mujoco_seconds
-        run["host_over_mujoco"] = median(run["host_seconds"]) / mujoco_seconds if mujoco_seconds else None
-        run["fmpy_over_mujoco"] = median(run["fmpy_seconds"]) / mujoco_seconds if mujoco_seconds else None
-    return {"runs": runs, "mujoco_rk4": rk4}
+        paired = run["paired_mujoco_seconds"]
+        run["mujoco_seconds"] = median(paired) if paired else None
+        for key in ("host", "fmpy"):
+            ratios = [fmu / mj for fmu, mj in zip(run[f"{key}_seconds"], paired)]
+            run[f"{key}_over_mujoco"] = median(ratios) if ratios else None
+    # The ladder's errors; its times are the pairs' above.
+    return {"runs": runs, "mujoco_rk4": [{"step": entry["step"], "error": entry["error"]} for entry in rk4]}
 
 
 def _cell(runs: list[dict], key: str):

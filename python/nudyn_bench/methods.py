@@ -74,17 +74,20 @@ def rk4_ladder(vehicle: Vehicle, duration: float, ref_qpos: np.ndarray, ref_qvel
     return mujoco, plan, rk4
 
 
-def mujoco_reaching(run: dict, rk4: list[dict]) -> tuple[float | None, float | None]:
-    """MuJoCo's RK4 under the issue's rule for a run: the longest of the
-    steps timed (`rk4`, each with its error and seconds) whose error is
-    within max(the run's error, its tolerance), and that step's median
-    seconds; (None, None) when no step reaches it."""
+def reaching_entry(run: dict, rk4: list[dict]) -> dict | None:
+    """MuJoCo's RK4 under the issue's rule for a run: the entry of `rk4`
+    (each with its step and error) with the longest step whose error is
+    within max(the run's error, its tolerance); None when no step reaches it."""
     target = max(run["error"], run["tolerance"])
     reaching = [entry for entry in rk4 if entry["error"] <= target]
-    if not reaching:
-        return None, None
-    best = max(reaching, key=lambda entry: entry["step"])
-    return best["step"], median(best["seconds"])
+    return max(reaching, key=lambda entry: entry["step"]) if reaching else None
+
+
+def mujoco_reaching(run: dict, rk4: list[dict]) -> tuple[float | None, float | None]:
+    """The step of `reaching_entry` and its median seconds (each entry timed
+    in `seconds`); (None, None) when no step reaches it."""
+    best = reaching_entry(run, rk4)
+    return (None, None) if best is None else (best["step"], median(best["seconds"]))
 
 
 def example(name: str, bench: Path, nudyn: Path, host: Path, work: Path, quick: bool) -> dict:

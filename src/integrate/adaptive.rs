@@ -348,6 +348,24 @@ fn round_off_power(control: &StepControl) -> f64 {
 /// shrink with the step, so the controller could not grow the step again.
 const ROUND_OFF_MARGIN: f64 = 10.0;
 
+/// Takes the step `integrator` attempted, of size `step`: (θ, θ̇) move to
+/// its end, and `carry` adds its work (and its rates, on a run's first step).
+pub(super) fn take_attempted_step(
+    integrator: &mut Integrator,
+    model: &Model,
+    ws: &mut Workspace,
+    (theta, qvel): (&mut [f64], &mut [f64]),
+    step: f64,
+    settings: &Settings,
+    carry: &mut Carry,
+) -> Result<(), DynamicsError> {
+    integrator.accept_with_energy(model, ws, (theta, qvel), step, settings, carry)?;
+    if carry.start_rates == 0.0 {
+        carry.start_rates = integrator.largest_rate();
+    }
+    Ok(())
+}
+
 /// Safety factor of the step-size controller.
 const SAFETY: f64 = 0.9;
 
@@ -356,7 +374,7 @@ const SAFETY: f64 = 0.9;
 /// safety factor, within the tableau's bounds; it never grows the step right
 /// after a rejection (`after_rejection`, which a rejected step itself is),
 /// and a non-finite error shrinks it as far as allowed.
-fn step_factor(error: f64, control: &StepControl, after_rejection: bool) -> f64 {
+pub(super) fn step_factor(error: f64, control: &StepControl, after_rejection: bool) -> f64 {
     let (shrink_limit, grow_limit) = control.factor_bounds;
     if !error.is_finite() {
         return shrink_limit;
@@ -406,6 +424,14 @@ impl Simulation {
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<Stats, AdvanceError> {
         let t0 = self.state.time;
+        // Within this of t1 the interval is done: a step that small is only
+        // round-off, and the smallest step allowed below could not take it.
+        let end_slack = 16.0 * f64::EPSILON * t1.abs().max(1.0);
+        if t1 - t0 <= end_slack {
+            // Nothing left (`auto`'s probe took the interval): the starting
+            // step is left for the advance that takes one.
+            return Ok(Stats::default());
+        }
         let (evaluations_before, jacobians_before) = (self.integrator.evaluations, self.integrator.jacobians);
         let h = if self.state.carry.next_step > 0.0 {
             self.state.carry.next_step
@@ -428,9 +454,6 @@ impl Simulation {
         let mut first_rejection: Option<(f64, f64)> = None;
         let mut least_rejected = f64::INFINITY;
         let mut last_cause = None;
-        // Within this of t1 the interval is done: a step that small is only
-        // round-off, and the smallest step allowed below could not take it.
-        let end_slack = 16.0 * f64::EPSILON * t1.abs().max(1.0);
         let max_step = settings.step_bound(integrator.method);
         while t1 - t > end_slack {
             let planned = h.min(max_step);
@@ -474,12 +497,9 @@ impl Simulation {
             let error = (per_second / carry.relaxation.max(1.0)).max(per_step);
             if error <= 1.0 {
                 let failed = |cause| AdvanceError::StepFailed { reached: t, step, cause };
-                integrator.accept_with_energy(model, ws, (theta, qvel), step, settings, carry).map_err(failed)?;
+                take_attempted_step(integrator, model, ws, (theta, qvel), step, settings, carry).map_err(failed)?;
                 t = if step == remaining { t1 } else { t + step };
                 stats.accepted += 1;
-                if carry.start_rates == 0.0 {
-                    carry.start_rates = integrator.largest_rate();
-                }
                 let factor = step_factor(error, control, first_rejection.is_some());
                 h = if step < planned { (step * factor).max(planned) } else { step * factor };
                 first_rejection = None;

@@ -4,7 +4,9 @@
 //! integrator and workspace, and one input convention. Callers read and
 //! set (θ, ν); the integrator advances (θ, θ̇) (rkmk.rs says why).
 
-use super::adaptive::{AdvanceError, Carry, Settings, Stats, TOLERANCE_TIME, ToleranceRelaxed};
+use super::adaptive::{
+    AdvanceError, Carry, Settings, Stats, TOLERANCE_TIME, ToleranceRelaxed, step_factor, take_attempted_step,
+};
 use super::auto::{AutoChoice, AutoMove, MethodSetting, PROBE_METHOD};
 use super::rkmk::{Integrator, nu_of_qvel, qvel_of_nu};
 use super::rosenbrock::HeldJacobian;
@@ -235,21 +237,31 @@ impl Simulation {
         let relaxation_before = self.state.carry.relaxation;
         let evaluations_before = self.integrator.evaluations;
         let mut chose = None;
+        let mut starts = false;
         let result = if let Err(cause) = self.settings.check_interval(self.method(), t_end - t0) {
             Err(AdvanceError::TooLong { reached: t0, cause })
         } else {
+            let mut probe_steps = 0;
             if self.setting == MethodSetting::Auto && self.state.auto_choice.is_none() && t_end > t0 {
-                let choice = self.choose_method(model, t_end, &mut inputs_at);
+                let (choice, taken) = self.choose_method(model, t_end, &mut inputs_at);
                 self.state.auto_choice = Some(choice);
                 chose = Some(choice);
+                probe_steps = usize::from(taken);
             }
             let probe_evaluations = self.integrator.evaluations - evaluations_before;
+            // A method that starts here (its first step from the starting
+            // heuristic, after a probe that took the interval) is not judged on it.
+            starts = self.state.carry.next_step == 0.0;
             let result = if self.method().is_adaptive() {
                 self.advance_adaptive(model, t_end, &mut inputs_at)
             } else {
                 self.advance_fixed(model, t_end, &mut inputs_at)
             };
-            result.map(|stats| Stats { evaluations: stats.evaluations + probe_evaluations, ..stats })
+            result.map(|stats| Stats {
+                accepted: stats.accepted + probe_steps,
+                evaluations: stats.evaluations + probe_evaluations,
+                ..stats
+            })
         };
         // ν where the run stands, whether it reached t_end or not; a run
         // that took no step keeps its ν bit for bit (m*ℓ* is the identity
@@ -277,7 +289,8 @@ impl Simulation {
                 self.state.time = t_end;
                 let rates = || self.integrator.largest_rate();
                 let relaxed = self.state.carry.relaxed_since(relaxation_before, t0, self.settings.tolerance, rates);
-                let moved = if chose.is_none() { self.move_up_if_dear(model, t0, &stats) } else { None };
+                let judged = chose.is_none() && !starts;
+                let moved = if judged { self.move_up_if_dear(model, t0, &stats) } else { None };
                 Ok(Advanced { stats, relaxed, chose, moved })
             }
             Err(error) => {
@@ -329,28 +342,56 @@ impl Simulation {
     }
 
     /// `auto`'s choice for an advance to `t_end` from the state: one
-    /// DOP853 step over the interval (or `max_step`), attempted and not
-    /// taken, measures how fast the vehicle moves for it (auto.rs). The
-    /// start's rates it evaluated serve the chosen method's first step.
+    /// DOP853 step over the interval (or `max_step`) measures how fast the
+    /// vehicle moves for it (auto.rs). A probe that passes the run's error
+    /// test is the run's first step (then `true`): the chosen method goes on
+    /// from its end with a step of the same size. One that fails is not
+    /// taken, and the start's rates it evaluated serve the chosen method's
+    /// first step.
     fn choose_method(
         &mut self,
         model: &Model,
         t_end: f64,
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
-    ) -> AutoChoice {
+    ) -> (AutoChoice, bool) {
         let Simulation { state, settings, integrator, ws, .. } = self;
-        let (t0, theta, qvel) = (state.time, &state.theta[..], &state.qvel[..]);
+        let t0 = state.time;
         let step = (t_end - t0).min(settings.step_bound(PROBE_METHOD));
-        // The error relative to 1 + |x| itself: the norm with tolerance 1.
-        let error_per_step = match integrator.attempt(model, ws, (theta, qvel), (t0, step), inputs_at) {
-            Ok(()) => integrator.error_norm(model, ws, theta, 1.0),
+        let attempted = integrator.attempt(model, ws, (&state.theta, &state.qvel), (t0, step), inputs_at);
+        // The error relative to 1 + |x| itself (the norm with tolerance 1),
+        // and the run's error test, as `advance_adaptive` applies it to a first step.
+        let per_step_of = |integrator: &Integrator, ws: &mut Workspace, tolerance: f64| match attempted {
+            Ok(()) => integrator.error_norm(model, ws, &state.theta, tolerance),
             Err(_) => f64::INFINITY,
         };
-        let choice = AutoChoice::new(step, error_per_step / (step / TOLERANCE_TIME).min(1.0), settings.tolerance);
+        let per_unit_step = (step / TOLERANCE_TIME).min(1.0);
+        let choice = AutoChoice::new(step, per_step_of(integrator, ws, 1.0) / per_unit_step, settings.tolerance);
+        let per_step = per_step_of(integrator, ws, settings.tolerance);
+        let error = (per_step / per_unit_step / state.carry.relaxation.max(1.0)).max(per_step);
+        let passes = error <= 1.0
+            && integrator.non_finite_result().is_none()
+            && take_attempted_step(
+                integrator,
+                model,
+                ws,
+                (&mut state.theta, &mut state.qvel),
+                step,
+                settings,
+                &mut state.carry,
+            )
+            .is_ok();
+        if passes {
+            state.time = if step == t_end - t0 { t_end } else { t0 + step };
+            // DOP853 kept goes on as its controller would; another method
+            // starts as a run does (the probe's error says little of its steps).
+            if choice.method == PROBE_METHOD {
+                state.carry.next_step = step * step_factor(error, PROBE_METHOD.control(), false);
+            }
+        }
         let start_evaluated = integrator.first.valid;
         integrator.set_method(model, choice.method);
-        integrator.first.valid = start_evaluated;
-        choice
+        integrator.first.valid = start_evaluated && !passes;
+        (choice, passes)
     }
 
     /// After an advance from `t0` that `auto` did not choose in: moves a
