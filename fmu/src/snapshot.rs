@@ -272,10 +272,20 @@ impl Snapshot {
             return Err(SnapshotError::Value { what: "a value auto measured", value, must: "non-negative" });
         }
         let mut earlier_attempts = [0; MOVE_UP_WINDOW - 1];
+        let mut counted = false;
         for (slot, &value) in earlier_attempts.iter_mut().zip(&choice[3..]) {
             if value.fract() != 0.0 || value > u32::MAX as f64 {
                 return Err(SnapshotError::Value { what: "a step count auto weighs", value, must: "a whole number" });
             }
+            // Counts enter the window at the back, so its "not judged" zeros all come first.
+            if counted && value == 0.0 {
+                return Err(SnapshotError::Value {
+                    what: "a step count auto weighs",
+                    value,
+                    must: "positive after a count",
+                });
+            }
+            counted |= value > 0.0;
             *slot = value as usize;
         }
         let auto_choice = chosen.map(|method| AutoChoice {
@@ -567,9 +577,15 @@ mod tests {
         let mut bytes = serialized(&sample_with_choice());
         let newer_attempts_at = MAGIC.len() + 8 + GUID.len() + 12 + FLAGS + 4 + (SCALARS + CHOICE_SCALARS - 1) * 8;
         assert_eq!(bytes[newer_attempts_at..newer_attempts_at + 8], 2.0f64.to_le_bytes());
-        bytes[newer_attempts_at..newer_attempts_at + 8].copy_from_slice(&1.5f64.to_le_bytes());
-        let error = Snapshot::deserialize(&with_valid_checksum(bytes), GUID, SIZES).unwrap_err();
-        assert!(error.to_string().contains("a step count auto weighs"), "{error}");
+        for (value, must) in [(1.5, "a whole number"), (0.0, "positive after a count")] {
+            bytes[newer_attempts_at..newer_attempts_at + 8].copy_from_slice(&f64::to_le_bytes(value));
+            bytes = with_valid_checksum(bytes);
+            let error = Snapshot::deserialize(&bytes, GUID, SIZES).unwrap_err();
+            assert!(
+                error.to_string().contains("a step count auto weighs") && error.to_string().contains(must),
+                "{error}"
+            );
+        }
         let mut choice_without_auto = sample_with_choice();
         choice_without_auto.state.method = Method::Tsit5.into();
         assert_eq!(
