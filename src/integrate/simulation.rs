@@ -241,27 +241,35 @@ impl Simulation {
         let result = if let Err(cause) = self.settings.check_interval(self.method(), t_end - t0) {
             Err(AdvanceError::TooLong { reached: t0, cause })
         } else {
-            let mut probe_steps = 0;
+            let mut probe = Ok(0);
             if self.setting == MethodSetting::Auto && self.state.auto_choice.is_none() && t_end > t0 {
                 let (choice, taken) = self.choose_method(model, t_end, &mut inputs_at);
                 self.state.auto_choice = Some(choice);
                 chose = Some(choice);
-                probe_steps = usize::from(taken);
+                probe = taken.map(usize::from);
             }
             let probe_evaluations = self.integrator.evaluations - evaluations_before;
             // A method that starts here (its first step from the starting
             // heuristic, after a probe that took the interval) is not judged on it.
             starts = self.state.carry.next_step == 0.0;
-            let result = if self.method().is_adaptive() {
-                self.advance_adaptive(model, t_end, &mut inputs_at)
-            } else {
-                self.advance_fixed(model, t_end, &mut inputs_at)
-            };
-            result.map(|stats| Stats {
-                accepted: stats.accepted + probe_steps,
-                evaluations: stats.evaluations + probe_evaluations,
-                ..stats
-            })
+            match probe {
+                Err(cause) => {
+                    let step = (t_end - t0).min(self.settings.step_bound(PROBE_METHOD));
+                    Err(AdvanceError::StepFailed { reached: t0, step, cause })
+                }
+                Ok(probe_steps) => {
+                    let result = if self.method().is_adaptive() {
+                        self.advance_adaptive(model, t_end, &mut inputs_at)
+                    } else {
+                        self.advance_fixed(model, t_end, &mut inputs_at)
+                    };
+                    result.map(|stats| Stats {
+                        accepted: stats.accepted + probe_steps,
+                        evaluations: stats.evaluations + probe_evaluations,
+                        ..stats
+                    })
+                }
+            }
         };
         // ν where the run stands, whether it reached t_end or not; a run
         // that took no step keeps its ν bit for bit (m*ℓ* is the identity
@@ -344,16 +352,17 @@ impl Simulation {
     /// `auto`'s choice for an advance to `t_end` from the state: one
     /// DOP853 step over the interval (or `max_step`) measures how fast the
     /// vehicle moves for it (auto.rs). A probe that passes the run's error
-    /// test is the run's first step (then `true`): the chosen method goes on
-    /// from its end with a step of the same size. One that fails is not
-    /// taken, and the start's rates it evaluated serve the chosen method's
-    /// first step.
+    /// test is the run's first step (then `Ok(true)`), and the chosen method
+    /// goes on from its end; one that fails is not taken, and the start's
+    /// rates it evaluated serve the chosen method's first step. `Err` when
+    /// the probe passed and could not be taken (the energy projection's
+    /// passes failed at its end).
     fn choose_method(
         &mut self,
         model: &Model,
         t_end: f64,
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
-    ) -> (AutoChoice, bool) {
+    ) -> (AutoChoice, Result<bool, DynamicsError>) {
         let Simulation { state, settings, integrator, ws, .. } = self;
         let t0 = state.time;
         let step = (t_end - t0).min(settings.step_bound(PROBE_METHOD));
@@ -368,9 +377,9 @@ impl Simulation {
         let choice = AutoChoice::new(step, per_step_of(integrator, ws, 1.0) / per_unit_step, settings.tolerance);
         let per_step = per_step_of(integrator, ws, settings.tolerance);
         let error = (per_step / per_unit_step / state.carry.relaxation.max(1.0)).max(per_step);
-        let passes = error <= 1.0
-            && integrator.non_finite_result().is_none()
-            && take_attempted_step(
+        let passes = error <= 1.0 && integrator.non_finite_result().is_none();
+        if passes {
+            let taken = take_attempted_step(
                 integrator,
                 model,
                 ws,
@@ -378,9 +387,10 @@ impl Simulation {
                 step,
                 settings,
                 &mut state.carry,
-            )
-            .is_ok();
-        if passes {
+            );
+            if let Err(cause) = taken {
+                return (choice, Err(cause));
+            }
             state.time = if step == t_end - t0 { t_end } else { t0 + step };
             // DOP853 kept goes on as its controller would; another method
             // starts as a run does (the probe's error says little of its steps).
@@ -391,7 +401,7 @@ impl Simulation {
         let start_evaluated = integrator.first.valid;
         integrator.set_method(model, choice.method);
         integrator.first.valid = start_evaluated && !passes;
-        (choice, passes)
+        (choice, Ok(passes))
     }
 
     /// After an advance from `t0` that `auto` did not choose in: moves a
