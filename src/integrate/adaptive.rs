@@ -348,6 +348,24 @@ fn round_off_power(control: &StepControl) -> f64 {
 /// shrink with the step, so the controller could not grow the step again.
 const ROUND_OFF_MARGIN: f64 = 10.0;
 
+/// A step's error per second from its scaled error `per_step` over `step`,
+/// and whether the method is held per unit step; a method held per step
+/// has no per-second error (its share of the tolerance stands for it), and
+/// so no round-off floor below it.
+pub(super) fn per_second_error(control: &StepControl, per_step: f64, step: f64) -> (f64, bool) {
+    match control.error_per {
+        ErrorPer::UnitStep => (per_step / (step / TOLERANCE_TIME).min(1.0), true),
+        ErrorPer::Step { share } => (per_step / share, false),
+    }
+}
+
+/// The error the control tests (≤ 1 passes): the per-second one, relaxed
+/// by `relaxation` where round-off rules the tolerance out, but never
+/// looser than the classic per-step test.
+pub(super) fn tested_error(per_second: f64, per_step: f64, relaxation: f64) -> f64 {
+    (per_second / relaxation.max(1.0)).max(per_step)
+}
+
 /// Takes the step `integrator` attempted, of size `step`: (θ, θ̇) move to
 /// its end, and `carry` adds its work (and its rates, on a run's first step).
 pub(super) fn take_attempted_step(
@@ -480,11 +498,7 @@ impl Simulation {
                     f64::INFINITY
                 }
             };
-            // A method held per step has no per-second error, and so no round-off floor below it.
-            let (per_second, per_unit_step) = match control.error_per {
-                ErrorPer::UnitStep => (per_step / (step / TOLERANCE_TIME).min(1.0), true),
-                ErrorPer::Step { share } => (per_step / share, false),
-            };
+            let (per_second, per_unit_step) = per_second_error(control, per_step, step);
             if let Some(first_rejected) = first_rejection
                 && per_unit_step
                 && at_round_off_floor(per_step, (step, per_second), first_rejected, round_off_power(control))
@@ -492,9 +506,7 @@ impl Simulation {
                 // The least error seen is the one least mixed with truncation error.
                 carry.relaxation = carry.relaxation.max(ROUND_OFF_MARGIN * per_second.min(least_rejected));
             }
-            // The per-second test, relaxed where round-off rules it out, but
-            // never looser than the classic per-step test.
-            let error = (per_second / carry.relaxation.max(1.0)).max(per_step);
+            let error = tested_error(per_second, per_step, carry.relaxation);
             if error <= 1.0 {
                 let failed = |cause| AdvanceError::StepFailed { reached: t, step, cause };
                 take_attempted_step(integrator, model, ws, (theta, qvel), step, settings, carry).map_err(failed)?;

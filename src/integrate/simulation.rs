@@ -5,7 +5,8 @@
 //! set (θ, ν); the integrator advances (θ, θ̇) (rkmk.rs says why).
 
 use super::adaptive::{
-    AdvanceError, Carry, Settings, Stats, TOLERANCE_TIME, ToleranceRelaxed, step_factor, take_attempted_step,
+    AdvanceError, Carry, Settings, Stats, ToleranceRelaxed, per_second_error, step_factor, take_attempted_step,
+    tested_error,
 };
 use super::auto::{AutoChoice, AutoMove, MethodSetting, PROBE_METHOD};
 use super::rkmk::{Integrator, nu_of_qvel, qvel_of_nu};
@@ -373,10 +374,11 @@ impl Simulation {
             Ok(()) => integrator.error_norm(model, ws, &state.theta, tolerance),
             Err(_) => f64::INFINITY,
         };
-        let per_unit_step = (step / TOLERANCE_TIME).min(1.0);
-        let choice = AutoChoice::new(step, per_step_of(integrator, ws, 1.0) / per_unit_step, settings.tolerance);
+        let control = PROBE_METHOD.control();
+        let (error_per_second, _) = per_second_error(control, per_step_of(integrator, ws, 1.0), step);
+        let choice = AutoChoice::new(step, error_per_second, settings.tolerance);
         let per_step = per_step_of(integrator, ws, settings.tolerance);
-        let error = (per_step / per_unit_step / state.carry.relaxation.max(1.0)).max(per_step);
+        let error = tested_error(per_second_error(control, per_step, step).0, per_step, state.carry.relaxation);
         let passes = error <= 1.0 && integrator.non_finite_result().is_none();
         if passes {
             let taken = take_attempted_step(
@@ -395,7 +397,7 @@ impl Simulation {
             // DOP853 kept goes on as its controller would; another method
             // starts as a run does (the probe's error says little of its steps).
             if choice.method == PROBE_METHOD {
-                state.carry.next_step = step * step_factor(error, PROBE_METHOD.control(), false);
+                state.carry.next_step = step * step_factor(error, control, false);
             }
         }
         let start_evaluated = integrator.first.valid;
