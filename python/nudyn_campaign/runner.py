@@ -136,8 +136,16 @@ def _interrupt_quietly(signum, frame) -> None:
 
 
 def _quiet_dask() -> None:
-    """Dask's complaints about a cluster closed in the middle of its work say nothing more."""
-    for name in ("distributed", "tornado", "asyncio"):
+    """Dask's complaints about a cluster closed in the middle of its work say nothing more.
+
+    Every logger under these names, not the parents alone: distributed's
+    logging config gives some children their own level (tornado.application
+    at ERROR), which a parent's level does not override, and a callback of
+    the wait Ctrl-C broke logs there."""
+    families = ("distributed", "tornado", "asyncio")
+    names = [name for name in list(logging.root.manager.loggerDict)
+             if any(name == family or name.startswith(family + ".") for family in families)]
+    for name in {*families, *names}:
         logging.getLogger(name).setLevel(logging.CRITICAL + 1)
 
 
