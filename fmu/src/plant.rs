@@ -278,13 +278,18 @@ impl Component for Plant {
     }
 
     fn prepare_reals(&mut self, vrs: &[u32]) -> Result<Option<String>, CallError> {
-        let variables = || vrs.iter().filter_map(|&vr| self.real(vr));
-        if variables().any(|v| matches!(v, RealVariable::Sensordata(_))) {
-            self.evaluate(Evaluated::Sensors)?;
-        } else if variables().any(|v| v.is_derivative() || matches!(v, RealVariable::QfrcConstraint(_))) {
-            self.evaluate(Evaluated::Acceleration)?;
-        } else if variables().any(|v| matches!(v, RealVariable::Qvel(_) | RealVariable::Momentum(_))) {
-            self.evaluate(Evaluated::Velocity)?;
+        // One pass over the references: a host reads θ and ν after every step.
+        let needed = vrs.iter().filter_map(|&vr| self.real(vr)).fold(Evaluated::Nothing, |needed, v| {
+            needed.max(match v {
+                RealVariable::Sensordata(_) => Evaluated::Sensors,
+                RealVariable::QfrcConstraint(_) => Evaluated::Acceleration,
+                v if v.is_derivative() => Evaluated::Acceleration,
+                RealVariable::Qvel(_) | RealVariable::Momentum(_) => Evaluated::Velocity,
+                _ => Evaluated::Nothing,
+            })
+        });
+        if needed > Evaluated::Nothing {
+            self.evaluate(needed)?;
         }
         Ok(None)
     }
