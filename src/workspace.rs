@@ -7,6 +7,7 @@ use nalgebra::{DVector, SMatrix};
 
 use crate::dynamics::TendonInertiaState;
 use crate::dynamics::constraint::ConstraintRows;
+use crate::dynamics::subspace::Subspace;
 use crate::math::{Mat3, Quat, SpatialMat, SpatialVec, Transform, Vec3};
 use crate::model::{Model, SensorSource};
 
@@ -49,6 +50,8 @@ pub struct Workspace {
     pub stage: Stage,
     /// Each link's place in the inward sums (fixed by the model).
     pub accumulation: Vec<Accumulation>,
+    /// The shape of each link's motion subspace (fixed by the model).
+    pub subspaces: Vec<Subspace>,
     /// The configuration θ (qpos, quaternions normalized) — set_configuration.
     pub theta: DVector<f64>,
 
@@ -200,6 +203,7 @@ impl Workspace {
         Workspace {
             stage: Stage::Empty,
             accumulation,
+            subspaces: model.links.iter().map(|link| Subspace::of(&link.motion_subspace, link.ndof)).collect(),
             theta: DVector::from_column_slice(&model.qpos0),
             x_parent: vec![Transform::identity(); n],
             x_world: vec![Transform::identity(); n],

@@ -5,8 +5,9 @@ mod common;
 
 use common::{Rng, TreeOptions, random_theta, random_vehicle, rel_err};
 use nalgebra::{DMatrix, DVector};
+use nudyn::dynamics::subspace::Subspace;
 use nudyn::model::{Model, Shortcuts};
-use nudyn::vehicle::Vehicle;
+use nudyn::vehicle::{JointKind, Vehicle};
 use nudyn::workspace::Workspace;
 use proptest::prelude::*;
 
@@ -256,4 +257,82 @@ fn the_every_shortcut_fixture_takes_every_shortcut() {
     let s = model.shortcuts;
     assert!(s.no_gravity && s.no_springs && s.no_dampers && s.no_armature && s.no_passive_forces(), "{s:?}");
     assert!(model.links.iter().skip(2).all(|l| l.ndof == 1), "only 1-dof joints past the free base");
+}
+
+/// Joints of `vehicle` about coordinate axes through their body origins
+/// (most MJCF joints): about every other body's first joint, if a hinge or
+/// ball, gets anchor 0 and axis e_x, e_y or e_z, the shapes the passes
+/// specialize on (subspace.rs). Only the first: two joints of a body about
+/// one axis through one point would move it one way twice.
+fn align_some_joints(vehicle: &mut Vehicle, rng: &mut Rng) {
+    let axes = [nalgebra::Vector3::x(), nalgebra::Vector3::y(), nalgebra::Vector3::z()];
+    for joint in vehicle.bodies.iter_mut().filter_map(|body| body.joints.first_mut()) {
+        if matches!(joint.kind, JointKind::Hinge | JointKind::Ball) && rng.below(2) == 0 {
+            joint.pos = nalgebra::Vector3::zeros();
+            joint.axis = axes[rng.below(3)];
+        }
+    }
+}
+
+/// ν̇, C, θ̇, ν (pass 2 from θ̇) and θ̈ with the subspaces' shapes as found
+/// and with every link taken as general: the specialized passes must give
+/// the same numbers bit for bit.
+fn check_shapes_change_no_bit(model: &Model, rng: &mut Rng, vehicle: &Vehicle) -> Result<(), String> {
+    let theta = random_theta(rng, vehicle);
+    let (nu, eps, qvel) = (rng.vec(model.nv, 1.5), rng.vec(model.nv, 2.0), rng.vec(model.nv, 1.0));
+    let mut results = Vec::new();
+    for general in [false, true] {
+        let mut ws = model.workspace();
+        if general {
+            let forced =
+                |link: &nudyn::model::Link| if link.ndof == 1 { Subspace::General1 } else { Subspace::General3 };
+            ws.subspaces = model.links.iter().map(forced).collect();
+        }
+        nudyn::dynamics::forward(model, &mut ws, &theta, &nu, &eps).map_err(|e| e.to_string())?;
+        let (nu_dot, coriolis, from_nu) = (ws.nu_dot.clone(), ws.coriolis.clone(), ws.qvel.clone());
+        ws.set_qvel(model, &qvel).map_err(|e| e.to_string())?;
+        ws.compute_qacc(model, &eps).map_err(|e| e.to_string())?;
+        results.push([nu_dot, coriolis, from_nu, ws.nu.clone(), ws.qacc.clone()]);
+    }
+    let names = ["nu_dot", "coriolis", "qvel", "nu", "qacc"];
+    for ((name, specialized), general) in names.iter().zip(&results[0]).zip(&results[1]) {
+        if specialized != general {
+            return Err(format!("{name} differs: {specialized:?} against {general:?}"));
+        }
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
+
+    #[test]
+    fn axis_aligned_joints_agree_with_the_dense_reference_and_with_the_general_passes(
+        seed in any::<u64>(), bodies in 2usize..9, free_base in any::<bool>(), passive in any::<bool>()
+    ) {
+        let mut rng = Rng::new(seed);
+        let mut vehicle = random_vehicle(&mut rng, TreeOptions { bodies, free_base, passive, chain: false });
+        align_some_joints(&mut vehicle, &mut rng);
+        if let Err(e) = check_vehicle(&vehicle, &mut rng) {
+            prop_assert!(false, "{e}\n{vehicle:#?}");
+        }
+        let model = Model::compile(&vehicle).unwrap();
+        if let Err(e) = check_shapes_change_no_bit(&model, &mut rng, &vehicle) {
+            prop_assert!(false, "{e}\n{vehicle:#?}");
+        }
+    }
+}
+
+/// bus_arm7's links take every specialized shape: the free joint's two
+/// halves and hinges about x, y and z (the last two bodies rotated in
+/// their parents), and the passes give the general passes' bits.
+#[test]
+fn bus_arm7_takes_the_specialized_shapes_with_the_general_numbers() {
+    let imported = nudyn::mjcf::load_mjcf(std::path::Path::new("examples/bus_arm7.xml")).unwrap();
+    let model = Model::compile(&imported.vehicle).unwrap();
+    use Subspace::*;
+    let shapes = model.workspace().subspaces;
+    assert_eq!(shapes, [Translation, Rotation, AboutX, AboutY, AboutX, AboutY, AboutX, AboutY, AboutZ]);
+    let mut rng = Rng::new(36);
+    check_shapes_change_no_bit(&model, &mut rng, &imported.vehicle).unwrap();
 }

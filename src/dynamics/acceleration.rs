@@ -12,6 +12,7 @@
 
 use nalgebra::SVector;
 
+use super::subspace::{add_s_times, by_subspace, s_times};
 use super::{DynamicsError, block, cols, require};
 use crate::math::{SpatialVec, cross_motion};
 use crate::model::Model;
@@ -20,20 +21,26 @@ use crate::workspace::{Stage, Workspace};
 /// The outward pass for one link with N dofs, whose parent's A is
 /// `a_parent`; returns its A.
 #[inline(always)]
-fn acceleration_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize, a_parent: &SpatialVec) -> SpatialVec {
+fn acceleration_link<const N: usize, const UNIT: usize>(
+    model: &Model,
+    ws: &mut Workspace,
+    i: usize,
+    a_parent: &SpatialVec,
+) -> SpatialVec {
     let link = &model.links[i];
     let adr = link.dof_adr;
-    let s = cols::<N>(&link.motion_subspace);
     let a_plus = match link.parent {
         Some(_) => ws.x_parent[i].apply_motion(a_parent),
         None => SpatialVec::zeros(),
     };
-    let v_joint = s * ws.qvel.fixed_rows::<N>(adr);
+    let s = &link.motion_subspace;
+    let v_joint = s_times::<N, UNIT>(s, &ws.qvel.fixed_rows::<N>(adr).into_owned());
     let a_passed = a_plus + cross_motion(&ws.v_plus_body[i], &v_joint);
     let joint_term: SVector<f64, N> = ws.nu_dot_joint.fixed_rows::<N>(adr).into_owned();
     let qacc = block::<N>(&ws.r_inv_joint[i]).transpose() * joint_term - cols::<N>(&ws.gain[i]).transpose() * a_passed;
     ws.qacc.fixed_rows_mut::<N>(adr).copy_from(&qacc);
-    let a = a_passed + s * qacc;
+    let mut a = a_passed;
+    add_s_times::<N, UNIT>(&mut a, s, &qacc);
     ws.a_body[i] = a;
     a
 }
@@ -51,10 +58,7 @@ impl Workspace {
                 Some(p) => self.a_body[p],
                 None => SpatialVec::zeros(),
             };
-            a_previous = match model.links[i].ndof {
-                1 => acceleration_link::<1>(model, self, i, &a_parent),
-                _ => acceleration_link::<3>(model, self, i, &a_parent),
-            };
+            a_previous = by_subspace!(self.subspaces[i], acceleration_link(model, self, i, &a_parent));
         }
         Ok(())
     }

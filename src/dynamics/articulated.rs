@@ -6,7 +6,8 @@
 
 use nalgebra::SMatrix;
 
-use super::{DynamicsError, cols, kinematics};
+use super::subspace::{by_subspace, s_transpose_times_columns, times_s};
+use super::{DynamicsError, kinematics};
 use crate::math::{Mat3, SpatialMat};
 use crate::model::Model;
 use crate::workspace::Workspace;
@@ -56,13 +57,16 @@ pub fn upper_triangular_inverse<const N: usize>(r: &SMatrix<f64, N, N>) -> SMatr
 }
 
 /// Pass 1 for one link with N dofs; `ia_reduced[i]` holds its children's share of I^A.
-fn factor_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize) -> Result<(), DynamicsError> {
+fn factor_link<const N: usize, const UNIT: usize>(
+    model: &Model,
+    ws: &mut Workspace,
+    i: usize,
+) -> Result<(), DynamicsError> {
     let link = &model.links[i];
-    let s = cols::<N>(&link.motion_subspace);
     let mut ia = if ws.accumulation[i].has_children { ws.ia_reduced[i] } else { SpatialMat::zeros() };
     link.add_spatial_inertia_to(&mut ia);
-    let u = ia * s;
-    let mut d = s.transpose() * u;
+    let u = times_s::<N, UNIT>(&ia, &link.motion_subspace);
+    let mut d = s_transpose_times_columns::<N, UNIT>(&link.motion_subspace, &u);
     if !model.shortcuts.no_armature {
         d += SMatrix::<f64, N, N>::identity() * link.armature;
     }
@@ -92,6 +96,17 @@ fn factor_link<const N: usize>(model: &Model, ws: &mut Workspace, i: usize) -> R
     Ok(())
 }
 
+/// Passes 0 and 1 for link `i`.
+#[inline(always)]
+fn place_and_factor_link<const N: usize, const UNIT: usize>(
+    model: &Model,
+    ws: &mut Workspace,
+    i: usize,
+) -> Result<(), DynamicsError> {
+    kinematics::place_link::<N, UNIT>(model, ws, i)?;
+    factor_link::<N, UNIT>(model, ws, i)
+}
+
 /// Stores an N×N block in the top-left of a 3×3 buffer.
 fn write_block<const N: usize>(out: &mut Mat3, m: &SMatrix<f64, N, N>) {
     out.fixed_view_mut::<N, N>(0, 0).copy_from(m);
@@ -101,11 +116,7 @@ fn write_block<const N: usize>(out: &mut Mat3, m: &SMatrix<f64, N, N>) {
 /// (I^A, U and D are intermediates).
 pub(crate) fn articulated_pass(model: &Model, ws: &mut Workspace) -> Result<(), DynamicsError> {
     for i in (0..model.links.len()).rev() {
-        kinematics::place_link(model, ws, i)?;
-        match model.links[i].ndof {
-            1 => factor_link::<1>(model, ws, i)?,
-            _ => factor_link::<3>(model, ws, i)?,
-        }
+        by_subspace!(ws.subspaces[i], place_and_factor_link(model, ws, i))?;
         if let Some(p) = model.links[i].parent {
             // Parents precede their children in the link order (p < i).
             let (parents, children) = ws.ia_reduced.split_at_mut(i);

@@ -15,6 +15,7 @@
 
 use nalgebra::{SMatrix, SVector};
 
+use super::subspace::{by_subspace, s_times, s_transpose_times, s_transpose_times_columns, times_s};
 use super::{accumulate, block, cols};
 use crate::math::{Quat, SpatialVec, Vec3, cross_force, cross_motion, mul_cross_motion, quat_difference, spatial};
 use crate::model::{LinkJoint, Model};
@@ -70,7 +71,7 @@ fn upper_half<const N: usize>(x: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
 /// of springs, dampers and gravity (else their ε is zero); `RATES`: whether
 /// to add the factor's rates and so complete ν̇ and C (else only the joint
 /// terms that θ̈ needs, without the İ^A recursion).
-fn bias_link<const N: usize, const RATES: bool>(
+fn bias_link<const N: usize, const UNIT: usize, const RATES: bool>(
     model: &Model,
     ws: &mut Workspace,
     i: usize,
@@ -79,14 +80,14 @@ fn bias_link<const N: usize, const RATES: bool>(
 ) {
     let link = &model.links[i];
     let adr = link.dof_adr;
-    let s = cols::<N>(&link.motion_subspace);
+    let s = &link.motion_subspace;
     let gain = cols::<N>(&ws.gain[i]);
     let r = block::<N>(&ws.r_joint[i]);
     let r_inv = block::<N>(&ws.r_inv_joint[i]);
     let (v, v_plus) = (ws.v_body[i], ws.v_plus_body[i]);
     // v_J = S θ̇ and c = V × v_J = V⁺ × v_J, recomputed rather than stored
     // by pass 2: two fewer per-link arrays to stream on long chains.
-    let v_joint = s * ws.qvel.fixed_rows::<N>(adr);
+    let v_joint = s_times::<N, UNIT>(s, &ws.qvel.fixed_rows::<N>(adr).into_owned());
     let has_children = ws.accumulation[i].has_children;
     // İ^A is zero for a link without children (its own inertia is constant in its frame).
     let ia_dot = (RATES && has_children).then(|| &ws.ia_dot_body[i]);
@@ -96,14 +97,14 @@ fn bias_link<const N: usize, const RATES: bool>(
     if has_children {
         p_bias += ws.p_bias_body[i];
     }
-    let u: SVector<f64, N> = -(s.transpose() * p_bias);
+    let u: SVector<f64, N> = -s_transpose_times::<N, UNIT>(s, &p_bias);
     let joint_bias = r_inv * u;
     // ν̇'s terms from the factor's rates, Ṙᵀw + RᵀĠᵀV⁺, which θ̈ does not need.
     let rates = RATES.then(|| {
         let d_inv = r_inv.transpose() * r_inv;
         let w: SVector<f64, N> = ws.w_joint.fixed_rows::<N>(adr).into_owned();
-        let ia_dot_s: SMatrix<f64, 6, N> = ia_dot.map_or_else(SMatrix::zeros, |ia_dot| ia_dot * s);
-        let d_dot = s.transpose() * ia_dot_s;
+        let ia_dot_s: SMatrix<f64, 6, N> = ia_dot.map_or_else(SMatrix::zeros, |ia_dot| times_s::<N, UNIT>(ia_dot, s));
+        let d_dot = s_transpose_times_columns::<N, UNIT>(s, &ia_dot_s);
         let gain_t_dot = d_inv * (ia_dot_s.transpose() - d_dot * gain.transpose());
         let r_dot = r * upper_half(&(r_inv * d_dot * r_inv.transpose()));
         (r_dot.transpose() * w + r.transpose() * (gain_t_dot * v_plus), ia_dot_s, d_dot)
@@ -125,8 +126,11 @@ fn bias_link<const N: usize, const RATES: bool>(
         }
         p_force
     };
-    let u_force: SVector<f64, N> =
-        if forces { ws.tau_passive.fixed_rows::<N>(adr) - s.transpose() * p_force } else { SVector::zeros() };
+    let u_force: SVector<f64, N> = if forces {
+        ws.tau_passive.fixed_rows::<N>(adr) - s_transpose_times::<N, UNIT>(s, &p_force)
+    } else {
+        SVector::zeros()
+    };
     let eps_passive = r_inv * u_force;
 
     for k in 0..N {
@@ -181,9 +185,6 @@ pub(crate) fn bias_pass<const RATES: bool>(model: &Model, ws: &mut Workspace, ep
         }
     }
     for i in (0..model.links.len()).rev() {
-        match model.links[i].ndof {
-            1 => bias_link::<1, RATES>(model, ws, i, eps, forces),
-            _ => bias_link::<3, RATES>(model, ws, i, eps, forces),
-        }
+        by_subspace!(ws.subspaces[i], bias_link::<RATES>(model, ws, i, eps, forces));
     }
 }

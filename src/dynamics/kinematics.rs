@@ -41,10 +41,28 @@ pub fn joint_transform(link: &Link, theta: &mut [f64]) -> Result<Transform, Dyna
 /// A link's placement depends on its own joint only, so pass 1 calls this
 /// as it reaches each link instead of sweeping the links once more (on long
 /// chains every sweep streams the model and workspace through the cache).
+///
+/// A hinge about a coordinate axis through the link origin (`UNIT` < 3
+/// with one dof, subspace.rs) is a rotation with cos θ and ± sin θ in
+/// place: the entries nalgebra's axis-angle formula gives for that axis,
+/// without its products (bit for bit).
 #[inline(always)]
-pub(crate) fn place_link(model: &Model, ws: &mut Workspace, i: usize) -> Result<(), DynamicsError> {
+pub(crate) fn place_link<const N: usize, const UNIT: usize>(
+    model: &Model,
+    ws: &mut Workspace,
+    i: usize,
+) -> Result<(), DynamicsError> {
     let link = &model.links[i];
-    let x_joint = joint_transform(link, ws.theta.as_mut_slice())?;
+    let x_joint = if N == 1 && UNIT < 3 {
+        let (sin, cos) = (ws.theta[link.qpos_adr] - link.reference).sin_cos();
+        let (a, b) = ((UNIT + 1) % 3, (UNIT + 2) % 3);
+        let mut rot = Mat3::identity();
+        // 0 ± sin: the signed zeros of nalgebra's formula at θ = 0 too.
+        (rot[(a, a)], rot[(a, b)], rot[(b, a)], rot[(b, b)]) = (cos, 0.0 - sin, 0.0 + sin, cos);
+        Transform::from_pose(&rot, &Vec3::zeros())
+    } else {
+        joint_transform(link, ws.theta.as_mut_slice())?
+    };
     ws.x_parent[i] = x_joint.compose(&link.x_tree);
     Ok(())
 }

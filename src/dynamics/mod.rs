@@ -14,7 +14,8 @@
 //! [`acceleration`] gives θ̈ and the links' accelerations after pass 3;
 //! [`sensors`] evaluates MuJoCo's sensors, `interaction` the bodies'
 //! interaction forces that its force and torque sensors read;
-//! [`quantities`] gives kinetic energy, power and momentum.
+//! [`quantities`] gives kinetic energy, power and momentum; [`subspace`]
+//! the shapes of the links' motion subspaces that the passes specialize on.
 
 pub mod acceleration;
 pub mod actuation;
@@ -30,6 +31,7 @@ pub mod kinematics;
 mod noslip;
 pub mod quantities;
 pub mod sensors;
+pub mod subspace;
 pub mod tendon;
 mod tendon_inertia;
 pub mod velocity;

@@ -1,0 +1,134 @@
+//! The shape of each link's motion subspace S, which the passes specialize
+//! on. Most MJCF hinges turn about a coordinate axis of their body through
+//! its origin, a ball joint usually turns about the origin, and a free
+//! joint's halves have S = [1 0]ᵀ and [0 1]ᵀ: S's columns are then columns
+//! of the identity, and the products with S are rows or columns picked out,
+//! with no multiplications (pass 0 places such a hinge with its rotation's
+//! entries in place, kinematics.rs). The numbers are those of the full
+//! products (their other terms are zeros times finite values, so each sum
+//! is exact), and tests check the passes bit for bit against the general
+//! ones: the shapes change speed only, 9 % of bus_arm7's time in the
+//! native host. Passes 1 and 3 and the θ̈ pass are specialized; pass 2 is
+//! not (its instances measured slower: one product per link is little to
+//! save, and more code to lay out).
+//!
+//! The passes are generic over `N` (the link's dofs) and `UNIT` (the row of
+//! S where the identity's columns start, or [`GENERAL`] for any other S);
+//! [`by_subspace!`] calls the instance of a link's shape.
+
+use nalgebra::{SMatrix, SVector};
+
+use super::cols;
+use crate::math::{SpatialMat, SpatialVec};
+use crate::model::MotionSubspace;
+
+/// `UNIT` of a link whose S is not columns of the identity.
+pub const GENERAL: usize = 6;
+
+/// A link's S, by shape.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Subspace {
+    /// One dof, S = e₀: a hinge about the x axis through the origin.
+    AboutX,
+    /// One dof, S = e₁: a hinge about the y axis through the origin.
+    AboutY,
+    /// One dof, S = e₂: a hinge about the z axis through the origin.
+    AboutZ,
+    /// Three dofs, S = [1 0]ᵀ: a ball joint about the origin.
+    Rotation,
+    /// Three dofs, S = [0 1]ᵀ: a free joint's translation.
+    Translation,
+    /// One dof, any other S (slides among them: rarer, and cheap anyway).
+    General1,
+    /// Three dofs, any other S.
+    General3,
+}
+
+impl Subspace {
+    /// The shape of the first `ndof` columns of `s`.
+    pub fn of(s: &MotionSubspace, ndof: usize) -> Subspace {
+        let identity_from =
+            |row: usize, n: usize| (0..n).all(|c| (0..6).all(|r| s[(r, c)] == if r == row + c { 1.0 } else { 0.0 }));
+        if ndof == 1 {
+            let about = [Subspace::AboutX, Subspace::AboutY, Subspace::AboutZ];
+            (0..3).find(|&row| identity_from(row, 1)).map_or(Subspace::General1, |row| about[row])
+        } else if identity_from(0, 3) {
+            Subspace::Rotation
+        } else if identity_from(3, 3) {
+            Subspace::Translation
+        } else {
+            Subspace::General3
+        }
+    }
+}
+
+/// `f(args)` or `f::<EXTRA...>(args)` calls `f::<N, UNIT, EXTRA...>(args)`
+/// for a link's [`Subspace`].
+macro_rules! by_subspace {
+    ($shape:expr, $f:ident $(::<$($extra:ident),*>)? ($($arg:expr),* $(,)?)) => {{
+        use $crate::dynamics::subspace::{GENERAL, Subspace};
+        match $shape {
+            Subspace::AboutX => $f::<1, 0 $($(, $extra)*)?>($($arg),*),
+            Subspace::AboutY => $f::<1, 1 $($(, $extra)*)?>($($arg),*),
+            Subspace::AboutZ => $f::<1, 2 $($(, $extra)*)?>($($arg),*),
+            Subspace::Rotation => $f::<3, 0 $($(, $extra)*)?>($($arg),*),
+            Subspace::Translation => $f::<3, 3 $($(, $extra)*)?>($($arg),*),
+            Subspace::General1 => $f::<1, GENERAL $($(, $extra)*)?>($($arg),*),
+            Subspace::General3 => $f::<3, GENERAL $($(, $extra)*)?>($($arg),*),
+        }
+    }};
+}
+pub(crate) use by_subspace;
+
+/// S x.
+#[inline(always)]
+pub(crate) fn s_times<const N: usize, const UNIT: usize>(s: &MotionSubspace, x: &SVector<f64, N>) -> SpatialVec {
+    if UNIT == GENERAL {
+        cols::<N>(s) * x
+    } else {
+        let mut out = SpatialVec::zeros();
+        out.fixed_rows_mut::<N>(UNIT).copy_from(x);
+        out
+    }
+}
+
+/// v += S x (in place: a unit S adds into v's rows, with no vector of zeros
+/// written and read back).
+#[inline(always)]
+pub(crate) fn add_s_times<const N: usize, const UNIT: usize>(
+    v: &mut SpatialVec,
+    s: &MotionSubspace,
+    x: &SVector<f64, N>,
+) {
+    if UNIT == GENERAL {
+        *v += cols::<N>(s) * x;
+    } else {
+        for k in 0..N {
+            v[UNIT + k] += x[k];
+        }
+    }
+}
+
+/// Sᵀ f.
+#[inline(always)]
+pub(crate) fn s_transpose_times<const N: usize, const UNIT: usize>(
+    s: &MotionSubspace,
+    f: &SpatialVec,
+) -> SVector<f64, N> {
+    if UNIT == GENERAL { cols::<N>(s).transpose() * f } else { f.fixed_rows::<N>(UNIT).into_owned() }
+}
+
+/// M S.
+#[inline(always)]
+pub(crate) fn times_s<const N: usize, const UNIT: usize>(m: &SpatialMat, s: &MotionSubspace) -> SMatrix<f64, 6, N> {
+    if UNIT == GENERAL { m * cols::<N>(s) } else { m.fixed_columns::<N>(UNIT).into_owned() }
+}
+
+/// Sᵀ M for M = U (6×N): the N×N block of its rows.
+#[inline(always)]
+pub(crate) fn s_transpose_times_columns<const N: usize, const UNIT: usize>(
+    s: &MotionSubspace,
+    m: &SMatrix<f64, 6, N>,
+) -> SMatrix<f64, N, N> {
+    if UNIT == GENERAL { cols::<N>(s).transpose() * m } else { m.fixed_rows::<N>(UNIT).into_owned() }
+}
