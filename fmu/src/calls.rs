@@ -58,12 +58,12 @@ pub fn get_real(component: &mut dyn Component, vrs: &[u32], values: &mut [f64]) 
         real_kind(component, vr)?;
     }
     let warning = component.prepare_reals(vrs)?;
+    // Checked before any is written: a refused call leaves the host's buffer as it was.
+    if let Some((vr, value)) = vrs.iter().map(|&vr| (vr, component.real_value(vr))).find(|(_, v)| !v.is_finite()) {
+        return Err(CallError::NonFiniteOutput { name: real_variable(component, vr)?.name, value });
+    }
     for (value, &vr) in values.iter_mut().zip(vrs) {
         *value = component.real_value(vr);
-    }
-    // FMI leaves the values undefined when the call fails: each is read once.
-    if let Some((&vr, &value)) = vrs.iter().zip(values.iter()).find(|(_, v)| !v.is_finite()) {
-        return Err(CallError::NonFiniteOutput { name: real_variable(component, vr)?.name, value });
     }
     Ok(warning)
 }
