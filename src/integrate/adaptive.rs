@@ -595,20 +595,28 @@ impl Integrator {
         carry: &mut Carry,
     ) -> Result<(), DynamicsError> {
         let work = self.step_work(h);
+        if !settings.energy_projection {
+            self.accept(model, theta, qvel);
+            carry.work += work;
+            return Ok(());
+        }
         let energy_before = kinetic_energy(self.first.nu.as_slice());
+        // ν at the step's end comes from its configuration, placed in scratch
+        // first: if the passes fail there, (θ, θ̇) stay at the step's start,
+        // where the time is.
+        self.theta_stage.as_mut_slice().copy_from_slice(theta);
+        retract(model, self.theta_stage.as_mut_slice(), self.delta.as_slice());
+        ws.set_configuration(model, self.theta_stage.as_slice())?;
+        ws.set_qvel(model, self.qvel_next.as_slice())?;
+        let energy = kinetic_energy(ws.nu.as_slice());
         self.accept(model, theta, qvel);
         carry.work += work;
-        if settings.energy_projection {
-            ws.set_configuration(model, theta)?;
-            ws.set_qvel(model, qvel)?;
-            let target = energy_before + work;
-            let energy = kinetic_energy(ws.nu.as_slice());
-            if target > 0.0 && energy > 0.0 {
-                let scale = (target / energy).sqrt();
-                qvel.iter_mut().for_each(|x| *x *= scale);
-                // The cached last stage was evaluated at the unprojected θ̇.
-                self.first.valid = false;
-            }
+        let target = energy_before + work;
+        if target > 0.0 && energy > 0.0 {
+            let scale = (target / energy).sqrt();
+            qvel.iter_mut().for_each(|x| *x *= scale);
+            // The cached last stage was evaluated at the unprojected θ̇.
+            self.first.valid = false;
         }
         Ok(())
     }
@@ -685,4 +693,40 @@ pub(super) fn positions<'a>(model: &'a Model, theta: &'a [f64]) -> impl Iterator
             (link.dof_adr + k, position)
         })
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A step whose end the passes refuse (here a non-finite Δ, as a
+    /// singular articulated inertia there would be refused) fails before
+    /// (θ, θ̇) or the work move: the time stays at the step's start, so must
+    /// they.
+    #[test]
+    fn a_projection_that_fails_leaves_the_state_at_the_steps_start() {
+        let mjcf = r#"<mujoco><worldbody><body name="base"><freejoint/>
+            <inertial pos="0 0 0" mass="3" diaginertia="0.4 0.3 0.2"/>
+            <body name="arm" pos="0.3 0 0"><joint name="hinge" axis="0 0 1"/>
+              <inertial pos="0.2 0 0" mass="1" diaginertia="0.01 0.02 0.02"/>
+            </body></body></worldbody></mujoco>"#;
+        let model = Model::compile(&crate::mjcf::parse_mjcf(mjcf).unwrap().vehicle).unwrap();
+        let mut ws = model.workspace();
+        let settings = Settings { tolerance: 1e-6, max_step: 1.0, energy_projection: true };
+        let mut integrator = Integrator::new(&model, Method::Dop853);
+        let mut theta = vec![0.1, -0.2, 0.3, 1.0, 0.0, 0.0, 0.0, 0.4];
+        let mut qvel = vec![0.1, 0.2, -0.1, 0.3, -0.2, 0.5, 1.5];
+        let mut no_inputs = |_: f64, eps: &mut [f64], ctrl: &mut [f64]| {
+            eps.fill(0.0);
+            ctrl.fill(0.0);
+        };
+        integrator.attempt(&model, &mut ws, (&theta, &qvel), (0.0, 0.01), &mut no_inputs).unwrap();
+        let mut carry = Carry { work: 0.25, ..Carry::default() };
+        let (theta_before, qvel_before) = (theta.clone(), qvel.clone());
+        integrator.delta[6] = f64::NAN;
+        let taken =
+            take_attempted_step(&mut integrator, &model, &mut ws, (&mut theta, &mut qvel), 0.01, &settings, &mut carry);
+        assert!(matches!(taken, Err(DynamicsError::NonFinite { .. })), "{taken:?}");
+        assert_eq!((theta, qvel, carry.work), (theta_before, qvel_before, 0.25));
+    }
 }
