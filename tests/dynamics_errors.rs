@@ -124,3 +124,24 @@ fn a_joint_that_moves_nothing_is_rejected_at_compile_time() {
     let name = "massless".to_string();
     assert_eq!(Model::compile(&vehicle), Err(ModelError::Singular { joint: name }));
 }
+
+/// MuJoCo adds a tendon's armature a·JᵢJⱼ only where M stores an entry
+/// (ancestor pairs), so over two sibling joints the sum need not stay
+/// positive definite; where it leaves M singular (or overflows) the error
+/// names the tendons that carry armature (here at qpos0, when the model
+/// is compiled).
+#[test]
+fn a_singular_masked_tendon_armature_names_its_tendons() {
+    let mjcf = r#"<mujoco><worldbody><body name="root"><joint name="j0" axis="0 0 1"/>
+        <geom size="0.1" mass="1"/>
+        <body name="left" pos="0.3 0 0"><joint name="j1" axis="0 0 1"/><geom size="0.1" mass="1"/></body>
+        <body name="right" pos="-0.3 0 0"><joint name="j2" axis="0 0 1"/><geom size="0.1" mass="1"/></body>
+      </body></worldbody>
+      <tendon><fixed name="coupler" armature="1e308">
+        <joint joint="j0" coef="1"/><joint joint="j1" coef="1"/><joint joint="j2" coef="1"/>
+      </fixed></tendon></mujoco>"#;
+    let error = Model::compile(&nudyn::mjcf::parse_mjcf(mjcf).unwrap().vehicle).unwrap_err();
+    let message =
+        "the mass matrix with the armature of tendon 'coupler' is singular (MuJoCo adds it only where M has entries)";
+    assert!(error.to_string().ends_with(message), "{error}");
+}

@@ -98,8 +98,12 @@ pub enum DynamicsError {
     /// The mass matrix with the tendons' armature is singular (MuJoCo adds
     /// that armature only within the tree's sparsity, which need not keep
     /// the matrix positive definite).
-    #[error("the mass matrix with the tendons' armature is singular")]
-    TendonInertia,
+    #[error("the mass matrix with the armature of {tendons} is singular (MuJoCo adds it only where M has entries)")]
+    TendonInertia {
+        /// The tendons with armature, named as in the MJCF ("tendon 3"
+        /// when unnamed, numbered from 0 as MuJoCo's ids).
+        tendons: String,
+    },
     /// A pass was called before the passes it depends on.
     #[error("{call} needs {needed:?} computed first")]
     OutOfOrder {

@@ -127,6 +127,20 @@ fn lu_factor(a: &mut [f64], pivots: &mut [usize]) -> bool {
     true
 }
 
+/// The tendons with armature, for the error that names them.
+fn armature_tendons(model: &Model) -> String {
+    let mut with_armature: Vec<usize> = model.tendon_inertia.iter().map(|term| term.tendon).collect();
+    with_armature.dedup();
+    let names: Vec<String> = with_armature
+        .iter()
+        .map(|&k| match &model.tendons[k].name {
+            Some(name) => format!("tendon '{name}'"),
+            None => format!("tendon {k}"),
+        })
+        .collect();
+    names.join(", ")
+}
+
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
@@ -168,7 +182,7 @@ impl Workspace {
         }
         let invertible = lu_factor(&mut state.factors, &mut state.pivots);
         self.tendon_inertia = state;
-        if invertible { Ok(()) } else { Err(DynamicsError::TendonInertia) }
+        if invertible { Ok(()) } else { Err(DynamicsError::TendonInertia { tendons: armature_tendons(model) }) }
     }
 
     /// xᵀM_a⁻¹x less xᵀM⁻¹x for the ε = m⁻¹x of a generalized force x at
