@@ -127,9 +127,9 @@ fn a_joint_that_moves_nothing_is_rejected_at_compile_time() {
 
 /// MuJoCo adds a tendon's armature a·JᵢJⱼ only where M stores an entry
 /// (ancestor pairs), so over two sibling joints the sum need not stay
-/// positive definite; where it leaves M singular (or overflows) the error
-/// names the tendons that carry armature (here at qpos0, when the model
-/// is compiled).
+/// positive definite; where it leaves M singular or overflows it (an
+/// armature of 1e308 here) the error names the tendons that carry armature
+/// (here at qpos0, when the model is compiled).
 #[test]
 fn a_singular_masked_tendon_armature_names_its_tendons() {
     let mjcf = r#"<mujoco><worldbody><body name="root"><joint name="j0" axis="0 0 1"/>
