@@ -26,6 +26,7 @@ fn without_lines(mut vehicle: Vehicle) -> Vehicle {
     vehicle.sites.iter_mut().for_each(|s| s.line = 0);
     vehicle.actuators.iter_mut().for_each(|a| a.line = 0);
     vehicle.sensors.iter_mut().for_each(|s| s.line = 0);
+    vehicle.equalities.iter_mut().for_each(|e| e.line = 0);
     vehicle
 }
 
@@ -59,6 +60,9 @@ const INCLUDES_MERGED: &str = r#"<mujoco model="includes">
     <motor name="shoulder_motor" joint="shoulder"/>
     <motor name="wrist_motor" joint="wrist" gear="2"/>
   </actuator>
+  <equality>
+    <joint name="coupling" joint1="wrist" joint2="shoulder" polycoef="0 0.5 0 0 0"/>
+  </equality>
 </mujoco>"#;
 
 #[test]
@@ -71,6 +75,7 @@ fn included_files_merge_in_place_as_if_written_in_the_main_file() {
     assert_eq!((wrist.name.as_str(), wrist.line, wrist.joints[0].line), ("link2", 2, 3));
     assert_eq!(vehicle.sites[0].line, 5);
     assert_eq!(vehicle.actuators[1].line, 4);
+    assert_eq!(vehicle.equalities[0].line, 3);
     // A warning from an included file names it.
     let camera = warnings.iter().find(|w| w.element.contains("arm_camera")).unwrap();
     assert_eq!(camera.line, 5);

@@ -290,7 +290,8 @@ pub(crate) fn read(xml: &str, path: Option<&Path>) -> Result<Imported, MjcfError
         .chain(vehicle.sites.iter_mut().map(|s| &mut s.line))
         .chain(vehicle.actuators.iter_mut().map(|a| &mut a.line))
         .chain(vehicle.sensors.iter_mut().map(|s| &mut s.line))
-        .chain(vehicle.tendons.iter_mut().map(|t| &mut t.line));
+        .chain(vehicle.tendons.iter_mut().map(|t| &mut t.line))
+        .chain(vehicle.equalities.iter_mut().map(|e| &mut e.line));
     for line in lines {
         *line = sources.line_in_file(*line);
     }
