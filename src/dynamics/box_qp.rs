@@ -11,9 +11,10 @@
 //! to round-off: what MuJoCo's solvers approach to their tolerance. The
 //! start can be the last solve's working set (`warm`), which along a
 //! trajectory is mostly the answer's already: one factorization instead of
-//! one per bound reached. Written here because the rows are few and dense and the
-//! solve must not allocate; no crate offers a bounded QP with caller-owned
-//! buffers.
+//! one per bound reached. The answer is computed from its final working
+//! set alone, so which start led there leaves no trace in its bits.
+//! Written here because the rows are few and dense and the solve must not
+//! allocate; no crate offers a bounded QP with caller-owned buffers.
 
 use super::DynamicsError;
 
@@ -110,13 +111,19 @@ impl BoxQp {
                     }
                 }
             }
-            for (a, &i) in self.free.iter().enumerate() {
-                f[i] += step * (self.target[a] - f[i]);
-            }
             if let Some((i, side, bound)) = blocking {
+                for (a, &i) in self.free.iter().enumerate() {
+                    f[i] += step * (self.target[a] - f[i]);
+                }
                 f[i] = bound;
                 self.held[i] = side;
                 continue;
+            }
+            // The minimizer itself, not f + 1·(target − f): the answer then
+            // depends on the final working set alone, not on the path to
+            // it (a warm start, an FMU state restored, an output read).
+            for (a, &i) in self.free.iter().enumerate() {
+                f[i] = self.target[a];
             }
 
             // At the minimizer of this working set: free the held entry
@@ -247,6 +254,7 @@ mod tests {
             state ^= state << 17;
             (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
         };
+        let mut same_set = 0;
         for trial in 0..300 {
             let n = 1 + trial % 6;
             // H = BᵀB + diag(r): A + R as the constraints build it.
@@ -280,7 +288,9 @@ mod tests {
             for i in 0..n {
                 assert!((f[i] - expected[i]).abs() < 1e-10, "trial {trial}: {f:?} against {expected:?}");
             }
-            // From any working set (here a scrambled one) it reaches the same minimizer.
+            let (cold, cold_set) = (f.clone(), qp.held[..n].to_vec());
+            // From any working set (here a scrambled one) it reaches the same
+            // minimizer, and to the bit when it ends in the same working set.
             for (i, held) in qp.held[..n].iter_mut().enumerate() {
                 *held = [Held::Free, Held::Lower, Held::Upper][(i + trial) % 3];
             }
@@ -288,6 +298,11 @@ mod tests {
             for i in 0..n {
                 assert!((f[i] - expected[i]).abs() < 1e-10, "warm, trial {trial}: {f:?} against {expected:?}");
             }
+            if qp.held[..n] == cold_set[..] {
+                same_set += 1;
+                assert_eq!(f, cold, "trial {trial}: the same working set, another path");
+            }
         }
+        assert!(same_set > 200, "{same_set} of 300 trials ended in the cold start's working set");
     }
 }
