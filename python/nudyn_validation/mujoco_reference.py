@@ -14,6 +14,9 @@ Conventions (docs/DYNAMICS.md §2, MuJoCo's own):
       C        = -nu_dot  with gravity, springs, dampers, torques and
                  constraints all off.
   Kinetic energy = 1/2 qvel^T M qvel (M includes joint armature).
+  M, m and K are the tree's: tendon armature, which MuJoCo adds to its M
+  and energy, is left out as nudyn leaves it out (docs/DYNAMICS.md §9);
+  qacc is MuJoCo's, with it.
   Momentum: 6-vector [angular; linear] of all bodies, world axes, angular
   part about the world origin.  Armature (reflected rotor inertia) is not a
   body and carries no momentum here.
@@ -28,6 +31,7 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import mujoco
@@ -110,14 +114,25 @@ class Reference:
         mujoco.mj_forward(self.model, d)
         return d
 
+    @cached_property
+    def _tree(self) -> tuple[mujoco.MjModel, mujoco.MjData]:
+        """The model whose M is the tree's: without tendon armature, which
+        MuJoCo adds to its M and nudyn's m leaves out (docs/DYNAMICS.md §9)."""
+        if not (self.model.ntendon and self.model.tendon_armature.any()):
+            return self.model, self.data
+        tree = copy.deepcopy(self.model)
+        tree.tendon_armature[:] = 0
+        return tree, mujoco.MjData(tree)
+
     def mass_matrix(self, qpos) -> np.ndarray:
-        """Dense M(theta) (armature included) from MuJoCo's CRB."""
-        d = self.data
-        mujoco.mj_resetData(self.model, d)
+        """Dense M(theta) of the tree (joint armature included) from
+        MuJoCo's CRB."""
+        model, d = self._tree
+        mujoco.mj_resetData(model, d)
         d.qpos[:] = qpos
-        mujoco.mj_fwdPosition(self.model, d)
+        mujoco.mj_fwdPosition(model, d)
         M = np.zeros((self.nv, self.nv))
-        mujoco.mj_fullM(self.model, d, M)  # MuJoCo 4: (m, d, dst)
+        mujoco.mj_fullM(model, d, M)  # MuJoCo 4: (m, d, dst)
         return M
 
     # ------------------------------------------------------------------ #
@@ -339,17 +354,29 @@ class MujocoFactor:
             tree.tendon_armature[:] = 0
             self._tree = (tree, mujoco.MjData(tree))
 
-    def _ld(self, data: mujoco.MjData) -> np.ndarray:
-        """qLD of the tree's M at data's qpos."""
-        if self._tree is None:
-            return data.qLD
+    def _tree_at(self, data: mujoco.MjData) -> mujoco.MjData:
+        """The model without tendon armature at data's qpos, its M factored."""
         tree, scratch = self._tree
         scratch.qpos[:] = data.qpos
         mujoco.mj_kinematics(tree, scratch)
         mujoco.mj_comPos(tree, scratch)
         mujoco.mj_makeM(tree, scratch)
         mujoco.mj_factorM(tree, scratch)
-        return scratch.qLD
+        return scratch
+
+    def _ld(self, data: mujoco.MjData) -> np.ndarray:
+        """qLD of the tree's M at data's qpos."""
+        return data.qLD if self._tree is None else self._tree_at(data).qLD
+
+    def kinetic_energy(self, data: mujoco.MjData) -> float:
+        """½θ̇ᵀMθ̇ with the tree's M, as nudyn's K = ½|ν|² counts it: MuJoCo's
+        own energy[1] (mjENBL_ENERGY), or, with tendon armature, which
+        MuJoCo's energy includes, the product by the tree's M."""
+        if self._tree is None:
+            return float(data.energy[1])
+        product = np.zeros(self.nv)
+        mujoco.mj_mulM(self._tree[0], self._tree_at(data), product, data.qvel)
+        return 0.5 * float(data.qvel @ product)
 
     def sqrt_d(self, data: mujoco.MjData) -> np.ndarray:
         return np.sqrt(self._ld(data)[self._diag])

@@ -91,7 +91,7 @@ class MujocoVehicle:
         return self.factor.nu(self.data, self.data.qvel)
 
     def kinetic_energy(self) -> float:
-        return float(self.data.energy[1])
+        return self.factor.kinetic_energy(self.data)
 
     def potential_energy(self) -> float:
         return float(self.data.energy[0])

@@ -173,6 +173,30 @@ def test_tendon_armature_enters_nu_dot_as_its_own_eps(nudyn):
         assert np.any(np.array(answer["eps_tendon_inertia"]) != 0) or not np.any(answer["qvel"]), f"state {k}"
 
 
+def test_the_reference_takes_m_and_k_of_the_tree_as_nudyn_does(nudyn):
+    """nudyn_validation's Reference, against which `nudyn eval` is checked,
+    leaves the tendons' armature out of M, m and K as nudyn does (MuJoCo's
+    M holds it): ν, K and ν̇ agree on tendon_armature, and MuJoCo's own
+    ½θ̇ᵀMθ̇ differs from K by far more than they do."""
+    from nudyn_validation.mujoco_reference import Reference
+
+    reference = Reference.from_file(FIXTURES["tendon_armature"])
+    rng = np.random.default_rng(5)
+    states = [(reference.model.qpos0 + np.concatenate([np.zeros(7), rng.normal(0, 0.3, reference.nq - 7)]),
+               rng.normal(0, 0.5, reference.nv)) for _ in range(5)]
+    requests = [{"theta": q.tolist(), "qvel": v.tolist()} for q, v in states]
+    answers = run_eval(nudyn, FIXTURES["tendon_armature"], json.dumps(requests)).json()
+    for (qpos, qvel), answer in zip(states, answers):
+        assert relative(answer["nu"], reference.nu(qpos, qvel)) < 1e-12
+        k = reference.kinetic_energy(qpos, qvel)
+        assert abs(answer["kinetic_energy"] - k) < 1e-12 * max(1.0, k)
+        assert relative(answer["nu_dot"], reference.nu_dot(qpos, qvel)) < 1e-8
+        data = reference.forward(qpos, qvel)
+        with_armature = np.zeros((reference.nv, reference.nv))
+        mujoco.mj_fullM(reference.model, data, with_armature)
+        assert abs(0.5 * qvel @ with_armature @ qvel - k) > 1e-5 * k
+
+
 def test_tendon_force_ranges_bind_in_some_states(nudyn):
     """On tendon_force_range, MuJoCo's scaling of the tendons' actuator
     forces changes qacc in some states (by far more than the agreement
@@ -273,6 +297,9 @@ def test_fmu_runs_with_its_tendons_like_mujoco(name, nudyn, tmp_path):
         assert x["max_theta_error"] <= tolerance, report
         assert x["max_nu_error"] <= tolerance, report
         assert x["max_sensordata_error"] <= tolerance, report
+        # K is the tree's on both sides (MuJoCo's energy counts the tendons' armature too).
+        k_scale = max(1.0, float(np.max(result.mujoco.kinetic_energy)))
+        assert x["max_kinetic_energy_error"] <= tolerance * k_scale, report
         for qpos in result.mujoco.theta:
             data.qpos[:] = qpos
             mujoco.mj_kinematics(model, data)
