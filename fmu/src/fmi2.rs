@@ -683,26 +683,13 @@ const _: [fmi2GetRealOutputDerivativesTYPE; 1] = [Some(fmi2GetRealOutputDerivati
 #[cfg(test)]
 mod tests {
     use std::ffi::{CStr, CString};
-    use std::path::PathBuf;
-
-    use nudyn_contract::plant::{OptionalOutputs, PlantResource};
-    use nudyn_contract::resource::Resource;
 
     use super::*;
 
     /// The fixed_rig example's resources in a fresh directory: (resource URI, GUID).
     fn resources(test: &str) -> (CString, CString) {
-        let example = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../examples/fixed_rig.xml");
-        let vehicle = nudyn::mjcf::load_mjcf(&example).expect("example imports").vehicle;
-        let model = nudyn::model::Model::compile(&vehicle).expect("example compiles");
-        let resource = PlantResource::new(model, OptionalOutputs::default());
-        let json = resource.to_json().expect("serializable");
-        let dir = std::env::temp_dir().join(format!("nudyn-fmu-{test}-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).expect("temp dir");
-        std::fs::write(dir.join("model.json"), &json).expect("resource written");
-        let uri = format!("file://{}/", dir.display());
-        let guid = resource.guid(&json);
-        (CString::new(uri).expect("no NUL"), CString::new(guid).expect("no NUL"))
+        let (dir, guid, _) = crate::test_resources::write("fixed_rig", test);
+        (CString::new(format!("file://{}/", dir.display())).expect("no NUL"), guid)
     }
 
     fn instantiate(uri: &CString, guid: &CStr) -> fmi2Component {

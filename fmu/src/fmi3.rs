@@ -94,28 +94,55 @@ fn check_count(table: &Fmi3Variables, vrs: &[u32], asked: ValueType, n_values: u
     Ok(())
 }
 
-/// The elements of `vrs`, checked by [`check_count`] to be `n_values`, as
-/// FMI 2.0 value references (`None`: time).
-fn elements(
-    table: &Fmi3Variables,
-    vrs: &[u32],
-    asked: ValueType,
-    n_values: usize,
-) -> Result<Vec<Option<u32>>, FmiError> {
-    check_count(table, vrs, asked, n_values)?;
-    let mut elements = Vec::with_capacity(n_values);
-    for &vr in vrs {
-        match table.get(vr) {
-            Some(variable) => elements.extend(variable.elements().map(Some)),
-            None => elements.push(None),
-        }
-    }
-    Ok(elements)
+/// What the array functions reuse from call to call: a host sets ε and
+/// reads θ and ν at every communication point, and once these have grown to
+/// those calls' sizes the calls allocate nothing.
+#[derive(Debug, Default)]
+pub struct Buffers {
+    /// The elements of a call's value references (`None`: time).
+    elements: Vec<Option<u32>>,
+    /// Their FMI 2.0 value references.
+    references: Vec<u32>,
+    /// The values read for them.
+    reals: Vec<f64>,
 }
 
-/// The FMI 2.0 value references of `elements`, refusing `time` (which cannot be set).
-fn settable(elements: &[Option<u32>]) -> Result<Vec<u32>, FmiError> {
-    elements.iter().map(|e| e.ok_or(FmiError::SetTime)).collect()
+impl Buffers {
+    /// The elements of `vrs`, checked by [`check_count`] to be `n_values`,
+    /// as FMI 2.0 value references (`None`: time).
+    fn elements(
+        &mut self,
+        table: &Fmi3Variables,
+        vrs: &[u32],
+        asked: ValueType,
+        n_values: usize,
+    ) -> Result<(), FmiError> {
+        check_count(table, vrs, asked, n_values)?;
+        self.elements.clear();
+        for &vr in vrs {
+            match table.get(vr) {
+                Some(variable) => self.elements.extend(variable.elements().map(Some)),
+                None => self.elements.push(None),
+            }
+        }
+        Ok(())
+    }
+
+    /// The same as FMI 2.0 value references, refusing `time` (which cannot be set).
+    fn settable(
+        &mut self,
+        table: &Fmi3Variables,
+        vrs: &[u32],
+        asked: ValueType,
+        n_values: usize,
+    ) -> Result<&[u32], FmiError> {
+        self.elements(table, vrs, asked, n_values)?;
+        self.references.clear();
+        for element in &self.elements {
+            self.references.push(element.ok_or(FmiError::SetTime)?);
+        }
+        Ok(&self.references)
+    }
 }
 
 /// A getter or setter of a type nudyn has no variables of: refused for any
@@ -349,16 +376,19 @@ pub unsafe extern "C" fn fmi3GetFloat64(
     unsafe {
         enter(instance, Function::GetReal, "fmi3GetFloat64", |instance| {
             let vrs = reference_array(value_references, n_value_references, n_values)?;
-            let elements = elements(&instance.fmi3, vrs, ValueType::Float64, n_values)?;
+            let buffers = &mut instance.fmi3_buffers;
+            buffers.elements(&instance.fmi3, vrs, ValueType::Float64, n_values)?;
             let values = slice_mut(values, n_values, "values")?;
-            let reals: Vec<u32> = elements.iter().flatten().copied().collect();
-            let mut read = vec![0.0; reals.len()];
-            let warning = calls::get_real(&mut *instance.component, &reals, &mut read)?;
+            buffers.references.clear();
+            buffers.references.extend(buffers.elements.iter().flatten());
+            buffers.reals.clear();
+            buffers.reals.resize(buffers.references.len(), 0.0);
+            let warning = calls::get_real(&mut *instance.component, &buffers.references, &mut buffers.reals)?;
             instance.warning = warning.map(|w| format!("fmi3GetFloat64: {w}"));
-            let mut read = read.into_iter();
-            for (value, element) in values.iter_mut().zip(&elements) {
+            let mut read = buffers.reals.iter();
+            for (value, element) in values.iter_mut().zip(&buffers.elements) {
                 *value = match element {
-                    Some(_) => read.next().expect("one value per Real element"),
+                    Some(_) => *read.next().expect("one value per Real element"),
                     None => instance.component.time(),
                 };
             }
@@ -380,10 +410,10 @@ pub unsafe extern "C" fn fmi3SetFloat64(
     unsafe {
         enter(instance, Function::SetReal, "fmi3SetFloat64", |instance| {
             let vrs = reference_array(value_references, n_value_references, n_values)?;
-            let reals = settable(&elements(&instance.fmi3, vrs, ValueType::Float64, n_values)?)?;
+            let reals = instance.fmi3_buffers.settable(&instance.fmi3, vrs, ValueType::Float64, n_values)?;
             let values = slice(values, n_values, "values")?;
             let initialized = initialized(instance.phase);
-            calls::set_real(&mut *instance.component, &reals, values, initialized).map_err(out_of_range_discards)
+            calls::set_real(&mut *instance.component, reals, values, initialized).map_err(out_of_range_discards)
         })
     }
 }
@@ -401,10 +431,10 @@ pub unsafe extern "C" fn fmi3GetInt64(
     unsafe {
         enter(instance, Function::GetInteger, "fmi3GetInt64", |instance| {
             let vrs = reference_array(value_references, n_value_references, n_values)?;
-            let integers = settable(&elements(&instance.fmi3, vrs, ValueType::Enumeration, n_values)?)?;
+            let integers = instance.fmi3_buffers.settable(&instance.fmi3, vrs, ValueType::Enumeration, n_values)?;
             let values = slice_mut(values, n_values, "values")?;
             let mut read = vec![0; integers.len()];
-            instance.component.get_integer(&integers, &mut read)?;
+            instance.component.get_integer(integers, &mut read)?;
             values.iter_mut().zip(read).for_each(|(value, read)| *value = i64::from(read));
             Ok(())
         })
@@ -424,7 +454,7 @@ pub unsafe extern "C" fn fmi3SetInt64(
     unsafe {
         enter(instance, Function::SetInteger, "fmi3SetInt64", |instance| {
             let vrs = reference_array(value_references, n_value_references, n_values)?;
-            let integers = settable(&elements(&instance.fmi3, vrs, ValueType::Enumeration, n_values)?)?;
+            let integers = instance.fmi3_buffers.settable(&instance.fmi3, vrs, ValueType::Enumeration, n_values)?;
             let values = slice(values, n_values, "values")?;
             let mut narrowed = Vec::with_capacity(values.len());
             for (&vr, &value) in integers.iter().zip(values) {
@@ -433,7 +463,7 @@ pub unsafe extern "C" fn fmi3SetInt64(
                 narrowed.push(i32::try_from(value).map_err(|_| FmiError::EnumerationValue { name, value })?);
             }
             let initialized = initialized(instance.phase);
-            instance.component.set_integer(&integers, &narrowed, initialized).map_err(out_of_range_discards)
+            instance.component.set_integer(integers, &narrowed, initialized).map_err(out_of_range_discards)
         })
     }
 }
@@ -451,10 +481,10 @@ pub unsafe extern "C" fn fmi3GetBoolean(
     unsafe {
         enter(instance, Function::GetBoolean, "fmi3GetBoolean", |instance| {
             let vrs = reference_array(value_references, n_value_references, n_values)?;
-            let booleans = settable(&elements(&instance.fmi3, vrs, ValueType::Boolean, n_values)?)?;
+            let booleans = instance.fmi3_buffers.settable(&instance.fmi3, vrs, ValueType::Boolean, n_values)?;
             let values = slice_mut(values, n_values, "values")?;
             let mut read = vec![false; booleans.len()];
-            instance.component.get_boolean(&booleans, &mut read)?;
+            instance.component.get_boolean(booleans, &mut read)?;
             values.copy_from_slice(&read);
             Ok(())
         })
@@ -474,11 +504,11 @@ pub unsafe extern "C" fn fmi3SetBoolean(
     unsafe {
         enter(instance, Function::SetBoolean, "fmi3SetBoolean", |instance| {
             let vrs = reference_array(value_references, n_value_references, n_values)?;
-            let booleans = settable(&elements(&instance.fmi3, vrs, ValueType::Boolean, n_values)?)?;
+            let booleans = instance.fmi3_buffers.settable(&instance.fmi3, vrs, ValueType::Boolean, n_values)?;
             // Read as bytes: a C bool that is neither 0 nor 1 is true, not undefined behaviour.
             let values = slice(values as *const u8, n_values, "values")?;
             let flags: Vec<bool> = values.iter().map(|&v| v != 0).collect();
-            Ok(instance.component.set_boolean(&booleans, &flags, initialized(instance.phase))?)
+            Ok(instance.component.set_boolean(booleans, &flags, initialized(instance.phase))?)
         })
     }
 }
@@ -1046,14 +1076,14 @@ pub unsafe extern "C" fn fmi3GetOutputDerivatives(
             let vrs = reference_array(value_references, n_value_references, n_values)?;
             let orders = slice(orders, n_value_references, "orders")?;
             let table = &instance.fmi3;
-            let reals = settable(&elements(table, vrs, ValueType::Float64, n_values)?)?;
+            let reals = instance.fmi3_buffers.settable(table, vrs, ValueType::Float64, n_values)?;
             let element_orders: Vec<i32> = vrs
                 .iter()
                 .zip(orders)
                 .flat_map(|(&vr, &order)| std::iter::repeat_n(order, table.get(vr).map_or(1, |v| v.len)))
                 .collect();
             let values = slice_mut(values, n_values, "values")?;
-            Ok(calls::get_output_derivatives(&mut *instance.component, &reals, &element_orders, values)?)
+            Ok(calls::get_output_derivatives(&mut *instance.component, reals, &element_orders, values)?)
         })
     }
 }

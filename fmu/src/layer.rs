@@ -331,6 +331,8 @@ pub struct Instance {
     pub component: Box<dyn Component>,
     /// The FMI 3.0 variables (empty for an FMI 2.0 instance).
     pub fmi3: Fmi3Variables,
+    /// The FMI 3.0 array functions' buffers.
+    pub fmi3_buffers: crate::fmi3::Buffers,
     /// The FMU states handed out by this instance and not yet freed (addresses).
     states: BTreeSet<usize>,
     /// A warning the last call completed with: its status is Warning.
@@ -347,7 +349,17 @@ impl Instance {
         fmi3: Fmi3Variables,
     ) -> Self {
         let phase = Phase::Instantiated;
-        Instance { logger, version, interface, phase, component, fmi3, states: BTreeSet::new(), warning: None }
+        Instance {
+            logger,
+            version,
+            interface,
+            phase,
+            component,
+            fmi3,
+            fmi3_buffers: Default::default(),
+            states: BTreeSet::new(),
+            warning: None,
+        }
     }
 
     /// Hands out a new FMU state.

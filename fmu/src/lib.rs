@@ -24,4 +24,8 @@ mod layer;
 mod plant;
 mod snapshot;
 mod state;
+#[cfg(test)]
+mod step_loop_allocations;
+#[cfg(test)]
+mod test_resources;
 mod uri;

@@ -1,0 +1,230 @@
+//! The loops a host runs, at every communication point in co-simulation
+//! (set ε, doStep, get θ and ν) and at every step of its own integrator in
+//! model exchange (set time and states, get the derivatives), allocate
+//! nothing once the instance has made its first steps: a global allocator
+//! counts this thread's allocations.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+use fmi_sys::fmi2::*;
+use fmi_sys::fmi3::*;
+use nudyn_contract::plant::RealVariable;
+
+use crate::fmi2::*;
+use crate::fmi3::*;
+use crate::layer::Instance;
+
+struct CountingAllocator;
+
+thread_local! {
+    static COUNTING: Cell<bool> = const { Cell::new(false) };
+    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+}
+
+unsafe impl GlobalAlloc for CountingAllocator {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        if COUNTING.with(Cell::get) {
+            ALLOCATIONS.with(|n| n.set(n.get() + 1));
+        }
+        unsafe { System.alloc(layout) }
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: CountingAllocator = CountingAllocator;
+
+/// The allocations `steps` calls of `step` make, after two uncounted ones
+/// (the first step sizes the integrator's start; a host's first reads may
+/// size scratch buffers).
+fn allocations(steps: usize, mut step: impl FnMut(usize)) -> usize {
+    step(0);
+    step(1);
+    ALLOCATIONS.with(|n| n.set(0));
+    COUNTING.with(|c| c.set(true));
+    for k in 2..2 + steps {
+        step(k);
+    }
+    COUNTING.with(|c| c.set(false));
+    ALLOCATIONS.with(Cell::get)
+}
+
+const STEP: f64 = 0.01;
+
+/// bus_arm7: 14 positions, 13 dofs.
+const NQ: usize = 14;
+const NV: usize = 13;
+
+/// An initialized FMI 2.0 instance of bus_arm7 of `kind`, and its variables.
+fn fmi2_instance(kind: fmi2Type, test: &str) -> (fmi2Component, nudyn_contract::plant::Layout) {
+    let (dir, guid, layout) = crate::test_resources::write("bus_arm7", test);
+    let uri = std::ffi::CString::new(format!("file://{}/", dir.display())).expect("no NUL");
+    let functions = fmi2CallbackFunctions {
+        logger: None,
+        allocateMemory: None,
+        freeMemory: None,
+        stepFinished: None,
+        componentEnvironment: std::ptr::null_mut(),
+    };
+    unsafe {
+        let c = fmi2Instantiate(c"loop".as_ptr(), kind, guid.as_ptr(), uri.as_ptr(), &functions, 0, 0);
+        assert!(!c.is_null());
+        assert_eq!(fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0.0), fmi2Status_fmi2OK);
+        assert_eq!(fmi2EnterInitializationMode(c), fmi2Status_fmi2OK);
+        assert_eq!(fmi2ExitInitializationMode(c), fmi2Status_fmi2OK);
+        (c, layout)
+    }
+}
+
+/// The resource path of bus_arm7 for an FMI 3.0 instance, and its token.
+fn fmi3_resources(test: &str) -> (std::ffi::CString, std::ffi::CString) {
+    let (dir, guid, _) = crate::test_resources::write("bus_arm7", test);
+    (std::ffi::CString::new(format!("{}/", dir.display())).expect("no NUL"), guid)
+}
+
+#[test]
+fn the_fmi2_step_loop_does_not_allocate() {
+    let (c, layout) = fmi2_instance(fmi2Type_fmi2CoSimulation, "fmi2-loop");
+    let vrs = |variable: fn(usize) -> RealVariable, n: usize| -> Vec<u32> {
+        (0..n).map(|k| layout.value_reference(variable(k)).expect("declared")).collect()
+    };
+    let (theta, nu, eps) = (vrs(RealVariable::Theta, NQ), vrs(RealVariable::Nu, NV), vrs(RealVariable::Eps, NV));
+    let (mut read, mut input) = (vec![0.0; NQ], vec![0.0; NV]);
+    unsafe {
+        let count = allocations(20, |k| {
+            input.iter_mut().enumerate().for_each(|(i, e)| *e = 0.1 * ((k + i) as f64).sin());
+            assert_eq!(fmi2SetReal(c, eps.as_ptr(), eps.len(), input.as_ptr()), fmi2Status_fmi2OK);
+            assert_eq!(fmi2DoStep(c, k as f64 * STEP, STEP, 1), fmi2Status_fmi2OK);
+            assert_eq!(fmi2GetReal(c, theta.as_ptr(), theta.len(), read.as_mut_ptr()), fmi2Status_fmi2OK);
+            assert_eq!(fmi2GetReal(c, nu.as_ptr(), nu.len(), read.as_mut_ptr()), fmi2Status_fmi2OK);
+        });
+        fmi2FreeInstance(c);
+        assert_eq!(count, 0, "allocations in 20 communication steps");
+    }
+}
+
+#[test]
+fn the_fmi3_step_loop_does_not_allocate() {
+    let (path, token) = fmi3_resources("fmi3-loop");
+    let (mut read, mut input) = (vec![0.0; NQ], vec![0.0; NV]);
+    unsafe {
+        let instance = fmi3InstantiateCoSimulation(
+            c"loop".as_ptr(),
+            token.as_ptr(),
+            path.as_ptr(),
+            false,
+            false,
+            false,
+            false,
+            std::ptr::null(),
+            0,
+            std::ptr::null_mut(),
+            None,
+            None,
+        );
+        assert!(!instance.is_null());
+        let table = &(*(instance as *const Instance)).fmi3;
+        let vr = |name: &str| [table.value_reference(name).expect("declared")];
+        let (theta, nu, eps) = (vr("theta"), vr("nu"), vr("eps"));
+        assert_eq!(fmi3EnterInitializationMode(instance, false, 0.0, 0.0, false, 0.0), fmi3Status_fmi3OK);
+        assert_eq!(fmi3ExitInitializationMode(instance), fmi3Status_fmi3OK);
+        let (mut event, mut terminate, mut early, mut reached) = (false, false, false, 0.0);
+        let count = allocations(20, |k| {
+            input.iter_mut().enumerate().for_each(|(i, e)| *e = 0.1 * ((k + i) as f64).sin());
+            assert_eq!(fmi3SetFloat64(instance, eps.as_ptr(), 1, input.as_ptr(), NV), fmi3Status_fmi3OK);
+            let status =
+                fmi3DoStep(instance, k as f64 * STEP, STEP, true, &mut event, &mut terminate, &mut early, &mut reached);
+            assert_eq!(status, fmi3Status_fmi3OK);
+            assert_eq!(fmi3GetFloat64(instance, theta.as_ptr(), 1, read.as_mut_ptr(), NQ), fmi3Status_fmi3OK);
+            assert_eq!(fmi3GetFloat64(instance, nu.as_ptr(), 1, read.as_mut_ptr(), NV), fmi3Status_fmi3OK);
+        });
+        fmi3FreeInstance(instance);
+        assert_eq!(count, 0, "allocations in 20 communication steps");
+    }
+}
+
+/// Explicit Euler steps of `STEP` through `set_time`, `get_states`,
+/// `get_derivatives`, `set_states` and `completed`, counted as `allocations`
+/// counts them.
+fn euler_allocations(
+    mut set_time: impl FnMut(f64),
+    mut get_states: impl FnMut(&mut [f64]),
+    mut get_derivatives: impl FnMut(&mut [f64]),
+    mut set_states: impl FnMut(&[f64]),
+    mut completed: impl FnMut(),
+) -> usize {
+    let (mut x, mut dx) = (vec![0.0; NQ + NV], vec![0.0; NQ + NV]);
+    allocations(20, |k| {
+        set_time(k as f64 * STEP);
+        get_states(&mut x);
+        get_derivatives(&mut dx);
+        x.iter_mut().zip(&dx).for_each(|(x, dx)| *x += STEP * dx);
+        set_time((k + 1) as f64 * STEP);
+        set_states(&x);
+        completed();
+    })
+}
+
+#[test]
+fn the_fmi2_model_exchange_loop_does_not_allocate() {
+    let (c, _) = fmi2_instance(fmi2Type_fmi2ModelExchange, "fmi2-me-loop");
+    unsafe {
+        let mut event_info: fmi2EventInfo = std::mem::zeroed();
+        assert_eq!(fmi2NewDiscreteStates(c, &mut event_info), fmi2Status_fmi2OK);
+        assert_eq!(fmi2EnterContinuousTimeMode(c), fmi2Status_fmi2OK);
+        let (mut enter_event_mode, mut terminate) = (0, 0);
+        let count = euler_allocations(
+            |t| assert_eq!(fmi2SetTime(c, t), fmi2Status_fmi2OK),
+            |x| assert_eq!(fmi2GetContinuousStates(c, x.as_mut_ptr(), x.len()), fmi2Status_fmi2OK),
+            |dx| assert_eq!(fmi2GetDerivatives(c, dx.as_mut_ptr(), dx.len()), fmi2Status_fmi2OK),
+            |x| assert_eq!(fmi2SetContinuousStates(c, x.as_ptr(), x.len()), fmi2Status_fmi2OK),
+            || {
+                let status = fmi2CompletedIntegratorStep(c, 1, &mut enter_event_mode, &mut terminate);
+                assert_eq!(status, fmi2Status_fmi2OK);
+            },
+        );
+        fmi2FreeInstance(c);
+        assert_eq!(count, 0, "allocations in 20 integrator steps");
+    }
+}
+
+#[test]
+fn the_fmi3_model_exchange_loop_does_not_allocate() {
+    let (path, token) = fmi3_resources("fmi3-me-loop");
+    unsafe {
+        let instance = fmi3InstantiateModelExchange(
+            c"loop".as_ptr(),
+            token.as_ptr(),
+            path.as_ptr(),
+            false,
+            false,
+            std::ptr::null_mut(),
+            None,
+        );
+        assert!(!instance.is_null());
+        assert_eq!(fmi3EnterInitializationMode(instance, false, 0.0, 0.0, false, 0.0), fmi3Status_fmi3OK);
+        assert_eq!(fmi3ExitInitializationMode(instance), fmi3Status_fmi3OK);
+        let [mut a, mut b, mut c, mut d, mut e] = [false; 5];
+        let mut next_event_time = 0.0;
+        let status = fmi3UpdateDiscreteStates(instance, &mut a, &mut b, &mut c, &mut d, &mut e, &mut next_event_time);
+        assert_eq!(status, fmi3Status_fmi3OK);
+        assert_eq!(fmi3EnterContinuousTimeMode(instance), fmi3Status_fmi3OK);
+        let (mut enter_event_mode, mut terminate) = (false, false);
+        let count = euler_allocations(
+            |t| assert_eq!(fmi3SetTime(instance, t), fmi3Status_fmi3OK),
+            |x| assert_eq!(fmi3GetContinuousStates(instance, x.as_mut_ptr(), x.len()), fmi3Status_fmi3OK),
+            |dx| assert_eq!(fmi3GetContinuousStateDerivatives(instance, dx.as_mut_ptr(), dx.len()), fmi3Status_fmi3OK),
+            |x| assert_eq!(fmi3SetContinuousStates(instance, x.as_ptr(), x.len()), fmi3Status_fmi3OK),
+            || {
+                let status = fmi3CompletedIntegratorStep(instance, true, &mut enter_event_mode, &mut terminate);
+                assert_eq!(status, fmi3Status_fmi3OK);
+            },
+        );
+        fmi3FreeInstance(instance);
+        assert_eq!(count, 0, "allocations in 20 integrator steps");
+    }
+}
