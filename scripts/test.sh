@@ -26,6 +26,6 @@ bash scripts/build-windows.sh
 bash scripts/build-wheel.sh
 
 NUDYN_BIN=target/release/nudyn \
-    .venv/bin/python -m pytest tests/python -q
+    .venv/bin/python -m pytest tests/python -q --durations=25
 
 bash scripts/stress-fmu.sh
