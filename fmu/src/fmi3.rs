@@ -108,8 +108,8 @@ pub struct Buffers {
 }
 
 impl Buffers {
-    /// The elements of `vrs`, checked by [`check_count`] to be `n_values`,
-    /// as FMI 2.0 value references (`None`: time).
+    /// Fills `elements` with those of `vrs`, checked by [`check_count`] to
+    /// be `n_values`, as FMI 2.0 value references (`None`: time).
     fn elements(
         &mut self,
         table: &Fmi3Variables,
@@ -128,7 +128,8 @@ impl Buffers {
         Ok(())
     }
 
-    /// The same as FMI 2.0 value references, refusing `time` (which cannot be set).
+    /// Those elements as FMI 2.0 value references, refusing `time` (which
+    /// cannot be set).
     fn settable(
         &mut self,
         table: &Fmi3Variables,
