@@ -10,6 +10,7 @@ use nudyn::control::{ControlLaw, ControlParameters, ControlWorkspace};
 use nudyn::model::{LinkJoint, Model};
 use nudyn_contract::capabilities::Capabilities;
 use nudyn_contract::controller::{CAPABILITIES, ControllerLayout, ControllerResource, ControllerVariable};
+use nudyn_contract::variable::Kind;
 
 use crate::component::{CallError, Component, LoadError, Loaded, StepError, StepReport, Variable};
 
@@ -132,6 +133,10 @@ impl Component for Controller {
 
     fn real_variable(&self, vr: u32) -> Option<Variable> {
         self.layout.variable(vr).map(|v| Variable { name: self.layout.name(v), kind: v.kind() })
+    }
+
+    fn real_kind(&self, vr: u32) -> Option<Kind> {
+        self.layout.variable(vr).map(|v| v.kind())
     }
 
     fn set_reals(&mut self, vrs: &[u32], values: &[f64]) {

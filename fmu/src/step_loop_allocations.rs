@@ -1,14 +1,16 @@
 //! The loops a host runs, at every communication point in co-simulation
-//! (set ε, doStep, get θ and ν) and at every step of its own integrator in
-//! model exchange (set time and states, get the derivatives), allocate
-//! nothing once the instance has made its first steps: a global allocator
-//! counts this thread's allocations.
+//! (set ε, doStep, get θ and ν; for the controller FMU set θ and ν, doStep,
+//! get ε) and at every step of its own integrator in model exchange (set
+//! time and states, get the derivatives), allocate nothing once the
+//! instance has made its first steps: a global allocator counts this
+//! thread's allocations.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
 use fmi_sys::fmi2::*;
 use fmi_sys::fmi3::*;
+use nudyn_contract::controller::ControllerVariable;
 use nudyn_contract::plant::RealVariable;
 
 use crate::fmi2::*;
@@ -226,5 +228,55 @@ fn the_fmi3_model_exchange_loop_does_not_allocate() {
         );
         fmi3FreeInstance(instance);
         assert_eq!(count, 0, "allocations in 20 integrator steps");
+    }
+}
+
+/// The controller FMU of bus_arm7 with its joints' law and with a pose law
+/// of its bus: θ and ν in, ε out.
+#[test]
+fn the_controller_step_loop_does_not_allocate() {
+    for (law, test) in [(None, "controller-joints-loop"), (Some("bus"), "controller-pose-loop")] {
+        let (dir, guid, layout) = crate::test_resources::write_controller("bus_arm7", law, test);
+        let uri = std::ffi::CString::new(format!("file://{}/", dir.display())).expect("no NUL");
+        let vrs = |kind: fn(&ControllerVariable) -> bool| -> Vec<u32> {
+            layout.variables().filter(|(_, v)| kind(v)).map(|(vr, _)| vr).collect()
+        };
+        let theta = vrs(|v| matches!(v, ControllerVariable::Theta(_)));
+        let nu = vrs(|v| matches!(v, ControllerVariable::Nu(_)));
+        let eps = vrs(|v| matches!(v, ControllerVariable::Eps(_)));
+        assert_eq!((theta.len(), nu.len(), eps.len()), (NQ, NV, NV));
+        let functions = fmi2CallbackFunctions {
+            logger: None,
+            allocateMemory: None,
+            freeMemory: None,
+            stepFinished: None,
+            componentEnvironment: std::ptr::null_mut(),
+        };
+        let (mut state, mut read) = (vec![0.0; NQ], vec![0.0; NV]);
+        unsafe {
+            let c = fmi2Instantiate(
+                c"loop".as_ptr(),
+                fmi2Type_fmi2CoSimulation,
+                guid.as_ptr(),
+                uri.as_ptr(),
+                &functions,
+                0,
+                0,
+            );
+            assert!(!c.is_null());
+            assert_eq!(fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0.0), fmi2Status_fmi2OK);
+            assert_eq!(fmi2EnterInitializationMode(c), fmi2Status_fmi2OK);
+            assert_eq!(fmi2ExitInitializationMode(c), fmi2Status_fmi2OK);
+            let count = allocations(20, |k| {
+                state.iter_mut().enumerate().for_each(|(i, x)| *x = 0.1 * ((k + i) as f64).sin());
+                state[3] = 1.0; // the bus's quaternion, w first, near the identity
+                assert_eq!(fmi2SetReal(c, theta.as_ptr(), NQ, state.as_ptr()), fmi2Status_fmi2OK);
+                assert_eq!(fmi2SetReal(c, nu.as_ptr(), NV, state.as_ptr()), fmi2Status_fmi2OK);
+                assert_eq!(fmi2DoStep(c, k as f64 * STEP, STEP, 1), fmi2Status_fmi2OK);
+                assert_eq!(fmi2GetReal(c, eps.as_ptr(), NV, read.as_mut_ptr()), fmi2Status_fmi2OK);
+            });
+            fmi2FreeInstance(c);
+            assert_eq!(count, 0, "allocations in 20 communication steps, law {law:?}");
+        }
     }
 }
