@@ -689,20 +689,11 @@ mod tests {
     /// The fixed_rig example's resources in a fresh directory: (resource URI, GUID).
     fn resources(test: &str) -> (CString, CString) {
         let (dir, guid, _) = crate::test_resources::write("fixed_rig", test);
-        (CString::new(format!("file://{}/", dir.display())).expect("no NUL"), guid)
+        (crate::test_resources::uri(&dir), guid)
     }
 
     fn instantiate(uri: &CString, guid: &CStr) -> fmi2Component {
-        let functions = fmi2CallbackFunctions {
-            logger: None,
-            allocateMemory: None,
-            freeMemory: None,
-            stepFinished: None,
-            componentEnvironment: std::ptr::null_mut(),
-        };
-        unsafe {
-            fmi2Instantiate(c"test".as_ptr(), fmi2Type_fmi2CoSimulation, guid.as_ptr(), uri.as_ptr(), &functions, 0, 0)
-        }
+        crate::test_resources::instantiate_fmi2(fmi2Type_fmi2CoSimulation, uri, guid)
     }
 
     fn phase(c: fmi2Component) -> Phase {

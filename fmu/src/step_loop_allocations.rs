@@ -61,25 +61,16 @@ const STEP: f64 = 0.01;
 const NQ: usize = 14;
 const NV: usize = 13;
 
-/// An initialized FMI 2.0 instance of bus_arm7 of `kind`, and its variables.
-fn fmi2_instance(kind: fmi2Type, test: &str) -> (fmi2Component, nudyn_contract::plant::Layout) {
-    let (dir, guid, layout) = crate::test_resources::write("bus_arm7", test);
-    let uri = std::ffi::CString::new(format!("file://{}/", dir.display())).expect("no NUL");
-    let functions = fmi2CallbackFunctions {
-        logger: None,
-        allocateMemory: None,
-        freeMemory: None,
-        stepFinished: None,
-        componentEnvironment: std::ptr::null_mut(),
-    };
+/// An initialized FMI 2.0 instance of `kind` of the resources in `dir`.
+fn fmi2_instance(kind: fmi2Type, dir: &std::path::Path, guid: &std::ffi::CStr) -> fmi2Component {
+    let c = crate::test_resources::instantiate_fmi2(kind, &crate::test_resources::uri(dir), guid);
+    assert!(!c.is_null());
     unsafe {
-        let c = fmi2Instantiate(c"loop".as_ptr(), kind, guid.as_ptr(), uri.as_ptr(), &functions, 0, 0);
-        assert!(!c.is_null());
         assert_eq!(fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0.0), fmi2Status_fmi2OK);
         assert_eq!(fmi2EnterInitializationMode(c), fmi2Status_fmi2OK);
         assert_eq!(fmi2ExitInitializationMode(c), fmi2Status_fmi2OK);
-        (c, layout)
     }
+    c
 }
 
 /// The resource path of bus_arm7 for an FMI 3.0 instance, and its token.
@@ -90,7 +81,8 @@ fn fmi3_resources(test: &str) -> (std::ffi::CString, std::ffi::CString) {
 
 #[test]
 fn the_fmi2_step_loop_does_not_allocate() {
-    let (c, layout) = fmi2_instance(fmi2Type_fmi2CoSimulation, "fmi2-loop");
+    let (dir, guid, layout) = crate::test_resources::write("bus_arm7", "fmi2-loop");
+    let c = fmi2_instance(fmi2Type_fmi2CoSimulation, &dir, &guid);
     let vrs = |variable: fn(usize) -> RealVariable, n: usize| -> Vec<u32> {
         (0..n).map(|k| layout.value_reference(variable(k)).expect("declared")).collect()
     };
@@ -173,7 +165,8 @@ fn euler_allocations(
 
 #[test]
 fn the_fmi2_model_exchange_loop_does_not_allocate() {
-    let (c, _) = fmi2_instance(fmi2Type_fmi2ModelExchange, "fmi2-me-loop");
+    let (dir, guid, _) = crate::test_resources::write("bus_arm7", "fmi2-me-loop");
+    let c = fmi2_instance(fmi2Type_fmi2ModelExchange, &dir, &guid);
     unsafe {
         let mut event_info: fmi2EventInfo = std::mem::zeroed();
         assert_eq!(fmi2NewDiscreteStates(c, &mut event_info), fmi2Status_fmi2OK);
@@ -237,7 +230,6 @@ fn the_fmi3_model_exchange_loop_does_not_allocate() {
 fn the_controller_step_loop_does_not_allocate() {
     for (law, test) in [(None, "controller-joints-loop"), (Some("bus"), "controller-pose-loop")] {
         let (dir, guid, layout) = crate::test_resources::write_controller("bus_arm7", law, test);
-        let uri = std::ffi::CString::new(format!("file://{}/", dir.display())).expect("no NUL");
         let vrs = |kind: fn(&ControllerVariable) -> bool| -> Vec<u32> {
             layout.variables().filter(|(_, v)| kind(v)).map(|(vr, _)| vr).collect()
         };
@@ -245,28 +237,9 @@ fn the_controller_step_loop_does_not_allocate() {
         let nu = vrs(|v| matches!(v, ControllerVariable::Nu(_)));
         let eps = vrs(|v| matches!(v, ControllerVariable::Eps(_)));
         assert_eq!((theta.len(), nu.len(), eps.len()), (NQ, NV, NV));
-        let functions = fmi2CallbackFunctions {
-            logger: None,
-            allocateMemory: None,
-            freeMemory: None,
-            stepFinished: None,
-            componentEnvironment: std::ptr::null_mut(),
-        };
         let (mut state, mut read) = (vec![0.0; NQ], vec![0.0; NV]);
+        let c = fmi2_instance(fmi2Type_fmi2CoSimulation, &dir, &guid);
         unsafe {
-            let c = fmi2Instantiate(
-                c"loop".as_ptr(),
-                fmi2Type_fmi2CoSimulation,
-                guid.as_ptr(),
-                uri.as_ptr(),
-                &functions,
-                0,
-                0,
-            );
-            assert!(!c.is_null());
-            assert_eq!(fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0.0), fmi2Status_fmi2OK);
-            assert_eq!(fmi2EnterInitializationMode(c), fmi2Status_fmi2OK);
-            assert_eq!(fmi2ExitInitializationMode(c), fmi2Status_fmi2OK);
             let count = allocations(20, |k| {
                 state.iter_mut().enumerate().for_each(|(i, x)| *x = 0.1 * ((k + i) as f64).sin());
                 state[3] = 1.0; // the bus's quaternion, w first, near the identity

@@ -1,7 +1,10 @@
-//! Unit tests' FMU resources: an example's `model.json` in a fresh directory.
+//! Unit tests' FMU resources (an example's `model.json` or
+//! `controller.json` in a fresh directory) and instances of them.
 
-use std::ffi::CString;
-use std::path::PathBuf;
+use std::ffi::{CStr, CString};
+use std::path::{Path, PathBuf};
+
+use fmi_sys::fmi2::{fmi2CallbackFunctions, fmi2Component, fmi2Type};
 
 use nudyn::control::ControlLaw;
 use nudyn_contract::controller::{ControllerLayout, ControllerResource};
@@ -46,4 +49,23 @@ pub fn write_controller(example: &str, law: Option<&str>, test: &str) -> (PathBu
     let resource = ControllerResource::new(model, law.expect("a law of the example"));
     let (dir, guid) = write_resource(&resource, test);
     (dir, guid, resource.layout())
+}
+
+/// The `file://` URI of resource directory `dir`, as FMI 2.0 passes it.
+pub fn uri(dir: &Path) -> CString {
+    CString::new(format!("file://{}/", dir.display())).expect("no NUL")
+}
+
+/// An FMI 2.0 instance of `kind` of the resources at `uri`, without a
+/// logger (null when instantiation is refused).
+pub fn instantiate_fmi2(kind: fmi2Type, uri: &CStr, guid: &CStr) -> fmi2Component {
+    let functions = fmi2CallbackFunctions {
+        logger: None,
+        allocateMemory: None,
+        freeMemory: None,
+        stepFinished: None,
+        componentEnvironment: std::ptr::null_mut(),
+    };
+    // SAFETY: every pointer is valid for the call; the FMU copies the strings.
+    unsafe { crate::fmi2::fmi2Instantiate(c"test".as_ptr(), kind, guid.as_ptr(), uri.as_ptr(), &functions, 0, 0) }
 }
