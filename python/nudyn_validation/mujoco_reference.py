@@ -76,6 +76,17 @@ def load_model(path: str | Path) -> mujoco.MjModel:
     return model
 
 
+def without_tendon_armature(model: mujoco.MjModel) -> mujoco.MjModel | None:
+    """A copy of `model` whose M is the tree's (its tendons' armature set to
+    0: MuJoCo adds it to M, nudyn's m leaves it out, docs/DYNAMICS.md §9);
+    None when no tendon has armature."""
+    if not (model.ntendon and model.tendon_armature.any()):
+        return None
+    tree = copy.deepcopy(model)
+    tree.tendon_armature[:] = 0
+    return tree
+
+
 @dataclass
 class Reference:
     """MuJoCo model + scratch data, and the reference quantities."""
@@ -118,11 +129,8 @@ class Reference:
     def _tree(self) -> tuple[mujoco.MjModel, mujoco.MjData]:
         """The model whose M is the tree's: without tendon armature, which
         MuJoCo adds to its M and nudyn's m leaves out (docs/DYNAMICS.md §9)."""
-        if not (self.model.ntendon and self.model.tendon_armature.any()):
-            return self.model, self.data
-        tree = copy.deepcopy(self.model)
-        tree.tendon_armature[:] = 0
-        return tree, mujoco.MjData(tree)
+        tree = without_tendon_armature(self.model)
+        return (self.model, self.data) if tree is None else (tree, mujoco.MjData(tree))
 
     def mass_matrix(self, qpos) -> np.ndarray:
         """Dense M(theta) of the tree (joint armature included) from
@@ -348,11 +356,8 @@ class MujocoFactor:
         self._off = np.flatnonzero(~on_diagonal)
         self._off_rows = rows[self._off]
         self._off_cols = cols[self._off]
-        self._tree = None
-        if model.ntendon and model.tendon_armature.any():
-            tree = copy.deepcopy(model)
-            tree.tendon_armature[:] = 0
-            self._tree = (tree, mujoco.MjData(tree))
+        tree = without_tendon_armature(model)
+        self._tree = None if tree is None else (tree, mujoco.MjData(tree))
 
     def _tree_at(self, data: mujoco.MjData) -> mujoco.MjData:
         """The model without tendon armature at data's qpos, its M factored."""

@@ -129,11 +129,9 @@ fn lu_factor(a: &mut [f64], pivots: &mut [usize]) -> bool {
 
 /// The tendons with armature, for the error that names them.
 fn armature_tendons(model: &Model) -> String {
-    let mut with_armature: Vec<usize> = model.tendon_inertia.iter().map(|term| term.tendon).collect();
-    with_armature.dedup();
-    let names: Vec<String> = with_armature
-        .iter()
-        .map(|&k| match &model.tendons[k].name {
+    let names: Vec<String> = (model.tendons.iter().enumerate())
+        .filter(|(_, tendon)| tendon.armature != 0.0)
+        .map(|(k, tendon)| match &tendon.name {
             Some(name) => format!("tendon '{name}'"),
             None => format!("tendon {k}"),
         })
