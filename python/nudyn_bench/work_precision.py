@@ -24,6 +24,7 @@ import numpy as np
 
 from nudyn_driver.cli import run_json
 from nudyn_validation.compare import quaternion_starts
+from nudyn_validation.mujoco_reference import set_timestep
 
 from .vehicles import Vehicle
 
@@ -106,7 +107,7 @@ class MujocoRuns:
     def run(self, integrator: str, step: float, plan: Plan) -> tuple[float, np.ndarray, np.ndarray]:
         """(wall time, qpos and qvel at every sample) of one run."""
         self.model.opt.integrator = INTEGRATORS[integrator]
-        self.model.opt.timestep = step
+        set_timestep(self.model, step)
         per_sample = _whole(plan.sample, step)
         samples = _whole(plan.duration, plan.sample)
         states = np.empty((1, per_sample * samples, self.initial.size))
@@ -123,7 +124,7 @@ class MujocoRuns:
         """RK4 at the reference step, sample by sample (a whole run's
         states would not fit in memory)."""
         self.model.opt.integrator = INTEGRATORS["RK4"]
-        self.model.opt.timestep = plan.reference_step
+        set_timestep(self.model, plan.reference_step)
         # Chunks of at most 0.1 s: a sample's states at once could be too many.
         chunk = min(plan.sample, 0.1)
         per_chunk = _whole(chunk, plan.reference_step)

@@ -60,6 +60,8 @@ def central_diff(f, h: float):
 # optimum nudyn solves for exactly; the reference asks for round-off.
 SOLVER_TOLERANCE = 1e-15
 SOLVER_ITERATIONS = 1000
+# MuJoCo's solref where none is given (time constant, damping ratio).
+DEFAULT_SOLREF = (0.02, 1.0)
 
 
 def load_model(path: str | Path) -> mujoco.MjModel:
@@ -74,6 +76,26 @@ def load_model(path: str | Path) -> mujoco.MjModel:
     # left MuJoCo's forces 3 % from the optimum on unitree_g1/g1_mjx.xml.
     model.opt.ls_iterations = max(model.opt.ls_iterations, SOLVER_ITERATIONS)
     return model
+
+
+def set_timestep(model: mujoco.MjModel, step: float) -> None:
+    """Give `model` another time step without moving its constraints'
+    reference: with refsafe on, MuJoCo floors every positive time constant
+    at twice the *current* timestep, and the FMU keeps the file's floor.
+    The floor of the file's timestep is applied to the solrefs here (a
+    mixed-sign solref first replaced by MuJoCo's default, as MuJoCo does)
+    and MuJoCo's own refsafe turned off, so that the step changes nothing
+    but the integration."""
+    if not model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_REFSAFE):
+        floor = 2 * model.opt.timestep
+        for solref in (model.jnt_solref, model.dof_solref, model.eq_solref,
+                       model.tendon_solref_lim, model.tendon_solref_fri):
+            mixed = (solref[:, 0] > 0) != (solref[:, 1] > 0)
+            solref[mixed] = DEFAULT_SOLREF
+            timed = solref[:, 0] > 0
+            solref[timed, 0] = np.maximum(solref[timed, 0], floor)
+        model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_REFSAFE)
+    model.opt.timestep = step
 
 
 def without_tendon_armature(model: mujoco.MjModel) -> mujoco.MjModel | None:

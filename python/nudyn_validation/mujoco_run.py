@@ -17,7 +17,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from .mujoco_reference import MujocoFactor, load_model, subtree_momentum
+from .mujoco_reference import MujocoFactor, load_model, set_timestep, subtree_momentum
 
 
 @contextmanager
@@ -39,7 +39,7 @@ class MujocoVehicle:
     def __init__(self, model_path: str | Path, step: float):
         self.model = load_model(model_path)
         self.model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
-        self.model.opt.timestep = step
+        set_timestep(self.model, step)
         # data.energy = (potential: gravity and springs, kinetic ½ qvelᵀ M qvel).
         self.model.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_ENERGY)
         # The actuators act, as in the FMU (whose ctrl inputs are MuJoCo's

@@ -138,9 +138,12 @@ impl Workspace {
     /// Adds the unit tension's point forces of the straight segment
     /// `from → to` (its direction over `divisor` at `to`, the opposite at
     /// `from`) to the links' wrenches; MuJoCo leaves out a segment within one
-    /// body. Whether some link took a force.
+    /// body. A segment between two bodies welded to one link (or both to the
+    /// world) is left out too: its two forces cancel exactly, while summed
+    /// as wrenches they leave round-off arms of 1e-17 that a tendon limit's
+    /// row would multiply into forces of 1e17. Whether some link took a force.
     fn pull_segment(&mut self, from: &PathPoint, to: &PathPoint, divisor: f64) -> bool {
-        if from.body == to.body {
+        if from.body == to.body || from.link == to.link {
             return false;
         }
         let difference = to.at - from.at;

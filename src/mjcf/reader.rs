@@ -581,6 +581,9 @@ impl Reader {
             if let Some(&off) = disabled.get("island") {
                 physics.constraint_options.islands = !off;
             }
+            if let Some(&off) = disabled.get("refsafe") {
+                physics.constraint_options.refsafe = !off;
+            }
             for (flag, target) in [
                 ("gravity", &mut physics.gravity_disabled),
                 ("spring", &mut physics.spring_disabled),

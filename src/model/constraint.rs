@@ -188,6 +188,23 @@ impl Constraints {
         equality_rows + self.friction.len() + limit_rows + self.tendon_friction.len() + 2 * self.tendon_limits.len()
     }
 
+    /// How many limit sides can switch on and off: two per hinge, slide
+    /// and tendon limit (lower, upper), one per ball limit. Each has a slot
+    /// ([`Constraints::joint_limit_slot`], [`Constraints::tendon_limit_slot`]).
+    pub fn limit_sides(&self) -> usize {
+        2 * (self.limits.len() + self.tendon_limits.len())
+    }
+
+    /// The slot of side `side` (0 lower, 1 upper; a ball's is 0) of joint limit `index`.
+    pub fn joint_limit_slot(&self, index: usize, side: usize) -> usize {
+        2 * index + side
+    }
+
+    /// The slot of side `side` of tendon limit `index`.
+    pub fn tendon_limit_slot(&self, index: usize, side: usize) -> usize {
+        2 * (self.limits.len() + index) + side
+    }
+
     /// What the constraints are, in words, for an FMU's descriptions:
     /// `None` without any.
     pub fn summary(&self) -> Option<String> {
@@ -302,6 +319,15 @@ impl Model {
         ws.set_configuration(self, &self.qpos0).map_err(singular)?;
         ws.world_transforms(self);
         self.constraints.dof_invweight0 = self.dof_invweight0(&mut ws).map_err(singular)?;
+        let mut joint_infos = self.joints.iter();
+        for (b, body) in vehicle.bodies.iter().enumerate() {
+            let infos: Vec<&JointInfo> = joint_infos.by_ref().take(body.joints.len()).collect();
+            if let Some(mass) = slider_body_mass(vehicle, b) {
+                for info in infos {
+                    self.constraints.dof_invweight0[info.dof_adr] = 1.0 / mass;
+                }
+            }
+        }
         let mut equalities = Vec::with_capacity(active.len());
         for (index, equality) in active {
             let rows = self.equality_rows(vehicle, attachments, sites, &mut ws, equality).map_err(|reason| {
@@ -355,6 +381,9 @@ impl Model {
     ) -> [f64; 2] {
         let Some(b) = body else { return [0.0; 2] };
         let Some(link) = attachments[b].link else { return [0.0; 2] };
+        if let Some(mass) = slider_body_mass(vehicle, b) {
+            return [1.0 / mass, 0.0];
+        }
         let offset = &attachments[b].offset;
         let com = offset.trans + offset.rot.transpose() * vehicle.bodies[b].inertial_pos;
         let to_link = ws.x_world[link].rot;
@@ -461,6 +490,35 @@ impl Model {
 }
 
 /// The rotation matrix `frame_to_world` as a unit quaternion.
+/// MuJoCo's smallest component of an axis that counts as nonzero (mjEPS).
+const AXIS_EPSILON: f64 = 1e-14;
+
+/// The mass of `body` when MuJoCo's compiler marks it `body_simple == 2`,
+/// for which its `mj_setConst` takes the invweights as 1/mass (the joints'
+/// armature left out) instead of the diagonal of M⁻¹: a leaf body on the
+/// world or on a jointless child of the world, its inertial frame its body
+/// frame, moved by slides alone, anchored at the origin and along
+/// coordinate axes.
+fn slider_body_mass(vehicle: &Vehicle, body: usize) -> Option<f64> {
+    let bodies = &vehicle.bodies;
+    let this = &bodies[body];
+    let on_world = match this.parent {
+        None => true,
+        Some(p) => bodies[p].parent.is_none() && bodies[p].joints.is_empty(),
+    };
+    let leaf = !bodies.iter().any(|other| other.parent == Some(body));
+    let same_frame = this.inertial_pos.amax() <= AXIS_EPSILON
+        && this.inertial_quat.is_some_and(|q| (q.w - 1.0).abs() <= AXIS_EPSILON && q.imag().amax() <= AXIS_EPSILON);
+    let sliders = !this.joints.is_empty()
+        && this.joints.iter().all(|joint| {
+            joint.kind == JointKind::Slide
+                && joint.pos == Vec3::zeros()
+                && joint.axis.iter().filter(|c| c.abs() > AXIS_EPSILON).count() == 1
+        });
+    let mass = this.inertia.as_ref().map(|inertia| inertia.mass).filter(|&m| m > 0.0)?;
+    (on_world && leaf && same_frame && sliders).then_some(mass)
+}
+
 fn rotation_quat(frame_to_world: &Mat3) -> Quat {
     Quat::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(*frame_to_world))
 }

@@ -157,6 +157,90 @@ def weld_rotation_rows(rows) -> list[int]:
     return starts
 
 
+# Models where nudyn once differed from MuJoCo (issue 47): refsafe turned
+# off, constraints whose Jacobian vanishes, and bodies MuJoCo weighs by
+# 1/mass (each fixture's header says why; welded_strap below).
+EDGE_FIXTURES = {
+    name: ROOT / "tests" / "fixtures" / "constraints" / f"{name}.xml"
+    for name in ("refsafe_off", "empty_rows", "slider_hand")
+}
+
+
+@pytest.mark.parametrize("name", list(EDGE_FIXTURES))
+def test_edge_models_match_mujoco(name, nudyn):
+    """qacc, qfrc_constraint, sensordata and the rows' forces equal MuJoCo's
+    at random states in and beyond the limits."""
+    if name not in _evaluated:
+        _evaluated[name] = evaluate(EDGE_FIXTURES[name], nudyn)
+    references, out = _evaluated[name]
+    for k, (reference, answer) in enumerate(zip(references, out)):
+        assert relative(answer["qacc"], reference["qacc"]) < 1e-9, f"state {k}"
+        assert relative(answer["qfrc_constraint"], reference["qfrc_constraint"]) < 1e-8, f"state {k}"
+        if reference["sensordata"].size:
+            assert relative(answer["sensordata"], reference["sensordata"]) < 1e-8, f"state {k}"
+        forces = [row["force"] for row in answer["constraint_rows"]]
+        assert relative(forces, reference["efc_force"]) < 1e-8 if forces else not reference["efc_force"].size
+
+
+def test_a_tendon_limit_between_welded_bodies_has_no_row(nudyn):
+    """welded_strap's tendon cannot change length: nudyn makes no row for
+    its violated limit at any swing angle, and its qacc is that of MuJoCo
+    with the limit off. Where MuJoCo's own moment arms cancel exactly (at
+    least the pose drawn) it drops the row too, and the two agree; at
+    other angles it keeps a row of round-off arms pushed by ~1e17."""
+    path = ROOT / "tests" / "fixtures" / "constraints" / "welded_strap.xml"
+    model = load_model(path)
+    free = load_model(path)
+    free.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_LIMIT)
+    data, free_data = mujoco.MjData(model), mujoco.MjData(free)
+    angles = [0.0, *np.random.default_rng(5).uniform(-3, 3, 20)]
+    requests, mujoco_drops = [], []
+    for angle in angles:
+        for d, m in ((data, model), (free_data, free)):
+            d.qpos[:], d.qvel[:] = angle, 0.7
+            mujoco.mj_forward(m, d)
+        requests.append({"theta": [angle], "qvel": [0.7]})
+        mujoco_drops.append((data.nefc == 0, data.qacc.copy(), free_data.qacc.copy()))
+    out = run_eval(nudyn, path, json.dumps(requests)).json()
+    assert mujoco_drops[0][0], "MuJoCo drops the row in the pose drawn"
+    for k, (answer, (dropped, qacc, qacc_free)) in enumerate(zip(out, mujoco_drops)):
+        assert answer["constraint_rows"] == [] and answer["sensordata"] == [0.0], f"angle {angles[k]}"
+        assert relative(answer["qacc"], qacc_free) < 1e-12, f"angle {angles[k]}"
+        if dropped:
+            assert relative(answer["qacc"], qacc) < 1e-12, f"angle {angles[k]}"
+
+
+def test_refsafe_off_changes_the_forces(nudyn):
+    """The refsafe fixture's check can fail: with MuJoCo's refsafe on, its
+    constraint forces are far from those of the file as written."""
+    model = load_model(EDGE_FIXTURES["refsafe_off"])
+    model.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_REFSAFE)
+    data = mujoco.MjData(model)
+    if "refsafe_off" not in _evaluated:
+        _evaluated["refsafe_off"] = evaluate(EDGE_FIXTURES["refsafe_off"], nudyn)
+    references, _ = _evaluated["refsafe_off"]
+    rng = np.random.default_rng(34)
+    differing = 0
+    for reference, (qpos, qvel) in zip(references, random_states(model, rng)):
+        data.qpos[:], data.qvel[:] = qpos, qvel
+        mujoco.mj_forward(model, data)
+        differing += relative(data.qacc, reference["qacc"]) > 1e-2
+    assert differing > N_STATES // 4
+
+
+def test_slider_hand_invweights_are_not_the_mass_matrix():
+    """The slider fixture's check can fail: MuJoCo weighs its three slide
+    bodies' rows by 1/mass, far from the diagonal of M⁻¹ (armature in)
+    that nudyn takes for other bodies."""
+    model = load_model(EDGE_FIXTURES["slider_hand"])
+    assert list(model.body_simple[2:]) == [2, 2, 2]
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    full = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, full)
+    assert relative(np.diag(np.linalg.inv(full)), model.dof_invweight0) > 0.5
+
+
 def test_the_states_cover_every_regime(nudyn):
     """On limited_arm: limits active and inactive, friction loss saturated
     and not; and in every state where a row pushes, a model without
@@ -325,3 +409,35 @@ def test_fmu_state_round_trips_bit_exactly_with_constraints(method, nudyn, tmp_p
         assert np.array_equal(fresh.all_reals(), after)
         fresh.fmu.freeFMUstate(restored)
         running.fmu.freeFMUstate(state)
+
+
+@pytest.mark.parametrize("method", ["dop853", "dopri5", "tsit5", "auto"])
+def test_the_fmu_steps_a_constrained_vehicle_with_status_ok(method, nudyn, tmp_path):
+    """docked_servicer through the FMU at 1e-6 and 1e-8: every fmi2DoStep
+    returns fmi2OK with nothing in the log at warning level (the switches
+    of its constraint forces are located: fmusim, OMSimulator and PyFMI
+    stop at a warning), and the end is within 20 × the tolerance of a run
+    at 1e-11."""
+    from nudyn_driver.cli import Nudyn
+    from nudyn_driver.instance import Instance
+    from nudyn_driver.package import FmuPackage
+
+    fmu = tmp_path / "docked.fmu"
+    Nudyn(nudyn).export(FIXTURES["docked_servicer"], fmu)
+    package = FmuPackage.unzip(fmu, tmp_path / "docked")
+    eps = {name: 0.3 * np.sin(k) for k, name in enumerate(package.names("eps"))}
+    outputs = package.names("theta") + package.names("nu")
+
+    def run(method, tolerance):
+        with Instance(package, start={"method": method, "tolerance": tolerance}) as slave:
+            slave.set(eps)
+            statuses = [slave.step(0.05, k * 0.05) for k in range(20)]
+            problems = [m for status, _, m in slave.log.messages if status != 0]
+            return np.array(slave.get(outputs)), statuses, problems
+
+    reference, _, _ = run("dop853", 1e-11)
+    for tolerance in (1e-6, 1e-8):
+        end, statuses, problems = run(method, tolerance)
+        assert set(statuses) == {0} and problems == [], (tolerance, problems)
+        error = np.max(np.abs(end - reference) / (1 + np.abs(reference)))
+        assert error <= 20 * tolerance, (tolerance, error)
