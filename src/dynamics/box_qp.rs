@@ -148,6 +148,74 @@ impl BoxQp {
     }
 }
 
+impl BoxQp {
+    /// The minimizer over the free entries with the held ones at their
+    /// bounds, for the working set `held` holds (kept as it is): the answer
+    /// of the last solve's working set at new data, smooth in the data,
+    /// which may leave the box where the working set no longer fits.
+    #[allow(clippy::too_many_arguments)]
+    pub fn solve_in_working_set(
+        &mut self,
+        n: usize,
+        h: &[f64],
+        stride: usize,
+        g: &[f64],
+        lower: &[f64],
+        upper: &[f64],
+        f: &mut [f64],
+    ) -> Result<(), DynamicsError> {
+        for i in 0..n {
+            f[i] = match self.held[i] {
+                Held::Lower => lower[i],
+                Held::Upper => upper[i],
+                Held::Free => 0.0,
+            };
+        }
+        self.free.clear();
+        self.free.extend((0..n).filter(|&i| self.held[i] == Held::Free));
+        let m = self.free.len();
+        for (a, &i) in self.free.iter().enumerate() {
+            let held_part: f64 = (0..n).filter(|&j| self.held[j] != Held::Free).map(|j| h[i * stride + j] * f[j]).sum();
+            self.target[a] = -(g[i] + held_part);
+            for (b, &j) in self.free.iter().enumerate() {
+                self.factor[a * m + b] = h[i * stride + j];
+            }
+        }
+        cholesky_solve(&mut self.factor[..m * m], m, &mut self.target[..m])?;
+        for (a, &i) in self.free.iter().enumerate() {
+            f[i] = self.target[a];
+        }
+        Ok(())
+    }
+
+    /// How far the answer `f` of the working set `held` holds is from
+    /// leaving it, per entry, into `out`: a free entry's distance to its
+    /// nearer finite bound (+∞ without one), a held entry's multiplier
+    /// (the objective's slope into the box). Negative where the working set
+    /// is no longer the minimizer's: these are the switching functions of
+    /// a force's kink.
+    #[allow(clippy::too_many_arguments)]
+    pub fn working_set_margins(
+        &self,
+        n: usize,
+        h: &[f64],
+        stride: usize,
+        g: &[f64],
+        (lower, upper): (&[f64], &[f64]),
+        f: &[f64],
+        out: &mut [f64],
+    ) {
+        for i in 0..n {
+            let slope = || g[i] + (0..n).map(|j| h[i * stride + j] * f[j]).sum::<f64>();
+            out[i] = match self.held[i] {
+                Held::Free => (f[i] - lower[i]).min(upper[i] - f[i]),
+                Held::Lower => slope(),
+                Held::Upper => -slope(),
+            };
+        }
+    }
+}
+
 /// Solves S x = b in place (b becomes x) for symmetric positive definite S
 /// (m×m, row-major), by its Cholesky factor S = L Lᵀ written over S.
 fn cholesky_solve(s: &mut [f64], m: usize, b: &mut [f64]) -> Result<(), DynamicsError> {

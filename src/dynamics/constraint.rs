@@ -21,9 +21,10 @@
 //!    pass's ν̇ and θ̈'s joint term (ε enters ν̇ additively), and the outward
 //!    pass gives θ̈.
 
-use super::box_qp::BoxQp;
+use super::box_qp::{BoxQp, Held};
 use super::noslip::NoSlipBuffers;
 use super::{DynamicsError, require};
+use crate::model::Limit;
 use crate::model::Model;
 use crate::vehicle::{JointKind, SoftConstraint};
 use crate::workspace::{Stage, Workspace};
@@ -110,6 +111,23 @@ pub struct ConstraintRows {
     last_rows: Vec<(RowKind, usize)>,
     /// The most rows that can be active (fixed by the model).
     pub max_rows: usize,
+    /// Which limit sides are active, when an integrator holds them over a
+    /// step (`Workspace::hold_limit_sides`); else each is active where its
+    /// distance is below its margin, as in MuJoCo.
+    held_sides: Option<Vec<bool>>,
+    /// The buffer of `held_sides` while nothing is held (one per limit side).
+    side_buffer: Vec<bool>,
+    /// With this many rows, the solver's working set is held
+    /// (`Workspace::hold_working_set`): the forces are its minimizer's,
+    /// smooth in the state, instead of the box's.
+    held_working_set: Option<usize>,
+    /// While limit sides are held: how far each row's force is from
+    /// leaving its working set ([`BoxQp::working_set_margins`]).
+    pub margins: Vec<f64>,
+    /// The impedance piece of each row (held with the working set).
+    pieces: Vec<ImpedancePiece>,
+    /// While limit sides are held: how far each row is from leaving its piece.
+    piece_margins: Vec<f64>,
     /// Per-link scratch: spatial accelerations at θ̈ = 0 (for J̇θ̇).
     pub bias_acceleration: Vec<crate::math::SpatialVec>,
     /// MuJoCo's qfrc_constraint = Jᵀf (nv).
@@ -149,6 +167,12 @@ impl ConstraintRows {
             solver: BoxQp::new(rows),
             last_rows: Vec::with_capacity(rows),
             max_rows: rows,
+            held_sides: None,
+            side_buffer: vec![false; model.constraints.limit_sides()],
+            held_working_set: None,
+            margins: vec![f64::INFINITY; rows],
+            pieces: vec![ImpedancePiece::Constant; rows],
+            piece_margins: vec![f64::INFINITY; rows],
             bias_acceleration: vec![
                 crate::math::SpatialVec::zeros();
                 if has_equalities { model.links.len() } else { 0 }
@@ -174,6 +198,58 @@ impl ConstraintRows {
         k
     }
 
+    /// Whether the limit side in `slot` makes a row: as held, or where
+    /// the state puts it (`inside`: its distance is below its margin).
+    fn side_active(&self, slot: usize, inside: bool) -> bool {
+        self.held_sides.as_ref().map_or(inside, |held| held[slot])
+    }
+
+    /// Removes each constraint whose rows' Jacobian is zero throughout (a
+    /// weld of two world-fixed sites, a tendon limit whose path lies on one
+    /// link), as MuJoCo's `mj_addConstraint` does: such rows cannot move the
+    /// vehicle, and their regularizer alone would give them forces of 1e17.
+    /// A constraint's rows are consecutive and share their kind and id.
+    fn drop_empty_constraints(&mut self, nv: usize) {
+        let mut kept = 0;
+        let mut first = 0;
+        while first < self.count {
+            let group = (self.kind[first], self.id[first]);
+            let mut end = first + 1;
+            while end < self.count && (self.kind[end], self.id[end]) == group {
+                end += 1;
+            }
+            if self.jacobian[first * nv..end * nv].iter().any(|&entry| entry != 0.0) {
+                for k in first..end {
+                    self.move_row(nv, k, kept);
+                    kept += 1;
+                }
+            }
+            first = end;
+        }
+        self.count = kept;
+    }
+
+    /// Copies what instantiation wrote of row `from` into row `to` (`to` ≤ `from`).
+    fn move_row(&mut self, nv: usize, from: usize, to: usize) {
+        if from == to {
+            return;
+        }
+        self.jacobian.copy_within(from * nv..(from + 1) * nv, to * nv);
+        self.kind[to] = self.kind[from];
+        self.id[to] = self.id[from];
+        for field in [
+            &mut self.distance,
+            &mut self.violation,
+            &mut self.diagonal_estimate,
+            &mut self.jdot_v,
+            &mut self.margin,
+            &mut self.lower,
+            &mut self.upper,
+        ] {
+            field[to] = field[from];
+        }
+    }
+
     /// The friction and limit rows at configuration `theta` (quaternions
     /// normalized), after the equality rows: the dofs' friction, the
     /// tendons', the joints' limits, the tendons' (MuJoCo's order).
@@ -192,12 +268,12 @@ impl ConstraintRows {
             (self.lower[k], self.upper[k]) = (-friction.frictionloss, friction.frictionloss);
             self.diagonal_estimate[k] = model.tendons[friction.tendon].invweight0;
         }
-        for (index, limit) in model.constraints.limits.iter().enumerate() {
+        let constraints = &model.constraints;
+        for (index, limit) in constraints.limits.iter().enumerate() {
             match limit.kind {
                 JointKind::Ball => {
-                    let (angle, axis) = rotation_angle_axis(&theta[limit.qpos..limit.qpos + 4]);
-                    let distance = limit.range[0].max(limit.range[1]) - angle;
-                    if distance < limit.margin {
+                    let (distance, axis) = ball_limit_distance(limit, theta);
+                    if self.side_active(constraints.joint_limit_slot(index, 0), distance < limit.margin) {
                         let k = self.push(nv, RowKind::Limit, index, distance, limit.margin);
                         for (c, a) in axis.iter().enumerate() {
                             self.jacobian[k * nv + limit.dof + c] = -a;
@@ -205,12 +281,11 @@ impl ConstraintRows {
                     }
                 }
                 _ => {
-                    let value = theta[limit.qpos];
-                    for (side, bound) in [(-1.0, limit.range[0]), (1.0, limit.range[1])] {
-                        let distance = side * (bound - value);
-                        if distance < limit.margin {
+                    for (side, sign) in SIDES {
+                        let distance = sign * (limit.range[side] - theta[limit.qpos]);
+                        if self.side_active(constraints.joint_limit_slot(index, side), distance < limit.margin) {
                             let k = self.push(nv, RowKind::Limit, index, distance, limit.margin);
-                            self.jacobian[k * nv + limit.dof] = -side;
+                            self.jacobian[k * nv + limit.dof] = -sign;
                         }
                     }
                 }
@@ -222,20 +297,60 @@ impl ConstraintRows {
                 self.diagonal_estimate[k] = weights[model.constraints.limits[self.id[k]].dof];
             }
         }
-        for (index, limit) in model.constraints.tendon_limits.iter().enumerate() {
-            let value = tendons.length[limit.tendon];
-            for (side, bound) in [(-1.0, limit.range[0]), (1.0, limit.range[1])] {
-                let distance = side * (bound - value);
-                if distance < limit.margin {
+        for (index, limit) in constraints.tendon_limits.iter().enumerate() {
+            for (side, sign) in SIDES {
+                let distance = sign * (limit.range[side] - tendons.length[limit.tendon]);
+                if self.side_active(constraints.tendon_limit_slot(index, side), distance < limit.margin) {
                     let k = self.push(nv, RowKind::TendonLimit, index, distance, limit.margin);
                     for (entry, arm) in self.jacobian[k * nv..(k + 1) * nv].iter_mut().zip(tendons.moment(limit.tendon))
                     {
-                        *entry = arm * -side;
+                        *entry = arm * -sign;
                     }
                     (self.lower[k], self.upper[k]) = (0.0, f64::INFINITY);
                     self.diagonal_estimate[k] = model.tendons[limit.tendon].invweight0;
                 }
             }
+        }
+    }
+}
+
+/// A hinge's, slide's or tendon's limit sides: (index into `range`, the
+/// sign that makes `sign · (range[side] − value)` the distance inside).
+const SIDES: [(usize, f64); 2] = [(0, -1.0), (1, 1.0)];
+
+/// A ball limit's distance (the larger range value less the rotation
+/// angle) and the axis its row pushes about.
+fn ball_limit_distance(limit: &Limit, theta: &[f64]) -> (f64, [f64; 3]) {
+    let (angle, axis) = rotation_angle_axis(&theta[limit.qpos..limit.qpos + 4]);
+    (limit.range[0].max(limit.range[1]) - angle, axis)
+}
+
+/// Each limit side's distance less its margin at configuration `theta`
+/// (quaternions normalized), with the tendons' lengths there, into `out`
+/// by slot: negative where MuJoCo makes the side a row. A ball's unused
+/// second slot reads +∞. These are the switching functions of the
+/// dynamics: where one changes sign, a row appears or vanishes and the
+/// reference acceleration's velocity term makes θ̈ jump.
+pub fn limit_switching_functions(model: &Model, theta: &[f64], tendon_length: &[f64], out: &mut [f64]) {
+    let constraints = &model.constraints;
+    for (index, limit) in constraints.limits.iter().enumerate() {
+        let slots = [constraints.joint_limit_slot(index, 0), constraints.joint_limit_slot(index, 1)];
+        match limit.kind {
+            JointKind::Ball => {
+                out[slots[0]] = ball_limit_distance(limit, theta).0 - limit.margin;
+                out[slots[1]] = f64::INFINITY;
+            }
+            _ => {
+                for (side, sign) in SIDES {
+                    out[slots[side]] = sign * (limit.range[side] - theta[limit.qpos]) - limit.margin;
+                }
+            }
+        }
+    }
+    for (index, limit) in constraints.tendon_limits.iter().enumerate() {
+        for (side, sign) in SIDES {
+            let distance = sign * (limit.range[side] - tendon_length[limit.tendon]);
+            out[constraints.tendon_limit_slot(index, side)] = distance - limit.margin;
         }
     }
 }
@@ -273,33 +388,79 @@ fn rotation_angle_axis(q: &[f64]) -> (f64, [f64; 3]) {
     (angle.abs(), axis)
 }
 
-/// MuJoCo's `getsolparam` clamps and its `getimpedance`: the impedance at
-/// `distance` from the limit with `margin`.
-fn impedance(solimp: &[f64; 5], distance: f64, margin: f64) -> f64 {
+/// Which polynomial of MuJoCo's impedance curve a row is on: the curve
+/// (`getimpedance`) rises from dmin to dmax over the width, by one
+/// polynomial up to the midpoint and another beyond, and stays at dmax past
+/// the width; it is only once differentiable where the pieces meet, so an
+/// integrator holds a row's piece over a step and locates the change.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ImpedancePiece {
+    /// dmin = dmax or no width: the impedance is constant.
+    #[default]
+    Constant,
+    /// Up to the midpoint.
+    Rising,
+    /// From the midpoint to the width.
+    Leveling,
+    /// Past the width: dmax.
+    Level,
+}
+
+/// MuJoCo's `getsolparam` clamps of a solimp: (dmin, dmax, width, midpoint, power).
+fn impedance_parameters(solimp: &[f64; 5]) -> (f64, f64, f64, f64, f64) {
     let (low, high) = IMPEDANCE_BOUNDS;
-    let dmin = solimp[0].clamp(low, high);
-    let dmax = solimp[1].clamp(low, high);
-    let width = solimp[2].max(0.0);
-    let midpoint = solimp[3].clamp(low, high);
-    let power = solimp[4].max(1.0);
+    (
+        solimp[0].clamp(low, high),
+        solimp[1].clamp(low, high),
+        solimp[2].max(0.0),
+        solimp[3].clamp(low, high),
+        solimp[4].max(1.0),
+    )
+}
+
+/// Where on the impedance curve of `solimp` a row at `distance` from its
+/// `margin` is: the piece MuJoCo's `getimpedance` takes there, and the
+/// curve's argument x = |distance − margin| / width.
+fn impedance_piece(solimp: &[f64; 5], distance: f64, margin: f64) -> (ImpedancePiece, f64) {
+    let (dmin, dmax, width, midpoint, _) = impedance_parameters(solimp);
     if dmin == dmax || width <= MIN_VALUE {
-        return 0.5 * (dmin + dmax);
+        return (ImpedancePiece::Constant, 0.0);
     }
     let x = ((distance - margin) / width).abs();
-    if x >= 1.0 {
-        return dmax;
-    }
-    if x <= 0.0 {
-        return dmin;
-    }
-    let y = if power == 1.0 {
-        x
+    let piece = if x >= 1.0 {
+        ImpedancePiece::Level
     } else if x <= midpoint {
-        raise(x, power) / raise(midpoint, power - 1.0)
+        ImpedancePiece::Rising
     } else {
-        1.0 - raise(1.0 - x, power) / raise(1.0 - midpoint, power - 1.0)
+        ImpedancePiece::Leveling
+    };
+    (piece, x)
+}
+
+/// The impedance on `piece` at x (MuJoCo's `getimpedance` where x is on
+/// that piece; beyond it, the piece's polynomial continued).
+fn impedance_on(solimp: &[f64; 5], piece: ImpedancePiece, x: f64) -> f64 {
+    let (dmin, dmax, _, midpoint, power) = impedance_parameters(solimp);
+    let y = match piece {
+        ImpedancePiece::Constant => return 0.5 * (dmin + dmax),
+        ImpedancePiece::Level => return dmax,
+        ImpedancePiece::Rising if x <= 0.0 => return dmin,
+        _ if power == 1.0 => x,
+        ImpedancePiece::Rising => raise(x, power) / raise(midpoint, power - 1.0),
+        ImpedancePiece::Leveling => 1.0 - raise(1.0 - x, power) / raise(1.0 - midpoint, power - 1.0),
     };
     dmin + y * (dmax - dmin)
+}
+
+/// How far x is from leaving `piece` (positive while on it).
+fn impedance_piece_margin(solimp: &[f64; 5], piece: ImpedancePiece, x: f64) -> f64 {
+    let midpoint = impedance_parameters(solimp).3;
+    match piece {
+        ImpedancePiece::Constant => f64::INFINITY,
+        ImpedancePiece::Rising => midpoint - x,
+        ImpedancePiece::Leveling => (x - midpoint).min(1.0 - x),
+        ImpedancePiece::Level => x - 1.0,
+    }
 }
 
 /// aᵇ, exact for the common powers 1 and 2 as MuJoCo computes them.
@@ -339,6 +500,79 @@ fn stiffness_damping(model: &Model, soft: &SoftConstraint, friction: bool) -> (f
 }
 
 impl Workspace {
+    /// Holds the limit sides whose switching function (`switching`, by
+    /// slot, from [`limit_switching_functions`]) is negative active, and
+    /// the others inactive, whatever the states evaluated until
+    /// [`Workspace::release_limit_sides`]: over an integrator's step the
+    /// rates are then smooth, and it locates where a side switches.
+    pub fn hold_limit_sides(&mut self, switching: &[f64]) {
+        let rows = &mut self.constraint_rows;
+        let mut held = rows.held_sides.take().unwrap_or_else(|| std::mem::take(&mut rows.side_buffer));
+        for (active, value) in held.iter_mut().zip(switching) {
+            *active = *value < 0.0;
+        }
+        rows.held_sides = Some(held);
+    }
+
+    /// Lets the state decide the active limit sides and the solver's
+    /// working set again, as MuJoCo does.
+    pub fn release_limit_sides(&mut self) {
+        let rows = &mut self.constraint_rows;
+        if let Some(held) = rows.held_sides.take() {
+            rows.side_buffer = held;
+        }
+        rows.held_working_set = None;
+    }
+
+    /// Holds the working set of the last solve and the rows' impedance
+    /// pieces (at the state an
+    /// integrator's step starts from, its sides held) for the evaluations
+    /// until [`Workspace::release_working_set`]: each then gives the
+    /// minimizer with the same bounds reached, and [`Workspace::
+    /// switching_margins`] tells where that stops being the answer. Not
+    /// with MuJoCo's no-slip pass, which moves the forces afterwards.
+    pub fn hold_working_set(&mut self, model: &Model) {
+        let rows = &mut self.constraint_rows;
+        if model.constraints.options.noslip_iterations == 0 {
+            rows.held_working_set = Some(rows.count);
+        }
+    }
+
+    /// Moves row `row` across the bound it crossed in the held working set
+    /// (a free force past a bound is held there, a held one freed), so that
+    /// the solve after a located switch starts on its far side: found from
+    /// scratch a hair past the switch, the working set could be the old one
+    /// again, within the solver's tolerance.
+    pub fn cross_working_set(&mut self, row: usize) {
+        let rows = &mut self.constraint_rows;
+        let held = &mut rows.solver.held[row];
+        *held = match *held {
+            Held::Free if rows.force[row] < rows.lower[row] => Held::Lower,
+            Held::Free if rows.force[row] > rows.upper[row] => Held::Upper,
+            Held::Free => Held::Free,
+            Held::Lower | Held::Upper => Held::Free,
+        };
+    }
+
+    /// Lets the solver find the working set again (the sides stay held).
+    pub fn release_working_set(&mut self) {
+        self.constraint_rows.held_working_set = None;
+    }
+
+    /// The rows' margins of the last evaluation (sides held) into `out`
+    /// (2 × `max_rows` long: the forces' working set, then the impedance
+    /// pieces): +∞ past the rows, and for the forces of a model with the
+    /// no-slip pass (they are not the solver's).
+    pub fn switching_margins(&self, model: &Model, out: &mut [f64]) {
+        let rows = &self.constraint_rows;
+        out.fill(f64::INFINITY);
+        let (forces, pieces) = out.split_at_mut(rows.max_rows);
+        if model.constraints.options.noslip_iterations == 0 {
+            forces[..rows.count].copy_from_slice(&rows.margins[..rows.count]);
+        }
+        pieces[..rows.count].copy_from_slice(&rows.piece_margins[..rows.count]);
+    }
+
     /// Puts the forces beyond the tree's on a pass 3 just run for `applied`
     /// (the applied ε, actuators included): first the tendons' armature
     /// (`tendon_inertia`), which makes MuJoCo's qacc_smooth, then the
@@ -357,6 +591,7 @@ impl Workspace {
         self.instantiate_equalities(model, &mut rows);
         let tendons = TendonState { length: self.tendon_length.as_slice(), moments: &self.tendon_moment, nv: model.nv };
         rows.instantiate_friction_and_limits(model, self.theta.as_slice(), &tendons);
+        rows.drop_empty_constraints(model.nv);
         if rows.count == 0 {
             // No row active (limits away, no friction loss or equality):
             // the pass already run is the answer.
@@ -405,7 +640,13 @@ impl Workspace {
                 RowKind::TendonFriction => model.constraints.tendon_friction[rows.id[k]].soft,
                 RowKind::TendonLimit => model.constraints.tendon_limits[rows.id[k]].soft,
             };
-            let imp = impedance(&soft.solimp, rows.violation[k], rows.margin[k]);
+            let (natural, x) = impedance_piece(&soft.solimp, rows.violation[k], rows.margin[k]);
+            let piece = if rows.held_working_set == Some(n) { rows.pieces[k] } else { natural };
+            rows.pieces[k] = piece;
+            let imp = impedance_on(&soft.solimp, piece, x);
+            if rows.held_sides.is_some() {
+                rows.piece_margins[k] = impedance_piece_margin(&soft.solimp, piece, x);
+            }
             let (stiffness, damping) = stiffness_damping(model, &soft, rows.kind[k].is_friction());
             rows.regularizer[k] = ((1.0 - imp) * rows.diagonal_estimate[k] / imp).max(MIN_VALUE);
             rows.aref[k] = -damping * rows.velocity[k] - stiffness * imp * (rows.distance[k] - rows.margin[k]);
@@ -433,7 +674,15 @@ impl Workspace {
             rows.last_rows.extend((0..n).map(|k| (rows.kind[k], rows.id[k])));
         }
         let (gradient, lower, upper) = (&rows.gradient, &rows.lower, &rows.upper);
-        rows.solver.solve(n, &rows.hessian, stride, gradient, lower, upper, &mut rows.force, same_rows)?;
+        if rows.held_working_set == Some(n) {
+            rows.solver.solve_in_working_set(n, &rows.hessian, stride, gradient, lower, upper, &mut rows.force)?;
+        } else {
+            rows.solver.solve(n, &rows.hessian, stride, gradient, lower, upper, &mut rows.force, same_rows)?;
+        }
+        if rows.held_sides.is_some() && model.constraints.options.noslip_iterations == 0 {
+            let bounds = (lower.as_slice(), upper.as_slice());
+            rows.solver.working_set_margins(n, &rows.hessian, stride, gradient, bounds, &rows.force, &mut rows.margins);
+        }
         self.no_slip_pass(model, rows)?;
         rows.eps_constraint.fill(0.0);
         rows.qfrc_constraint.fill(0.0);

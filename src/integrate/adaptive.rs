@@ -222,6 +222,8 @@ pub struct Stats {
     pub evaluations: usize,
     /// Times a Rosenbrock method formed its matrix W (2·nv of the evaluations each).
     pub jacobians: usize,
+    /// Steps attempted to locate where limit sides switch (`switches`).
+    pub locating: usize,
 }
 
 /// Why an interval could not be completed. (θ, θ̇, ν) and the carry are left at
@@ -340,8 +342,15 @@ fn at_round_off_floor(
 /// order pairs, 7 for DOP853, 2 for BS3, whose order-2 estimate per second
 /// falls only as h²), and at most 2.
 fn round_off_power(control: &StepControl) -> f64 {
-    (0.5 / control.controller_exponent).min(2.0)
+    (0.5 / control.controller_exponent).min(KINK_POWER)
 }
+
+/// The power of the step below which a per-second error that fell can be
+/// round-off: below a kink in the rates (a constraint force reaching its
+/// bound, a friction row sticking, an impedance leaving its width) a
+/// step's error falls as h² at least, its per-second error as h; round-off
+/// does not fall (per step), and rises per second.
+const KINK_POWER: f64 = 0.5;
 
 /// How far above the round-off level found the error control then sets its
 /// tolerance: close to the floor the estimate is all noise, which does not
@@ -431,6 +440,7 @@ impl Simulation {
             rejected: 0,
             evaluations: integrator.evaluations - evaluations_before,
             jacobians: 0,
+            locating: 0,
         })
     }
 
@@ -451,6 +461,12 @@ impl Simulation {
             return Ok(Stats::default());
         }
         let (evaluations_before, jacobians_before) = (self.integrator.evaluations, self.integrator.jacobians);
+        if self.switches.watched() {
+            let Simulation { state, integrator, ws, switches, .. } = self;
+            switches
+                .establish(model, ws, integrator, (&state.theta, &state.qvel), t0, inputs_at)
+                .map_err(|cause| AdvanceError::StepFailed { reached: t0, step: 0.0, cause })?;
+        }
         let h = if self.state.carry.next_step > 0.0 {
             self.state.carry.next_step
         } else {
@@ -460,8 +476,9 @@ impl Simulation {
                 cause,
             })?
         };
-        let Simulation { state, settings, integrator, ws, .. } = self;
+        let Simulation { state, settings, integrator, ws, switches, .. } = self;
         let (theta, qvel, carry) = (&mut state.theta[..], &mut state.qvel[..], &mut state.carry);
+        let watch = switches.watched();
         let control = integrator.method.control();
         let tolerance = settings.tolerance;
         let mut stats = Stats::default();
@@ -507,17 +524,44 @@ impl Simulation {
                 carry.relaxation = carry.relaxation.max(ROUND_OFF_MARGIN * per_second.min(least_rejected));
             }
             let error = tested_error(per_second, per_step, carry.relaxation);
-            if error <= 1.0 {
+            let failed = |cause| AdvanceError::StepFailed { reached: t, step, cause };
+            let crossed = error <= 1.0
+                && watch
+                && switches.switched(model, ws, integrator, theta, t + step, inputs_at).map_err(failed)?;
+            // The step to take: the one attempted, or one cut to end just past a switch.
+            let mut taken = (step, per_second, error);
+            if crossed {
+                let located = switches
+                    .locate(model, ws, integrator, (theta, qvel), (t, step), tolerance, inputs_at)
+                    .map_err(failed)?;
+                stats.locating += located.attempts;
+                let per_step = integrator.error_norm(model, ws, theta, tolerance);
+                let per_second = per_second_error(control, per_step, located.step).0;
+                taken = (located.step, per_second, tested_error(per_second, per_step, carry.relaxation));
+            }
+            if taken.2 <= 1.0 {
+                // The step size goes on from the step attempted: a cut to a switch says nothing of the error.
+                let factor = step_factor(error, control, first_rejection.is_some());
+                h = if step < planned { (step * factor).max(planned) } else { step * factor };
+                let step = taken.0;
                 let failed = |cause| AdvanceError::StepFailed { reached: t, step, cause };
                 take_attempted_step(integrator, model, ws, (theta, qvel), step, settings, carry).map_err(failed)?;
                 t = if step == remaining { t1 } else { t + step };
+                if crossed {
+                    // Past the switch: the mode of the new start, and its rates as the first stage.
+                    switches
+                        .establish_after(model, ws, integrator, (theta, qvel), t, true, inputs_at)
+                        .map_err(|cause| AdvanceError::StepFailed { reached: t, step: 0.0, cause })?;
+                } else if watch {
+                    switches.step_taken();
+                }
                 stats.accepted += 1;
-                let factor = step_factor(error, control, first_rejection.is_some());
-                h = if step < planned { (step * factor).max(planned) } else { step * factor };
                 first_rejection = None;
                 least_rejected = f64::INFINITY;
                 last_cause = None;
             } else {
+                // A step cut to a switch that fails (rarely: it is shorter) is rejected as itself.
+                let (step, per_second, error) = taken;
                 if error.is_finite() {
                     last_cause = None;
                 } else if last_cause.is_none() {

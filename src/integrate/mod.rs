@@ -7,6 +7,7 @@ mod auto;
 mod rkmk;
 mod rosenbrock;
 mod simulation;
+mod switches;
 mod tableau;
 
 pub use adaptive::{

@@ -105,6 +105,9 @@ pub struct Integrator {
     /// "first same as last".
     last_qvel: DVector<f64>,
     last_nu: DVector<f64>,
+    /// The rates at the attempted step's end, when evaluated there
+    /// ([`Integrator::evaluate_end`]): the next step's first stage.
+    end: FirstStage,
     pub(super) qvel_stage: DVector<f64>,
     pub(super) theta_stage: DVector<f64>,
     pub(super) eps_stage: DVector<f64>,
@@ -143,6 +146,13 @@ impl Integrator {
             },
             last_qvel: DVector::zeros(nv),
             last_nu: DVector::zeros(nv),
+            end: FirstStage {
+                qvel: DVector::zeros(nv),
+                qacc: DVector::zeros(nv),
+                nu: DVector::zeros(nv),
+                power: 0.0,
+                valid: false,
+            },
             qvel_stage: DVector::zeros(nv),
             theta_stage: DVector::zeros(model.nq),
             eps_stage: DVector::zeros(nv),
@@ -258,6 +268,7 @@ impl Integrator {
         (t, h): (f64, f64),
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<(), DynamicsError> {
+        self.end.valid = false;
         let tableau = match self.method.scheme() {
             Scheme::Explicit(tableau) => tableau,
             Scheme::Rosenbrock(_) => return self.attempt_rosenbrock(model, ws, (theta, qvel), (t, h), inputs_at),
@@ -353,6 +364,35 @@ impl Integrator {
         self.first.valid = true;
     }
 
+    /// Whether the attempted step's last stage is evaluated at its result
+    /// ("first same as last"), so that the workspace holds the rates there.
+    pub(super) fn last_stage_is_end(&self) -> bool {
+        matches!(self.method.scheme(), Scheme::Explicit(t) if t.first_same_as_last)
+    }
+
+    /// Evaluates the rates at the attempted step's result (θ ⊕ Δ from
+    /// `theta`, at `t_end`); taken, the step hands them to the next as its
+    /// first stage.
+    pub(super) fn evaluate_end(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        theta: &[f64],
+        t_end: f64,
+        inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
+    ) -> Result<(), DynamicsError> {
+        self.theta_stage.as_mut_slice().copy_from_slice(theta);
+        retract(model, self.theta_stage.as_mut_slice(), self.delta.as_slice());
+        self.qvel_stage.copy_from(&self.qvel_next);
+        let power = self.evaluate_stage(model, ws, t_end, inputs_at)?;
+        copy(&mut self.end.qvel, &ws.qvel);
+        copy(&mut self.end.qacc, &ws.qacc);
+        copy(&mut self.end.nu, &ws.nu);
+        self.end.power = power;
+        self.end.valid = true;
+        Ok(())
+    }
+
     /// Evaluates the rates at the step's start (θ, θ̇, t) into `first`.
     pub(super) fn evaluate_start(
         &mut self,
@@ -387,8 +427,8 @@ impl Integrator {
     pub(super) fn accept(&mut self, model: &Model, theta: &mut [f64], qvel: &mut [f64]) {
         retract(model, theta, self.delta.as_slice());
         qvel.copy_from_slice(self.qvel_next.as_slice());
-        let first_same_as_last = matches!(self.method.scheme(), Scheme::Explicit(t) if t.first_same_as_last);
-        self.first.valid = first_same_as_last;
+        let first_same_as_last = self.last_stage_is_end();
+        self.first.valid = first_same_as_last || self.end.valid;
         self.linear.age = self.linear.age.saturating_add(1);
         if first_same_as_last {
             let last = self.method.stages() - 1;
@@ -396,6 +436,11 @@ impl Integrator {
             copy(&mut self.first.qacc, &self.k_qvel[last]);
             copy(&mut self.first.nu, &self.last_nu);
             self.first.power = self.stage_power[last];
+        } else if self.end.valid {
+            copy(&mut self.first.qvel, &self.end.qvel);
+            copy(&mut self.first.qacc, &self.end.qacc);
+            copy(&mut self.first.nu, &self.end.nu);
+            self.first.power = self.end.power;
         }
     }
 }

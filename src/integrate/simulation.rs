@@ -11,6 +11,7 @@ use super::adaptive::{
 use super::auto::{AutoChoice, AutoMove, MethodSetting, PROBE_METHOD};
 use super::rkmk::{Integrator, nu_of_qvel, qvel_of_nu};
 use super::rosenbrock::HeldJacobian;
+use super::switches::Switches;
 use super::tableau::Method;
 use crate::dynamics::DynamicsError;
 use crate::model::Model;
@@ -132,6 +133,8 @@ pub struct Simulation {
     /// θ and ν (nq + nv) when `state.qvel` was last formed or advanced,
     /// to tell whether a caller has changed them since.
     qvel_belongs_to: Vec<f64>,
+    /// Where limit sides switch within an adaptive run.
+    pub(super) switches: Switches,
 }
 
 impl Simulation {
@@ -154,6 +157,7 @@ impl Simulation {
             held_input: vec![0.0; model.nv + model.actuators.len()],
             input_was_constant: false,
             qvel_belongs_to: model.qpos0.iter().copied().chain(std::iter::repeat_n(0.0, model.nv)).collect(),
+            switches: Switches::new(model),
         }
     }
 
@@ -272,6 +276,8 @@ impl Simulation {
                 }
             }
         };
+        // Outside a step the state decides the active limit sides again.
+        self.ws.release_limit_sides();
         // ν where the run stands, whether it reached t_end or not; a run
         // that took no step keeps its ν bit for bit (m*ℓ* is the identity
         // only to round-off).
@@ -364,10 +370,16 @@ impl Simulation {
         t_end: f64,
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> (AutoChoice, Result<bool, DynamicsError>) {
-        let Simulation { state, settings, integrator, ws, .. } = self;
+        let Simulation { state, settings, integrator, ws, switches, .. } = self;
         let t0 = state.time;
         let step = (t_end - t0).min(settings.step_bound(PROBE_METHOD));
-        let attempted = integrator.attempt(model, ws, (&state.theta, &state.qvel), (t0, step), inputs_at);
+        // The probe holds the constraint mode of its start, as every adaptive step does.
+        let attempted = if switches.watched() {
+            switches.establish(model, ws, integrator, (&state.theta, &state.qvel), t0, inputs_at)
+        } else {
+            Ok(())
+        }
+        .and_then(|()| integrator.attempt(model, ws, (&state.theta, &state.qvel), (t0, step), inputs_at));
         // The error relative to 1 + |x| itself (the norm with tolerance 1),
         // and the run's error test, as `advance_adaptive` applies it to a first step.
         let per_step_of = |integrator: &Integrator, ws: &mut Workspace, tolerance: f64| match attempted {
@@ -379,7 +391,11 @@ impl Simulation {
         let choice = AutoChoice::new(step, error_per_second, settings.tolerance);
         let per_step = per_step_of(integrator, ws, settings.tolerance);
         let error = tested_error(per_second_error(control, per_step, step).0, per_step, state.carry.relaxation);
-        let passes = error <= 1.0 && integrator.non_finite_result().is_none();
+        // A probe across a switch is not taken: the run's method locates it.
+        let passes = error <= 1.0
+            && integrator.non_finite_result().is_none()
+            && !(switches.watched()
+                && switches.switched(model, ws, integrator, &state.theta, t0 + step, inputs_at).unwrap_or(true));
         if passes {
             let taken = take_attempted_step(
                 integrator,
