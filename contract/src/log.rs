@@ -51,7 +51,10 @@ impl LogCategory {
             LogCategory::Fatal => "unrecoverable failures",
             LogCategory::Calls => "every call and its status (debug)",
             LogCategory::Warning => "a step that completed at a looser tolerance than asked",
-            LogCategory::MethodChoice => "the integration method that method = auto chose, and why",
+            LogCategory::MethodChoice => {
+                "how the FMU integrates: the method that method = auto chose, and why, and a tolerance the host set \
+                 in place of the FMU's own"
+            }
         }
     }
 

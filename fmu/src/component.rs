@@ -67,8 +67,10 @@ pub trait Component {
     /// fmi2SetupExperiment, with arguments already checked.
     fn setup_experiment(&mut self, tolerance: Option<f64>, start_time: f64, stop_time: Option<f64>);
 
-    /// fmi2ExitInitializationMode: whatever was set must make a run.
-    fn initialize(&mut self) -> Result<(), CallError>;
+    /// fmi2ExitInitializationMode: whatever was set must make a run; the
+    /// answer is a note for the log, if the run differs from what the
+    /// FMU's own parameters say.
+    fn initialize(&mut self) -> Result<Option<String>, CallError>;
 
     /// The Real variable with value reference `vr`, if there is one.
     fn real_variable(&self, vr: u32) -> Option<Variable>;

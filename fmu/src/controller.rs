@@ -123,8 +123,9 @@ impl Component for Controller {
 
     /// The parameters must make a law (a target quaternion set to zero is
     /// refused here, not at the first output).
-    fn initialize(&mut self) -> Result<(), CallError> {
-        self.parameters.check(&self.model, &self.law).map_err(CallError::Control)
+    fn initialize(&mut self) -> Result<Option<String>, CallError> {
+        self.parameters.check(&self.model, &self.law).map_err(CallError::Control)?;
+        Ok(None)
     }
 
     fn dependencies(&self, vr: u32) -> Option<Vec<u32>> {

@@ -782,7 +782,9 @@ pub unsafe fn deserialize(
 /// ExitInitializationMode: whatever was set must make a run; then the
 /// first state of the interface's running machine.
 pub fn exit_initialization_mode(instance: &mut Instance) -> Result<(), FmiError> {
-    instance.component.initialize()?;
+    if let Some(note) = instance.component.initialize()? {
+        instance.logger.log(Status::Ok, LogCategory::MethodChoice, &note);
+    }
     instance.phase = match instance.interface {
         Interface::CoSimulation => Phase::StepComplete,
         Interface::ModelExchange => Phase::EventMode,
@@ -818,8 +820,11 @@ pub fn do_step(instance: &mut Instance, time: f64, step: f64, name: &str) -> Res
         }
     }
     if instance.logger.enabled(LogCategory::Calls) {
-        let nudyn::integrate::Stats { accepted, rejected, jacobians, evaluations } = report.stats;
+        let nudyn::integrate::Stats { accepted, rejected, jacobians, evaluations, locating } = report.stats;
         let mut message = format!("{name}: {accepted} internal steps taken, {rejected} rejected");
+        if locating > 0 {
+            message += &format!(", {locating} attempted to locate constraint switches");
+        }
         if jacobians > 0 {
             message += &format!(", W formed {jacobians} times");
         }

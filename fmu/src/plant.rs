@@ -236,15 +236,23 @@ impl Component for Plant {
     /// Checks the initial state set by the master and normalizes its
     /// quaternions, as MuJoCo does. A tolerance from fmi2SetupExperiment
     /// takes the place of the `tolerance` parameter, which then reads back
-    /// the tolerance in effect.
-    fn initialize(&mut self) -> Result<(), CallError> {
+    /// the tolerance in effect; a different one is noted, since hosts pass
+    /// their own default (OMSimulator and PyFMI: 1e-4) without saying so.
+    fn initialize(&mut self) -> Result<Option<String>, CallError> {
         self.sim.initialize(&self.model).map_err(CallError::InitialState)?;
+        let own = self.sim.settings.tolerance;
+        let note = self.experiment_tolerance.filter(|&tolerance| tolerance != own).map(|tolerance| {
+            format!(
+                "the tolerance {tolerance:e} the host passed (fmi2SetupExperiment, fmi3EnterInitializationMode) \
+                 replaces the FMU's tolerance parameter {own:e}: the error is held to {tolerance:e} per second"
+            )
+        });
         if let Some(tolerance) = self.experiment_tolerance {
             self.sim.settings.tolerance = tolerance;
         }
         self.initial_energy = kinetic_energy(&self.sim.state.nu);
         self.evaluated = Evaluated::Nothing;
-        Ok(())
+        Ok(note)
     }
 
     fn dependencies(&self, vr: u32) -> Option<Vec<u32>> {

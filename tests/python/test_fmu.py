@@ -447,7 +447,14 @@ def test_setup_experiment_tolerance_replaces_the_parameter(packages):
     assert chosen.real("tolerance") == 1e-10
     importer = Instance(package, name="importer", start={"tolerance": 1e-10}, experiment_tolerance=1e-4)
     assert importer.real("tolerance") == 1e-4
-    for slave in (chosen, importer):
+    # Hosts pass their own default without a word (OMSimulator, PyFMI: 1e-4): the FMU says it.
+    assert importer.log.method_choices() == [
+        "the tolerance 1e-4 the host passed (fmi2SetupExperiment, fmi3EnterInitializationMode) replaces the FMU's "
+        "tolerance parameter 1e-10: the error is held to 1e-4 per second"
+    ]
+    same = Instance(package, name="same", start={"tolerance": 1e-4}, experiment_tolerance=1e-4)
+    assert chosen.log.method_choices() == same.log.method_choices() == []
+    for slave in (chosen, importer, same):
         slave.close()
 
 
