@@ -321,8 +321,8 @@ pub const TOLERANCE_TIME: f64 = 1.0;
 /// Whether an attempted step's error estimate is round-off rather than
 /// truncation error: since the first rejection at this t the step has been
 /// at least halved, and the per-second error fell by less than that factor
-/// to the power `round_off_power` (truncation error falls by at least
-/// twice that power, round-off in the rates not at all), while the step
+/// to the power [`ROUND_OFF_POWER`] (truncation error falls faster,
+/// round-off in the rates not at all), while the step
 /// passes the classic per-step test. Round-off in the rates (ill-conditioned
 /// inertias, long chains) does not shrink with the step, so per-second
 /// control would shrink it to nothing.
@@ -330,27 +330,18 @@ fn at_round_off_floor(
     per_step: f64,
     (step, per_second): (f64, f64),
     (first_step, first_per_second): (f64, f64),
-    round_off_power: f64,
 ) -> bool {
     let shrink = step / first_step;
-    per_step <= 1.0 && shrink <= 0.5 && per_second >= first_per_second * shrink.powf(round_off_power)
+    per_step <= 1.0 && shrink <= 0.5 && per_second >= first_per_second * shrink.powf(ROUND_OFF_POWER)
 }
 
 /// The power of the step's shrink factor below which a per-second error
-/// that fell is taken for round-off (`at_round_off_floor`): half the power
-/// its truncation error falls by (1/`controller_exponent`: 4 for the 5th-
-/// order pairs, 7 for DOP853, 2 for BS3, whose order-2 estimate per second
-/// falls only as h²), and at most 2.
-fn round_off_power(control: &StepControl) -> f64 {
-    (0.5 / control.controller_exponent).min(KINK_POWER)
-}
-
-/// The power of the step below which a per-second error that fell can be
-/// round-off: below a kink in the rates (a constraint force reaching its
-/// bound, a friction row sticking, an impedance leaving its width) a
-/// step's error falls as h² at least, its per-second error as h; round-off
-/// does not fall (per step), and rises per second.
-const KINK_POWER: f64 = 0.5;
+/// that fell is taken for round-off (`at_round_off_floor`). Round-off does
+/// not fall per step, so per second it rises as the step is cut; the
+/// truncation error of a smooth motion falls per second as h² at least (h⁴
+/// for the 5th-order pairs), and across a kink in the rates (a constraint
+/// force at a switch not located) as h. Half a power keeps the three apart.
+const ROUND_OFF_POWER: f64 = 0.5;
 
 /// How far above the round-off level found the error control then sets its
 /// tolerance: close to the floor the estimate is all noise, which does not
@@ -518,7 +509,7 @@ impl Simulation {
             let (per_second, per_unit_step) = per_second_error(control, per_step, step);
             if let Some(first_rejected) = first_rejection
                 && per_unit_step
-                && at_round_off_floor(per_step, (step, per_second), first_rejected, round_off_power(control))
+                && at_round_off_floor(per_step, (step, per_second), first_rejected)
             {
                 // The least error seen is the one least mixed with truncation error.
                 carry.relaxation = carry.relaxation.max(ROUND_OFF_MARGIN * per_second.min(least_rejected));

@@ -363,7 +363,7 @@ def test_export_disable_leaves_constraint_kinds_out(nudyn, tmp_path):
     assert refused.returncode == 2 and "unknown constraint kind 'contact'" in refused.stderr
 
 
-@pytest.mark.parametrize("method", ["dop853", "tsit5"])
+@pytest.mark.parametrize("method", ["dop853", "dopri5", "tsit5", "auto"])
 def test_fmu_state_round_trips_bit_exactly_with_constraints(method, nudyn, tmp_path):
     """On docked_servicer (welds, a connect, a coupling, limits, friction
     loss) a restored FMU state continues bit for bit: into the instance
