@@ -55,6 +55,35 @@ def test_the_archive_validates_against_the_ssp_schemas(detumble):
     assert detumble.values["controller"] == {f"c1[{k}]": 2.0 for k in range(1, 14)}
 
 
+OMS = "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd"
+
+
+def test_the_system_carries_omsimulators_master_annotation(detumble, nudyn, fmu_library, tmp_path):
+    """OMSimulator takes a system's master from its own annotation of the
+    ssd:System (OMSimulator's oms:FixedStepMaster, the element it writes in
+    its own SSDs), and aborts the import without one: the step is the
+    DefaultExperiment's, the tolerances the plant's (OMSimulator passes them
+    to fmi2SetupExperiment, where they replace the plant's `tolerance`).
+    OMSimulator matches the `oms:` prefix itself, not the namespace."""
+    def master(system):
+        with zipfile.ZipFile(system.path) as archive:
+            text = archive.read("SystemStructure.ssd")
+        assert b"<oms:Annotations " in text and b"<oms:FixedStepMaster " in text
+        root = etree.fromstring(text)
+        namespaces = {**ssp.NAMESPACES, "oms": OMS}
+        (annotation,) = root.findall("ssd:System/ssd:Annotations/ssc:Annotation", namespaces)
+        assert annotation.get("type") == "org.openmodelica"
+        (fixed_step,) = annotation.findall("oms:Annotations/oms:SimulationInformation/oms:FixedStepMaster", namespaces)
+        return fixed_step.attrib
+
+    assert master(detumble) == {"description": "oms-ma", "stepSize": "0.05", "absoluteTolerance": "1e-8",
+                                "relativeTolerance": "1e-8"}
+    tight = write_system(nudyn, EXAMPLES / "fixed_rig.xml", tmp_path / "rig.ssp", "--step", "0.02", "--stop", "1",
+                         "--set", "plant.tolerance=1e-10")
+    assert master(tight) == {"description": "oms-ma", "stepSize": "0.02", "absoluteTolerance": "1e-10",
+                             "relativeTolerance": "1e-10"}
+
+
 def test_a_schema_violation_is_caught():
     """The schema check above can fail: an SSD with its elements out of order does."""
     broken = etree.fromstring(

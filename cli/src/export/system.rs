@@ -4,8 +4,10 @@
 //! - `SystemStructure.ssd`: the System with Components `plant` and
 //!   `controller`, a Connector for every θ, ν and ε entry of each, a
 //!   Connection per entry (plant θ, ν → controller; controller ε → plant),
-//!   and the DefaultExperiment with OSP's fixed-step annotation (libcosim
-//!   reads its step from `osp:FixedStepAlgorithm baseStepSize`);
+//!   OMSimulator's annotation of the System's master (OMSimulator takes
+//!   its master from `oms:FixedStepMaster` and aborts without one), and the
+//!   DefaultExperiment with OSP's fixed-step annotation (libcosim reads its
+//!   step from `osp:FixedStepAlgorithm baseStepSize`);
 //! - `resources/plant.fmu`, `resources/controller.fmu`;
 //! - `resources/plant.ssv`, `resources/controller.ssv`: the values set, one
 //!   ParameterSet per component with names relative to it, bound by the
@@ -26,7 +28,7 @@ use nudyn::control::ControlLaw;
 use nudyn::math::normalize_wxyz;
 use nudyn::model::{LinkJoint, Model};
 use nudyn_contract::controller::ControllerLayout;
-use nudyn_contract::plant::PlantResource;
+use nudyn_contract::plant::{DEFAULT_TOLERANCE, PlantResource};
 use nudyn_contract::variable::{Kind, StartError, check_start};
 
 use super::controller::{ControllerExportError, write_controller_fmu};
@@ -38,6 +40,8 @@ const SSD_NAMESPACE: &str = "http://ssp-standard.org/SSP1/SystemStructureDescrip
 const SSC_NAMESPACE: &str = "http://ssp-standard.org/SSP1/SystemStructureCommon";
 const SSV_NAMESPACE: &str = "http://ssp-standard.org/SSP1/SystemStructureParameterValues";
 const OSP_NAMESPACE: &str = "http://opensimulationplatform.com/SSP/OSPAnnotations";
+/// The namespace OMSimulator declares for its own annotations (it matches the `oms:` prefix itself).
+const OMS_NAMESPACE: &str = "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd";
 
 /// One of the system's two components.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -414,6 +418,10 @@ fn system_structure(model: &Model, options: &SystemOptions, values: &Values) -> 
         .chain(eps.iter().map(|n| connection(Component::Controller, Component::Plant, n)))
         .collect();
     let (step, stop) = (double(options.step), double(options.stop));
+    // OMSimulator hands its master's tolerance to the FMUs (fmi2SetupExperiment),
+    // where it takes the place of the plant's `tolerance`: the plant's own value.
+    let tolerance =
+        values.get(&Component::Plant).and_then(|plant| plant.get("tolerance")).copied().unwrap_or(DEFAULT_TOLERANCE);
     format!(
         "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n\
          <ssd:SystemStructureDescription xmlns:ssd=\"{SSD_NAMESPACE}\" xmlns:ssc=\"{SSC_NAMESPACE}\" \
@@ -421,6 +429,16 @@ fn system_structure(model: &Model, options: &SystemOptions, values: &Values) -> 
          \x20 <ssd:System name=\"{name}\" description=\"plant FMU and noninteracting controller FMU, connected name to name\">\n\
          \x20   <ssd:Elements>\n{plant}{controller}    </ssd:Elements>\n\
          \x20   <ssd:Connections>\n{connections}    </ssd:Connections>\n\
+         \x20   <ssd:Annotations>\n\
+         \x20     <ssc:Annotation type=\"org.openmodelica\">\n\
+         \x20       <oms:Annotations xmlns:oms=\"{OMS_NAMESPACE}\">\n\
+         \x20         <oms:SimulationInformation>\n\
+         \x20           <oms:FixedStepMaster description=\"oms-ma\" stepSize=\"{step}\" \
+         absoluteTolerance=\"{tolerance}\" relativeTolerance=\"{tolerance}\"/>\n\
+         \x20         </oms:SimulationInformation>\n\
+         \x20       </oms:Annotations>\n\
+         \x20     </ssc:Annotation>\n\
+         \x20   </ssd:Annotations>\n\
          \x20 </ssd:System>\n\
          \x20 <ssd:DefaultExperiment startTime=\"0\" stopTime=\"{stop}\">\n\
          \x20   <ssd:Annotations>\n\
@@ -431,6 +449,7 @@ fn system_structure(model: &Model, options: &SystemOptions, values: &Values) -> 
          \x20 </ssd:DefaultExperiment>\n\
          </ssd:SystemStructureDescription>\n",
         name = escape(&options.plant_identifier),
+        tolerance = double(tolerance),
         version = env!("CARGO_PKG_VERSION"),
         plant = component(Component::Plant, &state, &eps),
         controller = component(Component::Controller, &eps, &state),
