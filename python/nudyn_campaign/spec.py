@@ -265,6 +265,7 @@ def _system(path: Path, section: dict):
     if "system" not in section:
         return None, None
     from nudyn_driver import ssp
+    from nudyn_driver.errors import SystemFileError
 
     clashes = [key for key in ("model", "controller", "end_effector", "wrench_bodies") if key in section]
     if clashes:
@@ -274,8 +275,10 @@ def _system(path: Path, section: dict):
         return system, ssp.read(system)
     except FileNotFoundError:
         raise CampaignError(f"campaign.system: no such file {system}") from None
-    except (KeyError, AttributeError, ValueError, OSError) as error:
-        raise CampaignError(f"campaign.system: {system} is not a nudyn system file: {error!r}") from None
+    except SystemFileError as error:
+        raise CampaignError(f"campaign.system: {error}") from None
+    except OSError as error:
+        raise CampaignError(f"campaign.system: {system} cannot be read: {error.strerror or error}") from None
 
 
 def _entries(dispersion: Dispersion) -> set[tuple[str, str, int | None]]:

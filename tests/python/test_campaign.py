@@ -14,6 +14,7 @@ import stat
 import subprocess
 import sys
 import time
+import zipfile
 from pathlib import Path
 
 import pyarrow.parquet as pq
@@ -547,3 +548,59 @@ def test_bad_system_campaigns_are_clear_errors(line, expected, tmp_path):
     (tmp_path / "loop.ssp").write_bytes(b"")
     with pytest.raises(CampaignError, match=expected):
         load(write(tmp_path, f"[campaign]\n{line}\ncases = 2\n"))
+
+
+@pytest.fixture(scope="module")
+def loop_ssp(nudyn, tmp_path_factory) -> Path:
+    """A `nudyn system` file a campaign flies: bus_arm7 with the metrics' outputs."""
+    path = tmp_path_factory.mktemp("system") / "loop.ssp"
+    subprocess.run([str(nudyn), "system", str(EXAMPLES_DIR / "bus_arm7.xml"), "-o", str(path), "--stop", "0.5",
+                    "--step", "0.05", "--outputs", "kinetic_energy,momentum", "--set", "plant.nu[4]=0.5",
+                    "--set", "plant.theta[8]=0.1", "--set", "controller.c1=0", "--set", "controller.c2=0"],
+                   check=True, capture_output=True)
+    return path
+
+
+def rewritten(source: Path, target: Path, entries: dict) -> Path:
+    """`source`'s archive with `entries` (name → new bytes, or None to leave it out) changed, as `target`."""
+    with zipfile.ZipFile(source) as old, zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as new:
+        for name in old.namelist():
+            content = entries.get(name, old.read(name))
+            if content is not None:
+                new.writestr(name, content)
+    return target
+
+
+def _ssd(path: Path) -> bytes:
+    with zipfile.ZipFile(path) as archive:
+        return archive.read("SystemStructure.ssd")
+
+
+@pytest.mark.parametrize("broken, expected", [
+    ("not a zip", "not a zip archive (an SSP file is one)"),
+    ("a component not a zip", "resources/plant.fmu, the FMU of component plant, is not a zip archive (an FMU is one)"),
+    ("a missing entry", "no entry resources/controller.fmu (the FMU of component controller)"),
+    ("no component named plant",
+     "no component named plant (its components: vehicle, controller); a nudyn system file has a plant and a controller"),
+    ("a truncated SSD", "SystemStructure.ssd is not well-formed XML: "),
+])
+def test_a_malformed_system_file_is_one_line_naming_it(loop_ssp, nudyn, tmp_path, broken, expected):
+    """Each of these ended in a Python traceback (BadZipFile, KeyError,
+    ParseError) and exit status 1."""
+    target = tmp_path / "loop.ssp"
+    if broken == "not a zip":
+        target.write_bytes(b"PK but not really a zip archive")
+    elif broken == "a component not a zip":
+        rewritten(loop_ssp, target, {"resources/plant.fmu": b"not an FMU"})
+    elif broken == "a missing entry":
+        rewritten(loop_ssp, target, {"resources/controller.fmu": None})
+    elif broken == "no component named plant":
+        rewritten(loop_ssp, target, {"SystemStructure.ssd": _ssd(loop_ssp).replace(b'Component name="plant"',
+                                                                                    b'Component name="vehicle"')})
+    else:
+        ssd = _ssd(loop_ssp)
+        rewritten(loop_ssp, target, {"SystemStructure.ssd": ssd[: len(ssd) // 2]})
+    path = write(tmp_path, '[campaign]\nsystem = "loop.ssp"\ncases = 2\n')
+    proc = campaign_command(path, "--out", tmp_path / "out", "--nudyn", nudyn)
+    one_line_error(proc, f"campaign.system: {target}: {expected}")
+    assert not (tmp_path / "out" / "parts").exists()
