@@ -17,6 +17,7 @@ import time
 import zipfile
 from pathlib import Path
 
+import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
@@ -604,3 +605,43 @@ def test_a_malformed_system_file_is_one_line_naming_it(loop_ssp, nudyn, tmp_path
     proc = campaign_command(path, "--out", tmp_path / "out", "--nudyn", nudyn)
     one_line_error(proc, f"campaign.system: {target}: {expected}")
     assert not (tmp_path / "out" / "parts").exists()
+
+
+def test_a_system_files_plant_values_are_flown_as_fmpy_sets_them(loop_ssp, nudyn, tmp_path):
+    """The plant's .ssv values are start values FMPy's simulate_ssp sets on
+    the plant before its initialization: the campaign flies them too (it
+    used to fly the plant FMU's own start values, which a .ssv edited or
+    written by another tool than nudyn need not match). The controller's
+    gains are 0, so that its ε is 0 in both masters' orders and the two
+    trajectories are the plant's alone."""
+    from fmpy.ssp.simulation import simulate_ssp
+    from fmpy.ssp.ssd import ParameterSet, read_ssd
+
+    plant_values = (b'<ssv:Parameter name="nu[4]"><ssv:Real value="0.25"/></ssv:Parameter>\n'
+                    b'    <ssv:Parameter name="theta[8]"><ssv:Real value="0.3"/></ssv:Parameter>')
+    with zipfile.ZipFile(loop_ssp) as archive:
+        ssv = archive.read("resources/plant.ssv")
+    start, end = ssv.index(b"<ssv:Parameter "), ssv.rindex(b"</ssv:Parameter>") + len(b"</ssv:Parameter>")
+    edited = rewritten(loop_ssp, tmp_path / "edited.ssp", {"resources/plant.ssv": ssv[:start] + plant_values + ssv[end:]})
+
+    # FMPy's own reading of the bindings, as one ParameterSet with the component's prefix.
+    parameters = ParameterSet(name="values")
+    for component in read_ssd(str(edited)).system.elements:
+        for binding in component.parameterBindings:
+            for parameter_set in binding.parameterValues:
+                for parameter in parameter_set.parameters:
+                    parameter.name = f"{component.name}.{parameter.name}"
+                    parameters.parameters.append(parameter)
+    assert {p.name: p.value for p in parameters.parameters if p.name.startswith("plant.")} == {
+        "plant.nu[4]": "0.25", "plant.theta[8]": "0.3"}
+    fmpy = simulate_ssp(str(edited), stop_time=0.5, step_size=0.05, parameter_set=parameters)
+
+    path = write(tmp_path, '[campaign]\nsystem = "edited.ssp"\ncases = 1\ntrajectories = true\n')
+    table = run_campaign(path, tmp_path / "out", workers=1, nudyn=nudyn, progress=False)
+    assert table.column("status").to_pylist() == ["ok"]
+    trajectory = pq.read_table(tmp_path / "out" / "trajectories" / "case-000000.parquet")
+    # FMPy's row k holds the outputs after the step from t_k.
+    for k in range(1, 14):
+        flown = np.array(trajectory.column(f"nu[{k}]").to_pylist()[1:])
+        assert np.abs(flown - fmpy[f"plant.nu[{k}]"][: len(flown)]).max() < 1e-12, k
+    assert trajectory.column("nu[4]").to_pylist()[0] == 0.25
