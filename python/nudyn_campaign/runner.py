@@ -31,7 +31,7 @@ from nudyn_driver.package import FmuPackage
 from . import provenance, variables
 from . import spec as specs
 from .cases import run_chunk
-from .files import OutputError, write_atomically
+from .files import OutputError, locked, write_atomically
 from .spec import CampaignError
 from .metrics import NAMES
 
@@ -218,10 +218,17 @@ def run_campaign(
     out = Path(out)
     prepare_out(out)
     nudyn = Path(nudyn or nudyn_binary())
-    with tempfile.TemporaryDirectory(prefix="nudyn-campaign-") as scratch:
-        fmus = export(campaign, Path(scratch), nudyn)
-        variables.check(campaign, *_packages(fmus, Path(scratch)))
-    provenance.resume_or_start(out, provenance.flown_from(campaign, fmus.plant, fmus.controller), overwrite)
+    with locked(out), tempfile.TemporaryDirectory(prefix="nudyn-campaign-") as scratch:
+        return _run_locked(campaign, out, nudyn, Path(scratch), workers, scheduler, progress, stop_after_chunks,
+                           overwrite)
+
+
+def _run_locked(campaign, out, nudyn, scratch, workers, scheduler, progress, stop_after_chunks, overwrite) -> pa.Table:
+    """run_campaign's work, with OUT locked and `scratch` its temporary folder."""
+    fmus = export(campaign, scratch, nudyn)
+    variables.check(campaign, *_packages(fmus, scratch))
+    provenance.resume_or_start(out, provenance.flown_from(campaign, fmus.plant, fmus.controller), overwrite,
+                               provenance.replaced_files(campaign, out))
     for name, fmu in (("plant.fmu", fmus.plant), ("controller.fmu", fmus.controller)):
         if fmu is not None:
             write_atomically(out / "fmus" / name, lambda temporary, fmu=fmu: temporary.write_bytes(fmu))

@@ -551,6 +551,67 @@ def test_bad_system_campaigns_are_clear_errors(line, expected, tmp_path):
         load(write(tmp_path, f"[campaign]\n{line}\ncases = 2\n"))
 
 
+def test_a_second_campaign_into_a_folder_in_use_is_refused(nudyn, tmp_path):
+    """Two runs into one --out used to mix silently (a seed-2 run with
+    --overwrite removed and relabelled the rows of a seed-1 run still
+    flying). The first run holds the folder's lock until it ends: the
+    second, started while the first is held stopped with the lock, is
+    refused with one line naming the folder; the first completes with its
+    own rows."""
+    path = write(tmp_path, SHORT.replace("cases = 4", "cases = 16"))
+    reseeded = write(tmp_path, SHORT.replace("seed = 3", "seed = 4"), "reseeded.toml")
+    out = tmp_path / "out"
+    first = subprocess.Popen([sys.executable, "-m", "nudyn_campaign", str(path), "--out", str(out), "--workers", "1",
+                              "--no-progress", "--nudyn", str(nudyn)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                             text=True, env={**os.environ, "PYTHONPATH": str(ROOT / "python")})
+    try:
+        # campaign.json is written with the lock held.
+        for _ in range(1200):
+            if (out / "campaign.json").exists() or first.poll() is not None:
+                break
+            time.sleep(0.05)
+        os.kill(first.pid, signal.SIGSTOP)
+        try:
+            second = campaign_command(reseeded, "--out", out, "--overwrite", "--workers", "1", "--nudyn", nudyn)
+        finally:
+            os.kill(first.pid, signal.SIGCONT)
+        one_line_error(second, f"--out {out}: another nudyn-campaign is writing into this folder")
+        _, stderr = first.communicate(timeout=300)
+    finally:
+        if first.poll() is None:
+            first.kill()
+            first.wait()
+    assert first.returncode == 0, stderr
+    table = pq.read_table(out / "results.parquet")
+    assert table.column("nu[4]").to_pylist() == [draw(load(path), k)["nu[4]"] for k in range(16)]
+    assert "campaign seed 3" in (out / "report.md").read_text()
+
+
+def test_a_first_run_does_not_replace_files_no_campaign_wrote(nudyn, tmp_path):
+    """An --out with no campaign.json that holds a file a run writes (the
+    user's own report.md) is refused, the file left as it was; other files
+    are no concern of the run and stay; --overwrite replaces them."""
+    path = write(tmp_path, SHORT)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "report.md").write_text("my own notes")
+    (out / "notes.txt").write_text("kept")
+    expected = f"{out} holds report.md and no campaign.json: no campaign wrote them, and this one would replace them"
+    with pytest.raises(CampaignError) as error:
+        run_campaign(path, out, workers=1, nudyn=nudyn, progress=False)
+    assert expected in str(error.value), str(error.value)
+    one_line_error(campaign_command(path, "--out", out, "--nudyn", nudyn), expected)
+    assert (out / "report.md").read_text() == "my own notes"
+    assert sorted(p.name for p in out.iterdir()) == [".nudyn-campaign.lock", "notes.txt", "report.md"]
+
+    table = run_campaign(path, out, workers=1, nudyn=nudyn, progress=False, overwrite=True)
+    assert table.num_rows == 4
+    assert (out / "report.md").read_text().startswith("# Campaign campaign")
+    assert (out / "notes.txt").read_text() == "kept"
+    # Written by the campaign now: a rerun resumes.
+    assert rows(run_campaign(path, out, workers=1, nudyn=nudyn, progress=False)) == rows(table)
+
+
 @pytest.fixture(scope="module")
 def loop_ssp(nudyn, tmp_path_factory) -> Path:
     """A `nudyn system` file a campaign flies: bus_arm7 with the metrics' outputs."""
