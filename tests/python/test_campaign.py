@@ -463,13 +463,16 @@ def test_ctrl_c_ends_with_how_to_resume_and_the_rerun_completes(nudyn, tmp_path)
     """SIGINT to the command's process group (what Ctrl-C in a terminal
     sends, to the Dask workers too) once the first chunk is written: one
     line, status 130, no traceback from the driver or the workers; the
-    rerun flies the rest."""
+    rerun flies the rest. The interrupted run leaves nothing in the
+    temporary directory (the workers' FMUs, Dask's folders)."""
     path = write(tmp_path, SHORT.replace("cases = 4", "cases = 80").replace("duration = 0.2", "duration = 1.0"))
     out = tmp_path / "out"
+    temporary = tmp_path / "tmp"
+    temporary.mkdir()
     command = [sys.executable, "-m", "nudyn_campaign", str(path), "--out", str(out), "--workers", "2",
                "--no-progress", "--nudyn", str(nudyn)]
     proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
-                            env={**os.environ, "PYTHONPATH": str(ROOT / "python")})
+                            env={**os.environ, "PYTHONPATH": str(ROOT / "python"), "TMPDIR": str(temporary)})
     for _ in range(1200):
         if list((out / "parts").glob("part-*.parquet")) or proc.poll() is not None:
             break
@@ -479,6 +482,7 @@ def test_ctrl_c_ends_with_how_to_resume_and_the_rerun_completes(nudyn, tmp_path)
     assert proc.returncode == 130, stderr
     assert stderr == f"nudyn-campaign: interrupted; rerun to resume ({out})\n", stderr
     assert len(list((out / "parts").glob("part-*.parquet"))) < 8
+    assert list(temporary.iterdir()) == []
     done = run_campaign(path, out, workers=2, nudyn=nudyn, progress=False)
     assert done.column("case").to_pylist() == list(range(80))
 
@@ -610,6 +614,20 @@ def test_a_first_run_does_not_replace_files_no_campaign_wrote(nudyn, tmp_path):
     assert (out / "notes.txt").read_text() == "kept"
     # Written by the campaign now: a rerun resumes.
     assert rows(run_campaign(path, out, workers=1, nudyn=nudyn, progress=False)) == rows(table)
+
+
+def test_a_campaign_leaves_nothing_in_the_temporary_directory(nudyn, tmp_path):
+    """The workers' extracted FMUs (3 to 8 MB each) and the MJCF copy the
+    qvel conversion loads, Dask's worker folders: all removed by the end of
+    the run (TMPDIR, for the command and its workers, a fresh folder)."""
+    temporary = tmp_path / "tmp"
+    temporary.mkdir()
+    path = write(tmp_path, CLOSED_LOOP)
+    proc = campaign_command(path, "--out", tmp_path / "out", "--cases", "4", "--workers", "2", "--no-progress",
+                            "--nudyn", nudyn, env={"TMPDIR": str(temporary)})
+    assert proc.returncode == 0, proc.stderr
+    assert pq.read_table(tmp_path / "out" / "results.parquet").num_rows == 4
+    assert list(temporary.iterdir()) == []
 
 
 @pytest.fixture(scope="module")
