@@ -1,15 +1,17 @@
 """What a worker does: fly a chunk of cases through the campaign's FMUs.
 
-Each worker process extracts each FMU once (by the hash of its bytes) and
-makes one instance per FMU per chunk; between cases it resets them
-(fmi2Reset) rather than instantiating again. A case that the FMU refuses
-or discards is a row with its status and message, never an exception.
+Each chunk extracts its FMUs into a temporary folder of its own, removed
+when the chunk ends however it ends, and makes one instance per FMU; between
+cases it resets them (fmi2Reset) rather than instantiating again. A case
+that the FMU refuses or discards is a row with its status and message,
+never an exception.
 """
 
 from __future__ import annotations
 
 import hashlib
 import importlib
+import io
 import math
 import tempfile
 import zipfile
@@ -25,31 +27,26 @@ from nudyn_validation.mujoco_reference import Reference
 
 from .metrics import metrics
 
-# FMUs extracted in this process, by the SHA-256 of their bytes.
-_EXTRACTED: dict[str, FmuPackage] = {}
 # The MuJoCo reference (qvel → ν) of the vehicle, by the MJCF text's hash.
 _REFERENCES: dict[str, Reference] = {}
 STATUS = {1: "warning", 2: "discard", 3: "error", 4: "fatal"}
 
 
-def _package(fmu: bytes) -> FmuPackage:
-    key = hashlib.sha256(fmu).hexdigest()
-    if key not in _EXTRACTED:
-        directory = Path(tempfile.mkdtemp(prefix=f"nudyn-campaign-{key[:12]}-"))
-        archive = directory / "model.fmu"
-        archive.write_bytes(fmu)
-        with zipfile.ZipFile(archive) as zipped:
-            zipped.extractall(directory / "unzipped")
-        _EXTRACTED[key] = FmuPackage(directory / "unzipped")
-    return _EXTRACTED[key]
+def _package(fmu: bytes, directory: Path) -> FmuPackage:
+    """The FMU `fmu` extracted into `directory`."""
+    with zipfile.ZipFile(io.BytesIO(fmu)) as zipped:
+        zipped.extractall(directory)
+    return FmuPackage(directory)
 
 
 def _reference(mjcf: str) -> Reference:
     key = hashlib.sha256(mjcf.encode()).hexdigest()
     if key not in _REFERENCES:
-        with tempfile.NamedTemporaryFile("w", suffix=".xml", delete=False) as file:
-            file.write(mjcf)
-        _REFERENCES[key] = Reference.from_file(file.name)
+        # MuJoCo reads the model whole: the file is not needed once it is loaded.
+        with tempfile.TemporaryDirectory(prefix="nudyn-campaign-") as directory:
+            path = Path(directory) / "model.xml"
+            path.write_text(mjcf)
+            _REFERENCES[key] = Reference.from_file(path)
     return _REFERENCES[key]
 
 
@@ -110,8 +107,17 @@ def run_chunk(spec: dict, plant_fmu: bytes, controller_fmu: bytes | None, mjcf: 
     """Rows (drawn values, metrics, status, message) of `cases`: pairs of
     the case index and its drawn values. `mjcf` (for qvel) is None for a
     system file's FMUs."""
-    plant_package = _package(plant_fmu)
-    controller_package = _package(controller_fmu) if controller_fmu is not None else None
+    with tempfile.TemporaryDirectory(prefix="nudyn-campaign-") as scratch:
+        plant_package = _package(plant_fmu, Path(scratch) / "plant")
+        controller_package = None
+        if controller_fmu is not None:
+            controller_package = _package(controller_fmu, Path(scratch) / "controller")
+        return _fly_chunk(spec, plant_package, controller_package, mjcf, cases)
+
+
+def _fly_chunk(spec: dict, plant_package: FmuPackage, controller_package: FmuPackage | None, mjcf: str | None,
+               cases: list[tuple[int, dict]]) -> list[dict]:
+    """run_chunk's rows, from the FMUs extracted; the instances are closed before it returns."""
     reference = _reference(mjcf) if mjcf is not None else None
     names = {key: (scope, tuple(variables)) for key, scope, variables in spec["targets"]}
     custom = [_function(name) for name in spec["metrics"]]

@@ -3,14 +3,20 @@ for its own (cli/src/output.rs): a new path or a regular file is replaced
 whole, by a temporary file beside it that is synced and then renamed over
 it; anything else (a device such as /dev/null, a FIFO, a socket, a
 directory) is refused, never renamed over. A symbolic link is followed:
-the file it points to is replaced, and the link stays."""
+the file it points to is replaced, and the link stays.
+
+One campaign at a time writes into a folder: `locked` holds an exclusive
+lock on OUT/.nudyn-campaign.lock for the run, and refuses a folder another
+run holds."""
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import os
 import stat
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 
@@ -64,3 +70,29 @@ def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
     except BaseException:
         temporary.unlink(missing_ok=True)
         raise
+
+
+# The lock file in OUT; it stays after the run (removing it would let a
+# waiting run lock the removed file while a third locks a new one).
+LOCK = ".nudyn-campaign.lock"
+
+
+@contextlib.contextmanager
+def locked(out: Path) -> Iterator[None]:
+    """Holds the exclusive lock of the folder `out` (which exists) for the
+    block; an OutputError naming the folder if another run holds it."""
+    path = Path(out) / LOCK
+    try:
+        descriptor = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as error:
+        raise OutputError(f"--out {out}: cannot create its lock file {path}: {error.strerror or error}") from None
+    try:
+        try:
+            fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise OutputError(f"--out {out}: another nudyn-campaign is writing into this folder (it holds {path}): "
+                              "wait for it to end, or choose another --out") from None
+        yield
+    finally:
+        # Closing the descriptor releases the lock.
+        os.close(descriptor)

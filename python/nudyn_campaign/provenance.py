@@ -11,6 +11,7 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import os
 import re
 import zipfile
 from pathlib import Path
@@ -89,10 +90,29 @@ def rows_written(out: Path) -> list[Path]:
     return sorted((out / "parts").glob("part-*.parquet")) + sorted((out / "trajectories").glob("case-*.parquet"))
 
 
-def resume_or_start(out: Path, record: dict, overwrite: bool) -> None:
+def replaced_files(campaign: Campaign, out: Path) -> list[Path]:
+    """The files of OUT a run writes over besides its rows: the results, the
+    report and its plots, the FMUs."""
+    from .report import grid_plot_name
+
+    names = ["results.parquet", "report.md", "metrics.png", "fmus/plant.fmu", "fmus/controller.fmu"]
+    names += [grid_plot_name(d.key) for d in campaign.dispersions if d.distribution == "grid"]
+    return [out / name for name in names]
+
+
+def resume_or_start(out: Path, record: dict, overwrite: bool, replaced: list[Path] = ()) -> None:
     """Keeps OUT's rows if they were flown from `record`; removes them
-    (`overwrite`) or refuses if not; then writes the record."""
+    (`overwrite`) or refuses if not; refuses to write over the files
+    `replaced` in an OUT with no record, since no campaign wrote them (the
+    user's own report.md), unless `overwrite`; then writes the record."""
     written = rows_written(out)
+    foreign = [path for path in replaced if os.path.lexists(path)] if not (out / RECORD).exists() else []
+    if foreign and not written and not overwrite:
+        names = ", ".join(str(path.relative_to(out)) for path in foreign)
+        raise CampaignError(
+            f"{out} holds {names} and no {RECORD}: no campaign wrote them, and this one would replace them; "
+            "rerun with --overwrite to replace them, or choose another --out"
+        )
     if written and not overwrite:
         path = out / RECORD
         try:

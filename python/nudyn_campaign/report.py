@@ -26,8 +26,9 @@ def _values(table: pa.Table, column: str) -> np.ndarray:
     return np.array([np.nan if v is None else v for v in table.column(column).to_pylist()], float)
 
 
-def _file_name(key: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", key).strip("_")
+def grid_plot_name(key: str) -> str:
+    """The file name of the plot of grid dispersion `key` (OUT/KEY.png)."""
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", key).strip("_") + ".png"
 
 
 def write_report(campaign, table: pa.Table, out: Path) -> None:
@@ -107,7 +108,7 @@ def _grid_section(table: pa.Table, key: str, metrics: list[str], out: Path) -> l
     axis.set_ylabel("settling time (s)")
     axis.legend()
     figure.tight_layout()
-    name = f"{_file_name(key)}.png"
+    name = grid_plot_name(key)
     write_atomically(out / name, lambda temporary: figure.savefig(temporary, dpi=110, format="png"))
     plt.close(figure)
     return lines + ["", f"![settling time against {key}]({name})"]

@@ -31,7 +31,7 @@ from nudyn_driver.package import FmuPackage
 from . import provenance, variables
 from . import spec as specs
 from .cases import run_chunk
-from .files import OutputError, write_atomically
+from .files import OutputError, locked, write_atomically
 from .spec import CampaignError
 from .metrics import NAMES
 
@@ -102,7 +102,9 @@ def _write_parquet(table: pa.Table, path: Path) -> None:
     write_atomically(path, lambda temporary: pq.write_table(table, temporary))
 
 
-def _client(workers: int | None, scheduler: str | None):
+def _client(workers: int | None, scheduler: str | None, scratch: Path):
+    """A client of the scheduler, or of a local cluster whose workers keep
+    their files under `scratch` (Dask's and, through TMPDIR, the chunks')."""
     import dask.config
     from dask.distributed import Client, LocalCluster
 
@@ -115,6 +117,7 @@ def _client(workers: int | None, scheduler: str | None):
                 f"--scheduler {scheduler}: no Dask scheduler answered: {error} "
                 f"(the wait, {timeout}, is DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT)"
             ) from None
+    scratch.mkdir(exist_ok=True)  # a TMPDIR that does not exist would be passed over for /tmp
     # Worker processes import nudyn_campaign from the repository's python/.
     paths = [str(PACKAGES), *filter(None, os.environ.get("PYTHONPATH", "").split(os.pathsep))]
     os.environ["PYTHONPATH"] = os.pathsep.join(dict.fromkeys(paths))
@@ -122,8 +125,10 @@ def _client(workers: int | None, scheduler: str | None):
     # group): the driver alone stops on it, and closes them.
     handler = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
-        cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.ERROR)
+        # The scheduler's and the workers' Dask folders (temporary-directory) and the workers' own temporary files.
+        with dask.config.set({"temporary-directory": str(scratch)}):
+            cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                                   dashboard_address=None, silence_logs=logging.ERROR, env={"TMPDIR": str(scratch)})
     finally:
         signal.signal(signal.SIGINT, handler)
     return Client(cluster), cluster
@@ -218,10 +223,19 @@ def run_campaign(
     out = Path(out)
     prepare_out(out)
     nudyn = Path(nudyn or nudyn_binary())
-    with tempfile.TemporaryDirectory(prefix="nudyn-campaign-") as scratch:
-        fmus = export(campaign, Path(scratch), nudyn)
-        variables.check(campaign, *_packages(fmus, Path(scratch)))
-    provenance.resume_or_start(out, provenance.flown_from(campaign, fmus.plant, fmus.controller), overwrite)
+    # The scratch folder holds the local cluster's worker folders too, so
+    # that nothing is left in the temporary directory, however the run ends.
+    with locked(out), tempfile.TemporaryDirectory(prefix="nudyn-campaign-", ignore_cleanup_errors=True) as scratch:
+        return _run_locked(campaign, out, nudyn, Path(scratch), workers, scheduler, progress, stop_after_chunks,
+                           overwrite)
+
+
+def _run_locked(campaign, out, nudyn, scratch, workers, scheduler, progress, stop_after_chunks, overwrite) -> pa.Table:
+    """run_campaign's work, with OUT locked and `scratch` its temporary folder."""
+    fmus = export(campaign, scratch, nudyn)
+    variables.check(campaign, *_packages(fmus, scratch))
+    provenance.resume_or_start(out, provenance.flown_from(campaign, fmus.plant, fmus.controller), overwrite,
+                               provenance.replaced_files(campaign, out))
     for name, fmu in (("plant.fmu", fmus.plant), ("controller.fmu", fmus.controller)):
         if fmu is not None:
             write_atomically(out / "fmus" / name, lambda temporary, fmu=fmu: temporary.write_bytes(fmu))
@@ -233,7 +247,7 @@ def run_campaign(
     }
     columns = ["case", *campaign.columns(), *NAMES]
     if missing:
-        client, cluster = _client(workers, scheduler)
+        client, cluster = _client(workers, scheduler, scratch / "workers")
         # Dask's loop thread logs its own complaint about the wait that
         # Ctrl-C breaks, racing the KeyboardInterrupt: quiet it before the
         # interrupt is raised, in the signal handler itself.

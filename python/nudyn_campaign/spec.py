@@ -44,9 +44,10 @@ its times on, the same in every case; before its first time the input
 keeps its start value (0, or a dispersed one).
 
 With `system`, the FMUs are the archive's (exported with `--outputs
-kinetic_energy,momentum`, which the metrics read), the loop is closed, its
-controller values are fixed parameters under the file's own [controller],
-its plant values are the plant FMU's start values, and its
+kinetic_energy,momentum`, which the metrics read), the loop is closed, the
+values of its ParameterValues files (.ssv) are fixed parameters of each
+FMU under the file's own [plant] and [controller] (set as FMPy's
+simulate_ssp sets them, before the dispersions), and its
 DefaultExperiment gives duration and step where the file does not; qvel
 needs the MJCF (MuJoCo turns it into ν) and is refused, as are the export
 options end_effector and wrench_bodies (the archive fixed them).
@@ -251,7 +252,9 @@ def load(path: str | Path) -> Campaign:
         settle_threshold=_number(section.get("settle_threshold", 0.01), "campaign.settle_threshold"),
         trajectories=bool(section.get("trajectories", False)),
         metrics=tuple(metrics),
-        plant_parameters=dict(document.get("plant", {})),
+        # A system's values first, as FMPy's simulate_ssp sets them, then the file's own.
+        plant_parameters={**(system_values.values.get("plant", {}) if system_values else {}),
+                          **document.get("plant", {})},
         controller_parameters={**(system_values.values.get("controller", {}) if system_values else {}),
                                **document.get("controller", {})},
         dispersions=dispersions,
@@ -265,6 +268,7 @@ def _system(path: Path, section: dict):
     if "system" not in section:
         return None, None
     from nudyn_driver import ssp
+    from nudyn_driver.errors import SystemFileError
 
     clashes = [key for key in ("model", "controller", "end_effector", "wrench_bodies") if key in section]
     if clashes:
@@ -274,8 +278,10 @@ def _system(path: Path, section: dict):
         return system, ssp.read(system)
     except FileNotFoundError:
         raise CampaignError(f"campaign.system: no such file {system}") from None
-    except (KeyError, AttributeError, ValueError, OSError) as error:
-        raise CampaignError(f"campaign.system: {system} is not a nudyn system file: {error!r}") from None
+    except SystemFileError as error:
+        raise CampaignError(f"campaign.system: {error}") from None
+    except OSError as error:
+        raise CampaignError(f"campaign.system: {system} cannot be read: {error.strerror or error}") from None
 
 
 def _entries(dispersion: Dispersion) -> set[tuple[str, str, int | None]]:

@@ -19,3 +19,8 @@ class CommandError(DriverError):
         self.returncode = returncode
         self.stderr = stderr
         super().__init__(f"`{' '.join(self.command)}` failed:\n{stderr.strip()}")
+
+
+class SystemFileError(DriverError):
+    """A file that is not a readable `nudyn system` archive: the message
+    names the file, the entry and what is wrong."""

@@ -14,16 +14,19 @@ s_k the plant's (θ, ν) at t_k, law(s) the controller's output at inputs s):
 
 from __future__ import annotations
 
+import io
 import subprocess
 import sys
 import tempfile
 import xml.etree.ElementTree as ET
 import zipfile
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from .errors import SystemFileError
 from .instance import Instance
 from .package import FmuPackage
 
@@ -60,21 +63,84 @@ class Run:
 
 
 def read(path: Path) -> System:
+    """The system file at `path`, or a SystemFileError naming the file, the
+    entry and what is wrong (not a zip, an entry missing, not well-formed,
+    no plant or controller component, a component that is no FMU)."""
     path = Path(path)
-    with zipfile.ZipFile(path) as archive:
-        root = ET.fromstring(archive.read("SystemStructure.ssd"))
+    try:
+        archive = zipfile.ZipFile(path)
+    except zipfile.BadZipFile:
+        raise SystemFileError(f"{path}: not a zip archive (an SSP file is one)") from None
+    with archive:
+        root = _xml(archive, path, "SystemStructure.ssd", "the system structure")
         experiment = root.find("ssd:DefaultExperiment", NAMESPACES)
-        algorithm = experiment.find(".//osp:FixedStepAlgorithm", NAMESPACES)
+        algorithm = experiment.find(".//osp:FixedStepAlgorithm", NAMESPACES) if experiment is not None else None
+        if algorithm is None:
+            raise SystemFileError(f"{path}: SystemStructure.ssd has no ssd:DefaultExperiment with an "
+                                  "osp:FixedStepAlgorithm (the step)")
+        stop_time = _number(experiment.get("stopTime"), f"{path}: SystemStructure.ssd: DefaultExperiment stopTime")
+        step = _number(algorithm.get("baseStepSize"), f"{path}: SystemStructure.ssd: FixedStepAlgorithm baseStepSize")
         sources, values = {}, {}
         for component in root.iterfind("ssd:System/ssd:Elements/ssd:Component", NAMESPACES):
             name = component.get("name")
             sources[name] = component.get("source")
+            _check_fmu(archive, path, sources[name], name)
             values[name] = {}
             for binding in component.iterfind("ssd:ParameterBindings/ssd:ParameterBinding", NAMESPACES):
-                parameters = ET.fromstring(archive.read(binding.get("source")))
+                source = binding.get("source")
+                parameters = _xml(archive, path, source, f"the parameter values of component {name}")
                 for parameter in parameters.iterfind("ssv:Parameters/ssv:Parameter", NAMESPACES):
-                    values[name][parameter.get("name")] = float(parameter.find("ssv:Real", NAMESPACES).get("value"))
-    return System(path, float(experiment.get("stopTime")), float(algorithm.get("baseStepSize")), sources, values)
+                    values[name][parameter.get("name")] = _real(parameter, f"{path}: {source}")
+    for name in ("plant", "controller"):
+        if name not in sources:
+            found = ", ".join(sources) or "none"
+            raise SystemFileError(f"{path}: no component named {name} (its components: {found}); a nudyn system "
+                                  "file has a plant and a controller")
+    return System(path, stop_time, step, sources, values)
+
+
+def _entry(archive: zipfile.ZipFile, path: Path, entry: str | None, what: str) -> bytes:
+    """The bytes of `entry` (`what` it is, for the message)."""
+    if entry is None or entry not in archive.namelist():
+        raise SystemFileError(f"{path}: no entry {entry} ({what})")
+    try:
+        return archive.read(entry)
+    except (zipfile.BadZipFile, EOFError, zlib.error) as error:
+        raise SystemFileError(f"{path}: entry {entry} cannot be read: {error}") from None
+
+
+def _xml(archive: zipfile.ZipFile, path: Path, entry: str | None, what: str) -> ET.Element:
+    try:
+        return ET.fromstring(_entry(archive, path, entry, what))
+    except ET.ParseError as error:
+        raise SystemFileError(f"{path}: {entry} is not well-formed XML: {error}") from None
+
+
+def _check_fmu(archive: zipfile.ZipFile, path: Path, source: str | None, component: str) -> None:
+    """Component `component`'s FMU is in the archive and is an FMU (a zip with a model description)."""
+    fmu = io.BytesIO(_entry(archive, path, source, f"the FMU of component {component}"))
+    if not zipfile.is_zipfile(fmu):
+        raise SystemFileError(f"{path}: {source}, the FMU of component {component}, is not a zip archive "
+                              "(an FMU is one)")
+    with zipfile.ZipFile(fmu) as inner:
+        if "modelDescription.xml" not in inner.namelist():
+            raise SystemFileError(f"{path}: {source}, the FMU of component {component}, has no modelDescription.xml")
+
+
+def _number(text: str | None, what: str) -> float:
+    try:
+        return float(text)
+    except (TypeError, ValueError):
+        raise SystemFileError(f"{what}: expected a number, found {text!r}") from None
+
+
+def _real(parameter: ET.Element, where: str) -> float:
+    """A ParameterValues entry's value: nudyn's values are all ssv:Real."""
+    real = parameter.find("ssv:Real", NAMESPACES)
+    name = parameter.get("name")
+    if real is None:
+        raise SystemFileError(f"{where}: parameter {name} has no ssv:Real value (a nudyn system's values are Real)")
+    return _number(real.get("value"), f"{where}: parameter {name}")
 
 
 def fmpy_parameter_set(system: System):

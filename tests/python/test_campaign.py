@@ -14,8 +14,10 @@ import stat
 import subprocess
 import sys
 import time
+import zipfile
 from pathlib import Path
 
+import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
@@ -461,13 +463,16 @@ def test_ctrl_c_ends_with_how_to_resume_and_the_rerun_completes(nudyn, tmp_path)
     """SIGINT to the command's process group (what Ctrl-C in a terminal
     sends, to the Dask workers too) once the first chunk is written: one
     line, status 130, no traceback from the driver or the workers; the
-    rerun flies the rest."""
+    rerun flies the rest. The interrupted run leaves nothing in the
+    temporary directory (the workers' FMUs, Dask's folders)."""
     path = write(tmp_path, SHORT.replace("cases = 4", "cases = 80").replace("duration = 0.2", "duration = 1.0"))
     out = tmp_path / "out"
+    temporary = tmp_path / "tmp"
+    temporary.mkdir()
     command = [sys.executable, "-m", "nudyn_campaign", str(path), "--out", str(out), "--workers", "2",
                "--no-progress", "--nudyn", str(nudyn)]
     proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
-                            env={**os.environ, "PYTHONPATH": str(ROOT / "python")})
+                            env={**os.environ, "PYTHONPATH": str(ROOT / "python"), "TMPDIR": str(temporary)})
     for _ in range(1200):
         if list((out / "parts").glob("part-*.parquet")) or proc.poll() is not None:
             break
@@ -477,6 +482,7 @@ def test_ctrl_c_ends_with_how_to_resume_and_the_rerun_completes(nudyn, tmp_path)
     assert proc.returncode == 130, stderr
     assert stderr == f"nudyn-campaign: interrupted; rerun to resume ({out})\n", stderr
     assert len(list((out / "parts").glob("part-*.parquet"))) < 8
+    assert list(temporary.iterdir()) == []
     done = run_campaign(path, out, workers=2, nudyn=nudyn, progress=False)
     assert done.column("case").to_pylist() == list(range(80))
 
@@ -547,3 +553,174 @@ def test_bad_system_campaigns_are_clear_errors(line, expected, tmp_path):
     (tmp_path / "loop.ssp").write_bytes(b"")
     with pytest.raises(CampaignError, match=expected):
         load(write(tmp_path, f"[campaign]\n{line}\ncases = 2\n"))
+
+
+def test_a_second_campaign_into_a_folder_in_use_is_refused(nudyn, tmp_path):
+    """Two runs into one --out used to mix silently (a seed-2 run with
+    --overwrite removed and relabelled the rows of a seed-1 run still
+    flying). The first run holds the folder's lock until it ends: the
+    second, started while the first is held stopped with the lock, is
+    refused with one line naming the folder; the first completes with its
+    own rows."""
+    path = write(tmp_path, SHORT.replace("cases = 4", "cases = 16"))
+    reseeded = write(tmp_path, SHORT.replace("seed = 3", "seed = 4"), "reseeded.toml")
+    out = tmp_path / "out"
+    first = subprocess.Popen([sys.executable, "-m", "nudyn_campaign", str(path), "--out", str(out), "--workers", "1",
+                              "--no-progress", "--nudyn", str(nudyn)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                             text=True, env={**os.environ, "PYTHONPATH": str(ROOT / "python")})
+    try:
+        # campaign.json is written with the lock held.
+        for _ in range(1200):
+            if (out / "campaign.json").exists() or first.poll() is not None:
+                break
+            time.sleep(0.05)
+        os.kill(first.pid, signal.SIGSTOP)
+        try:
+            second = campaign_command(reseeded, "--out", out, "--overwrite", "--workers", "1", "--nudyn", nudyn)
+        finally:
+            os.kill(first.pid, signal.SIGCONT)
+        one_line_error(second, f"--out {out}: another nudyn-campaign is writing into this folder")
+        _, stderr = first.communicate(timeout=300)
+    finally:
+        if first.poll() is None:
+            first.kill()
+            first.wait()
+    assert first.returncode == 0, stderr
+    table = pq.read_table(out / "results.parquet")
+    assert table.column("nu[4]").to_pylist() == [draw(load(path), k)["nu[4]"] for k in range(16)]
+    assert "campaign seed 3" in (out / "report.md").read_text()
+
+
+def test_a_first_run_does_not_replace_files_no_campaign_wrote(nudyn, tmp_path):
+    """An --out with no campaign.json that holds a file a run writes (the
+    user's own report.md) is refused, the file left as it was; other files
+    are no concern of the run and stay; --overwrite replaces them."""
+    path = write(tmp_path, SHORT)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "report.md").write_text("my own notes")
+    (out / "notes.txt").write_text("kept")
+    expected = f"{out} holds report.md and no campaign.json: no campaign wrote them, and this one would replace them"
+    with pytest.raises(CampaignError) as error:
+        run_campaign(path, out, workers=1, nudyn=nudyn, progress=False)
+    assert expected in str(error.value), str(error.value)
+    one_line_error(campaign_command(path, "--out", out, "--nudyn", nudyn), expected)
+    assert (out / "report.md").read_text() == "my own notes"
+    assert sorted(p.name for p in out.iterdir()) == [".nudyn-campaign.lock", "notes.txt", "report.md"]
+
+    table = run_campaign(path, out, workers=1, nudyn=nudyn, progress=False, overwrite=True)
+    assert table.num_rows == 4
+    assert (out / "report.md").read_text().startswith("# Campaign campaign")
+    assert (out / "notes.txt").read_text() == "kept"
+    # Written by the campaign now: a rerun resumes.
+    assert rows(run_campaign(path, out, workers=1, nudyn=nudyn, progress=False)) == rows(table)
+
+
+def test_a_campaign_leaves_nothing_in_the_temporary_directory(nudyn, tmp_path):
+    """The workers' extracted FMUs (3 to 8 MB each) and the MJCF copy the
+    qvel conversion loads, Dask's worker folders: all removed by the end of
+    the run (TMPDIR, for the command and its workers, a fresh folder)."""
+    temporary = tmp_path / "tmp"
+    temporary.mkdir()
+    path = write(tmp_path, CLOSED_LOOP)
+    proc = campaign_command(path, "--out", tmp_path / "out", "--cases", "4", "--workers", "2", "--no-progress",
+                            "--nudyn", nudyn, env={"TMPDIR": str(temporary)})
+    assert proc.returncode == 0, proc.stderr
+    assert pq.read_table(tmp_path / "out" / "results.parquet").num_rows == 4
+    assert list(temporary.iterdir()) == []
+
+
+@pytest.fixture(scope="module")
+def loop_ssp(nudyn, tmp_path_factory) -> Path:
+    """A `nudyn system` file a campaign flies: bus_arm7 with the metrics' outputs."""
+    path = tmp_path_factory.mktemp("system") / "loop.ssp"
+    subprocess.run([str(nudyn), "system", str(EXAMPLES_DIR / "bus_arm7.xml"), "-o", str(path), "--stop", "0.5",
+                    "--step", "0.05", "--outputs", "kinetic_energy,momentum", "--set", "plant.nu[4]=0.5",
+                    "--set", "plant.theta[8]=0.1", "--set", "controller.c1=0", "--set", "controller.c2=0"],
+                   check=True, capture_output=True)
+    return path
+
+
+def rewritten(source: Path, target: Path, entries: dict) -> Path:
+    """`source`'s archive with `entries` (name → new bytes, or None to leave it out) changed, as `target`."""
+    with zipfile.ZipFile(source) as old, zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as new:
+        for name in old.namelist():
+            content = entries.get(name, old.read(name))
+            if content is not None:
+                new.writestr(name, content)
+    return target
+
+
+def _ssd(path: Path) -> bytes:
+    with zipfile.ZipFile(path) as archive:
+        return archive.read("SystemStructure.ssd")
+
+
+@pytest.mark.parametrize("broken, expected", [
+    ("not a zip", "not a zip archive (an SSP file is one)"),
+    ("a component not a zip", "resources/plant.fmu, the FMU of component plant, is not a zip archive (an FMU is one)"),
+    ("a missing entry", "no entry resources/controller.fmu (the FMU of component controller)"),
+    ("no component named plant",
+     "no component named plant (its components: vehicle, controller); a nudyn system file has a plant and a controller"),
+    ("a truncated SSD", "SystemStructure.ssd is not well-formed XML: "),
+])
+def test_a_malformed_system_file_is_one_line_naming_it(loop_ssp, nudyn, tmp_path, broken, expected):
+    """Each of these ended in a Python traceback (BadZipFile, KeyError,
+    ParseError) and exit status 1."""
+    target = tmp_path / "loop.ssp"
+    if broken == "not a zip":
+        target.write_bytes(b"PK but not really a zip archive")
+    elif broken == "a component not a zip":
+        rewritten(loop_ssp, target, {"resources/plant.fmu": b"not an FMU"})
+    elif broken == "a missing entry":
+        rewritten(loop_ssp, target, {"resources/controller.fmu": None})
+    elif broken == "no component named plant":
+        rewritten(loop_ssp, target, {"SystemStructure.ssd": _ssd(loop_ssp).replace(b'Component name="plant"',
+                                                                                    b'Component name="vehicle"')})
+    else:
+        ssd = _ssd(loop_ssp)
+        rewritten(loop_ssp, target, {"SystemStructure.ssd": ssd[: len(ssd) // 2]})
+    path = write(tmp_path, '[campaign]\nsystem = "loop.ssp"\ncases = 2\n')
+    proc = campaign_command(path, "--out", tmp_path / "out", "--nudyn", nudyn)
+    one_line_error(proc, f"campaign.system: {target}: {expected}")
+    assert not (tmp_path / "out" / "parts").exists()
+
+
+def test_a_system_files_plant_values_are_flown_as_fmpy_sets_them(loop_ssp, nudyn, tmp_path):
+    """The plant's .ssv values are start values FMPy's simulate_ssp sets on
+    the plant before its initialization: the campaign flies them too (it
+    used to fly the plant FMU's own start values, which a .ssv edited or
+    written by another tool than nudyn need not match). The controller's
+    gains are 0, so that its ε is 0 in both masters' orders and the two
+    trajectories are the plant's alone."""
+    from fmpy.ssp.simulation import simulate_ssp
+    from fmpy.ssp.ssd import ParameterSet, read_ssd
+
+    plant_values = (b'<ssv:Parameter name="nu[4]"><ssv:Real value="0.25"/></ssv:Parameter>\n'
+                    b'    <ssv:Parameter name="theta[8]"><ssv:Real value="0.3"/></ssv:Parameter>')
+    with zipfile.ZipFile(loop_ssp) as archive:
+        ssv = archive.read("resources/plant.ssv")
+    start, end = ssv.index(b"<ssv:Parameter "), ssv.rindex(b"</ssv:Parameter>") + len(b"</ssv:Parameter>")
+    edited = rewritten(loop_ssp, tmp_path / "edited.ssp", {"resources/plant.ssv": ssv[:start] + plant_values + ssv[end:]})
+
+    # FMPy's own reading of the bindings, as one ParameterSet with the component's prefix.
+    parameters = ParameterSet(name="values")
+    for component in read_ssd(str(edited)).system.elements:
+        for binding in component.parameterBindings:
+            for parameter_set in binding.parameterValues:
+                for parameter in parameter_set.parameters:
+                    parameter.name = f"{component.name}.{parameter.name}"
+                    parameters.parameters.append(parameter)
+    assert {p.name: p.value for p in parameters.parameters if p.name.startswith("plant.")} == {
+        "plant.nu[4]": "0.25", "plant.theta[8]": "0.3"}
+    fmpy = simulate_ssp(str(edited), stop_time=0.5, step_size=0.05, parameter_set=parameters)
+
+    path = write(tmp_path, '[campaign]\nsystem = "edited.ssp"\ncases = 1\ntrajectories = true\n')
+    table = run_campaign(path, tmp_path / "out", workers=1, nudyn=nudyn, progress=False)
+    assert table.column("status").to_pylist() == ["ok"]
+    trajectory = pq.read_table(tmp_path / "out" / "trajectories" / "case-000000.parquet")
+    # FMPy's row k holds the outputs after the step from t_k.
+    for k in range(1, 14):
+        flown = np.array(trajectory.column(f"nu[{k}]").to_pylist()[1:])
+        assert np.abs(flown - fmpy[f"plant.nu[{k}]"][: len(flown)]).max() < 1e-12, k
+    assert trajectory.column("nu[4]").to_pylist()[0] == 0.25

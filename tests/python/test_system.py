@@ -55,6 +55,35 @@ def test_the_archive_validates_against_the_ssp_schemas(detumble):
     assert detumble.values["controller"] == {f"c1[{k}]": 2.0 for k in range(1, 14)}
 
 
+OMS = "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd"
+
+
+def test_the_system_carries_omsimulators_master_annotation(detumble, nudyn, fmu_library, tmp_path):
+    """OMSimulator takes a system's master from its own annotation of the
+    ssd:System (OMSimulator's oms:FixedStepMaster, the element it writes in
+    its own SSDs), and aborts the import without one: the step is the
+    DefaultExperiment's, the tolerances the plant's (OMSimulator passes them
+    to fmi2SetupExperiment, where they replace the plant's `tolerance`).
+    OMSimulator matches the `oms:` prefix itself, not the namespace."""
+    def master(system):
+        with zipfile.ZipFile(system.path) as archive:
+            text = archive.read("SystemStructure.ssd")
+        assert b"<oms:Annotations " in text and b"<oms:FixedStepMaster " in text
+        root = etree.fromstring(text)
+        namespaces = {**ssp.NAMESPACES, "oms": OMS}
+        (annotation,) = root.findall("ssd:System/ssd:Annotations/ssc:Annotation", namespaces)
+        assert annotation.get("type") == "org.openmodelica"
+        (fixed_step,) = annotation.findall("oms:Annotations/oms:SimulationInformation/oms:FixedStepMaster", namespaces)
+        return fixed_step.attrib
+
+    assert master(detumble) == {"description": "oms-ma", "stepSize": "0.05", "absoluteTolerance": "1e-8",
+                                "relativeTolerance": "1e-8"}
+    tight = write_system(nudyn, EXAMPLES / "fixed_rig.xml", tmp_path / "rig.ssp", "--step", "0.02", "--stop", "1",
+                         "--set", "plant.tolerance=1e-10")
+    assert master(tight) == {"description": "oms-ma", "stepSize": "0.02", "absoluteTolerance": "1e-10",
+                             "relativeTolerance": "1e-10"}
+
+
 def test_a_schema_violation_is_caught():
     """The schema check above can fail: an SSD with its elements out of order does."""
     broken = etree.fromstring(
@@ -140,6 +169,8 @@ def test_servicer_reaches_its_target_pose_in_libcosim_and_fmpy(nudyn, fmu_librar
     ("plant.nu[1]=fast", "'fast' is not a number"),
     ("plant.sensordata[1]=1", "sensordata[1] has no start value: it is a calculated output"),
     ("bus.nu[1]=1", "the system's components are plant and controller"),
+    # A zero quaternion: no host can initialize the plant from it.
+    ("plant.theta=0", "--set plant.theta=0: theta[4] to theta[7] (joint 'bus_free') would be a zero quaternion"),
 ])
 def test_bad_values_are_refused_by_name_and_nothing_is_written(nudyn, fmu_library, tmp_path, value, message):
     out = tmp_path / "loop.ssp"
@@ -148,3 +179,28 @@ def test_bad_values_are_refused_by_name_and_nothing_is_written(nudyn, fmu_librar
     assert done.returncode != 0
     assert message in done.stderr, done.stderr
     assert not out.exists()
+
+
+def test_a_variable_set_twice_is_refused_and_nothing_is_written(nudyn, fmu_library, tmp_path):
+    """The last of two values used to win silently."""
+    out = tmp_path / "loop.ssp"
+    for sets, message in [
+        (["plant.nu[4]=0.5", "plant.nu[4]=0.7"], "--set plant.nu[4]=0.7: plant.nu[4] is already set by --set plant.nu[4]=0.5"),
+        (["controller.c1=2", "controller.c1[3]=1"],
+         "--set controller.c1[3]=1: controller.c1[3] is already set by --set controller.c1=2; set each variable once"),
+    ]:
+        options = [option for value in sets for option in ("--set", value)]
+        done = subprocess.run([str(nudyn), "system", str(EXAMPLES / "bus_arm7.xml"), "-o", str(out), *options],
+                              capture_output=True, text=True)
+        assert done.returncode != 0 and message in done.stderr, done.stderr
+        assert not out.exists()
+
+
+def test_a_non_unit_quaternion_is_kept_and_the_plant_normalizes_it(nudyn, fmu_library, tmp_path):
+    """As the plant FMU does with any non-unit quaternion start value (and
+    MuJoCo with qpos0): (2, 0, 0, 0) starts as the identity."""
+    system = write_system(nudyn, EXAMPLES / "bus_arm7.xml", tmp_path / "loop.ssp", "--stop", "0.1", "--step", "0.05",
+                          "--set", "plant.theta[4]=2")
+    assert system.values["plant"] == {"theta[4]": 2.0}
+    run = ssp.run_loop(system, "gauss-seidel")
+    assert list(run.theta[0][3:7]) == [1.0, 0.0, 0.0, 0.0]

@@ -4,8 +4,10 @@
 //! - `SystemStructure.ssd`: the System with Components `plant` and
 //!   `controller`, a Connector for every θ, ν and ε entry of each, a
 //!   Connection per entry (plant θ, ν → controller; controller ε → plant),
-//!   and the DefaultExperiment with OSP's fixed-step annotation (libcosim
-//!   reads its step from `osp:FixedStepAlgorithm baseStepSize`);
+//!   OMSimulator's annotation of the System's master (OMSimulator takes
+//!   its master from `oms:FixedStepMaster` and aborts without one), and the
+//!   DefaultExperiment with OSP's fixed-step annotation (libcosim reads its
+//!   step from `osp:FixedStepAlgorithm baseStepSize`);
 //! - `resources/plant.fmu`, `resources/controller.fmu`;
 //! - `resources/plant.ssv`, `resources/controller.ssv`: the values set, one
 //!   ParameterSet per component with names relative to it, bound by the
@@ -23,9 +25,10 @@ use std::io::Write;
 use std::path::Path;
 
 use nudyn::control::ControlLaw;
-use nudyn::model::Model;
+use nudyn::math::normalize_wxyz;
+use nudyn::model::{LinkJoint, Model};
 use nudyn_contract::controller::ControllerLayout;
-use nudyn_contract::plant::PlantResource;
+use nudyn_contract::plant::{DEFAULT_TOLERANCE, PlantResource};
 use nudyn_contract::variable::{Kind, StartError, check_start};
 
 use super::controller::{ControllerExportError, write_controller_fmu};
@@ -37,6 +40,8 @@ const SSD_NAMESPACE: &str = "http://ssp-standard.org/SSP1/SystemStructureDescrip
 const SSC_NAMESPACE: &str = "http://ssp-standard.org/SSP1/SystemStructureCommon";
 const SSV_NAMESPACE: &str = "http://ssp-standard.org/SSP1/SystemStructureParameterValues";
 const OSP_NAMESPACE: &str = "http://opensimulationplatform.com/SSP/OSPAnnotations";
+/// The namespace OMSimulator declares for its own annotations (it matches the `oms:` prefix itself).
+const OMS_NAMESPACE: &str = "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd";
 
 /// One of the system's two components.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -85,6 +90,34 @@ pub enum SystemError {
         name: String,
         /// The names it has, arrays as `name[1..n]`.
         settable: String,
+    },
+    /// Two `--set` options naming the same variable (one would be lost).
+    #[error("--set {text}: {component}.{name} is already set by --set {first}; set each variable once")]
+    SetTwice {
+        /// The option's text.
+        text: String,
+        /// The component.
+        component: &'static str,
+        /// The variable set twice.
+        name: String,
+        /// The text of the option that set it first.
+        first: String,
+    },
+    /// Values that leave one of θ's quaternions with zero norm.
+    #[error(
+        "{sets}: theta[{first}] to theta[{last}] (joint '{joint}') would be a zero quaternion, which no host can \
+         start the plant from; a quaternion needs a non-zero norm (the plant FMU normalizes a non-unit one at \
+         initialization, as MuJoCo does)"
+    )]
+    ZeroQuaternion {
+        /// The options that set its entries, as given ("--set plant.theta=0").
+        sets: String,
+        /// Its first entry, numbered from 1 as the FMU's variables.
+        first: usize,
+        /// Its last entry.
+        last: usize,
+        /// The joint it belongs to.
+        joint: String,
     },
     /// A value the variable does not accept.
     #[error("--set {text}: {source}")]
@@ -138,10 +171,42 @@ struct Settable {
 /// The values set, by component, as (variable name, value) in name order.
 pub type Values = BTreeMap<Component, BTreeMap<String, f64>>;
 
+/// A quaternion of the plant's θ: four entries that must not all be zero.
+struct Quaternion {
+    /// The joint it belongs to.
+    joint: String,
+    /// Its first entry's index in θ (from 0).
+    first: usize,
+    /// Its entries' default start values (qpos0).
+    default: [f64; 4],
+}
+
+/// The quaternions of `model`'s θ (ball joints and the rotation of free joints).
+fn quaternions(model: &Model) -> Vec<Quaternion> {
+    model
+        .links
+        .iter()
+        .filter(|link| link.joint == LinkJoint::Ball)
+        .map(|link| {
+            let q = &model.qpos0[link.qpos_adr..link.qpos_adr + 4];
+            Quaternion { joint: link.joint_name.clone(), first: link.qpos_adr, default: [q[0], q[1], q[2], q[3]] }
+        })
+        .collect()
+}
+
 /// Reads the `--set` options against the two components' variables; a name
-/// without an index on an array sets every entry (`controller.c1=2`).
-fn values_set(sets: &[String], plant: &[Settable], controller: &[Settable]) -> Result<Values, SystemError> {
+/// without an index on an array sets every entry (`controller.c1=2`). A
+/// variable set by two options is refused, as is a quaternion of the
+/// plant's `quaternions` left with zero norm.
+fn values_set(
+    sets: &[String],
+    plant: &[Settable],
+    controller: &[Settable],
+    quaternions: &[Quaternion],
+) -> Result<Values, SystemError> {
     let mut values = Values::new();
+    // The option that set each variable, for the refusals.
+    let mut set_by: BTreeMap<(Component, String), &String> = BTreeMap::new();
     for text in sets {
         let syntax = || SystemError::Syntax(text.clone());
         let (path, value) = text.split_once('=').ok_or_else(syntax)?;
@@ -171,7 +236,40 @@ fn values_set(sets: &[String], plant: &[Settable], controller: &[Settable]) -> R
         for variable in named {
             check_start(&variable.name, variable.kind, variable.has_start, value)
                 .map_err(|source| SystemError::Refused { text: text.clone(), source })?;
+            if let Some(first) = set_by.insert((component, variable.name.clone()), text) {
+                return Err(SystemError::SetTwice {
+                    text: text.clone(),
+                    component: component.name(),
+                    name: variable.name.clone(),
+                    first: first.clone(),
+                });
+            }
             values.entry(component).or_default().insert(variable.name.clone(), value);
+        }
+    }
+    let plant_values = values.get(&Component::Plant);
+    for quaternion in quaternions {
+        let names: Vec<String> = (1..=4).map(|i| format!("theta[{}]", quaternion.first + i)).collect();
+        let mut q = quaternion.default;
+        for (entry, name) in q.iter_mut().zip(&names) {
+            if let Some(&value) = plant_values.and_then(|set| set.get(name)) {
+                *entry = value;
+            }
+        }
+        if normalize_wxyz(&mut q).is_none() {
+            let mut sets: Vec<String> = Vec::new();
+            for name in &names {
+                let option = set_by.get(&(Component::Plant, name.clone())).map(|text| format!("--set {text}"));
+                if let Some(option) = option.filter(|option| !sets.contains(option)) {
+                    sets.push(option);
+                }
+            }
+            return Err(SystemError::ZeroQuaternion {
+                sets: sets.join(", "),
+                first: quaternion.first + 1,
+                last: quaternion.first + 4,
+                joint: quaternion.joint.clone(),
+            });
         }
     }
     Ok(values)
@@ -219,7 +317,7 @@ pub fn write_system(
         .variables()
         .map(|(_, v)| Settable { name: layout.name(v), kind: v.kind(), has_start: v.start(model, &defaults).is_some() })
         .collect();
-    let values = values_set(&options.sets, &plant_variables, &controller_variables)?;
+    let values = values_set(&options.sets, &plant_variables, &controller_variables, &quaternions(model))?;
 
     let plant_starts = values.get(&Component::Plant).cloned().unwrap_or_default();
     let plant_resource = plant_resource.with_starts(plant_starts).expect("checked against the same variables");
@@ -320,6 +418,10 @@ fn system_structure(model: &Model, options: &SystemOptions, values: &Values) -> 
         .chain(eps.iter().map(|n| connection(Component::Controller, Component::Plant, n)))
         .collect();
     let (step, stop) = (double(options.step), double(options.stop));
+    // OMSimulator hands its master's tolerance to the FMUs (fmi2SetupExperiment),
+    // where it takes the place of the plant's `tolerance`: the plant's own value.
+    let tolerance =
+        values.get(&Component::Plant).and_then(|plant| plant.get("tolerance")).copied().unwrap_or(DEFAULT_TOLERANCE);
     format!(
         "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n\
          <ssd:SystemStructureDescription xmlns:ssd=\"{SSD_NAMESPACE}\" xmlns:ssc=\"{SSC_NAMESPACE}\" \
@@ -327,6 +429,16 @@ fn system_structure(model: &Model, options: &SystemOptions, values: &Values) -> 
          \x20 <ssd:System name=\"{name}\" description=\"plant FMU and noninteracting controller FMU, connected name to name\">\n\
          \x20   <ssd:Elements>\n{plant}{controller}    </ssd:Elements>\n\
          \x20   <ssd:Connections>\n{connections}    </ssd:Connections>\n\
+         \x20   <ssd:Annotations>\n\
+         \x20     <ssc:Annotation type=\"org.openmodelica\">\n\
+         \x20       <oms:Annotations xmlns:oms=\"{OMS_NAMESPACE}\">\n\
+         \x20         <oms:SimulationInformation>\n\
+         \x20           <oms:FixedStepMaster description=\"oms-ma\" stepSize=\"{step}\" \
+         absoluteTolerance=\"{tolerance}\" relativeTolerance=\"{tolerance}\"/>\n\
+         \x20         </oms:SimulationInformation>\n\
+         \x20       </oms:Annotations>\n\
+         \x20     </ssc:Annotation>\n\
+         \x20   </ssd:Annotations>\n\
          \x20 </ssd:System>\n\
          \x20 <ssd:DefaultExperiment startTime=\"0\" stopTime=\"{stop}\">\n\
          \x20   <ssd:Annotations>\n\
@@ -337,6 +449,7 @@ fn system_structure(model: &Model, options: &SystemOptions, values: &Values) -> 
          \x20 </ssd:DefaultExperiment>\n\
          </ssd:SystemStructureDescription>\n",
         name = escape(&options.plant_identifier),
+        tolerance = double(tolerance),
         version = env!("CARGO_PKG_VERSION"),
         plant = component(Component::Plant, &state, &eps),
         controller = component(Component::Controller, &eps, &state),
@@ -379,12 +492,12 @@ mod tests {
         let plant =
             [settable("nu[1]", Kind::STATE_OUTPUT), settable("tolerance", Kind::fixed_parameter(Range::Positive))];
         let sets = ["controller.c1=2".to_string(), "plant.nu[1]=-0.5".to_string()];
-        let values = values_set(&sets, &plant, &controller).unwrap();
+        let values = values_set(&sets, &plant, &controller, &[]).unwrap();
         assert_eq!(values[&Component::Controller].len(), 2);
         assert_eq!(values[&Component::Controller]["c1[2]"], 2.0);
         assert_eq!(values[&Component::Plant]["nu[1]"], -0.5);
 
-        let refused = |set: &str| values_set(&[set.to_string()], &plant, &controller).unwrap_err().to_string();
+        let refused = |set: &str| values_set(&[set.to_string()], &plant, &controller, &[]).unwrap_err().to_string();
         assert!(refused("controller.c1=-1").contains("c1[1] = -1 is refused: it must be non-negative"));
         assert!(refused("plant.tolerance=0").contains("must be positive"));
         assert!(refused("plant.nu[1]=NaN").contains("must be finite"));
@@ -395,5 +508,49 @@ mod tests {
         assert!(refused("plant.nu[1]=fast").contains("'fast' is not a number"));
         assert!(refused("ground.x=1").contains("components are plant and controller"));
         assert!(refused("nu[1]=1").contains("expected COMPONENT.NAME=VALUE"));
+    }
+
+    #[test]
+    fn a_variable_set_twice_is_refused_naming_both_options() {
+        let gain = Kind::tunable_parameter(Range::NonNegative);
+        let controller = [settable("c1[1]", gain), settable("c1[2]", gain)];
+        let twice = |sets: &[&str]| {
+            let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+            values_set(&sets, &[], &controller, &[]).unwrap_err().to_string()
+        };
+        assert_eq!(
+            twice(&["controller.c1[2]=1", "controller.c1[2]=3"]),
+            "--set controller.c1[2]=3: controller.c1[2] is already set by --set controller.c1[2]=1; set each variable once"
+        );
+        assert!(
+            twice(&["controller.c1=2", "controller.c1[1]=3"])
+                .starts_with("--set controller.c1[1]=3: controller.c1[1] is already set by --set controller.c1=2;")
+        );
+    }
+
+    #[test]
+    fn a_zero_quaternion_is_refused_and_a_non_unit_one_kept() {
+        let plant: Vec<Settable> = (1..=8).map(|k| settable(&format!("theta[{k}]"), Kind::STATE_OUTPUT)).collect();
+        // A free joint: position theta[1..3], quaternion theta[4..7]; a hinge theta[8].
+        let quaternion = [Quaternion { joint: "bus_free".into(), first: 3, default: [1.0, 0.0, 0.0, 0.0] }];
+        let set = |sets: &[&str]| {
+            let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+            values_set(&sets, &plant, &[], &quaternion)
+        };
+        let zero = set(&["plant.theta=0"]).unwrap_err().to_string();
+        assert!(
+            zero.starts_with(
+                "--set plant.theta=0: theta[4] to theta[7] (joint 'bus_free') would be a zero quaternion, which no host \
+                 can start the plant from; a quaternion needs a non-zero norm"
+            ),
+            "{zero}"
+        );
+        // The entries left at qpos0 count: w = 0 alone leaves (0, 0, 0, 0) here.
+        let by_entries = set(&["plant.theta[8]=1", "plant.theta[4]=0"]).unwrap_err().to_string();
+        assert!(by_entries.starts_with("--set plant.theta[4]=0: theta[4] to theta[7]"), "{by_entries}");
+        assert!(set(&["plant.theta[4]=0", "plant.theta[5]=1"]).is_ok());
+        // A non-unit quaternion is written as given: the plant normalizes it at initialization.
+        let values = set(&["plant.theta[4]=2"]).unwrap();
+        assert_eq!(values[&Component::Plant]["theta[4]"], 2.0);
     }
 }
