@@ -524,6 +524,14 @@ const MALFORMED: &[Malformed] = &[
         xml: "<mujoco>\n<worldbody>\n<body name=\"a\">\n<freejoint/><geom size=\"1\"/>\n</body>\n</worldbody>\n<equality>\n<connect body1=\"a\" body2=\"b\" anchor=\"0 0 0\"/>\n</equality>\n</mujoco>" },
     Malformed { what: "connect without anchor", variant: |e| matches!(e, MjcfError::MissingAttribute { .. }), element: "<connect>", line: 8,
         xml: "<mujoco>\n<worldbody>\n<body name=\"a\">\n<freejoint/><geom size=\"1\"/>\n</body>\n</worldbody>\n<equality>\n<connect body1=\"a\"/>\n</equality>\n</mujoco>" },
+    Malformed { what: "weld of sites with an anchor", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<weld>", line: 8,
+        xml: "<mujoco>\n<worldbody>\n<body name=\"a\">\n<freejoint/><geom size=\"1\"/><site name=\"s\"/>\n</body>\n<site name=\"w\"/>\n</worldbody><equality>\n<weld site1=\"s\" site2=\"w\" anchor=\"0 0 1\"/>\n</equality>\n</mujoco>" },
+    Malformed { what: "weld of sites with a relative pose", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<weld name=\"hold\">", line: 8,
+        xml: "<mujoco>\n<worldbody>\n<body name=\"a\">\n<freejoint/><geom size=\"1\"/><site name=\"s\"/>\n</body>\n<site name=\"w\"/>\n</worldbody><equality>\n<weld name=\"hold\" site1=\"s\" site2=\"w\" relpose=\"0 0 0 1 0 0 0\"/>\n</equality>\n</mujoco>" },
+    Malformed { what: "connect of sites with an anchor", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<connect>", line: 8,
+        xml: "<mujoco>\n<worldbody>\n<body name=\"a\">\n<freejoint/><geom size=\"1\"/><site name=\"s\"/>\n</body>\n<site name=\"w\"/>\n</worldbody><equality>\n<connect site1=\"s\" site2=\"w\" anchor=\"0 0 1\"/>\n</equality>\n</mujoco>" },
+    Malformed { what: "joint coupling of a joint with itself", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<joint name=\"same\">", line: 8,
+        xml: "<mujoco>\n<worldbody>\n<body name=\"a\">\n<joint name=\"h\"/><geom size=\"1\"/>\n</body>\n</worldbody>\n<equality>\n<joint name=\"same\" joint1=\"h\" joint2=\"h\"/>\n</equality>\n</mujoco>" },
     Malformed { what: "joint coupling of a ball joint", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<joint>", line: 8,
         xml: "<mujoco>\n<worldbody>\n<body name=\"a\">\n<joint name=\"b\" type=\"ball\"/><geom size=\"1\"/>\n</body>\n</worldbody>\n<equality>\n<joint joint1=\"b\"/>\n</equality>\n</mujoco>" },
     Malformed { what: "free joint in a nested body", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<freejoint>", line: 6,
@@ -720,4 +728,30 @@ fn unnamed_elements_cannot_be_named_and_do_not_take_a_file_s_names() {
     let sensed = xml.replace("</mujoco>", r#"<sensor><subtreecom body="body2"/></sensor></mujoco>"#);
     let refused = parse_mjcf(&sensed).unwrap_err().to_string();
     assert!(refused.contains("unknown body 'body2' in sensor"), "{refused}");
+}
+
+/// MuJoCo's schema keeps a weld's or connect's sites apart from the
+/// attributes of its body form; the refusal gives MuJoCo's reason.
+#[test]
+fn sites_take_no_anchor_or_relative_pose() {
+    let xml = |equality: &str| {
+        format!(
+            "<mujoco><worldbody><body name=\"a\"><freejoint/><geom size=\"1\"/><site name=\"s\"/></body>\
+             <site name=\"w\"/></worldbody><equality>{equality}</equality></mujoco>"
+        )
+    };
+    let refused = |equality: &str| parse_mjcf(&xml(equality)).unwrap_err().to_string();
+    let weld = refused(r#"<weld site1="s" site2="w" relpose="0 0 0 1 0 0 0"/>"#);
+    assert!(
+        weld.ends_with(
+            "'relpose' cannot be given with sites: at most one of ('site1', 'site2'), \
+             ('body1', 'body2', 'anchor', 'relpose') can be specified"
+        ),
+        "{weld}"
+    );
+    let connect = refused(r#"<connect site1="s" site2="w" anchor="1 0 0"/>"#);
+    assert!(connect.ends_with("at most one of ('site1', 'site2'), ('body1', 'body2', 'anchor') can be specified"), "{connect}");
+    // The body form keeps both, and sites alone are fine.
+    assert!(parse_mjcf(&xml(r#"<weld body1="a" anchor="0 0 1" relpose="0 0 0 1 0 0 0"/>"#)).is_ok());
+    assert!(parse_mjcf(&xml(r#"<weld site1="s" site2="w"/>"#)).is_ok());
 }
