@@ -337,6 +337,19 @@ impl GeomSettings {
             }
         }
         self.hfield |= element.has("hfield");
+        // Read for their syntax only (nudyn models no contacts nor fluid
+        // forces); MuJoCo refuses more numbers than each holds.
+        element.overwrite_numbers("friction", &mut [0.0; 3])?;
+        element.overwrite_numbers("solref", &mut [0.0; 2])?;
+        element.overwrite_numbers("solimp", &mut [0.0; 5])?;
+        element.overwrite_numbers("fluidcoef", &mut [0.0; 5])?;
+        for attribute in ["margin", "gap", "solmix"] {
+            element.number(attribute)?;
+        }
+        for attribute in ["priority", "condim"] {
+            element.integers::<1>(attribute)?;
+        }
+        element.numbers::<4>("rgba")?;
         Ok(())
     }
 }

@@ -549,6 +549,18 @@ impl Reader {
             }
             self.physics.disabled_actuator_groups = groups;
         }
+        // Read for their syntax only: they set contacts, which nudyn does not
+        // model, and MuJoCo's iterative solver, which nudyn does not use.
+        // MuJoCo refuses more numbers than each holds.
+        element.overwrite_numbers("o_solref", &mut [0.0; 2])?;
+        element.overwrite_numbers("o_solimp", &mut [0.0; 5])?;
+        element.overwrite_numbers("o_friction", &mut [0.0; 5])?;
+        for attribute in ["o_margin", "impratio", "tolerance", "ls_tolerance", "ccd_tolerance", "sleep_tolerance"] {
+            element.number(attribute)?;
+        }
+        for attribute in ["iterations", "ls_iterations", "ccd_iterations", "sdf_iterations", "sdf_initpoints"] {
+            element.integers::<1>(attribute)?;
+        }
         if element.numbers::<3>("wind")?.is_some_and(|w| w != [0.0; 3]) {
             return Err(element.unsupported("wind acts through fluid forces, which nudyn does not model"));
         }
@@ -673,13 +685,17 @@ impl Reader {
             match child.tag() {
                 "body" => self.read_body_tree(child, frame, class, suffix)?,
                 "site" => self.read_site(&child, class, None, frame, &suffix)?,
-                "geom" if child.has("name") => {
+                "geom" => {
+                    child.check_attributes(GEOM_ATTRIBUTES)?;
+                    if let Some(grandchild) = child.children().next() {
+                        return Err(unsupported_child(&grandchild));
+                    }
                     let mut settings = self.defaults.class(self.class_of(&child, class)?).geom.clone();
                     settings.apply(&child)?;
                     self.name_geom(&child, &settings, frame.as_ref(), None, &suffix)?;
                     self.warnings.push(child.ignored());
                 }
-                tag if tag == "geom" || IGNORED_IN_BODIES.contains(&tag) => {
+                tag if IGNORED_IN_BODIES.contains(&tag) => {
                     self.named_elsewhere.extend(child.text("target").map(str::to_string));
                     self.warnings.push(child.ignored());
                 }
