@@ -768,7 +768,10 @@ fn sites_take_no_anchor_or_relative_pose() {
         "{weld}"
     );
     let connect = refused(r#"<connect site1="s" site2="w" anchor="1 0 0"/>"#);
-    assert!(connect.ends_with("at most one of ('site1', 'site2'), ('body1', 'body2', 'anchor') can be specified"), "{connect}");
+    assert!(
+        connect.ends_with("at most one of ('site1', 'site2'), ('body1', 'body2', 'anchor') can be specified"),
+        "{connect}"
+    );
     // The body form keeps both, and sites alone are fine.
     assert!(parse_mjcf(&xml(r#"<weld body1="a" anchor="0 0 1" relpose="0 0 0 1 0 0 0"/>"#)).is_ok());
     assert!(parse_mjcf(&xml(r#"<weld site1="s" site2="w"/>"#)).is_ok());
