@@ -564,6 +564,10 @@ const MALFORMED: &[Malformed] = &[
         xml: "<mujoco>\n<worldbody>\n<body>\n<replicate offset=\"1 0 0\">\n<body><joint/><geom size=\"1\"/></body>\n</replicate>\n<geom size=\"1\"/>\n</body>\n</worldbody>\n</mujoco>" },
     Malformed { what: "replicate of no copies", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<replicate>", line: 3,
         xml: "<mujoco>\n<worldbody>\n<replicate count=\"0\">\n<body><joint/><geom size=\"1\"/></body>\n</replicate>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "replicate of absurdly many copies", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<replicate>", line: 3,
+        xml: "<mujoco>\n<worldbody>\n<replicate count=\"100000000\" offset=\"1 0 0\">\n<body><joint/><geom size=\"1\"/></body>\n</replicate>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "nested replicates of too many copies", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<replicate>", line: 4,
+        xml: "<mujoco>\n<worldbody>\n<replicate count=\"400\" offset=\"1 0 0\">\n<replicate count=\"400\" offset=\"0 1 0\">\n<body><joint/><geom size=\"1\"/></body>\n</replicate>\n</replicate>\n</worldbody>\n</mujoco>" },
     Malformed { what: "replicate with a mass", variant: |e| matches!(e, MjcfError::UnknownAttribute { .. }), element: "<replicate>", line: 3,
         xml: "<mujoco>\n<worldbody>\n<replicate count=\"2\" mass=\"1\">\n<body><joint/><geom size=\"1\"/></body>\n</replicate>\n</worldbody>\n</mujoco>" },
     Malformed { what: "replicated name taken", variant: |e| matches!(e, MjcfError::DuplicateName { .. }), element: "<body name=\"arm\">", line: 5,
@@ -775,4 +779,16 @@ fn sites_take_no_anchor_or_relative_pose() {
     // The body form keeps both, and sites alone are fine.
     assert!(parse_mjcf(&xml(r#"<weld body1="a" anchor="0 0 1" relpose="0 0 0 1 0 0 0"/>"#)).is_ok());
     assert!(parse_mjcf(&xml(r#"<weld site1="s" site2="w"/>"#)).is_ok());
+}
+
+#[test]
+fn replicates_up_to_the_bound_are_read() {
+    // 200 × 150 copies of one body of 3 elements: 200 × 4 + 200 × 150 × 3
+    // = 90 800 elements counted (the outer replicate's copies of the inner
+    // one and of its body included), under the bound of 100 000.
+    let xml = r#"<mujoco><worldbody><replicate count="200" offset="1 0 0"><replicate count="150" offset="0 1 0">
+        <body><joint/><geom size="0.1"/></body></replicate></replicate></worldbody></mujoco>"#;
+    assert_eq!(parse_mjcf(xml).unwrap().vehicle.bodies.len(), 30_000);
+    let refused = parse_mjcf(&xml.replace("150", "200")).unwrap_err().to_string();
+    assert!(refused.contains("past 100000 elements, the most nudyn reads"), "{refused}");
 }

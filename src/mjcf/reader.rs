@@ -41,6 +41,12 @@ pub(crate) const BODY_ATTRIBUTES: &[&str] = &[
 #[rustfmt::skip]
 pub(crate) const FRAME_ATTRIBUTES: &[&str] = &["name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler"];
 
+/// The most elements the `<replicate>`s of a file may produce: each
+/// replicate's copies times the elements inside it (nested ones included),
+/// summed over every replicate as it is expanded. Far beyond any vehicle;
+/// a count past it would exhaust the memory before the import could fail.
+pub(crate) const MAX_REPLICATED_ELEMENTS: usize = 100_000;
+
 /// Attributes of `<replicate>`.
 pub(crate) const REPLICATE_ATTRIBUTES: &[&str] = &["count", "sep", "offset", "euler", "childclass"];
 
@@ -271,6 +277,9 @@ struct Reader {
     named_elsewhere: Vec<String>,
     /// The names given inside `<replicate>`s, each with its first copy's name.
     replicated: HashMap<String, String>,
+    /// The elements the `<replicate>`s expanded so far produce (see
+    /// [`MAX_REPLICATED_ELEMENTS`]).
+    replicated_elements: std::cell::Cell<usize>,
 }
 
 /// Reads an MJCF document, from the file `path` if it comes from one (the
@@ -445,6 +454,7 @@ impl Reader {
             mocap_bodies: Vec::new(),
             named_elsewhere: Vec::new(),
             replicated: HashMap::new(),
+            replicated_elements: std::cell::Cell::new(0),
         }
     }
 
@@ -1026,6 +1036,16 @@ impl Reader {
         if count <= 0 {
             return Err(replicate.bad_value("count", "a positive number of copies"));
         }
+        // Counted before any copy is made.
+        let inside = replicate.node.descendants().filter(|node| node.is_element()).count() - 1;
+        let produced = (count as usize).saturating_mul(inside).saturating_add(self.replicated_elements.get());
+        if produced > MAX_REPLICATED_ELEMENTS {
+            return Err(replicate.invalid(format!(
+                "{count} copies of the {inside} elements inside it would take the file's replicates past \
+                 {MAX_REPLICATED_ELEMENTS} elements, the most nudyn reads"
+            )));
+        }
+        self.replicated_elements.set(produced);
         let offset = Vec3::from(replicate.numbers::<3>("offset")?.unwrap_or_default());
         let euler = replicate.numbers::<3>("euler")?.unwrap_or_default();
         let separator = replicate.text("sep").unwrap_or_default();

@@ -12,7 +12,7 @@ use crate::vehicle::SensorKind;
 /// docs/mjcf-support.md: element and attribute, read or ignored with a
 /// warning or refused with the importer's reason.
 pub fn support_table() -> String {
-    let mut out = String::from(
+    let mut out = format!(
         "# MJCF support\n\n\
          Generated from the importer's own lists (`src/mjcf/support.rs`; \
          `NUDYN_WRITE_DOCS=1 cargo test --release -p nudyn --test mjcf_support` rewrites it, \
@@ -31,9 +31,11 @@ pub fn support_table() -> String {
          polygon that refers to a vertex defined after it is refused). A sphere, capsule, cylinder, \
          ellipsoid or box `<geom>` with a `mesh` is fitted to the mesh as MuJoCo's compiler fits it \
          (its inertia box, or its bounding box with `<compiler fitaabb=\"true\">`, times `fitscale`), \
-         and takes that primitive's mass.\n\
+         and takes that primitive's mass. The `<replicate>`s of a file may produce at most {} \
+         elements (each replicate's copies times the elements inside it, summed).\n\
          - **ignored with a warning**: no effect on the dynamics; each occurrence gives one warning.\n\
          - **refused**: the import stops with the reason below.\n",
+        reader::MAX_REPLICATED_ELEMENTS
     );
 
     out.push_str("\n## Sections ignored with a warning\n\n");
