@@ -792,3 +792,86 @@ fn replicates_up_to_the_bound_are_read() {
     let refused = parse_mjcf(&xml.replace("150", "200")).unwrap_err().to_string();
     assert!(refused.contains("past 100000 elements, the most nudyn reads"), "{refused}");
 }
+
+#[test]
+fn meshes_nothing_needs_the_mass_of_are_never_read() {
+    // The world body's geoms move no mass, a body with an <inertial> takes
+    // no mass from its geoms, and an asset no geom names has no use: their
+    // files (missing here) are never opened.
+    let with_meshes = r#"<mujoco><asset>
+        <mesh name="terrain" file="no/such/terrain.stl"/>
+        <mesh name="fairing" file="no/such/fairing.obj"/>
+        <mesh name="spare" file="no/such/spare.msh"/>
+        </asset><worldbody>
+        <geom name="ground" type="mesh" mesh="terrain"/>
+        <body name="probe"><freejoint/><geom size="0.5"/>
+          <body name="shield" pos="0 0 1"><joint axis="1 0 0"/>
+            <inertial pos="0 0 0.1" mass="2" diaginertia="0.1 0.1 0.1"/>
+            <geom type="mesh" mesh="fairing"/>
+          </body>
+        </body></worldbody></mujoco>"#;
+    let without_meshes = r#"<mujoco><worldbody>
+        <body name="probe"><freejoint/><geom size="0.5"/>
+          <body name="shield" pos="0 0 1"><joint axis="1 0 0"/>
+            <inertial pos="0 0 0.1" mass="2" diaginertia="0.1 0.1 0.1"/>
+          </body>
+        </body></worldbody></mujoco>"#;
+    let Imported { vehicle, warnings } = parse_mjcf(with_meshes).unwrap_or_else(|e| panic!("{e}"));
+    let mut expected = parse_mjcf(without_meshes).unwrap().vehicle;
+    // The bodies' lines differ with the asset lines.
+    for (body, read) in expected.bodies.iter_mut().zip(&vehicle.bodies) {
+        body.line = read.line;
+        for (joint, read) in body.joints.iter_mut().zip(&read.joints) {
+            joint.line = read.line;
+        }
+    }
+    assert_eq!(vehicle, expected);
+    let ground = warnings.iter().find(|w| w.element == "geom name=\"ground\"").expect("the world geom's warning");
+    assert!(ground.message.contains("fixed to the world"), "{ground}");
+    // A geom whose mass counts still needs its file.
+    let needed = with_meshes.replace(r#"<inertial pos="0 0 0.1" mass="2" diaginertia="0.1 0.1 0.1"/>"#, "");
+    let refused = parse_mjcf(&needed).unwrap_err().to_string();
+    assert!(refused.contains("<mesh name=\"fairing\">") && refused.contains("cannot read mesh file"), "{refused}");
+}
+
+/// What `read` gives, or a panic if it blocks for 10 s.
+fn within_seconds<T: Send + 'static>(read: impl FnOnce() -> T + Send + 'static) -> T {
+    let (sender, receiver) = std::sync::mpsc::channel();
+    std::thread::spawn(move || sender.send(read()));
+    receiver.recv_timeout(std::time::Duration::from_secs(10)).expect("the import blocked")
+}
+
+#[test]
+fn a_named_pipe_for_a_model_mesh_or_included_file_is_refused_not_waited_on() {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("mjcf-import-fifo-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    for pipe in ["pipe.stl", "pipe.xml", "model_pipe.xml"] {
+        let made = std::process::Command::new("mkfifo").arg(dir.join(pipe)).status().expect("mkfifo runs");
+        assert!(made.success(), "mkfifo {pipe}");
+    }
+    let mesh = r#"<mujoco><asset><mesh name="m" file="pipe.stl"/></asset>
+        <worldbody><body><freejoint/><geom type="mesh" mesh="m"/></body></worldbody></mujoco>"#;
+    let include = r#"<mujoco><worldbody><include file="pipe.xml"/></worldbody></mujoco>"#;
+    for (name, xml) in [("mesh.xml", mesh), ("include.xml", include)] {
+        let path = dir.join(name);
+        std::fs::write(&path, xml).unwrap();
+        let shown = within_seconds(move || load_mjcf(&path).map(|_| ()).unwrap_err().to_string());
+        assert!(shown.contains("pipe") && shown.contains("not a regular file"), "{name}: {shown}");
+    }
+    let pipe = dir.join("model_pipe.xml");
+    let error = within_seconds(move || load_mjcf(&pipe).map(|_| ()).unwrap_err());
+    assert!(matches!(error, MjcfError::Io { .. }), "{error:?}");
+    assert!(with_sources(&error).contains("not a regular file"), "{error:?}");
+}
+
+/// The error with its sources, as the CLI shows it.
+fn with_sources(error: &MjcfError) -> String {
+    let mut shown = error.to_string();
+    let mut source = std::error::Error::source(error);
+    while let Some(cause) = source {
+        shown.push_str(&format!(": {cause}"));
+        source = cause.source();
+    }
+    shown
+}

@@ -262,6 +262,8 @@ pub(crate) struct GeomSettings {
     pub contype: [i32; 2],
     /// Whether `hfield` names a height-field asset.
     pub hfield: bool,
+    /// `margin`: the distance at which MuJoCo starts its contacts.
+    pub margin: f64,
 }
 
 impl Default for GeomSettings {
@@ -281,6 +283,7 @@ impl Default for GeomSettings {
             fit_scale: 1.0,
             contype: [1, 1],
             hfield: false,
+            margin: 0.0,
         }
     }
 }
@@ -343,7 +346,10 @@ impl GeomSettings {
         element.overwrite_numbers("solref", &mut [0.0; 2])?;
         element.overwrite_numbers("solimp", &mut [0.0; 5])?;
         element.overwrite_numbers("fluidcoef", &mut [0.0; 5])?;
-        for attribute in ["margin", "gap", "solmix"] {
+        if let Some(margin) = element.number("margin")? {
+            self.margin = margin;
+        }
+        for attribute in ["gap", "solmix"] {
             element.number(attribute)?;
         }
         for attribute in ["priority", "condim"] {

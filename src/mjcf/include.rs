@@ -260,7 +260,11 @@ impl Merger {
                 include.file
             )));
         }
-        let text = std::fs::read_to_string(&path).map_err(|e| at(format!("cannot read {}: {e}", path.display())))?;
+        let text = super::read_regular_file(&path)
+            .and_then(|bytes| {
+                String::from_utf8(bytes).map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e))
+            })
+            .map_err(|e| at(format!("cannot read {}: {e}", path.display())))?;
         self.included.push((id.clone(), from, include.line));
         self.sources.files.push(Some(path.clone()));
         let file = self.sources.files.len() - 1;
@@ -292,7 +296,8 @@ impl Merger {
                 looked.push(beside);
             }
         }
-        match looked.iter().find(|p| p.is_file()) {
+        // Whatever is there but a directory, so that a named pipe is refused as such.
+        match looked.iter().find(|p| p.metadata().is_ok_and(|m| !m.is_dir())) {
             Some(found) => Ok(found.clone()),
             None => {
                 let places: Vec<String> = looked.iter().map(|p| p.display().to_string()).collect();

@@ -628,8 +628,9 @@ impl Reader {
         Ok(())
     }
 
-    /// Reads an `<asset>` section: meshes are processed, the other assets
-    /// (textures, materials, height fields, skins) ignored with a warning.
+    /// Reads an `<asset>` section: meshes are declared (their files read
+    /// once a geom needs them), the other assets (textures, materials,
+    /// height fields, skins) ignored with a warning.
     fn read_assets(&mut self, section: &Element) -> Result<(), MjcfError> {
         section.check_attributes(&[])?;
         if section.children().next().is_none() {
@@ -668,8 +669,8 @@ impl Reader {
                     first_line: first.line,
                 });
             }
-            let processed = mesh::read(&child, &self.defaults.class(class).mesh, path)?;
-            self.meshes.insert(name, processed);
+            let declared = mesh::declare(&child, &self.defaults.class(class).mesh, path)?;
+            self.meshes.insert(name, declared);
         }
         Ok(())
     }
@@ -1195,8 +1196,7 @@ impl Reader {
                 let (pos, quat) = frame.map_or((pos, quat), |frame| compose(frame, &(pos, quat)));
                 let (size, pos, quat) = match &settings.mesh {
                     Some(name) => {
-                        let mesh =
-                            self.meshes.get(name).ok_or_else(|| element.invalid(format!("unknown mesh '{name}'")))?;
+                        let mesh = self.mesh_named(element, name)?.mesh()?;
                         self.fit_to_mesh(element, settings, mesh, settings.size, pos, quat)?
                     }
                     None => (settings.size, pos, quat),
@@ -1213,8 +1213,14 @@ impl Reader {
         Ok(())
     }
 
+    /// The mesh asset a geom names (not read yet).
+    fn mesh_named(&self, element: &Element, name: &str) -> Result<&mesh::MeshAsset, MjcfError> {
+        self.meshes.get(name).ok_or_else(|| element.invalid(format!("unknown mesh '{name}'")))
+    }
+
     /// The geom's mass, frame and principal moments when it contributes to its
-    /// body's inertia; checks it as MuJoCo does either way.
+    /// body's inertia; checks it as MuJoCo does either way, but for what
+    /// needs its mesh, which is read only when it contributes.
     fn geom_mass(
         &self,
         element: &Element,
@@ -1257,7 +1263,16 @@ impl Reader {
                 if settings.fromto.is_some() {
                     return Err(element.invalid("fromto cannot be used with a mesh"));
                 }
-                Some(self.meshes.get(name).ok_or_else(|| element.invalid(format!("unknown mesh '{name}'")))?)
+                let asset = self.mesh_named(element, name)?;
+                if settings.kind == GeomKind::Mesh && settings.shell_inertia {
+                    return Err(element.invalid("for mesh geoms, inertia should be specified in the mesh asset"));
+                }
+                // A mesh is read only for a mass nudyn needs: one that only
+                // shapes contacts is never opened (nor a primitive's size fitted to it).
+                if !contributes {
+                    return Ok(None);
+                }
+                Some(asset.mesh()?)
             }
             None => None,
         };
@@ -1281,9 +1296,6 @@ impl Reader {
                         settings.mesh.as_deref().unwrap_or_default(),
                         mesh.line
                     )));
-                }
-                if settings.shell_inertia {
-                    return Err(element.invalid("for mesh geoms, inertia should be specified in the mesh asset"));
                 }
                 Some(mesh)
             }

@@ -31,7 +31,13 @@ pub fn support_table() -> String {
          polygon that refers to a vertex defined after it is refused). A sphere, capsule, cylinder, \
          ellipsoid or box `<geom>` with a `mesh` is fitted to the mesh as MuJoCo's compiler fits it \
          (its inertia box, or its bounding box with `<compiler fitaabb=\"true\">`, times `fitscale`), \
-         and takes that primitive's mass. The `<replicate>`s of a file may produce at most {} \
+         and takes that primitive's mass. A mesh file is read only for a geom whose mass nudyn \
+         computes (in a body that takes its mass from its geoms, in `inertiagrouprange`): a mesh that \
+         only world geoms, or geoms whose mass does not count, use is never opened (and MuJoCo's check \
+         of a colliding mesh geom's convex hull is made only for the meshes read). Backslashes in file \
+         names (`<mesh file>`, `meshdir`, `assetdir`, `<include file>`) are separators, as MuJoCo reads \
+         them on every system; a file named must be a regular file (a named pipe is refused, not \
+         waited on). The `<replicate>`s of a file may produce at most {} \
          elements (each replicate's copies times the elements inside it, summed).\n\
          - **ignored with a warning**: no effect on the dynamics; each occurrence gives one warning.\n\
          - **refused**: the import stops with the reason below.\n",
