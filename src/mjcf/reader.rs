@@ -6,6 +6,7 @@ use std::path::Path;
 use roxmltree::Document;
 
 use super::actuator;
+use super::contacts::{self, BodyFilter, ContactGeom, Reach};
 use super::defaults::{
     Defaults, GEOM_ATTRIBUTES, GeomKind, GeomSettings, JOINT_ATTRIBUTES, JointSettings, Limited, MAIN, SITE_ATTRIBUTES,
     SiteKind,
@@ -280,6 +281,17 @@ struct Reader {
     /// The elements the `<replicate>`s expanded so far produce (see
     /// [`MAX_REPLICATED_ELEMENTS`]).
     replicated_elements: std::cell::Cell<usize>,
+    /// Each body's pose in the world at qpos0 (before `align_free` moves its frame).
+    world_poses: Vec<Pose>,
+    /// The geoms that may collide, for the warning on contacts.
+    contact_geoms: Vec<ContactGeom>,
+}
+
+/// What reading a geom gives: its mass when it counts, and how far it
+/// reaches in its body when known.
+struct GeomRead {
+    mass: Option<GeomMass>,
+    reach: Option<(Vec3, Quat, Reach)>,
 }
 
 /// Reads an MJCF document, from the file `path` if it comes from one (the
@@ -390,6 +402,7 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
     for section in &keyframe_sections {
         reader.check_keyframes(section)?;
     }
+    reader.warn_of_contacts(&root);
 
     let name = root.text("model").unwrap_or("vehicle").to_string();
     reader.finish(name)
@@ -455,6 +468,8 @@ impl Reader {
             named_elsewhere: Vec::new(),
             replicated: HashMap::new(),
             replicated_elements: std::cell::Cell::new(0),
+            world_poses: Vec::new(),
+            contact_geoms: Vec::new(),
         }
     }
 
@@ -704,6 +719,8 @@ impl Reader {
                     let mut settings = self.defaults.class(self.class_of(&child, class)?).geom.clone();
                     settings.apply(&child)?;
                     self.name_geom(&child, &settings, frame.as_ref(), None, &suffix)?;
+                    let read = self.geom_mass(&child, &settings, frame.as_ref(), false, false)?;
+                    self.add_contact_geom(&child, &settings, None, read.reach);
                     self.warnings.push(child.ignored());
                 }
                 tag if IGNORED_IN_BODIES.contains(&tag) => {
@@ -781,6 +798,8 @@ impl Reader {
         let own_quat = self.resolve(element, &Orientation::read(element)?.unwrap_or_default())?;
         let (pos, quat) = frame.map_or((own_pos, own_quat), |frame| compose(&frame, &(own_pos, own_quat)));
         let index = self.bodies.len();
+        let world_pose = parent.map_or((pos, quat), |parent| compose(&self.world_poses[parent], &(pos, quat)));
+        self.world_poses.push(world_pose);
         // An unnamed body gets a name for messages and descriptions, which
         // nothing can refer to (MuJoCo's unnamed elements have none).
         let name = match element.text("name") {
@@ -903,8 +922,10 @@ impl Reader {
                      (a subtree sensor that would count it is refused)",
                 ));
             }
+            let read = self.geom_mass(geom, settings, frame.as_ref(), moving, contributes)?;
+            self.add_contact_geom(geom, settings, Some(index), read.reach);
             // MuJoCo leaves out geoms of mass up to mjEPS.
-            if let Some(mass) = self.geom_mass(geom, settings, frame.as_ref(), moving, contributes)?
+            if let Some(mass) = read.mass
                 && mass.mass > EPS
             {
                 selected.push(mass);
@@ -950,6 +971,52 @@ impl Reader {
             self.records[parent].children.push(index);
         }
         Ok(child_bodies.into_iter().map(|child| PendingBody { parent_moving: moving, ..child }).collect())
+    }
+
+    /// A warning on each pair of geoms MuJoCo would collide at qpos0
+    /// (`super::contacts` says what is checked), unless `<flag contact>` or
+    /// `<flag constraint>` turns contacts off.
+    fn warn_of_contacts(&mut self, root: &Element) {
+        let flags: Vec<Element> =
+            root.children().filter(|s| s.tag() == "option").flat_map(|option| option.children()).collect();
+        let disabled = |flag: &str| flags.iter().any(|f| f.text(flag) == Some("disable"));
+        if disabled("contact") || disabled("constraint") {
+            return;
+        }
+        let body = |name: &str| match name {
+            "world" => Some(None),
+            name => self.bodies.iter().position(|b| b.name == name && self.body_names.contains_key(name)).map(Some),
+        };
+        let exclusions = root.children().filter(|s| s.tag() == "contact").flat_map(|s| s.children());
+        let excluded: Vec<_> = exclusions
+            .filter(|e| e.tag() == "exclude")
+            .filter_map(|e| Some((body(e.text("body1")?)?, body(e.text("body2")?)?)))
+            .collect();
+        let parents: Vec<Option<usize>> = self.bodies.iter().map(|b| b.parent).collect();
+        let roots: Vec<bool> =
+            self.bodies.iter().map(|b| !b.joints.is_empty() || self.mocap_bodies.contains(&b.name)).collect();
+        let filter = BodyFilter {
+            parents: &parents,
+            poses: &self.world_poses,
+            roots: &roots,
+            filter_parent: !disabled("filterparent"),
+            excluded: &excluded,
+        };
+        for (a, b) in contacts::touching(&self.contact_geoms, &filter) {
+            let (first, second) = (&self.contact_geoms[a], &self.contact_geoms[b]);
+            let warning = MjcfWarning {
+                file: None,
+                line: first.line,
+                element: first.label.clone(),
+                message: format!(
+                    "touches <{}> (line {}) at the initial pose: MuJoCo would make contacts between them, \
+                     nudyn models no contacts",
+                    second.label,
+                    self.sources.line_in_file(second.line)
+                ),
+            };
+            self.warnings.push(warning);
+        }
     }
 
     /// A free body without children aligned with its inertial frame
@@ -1228,7 +1295,7 @@ impl Reader {
         frame: Option<&Pose>,
         moving: bool,
         contributes: bool,
-    ) -> Result<Option<GeomMass>, MjcfError> {
+    ) -> Result<GeomRead, MjcfError> {
         if matches!(settings.kind, GeomKind::Mesh | GeomKind::Sdf) && settings.mesh.is_none() {
             return Err(element.missing("mesh"));
         }
@@ -1270,7 +1337,7 @@ impl Reader {
                 // A mesh is read only for a mass nudyn needs: one that only
                 // shapes contacts is never opened (nor a primitive's size fitted to it).
                 if !contributes {
-                    return Ok(None);
+                    return Ok(GeomRead { mass: None, reach: None });
                 }
                 Some(asset.mesh()?)
             }
@@ -1301,12 +1368,24 @@ impl Reader {
             }
             _ => None,
         };
+        let reach = match (settings.kind, mesh) {
+            (GeomKind::Plane, _) => Some((pos, quat, Reach::Plane)),
+            // The sphere around the mesh's bounding box, in the mesh frame.
+            (_, Some(mesh)) => {
+                let (pos, quat) = absorb_frame(pos, quat, &mesh.pos, &mesh.quat);
+                let [low, high] = mesh.aabb;
+                let center = Vec3::from(std::array::from_fn(|k| (low[k] + high[k]) / 2.0));
+                let radius = (Vec3::from(high) - Vec3::from(low)).norm() / 2.0;
+                Some((pos + quat * center, quat, Reach::Sphere(radius)))
+            }
+            (kind, None) => contacts::bounding_radius(kind, &size).map(|r| (pos, quat, Reach::Sphere(r))),
+        };
         if !contributes {
-            return Ok(None);
+            return Ok(GeomRead { mass: None, reach });
         }
         // A body that cannot move needs no mass: its sdf or height field is never read.
         if mass_not_computed(settings) && !moving {
-            return Ok(None);
+            return Ok(GeomRead { mass: None, reach });
         }
         if mass_not_computed(settings) {
             return Err(element.unsupported(
@@ -1332,7 +1411,33 @@ impl Reader {
             Some(mesh) => Vec3::from(mesh.principal_moments(mass)),
             None => inertia::principal_moments(settings.kind, &size, mass, settings.shell_inertia),
         };
-        Ok(Some(GeomMass { mass, pos, quat, principal }))
+        Ok(GeomRead { mass: Some(GeomMass { mass, pos, quat, principal }), reach })
+    }
+
+    /// Keeps a geom that may collide for the warning on contacts.
+    fn add_contact_geom(
+        &mut self,
+        element: &Element,
+        settings: &GeomSettings,
+        body: Option<usize>,
+        reach: Option<(Vec3, Quat, Reach)>,
+    ) {
+        let [contype, conaffinity] = settings.contype;
+        if let Some((pos, quat, reach)) = reach
+            && (contype != 0 || conaffinity != 0)
+        {
+            self.contact_geoms.push(ContactGeom {
+                body,
+                pos,
+                quat,
+                reach,
+                contype,
+                conaffinity,
+                margin: settings.margin,
+                label: element.label(),
+                line: element.line,
+            });
+        }
     }
 
     /// Checks a body's joints and turns them into [`Joint`]s.

@@ -37,7 +37,10 @@ pub fn support_table() -> String {
          of a colliding mesh geom's convex hull is made only for the meshes read). Backslashes in file \
          names (`<mesh file>`, `meshdir`, `assetdir`, `<include file>`) are separators, as MuJoCo reads \
          them on every system; a file named must be a regular file (a named pipe is refused, not \
-         waited on). The `<replicate>`s of a file may produce at most {} \
+         waited on). nudyn models no contacts: each pair of geoms MuJoCo would collide at the \
+         initial pose gets a warning (contype and conaffinity sharing a bit, not the same or welded \
+         bodies, not parent and child unless `<flag filterparent>` is disabled, not excluded, and \
+         bounding spheres, or a sphere and a plane, closer than the larger margin). The `<replicate>`s of a file may produce at most {} \
          elements (each replicate's copies times the elements inside it, summed).\n\
          - **ignored with a warning**: no effect on the dynamics; each occurrence gives one warning.\n\
          - **refused**: the import stops with the reason below.\n",
