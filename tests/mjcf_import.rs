@@ -875,3 +875,29 @@ fn with_sources(error: &MjcfError) -> String {
     }
     shown
 }
+
+#[test]
+fn a_loose_mujoco_solver_is_said_to_differ_from_nudyn_s_exact_one() {
+    let xml = |option: &str| {
+        format!(
+            "<mujoco>\n<option {option}/>\n<worldbody><body><joint range=\"0 1\"/><geom size=\"1\"/></body>\
+             </worldbody></mujoco>"
+        )
+    };
+    let solver_warnings = |option: &str| -> Vec<String> {
+        let warnings = parse_mjcf(&xml(option)).unwrap().warnings;
+        warnings.iter().filter(|w| w.message.contains("solves the constraint problem")).map(|w| w.to_string()).collect()
+    };
+    assert_eq!(
+        solver_warnings(r#"iterations="1""#),
+        ["line 2: <option>: nudyn solves the constraint problem exactly; MuJoCo with iterations=1 will differ"]
+    );
+    let both = solver_warnings(r#"iterations="20" tolerance="0.001""#);
+    assert!(
+        both.len() == 1 && both[0].ends_with("MuJoCo with iterations=20 and tolerance=0.001 will differ"),
+        "{both:?}"
+    );
+    // MuJoCo's defaults and tighter settings converge as nudyn does.
+    assert!(solver_warnings(r#"iterations="100" tolerance="1e-8""#).is_empty());
+    assert!(solver_warnings(r#"iterations="500" tolerance="1e-12""#).is_empty());
+}

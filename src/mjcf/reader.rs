@@ -580,11 +580,26 @@ impl Reader {
         element.overwrite_numbers("o_solref", &mut [0.0; 2])?;
         element.overwrite_numbers("o_solimp", &mut [0.0; 5])?;
         element.overwrite_numbers("o_friction", &mut [0.0; 5])?;
-        for attribute in ["o_margin", "impratio", "tolerance", "ls_tolerance", "ccd_tolerance", "sleep_tolerance"] {
+        for attribute in ["o_margin", "impratio", "ls_tolerance", "ccd_tolerance", "sleep_tolerance"] {
             element.number(attribute)?;
         }
-        for attribute in ["iterations", "ls_iterations", "ccd_iterations", "sdf_iterations", "sdf_initpoints"] {
+        for attribute in ["ls_iterations", "ccd_iterations", "sdf_iterations", "sdf_initpoints"] {
             element.integers::<1>(attribute)?;
+        }
+        // Fewer iterations or a looser tolerance than MuJoCo's defaults (100,
+        // 1e-8) let MuJoCo stop short of the constraint forces nudyn computes.
+        let iterations = element.integers::<1>("iterations")?.map(|[n]| n);
+        let tolerance = element.number("tolerance")?;
+        let loose = [
+            iterations.filter(|&n| n < 100).map(|n| format!("iterations={n}")),
+            tolerance.filter(|&t| t > 1e-8).map(|t| format!("tolerance={t}")),
+        ];
+        let loose: Vec<String> = loose.into_iter().flatten().collect();
+        if !loose.is_empty() {
+            self.warnings.push(element.warning(format!(
+                "nudyn solves the constraint problem exactly; MuJoCo with {} will differ",
+                loose.join(" and ")
+            )));
         }
         if element.numbers::<3>("wind")?.is_some_and(|w| w != [0.0; 3]) {
             return Err(element.unsupported("wind acts through fluid forces, which nudyn does not model"));
