@@ -7,21 +7,21 @@
 //! welded together; not a body and its parent's (`<flag filterparent>`,
 //! unless disabled), the world aside; `contype` of one and `conaffinity` of
 //! the other sharing a bit; not excluded by a `<contact><exclude>`. The
-//! geoms then touch when their bounding spheres (MuJoCo's `geom_rbound`; a
-//! mesh's: that of its bounding box), or a sphere and a plane's half space,
-//! are closer than the larger of their margins. For spheres and planes that
-//! is MuJoCo's own test; other shapes may be reported when only their
-//! bounding spheres touch. Meshes that are not read (see
-//! [`super::mesh::MeshAsset`]), height fields and sdfs are left out, as are
-//! the `<contact><pair>`s a file adds.
+//! geoms then touch when they are closer than the larger of their margins,
+//! which is computed exactly for spheres, capsules and planes (infinite,
+//! as MuJoCo's are). Boxes, cylinders, ellipsoids, meshes, height fields
+//! and sdfs are left out (their contacts would need MuJoCo's collision
+//! functions; a bounding sphere would warn of contacts MuJoCo does not
+//! make), as are the `<contact><pair>`s a file adds.
 
 use crate::math::{Quat, Vec3};
 
 /// How far a geom reaches, in its frame.
 #[derive(Clone, Copy, Debug)]
 pub(crate) enum Reach {
-    /// The sphere around the frame's origin of this radius.
-    Sphere(f64),
+    /// The points within `radius` of the segment along the frame's z axis
+    /// from -`half_length` to `half_length`: a capsule, or a sphere (no length).
+    Capsule { radius: f64, half_length: f64 },
     /// The half space below the frame's xy plane.
     Plane,
 }
@@ -97,22 +97,27 @@ impl BodyFilter<'_> {
 }
 
 /// The pairs of geoms, by index, that MuJoCo would collide at qpos0, in
-/// order. Spheres are swept along x (sorted by their lowest x, each
+/// order. Capsules are swept along x (sorted by their lowest x, each
 /// compared only with those starting before it ends), so that a file of
 /// many bodies is not checked pair by pair.
 pub(crate) fn touching(geoms: &[ContactGeom], bodies: &BodyFilter) -> Vec<(usize, usize)> {
     let placed: Vec<(Vec3, Quat)> = geoms.iter().map(|g| bodies.place(g)).collect();
     let largest_margin = geoms.iter().map(|g| g.margin).fold(0.0, f64::max);
-    let mut spheres: Vec<(usize, f64)> = Vec::new();
+    // Each capsule's segment ends in the world, and its radius.
+    let mut capsules: Vec<(usize, [Vec3; 2], f64)> = Vec::new();
     let mut planes = Vec::new();
     for (index, geom) in geoms.iter().enumerate() {
+        let (pos, quat) = placed[index];
         match geom.reach {
-            Reach::Sphere(radius) => spheres.push((index, radius)),
+            Reach::Capsule { radius, half_length } => {
+                let axis = quat * Vec3::z() * half_length;
+                capsules.push((index, [pos - axis, pos + axis], radius));
+            }
             Reach::Plane => planes.push(index),
         }
     }
-    let lowest_x = |&(index, radius): &(usize, f64)| placed[index].0.x - radius;
-    spheres.sort_by(|a, b| lowest_x(a).total_cmp(&lowest_x(b)));
+    let lowest_x = |(_, ends, radius): &(usize, [Vec3; 2], f64)| ends[0].x.min(ends[1].x) - radius;
+    capsules.sort_by(|a, b| lowest_x(a).total_cmp(&lowest_x(b)));
     let mut pairs = Vec::new();
     let mut consider = |i: usize, j: usize, gap: f64| {
         let (a, b) = (&geoms[i], &geoms[j]);
@@ -121,17 +126,48 @@ pub(crate) fn touching(geoms: &[ContactGeom], bodies: &BodyFilter) -> Vec<(usize
             pairs.push((i.min(j), i.max(j)));
         }
     };
-    for (k, &(i, ri)) in spheres.iter().enumerate() {
-        let end = placed[i].0.x + ri + largest_margin;
-        for &(j, rj) in spheres[k + 1..].iter().take_while(|sphere| lowest_x(sphere) <= end) {
-            consider(i, j, (placed[i].0 - placed[j].0).norm() - ri - rj);
+    for (k, &(i, ends, radius)) in capsules.iter().enumerate() {
+        let end = ends[0].x.max(ends[1].x) + radius + largest_margin;
+        for &(j, other, other_radius) in capsules[k + 1..].iter().take_while(|c| lowest_x(c) <= end) {
+            consider(i, j, segment_distance(&ends, &other) - radius - other_radius);
         }
         for &plane in &planes {
-            consider(plane, i, above(&placed[plane], &placed[i].0) - ri);
+            let height = above(&placed[plane], &ends[0]).min(above(&placed[plane], &ends[1]));
+            consider(plane, i, height - radius);
         }
     }
     pairs.sort_unstable();
     pairs
+}
+
+/// The distance between two segments (Ericson, Real-Time Collision
+/// Detection, 5.1.9).
+fn segment_distance([p1, q1]: &[Vec3; 2], [p2, q2]: &[Vec3; 2]) -> f64 {
+    let (d1, d2, r) = (q1 - p1, q2 - p2, p1 - p2);
+    let (a, e, f) = (d1.dot(&d1), d2.dot(&d2), d2.dot(&r));
+    let (s, t) = if a <= f64::EPSILON && e <= f64::EPSILON {
+        (0.0, 0.0)
+    } else if a <= f64::EPSILON {
+        (0.0, (f / e).clamp(0.0, 1.0))
+    } else {
+        let c = d1.dot(&r);
+        if e <= f64::EPSILON {
+            ((-c / a).clamp(0.0, 1.0), 0.0)
+        } else {
+            let b = d1.dot(&d2);
+            let denominator = a * e - b * b;
+            let s = if denominator > 0.0 { ((b * f - c * e) / denominator).clamp(0.0, 1.0) } else { 0.0 };
+            let t = (b * s + f) / e;
+            if t < 0.0 {
+                ((-c / a).clamp(0.0, 1.0), 0.0)
+            } else if t > 1.0 {
+                (((b - c) / a).clamp(0.0, 1.0), 1.0)
+            } else {
+                (s, t)
+            }
+        }
+    };
+    ((p1 + d1 * s) - (p2 + d2 * t)).norm()
 }
 
 /// How far `point` is above the plane of the frame `plane` (along its z axis).
@@ -139,16 +175,14 @@ fn above(plane: &(Vec3, Quat), point: &Vec3) -> f64 {
     (plane.1 * Vec3::z()).dot(&(point - plane.0))
 }
 
-/// A geom's bounding radius (MuJoCo's `geom_rbound`) from its size.
-pub(crate) fn bounding_radius(kind: super::defaults::GeomKind, size: &[f64; 3]) -> Option<f64> {
+/// How far a sphere or capsule reaches, from its size; `None` for the
+/// shapes whose contacts need MuJoCo's own collision functions.
+pub(crate) fn reach(kind: super::defaults::GeomKind, size: &[f64; 3]) -> Option<Reach> {
     use super::defaults::GeomKind;
-    let [a, b, c] = *size;
     match kind {
-        GeomKind::Sphere => Some(a),
-        GeomKind::Capsule => Some(a + b),
-        GeomKind::Cylinder => Some(a.hypot(b)),
-        GeomKind::Ellipsoid => Some(a.max(b).max(c)),
-        GeomKind::Box => Some((a * a + b * b + c * c).sqrt()),
-        GeomKind::Plane | GeomKind::Hfield | GeomKind::Mesh | GeomKind::Sdf => None,
+        GeomKind::Sphere => Some(Reach::Capsule { radius: size[0], half_length: 0.0 }),
+        GeomKind::Capsule => Some(Reach::Capsule { radius: size[0], half_length: size[1] }),
+        GeomKind::Plane => Some(Reach::Plane),
+        _ => None,
     }
 }

@@ -1383,18 +1383,7 @@ impl Reader {
             }
             _ => None,
         };
-        let reach = match (settings.kind, mesh) {
-            (GeomKind::Plane, _) => Some((pos, quat, Reach::Plane)),
-            // The sphere around the mesh's bounding box, in the mesh frame.
-            (_, Some(mesh)) => {
-                let (pos, quat) = absorb_frame(pos, quat, &mesh.pos, &mesh.quat);
-                let [low, high] = mesh.aabb;
-                let center = Vec3::from(std::array::from_fn(|k| (low[k] + high[k]) / 2.0));
-                let radius = (Vec3::from(high) - Vec3::from(low)).norm() / 2.0;
-                Some((pos + quat * center, quat, Reach::Sphere(radius)))
-            }
-            (kind, None) => contacts::bounding_radius(kind, &size).map(|r| (pos, quat, Reach::Sphere(r))),
-        };
+        let reach = contacts::reach(settings.kind, &size).map(|reach| (pos, quat, reach));
         if !contributes {
             return Ok(GeomRead { mass: None, reach });
         }

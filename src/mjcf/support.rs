@@ -40,7 +40,8 @@ pub fn support_table() -> String {
          waited on). nudyn models no contacts: each pair of geoms MuJoCo would collide at the \
          initial pose gets a warning (contype and conaffinity sharing a bit, not the same or welded \
          bodies, not parent and child unless `<flag filterparent>` is disabled, not excluded, and \
-         bounding spheres, or a sphere and a plane, closer than the larger margin). The `<replicate>`s of a file may produce at most {} \
+         closer than the larger margin; computed for spheres, capsules and planes, other shapes are \
+         not checked). The `<replicate>`s of a file may produce at most {} \
          elements (each replicate's copies times the elements inside it, summed).\n\
          - **ignored with a warning**: no effect on the dynamics; each occurrence gives one warning.\n\
          - **refused**: the import stops with the reason below.\n",
