@@ -371,3 +371,47 @@ fn a_name_inside_a_replicate_is_refused_with_its_copies_names() {
     assert_eq!(names[1..4], ["arm_00", "arm_01", "arm_02"]);
     assert_eq!(names.len(), 13);
 }
+
+/// A scratch directory of this test binary's, emptied.
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("mjcf-files-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+#[test]
+fn backslashes_in_file_names_are_separators_as_mujoco_reads_them() {
+    // MuJoCo 4.0 on Linux turns every '\' of an asset's file name, of
+    // meshdir and of an include's file into '/' before opening it, even
+    // when a file of that literal name exists (found by trying it).
+    let dir = scratch("backslash");
+    let meshes = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/meshes");
+    std::fs::create_dir_all(dir.join("sub/meshes")).unwrap();
+    std::fs::create_dir_all(dir.join("parts")).unwrap();
+    std::fs::copy(meshes.join("tetrahedron.stl"), dir.join("sub/meshes/tetrahedron.stl")).unwrap();
+    // A decoy whose name holds the backslashes: not the one MuJoCo reads.
+    std::fs::copy(meshes.join("cube.stl"), dir.join("sub\\meshes\\tetrahedron.stl")).unwrap();
+    std::fs::write(
+        dir.join("parts/arm.xml"),
+        r#"<mujoco><body name="arm" pos="1 0 0"><joint/><geom size="0.1"/></body></mujoco>"#,
+    )
+    .unwrap();
+    let model = |meshdir: &str, file: &str, include: &str| {
+        let xml = format!(
+            r#"<mujoco><compiler meshdir="{meshdir}"/><asset><mesh name="m" file="{file}"/></asset>
+            <worldbody><body name="hull"><freejoint/><geom type="mesh" mesh="m"/></body>
+            <include file="{include}"/></worldbody></mujoco>"#
+        );
+        let path = dir.join("model.xml");
+        std::fs::write(&path, xml).unwrap();
+        load_mjcf(&path).unwrap_or_else(|e| panic!("{meshdir} {file} {include}: {e}")).vehicle
+    };
+    let expected = without_lines(model("", "sub/meshes/tetrahedron.stl", "parts/arm.xml"));
+    assert_eq!(without_lines(model("", r"sub\meshes\tetrahedron.stl", r"parts\arm.xml")), expected);
+    assert_eq!(without_lines(model(r"sub\meshes", "tetrahedron.stl", "parts/arm.xml")), expected);
+    assert_eq!(without_lines(model("sub", r"meshes\tetrahedron.stl", "parts/arm.xml")), expected);
+    // The tetrahedron, not the decoy cube of edge 0.5 (125 kg at 1000 kg/m³).
+    let mass = expected.bodies[0].inertia.as_ref().unwrap().mass;
+    assert!(mass > 0.0 && (mass - 125.0).abs() > 1.0, "{mass}");
+}

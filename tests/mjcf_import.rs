@@ -524,6 +524,14 @@ const MALFORMED: &[Malformed] = &[
         xml: "<mujoco>\n<worldbody>\n<body name=\"a\">\n<freejoint/><geom size=\"1\"/>\n</body>\n</worldbody>\n<equality>\n<connect body1=\"a\" body2=\"b\" anchor=\"0 0 0\"/>\n</equality>\n</mujoco>" },
     Malformed { what: "connect without anchor", variant: |e| matches!(e, MjcfError::MissingAttribute { .. }), element: "<connect>", line: 8,
         xml: "<mujoco>\n<worldbody>\n<body name=\"a\">\n<freejoint/><geom size=\"1\"/>\n</body>\n</worldbody>\n<equality>\n<connect body1=\"a\"/>\n</equality>\n</mujoco>" },
+    Malformed { what: "weld of sites with an anchor", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<weld>", line: 8,
+        xml: "<mujoco>\n<worldbody>\n<body name=\"a\">\n<freejoint/><geom size=\"1\"/><site name=\"s\"/>\n</body>\n<site name=\"w\"/>\n</worldbody><equality>\n<weld site1=\"s\" site2=\"w\" anchor=\"0 0 1\"/>\n</equality>\n</mujoco>" },
+    Malformed { what: "weld of sites with a relative pose", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<weld name=\"hold\">", line: 8,
+        xml: "<mujoco>\n<worldbody>\n<body name=\"a\">\n<freejoint/><geom size=\"1\"/><site name=\"s\"/>\n</body>\n<site name=\"w\"/>\n</worldbody><equality>\n<weld name=\"hold\" site1=\"s\" site2=\"w\" relpose=\"0 0 0 1 0 0 0\"/>\n</equality>\n</mujoco>" },
+    Malformed { what: "connect of sites with an anchor", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<connect>", line: 8,
+        xml: "<mujoco>\n<worldbody>\n<body name=\"a\">\n<freejoint/><geom size=\"1\"/><site name=\"s\"/>\n</body>\n<site name=\"w\"/>\n</worldbody><equality>\n<connect site1=\"s\" site2=\"w\" anchor=\"0 0 1\"/>\n</equality>\n</mujoco>" },
+    Malformed { what: "joint coupling of a joint with itself", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<joint name=\"same\">", line: 8,
+        xml: "<mujoco>\n<worldbody>\n<body name=\"a\">\n<joint name=\"h\"/><geom size=\"1\"/>\n</body>\n</worldbody>\n<equality>\n<joint name=\"same\" joint1=\"h\" joint2=\"h\"/>\n</equality>\n</mujoco>" },
     Malformed { what: "joint coupling of a ball joint", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<joint>", line: 8,
         xml: "<mujoco>\n<worldbody>\n<body name=\"a\">\n<joint name=\"b\" type=\"ball\"/><geom size=\"1\"/>\n</body>\n</worldbody>\n<equality>\n<joint joint1=\"b\"/>\n</equality>\n</mujoco>" },
     Malformed { what: "free joint in a nested body", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<freejoint>", line: 6,
@@ -556,10 +564,32 @@ const MALFORMED: &[Malformed] = &[
         xml: "<mujoco>\n<worldbody>\n<body>\n<replicate offset=\"1 0 0\">\n<body><joint/><geom size=\"1\"/></body>\n</replicate>\n<geom size=\"1\"/>\n</body>\n</worldbody>\n</mujoco>" },
     Malformed { what: "replicate of no copies", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<replicate>", line: 3,
         xml: "<mujoco>\n<worldbody>\n<replicate count=\"0\">\n<body><joint/><geom size=\"1\"/></body>\n</replicate>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "replicate of absurdly many copies", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<replicate>", line: 3,
+        xml: "<mujoco>\n<worldbody>\n<replicate count=\"100000000\" offset=\"1 0 0\">\n<body><joint/><geom size=\"1\"/></body>\n</replicate>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "nested replicates of too many copies", variant: |e| matches!(e, MjcfError::Invalid { .. }), element: "<replicate>", line: 4,
+        xml: "<mujoco>\n<worldbody>\n<replicate count=\"400\" offset=\"1 0 0\">\n<replicate count=\"400\" offset=\"0 1 0\">\n<body><joint/><geom size=\"1\"/></body>\n</replicate>\n</replicate>\n</worldbody>\n</mujoco>" },
     Malformed { what: "replicate with a mass", variant: |e| matches!(e, MjcfError::UnknownAttribute { .. }), element: "<replicate>", line: 3,
         xml: "<mujoco>\n<worldbody>\n<replicate count=\"2\" mass=\"1\">\n<body><joint/><geom size=\"1\"/></body>\n</replicate>\n</worldbody>\n</mujoco>" },
     Malformed { what: "replicated name taken", variant: |e| matches!(e, MjcfError::DuplicateName { .. }), element: "<body name=\"arm\">", line: 5,
         xml: "<mujoco>\n<worldbody>\n<body name=\"arm_1\"><joint/><geom size=\"1\"/></body>\n<replicate count=\"2\" sep=\"_\">\n<body name=\"arm\"><joint/><geom size=\"1\"/></body>\n</replicate>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "o_solref with 3 numbers", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<option>", line: 2,
+        xml: "<mujoco>\n<option o_solref=\"0.02 1 3\"/>\n<worldbody/>\n</mujoco>" },
+    Malformed { what: "o_solimp with 6 numbers", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<option>", line: 3,
+        xml: "<mujoco>\n<worldbody/>\n<option o_solimp=\"0.9 0.95 0.001 0.5 2 7\"/>\n</mujoco>" },
+    Malformed { what: "o_friction with 6 numbers", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<option>", line: 2,
+        xml: "<mujoco>\n<option o_friction=\"1 1 0.005 0.0001 0.0001 1\"/>\n<worldbody/>\n</mujoco>" },
+    Malformed { what: "o_margin with 2 numbers", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<option>", line: 2,
+        xml: "<mujoco>\n<option o_margin=\"0.1 0.2\"/>\n<worldbody/>\n</mujoco>" },
+    Malformed { what: "solver iterations not an integer", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<option>", line: 2,
+        xml: "<mujoco>\n<option iterations=\"1.5\"/>\n<worldbody/>\n</mujoco>" },
+    Malformed { what: "geom friction with 4 numbers", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<geom>", line: 5,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<joint/>\n<geom size=\"1\" friction=\"1 0.005 0.0001 1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "geom solimp with 6 numbers", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<geom name=\"g\">", line: 5,
+        xml: "<mujoco>\n<worldbody>\n<body>\n<joint/>\n<geom name=\"g\" size=\"1\" solimp=\"0.9 0.95 0.001 0.5 2 1\"/>\n</body>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "geom rgba of 3 numbers", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<geom>", line: 3,
+        xml: "<mujoco>\n<worldbody>\n<geom size=\"1\" rgba=\"1 0 0\"/>\n</worldbody>\n</mujoco>" },
+    Malformed { what: "default geom solref with 3 numbers", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<geom>", line: 3,
+        xml: "<mujoco>\n<default>\n<geom solref=\"0.02 1 1\"/>\n</default>\n<worldbody/>\n</mujoco>" },
     Malformed { what: "wind", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<option>", line: 2,
         xml: "<mujoco>\n<option wind=\"1 0 0\"/>\n<worldbody/>\n</mujoco>" },
     Malformed { what: "fluid density", variant: |e| matches!(e, MjcfError::Unsupported { .. }), element: "<option>", line: 3,
@@ -720,4 +750,154 @@ fn unnamed_elements_cannot_be_named_and_do_not_take_a_file_s_names() {
     let sensed = xml.replace("</mujoco>", r#"<sensor><subtreecom body="body2"/></sensor></mujoco>"#);
     let refused = parse_mjcf(&sensed).unwrap_err().to_string();
     assert!(refused.contains("unknown body 'body2' in sensor"), "{refused}");
+}
+
+/// MuJoCo's schema keeps a weld's or connect's sites apart from the
+/// attributes of its body form; the refusal gives MuJoCo's reason.
+#[test]
+fn sites_take_no_anchor_or_relative_pose() {
+    let xml = |equality: &str| {
+        format!(
+            "<mujoco><worldbody><body name=\"a\"><freejoint/><geom size=\"1\"/><site name=\"s\"/></body>\
+             <site name=\"w\"/></worldbody><equality>{equality}</equality></mujoco>"
+        )
+    };
+    let refused = |equality: &str| parse_mjcf(&xml(equality)).unwrap_err().to_string();
+    let weld = refused(r#"<weld site1="s" site2="w" relpose="0 0 0 1 0 0 0"/>"#);
+    assert!(
+        weld.ends_with(
+            "'relpose' cannot be given with sites: at most one of ('site1', 'site2'), \
+             ('body1', 'body2', 'anchor', 'relpose') can be specified"
+        ),
+        "{weld}"
+    );
+    let connect = refused(r#"<connect site1="s" site2="w" anchor="1 0 0"/>"#);
+    assert!(
+        connect.ends_with("at most one of ('site1', 'site2'), ('body1', 'body2', 'anchor') can be specified"),
+        "{connect}"
+    );
+    // The body form keeps both, and sites alone are fine.
+    assert!(parse_mjcf(&xml(r#"<weld body1="a" anchor="0 0 1" relpose="0 0 0 1 0 0 0"/>"#)).is_ok());
+    assert!(parse_mjcf(&xml(r#"<weld site1="s" site2="w"/>"#)).is_ok());
+}
+
+#[test]
+fn replicates_up_to_the_bound_are_read() {
+    // 200 × 150 copies of one body of 3 elements: 200 × 4 + 200 × 150 × 3
+    // = 90 800 elements counted (the outer replicate's copies of the inner
+    // one and of its body included), under the bound of 100 000.
+    let xml = r#"<mujoco><worldbody><replicate count="200" offset="1 0 0"><replicate count="150" offset="0 1 0">
+        <body><joint/><geom size="0.1"/></body></replicate></replicate></worldbody></mujoco>"#;
+    assert_eq!(parse_mjcf(xml).unwrap().vehicle.bodies.len(), 30_000);
+    let refused = parse_mjcf(&xml.replace("150", "200")).unwrap_err().to_string();
+    assert!(refused.contains("past 100000 elements, the most nudyn reads"), "{refused}");
+}
+
+#[test]
+fn meshes_nothing_needs_the_mass_of_are_never_read() {
+    // The world body's geoms move no mass, a body with an <inertial> takes
+    // no mass from its geoms, and an asset no geom names has no use: their
+    // files (missing here) are never opened.
+    let with_meshes = r#"<mujoco><asset>
+        <mesh name="terrain" file="no/such/terrain.stl"/>
+        <mesh name="fairing" file="no/such/fairing.obj"/>
+        <mesh name="spare" file="no/such/spare.msh"/>
+        </asset><worldbody>
+        <geom name="ground" type="mesh" mesh="terrain"/>
+        <body name="probe"><freejoint/><geom size="0.5"/>
+          <body name="shield" pos="0 0 1"><joint axis="1 0 0"/>
+            <inertial pos="0 0 0.1" mass="2" diaginertia="0.1 0.1 0.1"/>
+            <geom type="mesh" mesh="fairing"/>
+          </body>
+        </body></worldbody></mujoco>"#;
+    let without_meshes = r#"<mujoco><worldbody>
+        <body name="probe"><freejoint/><geom size="0.5"/>
+          <body name="shield" pos="0 0 1"><joint axis="1 0 0"/>
+            <inertial pos="0 0 0.1" mass="2" diaginertia="0.1 0.1 0.1"/>
+          </body>
+        </body></worldbody></mujoco>"#;
+    let Imported { vehicle, warnings } = parse_mjcf(with_meshes).unwrap_or_else(|e| panic!("{e}"));
+    let mut expected = parse_mjcf(without_meshes).unwrap().vehicle;
+    // The bodies' lines differ with the asset lines.
+    for (body, read) in expected.bodies.iter_mut().zip(&vehicle.bodies) {
+        body.line = read.line;
+        for (joint, read) in body.joints.iter_mut().zip(&read.joints) {
+            joint.line = read.line;
+        }
+    }
+    assert_eq!(vehicle, expected);
+    let ground = warnings.iter().find(|w| w.element == "geom name=\"ground\"").expect("the world geom's warning");
+    assert!(ground.message.contains("fixed to the world"), "{ground}");
+    // A geom whose mass counts still needs its file.
+    let needed = with_meshes.replace(r#"<inertial pos="0 0 0.1" mass="2" diaginertia="0.1 0.1 0.1"/>"#, "");
+    let refused = parse_mjcf(&needed).unwrap_err().to_string();
+    assert!(refused.contains("<mesh name=\"fairing\">") && refused.contains("cannot read mesh file"), "{refused}");
+}
+
+/// What `read` gives, or a panic if it blocks for 10 s.
+fn within_seconds<T: Send + 'static>(read: impl FnOnce() -> T + Send + 'static) -> T {
+    let (sender, receiver) = std::sync::mpsc::channel();
+    std::thread::spawn(move || sender.send(read()));
+    receiver.recv_timeout(std::time::Duration::from_secs(10)).expect("the import blocked")
+}
+
+#[test]
+fn a_named_pipe_for_a_model_mesh_or_included_file_is_refused_not_waited_on() {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("mjcf-import-fifo-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    for pipe in ["pipe.stl", "pipe.xml", "model_pipe.xml"] {
+        let made = std::process::Command::new("mkfifo").arg(dir.join(pipe)).status().expect("mkfifo runs");
+        assert!(made.success(), "mkfifo {pipe}");
+    }
+    let mesh = r#"<mujoco><asset><mesh name="m" file="pipe.stl"/></asset>
+        <worldbody><body><freejoint/><geom type="mesh" mesh="m"/></body></worldbody></mujoco>"#;
+    let include = r#"<mujoco><worldbody><include file="pipe.xml"/></worldbody></mujoco>"#;
+    for (name, xml) in [("mesh.xml", mesh), ("include.xml", include)] {
+        let path = dir.join(name);
+        std::fs::write(&path, xml).unwrap();
+        let shown = within_seconds(move || load_mjcf(&path).map(|_| ()).unwrap_err().to_string());
+        assert!(shown.contains("pipe") && shown.contains("not a regular file"), "{name}: {shown}");
+    }
+    let pipe = dir.join("model_pipe.xml");
+    let error = within_seconds(move || load_mjcf(&pipe).map(|_| ()).unwrap_err());
+    assert!(matches!(error, MjcfError::Io { .. }), "{error:?}");
+    assert!(with_sources(&error).contains("not a regular file"), "{error:?}");
+}
+
+/// The error with its sources, as the CLI shows it.
+fn with_sources(error: &MjcfError) -> String {
+    let mut shown = error.to_string();
+    let mut source = std::error::Error::source(error);
+    while let Some(cause) = source {
+        shown.push_str(&format!(": {cause}"));
+        source = cause.source();
+    }
+    shown
+}
+
+#[test]
+fn a_loose_mujoco_solver_is_said_to_differ_from_nudyn_s_exact_one() {
+    let xml = |option: &str| {
+        format!(
+            "<mujoco>\n<option {option}/>\n<worldbody><body><joint range=\"0 1\"/><geom size=\"1\"/></body>\
+             </worldbody></mujoco>"
+        )
+    };
+    let solver_warnings = |option: &str| -> Vec<String> {
+        let warnings = parse_mjcf(&xml(option)).unwrap().warnings;
+        warnings.iter().filter(|w| w.message.contains("solves the constraint problem")).map(|w| w.to_string()).collect()
+    };
+    assert_eq!(
+        solver_warnings(r#"iterations="1""#),
+        ["line 2: <option>: nudyn solves the constraint problem exactly; MuJoCo with iterations=1 will differ"]
+    );
+    let both = solver_warnings(r#"iterations="20" tolerance="0.001""#);
+    assert!(
+        both.len() == 1 && both[0].ends_with("MuJoCo with iterations=20 and tolerance=0.001 will differ"),
+        "{both:?}"
+    );
+    // MuJoCo's defaults and tighter settings converge as nudyn does.
+    assert!(solver_warnings(r#"iterations="100" tolerance="1e-8""#).is_empty());
+    assert!(solver_warnings(r#"iterations="500" tolerance="1e-12""#).is_empty());
 }

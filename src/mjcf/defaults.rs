@@ -262,6 +262,8 @@ pub(crate) struct GeomSettings {
     pub contype: [i32; 2],
     /// Whether `hfield` names a height-field asset.
     pub hfield: bool,
+    /// `margin`: the distance at which MuJoCo starts its contacts.
+    pub margin: f64,
 }
 
 impl Default for GeomSettings {
@@ -281,6 +283,7 @@ impl Default for GeomSettings {
             fit_scale: 1.0,
             contype: [1, 1],
             hfield: false,
+            margin: 0.0,
         }
     }
 }
@@ -337,6 +340,22 @@ impl GeomSettings {
             }
         }
         self.hfield |= element.has("hfield");
+        // Read for their syntax only (nudyn models no contacts nor fluid
+        // forces); MuJoCo refuses more numbers than each holds.
+        element.overwrite_numbers("friction", &mut [0.0; 3])?;
+        element.overwrite_numbers("solref", &mut [0.0; 2])?;
+        element.overwrite_numbers("solimp", &mut [0.0; 5])?;
+        element.overwrite_numbers("fluidcoef", &mut [0.0; 5])?;
+        if let Some(margin) = element.number("margin")? {
+            self.margin = margin;
+        }
+        for attribute in ["gap", "solmix"] {
+            element.number(attribute)?;
+        }
+        for attribute in ["priority", "condim"] {
+            element.integers::<1>(attribute)?;
+        }
+        element.numbers::<4>("rgba")?;
         Ok(())
     }
 }

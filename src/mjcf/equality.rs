@@ -99,6 +99,9 @@ pub(crate) fn read(
             if joint2.is_some() {
                 scalar("joint2")?;
             }
+            if joint2 == Some(joint1) {
+                return Err(element.invalid("joint1 and joint2 name the same joint in equality constraint"));
+            }
             let mut polycoef = [0.0, 1.0, 0.0, 0.0, 0.0];
             element.overwrite_numbers("polycoef", &mut polycoef)?;
             EqualityKind::Joint { joint1: joint1.to_string(), joint2: joint2.map(str::to_string), polycoef }
@@ -151,7 +154,8 @@ pub(crate) fn read(
 }
 
 /// The frames a connect or weld holds: two bodies (body2 the world when
-/// left out) or two sites, not a mix, not a body with itself.
+/// left out) or two sites, not a mix, not a body with itself; sites take no
+/// `anchor` (nor `relpose`, for a weld).
 fn objects(element: &Element, targets: &impl EqualityTargets) -> Result<EqualityObjects, MjcfError> {
     let with_bodies = element.has("body1") || element.has("body2");
     let with_sites = element.has("site1") || element.has("site2");
@@ -166,6 +170,16 @@ fn objects(element: &Element, targets: &impl EqualityTargets) -> Result<Equality
             EqualityObjects::Bodies(targets.equality_body(element, "body1")?, body2)
         }
         (false, true) => {
+            // MuJoCo's schema: a frame given by sites has no anchor or relative pose.
+            let body_only: &[&str] = if element.tag() == "weld" { &["anchor", "relpose"] } else { &["anchor"] };
+            if let Some(attribute) = body_only.iter().find(|a| element.has(a)) {
+                let body_attributes: Vec<String> =
+                    ["body1", "body2"].iter().chain(body_only).map(|a| format!("'{a}'")).collect();
+                return Err(element.invalid(format!(
+                    "'{attribute}' cannot be given with sites: at most one of ('site1', 'site2'), ({}) can be specified",
+                    body_attributes.join(", ")
+                )));
+            }
             for attribute in ["site1", "site2"] {
                 if !element.has(attribute) {
                     return Err(element.missing(attribute));

@@ -10,6 +10,8 @@
 //! dropped and the elements below it take the `<include>`'s place, wherever
 //! it stands; at least one element must come in; a file is included at most
 //! once in the whole model, so an include cycle is refused too.
+//! Backslashes in the file name are separators, as MuJoCo reads them on
+//! every system.
 //!
 //! The merged text places every included piece on lines of its own, so
 //! that each line of it comes from one file: an error or warning found in
@@ -75,9 +77,10 @@ impl Sources {
     /// merged text: `file` itself when absolute; else in `dir` (the
     /// compiler's `meshdir`, or its `assetdir`) below the model's directory
     /// when it is there; else, for an element of an included file, beside
-    /// that file (MuJoCo 4.0's `ResolveFilePath`).
+    /// that file (MuJoCo 4.0's `ResolveFilePath`); backslashes are separators.
     pub fn asset_path(&self, dir: &str, file: &str, line: u32) -> PathBuf {
-        let in_dir = self.model_dir.join(dir).join(file);
+        let file = &with_slashes(file);
+        let in_dir = self.model_dir.join(with_slashes(dir)).join(file);
         if Path::new(file).is_absolute() || in_dir.is_file() {
             return in_dir;
         }
@@ -257,7 +260,11 @@ impl Merger {
                 include.file
             )));
         }
-        let text = std::fs::read_to_string(&path).map_err(|e| at(format!("cannot read {}: {e}", path.display())))?;
+        let text = super::read_regular_file(&path)
+            .and_then(|bytes| {
+                String::from_utf8(bytes).map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e))
+            })
+            .map_err(|e| at(format!("cannot read {}: {e}", path.display())))?;
         self.included.push((id.clone(), from, include.line));
         self.sources.files.push(Some(path.clone()));
         let file = self.sources.files.len() - 1;
@@ -281,6 +288,7 @@ impl Merger {
     /// Where MuJoCo finds the file an include of file `from` names: relative
     /// to the model's directory, else to the including file's.
     fn find(&self, from: usize, name: &str) -> Result<PathBuf, String> {
+        let name = &with_slashes(name);
         let mut looked = vec![self.sources.model_dir.join(name)];
         if let Some(dir) = self.sources.files[from].as_deref().and_then(Path::parent).filter(|_| from != 0) {
             let beside = dir.join(name);
@@ -288,7 +296,8 @@ impl Merger {
                 looked.push(beside);
             }
         }
-        match looked.iter().find(|p| p.is_file()) {
+        // Whatever is there but a directory, so that a named pipe is refused as such.
+        match looked.iter().find(|p| p.metadata().is_ok_and(|m| !m.is_dir())) {
             Some(found) => Ok(found.clone()),
             None => {
                 let places: Vec<String> = looked.iter().map(|p| p.display().to_string()).collect();
@@ -296,6 +305,13 @@ impl Merger {
             }
         }
     }
+}
+
+/// A file name as MuJoCo opens it: every '\\' a '/', on any system (MuJoCo
+/// 4.0 on Linux opens `sub/meshes/box.stl` for `sub\\meshes\\box.stl`, even
+/// when a file of that literal name exists).
+fn with_slashes(file: &str) -> String {
+    file.replace('\\', "/")
 }
 
 /// What tells two paths to the same file apart from two files.

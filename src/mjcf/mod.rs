@@ -13,6 +13,7 @@
 //! applied, as MuJoCo 4.0 does.
 
 mod actuator;
+mod contacts;
 mod defaults;
 mod element;
 mod equality;
@@ -76,6 +77,21 @@ pub fn parse_mjcf(xml: &str) -> Result<Imported, MjcfError> {
 /// Reads an MJCF file and the files it includes, which are looked for
 /// relative to its directory as MuJoCo looks for them.
 pub fn load_mjcf(path: &Path) -> Result<Imported, MjcfError> {
-    let xml = std::fs::read_to_string(path).map_err(|source| MjcfError::Io { path: path.to_path_buf(), source })?;
+    let bytes = read_regular_file(path).map_err(|source| MjcfError::Io { path: path.to_path_buf(), source })?;
+    let xml = String::from_utf8(bytes).map_err(|e| MjcfError::Io {
+        path: path.to_path_buf(),
+        source: std::io::Error::new(std::io::ErrorKind::InvalidData, e),
+    })?;
     reader::read(&xml, Some(path))
+}
+
+/// Reads a file the model names, refusing anything but a regular file: a
+/// named pipe would block the import forever, a device never end.
+pub(crate) fn read_regular_file(path: &Path) -> std::io::Result<Vec<u8>> {
+    let file_type = std::fs::metadata(path)?.file_type();
+    if !file_type.is_file() {
+        let kind = if file_type.is_dir() { "a directory" } else { "a named pipe, device or socket" };
+        return Err(std::io::Error::new(std::io::ErrorKind::InvalidInput, format!("not a regular file ({kind})")));
+    }
+    std::fs::read(path)
 }

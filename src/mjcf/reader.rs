@@ -6,6 +6,7 @@ use std::path::Path;
 use roxmltree::Document;
 
 use super::actuator;
+use super::contacts::{self, BodyFilter, ContactGeom, Reach};
 use super::defaults::{
     Defaults, GEOM_ATTRIBUTES, GeomKind, GeomSettings, JOINT_ATTRIBUTES, JointSettings, Limited, MAIN, SITE_ATTRIBUTES,
     SiteKind,
@@ -40,6 +41,12 @@ pub(crate) const BODY_ATTRIBUTES: &[&str] = &[
 /// Attributes of `<frame>`.
 #[rustfmt::skip]
 pub(crate) const FRAME_ATTRIBUTES: &[&str] = &["name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler"];
+
+/// The most elements the `<replicate>`s of a file may produce: each
+/// replicate's copies times the elements inside it (nested ones included),
+/// summed over every replicate as it is expanded. Far beyond any vehicle;
+/// a count past it would exhaust the memory before the import could fail.
+pub(crate) const MAX_REPLICATED_ELEMENTS: usize = 100_000;
 
 /// Attributes of `<replicate>`.
 pub(crate) const REPLICATE_ATTRIBUTES: &[&str] = &["count", "sep", "offset", "euler", "childclass"];
@@ -271,6 +278,20 @@ struct Reader {
     named_elsewhere: Vec<String>,
     /// The names given inside `<replicate>`s, each with its first copy's name.
     replicated: HashMap<String, String>,
+    /// The elements the `<replicate>`s expanded so far produce (see
+    /// [`MAX_REPLICATED_ELEMENTS`]).
+    replicated_elements: std::cell::Cell<usize>,
+    /// Each body's pose in the world at qpos0 (before `align_free` moves its frame).
+    world_poses: Vec<Pose>,
+    /// The geoms that may collide, for the warning on contacts.
+    contact_geoms: Vec<ContactGeom>,
+}
+
+/// What reading a geom gives: its mass when it counts, and how far it
+/// reaches in its body when known.
+struct GeomRead {
+    mass: Option<GeomMass>,
+    reach: Option<(Vec3, Quat, Reach)>,
 }
 
 /// Reads an MJCF document, from the file `path` if it comes from one (the
@@ -381,6 +402,7 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
     for section in &keyframe_sections {
         reader.check_keyframes(section)?;
     }
+    reader.warn_of_contacts(&root);
 
     let name = root.text("model").unwrap_or("vehicle").to_string();
     reader.finish(name)
@@ -445,6 +467,9 @@ impl Reader {
             mocap_bodies: Vec::new(),
             named_elsewhere: Vec::new(),
             replicated: HashMap::new(),
+            replicated_elements: std::cell::Cell::new(0),
+            world_poses: Vec::new(),
+            contact_geoms: Vec::new(),
         }
     }
 
@@ -549,6 +574,33 @@ impl Reader {
             }
             self.physics.disabled_actuator_groups = groups;
         }
+        // Read for their syntax only: they set contacts, which nudyn does not
+        // model, and MuJoCo's iterative solver, which nudyn does not use.
+        // MuJoCo refuses more numbers than each holds.
+        element.overwrite_numbers("o_solref", &mut [0.0; 2])?;
+        element.overwrite_numbers("o_solimp", &mut [0.0; 5])?;
+        element.overwrite_numbers("o_friction", &mut [0.0; 5])?;
+        for attribute in ["o_margin", "impratio", "ls_tolerance", "ccd_tolerance", "sleep_tolerance"] {
+            element.number(attribute)?;
+        }
+        for attribute in ["ls_iterations", "ccd_iterations", "sdf_iterations", "sdf_initpoints"] {
+            element.integers::<1>(attribute)?;
+        }
+        // Fewer iterations or a looser tolerance than MuJoCo's defaults (100,
+        // 1e-8) let MuJoCo stop short of the constraint forces nudyn computes.
+        let iterations = element.integers::<1>("iterations")?.map(|[n]| n);
+        let tolerance = element.number("tolerance")?;
+        let loose = [
+            iterations.filter(|&n| n < 100).map(|n| format!("iterations={n}")),
+            tolerance.filter(|&t| t > 1e-8).map(|t| format!("tolerance={t}")),
+        ];
+        let loose: Vec<String> = loose.into_iter().flatten().collect();
+        if !loose.is_empty() {
+            self.warnings.push(element.warning(format!(
+                "nudyn solves the constraint problem exactly; MuJoCo with {} will differ",
+                loose.join(" and ")
+            )));
+        }
         if element.numbers::<3>("wind")?.is_some_and(|w| w != [0.0; 3]) {
             return Err(element.unsupported("wind acts through fluid forces, which nudyn does not model"));
         }
@@ -609,8 +661,9 @@ impl Reader {
         Ok(())
     }
 
-    /// Reads an `<asset>` section: meshes are processed, the other assets
-    /// (textures, materials, height fields, skins) ignored with a warning.
+    /// Reads an `<asset>` section: meshes are declared (their files read
+    /// once a geom needs them), the other assets (textures, materials,
+    /// height fields, skins) ignored with a warning.
     fn read_assets(&mut self, section: &Element) -> Result<(), MjcfError> {
         section.check_attributes(&[])?;
         if section.children().next().is_none() {
@@ -649,8 +702,8 @@ impl Reader {
                     first_line: first.line,
                 });
             }
-            let processed = mesh::read(&child, &self.defaults.class(class).mesh, path)?;
-            self.meshes.insert(name, processed);
+            let declared = mesh::declare(&child, &self.defaults.class(class).mesh, path)?;
+            self.meshes.insert(name, declared);
         }
         Ok(())
     }
@@ -676,13 +729,19 @@ impl Reader {
             match child.tag() {
                 "body" => self.read_body_tree(child, frame, class, suffix)?,
                 "site" => self.read_site(&child, class, None, frame, &suffix)?,
-                "geom" if child.has("name") => {
+                "geom" => {
+                    child.check_attributes(GEOM_ATTRIBUTES)?;
+                    if let Some(grandchild) = child.children().next() {
+                        return Err(unsupported_child(&grandchild));
+                    }
                     let mut settings = self.defaults.class(self.class_of(&child, class)?).geom.clone();
                     settings.apply(&child)?;
                     self.name_geom(&child, &settings, frame.as_ref(), None, &suffix)?;
+                    let read = self.geom_mass(&child, &settings, frame.as_ref(), false, false)?;
+                    self.add_contact_geom(&child, &settings, None, read.reach);
                     self.warnings.push(child.ignored());
                 }
-                tag if tag == "geom" || IGNORED_IN_BODIES.contains(&tag) => {
+                tag if IGNORED_IN_BODIES.contains(&tag) => {
                     self.named_elsewhere.extend(child.text("target").map(str::to_string));
                     self.warnings.push(child.ignored());
                 }
@@ -757,6 +816,8 @@ impl Reader {
         let own_quat = self.resolve(element, &Orientation::read(element)?.unwrap_or_default())?;
         let (pos, quat) = frame.map_or((own_pos, own_quat), |frame| compose(&frame, &(own_pos, own_quat)));
         let index = self.bodies.len();
+        let world_pose = parent.map_or((pos, quat), |parent| compose(&self.world_poses[parent], &(pos, quat)));
+        self.world_poses.push(world_pose);
         // An unnamed body gets a name for messages and descriptions, which
         // nothing can refer to (MuJoCo's unnamed elements have none).
         let name = match element.text("name") {
@@ -879,8 +940,10 @@ impl Reader {
                      (a subtree sensor that would count it is refused)",
                 ));
             }
+            let read = self.geom_mass(geom, settings, frame.as_ref(), moving, contributes)?;
+            self.add_contact_geom(geom, settings, Some(index), read.reach);
             // MuJoCo leaves out geoms of mass up to mjEPS.
-            if let Some(mass) = self.geom_mass(geom, settings, frame.as_ref(), moving, contributes)?
+            if let Some(mass) = read.mass
                 && mass.mass > EPS
             {
                 selected.push(mass);
@@ -926,6 +989,52 @@ impl Reader {
             self.records[parent].children.push(index);
         }
         Ok(child_bodies.into_iter().map(|child| PendingBody { parent_moving: moving, ..child }).collect())
+    }
+
+    /// A warning on each pair of geoms MuJoCo would collide at qpos0
+    /// (`super::contacts` says what is checked), unless `<flag contact>` or
+    /// `<flag constraint>` turns contacts off.
+    fn warn_of_contacts(&mut self, root: &Element) {
+        let flags: Vec<Element> =
+            root.children().filter(|s| s.tag() == "option").flat_map(|option| option.children()).collect();
+        let disabled = |flag: &str| flags.iter().any(|f| f.text(flag) == Some("disable"));
+        if disabled("contact") || disabled("constraint") {
+            return;
+        }
+        let body = |name: &str| match name {
+            "world" => Some(None),
+            name => self.bodies.iter().position(|b| b.name == name && self.body_names.contains_key(name)).map(Some),
+        };
+        let exclusions = root.children().filter(|s| s.tag() == "contact").flat_map(|s| s.children());
+        let excluded: Vec<_> = exclusions
+            .filter(|e| e.tag() == "exclude")
+            .filter_map(|e| Some((body(e.text("body1")?)?, body(e.text("body2")?)?)))
+            .collect();
+        let parents: Vec<Option<usize>> = self.bodies.iter().map(|b| b.parent).collect();
+        let roots: Vec<bool> =
+            self.bodies.iter().map(|b| !b.joints.is_empty() || self.mocap_bodies.contains(&b.name)).collect();
+        let filter = BodyFilter {
+            parents: &parents,
+            poses: &self.world_poses,
+            roots: &roots,
+            filter_parent: !disabled("filterparent"),
+            excluded: &excluded,
+        };
+        for (a, b) in contacts::touching(&self.contact_geoms, &filter) {
+            let (first, second) = (&self.contact_geoms[a], &self.contact_geoms[b]);
+            let warning = MjcfWarning {
+                file: None,
+                line: first.line,
+                element: first.label.clone(),
+                message: format!(
+                    "touches <{}> (line {}) at the initial pose: MuJoCo would make contacts between them, \
+                     nudyn models no contacts",
+                    second.label,
+                    self.sources.line_in_file(second.line)
+                ),
+            };
+            self.warnings.push(warning);
+        }
     }
 
     /// A free body without children aligned with its inertial frame
@@ -1013,6 +1122,16 @@ impl Reader {
         if count <= 0 {
             return Err(replicate.bad_value("count", "a positive number of copies"));
         }
+        // Counted before any copy is made.
+        let inside = replicate.node.descendants().filter(|node| node.is_element()).count() - 1;
+        let produced = (count as usize).saturating_mul(inside).saturating_add(self.replicated_elements.get());
+        if produced > MAX_REPLICATED_ELEMENTS {
+            return Err(replicate.invalid(format!(
+                "{count} copies of the {inside} elements inside it would take the file's replicates past \
+                 {MAX_REPLICATED_ELEMENTS} elements, the most nudyn reads"
+            )));
+        }
+        self.replicated_elements.set(produced);
         let offset = Vec3::from(replicate.numbers::<3>("offset")?.unwrap_or_default());
         let euler = replicate.numbers::<3>("euler")?.unwrap_or_default();
         let separator = replicate.text("sep").unwrap_or_default();
@@ -1162,8 +1281,7 @@ impl Reader {
                 let (pos, quat) = frame.map_or((pos, quat), |frame| compose(frame, &(pos, quat)));
                 let (size, pos, quat) = match &settings.mesh {
                     Some(name) => {
-                        let mesh =
-                            self.meshes.get(name).ok_or_else(|| element.invalid(format!("unknown mesh '{name}'")))?;
+                        let mesh = self.mesh_named(element, name)?.mesh()?;
                         self.fit_to_mesh(element, settings, mesh, settings.size, pos, quat)?
                     }
                     None => (settings.size, pos, quat),
@@ -1180,8 +1298,14 @@ impl Reader {
         Ok(())
     }
 
+    /// The mesh asset a geom names (not read yet).
+    fn mesh_named(&self, element: &Element, name: &str) -> Result<&mesh::MeshAsset, MjcfError> {
+        self.meshes.get(name).ok_or_else(|| element.invalid(format!("unknown mesh '{name}'")))
+    }
+
     /// The geom's mass, frame and principal moments when it contributes to its
-    /// body's inertia; checks it as MuJoCo does either way.
+    /// body's inertia; checks it as MuJoCo does either way, but for what
+    /// needs its mesh, which is read only when it contributes.
     fn geom_mass(
         &self,
         element: &Element,
@@ -1189,7 +1313,7 @@ impl Reader {
         frame: Option<&Pose>,
         moving: bool,
         contributes: bool,
-    ) -> Result<Option<GeomMass>, MjcfError> {
+    ) -> Result<GeomRead, MjcfError> {
         if matches!(settings.kind, GeomKind::Mesh | GeomKind::Sdf) && settings.mesh.is_none() {
             return Err(element.missing("mesh"));
         }
@@ -1224,7 +1348,16 @@ impl Reader {
                 if settings.fromto.is_some() {
                     return Err(element.invalid("fromto cannot be used with a mesh"));
                 }
-                Some(self.meshes.get(name).ok_or_else(|| element.invalid(format!("unknown mesh '{name}'")))?)
+                let asset = self.mesh_named(element, name)?;
+                if settings.kind == GeomKind::Mesh && settings.shell_inertia {
+                    return Err(element.invalid("for mesh geoms, inertia should be specified in the mesh asset"));
+                }
+                // A mesh is read only for a mass nudyn needs: one that only
+                // shapes contacts is never opened (nor a primitive's size fitted to it).
+                if !contributes {
+                    return Ok(GeomRead { mass: None, reach: None });
+                }
+                Some(asset.mesh()?)
             }
             None => None,
         };
@@ -1249,19 +1382,17 @@ impl Reader {
                         mesh.line
                     )));
                 }
-                if settings.shell_inertia {
-                    return Err(element.invalid("for mesh geoms, inertia should be specified in the mesh asset"));
-                }
                 Some(mesh)
             }
             _ => None,
         };
+        let reach = contacts::reach(settings.kind, &size).map(|reach| (pos, quat, reach));
         if !contributes {
-            return Ok(None);
+            return Ok(GeomRead { mass: None, reach });
         }
         // A body that cannot move needs no mass: its sdf or height field is never read.
         if mass_not_computed(settings) && !moving {
-            return Ok(None);
+            return Ok(GeomRead { mass: None, reach });
         }
         if mass_not_computed(settings) {
             return Err(element.unsupported(
@@ -1287,7 +1418,33 @@ impl Reader {
             Some(mesh) => Vec3::from(mesh.principal_moments(mass)),
             None => inertia::principal_moments(settings.kind, &size, mass, settings.shell_inertia),
         };
-        Ok(Some(GeomMass { mass, pos, quat, principal }))
+        Ok(GeomRead { mass: Some(GeomMass { mass, pos, quat, principal }), reach })
+    }
+
+    /// Keeps a geom that may collide for the warning on contacts.
+    fn add_contact_geom(
+        &mut self,
+        element: &Element,
+        settings: &GeomSettings,
+        body: Option<usize>,
+        reach: Option<(Vec3, Quat, Reach)>,
+    ) {
+        let [contype, conaffinity] = settings.contype;
+        if let Some((pos, quat, reach)) = reach
+            && (contype != 0 || conaffinity != 0)
+        {
+            self.contact_geoms.push(ContactGeom {
+                body,
+                pos,
+                quat,
+                reach,
+                contype,
+                conaffinity,
+                margin: settings.margin,
+                label: element.label(),
+                line: element.line,
+            });
+        }
     }
 
     /// Checks a body's joints and turns them into [`Joint`]s.

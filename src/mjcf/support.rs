@@ -12,7 +12,7 @@ use crate::vehicle::SensorKind;
 /// docs/mjcf-support.md: element and attribute, read or ignored with a
 /// warning or refused with the importer's reason.
 pub fn support_table() -> String {
-    let mut out = String::from(
+    let mut out = format!(
         "# MJCF support\n\n\
          Generated from the importer's own lists (`src/mjcf/support.rs`; \
          `NUDYN_WRITE_DOCS=1 cargo test --release -p nudyn --test mjcf_support` rewrites it, \
@@ -31,9 +31,21 @@ pub fn support_table() -> String {
          polygon that refers to a vertex defined after it is refused). A sphere, capsule, cylinder, \
          ellipsoid or box `<geom>` with a `mesh` is fitted to the mesh as MuJoCo's compiler fits it \
          (its inertia box, or its bounding box with `<compiler fitaabb=\"true\">`, times `fitscale`), \
-         and takes that primitive's mass.\n\
+         and takes that primitive's mass. A mesh file is read only for a geom whose mass nudyn \
+         computes (in a body that takes its mass from its geoms, in `inertiagrouprange`): a mesh that \
+         only world geoms, or geoms whose mass does not count, use is never opened (and MuJoCo's check \
+         of a colliding mesh geom's convex hull is made only for the meshes read). Backslashes in file \
+         names (`<mesh file>`, `meshdir`, `assetdir`, `<include file>`) are separators, as MuJoCo reads \
+         them on every system; a file named must be a regular file (a named pipe is refused, not \
+         waited on). nudyn models no contacts: each pair of geoms MuJoCo would collide at the \
+         initial pose gets a warning (contype and conaffinity sharing a bit, not the same or welded \
+         bodies, not parent and child unless `<flag filterparent>` is disabled, not excluded, and \
+         closer than the larger margin; computed for spheres, capsules and planes, other shapes are \
+         not checked). The `<replicate>`s of a file may produce at most {} \
+         elements (each replicate's copies times the elements inside it, summed).\n\
          - **ignored with a warning**: no effect on the dynamics; each occurrence gives one warning.\n\
          - **refused**: the import stops with the reason below.\n",
+        reader::MAX_REPLICATED_ELEMENTS
     );
 
     out.push_str("\n## Sections ignored with a warning\n\n");

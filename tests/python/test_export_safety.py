@@ -139,3 +139,21 @@ def test_an_os_error_is_said_once(nudyn, fmu_library, tmp_path):
     assert proc.returncode == 1
     assert proc.stderr.strip() == (f"nudyn: error: cannot export {tmp_path}/missing/rig.fmu: {tmp_path}/missing: "
                                    "No such file or directory (os error 2)")
+
+
+def test_a_model_identifier_too_long_to_extract_or_reserved_on_windows_is_refused(nudyn, fmu_library, tmp_path):
+    from fmpy import extract
+
+    # The longest allowed identifier gives an FMU FMPy extracts.
+    longest = "x" * 200
+    fmu = tmp_path / "long.fmu"
+    proc = export(nudyn, fmu_library, MODEL, fmu, "--model-identifier", longest)
+    assert proc.returncode == 0, proc.stderr
+    unpacked = extract(str(fmu), unzipdir=str(tmp_path / "long"))
+    assert (tmp_path / "long" / "binaries" / "linux64" / f"{longest}.so").is_file(), unpacked
+    for identifier, reason in [("x" * 300, "longer than 200"), ("con", "Windows reserves"),
+                               ("LPT1", "Windows reserves"), ("Nul", "Windows reserves")]:
+        output = tmp_path / "refused.fmu"
+        proc = export(nudyn, fmu_library, MODEL, output, "--model-identifier", identifier)
+        assert proc.returncode == 1 and reason in proc.stderr, (identifier, proc.stderr)
+        assert not output.exists(), identifier

@@ -31,6 +31,18 @@ pub enum ExportError {
     /// The model identifier is not a C identifier (it names the shared library).
     #[error("model identifier '{0}' is not a C identifier ([A-Za-z_][A-Za-z0-9_]*)")]
     ModelIdentifier(String),
+    /// The model identifier is too long to name a file inside the FMU.
+    #[error(
+        "model identifier of {0} characters is longer than {MAX_MODEL_IDENTIFIER_LENGTH}: it names the file \
+         binaries/<platform>/<identifier>.<extension> in the FMU, which could not be extracted"
+    )]
+    ModelIdentifierTooLong(usize),
+    /// The model identifier is a device name that Windows reserves.
+    #[error(
+        "model identifier '{0}' is a device name Windows reserves (CON, PRN, AUX, NUL, COM1-9, LPT1-9, in any \
+         case): the FMU's library binaries/win64/{0}.dll could not be opened there"
+    )]
+    ReservedModelIdentifier(String),
     /// The modelDescription breaks the standard's rules: a bug in this exporter.
     #[error("the generated modelDescription.xml breaks FMI 2.0 rules: {}", .0.iter().map(ToString::to_string).collect::<Vec<_>>().join("; "))]
     InvalidModelDescription(Vec<md::Problem>),
@@ -152,13 +164,34 @@ impl Document {
     }
 }
 
+/// The longest model identifier: it names binaries/<platform>/<identifier>.dll
+/// (or .so, .dylib) inside the FMU, and a file name over 255 bytes cannot be
+/// extracted on the usual file systems; 200 leaves room for the extension
+/// and for a tool's own prefix or suffix.
+pub const MAX_MODEL_IDENTIFIER_LENGTH: usize = 200;
+
 /// A model identifier from a name (e.g. the MJCF file stem): characters
-/// outside `[A-Za-z0-9_]` become `_`, and a leading digit gets a `_` before it.
+/// outside `[A-Za-z0-9_]` become `_`, a leading digit or a name Windows
+/// reserves gets a `_` before it, and it is cut to
+/// [`MAX_MODEL_IDENTIFIER_LENGTH`].
 pub fn model_identifier_from(name: &str) -> String {
-    let identifier: String = name.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect();
-    match identifier.chars().next() {
-        Some(c) if !c.is_ascii_digit() => identifier,
-        _ => format!("_{identifier}"),
+    let mut identifier: String = name.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect();
+    let leading_digit = identifier.chars().next().is_none_or(|c| c.is_ascii_digit());
+    if leading_digit || reserved_on_windows(&identifier) {
+        identifier.insert(0, '_');
+    }
+    identifier.truncate(MAX_MODEL_IDENTIFIER_LENGTH);
+    identifier
+}
+
+/// Whether Windows reserves the name for a device (CON, PRN, AUX, NUL,
+/// COM1-9, LPT1-9, in any case): a file so named, whatever its extension,
+/// cannot be opened there.
+fn reserved_on_windows(name: &str) -> bool {
+    match name.to_ascii_uppercase().as_bytes() {
+        b"CON" | b"PRN" | b"AUX" | b"NUL" => true,
+        [b'C', b'O', b'M', digit] | [b'L', b'P', b'T', digit] => (b'1'..=b'9').contains(digit),
+        _ => false,
     }
 }
 
@@ -168,12 +201,17 @@ fn is_c_identifier(name: &str) -> bool {
         && chars.all(|c| c.is_ascii_alphanumeric() || c == '_')
 }
 
-/// Refuses a model identifier that cannot name the shared library.
+/// Refuses a model identifier that cannot name the shared library on
+/// every platform the FMU may be unpacked on.
 fn check_model_identifier(model_identifier: &str) -> Result<(), ExportError> {
-    if is_c_identifier(model_identifier) {
-        Ok(())
-    } else {
+    if !is_c_identifier(model_identifier) {
         Err(ExportError::ModelIdentifier(model_identifier.to_string()))
+    } else if model_identifier.len() > MAX_MODEL_IDENTIFIER_LENGTH {
+        Err(ExportError::ModelIdentifierTooLong(model_identifier.len()))
+    } else if reserved_on_windows(model_identifier) {
+        Err(ExportError::ReservedModelIdentifier(model_identifier.to_string()))
+    } else {
+        Ok(())
     }
 }
 
@@ -374,5 +412,28 @@ mod tests {
         assert_eq!(model_identifier_from("flexible-boom.v2"), "flexible_boom_v2");
         assert_eq!(model_identifier_from("60links"), "_60links");
         assert!(is_c_identifier("_60links") && !is_c_identifier("a b") && !is_c_identifier(""));
+        // What the export refuses is never made up from a file name.
+        assert_eq!(model_identifier_from("con"), "_con");
+        assert_eq!(model_identifier_from("Lpt1"), "_Lpt1");
+        assert_eq!(model_identifier_from(&"a".repeat(300)), "a".repeat(MAX_MODEL_IDENTIFIER_LENGTH));
+        for name in ["con", "Lpt1", &"a".repeat(300), "console", "com10", "com0"] {
+            let identifier = model_identifier_from(name);
+            assert!(check_model_identifier(&identifier).is_ok(), "{name}: {identifier}");
+        }
+    }
+
+    #[test]
+    fn identifiers_windows_reserves_or_too_long_to_extract_are_refused() {
+        for reserved in ["con", "CON", "Prn", "aux", "nUl", "COM1", "com9", "LPT1", "lpt9"] {
+            let error = check_model_identifier(reserved).unwrap_err();
+            assert!(matches!(error, ExportError::ReservedModelIdentifier(_)), "{reserved}: {error}");
+        }
+        let error = check_model_identifier(&"x".repeat(300)).unwrap_err();
+        assert!(matches!(error, ExportError::ModelIdentifierTooLong(300)), "{error}");
+        assert!(error.to_string().contains("longer than 200"), "{error}");
+        // Names beside the reserved ones, and the longest allowed, stay valid.
+        for valid in ["console", "com", "com0", "com10", "lpt", "nul_", "_con", &"x".repeat(200)] {
+            assert!(check_model_identifier(valid).is_ok(), "{valid}");
+        }
     }
 }

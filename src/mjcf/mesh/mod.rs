@@ -17,6 +17,7 @@
 mod files;
 mod hull;
 
+use std::cell::OnceCell;
 use std::collections::HashMap;
 use std::path::PathBuf;
 
@@ -173,8 +174,35 @@ impl Mesh {
     }
 }
 
-/// Reads and processes a `<mesh>` asset with its class's settings.
-pub(crate) fn read(element: &Element, defaults: &MeshSettings, file_path: Option<PathBuf>) -> Result<Mesh, MjcfError> {
+/// A `<mesh>` asset as declared: its attributes checked, its file not yet
+/// read. The file is read and the mesh processed the first time a geom
+/// needs it ([`MeshAsset::mesh`]): a mesh nothing needs (one only world
+/// geoms use, say) is never opened, so a missing or huge file there does
+/// not stop the import.
+#[derive(Debug)]
+pub(crate) struct MeshAsset {
+    /// Line of the `<mesh>` element.
+    pub line: u32,
+    /// The element as messages show it.
+    label: String,
+    settings: MeshSettings,
+    refpos: [f64; 3],
+    refquat: [f64; 4],
+    /// Where the file is read, and its format.
+    file: Option<(PathBuf, MeshFormat)>,
+    /// `vertex`, `face`.
+    vertices: Option<Vec<[f32; 3]>>,
+    faces: Option<Vec<[i64; 3]>>,
+    /// The mesh once processed.
+    processed: OnceCell<Mesh>,
+}
+
+/// Checks a `<mesh>` asset's attributes with its class's settings.
+pub(crate) fn declare(
+    element: &Element,
+    defaults: &MeshSettings,
+    file_path: Option<PathBuf>,
+) -> Result<MeshAsset, MjcfError> {
     if element.has("builtin") {
         return Err(element.unsupported("built-in meshes (write the mesh out to a file)"));
     }
@@ -185,56 +213,101 @@ pub(crate) fn read(element: &Element, defaults: &MeshSettings, file_path: Option
     settings.apply(element)?;
     let refpos = element.numbers::<3>("refpos")?.unwrap_or_default();
     let refquat = element.numbers::<4>("refquat")?.unwrap_or([1.0, 0.0, 0.0, 0.0]);
-    let file = element.text("file");
-
-    let mut raw = RawMesh::default();
-    if let (Some(file), Some(path)) = (file, &file_path) {
-        let content_type = element.text("content_type");
-        let format = MeshFormat::of_mesh(file, content_type).ok_or_else(|| match content_type {
-            Some(content_type) if MeshFormat::of(file).is_some() => {
-                element.invalid(format!("no decoder found for mesh file '{file}' with content_type '{content_type}'"))
-            }
-            _ => element.unsupported(format!("mesh file '{file}': nudyn reads .stl, .obj and .msh files")),
-        })?;
-        let bytes = std::fs::read(path)
-            .map_err(|e| element.invalid(format!("cannot read mesh file '{}': {e}", path.display())))?;
-        let in_file = |reason: String| element.invalid(format!("mesh file '{}': {reason}", path.display()));
-        raw = match format {
-            MeshFormat::Stl => files::read_stl(&bytes),
-            MeshFormat::Obj => std::str::from_utf8(&bytes)
-                .map_err(|_| "the OBJ file is not UTF-8 text".to_string())
-                .and_then(files::read_obj),
-            MeshFormat::Msh => files::read_msh(&bytes),
+    let file = match (element.text("file"), file_path) {
+        (Some(file), Some(path)) => {
+            let content_type = element.text("content_type");
+            let format = MeshFormat::of_mesh(file, content_type).ok_or_else(|| match content_type {
+                Some(content_type) if MeshFormat::of(file).is_some() => element
+                    .invalid(format!("no decoder found for mesh file '{file}' with content_type '{content_type}'")),
+                _ => element.unsupported(format!("mesh file '{file}': nudyn reads .stl, .obj and .msh files")),
+            })?;
+            Some((path, format))
         }
-        .map_err(in_file)?;
-    }
-    if let Some(text) = element.text("vertex") {
-        if !raw.vertices.is_empty() {
-            return Err(element.invalid("repeated vertex specification (both 'file' and 'vertex')"));
-        }
-        let values: Vec<f32> = parse_list(text).ok_or_else(|| element.bad_value("vertex", "numbers"))?;
-        if !values.len().is_multiple_of(3) {
-            return Err(element.invalid("vertex data must be a multiple of 3"));
-        }
-        raw.vertices = values.chunks_exact(3).map(|v| [v[0], v[1], v[2]]).collect();
-    }
-    if let Some(text) = element.text("face") {
-        if !raw.faces.is_empty() {
-            return Err(element.invalid("repeated face specification (both 'file' and 'face')"));
-        }
-        let values: Vec<i64> = parse_list(text).ok_or_else(|| element.bad_value("face", "integers"))?;
-        if !values.len().is_multiple_of(3) {
-            return Err(element.invalid("face data must be a multiple of 3"));
-        }
-        raw.faces = values.chunks_exact(3).map(|f| [f[0], f[1], f[2]]).collect();
-    }
-    let source = match (file, &file_path) {
-        (Some(_), Some(path)) => format!("mesh file '{}'", path.display()),
-        _ => "mesh".to_string(),
+        _ => None,
     };
-    process(raw, &settings, refpos, refquat)
-        .map(|mesh| Mesh { line: element.line, ..mesh })
-        .map_err(|reason| element.invalid(format!("{source}: {reason}")))
+    let vertices = match element.text("vertex") {
+        Some(text) => {
+            let values: Vec<f32> = parse_list(text).ok_or_else(|| element.bad_value("vertex", "numbers"))?;
+            if !values.len().is_multiple_of(3) {
+                return Err(element.invalid("vertex data must be a multiple of 3"));
+            }
+            Some(values.chunks_exact(3).map(|v| [v[0], v[1], v[2]]).collect())
+        }
+        None => None,
+    };
+    let faces = match element.text("face") {
+        Some(text) => {
+            let values: Vec<i64> = parse_list(text).ok_or_else(|| element.bad_value("face", "integers"))?;
+            if !values.len().is_multiple_of(3) {
+                return Err(element.invalid("face data must be a multiple of 3"));
+            }
+            Some(values.chunks_exact(3).map(|f| [f[0], f[1], f[2]]).collect())
+        }
+        None => None,
+    };
+    Ok(MeshAsset {
+        line: element.line,
+        label: element.label(),
+        settings,
+        refpos,
+        refquat,
+        file,
+        vertices,
+        faces,
+        processed: OnceCell::new(),
+    })
+}
+
+impl MeshAsset {
+    /// The processed mesh, its file read the first time.
+    pub fn mesh(&self) -> Result<&Mesh, MjcfError> {
+        if let Some(mesh) = self.processed.get() {
+            return Ok(mesh);
+        }
+        let mesh = self.process()?;
+        Ok(self.processed.get_or_init(|| mesh))
+    }
+
+    fn invalid(&self, reason: String) -> MjcfError {
+        MjcfError::Invalid { line: self.line, element: self.label.clone(), reason }
+    }
+
+    /// Reads the file, if any, and processes the mesh.
+    fn process(&self) -> Result<Mesh, MjcfError> {
+        let mut raw = RawMesh::default();
+        if let Some((path, format)) = &self.file {
+            let bytes = crate::mjcf::read_regular_file(path)
+                .map_err(|e| self.invalid(format!("cannot read mesh file '{}': {e}", path.display())))?;
+            let in_file = |reason: String| self.invalid(format!("mesh file '{}': {reason}", path.display()));
+            raw = match format {
+                MeshFormat::Stl => files::read_stl(&bytes),
+                MeshFormat::Obj => std::str::from_utf8(&bytes)
+                    .map_err(|_| "the OBJ file is not UTF-8 text".to_string())
+                    .and_then(files::read_obj),
+                MeshFormat::Msh => files::read_msh(&bytes),
+            }
+            .map_err(in_file)?;
+        }
+        if let Some(vertices) = &self.vertices {
+            if !raw.vertices.is_empty() {
+                return Err(self.invalid("repeated vertex specification (both 'file' and 'vertex')".into()));
+            }
+            raw.vertices.clone_from(vertices);
+        }
+        if let Some(faces) = &self.faces {
+            if !raw.faces.is_empty() {
+                return Err(self.invalid("repeated face specification (both 'file' and 'face')".into()));
+            }
+            raw.faces.clone_from(faces);
+        }
+        let source = match &self.file {
+            Some((path, _)) => format!("mesh file '{}'", path.display()),
+            None => "mesh".to_string(),
+        };
+        process(raw, &self.settings, self.refpos, self.refquat)
+            .map(|mesh| Mesh { line: self.line, ..mesh })
+            .map_err(|reason| self.invalid(format!("{source}: {reason}")))
+    }
 }
 
 /// Parses whitespace-separated values.
@@ -542,7 +615,7 @@ fn unit_inertia(vertices: &[[f64; 3]], faces: &[[usize; 3]], com: &[f64; 3], mod
 }
 
 /// Mesh assets by name.
-pub(crate) type Meshes = HashMap<String, Mesh>;
+pub(crate) type Meshes = HashMap<String, MeshAsset>;
 
 #[cfg(test)]
 mod tests {
