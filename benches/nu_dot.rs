@@ -29,6 +29,7 @@ fn hinge_chain(links: usize) -> Vehicle {
         armature: 0.0,
         actuator_force_range: None,
         actuator_gravcomp: false,
+        springdamper: None,
         constraints: Default::default(),
         line: 0,
     };

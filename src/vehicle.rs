@@ -155,6 +155,9 @@ pub struct Joint {
     pub stiffness: f64,
     /// Viscous damping (N m s/rad or N s/m); zero when `<flag damper="disable"/>`.
     pub damping: f64,
+    /// MuJoCo's `springdamper`: when given, the compiled model's stiffness
+    /// and damping come from the joint's inertia in qpos0 instead.
+    pub springdamper: Option<SpringDamper>,
     /// Armature (rotor inertia) added to every dof of the joint.
     pub armature: f64,
     /// Limits of the total actuator force on the joint (MuJoCo's
@@ -168,6 +171,21 @@ pub struct Joint {
     pub constraints: JointConstraints,
     /// Line of the joint element in the MJCF file (1-based).
     pub line: u32,
+}
+
+/// A joint's `springdamper`: a spring and damper that make the joint, with
+/// its inertia in qpos0, a mass-spring-damper of this time constant and
+/// damping ratio (MuJoCo's `AutoSpringDamper`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpringDamper {
+    /// Time constant (s).
+    pub time_constant: f64,
+    /// Damping ratio.
+    pub damping_ratio: f64,
+    /// Whether the spring acts (not with `<flag spring="disable"/>`).
+    pub spring: bool,
+    /// Whether the damper acts (not with `<flag damper="disable"/>`).
+    pub damper: bool,
 }
 
 /// One `<site>`: a frame fixed to a body, where actuators apply forces.

@@ -25,7 +25,7 @@ use crate::math::{Mat3, Quat, Vec3};
 use crate::vehicle::{
     Actuation, Actuator, ActuatorKind, BiasType, Body, ConstraintOptions, Equality, EqualityObjects, FrameObject,
     GainType, Joint, JointConstraints, JointKind, JointLimit, MassProperties, PathPoint, Sensor, SensorKind,
-    SensorTarget, Site, Tendon, TendonPath, Transmission, Vehicle, WrapGeom,
+    SensorTarget, Site, SpringDamper, Tendon, TendonPath, Transmission, Vehicle, WrapGeom,
 };
 
 /// MuJoCo's `mjMINVAL`: the least mass and principal moment of a moving body.
@@ -1463,12 +1463,8 @@ impl Reader {
             let origin = |attribute: &str| {
                 if element.has(attribute) { "" } else { " (from its default class)" }
             };
-            if s.springdamper != [0.0; 2] {
-                return Err(element.unsupported(format!(
-                    "springdamper{}: it derives stiffness and damping from the compiled mass matrix; \
-                     give 'stiffness' and 'damping' instead",
-                    origin("springdamper")
-                )));
+            if s.springdamper != [0.0; 2] && !(s.springdamper[0] > 0.0 && s.springdamper[1] > 0.0) {
+                return Err(element.bad_value("springdamper", "two positive values (time constant, damping ratio)"));
             }
             if s.springyield != 0.0 {
                 return Err(element.unsupported(format!("springyield{}: yielding springs", origin("springyield"))));
@@ -1547,6 +1543,12 @@ impl Reader {
                 armature: s.armature,
                 actuator_force_range,
                 actuator_gravcomp: s.actuator_gravcomp,
+                springdamper: (s.springdamper != [0.0; 2]).then_some(SpringDamper {
+                    time_constant: s.springdamper[0],
+                    damping_ratio: s.springdamper[1],
+                    spring: !self.physics.spring_disabled,
+                    damper: !self.physics.damper_disabled,
+                }),
                 constraints: self.joint_constraints(&s, range),
                 line: element.line,
             });

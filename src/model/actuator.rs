@@ -8,12 +8,9 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{Model, ModelError};
+use super::{MIN_VALUE, Model, ModelError};
 use crate::math::{Transform, Vec3};
 use crate::vehicle::{ActuatorKind, BiasType, GainType};
-
-/// MuJoCo's `mjMINVAL`: below it, J M⁻¹ Jᵀ counts as zero (no reflected mass).
-const MIN_VALUE: f64 = 1e-15;
 
 /// A site's frame as the passes see it: fixed to a link, or to the world.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

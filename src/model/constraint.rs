@@ -318,16 +318,7 @@ impl Model {
         let mut ws = self.workspace();
         ws.set_configuration(self, &self.qpos0).map_err(singular)?;
         ws.world_transforms(self);
-        self.constraints.dof_invweight0 = self.dof_invweight0(&mut ws).map_err(singular)?;
-        let mut joint_infos = self.joints.iter();
-        for (b, body) in vehicle.bodies.iter().enumerate() {
-            let infos: Vec<&JointInfo> = joint_infos.by_ref().take(body.joints.len()).collect();
-            if let Some(mass) = slider_body_mass(vehicle, b) {
-                for info in infos {
-                    self.constraints.dof_invweight0[info.dof_adr] = 1.0 / mass;
-                }
-            }
-        }
+        self.constraints.dof_invweight0 = self.mujoco_dof_invweight0(vehicle, &mut ws).map_err(singular)?;
         let mut equalities = Vec::with_capacity(active.len());
         for (index, equality) in active {
             let rows = self.equality_rows(vehicle, attachments, sites, &mut ws, equality).map_err(|reason| {
@@ -337,6 +328,28 @@ impl Model {
         }
         self.constraints.equalities = equalities;
         super::validate::validate_constraints(self).map_err(|e| ModelError::Invalid(InvalidModel::Constraint(e)))
+    }
+
+    /// MuJoCo's `dof_invweight0` at the configuration `ws` holds (qpos0):
+    /// [`Model::dof_invweight0`], but 1/mass for the dofs of a body moved
+    /// by slides alone ([`slider_body_mass`]).
+    pub(super) fn mujoco_dof_invweight0(
+        &self,
+        vehicle: &Vehicle,
+        ws: &mut Workspace,
+    ) -> Result<Vec<f64>, DynamicsError> {
+        let mut invweight = self.dof_invweight0(ws)?;
+        let mut joint_infos = self.joints.iter();
+        for (b, body) in vehicle.bodies.iter().enumerate() {
+            // Taken whether used or not: the next body's joints follow.
+            let infos: Vec<&JointInfo> = joint_infos.by_ref().take(body.joints.len()).collect();
+            if let Some(mass) = slider_body_mass(vehicle, b) {
+                for info in infos {
+                    invweight[info.dof_adr] = 1.0 / mass;
+                }
+            }
+        }
+        Ok(invweight)
     }
 
     /// MuJoCo's `dof_invweight0`: the mean diagonal of M⁻¹ over each

@@ -563,11 +563,41 @@ impl Model {
         model.tendon_inertia = tendon::inertia_terms(&model);
         model.validate()?;
         model.check_positive_definite()?;
+        model.derive_spring_dampers(vehicle)?;
         model.compile_tendons_in_qpos0(vehicle)?;
         model.resolve_damping_ratios()?;
         model.constraints = constraints;
         model.compile_constraints_in_qpos0(vehicle, &attachments, &sites)?;
         Ok(model)
+    }
+
+    /// The stiffness and damping of joints with a `springdamper`, as
+    /// MuJoCo's `AutoSpringDamper` derives them from the joint's inertia in
+    /// qpos0, I = ndof / Σ `dof_invweight0` over its dofs: k = I/(τζ)²,
+    /// b = 2I/τ (the solref rule for a time constant τ and damping ratio ζ).
+    fn derive_spring_dampers(&mut self, vehicle: &Vehicle) -> Result<(), ModelError> {
+        let joints = || vehicle.bodies.iter().flat_map(|body| &body.joints);
+        if joints().all(|joint| joint.springdamper.is_none()) {
+            return Ok(());
+        }
+        let mut ws = self.workspace();
+        ws.set_configuration(self, &self.qpos0).map_err(|e| self.singular(e))?;
+        let invweight = self.mujoco_dof_invweight0(vehicle, &mut ws).map_err(|e| self.singular(e))?;
+        let derived: Vec<_> = joints()
+            .zip(&self.joints)
+            .filter_map(|(joint, info)| Some((joint.springdamper?, info.dof_adr..info.dof_adr + joint.kind.nv())))
+            .collect();
+        for (sd, dofs) in derived {
+            let inertia = dofs.len() as f64 / invweight[dofs.clone()].iter().sum::<f64>().max(MIN_VALUE);
+            let stiffness = inertia / (sd.time_constant * sd.damping_ratio).powi(2).max(MIN_VALUE);
+            let damping = 2.0 * inertia / sd.time_constant.max(MIN_VALUE);
+            for link in self.links.iter_mut().filter(|link| dofs.contains(&link.dof_adr)) {
+                link.stiffness = if sd.spring { stiffness } else { 0.0 };
+                link.damping = if sd.damper { damping } else { 0.0 };
+            }
+        }
+        self.shortcuts = Shortcuts::of(&self.links, &self.gravity);
+        Ok(())
     }
 
     /// Whether forces beyond the tree's passes act: the tendons' armature
@@ -767,6 +797,9 @@ fn common_link(links: &[Link], a: Option<usize>, b: Option<usize>) -> Option<usi
 fn dof_count(links: &[Link]) -> usize {
     links.last().map_or(0, |l| l.dof_adr + l.ndof)
 }
+
+/// MuJoCo's smallest denominator (mjMINVAL).
+const MIN_VALUE: f64 = 1e-15;
 
 /// Appends the link of `joint` (of body `body_name`) attached at `inboard`;
 /// returns its index. Free-joint halves have their anchor at the body origin.

@@ -386,6 +386,7 @@ pub fn joint(rng: &mut Rng, name: String, kind: JointKind) -> Joint {
         armature: if rng.below(2) == 0 { rng.uniform(0.0, 0.5) } else { 0.0 },
         actuator_force_range: None,
         actuator_gravcomp: false,
+        springdamper: None,
         constraints: Default::default(),
         line: 0,
     }
