@@ -28,6 +28,7 @@ pub mod forces;
 mod gravity_compensation;
 mod interaction;
 pub mod kinematics;
+pub mod mode;
 mod noslip;
 pub mod quantities;
 pub mod sensors;

@@ -1,5 +1,6 @@
 //! Where the constraint forces switch, located as events inside an
-//! adaptive run (docs/integration.md, "Constraint switches").
+//! adaptive run (docs/integration.md, "Constraint switches"; the mode and
+//! its margins are [`crate::dynamics::mode`]'s).
 //!
 //! MuJoCo's constraint forces are smooth in the state except where
 //! - a limit side switches on or off (its distance crosses its margin):
@@ -30,7 +31,7 @@
 
 use super::rkmk::{Integrator, retract};
 use crate::dynamics::DynamicsError;
-use crate::dynamics::constraint::limit_switching_functions;
+use crate::dynamics::mode::ConstraintMode;
 use crate::model::Model;
 use crate::workspace::Workspace;
 
@@ -44,17 +45,12 @@ const MAX_ATTEMPTS: usize = 40;
 /// changes the state by a small part of what the step may err by.
 const RESOLUTION_SHARE: f64 = 0.01;
 
-/// The margins of the mode (limit sides first, then rows) at the points of
-/// the step being located, and the buffers to compute them.
+/// The mode a step holds, its margins at the points of the step being
+/// located, and the end configuration.
 #[derive(Clone, Debug, Default)]
 pub struct Switches {
-    /// Which limit sides the step holds active.
-    sides_active: Vec<bool>,
-    /// The sides' switching functions at a configuration (scratch).
-    side_values: Vec<f64>,
-    /// The margins at the step's start: a margin switches where it falls
-    /// below the lesser of 0 and this (a bound force's multiplier may start
-    /// a hair below 0, within the solver's tolerance).
+    mode: ConstraintMode,
+    /// The margins at the step's start.
     start: Vec<f64>,
     /// At the end of the step attempted last.
     end: Vec<f64>,
@@ -77,22 +73,21 @@ pub(super) struct Located {
 impl Switches {
     /// Buffers for `model`; empty (and not [`Switches::watched`]) without constraints.
     pub fn new(model: &Model) -> Self {
-        let sides = model.constraints.limit_sides();
-        let margins = if model.constraints.is_empty() { 0 } else { sides + 2 * model.constraints.max_rows() };
+        let mode = ConstraintMode::new(model);
+        let margins = vec![0.0; mode.len()];
         Switches {
-            sides_active: vec![false; sides],
-            side_values: vec![0.0; sides],
-            start: vec![0.0; margins],
-            end: vec![0.0; margins],
-            before: vec![0.0; margins],
-            after: vec![0.0; margins],
-            theta_end: if margins > 0 { vec![0.0; model.nq] } else { Vec::new() },
+            start: margins.clone(),
+            end: margins.clone(),
+            before: margins.clone(),
+            after: margins,
+            theta_end: if mode.is_empty() { Vec::new() } else { vec![0.0; model.nq] },
+            mode,
         }
     }
 
     /// Whether the model has constraints whose forces can switch.
     pub fn watched(&self) -> bool {
-        !self.start.is_empty()
+        !self.mode.is_empty()
     }
 
     /// Sets the mode a step from (θ, θ̇) at `t` holds: the sides active at
@@ -112,7 +107,8 @@ impl Switches {
 
     /// [`Switches::establish`] at the end of a step cut to a switch
     /// (`located`): the forces that crossed a bound of their working set
-    /// start the solve there on its far side.
+    /// start the solve there on its far side, so that a solve a hair past
+    /// the switch does not find the old working set again.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn establish_after(
         &mut self,
@@ -125,23 +121,16 @@ impl Switches {
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<(), DynamicsError> {
         if located {
-            let sides = self.sides_active.len();
-            let rows = model.constraints.max_rows();
-            let forces = (sides..sides + rows).filter(|&k| self.end[k] < threshold(self.start[k]));
+            let sides = self.mode.sides();
+            let forces =
+                (sides..sides + model.constraints.max_rows()).filter(|&k| self.mode.distance(k, self.end[k]) < 0.0);
             for k in forces {
                 ws.cross_working_set(k - sides);
             }
         }
-        side_switching_functions(model, ws, theta, &mut self.side_values)?;
-        for (active, value) in self.sides_active.iter_mut().zip(&self.side_values) {
-            *active = *value < 0.0;
-        }
-        ws.hold_limit_sides(&self.side_values);
-        ws.release_working_set();
+        self.mode.hold_sides(model, ws, theta)?;
         integrator.evaluate_start(model, ws, (theta, qvel), t, inputs_at)?;
-        ws.hold_working_set(model);
-        let Switches { sides_active, side_values, start, .. } = self;
-        margins(model, ws, sides_active, side_values, start);
+        self.mode.hold_working_set(model, ws, &mut self.start);
         Ok(())
     }
 
@@ -164,10 +153,8 @@ impl Switches {
         }
         self.theta_end.copy_from_slice(theta);
         retract(model, &mut self.theta_end, integrator.delta.as_slice());
-        side_switching_functions(model, ws, &self.theta_end, &mut self.side_values)?;
-        let Switches { sides_active, side_values, end, .. } = self;
-        margins(model, ws, sides_active, side_values, end);
-        Ok(leaves(&self.start, &self.end))
+        self.mode.margins(model, ws, &self.theta_end, &mut self.end)?;
+        Ok(self.mode.left(&self.end))
     }
 
     /// Cuts the attempted step of `step`, which left the mode, to end just
@@ -200,7 +187,7 @@ impl Switches {
             let aim = if attempts % 3 == 2 {
                 before + 0.5 * width
             } else {
-                let estimate = before + earliest_switch(&self.start, &self.before, &self.after) * width;
+                let estimate = before + self.earliest_switch() * width;
                 let nudged = if past { estimate + 0.5 * resolution } else { estimate - 0.5 * resolution };
                 nudged.clamp(before + 0.01 * width, after - 0.01 * width)
             };
@@ -234,58 +221,24 @@ impl Switches {
     pub(super) fn step_taken(&mut self) {
         std::mem::swap(&mut self.start, &mut self.end);
     }
-}
 
-/// The limit sides' switching functions at `theta`: the joints' limits
-/// read it directly, the tendons' need their lengths there (passes 0 and 1).
-fn side_switching_functions(
-    model: &Model,
-    ws: &mut Workspace,
-    theta: &[f64],
-    out: &mut [f64],
-) -> Result<(), DynamicsError> {
-    if model.constraints.tendon_limits.is_empty() {
-        limit_switching_functions(model, theta, &[], out);
-    } else {
-        ws.set_configuration(model, theta)?;
-        limit_switching_functions(model, theta, ws.tendon_length.as_slice(), out);
+    /// The earliest switch, as a share of the bracket, of the margins that
+    /// switch between its ends, each taken as linear between them (the
+    /// secant).
+    fn earliest_switch(&self) -> f64 {
+        earliest_zero(
+            (0..self.before.len())
+                .map(|k| (self.mode.distance(k, self.before[k]), self.mode.distance(k, self.after[k]))),
+        )
     }
-    Ok(())
 }
 
-/// The mode's margins into `out`: the sides' (their switching function,
-/// negated where held active), then the rows' of the workspace's last
-/// evaluation.
-fn margins(model: &Model, ws: &Workspace, sides_active: &[bool], side_values: &[f64], out: &mut [f64]) {
-    let (sides, rows) = out.split_at_mut(sides_active.len());
-    for ((margin, &active), &value) in sides.iter_mut().zip(sides_active).zip(side_values) {
-        *margin = if active { -value } else { value };
-    }
-    ws.switching_margins(model, rows);
-}
-
-/// The level below which a margin that started at `start` has switched.
-fn threshold(start: f64) -> f64 {
-    start.min(0.0)
-}
-
-/// Whether some margin fell below its threshold.
-fn leaves(start: &[f64], end: &[f64]) -> bool {
-    start.iter().zip(end).any(|(s, e)| *e < threshold(*s))
-}
-
-/// The earliest switch, as a share of the bracket, of the margins that
-/// cross their threshold between its ends, each taken as linear between
-/// them (the secant).
-fn earliest_switch(start: &[f64], before: &[f64], after: &[f64]) -> f64 {
-    start
-        .iter()
-        .zip(before.iter().zip(after))
-        .filter(|(s, (b, a))| **a < threshold(**s) && **b >= threshold(**s))
-        .map(|(s, (b, a))| {
-            let (b, a) = (b - threshold(*s), a - threshold(*s));
-            if b.is_finite() && a.is_finite() { b / (b - a) } else { 0.5 }
-        })
+/// The earliest zero, as a share of the bracket, of the (before, after)
+/// distances that change from non-negative to negative across it.
+fn earliest_zero(distances: impl Iterator<Item = (f64, f64)>) -> f64 {
+    distances
+        .filter(|(before, after)| *after < 0.0 && *before >= 0.0)
+        .map(|(before, after)| if before.is_finite() && after.is_finite() { before / (before - after) } else { 0.5 })
         .fold(1.0, f64::min)
 }
 
@@ -295,15 +248,9 @@ mod tests {
 
     #[test]
     fn the_secant_takes_the_earliest_switch() {
-        // Margin 0 stays, margin 1 crosses at 3/4, margin 2 at 1/4 of the bracket.
-        let start = [1.0, 3.0, 1.0];
-        let before = [1.0, 3.0, 1.0];
-        let after = [2.0, -1.0, -3.0];
-        assert_eq!(earliest_switch(&start, &before, &after), 0.25);
-        assert!(leaves(&start, &after));
-        assert!(!leaves(&start, &[5.0, 0.0, 2.0]));
-        // A margin that starts a hair below zero switches only below that.
-        assert!(!leaves(&[-1e-16], &[-1e-16]));
-        assert!(leaves(&[-1e-16], &[-1e-15]));
+        // Distance 0 stays, 1 crosses at 3/4, 2 at 1/4 of the bracket, 3 was past already.
+        let distances = [(1.0, 2.0), (3.0, -1.0), (1.0, -3.0), (-1.0, -2.0)];
+        assert_eq!(earliest_zero(distances.into_iter()), 0.25);
+        assert_eq!(earliest_zero([(1.0, 2.0)].into_iter()), 1.0);
     }
 }

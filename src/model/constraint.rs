@@ -195,6 +195,14 @@ impl Constraints {
         2 * (self.limits.len() + self.tendon_limits.len())
     }
 
+    /// How many switches the constraint forces have (limit sides, then two
+    /// per row: its force's working set and its impedance piece), the
+    /// margins of [`crate::dynamics::mode::ConstraintMode`]; 0 without
+    /// constraints.
+    pub fn switch_count(&self) -> usize {
+        if self.is_empty() { 0 } else { self.limit_sides() + 2 * self.max_rows() }
+    }
+
     /// The slot of side `side` (0 lower, 1 upper; a ball's is 0) of joint limit `index`.
     pub fn joint_limit_slot(&self, index: usize, side: usize) -> usize {
         2 * index + side
