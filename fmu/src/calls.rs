@@ -234,13 +234,19 @@ pub fn get_nominals(component: &dyn Component, nominals: &mut [f64]) -> Result<(
     Ok(())
 }
 
-/// fmi2GetEventIndicators: there are none.
-pub fn get_event_indicators(component: &dyn Component, n: usize) -> Result<(), CallError> {
+/// The check of GetEventIndicators' count, before any slice is made of it:
+/// model exchange, and `expected` indicators (FMI 3.0 declares none).
+pub fn event_indicator_count(component: &dyn Component, found: usize, expected: usize) -> Result<(), CallError> {
     component.continuous_state_count().ok_or(CallError::NotProvided("model exchange"))?;
-    if n != 0 {
-        return Err(CallError::EventIndicators(n));
+    if found != expected {
+        return Err(CallError::EventIndicators { found, expected });
     }
     Ok(())
+}
+
+/// fmi2GetEventIndicators, its count checked.
+pub fn get_event_indicators(component: &mut dyn Component, indicators: &mut [f64]) -> Result<(), CallError> {
+    component.event_indicators(indicators)
 }
 
 /// fmi2SetTime: a finite time.

@@ -67,6 +67,23 @@ pub trait Component {
     /// fmi2SetupExperiment, with arguments already checked.
     fn setup_experiment(&mut self, tolerance: Option<f64>, start_time: f64, stop_time: Option<f64>);
 
+    /// How many event indicators model exchange in FMI 2.0 has.
+    fn event_indicator_count(&self) -> usize {
+        0
+    }
+
+    /// fmi2GetEventIndicators: their values at the current state, into
+    /// `out` ([`Component::event_indicator_count`] long).
+    fn event_indicators(&mut self, _out: &mut [f64]) -> Result<(), CallError> {
+        Ok(())
+    }
+
+    /// fmi2NewDiscreteStates: what holds from this event to the next is set
+    /// from the state here.
+    fn update_discrete_states(&mut self) -> Result<(), CallError> {
+        Ok(())
+    }
+
     /// fmi2ExitInitializationMode: whatever was set must make a run; the
     /// answer is a note for the log, if the run differs from what the
     /// FMU's own parameters say.
@@ -364,9 +381,14 @@ pub enum CallError {
         /// The value.
         value: f64,
     },
-    /// Event indicators asked of an FMU that has none.
-    #[error("ni = {0}, but the FMU has no event indicators")]
-    EventIndicators(usize),
+    /// Event indicators asked in a number other than the FMU's.
+    #[error("ni = {found}, but the FMU has {expected} event indicators")]
+    EventIndicators {
+        /// ni.
+        found: usize,
+        /// The FMU's count.
+        expected: usize,
+    },
     /// A stop time before the start time.
     #[error("stopTime = {stop_time} is before startTime = {start_time}")]
     StopBeforeStart {

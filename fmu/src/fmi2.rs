@@ -545,9 +545,11 @@ pub unsafe extern "C" fn fmi2EnterEventMode(c: fmi2Component) -> fmi2Status {
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi2NewDiscreteStates(c: fmi2Component, event_info: *mut fmi2EventInfo) -> fmi2Status {
     unsafe {
-        enter(c, Function::NewDiscreteStates, |_| {
+        enter(c, Function::NewDiscreteStates, |instance| {
             let event_info = event_info.as_mut().ok_or(FmiError::Null("fmi2eventInfo"))?;
-            // No discrete states, no time or state events: nothing ever changes at an event.
+            // The constraint mode the state gives holds until the next event;
+            // no discrete states of the host's change, no time events.
+            instance.component.update_discrete_states()?;
             *event_info = fmi2EventInfo {
                 newDiscreteStatesNeeded: fmi2False as fmi2Boolean,
                 terminateSimulation: fmi2False as fmi2Boolean,
@@ -630,11 +632,16 @@ pub unsafe extern "C" fn fmi2GetDerivatives(c: fmi2Component, derivatives: *mut 
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi2GetEventIndicators(
     c: fmi2Component,
-    _event_indicators: *mut fmi2Real,
+    event_indicators: *mut fmi2Real,
     ni: usize,
 ) -> fmi2Status {
     unsafe {
-        enter(c, Function::GetEventIndicators, |instance| Ok(calls::get_event_indicators(&*instance.component, ni)?))
+        enter(c, Function::GetEventIndicators, |instance| {
+            let expected = instance.component.event_indicator_count();
+            calls::event_indicator_count(&*instance.component, ni, expected)?;
+            let indicators = slice_mut(event_indicators, ni, "eventIndicators")?;
+            Ok(calls::get_event_indicators(&mut *instance.component, indicators)?)
+        })
     }
 }
 

@@ -6,6 +6,7 @@
 //! Outputs beyond θ and ν are computed when first read after a change of
 //! state, so outputs nobody reads cost nothing.
 
+use nudyn::dynamics::mode::ConstraintMode;
 use nudyn::dynamics::quantities::kinetic_energy;
 use nudyn::integrate::{HeldJacobian, Input, MethodSetting, RunState, Settings, Simulation};
 use nudyn::model::{LinkJoint, Model};
@@ -103,6 +104,13 @@ pub struct Plant {
     starts: (Vec<u32>, Vec<f64>),
     /// The start of `method` chosen at export.
     start_method: MethodSetting,
+    /// Model exchange in FMI 2.0: the constraint mode held from one event
+    /// to the next (its margins are the event indicators), once set.
+    mode: ConstraintMode,
+    mode_held: bool,
+    /// The margins of `mode` (scratch), and θ to set it at (scratch).
+    margins: Vec<f64>,
+    theta_scratch: Vec<f64>,
 }
 
 impl Plant {
@@ -133,6 +141,10 @@ impl Plant {
             experiment_tolerance: None,
             starts,
             start_method,
+            mode: ConstraintMode::new(&model),
+            mode_held: false,
+            margins: vec![0.0; model.constraints.switch_count()],
+            theta_scratch: vec![0.0; model.nq],
             model,
         };
         plant.set_starts();
@@ -176,6 +188,19 @@ impl Plant {
         Ok(())
     }
 
+    /// The margins of the held constraint mode at the current state, into `margins`.
+    fn held_margins(&mut self) -> Result<(), CallError> {
+        self.evaluate(Evaluated::Acceleration)?;
+        self.theta_scratch.copy_from_slice(&self.sim.state.theta);
+        let ws = self.sim.workspace_mut();
+        self.mode.margins(&self.model, ws, &self.theta_scratch, &mut self.margins).map_err(CallError::Evaluate)?;
+        if !self.model.constraints.tendon_limits.is_empty() {
+            // The tendons' lengths ran passes 0 and 1 again.
+            self.evaluated = Evaluated::Nothing;
+        }
+        Ok(())
+    }
+
     /// The sizes of the state an FMU state of this plant holds.
     fn sizes(&self) -> Sizes {
         Sizes { nq: self.model.nq, nv: self.model.nv, nu: self.model.actuators.len() }
@@ -214,6 +239,7 @@ impl Component for Plant {
         self.evaluated = Evaluated::Nothing;
         self.failed_for_good = false;
         self.experiment_tolerance = None;
+        self.mode_held = false;
         self.set_starts();
     }
 
@@ -551,6 +577,63 @@ impl Component for Plant {
         self.ctrl_rate.clone_from(&state.ctrl_rate);
         self.evaluated = Evaluated::Nothing;
         self.failed_for_good = false;
+        // The mode held belongs to the state replaced: the next event sets it anew.
+        self.sim.workspace_mut().release_limit_sides();
+        self.mode_held = false;
+        Ok(())
+    }
+
+    fn event_indicator_count(&self) -> usize {
+        self.mode.len()
+    }
+
+    /// The margins of the constraint mode held since the last event, each
+    /// less its level of switching: negative once the constraint forces
+    /// are no longer MuJoCo's (a limit side, a force's bound or an
+    /// impedance piece crossed), when the host must locate the crossing
+    /// and call fmi2NewDiscreteStates there.
+    fn event_indicators(&mut self, out: &mut [f64]) -> Result<(), CallError> {
+        if !self.mode_held {
+            self.update_discrete_states()?;
+        }
+        self.held_margins()?;
+        for (k, (indicator, &margin)) in out.iter_mut().zip(&self.margins).enumerate() {
+            let distance = self.mode.distance(k, margin);
+            // A row that is not there has no switch: any positive value says so.
+            *indicator = if distance.is_finite() { distance } else { 1.0 };
+        }
+        Ok(())
+    }
+
+    /// Sets the constraint mode the state gives (MuJoCo's own forces here),
+    /// held until the next event. At an event the host located, a force
+    /// whose margin has crossed starts the solve on the far side of its
+    /// bound: found from scratch a hair past the switch, the working set
+    /// could be the old one again, and its indicator would then stay below
+    /// zero, where the host sees no further crossing.
+    fn update_discrete_states(&mut self) -> Result<(), CallError> {
+        if self.mode.is_empty() {
+            return Ok(());
+        }
+        if self.mode_held {
+            self.held_margins()?;
+            let sides = self.mode.sides();
+            let ws = self.sim.workspace_mut();
+            for k in sides..self.margins.len() - self.model.constraints.max_rows() {
+                if self.mode.distance(k, self.margins[k]) < 0.0 {
+                    ws.cross_working_set(k - sides);
+                }
+            }
+        }
+        let model = &self.model;
+        self.theta_scratch.copy_from_slice(&self.sim.state.theta);
+        self.mode.hold_sides(model, self.sim.workspace_mut(), &self.theta_scratch).map_err(CallError::Evaluate)?;
+        let ws = self.sim.evaluate_velocity(model).map_err(CallError::Evaluate)?;
+        ws.compute_nu_dot_actuated(model, &self.eps, &self.ctrl).map_err(CallError::Evaluate)?;
+        self.mode.hold_working_set(model, ws, &mut self.margins);
+        self.mode_held = true;
+        // The evaluation just made is the held mode's at this state.
+        self.evaluated = Evaluated::Acceleration;
         Ok(())
     }
 

@@ -436,6 +436,12 @@ impl Simulation {
         &self.ws
     }
 
+    /// The workspace, to hold a constraint mode on it between a host's
+    /// events (model exchange); an advance sets and releases its own.
+    pub fn workspace_mut(&mut self) -> &mut Workspace {
+        &mut self.ws
+    }
+
     /// Runs the passes up to θ̇ at the current state and hands out the
     /// workspace, for outputs that need more (momentum, ν̇).
     pub fn evaluate_velocity(&mut self, model: &Model) -> Result<&mut Workspace, DynamicsError> {

@@ -304,7 +304,7 @@ def model_exchange_counts(plant: Harness3, _ctrl):
     for name in ("fmi3GetContinuousStates", "fmi3SetContinuousStates", "fmi3GetContinuousStateDerivatives",
                  "fmi3GetNominalsOfContinuousStates"):
         plant.refuse_counts(c, name, lambda k: (x, size(k)), nx, says=(f"the FMU has {nx}",))
-    plant.refuse_counts(c, "fmi3GetEventIndicators", lambda k: (x, size(k)), 0, says=("no event indicators",))
+    plant.refuse_counts(c, "fmi3GetEventIndicators", lambda k: (x, size(k)), 0, says=("but the FMU has 0 event indicators",))
 
 
 @case

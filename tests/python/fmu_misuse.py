@@ -775,7 +775,7 @@ def model_exchange_misuse(h: Harness):
     for name, n, says in [("fmi2GetContinuousStates", nx - 1, f"has {nx - 1} entries, but the FMU has {nx}"),
                           ("fmi2GetDerivatives", nx + 1, f"has {nx + 1} entries"),
                           ("fmi2GetNominalsOfContinuousStates", 0, f"has 0 entries, but the FMU has {nx}"),
-                          ("fmi2GetEventIndicators", 1, "no event indicators"),
+                          ("fmi2GetEventIndicators", 1, "but the FMU has 0 event indicators"),
                           ("fmi2SetContinuousStates", nx, "x is NULL")]:
         h.expect(ERROR, name, c, None if name == "fmi2SetContinuousStates" else dx, n, says=(says,))
         h.expect(OK, "fmi2SetFMUstate", c, in_continuous_time)

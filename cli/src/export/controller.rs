@@ -98,6 +98,7 @@ fn header(model: &Model, law: &ControlLaw, model_identifier: &str, guid: &str) -
         ),
         model_identifier: model_identifier.to_string(),
         capabilities: CAPABILITIES,
+        event_indicators: 0,
         generated: generation_date_and_time(),
     }
 }

@@ -286,6 +286,9 @@ struct Header {
     description: String,
     model_identifier: String,
     capabilities: Capabilities,
+    /// FMI 2.0 model exchange's `numberOfEventIndicators`: the switches of
+    /// the constraint forces (FMI 3.0 would declare them as variables).
+    event_indicators: usize,
     /// `generationDateAndTime`: [`generation_date_and_time`].
     generated: String,
 }
@@ -322,7 +325,7 @@ impl Header {
             generation_tool: Some(format!("nudyn {}", env!("CARGO_PKG_VERSION"))),
             generation_date_and_time: Some(self.generated.clone()),
             variable_naming_convention: Some(md::VariableNamingConvention::Structured),
-            number_of_event_indicators: self.capabilities.model_exchange.then_some(0),
+            number_of_event_indicators: self.capabilities.model_exchange.then_some(self.event_indicators as u32),
             model_exchange: model_exchange(&self.model_identifier, self.capabilities),
             co_simulation: co_simulation(&self.model_identifier, self.capabilities),
             unit_definitions: Vec::new(),

@@ -247,6 +247,7 @@ fn header(model: &Model, options: &ExportOptions, guid: &str) -> Header {
         },
         model_identifier: options.model_identifier.clone(),
         capabilities: capabilities(options.outputs),
+        event_indicators: model.constraints.switch_count(),
         generated: generation_date_and_time(),
     }
 }
