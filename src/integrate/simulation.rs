@@ -303,7 +303,15 @@ impl Simulation {
             Ok(stats) => {
                 self.state.time = t_end;
                 let rates = || self.integrator.largest_rate();
-                let relaxed = self.state.carry.relaxed_since(relaxation_before, t0, self.settings.tolerance, rates);
+                let options = &model.constraints.options;
+                let friction = !(model.constraints.friction.is_empty() && model.constraints.tendon_friction.is_empty());
+                let no_slip = (options.noslip_iterations > 0 && friction)
+                    .then_some((options.noslip_iterations, options.noslip_tolerance));
+                let relaxed = self
+                    .state
+                    .carry
+                    .relaxed_since(relaxation_before, t0, self.settings.tolerance, rates)
+                    .map(|relaxed| ToleranceRelaxed { no_slip, ..relaxed });
                 let judged = chose.is_none() && !starts;
                 let moved = if judged { self.move_up_if_dear(model, t0, &stats) } else { None };
                 Ok(Advanced { stats, relaxed, chose, moved })
