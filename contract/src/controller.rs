@@ -54,11 +54,6 @@ impl ControllerResource {
 
 impl Resource for ControllerResource {
     const FILE: &'static str = "controller.json";
-    // 2: the compiled model gained constraints and sensors_disabled
-    // (2026-11-26); a format-1 reader would silently drop them.
-    // 3: force and torque sensors and interaction_bodies,
-    // gravity_compensation, tendons and their constraint rows (2026-11-26),
-    // which a format-2 reader would drop as silently.
     const FORMAT: u32 = 3;
 
     fn format(&self) -> u32 {

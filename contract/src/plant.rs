@@ -189,14 +189,6 @@ impl PlantResource {
 
 impl Resource for PlantResource {
     const FILE: &'static str = "model.json";
-    // 2: the compiled model gained constraints and sensors_disabled
-    // (2026-11-26); a format-1 reader would silently drop them.
-    // 3: start values chosen at export (`starts`), force and torque sensors
-    // and interaction_bodies, gravity_compensation, tendons and their
-    // constraint rows (2026-11-26), which a format-2 reader would silently
-    // ignore.
-    // 4: the start of `method` chosen at export (`method`, 2026-11-26),
-    // which a format-3 reader would silently replace by its default.
     const FORMAT: u32 = 4;
 
     fn format(&self) -> u32 {

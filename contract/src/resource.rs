@@ -15,7 +15,9 @@ use crate::fmi3::Fmi3Variables;
 pub trait Resource: Serialize + DeserializeOwned {
     /// Its file name in the FMU's `resources/` directory.
     const FILE: &'static str;
-    /// The layout version the writer uses and the reader accepts.
+    /// The layout version the writer uses and the reader accepts, raised
+    /// whenever the file gains something an older reader would silently drop
+    /// or replace by a default (what each version added is in git's history).
     const FORMAT: u32;
 
     /// The version the file was written with.

@@ -1,7 +1,10 @@
-//! The binary of a nudyn FMI 2.0 co-simulation FMU. `nudyn export` copies
-//! this cdylib to `binaries/linux64/<modelIdentifier>.so` beside the
-//! resource file (`resources/model.json` or `resources/controller.json`);
-//! the exported symbols are the standard, unprefixed `fmi2*` names.
+//! The binary of every nudyn FMU: FMI 2.0 and FMI 3.0, co-simulation and
+//! model exchange, plant and controller. `nudyn export` copies this cdylib
+//! into the FMU's `binaries/` folder (`linux64/<modelIdentifier>.so` for
+//! FMI 2.0, `x86_64-linux/<modelIdentifier>.so` for FMI 3.0; the win64 DLL
+//! likewise) beside the resource file (`resources/model.json` or
+//! `resources/controller.json`); the exported symbols are the standard,
+//! unprefixed `fmi2*` and `fmi3*` names.
 //!
 //! - [`layer`]: the generic FMI layer both versions share (instances,
 //!   the entry path, statuses, logging, FMU states); with [`fmi2`] and

@@ -15,14 +15,9 @@ use crate::state::Phase;
 
 /// Identifies a nudyn FMU state blob.
 const MAGIC: &[u8; 8] = b"nudynFMS";
-/// Version of the byte layout below (2: the state machine's state; 3: the
-/// integration method, energy projection, carried step, work and K₀; 4: the
-/// error control's relaxation; 5: the actuators' controls and their rates;
-/// 6: the method as the FMU's `method` value, max_step 0 allowed; 7: θ̇,
-/// which the integrator advances; 8: the W a Rosenbrock method holds; 9:
-/// the rates at the run's start, which a relaxation's warning compares with;
-/// 10: what `method = auto` chose and measured; 11: the attempts of the
-/// communication steps `auto` weighs its next move on).
+/// Version of the byte layout below, raised with every change to it; a blob
+/// of another version is refused (what each version added is in git's
+/// history).
 const VERSION: u32 = 11;
 
 /// The sizes of a plant's state: a blob is restored only into a plant of the same.

@@ -10,7 +10,7 @@ failed").
 
 Run like fmu_misuse.py, one case per process: `python fmi3_misuse.py run
 CASE PLANT_DIR CONTROLLER_DIR` (unzipped FMI 3.0 FMUs); its results go
-into the README's table with the FMI 2.0 cases."""
+into the misuse table of docs/fmi.md with the FMI 2.0 cases."""
 
 from __future__ import annotations
 

@@ -7,8 +7,8 @@ every call it makes and the words the FMU must log about it.
 Every case runs in a process of its own (`python fmu_misuse.py run CASE
 ...`), so that a crash or a hang is seen by the parent as a signal or a
 timeout instead of taking the test runner down; `test_fmu_misuse.py` runs
-them all, and checks the README's table (`table` below): its crash column
-is 0 because a case that crashes or hangs fails the suite.
+them all, and checks the misuse table in docs/fmi.md (`table` below): its
+crash column is 0 because a case that crashes or hangs fails the suite.
 
 Statuses (FMI 2.0 §2.1.3): fmi2Error for a call the FMU refuses (then the
 instance is in the error state, §4.2.4, until fmi2SetFMUstate, fmi2Reset
@@ -1036,7 +1036,7 @@ def status_name(function: str, status: int) -> str:
 
 
 def table(results: list[dict]) -> str:
-    """The README's table: per group, the cases, the calls they made, and
+    """The misuse table of docs/fmi.md: per group, the cases, the calls they made, and
     the statuses of those the FMU refused (fmi2FreeInstance, which returns
     nothing, counts as fmi2OK)."""
     rows: dict[str, dict] = {}

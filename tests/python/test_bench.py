@@ -1,7 +1,8 @@
 """Smoke test of the benchmark command (`scripts/bench.py --quick`): it
-runs every section at tiny sizes and writes what the README shows. It
-checks that the outputs are there and consistent, never how fast anything
-is (a timed test on a shared machine would only measure the machine)."""
+runs every section at tiny sizes and writes what docs/performance.md
+shows. It checks that the outputs are there and consistent, never how fast
+anything is (a timed test on a shared machine would only measure the
+machine)."""
 
 from __future__ import annotations
 
