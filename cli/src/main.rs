@@ -22,7 +22,7 @@ use simulate::Format;
 mod simulate;
 
 #[derive(Parser)]
-#[command(name = "nudyn", version, about = "Diagonalized dynamics of robotic space vehicles, as FMI 2.0 FMUs")]
+#[command(name = "nudyn", version, about = "Diagonalized dynamics of robotic space vehicles, as FMI 2.0 and 3.0 FMUs")]
 struct Cli {
     #[command(subcommand)]
     command: Command,
