@@ -123,7 +123,7 @@ pub struct ConstraintRows {
     held_working_set: Option<usize>,
     /// While limit sides are held: how far each row's force is from
     /// leaving its working set ([`BoxQp::working_set_margins`]).
-    pub margins: Vec<f64>,
+    margins: Vec<f64>,
     /// The impedance piece of each row (held with the working set).
     pieces: Vec<ImpedancePiece>,
     /// While limit sides are held: how far each row is from leaving its piece.
