@@ -469,7 +469,7 @@ impl Simulation {
         if self.switches.watched() {
             let Simulation { state, integrator, ws, switches, .. } = self;
             switches
-                .establish(model, ws, integrator, (&state.theta, &state.qvel), t0, inputs_at)
+                .establish(model, ws, integrator, (&state.theta, &state.qvel), t0, false, inputs_at)
                 .map_err(|cause| AdvanceError::StepFailed { reached: t0, step: 0.0, cause })?;
         }
         let h = if self.state.carry.next_step > 0.0 {
@@ -555,7 +555,7 @@ impl Simulation {
                 if crossed {
                     // Past the switch: the mode of the new start, and its rates as the first stage.
                     switches
-                        .establish_after(model, ws, integrator, (theta, qvel), t, true, inputs_at)
+                        .establish(model, ws, integrator, (theta, qvel), t, true, inputs_at)
                         .map_err(|cause| AdvanceError::StepFailed { reached: t, step: 0.0, cause })?;
                 } else if watch {
                     switches.step_taken();

@@ -383,7 +383,7 @@ impl Simulation {
         let step = (t_end - t0).min(settings.step_bound(PROBE_METHOD));
         // The probe holds the constraint mode of its start, as every adaptive step does.
         let attempted = if switches.watched() {
-            switches.establish(model, ws, integrator, (&state.theta, &state.qvel), t0, inputs_at)
+            switches.establish(model, ws, integrator, (&state.theta, &state.qvel), t0, false, inputs_at)
         } else {
             Ok(())
         }

@@ -92,25 +92,12 @@ impl Switches {
 
     /// Sets the mode a step from (θ, θ̇) at `t` holds: the sides active at
     /// θ, and the working set the solver finds there; evaluates the rates
-    /// there as the step's first stage.
-    pub(super) fn establish(
-        &mut self,
-        model: &Model,
-        ws: &mut Workspace,
-        integrator: &mut Integrator,
-        (theta, qvel): (&[f64], &[f64]),
-        t: f64,
-        inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
-    ) -> Result<(), DynamicsError> {
-        self.establish_after(model, ws, integrator, (theta, qvel), t, false, inputs_at)
-    }
-
-    /// [`Switches::establish`] at the end of a step cut to a switch
-    /// (`located`): the forces that crossed a bound of their working set
-    /// start the solve there on its far side, so that a solve a hair past
-    /// the switch does not find the old working set again.
+    /// there as the step's first stage. At the end of a step cut to a
+    /// switch (`located`), the forces that crossed a bound of their working
+    /// set start the solve on its far side, so that a solve a hair past the
+    /// switch does not find the old working set again.
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn establish_after(
+    pub(super) fn establish(
         &mut self,
         model: &Model,
         ws: &mut Workspace,
