@@ -41,8 +41,7 @@ impl NoSlipBuffers {
     /// friction-loss rows), else none.
     pub fn new(model: &Model) -> Self {
         let constraints = &model.constraints;
-        let has_friction = !constraints.friction.is_empty() || !constraints.tendon_friction.is_empty();
-        if constraints.options.noslip_iterations == 0 || !has_friction {
+        if !constraints.runs_no_slip_pass() {
             return NoSlipBuffers::default();
         }
         let mut dof_tree = vec![0; model.nv];

@@ -303,10 +303,10 @@ impl Simulation {
             Ok(stats) => {
                 self.state.time = t_end;
                 let rates = || self.integrator.largest_rate();
-                let options = &model.constraints.options;
-                let friction = !(model.constraints.friction.is_empty() && model.constraints.tendon_friction.is_empty());
-                let no_slip = (options.noslip_iterations > 0 && friction)
-                    .then_some((options.noslip_iterations, options.noslip_tolerance));
+                let constraints = &model.constraints;
+                let no_slip = constraints
+                    .runs_no_slip_pass()
+                    .then_some((constraints.options.noslip_iterations, constraints.options.noslip_tolerance));
                 let relaxed = self
                     .state
                     .carry

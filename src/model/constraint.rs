@@ -179,6 +179,12 @@ impl Constraints {
             && self.tendon_limits.is_empty()
     }
 
+    /// Whether MuJoCo's no-slip pass runs after the solver: iterations are
+    /// asked for and there are friction-loss rows for it to move.
+    pub fn runs_no_slip_pass(&self) -> bool {
+        self.options.noslip_iterations > 0 && !(self.friction.is_empty() && self.tendon_friction.is_empty())
+    }
+
     /// The most rows that can be active at once: one per friction dof or
     /// tendon, two per hinge, slide or tendon limit (both sides within a wide
     /// margin), one per ball.
