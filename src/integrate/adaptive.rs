@@ -15,8 +15,10 @@
 //! Round-off in the rates does not shrink with the step: on an
 //! ill-conditioned vehicle (near-singular inertias, very long chains) it can
 //! exceed tol per second at every step size. When the error estimate is
-//! seen not to fall as the step is cut (`at_round_off_floor`), the
-//! per-second tolerance is relaxed to ten times that level (`Carry::
+//! seen not to fall as the step is cut (`at_round_off_floor`), and it lies
+//! within reach of what θ̈'s round-off, measured there, can make of it
+//! (`ROUND_OFF_REACH`; a stiff mode at the stability bound also keeps the
+//! estimate up), the per-second tolerance is relaxed to ten times that level (`Carry::
 //! relaxation`, reported by the caller), never beyond tol per step; a run
 //! that cannot hold even that stops with `StepTooSmall`.
 //!
@@ -357,6 +359,23 @@ fn at_round_off_floor(
 /// force at a switch not located) as h. Half a power keeps the three apart.
 const ROUND_OFF_POWER: f64 = 0.5;
 
+/// How far above its round-off floor (θ̈'s measured round-off carried by
+/// the estimator's weights over the step) an error estimate that does not
+/// fall as the step is cut may lie and still be taken for round-off.
+/// Measured: within 1.2× on an ill-conditioned vehicle (thin rods), where
+/// round-off rules; 3e5× and more on the docked servicer settling at
+/// 1e-10, whose estimate stalls at the edge of the explicit methods'
+/// stability region, not at round-off.
+const ROUND_OFF_REACH: f64 = 100.0;
+
+/// A cut this deep (since the first rejection at this t) that still
+/// leaves the error estimate up is taken as the floor whatever the measured
+/// round-off says: a jump in the rates smaller than any tolerance above
+/// 1e-10 (the mode's forces computed two ways at a switch, ~5e-11 of the
+/// rates on the docked servicer) keeps it up per second at every step. A
+/// stiff mode at the stability bound lets it fall after one or two cuts.
+const PERSISTENT_SHRINK: f64 = 1.0 / 16.0;
+
 /// How far above the round-off level found the error control then sets its
 /// tolerance: close to the floor the estimate is all noise, which does not
 /// shrink with the step, so the controller could not grow the step again.
@@ -493,6 +512,8 @@ impl Simulation {
         // and the least per-second error among them.
         let mut first_rejection: Option<(f64, f64)> = None;
         let mut least_rejected = f64::INFINITY;
+        // θ̈'s round-off at this t, measured when a rejection looks like it.
+        let mut round_off_level: Option<f64> = None;
         let mut last_cause = None;
         let max_step = settings.step_bound(integrator.method);
         while t1 - t > end_slack {
@@ -525,8 +546,27 @@ impl Simulation {
                 && per_unit_step
                 && at_round_off_floor(per_step, (step, per_second), first_rejected)
             {
-                // The least error seen is the one least mixed with truncation error.
-                carry.relaxation = carry.relaxation.max(ROUND_OFF_MARGIN * per_second.min(least_rejected));
+                // A run-away motion also keeps the estimate up; the
+                // relaxation then goes on and says so (`DIVERGING_GROWTH`).
+                let diverging =
+                    carry.start_rates > 0.0 && integrator.largest_rate() > DIVERGING_GROWTH * carry.start_rates;
+                let persistent = step <= PERSISTENT_SHRINK * first_rejected.0;
+                let within_round_off = diverging || persistent || {
+                    let level = match round_off_level {
+                        Some(level) => level,
+                        None => {
+                            let level = integrator
+                                .rate_round_off(model, ws, (theta, qvel), t, inputs_at)
+                                .map_err(|cause| AdvanceError::StepFailed { reached: t, step, cause })?;
+                            *round_off_level.insert(level)
+                        }
+                    };
+                    per_step <= ROUND_OFF_REACH * step * integrator.estimator_weight() * level / tolerance
+                };
+                if within_round_off {
+                    // The least error seen is the one least mixed with truncation error.
+                    carry.relaxation = carry.relaxation.max(ROUND_OFF_MARGIN * per_second.min(least_rejected));
+                }
             }
             let error = tested_error(per_second, per_step, carry.relaxation);
             let failed = |cause| AdvanceError::StepFailed { reached: t, step, cause };
@@ -563,6 +603,7 @@ impl Simulation {
                 stats.accepted += 1;
                 first_rejection = None;
                 least_rejected = f64::INFINITY;
+                round_off_level = None;
                 last_cause = None;
             } else {
                 // A step cut to a switch that fails (rarely: it is shorter) is rejected as itself.

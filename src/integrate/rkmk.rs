@@ -97,6 +97,8 @@ pub struct Integrator {
     pub(super) error_qvel: DVector<f64>,
     pub(super) error_delta_low: DVector<f64>,
     pub(super) error_qvel_low: DVector<f64>,
+    /// θ̈ at the first two points of [`Integrator::rate_round_off`]'s probe.
+    round_off_probe: [DVector<f64>; 2],
     /// The largest |ν| at the first and last stages, per dof: the scale of
     /// ν's error.
     pub(super) nu_size: DVector<f64>,
@@ -136,6 +138,7 @@ impl Integrator {
             error_qvel: DVector::zeros(nv),
             error_delta_low: DVector::zeros(nv),
             error_qvel_low: DVector::zeros(nv),
+            round_off_probe: [DVector::zeros(nv), DVector::zeros(nv)],
             nu_size: DVector::zeros(nv),
             first: FirstStage {
                 qvel: DVector::zeros(nv),
@@ -364,6 +367,49 @@ impl Integrator {
         self.first.valid = true;
     }
 
+    /// The round-off in θ̈ at (θ, θ̇) and time `t`, relative to 1 + |θ̇|
+    /// per dof: the largest second difference of θ̈ along a perturbation of
+    /// θ̇ by a few ulps, where the rates' own curvature is nil and only the
+    /// rounding of the evaluation differs. Overwrites the workspace's passes
+    /// and the stage buffers (three evaluations).
+    pub(super) fn rate_round_off(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        (theta, qvel): (&[f64], &[f64]),
+        t: f64,
+        inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
+    ) -> Result<f64, DynamicsError> {
+        self.theta_stage.as_mut_slice().copy_from_slice(theta);
+        for j in 0..3 {
+            for (d, (stage, v)) in self.qvel_stage.as_mut_slice().iter_mut().zip(qvel).enumerate() {
+                let sign = if d % 2 == 0 { 1.0 } else { -1.0 };
+                *stage = v + sign * j as f64 * ROUND_OFF_PROBE_ULPS * f64::EPSILON * (1.0 + v.abs());
+            }
+            self.evaluate_stage(model, ws, t, inputs_at)?;
+            if j < 2 {
+                copy(&mut self.round_off_probe[j], &ws.qacc);
+            }
+        }
+        let [f0, f1] = &self.round_off_probe;
+        let f2 = ws.qacc.as_slice();
+        Ok((0..qvel.len()).map(|d| (f2[d] - 2.0 * f1[d] + f0[d]).abs() / (1.0 + qvel[d].abs())).fold(0.0, f64::max))
+    }
+
+    /// Σ|eᵢ| of the error estimator's weights: how much of the stages'
+    /// round-off an estimate of one step of size h carries, times h.
+    pub(super) fn estimator_weight(&self) -> f64 {
+        match self.method.scheme() {
+            Scheme::Explicit(tableau) => match tableau.error {
+                ErrorEstimate::None => 0.0,
+                ErrorEstimate::Embedded(weights) | ErrorEstimate::Dop853 { fifth: weights, .. } => {
+                    weights.iter().map(|w| w.abs()).sum()
+                }
+            },
+            Scheme::Rosenbrock(_) => 0.0,
+        }
+    }
+
     /// Whether the attempted step's last stage is evaluated at its result
     /// ("first same as last"), so that the workspace holds the rates there.
     pub(super) fn last_stage_is_end(&self) -> bool {
@@ -444,6 +490,11 @@ impl Integrator {
         }
     }
 }
+
+/// How far θ̇ is moved between the points of the round-off probe, in
+/// units of its last place: enough that the evaluation's rounding differs
+/// at each, too little for the rates' curvature to show.
+const ROUND_OFF_PROBE_ULPS: f64 = 4.0;
 
 /// A Rosenbrock method's storage, or none for an explicit method.
 fn linearization(model: &Model, method: Method) -> Linearization {
