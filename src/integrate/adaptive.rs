@@ -362,18 +362,18 @@ const ROUND_OFF_POWER: f64 = 0.5;
 /// How far above its round-off floor (θ̈'s measured round-off carried by
 /// the estimator's weights over the step) an error estimate that does not
 /// fall as the step is cut may lie and still be taken for round-off.
-/// Measured: within 1.2× on an ill-conditioned vehicle (thin rods), where
-/// round-off rules; 3e5× and more on the docked servicer settling at
-/// 1e-10, whose estimate stalls at the edge of the explicit methods'
-/// stability region, not at round-off.
-const ROUND_OFF_REACH: f64 = 100.0;
+/// Measured (estimate / floor): 1e-4 to 0.02 on an ill-conditioned vehicle
+/// (thin rods) and 0.4 to 2 on the docked servicer at 1e-12, where
+/// round-off rules; 17 to 80 on the docked servicer settling at 1e-10,
+/// where the estimate stalls at the edge of dop853's stability region.
+/// An estimate that stays up while the step is cut further is still taken
+/// for the floor (`PERSISTENT_SHRINK`).
+const ROUND_OFF_REACH: f64 = 4.0;
 
 /// A cut this deep (since the first rejection at this t) that still
-/// leaves the error estimate up is taken as the floor whatever the measured
-/// round-off says: a jump in the rates smaller than any tolerance above
-/// 1e-10 (the mode's forces computed two ways at a switch, ~5e-11 of the
-/// rates on the docked servicer) keeps it up per second at every step. A
-/// stiff mode at the stability bound lets it fall after one or two cuts.
+/// leaves the error estimate up is taken for the floor whatever the probe
+/// measured (it samples one direction at one point); a stiff mode at the
+/// stability bound lets the estimate fall after one or two cuts.
 const PERSISTENT_SHRINK: f64 = 1.0 / 16.0;
 
 /// How far above the round-off level found the error control then sets its

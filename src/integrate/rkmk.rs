@@ -368,10 +368,11 @@ impl Integrator {
     }
 
     /// The round-off in θ̈ at (θ, θ̇) and time `t`, relative to 1 + |θ̇|
-    /// per dof: the largest second difference of θ̈ along a perturbation of
+    /// per dof: the largest second difference of θ̈ along a move of θ and
     /// θ̇ by a few ulps, where the rates' own curvature is nil and only the
-    /// rounding of the evaluation differs. Overwrites the workspace's passes
-    /// and the stage buffers (three evaluations).
+    /// rounding of the evaluation differs (stiff constraints carry the
+    /// rounding of positions into θ̈). Overwrites the workspace's passes and
+    /// the stage buffers (three evaluations).
     pub(super) fn rate_round_off(
         &mut self,
         model: &Model,
@@ -380,11 +381,14 @@ impl Integrator {
         t: f64,
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<f64, DynamicsError> {
-        self.theta_stage.as_mut_slice().copy_from_slice(theta);
         for j in 0..3 {
+            let moved = j as f64 * ROUND_OFF_PROBE_ULPS * f64::EPSILON;
+            let sign = |d: usize| if d % 2 == 0 { 1.0 } else { -1.0 };
+            for (d, (stage, x)) in self.theta_stage.as_mut_slice().iter_mut().zip(theta).enumerate() {
+                *stage = x + sign(d) * moved * (1.0 + x.abs());
+            }
             for (d, (stage, v)) in self.qvel_stage.as_mut_slice().iter_mut().zip(qvel).enumerate() {
-                let sign = if d % 2 == 0 { 1.0 } else { -1.0 };
-                *stage = v + sign * j as f64 * ROUND_OFF_PROBE_ULPS * f64::EPSILON * (1.0 + v.abs());
+                *stage = v + sign(d) * moved * (1.0 + v.abs());
             }
             self.evaluate_stage(model, ws, t, inputs_at)?;
             if j < 2 {
@@ -491,8 +495,8 @@ impl Integrator {
     }
 }
 
-/// How far θ̇ is moved between the points of the round-off probe, in
-/// units of its last place: enough that the evaluation's rounding differs
+/// How far θ and θ̇ are moved between the points of the round-off probe,
+/// in units of their last place: enough that the evaluation's rounding differs
 /// at each, too little for the rates' curvature to show.
 const ROUND_OFF_PROBE_ULPS: f64 = 4.0;
 
