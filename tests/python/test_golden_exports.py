@@ -65,6 +65,15 @@ EXPORTS = [
         )
         for version in ("2", "3")
     ),
+    # --fmi3-scalars, added with the option (frozen from its first output).
+    (
+        "docked_servicer-outputs-fmi3-scalars",
+        [DOCKED, "--fmi-version", "3", "--fmi3-scalars", "--outputs", "qvel,momentum", "--wrench-inputs", "forearm"],
+    ),
+    (
+        "servicer-controller-pose-fmi3-scalars",
+        ["examples/servicer.xml", "--controller", "--end-effector", "bus", "--fmi-version", "3", "--fmi3-scalars"],
+    ),
     ("docked_servicer-disable-fmi2", [DOCKED, "--disable", "limit,frictionloss", "--method", "auto"]),
     *(
         (f"bus_arm7-controller-fmi{version}", ["examples/bus_arm7.xml", "--controller", "--fmi-version", version])

@@ -169,18 +169,20 @@ pub enum ControllerExportError {
 }
 
 /// Writes the controller FMU `out` for `model` with `law`; `binaries` are
-/// the `nudyn_fmu` cdylib built for each platform, as for the plant.
+/// the `nudyn_fmu` cdylib built for each platform, as for the plant;
+/// `fmi3_scalars`: FMI 3.0 variables all scalars, for hosts without arrays.
 pub fn write_controller_fmu(
     model: &Model,
     law: &ControlLaw,
     model_identifier: &str,
     fmi_version: FmiVersion,
+    fmi3_scalars: bool,
     binaries: &[PlatformBinary],
     out: &Path,
 ) -> Result<(), ControllerExportError> {
     check_model_identifier(model_identifier)?;
     let defaults = law.default_parameters(model)?;
-    let resource = ControllerResource::new(model.clone(), law.clone());
+    let resource = ControllerResource { fmi3_scalars, ..ControllerResource::new(model.clone(), law.clone()) };
     let bytes = resource.to_json().map_err(ExportError::from)?;
     let guid = resource.guid(&bytes);
     let description = match fmi_version {

@@ -325,7 +325,15 @@ pub fn write_system(
     let (plant_fmu, controller_fmu) = (staging.path().join("plant.fmu"), staging.path().join("controller.fmu"));
     let plant_options = ExportOptions { model_identifier: options.plant_identifier.clone(), ..options.plant.clone() };
     write_plant_fmu(&plant_resource, &plant_options, binaries, &plant_fmu)?;
-    write_controller_fmu(model, law, &options.controller_identifier, FmiVersion::Fmi2, binaries, &controller_fmu)?;
+    write_controller_fmu(
+        model,
+        law,
+        &options.controller_identifier,
+        FmiVersion::Fmi2,
+        false,
+        binaries,
+        &controller_fmu,
+    )?;
     let read = |path: &Path| std::fs::read(path).map_err(|source| ExportError::Io { path: path.to_path_buf(), source });
 
     let mut entries = vec![
