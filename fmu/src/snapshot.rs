@@ -10,7 +10,6 @@
 use nudyn::integrate::{AutoChoice, Carry, HeldJacobian, MOVE_UP_WINDOW, MethodSetting, RunState, Scheme, Settings};
 use nudyn_contract::plant::{method_of_value, method_value};
 
-use crate::plant::PlantState;
 use crate::state::Phase;
 
 /// Identifies a nudyn FMU state blob.
@@ -19,6 +18,34 @@ const MAGIC: &[u8; 8] = b"nudynFMS";
 /// of another version is refused (what each version added is in git's
 /// history).
 const VERSION: u32 = 11;
+
+/// The values that determine the plant's future: what an FMU state saves.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlantState {
+    /// Time, θ (nq, qpos), ν (nv) and the integrator's carry.
+    pub run: RunState,
+    /// Parameters `tolerance`, `max_step` and `energy_projection`.
+    pub settings: Settings,
+    /// Parameter `method`; what `auto` chose is in `run`.
+    pub method: MethodSetting,
+    /// Start time of the experiment (s).
+    pub start_time: f64,
+    /// Stop time, if the master declared one (s).
+    pub stop_time: Option<f64>,
+    /// K = ½|ν|² at initialization (J), for the energy residual.
+    pub initial_energy: f64,
+    /// The inputs ε (nv) as set at the current communication point.
+    pub eps: Vec<f64>,
+    /// dε/dt (nv) from fmi2SetRealInputDerivatives, for the next step only.
+    pub eps_rate: Vec<f64>,
+    /// The actuators' controls (nu) as set at the current communication point.
+    pub ctrl: Vec<f64>,
+    /// Their rates (nu), for the next step only.
+    pub ctrl_rate: Vec<f64>,
+    /// The W a Rosenbrock method holds for its next step: restored with
+    /// the rest, the run continues bit for bit.
+    pub jacobian: HeldJacobian,
+}
 
 /// The sizes of a plant's state: a blob is restored only into a plant of the same.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
