@@ -101,21 +101,35 @@ pub struct OptionalOutputs {
     pub qfrc_constraint: bool,
 }
 
+/// The flag of one optional output in [`OptionalOutputs`].
+type Flag = fn(&mut OptionalOutputs) -> &mut bool;
+
+/// Every optional output: its name, as `--outputs` takes it, and its flag.
+/// One list, which the names and the parser read.
+const OPTIONAL_OUTPUTS: [(&str, Flag); 6] = [
+    ("qvel", |o| &mut o.qvel),
+    ("kinetic_energy", |o| &mut o.kinetic_energy),
+    ("power", |o| &mut o.power),
+    ("momentum", |o| &mut o.momentum),
+    ("energy_residual", |o| &mut o.energy_residual),
+    ("qfrc_constraint", |o| &mut o.qfrc_constraint),
+];
+
 impl OptionalOutputs {
     /// The name of every optional output, as `--outputs` takes them.
-    pub const NAMES: [&str; 6] = ["qvel", "kinetic_energy", "power", "momentum", "energy_residual", "qfrc_constraint"];
+    pub const NAMES: [&str; OPTIONAL_OUTPUTS.len()] = {
+        let mut names = [""; OPTIONAL_OUTPUTS.len()];
+        let mut i = 0;
+        while i < names.len() {
+            names[i] = OPTIONAL_OUTPUTS[i].0;
+            i += 1;
+        }
+        names
+    };
 
     /// The flag of the output `name`, if it is one of [`OptionalOutputs::NAMES`].
     fn flag(&mut self, name: &str) -> Option<&mut bool> {
-        match name {
-            "qvel" => Some(&mut self.qvel),
-            "kinetic_energy" => Some(&mut self.kinetic_energy),
-            "power" => Some(&mut self.power),
-            "momentum" => Some(&mut self.momentum),
-            "energy_residual" => Some(&mut self.energy_residual),
-            "qfrc_constraint" => Some(&mut self.qfrc_constraint),
-            _ => None,
-        }
+        OPTIONAL_OUTPUTS.iter().find(|(known, _)| *known == name).map(|(_, flag)| flag(self))
     }
 }
 
