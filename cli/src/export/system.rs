@@ -27,7 +27,7 @@ use nudyn::control::ControlLaw;
 use nudyn::math::normalize_wxyz;
 use nudyn::model::{LinkJoint, Model};
 use nudyn_contract::controller::ControllerLayout;
-use nudyn_contract::plant::{DEFAULT_TOLERANCE, PlantResource};
+use nudyn_contract::plant::{DEFAULT_TOLERANCE, Layout, PlantResource, RealVariable};
 use nudyn_contract::variable::{Kind, StartError, check_start};
 
 use super::controller::{ControllerExportError, controller_fmu};
@@ -364,11 +364,15 @@ fn escape(text: &str) -> String {
     text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
 }
 
-/// `SystemStructure.ssd`.
+/// `SystemStructure.ssd`: the plant's θ, ν and ε connected to the
+/// controller's variables of the same names, listed from the plant's layout.
 fn system_structure(model: &Model, options: &SystemOptions, values: &Values) -> String {
-    let state: Vec<String> =
-        (1..=model.nq).map(|k| format!("theta[{k}]")).chain((1..=model.nv).map(|k| format!("nu[{k}]"))).collect();
-    let eps: Vec<String> = (1..=model.nv).map(|k| format!("eps[{k}]")).collect();
+    let plant = Layout::new(model, options.plant.outputs);
+    let names = |connected: fn(&RealVariable) -> bool| -> Vec<String> {
+        plant.real_variables().filter(|(_, v)| connected(v)).map(|(_, v)| v.name()).collect()
+    };
+    let state = names(|v| matches!(v, RealVariable::Theta(_) | RealVariable::Nu(_)));
+    let eps = names(|v| matches!(v, RealVariable::Eps(_)));
     let connector = |name: &String, kind: &str| {
         format!("          <ssd:Connector name=\"{}\" kind=\"{kind}\"><ssc:Real/></ssd:Connector>\n", escape(name))
     };
