@@ -12,6 +12,7 @@ mod documentation;
 mod fmi3;
 pub mod plant;
 pub mod system;
+pub mod variable_table;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
