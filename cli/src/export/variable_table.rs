@@ -7,6 +7,7 @@ use nudyn_contract::fmi3::{Fmi3Variables, TIME_VR};
 use nudyn_contract::plant::{
     ENERGY_PROJECTION_NAME, ENERGY_PROJECTION_VR, METHOD_NAME, METHOD_VR, PlantResource, RealVariable,
 };
+use nudyn_contract::resource::Resource;
 use nudyn_contract::variable::{Causality, Kind, Variability};
 
 /// "a" or "a–b", for a range of value references.
@@ -40,18 +41,9 @@ fn nature(kind: Kind) -> String {
 /// and with `--fmi3-scalars`, and its causality, variability and initial.
 pub fn markdown(resource: &PlantResource) -> String {
     let layout = resource.layout();
-    let arrays = Fmi3Variables::new(
-        [(METHOD_VR, METHOD_NAME.to_string())],
-        [(ENERGY_PROJECTION_VR, ENERGY_PROJECTION_NAME.to_string())],
-        layout.real_blocks(),
-        false,
-    );
-    let scalars = Fmi3Variables::new(
-        [(METHOD_VR, METHOD_NAME.to_string())],
-        [(ENERGY_PROJECTION_VR, ENERGY_PROJECTION_NAME.to_string())],
-        layout.real_blocks(),
-        true,
-    );
+    // The FMI 3.0 tables the FMU serves, with arrays and with scalars.
+    let with_scalars = |fmi3_scalars| PlantResource { fmi3_scalars, ..resource.clone() }.fmi3_variables();
+    let (arrays, scalars) = (with_scalars(false), with_scalars(true));
     let fmi3 = |table: &Fmi3Variables, name: &str| table.value_reference(name).expect("named in the table");
     let mut text = String::from(
         "| FMI 2.0 name | FMI 2.0 type, vr | FMI 3.0 vr | FMI 3.0 vr, `--fmi3-scalars` | causality, variability, initial |\n\
