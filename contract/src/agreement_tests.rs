@@ -55,7 +55,7 @@ proptest! {
             prop_assert_eq!(vr, named_vr);
             prop_assert_eq!(layout.real_variable(*vr), Some(*variable));
             prop_assert_eq!(layout.value_reference(*variable), Some(*vr));
-            prop_assert_eq!(&variable.name(), name);
+            prop_assert_eq!(layout.name(*variable), Some(name.clone()));
             // FMI 3.0: the variable holding it, at the element its name says.
             let (holder, k) = fmi3.real_element(*vr).expect("every Real has an FMI 3.0 variable");
             prop_assert!(holder.value_reference > TIME_VR);

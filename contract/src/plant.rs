@@ -194,7 +194,7 @@ impl PlantResource {
             let variable = layout
                 .real_variables()
                 .map(|(_, variable)| variable)
-                .find(|variable| &variable.name() == name)
+                .find(|&variable| layout.name(variable).as_ref() == Some(name))
                 .ok_or_else(|| StartError::Unknown(name.clone()))?;
             check_start(name, variable.kind(), variable.start(&self.model).is_some(), value)?;
         }
@@ -204,7 +204,12 @@ impl PlantResource {
 
     /// The start value of `variable`: the one chosen at export, else its default.
     pub fn start(&self, variable: RealVariable) -> Option<f64> {
-        self.starts.get(&variable.name()).copied().or_else(|| variable.start(&self.model))
+        // Most FMUs choose no start: no name to look up.
+        let chosen = (!self.starts.is_empty())
+            .then(|| self.layout().name(variable))
+            .flatten()
+            .and_then(|name| self.starts.get(&name).copied());
+        chosen.or_else(|| variable.start(&self.model))
     }
 
     /// The layout of its variables.
@@ -285,28 +290,6 @@ pub enum RealVariable {
 }
 
 impl RealVariable {
-    /// The structured, 1-based name, as in `modelDescription.xml`.
-    pub fn name(self) -> String {
-        match self {
-            RealVariable::Tolerance => "tolerance".into(),
-            RealVariable::MaxStep => "max_step".into(),
-            RealVariable::Eps(k) => format!("eps[{}]", k + 1),
-            RealVariable::Ctrl(k) => format!("ctrl[{}]", k + 1),
-            RealVariable::XfrcApplied(k) => format!("xfrc_applied[{}]", k + 1),
-            RealVariable::Theta(k) => format!("theta[{}]", k + 1),
-            RealVariable::Nu(k) => format!("nu[{}]", k + 1),
-            RealVariable::Sensordata(k) => format!("sensordata[{}]", k + 1),
-            RealVariable::Qvel(k) => format!("qvel[{}]", k + 1),
-            RealVariable::KineticEnergy => "kinetic_energy".into(),
-            RealVariable::Power => "power".into(),
-            RealVariable::Momentum(k) => format!("momentum[{}]", k + 1),
-            RealVariable::EnergyResidual => "energy_residual".into(),
-            RealVariable::QfrcConstraint(k) => format!("qfrc_constraint[{}]", k + 1),
-            RealVariable::DerTheta(k) => format!("der(theta[{}])", k + 1),
-            RealVariable::DerNu(k) => format!("der(nu[{}])", k + 1),
-        }
-    }
-
     /// Its element index within its block (0 for a scalar).
     pub fn index(self) -> usize {
         match self {
@@ -528,6 +511,16 @@ impl Layout {
         let mut vrs: Vec<u32> = knowns.into_iter().filter_map(|known| self.value_reference(known)).collect();
         vrs.sort_unstable();
         Some(vrs)
+    }
+
+    /// The structured, 1-based name of `variable` (as in
+    /// `modelDescription.xml`), from its block; `None` if this layout does
+    /// not have it.
+    pub fn name(&self, variable: RealVariable) -> Option<String> {
+        let k = variable.index();
+        self.blocks().find(|(_, block)| k < block.len && (block.variable)(k) == variable).map(|(first, block)| {
+            RealBlock { name: block.name, shape: block.shape, first, len: block.len }.element_name(k)
+        })
     }
 
     /// The value reference of `variable`, if this layout has it (in constant

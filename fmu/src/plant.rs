@@ -91,7 +91,7 @@ impl Plant {
         let layout = resource.layout();
         let starts = layout
             .real_variables()
-            .filter_map(|(vr, variable)| resource.starts.get(&variable.name()).map(|&value| (vr, value)))
+            .filter_map(|(vr, variable)| resource.starts.get(&layout.name(variable)?).map(|&value| (vr, value)))
             .unzip();
         let (model, start_method) = (resource.model, resource.method);
         let reals = layout.real_variables().map(|(_, variable)| variable).collect();
@@ -258,7 +258,8 @@ impl Component for Plant {
     }
 
     fn real_variable(&self, vr: u32) -> Option<Variable> {
-        self.real(vr).map(|v| Variable { name: v.name(), kind: v.kind() })
+        let variable = self.real(vr)?;
+        Some(Variable { name: self.layout.name(variable)?, kind: variable.kind() })
     }
 
     fn real_kind(&self, vr: u32) -> Option<Kind> {

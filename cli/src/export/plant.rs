@@ -351,9 +351,10 @@ pub fn model_description(resource: &PlantResource, options: &ExportOptions, guid
         RealVariable::DerNu(k) => Some(index_of(RealVariable::Nu(k))),
         _ => None,
     };
+    let name = |variable: RealVariable| layout.name(variable).expect("a variable of the layout");
     let scalar_variables = reals.iter().map(|&(vr, variable)| {
         let mut scalar =
-            real_variable(variable.name(), vr, description(model, variable), variable.kind(), resource.start(variable));
+            real_variable(name(variable), vr, description(model, variable), variable.kind(), resource.start(variable));
         if let md::VariableKind::Real(real) = &mut scalar.kind {
             real.derivative = state_of(variable);
         }

@@ -305,10 +305,14 @@ pub fn write_system(
     }
     check_experiment(options.step, options.stop)?;
     let plant_resource = PlantResource::new(model.clone(), options.plant.outputs);
-    let plant_variables: Vec<Settable> = plant_resource
-        .layout()
+    let plant_layout = plant_resource.layout();
+    let plant_variables: Vec<Settable> = plant_layout
         .real_variables()
-        .map(|(_, v)| Settable { name: v.name(), kind: v.kind(), has_start: v.start(model).is_some() })
+        .map(|(_, v)| Settable {
+            name: plant_layout.name(v).expect("a variable of the layout"),
+            kind: v.kind(),
+            has_start: v.start(model).is_some(),
+        })
         .collect();
     let defaults = law.default_parameters(model).map_err(ControllerExportError::from)?;
     let layout = ControllerLayout::new(model, law);
@@ -369,7 +373,7 @@ fn escape(text: &str) -> String {
 fn system_structure(model: &Model, options: &SystemOptions, values: &Values) -> String {
     let plant = Layout::new(model, options.plant.outputs);
     let names = |connected: fn(&RealVariable) -> bool| -> Vec<String> {
-        plant.real_variables().filter(|(_, v)| connected(v)).map(|(_, v)| v.name()).collect()
+        plant.real_variables().filter(|(_, v)| connected(v)).filter_map(|(_, v)| plant.name(v)).collect()
     };
     let state = names(|v| matches!(v, RealVariable::Theta(_) | RealVariable::Nu(_)));
     let eps = names(|v| matches!(v, RealVariable::Eps(_)));
