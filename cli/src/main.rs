@@ -94,6 +94,12 @@ enum Command {
         /// or 3 (binaries/x86_64-linux, array variables eps, theta, ...).
         #[arg(long, default_value = "2", value_name = "2|3")]
         fmi_version: FmiVersion,
+        /// With --fmi-version 3: declare every array element as a scalar
+        /// variable under its FMI 2.0 name (theta[1], theta[2], ...), each
+        /// with its own value reference, for hosts that read no FMI 3.0
+        /// arrays (OMSimulator, PyFMI).
+        #[arg(long)]
+        fmi3_scalars: bool,
     },
     /// Print the vehicle's joints and where each sits in θ (qpos) and ν (qvel),
     /// and its actuators in ctrl order.
@@ -275,9 +281,19 @@ fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Eval { model } => eval(&model),
         Command::Describe { model, json } => describe(&model, json),
-        Command::Export { model, output, model_identifier, controller: true, end_effector, fmi_version, .. } => {
-            export_controller(&model, &output, model_identifier, end_effector.as_deref(), fmi_version)
+        Command::Export { fmi_version, fmi3_scalars: true, .. } if fmi_version != FmiVersion::Fmi3 => {
+            bail!("--fmi3-scalars declares FMI 3.0 variables: it needs --fmi-version 3")
         }
+        Command::Export {
+            model,
+            output,
+            model_identifier,
+            controller: true,
+            end_effector,
+            fmi_version,
+            fmi3_scalars,
+            ..
+        } => export_controller(&model, &output, model_identifier, end_effector.as_deref(), fmi_version, fmi3_scalars),
         Command::Export {
             model,
             output,
@@ -287,9 +303,11 @@ fn run(cli: Cli) -> Result<()> {
             wrench_inputs,
             disable,
             method,
+            fmi3_scalars,
             ..
         } => {
-            let options = PlantOptions { model_identifier, outputs, wrench_inputs, disable, fmi_version, method };
+            let options =
+                PlantOptions { model_identifier, outputs, wrench_inputs, disable, fmi_version, fmi3_scalars, method };
             export(&model, &output, options)
         }
         Command::System { model, output, end_effector, fmi_version, outputs, step, stop, sets } => {
@@ -536,6 +554,7 @@ struct PlantOptions {
     wrench_inputs: Vec<String>,
     disable: Vec<ConstraintKind>,
     fmi_version: FmiVersion,
+    fmi3_scalars: bool,
     method: MethodSetting,
 }
 
@@ -550,7 +569,11 @@ fn export(model_path: &Path, output: &Path, plant: PlantOptions) -> Result<()> {
     let model_identifier = plant.model_identifier.unwrap_or_else(|| model_identifier_from(&stem));
     let options = ExportOptions { model_identifier, outputs: plant.outputs, fmi_version: plant.fmi_version };
     let binaries = fmu_binaries()?;
-    let resource = PlantResource { method: plant.method, ..PlantResource::new(model, plant.outputs) };
+    let resource = PlantResource {
+        method: plant.method,
+        fmi3_scalars: plant.fmi3_scalars,
+        ..PlantResource::new(model, plant.outputs)
+    };
     write_plant_fmu(&resource, &options, &binaries, output)
         .with_context(|| format!("cannot export {}", output.display()))?;
     report_platforms(output, &binaries)
@@ -562,6 +585,7 @@ fn export_controller(
     model_identifier: Option<String>,
     end_effector: Option<&str>,
     fmi_version: FmiVersion,
+    fmi3_scalars: bool,
 ) -> Result<()> {
     let (vehicle, model) = load_vehicle(model_path)?;
     let law = match end_effector {
@@ -572,7 +596,7 @@ fn export_controller(
     let stem = model_path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let identifier = model_identifier.unwrap_or_else(|| model_identifier_from(&format!("{stem}_controller")));
     let binaries = fmu_binaries()?;
-    write_controller_fmu(&model, &law, &identifier, fmi_version, &binaries, output)
+    write_controller_fmu(&model, &law, &identifier, fmi_version, fmi3_scalars, &binaries, output)
         .with_context(|| format!("cannot export {}", output.display()))?;
     report_platforms(output, &binaries)
 }

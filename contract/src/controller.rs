@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 use nudyn::control::{ControlLaw, ControlParameters, Objective};
 use nudyn::model::Model;
 
-use crate::blocks::{VariableOf, every_variable, numbered_blocks, variable_at};
+use crate::blocks::{Block, RealBlock, every_variable, numbered_blocks, real_blocks, variable_at};
 use crate::capabilities::Capabilities;
 use crate::resource::Resource;
 use crate::variable::{Causality, Kind, Range};
@@ -36,6 +36,10 @@ pub struct ControllerResource {
     pub format: u32,
     /// The control law.
     pub law: ControlLaw,
+    /// Whether the FMI 3.0 FMU declares every element as a scalar
+    /// (`--fmi3-scalars`): absent (false) in files of FMUs with arrays.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub fmi3_scalars: bool,
     /// The compiled vehicle.
     pub model: Model,
 }
@@ -43,7 +47,7 @@ pub struct ControllerResource {
 impl ControllerResource {
     /// The resource of the controller of `model` with `law`.
     pub fn new(model: Model, law: ControlLaw) -> Self {
-        ControllerResource { format: Self::FORMAT, law, model }
+        ControllerResource { format: Self::FORMAT, law, fmi3_scalars: false, model }
     }
 
     /// The layout of its variables.
@@ -54,7 +58,7 @@ impl ControllerResource {
 
 impl Resource for ControllerResource {
     const FILE: &'static str = "controller.json";
-    const FORMAT: u32 = 3;
+    const FORMAT: u32 = 4;
 
     fn format(&self) -> u32 {
         self.format
@@ -64,9 +68,12 @@ impl Resource for ControllerResource {
         &self.model
     }
 
-    fn variable_names(&self) -> Vec<(u32, String)> {
-        let layout = self.layout();
-        layout.variables().map(|(vr, v)| (vr, layout.name(v))).collect()
+    fn real_blocks(&self) -> Vec<RealBlock> {
+        self.layout().real_blocks()
+    }
+
+    fn fmi3_scalars(&self) -> bool {
+        self.fmi3_scalars
     }
 
     fn dependencies(&self, vr: u32) -> Option<Vec<u32>> {
@@ -152,18 +159,27 @@ impl ControllerLayout {
         }
     }
 
-    fn blocks(&self) -> impl Iterator<Item = (u32, usize, VariableOf<ControllerVariable>)> {
-        let blocks: [(usize, VariableOf<ControllerVariable>); 8] = [
-            (self.nv, ControllerVariable::RateGain),
-            (self.ny, ControllerVariable::TargetGain),
-            (self.target_len, ControllerVariable::Target),
-            (self.nq, ControllerVariable::Theta),
-            (self.nv, ControllerVariable::Nu),
-            (self.nv, ControllerVariable::Eps),
-            (1, |_| ControllerVariable::Potential),
-            (self.ny, ControllerVariable::TargetError),
+    fn blocks(&self) -> impl Iterator<Item = (u32, Block<ControllerVariable>)> {
+        // A pose target is two arrays, the position and the quaternion.
+        let (position, quaternion, joints) = if self.pose { (3, 4, 0) } else { (0, 0, self.target_len) };
+        let blocks = [
+            Block::array("c1", self.nv, ControllerVariable::RateGain),
+            Block::array("c2", self.ny, ControllerVariable::TargetGain),
+            Block::array("target_position", position, ControllerVariable::Target),
+            Block::array("target_quaternion", quaternion, |k| ControllerVariable::Target(3 + k)),
+            Block::array("target", joints, ControllerVariable::Target),
+            Block::array("theta", self.nq, ControllerVariable::Theta),
+            Block::array("nu", self.nv, ControllerVariable::Nu),
+            Block::array("eps", self.nv, ControllerVariable::Eps),
+            Block::scalar("potential", true, |_| ControllerVariable::Potential),
+            Block::array("target_error", self.ny, ControllerVariable::TargetError),
         ];
         numbered_blocks(1, blocks)
+    }
+
+    /// The Real variables' blocks, numbered.
+    pub fn real_blocks(&self) -> Vec<RealBlock> {
+        real_blocks(self.blocks())
     }
 
     /// The value references of the inputs the output `vr` depends on,
@@ -192,20 +208,15 @@ impl ControllerLayout {
         every_variable(self.blocks())
     }
 
-    /// The structured, 1-based name of `variable`.
+    /// The structured, 1-based name of `variable`, a variable of this
+    /// layout (as [`ControllerLayout::variables`] lists them), from its block.
     pub fn name(&self, variable: ControllerVariable) -> String {
-        match variable {
-            ControllerVariable::RateGain(k) => format!("c1[{}]", k + 1),
-            ControllerVariable::TargetGain(k) => format!("c2[{}]", k + 1),
-            ControllerVariable::Target(k) if self.pose && k < 3 => format!("target_position[{}]", k + 1),
-            ControllerVariable::Target(k) if self.pose => format!("target_quaternion[{}]", k - 2),
-            ControllerVariable::Target(k) => format!("target[{}]", k + 1),
-            ControllerVariable::Theta(k) => format!("theta[{}]", k + 1),
-            ControllerVariable::Nu(k) => format!("nu[{}]", k + 1),
-            ControllerVariable::Eps(k) => format!("eps[{}]", k + 1),
-            ControllerVariable::Potential => "potential".into(),
-            ControllerVariable::TargetError(k) => format!("target_error[{}]", k + 1),
-        }
+        self.blocks()
+            .find_map(|(first, block)| {
+                let k = (0..block.len).position(|k| (block.variable)(k) == variable)?;
+                Some(RealBlock { name: block.name, shape: block.shape, first, len: block.len }.element_name(k))
+            })
+            .expect("a variable of this layout")
     }
 }
 

@@ -1,10 +1,12 @@
 //! The FMI 3.0 view of a nudyn FMU's variables.
 //!
 //! FMI 2.0 has scalar variables only, so the contract numbers scalars
-//! (`theta[3]` is one value reference). FMI 3.0 has arrays: a block of
-//! scalars named `base[1]` … `base[n]` becomes the 1-D array `base` with one
-//! value reference (`der(theta[k])` becomes `der(theta)`), and a scalar stays
-//! a scalar. The FMI 3.0 exporter and the FMI 3.0 layer of the binary both
+//! (`theta[3]` is one value reference). FMI 3.0 has arrays: an array block
+//! of the layout ([`RealBlock`]), the scalars `base[1]` … `base[n]`,
+//! becomes the 1-D array `base` with one value reference (`der(theta[k])`
+//! becomes `der(theta)`), and a scalar stays a scalar; for hosts that read
+//! no arrays (OMSimulator, PyFMI), an FMU exported with `--fmi3-scalars`
+//! declares every element as a scalar under its FMI 2.0 name. The FMI 3.0 exporter and the FMI 3.0 layer of the binary both
 //! read this one table, so the modelDescription and the binary cannot
 //! disagree; the binary translates each FMI 3.0 value reference into the
 //! FMI 2.0 value references of its elements and runs the same checks and
@@ -13,6 +15,8 @@
 //! FMI 3.0 value references are unique across types (FMI 2.0's are per
 //! type): 0 is `time`, the independent variable; then the enumerations, the
 //! Booleans and the Float64 variables follow in the FMI 2.0 order.
+
+use crate::blocks::{RealBlock, Shape};
 
 /// The value reference of `time`, the independent variable.
 pub const TIME_VR: u32 = 0;
@@ -57,6 +61,8 @@ pub struct Fmi3Variable {
     pub len: usize,
     /// Whether it is an array (declared with a `<Dimension>`), even of one element.
     pub array: bool,
+    /// The FMI 3.0 value reference of the state it is the time derivative of, if it is one.
+    pub derivative_of: Option<u32>,
 }
 
 impl Fmi3Variable {
@@ -86,24 +92,17 @@ pub struct ElementDependency {
     pub known_element: usize,
 }
 
-/// `base[k]` → (`base`, k) and `der(base[k])` → (`der(base)`, k), for a 1-based k.
-fn array_element(name: &str) -> Option<(String, usize)> {
-    let (inner, wrap) = match name.strip_prefix("der(").and_then(|rest| rest.strip_suffix(')')) {
-        Some(inner) => (inner, true),
-        None => (name, false),
-    };
-    let (base, index) = inner.strip_suffix(']')?.split_once('[')?;
-    let k: usize = index.parse().ok().filter(|&k| k >= 1)?;
-    Some((if wrap { format!("der({base})") } else { base.to_string() }, k))
-}
-
 impl Fmi3Variables {
-    /// The table of an FMU with FMI 2.0 variables `enumerations`, `booleans`
-    /// and `reals`, each as (value reference, name) in value-reference order.
+    /// The table of an FMU with FMI 2.0 variables `enumerations` and
+    /// `booleans`, each as (value reference, name) in value-reference order,
+    /// and the Real variables' numbered `blocks`: each array block one
+    /// array, or with `scalars` (`--fmi3-scalars`, for hosts without
+    /// arrays) each element one scalar named as in FMI 2.0.
     pub fn new(
         enumerations: impl IntoIterator<Item = (u32, String)>,
         booleans: impl IntoIterator<Item = (u32, String)>,
-        reals: impl IntoIterator<Item = (u32, String)>,
+        blocks: impl IntoIterator<Item = RealBlock>,
+        scalars: bool,
     ) -> Self {
         let mut variables: Vec<Fmi3Variable> = Vec::new();
         let scalar = |value_type, (vr, name): (u32, String)| Fmi3Variable {
@@ -113,36 +112,41 @@ impl Fmi3Variables {
             first: vr,
             len: 1,
             array: false,
+            derivative_of: None,
         };
         variables.extend(enumerations.into_iter().map(|v| scalar(ValueType::Enumeration, v)));
         variables.extend(booleans.into_iter().map(|v| scalar(ValueType::Boolean, v)));
-        for (vr, name) in reals {
-            match array_element(&name) {
-                Some((base, k)) => {
-                    let continues = variables.last_mut().filter(|last| {
-                        last.array
-                            && last.value_type == ValueType::Float64
-                            && last.name == base
-                            && last.len + 1 == k
-                            && last.first + last.len as u32 == vr
-                    });
-                    match continues {
-                        Some(last) => last.len += 1,
-                        None => variables.push(Fmi3Variable {
-                            value_reference: 0,
-                            name: base,
-                            value_type: ValueType::Float64,
-                            first: vr,
-                            len: 1,
-                            array: true,
-                        }),
-                    }
+        // States come before their derivatives: a derivative's state is found among those already listed.
+        let position_of =
+            |variables: &[Fmi3Variable], name: &str| variables.iter().position(|v| v.name == name).map(|p| p as u32);
+        for block in blocks.into_iter().filter(|block| block.len > 0) {
+            if scalars || block.shape == Shape::Scalar {
+                for k in 0..block.len {
+                    let state = (block.shape == Shape::Derivative)
+                        .then(|| position_of(&variables, &format!("{}[{}]", block.name, k + 1)))
+                        .flatten();
+                    let mut element = scalar(ValueType::Float64, (block.first + k as u32, block.element_name(k)));
+                    element.derivative_of = state;
+                    variables.push(element);
                 }
-                None => variables.push(scalar(ValueType::Float64, (vr, name))),
+            } else {
+                let state = (block.shape == Shape::Derivative).then(|| position_of(&variables, block.name)).flatten();
+                variables.push(Fmi3Variable {
+                    value_reference: 0,
+                    name: block.array_name(),
+                    value_type: ValueType::Float64,
+                    first: block.first,
+                    len: block.len,
+                    array: true,
+                    derivative_of: state,
+                });
             }
         }
+        // Positions become value references: 0 is time.
+        let value_reference_at = |position: usize| TIME_VR + 1 + position as u32;
         for (i, variable) in variables.iter_mut().enumerate() {
-            variable.value_reference = TIME_VR + 1 + i as u32;
+            variable.value_reference = value_reference_at(i);
+            variable.derivative_of = variable.derivative_of.map(|position| value_reference_at(position as usize));
         }
         Fmi3Variables { variables }
     }
@@ -220,35 +224,48 @@ mod tests {
         (vr, name.to_string())
     }
 
+    fn block(name: &'static str, shape: Shape, first: u32, len: usize) -> RealBlock {
+        RealBlock { name, shape, first, len }
+    }
+
+    /// Reals 1 to 9: tolerance, eps[1..2], theta[1], kinetic_energy,
+    /// der(theta[1]), target_position[1..2], target_quaternion[1]; an empty
+    /// array between them.
+    fn blocks() -> Vec<RealBlock> {
+        vec![
+            block("tolerance", Shape::Scalar, 1, 1),
+            block("eps", Shape::Array, 2, 2),
+            block("ctrl", Shape::Array, 4, 0),
+            block("theta", Shape::Array, 4, 1),
+            block("kinetic_energy", Shape::Scalar, 5, 1),
+            block("theta", Shape::Derivative, 6, 1),
+            block("target_position", Shape::Array, 7, 2),
+            block("target_quaternion", Shape::Array, 9, 1),
+        ]
+    }
+
     #[test]
-    fn blocks_of_indexed_scalars_become_arrays() {
-        let reals = [
-            named(1, "tolerance"),
-            named(2, "eps[1]"),
-            named(3, "eps[2]"),
-            named(4, "theta[1]"),
-            named(5, "kinetic_energy"),
-            named(6, "der(theta[1])"),
-            named(7, "target_position[1]"),
-            named(8, "target_position[2]"),
-            named(9, "target_quaternion[1]"),
-        ];
-        let table = Fmi3Variables::new([named(0, "method")], [named(0, "energy_projection")], reals);
-        let summary: Vec<(u32, &str, ValueType, u32, usize, bool)> =
-            table.iter().map(|v| (v.value_reference, v.name.as_str(), v.value_type, v.first, v.len, v.array)).collect();
+    fn array_blocks_become_arrays() {
+        let table = Fmi3Variables::new([named(0, "method")], [named(0, "energy_projection")], blocks(), false);
+        // (value reference, name, type, first, len, array, derivative_of)
+        type Summary<'a> = (u32, &'a str, ValueType, u32, usize, bool, Option<u32>);
+        let summary: Vec<Summary> = table
+            .iter()
+            .map(|v| (v.value_reference, v.name.as_str(), v.value_type, v.first, v.len, v.array, v.derivative_of))
+            .collect();
         use ValueType::*;
         assert_eq!(
             summary,
             [
-                (1, "method", Enumeration, 0, 1, false),
-                (2, "energy_projection", Boolean, 0, 1, false),
-                (3, "tolerance", Float64, 1, 1, false),
-                (4, "eps", Float64, 2, 2, true),
-                (5, "theta", Float64, 4, 1, true),
-                (6, "kinetic_energy", Float64, 5, 1, false),
-                (7, "der(theta)", Float64, 6, 1, true),
-                (8, "target_position", Float64, 7, 2, true),
-                (9, "target_quaternion", Float64, 9, 1, true),
+                (1, "method", Enumeration, 0, 1, false, None),
+                (2, "energy_projection", Boolean, 0, 1, false, None),
+                (3, "tolerance", Float64, 1, 1, false, None),
+                (4, "eps", Float64, 2, 2, true, None),
+                (5, "theta", Float64, 4, 1, true, None),
+                (6, "kinetic_energy", Float64, 5, 1, false, None),
+                (7, "der(theta)", Float64, 6, 1, true, Some(5)),
+                (8, "target_position", Float64, 7, 2, true, None),
+                (9, "target_quaternion", Float64, 9, 1, true, None),
             ]
         );
         assert_eq!(table.get(TIME_VR), None);
@@ -270,11 +287,32 @@ mod tests {
     }
 
     #[test]
-    fn element_names_parse() {
-        assert_eq!(array_element("nu[12]"), Some(("nu".into(), 12)));
-        assert_eq!(array_element("der(nu[3])"), Some(("der(nu)".into(), 3)));
-        assert_eq!(array_element("power"), None);
-        assert_eq!(array_element("x[0]"), None);
-        assert_eq!(array_element("x[a]"), None);
+    fn with_scalars_every_element_is_a_scalar_named_as_in_fmi2() {
+        let table = Fmi3Variables::new([named(0, "method")], [], blocks(), true);
+        let summary: Vec<(u32, &str, u32, bool, Option<u32>)> =
+            table.iter().map(|v| (v.value_reference, v.name.as_str(), v.first, v.array, v.derivative_of)).collect();
+        assert_eq!(
+            summary,
+            [
+                (1, "method", 0, false, None),
+                (2, "tolerance", 1, false, None),
+                (3, "eps[1]", 2, false, None),
+                (4, "eps[2]", 3, false, None),
+                (5, "theta[1]", 4, false, None),
+                (6, "kinetic_energy", 5, false, None),
+                (7, "der(theta[1])", 6, false, Some(5)),
+                (8, "target_position[1]", 7, false, None),
+                (9, "target_position[2]", 8, false, None),
+                (10, "target_quaternion[1]", 9, false, None),
+            ]
+        );
+        assert!(table.iter().all(|v| v.len == 1));
+        // Each element's own variable, element index 0 as for any scalar.
+        let dependencies = |vr| (vr == 5).then(|| vec![1, 3]);
+        let expected = [
+            ElementDependency { element: 0, known: 2, known_element: 0 },
+            ElementDependency { element: 0, known: 4, known_element: 0 },
+        ];
+        assert_eq!(table.element_dependencies(6, dependencies), Some(expected.to_vec()));
     }
 }

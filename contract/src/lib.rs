@@ -2,6 +2,8 @@
 //! `modelDescription.xml` that the FMU binary must then honour, kept in one
 //! place so that the two cannot drift.
 //!
+//! - [`blocks`]: value references numbered block by block, and the blocks'
+//!   names and shapes, for both sides;
 //! - [`variable`]: what a variable is (causality, variability, range) and
 //!   when it may be set: the exporter writes it, the FMU enforces it;
 //! - [`plant`]: the vehicle FMU's variables, value references, parameter
@@ -13,7 +15,7 @@
 //! - [`resource`]: the resource files and the content-derived GUID.
 #![warn(missing_docs)]
 
-mod blocks;
+pub mod blocks;
 pub mod capabilities;
 pub mod controller;
 pub mod fmi3;
@@ -21,6 +23,9 @@ pub mod log;
 pub mod plant;
 pub mod resource;
 pub mod variable;
+
+#[cfg(test)]
+mod agreement_tests;
 
 /// The default communication step of the DefaultExperiment (s).
 pub const DEFAULT_STEP_SIZE: f64 = 0.01;

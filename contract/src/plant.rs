@@ -15,7 +15,7 @@ use nudyn::integrate::{Method, MethodSetting};
 use nudyn::model::Model;
 use nudyn::vehicle::SensorKind;
 
-use crate::blocks::{VariableOf, every_variable, numbered_blocks, variable_at};
+use crate::blocks::{Block, RealBlock, every_variable, numbered_blocks, real_blocks, value_reference_of, variable_at};
 use crate::capabilities::Capabilities;
 use crate::resource::Resource;
 use crate::variable::{Kind, Range, StartError, check_start};
@@ -101,21 +101,35 @@ pub struct OptionalOutputs {
     pub qfrc_constraint: bool,
 }
 
+/// The flag of one optional output in [`OptionalOutputs`].
+type Flag = fn(&mut OptionalOutputs) -> &mut bool;
+
+/// Every optional output: its name, as `--outputs` takes it, and its flag.
+/// One list, which the names and the parser read.
+const OPTIONAL_OUTPUTS: [(&str, Flag); 6] = [
+    ("qvel", |o| &mut o.qvel),
+    ("kinetic_energy", |o| &mut o.kinetic_energy),
+    ("power", |o| &mut o.power),
+    ("momentum", |o| &mut o.momentum),
+    ("energy_residual", |o| &mut o.energy_residual),
+    ("qfrc_constraint", |o| &mut o.qfrc_constraint),
+];
+
 impl OptionalOutputs {
     /// The name of every optional output, as `--outputs` takes them.
-    pub const NAMES: [&str; 6] = ["qvel", "kinetic_energy", "power", "momentum", "energy_residual", "qfrc_constraint"];
+    pub const NAMES: [&str; OPTIONAL_OUTPUTS.len()] = {
+        let mut names = [""; OPTIONAL_OUTPUTS.len()];
+        let mut i = 0;
+        while i < names.len() {
+            names[i] = OPTIONAL_OUTPUTS[i].0;
+            i += 1;
+        }
+        names
+    };
 
     /// The flag of the output `name`, if it is one of [`OptionalOutputs::NAMES`].
     fn flag(&mut self, name: &str) -> Option<&mut bool> {
-        match name {
-            "qvel" => Some(&mut self.qvel),
-            "kinetic_energy" => Some(&mut self.kinetic_energy),
-            "power" => Some(&mut self.power),
-            "momentum" => Some(&mut self.momentum),
-            "energy_residual" => Some(&mut self.energy_residual),
-            "qfrc_constraint" => Some(&mut self.qfrc_constraint),
-            _ => None,
-        }
+        OPTIONAL_OUTPUTS.iter().find(|(known, _)| *known == name).map(|(_, flag)| flag(self))
     }
 }
 
@@ -149,6 +163,11 @@ pub struct PlantResource {
     pub starts: BTreeMap<String, f64>,
     /// The start of the `method` parameter chosen at export (`--method`).
     pub method: MethodSetting,
+    /// Whether the FMI 3.0 FMU declares every element as a scalar
+    /// (`--fmi3-scalars`) instead of arrays: absent (false) in files of FMUs
+    /// with arrays, so that their bytes and GUIDs stay as they were.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub fmi3_scalars: bool,
     /// The compiled vehicle.
     pub model: Model,
 }
@@ -156,7 +175,14 @@ pub struct PlantResource {
 impl PlantResource {
     /// The resource of an FMU of `model` with `outputs` and the variables' default starts.
     pub fn new(model: Model, outputs: OptionalOutputs) -> Self {
-        PlantResource { format: Self::FORMAT, outputs, starts: BTreeMap::new(), method: DEFAULT_METHOD, model }
+        PlantResource {
+            format: Self::FORMAT,
+            outputs,
+            starts: BTreeMap::new(),
+            method: DEFAULT_METHOD,
+            fmi3_scalars: false,
+            model,
+        }
     }
 
     /// The same FMU with start values `starts` (variable name → value)
@@ -168,7 +194,7 @@ impl PlantResource {
             let variable = layout
                 .real_variables()
                 .map(|(_, variable)| variable)
-                .find(|variable| &variable.name() == name)
+                .find(|&variable| layout.name(variable).as_ref() == Some(name))
                 .ok_or_else(|| StartError::Unknown(name.clone()))?;
             check_start(name, variable.kind(), variable.start(&self.model).is_some(), value)?;
         }
@@ -178,7 +204,12 @@ impl PlantResource {
 
     /// The start value of `variable`: the one chosen at export, else its default.
     pub fn start(&self, variable: RealVariable) -> Option<f64> {
-        self.starts.get(&variable.name()).copied().or_else(|| variable.start(&self.model))
+        // Most FMUs choose no start: no name to look up.
+        let chosen = (!self.starts.is_empty())
+            .then(|| self.layout().name(variable))
+            .flatten()
+            .and_then(|name| self.starts.get(&name).copied());
+        chosen.or_else(|| variable.start(&self.model))
     }
 
     /// The layout of its variables.
@@ -189,7 +220,7 @@ impl PlantResource {
 
 impl Resource for PlantResource {
     const FILE: &'static str = "model.json";
-    const FORMAT: u32 = 4;
+    const FORMAT: u32 = 5;
 
     fn format(&self) -> u32 {
         self.format
@@ -199,8 +230,12 @@ impl Resource for PlantResource {
         &self.model
     }
 
-    fn variable_names(&self) -> Vec<(u32, String)> {
-        self.layout().real_variables().map(|(vr, variable)| (vr, variable.name())).collect()
+    fn real_blocks(&self) -> Vec<RealBlock> {
+        self.layout().real_blocks()
+    }
+
+    fn fmi3_scalars(&self) -> bool {
+        self.fmi3_scalars
     }
 
     fn enumerations(&self) -> Vec<(u32, String)> {
@@ -255,25 +290,25 @@ pub enum RealVariable {
 }
 
 impl RealVariable {
-    /// The structured, 1-based name, as in `modelDescription.xml`.
-    pub fn name(self) -> String {
+    /// Its element index within its block (0 for a scalar).
+    pub fn index(self) -> usize {
         match self {
-            RealVariable::Tolerance => "tolerance".into(),
-            RealVariable::MaxStep => "max_step".into(),
-            RealVariable::Eps(k) => format!("eps[{}]", k + 1),
-            RealVariable::Ctrl(k) => format!("ctrl[{}]", k + 1),
-            RealVariable::XfrcApplied(k) => format!("xfrc_applied[{}]", k + 1),
-            RealVariable::Theta(k) => format!("theta[{}]", k + 1),
-            RealVariable::Nu(k) => format!("nu[{}]", k + 1),
-            RealVariable::Sensordata(k) => format!("sensordata[{}]", k + 1),
-            RealVariable::Qvel(k) => format!("qvel[{}]", k + 1),
-            RealVariable::KineticEnergy => "kinetic_energy".into(),
-            RealVariable::Power => "power".into(),
-            RealVariable::Momentum(k) => format!("momentum[{}]", k + 1),
-            RealVariable::EnergyResidual => "energy_residual".into(),
-            RealVariable::QfrcConstraint(k) => format!("qfrc_constraint[{}]", k + 1),
-            RealVariable::DerTheta(k) => format!("der(theta[{}])", k + 1),
-            RealVariable::DerNu(k) => format!("der(nu[{}])", k + 1),
+            RealVariable::Tolerance
+            | RealVariable::MaxStep
+            | RealVariable::KineticEnergy
+            | RealVariable::Power
+            | RealVariable::EnergyResidual => 0,
+            RealVariable::Eps(k)
+            | RealVariable::Ctrl(k)
+            | RealVariable::XfrcApplied(k)
+            | RealVariable::Theta(k)
+            | RealVariable::Nu(k)
+            | RealVariable::Sensordata(k)
+            | RealVariable::Qvel(k)
+            | RealVariable::Momentum(k)
+            | RealVariable::QfrcConstraint(k)
+            | RealVariable::DerTheta(k)
+            | RealVariable::DerNu(k) => k,
         }
     }
 
@@ -384,29 +419,35 @@ impl Layout {
         }
     }
 
-    /// The blocks in value-reference order: (first value reference, length, variable of index k).
-    fn blocks(&self) -> impl Iterator<Item = (u32, usize, VariableOf<RealVariable>)> {
+    /// The blocks in value-reference order, each with its first value reference.
+    fn blocks(&self) -> impl Iterator<Item = (u32, Block<RealVariable>)> {
         let o = self.outputs;
         let model_exchange = capabilities(o).model_exchange;
-        let blocks: [(usize, VariableOf<RealVariable>); 16] = [
-            (1, |_| RealVariable::Tolerance),
-            (1, |_| RealVariable::MaxStep),
-            (self.nv, RealVariable::Eps),
-            (self.nu, RealVariable::Ctrl),
-            (self.wrench_inputs, RealVariable::XfrcApplied),
-            (self.nq, RealVariable::Theta),
-            (self.nv, RealVariable::Nu),
-            (self.sensordata.len(), RealVariable::Sensordata),
-            (if o.qvel { self.nv } else { 0 }, RealVariable::Qvel),
-            (usize::from(o.kinetic_energy), |_| RealVariable::KineticEnergy),
-            (usize::from(o.power), |_| RealVariable::Power),
-            (if o.momentum { 6 } else { 0 }, RealVariable::Momentum),
-            (usize::from(o.energy_residual), |_| RealVariable::EnergyResidual),
-            (if o.qfrc_constraint { self.nv } else { 0 }, RealVariable::QfrcConstraint),
-            (if model_exchange { self.nq } else { 0 }, RealVariable::DerTheta),
-            (if model_exchange { self.nv } else { 0 }, RealVariable::DerNu),
+        let optional = |present: bool, len: usize| if present { len } else { 0 };
+        let blocks = [
+            Block::scalar("tolerance", true, |_| RealVariable::Tolerance),
+            Block::scalar("max_step", true, |_| RealVariable::MaxStep),
+            Block::array("eps", self.nv, RealVariable::Eps),
+            Block::array("ctrl", self.nu, RealVariable::Ctrl),
+            Block::array("xfrc_applied", self.wrench_inputs, RealVariable::XfrcApplied),
+            Block::array("theta", self.nq, RealVariable::Theta),
+            Block::array("nu", self.nv, RealVariable::Nu),
+            Block::array("sensordata", self.sensordata.len(), RealVariable::Sensordata),
+            Block::array("qvel", optional(o.qvel, self.nv), RealVariable::Qvel),
+            Block::scalar("kinetic_energy", o.kinetic_energy, |_| RealVariable::KineticEnergy),
+            Block::scalar("power", o.power, |_| RealVariable::Power),
+            Block::array("momentum", optional(o.momentum, 6), RealVariable::Momentum),
+            Block::scalar("energy_residual", o.energy_residual, |_| RealVariable::EnergyResidual),
+            Block::array("qfrc_constraint", optional(o.qfrc_constraint, self.nv), RealVariable::QfrcConstraint),
+            Block::derivative("theta", optional(model_exchange, self.nq), RealVariable::DerTheta),
+            Block::derivative("nu", optional(model_exchange, self.nv), RealVariable::DerNu),
         ];
         numbered_blocks(METHOD_VR + 1, blocks)
+    }
+
+    /// The Real variables' blocks, numbered.
+    pub fn real_blocks(&self) -> Vec<RealBlock> {
+        real_blocks(self.blocks())
     }
 
     /// The variable with value reference `vr`, if any.
@@ -472,30 +513,20 @@ impl Layout {
         Some(vrs)
     }
 
+    /// The structured, 1-based name of `variable` (as in
+    /// `modelDescription.xml`), from its block; `None` if this layout does
+    /// not have it.
+    pub fn name(&self, variable: RealVariable) -> Option<String> {
+        let k = variable.index();
+        self.blocks().find(|(_, block)| k < block.len && (block.variable)(k) == variable).map(|(first, block)| {
+            RealBlock { name: block.name, shape: block.shape, first, len: block.len }.element_name(k)
+        })
+    }
+
     /// The value reference of `variable`, if this layout has it (in constant
-    /// time: dependency lists of large vehicles look up millions).
+    /// time, one pass over the blocks: dependency lists of large vehicles look up millions).
     pub fn value_reference(&self, variable: RealVariable) -> Option<u32> {
-        // The block of each variant, in the order of `blocks`.
-        let (block, k) = match variable {
-            RealVariable::Tolerance => (0, 0),
-            RealVariable::MaxStep => (1, 0),
-            RealVariable::Eps(k) => (2, k),
-            RealVariable::Ctrl(k) => (3, k),
-            RealVariable::XfrcApplied(k) => (4, k),
-            RealVariable::Theta(k) => (5, k),
-            RealVariable::Nu(k) => (6, k),
-            RealVariable::Sensordata(k) => (7, k),
-            RealVariable::Qvel(k) => (8, k),
-            RealVariable::KineticEnergy => (9, 0),
-            RealVariable::Power => (10, 0),
-            RealVariable::Momentum(k) => (11, k),
-            RealVariable::EnergyResidual => (12, 0),
-            RealVariable::QfrcConstraint(k) => (13, k),
-            RealVariable::DerTheta(k) => (14, k),
-            RealVariable::DerNu(k) => (15, k),
-        };
-        let (first, len, _) = self.blocks().nth(block)?;
-        (k < len).then_some(first + k as u32)
+        value_reference_of(self.blocks(), variable, variable.index())
     }
 }
 

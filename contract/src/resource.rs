@@ -9,6 +9,7 @@ use sha2::{Digest, Sha256};
 
 use nudyn::model::Model;
 
+use crate::blocks::RealBlock;
 use crate::fmi3::Fmi3Variables;
 
 /// A resource file of a nudyn FMU.
@@ -26,8 +27,17 @@ pub trait Resource: Serialize + DeserializeOwned {
     /// The compiled vehicle it holds.
     fn model(&self) -> &Model;
 
-    /// The FMU's variables (value reference, name) in value-reference order.
-    fn variable_names(&self) -> Vec<(u32, String)>;
+    /// The FMU's Real variables as numbered blocks, in value-reference order.
+    fn real_blocks(&self) -> Vec<RealBlock>;
+
+    /// Whether its FMI 3.0 variables are all scalars (`--fmi3-scalars`), for
+    /// hosts without arrays.
+    fn fmi3_scalars(&self) -> bool;
+
+    /// The FMU's Real variables (FMI 2.0 value reference, name) in value-reference order.
+    fn variable_names(&self) -> Vec<(u32, String)> {
+        self.real_blocks().iter().flat_map(RealBlock::elements).collect()
+    }
 
     /// The FMI 2.0 Integer enumeration variables (value reference, name).
     fn enumerations(&self) -> Vec<(u32, String)> {
@@ -46,7 +56,7 @@ pub trait Resource: Serialize + DeserializeOwned {
 
     /// The FMU's variables as FMI 3.0 declares them.
     fn fmi3_variables(&self) -> Fmi3Variables {
-        Fmi3Variables::new(self.enumerations(), self.booleans(), self.variable_names())
+        Fmi3Variables::new(self.enumerations(), self.booleans(), self.real_blocks(), self.fmi3_scalars())
     }
 
     /// Its bytes as written into the FMU.

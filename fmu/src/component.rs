@@ -3,28 +3,18 @@
 //! [`Component`], with defaults for what it does not provide, and the FMI
 //! layer calls it through the generic checks of [`crate::calls`].
 //!
-//! Errors are split by the phase they belong to: [`LoadError`] at
-//! instantiation, [`CallError`] for a call that is refused or cannot be
+//! Errors are split by the phase they belong to: [`crate::load::LoadError`]
+//! at instantiation, [`CallError`] for a call that is refused or cannot be
 //! answered, [`StepError`] for a step that started and did not complete.
-
-use std::path::{Path, PathBuf};
 
 use nudyn::dynamics::DynamicsError;
 use nudyn::integrate::{AdvanceError, AutoChoice, AutoMove, Stats, ToleranceRelaxed};
-use nudyn::model::InvalidModel;
 use nudyn_contract::capabilities::Capabilities;
-use nudyn_contract::controller::ControllerResource;
-use nudyn_contract::fmi3::Fmi3Variables;
-use nudyn_contract::plant::PlantResource;
 use nudyn_contract::plant::method_items;
-use nudyn_contract::resource::Resource;
 use nudyn_contract::variable::Kind;
 
-use crate::controller::Controller;
-use crate::plant::Plant;
 use crate::snapshot::{Snapshot, SnapshotError};
 use crate::state::Phase;
-use crate::uri::UriError;
 
 /// A Real variable as the checks need it: its name, for messages, and its kind.
 #[derive(Clone, Debug, PartialEq)]
@@ -215,113 +205,6 @@ fn none_of(kind: &'static str, vrs: &[u32]) -> Result<(), CallError> {
         Some(&vr) => Err(CallError::UnknownValueReference { vr, kind }),
         None => Ok(()),
     }
-}
-
-/// Loads the FMU's resources from `directory`: the controller if
-/// `controller.json` is there, else the plant (whose loader reports a
-/// missing `model.json`); with the FMI 3.0 view of its variables.
-pub fn load(directory: &Path, guid: &str) -> Result<(Box<dyn Component>, Fmi3Variables), LoadError> {
-    if directory.join(ControllerResource::FILE).is_file() {
-        let loaded = read_resource(directory, guid, Controller::check_law)?;
-        let variables = loaded.resource.fmi3_variables();
-        Ok((Box::new(Controller::load(loaded)?), variables))
-    } else {
-        let loaded: Loaded<PlantResource> = read_resource(directory, guid, |_, _| Ok(()))?;
-        let variables = loaded.resource.fmi3_variables();
-        Ok((Box::new(Plant::load(loaded)), variables))
-    }
-}
-
-/// A resource file read and checked: the format, the model's consistency,
-/// what `check` checks of the rest, and the GUID (recomputed from the bytes
-/// and the variables they define).
-pub struct Loaded<R> {
-    /// The resource.
-    pub resource: R,
-    /// The file it was read from.
-    pub path: PathBuf,
-    /// The FMU's GUID.
-    pub guid: String,
-}
-
-fn read_resource<R: Resource>(
-    directory: &Path,
-    guid: &str,
-    check: impl Fn(&R, &Path) -> Result<(), LoadError>,
-) -> Result<Loaded<R>, LoadError> {
-    let path = directory.join(R::FILE);
-    let bytes = std::fs::read(&path).map_err(|source| LoadError::Read { path: path.clone(), source })?;
-    let resource: R =
-        serde_json::from_slice(&bytes).map_err(|source| LoadError::Parse { path: path.clone(), source })?;
-    if resource.format() != R::FORMAT {
-        return Err(LoadError::Format { path, found: resource.format(), expected: R::FORMAT });
-    }
-    // Before anything sized by nq or nv (the GUID's variable list, the workspace).
-    resource.model().validate().map_err(|source| LoadError::BadModel { path: path.clone(), source })?;
-    check(&resource, &path)?;
-    let actual = resource.guid(&bytes);
-    if actual != guid {
-        return Err(LoadError::Guid { given: guid.to_string(), actual });
-    }
-    Ok(Loaded { resource, path, guid: actual })
-}
-
-/// Why fmi2Instantiate cannot make an instance.
-#[derive(Debug, thiserror::Error)]
-pub enum LoadError {
-    /// The resource location is unusable.
-    #[error(transparent)]
-    Uri(#[from] UriError),
-    /// The resource file cannot be read.
-    #[error("cannot read the compiled model {path}: {source}")]
-    Read {
-        /// The file.
-        path: PathBuf,
-        /// The cause.
-        source: std::io::Error,
-    },
-    /// The resource file cannot be parsed.
-    #[error("{path} is not a nudyn FMU resource: {source}")]
-    Parse {
-        /// The file.
-        path: PathBuf,
-        /// The cause.
-        source: serde_json::Error,
-    },
-    /// Written by an exporter with another resource format.
-    #[error("{path} has resource format {found}, this binary reads format {expected}")]
-    Format {
-        /// The file.
-        path: PathBuf,
-        /// Its format.
-        found: u32,
-        /// The format this binary reads.
-        expected: u32,
-    },
-    /// The compiled model is inconsistent (a corrupted or foreign resource).
-    #[error("{path} does not hold a consistent compiled model: {source}")]
-    BadModel {
-        /// The file.
-        path: PathBuf,
-        /// What is wrong.
-        source: InvalidModel,
-    },
-    /// The controller resource holds a law that does not fit its model.
-    #[error("{path} does not hold a consistent control law: {reason}")]
-    BadLaw {
-        /// The file.
-        path: PathBuf,
-        /// What is wrong.
-        reason: String,
-    },
-    /// The GUID passed to fmi2Instantiate is not this FMU's.
-    #[error("fmuGUID '{given}' does not match the FMU's resources, whose GUID is '{actual}'")]
-    Guid {
-        /// The GUID given.
-        given: String,
-        /// The GUID of the resources.
-        actual: String,
-    },
 }
 
 /// Why a call is refused, or cannot be answered at the current state.

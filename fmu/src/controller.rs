@@ -4,15 +4,13 @@
 //! It has no state: fmi2DoStep only advances time, and the outputs are
 //! computed when read after any change of inputs or parameters.
 
-use std::path::Path;
-
-use nudyn::control::{ControlLaw, ControlParameters, ControlWorkspace};
+use nudyn::control::{ControlError, ControlLaw, ControlParameters, ControlWorkspace};
 use nudyn::model::{LinkJoint, Model};
 use nudyn_contract::capabilities::Capabilities;
 use nudyn_contract::controller::{CAPABILITIES, ControllerLayout, ControllerResource, ControllerVariable};
 use nudyn_contract::variable::Kind;
 
-use crate::component::{CallError, Component, LoadError, Loaded, StepError, StepReport, Variable};
+use crate::component::{CallError, Component, StepError, StepReport, Variable};
 
 /// One controller instance.
 pub struct Controller {
@@ -36,21 +34,17 @@ pub struct Controller {
 }
 
 impl Controller {
-    /// Refuses a law that does not fit its model (a corrupted or
-    /// hand-edited resource), before anything is sized by it.
-    pub fn check_law(resource: &ControllerResource, path: &Path) -> Result<(), LoadError> {
-        match resource.law.mismatch(&resource.model) {
-            Some(reason) => Err(LoadError::BadLaw { path: path.to_path_buf(), reason }),
-            None => Ok(()),
-        }
+    /// Why the resource's law does not fit its model, if it does not (a
+    /// hand-edited resource): checked before anything is sized by it.
+    pub fn law_mismatch(resource: &ControllerResource) -> Option<String> {
+        resource.law.mismatch(&resource.model)
     }
 
-    /// The controller of a loaded resource (checked with [`Controller::check_law`]).
-    pub fn load(loaded: Loaded<ControllerResource>) -> Result<Controller, LoadError> {
-        let Loaded { resource, path, .. } = loaded;
+    /// The controller of a resource whose law fits its model ([`Controller::law_mismatch`]).
+    pub fn new(resource: ControllerResource) -> Result<Controller, ControlError> {
         let layout = resource.layout();
         let ControllerResource { law, model, .. } = resource;
-        let defaults = law.default_parameters(&model).map_err(|e| LoadError::BadLaw { path, reason: e.to_string() })?;
+        let defaults = law.default_parameters(&model)?;
         Ok(Controller {
             cws: ControlWorkspace::new(&model, &law),
             parameters: defaults.clone(),

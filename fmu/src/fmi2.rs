@@ -17,11 +17,12 @@ use fmi_sys::fmi2::*;
 use nudyn_contract::fmi3::Fmi3Variables;
 
 use crate::calls;
-use crate::component::{self, CallError};
+use crate::component::CallError;
 use crate::layer::{
-    self, FmiError, Instance, Interface, Logger, Version, initialized, out_of_range_discards, slice, slice_mut, string,
+    self, FmiError, Instance, Logger, Version, initialized, out_of_range_discards, slice, slice_mut, string,
 };
-use crate::state::{Function, Phase};
+use crate::load;
+use crate::state::{Function, Interface, Phase};
 use crate::uri::resource_directory;
 
 /// The entry path of every fmi2 function that takes an instance.
@@ -79,8 +80,8 @@ pub unsafe extern "C" fn fmi2Instantiate(
         let guid = unsafe { string(fmu_guid, "fmuGUID") }?;
         // SAFETY: as above.
         let location = unsafe { string(fmu_resource_location, "fmuResourceLocation") }?;
-        let directory = resource_directory(&location).map_err(component::LoadError::from)?;
-        let (component, _) = component::load(&directory, &guid)?;
+        let directory = resource_directory(&location).map_err(load::LoadError::from)?;
+        let (component, _) = load::load(&directory, &guid)?;
         if interface == Interface::ModelExchange && component.continuous_state_count().is_none() {
             return Err(FmiError::NoModelExchange);
         }

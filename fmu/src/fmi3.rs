@@ -19,11 +19,12 @@ use fmi_sys::fmi3::*;
 use nudyn_contract::fmi3::{ElementDependency, Fmi3Variables, TIME_NAME, TIME_VR, ValueType};
 
 use crate::calls;
-use crate::component::{self, CallError};
+use crate::component::CallError;
 use crate::layer::{
-    self, FmiError, Instance, Interface, Logger, Version, initialized, out_of_range_discards, slice, slice_mut, string,
+    self, Buffers, FmiError, Instance, Logger, Version, initialized, out_of_range_discards, slice, slice_mut, string,
 };
-use crate::state::{Function, Phase};
+use crate::load;
+use crate::state::{Function, Interface, Phase};
 
 /// The entry path of every fmi3 function that takes an instance.
 ///
@@ -94,19 +95,7 @@ fn check_count(table: &Fmi3Variables, vrs: &[u32], asked: ValueType, n_values: u
     Ok(())
 }
 
-/// What the array functions reuse from call to call: a host sets ε and
-/// reads θ and ν at every communication point, and once these have grown to
-/// those calls' sizes the calls allocate nothing.
-#[derive(Debug, Default)]
-pub struct Buffers {
-    /// The elements of a call's value references (`None`: time).
-    elements: Vec<Option<u32>>,
-    /// Their FMI 2.0 value references.
-    references: Vec<u32>,
-    /// The values read for them.
-    reals: Vec<f64>,
-}
-
+// The buffers are the instance's (crate::layer); what they do is FMI 3.0's.
 impl Buffers {
     /// Fills `elements` with those of `vrs`, checked by [`check_count`] to
     /// be `n_values`, as FMI 2.0 value references (`None`: time).
@@ -187,7 +176,7 @@ unsafe fn instantiate(
         let token = unsafe { string(instantiation_token, "instantiationToken") }?;
         // SAFETY: as above. FMI 3.0 passes a path, not a URI (§2.3.1).
         let path = unsafe { string(resource_path, "resourcePath") }?;
-        let (component, variables) = component::load(std::path::Path::new(&path), &token)?;
+        let (component, variables) = load::load(std::path::Path::new(&path), &token)?;
         if interface == Interface::ModelExchange && component.continuous_state_count().is_none() {
             return Err(FmiError::NoModelExchange);
         }

@@ -47,9 +47,10 @@ use nudyn_contract::fmi3::Fmi3Variables;
 use nudyn_contract::log::LogCategory;
 
 use crate::calls;
-use crate::component::{CallError, Component, LoadError, StepError};
+use crate::component::{CallError, Component, StepError};
+use crate::load::LoadError;
 use crate::snapshot::Snapshot;
-use crate::state::{Function, Phase};
+use crate::state::{Function, Interface, Phase};
 
 /// The FMI version an instance was made through.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -290,31 +291,18 @@ impl Logger {
     }
 }
 
-/// The interface an instance was instantiated for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Interface {
-    /// Model exchange.
-    ModelExchange,
-    /// Co-simulation.
-    CoSimulation,
-}
-
-impl Interface {
-    /// Whether `phase` is one of this interface's state machine.
-    pub fn has(self, phase: Phase) -> bool {
-        match phase {
-            Phase::StepComplete | Phase::StepFailed => self == Interface::CoSimulation,
-            Phase::EventMode | Phase::ContinuousTimeMode => self == Interface::ModelExchange,
-            _ => true,
-        }
-    }
-
-    fn name(self) -> &'static str {
-        match self {
-            Interface::ModelExchange => "model exchange",
-            Interface::CoSimulation => "co-simulation",
-        }
-    }
+/// What the array functions reuse from call to call: a host sets ε and
+/// reads θ and ν at every communication point, and once these have grown to
+/// those calls' sizes the calls allocate nothing. Filled by the FMI 3.0
+/// functions (crate::fmi3), which implement its methods.
+#[derive(Debug, Default)]
+pub struct Buffers {
+    /// The elements of a call's value references (`None`: time).
+    pub(crate) elements: Vec<Option<u32>>,
+    /// Their FMI 2.0 value references.
+    pub(crate) references: Vec<u32>,
+    /// The values read for them.
+    pub(crate) reals: Vec<f64>,
 }
 
 /// One FMU instance: the logger, the state machine and the component (plant or controller).
@@ -332,7 +320,7 @@ pub struct Instance {
     /// The FMI 3.0 variables (empty for an FMI 2.0 instance).
     pub fmi3: Fmi3Variables,
     /// The FMI 3.0 array functions' buffers.
-    pub fmi3_buffers: crate::fmi3::Buffers,
+    pub fmi3_buffers: Buffers,
     /// The FMU states handed out by this instance and not yet freed (addresses).
     states: BTreeSet<usize>,
     /// A warning the last call completed with: its status is Warning.

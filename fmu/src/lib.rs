@@ -11,8 +11,10 @@
 //!   [`fmi3`], the functions of each version, the only `unsafe` code;
 //! - [`state`]: the state machine's table of allowed calls;
 //! - [`calls`]: the argument checks every component shares;
-//! - [`component`]: the one interface of what an instance runs, its loader
-//!   and its errors;
+//! - [`component`]: the one interface of what an instance runs, and the
+//!   errors of its calls and steps;
+//! - [`load`]: the resources read and checked at instantiation, and the
+//!   component made from them;
 //! - [`plant`]: the vehicle's dynamics, integrated;
 //! - [`controller`]: the control law;
 //! - [`snapshot`]: FMU states and their serialized form;
@@ -24,6 +26,7 @@ mod controller;
 pub mod fmi2;
 pub mod fmi3;
 mod layer;
+mod load;
 mod plant;
 mod snapshot;
 mod state;

@@ -8,7 +8,7 @@
 
 use nudyn::dynamics::mode::ConstraintMode;
 use nudyn::dynamics::quantities::kinetic_energy;
-use nudyn::integrate::{HeldJacobian, Input, MethodSetting, RunState, Settings, Simulation};
+use nudyn::integrate::{HeldJacobian, Input, MethodSetting, Settings, Simulation};
 use nudyn::model::{LinkJoint, Model};
 use nudyn_contract::capabilities::Capabilities;
 use nudyn_contract::plant::{
@@ -17,37 +17,9 @@ use nudyn_contract::plant::{
 };
 use nudyn_contract::variable::Kind;
 
-use crate::component::{CallError, Component, Loaded, StepError, StepReport, Variable};
-use crate::snapshot::{Sizes, Snapshot, SnapshotError};
+use crate::component::{CallError, Component, StepError, StepReport, Variable};
+use crate::snapshot::{PlantState, Sizes, Snapshot, SnapshotError};
 use crate::state::Phase;
-
-/// The values that determine the plant's future: what an FMU state saves.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PlantState {
-    /// Time, θ (nq, qpos), ν (nv) and the integrator's carry.
-    pub run: RunState,
-    /// Parameters `tolerance`, `max_step` and `energy_projection`.
-    pub settings: Settings,
-    /// Parameter `method`; what `auto` chose is in `run`.
-    pub method: MethodSetting,
-    /// Start time of the experiment (s).
-    pub start_time: f64,
-    /// Stop time, if the master declared one (s).
-    pub stop_time: Option<f64>,
-    /// K = ½|ν|² at initialization (J), for the energy residual.
-    pub initial_energy: f64,
-    /// The inputs ε (nv) as set at the current communication point.
-    pub eps: Vec<f64>,
-    /// dε/dt (nv) from fmi2SetRealInputDerivatives, for the next step only.
-    pub eps_rate: Vec<f64>,
-    /// The actuators' controls (nu) as set at the current communication point.
-    pub ctrl: Vec<f64>,
-    /// Their rates (nu), for the next step only.
-    pub ctrl_rate: Vec<f64>,
-    /// The W a Rosenbrock method holds for its next step: restored with
-    /// the rest, the run continues bit for bit.
-    pub jacobian: HeldJacobian,
-}
 
 /// The parameters' defaults.
 const DEFAULT_SETTINGS: Settings =
@@ -114,19 +86,19 @@ pub struct Plant {
 }
 
 impl Plant {
-    /// The plant of a loaded resource.
-    pub fn load(loaded: Loaded<PlantResource>) -> Plant {
-        let layout = loaded.resource.layout();
+    /// The plant of a loaded resource, of the FMU with `guid`.
+    pub fn new(resource: PlantResource, guid: String) -> Plant {
+        let layout = resource.layout();
         let starts = layout
             .real_variables()
-            .filter_map(|(vr, variable)| loaded.resource.starts.get(&variable.name()).map(|&value| (vr, value)))
+            .filter_map(|(vr, variable)| resource.starts.get(&layout.name(variable)?).map(|&value| (vr, value)))
             .unzip();
-        let (model, start_method) = (loaded.resource.model, loaded.resource.method);
+        let (model, start_method) = (resource.model, resource.method);
         let reals = layout.real_variables().map(|(_, variable)| variable).collect();
         let mut plant = Plant {
             layout,
             reals,
-            guid: loaded.guid,
+            guid,
             sim: Simulation::new(&model, start_method, DEFAULT_SETTINGS),
             start_time: 0.0,
             stop_time: None,
@@ -286,7 +258,8 @@ impl Component for Plant {
     }
 
     fn real_variable(&self, vr: u32) -> Option<Variable> {
-        self.real(vr).map(|v| Variable { name: v.name(), kind: v.kind() })
+        let variable = self.real(vr)?;
+        Some(Variable { name: self.layout.name(variable)?, kind: variable.kind() })
     }
 
     fn real_kind(&self, vr: u32) -> Option<Kind> {

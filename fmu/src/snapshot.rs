@@ -10,7 +10,6 @@
 use nudyn::integrate::{AutoChoice, Carry, HeldJacobian, MOVE_UP_WINDOW, MethodSetting, RunState, Scheme, Settings};
 use nudyn_contract::plant::{method_of_value, method_value};
 
-use crate::plant::PlantState;
 use crate::state::Phase;
 
 /// Identifies a nudyn FMU state blob.
@@ -19,6 +18,34 @@ const MAGIC: &[u8; 8] = b"nudynFMS";
 /// of another version is refused (what each version added is in git's
 /// history).
 const VERSION: u32 = 11;
+
+/// The values that determine the plant's future: what an FMU state saves.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlantState {
+    /// Time, θ (nq, qpos), ν (nv) and the integrator's carry.
+    pub run: RunState,
+    /// Parameters `tolerance`, `max_step` and `energy_projection`.
+    pub settings: Settings,
+    /// Parameter `method`; what `auto` chose is in `run`.
+    pub method: MethodSetting,
+    /// Start time of the experiment (s).
+    pub start_time: f64,
+    /// Stop time, if the master declared one (s).
+    pub stop_time: Option<f64>,
+    /// K = ½|ν|² at initialization (J), for the energy residual.
+    pub initial_energy: f64,
+    /// The inputs ε (nv) as set at the current communication point.
+    pub eps: Vec<f64>,
+    /// dε/dt (nv) from fmi2SetRealInputDerivatives, for the next step only.
+    pub eps_rate: Vec<f64>,
+    /// The actuators' controls (nu) as set at the current communication point.
+    pub ctrl: Vec<f64>,
+    /// Their rates (nu), for the next step only.
+    pub ctrl_rate: Vec<f64>,
+    /// The W a Rosenbrock method holds for its next step: restored with
+    /// the rest, the run continues bit for bit.
+    pub jacobian: HeldJacobian,
+}
 
 /// The sizes of a plant's state: a blob is restored only into a plant of the same.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -135,10 +162,10 @@ fn fnv1a(bytes: &[u8]) -> u64 {
 }
 
 impl Snapshot {
-    /// Number of scalars after the header: ten times, settings and
-    /// integration values, then theta, nu, qvel, eps, eps_rate, ctrl, ctrl_rate.
+    /// Number of scalars after the header: [`SCALAR_FIELDS`], then the
+    /// vectors of [`VECTOR_FIELDS`].
     fn scalar_count(sizes: Sizes) -> usize {
-        SCALARS + sizes.nq + 4 * sizes.nv + 2 * sizes.nu
+        SCALAR_FIELDS.len() + VECTOR_FIELDS.iter().map(|field| (field.len)(sizes)).sum::<usize>()
     }
 
     /// The sizes of the saved state.
@@ -171,18 +198,7 @@ impl Snapshot {
         bytes.push(u8::from(!s.jacobian.derivatives.is_empty()));
         bytes.push(s.run.auto_choice.map_or(0, |choice| method_value(choice.method) as u8));
         bytes.extend_from_slice(&s.jacobian.age.to_le_bytes());
-        let scalars = [
-            s.run.time,
-            s.start_time,
-            s.stop_time.unwrap_or(0.0),
-            s.settings.tolerance,
-            s.settings.max_step,
-            s.run.carry.next_step,
-            s.run.carry.work,
-            s.initial_energy,
-            s.run.carry.relaxation,
-            s.run.carry.start_rates,
-        ];
+        let scalars = SCALAR_FIELDS.map(|field| (field.get)(s));
         let mut choice = [0.0; CHOICE_SCALARS];
         if let Some(c) = s.run.auto_choice {
             choice[..3].copy_from_slice(&[c.probe_step, c.error_per_second, c.tolerance]);
@@ -190,9 +206,8 @@ impl Snapshot {
                 *slot = attempts as f64;
             }
         }
-        let w = &s.jacobian.derivatives;
-        let vectors = [&s.run.theta, &s.run.nu, &s.run.qvel, &s.eps, &s.eps_rate, &s.ctrl, &s.ctrl_rate, w];
-        for x in scalars.iter().chain(&choice).chain(vectors.into_iter().flatten()) {
+        let vectors = VECTOR_FIELDS.iter().flat_map(|field| (field.get)(s));
+        for x in scalars.iter().chain(&choice).chain(vectors).chain(&s.jacobian.derivatives) {
             bytes.extend_from_slice(&x.to_le_bytes());
         }
         let checksum = fnv1a(&bytes);
@@ -220,7 +235,7 @@ impl Snapshot {
         if found != sizes {
             return Err(SnapshotError::Sizes { found, expected: sizes });
         }
-        let Sizes { nq, nv, nu: controls } = sizes;
+        let nv = sizes.nv;
         let flags = reader.take(FLAGS)?;
         let (phase_code, stop_time_defined, method_value_byte, energy_projection, holds_jacobian, chosen_byte) =
             (flags[0], flags[1] != 0, flags[2], flags[3] != 0, flags[4] != 0, flags[5]);
@@ -260,7 +275,7 @@ impl Snapshot {
         if holds_jacobian && !in_effect.is_some_and(|m| matches!(m.scheme(), Scheme::Rosenbrock(_))) {
             return Err(SnapshotError::JacobianWithoutRosenbrock(in_effect.map_or("auto", |m| m.name())));
         }
-        let (settings, rest) = scalars.split_at(SCALARS);
+        let (settings, rest) = scalars.split_at(SCALAR_FIELDS.len());
         let (choice, vectors) = rest.split_at(CHOICE_SCALARS);
         check_values(settings, vectors)?;
         if let Some(&value) = choice.iter().find(|x| x.is_nan() || **x < 0.0) {
@@ -290,44 +305,134 @@ impl Snapshot {
             tolerance: choice[2],
             earlier_attempts,
         });
-        let (theta, rest) = vectors.split_at(nq);
-        let (nu, rest) = rest.split_at(nv);
-        let (qvel, rest) = rest.split_at(nv);
-        let (eps, rest) = rest.split_at(nv);
-        let (eps_rate, rest) = rest.split_at(nv);
-        let (ctrl, rest) = rest.split_at(controls);
-        let (ctrl_rate, jacobian) = rest.split_at(controls);
-        Ok(Snapshot {
-            phase,
-            guid: found_guid,
-            state: PlantState {
-                run: RunState {
-                    time: settings[0],
-                    theta: theta.to_vec(),
-                    nu: nu.to_vec(),
-                    qvel: qvel.to_vec(),
-                    carry: Carry {
-                        next_step: settings[5],
-                        work: settings[6],
-                        relaxation: settings[8],
-                        start_rates: settings[9],
-                    },
-                    auto_choice,
-                },
-                settings: Settings { tolerance: settings[3], max_step: settings[4], energy_projection },
-                method,
-                start_time: settings[1],
-                stop_time: stop_time_defined.then_some(settings[2]),
-                initial_energy: settings[7],
-                eps: eps.to_vec(),
-                eps_rate: eps_rate.to_vec(),
-                ctrl: ctrl.to_vec(),
-                ctrl_rate: ctrl_rate.to_vec(),
-                jacobian: HeldJacobian { derivatives: jacobian.to_vec(), age: jacobian_age },
+        let mut state = PlantState {
+            run: RunState {
+                time: 0.0,
+                theta: Vec::new(),
+                nu: Vec::new(),
+                qvel: Vec::new(),
+                carry: Carry::default(),
+                auto_choice,
             },
-        })
+            settings: Settings { tolerance: 0.0, max_step: 0.0, energy_projection },
+            method,
+            start_time: 0.0,
+            stop_time: None,
+            initial_energy: 0.0,
+            eps: Vec::new(),
+            eps_rate: Vec::new(),
+            ctrl: Vec::new(),
+            ctrl_rate: Vec::new(),
+            jacobian: HeldJacobian { derivatives: Vec::new(), age: jacobian_age },
+        };
+        for (field, &value) in SCALAR_FIELDS.iter().zip(settings) {
+            (field.set)(&mut state, value);
+        }
+        // The writer stores 0 for a stop time not defined.
+        state.stop_time = state.stop_time.filter(|_| stop_time_defined);
+        let mut rest = vectors;
+        for field in &VECTOR_FIELDS {
+            let (values, after) = rest.split_at((field.len)(sizes));
+            *(field.set)(&mut state) = values.to_vec();
+            rest = after;
+        }
+        state.jacobian.derivatives = rest.to_vec();
+        Ok(Snapshot { phase, guid: found_guid, state })
     }
 }
+
+/// What a saved value must be, beyond finite.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Bound {
+    /// Any finite value.
+    Finite,
+    /// Greater than zero.
+    Positive,
+    /// Zero or more.
+    NonNegative,
+}
+
+/// One f64 of the state saved after the header: its name in messages,
+/// what it must be, and where it lives. Serialization writes and reads
+/// [`SCALAR_FIELDS`] in its order, so the layout and the checks are this
+/// one list.
+struct ScalarField {
+    name: &'static str,
+    bound: Bound,
+    get: fn(&PlantState) -> f64,
+    set: fn(&mut PlantState, f64),
+}
+
+/// The scalars before the vectors: times, settings and integration values.
+/// Appending a field changes the byte layout: raise [`VERSION`].
+const SCALAR_FIELDS: [ScalarField; 10] = [
+    ScalarField { name: "time", bound: Bound::Finite, get: |s| s.run.time, set: |s, x| s.run.time = x },
+    ScalarField { name: "start_time", bound: Bound::Finite, get: |s| s.start_time, set: |s, x| s.start_time = x },
+    // Checked even when not defined: the writer stores 0 then.
+    ScalarField {
+        name: "stop_time",
+        bound: Bound::Finite,
+        get: |s| s.stop_time.unwrap_or(0.0),
+        set: |s, x| s.stop_time = Some(x),
+    },
+    ScalarField {
+        name: "tolerance",
+        bound: Bound::Positive,
+        get: |s| s.settings.tolerance,
+        set: |s, x| s.settings.tolerance = x,
+    },
+    ScalarField {
+        name: "max_step",
+        bound: Bound::NonNegative,
+        get: |s| s.settings.max_step,
+        set: |s, x| s.settings.max_step = x,
+    },
+    ScalarField {
+        name: "next step",
+        bound: Bound::NonNegative,
+        get: |s| s.run.carry.next_step,
+        set: |s, x| s.run.carry.next_step = x,
+    },
+    ScalarField { name: "work", bound: Bound::Finite, get: |s| s.run.carry.work, set: |s, x| s.run.carry.work = x },
+    ScalarField {
+        name: "initial energy",
+        bound: Bound::NonNegative,
+        get: |s| s.initial_energy,
+        set: |s, x| s.initial_energy = x,
+    },
+    ScalarField {
+        name: "relaxation",
+        bound: Bound::NonNegative,
+        get: |s| s.run.carry.relaxation,
+        set: |s, x| s.run.carry.relaxation = x,
+    },
+    ScalarField {
+        name: "start rates",
+        bound: Bound::NonNegative,
+        get: |s| s.run.carry.start_rates,
+        set: |s, x| s.run.carry.start_rates = x,
+    },
+];
+
+/// One vector of the state saved after the scalars: its length for the
+/// FMU's sizes and where it lives (W, whose length a header flag gives,
+/// follows them).
+struct VectorField {
+    len: fn(Sizes) -> usize,
+    get: fn(&PlantState) -> &Vec<f64>,
+    set: fn(&mut PlantState) -> &mut Vec<f64>,
+}
+
+/// θ, ν, θ̇, ε and its rate, the controls and their rates, in this order.
+const VECTOR_FIELDS: [VectorField; 7] = [
+    VectorField { len: |n| n.nq, get: |s| &s.run.theta, set: |s| &mut s.run.theta },
+    VectorField { len: |n| n.nv, get: |s| &s.run.nu, set: |s| &mut s.run.nu },
+    VectorField { len: |n| n.nv, get: |s| &s.run.qvel, set: |s| &mut s.run.qvel },
+    VectorField { len: |n| n.nv, get: |s| &s.eps, set: |s| &mut s.eps },
+    VectorField { len: |n| n.nv, get: |s| &s.eps_rate, set: |s| &mut s.eps_rate },
+    VectorField { len: |n| n.nu, get: |s| &s.ctrl, set: |s| &mut s.ctrl },
+    VectorField { len: |n| n.nu, get: |s| &s.ctrl_rate, set: |s| &mut s.ctrl_rate },
+];
 
 /// Header bytes after the sizes: the state machine's state, whether a stop
 /// time is defined, the method, energy projection, whether W is held, the
@@ -340,38 +445,21 @@ const FLAGS: usize = 6;
 /// attempted in the communication steps it weighs with the next.
 const CHOICE_SCALARS: usize = 3 + MOVE_UP_WINDOW - 1;
 
-/// The scalars before the vectors: times, settings and integration values.
-const SCALARS: usize = 10;
-
 /// Checks what fmi2SetupExperiment and fmi2SetReal would have refused:
-/// every value finite, `tolerance` positive, `max_step`, the carried
-/// step, K₀, the relaxation and the start's rates not negative. (The stop
-/// time is checked even when it is not defined: the writer stores 0 then.)
-fn check_values(settings: &[f64], vectors: &[f64]) -> Result<(), SnapshotError> {
-    const NAMES: [&str; SCALARS] = [
-        "time",
-        "start_time",
-        "stop_time",
-        "tolerance",
-        "max_step",
-        "next step",
-        "work",
-        "initial energy",
-        "relaxation",
-        "start rates",
-    ];
-    for (&what, &value) in NAMES.iter().zip(settings) {
+/// every value finite, and each scalar what [`SCALAR_FIELDS`] says it must be.
+fn check_values(scalars: &[f64], vectors: &[f64]) -> Result<(), SnapshotError> {
+    for (field, &value) in SCALAR_FIELDS.iter().zip(scalars) {
         if !value.is_finite() {
-            return Err(SnapshotError::Value { what, value, must: "finite" });
+            return Err(SnapshotError::Value { what: field.name, value, must: "finite" });
         }
     }
-    if settings[3] <= 0.0 {
-        return Err(SnapshotError::Value { what: NAMES[3], value: settings[3], must: "positive" });
-    }
-    for (&what, &value) in [4, 5, 7, 8, 9].map(|i| (&NAMES[i], &settings[i])) {
-        if value < 0.0 {
-            return Err(SnapshotError::Value { what, value, must: "non-negative" });
-        }
+    for (field, &value) in SCALAR_FIELDS.iter().zip(scalars) {
+        let must = match field.bound {
+            Bound::Positive if value <= 0.0 => "positive",
+            Bound::NonNegative if value < 0.0 => "non-negative",
+            _ => continue,
+        };
+        return Err(SnapshotError::Value { what: field.name, value, must });
     }
     match vectors.iter().find(|x| !x.is_finite()) {
         Some(&value) => Err(SnapshotError::Value {
@@ -570,7 +658,8 @@ mod tests {
             Err(SnapshotError::JacobianWithoutRosenbrock("dop853"))
         );
         let mut bytes = serialized(&sample_with_choice());
-        let newer_attempts_at = MAGIC.len() + 8 + GUID.len() + 12 + FLAGS + 4 + (SCALARS + CHOICE_SCALARS - 1) * 8;
+        let newer_attempts_at =
+            MAGIC.len() + 8 + GUID.len() + 12 + FLAGS + 4 + (SCALAR_FIELDS.len() + CHOICE_SCALARS - 1) * 8;
         assert_eq!(bytes[newer_attempts_at..newer_attempts_at + 8], 2.0f64.to_le_bytes());
         for (value, must) in [(1.5, "a whole number"), (0.0, "positive after a count")] {
             bytes[newer_attempts_at..newer_attempts_at + 8].copy_from_slice(&f64::to_le_bytes(value));

@@ -9,8 +9,6 @@
 //! doStep is synchronous (canRunAsynchronuously="false"), so the states
 //! stepInProgress and stepCanceled are never entered and not modelled.
 
-use crate::layer::Interface;
-
 /// Where an instance is in its life.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Phase {
@@ -284,6 +282,33 @@ impl Function {
     /// Whether the function may be called in `phase`.
     pub fn allowed_in(self, phase: Phase) -> bool {
         self.allowed() & phase.bit() != 0
+    }
+}
+
+/// The interface an instance was instantiated for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Interface {
+    /// Model exchange.
+    ModelExchange,
+    /// Co-simulation.
+    CoSimulation,
+}
+
+impl Interface {
+    /// Whether `phase` is one of this interface's state machine.
+    pub fn has(self, phase: Phase) -> bool {
+        match phase {
+            Phase::StepComplete | Phase::StepFailed => self == Interface::CoSimulation,
+            Phase::EventMode | Phase::ContinuousTimeMode => self == Interface::ModelExchange,
+            _ => true,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Interface::ModelExchange => "model exchange",
+            Interface::CoSimulation => "co-simulation",
+        }
     }
 }
 

@@ -95,14 +95,12 @@ def fmu2(cli, tmp_path_factory):
     return cli.export(DOCKED, tmp_path_factory.mktemp("fmi2") / "docked.fmu")
 
 
-@pytest.mark.skipif(not OMSIMULATOR, reason="no OMSimulator given (NUDYN_OMSIMULATOR=PATH)")
-@pytest.mark.parametrize("mode, tolerance", [("cs", None), ("cs", 1e-6), ("cs", 1e-8), ("me", None), ("me", 1e-8)])
-def test_omsimulator_runs_the_docked_servicer_to_the_end(fmu2, reference, mode, tolerance, tmp_path):
-    """OMSimulator passes its --tolerance (1e-4 by default) to fmi2SetupExperiment."""
+def run_omsimulator(fmu, mode, tolerance, tmp_path):
+    """(θ, ν) at STOP of OMSimulator's run of `fmu`, checked to reach STOP without an error."""
     result = tmp_path / "result.csv"
     options = [f"--mode={mode}", f"--stopTime={STOP}", f"--intervals={round(STOP / INTERVAL)}",
                f"--resultFile={result}"] + ([f"--tolerance={tolerance}"] if tolerance else [])
-    proc = subprocess.run([OMSIMULATOR, *options, str(fmu2)], capture_output=True, text=True, timeout=600,
+    proc = subprocess.run([OMSIMULATOR, *options, str(fmu)], capture_output=True, text=True, timeout=600,
                           cwd=tmp_path)
     assert proc.returncode == 0 and "error:" not in proc.stdout, proc.stdout + proc.stderr
     with open(result, newline="") as file:
@@ -112,8 +110,29 @@ def test_omsimulator_runs_the_docked_servicer_to_the_end(fmu2, reference, mode, 
     names = [n for n in columns if n.startswith(("theta[", "nu["))]
     names.sort(key=lambda n: (n.startswith("nu"), int(n[n.index("[") + 1 : -1])))
     assert float(last[0]) == pytest.approx(STOP)
-    state = np.array([float(last[columns[n]]) for n in names])
+    return np.array([float(last[columns[n]]) for n in names])
+
+
+@pytest.mark.skipif(not OMSIMULATOR, reason="no OMSimulator given (NUDYN_OMSIMULATOR=PATH)")
+@pytest.mark.parametrize("mode, tolerance", [("cs", None), ("cs", 1e-6), ("cs", 1e-8), ("me", None), ("me", 1e-8)])
+def test_omsimulator_runs_the_docked_servicer_to_the_end(fmu2, reference, mode, tolerance, tmp_path):
+    """OMSimulator passes its --tolerance (1e-4 by default) to fmi2SetupExperiment."""
+    state = run_omsimulator(fmu2, mode, tolerance, tmp_path)
     close, error = within(state, reference, (tolerance or 1e-4) if mode == "cs" else None)
+    assert close, error
+
+
+@pytest.mark.skipif(not OMSIMULATOR, reason="no OMSimulator given (NUDYN_OMSIMULATOR=PATH)")
+@pytest.mark.parametrize("tolerance", [None, 1e-8])
+def test_omsimulator_runs_the_fmi3_scalar_export_to_the_end(nudyn, fmu_library, reference, tolerance, tmp_path):
+    """OMSimulator reads each FMI 3.0 array as a scalar (fmi3GetFloat64:
+    nValues = 1, but the value references name 32 values) and runs no FMI
+    3.0 model exchange: --fmi3-scalars' co-simulation runs to the end."""
+    fmu = tmp_path / "docked.fmu"
+    subprocess.run([str(nudyn), "export", str(DOCKED), "-o", str(fmu), "--fmi-version", "3", "--fmi3-scalars"],
+                   check=True, capture_output=True, env={**os.environ, "NUDYN_FMU_LIB": str(fmu_library)})
+    state = run_omsimulator(fmu, "cs", tolerance, tmp_path)
+    close, error = within(state, reference, tolerance or 1e-4)
     assert close, error
 
 

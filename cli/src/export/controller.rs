@@ -15,7 +15,7 @@ use nudyn_contract::resource::Resource;
 use super::plant::description;
 use super::{
     Document, ExportError, FmiVersion, Header, PlatformBinary, check_model_identifier, documentation, fmi3,
-    generation_date_and_time, real_variable, write_archive,
+    fmu_archive, generation_date_and_time, real_variable, write_file,
 };
 
 /// What controlled quantity k is, and its unit, for descriptions.
@@ -169,18 +169,35 @@ pub enum ControllerExportError {
 }
 
 /// Writes the controller FMU `out` for `model` with `law`; `binaries` are
-/// the `nudyn_fmu` cdylib built for each platform, as for the plant.
+/// the `nudyn_fmu` cdylib built for each platform, as for the plant;
+/// `fmi3_scalars`: FMI 3.0 variables all scalars, for hosts without arrays.
 pub fn write_controller_fmu(
     model: &Model,
     law: &ControlLaw,
     model_identifier: &str,
     fmi_version: FmiVersion,
+    fmi3_scalars: bool,
     binaries: &[PlatformBinary],
     out: &Path,
 ) -> Result<(), ControllerExportError> {
+    let bytes = controller_fmu(model, law, model_identifier, fmi_version, fmi3_scalars, binaries, out)?;
+    Ok(write_file(out, &bytes)?)
+}
+
+/// The bytes of the controller FMU [`write_controller_fmu`] writes, built
+/// in memory (`out` names it in messages).
+pub fn controller_fmu(
+    model: &Model,
+    law: &ControlLaw,
+    model_identifier: &str,
+    fmi_version: FmiVersion,
+    fmi3_scalars: bool,
+    binaries: &[PlatformBinary],
+    out: &Path,
+) -> Result<Vec<u8>, ControllerExportError> {
     check_model_identifier(model_identifier)?;
     let defaults = law.default_parameters(model)?;
-    let resource = ControllerResource::new(model.clone(), law.clone());
+    let resource = ControllerResource { fmi3_scalars, ..ControllerResource::new(model.clone(), law.clone()) };
     let bytes = resource.to_json().map_err(ExportError::from)?;
     let guid = resource.guid(&bytes);
     let description = match fmi_version {
@@ -192,6 +209,5 @@ pub fn write_controller_fmu(
         }
     };
     let documentation = documentation::index_html(model, &description, "controller");
-    write_archive::<ControllerResource>(&description, &bytes, &documentation, binaries, out)?;
-    Ok(())
+    Ok(fmu_archive::<ControllerResource>(&description, &bytes, &documentation, binaries, out)?)
 }

@@ -1,8 +1,9 @@
 //! The FMI 3.0 modelDescription of a nudyn FMU, written from the same
 //! contract as the FMI 2.0 one: the contract's FMI 3.0 table
-//! ([`Fmi3Variables`]) groups the scalar variables into arrays, and each
-//! array takes its kind and start values from its elements (which share a
-//! kind by construction) and the descriptions of its elements.
+//! ([`Fmi3Variables`]) groups the scalar variables into arrays (or, with
+//! `--fmi3-scalars`, keeps each a scalar), and each array takes its kind
+//! and start values from its elements (which share a kind by construction)
+//! and the descriptions of its elements.
 
 use modeldescription::fmi3 as md3;
 use nudyn_contract::fmi3::{Fmi3Variable, Fmi3Variables, TIME_NAME, TIME_VR, ValueType};
@@ -50,7 +51,7 @@ fn variability(kind: Kind) -> &'static str {
 }
 
 /// The `<Float64>` of a variable of the table, from its elements.
-fn float64(table: &Fmi3Variables, variable: &Fmi3Variable, real: &impl Fn(u32) -> RealScalar) -> md3::Float64 {
+fn float64(variable: &Fmi3Variable, real: &impl Fn(u32) -> RealScalar) -> md3::Float64 {
     let elements: Vec<RealScalar> = variable.elements().map(real).collect();
     let kind = elements[0].kind;
     let (causality, initial) = causality(kind);
@@ -62,12 +63,6 @@ fn float64(table: &Fmi3Variables, variable: &Fmi3Variable, real: &impl Fn(u32) -
     } else {
         elements[0].description.clone()
     };
-    // der(x) is the derivative of x.
-    let derivative = variable
-        .name
-        .strip_prefix("der(")
-        .and_then(|rest| rest.strip_suffix(')'))
-        .and_then(|state| table.value_reference(state));
     md3::Float64 {
         name: variable.name.clone(),
         value_reference: variable.value_reference,
@@ -78,7 +73,7 @@ fn float64(table: &Fmi3Variables, variable: &Fmi3Variable, real: &impl Fn(u32) -
         unit: None,
         min: (kind.range == Range::NonNegative).then_some(0.0),
         start,
-        derivative,
+        derivative: variable.derivative_of,
         dimensions: if variable.array { vec![md3::Dimension { start: variable.len as u64 }] } else { Vec::new() },
     }
 }
@@ -109,7 +104,7 @@ pub fn model_description(
     let mut variables = vec![time];
     variables.extend(others.variables);
     let floats: Vec<md3::Float64> =
-        table.iter().filter(|v| v.value_type == ValueType::Float64).map(|v| float64(table, v, &real)).collect();
+        table.iter().filter(|v| v.value_type == ValueType::Float64).map(|v| float64(v, &real)).collect();
 
     let unknown = |float: &md3::Float64| md3::Unknown {
         value_reference: float.value_reference,

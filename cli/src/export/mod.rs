@@ -12,6 +12,7 @@ mod documentation;
 mod fmi3;
 pub mod plant;
 pub mod system;
+pub mod variable_table;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -358,19 +359,19 @@ pub struct PlatformBinary {
     pub path: PathBuf,
 }
 
-/// Writes the FMU archive `out`: `description` (validated first) as
+/// The FMU archive's bytes: `description` (validated first) as
 /// modelDescription.xml, each of `binaries` (the `nudyn_fmu` cdylib built
 /// for a platform, checked, without debug sections) as e.g.
 /// `binaries/linux64/<modelIdentifier>.so` or `binaries/win64/<modelIdentifier>.dll`
 /// (FMI 3.0: `binaries/x86_64-linux/`, `binaries/x86_64-windows/`), the
-/// resource file and the documentation.
-fn write_archive<R: Resource>(
+/// resource file and the documentation. `out` names the archive in messages.
+fn fmu_archive<R: Resource>(
     description: &Document,
     resource: &[u8],
     documentation: &str,
     binaries: &[PlatformBinary],
     out: &Path,
-) -> Result<(), ExportError> {
+) -> Result<Vec<u8>, ExportError> {
     let xml = description.xml()?;
     let (functions, version) = description.functions();
     let mut libraries = Vec::with_capacity(binaries.len());
@@ -381,27 +382,40 @@ fn write_archive<R: Resource>(
         let library = binary::without_debug_sections(*platform, library).map_err(binary_error)?;
         libraries.push((description.binary_path(*platform), library));
     }
+    let mut entries = vec![Entry { name: "modelDescription.xml".to_string(), bytes: xml.as_bytes(), mode: 0o644 }];
+    entries.extend(libraries.iter().map(|(name, library)| Entry { name: name.clone(), bytes: library, mode: 0o755 }));
+    entries.push(Entry { name: R::archive_path(), bytes: resource, mode: 0o644 });
+    entries.push(Entry { name: "documentation/index.html".to_string(), bytes: documentation.as_bytes(), mode: 0o644 });
+    zip_archive(&entries, out)
+}
 
-    // Replaced whole or not at all, and only if it is a regular file or new (crate::output).
-    crate::output::write_atomically(out, |staged| {
-        let io_error = |source| ExportError::Io { path: out.to_path_buf(), source };
-        let zip_error = |source| ExportError::Zip { path: out.to_path_buf(), source };
-        let mut archive = zip::ZipWriter::new(staged);
-        let options_for = |mode| {
-            zip::write::SimpleFileOptions::default()
-                .compression_method(zip::CompressionMethod::Deflated)
-                .unix_permissions(mode)
-        };
-        let mut entries = vec![("modelDescription.xml".to_string(), xml.as_bytes(), 0o644)];
-        entries.extend(libraries.iter().map(|(name, library)| (name.clone(), &library[..], 0o755)));
-        entries.push((R::archive_path(), resource, 0o644));
-        entries.push(("documentation/index.html".to_string(), documentation.as_bytes(), 0o644));
-        for (name, bytes, mode) in entries {
-            archive.start_file(name, options_for(mode)).map_err(zip_error)?;
-            archive.write_all(bytes).map_err(io_error)?;
-        }
-        archive.finish().map_err(zip_error)?;
-        Ok(())
+/// One file of an archive, with its Unix mode.
+struct Entry<'a> {
+    name: String,
+    bytes: &'a [u8],
+    mode: u32,
+}
+
+/// The zip archive of `entries`, in order, built in memory: FMUs and SSPs
+/// (whose FMUs are entries of it) alike. `out` names it in messages.
+fn zip_archive(entries: &[Entry], out: &Path) -> Result<Vec<u8>, ExportError> {
+    let zip_error = |source| ExportError::Zip { path: out.to_path_buf(), source };
+    let mut archive = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
+    for entry in entries {
+        let options = zip::write::SimpleFileOptions::default()
+            .compression_method(zip::CompressionMethod::Deflated)
+            .unix_permissions(entry.mode);
+        archive.start_file(entry.name.as_str(), options).map_err(zip_error)?;
+        archive.write_all(entry.bytes).map_err(|source| ExportError::Io { path: out.to_path_buf(), source })?;
+    }
+    Ok(archive.finish().map_err(zip_error)?.into_inner())
+}
+
+/// Writes `bytes` to `out`, replaced whole or not at all, and only if it is
+/// a regular file or new (crate::output).
+fn write_file(out: &Path, bytes: &[u8]) -> Result<(), ExportError> {
+    crate::output::write_atomically(out, |mut staged| {
+        staged.write_all(bytes).map_err(|source| ExportError::Io { path: out.to_path_buf(), source })
     })
 }
 

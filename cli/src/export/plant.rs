@@ -16,7 +16,7 @@ use nudyn_contract::resource::Resource;
 
 use super::{
     Document, ExportError, FmiVersion, Header, PlatformBinary, check_model_identifier, documentation, fmi3,
-    generation_date_and_time, real_variable, write_archive,
+    fmu_archive, generation_date_and_time, real_variable, write_file,
 };
 
 /// What `nudyn export` is asked for.
@@ -351,9 +351,10 @@ pub fn model_description(resource: &PlantResource, options: &ExportOptions, guid
         RealVariable::DerNu(k) => Some(index_of(RealVariable::Nu(k))),
         _ => None,
     };
+    let name = |variable: RealVariable| layout.name(variable).expect("a variable of the layout");
     let scalar_variables = reals.iter().map(|&(vr, variable)| {
         let mut scalar =
-            real_variable(variable.name(), vr, description(model, variable), variable.kind(), resource.start(variable));
+            real_variable(name(variable), vr, description(model, variable), variable.kind(), resource.start(variable));
         if let md::VariableKind::Real(real) = &mut scalar.kind {
             real.derivative = state_of(variable);
         }
@@ -431,6 +432,17 @@ pub fn write_plant_fmu(
     binaries: &[PlatformBinary],
     out: &Path,
 ) -> Result<(), ExportError> {
+    write_file(out, &plant_fmu(resource, options, binaries, out)?)
+}
+
+/// The bytes of the plant FMU of `resource`, built in memory (`out` names
+/// it in messages): for a file of its own or an entry of a system file.
+pub fn plant_fmu(
+    resource: &PlantResource,
+    options: &ExportOptions,
+    binaries: &[PlatformBinary],
+    out: &Path,
+) -> Result<Vec<u8>, ExportError> {
     check_model_identifier(&options.model_identifier)?;
     let bytes = resource.to_json()?;
     let guid = resource.guid(&bytes);
@@ -439,5 +451,5 @@ pub fn write_plant_fmu(
         FmiVersion::Fmi3 => Document::Fmi3(model_description3(resource, options, &guid)),
     };
     let documentation = documentation::index_html(&resource.model, &description, "plant");
-    write_archive::<PlantResource>(&description, &bytes, &documentation, binaries, out)
+    fmu_archive::<PlantResource>(&description, &bytes, &documentation, binaries, out)
 }

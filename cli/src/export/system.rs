@@ -21,19 +21,18 @@
 //! process on one.
 
 use std::collections::BTreeMap;
-use std::io::Write;
 use std::path::Path;
 
 use nudyn::control::ControlLaw;
 use nudyn::math::normalize_wxyz;
 use nudyn::model::{LinkJoint, Model};
 use nudyn_contract::controller::ControllerLayout;
-use nudyn_contract::plant::{DEFAULT_TOLERANCE, PlantResource};
+use nudyn_contract::plant::{DEFAULT_TOLERANCE, Layout, PlantResource, RealVariable};
 use nudyn_contract::variable::{Kind, StartError, check_start};
 
-use super::controller::{ControllerExportError, write_controller_fmu};
-use super::plant::{ExportOptions, write_plant_fmu};
-use super::{ExportError, FmiVersion, PlatformBinary};
+use super::controller::{ControllerExportError, controller_fmu};
+use super::plant::{ExportOptions, plant_fmu};
+use super::{Entry, ExportError, FmiVersion, PlatformBinary, write_file, zip_archive};
 
 /// The namespaces of SSP 1.0 and of OSP's annotations.
 const SSD_NAMESPACE: &str = "http://ssp-standard.org/SSP1/SystemStructureDescription";
@@ -306,10 +305,14 @@ pub fn write_system(
     }
     check_experiment(options.step, options.stop)?;
     let plant_resource = PlantResource::new(model.clone(), options.plant.outputs);
-    let plant_variables: Vec<Settable> = plant_resource
-        .layout()
+    let plant_layout = plant_resource.layout();
+    let plant_variables: Vec<Settable> = plant_layout
         .real_variables()
-        .map(|(_, v)| Settable { name: v.name(), kind: v.kind(), has_start: v.start(model).is_some() })
+        .map(|(_, v)| Settable {
+            name: plant_layout.name(v).expect("a variable of the layout"),
+            kind: v.kind(),
+            has_start: v.start(model).is_some(),
+        })
         .collect();
     let defaults = law.default_parameters(model).map_err(ControllerExportError::from)?;
     let layout = ControllerLayout::new(model, law);
@@ -321,34 +324,20 @@ pub fn write_system(
 
     let plant_starts = values.get(&Component::Plant).cloned().unwrap_or_default();
     let plant_resource = plant_resource.with_starts(plant_starts).expect("checked against the same variables");
-    let staging = tempfile::tempdir().map_err(|source| ExportError::Io { path: out.to_path_buf(), source })?;
-    let (plant_fmu, controller_fmu) = (staging.path().join("plant.fmu"), staging.path().join("controller.fmu"));
     let plant_options = ExportOptions { model_identifier: options.plant_identifier.clone(), ..options.plant.clone() };
-    write_plant_fmu(&plant_resource, &plant_options, binaries, &plant_fmu)?;
-    write_controller_fmu(model, law, &options.controller_identifier, FmiVersion::Fmi2, binaries, &controller_fmu)?;
-    let read = |path: &Path| std::fs::read(path).map_err(|source| ExportError::Io { path: path.to_path_buf(), source });
-
+    let plant = plant_fmu(&plant_resource, &plant_options, binaries, out)?;
+    let controller_identifier = &options.controller_identifier;
+    let controller = controller_fmu(model, law, controller_identifier, FmiVersion::Fmi2, false, binaries, out)?;
+    let ssd = system_structure(model, options, &values);
+    let ssvs: Vec<(String, String)> =
+        values.iter().map(|(component, set)| (ssv_path(*component), parameter_set(component.name(), set))).collect();
     let mut entries = vec![
-        ("SystemStructure.ssd".to_string(), system_structure(model, options, &values).into_bytes()),
-        ("resources/plant.fmu".to_string(), read(&plant_fmu)?),
-        ("resources/controller.fmu".to_string(), read(&controller_fmu)?),
+        Entry { name: "SystemStructure.ssd".to_string(), bytes: ssd.as_bytes(), mode: 0o644 },
+        Entry { name: "resources/plant.fmu".to_string(), bytes: &plant, mode: 0o644 },
+        Entry { name: "resources/controller.fmu".to_string(), bytes: &controller, mode: 0o644 },
     ];
-    for (component, set) in &values {
-        entries.push((ssv_path(*component), parameter_set(component.name(), set).into_bytes()));
-    }
-    crate::output::write_atomically(out, |staged| {
-        let zip_error = |source| ExportError::Zip { path: out.to_path_buf(), source };
-        let mut archive = zip::ZipWriter::new(staged);
-        let options = zip::write::SimpleFileOptions::default()
-            .compression_method(zip::CompressionMethod::Deflated)
-            .unix_permissions(0o644);
-        for (name, bytes) in &entries {
-            archive.start_file(name.as_str(), options).map_err(zip_error)?;
-            archive.write_all(bytes).map_err(|source| ExportError::Io { path: out.to_path_buf(), source })?;
-        }
-        archive.finish().map_err(zip_error)?;
-        Ok::<(), ExportError>(())
-    })?;
+    entries.extend(ssvs.iter().map(|(name, text)| Entry { name: name.clone(), bytes: text.as_bytes(), mode: 0o644 }));
+    write_file(out, &zip_archive(&entries, out)?)?;
     Ok(values)
 }
 
@@ -379,11 +368,15 @@ fn escape(text: &str) -> String {
     text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
 }
 
-/// `SystemStructure.ssd`.
+/// `SystemStructure.ssd`: the plant's θ, ν and ε connected to the
+/// controller's variables of the same names, listed from the plant's layout.
 fn system_structure(model: &Model, options: &SystemOptions, values: &Values) -> String {
-    let state: Vec<String> =
-        (1..=model.nq).map(|k| format!("theta[{k}]")).chain((1..=model.nv).map(|k| format!("nu[{k}]"))).collect();
-    let eps: Vec<String> = (1..=model.nv).map(|k| format!("eps[{k}]")).collect();
+    let plant = Layout::new(model, options.plant.outputs);
+    let names = |connected: fn(&RealVariable) -> bool| -> Vec<String> {
+        plant.real_variables().filter(|(_, v)| connected(v)).filter_map(|(_, v)| plant.name(v)).collect()
+    };
+    let state = names(|v| matches!(v, RealVariable::Theta(_) | RealVariable::Nu(_)));
+    let eps = names(|v| matches!(v, RealVariable::Eps(_)));
     let connector = |name: &String, kind: &str| {
         format!("          <ssd:Connector name=\"{}\" kind=\"{kind}\"><ssc:Real/></ssd:Connector>\n", escape(name))
     };
