@@ -144,6 +144,12 @@ fn agrees(expected: &Value, found: &Value, place: &str) -> Result<(), String> {
         (Value::Object(a), Value::Object(b)) if a.keys().eq(b.keys()) => {
             a.iter().try_for_each(|(key, value)| agrees(value, &b[key], &format!("{place}.{key}")))
         }
+        (Value::Object(a), Value::Object(b)) => {
+            let missing: Vec<&String> = a.keys().filter(|k| !b.contains_key(*k)).collect();
+            let extra: Vec<&String> = b.keys().filter(|k| !a.contains_key(*k)).collect();
+            let extra_values: Vec<String> = extra.iter().map(|k| format!("{k}: {}", b[*k])).collect();
+            Err(format!("{place}: missing {missing:?}, new {}", extra_values.join(", ")))
+        }
         _ if expected == found => Ok(()),
         _ => Err(format!("{place}: expected {expected}, found {found}")),
     }
