@@ -419,26 +419,8 @@ fn process(raw: RawMesh, settings: &MeshSettings, refpos: [f64; 3], refquat: [f6
 
     let hull_error = hull_precondition(&vertices).err();
     let needs_hull = settings.inertia == MeshInertia::Convex || faces.is_empty();
-    let mut hull_faces = if needs_hull {
-        if let Some(error) = &hull_error {
-            return Err(error.clone());
-        }
-        let hull = hull::convex_hull(&vertices).ok_or("its vertices are coplanar: no convex hull")?;
-        let mut hull_vertices: Vec<usize> = hull.iter().flatten().copied().collect();
-        hull_vertices.sort_unstable();
-        hull_vertices.dedup();
-        let limit = settings.max_hull_vertices;
-        if limit > -1 && hull_vertices.len() > limit as usize {
-            return Err(format!(
-                "its convex hull has {} vertices, more than maxhullvert=\"{limit}\": MuJoCo would simplify \
-                 the hull with qhull, which nudyn does not reproduce; raise maxhullvert or remove it",
-                hull_vertices.len()
-            ));
-        }
-        hull
-    } else {
-        Vec::new()
-    };
+    let mut hull_faces =
+        if needs_hull { convex_hull_faces(&vertices, hull_error.as_ref(), settings)? } else { Vec::new() };
     if faces.is_empty() {
         faces = hull_faces.clone();
     }
@@ -486,7 +468,49 @@ fn process(raw: RawMesh, settings: &MeshSettings, refpos: [f64; 3], refquat: [f6
         return Err("its volume or inertia overflows: the mesh is too large".into());
     }
 
-    let (eigenvalues, quat) = principal_axes(&tensor, Eigen::Mesh);
+    let (quat, box_half, aabb) = mesh_frame(&vertices, &tensor, &com, volume)?;
+    Ok(Mesh { line: 0, pos: com, quat, volume, box_half, aabb, hull_error })
+}
+
+/// The faces of the convex hull of `vertices` (whose `hull_error` is why
+/// they have none, if so), refused past `maxhullvert`.
+fn convex_hull_faces(
+    vertices: &[[f64; 3]],
+    hull_error: Option<&String>,
+    settings: &MeshSettings,
+) -> Result<Vec<[usize; 3]>, String> {
+    if let Some(error) = hull_error {
+        return Err(error.clone());
+    }
+    let hull = hull::convex_hull(vertices).ok_or("its vertices are coplanar: no convex hull")?;
+    let mut hull_vertices: Vec<usize> = hull.iter().flatten().copied().collect();
+    hull_vertices.sort_unstable();
+    hull_vertices.dedup();
+    let limit = settings.max_hull_vertices;
+    if limit > -1 && hull_vertices.len() > limit as usize {
+        return Err(format!(
+            "its convex hull has {} vertices, more than maxhullvert=\"{limit}\": MuJoCo would simplify \
+             the hull with qhull, which nudyn does not reproduce; raise maxhullvert or remove it",
+            hull_vertices.len()
+        ));
+    }
+    Ok(hull)
+}
+
+/// A box as its lowest and highest corner.
+type BoundingBox = [[f64; 3]; 2];
+
+/// The mesh frame of a mesh with centre of mass `com`, unit-density
+/// inertia `tensor` and `volume`: its orientation (the principal axes),
+/// the half sizes of its inertia box and the bounding box of `vertices`
+/// in it.
+fn mesh_frame(
+    vertices: &[[f64; 3]],
+    tensor: &nalgebra::Matrix3<f64>,
+    com: &[f64; 3],
+    volume: f64,
+) -> Result<([f64; 4], [f64; 3], BoundingBox), String> {
+    let (eigenvalues, quat) = principal_axes(tensor, Eigen::Mesh);
     let (quat, [e0, e1, e2]) = (quat_array(&quat), eigenvalues.into());
     if e2 <= 0.0 {
         return Err("an eigenvalue of the mesh inertia is not positive".into());
@@ -503,7 +527,7 @@ fn process(raw: RawMesh, settings: &MeshSettings, refpos: [f64; 3], refquat: [f6
     // Every vertex in the mesh frame: moved to the centre, rotated back.
     let rotation = quat_to_mat(&quat);
     let mut aabb: [[f64; 3]; 2] = [[1e10; 3], [-1e10; 3]];
-    for v in &vertices {
+    for v in vertices {
         let d = [v[0] - com[0], v[1] - com[1], v[2] - com[2]];
         for k in 0..3 {
             let local = rotation[k] * d[0] + rotation[3 + k] * d[1] + rotation[6 + k] * d[2];
@@ -511,7 +535,7 @@ fn process(raw: RawMesh, settings: &MeshSettings, refpos: [f64; 3], refquat: [f6
             aabb[1][k] = aabb[1][k].max(local);
         }
     }
-    Ok(Mesh { line: 0, pos: com, quat, volume, box_half, aabb, hull_error })
+    Ok((quat, box_half, aabb))
 }
 
 /// `refpos` subtracted, `refquat`'s inverse rotation, then `scale`.
