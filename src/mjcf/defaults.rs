@@ -10,6 +10,7 @@ use std::collections::HashMap;
 
 use super::MjcfWarning;
 use super::actuator::{self, ActuatorSettings};
+use super::attributes::{Attribute, names, read_into, set};
 use super::element::Element;
 use super::equality::{self, EqualitySettings};
 use super::error::MjcfError;
@@ -18,14 +19,47 @@ use super::orientation::Orientation;
 use super::tendon::{self, TendonSettings};
 use crate::vehicle::{ActuatorKind, JointKind, SoftConstraint};
 
-/// Attributes of `<joint>` in a body (MuJoCo 4.0 schema).
-#[rustfmt::skip]
-pub(crate) const JOINT_ATTRIBUTES: &[&str] = &[
-    "name", "class", "type", "group", "pos", "axis", "springdamper", "limited", "actuatorfrclimited",
-    "solreflimit", "solimplimit", "solreffriction", "solimpfriction", "stiffness", "range",
-    "actuatorfrcrange", "actuatorgravcomp", "margin", "ref", "springref", "armature", "damping",
-    "frictionloss", "user", "springyield",
+/// `<joint>` in a body (MuJoCo 4.0 schema): its attributes and how each is read.
+pub(crate) const JOINT_ATTRIBUTES: &[Attribute<JointSettings>] = &[
+    Attribute::by_reader("name"),
+    Attribute::by_reader("class"),
+    Attribute::into("type", |s, e, a| set(&mut s.kind, e.keyword(a, &JointKind::ALL.map(|kind| (kind.name(), kind)))?)),
+    Attribute::no_effect("group"),
+    Attribute::into("pos", |s, e, a| set(&mut s.pos, e.numbers(a)?)),
+    Attribute::into("axis", |s, e, a| set(&mut s.axis, e.numbers(a)?)),
+    Attribute::into("springdamper", |s, e, a| set(&mut s.springdamper, e.numbers(a)?)),
+    Attribute::into("limited", |s, e, a| set(&mut s.limited, e.keyword(a, &LIMITED)?)),
+    Attribute::into("actuatorfrclimited", |s, e, a| set(&mut s.actuator_force_limited, e.keyword(a, &LIMITED)?)),
+    Attribute::into("solreflimit", |s, e, a| e.overwrite_numbers(a, &mut s.limit_soft.solref)),
+    Attribute::into("solimplimit", |s, e, a| e.overwrite_numbers(a, &mut s.limit_soft.solimp)),
+    Attribute::into("solreffriction", |s, e, a| e.overwrite_numbers(a, &mut s.friction_soft.solref)),
+    Attribute::into("solimpfriction", |s, e, a| e.overwrite_numbers(a, &mut s.friction_soft.solimp)),
+    Attribute::into("stiffness", |s, e, a| overwrite_coefficients(e, a, &mut s.stiffness)),
+    Attribute::into("range", |s, e, a| set(&mut s.range, e.numbers(a)?)),
+    Attribute::into("actuatorfrcrange", |s, e, a| set(&mut s.actuator_force_range, e.numbers(a)?)),
+    Attribute::into("actuatorgravcomp", |s, e, a| set(&mut s.actuator_gravcomp, e.boolean(a)?)),
+    Attribute::into("margin", |s, e, a| set(&mut s.margin, e.number(a)?)),
+    Attribute::into("ref", |s, e, a| set(&mut s.reference, e.number(a)?)),
+    Attribute::into("springref", |s, e, a| set(&mut s.springref, e.number(a)?)),
+    Attribute::into("armature", |s, e, a| set(&mut s.armature, e.non_negative(a)?)),
+    Attribute::into("damping", |s, e, a| overwrite_coefficients(e, a, &mut s.damping)),
+    Attribute::into("frictionloss", |s, e, a| set(&mut s.frictionloss, e.non_negative(a)?)),
+    Attribute::no_effect("user"),
+    Attribute::into("springyield", |s, e, a| set(&mut s.springyield, e.number(a)?)),
 ];
+
+/// The keywords of `limited` and `actuatorfrclimited`.
+const LIMITED: [(&str, Limited); 3] = [("false", Limited::No), ("true", Limited::Yes), ("auto", Limited::Auto)];
+
+/// Overwrites the leading coefficients of `stiffness` or `damping` with
+/// those the attribute gives; the linear one must not be negative.
+fn overwrite_coefficients(element: &Element, attribute: &str, coefficients: &mut [f64; 3]) -> Result<(), MjcfError> {
+    element.overwrite_numbers(attribute, coefficients)?;
+    if coefficients[0] < 0.0 {
+        return Err(element.bad_value(attribute, "a non-negative first coefficient"));
+    }
+    Ok(())
+}
 
 /// Attributes of `<geom>` in a body (MuJoCo 4.0 schema).
 #[rustfmt::skip]
@@ -137,63 +171,7 @@ impl Default for JointSettings {
 impl JointSettings {
     /// Overwrites the settings the element gives.
     pub fn apply(&mut self, element: &Element) -> Result<(), MjcfError> {
-        let kinds = JointKind::ALL.map(|kind| (kind.name(), kind));
-        if let Some(kind) = element.keyword("type", &kinds)? {
-            self.kind = kind;
-        }
-        if let Some(pos) = element.numbers("pos")? {
-            self.pos = pos;
-        }
-        if let Some(axis) = element.numbers("axis")? {
-            self.axis = axis;
-        }
-        if let Some(reference) = element.number("ref")? {
-            self.reference = reference;
-        }
-        if let Some(springref) = element.number("springref")? {
-            self.springref = springref;
-        }
-        element.overwrite_numbers("stiffness", &mut self.stiffness)?;
-        element.overwrite_numbers("damping", &mut self.damping)?;
-        for (attribute, coefficients) in [("stiffness", &self.stiffness), ("damping", &self.damping)] {
-            if element.has(attribute) && coefficients[0] < 0.0 {
-                return Err(element.bad_value(attribute, "a non-negative first coefficient"));
-            }
-        }
-        if let Some(armature) = element.non_negative("armature")? {
-            self.armature = armature;
-        }
-        if let Some(frictionloss) = element.non_negative("frictionloss")? {
-            self.frictionloss = frictionloss;
-        }
-        if let Some(springdamper) = element.numbers("springdamper")? {
-            self.springdamper = springdamper;
-        }
-        if let Some(springyield) = element.number("springyield")? {
-            self.springyield = springyield;
-        }
-        let limited = [("false", Limited::No), ("true", Limited::Yes), ("auto", Limited::Auto)];
-        if let Some(limited) = element.keyword("limited", &limited)? {
-            self.limited = limited;
-        }
-        if let Some(range) = element.numbers("range")? {
-            self.range = range;
-        }
-        if let Some(limited) = element.keyword("actuatorfrclimited", &limited)? {
-            self.actuator_force_limited = limited;
-        }
-        if let Some(range) = element.numbers("actuatorfrcrange")? {
-            self.actuator_force_range = range;
-        }
-        if let Some(through_actuators) = element.boolean("actuatorgravcomp")? {
-            self.actuator_gravcomp = through_actuators;
-        }
-        if let Some(margin) = element.number("margin")? {
-            self.margin = margin;
-        }
-        self.limit_soft.apply(element, "solreflimit", "solimplimit")?;
-        self.friction_soft.apply(element, "solreffriction", "solimpfriction")?;
-        Ok(())
+        read_into(JOINT_ATTRIBUTES, self, element)
     }
 }
 
@@ -570,11 +548,11 @@ impl Defaults {
             match child.tag() {
                 "joint" | "geom" | "site" => {
                     let allowed = match child.tag() {
-                        "joint" => JOINT_ATTRIBUTES,
-                        "geom" => GEOM_ATTRIBUTES,
-                        _ => SITE_ATTRIBUTES,
+                        "joint" => names(JOINT_ATTRIBUTES),
+                        "geom" => GEOM_ATTRIBUTES.to_vec(),
+                        _ => SITE_ATTRIBUTES.to_vec(),
                     };
-                    let allowed: Vec<&str> = allowed.iter().copied().filter(|a| !NOT_IN_DEFAULTS.contains(a)).collect();
+                    let allowed: Vec<&str> = allowed.into_iter().filter(|a| !NOT_IN_DEFAULTS.contains(a)).collect();
                     child.check_attributes(&allowed)?;
                     let class = &mut self.classes[index];
                     match child.tag() {

@@ -6,7 +6,7 @@
 
 use std::fmt::Write;
 
-use super::{actuator, defaults, equality, mesh, reader, sensor, tendon};
+use super::{actuator, attributes, defaults, equality, mesh, reader, sensor, tendon};
 use crate::vehicle::SensorKind;
 
 /// docs/mjcf-support.md: element and attribute, read or ignored with a
@@ -61,6 +61,7 @@ pub fn support_table() -> String {
 
     out.push_str("\n## Elements read, and their attributes\n\n");
     out.push_str("| element | attributes |\n|---|---|\n");
+    let joint = attributes::names(defaults::JOINT_ATTRIBUTES);
     let elements: [(&str, &[&str]); 11] = [
         ("compiler", reader::COMPILER_ATTRIBUTES),
         ("option", reader::OPTION_ATTRIBUTES),
@@ -69,7 +70,7 @@ pub fn support_table() -> String {
         ("frame", reader::FRAME_ATTRIBUTES),
         ("replicate", reader::REPLICATE_ATTRIBUTES),
         ("inertial", reader::INERTIAL_ATTRIBUTES),
-        ("joint", defaults::JOINT_ATTRIBUTES),
+        ("joint", &joint),
         ("geom", defaults::GEOM_ATTRIBUTES),
         ("site", defaults::SITE_ATTRIBUTES),
         ("asset/mesh", mesh::MESH_ATTRIBUTES),

@@ -206,7 +206,7 @@ impl Reader {
                     *inertial = Some((child, read));
                 }
                 "joint" => {
-                    child.check_attributes(JOINT_ATTRIBUTES)?;
+                    child.check_attributes(&names(JOINT_ATTRIBUTES))?;
                     no_children(&child)?;
                     let mut settings = self.defaults.class(self.class_of(&child, class)?).joint.clone();
                     settings.apply(&child)?;

@@ -16,6 +16,7 @@ use roxmltree::Document;
 use self::body::compose;
 use self::geom::{fromto_frame, mass_not_computed};
 use super::actuator;
+use super::attributes::names;
 use super::contacts::{self, BodyFilter, ContactGeom, Reach};
 use super::defaults::{
     Defaults, GEOM_ATTRIBUTES, GeomKind, GeomSettings, JOINT_ATTRIBUTES, JointSettings, Limited, MAIN, SITE_ATTRIBUTES,
