@@ -62,6 +62,8 @@ pub fn support_table() -> String {
     out.push_str("\n## Elements read, and their attributes\n\n");
     out.push_str("| element | attributes |\n|---|---|\n");
     let joint = attributes::names(defaults::JOINT_ATTRIBUTES);
+    let geom = attributes::names(defaults::GEOM_ATTRIBUTES);
+    let site = attributes::names(defaults::SITE_ATTRIBUTES);
     let elements: [(&str, &[&str]); 11] = [
         ("compiler", reader::COMPILER_ATTRIBUTES),
         ("option", reader::OPTION_ATTRIBUTES),
@@ -71,8 +73,8 @@ pub fn support_table() -> String {
         ("replicate", reader::REPLICATE_ATTRIBUTES),
         ("inertial", reader::INERTIAL_ATTRIBUTES),
         ("joint", &joint),
-        ("geom", defaults::GEOM_ATTRIBUTES),
-        ("site", defaults::SITE_ATTRIBUTES),
+        ("geom", &geom),
+        ("site", &site),
         ("asset/mesh", mesh::MESH_ATTRIBUTES),
     ];
     for (element, attributes) in elements {

@@ -12,7 +12,7 @@ impl Reader {
                 "body" => self.read_body_tree(child, frame, class, suffix)?,
                 "site" => self.read_site(&child, class, None, frame, &suffix)?,
                 "geom" => {
-                    child.check_attributes(GEOM_ATTRIBUTES)?;
+                    child.check_attributes(&names(GEOM_ATTRIBUTES))?;
                     if let Some(grandchild) = child.children().next() {
                         return Err(unsupported_child(&grandchild));
                     }
@@ -226,7 +226,7 @@ impl Reader {
                     joints.push(JointElement { element: child, settings, align, suffix });
                 }
                 "geom" => {
-                    child.check_attributes(GEOM_ATTRIBUTES)?;
+                    child.check_attributes(&names(GEOM_ATTRIBUTES))?;
                     if let Some(grandchild) = child.children().next() {
                         return Err(unsupported_child(&grandchild));
                     }
@@ -435,7 +435,7 @@ impl Reader {
         frame: Option<Pose>,
         suffix: &str,
     ) -> Result<(), MjcfError> {
-        element.check_attributes(SITE_ATTRIBUTES)?;
+        element.check_attributes(&names(SITE_ATTRIBUTES))?;
         no_children(element)?;
         let mut settings = self.defaults.class(self.class_of(element, body_class)?).site.clone();
         settings.apply(element)?;
