@@ -1,7 +1,24 @@
 //! The body tree: bodies, their frames and `<replicate>`s, joints, geoms and
 //! sites in document order, each body's mass properties, and the warning on contacts.
 
-use super::*;
+use super::geom::{fromto_frame, mass_not_computed};
+use super::{
+    Align, BODY_ATTRIBUTES, BodyRecord, FRAME_ATTRIBUTES, IGNORED_IN_BODIES, InertiaFromGeom, JointElement,
+    MAX_REPLICATED_ELEMENTS, PendingBody, Placed, Pose, REPLICATE_ATTRIBUTES, Reader, claim_name, no_children,
+    unsupported_child,
+};
+use crate::math::{Quat, Vec3};
+use crate::mjcf::attributes::names;
+use crate::mjcf::contacts::BodyFilter;
+use crate::mjcf::defaults::{
+    GEOM_ATTRIBUTES, GeomSettings, JOINT_ATTRIBUTES, JointSettings, MAIN, SITE_ATTRIBUTES, SiteKind,
+};
+use crate::mjcf::element::Element;
+use crate::mjcf::error::MjcfError;
+use crate::mjcf::inertia::{BodyInertia, EPS};
+use crate::mjcf::orientation::Orientation;
+use crate::mjcf::{MjcfWarning, contacts};
+use crate::vehicle::{Body, JointKind, Site};
 
 impl Reader {
     pub(super) fn read_worldbody(&mut self, section: &Element) -> Result<(), MjcfError> {

@@ -1,7 +1,15 @@
 //! Once the whole document is read: `fusestatic`, the body names set
 //! apart, and the [`Vehicle`] with its flags applied.
 
-use super::*;
+use super::body::compose;
+use super::{BodyRecord, MIN_VALUE, Reader};
+use crate::math::{Mat3, Vec3};
+use crate::mjcf::Imported;
+use crate::mjcf::error::MjcfError;
+use crate::vehicle::{
+    EqualityObjects, FrameObject, MassProperties, PathPoint, SensorKind, SensorTarget, Tendon, TendonPath, Vehicle,
+    WrapGeom,
+};
 
 impl Reader {
     pub(super) fn finish(mut self, name: String) -> Result<Imported, MjcfError> {

@@ -1,7 +1,17 @@
 //! Geoms and `<inertial>`: the mass properties a body takes from them
 //! (MuJoCo's geom and mesh inertia, `boundmass`, `boundinertia`).
 
-use super::*;
+use super::body::compose;
+use super::{GeomRead, INERTIAL_ATTRIBUTES, Pose, Reader, no_children};
+use crate::math::{Mat3, Quat, Vec3};
+use crate::mjcf::contacts::{ContactGeom, Reach};
+use crate::mjcf::defaults::{GeomKind, GeomSettings};
+use crate::mjcf::element::Element;
+use crate::mjcf::error::MjcfError;
+use crate::mjcf::inertia::{BodyInertia, EPS, GeomMass, mul_quat, quat_array, quat_to_mat};
+use crate::mjcf::orientation::{ORIENTATION_ATTRIBUTES, Orientation, normalized, z_to_quaternion};
+use crate::mjcf::{contacts, inertia, mesh};
+use crate::vehicle::WrapGeom;
 
 impl Reader {
     pub(super) fn read_inertial(&self, element: &Element) -> Result<BodyInertia, MjcfError> {

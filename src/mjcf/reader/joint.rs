@@ -1,7 +1,13 @@
 //! Joints: their settings resolved into the vehicle's joints, limits and
 //! constraint parameters.
 
-use super::*;
+use super::{JointElement, JointTarget, Reader, claim_name};
+use crate::math::Vec3;
+use crate::mjcf::defaults::{JointSettings, Limited};
+use crate::mjcf::element::Element;
+use crate::mjcf::error::MjcfError;
+use crate::mjcf::orientation::normalized;
+use crate::vehicle::{Joint, JointConstraints, JointKind, JointLimit, SpringDamper};
 
 impl Reader {
     /// Checks a body's joints and turns them into [`Joint`]s.

@@ -13,30 +13,18 @@ use std::path::Path;
 
 use roxmltree::Document;
 
-use self::body::compose;
-use self::geom::{fromto_frame, mass_not_computed};
-use super::actuator;
-use super::attributes::names;
-use super::contacts::{self, BodyFilter, ContactGeom, Reach};
-use super::defaults::{
-    Defaults, GEOM_ATTRIBUTES, GeomKind, GeomSettings, JOINT_ATTRIBUTES, JointSettings, Limited, MAIN, SITE_ATTRIBUTES,
-    SiteKind,
-};
+use super::contacts::{ContactGeom, Reach};
+use super::defaults::{Defaults, GeomKind, JointSettings};
 use super::element::{Element, LineStarts};
-use super::equality::{self, EqualityTargets};
 use super::error::MjcfError;
 use super::include::{self, Sources};
-use super::inertia::{self, BodyInertia, EPS, GeomMass, mul_quat, quat_array, quat_to_mat};
-use super::mesh::{self, MESH_ATTRIBUTES, Meshes};
-use super::orientation::{AngleConvention, ORIENTATION_ATTRIBUTES, Orientation, normalized, z_to_quaternion};
-use super::sensor::{self, SensorTargets};
-use super::tendon::{self, TendonFlags, TendonTargets};
+use super::inertia::{BodyInertia, GeomMass};
+use super::mesh::Meshes;
+use super::orientation::AngleConvention;
 use super::{Imported, MjcfWarning};
-use crate::math::{Mat3, Quat, Vec3};
+use crate::math::{Quat, Vec3};
 use crate::vehicle::{
-    Actuation, Actuator, ActuatorKind, BiasType, Body, ConstraintOptions, Equality, EqualityObjects, FrameObject,
-    GainType, Joint, JointConstraints, JointKind, JointLimit, MassProperties, PathPoint, Sensor, SensorKind,
-    SensorTarget, Site, SpringDamper, Tendon, TendonPath, Transmission, Vehicle, WrapGeom,
+    Actuation, Actuator, Body, ConstraintOptions, Equality, JointKind, Sensor, Site, Tendon, WrapGeom,
 };
 
 /// MuJoCo's `mjMINVAL`: the least mass and principal moment of a moving body.

@@ -1,6 +1,10 @@
 //! `<compiler>` and `<option>`: the settings the rest of the reader follows.
 
-use super::*;
+use super::{ACTUATOR_GROUPS, COMPILER_ATTRIBUTES, FLAG_ATTRIBUTES, InertiaFromGeom, OPTION_ATTRIBUTES, Reader};
+use crate::math::Vec3;
+use crate::mjcf::element::Element;
+use crate::mjcf::error::MjcfError;
+use std::collections::HashMap;
 
 impl Reader {
     pub(super) fn read_compiler(&mut self, element: &Element) -> Result<(), MjcfError> {

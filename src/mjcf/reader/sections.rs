@@ -1,7 +1,14 @@
 //! The sections after `<worldbody>`: assets, tendons, equalities,
 //! actuators, sensors and keyframes.
 
-use super::*;
+use super::{ACTUATOR_GROUPS, REFUSED_TRANSMISSIONS, Reader, claim_name, no_children};
+use crate::mjcf::defaults::MAIN;
+use crate::mjcf::element::Element;
+use crate::mjcf::error::MjcfError;
+use crate::mjcf::mesh::MESH_ATTRIBUTES;
+use crate::mjcf::tendon::TendonFlags;
+use crate::mjcf::{actuator, equality, mesh, sensor, tendon};
+use crate::vehicle::{Actuator, ActuatorKind, BiasType, GainType, JointKind, SensorKind, Transmission};
 
 impl Reader {
     /// Reads an `<asset>` section: meshes are declared (their files read

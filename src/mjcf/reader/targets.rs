@@ -1,7 +1,13 @@
 //! The names tendons, equalities, actuators and sensors refer to, looked up
 //! in what the reader has read.
 
-use super::*;
+use super::{JointTarget, Reader};
+use crate::mjcf::element::Element;
+use crate::mjcf::equality::EqualityTargets;
+use crate::mjcf::error::MjcfError;
+use crate::mjcf::sensor::SensorTargets;
+use crate::mjcf::tendon::TendonTargets;
+use crate::vehicle::{JointKind, WrapGeom};
 
 impl Reader {
     /// The error for a reference to `name`, which names nothing of its kind
