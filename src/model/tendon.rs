@@ -118,8 +118,9 @@ pub enum PathStop {
 }
 
 /// The tendons of `vehicle`, their joints resolved against the compiled
-/// `joints` and their sites at `sites`; the qpos0 lengths are filled by
-/// [`Model::compile_tendons_in_qpos0`]. The importer has checked every name.
+/// `joints` and their sites at `sites`; their lengths and invweights at
+/// qpos0 come from the qpos0 stage ([`super::Qpos0Constants`]). The
+/// importer has checked every name.
 pub(super) fn compile_tendons(
     vehicle: &Vehicle,
     joints: &[JointInfo],
