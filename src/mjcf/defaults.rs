@@ -14,7 +14,7 @@ use super::attributes::{Attribute, names, read_into, set};
 use super::element::Element;
 use super::equality::{self, EqualitySettings};
 use super::error::MjcfError;
-use super::mesh::{MESH_DEFAULT_ATTRIBUTES, MeshSettings};
+use super::mesh::{MeshSettings, mesh_default_attributes};
 use super::orientation::Orientation;
 use super::tendon::{self, TendonSettings};
 use crate::vehicle::{ActuatorKind, JointKind, SoftConstraint};
@@ -543,7 +543,7 @@ impl Defaults {
                     }
                 }
                 "mesh" => {
-                    child.check_attributes(MESH_DEFAULT_ATTRIBUTES)?;
+                    child.check_attributes(&mesh_default_attributes())?;
                     if let Some(grandchild) = child.children().next() {
                         return Err(grandchild.unknown());
                     }

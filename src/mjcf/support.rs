@@ -64,6 +64,7 @@ pub fn support_table() -> String {
     let joint = attributes::names(defaults::JOINT_ATTRIBUTES);
     let geom = attributes::names(defaults::GEOM_ATTRIBUTES);
     let site = attributes::names(defaults::SITE_ATTRIBUTES);
+    let mesh_attributes = attributes::names(mesh::MESH_ATTRIBUTES);
     let elements: [(&str, &[&str]); 11] = [
         ("compiler", reader::COMPILER_ATTRIBUTES),
         ("option", reader::OPTION_ATTRIBUTES),
@@ -75,7 +76,7 @@ pub fn support_table() -> String {
         ("joint", &joint),
         ("geom", &geom),
         ("site", &site),
-        ("asset/mesh", mesh::MESH_ATTRIBUTES),
+        ("asset/mesh", &mesh_attributes),
     ];
     for (element, attributes) in elements {
         let _ = writeln!(out, "| `<{element}>` | {} |", code_list(attributes, false));

@@ -23,6 +23,7 @@ use std::path::PathBuf;
 
 use files::{MeshFormat, RawMesh};
 
+use super::attributes::{Attribute, Read, read_into, set};
 use super::defaults::GeomKind;
 use super::element::Element;
 use super::error::MjcfError;
@@ -32,15 +33,54 @@ use crate::math::Mat3;
 /// MuJoCo's `mjMINVAL`.
 const MIN_VALUE: f64 = 1e-15;
 
-/// Attributes of `<mesh>` in `<asset>` (MuJoCo 4.0 schema).
-#[rustfmt::skip]
-pub(crate) const MESH_ATTRIBUTES: &[&str] = &[
-    "name", "class", "content_type", "file", "vertex", "normal", "texcoord", "face", "refpos",
-    "refquat", "scale", "smoothnormal", "maxhullvert", "inertia", "builtin", "params", "material",
+/// `<mesh>` in `<asset>` (MuJoCo 4.0 schema): its attributes and how each
+/// is read. Those read into [`MeshSettings`] are those a `<default>` class
+/// may set ([`mesh_default_attributes`]); the reader reads the others when
+/// it declares the mesh ([`declare`]).
+pub(crate) const MESH_ATTRIBUTES: &[Attribute<MeshSettings>] = &[
+    Attribute::by_reader("name"),
+    Attribute::by_reader("class"),
+    Attribute::by_reader("content_type"),
+    Attribute::by_reader("file"),
+    Attribute::by_reader("vertex"),
+    Attribute::no_effect("normal"),
+    Attribute::no_effect("texcoord"),
+    Attribute::by_reader("face"),
+    Attribute::by_reader("refpos"),
+    Attribute::by_reader("refquat"),
+    Attribute::into("scale", |s, e, a| set(&mut s.scale, e.numbers(a)?)),
+    Attribute::no_effect("smoothnormal"),
+    Attribute::into("maxhullvert", read_max_hull_vertices),
+    Attribute::into("inertia", |s, e, a| set(&mut s.inertia, e.keyword(a, &MESH_INERTIA)?)),
+    // Refused by the reader: nudyn reads meshes from files or vertex lists.
+    Attribute::by_reader("builtin"),
+    Attribute::no_effect("params"),
+    Attribute::no_effect("material"),
 ];
 
-/// Attributes of `<mesh>` in `<default>`.
-pub(crate) const MESH_DEFAULT_ATTRIBUTES: &[&str] = &["scale", "maxhullvert", "inertia"];
+/// The attributes of `<mesh>` in `<default>`: those read into its settings.
+pub(crate) fn mesh_default_attributes() -> Vec<&'static str> {
+    MESH_ATTRIBUTES.iter().filter(|a| matches!(a.read, Read::Into(_))).map(|a| a.name).collect()
+}
+
+/// The keywords of `<mesh inertia>`.
+const MESH_INERTIA: [(&str, MeshInertia); 4] = [
+    ("legacy", MeshInertia::Legacy),
+    ("convex", MeshInertia::Convex),
+    ("exact", MeshInertia::Exact),
+    ("shell", MeshInertia::Shell),
+];
+
+/// `maxhullvert`: -1 (no limit) or more than 3.
+fn read_max_hull_vertices(settings: &mut MeshSettings, element: &Element, attribute: &str) -> Result<(), MjcfError> {
+    if let Some([limit]) = element.integers(attribute)? {
+        if limit != -1 && limit < 4 {
+            return Err(element.invalid("maxhullvert must be larger than 3"));
+        }
+        settings.max_hull_vertices = limit;
+    }
+    Ok(())
+}
 
 /// How a mesh's mass is distributed (`<mesh inertia>`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -76,25 +116,7 @@ impl Default for MeshSettings {
 impl MeshSettings {
     /// Overwrites the settings the element gives.
     pub fn apply(&mut self, element: &Element) -> Result<(), MjcfError> {
-        if let Some(scale) = element.numbers("scale")? {
-            self.scale = scale;
-        }
-        let modes = [
-            ("legacy", MeshInertia::Legacy),
-            ("convex", MeshInertia::Convex),
-            ("exact", MeshInertia::Exact),
-            ("shell", MeshInertia::Shell),
-        ];
-        if let Some(mode) = element.keyword("inertia", &modes)? {
-            self.inertia = mode;
-        }
-        if let Some([limit]) = element.integers("maxhullvert")? {
-            if limit != -1 && limit < 4 {
-                return Err(element.invalid("maxhullvert must be larger than 3"));
-            }
-            self.max_hull_vertices = limit;
-        }
-        Ok(())
+        read_into(MESH_ATTRIBUTES, self, element)
     }
 }
 

@@ -2,6 +2,7 @@
 //! actuators, sensors and keyframes.
 
 use super::{ACTUATOR_GROUPS, REFUSED_TRANSMISSIONS, Reader, claim_name, no_children};
+use crate::mjcf::attributes::names;
 use crate::mjcf::defaults::MAIN;
 use crate::mjcf::element::Element;
 use crate::mjcf::error::MjcfError;
@@ -24,7 +25,7 @@ impl Reader {
                 self.warnings.push(child.ignored());
                 continue;
             }
-            child.check_attributes(MESH_ATTRIBUTES)?;
+            child.check_attributes(&names(MESH_ATTRIBUTES))?;
             let class = self.defaults.lookup(&child, "class")?.unwrap_or(MAIN);
             // Where MuJoCo reads the file: in meshdir, or beside the included file naming it.
             let path = child.text("file").map(|file| {
