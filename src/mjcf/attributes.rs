@@ -81,8 +81,9 @@ pub(crate) fn set<T>(target: &mut T, value: Option<T>) -> Result<(), MjcfError> 
 mod tests {
     use super::*;
     use crate::mjcf::defaults::{GEOM_ATTRIBUTES, JOINT_ATTRIBUTES, SITE_ATTRIBUTES};
-    use crate::mjcf::mesh::MESH_ATTRIBUTES;
     use crate::mjcf::element::LineStarts;
+    use crate::mjcf::mesh::MESH_ATTRIBUTES;
+    use crate::mjcf::tendon::TENDON_ATTRIBUTES;
 
     /// The settings an element `<tag attribute="value"/>` reads with `table`, or its error.
     fn read<S: Default>(table: &[Attribute<S>], attribute: &str, value: &str) -> Result<S, MjcfError> {
@@ -98,7 +99,19 @@ mod tests {
     /// valid value: no entry reads into nothing.
     fn every_entry_changes_the_settings<S: Default + std::fmt::Debug>(tag: &str, table: &[Attribute<S>]) {
         let default = format!("{:?}", S::default());
-        let values = ["0.5", "3", "5", "convex", "0.5 0.5", "0.5 0.5 0.5", "0.5 0.5 0.5 0.5", "0 0 0 0 0 1", "slide", "box", "true"];
+        let values = [
+            "0.5",
+            "3",
+            "5",
+            "convex",
+            "0.5 0.5",
+            "0.5 0.5 0.5",
+            "0.5 0.5 0.5 0.5",
+            "0 0 0 0 0 1",
+            "slide",
+            "box",
+            "true",
+        ];
         for attribute in table.iter().filter(|a| matches!(a.read, Read::Into(_))) {
             let changes = values.iter().any(|value| {
                 read(table, attribute.name, value).is_ok_and(|settings| format!("{settings:?}") != default)
@@ -113,6 +126,7 @@ mod tests {
         every_entry_changes_the_settings("geom", GEOM_ATTRIBUTES);
         every_entry_changes_the_settings("site", SITE_ATTRIBUTES);
         every_entry_changes_the_settings("mesh", MESH_ATTRIBUTES);
+        every_entry_changes_the_settings("tendon", TENDON_ATTRIBUTES);
     }
 
     /// What a table only checks is still checked: a malformed value is refused.

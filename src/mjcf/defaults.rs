@@ -245,17 +245,6 @@ impl JointSettings {
     }
 }
 
-impl SoftConstraint {
-    /// Overwrites `solref` and `solimp` from the attributes named. MuJoCo
-    /// reads fewer numbers than the attribute holds as the leading ones
-    /// (solimp's last two are often left out); it refuses non-finite ones.
-    pub(crate) fn apply(&mut self, element: &Element, solref: &str, solimp: &str) -> Result<(), MjcfError> {
-        element.overwrite_numbers(solref, &mut self.solref)?;
-        element.overwrite_numbers(solimp, &mut self.solimp)?;
-        Ok(())
-    }
-}
-
 /// MuJoCo's geom types.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum GeomKind {
@@ -554,7 +543,7 @@ impl Defaults {
                     self.classes[index].equality.apply(&child)?;
                 }
                 "tendon" => {
-                    child.check_attributes(tendon::DEFAULT_ATTRIBUTES)?;
+                    child.check_attributes(&tendon::default_attributes())?;
                     self.classes[index].tendon.apply(&child)?;
                 }
                 "default" => {}

@@ -81,9 +81,10 @@ pub fn support_table() -> String {
     for (element, attributes) in elements {
         let _ = writeln!(out, "| `<{element}>` | {} |", code_list(attributes, false));
     }
-    let spatial: Vec<&str> = tendon::FIXED_ATTRIBUTES.iter().chain(tendon::SPATIAL_ONLY).copied().collect();
-    for (element, attributes) in [("fixed", tendon::FIXED_ATTRIBUTES), ("spatial", &spatial)] {
-        let _ = writeln!(out, "| `<tendon>/<{element}>` | {} |", code_list(attributes, false));
+    for (element, attributes) in
+        [("fixed", tendon::tendon_attributes(false)), ("spatial", tendon::tendon_attributes(true))]
+    {
+        let _ = writeln!(out, "| `<tendon>/<{element}>` | {} |", code_list(&attributes, false));
     }
     for (path, attributes) in tendon::PATH_ELEMENTS {
         let (parent, child) = path.split_once('/').expect("parent/child");
