@@ -82,6 +82,7 @@ mod tests {
     use super::*;
     use crate::mjcf::defaults::{GEOM_ATTRIBUTES, JOINT_ATTRIBUTES, SITE_ATTRIBUTES};
     use crate::mjcf::element::LineStarts;
+    use crate::mjcf::equality::COMMON_ATTRIBUTES as EQUALITY_ATTRIBUTES;
     use crate::mjcf::mesh::MESH_ATTRIBUTES;
     use crate::mjcf::tendon::TENDON_ATTRIBUTES;
 
@@ -111,6 +112,7 @@ mod tests {
             "slide",
             "box",
             "true",
+            "false",
         ];
         for attribute in table.iter().filter(|a| matches!(a.read, Read::Into(_))) {
             let changes = values.iter().any(|value| {
@@ -127,6 +129,7 @@ mod tests {
         every_entry_changes_the_settings("site", SITE_ATTRIBUTES);
         every_entry_changes_the_settings("mesh", MESH_ATTRIBUTES);
         every_entry_changes_the_settings("tendon", TENDON_ATTRIBUTES);
+        every_entry_changes_the_settings("equality", EQUALITY_ATTRIBUTES);
     }
 
     /// What a table only checks is still checked: a malformed value is refused.

@@ -539,7 +539,7 @@ impl Defaults {
                     self.classes[index].mesh.apply(&child)?;
                 }
                 "equality" => {
-                    child.check_attributes(equality::DEFAULT_ATTRIBUTES)?;
+                    child.check_attributes(&equality::default_attributes())?;
                     self.classes[index].equality.apply(&child)?;
                 }
                 "tendon" => {

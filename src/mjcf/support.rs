@@ -99,7 +99,8 @@ pub fn support_table() -> String {
         let _ = writeln!(out, "| `<sensor>/<{}>` | {} |", kind.name(), code_list(&attributes, false));
     }
     for (tag, own) in equality::EQUALITY_ATTRIBUTES {
-        let attributes: Vec<&str> = equality::COMMON_ATTRIBUTES.iter().chain(own.iter()).copied().collect();
+        let attributes: Vec<&str> =
+            attributes::names(equality::COMMON_ATTRIBUTES).into_iter().chain(own.iter().copied()).collect();
         let _ = writeln!(out, "| `<equality>/<{tag}>` | {} |", code_list(&attributes, false));
     }
 
