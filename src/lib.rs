@@ -6,7 +6,8 @@
 //! - [`vehicle`]: a vehicle as its MJCF file describes it;
 //! - [`mjcf`]: the MJCF importer;
 //! - [`model`]: the immutable compiled model (serializable; the FMU's
-//!   resource), and [`model::Model::validate`];
+//!   resource), and [`model::Model::validate`]; `compile`: [`model::Model::compile`],
+//!   the model's structure, then one evaluation at qpos0 for its constants;
 //! - [`workspace`]: per-instance preallocated buffers, filled by the passes;
 //! - [`dynamics`]: the O(N) passes and the operators built from them;
 //! - [`integrate`]: Runge–Kutta–Munthe-Kaas steps, error control;
@@ -18,6 +19,7 @@
 //! command and its exporter `nudyn-cli`.
 #![warn(missing_docs)]
 
+mod compile;
 pub mod control;
 pub mod describe;
 pub mod dynamics;

@@ -263,3 +263,10 @@ impl Workspace {
         }
     }
 }
+
+impl Model {
+    /// A fresh workspace for this model.
+    pub fn workspace(&self) -> Workspace {
+        Workspace::new(self)
+    }
+}

@@ -10,38 +10,142 @@ use std::collections::HashMap;
 
 use super::MjcfWarning;
 use super::actuator::{self, ActuatorSettings};
+use super::attributes::{Attribute, names, read_into, set};
 use super::element::Element;
 use super::equality::{self, EqualitySettings};
 use super::error::MjcfError;
-use super::mesh::{MESH_DEFAULT_ATTRIBUTES, MeshSettings};
+use super::mesh::{MeshSettings, mesh_default_attributes};
 use super::orientation::Orientation;
 use super::tendon::{self, TendonSettings};
 use crate::vehicle::{ActuatorKind, JointKind, SoftConstraint};
 
-/// Attributes of `<joint>` in a body (MuJoCo 4.0 schema).
-#[rustfmt::skip]
-pub(crate) const JOINT_ATTRIBUTES: &[&str] = &[
-    "name", "class", "type", "group", "pos", "axis", "springdamper", "limited", "actuatorfrclimited",
-    "solreflimit", "solimplimit", "solreffriction", "solimpfriction", "stiffness", "range",
-    "actuatorfrcrange", "actuatorgravcomp", "margin", "ref", "springref", "armature", "damping",
-    "frictionloss", "user", "springyield",
+/// `<joint>` in a body (MuJoCo 4.0 schema): its attributes and how each is read.
+pub(crate) const JOINT_ATTRIBUTES: &[Attribute<JointSettings>] = &[
+    Attribute::by_reader("name"),
+    Attribute::by_reader("class"),
+    Attribute::into("type", |s, e, a| set(&mut s.kind, e.keyword(a, &JointKind::ALL.map(|kind| (kind.name(), kind)))?)),
+    Attribute::no_effect("group"),
+    Attribute::into("pos", |s, e, a| set(&mut s.pos, e.numbers(a)?)),
+    Attribute::into("axis", |s, e, a| set(&mut s.axis, e.numbers(a)?)),
+    Attribute::into("springdamper", |s, e, a| set(&mut s.springdamper, e.numbers(a)?)),
+    Attribute::into("limited", |s, e, a| set(&mut s.limited, e.keyword(a, &LIMITED)?)),
+    Attribute::into("actuatorfrclimited", |s, e, a| set(&mut s.actuator_force_limited, e.keyword(a, &LIMITED)?)),
+    Attribute::into("solreflimit", |s, e, a| e.overwrite_numbers(a, &mut s.limit_soft.solref)),
+    Attribute::into("solimplimit", |s, e, a| e.overwrite_numbers(a, &mut s.limit_soft.solimp)),
+    Attribute::into("solreffriction", |s, e, a| e.overwrite_numbers(a, &mut s.friction_soft.solref)),
+    Attribute::into("solimpfriction", |s, e, a| e.overwrite_numbers(a, &mut s.friction_soft.solimp)),
+    Attribute::into("stiffness", |s, e, a| overwrite_coefficients(e, a, &mut s.stiffness)),
+    Attribute::into("range", |s, e, a| set(&mut s.range, e.numbers(a)?)),
+    Attribute::into("actuatorfrcrange", |s, e, a| set(&mut s.actuator_force_range, e.numbers(a)?)),
+    Attribute::into("actuatorgravcomp", |s, e, a| set(&mut s.actuator_gravcomp, e.boolean(a)?)),
+    Attribute::into("margin", |s, e, a| set(&mut s.margin, e.number(a)?)),
+    Attribute::into("ref", |s, e, a| set(&mut s.reference, e.number(a)?)),
+    Attribute::into("springref", |s, e, a| set(&mut s.springref, e.number(a)?)),
+    Attribute::into("armature", |s, e, a| set(&mut s.armature, e.non_negative(a)?)),
+    Attribute::into("damping", |s, e, a| overwrite_coefficients(e, a, &mut s.damping)),
+    Attribute::into("frictionloss", |s, e, a| set(&mut s.frictionloss, e.non_negative(a)?)),
+    Attribute::no_effect("user"),
+    Attribute::into("springyield", |s, e, a| set(&mut s.springyield, e.number(a)?)),
 ];
 
-/// Attributes of `<geom>` in a body (MuJoCo 4.0 schema).
-#[rustfmt::skip]
-pub(crate) const GEOM_ATTRIBUTES: &[&str] = &[
-    "name", "class", "type", "contype", "conaffinity", "condim", "group", "priority", "size",
-    "material", "friction", "mass", "density", "shellinertia", "solmix", "solref", "solimp",
-    "margin", "gap", "surfacevel", "adhesion", "fromto", "pos", "quat", "axisangle", "xyaxes",
-    "zaxis", "euler", "hfield", "mesh", "fitscale", "rgba", "fluidshape", "fluidcoef", "user",
-    "castshadow",
+/// The keywords of `limited` and `actuatorfrclimited`.
+const LIMITED: [(&str, Limited); 3] = [("false", Limited::No), ("true", Limited::Yes), ("auto", Limited::Auto)];
+
+/// Overwrites the leading coefficients of `stiffness` or `damping` with
+/// those the attribute gives; the linear one must not be negative.
+fn overwrite_coefficients(element: &Element, attribute: &str, coefficients: &mut [f64; 3]) -> Result<(), MjcfError> {
+    element.overwrite_numbers(attribute, coefficients)?;
+    if coefficients[0] < 0.0 {
+        return Err(element.bad_value(attribute, "a non-negative first coefficient"));
+    }
+    Ok(())
+}
+
+/// `<geom>` in a body (MuJoCo 4.0 schema): its attributes and how each is
+/// read. Those for contacts and fluid forces are read for their syntax
+/// only (nudyn models neither); MuJoCo refuses more numbers than each holds.
+pub(crate) const GEOM_ATTRIBUTES: &[Attribute<GeomSettings>] = &[
+    Attribute::by_reader("name"),
+    Attribute::by_reader("class"),
+    Attribute::into("type", |s, e, a| set(&mut s.kind, e.keyword(a, &GEOM_KINDS)?)),
+    Attribute::into("contype", |s, e, a| set(&mut s.contype[0], e.integers(a)?.map(|[bits]| bits))),
+    Attribute::into("conaffinity", |s, e, a| set(&mut s.contype[1], e.integers(a)?.map(|[bits]| bits))),
+    Attribute::checked("condim", |e, a| e.integers::<1>(a).map(drop)),
+    Attribute::into("group", |s, e, a| set(&mut s.group, e.integers(a)?.map(|[group]| group))),
+    Attribute::checked("priority", |e, a| e.integers::<1>(a).map(drop)),
+    Attribute::into("size", |s, e, a| e.overwrite_numbers(a, &mut s.size)),
+    Attribute::no_effect("material"),
+    Attribute::checked("friction", |e, a| e.overwrite_numbers(a, &mut [0.0; 3])),
+    Attribute::into("mass", |s, e, a| set(&mut s.mass, e.non_negative(a)?.map(Some))),
+    Attribute::into("density", |s, e, a| set(&mut s.density, e.non_negative(a)?)),
+    Attribute::into("shellinertia", |s, e, a| set(&mut s.shell_inertia, e.boolean(a)?)),
+    Attribute::checked("solmix", |e, a| e.number(a).map(drop)),
+    Attribute::checked("solref", |e, a| e.overwrite_numbers(a, &mut [0.0; 2])),
+    Attribute::checked("solimp", |e, a| e.overwrite_numbers(a, &mut [0.0; 5])),
+    Attribute::into("margin", |s, e, a| set(&mut s.margin, e.number(a)?)),
+    Attribute::checked("gap", |e, a| e.number(a).map(drop)),
+    Attribute::no_effect("surfacevel"),
+    Attribute::no_effect("adhesion"),
+    Attribute::into("fromto", |s, e, a| set(&mut s.fromto, e.numbers(a)?.map(Some))),
+    Attribute::into("pos", |s, e, a| set(&mut s.pos, e.numbers(a)?)),
+    // An orientation written on the element replaces the class's, whichever form each uses.
+    Attribute::into("quat", |s, e, _| set(&mut s.orientation, Orientation::read(e)?)),
+    Attribute::into("axisangle", |s, e, _| set(&mut s.orientation, Orientation::read(e)?)),
+    Attribute::into("xyaxes", |s, e, _| set(&mut s.orientation, Orientation::read(e)?)),
+    Attribute::into("zaxis", |s, e, _| set(&mut s.orientation, Orientation::read(e)?)),
+    Attribute::into("euler", |s, e, _| set(&mut s.orientation, Orientation::read(e)?)),
+    Attribute::into("hfield", |s, _, _| set(&mut s.hfield, Some(true))),
+    Attribute::into("mesh", |s, e, a| set(&mut s.mesh, e.text(a).map(|mesh| Some(mesh.to_string())))),
+    Attribute::into("fitscale", |s, e, a| set(&mut s.fit_scale, e.number(a)?)),
+    Attribute::checked("rgba", |e, a| e.numbers::<4>(a).map(drop)),
+    Attribute::no_effect("fluidshape"),
+    Attribute::checked("fluidcoef", |e, a| e.overwrite_numbers(a, &mut [0.0; 5])),
+    Attribute::no_effect("user"),
+    Attribute::no_effect("castshadow"),
 ];
 
-/// Attributes of `<site>` in a body (MuJoCo 4.0 schema).
-#[rustfmt::skip]
-pub(crate) const SITE_ATTRIBUTES: &[&str] = &[
-    "name", "class", "type", "group", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler", "size",
-    "material", "mesh", "rgba", "fromto", "user",
+/// The keywords of a geom's `type`.
+const GEOM_KINDS: [(&str, GeomKind); 9] = [
+    ("plane", GeomKind::Plane),
+    ("hfield", GeomKind::Hfield),
+    ("sphere", GeomKind::Sphere),
+    ("capsule", GeomKind::Capsule),
+    ("ellipsoid", GeomKind::Ellipsoid),
+    ("cylinder", GeomKind::Cylinder),
+    ("box", GeomKind::Box),
+    ("mesh", GeomKind::Mesh),
+    ("sdf", GeomKind::Sdf),
+];
+
+/// `<site>` in a body (MuJoCo 4.0 schema): its attributes and how each is
+/// read. `group`, `size` and `rgba` are read for their syntax; they do not
+/// move the site.
+pub(crate) const SITE_ATTRIBUTES: &[Attribute<SiteSettings>] = &[
+    Attribute::by_reader("name"),
+    Attribute::by_reader("class"),
+    Attribute::into("type", |s, e, a| set(&mut s.kind, e.keyword(a, &SITE_KINDS)?)),
+    Attribute::checked("group", |e, a| e.integers::<1>(a).map(drop)),
+    Attribute::into("pos", |s, e, a| set(&mut s.pos, e.numbers(a)?)),
+    Attribute::into("quat", |s, e, _| set(&mut s.orientation, Orientation::read(e)?)),
+    Attribute::into("axisangle", |s, e, _| set(&mut s.orientation, Orientation::read(e)?)),
+    Attribute::into("xyaxes", |s, e, _| set(&mut s.orientation, Orientation::read(e)?)),
+    Attribute::into("zaxis", |s, e, _| set(&mut s.orientation, Orientation::read(e)?)),
+    Attribute::into("euler", |s, e, _| set(&mut s.orientation, Orientation::read(e)?)),
+    Attribute::checked("size", |e, a| e.overwrite_numbers(a, &mut [0.0; 3])),
+    Attribute::no_effect("material"),
+    Attribute::into("mesh", |s, _, _| set(&mut s.mesh, Some(true))),
+    Attribute::checked("rgba", |e, a| e.numbers::<4>(a).map(drop)),
+    Attribute::into("fromto", |s, e, a| set(&mut s.fromto, e.numbers(a)?.map(Some))),
+    Attribute::no_effect("user"),
+];
+
+/// The keywords of a site's `type`.
+const SITE_KINDS: [(&str, SiteKind); 5] = [
+    ("sphere", SiteKind::Sphere),
+    ("capsule", SiteKind::Capsule),
+    ("ellipsoid", SiteKind::Ellipsoid),
+    ("cylinder", SiteKind::Cylinder),
+    ("box", SiteKind::Box),
 ];
 
 /// `<joint>`, `<geom>` and `<site>` inside `<default>` take everything but these.
@@ -137,74 +241,7 @@ impl Default for JointSettings {
 impl JointSettings {
     /// Overwrites the settings the element gives.
     pub fn apply(&mut self, element: &Element) -> Result<(), MjcfError> {
-        let kinds = JointKind::ALL.map(|kind| (kind.name(), kind));
-        if let Some(kind) = element.keyword("type", &kinds)? {
-            self.kind = kind;
-        }
-        if let Some(pos) = element.numbers("pos")? {
-            self.pos = pos;
-        }
-        if let Some(axis) = element.numbers("axis")? {
-            self.axis = axis;
-        }
-        if let Some(reference) = element.number("ref")? {
-            self.reference = reference;
-        }
-        if let Some(springref) = element.number("springref")? {
-            self.springref = springref;
-        }
-        element.overwrite_numbers("stiffness", &mut self.stiffness)?;
-        element.overwrite_numbers("damping", &mut self.damping)?;
-        for (attribute, coefficients) in [("stiffness", &self.stiffness), ("damping", &self.damping)] {
-            if element.has(attribute) && coefficients[0] < 0.0 {
-                return Err(element.bad_value(attribute, "a non-negative first coefficient"));
-            }
-        }
-        if let Some(armature) = element.non_negative("armature")? {
-            self.armature = armature;
-        }
-        if let Some(frictionloss) = element.non_negative("frictionloss")? {
-            self.frictionloss = frictionloss;
-        }
-        if let Some(springdamper) = element.numbers("springdamper")? {
-            self.springdamper = springdamper;
-        }
-        if let Some(springyield) = element.number("springyield")? {
-            self.springyield = springyield;
-        }
-        let limited = [("false", Limited::No), ("true", Limited::Yes), ("auto", Limited::Auto)];
-        if let Some(limited) = element.keyword("limited", &limited)? {
-            self.limited = limited;
-        }
-        if let Some(range) = element.numbers("range")? {
-            self.range = range;
-        }
-        if let Some(limited) = element.keyword("actuatorfrclimited", &limited)? {
-            self.actuator_force_limited = limited;
-        }
-        if let Some(range) = element.numbers("actuatorfrcrange")? {
-            self.actuator_force_range = range;
-        }
-        if let Some(through_actuators) = element.boolean("actuatorgravcomp")? {
-            self.actuator_gravcomp = through_actuators;
-        }
-        if let Some(margin) = element.number("margin")? {
-            self.margin = margin;
-        }
-        self.limit_soft.apply(element, "solreflimit", "solimplimit")?;
-        self.friction_soft.apply(element, "solreffriction", "solimpfriction")?;
-        Ok(())
-    }
-}
-
-impl SoftConstraint {
-    /// Overwrites `solref` and `solimp` from the attributes named. MuJoCo
-    /// reads fewer numbers than the attribute holds as the leading ones
-    /// (solimp's last two are often left out); it refuses non-finite ones.
-    pub(crate) fn apply(&mut self, element: &Element, solref: &str, solimp: &str) -> Result<(), MjcfError> {
-        element.overwrite_numbers(solref, &mut self.solref)?;
-        element.overwrite_numbers(solimp, &mut self.solimp)?;
-        Ok(())
+        read_into(JOINT_ATTRIBUTES, self, element)
     }
 }
 
@@ -291,72 +328,7 @@ impl Default for GeomSettings {
 impl GeomSettings {
     /// Overwrites the settings the element gives.
     pub fn apply(&mut self, element: &Element) -> Result<(), MjcfError> {
-        let kinds = [
-            ("plane", GeomKind::Plane),
-            ("hfield", GeomKind::Hfield),
-            ("sphere", GeomKind::Sphere),
-            ("capsule", GeomKind::Capsule),
-            ("ellipsoid", GeomKind::Ellipsoid),
-            ("cylinder", GeomKind::Cylinder),
-            ("box", GeomKind::Box),
-            ("mesh", GeomKind::Mesh),
-            ("sdf", GeomKind::Sdf),
-        ];
-        if let Some(kind) = element.keyword("type", &kinds)? {
-            self.kind = kind;
-        }
-        element.overwrite_numbers("size", &mut self.size)?;
-        if let Some(pos) = element.numbers("pos")? {
-            self.pos = pos;
-        }
-        // An orientation written on the element replaces the class's, whichever form each uses.
-        if let Some(orientation) = Orientation::read(element)? {
-            self.orientation = orientation;
-        }
-        if let Some(fromto) = element.numbers("fromto")? {
-            self.fromto = Some(fromto);
-        }
-        if let Some(mass) = element.non_negative("mass")? {
-            self.mass = Some(mass);
-        }
-        if let Some(density) = element.non_negative("density")? {
-            self.density = density;
-        }
-        if let Some(shell_inertia) = element.boolean("shellinertia")? {
-            self.shell_inertia = shell_inertia;
-        }
-        if let Some([group]) = element.integers("group")? {
-            self.group = group;
-        }
-        if let Some(mesh) = element.text("mesh") {
-            self.mesh = Some(mesh.to_string());
-        }
-        if let Some([fit_scale]) = element.numbers("fitscale")? {
-            self.fit_scale = fit_scale;
-        }
-        for (k, attribute) in ["contype", "conaffinity"].into_iter().enumerate() {
-            if let Some([bits]) = element.integers(attribute)? {
-                self.contype[k] = bits;
-            }
-        }
-        self.hfield |= element.has("hfield");
-        // Read for their syntax only (nudyn models no contacts nor fluid
-        // forces); MuJoCo refuses more numbers than each holds.
-        element.overwrite_numbers("friction", &mut [0.0; 3])?;
-        element.overwrite_numbers("solref", &mut [0.0; 2])?;
-        element.overwrite_numbers("solimp", &mut [0.0; 5])?;
-        element.overwrite_numbers("fluidcoef", &mut [0.0; 5])?;
-        if let Some(margin) = element.number("margin")? {
-            self.margin = margin;
-        }
-        for attribute in ["gap", "solmix"] {
-            element.number(attribute)?;
-        }
-        for attribute in ["priority", "condim"] {
-            element.integers::<1>(attribute)?;
-        }
-        element.numbers::<4>("rgba")?;
-        Ok(())
+        read_into(GEOM_ATTRIBUTES, self, element)
     }
 }
 
@@ -400,31 +372,7 @@ impl Default for SiteSettings {
 impl SiteSettings {
     /// Overwrites the settings the element gives.
     pub fn apply(&mut self, element: &Element) -> Result<(), MjcfError> {
-        let kinds = [
-            ("sphere", SiteKind::Sphere),
-            ("capsule", SiteKind::Capsule),
-            ("ellipsoid", SiteKind::Ellipsoid),
-            ("cylinder", SiteKind::Cylinder),
-            ("box", SiteKind::Box),
-        ];
-        if let Some(kind) = element.keyword("type", &kinds)? {
-            self.kind = kind;
-        }
-        if let Some(pos) = element.numbers("pos")? {
-            self.pos = pos;
-        }
-        if let Some(orientation) = Orientation::read(element)? {
-            self.orientation = orientation;
-        }
-        if let Some(fromto) = element.numbers("fromto")? {
-            self.fromto = Some(fromto);
-        }
-        // Read for their syntax; they do not move the site.
-        element.integers::<1>("group")?;
-        element.overwrite_numbers("size", &mut [0.0; 3])?;
-        element.numbers::<4>("rgba")?;
-        self.mesh |= element.has("mesh");
-        Ok(())
+        read_into(SITE_ATTRIBUTES, self, element)
     }
 }
 
@@ -570,11 +518,11 @@ impl Defaults {
             match child.tag() {
                 "joint" | "geom" | "site" => {
                     let allowed = match child.tag() {
-                        "joint" => JOINT_ATTRIBUTES,
-                        "geom" => GEOM_ATTRIBUTES,
-                        _ => SITE_ATTRIBUTES,
+                        "joint" => names(JOINT_ATTRIBUTES),
+                        "geom" => names(GEOM_ATTRIBUTES),
+                        _ => names(SITE_ATTRIBUTES),
                     };
-                    let allowed: Vec<&str> = allowed.iter().copied().filter(|a| !NOT_IN_DEFAULTS.contains(a)).collect();
+                    let allowed: Vec<&str> = allowed.into_iter().filter(|a| !NOT_IN_DEFAULTS.contains(a)).collect();
                     child.check_attributes(&allowed)?;
                     let class = &mut self.classes[index];
                     match child.tag() {
@@ -584,18 +532,18 @@ impl Defaults {
                     }
                 }
                 "mesh" => {
-                    child.check_attributes(MESH_DEFAULT_ATTRIBUTES)?;
+                    child.check_attributes(&mesh_default_attributes())?;
                     if let Some(grandchild) = child.children().next() {
                         return Err(grandchild.unknown());
                     }
                     self.classes[index].mesh.apply(&child)?;
                 }
                 "equality" => {
-                    child.check_attributes(equality::DEFAULT_ATTRIBUTES)?;
+                    child.check_attributes(&equality::default_attributes())?;
                     self.classes[index].equality.apply(&child)?;
                 }
                 "tendon" => {
-                    child.check_attributes(tendon::DEFAULT_ATTRIBUTES)?;
+                    child.check_attributes(&tendon::default_attributes())?;
                     self.classes[index].tendon.apply(&child)?;
                 }
                 "default" => {}

@@ -2,16 +2,26 @@
 //! 4.0's attributes, defaults and compiler checks. Flex equalities are
 //! refused (nudyn models no flexes).
 
+use super::attributes::{Attribute, Read, names, read_into, set};
 use super::element::Element;
 use super::error::MjcfError;
 use crate::math::{Quat, Vec3};
 use crate::vehicle::{Equality, EqualityKind, EqualityObjects, JointKind, SoftConstraint};
 
-/// Attributes every equality element has (MuJoCo 4.0 schema).
-pub(crate) const COMMON_ATTRIBUTES: &[&str] = &["name", "class", "active", "solref", "solimp"];
+/// Attributes every equality element has (MuJoCo 4.0 schema) and how each
+/// is read; a `<default>` class may set those read into the settings.
+pub(crate) const COMMON_ATTRIBUTES: &[Attribute<EqualitySettings>] = &[
+    Attribute::by_reader("name"),
+    Attribute::by_reader("class"),
+    Attribute::into("active", |s, e, a| set(&mut s.active, e.boolean(a)?)),
+    Attribute::into("solref", |s, e, a| e.overwrite_numbers(a, &mut s.soft.solref)),
+    Attribute::into("solimp", |s, e, a| e.overwrite_numbers(a, &mut s.soft.solimp)),
+];
 
-/// Attributes an `<equality>` default class may set.
-pub(crate) const DEFAULT_ATTRIBUTES: &[&str] = &["active", "solref", "solimp"];
+/// The attributes an `<equality>` default class may set.
+pub(crate) fn default_attributes() -> Vec<&'static str> {
+    COMMON_ATTRIBUTES.iter().filter(|a| matches!(a.read, Read::Into(_))).map(|a| a.name).collect()
+}
 
 /// What an equality element starts from: its class's settings.
 #[derive(Clone, Debug, PartialEq)]
@@ -32,12 +42,7 @@ impl Default for EqualitySettings {
 impl EqualitySettings {
     /// Overwrites the settings the element gives.
     pub fn apply(&mut self, element: &Element) -> Result<(), MjcfError> {
-        if let Some(active) = element.boolean("active")? {
-            self.active = active;
-        }
-        element.overwrite_numbers("solref", &mut self.soft.solref)?;
-        element.overwrite_numbers("solimp", &mut self.soft.solimp)?;
-        Ok(())
+        read_into(COMMON_ATTRIBUTES, self, element)
     }
 }
 
@@ -81,7 +86,7 @@ pub(crate) fn read(
         }
         None => return Err(element.unknown()),
     };
-    let allowed: Vec<&str> = COMMON_ATTRIBUTES.iter().chain(own).copied().collect();
+    let allowed: Vec<&str> = names(COMMON_ATTRIBUTES).into_iter().chain(own.iter().copied()).collect();
     element.check_attributes(&allowed)?;
     if let Some(child) = element.children().next() {
         return Err(child.unknown());

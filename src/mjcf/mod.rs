@@ -13,6 +13,7 @@
 //! applied, as MuJoCo 4.0 does.
 
 mod actuator;
+mod attributes;
 mod contacts;
 mod defaults;
 mod element;

@@ -6,7 +6,7 @@
 
 use std::fmt::Write;
 
-use super::{actuator, defaults, equality, mesh, reader, sensor, tendon};
+use super::{actuator, attributes, defaults, equality, mesh, reader, sensor, tendon};
 use crate::vehicle::SensorKind;
 
 /// docs/mjcf-support.md: element and attribute, read or ignored with a
@@ -61,6 +61,10 @@ pub fn support_table() -> String {
 
     out.push_str("\n## Elements read, and their attributes\n\n");
     out.push_str("| element | attributes |\n|---|---|\n");
+    let joint = attributes::names(defaults::JOINT_ATTRIBUTES);
+    let geom = attributes::names(defaults::GEOM_ATTRIBUTES);
+    let site = attributes::names(defaults::SITE_ATTRIBUTES);
+    let mesh_attributes = attributes::names(mesh::MESH_ATTRIBUTES);
     let elements: [(&str, &[&str]); 11] = [
         ("compiler", reader::COMPILER_ATTRIBUTES),
         ("option", reader::OPTION_ATTRIBUTES),
@@ -69,17 +73,18 @@ pub fn support_table() -> String {
         ("frame", reader::FRAME_ATTRIBUTES),
         ("replicate", reader::REPLICATE_ATTRIBUTES),
         ("inertial", reader::INERTIAL_ATTRIBUTES),
-        ("joint", defaults::JOINT_ATTRIBUTES),
-        ("geom", defaults::GEOM_ATTRIBUTES),
-        ("site", defaults::SITE_ATTRIBUTES),
-        ("asset/mesh", mesh::MESH_ATTRIBUTES),
+        ("joint", &joint),
+        ("geom", &geom),
+        ("site", &site),
+        ("asset/mesh", &mesh_attributes),
     ];
     for (element, attributes) in elements {
         let _ = writeln!(out, "| `<{element}>` | {} |", code_list(attributes, false));
     }
-    let spatial: Vec<&str> = tendon::FIXED_ATTRIBUTES.iter().chain(tendon::SPATIAL_ONLY).copied().collect();
-    for (element, attributes) in [("fixed", tendon::FIXED_ATTRIBUTES), ("spatial", &spatial)] {
-        let _ = writeln!(out, "| `<tendon>/<{element}>` | {} |", code_list(attributes, false));
+    for (element, attributes) in
+        [("fixed", tendon::tendon_attributes(false)), ("spatial", tendon::tendon_attributes(true))]
+    {
+        let _ = writeln!(out, "| `<tendon>/<{element}>` | {} |", code_list(&attributes, false));
     }
     for (path, attributes) in tendon::PATH_ELEMENTS {
         let (parent, child) = path.split_once('/').expect("parent/child");
@@ -94,7 +99,8 @@ pub fn support_table() -> String {
         let _ = writeln!(out, "| `<sensor>/<{}>` | {} |", kind.name(), code_list(&attributes, false));
     }
     for (tag, own) in equality::EQUALITY_ATTRIBUTES {
-        let attributes: Vec<&str> = equality::COMMON_ATTRIBUTES.iter().chain(own.iter()).copied().collect();
+        let attributes: Vec<&str> =
+            attributes::names(equality::COMMON_ATTRIBUTES).into_iter().chain(own.iter().copied()).collect();
         let _ = writeln!(out, "| `<equality>/<{tag}>` | {} |", code_list(&attributes, false));
     }
 

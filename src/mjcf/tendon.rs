@@ -3,36 +3,66 @@
 //! attributes, defaults and compiler checks, wrapping around sphere and
 //! cylinder geoms included (without a side site, which is refused).
 
+use super::attributes::{Attribute, names, read_into, set};
 use super::defaults::Limited;
 use super::element::Element;
 use super::error::MjcfError;
 use crate::vehicle::{JointKind, JointLimit, PathPoint, SoftConstraint, Tendon, TendonPath, WrapGeom};
 
-/// Attributes `<fixed>` has (MuJoCo 4.0 schema); `<spatial>` adds [`SPATIAL_ONLY`].
-pub(crate) const FIXED_ATTRIBUTES: &[&str] = &[
-    "name",
-    "class",
-    "group",
-    "limited",
-    "actuatorfrclimited",
-    "range",
-    "actuatorfrcrange",
-    "solreflimit",
-    "solimplimit",
-    "solreffriction",
-    "solimpfriction",
-    "frictionloss",
-    "springlength",
-    "margin",
-    "stiffness",
-    "damping",
-    "armature",
-    "user",
-    "springyield",
+/// `<fixed>` and `<spatial>` (MuJoCo 4.0 schema): their attributes and how
+/// each is read; `<fixed>` takes all but [`SPATIAL_ONLY`], a `<default>`
+/// class all but the name and class.
+pub(crate) const TENDON_ATTRIBUTES: &[Attribute<TendonSettings>] = &[
+    Attribute::by_reader("name"),
+    Attribute::by_reader("class"),
+    Attribute::no_effect("group"),
+    Attribute::into("limited", |s, e, a| set(&mut s.limited, e.keyword(a, &LIMITED)?)),
+    Attribute::into("actuatorfrclimited", |s, e, a| set(&mut s.actuator_force_limited, e.keyword(a, &LIMITED)?)),
+    Attribute::into("range", |s, e, a| set(&mut s.range, e.numbers(a)?)),
+    Attribute::into("actuatorfrcrange", |s, e, a| set(&mut s.actuator_force_range, e.numbers(a)?)),
+    Attribute::into("solreflimit", |s, e, a| e.overwrite_numbers(a, &mut s.limit_soft.solref)),
+    Attribute::into("solimplimit", |s, e, a| e.overwrite_numbers(a, &mut s.limit_soft.solimp)),
+    Attribute::into("solreffriction", |s, e, a| e.overwrite_numbers(a, &mut s.friction_soft.solref)),
+    Attribute::into("solimpfriction", |s, e, a| e.overwrite_numbers(a, &mut s.friction_soft.solimp)),
+    Attribute::into("frictionloss", |s, e, a| set(&mut s.frictionloss, e.number(a)?)),
+    Attribute::into("springlength", read_spring_length),
+    Attribute::into("margin", |s, e, a| set(&mut s.margin, e.number(a)?)),
+    Attribute::into("stiffness", |s, e, a| e.overwrite_numbers(a, &mut s.stiffness)),
+    Attribute::into("damping", |s, e, a| e.overwrite_numbers(a, &mut s.damping)),
+    Attribute::into("armature", |s, e, a| set(&mut s.armature, e.number(a)?)),
+    Attribute::no_effect("user"),
+    Attribute::into("springyield", |s, e, a| set(&mut s.springyield, e.number(a)?)),
+    Attribute::no_effect("width"),
+    Attribute::no_effect("material"),
+    Attribute::no_effect("rgba"),
 ];
 
 /// Attributes only `<spatial>` has: how it is drawn.
 pub(crate) const SPATIAL_ONLY: &[&str] = &["width", "material", "rgba"];
+
+/// The attributes of a `<fixed>` (`spatial` false) or `<spatial>` tendon.
+pub(crate) fn tendon_attributes(spatial: bool) -> Vec<&'static str> {
+    names(TENDON_ATTRIBUTES).into_iter().filter(|a| spatial || !SPATIAL_ONLY.contains(a)).collect()
+}
+
+/// The attributes a `<tendon>` default class may set.
+pub(crate) fn default_attributes() -> Vec<&'static str> {
+    names(TENDON_ATTRIBUTES).into_iter().filter(|a| !["name", "class"].contains(a)).collect()
+}
+
+/// The keywords of `limited` and `actuatorfrclimited`.
+const LIMITED: [(&str, Limited); 3] = [("false", Limited::No), ("true", Limited::Yes), ("auto", Limited::Auto)];
+
+/// `springlength`: one value is a point, which MuJoCo repeats.
+fn read_spring_length(settings: &mut TendonSettings, element: &Element, attribute: &str) -> Result<(), MjcfError> {
+    let mut spring_length = [f64::NAN; 2];
+    element.overwrite_numbers(attribute, &mut spring_length)?;
+    if spring_length[1].is_nan() {
+        spring_length[1] = spring_length[0];
+    }
+    settings.spring_length = spring_length;
+    Ok(())
+}
 
 /// The path elements of each tendon and their attributes.
 pub(crate) const PATH_ELEMENTS: &[(&str, &[&str])] = &[
@@ -46,30 +76,6 @@ pub(crate) const PATH_ELEMENTS: &[(&str, &[&str])] = &[
 fn path_attributes(path: &str) -> &'static [&'static str] {
     PATH_ELEMENTS.iter().find(|(p, _)| *p == path).map(|(_, a)| *a).expect("a listed path element")
 }
-
-/// Attributes a `<tendon>` default class may set.
-pub(crate) const DEFAULT_ATTRIBUTES: &[&str] = &[
-    "group",
-    "limited",
-    "actuatorfrclimited",
-    "range",
-    "actuatorfrcrange",
-    "solreflimit",
-    "solimplimit",
-    "solreffriction",
-    "solimpfriction",
-    "frictionloss",
-    "springlength",
-    "width",
-    "material",
-    "margin",
-    "stiffness",
-    "damping",
-    "armature",
-    "rgba",
-    "user",
-    "springyield",
-];
 
 /// A tendon's attributes, as a class or an element sets them.
 #[derive(Clone, Debug)]
@@ -126,45 +132,7 @@ impl Default for TendonSettings {
 impl TendonSettings {
     /// Overwrites the settings the element gives.
     pub fn apply(&mut self, element: &Element) -> Result<(), MjcfError> {
-        let limited = [("false", Limited::No), ("true", Limited::Yes), ("auto", Limited::Auto)];
-        if let Some(limited) = element.keyword("limited", &limited)? {
-            self.limited = limited;
-        }
-        if let Some(range) = element.numbers("range")? {
-            self.range = range;
-        }
-        if let Some(margin) = element.number("margin")? {
-            self.margin = margin;
-        }
-        if let Some(frictionloss) = element.number("frictionloss")? {
-            self.frictionloss = frictionloss;
-        }
-        if element.has("springlength") {
-            // One value is a point: MuJoCo repeats it.
-            let mut spring_length = [f64::NAN; 2];
-            element.overwrite_numbers("springlength", &mut spring_length)?;
-            if spring_length[1].is_nan() {
-                spring_length[1] = spring_length[0];
-            }
-            self.spring_length = spring_length;
-        }
-        element.overwrite_numbers("stiffness", &mut self.stiffness)?;
-        element.overwrite_numbers("damping", &mut self.damping)?;
-        if let Some(armature) = element.number("armature")? {
-            self.armature = armature;
-        }
-        if let Some(springyield) = element.number("springyield")? {
-            self.springyield = springyield;
-        }
-        if let Some(limited) = element.keyword("actuatorfrclimited", &limited)? {
-            self.actuator_force_limited = limited;
-        }
-        if let Some(range) = element.numbers("actuatorfrcrange")? {
-            self.actuator_force_range = range;
-        }
-        self.limit_soft.apply(element, "solreflimit", "solimplimit")?;
-        self.friction_soft.apply(element, "solreffriction", "solimpfriction")?;
-        Ok(())
+        read_into(TENDON_ATTRIBUTES, self, element)
     }
 }
 
@@ -207,8 +175,7 @@ pub(crate) fn read(
         "spatial" => true,
         _ => return Err(element.unknown()),
     };
-    let allowed: Vec<&str> = FIXED_ATTRIBUTES.iter().chain(if spatial { SPATIAL_ONLY } else { &[] }).copied().collect();
-    element.check_attributes(&allowed)?;
+    element.check_attributes(&tendon_attributes(spatial))?;
     settings.apply(element)?;
     let origin = |attribute: &str| if element.has(attribute) { "" } else { " (from its default class)" };
     if settings.springyield != 0.0 {

@@ -8,7 +8,6 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{MIN_VALUE, Model, ModelError};
 use crate::math::{Transform, Vec3};
 use crate::vehicle::{ActuatorKind, BiasType, GainType};
 
@@ -174,44 +173,4 @@ pub struct DofForceLimit {
     pub dof: usize,
     /// The force range.
     pub range: [f64; 2],
-}
-
-impl Model {
-    /// Turns damping ratios into dampings as MuJoCo's compiler does:
-    /// kv = ratio · 2√(kp·m), with m = (J M⁻¹ Jᵀ)⁻¹ the mass the actuator
-    /// moves at qpos0, J its moment arms. With M = m m*, J M⁻¹ Jᵀ = |ℓJᵀ|²:
-    /// the ε of a unit force, from the passes (less the tendons' armature's
-    /// share: MuJoCo's M includes it).
-    pub(super) fn resolve_damping_ratios(&mut self) -> Result<(), ModelError> {
-        let pending: Vec<usize> =
-            (0..self.actuators.len()).filter(|&k| self.actuators[k].has_damping_ratio()).collect();
-        if pending.is_empty() {
-            return Ok(());
-        }
-        let failed = |actuator: &Actuator, k: usize, reason: String| ModelError::Actuator {
-            actuator: actuator.label(k),
-            line: actuator.line,
-            reason,
-        };
-        let mut ws = self.workspace();
-        let (mut moment, mut eps) = (vec![0.0; self.nv], vec![0.0; self.nv]);
-        let first = pending[0];
-        ws.set_configuration(self, &self.qpos0)
-            .and_then(|()| ws.set_qvel(self, &eps))
-            .map_err(|e| failed(&self.actuators[first], first, e.to_string()))?;
-        for k in pending {
-            ws.actuator_moment(self, k, &mut moment)
-                .and_then(|()| ws.eps_from_forces(self, &moment, None, &mut eps))
-                .map_err(|e| failed(&self.actuators[k], k, e.to_string()))?;
-            let inverse_mass = ws.inverse_mass_quadratic(self, &eps);
-            let mass = if inverse_mass > MIN_VALUE { 1.0 / inverse_mass } else { 0.0 };
-            let actuator = &mut self.actuators[k];
-            let kp = actuator.gain[0];
-            if kp < 0.0 {
-                return Err(failed(actuator, k, format!("dampratio needs kp >= 0, found kp = {kp}")));
-            }
-            actuator.bias[2] = -(actuator.bias[2] * 2.0 * (kp * mass).sqrt());
-        }
-        Ok(())
-    }
 }

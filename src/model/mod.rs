@@ -24,7 +24,9 @@ use nalgebra::SMatrix;
 use serde::{Deserialize, Serialize};
 
 use crate::math::{Mat3, Quat, SpatialMat, SpatialVec, Transform, Vec3, angular, linear, rigid_inertia, skew, spatial};
-use crate::vehicle::{Actuation, ActuatorKind, BiasType, GainType, JointKind, SensorKind, Transmission, Vehicle};
+use crate::vehicle::{
+    Actuation, ActuatorKind, BiasType, GainType, JointKind, MassProperties, SensorKind, Transmission, Vehicle,
+};
 
 mod actuator;
 mod constraint;
@@ -369,7 +371,7 @@ pub enum ModelError {
 
 /// What a body frame is rigidly attached to during compilation.
 #[derive(Clone, Copy)]
-pub(super) struct Attachment {
+pub(crate) struct Attachment {
     /// The link carrying the body, or `None` for the world.
     pub link: Option<usize>,
     /// ᵇᵒᵈʸX_ₗᵢₙₖ: the body frame relative to that link frame.
@@ -387,115 +389,85 @@ impl Attachment {
 }
 
 impl Model {
-    /// Compiles a vehicle description into the link array.
-    pub fn compile(vehicle: &Vehicle) -> Result<Model, ModelError> {
-        Model::compile_with_wrench_inputs(vehicle, &[])
-    }
-
     /// MuJoCo's nu: the MJCF's actuators, without the wrench inputs' six per body.
     pub fn mjcf_actuator_count(&self) -> usize {
         self.actuators.len() - 6 * self.wrench_bodies.len()
     }
 
-    /// Compiles a vehicle with external wrench inputs on the named bodies
-    /// (see [`Model::wrench_bodies`]).
-    pub fn compile_with_wrench_inputs(vehicle: &Vehicle, wrench_bodies: &[String]) -> Result<Model, ModelError> {
-        let mut links: Vec<Link> = Vec::new();
-        let mut joints = Vec::new();
-        let mut qpos0 = Vec::new();
-        let mut qpos_spring = Vec::new();
-        let mut attachments: Vec<Attachment> = Vec::with_capacity(vehicle.bodies.len());
-        let mut tree_quats = Vec::new();
-        let mut compensation = GravityCompensation::default();
+    /// Whether forces beyond the tree's passes act: the tendons' armature
+    /// or constraint rows (`Workspace::apply_constraint_forces`).
+    pub fn couples_beyond_tree(&self) -> bool {
+        !self.tendon_inertia.is_empty() || !self.constraints.is_empty()
+    }
+}
 
-        for body in &vehicle.bodies {
-            let parent = match body.parent {
-                Some(p) => attachments[p],
-                None => Attachment::at(None),
-            };
-            let body_in_parent = Transform::from_pose(&body.quat.to_rotation_matrix().into_inner(), &body.pos);
-            // The body frame before its joints move it, relative to the parent link.
-            let mut inboard = Attachment {
-                link: parent.link,
-                offset: body_in_parent.compose(&parent.offset),
-                quat: parent.quat * body.quat,
-            };
+/// The first stage of compiling a vehicle: everything that needs no
+/// evaluation of the dynamics. Its `model` is what the qpos0 stage
+/// (`crate::compile`) evaluates; the constants that stage finds are left
+/// out of it ([`Qpos0Constants`] lists them), and [`Tree::with_constants`]
+/// makes the whole model from the two.
+pub(crate) struct Tree {
+    /// The model without its qpos0 constants: tendons' lengths and
+    /// invweights 0 (spring lengths the file's, or 0), springdamper joints
+    /// without stiffness and damping, damping ratios not yet dampings, no
+    /// constraints (they are `constraints`).
+    pub model: Model,
+    /// The joints' and tendons' friction loss and limits, without the
+    /// invweights and equalities the qpos0 stage adds.
+    pub constraints: Constraints,
+    /// Each body's frame on the link that carries it.
+    pub attachments: Vec<Attachment>,
+    /// Each site's frame on the link that carries it.
+    pub sites: Vec<SiteFrame>,
+}
 
-            for joint in &body.joints {
-                for (what, value) in
-                    [("armature", joint.armature), ("stiffness", joint.stiffness), ("damping", joint.damping)]
-                {
-                    if !(value.is_finite() && value >= 0.0) {
-                        return Err(ModelError::BadParameter { joint: joint.name.clone(), what, value });
-                    }
-                }
-                joints.push(JointInfo {
-                    name: joint.name.clone(),
-                    body_name: body.name.clone(),
-                    kind: joint.kind,
-                    qpos_adr: qpos0.len(),
-                    dof_adr: dof_count(&links),
-                });
-                match joint.kind {
-                    JointKind::Hinge | JointKind::Slide => {
-                        let kind = if joint.kind == JointKind::Hinge { LinkJoint::Hinge } else { LinkJoint::Slide };
-                        let k = push_link(&mut links, qpos0.len(), joint, &body.name, kind, inboard);
-                        tree_quats.push(inboard.quat);
-                        links[k].reference = joint.reference;
-                        inboard = Attachment::at(Some(k));
-                        qpos0.push(joint.reference);
-                        qpos_spring.push(joint.springref);
-                    }
-                    JointKind::Ball => {
-                        let k = push_link(&mut links, qpos0.len(), joint, &body.name, LinkJoint::Ball, inboard);
-                        tree_quats.push(inboard.quat);
-                        inboard = Attachment::at(Some(k));
-                        qpos0.extend([1.0, 0.0, 0.0, 0.0]);
-                        qpos_spring.extend([1.0, 0.0, 0.0, 0.0]);
-                    }
-                    JointKind::Free => {
-                        if body.parent.is_some() || body.joints.len() != 1 {
-                            return Err(ModelError::MisplacedFreeJoint { joint: joint.name.clone(), line: joint.line });
-                        }
-                        // qpos holds the body pose in world directly: the tree offset is absorbed.
-                        let world = Attachment::at(None);
-                        let t = push_link(&mut links, qpos0.len(), joint, &body.name, LinkJoint::Translation, world);
-                        let at_translation = Attachment::at(Some(t));
-                        let r =
-                            push_link(&mut links, qpos0.len() + 3, joint, &body.name, LinkJoint::Ball, at_translation);
-                        tree_quats.extend([Quat::identity(), Quat::identity()]);
-                        inboard = Attachment::at(Some(r));
-                        let q = body.quat;
-                        let pose = [body.pos.x, body.pos.y, body.pos.z, q.w, q.i, q.j, q.k];
-                        qpos0.extend(pose);
-                        qpos_spring.extend(pose);
-                    }
-                }
-            }
+/// What MuJoCo's compiler finds at qpos0 (its `mj_setConst`), as the qpos0
+/// stage computes it for a [`Tree`].
+#[derive(Debug, Default)]
+pub(crate) struct Qpos0Constants {
+    /// The stiffness and damping of the links of `springdamper` joints.
+    pub spring_dampers: Vec<LinkSpringDamper>,
+    /// Each tendon's length and invweight in qpos0 and its spring length.
+    pub tendons: Vec<TendonConstants>,
+    /// The damping (biasprm[2]) of each actuator with a damping ratio.
+    pub actuator_dampings: Vec<(usize, f64)>,
+    /// MuJoCo's `dof_invweight0`, when the model has constraints.
+    pub dof_invweight0: Vec<f64>,
+    /// The active equality constraints.
+    pub equalities: Vec<CompiledEquality>,
+}
 
-            if let (Some(mass_props), Some(link)) = (&body.inertia, inboard.link) {
-                let inertia = rigid_inertia(mass_props.mass, &mass_props.com, &mass_props.inertia);
-                let l = &mut links[link];
-                // The body frame is ᵇX_ₗ = offset relative to the link: bring its inertia to the link frame.
-                let mut in_link = SpatialMat::zeros();
-                inboard.offset.add_inertia_to_parent(&inertia, &mut in_link, true);
-                l.rotational_inertia += in_link.fixed_view::<3, 3>(0, 0);
-                l.mass += mass_props.mass;
-                let com = inboard.offset.trans + inboard.offset.rot.transpose() * mass_props.com;
-                l.mass_moment += mass_props.mass * com;
-                compensation.add_body(link, body.gravcomp, mass_props.mass, &com);
-            }
-            attachments.push(inboard);
-        }
+/// A link's stiffness and damping derived from its joint's `springdamper`.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct LinkSpringDamper {
+    /// The link.
+    pub link: usize,
+    /// Its stiffness.
+    pub stiffness: f64,
+    /// Its damping.
+    pub damping: f64,
+}
 
-        if links.is_empty() {
-            return Err(ModelError::NoJoints);
-        }
-        let nv = dof_count(&links);
-        let shortcuts = Shortcuts::of(&links, &vehicle.gravity);
-        let sites = site_frames(vehicle, &attachments);
-        let tendons = tendon::compile_tendons(vehicle, &joints, &sites, &attachments);
-        let mut actuators = compile_actuators(vehicle, &links, &joints, &sites);
+/// A tendon's constants from qpos0 and the spring pose.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct TendonConstants {
+    /// Its length in qpos0.
+    pub length0: f64,
+    /// J M⁻¹ Jᵀ in qpos0.
+    pub invweight0: f64,
+    /// Its spring length: the file's, or its length in the spring pose.
+    pub spring_length: [f64; 2],
+}
+
+impl Tree {
+    /// Compiles the structure of `vehicle` with external wrench inputs on
+    /// the named bodies (see [`Model::wrench_bodies`]).
+    pub(crate) fn compile(vehicle: &Vehicle, wrench_bodies: &[String]) -> Result<Tree, ModelError> {
+        let bodies = BodyTree::of(vehicle)?;
+        let nv = dof_count(&bodies.links);
+        let sites = site_frames(vehicle, &bodies.attachments);
+        let tendons = tendon::compile_tendons(vehicle, &bodies.joints, &sites, &bodies.attachments);
+        let mut actuators = compile_actuators(vehicle, &bodies.links, &bodies.joints, &sites);
         for (k, name) in wrench_bodies.iter().enumerate() {
             // Two wrenches on one body would be two sets of inputs that add up:
             // MuJoCo's xfrc_applied is one wrench per body.
@@ -504,48 +476,42 @@ impl Model {
                     reason: format!("body '{name}' is named twice: a body takes one wrench (six inputs)"),
                 });
             }
-            actuators.extend(wrench_actuators(vehicle, &attachments, name)?);
+            actuators.extend(wrench_actuators(vehicle, &bodies.attachments, name)?);
         }
-        let sensors = sensor::compile_sensors(vehicle, &joints, &attachments, &sites)?;
+        let sensors = sensor::compile_sensors(vehicle, &bodies.joints, &bodies.attachments, &sites)?;
         let needs_interaction = sensors.iter().any(|s| matches!(s.source, SensorSource::Interaction { .. }));
         let needs_body_masses =
             needs_interaction || sensors.iter().any(|s| matches!(s.source, SensorSource::Subtree { .. }));
-        let body_masses = if needs_body_masses { sensor::body_masses(vehicle, &attachments) } else { Vec::new() };
+        let body_masses =
+            if needs_body_masses { sensor::body_masses(vehicle, &bodies.attachments) } else { Vec::new() };
         let interaction_bodies = match needs_interaction {
             true => InteractionBodies::of(vehicle, wrench_bodies),
             false => InteractionBodies::default(),
         };
         let needs_quats = sensors.iter().any(|s| s.kind == SensorKind::FrameQuat);
-        let link_tree_quats = if needs_quats { tree_quats } else { Vec::new() };
-        let actuator_force_limits = vehicle
-            .bodies
-            .iter()
-            .flat_map(|body| &body.joints)
-            .zip(&joints)
+        let link_tree_quats = if needs_quats { bodies.tree_quats } else { Vec::new() };
+        let mjcf_joints = || vehicle.bodies.iter().flat_map(|body| &body.joints).zip(&bodies.joints);
+        let actuator_force_limits = mjcf_joints()
             .filter_map(|(joint, info)| {
                 joint.actuator_force_range.map(|range| DofForceLimit { dof: info.dof_adr, range })
             })
             .collect();
-        let constraints = Constraints::of(vehicle, &joints)?;
-        let actuator_gravcomp_dofs = vehicle
-            .bodies
-            .iter()
-            .flat_map(|body| &body.joints)
-            .zip(&joints)
+        let constraints = Constraints::of(vehicle, &bodies.joints)?;
+        let actuator_gravcomp_dofs = mjcf_joints()
             .filter(|(joint, _)| joint.actuator_gravcomp)
             .flat_map(|(joint, info)| info.dof_adr..info.dof_adr + joint.kind.nv())
             .collect();
         let mut model = Model {
             name: vehicle.name.clone(),
-            nq: qpos0.len(),
+            nq: bodies.qpos0.len(),
             nv,
             gravity: vehicle.gravity,
             magnetic: vehicle.magnetic,
-            links,
-            joints,
-            qpos0,
-            qpos_spring,
-            shortcuts,
+            shortcuts: Shortcuts::of(&bodies.links, &vehicle.gravity),
+            links: bodies.links,
+            joints: bodies.joints,
+            qpos0: bodies.qpos0,
+            qpos_spring: bodies.qpos_spring,
             actuators,
             actuator_force_limits,
             actuation: vehicle.actuation,
@@ -556,80 +522,163 @@ impl Model {
             constraints: Constraints::default(),
             interaction_bodies,
             sensors_disabled: vehicle.sensors_disabled,
-            gravity_compensation: compensation.applied(vehicle, actuator_gravcomp_dofs),
+            gravity_compensation: bodies.compensation.applied(vehicle, actuator_gravcomp_dofs),
             tendons,
             tendon_inertia: Vec::new(),
         };
         model.tendon_inertia = tendon::inertia_terms(&model);
-        model.validate()?;
-        model.check_positive_definite()?;
-        model.derive_spring_dampers(vehicle)?;
-        model.compile_tendons_in_qpos0(vehicle)?;
-        model.resolve_damping_ratios()?;
-        model.constraints = constraints;
-        model.compile_constraints_in_qpos0(vehicle, &attachments, &sites)?;
-        Ok(model)
+        Ok(Tree { model, constraints, attachments: bodies.attachments, sites })
     }
 
-    /// The stiffness and damping of joints with a `springdamper`, as
-    /// MuJoCo's `AutoSpringDamper` derives them from the joint's inertia in
-    /// qpos0, I = ndof / Σ `dof_invweight0` over its dofs: k = I/(τζ)²,
-    /// b = 2I/τ (the solref rule for a time constant τ and damping ratio ζ).
-    fn derive_spring_dampers(&mut self, vehicle: &Vehicle) -> Result<(), ModelError> {
-        let joints = || vehicle.bodies.iter().flat_map(|body| &body.joints);
-        if joints().all(|joint| joint.springdamper.is_none()) {
-            return Ok(());
+    /// The whole model: the tree's with the constants found at qpos0.
+    pub(crate) fn with_constants(self, constants: Qpos0Constants) -> Model {
+        let mut model = self.model;
+        for derived in constants.spring_dampers {
+            model.links[derived.link].stiffness = derived.stiffness;
+            model.links[derived.link].damping = derived.damping;
         }
-        let mut ws = self.workspace();
-        ws.set_configuration(self, &self.qpos0).map_err(|e| self.singular(e))?;
-        let invweight = self.mujoco_dof_invweight0(vehicle, &mut ws).map_err(|e| self.singular(e))?;
-        let derived: Vec<_> = joints()
-            .zip(&self.joints)
-            .filter_map(|(joint, info)| Some((joint.springdamper?, info.dof_adr..info.dof_adr + joint.kind.nv())))
-            .collect();
-        for (sd, dofs) in derived {
-            let inertia = dofs.len() as f64 / invweight[dofs.clone()].iter().sum::<f64>().max(MIN_VALUE);
-            let stiffness = inertia / (sd.time_constant * sd.damping_ratio).powi(2).max(MIN_VALUE);
-            let damping = 2.0 * inertia / sd.time_constant.max(MIN_VALUE);
-            for link in self.links.iter_mut().filter(|link| dofs.contains(&link.dof_adr)) {
-                link.stiffness = if sd.spring { stiffness } else { 0.0 };
-                link.damping = if sd.damper { damping } else { 0.0 };
-            }
+        model.shortcuts = Shortcuts::of(&model.links, &model.gravity);
+        for (tendon, found) in model.tendons.iter_mut().zip(constants.tendons) {
+            (tendon.length0, tendon.invweight0, tendon.spring_length) =
+                (found.length0, found.invweight0, found.spring_length);
         }
-        self.shortcuts = Shortcuts::of(&self.links, &self.gravity);
-        Ok(())
-    }
-
-    /// Whether forces beyond the tree's passes act: the tendons' armature
-    /// or constraint rows ([`crate::workspace::Workspace::apply_constraint_forces`]).
-    pub fn couples_beyond_tree(&self) -> bool {
-        !self.tendon_inertia.is_empty() || !self.constraints.is_empty()
-    }
-
-    /// A fresh workspace for this model.
-    pub fn workspace(&self) -> crate::workspace::Workspace {
-        crate::workspace::Workspace::new(self)
-    }
-
-    /// Verifies that every joint sees a positive-definite articulated
-    /// inertia in the initial configuration.
-    fn check_positive_definite(&self) -> Result<(), ModelError> {
-        let mut ws = self.workspace();
-        ws.set_configuration(self, &self.qpos0).map_err(|e| self.singular(e))
-    }
-
-    /// A failed evaluation in qpos0 while compiling: only a singular
-    /// articulated inertia can fail there, once the model is valid.
-    fn singular(&self, error: crate::dynamics::DynamicsError) -> ModelError {
-        match error {
-            crate::dynamics::DynamicsError::Singular { link } => {
-                ModelError::Singular { joint: self.links[link].joint_name.clone() }
-            }
-            other => ModelError::Invalid(InvalidModel::Evaluation(other.to_string())),
+        for (actuator, damping) in constants.actuator_dampings {
+            model.actuators[actuator].bias[2] = damping;
         }
+        model.constraints = Constraints {
+            dof_invweight0: constants.dof_invweight0,
+            equalities: constants.equalities,
+            ..self.constraints
+        };
+        model
     }
 }
 
+/// The links of a vehicle's bodies and joints, and where each body and
+/// coordinate is on them.
+struct BodyTree {
+    links: Vec<Link>,
+    joints: Vec<JointInfo>,
+    qpos0: Vec<f64>,
+    qpos_spring: Vec<f64>,
+    /// Each body's frame on its link.
+    attachments: Vec<Attachment>,
+    /// Each link's `x_tree` rotation as MuJoCo composes `xquat`.
+    tree_quats: Vec<Quat>,
+    compensation: GravityCompensation,
+}
+
+impl BodyTree {
+    /// Links for the joints of `vehicle`'s bodies, in body order (MuJoCo's dof order).
+    fn of(vehicle: &Vehicle) -> Result<BodyTree, ModelError> {
+        let mut tree = BodyTree {
+            links: Vec::new(),
+            joints: Vec::new(),
+            qpos0: Vec::new(),
+            qpos_spring: Vec::new(),
+            attachments: Vec::with_capacity(vehicle.bodies.len()),
+            tree_quats: Vec::new(),
+            compensation: GravityCompensation::default(),
+        };
+        for body in &vehicle.bodies {
+            let parent = match body.parent {
+                Some(p) => tree.attachments[p],
+                None => Attachment::at(None),
+            };
+            let body_in_parent = Transform::from_pose(&body.quat.to_rotation_matrix().into_inner(), &body.pos);
+            // The body frame before its joints move it, relative to the parent link.
+            let mut inboard = Attachment {
+                link: parent.link,
+                offset: body_in_parent.compose(&parent.offset),
+                quat: parent.quat * body.quat,
+            };
+            for joint in &body.joints {
+                inboard = tree.add_joint(body, joint, inboard)?;
+            }
+            if let (Some(mass_props), Some(link)) = (&body.inertia, inboard.link) {
+                tree.add_body_inertia(link, &inboard, mass_props, body.gravcomp);
+            }
+            tree.attachments.push(inboard);
+        }
+        if tree.links.is_empty() {
+            return Err(ModelError::NoJoints);
+        }
+        Ok(tree)
+    }
+
+    /// Adds the link (or, for a free joint, two links) of `joint` of `body`
+    /// at `inboard`; returns the frame the next joint or the body is on.
+    fn add_joint(
+        &mut self,
+        body: &crate::vehicle::Body,
+        joint: &crate::vehicle::Joint,
+        inboard: Attachment,
+    ) -> Result<Attachment, ModelError> {
+        for (what, value) in [("armature", joint.armature), ("stiffness", joint.stiffness), ("damping", joint.damping)]
+        {
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(ModelError::BadParameter { joint: joint.name.clone(), what, value });
+            }
+        }
+        let qpos_adr = self.qpos0.len();
+        let links = &mut self.links;
+        self.joints.push(JointInfo {
+            name: joint.name.clone(),
+            body_name: body.name.clone(),
+            kind: joint.kind,
+            qpos_adr,
+            dof_adr: dof_count(links),
+        });
+        let link = match joint.kind {
+            JointKind::Hinge | JointKind::Slide => {
+                let kind = if joint.kind == JointKind::Hinge { LinkJoint::Hinge } else { LinkJoint::Slide };
+                let k = push_link(links, qpos_adr, joint, &body.name, kind, inboard);
+                self.tree_quats.push(inboard.quat);
+                links[k].reference = joint.reference;
+                self.qpos0.push(joint.reference);
+                self.qpos_spring.push(joint.springref);
+                k
+            }
+            JointKind::Ball => {
+                let k = push_link(links, qpos_adr, joint, &body.name, LinkJoint::Ball, inboard);
+                self.tree_quats.push(inboard.quat);
+                self.qpos0.extend([1.0, 0.0, 0.0, 0.0]);
+                self.qpos_spring.extend([1.0, 0.0, 0.0, 0.0]);
+                k
+            }
+            JointKind::Free => {
+                if body.parent.is_some() || body.joints.len() != 1 {
+                    return Err(ModelError::MisplacedFreeJoint { joint: joint.name.clone(), line: joint.line });
+                }
+                // qpos holds the body pose in world directly: the tree offset is absorbed.
+                let world = Attachment::at(None);
+                let t = push_link(links, qpos_adr, joint, &body.name, LinkJoint::Translation, world);
+                let r = push_link(links, qpos_adr + 3, joint, &body.name, LinkJoint::Ball, Attachment::at(Some(t)));
+                self.tree_quats.extend([Quat::identity(), Quat::identity()]);
+                let q = body.quat;
+                let pose = [body.pos.x, body.pos.y, body.pos.z, q.w, q.i, q.j, q.k];
+                self.qpos0.extend(pose);
+                self.qpos_spring.extend(pose);
+                r
+            }
+        };
+        Ok(Attachment::at(Some(link)))
+    }
+
+    /// Adds the mass properties of a body whose frame is `at` to its link.
+    fn add_body_inertia(&mut self, link: usize, at: &Attachment, mass_props: &MassProperties, gravcomp: f64) {
+        let inertia = rigid_inertia(mass_props.mass, &mass_props.com, &mass_props.inertia);
+        let l = &mut self.links[link];
+        // The body frame is ᵇX_ₗ = offset relative to the link: bring its inertia to the link frame.
+        let mut in_link = SpatialMat::zeros();
+        at.offset.add_inertia_to_parent(&inertia, &mut in_link, true);
+        l.rotational_inertia += in_link.fixed_view::<3, 3>(0, 0);
+        l.mass += mass_props.mass;
+        let com = at.offset.trans + at.offset.rot.transpose() * mass_props.com;
+        l.mass_moment += mass_props.mass * com;
+        self.compensation.add_body(link, gravcomp, mass_props.mass, &com);
+    }
+}
 /// The sites' frames on the links that carry them (`attachments`, per body).
 fn site_frames(vehicle: &Vehicle, attachments: &[Attachment]) -> Vec<SiteFrame> {
     vehicle
@@ -799,7 +848,7 @@ fn dof_count(links: &[Link]) -> usize {
 }
 
 /// MuJoCo's smallest denominator (mjMINVAL).
-const MIN_VALUE: f64 = 1e-15;
+pub(crate) const MIN_VALUE: f64 = 1e-15;
 
 /// Appends the link of `joint` (of body `body_name`) attached at `inboard`;
 /// returns its index. Free-joint halves have their anchor at the body origin.

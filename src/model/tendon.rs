@@ -6,7 +6,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{Attachment, InvalidModel, JointInfo, LinkJoint, Model, ModelError, SiteFrame};
+use super::{Attachment, JointInfo, LinkJoint, Model, SiteFrame};
 use crate::math::Transform;
 use crate::vehicle::{PathPoint, TendonPath, Vehicle};
 
@@ -118,8 +118,9 @@ pub enum PathStop {
 }
 
 /// The tendons of `vehicle`, their joints resolved against the compiled
-/// `joints` and their sites at `sites`; the qpos0 lengths are filled by
-/// [`Model::compile_tendons_in_qpos0`]. The importer has checked every name.
+/// `joints` and their sites at `sites`; their lengths and invweights at
+/// qpos0 come from the qpos0 stage ([`super::Qpos0Constants`]). The
+/// importer has checked every name.
 pub(super) fn compile_tendons(
     vehicle: &Vehicle,
     joints: &[JointInfo],
@@ -179,39 +180,6 @@ pub(super) fn compile_tendons(
             }
         })
         .collect()
-}
-
-impl Model {
-    /// What MuJoCo's `mj_setConst` computes for tendons: each tendon's
-    /// length and J M⁻¹ Jᵀ in qpos0 (|m⁻¹Jᵀ|², less the tendons' armature's
-    /// share: MuJoCo's M includes it), and, where the file leaves
-    /// `springlength` to it, its length in the spring pose. Nothing without tendons.
-    pub(super) fn compile_tendons_in_qpos0(&mut self, vehicle: &Vehicle) -> Result<(), ModelError> {
-        if self.tendons.is_empty() {
-            return Ok(());
-        }
-        let singular = |e| self.singular(e);
-        let mut ws = self.workspace();
-        ws.set_configuration(self, &self.qpos0).map_err(singular)?;
-        let mut eps = vec![0.0; self.nv];
-        let mut qpos0 = Vec::with_capacity(self.tendons.len());
-        for k in 0..self.tendons.len() {
-            let moment = &ws.tendon_moment[k * self.nv..(k + 1) * self.nv].to_vec();
-            ws.eps_from_forces(self, moment, None, &mut eps).map_err(singular)?;
-            qpos0.push((ws.tendon_length[k], ws.inverse_mass_quadratic(self, &eps)));
-        }
-        ws.set_configuration(self, &self.qpos_spring).map_err(singular)?;
-        for (k, tendon) in self.tendons.iter_mut().enumerate() {
-            (tendon.length0, tendon.invweight0) = qpos0[k];
-            if vehicle.tendons[k].spring_length.is_none() {
-                tendon.spring_length = [ws.tendon_length[k]; 2];
-            }
-        }
-        for k in 0..self.tendons.len() {
-            validate_tendon(self, k).map_err(|what| ModelError::Invalid(InvalidModel::Tendon { tendon: k, what }))?;
-        }
-        Ok(())
-    }
 }
 
 /// Checks tendon `k` against the links: a fixed tendon's terms on hinge or

@@ -23,6 +23,7 @@ use std::path::PathBuf;
 
 use files::{MeshFormat, RawMesh};
 
+use super::attributes::{Attribute, Read, read_into, set};
 use super::defaults::GeomKind;
 use super::element::Element;
 use super::error::MjcfError;
@@ -32,15 +33,54 @@ use crate::math::Mat3;
 /// MuJoCo's `mjMINVAL`.
 const MIN_VALUE: f64 = 1e-15;
 
-/// Attributes of `<mesh>` in `<asset>` (MuJoCo 4.0 schema).
-#[rustfmt::skip]
-pub(crate) const MESH_ATTRIBUTES: &[&str] = &[
-    "name", "class", "content_type", "file", "vertex", "normal", "texcoord", "face", "refpos",
-    "refquat", "scale", "smoothnormal", "maxhullvert", "inertia", "builtin", "params", "material",
+/// `<mesh>` in `<asset>` (MuJoCo 4.0 schema): its attributes and how each
+/// is read. Those read into [`MeshSettings`] are those a `<default>` class
+/// may set ([`mesh_default_attributes`]); the reader reads the others when
+/// it declares the mesh ([`declare`]).
+pub(crate) const MESH_ATTRIBUTES: &[Attribute<MeshSettings>] = &[
+    Attribute::by_reader("name"),
+    Attribute::by_reader("class"),
+    Attribute::by_reader("content_type"),
+    Attribute::by_reader("file"),
+    Attribute::by_reader("vertex"),
+    Attribute::no_effect("normal"),
+    Attribute::no_effect("texcoord"),
+    Attribute::by_reader("face"),
+    Attribute::by_reader("refpos"),
+    Attribute::by_reader("refquat"),
+    Attribute::into("scale", |s, e, a| set(&mut s.scale, e.numbers(a)?)),
+    Attribute::no_effect("smoothnormal"),
+    Attribute::into("maxhullvert", read_max_hull_vertices),
+    Attribute::into("inertia", |s, e, a| set(&mut s.inertia, e.keyword(a, &MESH_INERTIA)?)),
+    // Refused by the reader: nudyn reads meshes from files or vertex lists.
+    Attribute::by_reader("builtin"),
+    Attribute::no_effect("params"),
+    Attribute::no_effect("material"),
 ];
 
-/// Attributes of `<mesh>` in `<default>`.
-pub(crate) const MESH_DEFAULT_ATTRIBUTES: &[&str] = &["scale", "maxhullvert", "inertia"];
+/// The attributes of `<mesh>` in `<default>`: those read into its settings.
+pub(crate) fn mesh_default_attributes() -> Vec<&'static str> {
+    MESH_ATTRIBUTES.iter().filter(|a| matches!(a.read, Read::Into(_))).map(|a| a.name).collect()
+}
+
+/// The keywords of `<mesh inertia>`.
+const MESH_INERTIA: [(&str, MeshInertia); 4] = [
+    ("legacy", MeshInertia::Legacy),
+    ("convex", MeshInertia::Convex),
+    ("exact", MeshInertia::Exact),
+    ("shell", MeshInertia::Shell),
+];
+
+/// `maxhullvert`: -1 (no limit) or more than 3.
+fn read_max_hull_vertices(settings: &mut MeshSettings, element: &Element, attribute: &str) -> Result<(), MjcfError> {
+    if let Some([limit]) = element.integers(attribute)? {
+        if limit != -1 && limit < 4 {
+            return Err(element.invalid("maxhullvert must be larger than 3"));
+        }
+        settings.max_hull_vertices = limit;
+    }
+    Ok(())
+}
 
 /// How a mesh's mass is distributed (`<mesh inertia>`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -76,25 +116,7 @@ impl Default for MeshSettings {
 impl MeshSettings {
     /// Overwrites the settings the element gives.
     pub fn apply(&mut self, element: &Element) -> Result<(), MjcfError> {
-        if let Some(scale) = element.numbers("scale")? {
-            self.scale = scale;
-        }
-        let modes = [
-            ("legacy", MeshInertia::Legacy),
-            ("convex", MeshInertia::Convex),
-            ("exact", MeshInertia::Exact),
-            ("shell", MeshInertia::Shell),
-        ];
-        if let Some(mode) = element.keyword("inertia", &modes)? {
-            self.inertia = mode;
-        }
-        if let Some([limit]) = element.integers("maxhullvert")? {
-            if limit != -1 && limit < 4 {
-                return Err(element.invalid("maxhullvert must be larger than 3"));
-            }
-            self.max_hull_vertices = limit;
-        }
-        Ok(())
+        read_into(MESH_ATTRIBUTES, self, element)
     }
 }
 
@@ -419,26 +441,8 @@ fn process(raw: RawMesh, settings: &MeshSettings, refpos: [f64; 3], refquat: [f6
 
     let hull_error = hull_precondition(&vertices).err();
     let needs_hull = settings.inertia == MeshInertia::Convex || faces.is_empty();
-    let mut hull_faces = if needs_hull {
-        if let Some(error) = &hull_error {
-            return Err(error.clone());
-        }
-        let hull = hull::convex_hull(&vertices).ok_or("its vertices are coplanar: no convex hull")?;
-        let mut hull_vertices: Vec<usize> = hull.iter().flatten().copied().collect();
-        hull_vertices.sort_unstable();
-        hull_vertices.dedup();
-        let limit = settings.max_hull_vertices;
-        if limit > -1 && hull_vertices.len() > limit as usize {
-            return Err(format!(
-                "its convex hull has {} vertices, more than maxhullvert=\"{limit}\": MuJoCo would simplify \
-                 the hull with qhull, which nudyn does not reproduce; raise maxhullvert or remove it",
-                hull_vertices.len()
-            ));
-        }
-        hull
-    } else {
-        Vec::new()
-    };
+    let mut hull_faces =
+        if needs_hull { convex_hull_faces(&vertices, hull_error.as_ref(), settings)? } else { Vec::new() };
     if faces.is_empty() {
         faces = hull_faces.clone();
     }
@@ -486,7 +490,49 @@ fn process(raw: RawMesh, settings: &MeshSettings, refpos: [f64; 3], refquat: [f6
         return Err("its volume or inertia overflows: the mesh is too large".into());
     }
 
-    let (eigenvalues, quat) = principal_axes(&tensor, Eigen::Mesh);
+    let (quat, box_half, aabb) = mesh_frame(&vertices, &tensor, &com, volume)?;
+    Ok(Mesh { line: 0, pos: com, quat, volume, box_half, aabb, hull_error })
+}
+
+/// The faces of the convex hull of `vertices` (whose `hull_error` is why
+/// they have none, if so), refused past `maxhullvert`.
+fn convex_hull_faces(
+    vertices: &[[f64; 3]],
+    hull_error: Option<&String>,
+    settings: &MeshSettings,
+) -> Result<Vec<[usize; 3]>, String> {
+    if let Some(error) = hull_error {
+        return Err(error.clone());
+    }
+    let hull = hull::convex_hull(vertices).ok_or("its vertices are coplanar: no convex hull")?;
+    let mut hull_vertices: Vec<usize> = hull.iter().flatten().copied().collect();
+    hull_vertices.sort_unstable();
+    hull_vertices.dedup();
+    let limit = settings.max_hull_vertices;
+    if limit > -1 && hull_vertices.len() > limit as usize {
+        return Err(format!(
+            "its convex hull has {} vertices, more than maxhullvert=\"{limit}\": MuJoCo would simplify \
+             the hull with qhull, which nudyn does not reproduce; raise maxhullvert or remove it",
+            hull_vertices.len()
+        ));
+    }
+    Ok(hull)
+}
+
+/// A box as its lowest and highest corner.
+type BoundingBox = [[f64; 3]; 2];
+
+/// The mesh frame of a mesh with centre of mass `com`, unit-density
+/// inertia `tensor` and `volume`: its orientation (the principal axes),
+/// the half sizes of its inertia box and the bounding box of `vertices`
+/// in it.
+fn mesh_frame(
+    vertices: &[[f64; 3]],
+    tensor: &nalgebra::Matrix3<f64>,
+    com: &[f64; 3],
+    volume: f64,
+) -> Result<([f64; 4], [f64; 3], BoundingBox), String> {
+    let (eigenvalues, quat) = principal_axes(tensor, Eigen::Mesh);
     let (quat, [e0, e1, e2]) = (quat_array(&quat), eigenvalues.into());
     if e2 <= 0.0 {
         return Err("an eigenvalue of the mesh inertia is not positive".into());
@@ -503,7 +549,7 @@ fn process(raw: RawMesh, settings: &MeshSettings, refpos: [f64; 3], refquat: [f6
     // Every vertex in the mesh frame: moved to the centre, rotated back.
     let rotation = quat_to_mat(&quat);
     let mut aabb: [[f64; 3]; 2] = [[1e10; 3], [-1e10; 3]];
-    for v in &vertices {
+    for v in vertices {
         let d = [v[0] - com[0], v[1] - com[1], v[2] - com[2]];
         for k in 0..3 {
             let local = rotation[k] * d[0] + rotation[3 + k] * d[1] + rotation[6 + k] * d[2];
@@ -511,7 +557,7 @@ fn process(raw: RawMesh, settings: &MeshSettings, refpos: [f64; 3], refquat: [f6
             aabb[1][k] = aabb[1][k].max(local);
         }
     }
-    Ok(Mesh { line: 0, pos: com, quat, volume, box_half, aabb, hull_error })
+    Ok((quat, box_half, aabb))
 }
 
 /// `refpos` subtracted, `refquat`'s inverse rotation, then `scale`.

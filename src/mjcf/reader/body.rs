@@ -1,0 +1,547 @@
+//! The body tree: bodies, their frames and `<replicate>`s, joints, geoms and
+//! sites in document order, each body's mass properties, and the warning on contacts.
+
+use super::geom::{fromto_frame, mass_not_computed};
+use super::{
+    Align, BODY_ATTRIBUTES, BodyRecord, FRAME_ATTRIBUTES, IGNORED_IN_BODIES, InertiaFromGeom, JointElement,
+    MAX_REPLICATED_ELEMENTS, PendingBody, Placed, Pose, REPLICATE_ATTRIBUTES, Reader, claim_name, no_children,
+    unsupported_child,
+};
+use crate::math::{Quat, Vec3};
+use crate::mjcf::attributes::names;
+use crate::mjcf::contacts::BodyFilter;
+use crate::mjcf::defaults::{
+    GEOM_ATTRIBUTES, GeomSettings, JOINT_ATTRIBUTES, JointSettings, MAIN, SITE_ATTRIBUTES, SiteKind,
+};
+use crate::mjcf::element::Element;
+use crate::mjcf::error::MjcfError;
+use crate::mjcf::inertia::{BodyInertia, EPS};
+use crate::mjcf::orientation::Orientation;
+use crate::mjcf::{MjcfWarning, contacts};
+use crate::vehicle::{Body, JointKind, Site};
+
+impl Reader {
+    pub(super) fn read_worldbody(&mut self, section: &Element) -> Result<(), MjcfError> {
+        // MuJoCo: "World body cannot have attributes".
+        section.check_attributes(&[])?;
+        for Placed { element: child, frame, class, suffix } in self.placed_children(section, MAIN, "")? {
+            match child.tag() {
+                "body" => self.read_body_tree(child, frame, class, suffix)?,
+                "site" => self.read_site(&child, class, None, frame, &suffix)?,
+                "geom" => {
+                    child.check_attributes(&names(GEOM_ATTRIBUTES))?;
+                    if let Some(grandchild) = child.children().next() {
+                        return Err(unsupported_child(&grandchild));
+                    }
+                    let mut settings = self.defaults.class(self.class_of(&child, class)?).geom.clone();
+                    settings.apply(&child)?;
+                    self.name_geom(&child, &settings, frame.as_ref(), None, &suffix)?;
+                    let read = self.geom_mass(&child, &settings, frame.as_ref(), false, false)?;
+                    self.add_contact_geom(&child, &settings, None, read.reach);
+                    self.warnings.push(child.ignored());
+                }
+                tag if IGNORED_IN_BODIES.contains(&tag) => {
+                    self.named_elsewhere.extend(child.text("target").map(str::to_string));
+                    self.warnings.push(child.ignored());
+                }
+                "joint" | "freejoint" => {
+                    return Err(child.invalid("the world body cannot have joints"));
+                }
+                "inertial" => return Err(child.invalid("the world body cannot have an <inertial>")),
+                _ => return Err(unsupported_child(&child)),
+            }
+        }
+        self.set_apart_unnamed();
+        Ok(())
+    }
+
+    /// Gives the names made up for unnamed bodies and joints a suffix where
+    /// they equal a name the file gives (or each other), so that no two
+    /// bodies or joints share a name in descriptions and messages.
+    pub(super) fn set_apart_unnamed(&mut self) {
+        let mut taken: std::collections::HashSet<String> = self.body_names.keys().cloned().collect();
+        for &index in &self.unnamed_bodies {
+            let name = &mut self.bodies[index].name;
+            while !taken.insert(name.clone()) {
+                name.push_str("_unnamed");
+            }
+        }
+        let mut taken: std::collections::HashSet<String> = self.joint_names.keys().cloned().collect();
+        for joint in self.bodies.iter_mut().flat_map(|b| &mut b.joints) {
+            // A named joint is the one its name was claimed for, at its line.
+            if self.joint_names.get(&joint.name) != Some(&joint.line) {
+                while !taken.insert(joint.name.clone()) {
+                    joint.name.push_str("_unnamed");
+                }
+            }
+        }
+    }
+
+    /// Reads a child of `<worldbody>` and its descendants in document order
+    /// (parent before child). A work stack instead of recursion: a vehicle
+    /// file may nest bodies thousands deep, and the importer must not
+    /// overflow the thread's stack, which is small in a host's FMU thread.
+    pub(super) fn read_body_tree<'a>(
+        &mut self,
+        top: Element<'a, 'a>,
+        frame: Option<Pose>,
+        class: usize,
+        suffix: String,
+    ) -> Result<(), MjcfError> {
+        let mut pending = vec![PendingBody {
+            element: top,
+            parent: None,
+            inherited_class: class,
+            parent_moving: false,
+            frame,
+            suffix,
+        }];
+        while let Some(body) = pending.pop() {
+            let children = self.read_body(&body)?;
+            // Reversed so that the first child is read next.
+            pending.extend(children.into_iter().rev());
+        }
+        Ok(())
+    }
+
+    /// Reads one body; returns its child bodies, still to be read.
+    pub(super) fn read_body<'a>(&mut self, body: &PendingBody<'a>) -> Result<Vec<PendingBody<'a>>, MjcfError> {
+        let &PendingBody { ref element, parent, inherited_class, parent_moving, frame, ref suffix } = body;
+        element.check_attributes(BODY_ATTRIBUTES)?;
+        let mocap = element.boolean("mocap")? == Some(true);
+        let gravcomp = element.number("gravcomp")?.unwrap_or(0.0);
+        let class = self.defaults.lookup(element, "childclass")?.unwrap_or(inherited_class);
+        let own_pos = Vec3::from(element.numbers::<3>("pos")?.unwrap_or_default());
+        let own_quat = self.resolve(element, &Orientation::read(element)?.unwrap_or_default())?;
+        let (pos, quat) = frame.map_or((own_pos, own_quat), |frame| compose(&frame, &(own_pos, own_quat)));
+        let index = self.bodies.len();
+        let world_pose = parent.map_or((pos, quat), |parent| compose(&self.world_poses[parent], &(pos, quat)));
+        self.world_poses.push(world_pose);
+        // An unnamed body gets a name for messages and descriptions, which
+        // nothing can refer to (MuJoCo's unnamed elements have none).
+        let name = match element.text("name") {
+            Some(name) => {
+                let copy = self.replicated_name(name, suffix);
+                claim_name(&mut self.body_names, "body", &copy, element)?;
+                copy
+            }
+            None => {
+                self.unnamed_bodies.push(index);
+                format!("body{index}")
+            }
+        };
+
+        let BodyChildren { inertial, joints, geoms, child_bodies } =
+            self.read_body_children(element, index, class, suffix)?;
+
+        let has_joints = !joints.is_empty();
+        // A mocap body stays where the file puts it, since nudyn takes no
+        // mocap poses: a body welded to the world, as MuJoCo's is until its
+        // mocap_pos or mocap_quat is changed.
+        if mocap {
+            if has_joints || parent.is_some() {
+                return Err(element.invalid(format!("mocap body '{name}' is not a fixed child of world")));
+            }
+            self.mocap_bodies.push(name.clone());
+        }
+        let moving = parent_moving || has_joints;
+        // MuJoCo 4.0's keywords, and its rule for a sleep policy.
+        element.keyword("fuse", &[("auto", ()), ("false", ())])?;
+        let policies = [("auto", false), ("never", true), ("allowed", true), ("init", true)];
+        let movable_root = has_joints && !parent_moving;
+        if element.keyword("sleep", &policies)? == Some(true) && !movable_root {
+            return Err(element.invalid("sleep policy only allowed for movable root bodies"));
+        }
+        // MuJoCo's condition for moving the body frame to the inertial frame.
+        let aligned = match joints.as_slice() {
+            [only] if only.settings.kind == JointKind::Free && child_bodies.is_empty() => {
+                only.align == Align::Yes || (only.align == Align::Auto && self.compiler.align_free)
+            }
+            _ => false,
+        };
+        let joints = self.build_joints(&name, parent, joints)?;
+
+        let explicit = inertial.map(|(_, inertia)| inertia);
+        let (inertia, mass_unknown) =
+            self.body_inertia(element, index, &geoms, explicit, moving, (own_pos, own_quat))?;
+        let inertia = self.bound(element, inertia)?;
+        let ((pos, quat), inertia) = match aligned {
+            true => self.align_free(index, (pos, quat), inertia),
+            false => ((pos, quat), inertia),
+        };
+
+        self.bodies.push(Body {
+            name,
+            parent,
+            pos,
+            quat,
+            inertia: None,
+            inertial_pos: Vec3::zeros(),
+            inertial_quat: None,
+            mass_unknown,
+            joints,
+            gravcomp,
+            line: element.line,
+        });
+        self.records.push(BodyRecord {
+            line: element.line,
+            label: element.label(),
+            inertia,
+            has_joints,
+            children: Vec::new(),
+        });
+        if let Some(parent) = parent {
+            self.records[parent].children.push(index);
+        }
+        Ok(child_bodies.into_iter().map(|child| PendingBody { parent_moving: moving, ..child }).collect())
+    }
+
+    /// Reads the children of the body `element` (the `index`th body, of
+    /// default class `class`): its `<inertial>`, joints and geoms with
+    /// their settings resolved, its sites (read into the vehicle at once),
+    /// and its child bodies, still to be read.
+    fn read_body_children<'a>(
+        &mut self,
+        element: &Element<'a, 'a>,
+        index: usize,
+        class: usize,
+        suffix: &str,
+    ) -> Result<BodyChildren<'a>, MjcfError> {
+        let mut children =
+            BodyChildren { inertial: None, joints: Vec::new(), geoms: Vec::new(), child_bodies: Vec::new() };
+        let BodyChildren { inertial, joints, geoms, child_bodies } = &mut children;
+        for Placed { element: child, frame, class, suffix } in self.placed_children(element, class, suffix)? {
+            match child.tag() {
+                "inertial" => {
+                    if let Some((first, _)) = &inertial {
+                        return Err(child.repeated(first));
+                    }
+                    let mut read = self.read_inertial(&child)?;
+                    if let Some(frame) = frame {
+                        read.place(&frame.0, &frame.1);
+                    }
+                    *inertial = Some((child, read));
+                }
+                "joint" => {
+                    child.check_attributes(&names(JOINT_ATTRIBUTES))?;
+                    no_children(&child)?;
+                    let mut settings = self.defaults.class(self.class_of(&child, class)?).joint.clone();
+                    settings.apply(&child)?;
+                    if let Some((at, turn)) = frame {
+                        settings.pos = (at + turn * Vec3::from(settings.pos)).into();
+                        settings.axis = (turn * Vec3::from(settings.axis)).into();
+                    }
+                    joints.push(JointElement { element: child, settings, align: Align::Auto, suffix });
+                }
+                "freejoint" => {
+                    // MuJoCo's <freejoint> takes no defaults.
+                    child.check_attributes(&["name", "group", "align"])?;
+                    no_children(&child)?;
+                    let aligns = [("false", Align::No), ("true", Align::Yes), ("auto", Align::Auto)];
+                    let align = child.keyword("align", &aligns)?.unwrap_or(Align::Auto);
+                    let settings = JointSettings { kind: JointKind::Free, ..JointSettings::default() };
+                    joints.push(JointElement { element: child, settings, align, suffix });
+                }
+                "geom" => {
+                    child.check_attributes(&names(GEOM_ATTRIBUTES))?;
+                    if let Some(grandchild) = child.children().next() {
+                        return Err(unsupported_child(&grandchild));
+                    }
+                    let mut settings = self.defaults.class(self.class_of(&child, class)?).geom.clone();
+                    settings.apply(&child)?;
+                    geoms.push((child, settings, frame, suffix));
+                }
+                "site" => self.read_site(&child, class, Some(index), frame, &suffix)?,
+                tag if IGNORED_IN_BODIES.contains(&tag) => {
+                    self.named_elsewhere.extend(child.text("target").map(str::to_string));
+                    self.warnings.push(child.ignored());
+                }
+                "body" => child_bodies.push(PendingBody {
+                    element: child,
+                    parent: Some(index),
+                    inherited_class: class,
+                    parent_moving: false,
+                    frame,
+                    suffix,
+                }),
+                _ => return Err(unsupported_child(&child)),
+            }
+        }
+
+        Ok(children)
+    }
+
+    /// The mass properties of the body `element` (the `index`th) from its
+    /// `geoms` or its `<inertial>` (`explicit`) as `inertiafromgeom` says,
+    /// and whether a geom's mass could not be computed; `own_pose` is its
+    /// pose in its parent before any `<frame>` around it.
+    fn body_inertia(
+        &mut self,
+        element: &Element,
+        index: usize,
+        geoms: &[ReadGeom],
+        explicit: Option<BodyInertia>,
+        moving: bool,
+        own_pose: Pose,
+    ) -> Result<(BodyInertia, bool), MjcfError> {
+        let (own_pos, own_quat) = own_pose;
+        let from_geoms = match self.compiler.inertia_from_geom {
+            InertiaFromGeom::Never => false,
+            InertiaFromGeom::Always => true,
+            InertiaFromGeom::Auto => explicit.is_none(),
+        };
+        let mut selected = Vec::new();
+        let mut mass_unknown = false;
+        for (geom, settings, frame, suffix) in geoms {
+            self.name_geom(geom, settings, frame.as_ref(), Some(index), suffix)?;
+            let [low, high] = self.compiler.inertia_groups;
+            let contributes = from_geoms && (low..=high).contains(&settings.group);
+            if contributes && mass_not_computed(settings) && !moving {
+                mass_unknown = true;
+                self.warnings.push(geom.warning(
+                    "its mass is not computed: the body is fixed to the world, so it moves nothing \
+                     (a subtree sensor that would count it is refused)",
+                ));
+            }
+            let read = self.geom_mass(geom, settings, frame.as_ref(), moving, contributes)?;
+            self.add_contact_geom(geom, settings, Some(index), read.reach);
+            // MuJoCo leaves out geoms of mass up to mjEPS.
+            if let Some(mass) = read.mass
+                && mass.mass > EPS
+            {
+                selected.push(mass);
+            }
+        }
+        let inertia = if !selected.is_empty() {
+            BodyInertia::from_geoms(&selected).map_err(|r| element.invalid(r))?
+        } else if let Some(explicit) = explicit {
+            explicit
+        } else {
+            // MuJoCo puts the inertial frame of a body without mass at the body's
+            // own pose in its parent, before any <frame> around it; it matters
+            // once boundmass gives it mass.
+            BodyInertia::from_principal(0.0, own_pos, &own_quat, Vec3::zeros())
+        };
+        Ok((inertia, mass_unknown))
+    }
+
+    /// A free body without children aligned with its inertial frame
+    /// (`<freejoint align>`, `<compiler alignfree>`): MuJoCo moves the body
+    /// frame there, so that the free joint's qpos is the inertial frame's
+    /// pose, and re-expresses the body's sites in it. Returns the body's new
+    /// pose in its parent and its mass properties in the new frame.
+    pub(super) fn align_free(&mut self, index: usize, pose: Pose, inertia: BodyInertia) -> (Pose, BodyInertia) {
+        let (principal, axes) = (inertia.principal, inertia.quat);
+        let inverse = (-(axes.inverse() * inertia.com), axes.inverse());
+        for site in self.sites.iter_mut().filter(|s| s.body == Some(index)) {
+            (site.pos, site.quat) = compose(&inverse, &(site.pos, site.quat));
+        }
+        let aligned = BodyInertia::from_principal(inertia.mass, Vec3::zeros(), &Quat::identity(), principal);
+        (compose(&pose, &(inertia.com, axes)), aligned)
+    }
+
+    /// The children of a body (or of the world body) of class `class`, with
+    /// the elements inside its `<frame>`s and `<replicate>`s, nested or not,
+    /// in their place in document order: MuJoCo's frames vanish when it
+    /// compiles a model, their pose composed into their children's and their
+    /// `childclass` handed on; a replicate is the same as its copies, each
+    /// in a frame of its own, their names suffixed (`suffix`: that of the
+    /// replicates around `parent`).
+    pub(super) fn placed_children<'a>(
+        &self,
+        parent: &Element<'a, 'a>,
+        class: usize,
+        suffix: &str,
+    ) -> Result<Vec<Placed<'a>>, MjcfError> {
+        let mut placed = Vec::new();
+        // Reversed, so that the first child comes off the stack first.
+        let mut pending: Vec<Placed<'a>> = parent
+            .children()
+            .collect::<Vec<_>>()
+            .into_iter()
+            .rev()
+            .map(|element| Placed { element, frame: None, class, suffix: suffix.to_string() })
+            .collect();
+        while let Some(item) = pending.pop() {
+            let copies = match item.element.tag() {
+                "frame" => self.frame_pose(&item)?,
+                "replicate" => self.replicate_poses(&item)?,
+                _ => {
+                    placed.push(item);
+                    continue;
+                }
+            };
+            let container = &item.element;
+            let class = self.defaults.lookup(container, "childclass")?.unwrap_or(item.class);
+            let children: Vec<_> = container.children().collect();
+            for (pose, copy_suffix) in copies.into_iter().rev() {
+                let pose = item.frame.map_or(pose, |outer| compose(&outer, &pose));
+                // MuJoCo appends an inner replicate's suffix first.
+                let suffix = format!("{copy_suffix}{}", item.suffix);
+                pending.extend(children.iter().rev().map(|&element| Placed {
+                    element,
+                    frame: Some(pose),
+                    class,
+                    suffix: suffix.clone(),
+                }));
+            }
+        }
+        Ok(placed)
+    }
+
+    /// A `<frame>`'s pose in its parent, as one copy without a suffix.
+    pub(super) fn frame_pose(&self, item: &Placed) -> Result<Vec<(Pose, String)>, MjcfError> {
+        let frame = &item.element;
+        frame.check_attributes(FRAME_ATTRIBUTES)?;
+        let pos = Vec3::from(frame.numbers::<3>("pos")?.unwrap_or_default());
+        let quat = self.resolve(frame, &Orientation::read(frame)?.unwrap_or_default())?;
+        Ok(vec![((pos, quat), String::new())])
+    }
+
+    /// The poses and name suffixes of a `<replicate>`'s copies, as MuJoCo
+    /// 4.0 makes them (`mjXReader::Body`): copy i turned by i·euler (the
+    /// compiler's angle unit and sequence), at p_i with p_0 = 0 and
+    /// p_{i+1} = p_i + q^i · offset (q: the turn of one copy), its suffix
+    /// `sep` and i padded with zeros to the digits of `count`.
+    pub(super) fn replicate_poses(&self, item: &Placed) -> Result<Vec<(Pose, String)>, MjcfError> {
+        let replicate = &item.element;
+        replicate.check_attributes(REPLICATE_ATTRIBUTES)?;
+        let [count] = replicate.integers::<1>("count")?.ok_or_else(|| replicate.missing("count"))?;
+        if count <= 0 {
+            return Err(replicate.bad_value("count", "a positive number of copies"));
+        }
+        // Counted before any copy is made.
+        let inside = replicate.node.descendants().filter(|node| node.is_element()).count() - 1;
+        let produced = (count as usize).saturating_mul(inside).saturating_add(self.replicated_elements.get());
+        if produced > MAX_REPLICATED_ELEMENTS {
+            return Err(replicate.invalid(format!(
+                "{count} copies of the {inside} elements inside it would take the file's replicates past \
+                 {MAX_REPLICATED_ELEMENTS} elements, the most nudyn reads"
+            )));
+        }
+        self.replicated_elements.set(produced);
+        let offset = Vec3::from(replicate.numbers::<3>("offset")?.unwrap_or_default());
+        let euler = replicate.numbers::<3>("euler")?.unwrap_or_default();
+        let separator = replicate.text("sep").unwrap_or_default();
+        let step = self.resolve(replicate, &Orientation::Euler(euler))?;
+        let digits = count.to_string().len();
+        let (mut pos, mut turned) = (Vec3::zeros(), Quat::identity());
+        let mut copies = Vec::with_capacity(count as usize);
+        for i in 0..count {
+            // MuJoCo resolves i·euler afresh for each copy's orientation,
+            // and accumulates the turn only for the positions.
+            let quat = self.resolve(replicate, &Orientation::Euler(euler.map(|angle| f64::from(i) * angle)))?;
+            copies.push(((pos, quat), format!("{separator}{i:0digits$}")));
+            pos += turned * offset;
+            turned *= step;
+        }
+        Ok(copies)
+    }
+
+    /// The class of a joint, geom or site: its `class`, else its body's class.
+    pub(super) fn class_of(&self, element: &Element, body_class: usize) -> Result<usize, MjcfError> {
+        Ok(self.defaults.lookup(element, "class")?.unwrap_or(body_class))
+    }
+
+    /// Reads a `<site>` of body `body` (`None`: the world body).
+    pub(super) fn read_site(
+        &mut self,
+        element: &Element,
+        body_class: usize,
+        body: Option<usize>,
+        frame: Option<Pose>,
+        suffix: &str,
+    ) -> Result<(), MjcfError> {
+        element.check_attributes(&names(SITE_ATTRIBUTES))?;
+        no_children(element)?;
+        let mut settings = self.defaults.class(self.class_of(element, body_class)?).site.clone();
+        settings.apply(element)?;
+        let (pos, quat) = match settings.fromto {
+            Some(fromto) => {
+                if settings.kind == SiteKind::Sphere {
+                    return Err(element.invalid("'fromto' requires a capsule, cylinder, ellipsoid or box site"));
+                }
+                let (pos, quat, _) = fromto_frame(element, &fromto, &settings.pos)?;
+                (pos, quat)
+            }
+            None => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
+        };
+        let (pos, quat) = frame.map_or((pos, quat), |frame| compose(&frame, &(pos, quat)));
+        let name = element.text("name").map(|name| self.replicated_name(name, suffix));
+        if let Some(name) = &name {
+            claim_name(&mut self.site_names, "site", name, element)?;
+        }
+        self.sites.push(Site { name, body, pos, quat, line: element.line });
+        self.site_fitted_to_mesh.push(settings.mesh);
+        Ok(())
+    }
+
+    pub(super) fn resolve(&self, element: &Element, orientation: &Orientation) -> Result<Quat, MjcfError> {
+        orientation.resolve(&self.compiler.angles).map_err(|reason| element.invalid(reason))
+    }
+
+    /// A warning on each pair of geoms MuJoCo would collide at qpos0
+    /// (`super::contacts` says what is checked), unless `<flag contact>` or
+    /// `<flag constraint>` turns contacts off.
+    pub(super) fn warn_of_contacts(&mut self, root: &Element) {
+        let flags: Vec<Element> =
+            root.children().filter(|s| s.tag() == "option").flat_map(|option| option.children()).collect();
+        let disabled = |flag: &str| flags.iter().any(|f| f.text(flag) == Some("disable"));
+        if disabled("contact") || disabled("constraint") {
+            return;
+        }
+        let body = |name: &str| match name {
+            "world" => Some(None),
+            name => self.bodies.iter().position(|b| b.name == name && self.body_names.contains_key(name)).map(Some),
+        };
+        let exclusions = root.children().filter(|s| s.tag() == "contact").flat_map(|s| s.children());
+        let excluded: Vec<_> = exclusions
+            .filter(|e| e.tag() == "exclude")
+            .filter_map(|e| Some((body(e.text("body1")?)?, body(e.text("body2")?)?)))
+            .collect();
+        let parents: Vec<Option<usize>> = self.bodies.iter().map(|b| b.parent).collect();
+        let roots: Vec<bool> =
+            self.bodies.iter().map(|b| !b.joints.is_empty() || self.mocap_bodies.contains(&b.name)).collect();
+        let filter = BodyFilter {
+            parents: &parents,
+            poses: &self.world_poses,
+            roots: &roots,
+            filter_parent: !disabled("filterparent"),
+            excluded: &excluded,
+        };
+        for (a, b) in contacts::touching(&self.contact_geoms, &filter) {
+            let (first, second) = (&self.contact_geoms[a], &self.contact_geoms[b]);
+            let warning = MjcfWarning {
+                file: None,
+                line: first.line,
+                element: first.label.clone(),
+                message: format!(
+                    "touches <{}> (line {}) at the initial pose: MuJoCo would make contacts between them, \
+                     nudyn models no contacts",
+                    second.label,
+                    self.sources.line_in_file(second.line)
+                ),
+            };
+            self.warnings.push(warning);
+        }
+    }
+}
+
+/// The pose `inner`, given in the frame `outer` places, in `outer`'s parent
+/// (MuJoCo's `mjuu_frameaccumChild`).
+pub(super) fn compose(outer: &Pose, inner: &Pose) -> Pose {
+    (outer.0 + outer.1 * inner.0, outer.1 * inner.1)
+}
+
+/// A geom element with its resolved settings, the pose of the `<frame>`s
+/// around it and its `<replicate>` suffix.
+type ReadGeom<'a> = (Element<'a, 'a>, GeomSettings, Option<Pose>, String);
+
+/// What a body element holds, read.
+struct BodyChildren<'a> {
+    /// Its `<inertial>`, with the element for messages on a second one.
+    inertial: Option<(Element<'a, 'a>, BodyInertia)>,
+    joints: Vec<JointElement<'a, 'a>>,
+    geoms: Vec<ReadGeom<'a>>,
+    child_bodies: Vec<PendingBody<'a>>,
+}

@@ -1,0 +1,515 @@
+//! Walks an MJCF document and builds the [`Vehicle`].
+
+mod body;
+mod finish;
+mod geom;
+mod joint;
+mod options;
+mod sections;
+mod targets;
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use roxmltree::Document;
+
+use super::contacts::{ContactGeom, Reach};
+use super::defaults::{Defaults, GeomKind, JointSettings};
+use super::element::{Element, LineStarts};
+use super::error::MjcfError;
+use super::include::{self, Sources};
+use super::inertia::{BodyInertia, GeomMass};
+use super::mesh::Meshes;
+use super::orientation::AngleConvention;
+use super::{Imported, MjcfWarning};
+use crate::math::{Quat, Vec3};
+use crate::vehicle::{
+    Actuation, Actuator, Body, ConstraintOptions, Equality, JointKind, Sensor, Site, Tendon, WrapGeom,
+};
+
+/// MuJoCo's `mjMINVAL`: the least mass and principal moment of a moving body.
+const MIN_VALUE: f64 = 1e-15;
+
+/// Attributes of `<body>`.
+#[rustfmt::skip]
+pub(crate) const BODY_ATTRIBUTES: &[&str] = &[
+    "name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler", "mocap", "gravcomp",
+    "user", "sleep", "simple", "fuse",
+];
+
+/// Attributes of `<frame>`.
+#[rustfmt::skip]
+pub(crate) const FRAME_ATTRIBUTES: &[&str] = &["name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler"];
+
+/// The most elements the `<replicate>`s of a file may produce: each
+/// replicate's copies times the elements inside it (nested ones included),
+/// summed over every replicate as it is expanded. Far beyond any vehicle;
+/// a count past it would exhaust the memory before the import could fail.
+pub(crate) const MAX_REPLICATED_ELEMENTS: usize = 100_000;
+
+/// Attributes of `<replicate>`.
+pub(crate) const REPLICATE_ATTRIBUTES: &[&str] = &["count", "sep", "offset", "euler", "childclass"];
+
+/// Attributes of `<inertial>`.
+#[rustfmt::skip]
+pub(crate) const INERTIAL_ATTRIBUTES: &[&str] =
+    &["pos", "mass", "diaginertia", "fullinertia", "quat", "axisangle", "xyaxes", "zaxis", "euler"];
+
+/// Attributes of `<compiler>`.
+#[rustfmt::skip]
+pub(crate) const COMPILER_ATTRIBUTES: &[&str] = &[
+    "alignfree", "angle", "assetdir", "autolimits", "balanceinertia", "boundinertia", "boundmass",
+    "conflict", "coordinate", "discardvisual", "eulerseq", "fitaabb", "fusestatic", "inertiafromgeom",
+    "inertiagrouprange", "meshdir", "passthrough", "savecanonical", "savecompiled", "saveinertial",
+    "settotalmass", "strippath", "texturedir", "usethread",
+];
+
+/// Attributes of `<option>`.
+#[rustfmt::skip]
+pub(crate) const OPTION_ATTRIBUTES: &[&str] = &[
+    "actuatorgroupdisable", "ccd_iterations", "ccd_tolerance", "cone", "density", "gravity", "impratio",
+    "integrator", "iterations", "jacobian", "ls_iterations", "ls_tolerance", "magnetic",
+    "noslip_iterations", "noslip_tolerance", "o_friction", "o_margin", "o_solimp", "o_solref",
+    "sdf_initpoints", "sdf_iterations", "sleep_tolerance", "solver", "timestep", "tolerance",
+    "viscosity", "wind",
+];
+
+/// Attributes of `<flag>`; all take "enable" or "disable".
+#[rustfmt::skip]
+pub(crate) const FLAG_ATTRIBUTES: &[&str] = &[
+    "actuation", "autoreset", "clampctrl", "constraint", "contact", "damper", "diagexact", "energy",
+    "equality", "eulerdamp", "filterparent", "frictionloss", "fwdinv", "gravity", "invdiscrete", "ipc",
+    "island", "limit", "midphase", "multiccd", "nativeccd", "override", "refsafe", "sensor", "sleep",
+    "speculative", "spring", "warmstart",
+];
+
+/// Top-level sections without effect on the dynamics.
+#[rustfmt::skip]
+pub(crate) const IGNORED_SECTIONS: &[&str] =
+    &["size", "statistic", "visual", "contact", "keyframe", "custom", "extension"];
+
+/// Actuator attributes naming a transmission nudyn refuses, and why.
+#[rustfmt::skip]
+pub(crate) const REFUSED_TRANSMISSIONS: &[(&str, &str)] = &[
+    ("cranksite", "slider-crank transmissions"),
+    ("slidersite", "slider-crank transmissions"),
+    ("body", "body transmissions act through contacts, which nudyn does not model"),
+];
+
+/// Elements nudyn refuses where bodies or sections are expected, and why.
+#[rustfmt::skip]
+pub(crate) const UNSUPPORTED_CHILDREN: &[(&str, &str)] = &[
+    ("attach", "attaching another model"),
+    ("composite", "composite and flexible objects"),
+    ("flexcomp", "composite and flexible objects"),
+    ("plugin", "plugins"),
+];
+
+/// Children of bodies (and of the world body) without effect on the
+/// dynamics; in the world body, geoms too (they belong to no moving body).
+pub(crate) const IGNORED_IN_BODIES: &[&str] = &["camera", "light"];
+
+/// MuJoCo's actuator groups that `actuatorgroupdisable` can disable: 0 to 30.
+const ACTUATOR_GROUPS: std::ops::RangeInclusive<i32> = 0..=30;
+
+/// Where `<compiler inertiafromgeom>` takes a body's mass properties from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum InertiaFromGeom {
+    /// Always from `<inertial>` (massless without one).
+    Never,
+    /// Always from the geoms, overriding `<inertial>`.
+    Always,
+    /// From the geoms when the body has no `<inertial>`.
+    Auto,
+}
+
+/// `<compiler>` settings that matter here.
+struct Compiler {
+    angles: AngleConvention,
+    inertia_from_geom: InertiaFromGeom,
+    inertia_groups: [i32; 2],
+    bound_mass: f64,
+    bound_inertia: f64,
+    balance_inertia: bool,
+    autolimits: bool,
+    align_free: bool,
+    /// `settotalmass` when positive, with the warning it earns.
+    total_mass: Option<(f64, MjcfWarning)>,
+    /// Where mesh files are: `meshdir`, else `assetdir`, relative to the model's directory.
+    mesh_dir: String,
+    /// `strippath`: asset file names lose their directories.
+    strip_path: bool,
+    /// `fusestatic`: bodies without joints merge into their parents.
+    fuse_static: bool,
+    /// `fitaabb`: primitives fitted to a mesh hold its bounding box rather
+    /// than match its inertia box.
+    fit_aabb: bool,
+}
+
+/// `<option>` settings that matter here.
+struct Physics {
+    gravity: Vec3,
+    magnetic: Vec3,
+    gravity_disabled: bool,
+    spring_disabled: bool,
+    damper_disabled: bool,
+    actuation: Actuation,
+    /// The actuator groups `actuatorgroupdisable` lists.
+    disabled_actuator_groups: Vec<i32>,
+    constraint_options: ConstraintOptions,
+    /// `<flag constraint="disable">`: no constraint forces at all.
+    constraint_disabled: bool,
+    frictionloss_disabled: bool,
+    limit_disabled: bool,
+    equality_disabled: bool,
+    /// `<flag sensor="disable">`: sensordata stays 0.
+    sensor_disabled: bool,
+}
+
+/// What an actuator needs to know of a joint it may name.
+struct JointTarget {
+    kind: JointKind,
+    /// `range` as MuJoCo's compiler leaves it: in radians for a limited hinge
+    /// or ball joint when angles are in degrees, as written otherwise.
+    range: [f64; 2],
+    /// Whether the joint is limited (MuJoCo's jnt_limited, before any flag).
+    limited: bool,
+}
+
+/// What the checks after the whole tree is read need to know of a body.
+struct BodyRecord {
+    line: u32,
+    label: String,
+    inertia: BodyInertia,
+    has_joints: bool,
+    children: Vec<usize>,
+}
+
+/// A body element waiting to be read, with what it inherits from its parent.
+struct PendingBody<'a> {
+    element: Element<'a, 'a>,
+    /// Index of the parent in the vehicle's bodies; `None` below `<worldbody>`.
+    parent: Option<usize>,
+    /// The nearest ancestor's `childclass`.
+    inherited_class: usize,
+    /// Whether a joint lies between the parent and the world.
+    parent_moving: bool,
+    /// The pose of the `<frame>`s around the body, in its parent.
+    frame: Option<Pose>,
+    /// The suffix the `<replicate>`s around it give the names in it.
+    suffix: String,
+}
+
+/// A pose in a parent frame: position, then orientation.
+type Pose = (Vec3, Quat);
+
+/// A child element of a body or of the world body, with what the `<frame>`s
+/// around it give it: their composed pose (`None` outside any frame) and
+/// the default class.
+struct Placed<'a> {
+    element: Element<'a, 'a>,
+    frame: Option<Pose>,
+    class: usize,
+    /// The suffix of `<replicate>` copies for its name and those below it.
+    suffix: String,
+}
+
+/// `align` of a free joint.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Align {
+    No,
+    Yes,
+    Auto,
+}
+
+/// A joint element with its resolved settings.
+struct JointElement<'a, 'input> {
+    element: Element<'a, 'input>,
+    settings: JointSettings,
+    align: Align,
+    /// The `<replicate>` suffix of its name.
+    suffix: String,
+}
+
+/// What the walk through the document has gathered so far.
+struct Reader {
+    compiler: Compiler,
+    physics: Physics,
+    defaults: Defaults,
+    warnings: Vec<MjcfWarning>,
+    bodies: Vec<Body>,
+    records: Vec<BodyRecord>,
+    body_names: HashMap<String, u32>,
+    joint_names: HashMap<String, u32>,
+    joint_targets: HashMap<String, JointTarget>,
+    sites: Vec<Site>,
+    /// Whether each site is fitted to a mesh (which moves its frame).
+    site_fitted_to_mesh: Vec<bool>,
+    site_names: HashMap<String, u32>,
+    actuators: Vec<Actuator>,
+    actuator_names: HashMap<String, u32>,
+    sensors: Vec<Sensor>,
+    sensor_names: HashMap<String, u32>,
+    equalities: Vec<Equality>,
+    tendons: Vec<Tendon>,
+    tendon_names: HashMap<String, u32>,
+    /// Whether each tendon is limited (MuJoCo's tendon_limited, before any flag).
+    tendon_limited: Vec<bool>,
+    /// The named geoms, for tendons to wrap around: their type, and their
+    /// frame when a sphere or cylinder.
+    named_geoms: HashMap<String, (GeomKind, Option<WrapGeom>)>,
+    /// The bodies the file leaves unnamed.
+    unnamed_bodies: Vec<usize>,
+    /// The files the model is read from, for the paths of its assets.
+    sources: Sources,
+    /// The `<mesh>` assets, processed.
+    meshes: Meshes,
+    /// The names of the mocap bodies, in MuJoCo's mocap order.
+    mocap_bodies: Vec<String>,
+    /// Bodies named by an ignored element (a camera's or light's `target`, a
+    /// contact `<exclude>`), which `fusestatic` keeps.
+    named_elsewhere: Vec<String>,
+    /// The names given inside `<replicate>`s, each with its first copy's name.
+    replicated: HashMap<String, String>,
+    /// The elements the `<replicate>`s expanded so far produce (see
+    /// [`MAX_REPLICATED_ELEMENTS`]).
+    replicated_elements: std::cell::Cell<usize>,
+    /// Each body's pose in the world at qpos0 (before `align_free` moves its frame).
+    world_poses: Vec<Pose>,
+    /// The geoms that may collide, for the warning on contacts.
+    contact_geoms: Vec<ContactGeom>,
+}
+
+/// What reading a geom gives: its mass when it counts, and how far it
+/// reaches in its body when known.
+struct GeomRead {
+    mass: Option<GeomMass>,
+    reach: Option<(Vec3, Quat, Reach)>,
+}
+
+/// Reads an MJCF document, from the file `path` if it comes from one (the
+/// files it includes are looked for from there).
+pub(crate) fn read(xml: &str, path: Option<&Path>) -> Result<Imported, MjcfError> {
+    let assembled = include::assemble(xml, path)?;
+    let sources = assembled.sources;
+    let mut imported = read_merged(&assembled.text, &sources).map_err(|e| sources.place_error(e))?;
+    // Lines of the merged text back to lines of their files.
+    imported.warnings = imported.warnings.into_iter().map(|w| sources.place_warning(w)).collect();
+    let vehicle = &mut imported.vehicle;
+    let lines = vehicle
+        .bodies
+        .iter_mut()
+        .flat_map(|b| std::iter::once(&mut b.line).chain(b.joints.iter_mut().map(|j| &mut j.line)));
+    let lines = lines
+        .chain(vehicle.sites.iter_mut().map(|s| &mut s.line))
+        .chain(vehicle.actuators.iter_mut().map(|a| &mut a.line))
+        .chain(vehicle.sensors.iter_mut().map(|s| &mut s.line))
+        .chain(vehicle.tendons.iter_mut().map(|t| &mut t.line))
+        .chain(vehicle.equalities.iter_mut().map(|e| &mut e.line));
+    for line in lines {
+        *line = sources.line_in_file(*line);
+    }
+    Ok(imported)
+}
+
+/// Reads the document with its includes merged in.
+fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
+    let document = Document::parse(xml).map_err(|e| MjcfError::Xml {
+        line: e.pos().row,
+        column: e.pos().col,
+        message: e.to_string(),
+    })?;
+    let lines = LineStarts::new(xml);
+    let root = Element::new(document.root_element(), &lines);
+    if root.tag() != "mujoco" {
+        return Err(MjcfError::WrongRoot { line: root.line, element: root.label() });
+    }
+    root.check_attributes(&["model"])?;
+
+    let mut reader = Reader::new(sources.clone());
+    // MuJoCo applies these wherever they appear, even after <worldbody>.
+    for section in root.children() {
+        match section.tag() {
+            "compiler" => reader.read_compiler(&section)?,
+            "option" => reader.read_option(&section)?,
+            "default" => reader.defaults.read(&section, &mut reader.warnings)?,
+            _ => {}
+        }
+    }
+    // Meshes once the compiler's directories and the default classes are known.
+    for section in root.children().filter(|section| section.tag() == "asset") {
+        reader.read_assets(&section)?;
+    }
+    for exclude in root.children().filter(|s| s.tag() == "contact").flat_map(|s| s.children()) {
+        let bodies = ["body1", "body2"].iter().filter_map(|a| exclude.text(a).filter(|_| exclude.tag() == "exclude"));
+        reader.named_elsewhere.extend(bodies.map(str::to_string));
+    }
+
+    let mut has_worldbody = false;
+    let mut actuator_sections = Vec::new();
+    let mut sensor_sections = Vec::new();
+    let mut equality_sections = Vec::new();
+    let mut tendon_sections = Vec::new();
+    let mut keyframe_sections = Vec::new();
+    for section in root.children() {
+        match section.tag() {
+            "compiler" | "option" | "default" | "asset" => {}
+            "worldbody" => {
+                has_worldbody = true;
+                reader.read_worldbody(&section)?;
+            }
+            // Read once every joint and site is known, wherever the section stands.
+            "actuator" => actuator_sections.push(section),
+            "sensor" => sensor_sections.push(section),
+            // Checked once the sizes are known, then ignored.
+            "keyframe" => {
+                keyframe_sections.push(section);
+                reader.warnings.push(section.ignored());
+            }
+            tag if IGNORED_SECTIONS.contains(&tag) => reader.warnings.push(section.ignored()),
+            // Read once every joint and site is known.
+            "tendon" => tendon_sections.push(section),
+            // Read once every body, site and joint is known.
+            "equality" => equality_sections.push(section),
+            "deformable" => reader.read_deformable(&section)?,
+            _ => return Err(section.unknown()),
+        }
+    }
+    if !has_worldbody {
+        return Err(MjcfError::MissingWorldbody { line: root.line, element: root.label() });
+    }
+    // Before the equalities, actuators and sensors, which may name tendons.
+    for section in &tendon_sections {
+        reader.read_tendons(section)?;
+    }
+    for section in &equality_sections {
+        reader.read_equalities(section)?;
+    }
+    for section in &actuator_sections {
+        reader.read_actuators(section)?;
+    }
+    // After the actuators, which sensors may name.
+    for section in &sensor_sections {
+        reader.read_sensors(section)?;
+    }
+    for section in &keyframe_sections {
+        reader.check_keyframes(section)?;
+    }
+    reader.warn_of_contacts(&root);
+
+    let name = root.text("model").unwrap_or("vehicle").to_string();
+    reader.finish(name)
+}
+
+impl Reader {
+    fn new(sources: Sources) -> Self {
+        Self {
+            compiler: Compiler {
+                angles: AngleConvention { degrees: true, euler_seq: *b"xyz" },
+                inertia_from_geom: InertiaFromGeom::Auto,
+                inertia_groups: [0, 5],
+                bound_mass: 0.0,
+                bound_inertia: 0.0,
+                balance_inertia: false,
+                autolimits: true,
+                align_free: false,
+                total_mass: None,
+                mesh_dir: String::new(),
+                strip_path: false,
+                fuse_static: false,
+                fit_aabb: false,
+            },
+            physics: Physics {
+                gravity: Vec3::new(0.0, 0.0, -9.81),
+                // MuJoCo's default field.
+                magnetic: Vec3::new(0.0, -0.5, 0.0),
+                gravity_disabled: false,
+                spring_disabled: false,
+                damper_disabled: false,
+                actuation: Actuation::default(),
+                disabled_actuator_groups: Vec::new(),
+                constraint_options: ConstraintOptions::default(),
+                constraint_disabled: false,
+                frictionloss_disabled: false,
+                limit_disabled: false,
+                equality_disabled: false,
+                sensor_disabled: false,
+            },
+            defaults: Defaults::new(),
+            warnings: Vec::new(),
+            bodies: Vec::new(),
+            records: Vec::new(),
+            body_names: HashMap::new(),
+            joint_names: HashMap::new(),
+            joint_targets: HashMap::new(),
+            sites: Vec::new(),
+            site_fitted_to_mesh: Vec::new(),
+            site_names: HashMap::new(),
+            actuators: Vec::new(),
+            actuator_names: HashMap::new(),
+            sensors: Vec::new(),
+            sensor_names: HashMap::new(),
+            equalities: Vec::new(),
+            tendons: Vec::new(),
+            tendon_names: HashMap::new(),
+            tendon_limited: Vec::new(),
+            named_geoms: HashMap::new(),
+            unnamed_bodies: Vec::new(),
+            sources,
+            meshes: Meshes::new(),
+            mocap_bodies: Vec::new(),
+            named_elsewhere: Vec::new(),
+            replicated: HashMap::new(),
+            replicated_elements: std::cell::Cell::new(0),
+            world_poses: Vec::new(),
+            contact_geoms: Vec::new(),
+        }
+    }
+
+    /// The name of an element in a `<replicate>` copy (`suffix` empty
+    /// outside replicates), remembered for [`Reader::unknown`].
+    fn replicated_name(&mut self, name: &str, suffix: &str) -> String {
+        let copy = format!("{name}{suffix}");
+        if !suffix.is_empty() {
+            self.replicated.entry(name.to_string()).or_insert_with(|| copy.clone());
+        }
+        copy
+    }
+}
+
+/// Registers a body or joint name, rejecting a repetition.
+fn claim_name(
+    names: &mut HashMap<String, u32>,
+    kind: &'static str,
+    name: &str,
+    element: &Element,
+) -> Result<(), MjcfError> {
+    if let Some(&first_line) = names.get(name) {
+        return Err(MjcfError::DuplicateName {
+            line: element.line,
+            element: element.label(),
+            kind,
+            name: name.to_string(),
+            first_line,
+        });
+    }
+    names.insert(name.to_string(), element.line);
+    Ok(())
+}
+
+/// Rejects child elements of an element that takes none.
+fn no_children(element: &Element) -> Result<(), MjcfError> {
+    match element.children().next() {
+        Some(child) => Err(child.unknown()),
+        None => Ok(()),
+    }
+}
+
+/// The error for an element that nudyn does not read where bodies or
+/// sections are expected.
+fn unsupported_child(element: &Element) -> MjcfError {
+    match UNSUPPORTED_CHILDREN.iter().find(|(tag, _)| *tag == element.tag()) {
+        Some((_, reason)) => element.unsupported(*reason),
+        None => element.unknown(),
+    }
+}
