@@ -1,7 +1,7 @@
 """The tolerance a user sets decides the cost: through the FMU in FMPy,
 with the FMU's defaults apart from `method` and `tolerance`, over 10 s of
 the validation's tumble in 0.1 s communication steps, the internal steps
-fmi2DoStep reports (logCalls) never grow as the tolerance loosens, and
+fmi2DoStep reports (logStepStatistics) never grow as the tolerance loosens, and
 fall between the tightest and 1e-4, on every example (dopri5 from 1e-8:
 at 1e-10 a 5th-order method takes 45 000 steps on chain60, which only
 lengthens the test; ros34pw2 and bs3, of order 3, from 1e-6; tsit5 as dopri5). What they cost in time is
