@@ -16,7 +16,10 @@ cd "$ROOT"
 WHEEL_DATA="$ROOT/target/wheel/nudyn.data"  # pyproject.toml's [tool.maturin] data
 DATA="$WHEEL_DATA/data/share/nudyn"
 
-cargo build --release --locked -p nudyn-fmu
+# Every target, as scripts/test.sh builds them: dependencies get the same
+# features (the tests' dev-dependencies add some), so after the tests this
+# compiles nothing again; `-p nudyn-fmu` alone would rebuild the tree's base.
+cargo build --release --locked --workspace --all-targets
 rm -rf "$ROOT/target/wheel"
 mkdir -p "$DATA/binaries/linux64"
 # The same library `nudyn export` packs from target/release, without the

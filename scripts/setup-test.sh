@@ -7,7 +7,7 @@
 #     under wine; scripts/build-windows.sh installs the rest of the Windows
 #     build);
 #   - cargo-fuzz (cargo install --locked; scripts/stress-fmu.sh's fuzzing);
-#   - Python: requirements-test.txt's pins into .venv (pytest; libcosimpy
+#   - Python: requirements-test.txt's pins into .venv (pytest and pytest-xdist; libcosimpy
 #     for the closed-loop demos; pin and tqdm for scripts/bench.py).
 #
 # scripts/test.sh runs it. Idempotent like setup.sh: a rerun with
@@ -51,7 +51,7 @@ fi
 stamp="$VENV/.requirements-test.sha256"
 want="$(cat "$ROOT/requirements.txt" "$REQ" | sha256sum | cut -d' ' -f1)"
 if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ] \
-    || ! "$VENV/bin/python" -c 'import pytest, libcosimpy, pinocchio, tqdm' >/dev/null 2>&1; then
+    || ! "$VENV/bin/python" -c 'import pytest, xdist, libcosimpy, pinocchio, tqdm' >/dev/null 2>&1; then
     echo "setup-test: installing Python packages from requirements-test.txt"
     "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -r "$REQ"
     echo "$want" >"$stamp"

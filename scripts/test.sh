@@ -6,26 +6,93 @@
 # any step fails.
 #
 #   bash scripts/test.sh
+#
+# On 2 cores the Rust builds leave one core idle for long stretches (one
+# crate, or a link, at a time), so the win64 cross-build and the fuzz
+# targets' sanitizer build (separate target folders) run beside clippy and
+# the main build. The Python tests run on every core (pytest-xdist, a test
+# file per worker). Each stage's time is printed at the end.
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
+LOGS="$ROOT/target/test-logs"
+mkdir -p "$LOGS"
+TIMES=()
 
-bash scripts/setup-test.sh
+# Runs NAME COMMAND... and records how long it took.
+stage() {
+    local name=$1 start=$SECONDS
+    shift
+    echo "test.sh: $name"
+    "$@"
+    TIMES+=("$(printf '%5d s  %s' $((SECONDS - start)) "$name")")
+}
 
-cargo fmt --all --check
-(cd fuzz && cargo fmt --check)
-cargo clippy --release --workspace --all-targets -- -D warnings
+# Starts NAME COMMAND... in the background, in a process group of its own
+# (stopped with the script if a stage fails), its output in
+# target/test-logs/NAME.log.
+declare -A STARTED PIDS
+background() {
+    local name=$1
+    shift
+    echo "test.sh: $name (in the background, log in $LOGS/$name.log)"
+    STARTED[$name]=$(date +%s)
+    setsid "$@" >"$LOGS/$name.log" 2>&1 &
+    PIDS[$name]=$!
+}
+stop_background() {
+    local pid
+    for pid in "${PIDS[@]}"; do
+        kill -- "-$pid" 2>/dev/null || true
+    done
+}
+trap stop_background EXIT
 
-cargo build --release --workspace
-cargo test --release --workspace
+# Waits for a background stage; prints its log and fails if it failed.
+finish() {
+    local name=$1 status=0
+    wait "${PIDS[$name]}" || status=$?
+    unset "PIDS[$name]"
+    if [ "$status" -ne 0 ]; then
+        cat "$LOGS/$name.log" >&2
+        echo "test.sh: $name failed (exit $status)" >&2
+        exit "$status"
+    fi
+    tail -n 3 "$LOGS/$name.log"
+    # Its log was last written when it ended.
+    TIMES+=("$(printf '%5d s  %s (in the background)' $(($(stat -c %Y "$LOGS/$name.log") - STARTED[$name])) "$name")")
+}
+
+stage setup bash scripts/setup-test.sh
+
+stage rustfmt cargo fmt --all --check
+stage "rustfmt (fuzz)" bash -c 'cd fuzz && cargo fmt --check'
+
 # The win64 FMU binary: every FMU the tests export carries it, and
 # tests/python/test_win64.py runs it under wine.
-bash scripts/build-windows.sh
+background build-windows bash scripts/build-windows.sh
+# The fuzz targets' build (address sanitizer): scripts/stress-fmu.sh runs them.
+background build-fuzz bash -c 'cd fuzz && RUSTC_BOOTSTRAP=1 nice cargo fuzz build --release'
+
+stage clippy cargo clippy --release --workspace --all-targets -- -D warnings
+# Every target at once: the libraries and binaries are built with the same
+# features as the tests (dev-dependencies add features to shared crates), so
+# `cargo test` below reuses them instead of building the tree a second time.
+stage "cargo build" cargo build --release --workspace --all-targets
+stage "cargo test" cargo test --release --workspace
+
+finish build-windows
 # The wheel (both platforms' binaries): tests/python/test_wheel.py installs it.
-bash scripts/build-wheel.sh
+stage wheel bash scripts/build-wheel.sh
 
-NUDYN_BIN=target/release/nudyn \
-    .venv/bin/python -m pytest tests/python -q --durations=25
+# NUDYN_FMU_LIB: the FMU library just built (the tests' fixture would
+# otherwise build it again for nudyn-fmu alone, with other features).
+stage "Python tests" env NUDYN_BIN=target/release/nudyn NUDYN_FMU_LIB="$ROOT/target/release/libnudyn_fmu.so" \
+    .venv/bin/python -m pytest tests/python -q --durations=25 --numprocesses auto --dist loadfile
 
-bash scripts/stress-fmu.sh
+finish build-fuzz
+stage "valgrind and fuzzing" bash scripts/stress-fmu.sh
+
+echo "test.sh: ok; times:"
+printf '%s\n' "${TIMES[@]}"

@@ -244,7 +244,7 @@ pub fn quat_from_wxyz(q: &[f64]) -> nalgebra::Quaternion<f64> {
 pub fn normalize_wxyz(q: &mut [f64]) -> Option<f64> {
     let q = &mut q[..4];
     // nalgebra's order of summation: trajectories that round-off decides keep the
-    // bits they were measured with (tests/adaptive_integration.rs).
+    // bits they were measured with (tests/all/adaptive_integration.rs).
     let squared = quat_from_wxyz(q).norm_squared();
     if (1e-290..=1e290).contains(&squared) {
         let norm = squared.sqrt();

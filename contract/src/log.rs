@@ -18,17 +18,21 @@ pub enum LogCategory {
     Warning,
     /// The method `auto` chose, and why.
     MethodChoice,
+    /// Each doStep's integration statistics as one JSON object, for
+    /// programs: off unless loggingOn, like [`LogCategory::Calls`].
+    StepStatistics,
 }
 
 impl LogCategory {
     /// Every category, in the order of the modelDescription's `<LogCategories>`.
-    pub const ALL: [LogCategory; 6] = [
+    pub const ALL: [LogCategory; 7] = [
         LogCategory::Discard,
         LogCategory::Error,
         LogCategory::Fatal,
         LogCategory::Calls,
         LogCategory::Warning,
         LogCategory::MethodChoice,
+        LogCategory::StepStatistics,
     ];
 
     /// The category's name, as in the modelDescription and fmi2SetDebugLogging.
@@ -40,6 +44,7 @@ impl LogCategory {
             LogCategory::Calls => "logCalls",
             LogCategory::Warning => "logStatusWarning",
             LogCategory::MethodChoice => "logMethodChoice",
+            LogCategory::StepStatistics => "logStepStatistics",
         }
     }
 
@@ -55,6 +60,9 @@ impl LogCategory {
                 "how the FMU integrates: the method that method = auto chose, and why, and a tolerance the host set \
                  in place of the FMU's own"
             }
+            LogCategory::StepStatistics => {
+                "each doStep's internal steps as JSON: {\"accepted\", \"rejected\", \"jacobians\", \"evaluations\", \"locating\"} (debug)"
+            }
         }
     }
 
@@ -69,9 +77,9 @@ impl LogCategory {
     }
 
     /// Whether the category is on when an instance starts: every status
-    /// category and the method choice, and the debug category only with loggingOn.
+    /// category and the method choice, and the debug categories only with loggingOn.
     pub fn on_at_start(self, logging_on: bool) -> bool {
-        self != LogCategory::Calls || logging_on
+        !matches!(self, LogCategory::Calls | LogCategory::StepStatistics) || logging_on
     }
 
     /// "logStatusDiscard, logStatusError, ...": the known names, for messages.

@@ -819,6 +819,14 @@ pub fn do_step(instance: &mut Instance, time: f64, step: f64, name: &str) -> Res
         message += &format!(", {evaluations} evaluations of the rates");
         instance.logger.log(Status::Ok, LogCategory::Calls, &message);
     }
+    if instance.logger.enabled(LogCategory::StepStatistics) {
+        let nudyn::integrate::Stats { accepted, rejected, jacobians, evaluations, locating } = report.stats;
+        let statistics = serde_json::json!({
+            "accepted": accepted, "rejected": rejected, "jacobians": jacobians, "evaluations": evaluations,
+            "locating": locating,
+        });
+        instance.logger.log(Status::Ok, LogCategory::StepStatistics, &statistics.to_string());
+    }
     instance.warning = report.relaxed.map(|relaxed| format!("{name}: {relaxed}"));
     Ok(())
 }

@@ -33,8 +33,8 @@ pub enum Phase {
 }
 
 impl Phase {
-    /// Every state, in the order of their codes (the model-exchange states
-    /// last, so that serialized FMU states of co-simulation keep their codes).
+    /// Every state, in the order of their codes (written into serialized FMU
+    /// states: a new state takes the next code, none is renumbered).
     pub const ALL: [Phase; 9] = [
         Phase::Instantiated,
         Phase::InitializationMode,

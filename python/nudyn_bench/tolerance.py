@@ -84,7 +84,7 @@ def fmu_loop(
 ) -> tuple[float, list, list, tuple[int, int]]:
     """Seconds of the doStep loop, θ and `read` (nu or qvel) at every
     communication point, and with `logging` the internal steps (taken,
-    rejected) from fmi2DoStep's logCalls reports ((0, 0) without: logging
+    rejected) from fmi2DoStep's logStepStatistics ((0, 0) without: logging
     costs time, so timed runs go without it)."""
     h = sizes.communication_step
     with Instance(package, start={"tolerance": tolerance}, theta=vehicle.qpos, nu=vehicle.nu, logging_on=logging) as fmu:

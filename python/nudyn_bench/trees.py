@@ -1,5 +1,5 @@
 """Random six-body trees as MJCF, drawn as the tolerance tests draw theirs
-(`random_vehicle` in tests/common/mod.rs with a free base, springs,
+(`random_vehicle` in tests/all/common.rs with a free base, springs,
 dampers and gravity): each body on a random earlier one, 0 to 3 joints
 (hinge, slide, a ball only last), random placements, box-like inertias of
 0.2–5 kg turned at random, armature on half the joints, stiffness 0–5

@@ -7,6 +7,7 @@ call or a discarded step is a result (the stress suite), not a failure."""
 
 from __future__ import annotations
 
+import json
 import re
 from collections.abc import Callable, Iterable, Mapping
 
@@ -41,12 +42,10 @@ def status_of(call: Callable, *args, **kwargs) -> int:
 
 class Log:
     """FMPy callbacks whose logger keeps every message an instance logs, as
-    (status, category, message). With logCalls on, fmi2DoStep's messages
-    also say how many internal steps it took."""
+    (status, category, message). With loggingOn, each fmi2DoStep also logs
+    its integration statistics (logStepStatistics, one JSON object)."""
 
-    INTERNAL_STEPS = re.compile(r"fmi2DoStep: (\d+) internal steps taken, (\d+) rejected")
     HELD_TOLERANCE = re.compile(r"held to (\S+) per second")
-    EVALUATIONS = re.compile(r"fmi2DoStep: .*, (\d+) evaluations of the rates$")
 
     def __init__(self):
         self.messages: list[tuple[int, str, str]] = []
@@ -68,19 +67,19 @@ class Log:
         the FMU said about the call it refused or the step it discarded."""
         return next((m for _, c, m in reversed(self.messages) if c != "logCalls"), "")
 
+    def step_statistics(self) -> list[dict[str, int]]:
+        """Each doStep's statistics, in order: {"accepted", "rejected",
+        "jacobians", "evaluations", "locating"}."""
+        return [json.loads(message) for _, category, message in self.messages if category == "logStepStatistics"]
+
     def internal_steps(self) -> tuple[int, int]:
         """(taken, rejected) internal steps over every doStep logged."""
-        taken = rejected = 0
-        for _, category, message in self.messages:
-            if category == "logCalls" and (steps := self.INTERNAL_STEPS.match(message)):
-                taken += int(steps.group(1))
-                rejected += int(steps.group(2))
-        return taken, rejected
+        statistics = self.step_statistics()
+        return sum(s["accepted"] for s in statistics), sum(s["rejected"] for s in statistics)
 
     def evaluations(self) -> int:
         """The evaluations of the rates over every doStep logged."""
-        return sum(int(found.group(1)) for _, category, message in self.messages
-                   if category == "logCalls" and (found := self.EVALUATIONS.match(message)))
+        return sum(s["evaluations"] for s in self.step_statistics())
 
     def method_choices(self) -> list[str]:
         """What `method = auto` chose and where it moved up, in order."""
@@ -106,8 +105,8 @@ class Instance:
     (parameters and start values; an Enumeration takes its item's name) and
     the initial θ and ν (initial="exact"); a value the FMU refuses there is a
     DriverError with the FMU's words, and the instance is freed. `logging_on`
-    is fmi2Instantiate's loggingOn: every log category, logCalls included
-    (whose fmi2DoStep messages count the internal steps). `time` is the
+    is fmi2Instantiate's loggingOn: every log category, logCalls and
+    logStepStatistics included (which count each fmi2DoStep's internal steps). `time` is the
     communication point of the next step. `fmu` is FMPy's FMU2Slave, for the
     FMI calls this class does not wrap; every failing call after
     initialization raises FMPy's FMICallException."""

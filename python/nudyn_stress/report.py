@@ -49,7 +49,7 @@ LEGEND = (
     "to sign), the measure the FMU's tolerance uses, against the case's reference. K drift: max |K − K₀|/K₀ "
     "(where K is conserved). Momentum drift: max(|ΔL|/|L₀|, |Δp|/|p₀|). Energy residual: max |K − K₀ − ∫ν·ν̇ dt| / K₀, "
     "the integration's energy error. Steps/s: internal steps (taken and rejected) per simulated second, as the "
-    "FMU reports them in its logCalls messages. "
+    "FMU reports them in its logStepStatistics messages. "
     "Wall: seconds spent in fmi2DoStep. Defaults: dop853, tolerance 1e-8 per second, no max_step."
 )
 

@@ -48,7 +48,7 @@ class Setup:
 
 def start_instance(package: FmuPackage, setup: Setup, theta0, nu0) -> Instance:
     """An instance at (θ₀, ν₀) with a Setup, logging on: fmi2DoStep's
-    logCalls messages give the internal step counts."""
+    logStepStatistics messages give the internal step counts."""
     return Instance(package, name="stress", start=setup.start(), theta=theta0, nu=nu0, logging_on=True)
 
 

@@ -460,7 +460,7 @@ pub const ROS34PW2: Rosenbrock = Rosenbrock {
     // the damped stiff boom of docs/integration.md). Per step, the order-3
     // solution it propagates errs by O(h⁴), so the global error, O(h³), is
     // proportional to the tolerance; the share puts it within the band of
-    // the adaptive methods on the random trees of tests/adaptive_integration.rs
+    // the adaptive methods on the random trees of tests/all/adaptive_integration.rs
     // (measured 0.8–10 times the tolerance; 1/40, calibrated while W was
     // formed afresh at each advance, gave up to 31 times once W is kept
     // across advances, 1/60 up to 16; docs/integration.md, "Stiff vehicles").

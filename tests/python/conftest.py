@@ -1,11 +1,21 @@
 """Shared fixtures for the Python tests: the example files, the nudyn binary
-and its FMU library, and a runner for `nudyn eval` that prints everything
-needed to debug a failure."""
+and its FMU library, exports cached on disk, and a runner for `nudyn eval`
+that prints everything needed to debug a failure.
+
+The suite runs in parallel (pytest-xdist, one process per core): session
+fixtures run once per process, so what several processes need (exported
+FMUs) is cached on disk under target/test-cache, keyed by the content of
+everything it is made from, and made under a file lock."""
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
+import functools
+import hashlib
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -72,6 +82,67 @@ def fmu_library(nudyn):
 def cli(nudyn, fmu_library):
     """The nudyn command line, exporting FMUs with the library above."""
     return Nudyn(nudyn, fmu_library)
+
+
+@pytest.fixture(scope="module")
+def once():
+    """`once(make, *args)`: make(*args) the first time a test of the module
+    asks for it, the same value after. For the runs several tests of a
+    module check (MuJoCo's reference and nudyn's answers for a model).
+    Under pytest-xdist a test file runs in one process (--dist loadfile),
+    so each run is made once."""
+    return functools.cache(lambda make, *args: make(*args))
+
+
+CACHE_DIR = ROOT / "target" / "test-cache"
+
+
+@contextlib.contextmanager
+def file_lock(path: Path):
+    """Holds an exclusive lock on `path` (created if missing) across processes."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def _digest_files(digest, paths):
+    for path in paths:
+        digest.update(str(path).encode())
+        digest.update(path.read_bytes() if path.is_file() else b"<missing>")
+
+
+@pytest.fixture(scope="session")
+def exported_fmu(cli):
+    """`exported_fmu(model, **options)`: the FMU `cli.export(model, ...,
+    **options)` writes, made once for every test process and kept in
+    target/test-cache/fmus/<key>/ (read-only use: unzip it elsewhere). The
+    key covers nudyn, the FMU library, the win64 DLL the export packs when
+    it is built, the files of the model's folder and the options, so a
+    rebuild or an edited model makes a new export."""
+    binaries = hashlib.sha256()
+    share = cli.binary.parent.parent / "share" / "nudyn" / "binaries" / "win64" / "nudyn_fmu.dll"
+    _digest_files(binaries, [cli.binary, cli.fmu_library, share])
+
+    def export(model: Path, **options) -> Path:
+        digest = binaries.copy()
+        _digest_files(digest, sorted(p for p in Path(model).parent.rglob("*") if p.is_file()))
+        digest.update(f"{Path(model).resolve()} {sorted(options.items())}".encode())
+        folder = CACHE_DIR / "fmus" / digest.hexdigest()[:32]
+        fmu = folder / f"{Path(model).stem}.fmu"
+        with file_lock(CACHE_DIR / "fmus.lock"):
+            if not fmu.is_file():
+                shutil.rmtree(folder, ignore_errors=True)
+                partial = folder.with_name(folder.name + ".partial")
+                shutil.rmtree(partial, ignore_errors=True)
+                cli.export(model, partial / fmu.name, **options)
+                partial.rename(folder)
+        return fmu
+
+    return export
 
 
 def _reject_constant(name):

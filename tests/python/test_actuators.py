@@ -89,14 +89,9 @@ class ActuatedRun:
         self.outputs = [{k: np.asarray(v, float) for k, v in o.items() if k != "constraint_rows"} for o in self.result.json()]
 
 
-_runs: dict = {}
-
-
-@pytest.fixture(params=ACTUATED, ids=[p.stem for p in ACTUATED])
+@pytest.fixture(scope="module", params=ACTUATED, ids=[p.stem for p in ACTUATED])
 def run(request, nudyn):
-    if request.param not in _runs:
-        _runs[request.param] = ActuatedRun(request.param, nudyn)
-    return _runs[request.param]
+    return ActuatedRun(request.param, nudyn)
 
 
 def check(what, run, i, err, tol):

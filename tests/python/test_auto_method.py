@@ -24,13 +24,13 @@ MOVED = re.compile(r"fmi2DoStep: method auto moved from (\w+) to (\w+) after the
 
 
 @pytest.fixture(scope="module")
-def examples(cli, tmp_path_factory):
+def examples(exported_fmu, tmp_path_factory):
     """name -> (package, vehicle) for the examples used here."""
     work = tmp_path_factory.mktemp("auto")
     found = {}
     for name in ["bus_arm7", "fixed_rig", "chain60"]:
         model = EXAMPLES_DIR / f"{name}.xml"
-        package = FmuPackage.unzip(cli.export(model, work / f"{name}.fmu"), work / name)
+        package = FmuPackage.unzip(exported_fmu(model), work / name)
         found[name] = (package, prepare(name, model, work))
     return found
 

@@ -52,15 +52,10 @@ def random_states(model: mujoco.MjModel, rng: np.random.Generator):
         yield qpos, qvel
 
 
-_evaluated: dict = {}
-
-
 @pytest.fixture(params=list(FIXTURES))
-def evaluated(request, nudyn):
+def evaluated(request, nudyn, once):
     """(MuJoCo's data per state, nudyn eval's answer per state) for a fixture."""
-    if request.param not in _evaluated:
-        _evaluated[request.param] = evaluate(FIXTURES[request.param], nudyn)
-    return _evaluated[request.param]
+    return once(evaluate, FIXTURES[request.param], nudyn)
 
 
 def evaluate(path, nudyn):
@@ -167,12 +162,10 @@ EDGE_FIXTURES = {
 
 
 @pytest.mark.parametrize("name", list(EDGE_FIXTURES))
-def test_edge_models_match_mujoco(name, nudyn):
+def test_edge_models_match_mujoco(name, nudyn, once):
     """qacc, qfrc_constraint, sensordata and the rows' forces equal MuJoCo's
     at random states in and beyond the limits."""
-    if name not in _evaluated:
-        _evaluated[name] = evaluate(EDGE_FIXTURES[name], nudyn)
-    references, out = _evaluated[name]
+    references, out = once(evaluate, EDGE_FIXTURES[name], nudyn)
     for k, (reference, answer) in enumerate(zip(references, out)):
         assert relative(answer["qacc"], reference["qacc"]) < 1e-9, f"state {k}"
         assert relative(answer["qfrc_constraint"], reference["qfrc_constraint"]) < 1e-8, f"state {k}"
@@ -210,15 +203,13 @@ def test_a_tendon_limit_between_welded_bodies_has_no_row(nudyn):
             assert relative(answer["qacc"], qacc) < 1e-12, f"angle {angles[k]}"
 
 
-def test_refsafe_off_changes_the_forces(nudyn):
+def test_refsafe_off_changes_the_forces(nudyn, once):
     """The refsafe fixture's check can fail: with MuJoCo's refsafe on, its
     constraint forces are far from those of the file as written."""
     model = load_model(EDGE_FIXTURES["refsafe_off"])
     model.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_REFSAFE)
     data = mujoco.MjData(model)
-    if "refsafe_off" not in _evaluated:
-        _evaluated["refsafe_off"] = evaluate(EDGE_FIXTURES["refsafe_off"], nudyn)
-    references, _ = _evaluated["refsafe_off"]
+    references, _ = once(evaluate, EDGE_FIXTURES["refsafe_off"], nudyn)
     rng = np.random.default_rng(34)
     differing = 0
     for reference, (qpos, qvel) in zip(references, random_states(model, rng)):
@@ -241,14 +232,12 @@ def test_slider_hand_invweights_are_not_the_mass_matrix():
     assert relative(np.diag(np.linalg.inv(full)), model.dof_invweight0) > 0.5
 
 
-def test_the_states_cover_every_regime(nudyn):
+def test_the_states_cover_every_regime(nudyn, once):
     """On limited_arm: limits active and inactive, friction loss saturated
     and not; and in every state where a row pushes, a model without
     constraints would be off. (On docked_servicer the random states pull
     the welds far apart: their forces saturate every friction row.)"""
-    if "limited_arm" not in _evaluated:
-        _evaluated["limited_arm"] = evaluate(FIXTURE, nudyn)
-    references, out = _evaluated["limited_arm"]
+    references, out = once(evaluate, FIXTURE, nudyn)
     limit_counts = [sum(r["kind"] == "limit" for r in a["constraint_rows"]) for a in out]
     assert min(limit_counts) == 0 and max(limit_counts) >= 3
     saturated = sliding = 0

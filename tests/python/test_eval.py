@@ -74,15 +74,9 @@ class ExampleRun:
             yield i, case, [{k: np.asarray(o[k], float) for k in KEYS} for o in outs]
 
 
-_runs: dict = {}
-
-
-@pytest.fixture(params=EXAMPLES + IMPORTER_FIXTURES, ids=example_ids() + [f"fixture-{p.stem}" for p in IMPORTER_FIXTURES])
+@pytest.fixture(scope="module", params=EXAMPLES + IMPORTER_FIXTURES, ids=example_ids() + [f"fixture-{p.stem}" for p in IMPORTER_FIXTURES])
 def run(request, nudyn):
-    path = request.param
-    if path not in _runs:
-        _runs[path] = ExampleRun(path, nudyn)
-    return _runs[path]
+    return ExampleRun(request.param, nudyn)
 
 
 def check(what, run, i, err, tol):

@@ -26,12 +26,9 @@ STEP = 0.01
 
 
 @pytest.fixture(scope="session")
-def exported(cli, tmp_path_factory):
+def exported(exported_fmu):
     """Each example exported once with every optional output."""
-    directory = tmp_path_factory.mktemp("fmus")
-    return {
-        model.stem: cli.export(model, directory / f"{model.stem}.fmu", outputs=ALL_OUTPUTS) for model in EXAMPLES
-    }
+    return {model.stem: exported_fmu(model, outputs=ALL_OUTPUTS) for model in EXAMPLES}
 
 
 @pytest.fixture(scope="session")

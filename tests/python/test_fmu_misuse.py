@@ -26,24 +26,22 @@ RESULTS: dict[str, dict] = {}
 
 
 @pytest.fixture(scope="session")
-def unzipped(cli, tmp_path_factory):
+def unzipped(exported_fmu, tmp_path_factory):
     """servicer (bus_arm7's sizes, with actuators) with every optional output, and fixed_rig
     (the "other" FMU), unzipped."""
     directory = tmp_path_factory.mktemp("misuse")
-    bus = cli.export(ROOT / "examples/servicer.xml", directory / "bus.fmu",
-                     outputs=("qvel", "kinetic_energy", "power", "momentum"))
-    rig = cli.export(ROOT / "examples/fixed_rig.xml", directory / "rig.fmu")
+    bus = exported_fmu(ROOT / "examples/servicer.xml", outputs=("qvel", "kinetic_energy", "power", "momentum"))
+    rig = exported_fmu(ROOT / "examples/fixed_rig.xml")
     return FmuPackage.unzip(bus, directory / "bus"), FmuPackage.unzip(rig, directory / "rig")
 
 
 @pytest.fixture(scope="session")
-def unzipped_fmi3(cli, tmp_path_factory):
+def unzipped_fmi3(exported_fmu, tmp_path_factory):
     """servicer's FMI 3.0 plant and controller, unzipped."""
     directory = tmp_path_factory.mktemp("misuse3")
     made = []
     for name, controller in (("plant", False), ("controller", True)):
-        fmu = cli.export(ROOT / "examples/servicer.xml", directory / f"{name}.fmu", controller=controller,
-                         fmi_version=3)
+        fmu = exported_fmu(ROOT / "examples/servicer.xml", controller=controller, fmi_version=3)
         with zipfile.ZipFile(fmu) as archive:
             archive.extractall(directory / name)
         made.append(directory / name)

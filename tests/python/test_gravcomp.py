@@ -93,14 +93,9 @@ def relative(a, b) -> float:
     return float(np.max(np.abs(a - b)) / max(1.0, float(np.max(np.abs(b)))))
 
 
-_evaluated: dict = {}
-
-
-@pytest.fixture
+@pytest.fixture(scope="module")
 def evaluated(nudyn):
-    if "fixture" not in _evaluated:
-        _evaluated["fixture"] = evaluate(FIXTURE, nudyn)
-    return _evaluated["fixture"]
+    return evaluate(FIXTURE, nudyn)
 
 
 def test_eval_matches_mujoco(evaluated):

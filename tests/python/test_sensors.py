@@ -74,14 +74,9 @@ class SensedRun:
             yield f"{kind} {name}", slice(adr, adr + dim)
 
 
-_runs: dict = {}
-
-
 @pytest.fixture(params=WITH_SENSORS, ids=[p.stem for p in WITH_SENSORS])
-def run(request, nudyn):
-    if request.param not in _runs:
-        _runs[request.param] = SensedRun(request.param, nudyn)
-    return _runs[request.param]
+def run(request, nudyn, once):
+    return once(SensedRun, request.param, nudyn)
 
 
 def test_the_fixtures_cover_every_sensor_type_and_frame_kind():
@@ -123,11 +118,11 @@ def test_qacc_is_mujocos(run):
         assert err <= 1e-8, f"{run.path.stem} state {i}: qacc off by {err:.2e}"
 
 
-def test_a_cutoff_clamps(nudyn):
+def test_a_cutoff_clamps(nudyn, once):
     """The fixtures' cutoffs are small enough to clamp in some state: the
     clamping is exercised, not only allowed."""
     every = ROOT / "tests" / "fixtures" / "sensors" / "every_sensor.xml"
-    run = _runs.get(every) or SensedRun(every, nudyn)
+    run = once(SensedRun, every, nudyn)
     clamped = 0
     for i in range(run.model.nsensor):
         cutoff = run.model.sensor_cutoff[i]

@@ -64,15 +64,10 @@ def random_states(model: mujoco.MjModel, rng: np.random.Generator):
         yield qpos, qvel, ctrl
 
 
-_evaluated: dict = {}
-
-
 @pytest.fixture(params=list(FIXTURES))
-def evaluated(request, nudyn):
+def evaluated(request, nudyn, once):
     """(MuJoCo's data per state, nudyn eval's answer per state) for a fixture."""
-    if request.param not in _evaluated:
-        _evaluated[request.param] = evaluate(FIXTURES[request.param], nudyn)
-    return _evaluated[request.param]
+    return once(evaluate, FIXTURES[request.param], nudyn)
 
 
 def evaluate(path, nudyn):
@@ -147,25 +142,21 @@ def add_armature_references(model, references, requests) -> None:
         model.tendon_armature[:] = armature
 
 
-def test_tendon_armature_counts_as_mujoco_applies_it(nudyn):
+def test_tendon_armature_counts_as_mujoco_applies_it(nudyn, once):
     """On tendon_armature, nudyn's agreement above (1e-12) could not come
     from leaving out the armature, from the whole a·JᵀJ in place of
     MuJoCo's tree-sparse share of it, or from leaving out its bias a·J(J̇θ̇):
     each moves MuJoCo's own unconstrained acceleration by far more."""
-    if "tendon_armature" not in _evaluated:
-        _evaluated["tendon_armature"] = evaluate(FIXTURES["tendon_armature"], nudyn)
-    references, _ = _evaluated["tendon_armature"]
+    references, _ = once(evaluate, FIXTURES["tendon_armature"], nudyn)
     for variant in ("qacc_smooth_without_armature", "qacc_smooth_dense", "qacc_smooth_without_bias"):
         moved = [relative(r[variant], r["qacc_smooth"]) for r in references if r["qacc_smooth"].any()]
         assert np.median(moved) > 1e-4, (variant, np.median(moved))
 
 
-def test_tendon_armature_enters_nu_dot_as_its_own_eps(nudyn):
+def test_tendon_armature_enters_nu_dot_as_its_own_eps(nudyn, once):
     """ν̇ = ε + ε_actuator + ε_tendon_inertia + ε_c − C + ε_passive, the
     armature's share reported apart (nudyn's ν stays the tree's)."""
-    if "tendon_armature" not in _evaluated:
-        _evaluated["tendon_armature"] = evaluate(FIXTURES["tendon_armature"], nudyn)
-    _, out = _evaluated["tendon_armature"]
+    _, out = once(evaluate, FIXTURES["tendon_armature"], nudyn)
     for k, answer in enumerate(out):
         parts = ("eps", "eps_actuator", "eps_tendon_inertia", "eps_constraint", "eps_passive")
         total = sum(np.array(answer[p]) for p in parts) - np.array(answer["coriolis"])
@@ -197,13 +188,11 @@ def test_the_reference_takes_m_and_k_of_the_tree_as_nudyn_does(nudyn):
         assert abs(0.5 * qvel @ with_armature @ qvel - k) > 1e-5 * k
 
 
-def test_tendon_force_ranges_bind_in_some_states(nudyn):
+def test_tendon_force_ranges_bind_in_some_states(nudyn, once):
     """On tendon_force_range, MuJoCo's scaling of the tendons' actuator
     forces changes qacc in some states (by far more than the agreement
     above) and leaves it alone in others, so both are compared."""
-    if "tendon_force_range" not in _evaluated:
-        _evaluated["tendon_force_range"] = evaluate(FIXTURES["tendon_force_range"], nudyn)
-    references, _ = _evaluated["tendon_force_range"]
+    references, _ = once(evaluate, FIXTURES["tendon_force_range"], nudyn)
     # Both without the tendons' springs (evaluate takes them out first).
     moved = [relative(r["qacc_without_tendon_force_ranges"], r["qacc_without_tendon_springs"]) for r in references]
     assert sum(m > 1e-3 for m in moved) >= 10 and sum(m == 0 for m in moved) >= 5, sorted(moved)
@@ -250,31 +239,26 @@ def test_rows_are_mujocos_rows_in_its_order(evaluated):
         assert not rows or relative(forces, reference["efc_force"]) < 1e-10, f"state {k}"
 
 
-def test_the_states_cover_every_tendon_row(nudyn):
+def test_the_states_cover_every_tendon_row(nudyn, once):
     """Tendon limits active and not, on both sides of the rows' order;
     tendon friction loss saturated and sliding; both equalities present."""
-    for name in FIXTURES:
-        if name not in _evaluated:
-            _evaluated[name] = evaluate(FIXTURES[name], nudyn)
-    _, limits = _evaluated["tendon_limits"]
+    _, limits = once(evaluate, FIXTURES["tendon_limits"], nudyn)
     kinds = [[r["kind"] for r in a["constraint_rows"]] for a in limits]
     assert min(k.count("tendon_limit") for k in kinds) == 0 and max(k.count("tendon_limit") for k in kinds) >= 1
     assert all(k.count("equality") == 2 for k in kinds)
     strap = [r for a in limits for r in a["constraint_rows"] if r.get("tendon") == "<spatial> tendon 'strap'"]
     assert {r["kind"] for r in strap} == {"tendon_friction", "tendon_limit"}
-    friction = [r["force"] for a in limits + _evaluated["tendon_finger"][1] for r in a["constraint_rows"] if r["kind"] == "tendon_friction"]
+    friction = [r["force"] for a in limits + once(evaluate, FIXTURES["tendon_finger"], nudyn)[1] for r in a["constraint_rows"] if r["kind"] == "tendon_friction"]
     saturated = sum(np.isclose(abs(f), 8) or np.isclose(abs(f), 0.3) for f in friction)
     assert saturated > 10 and len(friction) - saturated > 5
 
 
 @pytest.mark.parametrize("name", ["tendon_wrap", "tendon_wrap_fitted"])
-def test_the_states_wrap_each_tendon_and_not(nudyn, name):
+def test_the_states_wrap_each_tendon_and_not(nudyn, name, once):
     """On the wrap fixtures, each tendon runs around its geom in some states
     and straight past it in others (MuJoCo's ten_wrapnum: two more points
     when wrapped), so both branches of the wrap are compared above."""
-    if name not in _evaluated:
-        _evaluated[name] = evaluate(FIXTURES[name], nudyn)
-    references, _ = _evaluated[name]
+    references, _ = once(evaluate, FIXTURES[name], nudyn)
     counts = np.array([r["ten_wrapnum"] for r in references])
     for tendon in range(counts.shape[1]):
         assert len(set(counts[:, tendon])) == 2, (tendon, sorted(set(counts[:, tendon])))

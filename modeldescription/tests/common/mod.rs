@@ -2,7 +2,7 @@
 //! the tests and by `examples/write_example.rs` (whose output the Python
 //! tests check against the official FMI 2.0 schema).
 
-// Each test crate and the example use a different part of this module.
+// The tests and the example each use a part of this module.
 #![allow(dead_code)]
 
 use modeldescription::*;

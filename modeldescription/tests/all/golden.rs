@@ -2,7 +2,7 @@
 //! value spellings of the FMI 2.0 schema (fmi2ModelDescription.xsd and the
 //! files it includes), in the order its `xs:sequence`s require.
 
-mod common;
+use crate::common;
 
 use modeldescription::*;
 

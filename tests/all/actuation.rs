@@ -4,12 +4,14 @@
 //! transmissions, T = Σ arms · force, and ε = m⁻¹T with m the dense upper
 //! factor of M. Nothing here uses the passes under test.
 
-mod common;
+use crate::common;
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
-use common::{Kinematics, Rng, TreeOptions, V3, kinematics, point_jacobian, random_theta, random_vehicle, rel_err};
+use crate::common::{
+    Kinematics, Rng, TreeOptions, V3, kinematics, point_jacobian, random_theta, random_vehicle, rel_err,
+};
 use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, UnitQuaternion};
 use nudyn::model::Model;
 use nudyn::vehicle::{Actuator, ActuatorKind, BiasType, GainType, JointKind, Site, Transmission, Vehicle};

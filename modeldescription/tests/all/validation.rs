@@ -1,9 +1,9 @@
 //! `validate` accepts a correct model and reports each FMI 2.0 rule
 //! violation, one case per rule, without follow-on reports.
 
-mod common;
+use crate::common;
 
-use common::index::*;
+use crate::common::index::*;
 use modeldescription::*;
 
 /// The problems `validate` finds after `change` is applied to the valid

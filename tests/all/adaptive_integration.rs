@@ -2,9 +2,7 @@
 //! tolerance against a tight reference, the carried step makes interval
 //! boundaries harmless, and the energy options do what they say.
 
-mod common;
-
-use common::{Rng, TreeOptions, random_theta, random_vehicle};
+use crate::common::{Rng, TreeOptions, random_theta, random_vehicle};
 use nudyn::integrate::{
     AdvanceError, Carry, Input, MAX_STEPS, Method, MethodSetting, Settings, Simulation, ToleranceRelaxed,
 };

@@ -1,7 +1,7 @@
 //! Writing a model description and reading it back gives the same model;
 //! reading accepts the schema's other spellings and defaults.
 
-mod common;
+use crate::common;
 
 use modeldescription::*;
 

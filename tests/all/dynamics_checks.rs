@@ -1,9 +1,9 @@
 //! docs/DYNAMICS.md §7 checks 1–5: the O(N) passes against the independent
 //! dense reference in `common`, on random trees with every joint type.
 
-mod common;
+use crate::common;
 
-use common::{Rng, TreeOptions, random_theta, random_vehicle, rel_err};
+use crate::common::{Rng, TreeOptions, random_theta, random_vehicle, rel_err};
 use nalgebra::{DMatrix, DVector};
 use nudyn::dynamics::subspace::Subspace;
 use nudyn::model::{Model, Shortcuts};

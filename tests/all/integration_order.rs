@@ -3,9 +3,9 @@
 //! reference, and exact solutions conserve |ν| and momentum (docs/DYNAMICS.md
 //! §6, §7 check 5).
 
-mod common;
+use crate::common;
 
-use common::{Rng, TreeOptions, random_theta, random_vehicle};
+use crate::common::{Rng, TreeOptions, random_theta, random_vehicle};
 use nudyn::integrate::{Integrator, Method};
 use nudyn::model::Model;
 use nudyn::vehicle::{JointKind, Vehicle};

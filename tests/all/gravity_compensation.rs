@@ -5,9 +5,9 @@
 //! (passive or actuator force, or nowhere). Nothing here uses the passes
 //! under test to make an expected value.
 
-mod common;
+use crate::common;
 
-use common::{Rng, TreeOptions, V3, kinematics, point_jacobian, random_theta, random_vehicle, rel_err};
+use crate::common::{Rng, TreeOptions, V3, kinematics, point_jacobian, random_theta, random_vehicle, rel_err};
 use nalgebra::DVector;
 use nudyn::model::Model;
 use nudyn::vehicle::{Actuator, ActuatorKind, BiasType, GainType, Transmission, Vehicle};

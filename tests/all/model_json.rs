@@ -1,9 +1,7 @@
 //! The compiled model is what an FMU loads from its resources: its JSON
 //! form must read back to the identical model.
 
-mod common;
-
-use common::{Rng, TreeOptions, random_vehicle};
+use crate::common::{Rng, TreeOptions, random_vehicle};
 use nudyn::model::Model;
 
 #[test]

@@ -1,8 +1,8 @@
 //! Bad states and out-of-order calls give typed errors, never NaN.
 
-mod common;
+use crate::common;
 
-use common::{Rng, TreeOptions, random_theta, random_vehicle};
+use crate::common::{Rng, TreeOptions, random_theta, random_vehicle};
 use nudyn::dynamics::DynamicsError;
 use nudyn::model::{Model, ModelError};
 use nudyn::vehicle::JointKind;

@@ -5,9 +5,9 @@
 //! configuration term is −∂U/∂θ mapped by ℓ (dU/dt = −ν·g along any motion,
 //! by central differences of U along MuJoCo's position integration).
 
-mod common;
+use crate::common;
 
-use common::{Rng, TreeOptions, random_theta, random_vehicle, rel_err};
+use crate::common::{Rng, TreeOptions, random_theta, random_vehicle, rel_err};
 use nalgebra::{DVector, Rotation3, UnitQuaternion};
 use nudyn::control::{BodyFrame, ControlError, ControlLaw, ControlParameters, ControlWorkspace, Objective};
 use nudyn::math::{SpatialVec, Vec3, spatial};

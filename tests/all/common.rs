@@ -8,7 +8,6 @@
 //! which holds for the quaternion quasi-velocities of ball and free joints.
 //! J̇θ̇ and ṁ are taken by 4th-order central differences along the exact
 //! constant-velocity motion. Nothing here uses the spatial-operator code under test.
-#![allow(dead_code)]
 
 use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, Unit, UnitQuaternion, Vector3};
 use nudyn::vehicle::{Actuation, Body, Joint, JointKind, MassProperties, Vehicle};
