@@ -2,7 +2,7 @@
 //! importer's own lists (the attributes each element accepts, the
 //! sections and default children it ignores, the elements it refuses and
 //! why), so that the table says what the importer does.
-//! `tests/mjcf_support.rs` fails when the file differs from it.
+//! `tests/all/mjcf_support.rs` fails when the file differs from it.
 
 use std::fmt::Write;
 

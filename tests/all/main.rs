@@ -13,6 +13,7 @@ mod common;
 mod actuation;
 mod actuator_import;
 mod adaptive_integration;
+mod compile_stage;
 mod constraints;
 mod control_law;
 mod deep_trees;

@@ -16,11 +16,9 @@
 //! and named in its commit): `NUDYN_FREEZE_WRITE=1 cargo test --release
 //! --test compile_stage`.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 
-use common::Rng;
+use crate::common::Rng;
 use nudyn::eval::{EvalRequest, evaluate};
 use nudyn::model::Model;
 use serde_json::{Value, json};
