@@ -383,7 +383,7 @@ impl Integrator {
     ) -> Result<f64, DynamicsError> {
         for j in 0..3 {
             let moved = j as f64 * ROUND_OFF_PROBE_ULPS * f64::EPSILON;
-            let sign = |d: usize| if d % 2 == 0 { 1.0 } else { -1.0 };
+            let sign = |d: usize| if d.is_multiple_of(2) { 1.0 } else { -1.0 };
             for (d, (stage, x)) in self.theta_stage.as_mut_slice().iter_mut().zip(theta).enumerate() {
                 *stage = x + sign(d) * moved * (1.0 + x.abs());
             }
