@@ -29,12 +29,7 @@ impl Reader {
                 "body" => self.read_body_tree(child, frame, class, suffix)?,
                 "site" => self.read_site(&child, class, None, frame, &suffix)?,
                 "geom" => {
-                    child.check_attributes(&names(GEOM_ATTRIBUTES))?;
-                    if let Some(grandchild) = child.children().next() {
-                        return Err(unsupported_child(&grandchild));
-                    }
-                    let mut settings = self.defaults.class(self.class_of(&child, class)?).geom.clone();
-                    settings.apply(&child)?;
+                    let settings = self.geom_settings(&child, class)?;
                     self.name_geom(&child, &settings, frame.as_ref(), None, &suffix)?;
                     let read = self.geom_mass(&child, &settings, frame.as_ref(), false, false)?;
                     self.add_contact_geom(&child, &settings, None, read.reach);
@@ -243,12 +238,7 @@ impl Reader {
                     joints.push(JointElement { element: child, settings, align, suffix });
                 }
                 "geom" => {
-                    child.check_attributes(&names(GEOM_ATTRIBUTES))?;
-                    if let Some(grandchild) = child.children().next() {
-                        return Err(unsupported_child(&grandchild));
-                    }
-                    let mut settings = self.defaults.class(self.class_of(&child, class)?).geom.clone();
-                    settings.apply(&child)?;
+                    let settings = self.geom_settings(&child, class)?;
                     geoms.push((child, settings, frame, suffix));
                 }
                 "site" => self.read_site(&child, class, Some(index), frame, &suffix)?,
@@ -441,6 +431,18 @@ impl Reader {
     /// The class of a joint, geom or site: its `class`, else its body's class.
     pub(super) fn class_of(&self, element: &Element, body_class: usize) -> Result<usize, MjcfError> {
         Ok(self.defaults.lookup(element, "class")?.unwrap_or(body_class))
+    }
+
+    /// A `<geom>`'s settings: its class's defaults with its own attributes
+    /// applied, after checking its attributes and that it has no children.
+    fn geom_settings(&self, geom: &Element, body_class: usize) -> Result<GeomSettings, MjcfError> {
+        geom.check_attributes(&names(GEOM_ATTRIBUTES))?;
+        if let Some(child) = geom.children().next() {
+            return Err(unsupported_child(&child));
+        }
+        let mut settings = self.defaults.class(self.class_of(geom, body_class)?).geom.clone();
+        settings.apply(geom)?;
+        Ok(settings)
     }
 
     /// Reads a `<site>` of body `body` (`None`: the world body).
