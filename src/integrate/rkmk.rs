@@ -383,13 +383,8 @@ impl Integrator {
     ) -> Result<f64, DynamicsError> {
         for j in 0..3 {
             let moved = j as f64 * ROUND_OFF_PROBE_ULPS * f64::EPSILON;
-            let sign = |d: usize| if d.is_multiple_of(2) { 1.0 } else { -1.0 };
-            for (d, (stage, x)) in self.theta_stage.as_mut_slice().iter_mut().zip(theta).enumerate() {
-                *stage = x + sign(d) * moved * (1.0 + x.abs());
-            }
-            for (d, (stage, v)) in self.qvel_stage.as_mut_slice().iter_mut().zip(qvel).enumerate() {
-                *stage = v + sign(d) * moved * (1.0 + v.abs());
-            }
+            probe_point(self.theta_stage.as_mut_slice(), theta, moved);
+            probe_point(self.qvel_stage.as_mut_slice(), qvel, moved);
             self.evaluate_stage(model, ws, t, inputs_at)?;
             if j < 2 {
                 copy(&mut self.round_off_probe[j], &ws.qacc);
@@ -499,6 +494,15 @@ impl Integrator {
 /// in units of their last place: enough that the evaluation's rounding differs
 /// at each, too little for the rates' curvature to show.
 const ROUND_OFF_PROBE_ULPS: f64 = 4.0;
+
+/// `base` moved by `moved` relative to 1 + |x| per entry, in alternating
+/// directions, into `point`: one point of the round-off probe.
+fn probe_point(point: &mut [f64], base: &[f64], moved: f64) {
+    for (d, (entry, x)) in point.iter_mut().zip(base).enumerate() {
+        let sign = if d.is_multiple_of(2) { 1.0 } else { -1.0 };
+        *entry = x + sign * moved * (1.0 + x.abs());
+    }
+}
 
 /// A Rosenbrock method's storage, or none for an explicit method.
 fn linearization(model: &Model, method: Method) -> Linearization {
