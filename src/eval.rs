@@ -25,6 +25,8 @@ pub struct EvalRequest {
     /// The actuators' controls (nu, MuJoCo's ctrl); without it the actuators
     /// apply no force (and the sensors read them at ctrl = 0, MuJoCo's default).
     pub ctrl: Option<Vec<f64>>,
+    /// The actuators' activation states (na, MuJoCo's act); default 0.
+    pub act: Option<Vec<f64>>,
     /// The time the `clock` sensors read (s); default 0.
     pub time: Option<f64>,
 }
@@ -88,6 +90,9 @@ pub struct ActuatorResponse {
     pub qfrc_actuator: Vec<f64>,
     /// ε = ℓT of the actuators (nv).
     pub eps_actuator: Vec<f64>,
+    /// MuJoCo's act_dot (na), when some actuator has an activation state.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub act_dot: Vec<f64>,
 }
 
 /// The constraint forces at the request's state (MuJoCo's names).
@@ -185,6 +190,11 @@ pub fn evaluate(model: &Model, ws: &mut Workspace, request: &EvalRequest) -> Res
         (None, Some(qvel)) => ws.set_qvel(model, qvel)?,
         _ => return Err(EvalError::Velocity),
     }
+    if let Some(act) = &request.act {
+        ws.set_act(model, act)?;
+    } else {
+        ws.act.fill(0.0);
+    }
     let mut eps = request.eps.clone().unwrap_or_else(|| zeros.clone());
     crate::dynamics::check_input("eps", &eps, model.nv)?;
     if let Some(torque) = &request.torque {
@@ -201,6 +211,7 @@ pub fn evaluate(model: &Model, ws: &mut Workspace, request: &EvalRequest) -> Res
                 actuator_force: ws.actuator_force.as_slice().to_vec(),
                 qfrc_actuator: ws.qfrc_actuator.as_slice().to_vec(),
                 eps_actuator: ws.eps_actuator.as_slice().to_vec(),
+                act_dot: ws.act_dot.as_slice().to_vec(),
             })
         }
         None => None,

@@ -280,6 +280,46 @@ pub enum BiasType {
     Affine,
 }
 
+/// An actuator's activation dynamics (MuJoCo's `dyntype` of an actuator
+/// with one activation state, act): its force then takes act for ctrl.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ActivationKind {
+    /// act_dot = ctrl.
+    Integrator,
+    /// act_dot = (ctrl − act)/τ.
+    Filter,
+    /// The same filter; MuJoCo's Euler step integrates it exactly, which
+    /// matters here only for `actearly`.
+    FilterExact,
+}
+
+/// An actuator's activation state: its dynamics and how its force reads it.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Activation {
+    /// `dyntype`.
+    pub kind: ActivationKind,
+    /// dynprm[0]: a filter's time constant τ (s).
+    pub time_constant: f64,
+    /// `actrange` when `actlimited`: act is kept within it.
+    pub range: Option<[f64; 2]>,
+    /// `actearly`: the force takes the activation one `timestep` ahead
+    /// (MuJoCo's `mj_nextActivation`), so that ctrl acts without a step's delay.
+    pub early: bool,
+}
+
+impl Activation {
+    /// `act` within the range, if limited (MuJoCo's `mju_clip`, which a
+    /// reversed range cannot make panic).
+    pub fn clamp(&self, act: f64) -> f64 {
+        match self.range {
+            Some([low, _]) if act < low => low,
+            Some([_, high]) if act > high => high,
+            _ => act,
+        }
+    }
+}
+
 /// One actuator as MuJoCo's general actuator: force = gain · ctrl + bias,
 /// applied through its transmission scaled by `gear`.
 #[derive(Clone, Debug, PartialEq)]
@@ -308,6 +348,8 @@ pub struct Actuator {
     pub ctrl_range: Option<[f64; 2]>,
     /// `forcerange` when `forcelimited`.
     pub force_range: Option<[f64; 2]>,
+    /// The activation state, for `dyntype` integrator, filter and filterexact.
+    pub activation: Option<Activation>,
     /// Whether `<option actuatorgroupdisable>` disables the actuator's group
     /// (its force is then 0, clamped to `forcerange`).
     pub group_disabled: bool,

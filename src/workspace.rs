@@ -124,6 +124,10 @@ pub struct Workspace {
     pub actuator_length: DVector<f64>,
     /// MuJoCo's actuator_velocity (nu) — compute_actuation.
     pub actuator_velocity: DVector<f64>,
+    /// MuJoCo's act (na), the activation states the actuators' forces read — set_act.
+    pub act: DVector<f64>,
+    /// MuJoCo's act_dot (na), their rates — compute_actuation.
+    pub act_dot: DVector<f64>,
     /// MuJoCo's actuator_force (nu) — compute_actuation.
     pub actuator_force: DVector<f64>,
     /// Wrenches of site actuators on each link (link coordinates) — compute_actuation.
@@ -233,6 +237,8 @@ impl Workspace {
             actuators_apply_wrenches,
             actuator_length: DVector::zeros(nu),
             actuator_velocity: DVector::zeros(nu),
+            act: DVector::zeros(model.activation_count()),
+            act_dot: DVector::zeros(model.activation_count()),
             actuator_force: DVector::zeros(nu),
             link_wrench: vec![SpatialVec::zeros(); if actuators_apply_wrenches { n } else { 0 }],
             qfrc_actuator: dof(),

@@ -16,9 +16,11 @@ use serde::Deserialize;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Format {
     /// One JSON object {"time": [...], "theta": [[...], ...], "nu": [[...], ...]},
+    /// with "act" after them when actuators have activation states,
     /// written when the run has finished.
     Json,
-    /// A header `time,theta[1],...,nu[1],...` and one row per output time,
+    /// A header `time,theta[1],...,nu[1],...` (then `act[1],...` when
+    /// actuators have activation states) and one row per output time,
     /// written as each is computed.
     Csv,
 }
@@ -46,6 +48,7 @@ struct Request {
     eps: Option<Vec<f64>>,
     eps_rate: Option<Vec<f64>>,
     ctrl: Option<Vec<f64>>,
+    act: Option<Vec<f64>>,
 }
 
 /// A run shorter than this shows no progress bar (it would only flicker).
@@ -76,6 +79,13 @@ pub fn simulate(model: &Model, run: &Run) -> Result<()> {
     if let Some(nu) = request.nu {
         sim.state.nu = nu;
     }
+    if let Some(act) = request.act {
+        let expected = model.activation_count();
+        if act.len() != expected {
+            bail!("act has {} entries, expected {expected} (one per actuator with activation dynamics)", act.len());
+        }
+        sim.act_mut(model).copy_from_slice(&act);
+    }
     let eps = request.eps.unwrap_or_else(|| vec![0.0; model.nv]);
     let eps_rate = request.eps_rate.unwrap_or_else(|| vec![0.0; model.nv]);
     if eps_rate.len() != model.nv {
@@ -91,7 +101,7 @@ pub fn simulate(model: &Model, run: &Run) -> Result<()> {
     let steps = (run.stop / run.step).round() as u64;
     let mut writer = Writer::new(run.format, model)?;
     let progress = Progress::new(steps);
-    if !writer.write(0.0, &sim.state.theta, &sim.state.nu)? {
+    if !writer.write(0.0, &sim.state.theta, &sim.state.nu, sim.act(model))? {
         return Ok(());
     }
     // ε(t) = eps + eps_rate·t, as the simulation's input over each step: its value at the step's start and its rate.
@@ -115,7 +125,7 @@ pub fn simulate(model: &Model, run: &Run) -> Result<()> {
         if let Some(relaxed) = advanced.relaxed {
             progress.suspend(|| eprintln!("nudyn: warning: {relaxed}"));
         }
-        if !writer.write(t + run.step, &sim.state.theta, &sim.state.nu)? {
+        if !writer.write(t + run.step, &sim.state.theta, &sim.state.nu, sim.act(model))? {
             progress.finish();
             return Ok(());
         }
@@ -161,9 +171,10 @@ impl Progress {
 
 /// Where the states go as they are computed. JSON keeps each column in a
 /// temporary file until the end (the object's columns come one after the
-/// other), so memory stays constant however long the run.
+/// other), so memory stays constant however long the run. The act column
+/// is written only for a vehicle with activation states.
 enum Writer {
-    Json { columns: [BufWriter<File>; 3], rows: u64 },
+    Json { columns: [BufWriter<File>; 4], rows: u64, with_act: bool },
     Csv { out: BufWriter<std::io::Stdout>, header: Option<String>, last_flush: Instant },
 }
 
@@ -174,12 +185,14 @@ impl Writer {
                 let column = || -> Result<BufWriter<File>> {
                     Ok(BufWriter::new(tempfile::tempfile().context("cannot create a temporary file")?))
                 };
-                Writer::Json { columns: [column()?, column()?, column()?], rows: 0 }
+                let with_act = model.activation_count() > 0;
+                Writer::Json { columns: [column()?, column()?, column()?, column()?], rows: 0, with_act }
             }
             Format::Csv => {
                 let theta = (1..=model.nq).map(|k| format!(",theta[{k}]"));
                 let nu = (1..=model.nv).map(|k| format!(",nu[{k}]"));
-                let header: String = std::iter::once("time".to_string()).chain(theta).chain(nu).collect();
+                let act = (1..=model.activation_count()).map(|k| format!(",act[{k}]"));
+                let header: String = std::iter::once("time".to_string()).chain(theta).chain(nu).chain(act).collect();
                 let out = BufWriter::new(std::io::stdout());
                 Writer::Csv { out, header: Some(header), last_flush: Instant::now() }
             }
@@ -188,14 +201,17 @@ impl Writer {
 
     /// Writes the state at `time`; `false` when the reader has gone (a
     /// closed pipe: `nudyn simulate … | head`), and the run can stop.
-    fn write(&mut self, time: f64, theta: &[f64], nu: &[f64]) -> Result<bool> {
+    fn write(&mut self, time: f64, theta: &[f64], nu: &[f64], act: &[f64]) -> Result<bool> {
         match self {
-            Writer::Json { columns: [times, thetas, nus], rows } => {
+            Writer::Json { columns: [times, thetas, nus, acts], rows, with_act } => {
                 let separator = if *rows == 0 { "" } else { "," };
                 *rows += 1;
                 write!(times, "{separator}{}", ryu::Buffer::new().format_finite(time))?;
                 write!(thetas, "{separator}[{}]", joined(theta))?;
                 write!(nus, "{separator}[{}]", joined(nu))?;
+                if *with_act {
+                    write!(acts, "{separator}[{}]", joined(act))?;
+                }
                 Ok(true)
             }
             Writer::Csv { out, header, last_flush } => {
@@ -204,7 +220,12 @@ impl Writer {
                 {
                     return Ok(false);
                 }
-                let row = writeln!(out, "{},{}", ryu::Buffer::new().format_finite(time), joined_pair(theta, nu));
+                let time = ryu::Buffer::new().format_finite(time).to_string();
+                let row = if act.is_empty() {
+                    writeln!(out, "{time},{}", joined_pair(theta, nu))
+                } else {
+                    writeln!(out, "{time},{},{}", joined_pair(theta, nu), joined(act))
+                };
                 if !reader_is_there(row)? {
                     return Ok(false);
                 }
@@ -220,7 +241,7 @@ impl Writer {
     /// Writes what is still held back.
     fn finish(self) -> Result<()> {
         match self {
-            Writer::Json { columns: [times, thetas, nus], .. } => {
+            Writer::Json { columns: [times, thetas, nus, acts], with_act, .. } => {
                 let mut out = BufWriter::new(std::io::stdout().lock());
                 let result = (|| {
                     out.write_all(b"{\"time\":[")?;
@@ -229,6 +250,10 @@ impl Writer {
                     copy_column(thetas, &mut out)?;
                     out.write_all(b"],\"nu\":[")?;
                     copy_column(nus, &mut out)?;
+                    if with_act {
+                        out.write_all(b"],\"act\":[")?;
+                        copy_column(acts, &mut out)?;
+                    }
                     out.write_all(b"]}\n")?;
                     out.flush()
                 })();

@@ -191,17 +191,22 @@ fn relative_site(
     Transmitted { length, velocity, moment: Moment::wrenches(candidates) }
 }
 
-/// MuJoCo's force of a stateless actuator before its force range: ctrl
-/// clamped to its range (unless `<flag clampctrl="disable"/>`), then
-/// gain · ctrl plus bias (the setpoint of a rotation servo taken nearest the
-/// length); a disabled group gives 0 ([`clamp_force`] still clamps it).
-fn unclamped_force(actuator: &Actuator, clamp_ctrl: bool, ctrl: f64, length: f64, velocity: f64) -> f64 {
+/// ctrl clamped to the actuator's range, unless `<flag clampctrl="disable"/>`.
+fn clamped_ctrl(actuator: &Actuator, clamp_ctrl: bool, ctrl: f64) -> f64 {
+    match actuator.ctrl_range {
+        Some([low, high]) if clamp_ctrl => clip(ctrl, low, high),
+        _ => ctrl,
+    }
+}
+
+/// MuJoCo's force of an actuator before its force range: gain · input plus
+/// bias (the setpoint of a rotation servo taken nearest the length), the
+/// input being the clamped ctrl, or the activation the force reads
+/// ([`Workspace::actuator_input`]); a disabled group gives 0
+/// ([`clamp_force`] still clamps it).
+fn unclamped_force(actuator: &Actuator, input: f64, length: f64, velocity: f64) -> f64 {
     let mut force = 0.0;
     if actuator.enabled {
-        let ctrl = match actuator.ctrl_range {
-            Some([low, high]) if clamp_ctrl => clip(ctrl, low, high),
-            _ => ctrl,
-        };
         let [g0, g1, g2] = actuator.gain;
         let gain = match actuator.gain_type {
             GainType::Fixed => g0,
@@ -213,7 +218,7 @@ fn unclamped_force(actuator: &Actuator, clamp_ctrl: bool, ctrl: f64, length: f64
             BiasType::Affine => b0 + b1 * length + b2 * velocity,
         };
         let period = actuator.setpoint_period;
-        let input = if period > 0.0 { ctrl - period * ((ctrl - length) / period).round() } else { ctrl };
+        let input = if period > 0.0 { input - period * ((input - length) / period).round() } else { input };
         force = gain * input + bias;
     }
     force
@@ -287,8 +292,11 @@ impl Workspace {
         let actuation = model.actuation;
         let mjcf_count = model.mjcf_actuator_count();
         self.prepare_transmissions(model);
+        if !self.act.is_empty() {
+            self.compute_activation_rates(model, ctrl);
+        }
         if actuation.enabled && !self.tendon_actuator_total.is_empty() {
-            self.sum_tendon_actuator_forces(model, actuation.clamp_ctrl, ctrl);
+            self.sum_tendon_actuator_forces(model, ctrl);
         }
         for (k, actuator) in model.actuators[..mjcf_count].iter().enumerate() {
             let transmitted = transmit(self, actuator);
@@ -299,8 +307,8 @@ impl Workspace {
                 continue;
             }
             self.actuator_velocity[k] = transmitted.velocity;
-            let mut force =
-                unclamped_force(actuator, actuation.clamp_ctrl, ctrl[k], transmitted.length, transmitted.velocity);
+            let input = self.actuator_input(model, k, ctrl[k]);
+            let mut force = unclamped_force(actuator, input, transmitted.length, transmitted.velocity);
             if let ActuatorTransmission::Tendon { tendon } = actuator.transmission
                 && !self.tendon_actuator_total.is_empty()
             {
@@ -345,17 +353,50 @@ impl Workspace {
 
     /// The sum of the forces (before their `forcerange`) of each tendon's
     /// actuators, for the tendons with an `actuatorfrcrange`.
-    fn sum_tendon_actuator_forces(&mut self, model: &Model, clamp_ctrl: bool, ctrl: &[f64]) {
+    fn sum_tendon_actuator_forces(&mut self, model: &Model, ctrl: &[f64]) {
         self.tendon_actuator_total.fill(0.0);
         for (k, actuator) in model.actuators[..model.mjcf_actuator_count()].iter().enumerate() {
             if let ActuatorTransmission::Tendon { tendon } = actuator.transmission
                 && model.tendons[tendon].actuator_force_range.is_some()
             {
                 let transmitted = transmit(self, actuator);
+                let input = self.actuator_input(model, k, ctrl[k]);
                 self.tendon_actuator_total[tendon] +=
-                    unclamped_force(actuator, clamp_ctrl, ctrl[k], transmitted.length, transmitted.velocity);
+                    unclamped_force(actuator, input, transmitted.length, transmitted.velocity);
             }
         }
+    }
+
+    /// MuJoCo's act_dot of every activation state at `ctrl` (clamped to
+    /// each actuator's range), from `act`; 0 with `<flag actuation="disable"/>`,
+    /// as in MuJoCo.
+    fn compute_activation_rates(&mut self, model: &Model, ctrl: &[f64]) {
+        let actuation = model.actuation;
+        let mut index = 0;
+        for (actuator, &ctrl) in model.actuators.iter().zip(ctrl) {
+            if actuator.activation.is_some() {
+                self.act_dot[index] = if actuation.enabled {
+                    actuator.activation_rate(clamped_ctrl(actuator, actuation.clamp_ctrl, ctrl), self.act[index])
+                } else {
+                    0.0
+                };
+                index += 1;
+            }
+        }
+    }
+
+    /// What actuator `k`'s force multiplies its gain by: its ctrl, clamped
+    /// to its range, or for an actuator with an activation state the
+    /// activation it reads (act, or with `actearly` the next; needs
+    /// `act_dot`).
+    fn actuator_input(&self, model: &Model, k: usize, ctrl: f64) -> f64 {
+        let actuator = &model.actuators[k];
+        if actuator.activation.is_none() {
+            return clamped_ctrl(actuator, model.actuation.clamp_ctrl, ctrl);
+        }
+        // The activation states are numbered in actuator order.
+        let index = model.actuators[..k].iter().filter(|a| a.activation.is_some()).count();
+        actuator.activation_input(self.act[index], self.act_dot[index], model.constraints.options.timestep)
     }
 
     /// Adds the generalized force of the wrench inputs (`values`: six per

@@ -226,6 +226,19 @@ impl Workspace {
         Ok(())
     }
 
+    /// The actuators' activation states (na, MuJoCo's act), which their
+    /// forces read; they stay until set again. Keeps the passes up to the
+    /// velocities.
+    pub fn set_act(&mut self, model: &Model, act: &[f64]) -> Result<(), DynamicsError> {
+        check_input("act", act, model.activation_count())?;
+        self.act.copy_from_slice(act);
+        if self.stage > Stage::Velocity {
+            self.stage = Stage::Velocity;
+        }
+        self.inputs_applied = false;
+        Ok(())
+    }
+
     /// Pass 3: ν̇ = ε − C(θ,ν) + ε_passive for applied `eps` (nv).
     pub fn compute_nu_dot(&mut self, model: &Model, eps: &[f64]) -> Result<(), DynamicsError> {
         require(self, Stage::Velocity, "compute_nu_dot")?;

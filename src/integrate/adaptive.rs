@@ -707,14 +707,14 @@ impl Integrator {
         self.theta_stage.as_mut_slice().copy_from_slice(theta);
         retract(model, self.theta_stage.as_mut_slice(), self.delta.as_slice());
         ws.set_configuration(model, self.theta_stage.as_slice())?;
-        ws.set_qvel(model, self.qvel_next.as_slice())?;
+        ws.set_qvel(model, &self.qvel_next.as_slice()[..model.nv])?;
         let energy = kinetic_energy(ws.nu.as_slice());
         self.accept(model, theta, qvel);
         carry.work += work;
         let target = energy_before + work;
         if target > 0.0 && energy > 0.0 {
             let scale = (target / energy).sqrt();
-            qvel.iter_mut().for_each(|x| *x *= scale);
+            qvel[..model.nv].iter_mut().for_each(|x| *x *= scale);
             // The cached last stage was evaluated at the unprojected θ̇.
             self.first.valid = false;
         }
@@ -728,7 +728,8 @@ impl Integrator {
     /// 60-link chain the error delivered was 60–270 times the tolerance).
     /// The velocity part is measured on ν, as users read it: θ̇'s error
     /// estimate mapped by m* at the last stage's configuration (pass 2 on
-    /// the estimate, which overwrites the workspace's velocities).
+    /// the estimate, which overwrites the workspace's velocities). act's
+    /// error is scaled by tol·(1 + |act|) at the step's end.
     pub(super) fn error_norm(&self, model: &Model, ws: &mut Workspace, theta: &[f64], tolerance: f64) -> f64 {
         let two_estimates =
             matches!(self.method.scheme(), Scheme::Explicit(t) if matches!(t.error, ErrorEstimate::Dop853 { .. }));
@@ -740,8 +741,13 @@ impl Integrator {
             } else {
                 (&self.error_delta_low, &self.error_qvel_low)
             };
-            if ws.set_qvel(model, error_qvel.as_slice()).is_err() {
+            let (error_qvel, error_act) = error_qvel.as_slice().split_at(model.nv);
+            if ws.set_qvel(model, error_qvel).is_err() {
                 return f64::INFINITY;
+            }
+            let act_next = &self.qvel_next.as_slice()[model.nv..];
+            for (error, act) in error_act.iter().zip(act_next) {
+                *norm = norm.max((error / (tolerance * (1.0 + act.abs()))).abs());
             }
             // Slices: nalgebra's indexing is checked against both dimensions.
             let (delta, nu_size) = (self.delta.as_slice(), self.nu_size.as_slice());

@@ -21,6 +21,29 @@ use crate::workspace::Workspace;
 /// The most stages of any method (DOP853).
 const MAX_STAGES: usize = 12;
 
+/// θ̈ and act's rate into `rates` (nv + na), from the workspace's `qacc`
+/// and `act_dot`: the rates of the integrated (θ̇, act). act's rate is
+/// MuJoCo's even at a bound of act's range: a step that carries act past
+/// it is clamped when taken ([`clamp_activations`]), and the force reads
+/// act clamped meanwhile, so that the rates stay smooth within a step.
+pub(super) fn copy_rates(model: &Model, rates: &mut DVector<f64>, ws: &Workspace) {
+    let (qacc, act_rates) = rates.as_mut_slice().split_at_mut(model.nv);
+    qacc.copy_from_slice(ws.qacc.as_slice());
+    act_rates.copy_from_slice(ws.act_dot.as_slice());
+}
+
+/// Clamps each act of `act` (na) to its range, as MuJoCo's step does;
+/// whether any moved.
+pub(super) fn clamp_activations(model: &Model, act: &mut [f64]) -> bool {
+    let mut moved = false;
+    for (act, activation) in act.iter_mut().zip(model.actuators.iter().filter_map(|a| a.activation)) {
+        let clamped = activation.clamp(*act);
+        moved |= clamped != *act;
+        *act = clamped;
+    }
+    moved
+}
+
 /// θₙ ⊕ Δ: moves `theta` (nq) by the algebra displacement `delta` (nv), in place.
 pub fn retract(model: &Model, theta: &mut [f64], delta: &[f64]) {
     for link in &model.links {
@@ -61,7 +84,7 @@ fn dexp_inv(theta: &Vec3, omega: &Vec3) -> Vec3 {
 pub(super) struct FirstStage {
     /// θ̇ (qvel) at the step's start.
     pub qvel: DVector<f64>,
-    /// θ̈ at the step's start.
+    /// θ̈ then act's rate at the step's start (nv + na, [`copy_rates`]).
     pub qacc: DVector<f64>,
     /// ν = m*θ̇ at the step's start.
     pub nu: DVector<f64>,
@@ -79,6 +102,10 @@ pub(super) struct FirstStage {
 /// factor's rates), and on the examples RK4's error constant on (θ, θ̇) is
 /// smaller (docs/integration.md, "The integrated state"). ν is formed from
 /// θ̇ where a caller reads it, and the error control still measures ν.
+///
+/// The actuators' activation states act (na) ride along after θ̇: every
+/// "qvel" vector below holds θ̇ then act (nv + na), and every "qacc" rate
+/// θ̈ then act's rate, since both advance by the same linear stage sums.
 #[derive(Clone, Debug)]
 pub struct Integrator {
     pub(super) method: Method,
@@ -97,7 +124,7 @@ pub struct Integrator {
     pub(super) error_qvel: DVector<f64>,
     pub(super) error_delta_low: DVector<f64>,
     pub(super) error_qvel_low: DVector<f64>,
-    /// θ̈ at the first two points of [`Integrator::rate_round_off`]'s probe.
+    /// θ̈ at the first two points of [`Integrator::rate_round_off`]'s probe (nv).
     round_off_probe: [DVector<f64>; 2],
     /// The largest |ν| at the first and last stages, per dof: the scale of
     /// ν's error.
@@ -127,22 +154,24 @@ impl Integrator {
     /// An integrator with `method`, sized for `model`.
     pub fn new(model: &Model, method: Method) -> Self {
         let nv = model.nv;
+        // θ̇ then act.
+        let rates = nv + model.activation_count();
         Integrator {
             method,
             k_delta: vec![DVector::zeros(nv); MAX_STAGES],
-            k_qvel: vec![DVector::zeros(nv); MAX_STAGES],
+            k_qvel: vec![DVector::zeros(rates); MAX_STAGES],
             stage_power: [0.0; MAX_STAGES],
             delta: DVector::zeros(nv),
-            qvel_next: DVector::zeros(nv),
+            qvel_next: DVector::zeros(rates),
             error_delta: DVector::zeros(nv),
-            error_qvel: DVector::zeros(nv),
+            error_qvel: DVector::zeros(rates),
             error_delta_low: DVector::zeros(nv),
-            error_qvel_low: DVector::zeros(nv),
+            error_qvel_low: DVector::zeros(rates),
             round_off_probe: [DVector::zeros(nv), DVector::zeros(nv)],
             nu_size: DVector::zeros(nv),
             first: FirstStage {
                 qvel: DVector::zeros(nv),
-                qacc: DVector::zeros(nv),
+                qacc: DVector::zeros(rates),
                 nu: DVector::zeros(nv),
                 power: 0.0,
                 valid: false,
@@ -151,16 +180,16 @@ impl Integrator {
             last_nu: DVector::zeros(nv),
             end: FirstStage {
                 qvel: DVector::zeros(nv),
-                qacc: DVector::zeros(nv),
+                qacc: DVector::zeros(rates),
                 nu: DVector::zeros(nv),
                 power: 0.0,
                 valid: false,
             },
-            qvel_stage: DVector::zeros(nv),
+            qvel_stage: DVector::zeros(rates),
             theta_stage: DVector::zeros(model.nq),
             eps_stage: DVector::zeros(nv),
             ctrl_stage: DVector::zeros(model.actuators.len()),
-            step_qvel: DVector::zeros(nv),
+            step_qvel: DVector::zeros(rates),
             linear: linearization(model, method),
             evaluations: 0,
             jacobians: 0,
@@ -191,8 +220,8 @@ impl Integrator {
 
     /// One step `(t, h)`, of size `h` from time `t`, without error control:
     /// advances `theta` (nq) and `nu` (nv) in place. `eps_at(t, out)` writes
-    /// the applied ε at time t; the actuators' controls stay 0. On error,
-    /// `theta` and `nu` are unchanged.
+    /// the applied ε at time t; the actuators' controls stay 0, and so do
+    /// their activations. On error, `theta` and `nu` are unchanged.
     pub fn step(
         &mut self,
         model: &Model,
@@ -252,7 +281,9 @@ impl Integrator {
         self.evaluations += 1;
         inputs_at(t, self.eps_stage.as_mut_slice(), self.ctrl_stage.as_mut_slice());
         ws.set_configuration(model, self.theta_stage.as_slice())?;
-        ws.set_qvel(model, self.qvel_stage.as_slice())?;
+        let (qvel, act) = self.qvel_stage.as_slice().split_at(model.nv);
+        ws.set_qvel(model, qvel)?;
+        ws.set_act(model, act)?;
         ws.compute_qacc_actuated(model, self.eps_stage.as_slice(), self.ctrl_stage.as_slice())?;
         // On slices: nalgebra's iterators step by a runtime stride (2 % of all
         // instructions on bus_arm7 went here).
@@ -287,7 +318,7 @@ impl Integrator {
             accumulate(&self.k_delta, &self.k_qvel, row, h, &mut self.delta, &mut self.qvel_stage);
             self.evaluate_stage_rates(model, ws, theta, i, t + tableau.c[i] * h, inputs_at)?;
             if i == 0 {
-                self.keep_as_first(ws, self.stage_power[0]);
+                self.keep_as_first(model, ws, self.stage_power[0]);
                 set_abs(&mut self.nu_size, &ws.nu);
             }
             if i == last {
@@ -336,7 +367,7 @@ impl Integrator {
         self.theta_stage.as_mut_slice().copy_from_slice(theta);
         retract(model, self.theta_stage.as_mut_slice(), self.delta.as_slice());
         self.stage_power[i] = self.evaluate_stage(model, ws, t, inputs_at)?;
-        copy(&mut self.k_qvel[i], &ws.qacc);
+        copy_rates(model, &mut self.k_qvel[i], ws);
         // Δ̇ = θ̇, but dexp⁻¹₋Δ(ω) on ball joints.
         copy(&mut self.k_delta[i], &ws.qvel);
         for link in model.links.iter().filter(|l| l.joint == LinkJoint::Ball) {
@@ -359,15 +390,15 @@ impl Integrator {
 
     /// Caches the rates the workspace holds, with their `power`, as the
     /// step's first stage.
-    fn keep_as_first(&mut self, ws: &Workspace, power: f64) {
+    fn keep_as_first(&mut self, model: &Model, ws: &Workspace, power: f64) {
         copy(&mut self.first.qvel, &ws.qvel);
-        copy(&mut self.first.qacc, &ws.qacc);
+        copy_rates(model, &mut self.first.qacc, ws);
         copy(&mut self.first.nu, &ws.nu);
         self.first.power = power;
         self.first.valid = true;
     }
 
-    /// The round-off in θ̈ at (θ, θ̇) and time `t`, relative to 1 + |θ̇|
+    /// The round-off in θ̈ at (θ, θ̇, act) and time `t`, relative to 1 + |θ̇|
     /// per dof: the largest second difference of θ̈ along a move of θ and
     /// θ̇ by a few ulps, where the rates' own curvature is nil and only the
     /// rounding of the evaluation differs (stiff constraints carry the
@@ -392,7 +423,7 @@ impl Integrator {
         }
         let [f0, f1] = &self.round_off_probe;
         let f2 = ws.qacc.as_slice();
-        Ok((0..qvel.len()).map(|d| (f2[d] - 2.0 * f1[d] + f0[d]).abs() / (1.0 + qvel[d].abs())).fold(0.0, f64::max))
+        Ok((0..model.nv).map(|d| (f2[d] - 2.0 * f1[d] + f0[d]).abs() / (1.0 + qvel[d].abs())).fold(0.0, f64::max))
     }
 
     /// Σ|eᵢ| of the error estimator's weights: how much of the stages'
@@ -431,7 +462,7 @@ impl Integrator {
         self.qvel_stage.copy_from(&self.qvel_next);
         let power = self.evaluate_stage(model, ws, t_end, inputs_at)?;
         copy(&mut self.end.qvel, &ws.qvel);
-        copy(&mut self.end.qacc, &ws.qacc);
+        copy_rates(model, &mut self.end.qacc, ws);
         copy(&mut self.end.nu, &ws.nu);
         self.end.power = power;
         self.end.valid = true;
@@ -450,7 +481,7 @@ impl Integrator {
         self.theta_stage.as_mut_slice().copy_from_slice(theta);
         self.qvel_stage.as_mut_slice().copy_from_slice(qvel);
         let power = self.evaluate_stage(model, ws, t, inputs_at)?;
-        self.keep_as_first(ws, power);
+        self.keep_as_first(model, ws, power);
         // Any W held was formed at another start.
         self.linear.fresh = false;
         Ok(())
@@ -466,14 +497,16 @@ impl Integrator {
         h * weights.iter().zip(&self.stage_power).map(|(w, p)| w * p).sum::<f64>()
     }
 
-    /// Moves the state to the attempted step's result; for a "first same as
-    /// last" method the last stage becomes the next step's first. A held W
-    /// has served one more step.
+    /// Moves the state to the attempted step's result, act clamped to its
+    /// range; for a "first same as last" method the last stage becomes the
+    /// next step's first (unless the clamp moved act). A held W has served
+    /// one more step.
     pub(super) fn accept(&mut self, model: &Model, theta: &mut [f64], qvel: &mut [f64]) {
         retract(model, theta, self.delta.as_slice());
         qvel.copy_from_slice(self.qvel_next.as_slice());
-        let first_same_as_last = self.last_stage_is_end();
-        self.first.valid = first_same_as_last || self.end.valid;
+        let clamped = clamp_activations(model, &mut qvel[model.nv..]);
+        let first_same_as_last = self.last_stage_is_end() && !clamped;
+        self.first.valid = first_same_as_last || (self.end.valid && !clamped);
         self.linear.age = self.linear.age.saturating_add(1);
         if first_same_as_last {
             let last = self.method.stages() - 1;
@@ -512,7 +545,7 @@ fn linearization(model: &Model, method: Method) -> Linearization {
     }
 }
 
-/// θ̇ = ℓ*(θ) ν into `qvel`.
+/// θ̇ = ℓ*(θ) ν into `qvel`'s first nv entries (act, after them, is left alone).
 pub(super) fn qvel_of_nu(
     model: &Model,
     ws: &mut Workspace,
@@ -522,11 +555,11 @@ pub(super) fn qvel_of_nu(
 ) -> Result<(), DynamicsError> {
     ws.set_configuration(model, theta)?;
     ws.set_nu(model, nu)?;
-    qvel.copy_from_slice(ws.qvel.as_slice());
+    qvel[..model.nv].copy_from_slice(ws.qvel.as_slice());
     Ok(())
 }
 
-/// ν = m*(θ) θ̇ into `nu`.
+/// ν = m*(θ) θ̇ into `nu`, θ̇ the first nv entries of `qvel`.
 pub(super) fn nu_of_qvel(
     model: &Model,
     ws: &mut Workspace,
@@ -535,7 +568,7 @@ pub(super) fn nu_of_qvel(
     nu: &mut [f64],
 ) -> Result<(), DynamicsError> {
     ws.set_configuration(model, theta)?;
-    ws.set_qvel(model, qvel)?;
+    ws.set_qvel(model, &qvel[..model.nv])?;
     nu.copy_from_slice(ws.nu.as_slice());
     Ok(())
 }

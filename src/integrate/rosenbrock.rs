@@ -17,11 +17,14 @@
 //!     (cI − B − A/c) u_θ̇ = r_θ̇ + A r_Δ / c,   u_Δ = (r_Δ + u_θ̇)/c,
 //! so a step size costs one LU of an nv × nv matrix. The LU is written here
 //! because nalgebra's allocates, and the hot path must not.
+//! The actuators' activations act (na) ride along after θ̇ (rkmk.rs): B
+//! and A then have nv + na rows (θ̈ then act's rate) and B nv + na columns,
+//! probed like θ̇'s, and the matrix is (nv + na) × (nv + na).
 
 use nalgebra::{DMatrix, DVector};
 
 use super::adaptive::positions;
-use super::rkmk::{Integrator, max_abs, retract};
+use super::rkmk::{Integrator, copy_rates, max_abs, retract};
 use super::tableau::{ROSENBROCK_STAGES, Rosenbrock, RosenbrockStages};
 use crate::dynamics::DynamicsError;
 use crate::model::Model;
@@ -41,7 +44,8 @@ pub const W_MAX_AGE: u32 = 100;
 /// restored from it forms W again exactly when the saved run would have.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct HeldJacobian {
-    /// ∂θ̈/∂Δ then ∂θ̈/∂θ̇, nv × nv each, column-major; empty when none is held.
+    /// ∂(θ̈, act's rate)/∂Δ ((nv + na) × nv) then ∂(θ̈, act's rate)/∂(θ̇, act)
+    /// ((nv + na) × (nv + na)), column-major; empty when none is held.
     pub derivatives: Vec<f64>,
     /// Steps accepted with it since it was formed.
     pub age: u32,
@@ -57,9 +61,9 @@ const PROBE: f64 = 1.4901161193847656e-8;
 pub(super) struct Linearization {
     /// The method's coefficients in stage form.
     stages: RosenbrockStages,
-    /// ∂θ̈/∂Δ (nv × nv).
+    /// ∂θ̈/∂Δ, with act's rate's rows ((nv + na) × nv).
     qacc_by_delta: DMatrix<f64>,
-    /// ∂θ̈/∂θ̇ (nv × nv).
+    /// ∂θ̈/∂θ̇, with act's rate's rows and act's columns ((nv + na) × (nv + na)).
     qacc_by_qvel: DMatrix<f64>,
     /// Whether W holds derivatives (formed at some earlier step's start).
     pub(super) held: bool,
@@ -71,37 +75,41 @@ pub(super) struct Linearization {
     /// the row interchanged with each row in turn.
     lu: DMatrix<f64>,
     pivots: Vec<usize>,
-    /// The stages' u: their Δ and θ̇ parts.
+    /// The stages' u: their Δ and (θ̇, act) parts.
     u_delta: Vec<DVector<f64>>,
     u_qvel: Vec<DVector<f64>>,
     /// A stage's right-hand side, solved in place into its u.
     rhs_delta: DVector<f64>,
     rhs_qvel: DVector<f64>,
+    /// The rates at a probe of W's derivatives (nv + na).
+    probed: DVector<f64>,
 }
 
 impl Linearization {
     /// Storage for `method` on `model`.
     pub(super) fn new(model: &Model, method: &Rosenbrock) -> Self {
         let nv = model.nv;
+        let rates = nv + model.activation_count();
         Linearization {
             stages: method.stages(),
-            qacc_by_delta: DMatrix::zeros(nv, nv),
-            qacc_by_qvel: DMatrix::zeros(nv, nv),
+            qacc_by_delta: DMatrix::zeros(rates, nv),
+            qacc_by_qvel: DMatrix::zeros(rates, rates),
             held: false,
             fresh: false,
             age: 0,
-            lu: DMatrix::zeros(nv, nv),
-            pivots: vec![0; nv],
+            lu: DMatrix::zeros(rates, rates),
+            pivots: vec![0; rates],
             u_delta: vec![DVector::zeros(nv); ROSENBROCK_STAGES],
-            u_qvel: vec![DVector::zeros(nv); ROSENBROCK_STAGES],
+            u_qvel: vec![DVector::zeros(rates); ROSENBROCK_STAGES],
             rhs_delta: DVector::zeros(nv),
-            rhs_qvel: DVector::zeros(nv),
+            rhs_qvel: DVector::zeros(rates),
+            probed: DVector::zeros(rates),
         }
     }
 
     /// Whether it is the storage for `method` on `model`.
     pub(super) fn fits(&self, model: &Model, method: &Rosenbrock) -> bool {
-        self.pivots.len() == model.nv && self.stages == method.stages()
+        self.pivots.len() == model.nv + model.activation_count() && self.stages == method.stages()
     }
 
     /// W as held, into `out` (its buffer reused).
@@ -113,11 +121,11 @@ impl Linearization {
         out.age = if self.held { self.age } else { 0 };
     }
 
-    /// Holds what `save` wrote, if it is an nv × nv pair for this storage;
-    /// otherwise holds none.
+    /// Holds what `save` wrote, if it is the pair of blocks for this
+    /// storage; otherwise holds none.
     fn hold(&mut self, saved: &HeldJacobian) {
         let block = self.qacc_by_delta.len();
-        self.held = !saved.derivatives.is_empty() && saved.derivatives.len() == 2 * block;
+        self.held = !saved.derivatives.is_empty() && saved.derivatives.len() == block + self.qacc_by_qvel.len();
         self.fresh = false;
         self.age = saved.age;
         if self.held {
@@ -127,10 +135,11 @@ impl Linearization {
         }
     }
 
-    /// Factors cI − B − A/c.
+    /// Factors cI − B − A/c (A on θ̇'s columns: Δ's rate is θ̇).
     fn factor(&mut self, c: f64) -> Result<(), SingularMatrix> {
-        let by_delta = &self.qacc_by_delta;
-        self.lu.zip_zip_apply(&self.qacc_by_qvel, by_delta, |m, by_qvel, by_delta| *m = -by_qvel - by_delta / c);
+        let nv = self.qacc_by_delta.ncols();
+        self.lu.zip_apply(&self.qacc_by_qvel, |m, by_qvel| *m = -by_qvel);
+        self.lu.columns_mut(0, nv).zip_apply(&self.qacc_by_delta, |m, by_delta| *m -= by_delta / c);
         for j in 0..self.lu.nrows() {
             self.lu[(j, j)] += c;
         }
@@ -142,7 +151,8 @@ impl Linearization {
     fn solve(&mut self, c: f64) {
         self.rhs_qvel.gemv(1.0 / c, &self.qacc_by_delta, &self.rhs_delta, 1.0);
         lu_solve(&self.lu, &self.pivots, &mut self.rhs_qvel);
-        self.rhs_delta += &self.rhs_qvel;
+        let nv = self.rhs_delta.len();
+        self.rhs_delta += &self.rhs_qvel.rows(0, nv);
         self.rhs_delta /= c;
     }
 }
@@ -314,20 +324,41 @@ impl Integrator {
             retract(model, self.theta_stage.as_mut_slice(), self.delta.as_slice());
             self.qvel_stage.copy_from_slice(qvel);
             self.evaluate_stage(model, ws, t, inputs_at)?;
-            difference(linear.qacc_by_delta.column_mut(dof).iter_mut(), &ws.qacc, &self.first.qacc, probe);
-
-            let moved = qvel[dof] + PROBE * qvel[dof].abs().max(1.0);
-            self.theta_stage.copy_from_slice(theta);
-            self.qvel_stage.copy_from_slice(qvel);
-            self.qvel_stage[dof] = moved;
-            self.evaluate_stage(model, ws, t, inputs_at)?;
-            let probe = moved - qvel[dof];
-            difference(linear.qacc_by_qvel.column_mut(dof).iter_mut(), &ws.qacc, &self.first.qacc, probe);
+            copy_rates(model, &mut linear.probed, ws);
+            difference(linear.qacc_by_delta.column_mut(dof).iter_mut(), &linear.probed, &self.first.qacc, probe);
+            self.probe_rate_column(model, ws, linear, (theta, qvel), dof, t, inputs_at)?;
+        }
+        for k in model.nv..qvel.len() {
+            self.probe_rate_column(model, ws, linear, (theta, qvel), k, t, inputs_at)?;
         }
         linear.held = true;
         linear.fresh = true;
         linear.age = 0;
         self.jacobians += 1;
+        Ok(())
+    }
+
+    /// Column `k` of ∂(θ̈, act's rate)/∂(θ̇, act), by a forward difference
+    /// from the first stage.
+    #[allow(clippy::too_many_arguments)]
+    fn probe_rate_column(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        linear: &mut Linearization,
+        (theta, qvel): (&[f64], &[f64]),
+        k: usize,
+        t: f64,
+        inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
+    ) -> Result<(), DynamicsError> {
+        let moved = qvel[k] + PROBE * qvel[k].abs().max(1.0);
+        self.theta_stage.copy_from_slice(theta);
+        self.qvel_stage.copy_from_slice(qvel);
+        self.qvel_stage[k] = moved;
+        self.evaluate_stage(model, ws, t, inputs_at)?;
+        copy_rates(model, &mut linear.probed, ws);
+        let probe = moved - qvel[k];
+        difference(linear.qacc_by_qvel.column_mut(k).iter_mut(), &linear.probed, &self.first.qacc, probe);
         Ok(())
     }
 }

@@ -30,7 +30,9 @@ pub struct RunState {
     /// to round-off. Kept rather than formed from ν at each advance so that
     /// a run continues from bit for bit the θ̇ it reached, whether or not it
     /// was saved and restored in between; an advance forms it again if θ or
-    /// ν were changed from outside.
+    /// ν were changed from outside. Then the actuators' activation states
+    /// (na, MuJoCo's act), which the integrator advances with θ̇
+    /// ([`Simulation::act`]): nv + na in all.
     pub qvel: Vec<f64>,
     /// The step the error control proposes next, and the work done.
     pub carry: Carry,
@@ -146,7 +148,8 @@ impl Simulation {
                 time: 0.0,
                 theta: model.qpos0.clone(),
                 nu: vec![0.0; model.nv],
-                qvel: vec![0.0; model.nv],
+                // act starts at 0, as MuJoCo's.
+                qvel: vec![0.0; model.nv + model.activation_count()],
                 carry: Carry::default(),
                 auto_choice: None,
             },
@@ -179,11 +182,12 @@ impl Simulation {
         self.integrator.set_method(model, method_before_choice(self.setting));
     }
 
-    /// Checks θ and ν (sizes, finite, no zero quaternion), normalizes θ's
-    /// quaternions in place, as MuJoCo does, and starts the carry afresh.
+    /// Checks θ, ν and act (sizes, finite, no zero quaternion), normalizes
+    /// θ's quaternions in place, as MuJoCo does, and starts the carry afresh.
     pub fn initialize(&mut self, model: &Model) -> Result<(), DynamicsError> {
         self.ws.set_configuration(model, &self.state.theta)?;
         self.ws.set_nu(model, &self.state.nu)?;
+        self.ws.set_act(model, self.state.qvel.get(model.nv..).unwrap_or_default())?;
         self.state.theta.copy_from_slice(self.ws.theta.as_slice());
         self.state.carry = Carry::default();
         if self.state.auto_choice.take().is_some() {
@@ -191,9 +195,19 @@ impl Simulation {
         }
         self.integrator.first.valid = false;
         self.integrator.release_jacobian();
-        self.state.qvel.copy_from_slice(self.ws.qvel.as_slice());
+        self.state.qvel[..model.nv].copy_from_slice(self.ws.qvel.as_slice());
         self.record_qvel_owner();
         Ok(())
+    }
+
+    /// The actuators' activation states (na, MuJoCo's act).
+    pub fn act(&self, model: &Model) -> &[f64] {
+        self.state.qvel.get(model.nv..).unwrap_or_default()
+    }
+
+    /// The same, to set (before [`Simulation::initialize`], or between advances).
+    pub fn act_mut(&mut self, model: &Model) -> &mut [f64] {
+        self.state.qvel.get_mut(model.nv..).unwrap_or_default()
     }
 
     fn record_qvel_owner(&mut self) {
@@ -455,6 +469,8 @@ impl Simulation {
     pub fn evaluate_velocity(&mut self, model: &Model) -> Result<&mut Workspace, DynamicsError> {
         self.ws.set_configuration(model, &self.state.theta)?;
         self.ws.set_nu(model, &self.state.nu)?;
+        let act = self.state.qvel.get(model.nv..).unwrap_or_default();
+        self.ws.set_act(model, act)?;
         Ok(&mut self.ws)
     }
 }

@@ -57,8 +57,8 @@ pub(crate) fn kind_of(tag: &str) -> Option<ActuatorKind> {
 /// The actuator elements MuJoCo has that nudyn refuses, and why.
 #[rustfmt::skip]
 pub(crate) const REFUSED_ACTUATORS: &[(&str, &str)] = &[
-    ("intvelocity", "intvelocity actuators integrate their ctrl into an activation state, which nudyn does not integrate"),
-    ("cylinder", "cylinder actuators filter their ctrl into an activation state, which nudyn does not integrate"),
+    ("intvelocity", "the intvelocity shortcut is not read yet (a general actuator with dyntype \"integrator\" is)"),
+    ("cylinder", "the cylinder shortcut is not read yet (a general actuator with dyntype \"filter\" is)"),
     ("muscle", "muscle actuators (activation dynamics and muscle force curves)"),
     ("adhesion", "adhesion actuators act through contacts, which nudyn does not model"),
     ("pid", "pid actuators (their inputs and integral and slew states)"),
@@ -71,6 +71,18 @@ pub(crate) const REFUSED_ACTUATORS: &[(&str, &str)] = &[
 /// is no actuator element at all.
 pub(crate) fn refusal(tag: &str) -> Option<&'static str> {
     REFUSED_ACTUATORS.iter().find(|(refused, _)| *refused == tag).map(|(_, reason)| *reason)
+}
+
+/// Why nudyn refuses an actuator's `dyntype` (all but none, integrator,
+/// filter and filterexact).
+pub(crate) fn dynamics_refusal(dyntype: &str) -> String {
+    let reason = match dyntype {
+        "muscle" => "muscle activation dynamics (time constants that depend on act and ctrl)",
+        "pid" => "a pid controller's integral and slew states",
+        "dcmotor" => "a dc motor's electrical and thermal states",
+        _ => "user-defined activation dynamics (a callback MuJoCo calls, which an MJCF file does not carry)",
+    };
+    format!("dyntype \"{dyntype}\": {reason}")
 }
 
 /// The attributes an actuator element of `kind` may have.
@@ -145,6 +157,8 @@ pub(crate) struct ActuatorSettings {
     pub dynprm: [f64; 10],
     /// `actdim` (−1: from `dyntype`).
     pub actdim: i32,
+    /// `actearly`.
+    pub actearly: bool,
     /// `gear`.
     pub gear: [f64; 6],
     /// `ctrllimited`.
@@ -187,6 +201,7 @@ impl Default for ActuatorSettings {
             dyntype: "none",
             dynprm,
             actdim: -1,
+            actearly: false,
             gear: [1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
             ctrllimited: Limited::Auto,
             ctrlrange: [0.0; 2],
@@ -326,7 +341,9 @@ impl ActuatorSettings {
         if let Some([actdim]) = element.integers("actdim")? {
             self.actdim = actdim;
         }
-        element.boolean("actearly")?;
+        if let Some(actearly) = element.boolean("actearly")? {
+            self.actearly = actearly;
+        }
         element.numbers::<2>("velrange")?;
         element.numbers::<2>("ffrange")?;
         Ok(())

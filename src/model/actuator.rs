@@ -9,7 +9,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::math::{Transform, Vec3};
-use crate::vehicle::{ActuatorKind, BiasType, GainType};
+use crate::vehicle::{Activation, ActivationKind, ActuatorKind, BiasType, GainType};
 
 /// A site's frame as the passes see it: fixed to a link, or to the world.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -122,6 +122,10 @@ pub struct Actuator {
     pub ctrl_range: Option<[f64; 2]>,
     /// The force range when the force is limited.
     pub force_range: Option<[f64; 2]>,
+    /// The activation state, if the force takes act for ctrl (absent from
+    /// the model files of vehicles without one).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub activation: Option<Activation>,
     /// False when `<option actuatorgroupdisable>` disables the actuator's group.
     pub enabled: bool,
     /// For a position servo on a rotation (a ball joint, or a reference site
@@ -154,6 +158,41 @@ impl Actuator {
         self.gain[0] == -self.bias[1] && self.bias[2] > 0.0
     }
 
+    /// act's rate (MuJoCo's `act_dot`) at activation `act` and control
+    /// `ctrl` (already clamped to its range); 0 for a stateless actuator.
+    pub fn activation_rate(&self, ctrl: f64, act: f64) -> f64 {
+        match self.activation {
+            None => 0.0,
+            Some(Activation { kind: ActivationKind::Integrator, .. }) => ctrl,
+            // MuJoCo divides by at least mjMINVAL.
+            Some(Activation { time_constant, .. }) => (ctrl - act) / time_constant.max(MIN_TIME_CONSTANT),
+        }
+    }
+
+    /// The activation the force takes: act, or with `actearly` the
+    /// activation one `timestep` ahead from rate `act_dot` (MuJoCo's
+    /// `mj_nextActivation`; a filterexact's step is exact), clamped to its
+    /// range. MuJoCo's force reads act unclamped, but its step keeps act
+    /// within the range, so that the two differ only where act is outside
+    /// it: within an integrator's step that crosses the bound, where
+    /// the clamp keeps the force what the projected motion gives.
+    pub fn activation_input(&self, act: f64, act_dot: f64, timestep: f64) -> f64 {
+        let Some(activation) = self.activation else {
+            return act;
+        };
+        if !activation.early {
+            return activation.clamp(act);
+        }
+        let next = match activation.kind {
+            ActivationKind::FilterExact => {
+                let tau = activation.time_constant.max(MIN_TIME_CONSTANT);
+                act + act_dot * tau * (1.0 - (-timestep / tau).exp())
+            }
+            ActivationKind::Integrator | ActivationKind::Filter => act + act_dot * timestep,
+        };
+        activation.clamp(next)
+    }
+
     /// The gear's translation part.
     pub fn gear_translation(&self) -> Vec3 {
         Vec3::new(self.gear[0], self.gear[1], self.gear[2])
@@ -164,6 +203,9 @@ impl Actuator {
         Vec3::new(self.gear[3], self.gear[4], self.gear[5])
     }
 }
+
+/// MuJoCo's mjMINVAL: the least time constant a filter divides by.
+const MIN_TIME_CONSTANT: f64 = 1e-15;
 
 /// A joint's limits on the total actuator force at its dof (MuJoCo's
 /// `actuatorfrcrange`, hinge and slide joints only).

@@ -394,6 +394,12 @@ impl Model {
         self.actuators.len() - 6 * self.wrench_bodies.len()
     }
 
+    /// MuJoCo's na: the actuators' activation states (one per actuator
+    /// with activation dynamics, in actuator order).
+    pub fn activation_count(&self) -> usize {
+        self.actuators.iter().filter(|a| a.activation.is_some()).count()
+    }
+
     /// Whether forces beyond the tree's passes act: the tendons' armature
     /// or constraint rows (`Workspace::apply_constraint_forces`).
     pub fn couples_beyond_tree(&self) -> bool {
@@ -752,6 +758,7 @@ fn compile_actuators(vehicle: &Vehicle, links: &[Link], joints: &[JointInfo], si
                 bias: actuator.bias,
                 ctrl_range: actuator.ctrl_range,
                 force_range: actuator.force_range,
+                activation: actuator.activation,
                 enabled: !actuator.group_disabled,
                 setpoint_period: 0.0,
                 line: actuator.line,
@@ -802,6 +809,7 @@ fn wrench_actuators(vehicle: &Vehicle, attachments: &[Attachment], name: &str) -
                 bias: [0.0; 3],
                 ctrl_range: None,
                 force_range: None,
+                activation: None,
                 enabled: true,
                 setpoint_period: 0.0,
                 line: 0,

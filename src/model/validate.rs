@@ -245,7 +245,13 @@ fn validate_actuator(model: &Model, k: usize) -> Result<(), String> {
     if !numbers.chain([&actuator.setpoint_period]).all(|x| x.is_finite()) || actuator.setpoint_period < 0.0 {
         return Err("gear, gain, bias and setpoint period must be finite".to_string());
     }
-    for (what, range) in [("ctrl range", actuator.ctrl_range), ("force range", actuator.force_range)] {
+    let act_range = actuator.activation.and_then(|a| a.range);
+    if actuator.activation.is_some_and(|a| !a.time_constant.is_finite()) {
+        return Err("its activation's time constant must be finite".to_string());
+    }
+    for (what, range) in
+        [("ctrl range", actuator.ctrl_range), ("force range", actuator.force_range), ("act range", act_range)]
+    {
         if range.is_some_and(|range| !is_range(range)) {
             return Err(format!("its {what} must be finite and increasing"));
         }

@@ -45,6 +45,7 @@ fn actuated_vehicle(rng: &mut Rng, free_base: bool) -> Vehicle {
         bias: [0.0; 3],
         ctrl_range: None,
         force_range: None,
+        activation: None,
         group_disabled: false,
         line: 0,
     };

@@ -188,9 +188,9 @@ fn invalid(e: &MjcfError) -> bool {
 
 #[rustfmt::skip]
 const REFUSED: &[Refused] = &[
-    Refused { what: "intvelocity", variant: unsupported, element: "<intvelocity name=\"a\">", reason: "activation state",
+    Refused { what: "intvelocity", variant: unsupported, element: "<intvelocity name=\"a\">", reason: "intvelocity shortcut",
         actuators: r#"<intvelocity name="a" joint="h"/>"# },
-    Refused { what: "cylinder", variant: unsupported, element: "<cylinder>", reason: "activation state",
+    Refused { what: "cylinder", variant: unsupported, element: "<cylinder>", reason: "cylinder shortcut",
         actuators: r#"<cylinder joint="h"/>"# },
     Refused { what: "muscle", variant: unsupported, element: "<muscle>", reason: "muscle",
         actuators: r#"<muscle joint="h"/>"# },
@@ -210,10 +210,12 @@ const REFUSED: &[Refused] = &[
         actuators: r#"<motor cranksite="s" slidersite="s" cranklength="1"/>"# },
     Refused { what: "body transmission", variant: unsupported, element: "<general>", reason: "contacts",
         actuators: r#"<general body="b"/>"# },
-    Refused { what: "activation dynamics", variant: unsupported, element: "<general name=\"f\">", reason: "dyntype \"filter\"",
-        actuators: r#"<general name="f" joint="h" dyntype="filter"/>"# },
-    Refused { what: "position filter", variant: unsupported, element: "<position>", reason: "dyntype \"filterexact\"",
-        actuators: r#"<position joint="h" timeconst="0.1"/>"# },
+    Refused { what: "muscle dynamics", variant: unsupported, element: "<general name=\"f\">", reason: "dyntype \"muscle\"",
+        actuators: r#"<general name="f" joint="h" dyntype="muscle"/>"# },
+    Refused { what: "user dynamics", variant: unsupported, element: "<general>", reason: "dyntype \"user\"",
+        actuators: r#"<general joint="h" dyntype="user"/>"# },
+    Refused { what: "actdim 0 with activation", variant: invalid, element: "<general>", reason: "actdim 0",
+        actuators: r#"<general joint="h" dyntype="filter" actdim="0"/>"# },
     Refused { what: "muscle gain", variant: unsupported, element: "<general>", reason: "gaintype \"muscle\"",
         actuators: r#"<general joint="h" gaintype="muscle"/>"# },
     Refused { what: "user bias", variant: unsupported, element: "<general>", reason: "biastype \"user\"",

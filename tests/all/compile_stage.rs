@@ -58,6 +58,7 @@ fn dynamics(model: &Model, theta: Vec<f64>, rng: Option<&mut Rng>) -> Value {
             eps: None,
             torque: None,
             ctrl: None,
+            act: None,
             time: None,
         },
         Some(rng) => EvalRequest {
@@ -67,6 +68,7 @@ fn dynamics(model: &Model, theta: Vec<f64>, rng: Option<&mut Rng>) -> Value {
             eps: Some((0..model.nv).map(|_| rng.uniform(-1.0, 1.0)).collect()),
             torque: None,
             ctrl: Some((0..model.actuators.len()).map(|_| rng.uniform(-1.0, 1.0)).collect()),
+            act: None,
             time: Some(0.25),
         },
     };

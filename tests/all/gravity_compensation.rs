@@ -57,6 +57,7 @@ fn motor_on_first_joint(vehicle: &Vehicle) -> Actuator {
         bias: [0.0; 3],
         ctrl_range: None,
         force_range: None,
+        activation: None,
         group_disabled: false,
         line: 0,
     }

@@ -9,7 +9,9 @@ use crate::mjcf::error::MjcfError;
 use crate::mjcf::mesh::MESH_ATTRIBUTES;
 use crate::mjcf::tendon::TendonFlags;
 use crate::mjcf::{actuator, equality, mesh, sensor, tendon};
-use crate::vehicle::{Actuator, ActuatorKind, BiasType, GainType, JointKind, SensorKind, Transmission};
+use crate::vehicle::{
+    Activation, ActivationKind, Actuator, ActuatorKind, BiasType, GainType, JointKind, SensorKind, Transmission,
+};
 
 impl Reader {
     /// Reads an `<asset>` section: meshes are declared (their files read
@@ -80,11 +82,12 @@ impl Reader {
         let joints = self.bodies.iter().flat_map(|b| &b.joints);
         let (nq, nv) = joints.fold((0, 0), |(nq, nv), j| (nq + j.kind.nq(), nv + j.kind.nv()));
         let nmocap = self.mocap_bodies.len();
-        // Activation states are refused, so na is 0.
+        // Each activation state nudyn models has one act.
+        let na = self.actuators.iter().filter(|a| a.activation.is_some()).count();
         let sizes = [
             ("qpos", nq),
             ("qvel", nv),
-            ("act", 0),
+            ("act", na),
             ("mpos", 3 * nmocap),
             ("mquat", 4 * nmocap),
             ("ctrl", self.actuators.len()),
@@ -202,12 +205,13 @@ impl Reader {
         settings.apply(kind, element, self.defaults.lender(class, kind))?;
         let transmission = self.transmission(element)?;
 
-        if settings.dyntype != "none" {
-            return Err(element.unsupported(format!(
-                "dyntype \"{}\": the actuator has an activation state, which nudyn does not integrate",
-                settings.dyntype
-            )));
-        }
+        let activation_kind = match settings.dyntype {
+            "none" => None,
+            "integrator" => Some(ActivationKind::Integrator),
+            "filter" => Some(ActivationKind::Filter),
+            "filterexact" => Some(ActivationKind::FilterExact),
+            other => return Err(element.unsupported(actuator::dynamics_refusal(other))),
+        };
         let gain_type = match settings.gaintype {
             "fixed" => GainType::Fixed,
             "affine" => GainType::Affine,
@@ -230,9 +234,10 @@ impl Reader {
                 "actuator armature and damping; give the joint armature·gear² and damping·gear² instead",
             ));
         }
-        match settings.actdim {
-            2.. => return Err(element.invalid("actdim > 1 is only allowed for dyntype \"user\" and \"dcmotor\"")),
-            1 => return Err(element.invalid("invalid actdim 1 in stateless actuator")),
+        match (settings.actdim, activation_kind) {
+            (2.., _) => return Err(element.invalid("actdim > 1 is only allowed for dyntype \"user\" and \"dcmotor\"")),
+            (1, None) => return Err(element.invalid("invalid actdim 1 in stateless actuator")),
+            (0, Some(_)) => return Err(element.invalid("invalid actdim 0 in stateful actuator")),
             _ => {}
         }
 
@@ -265,9 +270,14 @@ impl Reader {
         }
         let force_range = self.limits(element, "force", settings.forcelimited, settings.forcerange)?;
         let ctrl_range = self.limits(element, "ctrl", settings.ctrllimited, settings.ctrlrange)?;
-        if self.limits(element, "act", settings.actlimited, settings.actrange)?.is_some() {
-            return Err(element.invalid("actrange specified but dyntype is 'none'"));
-        }
+        let act_range = self.limits(element, "act", settings.actlimited, settings.actrange)?;
+        let activation = match activation_kind {
+            Some(kind) => {
+                Some(Activation { kind, time_constant: settings.dynprm[0], range: act_range, early: settings.actearly })
+            }
+            None if act_range.is_some() => return Err(element.invalid("actrange specified but dyntype is 'none'")),
+            None => None,
+        };
 
         let name = element.text("name").map(str::to_string);
         if let Some(name) = &name {
@@ -285,6 +295,7 @@ impl Reader {
             bias: [settings.biasprm[0], settings.biasprm[1], settings.biasprm[2]],
             ctrl_range,
             force_range,
+            activation,
             group_disabled: ACTUATOR_GROUPS.contains(&group) && self.physics.disabled_actuator_groups.contains(&group),
             line: element.line,
         });

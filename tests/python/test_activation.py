@@ -1,0 +1,131 @@
+"""Actuator activation dynamics (MuJoCo's dyntype integrator, filter and
+filterexact, with actlimited and actearly) against MuJoCo.
+
+tests/fixtures/activation/filtered_arm.xml flies a base with a four-joint
+arm: an integrated velocity command limited to ±0.6 and read early, a
+filtered torque, a position servo with a filtered setpoint (filterexact),
+a filterexact read early and limited below its ctrl range, a filtered
+thrust on a site, and a stateless motor. nudyn refused these files before
+(dm_control's quadruped among them).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+
+import mujoco
+import numpy as np
+
+from conftest import ROOT, run_eval
+
+FIXTURE = ROOT / "tests" / "fixtures" / "activation" / "filtered_arm.xml"
+N_STATES = 30
+
+
+def random_state(model: mujoco.MjModel, rng: np.random.Generator):
+    """qpos, qvel, ctrl (up to twice past its range, to exercise the
+    clamp) and act (up to 1.5 times past the limited ranges: MuJoCo's force
+    reads act as it is, its actearly look-ahead clamps)."""
+    qpos = model.qpos0.copy()
+    qpos[:3] += rng.normal(0, 0.3, 3)
+    q = rng.normal(size=4)
+    qpos[3:7] = q / np.linalg.norm(q)
+    qpos[7:] += rng.normal(0, 0.5, model.nq - 7)
+    qvel = rng.normal(0, 0.5, model.nv)
+    ctrl = rng.uniform(-2, 2, model.nu) * np.max(np.abs(model.actuator_ctrlrange), axis=1)
+    act = rng.uniform(-0.9, 0.9, model.na)
+    return qpos, qvel, ctrl, act
+
+
+def test_qacc_and_act_dot_match_mj_forward(nudyn):
+    """At random states with random controls and activations, nudyn eval's
+    qacc, act_dot and actuator forces are mj_forward's to 1e-12."""
+    model = mujoco.MjModel.from_xml_path(str(FIXTURE))
+    assert model.na == 5 and set(model.actuator_dyntype) == {0, 1, 2, 3}
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(11)
+    requests, references = [], []
+    for _ in range(N_STATES):
+        qpos, qvel, ctrl, act = random_state(model, rng)
+        data.qpos[:], data.qvel[:], data.ctrl[:], data.act[:] = qpos, qvel, ctrl, act
+        mujoco.mj_forward(model, data)
+        requests.append({"theta": qpos.tolist(), "qvel": qvel.tolist(), "ctrl": ctrl.tolist(), "act": act.tolist()})
+        references.append((data.qacc.copy(), data.act_dot.copy(), data.actuator_force.copy()))
+    answers = run_eval(nudyn, FIXTURE, json.dumps(requests)).json()
+    early_clamped = 0
+    for k, (answer, (qacc, act_dot, force)) in enumerate(zip(answers, references)):
+        scale = max(1.0, np.max(np.abs(qacc)))
+        assert np.max(np.abs(np.array(answer["qacc"]) - qacc)) <= 1e-12 * scale, k
+        assert np.max(np.abs(np.array(answer["act_dot"]) - act_dot)) <= 1e-12 * max(1.0, np.max(np.abs(act_dot))), k
+        assert np.max(np.abs(np.array(answer["actuator_force"]) - force)) <= 1e-12 * max(1.0, np.max(np.abs(force))), k
+        # The early look-ahead clamped to ±0.6 rad (the shoulder servo's force reads 30·0.6 at most).
+        early_clamped += abs(force[0] + 30 * requests[k]["theta"][7] + 3 * requests[k]["qvel"][6]) >= 30 * 0.6 - 1e-9
+    assert early_clamped > 0, "some state must drive the early activation past its range"
+    # The activations matter: with act at 0 the forces are others.
+    without = run_eval(nudyn, FIXTURE, json.dumps({**requests[0], "act": [0.0] * model.na})).json()
+    assert np.max(np.abs(np.array(without["qacc"]) - references[0][0])) > 1e-3
+
+
+def fixture_for_rk4(tmp_path, timestep: float):
+    """The fixture with `timestep`, and its filterexact actuators written as
+    filter. MuJoCo's RK4 takes τ(1 − e^(−h/τ)) for h in a filterexact's
+    last update, which makes it first order there (2.7e-5 off at 1e-5 s
+    on this file): filter is the same ODE, which its RK4 integrates to
+    fourth order. actearly's look-ahead, where the two differ, reads one
+    timestep ahead, so both sides read the same short one here;
+    test_qacc_and_act_dot_match_mj_forward checks it at the file's."""
+    text = re.sub(r'timestep="[^"]*"', f'timestep="{timestep}"', FIXTURE.read_text())
+    text = text.replace('dyntype="filterexact"', 'dyntype="filter"')
+    servo = '<position name="roll_servo" joint="roll" kp="6" kv="0.4" timeconst="0.08" ctrlrange="-2 2"/>'
+    assert servo in text
+    text = text.replace(servo, '<general name="roll_servo" joint="roll" gainprm="6" biastype="affine" '
+                        'biasprm="0 -6 -0.4" dyntype="filter" dynprm="0.08" ctrlrange="-2 2"/>')
+    path = tmp_path / "filtered_arm.xml"
+    path.write_text(text)
+    return path
+
+
+def test_trajectory_matches_mujoco_rk4_converged(nudyn, tmp_path):
+    """One second from a moving start with controls that drive two
+    activations into their limits: nudyn simulate (dop853 at 1e-11) and
+    MuJoCo's own RK4 at 1e-5 s agree in θ and act to 1e-9 (measured: 1.8e-11
+    and 3.7e-13), and in qvel at the end (fixture_for_rk4 says what the
+    file's copy changes)."""
+    timestep = 1e-5
+    path = fixture_for_rk4(tmp_path, timestep)
+    model = mujoco.MjModel.from_xml_path(str(path))
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(3)
+    qvel0 = rng.normal(0, 0.3, model.nv)
+    act0 = np.array([0.1, -0.2, 0.3, 0.2, 0.0])
+    ctrl = np.array([1.0, -0.8, 1.5, 1.0, 0.7, 0.3])
+    data.qvel[:], data.act[:], data.ctrl[:] = qvel0, act0, ctrl
+    mujoco.mj_forward(model, data)
+    nu0 = run_eval(nudyn, path, json.dumps({"theta": data.qpos.tolist(), "qvel": qvel0.tolist()})).json()["nu"]
+
+    step, stop = 0.05, 1.0
+    request = {"nu": nu0, "act": act0.tolist(), "ctrl": ctrl.tolist()}
+    cmd = [str(nudyn), "simulate", str(path), "--step", str(step), "--stop", str(stop), "--method", "dop853",
+           "--tolerance", "1e-11"]
+    proc = subprocess.run(cmd, input=json.dumps(request), capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    run = json.loads(proc.stdout)
+    assert len(run["act"]) == len(run["time"]) == 21
+
+    per_output = round(step / timestep)
+    theta_error = act_error = 0.0
+    limited = {0: 0.6, 3: 0.5}
+    reached = set()
+    for k in range(1, len(run["time"])):
+        mujoco.mj_step(model, data, nstep=per_output)
+        theta_error = max(theta_error, np.max(np.abs(np.array(run["theta"][k]) - data.qpos)))
+        act_error = max(act_error, np.max(np.abs(np.array(run["act"][k]) - data.act)))
+        reached |= {i for i, bound in limited.items() if abs(data.act[i]) >= bound - 1e-12}
+    assert theta_error <= 1e-9 and act_error <= 1e-9, (theta_error, act_error)
+    assert reached == set(limited), "both limited activations must reach their bounds"
+    end = {"theta": run["theta"][-1], "nu": run["nu"][-1]}
+    qvel = np.array(run_eval(nudyn, path, json.dumps(end)).json()["qvel"])
+    assert np.max(np.abs(qvel - data.qvel)) <= 1e-7 * max(1.0, np.max(np.abs(data.qvel)))
