@@ -123,7 +123,8 @@ pub fn simulate(model: &Model, run: &Run) -> Result<()> {
             progress.suspend(|| eprintln!("nudyn: {moved}"));
         }
         if let Some(relaxed) = advanced.relaxed {
-            progress.suspend(|| eprintln!("nudyn: warning: {relaxed}"));
+            let kind = if relaxed.meets_asked() { "note" } else { "warning" };
+            progress.suspend(|| eprintln!("nudyn: {kind}: {relaxed}"));
         }
         if !writer.write(t + run.step, &sim.state.theta, &sim.state.nu, sim.act(model))? {
             progress.finish();

@@ -55,10 +55,11 @@ impl LogCategory {
             LogCategory::Error => "why a call was refused or failed",
             LogCategory::Fatal => "unrecoverable failures",
             LogCategory::Calls => "every call and its status (debug)",
-            LogCategory::Warning => "a step that completed at a looser tolerance than asked",
+            LogCategory::Warning => "a step that completed at a tolerance too loose to meet the one asked",
             LogCategory::MethodChoice => {
-                "how the FMU integrates: the method that method = auto chose, and why, and a tolerance the host set \
-                 in place of the FMU's own"
+                "how the FMU integrates: the method that method = auto chose, and why, a tolerance the host set in \
+                 place of the FMU's own, and a tolerance held within 20 times the one asked where round-off in the \
+                 rates puts it out of reach"
             }
             LogCategory::StepStatistics => {
                 "each doStep's internal steps as JSON: {\"accepted\", \"rejected\", \"jacobians\", \"evaluations\", \"locating\"} (debug)"

@@ -827,7 +827,14 @@ pub fn do_step(instance: &mut Instance, time: f64, step: f64, name: &str) -> Res
         });
         instance.logger.log(Status::Ok, LogCategory::StepStatistics, &statistics.to_string());
     }
-    instance.warning = report.relaxed.map(|relaxed| format!("{name}: {relaxed}"));
+    instance.warning = match report.relaxed {
+        Some(relaxed) if relaxed.meets_asked() => {
+            // The step meets what was asked: fmi2OK, with what was held and why.
+            instance.logger.log(Status::Ok, LogCategory::MethodChoice, &format!("{name}: {relaxed}"));
+            None
+        }
+        relaxed => relaxed.map(|relaxed| format!("{name}: {relaxed}")),
+    };
     Ok(())
 }
 

@@ -87,8 +87,10 @@ class Log:
 
     def held_tolerance(self) -> float | None:
         """The per-second tolerance the FMU last said it held instead of the
-        one asked for (round-off in the rates), if it said so."""
-        held = [self.HELD_TOLERANCE.search(m) for _, c, m in self.messages if c == "logStatusWarning"]
+        one asked for (round-off in the rates), if it said so: a warning, or
+        within 20 times the one asked a logMethodChoice note."""
+        held = [self.HELD_TOLERANCE.search(m) for _, c, m in self.messages
+                if c in ("logStatusWarning", "logMethodChoice")]
         held = [h for h in held if h]
         return float(held[-1].group(1)) if held else None
 

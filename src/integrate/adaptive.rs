@@ -154,7 +154,15 @@ impl Carry {
 /// round-off test cannot tell from round-off.
 pub const DIVERGING_GROWTH: f64 = 100.0;
 
-/// An interval completed only by relaxing the tolerance (the FMU's fmi2Warning).
+/// A tolerance held for round-off at most this many times the one asked
+/// still meets it: the error delivered lies within 20 times the tolerance
+/// on every vehicle and method the tests run (docs/integration.md, "The
+/// error delivered"), and a relaxation for round-off means the truncation
+/// error already lies below what the rates' round-off lets the estimate see.
+const HELD_AS_ASKED: f64 = 20.0;
+
+/// An interval completed only by relaxing the tolerance (the FMU's
+/// fmi2Warning, or a `logMethodChoice` note where it [`meets_asked`](Self::meets_asked)).
 #[derive(Debug)]
 pub struct ToleranceRelaxed {
     /// The start of the interval.
@@ -183,6 +191,13 @@ impl ToleranceRelaxed {
     /// Whether the motion runs away rather than round-off limiting the vehicle.
     pub fn diverges(&self) -> bool {
         self.growth() >= DIVERGING_GROWTH
+    }
+
+    /// Whether the tolerance held still meets the one asked: round-off (not
+    /// a run-away motion, not the no-slip pass) put it at most
+    /// [`HELD_AS_ASKED`] times looser.
+    pub fn meets_asked(&self) -> bool {
+        !self.diverges() && self.no_slip.is_none() && self.attained <= HELD_AS_ASKED * self.tolerance
     }
 }
 
@@ -221,7 +236,11 @@ impl std::fmt::Display for ToleranceRelaxed {
         if attained >= 1e-3 {
             write!(f, " ({:.3}% of a large x per second)", 100.0 * attained)?;
         }
-        write!(f, ", and to {tolerance:e} per internal step")
+        write!(f, ", and to {tolerance:e} per internal step")?;
+        if self.meets_asked() {
+            write!(f, "; within {HELD_AS_ASKED} times the tolerance asked, the error delivered still meets it")?;
+        }
+        Ok(())
     }
 }
 

@@ -430,3 +430,35 @@ def test_the_fmu_steps_a_constrained_vehicle_with_status_ok(method, nudyn, tmp_p
         assert set(statuses) == {0} and problems == [], (tolerance, problems)
         error = np.max(np.abs(end - reference) / (1 + np.abs(reference)))
         assert error <= 20 * tolerance, (tolerance, error)
+
+
+def test_the_fmu_left_at_rest_holds_1e_10_with_status_ok(nudyn, tmp_path):
+    """docked_servicer left at rest (fmusim's inputs) at 1e-10 in 0.01 s
+    steps: near rest its error estimate comes within a few times of what
+    θ̈'s round-off can make of it, and DOP853 holds 1.0e-9 per second from
+    t = 1.05 s. Within 20 times the tolerance asked that meets it
+    (docs/fmi.md): every step returns fmi2OK (fmusim stopped at the
+    fmi2Warning it returned before), the log has nothing at warning level
+    and says what was held, and the end is within 20 × the tolerance of a
+    run at 1e-12."""
+    from nudyn_driver.cli import Nudyn
+    from nudyn_driver.instance import Instance
+    from nudyn_driver.package import FmuPackage
+
+    fmu = tmp_path / "docked.fmu"
+    Nudyn(nudyn).export(FIXTURES["docked_servicer"], fmu)
+    package = FmuPackage.unzip(fmu, tmp_path / "docked")
+    outputs = package.names("theta") + package.names("nu")
+
+    def run(tolerance):
+        with Instance(package, start={"method": "dop853", "tolerance": tolerance}) as slave:
+            statuses = [slave.step(0.01, k * 0.01) for k in range(200)]
+            problems = [m for status, _, m in slave.log.messages if status != 0]
+            return np.array(slave.get(outputs)), statuses, problems, slave.log.held_tolerance()
+
+    reference = run(1e-12)[0]
+    end, statuses, problems, held = run(1e-10)
+    assert set(statuses) == {0} and problems == [], problems
+    assert held is None or 1e-10 < held <= 20 * 1e-10, held
+    error = np.max(np.abs(end - reference) / (1 + np.abs(reference)))
+    assert error <= 20 * 1e-10, error
