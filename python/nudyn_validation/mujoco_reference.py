@@ -85,7 +85,11 @@ def set_timestep(model: mujoco.MjModel, step: float) -> None:
     The floor of the file's timestep is applied to the solrefs here (a
     mixed-sign solref first replaced by MuJoCo's default, as MuJoCo does)
     and MuJoCo's own refsafe turned off, so that the step changes nothing
-    but the integration."""
+    but the integration. filterexact activations become filter, the same
+    ODE: MuJoCo's RK4 takes τ(1 − e^(−h/τ)) for h in a filterexact's last
+    update, which makes it first order there. An `actearly` actuator looks
+    ahead by MuJoCo's step, the FMU by the file's: such a vehicle agrees
+    only to the file's step."""
     if not model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_REFSAFE):
         floor = 2 * model.opt.timestep
         for solref in (model.jnt_solref, model.dof_solref, model.eq_solref,
@@ -95,6 +99,8 @@ def set_timestep(model: mujoco.MjModel, step: float) -> None:
             timed = solref[:, 0] > 0
             solref[timed, 0] = np.maximum(solref[timed, 0], floor)
         model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_REFSAFE)
+    exact = model.actuator_dyntype == int(mujoco.mjtDyn.mjDYN_FILTEREXACT)
+    model.actuator_dyntype[exact] = int(mujoco.mjtDyn.mjDYN_FILTER)
     model.opt.timestep = step
 
 

@@ -375,7 +375,8 @@ impl ActuatorSettings {
 
     /// A shortcut's table: the gain and bias types and parameters (the
     /// parameters not listed are 0), no activation, or a filter with this
-    /// time constant.
+    /// time constant, never read early (MuJoCo 4.0 clears `actearly`; the
+    /// activation's range stays the class's).
     fn set_table(
         &mut self,
         gaintype: &'static str,
@@ -396,5 +397,6 @@ impl ActuatorSettings {
             None => ("none", 1.0),
         };
         self.actdim = -1;
+        self.actearly = false;
     }
 }

@@ -345,3 +345,36 @@ fn sites_are_read_with_their_frames() {
         parse_mjcf(&sphere).unwrap_err().to_string().contains("requires a capsule, cylinder, ellipsoid or box site")
     );
 }
+
+/// Activation dynamics read as MuJoCo 4.0 reads them: dyntype, dynprm[0],
+/// actrange when actlimited, actearly; a position servo's timeconst makes a
+/// filterexact; a class's general default lends dyntype and actearly to
+/// general, and a shortcut's table clears actearly.
+#[test]
+fn activation_dynamics_are_read_with_their_ranges_and_actearly() {
+    use nudyn::vehicle::{Activation, ActivationKind};
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/activation/filtered_arm.xml");
+    let Imported { vehicle, .. } = load_mjcf(&path).unwrap();
+    let activation = |name: &str| actuator(&vehicle, name).activation;
+    let state = |kind, time_constant, range, early| Some(Activation { kind, time_constant, range, early });
+    assert_eq!(activation("shoulder_int"), state(ActivationKind::Integrator, 1.0, Some([-0.6, 0.6]), true));
+    assert_eq!(activation("elbow_lag"), state(ActivationKind::Filter, 0.05, None, false));
+    assert_eq!(activation("roll_servo"), state(ActivationKind::FilterExact, 0.08, None, false));
+    assert_eq!(activation("reach_early"), state(ActivationKind::FilterExact, 0.03, Some([-0.5, 0.5]), true));
+    assert_eq!(activation("yaw"), None);
+    let model = Model::compile(&vehicle).unwrap();
+    assert_eq!(model.activation_count(), 5);
+
+    let inherited = parse_mjcf(
+        r#"<mujoco><default><default class="lag"><general dyntype="filter" dynprm="0.2" actearly="true"/></default></default>
+        <worldbody><body><joint name="h"/><geom size="0.1" mass="1"/></body></worldbody>
+        <actuator><general name="a" class="lag" joint="h"/><motor name="m" class="lag" joint="h"/>
+        <position name="p" class="lag" joint="h" timeconst="0.1"/></actuator></mujoco>"#,
+    )
+    .unwrap();
+    assert_eq!(actuator(&inherited.vehicle, "a").activation, state(ActivationKind::Filter, 0.2, None, true));
+    // A motor's table has no activation, whatever its class's general says.
+    assert_eq!(actuator(&inherited.vehicle, "m").activation, None);
+    // A shortcut's table clears actearly (MuJoCo 4.0 gives actuator_actearly 0 here).
+    assert_eq!(actuator(&inherited.vehicle, "p").activation, state(ActivationKind::FilterExact, 0.1, None, false));
+}
