@@ -41,10 +41,10 @@ enum Evaluated {
 pub struct Plant {
     model: Model,
     layout: Layout,
-    /// The Real variables in value-reference order from `METHOD_VR + 1`,
-    /// looked up on every get and set (the layout's own lookup walks its
-    /// blocks and is meant for writing the modelDescription).
-    reals: Vec<RealVariable>,
+    /// The Real variables' slots and kinds in value-reference order from
+    /// `METHOD_VR + 1`, looked up on every get and set (the layout's own
+    /// lookup walks the table and is meant for writing the modelDescription).
+    reals: Vec<(RealVariable, Kind)>,
     guid: String,
     /// Time, θ, ν, the settings and method, the integrator and workspace.
     sim: Simulation,
@@ -90,11 +90,11 @@ impl Plant {
     pub fn new(resource: PlantResource, guid: String) -> Plant {
         let layout = resource.layout();
         let starts = layout
-            .real_variables()
-            .filter_map(|(vr, variable)| resource.starts.get(&layout.name(variable)?).map(|&value| (vr, value)))
+            .elements()
+            .filter_map(|element| resource.starts.get(&element.name()).map(|&value| (element.value_reference, value)))
             .unzip();
         let (model, start_method) = (resource.model, resource.method);
-        let reals = layout.real_variables().map(|(_, variable)| variable).collect();
+        let reals = layout.elements().map(|element| (element.variable(), element.kind())).collect();
         let mut plant = Plant {
             layout,
             reals,
@@ -132,6 +132,11 @@ impl Plant {
 
     /// The Real variable with value reference `vr`, if any.
     fn real(&self, vr: u32) -> Option<RealVariable> {
+        self.real_with_kind(vr).map(|(variable, _)| variable)
+    }
+
+    /// The Real variable with value reference `vr` and its kind, if any.
+    fn real_with_kind(&self, vr: u32) -> Option<(RealVariable, Kind)> {
         let index = vr.checked_sub(METHOD_VR + 1)?;
         self.reals.get(index as usize).copied()
     }
@@ -258,12 +263,12 @@ impl Component for Plant {
     }
 
     fn real_variable(&self, vr: u32) -> Option<Variable> {
-        let variable = self.real(vr)?;
-        Some(Variable { name: self.layout.name(variable)?, kind: variable.kind() })
+        let (variable, kind) = self.real_with_kind(vr)?;
+        Some(Variable { name: self.layout.name(variable)?, kind })
     }
 
     fn real_kind(&self, vr: u32) -> Option<Kind> {
-        self.real(vr).map(RealVariable::kind)
+        self.real_with_kind(vr).map(|(_, kind)| kind)
     }
 
     fn set_reals(&mut self, vrs: &[u32], values: &[f64]) {
