@@ -288,6 +288,9 @@ pub enum RealVariable {
     EnergyResidual,
     /// Optional output `qfrc_constraint[k+1]` (MuJoCo's `d.qfrc_constraint`).
     QfrcConstraint(usize),
+    /// `constraint_switch[k+1]`: event indicator k of model exchange, the
+    /// margin of switch k of the constraint forces.
+    ConstraintSwitch(usize),
     /// `der(theta[k+1])`: the qpos rate, a state derivative of model exchange.
     DerTheta(usize),
     /// `der(nu[k+1])`: ν̇, a state derivative of model exchange.
@@ -312,6 +315,7 @@ impl RealVariable {
             | RealVariable::Qvel(k)
             | RealVariable::Momentum(k)
             | RealVariable::QfrcConstraint(k)
+            | RealVariable::ConstraintSwitch(k)
             | RealVariable::DerTheta(k)
             | RealVariable::DerNu(k) => k,
         }
@@ -387,6 +391,9 @@ pub struct Layout {
     pub wrench_inputs: usize,
     /// What each sensordata entry depends on (MuJoCo's nsensordata entries).
     pub sensordata: Vec<SensorDependence>,
+    /// Number of switches of the constraint forces (limit sides, and two
+    /// per constraint row), the event indicators of model exchange.
+    pub switches: usize,
     /// The optional outputs present.
     pub outputs: OptionalOutputs,
 }
@@ -402,6 +409,7 @@ impl Layout {
             nu: model.mjcf_actuator_count(),
             wrench_inputs: 6 * model.wrench_bodies.len(),
             sensordata,
+            switches: model.constraints.switch_count(),
             outputs,
         }
     }
@@ -449,6 +457,12 @@ impl Layout {
         self.entries()
             .find(|&(_, entry, len)| k < len && (entry.slot)(k) == variable)
             .map(|(first, entry, len)| Element { value_reference: first + k as u32, entry, index: k, len })
+    }
+
+    /// The number of event indicators of model exchange: the elements of
+    /// the entries whose kind says so.
+    pub fn event_indicator_count(&self) -> usize {
+        self.entries().filter(|(_, entry, _)| entry.kind.event_indicator).map(|(_, _, len)| len).sum()
     }
 
     /// The variable with value reference `vr`, if any.
@@ -598,6 +612,7 @@ mod tests {
             nu: 2,
             wrench_inputs: 0,
             sensordata: Vec::new(),
+            switches: 0,
             outputs: "qvel,power,momentum".parse().unwrap(),
         };
         let all: Vec<(u32, RealVariable)> = layout.real_variables().collect();
@@ -625,6 +640,7 @@ mod tests {
             nu: 0,
             wrench_inputs: 0,
             sensordata: Vec::new(),
+            switches: 0,
             outputs: "energy_residual".parse().unwrap(),
         };
         assert!(residual.real_variables().all(|(_, v)| !v.is_derivative()));

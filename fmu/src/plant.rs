@@ -82,6 +82,9 @@ pub struct Plant {
     mode_held: bool,
     /// The margins of `mode` (scratch), and θ to set it at (scratch).
     margins: Vec<f64>,
+    /// The event indicators as the variable `constraint_switch` reads them,
+    /// filled by the prepare of each read that asks for one.
+    indicators: Vec<f64>,
     theta_scratch: Vec<f64>,
 }
 
@@ -116,6 +119,7 @@ impl Plant {
             mode: ConstraintMode::new(&model),
             mode_held: false,
             margins: vec![0.0; model.constraints.switch_count()],
+            indicators: vec![0.0; model.constraints.switch_count()],
             theta_scratch: vec![0.0; model.nq],
             model,
         };
@@ -176,6 +180,24 @@ impl Plant {
             self.evaluated = Evaluated::Nothing;
         }
         Ok(())
+    }
+
+    /// The event indicators into `indicators`, for a read of the variable
+    /// `constraint_switch`. Read outside model exchange's events (in
+    /// co-simulation, or before the first event) the mode set to compute
+    /// them is let go again, so that the next step or event finds the
+    /// state's own mode as it would have without the read.
+    fn read_event_indicators(&mut self) -> Result<(), CallError> {
+        let held = self.mode_held;
+        let mut indicators = std::mem::take(&mut self.indicators);
+        let read = self.event_indicators(&mut indicators);
+        self.indicators = indicators;
+        if !held {
+            self.sim.workspace_mut().release_limit_sides();
+            self.mode_held = false;
+            self.evaluated = Evaluated::Nothing;
+        }
+        read
     }
 
     /// The sizes of the state an FMU state of this plant holds.
@@ -303,6 +325,9 @@ impl Component for Plant {
         if needed > Evaluated::Nothing {
             self.evaluate(needed)?;
         }
+        if vrs.iter().any(|&vr| matches!(self.real(vr), Some(RealVariable::ConstraintSwitch(_)))) {
+            self.read_event_indicators()?;
+        }
         Ok(None)
     }
 
@@ -326,6 +351,7 @@ impl Component for Plant {
             RealVariable::QfrcConstraint(k) => {
                 self.sim.workspace().constraint_rows.qfrc_constraint.get(k).copied().unwrap_or(0.0)
             }
+            RealVariable::ConstraintSwitch(k) => self.indicators[k],
             RealVariable::DerTheta(k) => self.qpos_rate(k),
             RealVariable::DerNu(k) => self.sim.workspace().nu_dot[k],
         }
@@ -561,8 +587,9 @@ impl Component for Plant {
         Ok(())
     }
 
+    /// The elements of `constraint_switch` (none without model exchange).
     fn event_indicator_count(&self) -> usize {
-        self.mode.len()
+        self.layout.event_indicator_count()
     }
 
     /// The margins of the constraint mode held since the last event, each

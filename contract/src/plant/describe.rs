@@ -207,3 +207,38 @@ pub(super) fn der_theta(model: &Model, k: usize) -> String {
 pub(super) fn der_nu(model: &Model, k: usize) -> String {
     format!("nu_dot of dof {} of {} (sqrt(kg)*m/s^2)", k + 1, joint_entry(model, k, false).0)
 }
+
+/// Event indicator k: the limit sides first (two per limited joint, then
+/// per limited tendon), then per constraint row slot its force's working
+/// set and then its impedance piece (crate::dynamics::mode).
+pub(super) fn constraint_switch(model: &Model, k: usize) -> String {
+    const SIDES: [&str; 2] = ["lower", "upper"];
+    let constraints = &model.constraints;
+    let (joint_sides, limit_sides, rows) =
+        (2 * constraints.limits.len(), constraints.limit_sides(), constraints.max_rows());
+    let what = if k < joint_sides {
+        let limit = &constraints.limits[k / 2];
+        let joint = &model.joints[limit.joint].name;
+        match (limit.kind, k % 2) {
+            (JointKind::Ball, 0) => format!("limit of ball joint '{joint}' switching on or off"),
+            (JointKind::Ball, _) => format!("second side of ball joint '{joint}', which has none (never switches)"),
+            (_, side) => format!("{} side of the limit of joint '{joint}' switching on or off", SIDES[side]),
+        }
+    } else if k < limit_sides {
+        let j = k - joint_sides;
+        let tendon = constraints.tendon_limits[j / 2].tendon;
+        format!(
+            "{} side of the limit of tendon {} switching on or off",
+            SIDES[j % 2],
+            model.tendons[tendon].label(tendon)
+        )
+    } else if k < limit_sides + rows {
+        format!("force of constraint row {} reaching or leaving a bound", k - limit_sides + 1)
+    } else {
+        format!("impedance of constraint row {} changing piece", k - limit_sides - rows + 1)
+    };
+    format!(
+        "event indicator (model exchange): margin of the {what}, held since the last event; \
+         crosses zero where the constraint forces switch (1: the row is not there)"
+    )
+}

@@ -80,7 +80,7 @@ fn model_exchange(layout: &Layout) -> bool {
 /// before the derivatives, which are last so that adding one moves no
 /// value reference a script may hold (docs/fmi.md, "Which value references
 /// are stable").
-pub const TABLE: [Entry; 16] = [
+pub const TABLE: [Entry; 17] = [
     Entry {
         name: "tolerance",
         shape: Shape::Scalar,
@@ -248,6 +248,18 @@ pub const TABLE: [Entry; 16] = [
         // One problem couples every row to every input's ε.
         dependencies: |l, _| Some(l.theta().chain(l.nu()).chain(l.inputs()).collect()),
         slot: RealVariable::QfrcConstraint,
+    },
+    Entry {
+        name: "constraint_switch",
+        shape: Shape::Array,
+        flag: None,
+        len: |l| if model_exchange(l) { l.switches } else { 0 },
+        kind: Kind::EVENT_INDICATOR,
+        start: no_start,
+        description: describe::constraint_switch,
+        // The margins of the constraint problem, which every input's ε enters.
+        dependencies: |l, _| Some(l.theta().chain(l.nu()).chain(l.inputs()).collect()),
+        slot: RealVariable::ConstraintSwitch,
     },
     Entry {
         name: "theta",
