@@ -22,15 +22,15 @@ fn outputs() -> impl Strategy<Value = OptionalOutputs> {
 fn layouts() -> impl Strategy<Value = Layout> {
     // A vehicle of up to 12 joints, each hinge/slide (1, 1), ball (4, 3) or free (7, 6).
     let joints = proptest::collection::vec(prop_oneof![Just((1, 1)), Just((4, 3)), Just((7, 6))], 1..12);
-    (joints, 0..6usize, 0..3usize, 0..10usize, outputs()).prop_map(|(joints, nu, wrench_bodies, sensors, outputs)| {
-        Layout {
-            nq: joints.iter().map(|j| j.0).sum(),
-            nv: joints.iter().map(|j| j.1).sum(),
-            nu,
-            wrench_inputs: 6 * wrench_bodies,
-            sensordata: vec![SensorDependence::Motion; sensors],
-            outputs,
-        }
+    let sizes = (0..6usize, 0..3usize, 0..10usize, 0..12usize);
+    (joints, sizes, outputs()).prop_map(|(joints, (nu, wrench_bodies, sensors, switches), outputs)| Layout {
+        nq: joints.iter().map(|j| j.0).sum(),
+        nv: joints.iter().map(|j| j.1).sum(),
+        nu,
+        wrench_inputs: 6 * wrench_bodies,
+        sensordata: vec![SensorDependence::Motion; sensors],
+        switches,
+        outputs,
     })
 }
 

@@ -38,11 +38,6 @@ impl<V> Block<V> {
     pub fn array(name: &'static str, len: usize, variable: VariableOf<V>) -> Self {
         Block { name, shape: Shape::Array, len, variable }
     }
-
-    /// The derivatives of the array block `name`, of `len` elements.
-    pub fn derivative(name: &'static str, len: usize, variable: VariableOf<V>) -> Self {
-        Block { name, shape: Shape::Derivative, len, variable }
-    }
 }
 
 /// One block of FMI 2.0 Real variables, numbered: what the FMI 3.0 table

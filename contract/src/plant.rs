@@ -15,10 +15,15 @@ use nudyn::integrate::{Method, MethodSetting};
 use nudyn::model::Model;
 use nudyn::vehicle::SensorKind;
 
-use crate::blocks::{Block, RealBlock, every_variable, numbered_blocks, real_blocks, value_reference_of, variable_at};
+use crate::blocks::{Block, RealBlock, every_variable, real_blocks, value_reference_of, variable_at};
 use crate::capabilities::Capabilities;
 use crate::resource::Resource;
-use crate::variable::{Kind, Range, StartError, check_start};
+use crate::variable::{Kind, StartError, check_start};
+
+mod describe;
+mod table;
+
+pub use table::{Entry, Flag, TABLE};
 
 /// Value reference of the Integer (enumeration) parameter `method`.
 pub const METHOD_VR: u32 = 0;
@@ -101,27 +106,30 @@ pub struct OptionalOutputs {
     pub qfrc_constraint: bool,
 }
 
-/// The flag of one optional output in [`OptionalOutputs`].
-type Flag = fn(&mut OptionalOutputs) -> &mut bool;
-
-/// Every optional output: its name, as `--outputs` takes it, and its flag.
-/// One list, which the names and the parser read.
-const OPTIONAL_OUTPUTS: [(&str, Flag); 6] = [
-    ("qvel", |o| &mut o.qvel),
-    ("kinetic_energy", |o| &mut o.kinetic_energy),
-    ("power", |o| &mut o.power),
-    ("momentum", |o| &mut o.momentum),
-    ("energy_residual", |o| &mut o.energy_residual),
-    ("qfrc_constraint", |o| &mut o.qfrc_constraint),
-];
+/// How many entries of the table are optional outputs.
+const OPTIONAL_COUNT: usize = {
+    let mut count = 0;
+    let mut i = 0;
+    while i < TABLE.len() {
+        if TABLE[i].flag.is_some() {
+            count += 1;
+        }
+        i += 1;
+    }
+    count
+};
 
 impl OptionalOutputs {
-    /// The name of every optional output, as `--outputs` takes them.
-    pub const NAMES: [&str; OPTIONAL_OUTPUTS.len()] = {
-        let mut names = [""; OPTIONAL_OUTPUTS.len()];
-        let mut i = 0;
-        while i < names.len() {
-            names[i] = OPTIONAL_OUTPUTS[i].0;
+    /// The name of every optional output, as `--outputs` takes them: the
+    /// table's entries that have a flag, in its order.
+    pub const NAMES: [&str; OPTIONAL_COUNT] = {
+        let mut names = [""; OPTIONAL_COUNT];
+        let (mut i, mut n) = (0, 0);
+        while i < TABLE.len() {
+            if TABLE[i].flag.is_some() {
+                names[n] = TABLE[i].name;
+                n += 1;
+            }
             i += 1;
         }
         names
@@ -129,7 +137,8 @@ impl OptionalOutputs {
 
     /// The flag of the output `name`, if it is one of [`OptionalOutputs::NAMES`].
     fn flag(&mut self, name: &str) -> Option<&mut bool> {
-        OPTIONAL_OUTPUTS.iter().find(|(known, _)| *known == name).map(|(_, flag)| flag(self))
+        let flag = TABLE.iter().filter(|entry| entry.name == name).find_map(|entry| entry.flag)?;
+        Some(flag(self))
     }
 }
 
@@ -191,25 +200,21 @@ impl PlantResource {
     pub fn with_starts(mut self, starts: BTreeMap<String, f64>) -> Result<Self, StartError> {
         let layout = self.layout();
         for (name, &value) in &starts {
-            let variable = layout
-                .real_variables()
-                .map(|(_, variable)| variable)
-                .find(|&variable| layout.name(variable).as_ref() == Some(name))
+            let element = layout
+                .elements()
+                .find(|element| &element.name() == name)
                 .ok_or_else(|| StartError::Unknown(name.clone()))?;
-            check_start(name, variable.kind(), variable.start(&self.model).is_some(), value)?;
+            check_start(name, element.entry.kind, element.default_start(&self.model).is_some(), value)?;
         }
         self.starts = starts;
         Ok(self)
     }
 
-    /// The start value of `variable`: the one chosen at export, else its default.
-    pub fn start(&self, variable: RealVariable) -> Option<f64> {
+    /// The start value of `element`: the one chosen at export, else its default.
+    pub fn start(&self, element: &Element) -> Option<f64> {
         // Most FMUs choose no start: no name to look up.
-        let chosen = (!self.starts.is_empty())
-            .then(|| self.layout().name(variable))
-            .flatten()
-            .and_then(|name| self.starts.get(&name).copied());
-        chosen.or_else(|| variable.start(&self.model))
+        let chosen = (!self.starts.is_empty()).then(|| self.starts.get(&element.name()).copied()).flatten();
+        chosen.or_else(|| element.default_start(&self.model))
     }
 
     /// The layout of its variables.
@@ -283,6 +288,9 @@ pub enum RealVariable {
     EnergyResidual,
     /// Optional output `qfrc_constraint[k+1]` (MuJoCo's `d.qfrc_constraint`).
     QfrcConstraint(usize),
+    /// `constraint_switch[k+1]`: event indicator k of model exchange, the
+    /// margin of switch k of the constraint forces.
+    ConstraintSwitch(usize),
     /// `der(theta[k+1])`: the qpos rate, a state derivative of model exchange.
     DerTheta(usize),
     /// `der(nu[k+1])`: ν̇, a state derivative of model exchange.
@@ -307,35 +315,9 @@ impl RealVariable {
             | RealVariable::Qvel(k)
             | RealVariable::Momentum(k)
             | RealVariable::QfrcConstraint(k)
+            | RealVariable::ConstraintSwitch(k)
             | RealVariable::DerTheta(k)
             | RealVariable::DerNu(k) => k,
-        }
-    }
-
-    /// What kind of variable it is. θ and ν are outputs with initial="exact":
-    /// settable until initialization, which is how a master chooses the
-    /// initial state.
-    pub fn kind(self) -> Kind {
-        match self {
-            RealVariable::Tolerance => Kind::fixed_parameter(Range::Positive),
-            RealVariable::MaxStep => Kind::fixed_parameter(Range::NonNegative),
-            RealVariable::Eps(_) | RealVariable::Ctrl(_) | RealVariable::XfrcApplied(_) => Kind::INPUT,
-            RealVariable::Theta(_) | RealVariable::Nu(_) => Kind::STATE_OUTPUT,
-            RealVariable::DerTheta(_) | RealVariable::DerNu(_) => Kind::DERIVATIVE,
-            _ => Kind::CALCULATED_OUTPUT,
-        }
-    }
-
-    /// The start value written into the modelDescription, if it has one.
-    pub fn start(self, model: &Model) -> Option<f64> {
-        match self {
-            RealVariable::Tolerance => Some(DEFAULT_TOLERANCE),
-            RealVariable::MaxStep => Some(DEFAULT_MAX_STEP),
-            RealVariable::Eps(_) | RealVariable::Ctrl(_) | RealVariable::XfrcApplied(_) | RealVariable::Nu(_) => {
-                Some(0.0)
-            }
-            RealVariable::Theta(k) => Some(model.qpos0[k]),
-            _ => None,
         }
     }
 
@@ -343,6 +325,15 @@ impl RealVariable {
     pub fn is_derivative(self) -> bool {
         matches!(self, RealVariable::DerTheta(_) | RealVariable::DerNu(_))
     }
+}
+
+/// The description of the plant variable `variable` in an FMU of `model`,
+/// from its entry of the table (the controller's inputs and outputs
+/// describe themselves by the plant's).
+pub fn description(model: &Model, variable: RealVariable) -> String {
+    let k = variable.index();
+    let entry = TABLE.iter().find(|entry| (entry.slot)(k) == variable).expect("every slot has an entry");
+    (entry.description)(model, k)
 }
 
 /// What a sensor's values depend on, besides time.
@@ -400,6 +391,9 @@ pub struct Layout {
     pub wrench_inputs: usize,
     /// What each sensordata entry depends on (MuJoCo's nsensordata entries).
     pub sensordata: Vec<SensorDependence>,
+    /// Number of switches of the constraint forces (limit sides, and two
+    /// per constraint row), the event indicators of model exchange.
+    pub switches: usize,
     /// The optional outputs present.
     pub outputs: OptionalOutputs,
 }
@@ -415,39 +409,60 @@ impl Layout {
             nu: model.mjcf_actuator_count(),
             wrench_inputs: 6 * model.wrench_bodies.len(),
             sensordata,
+            switches: model.constraints.switch_count(),
             outputs,
         }
     }
 
+    /// The table's entries in value-reference order, each with the value
+    /// reference of its first element and its length in this layout.
+    fn entries(&self) -> impl Iterator<Item = (u32, &'static Entry, usize)> + '_ {
+        let mut next = METHOD_VR + 1;
+        TABLE.iter().map(move |entry| {
+            let (first, len) = (next, entry.len_in(self));
+            next += len as u32;
+            (first, entry, len)
+        })
+    }
+
     /// The blocks in value-reference order, each with its first value reference.
-    fn blocks(&self) -> impl Iterator<Item = (u32, Block<RealVariable>)> {
-        let o = self.outputs;
-        let model_exchange = capabilities(o).model_exchange;
-        let optional = |present: bool, len: usize| if present { len } else { 0 };
-        let blocks = [
-            Block::scalar("tolerance", true, |_| RealVariable::Tolerance),
-            Block::scalar("max_step", true, |_| RealVariable::MaxStep),
-            Block::array("eps", self.nv, RealVariable::Eps),
-            Block::array("ctrl", self.nu, RealVariable::Ctrl),
-            Block::array("xfrc_applied", self.wrench_inputs, RealVariable::XfrcApplied),
-            Block::array("theta", self.nq, RealVariable::Theta),
-            Block::array("nu", self.nv, RealVariable::Nu),
-            Block::array("sensordata", self.sensordata.len(), RealVariable::Sensordata),
-            Block::array("qvel", optional(o.qvel, self.nv), RealVariable::Qvel),
-            Block::scalar("kinetic_energy", o.kinetic_energy, |_| RealVariable::KineticEnergy),
-            Block::scalar("power", o.power, |_| RealVariable::Power),
-            Block::array("momentum", optional(o.momentum, 6), RealVariable::Momentum),
-            Block::scalar("energy_residual", o.energy_residual, |_| RealVariable::EnergyResidual),
-            Block::array("qfrc_constraint", optional(o.qfrc_constraint, self.nv), RealVariable::QfrcConstraint),
-            Block::derivative("theta", optional(model_exchange, self.nq), RealVariable::DerTheta),
-            Block::derivative("nu", optional(model_exchange, self.nv), RealVariable::DerNu),
-        ];
-        numbered_blocks(METHOD_VR + 1, blocks)
+    fn blocks(&self) -> impl Iterator<Item = (u32, Block<RealVariable>)> + '_ {
+        self.entries().map(|(first, entry, len)| {
+            (first, Block { name: entry.name, shape: entry.shape, len, variable: entry.slot })
+        })
     }
 
     /// The Real variables' blocks, numbered.
     pub fn real_blocks(&self) -> Vec<RealBlock> {
         real_blocks(self.blocks())
+    }
+
+    /// Every element of the table present in this layout, in value-reference order.
+    pub fn elements(&self) -> impl Iterator<Item = Element> + '_ {
+        self.entries().flat_map(|(first, entry, len)| {
+            (0..len).map(move |k| Element { value_reference: first + k as u32, entry, index: k, len })
+        })
+    }
+
+    /// The element with value reference `vr`, if any.
+    pub fn element(&self, vr: u32) -> Option<Element> {
+        self.entries()
+            .find(|&(first, _, len)| vr >= first && ((vr - first) as usize) < len)
+            .map(|(first, entry, len)| Element { value_reference: vr, entry, index: (vr - first) as usize, len })
+    }
+
+    /// The element whose slot is `variable`, if this layout has it.
+    pub fn element_of(&self, variable: RealVariable) -> Option<Element> {
+        let k = variable.index();
+        self.entries()
+            .find(|&(_, entry, len)| k < len && (entry.slot)(k) == variable)
+            .map(|(first, entry, len)| Element { value_reference: first + k as u32, entry, index: k, len })
+    }
+
+    /// The number of event indicators of model exchange: the elements of
+    /// the entries whose kind says so.
+    pub fn event_indicator_count(&self) -> usize {
+        self.entries().filter(|(_, entry, _)| entry.kind.event_indicator).map(|(_, _, len)| len).sum()
     }
 
     /// The variable with value reference `vr`, if any.
@@ -456,8 +471,38 @@ impl Layout {
     }
 
     /// All Real variables with their value references, in order.
-    pub fn real_variables(&self) -> impl Iterator<Item = (u32, RealVariable)> {
+    pub fn real_variables(&self) -> impl Iterator<Item = (u32, RealVariable)> + '_ {
         every_variable(self.blocks())
+    }
+
+    /// The states θ.
+    pub(crate) fn theta(&self) -> impl Iterator<Item = RealVariable> + use<> {
+        (0..self.nq).map(RealVariable::Theta)
+    }
+
+    /// The states ν.
+    pub(crate) fn nu(&self) -> impl Iterator<Item = RealVariable> + use<> {
+        (0..self.nv).map(RealVariable::Nu)
+    }
+
+    /// The inputs ε.
+    pub(crate) fn eps(&self) -> impl Iterator<Item = RealVariable> + use<> {
+        (0..self.nv).map(RealVariable::Eps)
+    }
+
+    /// The inputs ctrl.
+    pub(crate) fn ctrl(&self) -> impl Iterator<Item = RealVariable> + use<> {
+        (0..self.nu).map(RealVariable::Ctrl)
+    }
+
+    /// The wrench inputs.
+    pub(crate) fn wrenches(&self) -> impl Iterator<Item = RealVariable> + use<> {
+        (0..self.wrench_inputs).map(RealVariable::XfrcApplied)
+    }
+
+    /// Every input: ε, ctrl and the wrenches.
+    pub(crate) fn inputs(&self) -> impl Iterator<Item = RealVariable> + use<> {
+        self.eps().chain(self.ctrl()).chain(self.wrenches())
     }
 
     /// The knowns (states θ, ν and inputs ε, ctrl) that the output or state
@@ -465,68 +510,71 @@ impl Layout {
     /// a state. For co-simulation this says that no output but the power
     /// feeds through from the inputs.
     pub fn dependencies(&self, variable: RealVariable) -> Option<Vec<RealVariable>> {
-        let theta = (0..self.nq).map(RealVariable::Theta);
-        let nu = (0..self.nv).map(RealVariable::Nu);
-        let eps = (0..self.nv).map(RealVariable::Eps);
-        let ctrl = (0..self.nu).map(RealVariable::Ctrl);
-        let wrenches = (0..self.wrench_inputs).map(RealVariable::XfrcApplied);
-        let list = match variable {
-            RealVariable::Tolerance
-            | RealVariable::MaxStep
-            | RealVariable::Eps(_)
-            | RealVariable::Ctrl(_)
-            | RealVariable::XfrcApplied(_) => {
-                return None;
-            }
-            // The states themselves.
-            RealVariable::Theta(_) | RealVariable::Nu(_) => vec![variable],
-            RealVariable::KineticEnergy => nu.collect(),
-            RealVariable::Power => nu.chain(eps).collect(),
-            // One problem couples every row to every input's ε.
-            RealVariable::QfrcConstraint(_) => theta.chain(nu).chain(eps).chain(ctrl).chain(wrenches).collect(),
-            // Every actuator's ε reaches every dof through ℓ in general.
-            RealVariable::DerNu(k) => {
-                theta.chain(nu).chain([RealVariable::Eps(k)]).chain(ctrl).chain(wrenches).collect()
-            }
-            RealVariable::Sensordata(k) => match self.sensordata[k] {
-                SensorDependence::Nothing => Vec::new(),
-                SensorDependence::Configuration => theta.collect(),
-                SensorDependence::Motion => theta.chain(nu).collect(),
-                SensorDependence::Controls => theta.chain(nu).chain(ctrl).collect(),
-                SensorDependence::Inputs => theta.chain(nu).chain(eps).chain(ctrl).chain(wrenches).collect(),
-            },
-            // θ̇ = ℓ*(θ)ν, the momentum and the energy residual depend on the configuration and every ν.
-            RealVariable::Qvel(_)
-            | RealVariable::Momentum(_)
-            | RealVariable::EnergyResidual
-            | RealVariable::DerTheta(_) => theta.chain(nu).collect(),
-        };
-        Some(list)
+        let element = self.element_of(variable)?;
+        (element.entry.dependencies)(self, element.index)
     }
 
     /// [`Layout::dependencies`] by value reference: those of the knowns of
     /// the Real `vr`, ascending.
     pub fn dependency_vrs(&self, vr: u32) -> Option<Vec<u32>> {
-        let knowns = self.dependencies(self.real_variable(vr)?)?;
+        let element = self.element(vr)?;
+        let knowns = (element.entry.dependencies)(self, element.index)?;
         let mut vrs: Vec<u32> = knowns.into_iter().filter_map(|known| self.value_reference(known)).collect();
         vrs.sort_unstable();
         Some(vrs)
     }
 
     /// The structured, 1-based name of `variable` (as in
-    /// `modelDescription.xml`), from its block; `None` if this layout does
-    /// not have it.
+    /// `modelDescription.xml`); `None` if this layout does not have it.
     pub fn name(&self, variable: RealVariable) -> Option<String> {
-        let k = variable.index();
-        self.blocks().find(|(_, block)| k < block.len && (block.variable)(k) == variable).map(|(first, block)| {
-            RealBlock { name: block.name, shape: block.shape, first, len: block.len }.element_name(k)
-        })
+        self.element_of(variable).map(|element| element.name())
     }
 
     /// The value reference of `variable`, if this layout has it (in constant
     /// time, one pass over the blocks: dependency lists of large vehicles look up millions).
     pub fn value_reference(&self, variable: RealVariable) -> Option<u32> {
         value_reference_of(self.blocks(), variable, variable.index())
+    }
+}
+
+/// One element of the table in a layout: an entry, and which of its elements.
+#[derive(Clone, Copy)]
+pub struct Element {
+    /// Its FMI 2.0 value reference.
+    pub value_reference: u32,
+    /// Its entry of the table.
+    pub entry: &'static Entry,
+    /// Its index within the entry (0-based; 0 for a scalar).
+    pub index: usize,
+    /// The number of elements of its entry in the layout.
+    pub len: usize,
+}
+
+impl Element {
+    /// Its FMI 2.0 name: `name`, `name[k+1]` or `der(name[k+1])`.
+    pub fn name(&self) -> String {
+        let block = RealBlock { name: self.entry.name, shape: self.entry.shape, first: 0, len: self.len };
+        block.element_name(self.index)
+    }
+
+    /// Its slot: what the FMU reads and writes.
+    pub fn variable(&self) -> RealVariable {
+        (self.entry.slot)(self.index)
+    }
+
+    /// Its kind.
+    pub fn kind(&self) -> Kind {
+        self.entry.kind
+    }
+
+    /// Its description.
+    pub fn description(&self, model: &Model) -> String {
+        (self.entry.description)(model, self.index)
+    }
+
+    /// Its start value in an FMU of `model` that chose none at export.
+    pub fn default_start(&self, model: &Model) -> Option<f64> {
+        (self.entry.start)(model, self.index)
     }
 }
 
@@ -564,6 +612,7 @@ mod tests {
             nu: 2,
             wrench_inputs: 0,
             sensordata: Vec::new(),
+            switches: 0,
             outputs: "qvel,power,momentum".parse().unwrap(),
         };
         let all: Vec<(u32, RealVariable)> = layout.real_variables().collect();
@@ -591,6 +640,7 @@ mod tests {
             nu: 0,
             wrench_inputs: 0,
             sensordata: Vec::new(),
+            switches: 0,
             outputs: "energy_residual".parse().unwrap(),
         };
         assert!(residual.real_variables().all(|(_, v)| !v.is_derivative()));

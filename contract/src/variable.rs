@@ -50,17 +50,32 @@ pub struct Kind {
     pub exact_start: bool,
     /// The values it accepts.
     pub range: Range,
+    /// A model-exchange event indicator: FMI 3.0's `<ModelStructure>`
+    /// lists it as an `<EventIndicator>`.
+    pub event_indicator: bool,
 }
 
 impl Kind {
     /// A parameter constant after initialization.
     pub const fn fixed_parameter(range: Range) -> Kind {
-        Kind { causality: Causality::Parameter, variability: Variability::Fixed, exact_start: true, range }
+        Kind {
+            causality: Causality::Parameter,
+            variability: Variability::Fixed,
+            exact_start: true,
+            range,
+            event_indicator: false,
+        }
     }
 
     /// A parameter that may change between steps.
     pub const fn tunable_parameter(range: Range) -> Kind {
-        Kind { causality: Causality::Parameter, variability: Variability::Tunable, exact_start: true, range }
+        Kind {
+            causality: Causality::Parameter,
+            variability: Variability::Tunable,
+            exact_start: true,
+            range,
+            event_indicator: false,
+        }
     }
 
     /// A continuous input.
@@ -69,6 +84,7 @@ impl Kind {
         variability: Variability::Continuous,
         exact_start: false,
         range: Range::Any,
+        event_indicator: false,
     };
 
     /// A continuous output whose start value the master may choose before initialization.
@@ -77,6 +93,7 @@ impl Kind {
         variability: Variability::Continuous,
         exact_start: true,
         range: Range::Any,
+        event_indicator: false,
     };
 
     /// A continuous output the FMU calculates.
@@ -85,6 +102,7 @@ impl Kind {
         variability: Variability::Continuous,
         exact_start: false,
         range: Range::Any,
+        event_indicator: false,
     };
 
     /// The time derivative of a continuous state (model exchange), calculated.
@@ -93,7 +111,23 @@ impl Kind {
         variability: Variability::Continuous,
         exact_start: false,
         range: Range::Any,
+        event_indicator: false,
     };
+
+    /// An event indicator of model exchange: a local variable the FMU
+    /// calculates, whose sign change the host locates.
+    pub const EVENT_INDICATOR: Kind = Kind {
+        causality: Causality::Local,
+        variability: Variability::Continuous,
+        exact_start: false,
+        range: Range::Any,
+        event_indicator: true,
+    };
+
+    /// What a local variable is, for messages.
+    fn local_what(&self) -> &'static str {
+        if self.event_indicator { "an event indicator" } else { "a state derivative" }
+    }
 
     /// Why the variable cannot be set now, if it cannot: "after
     /// initialization" or "at all: it is a calculated output".
@@ -103,6 +137,7 @@ impl Kind {
             self.variability == Variability::Fixed || (self.causality == Causality::Output && self.exact_start);
         match self.causality {
             Causality::Output if !self.exact_start => Some("at all: it is a calculated output"),
+            Causality::Local if self.event_indicator => Some("at all: it is an event indicator, calculated"),
             Causality::Local => Some("at all: it is a state derivative, calculated"),
             _ if fixed_after_start && initialized => Some("after initialization"),
             _ => None,
@@ -150,7 +185,7 @@ pub enum StartError {
 /// check the same value set before initialization.
 pub fn check_start(name: &str, kind: Kind, has_start: bool, value: f64) -> Result<(), StartError> {
     if !has_start {
-        let what = if kind.causality == Causality::Local { "a state derivative" } else { "a calculated output" };
+        let what = if kind.causality == Causality::Local { kind.local_what() } else { "a calculated output" };
         return Err(StartError::NoStart { name: name.to_string(), what });
     }
     let must = match kind.range {

@@ -674,7 +674,7 @@ fn unknown_dependencies(instance: &Instance, vr: u32) -> Result<Vec<ElementDepen
     match table.element_dependencies(vr, |element| instance.component.dependencies(element)) {
         Some(list) => Ok(list),
         None if vr == TIME_VR || table.get(vr).is_some() => Err(FmiError::Unsupported(
-            "dependencies are given of outputs and continuous-state derivatives only (FMI 3.0 §2.2.10)",
+            "dependencies are given of outputs, continuous-state derivatives and event indicators only (FMI 3.0 §2.2.10)",
         )),
         None => Err(CallError::UnknownValueReference { vr, kind: "any" }.into()),
     }
@@ -859,7 +859,7 @@ pub unsafe extern "C" fn fmi3UpdateDiscreteStates(
     next_event_time: *mut fmi3Float64,
 ) -> fmi3Status {
     unsafe {
-        enter(instance, Function::NewDiscreteStates, "fmi3UpdateDiscreteStates", |_| {
+        enter(instance, Function::NewDiscreteStates, "fmi3UpdateDiscreteStates", |instance| {
             let flags = [
                 (discrete_states_need_update, "discreteStatesNeedUpdate"),
                 (terminate_simulation, "terminateSimulation"),
@@ -872,7 +872,9 @@ pub unsafe extern "C" fn fmi3UpdateDiscreteStates(
             for (flag, name) in flags {
                 outputs.push(flag.as_mut().ok_or(FmiError::Null(name))?);
             }
-            // No discrete states, no time or state events: nothing ever changes at an event.
+            // The constraint mode the state gives holds until the next event;
+            // no discrete states of the host's change, no time events.
+            instance.component.update_discrete_states()?;
             outputs.into_iter().for_each(|flag| *flag = false);
             *next_event_time = 0.0;
             Ok(())
@@ -965,13 +967,16 @@ pub unsafe extern "C" fn fmi3GetContinuousStateDerivatives(
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi3GetEventIndicators(
     instance: fmi3Instance,
-    _event_indicators: *mut fmi3Float64,
+    event_indicators: *mut fmi3Float64,
     n_event_indicators: usize,
 ) -> fmi3Status {
     unsafe {
         enter(instance, Function::GetEventIndicators, "fmi3GetEventIndicators", |instance| {
-            // FMI 3.0 declares event indicators as variables: none yet.
-            Ok(calls::event_indicator_count(&*instance.component, n_event_indicators, 0)?)
+            // The same values as the variable the modelDescription lists as <EventIndicator>.
+            let expected = instance.component.event_indicator_count();
+            calls::event_indicator_count(&*instance.component, n_event_indicators, expected)?;
+            let indicators = slice_mut(event_indicators, n_event_indicators, "eventIndicators")?;
+            Ok(calls::get_event_indicators(&mut *instance.component, indicators)?)
         })
     }
 }
@@ -1020,8 +1025,9 @@ pub unsafe extern "C" fn fmi3GetNumberOfEventIndicators(
     n_event_indicators: *mut usize,
 ) -> fmi3Status {
     unsafe {
-        enter(instance, Function::GetNumberOf, "fmi3GetNumberOfEventIndicators", |_| {
-            *n_event_indicators.as_mut().ok_or(FmiError::Null("nEventIndicators"))? = 0;
+        enter(instance, Function::GetNumberOf, "fmi3GetNumberOfEventIndicators", |instance| {
+            *n_event_indicators.as_mut().ok_or(FmiError::Null("nEventIndicators"))? =
+                instance.component.event_indicator_count();
             Ok(())
         })
     }

@@ -41,10 +41,10 @@ enum Evaluated {
 pub struct Plant {
     model: Model,
     layout: Layout,
-    /// The Real variables in value-reference order from `METHOD_VR + 1`,
-    /// looked up on every get and set (the layout's own lookup walks its
-    /// blocks and is meant for writing the modelDescription).
-    reals: Vec<RealVariable>,
+    /// The Real variables' slots and kinds in value-reference order from
+    /// `METHOD_VR + 1`, looked up on every get and set (the layout's own
+    /// lookup walks the table and is meant for writing the modelDescription).
+    reals: Vec<(RealVariable, Kind)>,
     guid: String,
     /// Time, θ, ν, the settings and method, the integrator and workspace.
     sim: Simulation,
@@ -82,6 +82,9 @@ pub struct Plant {
     mode_held: bool,
     /// The margins of `mode` (scratch), and θ to set it at (scratch).
     margins: Vec<f64>,
+    /// The event indicators as the variable `constraint_switch` reads them,
+    /// filled by the prepare of each read that asks for one.
+    indicators: Vec<f64>,
     theta_scratch: Vec<f64>,
 }
 
@@ -90,11 +93,11 @@ impl Plant {
     pub fn new(resource: PlantResource, guid: String) -> Plant {
         let layout = resource.layout();
         let starts = layout
-            .real_variables()
-            .filter_map(|(vr, variable)| resource.starts.get(&layout.name(variable)?).map(|&value| (vr, value)))
+            .elements()
+            .filter_map(|element| resource.starts.get(&element.name()).map(|&value| (element.value_reference, value)))
             .unzip();
         let (model, start_method) = (resource.model, resource.method);
-        let reals = layout.real_variables().map(|(_, variable)| variable).collect();
+        let reals = layout.elements().map(|element| (element.variable(), element.kind())).collect();
         let mut plant = Plant {
             layout,
             reals,
@@ -116,6 +119,7 @@ impl Plant {
             mode: ConstraintMode::new(&model),
             mode_held: false,
             margins: vec![0.0; model.constraints.switch_count()],
+            indicators: vec![0.0; model.constraints.switch_count()],
             theta_scratch: vec![0.0; model.nq],
             model,
         };
@@ -132,6 +136,11 @@ impl Plant {
 
     /// The Real variable with value reference `vr`, if any.
     fn real(&self, vr: u32) -> Option<RealVariable> {
+        self.real_with_kind(vr).map(|(variable, _)| variable)
+    }
+
+    /// The Real variable with value reference `vr` and its kind, if any.
+    fn real_with_kind(&self, vr: u32) -> Option<(RealVariable, Kind)> {
         let index = vr.checked_sub(METHOD_VR + 1)?;
         self.reals.get(index as usize).copied()
     }
@@ -171,6 +180,24 @@ impl Plant {
             self.evaluated = Evaluated::Nothing;
         }
         Ok(())
+    }
+
+    /// The event indicators into `indicators`, for a read of the variable
+    /// `constraint_switch`. Read outside model exchange's events (in
+    /// co-simulation, or before the first event) the mode set to compute
+    /// them is let go again, so that the next step or event finds the
+    /// state's own mode as it would have without the read.
+    fn read_event_indicators(&mut self) -> Result<(), CallError> {
+        let held = self.mode_held;
+        let mut indicators = std::mem::take(&mut self.indicators);
+        let read = self.event_indicators(&mut indicators);
+        self.indicators = indicators;
+        if !held {
+            self.sim.workspace_mut().release_limit_sides();
+            self.mode_held = false;
+            self.evaluated = Evaluated::Nothing;
+        }
+        read
     }
 
     /// The sizes of the state an FMU state of this plant holds.
@@ -258,12 +285,12 @@ impl Component for Plant {
     }
 
     fn real_variable(&self, vr: u32) -> Option<Variable> {
-        let variable = self.real(vr)?;
-        Some(Variable { name: self.layout.name(variable)?, kind: variable.kind() })
+        let (variable, kind) = self.real_with_kind(vr)?;
+        Some(Variable { name: self.layout.name(variable)?, kind })
     }
 
     fn real_kind(&self, vr: u32) -> Option<Kind> {
-        self.real(vr).map(RealVariable::kind)
+        self.real_with_kind(vr).map(|(_, kind)| kind)
     }
 
     fn set_reals(&mut self, vrs: &[u32], values: &[f64]) {
@@ -298,6 +325,9 @@ impl Component for Plant {
         if needed > Evaluated::Nothing {
             self.evaluate(needed)?;
         }
+        if vrs.iter().any(|&vr| matches!(self.real(vr), Some(RealVariable::ConstraintSwitch(_)))) {
+            self.read_event_indicators()?;
+        }
         Ok(None)
     }
 
@@ -321,6 +351,7 @@ impl Component for Plant {
             RealVariable::QfrcConstraint(k) => {
                 self.sim.workspace().constraint_rows.qfrc_constraint.get(k).copied().unwrap_or(0.0)
             }
+            RealVariable::ConstraintSwitch(k) => self.indicators[k],
             RealVariable::DerTheta(k) => self.qpos_rate(k),
             RealVariable::DerNu(k) => self.sim.workspace().nu_dot[k],
         }
@@ -556,8 +587,9 @@ impl Component for Plant {
         Ok(())
     }
 
+    /// The elements of `constraint_switch` (none without model exchange).
     fn event_indicator_count(&self) -> usize {
-        self.mode.len()
+        self.layout.event_indicator_count()
     }
 
     /// The margins of the constraint mode held since the last event, each

@@ -307,6 +307,10 @@ pub struct ModelStructure {
     /// `<InitialUnknown>`s.
     #[serde(rename = "InitialUnknown", default, skip_serializing_if = "Vec::is_empty")]
     pub initial_unknowns: Vec<Unknown>,
+    /// `<EventIndicator>`s, in the order of fmi3GetEventIndicators (an
+    /// array's elements in order).
+    #[serde(rename = "EventIndicator", default, skip_serializing_if = "Vec::is_empty")]
+    pub event_indicators: Vec<Unknown>,
 }
 
 /// An unknown of `<ModelStructure>`.
@@ -376,7 +380,7 @@ pub enum Problem3 {
 /// names and value references, one independent variable, start lists of
 /// the arrays' sizes, derivatives of continuous Float64 states of the same
 /// size, declared types that exist, and a model structure whose lists name
-/// outputs, derivatives and knowns that exist.
+/// outputs, derivatives, event indicators and knowns that exist.
 pub fn validate(model: &Fmi3ModelDescription) -> Vec<Problem3> {
     let mut problems = Vec::new();
     if model.fmi_version != "3.0" {
@@ -440,6 +444,7 @@ pub fn validate(model: &Fmi3ModelDescription) -> Vec<Problem3> {
         ("a <ContinuousStateDerivative>", &structure.continuous_state_derivatives),
         ("an <Output>", &structure.outputs),
         ("an <InitialUnknown>", &structure.initial_unknowns),
+        ("an <EventIndicator>", &structure.event_indicators),
     ];
     for (what, list) in lists {
         for unknown in list {
@@ -454,7 +459,21 @@ pub fn validate(model: &Fmi3ModelDescription) -> Vec<Problem3> {
             {
                 let target = variable.common().name.to_string();
                 let must = "a state derivative";
-                problems.push(Problem3::Reference { what: "<ContinuousStateDerivative>", name, target, must });
+                problems.push(Problem3::Reference {
+                    what: "<ContinuousStateDerivative>",
+                    name: name.clone(),
+                    target,
+                    must,
+                });
+            }
+            // FMI 3.0 §2.4.8: an event indicator is a continuous Float64, local or an output.
+            if what == "an <EventIndicator>"
+                && !matches!(variable, Variable::Float64(f) if f.variability == "continuous"
+                    && matches!(f.causality.as_str(), "local" | "output"))
+            {
+                let target = variable.common().name.to_string();
+                let must = "a continuous Float64, local or an output";
+                problems.push(Problem3::Reference { what: "<EventIndicator>", name: name.clone(), target, must });
             }
             for known in unknown.dependencies.iter().flatten() {
                 if !by_vr.contains_key(known) {

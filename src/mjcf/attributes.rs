@@ -84,6 +84,7 @@ mod tests {
     use crate::mjcf::element::LineStarts;
     use crate::mjcf::equality::COMMON_ATTRIBUTES as EQUALITY_ATTRIBUTES;
     use crate::mjcf::mesh::MESH_ATTRIBUTES;
+    use crate::mjcf::reader::{COMPILER_ATTRIBUTES, FLAG_ATTRIBUTES, OPTION_ATTRIBUTES};
     use crate::mjcf::tendon::TENDON_ATTRIBUTES;
 
     /// The settings an element `<tag attribute="value"/>` reads with `table`, or its error.
@@ -113,6 +114,11 @@ mod tests {
             "box",
             "true",
             "false",
+            "radian",
+            "zyx",
+            "enable",
+            "disable",
+            "1 2",
         ];
         for attribute in table.iter().filter(|a| matches!(a.read, Read::Into(_))) {
             let changes = values.iter().any(|value| {
@@ -130,6 +136,9 @@ mod tests {
         every_entry_changes_the_settings("mesh", MESH_ATTRIBUTES);
         every_entry_changes_the_settings("tendon", TENDON_ATTRIBUTES);
         every_entry_changes_the_settings("equality", EQUALITY_ATTRIBUTES);
+        every_entry_changes_the_settings("compiler", COMPILER_ATTRIBUTES);
+        every_entry_changes_the_settings("option", OPTION_ATTRIBUTES);
+        every_entry_changes_the_settings("flag", FLAG_ATTRIBUTES);
     }
 
     /// What a table only checks is still checked: a malformed value is refused.
@@ -144,6 +153,8 @@ mod tests {
     fn attributes_checked_for_their_syntax_refuse_malformed_values() {
         checked_entries_refuse_malformed_values("geom", GEOM_ATTRIBUTES);
         checked_entries_refuse_malformed_values("site", SITE_ATTRIBUTES);
+        checked_entries_refuse_malformed_values("option", OPTION_ATTRIBUTES);
+        checked_entries_refuse_malformed_values("flag", FLAG_ATTRIBUTES);
     }
 
     #[test]

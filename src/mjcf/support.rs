@@ -65,10 +65,13 @@ pub fn support_table() -> String {
     let geom = attributes::names(defaults::GEOM_ATTRIBUTES);
     let site = attributes::names(defaults::SITE_ATTRIBUTES);
     let mesh_attributes = attributes::names(mesh::MESH_ATTRIBUTES);
+    let compiler = attributes::names(reader::COMPILER_ATTRIBUTES);
+    let option = attributes::names(reader::OPTION_ATTRIBUTES);
+    let flag = attributes::names(reader::FLAG_ATTRIBUTES);
     let elements: [(&str, &[&str]); 11] = [
-        ("compiler", reader::COMPILER_ATTRIBUTES),
-        ("option", reader::OPTION_ATTRIBUTES),
-        ("option/flag", reader::FLAG_ATTRIBUTES),
+        ("compiler", &compiler),
+        ("option", &option),
+        ("option/flag", &flag),
         ("body", reader::BODY_ATTRIBUTES),
         ("frame", reader::FRAME_ATTRIBUTES),
         ("replicate", reader::REPLICATE_ATTRIBUTES),

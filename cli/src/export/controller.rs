@@ -9,10 +9,9 @@ use modeldescription as md;
 use nudyn::control::{ControlError, ControlLaw, ControlParameters, Objective};
 use nudyn::model::{LinkJoint, Model};
 use nudyn_contract::controller::{CAPABILITIES, ControllerLayout, ControllerResource, ControllerVariable};
-use nudyn_contract::plant::RealVariable;
+use nudyn_contract::plant::{RealVariable, description};
 use nudyn_contract::resource::Resource;
 
-use super::plant::description;
 use super::{
     Document, ExportError, FmiVersion, Header, PlatformBinary, check_model_identifier, documentation, fmi3,
     fmu_archive, generation_date_and_time, real_variable, write_file,

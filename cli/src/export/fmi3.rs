@@ -111,6 +111,14 @@ pub fn model_description(
         dependencies: table.known_variables(float.value_reference, &dependencies),
     };
     let mut structure = md3::ModelStructure::default();
+    let event_indicators =
+        table.iter().filter(|v| v.value_type == ValueType::Float64 && real(v.first).kind.event_indicator);
+    structure.event_indicators = event_indicators
+        .map(|v| md3::Unknown {
+            value_reference: v.value_reference,
+            dependencies: table.known_variables(v.value_reference, &dependencies),
+        })
+        .collect();
     for float in &floats {
         if float.causality == "output" {
             structure.outputs.push(unknown(float));

@@ -288,7 +288,7 @@ struct Header {
     model_identifier: String,
     capabilities: Capabilities,
     /// FMI 2.0 model exchange's `numberOfEventIndicators`: the switches of
-    /// the constraint forces (FMI 3.0 would declare them as variables).
+    /// the constraint forces (FMI 3.0 lists their variable as `<EventIndicator>`s).
     event_indicators: usize,
     /// `generationDateAndTime`: [`generation_date_and_time`].
     generated: String,

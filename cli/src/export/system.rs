@@ -307,11 +307,11 @@ pub fn write_system(
     let plant_resource = PlantResource::new(model.clone(), options.plant.outputs);
     let plant_layout = plant_resource.layout();
     let plant_variables: Vec<Settable> = plant_layout
-        .real_variables()
-        .map(|(_, v)| Settable {
-            name: plant_layout.name(v).expect("a variable of the layout"),
-            kind: v.kind(),
-            has_start: v.start(model).is_some(),
+        .elements()
+        .map(|element| Settable {
+            name: element.name(),
+            kind: element.kind(),
+            has_start: element.default_start(model).is_some(),
         })
         .collect();
     let defaults = law.default_parameters(model).map_err(ControllerExportError::from)?;

@@ -4,9 +4,7 @@
 
 use nudyn_contract::blocks::Shape;
 use nudyn_contract::fmi3::{Fmi3Variables, TIME_VR};
-use nudyn_contract::plant::{
-    ENERGY_PROJECTION_NAME, ENERGY_PROJECTION_VR, METHOD_NAME, METHOD_VR, PlantResource, RealVariable,
-};
+use nudyn_contract::plant::{ENERGY_PROJECTION_NAME, ENERGY_PROJECTION_VR, METHOD_NAME, METHOD_VR, PlantResource};
 use nudyn_contract::resource::Resource;
 use nudyn_contract::variable::{Causality, Kind, Variability};
 
@@ -61,7 +59,7 @@ pub fn markdown(resource: &PlantResource) -> String {
         fmi3(&scalars, ENERGY_PROJECTION_NAME)
     );
     for block in layout.real_blocks().iter().filter(|block| block.len > 0) {
-        let kind = layout.real_variable(block.first).map_or(Kind::INPUT, RealVariable::kind);
+        let kind = layout.element(block.first).map_or(Kind::INPUT, |element| element.kind());
         let name = match block.shape {
             Shape::Scalar => block.name.to_string(),
             Shape::Array => format!("{}[1..{}]", block.name, block.len),

@@ -8,6 +8,8 @@ mod options;
 mod sections;
 mod targets;
 
+pub(crate) use options::{COMPILER_ATTRIBUTES, FLAG_ATTRIBUTES, OPTION_ATTRIBUTES};
+
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -55,34 +57,6 @@ pub(crate) const REPLICATE_ATTRIBUTES: &[&str] = &["count", "sep", "offset", "eu
 pub(crate) const INERTIAL_ATTRIBUTES: &[&str] =
     &["pos", "mass", "diaginertia", "fullinertia", "quat", "axisangle", "xyaxes", "zaxis", "euler"];
 
-/// Attributes of `<compiler>`.
-#[rustfmt::skip]
-pub(crate) const COMPILER_ATTRIBUTES: &[&str] = &[
-    "alignfree", "angle", "assetdir", "autolimits", "balanceinertia", "boundinertia", "boundmass",
-    "conflict", "coordinate", "discardvisual", "eulerseq", "fitaabb", "fusestatic", "inertiafromgeom",
-    "inertiagrouprange", "meshdir", "passthrough", "savecanonical", "savecompiled", "saveinertial",
-    "settotalmass", "strippath", "texturedir", "usethread",
-];
-
-/// Attributes of `<option>`.
-#[rustfmt::skip]
-pub(crate) const OPTION_ATTRIBUTES: &[&str] = &[
-    "actuatorgroupdisable", "ccd_iterations", "ccd_tolerance", "cone", "density", "gravity", "impratio",
-    "integrator", "iterations", "jacobian", "ls_iterations", "ls_tolerance", "magnetic",
-    "noslip_iterations", "noslip_tolerance", "o_friction", "o_margin", "o_solimp", "o_solref",
-    "sdf_initpoints", "sdf_iterations", "sleep_tolerance", "solver", "timestep", "tolerance",
-    "viscosity", "wind",
-];
-
-/// Attributes of `<flag>`; all take "enable" or "disable".
-#[rustfmt::skip]
-pub(crate) const FLAG_ATTRIBUTES: &[&str] = &[
-    "actuation", "autoreset", "clampctrl", "constraint", "contact", "damper", "diagexact", "energy",
-    "equality", "eulerdamp", "filterparent", "frictionloss", "fwdinv", "gravity", "invdiscrete", "ipc",
-    "island", "limit", "midphase", "multiccd", "nativeccd", "override", "refsafe", "sensor", "sleep",
-    "speculative", "spring", "warmstart",
-];
-
 /// Top-level sections without effect on the dynamics.
 #[rustfmt::skip]
 pub(crate) const IGNORED_SECTIONS: &[&str] =
@@ -114,7 +88,7 @@ const ACTUATOR_GROUPS: std::ops::RangeInclusive<i32> = 0..=30;
 
 /// Where `<compiler inertiafromgeom>` takes a body's mass properties from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum InertiaFromGeom {
+pub(crate) enum InertiaFromGeom {
     /// Always from `<inertial>` (massless without one).
     Never,
     /// Always from the geoms, overriding `<inertial>`.
@@ -124,7 +98,8 @@ enum InertiaFromGeom {
 }
 
 /// `<compiler>` settings that matter here.
-struct Compiler {
+#[derive(Debug)]
+pub(crate) struct Compiler {
     angles: AngleConvention,
     inertia_from_geom: InertiaFromGeom,
     inertia_groups: [i32; 2],
@@ -147,7 +122,8 @@ struct Compiler {
 }
 
 /// `<option>` settings that matter here.
-struct Physics {
+#[derive(Debug)]
+pub(crate) struct Physics {
     gravity: Vec3,
     magnetic: Vec3,
     gravity_disabled: bool,
@@ -164,6 +140,49 @@ struct Physics {
     equality_disabled: bool,
     /// `<flag sensor="disable">`: sensordata stays 0.
     sensor_disabled: bool,
+}
+
+/// MuJoCo's defaults.
+impl Default for Compiler {
+    fn default() -> Self {
+        Compiler {
+            angles: AngleConvention { degrees: true, euler_seq: *b"xyz" },
+            inertia_from_geom: InertiaFromGeom::Auto,
+            inertia_groups: [0, 5],
+            bound_mass: 0.0,
+            bound_inertia: 0.0,
+            balance_inertia: false,
+            autolimits: true,
+            align_free: false,
+            total_mass: None,
+            mesh_dir: String::new(),
+            strip_path: false,
+            fuse_static: false,
+            fit_aabb: false,
+        }
+    }
+}
+
+/// MuJoCo's defaults.
+impl Default for Physics {
+    fn default() -> Self {
+        Physics {
+            gravity: Vec3::new(0.0, 0.0, -9.81),
+            // MuJoCo's default field.
+            magnetic: Vec3::new(0.0, -0.5, 0.0),
+            gravity_disabled: false,
+            spring_disabled: false,
+            damper_disabled: false,
+            actuation: Actuation::default(),
+            disabled_actuator_groups: Vec::new(),
+            constraint_options: ConstraintOptions::default(),
+            constraint_disabled: false,
+            frictionloss_disabled: false,
+            limit_disabled: false,
+            equality_disabled: false,
+            sensor_disabled: false,
+        }
+    }
 }
 
 /// What an actuator needs to know of a joint it may name.
@@ -404,37 +423,8 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
 impl Reader {
     fn new(sources: Sources) -> Self {
         Self {
-            compiler: Compiler {
-                angles: AngleConvention { degrees: true, euler_seq: *b"xyz" },
-                inertia_from_geom: InertiaFromGeom::Auto,
-                inertia_groups: [0, 5],
-                bound_mass: 0.0,
-                bound_inertia: 0.0,
-                balance_inertia: false,
-                autolimits: true,
-                align_free: false,
-                total_mass: None,
-                mesh_dir: String::new(),
-                strip_path: false,
-                fuse_static: false,
-                fit_aabb: false,
-            },
-            physics: Physics {
-                gravity: Vec3::new(0.0, 0.0, -9.81),
-                // MuJoCo's default field.
-                magnetic: Vec3::new(0.0, -0.5, 0.0),
-                gravity_disabled: false,
-                spring_disabled: false,
-                damper_disabled: false,
-                actuation: Actuation::default(),
-                disabled_actuator_groups: Vec::new(),
-                constraint_options: ConstraintOptions::default(),
-                constraint_disabled: false,
-                frictionloss_disabled: false,
-                limit_disabled: false,
-                equality_disabled: false,
-                sensor_disabled: false,
-            },
+            compiler: Compiler::default(),
+            physics: Physics::default(),
             defaults: Defaults::new(),
             warnings: Vec::new(),
             bodies: Vec::new(),

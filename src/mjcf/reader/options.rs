@@ -1,77 +1,191 @@
-//! `<compiler>` and `<option>`: the settings the rest of the reader follows.
+//! `<compiler>` and `<option>`: the settings the rest of the reader follows,
+//! each read from its attribute table.
 
-use super::{ACTUATOR_GROUPS, COMPILER_ATTRIBUTES, FLAG_ATTRIBUTES, InertiaFromGeom, OPTION_ATTRIBUTES, Reader};
+use super::{ACTUATOR_GROUPS, Compiler, InertiaFromGeom, Physics, Reader};
 use crate::math::Vec3;
+use crate::mjcf::attributes::{Attribute, names, read_into, set};
 use crate::mjcf::element::Element;
 use crate::mjcf::error::MjcfError;
-use std::collections::HashMap;
 
-impl Reader {
-    pub(super) fn read_compiler(&mut self, element: &Element) -> Result<(), MjcfError> {
-        element.check_attributes(COMPILER_ATTRIBUTES)?;
-        let compiler = &mut self.compiler;
-        match element.text("coordinate") {
-            None | Some("local") => {}
-            Some("global") => {
-                return Err(element.unsupported("coordinate=\"global\" (removed from MuJoCo in version 2.3.3)"));
-            }
-            Some(_) => return Err(element.bad_value("coordinate", "\"local\"")),
-        }
-        if let Some(degrees) = element.keyword("angle", &[("degree", true), ("radian", false)])? {
-            compiler.angles.degrees = degrees;
-        }
-        if let Some(sequence) = element.text("eulerseq") {
-            compiler.angles.euler_seq = sequence
+/// `<compiler>` (MuJoCo 4.0 schema): its attributes and how each is read.
+/// `assetdir` comes before `meshdir`, as MuJoCo reads them, so that
+/// `meshdir` wins.
+pub(crate) const COMPILER_ATTRIBUTES: &[Attribute<Compiler>] = &[
+    Attribute::into("alignfree", |c, e, a| set(&mut c.align_free, e.boolean(a)?)),
+    Attribute::into("angle", |c, e, a| {
+        set(&mut c.angles.degrees, e.keyword(a, &[("degree", true), ("radian", false)])?)
+    }),
+    Attribute::into("assetdir", |c, e, a| set(&mut c.mesh_dir, e.text(a).map(str::to_string))),
+    Attribute::into("autolimits", |c, e, a| set(&mut c.autolimits, e.boolean(a)?)),
+    Attribute::into("balanceinertia", |c, e, a| set(&mut c.balance_inertia, e.boolean(a)?)),
+    Attribute::into("boundinertia", |c, e, a| set(&mut c.bound_inertia, e.non_negative(a)?)),
+    Attribute::into("boundmass", |c, e, a| set(&mut c.bound_mass, e.non_negative(a)?)),
+    Attribute::no_effect("conflict"),
+    Attribute::checked("coordinate", |e, a| match e.text(a) {
+        None | Some("local") => Ok(()),
+        Some("global") => Err(e.unsupported("coordinate=\"global\" (removed from MuJoCo in version 2.3.3)")),
+        Some(_) => Err(e.bad_value(a, "\"local\"")),
+    }),
+    Attribute::no_effect("discardvisual"),
+    Attribute::into("eulerseq", |c, e, a| {
+        let sequence = e.text(a).map(|sequence| {
+            sequence
                 .as_bytes()
                 .try_into()
                 .ok()
                 .filter(|s: &[u8; 3]| s.iter().all(|c| b"xyzXYZ".contains(c)))
-                .ok_or_else(|| element.bad_value("eulerseq", "3 letters from x, y, z, X, Y, Z"))?;
-        }
+                .ok_or_else(|| e.bad_value(a, "3 letters from x, y, z, X, Y, Z"))
+        });
+        set(&mut c.angles.euler_seq, sequence.transpose()?)
+    }),
+    Attribute::into("fitaabb", |c, e, a| set(&mut c.fit_aabb, e.boolean(a)?)),
+    Attribute::into("fusestatic", |c, e, a| set(&mut c.fuse_static, e.boolean(a)?)),
+    Attribute::into("inertiafromgeom", |c, e, a| {
         let sources =
             [("false", InertiaFromGeom::Never), ("true", InertiaFromGeom::Always), ("auto", InertiaFromGeom::Auto)];
-        if let Some(source) = element.keyword("inertiafromgeom", &sources)? {
-            compiler.inertia_from_geom = source;
-        }
-        if let Some(groups) = element.integers("inertiagrouprange")? {
-            compiler.inertia_groups = groups;
-        }
-        if let Some(bound) = element.non_negative("boundmass")? {
-            compiler.bound_mass = bound;
-        }
-        if let Some(bound) = element.non_negative("boundinertia")? {
-            compiler.bound_inertia = bound;
-        }
-        if let Some(balance) = element.boolean("balanceinertia")? {
-            compiler.balance_inertia = balance;
-        }
-        if let Some(fit_aabb) = element.boolean("fitaabb")? {
-            compiler.fit_aabb = fit_aabb;
-        }
-        if let Some(autolimits) = element.boolean("autolimits")? {
-            compiler.autolimits = autolimits;
-        }
-        if let Some(align) = element.boolean("alignfree")? {
-            compiler.align_free = align;
-        }
-        if let Some(total) = element.number("settotalmass")? {
-            let warning = element.warning(format!(
+        set(&mut c.inertia_from_geom, e.keyword(a, &sources)?)
+    }),
+    Attribute::into("inertiagrouprange", |c, e, a| set(&mut c.inertia_groups, e.integers(a)?)),
+    Attribute::into("meshdir", |c, e, a| set(&mut c.mesh_dir, e.text(a).map(str::to_string))),
+    Attribute::no_effect("passthrough"),
+    Attribute::no_effect("savecanonical"),
+    Attribute::no_effect("savecompiled"),
+    Attribute::no_effect("saveinertial"),
+    Attribute::into("settotalmass", |c, e, a| {
+        let total_mass = e.number(a)?.map(|total| {
+            let warning = e.warning(format!(
                 "settotalmass is deprecated in MuJoCo; all masses and inertias are scaled so the total mass is {total}"
             ));
-            compiler.total_mass = (total > 0.0).then_some((total, warning));
+            (total > 0.0).then_some((total, warning))
+        });
+        set(&mut c.total_mass, total_mass)
+    }),
+    Attribute::into("strippath", |c, e, a| set(&mut c.strip_path, e.boolean(a)?)),
+    Attribute::no_effect("texturedir"),
+    Attribute::no_effect("usethread"),
+];
+
+/// `<option>` (MuJoCo 4.0 schema): its attributes and how each is read.
+/// Those for contacts and MuJoCo's iterative solver, which nudyn does not
+/// use, are read for their syntax only (MuJoCo refuses more numbers than
+/// each holds); `iterations` and `tolerance` by the reader, which warns
+/// where they let MuJoCo stop short of the forces nudyn computes, and the
+/// fluid settings, which it refuses when they would act.
+pub(crate) const OPTION_ATTRIBUTES: &[Attribute<Physics>] = &[
+    Attribute::into("actuatorgroupdisable", |p, e, a| {
+        let groups = e.integer_list(a)?;
+        if groups.as_ref().is_some_and(|groups| groups.iter().any(|g| !ACTUATOR_GROUPS.contains(g))) {
+            return Err(e.bad_value(a, "actuator groups from 0 to 30"));
         }
-        // MuJoCo reads assetdir first, so that meshdir wins.
-        for attribute in ["assetdir", "meshdir"] {
-            if let Some(dir) = element.text(attribute) {
-                compiler.mesh_dir = dir.to_string();
-            }
+        set(&mut p.disabled_actuator_groups, groups)
+    }),
+    Attribute::checked("ccd_iterations", |e, a| e.integers::<1>(a).map(drop)),
+    Attribute::checked("ccd_tolerance", |e, a| e.number(a).map(drop)),
+    Attribute::no_effect("cone"),
+    Attribute::by_reader("density"),
+    Attribute::into("gravity", |p, e, a| set(&mut p.gravity, e.numbers::<3>(a)?.map(Vec3::from))),
+    Attribute::checked("impratio", |e, a| e.number(a).map(drop)),
+    Attribute::no_effect("integrator"),
+    Attribute::by_reader("iterations"),
+    Attribute::no_effect("jacobian"),
+    Attribute::checked("ls_iterations", |e, a| e.integers::<1>(a).map(drop)),
+    Attribute::checked("ls_tolerance", |e, a| e.number(a).map(drop)),
+    Attribute::into("magnetic", |p, e, a| set(&mut p.magnetic, e.numbers::<3>(a)?.map(Vec3::from))),
+    Attribute::into("noslip_iterations", |p, e, a| {
+        let iterations = e
+            .integers::<1>(a)?
+            .map(|[n]| u32::try_from(n).map_err(|_| e.bad_value(a, "a non-negative number of iterations")));
+        set(&mut p.constraint_options.noslip_iterations, iterations.transpose()?)
+    }),
+    Attribute::into("noslip_tolerance", |p, e, a| set(&mut p.constraint_options.noslip_tolerance, e.number(a)?)),
+    Attribute::checked("o_friction", |e, a| e.overwrite_numbers(a, &mut [0.0; 5])),
+    Attribute::checked("o_margin", |e, a| e.number(a).map(drop)),
+    Attribute::checked("o_solimp", |e, a| e.overwrite_numbers(a, &mut [0.0; 5])),
+    Attribute::checked("o_solref", |e, a| e.overwrite_numbers(a, &mut [0.0; 2])),
+    Attribute::checked("sdf_initpoints", |e, a| e.integers::<1>(a).map(drop)),
+    Attribute::checked("sdf_iterations", |e, a| e.integers::<1>(a).map(drop)),
+    Attribute::checked("sleep_tolerance", |e, a| e.number(a).map(drop)),
+    Attribute::no_effect("solver"),
+    Attribute::into("timestep", |p, e, a| {
+        let timestep = e.number(a)?;
+        if timestep.is_some_and(|timestep| timestep <= 0.0) {
+            return Err(e.bad_value(a, "a positive time step"));
         }
-        if let Some(strip) = element.boolean("strippath")? {
-            compiler.strip_path = strip;
+        set(&mut p.constraint_options.timestep, timestep)
+    }),
+    Attribute::by_reader("tolerance"),
+    Attribute::by_reader("viscosity"),
+    Attribute::by_reader("wind"),
+];
+
+/// Refuses what would add fluid forces, which nudyn does not model: wind
+/// first (it is what a file that sets it means), then a nonzero medium.
+fn refuse_fluid_forces(element: &Element) -> Result<(), MjcfError> {
+    if element.numbers::<3>("wind")?.is_some_and(|w| w != [0.0; 3]) {
+        return Err(element.unsupported("wind acts through fluid forces, which nudyn does not model"));
+    }
+    for medium in ["density", "viscosity"] {
+        if element.number(medium)?.is_some_and(|x| x != 0.0) {
+            return Err(
+                element.unsupported(format!("a nonzero medium {medium} adds fluid forces, which nudyn does not model"))
+            );
         }
-        if let Some(fuse) = element.boolean("fusestatic")? {
-            compiler.fuse_static = fuse;
-        }
+    }
+    Ok(())
+}
+
+/// `<flag>` (MuJoCo 4.0 schema): every attribute takes "enable" or
+/// "disable"; those of contacts, the iterative solver and the discrete
+/// integrators are read for their syntax only (`filterparent` also by the
+/// contact warnings).
+pub(crate) const FLAG_ATTRIBUTES: &[Attribute<Physics>] = &[
+    Attribute::into("actuation", |p, e, a| set(&mut p.actuation.enabled, enabled(e, a)?)),
+    Attribute::checked("autoreset", |e, a| enabled(e, a).map(drop)),
+    Attribute::into("clampctrl", |p, e, a| set(&mut p.actuation.clamp_ctrl, enabled(e, a)?)),
+    Attribute::into("constraint", |p, e, a| set(&mut p.constraint_disabled, disabled(e, a)?)),
+    Attribute::checked("contact", |e, a| enabled(e, a).map(drop)),
+    Attribute::into("damper", |p, e, a| set(&mut p.damper_disabled, disabled(e, a)?)),
+    Attribute::checked("diagexact", |e, a| enabled(e, a).map(drop)),
+    Attribute::checked("energy", |e, a| enabled(e, a).map(drop)),
+    Attribute::into("equality", |p, e, a| set(&mut p.equality_disabled, disabled(e, a)?)),
+    Attribute::checked("eulerdamp", |e, a| enabled(e, a).map(drop)),
+    Attribute::checked("filterparent", |e, a| enabled(e, a).map(drop)),
+    Attribute::into("frictionloss", |p, e, a| set(&mut p.frictionloss_disabled, disabled(e, a)?)),
+    Attribute::checked("fwdinv", |e, a| enabled(e, a).map(drop)),
+    Attribute::into("gravity", |p, e, a| set(&mut p.gravity_disabled, disabled(e, a)?)),
+    Attribute::checked("invdiscrete", |e, a| enabled(e, a).map(drop)),
+    Attribute::checked("ipc", |e, a| enabled(e, a).map(drop)),
+    Attribute::into("island", |p, e, a| set(&mut p.constraint_options.islands, enabled(e, a)?)),
+    Attribute::into("limit", |p, e, a| set(&mut p.limit_disabled, disabled(e, a)?)),
+    Attribute::checked("midphase", |e, a| enabled(e, a).map(drop)),
+    Attribute::checked("multiccd", |e, a| enabled(e, a).map(drop)),
+    Attribute::checked("nativeccd", |e, a| enabled(e, a).map(drop)),
+    Attribute::checked("override", |e, a| enabled(e, a).map(drop)),
+    Attribute::into("refsafe", |p, e, a| set(&mut p.constraint_options.refsafe, enabled(e, a)?)),
+    Attribute::into("sensor", |p, e, a| set(&mut p.sensor_disabled, disabled(e, a)?)),
+    Attribute::checked("sleep", |e, a| match enabled(e, a)? {
+        Some(true) => Err(e.unsupported("sleeping bodies (flag sleep=\"enable\") freeze the dynamics")),
+        _ => Ok(()),
+    }),
+    Attribute::checked("speculative", |e, a| enabled(e, a).map(drop)),
+    Attribute::into("spring", |p, e, a| set(&mut p.spring_disabled, disabled(e, a)?)),
+    Attribute::checked("warmstart", |e, a| enabled(e, a).map(drop)),
+];
+
+/// A flag's "enable" (true) or "disable" (false).
+fn enabled(element: &Element, attribute: &'static str) -> Result<Option<bool>, MjcfError> {
+    element.keyword(attribute, &[("enable", true), ("disable", false)])
+}
+
+/// A flag's "disable" (true) or "enable" (false).
+fn disabled(element: &Element, attribute: &'static str) -> Result<Option<bool>, MjcfError> {
+    Ok(enabled(element, attribute)?.map(|on| !on))
+}
+
+impl Reader {
+    pub(super) fn read_compiler(&mut self, element: &Element) -> Result<(), MjcfError> {
+        element.check_attributes(&names(COMPILER_ATTRIBUTES))?;
+        read_into(COMPILER_ATTRIBUTES, &mut self.compiler, element)?;
         for child in element.children() {
             match child.tag() {
                 "lengthrange" => self.warnings.push(child.ignored()),
@@ -82,44 +196,9 @@ impl Reader {
     }
 
     pub(super) fn read_option(&mut self, element: &Element) -> Result<(), MjcfError> {
-        element.check_attributes(OPTION_ATTRIBUTES)?;
-        if let Some(gravity) = element.numbers::<3>("gravity")? {
-            self.physics.gravity = Vec3::from(gravity);
-        }
-        if let Some(magnetic) = element.numbers::<3>("magnetic")? {
-            self.physics.magnetic = Vec3::from(magnetic);
-        }
-        if let Some(timestep) = element.number("timestep")? {
-            if timestep <= 0.0 {
-                return Err(element.bad_value("timestep", "a positive time step"));
-            }
-            self.physics.constraint_options.timestep = timestep;
-        }
-        if let Some([iterations]) = element.integers::<1>("noslip_iterations")? {
-            self.physics.constraint_options.noslip_iterations = u32::try_from(iterations)
-                .map_err(|_| element.bad_value("noslip_iterations", "a non-negative number of iterations"))?;
-        }
-        if let Some(tolerance) = element.number("noslip_tolerance")? {
-            self.physics.constraint_options.noslip_tolerance = tolerance;
-        }
-        if let Some(groups) = element.integer_list("actuatorgroupdisable")? {
-            if groups.iter().any(|g| !ACTUATOR_GROUPS.contains(g)) {
-                return Err(element.bad_value("actuatorgroupdisable", "actuator groups from 0 to 30"));
-            }
-            self.physics.disabled_actuator_groups = groups;
-        }
-        // Read for their syntax only: they set contacts, which nudyn does not
-        // model, and MuJoCo's iterative solver, which nudyn does not use.
-        // MuJoCo refuses more numbers than each holds.
-        element.overwrite_numbers("o_solref", &mut [0.0; 2])?;
-        element.overwrite_numbers("o_solimp", &mut [0.0; 5])?;
-        element.overwrite_numbers("o_friction", &mut [0.0; 5])?;
-        for attribute in ["o_margin", "impratio", "ls_tolerance", "ccd_tolerance", "sleep_tolerance"] {
-            element.number(attribute)?;
-        }
-        for attribute in ["ls_iterations", "ccd_iterations", "sdf_iterations", "sdf_initpoints"] {
-            element.integers::<1>(attribute)?;
-        }
+        element.check_attributes(&names(OPTION_ATTRIBUTES))?;
+        read_into(OPTION_ATTRIBUTES, &mut self.physics, element)?;
+        refuse_fluid_forces(element)?;
         // Fewer iterations or a looser tolerance than MuJoCo's defaults (100,
         // 1e-8) let MuJoCo stop short of the constraint forces nudyn computes.
         let iterations = element.integers::<1>("iterations")?.map(|[n]| n);
@@ -135,15 +214,6 @@ impl Reader {
                 loose.join(" and ")
             )));
         }
-        if element.numbers::<3>("wind")?.is_some_and(|w| w != [0.0; 3]) {
-            return Err(element.unsupported("wind acts through fluid forces, which nudyn does not model"));
-        }
-        for medium in ["density", "viscosity"] {
-            if element.number(medium)?.is_some_and(|x| x != 0.0) {
-                return Err(element
-                    .unsupported(format!("a nonzero medium {medium} adds fluid forces, which nudyn does not model")));
-            }
-        }
         let mut flag_seen: Option<Element> = None;
         for child in element.children() {
             if child.tag() != "flag" {
@@ -152,45 +222,9 @@ impl Reader {
             if let Some(first) = &flag_seen {
                 return Err(child.repeated(first));
             }
+            child.check_attributes(&names(FLAG_ATTRIBUTES))?;
+            read_into(FLAG_ATTRIBUTES, &mut self.physics, &child)?;
             flag_seen = Some(child);
-            child.check_attributes(FLAG_ATTRIBUTES)?;
-            let mut disabled = HashMap::new();
-            for &flag in FLAG_ATTRIBUTES {
-                if let Some(off) = child.keyword(flag, &[("enable", false), ("disable", true)])? {
-                    disabled.insert(flag, off);
-                }
-            }
-            if disabled.get("sleep") == Some(&false) {
-                return Err(child.unsupported("sleeping bodies (flag sleep=\"enable\") freeze the dynamics"));
-            }
-            let physics = &mut self.physics;
-            if let Some(&off) = disabled.get("island") {
-                physics.constraint_options.islands = !off;
-            }
-            if let Some(&off) = disabled.get("refsafe") {
-                physics.constraint_options.refsafe = !off;
-            }
-            for (flag, target) in [
-                ("gravity", &mut physics.gravity_disabled),
-                ("spring", &mut physics.spring_disabled),
-                ("damper", &mut physics.damper_disabled),
-                ("constraint", &mut physics.constraint_disabled),
-                ("frictionloss", &mut physics.frictionloss_disabled),
-                ("limit", &mut physics.limit_disabled),
-                ("equality", &mut physics.equality_disabled),
-                ("sensor", &mut physics.sensor_disabled),
-            ] {
-                if let Some(&off) = disabled.get(flag) {
-                    *target = off;
-                }
-            }
-            for (flag, target) in
-                [("actuation", &mut physics.actuation.enabled), ("clampctrl", &mut physics.actuation.clamp_ctrl)]
-            {
-                if let Some(&off) = disabled.get(flag) {
-                    *target = !off;
-                }
-            }
         }
         Ok(())
     }
