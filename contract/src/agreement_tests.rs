@@ -22,12 +22,13 @@ fn outputs() -> impl Strategy<Value = OptionalOutputs> {
 fn layouts() -> impl Strategy<Value = Layout> {
     // A vehicle of up to 12 joints, each hinge/slide (1, 1), ball (4, 3) or free (7, 6).
     let joints = proptest::collection::vec(prop_oneof![Just((1, 1)), Just((4, 3)), Just((7, 6))], 1..12);
-    let sizes = (0..6usize, 0..3usize, 0..10usize, 0..12usize);
-    (joints, sizes, outputs()).prop_map(|(joints, (nu, wrench_bodies, sensors, switches), outputs)| Layout {
+    let sizes = (0..6usize, 0..3usize, 0..10usize, 0..12usize, 0..3usize);
+    (joints, sizes, outputs()).prop_map(|(joints, (nu, wrench_bodies, sensors, switches, na), outputs)| Layout {
         nq: joints.iter().map(|j| j.0).sum(),
         nv: joints.iter().map(|j| j.1).sum(),
         nu,
         wrench_inputs: 6 * wrench_bodies,
+        na,
         sensordata: vec![SensorDependence::Motion; sensors],
         switches,
         outputs,
@@ -72,8 +73,12 @@ proptest! {
             prop_assert_eq!(&element_name, name);
             prop_assert_eq!(holder.array, !scalars && name.contains('['));
             // A derivative's state is the element it differentiates, at the same index.
-            if let RealVariable::DerTheta(j) | RealVariable::DerNu(j) = variable {
-                let state = if matches!(variable, RealVariable::DerTheta(_)) { RealVariable::Theta(*j) } else { RealVariable::Nu(*j) };
+            if let RealVariable::DerTheta(j) | RealVariable::DerNu(j) | RealVariable::DerAct(j) = variable {
+                let state = match variable {
+                    RealVariable::DerTheta(_) => RealVariable::Theta(*j),
+                    RealVariable::DerNu(_) => RealVariable::Nu(*j),
+                    _ => RealVariable::Act(*j),
+                };
                 let state_vr = layout.value_reference(state).expect("the state exists");
                 let (state_holder, state_k) = fmi3.real_element(state_vr).expect("held");
                 prop_assert_eq!(holder.derivative_of, Some(state_holder.value_reference));

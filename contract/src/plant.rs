@@ -295,6 +295,11 @@ pub enum RealVariable {
     DerTheta(usize),
     /// `der(nu[k+1])`: ν̇, a state derivative of model exchange.
     DerNu(usize),
+    /// Output `act[k+1]`: activation state k (MuJoCo's `act`), a state of
+    /// model exchange after θ and ν.
+    Act(usize),
+    /// `der(act[k+1])`: act's rate, a state derivative of model exchange.
+    DerAct(usize),
 }
 
 impl RealVariable {
@@ -317,13 +322,15 @@ impl RealVariable {
             | RealVariable::QfrcConstraint(k)
             | RealVariable::ConstraintSwitch(k)
             | RealVariable::DerTheta(k)
-            | RealVariable::DerNu(k) => k,
+            | RealVariable::DerNu(k)
+            | RealVariable::Act(k)
+            | RealVariable::DerAct(k) => k,
         }
     }
 
     /// Whether it is a state derivative of model exchange.
     pub fn is_derivative(self) -> bool {
-        matches!(self, RealVariable::DerTheta(_) | RealVariable::DerNu(_))
+        matches!(self, RealVariable::DerTheta(_) | RealVariable::DerNu(_) | RealVariable::DerAct(_))
     }
 }
 
@@ -389,6 +396,8 @@ pub struct Layout {
     pub nu: usize,
     /// Number of wrench inputs (six per wrench body).
     pub wrench_inputs: usize,
+    /// Number of activation states (MuJoCo's na).
+    pub na: usize,
     /// What each sensordata entry depends on (MuJoCo's nsensordata entries).
     pub sensordata: Vec<SensorDependence>,
     /// Number of switches of the constraint forces (limit sides, and two
@@ -408,6 +417,7 @@ impl Layout {
             nv: model.nv,
             nu: model.mjcf_actuator_count(),
             wrench_inputs: 6 * model.wrench_bodies.len(),
+            na: model.activation_count(),
             sensordata,
             switches: model.constraints.switch_count(),
             outputs,
@@ -505,7 +515,12 @@ impl Layout {
         self.eps().chain(self.ctrl()).chain(self.wrenches())
     }
 
-    /// The knowns (states θ, ν and inputs ε, ctrl) that the output or state
+    /// The states act, which the actuators' forces read beside ctrl.
+    pub(crate) fn act(&self) -> impl Iterator<Item = RealVariable> + use<> {
+        (0..self.na).map(RealVariable::Act)
+    }
+
+    /// The knowns (states θ, ν, act and inputs ε, ctrl) that the output or state
     /// derivative `variable` depends on; `None` for a parameter, an input or
     /// a state. For co-simulation this says that no output but the power
     /// feeds through from the inputs.
@@ -611,6 +626,7 @@ mod tests {
             nv: 6,
             nu: 2,
             wrench_inputs: 0,
+            na: 0,
             sensordata: Vec::new(),
             switches: 0,
             outputs: "qvel,power,momentum".parse().unwrap(),
@@ -639,6 +655,7 @@ mod tests {
             nv: 6,
             nu: 0,
             wrench_inputs: 0,
+            na: 0,
             sensordata: Vec::new(),
             switches: 0,
             outputs: "energy_residual".parse().unwrap(),

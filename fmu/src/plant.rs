@@ -1,5 +1,5 @@
 //! The plant: the vehicle's dynamics as an FMU component. It holds the
-//! compiled model from the FMU's resources, the state (θ, ν), the inputs ε
+//! compiled model from the FMU's resources, the state (θ, ν, act), the inputs ε
 //! and the actuators' controls, and the parameters, and advances them with
 //! the core integrator.
 //!
@@ -202,7 +202,12 @@ impl Plant {
 
     /// The sizes of the state an FMU state of this plant holds.
     fn sizes(&self) -> Sizes {
-        Sizes { nq: self.model.nq, nv: self.model.nv, nu: self.model.actuators.len() }
+        Sizes {
+            nq: self.model.nq,
+            nv: self.model.nv,
+            nu: self.model.actuators.len(),
+            na: self.model.activation_count(),
+        }
     }
 
     /// d(qpos[k])/dt from the workspace's θ̇ (passes 0–2 done): q̇ = ½ q ⊗ (0, ω)
@@ -305,6 +310,7 @@ impl Component for Plant {
                 RealVariable::XfrcApplied(k) => self.ctrl[self.layout.nu + k] = value,
                 RealVariable::Theta(k) => run.theta[k] = value,
                 RealVariable::Nu(k) => run.nu[k] = value,
+                RealVariable::Act(k) => self.sim.act_mut(&self.model)[k] = value,
                 variable => unreachable!("{variable:?} is a calculated output: the caller refuses it"),
             }
         }
@@ -354,6 +360,8 @@ impl Component for Plant {
             RealVariable::ConstraintSwitch(k) => self.indicators[k],
             RealVariable::DerTheta(k) => self.qpos_rate(k),
             RealVariable::DerNu(k) => self.sim.workspace().nu_dot[k],
+            RealVariable::Act(k) => self.sim.act(&self.model)[k],
+            RealVariable::DerAct(k) => self.sim.workspace().act_rate_within_range(&self.model, k),
         }
     }
 
@@ -481,9 +489,10 @@ impl Component for Plant {
         self.failed_for_good
     }
 
-    /// x = (θ, ν): nq + nv states.
+    /// x = (θ, ν, act): nq + nv + na states.
     fn continuous_state_count(&self) -> Option<usize> {
-        capabilities(self.layout.outputs).model_exchange.then_some(self.model.nq + self.model.nv)
+        let count = self.model.nq + self.model.nv + self.model.activation_count();
+        capabilities(self.layout.outputs).model_exchange.then_some(count)
     }
 
     fn set_time(&mut self, time: f64) {
@@ -493,18 +502,22 @@ impl Component for Plant {
     }
 
     fn continuous_states(&self, x: &mut [f64]) {
-        let (theta, nu) = x.split_at_mut(self.model.nq);
+        let (theta, rest) = x.split_at_mut(self.model.nq);
+        let (nu, act) = rest.split_at_mut(self.model.nv);
         theta.copy_from_slice(&self.sim.state.theta);
         nu.copy_from_slice(&self.sim.state.nu);
+        act.copy_from_slice(self.sim.act(&self.model));
     }
 
     /// Takes the host's states as they are: a quaternion the host's
     /// integration moved off unit length stays so in x, and the passes use
     /// it normalized, so the drift never changes the motion.
     fn set_continuous_states(&mut self, x: &[f64]) {
-        let (theta, nu) = x.split_at(self.model.nq);
+        let (theta, rest) = x.split_at(self.model.nq);
+        let (nu, act) = rest.split_at(self.model.nv);
         self.sim.state.theta.copy_from_slice(theta);
         self.sim.state.nu.copy_from_slice(nu);
+        self.sim.act_mut(&self.model).copy_from_slice(act);
         self.evaluated = Evaluated::Nothing;
     }
 
@@ -512,11 +525,20 @@ impl Component for Plant {
         self.evaluate(Evaluated::Acceleration)
     }
 
-    /// (θ̇, ν̇); a quaternion's rate is ½ q ⊗ (0, ω) of the normalized q,
-    /// orthogonal to q, so the host's integration does not grow the drift.
+    /// (θ̇, ν̇, act's rate); a quaternion's rate is ½ q ⊗ (0, ω) of the
+    /// normalized q, orthogonal to q, so the host's integration does not
+    /// grow the drift; act's rate is 0 where act is at a bound it would
+    /// leave, so that the host keeps act within its range as MuJoCo does.
     fn derivative(&self, i: usize) -> f64 {
-        let nq = self.model.nq;
-        if i < nq { self.qpos_rate(i) } else { self.sim.workspace().nu_dot[i - nq] }
+        let (nq, nv) = (self.model.nq, self.model.nv);
+        let ws = self.sim.workspace();
+        if i < nq {
+            self.qpos_rate(i)
+        } else if i < nq + nv {
+            ws.nu_dot[i - nq]
+        } else {
+            ws.act_rate_within_range(&self.model, i - nq - nv)
+        }
     }
 
     fn snapshot(&self, phase: Phase) -> Result<Snapshot, CallError> {
@@ -560,7 +582,9 @@ impl Component for Plant {
     /// A state of another FMU is refused.
     fn restore(&mut self, snapshot: &Snapshot) -> Result<(), CallError> {
         let state = &snapshot.state;
-        let sizes = Sizes { nq: state.run.theta.len(), nv: state.run.nu.len(), nu: state.ctrl.len() };
+        let (nv, nu) = (state.run.nu.len(), state.ctrl.len());
+        let na = state.run.qvel.len().saturating_sub(nv);
+        let sizes = Sizes { nq: state.run.theta.len(), nv, nu, na };
         if snapshot.guid != self.guid {
             return Err(SnapshotError::ForeignGuid { found: snapshot.guid.clone(), expected: self.guid.clone() }.into());
         }

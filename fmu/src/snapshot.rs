@@ -1,7 +1,7 @@
 //! FMU states (fmi2GetFMUstate) and their byte format
 //! (fmi2SerializeFMUstate): a versioned header naming the FMU, the sizes,
 //! the state machine's state, the values as little-endian f64 (with, for a
-//! Rosenbrock method that holds one, its W: 2·nv² more), and an FNV-1a
+//! Rosenbrock method that holds one, its W: (nv + na)(2nv + na) more), and an FNV-1a
 //! checksum, so that a truncated, corrupted or foreign blob is
 //! rejected before anything is restored. The values are checked too
 //! (finite, positive settings), so that even a blob crafted with a valid
@@ -56,11 +56,18 @@ pub struct Sizes {
     pub nv: usize,
     /// Actuators (ctrl).
     pub nu: usize,
+    /// Activation states (act, after θ̇): the FMU's own, not in the header,
+    /// so that the blobs of vehicles without them keep their bytes.
+    pub na: usize,
 }
 
 impl std::fmt::Display for Sizes {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "nq = {}, nv = {}, nu = {}", self.nq, self.nv, self.nu)
+        write!(f, "nq = {}, nv = {}, nu = {}", self.nq, self.nv, self.nu)?;
+        if self.na > 0 {
+            write!(f, ", na = {}", self.na)?;
+        }
+        Ok(())
     }
 }
 
@@ -171,7 +178,8 @@ impl Snapshot {
     /// The sizes of the saved state.
     fn sizes(&self) -> Sizes {
         let s = &self.state;
-        Sizes { nq: s.run.theta.len(), nv: s.run.nu.len(), nu: s.ctrl.len() }
+        let na = s.run.qvel.len().saturating_sub(s.run.nu.len());
+        Sizes { nq: s.run.theta.len(), nv: s.run.nu.len(), nu: s.ctrl.len(), na }
     }
 
     /// The size of [`Snapshot::serialize`]'s output.
@@ -231,7 +239,8 @@ impl Snapshot {
         if found_guid != guid {
             return Err(SnapshotError::ForeignGuid { found: found_guid, expected: guid.to_string() });
         }
-        let found = Sizes { nq: reader.u32()? as usize, nv: reader.u32()? as usize, nu: reader.u32()? as usize };
+        let (nq, nv, nu) = (reader.u32()? as usize, reader.u32()? as usize, reader.u32()? as usize);
+        let found = Sizes { nq, nv, nu, na: sizes.na };
         if found != sizes {
             return Err(SnapshotError::Sizes { found, expected: sizes });
         }
@@ -240,7 +249,8 @@ impl Snapshot {
         let (phase_code, stop_time_defined, method_value_byte, energy_projection, holds_jacobian, chosen_byte) =
             (flags[0], flags[1] != 0, flags[2], flags[3] != 0, flags[4] != 0, flags[5]);
         let jacobian_age = reader.u32()?;
-        let jacobian_len = if holds_jacobian { 2 * nv * nv } else { 0 };
+        // ∂(θ̈, act's rate)/∂Δ and ∂(θ̈, act's rate)/∂(θ̇, act).
+        let jacobian_len = if holds_jacobian { (nv + sizes.na) * (2 * nv + sizes.na) } else { 0 };
         let scalars: Vec<f64> = (0..Self::scalar_count(sizes) + CHOICE_SCALARS + jacobian_len)
             .map(|_| reader.f64())
             .collect::<Result<_, _>>()?;
@@ -423,11 +433,11 @@ struct VectorField {
     set: fn(&mut PlantState) -> &mut Vec<f64>,
 }
 
-/// θ, ν, θ̇, ε and its rate, the controls and their rates, in this order.
+/// θ, ν, θ̇ then act, ε and its rate, the controls and their rates, in this order.
 const VECTOR_FIELDS: [VectorField; 7] = [
     VectorField { len: |n| n.nq, get: |s| &s.run.theta, set: |s| &mut s.run.theta },
     VectorField { len: |n| n.nv, get: |s| &s.run.nu, set: |s| &mut s.run.nu },
-    VectorField { len: |n| n.nv, get: |s| &s.run.qvel, set: |s| &mut s.run.qvel },
+    VectorField { len: |n| n.nv + n.na, get: |s| &s.run.qvel, set: |s| &mut s.run.qvel },
     VectorField { len: |n| n.nv, get: |s| &s.eps, set: |s| &mut s.eps },
     VectorField { len: |n| n.nv, get: |s| &s.eps_rate, set: |s| &mut s.eps_rate },
     VectorField { len: |n| n.nu, get: |s| &s.ctrl, set: |s| &mut s.ctrl },
@@ -503,7 +513,7 @@ mod tests {
     use super::*;
 
     const GUID: &str = "{01234567-89ab-cdef-0123-456789abcdef}";
-    const SIZES: Sizes = Sizes { nq: 5, nv: 4, nu: 2 };
+    const SIZES: Sizes = Sizes { nq: 5, nv: 4, nu: 2, na: 0 };
 
     fn sample() -> Snapshot {
         Snapshot {
@@ -577,6 +587,21 @@ mod tests {
         }
     }
 
+    /// A run with two activation states after θ̇, holding a W with their
+    /// rows and columns, round-trips; a blob is read with the FMU's na.
+    #[test]
+    fn activation_states_round_trip_with_their_w() {
+        let mut original = sample_holding_w();
+        let (nv, na) = (original.state.run.nu.len(), 2);
+        original.state.run.qvel.extend([0.25, -0.75]);
+        let w_len = (nv + na) * (2 * nv + na);
+        original.state.jacobian.derivatives = (0..w_len).map(|k| k as f64 * 0.5).collect();
+        let bytes = serialized(&original);
+        let sizes = Sizes { na, ..SIZES };
+        assert_eq!(Snapshot::deserialize(&bytes, GUID, sizes).unwrap(), original);
+        assert!(Snapshot::deserialize(&bytes, GUID, SIZES).is_err(), "read without act, the blob does not fit");
+    }
+
     #[test]
     fn rejects_every_truncation_and_extension() {
         let bytes = serialized(&sample_holding_w());
@@ -604,7 +629,7 @@ mod tests {
     fn rejects_foreign_blobs() {
         let bytes = serialized(&sample());
         assert!(matches!(Snapshot::deserialize(&bytes, "{other}", SIZES), Err(SnapshotError::ForeignGuid { .. })));
-        for other in [Sizes { nq: 7, nv: 6, nu: 2 }, Sizes { nu: 0, ..SIZES }] {
+        for other in [Sizes { nq: 7, nv: 6, nu: 2, na: 0 }, Sizes { nu: 0, ..SIZES }] {
             assert!(matches!(Snapshot::deserialize(&bytes, GUID, other), Err(SnapshotError::Sizes { .. })));
         }
         assert_eq!(Snapshot::deserialize(b"PK\x03\x04 not a state", GUID, SIZES), Err(SnapshotError::BadMagic));

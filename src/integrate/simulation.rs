@@ -205,8 +205,10 @@ impl Simulation {
         self.state.qvel.get(model.nv..).unwrap_or_default()
     }
 
-    /// The same, to set (before [`Simulation::initialize`], or between advances).
+    /// The same, to set (before [`Simulation::initialize`], or between
+    /// advances: the rates cached at the state are dropped).
     pub fn act_mut(&mut self, model: &Model) -> &mut [f64] {
+        self.integrator.first.valid = false;
         self.state.qvel.get_mut(model.nv..).unwrap_or_default()
     }
 

@@ -129,3 +129,58 @@ def test_trajectory_matches_mujoco_rk4_converged(nudyn, tmp_path):
     end = {"theta": run["theta"][-1], "nu": run["nu"][-1]}
     qvel = np.array(run_eval(nudyn, path, json.dumps(end)).json()["qvel"])
     assert np.max(np.abs(qvel - data.qvel)) <= 1e-7 * max(1.0, np.max(np.abs(data.qvel)))
+
+
+def mujoco_rk4_run(path, qvel0, act0, ctrl, times):
+    """MuJoCo's own RK4 at the file's (short) timestep: qpos and act at `times`."""
+    model = mujoco.MjModel.from_xml_path(str(path))
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
+    data = mujoco.MjData(model)
+    data.qvel[:], data.act[:], data.ctrl[:] = qvel0, act0, ctrl
+    qpos, act = [data.qpos.copy()], [data.act.copy()]
+    for t0, t1 in zip(times[:-1], times[1:]):
+        mujoco.mj_step(model, data, nstep=round((t1 - t0) / model.opt.timestep))
+        qpos.append(data.qpos.copy())
+        act.append(data.act.copy())
+    return np.array(qpos), np.array(act)
+
+
+def test_fmu_runs_activations_in_co_simulation_and_model_exchange(nudyn, tmp_path):
+    """The FMU has act[1..5] as outputs and, in model exchange, as the
+    states after θ and ν (der(act[k]) last); set before initialization,
+    they start the run. FMPy's co-simulation (dop853 at 1e-10) and its
+    model exchange (CVode at rtol 1e-10) end where MuJoCo's RK4 at 1e-5 s
+    does: θ and act within 1e-9 (measured 1.6e-11 and 2e-15) and 1e-7
+    (3.7e-9 and 7.8e-9)."""
+    from fmpy import read_model_description, simulate_fmu
+
+    path = fixture_for_rk4(tmp_path, 1e-5)
+    fmu = tmp_path / "filtered_arm.fmu"
+    subprocess.run([str(nudyn), "export", str(path), "-o", str(fmu)], check=True, capture_output=True)
+    description = read_model_description(str(fmu))
+    names = [v.name for v in description.modelVariables]
+    assert [names.index(f"act[{k}]") for k in range(1, 6)] == [names.index("act[1]") + k for k in range(5)]
+    states = [d.variable.derivative.name for d in description.derivatives]
+    assert states[-5:] == [f"act[{k}]" for k in range(1, 6)] and states[0] == "theta[1]"
+
+    qvel0 = np.random.default_rng(3).normal(0, 0.3, 10)
+    act0 = np.array([0.1, -0.2, 0.3, 0.2, 0.0])
+    ctrl = np.array([1.0, -0.8, 1.5, 1.0, 0.7, 0.3])
+    theta0 = mujoco.MjModel.from_xml_path(str(path)).qpos0
+    nu0 = run_eval(nudyn, path, json.dumps({"theta": theta0.tolist(), "qvel": qvel0.tolist()})).json()["nu"]
+    start = {f"nu[{k + 1}]": x for k, x in enumerate(nu0)}
+    start |= {f"act[{k + 1}]": x for k, x in enumerate(act0)}
+    start |= {f"ctrl[{k + 1}]": x for k, x in enumerate(ctrl)}
+    outputs = [f"theta[{k}]" for k in range(1, 12)] + [f"act[{k}]" for k in range(1, 6)]
+    times = np.linspace(0.0, 1.0, 21)
+    qpos, act = mujoco_rk4_run(path, qvel0, act0, ctrl, times)
+    for kind, tolerances, options in [
+        ("CoSimulation", (1e-9, 1e-9), {"start_values": {**start, "tolerance": 1e-10}}),
+        ("ModelExchange", (1e-7, 1e-7), {"start_values": start, "relative_tolerance": 1e-10}),
+    ]:
+        result = simulate_fmu(str(fmu), fmi_type=kind, stop_time=1.0, output_interval=0.05, output=outputs, **options)
+        end = result[-1]
+        assert abs(end["time"] - 1.0) < 1e-9
+        theta_error = max(abs(end[f"theta[{k}]"] - qpos[-1][k - 1]) for k in range(1, 12))
+        act_error = max(abs(end[f"act[{k}]"] - act[-1][k - 1]) for k in range(1, 6))
+        assert theta_error <= tolerances[0] and act_error <= tolerances[1], (kind, theta_error, act_error)

@@ -3,7 +3,7 @@
 //! √J = √kg·m/s and √kg·m/s² since K = ½|ν|².
 
 use nudyn::model::{Model, SensorSource};
-use nudyn::vehicle::{JointKind, SensorKind};
+use nudyn::vehicle::{ActivationKind, JointKind, SensorKind};
 
 /// What one coordinate or dof is, for variable descriptions: the joint, its
 /// kind, and the component and unit of entry `k` within the joint.
@@ -206,6 +206,44 @@ pub(super) fn der_theta(model: &Model, k: usize) -> String {
 
 pub(super) fn der_nu(model: &Model, k: usize) -> String {
     format!("nu_dot of dof {} of {} (sqrt(kg)*m/s^2)", k + 1, joint_entry(model, k, false).0)
+}
+
+/// The actuator that owns activation state k, with its dynamics, range
+/// and look-ahead.
+fn activation_owner(model: &Model, k: usize) -> String {
+    let (index, actuator) = model
+        .actuators
+        .iter()
+        .enumerate()
+        .filter(|(_, a)| a.activation.is_some())
+        .nth(k)
+        .expect("one actuator per activation state");
+    let activation = actuator.activation.expect("filtered");
+    let dynamics = match activation.kind {
+        ActivationKind::Integrator => "an integrator of ctrl".to_string(),
+        ActivationKind::Filter | ActivationKind::FilterExact => {
+            format!("a filter of ctrl with time constant {} s", activation.time_constant)
+        }
+    };
+    let mut text = format!("actuator {} (ctrl[{}]), {dynamics}", actuator.label(index), index + 1);
+    if let Some([low, high]) = activation.range {
+        text += &format!(", within actrange [{low}, {high}]");
+    }
+    if activation.early {
+        text += ", its force reading act one timestep ahead (actearly)";
+    }
+    text
+}
+
+pub(super) fn act(model: &Model, k: usize) -> String {
+    format!("activation state (MuJoCo's act) of {}", activation_owner(model, k))
+}
+
+pub(super) fn der_act(model: &Model, k: usize) -> String {
+    format!(
+        "time derivative of the activation state (MuJoCo's act_dot, 0 at a bound it would leave) of {}",
+        activation_owner(model, k)
+    )
 }
 
 /// Event indicator k: the limit sides first (two per limited joint, then

@@ -80,7 +80,7 @@ fn model_exchange(layout: &Layout) -> bool {
 /// before the derivatives, which are last so that adding one moves no
 /// value reference a script may hold (docs/fmi.md, "Which value references
 /// are stable").
-pub const TABLE: [Entry; 17] = [
+pub const TABLE: [Entry; 19] = [
     Entry {
         name: "tolerance",
         shape: Shape::Scalar,
@@ -173,8 +173,8 @@ pub const TABLE: [Entry; 17] = [
                 SensorDependence::Nothing => Vec::new(),
                 SensorDependence::Configuration => l.theta().collect(),
                 SensorDependence::Motion => l.theta().chain(l.nu()).collect(),
-                SensorDependence::Controls => l.theta().chain(l.nu()).chain(l.ctrl()).collect(),
-                SensorDependence::Inputs => l.theta().chain(l.nu()).chain(l.inputs()).collect(),
+                SensorDependence::Controls => l.theta().chain(l.nu()).chain(l.ctrl()).chain(l.act()).collect(),
+                SensorDependence::Inputs => l.theta().chain(l.nu()).chain(l.inputs()).chain(l.act()).collect(),
             })
         },
         slot: RealVariable::Sensordata,
@@ -246,7 +246,7 @@ pub const TABLE: [Entry; 17] = [
         start: no_start,
         description: describe::qfrc_constraint,
         // One problem couples every row to every input's ε.
-        dependencies: |l, _| Some(l.theta().chain(l.nu()).chain(l.inputs()).collect()),
+        dependencies: |l, _| Some(l.theta().chain(l.nu()).chain(l.inputs()).chain(l.act()).collect()),
         slot: RealVariable::QfrcConstraint,
     },
     Entry {
@@ -258,8 +258,21 @@ pub const TABLE: [Entry; 17] = [
         start: no_start,
         description: describe::constraint_switch,
         // The margins of the constraint problem, which every input's ε enters.
-        dependencies: |l, _| Some(l.theta().chain(l.nu()).chain(l.inputs()).collect()),
+        dependencies: |l, _| Some(l.theta().chain(l.nu()).chain(l.inputs()).chain(l.act()).collect()),
         slot: RealVariable::ConstraintSwitch,
+    },
+    // The actuators' activation states (MuJoCo's act), states like θ and ν,
+    // present only for a vehicle with activation dynamics.
+    Entry {
+        name: "act",
+        shape: Shape::Array,
+        flag: None,
+        len: |l| l.na,
+        kind: Kind::STATE_OUTPUT,
+        start: zero_start,
+        description: describe::act,
+        dependencies: |_, k| Some(vec![RealVariable::Act(k)]),
+        slot: RealVariable::Act,
     },
     Entry {
         name: "theta",
@@ -282,8 +295,21 @@ pub const TABLE: [Entry; 17] = [
         description: describe::der_nu,
         // Every actuator's ε reaches every dof through ℓ in general.
         dependencies: |l, k| {
-            Some(l.theta().chain(l.nu()).chain([RealVariable::Eps(k)]).chain(l.ctrl()).chain(l.wrenches()).collect())
+            let forces = l.ctrl().chain(l.wrenches()).chain(l.act());
+            Some(l.theta().chain(l.nu()).chain([RealVariable::Eps(k)]).chain(forces).collect())
         },
         slot: RealVariable::DerNu,
+    },
+    Entry {
+        name: "act",
+        shape: Shape::Derivative,
+        flag: None,
+        len: |l| if model_exchange(l) { l.na } else { 0 },
+        kind: Kind::DERIVATIVE,
+        start: no_start,
+        description: describe::der_act,
+        // act_dot is its actuator's ctrl and act (every ctrl listed: the layout keeps no owner).
+        dependencies: |l, k| Some(l.ctrl().chain([RealVariable::Act(k)]).collect()),
+        slot: RealVariable::DerAct,
     },
 ];
