@@ -559,7 +559,27 @@ impl Simulation {
             if stats.accepted + stats.rejected >= MAX_STEPS {
                 return Err(AdvanceError::TooManySteps { reached: t, step, tolerance });
             }
-            let per_step = match integrator.attempt(model, ws, (theta, qvel), (t, step), inputs_at) {
+            let mut step = step;
+            let mut attempted = integrator.attempt(model, ws, (theta, qvel), (t, step), inputs_at);
+            if attempted.is_ok()
+                && let Some(share) = integrator.activation_crossing(model, qvel, (t, step), inputs_at)
+            {
+                // A clamp of act (or of actearly's look-ahead) starts within the step, where the
+                // force kinks: the step is cut to end just past it (two secant steps), so that no
+                // step straddles the kink, before its error is judged.
+                let mut share = share;
+                for _ in 0..ACTIVATION_CROSSING_ATTEMPTS {
+                    step *= share + ACTIVATION_CROSSING_MARGIN * (1.0 - share);
+                    attempted = integrator.attempt(model, ws, (theta, qvel), (t, step), inputs_at);
+                    stats.locating += 1;
+                    match attempted.is_ok().then(|| integrator.activation_crossing(model, qvel, (t, step), inputs_at)) {
+                        // Still well short of the cut's end: closer.
+                        Some(Some(next)) if next < 1.0 - 2.0 * ACTIVATION_CROSSING_MARGIN => share = next,
+                        _ => break,
+                    }
+                }
+            }
+            let per_step = match attempted {
                 Ok(()) => integrator.error_norm(model, ws, theta, tolerance),
                 Err(cause) => {
                     last_cause = Some(Overflow::Dynamics(cause));
@@ -788,6 +808,13 @@ impl Integrator {
         }
     }
 }
+
+/// Secant attempts that cut a step to end just past where an act reaches
+/// a bound, and how far past it (a share of the rest of the step): act is
+/// all but linear over a step, so two attempts place the end within a tiny
+/// part of the step past the bound.
+const ACTIVATION_CROSSING_ATTEMPTS: usize = 2;
+const ACTIVATION_CROSSING_MARGIN: f64 = 1e-3;
 
 /// The RMS over the dofs of `value(dof, |coordinate|)`, a (Δ, θ̇) pair
 /// scaled by tol·(1 + |θ|) and tol·(1 + |θ̇|) at the step's start: the

@@ -44,6 +44,45 @@ pub(super) fn clamp_activations(model: &Model, act: &mut [f64]) -> bool {
     moved
 }
 
+/// What each limited activation's clamp applies to (act, or actearly's
+/// look-ahead: [`crate::model::Actuator::clamped_activation`]) at act
+/// `act` (na) and controls `ctrl` (nu), into `out` (na; unlimited ones 0).
+pub(super) fn clamped_activations(model: &Model, act: &[f64], ctrl: &[f64], out: &mut [f64]) {
+    let clamp_ctrl = model.actuation.clamp_ctrl;
+    let timestep = model.constraints.options.timestep;
+    let owners = model.actuators.iter().zip(ctrl).filter(|(a, _)| a.activation.is_some());
+    for ((slot, &act), (actuator, &ctrl)) in out.iter_mut().zip(act).zip(owners) {
+        let ctrl = match actuator.ctrl_range {
+            Some([low, high]) if clamp_ctrl => ctrl.max(low).min(high),
+            _ => ctrl,
+        };
+        *slot = actuator.clamped_activation(ctrl, act, timestep);
+    }
+}
+
+/// The earliest time, as a share of a step, at which a limited
+/// activation's clamped quantity ([`clamped_activations`]) goes from inside
+/// its range at the step's start (`start`) to past a bound at its end
+/// (`end`), taken as linear over the step; `None` when none does. The
+/// force kinks there, which an error control would creep across.
+pub(super) fn activation_crossing(model: &Model, start: &[f64], end: &[f64]) -> Option<f64> {
+    let activations = model.actuators.iter().filter_map(|a| a.activation);
+    let mut earliest: Option<f64> = None;
+    for ((&a, &b), activation) in start.iter().zip(end).zip(activations) {
+        let Some([low, high]) = activation.range else { continue };
+        let bound = if a < high && b > high {
+            high
+        } else if a > low && b < low {
+            low
+        } else {
+            continue;
+        };
+        let share = (bound - a) / (b - a);
+        earliest = Some(earliest.map_or(share, |e| e.min(share)));
+    }
+    earliest
+}
+
 /// θₙ ⊕ Δ: moves `theta` (nq) by the algebra displacement `delta` (nv), in place.
 pub fn retract(model: &Model, theta: &mut [f64], delta: &[f64]) {
     for link in &model.links {
@@ -145,12 +184,38 @@ pub struct Integrator {
     step_qvel: DVector<f64>,
     /// A Rosenbrock method's Jacobian and linear algebra (empty for explicit methods).
     pub(super) linear: Linearization,
+    /// The limited activations' clamped quantities at a step's start and
+    /// end (na; `activation_crossing`).
+    pub(super) clamped_start: Vec<f64>,
+    pub(super) clamped_end: Vec<f64>,
     /// How many times it has evaluated the rates, and formed W, ever.
     pub(super) evaluations: usize,
     pub(super) jacobians: usize,
 }
 
 impl Integrator {
+    /// Where within the attempted step of size `h` from time `t` a limited
+    /// activation's clamp starts to act ([`activation_crossing`]), from the
+    /// step's start `qvel` (θ̇ then act) and its end.
+    pub(super) fn activation_crossing(
+        &mut self,
+        model: &Model,
+        qvel: &[f64],
+        (t, h): (f64, f64),
+        inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
+    ) -> Option<f64> {
+        if !model.actuators.iter().any(|a| a.activation.is_some_and(|a| a.range.is_some())) {
+            return None;
+        }
+        let nv = model.nv;
+        inputs_at(t, self.eps_stage.as_mut_slice(), self.ctrl_stage.as_mut_slice());
+        clamped_activations(model, &qvel[nv..], self.ctrl_stage.as_slice(), &mut self.clamped_start);
+        inputs_at(t + h, self.eps_stage.as_mut_slice(), self.ctrl_stage.as_mut_slice());
+        let end = &self.qvel_next.as_slice()[nv..];
+        clamped_activations(model, end, self.ctrl_stage.as_slice(), &mut self.clamped_end);
+        activation_crossing(model, &self.clamped_start, &self.clamped_end)
+    }
+
     /// An integrator with `method`, sized for `model`.
     pub fn new(model: &Model, method: Method) -> Self {
         let nv = model.nv;
@@ -191,6 +256,8 @@ impl Integrator {
             ctrl_stage: DVector::zeros(model.actuators.len()),
             step_qvel: DVector::zeros(rates),
             linear: linearization(model, method),
+            clamped_start: vec![0.0; model.activation_count()],
+            clamped_end: vec![0.0; model.activation_count()],
             evaluations: 0,
             jacobians: 0,
         }

@@ -193,6 +193,26 @@ impl Actuator {
         activation.clamp(next)
     }
 
+    /// What the actuator's `actrange` clamps in its force: act, or with
+    /// `actearly` the unclamped look-ahead from `ctrl` (clamped to its
+    /// range already) and `act`. The force kinks where it crosses a bound.
+    pub fn clamped_activation(&self, ctrl: f64, act: f64, timestep: f64) -> f64 {
+        match self.activation {
+            Some(activation) if activation.early => {
+                let rate = self.activation_rate(ctrl, act);
+                let ahead = match activation.kind {
+                    ActivationKind::FilterExact => {
+                        let tau = activation.time_constant.max(MIN_TIME_CONSTANT);
+                        tau * (1.0 - (-timestep / tau).exp())
+                    }
+                    ActivationKind::Integrator | ActivationKind::Filter => timestep,
+                };
+                act + rate * ahead
+            }
+            _ => act,
+        }
+    }
+
     /// The gear's translation part.
     pub fn gear_translation(&self) -> Vec3 {
         Vec3::new(self.gear[0], self.gear[1], self.gear[2])
