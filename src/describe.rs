@@ -6,7 +6,7 @@ use serde::Serialize;
 
 use crate::math::Quat;
 use crate::model::Model;
-use crate::vehicle::{ActuatorKind, BiasType, GainType, JointKind, PathPoint, TendonPath, Vehicle};
+use crate::vehicle::{Activation, ActuatorKind, BiasType, GainType, JointKind, PathPoint, TendonPath, Vehicle};
 
 /// The structure of a compiled vehicle.
 #[derive(Clone, Debug, Serialize)]
@@ -143,6 +143,10 @@ pub struct ActuatorDescription {
     pub biastype: BiasType,
     /// biasprm[0..3], a damping ratio resolved into −kv.
     pub biasprm: [f64; 3],
+    /// Its activation dynamics (dyntype, dynprm[0], actrange, actearly),
+    /// when it has an activation state `act` (absent otherwise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub activation: Option<Activation>,
 }
 
 /// One joint: which entries of θ and ν it owns.
@@ -203,6 +207,7 @@ impl Description {
                 gainprm: actuator.gain,
                 biastype: actuator.bias_type,
                 biasprm: actuator.bias,
+                activation: actuator.activation,
             })
             .collect();
         Description {

@@ -464,6 +464,34 @@ fn describe(model_path: &Path, json: bool) -> Result<()> {
             );
         }
     }
+    let activations: Vec<(usize, &nudyn::describe::ActuatorDescription)> =
+        description.actuators.iter().enumerate().filter(|(_, a)| a.activation.is_some()).collect();
+    if !activations.is_empty() {
+        table += &format!("\n\n{} activation states (act order)\n", activations.len());
+        table += &format!(
+            "{:<5} {:<5} {:<24} {:<12} {:>10} {:<16} {}",
+            "act", "ctrl", "actuator", "dyntype", "tau", "actrange", "actearly"
+        );
+        for (k, (index, actuator)) in activations.into_iter().enumerate() {
+            let activation = actuator.activation.expect("filtered");
+            let dyntype = match activation.kind {
+                nudyn::vehicle::ActivationKind::Integrator => "integrator",
+                nudyn::vehicle::ActivationKind::Filter => "filter",
+                nudyn::vehicle::ActivationKind::FilterExact => "filterexact",
+            };
+            let range = activation.range.map_or("unlimited".to_string(), |[low, high]| format!("{low} .. {high}"));
+            table += &format!(
+                "\n{:<5} {:<5} {:<24} {:<12} {:>10} {:<16} {}",
+                k + 1,
+                index + 1,
+                actuator.name.as_deref().unwrap_or("-"),
+                dyntype,
+                activation.time_constant,
+                range,
+                activation.early
+            );
+        }
+    }
     if !description.tendons.is_empty() {
         table += &format!("\n\n{} tendons\n", description.tendons.len());
         table += &format!("{:<24} {:<8} {:>12} {}", "tendon", "kind", "length0", "range");

@@ -263,3 +263,16 @@ def test_adaptive_methods_meet_the_tolerance_across_the_clamps_without_relaxing(
             assert "warning" not in stderr, (method, tolerance, stderr)
             error = max(np.max(np.abs(f - r) / (1 + np.abs(r))) for f, r in zip(found, reference))
             assert error <= tolerance, (method, tolerance, error)
+
+
+def test_describe_lists_the_activation_states(nudyn):
+    """`nudyn describe` names each activation state's actuator, dyntype,
+    time constant, actrange and actearly (JSON: `activation`, absent for a
+    stateless actuator)."""
+    run = lambda *args: subprocess.run([str(nudyn), "describe", str(FIXTURE), *args], capture_output=True,
+                                       text=True, check=True).stdout
+    actuators = json.loads(run("--json"))["actuators"]
+    assert [a.get("activation") is not None for a in actuators] == [True] * 5 + [False]
+    assert actuators[3]["activation"] == {"kind": "filterexact", "time_constant": 0.03, "range": [-0.5, 0.5],
+                                          "early": True}
+    assert "5 activation states (act order)" in run()
