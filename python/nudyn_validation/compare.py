@@ -106,6 +106,7 @@ class Trajectory:
     momentum: np.ndarray  # (n + 1, 6)
     energy: np.ndarray  # (n + 1,) K + U
     sensordata: np.ndarray  # (n + 1, nsensordata): at the state reached, with the inputs held
+    act: np.ndarray  # (n + 1, na): the actuators' activation states (MuJoCo's act)
     wall_time: float  # seconds spent integrating
 
 
@@ -141,12 +142,16 @@ class ScenarioResult:
         scaled = np.abs((side or self.fmu).sensordata - reference) / np.maximum(1.0, np.abs(reference))
         return np.max(scaled, axis=1, initial=0.0)
 
+    def act_error(self, side: Trajectory | None = None) -> np.ndarray:
+        """max_k |act_side − act_mujoco| at each time (0 without activation states)."""
+        return np.max(np.abs((side or self.fmu).act - self.mujoco.act), axis=1, initial=0.0)
+
     def twin_divergence(self) -> np.ndarray:
         """The twins' largest distance from MuJoCo at each time, in the norm
-        of the FMU's error: the largest of θ, ν and sensordata differences."""
+        of the FMU's error: the largest of θ, ν, sensordata and act differences."""
         return np.maximum.reduce(
             [e for twin in self.twins for e in (self.theta_error(twin), self.nu_error(twin),
-                                                self.sensordata_error(twin))]
+                                                self.sensordata_error(twin), self.act_error(twin))]
         )
 
     def kinetic_energy_error(self) -> np.ndarray:
@@ -165,7 +170,8 @@ class ScenarioResult:
     def summary(self) -> dict:
         theta_error, nu_error = float(np.max(self.theta_error())), float(np.max(self.nu_error()))
         sensordata_error = float(np.max(self.sensordata_error()))
-        error = max(theta_error, nu_error, sensordata_error)
+        act_error = float(np.max(self.act_error()))
+        error = max(theta_error, nu_error, sensordata_error, act_error)
         twin = float(np.max(self.twin_divergence()))
         verdict = judge(error, twin, self.scenario.tolerance)
         return {
@@ -174,6 +180,7 @@ class ScenarioResult:
             "max_theta_error": theta_error,
             "max_nu_error": nu_error,
             "max_sensordata_error": sensordata_error,
+            "max_act_error": act_error,
             "max_kinetic_energy_error": float(np.max(self.kinetic_energy_error())),
             "max_momentum_error": float(np.max(self.momentum_error())),
             "kinetic_energy_start": float(self.mujoco.kinetic_energy[0]),
@@ -202,13 +209,14 @@ class _Samples:
     """Collects one side's samples, then freezes them into a Trajectory."""
 
     def __init__(self):
-        keys = ("theta", "nu", "kinetic_energy", "momentum", "energy", "sensordata")
+        keys = ("theta", "nu", "kinetic_energy", "momentum", "energy", "sensordata", "act")
         self.rows: dict[str, list] = {k: [] for k in keys}
         self.wall_time = 0.0
 
-    def add(self, theta, nu, kinetic_energy, momentum, potential_energy, sensordata):
+    def add(self, theta, nu, kinetic_energy, momentum, potential_energy, sensordata, act):
         for key, value in (
             ("sensordata", sensordata),
+            ("act", act),
             ("theta", theta),
             ("nu", nu),
             ("kinetic_energy", kinetic_energy),
@@ -251,10 +259,10 @@ def run_scenario(package: FmuPackage | None, model_path: Path, scenario: Scenari
     def sample():
         theta = fmu.array("theta")
         fmu_samples.add(theta, fmu.array("nu"), fmu.real("kinetic_energy"), fmu.array("momentum"),
-                        mj.potential_energy_at(theta), fmu.array("sensordata"))
+                        mj.potential_energy_at(theta), fmu.array("sensordata"), fmu.array("act"))
         for side, samples in ((mj, mj_samples), *zip(twins, twin_samples)):
             samples.add(side.theta(), side.nu(), side.kinetic_energy(), side.momentum(), side.potential_energy(),
-                        side.data.sensordata.copy())
+                        side.data.sensordata.copy(), side.data.act.copy())
 
     try:
         sample()

@@ -408,7 +408,8 @@ def run_job(model: Path, form: str, corpus: Path, out: Path, nudyn_path: Path, s
             return done("exported", f"{message}; MuJoCo alone: {mujoco_problem}", verdict=UNSTABLE)
         return done("exported", f"{message}; MuJoCo alone runs", verdict=DISAGREES)
     summary = validation.results[0].summary()
-    row.trajectory_error = max(summary["max_theta_error"], summary["max_nu_error"], summary["max_sensordata_error"])
+    row.trajectory_error = max(summary["max_theta_error"], summary["max_nu_error"], summary["max_sensordata_error"],
+                               summary["max_act_error"])
     row.twin_divergence = summary["max_twin_divergence"]
     row.tolerance = summary["tolerance"]
     row.trajectory_verdict = summary["verdict"]
