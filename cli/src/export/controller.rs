@@ -12,6 +12,7 @@ use nudyn_contract::controller::{CAPABILITIES, ControllerLayout, ControllerResou
 use nudyn_contract::plant::{RealVariable, description};
 use nudyn_contract::resource::Resource;
 
+use super::documentation::Row;
 use super::{
     Document, ExportError, FmiVersion, Header, PlatformBinary, check_model_identifier, documentation, fmi3,
     fmu_archive, generation_date_and_time, real_variable, write_file,
@@ -102,6 +103,34 @@ fn header(model: &Model, law: &ControlLaw, model_identifier: &str, guid: &str) -
     }
 }
 
+/// The Real `vr` of the controller FMU (whose layout is `layout`), as the writers need it.
+fn real_scalar(
+    model: &Model,
+    law: &ControlLaw,
+    layout: &ControllerLayout,
+    defaults: &ControlParameters,
+    vr: u32,
+) -> fmi3::RealScalar {
+    let variable = layout.variable(vr).expect("the table's Reals are the layout's");
+    fmi3::RealScalar {
+        kind: variable.kind(),
+        start: variable.start(model, defaults),
+        description: controller_description(model, law, variable),
+    }
+}
+
+/// The documentation page's rows of the controller FMU of `resource` in `version`.
+fn rows(resource: &ControllerResource, defaults: &ControlParameters, version: FmiVersion) -> Vec<Row> {
+    let (model, law, layout) = (&resource.model, &resource.law, resource.layout());
+    let real = |vr: u32| real_scalar(model, law, &layout, defaults, vr);
+    match version {
+        FmiVersion::Fmi2 => {
+            layout.variables().map(|(vr, variable)| Row::real(layout.name(variable), vr, real(vr))).collect()
+        }
+        FmiVersion::Fmi3 => [Row::time()].into_iter().chain(Row::float64s(&resource.fmi3_variables(), real)).collect(),
+    }
+}
+
 /// The typed FMI 3.0 modelDescription of the controller FMU (not yet validated).
 pub fn controller_model_description3(
     resource: &ControllerResource,
@@ -111,14 +140,7 @@ pub fn controller_model_description3(
 ) -> md::fmi3::Fmi3ModelDescription {
     let (model, law) = (&resource.model, &resource.law);
     let layout = resource.layout();
-    let real = |vr: u32| {
-        let variable = layout.variable(vr).expect("the table's Reals are the layout's");
-        fmi3::RealScalar {
-            kind: variable.kind(),
-            start: variable.start(model, defaults),
-            description: controller_description(model, law, variable),
-        }
-    };
+    let real = |vr: u32| real_scalar(model, law, &layout, defaults, vr);
     let others = fmi3::Others { enumeration_types: Vec::new(), variables: Vec::new() };
     let (table, dependencies) = (resource.fmi3_variables(), |vr| layout.dependency_vrs(vr));
     fmi3::model_description(header(model, law, model_identifier, guid), &table, real, dependencies, others)
@@ -207,6 +229,7 @@ pub fn controller_fmu(
             Document::Fmi3(controller_model_description3(&resource, &defaults, model_identifier, &guid))
         }
     };
-    let documentation = documentation::index_html(model, &description, "controller");
+    let documentation =
+        documentation::index_html(model, &description, &rows(&resource, &defaults, fmi_version), "controller");
     Ok(fmu_archive::<ControllerResource>(&description, &bytes, &documentation, binaries, out)?)
 }
