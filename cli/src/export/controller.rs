@@ -1,15 +1,13 @@
-//! The controller FMU's modelDescription (`nudyn export --controller`):
-//! the contract's controller variables with descriptions that name the
-//! controlled joints or body. Same binary as the plant FMU: it tells the
+//! The controller FMU's modelDescription (`nudyn export --controller`),
+//! rendered from the contract's controller table (`CONTROLLER_TABLE`). Same binary as the plant FMU: it tells the
 //! two apart by the resource file it finds.
 
 use std::path::Path;
 
 use modeldescription as md;
 use nudyn::control::{ControlError, ControlLaw, ControlParameters, Objective};
-use nudyn::model::{LinkJoint, Model};
-use nudyn_contract::controller::{CAPABILITIES, ControllerLayout, ControllerResource, ControllerVariable};
-use nudyn_contract::plant::{RealVariable, description};
+use nudyn::model::Model;
+use nudyn_contract::controller::{CAPABILITIES, ControllerLayout, ControllerResource};
 use nudyn_contract::resource::Resource;
 
 use super::documentation::Row;
@@ -17,70 +15,6 @@ use super::{
     Document, ExportError, FmiVersion, Header, PlatformBinary, check_model_identifier, documentation, fmi3,
     fmu_archive, generation_date_and_time, real_variable, write_file,
 };
-
-/// What controlled quantity k is, and its unit, for descriptions.
-fn quantity(model: &Model, law: &ControlLaw, k: usize) -> (String, &'static str, &'static str) {
-    const AXES: [&str; 3] = ["x", "y", "z"];
-    match &law.objective {
-        Objective::Joints(joints) => {
-            let joint = &joints[k];
-            let slide = model.links.iter().any(|l| l.qpos_adr == joint.qpos_adr && l.joint == LinkJoint::Slide);
-            let (kind, unit, gain_unit) = if slide { ("slide", "m", "N/m") } else { ("hinge", "rad", "N*m/rad") };
-            (format!("{kind} joint '{}'", joint.name), unit, gain_unit)
-        }
-        Objective::Pose(frame) if k < 3 => {
-            (format!("position {} of body '{}' in world", AXES[k], frame.body), "m", "N/m")
-        }
-        Objective::Pose(frame) => (
-            format!("rotation of body '{}' about the target frame's {} axis", frame.body, AXES[k - 3]),
-            "rad",
-            "N*m/rad",
-        ),
-    }
-}
-
-/// The description of `variable` in modelDescription.xml.
-fn controller_description(model: &Model, law: &ControlLaw, variable: ControllerVariable) -> String {
-    const QUATERNION: [&str; 4] = ["w", "x", "y", "z"];
-    match variable {
-        ControllerVariable::RateGain(k) => {
-            format!("rate gain c1 of dof {} (1/s): eps[{0}] = -c1[{0}] nu[{0}] + ...", k + 1)
-        }
-        ControllerVariable::TargetGain(k) => {
-            let (what, _, unit) = quantity(model, law, k);
-            format!("gain c2 on the error of the {what} ({unit})")
-        }
-        ControllerVariable::Target(k) => match &law.objective {
-            Objective::Pose(frame) if k < 3 => {
-                format!("target position {} of body '{}' in world (m)", ["x", "y", "z"][k], frame.body)
-            }
-            Objective::Pose(frame) => format!(
-                "target orientation of body '{}', quaternion {} (body to world; normalized when used) (1)",
-                frame.body,
-                QUATERNION[k - 3]
-            ),
-            Objective::Joints(_) => {
-                let (what, unit, _) = quantity(model, law, k);
-                format!("target of the {what} ({unit})")
-            }
-        },
-        ControllerVariable::Theta(k) => format!("input: {}", description(model, RealVariable::Theta(k))),
-        ControllerVariable::Nu(k) => format!("input: {}", description(model, RealVariable::Nu(k))),
-        ControllerVariable::Eps(k) => {
-            format!("output: {} = -c1 nu + l J^T c2 (Yhat - Y)", description(model, RealVariable::Eps(k)))
-        }
-        ControllerVariable::Potential => "potential 1/2 sum c2 (Yhat - Y)^2 of the configuration term (J)".into(),
-        ControllerVariable::TargetError(k) => {
-            let (what, unit, _) = quantity(model, law, k);
-            match &law.objective {
-                Objective::Pose(_) if k >= 3 => {
-                    format!("error Yhat - Y = -phi, phi = log(Rhat^T R): {what} relative to the target ({unit})")
-                }
-                _ => format!("error Yhat - Y of the {what} ({unit})"),
-            }
-        }
-    }
-}
 
 /// What the controller's modelDescription says of the FMU as a whole.
 fn header(model: &Model, law: &ControlLaw, model_identifier: &str, guid: &str) -> Header {
@@ -111,11 +45,11 @@ fn real_scalar(
     defaults: &ControlParameters,
     vr: u32,
 ) -> fmi3::RealScalar {
-    let variable = layout.variable(vr).expect("the table's Reals are the layout's");
+    let element = layout.element(vr).expect("the table's Reals are the layout's");
     fmi3::RealScalar {
-        kind: variable.kind(),
-        start: variable.start(model, defaults),
-        description: controller_description(model, law, variable),
+        kind: element.kind(),
+        start: element.start(model, defaults),
+        description: element.description(model, law),
     }
 }
 
@@ -125,7 +59,7 @@ fn rows(resource: &ControllerResource, defaults: &ControlParameters, version: Fm
     let real = |vr: u32| real_scalar(model, law, &layout, defaults, vr);
     match version {
         FmiVersion::Fmi2 => {
-            layout.variables().map(|(vr, variable)| Row::real(layout.name(variable), vr, real(vr))).collect()
+            layout.elements().map(|e| Row::real(e.name(), e.value_reference, real(e.value_reference))).collect()
         }
         FmiVersion::Fmi3 => [Row::time()].into_iter().chain(Row::float64s(&resource.fmi3_variables(), real)).collect(),
     }
@@ -156,10 +90,10 @@ pub fn controller_model_description(
 ) -> md::FmiModelDescription {
     let layout = ControllerLayout::new(model, law);
     let model_variables: Vec<md::ScalarVariable> = layout
-        .variables()
-        .map(|(vr, variable)| {
-            let description = controller_description(model, law, variable);
-            real_variable(layout.name(variable), vr, description, variable.kind(), variable.start(model, defaults))
+        .elements()
+        .map(|e| {
+            let (vr, description) = (e.value_reference, e.description(model, law));
+            real_variable(e.name(), vr, description, e.kind(), e.start(model, defaults))
         })
         .collect();
 
