@@ -5,7 +5,10 @@
 //! (`theta[1]`): inputs `eps[1..nv]` and, for a vehicle with actuators,
 //! `ctrl[1..nu]` in MuJoCo's actuator order; outputs `theta[1..nq]` and
 //! `nu[1..nv]`, for a vehicle with sensors `sensordata[1..n]` in MuJoCo's
-//! sensor order and layout, and the optional outputs chosen at export.
+//! sensor order and layout, and the optional outputs chosen at export;
+//! for model exchange the event indicators `constraint_switch[1..n]` and
+//! the state derivatives. Every variable is an entry of one table
+//! ([`TABLE`], `plant/table.rs`).
 
 use std::collections::BTreeMap;
 
@@ -373,12 +376,9 @@ impl SensorDependence {
     }
 }
 
-/// The plant's Real variables and their value references: consecutive
-/// blocks after the two parameters, `tolerance` (1) and `max_step` (2), in
-/// the order eps, ctrl, xfrc_applied, theta, nu, sensordata, the chosen optional outputs, then the state
-/// derivatives der(theta) and der(nu) of model exchange, when the FMU serves
-/// it (last, so that the blocks before keep the value references they had
-/// before model exchange).
+/// What sizes a vehicle and an option set give the entries of the
+/// variable table ([`TABLE`]): the plant's Real variables are the entries
+/// present, numbered consecutively from `tolerance` (1) in the table's order.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Layout {
     /// Number of position coordinates.
