@@ -505,7 +505,10 @@ fn describe(model_path: &Path, json: bool) -> Result<()> {
             );
         }
     }
-    emit(&table)
+    // The plant FMU's variables, from the contract's table, as docs/fmi.md shows them.
+    table += "\n\nFMU variables of `nudyn export` without options (--outputs and --wrench-inputs add some)\n";
+    table += &nudyn_cli::export::variable_table::markdown(&PlantResource::new(model, OptionalOutputs::default()));
+    emit(table.trim_end())
 }
 
 /// Writes `text` and a newline to standard output. A reader that closed

@@ -9,13 +9,10 @@ use crate::plant::{ENERGY_PROJECTION_NAME, ENERGY_PROJECTION_VR, Layout, METHOD_
 use crate::plant::{OptionalOutputs, SensorDependence};
 
 fn outputs() -> impl Strategy<Value = OptionalOutputs> {
-    proptest::array::uniform6(any::<bool>()).prop_map(|f| OptionalOutputs {
-        qvel: f[0],
-        kinetic_energy: f[1],
-        power: f[2],
-        momentum: f[3],
-        energy_residual: f[4],
-        qfrc_constraint: f[5],
+    proptest::collection::vec(any::<bool>(), OptionalOutputs::NAMES.len()).prop_map(|chosen| {
+        let names: Vec<&str> =
+            OptionalOutputs::NAMES.iter().zip(chosen).filter(|(_, chosen)| *chosen).map(|(name, _)| *name).collect();
+        names.join(",").parse().expect("known names")
     })
 }
 

@@ -28,18 +28,6 @@ pub(crate) struct Block<V> {
     pub variable: VariableOf<V>,
 }
 
-impl<V> Block<V> {
-    /// A scalar block, present or not.
-    pub fn scalar(name: &'static str, present: bool, variable: VariableOf<V>) -> Self {
-        Block { name, shape: Shape::Scalar, len: usize::from(present), variable }
-    }
-
-    /// An array block of `len` elements.
-    pub fn array(name: &'static str, len: usize, variable: VariableOf<V>) -> Self {
-        Block { name, shape: Shape::Array, len, variable }
-    }
-}
-
 /// One block of FMI 2.0 Real variables, numbered: what the FMI 3.0 table
 /// and the GUID read of a component's layout.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -76,20 +64,6 @@ impl RealBlock {
     pub fn elements(&self) -> impl Iterator<Item = (u32, String)> + '_ {
         (0..self.len).map(|k| (self.first + k as u32, self.element_name(k)))
     }
-}
-
-/// Blocks numbered consecutively from value reference `first`: each block
-/// with the value reference of its first element.
-pub(crate) fn numbered_blocks<V, const N: usize>(
-    first: u32,
-    blocks: [Block<V>; N],
-) -> impl Iterator<Item = (u32, Block<V>)> {
-    let mut next = first;
-    blocks.into_iter().map(move |block| {
-        let first = next;
-        next += block.len as u32;
-        (first, block)
-    })
 }
 
 /// The variable with value reference `vr` among numbered `blocks`, if any.

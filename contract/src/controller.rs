@@ -12,10 +12,15 @@ use serde::{Deserialize, Serialize};
 use nudyn::control::{ControlLaw, ControlParameters, Objective};
 use nudyn::model::Model;
 
-use crate::blocks::{Block, RealBlock, every_variable, numbered_blocks, real_blocks, variable_at};
+use crate::blocks::{Block, RealBlock, every_variable, real_blocks, variable_at};
 use crate::capabilities::Capabilities;
 use crate::resource::Resource;
-use crate::variable::{Causality, Kind, Range};
+use crate::variable::Kind;
+
+mod describe;
+mod table;
+
+pub use table::{CONTROLLER_TABLE, ControllerEntry};
 
 /// What the controller FMU can do: nothing to save (its outputs are a
 /// function of inputs and parameters), no input or output derivatives.
@@ -103,36 +108,9 @@ pub enum ControllerVariable {
     TargetError(usize),
 }
 
-impl ControllerVariable {
-    /// What kind of variable it is: gains and targets are tunable.
-    pub fn kind(self) -> Kind {
-        match self {
-            ControllerVariable::RateGain(_) | ControllerVariable::TargetGain(_) => {
-                Kind::tunable_parameter(Range::NonNegative)
-            }
-            ControllerVariable::Target(_) => Kind::tunable_parameter(Range::Any),
-            ControllerVariable::Theta(_) | ControllerVariable::Nu(_) => Kind::INPUT,
-            ControllerVariable::Eps(_) | ControllerVariable::Potential | ControllerVariable::TargetError(_) => {
-                Kind::CALCULATED_OUTPUT
-            }
-        }
-    }
-
-    /// The start value written into the modelDescription, if it has one.
-    pub fn start(self, model: &Model, defaults: &ControlParameters) -> Option<f64> {
-        match self {
-            ControllerVariable::RateGain(k) => Some(defaults.c1[k]),
-            ControllerVariable::TargetGain(k) => Some(defaults.c2[k]),
-            ControllerVariable::Target(k) => Some(defaults.target[k]),
-            ControllerVariable::Theta(k) => Some(model.qpos0[k]),
-            ControllerVariable::Nu(_) => Some(0.0),
-            _ => None,
-        }
-    }
-}
-
-/// The controller's Real variables and value references: consecutive blocks
-/// from 1 in the order c1, c2, target, theta, nu, eps, potential, target_error.
+/// The controller's Real variables and value references: the entries of
+/// [`CONTROLLER_TABLE`] numbered from 1 (c1, c2, target, theta, nu, eps,
+/// potential, target_error).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ControllerLayout {
     /// Number of position coordinates.
@@ -159,22 +137,40 @@ impl ControllerLayout {
         }
     }
 
-    fn blocks(&self) -> impl Iterator<Item = (u32, Block<ControllerVariable>)> {
-        // A pose target is two arrays, the position and the quaternion.
-        let (position, quaternion, joints) = if self.pose { (3, 4, 0) } else { (0, 0, self.target_len) };
-        let blocks = [
-            Block::array("c1", self.nv, ControllerVariable::RateGain),
-            Block::array("c2", self.ny, ControllerVariable::TargetGain),
-            Block::array("target_position", position, ControllerVariable::Target),
-            Block::array("target_quaternion", quaternion, |k| ControllerVariable::Target(3 + k)),
-            Block::array("target", joints, ControllerVariable::Target),
-            Block::array("theta", self.nq, ControllerVariable::Theta),
-            Block::array("nu", self.nv, ControllerVariable::Nu),
-            Block::array("eps", self.nv, ControllerVariable::Eps),
-            Block::scalar("potential", true, |_| ControllerVariable::Potential),
-            Block::array("target_error", self.ny, ControllerVariable::TargetError),
-        ];
-        numbered_blocks(1, blocks)
+    /// The table's entries in value-reference order, each with the value
+    /// reference of its first element and its length in this layout.
+    fn entries(&self) -> impl Iterator<Item = (u32, &'static ControllerEntry, usize)> + '_ {
+        let mut next = 1;
+        CONTROLLER_TABLE.iter().map(move |entry| {
+            let (first, len) = (next, (entry.len)(self));
+            next += len as u32;
+            (first, entry, len)
+        })
+    }
+
+    fn blocks(&self) -> impl Iterator<Item = (u32, Block<ControllerVariable>)> + '_ {
+        self.entries().map(|(first, entry, len)| {
+            (first, Block { name: entry.name, shape: entry.shape, len, variable: entry.slot })
+        })
+    }
+
+    /// Every element of the table present in this layout, in value-reference order.
+    pub fn elements(&self) -> impl Iterator<Item = ControllerElement> + '_ {
+        self.entries().flat_map(|(first, entry, len)| {
+            (0..len).map(move |k| ControllerElement { value_reference: first + k as u32, entry, index: k, len })
+        })
+    }
+
+    /// The element with value reference `vr`, if any.
+    pub fn element(&self, vr: u32) -> Option<ControllerElement> {
+        self.entries().find(|&(first, _, len)| vr >= first && ((vr - first) as usize) < len).map(
+            |(first, entry, len)| ControllerElement { value_reference: vr, entry, index: (vr - first) as usize, len },
+        )
+    }
+
+    /// The value reference of `variable`, if this layout has it.
+    fn value_reference(&self, variable: ControllerVariable) -> Option<u32> {
+        self.elements().find(|element| element.variable() == variable).map(|element| element.value_reference)
     }
 
     /// The Real variables' blocks, numbered.
@@ -186,16 +182,11 @@ impl ControllerLayout {
     /// ascending: ε on θ and ν, the potential and the target error on θ;
     /// `None` for a variable that is not an output.
     pub fn dependency_vrs(&self, vr: u32) -> Option<Vec<u32>> {
-        let inputs = |keep: fn(&ControllerVariable) -> bool| {
-            self.variables().filter(|(_, v)| keep(v)).map(|(vr, _)| vr).collect::<Vec<u32>>()
-        };
-        match self.variable(vr)? {
-            ControllerVariable::Eps(_) => Some(inputs(|v| v.kind().causality == Causality::Input)),
-            ControllerVariable::Potential | ControllerVariable::TargetError(_) => {
-                Some(inputs(|v| matches!(v, ControllerVariable::Theta(_))))
-            }
-            _ => None,
-        }
+        let element = self.element(vr)?;
+        let inputs = (element.entry.dependencies)(self, element.index)?;
+        let mut vrs: Vec<u32> = inputs.into_iter().filter_map(|input| self.value_reference(input)).collect();
+        vrs.sort_unstable();
+        Some(vrs)
     }
 
     /// The variable with value reference `vr`, if any.
@@ -217,6 +208,47 @@ impl ControllerLayout {
                 Some(RealBlock { name: block.name, shape: block.shape, first, len: block.len }.element_name(k))
             })
             .expect("a variable of this layout")
+    }
+}
+
+/// One element of the controller's table in a layout.
+#[derive(Clone, Copy)]
+pub struct ControllerElement {
+    /// Its value reference.
+    pub value_reference: u32,
+    /// Its entry of the table.
+    pub entry: &'static ControllerEntry,
+    /// Its index within the entry (0-based; 0 for a scalar).
+    pub index: usize,
+    /// The number of elements of its entry in the layout.
+    pub len: usize,
+}
+
+impl ControllerElement {
+    /// Its name: `name` or `name[k+1]`.
+    pub fn name(&self) -> String {
+        let block = RealBlock { name: self.entry.name, shape: self.entry.shape, first: 0, len: self.len };
+        block.element_name(self.index)
+    }
+
+    /// Its slot: what the FMU reads and writes.
+    pub fn variable(&self) -> ControllerVariable {
+        (self.entry.slot)(self.index)
+    }
+
+    /// Its kind.
+    pub fn kind(&self) -> Kind {
+        self.entry.kind
+    }
+
+    /// Its start value in the FMU of `model` with the law's `defaults`, if it has one.
+    pub fn start(&self, model: &Model, defaults: &ControlParameters) -> Option<f64> {
+        (self.entry.start)(model, defaults, self.index)
+    }
+
+    /// Its description in the FMU of `model` with `law`.
+    pub fn description(&self, model: &Model, law: &ControlLaw) -> String {
+        (self.entry.description)(model, law, self.index)
     }
 }
 

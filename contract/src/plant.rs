@@ -5,7 +5,10 @@
 //! (`theta[1]`): inputs `eps[1..nv]` and, for a vehicle with actuators,
 //! `ctrl[1..nu]` in MuJoCo's actuator order; outputs `theta[1..nq]` and
 //! `nu[1..nv]`, for a vehicle with sensors `sensordata[1..n]` in MuJoCo's
-//! sensor order and layout, and the optional outputs chosen at export.
+//! sensor order and layout, and the optional outputs chosen at export;
+//! for model exchange the event indicators `constraint_switch[1..n]` and
+//! the state derivatives. Every variable is an entry of one table
+//! ([`TABLE`], `plant/table.rs`).
 
 use std::collections::BTreeMap;
 
@@ -23,7 +26,7 @@ use crate::variable::{Kind, StartError, check_start};
 mod describe;
 mod table;
 
-pub use table::{Entry, Flag, TABLE};
+pub use table::{Entry, TABLE};
 
 /// Value reference of the Integer (enumeration) parameter `method`.
 pub const METHOD_VR: u32 = 0;
@@ -72,7 +75,7 @@ pub fn method_items() -> String {
 /// the energy residual, whose work integral only the FMU's own integration
 /// keeps.
 pub fn capabilities(outputs: OptionalOutputs) -> Capabilities {
-    Capabilities { model_exchange: !outputs.energy_residual, ..CAPABILITIES }
+    Capabilities { model_exchange: !outputs.has("energy_residual"), ..CAPABILITIES }
 }
 
 /// What the plant FMU can do, at most.
@@ -86,24 +89,15 @@ pub const CAPABILITIES: Capabilities = Capabilities {
     model_exchange: true,
 };
 
-/// The optional outputs chosen at export; those not chosen do not exist in
-/// the FMU, so they cost nothing at run time.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+/// The optional outputs chosen at export, the table's entries marked
+/// `optional`; those not chosen do not exist in the FMU, so they cost
+/// nothing at run time. The resource file holds them as an object of every
+/// name with whether it is chosen (`{"qvel": false, ...}`, in the table's
+/// order); a name missing there is not chosen.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct OptionalOutputs {
-    /// `qvel[1..nv]`: θ̇ in MuJoCo's convention.
-    pub qvel: bool,
-    /// `kinetic_energy`: K = ½|ν|².
-    pub kinetic_energy: bool,
-    /// `power`: ν·ε of the applied ε.
-    pub power: bool,
-    /// `momentum[1..6]`: spatial momentum (angular about the world origin, then linear), world axes.
-    pub momentum: bool,
-    /// `energy_residual`: K − K₀ − ∫ν·ν̇ dt, the integration's energy error.
-    #[serde(default)]
-    pub energy_residual: bool,
-    /// `qfrc_constraint[1..nv]`: MuJoCo's qfrc_constraint, the constraint forces' joint forces.
-    #[serde(default)]
-    pub qfrc_constraint: bool,
+    /// Bit i: whether `NAMES[i]` is chosen.
+    chosen: u32,
 }
 
 /// How many entries of the table are optional outputs.
@@ -111,7 +105,7 @@ const OPTIONAL_COUNT: usize = {
     let mut count = 0;
     let mut i = 0;
     while i < TABLE.len() {
-        if TABLE[i].flag.is_some() {
+        if TABLE[i].optional {
             count += 1;
         }
         i += 1;
@@ -121,12 +115,12 @@ const OPTIONAL_COUNT: usize = {
 
 impl OptionalOutputs {
     /// The name of every optional output, as `--outputs` takes them: the
-    /// table's entries that have a flag, in its order.
+    /// table's optional entries, in its order.
     pub const NAMES: [&str; OPTIONAL_COUNT] = {
         let mut names = [""; OPTIONAL_COUNT];
         let (mut i, mut n) = (0, 0);
         while i < TABLE.len() {
-            if TABLE[i].flag.is_some() {
+            if TABLE[i].optional {
                 names[n] = TABLE[i].name;
                 n += 1;
             }
@@ -135,10 +129,36 @@ impl OptionalOutputs {
         names
     };
 
-    /// The flag of the output `name`, if it is one of [`OptionalOutputs::NAMES`].
-    fn flag(&mut self, name: &str) -> Option<&mut bool> {
-        let flag = TABLE.iter().filter(|entry| entry.name == name).find_map(|entry| entry.flag)?;
-        Some(flag(self))
+    /// The bit of the optional output `name`, if it is one.
+    fn bit(name: &str) -> Option<u32> {
+        Self::NAMES.iter().position(|&known| known == name).map(|i| 1 << i)
+    }
+
+    /// Whether the optional output `name` is chosen.
+    pub fn has(&self, name: &str) -> bool {
+        debug_assert!(Self::bit(name).is_some(), "{name} is no optional output");
+        Self::bit(name).is_some_and(|bit| self.chosen & bit != 0)
+    }
+}
+
+impl Serialize for OptionalOutputs {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let mut map = serializer.serialize_map(Some(Self::NAMES.len()))?;
+        for name in Self::NAMES {
+            map.serialize_entry(name, &self.has(name))?;
+        }
+        map.end()
+    }
+}
+
+impl<'de> Deserialize<'de> for OptionalOutputs {
+    /// Names it does not know are left out, as for any field of the file a
+    /// reader does not know ([`Resource::FORMAT`] says when that matters).
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let flags = BTreeMap::<String, bool>::deserialize(deserializer)?;
+        let chosen = flags.iter().filter(|(_, on)| **on).filter_map(|(name, _)| Self::bit(name)).fold(0, |a, b| a | b);
+        Ok(OptionalOutputs { chosen })
     }
 }
 
@@ -154,7 +174,7 @@ impl std::str::FromStr for OptionalOutputs {
     fn from_str(list: &str) -> Result<Self, UnknownOutput> {
         let mut outputs = OptionalOutputs::default();
         for name in list.split(',').map(str::trim).filter(|n| !n.is_empty()) {
-            *outputs.flag(name).ok_or_else(|| UnknownOutput(name.to_string()))? = true;
+            outputs.chosen |= Self::bit(name).ok_or_else(|| UnknownOutput(name.to_string()))?;
         }
         Ok(outputs)
     }
@@ -380,12 +400,9 @@ impl SensorDependence {
     }
 }
 
-/// The plant's Real variables and their value references: consecutive
-/// blocks after the two parameters, `tolerance` (1) and `max_step` (2), in
-/// the order eps, ctrl, xfrc_applied, theta, nu, sensordata, the chosen optional outputs, then the state
-/// derivatives der(theta) and der(nu) of model exchange, when the FMU serves
-/// it (last, so that the blocks before keep the value references they had
-/// before model exchange).
+/// What sizes a vehicle and an option set give the entries of the
+/// variable table ([`TABLE`]): the plant's Real variables are the entries
+/// present, numbered consecutively from `tolerance` (1) in the table's order.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Layout {
     /// Number of position coordinates.
@@ -600,23 +617,23 @@ mod tests {
     #[test]
     fn parses_optional_outputs() {
         let all: OptionalOutputs = "qvel, kinetic_energy,power,momentum".parse().unwrap();
-        assert_eq!(
-            all,
-            OptionalOutputs {
-                qvel: true,
-                kinetic_energy: true,
-                power: true,
-                momentum: true,
-                energy_residual: false,
-                qfrc_constraint: false
-            }
-        );
+        assert!(all.has("qvel") && all.has("kinetic_energy") && all.has("power") && all.has("momentum"));
+        assert!(!all.has("energy_residual") && !all.has("qfrc_constraint"));
         assert_eq!("".parse::<OptionalOutputs>().unwrap(), OptionalOutputs::default());
         assert_eq!("qvel,speed".parse::<OptionalOutputs>(), Err(UnknownOutput("speed".into())));
         for name in OptionalOutputs::NAMES {
             assert_ne!(name.parse::<OptionalOutputs>().unwrap(), OptionalOutputs::default(), "{name}");
         }
         assert!(UnknownOutput("x".into()).to_string().contains("energy_residual"));
+        // The resource file's object: every name in the table's order, unknown names left out.
+        let written = serde_json::to_string(&all).unwrap();
+        assert_eq!(
+            written,
+            r#"{"qvel":true,"kinetic_energy":true,"power":true,"momentum":true,"energy_residual":false,"qfrc_constraint":false}"#
+        );
+        assert_eq!(serde_json::from_str::<OptionalOutputs>(&written).unwrap(), all);
+        let older: OptionalOutputs = serde_json::from_str(r#"{"qvel":true,"future":true}"#).unwrap();
+        assert_eq!(older, "qvel".parse().unwrap());
     }
 
     #[test]

@@ -214,5 +214,10 @@ mod tests {
         assert_eq!(Kind::CALCULATED_OUTPUT.refuses_set(false), Some("at all: it is a calculated output"));
         assert!(fixed.accepts(1e-9) && !fixed.accepts(0.0));
         assert!(tunable.accepts(0.0) && !tunable.accepts(-1.0));
+        // The FMU calculates the locals: never set, and no start value to choose.
+        assert_eq!(Kind::DERIVATIVE.refuses_set(false), Some("at all: it is a state derivative, calculated"));
+        assert_eq!(Kind::EVENT_INDICATOR.refuses_set(false), Some("at all: it is an event indicator, calculated"));
+        let chosen = check_start("constraint_switch[1]", Kind::EVENT_INDICATOR, false, 0.0).unwrap_err();
+        assert_eq!(chosen.to_string(), "constraint_switch[1] has no start value: it is an event indicator");
     }
 }

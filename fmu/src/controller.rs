@@ -127,11 +127,11 @@ impl Component for Controller {
     }
 
     fn real_variable(&self, vr: u32) -> Option<Variable> {
-        self.layout.variable(vr).map(|v| Variable { name: self.layout.name(v), kind: v.kind() })
+        self.layout.element(vr).map(|e| Variable { name: e.name(), kind: e.kind() })
     }
 
     fn real_kind(&self, vr: u32) -> Option<Kind> {
-        self.layout.variable(vr).map(|v| v.kind())
+        self.layout.element(vr).map(|e| e.kind())
     }
 
     fn set_reals(&mut self, vrs: &[u32], values: &[f64]) {

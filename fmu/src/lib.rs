@@ -20,6 +20,8 @@
 //! - [`snapshot`]: FMU states and their serialized form;
 //! - [`uri`]: the resource location.
 
+#[cfg(test)]
+mod agreement_tests;
 mod calls;
 mod component;
 mod controller;

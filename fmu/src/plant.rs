@@ -153,7 +153,7 @@ impl Plant {
         let model = &self.model;
         let time = self.sim.state.time;
         let ws = self.sim.evaluate_velocity(model).map_err(CallError::Evaluate)?;
-        if self.layout.outputs.momentum {
+        if self.layout.outputs.has("momentum") {
             let momentum = ws.momentum(model).map_err(CallError::Evaluate)?;
             self.momentum.iter_mut().zip(momentum.iter()).for_each(|(m, x)| *m = *x);
         }

@@ -9,6 +9,8 @@ returned 0 from fmi3GetNumberOfEventIndicators."""
 
 from __future__ import annotations
 
+import os
+import subprocess
 from ctypes import c_double
 
 import numpy as np
@@ -22,12 +24,17 @@ DOCKED = ROOT / "tests" / "fixtures" / "constraints" / "docked_servicer.xml"
 
 
 @pytest.fixture(scope="module")
-def fmus(cli, tmp_path_factory):
+def fmus(cli, nudyn, fmu_library, tmp_path_factory):
     """The docked servicer's FMU in FMI 2.0, FMI 3.0 and FMI 3.0 with scalars."""
     directory = tmp_path_factory.mktemp("indicators")
+    scalars = directory / "scalars" / "docked.fmu"
+    scalars.parent.mkdir()
+    subprocess.run([str(nudyn), "export", str(DOCKED), "-o", str(scalars), "--fmi-version", "3", "--fmi3-scalars"],
+                   check=True, capture_output=True, env={**os.environ, "NUDYN_FMU_LIB": str(fmu_library)})
     return {
         "fmi2": cli.export(DOCKED, directory / "fmi2" / "docked.fmu"),
         "fmi3": cli.export(DOCKED, directory / "fmi3" / "docked.fmu", fmi_version=3),
+        "scalars": scalars,
     }
 
 
@@ -44,6 +51,10 @@ def test_the_fmi3_description_lists_constraint_switch_as_event_indicators(fmus):
     names = [v.name for v in fmi2.modelVariables if v.name.startswith("constraint_switch[")]
     assert names == [f"constraint_switch[{k + 1}]" for k in range(fmi2.numberOfEventIndicators)]
     assert validate_fmu(str(fmus["fmi3"])) == []
+    # With --fmi3-scalars, one <EventIndicator> per element, in order.
+    scalars = read_model_description(str(fmus["scalars"]))
+    assert [unknown.variable.name for unknown in scalars.eventIndicators] == names
+    assert validate_fmu(str(fmus["scalars"])) == []
 
 
 def start_values(nv: int) -> tuple[list[float], list[float]]:

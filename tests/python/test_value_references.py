@@ -110,3 +110,28 @@ def test_fmi2_and_fmi3_references_get_and_set_agree(nudyn, fmu_library, model, o
     for name, value in fmi2.items():
         if name.startswith(SET):
             assert value == value_of(name), f"{name} was set to {value_of(name)} and reads {value}"
+
+
+def test_describe_lists_the_value_references_of_the_export(nudyn, cli, tmp_path):
+    """`nudyn describe` ends with the plant FMU's variables, rendered from
+    the contract's table: each Real block it lists has, in the FMU exported
+    without options, the value references it prints for its first and last
+    element, and together they are every Real."""
+    import re
+
+    fmu = cli.export(ROOT / DOCKED, tmp_path / "docked.fmu")
+    vr = {v.name: v.valueReference for v in read_model_description(str(fmu)).modelVariables if v.type == "Real"}
+    out = subprocess.run([str(nudyn), "describe", str(ROOT / DOCKED)], capture_output=True, text=True,
+                         check=True).stdout
+    listed = 0
+    for row in (line for line in out.splitlines() if line.startswith("| `") and "| Real, " in line):
+        name, numbers = (cell.strip() for cell in row.strip("|").split("|")[:2])
+        first, _, last = numbers.removeprefix("Real, ").partition("–")
+        match = re.fullmatch(r"`(der\()?(\w+)(?:\[1\.\.(\d+)\])?\)?`", name)
+        assert match, row
+        der, base, n = match.groups()
+        element = (lambda k: f"der({base}[{k}])" if der else f"{base}[{k}]") if n else (lambda _: base)
+        assert vr[element(1)] == int(first), row
+        assert vr[element(int(n or 1))] == int(last or first), row
+        listed += int(n or 1)
+    assert listed == len(vr) and "constraint_switch" in out

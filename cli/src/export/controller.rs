@@ -1,85 +1,20 @@
-//! The controller FMU's modelDescription (`nudyn export --controller`):
-//! the contract's controller variables with descriptions that name the
-//! controlled joints or body. Same binary as the plant FMU: it tells the
+//! The controller FMU's modelDescription (`nudyn export --controller`),
+//! rendered from the contract's controller table (`CONTROLLER_TABLE`). Same binary as the plant FMU: it tells the
 //! two apart by the resource file it finds.
 
 use std::path::Path;
 
 use modeldescription as md;
 use nudyn::control::{ControlError, ControlLaw, ControlParameters, Objective};
-use nudyn::model::{LinkJoint, Model};
-use nudyn_contract::controller::{CAPABILITIES, ControllerLayout, ControllerResource, ControllerVariable};
-use nudyn_contract::plant::{RealVariable, description};
+use nudyn::model::Model;
+use nudyn_contract::controller::{CAPABILITIES, ControllerLayout, ControllerResource};
 use nudyn_contract::resource::Resource;
 
+use super::documentation::Row;
 use super::{
     Document, ExportError, FmiVersion, Header, PlatformBinary, check_model_identifier, documentation, fmi3,
     fmu_archive, generation_date_and_time, real_variable, write_file,
 };
-
-/// What controlled quantity k is, and its unit, for descriptions.
-fn quantity(model: &Model, law: &ControlLaw, k: usize) -> (String, &'static str, &'static str) {
-    const AXES: [&str; 3] = ["x", "y", "z"];
-    match &law.objective {
-        Objective::Joints(joints) => {
-            let joint = &joints[k];
-            let slide = model.links.iter().any(|l| l.qpos_adr == joint.qpos_adr && l.joint == LinkJoint::Slide);
-            let (kind, unit, gain_unit) = if slide { ("slide", "m", "N/m") } else { ("hinge", "rad", "N*m/rad") };
-            (format!("{kind} joint '{}'", joint.name), unit, gain_unit)
-        }
-        Objective::Pose(frame) if k < 3 => {
-            (format!("position {} of body '{}' in world", AXES[k], frame.body), "m", "N/m")
-        }
-        Objective::Pose(frame) => (
-            format!("rotation of body '{}' about the target frame's {} axis", frame.body, AXES[k - 3]),
-            "rad",
-            "N*m/rad",
-        ),
-    }
-}
-
-/// The description of `variable` in modelDescription.xml.
-fn controller_description(model: &Model, law: &ControlLaw, variable: ControllerVariable) -> String {
-    const QUATERNION: [&str; 4] = ["w", "x", "y", "z"];
-    match variable {
-        ControllerVariable::RateGain(k) => {
-            format!("rate gain c1 of dof {} (1/s): eps[{0}] = -c1[{0}] nu[{0}] + ...", k + 1)
-        }
-        ControllerVariable::TargetGain(k) => {
-            let (what, _, unit) = quantity(model, law, k);
-            format!("gain c2 on the error of the {what} ({unit})")
-        }
-        ControllerVariable::Target(k) => match &law.objective {
-            Objective::Pose(frame) if k < 3 => {
-                format!("target position {} of body '{}' in world (m)", ["x", "y", "z"][k], frame.body)
-            }
-            Objective::Pose(frame) => format!(
-                "target orientation of body '{}', quaternion {} (body to world; normalized when used) (1)",
-                frame.body,
-                QUATERNION[k - 3]
-            ),
-            Objective::Joints(_) => {
-                let (what, unit, _) = quantity(model, law, k);
-                format!("target of the {what} ({unit})")
-            }
-        },
-        ControllerVariable::Theta(k) => format!("input: {}", description(model, RealVariable::Theta(k))),
-        ControllerVariable::Nu(k) => format!("input: {}", description(model, RealVariable::Nu(k))),
-        ControllerVariable::Eps(k) => {
-            format!("output: {} = -c1 nu + l J^T c2 (Yhat - Y)", description(model, RealVariable::Eps(k)))
-        }
-        ControllerVariable::Potential => "potential 1/2 sum c2 (Yhat - Y)^2 of the configuration term (J)".into(),
-        ControllerVariable::TargetError(k) => {
-            let (what, unit, _) = quantity(model, law, k);
-            match &law.objective {
-                Objective::Pose(_) if k >= 3 => {
-                    format!("error Yhat - Y = -phi, phi = log(Rhat^T R): {what} relative to the target ({unit})")
-                }
-                _ => format!("error Yhat - Y of the {what} ({unit})"),
-            }
-        }
-    }
-}
 
 /// What the controller's modelDescription says of the FMU as a whole.
 fn header(model: &Model, law: &ControlLaw, model_identifier: &str, guid: &str) -> Header {
@@ -102,6 +37,34 @@ fn header(model: &Model, law: &ControlLaw, model_identifier: &str, guid: &str) -
     }
 }
 
+/// The Real `vr` of the controller FMU (whose layout is `layout`), as the writers need it.
+fn real_scalar(
+    model: &Model,
+    law: &ControlLaw,
+    layout: &ControllerLayout,
+    defaults: &ControlParameters,
+    vr: u32,
+) -> fmi3::RealScalar {
+    let element = layout.element(vr).expect("the table's Reals are the layout's");
+    fmi3::RealScalar {
+        kind: element.kind(),
+        start: element.start(model, defaults),
+        description: element.description(model, law),
+    }
+}
+
+/// The documentation page's rows of the controller FMU of `resource` in `version`.
+fn rows(resource: &ControllerResource, defaults: &ControlParameters, version: FmiVersion) -> Vec<Row> {
+    let (model, law, layout) = (&resource.model, &resource.law, resource.layout());
+    let real = |vr: u32| real_scalar(model, law, &layout, defaults, vr);
+    match version {
+        FmiVersion::Fmi2 => {
+            layout.elements().map(|e| Row::real(e.name(), e.value_reference, real(e.value_reference))).collect()
+        }
+        FmiVersion::Fmi3 => [Row::time()].into_iter().chain(Row::float64s(&resource.fmi3_variables(), real)).collect(),
+    }
+}
+
 /// The typed FMI 3.0 modelDescription of the controller FMU (not yet validated).
 pub fn controller_model_description3(
     resource: &ControllerResource,
@@ -111,14 +74,7 @@ pub fn controller_model_description3(
 ) -> md::fmi3::Fmi3ModelDescription {
     let (model, law) = (&resource.model, &resource.law);
     let layout = resource.layout();
-    let real = |vr: u32| {
-        let variable = layout.variable(vr).expect("the table's Reals are the layout's");
-        fmi3::RealScalar {
-            kind: variable.kind(),
-            start: variable.start(model, defaults),
-            description: controller_description(model, law, variable),
-        }
-    };
+    let real = |vr: u32| real_scalar(model, law, &layout, defaults, vr);
     let others = fmi3::Others { enumeration_types: Vec::new(), variables: Vec::new() };
     let (table, dependencies) = (resource.fmi3_variables(), |vr| layout.dependency_vrs(vr));
     fmi3::model_description(header(model, law, model_identifier, guid), &table, real, dependencies, others)
@@ -134,10 +90,10 @@ pub fn controller_model_description(
 ) -> md::FmiModelDescription {
     let layout = ControllerLayout::new(model, law);
     let model_variables: Vec<md::ScalarVariable> = layout
-        .variables()
-        .map(|(vr, variable)| {
-            let description = controller_description(model, law, variable);
-            real_variable(layout.name(variable), vr, description, variable.kind(), variable.start(model, defaults))
+        .elements()
+        .map(|e| {
+            let (vr, description) = (e.value_reference, e.description(model, law));
+            real_variable(e.name(), vr, description, e.kind(), e.start(model, defaults))
         })
         .collect();
 
@@ -207,6 +163,7 @@ pub fn controller_fmu(
             Document::Fmi3(controller_model_description3(&resource, &defaults, model_identifier, &guid))
         }
     };
-    let documentation = documentation::index_html(model, &description, "controller");
+    let documentation =
+        documentation::index_html(model, &description, &rows(&resource, &defaults, fmi_version), "controller");
     Ok(fmu_archive::<ControllerResource>(&description, &bytes, &documentation, binaries, out)?)
 }

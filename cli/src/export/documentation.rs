@@ -4,73 +4,84 @@
 //! meanings and units, the parameters' defaults, the equations integrated
 //! and how nudyn checks them.
 
-use modeldescription as md;
 use nudyn::model::Model;
+use nudyn_contract::fmi3::{Fmi3Variables, TIME_NAME, TIME_VR, ValueType};
 
 use super::Document;
+use super::fmi3::{self, RealScalar};
 
-/// One variable as the page lists it.
-struct Row {
+/// One variable as the page lists it, rendered by each component's
+/// exporter from its contract's variables (the plant's table).
+pub struct Row {
     name: String,
     value_reference: u32,
-    causality: String,
-    variability: String,
+    causality: &'static str,
+    variability: &'static str,
     start: String,
     description: String,
 }
 
-/// The serde (XML attribute) name of an enumeration value, e.g. "calculatedParameter".
-fn attribute<T: serde::Serialize>(value: &T) -> String {
-    serde_json::to_value(value).ok().and_then(|v| v.as_str().map(str::to_string)).unwrap_or_default()
-}
+impl Row {
+    /// An FMI 2.0 Real, `scalar`.
+    pub fn real(name: String, value_reference: u32, scalar: RealScalar) -> Row {
+        Row {
+            name,
+            value_reference,
+            causality: fmi3::causality(scalar.kind).0,
+            variability: fmi3::variability(scalar.kind),
+            start: scalar.start.map(|s| s.to_string()).unwrap_or_default(),
+            description: scalar.description,
+        }
+    }
 
-fn rows(description: &Document) -> Vec<Row> {
-    match description {
-        Document::Fmi2(d) => d
-            .model_variables
-            .iter()
-            .map(|v| Row {
-                name: v.name.clone(),
-                value_reference: v.value_reference,
-                causality: attribute(&v.causality),
-                variability: attribute(&v.variability),
-                start: match &v.kind {
-                    md::VariableKind::Real(r) => r.start.map(|s| s.to_string()),
-                    md::VariableKind::Integer(i) => i.start.map(|s| s.to_string()),
-                    md::VariableKind::Boolean(b) => b.start.map(|s| s.to_string()),
-                    md::VariableKind::String(s) => s.start.clone(),
-                    md::VariableKind::Enumeration(e) => e.start.map(|s| s.to_string()),
-                }
-                .unwrap_or_default(),
-                description: v.description.clone().unwrap_or_default(),
-            })
-            .collect(),
-        Document::Fmi3(d) => d
-            .model_variables
-            .variables
-            .iter()
+    /// A fixed parameter that is not a Real (`method`, `energy_projection`), its start as text.
+    pub fn fixed_parameter(name: &str, value_reference: u32, start: String, description: &str) -> Row {
+        Row {
+            name: name.into(),
+            value_reference,
+            causality: "parameter",
+            variability: "fixed",
+            start,
+            description: description.into(),
+        }
+    }
+
+    /// FMI 3.0's `time`.
+    pub fn time() -> Row {
+        Row {
+            name: TIME_NAME.into(),
+            value_reference: TIME_VR,
+            causality: "independent",
+            variability: "continuous",
+            start: String::new(),
+            description: fmi3::TIME_DESCRIPTION.into(),
+        }
+    }
+
+    /// The Float64 variables of the FMI 3.0 `table`, each from its elements
+    /// (`real`: the FMI 2.0 Real of a value reference); an array's start
+    /// shows its first 8 values.
+    pub fn float64s(table: &Fmi3Variables, real: impl Fn(u32) -> RealScalar) -> Vec<Row> {
+        let floats = table.iter().filter(|variable| variable.value_type == ValueType::Float64);
+        floats
             .map(|variable| {
-                let (common, description, start) = match variable {
-                    md::fmi3::Variable::Float64(f) => {
-                        let start = f.start.as_ref().map(|s| {
-                            let shown: Vec<String> = s.iter().take(8).map(f64::to_string).collect();
-                            if s.len() > 8 { format!("{} …", shown.join(" ")) } else { shown.join(" ") }
-                        });
-                        (f.common(), &f.description, start)
-                    }
-                    md::fmi3::Variable::Boolean(b) => (b.common(), &b.description, b.start.map(|s| s.to_string())),
-                    md::fmi3::Variable::Enumeration(e) => (e.common(), &e.description, e.start.map(|s| s.to_string())),
-                };
+                let elements: Vec<RealScalar> = variable.elements().map(&real).collect();
+                let start: Option<Vec<f64>> = elements.iter().map(|e| e.start).collect();
+                let start = start.map(|s| {
+                    let shown: Vec<String> = s.iter().take(8).map(f64::to_string).collect();
+                    if s.len() > 8 { format!("{} …", shown.join(" ")) } else { shown.join(" ") }
+                });
+                let kind = elements[0].kind;
                 Row {
-                    name: common.name.to_string(),
-                    value_reference: common.value_reference,
-                    causality: common.causality.to_string(),
-                    variability: common.variability.to_string(),
+                    name: variable.name.clone(),
+                    value_reference: variable.value_reference,
+                    causality: fmi3::causality(kind).0,
+                    variability: fmi3::variability(kind),
                     start: start.unwrap_or_default(),
-                    description: description.clone().unwrap_or_default(),
+                    description: fmi3::description(variable, &elements),
                 }
             })
-            .collect(),
+            .collect()
     }
 }
 
@@ -80,9 +91,9 @@ fn escape(text: &str) -> String {
     text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;").replace('\'', "&#39;")
 }
 
-/// The page for an FMU of `model` described by `description`; `what` says
-/// which FMU it is ("plant" or "controller").
-pub fn index_html(model: &Model, description: &Document, what: &str) -> String {
+/// The page for an FMU of `model` described by `description`, whose
+/// variables are `rows`; `what` says which FMU it is ("plant" or "controller").
+pub fn index_html(model: &Model, description: &Document, rows: &[Row], what: &str) -> String {
     let (version, name, summary, tool) = match description {
         Document::Fmi2(d) => ("FMI 2.0", &d.model_name, &d.description, &d.generation_tool),
         Document::Fmi3(d) => ("FMI 3.0", &d.model_name, &d.description, &d.generation_tool),
@@ -171,13 +182,13 @@ pub fn index_html(model: &Model, description: &Document, what: &str) -> String {
          <th>start</th><th>meaning (unit)</th></tr>"
             .into(),
     );
-    for row in rows(description) {
+    for row in rows {
         line(format!(
             "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
             escape(&row.name),
             row.value_reference,
-            escape(&row.causality),
-            escape(&row.variability),
+            escape(row.causality),
+            escape(row.variability),
             escape(&row.start),
             escape(&row.description)
         ));

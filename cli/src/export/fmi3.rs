@@ -32,7 +32,11 @@ pub struct Others {
     pub variables: Vec<md3::Variable>,
 }
 
-fn causality(kind: Kind) -> (&'static str, Option<&'static str>) {
+/// The description of `time`, the independent variable.
+pub const TIME_DESCRIPTION: &str = "simulation time (s)";
+
+/// FMI's causality and initial of a variable of `kind` (the same words in FMI 2.0 and 3.0).
+pub fn causality(kind: Kind) -> (&'static str, Option<&'static str>) {
     match kind.causality {
         Causality::Parameter => ("parameter", Some("exact")),
         Causality::Input => ("input", None),
@@ -42,11 +46,23 @@ fn causality(kind: Kind) -> (&'static str, Option<&'static str>) {
     }
 }
 
-fn variability(kind: Kind) -> &'static str {
+/// FMI's variability of a variable of `kind`.
+pub fn variability(kind: Kind) -> &'static str {
     match kind.variability {
         Variability::Fixed => "fixed",
         Variability::Tunable => "tunable",
         Variability::Continuous => "continuous",
+    }
+}
+
+/// The description of `variable` from its `elements`': "[1] …; [2] …" for an array.
+pub fn description(variable: &Fmi3Variable, elements: &[RealScalar]) -> String {
+    if variable.array {
+        let each: Vec<String> =
+            elements.iter().enumerate().map(|(k, e)| format!("[{}] {}", k + 1, e.description)).collect();
+        each.join("; ")
+    } else {
+        elements[0].description.clone()
     }
 }
 
@@ -56,13 +72,7 @@ fn float64(variable: &Fmi3Variable, real: &impl Fn(u32) -> RealScalar) -> md3::F
     let kind = elements[0].kind;
     let (causality, initial) = causality(kind);
     let start: Option<Vec<f64>> = elements.iter().map(|e| e.start).collect();
-    let description = if variable.array {
-        let each: Vec<String> =
-            elements.iter().enumerate().map(|(k, e)| format!("[{}] {}", k + 1, e.description)).collect();
-        each.join("; ")
-    } else {
-        elements[0].description.clone()
-    };
+    let description = description(variable, &elements);
     md3::Float64 {
         name: variable.name.clone(),
         value_reference: variable.value_reference,
@@ -91,7 +101,7 @@ pub fn model_description(
     let time = md3::Variable::Float64(md3::Float64 {
         name: TIME_NAME.into(),
         value_reference: TIME_VR,
-        description: Some("simulation time (s)".into()),
+        description: Some(TIME_DESCRIPTION.into()),
         causality: "independent".into(),
         variability: "continuous".into(),
         initial: None,

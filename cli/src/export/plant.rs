@@ -14,6 +14,7 @@ use nudyn_contract::plant::{
 };
 use nudyn_contract::resource::Resource;
 
+use super::documentation::Row;
 use super::{
     Document, ExportError, FmiVersion, Header, PlatformBinary, check_model_identifier, documentation, fmi3,
     fmu_archive, generation_date_and_time, real_variable, write_file,
@@ -62,6 +63,53 @@ fn method_item_description(method: MethodSetting) -> String {
     format!("{} (Munthe-Kaas on rotations)", method.description())
 }
 
+/// The FMI 2.0 Real `vr` of the plant FMU of `resource` (whose layout is `layout`), as the writers need it.
+fn real_scalar(resource: &PlantResource, layout: &Layout, vr: u32) -> fmi3::RealScalar {
+    let element = layout.element(vr).expect("the table's Reals are the layout's");
+    fmi3::RealScalar {
+        kind: element.kind(),
+        start: resource.start(&element),
+        description: element.description(&resource.model),
+    }
+}
+
+/// The documentation page's rows of the plant FMU of `resource` in `version`, from its table.
+fn rows(resource: &PlantResource, version: FmiVersion) -> Vec<Row> {
+    let layout = resource.layout();
+    let method_start = method_value(resource.method).to_string();
+    let real = |vr: u32| real_scalar(resource, &layout, vr);
+    match version {
+        FmiVersion::Fmi2 => {
+            let parameters = [
+                Row::fixed_parameter(METHOD_NAME, METHOD_VR, method_start, METHOD_DESCRIPTION),
+                Row::fixed_parameter(
+                    ENERGY_PROJECTION_NAME,
+                    ENERGY_PROJECTION_VR,
+                    false.to_string(),
+                    ENERGY_PROJECTION_DESCRIPTION,
+                ),
+            ];
+            let reals = layout.elements().map(|e| Row::real(e.name(), e.value_reference, real(e.value_reference)));
+            parameters.into_iter().chain(reals).collect()
+        }
+        FmiVersion::Fmi3 => {
+            let table = resource.fmi3_variables();
+            let vr = |name: &str| table.value_reference(name).expect("the plant's table has it");
+            let parameters = [
+                Row::time(),
+                Row::fixed_parameter(METHOD_NAME, vr(METHOD_NAME), method_start, METHOD_DESCRIPTION),
+                Row::fixed_parameter(
+                    ENERGY_PROJECTION_NAME,
+                    vr(ENERGY_PROJECTION_NAME),
+                    false.to_string(),
+                    ENERGY_PROJECTION_DESCRIPTION,
+                ),
+            ];
+            parameters.into_iter().chain(Row::float64s(&table, real)).collect()
+        }
+    }
+}
+
 /// The typed FMI 3.0 modelDescription of the plant FMU (not yet validated).
 pub fn model_description3(resource: &PlantResource, options: &ExportOptions, guid: &str) -> md3::Fmi3ModelDescription {
     let model = &resource.model;
@@ -100,14 +148,7 @@ pub fn model_description3(resource: &PlantResource, options: &ExportOptions, gui
         start: Some(false),
     });
     let others = fmi3::Others { enumeration_types: vec![method_type], variables: vec![method, energy_projection] };
-    let real = |vr: u32| {
-        let element = layout.element(vr).expect("the table's Reals are the layout's");
-        fmi3::RealScalar {
-            kind: element.kind(),
-            start: resource.start(&element),
-            description: element.description(model),
-        }
-    };
+    let real = |vr: u32| real_scalar(resource, &layout, vr);
     let dependencies = |vr| layout.dependency_vrs(vr);
     fmi3::model_description(header(model, options, guid), &table, real, dependencies, others)
 }
@@ -257,6 +298,7 @@ pub fn plant_fmu(
         FmiVersion::Fmi2 => Document::Fmi2(model_description(resource, options, &guid)),
         FmiVersion::Fmi3 => Document::Fmi3(model_description3(resource, options, &guid)),
     };
-    let documentation = documentation::index_html(&resource.model, &description, "plant");
+    let documentation =
+        documentation::index_html(&resource.model, &description, &rows(resource, options.fmi_version), "plant");
     fmu_archive::<PlantResource>(&description, &bytes, &documentation, binaries, out)
 }

@@ -317,8 +317,8 @@ pub fn write_system(
     let defaults = law.default_parameters(model).map_err(ControllerExportError::from)?;
     let layout = ControllerLayout::new(model, law);
     let controller_variables: Vec<Settable> = layout
-        .variables()
-        .map(|(_, v)| Settable { name: layout.name(v), kind: v.kind(), has_start: v.start(model, &defaults).is_some() })
+        .elements()
+        .map(|e| Settable { name: e.name(), kind: e.kind(), has_start: e.start(model, &defaults).is_some() })
         .collect();
     let values = values_set(&options.sets, &plant_variables, &controller_variables, &quaternions(model))?;
 

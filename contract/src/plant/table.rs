@@ -1,7 +1,7 @@
 //! The plant's variable table: one entry per kind of Real variable, in
 //! value-reference order. Each entry says everything the exporter writes
-//! and the FMU enforces about its elements (name, shape, the `--outputs`
-//! flag that makes it exist, kind, start, description with its unit,
+//! and the FMU enforces about its elements (name, shape, whether it is an
+//! optional output that `--outputs` makes exist, kind, start, description with its unit,
 //! dependencies, the state it is the derivative of) and the slot the FMU
 //! reads and writes; the value references, both modelDescriptions, the
 //! documentation page, the SSP files, `nudyn describe` and docs/fmi.md's
@@ -11,12 +11,9 @@
 use nudyn::model::Model;
 
 use super::describe;
-use super::{DEFAULT_MAX_STEP, DEFAULT_TOLERANCE, Layout, OptionalOutputs, RealVariable, SensorDependence};
+use super::{DEFAULT_MAX_STEP, DEFAULT_TOLERANCE, Layout, RealVariable, SensorDependence};
 use crate::blocks::Shape;
 use crate::variable::{Kind, Range};
-
-/// The flag of an optional output in [`OptionalOutputs`].
-pub type Flag = fn(&mut OptionalOutputs) -> &mut bool;
 
 /// The knowns (states and inputs) an element depends on; `None` for a
 /// variable that is neither an output nor a state derivative.
@@ -29,9 +26,9 @@ pub struct Entry {
     pub name: &'static str,
     /// Its shape, which also says whose derivative it is.
     pub shape: Shape,
-    /// For an optional output, its flag (`--outputs` takes `name`): absent
+    /// Whether it is an optional output (`--outputs` takes `name`): absent
     /// unless chosen at export.
-    pub flag: Option<Flag>,
+    pub optional: bool,
     /// How many elements it has in a layout (when present).
     pub len: fn(&Layout) -> usize,
     /// What kind of variable every element is.
@@ -50,11 +47,7 @@ pub struct Entry {
 impl Entry {
     /// How many elements it has in `layout`: 0 if it is an optional output not chosen.
     pub fn len_in(&self, layout: &Layout) -> usize {
-        let mut outputs = layout.outputs;
-        match self.flag {
-            Some(flag) if !*flag(&mut outputs) => 0,
-            _ => (self.len)(layout),
-        }
+        if self.optional && !layout.outputs.has(self.name) { 0 } else { (self.len)(layout) }
     }
 }
 
@@ -84,7 +77,7 @@ pub const TABLE: [Entry; 19] = [
     Entry {
         name: "tolerance",
         shape: Shape::Scalar,
-        flag: None,
+        optional: false,
         len: |_| 1,
         kind: Kind::fixed_parameter(Range::Positive),
         start: |_, _| Some(DEFAULT_TOLERANCE),
@@ -95,7 +88,7 @@ pub const TABLE: [Entry; 19] = [
     Entry {
         name: "max_step",
         shape: Shape::Scalar,
-        flag: None,
+        optional: false,
         len: |_| 1,
         kind: Kind::fixed_parameter(Range::NonNegative),
         start: |_, _| Some(DEFAULT_MAX_STEP),
@@ -106,7 +99,7 @@ pub const TABLE: [Entry; 19] = [
     Entry {
         name: "eps",
         shape: Shape::Array,
-        flag: None,
+        optional: false,
         len: |l| l.nv,
         kind: Kind::INPUT,
         start: zero_start,
@@ -117,7 +110,7 @@ pub const TABLE: [Entry; 19] = [
     Entry {
         name: "ctrl",
         shape: Shape::Array,
-        flag: None,
+        optional: false,
         len: |l| l.nu,
         kind: Kind::INPUT,
         start: zero_start,
@@ -128,7 +121,7 @@ pub const TABLE: [Entry; 19] = [
     Entry {
         name: "xfrc_applied",
         shape: Shape::Array,
-        flag: None,
+        optional: false,
         len: |l| l.wrench_inputs,
         kind: Kind::INPUT,
         start: zero_start,
@@ -141,7 +134,7 @@ pub const TABLE: [Entry; 19] = [
     Entry {
         name: "theta",
         shape: Shape::Array,
-        flag: None,
+        optional: false,
         len: |l| l.nq,
         kind: Kind::STATE_OUTPUT,
         start: |model, k| Some(model.qpos0[k]),
@@ -152,7 +145,7 @@ pub const TABLE: [Entry; 19] = [
     Entry {
         name: "nu",
         shape: Shape::Array,
-        flag: None,
+        optional: false,
         len: |l| l.nv,
         kind: Kind::STATE_OUTPUT,
         start: zero_start,
@@ -163,7 +156,7 @@ pub const TABLE: [Entry; 19] = [
     Entry {
         name: "sensordata",
         shape: Shape::Array,
-        flag: None,
+        optional: false,
         len: |l| l.sensordata.len(),
         kind: Kind::CALCULATED_OUTPUT,
         start: no_start,
@@ -182,7 +175,7 @@ pub const TABLE: [Entry; 19] = [
     Entry {
         name: "qvel",
         shape: Shape::Array,
-        flag: Some(|o| &mut o.qvel),
+        optional: true,
         len: |l| l.nv,
         kind: Kind::CALCULATED_OUTPUT,
         start: no_start,
@@ -194,7 +187,7 @@ pub const TABLE: [Entry; 19] = [
     Entry {
         name: "kinetic_energy",
         shape: Shape::Scalar,
-        flag: Some(|o| &mut o.kinetic_energy),
+        optional: true,
         len: |_| 1,
         kind: Kind::CALCULATED_OUTPUT,
         start: no_start,
@@ -205,7 +198,7 @@ pub const TABLE: [Entry; 19] = [
     Entry {
         name: "power",
         shape: Shape::Scalar,
-        flag: Some(|o| &mut o.power),
+        optional: true,
         len: |_| 1,
         kind: Kind::CALCULATED_OUTPUT,
         start: no_start,
@@ -216,7 +209,7 @@ pub const TABLE: [Entry; 19] = [
     Entry {
         name: "momentum",
         shape: Shape::Array,
-        flag: Some(|o| &mut o.momentum),
+        optional: true,
         len: |_| 6,
         kind: Kind::CALCULATED_OUTPUT,
         start: no_start,
@@ -227,7 +220,7 @@ pub const TABLE: [Entry; 19] = [
     Entry {
         name: "energy_residual",
         shape: Shape::Scalar,
-        flag: Some(|o| &mut o.energy_residual),
+        optional: true,
         len: |_| 1,
         kind: Kind::CALCULATED_OUTPUT,
         start: no_start,
@@ -240,7 +233,7 @@ pub const TABLE: [Entry; 19] = [
     Entry {
         name: "qfrc_constraint",
         shape: Shape::Array,
-        flag: Some(|o| &mut o.qfrc_constraint),
+        optional: true,
         len: |l| l.nv,
         kind: Kind::CALCULATED_OUTPUT,
         start: no_start,
@@ -252,7 +245,7 @@ pub const TABLE: [Entry; 19] = [
     Entry {
         name: "constraint_switch",
         shape: Shape::Array,
-        flag: None,
+        optional: false,
         len: |l| if model_exchange(l) { l.switches } else { 0 },
         kind: Kind::EVENT_INDICATOR,
         start: no_start,
@@ -266,7 +259,7 @@ pub const TABLE: [Entry; 19] = [
     Entry {
         name: "act",
         shape: Shape::Array,
-        flag: None,
+        optional: false,
         len: |l| l.na,
         kind: Kind::STATE_OUTPUT,
         start: zero_start,
@@ -277,7 +270,7 @@ pub const TABLE: [Entry; 19] = [
     Entry {
         name: "theta",
         shape: Shape::Derivative,
-        flag: None,
+        optional: false,
         len: |l| if model_exchange(l) { l.nq } else { 0 },
         kind: Kind::DERIVATIVE,
         start: no_start,
@@ -288,7 +281,7 @@ pub const TABLE: [Entry; 19] = [
     Entry {
         name: "nu",
         shape: Shape::Derivative,
-        flag: None,
+        optional: false,
         len: |l| if model_exchange(l) { l.nv } else { 0 },
         kind: Kind::DERIVATIVE,
         start: no_start,
@@ -303,7 +296,7 @@ pub const TABLE: [Entry; 19] = [
     Entry {
         name: "act",
         shape: Shape::Derivative,
-        flag: None,
+        optional: false,
         len: |l| if model_exchange(l) { l.na } else { 0 },
         kind: Kind::DERIVATIVE,
         start: no_start,
