@@ -64,10 +64,18 @@ finish() {
     TIMES+=("$(printf '%5d s  %s (in the background)' $(($(stat -c %Y "$LOGS/$name.log") - STARTED[$name])) "$name")")
 }
 
-stage setup bash scripts/setup-test.sh
+# The Rust builds need the Debian packages (libclang for bindgen, mingw) and
+# cargo-fuzz; the venv is needed from the wheel on, so it is installed beside them.
+stage "setup (Debian packages, cargo-fuzz)" bash scripts/setup-test.sh system
+background setup-python bash scripts/setup-test.sh python
 
 stage rustfmt cargo fmt --all --check
 stage "rustfmt (fuzz)" bash -c 'cd fuzz && cargo fmt --check'
+# cargo fuzz build updates a stale lock file silently; this says so instead.
+stage "lock file (fuzz)" bash -c 'cd fuzz && cargo metadata --locked --format-version 1 >/dev/null'
+# The wheel and one Python test build a crate alone: workspace-hack must give
+# them the workspace's features, or they compile the tree a second time.
+stage "unified features" python3 scripts/check-unified-features.py
 
 # The win64 FMU binary: every FMU the tests export carries it, and
 # tests/python/test_win64.py runs it under wine.
@@ -82,6 +90,7 @@ stage clippy cargo clippy --release --workspace --all-targets -- -D warnings
 stage "cargo build" cargo build --release --workspace --all-targets
 stage "cargo test" cargo test --release --workspace
 
+finish setup-python
 finish build-windows
 # The wheel (both platforms' binaries): tests/python/test_wheel.py installs it.
 stage wheel bash scripts/build-wheel.sh
