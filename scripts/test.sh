@@ -8,10 +8,11 @@
 #   bash scripts/test.sh
 #
 # On 2 cores the Rust builds leave one core idle for long stretches (one
-# crate, or a link, at a time), so the win64 cross-build and the fuzz
-# targets' sanitizer build (separate target folders) run beside clippy and
-# the main build. The Python tests run on every core (pytest-xdist, a test
-# file per worker). Each stage's time is printed at the end.
+# crate, or a link, at a time), so the venv's installation, the win64
+# cross-build and the fuzz targets' sanitizer build (separate target
+# folders) run beside clippy and the main build. The Python tests run on
+# every core (pytest-xdist, a test file per worker), and so do the fuzz
+# targets. Each stage's time is printed at the end.
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -20,13 +21,26 @@ LOGS="$ROOT/target/test-logs"
 mkdir -p "$LOGS"
 TIMES=()
 
-# Runs NAME COMMAND... and records how long it took.
+# Sets CPU to the CPU seconds (user and system) of the script's children
+# that have ended and been waited for. `times` must run in this shell, not
+# in a $(...) subshell, whose children are not the script's.
+children_cpu() {
+    times >"$LOGS/times.txt"
+    # Its second line: the children's user and system time, as "1m2.345s 0m0.678s".
+    CPU=$(sed -n 2p "$LOGS/times.txt" | tr 'ms' '  ' | awk '{ printf "%d", $1 * 60 + $2 + $3 * 60 + $4 }')
+}
+
+# Runs NAME COMMAND... and records how long it took, and its CPU time
+# (background stages still running are not in it: they count when finished).
 stage() {
-    local name=$1 start=$SECONDS
+    local name=$1 start=$SECONDS cpu_before
     shift
     echo "test.sh: $name"
+    children_cpu
+    cpu_before=$CPU
     "$@"
-    TIMES+=("$(printf '%5d s  %s' $((SECONDS - start)) "$name")")
+    children_cpu
+    TIMES+=("$(printf '%5d s %5d s CPU  %s' $((SECONDS - start)) $((CPU - cpu_before)) "$name")")
 }
 
 # Starts NAME COMMAND... in the background, in a process group of its own
@@ -51,8 +65,11 @@ trap stop_background EXIT
 
 # Waits for a background stage; prints its log and fails if it failed.
 finish() {
-    local name=$1 status=0
+    local name=$1 status=0 cpu_before
+    children_cpu
+    cpu_before=$CPU
     wait "${PIDS[$name]}" || status=$?
+    children_cpu
     unset "PIDS[$name]"
     if [ "$status" -ne 0 ]; then
         cat "$LOGS/$name.log" >&2
@@ -61,7 +78,8 @@ finish() {
     fi
     tail -n 3 "$LOGS/$name.log"
     # Its log was last written when it ended.
-    TIMES+=("$(printf '%5d s  %s (in the background)' $(($(stat -c %Y "$LOGS/$name.log") - STARTED[$name])) "$name")")
+    TIMES+=("$(printf '%5d s %5d s CPU  %s (in the background)' $(($(stat -c %Y "$LOGS/$name.log") - STARTED[$name])) \
+        $((CPU - cpu_before)) "$name")")
 }
 
 # The Rust builds need the Debian packages (libclang for bindgen, mingw) and
@@ -103,5 +121,7 @@ stage "Python tests" env NUDYN_BIN=target/release/nudyn NUDYN_FMU_LIB="$ROOT/tar
 finish build-fuzz
 stage "valgrind and fuzzing" bash scripts/stress-fmu.sh
 
-echo "test.sh: ok; times:"
+children_cpu
+echo "test.sh: ok; times (wall, CPU):"
 printf '%s\n' "${TIMES[@]}"
+printf '%5d s %5d s CPU  in all\n' "$SECONDS" "$CPU"
