@@ -116,7 +116,8 @@ stage wheel bash scripts/build-wheel.sh
 # NUDYN_FMU_LIB: the FMU library just built (the tests' fixture would
 # otherwise build it again for nudyn-fmu alone, with other features).
 stage "Python tests" env NUDYN_BIN=target/release/nudyn NUDYN_FMU_LIB="$ROOT/target/release/libnudyn_fmu.so" \
-    .venv/bin/python -m pytest tests/python -q --durations=25 --numprocesses auto --dist loadfile
+    .venv/bin/python -m pytest tests/python -q --durations=25 --numprocesses auto --dist loadfile \
+    --no-loadscope-reorder
 
 finish build-fuzz
 stage "valgrind and fuzzing" bash scripts/stress-fmu.sh
