@@ -21,26 +21,29 @@ LOGS="$ROOT/target/test-logs"
 mkdir -p "$LOGS"
 TIMES=()
 
-# Sets CPU to the CPU seconds (user and system) of the script's children
-# that have ended and been waited for. `times` must run in this shell, not
-# in a $(...) subshell, whose children are not the script's.
-children_cpu() {
-    times >"$LOGS/times.txt"
-    # Its second line: the children's user and system time, as "1m2.345s 0m0.678s".
-    CPU=$(sed -n 2p "$LOGS/times.txt" | tr 'ms' '  ' | awk '{ printf "%d", $1 * 60 + $2 + $3 * 60 + $4 }')
+# Runs COMMAND... in a shell of its own that writes, when the command has
+# ended, its CPU time (user and system, of everything it started) to FILE:
+#   cpu_measured FILE COMMAND...
+# Measured inside, not as the script's children's time: bash reaps a
+# background stage when it ends, which adds its time to the foreground stage
+# running then.
+CPU_MEASURED='"${@:2}"; status=$?; times >"$1"; exit $status'
+cpu_measured() {
+    bash -c "$CPU_MEASURED" _ "$@"
+}
+# Prints the CPU seconds in FILE: `times`' second line, the children's user
+# and system time ("1m2.345s 0m0.678s").
+cpu_seconds() {
+    sed -n 2p "$1" | tr 'ms' '  ' | awk '{ printf "%d", $1 * 60 + $2 + $3 * 60 + $4 }'
 }
 
-# Runs NAME COMMAND... and records how long it took, and its CPU time
-# (background stages still running are not in it: they count when finished).
+# Runs NAME COMMAND... and records how long it took, and its CPU time.
 stage() {
-    local name=$1 start=$SECONDS cpu_before
+    local name=$1 start=$SECONDS
     shift
     echo "test.sh: $name"
-    children_cpu
-    cpu_before=$CPU
-    "$@"
-    children_cpu
-    TIMES+=("$(printf '%5d s %5d s CPU  %s' $((SECONDS - start)) $((CPU - cpu_before)) "$name")")
+    cpu_measured "$LOGS/cpu.txt" "$@"
+    TIMES+=("$(printf '%5d s %5d s CPU  %s' $((SECONDS - start)) "$(cpu_seconds "$LOGS/cpu.txt")" "$name")")
 }
 
 # Starts NAME COMMAND... in the background, in a process group of its own
@@ -52,7 +55,7 @@ background() {
     shift
     echo "test.sh: $name (in the background, log in $LOGS/$name.log)"
     STARTED[$name]=$(date +%s)
-    setsid "$@" >"$LOGS/$name.log" 2>&1 &
+    setsid bash -c "$CPU_MEASURED" _ "$LOGS/$name.cpu" "$@" >"$LOGS/$name.log" 2>&1 &
     PIDS[$name]=$!
 }
 stop_background() {
@@ -65,11 +68,8 @@ trap stop_background EXIT
 
 # Waits for a background stage; prints its log and fails if it failed.
 finish() {
-    local name=$1 status=0 cpu_before
-    children_cpu
-    cpu_before=$CPU
+    local name=$1 status=0
     wait "${PIDS[$name]}" || status=$?
-    children_cpu
     unset "PIDS[$name]"
     if [ "$status" -ne 0 ]; then
         cat "$LOGS/$name.log" >&2
@@ -77,9 +77,9 @@ finish() {
         exit "$status"
     fi
     tail -n 3 "$LOGS/$name.log"
-    # Its log was last written when it ended.
-    TIMES+=("$(printf '%5d s %5d s CPU  %s (in the background)' $(($(stat -c %Y "$LOGS/$name.log") - STARTED[$name])) \
-        $((CPU - cpu_before)) "$name")")
+    # Its CPU time was written when it ended.
+    TIMES+=("$(printf '%5d s %5d s CPU  %s (in the background)' $(($(stat -c %Y "$LOGS/$name.cpu") - STARTED[$name])) \
+        "$(cpu_seconds "$LOGS/$name.cpu")" "$name")")
 }
 
 # The Rust builds need the Debian packages (libclang for bindgen, mingw) and
@@ -122,7 +122,7 @@ stage "Python tests" env NUDYN_BIN=target/release/nudyn NUDYN_FMU_LIB="$ROOT/tar
 finish build-fuzz
 stage "valgrind and fuzzing" bash scripts/stress-fmu.sh
 
-children_cpu
+times >"$LOGS/cpu.txt"
 echo "test.sh: ok; times (wall, CPU):"
 printf '%s\n' "${TIMES[@]}"
-printf '%5d s %5d s CPU  in all\n' "$SECONDS" "$CPU"
+printf '%5d s %5d s CPU  in all\n' "$SECONDS" "$(cpu_seconds "$LOGS/cpu.txt")"
