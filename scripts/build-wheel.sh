@@ -16,9 +16,10 @@ cd "$ROOT"
 WHEEL_DATA="$ROOT/target/wheel/nudyn.data"  # pyproject.toml's [tool.maturin] data
 DATA="$WHEEL_DATA/data/share/nudyn"
 
-# Every target, as scripts/test.sh builds them: dependencies get the same
-# features (the tests' dev-dependencies add some), so after the tests this
-# compiles nothing again; `-p nudyn-fmu` alone would rebuild the tree's base.
+# Every target, as scripts/test.sh builds them: after the tests this compiles
+# nothing again. maturin then builds nudyn-cli alone, whose dependencies
+# get the workspace's features through workspace-hack (checked by
+# scripts/check-unified-features.py), so it only links the executable.
 cargo build --release --locked --workspace --all-targets
 rm -rf "$ROOT/target/wheel"
 mkdir -p "$DATA/binaries/linux64"

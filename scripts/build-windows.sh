@@ -45,9 +45,14 @@ fi
 clang_include="$(dirname "$(ls /usr/lib/llvm-*/lib/clang/*/include/mm_malloc.h | sort -V | tail -1)")"
 
 echo "build-windows: building nudyn_fmu.dll with $(/usr/bin/rustc --version)"
+# The DLL is stripped below, so it is built (standard library included)
+# without debug information, and the standard library without the
+# `backtrace` feature: it only symbolizes backtraces, which a stripped DLL
+# cannot (panic-unwind stays: the FMU catches panics at its C boundary).
 RUSTC_BOOTSTRAP=1 RUSTC=/usr/bin/rustc \
     BINDGEN_EXTRA_CLANG_ARGS_x86_64_pc_windows_gnu="-isystem $clang_include" \
-    /usr/bin/cargo build --release --locked -p nudyn-fmu --target "$TARGET" -Zbuild-std=std \
+    /usr/bin/cargo build --release --locked -p nudyn-fmu --target "$TARGET" \
+    -Zbuild-std=std -Zbuild-std-features=panic-unwind --config profile.release.debug=false \
     --target-dir target/windows \
     --config "target.$TARGET.linker=\"x86_64-w64-mingw32-gcc\"" \
     --config "target.$TARGET.ar=\"x86_64-w64-mingw32-ar\""

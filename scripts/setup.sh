@@ -16,6 +16,13 @@
 # The tests need more (valgrind, cargo-fuzz, requirements-test.txt):
 # scripts/setup-test.sh runs this script and then installs those.
 #
+#   bash scripts/setup.sh           # both
+#   bash scripts/setup.sh system    # the Debian packages only
+#   bash scripts/setup.sh python    # the venv only (after `system`)
+#
+# The halves exist so that scripts/test.sh can build the Rust code, which
+# needs only the Debian packages, while the venv is being installed.
+#
 # Environment: PYTHON (default python3) is the interpreter the venv is made from.
 set -euo pipefail
 
@@ -30,43 +37,63 @@ as_root() {
 }
 
 # --- Debian packages --------------------------------------------------------
-missing=()
-dpkg -s libclang-dev >/dev/null 2>&1 || missing+=(libclang-dev)
-# Debian's own python3 cannot make a venv without python3-venv (ensurepip).
-"$PYTHON" -c 'import ensurepip, venv' >/dev/null 2>&1 || missing+=(python3-venv)
-if [ "${#missing[@]}" -gt 0 ]; then
-    echo "setup: installing ${missing[*]}"
-    as_root apt-get update
-    as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y "${missing[@]}"
-fi
+debian_packages() {
+    missing=()
+    dpkg -s libclang-dev >/dev/null 2>&1 || missing+=(libclang-dev)
+    # Debian's own python3 cannot make a venv without python3-venv (ensurepip).
+    "$PYTHON" -c 'import ensurepip, venv' >/dev/null 2>&1 || missing+=(python3-venv)
+    if [ "${#missing[@]}" -gt 0 ]; then
+        echo "setup: installing ${missing[*]}"
+        as_root apt-get update
+        as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y "${missing[@]}"
+    fi
+}
 
-# --- Python venv --------------------------------------------------------------
-if [ ! -x "$VENV/bin/python" ] || ! "$VENV/bin/python" -c 'import sys' >/dev/null 2>&1; then
-    echo "setup: creating $VENV"
-    rm -rf "$VENV"
-    "$PYTHON" -m venv "$VENV"
-fi
+# --- Python venv, the repository's Python packages and nudyn-campaign -------
+python_venv() {
+    if [ ! -x "$VENV/bin/python" ] || ! "$VENV/bin/python" -c 'import sys' >/dev/null 2>&1; then
+        echo "setup: creating $VENV"
+        rm -rf "$VENV"
+        "$PYTHON" -m venv "$VENV"
+    fi
 
-# Reinstall only when requirements.txt changed since the last successful
-# install, or the packages cannot be imported any more.
-stamp="$VENV/.requirements.sha256"
-want="$(sha256sum "$REQ" | cut -d' ' -f1)"
-if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ] \
-    || ! "$VENV/bin/python" -c 'import mujoco, fmpy, numpy, matplotlib, dask.distributed, pyarrow, tqdm' >/dev/null 2>&1; then
-    echo "setup: installing Python packages from requirements.txt"
-    "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -r "$REQ"
-    echo "$want" >"$stamp"
-fi
-# --- The repository's Python packages and nudyn-campaign ----------------------
-site="$("$VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
-if [ "$(cat "$site/nudyn.pth" 2>/dev/null)" != "$ROOT/python" ]; then
-    echo "$ROOT/python" >"$site/nudyn.pth"
-fi
-command="$VENV/bin/nudyn-campaign"
-wanted="#!/bin/sh
+    # Reinstall only when requirements.txt changed since the last successful
+    # install, or the packages cannot be imported any more.
+    stamp="$VENV/.requirements.sha256"
+    want="$(sha256sum "$REQ" | cut -d' ' -f1)"
+    if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ] \
+        || ! "$VENV/bin/python" -c 'import mujoco, fmpy, numpy, matplotlib, dask.distributed, pyarrow, tqdm' >/dev/null 2>&1; then
+        echo "setup: installing Python packages from requirements.txt"
+        "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -r "$REQ"
+        echo "$want" >"$stamp"
+    fi
+    site="$("$VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
+    if [ "$(cat "$site/nudyn.pth" 2>/dev/null)" != "$ROOT/python" ]; then
+        echo "$ROOT/python" >"$site/nudyn.pth"
+    fi
+    command="$VENV/bin/nudyn-campaign"
+    wanted="#!/bin/sh
 exec \"$VENV/bin/python\" -m nudyn_campaign \"\$@\""
-if [ "$(cat "$command" 2>/dev/null)" != "$wanted" ]; then
-    printf '%s\n' "$wanted" >"$command"
-    chmod +x "$command"
-fi
-echo "setup: ok ($("$VENV/bin/python" -c 'import mujoco, numpy; print("mujoco", mujoco.__version__, "numpy", numpy.__version__)'))"
+    if [ "$(cat "$command" 2>/dev/null)" != "$wanted" ]; then
+        printf '%s\n' "$wanted" >"$command"
+        chmod +x "$command"
+    fi
+    echo "setup: ok ($("$VENV/bin/python" -c 'import mujoco, numpy; print("mujoco", mujoco.__version__, "numpy", numpy.__version__)'))"
+}
+
+case "${1:-all}" in
+# Called as plain commands, not in a && list, where set -e would not stop them.
+all)
+    debian_packages
+    python_venv
+    ;;
+system)
+    debian_packages
+    echo "setup: Debian packages ok"
+    ;;
+python) python_venv ;;
+*)
+    echo "usage: bash scripts/setup.sh [system|python]" >&2
+    exit 2
+    ;;
+esac

@@ -8,8 +8,8 @@
 #     1 time and RUNS times; nothing lost, and the memory in use at exit the
 #     same for both (no growth with the number of runs);
 #   - fuzzing: each cargo fuzz target (fuzz/) for SECONDS seconds, seeded
-#     with the examples; a crash leaves its input in fuzz/artifacts/ and
-#     fails the script.
+#     with the examples, as many at once as there are cores; a crash leaves
+#     its input in fuzz/artifacts/ and fails the script.
 #
 #   bash scripts/stress-fmu.sh           # CI: RUNS=3, 15 s per target
 #   bash scripts/stress-fmu.sh --long    # RUNS=20, 600 s per target
@@ -74,7 +74,10 @@ in_use_after() {
     fi
     grep -o 'in use at exit: [0-9,]* bytes' "$log" | tr -dc '0-9'
 }
-for version in fmi2 fmi3; do
+# The 1-run and RUNS-run checks of one FMI version; the two versions run
+# side by side (valgrind uses one core).
+check_memory() {
+    local version=$1 importer one many
     if [ "$version" = fmi2 ]; then
         importer=("$WORK/fmu_runs" "$WORK/bus" "$IDENTIFIER" "$GUID" "$REALS" "$NX")
     else
@@ -86,9 +89,17 @@ for version in fmi2 fmi3; do
         "after $RUNS runs: $many bytes"
     if [ "$one" != "$many" ]; then
         echo "stress-fmu: memory in use at exit grows with the number of runs ($version)" >&2
-        exit 1
+        return 1
     fi
-done
+}
+check_memory fmi2 &
+fmi2=$!
+check_memory fmi3 &
+fmi3=$!
+status=0
+wait "$fmi2" || status=1
+wait "$fmi3" || status=1
+[ "$status" -eq 0 ] || exit 1
 
 # --- fuzzing --------------------------------------------------------------------
 # cargo fuzz needs nightly flags (-Zsanitizer); the stable toolchain accepts
@@ -137,7 +148,9 @@ printf '\x81' >"$SEEDS/state_deserializer/valid"
 printf 'call sequence seed: any bytes decode to calls' >"$SEEDS/call_sequence/text"
 printf 'fmi3 call sequence seed: any bytes decode to calls' >"$SEEDS/call_sequence_fmi3/text"
 
-for target in mjcf_import resource_loader state_deserializer call_sequence call_sequence_fmi3; do
+# Fuzzes one target for FUZZ_SECONDS; fails if it found a crash.
+fuzz_one() {
+    local target=$1
     mkdir -p "fuzz/corpus/$target"
     echo "stress-fmu: fuzzing $target for $FUZZ_SECONDS s"
     (cd fuzz && nice cargo fuzz run --release "$target" "corpus/$target" "$SEEDS/$target" -- \
@@ -145,9 +158,24 @@ for target in mjcf_import resource_loader state_deserializer call_sequence call_
         2>"$WORK/fuzz-$target.txt") || {
         tail -n 60 "$WORK/fuzz-$target.txt" >&2
         echo "stress-fmu: $target crashed; the input is in fuzz/artifacts/$target/" >&2
-        exit 1
+        return 1
     }
     grep -E '^stat::number_of_executed_units|^stat::average_exec_per_sec' "$WORK/fuzz-$target.txt" \
         | sed "s/^/stress-fmu: $target: /"
+}
+# As many targets at once as there are cores, each on a core of its own for
+# its FUZZ_SECONDS (libFuzzer's time is wall-clock time).
+targets=(mjcf_import resource_loader state_deserializer call_sequence call_sequence_fmi3)
+cores=$(nproc)
+for ((first = 0; first < ${#targets[@]}; first += cores)); do
+    pids=()
+    for target in "${targets[@]:first:cores}"; do
+        fuzz_one "$target" &
+        pids+=($!)
+    done
+    for pid in "${pids[@]}"; do
+        wait "$pid" || status=1
+    done
+    [ "$status" -eq 0 ] || exit 1
 done
 echo "stress-fmu: ok"

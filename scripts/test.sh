@@ -8,10 +8,11 @@
 #   bash scripts/test.sh
 #
 # On 2 cores the Rust builds leave one core idle for long stretches (one
-# crate, or a link, at a time), so the win64 cross-build and the fuzz
-# targets' sanitizer build (separate target folders) run beside clippy and
-# the main build. The Python tests run on every core (pytest-xdist, a test
-# file per worker). Each stage's time is printed at the end.
+# crate, or a link, at a time), so the venv's installation, the win64
+# cross-build and the fuzz targets' sanitizer build (separate target
+# folders) run beside clippy and the main build. The Python tests run on
+# every core (pytest-xdist, a test file per worker), and so do the fuzz
+# targets. Each stage's time is printed at the end.
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -20,13 +21,29 @@ LOGS="$ROOT/target/test-logs"
 mkdir -p "$LOGS"
 TIMES=()
 
-# Runs NAME COMMAND... and records how long it took.
+# Runs COMMAND... in a shell of its own that writes, when the command has
+# ended, its CPU time (user and system, of everything it started) to FILE:
+#   cpu_measured FILE COMMAND...
+# Measured inside, not as the script's children's time: bash reaps a
+# background stage when it ends, which adds its time to the foreground stage
+# running then.
+CPU_MEASURED='"${@:2}"; status=$?; times >"$1"; exit $status'
+cpu_measured() {
+    bash -c "$CPU_MEASURED" _ "$@"
+}
+# Prints the CPU seconds in FILE: `times`' second line, the children's user
+# and system time ("1m2.345s 0m0.678s").
+cpu_seconds() {
+    sed -n 2p "$1" | tr 'ms' '  ' | awk '{ printf "%d", $1 * 60 + $2 + $3 * 60 + $4 }'
+}
+
+# Runs NAME COMMAND... and records how long it took, and its CPU time.
 stage() {
     local name=$1 start=$SECONDS
     shift
     echo "test.sh: $name"
-    "$@"
-    TIMES+=("$(printf '%5d s  %s' $((SECONDS - start)) "$name")")
+    cpu_measured "$LOGS/cpu.txt" "$@"
+    TIMES+=("$(printf '%5d s %5d s CPU  %s' $((SECONDS - start)) "$(cpu_seconds "$LOGS/cpu.txt")" "$name")")
 }
 
 # Starts NAME COMMAND... in the background, in a process group of its own
@@ -38,7 +55,7 @@ background() {
     shift
     echo "test.sh: $name (in the background, log in $LOGS/$name.log)"
     STARTED[$name]=$(date +%s)
-    setsid "$@" >"$LOGS/$name.log" 2>&1 &
+    setsid bash -c "$CPU_MEASURED" _ "$LOGS/$name.cpu" "$@" >"$LOGS/$name.log" 2>&1 &
     PIDS[$name]=$!
 }
 stop_background() {
@@ -60,14 +77,23 @@ finish() {
         exit "$status"
     fi
     tail -n 3 "$LOGS/$name.log"
-    # Its log was last written when it ended.
-    TIMES+=("$(printf '%5d s  %s (in the background)' $(($(stat -c %Y "$LOGS/$name.log") - STARTED[$name])) "$name")")
+    # Its CPU time was written when it ended.
+    TIMES+=("$(printf '%5d s %5d s CPU  %s (in the background)' $(($(stat -c %Y "$LOGS/$name.cpu") - STARTED[$name])) \
+        "$(cpu_seconds "$LOGS/$name.cpu")" "$name")")
 }
 
-stage setup bash scripts/setup-test.sh
+# The Rust builds need the Debian packages (libclang for bindgen, mingw) and
+# cargo-fuzz; the venv is needed from the wheel on, so it is installed beside them.
+stage "setup (Debian packages, cargo-fuzz)" bash scripts/setup-test.sh system
+background setup-python bash scripts/setup-test.sh python
 
 stage rustfmt cargo fmt --all --check
 stage "rustfmt (fuzz)" bash -c 'cd fuzz && cargo fmt --check'
+# cargo fuzz build updates a stale lock file silently; this says so instead.
+stage "lock file (fuzz)" bash -c 'cd fuzz && cargo metadata --locked --format-version 1 >/dev/null'
+# The wheel and one Python test build a crate alone: workspace-hack must give
+# them the workspace's features, or they compile the tree a second time.
+stage "unified features" python3 scripts/check-unified-features.py
 
 # The win64 FMU binary: every FMU the tests export carries it, and
 # tests/python/test_win64.py runs it under wine.
@@ -82,6 +108,7 @@ stage clippy cargo clippy --release --workspace --all-targets -- -D warnings
 stage "cargo build" cargo build --release --workspace --all-targets
 stage "cargo test" cargo test --release --workspace
 
+finish setup-python
 finish build-windows
 # The wheel (both platforms' binaries): tests/python/test_wheel.py installs it.
 stage wheel bash scripts/build-wheel.sh
@@ -89,10 +116,13 @@ stage wheel bash scripts/build-wheel.sh
 # NUDYN_FMU_LIB: the FMU library just built (the tests' fixture would
 # otherwise build it again for nudyn-fmu alone, with other features).
 stage "Python tests" env NUDYN_BIN=target/release/nudyn NUDYN_FMU_LIB="$ROOT/target/release/libnudyn_fmu.so" \
-    .venv/bin/python -m pytest tests/python -q --durations=25 --numprocesses auto --dist loadfile
+    .venv/bin/python -m pytest tests/python -q --durations=25 --numprocesses auto --dist loadfile \
+    --no-loadscope-reorder
 
 finish build-fuzz
 stage "valgrind and fuzzing" bash scripts/stress-fmu.sh
 
-echo "test.sh: ok; times:"
+times >"$LOGS/cpu.txt"
+echo "test.sh: ok; times (wall, CPU):"
 printf '%s\n' "${TIMES[@]}"
+printf '%5d s %5d s CPU  in all\n' "$SECONDS" "$(cpu_seconds "$LOGS/cpu.txt")"

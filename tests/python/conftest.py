@@ -38,6 +38,22 @@ sys.path.insert(0, str(ROOT / "python"))
 from nudyn_driver.cli import Nudyn  # noqa: E402  (needs the path above)
 
 
+# The test files that take longest, longest first (their sums of test
+# durations in a --durations run of the whole suite, 2026-11-29). Under
+# pytest-xdist with --dist loadfile each file runs whole on one worker, so
+# scripts/test.sh hands the files out in collection order
+# (--no-loadscope-reorder) and they come first: a long file handed out
+# last keeps one worker busy while the other has nothing left to do.
+SLOWEST_FILES = ("test_validation.py", "test_campaign.py", "test_tendons.py", "test_constraints.py",
+                 "test_ctrl_inputs.py")
+
+
+def pytest_collection_modifyitems(items):
+    """The slowest files' tests first, each file's in its own order (a stable sort)."""
+    rank = {name: position for position, name in enumerate(SLOWEST_FILES)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(SLOWEST_FILES)))
+
+
 def example_ids():
     return [p.stem for p in EXAMPLES]
 

@@ -17,7 +17,10 @@ from lxml import etree
 
 ROOT = Path(__file__).resolve().parents[2]
 FMI2_SCHEMA = Path(fmpy.__file__).parent / "schema" / "fmi2" / "fmi2ModelDescription.xsd"
-EXAMPLE_COMMAND = ["cargo", "run", "-q", "-p", "modeldescription", "--example", "write_example"]
+# --release: scripts/test.sh has built the example there already, with the
+# same features (workspace-hack), so this compiles nothing; a debug build
+# would compile the crate and its dependencies again.
+EXAMPLE_COMMAND = ["cargo", "run", "-q", "--release", "-p", "modeldescription", "--example", "write_example"]
 
 
 @pytest.fixture(scope="module")
