@@ -365,3 +365,31 @@ fn armature_compiles_to_mujocos_qpos0_data() {
     }
     assert!(close(model.actuators[0].bias[2], -16.75937862944914), "{}", model.actuators[0].bias[2]);
 }
+
+#[test]
+fn a_world_geom_a_tendon_wraps_around_is_reported_used_not_ignored() {
+    let xml = r#"<mujoco>
+<worldbody>
+<geom name="post" type="cylinder" size="0.05 0.2" pos="0.3 0 0"/>
+<geom name="pad" type="sphere" size="0.05" pos="0.3 0.2 0" contype="0" conaffinity="0"/>
+<geom name="floor" type="plane" size="1 1 0.1"/>
+<site name="anchor" pos="0.3 -0.2 0"/>
+<body name="arm"><joint name="hinge" axis="0 0 1"/><geom size="0.1"/><site name="tip" pos="0.6 0 0"/></body>
+</worldbody>
+<tendon>
+<spatial name="cord"><site site="anchor"/><geom geom="post"/><site site="tip"/></spatial>
+<spatial name="strap"><site site="anchor"/><geom geom="pad"/><site site="tip"/></spatial>
+</tendon>
+</mujoco>"#;
+    let warnings = parse_mjcf(xml).unwrap().warnings;
+    let at = |line: u32| warnings.iter().filter(|w| w.line == line).map(|w| w.message.as_str()).collect::<Vec<_>>();
+    // The obstacle that collides: used, only its contacts left out.
+    let post = at(3);
+    assert_eq!(post.len(), 1, "{warnings:?}");
+    assert!(post[0].starts_with("used as the wrap obstacle of <spatial name=\"cord\">"), "{}", post[0]);
+    assert!(!post[0].contains("ignored"), "{}", post[0]);
+    // The obstacle without contacts: nothing of it is left out.
+    assert!(at(4).is_empty(), "{warnings:?}");
+    // A world geom nothing uses is still ignored.
+    assert!(at(5).iter().any(|m| m.starts_with("ignored")), "{warnings:?}");
+}

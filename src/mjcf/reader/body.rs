@@ -4,8 +4,8 @@
 use super::geom::{fromto_frame, mass_not_computed};
 use super::{
     Align, BODY_ATTRIBUTES, BodyRecord, FRAME_ATTRIBUTES, IGNORED_IN_BODIES, InertiaFromGeom, JointElement,
-    MAX_REPLICATED_ELEMENTS, PendingBody, Placed, Pose, REPLICATE_ATTRIBUTES, Reader, claim_name, no_children,
-    unsupported_child,
+    MAX_REPLICATED_ELEMENTS, PendingBody, Placed, Pose, REPLICATE_ATTRIBUTES, Reader, WorldGeom, claim_name,
+    no_children, unsupported_child,
 };
 use crate::math::{Quat, Vec3};
 use crate::mjcf::attributes::names;
@@ -30,10 +30,11 @@ impl Reader {
                 "site" => self.read_site(&child, class, None, frame, &suffix)?,
                 "geom" => {
                     let settings = self.geom_settings(&child, class)?;
-                    self.name_geom(&child, &settings, frame.as_ref(), None, &suffix)?;
+                    let name = self.name_geom(&child, &settings, frame.as_ref(), None, &suffix)?;
                     let read = self.geom_mass(&child, &settings, frame.as_ref(), false, false)?;
                     self.add_contact_geom(&child, &settings, None, read.reach);
-                    self.warnings.push(child.ignored());
+                    let collides = settings.contype != [0, 0];
+                    self.world_geoms.push(WorldGeom { name, collides, warning: child.ignored() });
                 }
                 tag if IGNORED_IN_BODIES.contains(&tag) => {
                     self.named_elsewhere.extend(child.text("target").map(str::to_string));

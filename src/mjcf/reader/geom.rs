@@ -78,6 +78,7 @@ impl Reader {
 
     /// Registers a named geom of `body` (`None`: the world) for tendons to
     /// wrap around: its type, and a sphere's or cylinder's frame in the body.
+    /// Its name, with the `<replicate>` suffix.
     pub(super) fn name_geom(
         &mut self,
         element: &Element,
@@ -85,8 +86,8 @@ impl Reader {
         frame: Option<&Pose>,
         body: Option<usize>,
         suffix: &str,
-    ) -> Result<(), MjcfError> {
-        let Some(name) = element.text("name") else { return Ok(()) };
+    ) -> Result<Option<String>, MjcfError> {
+        let Some(name) = element.text("name") else { return Ok(None) };
         let name = self.replicated_name(name, suffix);
         let wrap = match settings.kind {
             GeomKind::Sphere | GeomKind::Cylinder => {
@@ -116,8 +117,8 @@ impl Reader {
             }
             _ => None,
         };
-        self.named_geoms.insert(name, (settings.kind, wrap));
-        Ok(())
+        self.named_geoms.insert(name.clone(), (settings.kind, wrap));
+        Ok(Some(name))
     }
 
     /// The mesh asset a geom names (not read yet).

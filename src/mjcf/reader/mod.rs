@@ -274,10 +274,26 @@ struct Reader {
     /// The elements the `<replicate>`s expanded so far produce (see
     /// [`MAX_REPLICATED_ELEMENTS`]).
     replicated_elements: std::cell::Cell<usize>,
+    /// The geoms of the world body, whose warnings wait for the tendons
+    /// that may wrap around them.
+    world_geoms: Vec<WorldGeom>,
+    /// The geoms spatial tendons wrap around, each with the first such tendon.
+    wrap_obstacles: HashMap<String, String>,
     /// Each body's pose in the world at qpos0 (before `align_free` moves its frame).
     world_poses: Vec<Pose>,
     /// The geoms that may collide, for the warning on contacts.
     contact_geoms: Vec<ContactGeom>,
+}
+
+/// A geom of the world body: it moves no mass, so it has an effect only as
+/// a tendon's wrap obstacle.
+struct WorldGeom {
+    /// Its name, when it has one.
+    name: Option<String>,
+    /// Whether MuJoCo may make contacts with it (`contype` or `conaffinity` not 0).
+    collides: bool,
+    /// The warning that it is ignored, for when no tendon wraps around it.
+    warning: MjcfWarning,
 }
 
 /// What reading a geom gives: its mass when it counts, and how far it
@@ -461,6 +477,8 @@ impl Reader {
             named_elsewhere: Vec::new(),
             replicated: HashMap::new(),
             replicated_elements: std::cell::Cell::new(0),
+            world_geoms: Vec::new(),
+            wrap_obstacles: HashMap::new(),
             world_poses: Vec::new(),
             contact_geoms: Vec::new(),
         }

@@ -142,6 +142,10 @@ impl Reader {
         for element in section.children() {
             let settings = self.defaults.class(self.class_of(&element, MAIN)?).tendon.clone();
             let (read, limited) = tendon::read(&element, settings, self, flags)?;
+            for obstacle in element.children().filter(|child| child.tag() == "geom") {
+                let geom = obstacle.text("geom").unwrap_or_default().to_string();
+                self.wrap_obstacles.entry(geom).or_insert_with(|| element.label());
+            }
             if let Some(name) = &read.name {
                 claim_name(&mut self.tendon_names, "tendon", name, &element)?;
             }
