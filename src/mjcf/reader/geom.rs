@@ -2,6 +2,7 @@
 //! (MuJoCo's geom and mesh inertia, `boundmass`, `boundinertia`).
 
 use super::body::compose;
+use super::replicate::{Named, Suffix};
 use super::{GeomRead, INERTIAL_ATTRIBUTES, Pose, Reader, no_children};
 use crate::math::{Mat3, Quat, Vec3};
 use crate::mjcf::contacts::{ContactGeom, Reach};
@@ -85,10 +86,10 @@ impl Reader {
         settings: &GeomSettings,
         frame: Option<&Pose>,
         body: Option<usize>,
-        suffix: &str,
+        suffix: &Suffix,
     ) -> Result<Option<String>, MjcfError> {
         let Some(name) = element.text("name") else { return Ok(None) };
-        let name = self.replicated_name(name, suffix);
+        let name = self.replicated_name(Named::Geom, name, suffix);
         let wrap = match settings.kind {
             GeomKind::Sphere | GeomKind::Cylinder => {
                 let (pos, quat) = match settings.fromto {

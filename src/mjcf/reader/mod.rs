@@ -5,6 +5,7 @@ mod finish;
 mod geom;
 mod joint;
 mod options;
+mod replicate;
 mod sections;
 mod targets;
 
@@ -26,6 +27,7 @@ use crate::math::{Quat, Vec3};
 use crate::vehicle::{
     Actuation, Actuator, Body, ConstraintOptions, Equality, JointKind, Sensor, Site, Tendon, WrapGeom,
 };
+use replicate::{ElementCopy, Named, ReplicatedName, Suffix};
 
 /// MuJoCo's `mjMINVAL`: the least mass and principal moment of a moving body.
 const MIN_VALUE: f64 = 1e-15;
@@ -197,7 +199,7 @@ struct PendingBody<'a> {
     /// The pose of the `<frame>`s around the body, in its parent.
     frame: Option<Pose>,
     /// The suffix the `<replicate>`s around it give the names in it.
-    suffix: String,
+    suffix: Suffix,
 }
 
 /// A pose in a parent frame: position, then orientation.
@@ -211,7 +213,7 @@ struct Placed<'a> {
     frame: Option<Pose>,
     class: usize,
     /// The suffix of `<replicate>` copies for its name and those below it.
-    suffix: String,
+    suffix: Suffix,
 }
 
 /// `align` of a free joint.
@@ -228,7 +230,7 @@ struct JointElement<'a, 'input> {
     settings: JointSettings,
     align: Align,
     /// The `<replicate>` suffix of its name.
-    suffix: String,
+    suffix: Suffix,
 }
 
 /// What the walk through the document has gathered so far.
@@ -271,6 +273,10 @@ struct Reader {
     named_elsewhere: Vec<String>,
     /// The names given inside `<replicate>`s, each with its first copy's name.
     replicated: HashMap<String, String>,
+    /// The names given inside `<replicate>`s, with the copies they are in.
+    replicated_names: Vec<ReplicatedName>,
+    /// The copy of an actuator or sensor element being read.
+    copy: Option<ElementCopy>,
     /// The elements the `<replicate>`s expanded so far produce (see
     /// [`MAX_REPLICATED_ELEMENTS`]).
     replicated_elements: std::cell::Cell<usize>,
@@ -476,6 +482,8 @@ impl Reader {
             mocap_bodies: Vec::new(),
             named_elsewhere: Vec::new(),
             replicated: HashMap::new(),
+            replicated_names: Vec::new(),
+            copy: None,
             replicated_elements: std::cell::Cell::new(0),
             world_geoms: Vec::new(),
             wrap_obstacles: HashMap::new(),
@@ -484,12 +492,15 @@ impl Reader {
         }
     }
 
-    /// The name of an element in a `<replicate>` copy (`suffix` empty
-    /// outside replicates), remembered for [`Reader::unknown`].
-    fn replicated_name(&mut self, name: &str, suffix: &str) -> String {
-        let copy = format!("{name}{suffix}");
-        if !suffix.is_empty() {
+    /// The name of an element of `kind` in a `<replicate>` copy (`suffix`
+    /// empty outside replicates), remembered for [`Reader::unknown`] and
+    /// for the actuators and sensors that name it as written.
+    fn replicated_name(&mut self, kind: Named, name: &str, suffix: &Suffix) -> String {
+        let text = suffix.text();
+        let copy = format!("{name}{text}");
+        if !text.is_empty() {
             self.replicated.entry(name.to_string()).or_insert_with(|| copy.clone());
+            self.replicated_names.push(ReplicatedName { kind, name: name.to_string(), suffix: suffix.clone() });
         }
         copy
     }
