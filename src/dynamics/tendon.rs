@@ -217,10 +217,11 @@ pub(super) fn walk_path(
             (PathStop::Geom { .. }, _) => unreachable!("a geom follows a site"),
         };
         match &stops[j + 1] {
-            PathStop::Geom { frame, body, radius, cylinder } => {
+            PathStop::Geom { frame, body, radius, cylinder, side } => {
                 let end = site_point(&stops[j + 2]);
                 let geom = site_in_world(frame, x_world);
-                match wrap::wrap(&start.at, &end.at, &geom, *radius, *cylinder) {
+                let side = side.map(|side| site_in_world(&side, x_world).trans);
+                match wrap::wrap(&start.at, &end.at, &geom, *radius, *cylinder, side.as_ref()) {
                     Some((arc, first, second)) => {
                         let on_geom = |at: Vec3| PathPoint { link: frame.link, body: *body, at };
                         let points = [start, on_geom(first), on_geom(second), end];

@@ -1,7 +1,8 @@
 //! `<tendon>`: fixed tendons (a linear combination of hinge and slide
 //! joint values) and spatial tendons through sites, with MuJoCo 4.0's
 //! attributes, defaults and compiler checks, wrapping around sphere and
-//! cylinder geoms included (without a side site, which is refused).
+//! cylinder geoms included (with a side site on the geom's body outside it;
+//! one inside, through which MuJoCo passes the tendon, is refused).
 
 use super::attributes::{Attribute, names, read_into, set};
 use super::defaults::Limited;
@@ -145,6 +146,8 @@ pub(crate) trait TendonTargets {
     fn tendon_site(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError>;
     /// The sphere or cylinder geom the attribute names.
     fn tendon_geom(&self, element: &Element, attribute: &str) -> Result<WrapGeom, MjcfError>;
+    /// The side site the attribute names for wrapping around `geom`.
+    fn tendon_side_site(&self, element: &Element, attribute: &str, geom: &WrapGeom) -> Result<usize, MjcfError>;
 }
 
 /// What the `<flag>`s and `<compiler>` leave of a tendon's terms.
@@ -303,13 +306,9 @@ fn spatial_path(element: &Element, targets: &impl TendonTargets) -> Result<Tendo
                 if !child.has("geom") {
                     return Err(child.missing("geom"));
                 }
-                let geom = targets.tendon_geom(&child, "geom")?;
+                let mut geom = targets.tendon_geom(&child, "geom")?;
                 if child.has("sidesite") {
-                    targets.tendon_site(&child, "sidesite")?;
-                    return Err(child.unsupported(
-                        "sidesite: MuJoCo 4.0 chooses the side to wrap on by a rule nudyn does not reproduce \
-                         (the rule in its published source picks another side, or none, in 26 of 1200 states we sampled); wrap without a side site",
-                    ));
+                    geom.side = Some(targets.tendon_side_site(&child, "sidesite", &geom)?);
                 }
                 points.push(PathPoint::Geom(geom));
             }

@@ -114,7 +114,7 @@ impl Reader {
                     return Err(element.invalid(format!("size[0] must be positive, found {}", size[0])));
                 }
                 let cylinder = settings.kind == GeomKind::Cylinder;
-                Some(WrapGeom { body, pos, quat, radius: size[0], cylinder })
+                Some(WrapGeom { body, pos, quat, radius: size[0], cylinder, side: None })
             }
             _ => None,
         };

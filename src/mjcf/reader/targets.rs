@@ -97,6 +97,10 @@ impl TendonTargets for Reader {
         self.site_named(element, attribute, "tendon")
     }
 
+    fn tendon_side_site(&self, element: &Element, attribute: &str, geom: &WrapGeom) -> Result<usize, MjcfError> {
+        self.side_site(element, attribute, geom)
+    }
+
     fn tendon_geom(&self, element: &Element, attribute: &str) -> Result<WrapGeom, MjcfError> {
         let name = element.text(attribute).unwrap_or_default();
         match self.named_geoms.get(name) {
@@ -106,6 +110,31 @@ impl TendonTargets for Reader {
                 Err(element.invalid(format!("geom '{name}' in tendon is not sphere or cylinder (it is {kind:?})")))
             }
         }
+    }
+}
+
+impl Reader {
+    /// A wrap's side site, refused where nudyn does not follow MuJoCo: on
+    /// another body than the geom's (it could move into the geom), or inside
+    /// the geom (MuJoCo then passes the tendon through it).
+    fn side_site(&self, element: &Element, attribute: &str, geom: &WrapGeom) -> Result<usize, MjcfError> {
+        let index = self.site_named(element, attribute, "tendon")?;
+        let site = &self.sites[index];
+        if site.body != geom.body {
+            return Err(element.unsupported(format!(
+                "{attribute} on another body than the geom's: nudyn takes side sites on the geom's body, which \
+                 cannot move into it"
+            )));
+        }
+        let local = geom.quat.inverse() * (site.pos - geom.pos);
+        let off_axis = if geom.cylinder { local.xy().norm() } else { local.norm() };
+        if off_axis < geom.radius {
+            return Err(element.unsupported(format!(
+                "{attribute} inside the geom: MuJoCo 4.0 then makes the tendon pass through the geom, which nudyn \
+                 does not model"
+            )));
+        }
+        Ok(index)
     }
 }
 
