@@ -89,9 +89,9 @@ pub fn support_table() -> String {
     {
         let _ = writeln!(out, "| `<tendon>/<{element}>` | {} |", code_list(&attributes, false));
     }
-    for (path, attributes) in tendon::PATH_ELEMENTS {
+    for (path, table) in tendon::PATH_ELEMENTS {
         let (parent, child) = path.split_once('/').expect("parent/child");
-        let _ = writeln!(out, "| `<{parent}>/<{child}>` | {} |", code_list(attributes, false));
+        let _ = writeln!(out, "| `<{parent}>/<{child}>` | {} |", code_list(&attributes::names(table), false));
     }
     for (tag, kind) in actuator::ACTUATOR_KINDS {
         let _ = writeln!(out, "| `<actuator>/<{tag}>` | {} |", code_list(&actuator::attributes(*kind, false), false));
