@@ -95,12 +95,17 @@ impl Workspace {
     }
 
     /// The force tendon `k` carries, F, whose generalized force is JᵀF (F > 0
-    /// pushes its ends apart): its spring and damper, its actuators'
-    /// forces times their gear, and its friction-loss, limit and equality
-    /// rows' forces times the tendon's share of the row.
+    /// pushes its ends apart): its spring and damper, its armature's
+    /// −a·L̈ (L̈ = J θ̈ + J̇θ̇), its actuators' forces times their gear, and
+    /// its friction-loss, limit and equality rows' forces times the
+    /// tendon's share of the row.
     pub(super) fn tendon_force(&self, model: &Model, k: usize) -> f64 {
         let tendon = &model.tendons[k];
         let mut force = 0.0;
+        if tendon.armature != 0.0 {
+            let along: f64 = self.tendon_moment_row(model, k).iter().zip(self.qacc.iter()).map(|(j, a)| j * a).sum();
+            force -= tendon.armature * (along + self.tendon_inertia.jdot_qvel(k));
+        }
         if tendon.has_passive_force() {
             force += passive_force(tendon, self.tendon_length[k], self.tendon_velocity[k]);
         }

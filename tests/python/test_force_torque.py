@@ -93,12 +93,13 @@ TENDONS = ROOT / "tests" / "fixtures" / "sensors" / "tendon_force_torque.xml"
 
 def test_spatial_tendons_pull_on_the_bodies_their_sensors_read_as_mujoco(nudyn):
     """tendon_force_torque.xml: spatial tendons pulling subtrees from outside
-    (spring, damper, friction loss, limit, a tendon equality, a motor; a
-    wrap and a pulley), which MuJoCo 4.0 counts as external forces at their
+    (spring, damper, armature, friction loss, limit, a tendon equality, a
+    motor; a wrap and a pulley), which MuJoCo 4.0 counts as external forces at their
     path points. sensordata (the tendons' lengths too), qacc and actuator_force at random
     states, the solver run to round-off on MuJoCo's side. (Leaving the
     tendons' forces out of nudyn's sensors put state 0 off by 100 % of its
-    largest reading, measured by hand.)"""
+    largest reading, and leaving the armature's −a·L̈ out put it 6e-4 off,
+    both measured by hand.)"""
     model = load_model(TENDONS)
     data = mujoco.MjData(model)
     rng = np.random.default_rng(263)
