@@ -408,6 +408,9 @@ fn a_side_site_on_the_geoms_body_outside_it_is_taken_one_inside_refused() {
     let vehicle = parse_mjcf(&scene("0.2 0 -0.1")).unwrap().vehicle;
     let nudyn::vehicle::TendonPath::Spatial(points) = &vehicle.tendons[0].path else { panic!("a spatial tendon") };
     assert!(matches!(points[1], nudyn::vehicle::PathPoint::Geom(geom) if geom.side == Some(2)), "{points:?}");
+    let model = Model::compile(&vehicle).unwrap();
+    let described = serde_json::to_value(nudyn::describe::Description::of(&vehicle, &model)).unwrap();
+    assert_eq!(described["tendons"][0]["path"][1]["sidesite"], "side");
     // Inside the cylinder's radius (its axis is y here), however far along the axis.
     let message = parse_mjcf(&scene("0.21 0.5 0.02")).unwrap_err().to_string();
     assert!(message.contains("sidesite inside the geom"), "{message}");
