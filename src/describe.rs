@@ -85,6 +85,9 @@ pub enum TendonPathPoint {
         shape: &'static str,
         /// Its radius.
         radius: f64,
+        /// The name of its side site, when it has one.
+        #[serde(skip_serializing_if = "Option::is_none")]
+        sidesite: Option<String>,
     },
     /// A pulley: the path after it counts 1/divisor.
     Pulley {
@@ -249,6 +252,7 @@ fn describe_tendon(
                         body: body_name(geom.body),
                         shape: if geom.cylinder { "cylinder" } else { "sphere" },
                         radius: geom.radius,
+                        sidesite: geom.side.and_then(|site| vehicle.sites[site].name.clone()),
                     },
                     PathPoint::Pulley(divisor) => TendonPathPoint::Pulley { divisor },
                 })

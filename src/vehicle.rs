@@ -790,6 +790,10 @@ pub struct WrapGeom {
     pub radius: f64,
     /// A cylinder (else a sphere).
     pub cylinder: bool,
+    /// In a tendon's path, its `sidesite` (index in [`Vehicle::sites`]), on
+    /// the geom's body and outside it: the tendon goes round the geom as
+    /// the polyline from the first site through it to the second does.
+    pub side: Option<usize>,
 }
 
 /// The kinds of constraint a user can leave out of a model, as MuJoCo's

@@ -238,7 +238,7 @@ pub(super) fn orientation(placement: &Transform) -> Quat {
 /// `polycoef` c (p(y₂) = c₀ + c₁y₂ + … + c₄y₂⁴; c₀ alone without a second
 /// object), and the slope p′(y₂) its Jacobian row takes; y are offsets
 /// from qpos0.
-fn polynomial_coupling(c: &[f64; 5], first: f64, second: Option<f64>) -> (f64, f64) {
+pub(super) fn polynomial_coupling(c: &[f64; 5], first: f64, second: Option<f64>) -> (f64, f64) {
     match second {
         Some(x) => {
             let value = c[1] * x + c[2] * x * x + c[3] * x * x * x + c[4] * x * x * x * x;

@@ -13,17 +13,19 @@
 //! constraint forces) and the world accelerating at −g, so that weight
 //! counts as a force the joint carries. f_ext is MuJoCo's `cfrc_ext`: the
 //! wrench inputs (`xfrc_applied`) at the body's centre of mass and the
-//! forces of connect and weld rows at their anchor points; actuator,
-//! spring, damper, friction-loss and limit forces act through joints and
-//! stay inside f_int. A link may carry several MuJoCo bodies (welded
+//! forces of connect and weld rows at their anchor points, and the forces
+//! spatial tendons pull with at their path points (MuJoCo 4.0's change
+//! 263c638c0); the other actuator, spring, damper, friction-loss and limit
+//! forces act through joints and stay inside f_int. A link may carry several MuJoCo bodies (welded
 //! bodies, fusestatic): each body's share is taken on its own, from the
 //! link's motion and the body's own mass, so that a sensor on a welded
 //! body reads its own subtree.
 
 use super::constraint::RowKind;
 use super::equality::{orientation, weld_rotation_map};
+use super::tendon::{direction, walk_path};
 use crate::math::{Mat3, Transform, Vec3, angular, linear, spatial};
-use crate::model::{ActuatorTransmission, EqualityRows, Model, SiteFrame};
+use crate::model::{ActuatorTransmission, EqualityRows, Model, Path, SiteFrame};
 use crate::vehicle::SensorKind;
 use crate::workspace::Workspace;
 
@@ -59,6 +61,35 @@ impl Workspace {
         }
         self.subtract_wrench_inputs(model);
         self.subtract_equality_forces(model);
+        self.subtract_tendon_forces(model);
+    }
+
+    /// The spatial tendons' forces, which MuJoCo 4.0 counts as external
+    /// forces at their path points: the force F the tendon carries (see
+    /// [`Workspace::tendon_force`]) along each straight segment p₀ → p₁ over
+    /// its divisor, F·u at p₁ and −F·u at p₀ (u = (p₁ − p₀)/|p₁ − p₀|), as a
+    /// unit tension's moment arms take it; a segment within one body pulls
+    /// on it with two opposite forces on one line, which cancel.
+    fn subtract_tendon_forces(&mut self, model: &Model) {
+        for (k, tendon) in model.tendons.iter().enumerate() {
+            let Path::Spatial { stops } = &tendon.path else { continue };
+            let force = self.tendon_force(model, k);
+            if force == 0.0 {
+                continue;
+            }
+            let (body_wrench, body_com) = (&mut self.body_wrench, &self.body_com);
+            walk_path(stops, &self.x_world, |from, to, divisor| {
+                if from.body == to.body {
+                    return;
+                }
+                let f = direction(from, to) * (force / divisor);
+                for (point, f) in [(from, -f), (to, f)] {
+                    if let Some(b) = point.body {
+                        body_wrench[b] -= spatial(&(point.at - body_com[b]).cross(&f), &f);
+                    }
+                }
+            });
+        }
     }
 
     /// The wrench inputs: MuJoCo's `xfrc_applied`, a world force and torque

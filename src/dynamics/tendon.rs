@@ -11,21 +11,23 @@
 //! it meets the geom, which move with the geom's link.
 
 use super::actuation::site_in_world;
+use super::constraint::RowKind;
+use super::equality::polynomial_coupling;
 use super::forces::add_joint_forces_of_wrenches;
 use super::wrap;
 use crate::math::{SpatialVec, Transform, Vec3, spatial};
-use crate::model::{Model, Path, PathStop};
+use crate::model::{ActuatorTransmission, EqualityRows, Model, Path, PathStop, Tendon};
 use crate::workspace::Workspace;
 
 /// A point of a spatial tendon's path in the world, and what carries it.
 #[derive(Clone, Copy)]
-struct PathPoint {
+pub(super) struct PathPoint {
     /// The link moving it (`None`: the world).
-    link: Option<usize>,
+    pub link: Option<usize>,
     /// The MJCF body carrying it.
-    body: Option<usize>,
+    pub body: Option<usize>,
     /// Its world position.
-    at: Vec3,
+    pub at: Vec3,
 }
 
 /// MuJoCo's `mjMINVAL`: a shorter segment has no direction.
@@ -59,69 +61,16 @@ impl Workspace {
         }
     }
 
-    /// A spatial tendon's length, and its moment arms into `moment` (nv),
-    /// as MuJoCo's `mj_tendon` walks the path: a pulley sets the divisor of
-    /// the segments after it and starts a new branch; a site, geom, site
-    /// triple wraps (two straight segments to the geom's surface and the arc
-    /// between, the arc's points moving with the geom), or runs straight
-    /// when the segment misses the geom.
+    /// A spatial tendon's length, and its moment arms into `moment` (nv):
+    /// the unit tension's point forces on each segment, summed per link and
+    /// taken inward to the joints.
     fn spatial_tendon(&mut self, model: &Model, stops: &[PathStop], moment: &mut [f64]) -> f64 {
         self.tendon_wrench.fill(SpatialVec::zeros());
-        let mut divisor = 1.0;
-        let mut length = 0.0;
+        let (x_world, wrench) = (&self.x_world, &mut self.tendon_wrench);
         let mut pulls = false;
-        let mut j = 0;
-        while j + 1 < stops.len() {
-            let (from, next) = match (&stops[j], &stops[j + 1]) {
-                (PathStop::Pulley { divisor: d }, _) => {
-                    divisor = *d;
-                    j += 1;
-                    continue;
-                }
-                // A site before a pulley ends its branch.
-                (_, PathStop::Pulley { .. }) => {
-                    j += 1;
-                    continue;
-                }
-                (PathStop::Site { frame, body }, next) => ((frame, *body), next),
-                // The importer puts a geom between two sites only.
-                (PathStop::Geom { .. }, _) => unreachable!("a geom follows a site"),
-            };
-            let start = PathPoint { link: from.0.link, body: from.1, at: site_in_world(from.0, &self.x_world).trans };
-            let site_point = |stop: &PathStop, x_world: &[Transform]| match stop {
-                PathStop::Site { frame, body } => {
-                    PathPoint { link: frame.link, body: *body, at: site_in_world(frame, x_world).trans }
-                }
-                _ => unreachable!("the importer ends a wrap at a site"),
-            };
-            match next {
-                PathStop::Geom { frame, body, radius, cylinder } => {
-                    let end = site_point(&stops[j + 2], &self.x_world);
-                    let geom = site_in_world(frame, &self.x_world);
-                    match wrap::wrap(&start.at, &end.at, &geom, *radius, *cylinder) {
-                        Some((arc, first, second)) => {
-                            let on_geom = |at: Vec3| PathPoint { link: frame.link, body: *body, at };
-                            let points = [start, on_geom(first), on_geom(second), end];
-                            length += ((first - start.at).norm() + arc + (end.at - second).norm()) / divisor;
-                            for pair in points.windows(2) {
-                                pulls |= self.pull_segment(&pair[0], &pair[1], divisor);
-                            }
-                        }
-                        None => {
-                            length += (end.at - start.at).norm() / divisor;
-                            pulls |= self.pull_segment(&start, &end, divisor);
-                        }
-                    }
-                    j += 2;
-                }
-                _ => {
-                    let end = site_point(next, &self.x_world);
-                    length += (end.at - start.at).norm() / divisor;
-                    pulls |= self.pull_segment(&start, &end, divisor);
-                    j += 1;
-                }
-            }
-        }
+        let length = walk_path(stops, x_world, |from, to, divisor| {
+            pulls |= pull_segment(x_world, wrench, from, to, divisor);
+        });
         if pulls {
             add_joint_forces_of_wrenches(
                 model,
@@ -135,35 +84,6 @@ impl Workspace {
         length
     }
 
-    /// Adds the unit tension's point forces of the straight segment
-    /// `from → to` (its direction over `divisor` at `to`, the opposite at
-    /// `from`) to the links' wrenches; MuJoCo leaves out a segment within one
-    /// body. A segment between two bodies welded to one link (or both to the
-    /// world) is left out too: its two forces cancel exactly, while summed
-    /// as wrenches they leave round-off arms of 1e-17 that a tendon limit's
-    /// row would multiply into forces of 1e17. Whether some link took a force.
-    fn pull_segment(&mut self, from: &PathPoint, to: &PathPoint, divisor: f64) -> bool {
-        if from.body == to.body || from.link == to.link {
-            return false;
-        }
-        let difference = to.at - from.at;
-        let distance = difference.norm();
-        // MuJoCo's mju_normalize3: a vanishing segment points along x.
-        let direction = if distance < MIN_VALUE { Vec3::x() } else { difference * (1.0 / distance) };
-        let force = direction / divisor;
-        let mut pulls = false;
-        for (point, f) in [(from, -force), (to, force)] {
-            if let Some(link) = point.link {
-                // The point force in link coordinates, about the link origin.
-                let x = &self.x_world[link];
-                let (r, f) = (x.rot * (point.at - x.trans), x.rot * f);
-                self.tendon_wrench[link] += spatial(&r.cross(&f), &f);
-                pulls = true;
-            }
-        }
-        pulls
-    }
-
     /// Every tendon's velocity J θ̇ (`set_nu` and `set_qvel` run it when the
     /// model has tendons).
     pub(crate) fn tendon_velocities(&mut self, model: &Model) {
@@ -174,10 +94,163 @@ impl Workspace {
         }
     }
 
+    /// The force tendon `k` carries, F, whose generalized force is JᵀF (F > 0
+    /// pushes its ends apart): its spring and damper, its armature's
+    /// −a·L̈ (L̈ = J θ̈ + J̇θ̇), its actuators' forces times their gear, and
+    /// its friction-loss, limit and equality rows' forces times the
+    /// tendon's share of the row.
+    pub(super) fn tendon_force(&self, model: &Model, k: usize) -> f64 {
+        let tendon = &model.tendons[k];
+        let mut force = 0.0;
+        if tendon.armature != 0.0 {
+            let along: f64 = self.tendon_moment_row(model, k).iter().zip(self.qacc.iter()).map(|(j, a)| j * a).sum();
+            force -= tendon.armature * (along + self.tendon_inertia.jdot_qvel(k));
+        }
+        if tendon.has_passive_force() {
+            force += passive_force(tendon, self.tendon_length[k], self.tendon_velocity[k]);
+        }
+        for (a, actuator) in model.actuators.iter().enumerate() {
+            if matches!(actuator.transmission, ActuatorTransmission::Tendon { tendon } if tendon == k) {
+                force += actuator.gear[0] * self.actuator_force[a];
+            }
+        }
+        let rows = &self.constraint_rows;
+        let constraints = &model.constraints;
+        for r in 0..rows.count {
+            let share = match rows.kind[r] {
+                RowKind::TendonFriction if constraints.tendon_friction[rows.id[r]].tendon == k => 1.0,
+                // The row is ∓J on the lower and upper side.
+                RowKind::TendonLimit if constraints.tendon_limits[rows.id[r]].tendon == k => {
+                    let row = &rows.jacobian[r * model.nv..(r + 1) * model.nv];
+                    let along: f64 = row.iter().zip(self.tendon_moment_row(model, k)).map(|(a, b)| a * b).sum();
+                    along.signum()
+                }
+                RowKind::Equality => match &constraints.equalities[rows.id[r]].rows {
+                    EqualityRows::Tendon { first, second, polycoef, .. } if *first == k || *second == Some(k) => {
+                        let offset = |t: usize| self.tendon_length[t] - model.tendons[t].length0;
+                        let (_, slope) = polynomial_coupling(polycoef, offset(*first), second.map(offset));
+                        if *first == k { 1.0 } else { -slope }
+                    }
+                    _ => 0.0,
+                },
+                _ => 0.0,
+            };
+            force += share * rows.force[r];
+        }
+        force
+    }
+
     /// The moment arms of tendon `k` (nv).
     pub fn tendon_moment_row(&self, model: &Model, k: usize) -> &[f64] {
         &self.tendon_moment[k * model.nv..(k + 1) * model.nv]
     }
+}
+
+/// Adds the unit tension's point forces of the straight segment `from →
+/// to` (its direction over `divisor` at `to`, the opposite at `from`) to the
+/// links' `wrench`es; MuJoCo leaves out a segment within one body. A segment
+/// between two bodies welded to one link (or both to the world) is left out
+/// too: its two forces cancel exactly, while summed as wrenches they leave
+/// round-off arms of 1e-17 that a tendon limit's row would multiply into
+/// forces of 1e17. Whether some link took a force.
+fn pull_segment(
+    x_world: &[Transform],
+    wrench: &mut [SpatialVec],
+    from: &PathPoint,
+    to: &PathPoint,
+    divisor: f64,
+) -> bool {
+    if from.body == to.body || from.link == to.link {
+        return false;
+    }
+    let force = direction(from, to) / divisor;
+    let mut pulls = false;
+    for (point, f) in [(from, -force), (to, force)] {
+        if let Some(link) = point.link {
+            // The point force in link coordinates, about the link origin.
+            let x = &x_world[link];
+            let (r, f) = (x.rot * (point.at - x.trans), x.rot * f);
+            wrench[link] += spatial(&r.cross(&f), &f);
+            pulls = true;
+        }
+    }
+    pulls
+}
+
+/// The unit vector from `from` to `to`; MuJoCo's mju_normalize3: a
+/// vanishing segment points along x.
+pub(super) fn direction(from: &PathPoint, to: &PathPoint) -> Vec3 {
+    let difference = to.at - from.at;
+    let distance = difference.norm();
+    if distance < MIN_VALUE { Vec3::x() } else { difference * (1.0 / distance) }
+}
+
+/// Walks a spatial tendon's path as MuJoCo's `mj_tendon` does, calling
+/// `segment(from, to, divisor)` for each straight segment; its length. A
+/// pulley sets the divisor of the segments after it and starts a new
+/// branch; a site, geom, site triple wraps (two straight segments to the
+/// geom's surface and the arc between, the arc's points moving with the
+/// geom), or runs straight when the segment misses the geom.
+pub(super) fn walk_path(
+    stops: &[PathStop],
+    x_world: &[Transform],
+    mut segment: impl FnMut(&PathPoint, &PathPoint, f64),
+) -> f64 {
+    let site_point = |stop: &PathStop| match stop {
+        PathStop::Site { frame, body } => {
+            PathPoint { link: frame.link, body: *body, at: site_in_world(frame, x_world).trans }
+        }
+        _ => unreachable!("the importer ends a wrap at a site"),
+    };
+    let mut divisor = 1.0;
+    let mut length = 0.0;
+    let mut j = 0;
+    while j + 1 < stops.len() {
+        let start = match (&stops[j], &stops[j + 1]) {
+            (PathStop::Pulley { divisor: d }, _) => {
+                divisor = *d;
+                j += 1;
+                continue;
+            }
+            // A site before a pulley ends its branch.
+            (_, PathStop::Pulley { .. }) => {
+                j += 1;
+                continue;
+            }
+            (site @ PathStop::Site { .. }, _) => site_point(site),
+            // The importer puts a geom between two sites only.
+            (PathStop::Geom { .. }, _) => unreachable!("a geom follows a site"),
+        };
+        match &stops[j + 1] {
+            PathStop::Geom { frame, body, radius, cylinder, side } => {
+                let end = site_point(&stops[j + 2]);
+                let geom = site_in_world(frame, x_world);
+                let side = side.map(|side| site_in_world(&side, x_world).trans);
+                match wrap::wrap(&start.at, &end.at, &geom, *radius, *cylinder, side.as_ref()) {
+                    Some((arc, first, second)) => {
+                        let on_geom = |at: Vec3| PathPoint { link: frame.link, body: *body, at };
+                        let points = [start, on_geom(first), on_geom(second), end];
+                        length += ((first - start.at).norm() + arc + (end.at - second).norm()) / divisor;
+                        for pair in points.windows(2) {
+                            segment(&pair[0], &pair[1], divisor);
+                        }
+                    }
+                    None => {
+                        length += (end.at - start.at).norm() / divisor;
+                        segment(&start, &end, divisor);
+                    }
+                }
+                j += 2;
+            }
+            next => {
+                let end = site_point(next);
+                length += (end.at - start.at).norm() / divisor;
+                segment(&start, &end, divisor);
+                j += 1;
+            }
+        }
+    }
+    length
 }
 
 /// Adds the tendons' springs and dampers to the passive joint forces,
@@ -189,20 +262,25 @@ pub(crate) fn add_passive_forces(model: &Model, ws: &mut Workspace) {
         if !tendon.has_passive_force() {
             continue;
         }
-        let length = ws.tendon_length[k];
-        let [lower, upper] = tendon.spring_length;
-        let stretch = if length > upper {
-            length - upper
-        } else if length < lower {
-            length - lower
-        } else {
-            0.0
-        };
-        let force = -stretch * tendon.stiffness - ws.tendon_velocity[k] * tendon.damping;
+        let force = passive_force(tendon, ws.tendon_length[k], ws.tendon_velocity[k]);
         if force != 0.0 {
             for d in 0..nv {
                 ws.tau_passive[d] += ws.tendon_moment[k * nv + d] * force;
             }
         }
     }
+}
+
+/// A tendon's spring and damper force −(k·x + b·L̇), x the length's
+/// distance beyond the spring's deadband.
+fn passive_force(tendon: &Tendon, length: f64, velocity: f64) -> f64 {
+    let [lower, upper] = tendon.spring_length;
+    let stretch = if length > upper {
+        length - upper
+    } else if length < lower {
+        length - lower
+    } else {
+        0.0
+    };
+    -stretch * tendon.stiffness - velocity * tendon.damping
 }

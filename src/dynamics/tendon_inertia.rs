@@ -51,6 +51,12 @@ pub struct TendonInertiaState {
 }
 
 impl TendonInertiaState {
+    /// Tendon `tendon`'s J̇θ̇ as the last acceleration pass found it (0
+    /// without armature).
+    pub(super) fn jdot_qvel(&self, tendon: usize) -> f64 {
+        self.jdot_qvel.get(tendon).copied().unwrap_or(0.0)
+    }
+
     /// Buffers for `model`.
     pub fn new(model: &Model) -> Self {
         let k = model.tendon_inertia.len();

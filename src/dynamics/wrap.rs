@@ -4,8 +4,12 @@
 //! (through the sites and the sphere's centre; the cylinder's x-y plane),
 //! wrapped around the circle there along the tangent lines from each site,
 //! and, for a cylinder, lifted back along its axis as a helix, the shorter
-//! way round. No wrap when the straight segment misses the circle. (Side
-//! sites, which choose the side, are refused by the importer.)
+//! way round. No wrap when the straight segment misses the circle. With a
+//! side site, MuJoCo 4.0's rule (XML reference, `sidesite`): the shortest
+//! path homotopic to the polyline from the first site through the side
+//! site to the second, in the plane with the disc removed.
+
+use std::f64::consts::PI;
 
 use crate::math::{Transform, Vec3};
 
@@ -19,15 +23,27 @@ type Point = [f64; 2];
 /// `radius` placed at `geom` (world → geom frame): the arc's length and the
 /// two points where the tendon meets the geom (world), or `None` when it
 /// runs straight.
-pub(super) fn wrap(x0: &Vec3, x1: &Vec3, geom: &Transform, radius: f64, cylinder: bool) -> Option<(f64, Vec3, Vec3)> {
+/// `side`: the side site (world), if any.
+pub(super) fn wrap(
+    x0: &Vec3,
+    x1: &Vec3,
+    geom: &Transform,
+    radius: f64,
+    cylinder: bool,
+    side: Option<&Vec3>,
+) -> Option<(f64, Vec3, Vec3)> {
     let local = |x: &Vec3| geom.rot * (x - geom.trans);
     let (p0, p1) = (local(x0), local(x1));
     if p0.norm() < MIN_VALUE || p1.norm() < MIN_VALUE {
         return None;
     }
-    let (axis0, axis1) = if cylinder { (Vec3::x(), Vec3::y()) } else { sphere_plane(&p0, &p1) };
+    let side = side.map(local);
+    let (axis0, axis1) = if cylinder { (Vec3::x(), Vec3::y()) } else { sphere_plane(&p0, &p1, side.as_ref()) };
     let ends = [p0.dot(&axis0), p0.dot(&axis1), p1.dot(&axis0), p1.dot(&axis1)];
-    let (length, points) = wrap_circle(&ends, radius)?;
+    let (length, points) = match side {
+        Some(s) => wrap_circle_through(&ends, [s.dot(&axis0), s.dot(&axis1)], radius)?,
+        None => wrap_circle(&ends, radius)?,
+    };
     let lift = |k: usize| axis0 * points[2 * k] + axis1 * points[2 * k + 1];
     let (mut q0, mut q1) = (lift(0), lift(1));
     let mut length = length;
@@ -47,11 +63,15 @@ pub(super) fn wrap(x0: &Vec3, x1: &Vec3, geom: &Transform, radius: f64, cylinder
 }
 
 /// The plane of a sphere wrap: its first axis towards `p0`, its second in
-/// the plane of `p0`, `p1` and the centre (any plane through `p0` when the
-/// three are aligned, chosen as MuJoCo chooses it).
-fn sphere_plane(p0: &Vec3, p1: &Vec3) -> (Vec3, Vec3) {
+/// the plane of `p0`, `p1` and the centre (when the three are aligned, the
+/// plane through the side site `side`, or any plane through `p0`, chosen as
+/// MuJoCo chooses it).
+fn sphere_plane(p0: &Vec3, p1: &Vec3, side: Option<&Vec3>) -> (Vec3, Vec3) {
     let axis0 = normalized(p0);
     let mut normal = p0.cross(p1);
+    if let Some(side) = side.filter(|_| normal.norm() < MIN_VALUE) {
+        normal = p0.cross(side);
+    }
     if normal.norm() < MIN_VALUE {
         let a = axis0.abs();
         let largest = if a.y > a.x && a.y > a.z {
@@ -160,4 +180,29 @@ fn wrap_circle(ends: &[f64; 4], radius: f64) -> Option<(f64, [f64; 4])> {
     }
     let length = arc_length(&[chosen[0], chosen[1]], &[chosen[2], chosen[3]], i == 1, radius);
     Some((length, chosen))
+}
+
+/// The wrap of the 2D segment `ends` (x₀, y₀, x₁, y₁) around the circle of
+/// `radius` that goes round the centre as the polyline from its start
+/// through `side` to its end does: the arc's length and its end points
+/// (x, y, x, y), or `None` when the straight segment is that path. The
+/// polyline turns w about the centre, each tangent segment acos(r/|p|), so
+/// the arc turns |w| − acos(r/|p₀|) − acos(r/|p₁|) in the sense of w, and
+/// the straight segment is the path when that is not positive.
+fn wrap_circle_through(ends: &[f64; 4], side: Point, radius: f64) -> Option<(f64, [f64; 4])> {
+    let (norm0, norm1) = (ends[0].hypot(ends[1]), ends[2].hypot(ends[3]));
+    if norm0 < radius || norm1 < radius || radius < MIN_VALUE {
+        return None;
+    }
+    let (angle0, angle1, angle_side) = (ends[1].atan2(ends[0]), ends[3].atan2(ends[2]), side[1].atan2(side[0]));
+    let turn = |angle: f64| (angle + PI).rem_euclid(2.0 * PI) - PI;
+    let winding = turn(angle_side - angle0) + turn(angle1 - angle_side);
+    let (tangent0, tangent1) = ((radius / norm0).acos(), (radius / norm1).acos());
+    let arc = winding.abs() - tangent0 - tangent1;
+    if arc <= 0.0 {
+        return None;
+    }
+    let sense = winding.signum();
+    let (at0, at1) = (angle0 + sense * tangent0, angle1 - sense * tangent1);
+    Some((radius * arc, [radius * at0.cos(), radius * at0.sin(), radius * at1.cos(), radius * at1.sin()]))
 }

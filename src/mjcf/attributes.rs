@@ -85,7 +85,7 @@ mod tests {
     use crate::mjcf::equality::COMMON_ATTRIBUTES as EQUALITY_ATTRIBUTES;
     use crate::mjcf::mesh::MESH_ATTRIBUTES;
     use crate::mjcf::reader::{COMPILER_ATTRIBUTES, FLAG_ATTRIBUTES, OPTION_ATTRIBUTES};
-    use crate::mjcf::tendon::TENDON_ATTRIBUTES;
+    use crate::mjcf::tendon::{PATH_ELEMENTS, TENDON_ATTRIBUTES};
 
     /// The settings an element `<tag attribute="value"/>` reads with `table`, or its error.
     fn read<S: Default>(table: &[Attribute<S>], attribute: &str, value: &str) -> Result<S, MjcfError> {
@@ -139,6 +139,9 @@ mod tests {
         every_entry_changes_the_settings("compiler", COMPILER_ATTRIBUTES);
         every_entry_changes_the_settings("option", OPTION_ATTRIBUTES);
         every_entry_changes_the_settings("flag", FLAG_ATTRIBUTES);
+        for (path, table) in PATH_ELEMENTS {
+            every_entry_changes_the_settings(path, table);
+        }
     }
 
     /// What a table only checks is still checked: a malformed value is refused.

@@ -27,6 +27,10 @@ pub(crate) trait SensorTargets {
     fn tendon(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError>;
     /// Whether the tendon the attribute names is limited.
     fn tendon_limited(&self, element: &Element, attribute: &str) -> Result<bool, MjcfError>;
+    /// The name the attribute gives (in a `<replicate>` copy, the copy's).
+    fn name(&self, element: &Element, attribute: &str) -> String;
+    /// The element's own name (in a `<replicate>` copy, the copy's).
+    fn own_name(&self, element: &Element) -> Option<String>;
 }
 
 /// The sensor elements MuJoCo has that nudyn refuses, and why.
@@ -94,7 +98,7 @@ pub(crate) fn read(element: &Element, kind: SensorKind, targets: &impl SensorTar
         }
     }
     let target = target(element, kind, targets)?;
-    Ok(Sensor { name: element.text("name").map(str::to_string), kind, target, cutoff, line: element.line })
+    Ok(Sensor { name: targets.own_name(element), kind, target, cutoff, line: element.line })
 }
 
 /// What the sensor measures, checked as MuJoCo's compiler does.
@@ -114,14 +118,14 @@ fn target(element: &Element, kind: SensorKind, targets: &impl SensorTargets) -> 
                 (true, _) => return Err(element.invalid("joint must be ball in sensor")),
                 (false, _) => return Err(element.invalid("joint must be slide or hinge in sensor")),
             }
-            SensorTarget::Joint(element.text("joint").unwrap_or_default().to_string())
+            SensorTarget::Joint(targets.name(element, "joint"))
         }
         JointLimitPos | JointLimitVel | JointLimitFrc => {
             required("joint")?;
             if !targets.joint_limited(element, "joint")? {
                 return Err(element.invalid("joint must be limited in sensor"));
             }
-            SensorTarget::Joint(element.text("joint").unwrap_or_default().to_string())
+            SensorTarget::Joint(targets.name(element, "joint"))
         }
         ActuatorPos | ActuatorVel | ActuatorFrc => {
             required("actuator")?;

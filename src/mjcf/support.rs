@@ -57,7 +57,10 @@ pub fn support_table() -> String {
     out.push_str(&code_list(defaults::IGNORED_DEFAULTS, true));
     out.push_str(". In bodies and in the world body: ");
     out.push_str(&code_list(reader::IGNORED_IN_BODIES, true));
-    out.push_str("; in the world body, `<geom>` too (it belongs to no moving body).\n");
+    out.push_str(
+        "; in the world body, `<geom>` too (it belongs to no moving body), unless a spatial tendon wraps around \
+         it: then it is used, and only its contacts are left out (no warning when it has none).\n",
+    );
 
     out.push_str("\n## Elements read, and their attributes\n\n");
     out.push_str("| element | attributes |\n|---|---|\n");
@@ -89,9 +92,9 @@ pub fn support_table() -> String {
     {
         let _ = writeln!(out, "| `<tendon>/<{element}>` | {} |", code_list(&attributes, false));
     }
-    for (path, attributes) in tendon::PATH_ELEMENTS {
+    for (path, table) in tendon::PATH_ELEMENTS {
         let (parent, child) = path.split_once('/').expect("parent/child");
-        let _ = writeln!(out, "| `<{parent}>/<{child}>` | {} |", code_list(attributes, false));
+        let _ = writeln!(out, "| `<{parent}>/<{child}>` | {} |", code_list(&attributes::names(table), false));
     }
     for (tag, kind) in actuator::ACTUATOR_KINDS {
         let _ = writeln!(out, "| `<actuator>/<{tag}>` | {} |", code_list(&actuator::attributes(*kind, false), false));

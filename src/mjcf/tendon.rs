@@ -1,7 +1,8 @@
 //! `<tendon>`: fixed tendons (a linear combination of hinge and slide
 //! joint values) and spatial tendons through sites, with MuJoCo 4.0's
 //! attributes, defaults and compiler checks, wrapping around sphere and
-//! cylinder geoms included (without a side site, which is refused).
+//! cylinder geoms included (with a side site on the geom's body outside it;
+//! one inside, through which MuJoCo passes the tendon, is refused).
 
 use super::attributes::{Attribute, names, read_into, set};
 use super::defaults::Limited;
@@ -64,17 +65,45 @@ fn read_spring_length(settings: &mut TendonSettings, element: &Element, attribut
     Ok(())
 }
 
-/// The path elements of each tendon and their attributes.
-pub(crate) const PATH_ELEMENTS: &[(&str, &[&str])] = &[
-    ("fixed/joint", &["joint", "coef"]),
-    ("spatial/site", &["site"]),
-    ("spatial/pulley", &["divisor"]),
-    ("spatial/geom", &["geom", "sidesite"]),
+/// The numbers a path element gives; the names it gives (joint, site,
+/// geom, side site) the reader looks up itself.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct PathSettings {
+    /// `<joint coef>`.
+    pub coef: Option<f64>,
+    /// `<pulley divisor>`.
+    pub divisor: Option<f64>,
+}
+
+/// `<fixed>/<joint>` (MuJoCo 4.0 schema).
+pub(crate) const FIXED_JOINT_ATTRIBUTES: &[Attribute<PathSettings>] =
+    &[Attribute::by_reader("joint"), Attribute::into("coef", |s, e, a| set(&mut s.coef, e.number(a)?.map(Some)))];
+
+/// `<spatial>/<site>`.
+pub(crate) const SPATIAL_SITE_ATTRIBUTES: &[Attribute<PathSettings>] = &[Attribute::by_reader("site")];
+
+/// `<spatial>/<pulley>`.
+pub(crate) const PULLEY_ATTRIBUTES: &[Attribute<PathSettings>] =
+    &[Attribute::into("divisor", |s, e, a| set(&mut s.divisor, e.number(a)?.map(Some)))];
+
+/// `<spatial>/<geom>`.
+pub(crate) const SPATIAL_GEOM_ATTRIBUTES: &[Attribute<PathSettings>] =
+    &[Attribute::by_reader("geom"), Attribute::by_reader("sidesite")];
+
+/// The path elements of each tendon and their attribute tables.
+pub(crate) const PATH_ELEMENTS: &[(&str, &[Attribute<PathSettings>])] = &[
+    ("fixed/joint", FIXED_JOINT_ATTRIBUTES),
+    ("spatial/site", SPATIAL_SITE_ATTRIBUTES),
+    ("spatial/pulley", PULLEY_ATTRIBUTES),
+    ("spatial/geom", SPATIAL_GEOM_ATTRIBUTES),
 ];
 
-/// The attributes of the path element `path` (a key of [`PATH_ELEMENTS`]).
-fn path_attributes(path: &str) -> &'static [&'static str] {
-    PATH_ELEMENTS.iter().find(|(p, _)| *p == path).map(|(_, a)| *a).expect("a listed path element")
+/// A path element's numbers, its attributes checked against `table`.
+fn path_settings(element: &Element, table: &[Attribute<PathSettings>]) -> Result<PathSettings, MjcfError> {
+    element.check_attributes(&names(table))?;
+    let mut settings = PathSettings::default();
+    read_into(table, &mut settings, element)?;
+    Ok(settings)
 }
 
 /// A tendon's attributes, as a class or an element sets them.
@@ -145,6 +174,8 @@ pub(crate) trait TendonTargets {
     fn tendon_site(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError>;
     /// The sphere or cylinder geom the attribute names.
     fn tendon_geom(&self, element: &Element, attribute: &str) -> Result<WrapGeom, MjcfError>;
+    /// The side site the attribute names for wrapping around `geom`.
+    fn tendon_side_site(&self, element: &Element, attribute: &str, geom: &WrapGeom) -> Result<usize, MjcfError>;
 }
 
 /// What the `<flag>`s and `<compiler>` leave of a tendon's terms.
@@ -260,9 +291,9 @@ fn fixed_path(element: &Element, targets: &impl TendonTargets) -> Result<TendonP
         if child.tag() != "joint" {
             return Err(child.unknown());
         }
-        child.check_attributes(path_attributes("fixed/joint"))?;
+        let settings = path_settings(&child, FIXED_JOINT_ATTRIBUTES)?;
         let name = child.text("joint").ok_or_else(|| child.missing("joint"))?;
-        let coef = child.number("coef")?.ok_or_else(|| child.missing("coef"))?;
+        let coef = settings.coef.ok_or_else(|| child.missing("coef"))?;
         if !matches!(targets.tendon_joint(&child, "joint")?, JointKind::Hinge | JointKind::Slide) {
             return Err(child.invalid(format!("joint '{name}' in a fixed tendon must be slide or hinge")));
         }
@@ -284,32 +315,28 @@ fn spatial_path(element: &Element, targets: &impl TendonTargets) -> Result<Tendo
     for child in element.children() {
         match child.tag() {
             "site" => {
-                child.check_attributes(path_attributes("spatial/site"))?;
+                path_settings(&child, SPATIAL_SITE_ATTRIBUTES)?;
                 if !child.has("site") {
                     return Err(child.missing("site"));
                 }
                 points.push(PathPoint::Site(targets.tendon_site(&child, "site")?));
             }
             "pulley" => {
-                child.check_attributes(path_attributes("spatial/pulley"))?;
-                let divisor = child.number("divisor")?.ok_or_else(|| child.missing("divisor"))?;
+                let divisor = path_settings(&child, PULLEY_ATTRIBUTES)?.divisor;
+                let divisor = divisor.ok_or_else(|| child.missing("divisor"))?;
                 if divisor <= 0.0 {
                     return Err(child.bad_value("divisor", "a positive number"));
                 }
                 points.push(PathPoint::Pulley(divisor));
             }
             "geom" => {
-                child.check_attributes(path_attributes("spatial/geom"))?;
+                path_settings(&child, SPATIAL_GEOM_ATTRIBUTES)?;
                 if !child.has("geom") {
                     return Err(child.missing("geom"));
                 }
-                let geom = targets.tendon_geom(&child, "geom")?;
+                let mut geom = targets.tendon_geom(&child, "geom")?;
                 if child.has("sidesite") {
-                    targets.tendon_site(&child, "sidesite")?;
-                    return Err(child.unsupported(
-                        "sidesite: MuJoCo 4.0 chooses the side to wrap on by a rule nudyn does not reproduce \
-                         (the rule in its published source picks another side, or none, in 26 of 1200 states we sampled); wrap without a side site",
-                    ));
+                    geom.side = Some(targets.tendon_side_site(&child, "sidesite", &geom)?);
                 }
                 points.push(PathPoint::Geom(geom));
             }

@@ -6,9 +6,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{Attachment, JointInfo, ModelError, SiteFrame};
 use crate::math::{Mat3, Quat, Transform, Vec3};
-use crate::vehicle::{
-    EqualityKind, FrameObject, PathPoint, SensorKind, SensorTarget, TendonPath, Transmission, Vehicle,
-};
+use crate::vehicle::{FrameObject, SensorKind, SensorTarget, Vehicle};
 
 /// Where a sensor reads its values.
 // Frames are large and the rest small, but a model holds few sensors and
@@ -184,13 +182,6 @@ pub(super) fn compile_sensors(
                         unknown.name
                     )));
                 }
-                if let Some(tendon) = tendon_crossing(vehicle, first, end) {
-                    return Err(refused(format!(
-                        "{tendon} pulls on the subtree of {body} from outside it: MuJoCo 4.0 counts a spatial \
-                         tendon's force at its path points as an external force on the bodies, which nudyn's \
-                         interaction forces do not subtract yet"
-                    )));
-                }
                 let name = site.name.clone().unwrap_or_default();
                 (SensorSource::Interaction { site: sites[*index], first, end }, format!("{body} at site '{name}'"))
             }
@@ -247,40 +238,6 @@ pub(super) fn compile_sensors(
         adr += sensor.kind.dim();
     }
     Ok(compiled)
-}
-
-/// The first spatial tendon that can carry a force (spring, damper,
-/// friction loss, limit, armature, an actuator or an equality on it) and
-/// has path points both in the bodies `first..end` and outside them (the
-/// world outside too, unless the range is every body), as its label.
-fn tendon_crossing(vehicle: &Vehicle, first: usize, end: usize) -> Option<String> {
-    let whole = first == 0 && end == vehicle.bodies.len();
-    let inside = |body: Option<usize>| body.map_or(whole, |b| (first..end).contains(&b));
-    vehicle.tendons.iter().enumerate().find_map(|(k, tendon)| {
-        let TendonPath::Spatial(points) = &tendon.path else { return None };
-        let carries = tendon.stiffness != 0.0
-            || tendon.damping != 0.0
-            || tendon.frictionloss > 0.0
-            || tendon.limit.is_some()
-            || tendon.armature != 0.0
-            || vehicle.actuators.iter().any(|a| a.transmission == Transmission::Tendon { tendon: k })
-            || vehicle.equalities.iter().any(|e| {
-                matches!(e.kind, EqualityKind::Tendon { tendon1, tendon2, .. } if tendon1 == k || tendon2 == Some(k))
-            });
-        let bodies = points.iter().filter_map(|point| match point {
-            PathPoint::Site(site) => Some(vehicle.sites[*site].body),
-            PathPoint::Geom(geom) => Some(geom.body),
-            PathPoint::Pulley(_) => None,
-        });
-        let (mut any_inside, mut any_outside) = (false, false);
-        for body in bodies {
-            if inside(body) { any_inside = true } else { any_outside = true }
-        }
-        (carries && any_inside && any_outside).then(|| match &tendon.name {
-            Some(name) => format!("spatial tendon '{name}'"),
-            None => format!("spatial tendon {k}"),
-        })
-    })
 }
 
 /// One past the last body of the subtree of `root` (bodies are in

@@ -109,6 +109,10 @@ pub enum PathStop {
         radius: f64,
         /// A cylinder (else a sphere).
         cylinder: bool,
+        /// Its side site: the tendon goes round the geom as the polyline
+        /// from the first site through it to the second does.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        side: Option<SiteFrame>,
     },
     /// A pulley: the segments after it count 1/divisor.
     Pulley {
@@ -159,7 +163,13 @@ pub(super) fn compile_tendons(
                                     },
                                     None => SiteFrame { link: None, frame: in_body },
                                 };
-                                PathStop::Geom { frame, body: geom.body, radius: geom.radius, cylinder: geom.cylinder }
+                                PathStop::Geom {
+                                    frame,
+                                    body: geom.body,
+                                    radius: geom.radius,
+                                    cylinder: geom.cylinder,
+                                    side: geom.side.map(|site| sites[site]),
+                                }
                             }
                         })
                         .collect(),
@@ -201,8 +211,9 @@ pub(super) fn validate_tendon(model: &Model, k: usize) -> Result<(), String> {
                             && super::validate::placement_is_proper(&frame.frame)
                     }
                     PathStop::Pulley { divisor } => divisor.is_finite() && *divisor > 0.0,
-                    PathStop::Geom { frame, radius, .. } => {
-                        frame.link.is_none_or(|l| l < model.links.len())
+                    PathStop::Geom { frame, radius, side, .. } => {
+                        side.iter().all(|s| s.link == frame.link && super::validate::placement_is_proper(&s.frame))
+                            && frame.link.is_none_or(|l| l < model.links.len())
                             && super::validate::placement_is_proper(&frame.frame)
                             && radius.is_finite()
                             && *radius > 0.0

@@ -354,22 +354,42 @@ fn alignfree_moves_a_free_body_frame_to_its_inertial_frame() {
 }
 
 #[test]
-fn a_name_inside_a_replicate_is_refused_with_its_copies_names() {
-    // MuJoCo would copy the sensor for each copy of the site; nudyn says so.
-    let with = |sensed: &str| {
+fn a_name_inside_a_replicate_copies_the_sensors_and_actuators_naming_it_as_written() {
+    // MuJoCo 4.0 copies a sensor or actuator for each copy of what it names
+    // (tests/python/test_replicate.py compares the copies with MuJoCo's).
+    let with = |sections: &str| {
         format!(
-            r#"<mujoco><worldbody><body name="bus"><freejoint/><geom size="1"/>
+            r#"<mujoco><worldbody><body name="bus"><freejoint/><geom size="1"/><site name="base"/>
             <replicate count="12" sep="_"><body name="arm"><joint/><geom size="1"/><site name="tip"/></body></replicate>
-            </body></worldbody><sensor><framepos objtype="site" objname="{sensed}"/></sensor></mujoco>"#
+            <replicate count="2" sep="+"><body name="leg"><joint/><geom size="1"/><site name="foot"/></body></replicate>
+            </body></worldbody>{sections}</mujoco>"#
         )
     };
-    let shown = parse_mjcf(&with("tip")).unwrap_err().to_string();
-    assert!(shown.contains("unknown objname 'tip' for sensor: it is inside a <replicate>"), "{shown}");
+    let vehicle =
+        parse_mjcf(&with(r#"<sensor><framepos name="p" objtype="site" objname="tip"/></sensor>"#)).unwrap().vehicle;
+    let names: Vec<&str> = vehicle.sensors.iter().filter_map(|s| s.name.as_deref()).collect();
+    assert_eq!(names.len(), 12);
+    assert_eq!(names[..3], ["p_00", "p_01", "p_02"]);
+    let bodies: Vec<&str> = vehicle.bodies.iter().map(|b| b.name.as_str()).collect();
+    assert_eq!(bodies[1..4], ["arm_00", "arm_01", "arm_02"]);
+
+    // A tendon is not copied: refused, naming the copies.
+    let tendon = r#"<tendon><spatial><site site="base"/><site site="tip"/></spatial></tendon>"#;
+    let shown = parse_mjcf(&with(tendon)).unwrap_err().to_string();
+    assert!(shown.contains("unknown site 'tip' for tendon: it is inside a <replicate>"), "{shown}");
     assert!(shown.contains("named 'tip_00' and so on"), "{shown}");
-    let vehicle = parse_mjcf(&with("tip_11")).unwrap().vehicle;
-    let names: Vec<&str> = vehicle.bodies.iter().map(|b| b.name.as_str()).collect();
-    assert_eq!(names[1..4], ["arm_00", "arm_01", "arm_02"]);
-    assert_eq!(names.len(), 13);
+    assert!(shown.contains("not tendons and equalities"), "{shown}");
+
+    // What MuJoCo drops (an actuator whose reference site lies outside the
+    // replicate) or refuses (a sensor naming objects of two replicates side
+    // by side) is refused.
+    let outside = r#"<actuator><motor site="tip" refsite="base" gear="1 0 0 0 0 0"/></actuator>"#;
+    let shown = parse_mjcf(&with(outside)).unwrap_err().to_string();
+    assert!(shown.contains("refsite 'base' lies outside the <replicate> (line 2)"), "{shown}");
+    assert!(shown.contains("MuJoCo 4.0 leaves such an actuator out"), "{shown}");
+    let two = r#"<sensor><framepos objtype="site" objname="tip" reftype="site" refname="foot"/></sensor>"#;
+    let shown = parse_mjcf(&with(two)).unwrap_err().to_string();
+    assert!(shown.contains("two <replicate>s side by side (lines 2 and 3)"), "{shown}");
 }
 
 /// A scratch directory of this test binary's, emptied.

@@ -148,11 +148,11 @@ const REFUSALS: &[(&str, &str, &str, u32, &str)] = &[
         "neighbour that is not a pulley",
     ),
     (
-        r#"<spatial name="t"><site site="s0"/><geom geom="g" sidesite="s1"/><site site="s1"/></spatial>"#,
+        r#"<spatial name="t"><site site="s0"/><geom geom="g" sidesite="s0"/><site site="s1"/></spatial>"#,
         "",
         "<geom>",
         11,
-        "sidesite",
+        "sidesite on another body than the geom's",
     ),
     (
         r#"<spatial name="t"><site site="s0"/><geom geom="box"/><site site="s1"/></spatial>"#,
@@ -364,4 +364,55 @@ fn armature_compiles_to_mujocos_qpos0_data() {
         assert!(close(*found, expected), "{found} vs {expected}");
     }
     assert!(close(model.actuators[0].bias[2], -16.75937862944914), "{}", model.actuators[0].bias[2]);
+}
+
+#[test]
+fn a_world_geom_a_tendon_wraps_around_is_reported_used_not_ignored() {
+    let xml = r#"<mujoco>
+<worldbody>
+<geom name="post" type="cylinder" size="0.05 0.2" pos="0.3 0 0"/>
+<geom name="pad" type="sphere" size="0.05" pos="0.3 0.2 0" contype="0" conaffinity="0"/>
+<geom name="floor" type="plane" size="1 1 0.1"/>
+<site name="anchor" pos="0.3 -0.2 0"/>
+<body name="arm"><joint name="hinge" axis="0 0 1"/><geom size="0.1"/><site name="tip" pos="0.6 0 0"/></body>
+</worldbody>
+<tendon>
+<spatial name="cord"><site site="anchor"/><geom geom="post"/><site site="tip"/></spatial>
+<spatial name="strap"><site site="anchor"/><geom geom="pad"/><site site="tip"/></spatial>
+</tendon>
+</mujoco>"#;
+    let warnings = parse_mjcf(xml).unwrap().warnings;
+    let at = |line: u32| warnings.iter().filter(|w| w.line == line).map(|w| w.message.as_str()).collect::<Vec<_>>();
+    // The obstacle that collides: used, only its contacts left out.
+    let post = at(3);
+    assert_eq!(post.len(), 1, "{warnings:?}");
+    assert!(post[0].starts_with("used as the wrap obstacle of <spatial name=\"cord\">"), "{}", post[0]);
+    assert!(!post[0].contains("ignored"), "{}", post[0]);
+    // The obstacle without contacts: nothing of it is left out.
+    assert!(at(4).is_empty(), "{warnings:?}");
+    // A world geom nothing uses is still ignored.
+    assert!(at(5).iter().any(|m| m.starts_with("ignored")), "{warnings:?}");
+}
+
+#[test]
+fn a_side_site_on_the_geoms_body_outside_it_is_taken_one_inside_refused() {
+    let scene = |side: &str| {
+        format!(
+            r#"<mujoco><worldbody><body name="base"><freejoint/><geom size="0.2"/><site name="s0" pos="0.1 0 0"/>
+<body name="arm" pos="0.5 0 0"><joint axis="0 1 0"/><geom size="0.1"/>
+<geom name="drum" type="cylinder" size="0.05 0.1" pos="0.2 0 0" euler="90 0 0"/>
+<site name="s1" pos="0.4 0 0"/><site name="side" pos="{side}"/></body></body></worldbody>
+<tendon><spatial><site site="s0"/><geom geom="drum" sidesite="side"/><site site="s1"/></spatial></tendon></mujoco>"#
+        )
+    };
+    let vehicle = parse_mjcf(&scene("0.2 0 -0.1")).unwrap().vehicle;
+    let nudyn::vehicle::TendonPath::Spatial(points) = &vehicle.tendons[0].path else { panic!("a spatial tendon") };
+    assert!(matches!(points[1], nudyn::vehicle::PathPoint::Geom(geom) if geom.side == Some(2)), "{points:?}");
+    let model = Model::compile(&vehicle).unwrap();
+    let described = serde_json::to_value(nudyn::describe::Description::of(&vehicle, &model)).unwrap();
+    assert_eq!(described["tendons"][0]["path"][1]["sidesite"], "side");
+    // Inside the cylinder's radius (its axis is y here), however far along the axis.
+    let message = parse_mjcf(&scene("0.21 0.5 0.02")).unwrap_err().to_string();
+    assert!(message.contains("sidesite inside the geom"), "{message}");
+    assert!(message.contains("pass through the geom"), "{message}");
 }

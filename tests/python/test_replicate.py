@@ -60,3 +60,55 @@ def test_dynamics_match_mujoco(nudyn):
         scale = max(1.0, float(np.max(np.abs(qacc))))
         assert np.max(np.abs(np.array(answer["qacc"]) - qacc)) / scale < 1e-12, f"state {k}"
         assert np.max(np.abs(np.array(answer["sensordata"]) - sensordata)) < 1e-12, f"state {k}"
+
+
+BARE_NAMES = ROOT / "tests" / "fixtures" / "replicate" / "bare_names.xml"
+
+
+def test_actuators_naming_replicated_objects_as_written_are_mujocos_copies(nudyn):
+    """bare_names.xml: actuators on joints and sites inside nested and side by
+    side replicates, named without the copies' suffixes or with the inner
+    one's only, become MuJoCo's copies: its names, targets and order."""
+    model = load_model(BARE_NAMES)
+    described = describe(nudyn, BARE_NAMES)["actuators"]
+
+    def target(i):
+        if model.actuator_trntype[i] == mujoco.mjtTrn.mjTRN_JOINT:
+            return model.joint(model.actuator_trnid[i, 0]).name, None
+        site, refsite = model.actuator_trnid[i]
+        return model.site(site).name, model.site(refsite).name if refsite >= 0 else None
+
+    expected = [(model.actuator(i).name, *target(i)) for i in range(model.nu)]
+    assert [(a["name"], a["target"], a["refsite"]) for a in described] == expected
+    # Copies of four of the six elements: 12 actuators.
+    assert model.nu == 12
+
+
+def test_sensors_naming_replicated_objects_as_written_read_mujocos_sensordata(nudyn):
+    """The sensors of bare_names.xml (joint, frame, force and torque, subtree,
+    actuator sensors on copied objects and a copied actuator) in MuJoCo's
+    order, and qacc and actuator_force, at random states with every
+    actuator driven."""
+    model = load_model(BARE_NAMES)
+    data = mujoco.MjData(model)
+    assert model.nsensor == 21
+    rng = np.random.default_rng(47)
+    references, requests = [], []
+    for _ in range(30):
+        qpos = model.qpos0.copy()
+        q = rng.normal(size=4)
+        qpos[:3] += rng.normal(0, 0.3, 3)
+        qpos[3:7] = q / np.linalg.norm(q)
+        qpos[7:] = rng.uniform(-0.8, 0.8, model.nq - 7)
+        qvel, ctrl = rng.normal(0, 0.5, model.nv), rng.normal(0, 1, model.nu)
+        data.qpos[:], data.qvel[:], data.ctrl[:] = qpos, qvel, ctrl
+        mujoco.mj_forward(model, data)
+        references.append((data.qacc.copy(), data.sensordata.copy(), data.actuator_force.copy()))
+        requests.append({"theta": qpos.tolist(), "qvel": qvel.tolist(), "ctrl": ctrl.tolist()})
+    result = run_eval(nudyn, BARE_NAMES, json.dumps(requests))
+    for k, ((qacc, sensordata, force), answer) in enumerate(zip(references, result.json())):
+        scale = max(1.0, float(np.max(np.abs(qacc))))
+        assert np.max(np.abs(np.array(answer["qacc"]) - qacc)) / scale < 1e-12, f"state {k}"
+        sensor_scale = np.maximum(1.0, np.abs(sensordata))
+        assert np.max(np.abs(np.array(answer["sensordata"]) - sensordata) / sensor_scale) < 1e-12, f"state {k}"
+        assert np.max(np.abs(np.array(answer["actuator_force"]) - force)) < 1e-12, f"state {k}"

@@ -7,8 +7,9 @@ phalanx (with a pulley), a position servo on the fixed tendon with an
 inherited ctrlrange and a motor on the spatial one; tendon_limits.xml a bus
 with an arm whose spatial and fixed tendons carry limits and friction loss
 beside joint friction and a joint limit, and two tendon equalities;
-tendon_wrap.xml spatial tendons wrapping around a cylinder and two spheres,
-with and without side sites; tendon_wrap_fitted.xml the same with the
+tendon_wrap.xml spatial tendons wrapping around a cylinder and two spheres;
+tendon_sidesite.xml the same with side sites (MuJoCo 4.0's rule, the long
+way round in some states); tendon_wrap_fitted.xml the same with the
 cylinder and a sphere fitted to meshes (their radius and frame from the
 mesh, as MuJoCo's compiler fits them); tendon_armature.xml two arms on a
 bus whose tendons carry armature, along one chain, across both arms and
@@ -35,7 +36,7 @@ from nudyn_validation.scenarios import FORCED_TOLERANCE, UNFORCED_TOLERANCE
 FIXTURES = {
     name: ROOT / "tests" / "fixtures" / "tendons" / f"{name}.xml"
     for name in ("tendon_finger", "tendon_limits", "tendon_wrap", "tendon_wrap_fitted", "tendon_armature",
-                 "tendon_force_range")
+                 "tendon_force_range", "tendon_sidesite")
 }
 N_STATES = 60
 KINDS = {
@@ -253,7 +254,7 @@ def test_the_states_cover_every_tendon_row(nudyn, once):
     assert saturated > 10 and len(friction) - saturated > 5
 
 
-@pytest.mark.parametrize("name", ["tendon_wrap", "tendon_wrap_fitted"])
+@pytest.mark.parametrize("name", ["tendon_wrap", "tendon_wrap_fitted", "tendon_sidesite"])
 def test_the_states_wrap_each_tendon_and_not(nudyn, name, once):
     """On the wrap fixtures, each tendon runs around its geom in some states
     and straight past it in others (MuJoCo's ten_wrapnum: two more points
@@ -262,6 +263,18 @@ def test_the_states_wrap_each_tendon_and_not(nudyn, name, once):
     counts = np.array([r["ten_wrapnum"] for r in references])
     for tendon in range(counts.shape[1]):
         assert len(set(counts[:, tendon])) == 2, (tendon, sorted(set(counts[:, tendon])))
+
+
+def test_side_sites_change_the_wraps_in_some_states(nudyn, once):
+    """tendon_sidesite.xml is tendon_wrap.xml with side sites and the same
+    states: each side site sends its tendon another way round (or straight
+    where it wrapped) in some of them, so the side rule is what the
+    comparisons above test."""
+    plain, _ = once(evaluate, FIXTURES["tendon_wrap"], nudyn)
+    sided, _ = once(evaluate, FIXTURES["tendon_sidesite"], nudyn)
+    lengths = [np.array([r["ten_length"] for r in references]) for references in (plain, sided)]
+    differs = np.abs(lengths[0] - lengths[1]) > 1e-6
+    assert np.all(differs.any(axis=0)), differs.sum(axis=0)
 
 
 @pytest.mark.parametrize("name", list(FIXTURES))

@@ -2,10 +2,11 @@
 //! sites in document order, each body's mass properties, and the warning on contacts.
 
 use super::geom::{fromto_frame, mass_not_computed};
+use super::replicate::{Named, Suffix};
 use super::{
     Align, BODY_ATTRIBUTES, BodyRecord, FRAME_ATTRIBUTES, IGNORED_IN_BODIES, InertiaFromGeom, JointElement,
-    MAX_REPLICATED_ELEMENTS, PendingBody, Placed, Pose, REPLICATE_ATTRIBUTES, Reader, claim_name, no_children,
-    unsupported_child,
+    MAX_REPLICATED_ELEMENTS, PendingBody, Placed, Pose, REPLICATE_ATTRIBUTES, Reader, WorldGeom, claim_name,
+    no_children, unsupported_child,
 };
 use crate::math::{Quat, Vec3};
 use crate::mjcf::attributes::names;
@@ -24,16 +25,19 @@ impl Reader {
     pub(super) fn read_worldbody(&mut self, section: &Element) -> Result<(), MjcfError> {
         // MuJoCo: "World body cannot have attributes".
         section.check_attributes(&[])?;
-        for Placed { element: child, frame, class, suffix } in self.placed_children(section, MAIN, "")? {
+        for Placed { element: child, frame, class, suffix } in
+            self.placed_children(section, MAIN, &Suffix::default())?
+        {
             match child.tag() {
                 "body" => self.read_body_tree(child, frame, class, suffix)?,
                 "site" => self.read_site(&child, class, None, frame, &suffix)?,
                 "geom" => {
                     let settings = self.geom_settings(&child, class)?;
-                    self.name_geom(&child, &settings, frame.as_ref(), None, &suffix)?;
+                    let name = self.name_geom(&child, &settings, frame.as_ref(), None, &suffix)?;
                     let read = self.geom_mass(&child, &settings, frame.as_ref(), false, false)?;
                     self.add_contact_geom(&child, &settings, None, read.reach);
-                    self.warnings.push(child.ignored());
+                    let collides = settings.contype != [0, 0];
+                    self.world_geoms.push(WorldGeom { name, collides, warning: child.ignored() });
                 }
                 tag if IGNORED_IN_BODIES.contains(&tag) => {
                     self.named_elsewhere.extend(child.text("target").map(str::to_string));
@@ -81,7 +85,7 @@ impl Reader {
         top: Element<'a, 'a>,
         frame: Option<Pose>,
         class: usize,
-        suffix: String,
+        suffix: Suffix,
     ) -> Result<(), MjcfError> {
         let mut pending = vec![PendingBody {
             element: top,
@@ -116,7 +120,7 @@ impl Reader {
         // nothing can refer to (MuJoCo's unnamed elements have none).
         let name = match element.text("name") {
             Some(name) => {
-                let copy = self.replicated_name(name, suffix);
+                let copy = self.replicated_name(Named::Body, name, suffix);
                 claim_name(&mut self.body_names, "body", &copy, element)?;
                 copy
             }
@@ -200,7 +204,7 @@ impl Reader {
         element: &Element<'a, 'a>,
         index: usize,
         class: usize,
-        suffix: &str,
+        suffix: &Suffix,
     ) -> Result<BodyChildren<'a>, MjcfError> {
         let mut children =
             BodyChildren { inertial: None, joints: Vec::new(), geoms: Vec::new(), child_bodies: Vec::new() };
@@ -341,7 +345,7 @@ impl Reader {
         &self,
         parent: &Element<'a, 'a>,
         class: usize,
-        suffix: &str,
+        suffix: &Suffix,
     ) -> Result<Vec<Placed<'a>>, MjcfError> {
         let mut placed = Vec::new();
         // Reversed, so that the first child comes off the stack first.
@@ -350,9 +354,10 @@ impl Reader {
             .collect::<Vec<_>>()
             .into_iter()
             .rev()
-            .map(|element| Placed { element, frame: None, class, suffix: suffix.to_string() })
+            .map(|element| Placed { element, frame: None, class, suffix: suffix.clone() })
             .collect();
         while let Some(item) = pending.pop() {
+            let replicate = item.element.tag() == "replicate";
             let copies = match item.element.tag() {
                 "frame" => self.frame_pose(&item)?,
                 "replicate" => self.replicate_poses(&item)?,
@@ -366,8 +371,10 @@ impl Reader {
             let children: Vec<_> = container.children().collect();
             for (pose, copy_suffix) in copies.into_iter().rev() {
                 let pose = item.frame.map_or(pose, |outer| compose(&outer, &pose));
-                // MuJoCo appends an inner replicate's suffix first.
-                let suffix = format!("{copy_suffix}{}", item.suffix);
+                let suffix = match replicate {
+                    true => item.suffix.within(container, copy_suffix),
+                    false => item.suffix.clone(),
+                };
                 pending.extend(children.iter().rev().map(|&element| Placed {
                     element,
                     frame: Some(pose),
@@ -452,7 +459,7 @@ impl Reader {
         body_class: usize,
         body: Option<usize>,
         frame: Option<Pose>,
-        suffix: &str,
+        suffix: &Suffix,
     ) -> Result<(), MjcfError> {
         element.check_attributes(&names(SITE_ATTRIBUTES))?;
         no_children(element)?;
@@ -469,7 +476,7 @@ impl Reader {
             None => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
         };
         let (pos, quat) = frame.map_or((pos, quat), |frame| compose(&frame, &(pos, quat)));
-        let name = element.text("name").map(|name| self.replicated_name(name, suffix));
+        let name = element.text("name").map(|name| self.replicated_name(Named::Site, name, suffix));
         if let Some(name) = &name {
             claim_name(&mut self.site_names, "site", name, element)?;
         }
@@ -537,7 +544,7 @@ pub(super) fn compose(outer: &Pose, inner: &Pose) -> Pose {
 
 /// A geom element with its resolved settings, the pose of the `<frame>`s
 /// around it and its `<replicate>` suffix.
-type ReadGeom<'a> = (Element<'a, 'a>, GeomSettings, Option<Pose>, String);
+type ReadGeom<'a> = (Element<'a, 'a>, GeomSettings, Option<Pose>, Suffix);
 
 /// What a body element holds, read.
 struct BodyChildren<'a> {

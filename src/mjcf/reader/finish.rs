@@ -4,8 +4,8 @@
 use super::body::compose;
 use super::{BodyRecord, MIN_VALUE, Reader};
 use crate::math::{Mat3, Vec3};
-use crate::mjcf::Imported;
 use crate::mjcf::error::MjcfError;
+use crate::mjcf::{Imported, MjcfWarning};
 use crate::vehicle::{
     EqualityObjects, FrameObject, MassProperties, PathPoint, SensorKind, SensorTarget, Tendon, TendonPath, Vehicle,
     WrapGeom,
@@ -70,6 +70,7 @@ impl Reader {
         if self.physics.spring_disabled && self.physics.damper_disabled {
             self.bodies.iter_mut().for_each(|body| body.gravcomp = 0.0);
         }
+        self.warn_of_world_geoms();
         self.warnings.sort_by_key(|w| w.line);
         let gravity = if self.physics.gravity_disabled { Vec3::zeros() } else { self.physics.gravity };
         let vehicle = Vehicle {
@@ -99,6 +100,28 @@ impl Reader {
     /// the world, or its mass is below mjMINVAL), its child bodies and sites
     /// become the parent's, placed where they were. The parent's inertial
     /// frame moves: sensors of objtype "body" on it measure the merged one.
+    /// The world body's geoms: one a tendon wraps around is used, and only
+    /// its contacts are left out; any other is ignored. Their warnings come
+    /// first, as when they were read.
+    fn warn_of_world_geoms(&mut self) {
+        let mut warnings = Vec::new();
+        for geom in std::mem::take(&mut self.world_geoms) {
+            let tendon = geom.name.as_ref().and_then(|name| self.wrap_obstacles.get(name));
+            match tendon {
+                None => warnings.push(geom.warning),
+                Some(tendon) if geom.collides => warnings.push(MjcfWarning {
+                    message: format!(
+                        "used as the wrap obstacle of <{tendon}>; fixed to the world, it moves no mass, and its \
+                         contacts are left out: nudyn models no contacts (MuJoCo would make contacts with it)"
+                    ),
+                    ..geom.warning
+                }),
+                Some(_) => {}
+            }
+        }
+        self.warnings.splice(0..0, warnings);
+    }
+
     pub(super) fn fuse_static(&mut self) -> Result<(), MjcfError> {
         let mut referenced = vec![false; self.bodies.len()];
         for sensor in &self.sensors {

@@ -2,6 +2,7 @@
 //! (MuJoCo's geom and mesh inertia, `boundmass`, `boundinertia`).
 
 use super::body::compose;
+use super::replicate::{Named, Suffix};
 use super::{GeomRead, INERTIAL_ATTRIBUTES, Pose, Reader, no_children};
 use crate::math::{Mat3, Quat, Vec3};
 use crate::mjcf::contacts::{ContactGeom, Reach};
@@ -78,16 +79,17 @@ impl Reader {
 
     /// Registers a named geom of `body` (`None`: the world) for tendons to
     /// wrap around: its type, and a sphere's or cylinder's frame in the body.
+    /// Its name, with the `<replicate>` suffix.
     pub(super) fn name_geom(
         &mut self,
         element: &Element,
         settings: &GeomSettings,
         frame: Option<&Pose>,
         body: Option<usize>,
-        suffix: &str,
-    ) -> Result<(), MjcfError> {
-        let Some(name) = element.text("name") else { return Ok(()) };
-        let name = self.replicated_name(name, suffix);
+        suffix: &Suffix,
+    ) -> Result<Option<String>, MjcfError> {
+        let Some(name) = element.text("name") else { return Ok(None) };
+        let name = self.replicated_name(Named::Geom, name, suffix);
         let wrap = match settings.kind {
             GeomKind::Sphere | GeomKind::Cylinder => {
                 let (pos, quat) = match settings.fromto {
@@ -112,12 +114,12 @@ impl Reader {
                     return Err(element.invalid(format!("size[0] must be positive, found {}", size[0])));
                 }
                 let cylinder = settings.kind == GeomKind::Cylinder;
-                Some(WrapGeom { body, pos, quat, radius: size[0], cylinder })
+                Some(WrapGeom { body, pos, quat, radius: size[0], cylinder, side: None })
             }
             _ => None,
         };
-        self.named_geoms.insert(name, (settings.kind, wrap));
-        Ok(())
+        self.named_geoms.insert(name.clone(), (settings.kind, wrap));
+        Ok(Some(name))
     }
 
     /// The mesh asset a geom names (not read yet).

@@ -1,6 +1,7 @@
 //! Joints: their settings resolved into the vehicle's joints, limits and
 //! constraint parameters.
 
+use super::replicate::Named;
 use super::{JointElement, JointTarget, Reader, claim_name};
 use crate::math::Vec3;
 use crate::mjcf::defaults::{JointSettings, Limited};
@@ -79,8 +80,10 @@ impl Reader {
             };
             let actuator_force_range = self.actuator_force_range(&element, &s)?;
             let named = element.text("name");
-            let name =
-                named.map_or_else(|| format!("{body_name}_joint{k}"), |name| self.replicated_name(name, &suffix));
+            let name = named.map_or_else(
+                || format!("{body_name}_joint{k}"),
+                |name| self.replicated_name(Named::Joint, name, &suffix),
+            );
             if named.is_some() {
                 claim_name(&mut self.joint_names, "joint", &name, &element)?;
             }

@@ -5,6 +5,7 @@ mod finish;
 mod geom;
 mod joint;
 mod options;
+mod replicate;
 mod sections;
 mod targets;
 
@@ -28,6 +29,7 @@ use crate::math::{Quat, Vec3};
 use crate::vehicle::{
     Actuation, Actuator, Body, ConstraintOptions, Equality, JointKind, Sensor, Site, Tendon, WrapGeom,
 };
+use replicate::{ElementCopy, Named, ReplicatedName, Suffix};
 
 /// MuJoCo's `mjMINVAL`: the least mass and principal moment of a moving body.
 const MIN_VALUE: f64 = 1e-15;
@@ -216,7 +218,7 @@ struct PendingBody<'a> {
     /// The pose of the `<frame>`s around the body, in its parent.
     frame: Option<Pose>,
     /// The suffix the `<replicate>`s around it give the names in it.
-    suffix: String,
+    suffix: Suffix,
 }
 
 /// A pose in a parent frame: position, then orientation.
@@ -230,7 +232,7 @@ struct Placed<'a> {
     frame: Option<Pose>,
     class: usize,
     /// The suffix of `<replicate>` copies for its name and those below it.
-    suffix: String,
+    suffix: Suffix,
 }
 
 /// `align` of a free joint.
@@ -247,7 +249,7 @@ struct JointElement<'a, 'input> {
     settings: JointSettings,
     align: Align,
     /// The `<replicate>` suffix of its name.
-    suffix: String,
+    suffix: Suffix,
 }
 
 /// What the walk through the document has gathered so far.
@@ -290,13 +292,33 @@ struct Reader {
     named_elsewhere: Vec<String>,
     /// The names given inside `<replicate>`s, each with its first copy's name.
     replicated: HashMap<String, String>,
+    /// The names given inside `<replicate>`s, with the copies they are in.
+    replicated_names: Vec<ReplicatedName>,
+    /// The copy of an actuator or sensor element being read.
+    copy: Option<ElementCopy>,
     /// The elements the `<replicate>`s expanded so far produce (see
     /// [`MAX_REPLICATED_ELEMENTS`]).
     replicated_elements: std::cell::Cell<usize>,
+    /// The geoms of the world body, whose warnings wait for the tendons
+    /// that may wrap around them.
+    world_geoms: Vec<WorldGeom>,
+    /// The geoms spatial tendons wrap around, each with the first such tendon.
+    wrap_obstacles: HashMap<String, String>,
     /// Each body's pose in the world at qpos0 (before `align_free` moves its frame).
     world_poses: Vec<Pose>,
     /// The geoms that may collide, for the warning on contacts.
     contact_geoms: Vec<ContactGeom>,
+}
+
+/// A geom of the world body: it moves no mass, so it has an effect only as
+/// a tendon's wrap obstacle.
+struct WorldGeom {
+    /// Its name, when it has one.
+    name: Option<String>,
+    /// Whether MuJoCo may make contacts with it (`contype` or `conaffinity` not 0).
+    collides: bool,
+    /// The warning that it is ignored, for when no tendon wraps around it.
+    warning: MjcfWarning,
 }
 
 /// What reading a geom gives: its mass when it counts, and how far it
@@ -450,18 +472,25 @@ impl Reader {
             mocap_bodies: Vec::new(),
             named_elsewhere: Vec::new(),
             replicated: HashMap::new(),
+            replicated_names: Vec::new(),
+            copy: None,
             replicated_elements: std::cell::Cell::new(0),
+            world_geoms: Vec::new(),
+            wrap_obstacles: HashMap::new(),
             world_poses: Vec::new(),
             contact_geoms: Vec::new(),
         }
     }
 
-    /// The name of an element in a `<replicate>` copy (`suffix` empty
-    /// outside replicates), remembered for [`Reader::unknown`].
-    fn replicated_name(&mut self, name: &str, suffix: &str) -> String {
-        let copy = format!("{name}{suffix}");
-        if !suffix.is_empty() {
+    /// The name of an element of `kind` in a `<replicate>` copy (`suffix`
+    /// empty outside replicates), remembered for [`Reader::unknown`] and
+    /// for the actuators and sensors that name it as written.
+    fn replicated_name(&mut self, kind: Named, name: &str, suffix: &Suffix) -> String {
+        let text = suffix.text();
+        let copy = format!("{name}{text}");
+        if !text.is_empty() {
             self.replicated.entry(name.to_string()).or_insert_with(|| copy.clone());
+            self.replicated_names.push(ReplicatedName { kind, name: name.to_string(), suffix: suffix.clone() });
         }
         copy
     }

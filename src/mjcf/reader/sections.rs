@@ -1,6 +1,7 @@
 //! The sections after `<worldbody>`: assets, tendons, equalities,
 //! actuators, sensors and keyframes.
 
+use super::replicate::Named;
 use super::{ACTUATOR_GROUPS, REFUSED_TRANSMISSIONS, Reader, claim_name, no_children};
 use crate::mjcf::attributes::names;
 use crate::mjcf::defaults::MAIN;
@@ -145,6 +146,10 @@ impl Reader {
         for element in section.children() {
             let settings = self.defaults.class(self.class_of(&element, MAIN)?).tendon.clone();
             let (read, limited) = tendon::read(&element, settings, self, flags)?;
+            for obstacle in element.children().filter(|child| child.tag() == "geom") {
+                let geom = obstacle.text("geom").unwrap_or_default().to_string();
+                self.wrap_obstacles.entry(geom).or_insert_with(|| element.label());
+            }
             if let Some(name) = &read.name {
                 claim_name(&mut self.tendon_names, "tendon", name, &element)?;
             }
@@ -163,33 +168,60 @@ impl Reader {
             .ok_or_else(|| element.invalid(format!("unknown tendon '{name}' in {user}")))
     }
 
+    /// The `<sensor>` section, with the copies of the sensors that name
+    /// objects inside `<replicate>`s as they are written there.
     pub(super) fn read_sensors(&mut self, section: &Element) -> Result<(), MjcfError> {
         section.check_attributes(&[])?;
-        for child in section.children() {
+        let children: Vec<Element> = section.children().collect();
+        let mut kinds = Vec::with_capacity(children.len());
+        for child in &children {
             let Some(kind) = SensorKind::from_name(child.tag()) else {
                 return Err(match sensor::refusal(child.tag()) {
                     Some(reason) => child.unsupported(reason),
                     None => child.unknown(),
                 });
             };
-            let read = sensor::read(&child, kind, self)?;
+            kinds.push(kind);
+        }
+        for copy in self.copies(&children, false, sensor_references)? {
+            let (child, kind) = (&children[copy.index], kinds[copy.index]);
+            self.copy = Some(copy);
+            let read = sensor::read(child, kind, self);
+            self.copy = None;
+            let read = read?;
             if let Some(name) = &read.name {
-                claim_name(&mut self.sensor_names, "sensor", name, &child)?;
+                claim_name(&mut self.sensor_names, "sensor", name, child)?;
             }
             self.sensors.push(read);
         }
         Ok(())
     }
 
+    /// The `<actuator>` section, with the copies of the actuators that name
+    /// objects inside `<replicate>`s as they are written there.
     pub(super) fn read_actuators(&mut self, section: &Element) -> Result<(), MjcfError> {
         section.check_attributes(&[])?;
-        for child in section.children() {
+        let children: Vec<Element> = section.children().collect();
+        let mut kinds = Vec::with_capacity(children.len());
+        for child in &children {
             match actuator::kind_of(child.tag()) {
-                Some(kind) => self.read_actuator(&child, kind)?,
+                Some(kind) => kinds.push(kind),
                 None => match actuator::refusal(child.tag()) {
                     Some(reason) => return Err(child.unsupported(reason)),
                     None => return Err(child.unknown()),
                 },
+            }
+        }
+        for copy in self.copies(&children, true, actuator_references)? {
+            let (child, kind) = (&children[copy.index], kinds[copy.index]);
+            let suffix = copy.suffix.clone();
+            self.copy = Some(copy);
+            let read = self.read_actuator(child, kind);
+            self.copy = None;
+            read?;
+            // Sensors may name the copies as the actuator is written.
+            if let Some(name) = child.text("name") {
+                self.replicated_name(Named::Actuator, name, &suffix);
             }
         }
         Ok(())
@@ -279,7 +311,7 @@ impl Reader {
             None => None,
         };
 
-        let name = element.text("name").map(str::to_string);
+        let name = self.own_name(element);
         if let Some(name) = &name {
             claim_name(&mut self.actuator_names, "actuator", name, element)?;
         }
@@ -325,15 +357,15 @@ impl Reader {
         let Some(target) = target else {
             return Err(element.invalid("missing transmission target for actuator"));
         };
-        let name = element.text(target).unwrap_or_default();
+        let name = self.reference(element, target);
         if target == "tendon" {
             return Ok(Transmission::Tendon { tendon: self.tendon_named(element, "tendon", "actuator")? });
         }
         if target != "site" {
-            if !self.joint_targets.contains_key(name) {
-                return Err(self.unknown(element, &format!("transmission target '{name}' for actuator"), name));
+            if !self.joint_targets.contains_key(&name) {
+                return Err(self.unknown(element, &format!("transmission target '{name}' for actuator"), &name));
             }
-            return Ok(Transmission::Joint { joint: name.to_string(), in_parent: target == "jointinparent" });
+            return Ok(Transmission::Joint { joint: name, in_parent: target == "jointinparent" });
         }
         let site = self.site_named(element, "site", "actuator")?;
         let refsite = match element.has("refsite") {
@@ -359,4 +391,23 @@ impl Reader {
             "<equality>/<{tag}> to mocap body '{body}': nudyn takes no mocap poses for the constraint to follow"
         )))
     }
+}
+
+/// The attributes of an actuator element that name objects a `<replicate>` may hold.
+fn actuator_references(_: &Element) -> Vec<(&'static str, Named)> {
+    vec![("joint", Named::Joint), ("jointinparent", Named::Joint), ("site", Named::Site), ("refsite", Named::Site)]
+}
+
+/// The attributes of a sensor element that name objects a `<replicate>` may hold.
+fn sensor_references(element: &Element) -> Vec<(&'static str, Named)> {
+    let framed = |type_attribute: &str| match element.text(type_attribute) {
+        Some("body" | "xbody") => Some(Named::Body),
+        Some("site") => Some(Named::Site),
+        _ => None,
+    };
+    let mut references = vec![("joint", Named::Joint), ("site", Named::Site), ("body", Named::Body)];
+    references.push(("actuator", Named::Actuator));
+    references.extend(framed("objtype").map(|kind| ("objname", kind)));
+    references.extend(framed("reftype").map(|kind| ("refname", kind)));
+    references
 }
