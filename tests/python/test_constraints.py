@@ -18,7 +18,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from conftest import ROOT, run_eval
+from conftest import ROOT, assert_restores_bit_for_bit, run_eval
 from nudyn_validation.compare import Settings, validate_model
 from nudyn_validation.mujoco_reference import load_model
 from nudyn_validation.scenarios import FORCED_TOLERANCE, UNFORCED_TOLERANCE
@@ -382,24 +382,8 @@ def test_fmu_state_round_trips_bit_exactly_with_constraints(method, nudyn, tmp_p
 
     with started() as running, started() as fresh:
         advance(running, 20)
-        state = running.fmu.getFMUstate()
-        blob = running.fmu.serializeFMUstate(state)
-        advance(running, 20)
-        after = running.all_reals()
+        assert_restores_bit_for_bit(running, fresh, advance, 20)
         assert np.abs(running.array("qfrc_constraint")).max() > 1.0, "the constraints must act"
-
-        running.fmu.setFMUstate(state)
-        running.time = 20 * step
-        advance(running, 20)
-        assert np.array_equal(running.all_reals(), after)
-
-        restored = fresh.fmu.deSerializeFMUstate(blob)
-        fresh.fmu.setFMUstate(restored)
-        fresh.time = 20 * step
-        advance(fresh, 20)
-        assert np.array_equal(fresh.all_reals(), after)
-        fresh.fmu.freeFMUstate(restored)
-        running.fmu.freeFMUstate(state)
 
 
 @pytest.mark.parametrize("method", ["dop853", "dopri5", "tsit5", "auto"])
