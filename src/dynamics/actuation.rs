@@ -192,7 +192,7 @@ fn relative_site(
 }
 
 /// ctrl clamped to the actuator's range, unless `<flag clampctrl="disable"/>`.
-fn clamped_ctrl(actuator: &Actuator, clamp_ctrl: bool, ctrl: f64) -> f64 {
+pub(crate) fn clamped_ctrl(actuator: &Actuator, clamp_ctrl: bool, ctrl: f64) -> f64 {
     match actuator.ctrl_range {
         Some([low, high]) if clamp_ctrl => clip(ctrl, low, high),
         _ => ctrl,

@@ -14,6 +14,7 @@ use nalgebra::DVector;
 use super::rosenbrock::Linearization;
 use super::tableau::{ErrorEstimate, Method, Scheme};
 use crate::dynamics::DynamicsError;
+use crate::dynamics::actuation::clamped_ctrl;
 use crate::math::{Quat, Vec3, quat_from_wxyz, quat_to_wxyz};
 use crate::model::{LinkJoint, Model};
 use crate::workspace::Workspace;
@@ -52,11 +53,7 @@ pub(super) fn clamped_activations(model: &Model, act: &[f64], ctrl: &[f64], out:
     let timestep = model.constraints.options.timestep;
     let owners = model.actuators.iter().zip(ctrl).filter(|(a, _)| a.activation.is_some());
     for ((slot, &act), (actuator, &ctrl)) in out.iter_mut().zip(act).zip(owners) {
-        let ctrl = match actuator.ctrl_range {
-            Some([low, high]) if clamp_ctrl => ctrl.max(low).min(high),
-            _ => ctrl,
-        };
-        *slot = actuator.clamped_activation(ctrl, act, timestep);
+        *slot = actuator.clamped_activation(clamped_ctrl(actuator, clamp_ctrl, ctrl), act, timestep);
     }
 }
 
