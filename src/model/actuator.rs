@@ -183,14 +183,7 @@ impl Actuator {
         if !activation.early {
             return activation.clamp(act);
         }
-        let next = match activation.kind {
-            ActivationKind::FilterExact => {
-                let tau = activation.time_constant.max(MIN_TIME_CONSTANT);
-                act + act_dot * tau * (1.0 - (-timestep / tau).exp())
-            }
-            ActivationKind::Integrator | ActivationKind::Filter => act + act_dot * timestep,
-        };
-        activation.clamp(next)
+        activation.clamp(ahead(activation, act, act_dot, timestep))
     }
 
     /// What the actuator's `actrange` clamps in its force: act, or with
@@ -198,17 +191,7 @@ impl Actuator {
     /// range already) and `act`. The force kinks where it crosses a bound.
     pub fn clamped_activation(&self, ctrl: f64, act: f64, timestep: f64) -> f64 {
         match self.activation {
-            Some(activation) if activation.early => {
-                let rate = self.activation_rate(ctrl, act);
-                let ahead = match activation.kind {
-                    ActivationKind::FilterExact => {
-                        let tau = activation.time_constant.max(MIN_TIME_CONSTANT);
-                        tau * (1.0 - (-timestep / tau).exp())
-                    }
-                    ActivationKind::Integrator | ActivationKind::Filter => timestep,
-                };
-                act + rate * ahead
-            }
+            Some(activation) if activation.early => ahead(activation, act, self.activation_rate(ctrl, act), timestep),
             _ => act,
         }
     }
@@ -226,6 +209,19 @@ impl Actuator {
 
 /// MuJoCo's mjMINVAL: the least time constant a filter divides by.
 const MIN_TIME_CONSTANT: f64 = 1e-15;
+
+/// The activation one `timestep` ahead of `act` at rate `act_dot`
+/// (`actearly`, MuJoCo's `mj_nextActivation`, in its order of operations):
+/// a filterexact's step is exact.
+fn ahead(activation: Activation, act: f64, act_dot: f64, timestep: f64) -> f64 {
+    match activation.kind {
+        ActivationKind::FilterExact => {
+            let tau = activation.time_constant.max(MIN_TIME_CONSTANT);
+            act + act_dot * tau * (1.0 - (-timestep / tau).exp())
+        }
+        ActivationKind::Integrator | ActivationKind::Filter => act + act_dot * timestep,
+    }
+}
 
 /// A joint's limits on the total actuator force at its dof (MuJoCo's
 /// `actuatorfrcrange`, hinge and slide joints only).
