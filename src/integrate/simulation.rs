@@ -40,6 +40,13 @@ pub struct RunState {
     pub auto_choice: Option<AutoChoice>,
 }
 
+impl RunState {
+    /// The actuators' activation states (na, MuJoCo's act): `qvel` after θ̇.
+    pub fn act(&self, model: &Model) -> &[f64] {
+        self.qvel.get(model.nv..).unwrap_or_default()
+    }
+}
+
 /// The applied input over one advance: ε(t) = eps + eps_rate·(t − t₀) and
 /// ctrl(t) = ctrl + ctrl_rate·(t − t₀), t₀ the time the advance starts from
 /// (a first-order hold, as FMI's input derivatives define it).
@@ -187,7 +194,7 @@ impl Simulation {
     pub fn initialize(&mut self, model: &Model) -> Result<(), DynamicsError> {
         self.ws.set_configuration(model, &self.state.theta)?;
         self.ws.set_nu(model, &self.state.nu)?;
-        self.ws.set_act(model, self.state.qvel.get(model.nv..).unwrap_or_default())?;
+        self.ws.set_act(model, self.state.act(model))?;
         self.state.theta.copy_from_slice(self.ws.theta.as_slice());
         self.state.carry = Carry::default();
         if self.state.auto_choice.take().is_some() {
@@ -202,7 +209,7 @@ impl Simulation {
 
     /// The actuators' activation states (na, MuJoCo's act).
     pub fn act(&self, model: &Model) -> &[f64] {
-        self.state.qvel.get(model.nv..).unwrap_or_default()
+        self.state.act(model)
     }
 
     /// The same, to set (before [`Simulation::initialize`], or between
@@ -471,8 +478,7 @@ impl Simulation {
     pub fn evaluate_velocity(&mut self, model: &Model) -> Result<&mut Workspace, DynamicsError> {
         self.ws.set_configuration(model, &self.state.theta)?;
         self.ws.set_nu(model, &self.state.nu)?;
-        let act = self.state.qvel.get(model.nv..).unwrap_or_default();
-        self.ws.set_act(model, act)?;
+        self.ws.set_act(model, self.state.act(model))?;
         Ok(&mut self.ws)
     }
 }
