@@ -191,6 +191,18 @@ fn relative_site(
     Transmitted { length, velocity, moment: Moment::wrenches(candidates) }
 }
 
+/// Each actuator's activation state (its index in act: they are numbered
+/// in actuator order), or `None` for a stateless one.
+fn activation_slots(model: &Model) -> impl Iterator<Item = Option<usize>> + '_ {
+    let mut next = 0;
+    model.actuators.iter().map(move |actuator| {
+        actuator.activation.map(|_| {
+            next += 1;
+            next - 1
+        })
+    })
+}
+
 /// ctrl clamped to the actuator's range, unless `<flag clampctrl="disable"/>`.
 pub(crate) fn clamped_ctrl(actuator: &Actuator, clamp_ctrl: bool, ctrl: f64) -> f64 {
     match actuator.ctrl_range {
@@ -298,7 +310,8 @@ impl Workspace {
         if actuation.enabled && !self.tendon_actuator_total.is_empty() {
             self.sum_tendon_actuator_forces(model, ctrl);
         }
-        for (k, actuator) in model.actuators[..mjcf_count].iter().enumerate() {
+        let actuators = model.actuators[..mjcf_count].iter().zip(activation_slots(model));
+        for (k, (actuator, slot)) in actuators.enumerate() {
             let transmitted = transmit(self, actuator);
             self.actuator_length[k] = transmitted.length;
             if !actuation.enabled {
@@ -307,7 +320,7 @@ impl Workspace {
                 continue;
             }
             self.actuator_velocity[k] = transmitted.velocity;
-            let input = self.actuator_input(model, k, ctrl[k]);
+            let input = self.actuator_input(model, actuator, slot, ctrl[k]);
             let mut force = unclamped_force(actuator, input, transmitted.length, transmitted.velocity);
             if let ActuatorTransmission::Tendon { tendon } = actuator.transmission
                 && !self.tendon_actuator_total.is_empty()
@@ -355,12 +368,13 @@ impl Workspace {
     /// actuators, for the tendons with an `actuatorfrcrange`.
     fn sum_tendon_actuator_forces(&mut self, model: &Model, ctrl: &[f64]) {
         self.tendon_actuator_total.fill(0.0);
-        for (k, actuator) in model.actuators[..model.mjcf_actuator_count()].iter().enumerate() {
+        let actuators = model.actuators[..model.mjcf_actuator_count()].iter().zip(activation_slots(model));
+        for (k, (actuator, slot)) in actuators.enumerate() {
             if let ActuatorTransmission::Tendon { tendon } = actuator.transmission
                 && model.tendons[tendon].actuator_force_range.is_some()
             {
                 let transmitted = transmit(self, actuator);
-                let input = self.actuator_input(model, k, ctrl[k]);
+                let input = self.actuator_input(model, actuator, slot, ctrl[k]);
                 self.tendon_actuator_total[tendon] +=
                     unclamped_force(actuator, input, transmitted.length, transmitted.velocity);
             }
@@ -385,18 +399,17 @@ impl Workspace {
         }
     }
 
-    /// What actuator `k`'s force multiplies its gain by: its ctrl, clamped
-    /// to its range, or for an actuator with an activation state the
+    /// What `actuator`'s force multiplies its gain by: its ctrl, clamped
+    /// to its range, or for an actuator with activation state `slot` the
     /// activation it reads (act, or with `actearly` the next; needs
     /// `act_dot`).
-    fn actuator_input(&self, model: &Model, k: usize, ctrl: f64) -> f64 {
-        let actuator = &model.actuators[k];
-        if actuator.activation.is_none() {
-            return clamped_ctrl(actuator, model.actuation.clamp_ctrl, ctrl);
+    fn actuator_input(&self, model: &Model, actuator: &Actuator, slot: Option<usize>, ctrl: f64) -> f64 {
+        match slot {
+            None => clamped_ctrl(actuator, model.actuation.clamp_ctrl, ctrl),
+            Some(slot) => {
+                actuator.activation_input(self.act[slot], self.act_dot[slot], model.constraints.options.timestep)
+            }
         }
-        // The activation states are numbered in actuator order.
-        let index = model.actuators[..k].iter().filter(|a| a.activation.is_some()).count();
-        actuator.activation_input(self.act[index], self.act_dot[index], model.constraints.options.timestep)
     }
 
     /// Adds the generalized force of the wrench inputs (`values`: six per
