@@ -8,47 +8,95 @@
 //! codegen units, and out of line they cost a fifth of a ν̇ (bus_arm7
 //! 3.30 → 2.70 µs with them inlined, criterion).
 
-use nalgebra::{Matrix3, SMatrix, SVector, UnitQuaternion, Vector3};
+use std::ops::{Add, AddAssign, Div, DivAssign, Mul, MulAssign, Neg, Sub, SubAssign};
+
+use nalgebra::{Matrix3, RealField, SMatrix, SVector, UnitQuaternion, Vector3};
+use num_dual::Dual64;
 use serde::{Deserialize, Serialize};
 
+/// The scalar the passes compute in: `f64`, or a dual number that carries
+/// a directional derivative through the same code (`dynamics::derivatives`).
+/// Branches (a joint limit, a zero quaternion) decide on [`Real::value`].
+/// The operations with `f64` let the model's constants enter without
+/// conversion; for `f64` every one of them is the plain operation, so the
+/// passes' numbers do not change by being generic.
+pub trait Real:
+    RealField
+    + Copy
+    + From<f64>
+    + Add<f64, Output = Self>
+    + Sub<f64, Output = Self>
+    + Mul<f64, Output = Self>
+    + Div<f64, Output = Self>
+    + AddAssign<f64>
+    + SubAssign<f64>
+    + MulAssign<f64>
+    + DivAssign<f64>
+    + Neg<Output = Self>
+{
+    /// The number without its derivative.
+    fn value(self) -> f64;
+}
+
+impl Real for f64 {
+    #[inline(always)]
+    fn value(self) -> f64 {
+        self
+    }
+}
+
+impl Real for Dual64 {
+    #[inline(always)]
+    fn value(self) -> f64 {
+        self.re
+    }
+}
+
 /// A 3-vector.
-pub type Vec3 = Vector3<f64>;
+pub type Vec3<S = f64> = Vector3<S>;
 /// A 3×3 matrix.
-pub type Mat3 = Matrix3<f64>;
+pub type Mat3<S = f64> = Matrix3<S>;
 /// A unit quaternion (MuJoCo order w, x, y, z when read from or written to qpos).
-pub type Quat = UnitQuaternion<f64>;
+pub type Quat<S = f64> = UnitQuaternion<S>;
 /// A spatial motion or force vector, (angular, linear).
-pub type SpatialVec = SVector<f64, 6>;
+pub type SpatialVec<S = f64> = SVector<S, 6>;
 /// A 6×6 spatial matrix (inertias, transforms, cross-product operators).
-pub type SpatialMat = SMatrix<f64, 6, 6>;
+pub type SpatialMat<S = f64> = SMatrix<S, 6, 6>;
+
+/// A model constant (an `f64` matrix) in the passes' scalar.
+#[inline(always)]
+pub fn real<S: Real, const R: usize, const C: usize>(m: &SMatrix<f64, R, C>) -> SMatrix<S, R, C> {
+    m.map(S::from)
+}
 
 /// The cross-product matrix: `skew(a) * b == a.cross(&b)`.
 #[inline]
-pub fn skew(a: &Vec3) -> Mat3 {
-    Mat3::new(0.0, -a.z, a.y, a.z, 0.0, -a.x, -a.y, a.x, 0.0)
+pub fn skew<S: Real>(a: &Vec3<S>) -> Mat3<S> {
+    let zero = S::zero();
+    Mat3::new(zero, -a.z, a.y, a.z, zero, -a.x, -a.y, a.x, zero)
 }
 
 /// Angular part of a spatial vector.
 #[inline]
-pub fn angular(v: &SpatialVec) -> Vec3 {
+pub fn angular<S: Real>(v: &SpatialVec<S>) -> Vec3<S> {
     v.fixed_rows::<3>(0).into_owned()
 }
 
 /// Linear part of a spatial vector.
 #[inline]
-pub fn linear(v: &SpatialVec) -> Vec3 {
+pub fn linear<S: Real>(v: &SpatialVec<S>) -> Vec3<S> {
     v.fixed_rows::<3>(3).into_owned()
 }
 
 /// Joins an angular and a linear part.
 #[inline]
-pub fn spatial(angular: &Vec3, linear: &Vec3) -> SpatialVec {
+pub fn spatial<S: Real>(angular: &Vec3<S>, linear: &Vec3<S>) -> SpatialVec<S> {
     SpatialVec::new(angular.x, angular.y, angular.z, linear.x, linear.y, linear.z)
 }
 
 /// Motion cross product `v × m`.
 #[inline]
-pub fn cross_motion(v: &SpatialVec, m: &SpatialVec) -> SpatialVec {
+pub fn cross_motion<S: Real>(v: &SpatialVec<S>, m: &SpatialVec<S>) -> SpatialVec<S> {
     let (w, vl) = (angular(v), linear(v));
     let (mw, ml) = (angular(m), linear(m));
     spatial(&w.cross(&mw), &(w.cross(&ml) + vl.cross(&mw)))
@@ -56,7 +104,7 @@ pub fn cross_motion(v: &SpatialVec, m: &SpatialVec) -> SpatialVec {
 
 /// Force cross product `v ×* f`.
 #[inline]
-pub fn cross_force(v: &SpatialVec, f: &SpatialVec) -> SpatialVec {
+pub fn cross_force<S: Real>(v: &SpatialVec<S>, f: &SpatialVec<S>) -> SpatialVec<S> {
     let (w, vl) = (angular(v), linear(v));
     let (n, fl) = (angular(f), linear(f));
     spatial(&(w.cross(&n) + vl.cross(&fl)), &w.cross(&fl))
@@ -64,7 +112,7 @@ pub fn cross_force(v: &SpatialVec, f: &SpatialVec) -> SpatialVec {
 
 /// The matrix of `v ×` acting on motion vectors.
 #[inline]
-pub fn cross_motion_matrix(v: &SpatialVec) -> SpatialMat {
+pub fn cross_motion_matrix<S: Real>(v: &SpatialVec<S>) -> SpatialMat<S> {
     let (w, vl) = (skew(&angular(v)), skew(&linear(v)));
     let mut out = SpatialMat::zeros();
     out.fixed_view_mut::<3, 3>(0, 0).copy_from(&w);
@@ -78,7 +126,7 @@ pub fn cross_motion_matrix(v: &SpatialVec) -> SpatialMat {
 /// so each row costs three cross products instead of 3×3 products with
 /// skew matrices (half of whose entries are zero).
 #[inline]
-pub fn mul_cross_motion(m: &SpatialMat, v: &SpatialVec) -> SpatialMat {
+pub fn mul_cross_motion<S: Real>(m: &SpatialMat<S>, v: &SpatialVec<S>) -> SpatialMat<S> {
     let (w, vl) = (angular(v), linear(v));
     let mut out = SpatialMat::zeros();
     for row in 0..6 {
@@ -113,20 +161,28 @@ pub fn rigid_inertia(mass: f64, com: &Vec3, inertia_com: &Mat3) -> SpatialMat {
 /// the child origin in parent coordinates. As a motion transform
 /// X = [E 0; −E r× E].
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Transform {
+pub struct Transform<S: Real = f64> {
     /// E: parent → child coordinates.
-    pub rot: Mat3,
+    pub rot: Mat3<S>,
     /// r: child origin in parent coordinates.
-    pub trans: Vec3,
+    pub trans: Vec3<S>,
 }
 
-impl Default for Transform {
+impl<S: Real> Default for Transform<S> {
     fn default() -> Self {
         Self::identity()
     }
 }
 
 impl Transform {
+    /// This (model) transform in the passes' scalar.
+    #[inline(always)]
+    pub fn real<S: Real>(&self) -> Transform<S> {
+        Transform { rot: real(&self.rot), trans: real(&self.trans) }
+    }
+}
+
+impl<S: Real> Transform<S> {
     /// The identity transform.
     #[inline]
     pub fn identity() -> Self {
@@ -137,19 +193,19 @@ impl Transform {
     /// columns are the child axes in parent coordinates) and whose origin is
     /// `origin` in parent coordinates.
     #[inline]
-    pub fn from_pose(child_to_parent: &Mat3, origin: &Vec3) -> Self {
+    pub fn from_pose(child_to_parent: &Mat3<S>, origin: &Vec3<S>) -> Self {
         Self { rot: child_to_parent.transpose(), trans: *origin }
     }
 
     /// ᶜX_ₐ = ᶜX_b · ᵇX_ₐ, with `self` = ᶜX_b and `inner` = ᵇX_ₐ.
     #[inline]
-    pub fn compose(&self, inner: &Transform) -> Transform {
+    pub fn compose(&self, inner: &Transform<S>) -> Transform<S> {
         Transform { rot: self.rot * inner.rot, trans: inner.trans + inner.rot.transpose() * self.trans }
     }
 
     /// X m: a parent-frame motion vector in child coordinates.
     #[inline]
-    pub fn apply_motion(&self, m: &SpatialVec) -> SpatialVec {
+    pub fn apply_motion(&self, m: &SpatialVec<S>) -> SpatialVec<S> {
         let w = angular(m);
         let v = linear(m) - self.trans.cross(&w);
         spatial(&(self.rot * w), &(self.rot * v))
@@ -157,7 +213,7 @@ impl Transform {
 
     /// Xᵀ f: a child-frame force vector in parent coordinates.
     #[inline]
-    pub fn apply_transpose_force(&self, f: &SpatialVec) -> SpatialVec {
+    pub fn apply_transpose_force(&self, f: &SpatialVec<S>) -> SpatialVec<S> {
         let n = self.rot.transpose() * angular(f);
         let fl = self.rot.transpose() * linear(f);
         spatial(&(n + self.trans.cross(&fl)), &fl)
@@ -165,7 +221,7 @@ impl Transform {
 
     /// The 6×6 motion-transform matrix X.
     #[inline]
-    pub fn motion_matrix(&self) -> SpatialMat {
+    pub fn motion_matrix(&self) -> SpatialMat<S> {
         let mut out = SpatialMat::zeros();
         out.fixed_view_mut::<3, 3>(0, 0).copy_from(&self.rot);
         out.fixed_view_mut::<3, 3>(3, 0).copy_from(&(-self.rot * skew(&self.trans)));
@@ -193,9 +249,9 @@ impl Transform {
     /// passes accumulate these along the tree, and formulas that rely on
     /// symmetry would let a round-off asymmetry grow link by link.
     #[inline(always)]
-    pub fn add_inertia_to_parent(&self, inertia: &SpatialMat, slot: &mut SpatialMat, replace: bool) {
+    pub fn add_inertia_to_parent(&self, inertia: &SpatialMat<S>, slot: &mut SpatialMat<S>, replace: bool) {
         let (e, e_t) = (self.rot, self.rot.transpose());
-        let symmetric = |m: Mat3| 0.5 * (m + m.transpose());
+        let symmetric = |m: Mat3<S>| (m + m.transpose()) * S::from(0.5);
         let a = e_t * inertia.fixed_view::<3, 3>(0, 0) * e;
         let b = e_t * inertia.fixed_view::<3, 3>(0, 3) * e;
         let c = symmetric(e_t * inertia.fixed_view::<3, 3>(3, 3) * e);
@@ -229,7 +285,7 @@ impl Transform {
 
 /// Quaternion from MuJoCo's (w, x, y, z) order, not normalized.
 #[inline]
-pub fn quat_from_wxyz(q: &[f64]) -> nalgebra::Quaternion<f64> {
+pub fn quat_from_wxyz<S: Real>(q: &[S]) -> nalgebra::Quaternion<S> {
     nalgebra::Quaternion::new(q[0], q[1], q[2], q[3])
 }
 
@@ -241,22 +297,23 @@ pub fn quat_from_wxyz(q: &[f64]) -> nalgebra::Quaternion<f64> {
 /// 1e-160) or overflow (near 1e160), the components are first divided by
 /// the largest one. The common case pays one range check.
 #[inline]
-pub fn normalize_wxyz(q: &mut [f64]) -> Option<f64> {
+pub fn normalize_wxyz<S: Real>(q: &mut [S]) -> Option<S> {
     let q = &mut q[..4];
     // nalgebra's order of summation: trajectories that round-off decides keep the
     // bits they were measured with (tests/all/adaptive_integration.rs).
     let squared = quat_from_wxyz(q).norm_squared();
-    if (1e-290..=1e290).contains(&squared) {
+    if (1e-290..=1e290).contains(&squared.value()) {
         let norm = squared.sqrt();
         q.iter_mut().for_each(|c| *c /= norm);
         return Some(norm);
     }
-    let largest = q.iter().fold(0.0_f64, |m, c| m.max(c.abs()));
-    if largest == 0.0 || !largest.is_finite() {
+    let largest = q.iter().fold(S::zero(), |m, c| m.max(c.abs()));
+    if largest.value() == 0.0 || !largest.value().is_finite() {
         return None;
     }
     q.iter_mut().for_each(|c| *c /= largest);
-    let scaled_norm = q.iter().map(|c| c * c).sum::<f64>().sqrt();
+    // From +0, as f64's `sum` of these squares (never −0) would add them.
+    let scaled_norm = q.iter().fold(S::zero(), |sum, c| sum + *c * *c).sqrt();
     q.iter_mut().for_each(|c| *c /= scaled_norm);
     Some(largest * scaled_norm)
 }
@@ -281,11 +338,18 @@ pub fn quat_to_wxyz(q: &Quat, out: &mut [f64]) {
 
 /// The rotation vector of `qa ⊖ qb`: the local-frame rotation r with
 /// qa = qb · exp(r) (MuJoCo's `mju_subQuat`), taking the shorter way round.
+///
+/// At qa = qb nalgebra's `scaled_axis` gives a constant zero, whose
+/// derivative is wrong (r's is 2 × the vector part's); there r is written
+/// as that first-order term, 2v/w, which is +0 in f64 as nalgebra's zero is.
 #[inline]
-pub fn quat_difference(qa: &Quat, qb: &Quat) -> Vec3 {
+pub fn quat_difference<S: Real>(qa: &Quat<S>, qb: &Quat<S>) -> Vec3<S> {
     let mut d = qb.inverse() * qa;
-    if d.w < 0.0 {
+    if d.w.value() < 0.0 {
         d = Quat::new_unchecked(-d.into_inner());
+    }
+    if d.imag().iter().all(|c| c.value() == 0.0) {
+        return Vec3::zeros() + d.imag() * (S::from(2.0) / d.w);
     }
     d.scaled_axis()
 }

@@ -8,11 +8,11 @@ use nalgebra::{DVector, SMatrix};
 use crate::dynamics::TendonInertiaState;
 use crate::dynamics::constraint::ConstraintRows;
 use crate::dynamics::subspace::Subspace;
-use crate::math::{Mat3, Quat, SpatialMat, SpatialVec, Transform, Vec3};
+use crate::math::{Mat3, Quat, Real, SpatialMat, SpatialVec, Transform, Vec3};
 use crate::model::{Model, SensorSource};
 
 /// 6×3 storage for per-link 6×ndof quantities (first `ndof` columns used).
-pub type LinkCols = SMatrix<f64, 6, 3>;
+pub type LinkCols<S = f64> = SMatrix<S, 6, 3>;
 
 /// How far the passes have got for the current state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -45,7 +45,7 @@ pub struct Accumulation {
 
 /// Preallocated buffers and results of the passes.
 #[derive(Clone, Debug)]
-pub struct Workspace {
+pub struct Workspace<S: Real = f64> {
     /// How far the passes have got.
     pub stage: Stage,
     /// Each link's place in the inward sums (fixed by the model).
@@ -53,13 +53,13 @@ pub struct Workspace {
     /// The shape of each link's motion subspace (fixed by the model).
     pub subspaces: Vec<Subspace>,
     /// The configuration θ (qpos, quaternions normalized) — set_configuration.
-    pub theta: DVector<f64>,
+    pub theta: DVector<S>,
 
     /// ⁱX_λ: link relative to parent link (or world) — pass 0.
-    pub x_parent: Vec<Transform>,
+    pub x_parent: Vec<Transform<S>>,
     /// ⁱX₀: link relative to world — pass 0 when the model has gravity,
     /// else on demand (momentum).
-    pub x_world: Vec<Transform>,
+    pub x_world: Vec<Transform<S>>,
     /// Whether `x_world` belongs to the current configuration.
     pub world_transforms_current: bool,
 
@@ -68,55 +68,55 @@ pub struct Workspace {
     /// inertia I^A (the paper's P) in the same slot and replaces it once the
     /// link's joint is factored: one 6×6 array fewer to stream through the
     /// cache on long chains.
-    pub ia_reduced: Vec<SpatialMat>,
+    pub ia_reduced: Vec<SpatialMat<S>>,
     /// G = U D⁻¹ (the paper's Kalman gain) — pass 1.
-    pub gain: Vec<LinkCols>,
+    pub gain: Vec<LinkCols<S>>,
     /// R, upper triangular with R Rᵀ = D (D^½ of docs/DYNAMICS.md §3) — pass 1.
-    pub r_joint: Vec<Mat3>,
+    pub r_joint: Vec<Mat3<S>>,
     /// R⁻¹ — pass 1.
-    pub r_inv_joint: Vec<Mat3>,
+    pub r_inv_joint: Vec<Mat3<S>>,
 
     /// ν — pass 2 (given, or computed from θ̇).
-    pub nu: DVector<f64>,
+    pub nu: DVector<S>,
     /// θ̇ in dof space (MuJoCo's qvel) — pass 2.
-    pub qvel: DVector<f64>,
+    pub qvel: DVector<S>,
     /// w = R⁻ᵀ ν = θ̇ + GᵀV⁺, stored in dof layout — pass 2.
-    pub w_joint: DVector<f64>,
+    pub w_joint: DVector<S>,
     /// V⁺ = X V_λ: parent velocity in link coordinates — pass 2.
-    pub v_plus_body: Vec<SpatialVec>,
+    pub v_plus_body: Vec<SpatialVec<S>>,
     /// V: link spatial velocity in link coordinates — pass 2.
-    pub v_body: Vec<SpatialVec>,
+    pub v_body: Vec<SpatialVec<S>>,
 
     /// Children's share of the velocity-product bias p^A — pass 3.
-    pub p_bias_body: Vec<SpatialVec>,
+    pub p_bias_body: Vec<SpatialVec<S>>,
     /// Children's share of the force bias (gravity, springs, dampers) — pass 3.
-    pub p_force_body: Vec<SpatialVec>,
+    pub p_force_body: Vec<SpatialVec<S>>,
     /// Children's share of the force-only recursions' p (ε ↔ T).
-    pub p_scratch_body: Vec<SpatialVec>,
+    pub p_scratch_body: Vec<SpatialVec<S>>,
     /// Children's share of İ^A — pass 3.
-    pub ia_dot_body: Vec<SpatialMat>,
+    pub ia_dot_body: Vec<SpatialMat<S>>,
     /// Gravity compensation on each link (link coordinates), nonzero on the
     /// compensated links only; empty without compensation — set_configuration.
-    pub gravcomp_wrench: Vec<SpatialVec>,
+    pub gravcomp_wrench: Vec<SpatialVec<S>>,
     /// MuJoCo's qfrc_gravcomp (nv), zero without compensation — set_configuration.
-    pub qfrc_gravcomp: DVector<f64>,
+    pub qfrc_gravcomp: DVector<S>,
     /// Passive joint forces: springs, dampers and the gravity compensation
     /// not routed to the actuators — pass 3.
-    pub tau_passive: DVector<f64>,
+    pub tau_passive: DVector<S>,
     /// ε of the passive forces and gravity, ℓ(θ)(τ_passive + Jᵀf_gravity) — pass 3.
-    pub eps_passive: DVector<f64>,
+    pub eps_passive: DVector<S>,
     /// C(θ, ν): velocity-product terms — pass 3.
-    pub coriolis: DVector<f64>,
+    pub coriolis: DVector<S>,
     /// ν̇ = ε − C + eps_passive — pass 3.
-    pub nu_dot: DVector<f64>,
+    pub nu_dot: DVector<S>,
     /// ν̇ less its terms from the factor's rates (Ṙᵀw + RᵀĠᵀV⁺):
     /// ε + ε_passive + R⁻¹u, what θ̈ needs — pass 3, with or without the rates.
-    pub nu_dot_joint: DVector<f64>,
+    pub nu_dot_joint: DVector<S>,
     /// θ̈ in dof space (MuJoCo's qacc) — compute_accelerations.
-    pub qacc: DVector<f64>,
+    pub qacc: DVector<S>,
     /// A: link spatial acceleration in link coordinates, the world at rest
     /// (gravity not included) — compute_accelerations.
-    pub a_body: Vec<SpatialVec>,
+    pub a_body: Vec<SpatialVec<S>>,
 
     /// Whether some actuator applies wrenches to links (fixed by the model).
     pub actuators_apply_wrenches: bool,
@@ -185,6 +185,14 @@ pub struct Workspace {
 impl Workspace {
     /// Buffers sized for `model`.
     pub fn new(model: &Model) -> Self {
+        Self::in_scalar(model)
+    }
+}
+
+impl<S: Real> Workspace<S> {
+    /// Buffers sized for `model`, the passes' quantities in `S`
+    /// (a dual number for derivatives; [`Workspace::new`] for `f64`).
+    pub fn in_scalar(model: &Model) -> Self {
         let n = model.links.len();
         let dof = || DVector::zeros(model.nv);
         let mut accumulation = vec![Accumulation::default(); n];
@@ -208,7 +216,7 @@ impl Workspace {
             stage: Stage::Empty,
             accumulation,
             subspaces: model.links.iter().map(|link| Subspace::of(&link.motion_subspace, link.ndof)).collect(),
-            theta: DVector::from_column_slice(&model.qpos0),
+            theta: DVector::from_iterator(model.nq, model.qpos0.iter().map(|&q| S::from(q))),
             x_parent: vec![Transform::identity(); n],
             x_world: vec![Transform::identity(); n],
             world_transforms_current: false,
@@ -241,11 +249,11 @@ impl Workspace {
             act_dot: DVector::zeros(model.activation_count()),
             actuator_force: DVector::zeros(nu),
             link_wrench: vec![SpatialVec::zeros(); if actuators_apply_wrenches { n } else { 0 }],
-            qfrc_actuator: dof(),
-            qfrc_total: dof(),
-            eps_actuator: dof(),
-            eps_applied: dof(),
-            eps_input: dof(),
+            qfrc_actuator: DVector::zeros(model.nv),
+            qfrc_total: DVector::zeros(model.nv),
+            eps_actuator: DVector::zeros(model.nv),
+            eps_applied: DVector::zeros(model.nv),
+            eps_input: DVector::zeros(model.nv),
             ctrl_input: DVector::zeros(nu),
             inputs_applied: false,
             tendon_length: DVector::zeros(model.tendons.len()),

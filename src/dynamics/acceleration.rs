@@ -14,19 +14,19 @@ use nalgebra::SVector;
 
 use super::subspace::{add_s_times, by_subspace, s_times};
 use super::{DynamicsError, block, cols, require};
-use crate::math::{SpatialVec, cross_motion};
+use crate::math::{Real, SpatialVec, cross_motion};
 use crate::model::Model;
 use crate::workspace::{Stage, Workspace};
 
 /// The outward pass for one link with N dofs, whose parent's A is
 /// `a_parent`; returns its A.
 #[inline(always)]
-fn acceleration_link<const N: usize, const UNIT: usize>(
+fn acceleration_link<S: Real, const N: usize, const UNIT: usize>(
     model: &Model,
-    ws: &mut Workspace,
+    ws: &mut Workspace<S>,
     i: usize,
-    a_parent: &SpatialVec,
-) -> SpatialVec {
+    a_parent: &SpatialVec<S>,
+) -> SpatialVec<S> {
     let link = &model.links[i];
     let adr = link.dof_adr;
     let a_plus = match link.parent {
@@ -34,18 +34,19 @@ fn acceleration_link<const N: usize, const UNIT: usize>(
         None => SpatialVec::zeros(),
     };
     let s = &link.motion_subspace;
-    let v_joint = s_times::<N, UNIT>(s, &ws.qvel.fixed_rows::<N>(adr).into_owned());
+    let v_joint = s_times::<_, N, UNIT>(s, &ws.qvel.fixed_rows::<N>(adr).into_owned());
     let a_passed = a_plus + cross_motion(&ws.v_plus_body[i], &v_joint);
-    let joint_term: SVector<f64, N> = ws.nu_dot_joint.fixed_rows::<N>(adr).into_owned();
-    let qacc = block::<N>(&ws.r_inv_joint[i]).transpose() * joint_term - cols::<N>(&ws.gain[i]).transpose() * a_passed;
+    let joint_term: SVector<S, N> = ws.nu_dot_joint.fixed_rows::<N>(adr).into_owned();
+    let qacc =
+        block::<_, N>(&ws.r_inv_joint[i]).transpose() * joint_term - cols::<_, N>(&ws.gain[i]).transpose() * a_passed;
     ws.qacc.fixed_rows_mut::<N>(adr).copy_from(&qacc);
     let mut a = a_passed;
-    add_s_times::<N, UNIT>(&mut a, s, &qacc);
+    add_s_times::<_, N, UNIT>(&mut a, s, &qacc);
     ws.a_body[i] = a;
     a
 }
 
-impl Workspace {
+impl<S: Real> Workspace<S> {
     /// θ̈ (`qacc`) and the link accelerations (`a_body`) for the inputs of
     /// the last pass 3 (with or without the factor's rates). Needs pass 3.
     pub fn compute_accelerations(&mut self, model: &Model) -> Result<(), DynamicsError> {

@@ -8,7 +8,7 @@ use nalgebra::SMatrix;
 
 use super::subspace::{by_subspace, s_transpose_times_columns, times_s};
 use super::{DynamicsError, kinematics};
-use crate::math::{Mat3, SpatialMat};
+use crate::math::{Mat3, Real, SpatialMat};
 use crate::model::Model;
 use crate::workspace::Workspace;
 
@@ -16,15 +16,15 @@ use crate::workspace::Workspace;
 /// "reverse" Cholesky factor), or `None` if D is not positive definite.
 /// Written by hand: nalgebra's Cholesky gives the lower factor L Lᵀ, and
 /// the unique factor m of docs/DYNAMICS.md §3 needs this one.
-pub fn upper_cholesky<const N: usize>(d: &SMatrix<f64, N, N>) -> Option<SMatrix<f64, N, N>> {
-    let mut r = SMatrix::<f64, N, N>::zeros();
+pub fn upper_cholesky<S: Real, const N: usize>(d: &SMatrix<S, N, N>) -> Option<SMatrix<S, N, N>> {
+    let mut r = SMatrix::<S, N, N>::zeros();
     for j in (0..N).rev() {
         let mut diag = d[(j, j)];
         for k in j + 1..N {
             diag -= r[(j, k)] * r[(j, k)];
         }
         // Also refuses NaN, which `diag <= 0.0` would let through.
-        if diag.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+        if diag.value().partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             return None;
         }
         let rjj = diag.sqrt();
@@ -41,12 +41,12 @@ pub fn upper_cholesky<const N: usize>(d: &SMatrix<f64, N, N>) -> Option<SMatrix<
 }
 
 /// Inverse of an upper-triangular matrix with a nonzero diagonal.
-pub fn upper_triangular_inverse<const N: usize>(r: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
-    let mut inv = SMatrix::<f64, N, N>::zeros();
+pub fn upper_triangular_inverse<S: Real, const N: usize>(r: &SMatrix<S, N, N>) -> SMatrix<S, N, N> {
+    let mut inv = SMatrix::<S, N, N>::zeros();
     for j in 0..N {
-        inv[(j, j)] = 1.0 / r[(j, j)];
+        inv[(j, j)] = S::one() / r[(j, j)];
         for i in (0..j).rev() {
-            let mut s = 0.0;
+            let mut s = S::zero();
             for k in i + 1..=j {
                 s += r[(i, k)] * inv[(k, j)];
             }
@@ -57,27 +57,27 @@ pub fn upper_triangular_inverse<const N: usize>(r: &SMatrix<f64, N, N>) -> SMatr
 }
 
 /// Pass 1 for one link with N dofs; `ia_reduced[i]` holds its children's share of I^A.
-fn factor_link<const N: usize, const UNIT: usize>(
+fn factor_link<S: Real, const N: usize, const UNIT: usize>(
     model: &Model,
-    ws: &mut Workspace,
+    ws: &mut Workspace<S>,
     i: usize,
 ) -> Result<(), DynamicsError> {
     let link = &model.links[i];
     let mut ia = if ws.accumulation[i].has_children { ws.ia_reduced[i] } else { SpatialMat::zeros() };
     link.add_spatial_inertia_to(&mut ia);
-    let u = times_s::<N, UNIT>(&ia, &link.motion_subspace);
-    let mut d = s_transpose_times_columns::<N, UNIT>(&link.motion_subspace, &u);
+    let u = times_s::<_, N, UNIT>(&ia, &link.motion_subspace);
+    let mut d = s_transpose_times_columns::<_, N, UNIT>(&link.motion_subspace, &u);
     if !model.shortcuts.no_armature {
-        d += SMatrix::<f64, N, N>::identity() * link.armature;
+        d += SMatrix::<S, N, N>::identity() * S::from(link.armature);
     }
     let (r, r_inv, d_inv) = if N == 1 {
         // A hinge or slide: D⁻¹ straight from D, so that the gain (on the
         // pass's critical path) does not wait for the square root.
         let d = d[(0, 0)];
-        if d.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+        if d.value().partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             return Err(DynamicsError::Singular { link: i });
         }
-        let (root, d_inv) = (d.sqrt(), 1.0 / d);
+        let (root, d_inv) = (d.sqrt(), S::one() / d);
         (SMatrix::from_element(root), SMatrix::from_element(root * d_inv), SMatrix::from_element(d_inv))
     } else {
         let r = upper_cholesky(&d).ok_or(DynamicsError::Singular { link: i })?;
@@ -98,23 +98,23 @@ fn factor_link<const N: usize, const UNIT: usize>(
 
 /// Passes 0 and 1 for link `i`.
 #[inline(always)]
-fn place_and_factor_link<const N: usize, const UNIT: usize>(
+fn place_and_factor_link<S: Real, const N: usize, const UNIT: usize>(
     model: &Model,
-    ws: &mut Workspace,
+    ws: &mut Workspace<S>,
     i: usize,
 ) -> Result<(), DynamicsError> {
-    kinematics::place_link::<N, UNIT>(model, ws, i)?;
-    factor_link::<N, UNIT>(model, ws, i)
+    kinematics::place_link::<_, N, UNIT>(model, ws, i)?;
+    factor_link::<_, N, UNIT>(model, ws, i)
 }
 
 /// Stores an N×N block in the top-left of a 3×3 buffer.
-fn write_block<const N: usize>(out: &mut Mat3, m: &SMatrix<f64, N, N>) {
+fn write_block<S: Real, const N: usize>(out: &mut Mat3<S>, m: &SMatrix<S, N, N>) {
     out.fixed_view_mut::<N, N>(0, 0).copy_from(m);
 }
 
 /// Passes 0 and 1: each link's placement, then I^a, G, R, R⁻¹ for it
 /// (I^A, U and D are intermediates).
-pub(crate) fn articulated_pass(model: &Model, ws: &mut Workspace) -> Result<(), DynamicsError> {
+pub(crate) fn articulated_pass<S: Real>(model: &Model, ws: &mut Workspace<S>) -> Result<(), DynamicsError> {
     for i in (0..model.links.len()).rev() {
         by_subspace!(ws.subspaces[i], place_and_factor_link(model, ws, i))?;
         if let Some(p) = model.links[i].parent {

@@ -17,7 +17,9 @@ use nalgebra::{SMatrix, SVector};
 
 use super::subspace::{by_subspace, s_times, s_transpose_times, s_transpose_times_columns, times_s};
 use super::{accumulate, block, cols};
-use crate::math::{Quat, SpatialVec, Vec3, cross_force, cross_motion, mul_cross_motion, quat_difference, spatial};
+use crate::math::{
+    Quat, Real, SpatialVec, Vec3, cross_force, cross_motion, mul_cross_motion, quat_difference, real, spatial,
+};
 use crate::model::{LinkJoint, Model};
 use crate::workspace::Workspace;
 
@@ -26,26 +28,27 @@ use crate::workspace::Workspace;
 /// spring pose, in the body frame), and the gravity compensation of the
 /// joints without `actuatorgravcomp` (MuJoCo's qfrc_passive). Each term is
 /// skipped when no joint has it.
-pub(crate) fn passive_forces(model: &Model, ws: &mut Workspace) {
+pub(crate) fn passive_forces<S: Real>(model: &Model, ws: &mut Workspace<S>) {
     let shortcuts = model.shortcuts;
     for link in &model.links {
-        let spring: Vec3 = if shortcuts.no_springs {
+        let spring: Vec3<S> = if shortcuts.no_springs {
             Vec3::zeros()
         } else {
             let (q, qs) = (&ws.theta.as_slice()[link.qpos_adr..], &model.qpos_spring[link.qpos_adr..]);
             match link.joint {
-                LinkJoint::Hinge | LinkJoint::Slide => Vec3::new(q[0] - qs[0], 0.0, 0.0),
+                LinkJoint::Hinge | LinkJoint::Slide => Vec3::new(q[0] - qs[0], S::zero(), S::zero()),
                 LinkJoint::Translation => Vec3::new(q[0] - qs[0], q[1] - qs[1], q[2] - qs[2]),
                 LinkJoint::Ball => {
-                    let quat = |v: &[f64]| Quat::from_quaternion(crate::math::quat_from_wxyz(v));
-                    quat_difference(&quat(q), &quat(qs))
+                    let spring_pose: [S; 4] = std::array::from_fn(|k| S::from(qs[k]));
+                    let quat = |v: &[S]| Quat::from_quaternion(crate::math::quat_from_wxyz(v));
+                    quat_difference(&quat(q), &quat(&spring_pose))
                 }
             }
         };
         for k in 0..link.ndof {
             let dof = link.dof_adr + k;
-            let damper = if shortcuts.no_dampers { 0.0 } else { link.damping * ws.qvel[dof] };
-            ws.tau_passive[dof] = -link.stiffness * spring[k] - damper;
+            let damper = if shortcuts.no_dampers { S::zero() } else { ws.qvel[dof] * link.damping };
+            ws.tau_passive[dof] = spring[k] * -link.stiffness - damper;
         }
     }
     if !model.gravity_compensation.is_empty() {
@@ -59,7 +62,7 @@ pub(crate) fn passive_forces(model: &Model, ws: &mut Workspace) {
 }
 
 /// Φ: the upper triangle with the diagonal halved (so Φ(X) + Φ(X)ᵀ = X for symmetric X).
-fn upper_half<const N: usize>(x: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
+fn upper_half<S: Real, const N: usize>(x: &SMatrix<S, N, N>) -> SMatrix<S, N, N> {
     let mut out = x.upper_triangle();
     for k in 0..N {
         out[(k, k)] *= 0.5;
@@ -71,23 +74,23 @@ fn upper_half<const N: usize>(x: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
 /// of springs, dampers and gravity (else their ε is zero); `RATES`: whether
 /// to add the factor's rates and so complete ν̇ and C (else only the joint
 /// terms that θ̈ needs, without the İ^A recursion).
-fn bias_link<const N: usize, const UNIT: usize, const RATES: bool>(
+fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool>(
     model: &Model,
-    ws: &mut Workspace,
+    ws: &mut Workspace<S>,
     i: usize,
-    eps: &[f64],
+    eps: &[S],
     forces: bool,
 ) {
     let link = &model.links[i];
     let adr = link.dof_adr;
     let s = &link.motion_subspace;
-    let gain = cols::<N>(&ws.gain[i]);
-    let r = block::<N>(&ws.r_joint[i]);
-    let r_inv = block::<N>(&ws.r_inv_joint[i]);
+    let gain = cols::<_, N>(&ws.gain[i]);
+    let r = block::<_, N>(&ws.r_joint[i]);
+    let r_inv = block::<_, N>(&ws.r_inv_joint[i]);
     let (v, v_plus) = (ws.v_body[i], ws.v_plus_body[i]);
     // v_J = S θ̇ and c = V × v_J = V⁺ × v_J, recomputed rather than stored
     // by pass 2: two fewer per-link arrays to stream on long chains.
-    let v_joint = s_times::<N, UNIT>(s, &ws.qvel.fixed_rows::<N>(adr).into_owned());
+    let v_joint = s_times::<_, N, UNIT>(s, &ws.qvel.fixed_rows::<N>(adr).into_owned());
     let has_children = ws.accumulation[i].has_children;
     // İ^A is zero for a link without children (its own inertia is constant in its frame).
     let ia_dot = (RATES && has_children).then(|| &ws.ia_dot_body[i]);
@@ -97,14 +100,14 @@ fn bias_link<const N: usize, const UNIT: usize, const RATES: bool>(
     if has_children {
         p_bias += ws.p_bias_body[i];
     }
-    let u: SVector<f64, N> = -s_transpose_times::<N, UNIT>(s, &p_bias);
+    let u: SVector<S, N> = -s_transpose_times::<_, N, UNIT>(s, &p_bias);
     let joint_bias = r_inv * u;
     // ν̇'s terms from the factor's rates, Ṙᵀw + RᵀĠᵀV⁺, which θ̈ does not need.
     let rates = RATES.then(|| {
         let d_inv = r_inv.transpose() * r_inv;
-        let w: SVector<f64, N> = ws.w_joint.fixed_rows::<N>(adr).into_owned();
-        let ia_dot_s: SMatrix<f64, 6, N> = ia_dot.map_or_else(SMatrix::zeros, |ia_dot| times_s::<N, UNIT>(ia_dot, s));
-        let d_dot = s_transpose_times_columns::<N, UNIT>(s, &ia_dot_s);
+        let w: SVector<S, N> = ws.w_joint.fixed_rows::<N>(adr).into_owned();
+        let ia_dot_s: SMatrix<S, 6, N> = ia_dot.map_or_else(SMatrix::zeros, |ia_dot| times_s::<_, N, UNIT>(ia_dot, s));
+        let d_dot = s_transpose_times_columns::<_, N, UNIT>(s, &ia_dot_s);
         let gain_t_dot = d_inv * (ia_dot_s.transpose() - d_dot * gain.transpose());
         let r_dot = r * upper_half(&(r_inv * d_dot * r_inv.transpose()));
         (r_dot.transpose() * w + r.transpose() * (gain_t_dot * v_plus), ia_dot_s, d_dot)
@@ -118,16 +121,16 @@ fn bias_link<const N: usize, const UNIT: usize, const RATES: bool>(
             SpatialVec::zeros()
         } else {
             // Gravity is an external force m g at the centre of mass: p = −f_ext.
-            let g_link = ws.x_world[i].rot * model.gravity;
-            -spatial(&link.mass_moment.cross(&g_link), &(link.mass * g_link))
+            let g_link = ws.x_world[i].rot * real::<S, 3, 1>(&model.gravity);
+            -spatial(&real::<S, 3, 1>(&link.mass_moment).cross(&g_link), &(g_link * S::from(link.mass)))
         };
         if has_children {
             p_force += ws.p_force_body[i];
         }
         p_force
     };
-    let u_force: SVector<f64, N> = if forces {
-        ws.tau_passive.fixed_rows::<N>(adr) - s_transpose_times::<N, UNIT>(s, &p_force)
+    let u_force: SVector<S, N> = if forces {
+        ws.tau_passive.fixed_rows::<N>(adr) - s_transpose_times::<_, N, UNIT>(s, &p_force)
     } else {
         SVector::zeros()
     };
@@ -161,7 +164,7 @@ fn bias_link<const N: usize, const UNIT: usize, const RATES: bool>(
         // A′ = İ^A S − ½ G Ḋ (rank-N updates instead of two 6×6 products),
         // and v_J ×* I^a − I^a v_J × = −(B + Bᵀ) with B = I^a (v_J ×), I^a
         // symmetric; so Q = B + G A′ᵀ.
-        let a_shifted = ia_dot_s - gain * (0.5 * d_dot);
+        let a_shifted = ia_dot_s - gain * (d_dot * S::from(0.5));
         let q = mul_cross_motion(ia_reduced, &v_joint) + gain * a_shifted.transpose();
         let child_term = match ia_dot {
             Some(ia_dot) => ia_dot - q - q.transpose(),
@@ -184,6 +187,12 @@ pub(crate) fn bias_pass<const RATES: bool>(model: &Model, ws: &mut Workspace, ep
             super::tendon::add_passive_forces(model, ws);
         }
     }
+    link_sweep::<_, RATES>(model, ws, eps, forces);
+}
+
+/// Pass 3's sweep over the links, with the passive joint forces already
+/// in `tau_passive` when `forces` (else their ε is zero).
+pub(crate) fn link_sweep<S: Real, const RATES: bool>(model: &Model, ws: &mut Workspace<S>, eps: &[S], forces: bool) {
     for i in (0..model.links.len()).rev() {
         by_subspace!(ws.subspaces[i], bias_link::<RATES>(model, ws, i, eps, forces));
     }

@@ -8,7 +8,7 @@
 use nalgebra::SVector;
 
 use super::{DynamicsError, accumulate, block, check_input, check_length, cols, require};
-use crate::math::{SpatialVec, Transform};
+use crate::math::{Real, SpatialVec, Transform, real};
 use crate::model::Model;
 use crate::workspace::{Accumulation, Stage, Workspace};
 
@@ -21,60 +21,60 @@ enum Direction {
     TorqueFromEps,
 }
 
-fn inward_link<const N: usize>(
+fn inward_link<S: Real, const N: usize>(
     model: &Model,
-    ws: &mut Workspace,
+    ws: &mut Workspace<S>,
     i: usize,
     direction: Direction,
-    input: &[f64],
-    body_forces: Option<&[SpatialVec]>,
-    out: &mut [f64],
+    input: &[S],
+    body_forces: Option<&[SpatialVec<S>]>,
+    out: &mut [S],
 ) {
     let link = &model.links[i];
     let adr = link.dof_adr;
-    let s = cols::<N>(&link.motion_subspace);
+    let s = real(&cols::<_, N>(&link.motion_subspace));
     let mut p = body_forces.map_or(SpatialVec::zeros(), |f| -f[i]);
     if ws.accumulation[i].has_children {
         p += ws.p_scratch_body[i];
     }
-    let x: SVector<f64, N> = SVector::from_column_slice(&input[adr..adr + N]);
+    let x: SVector<S, N> = SVector::from_column_slice(&input[adr..adr + N]);
     let (u, y) = match direction {
         Direction::EpsFromTorque => {
             let u = x - s.transpose() * p;
-            (u, block::<N>(&ws.r_inv_joint[i]) * u)
+            (u, block::<_, N>(&ws.r_inv_joint[i]) * u)
         }
         Direction::TorqueFromEps => {
-            let u = block::<N>(&ws.r_joint[i]) * x;
+            let u = block::<_, N>(&ws.r_joint[i]) * x;
             (u, u + s.transpose() * p)
         }
     };
     out[adr..adr + N].copy_from_slice(y.as_slice());
     if let Some(parent) = link.parent {
-        let p_reduced = p + cols::<N>(&ws.gain[i]) * u;
+        let p_reduced = p + cols::<_, N>(&ws.gain[i]) * u;
         let to_parent = ws.x_parent[i].apply_transpose_force(&p_reduced);
         accumulate(&mut ws.p_scratch_body[parent], to_parent, ws.accumulation[i].opens_parent);
     }
 }
 
-fn inward_pass(
+fn inward_pass<S: Real>(
     model: &Model,
-    ws: &mut Workspace,
+    ws: &mut Workspace<S>,
     direction: Direction,
-    input: &[f64],
-    body_forces: Option<&[SpatialVec]>,
-    out: &mut [f64],
+    input: &[S],
+    body_forces: Option<&[SpatialVec<S>]>,
+    out: &mut [S],
 ) {
     for i in (0..model.links.len()).rev() {
         match model.links[i].ndof {
-            1 => inward_link::<1>(model, ws, i, direction, input, body_forces, out),
-            _ => inward_link::<3>(model, ws, i, direction, input, body_forces, out),
+            1 => inward_link::<_, 1>(model, ws, i, direction, input, body_forces, out),
+            _ => inward_link::<_, 3>(model, ws, i, direction, input, body_forces, out),
         }
     }
 }
 
 /// ε = ℓ(θ)T for joint torques `torque`, for passes that have just set the
 /// configuration (no stage or length checks: the caller's buffers are the model's).
-pub(super) fn eps_of_torque(model: &Model, ws: &mut Workspace, torque: &[f64], eps: &mut [f64]) {
+pub(super) fn eps_of_torque<S: Real>(model: &Model, ws: &mut Workspace<S>, torque: &[S], eps: &mut [S]) {
     inward_pass(model, ws, Direction::EpsFromTorque, torque, None, eps);
 }
 
@@ -82,13 +82,13 @@ pub(super) fn eps_of_torque(model: &Model, ws: &mut Workspace, torque: &[f64], e
 /// coordinates, about the link origin): p_i = f_i + Σ_children Xᵀ p_c,
 /// T_i += S_iᵀ p_i. `p` holds each link's share from its children
 /// (set by the first child the pass reaches, so it needs no clearing).
-pub(crate) fn add_joint_forces_of_wrenches(
+pub(crate) fn add_joint_forces_of_wrenches<S: Real>(
     model: &Model,
-    x_parent: &[Transform],
+    x_parent: &[Transform<S>],
     accumulation: &[Accumulation],
-    p: &mut [SpatialVec],
-    wrenches: &[SpatialVec],
-    torque: &mut [f64],
+    p: &mut [SpatialVec<S>],
+    wrenches: &[SpatialVec<S>],
+    torque: &mut [S],
 ) {
     for i in (0..model.links.len()).rev() {
         let link = &model.links[i];
@@ -97,7 +97,7 @@ pub(crate) fn add_joint_forces_of_wrenches(
             total += p[i];
         }
         for k in 0..link.ndof {
-            torque[link.dof_adr + k] += link.motion_subspace.column(k).dot(&total);
+            torque[link.dof_adr + k] += real::<S, 6, 1>(&link.motion_subspace.column(k).into_owned()).dot(&total);
         }
         if let Some(parent) = link.parent {
             accumulate(&mut p[parent], x_parent[i].apply_transpose_force(&total), accumulation[i].opens_parent);

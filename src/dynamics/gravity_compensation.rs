@@ -7,20 +7,20 @@
 //! pass 3 (which takes the rest as a passive force).
 
 use super::forces;
-use crate::math::spatial;
+use crate::math::{Real, real, spatial};
 use crate::model::Model;
 use crate::workspace::Workspace;
 
 /// Fills `qfrc_gravcomp`. Only the compensated links' wrenches are written:
 /// the others stay zero from the workspace's creation.
-pub(crate) fn gravity_compensation_pass(model: &Model, ws: &mut Workspace) {
+pub(crate) fn gravity_compensation_pass<S: Real>(model: &Model, ws: &mut Workspace<S>) {
     ws.world_transforms(model);
     for compensated in &model.gravity_compensation.links {
-        let g_link = ws.x_world[compensated.link].rot * model.gravity;
+        let g_link = ws.x_world[compensated.link].rot * real::<S, 3, 1>(&model.gravity);
         ws.gravcomp_wrench[compensated.link] =
-            -spatial(&compensated.mass_moment.cross(&g_link), &(compensated.mass * g_link));
+            -spatial(&real::<S, 3, 1>(&compensated.mass_moment).cross(&g_link), &(g_link * S::from(compensated.mass)));
     }
-    ws.qfrc_gravcomp.fill(0.0);
+    ws.qfrc_gravcomp.fill(S::zero());
     forces::add_joint_forces_of_wrenches(
         model,
         &ws.x_parent,

@@ -9,7 +9,7 @@
 use nalgebra::{Rotation3, Unit};
 
 use super::DynamicsError;
-use crate::math::{Mat3, Transform, Vec3, normalize_wxyz, quat_from_wxyz};
+use crate::math::{Mat3, Real, Transform, Vec3, normalize_wxyz, quat_from_wxyz, real};
 use crate::model::{Link, LinkJoint, Model};
 use crate::workspace::Workspace;
 
@@ -17,15 +17,16 @@ use crate::workspace::Workspace;
 /// Quaternions are normalized in `theta` (as MuJoCo does). Inlined into
 /// pass 1, which would otherwise take the transform back through memory.
 #[inline]
-pub fn joint_transform(link: &Link, theta: &mut [f64]) -> Result<Transform, DynamicsError> {
+pub fn joint_transform<S: Real>(link: &Link, theta: &mut [S]) -> Result<Transform<S>, DynamicsError> {
     let q = &mut theta[link.qpos_adr..];
-    let rotate_about_anchor = |rot: Mat3| Transform::from_pose(&rot, &(link.anchor - rot * link.anchor));
+    let (axis, anchor) = (real::<S, 3, 1>(&link.axis), real::<S, 3, 1>(&link.anchor));
+    let rotate_about_anchor = |rot: Mat3<S>| Transform::from_pose(&rot, &(anchor - rot * anchor));
     Ok(match link.joint {
         LinkJoint::Hinge => {
             let angle = q[0] - link.reference;
-            rotate_about_anchor(Rotation3::from_axis_angle(&Unit::new_unchecked(link.axis), angle).into_inner())
+            rotate_about_anchor(Rotation3::from_axis_angle(&Unit::new_unchecked(axis), angle).into_inner())
         }
-        LinkJoint::Slide => Transform::from_pose(&Mat3::identity(), &(link.axis * (q[0] - link.reference))),
+        LinkJoint::Slide => Transform::from_pose(&Mat3::identity(), &(axis * (q[0] - link.reference))),
         LinkJoint::Ball => {
             if normalize_wxyz(q).is_none() {
                 return Err(DynamicsError::ZeroQuaternion { joint: link.joint_name.clone(), qpos_adr: link.qpos_adr });
@@ -47,9 +48,9 @@ pub fn joint_transform(link: &Link, theta: &mut [f64]) -> Result<Transform, Dyna
 /// place: the entries nalgebra's axis-angle formula gives for that axis,
 /// without its products (bit for bit).
 #[inline(always)]
-pub(crate) fn place_link<const N: usize, const UNIT: usize>(
+pub(crate) fn place_link<S: Real, const N: usize, const UNIT: usize>(
     model: &Model,
-    ws: &mut Workspace,
+    ws: &mut Workspace<S>,
     i: usize,
 ) -> Result<(), DynamicsError> {
     let link = &model.links[i];
@@ -58,19 +59,19 @@ pub(crate) fn place_link<const N: usize, const UNIT: usize>(
         let (a, b) = ((UNIT + 1) % 3, (UNIT + 2) % 3);
         let mut rot = Mat3::identity();
         // 0 ± sin: the signed zeros of nalgebra's formula at θ = 0 too.
-        (rot[(a, a)], rot[(a, b)], rot[(b, a)], rot[(b, b)]) = (cos, 0.0 - sin, 0.0 + sin, cos);
+        (rot[(a, a)], rot[(a, b)], rot[(b, a)], rot[(b, b)]) = (cos, S::zero() - sin, S::zero() + sin, cos);
         Transform::from_pose(&rot, &Vec3::zeros())
     } else {
         joint_transform(link, ws.theta.as_mut_slice())?
     };
-    ws.x_parent[i] = x_joint.compose(&link.x_tree);
+    ws.x_parent[i] = x_joint.compose(&link.x_tree.real());
     Ok(())
 }
 
-impl Workspace {
+impl<S: Real> Workspace<S> {
     /// ⁱX₀ of every link for the current configuration, computed now if
     /// pass 0 skipped them (a model without gravity).
-    pub fn world_transforms(&mut self, model: &Model) -> &[Transform] {
+    pub fn world_transforms(&mut self, model: &Model) -> &[Transform<S>] {
         if !self.world_transforms_current {
             world_transforms_pass(model, self);
         }
@@ -79,7 +80,7 @@ impl Workspace {
 }
 
 /// ⁱX₀ = ⁱX_λ · ᵝX₀, base to tip, from `x_parent`.
-pub(crate) fn world_transforms_pass(model: &Model, ws: &mut Workspace) {
+pub(crate) fn world_transforms_pass<S: Real>(model: &Model, ws: &mut Workspace<S>) {
     for (i, link) in model.links.iter().enumerate() {
         ws.x_world[i] = match link.parent {
             Some(p) => ws.x_parent[i].compose(&ws.x_world[p]),

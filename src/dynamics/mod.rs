@@ -42,6 +42,7 @@ pub use tendon_inertia::TendonInertiaState;
 
 use nalgebra::SMatrix;
 
+use crate::math::Real;
 use crate::model::Model;
 use crate::workspace::{Stage, Workspace};
 
@@ -133,7 +134,7 @@ pub(crate) fn check_input(what: &'static str, values: &[f64], expected: usize) -
 }
 
 /// Checks that the workspace has reached `needed`.
-pub(crate) fn require(ws: &Workspace, needed: Stage, call: &'static str) -> Result<(), DynamicsError> {
+pub(crate) fn require<S: Real>(ws: &Workspace<S>, needed: Stage, call: &'static str) -> Result<(), DynamicsError> {
     if ws.stage < needed {
         return Err(DynamicsError::OutOfOrder { call, needed });
     }
@@ -153,13 +154,13 @@ pub(crate) fn accumulate<T: std::ops::AddAssign>(slot: &mut T, value: T, opens_p
 
 /// An N×N block of a padded 3×3 matrix.
 #[inline(always)]
-pub(crate) fn block<const N: usize>(m: &nalgebra::Matrix3<f64>) -> SMatrix<f64, N, N> {
+pub(crate) fn block<S: Real, const N: usize>(m: &nalgebra::Matrix3<S>) -> SMatrix<S, N, N> {
     m.fixed_view::<N, N>(0, 0).into_owned()
 }
 
 /// The first N columns of a padded 6×3 matrix.
 #[inline(always)]
-pub(crate) fn cols<const N: usize>(m: &SMatrix<f64, 6, 3>) -> SMatrix<f64, 6, N> {
+pub(crate) fn cols<S: Real, const N: usize>(m: &SMatrix<S, 6, 3>) -> SMatrix<S, 6, N> {
     m.fixed_columns::<N>(0).into_owned()
 }
 
@@ -182,14 +183,7 @@ impl Workspace {
         check_input("theta", theta, model.nq)?;
         self.stage = Stage::Empty;
         self.theta.copy_from_slice(theta);
-        self.world_transforms_current = false;
-        articulated::articulated_pass(model, self)?;
-        if !model.shortcuts.no_gravity {
-            kinematics::world_transforms_pass(model, self);
-        }
-        if !model.gravity_compensation.is_empty() {
-            gravity_compensation::gravity_compensation_pass(model, self);
-        }
+        self.configuration_passes(model)?;
         if !model.tendons.is_empty() {
             self.tendon_kinematics(model);
         }
@@ -259,5 +253,22 @@ impl Workspace {
         self.stage = Stage::JointRates;
         self.inputs_applied = false;
         self.compute_accelerations(model)
+    }
+}
+
+impl<S: Real> Workspace<S> {
+    /// Passes 0 and 1, and what the configuration alone gives of the tree
+    /// (world placements, gravity compensation), for `self.theta`; the
+    /// tendons' kinematics are the caller's.
+    pub(crate) fn configuration_passes(&mut self, model: &Model) -> Result<(), DynamicsError> {
+        self.world_transforms_current = false;
+        articulated::articulated_pass(model, self)?;
+        if !model.shortcuts.no_gravity {
+            kinematics::world_transforms_pass(model, self);
+        }
+        if !model.gravity_compensation.is_empty() {
+            gravity_compensation::gravity_compensation_pass(model, self);
+        }
+        Ok(())
     }
 }

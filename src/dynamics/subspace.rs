@@ -19,7 +19,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::cols;
-use crate::math::{SpatialMat, SpatialVec};
+use crate::math::{Real, SpatialMat, SpatialVec, real};
 use crate::model::MotionSubspace;
 
 /// `UNIT` of a link whose S is not columns of the identity.
@@ -68,13 +68,13 @@ macro_rules! by_subspace {
     ($shape:expr, $f:ident $(::<$($extra:ident),*>)? ($($arg:expr),* $(,)?)) => {{
         use $crate::dynamics::subspace::{GENERAL, Subspace};
         match $shape {
-            Subspace::AboutX => $f::<1, 0 $($(, $extra)*)?>($($arg),*),
-            Subspace::AboutY => $f::<1, 1 $($(, $extra)*)?>($($arg),*),
-            Subspace::AboutZ => $f::<1, 2 $($(, $extra)*)?>($($arg),*),
-            Subspace::Rotation => $f::<3, 0 $($(, $extra)*)?>($($arg),*),
-            Subspace::Translation => $f::<3, 3 $($(, $extra)*)?>($($arg),*),
-            Subspace::General1 => $f::<1, GENERAL $($(, $extra)*)?>($($arg),*),
-            Subspace::General3 => $f::<3, GENERAL $($(, $extra)*)?>($($arg),*),
+            Subspace::AboutX => $f::<_, 1, 0 $($(, $extra)*)?>($($arg),*),
+            Subspace::AboutY => $f::<_, 1, 1 $($(, $extra)*)?>($($arg),*),
+            Subspace::AboutZ => $f::<_, 1, 2 $($(, $extra)*)?>($($arg),*),
+            Subspace::Rotation => $f::<_, 3, 0 $($(, $extra)*)?>($($arg),*),
+            Subspace::Translation => $f::<_, 3, 3 $($(, $extra)*)?>($($arg),*),
+            Subspace::General1 => $f::<_, 1, GENERAL $($(, $extra)*)?>($($arg),*),
+            Subspace::General3 => $f::<_, 3, GENERAL $($(, $extra)*)?>($($arg),*),
         }
     }};
 }
@@ -82,9 +82,12 @@ pub(crate) use by_subspace;
 
 /// S x.
 #[inline(always)]
-pub(crate) fn s_times<const N: usize, const UNIT: usize>(s: &MotionSubspace, x: &SVector<f64, N>) -> SpatialVec {
+pub(crate) fn s_times<S: Real, const N: usize, const UNIT: usize>(
+    s: &MotionSubspace,
+    x: &SVector<S, N>,
+) -> SpatialVec<S> {
     if UNIT == GENERAL {
-        cols::<N>(s) * x
+        real(&cols::<f64, N>(s)) * x
     } else {
         let mut out = SpatialVec::zeros();
         out.fixed_rows_mut::<N>(UNIT).copy_from(x);
@@ -95,13 +98,13 @@ pub(crate) fn s_times<const N: usize, const UNIT: usize>(s: &MotionSubspace, x: 
 /// v += S x (in place: a unit S adds into v's rows, with no vector of zeros
 /// written and read back).
 #[inline(always)]
-pub(crate) fn add_s_times<const N: usize, const UNIT: usize>(
-    v: &mut SpatialVec,
+pub(crate) fn add_s_times<S: Real, const N: usize, const UNIT: usize>(
+    v: &mut SpatialVec<S>,
     s: &MotionSubspace,
-    x: &SVector<f64, N>,
+    x: &SVector<S, N>,
 ) {
     if UNIT == GENERAL {
-        *v += cols::<N>(s) * x;
+        *v += real(&cols::<f64, N>(s)) * x;
     } else {
         for k in 0..N {
             v[UNIT + k] += x[k];
@@ -111,24 +114,27 @@ pub(crate) fn add_s_times<const N: usize, const UNIT: usize>(
 
 /// Sᵀ f.
 #[inline(always)]
-pub(crate) fn s_transpose_times<const N: usize, const UNIT: usize>(
+pub(crate) fn s_transpose_times<S: Real, const N: usize, const UNIT: usize>(
     s: &MotionSubspace,
-    f: &SpatialVec,
-) -> SVector<f64, N> {
-    if UNIT == GENERAL { cols::<N>(s).transpose() * f } else { f.fixed_rows::<N>(UNIT).into_owned() }
+    f: &SpatialVec<S>,
+) -> SVector<S, N> {
+    if UNIT == GENERAL { real(&cols::<f64, N>(s)).transpose() * f } else { f.fixed_rows::<N>(UNIT).into_owned() }
 }
 
 /// M S.
 #[inline(always)]
-pub(crate) fn times_s<const N: usize, const UNIT: usize>(m: &SpatialMat, s: &MotionSubspace) -> SMatrix<f64, 6, N> {
-    if UNIT == GENERAL { m * cols::<N>(s) } else { m.fixed_columns::<N>(UNIT).into_owned() }
+pub(crate) fn times_s<S: Real, const N: usize, const UNIT: usize>(
+    m: &SpatialMat<S>,
+    s: &MotionSubspace,
+) -> SMatrix<S, 6, N> {
+    if UNIT == GENERAL { m * real(&cols::<f64, N>(s)) } else { m.fixed_columns::<N>(UNIT).into_owned() }
 }
 
 /// Sᵀ M for M = U (6×N): the N×N block of its rows.
 #[inline(always)]
-pub(crate) fn s_transpose_times_columns<const N: usize, const UNIT: usize>(
+pub(crate) fn s_transpose_times_columns<S: Real, const N: usize, const UNIT: usize>(
     s: &MotionSubspace,
-    m: &SMatrix<f64, 6, N>,
-) -> SMatrix<f64, N, N> {
-    if UNIT == GENERAL { cols::<N>(s).transpose() * m } else { m.fixed_rows::<N>(UNIT).into_owned() }
+    m: &SMatrix<S, 6, N>,
+) -> SMatrix<S, N, N> {
+    if UNIT == GENERAL { real(&cols::<f64, N>(s)).transpose() * m } else { m.fixed_rows::<N>(UNIT).into_owned() }
 }

@@ -7,7 +7,7 @@
 use nalgebra::SVector;
 
 use super::{block, cols};
-use crate::math::SpatialVec;
+use crate::math::{Real, SpatialVec, real};
 use crate::model::Model;
 use crate::workspace::Workspace;
 
@@ -21,31 +21,31 @@ pub(crate) enum Given {
 }
 
 /// Pass 2 for one link with N dofs, whose parent's V is `v_parent`; returns its V.
-fn velocity_link<const N: usize>(
+fn velocity_link<S: Real, const N: usize>(
     model: &Model,
-    ws: &mut Workspace,
+    ws: &mut Workspace<S>,
     i: usize,
     given: Given,
-    v_parent: &SpatialVec,
-) -> SpatialVec {
+    v_parent: &SpatialVec<S>,
+) -> SpatialVec<S> {
     let link = &model.links[i];
     let adr = link.dof_adr;
     let v_plus = match link.parent {
         Some(_) => ws.x_parent[i].apply_motion(v_parent),
         None => SpatialVec::zeros(),
     };
-    let gain_t = cols::<N>(&ws.gain[i]).transpose();
-    let gv: SVector<f64, N> = gain_t * v_plus;
+    let gain_t = cols::<_, N>(&ws.gain[i]).transpose();
+    let gv: SVector<S, N> = gain_t * v_plus;
     let (w, qvel) = match given {
         Given::Nu => {
-            let nu: SVector<f64, N> = ws.nu.fixed_rows::<N>(adr).into_owned();
-            let w = block::<N>(&ws.r_inv_joint[i]).transpose() * nu;
+            let nu: SVector<S, N> = ws.nu.fixed_rows::<N>(adr).into_owned();
+            let w = block::<_, N>(&ws.r_inv_joint[i]).transpose() * nu;
             (w, w - gv)
         }
         Given::Qvel => {
-            let qvel: SVector<f64, N> = ws.qvel.fixed_rows::<N>(adr).into_owned();
+            let qvel: SVector<S, N> = ws.qvel.fixed_rows::<N>(adr).into_owned();
             let w = qvel + gv;
-            let nu = block::<N>(&ws.r_joint[i]).transpose() * w;
+            let nu = block::<_, N>(&ws.r_joint[i]).transpose() * w;
             ws.nu.fixed_rows_mut::<N>(adr).copy_from(&nu);
             (w, qvel)
         }
@@ -53,13 +53,13 @@ fn velocity_link<const N: usize>(
     ws.qvel.fixed_rows_mut::<N>(adr).copy_from(&qvel);
     ws.w_joint.fixed_rows_mut::<N>(adr).copy_from(&w);
     ws.v_plus_body[i] = v_plus;
-    let v = v_plus + cols::<N>(&link.motion_subspace) * qvel;
+    let v = v_plus + real(&cols::<_, N>(&link.motion_subspace)) * qvel;
     ws.v_body[i] = v;
     v
 }
 
 /// Pass 2 over all links.
-pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, given: Given) {
+pub(crate) fn velocity_pass<S: Real>(model: &Model, ws: &mut Workspace<S>, given: Given) {
     // The previous link's V, handed over in registers when it is the
     // parent (as along a chain): read back from `v_body` right after its
     // store, its linear half straddles two of the store's 16-byte writes,
@@ -72,8 +72,8 @@ pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, given: Given) {
             None => SpatialVec::zeros(),
         };
         v_previous = match model.links[i].ndof {
-            1 => velocity_link::<1>(model, ws, i, given, &v_parent),
-            _ => velocity_link::<3>(model, ws, i, given, &v_parent),
+            1 => velocity_link::<_, 1>(model, ws, i, given, &v_parent),
+            _ => velocity_link::<_, 3>(model, ws, i, given, &v_parent),
         };
     }
 }

@@ -23,7 +23,9 @@ use std::collections::HashMap;
 use nalgebra::SMatrix;
 use serde::{Deserialize, Serialize};
 
-use crate::math::{Mat3, Quat, SpatialMat, SpatialVec, Transform, Vec3, angular, linear, rigid_inertia, skew, spatial};
+use crate::math::{
+    Mat3, Quat, Real, SpatialMat, SpatialVec, Transform, Vec3, angular, linear, real, rigid_inertia, skew, spatial,
+};
 use crate::vehicle::{
     Actuation, ActuatorKind, BiasType, GainType, JointKind, MassProperties, SensorKind, Transmission, Vehicle,
 };
@@ -121,7 +123,7 @@ impl Link {
     /// 1 adds it to the children's share, which a zero matrix filled and
     /// added whole would cost 36 stores and additions more).
     #[inline(always)]
-    pub fn add_spatial_inertia_to(&self, sum: &mut SpatialMat) {
+    pub fn add_spatial_inertia_to<S: Real>(&self, sum: &mut SpatialMat<S>) {
         let h = &self.mass_moment;
         for row in 0..3 {
             for col in 0..3 {
@@ -139,10 +141,10 @@ impl Link {
 
     /// The spatial inertia times a motion vector (ω, v): (Īω + h × v, m v − h × ω).
     #[inline]
-    pub fn inertia_times(&self, motion: &SpatialVec) -> SpatialVec {
+    pub fn inertia_times<S: Real>(&self, motion: &SpatialVec<S>) -> SpatialVec<S> {
         let (w, v) = (angular(motion), linear(motion));
-        let h = self.mass_moment;
-        spatial(&(self.rotational_inertia * w + h.cross(&v)), &(self.mass * v - h.cross(&w)))
+        let h = real::<S, 3, 1>(&self.mass_moment);
+        spatial(&(real(&self.rotational_inertia) * w + h.cross(&v)), &(v * S::from(self.mass) - h.cross(&w)))
     }
 }
 
