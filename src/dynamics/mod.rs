@@ -15,7 +15,8 @@
 //! [`sensors`] evaluates MuJoCo's sensors, `interaction` the bodies'
 //! interaction forces that its force and torque sensors read;
 //! [`quantities`] gives kinetic energy, power and momentum; [`subspace`]
-//! the shapes of the links' motion subspaces that the passes specialize on.
+//! the shapes of the links' motion subspaces that the passes specialize on;
+//! [`derivatives`] runs the passes in dual numbers for exact derivatives.
 
 pub mod acceleration;
 pub mod actuation;
@@ -23,6 +24,7 @@ pub mod articulated;
 pub mod bias;
 pub mod box_qp;
 pub mod constraint;
+pub mod derivatives;
 mod equality;
 pub mod forces;
 mod gravity_compensation;

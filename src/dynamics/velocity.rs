@@ -12,8 +12,8 @@ use crate::model::Model;
 use crate::workspace::Workspace;
 
 /// Which of ν and θ̇ is given.
-#[derive(Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Given {
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Given {
     /// ν is in `ws.nu`; compute θ̇.
     Nu,
     /// θ̇ is in `ws.qvel`; compute ν.

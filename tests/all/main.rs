@@ -17,6 +17,7 @@ mod compile_stage;
 mod constraints;
 mod control_law;
 mod deep_trees;
+mod derivatives;
 mod dynamics_checks;
 mod dynamics_errors;
 mod gravity_compensation;
