@@ -12,7 +12,8 @@
 //! - [`dynamics`]: the O(N) passes and the operators built from them;
 //! - [`integrate`]: Runge–Kutta–Munthe-Kaas steps, error control;
 //! - [`control`]: the paper's noninteracting control law;
-//! - [`eval`], [`describe`]: `nudyn eval`'s and `nudyn describe`'s data.
+//! - [`eval`], [`describe`], [`linearize`]: `nudyn eval`'s, `nudyn describe`'s
+//!   and `nudyn linearize`'s data.
 //!
 //! This crate has no FMI, command-line or archive code: the FMI contract is
 //! the `nudyn-contract` crate, the FMU binary `nudyn-fmu`, and the `nudyn`
@@ -25,6 +26,7 @@ pub mod describe;
 pub mod dynamics;
 pub mod eval;
 pub mod integrate;
+pub mod linearize;
 pub mod math;
 pub mod mjcf;
 pub mod model;

@@ -9,6 +9,7 @@ use clap::{Parser, Subcommand};
 use nudyn::control::ControlLaw;
 use nudyn::eval::{EvalRequest, EvalResponse, evaluate};
 use nudyn::integrate::{MethodSetting, Settings};
+use nudyn::linearize::{Inputs, LinearOutput};
 use nudyn::model::Model;
 use nudyn::vehicle::{ConstraintKind, Vehicle};
 use nudyn_cli::export::controller::write_controller_fmu;
@@ -19,6 +20,7 @@ use nudyn_contract::plant::{DEFAULT_METHOD, DEFAULT_TOLERANCE, OptionalOutputs, 
 use serde::Deserialize;
 use simulate::Format;
 
+mod linearize;
 mod simulate;
 
 #[derive(Parser)]
@@ -158,6 +160,46 @@ enum Command {
         #[arg(long, value_enum, default_value = "json")]
         format: Format,
     },
+    /// Linearize the dynamics at a state from their exact derivatives:
+    /// A, B, C, D of dx/dt = A x + B u, y = C x + D u, with x = (dq, qvel)
+    /// (dq the displacement in the tangent space, rotations as rotation
+    /// vectors in the body frame: MuJoCo's mjd_transitionFD state) and u
+    /// the eps inputs or the joint forces; with --step, the zero-order
+    /// hold's Ad, Bd. Writes JSON (stdout or --output) with the matrices by
+    /// rows and the names of x, u and y, optionally an .npz; prints the
+    /// eigenvalues (frequency, damping) on stderr. Vehicles with actuators,
+    /// tendons or constraint forces are refused for now.
+    Linearize {
+        /// The vehicle's MJCF file.
+        model: PathBuf,
+        /// θ (nq values, comma-separated); default the model's qpos0.
+        #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+        qpos: Option<Vec<f64>>,
+        /// θ̇ (nv values); default 0.
+        #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+        qvel: Option<Vec<f64>>,
+        /// The eps held at the point (nv values); default 0.
+        #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+        eps: Option<Vec<f64>>,
+        /// The joint forces held at the point (nv values, MuJoCo's qfrc_applied); default 0.
+        #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+        torque: Option<Vec<f64>>,
+        /// The inputs u of B and D.
+        #[arg(long, value_enum, default_value = "eps")]
+        inputs: InputsArg,
+        /// The outputs y of C and D, comma-separated: qpos (dq), qvel, nu, qacc.
+        #[arg(long, value_enum, value_delimiter = ',', default_value = "qpos,qvel")]
+        outputs: Vec<OutputArg>,
+        /// Also the zero-order hold's discrete pair for this step (s).
+        #[arg(long, allow_hyphen_values = true)]
+        step: Option<f64>,
+        /// The JSON file to write (default: stdout).
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+        /// Also write the matrices as NumPy's .npz.
+        #[arg(long)]
+        npz: Option<PathBuf>,
+    },
     /// Write the plant and its controller as one SSP 1.0 system file
     /// (docs/systems.md): SystemStructure.ssd connecting plant θ, ν to the
     /// controller and the controller's ε to the plant, both FMUs in
@@ -192,6 +234,28 @@ enum Command {
         #[arg(long = "set", value_name = "COMPONENT.NAME=VALUE", allow_hyphen_values = true)]
         sets: Vec<String>,
     },
+}
+
+/// `nudyn linearize --inputs`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum InputsArg {
+    /// ε, the FMU's inputs.
+    Eps,
+    /// The physical joint forces (MuJoCo's qfrc_applied).
+    Torque,
+}
+
+/// `nudyn linearize --outputs`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum OutputArg {
+    /// dq.
+    Qpos,
+    /// θ̇.
+    Qvel,
+    /// ν = m*θ̇.
+    Nu,
+    /// θ̈.
+    Qacc,
 }
 
 /// `--outputs`' help, from the contract's list of optional outputs.
@@ -321,6 +385,38 @@ fn run(cli: Cli) -> Result<()> {
                 sets,
             };
             system(&model, &output, end_effector.as_deref(), &options)
+        }
+        Command::Linearize { model, qpos, qvel, eps, torque, inputs, outputs, step, output, npz } => {
+            if let Some(h) = step
+                && !(h.is_finite() && h > 0.0)
+            {
+                bail!("--step must be a positive number of seconds, not {h}");
+            }
+            let outputs: Vec<LinearOutput> = outputs
+                .iter()
+                .map(|o| match o {
+                    OutputArg::Qpos => LinearOutput::Qpos,
+                    OutputArg::Qvel => LinearOutput::Qvel,
+                    OutputArg::Nu => LinearOutput::Nu,
+                    OutputArg::Qacc => LinearOutput::Qacc,
+                })
+                .collect();
+            let inputs = match inputs {
+                InputsArg::Eps => Inputs::Eps,
+                InputsArg::Torque => Inputs::Torque,
+            };
+            let request = linearize::Request {
+                qpos,
+                qvel,
+                eps,
+                torque,
+                inputs,
+                outputs: &outputs,
+                step,
+                json: output.as_deref(),
+                npz: npz.as_deref(),
+            };
+            linearize::run(&load_model(&model)?, &request)
         }
         Command::Simulate { model, step, stop, method, tolerance, max_step, energy_projection, format } => {
             let settings = Settings { tolerance, max_step: max_step.unwrap_or(step), energy_projection };

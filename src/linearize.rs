@@ -1,0 +1,169 @@
+//! `nudyn linearize`: the dynamics linearized at a state, A, B, C, D, from
+//! the exact derivatives of [`crate::dynamics::derivatives`].
+//!
+//! The state is MuJoCo's for linearization (that of `mjd_transitionFD`):
+//! x = (δq, θ̇), δq the displacement from the point's θ in the tangent
+//! space (q = q₀ ⊕ δq: a quaternion rotated by the rotation vector δq in
+//! its body frame, every other coordinate moved by δq), θ̇ MuJoCo's qvel.
+//! ẋ = (δq̇, θ̈) with δq̇ = θ̇ except for a ball or free joint's rotation,
+//! whose rotation vector moves as δq̇ = J_r(δq)⁻¹ω = ω + ½ δq × ω + O(δq²),
+//! so that ∂δq̇/∂δq = −½[ω]× at the point. The inputs u are ε or the
+//! physical joint forces T (MuJoCo's qfrc_applied), held beside the
+//! point's. With a step H, the pair of the zero-order hold:
+//! A_d = e^{AH}, B_d = ∫₀ᴴ e^{As} ds B, from the exponential of [[A, B], [0, 0]]·H.
+
+use nalgebra::DMatrix;
+
+use crate::dynamics::derivatives::{DerivativeError, Derivatives, Jacobians, Output, Point};
+use crate::dynamics::velocity::Given;
+use crate::model::{LinkJoint, Model};
+
+/// Which inputs the linearization's B and D are for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Inputs {
+    /// ε, the FMU's inputs.
+    Eps,
+    /// The physical joint forces T (MuJoCo's qfrc_applied).
+    Torque,
+}
+
+/// An output of the linearization, each nv rows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LinearOutput {
+    /// δq.
+    Qpos,
+    /// θ̇.
+    Qvel,
+    /// ν = m*(θ)θ̇.
+    Nu,
+    /// θ̈.
+    Qacc,
+}
+
+impl LinearOutput {
+    /// Every output, in the order of their names.
+    pub const ALL: [LinearOutput; 4] = [LinearOutput::Qpos, LinearOutput::Qvel, LinearOutput::Nu, LinearOutput::Qacc];
+
+    /// The output's name on the command line and in the files.
+    pub fn name(self) -> &'static str {
+        match self {
+            LinearOutput::Qpos => "qpos",
+            LinearOutput::Qvel => "qvel",
+            LinearOutput::Nu => "nu",
+            LinearOutput::Qacc => "qacc",
+        }
+    }
+}
+
+/// The point of the linearization: θ (nq), θ̇ (nv), and the ε and T held (nv each).
+#[derive(Clone, Debug)]
+pub struct OperatingPoint {
+    /// θ (qpos).
+    pub qpos: Vec<f64>,
+    /// θ̇ (qvel).
+    pub qvel: Vec<f64>,
+    /// ε held.
+    pub eps: Vec<f64>,
+    /// T held.
+    pub torque: Vec<f64>,
+}
+
+/// ẋ = A x + B u, y = C x + D u at the point; `discrete` with a step.
+#[derive(Clone, Debug)]
+pub struct Linearization {
+    /// 2nv × 2nv.
+    pub a: DMatrix<f64>,
+    /// 2nv × nv.
+    pub b: DMatrix<f64>,
+    /// The outputs' rows, nv each, in the order asked.
+    pub c: DMatrix<f64>,
+    /// See `c`.
+    pub d: DMatrix<f64>,
+    /// The eigenvalues of A (1/s), by modulus, then imaginary part.
+    pub eigenvalues: Vec<nalgebra::Complex<f64>>,
+    /// The zero-order hold's (H, A_d, B_d).
+    pub discrete: Option<(f64, DMatrix<f64>, DMatrix<f64>)>,
+}
+
+/// Linearizes the model at `point` for `inputs` and `outputs`; with `step`
+/// also the zero-order hold's pair.
+pub fn linearize(
+    model: &Model,
+    point: &OperatingPoint,
+    inputs: Inputs,
+    outputs: &[LinearOutput],
+    step: Option<f64>,
+) -> Result<Linearization, DerivativeError> {
+    let nv = model.nv;
+    let mut derivatives = Derivatives::new(model)?;
+    let at =
+        Point { theta: &point.qpos, velocity: &point.qvel, given: Given::Qvel, eps: &point.eps, torque: &point.torque };
+    let qacc = derivatives.jacobians(model, &at, Output::Qacc)?;
+    let input_columns = |j: &Jacobians| match inputs {
+        Inputs::Eps => j.eps.clone(),
+        Inputs::Torque => j.torque.clone(),
+    };
+    let mut a = DMatrix::zeros(2 * nv, 2 * nv);
+    a.view_mut((0, 0), (nv, nv)).copy_from(&rotation_vector_rates(model, &point.qvel));
+    a.view_mut((0, nv), (nv, nv)).fill_with_identity();
+    a.view_mut((nv, 0), (nv, nv)).copy_from(&qacc.theta);
+    a.view_mut((nv, nv), (nv, nv)).copy_from(&qacc.velocity);
+    let mut b = DMatrix::zeros(2 * nv, nv);
+    b.view_mut((nv, 0), (nv, nv)).copy_from(&input_columns(&qacc));
+
+    let mut c = DMatrix::zeros(nv * outputs.len(), 2 * nv);
+    let mut d = DMatrix::zeros(nv * outputs.len(), nv);
+    for (k, output) in outputs.iter().enumerate() {
+        let rows = k * nv;
+        match output {
+            LinearOutput::Qpos => c.view_mut((rows, 0), (nv, nv)).fill_with_identity(),
+            LinearOutput::Qvel => c.view_mut((rows, nv), (nv, nv)).fill_with_identity(),
+            LinearOutput::Nu => {
+                let nu = derivatives.jacobians(model, &at, Output::Nu)?;
+                c.view_mut((rows, 0), (nv, nv)).copy_from(&nu.theta);
+                c.view_mut((rows, nv), (nv, nv)).copy_from(&nu.velocity);
+            }
+            LinearOutput::Qacc => {
+                c.view_mut((rows, 0), (nv, 2 * nv)).copy_from(&a.rows(nv, nv));
+                d.view_mut((rows, 0), (nv, nv)).copy_from(&input_columns(&qacc));
+            }
+        }
+    }
+    let mut eigenvalues: Vec<_> = a.complex_eigenvalues().iter().copied().collect();
+    eigenvalues.sort_by(|x, y| x.norm().total_cmp(&y.norm()).then(x.im.total_cmp(&y.im)));
+    let discrete = step.map(|h| {
+        let (ad, bd) = zero_order_hold(&a, &b, h);
+        (h, ad, bd)
+    });
+    Ok(Linearization { a, b, c, d, eigenvalues, discrete })
+}
+
+/// ∂δq̇/∂δq at the point: −½[ω]× on each ball or free joint's rotation
+/// (ω its qvel, body frame), zero elsewhere.
+fn rotation_vector_rates(model: &Model, qvel: &[f64]) -> DMatrix<f64> {
+    let mut rates = DMatrix::zeros(model.nv, model.nv);
+    for link in model.links.iter().filter(|l| l.joint == LinkJoint::Ball) {
+        let w = nalgebra::Vector3::from_column_slice(&qvel[link.dof_adr..link.dof_adr + 3]);
+        let skew = crate::math::skew(&w) * -0.5;
+        rates.view_mut((link.dof_adr, link.dof_adr), (3, 3)).copy_from(&skew);
+    }
+    rates
+}
+
+/// The zero-order hold of ẋ = Ax + Bu over `h`: the top blocks of
+/// exp([[A, B], [0, 0]]·h).
+fn zero_order_hold(a: &DMatrix<f64>, b: &DMatrix<f64>, h: f64) -> (DMatrix<f64>, DMatrix<f64>) {
+    let (n, m) = (a.nrows(), b.ncols());
+    let mut augmented = DMatrix::zeros(n + m, n + m);
+    augmented.view_mut((0, 0), (n, n)).copy_from(&(a * h));
+    augmented.view_mut((0, n), (n, m)).copy_from(&(b * h));
+    let exponential = augmented.exp();
+    (exponential.view((0, 0), (n, n)).into_owned(), exponential.view((0, n), (n, m)).into_owned())
+}
+
+/// Frequency (Hz) and damping ratio of an eigenvalue: |λ|/2π and −Re λ/|λ|
+/// (1 for a real negative λ, −1 for a real positive one; NaN for λ = 0).
+pub fn frequency_and_damping(lambda: nalgebra::Complex<f64>) -> (f64, f64) {
+    let modulus = lambda.norm();
+    (modulus / (2.0 * std::f64::consts::PI), -lambda.re / modulus)
+}

@@ -1,0 +1,176 @@
+"""`nudyn linearize` against MuJoCo.
+
+The exact derivatives behind it (src/dynamics/derivatives.rs) are checked
+here against MuJoCo's own dynamics, on the example vehicles that have
+neither actuators nor constraint forces (the ones the derivatives cover
+so far), at random states:
+
+- ∂θ̈/∂(δq, θ̇, T), A's and B's lower halves, against central differences of
+  mj_forward (δq moved by mj_integratePos, as MuJoCo's mjd_transitionFD
+  does), with one Richardson step: within 1e-6 relative;
+- ∂θ̈/∂T against MuJoCo's M⁻¹ (mj_solveM): to round-off;
+- with --step H at an equilibrium, the zero-order hold's A_d against the
+  transition matrix of one step of MuJoCo's RK4 at step H, differenced
+  centrally as mjd_transitionFD does (which refuses RK4 in MuJoCo 4.0):
+  the difference is RK4's own truncation against the exact hold (measured
+  figures in docs/linearization.md).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import zlib
+
+import mujoco
+import numpy as np
+import pytest
+
+from conftest import EXAMPLES
+from nudyn_validation.mujoco_reference import Reference
+
+# The examples whose dynamics the derivatives cover (no actuators, tendons
+# or constraint forces).
+COVERED = [p for p in EXAMPLES if p.stem in ("bus_arm7", "chain60", "fixed_rig", "flexible_boom")]
+STEP = 1e-3
+
+
+def linearize(nudyn, path, *args):
+    proc = subprocess.run([str(nudyn), "linearize", str(path), *args], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout), proc.stderr
+
+
+def listed(values):
+    return ",".join(repr(float(v)) for v in values)
+
+
+def relative(a, b):
+    return np.abs(a - b).max() / max(1.0, np.abs(b).max())
+
+
+def mujoco_qacc_jacobians(ref: Reference, qpos, qvel, torque):
+    """∂θ̈/∂(δq, θ̇, T) by central differences of mj_forward, one Richardson
+    step (error O(h⁴))."""
+    m, nv = ref.model, ref.nv
+
+    def qacc(dq, dv, dt):
+        moved = qpos.copy()
+        mujoco.mj_integratePos(m, moved, dq, 1.0)
+        return ref.forward(moved, qvel + dv, torque + dt).qacc.copy()
+
+    def column(which, k, h):
+        unit = np.zeros(nv)
+        unit[k] = h
+        args = [np.zeros(nv)] * 3
+        plus, minus = list(args), list(args)
+        plus[which], minus[which] = unit, -unit
+        return (qacc(*plus) - qacc(*minus)) / (2 * h)
+
+    def jacobian(which, h):
+        richardson = lambda k: (4 * column(which, k, h / 2) - column(which, k, h)) / 3  # noqa: E731
+        return np.column_stack([richardson(k) for k in range(nv)])
+
+    return jacobian(0, STEP), jacobian(1, STEP), jacobian(2, STEP * 100)
+
+
+@pytest.fixture(scope="module", params=COVERED, ids=[p.stem for p in COVERED])
+def vehicle(request):
+    return request.param
+
+
+def test_the_continuous_pair_agrees_with_differences_of_mujoco(nudyn, vehicle):
+    ref = Reference.from_file(vehicle)
+    rng = np.random.default_rng(zlib.crc32(vehicle.stem.encode()))
+    for _ in range(3):
+        qpos, qvel, torque = ref.random_state(rng)
+        out, _ = linearize(nudyn, vehicle, "--qpos", listed(qpos), "--qvel", listed(qvel),
+                           "--torque", listed(torque), "--inputs", "torque")
+        nv = ref.nv
+        a, b = np.array(out["A"]), np.array(out["B"])
+        by_q, by_v, by_t = mujoco_qacc_jacobians(ref, qpos, qvel, torque)
+        for what, ours, theirs in [("dq", a[nv:, :nv], by_q), ("qvel", a[nv:, nv:], by_v), ("T", b[nv:], by_t)]:
+            print(f"{vehicle.stem}: ∂qacc/∂{what} {relative(ours, theirs):.1e} from MuJoCo's differences")
+            assert relative(ours, theirs) < 1e-6, f"∂qacc/∂{what}: {relative(ours, theirs):.2e}"
+        ref.forward(qpos, qvel, torque)
+        inverse = np.zeros((nv, nv))
+        mujoco.mj_solveM(ref.model, ref.data, inverse, np.eye(nv))
+        print(f"{vehicle.stem}: ∂qacc/∂T {relative(b[nv:], inverse):.1e} from M⁻¹")
+        assert relative(b[nv:], inverse) < 1e-10, f"∂qacc/∂T vs M⁻¹: {relative(b[nv:], inverse):.2e}"
+        assert np.array_equal(a[:nv, nv:], np.eye(nv)) and not b[:nv].any()
+
+
+def rk4_transition(ref: Reference, qpos, qvel, torque, h):
+    """∂x⁺/∂x of one step of MuJoCo's RK4 (x = (δq, θ̇), δq by
+    mj_integratePos and mj_differentiatePos), by central differences as
+    mjd_transitionFD (flg_centered) takes them: MuJoCo 4.0's mjd_transitionFD
+    refuses RK4 ("RK4 integrator is not supported")."""
+    m, nv = ref.model, ref.nv
+    m.opt.integrator = int(mujoco.mjtIntegrator.mjINT_RK4)
+    d = ref.data
+
+    def step(dx):
+        mujoco.mj_resetData(m, d)
+        d.qpos[:] = qpos
+        mujoco.mj_integratePos(m, d.qpos, dx[:nv], 1.0)
+        d.qvel[:] = qvel + dx[nv:]
+        d.qfrc_applied[:] = torque
+        mujoco.mj_step(m, d)
+        return d.qpos.copy(), d.qvel.copy()
+
+    transition = np.zeros((2 * nv, 2 * nv))
+    eps = 1e-6
+    for k in range(2 * nv):
+        dx = np.zeros(2 * nv)
+        dx[k] = eps
+        (qp, vp), (qm, vm) = step(dx), step(-dx)
+        position = np.zeros(nv)
+        mujoco.mj_differentiatePos(m, position, 2 * eps, qm, qp)
+        transition[:nv, k] = position
+        transition[nv:, k] = (vp - vm) / (2 * eps)
+    return transition
+
+
+def test_the_zero_order_hold_is_mujocos_rk4_transition_at_an_equilibrium(nudyn, vehicle):
+    """At rest with the joint forces that hold the vehicle there (gravity and
+    springs balanced), the one-step transition of the nonlinear dynamics is
+    e^{AH}, and MuJoCo's RK4 step differs from it by its truncation. (Away
+    from an equilibrium the two differ by O(H²): the flow's Jacobian takes
+    in how A changes along the motion over the step, the linearization's
+    hold does not; docs/linearization.md.)"""
+    ref = Reference.from_file(vehicle)
+    rng = np.random.default_rng(1 + zlib.crc32(vehicle.stem.encode()))
+    qpos, _, _ = ref.random_state(rng)
+    qvel = np.zeros(ref.nv)
+    d = ref.forward(qpos, qvel)
+    holding = d.qfrc_bias - d.qfrc_passive
+    assert np.abs(ref.forward(qpos, qvel, holding).qacc).max() < 1e-9
+    h = ref.model.opt.timestep
+    out, _ = linearize(nudyn, vehicle, "--qpos", listed(qpos), "--qvel", listed(qvel), "--torque", listed(holding),
+                       "--inputs", "torque", "--step", repr(h))
+    error = relative(np.array(out["Ad"]), rk4_transition(ref, qpos, qvel, holding, h))
+    print(f"{vehicle.stem}: Ad vs MuJoCo's RK4 transition at h = {h}: {error:.2e}")
+    assert error < 1e-7, f"Ad vs MuJoCo's RK4 transition (h = {h}): {error:.2e}"
+
+
+def test_npz_holds_the_json_matrices_and_modes_are_printed(nudyn, tmp_path):
+    bus = next(p for p in COVERED if p.stem == "bus_arm7")
+    npz = tmp_path / "bus.npz"
+    out, stderr = linearize(nudyn, bus, "--step", "0.01", "--outputs", "qpos,nu,qacc", "--npz", str(npz))
+    arrays = np.load(npz)
+    for name in ("A", "B", "C", "D", "Ad", "Bd"):
+        assert np.array_equal(arrays[name], np.array(out[name])), name
+    nv = len(out["qvel"])
+    assert np.array(out["C"]).shape == (3 * nv, 2 * nv) and out["outputs"][nv] == "nu[1]"
+    lambdas = arrays["eigenvalues"][:, 0] + 1j * arrays["eigenvalues"][:, 1]
+    assert np.allclose(np.sort_complex(lambdas), np.sort_complex(np.linalg.eigvals(arrays["A"])), atol=1e-9)
+    assert "frequency (Hz)" in stderr and "damping" in stderr
+
+
+def test_vehicles_beyond_the_derivatives_are_refused_with_a_reason(nudyn):
+    servicer = next(p for p in EXAMPLES if p.stem == "servicer")
+    proc = subprocess.run([str(nudyn), "linearize", str(servicer)], capture_output=True, text=True, timeout=60)
+    assert proc.returncode != 0 and proc.stdout == ""
+    assert "derivatives do not cover actuators yet" in proc.stderr, proc.stderr
+    wrong = subprocess.run([str(nudyn), "linearize", str(COVERED[0]), "--qvel", "1,2"], capture_output=True, text=True)
+    assert wrong.returncode != 0 and "--qvel has 2 values" in wrong.stderr, wrong.stderr
