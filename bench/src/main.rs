@@ -241,12 +241,17 @@ fn eval_cost(
     let (mut actuated_ws, mut sensed_ws) = (model.workspace(), model.workspace());
 
     let mut qacc_ws = model.workspace();
+    let mut derivatives = nudyn::dynamics::derivatives::Derivatives::new(model).ok();
+    let ones = vec![1.0; model.nv];
     let mut cases: Vec<Case> = Vec::new();
     for ((name, m), ws) in variants.iter().zip(workspaces.iter_mut()) {
         cases.push(forward_case(name.clone(), m, ws, state, &eps));
     }
     if let Some(qvel) = &state.qvel {
         cases.push(qacc_case(model, &mut qacc_ws, &state.theta, qvel, &eps));
+    }
+    if let Some(derivatives) = derivatives.as_mut() {
+        cases.push(directional_derivative_case(model, derivatives, state, &eps, &ones));
     }
     if ported {
         cases.push(forward_case(
@@ -301,6 +306,34 @@ fn qacc_case<'a>(
             ws.set_configuration(model, std::hint::black_box(theta)).expect("the state evaluates");
             ws.set_qvel(model, qvel).expect("the state evaluates");
             ws.compute_qacc(model, eps).expect("the state evaluates");
+        }),
+    }
+}
+
+/// A timed case of one directional derivative of ν̇ (and θ̇) at `state`,
+/// along `direction` in θ (tangent), ν and ε at once: the passes in dual numbers.
+fn directional_derivative_case<'a>(
+    model: &'a Model,
+    derivatives: &'a mut nudyn::dynamics::derivatives::Derivatives,
+    state: &'a State,
+    eps: &'a [f64],
+    direction: &'a [f64],
+) -> Case<'a> {
+    use nudyn::dynamics::derivatives::{Direction, Point, ThetaDirection};
+    use nudyn::dynamics::velocity::Given;
+    Case {
+        name: "nudyn directional derivative of ν̇ (dual numbers)".to_string(),
+        call: Box::new(move || {
+            let point =
+                Point { theta: std::hint::black_box(&state.theta), velocity: &state.nu, given: Given::Nu, eps, torque: eps };
+            let along = Direction {
+                theta: direction,
+                theta_in: ThetaDirection::Tangent,
+                velocity: direction,
+                eps: direction,
+                torque: eps,
+            };
+            derivatives.run(model, &point, &along).expect("the state evaluates");
         }),
     }
 }
