@@ -7,9 +7,9 @@
 //! its body frame, every other coordinate moved by δq), θ̇ MuJoCo's qvel.
 //! ẋ = (δq̇, θ̈) with δq̇ = θ̇ except for a ball or free joint's rotation,
 //! whose rotation vector moves as δq̇ = J_r(δq)⁻¹ω = ω + ½ δq × ω + O(δq²),
-//! so that ∂δq̇/∂δq = −½[ω]× at the point. The inputs u are ε or the
-//! physical joint forces T (MuJoCo's qfrc_applied), held beside the
-//! point's. With a step H, the pair of the zero-order hold:
+//! so that ∂δq̇/∂δq = −½[ω]× at the point. The inputs u are ε, the
+//! physical joint forces T (MuJoCo's qfrc_applied) or the actuators' ctrl,
+//! added to the point's. With a step H, the pair of the zero-order hold:
 //! A_d = e^{AH}, B_d = ∫₀ᴴ e^{As} ds B, from the exponential of [[A, B], [0, 0]]·H.
 
 use nalgebra::DMatrix;
@@ -25,6 +25,8 @@ pub enum Inputs {
     Eps,
     /// The physical joint forces T (MuJoCo's qfrc_applied).
     Torque,
+    /// The actuators' ctrl (and the wrench inputs' values after them).
+    Ctrl,
 }
 
 /// An output of the linearization, each nv rows.
@@ -55,7 +57,8 @@ impl LinearOutput {
     }
 }
 
-/// The point of the linearization: θ (nq), θ̇ (nv), and the ε and T held (nv each).
+/// The point of the linearization: θ (nq), θ̇ (nv), the ε and T held (nv
+/// each) and the actuators' ctrl (nu).
 #[derive(Clone, Debug)]
 pub struct OperatingPoint {
     /// θ (qpos).
@@ -66,6 +69,8 @@ pub struct OperatingPoint {
     pub eps: Vec<f64>,
     /// T held.
     pub torque: Vec<f64>,
+    /// ctrl held.
+    pub ctrl: Vec<f64>,
 }
 
 /// ẋ = A x + B u, y = C x + D u at the point; `discrete` with a step.
@@ -73,7 +78,7 @@ pub struct OperatingPoint {
 pub struct Linearization {
     /// 2nv × 2nv.
     pub a: DMatrix<f64>,
-    /// 2nv × nv.
+    /// 2nv × (nv, or nu for ctrl).
     pub b: DMatrix<f64>,
     /// The outputs' rows, nv each, in the order asked.
     pub c: DMatrix<f64>,
@@ -96,23 +101,31 @@ pub fn linearize(
 ) -> Result<Linearization, DerivativeError> {
     let nv = model.nv;
     let mut derivatives = Derivatives::new(model)?;
-    let at =
-        Point { theta: &point.qpos, velocity: &point.qvel, given: Given::Qvel, eps: &point.eps, torque: &point.torque };
+    let at = Point {
+        theta: &point.qpos,
+        velocity: &point.qvel,
+        given: Given::Qvel,
+        eps: &point.eps,
+        torque: &point.torque,
+        ctrl: &point.ctrl,
+    };
     let qacc = derivatives.jacobians(model, &at, Output::Qacc)?;
     let input_columns = |j: &Jacobians| match inputs {
         Inputs::Eps => j.eps.clone(),
         Inputs::Torque => j.torque.clone(),
+        Inputs::Ctrl => j.ctrl.clone(),
     };
+    let inputs_count = input_columns(&qacc).ncols();
     let mut a = DMatrix::zeros(2 * nv, 2 * nv);
     a.view_mut((0, 0), (nv, nv)).copy_from(&rotation_vector_rates(model, &point.qvel));
     a.view_mut((0, nv), (nv, nv)).fill_with_identity();
     a.view_mut((nv, 0), (nv, nv)).copy_from(&qacc.theta);
     a.view_mut((nv, nv), (nv, nv)).copy_from(&qacc.velocity);
-    let mut b = DMatrix::zeros(2 * nv, nv);
-    b.view_mut((nv, 0), (nv, nv)).copy_from(&input_columns(&qacc));
+    let mut b = DMatrix::zeros(2 * nv, inputs_count);
+    b.view_mut((nv, 0), (nv, inputs_count)).copy_from(&input_columns(&qacc));
 
     let mut c = DMatrix::zeros(nv * outputs.len(), 2 * nv);
-    let mut d = DMatrix::zeros(nv * outputs.len(), nv);
+    let mut d = DMatrix::zeros(nv * outputs.len(), inputs_count);
     for (k, output) in outputs.iter().enumerate() {
         let rows = k * nv;
         match output {
@@ -125,7 +138,7 @@ pub fn linearize(
             }
             LinearOutput::Qacc => {
                 c.view_mut((rows, 0), (nv, 2 * nv)).copy_from(&a.rows(nv, nv));
-                d.view_mut((rows, 0), (nv, nv)).copy_from(&input_columns(&qacc));
+                d.view_mut((rows, 0), (nv, inputs_count)).copy_from(&input_columns(&qacc));
             }
         }
     }

@@ -312,7 +312,7 @@ pub fn normalize_wxyz<S: Real>(q: &mut [S]) -> Option<S> {
         return None;
     }
     q.iter_mut().for_each(|c| *c /= largest);
-    // From +0, as f64's `sum` of these squares (never −0) would add them.
+    // f64's `sum` starts from −0; from +0 the sum of squares (never −0) is the same.
     let scaled_norm = q.iter().fold(S::zero(), |sum, c| sum + *c * *c).sqrt();
     q.iter_mut().for_each(|c| *c /= scaled_norm);
     Some(largest * scaled_norm)

@@ -8,7 +8,7 @@
 //! Actuators are kept as MuJoCo's general actuator they stand for, with their
 //! transmission target named; the compiler resolves targets into dofs and links.
 
-use crate::math::{Mat3, Quat, Vec3};
+use crate::math::{Mat3, Quat, Real, Vec3};
 
 /// A vehicle: the tree of moving and welded bodies below `<worldbody>`.
 #[derive(Clone, Debug, PartialEq)]
@@ -311,10 +311,10 @@ pub struct Activation {
 impl Activation {
     /// `act` within the range, if limited (MuJoCo's `mju_clip`, which a
     /// reversed range cannot make panic).
-    pub fn clamp(&self, act: f64) -> f64 {
+    pub fn clamp<S: Real>(&self, act: S) -> S {
         match self.range {
-            Some([low, _]) if act < low => low,
-            Some([_, high]) if act > high => high,
+            Some([low, _]) if act.value() < low => S::from(low),
+            Some([_, high]) if act.value() > high => S::from(high),
             _ => act,
         }
     }

@@ -121,23 +121,23 @@ pub struct Workspace<S: Real = f64> {
     /// Whether some actuator applies wrenches to links (fixed by the model).
     pub actuators_apply_wrenches: bool,
     /// MuJoCo's actuator_length (nu) — compute_actuation.
-    pub actuator_length: DVector<f64>,
+    pub actuator_length: DVector<S>,
     /// MuJoCo's actuator_velocity (nu) — compute_actuation.
-    pub actuator_velocity: DVector<f64>,
+    pub actuator_velocity: DVector<S>,
     /// MuJoCo's act (na), the activation states the actuators' forces read — set_act.
-    pub act: DVector<f64>,
+    pub act: DVector<S>,
     /// MuJoCo's act_dot (na), their rates — compute_actuation.
-    pub act_dot: DVector<f64>,
+    pub act_dot: DVector<S>,
     /// MuJoCo's actuator_force (nu) — compute_actuation.
-    pub actuator_force: DVector<f64>,
+    pub actuator_force: DVector<S>,
     /// Wrenches of site actuators on each link (link coordinates) — compute_actuation.
-    pub link_wrench: Vec<SpatialVec>,
+    pub link_wrench: Vec<SpatialVec<S>>,
     /// T of the actuators, MuJoCo's qfrc_actuator (nv) — compute_actuation.
-    pub qfrc_actuator: DVector<f64>,
+    pub qfrc_actuator: DVector<S>,
     /// T of the actuators and the wrench inputs together (nv) — compute_actuation.
-    pub qfrc_total: DVector<f64>,
+    pub qfrc_total: DVector<S>,
     /// ε = ℓT of the actuators and the wrench inputs (nv) — compute_actuation.
-    pub eps_actuator: DVector<f64>,
+    pub eps_actuator: DVector<S>,
     /// The ε pass 3 applied: the input's plus the actuators' and the
     /// constraints' (nv) — compute_nu_dot_actuated.
     pub eps_applied: DVector<f64>,
@@ -249,9 +249,9 @@ impl<S: Real> Workspace<S> {
             act_dot: DVector::zeros(model.activation_count()),
             actuator_force: DVector::zeros(nu),
             link_wrench: vec![SpatialVec::zeros(); if actuators_apply_wrenches { n } else { 0 }],
-            qfrc_actuator: DVector::zeros(model.nv),
-            qfrc_total: DVector::zeros(model.nv),
-            eps_actuator: DVector::zeros(model.nv),
+            qfrc_actuator: dof(),
+            qfrc_total: dof(),
+            eps_actuator: dof(),
             eps_applied: DVector::zeros(model.nv),
             eps_input: DVector::zeros(model.nv),
             ctrl_input: DVector::zeros(nu),

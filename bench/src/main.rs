@@ -251,7 +251,7 @@ fn eval_cost(
         cases.push(qacc_case(model, &mut qacc_ws, &state.theta, qvel, &eps));
     }
     if let Some(derivatives) = derivatives.as_mut() {
-        cases.push(directional_derivative_case(model, derivatives, state, &eps, &ones));
+        cases.push(directional_derivative_case(model, derivatives, state, &eps, &ctrl, &ones));
     }
     if ported {
         cases.push(forward_case(
@@ -317,6 +317,7 @@ fn directional_derivative_case<'a>(
     derivatives: &'a mut nudyn::dynamics::derivatives::Derivatives,
     state: &'a State,
     eps: &'a [f64],
+    ctrl: &'a [f64],
     direction: &'a [f64],
 ) -> Case<'a> {
     use nudyn::dynamics::derivatives::{Direction, Point, ThetaDirection};
@@ -324,14 +325,21 @@ fn directional_derivative_case<'a>(
     Case {
         name: "nudyn directional derivative of ν̇ (dual numbers)".to_string(),
         call: Box::new(move || {
-            let point =
-                Point { theta: std::hint::black_box(&state.theta), velocity: &state.nu, given: Given::Nu, eps, torque: eps };
+            let point = Point {
+                theta: std::hint::black_box(&state.theta),
+                velocity: &state.nu,
+                given: Given::Nu,
+                eps,
+                torque: eps,
+                ctrl,
+            };
             let along = Direction {
                 theta: direction,
                 theta_in: ThetaDirection::Tangent,
                 velocity: direction,
                 eps: direction,
                 torque: eps,
+                ctrl,
             };
             derivatives.run(model, &point, &along).expect("the state evaluates");
         }),

@@ -20,6 +20,8 @@ pub struct Request<'a> {
     pub eps: Option<Vec<f64>>,
     /// T held; default 0.
     pub torque: Option<Vec<f64>>,
+    /// ctrl held; default 0.
+    pub ctrl: Option<Vec<f64>>,
     /// The inputs of B and D.
     pub inputs: Inputs,
     /// The outputs of C and D.
@@ -39,6 +41,7 @@ struct LinearizationFile {
     qvel: Vec<f64>,
     eps: Vec<f64>,
     torque: Vec<f64>,
+    ctrl: Vec<f64>,
     state: Vec<String>,
     inputs: Vec<String>,
     outputs: Vec<String>,
@@ -82,17 +85,19 @@ pub fn run(model: &Model, request: &Request) -> Result<()> {
         qvel: given(&request.qvel, vec![0.0; nv], "qvel", nv)?,
         eps: given(&request.eps, vec![0.0; nv], "eps", nv)?,
         torque: given(&request.torque, vec![0.0; nv], "torque", nv)?,
+        ctrl: given(&request.ctrl, vec![0.0; model.actuators.len()], "ctrl", model.actuators.len())?,
     };
     let linear = linearize(model, &point, request.inputs, request.outputs, request.step)
         .context("cannot linearize this model")?;
     let names = |prefix: &'static str| (1..=nv).map(move |k| format!("{prefix}[{k}]"));
-    let input_prefix = match request.inputs {
-        Inputs::Eps => "eps",
-        Inputs::Torque => "torque",
+    let inputs = match request.inputs {
+        Inputs::Eps => names("eps").collect(),
+        Inputs::Torque => names("torque").collect(),
+        Inputs::Ctrl => (1..=model.actuators.len()).map(|k| format!("ctrl[{k}]")).collect(),
     };
     let file = LinearizationFile {
         state: names("dq").chain(names("qvel")).collect(),
-        inputs: names(input_prefix).collect(),
+        inputs,
         outputs: request.outputs.iter().flat_map(|o| names(o.name())).collect(),
         a: rows(&linear.a),
         b: rows(&linear.b),
@@ -113,6 +118,7 @@ pub fn run(model: &Model, request: &Request) -> Result<()> {
         qvel: point.qvel,
         eps: point.eps,
         torque: point.torque,
+        ctrl: point.ctrl,
     };
     let json = serde_json::to_string(&file)?;
     match request.json {

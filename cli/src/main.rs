@@ -167,8 +167,9 @@ enum Command {
     /// the eps inputs or the joint forces; with --step, the zero-order
     /// hold's Ad, Bd. Writes JSON (stdout or --output) with the matrices by
     /// rows and the names of x, u and y, optionally an .npz; prints the
-    /// eigenvalues (frequency, damping) on stderr. Vehicles with actuators,
-    /// tendons or constraint forces are refused for now.
+    /// eigenvalues (frequency, damping) on stderr. Vehicles with activation
+    /// states, tendons, equalities or friction loss, and points where a
+    /// joint limit acts, are refused for now.
     Linearize {
         /// The vehicle's MJCF file.
         model: PathBuf,
@@ -184,6 +185,10 @@ enum Command {
         /// The joint forces held at the point (nv values, MuJoCo's qfrc_applied); default 0.
         #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
         torque: Option<Vec<f64>>,
+        /// The actuators' ctrl held at the point (one value per actuator, then
+        /// the wrench inputs'); default 0.
+        #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+        ctrl: Option<Vec<f64>>,
         /// The inputs u of B and D.
         #[arg(long, value_enum, default_value = "eps")]
         inputs: InputsArg,
@@ -243,6 +248,8 @@ enum InputsArg {
     Eps,
     /// The physical joint forces (MuJoCo's qfrc_applied).
     Torque,
+    /// The actuators' ctrl.
+    Ctrl,
 }
 
 /// `nudyn linearize --outputs`.
@@ -386,7 +393,7 @@ fn run(cli: Cli) -> Result<()> {
             };
             system(&model, &output, end_effector.as_deref(), &options)
         }
-        Command::Linearize { model, qpos, qvel, eps, torque, inputs, outputs, step, output, npz } => {
+        Command::Linearize { model, qpos, qvel, eps, torque, ctrl, inputs, outputs, step, output, npz } => {
             if let Some(h) = step
                 && !(h.is_finite() && h > 0.0)
             {
@@ -404,12 +411,14 @@ fn run(cli: Cli) -> Result<()> {
             let inputs = match inputs {
                 InputsArg::Eps => Inputs::Eps,
                 InputsArg::Torque => Inputs::Torque,
+                InputsArg::Ctrl => Inputs::Ctrl,
             };
             let request = linearize::Request {
                 qpos,
                 qvel,
                 eps,
                 torque,
+                ctrl,
                 inputs,
                 outputs: &outputs,
                 step,

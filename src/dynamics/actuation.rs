@@ -13,31 +13,31 @@
 use nalgebra::Rotation3;
 
 use super::{DynamicsError, check_input, check_length, forces, require};
-use crate::math::{Mat3, Quat, SpatialVec, Transform, Vec3, quat_difference, quat_from_wxyz, spatial};
+use crate::math::{Mat3, Quat, Real, SpatialVec, Transform, Vec3, quat_difference, quat_from_wxyz, real, spatial};
 use crate::model::{Actuator, ActuatorTransmission, Model, SiteFrame};
 use crate::vehicle::{BiasType, GainType};
 use crate::workspace::{Stage, Workspace};
 
 /// Where a unit force of one actuator goes.
-enum Moment {
+enum Moment<S: Real> {
     /// Moment arms on `count` consecutive dofs from `dof`.
-    Dofs { dof: usize, arms: [f64; 6], count: usize },
+    Dofs { dof: usize, arms: [S; 6], count: usize },
     /// Wrenches on links (link coordinates, about the link origin).
-    Wrenches { wrenches: [(usize, SpatialVec); 3], count: usize },
+    Wrenches { wrenches: [(usize, SpatialVec<S>); 3], count: usize },
     /// A tendon's moment arms times `gear`.
     Tendon { tendon: usize, gear: f64 },
 }
 
 /// An actuator's transmission at the current state.
-struct Transmitted {
-    length: f64,
-    velocity: f64,
-    moment: Moment,
+struct Transmitted<S: Real> {
+    length: S,
+    velocity: S,
+    moment: Moment<S>,
 }
 
-impl Moment {
+impl<S: Real> Moment<S> {
     /// Wrenches collected on the links that exist (a site on the world moves nothing).
-    fn wrenches(candidates: [(Option<usize>, SpatialVec); 3]) -> Moment {
+    fn wrenches(candidates: [(Option<usize>, SpatialVec<S>); 3]) -> Moment<S> {
         let mut wrenches = [(0, SpatialVec::zeros()); 3];
         let mut count = 0;
         for (link, wrench) in candidates {
@@ -52,51 +52,53 @@ impl Moment {
 
 /// The rotation vector of a unit quaternion, its angle in [−π, π] (MuJoCo's
 /// `mju_quat2Vel` with unit time).
-fn rotation_vector(q: &Quat) -> Vec3 {
+fn rotation_vector<S: Real>(q: &Quat<S>) -> Vec3<S> {
     quat_difference(q, &Quat::identity())
 }
 
 /// The rotation of a unit (w, x, y, z) quaternion in θ (set_configuration normalized it).
-fn rotation_at(theta: &[f64], qpos: usize) -> Quat {
+fn rotation_at<S: Real>(theta: &[S], qpos: usize) -> Quat<S> {
     Quat::new_unchecked(quat_from_wxyz(&theta[qpos..qpos + 4]))
 }
 
 /// A site's placement in the world, ˢX₀, from its link's.
-pub(super) fn site_in_world(site: &SiteFrame, x_world: &[Transform]) -> Transform {
+pub(super) fn site_in_world<S: Real>(site: &SiteFrame, x_world: &[Transform<S>]) -> Transform<S> {
     match site.link {
-        Some(link) => site.frame.compose(&x_world[link]),
-        None => site.frame,
+        Some(link) => site.frame.real().compose(&x_world[link]),
+        None => site.frame.real(),
     }
 }
 
 /// The wrench of force `f` through the site's origin and torque `n` (both in
 /// world axes) on the site's link, in link coordinates about the link origin.
-pub(super) fn wrench_at_site(
+pub(super) fn wrench_at_site<S: Real>(
     site: &SiteFrame,
-    x_world: &[Transform],
-    n: &Vec3,
-    f: &Vec3,
-) -> (Option<usize>, SpatialVec) {
+    x_world: &[Transform<S>],
+    n: &Vec3<S>,
+    f: &Vec3<S>,
+) -> (Option<usize>, SpatialVec<S>) {
     let Some(link) = site.link else {
         return (None, SpatialVec::zeros());
     };
     let to_link = &x_world[link].rot;
     let (n, f) = (to_link * n, to_link * f);
     // The site's origin in link coordinates.
-    let r = site.frame.trans;
+    let r = real::<S, 3, 1>(&site.frame.trans);
     (Some(link), spatial(&(n + r.cross(&f)), &f))
 }
 
 /// Length, velocity and unit moment of `actuator` at the workspace's state
 /// (world placements must be current for a reference site).
-fn transmit(ws: &Workspace, actuator: &Actuator) -> Transmitted {
+fn transmit<S: Real>(ws: &Workspace<S>, actuator: &Actuator) -> Transmitted<S> {
     let theta = ws.theta.as_slice();
     let qvel = ws.qvel.as_slice();
     let gear = &actuator.gear;
-    let dot = |arms: &[f64], dof: usize| arms.iter().zip(&qvel[dof..]).map(|(a, v)| a * v).sum::<f64>();
+    let zero = S::zero();
+    // From −0, as f64's `sum` starts.
+    let dot = |arms: &[S], dof: usize| arms.iter().zip(&qvel[dof..]).fold(S::from(-0.0), |sum, (a, v)| sum + *a * *v);
     match actuator.transmission {
         ActuatorTransmission::Scalar { dof, qpos } => {
-            let arms = [gear[0], 0.0, 0.0, 0.0, 0.0, 0.0];
+            let arms = [S::from(gear[0]), zero, zero, zero, zero, zero];
             Transmitted {
                 length: theta[qpos] * gear[0],
                 velocity: qvel[dof] * gear[0],
@@ -105,10 +107,10 @@ fn transmit(ws: &Workspace, actuator: &Actuator) -> Transmitted {
         }
         ActuatorTransmission::Ball { dof, qpos, in_parent } => {
             let rotation = rotation_at(theta, qpos);
-            let gear = actuator.gear_translation();
+            let gear = real::<S, 3, 1>(&actuator.gear_translation());
             // The child-frame axis: a parent-frame gear turns with the joint.
             let axis = if in_parent { rotation.inverse_transform_vector(&gear) } else { gear };
-            let arms = [axis.x, axis.y, axis.z, 0.0, 0.0, 0.0];
+            let arms = [axis.x, axis.y, axis.z, zero, zero, zero];
             Transmitted {
                 length: rotation_vector(&rotation).dot(&axis),
                 velocity: dot(&arms[..3], dof),
@@ -116,21 +118,25 @@ fn transmit(ws: &Workspace, actuator: &Actuator) -> Transmitted {
             }
         }
         ActuatorTransmission::Free { dof, qpos, in_parent } => {
-            let torque_axis = actuator.gear_rotation();
+            let torque_axis = real::<S, 3, 1>(&actuator.gear_rotation());
             let axis =
                 if in_parent { rotation_at(theta, qpos).inverse_transform_vector(&torque_axis) } else { torque_axis };
-            let arms = [gear[0], gear[1], gear[2], axis.x, axis.y, axis.z];
-            Transmitted { length: 0.0, velocity: dot(&arms, dof), moment: Moment::Dofs { dof, arms, count: 6 } }
+            let arms = [S::from(gear[0]), S::from(gear[1]), S::from(gear[2]), axis.x, axis.y, axis.z];
+            Transmitted { length: zero, velocity: dot(&arms, dof), moment: Moment::Dofs { dof, arms, count: 6 } }
         }
         ActuatorTransmission::Site { site } => {
             let Some(link) = site.link else {
-                return Transmitted { length: 0.0, velocity: 0.0, moment: Moment::wrenches(Default::default()) };
+                return Transmitted {
+                    length: zero,
+                    velocity: zero,
+                    moment: Moment::wrenches([(None, SpatialVec::zeros()); 3]),
+                };
             };
             // The gear in site coordinates, moved to the link origin.
             let in_site = spatial(&actuator.gear_rotation(), &actuator.gear_translation());
-            let wrench = site.frame.apply_transpose_force(&in_site);
+            let wrench: SpatialVec<S> = real(&site.frame.apply_transpose_force(&in_site));
             Transmitted {
-                length: 0.0,
+                length: zero,
                 velocity: wrench.dot(&ws.v_body[link]),
                 moment: Moment::wrenches([
                     (Some(link), wrench),
@@ -143,8 +149,8 @@ fn transmit(ws: &Workspace, actuator: &Actuator) -> Transmitted {
             relative_site(ws, actuator, &site, &reference, common_link)
         }
         ActuatorTransmission::Tendon { tendon } => Transmitted {
-            length: ws.tendon_length[tendon] * gear[0],
-            velocity: ws.tendon_velocity[tendon] * gear[0],
+            length: S::from(ws.tendon_length[tendon] * gear[0]),
+            velocity: S::from(ws.tendon_velocity[tendon] * gear[0]),
             moment: Moment::Tendon { tendon, gear: gear[0] },
         },
     }
@@ -156,25 +162,30 @@ fn transmit(ws: &Workspace, actuator: &Actuator) -> Transmitted {
 /// force and torque along the reference frame's axes, at the site and
 /// opposite at the reference site, and on their common link the torque
 /// that cancels the pair's couple there (MuJoCo clears those moment arms).
-fn relative_site(
-    ws: &Workspace,
+fn relative_site<S: Real>(
+    ws: &Workspace<S>,
     actuator: &Actuator,
     site: &SiteFrame,
     reference: &SiteFrame,
     common_link: Option<usize>,
-) -> Transmitted {
+) -> Transmitted<S> {
     let x_world = ws.x_world.as_slice();
     let (at_site, at_reference) = (site_in_world(site, x_world), site_in_world(reference, x_world));
     // Rotations site → world (columns: the site's axes in world).
-    let (site_axes, reference_axes): (Mat3, Mat3) = (at_site.rot.transpose(), at_reference.rot.transpose());
+    let (site_axes, reference_axes): (Mat3<S>, Mat3<S>) = (at_site.rot.transpose(), at_reference.rot.transpose());
     let (gear_translation, gear_rotation) = (actuator.gear_translation(), actuator.gear_rotation());
+    let (gear_translation, gear_rotation, nonzero) = (
+        real::<S, 3, 1>(&gear_translation),
+        real::<S, 3, 1>(&gear_rotation),
+        (gear_translation != Vec3::zeros(), gear_rotation != Vec3::zeros()),
+    );
     let offset = at_site.trans - at_reference.trans;
-    let mut length = 0.0;
-    if gear_translation != Vec3::zeros() {
+    let mut length = S::zero();
+    if nonzero.0 {
         length += (reference_axes.transpose() * offset).dot(&gear_translation);
     }
-    if gear_rotation != Vec3::zeros() {
-        let orientation = |axes: &Mat3| Quat::from_rotation_matrix(&Rotation3::from_matrix_unchecked(*axes));
+    if nonzero.1 {
+        let orientation = |axes: &Mat3<S>| Quat::from_rotation_matrix(&Rotation3::from_matrix_unchecked(*axes));
         length += quat_difference(&orientation(&site_axes), &orientation(&reference_axes)).dot(&gear_rotation);
     }
     let force = reference_axes * gear_translation;
@@ -187,7 +198,10 @@ fn relative_site(
         None => (None, SpatialVec::zeros()),
     };
     let candidates = [on_site, on_reference, correction];
-    let velocity = candidates.iter().filter_map(|(link, w)| link.map(|l| w.dot(&ws.v_body[l]))).sum();
+    let velocity = candidates
+        .iter()
+        .filter_map(|(link, w)| link.map(|l| w.dot(&ws.v_body[l])))
+        .fold(S::from(-0.0), |sum, v| sum + v);
     Transmitted { length, velocity, moment: Moment::wrenches(candidates) }
 }
 
@@ -204,7 +218,7 @@ fn activation_slots(model: &Model) -> impl Iterator<Item = Option<usize>> + '_ {
 }
 
 /// ctrl clamped to the actuator's range, unless `<flag clampctrl="disable"/>`.
-pub(crate) fn clamped_ctrl(actuator: &Actuator, clamp_ctrl: bool, ctrl: f64) -> f64 {
+pub(crate) fn clamped_ctrl<S: Real>(actuator: &Actuator, clamp_ctrl: bool, ctrl: S) -> S {
     match actuator.ctrl_range {
         Some([low, high]) if clamp_ctrl => clip(ctrl, low, high),
         _ => ctrl,
@@ -216,28 +230,30 @@ pub(crate) fn clamped_ctrl(actuator: &Actuator, clamp_ctrl: bool, ctrl: f64) -> 
 /// input being the clamped ctrl, or the activation the force reads
 /// ([`Workspace::actuator_input`]); a disabled group gives 0
 /// ([`clamp_force`] still clamps it).
-fn unclamped_force(actuator: &Actuator, input: f64, length: f64, velocity: f64) -> f64 {
-    let mut force = 0.0;
+fn unclamped_force<S: Real>(actuator: &Actuator, input: S, length: S, velocity: S) -> S {
+    let mut force = S::zero();
     if actuator.enabled {
         let [g0, g1, g2] = actuator.gain;
         let gain = match actuator.gain_type {
-            GainType::Fixed => g0,
-            GainType::Affine => g0 + g1 * length + g2 * velocity,
+            GainType::Fixed => S::from(g0),
+            GainType::Affine => length * g1 + g0 + velocity * g2,
         };
         let [b0, b1, b2] = actuator.bias;
         let bias = match actuator.bias_type {
-            BiasType::None => 0.0,
-            BiasType::Affine => b0 + b1 * length + b2 * velocity,
+            BiasType::None => S::zero(),
+            BiasType::Affine => length * b1 + b0 + velocity * b2,
         };
         let period = actuator.setpoint_period;
-        let input = if period > 0.0 { input - period * ((input - length) / period).round() } else { input };
+        // The turns taken off are a whole number: piecewise constant in the state.
+        let turns = || ((input - length) / period).value().round();
+        let input = if period > 0.0 { input - S::from(period * turns()) } else { input };
         force = gain * input + bias;
     }
     force
 }
 
 /// The actuator's force clamped to its `forcerange`.
-fn clamp_force(actuator: &Actuator, force: f64) -> f64 {
+fn clamp_force<S: Real>(actuator: &Actuator, force: S) -> S {
     match actuator.force_range {
         Some([low, high]) => clip(force, low, high),
         None => force,
@@ -247,20 +263,20 @@ fn clamp_force(actuator: &Actuator, force: f64) -> f64 {
 /// What MuJoCo multiplies each force of a tendon's actuators by when their
 /// sum `total` lies outside the tendon's `actuatorfrcrange`: the near end
 /// of the range over the sum, so that the scaled forces sum to it.
-fn tendon_force_scale(range: Option<[f64; 2]>, total: f64) -> f64 {
-    match range {
+fn tendon_force_scale<S: Real>(range: Option<[f64; 2]>, total: f64) -> S {
+    S::from(match range {
         Some([low, _]) if total != 0.0 && total < low => low / total,
         Some([_, high]) if total != 0.0 && total > high => high / total,
         _ => 1.0,
-    }
+    })
 }
 
 /// MuJoCo's `mju_clip`.
-fn clip(x: f64, low: f64, high: f64) -> f64 {
-    if x < low {
-        low
-    } else if x > high {
-        high
+fn clip<S: Real>(x: S, low: f64, high: f64) -> S {
+    if x.value() < low {
+        S::from(low)
+    } else if x.value() > high {
+        S::from(high)
     } else {
         x
     }
@@ -268,11 +284,17 @@ fn clip(x: f64, low: f64, high: f64) -> f64 {
 
 /// Adds `force` times the unit moment to the dof forces or link wrenches
 /// (`tendon_moment`: the tendons' moment arms, nv per tendon).
-fn apply(moment: &Moment, force: f64, qfrc: &mut [f64], link_wrench: &mut [SpatialVec], tendon_moment: &[f64]) {
+fn apply<S: Real>(
+    moment: &Moment<S>,
+    force: S,
+    qfrc: &mut [S],
+    link_wrench: &mut [SpatialVec<S>],
+    tendon_moment: &[f64],
+) {
     match moment {
         Moment::Dofs { dof, arms, count } => {
             for (slot, arm) in qfrc[*dof..*dof + count].iter_mut().zip(arms) {
-                *slot += arm * force;
+                *slot += *arm * force;
             }
         }
         Moment::Wrenches { wrenches, count } => {
@@ -284,7 +306,7 @@ fn apply(moment: &Moment, force: f64, qfrc: &mut [f64], link_wrench: &mut [Spati
             let nv = qfrc.len();
             let arms = &tendon_moment[tendon * nv..(tendon + 1) * nv];
             for (slot, arm) in qfrc.iter_mut().zip(arms) {
-                *slot += arm * gear * force;
+                *slot += force * (arm * gear);
             }
         }
     }
@@ -301,135 +323,8 @@ impl Workspace {
     pub fn compute_actuation(&mut self, model: &Model, ctrl: &[f64]) -> Result<(), DynamicsError> {
         require(self, Stage::Velocity, "compute_actuation")?;
         check_input("ctrl", ctrl, model.actuators.len())?;
-        let actuation = model.actuation;
-        let mjcf_count = model.mjcf_actuator_count();
-        self.prepare_transmissions(model);
-        if !self.act.is_empty() {
-            self.compute_activation_rates(model, ctrl);
-        }
-        if actuation.enabled && !self.tendon_actuator_total.is_empty() {
-            self.sum_tendon_actuator_forces(model, ctrl);
-        }
-        let actuators = model.actuators[..mjcf_count].iter().zip(activation_slots(model));
-        for (k, (actuator, slot)) in actuators.enumerate() {
-            let transmitted = transmit(self, actuator);
-            self.actuator_length[k] = transmitted.length;
-            if !actuation.enabled {
-                // MuJoCo then computes the lengths only.
-                (self.actuator_velocity[k], self.actuator_force[k]) = (0.0, 0.0);
-                continue;
-            }
-            self.actuator_velocity[k] = transmitted.velocity;
-            let input = self.actuator_input(model, actuator, slot, ctrl[k]);
-            let mut force = unclamped_force(actuator, input, transmitted.length, transmitted.velocity);
-            if let ActuatorTransmission::Tendon { tendon } = actuator.transmission
-                && !self.tendon_actuator_total.is_empty()
-            {
-                force *=
-                    tendon_force_scale(model.tendons[tendon].actuator_force_range, self.tendon_actuator_total[tendon]);
-            }
-            let force = clamp_force(actuator, force);
-            self.actuator_force[k] = force;
-            apply(
-                &transmitted.moment,
-                force,
-                self.qfrc_actuator.as_mut_slice(),
-                &mut self.link_wrench,
-                &self.tendon_moment,
-            );
-        }
-        let mut qfrc = std::mem::take(&mut self.qfrc_actuator);
-        self.collect_wrenches(model, qfrc.as_mut_slice());
-        // MuJoCo's actuation stage returns before these when no MJCF
-        // actuator acts: the compensation of `actuatorgravcomp` joints,
-        // then the joints' limits (a range without 0 would move a 0).
-        if actuation.enabled && mjcf_count > 0 {
-            for &dof in &model.gravity_compensation.actuator_dofs {
-                qfrc[dof] += self.qfrc_gravcomp[dof];
-            }
-            for limit in &model.actuator_force_limits {
-                let [low, high] = limit.range;
-                qfrc[limit.dof] = clip(qfrc[limit.dof], low, high);
-            }
-        }
-        self.qfrc_actuator = qfrc;
-        let mut total = std::mem::take(&mut self.qfrc_total);
-        total.copy_from(&self.qfrc_actuator);
-        if mjcf_count < model.actuators.len() {
-            self.add_wrench_inputs(model, &ctrl[mjcf_count..], total.as_mut_slice());
-        }
-        let mut eps = std::mem::take(&mut self.eps_actuator);
-        let result = self.eps_from_forces(model, total.as_slice(), None, eps.as_mut_slice());
-        (self.qfrc_total, self.eps_actuator) = (total, eps);
-        result
+        self.actuation_pass(model, ctrl)
     }
-
-    /// The sum of the forces (before their `forcerange`) of each tendon's
-    /// actuators, for the tendons with an `actuatorfrcrange`.
-    fn sum_tendon_actuator_forces(&mut self, model: &Model, ctrl: &[f64]) {
-        self.tendon_actuator_total.fill(0.0);
-        let actuators = model.actuators[..model.mjcf_actuator_count()].iter().zip(activation_slots(model));
-        for (k, (actuator, slot)) in actuators.enumerate() {
-            if let ActuatorTransmission::Tendon { tendon } = actuator.transmission
-                && model.tendons[tendon].actuator_force_range.is_some()
-            {
-                let transmitted = transmit(self, actuator);
-                let input = self.actuator_input(model, actuator, slot, ctrl[k]);
-                self.tendon_actuator_total[tendon] +=
-                    unclamped_force(actuator, input, transmitted.length, transmitted.velocity);
-            }
-        }
-    }
-
-    /// MuJoCo's act_dot of every activation state at `ctrl` (clamped to
-    /// each actuator's range), from `act`; 0 with `<flag actuation="disable"/>`,
-    /// as in MuJoCo.
-    fn compute_activation_rates(&mut self, model: &Model, ctrl: &[f64]) {
-        let actuation = model.actuation;
-        let mut index = 0;
-        for (actuator, &ctrl) in model.actuators.iter().zip(ctrl) {
-            if actuator.activation.is_some() {
-                self.act_dot[index] = if actuation.enabled {
-                    actuator.activation_rate(clamped_ctrl(actuator, actuation.clamp_ctrl, ctrl), self.act[index])
-                } else {
-                    0.0
-                };
-                index += 1;
-            }
-        }
-    }
-
-    /// What `actuator`'s force multiplies its gain by: its ctrl, clamped
-    /// to its range, or for an actuator with activation state `slot` the
-    /// activation it reads (act, or with `actearly` the next; needs
-    /// `act_dot`).
-    fn actuator_input(&self, model: &Model, actuator: &Actuator, slot: Option<usize>, ctrl: f64) -> f64 {
-        match slot {
-            None => clamped_ctrl(actuator, model.actuation.clamp_ctrl, ctrl),
-            Some(slot) => {
-                actuator.activation_input(self.act[slot], self.act_dot[slot], model.constraints.options.timestep)
-            }
-        }
-    }
-
-    /// Adds the generalized force of the wrench inputs (`values`: six per
-    /// body, MuJoCo's `xfrc_applied`) to `qfrc`. They are not actuators to
-    /// MuJoCo: outside `qfrc_actuator`, its joint limits and its
-    /// `actuation="disable"` flag.
-    fn add_wrench_inputs(&mut self, model: &Model, values: &[f64], qfrc: &mut [f64]) {
-        self.link_wrench.fill(SpatialVec::zeros());
-        let first = model.mjcf_actuator_count();
-        for (k, actuator) in model.actuators[first..].iter().enumerate() {
-            let transmitted = transmit(self, actuator);
-            let index = first + k;
-            self.actuator_length[index] = transmitted.length;
-            self.actuator_velocity[index] = transmitted.velocity;
-            self.actuator_force[index] = values[k];
-            apply(&transmitted.moment, values[k], qfrc, &mut self.link_wrench, &self.tendon_moment);
-        }
-        self.collect_wrenches(model, qfrc);
-    }
-
     /// Pass 3 with the actuators: ν̇ for the applied `eps` (nv) plus the ε of
     /// the actuators at `ctrl` (nu, MuJoCo's `d.ctrl`), as the FMU and the
     /// integrators apply them. A vehicle without actuators goes straight to
@@ -517,11 +412,153 @@ impl Workspace {
         self.qfrc_actuator = qfrc;
         Ok(())
     }
+}
+
+impl<S: Real> Workspace<S> {
+    /// [`Workspace::compute_actuation`] after its checks.
+    pub(crate) fn actuation_pass(&mut self, model: &Model, ctrl: &[S]) -> Result<(), DynamicsError> {
+        let actuation = model.actuation;
+        let mjcf_count = model.mjcf_actuator_count();
+        self.prepare_transmissions(model);
+        if !self.act.is_empty() {
+            self.compute_activation_rates(model, ctrl);
+        }
+        if actuation.enabled && !self.tendon_actuator_total.is_empty() {
+            self.sum_tendon_actuator_forces(model, ctrl);
+        }
+        let actuators = model.actuators[..mjcf_count].iter().zip(activation_slots(model));
+        for (k, (actuator, slot)) in actuators.enumerate() {
+            let transmitted = transmit(self, actuator);
+            self.actuator_length[k] = transmitted.length;
+            if !actuation.enabled {
+                // MuJoCo then computes the lengths only.
+                (self.actuator_velocity[k], self.actuator_force[k]) = (S::zero(), S::zero());
+                continue;
+            }
+            self.actuator_velocity[k] = transmitted.velocity;
+            let input = self.actuator_input(model, actuator, slot, ctrl[k]);
+            let mut force = unclamped_force(actuator, input, transmitted.length, transmitted.velocity);
+            if let ActuatorTransmission::Tendon { tendon } = actuator.transmission
+                && !self.tendon_actuator_total.is_empty()
+            {
+                force *= tendon_force_scale::<S>(
+                    model.tendons[tendon].actuator_force_range,
+                    self.tendon_actuator_total[tendon],
+                );
+            }
+            let force = clamp_force(actuator, force);
+            self.actuator_force[k] = force;
+            apply(
+                &transmitted.moment,
+                force,
+                self.qfrc_actuator.as_mut_slice(),
+                &mut self.link_wrench,
+                &self.tendon_moment,
+            );
+        }
+        let mut qfrc = std::mem::take(&mut self.qfrc_actuator);
+        self.collect_wrenches(model, qfrc.as_mut_slice());
+        // MuJoCo's actuation stage returns before these when no MJCF
+        // actuator acts: the compensation of `actuatorgravcomp` joints,
+        // then the joints' limits (a range without 0 would move a 0).
+        if actuation.enabled && mjcf_count > 0 {
+            for &dof in &model.gravity_compensation.actuator_dofs {
+                qfrc[dof] += self.qfrc_gravcomp[dof];
+            }
+            for limit in &model.actuator_force_limits {
+                let [low, high] = limit.range;
+                qfrc[limit.dof] = clip(qfrc[limit.dof], low, high);
+            }
+        }
+        self.qfrc_actuator = qfrc;
+        let mut total = std::mem::take(&mut self.qfrc_total);
+        total.copy_from(&self.qfrc_actuator);
+        if mjcf_count < model.actuators.len() {
+            self.add_wrench_inputs(model, &ctrl[mjcf_count..], total.as_mut_slice());
+        }
+        let mut eps = std::mem::take(&mut self.eps_actuator);
+        // eps_from_forces's check of its input, which ctrl could make overflow.
+        let result = match total.iter().position(|t| !t.value().is_finite()) {
+            Some(index) => Err(DynamicsError::NonFinite { what: "torque", index, value: total[index].value() }),
+            None => {
+                forces::eps_of_torque(model, self, total.as_slice(), eps.as_mut_slice());
+                Ok(())
+            }
+        };
+        (self.qfrc_total, self.eps_actuator) = (total, eps);
+        result
+    }
+
+    /// The sum of the forces (before their `forcerange`) of each tendon's
+    /// actuators, for the tendons with an `actuatorfrcrange`.
+    fn sum_tendon_actuator_forces(&mut self, model: &Model, ctrl: &[S]) {
+        self.tendon_actuator_total.fill(0.0);
+        let actuators = model.actuators[..model.mjcf_actuator_count()].iter().zip(activation_slots(model));
+        for (k, (actuator, slot)) in actuators.enumerate() {
+            if let ActuatorTransmission::Tendon { tendon } = actuator.transmission
+                && model.tendons[tendon].actuator_force_range.is_some()
+            {
+                let transmitted = transmit(self, actuator);
+                let input = self.actuator_input(model, actuator, slot, ctrl[k]);
+                self.tendon_actuator_total[tendon] +=
+                    unclamped_force(actuator, input, transmitted.length, transmitted.velocity).value();
+            }
+        }
+    }
+
+    /// MuJoCo's act_dot of every activation state at `ctrl` (clamped to
+    /// each actuator's range), from `act`; 0 with `<flag actuation="disable"/>`,
+    /// as in MuJoCo.
+    fn compute_activation_rates(&mut self, model: &Model, ctrl: &[S]) {
+        let actuation = model.actuation;
+        let mut index = 0;
+        for (actuator, &ctrl) in model.actuators.iter().zip(ctrl) {
+            if actuator.activation.is_some() {
+                self.act_dot[index] = if actuation.enabled {
+                    actuator.activation_rate(clamped_ctrl(actuator, actuation.clamp_ctrl, ctrl), self.act[index])
+                } else {
+                    S::zero()
+                };
+                index += 1;
+            }
+        }
+    }
+
+    /// What `actuator`'s force multiplies its gain by: its ctrl, clamped
+    /// to its range, or for an actuator with activation state `slot` the
+    /// activation it reads (act, or with `actearly` the next; needs
+    /// `act_dot`).
+    fn actuator_input(&self, model: &Model, actuator: &Actuator, slot: Option<usize>, ctrl: S) -> S {
+        match slot {
+            None => clamped_ctrl(actuator, model.actuation.clamp_ctrl, ctrl),
+            Some(slot) => {
+                actuator.activation_input(self.act[slot], self.act_dot[slot], model.constraints.options.timestep)
+            }
+        }
+    }
+
+    /// Adds the generalized force of the wrench inputs (`values`: six per
+    /// body, MuJoCo's `xfrc_applied`) to `qfrc`. They are not actuators to
+    /// MuJoCo: outside `qfrc_actuator`, its joint limits and its
+    /// `actuation="disable"` flag.
+    fn add_wrench_inputs(&mut self, model: &Model, values: &[S], qfrc: &mut [S]) {
+        self.link_wrench.fill(SpatialVec::zeros());
+        let first = model.mjcf_actuator_count();
+        for (k, actuator) in model.actuators[first..].iter().enumerate() {
+            let transmitted = transmit(self, actuator);
+            let index = first + k;
+            self.actuator_length[index] = transmitted.length;
+            self.actuator_velocity[index] = transmitted.velocity;
+            self.actuator_force[index] = values[k];
+            apply(&transmitted.moment, values[k], qfrc, &mut self.link_wrench, &self.tendon_moment);
+        }
+        self.collect_wrenches(model, qfrc);
+    }
 
     /// Clears T and the link wrenches, and brings the world placements up
     /// to date when a reference site needs them.
     fn prepare_transmissions(&mut self, model: &Model) {
-        self.qfrc_actuator.fill(0.0);
+        self.qfrc_actuator.fill(S::zero());
         if self.actuators_apply_wrenches {
             self.link_wrench.fill(SpatialVec::zeros());
         }
@@ -532,7 +569,7 @@ impl Workspace {
     }
 
     /// `qfrc` += Σ Jᵀf of the link wrenches, when any actuator applies wrenches.
-    fn collect_wrenches(&mut self, model: &Model, qfrc: &mut [f64]) {
+    fn collect_wrenches(&mut self, model: &Model, qfrc: &mut [S]) {
         if self.actuators_apply_wrenches {
             forces::add_joint_forces_of_wrenches(
                 model,

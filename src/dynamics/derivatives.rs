@@ -14,16 +14,22 @@
 //! quaternion's component along itself has no effect, the passes
 //! normalizing it).
 //!
-//! The passes made generic so far are the tree's: placements, the
+//! The passes made generic so far are the tree's (placements, the
 //! factorization, velocities, springs, dampers, gravity and its
-//! compensation, ν̇, C and θ̈. A model whose dynamics need more
-//! (actuators, tendons, constraint forces) is refused by
-//! [`Derivatives::new`] with what is missing, rather than given a
-//! derivative that leaves a term out.
+//! compensation, ν̇, C and θ̈) and the actuators' without activation
+//! states (transmissions, gains and biases, the clamps of ctrl and force,
+//! which hold their piece: a clamped input's derivative is 0). Joint
+//! limits are covered where none acts: a point with a limit row
+//! (distance within the margin) is refused by [`Derivatives::run`], the
+//! constraint forces not being generic yet. A model whose dynamics need
+//! more (activation states, tendons, equalities, friction loss) is
+//! refused by [`Derivatives::new`] with what is missing, rather than
+//! given a derivative that leaves a term out.
 
 use nalgebra::{DMatrix, Quaternion};
 use num_dual::Dual64;
 
+use super::constraint::limit_switching_functions;
 use super::velocity::{self, Given};
 use super::{DynamicsError, bias, check_input, forces};
 use crate::math::quat_from_wxyz;
@@ -36,6 +42,14 @@ pub enum DerivativeError {
     /// The model has a part whose passes do not carry derivatives yet.
     #[error("derivatives do not cover {0} yet; this model has them")]
     Unsupported(&'static str),
+    /// A joint limit acts at the point (its row's force is not differentiated yet).
+    #[error(
+        "{rows} joint limit side(s) act at this point (within their margin); derivatives with constraint forces are not covered yet"
+    )]
+    ActiveLimits {
+        /// How many limit sides act.
+        rows: usize,
+    },
     /// A direction has the wrong length.
     #[error("the direction of {what} has {found} entries, expected {expected}")]
     DirectionLength {
@@ -53,7 +67,8 @@ pub enum DerivativeError {
 
 /// Where the derivatives are taken: θ (nq), the velocity (nv: ν or θ̇, as
 /// `given` says), the applied ε and the physical joint forces T (MuJoCo's
-/// qfrc_applied; each nv). The ε applied is ε + ℓ(θ)T.
+/// qfrc_applied; each nv), and the actuators' ctrl (nu, the wrench inputs'
+/// values after the MJCF's actuators'). The ε applied is ε + ℓ(θ)(T + T_actuators).
 #[derive(Clone, Copy, Debug)]
 pub struct Point<'a> {
     /// θ (qpos).
@@ -66,6 +81,8 @@ pub struct Point<'a> {
     pub eps: &'a [f64],
     /// Physical joint forces T.
     pub torque: &'a [f64],
+    /// The actuators' controls.
+    pub ctrl: &'a [f64],
 }
 
 /// How a direction in θ is written.
@@ -91,6 +108,8 @@ pub struct Direction<'a> {
     pub eps: &'a [f64],
     /// Along T.
     pub torque: &'a [f64],
+    /// Along ctrl.
+    pub ctrl: &'a [f64],
 }
 
 /// The outputs whose derivatives a run gives, each nv long.
@@ -107,7 +126,7 @@ pub enum Output {
 }
 
 /// The Jacobians of one output at a point, one matrix per input: nv rows,
-/// and nv columns for θ (tangent space), the velocity, ε and T.
+/// and nv columns for θ (tangent space), the velocity, ε and T, nu for ctrl.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Jacobians {
     /// ∂/∂θ in the tangent space.
@@ -118,6 +137,8 @@ pub struct Jacobians {
     pub eps: DMatrix<f64>,
     /// ∂/∂T.
     pub torque: DMatrix<f64>,
+    /// ∂/∂ctrl.
+    pub ctrl: DMatrix<f64>,
 }
 
 /// A model's workspace in dual numbers and the inputs' buffers: built
@@ -128,6 +149,11 @@ pub struct Derivatives {
     eps: Vec<Dual64>,
     torque: Vec<Dual64>,
     eps_of_torque: Vec<Dual64>,
+    ctrl: Vec<Dual64>,
+    /// Each limit side's distance less its margin at the point.
+    limit_switches: Vec<f64>,
+    /// θ's values, for the limits' distances.
+    theta_values: Vec<f64>,
 }
 
 impl Derivatives {
@@ -135,9 +161,10 @@ impl Derivatives {
     /// not cover yet.
     pub fn new(model: &Model) -> Result<Self, DerivativeError> {
         let unsupported = [
-            (!model.actuators.is_empty(), "actuators"),
+            (model.activation_count() > 0, "actuators' activation states (dyntype)"),
             (!model.tendons.is_empty(), "tendons"),
-            (!model.constraints.is_empty(), "constraint forces (limits, friction loss, equalities)"),
+            (!model.constraints.equalities.is_empty(), "equality constraints"),
+            (!model.constraints.friction.is_empty(), "friction loss"),
         ];
         if let Some((_, what)) = unsupported.iter().find(|(has, _)| *has) {
             return Err(DerivativeError::Unsupported(what));
@@ -148,6 +175,9 @@ impl Derivatives {
             eps: zeros.clone(),
             torque: zeros.clone(),
             eps_of_torque: zeros,
+            ctrl: vec![Dual64::from(0.0); model.actuators.len()],
+            limit_switches: vec![0.0; model.constraints.limit_sides()],
+            theta_values: vec![0.0; model.nq],
         })
     }
 
@@ -158,6 +188,7 @@ impl Derivatives {
         check_input(velocity_name(point.given), point.velocity, model.nv)?;
         check_input("eps", point.eps, model.nv)?;
         check_input("torque", point.torque, model.nv)?;
+        check_input("ctrl", point.ctrl, model.actuators.len())?;
         let theta_length = match direction.theta_in {
             ThetaDirection::Tangent => model.nv,
             ThetaDirection::Coordinates => model.nq,
@@ -167,6 +198,7 @@ impl Derivatives {
             (velocity_name(point.given), direction.velocity, model.nv),
             ("eps", direction.eps, model.nv),
             ("torque", direction.torque, model.nv),
+            ("ctrl", direction.ctrl, model.actuators.len()),
         ] {
             if values.len() != expected {
                 return Err(DerivativeError::DirectionLength { what, expected, found: values.len() });
@@ -177,6 +209,15 @@ impl Derivatives {
         ws.stage = Stage::Empty;
         ws.configuration_passes(model)?;
         ws.stage = Stage::Configuration;
+        if !self.limit_switches.is_empty() {
+            // The passes normalized the quaternions of θ's values in place.
+            self.theta_values.iter_mut().zip(ws.theta.iter()).for_each(|(v, q)| *v = q.re);
+            limit_switching_functions(model, &self.theta_values, &[], &mut self.limit_switches);
+            let rows = self.limit_switches.iter().filter(|s| **s < 0.0).count();
+            if rows > 0 {
+                return Err(DerivativeError::ActiveLimits { rows });
+            }
+        }
         let velocity = match point.given {
             Given::Nu => ws.nu.as_mut_slice(),
             Given::Qvel => ws.qvel.as_mut_slice(),
@@ -188,6 +229,11 @@ impl Derivatives {
         forces::eps_of_torque(model, ws, &self.torque, &mut self.eps_of_torque);
         seed(&mut self.eps, point.eps, direction.eps);
         self.eps.iter_mut().zip(&self.eps_of_torque).for_each(|(e, t)| *e += *t);
+        if !model.actuators.is_empty() {
+            seed(&mut self.ctrl, point.ctrl, direction.ctrl);
+            ws.actuation_pass(model, &self.ctrl)?;
+            self.eps.iter_mut().zip(ws.eps_actuator.iter()).for_each(|(e, a)| *e += *a);
+        }
         let passive = !model.shortcuts.no_passive_forces();
         if passive {
             bias::passive_forces(model, ws);
@@ -219,12 +265,13 @@ impl Derivatives {
 
     /// The Jacobians of `output` at `point`: one run per column.
     pub fn jacobians(&mut self, model: &Model, point: &Point, output: Output) -> Result<Jacobians, DerivativeError> {
-        let nv = model.nv;
-        let zeros = vec![0.0; nv];
-        let mut unit = vec![0.0; nv];
+        let (nv, nu) = (model.nv, model.actuators.len());
+        let (zeros, no_ctrl) = (vec![0.0; nv], vec![0.0; nu]);
         let mut columns = |which: usize| -> Result<DMatrix<f64>, DerivativeError> {
-            let mut jacobian = DMatrix::zeros(nv, nv);
-            for column in 0..nv {
+            let count = if which == 4 { nu } else { nv };
+            let mut unit = vec![0.0; count];
+            let mut jacobian = DMatrix::zeros(nv, count);
+            for column in 0..count {
                 unit[column] = 1.0;
                 let along = |k: usize| if k == which { unit.as_slice() } else { zeros.as_slice() };
                 let direction = Direction {
@@ -233,6 +280,7 @@ impl Derivatives {
                     velocity: along(1),
                     eps: along(2),
                     torque: along(3),
+                    ctrl: if which == 4 { unit.as_slice() } else { no_ctrl.as_slice() },
                 };
                 let run = self.run(model, point, &direction);
                 unit[column] = 0.0;
@@ -243,7 +291,13 @@ impl Derivatives {
             }
             Ok(jacobian)
         };
-        Ok(Jacobians { theta: columns(0)?, velocity: columns(1)?, eps: columns(2)?, torque: columns(3)? })
+        Ok(Jacobians {
+            theta: columns(0)?,
+            velocity: columns(1)?,
+            eps: columns(2)?,
+            torque: columns(3)?,
+            ctrl: columns(4)?,
+        })
     }
 }
 

@@ -8,7 +8,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::math::{Transform, Vec3};
+use crate::math::{Real, Transform, Vec3};
 use crate::vehicle::{Activation, ActivationKind, ActuatorKind, BiasType, GainType};
 
 /// A site's frame as the passes see it: fixed to a link, or to the world.
@@ -160,9 +160,9 @@ impl Actuator {
 
     /// act's rate (MuJoCo's `act_dot`) at activation `act` and control
     /// `ctrl` (already clamped to its range); 0 for a stateless actuator.
-    pub fn activation_rate(&self, ctrl: f64, act: f64) -> f64 {
+    pub fn activation_rate<S: Real>(&self, ctrl: S, act: S) -> S {
         match self.activation {
-            None => 0.0,
+            None => S::zero(),
             Some(Activation { kind: ActivationKind::Integrator, .. }) => ctrl,
             // MuJoCo divides by at least mjMINVAL.
             Some(Activation { time_constant, .. }) => (ctrl - act) / time_constant.max(MIN_TIME_CONSTANT),
@@ -176,7 +176,7 @@ impl Actuator {
     /// within the range, so that the two differ only where act is outside
     /// it: within an integrator's step that crosses the bound, where
     /// the clamp keeps the force what the projected motion gives.
-    pub fn activation_input(&self, act: f64, act_dot: f64, timestep: f64) -> f64 {
+    pub fn activation_input<S: Real>(&self, act: S, act_dot: S, timestep: f64) -> S {
         let Some(activation) = self.activation else {
             return act;
         };
@@ -213,7 +213,7 @@ const MIN_TIME_CONSTANT: f64 = 1e-15;
 /// The activation one `timestep` ahead of `act` at rate `act_dot`
 /// (`actearly`, MuJoCo's `mj_nextActivation`, in its order of operations):
 /// a filterexact's step is exact.
-fn ahead(activation: Activation, act: f64, act_dot: f64, timestep: f64) -> f64 {
+fn ahead<S: Real>(activation: Activation, act: S, act_dot: S, timestep: f64) -> S {
     match activation.kind {
         ActivationKind::FilterExact => {
             let tau = activation.time_constant.max(MIN_TIME_CONSTANT);

@@ -1,10 +1,12 @@
 //! Exact derivatives (src/dynamics/derivatives.rs) on random trees with
-//! every joint type, springs, dampers and gravity: against the dense
-//! reference of `common` where the derivative is a matrix it gives
-//! (∂θ̈/∂T = M⁻¹, ∂ν/∂θ̇ = m*), and against central differences of the
-//! f64 passes, taken along MuJoCo's position integration, elsewhere.
+//! every joint type, springs, dampers and gravity, and on vehicles with
+//! every actuator kind: against the dense reference of `common` where the
+//! derivative is a matrix it gives (∂θ̈/∂T = M⁻¹, ∂ν/∂θ̇ = m*), and against
+//! central differences of the f64 passes, taken along MuJoCo's position
+//! integration, elsewhere.
 
 use nalgebra::{DMatrix, DVector};
+use nudyn::dynamics::constraint::limit_switching_functions;
 use nudyn::dynamics::derivatives::{DerivativeError, Derivatives, Direction, Jacobians, Output, Point, ThetaDirection};
 use nudyn::dynamics::velocity::Given;
 use nudyn::model::{LinkJoint, Model};
@@ -20,6 +22,7 @@ struct Case {
     velocity: Vec<f64>,
     eps: Vec<f64>,
     torque: Vec<f64>,
+    ctrl: Vec<f64>,
 }
 
 fn case(seed: u64, free_base: bool) -> Case {
@@ -39,27 +42,60 @@ fn case(seed: u64, free_base: bool) -> Case {
     };
     let theta = std::iter::repeat_with(|| random_theta(&mut rng, &vehicle)).find(|t| far_from_half_turns(t)).unwrap();
     let (velocity, eps, torque) = (rng.vec(model.nv, 1.5), rng.vec(model.nv, 2.0), rng.vec(model.nv, 3.0));
-    Case { vehicle, model, theta, velocity, eps, torque }
+    Case { vehicle, model, theta, velocity, eps, torque, ctrl: Vec::new() }
+}
+
+/// A vehicle file at a random state, with each actuator's ctrl inside the
+/// middle of its range (or within ±1), away from the clamp.
+fn file_case(path: &str, seed: u64) -> Case {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(path);
+    let vehicle = nudyn::mjcf::load_mjcf(&path).unwrap().vehicle;
+    let model = Model::compile(&vehicle).unwrap();
+    let mut rng = Rng::new(seed);
+    // No joint limit within reach of the differences' steps.
+    let mut switches = vec![0.0; model.constraints.limit_sides()];
+    let mut clear_of_limits = |theta: &[f64]| {
+        limit_switching_functions(&model, theta, &[], &mut switches);
+        switches.iter().all(|s| *s > 0.01)
+    };
+    let theta = std::iter::repeat_with(|| random_theta(&mut rng, &vehicle)).find(|t| clear_of_limits(t)).unwrap();
+    let (velocity, eps, torque) = (rng.vec(model.nv, 0.5), rng.vec(model.nv, 1.0), rng.vec(model.nv, 1.0));
+    let ctrl = model
+        .actuators
+        .iter()
+        .map(|a| match a.ctrl_range {
+            Some([low, high]) if low < high => low + (high - low) * rng.uniform(0.2, 0.8),
+            _ => rng.uniform(-1.0, 1.0),
+        })
+        .collect();
+    Case { vehicle, model, theta, velocity, eps, torque, ctrl }
 }
 
 fn point(case: &Case, given: Given) -> Point<'_> {
-    Point { theta: &case.theta, velocity: &case.velocity, given, eps: &case.eps, torque: &case.torque }
+    Point {
+        theta: &case.theta,
+        velocity: &case.velocity,
+        given,
+        eps: &case.eps,
+        torque: &case.torque,
+        ctrl: &case.ctrl,
+    }
 }
 
-/// One output of the f64 passes at a state.
-fn evaluate(model: &Model, theta: &[f64], velocity: &[f64], given: Given, eps: &[f64], torque: &[f64]) -> Vec<f64> {
+/// One output of the f64 passes at a state: ν̇ given ν, θ̈ given θ̇.
+fn evaluate(model: &Model, point: &Point) -> Vec<f64> {
     let mut ws = model.workspace();
-    ws.set_configuration(model, theta).unwrap();
-    match given {
-        Given::Nu => ws.set_nu(model, velocity).unwrap(),
-        Given::Qvel => ws.set_qvel(model, velocity).unwrap(),
+    ws.set_configuration(model, point.theta).unwrap();
+    match point.given {
+        Given::Nu => ws.set_nu(model, point.velocity).unwrap(),
+        Given::Qvel => ws.set_qvel(model, point.velocity).unwrap(),
     }
     let mut applied = vec![0.0; model.nv];
-    ws.eps_from_forces(model, torque, None, &mut applied).unwrap();
-    applied.iter_mut().zip(eps).for_each(|(a, e)| *a += e);
-    ws.compute_nu_dot(model, &applied).unwrap();
+    ws.eps_from_forces(model, point.torque, None, &mut applied).unwrap();
+    applied.iter_mut().zip(point.eps).for_each(|(a, e)| *a += e);
+    ws.compute_nu_dot_actuated(model, &applied, point.ctrl).unwrap();
     ws.compute_accelerations(model).unwrap();
-    let output = match given {
+    let output = match point.given {
         Given::Nu => &ws.nu_dot,
         Given::Qvel => &ws.qacc,
     };
@@ -70,34 +106,32 @@ fn evaluate(model: &Model, theta: &[f64], velocity: &[f64], given: Given, eps: &
 /// Richardson step (error O(h⁴); measured: within 5e-10 of the exact ones
 /// on these trees); θ moved by MuJoCo's position integration.
 fn differences(case: &Case, given: Given) -> Jacobians {
-    let (model, nv) = (&case.model, case.model.nv);
+    let (model, nv, nu) = (&case.model, case.model.nv, case.model.actuators.len());
     let h = 1e-3;
     let columns = |which: usize| {
-        let mut jacobian = DMatrix::zeros(nv, nv);
-        for column in 0..nv {
+        let count = if which == 4 { nu } else { nv };
+        let mut jacobian = DMatrix::zeros(nv, count);
+        for column in 0..count {
             let at = |step: f64| {
-                let mut unit = vec![0.0; nv];
-                unit[column] = 1.0;
                 let moved = |values: &[f64], k: usize| -> Vec<f64> {
+                    let mut values = values.to_vec();
                     if k == which {
-                        values.iter().zip(&unit).map(|(v, u)| v + step * u).collect()
-                    } else {
-                        values.to_vec()
+                        values[column] += step;
                     }
+                    values
                 };
                 let theta = if which == 0 {
+                    let mut unit = vec![0.0; nv];
+                    unit[column] = 1.0;
                     integrate_pos(&case.vehicle, &case.theta, &unit, step)
                 } else {
                     case.theta.clone()
                 };
-                DVector::from_vec(evaluate(
-                    model,
-                    &theta,
-                    &moved(&case.velocity, 1),
-                    given,
-                    &moved(&case.eps, 2),
-                    &moved(&case.torque, 3),
-                ))
+                let (velocity, eps, torque, ctrl) =
+                    (moved(&case.velocity, 1), moved(&case.eps, 2), moved(&case.torque, 3), moved(&case.ctrl, 4));
+                let point =
+                    Point { theta: &theta, velocity: &velocity, given, eps: &eps, torque: &torque, ctrl: &ctrl };
+                DVector::from_vec(evaluate(model, &point))
             };
             let central = |h: f64| (at(h) - at(-h)) / (2.0 * h);
             let richardson = (central(h / 2.0) * 4.0 - central(h)) / 3.0;
@@ -105,7 +139,7 @@ fn differences(case: &Case, given: Given) -> Jacobians {
         }
         jacobian
     };
-    Jacobians { theta: columns(0), velocity: columns(1), eps: columns(2), torque: columns(3) }
+    Jacobians { theta: columns(0), velocity: columns(1), eps: columns(2), torque: columns(3), ctrl: columns(4) }
 }
 
 /// max |a − b| / max(1, max |b|) over a matrix.
@@ -140,26 +174,43 @@ fn the_derivative_of_nu_in_qvel_is_the_factor_and_of_nu_dot_in_eps_the_identity(
     }
 }
 
+/// Every Jacobian of θ̈ (θ̇ given) and ν̇ (ν given) within `tolerance` of
+/// the differences.
+fn assert_agrees_with_differences(case: &Case, label: &str, tolerance: f64) {
+    let mut derivatives = Derivatives::new(&case.model).unwrap();
+    for (given, output) in [(Given::Qvel, Output::Qacc), (Given::Nu, Output::NuDot)] {
+        let exact = derivatives.jacobians(&case.model, &point(case, given), output).unwrap();
+        let differenced = differences(case, given);
+        for (what, a, b) in [
+            ("theta", &exact.theta, &differenced.theta),
+            ("velocity", &exact.velocity, &differenced.velocity),
+            ("eps", &exact.eps, &differenced.eps),
+            ("torque", &exact.torque, &differenced.torque),
+            ("ctrl", &exact.ctrl, &differenced.ctrl),
+        ] {
+            let error = relative(a, b);
+            assert!(
+                error < tolerance,
+                "{label}, {output:?} in {what} ({given:?} given): {error:e} from the differences"
+            );
+        }
+    }
+}
+
 #[test]
 fn jacobians_agree_with_central_differences_of_the_passes() {
     for seed in 0..16 {
-        let case = case(seed, seed % 2 == 0);
-        let mut derivatives = Derivatives::new(&case.model).unwrap();
-        for (given, output) in [(Given::Qvel, Output::Qacc), (Given::Nu, Output::NuDot)] {
-            let exact = derivatives.jacobians(&case.model, &point(&case, given), output).unwrap();
-            let differenced = differences(&case, given);
-            for (what, a, b) in [
-                ("theta", &exact.theta, &differenced.theta),
-                ("velocity", &exact.velocity, &differenced.velocity),
-                ("eps", &exact.eps, &differenced.eps),
-                ("torque", &exact.torque, &differenced.torque),
-            ] {
-                let error = relative(a, b);
-                assert!(
-                    error < 1e-8,
-                    "seed {seed}, {output:?} in {what} ({given:?} given): {error:e} from the differences"
-                );
-            }
+        assert_agrees_with_differences(&case(seed, seed % 2 == 0), &format!("seed {seed}"), 1e-8);
+    }
+}
+
+/// Every actuator kind, transmission and clamp (tests/fixtures/actuators/kinds.xml)
+/// and the servicer's thrusters, wheels and arm servos, ctrl away from its clamps.
+#[test]
+fn actuated_jacobians_agree_with_central_differences_of_the_passes() {
+    for (path, seeds) in [("tests/fixtures/actuators/kinds.xml", 0..4), ("examples/servicer.xml", 0..2)] {
+        for seed in seeds {
+            assert_agrees_with_differences(&file_case(path, seed), &format!("{path}, seed {seed}"), 1e-8);
         }
     }
 }
@@ -179,11 +230,12 @@ fn a_run_gives_the_f64_values() {
             velocity: &zeros,
             eps: &zeros,
             torque: &zeros,
+            ctrl: &[],
         };
         for (given, output) in [(Given::Qvel, Output::Qacc), (Given::Nu, Output::NuDot)] {
             derivatives.run(&case.model, &point(&case, given), &direction).unwrap();
             let values: Vec<f64> = derivatives.value(output).collect();
-            let passes = evaluate(&case.model, &case.theta, &case.velocity, given, &case.eps, &case.torque);
+            let passes = evaluate(&case.model, &point(&case, given));
             let error = common::rel_err(&values, &passes);
             assert!(error < 1e-13, "seed {seed}, {output:?}: {error:e}");
             assert!(derivatives.derivative(output).all(|d| d == 0.0), "seed {seed}: a zero direction moved {output:?}");
@@ -210,7 +262,7 @@ fn coordinate_and_tangent_directions_agree() {
         assert_eq!(coordinates.len(), nq);
         let zeros = vec![0.0; nv];
         let mut along = |theta: &[f64], theta_in| {
-            let direction = Direction { theta, theta_in, velocity: &zeros, eps: &zeros, torque: &zeros };
+            let direction = Direction { theta, theta_in, velocity: &zeros, eps: &zeros, torque: &zeros, ctrl: &[] };
             derivatives.run(&case.model, &point(&case, Given::Qvel), &direction).unwrap();
             derivatives.derivative(Output::Qacc).collect::<Vec<f64>>()
         };
@@ -223,27 +275,55 @@ fn coordinate_and_tangent_directions_agree() {
 
 #[test]
 fn models_beyond_the_generic_passes_and_bad_points_are_refused() {
-    let xml = r#"<mujoco><worldbody><body><joint name="h" type="hinge"/><geom size="0.1" mass="1"/></body></worldbody>
-        <actuator><motor joint="h"/></actuator></mujoco>"#;
-    let model = Model::compile(&nudyn::mjcf::parse_mjcf(xml).unwrap().vehicle).unwrap();
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/activation/filtered_arm.xml");
+    let model = Model::compile(&nudyn::mjcf::load_mjcf(&path).unwrap().vehicle).unwrap();
     let refusal = Derivatives::new(&model).unwrap_err();
-    assert_eq!(refusal, DerivativeError::Unsupported("actuators"));
-    assert!(refusal.to_string().contains("actuators"), "{refusal}");
+    assert_eq!(refusal, DerivativeError::Unsupported("actuators' activation states (dyntype)"));
+    assert!(refusal.to_string().contains("activation states"), "{refusal}");
+
+    let mut at_a_limit = file_case("tests/fixtures/actuators/kinds.xml", 0);
+    let shoulder = at_a_limit.model.joints.iter().find(|j| j.name == "shoulder").unwrap().qpos_adr;
+    at_a_limit.theta[shoulder] = 100f64.to_radians() + 0.01;
+    let mut derivatives = Derivatives::new(&at_a_limit.model).unwrap();
+    let (nv, nu) = (at_a_limit.model.nv, at_a_limit.model.actuators.len());
+    let (zeros, no_ctrl) = (vec![0.0; nv], vec![0.0; nu]);
+    let along = Direction {
+        theta: &zeros,
+        theta_in: ThetaDirection::Tangent,
+        velocity: &zeros,
+        eps: &zeros,
+        torque: &zeros,
+        ctrl: &no_ctrl,
+    };
+    let error = derivatives.run(&at_a_limit.model, &point(&at_a_limit, Given::Qvel), &along).unwrap_err();
+    assert_eq!(error, DerivativeError::ActiveLimits { rows: 1 });
 
     let case = case(3, true);
     let mut derivatives = Derivatives::new(&case.model).unwrap();
     let nv = case.model.nv;
     let zeros = vec![0.0; nv];
     let short = vec![0.0; nv - 1];
-    let direction =
-        Direction { theta: &short, theta_in: ThetaDirection::Tangent, velocity: &zeros, eps: &zeros, torque: &zeros };
+    let direction = Direction {
+        theta: &short,
+        theta_in: ThetaDirection::Tangent,
+        velocity: &zeros,
+        eps: &zeros,
+        torque: &zeros,
+        ctrl: &[],
+    };
     let error = derivatives.run(&case.model, &point(&case, Given::Qvel), &direction).unwrap_err();
     assert_eq!(error, DerivativeError::DirectionLength { what: "theta", expected: nv, found: nv - 1 });
     let mut eps = case.eps.clone();
     eps[1] = f64::NAN;
     let bad = Point { eps: &eps, ..point(&case, Given::Qvel) };
-    let direction =
-        Direction { theta: &zeros, theta_in: ThetaDirection::Tangent, velocity: &zeros, eps: &zeros, torque: &zeros };
+    let direction = Direction {
+        theta: &zeros,
+        theta_in: ThetaDirection::Tangent,
+        velocity: &zeros,
+        eps: &zeros,
+        torque: &zeros,
+        ctrl: &[],
+    };
     let error = derivatives.run(&case.model, &bad, &direction).unwrap_err();
     assert!(error.to_string().contains("eps[2] is not finite"), "{error}");
 }

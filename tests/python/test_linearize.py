@@ -26,8 +26,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from conftest import EXAMPLES
-from nudyn_validation.mujoco_reference import Reference
+from conftest import EXAMPLES, ROOT
+from nudyn_validation.mujoco_reference import Reference, load_model
 
 # The examples whose dynamics the derivatives cover (no actuators, tendons
 # or constraint forces).
@@ -167,10 +167,63 @@ def test_npz_holds_the_json_matrices_and_modes_are_printed(nudyn, tmp_path):
     assert "frequency (Hz)" in stderr and "damping" in stderr
 
 
+ACTUATED = [ROOT / "tests/fixtures/actuators/kinds.xml", next(p for p in EXAMPLES if p.stem == "servicer")]
+
+
+@pytest.mark.parametrize("path", ACTUATED, ids=[p.stem for p in ACTUATED])
+def test_the_actuators_inputs_agree_with_differences_of_mujoco(nudyn, path):
+    """B for ctrl (every actuator kind, transmission and gain; the servicer's
+    thrusters, wheels and servos) and A with the actuators' bias forces, at
+    random states clear of the joint limits, ctrl inside its range."""
+    ref = Reference(load_model(path), None)
+    ref.data = mujoco.MjData(ref.model)
+    m = ref.model
+    rng = np.random.default_rng(zlib.crc32(path.stem.encode()))
+    limited = [j for j in range(m.njnt) if m.jnt_limited[j] and m.jnt_type[j] in (2, 3)]
+
+    def clear(qpos):
+        return all(m.jnt_range[j, 0] + 0.05 < qpos[m.jnt_qposadr[j]] < m.jnt_range[j, 1] - 0.05 for j in limited)
+
+    for _ in range(2):
+        qpos, qvel, _ = next(s for s in iter(lambda: ref.random_state(rng), None) if clear(s[0]))
+        low, high = m.actuator_ctrlrange[:, 0], m.actuator_ctrlrange[:, 1]
+        ranged = (m.actuator_ctrllimited == 1) & (low < high)
+        ctrl = np.where(ranged, low + (high - low) * rng.uniform(0.2, 0.8, m.nu), rng.uniform(-1, 1, m.nu))
+        out, _ = linearize(nudyn, path, "--qpos", listed(qpos), "--qvel", listed(qvel), "--ctrl", listed(ctrl),
+                           "--inputs", "ctrl")
+        nv = m.nv
+        a, b = np.array(out["A"]), np.array(out["B"])
+        d = ref.data
+
+        def qacc(dq, dv, du):
+            mujoco.mj_resetData(m, d)
+            d.qpos[:] = qpos
+            mujoco.mj_integratePos(m, d.qpos, dq, 1.0)
+            d.qvel[:] = qvel + dv
+            d.ctrl[:] = ctrl + du
+            mujoco.mj_forward(m, d)
+            assert d.nefc == 0, "a constraint row acts"
+            return d.qacc.copy()
+
+        def jacobian(which, count, h=1e-4):
+            def column(k, h):
+                step = [np.zeros(nv), np.zeros(nv), np.zeros(m.nu)]
+                step[which] = np.zeros(count)
+                step[which][k] = h
+                minus = [-x for x in step]
+                return (qacc(*step) - qacc(*minus)) / (2 * h)
+            return np.column_stack([(4 * column(k, h / 2) - column(k, h)) / 3 for k in range(count)])
+
+        for what, ours, theirs in [("dq", a[nv:, :nv], jacobian(0, nv)), ("qvel", a[nv:, nv:], jacobian(1, nv)),
+                                   ("ctrl", b[nv:], jacobian(2, m.nu))]:
+            print(f"{path.stem}: ∂qacc/∂{what} {relative(ours, theirs):.1e} from MuJoCo's differences")
+            assert relative(ours, theirs) < 1e-6, f"∂qacc/∂{what}: {relative(ours, theirs):.2e}"
+
+
 def test_vehicles_beyond_the_derivatives_are_refused_with_a_reason(nudyn):
-    servicer = next(p for p in EXAMPLES if p.stem == "servicer")
-    proc = subprocess.run([str(nudyn), "linearize", str(servicer)], capture_output=True, text=True, timeout=60)
+    filtered = ROOT / "tests/fixtures/activation/filtered_arm.xml"
+    proc = subprocess.run([str(nudyn), "linearize", str(filtered)], capture_output=True, text=True, timeout=60)
     assert proc.returncode != 0 and proc.stdout == ""
-    assert "derivatives do not cover actuators yet" in proc.stderr, proc.stderr
+    assert "derivatives do not cover actuators' activation states (dyntype) yet" in proc.stderr, proc.stderr
     wrong = subprocess.run([str(nudyn), "linearize", str(COVERED[0]), "--qvel", "1,2"], capture_output=True, text=True)
     assert wrong.returncode != 0 and "--qvel has 2 values" in wrong.stderr, wrong.stderr
