@@ -26,13 +26,13 @@
 //! refused by [`Derivatives::new`] with what is missing, rather than
 //! given a derivative that leaves a term out.
 
-use nalgebra::{DMatrix, Quaternion};
-use num_dual::Dual64;
+use nalgebra::{Const, DMatrix, Quaternion, SVector, U1};
+use num_dual::{Derivative, Dual64, DualSVec64};
 
 use super::constraint::limit_switching_functions;
 use super::velocity::{self, Given};
 use super::{DynamicsError, bias, check_input, forces};
-use crate::math::quat_from_wxyz;
+use crate::math::{Real, quat_from_wxyz};
 use crate::model::{LinkJoint, Model};
 use crate::workspace::{Stage, Workspace};
 
@@ -141,19 +141,165 @@ pub struct Jacobians {
     pub ctrl: DMatrix<f64>,
 }
 
-/// A model's workspace in dual numbers and the inputs' buffers: built
-/// once, so that derivatives allocate nothing but their results.
+/// Directions at once in one run of the passes: a Jacobian's columns in
+/// batches, so that each value is computed once per batch (vector dual
+/// numbers, whose products cost one of f64's per direction and one more).
+const BATCH: usize = 8;
+
+/// A dual number carrying `DIRECTIONS` directions: `Dual64` (one, for a
+/// directional derivative) or num-dual's `DualSVec64` (a batch).
+trait Lanes: Real {
+    const DIRECTIONS: usize;
+    /// `value` with derivative `tangent(lane)` along each lane.
+    fn seeded(value: f64, tangent: impl Fn(usize) -> f64) -> Self;
+    /// The derivative along `lane`.
+    fn tangent(&self, lane: usize) -> f64;
+}
+
+impl Lanes for Dual64 {
+    const DIRECTIONS: usize = 1;
+    fn seeded(value: f64, tangent: impl Fn(usize) -> f64) -> Self {
+        Dual64::new(value, tangent(0))
+    }
+    fn tangent(&self, _: usize) -> f64 {
+        self.eps
+    }
+}
+
+impl<const N: usize> Lanes for DualSVec64<N> {
+    const DIRECTIONS: usize = N;
+    fn seeded(value: f64, tangent: impl Fn(usize) -> f64) -> Self {
+        DualSVec64::new(value, Derivative::some(SVector::from_fn(|lane, _| tangent(lane))))
+    }
+    fn tangent(&self, lane: usize) -> f64 {
+        self.eps.clone().unwrap_generic(Const::<N>, U1)[lane]
+    }
+}
+
+/// The passes' workspace in dual numbers of `D` and the inputs' buffers.
+#[derive(Clone, Debug)]
+struct Passes<D: Lanes> {
+    ws: Workspace<D>,
+    eps: Vec<D>,
+    torque: Vec<D>,
+    eps_of_torque: Vec<D>,
+    ctrl: Vec<D>,
+    /// Each lane's direction in θ's coordinates (lane-major, nq each).
+    theta_rates: Vec<f64>,
+}
+
+impl<D: Lanes> Passes<D> {
+    fn new(model: &Model) -> Self {
+        let zeros = vec![D::from(0.0); model.nv];
+        Passes {
+            ws: Workspace::in_scalar(model),
+            eps: zeros.clone(),
+            torque: zeros.clone(),
+            eps_of_torque: zeros,
+            ctrl: vec![D::from(0.0); model.actuators.len()],
+            theta_rates: vec![0.0; D::DIRECTIONS * model.nq],
+        }
+    }
+
+    /// Passes 0–3 and θ̈ at `point` along `directions` (one per lane, checked),
+    /// with `limits` refusing a point where a joint limit acts.
+    fn run(
+        &mut self,
+        model: &Model,
+        point: &Point,
+        directions: &[Direction],
+        limits: &mut Limits,
+    ) -> Result<(), DerivativeError> {
+        let nq = model.nq;
+        for (lane, direction) in directions.iter().enumerate() {
+            theta_rates(model, point.theta, direction, &mut self.theta_rates[lane * nq..(lane + 1) * nq]);
+        }
+        let lanes = directions.len();
+        let rates = &self.theta_rates;
+        let ws = &mut self.ws;
+        for (k, slot) in ws.theta.iter_mut().enumerate() {
+            *slot = D::seeded(point.theta[k], |lane| if lane < lanes { rates[lane * nq + k] } else { 0.0 });
+        }
+        ws.stage = Stage::Empty;
+        ws.configuration_passes(model)?;
+        ws.stage = Stage::Configuration;
+        limits.refuse_active(model, ws.theta.iter().map(|q| q.value()))?;
+        let velocity = match point.given {
+            Given::Nu => ws.nu.as_mut_slice(),
+            Given::Qvel => ws.qvel.as_mut_slice(),
+        };
+        for (k, slot) in velocity.iter_mut().enumerate() {
+            *slot = D::seeded(point.velocity[k], |lane| directions.get(lane).map_or(0.0, |d| d.velocity[k]));
+        }
+        velocity::velocity_pass(model, ws, point.given);
+        ws.stage = Stage::Velocity;
+        for (k, slot) in self.torque.iter_mut().enumerate() {
+            *slot = D::seeded(point.torque[k], |lane| directions.get(lane).map_or(0.0, |d| d.torque[k]));
+        }
+        forces::eps_of_torque(model, ws, &self.torque, &mut self.eps_of_torque);
+        for (k, slot) in self.eps.iter_mut().enumerate() {
+            *slot =
+                D::seeded(point.eps[k], |lane| directions.get(lane).map_or(0.0, |d| d.eps[k])) + self.eps_of_torque[k];
+        }
+        if !model.actuators.is_empty() {
+            for (k, slot) in self.ctrl.iter_mut().enumerate() {
+                *slot = D::seeded(point.ctrl[k], |lane| directions.get(lane).map_or(0.0, |d| d.ctrl[k]));
+            }
+            ws.actuation_pass(model, &self.ctrl)?;
+            self.eps.iter_mut().zip(ws.eps_actuator.iter()).for_each(|(e, a)| *e += *a);
+        }
+        let passive = !model.shortcuts.no_passive_forces();
+        if passive {
+            bias::passive_forces(model, ws);
+        }
+        bias::link_sweep::<_, true>(model, ws, &self.eps, passive);
+        ws.stage = Stage::Acceleration;
+        ws.compute_accelerations(model)?;
+        Ok(())
+    }
+
+    fn output(&self, output: Output) -> &[D] {
+        match output {
+            Output::Qvel => self.ws.qvel.as_slice(),
+            Output::Nu => self.ws.nu.as_slice(),
+            Output::NuDot => self.ws.nu_dot.as_slice(),
+            Output::Qacc => self.ws.qacc.as_slice(),
+        }
+    }
+}
+
+/// The model's joint limits, and what a point's configuration gives them.
+#[derive(Clone, Debug)]
+struct Limits {
+    /// Each limit side's distance less its margin at the point.
+    switches: Vec<f64>,
+    /// θ's values (quaternions normalized by the passes).
+    theta: Vec<f64>,
+}
+
+impl Limits {
+    /// [`DerivativeError::ActiveLimits`] when a side acts at configuration `theta`.
+    fn refuse_active(&mut self, model: &Model, theta: impl Iterator<Item = f64>) -> Result<(), DerivativeError> {
+        if self.switches.is_empty() {
+            return Ok(());
+        }
+        self.theta.iter_mut().zip(theta).for_each(|(slot, q)| *slot = q);
+        limit_switching_functions(model, &self.theta, &[], &mut self.switches);
+        match self.switches.iter().filter(|s| **s < 0.0).count() {
+            0 => Ok(()),
+            rows => Err(DerivativeError::ActiveLimits { rows }),
+        }
+    }
+}
+
+/// A model's passes in dual numbers, one direction and a batch, and the
+/// inputs' buffers: built once, so that derivatives allocate nothing but
+/// their results.
 #[derive(Clone, Debug)]
 pub struct Derivatives {
-    ws: Workspace<Dual64>,
-    eps: Vec<Dual64>,
-    torque: Vec<Dual64>,
-    eps_of_torque: Vec<Dual64>,
-    ctrl: Vec<Dual64>,
-    /// Each limit side's distance less its margin at the point.
-    limit_switches: Vec<f64>,
-    /// θ's values, for the limits' distances.
-    theta_values: Vec<f64>,
+    single: Passes<Dual64>,
+    batch: Passes<DualSVec64<BATCH>>,
+    limits: Limits,
 }
 
 impl Derivatives {
@@ -169,124 +315,63 @@ impl Derivatives {
         if let Some((_, what)) = unsupported.iter().find(|(has, _)| *has) {
             return Err(DerivativeError::Unsupported(what));
         }
-        let zeros = vec![Dual64::from(0.0); model.nv];
         Ok(Derivatives {
-            ws: Workspace::in_scalar(model),
-            eps: zeros.clone(),
-            torque: zeros.clone(),
-            eps_of_torque: zeros,
-            ctrl: vec![Dual64::from(0.0); model.actuators.len()],
-            limit_switches: vec![0.0; model.constraints.limit_sides()],
-            theta_values: vec![0.0; model.nq],
+            single: Passes::new(model),
+            batch: Passes::new(model),
+            limits: Limits { switches: vec![0.0; model.constraints.limit_sides()], theta: vec![0.0; model.nq] },
         })
     }
 
     /// Runs the passes at `point` along `direction`; [`Derivatives::derivative`]
     /// and [`Derivatives::value`] then read the outputs.
     pub fn run(&mut self, model: &Model, point: &Point, direction: &Direction) -> Result<(), DerivativeError> {
-        check_input("theta", point.theta, model.nq)?;
-        check_input(velocity_name(point.given), point.velocity, model.nv)?;
-        check_input("eps", point.eps, model.nv)?;
-        check_input("torque", point.torque, model.nv)?;
-        check_input("ctrl", point.ctrl, model.actuators.len())?;
-        let theta_length = match direction.theta_in {
-            ThetaDirection::Tangent => model.nv,
-            ThetaDirection::Coordinates => model.nq,
-        };
-        for (what, values, expected) in [
-            ("theta", direction.theta, theta_length),
-            (velocity_name(point.given), direction.velocity, model.nv),
-            ("eps", direction.eps, model.nv),
-            ("torque", direction.torque, model.nv),
-            ("ctrl", direction.ctrl, model.actuators.len()),
-        ] {
-            if values.len() != expected {
-                return Err(DerivativeError::DirectionLength { what, expected, found: values.len() });
-            }
-        }
-        let ws = &mut self.ws;
-        seed_theta(model, point.theta, direction, ws.theta.as_mut_slice())?;
-        ws.stage = Stage::Empty;
-        ws.configuration_passes(model)?;
-        ws.stage = Stage::Configuration;
-        if !self.limit_switches.is_empty() {
-            // The passes normalized the quaternions of θ's values in place.
-            self.theta_values.iter_mut().zip(ws.theta.iter()).for_each(|(v, q)| *v = q.re);
-            limit_switching_functions(model, &self.theta_values, &[], &mut self.limit_switches);
-            let rows = self.limit_switches.iter().filter(|s| **s < 0.0).count();
-            if rows > 0 {
-                return Err(DerivativeError::ActiveLimits { rows });
-            }
-        }
-        let velocity = match point.given {
-            Given::Nu => ws.nu.as_mut_slice(),
-            Given::Qvel => ws.qvel.as_mut_slice(),
-        };
-        seed(velocity, point.velocity, direction.velocity);
-        velocity::velocity_pass(model, ws, point.given);
-        ws.stage = Stage::Velocity;
-        seed(&mut self.torque, point.torque, direction.torque);
-        forces::eps_of_torque(model, ws, &self.torque, &mut self.eps_of_torque);
-        seed(&mut self.eps, point.eps, direction.eps);
-        self.eps.iter_mut().zip(&self.eps_of_torque).for_each(|(e, t)| *e += *t);
-        if !model.actuators.is_empty() {
-            seed(&mut self.ctrl, point.ctrl, direction.ctrl);
-            ws.actuation_pass(model, &self.ctrl)?;
-            self.eps.iter_mut().zip(ws.eps_actuator.iter()).for_each(|(e, a)| *e += *a);
-        }
-        let passive = !model.shortcuts.no_passive_forces();
-        if passive {
-            bias::passive_forces(model, ws);
-        }
-        bias::link_sweep::<_, true>(model, ws, &self.eps, passive);
-        ws.stage = Stage::Acceleration;
-        ws.compute_accelerations(model)?;
-        Ok(())
+        check_point(model, point)?;
+        check_direction(model, point, direction)?;
+        self.single.run(model, point, std::slice::from_ref(direction), &mut self.limits)
     }
 
     /// The derivative of `output` along the last run's direction.
     pub fn derivative(&self, output: Output) -> impl Iterator<Item = f64> + '_ {
-        self.output(output).iter().map(|d| d.eps)
+        self.single.output(output).iter().map(|d| d.eps)
     }
 
     /// The value of `output` at the last run's point.
     pub fn value(&self, output: Output) -> impl Iterator<Item = f64> + '_ {
-        self.output(output).iter().map(|d| d.re)
+        self.single.output(output).iter().map(|d| d.re)
     }
 
-    fn output(&self, output: Output) -> &[Dual64] {
-        match output {
-            Output::Qvel => self.ws.qvel.as_slice(),
-            Output::Nu => self.ws.nu.as_slice(),
-            Output::NuDot => self.ws.nu_dot.as_slice(),
-            Output::Qacc => self.ws.qacc.as_slice(),
-        }
-    }
-
-    /// The Jacobians of `output` at `point`: one run per column.
+    /// The Jacobians of `output` at `point`: the columns in batches of
+    /// [`BATCH`] directions, one run of the passes each.
     pub fn jacobians(&mut self, model: &Model, point: &Point, output: Output) -> Result<Jacobians, DerivativeError> {
+        check_point(model, point)?;
         let (nv, nu) = (model.nv, model.actuators.len());
         let (zeros, no_ctrl) = (vec![0.0; nv], vec![0.0; nu]);
         let mut columns = |which: usize| -> Result<DMatrix<f64>, DerivativeError> {
             let count = if which == 4 { nu } else { nv };
-            let mut unit = vec![0.0; count];
+            let units: Vec<Vec<f64>> =
+                (0..count).map(|column| (0..count).map(|k| if k == column { 1.0 } else { 0.0 }).collect()).collect();
             let mut jacobian = DMatrix::zeros(nv, count);
-            for column in 0..count {
-                unit[column] = 1.0;
-                let along = |k: usize| if k == which { unit.as_slice() } else { zeros.as_slice() };
-                let direction = Direction {
-                    theta: along(0),
-                    theta_in: ThetaDirection::Tangent,
-                    velocity: along(1),
-                    eps: along(2),
-                    torque: along(3),
-                    ctrl: if which == 4 { unit.as_slice() } else { no_ctrl.as_slice() },
-                };
-                let run = self.run(model, point, &direction);
-                unit[column] = 0.0;
-                run?;
-                for (row, d) in self.derivative(output).enumerate() {
-                    jacobian[(row, column)] = d;
+            for first in (0..count).step_by(BATCH) {
+                let batch = &units[first..count.min(first + BATCH)];
+                let directions: Vec<Direction> = batch
+                    .iter()
+                    .map(|unit| {
+                        let along = |k: usize| if k == which { unit.as_slice() } else { zeros.as_slice() };
+                        Direction {
+                            theta: along(0),
+                            theta_in: ThetaDirection::Tangent,
+                            velocity: along(1),
+                            eps: along(2),
+                            torque: along(3),
+                            ctrl: if which == 4 { unit.as_slice() } else { no_ctrl.as_slice() },
+                        }
+                    })
+                    .collect();
+                self.batch.run(model, point, &directions, &mut self.limits)?;
+                for (row, d) in self.batch.output(output).iter().enumerate() {
+                    for lane in 0..directions.len() {
+                        jacobian[(row, first + lane)] = d.tangent(lane);
+                    }
                 }
             }
             Ok(jacobian)
@@ -301,6 +386,36 @@ impl Derivatives {
     }
 }
 
+/// The point's entries: their lengths, and finite.
+fn check_point(model: &Model, point: &Point) -> Result<(), DerivativeError> {
+    check_input("theta", point.theta, model.nq)?;
+    check_input(velocity_name(point.given), point.velocity, model.nv)?;
+    check_input("eps", point.eps, model.nv)?;
+    check_input("torque", point.torque, model.nv)?;
+    check_input("ctrl", point.ctrl, model.actuators.len())?;
+    Ok(())
+}
+
+/// The direction's lengths.
+fn check_direction(model: &Model, point: &Point, direction: &Direction) -> Result<(), DerivativeError> {
+    let theta_length = match direction.theta_in {
+        ThetaDirection::Tangent => model.nv,
+        ThetaDirection::Coordinates => model.nq,
+    };
+    for (what, values, expected) in [
+        ("theta", direction.theta, theta_length),
+        (velocity_name(point.given), direction.velocity, model.nv),
+        ("eps", direction.eps, model.nv),
+        ("torque", direction.torque, model.nv),
+        ("ctrl", direction.ctrl, model.actuators.len()),
+    ] {
+        if values.len() != expected {
+            return Err(DerivativeError::DirectionLength { what, expected, found: values.len() });
+        }
+    }
+    Ok(())
+}
+
 fn velocity_name(given: Given) -> &'static str {
     match given {
         Given::Nu => "nu",
@@ -308,34 +423,26 @@ fn velocity_name(given: Given) -> &'static str {
     }
 }
 
-/// Values with their derivatives.
-fn seed(out: &mut [Dual64], values: &[f64], derivatives: &[f64]) {
-    for ((o, &v), &d) in out.iter_mut().zip(values).zip(derivatives) {
-        *o = Dual64::new(v, d);
-    }
-}
-
-/// θ with its derivative along the direction. A tangent direction moves
-/// a quaternion q by q ⊗ (0, δ/2), its derivative along q ⊗ exp(δ/2); for
-/// q not of unit length the passes' normalization divides that by |q|,
-/// so that q̂ ⊗ exp(δ/2) is what they see.
-fn seed_theta(model: &Model, theta: &[f64], direction: &Direction, out: &mut [Dual64]) -> Result<(), DynamicsError> {
+/// θ's rate along the direction, in θ's coordinates (nq). A tangent
+/// direction moves a quaternion q by q ⊗ (0, δ/2), its derivative along
+/// q ⊗ exp(δ/2); for q not of unit length the passes' normalization
+/// divides that by |q|, so that q̂ ⊗ exp(δ/2) is what they see.
+fn theta_rates(model: &Model, theta: &[f64], direction: &Direction, out: &mut [f64]) {
     if direction.theta_in == ThetaDirection::Coordinates {
-        seed(out, theta, direction.theta);
-        return Ok(());
+        out.copy_from_slice(direction.theta);
+        return;
     }
     for link in &model.links {
         let (q, d) = (link.qpos_adr, link.dof_adr);
         match link.joint {
-            LinkJoint::Hinge | LinkJoint::Slide => out[q] = Dual64::new(theta[q], direction.theta[d]),
-            LinkJoint::Translation => seed(&mut out[q..q + 3], &theta[q..q + 3], &direction.theta[d..d + 3]),
+            LinkJoint::Hinge | LinkJoint::Slide => out[q] = direction.theta[d],
+            LinkJoint::Translation => out[q..q + 3].copy_from_slice(&direction.theta[d..d + 3]),
             LinkJoint::Ball => {
                 let rotation = direction.theta[d..d + 3].iter().map(|r| 0.5 * r);
                 let half = Quaternion::from_parts(0.0, nalgebra::Vector3::from_iterator(rotation));
                 let moved = quat_from_wxyz(&theta[q..q + 4]) * half;
-                seed(&mut out[q..q + 4], &theta[q..q + 4], &[moved.w, moved.i, moved.j, moved.k]);
+                out[q..q + 4].copy_from_slice(&[moved.w, moved.i, moved.j, moved.k]);
             }
         }
     }
-    Ok(())
 }
