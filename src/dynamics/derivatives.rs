@@ -172,7 +172,7 @@ impl<const N: usize> Lanes for DualSVec64<N> {
         DualSVec64::new(value, Derivative::some(SVector::from_fn(|lane, _| tangent(lane))))
     }
     fn tangent(&self, lane: usize) -> f64 {
-        self.eps.clone().unwrap_generic(Const::<N>, U1)[lane]
+        self.eps.unwrap_generic(Const::<N>, U1)[lane]
     }
 }
 
