@@ -26,7 +26,7 @@ use num_dual::Dual64;
 
 use super::velocity::{self, Given};
 use super::{DynamicsError, bias, check_input, forces};
-use crate::math::quat_from_wxyz;
+use crate::math::{Real, quat_from_wxyz};
 use crate::model::{LinkJoint, Model};
 use crate::workspace::{Stage, Workspace};
 
@@ -134,14 +134,7 @@ impl Derivatives {
     /// The buffers for `model`, or what the model has that derivatives do
     /// not cover yet.
     pub fn new(model: &Model) -> Result<Self, DerivativeError> {
-        let unsupported = [
-            (!model.actuators.is_empty(), "actuators"),
-            (!model.tendons.is_empty(), "tendons"),
-            (!model.constraints.is_empty(), "constraint forces (limits, friction loss, equalities)"),
-        ];
-        if let Some((_, what)) = unsupported.iter().find(|(has, _)| *has) {
-            return Err(DerivativeError::Unsupported(what));
-        }
+        Self::check(model)?;
         let zeros = vec![Dual64::from(0.0); model.nv];
         Ok(Derivatives {
             ws: Workspace::in_scalar(model),
@@ -149,6 +142,20 @@ impl Derivatives {
             torque: zeros.clone(),
             eps_of_torque: zeros,
         })
+    }
+
+    /// Whether derivatives cover `model`, without building the buffers
+    /// (an exporter's question): what [`Derivatives::new`] refuses.
+    pub fn check(model: &Model) -> Result<(), DerivativeError> {
+        let unsupported = [
+            (!model.actuators.is_empty(), "actuators"),
+            (!model.tendons.is_empty(), "tendons"),
+            (!model.constraints.is_empty(), "constraint forces (limits, friction loss, equalities)"),
+        ];
+        match unsupported.iter().find(|(has, _)| *has) {
+            Some((_, what)) => Err(DerivativeError::Unsupported(what)),
+            None => Ok(()),
+        }
     }
 
     /// Runs the passes at `point` along `direction`; [`Derivatives::derivative`]
@@ -208,6 +215,12 @@ impl Derivatives {
         self.output(output).iter().map(|d| d.re)
     }
 
+    /// The derivative of d(θ[k])/dt ([`qpos_rate`]) along the last run's
+    /// direction: θ's rate as the state derivative of model exchange.
+    pub fn qpos_rate_derivative(&self, model: &Model, k: usize) -> f64 {
+        qpos_rate(model, self.ws.theta.as_slice(), self.ws.qvel.as_slice(), k).eps
+    }
+
     fn output(&self, output: Output) -> &[Dual64] {
         match output {
             Output::Qvel => self.ws.qvel.as_slice(),
@@ -244,6 +257,23 @@ impl Derivatives {
             Ok(jacobian)
         };
         Ok(Jacobians { theta: columns(0)?, velocity: columns(1)?, eps: columns(2)?, torque: columns(3)? })
+    }
+}
+
+/// d(θ[k])/dt from the passes' θ (quaternions normalized) and θ̇: θ̇'s
+/// entry for a hinge, slide or translation; q̇ = ½ q ⊗ (0, ω) for a
+/// quaternion's entries (ω in the body frame), orthogonal to q. Generic,
+/// so that run in dual numbers it carries its own derivative.
+pub fn qpos_rate<S: Real>(model: &Model, theta: &[S], qvel: &[S], k: usize) -> S {
+    let link = model.links.iter().rev().find(|l| l.qpos_adr <= k).expect("every coordinate belongs to a link");
+    let (q, w) = (&theta[link.qpos_adr..], &qvel[link.dof_adr..]);
+    let half = |x: S| x * 0.5;
+    match (link.joint, k - link.qpos_adr) {
+        (LinkJoint::Ball, 0) => -half(q[1] * w[0] + q[2] * w[1] + q[3] * w[2]),
+        (LinkJoint::Ball, 1) => half(q[0] * w[0] + q[2] * w[2] - q[3] * w[1]),
+        (LinkJoint::Ball, 2) => half(q[0] * w[1] + q[3] * w[0] - q[1] * w[2]),
+        (LinkJoint::Ball, _) => half(q[0] * w[2] + q[1] * w[1] - q[2] * w[0]),
+        (_, i) => w[i],
     }
 }
 
