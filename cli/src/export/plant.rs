@@ -47,7 +47,7 @@ fn header(model: &Model, options: &ExportOptions, guid: &str) -> Header {
             ),
         },
         model_identifier: options.model_identifier.clone(),
-        capabilities: capabilities(options.outputs),
+        capabilities: capabilities(model, options.outputs),
         event_indicators: Layout::new(model, options.outputs).event_indicator_count(),
         generated: generation_date_and_time(),
     }
