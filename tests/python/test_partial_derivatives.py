@@ -340,3 +340,27 @@ def test_the_model_structure_lists_every_dependence_the_derivatives_have(cli, tm
             on_nu = {index[known] for known in names.nu}
             assert listed[index[unknown]] & on_nu == depends & on_nu, unknown
     host.fmu.freeInstance()
+
+
+def test_fmi3_counts_and_time_are_checked(fmus, tmp_path):
+    """FMI 3.0: nSeed and nSensitivity must be the elements of the arrays
+    named, and time is neither a known nor an unknown; each an error, logged."""
+    host, names = instance(fmus, "springdamper", 3, "ME", tmp_path)
+    nv = len(names.nu)
+    nu, eps = host.vr["nu"], host.vr["eps"]
+    cases = [
+        (lambda: host.fmu.getDirectionalDerivative([nu], [eps], [1.0] * (nv - 1), nSensitivity=nv),
+         f"nSeed = {nv - 1}, but the value references of the knowns name {nv} values"),
+        (lambda: host.fmu.getAdjointDerivative([nu], [eps], [1.0] * nv, nSensitivity=nv + 1),
+         f"nSensitivity = {nv + 1}, but the value references of the knowns name {nv} values"),
+        (lambda: host.fmu.getDirectionalDerivative([nu], [0], [1.0], nSensitivity=nv),
+         "time (value reference 0) is neither a known nor an unknown"),
+    ]
+    for call, says in cases:
+        with pytest.raises(Exception):
+            call()
+        assert any(says in m for m in host.messages), (says, host.messages)
+        host.messages.clear()
+        host.fmu.reset()
+        host.fmu.enterInitializationMode(startTime=0.0)
+    host.fmu.freeInstance()
