@@ -15,7 +15,7 @@
 use nudyn::dynamics::derivatives::{DerivativeError, Derivatives, Direction, Output, Point, ThetaDirection};
 use nudyn::dynamics::velocity::Given;
 use nudyn::model::Model;
-use nudyn_contract::plant::{Layout, NotCovered, RealVariable, derivatives_cover};
+use nudyn_contract::plant::{Layout, RealVariable, derivatives_cover};
 
 use crate::component::CallError;
 
@@ -35,10 +35,12 @@ pub struct At<'a> {
 }
 
 /// The dual workspace, or why the FMU has no derivatives, and the buffers
-/// of one direction and its results.
+/// of one direction and its results, made at the first call (an instance
+/// nobody asks for derivatives holds none).
 pub struct Partials {
-    /// The dual workspace, or why the FMU has none (logged on every call).
-    derivatives: Result<Derivatives, String>,
+    /// The dual workspace once made (`Ok(None)` before the first call), or
+    /// why the FMU has none (logged on every call).
+    derivatives: Result<Option<Derivatives>, String>,
     theta: Vec<f64>,
     nu: Vec<f64>,
     eps: Vec<f64>,
@@ -52,18 +54,15 @@ pub struct Partials {
 impl Partials {
     /// The partials of a plant of `model` whose FMU has the variables of `layout`.
     pub fn new(model: &Model, layout: &Layout) -> Self {
-        let derivatives = derivatives_cover(model, layout.outputs)
-            .and_then(|()| Ok(Derivatives::new(model)?))
-            .map_err(|why: NotCovered| why.to_string());
-        let zeros = |n: usize| vec![0.0; n];
+        let derivatives = derivatives_cover(model, layout.outputs).map(|()| None).map_err(|why| why.to_string());
         Partials {
             derivatives,
-            theta: zeros(model.nq),
-            nu: zeros(model.nv),
-            eps: zeros(model.nv),
-            torque: zeros(model.nv),
-            qvel: zeros(model.nv),
-            nu_dot: zeros(model.nv),
+            theta: Vec::new(),
+            nu: Vec::new(),
+            eps: Vec::new(),
+            torque: Vec::new(),
+            qvel: Vec::new(),
+            nu_dot: Vec::new(),
         }
     }
 
@@ -113,6 +112,18 @@ impl Partials {
     /// Runs the passes at `at` along the direction of the (known, seed) pairs.
     fn run(&mut self, at: &At, direction: impl Iterator<Item = (RealVariable, f64)>) -> Result<(), CallError> {
         let derivatives = self.derivatives.as_mut().map_err(|why| CallError::NoPartials(why.clone()))?;
+        let model = at.model;
+        if derivatives.is_none() {
+            let made = Derivatives::new(model).map_err(|why| CallError::NoPartials(why.to_string()))?;
+            *derivatives = Some(made);
+            for (buffer, n) in [(&mut self.theta, model.nq), (&mut self.nu, model.nv), (&mut self.eps, model.nv)] {
+                buffer.resize(n, 0.0);
+            }
+            for buffer in [&mut self.torque, &mut self.qvel, &mut self.nu_dot] {
+                buffer.resize(model.nv, 0.0);
+            }
+        }
+        let derivatives = derivatives.as_mut().expect("made above");
         for buffer in [&mut self.theta, &mut self.nu, &mut self.eps] {
             buffer.fill(0.0);
         }
@@ -147,7 +158,7 @@ impl Partials {
 
     /// The derivative of the unknown `variable` along the last run's direction.
     fn derivative(&self, at: &At, variable: RealVariable) -> f64 {
-        let derivatives = self.derivatives.as_ref().expect("run before");
+        let Ok(Some(derivatives)) = &self.derivatives else { unreachable!("a run made the workspace") };
         match variable {
             RealVariable::Theta(k) => self.theta[k],
             RealVariable::Nu(k) => self.nu[k],
