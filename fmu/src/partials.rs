@@ -41,6 +41,7 @@ pub struct Partials {
     /// The dual workspace once made (`Ok(None)` before the first call), or
     /// why the FMU has none (logged on every call).
     derivatives: Result<Option<Derivatives>, String>,
+    /// The direction along θ, ν and ε.
     theta: Vec<f64>,
     nu: Vec<f64>,
     eps: Vec<f64>,
