@@ -29,6 +29,7 @@ fn layouts() -> impl Strategy<Value = Layout> {
         sensordata: vec![SensorDependence::Motion; sensors],
         switches,
         outputs,
+        tree: None,
     })
 }
 

@@ -13,7 +13,8 @@ pub struct Capabilities {
     pub can_get_and_set_fmu_state: bool,
     /// canSerializeFMUstate.
     pub can_serialize_fmu_state: bool,
-    /// providesDirectionalDerivative.
+    /// providesDirectionalDerivative (FMI 3.0: providesDirectionalDerivatives
+    /// and providesAdjointDerivatives).
     pub provides_directional_derivative: bool,
     /// canHandleVariableCommunicationStepSize.
     pub can_handle_variable_communication_step_size: bool,

@@ -14,8 +14,9 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
+use nudyn::dynamics::derivatives::{DerivativeError, Derivatives};
 use nudyn::integrate::{Method, MethodSetting};
-use nudyn::model::Model;
+use nudyn::model::{LinkJoint, Model};
 use nudyn::vehicle::SensorKind;
 
 use crate::blocks::{Block, RealBlock, every_variable, real_blocks, value_reference_of, variable_at};
@@ -71,11 +72,72 @@ pub fn method_items() -> String {
     MethodSetting::ALL.iter().map(|&m| format!("{} = {}", method_value(m), m.name())).collect::<Vec<_>>().join(", ")
 }
 
-/// What a plant FMU with `outputs` can do: model exchange, unless it has
-/// the energy residual, whose work integral only the FMU's own integration
-/// keeps.
-pub fn capabilities(outputs: OptionalOutputs) -> Capabilities {
-    Capabilities { model_exchange: !outputs.has("energy_residual"), ..CAPABILITIES }
+/// What a plant FMU of `model` with `outputs` can do: model exchange,
+/// unless it has the energy residual ([`serves_model_exchange`]), and
+/// directional and adjoint derivatives where they cover the model and its
+/// outputs ([`derivatives_cover`]).
+pub fn capabilities(model: &Model, outputs: OptionalOutputs) -> Capabilities {
+    Capabilities {
+        model_exchange: serves_model_exchange(outputs),
+        provides_directional_derivative: derivatives_cover(model, outputs).is_ok(),
+        ..CAPABILITIES
+    }
+}
+
+/// Whether a plant FMU with `outputs` serves model exchange: not with the
+/// energy residual, whose work integral only the FMU's own integration keeps.
+pub fn serves_model_exchange(outputs: OptionalOutputs) -> bool {
+    !outputs.has("energy_residual")
+}
+
+/// What a plant FMU has that its directional derivatives do not cover yet.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum NotCovered {
+    /// The dynamics' derivatives refuse the model (activation states,
+    /// tendons, equalities, friction loss).
+    #[error(transparent)]
+    Dynamics(#[from] DerivativeError),
+    /// The dynamics' derivatives cover it, the FMU's do not yet: the ctrl
+    /// inputs as knowns (actuators; wrench inputs are actuators), and joint
+    /// limits, whose rows switch during a run.
+    #[error("the FMU's derivatives do not cover {0} yet; this model has them")]
+    Fmu(&'static str),
+    /// The sensors' derivatives are not computed.
+    #[error("derivatives do not cover sensors yet; this model has {0} sensordata entries")]
+    Sensors(usize),
+    /// An optional output whose derivative is not computed.
+    #[error("derivatives do not cover the optional output {0} yet; this FMU has it")]
+    Output(&'static str),
+}
+
+/// Whether the FMU's directional derivatives cover every unknown of a plant
+/// FMU of `model` with `outputs`, or the first thing they do not.
+pub fn derivatives_cover(model: &Model, outputs: OptionalOutputs) -> Result<(), NotCovered> {
+    tree_alone(model)?;
+    let sensordata: usize = model.sensors.iter().map(|s| s.dim()).sum();
+    if sensordata > 0 {
+        return Err(NotCovered::Sensors(sensordata));
+    }
+    // The momentum's passes are not generic yet; the energy residual is a
+    // record of the integration, not a function of the state.
+    match ["momentum", "energy_residual"].into_iter().find(|&name| outputs.has(name)) {
+        Some(name) => Err(NotCovered::Output(name)),
+        None => Ok(()),
+    }
+}
+
+/// Whether the dynamics are the tree's alone (no actuators, tendons or
+/// constraint forces): what the FMU's derivatives and [`TreeDependence`]
+/// cover so far.
+fn tree_alone(model: &Model) -> Result<(), NotCovered> {
+    Derivatives::check(model)?;
+    if !model.actuators.is_empty() {
+        return Err(NotCovered::Fmu("actuators"));
+    }
+    if !model.constraints.is_empty() {
+        return Err(NotCovered::Fmu("joint limits"));
+    }
+    Ok(())
 }
 
 /// What the plant FMU can do, at most.
@@ -422,6 +484,100 @@ pub struct Layout {
     pub switches: usize,
     /// The optional outputs present.
     pub outputs: OptionalOutputs,
+    /// Which of the tree's knowns its unknowns depend on, where the
+    /// dynamics are the tree's alone (no actuators, tendons or constraint forces);
+    /// `None` elsewhere, where every unknown is taken to depend on every
+    /// state.
+    pub tree: Option<TreeDependence>,
+}
+
+/// What the dynamics of a tree alone (no actuators, tendons or constraint
+/// forces) depend on, as the exact derivatives show it: each tree (a root
+/// link and its descendants) moves by its own θ and ν only; nothing
+/// depends on a free base's position (gravity is uniform); θ̇ of a joint
+/// depends on the ν of its own and its ancestors' joints (θ̇ = ℓ*(θ)ν, an
+/// operator that runs outward from the root), and its ν̇ on the ν of
+/// those and of its descendants' joints, not on a sibling branch's (the
+/// diagonalized dynamics do not couple them), and on the whole tree's θ
+/// (through the articulated inertias).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TreeDependence {
+    /// Per coordinate of θ: its tree, or `None` for a free base's position.
+    qpos_tree: Vec<Option<usize>>,
+    /// Per coordinate of θ: its joint's link.
+    qpos_link: Vec<usize>,
+    /// Per dof: its link.
+    dof_link: Vec<usize>,
+    /// Per link: its tree (its root link), parent, children and dofs.
+    links: Vec<TreeLink>,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+struct TreeLink {
+    tree: usize,
+    parent: Option<usize>,
+    children: Vec<usize>,
+    dofs: std::ops::Range<usize>,
+}
+
+impl TreeDependence {
+    /// That of `model`, if its dynamics are its tree's alone.
+    pub fn of(model: &Model) -> Option<Self> {
+        tree_alone(model).ok()?;
+        let (mut qpos_tree, mut qpos_link) = (vec![None; model.nq], vec![0; model.nq]);
+        let mut dof_link = vec![0; model.nv];
+        let mut links: Vec<TreeLink> = Vec::with_capacity(model.links.len());
+        // Links are parent-first: a parent's tree is known before its children's.
+        for (i, link) in model.links.iter().enumerate() {
+            let tree = link.parent.map_or(i, |parent| links[parent].tree);
+            if let Some(parent) = link.parent {
+                links[parent].children.push(i);
+            }
+            let dofs = link.dof_adr..link.dof_adr + link.ndof;
+            dof_link[dofs.clone()].fill(i);
+            let root_position = link.parent.is_none() && link.joint == LinkJoint::Translation;
+            let coordinates = match link.joint {
+                LinkJoint::Hinge | LinkJoint::Slide => 1,
+                LinkJoint::Translation => 3,
+                LinkJoint::Ball => 4,
+            };
+            for q in link.qpos_adr..link.qpos_adr + coordinates {
+                qpos_tree[q] = (!root_position).then_some(tree);
+                qpos_link[q] = i;
+            }
+            links.push(TreeLink { tree, parent: link.parent, children: Vec::new(), dofs });
+        }
+        Some(TreeDependence { qpos_tree, qpos_link, dof_link, links })
+    }
+
+    /// The coordinates of θ that the tree of dof `dof` depends on.
+    pub(crate) fn theta(&self, dof: usize) -> impl Iterator<Item = RealVariable> + '_ {
+        let tree = Some(self.links[self.dof_link[dof]].tree);
+        (0..self.qpos_tree.len()).filter(move |&q| self.qpos_tree[q] == tree).map(RealVariable::Theta)
+    }
+
+    /// The ν of the joints from the root to dof `dof`'s, its own included.
+    pub(crate) fn path(&self, dof: usize) -> impl Iterator<Item = RealVariable> + '_ {
+        let ancestors = std::iter::successors(Some(self.dof_link[dof]), |&link| self.links[link].parent);
+        ancestors.flat_map(|link| self.links[link].dofs.clone()).map(RealVariable::Nu)
+    }
+
+    /// The ν of the path to dof `dof` and of every joint below its own.
+    pub(crate) fn path_and_subtree(&self, dof: usize) -> impl Iterator<Item = RealVariable> + '_ {
+        let own = self.dof_link[dof];
+        let mut below = self.links[own].children.clone();
+        let subtree = std::iter::from_fn(move || {
+            let link = below.pop()?;
+            below.extend_from_slice(&self.links[link].children);
+            Some(link)
+        });
+        self.path(dof).chain(subtree.flat_map(|link| self.links[link].dofs.clone()).map(RealVariable::Nu))
+    }
+
+    /// The first dof of the joint of coordinate `q` of θ.
+    pub(crate) fn dof_of(&self, q: usize) -> usize {
+        self.links[self.qpos_link[q]].dofs.start
+    }
 }
 
 impl Layout {
@@ -438,6 +594,7 @@ impl Layout {
             sensordata,
             switches: model.constraints.switch_count(),
             outputs,
+            tree: TreeDependence::of(model),
         }
     }
 
@@ -647,6 +804,7 @@ mod tests {
             sensordata: Vec::new(),
             switches: 0,
             outputs: "qvel,power,momentum".parse().unwrap(),
+            tree: None,
         };
         let all: Vec<(u32, RealVariable)> = layout.real_variables().collect();
         // Parameters, eps, ctrl, theta, nu, qvel, power, momentum, der(theta), der(nu).
@@ -676,9 +834,10 @@ mod tests {
             sensordata: Vec::new(),
             switches: 0,
             outputs: "energy_residual".parse().unwrap(),
+            tree: None,
         };
         assert!(residual.real_variables().all(|(_, v)| !v.is_derivative()));
-        assert!(!capabilities(residual.outputs).model_exchange);
+        assert!(!serves_model_exchange(residual.outputs));
     }
 
     #[test]

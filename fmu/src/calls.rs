@@ -258,3 +258,31 @@ pub fn set_time(component: &mut dyn Component, time: f64) -> Result<(), CallErro
     component.set_time(time);
     Ok(())
 }
+
+/// Which partial derivative a call asks for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Partial {
+    /// J · seed (fmi2GetDirectionalDerivative, fmi3GetDirectionalDerivative).
+    Directional,
+    /// Jᵀ · seed (fmi3GetAdjointDerivative).
+    Adjoint,
+}
+
+/// Partial derivatives of `unknowns` with respect to `knowns` (FMI 2.0
+/// value references), once the seed (`seed_name` in messages) is finite.
+pub fn partial_derivatives(
+    component: &mut dyn Component,
+    partial: Partial,
+    unknowns: &[u32],
+    knowns: &[u32],
+    (seed_name, seed): (&str, &[f64]),
+    sensitivity: &mut [f64],
+) -> Result<(), CallError> {
+    if let Some((i, &value)) = seed.iter().enumerate().find(|(_, value)| !value.is_finite()) {
+        return Err(CallError::NonFinite { name: format!("{seed_name}[{i}]"), value });
+    }
+    match partial {
+        Partial::Directional => component.directional_derivative(unknowns, knowns, seed, sensitivity),
+        Partial::Adjoint => component.adjoint_derivative(unknowns, knowns, seed, sensitivity),
+    }
+}

@@ -174,6 +174,37 @@ pub trait Component {
         f64::NAN
     }
 
+    /// Whether it computes partial derivatives, or why not
+    /// ([`CallError::NoPartials`]); asked before any argument is read.
+    fn partials(&self) -> Result<(), CallError> {
+        Err(CallError::NoPartials("this component computes none".into()))
+    }
+
+    /// `sensitivity` = J `seed`: the directional derivative of `unknowns`
+    /// along `seed` of `knowns` (FMI 2.0 value references; `seed` finite,
+    /// one per known, `sensitivity` one per unknown).
+    fn directional_derivative(
+        &mut self,
+        _unknowns: &[u32],
+        _knowns: &[u32],
+        _seed: &[f64],
+        _sensitivity: &mut [f64],
+    ) -> Result<(), CallError> {
+        self.partials()
+    }
+
+    /// `sensitivity` = Jᵀ `seed`: the adjoint derivative (`seed` one per
+    /// unknown, `sensitivity` one per known).
+    fn adjoint_derivative(
+        &mut self,
+        _unknowns: &[u32],
+        _knowns: &[u32],
+        _seed: &[f64],
+        _sensitivity: &mut [f64],
+    ) -> Result<(), CallError> {
+        self.partials()
+    }
+
     /// The knowns (FMI 2.0 Real value references) the output or state
     /// derivative `vr` depends on, as the modelDescription declares them.
     fn dependencies(&self, vr: u32) -> Option<Vec<u32>>;
@@ -354,6 +385,22 @@ pub enum CallError {
         "this FMU has no FMU states (canGetAndSetFMUstate=\"false\"): its outputs depend on its inputs and parameters only"
     )]
     NoFmuState,
+    /// Partial derivatives asked of an FMU that declares none, and why.
+    #[error(
+        "directional and adjoint derivatives are not provided (providesDirectionalDerivative=\"false\" in the \
+         modelDescription): {0}"
+    )]
+    NoPartials(String),
+    /// A variable passed as a known or an unknown that cannot be one.
+    #[error("{name} (value reference {vr}) is not {role}")]
+    NotPartial {
+        /// Variable name.
+        name: String,
+        /// Its value reference.
+        vr: u32,
+        /// What it was passed as, and what can be.
+        role: &'static str,
+    },
     /// A function whose capability flag the FMU does not declare.
     #[error("not provided: the FMU does not declare {0}")]
     NotProvided(&'static str),

@@ -381,14 +381,24 @@ pub unsafe extern "C" fn fmi2DeSerializeFMUstate(
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi2GetDirectionalDerivative(
     c: fmi2Component,
-    _unknown: *const fmi2ValueReference,
-    _n_unknown: usize,
-    _known: *const fmi2ValueReference,
-    _n_known: usize,
-    _dv_known: *const fmi2Real,
-    _dv_unknown: *mut fmi2Real,
+    unknown: *const fmi2ValueReference,
+    n_unknown: usize,
+    known: *const fmi2ValueReference,
+    n_known: usize,
+    dv_known: *const fmi2Real,
+    dv_unknown: *mut fmi2Real,
 ) -> fmi2Status {
-    unsafe { enter(c, Function::GetDirectionalDerivative, |_| Err(FmiError::NoDirectionalDerivatives)) }
+    unsafe {
+        enter(c, Function::GetDirectionalDerivative, |instance| {
+            instance.component.partials()?;
+            let (unknowns, knowns) = (slice(unknown, n_unknown, "vUnknown_ref")?, slice(known, n_known, "vKnown_ref")?);
+            let seed = slice(dv_known, n_known, "dvKnown")?;
+            let sensitivity = slice_mut(dv_unknown, n_unknown, "dvUnknown")?;
+            let component = &mut *instance.component;
+            let partial = calls::Partial::Directional;
+            Ok(calls::partial_derivatives(component, partial, unknowns, knowns, ("dvKnown", seed), sensitivity)?)
+        })
+    }
 }
 
 /// # Safety

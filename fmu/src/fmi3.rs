@@ -7,8 +7,8 @@
 //! `time` (value reference 0) is read here. What nudyn does not provide is
 //! refused with the reason: clocks and scheduled execution, configuration
 //! mode (there are no structural parameters), event mode in co-simulation
-//! (hasEventMode="false"), early return and intermediate updates,
-//! directional and adjoint derivatives, types without variables.
+//! (hasEventMode="false"), early return and intermediate updates, types
+//! without variables.
 
 // The patterns below are fmi-sys's C constants, named as in fmi3FunctionTypes.h.
 #![allow(non_upper_case_globals)]
@@ -782,35 +782,101 @@ pub unsafe extern "C" fn fmi3DeserializeFMUState(
     }
 }
 
-/// Directional and adjoint derivatives: not provided.
-macro_rules! no_derivatives {
-    ($($function:ident;)+) => {$(
-        /// # Safety
-        /// FMI 3.0 calling conventions.
-        #[unsafe(no_mangle)]
-        pub unsafe extern "C" fn $function(
-            instance: fmi3Instance,
-            _unknowns: *const fmi3ValueReference,
-            _n_unknowns: usize,
-            _knowns: *const fmi3ValueReference,
-            _n_knowns: usize,
-            _seed: *const fmi3Float64,
-            _n_seed: usize,
-            _sensitivity: *mut fmi3Float64,
-            _n_sensitivity: usize,
-        ) -> fmi3Status {
-            unsafe {
-                enter(instance, Function::GetDirectionalDerivative, stringify!($function), |_| {
-                    Err(FmiError::NoDirectionalDerivatives)
-                })
-            }
+/// The FMI 2.0 value references of the elements of the Float64 variables
+/// `vrs`, the `of` of a partial derivative, whose `what` (nSeed or
+/// nSensitivity) must be their number of elements.
+fn partial_elements(
+    table: &Fmi3Variables,
+    vrs: &[u32],
+    (what, n): (&'static str, usize),
+    of: &'static str,
+) -> Result<Vec<u32>, FmiError> {
+    let mut expected = 0usize;
+    for &vr in vrs {
+        if vr == TIME_VR {
+            return Err(FmiError::TimeInPartial);
         }
-    )+};
+        expected = expected.saturating_add(variable_len(table, vr, ValueType::Float64)?);
+    }
+    if expected != n {
+        return Err(FmiError::PartialCount { what, of, expected, found: n });
+    }
+    Ok(vrs.iter().flat_map(|&vr| table.get(vr).expect("checked above").elements()).collect())
 }
 
-no_derivatives! {
-    fmi3GetDirectionalDerivative;
-    fmi3GetAdjointDerivative;
+/// A C array and its length.
+type Array<T> = (T, usize);
+
+/// fmi3GetDirectionalDerivative (seed along the knowns, sensitivity along
+/// the unknowns) and fmi3GetAdjointDerivative (the other way round).
+///
+/// # Safety
+/// FMI 3.0 calling conventions: each non-NULL pointer to its count of elements.
+unsafe fn partial_derivatives(
+    instance: fmi3Instance,
+    (partial, name): (calls::Partial, &'static str),
+    (unknowns, n_unknowns): Array<*const fmi3ValueReference>,
+    (knowns, n_knowns): Array<*const fmi3ValueReference>,
+    (seed, n_seed): Array<*const fmi3Float64>,
+    (sensitivity, n_sensitivity): Array<*mut fmi3Float64>,
+) -> fmi3Status {
+    unsafe {
+        enter(instance, Function::GetDirectionalDerivative, name, |instance| {
+            instance.component.partials()?;
+            let (along_knowns, along_unknowns) = match partial {
+                calls::Partial::Directional => (("nSeed", n_seed), ("nSensitivity", n_sensitivity)),
+                calls::Partial::Adjoint => (("nSensitivity", n_sensitivity), ("nSeed", n_seed)),
+            };
+            let unknowns = reference_array(unknowns, n_unknowns, along_unknowns.1)?;
+            let knowns = reference_array(knowns, n_knowns, along_knowns.1)?;
+            let unknowns = partial_elements(&instance.fmi3, unknowns, along_unknowns, "unknowns")?;
+            let knowns = partial_elements(&instance.fmi3, knowns, along_knowns, "knowns")?;
+            let seed = slice(seed, n_seed, "seed")?;
+            let sensitivity = slice_mut(sensitivity, n_sensitivity, "sensitivity")?;
+            let component = &mut *instance.component;
+            Ok(calls::partial_derivatives(component, partial, &unknowns, &knowns, ("seed", seed), sensitivity)?)
+        })
+    }
+}
+
+/// # Safety
+/// FMI 3.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi3GetDirectionalDerivative(
+    instance: fmi3Instance,
+    unknowns: *const fmi3ValueReference,
+    n_unknowns: usize,
+    knowns: *const fmi3ValueReference,
+    n_knowns: usize,
+    seed: *const fmi3Float64,
+    n_seed: usize,
+    sensitivity: *mut fmi3Float64,
+    n_sensitivity: usize,
+) -> fmi3Status {
+    let partial = (calls::Partial::Directional, "fmi3GetDirectionalDerivative");
+    let (unknowns, knowns) = ((unknowns, n_unknowns), (knowns, n_knowns));
+    // SAFETY: FMI 3.0 calling conventions.
+    unsafe { partial_derivatives(instance, partial, unknowns, knowns, (seed, n_seed), (sensitivity, n_sensitivity)) }
+}
+
+/// # Safety
+/// FMI 3.0 calling conventions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn fmi3GetAdjointDerivative(
+    instance: fmi3Instance,
+    unknowns: *const fmi3ValueReference,
+    n_unknowns: usize,
+    knowns: *const fmi3ValueReference,
+    n_knowns: usize,
+    seed: *const fmi3Float64,
+    n_seed: usize,
+    sensitivity: *mut fmi3Float64,
+    n_sensitivity: usize,
+) -> fmi3Status {
+    let partial = (calls::Partial::Adjoint, "fmi3GetAdjointDerivative");
+    let (unknowns, knowns) = ((unknowns, n_unknowns), (knowns, n_knowns));
+    // SAFETY: FMI 3.0 calling conventions.
+    unsafe { partial_derivatives(instance, partial, unknowns, knowns, (seed, n_seed), (sensitivity, n_sensitivity)) }
 }
 
 /// # Safety

@@ -140,12 +140,21 @@ pub enum FmiError {
     /// An FMI 2.0 status the FMU does not provide.
     #[error("status kind {0} is not available")]
     StatusUnavailable(c_uint),
-    /// Directional derivatives are not provided (providesDirectionalDerivative(s)="false").
-    #[error(
-        "directional and adjoint derivatives are not provided (providesDirectionalDerivative=\"false\" in the \
-         modelDescription)"
-    )]
-    NoDirectionalDerivatives,
+    /// FMI 3.0: a seed or sensitivity whose length is not the elements' of its value references.
+    #[error("{what} = {found}, but the value references of the {of} name {expected} values")]
+    PartialCount {
+        /// nSeed or nSensitivity.
+        what: &'static str,
+        /// "knowns" or "unknowns".
+        of: &'static str,
+        /// The elements of those value references.
+        expected: usize,
+        /// The length passed.
+        found: usize,
+    },
+    /// FMI 3.0: time passed as a known or an unknown.
+    #[error("time (value reference 0) is neither a known nor an unknown of the partial derivatives")]
+    TimeInPartial,
     /// An FMI 3.0 value reference of another type than the function's.
     #[error("value reference {vr} is the {declared} variable '{name}', not a variable of type {asked}")]
     WrongType {

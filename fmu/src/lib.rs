@@ -16,6 +16,7 @@
 //! - [`load`]: the resources read and checked at instantiation, and the
 //!   component made from them;
 //! - [`plant`]: the vehicle's dynamics, integrated;
+//! - [`partials`]: the plant's exact partial derivatives;
 //! - [`controller`]: the control law;
 //! - [`snapshot`]: FMU states and their serialized form;
 //! - [`uri`]: the resource location.
@@ -29,6 +30,7 @@ pub mod fmi2;
 pub mod fmi3;
 mod layer;
 mod load;
+mod partials;
 mod plant;
 mod snapshot;
 mod state;

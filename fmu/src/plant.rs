@@ -6,18 +6,20 @@
 //! Outputs beyond θ and ν are computed when first read after a change of
 //! state, so outputs nobody reads cost nothing.
 
+use nudyn::dynamics::derivatives::qpos_rate;
 use nudyn::dynamics::mode::ConstraintMode;
 use nudyn::dynamics::quantities::kinetic_energy;
 use nudyn::integrate::{HeldJacobian, Input, MethodSetting, Settings, Simulation};
-use nudyn::model::{LinkJoint, Model};
+use nudyn::model::Model;
 use nudyn_contract::capabilities::Capabilities;
 use nudyn_contract::plant::{
     DEFAULT_MAX_STEP, DEFAULT_TOLERANCE, ENERGY_PROJECTION_VR, Layout, METHOD_VR, PlantResource, RealVariable,
-    capabilities, method_of_value, method_value,
+    capabilities, method_of_value, method_value, serves_model_exchange,
 };
 use nudyn_contract::variable::Kind;
 
 use crate::component::{CallError, Component, StepError, StepReport, Variable};
+use crate::partials::{At, Partials};
 use crate::snapshot::{PlantState, Sizes, Snapshot, SnapshotError};
 use crate::state::Phase;
 
@@ -86,6 +88,8 @@ pub struct Plant {
     /// filled by the prepare of each read that asks for one.
     indicators: Vec<f64>,
     theta_scratch: Vec<f64>,
+    /// The partial derivatives' dual workspace, or why there are none.
+    partials: Partials,
 }
 
 impl Plant {
@@ -98,6 +102,7 @@ impl Plant {
             .unzip();
         let (model, start_method) = (resource.model, resource.method);
         let reals = layout.elements().map(|element| (element.variable(), element.kind())).collect();
+        let partials = Partials::new(&model, &layout);
         let mut plant = Plant {
             layout,
             reals,
@@ -121,6 +126,7 @@ impl Plant {
             margins: vec![0.0; model.constraints.switch_count()],
             indicators: vec![0.0; model.constraints.switch_count()],
             theta_scratch: vec![0.0; model.nq],
+            partials,
             model,
         };
         plant.set_starts();
@@ -210,25 +216,16 @@ impl Plant {
         }
     }
 
-    /// d(qpos[k])/dt from the workspace's θ̇ (passes 0–2 done): q̇ = ½ q ⊗ (0, ω)
-    /// for a quaternion's entries.
+    /// d(qpos[k])/dt from the workspace's θ̇ (passes 0–2 done).
     fn qpos_rate(&self, k: usize) -> f64 {
         let ws = self.sim.workspace();
-        let link = self.model.links.iter().rev().find(|l| l.qpos_adr <= k).expect("every coordinate belongs to a link");
-        let (q, w) = (&ws.theta.as_slice()[link.qpos_adr..], &ws.qvel.as_slice()[link.dof_adr..]);
-        match (link.joint, k - link.qpos_adr) {
-            (LinkJoint::Ball, 0) => -0.5 * (q[1] * w[0] + q[2] * w[1] + q[3] * w[2]),
-            (LinkJoint::Ball, 1) => 0.5 * (q[0] * w[0] + q[2] * w[2] - q[3] * w[1]),
-            (LinkJoint::Ball, 2) => 0.5 * (q[0] * w[1] + q[3] * w[0] - q[1] * w[2]),
-            (LinkJoint::Ball, _) => 0.5 * (q[0] * w[2] + q[1] * w[1] - q[2] * w[0]),
-            (_, i) => w[i],
-        }
+        qpos_rate(&self.model, ws.theta.as_slice(), ws.qvel.as_slice(), k)
     }
 }
 
 impl Component for Plant {
     fn capabilities(&self) -> Capabilities {
-        capabilities(self.layout.outputs)
+        capabilities(&self.model, self.layout.outputs)
     }
 
     fn reset(&mut self) {
@@ -492,7 +489,7 @@ impl Component for Plant {
     /// x = (θ, ν, act): nq + nv + na states.
     fn continuous_state_count(&self) -> Option<usize> {
         let count = self.model.nq + self.model.nv + self.model.activation_count();
-        capabilities(self.layout.outputs).model_exchange.then_some(count)
+        serves_model_exchange(self.layout.outputs).then_some(count)
     }
 
     fn set_time(&mut self, time: f64) {
@@ -664,6 +661,35 @@ impl Component for Plant {
         // The evaluation just made is the held mode's at this state.
         self.evaluated = Evaluated::Acceleration;
         Ok(())
+    }
+
+    fn partials(&self) -> Result<(), CallError> {
+        self.partials.covered()
+    }
+
+    /// At the current state and inputs ε, exact (crate::partials).
+    fn directional_derivative(
+        &mut self,
+        unknowns: &[u32],
+        knowns: &[u32],
+        seed: &[f64],
+        sensitivity: &mut [f64],
+    ) -> Result<(), CallError> {
+        let (model, layout, state) = (&self.model, &self.layout, &self.sim.state);
+        let at = At { model, layout, theta: &state.theta, nu: &state.nu, eps: &self.eps };
+        self.partials.directional(&at, unknowns, knowns, seed, sensitivity)
+    }
+
+    fn adjoint_derivative(
+        &mut self,
+        unknowns: &[u32],
+        knowns: &[u32],
+        seed: &[f64],
+        sensitivity: &mut [f64],
+    ) -> Result<(), CallError> {
+        let (model, layout, state) = (&self.model, &self.layout, &self.sim.state);
+        let at = At { model, layout, theta: &state.theta, nu: &state.nu, eps: &self.eps };
+        self.partials.adjoint(&at, unknowns, knowns, seed, sensitivity)
     }
 
     fn deserialize(&self, bytes: &[u8]) -> Result<Snapshot, CallError> {

@@ -306,20 +306,27 @@ impl Derivatives {
     /// The buffers for `model`, or what the model has that derivatives do
     /// not cover yet.
     pub fn new(model: &Model) -> Result<Self, DerivativeError> {
+        Self::check(model)?;
+        Ok(Derivatives {
+            single: Passes::new(model),
+            batch: Passes::new(model),
+            limits: Limits { switches: vec![0.0; model.constraints.limit_sides()], theta: vec![0.0; model.nq] },
+        })
+    }
+
+    /// Whether derivatives cover `model`, without building the buffers
+    /// (an exporter's question): what [`Derivatives::new`] refuses.
+    pub fn check(model: &Model) -> Result<(), DerivativeError> {
         let unsupported = [
             (model.activation_count() > 0, "actuators' activation states (dyntype)"),
             (!model.tendons.is_empty(), "tendons"),
             (!model.constraints.equalities.is_empty(), "equality constraints"),
             (!model.constraints.friction.is_empty(), "friction loss"),
         ];
-        if let Some((_, what)) = unsupported.iter().find(|(has, _)| *has) {
-            return Err(DerivativeError::Unsupported(what));
+        match unsupported.iter().find(|(has, _)| *has) {
+            Some((_, what)) => Err(DerivativeError::Unsupported(what)),
+            None => Ok(()),
         }
-        Ok(Derivatives {
-            single: Passes::new(model),
-            batch: Passes::new(model),
-            limits: Limits { switches: vec![0.0; model.constraints.limit_sides()], theta: vec![0.0; model.nq] },
-        })
     }
 
     /// Runs the passes at `point` along `direction`; [`Derivatives::derivative`]
@@ -338,6 +345,13 @@ impl Derivatives {
     /// The value of `output` at the last run's point.
     pub fn value(&self, output: Output) -> impl Iterator<Item = f64> + '_ {
         self.single.output(output).iter().map(|d| d.re)
+    }
+
+    /// The derivative of d(θ[k])/dt ([`qpos_rate`]) along the last run's
+    /// direction: θ's rate as the state derivative of model exchange.
+    pub fn qpos_rate_derivative(&self, model: &Model, k: usize) -> f64 {
+        let ws = &self.single.ws;
+        qpos_rate(model, ws.theta.as_slice(), ws.qvel.as_slice(), k).eps
     }
 
     /// The Jacobians of `output` at `point`: the columns in batches of
@@ -383,6 +397,23 @@ impl Derivatives {
             torque: columns(3)?,
             ctrl: columns(4)?,
         })
+    }
+}
+
+/// d(θ[k])/dt from the passes' θ (quaternions normalized) and θ̇: θ̇'s
+/// entry for a hinge, slide or translation; q̇ = ½ q ⊗ (0, ω) for a
+/// quaternion's entries (ω in the body frame), orthogonal to q. Generic,
+/// so that run in dual numbers it carries its own derivative.
+pub fn qpos_rate<S: Real>(model: &Model, theta: &[S], qvel: &[S], k: usize) -> S {
+    let link = model.links.iter().rev().find(|l| l.qpos_adr <= k).expect("every coordinate belongs to a link");
+    let (q, w) = (&theta[link.qpos_adr..], &qvel[link.dof_adr..]);
+    let half = |x: S| x * 0.5;
+    match (link.joint, k - link.qpos_adr) {
+        (LinkJoint::Ball, 0) => -half(q[1] * w[0] + q[2] * w[1] + q[3] * w[2]),
+        (LinkJoint::Ball, 1) => half(q[0] * w[0] + q[2] * w[2] - q[3] * w[1]),
+        (LinkJoint::Ball, 2) => half(q[0] * w[1] + q[3] * w[0] - q[1] * w[2]),
+        (LinkJoint::Ball, _) => half(q[0] * w[2] + q[1] * w[1] - q[2] * w[0]),
+        (_, i) => w[i],
     }
 }
 

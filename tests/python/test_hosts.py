@@ -206,8 +206,8 @@ def test_pyfmi_runs_the_docked_servicer_to_the_end(fmu2, reference, kind, tolera
     """PyFMI's co-simulation passes tolerance 1e-4 by default (a script sets
     its own by fmi2SetupExperiment before simulate()); its model
     exchange with default options forms a Jacobian by setting states, which
-    the FMU refuses (directional derivatives are the next issue's), so
-    with_jacobian is off."""
+    the FMU refuses, unless the FMU provides directional derivatives, which
+    the constrained vehicle's does not (yet): with_jacobian is off."""
     script = tmp_path / "run.py"
     script.write_text(PYFMI_RUN.format(steps=round(STOP / INTERVAL), stop=STOP))
     proc = subprocess.run([PYFMI, str(script), str(fmu2), kind, tolerance], capture_output=True, text=True,
@@ -218,3 +218,45 @@ def test_pyfmi_runs_the_docked_servicer_to_the_end(fmu2, reference, kind, tolera
     asked = (1e-4 if tolerance == "default" else float(tolerance)) if kind == "CS" else None
     close, error = within(np.array(out["state"]), reference, asked)
     assert close, error
+
+
+PYFMI_DEFAULT_ME = """
+import json, sys
+from pyfmi import load_fmu
+model = load_fmu(sys.argv[1], kind="ME", log_level=2)
+model.set(["nu[4]", "nu[9]", "nu[12]"], [0.5, 0.3, -0.4])
+result = model.simulate(final_time={stop})
+names = [v for v in model.get_model_variables() if v.startswith(("theta[", "nu["))]
+names.sort(key=lambda n: (n.startswith("nu"), int(n[n.index("[") + 1 : -1])))
+statistics = result.solver.get_statistics()
+print(json.dumps({{"time": result["time"][-1], "state": [result[n][-1] for n in names],
+                   "jacobians": int(statistics["njacs"]), "for_jacobians": int(statistics["nfcnjacs"]),
+                   "errors": [str(line) for line in model.get_log() if "rror" in str(line)]}}))
+"""
+
+
+@pytest.mark.skipif(not PYFMI, reason="no PyFMI given (NUDYN_PYFMI=a python with pyfmi)")
+def test_pyfmi_model_exchange_runs_with_its_default_options_on_the_directional_derivatives(cli, nudyn, tmp_path):
+    """bus_arm7's ME FMU provides directional derivatives: PyFMI's
+    simulate() with its defaults (CVODE, BDF, rtol 1e-4, with_jacobian)
+    forms its Jacobian from them (no evaluation of the rates for it, where
+    it would otherwise set states and be refused) and runs to the end,
+    within 10 × its tolerance of the FMU's own integration at 1e-12
+    (measured: 4.5e-6, from 9 Jacobians)."""
+    fmu = cli.export(ROOT / "examples" / "bus_arm7.xml", tmp_path / "bus_arm7.fmu")
+    script = tmp_path / "run.py"
+    script.write_text(PYFMI_DEFAULT_ME.format(stop=STOP))
+    proc = subprocess.run([PYFMI, str(script), str(fmu)], capture_output=True, text=True, timeout=600,
+                          cwd=tmp_path)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert out["time"] == pytest.approx(STOP) and out["errors"] == [], out["errors"]
+    assert out["jacobians"] > 0 and out["for_jacobians"] == 0, out
+    start = {"nu": [0, 0, 0, 0.5, 0, 0, 0, 0, 0.3, 0, 0, -0.4, 0]}
+    proc = subprocess.run([str(nudyn), "simulate", str(ROOT / "examples" / "bus_arm7.xml"), "--step", str(INTERVAL),
+                           "--stop", str(STOP), "--method", "dop853", "--tolerance", "1e-12"],
+                          input=json.dumps(start), capture_output=True, text=True, timeout=600, check=True)
+    own = json.loads(proc.stdout)
+    reference = np.concatenate([own["theta"][-1], own["nu"][-1]])
+    error = np.max(np.abs(np.array(out["state"]) - reference) / (1 + np.abs(reference)))
+    assert error <= 1e-3, error

@@ -154,7 +154,7 @@ pub fn model_description(
         can_get_and_set_fmu_state: capabilities.can_get_and_set_fmu_state,
         can_serialize_fmu_state: capabilities.can_serialize_fmu_state,
         provides_directional_derivatives: capabilities.provides_directional_derivative,
-        provides_adjoint_derivatives: false,
+        provides_adjoint_derivatives: capabilities.provides_directional_derivative,
         provides_per_element_dependencies: true,
     });
     let co_simulation = md3::CoSimulation {
@@ -162,7 +162,7 @@ pub fn model_description(
         can_get_and_set_fmu_state: capabilities.can_get_and_set_fmu_state,
         can_serialize_fmu_state: capabilities.can_serialize_fmu_state,
         provides_directional_derivatives: capabilities.provides_directional_derivative,
-        provides_adjoint_derivatives: false,
+        provides_adjoint_derivatives: capabilities.provides_directional_derivative,
         provides_per_element_dependencies: true,
         can_handle_variable_communication_step_size: capabilities.can_handle_variable_communication_step_size,
         max_output_derivative_order: capabilities.max_output_derivative_order,

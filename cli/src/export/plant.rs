@@ -13,6 +13,7 @@ use nudyn_contract::plant::{
     OptionalOutputs, PlantResource, RealVariable, capabilities, method_value,
 };
 use nudyn_contract::resource::Resource;
+use nudyn_contract::variable::Causality;
 
 use super::documentation::Row;
 use super::{
@@ -47,7 +48,7 @@ fn header(model: &Model, options: &ExportOptions, guid: &str) -> Header {
             ),
         },
         model_identifier: options.model_identifier.clone(),
-        capabilities: capabilities(options.outputs),
+        capabilities: capabilities(model, options.outputs),
         event_indicators: Layout::new(model, options.outputs).event_indicator_count(),
         generated: generation_date_and_time(),
     }
@@ -225,17 +226,16 @@ pub fn model_description(resource: &PlantResource, options: &ExportOptions, guid
             }),
             dependencies_kind: None,
         };
-        if kind.causality == nudyn_contract::variable::Causality::Output {
+        if !kind.exact_start && (kind.causality == Causality::Output || element.entry.shape == Shape::Derivative) {
+            // Calculated outputs and the derivatives are initial unknowns,
+            // the same functions of θ and ν (exact start values there) and
+            // the inputs as after initialization.
+            initial_unknowns.push(unknown.clone());
+        }
+        if kind.causality == Causality::Output {
             outputs.push(unknown);
         } else if element.entry.shape == Shape::Derivative {
             derivatives.push(unknown);
-        } else {
-            continue;
-        }
-        if !kind.exact_start {
-            // Calculated outputs and the derivatives are initial unknowns;
-            // they may depend on every exact start value and input.
-            initial_unknowns.push(md::Unknown::new(index_of(element.value_reference)));
         }
     }
 

@@ -64,7 +64,7 @@ fn not_an_unknown(_: &Layout, _: usize) -> Option<Vec<RealVariable>> {
 }
 
 fn model_exchange(layout: &Layout) -> bool {
-    super::capabilities(layout.outputs).model_exchange
+    super::serves_model_exchange(layout.outputs)
 }
 
 /// The table, in value-reference order from `tolerance` (1): parameters,
@@ -181,7 +181,10 @@ pub const TABLE: [Entry; 19] = [
         start: no_start,
         description: describe::qvel,
         // θ̇ = ℓ*(θ)ν.
-        dependencies: |l, _| Some(l.theta().chain(l.nu()).collect()),
+        dependencies: |l, k| match &l.tree {
+            Some(tree) => Some(tree.theta(k).chain(tree.path(k)).collect()),
+            None => Some(l.theta().chain(l.nu()).collect()),
+        },
         slot: RealVariable::Qvel,
     },
     Entry {
@@ -275,7 +278,11 @@ pub const TABLE: [Entry; 19] = [
         kind: Kind::DERIVATIVE,
         start: no_start,
         description: describe::der_theta,
-        dependencies: |l, _| Some(l.theta().chain(l.nu()).collect()),
+        // θ̇'s entry, or ½ q ⊗ (0, ω) with q of the same joint.
+        dependencies: |l, k| match &l.tree {
+            Some(tree) => Some(tree.theta(tree.dof_of(k)).chain(tree.path(tree.dof_of(k))).collect()),
+            None => Some(l.theta().chain(l.nu()).collect()),
+        },
         slot: RealVariable::DerTheta,
     },
     Entry {
@@ -286,10 +293,16 @@ pub const TABLE: [Entry; 19] = [
         kind: Kind::DERIVATIVE,
         start: no_start,
         description: describe::der_nu,
-        // Every actuator's ε reaches every dof through ℓ in general.
+        // Every actuator's ε reaches every dof through ℓ in general; a
+        // tree alone couples its own dofs only, a branch not its siblings.
         dependencies: |l, k| {
             let forces = l.ctrl().chain(l.wrenches()).chain(l.act());
-            Some(l.theta().chain(l.nu()).chain([RealVariable::Eps(k)]).chain(forces).collect())
+            Some(match &l.tree {
+                Some(tree) => {
+                    tree.theta(k).chain(tree.path_and_subtree(k)).chain([RealVariable::Eps(k)]).chain(forces).collect()
+                }
+                None => l.theta().chain(l.nu()).chain([RealVariable::Eps(k)]).chain(forces).collect(),
+            })
         },
         slot: RealVariable::DerNu,
     },

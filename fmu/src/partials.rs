@@ -1,0 +1,230 @@
+//! The plant's partial derivatives (fmi2GetDirectionalDerivative,
+//! fmi3GetDirectionalDerivative, fmi3GetAdjointDerivative): exact, by the
+//! passes run in dual numbers (`nudyn::dynamics::derivatives`), one run
+//! per direction.
+//!
+//! The knowns are the states θ and ν and the inputs ε (FMI 2.0 §2.2.8 and
+//! FMI 3.0 §2.4.8 list the continuous states and the inputs as the knowns
+//! of `<Outputs>` and `<Derivatives>`, at communication points too);
+//! directions in θ are along θ's coordinates, the FMU's variables, a
+//! quaternion's component along itself having no effect (the passes
+//! normalize it). The unknowns are the continuous outputs and the state
+//! derivatives. The adjoint Jᵀv is taken column by column of the forward
+//! mode: one run per known.
+
+use nudyn::dynamics::derivatives::{DerivativeError, Derivatives, Direction, Output, Point, ThetaDirection};
+use nudyn::dynamics::velocity::Given;
+use nudyn::model::Model;
+use nudyn_contract::plant::{Layout, RealVariable, derivatives_cover};
+
+use crate::component::CallError;
+
+/// The point the derivatives are taken at: the plant's model, its FMU's
+/// variables, its state and inputs.
+pub struct At<'a> {
+    /// The model.
+    pub model: &'a Model,
+    /// The FMU's variables.
+    pub layout: &'a Layout,
+    /// θ.
+    pub theta: &'a [f64],
+    /// ν.
+    pub nu: &'a [f64],
+    /// ε.
+    pub eps: &'a [f64],
+}
+
+/// The dual workspace, or why the FMU has no derivatives, and the buffers
+/// of one direction and its results, made at the first call (an instance
+/// nobody asks for derivatives holds none).
+pub struct Partials {
+    /// The dual workspace once made (`Ok(None)` before the first call), or
+    /// why the FMU has none (logged on every call).
+    derivatives: Result<Option<Derivatives>, String>,
+    /// The direction along θ, ν and ε.
+    theta: Vec<f64>,
+    nu: Vec<f64>,
+    eps: Vec<f64>,
+    /// The physical joint forces' direction: always 0 (T is no variable of the FMU).
+    torque: Vec<f64>,
+    /// The derivatives of θ̇ and ν̇ along the last direction.
+    qvel: Vec<f64>,
+    nu_dot: Vec<f64>,
+}
+
+impl Partials {
+    /// The partials of a plant of `model` whose FMU has the variables of `layout`.
+    pub fn new(model: &Model, layout: &Layout) -> Self {
+        let derivatives = derivatives_cover(model, layout.outputs).map(|()| None).map_err(|why| why.to_string());
+        Partials {
+            derivatives,
+            theta: Vec::new(),
+            nu: Vec::new(),
+            eps: Vec::new(),
+            torque: Vec::new(),
+            qvel: Vec::new(),
+            nu_dot: Vec::new(),
+        }
+    }
+
+    /// `sensitivity` = J `seed`: the derivatives of `unknowns` along the
+    /// direction `seed` of `knowns` (FMI 2.0 value references).
+    pub fn directional(
+        &mut self,
+        at: &At,
+        unknowns: &[u32],
+        knowns: &[u32],
+        seed: &[f64],
+        sensitivity: &mut [f64],
+    ) -> Result<(), CallError> {
+        let (unknowns, knowns) =
+            (classify(at.layout, unknowns, Role::Unknown)?, classify(at.layout, knowns, Role::Known)?);
+        self.run(at, knowns.iter().copied().zip(seed.iter().copied()))?;
+        for (out, &variable) in sensitivity.iter_mut().zip(&unknowns) {
+            *out = self.derivative(at, variable);
+        }
+        Ok(())
+    }
+
+    /// `sensitivity` = Jᵀ `seed`: `seed` along `unknowns`, `sensitivity`
+    /// along `knowns`; one forward run per known.
+    pub fn adjoint(
+        &mut self,
+        at: &At,
+        unknowns: &[u32],
+        knowns: &[u32],
+        seed: &[f64],
+        sensitivity: &mut [f64],
+    ) -> Result<(), CallError> {
+        let (unknowns, knowns) =
+            (classify(at.layout, unknowns, Role::Unknown)?, classify(at.layout, knowns, Role::Known)?);
+        for (out, &variable) in sensitivity.iter_mut().zip(&knowns) {
+            self.run(at, [(variable, 1.0)].into_iter())?;
+            *out = unknowns.iter().zip(seed).map(|(&u, s)| s * self.derivative(at, u)).sum();
+        }
+        Ok(())
+    }
+
+    /// Refuses the call if the FMU has no derivatives, with why.
+    pub fn covered(&self) -> Result<(), CallError> {
+        self.derivatives.as_ref().map(|_| ()).map_err(|why| CallError::NoPartials(why.clone()))
+    }
+
+    /// Runs the passes at `at` along the direction of the (known, seed) pairs.
+    fn run(&mut self, at: &At, direction: impl Iterator<Item = (RealVariable, f64)>) -> Result<(), CallError> {
+        let derivatives = self.derivatives.as_mut().map_err(|why| CallError::NoPartials(why.clone()))?;
+        let model = at.model;
+        if derivatives.is_none() {
+            let made = Derivatives::new(model).map_err(|why| CallError::NoPartials(why.to_string()))?;
+            *derivatives = Some(made);
+            for (buffer, n) in [(&mut self.theta, model.nq), (&mut self.nu, model.nv), (&mut self.eps, model.nv)] {
+                buffer.resize(n, 0.0);
+            }
+            for buffer in [&mut self.torque, &mut self.qvel, &mut self.nu_dot] {
+                buffer.resize(model.nv, 0.0);
+            }
+        }
+        let derivatives = derivatives.as_mut().expect("made above");
+        for buffer in [&mut self.theta, &mut self.nu, &mut self.eps] {
+            buffer.fill(0.0);
+        }
+        for (variable, seed) in direction {
+            match variable {
+                RealVariable::Theta(k) => self.theta[k] += seed,
+                RealVariable::Nu(k) => self.nu[k] += seed,
+                RealVariable::Eps(k) => self.eps[k] += seed,
+                other => unreachable!("{other:?} is not a known: classified before"),
+            }
+        }
+        // A plant with derivatives has no actuators (`derivatives_cover`): no ctrl.
+        let point =
+            Point { theta: at.theta, velocity: at.nu, given: Given::Nu, eps: at.eps, torque: &self.torque, ctrl: &[] };
+        let direction = Direction {
+            theta: &self.theta,
+            theta_in: ThetaDirection::Coordinates,
+            velocity: &self.nu,
+            eps: &self.eps,
+            torque: &self.torque,
+            ctrl: &[],
+        };
+        derivatives.run(at.model, &point, &direction).map_err(|error| match error {
+            DerivativeError::Dynamics(error) => CallError::Evaluate(error),
+            other => unreachable!("the directions are sized by the model: {other}"),
+        })?;
+        for (out, d) in self.qvel.iter_mut().zip(derivatives.derivative(Output::Qvel)) {
+            *out = d;
+        }
+        for (out, d) in self.nu_dot.iter_mut().zip(derivatives.derivative(Output::NuDot)) {
+            *out = d;
+        }
+        Ok(())
+    }
+
+    /// The derivative of the unknown `variable` along the last run's direction.
+    fn derivative(&self, at: &At, variable: RealVariable) -> f64 {
+        let Ok(Some(derivatives)) = &self.derivatives else { unreachable!("a run made the workspace") };
+        match variable {
+            RealVariable::Theta(k) => self.theta[k],
+            RealVariable::Nu(k) => self.nu[k],
+            RealVariable::Qvel(k) => self.qvel[k],
+            RealVariable::DerTheta(k) => derivatives.qpos_rate_derivative(at.model, k),
+            RealVariable::DerNu(k) => self.nu_dot[k],
+            // K = ½|ν|²; P = ν·ε.
+            RealVariable::KineticEnergy => at.nu.iter().zip(&self.nu).map(|(n, d)| n * d).sum(),
+            RealVariable::Power => {
+                at.nu.iter().zip(&self.eps).map(|(n, d)| n * d).sum::<f64>()
+                    + self.nu.iter().zip(at.eps).map(|(d, e)| d * e).sum::<f64>()
+            }
+            // Derivatives cover no constraint: the constraint forces are 0.
+            RealVariable::QfrcConstraint(_) => 0.0,
+            other => unreachable!("{other:?} is not an unknown: classified before"),
+        }
+    }
+}
+
+/// The variables of `vrs`, each checked to be able to play `role`.
+fn classify(layout: &Layout, vrs: &[u32], role: Role) -> Result<Vec<RealVariable>, CallError> {
+    vrs.iter()
+        .map(|&vr| {
+            let variable = layout.real_variable(vr).ok_or(CallError::UnknownValueReference { vr, kind: "Real" })?;
+            if role.admits(variable) {
+                Ok(variable)
+            } else {
+                let name = layout.name(variable).expect("the layout's own variable");
+                Err(CallError::NotPartial { name, vr, role: role.describe() })
+            }
+        })
+        .collect()
+}
+
+/// Which side of a partial derivative a variable is passed as.
+#[derive(Clone, Copy)]
+enum Role {
+    Known,
+    Unknown,
+}
+
+impl Role {
+    /// Whether `variable` can be one: a known is a continuous state or
+    /// input; an unknown a continuous output or a state derivative.
+    fn admits(self, variable: RealVariable) -> bool {
+        use RealVariable::*;
+        match self {
+            Role::Known => matches!(variable, Theta(_) | Nu(_) | Eps(_)),
+            Role::Unknown => matches!(
+                variable,
+                Theta(_) | Nu(_) | Qvel(_) | DerTheta(_) | DerNu(_) | KineticEnergy | Power | QfrcConstraint(_)
+            ),
+        }
+    }
+
+    fn describe(self) -> &'static str {
+        match self {
+            Role::Known => "a known of the partial derivatives (the states theta and nu, the inputs eps)",
+            Role::Unknown => {
+                "an unknown of the partial derivatives (the outputs theta, nu, qvel, kinetic_energy, power, \
+                 qfrc_constraint and the state derivatives)"
+            }
+        }
+    }
+}
