@@ -11,7 +11,7 @@
 use std::ops::{Add, AddAssign, Div, DivAssign, Mul, MulAssign, Neg, Sub, SubAssign};
 
 use nalgebra::{Matrix3, RealField, SMatrix, SVector, UnitQuaternion, Vector3};
-use num_dual::{Dual64, DualSVec64};
+use num_dual::Dual64;
 use serde::{Deserialize, Serialize};
 
 /// The scalar the passes compute in: `f64`, or a dual number that carries
@@ -46,13 +46,6 @@ impl Real for f64 {
 }
 
 impl Real for Dual64 {
-    #[inline(always)]
-    fn value(self) -> f64 {
-        self.re
-    }
-}
-
-impl<const N: usize> Real for DualSVec64<N> {
     #[inline(always)]
     fn value(self) -> f64 {
         self.re

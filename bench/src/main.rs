@@ -242,6 +242,7 @@ fn eval_cost(
 
     let mut qacc_ws = model.workspace();
     let mut derivatives = nudyn::dynamics::derivatives::Derivatives::new(model).ok();
+    let mut jacobian_derivatives = derivatives.clone();
     let ones = vec![1.0; model.nv];
     let mut cases: Vec<Case> = Vec::new();
     for ((name, m), ws) in variants.iter().zip(workspaces.iter_mut()) {
@@ -252,6 +253,9 @@ fn eval_cost(
     }
     if let Some(derivatives) = derivatives.as_mut() {
         cases.push(directional_derivative_case(model, derivatives, state, &eps, &ctrl, &ones));
+    }
+    if let Some(derivatives) = jacobian_derivatives.as_mut() {
+        cases.push(jacobian_case(model, derivatives, state, &eps, &ctrl));
     }
     if ported {
         cases.push(forward_case(
@@ -342,6 +346,33 @@ fn directional_derivative_case<'a>(
                 ctrl,
             };
             derivatives.run(model, &point, &along).expect("the state evaluates");
+        }),
+    }
+}
+
+/// A timed case of the Jacobians of ν̇ in θ, ν, ε, T and ctrl at `state`
+/// (2 × 3nv + nu directions, in batches).
+fn jacobian_case<'a>(
+    model: &'a Model,
+    derivatives: &'a mut nudyn::dynamics::derivatives::Derivatives,
+    state: &'a State,
+    eps: &'a [f64],
+    ctrl: &'a [f64],
+) -> Case<'a> {
+    use nudyn::dynamics::derivatives::{Output, Point};
+    use nudyn::dynamics::velocity::Given;
+    Case {
+        name: "nudyn Jacobians of ν̇ (dual numbers, batches of 8)".to_string(),
+        call: Box::new(move || {
+            let point = Point {
+                theta: std::hint::black_box(&state.theta),
+                velocity: &state.nu,
+                given: Given::Nu,
+                eps,
+                torque: eps,
+                ctrl,
+            };
+            derivatives.jacobians(model, &point, Output::NuDot).expect("the state evaluates");
         }),
     }
 }

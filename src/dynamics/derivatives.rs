@@ -26,8 +26,8 @@
 //! refused by [`Derivatives::new`] with what is missing, rather than
 //! given a derivative that leaves a term out.
 
-use nalgebra::{Const, DMatrix, Quaternion, SVector, U1};
-use num_dual::{Derivative, Dual64, DualSVec64};
+use nalgebra::{DMatrix, Quaternion};
+use num_dual::Dual64;
 
 use super::constraint::limit_switching_functions;
 use super::velocity::{self, Given};
@@ -141,85 +141,43 @@ pub struct Jacobians {
     pub ctrl: DMatrix<f64>,
 }
 
-/// Directions at once in one run of the passes: a Jacobian's columns in
-/// batches, so that each value is computed once per batch (vector dual
-/// numbers, whose products cost one of f64's per direction and one more).
-const BATCH: usize = 8;
-
-/// A dual number carrying `DIRECTIONS` directions: `Dual64` (one, for a
-/// directional derivative) or num-dual's `DualSVec64` (a batch).
-trait Lanes: Real {
-    const DIRECTIONS: usize;
-    /// `value` with derivative `tangent(lane)` along each lane.
-    fn seeded(value: f64, tangent: impl Fn(usize) -> f64) -> Self;
-    /// The derivative along `lane`.
-    fn tangent(&self, lane: usize) -> f64;
-}
-
-impl Lanes for Dual64 {
-    const DIRECTIONS: usize = 1;
-    fn seeded(value: f64, tangent: impl Fn(usize) -> f64) -> Self {
-        Dual64::new(value, tangent(0))
-    }
-    fn tangent(&self, _: usize) -> f64 {
-        self.eps
-    }
-}
-
-impl<const N: usize> Lanes for DualSVec64<N> {
-    const DIRECTIONS: usize = N;
-    fn seeded(value: f64, tangent: impl Fn(usize) -> f64) -> Self {
-        DualSVec64::new(value, Derivative::some(SVector::from_fn(|lane, _| tangent(lane))))
-    }
-    fn tangent(&self, lane: usize) -> f64 {
-        self.eps.unwrap_generic(Const::<N>, U1)[lane]
-    }
-}
-
-/// The passes' workspace in dual numbers of `D` and the inputs' buffers.
+/// The passes' workspace in dual numbers and the inputs' buffers.
 #[derive(Clone, Debug)]
-struct Passes<D: Lanes> {
-    ws: Workspace<D>,
-    eps: Vec<D>,
-    torque: Vec<D>,
-    eps_of_torque: Vec<D>,
-    ctrl: Vec<D>,
-    /// Each lane's direction in θ's coordinates (lane-major, nq each).
+struct Passes {
+    ws: Workspace<Dual64>,
+    eps: Vec<Dual64>,
+    torque: Vec<Dual64>,
+    eps_of_torque: Vec<Dual64>,
+    ctrl: Vec<Dual64>,
+    /// The direction in θ's coordinates (nq).
     theta_rates: Vec<f64>,
 }
 
-impl<D: Lanes> Passes<D> {
+impl Passes {
     fn new(model: &Model) -> Self {
-        let zeros = vec![D::from(0.0); model.nv];
+        let zeros = vec![Dual64::from(0.0); model.nv];
         Passes {
             ws: Workspace::in_scalar(model),
             eps: zeros.clone(),
             torque: zeros.clone(),
             eps_of_torque: zeros,
-            ctrl: vec![D::from(0.0); model.actuators.len()],
-            theta_rates: vec![0.0; D::DIRECTIONS * model.nq],
+            ctrl: vec![Dual64::from(0.0); model.actuators.len()],
+            theta_rates: vec![0.0; model.nq],
         }
     }
 
-    /// Passes 0–3 and θ̈ at `point` along `directions` (one per lane, checked),
-    /// with `limits` refusing a point where a joint limit acts.
+    /// Passes 0–3 and θ̈ at `point` along `direction` (checked), with
+    /// `limits` refusing a point where a joint limit acts.
     fn run(
         &mut self,
         model: &Model,
         point: &Point,
-        directions: &[Direction],
+        direction: &Direction,
         limits: &mut Limits,
     ) -> Result<(), DerivativeError> {
-        let nq = model.nq;
-        for (lane, direction) in directions.iter().enumerate() {
-            theta_rates(model, point.theta, direction, &mut self.theta_rates[lane * nq..(lane + 1) * nq]);
-        }
-        let lanes = directions.len();
-        let rates = &self.theta_rates;
+        theta_rates(model, point.theta, direction, &mut self.theta_rates);
         let ws = &mut self.ws;
-        for (k, slot) in ws.theta.iter_mut().enumerate() {
-            *slot = D::seeded(point.theta[k], |lane| if lane < lanes { rates[lane * nq + k] } else { 0.0 });
-        }
+        seed(ws.theta.as_mut_slice(), point.theta, &self.theta_rates);
         ws.stage = Stage::Empty;
         ws.configuration_passes(model)?;
         ws.stage = Stage::Configuration;
@@ -228,23 +186,15 @@ impl<D: Lanes> Passes<D> {
             Given::Nu => ws.nu.as_mut_slice(),
             Given::Qvel => ws.qvel.as_mut_slice(),
         };
-        for (k, slot) in velocity.iter_mut().enumerate() {
-            *slot = D::seeded(point.velocity[k], |lane| directions.get(lane).map_or(0.0, |d| d.velocity[k]));
-        }
+        seed(velocity, point.velocity, direction.velocity);
         velocity::velocity_pass(model, ws, point.given);
         ws.stage = Stage::Velocity;
-        for (k, slot) in self.torque.iter_mut().enumerate() {
-            *slot = D::seeded(point.torque[k], |lane| directions.get(lane).map_or(0.0, |d| d.torque[k]));
-        }
+        seed(&mut self.torque, point.torque, direction.torque);
         forces::eps_of_torque(model, ws, &self.torque, &mut self.eps_of_torque);
-        for (k, slot) in self.eps.iter_mut().enumerate() {
-            *slot =
-                D::seeded(point.eps[k], |lane| directions.get(lane).map_or(0.0, |d| d.eps[k])) + self.eps_of_torque[k];
-        }
+        seed(&mut self.eps, point.eps, direction.eps);
+        self.eps.iter_mut().zip(&self.eps_of_torque).for_each(|(e, t)| *e += *t);
         if !model.actuators.is_empty() {
-            for (k, slot) in self.ctrl.iter_mut().enumerate() {
-                *slot = D::seeded(point.ctrl[k], |lane| directions.get(lane).map_or(0.0, |d| d.ctrl[k]));
-            }
+            seed(&mut self.ctrl, point.ctrl, direction.ctrl);
             ws.actuation_pass(model, &self.ctrl)?;
             self.eps.iter_mut().zip(ws.eps_actuator.iter()).for_each(|(e, a)| *e += *a);
         }
@@ -258,7 +208,7 @@ impl<D: Lanes> Passes<D> {
         Ok(())
     }
 
-    fn output(&self, output: Output) -> &[D] {
+    fn output(&self, output: Output) -> &[Dual64] {
         match output {
             Output::Qvel => self.ws.qvel.as_slice(),
             Output::Nu => self.ws.nu.as_slice(),
@@ -292,13 +242,11 @@ impl Limits {
     }
 }
 
-/// A model's passes in dual numbers, one direction and a batch, and the
-/// inputs' buffers: built once, so that derivatives allocate nothing but
-/// their results.
+/// A model's passes in dual numbers and the inputs' buffers: built once,
+/// so that derivatives allocate nothing but their results.
 #[derive(Clone, Debug)]
 pub struct Derivatives {
-    single: Passes<Dual64>,
-    batch: Passes<DualSVec64<BATCH>>,
+    passes: Passes,
     limits: Limits,
 }
 
@@ -308,8 +256,7 @@ impl Derivatives {
     pub fn new(model: &Model) -> Result<Self, DerivativeError> {
         Self::check(model)?;
         Ok(Derivatives {
-            single: Passes::new(model),
-            batch: Passes::new(model),
+            passes: Passes::new(model),
             limits: Limits { switches: vec![0.0; model.constraints.limit_sides()], theta: vec![0.0; model.nq] },
         })
     }
@@ -334,58 +281,53 @@ impl Derivatives {
     pub fn run(&mut self, model: &Model, point: &Point, direction: &Direction) -> Result<(), DerivativeError> {
         check_point(model, point)?;
         check_direction(model, point, direction)?;
-        self.single.run(model, point, std::slice::from_ref(direction), &mut self.limits)
+        self.passes.run(model, point, direction, &mut self.limits)
     }
 
     /// The derivative of `output` along the last run's direction.
     pub fn derivative(&self, output: Output) -> impl Iterator<Item = f64> + '_ {
-        self.single.output(output).iter().map(|d| d.eps)
+        self.passes.output(output).iter().map(|d| d.eps)
     }
 
     /// The value of `output` at the last run's point.
     pub fn value(&self, output: Output) -> impl Iterator<Item = f64> + '_ {
-        self.single.output(output).iter().map(|d| d.re)
+        self.passes.output(output).iter().map(|d| d.re)
     }
 
     /// The derivative of d(θ[k])/dt ([`qpos_rate`]) along the last run's
     /// direction: θ's rate as the state derivative of model exchange.
     pub fn qpos_rate_derivative(&self, model: &Model, k: usize) -> f64 {
-        let ws = &self.single.ws;
+        let ws = &self.passes.ws;
         qpos_rate(model, ws.theta.as_slice(), ws.qvel.as_slice(), k).eps
     }
 
-    /// The Jacobians of `output` at `point`: the columns in batches of
-    /// [`BATCH`] directions, one run of the passes each.
+    /// The Jacobians of `output` at `point`: one run per column. (Vector
+    /// dual numbers, several columns per run, measured slower: num-dual's
+    /// `DualSVec64<8>` cost 10–16 ν̇ per column where `Dual64` costs 4–5.)
     pub fn jacobians(&mut self, model: &Model, point: &Point, output: Output) -> Result<Jacobians, DerivativeError> {
         check_point(model, point)?;
         let (nv, nu) = (model.nv, model.actuators.len());
         let (zeros, no_ctrl) = (vec![0.0; nv], vec![0.0; nu]);
         let mut columns = |which: usize| -> Result<DMatrix<f64>, DerivativeError> {
             let count = if which == 4 { nu } else { nv };
-            let units: Vec<Vec<f64>> =
-                (0..count).map(|column| (0..count).map(|k| if k == column { 1.0 } else { 0.0 }).collect()).collect();
+            let mut unit = vec![0.0; count];
             let mut jacobian = DMatrix::zeros(nv, count);
-            for first in (0..count).step_by(BATCH) {
-                let batch = &units[first..count.min(first + BATCH)];
-                let directions: Vec<Direction> = batch
-                    .iter()
-                    .map(|unit| {
-                        let along = |k: usize| if k == which { unit.as_slice() } else { zeros.as_slice() };
-                        Direction {
-                            theta: along(0),
-                            theta_in: ThetaDirection::Tangent,
-                            velocity: along(1),
-                            eps: along(2),
-                            torque: along(3),
-                            ctrl: if which == 4 { unit.as_slice() } else { no_ctrl.as_slice() },
-                        }
-                    })
-                    .collect();
-                self.batch.run(model, point, &directions, &mut self.limits)?;
-                for (row, d) in self.batch.output(output).iter().enumerate() {
-                    for lane in 0..directions.len() {
-                        jacobian[(row, first + lane)] = d.tangent(lane);
-                    }
+            for column in 0..count {
+                unit[column] = 1.0;
+                let along = |k: usize| if k == which { unit.as_slice() } else { zeros.as_slice() };
+                let direction = Direction {
+                    theta: along(0),
+                    theta_in: ThetaDirection::Tangent,
+                    velocity: along(1),
+                    eps: along(2),
+                    torque: along(3),
+                    ctrl: if which == 4 { unit.as_slice() } else { no_ctrl.as_slice() },
+                };
+                let run = self.passes.run(model, point, &direction, &mut self.limits);
+                unit[column] = 0.0;
+                run?;
+                for (row, d) in self.passes.output(output).iter().enumerate() {
+                    jacobian[(row, column)] = d.eps;
                 }
             }
             Ok(jacobian)
@@ -451,6 +393,13 @@ fn velocity_name(given: Given) -> &'static str {
     match given {
         Given::Nu => "nu",
         Given::Qvel => "qvel",
+    }
+}
+
+/// Values with their derivatives.
+fn seed(out: &mut [Dual64], values: &[f64], derivatives: &[f64]) {
+    for ((o, &v), &d) in out.iter_mut().zip(values).zip(derivatives) {
+        *o = Dual64::new(v, d);
     }
 }
 
