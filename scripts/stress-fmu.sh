@@ -8,8 +8,11 @@
 #     1 time and RUNS times; nothing lost, and the memory in use at exit the
 #     same for both (no growth with the number of runs);
 #   - fuzzing: each cargo fuzz target (fuzz/) for SECONDS seconds, seeded
-#     with the examples, as many at once as there are cores; a crash leaves
-#     its input in fuzz/artifacts/ and fails the script.
+#     with the examples; a crash leaves its input in fuzz/artifacts/ and
+#     fails the script.
+#
+# The memory checks and the fuzz targets run as many at once as there are
+# cores, each on one.
 #
 #   bash scripts/stress-fmu.sh           # CI: RUNS=3, 15 s per target
 #   bash scripts/stress-fmu.sh --long    # RUNS=20, 600 s per target
@@ -74,8 +77,7 @@ in_use_after() {
     fi
     grep -o 'in use at exit: [0-9,]* bytes' "$log" | tr -dc '0-9'
 }
-# The 1-run and RUNS-run checks of one FMI version; the two versions run
-# side by side (valgrind uses one core).
+# The 1-run and RUNS-run checks of one FMI version (run beside the fuzzers below).
 check_memory() {
     local version=$1 importer one many
     if [ "$version" = fmi2 ]; then
@@ -92,15 +94,6 @@ check_memory() {
         return 1
     fi
 }
-check_memory fmi2 &
-fmi2=$!
-check_memory fmi3 &
-fmi3=$!
-status=0
-wait "$fmi2" || status=1
-wait "$fmi3" || status=1
-[ "$status" -eq 0 ] || exit 1
-
 # --- fuzzing --------------------------------------------------------------------
 # cargo fuzz needs nightly flags (-Zsanitizer); the stable toolchain accepts
 # them with RUSTC_BOOTSTRAP=1.
@@ -163,19 +156,27 @@ fuzz_one() {
     grep -E '^stat::number_of_executed_units|^stat::average_exec_per_sec' "$WORK/fuzz-$target.txt" \
         | sed "s/^/stress-fmu: $target: /"
 }
-# As many targets at once as there are cores, each on a core of its own for
-# its FUZZ_SECONDS (libFuzzer's time is wall-clock time).
-targets=(mjcf_import resource_loader state_deserializer call_sequence call_sequence_fmi3)
-cores=$(nproc)
-for ((first = 0; first < ${#targets[@]}; first += cores)); do
-    pids=()
-    for target in "${targets[@]:first:cores}"; do
-        fuzz_one "$target" &
-        pids+=($!)
+# Runs each JOB (a function and its arguments), as many at once as there are
+# cores, the next as soon as one ends: valgrind and each fuzzer use one core
+# (libFuzzer's time is wall-clock time: each target gets a core of its own
+# for its FUZZ_SECONDS). Fails if any failed, once all have ended.
+#   run_on_every_core JOB...
+run_on_every_core() {
+    local cores running=0 status=0 job
+    cores=$(nproc)
+    for job in "$@"; do
+        if [ "$running" -ge "$cores" ]; then
+            wait -n || status=1
+            running=$((running - 1))
+        fi
+        $job &
+        running=$((running + 1))
     done
-    for pid in "${pids[@]}"; do
-        wait "$pid" || status=1
+    for ((; running > 0; running--)); do
+        wait -n || status=1
     done
-    [ "$status" -eq 0 ] || exit 1
-done
+    return "$status"
+}
+run_on_every_core "check_memory fmi2" "check_memory fmi3" "fuzz_one mjcf_import" "fuzz_one resource_loader" \
+    "fuzz_one state_deserializer" "fuzz_one call_sequence" "fuzz_one call_sequence_fmi3"
 echo "stress-fmu: ok"

@@ -65,7 +65,9 @@ class Settings:
     # Bodies exported with --wrench-inputs (their wrenches are inputs; the
     # 'wrenched' scenario drives them).
     wrench_bodies: tuple[str, ...] = ()
-    # MuJoCo's twins (judgement.TWINS); each costs one more MuJoCo run.
+    # MuJoCo's twins (judgement.TWINS); each costs one more MuJoCo run. With
+    # none the twin divergence is 0, so the verdict is "agrees" or "disagrees":
+    # for a caller that asserts the errors against the tolerance itself.
     twins: int = TWINS
 
     def parameters(self) -> dict[str, float]:
@@ -148,7 +150,10 @@ class ScenarioResult:
 
     def twin_divergence(self) -> np.ndarray:
         """The twins' largest distance from MuJoCo at each time, in the norm
-        of the FMU's error: the largest of θ, ν, sensordata and act differences."""
+        of the FMU's error: the largest of θ, ν, sensordata and act differences
+        (0 without twins)."""
+        if not self.twins:
+            return np.zeros(len(self.time))
         return np.maximum.reduce(
             [e for twin in self.twins for e in (self.theta_error(twin), self.nu_error(twin),
                                                 self.sensordata_error(twin), self.act_error(twin))]

@@ -15,6 +15,7 @@ from fmpy import read_model_description
 
 from conftest import EXAMPLES, ROOT
 from nudyn_validation.compare import Settings, validate_model
+from nudyn_validation.judgement import judge
 from nudyn_validation.mujoco_reference import load_model
 from nudyn_validation.mujoco_run import MujocoVehicle
 from nudyn_validation.scenarios import FORCED_TOLERANCE, UNFORCED_TOLERANCE, default_scenarios
@@ -25,14 +26,14 @@ CASES = [(path, name) for path in EXAMPLES for name in default_scenarios(load_mo
 @pytest.fixture(scope="module")
 def validated(nudyn, tmp_path_factory):
     """validated(path): the default validation of an example, run once,
-    with one twin: the examples agree far inside the tolerance, and the
-    verdict from several twins is tested in test_corpus.py."""
+    without MuJoCo's twins: the tests assert the errors against the
+    tolerance, and the verdict from the twins is tested in test_corpus.py."""
     done = {}
 
     def get(path):
         if path not in done:
             fmu = tmp_path_factory.mktemp("validation") / f"{path.stem}.fmu"
-            done[path] = {r.scenario.name: r for r in validate_model(path, fmu, nudyn, None, Settings(twins=1)).results}
+            done[path] = {r.scenario.name: r for r in validate_model(path, fmu, nudyn, None, Settings(twins=0)).results}
         return done[path]
 
     return get
@@ -87,6 +88,18 @@ def test_comparison_detects_a_wrong_input_mapping(nudyn, tmp_path, monkeypatch):
     validation = validate_model(ROOT / "examples/bus_arm7.xml", tmp_path / "bus.fmu", nudyn, ["sine"], settings)
     assert validation.results[0].summary()["max_nu_error"] > 1e3 * FORCED_TOLERANCE
     assert not validation.passed
+
+
+def test_without_twins_the_verdict_is_the_tolerances(nudyn, tmp_path):
+    """Settings(twins=0) runs MuJoCo once: no twin divergence, so an error
+    within the tolerance agrees and one beyond it disagrees (never "chaotic")."""
+    validation = validate_model(ROOT / "examples/fixed_rig.xml", tmp_path / "rig.fmu", nudyn, ["sine"],
+                                Settings(duration=0.1, twins=0))
+    result = validation.results[0]
+    assert result.twins == [] and np.array_equal(result.twin_divergence(), np.zeros(len(result.time)))
+    x = result.summary()
+    assert x["max_twin_divergence"] == 0.0 and x["verdict"] == "agrees" and validation.passed, x
+    assert judge(2 * x["tolerance"], x["max_twin_divergence"], x["tolerance"]) == "disagrees"
 
 
 def test_actuators_act_on_neither_side(nudyn, tmp_path):
@@ -159,8 +172,9 @@ def test_other_versions_and_interfaces_meet_the_tolerances(nudyn, tmp_path, fmi_
     """scripts/validate.py --fmi-version 3 and --interface me (FMPy's CVODE at
     its default rtol) against MuJoCo on the bus with its arm, every scenario:
     within 1e-8 free, 1e-6 with inputs (measured on 2 s: FMI 3.0 co-simulation
-    gives FMI 2.0's 1e-13; CVODE at 1e-11 up to 1.5e-9 free, 1.3e-8 with inputs)."""
-    settings = Settings(duration=0.5, fmi_version=fmi_version, interface=interface)
+    gives FMI 2.0's 1e-13; CVODE at 1e-11 up to 1.5e-9 free, 1.3e-8 with inputs).
+    Without MuJoCo's twins a pass is an error within the tolerance itself."""
+    settings = Settings(duration=0.5, fmi_version=fmi_version, interface=interface, twins=0)
     validation = validate_model(ROOT / "examples/bus_arm7.xml", tmp_path / "bus.fmu", nudyn, None, settings)
     assert [r.scenario.name for r in validation.results] == ["tumble", "sine", "damping"]
     for result in validation.results:

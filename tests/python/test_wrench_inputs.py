@@ -31,7 +31,9 @@ EVERY_SENSOR = ROOT / "tests" / "fixtures" / "sensors" / "every_sensor.xml"
 
 
 def check_wrenched(model_path, bodies, fmu_path, nudyn, **settings):
-    settings = Settings(wrench_bodies=tuple(bodies), **settings)
+    # No MuJoCo twin: only the FMU's errors against MuJoCo are asserted
+    # here; the twins feed the verdict, which test_corpus.py tests.
+    settings = Settings(wrench_bodies=tuple(bodies), twins=0, **settings)
     result = validate_model(model_path, fmu_path, nudyn, ["wrenched"], settings).results[0]
     x = result.summary()
     report = json.dumps(x, indent=1)
@@ -48,7 +50,7 @@ def check_wrenched(model_path, bodies, fmu_path, nudyn, **settings):
 def test_wrenches_move_the_vehicle_as_mujocos_xfrc_applied(model_path, bodies, nudyn, tmp_path):
     wrenched = check_wrenched(model_path, bodies, tmp_path / "w.fmu", nudyn)
     # The same start without wrenches ends elsewhere: the wrenches shape the motion compared.
-    free = validate_model(model_path, tmp_path / "f.fmu", nudyn, ["tumble"]).results[0]
+    free = validate_model(model_path, tmp_path / "f.fmu", nudyn, ["tumble"], Settings(twins=0)).results[0]
     assert np.max(np.abs(wrenched.fmu.nu[-1] - free.fmu.nu[-1])) > 1e-2
 
 
