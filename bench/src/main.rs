@@ -324,19 +324,11 @@ fn directional_derivative_case<'a>(
     ctrl: &'a [f64],
     direction: &'a [f64],
 ) -> Case<'a> {
-    use nudyn::dynamics::derivatives::{Direction, Point, ThetaDirection};
-    use nudyn::dynamics::velocity::Given;
+    use nudyn::dynamics::derivatives::{Direction, ThetaDirection};
     Case {
         name: "nudyn directional derivative of ν̇ (dual numbers)".to_string(),
         call: Box::new(move || {
-            let point = Point {
-                theta: std::hint::black_box(&state.theta),
-                velocity: &state.nu,
-                given: Given::Nu,
-                eps,
-                torque: eps,
-                ctrl,
-            };
+            let point = derivative_point(state, eps, ctrl);
             let along = Direction {
                 theta: direction,
                 theta_in: ThetaDirection::Tangent,
@@ -350,8 +342,16 @@ fn directional_derivative_case<'a>(
     }
 }
 
+/// The point of the derivatives' cases: `state` (θ, ν) with ε and the
+/// joint forces both `eps`, and `ctrl`.
+fn derivative_point<'a>(state: &'a State, eps: &'a [f64], ctrl: &'a [f64]) -> nudyn::dynamics::derivatives::Point<'a> {
+    let given = nudyn::dynamics::velocity::Given::Nu;
+    let theta = std::hint::black_box(state.theta.as_slice());
+    nudyn::dynamics::derivatives::Point { theta, velocity: &state.nu, given, eps, torque: eps, ctrl }
+}
+
 /// A timed case of the Jacobians of ν̇ in θ, ν, ε, T and ctrl at `state`
-/// (2 × 3nv + nu directions, in batches).
+/// (4nv + nu directions, one run each).
 fn jacobian_case<'a>(
     model: &'a Model,
     derivatives: &'a mut nudyn::dynamics::derivatives::Derivatives,
@@ -359,20 +359,12 @@ fn jacobian_case<'a>(
     eps: &'a [f64],
     ctrl: &'a [f64],
 ) -> Case<'a> {
-    use nudyn::dynamics::derivatives::{Output, Point};
-    use nudyn::dynamics::velocity::Given;
     Case {
-        name: "nudyn Jacobians of ν̇ (dual numbers, batches of 8)".to_string(),
+        name: "nudyn Jacobians of ν̇ (dual numbers)".to_string(),
         call: Box::new(move || {
-            let point = Point {
-                theta: std::hint::black_box(&state.theta),
-                velocity: &state.nu,
-                given: Given::Nu,
-                eps,
-                torque: eps,
-                ctrl,
-            };
-            derivatives.jacobians(model, &point, Output::NuDot).expect("the state evaluates");
+            let point = derivative_point(state, eps, ctrl);
+            let nu_dot = nudyn::dynamics::derivatives::Output::NuDot;
+            derivatives.jacobians(model, &point, nu_dot).expect("the state evaluates");
         }),
     }
 }

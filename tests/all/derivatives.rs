@@ -142,6 +142,11 @@ fn differences(case: &Case, given: Given) -> Jacobians {
     Jacobians { theta: columns(0), velocity: columns(1), eps: columns(2), torque: columns(3), ctrl: columns(4) }
 }
 
+/// The zero direction of a vehicle without actuators (`zeros`: nv).
+fn nowhere(zeros: &[f64]) -> Direction<'_> {
+    Direction { theta: zeros, theta_in: ThetaDirection::Tangent, velocity: zeros, eps: zeros, torque: zeros, ctrl: &[] }
+}
+
 /// max |a − b| / max(1, max |b|) over a matrix.
 fn relative(a: &DMatrix<f64>, b: &DMatrix<f64>) -> f64 {
     common::rel_err(a.as_slice(), b.as_slice())
@@ -224,14 +229,7 @@ fn a_run_gives_the_f64_values() {
         let mut derivatives = Derivatives::new(&case.model).unwrap();
         let nv = case.model.nv;
         let zeros = vec![0.0; nv];
-        let direction = Direction {
-            theta: &zeros,
-            theta_in: ThetaDirection::Tangent,
-            velocity: &zeros,
-            eps: &zeros,
-            torque: &zeros,
-            ctrl: &[],
-        };
+        let direction = nowhere(&zeros);
         for (given, output) in [(Given::Qvel, Output::Qacc), (Given::Nu, Output::NuDot)] {
             derivatives.run(&case.model, &point(&case, given), &direction).unwrap();
             let values: Vec<f64> = derivatives.value(output).collect();
@@ -316,14 +314,7 @@ fn models_beyond_the_generic_passes_and_bad_points_are_refused() {
     let mut eps = case.eps.clone();
     eps[1] = f64::NAN;
     let bad = Point { eps: &eps, ..point(&case, Given::Qvel) };
-    let direction = Direction {
-        theta: &zeros,
-        theta_in: ThetaDirection::Tangent,
-        velocity: &zeros,
-        eps: &zeros,
-        torque: &zeros,
-        ctrl: &[],
-    };
+    let direction = nowhere(&zeros);
     let error = derivatives.run(&case.model, &bad, &direction).unwrap_err();
     assert!(error.to_string().contains("eps[2] is not finite"), "{error}");
 }
