@@ -18,6 +18,6 @@ pub use rkmk::{Integrator, retract};
 pub use rosenbrock::{HeldJacobian, W_MAX_AGE};
 pub use simulation::{Advanced, Input, InputSignal, RunState, Simulation};
 pub use tableau::{
-    DOP853, DOPRI5, ErrorEstimate, ErrorPer, Method, RK4, ROS34PW2, ROS34PW2_SHARE, ROSENBROCK_STAGES, Rosenbrock,
-    RosenbrockStages, Scheme, StepControl, Tableau,
+    DENSE_ROWS, DOP853, DOPRI5, DenseOutput, ErrorEstimate, ErrorPer, Method, RK4, ROS34PW2, ROS34PW2_SHARE,
+    ROSENBROCK_STAGES, Rosenbrock, RosenbrockStages, Scheme, StepControl, Tableau,
 };
