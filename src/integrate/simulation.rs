@@ -266,6 +266,8 @@ impl Simulation {
         t_end: f64,
         mut input: impl InputSignal,
     ) -> Result<Advanced, AdvanceError> {
+        // Where the state stood: ν is formed again wherever the advance leaves it.
+        let called_at = self.state.time;
         let stale = self.qvel_is_stale();
         if stale {
             let (t0, state) = (self.state.time, &mut self.state);
@@ -321,9 +323,10 @@ impl Simulation {
                     Err(AdvanceError::StepFailed { reached: t0, step, cause })
                 }
                 Ok(probe_steps) => {
-                    // Steps may reach past t_end where the method can interpolate and the input is held.
-                    let limit =
-                        if input_held && self.method().dense().is_some() { self.horizon.max(t_end) } else { t_end };
+                    // Steps may reach past t_end where the method can interpolate and the input is
+                    // held; not with energy projection, which holds K at a step's end only.
+                    let reaches = input_held && self.method().dense().is_some() && !self.settings.energy_projection;
+                    let limit = if reaches { self.horizon.max(t_end) } else { t_end };
                     let result = if self.method().is_adaptive() {
                         self.advance_adaptive(model, (t_end, limit), &mut inputs_at)
                     } else {
@@ -344,7 +347,7 @@ impl Simulation {
         // only to round-off).
         let reached = result.as_ref().map_or_else(AdvanceError::reached, |_| t_end);
         let state = &mut self.state;
-        let formed = if reached <= t0 {
+        let formed = if reached <= called_at {
             Ok(())
         } else if self.integrator.first.valid && !state.reach.held {
             // The cached first stage was evaluated at the state reached (a
