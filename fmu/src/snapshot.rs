@@ -211,6 +211,7 @@ impl Snapshot {
         bytes.push(u8::from(!s.jacobian.derivatives.is_empty()));
         bytes.push(s.run.auto_choice.map_or(0, |choice| method_value(choice.method) as u8));
         bytes.push(u8::from(s.run.reach.held));
+        bytes.push(u8::from(s.run.input_constant));
         bytes.extend_from_slice(&s.jacobian.age.to_le_bytes());
         let scalars = SCALAR_FIELDS.map(|field| (field.get)(s));
         let mut choice = [0.0; CHOICE_SCALARS];
@@ -256,7 +257,7 @@ impl Snapshot {
         let flags = reader.take(FLAGS)?;
         let (phase_code, stop_time_defined, method_value_byte, energy_projection, holds_jacobian, chosen_byte) =
             (flags[0], flags[1] != 0, flags[2], flags[3] != 0, flags[4] != 0, flags[5]);
-        let holds_reach = flags[6] != 0;
+        let (holds_reach, input_constant) = (flags[6] != 0, flags[7] != 0);
         let jacobian_age = reader.u32()?;
         // ∂(θ̈, act's rate)/∂Δ and ∂(θ̈, act's rate)/∂(θ̇, act).
         let jacobian_len = if holds_jacobian { (nv + sizes.na) * (2 * nv + sizes.na) } else { 0 };
@@ -334,6 +335,8 @@ impl Snapshot {
                 qvel: Vec::new(),
                 carry: Carry::default(),
                 auto_choice,
+                input: Vec::new(),
+                input_constant,
                 reach: Reach::default(),
             },
             settings: Settings { tolerance: 0.0, max_step: 0.0, energy_projection },
@@ -448,8 +451,9 @@ struct VectorField {
     set: fn(&mut PlantState) -> &mut Vec<f64>,
 }
 
-/// θ, ν, θ̇ then act, ε and its rate, the controls and their rates, in this order.
-const VECTOR_FIELDS: [VectorField; 7] = [
+/// θ, ν, θ̇ then act, ε and its rate, the controls and their rates, and
+/// the last advance's input (ε then the controls), in this order.
+const VECTOR_FIELDS: [VectorField; 8] = [
     VectorField { len: |n| n.nq, get: |s| &s.run.theta, set: |s| &mut s.run.theta },
     VectorField { len: |n| n.nv, get: |s| &s.run.nu, set: |s| &mut s.run.nu },
     VectorField { len: |n| n.nv + n.na, get: |s| &s.run.qvel, set: |s| &mut s.run.qvel },
@@ -457,14 +461,16 @@ const VECTOR_FIELDS: [VectorField; 7] = [
     VectorField { len: |n| n.nv, get: |s| &s.eps_rate, set: |s| &mut s.eps_rate },
     VectorField { len: |n| n.nu, get: |s| &s.ctrl, set: |s| &mut s.ctrl },
     VectorField { len: |n| n.nu, get: |s| &s.ctrl_rate, set: |s| &mut s.ctrl_rate },
+    VectorField { len: |n| n.nv + n.nu, get: |s| &s.run.input, set: |s| &mut s.run.input },
 ];
 
 /// Header bytes after the sizes: the state machine's state, whether a stop
 /// time is defined, the method, energy projection, whether W is held, the
 /// method `auto` chose (0: none yet), whether a step reaching past the
-/// communication point is held. W's age (steps accepted with it, a u32)
-/// follows them.
-const FLAGS: usize = 7;
+/// communication point is held, whether the last advance's input was
+/// constant (then `input` holds it). W's age (steps accepted with it, a
+/// u32) follows them.
+const FLAGS: usize = 8;
 
 /// The scalars of a step held past the communication point, after W: its
 /// start, size and end, the work at its end, and the tolerance and
@@ -474,16 +480,16 @@ const REACH_SCALARS: usize = 6;
 /// The number of values of a step held past the communication point.
 fn reach_len(n: Sizes) -> usize {
     let rates = n.nv + n.na;
-    REACH_SCALARS + 2 * n.nq + (rates + 1) + DENSE_ROWS * (n.nv + rates + 1) + rates + n.nv + n.nu
+    REACH_SCALARS + 2 * n.nq + (rates + 1) + DENSE_ROWS * (n.nv + rates + 1) + rates
 }
 
 /// A held step's values in the order saved: [`REACH_SCALARS`], then θ at
 /// its start, its origin (θ̇, act, work), its interpolant's rows, θ and
-/// (θ̇, act) at its end, and its input (ε, ctrl).
+/// (θ̇, act) at its end.
 fn reach_values(reach: &Reach) -> impl Iterator<Item = f64> + '_ {
     let scalars = [reach.start, reach.step, reach.end, reach.work_end, reach.tolerance, reach.max_step];
     scalars.into_iter().chain(
-        [&reach.theta_start, &reach.origin, &reach.rows, &reach.theta_end, &reach.qvel_end, &reach.input]
+        [&reach.theta_start, &reach.origin, &reach.rows, &reach.theta_end, &reach.qvel_end]
             .into_iter()
             .flat_map(|v| v.iter().copied()),
     )
@@ -527,7 +533,6 @@ fn read_reach(values: &[f64], n: Sizes) -> Result<Reach, SnapshotError> {
         theta_end: take(n.nq),
         qvel_end: take(rates),
         work_end,
-        input: take(n.nv + n.nu),
         tolerance,
         max_step,
     })
@@ -610,6 +615,8 @@ mod tests {
                     qvel: vec![2e-300, -0.0, 1.75, -0.5],
                     carry: Carry { next_step: 2.5e-3, work: -0.75, relaxation: 3.0, start_rates: 42.5 },
                     auto_choice: None,
+                    input: vec![0.5, 0.25, -1.0, 2.0, -2.5, 0.125],
+                    input_constant: true,
                     reach: Reach::default(),
                 },
                 settings: Settings { tolerance: 1e-6, max_step: 1e-3, energy_projection: true },
@@ -653,7 +660,7 @@ mod tests {
     /// The sample as a run whose last step reaches past the communication point.
     fn sample_with_reach() -> Snapshot {
         let mut snapshot = sample();
-        let Sizes { nq, nv, nu, na } = SIZES;
+        let Sizes { nq, nv, na, .. } = SIZES;
         let values = |len: usize, scale: f64| (0..len).map(|k| scale * (k as f64 - 2.5)).collect::<Vec<f64>>();
         snapshot.state.run.reach = Reach {
             held: true,
@@ -666,7 +673,6 @@ mod tests {
             theta_end: values(nq, 0.125),
             qvel_end: values(nv + na, 2.0),
             work_end: -0.5,
-            input: values(nv + nu, 4.0),
             tolerance: 1e-4,
             max_step: 0.0,
         };

@@ -443,24 +443,15 @@ pub(super) fn take_attempted_step(
     Ok(())
 }
 
-/// Holds the step just taken, which ended at `end` past `t1` with (θ, θ̇)
-/// = (`theta`, `qvel`) and the work `work` done, in `reach` (whose
-/// interpolant is formed): its end, and the input and settings it was
-/// taken with.
-fn hold_reach(
-    model: &Model,
-    reach: &mut Reach,
-    (theta, qvel, work): (&[f64], &[f64], f64),
-    (end, t1): (f64, f64),
-    settings: &Settings,
-    inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
-) {
+/// Holds the step just taken, which ended at `end` with (θ, θ̇) =
+/// (`theta`, `qvel`) and the work `work` done, in `reach` (whose
+/// interpolant is formed): its end, and the settings it was taken with
+/// (the input is the run's, `RunState::input`).
+fn hold_reach(reach: &mut Reach, (theta, qvel, work): (&[f64], &[f64], f64), end: f64, settings: &Settings) {
     reach.end = end;
     reach.theta_end.copy_from_slice(theta);
     reach.qvel_end.copy_from_slice(qvel);
     reach.work_end = work;
-    let (eps, ctrl) = reach.input.split_at_mut(model.nv);
-    inputs_at(t1, eps, ctrl);
     reach.tolerance = settings.tolerance;
     reach.max_step = settings.max_step;
 }
@@ -684,7 +675,7 @@ impl Simulation {
                 }
                 stats.accepted += 1;
                 if reaches {
-                    hold_reach(model, reach, (theta, qvel, carry.work), (t, t1), settings, inputs_at);
+                    hold_reach(reach, (theta, qvel, carry.work), t, settings);
                     carry.work = reach.interpolate(model, t1, theta, qvel, integrator.dense_delta.as_mut_slice());
                     // The step ends at a switch located: the next starts there only
                     // by restarting from t1, since the mode found past a switch is

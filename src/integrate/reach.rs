@@ -6,8 +6,9 @@
 //! an input, a setting or the state was changed, restarts from the
 //! interpolated state at the communication point.
 //!
-//! Everything the continuation needs is here, saved with the FMU state,
-//! so that a restored run continues bit for bit as the run that saved it.
+//! Everything the continuation needs is here or in the run's state (the
+//! input held, `RunState::input`), saved with the FMU state, so that a
+//! restored run continues bit for bit as the run that saved it.
 
 use super::rkmk::{clamp_activations, retract};
 use super::tableau::{DENSE_ROWS, nested};
@@ -39,8 +40,6 @@ pub struct Reach {
     pub qvel_end: Vec<f64>,
     /// The work done at the step's end (J).
     pub work_end: f64,
-    /// ε (nv) then the controls (nu), constant over the step.
-    pub input: Vec<f64>,
     /// The tolerance the step was taken with.
     pub tolerance: f64,
     /// The `max_step` it was taken with.
@@ -57,7 +56,6 @@ impl Reach {
             rows: vec![0.0; DENSE_ROWS * (2 * nv + na + 1)],
             theta_end: vec![0.0; model.nq],
             qvel_end: vec![0.0; nv + na],
-            input: vec![0.0; nv + model.actuators.len()],
             ..Reach::default()
         }
     }

@@ -39,6 +39,13 @@ pub struct RunState {
     pub carry: Carry,
     /// What `auto` chose, once it has (the method it runs with from then on).
     pub auto_choice: Option<AutoChoice>,
+    /// ε then the controls (nv + nu) over the last advance, when they were
+    /// constant over it (`input_constant`): an advance with the same
+    /// constant input goes on from the rates its last stage left ("first
+    /// same as last") and from the step held past `time` (`reach`).
+    pub input: Vec<f64>,
+    /// Whether the last advance's input was constant over it.
+    pub input_constant: bool,
     /// The last step, when it reached past `time`: (θ, ν, θ̇ and act) and the
     /// work above are then its interpolant's at `time`, and the
     /// integration goes on from its end while the inputs and settings
@@ -139,12 +146,6 @@ pub struct Simulation {
     setting: MethodSetting,
     pub(super) integrator: Integrator,
     pub(super) ws: Workspace,
-    /// ε and the controls (nv + nu) of the last advance, meaningful when
-    /// `input_was_constant`: an advance with the same constant input may
-    /// start from the rates its last stage left ("first same as last").
-    held_input: Vec<f64>,
-    /// Whether the last advance's input was constant over it.
-    input_was_constant: bool,
     /// θ and ν (nq + nv) when `state.qvel` was last formed or advanced,
     /// to tell whether a caller has changed them since.
     qvel_belongs_to: Vec<f64>,
@@ -167,14 +168,14 @@ impl Simulation {
                 qvel: vec![0.0; model.nv + model.activation_count()],
                 carry: Carry::default(),
                 auto_choice: None,
+                input: vec![0.0; model.nv + model.actuators.len()],
+                input_constant: false,
                 reach: Reach::new(model),
             },
             settings,
             setting,
             integrator: Integrator::new(model, method_before_choice(setting)),
             ws: model.workspace(),
-            held_input: vec![0.0; model.nv + model.actuators.len()],
-            input_was_constant: false,
             qvel_belongs_to: model.qpos0.iter().copied().chain(std::iter::repeat_n(0.0, model.nv)).collect(),
             switches: Switches::new(model),
             horizon: f64::INFINITY,
@@ -278,11 +279,12 @@ impl Simulation {
             self.integrator.first.valid = false;
         }
         // The cached first stage holds only if the input is the same constant as over the last advance.
-        if !self.keeps_held_input(&mut input, self.state.time) {
+        let input_held = self.keeps_held_input(&mut input, self.state.time);
+        if !input_held {
             self.integrator.first.valid = false;
         }
         if self.state.reach.held {
-            if stale || !self.reach_holds() {
+            if stale || !input_held || !self.settings_held() {
                 // An input, a setting or the state changed at the communication point: the
                 // integration restarts there, from the interpolated state.
                 self.state.reach.held = false;
@@ -294,7 +296,6 @@ impl Simulation {
             }
         }
         let t0 = self.state.time;
-        let input_held = self.input_was_constant;
         let mut inputs_at = |t: f64, eps: &mut [f64], ctrl: &mut [f64]| {
             input.eps_at(t, t0, eps);
             input.ctrl_at(t, t0, ctrl);
@@ -323,8 +324,10 @@ impl Simulation {
                     Err(AdvanceError::StepFailed { reached: t0, step, cause })
                 }
                 Ok(probe_steps) => {
-                    // Steps may reach past t_end where the method can interpolate and the input is
-                    // held; not with energy projection, which holds K at a step's end only.
+                    // Steps may reach past t_end where the method can interpolate and the host
+                    // holds the input (the same constant as over the last advance: a closed
+                    // loop, which changes it at every point, ends its steps there); not with
+                    // energy projection, which holds K at a step's end only.
                     let reaches = input_held && self.method().dense().is_some() && !self.settings.energy_projection;
                     let limit = if reaches { self.horizon.max(t_end) } else { t_end };
                     let result = if self.method().is_adaptive() {
@@ -375,10 +378,10 @@ impl Simulation {
                 let relaxed = self
                     .state
                     .carry
-                    .relaxed_since(relaxation_before, t0, self.settings.tolerance, rates)
+                    .relaxed_since(relaxation_before, called_at, self.settings.tolerance, rates)
                     .map(|relaxed| ToleranceRelaxed { no_slip, ..relaxed });
                 let judged = chose.is_none() && !starts;
-                let moved = if judged { self.move_up_if_dear(model, t0, &stats) } else { None };
+                let moved = if judged { self.move_up_if_dear(model, called_at, &stats) } else { None };
                 Ok(Advanced { stats, relaxed, chose, moved })
             }
             Err(error) => {
@@ -389,15 +392,11 @@ impl Simulation {
     }
 
     /// Whether the step held past the communication point was taken with
-    /// the input now held (compared bit for bit) and the settings now in
-    /// effect.
-    fn reach_holds(&self) -> bool {
+    /// the settings now in effect (compared bit for bit).
+    fn settings_held(&self) -> bool {
         let reach = &self.state.reach;
         let same = |a: f64, b: f64| a.to_bits() == b.to_bits();
-        self.input_was_constant
-            && self.held_input.iter().zip(&reach.input).all(|(&a, &b)| same(a, b))
-            && same(self.settings.tolerance, reach.tolerance)
-            && same(self.settings.max_step, reach.max_step)
+        same(self.settings.tolerance, reach.tolerance) && same(self.settings.max_step, reach.max_step)
     }
 
     /// An advance to `t_end` within the step held: the state there is the
@@ -417,8 +416,12 @@ impl Simulation {
     }
 
     /// Moves the state to the end of the step held, where the integration
-    /// goes on; the rates cached there (its last stage) still hold.
+    /// goes on. The rates cached there are dropped: evaluated at θₙ ⊕ Δ, they
+    /// can differ in the last bit from rates evaluated at the stored θ (a
+    /// quaternion is normalized again), which is what a run restored from
+    /// an FMU state has; evaluated afresh in both, the runs agree bit for bit.
     fn go_to_reach_end(&mut self) {
+        self.integrator.first.valid = false;
         let state = &mut self.state;
         let reach = &mut state.reach;
         state.time = reach.end;
@@ -431,16 +434,17 @@ impl Simulation {
     /// Whether `input` is constant and equal to the last advance's constant
     /// input; records it as the held input (in place: no allocation).
     fn keeps_held_input(&mut self, input: &mut impl InputSignal, t0: f64) -> bool {
-        let was_constant = std::mem::replace(&mut self.input_was_constant, input.is_constant());
-        if !self.input_was_constant {
+        let state = &mut self.state;
+        let was_constant = std::mem::replace(&mut state.input_constant, input.is_constant());
+        if !state.input_constant {
             return false;
         }
         let (eps, ctrl) = (self.integrator.eps_stage.as_mut_slice(), self.integrator.ctrl_stage.as_mut_slice());
         input.eps_at(t0, t0, eps);
         input.ctrl_at(t0, t0, ctrl);
         let mut same = was_constant;
-        for (held, &now) in self.held_input.iter_mut().zip(eps.iter().chain(ctrl.iter())) {
-            same &= *held == now;
+        for (held, &now) in state.input.iter_mut().zip(eps.iter().chain(ctrl.iter())) {
+            same &= held.to_bits() == now.to_bits();
             *held = now;
         }
         same
