@@ -327,8 +327,12 @@ impl Simulation {
                     // Steps may reach past t_end where the method can interpolate and the host
                     // holds the input (the same constant as over the last advance: a closed
                     // loop, which changes it at every point, ends its steps there); not with
-                    // energy projection, which holds K at a step's end only.
-                    let reaches = input_held && self.method().dense().is_some() && !self.settings.energy_projection;
+                    // energy projection, which holds K at a step's end only, nor with `auto`,
+                    // whose choice was measured for steps that end at every point.
+                    let reaches = input_held
+                        && self.method().dense().is_some()
+                        && !self.settings.energy_projection
+                        && self.setting != MethodSetting::Auto;
                     let limit = if reaches { self.horizon.max(t_end) } else { t_end };
                     let result = if self.method().is_adaptive() {
                         self.advance_adaptive(model, (t_end, limit), &mut inputs_at)
