@@ -99,6 +99,8 @@ pub fn simulate(model: &Model, run: &Run) -> Result<()> {
     sim.evaluate_velocity(model)?.compute_nu_dot_actuated(model, &eps, &ctrl)?;
 
     let steps = (run.stop / run.step).round() as u64;
+    // Between outputs, steps may reach past an output time (the same input held), never past the end.
+    sim.set_horizon(Some(steps as f64 * run.step));
     let mut writer = Writer::new(run.format, model)?;
     let progress = Progress::new(steps);
     if !writer.write(0.0, &sim.state.theta, &sim.state.nu, sim.act(model))? {

@@ -258,6 +258,8 @@ impl Component for Plant {
         self.start_time = start_time;
         self.sim.state.time = start_time;
         self.stop_time = stop_time;
+        // No internal step reaches past the stop time.
+        self.sim.set_horizon(stop_time);
     }
 
     /// Checks the initial state set by the master and normalizes its
@@ -454,7 +456,11 @@ impl Component for Plant {
     /// Integrates from `time` to `time + step` with the chosen method
     /// (internal steps independent of the communication step), with
     /// ε(t) = ε + dε/dt·(t − time), and the controls likewise; the ramps
-    /// apply to this step only.
+    /// apply to this step only. With the inputs as at the last step and
+    /// no ramp, an adaptive method with a dense output goes on from where
+    /// its last step ended, past `time`, and the state at `time + step`
+    /// is its interpolant (docs/integration.md, "Steps past the
+    /// communication point").
     /// If the integration stops inside the step, the state stays at the
     /// last successful internal step and the time says where. A step that
     /// completed only by relaxing the tolerance says so.
@@ -595,6 +601,7 @@ impl Component for Plant {
         self.sim.restore(&self.model, &state.run, &state.jacobian);
         self.start_time = state.start_time;
         self.stop_time = state.stop_time;
+        self.sim.set_horizon(state.stop_time);
         self.initial_energy = state.initial_energy;
         self.eps.clone_from(&state.eps);
         self.eps_rate.clone_from(&state.eps_rate);

@@ -3,11 +3,15 @@
 //! the state machine's state, the values as little-endian f64 (with, for a
 //! Rosenbrock method that holds one, its W: (nv + na)(2nv + na) more), and an FNV-1a
 //! checksum, so that a truncated, corrupted or foreign blob is
-//! rejected before anything is restored. The values are checked too
+//! rejected before anything is restored. A run whose last step reaches
+//! past the communication point adds that step (its interpolant, its end,
+//! and the input and settings it was taken with). The values are checked too
 //! (finite, positive settings), so that even a blob crafted with a valid
 //! checksum cannot put a NaN into the outputs.
 
-use nudyn::integrate::{AutoChoice, Carry, HeldJacobian, MOVE_UP_WINDOW, MethodSetting, RunState, Scheme, Settings};
+use nudyn::integrate::{
+    AutoChoice, Carry, DENSE_ROWS, HeldJacobian, MOVE_UP_WINDOW, MethodSetting, Reach, RunState, Scheme, Settings,
+};
 use nudyn_contract::plant::{method_of_value, method_value};
 
 use crate::state::Phase;
@@ -17,7 +21,7 @@ const MAGIC: &[u8; 8] = b"nudynFMS";
 /// Version of the byte layout below, raised with every change to it; a blob
 /// of another version is refused (what each version added is in git's
 /// history).
-const VERSION: u32 = 11;
+const VERSION: u32 = 12;
 
 /// The values that determine the plant's future: what an FMU state saves.
 #[derive(Clone, Debug, PartialEq)]
@@ -184,7 +188,8 @@ impl Snapshot {
 
     /// The size of [`Snapshot::serialize`]'s output.
     pub fn serialized_size(&self) -> usize {
-        let scalars = Self::scalar_count(self.sizes()) + CHOICE_SCALARS + self.state.jacobian.derivatives.len();
+        let reach = if self.state.run.reach.held { reach_len(self.sizes()) } else { 0 };
+        let scalars = Self::scalar_count(self.sizes()) + CHOICE_SCALARS + self.state.jacobian.derivatives.len() + reach;
         MAGIC.len() + 4 + 4 + self.guid.len() + 3 * 4 + FLAGS + 4 + 8 * scalars + 8
     }
 
@@ -205,6 +210,8 @@ impl Snapshot {
         bytes.push(u8::from(s.settings.energy_projection));
         bytes.push(u8::from(!s.jacobian.derivatives.is_empty()));
         bytes.push(s.run.auto_choice.map_or(0, |choice| method_value(choice.method) as u8));
+        bytes.push(u8::from(s.run.reach.held));
+        bytes.push(u8::from(s.run.input_constant));
         bytes.extend_from_slice(&s.jacobian.age.to_le_bytes());
         let scalars = SCALAR_FIELDS.map(|field| (field.get)(s));
         let mut choice = [0.0; CHOICE_SCALARS];
@@ -215,7 +222,9 @@ impl Snapshot {
             }
         }
         let vectors = VECTOR_FIELDS.iter().flat_map(|field| (field.get)(s));
-        for x in scalars.iter().chain(&choice).chain(vectors).chain(&s.jacobian.derivatives) {
+        let reach = &s.run.reach;
+        let reach_values: Vec<f64> = if reach.held { reach_values(reach).collect() } else { Vec::new() };
+        for x in scalars.iter().chain(&choice).chain(vectors).chain(&s.jacobian.derivatives).chain(&reach_values) {
             bytes.extend_from_slice(&x.to_le_bytes());
         }
         let checksum = fnv1a(&bytes);
@@ -248,10 +257,12 @@ impl Snapshot {
         let flags = reader.take(FLAGS)?;
         let (phase_code, stop_time_defined, method_value_byte, energy_projection, holds_jacobian, chosen_byte) =
             (flags[0], flags[1] != 0, flags[2], flags[3] != 0, flags[4] != 0, flags[5]);
+        let (holds_reach, input_constant) = (flags[6] != 0, flags[7] != 0);
         let jacobian_age = reader.u32()?;
         // ∂(θ̈, act's rate)/∂Δ and ∂(θ̈, act's rate)/∂(θ̇, act).
         let jacobian_len = if holds_jacobian { (nv + sizes.na) * (2 * nv + sizes.na) } else { 0 };
-        let scalars: Vec<f64> = (0..Self::scalar_count(sizes) + CHOICE_SCALARS + jacobian_len)
+        let reach_len = if holds_reach { reach_len(sizes) } else { 0 };
+        let scalars: Vec<f64> = (0..Self::scalar_count(sizes) + CHOICE_SCALARS + jacobian_len + reach_len)
             .map(|_| reader.f64())
             .collect::<Result<_, _>>()?;
         let contents_len = reader.at;
@@ -287,6 +298,7 @@ impl Snapshot {
         }
         let (settings, rest) = scalars.split_at(SCALAR_FIELDS.len());
         let (choice, vectors) = rest.split_at(CHOICE_SCALARS);
+        let (vectors, reach) = vectors.split_at(vectors.len() - reach_len);
         check_values(settings, vectors)?;
         if let Some(&value) = choice.iter().find(|x| x.is_nan() || **x < 0.0) {
             return Err(SnapshotError::Value { what: "a value auto measured", value, must: "non-negative" });
@@ -323,6 +335,9 @@ impl Snapshot {
                 qvel: Vec::new(),
                 carry: Carry::default(),
                 auto_choice,
+                input: Vec::new(),
+                input_constant,
+                reach: Reach::default(),
             },
             settings: Settings { tolerance: 0.0, max_step: 0.0, energy_projection },
             method,
@@ -347,6 +362,9 @@ impl Snapshot {
             rest = after;
         }
         state.jacobian.derivatives = rest.to_vec();
+        if holds_reach {
+            state.run.reach = read_reach(reach, sizes)?;
+        }
         Ok(Snapshot { phase, guid: found_guid, state })
     }
 }
@@ -433,8 +451,9 @@ struct VectorField {
     set: fn(&mut PlantState) -> &mut Vec<f64>,
 }
 
-/// θ, ν, θ̇ then act, ε and its rate, the controls and their rates, in this order.
-const VECTOR_FIELDS: [VectorField; 7] = [
+/// θ, ν, θ̇ then act, ε and its rate, the controls and their rates, and
+/// the last advance's input (ε then the controls), in this order.
+const VECTOR_FIELDS: [VectorField; 8] = [
     VectorField { len: |n| n.nq, get: |s| &s.run.theta, set: |s| &mut s.run.theta },
     VectorField { len: |n| n.nv, get: |s| &s.run.nu, set: |s| &mut s.run.nu },
     VectorField { len: |n| n.nv + n.na, get: |s| &s.run.qvel, set: |s| &mut s.run.qvel },
@@ -442,13 +461,82 @@ const VECTOR_FIELDS: [VectorField; 7] = [
     VectorField { len: |n| n.nv, get: |s| &s.eps_rate, set: |s| &mut s.eps_rate },
     VectorField { len: |n| n.nu, get: |s| &s.ctrl, set: |s| &mut s.ctrl },
     VectorField { len: |n| n.nu, get: |s| &s.ctrl_rate, set: |s| &mut s.ctrl_rate },
+    VectorField { len: |n| n.nv + n.nu, get: |s| &s.run.input, set: |s| &mut s.run.input },
 ];
 
 /// Header bytes after the sizes: the state machine's state, whether a stop
 /// time is defined, the method, energy projection, whether W is held, the
-/// method `auto` chose (0: none yet). W's age (steps accepted with it, a
+/// method `auto` chose (0: none yet), whether a step reaching past the
+/// communication point is held, whether the last advance's input was
+/// constant (then `input` holds it). W's age (steps accepted with it, a
 /// u32) follows them.
-const FLAGS: usize = 6;
+const FLAGS: usize = 8;
+
+/// The scalars of a step held past the communication point, after W: its
+/// start, size and end, the work at its end, and the tolerance and
+/// max_step it was taken with; then its vectors ([`reach_values`]).
+const REACH_SCALARS: usize = 6;
+
+/// The number of values of a step held past the communication point.
+fn reach_len(n: Sizes) -> usize {
+    let rates = n.nv + n.na;
+    REACH_SCALARS + 2 * n.nq + (rates + 1) + DENSE_ROWS * (n.nv + rates + 1) + rates
+}
+
+/// A held step's values in the order saved: [`REACH_SCALARS`], then θ at
+/// its start, its origin (θ̇, act, work), its interpolant's rows, θ and
+/// (θ̇, act) at its end.
+fn reach_values(reach: &Reach) -> impl Iterator<Item = f64> + '_ {
+    let scalars = [reach.start, reach.step, reach.end, reach.work_end, reach.tolerance, reach.max_step];
+    scalars.into_iter().chain(
+        [&reach.theta_start, &reach.origin, &reach.rows, &reach.theta_end, &reach.qvel_end]
+            .into_iter()
+            .flat_map(|v| v.iter().copied()),
+    )
+}
+
+/// A held step from its values ([`reach_values`]), checked: finite, a
+/// positive size and tolerance, a non-negative max_step.
+fn read_reach(values: &[f64], n: Sizes) -> Result<Reach, SnapshotError> {
+    if let Some(&value) = values.iter().find(|x| !x.is_finite()) {
+        return Err(SnapshotError::Value {
+            what: "a value of the step held past the communication point",
+            value,
+            must: "finite",
+        });
+    }
+    let (scalars, vectors) = values.split_at(REACH_SCALARS);
+    let [start, step, end, work_end, tolerance, max_step] = scalars.try_into().expect("REACH_SCALARS values");
+    for (what, value, positive) in
+        [("the held step's size", step, true), ("its tolerance", tolerance, true), ("its max_step", max_step, false)]
+    {
+        if value < 0.0 || (positive && value == 0.0) {
+            let must = if positive { "positive" } else { "non-negative" };
+            return Err(SnapshotError::Value { what, value, must });
+        }
+    }
+    let rates = n.nv + n.na;
+    let mut rest = vectors;
+    let mut take = |len: usize| {
+        let (taken, after) = rest.split_at(len);
+        rest = after;
+        taken.to_vec()
+    };
+    Ok(Reach {
+        held: true,
+        start,
+        step,
+        theta_start: take(n.nq),
+        origin: take(rates + 1),
+        rows: take(DENSE_ROWS * (n.nv + rates + 1)),
+        end,
+        theta_end: take(n.nq),
+        qvel_end: take(rates),
+        work_end,
+        tolerance,
+        max_step,
+    })
+}
 
 /// What `auto` measured, after the scalars (0 before it has chosen): the
 /// probe's step, its error per second, the tolerance, and the steps
@@ -527,6 +615,9 @@ mod tests {
                     qvel: vec![2e-300, -0.0, 1.75, -0.5],
                     carry: Carry { next_step: 2.5e-3, work: -0.75, relaxation: 3.0, start_rates: 42.5 },
                     auto_choice: None,
+                    input: vec![0.5, 0.25, -1.0, 2.0, -2.5, 0.125],
+                    input_constant: true,
+                    reach: Reach::default(),
                 },
                 settings: Settings { tolerance: 1e-6, max_step: 1e-3, energy_projection: true },
                 method: Method::Dopri5.into(),
@@ -566,6 +657,28 @@ mod tests {
         snapshot
     }
 
+    /// The sample as a run whose last step reaches past the communication point.
+    fn sample_with_reach() -> Snapshot {
+        let mut snapshot = sample();
+        let Sizes { nq, nv, na, .. } = SIZES;
+        let values = |len: usize, scale: f64| (0..len).map(|k| scale * (k as f64 - 2.5)).collect::<Vec<f64>>();
+        snapshot.state.run.reach = Reach {
+            held: true,
+            start: 0.25,
+            step: 0.5,
+            theta_start: values(nq, 0.5),
+            origin: values(nv + na + 1, -0.25),
+            rows: values(DENSE_ROWS * (2 * nv + na + 1), 1e-3),
+            end: 0.75,
+            theta_end: values(nq, 0.125),
+            qvel_end: values(nv + na, 2.0),
+            work_end: -0.5,
+            tolerance: 1e-4,
+            max_step: 0.0,
+        };
+        snapshot
+    }
+
     fn serialized(snapshot: &Snapshot) -> Vec<u8> {
         let mut bytes = vec![0; snapshot.serialized_size()];
         snapshot.serialize(&mut bytes);
@@ -574,8 +687,13 @@ mod tests {
 
     #[test]
     fn round_trips_bit_exactly() {
-        let bases =
-            [(Some(10.0), sample()), (None, sample()), (Some(10.0), sample_holding_w()), (None, sample_with_choice())];
+        let bases = [
+            (Some(10.0), sample()),
+            (None, sample()),
+            (Some(10.0), sample_holding_w()),
+            (None, sample_with_choice()),
+            (Some(10.0), sample_with_reach()),
+        ];
         for (stop_time, base) in bases {
             let mut original = base;
             original.state.stop_time = stop_time;
@@ -615,7 +733,7 @@ mod tests {
 
     #[test]
     fn rejects_every_single_bit_flip() {
-        let bytes = serialized(&sample_holding_w());
+        let bytes = serialized(&sample_with_reach());
         for byte in 0..bytes.len() {
             for bit in 0..8 {
                 let mut corrupt = bytes.clone();
@@ -659,7 +777,13 @@ mod tests {
         nan_ctrl.state.ctrl_rate[1] = f64::NAN;
         let mut infinite_w = sample_holding_w();
         infinite_w.state.jacobian.derivatives[5] = f64::NEG_INFINITY;
+        let mut nan_reach = sample_with_reach();
+        nan_reach.state.run.reach.rows[7] = f64::NAN;
+        let mut empty_reach = sample_with_reach();
+        empty_reach.state.run.reach.step = 0.0;
         for (snapshot, what) in [
+            (nan_reach, "the step held past the communication point"),
+            (empty_reach, "the held step's size"),
             (nan_theta, "a value of theta"),
             (negative_step, "max_step"),
             (infinite_time, "time"),

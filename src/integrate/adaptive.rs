@@ -29,6 +29,7 @@
 //! any length of run; the rescaling is O(h^(p+1)), so orders are kept
 //! (ROS34PW2's quadrature, the trapezoid rule, is O(h³)).
 
+use super::reach::Reach;
 use super::rkmk::{Integrator, retract};
 use super::simulation::Simulation;
 use super::tableau::{ErrorEstimate, ErrorPer, Method, Scheme, StepControl};
@@ -442,6 +443,19 @@ pub(super) fn take_attempted_step(
     Ok(())
 }
 
+/// Holds the step just taken, which ended at `end` with (θ, θ̇) =
+/// (`theta`, `qvel`) and the work `work` done, in `reach` (whose
+/// interpolant is formed): its end, and the settings it was taken with
+/// (the input is the run's, `RunState::input`).
+fn hold_reach(reach: &mut Reach, (theta, qvel, work): (&[f64], &[f64], f64), end: f64, settings: &Settings) {
+    reach.end = end;
+    reach.theta_end.copy_from_slice(theta);
+    reach.qvel_end.copy_from_slice(qvel);
+    reach.work_end = work;
+    reach.tolerance = settings.tolerance;
+    reach.max_step = settings.max_step;
+}
+
 /// Safety factor of the step-size controller.
 const SAFETY: f64 = 0.9;
 
@@ -493,11 +507,14 @@ impl Simulation {
         })
     }
 
-    /// Steps of an embedded pair under error control from the state's time to `t1`.
+    /// Steps of an embedded pair under error control from the state's time
+    /// to `t1`. Where `limit` lies beyond `t1`, the last step may end past
+    /// `t1`, up to `limit`: the state at `t1` is then its interpolant, and
+    /// the step is held in `state.reach` (reach.rs).
     pub(super) fn advance_adaptive(
         &mut self,
         model: &Model,
-        t1: f64,
+        (t1, limit): (f64, f64),
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<Stats, AdvanceError> {
         let t0 = self.state.time;
@@ -526,7 +543,8 @@ impl Simulation {
             })?
         };
         let Simulation { state, settings, integrator, ws, switches, .. } = self;
-        let (theta, qvel, carry) = (&mut state.theta[..], &mut state.qvel[..], &mut state.carry);
+        let (theta, qvel, carry, reach) =
+            (&mut state.theta[..], &mut state.qvel[..], &mut state.carry, &mut state.reach);
         let watch = switches.watched();
         let control = integrator.method.control();
         let tolerance = settings.tolerance;
@@ -543,7 +561,7 @@ impl Simulation {
         let max_step = settings.step_bound(integrator.method);
         while t1 - t > end_slack {
             let planned = h.min(max_step);
-            let remaining = t1 - t;
+            let remaining = limit - t;
             // Two even steps rather than a full one and a sliver: a step cut
             // to a sliver to land on t1 costs as much as a full one.
             let step = if planned + end_slack >= remaining {
@@ -639,8 +657,14 @@ impl Simulation {
                 h = if step < planned { (step * factor).max(planned) } else { step * factor };
                 let step = taken.0;
                 let failed = |cause| AdvanceError::StepFailed { reached: t, step, cause };
+                let end = if step == remaining { limit } else { t + step };
+                let reaches = end - t1 > end_slack;
+                if reaches {
+                    let (start, work) = ((&theta[..], &qvel[..]), carry.work);
+                    integrator.form_interpolant(model, ws, start, (t, step), work, inputs_at, reach).map_err(failed)?;
+                }
                 take_attempted_step(integrator, model, ws, (theta, qvel), step, settings, carry).map_err(failed)?;
-                t = if step == remaining { t1 } else { t + step };
+                t = end;
                 if crossed {
                     // Past the switch: the mode of the new start, and its rates as the first stage.
                     switches
@@ -650,6 +674,16 @@ impl Simulation {
                     switches.step_taken();
                 }
                 stats.accepted += 1;
+                if reaches {
+                    hold_reach(reach, (theta, qvel, carry.work), t, settings);
+                    carry.work = reach.interpolate(model, t1, theta, qvel, integrator.dense_delta.as_mut_slice());
+                    // The step ends at a switch located: the next starts there only
+                    // by restarting from t1, since the mode found past a switch is
+                    // not part of the state saved.
+                    reach.held = !crossed;
+                    // The rates cached are those at the step's end.
+                    integrator.first.valid &= reach.held;
+                }
                 first_rejection = None;
                 least_rejected = f64::INFINITY;
                 round_off_level = None;

@@ -11,16 +11,17 @@
 
 use nalgebra::DVector;
 
+use super::reach::Reach;
 use super::rosenbrock::Linearization;
-use super::tableau::{ErrorEstimate, Method, Scheme};
+use super::tableau::{DENSE_ROWS, ErrorEstimate, Method, Scheme};
 use crate::dynamics::DynamicsError;
 use crate::dynamics::actuation::clamped_ctrl;
 use crate::math::{Quat, Vec3, quat_from_wxyz, quat_to_wxyz};
 use crate::model::{LinkJoint, Model};
 use crate::workspace::Workspace;
 
-/// The most stages of any method (DOP853).
-const MAX_STAGES: usize = 12;
+/// The most stages of any method with those of its dense output (DOP853's 12 and 4).
+const MAX_STAGES: usize = 16;
 
 /// θ̈ and act's rate into `rates` (nv + na), from the workspace's `qacc`
 /// and `act_dot`: the rates of the integrated (θ̇, act). act's rate is
@@ -153,6 +154,8 @@ pub struct Integrator {
     pub(super) stage_power: [f64; MAX_STAGES],
     /// The step's Δ and θ̇ (after `attempt`).
     pub(super) delta: DVector<f64>,
+    /// Δ of a dense output's extra stage, or of an interpolated point (scratch).
+    pub(super) dense_delta: DVector<f64>,
     pub(super) qvel_next: DVector<f64>,
     /// The local error estimates of Δ and θ̇ (h-scaled), and for DOP853 those
     /// of its 3rd-order estimator.
@@ -224,6 +227,7 @@ impl Integrator {
             k_qvel: vec![DVector::zeros(rates); MAX_STAGES],
             stage_power: [0.0; MAX_STAGES],
             delta: DVector::zeros(nv),
+            dense_delta: DVector::zeros(nv),
             qvel_next: DVector::zeros(rates),
             error_delta: DVector::zeros(nv),
             error_qvel: DVector::zeros(rates),
@@ -530,6 +534,70 @@ impl Integrator {
         copy(&mut self.end.nu, &ws.nu);
         self.end.power = power;
         self.end.valid = true;
+        Ok(())
+    }
+
+    /// The attempted step's interpolant, into `reach` (its start, size,
+    /// origin and rows): the attempt is from (θ, θ̇) = (`theta`, `qvel`) at
+    /// time `t` with size `h`, after work `work` done. A method whose dense
+    /// output needs more stages evaluates them here; DOP853's first, f(y₁),
+    /// is then the next step's first stage.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn form_interpolant(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        (theta, qvel): (&[f64], &[f64]),
+        (t, h): (f64, f64),
+        work: f64,
+        inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
+        reach: &mut Reach,
+    ) -> Result<(), DynamicsError> {
+        let Some(dense) = self.method.dense() else { return Ok(()) };
+        let Scheme::Explicit(tableau) = self.method.scheme() else { return Ok(()) };
+        let stages = tableau.b.len();
+        // The extra stages' Δ in `delta`, where the stages read it; the step's own is kept aside.
+        std::mem::swap(&mut self.delta, &mut self.dense_delta);
+        let mut evaluated = Ok(());
+        for (k, &(c, row)) in dense.extra.iter().enumerate() {
+            let i = stages + k;
+            self.delta.fill(0.0);
+            self.qvel_stage.as_mut_slice().copy_from_slice(qvel);
+            accumulate(&self.k_delta, &self.k_qvel, row, h, &mut self.delta, &mut self.qvel_stage);
+            evaluated = self.evaluate_stage_rates(model, ws, theta, i, t + c * h, inputs_at);
+            if evaluated.is_err() {
+                break;
+            }
+            if i == dense.end_stage {
+                copy(&mut self.end.qvel, &ws.qvel);
+                copy(&mut self.end.qacc, &self.k_qvel[i]);
+                copy(&mut self.end.nu, &ws.nu);
+                self.end.power = self.stage_power[i];
+                self.end.valid = true;
+            }
+        }
+        std::mem::swap(&mut self.delta, &mut self.dense_delta);
+        evaluated?;
+        let (nv, width) = (model.nv, reach.origin.len() + model.nv);
+        reach.rows.fill(0.0);
+        for (j, row) in reach.rows.chunks_exact_mut(width).enumerate().take(dense.rows().min(DENSE_ROWS)) {
+            let (delta, rest) = row.split_at_mut(nv);
+            let (rates, work_row) = rest.split_at_mut(rest.len() - 1);
+            for i in 0..stages + dense.extra.len() {
+                let weight = h * dense.weight(tableau.b, j, i);
+                if weight != 0.0 {
+                    add_scaled(delta, weight, self.k_delta[i].as_slice());
+                    add_scaled(rates, weight, self.k_qvel[i].as_slice());
+                    work_row[0] += weight * self.stage_power[i];
+                }
+            }
+        }
+        reach.start = t;
+        reach.step = h;
+        reach.theta_start.copy_from_slice(theta);
+        let (rates, work_origin) = reach.origin.split_at_mut(qvel.len());
+        rates.copy_from_slice(qvel);
+        work_origin[0] = work;
         Ok(())
     }
 

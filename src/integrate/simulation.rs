@@ -9,6 +9,7 @@ use super::adaptive::{
     tested_error,
 };
 use super::auto::{AutoChoice, AutoMove, MethodSetting, PROBE_METHOD};
+use super::reach::Reach;
 use super::rkmk::{Integrator, nu_of_qvel, qvel_of_nu};
 use super::rosenbrock::HeldJacobian;
 use super::switches::Switches;
@@ -38,6 +39,18 @@ pub struct RunState {
     pub carry: Carry,
     /// What `auto` chose, once it has (the method it runs with from then on).
     pub auto_choice: Option<AutoChoice>,
+    /// ε then the controls (nv + nu) over the last advance, when they were
+    /// constant over it (`input_constant`): an advance with the same
+    /// constant input goes on from the rates its last stage left ("first
+    /// same as last") and from the step held past `time` (`reach`).
+    pub input: Vec<f64>,
+    /// Whether the last advance's input was constant over it.
+    pub input_constant: bool,
+    /// The last step, when it reached past `time`: (θ, ν, θ̇ and act) and the
+    /// work above are then its interpolant's at `time`, and the
+    /// integration goes on from its end while the inputs and settings
+    /// stay as they were (reach.rs).
+    pub reach: Reach,
 }
 
 impl RunState {
@@ -133,17 +146,13 @@ pub struct Simulation {
     setting: MethodSetting,
     pub(super) integrator: Integrator,
     pub(super) ws: Workspace,
-    /// ε and the controls (nv + nu) of the last advance, meaningful when
-    /// `input_was_constant`: an advance with the same constant input may
-    /// start from the rates its last stage left ("first same as last").
-    held_input: Vec<f64>,
-    /// Whether the last advance's input was constant over it.
-    input_was_constant: bool,
     /// θ and ν (nq + nv) when `state.qvel` was last formed or advanced,
     /// to tell whether a caller has changed them since.
     qvel_belongs_to: Vec<f64>,
     /// Where limit sides switch within an adaptive run.
     pub(super) switches: Switches,
+    /// The end of the run (s), which no step passes ([`Simulation::set_horizon`]).
+    horizon: f64,
 }
 
 impl Simulation {
@@ -159,16 +168,25 @@ impl Simulation {
                 qvel: vec![0.0; model.nv + model.activation_count()],
                 carry: Carry::default(),
                 auto_choice: None,
+                input: vec![0.0; model.nv + model.actuators.len()],
+                input_constant: false,
+                reach: Reach::new(model),
             },
             settings,
             setting,
             integrator: Integrator::new(model, method_before_choice(setting)),
             ws: model.workspace(),
-            held_input: vec![0.0; model.nv + model.actuators.len()],
-            input_was_constant: false,
             qvel_belongs_to: model.qpos0.iter().copied().chain(std::iter::repeat_n(0.0, model.nv)).collect(),
             switches: Switches::new(model),
+            horizon: f64::INFINITY,
         }
+    }
+
+    /// Where the run ends, if it is known (an FMU's stop time): no step
+    /// reaches past it. Without one, the last step may reach past the last
+    /// communication point, and its work there is lost.
+    pub fn set_horizon(&mut self, end: Option<f64>) {
+        self.horizon = end.unwrap_or(f64::INFINITY);
     }
 
     /// The integration method in effect: the one named, or the one `auto`
@@ -186,6 +204,7 @@ impl Simulation {
     pub fn set_method(&mut self, model: &Model, setting: impl Into<MethodSetting>) {
         self.setting = setting.into();
         self.state.auto_choice = None;
+        self.state.reach.held = false;
         self.integrator.set_method(model, method_before_choice(self.setting));
     }
 
@@ -202,6 +221,7 @@ impl Simulation {
         }
         self.integrator.first.valid = false;
         self.integrator.release_jacobian();
+        self.state.reach.held = false;
         self.state.qvel[..model.nv].copy_from_slice(self.ws.qvel.as_slice());
         self.record_qvel_owner();
         Ok(())
@@ -213,9 +233,11 @@ impl Simulation {
     }
 
     /// The same, to set (before [`Simulation::initialize`], or between
-    /// advances: the rates cached at the state are dropped).
+    /// advances: the rates cached at the state are dropped, and the
+    /// integration restarts from the state).
     pub fn act_mut(&mut self, model: &Model) -> &mut [f64] {
         self.integrator.first.valid = false;
+        self.state.reach.held = false;
         self.state.qvel.get_mut(model.nv..).unwrap_or_default()
     }
 
@@ -245,9 +267,11 @@ impl Simulation {
         t_end: f64,
         mut input: impl InputSignal,
     ) -> Result<Advanced, AdvanceError> {
-        let t0 = self.state.time;
-        if self.qvel_is_stale() {
-            let state = &mut self.state;
+        // Where the state stood: ν is formed again wherever the advance leaves it.
+        let called_at = self.state.time;
+        let stale = self.qvel_is_stale();
+        if stale {
+            let (t0, state) = (self.state.time, &mut self.state);
             if let Err(cause) = qvel_of_nu(model, &mut self.ws, &state.theta, &state.nu, &mut state.qvel) {
                 return Err(AdvanceError::StepFailed { reached: t0, step: 0.0, cause });
             }
@@ -255,9 +279,23 @@ impl Simulation {
             self.integrator.first.valid = false;
         }
         // The cached first stage holds only if the input is the same constant as over the last advance.
-        if !self.keeps_held_input(&mut input, t0) {
+        let input_held = self.keeps_held_input(&mut input, self.state.time);
+        if !input_held {
             self.integrator.first.valid = false;
         }
+        if self.state.reach.held {
+            if stale || !input_held || !self.settings_held() {
+                // An input, a setting or the state changed at the communication point: the
+                // integration restarts there, from the interpolated state.
+                self.state.reach.held = false;
+                self.integrator.first.valid = false;
+            } else if t_end < self.state.reach.end {
+                return self.interpolate_in_reach(model, t_end);
+            } else {
+                self.go_to_reach_end();
+            }
+        }
+        let t0 = self.state.time;
         let mut inputs_at = |t: f64, eps: &mut [f64], ctrl: &mut [f64]| {
             input.eps_at(t, t0, eps);
             input.ctrl_at(t, t0, ctrl);
@@ -286,8 +324,18 @@ impl Simulation {
                     Err(AdvanceError::StepFailed { reached: t0, step, cause })
                 }
                 Ok(probe_steps) => {
+                    // Steps may reach past t_end where the method can interpolate and the host
+                    // holds the input (the same constant as over the last advance: a closed
+                    // loop, which changes it at every point, ends its steps there); not with
+                    // energy projection, which holds K at a step's end only, nor with `auto`,
+                    // whose choice was measured for steps that end at every point.
+                    let reaches = input_held
+                        && self.method().dense().is_some()
+                        && !self.settings.energy_projection
+                        && self.setting != MethodSetting::Auto;
+                    let limit = if reaches { self.horizon.max(t_end) } else { t_end };
                     let result = if self.method().is_adaptive() {
-                        self.advance_adaptive(model, t_end, &mut inputs_at)
+                        self.advance_adaptive(model, (t_end, limit), &mut inputs_at)
                     } else {
                         self.advance_fixed(model, t_end, &mut inputs_at)
                     };
@@ -306,12 +354,13 @@ impl Simulation {
         // only to round-off).
         let reached = result.as_ref().map_or_else(AdvanceError::reached, |_| t_end);
         let state = &mut self.state;
-        let formed = if reached <= t0 {
+        let formed = if reached <= called_at {
             Ok(())
-        } else if self.integrator.first.valid {
+        } else if self.integrator.first.valid && !state.reach.held {
             // The cached first stage was evaluated at the state reached (a
             // "first same as last" step's last stage, or the start of a
-            // failed attempt): its ν is m*θ̇ there, bit for bit.
+            // failed attempt): its ν is m*θ̇ there, bit for bit. (A step
+            // reaching past t_end leaves it at its end, not at t_end.)
             state.nu.copy_from_slice(self.integrator.first.nu.as_slice());
             Ok(())
         } else {
@@ -333,10 +382,10 @@ impl Simulation {
                 let relaxed = self
                     .state
                     .carry
-                    .relaxed_since(relaxation_before, t0, self.settings.tolerance, rates)
+                    .relaxed_since(relaxation_before, called_at, self.settings.tolerance, rates)
                     .map(|relaxed| ToleranceRelaxed { no_slip, ..relaxed });
                 let judged = chose.is_none() && !starts;
-                let moved = if judged { self.move_up_if_dear(model, t0, &stats) } else { None };
+                let moved = if judged { self.move_up_if_dear(model, called_at, &stats) } else { None };
                 Ok(Advanced { stats, relaxed, chose, moved })
             }
             Err(error) => {
@@ -346,19 +395,60 @@ impl Simulation {
         }
     }
 
+    /// Whether the step held past the communication point was taken with
+    /// the settings now in effect (compared bit for bit).
+    fn settings_held(&self) -> bool {
+        let reach = &self.state.reach;
+        let same = |a: f64, b: f64| a.to_bits() == b.to_bits();
+        same(self.settings.tolerance, reach.tolerance) && same(self.settings.max_step, reach.max_step)
+    }
+
+    /// An advance to `t_end` within the step held: the state there is the
+    /// step's interpolant, and no step is taken.
+    fn interpolate_in_reach(&mut self, model: &Model, t_end: f64) -> Result<Advanced, AdvanceError> {
+        let t0 = self.state.time;
+        let Simulation { state, integrator, ws, .. } = self;
+        let delta = integrator.dense_delta.as_mut_slice();
+        state.carry.work = state.reach.interpolate(model, t_end, &mut state.theta, &mut state.qvel, delta);
+        let formed = nu_of_qvel(model, ws, &state.theta, &state.qvel, &mut state.nu);
+        self.record_qvel_owner();
+        formed.map_err(|cause| AdvanceError::StepFailed { reached: t0, step: 0.0, cause })?;
+        self.state.time = t_end;
+        let stats = Stats::default();
+        let moved = self.move_up_if_dear(model, t0, &stats);
+        Ok(Advanced { stats, relaxed: None, chose: None, moved })
+    }
+
+    /// Moves the state to the end of the step held, where the integration
+    /// goes on. The rates cached there are dropped: evaluated at θₙ ⊕ Δ, they
+    /// can differ in the last bit from rates evaluated at the stored θ (a
+    /// quaternion is normalized again), which is what a run restored from
+    /// an FMU state has; evaluated afresh in both, the runs agree bit for bit.
+    fn go_to_reach_end(&mut self) {
+        self.integrator.first.valid = false;
+        let state = &mut self.state;
+        let reach = &mut state.reach;
+        state.time = reach.end;
+        state.theta.copy_from_slice(&reach.theta_end);
+        state.qvel.copy_from_slice(&reach.qvel_end);
+        state.carry.work = reach.work_end;
+        reach.held = false;
+    }
+
     /// Whether `input` is constant and equal to the last advance's constant
     /// input; records it as the held input (in place: no allocation).
     fn keeps_held_input(&mut self, input: &mut impl InputSignal, t0: f64) -> bool {
-        let was_constant = std::mem::replace(&mut self.input_was_constant, input.is_constant());
-        if !self.input_was_constant {
+        let state = &mut self.state;
+        let was_constant = std::mem::replace(&mut state.input_constant, input.is_constant());
+        if !state.input_constant {
             return false;
         }
         let (eps, ctrl) = (self.integrator.eps_stage.as_mut_slice(), self.integrator.ctrl_stage.as_mut_slice());
         input.eps_at(t0, t0, eps);
         input.ctrl_at(t0, t0, ctrl);
         let mut same = was_constant;
-        for (held, &now) in self.held_input.iter_mut().zip(eps.iter().chain(ctrl.iter())) {
-            same &= *held == now;
+        for (held, &now) in state.input.iter_mut().zip(eps.iter().chain(ctrl.iter())) {
+            same &= held.to_bits() == now.to_bits();
             *held = now;
         }
         same
@@ -376,7 +466,13 @@ impl Simulation {
     /// restored; no derivatives, or derivatives that do not fit the method,
     /// hold none). Set the saved method first: changing the method drops W.
     pub fn restore(&mut self, model: &Model, state: &RunState, jacobian: &HeldJacobian) {
+        let own_reach = std::mem::take(&mut self.state.reach);
         self.state.clone_from(state);
+        if !state.reach.held {
+            // A state saved without a step held may carry no buffers: keep these.
+            self.state.reach = own_reach;
+            self.state.reach.held = false;
+        }
         if self.setting == MethodSetting::Auto {
             let method = state.auto_choice.map_or(PROBE_METHOD, |choice| choice.method);
             self.integrator.set_method(model, method);

@@ -68,6 +68,62 @@ pub struct Tableau {
     /// Whether the last stage is evaluated at the step's result ("first same
     /// as last"), so that it is the next step's first stage.
     pub first_same_as_last: bool,
+    /// Its continuous extension, if it has one: the solution anywhere within
+    /// a step, from the step's stages.
+    pub dense: Option<&'static DenseOutput>,
+}
+
+/// A continuous extension ("dense output") of an explicit method: the
+/// solution at a share s ∈ [0, 1] of a step of size h from y₀ is
+/// y(s) = y₀ + h·Σᵢ Bᵢ(s)kᵢ over the method's stages and the extra ones
+/// below. Every one here is the cubic Hermite interpolant of the step's
+/// two ends (y₀, its rate k₁, y₁ and the rate f(y₁) there) plus
+/// corrections that vanish with their slopes at both ends, written in
+/// Hairer's nested form
+///     Bᵢ(s) = s(W₁ᵢ + (1−s)(W₂ᵢ + s(W₃ᵢ + (1−s)(W₄ᵢ + s(…))))),
+/// with W₁ = b, W₂ = e₁ − b, W₃ = 2b − e₁ − e_end (the Hermite part) and
+/// W₄, … the corrections.
+#[derive(Clone, Copy, Debug)]
+pub struct DenseOutput {
+    /// The order of y(s) for every s.
+    pub order: u32,
+    /// Stages evaluated after the step, only where it is interpolated:
+    /// their node and their row of a over every stage before them.
+    pub extra: &'static [(f64, &'static [f64])],
+    /// The stage evaluated at the step's result y₁ (f(y₁)).
+    pub end_stage: usize,
+    /// The rows W₄, … over the stages (entries beyond a row's length are 0).
+    pub corrections: &'static [&'static [f64]],
+}
+
+/// The most rows of any dense output's nested form (DOP853's).
+pub const DENSE_ROWS: usize = 7;
+
+impl DenseOutput {
+    /// The number of rows of its nested form.
+    pub fn rows(&self) -> usize {
+        3 + self.corrections.len()
+    }
+
+    /// Wⱼᵢ: row `row` (from 0) of the nested form at stage `stage`, for
+    /// a method with weights `b`.
+    pub fn weight(&self, b: &[f64], row: usize, stage: usize) -> f64 {
+        let b = b.get(stage).copied().unwrap_or(0.0);
+        let first = if stage == 0 { 1.0 } else { 0.0 };
+        let end = if stage == self.end_stage { 1.0 } else { 0.0 };
+        match row {
+            0 => b,
+            1 => first - b,
+            2 => 2.0 * b - first - end,
+            _ => self.corrections[row - 3].get(stage).copied().unwrap_or(0.0),
+        }
+    }
+}
+
+/// The nested form's value at s from its rows' values (`row(j)`, j from
+/// 0 to `rows` − 1): s(r₀ + (1−s)(r₁ + s(r₂ + …))).
+pub fn nested(s: f64, rows: usize, row: impl Fn(usize) -> f64) -> f64 {
+    (0..rows).rev().fold(0.0, |inner, j| (row(j) + inner) * if j % 2 == 0 { s } else { 1.0 - s })
 }
 
 /// The classical 4th-order Runge–Kutta method.
@@ -83,6 +139,7 @@ pub const RK4: Tableau = Tableau {
         error_per: ErrorPer::UnitStep,
     },
     first_same_as_last: false,
+    dense: None,
 };
 
 /// Dormand–Prince 5(4): 7 stages, first same as last, so 6 evaluations per step.
@@ -115,6 +172,21 @@ pub const DOPRI5: Tableau = Tableau {
         error_per: ErrorPer::UnitStep,
     },
     first_same_as_last: true,
+    dense: Some(&DenseOutput {
+        order: 4,
+        extra: &[],
+        end_stage: 6,
+        // Shampine's (Math. Comp. 46, 1986), as Hairer's DOPRI5 gives it.
+        corrections: &[&[
+            -12715105075.0 / 11282082432.0,
+            0.0,
+            87487479700.0 / 32700410799.0,
+            -10690763975.0 / 1880347072.0,
+            701980252875.0 / 199316789632.0,
+            -1453857185.0 / 822651844.0,
+            69997945.0 / 29380423.0,
+        ]],
+    }),
 };
 
 /// Bogacki–Shampine 3(2): 4 stages, first same as last, so 3 evaluations
@@ -135,6 +207,8 @@ pub const BS3: Tableau = Tableau {
         error_per: ErrorPer::UnitStep,
     },
     first_same_as_last: true,
+    // The cubic Hermite interpolant of the step's ends, of the method's own order.
+    dense: Some(&DenseOutput { order: 3, extra: &[], end_stage: 3, corrections: &[] }),
 };
 
 // Tsitouras 5(4)'s coefficients, with the digits of his Table 1 (the first
@@ -164,6 +238,18 @@ mod tsit5 {
         0.458082105929187,
         -1.0 / 66.0,
     ];
+    /// The s⁴ coefficients of his interpolant's weights bᵢ(s) (a quartic in s
+    /// through the step's ends with their slopes, so the cubic Hermite
+    /// interpolant plus s²(1−s)² times these).
+    pub const DENSE: [f64; 7] = [
+        -1.0530884977290216,
+        0.1017,
+        2.490627285651253,
+        -16.548102889244902,
+        47.37952196281928,
+        -34.87065786149661,
+        2.5,
+    ];
 }
 
 /// Tsitouras 5(4): 7 stages, first same as last, so 6 evaluations per step
@@ -181,6 +267,7 @@ pub const TSIT5: Tableau = Tableau {
         error_per: ErrorPer::UnitStep,
     },
     first_same_as_last: true,
+    dense: Some(&DenseOutput { order: 4, extra: &[], end_stage: 6, corrections: &[&tsit5::DENSE] }),
 };
 
 // DOP853's coefficients, with the digits Hairer publishes.
@@ -315,6 +402,145 @@ mod dop853 {
             6.43392746015763530355970484046e-1,
         ],
     ];
+
+    /// The stages of the dense output, after the step: f(y₁) (stage 13,
+    /// whose argument is y₁), then three more (Hairer's DOP853, c₁₄…c₁₆).
+    pub const EXTRA: [(f64, &[f64]); 4] = [
+        (1.0, &B),
+        (
+            0.1,
+            &[
+                5.61675022830479523392909219681e-2,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                2.53500210216624811088794765333e-1,
+                -2.46239037470802489917441475441e-1,
+                -1.24191423263816360469010140626e-1,
+                1.5329179827876569731206322685e-1,
+                8.20105229563468988491666602057e-3,
+                7.56789766054569976138603589584e-3,
+                -8.298e-3,
+            ],
+        ),
+        (
+            0.2,
+            &[
+                3.18346481635021405060768473261e-2,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                2.83009096723667755288322961402e-2,
+                5.35419883074385676223797384372e-2,
+                -5.49237485713909884646569340306e-2,
+                0.0,
+                0.0,
+                -1.08347328697249322858509316994e-4,
+                3.82571090835658412954920192323e-4,
+                -3.40465008687404560802977114492e-4,
+                1.41312443674632500278074618366e-1,
+            ],
+        ),
+        (
+            7.0 / 9.0,
+            &[
+                -4.28896301583791923408573538692e-1,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                -4.69762141536116384314449447206e0,
+                7.68342119606259904184240953878e0,
+                4.06898981839711007970213554331e0,
+                3.56727187455281109270669543021e-1,
+                0.0,
+                0.0,
+                0.0,
+                -1.39902416515901462129418009734e-3,
+                2.9475147891527723389556272149e0,
+                -9.15095847217987001081870187138e0,
+            ],
+        ),
+    ];
+
+    /// The rows W₄ … W₇ of the dense output's nested form over the 16 stages.
+    pub const DENSE: [&[f64]; 4] = [
+        &[
+            -0.84289382761090128651353491142e+01,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            0.56671495351937776962531783590e+00,
+            -0.30689499459498916912797304727e+01,
+            0.23846676565120698287728149680e+01,
+            0.21170345824450282767155149946e+01,
+            -0.87139158377797299206789907490e+00,
+            0.22404374302607882758541771650e+01,
+            0.63157877876946881815570249290e+00,
+            -0.88990336451333310820698117400e-01,
+            0.18148505520854727256656404962e+02,
+            -0.91946323924783554000451984436e+01,
+            -0.44360363875948939664310572000e+01,
+        ],
+        &[
+            0.10427508642579134603413151009e+02,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            0.24228349177525818288430175319e+03,
+            0.16520045171727028198505394887e+03,
+            -0.37454675472269020279518312152e+03,
+            -0.22113666853125306036270938578e+02,
+            0.77334326684722638389603898808e+01,
+            -0.30674084731089398182061213626e+02,
+            -0.93321305264302278729567221706e+01,
+            0.15697238121770843886131091075e+02,
+            -0.31139403219565177677282850411e+02,
+            -0.93529243588444783865713862664e+01,
+            0.35816841486394083752465898540e+02,
+        ],
+        &[
+            0.19985053242002433820987653617e+02,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            -0.38703730874935176555105901742e+03,
+            -0.18917813819516756882830838328e+03,
+            0.52780815920542364900561016686e+03,
+            -0.11573902539959630126141871134e+02,
+            0.68812326946963000169666922661e+01,
+            -0.10006050966910838403183860980e+01,
+            0.77771377980534432092869265740e+00,
+            -0.27782057523535084065932004339e+01,
+            -0.60196695231264120758267380846e+02,
+            0.84320405506677161018159903784e+02,
+            0.11992291136182789328035130030e+02,
+        ],
+        &[
+            -0.25693933462703749003312586129e+02,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            -0.15418974869023643374053993627e+03,
+            -0.23152937917604549567536039109e+03,
+            0.35763911791061412378285349910e+03,
+            0.93405324183624310003907691704e+02,
+            -0.37458323136451633156875139351e+02,
+            0.10409964950896230045147246184e+03,
+            0.29840293426660503123344363579e+02,
+            -0.43533456590011143754432175058e+02,
+            0.96324553959188282948394950600e+02,
+            -0.39177261675615439165231486172e+02,
+            -0.14972683625798562581422125276e+03,
+        ],
+    ];
 }
 
 /// Dormand–Prince 8(5,3) (Hairer's DOP853): 12 stages, 8th order.
@@ -330,6 +556,8 @@ pub const DOP853: Tableau = Tableau {
         error_per: ErrorPer::UnitStep,
     },
     first_same_as_last: false,
+    // Of order 7, with three more evaluations (and f(y₁), the next step's first stage).
+    dense: Some(&DenseOutput { order: 7, extra: &dop853::EXTRA, end_stage: 12, corrections: &dop853::DENSE }),
 };
 
 /// A Rosenbrock–W method as published (Hairer & Wanner, Solving Ordinary
@@ -564,6 +792,14 @@ impl Method {
         Method::ALL.into_iter().find(|m| m.name() == name)
     }
 
+    /// Its continuous extension, if it has one (explicit pairs; not RK4 or ROS34PW2).
+    pub fn dense(self) -> Option<&'static DenseOutput> {
+        match self.scheme() {
+            Scheme::Explicit(tableau) => tableau.dense,
+            Scheme::Rosenbrock(_) => None,
+        }
+    }
+
     /// Whether it adapts its step to a tolerance.
     pub fn is_adaptive(self) -> bool {
         match self.scheme() {
@@ -701,6 +937,79 @@ mod tests {
                     let defect = order_defect(t.a, &b_hat, &trees, k);
                     assert!(defect < 1e-13, "{method:?}: order-{embedded_order} estimate off by {defect:e} at {k}");
                 }
+            }
+        }
+    }
+
+    /// A method's stages and its dense output's extra stages, as one tableau's rows of a.
+    fn extended_rows(t: &Tableau, dense: &DenseOutput) -> Vec<Vec<f64>> {
+        let mut rows: Vec<Vec<f64>> = t.a.iter().map(|row| row.to_vec()).collect();
+        rows.extend(dense.extra.iter().map(|(_, row)| row.to_vec()));
+        let stages = rows.len();
+        rows.iter_mut().for_each(|row| row.resize(stages, 0.0));
+        rows
+    }
+
+    /// Every dense output satisfies the order conditions of its order at
+    /// every point of the step: Σ Bᵢ(s)Φᵢ(t) = s^|t|/γ(t) for every rooted
+    /// tree t up to that order (85 up to DOP853's 7), with the extra
+    /// stages' rows summing to their nodes; at s = 1 it is the step's
+    /// result. A coefficient mistyped in its 11th digit breaks one of them.
+    #[test]
+    fn dense_outputs_satisfy_their_order_conditions() {
+        let trees = rooted_trees(7);
+        for method in Method::ALL {
+            let Scheme::Explicit(t) = method.scheme() else { continue };
+            let Some(dense) = t.dense else { continue };
+            let rows = extended_rows(t, dense);
+            for ((c, _), row) in dense.extra.iter().zip(&rows[t.b.len()..]) {
+                assert!((row.iter().sum::<f64>() - c).abs() < 1e-14, "{method:?}: an extra stage's row sum");
+            }
+            let a: Vec<&[f64]> = rows.iter().map(|row| &row[..]).collect();
+            for s in [0.1, 0.37, 0.5, 0.81, 1.0] {
+                let weights: Vec<f64> =
+                    (0..rows.len()).map(|i| nested(s, dense.rows(), |j| dense.weight(t.b, j, i))).collect();
+                for tree in trees.iter().filter(|tree| tree.order() <= dense.order as usize) {
+                    let sum: f64 = tree.weights(&a).iter().zip(&weights).map(|(phi, w)| phi * w).sum();
+                    let exact = s.powi(tree.order() as i32) / tree.density();
+                    assert!(
+                        (sum - exact).abs() < 1e-13,
+                        "{method:?} at s = {s}, order {}: {sum} vs {exact}",
+                        tree.order()
+                    );
+                }
+                if s == 1.0 {
+                    for (i, w) in weights.iter().enumerate() {
+                        let b = t.b.get(i).copied().unwrap_or(0.0);
+                        assert!((w - b).abs() < 1e-13, "{method:?}: Bᵢ(1) = {w} at stage {i}, b = {b}");
+                    }
+                }
+            }
+        }
+    }
+
+    /// Tsitouras gives his interpolant as bᵢ(s) = rᵢ₁s + rᵢ₂s² + rᵢ₃s³ + rᵢ₄s⁴;
+    /// the nested form with his rᵢ₄ alone as the correction gives his rᵢ₂
+    /// and rᵢ₃ too (the published digits, to their last).
+    #[test]
+    fn tsit5_dense_output_is_the_published_polynomial() {
+        let published: [[f64; 2]; 7] = [
+            [-2.763706197274826, 2.9132554618219126],
+            [0.13169999999999998, -0.2234],
+            [3.9302962368947516, -5.941033872131505],
+            [-12.411077166933676, 30.33818863028232],
+            [37.50931341651104, -88.1789048947664],
+            [-27.896526289197286, 65.09189467479366],
+            [1.5, -4.0],
+        ];
+        let dense = TSIT5.dense.unwrap();
+        for (i, [r2, r3]) in published.iter().enumerate() {
+            let r4 = tsit5::DENSE[i];
+            let r1 = if i == 0 { 1.0 } else { 0.0 };
+            for s in [0.25, 0.5, 0.9] {
+                let polynomial = r1 * s + r2 * s * s + r3 * s.powi(3) + r4 * s.powi(4);
+                let ours = nested(s, dense.rows(), |j| dense.weight(TSIT5.b, j, i));
+                assert!((ours - polynomial).abs() < 1e-14, "stage {i} at {s}: {ours} vs {polynomial}");
             }
         }
     }

@@ -124,8 +124,9 @@ fn docked_run(model: &Model, method: Method, tolerance: f64) -> (Vec<f64>, bool,
 }
 
 /// `model` driven by ε = amplitude·sin k in `steps` communication steps of
-/// 0.05 s: (θ, ν) at the end, the relaxation warnings, the attempts that
-/// located switches.
+/// 0.05 s, each ending a step (ε given as a function of time, so no step
+/// reaches past a communication point): (θ, ν) at the end, the relaxation
+/// warnings, the attempts that located switches.
 fn driven_run(
     model: &Model,
     method: Method,
@@ -137,11 +138,9 @@ fn driven_run(
     let mut sim = Simulation::new(model, method, settings);
     sim.initialize(model).unwrap();
     let eps: Vec<f64> = (0..model.nv).map(|k| amplitude * (k as f64).sin()).collect();
-    let zero = vec![0.0; model.nv];
-    let ctrl = vec![0.0; model.actuators.len()];
-    let input = Input { eps: &eps, eps_rate: &zero, ctrl: &ctrl, ctrl_rate: &ctrl };
     let (mut warnings, mut locating) = (Vec::new(), 0);
     for k in 1..=steps {
+        let input = |_: f64, out: &mut [f64]| out.copy_from_slice(&eps);
         let advanced = sim.advance_to(model, k as f64 * 0.05, input).unwrap();
         warnings.extend(advanced.relaxed.map(|relaxed| relaxed.to_string()));
         locating += advanced.stats.locating;

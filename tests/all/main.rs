@@ -26,6 +26,7 @@ mod mjcf_files;
 mod mjcf_import;
 mod mjcf_support;
 mod model_json;
+mod reaching;
 mod sensor_import;
 mod simulation;
 mod stiff_integration;

@@ -1,0 +1,193 @@
+//! Steps past the communication point (docs/integration.md, "Steps past
+//! the communication point"): with the inputs held, an adaptive method
+//! with a dense output takes steps longer than the communication step on a
+//! slow vehicle and delivers the tolerance at every communication point
+//! from its interpolant; a change of input at a communication point takes
+//! effect exactly there; a restored state continues bit for bit.
+
+use std::path::Path;
+
+use nudyn::integrate::{HeldJacobian, Input, Method, Settings, Simulation};
+use nudyn::model::Model;
+
+/// Two arms on a 5000 kg base (tests/fixtures/slow_station.xml).
+fn station() -> Model {
+    let imported = nudyn::mjcf::load_mjcf(Path::new("tests/fixtures/slow_station.xml")).unwrap();
+    Model::compile(&imported.vehicle).unwrap()
+}
+
+const COMMUNICATION_STEP: f64 = 0.1;
+const POINTS: usize = 100;
+
+fn settings(tolerance: f64) -> Settings {
+    Settings { tolerance, max_step: 0.0, energy_projection: false }
+}
+
+/// The station turning at about 0.01 rad/s, its base drifting at 1 cm/s
+/// and every arm joint off its drawn pose and turning at up to 0.05 rad/s.
+fn slow_start(model: &Model, method: Method, tolerance: f64) -> Simulation {
+    let mut sim = Simulation::new(model, method, settings(tolerance));
+    let mut qvel = vec![0.0; model.nv];
+    qvel[..6].copy_from_slice(&[0.01, -0.004, 0.006, 0.006, -0.004, 0.008]);
+    // A hinge's dof k moves coordinate k + 1 (the free joint has 7 and 6).
+    for (k, rate) in qvel.iter_mut().enumerate().skip(6) {
+        sim.state.theta[k + 1] = 0.3 * (k as f64).sin();
+        *rate = 0.05 * (1.7 * k as f64).cos();
+    }
+    let mut ws = model.workspace();
+    ws.set_configuration(model, &sim.state.theta).unwrap();
+    ws.set_qvel(model, &qvel).unwrap();
+    sim.state.nu.copy_from_slice(ws.nu.as_slice());
+    sim.initialize(model).unwrap();
+    sim
+}
+
+/// The run's end: no step passes it, so the last one ends at the last
+/// communication point (an FMU's stop time).
+const END: Option<f64> = Some(POINTS as f64 * COMMUNICATION_STEP);
+
+/// ν of the state reported is m*(θ)θ̇ of its θ and θ̇ (interpolated or
+/// not), to round-off.
+fn assert_nu_is_the_states(sim: &Simulation, model: &Model) {
+    let mut ws = model.workspace();
+    ws.set_configuration(model, &sim.state.theta).unwrap();
+    ws.set_qvel(model, &sim.state.qvel[..model.nv]).unwrap();
+    for (formed, reported) in ws.nu.iter().zip(&sim.state.nu) {
+        assert!((formed - reported).abs() <= 1e-13 * (1.0 + formed.abs()), "ν {reported}, m*θ̇ {formed}");
+    }
+}
+
+/// ε on every dof: `before` before `switch_at`, `after` from there on
+/// (a communication point; times are compared to within round-off).
+struct Schedule {
+    before: Vec<f64>,
+    after: Vec<f64>,
+    switch_at: f64,
+}
+
+impl Schedule {
+    fn at(&self, t: f64) -> &[f64] {
+        if t < self.switch_at - 1e-9 { &self.before } else { &self.after }
+    }
+}
+
+/// (θ, ν) at each communication point, the steps taken, with ε held over
+/// each communication step as a host holds it (the FMU's convention).
+fn held_run(sim: &mut Simulation, model: &Model, schedule: &Schedule) -> (Vec<Vec<f64>>, usize) {
+    let zero = vec![0.0; model.nv];
+    let mut points = Vec::new();
+    let mut steps = 0;
+    for n in 1..=POINTS {
+        let eps = schedule.at((n - 1) as f64 * COMMUNICATION_STEP);
+        let input = Input { eps, eps_rate: &zero, ctrl: &[], ctrl_rate: &[] };
+        let stats = sim.advance_to(model, n as f64 * COMMUNICATION_STEP, input).unwrap().stats;
+        steps += stats.accepted;
+        assert_nu_is_the_states(sim, model);
+        points.push(sim.state.theta.iter().chain(&sim.state.nu).copied().collect());
+    }
+    (points, steps)
+}
+
+/// The reference: DOP853 at 1e-12 ending a step at every half
+/// communication point (ε given as a function of time, so no step reaches
+/// past one), so that its steps are not those of a run at one step per
+/// communication step.
+fn reference(model: &Model, schedule: &Schedule) -> Vec<Vec<f64>> {
+    let mut sim = slow_start(model, Method::Dop853, 1e-12);
+    let half = 0.5 * COMMUNICATION_STEP;
+    let mut points = Vec::new();
+    for n in 1..=2 * POINTS {
+        let eps = schedule.at((n - 1) as f64 * half).to_vec();
+        let signal = move |_: f64, out: &mut [f64]| out.copy_from_slice(&eps);
+        sim.advance_to(model, n as f64 * half, signal).unwrap();
+        if n % 2 == 0 {
+            points.push(sim.state.theta.iter().chain(&sim.state.nu).copied().collect());
+        }
+    }
+    points
+}
+
+/// The largest |x − x_ref| / (1 + |x_ref|) over the points and (θ, ν).
+fn largest_error(points: &[Vec<f64>], reference: &[Vec<f64>]) -> f64 {
+    let pairs = points.iter().zip(reference).flat_map(|(p, r)| p.iter().zip(r));
+    pairs.map(|(x, r)| (x - r).abs() / (1.0 + r.abs())).fold(0.0, f64::max)
+}
+
+/// At 1e-4 each method with a dense output takes fewer steps than there
+/// are communication points (today's floor was one per point), and its
+/// interpolant delivers within [1/50, 20] times the tolerance.
+#[test]
+fn a_slow_vehicle_takes_fewer_steps_than_communication_points() {
+    let model = station();
+    let eps = vec![0.0; model.nv];
+    let schedule = Schedule { before: eps.clone(), after: eps, switch_at: f64::INFINITY };
+    let reference = reference(&model, &schedule);
+    for method in [Method::Dop853, Method::Dopri5, Method::Tsit5, Method::Bs3] {
+        let tolerance = 1e-4;
+        let (points, steps) = held_run(&mut slow_start(&model, method, tolerance), &model, &schedule);
+        let error = largest_error(&points, &reference) / tolerance;
+        println!("{}: {steps} steps for {POINTS} communication points, error {error:.2e} × tolerance", method.name());
+        assert!(steps < POINTS, "{}: {steps} steps for {POINTS} communication points", method.name());
+        assert!((0.02..=20.0).contains(&error), "{}: error {error:e} × tolerance", method.name());
+    }
+}
+
+/// ε changed at t = 2.1 s takes effect there: the run that reached past
+/// that point restarts from its interpolant and stays within 20 times the
+/// tolerance of a reference that ends a step there. Taken from the end of
+/// the step that reached past it (about a second later here), the change
+/// would put the run far off. (A push much harder than this one sets the
+/// arms whirling, where an error grows e-fold every half second or so:
+/// no tolerance then bounds the error at the end of 10 s.)
+#[test]
+fn a_changed_input_takes_effect_at_its_communication_point() {
+    let model = station();
+    let tolerance = 1e-6;
+    let schedule = Schedule { before: vec![0.0; model.nv], after: vec![0.05; model.nv], switch_at: 2.1 };
+    let reference = reference(&model, &schedule);
+    for method in [Method::Dop853, Method::Tsit5] {
+        let mut sim = slow_start(&model, method, tolerance);
+        sim.set_horizon(END);
+        let (points, steps) = held_run(&mut sim, &model, &schedule);
+        let error = largest_error(&points, &reference) / tolerance;
+        println!("{}: {steps} steps, error {error:.2e} × tolerance", method.name());
+        assert!(error <= 20.0, "{}: error {error:e} × tolerance", method.name());
+    }
+}
+
+/// A state saved while the last step reaches past the communication point
+/// (its interpolant and its end are part of the state) continues bit for
+/// bit as the run that saved it, with the input unchanged or changed, to
+/// the run's end.
+#[test]
+fn a_state_saved_inside_a_step_continues_bit_for_bit() {
+    let model = station();
+    let zero = vec![0.0; model.nv];
+    let push = vec![0.2; model.nv];
+    for method in [Method::Dop853, Method::Dopri5, Method::Tsit5, Method::Bs3] {
+        let mut sim = slow_start(&model, method, 1e-4);
+        sim.set_horizon(END);
+        let hold = |sim: &mut Simulation, from: usize, to: usize, eps: &[f64]| {
+            for n in from..=to {
+                let input = Input { eps, eps_rate: &zero, ctrl: &[], ctrl_rate: &[] };
+                sim.advance_to(&model, n as f64 * COMMUNICATION_STEP, input).unwrap();
+            }
+        };
+        hold(&mut sim, 1, 30, &zero);
+        assert!(sim.state.reach.held, "{}: the last step reaches past t = 3 s", method.name());
+        assert!(sim.state.reach.end > 3.0 + COMMUNICATION_STEP, "{}: a step beyond the next point", method.name());
+        let saved = sim.state.clone();
+        let mut other = Simulation::new(&model, method, settings(1e-4));
+        other.set_horizon(END);
+        for eps in [&zero, &push] {
+            hold(&mut sim, 31, 100, eps);
+            let continued = sim.state.clone();
+            for restored in [&mut sim, &mut other] {
+                restored.restore(&model, &saved, &HeldJacobian::default());
+                hold(restored, 31, 100, eps);
+                assert_eq!(restored.state, continued, "{}", method.name());
+            }
+            sim.restore(&model, &saved, &HeldJacobian::default());
+        }
+    }
+}
