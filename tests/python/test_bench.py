@@ -68,7 +68,9 @@ def test_quick_tolerance_benchmark_writes_table_and_plot(tmp_path):
         assert example["fmpy_reads_seconds"] > 0
         for entry in example["fmu"].values():
             assert entry["reads_over_target"] is None or entry["reads_over_target"] > 0
-            assert entry["steps"] >= 4 and entry["error"] < 10 * entry["tolerance"], entry
+            # Steps reach past the communication points while ε holds
+            # (docs/integration.md): fewer steps than points, but some.
+            assert entry["steps"] >= 1 and entry["error"] < 10 * entry["tolerance"], entry
             assert 0.0 <= entry["outside_share"] < 1.0
 
 
@@ -82,7 +84,8 @@ def test_quick_methods_benchmark_writes_its_table(tmp_path):
     for example in results["examples"].values():
         assert {run["method"] for run in example["runs"]} == {"bs3", "tsit5", "dopri5", "dop853"}
         for run in example["runs"]:
-            assert run["accepted"] >= 4 and run["evaluations"] > 0 and run["error"] < 10 * run["tolerance"], run
+            # Steps reach past the communication points (docs/integration.md).
+            assert run["accepted"] >= 1 and run["evaluations"] > 0 and run["error"] < 10 * run["tolerance"], run
             assert run["over_mujoco"] is None or run["over_mujoco"] > 0, run
             assert len(run["host_seconds"]) == 1 and run["host_seconds"][0] > 0, run
         assert all(entry["error"] < 1 for entry in example["mujoco_rk4"])
@@ -98,7 +101,8 @@ def test_quick_auto_benchmark_writes_its_table(tmp_path):
     assert results["quick"] is True and set(results["vehicles"]) == {"bus_arm7", "tree0"}
     for vehicle in results["vehicles"].values():
         for run in vehicle["runs"]:
-            assert run["accepted"] >= 4 and run["error"] < 10 * run["tolerance"], run
+            # Steps reach past the communication points (docs/integration.md).
+            assert run["accepted"] >= 1 and run["error"] < 10 * run["tolerance"], run
             assert (run["chosen"] is not None) == (run["method"] == "auto"), run
             assert run["host_seconds"][0] > 0 and run["fmpy_seconds"][0] > 0, run
             # MuJoCo timed beside each FMU run, at the step that reaches the run's accuracy.
