@@ -189,10 +189,13 @@ impl Passes {
         seed(velocity, point.velocity, direction.velocity);
         velocity::velocity_pass(model, ws, point.given);
         ws.stage = Stage::Velocity;
-        seed(&mut self.torque, point.torque, direction.torque);
-        forces::eps_of_torque(model, ws, &self.torque, &mut self.eps_of_torque);
         seed(&mut self.eps, point.eps, direction.eps);
-        self.eps.iter_mut().zip(&self.eps_of_torque).for_each(|(e, t)| *e += *t);
+        // The FMU's knowns hold no joint forces: no inward pass for a zero T.
+        if point.torque.iter().chain(direction.torque).any(|&t| t != 0.0) {
+            seed(&mut self.torque, point.torque, direction.torque);
+            forces::eps_of_torque(model, ws, &self.torque, &mut self.eps_of_torque);
+            self.eps.iter_mut().zip(&self.eps_of_torque).for_each(|(e, t)| *e += *t);
+        }
         if !model.actuators.is_empty() {
             seed(&mut self.ctrl, point.ctrl, direction.ctrl);
             ws.actuation_pass(model, &self.ctrl)?;
