@@ -5,6 +5,7 @@
 //! The pieces, in the order data flows through them:
 //! - [`vehicle`]: a vehicle as its MJCF file describes it;
 //! - [`mjcf`]: the MJCF importer;
+//! - [`flex`]: flexible bodies' modal data files;
 //! - [`model`]: the immutable compiled model (serializable; the FMU's
 //!   resource), and [`model::Model::validate`]; `compile`: [`model::Model::compile`],
 //!   the model's structure, then one evaluation at qpos0 for its constants;
@@ -25,6 +26,7 @@ pub mod control;
 pub mod describe;
 pub mod dynamics;
 pub mod eval;
+pub mod flex;
 pub mod integrate;
 pub mod linearize;
 pub mod math;
