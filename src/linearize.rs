@@ -14,7 +14,7 @@
 
 use nalgebra::DMatrix;
 
-use crate::dynamics::derivatives::{DerivativeError, Derivatives, Jacobians, Output, Point};
+use crate::dynamics::derivatives::{DerivativeError, Derivatives, Input, Output, Point};
 use crate::dynamics::velocity::Given;
 use crate::model::{LinkJoint, Model};
 
@@ -109,20 +109,29 @@ pub fn linearize(
         torque: &point.torque,
         ctrl: &point.ctrl,
     };
-    let qacc = derivatives.jacobians(model, &at, Output::Qacc)?;
-    let input_columns = |j: &Jacobians| match inputs {
-        Inputs::Eps => j.eps.clone(),
-        Inputs::Torque => j.torque.clone(),
-        Inputs::Ctrl => j.ctrl.clone(),
+    let input = match inputs {
+        Inputs::Eps => Input::Eps,
+        Inputs::Torque => Input::Torque,
+        Inputs::Ctrl => Input::Ctrl,
     };
-    let inputs_count = input_columns(&qacc).ncols();
+    // ν's Jacobians come from the same runs as θ̈'s, only when asked (and
+    // only in θ and the velocity: ν does not depend on the inputs).
+    let wants_nu = outputs.contains(&LinearOutput::Nu);
+    let [qacc_by, nu_by] = if wants_nu {
+        derivatives.jacobians_of(model, &at, [Output::Qacc, Output::Nu], &[Input::Theta, Input::Velocity, input])?
+    } else {
+        let [qacc_by] =
+            derivatives.jacobians_of(model, &at, [Output::Qacc], &[Input::Theta, Input::Velocity, input])?;
+        [qacc_by, Vec::new()]
+    };
+    let inputs_count = qacc_by[2].ncols();
     let mut a = DMatrix::zeros(2 * nv, 2 * nv);
     a.view_mut((0, 0), (nv, nv)).copy_from(&rotation_vector_rates(model, &point.qvel));
     a.view_mut((0, nv), (nv, nv)).fill_with_identity();
-    a.view_mut((nv, 0), (nv, nv)).copy_from(&qacc.theta);
-    a.view_mut((nv, nv), (nv, nv)).copy_from(&qacc.velocity);
+    a.view_mut((nv, 0), (nv, nv)).copy_from(&qacc_by[0]);
+    a.view_mut((nv, nv), (nv, nv)).copy_from(&qacc_by[1]);
     let mut b = DMatrix::zeros(2 * nv, inputs_count);
-    b.view_mut((nv, 0), (nv, inputs_count)).copy_from(&input_columns(&qacc));
+    b.view_mut((nv, 0), (nv, inputs_count)).copy_from(&qacc_by[2]);
 
     let mut c = DMatrix::zeros(nv * outputs.len(), 2 * nv);
     let mut d = DMatrix::zeros(nv * outputs.len(), inputs_count);
@@ -132,13 +141,12 @@ pub fn linearize(
             LinearOutput::Qpos => c.view_mut((rows, 0), (nv, nv)).fill_with_identity(),
             LinearOutput::Qvel => c.view_mut((rows, nv), (nv, nv)).fill_with_identity(),
             LinearOutput::Nu => {
-                let nu = derivatives.jacobians(model, &at, Output::Nu)?;
-                c.view_mut((rows, 0), (nv, nv)).copy_from(&nu.theta);
-                c.view_mut((rows, nv), (nv, nv)).copy_from(&nu.velocity);
+                c.view_mut((rows, 0), (nv, nv)).copy_from(&nu_by[0]);
+                c.view_mut((rows, nv), (nv, nv)).copy_from(&nu_by[1]);
             }
             LinearOutput::Qacc => {
                 c.view_mut((rows, 0), (nv, 2 * nv)).copy_from(&a.rows(nv, nv));
-                d.view_mut((rows, 0), (nv, inputs_count)).copy_from(&input_columns(&qacc));
+                d.view_mut((rows, 0), (nv, inputs_count)).copy_from(&qacc_by[2]);
             }
         }
     }

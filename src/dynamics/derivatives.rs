@@ -125,6 +125,26 @@ pub enum Output {
     Qacc,
 }
 
+/// The inputs a Jacobian's columns run along.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Input {
+    /// θ in the tangent space (nv columns).
+    Theta,
+    /// The given velocity (nv).
+    Velocity,
+    /// ε (nv).
+    Eps,
+    /// T (nv).
+    Torque,
+    /// ctrl (nu).
+    Ctrl,
+}
+
+impl Input {
+    /// Every input, in [`Jacobians`]' order.
+    pub const ALL: [Input; 5] = [Input::Theta, Input::Velocity, Input::Eps, Input::Torque, Input::Ctrl];
+}
+
 /// The Jacobians of one output at a point, one matrix per input: nv rows,
 /// and nv columns for θ (tangent space), the velocity, ε and T, nu for ctrl.
 #[derive(Clone, Debug, PartialEq)]
@@ -304,44 +324,58 @@ impl Derivatives {
         qpos_rate(model, ws.theta.as_slice(), ws.qvel.as_slice(), k).eps
     }
 
-    /// The Jacobians of `output` at `point`: one run per column. (Vector
-    /// dual numbers, several columns per run, measured slower: num-dual's
-    /// `DualSVec64<8>` cost 10–16 ν̇ per column where `Dual64` costs 4–5.)
+    /// The Jacobians of `output` at `point`, for every input.
     pub fn jacobians(&mut self, model: &Model, point: &Point, output: Output) -> Result<Jacobians, DerivativeError> {
+        let [mut by_input] = self.jacobians_of(model, point, [output], &Input::ALL)?;
+        let mut take = || by_input.remove(0);
+        Ok(Jacobians { theta: take(), velocity: take(), eps: take(), torque: take(), ctrl: take() })
+    }
+
+    /// The Jacobians of each of `outputs` at `point` with respect to each
+    /// of `inputs`, `[output][input]` in the orders given: one run per
+    /// input column, every output read from it. (Vector dual numbers,
+    /// several columns per run, measured slower: num-dual's `DualSVec64<8>`
+    /// cost 10–16 ν̇ per column where `Dual64` costs 4–5.)
+    pub fn jacobians_of<const N: usize>(
+        &mut self,
+        model: &Model,
+        point: &Point,
+        outputs: [Output; N],
+        inputs: &[Input],
+    ) -> Result<[Vec<DMatrix<f64>>; N], DerivativeError> {
         check_point(model, point)?;
         let (nv, nu) = (model.nv, model.actuators.len());
         let (zeros, no_ctrl) = (vec![0.0; nv], vec![0.0; nu]);
-        let mut columns = |which: usize| -> Result<DMatrix<f64>, DerivativeError> {
-            let count = if which == 4 { nu } else { nv };
+        let mut out: [Vec<DMatrix<f64>>; N] = std::array::from_fn(|_| Vec::with_capacity(inputs.len()));
+        for &input in inputs {
+            let count = if input == Input::Ctrl { nu } else { nv };
             let mut unit = vec![0.0; count];
-            let mut jacobian = DMatrix::zeros(nv, count);
+            let mut jacobians: [DMatrix<f64>; N] = std::array::from_fn(|_| DMatrix::zeros(nv, count));
             for column in 0..count {
                 unit[column] = 1.0;
-                let along = |k: usize| if k == which { unit.as_slice() } else { zeros.as_slice() };
+                let along = |which: Input| if which == input { unit.as_slice() } else { zeros.as_slice() };
                 let direction = Direction {
-                    theta: along(0),
+                    theta: along(Input::Theta),
                     theta_in: ThetaDirection::Tangent,
-                    velocity: along(1),
-                    eps: along(2),
-                    torque: along(3),
-                    ctrl: if which == 4 { unit.as_slice() } else { no_ctrl.as_slice() },
+                    velocity: along(Input::Velocity),
+                    eps: along(Input::Eps),
+                    torque: along(Input::Torque),
+                    ctrl: if input == Input::Ctrl { unit.as_slice() } else { no_ctrl.as_slice() },
                 };
                 let run = self.passes.run(model, point, &direction, &mut self.limits);
                 unit[column] = 0.0;
                 run?;
-                for (row, d) in self.passes.output(output).iter().enumerate() {
-                    jacobian[(row, column)] = d.eps;
+                for (jacobian, output) in jacobians.iter_mut().zip(outputs) {
+                    for (row, d) in self.passes.output(output).iter().enumerate() {
+                        jacobian[(row, column)] = d.eps;
+                    }
                 }
             }
-            Ok(jacobian)
-        };
-        Ok(Jacobians {
-            theta: columns(0)?,
-            velocity: columns(1)?,
-            eps: columns(2)?,
-            torque: columns(3)?,
-            ctrl: columns(4)?,
-        })
+            for (by_input, jacobian) in out.iter_mut().zip(jacobians) {
+                by_input.push(jacobian);
+            }
+        }
+        Ok(out)
     }
 }
 

@@ -136,7 +136,7 @@ impl ModalBody {
             ("centre of mass", (nodes.com - inertial.com).norm() / length_scale),
             ("inertia", (nodes.inertia - inertial.inertia).norm() / inertia_scale),
         ];
-        match differences.into_iter().find(|(_, d)| !(*d <= MASS_PROPERTIES_TOLERANCE)) {
+        match differences.into_iter().find(|(_, d)| *d > MASS_PROPERTIES_TOLERANCE) {
             None => Ok(()),
             Some((what, difference)) => Err(ModalError::MassProperties {
                 body: self.body.clone(),

@@ -239,7 +239,7 @@ pub(super) fn modal_mass(nodes: &[Node], a: &Mode, b: &Mode) -> f64 {
 fn normalize_modes(modes: &mut [Mode], nodes: &[Node], mass_normalized: Option<&Scale>) -> Result<(), String> {
     let masses: Vec<f64> = modes.iter().map(|mode| modal_mass(nodes, mode, mode)).collect();
     for (k, &mass) in masses.iter().enumerate() {
-        if !(mass > 0.0) {
+        if mass <= 0.0 {
             return Err(format!("modes[{k}] moves no mass (its modal mass is {mass})"));
         }
     }
