@@ -173,6 +173,11 @@ enum Command {
     Linearize {
         /// The vehicle's MJCF file.
         model: PathBuf,
+        /// Start from this `<key>` of the file's `<keyframe>` (its name, or
+        /// its index from 0): its qpos, qvel and ctrl, which --qpos, --qvel
+        /// and --ctrl replace where given.
+        #[arg(long)]
+        keyframe: Option<String>,
         /// θ (nq values, comma-separated); default the model's qpos0.
         #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
         qpos: Option<Vec<f64>>,
@@ -393,7 +398,7 @@ fn run(cli: Cli) -> Result<()> {
             };
             system(&model, &output, end_effector.as_deref(), &options)
         }
-        Command::Linearize { model, qpos, qvel, eps, torque, ctrl, inputs, outputs, step, output, npz } => {
+        Command::Linearize { model, keyframe, qpos, qvel, eps, torque, ctrl, inputs, outputs, step, output, npz } => {
             if let Some(h) = step
                 && !(h.is_finite() && h > 0.0)
             {
@@ -413,19 +418,35 @@ fn run(cli: Cli) -> Result<()> {
                 InputsArg::Torque => Inputs::Torque,
                 InputsArg::Ctrl => Inputs::Ctrl,
             };
+            let imported =
+                nudyn::mjcf::load_mjcf(&model).with_context(|| format!("cannot import {}", model.display()))?;
+            let key = keyframe.map(|asked| nudyn::mjcf::keyframe::find(&imported.keyframes, &asked)).transpose()?;
+            if let Some(key) = key
+                && key.places_mocap_bodies
+            {
+                bail!(
+                    "keyframe {} (line {}) places mocap bodies (mpos, mquat); nudyn holds them at their modelled pose",
+                    key.name.as_deref().unwrap_or("without a name"),
+                    key.line
+                );
+            }
+            let from_key =
+                |given: Option<Vec<f64>>, of_key: fn(&nudyn::mjcf::keyframe::Keyframe) -> &Option<Vec<f64>>| {
+                    given.or_else(|| key.and_then(|key| of_key(key).clone()))
+                };
             let request = linearize::Request {
-                qpos,
-                qvel,
+                qpos: from_key(qpos, |key| &key.qpos),
+                qvel: from_key(qvel, |key| &key.qvel),
                 eps,
                 torque,
-                ctrl,
+                ctrl: from_key(ctrl, |key| &key.ctrl),
                 inputs,
                 outputs: &outputs,
                 step,
                 json: output.as_deref(),
                 npz: npz.as_deref(),
             };
-            linearize::run(&load_model(&model)?, &request)
+            linearize::run(&compile(&model, &imported)?, &request)
         }
         Command::Simulate { model, step, stop, method, tolerance, max_step, energy_projection, format } => {
             let settings = Settings { tolerance, max_step: max_step.unwrap_or(step), energy_projection };
@@ -470,10 +491,20 @@ fn load_vehicle(path: &Path) -> Result<(Vehicle, Model)> {
 /// The vehicle as imported, printing the importer's warnings.
 fn import_vehicle(path: &Path) -> Result<Vehicle> {
     let imported = nudyn::mjcf::load_mjcf(path).with_context(|| format!("cannot import {}", path.display()))?;
+    print_warnings(path, &imported);
+    Ok(imported.vehicle)
+}
+
+/// The model of an imported file, printing the importer's warnings.
+fn compile(path: &Path, imported: &nudyn::mjcf::Imported) -> Result<Model> {
+    print_warnings(path, imported);
+    Model::compile(&imported.vehicle).with_context(|| format!("cannot compile {}", path.display()))
+}
+
+fn print_warnings(path: &Path, imported: &nudyn::mjcf::Imported) {
     for warning in &imported.warnings {
         eprintln!("nudyn: warning: {}: {warning}", path.display());
     }
-    Ok(imported.vehicle)
 }
 
 fn eval(model_path: &Path) -> Result<()> {

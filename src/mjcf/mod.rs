@@ -21,6 +21,7 @@ mod equality;
 mod error;
 mod include;
 mod inertia;
+pub mod keyframe;
 mod mesh;
 mod orientation;
 mod reader;
@@ -43,6 +44,8 @@ pub struct Imported {
     pub vehicle: Vehicle,
     /// What the importer ignored, in document order.
     pub warnings: Vec<MjcfWarning>,
+    /// The `<key>`s of the file's `<keyframe>` sections, in document order.
+    pub keyframes: Vec<keyframe::Keyframe>,
 }
 
 /// Something in the file that the importer ignored.

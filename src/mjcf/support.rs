@@ -53,6 +53,10 @@ pub fn support_table() -> String {
     for section in reader::IGNORED_SECTIONS {
         let _ = writeln!(out, "| `<{section}>` | ignored with a warning |");
     }
+    out.push_str(
+        "\n`<keyframe>`: each `<key>` is checked as MuJoCo checks it (every vector it gives has the model's size) \
+         and kept; `nudyn linearize --keyframe` starts from it.\n",
+    );
     out.push_str("\nIn `<default>`, these children are ignored with a warning: ");
     out.push_str(&code_list(defaults::IGNORED_DEFAULTS, true));
     out.push_str(". In bodies and in the world body: ");

@@ -6,7 +6,7 @@
 
 use std::path::{Path, PathBuf};
 
-use nudyn::mjcf::{Imported, MjcfError, load_mjcf, parse_mjcf};
+use nudyn::mjcf::{Imported, MjcfError, keyframe, load_mjcf, parse_mjcf};
 use nudyn::vehicle::Vehicle;
 
 fn fixture(name: &str) -> PathBuf {
@@ -67,7 +67,7 @@ const INCLUDES_MERGED: &str = r#"<mujoco model="includes">
 
 #[test]
 fn included_files_merge_in_place_as_if_written_in_the_main_file() {
-    let Imported { vehicle, warnings } = load("includes.xml");
+    let Imported { vehicle, warnings, .. } = load("includes.xml");
     let merged = parse_mjcf(INCLUDES_MERGED).unwrap().vehicle;
     assert_eq!(without_lines(vehicle.clone()), without_lines(merged));
     // Lines are those of each element's own file.
@@ -311,6 +311,34 @@ fn keyframes_of_the_wrong_size_are_refused_as_mujoco_refuses_them() {
         let shown = parse_mjcf(&xml.replace(good, bad)).unwrap_err().to_string();
         assert!(shown.ends_with(&format!("<key name=\"start\">: {message}")), "{shown}");
     }
+}
+
+#[test]
+fn keyframes_are_kept_and_found_by_name_or_index() {
+    let imported = load("mocap.xml");
+    let [start] = imported.keyframes.as_slice() else { panic!("{:?}", imported.keyframes) };
+    assert_eq!(start.name.as_deref(), Some("start"));
+    assert_eq!(start.qpos.as_deref(), Some(&[0.1, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0][..]));
+    assert_eq!(start.qvel.as_deref(), Some(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.1][..]));
+    assert_eq!((start.act.as_ref(), start.ctrl.as_ref(), start.time), (None, None, 0.0));
+    assert!(start.places_mocap_bodies);
+    assert_eq!(start.line, 22);
+    assert_eq!(keyframe::find(&imported.keyframes, "start").unwrap(), start);
+    assert_eq!(keyframe::find(&imported.keyframes, "0").unwrap(), start);
+    let missing = keyframe::find(&imported.keyframes, "home").unwrap_err().to_string();
+    assert_eq!(missing, "the model has no keyframe \"home\" (its keyframes: \"start\")");
+    // An unnamed key is found by its index; an empty vector counts as not given.
+    let unnamed = parse_mjcf(
+        r#"<mujoco><worldbody><body><joint/><geom size="1"/></body></worldbody>
+        <keyframe><key time="2" qpos=""/><key qpos="0.5" qvel="1"/></keyframe></mujoco>"#,
+    )
+    .unwrap();
+    let second = keyframe::find(&unnamed.keyframes, "1").unwrap();
+    assert_eq!((second.qpos.as_deref(), second.qvel.as_deref()), (Some(&[0.5][..]), Some(&[1.0][..])));
+    assert_eq!((unnamed.keyframes[0].qpos.as_ref(), unnamed.keyframes[0].time), (None, 2.0));
+    assert!(!second.places_mocap_bodies);
+    let none = keyframe::find(&unnamed.keyframes, "2").unwrap_err().to_string();
+    assert!(none.ends_with("(its keyframes: 0, 1)"), "{none}");
 }
 
 #[test]

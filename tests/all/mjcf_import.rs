@@ -92,7 +92,7 @@ fn diag(v: Vec3) -> Mat3 {
 
 #[test]
 fn box_arm_bodies_joints_and_box_inertia() {
-    let Imported { vehicle, warnings } = load("box_arm.xml");
+    let Imported { vehicle, warnings, .. } = load("box_arm.xml");
     assert!(warnings.is_empty(), "{warnings:?}");
     assert_eq!(vehicle.name, "box_arm");
     assert_vec("gravity", &vehicle.gravity, Vec3::new(0.0, 0.0, -9.81));
@@ -413,7 +413,7 @@ fn satellite() {
 
 #[test]
 fn ignored_elements_warn_once_each() {
-    let Imported { vehicle, warnings } = load("ignored.xml");
+    let Imported { vehicle, warnings, .. } = load("ignored.xml");
     assert_eq!(vehicle.bodies.len(), 1);
     let shown: Vec<String> = warnings.iter().map(ToString::to_string).collect();
     let ignored = |line: u32, element: &str| format!("line {line}: <{element}>: ignored (no effect on the dynamics)");
@@ -430,7 +430,6 @@ fn ignored_elements_warn_once_each() {
         ignored(19, "camera name=\"overview\""),
         ignored(24, "camera name=\"eye\""),
         "line 27: <contact>: ignored: nudyn models no contacts".to_string(),
-        ignored(37, "keyframe"),
         ignored(40, "custom"),
         ignored(43, "extension"),
     ];
@@ -451,7 +450,7 @@ fn settotalmass_scales_and_warns() {
     <body><joint/><geom size="0.1" mass="1"/><body><geom size="0.1" mass="3"/></body></body>
   </worldbody>
 </mujoco>"#;
-    let Imported { vehicle, warnings } = parse_mjcf(xml).unwrap();
+    let Imported { vehicle, warnings, .. } = parse_mjcf(xml).unwrap();
     let masses: Vec<f64> = vehicle.bodies.iter().map(|b| inertia(b).mass).collect();
     assert_eq!(masses, [2.5, 7.5]);
     assert_close("scaled moment", inertia(&vehicle.bodies[0]).inertia[(0, 0)], 2.5 * 0.4 * 0.01);
@@ -677,7 +676,7 @@ fn error_message_shows_expected_and_found() {
 
 #[test]
 fn bodies_fixed_to_the_world_get_their_mesh_mass_but_not_their_height_field_mass() {
-    let Imported { vehicle, warnings } = load("static_meshes.xml");
+    let Imported { vehicle, warnings, .. } = load("static_meshes.xml");
     let names: Vec<&str> = vehicle.bodies.iter().map(|b| b.name.as_str()).collect();
     assert_eq!(names, ["asteroid", "boulder", "fixture", "lander"]);
     let unknown: Vec<&str> = vehicle.bodies.iter().filter(|b| b.mass_unknown).map(|b| b.name.as_str()).collect();
@@ -816,7 +815,7 @@ fn meshes_nothing_needs_the_mass_of_are_never_read() {
             <inertial pos="0 0 0.1" mass="2" diaginertia="0.1 0.1 0.1"/>
           </body>
         </body></worldbody></mujoco>"#;
-    let Imported { vehicle, warnings } = parse_mjcf(with_meshes).unwrap_or_else(|e| panic!("{e}"));
+    let Imported { vehicle, warnings, .. } = parse_mjcf(with_meshes).unwrap_or_else(|e| panic!("{e}"));
     let mut expected = parse_mjcf(without_meshes).unwrap().vehicle;
     // The bodies' lines differ with the asset lines.
     for (body, read) in expected.bodies.iter_mut().zip(&vehicle.bodies) {

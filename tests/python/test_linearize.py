@@ -227,3 +227,29 @@ def test_vehicles_beyond_the_derivatives_are_refused_with_a_reason(nudyn):
     assert "derivatives do not cover actuators' activation states (dyntype) yet" in proc.stderr, proc.stderr
     wrong = subprocess.run([str(nudyn), "linearize", str(COVERED[0]), "--qvel", "1,2"], capture_output=True, text=True)
     assert wrong.returncode != 0 and "--qvel has 2 values" in wrong.stderr, wrong.stderr
+
+
+def test_a_keyframe_is_the_point_its_vectors_give(nudyn, tmp_path):
+    """--keyframe NAME (or index) linearizes at the key's qpos and qvel, as
+    the same values given by --qpos and --qvel do; a flag given beside it
+    replaces the key's vector; a missing key is named with those there are."""
+    bus = next(p for p in COVERED if p.stem == "bus_arm7")
+    ref = Reference.from_file(bus)
+    qpos, qvel, _ = ref.random_state(np.random.default_rng(5))
+    text = bus.read_text()
+    key = f'<keyframe><key name="slewing" qpos="{listed(qpos).replace(",", " ")}" qvel="{listed(qvel).replace(",", " ")}"/></keyframe>'
+    keyed = tmp_path / "bus_arm7.xml"
+    keyed.write_text(text.replace("</mujoco>", key + "\n</mujoco>"))
+    explicit, _ = linearize(nudyn, bus, "--qpos", listed(qpos), "--qvel", listed(qvel))
+    by_name, _ = linearize(nudyn, keyed, "--keyframe", "slewing")
+    by_index, _ = linearize(nudyn, keyed, "--keyframe", "0")
+    assert by_name == explicit and by_index == explicit
+    at_rest, _ = linearize(nudyn, keyed, "--keyframe", "slewing", "--qvel", listed(np.zeros(ref.nv)))
+    assert at_rest == linearize(nudyn, bus, "--qpos", listed(qpos))[0]
+    proc = subprocess.run([str(nudyn), "linearize", str(keyed), "--keyframe", "home"], capture_output=True, text=True)
+    assert proc.returncode != 0
+    assert 'the model has no keyframe "home" (its keyframes: "slewing")' in proc.stderr, proc.stderr
+    mocap = ROOT / "tests/fixtures/mjcf/mocap.xml"
+    proc = subprocess.run([str(nudyn), "linearize", str(mocap), "--keyframe", "start"], capture_output=True, text=True)
+    assert proc.returncode != 0
+    assert "keyframe start (line 22) places mocap bodies (mpos, mquat)" in proc.stderr, proc.stderr

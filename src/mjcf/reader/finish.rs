@@ -87,7 +87,7 @@ impl Reader {
             sensors_disabled: self.physics.sensor_disabled,
             tendons: std::mem::take(&mut self.tendons),
         };
-        Ok(Imported { vehicle, warnings: self.warnings })
+        Ok(Imported { vehicle, warnings: self.warnings, keyframes: self.keyframes })
     }
 
     /// `<compiler fusestatic="true">` as MuJoCo 4.0 applies it

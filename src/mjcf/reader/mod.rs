@@ -22,6 +22,7 @@ use super::element::{Element, LineStarts};
 use super::error::MjcfError;
 use super::include::{self, Sources};
 use super::inertia::{BodyInertia, GeomMass};
+use super::keyframe::Keyframe;
 use super::mesh::Meshes;
 use super::orientation::AngleConvention;
 use super::{Imported, MjcfWarning};
@@ -62,7 +63,7 @@ pub(crate) const INERTIAL_ATTRIBUTES: &[&str] =
 /// Top-level sections without effect on the dynamics.
 #[rustfmt::skip]
 pub(crate) const IGNORED_SECTIONS: &[&str] =
-    &["size", "statistic", "visual", "contact", "keyframe", "custom", "extension"];
+    &["size", "statistic", "visual", "contact", "custom", "extension"];
 
 /// Actuator attributes naming a transmission nudyn refuses, and why.
 #[rustfmt::skip]
@@ -258,6 +259,8 @@ struct Reader {
     physics: Physics,
     defaults: Defaults,
     warnings: Vec<MjcfWarning>,
+    /// The `<key>`s read so far.
+    keyframes: Vec<Keyframe>,
     bodies: Vec<Body>,
     records: Vec<BodyRecord>,
     body_names: HashMap<String, u32>,
@@ -402,11 +405,8 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
             // Read once every joint and site is known, wherever the section stands.
             "actuator" => actuator_sections.push(section),
             "sensor" => sensor_sections.push(section),
-            // Checked once the sizes are known, then ignored.
-            "keyframe" => {
-                keyframe_sections.push(section);
-                reader.warnings.push(section.ignored());
-            }
+            // Read once the sizes are known.
+            "keyframe" => keyframe_sections.push(section),
             tag if IGNORED_SECTIONS.contains(&tag) => reader.warnings.push(section.ignored()),
             // Read once every joint and site is known.
             "tendon" => tendon_sections.push(section),
@@ -434,7 +434,7 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
         reader.read_sensors(section)?;
     }
     for section in &keyframe_sections {
-        reader.check_keyframes(section)?;
+        reader.read_keyframes(section)?;
     }
     reader.warn_of_contacts(&root);
 
@@ -449,6 +449,7 @@ impl Reader {
             physics: Physics::default(),
             defaults: Defaults::new(),
             warnings: Vec::new(),
+            keyframes: Vec::new(),
             bodies: Vec::new(),
             records: Vec::new(),
             body_names: HashMap::new(),

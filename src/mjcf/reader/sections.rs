@@ -7,6 +7,7 @@ use crate::mjcf::attributes::names;
 use crate::mjcf::defaults::MAIN;
 use crate::mjcf::element::Element;
 use crate::mjcf::error::MjcfError;
+use crate::mjcf::keyframe::Keyframe;
 use crate::mjcf::mesh::MESH_ATTRIBUTES;
 use crate::mjcf::tendon::TendonFlags;
 use crate::mjcf::{actuator, equality, mesh, sensor, tendon};
@@ -76,39 +77,38 @@ impl Reader {
         Ok(())
     }
 
-    /// MuJoCo's checks of the `<key>`s of a `<keyframe>` section: each
-    /// vector given has the model's size. nudyn does not use keyframes.
-    pub(super) fn check_keyframes(&self, section: &Element) -> Result<(), MjcfError> {
+    /// The `<key>`s of a `<keyframe>` section, with MuJoCo's checks: each
+    /// vector given has the model's size (an empty one counts as not given).
+    pub(super) fn read_keyframes(&mut self, section: &Element) -> Result<(), MjcfError> {
         section.check_attributes(&[])?;
         let joints = self.bodies.iter().flat_map(|b| &b.joints);
         let (nq, nv) = joints.fold((0, 0), |(nq, nv), j| (nq + j.kind.nq(), nv + j.kind.nv()));
         let nmocap = self.mocap_bodies.len();
         // Each activation state nudyn models has one act.
         let na = self.actuators.iter().filter(|a| a.activation.is_some()).count();
-        let sizes = [
-            ("qpos", nq),
-            ("qvel", nv),
-            ("act", na),
-            ("mpos", 3 * nmocap),
-            ("mquat", 4 * nmocap),
-            ("ctrl", self.actuators.len()),
-        ];
+        let nu = self.actuators.len();
         for key in section.children() {
             if key.tag() != "key" {
                 return Err(key.unknown());
             }
             key.check_attributes(&["name", "time", "qpos", "qvel", "act", "mpos", "mquat", "ctrl"])?;
             no_children(&key)?;
-            key.number("time")?;
-            for (attribute, size) in sizes {
-                let Some(text) = key.text(attribute) else { continue };
+            let vector = |attribute: &str, size: usize| -> Result<Option<Vec<f64>>, MjcfError> {
+                let Some(text) = key.text(attribute) else { return Ok(None) };
                 let values: Result<Vec<f64>, _> = text.split_ascii_whitespace().map(str::parse).collect();
-                let given = values.map_err(|_| key.bad_value(attribute, "numbers"))?.len();
-                // An empty list counts as not given.
-                if given != 0 && given != size {
-                    return Err(key.invalid(format!("invalid {attribute} size, expected {size}, got {given}")));
+                let values = values.map_err(|_| key.bad_value(attribute, "numbers"))?;
+                match values.len() {
+                    0 => Ok(None),
+                    given if given == size => Ok(Some(values)),
+                    given => Err(key.invalid(format!("invalid {attribute} size, expected {size}, got {given}"))),
                 }
-            }
+            };
+            let time = key.number("time")?.unwrap_or(0.0);
+            let (qpos, qvel, act) = (vector("qpos", nq)?, vector("qvel", nv)?, vector("act", na)?);
+            let places_mocap_bodies = vector("mpos", 3 * nmocap)?.is_some() | vector("mquat", 4 * nmocap)?.is_some();
+            let ctrl = vector("ctrl", nu)?;
+            let name = key.text("name").map(str::to_string);
+            self.keyframes.push(Keyframe { name, time, qpos, qvel, act, ctrl, places_mocap_bodies, line: key.line });
         }
         Ok(())
     }
