@@ -337,7 +337,9 @@ fn directional_derivative_case<'a>(
                 torque: eps,
                 ctrl,
             };
-            derivatives.run(model, &point, &along).expect("the state evaluates");
+            derivatives
+                .run(model, &point, &along, &[nudyn::dynamics::derivatives::Output::NuDot])
+                .expect("the state evaluates");
         }),
     }
 }

@@ -147,7 +147,7 @@ impl Partials {
             torque: &self.torque,
             ctrl: &[],
         };
-        derivatives.run(at.model, &point, &direction).map_err(|error| match error {
+        derivatives.run(at.model, &point, &direction, &[Output::NuDot]).map_err(|error| match error {
             DerivativeError::Dynamics(error) => CallError::Evaluate(error),
             other => unreachable!("the directions are sized by the model: {other}"),
         })?;

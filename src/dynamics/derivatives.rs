@@ -171,6 +171,8 @@ struct Passes {
     ctrl: Vec<Dual64>,
     /// The direction in θ's coordinates (nq).
     theta_rates: Vec<f64>,
+    /// The outputs the last run computed.
+    computed: Vec<Output>,
 }
 
 impl Passes {
@@ -183,16 +185,18 @@ impl Passes {
             eps_of_torque: zeros,
             ctrl: vec![Dual64::from(0.0); model.actuators.len()],
             theta_rates: vec![0.0; model.nq],
+            computed: Vec::new(),
         }
     }
 
-    /// Passes 0–3 and θ̈ at `point` along `direction` (checked), with
-    /// `limits` refusing a point where a joint limit acts.
+    /// The passes `outputs` need at `point` along `direction` (checked),
+    /// with `limits` refusing a point where a joint limit acts.
     fn run(
         &mut self,
         model: &Model,
         point: &Point,
         direction: &Direction,
+        outputs: &[Output],
         limits: &mut Limits,
     ) -> Result<(), DerivativeError> {
         theta_rates(model, point.theta, direction, &mut self.theta_rates);
@@ -225,13 +229,31 @@ impl Passes {
         if passive {
             bias::passive_forces(model, ws);
         }
-        bias::link_sweep::<_, true>(model, ws, &self.eps, passive);
-        ws.stage = Stage::Acceleration;
-        ws.compute_accelerations(model)?;
+        // ν̇ needs pass 3 with the factor's rates; θ̈ alone does without
+        // them, and the outward pass only θ̈ needs.
+        self.computed = outputs.to_vec();
+        let (nu_dot, qacc) = (outputs.contains(&Output::NuDot), outputs.contains(&Output::Qacc));
+        if nu_dot {
+            bias::link_sweep::<_, true>(model, ws, &self.eps, passive);
+            ws.stage = Stage::Acceleration;
+        } else if qacc {
+            bias::link_sweep::<_, false>(model, ws, &self.eps, passive);
+            ws.stage = Stage::JointRates;
+        }
+        if qacc {
+            ws.compute_accelerations(model)?;
+        }
         Ok(())
     }
 
+    /// `output` of the last run, which must have been asked for.
     fn output(&self, output: Output) -> &[Dual64] {
+        let always = matches!(output, Output::Qvel | Output::Nu);
+        assert!(
+            always || self.computed.contains(&output),
+            "{output:?} was not asked of the last run: {:?}",
+            self.computed
+        );
         match output {
             Output::Qvel => self.ws.qvel.as_slice(),
             Output::Nu => self.ws.nu.as_slice(),
@@ -299,20 +321,29 @@ impl Derivatives {
         }
     }
 
-    /// Runs the passes at `point` along `direction`; [`Derivatives::derivative`]
-    /// and [`Derivatives::value`] then read the outputs.
-    pub fn run(&mut self, model: &Model, point: &Point, direction: &Direction) -> Result<(), DerivativeError> {
+    /// Runs the passes `outputs` need at `point` along `direction`;
+    /// [`Derivatives::derivative`] and [`Derivatives::value`] then read
+    /// those outputs (θ̇ and ν are always computed; ν̇ and θ̈ when asked).
+    pub fn run(
+        &mut self,
+        model: &Model,
+        point: &Point,
+        direction: &Direction,
+        outputs: &[Output],
+    ) -> Result<(), DerivativeError> {
         check_point(model, point)?;
         check_direction(model, point, direction)?;
-        self.passes.run(model, point, direction, &mut self.limits)
+        self.passes.run(model, point, direction, outputs, &mut self.limits)
     }
 
-    /// The derivative of `output` along the last run's direction.
+    /// The derivative of `output` along the last run's direction; panics
+    /// unless the run was asked for it.
     pub fn derivative(&self, output: Output) -> impl Iterator<Item = f64> + '_ {
         self.passes.output(output).iter().map(|d| d.eps)
     }
 
-    /// The value of `output` at the last run's point.
+    /// The value of `output` at the last run's point; panics unless the
+    /// run was asked for it.
     pub fn value(&self, output: Output) -> impl Iterator<Item = f64> + '_ {
         self.passes.output(output).iter().map(|d| d.re)
     }
@@ -362,7 +393,7 @@ impl Derivatives {
                     torque: along(Input::Torque),
                     ctrl: if input == Input::Ctrl { unit.as_slice() } else { no_ctrl.as_slice() },
                 };
-                let run = self.passes.run(model, point, &direction, &mut self.limits);
+                let run = self.passes.run(model, point, &direction, &outputs, &mut self.limits);
                 unit[column] = 0.0;
                 run?;
                 for (jacobian, output) in jacobians.iter_mut().zip(outputs) {

@@ -231,7 +231,7 @@ fn a_run_gives_the_f64_values() {
         let zeros = vec![0.0; nv];
         let direction = nowhere(&zeros);
         for (given, output) in [(Given::Qvel, Output::Qacc), (Given::Nu, Output::NuDot)] {
-            derivatives.run(&case.model, &point(&case, given), &direction).unwrap();
+            derivatives.run(&case.model, &point(&case, given), &direction, &[output]).unwrap();
             let values: Vec<f64> = derivatives.value(output).collect();
             let passes = evaluate(&case.model, &point(&case, given));
             let error = common::rel_err(&values, &passes);
@@ -261,7 +261,7 @@ fn coordinate_and_tangent_directions_agree() {
         let zeros = vec![0.0; nv];
         let mut along = |theta: &[f64], theta_in| {
             let direction = Direction { theta, theta_in, velocity: &zeros, eps: &zeros, torque: &zeros, ctrl: &[] };
-            derivatives.run(&case.model, &point(&case, Given::Qvel), &direction).unwrap();
+            derivatives.run(&case.model, &point(&case, Given::Qvel), &direction, &[Output::Qacc]).unwrap();
             derivatives.derivative(Output::Qacc).collect::<Vec<f64>>()
         };
         let from_tangent = along(&tangent, ThetaDirection::Tangent);
@@ -293,7 +293,8 @@ fn models_beyond_the_generic_passes_and_bad_points_are_refused() {
         torque: &zeros,
         ctrl: &no_ctrl,
     };
-    let error = derivatives.run(&at_a_limit.model, &point(&at_a_limit, Given::Qvel), &along).unwrap_err();
+    let error =
+        derivatives.run(&at_a_limit.model, &point(&at_a_limit, Given::Qvel), &along, &[Output::Qacc]).unwrap_err();
     assert_eq!(error, DerivativeError::ActiveLimits { rows: 1 });
 
     let case = case(3, true);
@@ -309,12 +310,12 @@ fn models_beyond_the_generic_passes_and_bad_points_are_refused() {
         torque: &zeros,
         ctrl: &[],
     };
-    let error = derivatives.run(&case.model, &point(&case, Given::Qvel), &direction).unwrap_err();
+    let error = derivatives.run(&case.model, &point(&case, Given::Qvel), &direction, &[Output::Qacc]).unwrap_err();
     assert_eq!(error, DerivativeError::DirectionLength { what: "theta", expected: nv, found: nv - 1 });
     let mut eps = case.eps.clone();
     eps[1] = f64::NAN;
     let bad = Point { eps: &eps, ..point(&case, Given::Qvel) };
     let direction = nowhere(&zeros);
-    let error = derivatives.run(&case.model, &bad, &direction).unwrap_err();
+    let error = derivatives.run(&case.model, &bad, &direction, &[Output::Qacc]).unwrap_err();
     assert!(error.to_string().contains("eps[2] is not finite"), "{error}");
 }
