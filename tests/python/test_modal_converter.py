@@ -13,8 +13,10 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -71,7 +73,257 @@ def test_modal_refuses_a_bad_file_naming_the_file_and_the_field(nudyn, tmp_path)
     proc = modal(nudyn, bad)
     assert proc.returncode == 1 and proc.stdout == ""
     lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1 and str(bad) in lines[0] and "modes[0] and modes[1] are not orthogonal" in lines[0], proc.stderr
+    assert len(lines) == 1 and str(bad) in lines[0], proc.stderr
+    assert "modes[0] and modes[1] are not orthogonal" in lines[0], proc.stderr
 
     missing = modal(nudyn, tmp_path / "absent.json")
-    assert missing.returncode == 1 and "cannot read the modal file" in missing.stderr and "absent.json" in missing.stderr
+    assert missing.returncode == 1, missing.stderr
+    assert "cannot read the modal file" in missing.stderr and "absent.json" in missing.stderr
+
+
+# --- the converter, on meshes made here ----------------------------------------
+
+
+@pytest.fixture(scope="module")
+def ccx():
+    """CalculiX's solver; fails (never skips) when it is missing: scripts/setup-test.sh installs calculix-ccx."""
+    path = shutil.which("ccx")
+    if path is None:
+        pytest.fail("ccx not found: install the Debian package calculix-ccx (scripts/setup-test.sh does)",
+                    pytrace=False)
+    return path
+
+
+def write_box_deck(path: Path, size, divisions, *, young, poisson, density, modes, scale=1.0):
+    """A CalculiX deck of a box [0, size] meshed by divisions of 8-node
+    hexahedra with incompatible modes (C3D8I, good in bending with one
+    element through the thickness), clamped on its face x = 0, with a
+    *FREQUENCY step writing the modes' displacements. Lengths are written
+    times `scale` (1000 for a deck in mm)."""
+    nx, ny, nz = divisions
+
+    def node(i, j, k):
+        return 1 + i + (nx + 1) * (j + (ny + 1) * k)
+
+    lines = ["*NODE, NSET=NALL"]
+    for k in range(nz + 1):
+        for j in range(ny + 1):
+            for i in range(nx + 1):
+                x = [scale * size[0] * i / nx, scale * size[1] * j / ny, scale * size[2] * k / nz]
+                lines.append(f"{node(i, j, k)}, {x[0]!r}, {x[1]!r}, {x[2]!r}")
+    lines.append("*ELEMENT, TYPE=C3D8I, ELSET=EALL")
+    number = 1
+    for k in range(nz):
+        for j in range(ny):
+            for i in range(nx):
+                corners = [node(i, j, k), node(i + 1, j, k), node(i + 1, j + 1, k), node(i, j + 1, k),
+                           node(i, j, k + 1), node(i + 1, j, k + 1), node(i + 1, j + 1, k + 1), node(i, j + 1, k + 1)]
+                lines.append(f"{number}, " + ", ".join(map(str, corners)))
+                number += 1
+    lines.append("*NSET, NSET=CLAMPED")
+    lines += [f"{node(0, j, k)}," for k in range(nz + 1) for j in range(ny + 1)]
+    lines += ["*BOUNDARY", "CLAMPED, 1, 3",
+              "*MATERIAL, NAME=MATERIAL", "*ELASTIC", f"{young!r}, {poisson!r}", "*DENSITY", f"{density!r}",
+              "*SOLID SECTION, ELSET=EALL, MATERIAL=MATERIAL",
+              "*STEP", "*FREQUENCY", str(modes), "*NODE FILE", "U", "*END STEP"]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def run_ccx(ccx, deck: Path):
+    proc = subprocess.run([ccx, deck.stem], cwd=deck.parent, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0 and "ERROR" not in proc.stdout, proc.stdout[-2000:] + proc.stderr
+    return deck.with_suffix(".frd")
+
+
+def dat_frequencies(dat: Path):
+    """The frequencies (cycles/time) of ccx's eigenvalue table in the .dat,
+    written apart from the .frd's."""
+    rows = []
+    lines = dat.read_text().splitlines()
+    start = next(k for k, line in enumerate(lines) if "E I G E N V A L U E   O U T P U T" in line)
+    for line in lines[start + 1:]:
+        parts = line.split()
+        if len(parts) == 5 and parts[0].isdigit():
+            rows.append(float(parts[3]))
+        elif rows and not parts:
+            break
+    return np.array(rows)
+
+
+def convert(frd: Path, output: Path, *args):
+    command = [sys.executable, "-m", "nudyn_validation.calculix", str(frd), "-o", str(output), *args]
+    environment = {**os.environ, "PYTHONPATH": str(ROOT / "python")}
+    return subprocess.run(command, capture_output=True, text=True, timeout=120, env=environment)
+
+
+def shape_fractions(modal_file, axis):
+    """Per mode, the share of its (unit) modal mass that moves along `axis` (0, 1, 2)."""
+    masses = np.array([n["mass"] for n in modal_file["nodes"]])
+    return [float(np.sum(masses * np.square(np.array(m["shape"])[:, axis]))) for m in modal_file["modes"]]
+
+
+# Steel cantilever, 1 m × 50 mm × 20 mm, bending about y (vibrating along z) first.
+BEAM = {"size": (1.0, 0.05, 0.02), "young": 210e9, "poisson": 0.3, "density": 7800.0}
+BEAM_MESH = (40, 2, 1)
+# Euler–Bernoulli, clamped–free: the roots λₙL of cos λ cosh λ = −1.
+EULER_BERNOULLI = [1.87510407, 4.69409113, 7.85475744]
+
+
+def euler_bernoulli_mass_share(lam):
+    """The share of a cantilever's mass that mode n moves (its effective mass
+    over the mass): 4σₙ²/λₙ², σₙ = (sinh λₙ − sin λₙ)/(cosh λₙ + cos λₙ)."""
+    sigma = (math.sinh(lam) - math.sin(lam)) / (math.cosh(lam) + math.cos(lam))
+    return 4 * sigma ** 2 / lam ** 2
+
+
+def euler_bernoulli_frequency(lam, size, young, density, **_):
+    length, _, height = size
+    # EI / (ρA) = E h² / (12 ρ) for bending across the height.
+    return lam ** 2 / (2 * math.pi * length ** 2) * math.sqrt(young * height ** 2 / (12 * density))
+
+
+def test_cantilever_beam_against_euler_bernoulli(ccx, nudyn, tmp_path):
+    deck = tmp_path / "beam.inp"
+    write_box_deck(deck, BEAM["size"], BEAM_MESH, young=BEAM["young"], poisson=BEAM["poisson"],
+                   density=BEAM["density"], modes=8)
+    frd = run_ccx(ccx, deck)
+    output = tmp_path / "beam.json"
+    proc = convert(frd, output, "--inp", str(deck), "--density", "7800", "--damping", "0.005")
+    assert proc.returncode == 0, proc.stderr
+    assert "shift" in proc.stdout, proc.stdout
+
+    # The converter's FE frequencies are the .frd's; the .dat lists the same modes apart from it.
+    results = calculix.read_frd(frd)
+    assert [m.frequency for m in results.modes] == pytest.approx(dat_frequencies(deck.with_suffix(".dat")), rel=1e-6)
+
+    modal_file = json.loads(output.read_text())
+    summary_proc = modal(nudyn, output, "--json")
+    assert summary_proc.returncode == 0, summary_proc.stderr  # nudyn's checks: orthogonal, unit modal masses
+    summary = json.loads(summary_proc.stdout)
+    length, width, height = BEAM["size"]
+    assert summary["mass"] == pytest.approx(BEAM["density"] * length * width * height, rel=1e-12)
+    assert summary["com"] == pytest.approx([length / 2, width / 2, height / 2], rel=1e-12)
+    assert summary["fixed_nodes"] == (BEAM_MESH[1] + 1) * (BEAM_MESH[2] + 1)
+    assert all(m["damping_ratio"] == 0.005 for m in summary["modes"])
+    for node in modal_file["nodes"]:
+        assert node.get("rotary_inertia") is None
+    assert all(s[3:] == [0, 0, 0] for m in modal_file["modes"] for s in m["shape"])
+
+    # The bending modes across the height: the modes that move mostly along z.
+    vertical = [k for k, share in enumerate(shape_fractions(modal_file, 2)) if share > 0.9]
+    assert len(vertical) >= 3, shape_fractions(modal_file, 2)
+    for lam, k in zip(EULER_BERNOULLI, vertical):
+        mass_share = euler_bernoulli_mass_share(lam)
+        expected = euler_bernoulli_frequency(lam, **BEAM)
+        frequency = summary["modes"][k]["frequency"]
+        assert frequency == pytest.approx(expected, rel=0.01), (k, frequency, expected)
+        share = summary["modes"][k]["effective_mass_fraction"]["translation"][2]
+        assert share == pytest.approx(mass_share, rel=0.02), (k, share, mass_share)
+    # The sum over the modes kept: at least the three bending modes' 86.6 %, at most
+    # what the nodes that move carry.
+    total_z = summary["effective_mass_fraction"]["translation"][2]
+    moving = 1 - summary["fixed_mass"] / summary["mass"]
+    assert 0.86 < total_z <= moving, (total_z, moving)
+
+
+def test_the_same_beam_in_millimetres_and_tonnes(ccx, nudyn, tmp_path):
+    """A deck in mm, t, s (E in MPa, ρ in t/mm³) gives the same body in SI."""
+    deck = tmp_path / "beam_mm.inp"
+    write_box_deck(deck, BEAM["size"], BEAM_MESH, young=BEAM["young"] * 1e-6, poisson=BEAM["poisson"],
+                   density=BEAM["density"] * 1e-12, modes=3, scale=1000.0)
+    frd = run_ccx(ccx, deck)
+    output = tmp_path / "beam_mm.json"
+    proc = convert(frd, output, "--inp", str(deck), "--density", "7.8e-9", "--length-unit", "mm",
+                   "--mass-unit", "t")
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(output.read_text())["units"] == {"length": "mm", "mass": "t", "frequency": "Hz"}
+    summary = json.loads(modal(nudyn, output, "--json").stdout)
+    length, width, height = BEAM["size"]
+    assert summary["mass"] == pytest.approx(BEAM["density"] * length * width * height, rel=1e-12)
+    first_frequency = euler_bernoulli_frequency(EULER_BERNOULLI[0], **BEAM)
+    assert summary["modes"][0]["frequency"] == pytest.approx(first_frequency, rel=0.01)
+    first_share = euler_bernoulli_mass_share(EULER_BERNOULLI[0])
+    assert summary["modes"][0]["effective_mass_fraction"]["translation"][2] == pytest.approx(first_share, rel=0.02)
+
+
+# Aluminium cantilever plate 0.5 m square, 5 mm thick, clamped along x = 0.
+PLATE = {"size": (0.5, 0.5, 0.005), "young": 70e9, "poisson": 0.3, "density": 2700.0}
+PLATE_MESH = (20, 20, 1)
+# ω a² √(ρh/D) of the first six modes of a square cantilever plate, ν = 0.3
+# (Barton 1951, in Leissa's "Vibration of Plates", 1969).
+LEISSA_CANTILEVER_SQUARE = [3.492, 8.525, 21.43, 27.33, 31.11, 54.44]
+
+
+def test_cantilever_plate_against_kirchhoff(ccx, nudyn, tmp_path):
+    deck = tmp_path / "plate.inp"
+    write_box_deck(deck, PLATE["size"], PLATE_MESH, young=PLATE["young"], poisson=PLATE["poisson"],
+                   density=PLATE["density"], modes=6)
+    frd = run_ccx(ccx, deck)
+    # The body frame: origin at the middle of the clamped edge; body x along the
+    # plate's normal (FE z), body y along FE x, body z along FE y.
+    output = tmp_path / "plate.json"
+    proc = convert(frd, output, "--inp", str(deck), "--density", "2700", "--origin", "0,0.25,0",
+                   "--axes", "0,0,1,1,0,0,0,1,0", "--damping", "0.01,0.01,0.02,0.02,0.03,0.03")
+    assert proc.returncode == 0, proc.stderr
+    summary_proc = modal(nudyn, output, "--json")
+    assert summary_proc.returncode == 0, summary_proc.stderr
+    summary = json.loads(summary_proc.stdout)
+
+    a, _, h = PLATE["size"]
+    assert summary["mass"] == pytest.approx(PLATE["density"] * a * a * h, rel=1e-12)
+    # The centre (a/2, a/2, h/2) in FE coordinates, less the origin, in body axes.
+    assert summary["com"] == pytest.approx([h / 2, a / 2, 0.0], abs=1e-12)
+    rigidity = PLATE["young"] * h ** 3 / (12 * (1 - PLATE["poisson"] ** 2))
+    scale = math.sqrt(rigidity / (PLATE["density"] * h)) / (2 * math.pi * a * a)
+    frequencies = [m["frequency"] for m in summary["modes"]]
+    assert frequencies == pytest.approx([lam * scale for lam in LEISSA_CANTILEVER_SQUARE], rel=0.015)
+    assert [m["damping_ratio"] for m in summary["modes"]] == [0.01, 0.01, 0.02, 0.02, 0.03, 0.03]
+    # The first mode bends the plate along its normal, body x: about as much
+    # mass as a cantilever beam's first mode, and nothing in the plane.
+    first = summary["modes"][0]["effective_mass_fraction"]["translation"]
+    assert first[0] == pytest.approx(euler_bernoulli_mass_share(EULER_BERNOULLI[0]), rel=0.03), first
+    assert max(first[1:]) < 1e-6, first
+    total = summary["effective_mass_fraction"]["translation"][0]
+    assert total <= 1 - summary["fixed_mass"] / summary["mass"]
+
+
+def test_the_finite_element_modes_as_they_come_are_refused(ccx, nudyn, tmp_path):
+    """Why the converter solves again: CalculiX's modes, orthogonal in its
+    consistent mass, are not in the nodes' lumped masses, and nudyn says so."""
+    deck = tmp_path / "beam.inp"
+    write_box_deck(deck, BEAM["size"], (10, 1, 1), young=BEAM["young"], poisson=BEAM["poisson"],
+                   density=BEAM["density"], modes=3)
+    results = calculix.read_frd(run_ccx(ccx, deck))
+    masses = calculix.lumped_masses(results.nodes, results.elements, BEAM["density"])
+    numbers = sorted(masses)
+    raw = {"format": "nudyn-modal", "version": 1, "mass_normalized": False,
+           "nodes": [{"name": f"n{n}", "position": list(results.nodes[n]), "mass": masses[n]} for n in numbers],
+           "modes": [{"frequency": m.frequency, "damping_ratio": 0.0,
+                      "shape": [[*m.shape[n], 0, 0, 0] for n in numbers]} for m in results.modes]}
+    path = tmp_path / "raw.json"
+    path.write_text(json.dumps(raw))
+    proc = modal(nudyn, path)
+    assert proc.returncode == 1 and "are not orthogonal in the nodes' mass" in proc.stderr, proc.stderr
+
+    output = tmp_path / "converted.json"
+    assert convert(deck.with_suffix(".frd"), output, "--density", "7800").returncode == 0
+    assert modal(nudyn, output).returncode == 0
+
+
+def test_converter_refuses_what_it_cannot_use(ccx, tmp_path):
+    deck = tmp_path / "beam.inp"
+    write_box_deck(deck, BEAM["size"], (10, 1, 1), young=BEAM["young"], poisson=BEAM["poisson"],
+                   density=BEAM["density"], modes=3)
+    frd = run_ccx(ccx, deck)
+    output = tmp_path / "out.json"
+    cases = [
+        (["--density", "7800", "--modes", "4"], "--modes 4: the results hold 3 such modes"),
+        (["--density", "7800", "--damping", "0.01,0.02"], "--damping has 2 values; give one, or one per mode (3)"),
+        (["--density", "7800", "--axes", "1,0,0,0,1,0,0,0,2"], "are not three orthonormal right-handed axes"),
+        (["--density", "0"], "--density is 0.0; it must be positive"),
+        (["--density", "7800", "--max-frequency", "1"], "no mode is chosen"),
+    ]
+    for args, message in cases:
+        proc = convert(frd, output, *args)
+        assert proc.returncode == 2 and message in proc.stderr, (args, proc.stderr)
+        assert not output.exists()
