@@ -155,7 +155,12 @@ fn g(x: f64) -> String {
 }
 
 fn table(s: &Summary) -> String {
-    let inertia = |m: &[[f64; 3]; 3]| [m[0][0], m[1][1], m[2][2], m[0][1], m[0][2], m[1][2]].map(g).join(" ");
+    // Round-off in the products of inertia (1e-18 beside 0.07) shows as 0.
+    let inertia = |m: &[[f64; 3]; 3]| {
+        let entries = [m[0][0], m[1][1], m[2][2], m[0][1], m[0][2], m[1][2]];
+        let scale = entries.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
+        entries.map(|x| g(if x.abs() <= 1e-12 * scale { 0.0 } else { x })).join(" ")
+    };
     let percent = |f: Option<f64>| f.map_or("-".to_string(), |f| format!("{:.2}", 100.0 * f));
     let mut out = format!(
         "{}: {} nodes ({} that no mode moves, {} kg), {} modes\n\

@@ -334,6 +334,28 @@ def convert(results: FrdResults, density: float, *, coordinates: dict[int, tuple
     return Conversion(modal_file, np.array([m.frequency for m in chosen]), frequencies)
 
 
+def layout(modal_file: dict) -> str:
+    """The file as JSON a person can read: a line per node, and per node of a
+    mode's shape (numbers in full: nudyn checks orthogonality to 1e-6)."""
+    head = {k: v for k, v in modal_file.items() if k not in ("nodes", "modes")}
+    lines = ["{"] + [f" {json.dumps(k)}: {json.dumps(v)}," for k, v in head.items()]
+    lines.append(' "nodes": [')
+    lines += [f"  {json.dumps(node)}," for node in modal_file["nodes"]]
+    lines[-1] = lines[-1].rstrip(",")
+    lines.append(" ],")
+    lines.append(' "modes": [')
+    for mode in modal_file["modes"]:
+        lines.append(f'  {{"frequency": {json.dumps(mode["frequency"])}, '
+                     f'"damping_ratio": {json.dumps(mode["damping_ratio"])}, "shape": [')
+        lines += [f"   {json.dumps(row)}," for row in mode["shape"]]
+        lines[-1] = lines[-1].rstrip(",")
+        lines.append("  ]},")
+    lines[-1] = lines[-1].rstrip(",")
+    lines.append(" ]")
+    lines.append("}")
+    return "\n".join(lines) + "\n"
+
+
 def _numbers(text: str) -> list[float]:
     return [float(v) for v in text.replace(",", " ").split()]
 
@@ -371,7 +393,7 @@ def main(argv: list[str] | None = None) -> int:
     except (ConversionError, OSError, ValueError) as error:
         print(f"nudyn_validation.calculix: error: {error}", file=sys.stderr)
         return 2
-    args.output.write_text(json.dumps(conversion.modal_file, indent=1) + "\n")
+    args.output.write_text(layout(conversion.modal_file))
     total = sum(n["mass"] for n in conversion.modal_file["nodes"])
     print(f"{args.output}: {len(conversion.modal_file['nodes'])} nodes, {total:.6g} {args.mass_unit}, "
           f"{len(conversion.frequencies)} modes (frequencies in the lumped mass against the FE's):")
