@@ -84,6 +84,32 @@ def test_modal_refuses_a_bad_file_naming_the_file_and_the_field(nudyn, tmp_path)
 # --- the converter, on meshes made here ----------------------------------------
 
 
+def test_lumped_masses_of_distorted_elements():
+    """Row sums on elements that are not parallelepipeds: a hexahedron whose
+    cross-section is a trapezoid (parallel sides 2 and 1, height 1, depth 1)
+    has volume 1.5 = Σ ∫ Nᵢ dV, and its nodes on the long side carry more;
+    a tetrahedron's nodes carry a quarter each; an inverted element is refused."""
+    # Bottom face z = 0 has the long side (x from 0 to 2), top face z = 1 the short one.
+    corners = [(0, 0, 0), (2, 0, 0), (2, 1, 0), (0, 1, 0), (0.5, 0, 1), (1.5, 0, 1), (1.5, 1, 1), (0.5, 1, 1)]
+    nodes = {k + 1: c for k, c in enumerate(corners)}
+    masses = calculix.lumped_masses(nodes, {1: (calculix.HEXAHEDRON, list(range(1, 9)))}, density=2.0)
+    assert sum(masses.values()) == pytest.approx(2.0 * 1.5, rel=1e-14)
+    bottom, top = [masses[k] for k in (1, 2, 3, 4)], [masses[k] for k in (5, 6, 7, 8)]
+    assert bottom == pytest.approx([bottom[0]] * 4) and top == pytest.approx([top[0]] * 4)
+    # ∫ Nᵢ dV for a bottom node: the width 2 − z falls linearly; the shares are
+    # ∫₀¹ (1 − z)(2 − z) dz / 4 · ρ = (5/6)/4 · 2 and ∫₀¹ z(2 − z) dz / 4 · ρ = (2/3)/4 · 2.
+    assert bottom[0] == pytest.approx(2.0 * 5 / 24, rel=1e-14) and top[0] == pytest.approx(2.0 * 1 / 6, rel=1e-14)
+
+    tetrahedron = {1: (0, 0, 0), 2: (3, 0, 0), 3: (0, 2, 0), 4: (0, 0, 1)}
+    masses = calculix.lumped_masses(tetrahedron, {7: (calculix.TETRAHEDRON, [1, 2, 3, 4])}, density=1.0)
+    assert list(masses.values()) == pytest.approx([0.25] * 4, rel=1e-14)  # volume 3·2·1/6 = 1
+
+    with pytest.raises(calculix.ConversionError, match="element 7 is inverted"):
+        calculix.lumped_masses(tetrahedron, {7: (calculix.TETRAHEDRON, [1, 3, 2, 4])}, density=1.0)
+    with pytest.raises(calculix.ConversionError, match="element 9 is a 20-node hexahedron"):
+        calculix.lumped_masses(nodes, {9: (4, list(range(1, 9)) * 2 + [1, 2, 3, 4])}, density=1.0)
+
+
 @pytest.fixture(scope="module")
 def ccx():
     """CalculiX's solver; fails (never skips) when it is missing: scripts/setup-test.sh installs calculix-ccx."""
