@@ -98,57 +98,62 @@ def read_frd(path: Path) -> FrdResults:
     def where(k: int) -> str:
         return f"{path}:{k + 1}"
 
-    while i < len(lines):
-        line = lines[i]
-        key = line[:6].strip()
-        if key == "2C":
-            i += 1
-            while lines[i].startswith(" -1"):
-                row = lines[i]
-                nodes[int(row[3:13])] = (_fixed_float(row, 13), _fixed_float(row, 25), _fixed_float(row, 37))
+    try:
+        while i < len(lines):
+            line = lines[i]
+            key = line[:6].strip()
+            if key == "2C":
                 i += 1
-            continue
-        if key == "3C":
-            i += 1
-            while lines[i].startswith(" -1"):
-                head = lines[i].split()
-                number, kind = int(head[1]), int(head[2])
-                members: list[int] = []
-                i += 1
-                while lines[i].startswith(" -2"):
-                    members += [int(x) for x in lines[i][3:].split()]
-                    i += 1
-                if kind in NODES_PER_TYPE and len(members) != NODES_PER_TYPE[kind]:
-                    raise ConversionError(f"{where(i)}: element {number} has {len(members)} nodes; "
-                                          f"a {FRD_TYPE_NAMES[kind]} has {NODES_PER_TYPE[kind]}")
-                elements[number] = (kind, members)
-            continue
-        if line.startswith("    1PGM"):
-            generalized_mass = float(line[8:].split()[0])
-        elif line.startswith("    1PMODE"):
-            mode_number = int(line[10:].split()[0])
-        elif line.startswith("  100CL"):
-            # The header of a result block: its value is the frequency
-            # (cycles per time unit) in a frequency step, whose blocks follow a 1PMODE line.
-            frequency = float(line[12:24])
-            block = lines[i + 1].split()
-            if mode_number is not None and len(block) >= 2 and block[0] == "-4" and block[1] == "DISP":
-                if mode_number != len(modes) + 1:
-                    raise ConversionError(f"{where(i)}: mode {mode_number} follows mode {len(modes)}: "
-                                          "convert the results of one *FREQUENCY step")
-                mode = FrdMode(number=mode_number, frequency=frequency, generalized_mass=generalized_mass)
-                i += 2
-                while lines[i].startswith(" -5"):
-                    i += 1
                 while lines[i].startswith(" -1"):
                     row = lines[i]
-                    mode.shape[int(row[3:13])] = (_fixed_float(row, 13), _fixed_float(row, 25),
-                                                  _fixed_float(row, 37))
+                    nodes[int(row[3:13])] = (_fixed_float(row, 13), _fixed_float(row, 25), _fixed_float(row, 37))
                     i += 1
-                modes.append(mode)
-                generalized_mass, mode_number = 1.0, None
                 continue
-        i += 1
+            if key == "3C":
+                i += 1
+                while lines[i].startswith(" -1"):
+                    head = lines[i].split()
+                    number, kind = int(head[1]), int(head[2])
+                    members: list[int] = []
+                    i += 1
+                    while lines[i].startswith(" -2"):
+                        members += [int(x) for x in lines[i][3:].split()]
+                        i += 1
+                    if kind in NODES_PER_TYPE and len(members) != NODES_PER_TYPE[kind]:
+                        raise ConversionError(f"{where(i)}: element {number} has {len(members)} nodes; "
+                                              f"a {FRD_TYPE_NAMES[kind]} has {NODES_PER_TYPE[kind]}")
+                    elements[number] = (kind, members)
+                continue
+            if line.startswith("    1PGM"):
+                generalized_mass = float(line[8:].split()[0])
+            elif line.startswith("    1PMODE"):
+                mode_number = int(line[10:].split()[0])
+            elif line.startswith("  100CL"):
+                # The header of a result block: its value is the frequency
+                # (cycles per time unit) in a frequency step, whose blocks follow a 1PMODE line.
+                frequency = float(line[12:24])
+                block = lines[i + 1].split()
+                if mode_number is not None and len(block) >= 2 and block[0] == "-4" and block[1] == "DISP":
+                    if mode_number != len(modes) + 1:
+                        raise ConversionError(f"{where(i)}: mode {mode_number} follows mode {len(modes)}: "
+                                              "convert the results of one *FREQUENCY step")
+                    mode = FrdMode(number=mode_number, frequency=frequency, generalized_mass=generalized_mass)
+                    i += 2
+                    while lines[i].startswith(" -5"):
+                        i += 1
+                    while lines[i].startswith(" -1"):
+                        row = lines[i]
+                        mode.shape[int(row[3:13])] = (_fixed_float(row, 13), _fixed_float(row, 25),
+                                                      _fixed_float(row, 37))
+                        i += 1
+                    modes.append(mode)
+                    generalized_mass, mode_number = 1.0, None
+                    continue
+            i += 1
+    except IndexError:
+        raise ConversionError(f"{path} ends inside a block: is the file whole?") from None
+    except ValueError as error:
+        raise ConversionError(f"{where(i)}: {error}: not a line CalculiX writes") from None
     if not nodes:
         raise ConversionError(f"{path}: no nodes (no 2C block): is this a CalculiX .frd?")
     if not elements:

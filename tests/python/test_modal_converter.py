@@ -353,3 +353,15 @@ def test_converter_refuses_what_it_cannot_use(ccx, tmp_path):
         proc = convert(frd, output, *args)
         assert proc.returncode == 2 and message in proc.stderr, (args, proc.stderr)
         assert not output.exists()
+
+    text = frd.read_text()
+    cut = tmp_path / "cut.frd"
+    cut.write_text(text[:text.index("\n", 5000) + 1])  # a whole line, then nothing
+    proc = convert(cut, output, "--density", "7800")
+    assert proc.returncode == 2 and "cut.frd ends inside a block" in proc.stderr, proc.stderr
+    lines = text.splitlines()
+    broken = next(k for k, line in enumerate(lines) if line.startswith(" -1") and k > 100)
+    lines[broken] = lines[broken][:20]  # a coordinate cut short
+    cut.write_text("\n".join(lines) + "\n")
+    proc = convert(cut, output, "--density", "7800")
+    assert proc.returncode == 2 and f"cut.frd:{broken + 1}: " in proc.stderr, proc.stderr
