@@ -9,10 +9,10 @@ frequency and generalized mass, and each mode's shape; optionally the
 
 nudyn holds the modes orthogonal in the nodes' lumped masses, where a
 finite-element model has a consistent mass matrix. So the converter lumps
-the mass at the nodes (each element's ∫ρ Nᵢ dV, the row sums of its
-consistent mass: an equal share of a tetrahedron's mass per node, and of a
-parallelepiped hexahedron's), then solves the eigenproblem again in the
-span Φ of the chosen finite-element modes (a Ritz step):
+the mass at the nodes (a linear element's ∫ρ Nᵢ dV, the row sums of its
+consistent mass; a quadratic element's mass in proportion to the diagonal
+∫ρ Nᵢ² dV, HRZ), then solves the eigenproblem again in the span Φ of the
+chosen finite-element modes (a Ritz step):
 
     K_r = Φᵀ K Φ = diag(ω²ᵢ gᵢ)     (the FE modes' own orthogonality; gᵢ
                                       their generalized mass, 1 in CalculiX)
@@ -20,7 +20,8 @@ span Φ of the chosen finite-element modes (a Ritz step):
     K_r q = ω̃² M_r q,   shapes Φ q
 
 whose modes are exactly orthogonal in the lumped masses, with unit modal
-mass. It reports the frequency each mode moves by.
+mass. It reports the frequency each mode moves by, and warns of FE modes
+whose modal mass in the lumped masses is far from their own.
 
 Solid elements carry translations only: every node's rotations and rotary
 inertia are 0. Nodes that the finite-element model clamps (the interface
@@ -45,10 +46,12 @@ FORMAT = "nudyn-modal"
 VERSION = 1
 
 # CalculiX's element types in the .frd (its manual, "Result (.frd) file"),
-# the ones whose mass the converter lumps: 8-node hexahedra (C3D8, C3D8R,
-# C3D8I) and 4-node tetrahedra (C3D4).
+# the ones whose mass the converter lumps: hexahedra of 8 nodes (C3D8,
+# C3D8R, C3D8I) and 20 (C3D20, C3D20R), tetrahedra of 4 (C3D4) and 10 (C3D10).
 HEXAHEDRON = 1
 TETRAHEDRON = 3
+HEXAHEDRON20 = 4
+TETRAHEDRON10 = 6
 FRD_TYPE_NAMES = {1: "8-node hexahedron", 2: "6-node wedge", 3: "4-node tetrahedron",
                   4: "20-node hexahedron", 5: "15-node wedge", 6: "10-node tetrahedron",
                   7: "3-node triangle", 8: "6-node triangle", 9: "4-node quadrilateral",
@@ -188,51 +191,94 @@ def read_inp_nodes(path: Path) -> dict[int, tuple[float, float, float]]:
     return nodes
 
 
-# Gauss points of the trilinear hexahedron's exact row sums: ∫ Nᵢ det J is a
-# polynomial of degree at most 3 in each coordinate, which 2 points integrate exactly.
-_GAUSS = np.array([-1.0, 1.0]) / math.sqrt(3.0)
 _HEX_CORNERS = np.array([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1],
                          [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], dtype=float)
+# The 20-node hexahedron's mid-edge nodes in the .frd's order, which is the
+# deck's (C3D20, C3D20R) with its nodes 17–20 (the edges from the bottom face
+# to the top) before 13–16 (the top face's edges).
+_HEX20_MIDDLES = np.array([[0, -1, -1], [1, 0, -1], [0, 1, -1], [-1, 0, -1],
+                           [-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0],
+                           [0, -1, 1], [1, 0, 1], [0, 1, 1], [-1, 0, 1]], dtype=float)
+
+
+def _gauss(points: int):
+    """Gauss–Legendre points and weights on [−1, 1]³."""
+    x, w = np.polynomial.legendre.leggauss(points)
+    return [(np.array([a, b, c]), w[i] * w[j] * w[k])
+            for i, a in enumerate(x) for j, b in enumerate(x) for k, c in enumerate(x)]
+
+
+def _corner_jacobian(corners: np.ndarray, p: np.ndarray) -> float:
+    """det ∂x/∂ξ of the trilinear map through the 8 corners (straight edges)."""
+    dn = np.empty((8, 3))
+    for a in range(3):
+        others = [b for b in range(3) if b != a]
+        dn[:, a] = _HEX_CORNERS[:, a] * np.prod(1.0 + _HEX_CORNERS[:, others] * p[others], axis=1) / 8.0
+    return float(np.linalg.det(dn.T @ corners))
 
 
 def _hexahedron_shares(x: np.ndarray) -> np.ndarray:
-    """∫ Nᵢ dV over a trilinear hexahedron with corners x (8 × 3, CalculiX's order)."""
+    """Row sums ∫ Nᵢ dV over an 8-node hexahedron: Nᵢ det J is of degree at
+    most 3 in each coordinate, which 2 Gauss points integrate exactly."""
     shares = np.zeros(8)
-    for xi in _GAUSS:
-        for eta in _GAUSS:
-            for zeta in _GAUSS:
-                p = np.array([xi, eta, zeta])
-                n = np.prod(1.0 + _HEX_CORNERS * p, axis=1) / 8.0
-                # dN/dξ: derivative of each factor in turn.
-                dn = np.empty((8, 3))
-                for a in range(3):
-                    others = [b for b in range(3) if b != a]
-                    dn[:, a] = _HEX_CORNERS[:, a] * np.prod(1.0 + _HEX_CORNERS[:, others] * p[others], axis=1) / 8.0
-                jacobian = dn.T @ x
-                shares += n * np.linalg.det(jacobian)
+    for p, weight in _gauss(2):
+        n = np.prod(1.0 + _HEX_CORNERS * p, axis=1) / 8.0
+        shares += weight * n * _corner_jacobian(x, p)
     return shares
 
 
+def _hexahedron20_shares(x: np.ndarray) -> np.ndarray:
+    """A 20-node hexahedron's volume shared in proportion to ∫ Nᵢ² dV, the
+    diagonal of its consistent mass (HRZ lumping: its row sums give the
+    corners negative mass). Geometry from the corners (straight edges);
+    3 Gauss points, exact for a parallelepiped."""
+    diagonal = np.zeros(20)
+    volume = 0.0
+    for p, weight in _gauss(3):
+        c = _HEX_CORNERS
+        corner = np.prod(1.0 + c * p, axis=1) / 8.0 * (c @ p - 2.0)
+        m = _HEX20_MIDDLES
+        # 1 − ξ² along the edge's own direction (its zero coordinate), linear across.
+        middle = np.prod(np.where(m == 0, 1.0 - p ** 2, 1.0 + m * p), axis=1) / 4.0
+        n = np.concatenate([corner, middle])
+        jacobian = _corner_jacobian(x[:8], p)
+        diagonal += weight * n ** 2 * jacobian
+        volume += weight * jacobian
+    return volume * diagonal / diagonal.sum()
+
+
 def _tetrahedron_shares(x: np.ndarray) -> np.ndarray:
-    volume = np.linalg.det(x[1:] - x[0]) / 6.0
+    volume = np.linalg.det(x[1:4] - x[0]) / 6.0
     return np.full(4, volume / 4.0)
+
+
+def _tetrahedron10_shares(x: np.ndarray) -> np.ndarray:
+    """HRZ lumping of a straight-edged 10-node tetrahedron: with ∫ L⁴ = V/35,
+    ∫ L³ = V/20, ∫ L² = V/10 and ∫ L₁²L₂² = V/210, a corner's ∫ Nᵢ² dV is
+    V/70 and a mid-edge node's 8V/105; shared in that proportion, each
+    corner gets V/36 and each mid-edge node 4V/27."""
+    volume = np.linalg.det(x[1:4] - x[0]) / 6.0
+    return volume * np.array([1 / 36] * 4 + [4 / 27] * 6)
+
+
+# How each element type's volume is shared among its nodes (the .frd's types).
+_SHARES = {HEXAHEDRON: _hexahedron_shares, TETRAHEDRON: _tetrahedron_shares,
+           HEXAHEDRON20: _hexahedron20_shares, TETRAHEDRON10: _tetrahedron10_shares}
 
 
 def lumped_masses(nodes: dict[int, tuple[float, float, float]], elements: dict[int, tuple[int, list[int]]],
                   density: float) -> dict[int, float]:
-    """Each node's share of the mass: the row sums ρ ∫ Nᵢ dV of the elements'
-    consistent mass matrices, summed over the elements around it."""
+    """Each node's share of the mass, summed over the elements around it:
+    for linear elements the row sums ρ ∫ Nᵢ dV of their consistent mass
+    matrices, for quadratic ones their diagonals scaled to the element's
+    mass (HRZ)."""
     mass: dict[int, float] = {}
     for number, (kind, members) in elements.items():
-        x = np.array([nodes[n] for n in members])
-        if kind == HEXAHEDRON:
-            shares = _hexahedron_shares(x)
-        elif kind == TETRAHEDRON:
-            shares = _tetrahedron_shares(x)
-        else:
+        if kind not in _SHARES:
             name = FRD_TYPE_NAMES.get(kind, f"type {kind}")
-            raise ConversionError(f"element {number} is a {name}: the converter lumps the mass of 8-node "
-                                  "hexahedra (C3D8, C3D8R, C3D8I) and 4-node tetrahedra (C3D4) only")
+            raise ConversionError(f"element {number} is a {name}: the converter lumps the mass of solid "
+                                  "hexahedra (C3D8, C3D8R, C3D8I, C3D20, C3D20R) and tetrahedra (C3D4, C3D10) only")
+        shares = _SHARES[kind](np.array([nodes[n] for n in members]))
         if np.any(shares <= 0.0):
             raise ConversionError(f"element {number} is inverted or degenerate (a node's share of its volume "
                                   f"is {shares.min():.3e})")
@@ -248,12 +294,22 @@ class Conversion:
     modal_file: dict
     fe_frequencies: np.ndarray  # Hz, of the chosen FE modes
     frequencies: np.ndarray  # Hz, in the lumped mass
+    # Each FE mode's modal mass in the lumped masses over its own (generalized) mass.
+    modal_mass_ratios: np.ndarray
 
     def report(self) -> str:
-        rows = ["mode  FE (Hz)        lumped (Hz)    shift"]
-        for k, (fe, lumped) in enumerate(zip(self.fe_frequencies, self.frequencies)):
-            rows.append(f"{k + 1:<5} {fe:<14.6g} {lumped:<14.6g} {100 * (lumped / fe - 1):+.3f} %")
+        rows = ["mode  FE (Hz)        lumped (Hz)    shift       FE mode's modal mass, lumped/FE"]
+        for k, (fe, lumped, ratio) in enumerate(zip(self.fe_frequencies, self.frequencies, self.modal_mass_ratios)):
+            rows.append(f"{k + 1:<5} {fe:<14.6g} {lumped:<14.6g} {100 * (lumped / fe - 1):+7.3f} %   {ratio:.4g}")
         return "\n".join(rows)
+
+    def warnings(self) -> list[str]:
+        """FE modes that the lumped masses weigh far from their own modal
+        mass: node-to-node oscillations of a mesh too coarse (or of spurious
+        modes) that a consistent mass hides."""
+        return [f"FE mode {k + 1} has {ratio:.3g} times its modal mass in the lumped masses: the mesh is too "
+                "coarse for lumped masses, or the mode is spurious (refine the mesh)"
+                for k, ratio in enumerate(self.modal_mass_ratios) if not 0.5 <= ratio <= 2.0]
 
 
 def body_frame(origin: list[float] | None, axes: list[float] | None) -> tuple[np.ndarray, np.ndarray]:
@@ -336,7 +392,8 @@ def convert(results: FrdResults, density: float, *, coordinates: dict[int, tuple
                    "shape": [[float(s[0]), float(s[1]), float(s[2]), 0.0, 0.0, 0.0] for s in shape]}
                   for f, z, shape in zip(frequencies, damping, shapes)],
     }
-    return Conversion(modal_file, np.array([m.frequency for m in chosen]), frequencies)
+    ratios = np.diag(m_r) / np.array([m.generalized_mass for m in chosen])
+    return Conversion(modal_file, np.array([m.frequency for m in chosen]), frequencies, ratios)
 
 
 def layout(modal_file: dict) -> str:
@@ -403,6 +460,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{args.output}: {len(conversion.modal_file['nodes'])} nodes, {total:.6g} {args.mass_unit}, "
           f"{len(conversion.frequencies)} modes (frequencies in the lumped mass against the FE's):")
     print(conversion.report())
+    for warning in conversion.warnings():
+        print(f"nudyn_validation.calculix: warning: {warning}", file=sys.stderr)
     return 0
 
 

@@ -4,7 +4,8 @@ structural solver"; issue 49, item 5).
 The CLI's summary is checked against values worked by hand on the fixture
 tests/fixtures/flex/bench.json. The converter is shown on a cantilever
 beam and a cantilever plate that the tests mesh themselves (structured
-8-node hexahedra, C3D8I, written as a CalculiX deck) and run through ccx
+grids of 8-node hexahedra, C3D8I, and for the beam also of 20-node
+hexahedra and 10-node tetrahedra, written as a CalculiX deck) and run through ccx
 in a temporary folder: the frequencies against Euler–Bernoulli and
 Leissa's Kirchhoff-plate values, the converted file through `nudyn modal`
 (every check of nudyn's reader, the mass, the effective masses)."""
@@ -106,8 +107,23 @@ def test_lumped_masses_of_distorted_elements():
 
     with pytest.raises(calculix.ConversionError, match="element 7 is inverted"):
         calculix.lumped_masses(tetrahedron, {7: (calculix.TETRAHEDRON, [1, 3, 2, 4])}, density=1.0)
-    with pytest.raises(calculix.ConversionError, match="element 9 is a 20-node hexahedron"):
-        calculix.lumped_masses(nodes, {9: (4, list(range(1, 9)) * 2 + [1, 2, 3, 4])}, density=1.0)
+    with pytest.raises(calculix.ConversionError, match="element 9 is a 6-node wedge"):
+        calculix.lumped_masses(nodes, {9: (2, [1, 2, 3, 4, 5, 6])}, density=1.0)
+
+
+def test_lumped_masses_of_a_20_node_hexahedron():
+    """HRZ on a box 2 × 1 × 1: the diagonal of the consistent mass, ∫ Nᵢ² dV,
+    is in the ratio 7 : 16 between a corner and a mid-edge node (worked by
+    hand on the cube [−1, 1]³: 0.20741 and 64/135), so the corners get 7/248
+    of the mass each and the mid-edge nodes 16/248."""
+    corners = np.array([(0, 0, 0), (2, 0, 0), (2, 1, 0), (0, 1, 0), (0, 0, 1), (2, 0, 1), (2, 1, 1), (0, 1, 1)], float)
+    # The .frd's order: the bottom face's edges, the vertical edges, the top face's edges.
+    edges = [(0, 1), (1, 2), (2, 3), (3, 0), (0, 4), (1, 5), (2, 6), (3, 7), (4, 5), (5, 6), (6, 7), (7, 4)]
+    points = list(corners) + [(corners[a] + corners[b]) / 2 for a, b in edges]
+    nodes = {k + 1: tuple(p) for k, p in enumerate(points)}
+    masses = calculix.lumped_masses(nodes, {1: (calculix.HEXAHEDRON20, list(range(1, 21)))}, density=3.0)
+    shares = np.array([masses[k] for k in range(1, 21)]) / (3.0 * 2.0)
+    assert shares == pytest.approx([7 / 248] * 8 + [16 / 248] * 12, rel=1e-12)
 
 
 @pytest.fixture(scope="module")
@@ -120,34 +136,63 @@ def ccx():
     return path
 
 
-def write_box_deck(path: Path, size, divisions, *, young, poisson, density, modes, scale=1.0):
-    """A CalculiX deck of a box [0, size] meshed by divisions of 8-node
-    hexahedra with incompatible modes (C3D8I, good in bending with one
-    element through the thickness), clamped on its face x = 0, with a
-    *FREQUENCY step writing the modes' displacements. Lengths are written
-    times `scale` (1000 for a deck in mm)."""
+# Kuhn's six tetrahedra of a cube, as paths from corner (0, 0, 0) to (1, 1, 1)
+# along the axes in each order: they meet face to face across a structured grid.
+KUHN_PATHS = [(0, 1, 2), (0, 2, 1), (1, 0, 2), (1, 2, 0), (2, 0, 1), (2, 1, 0)]
+
+
+def write_box_deck(path: Path, size, divisions, *, young, poisson, density, modes, element="C3D8I", scale=1.0):
+    """A CalculiX deck of a box [0, size] meshed on a grid of divisions,
+    clamped on its face x = 0, with a *FREQUENCY step writing the modes'
+    displacements. Elements: C3D8I (8-node hexahedra with incompatible
+    modes, good in bending with one element through the thickness), C3D20R
+    (20-node hexahedra) or C3D10 (10-node tetrahedra, six per grid cell).
+    Lengths are written times `scale` (1000 for a deck in mm)."""
     nx, ny, nz = divisions
 
+    # Nodes on a grid of half cells, so that mid-edge nodes have indices too.
     def node(i, j, k):
-        return 1 + i + (nx + 1) * (j + (ny + 1) * k)
+        return 1 + i + (2 * nx + 1) * (j + (2 * ny + 1) * k)
 
+    def middle(a, b):
+        return node(*[(p + q) // 2 for p, q in zip(a, b)])
+
+    elements = []
+    for i, j, k in np.ndindex(nx, ny, nz):
+        cube = [(2 * (i + di), 2 * (j + dj), 2 * (k + dk))
+                for dk in (0, 1) for dj, di in ((0, 0), (0, 1), (1, 1), (1, 0))]  # CalculiX's corner order
+        if element == "C3D8I":
+            elements.append([node(*c) for c in cube])
+        elif element == "C3D20R":
+            edges = [(0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4), (0, 4), (1, 5), (2, 6), (3, 7)]
+            elements.append([node(*c) for c in cube] + [middle(cube[a], cube[b]) for a, b in edges])
+        elif element == "C3D10":
+            for axes in KUHN_PATHS:
+                corner = [2 * i, 2 * j, 2 * k]
+                corners = [tuple(corner)]
+                for axis in axes:
+                    corner[axis] += 2
+                    corners.append(tuple(corner))
+                if np.linalg.det(np.subtract(corners[1:], corners[0])) < 0:
+                    corners[1], corners[2] = corners[2], corners[1]
+                edges = [(0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3)]
+                elements.append([node(*c) for c in corners] + [middle(corners[a], corners[b]) for a, b in edges])
+    used = sorted({n for members in elements for n in members})
     lines = ["*NODE, NSET=NALL"]
-    for k in range(nz + 1):
-        for j in range(ny + 1):
-            for i in range(nx + 1):
-                x = [scale * size[0] * i / nx, scale * size[1] * j / ny, scale * size[2] * k / nz]
-                lines.append(f"{node(i, j, k)}, {x[0]!r}, {x[1]!r}, {x[2]!r}")
-    lines.append("*ELEMENT, TYPE=C3D8I, ELSET=EALL")
-    number = 1
-    for k in range(nz):
-        for j in range(ny):
-            for i in range(nx):
-                corners = [node(i, j, k), node(i + 1, j, k), node(i + 1, j + 1, k), node(i, j + 1, k),
-                           node(i, j, k + 1), node(i + 1, j, k + 1), node(i + 1, j + 1, k + 1), node(i, j + 1, k + 1)]
-                lines.append(f"{number}, " + ", ".join(map(str, corners)))
-                number += 1
+    for n in used:
+        i, rest = (n - 1) % (2 * nx + 1), (n - 1) // (2 * nx + 1)
+        j, k = rest % (2 * ny + 1), rest // (2 * ny + 1)
+        x = [scale * size[0] * i / (2 * nx), scale * size[1] * j / (2 * ny), scale * size[2] * k / (2 * nz)]
+        lines.append(f"{n}, {x[0]!r}, {x[1]!r}, {x[2]!r}")
+    lines.append(f"*ELEMENT, TYPE={element}, ELSET=EALL")
+    for number, members in enumerate(elements, start=1):
+        # At most 16 numbers on a line of the deck; the rest continue on the next.
+        lines.append(f"{number}, " + ", ".join(map(str, members[:15])) + ("," if len(members) > 15 else ""))
+        if len(members) > 15:
+            lines.append(", ".join(map(str, members[15:])))
+    clamped = [n for n in used if (n - 1) % (2 * nx + 1) == 0]
     lines.append("*NSET, NSET=CLAMPED")
-    lines += [f"{node(0, j, k)}," for k in range(nz + 1) for j in range(ny + 1)]
+    lines += [f"{n}," for n in clamped]
     lines += ["*BOUNDARY", "CLAMPED, 1, 3",
               "*MATERIAL, NAME=MATERIAL", "*ELASTIC", f"{young!r}, {poisson!r}", "*DENSITY", f"{density!r}",
               "*SOLID SECTION, ELSET=EALL, MATERIAL=MATERIAL",
@@ -208,14 +253,15 @@ def euler_bernoulli_frequency(lam, size, young, density, **_):
     return lam ** 2 / (2 * math.pi * length ** 2) * math.sqrt(young * height ** 2 / (12 * density))
 
 
-def test_cantilever_beam_against_euler_bernoulli(ccx, nudyn, tmp_path):
+@pytest.mark.parametrize("element, mesh", [("C3D8I", BEAM_MESH), ("C3D20R", (20, 2, 1)), ("C3D10", (20, 2, 1))])
+def test_cantilever_beam_against_euler_bernoulli(ccx, nudyn, tmp_path, element, mesh):
     deck = tmp_path / "beam.inp"
-    write_box_deck(deck, BEAM["size"], BEAM_MESH, young=BEAM["young"], poisson=BEAM["poisson"],
-                   density=BEAM["density"], modes=8)
+    write_box_deck(deck, BEAM["size"], mesh, young=BEAM["young"], poisson=BEAM["poisson"],
+                   density=BEAM["density"], modes=8, element=element)
     frd = run_ccx(ccx, deck)
     output = tmp_path / "beam.json"
     proc = convert(frd, output, "--inp", str(deck), "--density", "7800", "--damping", "0.005")
-    assert proc.returncode == 0, proc.stderr
+    assert proc.returncode == 0 and "warning" not in proc.stderr, proc.stderr
     assert "shift" in proc.stdout, proc.stdout
 
     # The converter's FE frequencies are the .frd's; the .dat lists the same modes apart from it.
@@ -229,7 +275,7 @@ def test_cantilever_beam_against_euler_bernoulli(ccx, nudyn, tmp_path):
     length, width, height = BEAM["size"]
     assert summary["mass"] == pytest.approx(BEAM["density"] * length * width * height, rel=1e-12)
     assert summary["com"] == pytest.approx([length / 2, width / 2, height / 2], rel=1e-12)
-    assert summary["fixed_nodes"] == (BEAM_MESH[1] + 1) * (BEAM_MESH[2] + 1)
+    assert summary["fixed_nodes"] == sum(1 for node in modal_file["nodes"] if node["position"][0] == 0)
     assert all(m["damping_ratio"] == 0.005 for m in summary["modes"])
     for node in modal_file["nodes"]:
         assert node.get("rotary_inertia") is None
@@ -334,6 +380,18 @@ def test_the_finite_element_modes_as_they_come_are_refused(ccx, nudyn, tmp_path)
     output = tmp_path / "converted.json"
     assert convert(deck.with_suffix(".frd"), output, "--density", "7800").returncode == 0
     assert modal(nudyn, output).returncode == 0
+
+
+def test_a_mesh_too_coarse_for_lumped_masses_is_warned_of(ccx, tmp_path):
+    """20-node hexahedra one across the section: CalculiX's modes carry
+    node-to-node oscillations that its consistent mass hides and the lumped
+    masses weigh tens to hundreds of times over."""
+    deck = tmp_path / "beam.inp"
+    write_box_deck(deck, BEAM["size"], (10, 1, 1), young=BEAM["young"], poisson=BEAM["poisson"],
+                   density=BEAM["density"], modes=3, element="C3D20R")
+    proc = convert(run_ccx(ccx, deck), tmp_path / "coarse.json", "--density", "7800")
+    assert proc.returncode == 0, proc.stderr
+    assert "warning: FE mode 1 has" in proc.stderr and "the mesh is too coarse for lumped masses" in proc.stderr
 
 
 def test_converter_refuses_what_it_cannot_use(ccx, tmp_path):
