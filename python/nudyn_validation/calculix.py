@@ -276,8 +276,9 @@ def lumped_masses(nodes: dict[int, tuple[float, float, float]], elements: dict[i
     for number, (kind, members) in elements.items():
         if kind not in _SHARES:
             name = FRD_TYPE_NAMES.get(kind, f"type {kind}")
-            raise ConversionError(f"element {number} is a {name}: the converter lumps the mass of solid "
-                                  "hexahedra (C3D8, C3D8R, C3D8I, C3D20, C3D20R) and tetrahedra (C3D4, C3D10) only")
+            raise ConversionError(f"element {number} ({name}): the converter lumps the mass of solid "
+                                  "hexahedra (C3D8, C3D8R, C3D8I, C3D20, C3D20R) and tetrahedra (C3D4, C3D10) only "
+                                  "(shells and beams: write them as ccx expands them, *NODE FILE without OUTPUT=2D)")
         shares = _SHARES[kind](np.array([nodes[n] for n in members]))
         if np.any(shares <= 0.0):
             raise ConversionError(f"element {number} is inverted or degenerate (a node's share of its volume "
@@ -348,10 +349,9 @@ def convert(results: FrdResults, density: float, *, coordinates: dict[int, tuple
 
     xyz = dict(results.nodes)
     if coordinates is not None:
-        missing = [n for n in xyz if n not in coordinates]
-        if missing:
-            raise ConversionError(f"the deck has no *NODE {missing[0]}, which the results have")
-        xyz = {n: coordinates[n] for n in xyz}
+        # Nodes the deck lacks are ccx's own: those it adds to expand shells
+        # and beams into solids, written to the .frd only.
+        xyz.update({n: coordinates[n] for n in xyz if n in coordinates})
     mass_of = lumped_masses(xyz, results.elements, density)
     # The nodes that carry mass, in the FE's numbering (nodes of no element are left out).
     numbers = sorted(mass_of)
@@ -431,7 +431,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("-o", "--output", type=Path, required=True, help="the modal file to write (JSON)")
     parser.add_argument("--density", type=float, required=True,
                         help="the material's density, in the deck's units (one material)")
-    parser.add_argument("--inp", type=Path, help="the deck, whose *NODE coordinates are read at full precision")
+    parser.add_argument("--inp", type=Path,
+                        help="the deck, whose *NODE coordinates are read at full precision (the .frd's for the "
+                             "nodes ccx adds)")
     parser.add_argument("--modes", type=int, help="keep the first N modes (after --max-frequency)")
     parser.add_argument("--max-frequency", type=float, help="keep the modes up to this frequency (Hz)")
     parser.add_argument("--damping", type=_numbers, default=[0.0],
