@@ -154,6 +154,20 @@ fn g(x: f64) -> String {
     if plain.contains('.') { plain.trim_end_matches('0').trim_end_matches('.').to_string() } else { plain }
 }
 
+/// The `<inertial>` element that the MJCF body made flexible by this file
+/// needs (mass, centre of mass and inertia about it in the body frame), to
+/// paste: numbers in full, as the check is relative to 1e-6.
+fn mjcf_inertial(s: &Summary) -> String {
+    let i = &s.inertia;
+    let numbers = |values: &[f64]| values.iter().map(|&x| super::number(x)).collect::<Vec<_>>().join(" ");
+    format!(
+        "<inertial pos=\"{}\" mass=\"{}\" fullinertia=\"{}\"/>",
+        numbers(&s.com),
+        super::number(s.mass),
+        numbers(&[i[0][0], i[1][1], i[2][2], i[0][1], i[0][2], i[1][2]])
+    )
+}
+
 fn table(s: &Summary) -> String {
     // Round-off in the products of inertia (1e-18 beside 0.07) shows as 0.
     let inertia = |m: &[[f64; 3]; 3]| {
@@ -166,7 +180,8 @@ fn table(s: &Summary) -> String {
         "{}: {} nodes ({} that no mode moves, {} kg), {} modes\n\
          mass {} kg, centre of mass ({}, {}, {}) m (body frame)\n\
          inertia about the centre of mass (Ixx Iyy Izz Ixy Ixz Iyz): {} kg m²\n\
-         inertia about the body origin: {} kg m²\n\n\
+         inertia about the body origin: {} kg m²\n\
+         the body's MJCF inertial, every digit (the nodes must give it within 1e-6):\n    {}\n\n\
          effective mass, % of the mass (translations) and of the inertia about the body origin (rotations)\n",
         s.file,
         s.nodes,
@@ -179,6 +194,7 @@ fn table(s: &Summary) -> String {
         g(s.com[2]),
         inertia(&s.inertia),
         inertia(&s.inertia_about_origin),
+        mjcf_inertial(s),
     );
     out += &format!(
         "{:<5} {:>14} {:>9} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7}",

@@ -20,6 +20,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -63,6 +64,7 @@ def test_modal_summary_of_the_bench_fixture(nudyn):
     table = modal(nudyn, BENCH)
     assert table.returncode == 0, table.stderr
     assert "3 nodes (1 that no mode moves, 2 kg), 3 modes" in table.stdout
+    assert '<inertial pos="0.375 0 0" mass="4" fullinertia="0.01 0.7075 0.7075 0 0 0"/>' in table.stdout
     assert table.stdout.splitlines()[-1].split() == ["sum", "0.00", "25.00", "25.00", "100.00", "19.69", "78.74"]
 
 
@@ -357,6 +359,20 @@ def test_cantilever_plate_against_kirchhoff(ccx, nudyn, tmp_path):
     assert max(first[1:]) < 1e-6, first
     total = summary["effective_mass_fraction"]["translation"][0]
     assert total <= 1 - summary["fixed_mass"] / summary["mass"]
+
+    # The <inertial> that `nudyn modal` prints for the MJCF body, as MuJoCo reads it.
+    table = modal(nudyn, output).stdout
+    inertial = next(line.strip() for line in table.splitlines() if line.strip().startswith("<inertial "))
+    model = mujoco.MjModel.from_xml_string(
+        f'<mujoco><worldbody><body name="panel"><freejoint/>{inertial}</body></worldbody></mujoco>')
+    body = model.body("panel")
+    assert body.mass[0] == pytest.approx(summary["mass"], rel=1e-12)
+    assert body.ipos == pytest.approx(summary["com"], abs=1e-12)
+    axes = np.zeros(9)
+    mujoco.mju_quat2Mat(axes, body.iquat)
+    axes = axes.reshape(3, 3)
+    inertia = axes @ np.diag(body.inertia) @ axes.T
+    assert np.abs(inertia - np.array(summary["inertia"])).max() <= 1e-9 * np.abs(inertia).max()
 
 
 def write_shell_plate_deck(path: Path, side, thickness, divisions, *, young, poisson, density, modes):
