@@ -113,6 +113,68 @@ def test_lumped_masses_of_distorted_elements():
         calculix.lumped_masses(nodes, {9: (2, [1, 2, 3, 4, 5, 6])}, density=1.0)
 
 
+def test_ritz_step_with_every_mode_is_the_lumped_eigenproblem(nudyn, tmp_path):
+    """Two unit cubes side by side (12 nodes), clamped on x = 0 (4 nodes): 24
+    free degrees of freedom. Modes made here of a random stiffness K and a
+    random "consistent" mass M_c, all 24 of them, handed to the converter
+    as if CalculiX had written them: in their full span the Ritz step must
+    give exactly the eigenproblem (K, M_lumped), solved here apart, and the
+    effective masses must sum to the mass of the nodes that move."""
+    rng = np.random.default_rng(49)
+    points = [(i, j, k) for k in (0, 1) for j in (0, 1) for i in (0, 1, 2)]
+    nodes = {n + 1: tuple(map(float, p)) for n, p in enumerate(points)}
+
+    def number(i, j, k):
+        return 1 + points.index((i, j, k))
+
+    elements = {e + 1: (calculix.HEXAHEDRON, [number(e + di, dj, dk) for dk in (0, 1)
+                                               for dj, di in ((0, 0), (0, 1), (1, 1), (1, 0))])
+                for e in (0, 1)}
+    free = [n for n in nodes if nodes[n][0] > 0]  # 8 nodes
+    density = 3.0
+    # Each cube's 3 kg in eighths: nodes at x = 1 are in both cubes.
+    lumped = {n: density / 8 * (2 if nodes[n][0] == 1 else 1) for n in nodes}
+    m_lumped = np.repeat([lumped[n] for n in free], 3)
+    a = rng.standard_normal((24, 24))
+    stiffness = a @ a.T + 24 * np.eye(24)
+    b = rng.standard_normal((24, 24))
+    consistent = np.diag(m_lumped) + 0.05 * b @ b.T
+    # Modes in the consistent mass, unit generalized mass (CalculiX's normalization).
+    chol = np.linalg.cholesky(consistent)
+    inverse = np.linalg.inv(chol)
+    eigenvalues, vectors = np.linalg.eigh(inverse @ stiffness @ inverse.T)
+    shapes = (inverse.T @ vectors).T  # 24 modes × 24 free degrees of freedom
+    modes = []
+    for k, (value, shape) in enumerate(zip(eigenvalues, shapes)):
+        by_node = {n: (0.0, 0.0, 0.0) for n in nodes}
+        by_node.update({n: tuple(shape[3 * f:3 * f + 3]) for f, n in enumerate(free)})
+        modes.append(calculix.FrdMode(number=k + 1, frequency=math.sqrt(value) / (2 * math.pi), shape=by_node))
+    conversion = calculix.convert(calculix.FrdResults(nodes, elements, modes), density)
+    assert conversion.modal_file["nodes"][0]["mass"] == pytest.approx(lumped[1], rel=1e-14)
+
+    # The lumped eigenproblem, directly.
+    scaled = stiffness / np.sqrt(np.outer(m_lumped, m_lumped))
+    expected = np.sqrt(np.linalg.eigvalsh(scaled)) / (2 * math.pi)
+    assert conversion.frequencies == pytest.approx(expected, rel=1e-10)
+
+    path = tmp_path / "complete.json"
+    path.write_text(calculix.layout(conversion.modal_file))
+    proc = modal(nudyn, path, "--json")
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads(proc.stdout)
+    # 6 kg, of which the 4 clamped nodes carry 4 × 3/8: 3/4 of the mass moves.
+    assert summary["mass"] == pytest.approx(6.0) and summary["fixed_nodes"] == 4
+    assert summary["fixed_mass"] == pytest.approx(1.5)
+    assert summary["effective_mass_fraction"]["translation"] == pytest.approx([0.75] * 3, rel=1e-10)
+    # Rotations about the origin: the moving nodes' share of the inertia about it, axis by axis.
+
+    def inertia_about_origin(numbers):
+        return sum(lumped[n] * (np.dot(nodes[n], nodes[n]) - np.square(nodes[n])) for n in numbers)
+
+    shares = inertia_about_origin(free) / inertia_about_origin(nodes)
+    assert summary["effective_mass_fraction"]["rotation"] == pytest.approx(shares, rel=1e-10)
+
+
 def test_lumped_masses_of_a_20_node_hexahedron():
     """HRZ on a box 2 × 1 × 1: the diagonal of the consistent mass, ∫ Nᵢ² dV,
     is in the ratio 7 : 16 between a corner and a mid-edge node (worked by
