@@ -31,7 +31,7 @@ as_root() {
 system_tools() {
     bash scripts/setup.sh system
     missing=()
-    for package in valgrind wine64 gcc-mingw-w64-x86-64; do
+    for package in valgrind wine64 gcc-mingw-w64-x86-64 calculix-ccx; do
         dpkg -s "$package" >/dev/null 2>&1 || missing+=("$package")
     done
     if [ ${#missing[@]} -gt 0 ]; then

@@ -21,6 +21,7 @@ use serde::Deserialize;
 use simulate::Format;
 
 mod linearize;
+mod modal;
 mod simulate;
 
 #[derive(Parser)]
@@ -115,6 +116,24 @@ enum Command {
     Describe {
         /// The vehicle's MJCF file.
         model: PathBuf,
+        /// Print JSON instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Check a modal data file (docs/flexible.md) and summarize it: the
+    /// nodes' mass, centre of mass and inertia (body frame), and per mode its
+    /// frequency, damping ratio, participation factors and effective masses
+    /// for translations along and rotations about the body axes through the
+    /// origin, with their sums as fractions of the mass and inertia.
+    ///
+    /// With --json: {"file", "nodes", "fixed_nodes", "fixed_mass", "mass",
+    /// "com", "inertia", "inertia_about_origin", "modes": [{"frequency",
+    /// "damping_ratio", "participation", "effective_mass",
+    /// "effective_mass_fraction"}], "effective_mass_fraction"}, each of the
+    /// last three {"translation": [x, y, z], "rotation": [x, y, z]}; SI units.
+    Modal {
+        /// The modal data file (JSON, version 1).
+        file: PathBuf,
         /// Print JSON instead of a table.
         #[arg(long)]
         json: bool,
@@ -357,6 +376,7 @@ fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Eval { model } => eval(&model),
         Command::Describe { model, json } => describe(&model, json),
+        Command::Modal { file, json } => modal::run(&file, json),
         Command::Export { fmi_version, fmi3_scalars: true, .. } if fmi_version != FmiVersion::Fmi3 => {
             bail!("--fmi3-scalars declares FMI 3.0 variables: it needs --fmi-version 3")
         }
