@@ -364,3 +364,24 @@ def test_fmi3_counts_and_time_are_checked(fmus, tmp_path):
         host.fmu.reset()
         host.fmu.enterInitializationMode(startTime=0.0)
     host.fmu.freeInstance()
+
+
+def test_fmi3_initial_unknowns_depend_on_what_they_depend_on_after_initialization(cli, tmp_path):
+    """In Initialization Mode the plant's knowns are the states' exact start
+    values and the inputs, as after it (its parameters set how it
+    integrates, not what it computes): each <InitialUnknown> lists the
+    dependencies of its <Output> or <ContinuousStateDerivative>, which the
+    FMI 2.0 test above holds to the exact Jacobian. The controller's gains
+    are parameters, so its initial unknowns list none (all knowns)."""
+    bus = EXAMPLES_DIR / "bus_arm7.xml"
+    plant = cli.export(bus, tmp_path / "plant3.fmu", outputs=OUTPUTS, fmi_version=3)
+    controller = cli.export(bus, tmp_path / "controller3.fmu", controller=True, fmi_version=3)
+    for fmu, listed in ((plant, True), (controller, False)):
+        structure = ET.fromstring(zipfile.ZipFile(fmu).read("modelDescription.xml")).find("ModelStructure")
+        after = {u.get("valueReference"): u.get("dependencies") for u in structure
+                 if u.tag in ("Output", "ContinuousStateDerivative")}
+        initial = [u for u in structure if u.tag == "InitialUnknown"]
+        assert initial
+        for unknown in initial:
+            expected = after[unknown.get("valueReference")] if listed else None
+            assert unknown.get("dependencies") == expected, ET.tostring(unknown)

@@ -75,7 +75,7 @@ pub fn controller_model_description3(
     let (model, law) = (&resource.model, &resource.law);
     let layout = resource.layout();
     let real = |vr: u32| real_scalar(model, law, &layout, defaults, vr);
-    let others = fmi3::Others { enumeration_types: Vec::new(), variables: Vec::new() };
+    let others = fmi3::Others { enumeration_types: Vec::new(), variables: Vec::new(), parameters_change_values: true };
     let (table, dependencies) = (resource.fmi3_variables(), |vr| layout.dependency_vrs(vr));
     fmi3::model_description(header(model, law, model_identifier, guid), &table, real, dependencies, others)
 }

@@ -30,6 +30,11 @@ pub struct Others {
     pub enumeration_types: Vec<md3::EnumerationType>,
     /// The variables, for the table's enumeration and Boolean value references.
     pub variables: Vec<md3::Variable>,
+    /// Whether parameters change what the FMU computes (the controller's
+    /// gains), so that in Initialization Mode, where they are knowns, every
+    /// calculated unknown depends on all knowns; else (the plant's, which
+    /// set how it integrates) on the same knowns as after it.
+    pub parameters_change_values: bool,
 }
 
 /// The description of `time`, the independent variable.
@@ -138,10 +143,11 @@ pub fn model_description(
             continue;
         }
         if float.initial.as_deref() == Some("calculated") {
-            // They may depend on every exact start value and input.
-            structure
-                .initial_unknowns
-                .push(md3::Unknown { value_reference: float.value_reference, dependencies: None });
+            let initial = match others.parameters_change_values {
+                true => md3::Unknown { value_reference: float.value_reference, dependencies: None },
+                false => unknown(float),
+            };
+            structure.initial_unknowns.push(initial);
         }
     }
     variables.extend(floats.into_iter().map(md3::Variable::Float64));

@@ -148,7 +148,11 @@ pub fn model_description3(resource: &PlantResource, options: &ExportOptions, gui
         initial: Some("exact".into()),
         start: Some(false),
     });
-    let others = fmi3::Others { enumeration_types: vec![method_type], variables: vec![method, energy_projection] };
+    let others = fmi3::Others {
+        enumeration_types: vec![method_type],
+        variables: vec![method, energy_projection],
+        parameters_change_values: false,
+    };
     let real = |vr: u32| real_scalar(resource, &layout, vr);
     let dependencies = |vr| layout.dependency_vrs(vr);
     fmi3::model_description(header(model, options, guid), &table, real, dependencies, others)
