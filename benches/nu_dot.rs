@@ -77,6 +77,7 @@ fn hinge_chain(links: usize) -> Vehicle {
         equalities: Vec::new(),
         sensors_disabled: false,
         tendons: Vec::new(),
+        flexible: Vec::new(),
     }
 }
 

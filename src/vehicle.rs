@@ -38,6 +38,8 @@ pub struct Vehicle {
     pub sensors_disabled: bool,
     /// Tendons in document order (MuJoCo's tendon order).
     pub tendons: Vec<Tendon>,
+    /// The bodies a modal data file makes flexible (docs/flexible.md), in body order.
+    pub flexible: Vec<crate::flex::ModalBody>,
 }
 
 /// One `<body>`.

@@ -57,6 +57,10 @@ pub fn support_table() -> String {
         "\n`<keyframe>`: each `<key>` is checked as MuJoCo checks it (every vector it gives has the model's size) \
          and kept; `nudyn linearize --keyframe` starts from it.\n",
     );
+    out.push_str(
+        "\n`<custom>`: a `<text name=\"nudyn:modal:BODY\" data=\"FILE\"/>` names the modal data file that makes \
+         BODY flexible ([flexible.md](flexible.md)); anything else in the section is ignored with a warning.\n",
+    );
     out.push_str("\nIn `<default>`, these children are ignored with a warning: ");
     out.push_str(&code_list(defaults::IGNORED_DEFAULTS, true));
     out.push_str(". In bodies and in the world body: ");

@@ -305,6 +305,18 @@ pub enum ModelError {
     /// No joints: nothing moves.
     #[error("the vehicle has no joints: nothing moves")]
     NoJoints,
+    /// A flexible body with modes, whose modal degrees of freedom the
+    /// passes do not carry yet (docs/flexible.md); with no modes it is rigid.
+    #[error(
+        "body '{body}' is flexible with {modes} modes: nudyn reads and checks its modal file, but its modal \
+         dynamics are not built yet (a modal file with no modes makes it the rigid body)"
+    )]
+    FlexibleNotBuilt {
+        /// The body.
+        body: String,
+        /// Its mode count.
+        modes: usize,
+    },
     /// A free joint that is not on a child of the world body.
     #[error("free joint '{joint}' (line {line}) must be the only joint of a body placed directly in <worldbody>")]
     MisplacedFreeJoint {

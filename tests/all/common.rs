@@ -473,6 +473,7 @@ pub fn random_vehicle(rng: &mut Rng, opts: TreeOptions) -> Vehicle {
         equalities: Vec::new(),
         sensors_disabled: false,
         tendons: Vec::new(),
+        flexible: Vec::new(),
     }
 }
 

@@ -30,7 +30,7 @@ fn the_table_names_what_the_importer_refuses_and_reads() {
         "| `<attach>` | attaching another model |",
         "| `<actuator>/<muscle>` | muscle actuators (activation dynamics and muscle force curves) |",
         "| `<sensor>/<camprojection>` | the sensor type is not computed by nudyn |",
-        "| `<custom>` | ignored with a warning |",
+        "| `<extension>` | ignored with a warning |",
     ] {
         assert!(table.contains(line), "missing: {line}");
     }

@@ -557,3 +557,14 @@ def test_converter_refuses_what_it_cannot_use(ccx, tmp_path):
     cut.write_text("\n".join(lines) + "\n")
     proc = convert(cut, output, "--density", "7800")
     assert proc.returncode == 2 and f"cut.frd:{broken + 1}: " in proc.stderr, proc.stderr
+
+
+def test_mujoco_loads_the_flexible_vehicle_as_the_rigid_one():
+    """The nudyn:modal: text that makes a body flexible is one MuJoCo keeps
+    and ignores: the same MJCF file is the rigid vehicle there, with the
+    inertial the modal file's nodes were held to at nudyn's import."""
+    model = mujoco.MjModel.from_xml_path(str(ROOT / "tests/fixtures/flex/bench_vehicle.xml"))
+    assert model.ntext == 1 and bytes(model.text_data).startswith(b"bench.json")
+    bench = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "bench")
+    assert model.body_mass[bench] == 4.0
+    assert np.allclose(model.body_inertia[bench], [0.01, 0.7075, 0.7075], rtol=1e-12)

@@ -73,6 +73,7 @@ impl Reader {
         self.warn_of_world_geoms();
         self.warnings.sort_by_key(|w| w.line);
         let gravity = if self.physics.gravity_disabled { Vec3::zeros() } else { self.physics.gravity };
+        let flexible = self.modal_bodies()?;
         let vehicle = Vehicle {
             name,
             gravity,
@@ -86,6 +87,7 @@ impl Reader {
             equalities: std::mem::take(&mut self.equalities),
             sensors_disabled: self.physics.sensor_disabled,
             tendons: std::mem::take(&mut self.tendons),
+            flexible,
         };
         Ok(Imported { vehicle, warnings: self.warnings, keyframes: self.keyframes })
     }

@@ -4,6 +4,7 @@ mod body;
 mod finish;
 mod geom;
 mod joint;
+mod modal;
 mod options;
 mod replicate;
 mod sections;
@@ -63,7 +64,7 @@ pub(crate) const INERTIAL_ATTRIBUTES: &[&str] =
 /// Top-level sections without effect on the dynamics.
 #[rustfmt::skip]
 pub(crate) const IGNORED_SECTIONS: &[&str] =
-    &["size", "statistic", "visual", "contact", "custom", "extension"];
+    &["size", "statistic", "visual", "contact", "extension"];
 
 /// Actuator attributes naming a transmission nudyn refuses, and why.
 #[rustfmt::skip]
@@ -261,6 +262,8 @@ struct Reader {
     warnings: Vec<MjcfWarning>,
     /// The `<key>`s read so far.
     keyframes: Vec<Keyframe>,
+    /// The `nudyn:modal:` texts of `<custom>`, resolved at the end.
+    modal_texts: Vec<modal::ModalText>,
     bodies: Vec<Body>,
     records: Vec<BodyRecord>,
     body_names: HashMap<String, u32>,
@@ -407,6 +410,7 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
             "sensor" => sensor_sections.push(section),
             // Read once the sizes are known.
             "keyframe" => keyframe_sections.push(section),
+            "custom" => reader.read_custom(&section)?,
             tag if IGNORED_SECTIONS.contains(&tag) => reader.warnings.push(section.ignored()),
             // Read once every joint and site is known.
             "tendon" => tendon_sections.push(section),
@@ -450,6 +454,7 @@ impl Reader {
             defaults: Defaults::new(),
             warnings: Vec::new(),
             keyframes: Vec::new(),
+            modal_texts: Vec::new(),
             bodies: Vec::new(),
             records: Vec::new(),
             body_names: HashMap::new(),

@@ -1,0 +1,105 @@
+//! An MJCF body made flexible by `<custom><text name="nudyn:modal:BODY"
+//! data="FILE"/>` (docs/flexible.md): the file found beside the MJCF, read,
+//! checked and held to the body's inertial at import; a body with modes
+//! refused at compile until the passes carry them, one with no modes the
+//! rigid body exactly. Fixture: tests/fixtures/flex/bench_vehicle.xml.
+
+use std::path::{Path, PathBuf};
+
+use nudyn::mjcf::load_mjcf;
+use nudyn::model::{Model, ModelError};
+
+fn fixtures() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/flex")
+}
+
+/// A folder of its own under the system's temporary one, with the fixture
+/// vehicle (its text changed by `edit`) and the modal file (`modal`).
+fn variant(name: &str, edit: impl Fn(String) -> String, modal: impl Fn(String) -> String) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("nudyn-flex-import-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let xml = std::fs::read_to_string(fixtures().join("bench_vehicle.xml")).unwrap();
+    std::fs::write(dir.join("bench_vehicle.xml"), edit(xml)).unwrap();
+    let json = std::fs::read_to_string(fixtures().join("bench.json")).unwrap();
+    std::fs::write(dir.join("bench.json"), modal(json)).unwrap();
+    dir.join("bench_vehicle.xml")
+}
+
+fn import_error(path: &Path) -> String {
+    load_mjcf(path).unwrap_err().to_string()
+}
+
+#[test]
+fn the_modal_file_is_read_beside_the_mjcf_and_refused_at_compile_while_the_passes_lack_modes() {
+    let imported = load_mjcf(&fixtures().join("bench_vehicle.xml")).unwrap();
+    assert!(imported.warnings.is_empty(), "{:?}", imported.warnings);
+    let [bench] = imported.vehicle.flexible.as_slice() else { panic!("{:?}", imported.vehicle.flexible) };
+    assert_eq!((bench.body.as_str(), bench.nodes.len(), bench.modes.len()), ("bench", 3, 3));
+    let error = Model::compile(&imported.vehicle).unwrap_err();
+    assert_eq!(error, ModelError::FlexibleNotBuilt { body: "bench".into(), modes: 3 });
+    assert!(error.to_string().contains("modal dynamics are not built yet"), "{error}");
+}
+
+#[test]
+fn with_no_modes_the_flexible_body_is_the_rigid_body() {
+    let no_modes = |json: String| {
+        let start = json.find("\"modes\": [").unwrap();
+        format!("{}\"modes\": []\n}}\n", &json[..start])
+    };
+    let flexible = variant("rigid", |xml| xml, no_modes);
+    let imported = load_mjcf(&flexible).unwrap();
+    assert!(imported.vehicle.flexible[0].modes.is_empty());
+    let without_text =
+        variant("plain", |xml| xml.replace("<text name=\"nudyn:modal:bench\" data=\"bench.json\"/>", ""), |j| j);
+    let rigid = load_mjcf(&without_text).unwrap();
+    assert!(rigid.vehicle.flexible.is_empty());
+    // An empty <custom> is ignored with a warning, as before; the models are the same.
+    assert_eq!(rigid.warnings.len(), 1, "{:?}", rigid.warnings);
+    assert_eq!(Model::compile(&imported.vehicle).unwrap(), Model::compile(&rigid.vehicle).unwrap());
+}
+
+#[test]
+fn a_bad_hook_or_file_is_an_error_naming_the_text_element() {
+    let text = "line 9: <text name=\"nudyn:modal:";
+    // (case, in the MJCF: from → to, in the modal file: from → to, expected)
+    let cases = [
+        (
+            "nobody",
+            ("nudyn:modal:bench", "nudyn:modal:panel"),
+            ("", ""),
+            "there is no body named 'panel' to make flexible",
+        ),
+        ("nofile", ("data=\"bench.json\"", "data=\"panel.json\""), ("", ""), "cannot read the modal file"),
+        ("nodata", (" data=\"bench.json\"", ""), ("", ""), "data"),
+        ("heavier", ("mass=\"4\"", "mass=\"4.1\""), ("", ""), "body 'bench': its modal file's nodes give mass 4 kg"),
+        (
+            "badfile",
+            ("", ""),
+            ("\"damping_ratio\": 0.01", "\"damping_ratio\": -0.01"),
+            "modes[1].damping_ratio is -0.01",
+        ),
+    ];
+    for (name, (xml_from, xml_to), (json_from, json_to), expected) in cases {
+        let replace = |text: String, from: &str, to: &str| if from.is_empty() { text } else { text.replace(from, to) };
+        let error = import_error(&variant(name, |x| replace(x, xml_from, xml_to), |j| replace(j, json_from, json_to)));
+        assert!(error.contains(expected), "{name}: {error}");
+        if name != "nodata" {
+            assert!(error.contains(text), "{name}: {error}");
+        }
+    }
+}
+
+#[test]
+fn a_flexible_body_is_not_fused_into_its_parent() {
+    // Without a joint, fusestatic would merge the bench into the bus, and its nodes with it.
+    let fused = variant(
+        "fused",
+        |x| {
+            x.replace("<joint name=\"drive\" type=\"hinge\" axis=\"0 0 1\"/>", "")
+                .replace("<option", "<compiler fusestatic=\"true\"/>\n  <option")
+        },
+        |j| j,
+    );
+    let imported = load_mjcf(&fused).unwrap();
+    assert!(imported.vehicle.bodies.iter().any(|b| b.name == "bench"));
+}
