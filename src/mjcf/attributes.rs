@@ -80,6 +80,9 @@ pub(crate) fn set<T>(target: &mut T, value: Option<T>) -> Result<(), MjcfError> 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mjcf::bodies::{
+        BODY_ATTRIBUTES, FRAME_ATTRIBUTES, FREEJOINT_ATTRIBUTES, INERTIAL_ATTRIBUTES, REPLICATE_ATTRIBUTES,
+    };
     use crate::mjcf::defaults::{GEOM_ATTRIBUTES, JOINT_ATTRIBUTES, SITE_ATTRIBUTES};
     use crate::mjcf::element::LineStarts;
     use crate::mjcf::equality::COMMON_ATTRIBUTES as EQUALITY_ATTRIBUTES;
@@ -119,6 +122,7 @@ mod tests {
             "enable",
             "disable",
             "1 2",
+            "never",
         ];
         for attribute in table.iter().filter(|a| matches!(a.read, Read::Into(_))) {
             let changes = values.iter().any(|value| {
@@ -130,6 +134,11 @@ mod tests {
 
     #[test]
     fn every_attribute_read_into_the_settings_changes_them() {
+        every_entry_changes_the_settings("body", BODY_ATTRIBUTES);
+        every_entry_changes_the_settings("frame", FRAME_ATTRIBUTES);
+        every_entry_changes_the_settings("replicate", REPLICATE_ATTRIBUTES);
+        every_entry_changes_the_settings("inertial", INERTIAL_ATTRIBUTES);
+        every_entry_changes_the_settings("freejoint", FREEJOINT_ATTRIBUTES);
         every_entry_changes_the_settings("joint", JOINT_ATTRIBUTES);
         every_entry_changes_the_settings("geom", GEOM_ATTRIBUTES);
         every_entry_changes_the_settings("site", SITE_ATTRIBUTES);
@@ -154,6 +163,7 @@ mod tests {
 
     #[test]
     fn attributes_checked_for_their_syntax_refuse_malformed_values() {
+        checked_entries_refuse_malformed_values("body", BODY_ATTRIBUTES);
         checked_entries_refuse_malformed_values("geom", GEOM_ATTRIBUTES);
         checked_entries_refuse_malformed_values("site", SITE_ATTRIBUTES);
         checked_entries_refuse_malformed_values("option", OPTION_ATTRIBUTES);

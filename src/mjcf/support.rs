@@ -6,7 +6,7 @@
 
 use std::fmt::Write;
 
-use super::{actuator, attributes, defaults, equality, mesh, reader, sensor, tendon};
+use super::{actuator, attributes, bodies, defaults, equality, mesh, reader, sensor, tendon};
 use crate::vehicle::SensorKind;
 
 /// docs/mjcf-support.md: element and attribute, read or ignored with a
@@ -71,15 +71,21 @@ pub fn support_table() -> String {
     let compiler = attributes::names(reader::COMPILER_ATTRIBUTES);
     let option = attributes::names(reader::OPTION_ATTRIBUTES);
     let flag = attributes::names(reader::FLAG_ATTRIBUTES);
-    let elements: [(&str, &[&str]); 11] = [
+    let body = attributes::names(bodies::BODY_ATTRIBUTES);
+    let frame = attributes::names(bodies::FRAME_ATTRIBUTES);
+    let replicate = attributes::names(bodies::REPLICATE_ATTRIBUTES);
+    let inertial = attributes::names(bodies::INERTIAL_ATTRIBUTES);
+    let freejoint = attributes::names(bodies::FREEJOINT_ATTRIBUTES);
+    let elements: [(&str, &[&str]); 12] = [
         ("compiler", &compiler),
         ("option", &option),
         ("option/flag", &flag),
-        ("body", reader::BODY_ATTRIBUTES),
-        ("frame", reader::FRAME_ATTRIBUTES),
-        ("replicate", reader::REPLICATE_ATTRIBUTES),
-        ("inertial", reader::INERTIAL_ATTRIBUTES),
+        ("body", &body),
+        ("frame", &frame),
+        ("replicate", &replicate),
+        ("inertial", &inertial),
         ("joint", &joint),
+        ("freejoint", &freejoint),
         ("geom", &geom),
         ("site", &site),
         ("asset/mesh", &mesh_attributes),

@@ -4,12 +4,15 @@
 use super::geom::{fromto_frame, mass_not_computed};
 use super::replicate::{Named, Suffix};
 use super::{
-    Align, BODY_ATTRIBUTES, BodyRecord, FRAME_ATTRIBUTES, IGNORED_IN_BODIES, InertiaFromGeom, JointElement,
-    MAX_REPLICATED_ELEMENTS, PendingBody, Placed, Pose, REPLICATE_ATTRIBUTES, Reader, WorldGeom, claim_name,
-    no_children, unsupported_child,
+    BodyRecord, IGNORED_IN_BODIES, InertiaFromGeom, JointElement, MAX_REPLICATED_ELEMENTS, PendingBody, Placed, Pose,
+    Reader, WorldGeom, claim_name, no_children, unsupported_child,
 };
 use crate::math::{Quat, Vec3};
 use crate::mjcf::attributes::names;
+use crate::mjcf::bodies::{
+    Align, BODY_ATTRIBUTES, BodySettings, FRAME_ATTRIBUTES, FREEJOINT_ATTRIBUTES, FrameSettings, FreeJointSettings,
+    REPLICATE_ATTRIBUTES, ReplicateSettings, read_settings,
+};
 use crate::mjcf::contacts::BodyFilter;
 use crate::mjcf::defaults::{
     GEOM_ATTRIBUTES, GeomSettings, JOINT_ATTRIBUTES, JointSettings, MAIN, SITE_ATTRIBUTES, SiteKind,
@@ -106,12 +109,11 @@ impl Reader {
     /// Reads one body; returns its child bodies, still to be read.
     pub(super) fn read_body<'a>(&mut self, body: &PendingBody<'a>) -> Result<Vec<PendingBody<'a>>, MjcfError> {
         let &PendingBody { ref element, parent, inherited_class, parent_moving, frame, ref suffix } = body;
-        element.check_attributes(BODY_ATTRIBUTES)?;
-        let mocap = element.boolean("mocap")? == Some(true);
-        let gravcomp = element.number("gravcomp")?.unwrap_or(0.0);
+        let BodySettings { pos: own_pos, orientation, mocap, gravcomp, sleep_policy } =
+            read_settings(BODY_ATTRIBUTES, element)?;
         let class = self.defaults.lookup(element, "childclass")?.unwrap_or(inherited_class);
-        let own_pos = Vec3::from(element.numbers::<3>("pos")?.unwrap_or_default());
-        let own_quat = self.resolve(element, &Orientation::read(element)?.unwrap_or_default())?;
+        let own_pos = Vec3::from(own_pos);
+        let own_quat = self.resolve(element, &orientation)?;
         let (pos, quat) = frame.map_or((own_pos, own_quat), |frame| compose(&frame, &(own_pos, own_quat)));
         let index = self.bodies.len();
         let world_pose = parent.map_or((pos, quat), |parent| compose(&self.world_poses[parent], &(pos, quat)));
@@ -144,11 +146,9 @@ impl Reader {
             self.mocap_bodies.push(name.clone());
         }
         let moving = parent_moving || has_joints;
-        // MuJoCo 4.0's keywords, and its rule for a sleep policy.
-        element.keyword("fuse", &[("auto", ()), ("false", ())])?;
-        let policies = [("auto", false), ("never", true), ("allowed", true), ("init", true)];
+        // MuJoCo 4.0's rule for a sleep policy.
         let movable_root = has_joints && !parent_moving;
-        if element.keyword("sleep", &policies)? == Some(true) && !movable_root {
+        if sleep_policy && !movable_root {
             return Err(element.invalid("sleep policy only allowed for movable root bodies"));
         }
         // MuJoCo's condition for moving the body frame to the inertial frame.
@@ -234,10 +234,8 @@ impl Reader {
                 }
                 "freejoint" => {
                     // MuJoCo's <freejoint> takes no defaults.
-                    child.check_attributes(&["name", "group", "align"])?;
+                    let FreeJointSettings { align } = read_settings(FREEJOINT_ATTRIBUTES, &child)?;
                     no_children(&child)?;
-                    let aligns = [("false", Align::No), ("true", Align::Yes), ("auto", Align::Auto)];
-                    let align = child.keyword("align", &aligns)?.unwrap_or(Align::Auto);
                     let settings = JointSettings { kind: JointKind::Free, ..JointSettings::default() };
                     joints.push(JointElement { element: child, settings, align, suffix });
                 }
@@ -389,10 +387,9 @@ impl Reader {
     /// A `<frame>`'s pose in its parent, as one copy without a suffix.
     pub(super) fn frame_pose(&self, item: &Placed) -> Result<Vec<(Pose, String)>, MjcfError> {
         let frame = &item.element;
-        frame.check_attributes(FRAME_ATTRIBUTES)?;
-        let pos = Vec3::from(frame.numbers::<3>("pos")?.unwrap_or_default());
-        let quat = self.resolve(frame, &Orientation::read(frame)?.unwrap_or_default())?;
-        Ok(vec![((pos, quat), String::new())])
+        let FrameSettings { pos, orientation } = read_settings(FRAME_ATTRIBUTES, frame)?;
+        let quat = self.resolve(frame, &orientation)?;
+        Ok(vec![((Vec3::from(pos), quat), String::new())])
     }
 
     /// The poses and name suffixes of a `<replicate>`'s copies, as MuJoCo
@@ -402,11 +399,8 @@ impl Reader {
     /// `sep` and i padded with zeros to the digits of `count`.
     pub(super) fn replicate_poses(&self, item: &Placed) -> Result<Vec<(Pose, String)>, MjcfError> {
         let replicate = &item.element;
-        replicate.check_attributes(REPLICATE_ATTRIBUTES)?;
-        let [count] = replicate.integers::<1>("count")?.ok_or_else(|| replicate.missing("count"))?;
-        if count <= 0 {
-            return Err(replicate.bad_value("count", "a positive number of copies"));
-        }
+        let ReplicateSettings { count, separator, offset, euler } = read_settings(REPLICATE_ATTRIBUTES, replicate)?;
+        let count = count.ok_or_else(|| replicate.missing("count"))?;
         // Counted before any copy is made.
         let inside = replicate.node.descendants().filter(|node| node.is_element()).count() - 1;
         let produced = (count as usize).saturating_mul(inside).saturating_add(self.replicated_elements.get());
@@ -417,9 +411,7 @@ impl Reader {
             )));
         }
         self.replicated_elements.set(produced);
-        let offset = Vec3::from(replicate.numbers::<3>("offset")?.unwrap_or_default());
-        let euler = replicate.numbers::<3>("euler")?.unwrap_or_default();
-        let separator = replicate.text("sep").unwrap_or_default();
+        let offset = Vec3::from(offset);
         let step = self.resolve(replicate, &Orientation::Euler(euler))?;
         let digits = count.to_string().len();
         let (mut pos, mut turned) = (Vec3::zeros(), Quat::identity());

@@ -3,28 +3,28 @@
 
 use super::body::compose;
 use super::replicate::{Named, Suffix};
-use super::{GeomRead, INERTIAL_ATTRIBUTES, Pose, Reader, no_children};
+use super::{GeomRead, Pose, Reader, no_children};
 use crate::math::{Mat3, Quat, Vec3};
+use crate::mjcf::bodies::{INERTIAL_ATTRIBUTES, InertialSettings, read_settings};
 use crate::mjcf::contacts::{ContactGeom, Reach};
 use crate::mjcf::defaults::{GeomKind, GeomSettings};
 use crate::mjcf::element::Element;
 use crate::mjcf::error::MjcfError;
 use crate::mjcf::inertia::{BodyInertia, EPS, GeomMass, mul_quat, quat_array, quat_to_mat};
-use crate::mjcf::orientation::{ORIENTATION_ATTRIBUTES, Orientation, normalized, z_to_quaternion};
+use crate::mjcf::orientation::{ORIENTATION_ATTRIBUTES, normalized, z_to_quaternion};
 use crate::mjcf::{contacts, inertia, mesh};
 use crate::vehicle::WrapGeom;
 
 impl Reader {
     pub(super) fn read_inertial(&self, element: &Element) -> Result<BodyInertia, MjcfError> {
-        element.check_attributes(INERTIAL_ATTRIBUTES)?;
+        let InertialSettings { pos, mass, diaginertia, fullinertia, orientation } =
+            read_settings(INERTIAL_ATTRIBUTES, element)?;
         no_children(element)?;
-        let com = Vec3::from(element.numbers::<3>("pos")?.ok_or_else(|| element.missing("pos"))?);
-        let mass = element.non_negative("mass")?.ok_or_else(|| element.missing("mass"))?;
-        let orientation = Orientation::read(element)?;
-        let Some([xx, yy, zz, xy, xz, yz]) = element.numbers::<6>("fullinertia")? else {
-            let principal = element.non_negative_numbers::<3>("diaginertia")?.unwrap_or_default();
+        let com = Vec3::from(pos.ok_or_else(|| element.missing("pos"))?);
+        let mass = mass.ok_or_else(|| element.missing("mass"))?;
+        let Some([xx, yy, zz, xy, xz, yz]) = fullinertia else {
             let quat = self.resolve(element, &orientation.unwrap_or_default())?;
-            return Ok(BodyInertia::from_principal(mass, com, &quat, Vec3::from(principal)));
+            return Ok(BodyInertia::from_principal(mass, com, &quat, Vec3::from(diaginertia)));
         };
         if let Some(attribute) = ORIENTATION_ATTRIBUTES.iter().find(|a| element.has(a)) {
             return Err(element.conflict("fullinertia", attribute));

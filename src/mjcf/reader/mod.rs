@@ -16,6 +16,7 @@ use std::path::Path;
 
 use roxmltree::Document;
 
+use super::bodies::Align;
 use super::contacts::{ContactGeom, Reach};
 use super::defaults::{Defaults, GeomKind, JointSettings};
 use super::element::{Element, LineStarts};
@@ -34,30 +35,11 @@ use replicate::{ElementCopy, Named, ReplicatedName, Suffix};
 /// MuJoCo's `mjMINVAL`: the least mass and principal moment of a moving body.
 const MIN_VALUE: f64 = 1e-15;
 
-/// Attributes of `<body>`.
-#[rustfmt::skip]
-pub(crate) const BODY_ATTRIBUTES: &[&str] = &[
-    "name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler", "mocap", "gravcomp",
-    "user", "sleep", "simple", "fuse",
-];
-
-/// Attributes of `<frame>`.
-#[rustfmt::skip]
-pub(crate) const FRAME_ATTRIBUTES: &[&str] = &["name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler"];
-
 /// The most elements the `<replicate>`s of a file may produce: each
 /// replicate's copies times the elements inside it (nested ones included),
 /// summed over every replicate as it is expanded. Far beyond any vehicle;
 /// a count past it would exhaust the memory before the import could fail.
 pub(crate) const MAX_REPLICATED_ELEMENTS: usize = 100_000;
-
-/// Attributes of `<replicate>`.
-pub(crate) const REPLICATE_ATTRIBUTES: &[&str] = &["count", "sep", "offset", "euler", "childclass"];
-
-/// Attributes of `<inertial>`.
-#[rustfmt::skip]
-pub(crate) const INERTIAL_ATTRIBUTES: &[&str] =
-    &["pos", "mass", "diaginertia", "fullinertia", "quat", "axisangle", "xyaxes", "zaxis", "euler"];
 
 /// Top-level sections without effect on the dynamics.
 #[rustfmt::skip]
@@ -233,14 +215,6 @@ struct Placed<'a> {
     class: usize,
     /// The suffix of `<replicate>` copies for its name and those below it.
     suffix: Suffix,
-}
-
-/// `align` of a free joint.
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum Align {
-    No,
-    Yes,
-    Auto,
 }
 
 /// A joint element with its resolved settings.
