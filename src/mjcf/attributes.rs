@@ -145,6 +145,10 @@ mod tests {
         every_entry_changes_the_settings("mesh", MESH_ATTRIBUTES);
         every_entry_changes_the_settings("tendon", TENDON_ATTRIBUTES);
         every_entry_changes_the_settings("equality", EQUALITY_ATTRIBUTES);
+        for (tag, table) in crate::mjcf::equality::EQUALITY_ATTRIBUTES {
+            every_entry_changes_the_settings(tag, table);
+        }
+        every_entry_changes_the_settings("sensor", crate::mjcf::sensor::COMMON_ATTRIBUTES);
         every_entry_changes_the_settings("compiler", COMPILER_ATTRIBUTES);
         every_entry_changes_the_settings("option", OPTION_ATTRIBUTES);
         every_entry_changes_the_settings("flag", FLAG_ATTRIBUTES);
@@ -167,6 +171,7 @@ mod tests {
         checked_entries_refuse_malformed_values("geom", GEOM_ATTRIBUTES);
         checked_entries_refuse_malformed_values("site", SITE_ATTRIBUTES);
         checked_entries_refuse_malformed_values("option", OPTION_ATTRIBUTES);
+        checked_entries_refuse_malformed_values("sensor", crate::mjcf::sensor::COMMON_ATTRIBUTES);
         checked_entries_refuse_malformed_values("flag", FLAG_ATTRIBUTES);
     }
 

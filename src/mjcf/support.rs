@@ -106,14 +106,10 @@ pub fn support_table() -> String {
         let _ = writeln!(out, "| `<actuator>/<{tag}>` | {} |", code_list(&actuator::attributes(*kind, false), false));
     }
     for kind in SensorKind::ALL {
-        let attributes: Vec<&str> =
-            sensor::COMMON_ATTRIBUTES.iter().chain(sensor::own_attributes(kind)).copied().collect();
-        let _ = writeln!(out, "| `<sensor>/<{}>` | {} |", kind.name(), code_list(&attributes, false));
+        let _ = writeln!(out, "| `<sensor>/<{}>` | {} |", kind.name(), code_list(&sensor::attributes(kind), false));
     }
     for (tag, own) in equality::EQUALITY_ATTRIBUTES {
-        let attributes: Vec<&str> =
-            attributes::names(equality::COMMON_ATTRIBUTES).into_iter().chain(own.iter().copied()).collect();
-        let _ = writeln!(out, "| `<equality>/<{tag}>` | {} |", code_list(&attributes, false));
+        let _ = writeln!(out, "| `<equality>/<{tag}>` | {} |", code_list(&equality::attributes(own), false));
     }
 
     out.push_str("\n## Refused\n\n| element or attribute | reason |\n|---|---|\n");
@@ -132,7 +128,7 @@ pub fn support_table() -> String {
         }
     }
     for tag in equality::REFUSED_EQUALITIES {
-        let _ = writeln!(out, "| `<equality>/<{tag}>` | an equality constraint on a tendon or a flex |");
+        let _ = writeln!(out, "| `<equality>/<{tag}>` | an equality constraint on a flex (nudyn models no flexes) |");
     }
     out
 }
