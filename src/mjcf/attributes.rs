@@ -123,6 +123,8 @@ mod tests {
             "disable",
             "1 2",
             "never",
+            "affine",
+            "integrator",
         ];
         for attribute in table.iter().filter(|a| matches!(a.read, Read::Into(_))) {
             let changes = values.iter().any(|value| {
@@ -149,6 +151,10 @@ mod tests {
             every_entry_changes_the_settings(tag, table);
         }
         every_entry_changes_the_settings("sensor", crate::mjcf::sensor::COMMON_ATTRIBUTES);
+        every_entry_changes_the_settings("actuator", crate::mjcf::actuator::COMMON_ATTRIBUTES);
+        for (tag, kind) in crate::mjcf::actuator::ACTUATOR_KINDS {
+            every_entry_changes_the_settings(tag, crate::mjcf::actuator::own_attributes(*kind));
+        }
         every_entry_changes_the_settings("compiler", COMPILER_ATTRIBUTES);
         every_entry_changes_the_settings("option", OPTION_ATTRIBUTES);
         every_entry_changes_the_settings("flag", FLAG_ATTRIBUTES);
@@ -172,6 +178,8 @@ mod tests {
         checked_entries_refuse_malformed_values("site", SITE_ATTRIBUTES);
         checked_entries_refuse_malformed_values("option", OPTION_ATTRIBUTES);
         checked_entries_refuse_malformed_values("sensor", crate::mjcf::sensor::COMMON_ATTRIBUTES);
+        checked_entries_refuse_malformed_values("actuator", crate::mjcf::actuator::COMMON_ATTRIBUTES);
+        checked_entries_refuse_malformed_values("general", crate::mjcf::actuator::GENERAL_ATTRIBUTES);
         checked_entries_refuse_malformed_values("flag", FLAG_ATTRIBUTES);
     }
 
