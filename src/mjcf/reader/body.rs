@@ -1,11 +1,12 @@
 //! The body tree: bodies, their frames and `<replicate>`s, joints, geoms and
 //! sites in document order, each body's mass properties, and the warning on contacts.
 
-use super::geom::{fromto_frame, mass_not_computed};
+use super::compile::{BodySpec, GeomSpec, ReadTree};
+use super::geom::fromto_frame;
 use super::replicate::{Named, Suffix};
 use super::{
-    BodyRecord, IGNORED_IN_BODIES, InertiaFromGeom, JointElement, MAX_REPLICATED_ELEMENTS, PendingBody, Placed, Pose,
-    Reader, WorldGeom, claim_name, no_children, unsupported_child,
+    IGNORED_IN_BODIES, JointElement, MAX_REPLICATED_ELEMENTS, PendingBody, Placed, Pose, Reader, claim_name,
+    no_children, unsupported_child,
 };
 use crate::math::{Quat, Vec3};
 use crate::mjcf::attributes::names;
@@ -14,33 +15,32 @@ use crate::mjcf::bodies::{
     REPLICATE_ATTRIBUTES, ReplicateSettings, read_settings,
 };
 use crate::mjcf::contacts::BodyFilter;
-use crate::mjcf::defaults::{
-    GEOM_ATTRIBUTES, GeomSettings, JOINT_ATTRIBUTES, JointSettings, MAIN, SITE_ATTRIBUTES, SiteKind,
-};
+use crate::mjcf::defaults::{GEOM_ATTRIBUTES, JOINT_ATTRIBUTES, JointSettings, MAIN, SITE_ATTRIBUTES, SiteKind};
 use crate::mjcf::element::Element;
 use crate::mjcf::error::MjcfError;
-use crate::mjcf::inertia::{BodyInertia, EPS};
+use crate::mjcf::inertia::BodyInertia;
 use crate::mjcf::orientation::Orientation;
 use crate::mjcf::{MjcfWarning, contacts};
 use crate::vehicle::{Body, JointKind, Site};
 
 impl Reader {
-    pub(super) fn read_worldbody(&mut self, section: &Element) -> Result<(), MjcfError> {
+    /// Reads a `<worldbody>` section into `tree`, for the compile stage.
+    pub(super) fn read_worldbody<'a>(
+        &mut self,
+        section: &Element<'a, 'a>,
+        tree: &mut ReadTree<'a>,
+    ) -> Result<(), MjcfError> {
         // MuJoCo: "World body cannot have attributes".
         section.check_attributes(&[])?;
         for Placed { element: child, frame, class, suffix } in
             self.placed_children(section, MAIN, &Suffix::default())?
         {
             match child.tag() {
-                "body" => self.read_body_tree(child, frame, class, suffix)?,
+                "body" => self.read_body_tree(child, frame, class, suffix, tree)?,
                 "site" => self.read_site(&child, class, None, frame, &suffix)?,
                 "geom" => {
-                    let settings = self.geom_settings(&child, class)?;
-                    let name = self.name_geom(&child, &settings, frame.as_ref(), None, &suffix)?;
-                    let read = self.geom_mass(&child, &settings, frame.as_ref(), false, false)?;
-                    self.add_contact_geom(&child, &settings, None, read.reach);
-                    let collides = settings.contype != [0, 0];
-                    self.world_geoms.push(WorldGeom { name, collides, warning: child.ignored() });
+                    let geom = self.read_geom(child, class, frame, &suffix, None)?;
+                    tree.geoms.push(geom);
                 }
                 tag if IGNORED_IN_BODIES.contains(&tag) => {
                     self.named_elsewhere.extend(child.text("target").map(str::to_string));
@@ -89,6 +89,7 @@ impl Reader {
         frame: Option<Pose>,
         class: usize,
         suffix: Suffix,
+        tree: &mut ReadTree<'a>,
     ) -> Result<(), MjcfError> {
         let mut pending = vec![PendingBody {
             element: top,
@@ -99,15 +100,20 @@ impl Reader {
             suffix,
         }];
         while let Some(body) = pending.pop() {
-            let children = self.read_body(&body)?;
+            let children = self.read_body(&body, tree)?;
             // Reversed so that the first child is read next.
             pending.extend(children.into_iter().rev());
         }
         Ok(())
     }
 
-    /// Reads one body; returns its child bodies, still to be read.
-    pub(super) fn read_body<'a>(&mut self, body: &PendingBody<'a>) -> Result<Vec<PendingBody<'a>>, MjcfError> {
+    /// Reads one body into `tree` (its mass properties and alignment, the
+    /// compile stage's); returns its child bodies, still to be read.
+    pub(super) fn read_body<'a>(
+        &mut self,
+        body: &PendingBody<'a>,
+        tree: &mut ReadTree<'a>,
+    ) -> Result<Vec<PendingBody<'a>>, MjcfError> {
         let &PendingBody { ref element, parent, inherited_class, parent_moving, frame, ref suffix } = body;
         let BodySettings { pos: own_pos, orientation, mocap, gravcomp, sleep_policy } =
             read_settings(BODY_ATTRIBUTES, element)?;
@@ -134,6 +140,7 @@ impl Reader {
 
         let BodyChildren { inertial, joints, geoms, child_bodies } =
             self.read_body_children(element, index, class, suffix)?;
+        tree.geoms.extend(geoms);
 
         let has_joints = !joints.is_empty();
         // A mocap body stays where the file puts it, since nudyn takes no
@@ -159,15 +166,8 @@ impl Reader {
             _ => false,
         };
         let joints = self.build_joints(&name, parent, joints)?;
-
         let explicit = inertial.map(|(_, inertia)| inertia);
-        let (inertia, mass_unknown) =
-            self.body_inertia(element, index, &geoms, explicit, moving, (own_pos, own_quat))?;
-        let inertia = self.bound(element, inertia)?;
-        let ((pos, quat), inertia) = match aligned {
-            true => self.align_free(index, (pos, quat), inertia),
-            false => ((pos, quat), inertia),
-        };
+        tree.bodies.push(BodySpec { element: *element, explicit, moving, aligned, own_pose: (own_pos, own_quat) });
 
         self.bodies.push(Body {
             name,
@@ -177,21 +177,11 @@ impl Reader {
             inertia: None,
             inertial_pos: Vec3::zeros(),
             inertial_quat: None,
-            mass_unknown,
+            mass_unknown: false,
             joints,
             gravcomp,
             line: element.line,
         });
-        self.records.push(BodyRecord {
-            line: element.line,
-            label: element.label(),
-            inertia,
-            has_joints,
-            children: Vec::new(),
-        });
-        if let Some(parent) = parent {
-            self.records[parent].children.push(index);
-        }
         Ok(child_bodies.into_iter().map(|child| PendingBody { parent_moving: moving, ..child }).collect())
     }
 
@@ -239,10 +229,7 @@ impl Reader {
                     let settings = JointSettings { kind: JointKind::Free, ..JointSettings::default() };
                     joints.push(JointElement { element: child, settings, align, suffix });
                 }
-                "geom" => {
-                    let settings = self.geom_settings(&child, class)?;
-                    geoms.push((child, settings, frame, suffix));
-                }
+                "geom" => geoms.push(self.read_geom(child, class, frame, &suffix, Some(index))?),
                 "site" => self.read_site(&child, class, Some(index), frame, &suffix)?,
                 tag if IGNORED_IN_BODIES.contains(&tag) => {
                     self.named_elsewhere.extend(child.text("target").map(str::to_string));
@@ -261,75 +248,6 @@ impl Reader {
         }
 
         Ok(children)
-    }
-
-    /// The mass properties of the body `element` (the `index`th) from its
-    /// `geoms` or its `<inertial>` (`explicit`) as `inertiafromgeom` says,
-    /// and whether a geom's mass could not be computed; `own_pose` is its
-    /// pose in its parent before any `<frame>` around it.
-    fn body_inertia(
-        &mut self,
-        element: &Element,
-        index: usize,
-        geoms: &[ReadGeom],
-        explicit: Option<BodyInertia>,
-        moving: bool,
-        own_pose: Pose,
-    ) -> Result<(BodyInertia, bool), MjcfError> {
-        let (own_pos, own_quat) = own_pose;
-        let from_geoms = match self.compiler.inertia_from_geom {
-            InertiaFromGeom::Never => false,
-            InertiaFromGeom::Always => true,
-            InertiaFromGeom::Auto => explicit.is_none(),
-        };
-        let mut selected = Vec::new();
-        let mut mass_unknown = false;
-        for (geom, settings, frame, suffix) in geoms {
-            self.name_geom(geom, settings, frame.as_ref(), Some(index), suffix)?;
-            let [low, high] = self.compiler.inertia_groups;
-            let contributes = from_geoms && (low..=high).contains(&settings.group);
-            if contributes && mass_not_computed(settings) && !moving {
-                mass_unknown = true;
-                self.warnings.push(geom.warning(
-                    "its mass is not computed: the body is fixed to the world, so it moves nothing \
-                     (a subtree sensor that would count it is refused)",
-                ));
-            }
-            let read = self.geom_mass(geom, settings, frame.as_ref(), moving, contributes)?;
-            self.add_contact_geom(geom, settings, Some(index), read.reach);
-            // MuJoCo leaves out geoms of mass up to mjEPS.
-            if let Some(mass) = read.mass
-                && mass.mass > EPS
-            {
-                selected.push(mass);
-            }
-        }
-        let inertia = if !selected.is_empty() {
-            BodyInertia::from_geoms(&selected).map_err(|r| element.invalid(r))?
-        } else if let Some(explicit) = explicit {
-            explicit
-        } else {
-            // MuJoCo puts the inertial frame of a body without mass at the body's
-            // own pose in its parent, before any <frame> around it; it matters
-            // once boundmass gives it mass.
-            BodyInertia::from_principal(0.0, own_pos, &own_quat, Vec3::zeros())
-        };
-        Ok((inertia, mass_unknown))
-    }
-
-    /// A free body without children aligned with its inertial frame
-    /// (`<freejoint align>`, `<compiler alignfree>`): MuJoCo moves the body
-    /// frame there, so that the free joint's qpos is the inertial frame's
-    /// pose, and re-expresses the body's sites in it. Returns the body's new
-    /// pose in its parent and its mass properties in the new frame.
-    pub(super) fn align_free(&mut self, index: usize, pose: Pose, inertia: BodyInertia) -> (Pose, BodyInertia) {
-        let (principal, axes) = (inertia.principal, inertia.quat);
-        let inverse = (-(axes.inverse() * inertia.com), axes.inverse());
-        for site in self.sites.iter_mut().filter(|s| s.body == Some(index)) {
-            (site.pos, site.quat) = compose(&inverse, &(site.pos, site.quat));
-        }
-        let aligned = BodyInertia::from_principal(inertia.mass, Vec3::zeros(), &Quat::identity(), principal);
-        (compose(&pose, &(inertia.com, axes)), aligned)
     }
 
     /// The children of a body (or of the world body) of class `class`, with
@@ -432,16 +350,25 @@ impl Reader {
         Ok(self.defaults.lookup(element, "class")?.unwrap_or(body_class))
     }
 
-    /// A `<geom>`'s settings: its class's defaults with its own attributes
-    /// applied, after checking its attributes and that it has no children.
-    fn geom_settings(&self, geom: &Element, body_class: usize) -> Result<GeomSettings, MjcfError> {
-        geom.check_attributes(&names(GEOM_ATTRIBUTES))?;
-        if let Some(child) = geom.children().next() {
+    /// A `<geom>` of `body` (`None`: the world body) as read: its class's
+    /// defaults with its own attributes applied, after checking its
+    /// attributes and that it has no children; its name claimed.
+    fn read_geom<'a>(
+        &mut self,
+        element: Element<'a, 'a>,
+        body_class: usize,
+        frame: Option<Pose>,
+        suffix: &Suffix,
+        body: Option<usize>,
+    ) -> Result<GeomSpec<'a>, MjcfError> {
+        element.check_attributes(&names(GEOM_ATTRIBUTES))?;
+        if let Some(child) = element.children().next() {
             return Err(unsupported_child(&child));
         }
-        let mut settings = self.defaults.class(self.class_of(geom, body_class)?).geom.clone();
-        settings.apply(geom)?;
-        Ok(settings)
+        let mut settings = self.defaults.class(self.class_of(&element, body_class)?).geom.clone();
+        settings.apply(&element)?;
+        let name = element.text("name").map(|name| self.replicated_name(Named::Geom, name, suffix));
+        Ok(GeomSpec { element, settings, frame, name, body })
     }
 
     /// Reads a `<site>` of body `body` (`None`: the world body).
@@ -534,15 +461,11 @@ pub(super) fn compose(outer: &Pose, inner: &Pose) -> Pose {
     (outer.0 + outer.1 * inner.0, outer.1 * inner.1)
 }
 
-/// A geom element with its resolved settings, the pose of the `<frame>`s
-/// around it and its `<replicate>` suffix.
-type ReadGeom<'a> = (Element<'a, 'a>, GeomSettings, Option<Pose>, Suffix);
-
 /// What a body element holds, read.
 struct BodyChildren<'a> {
     /// Its `<inertial>`, with the element for messages on a second one.
     inertial: Option<(Element<'a, 'a>, BodyInertia)>,
     joints: Vec<JointElement<'a, 'a>>,
-    geoms: Vec<ReadGeom<'a>>,
+    geoms: Vec<GeomSpec<'a>>,
     child_bodies: Vec<PendingBody<'a>>,
 }

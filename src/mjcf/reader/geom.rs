@@ -2,7 +2,7 @@
 //! (MuJoCo's geom and mesh inertia, `boundmass`, `boundinertia`).
 
 use super::body::compose;
-use super::replicate::{Named, Suffix};
+use super::compile::GeomSpec;
 use super::{GeomRead, Pose, Reader, no_children};
 use crate::math::{Mat3, Quat, Vec3};
 use crate::mjcf::bodies::{INERTIAL_ATTRIBUTES, InertialSettings, read_settings};
@@ -77,19 +77,11 @@ impl Reader {
         Ok((fitted, pos, quat))
     }
 
-    /// Registers a named geom of `body` (`None`: the world) for tendons to
-    /// wrap around: its type, and a sphere's or cylinder's frame in the body.
-    /// Its name, with the `<replicate>` suffix.
-    pub(super) fn name_geom(
-        &mut self,
-        element: &Element,
-        settings: &GeomSettings,
-        frame: Option<&Pose>,
-        body: Option<usize>,
-        suffix: &Suffix,
-    ) -> Result<Option<String>, MjcfError> {
-        let Some(name) = element.text("name") else { return Ok(None) };
-        let name = self.replicated_name(Named::Geom, name, suffix);
+    /// Registers a named geom for tendons to wrap around: its type, and a
+    /// sphere's or cylinder's frame in its body.
+    pub(super) fn register_wrap_geom(&mut self, geom: &GeomSpec) -> Result<(), MjcfError> {
+        let GeomSpec { element, settings, frame, name, body } = geom;
+        let (Some(name), body, frame) = (name, *body, frame.as_ref()) else { return Ok(()) };
         let wrap = match settings.kind {
             GeomKind::Sphere | GeomKind::Cylinder => {
                 let (pos, quat) = match settings.fromto {
@@ -119,7 +111,7 @@ impl Reader {
             _ => None,
         };
         self.named_geoms.insert(name.clone(), (settings.kind, wrap));
-        Ok(Some(name))
+        Ok(())
     }
 
     /// The mesh asset a geom names (not read yet).

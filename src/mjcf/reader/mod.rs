@@ -1,6 +1,7 @@
 //! Walks an MJCF document and builds the [`Vehicle`].
 
 mod body;
+mod compile;
 mod finish;
 mod geom;
 mod joint;
@@ -30,6 +31,7 @@ use crate::math::{Quat, Vec3};
 use crate::vehicle::{
     Actuation, Actuator, Body, ConstraintOptions, Equality, JointKind, Sensor, Site, Tendon, WrapGeom,
 };
+use compile::ReadTree;
 use replicate::{ElementCopy, Named, ReplicatedName, Suffix};
 
 /// MuJoCo's `mjMINVAL`: the least mass and principal moment of a moving body.
@@ -360,6 +362,7 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
         reader.named_elsewhere.extend(bodies.map(str::to_string));
     }
 
+    let mut tree = ReadTree::default();
     let mut has_worldbody = false;
     let mut actuator_sections = Vec::new();
     let mut sensor_sections = Vec::new();
@@ -371,7 +374,7 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
             "compiler" | "option" | "default" | "asset" => {}
             "worldbody" => {
                 has_worldbody = true;
-                reader.read_worldbody(&section)?;
+                reader.read_worldbody(&section, &mut tree)?;
             }
             // Read once every joint and site is known, wherever the section stands.
             "actuator" => actuator_sections.push(section),
@@ -393,6 +396,7 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
     if !has_worldbody {
         return Err(MjcfError::MissingWorldbody { line: root.line, element: root.label() });
     }
+    reader.compile_bodies(tree)?;
     // Before the equalities, actuators and sensors, which may name tendons.
     for section in &tendon_sections {
         reader.read_tendons(section)?;
