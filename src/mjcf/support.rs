@@ -62,6 +62,31 @@ pub fn support_table() -> String {
          it: then it is used, and only its contacts are left out (no warning when it has none).\n",
     );
 
+    write_elements_read(&mut out);
+
+    out.push_str("\n## Refused\n\n| element or attribute | reason |\n|---|---|\n");
+    for (tag, reason) in reader::UNSUPPORTED_CHILDREN {
+        let _ = writeln!(out, "| `<{tag}>` | {reason} |");
+    }
+    for (tag, reason) in actuator::REFUSED_ACTUATORS {
+        let _ = writeln!(out, "| `<actuator>/<{tag}>` | {reason} |");
+    }
+    for (attribute, reason) in reader::REFUSED_TRANSMISSIONS {
+        let _ = writeln!(out, "| actuator `{attribute}=` | {reason} |");
+    }
+    for (tags, reason) in sensor::REFUSED_SENSORS {
+        for tag in *tags {
+            let _ = writeln!(out, "| `<sensor>/<{tag}>` | {reason} |");
+        }
+    }
+    for tag in equality::REFUSED_EQUALITIES {
+        let _ = writeln!(out, "| `<equality>/<{tag}>` | an equality constraint on a flex (nudyn models no flexes) |");
+    }
+    out
+}
+
+/// The rows of "Elements read, and their attributes".
+fn write_elements_read(out: &mut String) {
     out.push_str("\n## Elements read, and their attributes\n\n");
     out.push_str("| element | attributes |\n|---|---|\n");
     let joint = attributes::names(defaults::JOINT_ATTRIBUTES);
@@ -111,26 +136,6 @@ pub fn support_table() -> String {
     for (tag, own) in equality::EQUALITY_ATTRIBUTES {
         let _ = writeln!(out, "| `<equality>/<{tag}>` | {} |", code_list(&equality::attributes(own), false));
     }
-
-    out.push_str("\n## Refused\n\n| element or attribute | reason |\n|---|---|\n");
-    for (tag, reason) in reader::UNSUPPORTED_CHILDREN {
-        let _ = writeln!(out, "| `<{tag}>` | {reason} |");
-    }
-    for (tag, reason) in actuator::REFUSED_ACTUATORS {
-        let _ = writeln!(out, "| `<actuator>/<{tag}>` | {reason} |");
-    }
-    for (attribute, reason) in reader::REFUSED_TRANSMISSIONS {
-        let _ = writeln!(out, "| actuator `{attribute}=` | {reason} |");
-    }
-    for (tags, reason) in sensor::REFUSED_SENSORS {
-        for tag in *tags {
-            let _ = writeln!(out, "| `<sensor>/<{tag}>` | {reason} |");
-        }
-    }
-    for tag in equality::REFUSED_EQUALITIES {
-        let _ = writeln!(out, "| `<equality>/<{tag}>` | an equality constraint on a flex (nudyn models no flexes) |");
-    }
-    out
 }
 
 /// `a`, `b`, … (as elements `<a>` when `elements`).
