@@ -1,7 +1,7 @@
 //! The body tree: bodies, their frames and `<replicate>`s, joints, geoms and
 //! sites in document order, each body's mass properties, and the warning on contacts.
 
-use super::compile::{BodySpec, GeomSpec, ReadTree};
+use super::compile::{BodySpec, GeomSpec, MassSource, ReadTree};
 use super::geom::fromto_frame;
 use super::replicate::{Named, Suffix};
 use super::{
@@ -21,7 +21,7 @@ use crate::mjcf::error::MjcfError;
 use crate::mjcf::inertia::BodyInertia;
 use crate::mjcf::orientation::Orientation;
 use crate::mjcf::{MjcfWarning, contacts};
-use crate::vehicle::{Body, JointKind, Site};
+use crate::vehicle::{JointKind, Site};
 
 impl Reader {
     /// Reads a `<worldbody>` section into `tree`, for the compile stage.
@@ -53,7 +53,6 @@ impl Reader {
                 _ => return Err(unsupported_child(&child)),
             }
         }
-        self.set_apart_unnamed();
         Ok(())
     }
 
@@ -120,10 +119,7 @@ impl Reader {
         let class = self.defaults.lookup(element, "childclass")?.unwrap_or(inherited_class);
         let own_pos = Vec3::from(own_pos);
         let own_quat = self.resolve(element, &orientation)?;
-        let (pos, quat) = frame.map_or((own_pos, own_quat), |frame| compose(&frame, &(own_pos, own_quat)));
-        let index = self.bodies.len();
-        let world_pose = parent.map_or((pos, quat), |parent| compose(&self.world_poses[parent], &(pos, quat)));
-        self.world_poses.push(world_pose);
+        let index = tree.bodies.len();
         // An unnamed body gets a name for messages and descriptions, which
         // nothing can refer to (MuJoCo's unnamed elements have none).
         let name = match element.text("name") {
@@ -167,21 +163,8 @@ impl Reader {
         };
         let joints = self.build_joints(&name, parent, joints)?;
         let explicit = inertial.map(|(_, inertia)| inertia);
-        tree.bodies.push(BodySpec { element: *element, explicit, moving, aligned, own_pose: (own_pos, own_quat) });
-
-        self.bodies.push(Body {
-            name,
-            parent,
-            pos,
-            quat,
-            inertia: None,
-            inertial_pos: Vec3::zeros(),
-            inertial_quat: None,
-            mass_unknown: false,
-            joints,
-            gravcomp,
-            line: element.line,
-        });
+        let mass = MassSource { element: *element, explicit, moving, aligned, own_pose: (own_pos, own_quat) };
+        tree.bodies.push(BodySpec { name, parent, frame, joints, gravcomp, mass });
         Ok(child_bodies.into_iter().map(|child| PendingBody { parent_moving: moving, ..child }).collect())
     }
 

@@ -16,6 +16,7 @@ use crate::mjcf::defaults::GeomSettings;
 use crate::mjcf::element::Element;
 use crate::mjcf::error::MjcfError;
 use crate::mjcf::inertia::{BodyInertia, EPS, GeomMass};
+use crate::vehicle::{Body, Joint};
 
 /// The body tree as read, for the compile stage.
 #[derive(Default)]
@@ -26,8 +27,24 @@ pub(super) struct ReadTree<'a> {
     pub geoms: Vec<GeomSpec<'a>>,
 }
 
-/// What a body's mass properties and frame come from.
+/// A `<body>` as read, its joints built.
 pub(super) struct BodySpec<'a> {
+    /// Its name (one made up when the file gives none).
+    pub name: String,
+    /// Its parent; `None` for the world body.
+    pub parent: Option<usize>,
+    /// The pose of the `<frame>`s around it, in its parent.
+    pub frame: Option<Pose>,
+    /// Its joints.
+    pub joints: Vec<Joint>,
+    /// `gravcomp`.
+    pub gravcomp: f64,
+    /// What its mass properties and frame come from.
+    pub mass: MassSource<'a>,
+}
+
+/// What a body's mass properties and frame come from.
+pub(super) struct MassSource<'a> {
     /// The `<body>` element, for messages.
     pub element: Element<'a, 'a>,
     /// Its `<inertial>`, in the body frame.
@@ -56,17 +73,19 @@ pub(super) struct GeomSpec<'a> {
 }
 
 impl Reader {
-    /// Compiles the bodies and geoms of `tree`: the geoms in document
-    /// order, then each body's mass properties and frame.
+    /// Compiles the bodies and geoms of `tree`: each body placed in its
+    /// parent and in the world, the geoms in document order, then each
+    /// body's mass properties, with which a free body may move its frame.
     pub(super) fn compile_bodies(&mut self, tree: ReadTree) -> Result<(), MjcfError> {
-        let mut masses: Vec<Vec<GeomMass>> = tree.bodies.iter().map(|_| Vec::new()).collect();
+        let sources = self.place_bodies(tree.bodies);
+        let mut masses: Vec<Vec<GeomMass>> = sources.iter().map(|_| Vec::new()).collect();
         for geom in &tree.geoms {
             self.register_wrap_geom(geom)?;
             match geom.body {
                 None => self.compile_world_geom(geom)?,
                 Some(index) => {
                     // MuJoCo leaves out geoms of mass up to mjEPS.
-                    if let Some(mass) = self.compile_body_geom(geom, &tree.bodies[index])?
+                    if let Some(mass) = self.compile_body_geom(geom, &sources[index])?
                         && mass.mass > EPS
                     {
                         masses[index].push(mass);
@@ -74,7 +93,7 @@ impl Reader {
                 }
             }
         }
-        for (index, (body, selected)) in tree.bodies.into_iter().zip(masses).enumerate() {
+        for (index, (body, selected)) in sources.into_iter().zip(masses).enumerate() {
             let inertia = match (selected.is_empty(), body.explicit) {
                 (false, _) => BodyInertia::from_geoms(&selected).map_err(|r| body.element.invalid(r))?,
                 (true, Some(explicit)) => explicit,
@@ -99,6 +118,34 @@ impl Reader {
         Ok(())
     }
 
+    /// The vehicle's bodies, each placed in its parent (the `<frame>`s
+    /// around it composed) and in the world at qpos0, with the names made
+    /// up for unnamed ones set apart; what their masses come from.
+    fn place_bodies<'a>(&mut self, bodies: Vec<BodySpec<'a>>) -> Vec<MassSource<'a>> {
+        let mut sources = Vec::with_capacity(bodies.len());
+        for BodySpec { name, parent, frame, joints, gravcomp, mass } in bodies {
+            let (pos, quat) = frame.map_or(mass.own_pose, |frame| compose(&frame, &mass.own_pose));
+            let world_pose = parent.map_or((pos, quat), |parent| compose(&self.world_poses[parent], &(pos, quat)));
+            self.world_poses.push(world_pose);
+            self.bodies.push(Body {
+                name,
+                parent,
+                pos,
+                quat,
+                inertia: None,
+                inertial_pos: Vec3::zeros(),
+                inertial_quat: None,
+                mass_unknown: false,
+                joints,
+                gravcomp,
+                line: mass.element.line,
+            });
+            sources.push(mass);
+        }
+        self.set_apart_unnamed();
+        sources
+    }
+
     /// A geom of the world body: it moves no mass, so its mesh is never
     /// read; it may still collide, or be a tendon's wrap obstacle.
     fn compile_world_geom(&mut self, geom: &GeomSpec) -> Result<(), MjcfError> {
@@ -112,7 +159,7 @@ impl Reader {
 
     /// A geom of `body`: its mass when it counts towards the body's (as
     /// `inertiafromgeom` and `inertiagrouprange` say).
-    fn compile_body_geom(&mut self, geom: &GeomSpec, body: &BodySpec) -> Result<Option<GeomMass>, MjcfError> {
+    fn compile_body_geom(&mut self, geom: &GeomSpec, body: &MassSource) -> Result<Option<GeomMass>, MjcfError> {
         let GeomSpec { element, settings, frame, body: index, .. } = geom;
         let from_geoms = match self.compiler.inertia_from_geom {
             InertiaFromGeom::Never => false,
