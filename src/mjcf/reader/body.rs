@@ -1,7 +1,7 @@
 //! The body tree: bodies, their frames and `<replicate>`s, joints, geoms and
 //! sites in document order, each body's mass properties, and the warning on contacts.
 
-use super::compile::{BodySpec, GeomSpec, MassSource, ReadTree};
+use super::compile::{BodySpec, GeomSpec, MassSource, ReadTree, SiteSpec};
 use super::geom::fromto_frame;
 use super::replicate::{Named, Suffix};
 use super::{
@@ -37,7 +37,10 @@ impl Reader {
         {
             match child.tag() {
                 "body" => self.read_body_tree(child, frame, class, suffix, tree)?,
-                "site" => self.read_site(&child, class, None, frame, &suffix)?,
+                "site" => {
+                    let site = self.read_site(&child, class, None, frame, &suffix)?;
+                    tree.sites.push(site);
+                }
                 "geom" => {
                     let geom = self.read_geom(child, class, frame, &suffix, None)?;
                     tree.geoms.push(geom);
@@ -134,9 +137,10 @@ impl Reader {
             }
         };
 
-        let BodyChildren { inertial, joints, geoms, child_bodies } =
+        let BodyChildren { inertial, joints, geoms, sites, child_bodies } =
             self.read_body_children(element, index, class, suffix)?;
         tree.geoms.extend(geoms);
+        tree.sites.extend(sites);
 
         let has_joints = !joints.is_empty();
         // A mocap body stays where the file puts it, since nudyn takes no
@@ -161,7 +165,6 @@ impl Reader {
             }
             _ => false,
         };
-        let joints = self.build_joints(&name, parent, joints)?;
         let explicit = inertial.map(|(_, inertia)| inertia);
         let mass = MassSource { element: *element, explicit, moving, aligned, own_pose: (own_pos, own_quat) };
         tree.bodies.push(BodySpec { name, parent, frame, joints, gravcomp, mass });
@@ -179,9 +182,14 @@ impl Reader {
         class: usize,
         suffix: &Suffix,
     ) -> Result<BodyChildren<'a>, MjcfError> {
-        let mut children =
-            BodyChildren { inertial: None, joints: Vec::new(), geoms: Vec::new(), child_bodies: Vec::new() };
-        let BodyChildren { inertial, joints, geoms, child_bodies } = &mut children;
+        let mut children = BodyChildren {
+            inertial: None,
+            joints: Vec::new(),
+            geoms: Vec::new(),
+            sites: Vec::new(),
+            child_bodies: Vec::new(),
+        };
+        let BodyChildren { inertial, joints, geoms, sites, child_bodies } = &mut children;
         for Placed { element: child, frame, class, suffix } in self.placed_children(element, class, suffix)? {
             match child.tag() {
                 "inertial" => {
@@ -199,21 +207,17 @@ impl Reader {
                     no_children(&child)?;
                     let mut settings = self.defaults.class(self.class_of(&child, class)?).joint.clone();
                     settings.apply(&child)?;
-                    if let Some((at, turn)) = frame {
-                        settings.pos = (at + turn * Vec3::from(settings.pos)).into();
-                        settings.axis = (turn * Vec3::from(settings.axis)).into();
-                    }
-                    joints.push(JointElement { element: child, settings, align: Align::Auto, suffix });
+                    joints.push(JointElement { element: child, settings, frame, align: Align::Auto, suffix });
                 }
                 "freejoint" => {
                     // MuJoCo's <freejoint> takes no defaults.
                     let FreeJointSettings { align } = read_settings(FREEJOINT_ATTRIBUTES, &child)?;
                     no_children(&child)?;
                     let settings = JointSettings { kind: JointKind::Free, ..JointSettings::default() };
-                    joints.push(JointElement { element: child, settings, align, suffix });
+                    joints.push(JointElement { element: child, settings, frame: None, align, suffix });
                 }
                 "geom" => geoms.push(self.read_geom(child, class, frame, &suffix, Some(index))?),
-                "site" => self.read_site(&child, class, Some(index), frame, &suffix)?,
+                "site" => sites.push(self.read_site(&child, class, Some(index), frame, &suffix)?),
                 tag if IGNORED_IN_BODIES.contains(&tag) => {
                     self.named_elsewhere.extend(child.text("target").map(str::to_string));
                     self.warnings.push(child.ignored());
@@ -354,7 +358,7 @@ impl Reader {
         Ok(GeomSpec { element, settings, frame, name, body })
     }
 
-    /// Reads a `<site>` of body `body` (`None`: the world body).
+    /// Reads a `<site>` of body `body` (`None`: the world body), its name claimed.
     pub(super) fn read_site(
         &mut self,
         element: &Element,
@@ -362,7 +366,7 @@ impl Reader {
         body: Option<usize>,
         frame: Option<Pose>,
         suffix: &Suffix,
-    ) -> Result<(), MjcfError> {
+    ) -> Result<SiteSpec, MjcfError> {
         element.check_attributes(&names(SITE_ATTRIBUTES))?;
         no_children(element)?;
         let mut settings = self.defaults.class(self.class_of(element, body_class)?).site.clone();
@@ -377,14 +381,12 @@ impl Reader {
             }
             None => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
         };
-        let (pos, quat) = frame.map_or((pos, quat), |frame| compose(&frame, &(pos, quat)));
         let name = element.text("name").map(|name| self.replicated_name(Named::Site, name, suffix));
         if let Some(name) = &name {
             claim_name(&mut self.site_names, "site", name, element)?;
         }
-        self.sites.push(Site { name, body, pos, quat, line: element.line });
-        self.site_fitted_to_mesh.push(settings.mesh);
-        Ok(())
+        let site = Site { name, body, pos, quat, line: element.line };
+        Ok(SiteSpec { site, frame, fitted_to_mesh: settings.mesh })
     }
 
     pub(super) fn resolve(&self, element: &Element, orientation: &Orientation) -> Result<Quat, MjcfError> {
@@ -450,5 +452,6 @@ struct BodyChildren<'a> {
     inertial: Option<(Element<'a, 'a>, BodyInertia)>,
     joints: Vec<JointElement<'a, 'a>>,
     geoms: Vec<GeomSpec<'a>>,
+    sites: Vec<SiteSpec>,
     child_bodies: Vec<PendingBody<'a>>,
 }

@@ -10,13 +10,13 @@
 
 use super::body::compose;
 use super::geom::mass_not_computed;
-use super::{BodyRecord, InertiaFromGeom, Pose, Reader, WorldGeom};
+use super::{BodyRecord, InertiaFromGeom, JointElement, Pose, Reader, WorldGeom};
 use crate::math::{Quat, Vec3};
 use crate::mjcf::defaults::GeomSettings;
 use crate::mjcf::element::Element;
 use crate::mjcf::error::MjcfError;
 use crate::mjcf::inertia::{BodyInertia, EPS, GeomMass};
-use crate::vehicle::{Body, Joint};
+use crate::vehicle::{Body, Site};
 
 /// The body tree as read, for the compile stage.
 #[derive(Default)]
@@ -25,6 +25,18 @@ pub(super) struct ReadTree<'a> {
     pub bodies: Vec<BodySpec<'a>>,
     /// Every geom, the world body's too, in document order.
     pub geoms: Vec<GeomSpec<'a>>,
+    /// Every site, the world body's too, in document order.
+    pub sites: Vec<SiteSpec>,
+}
+
+/// A `<site>` as read.
+pub(super) struct SiteSpec {
+    /// The site, its pose in the `<frame>`s around it.
+    pub site: Site,
+    /// The pose of those `<frame>`s in its body.
+    pub frame: Option<Pose>,
+    /// Whether it is fitted to a mesh (which moves its frame).
+    pub fitted_to_mesh: bool,
 }
 
 /// A `<body>` as read, its joints built.
@@ -35,8 +47,8 @@ pub(super) struct BodySpec<'a> {
     pub parent: Option<usize>,
     /// The pose of the `<frame>`s around it, in its parent.
     pub frame: Option<Pose>,
-    /// Its joints.
-    pub joints: Vec<Joint>,
+    /// Its joints, with their settings resolved.
+    pub joints: Vec<JointElement<'a, 'a>>,
     /// `gravcomp`.
     pub gravcomp: f64,
     /// What its mass properties and frame come from.
@@ -77,7 +89,14 @@ impl Reader {
     /// parent and in the world, the geoms in document order, then each
     /// body's mass properties, with which a free body may move its frame.
     pub(super) fn compile_bodies(&mut self, tree: ReadTree) -> Result<(), MjcfError> {
-        let sources = self.place_bodies(tree.bodies);
+        let sources = self.place_bodies(tree.bodies)?;
+        for SiteSpec { mut site, frame, fitted_to_mesh } in tree.sites {
+            if let Some(frame) = frame {
+                (site.pos, site.quat) = compose(&frame, &(site.pos, site.quat));
+            }
+            self.sites.push(site);
+            self.site_fitted_to_mesh.push(fitted_to_mesh);
+        }
         let mut masses: Vec<Vec<GeomMass>> = sources.iter().map(|_| Vec::new()).collect();
         for geom in &tree.geoms {
             self.register_wrap_geom(geom)?;
@@ -119,11 +138,19 @@ impl Reader {
     }
 
     /// The vehicle's bodies, each placed in its parent (the `<frame>`s
-    /// around it composed) and in the world at qpos0, with the names made
-    /// up for unnamed ones set apart; what their masses come from.
-    fn place_bodies<'a>(&mut self, bodies: Vec<BodySpec<'a>>) -> Vec<MassSource<'a>> {
+    /// around it and its joints composed) and in the world at qpos0, its
+    /// joints built, with the names made up for unnamed ones set apart;
+    /// what their masses come from.
+    fn place_bodies<'a>(&mut self, bodies: Vec<BodySpec<'a>>) -> Result<Vec<MassSource<'a>>, MjcfError> {
         let mut sources = Vec::with_capacity(bodies.len());
-        for BodySpec { name, parent, frame, joints, gravcomp, mass } in bodies {
+        for BodySpec { name, parent, frame, mut joints, gravcomp, mass } in bodies {
+            for joint in joints.iter_mut() {
+                if let Some((at, turn)) = joint.frame {
+                    joint.settings.pos = (at + turn * Vec3::from(joint.settings.pos)).into();
+                    joint.settings.axis = (turn * Vec3::from(joint.settings.axis)).into();
+                }
+            }
+            let joints = self.build_joints(&name, parent, joints)?;
             let (pos, quat) = frame.map_or(mass.own_pose, |frame| compose(&frame, &mass.own_pose));
             let world_pose = parent.map_or((pos, quat), |parent| compose(&self.world_poses[parent], &(pos, quat)));
             self.world_poses.push(world_pose);
@@ -143,7 +170,7 @@ impl Reader {
             sources.push(mass);
         }
         self.set_apart_unnamed();
-        sources
+        Ok(sources)
     }
 
     /// A geom of the world body: it moves no mass, so its mesh is never

@@ -223,6 +223,8 @@ struct Placed<'a> {
 struct JointElement<'a, 'input> {
     element: Element<'a, 'input>,
     settings: JointSettings,
+    /// The pose of the `<frame>`s around a `<joint>`, in its body.
+    frame: Option<Pose>,
     align: Align,
     /// The `<replicate>` suffix of its name.
     suffix: Suffix,
