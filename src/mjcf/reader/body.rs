@@ -1,5 +1,7 @@
-//! The body tree: bodies, their frames and `<replicate>`s, joints, geoms and
-//! sites in document order, each body's mass properties, and the warning on contacts.
+//! The walk through the body tree: bodies, their frames and `<replicate>`s,
+//! joints, geoms and sites in document order, read into a [`ReadTree`]
+//! (their defaults resolved, the `<frame>`s around them kept) for the
+//! compile stage (`compile.rs`); and the warning on contacts.
 
 use super::compile::{BodySpec, GeomSpec, MassSource, ReadTree, SiteSpec};
 use super::geom::fromto_frame;
@@ -165,7 +167,7 @@ impl Reader {
             }
             _ => false,
         };
-        let explicit = inertial.map(|(_, inertia)| inertia);
+        let explicit = inertial.map(|(_, inertia, frame)| (inertia, frame));
         let mass = MassSource { element: *element, explicit, moving, aligned, own_pose: (own_pos, own_quat) };
         tree.bodies.push(BodySpec { name, parent, frame, joints, gravcomp, mass });
         Ok(child_bodies.into_iter().map(|child| PendingBody { parent_moving: moving, ..child }).collect())
@@ -193,14 +195,11 @@ impl Reader {
         for Placed { element: child, frame, class, suffix } in self.placed_children(element, class, suffix)? {
             match child.tag() {
                 "inertial" => {
-                    if let Some((first, _)) = &inertial {
+                    if let Some((first, ..)) = &inertial {
                         return Err(child.repeated(first));
                     }
-                    let mut read = self.read_inertial(&child)?;
-                    if let Some(frame) = frame {
-                        read.place(&frame.0, &frame.1);
-                    }
-                    *inertial = Some((child, read));
+                    let read = self.read_inertial(&child)?;
+                    *inertial = Some((child, read, frame));
                 }
                 "joint" => {
                     child.check_attributes(&names(JOINT_ATTRIBUTES))?;
@@ -448,8 +447,9 @@ pub(super) fn compose(outer: &Pose, inner: &Pose) -> Pose {
 
 /// What a body element holds, read.
 struct BodyChildren<'a> {
-    /// Its `<inertial>`, with the element for messages on a second one.
-    inertial: Option<(Element<'a, 'a>, BodyInertia)>,
+    /// Its `<inertial>`, with the element for messages on a second one and
+    /// the pose of the `<frame>`s around it.
+    inertial: Option<(Element<'a, 'a>, BodyInertia, Option<Pose>)>,
     joints: Vec<JointElement<'a, 'a>>,
     geoms: Vec<GeomSpec<'a>>,
     sites: Vec<SiteSpec>,

@@ -59,8 +59,8 @@ pub(super) struct BodySpec<'a> {
 pub(super) struct MassSource<'a> {
     /// The `<body>` element, for messages.
     pub element: Element<'a, 'a>,
-    /// Its `<inertial>`, in the body frame.
-    pub explicit: Option<BodyInertia>,
+    /// Its `<inertial>`, in the `<frame>`s around it (their pose in the body).
+    pub explicit: Option<(BodyInertia, Option<Pose>)>,
     /// Whether a joint lies between it and the world.
     pub moving: bool,
     /// Whether its frame moves to its inertial frame (a free body without
@@ -113,7 +113,13 @@ impl Reader {
             }
         }
         for (index, (body, selected)) in sources.into_iter().zip(masses).enumerate() {
-            let inertia = match (selected.is_empty(), body.explicit) {
+            let explicit = body.explicit.map(|(mut inertia, frame)| {
+                if let Some((pos, quat)) = frame {
+                    inertia.place(&pos, &quat);
+                }
+                inertia
+            });
+            let inertia = match (selected.is_empty(), explicit) {
                 (false, _) => BodyInertia::from_geoms(&selected).map_err(|r| body.element.invalid(r))?,
                 (true, Some(explicit)) => explicit,
                 // MuJoCo puts the inertial frame of a body without mass at the body's

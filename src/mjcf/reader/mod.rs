@@ -1,4 +1,10 @@
-//! Walks an MJCF document and builds the [`Vehicle`].
+//! Reads an MJCF document and builds the [`Vehicle`]: the settings
+//! sections first, then a walk through the body tree into a spec
+//! (`body.rs`), compiled once the tree is read (`compile.rs`: frames, mass
+//! properties, free-body alignment), then the sections that name its
+//! objects (tendons, equalities, actuators, sensors), and last what needs
+//! the whole file (`finish.rs`: the mass checks, `fusestatic`,
+//! `settotalmass`).
 
 mod body;
 mod compile;
