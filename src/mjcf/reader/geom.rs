@@ -77,11 +77,15 @@ impl Reader {
         Ok((fitted, pos, quat))
     }
 
-    /// Registers a named geom for tendons to wrap around: its type, and a
-    /// sphere's or cylinder's frame in its body.
+    /// Registers a geom a tendon wraps around: its type, and a sphere's or
+    /// cylinder's frame in its body (a primitive fitted to a mesh reads the
+    /// mesh here, so only for a tendon).
     pub(super) fn register_wrap_geom(&mut self, geom: &GeomSpec) -> Result<(), MjcfError> {
         let GeomSpec { element, settings, frame, name, body } = geom;
-        let (Some(name), body, frame) = (name, *body, frame.as_ref()) else { return Ok(()) };
+        let Some(name) = name.as_ref().filter(|name| self.wrap_obstacles.contains_key(*name)) else {
+            return Ok(());
+        };
+        let (body, frame) = (*body, frame.as_ref());
         let wrap = match settings.kind {
             GeomKind::Sphere | GeomKind::Cylinder => {
                 let (pos, quat) = match settings.fromto {

@@ -260,8 +260,8 @@ struct Reader {
     tendon_names: HashMap<String, u32>,
     /// Whether each tendon is limited (MuJoCo's tendon_limited, before any flag).
     tendon_limited: Vec<bool>,
-    /// The named geoms, for tendons to wrap around: their type, and their
-    /// frame when a sphere or cylinder.
+    /// The geoms tendons wrap around: their type, and their frame when a
+    /// sphere or cylinder.
     named_geoms: HashMap<String, (GeomKind, Option<WrapGeom>)>,
     /// The bodies the file leaves unnamed.
     unnamed_bodies: Vec<usize>,
@@ -404,6 +404,7 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
     if !has_worldbody {
         return Err(MjcfError::MissingWorldbody { line: root.line, element: root.label() });
     }
+    reader.note_wrap_obstacles(&tendon_sections);
     reader.compile_bodies(tree)?;
     // Before the equalities, actuators and sensors, which may name tendons.
     for section in &tendon_sections {
