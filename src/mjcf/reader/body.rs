@@ -111,8 +111,8 @@ impl Reader {
         Ok(())
     }
 
-    /// Reads one body into `tree` (its mass properties and alignment, the
-    /// compile stage's); returns its child bodies, still to be read.
+    /// Reads one body into `tree`, for the compile stage; returns its child
+    /// bodies, still to be read.
     pub(super) fn read_body<'a>(
         &mut self,
         body: &PendingBody<'a>,
@@ -174,9 +174,8 @@ impl Reader {
     }
 
     /// Reads the children of the body `element` (the `index`th body, of
-    /// default class `class`): its `<inertial>`, joints and geoms with
-    /// their settings resolved, its sites (read into the vehicle at once),
-    /// and its child bodies, still to be read.
+    /// default class `class`): its `<inertial>`, joints, geoms and sites
+    /// with their settings resolved, and its child bodies, still to be read.
     fn read_body_children<'a>(
         &mut self,
         element: &Element<'a, 'a>,

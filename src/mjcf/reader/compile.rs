@@ -1,9 +1,12 @@
 //! The compile stage of the body tree: what MuJoCo's compiler computes from
-//! the bodies and geoms as read (their defaults resolved, the `<frame>`s
-//! around them composed): each geom's mass and frame, from its primitive
-//! or its mesh (a mesh file is read here, and only for a geom whose mass
-//! counts); the sphere and cylinder geoms tendons may wrap around; the
-//! geoms that may collide; each body's mass properties (`inertiafromgeom`,
+//! the bodies, joints, geoms, sites and `<inertial>`s as read (their
+//! defaults resolved, the `<frame>`s around them kept): the frames
+//! composed, each body placed in its parent and in the world at qpos0, its
+//! joints built and checked; each geom's mass and frame, from its
+//! primitive or its mesh (a mesh file is read here, and only for a geom
+//! whose mass counts or a primitive a tendon wraps around); the wrap
+//! frames of the sphere and cylinder geoms tendons wrap around; the geoms
+//! that may collide; each body's mass properties (`inertiafromgeom`,
 //! `boundmass`, `boundinertia`); and the free bodies aligned with their
 //! inertial frames. `fusestatic` and `settotalmass` follow once the whole
 //! file is read (`finish.rs`).
