@@ -14,6 +14,7 @@
 //! shortcut's documented defaults. `<general>` overwrites only the
 //! attributes it gives.
 
+use super::attributes::{Attribute, names, read_into, set};
 use super::defaults::Limited;
 use super::element::Element;
 use super::error::MjcfError;
@@ -21,24 +22,102 @@ use crate::vehicle::ActuatorKind;
 
 /// Attributes every actuator element reads into the general actuator, in
 /// `<actuator>` and in `<default>` (MuJoCo 4.0 schema; `ctrllimited` is not
-/// an attribute of `<damper>`, whose ctrl is always limited).
-#[rustfmt::skip]
-pub(crate) const COMMON_ATTRIBUTES: &[&str] = &[
-    "group", "nsample", "interp", "delay", "ctrllimited", "ctrlrange", "forcelimited", "forcerange",
-    "lengthrange", "gear", "cranklength", "user", "damping", "armature",
+/// an attribute of `<damper>`, whose ctrl is always limited), and how each
+/// is read. `nsample`, `interp`, `lengthrange` and `cranklength` are read
+/// for their syntax: without a delay or a slider-crank (both refused) they
+/// change nothing nudyn computes.
+pub(crate) const COMMON_ATTRIBUTES: &[Attribute<ActuatorSettings>] = &[
+    Attribute::into("group", |s, e, a| set(&mut s.group, e.integers(a)?.map(|[group]| group))),
+    Attribute::checked("nsample", |e, a| e.integers::<1>(a).map(drop)),
+    Attribute::checked("interp", |e, a| e.keyword(a, &[("zoh", ()), ("linear", ()), ("cubic", ())]).map(drop)),
+    Attribute::into("delay", |s, e, a| set(&mut s.delay, e.number(a)?)),
+    Attribute::into("ctrllimited", |s, e, a| set(&mut s.ctrllimited, e.keyword(a, &LIMITED)?)),
+    Attribute::into("ctrlrange", read_ctrl_range),
+    Attribute::into("forcelimited", |s, e, a| set(&mut s.forcelimited, e.keyword(a, &LIMITED)?)),
+    Attribute::into("forcerange", |s, e, a| set(&mut s.forcerange, e.numbers(a)?)),
+    Attribute::checked("lengthrange", |e, a| e.numbers::<2>(a).map(drop)),
+    Attribute::into("gear", |s, e, a| e.overwrite_numbers(a, &mut s.gear)),
+    Attribute::checked("cranklength", |e, a| e.number(a).map(drop)),
+    Attribute::no_effect("user"),
+    Attribute::into("damping", |s, e, a| e.overwrite_numbers(a, &mut s.damping)),
+    Attribute::into("armature", |s, e, a| set(&mut s.armature, e.number(a)?)),
 ];
 
-/// Attributes that only `<general>` has, besides the common ones.
-#[rustfmt::skip]
-pub(crate) const GENERAL_ATTRIBUTES: &[&str] = &[
-    "actdim", "actearly", "actlimited", "actrange", "biasprm", "biastype", "dynprm", "dyntype", "ffrange",
-    "gainprm", "gaintype", "inheritrange", "input", "velrange",
+/// The keywords of `ctrllimited`, `forcelimited` and `actlimited`.
+const LIMITED: [(&str, Limited); 3] = [("false", Limited::No), ("true", Limited::Yes), ("auto", Limited::Auto)];
+
+/// `ctrlrange`: a range written here overrides one the class would
+/// inherit. MuJoCo objects only to a range inherited (inheritrange > 0)
+/// beside one written on the same element.
+fn read_ctrl_range(settings: &mut ActuatorSettings, element: &Element, attribute: &str) -> Result<(), MjcfError> {
+    if element.number("inheritrange")?.is_some_and(|r| r > 0.0) {
+        return Err(element.invalid("ctrlrange and inheritrange cannot both be defined"));
+    }
+    if let Some(range) = element.numbers(attribute)? {
+        settings.ctrlrange = range;
+        settings.inheritrange = 0.0;
+    }
+    Ok(())
+}
+
+/// Attributes that only `<general>` has, besides the common ones; it
+/// overwrites only those it gives. `ffrange` and `velrange` are read for
+/// their syntax.
+pub(crate) const GENERAL_ATTRIBUTES: &[Attribute<ActuatorSettings>] = &[
+    Attribute::into("actdim", |s, e, a| set(&mut s.actdim, e.integers(a)?.map(|[actdim]| actdim))),
+    Attribute::into("actearly", |s, e, a| set(&mut s.actearly, e.boolean(a)?)),
+    Attribute::into("actlimited", |s, e, a| set(&mut s.actlimited, e.keyword(a, &LIMITED)?)),
+    Attribute::into("actrange", |s, e, a| set(&mut s.actrange, e.numbers(a)?)),
+    Attribute::into("biasprm", |s, e, a| e.overwrite_numbers(a, &mut s.biasprm)),
+    Attribute::into("biastype", |s, e, a| set(&mut s.biastype, e.keyword(a, &BIAS_TYPES)?)),
+    Attribute::into("dynprm", |s, e, a| e.overwrite_numbers(a, &mut s.dynprm)),
+    Attribute::into("dyntype", |s, e, a| set(&mut s.dyntype, e.keyword(a, &DYNAMICS_TYPES)?)),
+    Attribute::checked("ffrange", |e, a| e.numbers::<2>(a).map(drop)),
+    Attribute::into("gainprm", |s, e, a| e.overwrite_numbers(a, &mut s.gainprm)),
+    Attribute::into("gaintype", |s, e, a| set(&mut s.gaintype, e.keyword(a, &GAIN_TYPES)?)),
+    Attribute::into("inheritrange", |s, e, a| set(&mut s.inheritrange, e.number(a)?)),
+    Attribute::no_effect("input"),
+    Attribute::checked("velrange", |e, a| e.numbers::<2>(a).map(drop)),
 ];
 
-/// Attributes that name the transmission target (not allowed in `<default>`).
-#[rustfmt::skip]
-pub(crate) const TARGET_ATTRIBUTES: &[&str] =
-    &["name", "class", "joint", "jointinparent", "site", "refsite", "tendon", "cranksite", "slidersite", "body"];
+/// `<position>`'s own attributes. Its gains and time constant are read by
+/// [`ActuatorSettings::apply`] together: what one element does not give
+/// comes from the class that lends it, and `kv` excludes `dampratio`.
+const POSITION_ATTRIBUTES: &[Attribute<ActuatorSettings>] = &[
+    Attribute::by_reader("kp"),
+    Attribute::by_reader("kv"),
+    Attribute::by_reader("dampratio"),
+    Attribute::by_reader("timeconst"),
+    Attribute::into("inheritrange", |s, e, a| set(&mut s.inheritrange, e.number(a)?)),
+];
+
+/// `<velocity>`'s and `<damper>`'s own attribute, read like `<position>`'s gains.
+const KV_ATTRIBUTES: &[Attribute<ActuatorSettings>] = &[Attribute::by_reader("kv")];
+
+/// Attributes that name the actuator, its class and its transmission target
+/// (not allowed in `<default>`), read by the reader.
+const TARGET_ATTRIBUTES: &[Attribute<ActuatorSettings>] = &[
+    Attribute::by_reader("name"),
+    Attribute::by_reader("class"),
+    Attribute::by_reader("joint"),
+    Attribute::by_reader("jointinparent"),
+    Attribute::by_reader("site"),
+    Attribute::by_reader("refsite"),
+    Attribute::by_reader("tendon"),
+    Attribute::by_reader("cranksite"),
+    Attribute::by_reader("slidersite"),
+    Attribute::by_reader("body"),
+];
+
+/// The attributes an element of `kind` has besides the common ones.
+pub(crate) fn own_attributes(kind: ActuatorKind) -> &'static [Attribute<ActuatorSettings>] {
+    match kind {
+        ActuatorKind::General => GENERAL_ATTRIBUTES,
+        ActuatorKind::Motor => &[],
+        ActuatorKind::Position => POSITION_ATTRIBUTES,
+        ActuatorKind::Velocity | ActuatorKind::Damper => KV_ATTRIBUTES,
+    }
+}
 
 /// The actuator elements nudyn models, and the kind each stands for.
 pub(crate) const ACTUATOR_KINDS: &[(&str, ActuatorKind)] = &[
@@ -87,19 +166,13 @@ pub(crate) fn dynamics_refusal(dyntype: &str) -> String {
 
 /// The attributes an actuator element of `kind` may have.
 pub(crate) fn attributes(kind: ActuatorKind, in_default: bool) -> Vec<&'static str> {
-    let mut allowed: Vec<&'static str> = COMMON_ATTRIBUTES.to_vec();
-    match kind {
-        ActuatorKind::General => allowed.extend(GENERAL_ATTRIBUTES),
-        ActuatorKind::Motor => {}
-        ActuatorKind::Position => allowed.extend(["kp", "kv", "dampratio", "timeconst", "inheritrange"]),
-        ActuatorKind::Velocity => allowed.push("kv"),
-        ActuatorKind::Damper => {
-            allowed.retain(|a| *a != "ctrllimited");
-            allowed.push("kv");
-        }
+    let mut allowed = names(COMMON_ATTRIBUTES);
+    if kind == ActuatorKind::Damper {
+        allowed.retain(|a| *a != "ctrllimited");
     }
+    allowed.extend(names(own_attributes(kind)));
     if !in_default {
-        allowed.extend(TARGET_ATTRIBUTES);
+        allowed.extend(names(TARGET_ATTRIBUTES));
     }
     allowed
 }
@@ -243,9 +316,10 @@ impl ActuatorSettings {
         element: &Element,
         lender: Option<&ActuatorSettings>,
     ) -> Result<(), MjcfError> {
-        self.apply_common(element)?;
+        read_into(COMMON_ATTRIBUTES, self, element)?;
+        read_into(own_attributes(kind), self, element)?;
         match kind {
-            ActuatorKind::General => self.apply_general(element)?,
+            ActuatorKind::General => {}
             ActuatorKind::Motor => self.set_table("fixed", &[1.0], "none", &[], None),
             ActuatorKind::Position => self.apply_position(element, lender)?,
             ActuatorKind::Velocity => {
@@ -271,81 +345,6 @@ impl ActuatorSettings {
             }
         }
         self.written_with = kind;
-        Ok(())
-    }
-
-    /// Attributes all actuator elements share.
-    fn apply_common(&mut self, element: &Element) -> Result<(), MjcfError> {
-        if let Some([group]) = element.integers("group")? {
-            self.group = group;
-        }
-        // Read for their syntax: without a delay they change nothing nudyn computes.
-        element.integers::<1>("nsample")?;
-        element.keyword("interp", &[("zoh", ()), ("linear", ()), ("cubic", ())])?;
-        element.numbers::<2>("lengthrange")?;
-        element.number("cranklength")?;
-        if let Some(delay) = element.number("delay")? {
-            self.delay = delay;
-        }
-        let limited = [("false", Limited::No), ("true", Limited::Yes), ("auto", Limited::Auto)];
-        for (attribute, target) in [
-            ("ctrllimited", &mut self.ctrllimited),
-            ("forcelimited", &mut self.forcelimited),
-            ("actlimited", &mut self.actlimited),
-        ] {
-            if let Some(value) = element.keyword(attribute, &limited)? {
-                *target = value;
-            }
-        }
-        // MuJoCo objects only to a range inherited (inheritrange > 0) beside
-        // one written on the same element.
-        if element.has("ctrlrange") && element.number("inheritrange")?.is_some_and(|r| r > 0.0) {
-            return Err(element.invalid("ctrlrange and inheritrange cannot both be defined"));
-        }
-        if let Some(range) = element.numbers("ctrlrange")? {
-            self.ctrlrange = range;
-            // A range written here overrides one the class would inherit.
-            self.inheritrange = 0.0;
-        }
-        if let Some(range) = element.numbers("forcerange")? {
-            self.forcerange = range;
-        }
-        if let Some(range) = element.numbers("actrange")? {
-            self.actrange = range;
-        }
-        if let Some(inheritrange) = element.number("inheritrange")? {
-            self.inheritrange = inheritrange;
-        }
-        element.overwrite_numbers("gear", &mut self.gear)?;
-        element.overwrite_numbers("damping", &mut self.damping)?;
-        if let Some(armature) = element.number("armature")? {
-            self.armature = armature;
-        }
-        Ok(())
-    }
-
-    /// The attributes only `<general>` has; the others keep their values.
-    fn apply_general(&mut self, element: &Element) -> Result<(), MjcfError> {
-        if let Some(gaintype) = element.keyword("gaintype", &GAIN_TYPES)? {
-            self.gaintype = gaintype;
-        }
-        if let Some(biastype) = element.keyword("biastype", &BIAS_TYPES)? {
-            self.biastype = biastype;
-        }
-        if let Some(dyntype) = element.keyword("dyntype", &DYNAMICS_TYPES)? {
-            self.dyntype = dyntype;
-        }
-        element.overwrite_numbers("gainprm", &mut self.gainprm)?;
-        element.overwrite_numbers("biasprm", &mut self.biasprm)?;
-        element.overwrite_numbers("dynprm", &mut self.dynprm)?;
-        if let Some([actdim]) = element.integers("actdim")? {
-            self.actdim = actdim;
-        }
-        if let Some(actearly) = element.boolean("actearly")? {
-            self.actearly = actearly;
-        }
-        element.numbers::<2>("velrange")?;
-        element.numbers::<2>("ffrange")?;
         Ok(())
     }
 

@@ -80,6 +80,9 @@ pub(crate) fn set<T>(target: &mut T, value: Option<T>) -> Result<(), MjcfError> 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mjcf::bodies::{
+        BODY_ATTRIBUTES, FRAME_ATTRIBUTES, FREEJOINT_ATTRIBUTES, INERTIAL_ATTRIBUTES, REPLICATE_ATTRIBUTES,
+    };
     use crate::mjcf::defaults::{GEOM_ATTRIBUTES, JOINT_ATTRIBUTES, SITE_ATTRIBUTES};
     use crate::mjcf::element::LineStarts;
     use crate::mjcf::equality::COMMON_ATTRIBUTES as EQUALITY_ATTRIBUTES;
@@ -119,6 +122,9 @@ mod tests {
             "enable",
             "disable",
             "1 2",
+            "never",
+            "affine",
+            "integrator",
         ];
         for attribute in table.iter().filter(|a| matches!(a.read, Read::Into(_))) {
             let changes = values.iter().any(|value| {
@@ -130,12 +136,25 @@ mod tests {
 
     #[test]
     fn every_attribute_read_into_the_settings_changes_them() {
+        every_entry_changes_the_settings("body", BODY_ATTRIBUTES);
+        every_entry_changes_the_settings("frame", FRAME_ATTRIBUTES);
+        every_entry_changes_the_settings("replicate", REPLICATE_ATTRIBUTES);
+        every_entry_changes_the_settings("inertial", INERTIAL_ATTRIBUTES);
+        every_entry_changes_the_settings("freejoint", FREEJOINT_ATTRIBUTES);
         every_entry_changes_the_settings("joint", JOINT_ATTRIBUTES);
         every_entry_changes_the_settings("geom", GEOM_ATTRIBUTES);
         every_entry_changes_the_settings("site", SITE_ATTRIBUTES);
         every_entry_changes_the_settings("mesh", MESH_ATTRIBUTES);
         every_entry_changes_the_settings("tendon", TENDON_ATTRIBUTES);
         every_entry_changes_the_settings("equality", EQUALITY_ATTRIBUTES);
+        for (tag, table) in crate::mjcf::equality::EQUALITY_ATTRIBUTES {
+            every_entry_changes_the_settings(tag, table);
+        }
+        every_entry_changes_the_settings("sensor", crate::mjcf::sensor::COMMON_ATTRIBUTES);
+        every_entry_changes_the_settings("actuator", crate::mjcf::actuator::COMMON_ATTRIBUTES);
+        for (tag, kind) in crate::mjcf::actuator::ACTUATOR_KINDS {
+            every_entry_changes_the_settings(tag, crate::mjcf::actuator::own_attributes(*kind));
+        }
         every_entry_changes_the_settings("compiler", COMPILER_ATTRIBUTES);
         every_entry_changes_the_settings("option", OPTION_ATTRIBUTES);
         every_entry_changes_the_settings("flag", FLAG_ATTRIBUTES);
@@ -154,9 +173,13 @@ mod tests {
 
     #[test]
     fn attributes_checked_for_their_syntax_refuse_malformed_values() {
+        checked_entries_refuse_malformed_values("body", BODY_ATTRIBUTES);
         checked_entries_refuse_malformed_values("geom", GEOM_ATTRIBUTES);
         checked_entries_refuse_malformed_values("site", SITE_ATTRIBUTES);
         checked_entries_refuse_malformed_values("option", OPTION_ATTRIBUTES);
+        checked_entries_refuse_malformed_values("sensor", crate::mjcf::sensor::COMMON_ATTRIBUTES);
+        checked_entries_refuse_malformed_values("actuator", crate::mjcf::actuator::COMMON_ATTRIBUTES);
+        checked_entries_refuse_malformed_values("general", crate::mjcf::actuator::GENERAL_ATTRIBUTES);
         checked_entries_refuse_malformed_values("flag", FLAG_ATTRIBUTES);
     }
 

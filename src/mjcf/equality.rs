@@ -59,18 +59,85 @@ pub(crate) trait EqualityTargets {
     fn equality_joint(&self, element: &Element, attribute: &str) -> Result<JointKind, MjcfError>;
 }
 
-/// Reads one element of `<equality>` whose class settings are `settings`.
-/// The equality elements nudyn models, with their own attributes.
-pub(crate) const EQUALITY_ATTRIBUTES: &[(&str, &[&str])] = &[
-    ("connect", &["body1", "body2", "site1", "site2", "anchor"]),
-    ("weld", &["body1", "body2", "site1", "site2", "anchor", "relpose", "torquescale"]),
-    ("joint", &["joint1", "joint2", "polycoef"]),
-    ("tendon", &["tendon1", "tendon2", "polycoef"]),
+/// What an equality element's own attributes give besides the objects it
+/// names (a `<default>` class sets none of them).
+#[derive(Clone, Debug)]
+pub(crate) struct OwnSettings {
+    /// `anchor`: a connect's or weld's point in body1's frame.
+    pub anchor: [f64; 3],
+    /// `relpose`: a weld's pose of body2 in body1 (position, then a
+    /// quaternion; all zeros: the pose at qpos0).
+    pub relpose: [f64; 7],
+    /// `torquescale`.
+    pub torquescale: f64,
+    /// `polycoef`: a joint or tendon coupling's polynomial.
+    pub polycoef: [f64; 5],
+}
+
+impl Default for OwnSettings {
+    /// MuJoCo's defaults.
+    fn default() -> Self {
+        OwnSettings {
+            anchor: [0.0; 3],
+            relpose: [0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            torquescale: 1.0,
+            polycoef: [0.0, 1.0, 0.0, 0.0, 0.0],
+        }
+    }
+}
+
+/// `<connect>`'s own attributes (MuJoCo 4.0 schema); the reader looks up
+/// the bodies and sites.
+const CONNECT_ATTRIBUTES: &[Attribute<OwnSettings>] = &[
+    Attribute::by_reader("body1"),
+    Attribute::by_reader("body2"),
+    Attribute::by_reader("site1"),
+    Attribute::by_reader("site2"),
+    Attribute::into("anchor", |s, e, a| e.overwrite_numbers(a, &mut s.anchor)),
 ];
+
+/// `<weld>`'s own attributes.
+const WELD_ATTRIBUTES: &[Attribute<OwnSettings>] = &[
+    Attribute::by_reader("body1"),
+    Attribute::by_reader("body2"),
+    Attribute::by_reader("site1"),
+    Attribute::by_reader("site2"),
+    Attribute::into("anchor", |s, e, a| e.overwrite_numbers(a, &mut s.anchor)),
+    Attribute::into("relpose", |s, e, a| e.overwrite_numbers(a, &mut s.relpose)),
+    Attribute::into("torquescale", |s, e, a| set(&mut s.torquescale, e.number(a)?)),
+];
+
+/// `<joint>`'s own attributes in `<equality>`.
+const JOINT_ATTRIBUTES: &[Attribute<OwnSettings>] = &[
+    Attribute::by_reader("joint1"),
+    Attribute::by_reader("joint2"),
+    Attribute::into("polycoef", |s, e, a| e.overwrite_numbers(a, &mut s.polycoef)),
+];
+
+/// `<tendon>`'s own attributes in `<equality>`.
+const TENDON_ATTRIBUTES: &[Attribute<OwnSettings>] = &[
+    Attribute::by_reader("tendon1"),
+    Attribute::by_reader("tendon2"),
+    Attribute::into("polycoef", |s, e, a| e.overwrite_numbers(a, &mut s.polycoef)),
+];
+
+/// The equality elements nudyn models, with their own attributes.
+pub(crate) const EQUALITY_ATTRIBUTES: &[(&str, &[Attribute<OwnSettings>])] = &[
+    ("connect", CONNECT_ATTRIBUTES),
+    ("weld", WELD_ATTRIBUTES),
+    ("joint", JOINT_ATTRIBUTES),
+    ("tendon", TENDON_ATTRIBUTES),
+];
+
+/// The attributes of an equality element whose own ones are `own`.
+pub(crate) fn attributes(own: &[Attribute<OwnSettings>]) -> Vec<&'static str> {
+    names(COMMON_ATTRIBUTES).into_iter().chain(names(own)).collect()
+}
 
 /// The equality elements MuJoCo has that nudyn refuses: on flexes.
 pub(crate) const REFUSED_EQUALITIES: &[&str] = &["flex", "flexvert", "flexstrain"];
 
+/// Reads one element of `<equality>` whose class settings are `settings`.
 pub(crate) fn read(
     element: &Element,
     mut settings: EqualitySettings,
@@ -86,12 +153,14 @@ pub(crate) fn read(
         }
         None => return Err(element.unknown()),
     };
-    let allowed: Vec<&str> = names(COMMON_ATTRIBUTES).into_iter().chain(own.iter().copied()).collect();
-    element.check_attributes(&allowed)?;
+    element.check_attributes(&attributes(own))?;
     if let Some(child) = element.children().next() {
         return Err(child.unknown());
     }
     settings.apply(element)?;
+    let mut own_settings = OwnSettings::default();
+    read_into(own, &mut own_settings, element)?;
+    let OwnSettings { anchor, relpose, torquescale, polycoef } = own_settings;
     let kind = match element.tag() {
         "joint" => {
             let joint1 = element.text("joint1").ok_or_else(|| element.missing("joint1"))?;
@@ -107,8 +176,6 @@ pub(crate) fn read(
             if joint2 == Some(joint1) {
                 return Err(element.invalid("joint1 and joint2 name the same joint in equality constraint"));
             }
-            let mut polycoef = [0.0, 1.0, 0.0, 0.0, 0.0];
-            element.overwrite_numbers("polycoef", &mut polycoef)?;
             EqualityKind::Joint { joint1: joint1.to_string(), joint2: joint2.map(str::to_string), polycoef }
         }
         "tendon" => {
@@ -123,28 +190,21 @@ pub(crate) fn read(
             if tendon2 == Some(tendon1) {
                 return Err(element.invalid("tendon1 and tendon2 name the same tendon in equality constraint"));
             }
-            let mut polycoef = [0.0, 1.0, 0.0, 0.0, 0.0];
-            element.overwrite_numbers("polycoef", &mut polycoef)?;
             EqualityKind::Tendon { tendon1, tendon2, polycoef }
         }
         tag => {
             let objects = objects(element, targets)?;
-            let mut anchor = [0.0; 3];
-            element.overwrite_numbers("anchor", &mut anchor)?;
             if tag == "connect" {
                 if matches!(objects, EqualityObjects::Bodies(..)) && !element.has("anchor") {
                     return Err(element.missing("anchor"));
                 }
                 EqualityKind::Connect { objects, anchor: Vec3::from(anchor) }
             } else {
-                let mut relpose = [0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0];
-                element.overwrite_numbers("relpose", &mut relpose)?;
                 let quat = [relpose[3], relpose[4], relpose[5], relpose[6]];
                 let relpose = (quat != [0.0; 4]).then(|| {
                     let q = Quat::from_quaternion(nalgebra::Quaternion::new(quat[0], quat[1], quat[2], quat[3]));
                     (Vec3::new(relpose[0], relpose[1], relpose[2]), q)
                 });
-                let torquescale = element.number("torquescale")?.unwrap_or(1.0);
                 EqualityKind::Weld { objects, anchor: Vec3::from(anchor), relpose, torquescale }
             }
         }

@@ -14,6 +14,7 @@
 
 mod actuator;
 mod attributes;
+mod bodies;
 mod contacts;
 mod defaults;
 mod element;

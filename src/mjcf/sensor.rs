@@ -2,13 +2,55 @@
 //! compiler checks, and the refusal of the sensor types nudyn does not
 //! compute (so that `sensordata` keeps MuJoCo's layout or the import stops).
 
+use super::attributes::{Attribute, names, read_into, set};
 use super::element::Element;
 use super::error::MjcfError;
 use crate::vehicle::{FrameObject, JointKind, Sensor, SensorKind, SensorTarget};
 
-/// Attributes every sensor element has (MuJoCo 4.0 schema).
-pub(crate) const COMMON_ATTRIBUTES: &[&str] =
-    &["name", "noise", "cutoff", "user", "nsample", "interp", "delay", "interval"];
+/// What a sensor element's attributes give besides the objects it names.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct SensorSettings {
+    /// `cutoff`: the bound on the sensor's value (0: none).
+    pub cutoff: f64,
+}
+
+/// Attributes every sensor element has (MuJoCo 4.0 schema) and how each is
+/// read; `nsample` and `interp` matter only with a delay, which is refused.
+pub(crate) const COMMON_ATTRIBUTES: &[Attribute<SensorSettings>] = &[
+    Attribute::by_reader("name"),
+    Attribute::checked("noise", |e, a| non_negative(e, a).map(drop)),
+    Attribute::into("cutoff", |s, e, a| set(&mut s.cutoff, non_negative(e, a)?)),
+    Attribute::no_effect("user"),
+    Attribute::no_effect("nsample"),
+    Attribute::no_effect("interp"),
+    Attribute::checked("delay", refuse_history),
+    Attribute::checked("interval", refuse_history),
+];
+
+/// A number MuJoCo's compiler refuses when negative.
+fn non_negative(element: &Element, attribute: &str) -> Result<Option<f64>, MjcfError> {
+    match element.number(attribute)? {
+        Some(value) if value < 0.0 => Err(element.invalid(format!("negative {attribute} in sensor"))),
+        value => Ok(value),
+    }
+}
+
+/// Refuses a positive `delay` or `interval` (a period and an optional
+/// phase: the period decides).
+fn refuse_history(element: &Element, attribute: &str) -> Result<(), MjcfError> {
+    let first = element.text(attribute).and_then(|text| text.split_whitespace().next());
+    let value = match first.map(str::parse::<f64>) {
+        None => 0.0,
+        Some(Ok(value)) if value.is_finite() => value,
+        Some(_) => return Err(element.bad_value(attribute, "a finite number")),
+    };
+    if value > 0.0 {
+        return Err(element.unsupported(format!(
+            "{attribute}: the sensor would report from a history of values, which nudyn does not keep"
+        )));
+    }
+    Ok(())
+}
 
 /// The objects sensors name, as the importer knows them; each lookup gives
 /// the error that names the element and attribute.
@@ -49,53 +91,53 @@ pub(crate) fn refusal(tag: &str) -> Option<&'static str> {
     REFUSED_SENSORS.iter().find(|(tags, _)| tags.contains(&tag)).map(|(_, reason)| *reason)
 }
 
+/// A sensor's own attributes: the objects it names, which the reader looks up.
+type Targets = &'static [Attribute<SensorSettings>];
+const SITE: Targets = &[Attribute::by_reader("site")];
+const JOINT: Targets = &[Attribute::by_reader("joint")];
+const ACTUATOR: Targets = &[Attribute::by_reader("actuator")];
+const TENDON: Targets = &[Attribute::by_reader("tendon")];
+const BODY: Targets = &[Attribute::by_reader("body")];
+const OBJECT: Targets = &[Attribute::by_reader("objtype"), Attribute::by_reader("objname")];
+const OBJECT_IN_REFERENCE: Targets = &[
+    Attribute::by_reader("objtype"),
+    Attribute::by_reader("objname"),
+    Attribute::by_reader("reftype"),
+    Attribute::by_reader("refname"),
+];
+
 /// The attributes of a sensor type besides the common ones.
-pub(crate) fn own_attributes(kind: SensorKind) -> &'static [&'static str] {
+fn own_attributes(kind: SensorKind) -> Targets {
     use SensorKind::*;
     match kind {
-        Gyro | Velocimeter | Accelerometer | Force | Torque | Magnetometer => &["site"],
-        JointPos | JointVel | BallQuat | BallAngVel | JointActuatorFrc => &["joint"],
-        JointLimitPos | JointLimitVel | JointLimitFrc => &["joint"],
-        ActuatorPos | ActuatorVel | ActuatorFrc => &["actuator"],
-        TendonPos | TendonVel | TendonActuatorFrc | TendonLimitPos | TendonLimitVel | TendonLimitFrc => &["tendon"],
-        FrameLinAcc | FrameAngAcc => &["objtype", "objname"],
-        FramePos | FrameQuat | FrameXAxis | FrameYAxis | FrameZAxis | FrameLinVel | FrameAngVel => {
-            &["objtype", "objname", "reftype", "refname"]
-        }
-        SubtreeCom | SubtreeLinVel | SubtreeAngMom => &["body"],
+        Gyro | Velocimeter | Accelerometer | Force | Torque | Magnetometer => SITE,
+        JointPos | JointVel | BallQuat | BallAngVel | JointActuatorFrc => JOINT,
+        JointLimitPos | JointLimitVel | JointLimitFrc => JOINT,
+        ActuatorPos | ActuatorVel | ActuatorFrc => ACTUATOR,
+        TendonPos | TendonVel | TendonActuatorFrc | TendonLimitPos | TendonLimitVel | TendonLimitFrc => TENDON,
+        FrameLinAcc | FrameAngAcc => OBJECT,
+        FramePos | FrameQuat | FrameXAxis | FrameYAxis | FrameZAxis | FrameLinVel | FrameAngVel => OBJECT_IN_REFERENCE,
+        SubtreeCom | SubtreeLinVel | SubtreeAngMom => BODY,
         Clock => &[],
     }
 }
 
+/// The attributes a sensor element of `kind` may have, in their tables' order.
+pub(crate) fn attributes(kind: SensorKind) -> Vec<&'static str> {
+    names(COMMON_ATTRIBUTES).into_iter().chain(names(own_attributes(kind))).collect()
+}
+
 /// Reads one sensor element of a type nudyn computes.
 pub(crate) fn read(element: &Element, kind: SensorKind, targets: &impl SensorTargets) -> Result<Sensor, MjcfError> {
-    let allowed: Vec<&str> = COMMON_ATTRIBUTES.iter().chain(own_attributes(kind)).copied().collect();
-    element.check_attributes(&allowed)?;
+    element.check_attributes(&attributes(kind))?;
     if let Some(child) = element.children().next() {
         return Err(child.unknown());
     }
-    for attribute in ["noise", "cutoff"] {
-        if element.number(attribute)?.is_some_and(|v| v < 0.0) {
-            return Err(element.invalid(format!("negative {attribute} in sensor")));
-        }
-    }
-    let cutoff = element.number("cutoff")?.unwrap_or(0.0);
+    let mut settings = SensorSettings::default();
+    read_into(COMMON_ATTRIBUTES, &mut settings, element)?;
+    let SensorSettings { cutoff } = settings;
     if cutoff > 0.0 && kind.is_direction() {
         return Err(element.invalid("cutoff applied to axis or quaternion datatype in sensor"));
-    }
-    // `interval` is a period and an optional phase: the period decides.
-    for attribute in ["delay", "interval"] {
-        let first = element.text(attribute).and_then(|text| text.split_whitespace().next());
-        let value = match first.map(str::parse::<f64>) {
-            None => 0.0,
-            Some(Ok(value)) if value.is_finite() => value,
-            Some(_) => return Err(element.bad_value(attribute, "a finite number")),
-        };
-        if value > 0.0 {
-            return Err(element.unsupported(format!(
-                "{attribute}: the sensor would report from a history of values, which nudyn does not keep"
-            )));
-        }
     }
     let target = target(element, kind, targets)?;
     Ok(Sensor { name: targets.own_name(element), kind, target, cutoff, line: element.line })

@@ -6,7 +6,7 @@
 
 use std::fmt::Write;
 
-use super::{actuator, attributes, defaults, equality, mesh, reader, sensor, tendon};
+use super::{actuator, attributes, bodies, defaults, equality, mesh, reader, sensor, tendon};
 use crate::vehicle::SensorKind;
 
 /// docs/mjcf-support.md: element and attribute, read or ignored with a
@@ -70,6 +70,31 @@ pub fn support_table() -> String {
          it: then it is used, and only its contacts are left out (no warning when it has none).\n",
     );
 
+    write_elements_read(&mut out);
+
+    out.push_str("\n## Refused\n\n| element or attribute | reason |\n|---|---|\n");
+    for (tag, reason) in reader::UNSUPPORTED_CHILDREN {
+        let _ = writeln!(out, "| `<{tag}>` | {reason} |");
+    }
+    for (tag, reason) in actuator::REFUSED_ACTUATORS {
+        let _ = writeln!(out, "| `<actuator>/<{tag}>` | {reason} |");
+    }
+    for (attribute, reason) in reader::REFUSED_TRANSMISSIONS {
+        let _ = writeln!(out, "| actuator `{attribute}=` | {reason} |");
+    }
+    for (tags, reason) in sensor::REFUSED_SENSORS {
+        for tag in *tags {
+            let _ = writeln!(out, "| `<sensor>/<{tag}>` | {reason} |");
+        }
+    }
+    for tag in equality::REFUSED_EQUALITIES {
+        let _ = writeln!(out, "| `<equality>/<{tag}>` | an equality constraint on a flex (nudyn models no flexes) |");
+    }
+    out
+}
+
+/// The rows of "Elements read, and their attributes".
+fn write_elements_read(out: &mut String) {
     out.push_str("\n## Elements read, and their attributes\n\n");
     out.push_str("| element | attributes |\n|---|---|\n");
     let joint = attributes::names(defaults::JOINT_ATTRIBUTES);
@@ -79,15 +104,21 @@ pub fn support_table() -> String {
     let compiler = attributes::names(reader::COMPILER_ATTRIBUTES);
     let option = attributes::names(reader::OPTION_ATTRIBUTES);
     let flag = attributes::names(reader::FLAG_ATTRIBUTES);
-    let elements: [(&str, &[&str]); 11] = [
+    let body = attributes::names(bodies::BODY_ATTRIBUTES);
+    let frame = attributes::names(bodies::FRAME_ATTRIBUTES);
+    let replicate = attributes::names(bodies::REPLICATE_ATTRIBUTES);
+    let inertial = attributes::names(bodies::INERTIAL_ATTRIBUTES);
+    let freejoint = attributes::names(bodies::FREEJOINT_ATTRIBUTES);
+    let elements: [(&str, &[&str]); 12] = [
         ("compiler", &compiler),
         ("option", &option),
         ("option/flag", &flag),
-        ("body", reader::BODY_ATTRIBUTES),
-        ("frame", reader::FRAME_ATTRIBUTES),
-        ("replicate", reader::REPLICATE_ATTRIBUTES),
-        ("inertial", reader::INERTIAL_ATTRIBUTES),
+        ("body", &body),
+        ("frame", &frame),
+        ("replicate", &replicate),
+        ("inertial", &inertial),
         ("joint", &joint),
+        ("freejoint", &freejoint),
         ("geom", &geom),
         ("site", &site),
         ("asset/mesh", &mesh_attributes),
@@ -108,35 +139,11 @@ pub fn support_table() -> String {
         let _ = writeln!(out, "| `<actuator>/<{tag}>` | {} |", code_list(&actuator::attributes(*kind, false), false));
     }
     for kind in SensorKind::ALL {
-        let attributes: Vec<&str> =
-            sensor::COMMON_ATTRIBUTES.iter().chain(sensor::own_attributes(kind)).copied().collect();
-        let _ = writeln!(out, "| `<sensor>/<{}>` | {} |", kind.name(), code_list(&attributes, false));
+        let _ = writeln!(out, "| `<sensor>/<{}>` | {} |", kind.name(), code_list(&sensor::attributes(kind), false));
     }
     for (tag, own) in equality::EQUALITY_ATTRIBUTES {
-        let attributes: Vec<&str> =
-            attributes::names(equality::COMMON_ATTRIBUTES).into_iter().chain(own.iter().copied()).collect();
-        let _ = writeln!(out, "| `<equality>/<{tag}>` | {} |", code_list(&attributes, false));
+        let _ = writeln!(out, "| `<equality>/<{tag}>` | {} |", code_list(&equality::attributes(own), false));
     }
-
-    out.push_str("\n## Refused\n\n| element or attribute | reason |\n|---|---|\n");
-    for (tag, reason) in reader::UNSUPPORTED_CHILDREN {
-        let _ = writeln!(out, "| `<{tag}>` | {reason} |");
-    }
-    for (tag, reason) in actuator::REFUSED_ACTUATORS {
-        let _ = writeln!(out, "| `<actuator>/<{tag}>` | {reason} |");
-    }
-    for (attribute, reason) in reader::REFUSED_TRANSMISSIONS {
-        let _ = writeln!(out, "| actuator `{attribute}=` | {reason} |");
-    }
-    for (tags, reason) in sensor::REFUSED_SENSORS {
-        for tag in *tags {
-            let _ = writeln!(out, "| `<sensor>/<{tag}>` | {reason} |");
-        }
-    }
-    for tag in equality::REFUSED_EQUALITIES {
-        let _ = writeln!(out, "| `<equality>/<{tag}>` | an equality constraint on a tendon or a flex |");
-    }
-    out
 }
 
 /// `a`, `b`, … (as elements `<a>` when `elements`).

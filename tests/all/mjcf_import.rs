@@ -833,6 +833,32 @@ fn meshes_nothing_needs_the_mass_of_are_never_read() {
     assert!(refused.contains("<mesh name=\"fairing\">") && refused.contains("cannot read mesh file"), "{refused}");
 }
 
+#[test]
+fn a_primitive_fitted_to_a_mesh_reads_it_only_for_a_tendon_that_wraps_around_it() {
+    // A named sphere fitted to a mesh whose mass does not count (the world
+    // body's, and one in a body with an <inertial>): its file (missing here)
+    // is opened only when a spatial tendon wraps around the sphere, which
+    // needs its fitted radius and frame.
+    let unwrapped = r#"<mujoco><asset><mesh name="hull" file="no/such/hull.stl"/></asset><worldbody>
+        <geom name="dome" type="sphere" mesh="hull"/>
+        <body name="arm"><joint axis="1 0 0"/>
+          <inertial pos="0 0 0" mass="1" diaginertia="0.1 0.1 0.1"/>
+          <geom name="knob" type="sphere" mesh="hull"/>
+          <site name="a" pos="0 0 2"/><site name="b" pos="0 2 0"/>
+        </body></worldbody>
+        <tendon><spatial><site site="a"/><site site="b"/></spatial></tendon></mujoco>"#;
+    let imported = parse_mjcf(unwrapped).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(imported.vehicle.tendons.len(), 1);
+    for wrapped in ["knob", "dome"] {
+        let xml = unwrapped.replace(
+            r#"<site site="a"/><site site="b"/>"#,
+            &format!(r#"<site site="a"/><geom geom="{wrapped}"/><site site="b"/>"#),
+        );
+        let refused = parse_mjcf(&xml).unwrap_err().to_string();
+        assert!(refused.contains("<mesh name=\"hull\">") && refused.contains("cannot read mesh file"), "{refused}");
+    }
+}
+
 /// What `read` gives, or a panic if it blocks for 10 s.
 fn within_seconds<T: Send + 'static>(read: impl FnOnce() -> T + Send + 'static) -> T {
     let (sender, receiver) = std::sync::mpsc::channel();

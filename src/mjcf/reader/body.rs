@@ -1,43 +1,51 @@
-//! The body tree: bodies, their frames and `<replicate>`s, joints, geoms and
-//! sites in document order, each body's mass properties, and the warning on contacts.
+//! The walk through the body tree: bodies, their frames and `<replicate>`s,
+//! joints, geoms and sites in document order, read into a [`ReadTree`]
+//! (their defaults resolved, the `<frame>`s around them kept) for the
+//! compile stage (`compile.rs`); and the warning on contacts.
 
-use super::geom::{fromto_frame, mass_not_computed};
+use super::compile::{BodySpec, GeomSpec, MassSource, ReadTree, SiteSpec};
+use super::geom::fromto_frame;
 use super::replicate::{Named, Suffix};
 use super::{
-    Align, BODY_ATTRIBUTES, BodyRecord, FRAME_ATTRIBUTES, IGNORED_IN_BODIES, InertiaFromGeom, JointElement,
-    MAX_REPLICATED_ELEMENTS, PendingBody, Placed, Pose, REPLICATE_ATTRIBUTES, Reader, WorldGeom, claim_name,
+    IGNORED_IN_BODIES, JointElement, MAX_REPLICATED_ELEMENTS, PendingBody, Placed, Pose, Reader, claim_name,
     no_children, unsupported_child,
 };
 use crate::math::{Quat, Vec3};
 use crate::mjcf::attributes::names;
-use crate::mjcf::contacts::BodyFilter;
-use crate::mjcf::defaults::{
-    GEOM_ATTRIBUTES, GeomSettings, JOINT_ATTRIBUTES, JointSettings, MAIN, SITE_ATTRIBUTES, SiteKind,
+use crate::mjcf::bodies::{
+    Align, BODY_ATTRIBUTES, BodySettings, FRAME_ATTRIBUTES, FREEJOINT_ATTRIBUTES, FrameSettings, FreeJointSettings,
+    REPLICATE_ATTRIBUTES, ReplicateSettings, read_settings,
 };
+use crate::mjcf::contacts::BodyFilter;
+use crate::mjcf::defaults::{GEOM_ATTRIBUTES, JOINT_ATTRIBUTES, JointSettings, MAIN, SITE_ATTRIBUTES, SiteKind};
 use crate::mjcf::element::Element;
 use crate::mjcf::error::MjcfError;
-use crate::mjcf::inertia::{BodyInertia, EPS};
+use crate::mjcf::inertia::BodyInertia;
 use crate::mjcf::orientation::Orientation;
 use crate::mjcf::{MjcfWarning, contacts};
-use crate::vehicle::{Body, JointKind, Site};
+use crate::vehicle::{JointKind, Site};
 
 impl Reader {
-    pub(super) fn read_worldbody(&mut self, section: &Element) -> Result<(), MjcfError> {
+    /// Reads a `<worldbody>` section into `tree`, for the compile stage.
+    pub(super) fn read_worldbody<'a>(
+        &mut self,
+        section: &Element<'a, 'a>,
+        tree: &mut ReadTree<'a>,
+    ) -> Result<(), MjcfError> {
         // MuJoCo: "World body cannot have attributes".
         section.check_attributes(&[])?;
         for Placed { element: child, frame, class, suffix } in
             self.placed_children(section, MAIN, &Suffix::default())?
         {
             match child.tag() {
-                "body" => self.read_body_tree(child, frame, class, suffix)?,
-                "site" => self.read_site(&child, class, None, frame, &suffix)?,
+                "body" => self.read_body_tree(child, frame, class, suffix, tree)?,
+                "site" => {
+                    let site = self.read_site(&child, class, None, frame, &suffix)?;
+                    tree.sites.push(site);
+                }
                 "geom" => {
-                    let settings = self.geom_settings(&child, class)?;
-                    let name = self.name_geom(&child, &settings, frame.as_ref(), None, &suffix)?;
-                    let read = self.geom_mass(&child, &settings, frame.as_ref(), false, false)?;
-                    self.add_contact_geom(&child, &settings, None, read.reach);
-                    let collides = settings.contype != [0, 0];
-                    self.world_geoms.push(WorldGeom { name, collides, warning: child.ignored() });
+                    let geom = self.read_geom(child, class, frame, &suffix, None)?;
+                    tree.geoms.push(geom);
                 }
                 tag if IGNORED_IN_BODIES.contains(&tag) => {
                     self.named_elsewhere.extend(child.text("target").map(str::to_string));
@@ -50,7 +58,6 @@ impl Reader {
                 _ => return Err(unsupported_child(&child)),
             }
         }
-        self.set_apart_unnamed();
         Ok(())
     }
 
@@ -86,6 +93,7 @@ impl Reader {
         frame: Option<Pose>,
         class: usize,
         suffix: Suffix,
+        tree: &mut ReadTree<'a>,
     ) -> Result<(), MjcfError> {
         let mut pending = vec![PendingBody {
             element: top,
@@ -96,26 +104,27 @@ impl Reader {
             suffix,
         }];
         while let Some(body) = pending.pop() {
-            let children = self.read_body(&body)?;
+            let children = self.read_body(&body, tree)?;
             // Reversed so that the first child is read next.
             pending.extend(children.into_iter().rev());
         }
         Ok(())
     }
 
-    /// Reads one body; returns its child bodies, still to be read.
-    pub(super) fn read_body<'a>(&mut self, body: &PendingBody<'a>) -> Result<Vec<PendingBody<'a>>, MjcfError> {
+    /// Reads one body into `tree`, for the compile stage; returns its child
+    /// bodies, still to be read.
+    pub(super) fn read_body<'a>(
+        &mut self,
+        body: &PendingBody<'a>,
+        tree: &mut ReadTree<'a>,
+    ) -> Result<Vec<PendingBody<'a>>, MjcfError> {
         let &PendingBody { ref element, parent, inherited_class, parent_moving, frame, ref suffix } = body;
-        element.check_attributes(BODY_ATTRIBUTES)?;
-        let mocap = element.boolean("mocap")? == Some(true);
-        let gravcomp = element.number("gravcomp")?.unwrap_or(0.0);
+        let BodySettings { pos: own_pos, orientation, mocap, gravcomp, sleep_policy } =
+            read_settings(BODY_ATTRIBUTES, element)?;
         let class = self.defaults.lookup(element, "childclass")?.unwrap_or(inherited_class);
-        let own_pos = Vec3::from(element.numbers::<3>("pos")?.unwrap_or_default());
-        let own_quat = self.resolve(element, &Orientation::read(element)?.unwrap_or_default())?;
-        let (pos, quat) = frame.map_or((own_pos, own_quat), |frame| compose(&frame, &(own_pos, own_quat)));
-        let index = self.bodies.len();
-        let world_pose = parent.map_or((pos, quat), |parent| compose(&self.world_poses[parent], &(pos, quat)));
-        self.world_poses.push(world_pose);
+        let own_pos = Vec3::from(own_pos);
+        let own_quat = self.resolve(element, &orientation)?;
+        let index = tree.bodies.len();
         // An unnamed body gets a name for messages and descriptions, which
         // nothing can refer to (MuJoCo's unnamed elements have none).
         let name = match element.text("name") {
@@ -130,8 +139,10 @@ impl Reader {
             }
         };
 
-        let BodyChildren { inertial, joints, geoms, child_bodies } =
+        let BodyChildren { inertial, joints, geoms, sites, child_bodies } =
             self.read_body_children(element, index, class, suffix)?;
+        tree.geoms.extend(geoms);
+        tree.sites.extend(sites);
 
         let has_joints = !joints.is_empty();
         // A mocap body stays where the file puts it, since nudyn takes no
@@ -144,11 +155,9 @@ impl Reader {
             self.mocap_bodies.push(name.clone());
         }
         let moving = parent_moving || has_joints;
-        // MuJoCo 4.0's keywords, and its rule for a sleep policy.
-        element.keyword("fuse", &[("auto", ()), ("false", ())])?;
-        let policies = [("auto", false), ("never", true), ("allowed", true), ("init", true)];
+        // MuJoCo 4.0's rule for a sleep policy.
         let movable_root = has_joints && !parent_moving;
-        if element.keyword("sleep", &policies)? == Some(true) && !movable_root {
+        if sleep_policy && !movable_root {
             return Err(element.invalid("sleep policy only allowed for movable root bodies"));
         }
         // MuJoCo's condition for moving the body frame to the inertial frame.
@@ -158,47 +167,15 @@ impl Reader {
             }
             _ => false,
         };
-        let joints = self.build_joints(&name, parent, joints)?;
-
-        let explicit = inertial.map(|(_, inertia)| inertia);
-        let (inertia, mass_unknown) =
-            self.body_inertia(element, index, &geoms, explicit, moving, (own_pos, own_quat))?;
-        let inertia = self.bound(element, inertia)?;
-        let ((pos, quat), inertia) = match aligned {
-            true => self.align_free(index, (pos, quat), inertia),
-            false => ((pos, quat), inertia),
-        };
-
-        self.bodies.push(Body {
-            name,
-            parent,
-            pos,
-            quat,
-            inertia: None,
-            inertial_pos: Vec3::zeros(),
-            inertial_quat: None,
-            mass_unknown,
-            joints,
-            gravcomp,
-            line: element.line,
-        });
-        self.records.push(BodyRecord {
-            line: element.line,
-            label: element.label(),
-            inertia,
-            has_joints,
-            children: Vec::new(),
-        });
-        if let Some(parent) = parent {
-            self.records[parent].children.push(index);
-        }
+        let explicit = inertial.map(|(_, inertia, frame)| (inertia, frame));
+        let mass = MassSource { element: *element, explicit, moving, aligned, own_pose: (own_pos, own_quat) };
+        tree.bodies.push(BodySpec { name, parent, frame, joints, gravcomp, mass });
         Ok(child_bodies.into_iter().map(|child| PendingBody { parent_moving: moving, ..child }).collect())
     }
 
     /// Reads the children of the body `element` (the `index`th body, of
-    /// default class `class`): its `<inertial>`, joints and geoms with
-    /// their settings resolved, its sites (read into the vehicle at once),
-    /// and its child bodies, still to be read.
+    /// default class `class`): its `<inertial>`, joints, geoms and sites
+    /// with their settings resolved, and its child bodies, still to be read.
     fn read_body_children<'a>(
         &mut self,
         element: &Element<'a, 'a>,
@@ -206,46 +183,39 @@ impl Reader {
         class: usize,
         suffix: &Suffix,
     ) -> Result<BodyChildren<'a>, MjcfError> {
-        let mut children =
-            BodyChildren { inertial: None, joints: Vec::new(), geoms: Vec::new(), child_bodies: Vec::new() };
-        let BodyChildren { inertial, joints, geoms, child_bodies } = &mut children;
+        let mut children = BodyChildren {
+            inertial: None,
+            joints: Vec::new(),
+            geoms: Vec::new(),
+            sites: Vec::new(),
+            child_bodies: Vec::new(),
+        };
+        let BodyChildren { inertial, joints, geoms, sites, child_bodies } = &mut children;
         for Placed { element: child, frame, class, suffix } in self.placed_children(element, class, suffix)? {
             match child.tag() {
                 "inertial" => {
-                    if let Some((first, _)) = &inertial {
+                    if let Some((first, ..)) = &inertial {
                         return Err(child.repeated(first));
                     }
-                    let mut read = self.read_inertial(&child)?;
-                    if let Some(frame) = frame {
-                        read.place(&frame.0, &frame.1);
-                    }
-                    *inertial = Some((child, read));
+                    let read = self.read_inertial(&child)?;
+                    *inertial = Some((child, read, frame));
                 }
                 "joint" => {
                     child.check_attributes(&names(JOINT_ATTRIBUTES))?;
                     no_children(&child)?;
                     let mut settings = self.defaults.class(self.class_of(&child, class)?).joint.clone();
                     settings.apply(&child)?;
-                    if let Some((at, turn)) = frame {
-                        settings.pos = (at + turn * Vec3::from(settings.pos)).into();
-                        settings.axis = (turn * Vec3::from(settings.axis)).into();
-                    }
-                    joints.push(JointElement { element: child, settings, align: Align::Auto, suffix });
+                    joints.push(JointElement { element: child, settings, frame, align: Align::Auto, suffix });
                 }
                 "freejoint" => {
                     // MuJoCo's <freejoint> takes no defaults.
-                    child.check_attributes(&["name", "group", "align"])?;
+                    let FreeJointSettings { align } = read_settings(FREEJOINT_ATTRIBUTES, &child)?;
                     no_children(&child)?;
-                    let aligns = [("false", Align::No), ("true", Align::Yes), ("auto", Align::Auto)];
-                    let align = child.keyword("align", &aligns)?.unwrap_or(Align::Auto);
                     let settings = JointSettings { kind: JointKind::Free, ..JointSettings::default() };
-                    joints.push(JointElement { element: child, settings, align, suffix });
+                    joints.push(JointElement { element: child, settings, frame: None, align, suffix });
                 }
-                "geom" => {
-                    let settings = self.geom_settings(&child, class)?;
-                    geoms.push((child, settings, frame, suffix));
-                }
-                "site" => self.read_site(&child, class, Some(index), frame, &suffix)?,
+                "geom" => geoms.push(self.read_geom(child, class, frame, &suffix, Some(index))?),
+                "site" => sites.push(self.read_site(&child, class, Some(index), frame, &suffix)?),
                 tag if IGNORED_IN_BODIES.contains(&tag) => {
                     self.named_elsewhere.extend(child.text("target").map(str::to_string));
                     self.warnings.push(child.ignored());
@@ -263,75 +233,6 @@ impl Reader {
         }
 
         Ok(children)
-    }
-
-    /// The mass properties of the body `element` (the `index`th) from its
-    /// `geoms` or its `<inertial>` (`explicit`) as `inertiafromgeom` says,
-    /// and whether a geom's mass could not be computed; `own_pose` is its
-    /// pose in its parent before any `<frame>` around it.
-    fn body_inertia(
-        &mut self,
-        element: &Element,
-        index: usize,
-        geoms: &[ReadGeom],
-        explicit: Option<BodyInertia>,
-        moving: bool,
-        own_pose: Pose,
-    ) -> Result<(BodyInertia, bool), MjcfError> {
-        let (own_pos, own_quat) = own_pose;
-        let from_geoms = match self.compiler.inertia_from_geom {
-            InertiaFromGeom::Never => false,
-            InertiaFromGeom::Always => true,
-            InertiaFromGeom::Auto => explicit.is_none(),
-        };
-        let mut selected = Vec::new();
-        let mut mass_unknown = false;
-        for (geom, settings, frame, suffix) in geoms {
-            self.name_geom(geom, settings, frame.as_ref(), Some(index), suffix)?;
-            let [low, high] = self.compiler.inertia_groups;
-            let contributes = from_geoms && (low..=high).contains(&settings.group);
-            if contributes && mass_not_computed(settings) && !moving {
-                mass_unknown = true;
-                self.warnings.push(geom.warning(
-                    "its mass is not computed: the body is fixed to the world, so it moves nothing \
-                     (a subtree sensor that would count it is refused)",
-                ));
-            }
-            let read = self.geom_mass(geom, settings, frame.as_ref(), moving, contributes)?;
-            self.add_contact_geom(geom, settings, Some(index), read.reach);
-            // MuJoCo leaves out geoms of mass up to mjEPS.
-            if let Some(mass) = read.mass
-                && mass.mass > EPS
-            {
-                selected.push(mass);
-            }
-        }
-        let inertia = if !selected.is_empty() {
-            BodyInertia::from_geoms(&selected).map_err(|r| element.invalid(r))?
-        } else if let Some(explicit) = explicit {
-            explicit
-        } else {
-            // MuJoCo puts the inertial frame of a body without mass at the body's
-            // own pose in its parent, before any <frame> around it; it matters
-            // once boundmass gives it mass.
-            BodyInertia::from_principal(0.0, own_pos, &own_quat, Vec3::zeros())
-        };
-        Ok((inertia, mass_unknown))
-    }
-
-    /// A free body without children aligned with its inertial frame
-    /// (`<freejoint align>`, `<compiler alignfree>`): MuJoCo moves the body
-    /// frame there, so that the free joint's qpos is the inertial frame's
-    /// pose, and re-expresses the body's sites in it. Returns the body's new
-    /// pose in its parent and its mass properties in the new frame.
-    pub(super) fn align_free(&mut self, index: usize, pose: Pose, inertia: BodyInertia) -> (Pose, BodyInertia) {
-        let (principal, axes) = (inertia.principal, inertia.quat);
-        let inverse = (-(axes.inverse() * inertia.com), axes.inverse());
-        for site in self.sites.iter_mut().filter(|s| s.body == Some(index)) {
-            (site.pos, site.quat) = compose(&inverse, &(site.pos, site.quat));
-        }
-        let aligned = BodyInertia::from_principal(inertia.mass, Vec3::zeros(), &Quat::identity(), principal);
-        (compose(&pose, &(inertia.com, axes)), aligned)
     }
 
     /// The children of a body (or of the world body) of class `class`, with
@@ -389,10 +290,9 @@ impl Reader {
     /// A `<frame>`'s pose in its parent, as one copy without a suffix.
     pub(super) fn frame_pose(&self, item: &Placed) -> Result<Vec<(Pose, String)>, MjcfError> {
         let frame = &item.element;
-        frame.check_attributes(FRAME_ATTRIBUTES)?;
-        let pos = Vec3::from(frame.numbers::<3>("pos")?.unwrap_or_default());
-        let quat = self.resolve(frame, &Orientation::read(frame)?.unwrap_or_default())?;
-        Ok(vec![((pos, quat), String::new())])
+        let FrameSettings { pos, orientation } = read_settings(FRAME_ATTRIBUTES, frame)?;
+        let quat = self.resolve(frame, &orientation)?;
+        Ok(vec![((Vec3::from(pos), quat), String::new())])
     }
 
     /// The poses and name suffixes of a `<replicate>`'s copies, as MuJoCo
@@ -402,11 +302,8 @@ impl Reader {
     /// `sep` and i padded with zeros to the digits of `count`.
     pub(super) fn replicate_poses(&self, item: &Placed) -> Result<Vec<(Pose, String)>, MjcfError> {
         let replicate = &item.element;
-        replicate.check_attributes(REPLICATE_ATTRIBUTES)?;
-        let [count] = replicate.integers::<1>("count")?.ok_or_else(|| replicate.missing("count"))?;
-        if count <= 0 {
-            return Err(replicate.bad_value("count", "a positive number of copies"));
-        }
+        let ReplicateSettings { count, separator, offset, euler } = read_settings(REPLICATE_ATTRIBUTES, replicate)?;
+        let count = count.ok_or_else(|| replicate.missing("count"))?;
         // Counted before any copy is made.
         let inside = replicate.node.descendants().filter(|node| node.is_element()).count() - 1;
         let produced = (count as usize).saturating_mul(inside).saturating_add(self.replicated_elements.get());
@@ -417,9 +314,7 @@ impl Reader {
             )));
         }
         self.replicated_elements.set(produced);
-        let offset = Vec3::from(replicate.numbers::<3>("offset")?.unwrap_or_default());
-        let euler = replicate.numbers::<3>("euler")?.unwrap_or_default();
-        let separator = replicate.text("sep").unwrap_or_default();
+        let offset = Vec3::from(offset);
         let step = self.resolve(replicate, &Orientation::Euler(euler))?;
         let digits = count.to_string().len();
         let (mut pos, mut turned) = (Vec3::zeros(), Quat::identity());
@@ -440,19 +335,28 @@ impl Reader {
         Ok(self.defaults.lookup(element, "class")?.unwrap_or(body_class))
     }
 
-    /// A `<geom>`'s settings: its class's defaults with its own attributes
-    /// applied, after checking its attributes and that it has no children.
-    fn geom_settings(&self, geom: &Element, body_class: usize) -> Result<GeomSettings, MjcfError> {
-        geom.check_attributes(&names(GEOM_ATTRIBUTES))?;
-        if let Some(child) = geom.children().next() {
+    /// A `<geom>` of `body` (`None`: the world body) as read: its class's
+    /// defaults with its own attributes applied, after checking its
+    /// attributes and that it has no children; its name claimed.
+    fn read_geom<'a>(
+        &mut self,
+        element: Element<'a, 'a>,
+        body_class: usize,
+        frame: Option<Pose>,
+        suffix: &Suffix,
+        body: Option<usize>,
+    ) -> Result<GeomSpec<'a>, MjcfError> {
+        element.check_attributes(&names(GEOM_ATTRIBUTES))?;
+        if let Some(child) = element.children().next() {
             return Err(unsupported_child(&child));
         }
-        let mut settings = self.defaults.class(self.class_of(geom, body_class)?).geom.clone();
-        settings.apply(geom)?;
-        Ok(settings)
+        let mut settings = self.defaults.class(self.class_of(&element, body_class)?).geom.clone();
+        settings.apply(&element)?;
+        let name = element.text("name").map(|name| self.replicated_name(Named::Geom, name, suffix));
+        Ok(GeomSpec { element, settings, frame, name, body })
     }
 
-    /// Reads a `<site>` of body `body` (`None`: the world body).
+    /// Reads a `<site>` of body `body` (`None`: the world body), its name claimed.
     pub(super) fn read_site(
         &mut self,
         element: &Element,
@@ -460,7 +364,7 @@ impl Reader {
         body: Option<usize>,
         frame: Option<Pose>,
         suffix: &Suffix,
-    ) -> Result<(), MjcfError> {
+    ) -> Result<SiteSpec, MjcfError> {
         element.check_attributes(&names(SITE_ATTRIBUTES))?;
         no_children(element)?;
         let mut settings = self.defaults.class(self.class_of(element, body_class)?).site.clone();
@@ -475,14 +379,12 @@ impl Reader {
             }
             None => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
         };
-        let (pos, quat) = frame.map_or((pos, quat), |frame| compose(&frame, &(pos, quat)));
         let name = element.text("name").map(|name| self.replicated_name(Named::Site, name, suffix));
         if let Some(name) = &name {
             claim_name(&mut self.site_names, "site", name, element)?;
         }
-        self.sites.push(Site { name, body, pos, quat, line: element.line });
-        self.site_fitted_to_mesh.push(settings.mesh);
-        Ok(())
+        let site = Site { name, body, pos, quat, line: element.line };
+        Ok(SiteSpec { site, frame, fitted_to_mesh: settings.mesh })
     }
 
     pub(super) fn resolve(&self, element: &Element, orientation: &Orientation) -> Result<Quat, MjcfError> {
@@ -542,15 +444,13 @@ pub(super) fn compose(outer: &Pose, inner: &Pose) -> Pose {
     (outer.0 + outer.1 * inner.0, outer.1 * inner.1)
 }
 
-/// A geom element with its resolved settings, the pose of the `<frame>`s
-/// around it and its `<replicate>` suffix.
-type ReadGeom<'a> = (Element<'a, 'a>, GeomSettings, Option<Pose>, Suffix);
-
 /// What a body element holds, read.
 struct BodyChildren<'a> {
-    /// Its `<inertial>`, with the element for messages on a second one.
-    inertial: Option<(Element<'a, 'a>, BodyInertia)>,
+    /// Its `<inertial>`, with the element for messages on a second one and
+    /// the pose of the `<frame>`s around it.
+    inertial: Option<(Element<'a, 'a>, BodyInertia, Option<Pose>)>,
     joints: Vec<JointElement<'a, 'a>>,
-    geoms: Vec<ReadGeom<'a>>,
+    geoms: Vec<GeomSpec<'a>>,
+    sites: Vec<SiteSpec>,
     child_bodies: Vec<PendingBody<'a>>,
 }

@@ -2,29 +2,29 @@
 //! (MuJoCo's geom and mesh inertia, `boundmass`, `boundinertia`).
 
 use super::body::compose;
-use super::replicate::{Named, Suffix};
-use super::{GeomRead, INERTIAL_ATTRIBUTES, Pose, Reader, no_children};
+use super::compile::GeomSpec;
+use super::{GeomRead, Pose, Reader, no_children};
 use crate::math::{Mat3, Quat, Vec3};
+use crate::mjcf::bodies::{INERTIAL_ATTRIBUTES, InertialSettings, read_settings};
 use crate::mjcf::contacts::{ContactGeom, Reach};
 use crate::mjcf::defaults::{GeomKind, GeomSettings};
 use crate::mjcf::element::Element;
 use crate::mjcf::error::MjcfError;
 use crate::mjcf::inertia::{BodyInertia, EPS, GeomMass, mul_quat, quat_array, quat_to_mat};
-use crate::mjcf::orientation::{ORIENTATION_ATTRIBUTES, Orientation, normalized, z_to_quaternion};
+use crate::mjcf::orientation::{ORIENTATION_ATTRIBUTES, normalized, z_to_quaternion};
 use crate::mjcf::{contacts, inertia, mesh};
 use crate::vehicle::WrapGeom;
 
 impl Reader {
     pub(super) fn read_inertial(&self, element: &Element) -> Result<BodyInertia, MjcfError> {
-        element.check_attributes(INERTIAL_ATTRIBUTES)?;
+        let InertialSettings { pos, mass, diaginertia, fullinertia, orientation } =
+            read_settings(INERTIAL_ATTRIBUTES, element)?;
         no_children(element)?;
-        let com = Vec3::from(element.numbers::<3>("pos")?.ok_or_else(|| element.missing("pos"))?);
-        let mass = element.non_negative("mass")?.ok_or_else(|| element.missing("mass"))?;
-        let orientation = Orientation::read(element)?;
-        let Some([xx, yy, zz, xy, xz, yz]) = element.numbers::<6>("fullinertia")? else {
-            let principal = element.non_negative_numbers::<3>("diaginertia")?.unwrap_or_default();
+        let com = Vec3::from(pos.ok_or_else(|| element.missing("pos"))?);
+        let mass = mass.ok_or_else(|| element.missing("mass"))?;
+        let Some([xx, yy, zz, xy, xz, yz]) = fullinertia else {
             let quat = self.resolve(element, &orientation.unwrap_or_default())?;
-            return Ok(BodyInertia::from_principal(mass, com, &quat, Vec3::from(principal)));
+            return Ok(BodyInertia::from_principal(mass, com, &quat, Vec3::from(diaginertia)));
         };
         if let Some(attribute) = ORIENTATION_ATTRIBUTES.iter().find(|a| element.has(a)) {
             return Err(element.conflict("fullinertia", attribute));
@@ -77,19 +77,15 @@ impl Reader {
         Ok((fitted, pos, quat))
     }
 
-    /// Registers a named geom of `body` (`None`: the world) for tendons to
-    /// wrap around: its type, and a sphere's or cylinder's frame in the body.
-    /// Its name, with the `<replicate>` suffix.
-    pub(super) fn name_geom(
-        &mut self,
-        element: &Element,
-        settings: &GeomSettings,
-        frame: Option<&Pose>,
-        body: Option<usize>,
-        suffix: &Suffix,
-    ) -> Result<Option<String>, MjcfError> {
-        let Some(name) = element.text("name") else { return Ok(None) };
-        let name = self.replicated_name(Named::Geom, name, suffix);
+    /// Registers a geom a tendon wraps around: its type, and a sphere's or
+    /// cylinder's frame in its body (a primitive fitted to a mesh reads the
+    /// mesh here, so only for a tendon).
+    pub(super) fn register_wrap_geom(&mut self, geom: &GeomSpec) -> Result<(), MjcfError> {
+        let GeomSpec { element, settings, frame, name, body } = geom;
+        let Some(name) = name.as_ref().filter(|name| self.wrap_obstacles.contains_key(*name)) else {
+            return Ok(());
+        };
+        let (body, frame) = (*body, frame.as_ref());
         let wrap = match settings.kind {
             GeomKind::Sphere | GeomKind::Cylinder => {
                 let (pos, quat) = match settings.fromto {
@@ -119,7 +115,7 @@ impl Reader {
             _ => None,
         };
         self.named_geoms.insert(name.clone(), (settings.kind, wrap));
-        Ok(Some(name))
+        Ok(())
     }
 
     /// The mesh asset a geom names (not read yet).

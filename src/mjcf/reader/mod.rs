@@ -1,6 +1,13 @@
-//! Walks an MJCF document and builds the [`Vehicle`].
+//! Reads an MJCF document and builds the [`Vehicle`]: the settings
+//! sections first, then a walk through the body tree into a spec
+//! (`body.rs`), compiled once the tree is read (`compile.rs`: frames, mass
+//! properties, free-body alignment), then the sections that name its
+//! objects (tendons, equalities, actuators, sensors), and last what needs
+//! the whole file (`finish.rs`: the mass checks, `fusestatic`,
+//! `settotalmass`).
 
 mod body;
+mod compile;
 mod finish;
 mod geom;
 mod joint;
@@ -17,6 +24,7 @@ use std::path::Path;
 
 use roxmltree::Document;
 
+use super::bodies::Align;
 use super::contacts::{ContactGeom, Reach};
 use super::defaults::{Defaults, GeomKind, JointSettings};
 use super::element::{Element, LineStarts};
@@ -31,35 +39,17 @@ use crate::math::{Quat, Vec3};
 use crate::vehicle::{
     Actuation, Actuator, Body, ConstraintOptions, Equality, JointKind, Sensor, Site, Tendon, WrapGeom,
 };
+use compile::ReadTree;
 use replicate::{ElementCopy, Named, ReplicatedName, Suffix};
 
 /// MuJoCo's `mjMINVAL`: the least mass and principal moment of a moving body.
 const MIN_VALUE: f64 = 1e-15;
-
-/// Attributes of `<body>`.
-#[rustfmt::skip]
-pub(crate) const BODY_ATTRIBUTES: &[&str] = &[
-    "name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler", "mocap", "gravcomp",
-    "user", "sleep", "simple", "fuse",
-];
-
-/// Attributes of `<frame>`.
-#[rustfmt::skip]
-pub(crate) const FRAME_ATTRIBUTES: &[&str] = &["name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler"];
 
 /// The most elements the `<replicate>`s of a file may produce: each
 /// replicate's copies times the elements inside it (nested ones included),
 /// summed over every replicate as it is expanded. Far beyond any vehicle;
 /// a count past it would exhaust the memory before the import could fail.
 pub(crate) const MAX_REPLICATED_ELEMENTS: usize = 100_000;
-
-/// Attributes of `<replicate>`.
-pub(crate) const REPLICATE_ATTRIBUTES: &[&str] = &["count", "sep", "offset", "euler", "childclass"];
-
-/// Attributes of `<inertial>`.
-#[rustfmt::skip]
-pub(crate) const INERTIAL_ATTRIBUTES: &[&str] =
-    &["pos", "mass", "diaginertia", "fullinertia", "quat", "axisangle", "xyaxes", "zaxis", "euler"];
 
 /// Top-level sections without effect on the dynamics.
 #[rustfmt::skip]
@@ -237,18 +227,12 @@ struct Placed<'a> {
     suffix: Suffix,
 }
 
-/// `align` of a free joint.
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum Align {
-    No,
-    Yes,
-    Auto,
-}
-
 /// A joint element with its resolved settings.
 struct JointElement<'a, 'input> {
     element: Element<'a, 'input>,
     settings: JointSettings,
+    /// The pose of the `<frame>`s around a `<joint>`, in its body.
+    frame: Option<Pose>,
     align: Align,
     /// The `<replicate>` suffix of its name.
     suffix: Suffix,
@@ -282,8 +266,8 @@ struct Reader {
     tendon_names: HashMap<String, u32>,
     /// Whether each tendon is limited (MuJoCo's tendon_limited, before any flag).
     tendon_limited: Vec<bool>,
-    /// The named geoms, for tendons to wrap around: their type, and their
-    /// frame when a sphere or cylinder.
+    /// The geoms tendons wrap around: their type, and their frame when a
+    /// sphere or cylinder.
     named_geoms: HashMap<String, (GeomKind, Option<WrapGeom>)>,
     /// The bodies the file leaves unnamed.
     unnamed_bodies: Vec<usize>,
@@ -392,6 +376,7 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
         reader.named_elsewhere.extend(bodies.map(str::to_string));
     }
 
+    let mut tree = ReadTree::default();
     let mut has_worldbody = false;
     let mut actuator_sections = Vec::new();
     let mut sensor_sections = Vec::new();
@@ -403,7 +388,7 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
             "compiler" | "option" | "default" | "asset" => {}
             "worldbody" => {
                 has_worldbody = true;
-                reader.read_worldbody(&section)?;
+                reader.read_worldbody(&section, &mut tree)?;
             }
             // Read once every joint and site is known, wherever the section stands.
             "actuator" => actuator_sections.push(section),
@@ -423,6 +408,8 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
     if !has_worldbody {
         return Err(MjcfError::MissingWorldbody { line: root.line, element: root.label() });
     }
+    reader.note_wrap_obstacles(&tendon_sections);
+    reader.compile_bodies(tree)?;
     // Before the equalities, actuators and sensors, which may name tendons.
     for section in &tendon_sections {
         reader.read_tendons(section)?;

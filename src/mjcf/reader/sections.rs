@@ -146,10 +146,6 @@ impl Reader {
         for element in section.children() {
             let settings = self.defaults.class(self.class_of(&element, MAIN)?).tendon.clone();
             let (read, limited) = tendon::read(&element, settings, self, flags)?;
-            for obstacle in element.children().filter(|child| child.tag() == "geom") {
-                let geom = obstacle.text("geom").unwrap_or_default().to_string();
-                self.wrap_obstacles.entry(geom).or_insert_with(|| element.label());
-            }
             if let Some(name) = &read.name {
                 claim_name(&mut self.tendon_names, "tendon", name, &element)?;
             }
@@ -157,6 +153,18 @@ impl Reader {
             self.tendon_limited.push(limited);
         }
         Ok(())
+    }
+
+    /// Notes the geoms the tendons of `sections` wrap around, each with the
+    /// first such tendon, before the body tree is compiled: only their wrap
+    /// frames are needed (and, for a primitive fitted to a mesh, the mesh).
+    pub(super) fn note_wrap_obstacles(&mut self, sections: &[Element]) {
+        for element in sections.iter().flat_map(|section| section.children()) {
+            for obstacle in element.children().filter(|child| child.tag() == "geom") {
+                let geom = obstacle.text("geom").unwrap_or_default().to_string();
+                self.wrap_obstacles.entry(geom).or_insert_with(|| element.label());
+            }
+        }
     }
 
     /// The index of the tendon the attribute names.

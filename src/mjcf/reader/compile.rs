@@ -1,0 +1,236 @@
+//! The compile stage of the body tree: what MuJoCo's compiler computes from
+//! the bodies, joints, geoms, sites and `<inertial>`s as read (their
+//! defaults resolved, the `<frame>`s around them kept): the frames
+//! composed, each body placed in its parent and in the world at qpos0, its
+//! joints built and checked; each geom's mass and frame, from its
+//! primitive or its mesh (a mesh file is read here, and only for a geom
+//! whose mass counts or a primitive a tendon wraps around); the wrap
+//! frames of the sphere and cylinder geoms tendons wrap around; the geoms
+//! that may collide; each body's mass properties (`inertiafromgeom`,
+//! `boundmass`, `boundinertia`); and the free bodies aligned with their
+//! inertial frames. `fusestatic` and `settotalmass` follow once the whole
+//! file is read (`finish.rs`).
+
+use super::body::compose;
+use super::geom::mass_not_computed;
+use super::{BodyRecord, InertiaFromGeom, JointElement, Pose, Reader, WorldGeom};
+use crate::math::{Quat, Vec3};
+use crate::mjcf::defaults::GeomSettings;
+use crate::mjcf::element::Element;
+use crate::mjcf::error::MjcfError;
+use crate::mjcf::inertia::{BodyInertia, EPS, GeomMass};
+use crate::vehicle::{Body, Site};
+
+/// The body tree as read, for the compile stage.
+#[derive(Default)]
+pub(super) struct ReadTree<'a> {
+    /// Each body, in the vehicle's order.
+    pub bodies: Vec<BodySpec<'a>>,
+    /// Every geom, the world body's too, in document order.
+    pub geoms: Vec<GeomSpec<'a>>,
+    /// Every site, the world body's too, in document order.
+    pub sites: Vec<SiteSpec>,
+}
+
+/// A `<site>` as read.
+pub(super) struct SiteSpec {
+    /// The site, its pose in the `<frame>`s around it.
+    pub site: Site,
+    /// The pose of those `<frame>`s in its body.
+    pub frame: Option<Pose>,
+    /// Whether it is fitted to a mesh (which moves its frame).
+    pub fitted_to_mesh: bool,
+}
+
+/// A `<body>` as read, its joints built.
+pub(super) struct BodySpec<'a> {
+    /// Its name (one made up when the file gives none).
+    pub name: String,
+    /// Its parent; `None` for the world body.
+    pub parent: Option<usize>,
+    /// The pose of the `<frame>`s around it, in its parent.
+    pub frame: Option<Pose>,
+    /// Its joints, with their settings resolved.
+    pub joints: Vec<JointElement<'a, 'a>>,
+    /// `gravcomp`.
+    pub gravcomp: f64,
+    /// What its mass properties and frame come from.
+    pub mass: MassSource<'a>,
+}
+
+/// What a body's mass properties and frame come from.
+pub(super) struct MassSource<'a> {
+    /// The `<body>` element, for messages.
+    pub element: Element<'a, 'a>,
+    /// Its `<inertial>`, in the `<frame>`s around it (their pose in the body).
+    pub explicit: Option<(BodyInertia, Option<Pose>)>,
+    /// Whether a joint lies between it and the world.
+    pub moving: bool,
+    /// Whether its frame moves to its inertial frame (a free body without
+    /// children, as `align` or `<compiler alignfree>` says).
+    pub aligned: bool,
+    /// Its pose in its parent before any `<frame>` around it.
+    pub own_pose: Pose,
+}
+
+/// A `<geom>` as read.
+pub(super) struct GeomSpec<'a> {
+    /// The element, for messages.
+    pub element: Element<'a, 'a>,
+    /// Its class's settings with its own attributes applied.
+    pub settings: GeomSettings,
+    /// The pose of the `<frame>`s around it, in its body.
+    pub frame: Option<Pose>,
+    /// Its name, with its `<replicate>` suffix.
+    pub name: Option<String>,
+    /// Its body; `None` for the world body.
+    pub body: Option<usize>,
+}
+
+impl Reader {
+    /// Compiles the bodies and geoms of `tree`: each body placed in its
+    /// parent and in the world, the geoms in document order, then each
+    /// body's mass properties, with which a free body may move its frame.
+    pub(super) fn compile_bodies(&mut self, tree: ReadTree) -> Result<(), MjcfError> {
+        let sources = self.place_bodies(tree.bodies)?;
+        for SiteSpec { mut site, frame, fitted_to_mesh } in tree.sites {
+            if let Some(frame) = frame {
+                (site.pos, site.quat) = compose(&frame, &(site.pos, site.quat));
+            }
+            self.sites.push(site);
+            self.site_fitted_to_mesh.push(fitted_to_mesh);
+        }
+        let mut masses: Vec<Vec<GeomMass>> = sources.iter().map(|_| Vec::new()).collect();
+        for geom in &tree.geoms {
+            self.register_wrap_geom(geom)?;
+            match geom.body {
+                None => self.compile_world_geom(geom)?,
+                Some(index) => {
+                    // MuJoCo leaves out geoms of mass up to mjEPS.
+                    if let Some(mass) = self.compile_body_geom(geom, &sources[index])?
+                        && mass.mass > EPS
+                    {
+                        masses[index].push(mass);
+                    }
+                }
+            }
+        }
+        for (index, (body, selected)) in sources.into_iter().zip(masses).enumerate() {
+            let explicit = body.explicit.map(|(mut inertia, frame)| {
+                if let Some((pos, quat)) = frame {
+                    inertia.place(&pos, &quat);
+                }
+                inertia
+            });
+            let inertia = match (selected.is_empty(), explicit) {
+                (false, _) => BodyInertia::from_geoms(&selected).map_err(|r| body.element.invalid(r))?,
+                (true, Some(explicit)) => explicit,
+                // MuJoCo puts the inertial frame of a body without mass at the body's
+                // own pose in its parent, before any <frame> around it; it matters
+                // once boundmass gives it mass.
+                (true, None) => BodyInertia::from_principal(0.0, body.own_pose.0, &body.own_pose.1, Vec3::zeros()),
+            };
+            let mut inertia = self.bound(&body.element, inertia)?;
+            if body.aligned {
+                inertia = self.align_free(index, inertia);
+            }
+            let has_joints = !self.bodies[index].joints.is_empty();
+            let (line, label) = (body.element.line, body.element.label());
+            self.records.push(BodyRecord { line, label, inertia, has_joints, children: Vec::new() });
+        }
+        for index in 0..self.bodies.len() {
+            if let Some(parent) = self.bodies[index].parent {
+                self.records[parent].children.push(index);
+            }
+        }
+        Ok(())
+    }
+
+    /// The vehicle's bodies, each placed in its parent (the `<frame>`s
+    /// around it and its joints composed) and in the world at qpos0, its
+    /// joints built, with the names made up for unnamed ones set apart;
+    /// what their masses come from.
+    fn place_bodies<'a>(&mut self, bodies: Vec<BodySpec<'a>>) -> Result<Vec<MassSource<'a>>, MjcfError> {
+        let mut sources = Vec::with_capacity(bodies.len());
+        for BodySpec { name, parent, frame, mut joints, gravcomp, mass } in bodies {
+            for joint in joints.iter_mut() {
+                if let Some((at, turn)) = joint.frame {
+                    joint.settings.pos = (at + turn * Vec3::from(joint.settings.pos)).into();
+                    joint.settings.axis = (turn * Vec3::from(joint.settings.axis)).into();
+                }
+            }
+            let joints = self.build_joints(&name, parent, joints)?;
+            let (pos, quat) = frame.map_or(mass.own_pose, |frame| compose(&frame, &mass.own_pose));
+            let world_pose = parent.map_or((pos, quat), |parent| compose(&self.world_poses[parent], &(pos, quat)));
+            self.world_poses.push(world_pose);
+            self.bodies.push(Body {
+                name,
+                parent,
+                pos,
+                quat,
+                inertia: None,
+                inertial_pos: Vec3::zeros(),
+                inertial_quat: None,
+                mass_unknown: false,
+                joints,
+                gravcomp,
+                line: mass.element.line,
+            });
+            sources.push(mass);
+        }
+        self.set_apart_unnamed();
+        Ok(sources)
+    }
+
+    /// A geom of the world body: it moves no mass, so its mesh is never
+    /// read; it may still collide, or be a tendon's wrap obstacle.
+    fn compile_world_geom(&mut self, geom: &GeomSpec) -> Result<(), MjcfError> {
+        let GeomSpec { element, settings, frame, name, .. } = geom;
+        let read = self.geom_mass(element, settings, frame.as_ref(), false, false)?;
+        self.add_contact_geom(element, settings, None, read.reach);
+        let collides = settings.contype != [0, 0];
+        self.world_geoms.push(WorldGeom { name: name.clone(), collides, warning: element.ignored() });
+        Ok(())
+    }
+
+    /// A geom of `body`: its mass when it counts towards the body's (as
+    /// `inertiafromgeom` and `inertiagrouprange` say).
+    fn compile_body_geom(&mut self, geom: &GeomSpec, body: &MassSource) -> Result<Option<GeomMass>, MjcfError> {
+        let GeomSpec { element, settings, frame, body: index, .. } = geom;
+        let from_geoms = match self.compiler.inertia_from_geom {
+            InertiaFromGeom::Never => false,
+            InertiaFromGeom::Always => true,
+            InertiaFromGeom::Auto => body.explicit.is_none(),
+        };
+        let [low, high] = self.compiler.inertia_groups;
+        let contributes = from_geoms && (low..=high).contains(&settings.group);
+        if contributes && mass_not_computed(settings) && !body.moving {
+            if let Some(index) = index {
+                self.bodies[*index].mass_unknown = true;
+            }
+            self.warnings.push(element.warning(
+                "its mass is not computed: the body is fixed to the world, so it moves nothing \
+                 (a subtree sensor that would count it is refused)",
+            ));
+        }
+        let read = self.geom_mass(element, settings, frame.as_ref(), body.moving, contributes)?;
+        self.add_contact_geom(element, settings, *index, read.reach);
+        Ok(read.mass)
+    }
+
+    /// A free body without children aligned with its inertial frame
+    /// (`<freejoint align>`, `<compiler alignfree>`): MuJoCo moves the body
+    /// frame there, so that the free joint's qpos is the inertial frame's
+    /// pose, and re-expresses the body's sites in it. Moves the `index`th
+    /// body and its sites; returns its mass properties in the new frame.
+    fn align_free(&mut self, index: usize, inertia: BodyInertia) -> BodyInertia {
+        let (principal, axes) = (inertia.principal, inertia.quat);
+        let inverse = (-(axes.inverse() * inertia.com), axes.inverse());
+        for site in self.sites.iter_mut().filter(|s| s.body == Some(index)) {
+            (site.pos, site.quat) = compose(&inverse, &(site.pos, site.quat));
+        }
+        let body = &mut self.bodies[index];
+        (body.pos, body.quat) = compose(&(body.pos, body.quat), &(inertia.com, axes));
+        BodyInertia::from_principal(inertia.mass, Vec3::zeros(), &Quat::identity(), principal)
+    }
+}
