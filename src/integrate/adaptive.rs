@@ -260,6 +260,13 @@ pub struct Stats {
     pub jacobians: usize,
     /// Steps attempted to locate where limit sides switch (`switches`).
     pub locating: usize,
+    /// Steps of an explicit method tested for stiffness (stiffness.rs:
+    /// not `bs3`, nor a step cut to a switch).
+    pub stiffness_tests: usize,
+    /// Of those, the steps whose size stability held
+    /// ([`crate::integrate::STABILITY_SHARE`] of the method's stability
+    /// boundary or more).
+    pub stability_held: usize,
 }
 
 /// Why an interval could not be completed. (θ, θ̇, ν) and the carry are left at
@@ -502,8 +509,7 @@ impl Simulation {
             accepted: steps,
             rejected: 0,
             evaluations: integrator.evaluations - evaluations_before,
-            jacobians: 0,
-            locating: 0,
+            ..Stats::default()
         })
     }
 
@@ -527,6 +533,9 @@ impl Simulation {
             return Ok(Stats::default());
         }
         let (evaluations_before, jacobians_before) = (self.integrator.evaluations, self.integrator.jacobians);
+        // The inputs may have changed at t0: the first stage is no test of the last step.
+        self.integrator.stiffness.drop_pending();
+        let stiffness_before = (self.integrator.stiffness.tests, self.integrator.stiffness.held);
         if self.switches.watched() {
             let Simulation { state, integrator, ws, switches, .. } = self;
             switches
@@ -670,8 +679,12 @@ impl Simulation {
                     switches
                         .establish(model, ws, integrator, (theta, qvel), t, true, inputs_at)
                         .map_err(|cause| AdvanceError::StepFailed { reached: t, step: 0.0, cause })?;
-                } else if watch {
-                    switches.step_taken();
+                } else {
+                    let stages = (&integrator.k_delta[..], &integrator.k_qvel[..]);
+                    integrator.stiffness.after_step(integrator.method, stages, step);
+                    if watch {
+                        switches.step_taken();
+                    }
                 }
                 stats.accepted += 1;
                 if reaches {
@@ -709,6 +722,8 @@ impl Simulation {
         carry.next_step = h;
         stats.evaluations = integrator.evaluations - evaluations_before;
         stats.jacobians = integrator.jacobians - jacobians_before;
+        stats.stiffness_tests = integrator.stiffness.tests - stiffness_before.0;
+        stats.stability_held = integrator.stiffness.held - stiffness_before.1;
         Ok(stats)
     }
 
@@ -786,6 +801,7 @@ impl Integrator {
         carry.work += work;
         let target = energy_before + work;
         if target > 0.0 && energy > 0.0 {
+            self.stiffness.drop_pending();
             let scale = (target / energy).sqrt();
             qvel[..model.nv].iter_mut().for_each(|x| *x *= scale);
             // The cached last stage was evaluated at the unprojected θ̇.

@@ -8,6 +8,7 @@ mod reach;
 mod rkmk;
 mod rosenbrock;
 mod simulation;
+mod stiffness;
 mod switches;
 mod tableau;
 
@@ -19,6 +20,7 @@ pub use reach::Reach;
 pub use rkmk::{Integrator, retract};
 pub use rosenbrock::{HeldJacobian, W_MAX_AGE};
 pub use simulation::{Advanced, Input, InputSignal, RunState, Simulation};
+pub use stiffness::STABILITY_SHARE;
 pub use tableau::{
     DENSE_ROWS, DOP853, DOPRI5, DenseOutput, ErrorEstimate, ErrorPer, Method, RK4, ROS34PW2, ROS34PW2_SHARE,
     ROSENBROCK_STAGES, Rosenbrock, RosenbrockStages, Scheme, StepControl, Tableau,
