@@ -17,8 +17,8 @@
 //! exceed tol per second at every step size. When the error estimate is
 //! seen not to fall as the step is cut (`at_round_off_floor`), and it lies
 //! within reach of what θ̈'s round-off, measured there, can make of it
-//! (`ROUND_OFF_REACH`; a stiff mode at the stability bound also keeps the
-//! estimate up), the per-second tolerance is relaxed to ten times that level (`Carry::
+//! (`ROUND_OFF_REACH`; a settling stiff vehicle also keeps the estimate
+//! up when the step is cut once), the per-second tolerance is relaxed to ten times that level (`Carry::
 //! relaxation`, reported by the caller), never beyond tol per step; a run
 //! that cannot hold even that stops with `StepTooSmall`.
 //!
@@ -392,7 +392,8 @@ const ROUND_OFF_POWER: f64 = 0.5;
 /// Measured (estimate / floor): 1e-4 to 0.02 on an ill-conditioned vehicle
 /// (thin rods) and 0.4 to 2 on the docked servicer at 1e-12, where
 /// round-off rules; 17 to 80 on the docked servicer settling at 1e-10,
-/// where the estimate stalls at the edge of dop853's stability region.
+/// where the estimate stalls when the step is cut once (its steps lie
+/// within a quarter of dop853's stability boundary there: tests/all/stiffness.rs).
 /// An estimate that stays up while the step is cut further is still taken
 /// for the floor (`PERSISTENT_SHRINK`).
 const ROUND_OFF_REACH: f64 = 4.0;
@@ -405,8 +406,8 @@ const ROUND_OFF_REACH_PASSED: f64 = 0.1;
 
 /// A cut this deep (since the first rejection at this t) that still
 /// leaves the error estimate up is taken for the floor whatever the probe
-/// measured (it samples one direction at one point); a stiff mode at the
-/// stability bound lets the estimate fall after one or two cuts.
+/// measured (it samples one direction at one point); the settling docked
+/// servicer's estimate falls after one or two cuts.
 const PERSISTENT_SHRINK: f64 = 1.0 / 16.0;
 
 /// How far above the round-off level found the error control then sets its
