@@ -815,6 +815,9 @@ pub fn do_step(instance: &mut Instance, time: f64, step: f64, name: &str) -> Res
         if let Some(moved) = report.moved {
             instance.logger.log(Status::Ok, LogCategory::MethodChoice, &format!("{name}: {moved}"));
         }
+        if let Some(held) = report.held {
+            instance.logger.log(Status::Ok, LogCategory::MethodChoice, &format!("{name}: {held}"));
+        }
     }
     if instance.logger.enabled(LogCategory::Calls) {
         let nudyn::integrate::Stats { accepted, rejected, jacobians, evaluations, locating, .. } = report.stats;

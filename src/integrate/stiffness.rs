@@ -21,6 +21,7 @@
 
 use nalgebra::DVector;
 
+use super::adaptive::Stats;
 use super::tableau::{Method, Scheme, Tableau};
 
 /// A test counts a step as held by stability from h·ρ̂ at this share of
@@ -29,6 +30,54 @@ use super::tableau::{Method, Scheme, Tableau};
 /// accepted steps lie around 0.7–1 of it, where accuracy-bound steps of a
 /// smooth vehicle lie far below (docs/integration.md, "Stiff vehicles").
 pub const STABILITY_SHARE: f64 = 0.5;
+
+/// The fewest tests that judge a communication step (a step cut to a
+/// switch goes untested, and so does DOP853's last step of an advance).
+const JUDGED_TESTS: usize = 4;
+
+/// Whether a communication step's steps (its `stats`) were held by
+/// stability: most of at least [`JUDGED_TESTS`] tested.
+pub(super) fn held_by_stability(stats: &Stats) -> bool {
+    stats.stiffness_tests >= JUDGED_TESTS && 2 * stats.stability_held > stats.stiffness_tests
+}
+
+/// `auto`, on ROS34PW2 for stability, moves back to DOP853 when
+/// ROS34PW2's mean step times the vehicle's fastest |λ| lies within this
+/// share of DOP853's boundary: half of [`STABILITY_SHARE`], so that a
+/// run at the edge does not go back and forth.
+pub(super) const RETURN_SHARE: f64 = 0.5 * STABILITY_SHARE;
+
+/// A method the user named whose steps stability held over a
+/// communication step: said once per run (an FMU's `logMethodChoice`,
+/// `nudyn simulate`'s standard error), not a warning: the steps are
+/// right, only dearer than an L-stable method's may be.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StabilityHeld {
+    /// The method.
+    pub method: Method,
+    /// The start of the communication step (s).
+    pub time: f64,
+    /// The tolerance asked.
+    pub tolerance: f64,
+    /// Steps found held by stability there, of `tests` tested.
+    pub held: usize,
+    /// Steps tested there.
+    pub tests: usize,
+}
+
+impl std::fmt::Display for StabilityHeld {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let StabilityHeld { method, time, tolerance, held, tests } = *self;
+        write!(
+            f,
+            "{} steps held by stability, not by tolerance {tolerance:e}: in the communication step from t = {time} s, \
+             {held} of the {tests} steps tested lie at half its stability boundary or beyond on a fast damped mode, \
+             so the error delivered lies below the one asked; ros34pw2 (L-stable) is not held so and may take \
+             fewer steps (method auto moves to it)",
+            method.name()
+        )
+    }
+}
 
 /// The stiffness test's buffers and counts (part of the integrator).
 #[derive(Clone, Debug)]

@@ -7,7 +7,7 @@
 use std::path::Path;
 
 use nalgebra::DMatrix;
-use nudyn::integrate::{Method, Settings, Simulation, retract};
+use nudyn::integrate::{AutoMove, Method, MethodSetting, MoveReason, Settings, Simulation, StabilityHeld, retract};
 use nudyn::model::Model;
 
 fn fixture(path: &str) -> Model {
@@ -183,6 +183,94 @@ fn hairers_test_finds_the_damped_stiff_boom_held_by_stability_and_the_examples_n
             let (tests, held) = free_run(&model, Method::Dopri5, tolerance, (0.1, 10));
             println!("{example} dopri5 {tolerance:e}: held by stability {held}/{tests}");
             assert!(4 * held <= tests && tests > 0, "{example} at {tolerance:e}: {held} of {tests}");
+        }
+    }
+}
+
+/// What a run of `setting` over `intervals` communication steps of
+/// `interval` from rest (ε = 0, or ε = 0.3 sin k with `driven`) did.
+struct SettledRun {
+    theta: Vec<f64>,
+    evaluations: usize,
+    moves: Vec<AutoMove>,
+    held: Vec<StabilityHeld>,
+}
+
+fn settled_run(
+    model: &Model,
+    setting: MethodSetting,
+    tolerance: f64,
+    (interval, intervals): (f64, usize),
+    driven: bool,
+) -> SettledRun {
+    let settings = Settings { tolerance, max_step: 0.0, energy_projection: false };
+    let mut sim = Simulation::new(model, setting, settings);
+    sim.initialize(model).unwrap();
+    let eps = if driven { eps(model) } else { vec![0.0; model.nv] };
+    let mut run = SettledRun { theta: Vec::new(), evaluations: 0, moves: Vec::new(), held: Vec::new() };
+    for k in 1..=intervals {
+        let advanced =
+            sim.advance_to(model, k as f64 * interval, |_: f64, out: &mut [f64]| out.copy_from_slice(&eps)).unwrap();
+        run.evaluations += advanced.stats.evaluations;
+        run.moves.extend(advanced.moved);
+        run.held.extend(advanced.held);
+    }
+    run.theta = sim.state.theta;
+    run
+}
+
+/// On the damped stiff boom (10 s in 0.1 s communication steps), `auto`
+/// leaves DOP853 for ROS34PW2 once stability holds DOP853's steps, and
+/// comes back while ROS34PW2's steps are short (the boom's first
+/// transient at tight tolerances): far fewer evaluations than DOP853, and
+/// than ROS34PW2 throughout at 1e-8, with the error within the band's top.
+#[test]
+fn auto_moves_to_ros34pw2_where_stability_holds_dop853() {
+    let boom = fixture("tests/fixtures/damped_stiff_boom.xml");
+    let span = (0.1, 100);
+    let reference = settled_run(&boom, Method::Dop853.into(), 1e-12, span, false).theta;
+    for tolerance in [1e-4, 1e-8] {
+        let auto = settled_run(&boom, MethodSetting::Auto, tolerance, span, false);
+        let dop853 = settled_run(&boom, Method::Dop853.into(), tolerance, span, false);
+        let ros34pw2 = settled_run(&boom, Method::Ros34pw2.into(), tolerance, span, false);
+        let error = scaled_error(&auto.theta, &reference) / tolerance;
+        println!(
+            "damped_stiff_boom {tolerance:e}: auto {} evaluations (error/tol {error:.1e}, {} moves), dop853 {}, ros34pw2 {}",
+            auto.evaluations,
+            auto.moves.len(),
+            dop853.evaluations,
+            ros34pw2.evaluations
+        );
+        let to_ros = auto.moves.first().expect("auto stayed with dop853");
+        assert!(matches!(to_ros.why, MoveReason::Stability { .. }) && to_ros.to == Method::Ros34pw2, "{to_ros}");
+        assert!(4 * auto.evaluations < dop853.evaluations, "{} against {}", auto.evaluations, dop853.evaluations);
+        assert!(auto.evaluations < ros34pw2.evaluations, "{} against {}", auto.evaluations, ros34pw2.evaluations);
+        assert!(error <= 20.0, "{error}");
+        // A method the user named keeps its steps and says once why they are short.
+        assert_eq!(dop853.held.len(), 1, "{:?}", dop853.held);
+        assert!(ros34pw2.held.is_empty());
+    }
+}
+
+/// Where stability holds no explicit steps, `auto` makes today's choices:
+/// no move for stability on the smooth examples (driven and left alone) nor
+/// on the docked servicer, and a method the user named says nothing.
+#[test]
+fn auto_keeps_its_choice_where_stability_holds_no_steps() {
+    let mut models: Vec<(String, Model)> = ["bus_arm7", "chain60", "fixed_rig", "flexible_boom"]
+        .iter()
+        .map(|name| (name.to_string(), fixture(&format!("examples/{name}.xml"))))
+        .collect();
+    models.push(("docked_servicer".into(), fixture(CONSTRAINED[0])));
+    for (name, model) in &models {
+        for tolerance in [1e-4, 1e-7, 1e-10] {
+            for driven in [false, true] {
+                let auto = settled_run(model, MethodSetting::Auto, tolerance, (0.1, 20), driven);
+                let stiff = auto.moves.iter().find(|m| !matches!(m.why, MoveReason::Cost { .. }));
+                assert!(stiff.is_none(), "{name} at {tolerance:e}: {}", stiff.unwrap());
+            }
+            let dop853 = settled_run(model, Method::Dop853.into(), tolerance, (0.1, 20), true);
+            assert!(dop853.held.is_empty(), "{name} at {tolerance:e}: {}", dop853.held[0]);
         }
     }
 }
