@@ -189,3 +189,15 @@ def test_steps_held_by_stability_are_said_once_and_auto_moves_to_ros34pw2(export
             moves = [MOVED.match(m).groups()[:2] for m in choices if MOVED.match(m)]
             assert moves[0] == ("dop853", "ros34pw2"), choices
     assert 2 * evaluations["auto"] < evaluations["dop853"], evaluations
+
+
+def test_simulate_says_once_that_stability_held_the_steps(cli):
+    """`nudyn simulate` on the damped stiff boom with dop853 named: one
+    note on standard error (not a warning), and auto's move to ros34pw2."""
+    boom = ROOT / "tests" / "fixtures" / "damped_stiff_boom.xml"
+    for method, said in [("dop853", "nudyn: note: dop853 steps held by stability, not by tolerance 1e-4"),
+                         ("auto", "nudyn: method auto moved from dop853 to ros34pw2")]:
+        proc = subprocess.run([str(cli.binary), "simulate", str(boom), "--step", "0.1", "--stop", "1", "--method", method,
+                               "--tolerance", "1e-4", "--max-step", "1"], input="{}", capture_output=True, text=True,
+                              check=True)
+        assert proc.stderr.count(said) == 1 and "warning" not in proc.stderr, proc.stderr
