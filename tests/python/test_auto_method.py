@@ -13,7 +13,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from conftest import EXAMPLES_DIR, ROOT
+from conftest import EXAMPLES_DIR, ROOT, assert_restores_bit_for_bit
 from nudyn_bench.vehicles import prepare
 from nudyn_driver.instance import Instance
 from nudyn_driver.package import FmuPackage
@@ -201,3 +201,24 @@ def test_simulate_says_once_that_stability_held_the_steps(cli):
                                "--tolerance", "1e-4", "--max-step", "1"], input="{}", capture_output=True, text=True,
                               check=True)
         assert proc.stderr.count(said) == 1 and "warning" not in proc.stderr, proc.stderr
+
+
+@pytest.mark.parametrize("tolerance", [1e-4, 1e-8])
+def test_a_restored_state_moves_to_ros34pw2_and_back_as_the_saved_run(exported_fmu, tmp_path, tolerance):
+    """auto on the damped stiff boom, saved before its move to ros34pw2, on
+    ros34pw2 (with its W), and (at 1e-8) around its move back: every
+    restored or deserialized state continues bit for bit, in 0.1 s and
+    0.01 s steps."""
+    package = FmuPackage.unzip(exported_fmu(ROOT / "tests" / "fixtures" / "damped_stiff_boom.xml"), tmp_path / "boom")
+    for step in [0.1, 0.01]:
+        def advance(fmu, steps, step=step):
+            for _ in range(steps):
+                fmu.step(step)
+
+        start = {"method": "auto", "tolerance": tolerance}
+        with Instance(package, start=start, logging_on=True) as running, Instance(package, start=start) as fresh:
+            for _ in range(4):
+                assert_restores_bit_for_bit(running, fresh, advance, round(0.2 / step))
+            moves = [MOVED.match(m).groups()[:2] for m in running.log.method_choices() if MOVED.match(m)]
+            assert ("dop853", "ros34pw2") in moves, running.log.method_choices()
+            assert (("ros34pw2", "dop853") in moves) == (tolerance == 1e-8), running.log.method_choices()
