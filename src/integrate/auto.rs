@@ -32,6 +32,12 @@
 //! communication step is not judged: its first step is the starting
 //! step's guess. The window grows from the second, judged alone (a start
 //! that misled is caught at once), and starts afresh after a move.
+//!
+//! A vehicle whose explicit steps stability holds (a fast, strongly damped
+//! mode: stiffness.rs) moves to ROS34PW2 after a communication step in
+//! which most of its tested steps were so held, and back to DOP853 when
+//! ROS34PW2's steps lie well within DOP853's stability (simulation.rs,
+//! `move_if_due`).
 
 use super::tableau::{Method, Scheme};
 
