@@ -673,6 +673,12 @@ impl Simulation {
                     let (start, work) = ((&theta[..], &qvel[..]), carry.work);
                     integrator.form_interpolant(model, ws, start, (t, step), work, inputs_at, reach).map_err(failed)?;
                 }
+                if !crossed {
+                    // Before the step is taken, which drops a test awaiting f(y₁) where it moves y₁
+                    // (act clamped, θ̇ projected).
+                    let stages = (&integrator.k_delta[..], &integrator.k_qvel[..]);
+                    integrator.stiffness.after_step(integrator.method, stages, step);
+                }
                 take_attempted_step(integrator, model, ws, (theta, qvel), step, settings, carry).map_err(failed)?;
                 t = end;
                 if crossed {
@@ -680,12 +686,8 @@ impl Simulation {
                     switches
                         .establish(model, ws, integrator, (theta, qvel), t, true, inputs_at)
                         .map_err(|cause| AdvanceError::StepFailed { reached: t, step: 0.0, cause })?;
-                } else {
-                    let stages = (&integrator.k_delta[..], &integrator.k_qvel[..]);
-                    integrator.stiffness.after_step(integrator.method, stages, step);
-                    if watch {
-                        switches.step_taken();
-                    }
+                } else if watch {
+                    switches.step_taken();
                 }
                 stats.accepted += 1;
                 if reaches {
