@@ -124,6 +124,9 @@ pub fn simulate(model: &Model, run: &Run) -> Result<()> {
         if let Some(moved) = advanced.moved {
             progress.suspend(|| eprintln!("nudyn: {moved}"));
         }
+        if let Some(held) = advanced.held {
+            progress.suspend(|| eprintln!("nudyn: note: {held}"));
+        }
         if let Some(relaxed) = advanced.relaxed {
             let kind = if relaxed.meets_asked() { "note" } else { "warning" };
             progress.suspend(|| eprintln!("nudyn: {kind}: {relaxed}"));

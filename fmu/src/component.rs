@@ -8,7 +8,7 @@
 //! answered, [`StepError`] for a step that started and did not complete.
 
 use nudyn::dynamics::DynamicsError;
-use nudyn::integrate::{AdvanceError, AutoChoice, AutoMove, Stats, ToleranceRelaxed};
+use nudyn::integrate::{AdvanceError, AutoChoice, AutoMove, StabilityHeld, Stats, ToleranceRelaxed};
 use nudyn_contract::capabilities::Capabilities;
 use nudyn_contract::plant::method_items;
 use nudyn_contract::variable::Kind;
@@ -34,8 +34,10 @@ pub struct StepReport {
     pub relaxed: Option<ToleranceRelaxed>,
     /// Set when `method = auto` chose the method in this step.
     pub chose: Option<AutoChoice>,
-    /// Set when `method = auto` moved up one order after this step.
+    /// Set when `method = auto` moved to another method after this step.
     pub moved: Option<AutoMove>,
+    /// Set the first time stability held the steps of a method the user named.
+    pub held: Option<StabilityHeld>,
 }
 
 /// What an FMU instance runs. Methods are called only after the checks of

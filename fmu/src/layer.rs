@@ -815,9 +815,12 @@ pub fn do_step(instance: &mut Instance, time: f64, step: f64, name: &str) -> Res
         if let Some(moved) = report.moved {
             instance.logger.log(Status::Ok, LogCategory::MethodChoice, &format!("{name}: {moved}"));
         }
+        if let Some(held) = report.held {
+            instance.logger.log(Status::Ok, LogCategory::MethodChoice, &format!("{name}: {held}"));
+        }
     }
     if instance.logger.enabled(LogCategory::Calls) {
-        let nudyn::integrate::Stats { accepted, rejected, jacobians, evaluations, locating } = report.stats;
+        let nudyn::integrate::Stats { accepted, rejected, jacobians, evaluations, locating, .. } = report.stats;
         let mut message = format!("{name}: {accepted} internal steps taken, {rejected} rejected");
         if locating > 0 {
             message += &format!(", {locating} attempted to locate constraint switches");
@@ -829,7 +832,7 @@ pub fn do_step(instance: &mut Instance, time: f64, step: f64, name: &str) -> Res
         instance.logger.log(Status::Ok, LogCategory::Calls, &message);
     }
     if instance.logger.enabled(LogCategory::StepStatistics) {
-        let nudyn::integrate::Stats { accepted, rejected, jacobians, evaluations, locating } = report.stats;
+        let nudyn::integrate::Stats { accepted, rejected, jacobians, evaluations, locating, .. } = report.stats;
         let statistics = serde_json::json!({
             "accepted": accepted, "rejected": rejected, "jacobians": jacobians, "evaluations": evaluations,
             "locating": locating,

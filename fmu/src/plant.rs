@@ -479,6 +479,7 @@ impl Component for Plant {
                     relaxed: advanced.relaxed,
                     chose: advanced.chose,
                     moved: advanced.moved,
+                    held: advanced.held,
                 }))
             }
             Err(source) => {

@@ -17,8 +17,8 @@
 //! exceed tol per second at every step size. When the error estimate is
 //! seen not to fall as the step is cut (`at_round_off_floor`), and it lies
 //! within reach of what θ̈'s round-off, measured there, can make of it
-//! (`ROUND_OFF_REACH`; a stiff mode at the stability bound also keeps the
-//! estimate up), the per-second tolerance is relaxed to ten times that level (`Carry::
+//! (`ROUND_OFF_REACH`; a settling stiff vehicle also keeps the estimate
+//! up when the step is cut once), the per-second tolerance is relaxed to ten times that level (`Carry::
 //! relaxation`, reported by the caller), never beyond tol per step; a run
 //! that cannot hold even that stops with `StepTooSmall`.
 //!
@@ -260,6 +260,13 @@ pub struct Stats {
     pub jacobians: usize,
     /// Steps attempted to locate where limit sides switch (`switches`).
     pub locating: usize,
+    /// Steps of an explicit method tested for stiffness (stiffness.rs:
+    /// not `bs3`, nor a step cut to a switch).
+    pub stiffness_tests: usize,
+    /// Of those, the steps whose size stability held
+    /// ([`crate::integrate::STABILITY_SHARE`] of the method's stability
+    /// boundary or more).
+    pub stability_held: usize,
 }
 
 /// Why an interval could not be completed. (θ, θ̇, ν) and the carry are left at
@@ -385,7 +392,8 @@ const ROUND_OFF_POWER: f64 = 0.5;
 /// Measured (estimate / floor): 1e-4 to 0.02 on an ill-conditioned vehicle
 /// (thin rods) and 0.4 to 2 on the docked servicer at 1e-12, where
 /// round-off rules; 17 to 80 on the docked servicer settling at 1e-10,
-/// where the estimate stalls at the edge of dop853's stability region.
+/// where the estimate stalls when the step is cut once (its steps lie
+/// within a quarter of dop853's stability boundary there: tests/all/stiffness.rs).
 /// An estimate that stays up while the step is cut further is still taken
 /// for the floor (`PERSISTENT_SHRINK`).
 const ROUND_OFF_REACH: f64 = 4.0;
@@ -398,8 +406,8 @@ const ROUND_OFF_REACH_PASSED: f64 = 0.1;
 
 /// A cut this deep (since the first rejection at this t) that still
 /// leaves the error estimate up is taken for the floor whatever the probe
-/// measured (it samples one direction at one point); a stiff mode at the
-/// stability bound lets the estimate fall after one or two cuts.
+/// measured (it samples one direction at one point); the settling docked
+/// servicer's estimate falls after one or two cuts.
 const PERSISTENT_SHRINK: f64 = 1.0 / 16.0;
 
 /// How far above the round-off level found the error control then sets its
@@ -502,8 +510,7 @@ impl Simulation {
             accepted: steps,
             rejected: 0,
             evaluations: integrator.evaluations - evaluations_before,
-            jacobians: 0,
-            locating: 0,
+            ..Stats::default()
         })
     }
 
@@ -527,6 +534,9 @@ impl Simulation {
             return Ok(Stats::default());
         }
         let (evaluations_before, jacobians_before) = (self.integrator.evaluations, self.integrator.jacobians);
+        // The inputs may have changed at t0: the first stage is no test of the last step.
+        self.integrator.stiffness.drop_pending();
+        let stiffness_before = (self.integrator.stiffness.tests, self.integrator.stiffness.held);
         if self.switches.watched() {
             let Simulation { state, integrator, ws, switches, .. } = self;
             switches
@@ -663,6 +673,12 @@ impl Simulation {
                     let (start, work) = ((&theta[..], &qvel[..]), carry.work);
                     integrator.form_interpolant(model, ws, start, (t, step), work, inputs_at, reach).map_err(failed)?;
                 }
+                if !crossed {
+                    // Before the step is taken, which drops a test awaiting f(y₁) where it moves y₁
+                    // (act clamped, θ̇ projected).
+                    let stages = (&integrator.k_delta[..], &integrator.k_qvel[..]);
+                    integrator.stiffness.after_step(integrator.method, stages, step);
+                }
                 take_attempted_step(integrator, model, ws, (theta, qvel), step, settings, carry).map_err(failed)?;
                 t = end;
                 if crossed {
@@ -709,6 +725,8 @@ impl Simulation {
         carry.next_step = h;
         stats.evaluations = integrator.evaluations - evaluations_before;
         stats.jacobians = integrator.jacobians - jacobians_before;
+        stats.stiffness_tests = integrator.stiffness.tests - stiffness_before.0;
+        stats.stability_held = integrator.stiffness.held - stiffness_before.1;
         Ok(stats)
     }
 
@@ -786,6 +804,7 @@ impl Integrator {
         carry.work += work;
         let target = energy_before + work;
         if target > 0.0 && energy > 0.0 {
+            self.stiffness.drop_pending();
             let scale = (target / energy).sqrt();
             qvel[..model.nv].iter_mut().for_each(|x| *x *= scale);
             // The cached last stage was evaluated at the unprojected θ̇.

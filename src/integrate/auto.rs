@@ -32,6 +32,12 @@
 //! communication step is not judged: its first step is the starting
 //! step's guess. The window grows from the second, judged alone (a start
 //! that misled is caught at once), and starts afresh after a move.
+//!
+//! A vehicle whose explicit steps stability holds (a fast, strongly damped
+//! mode: stiffness.rs) moves to ROS34PW2 after a communication step in
+//! which most of its tested steps were so held, and back to DOP853 when
+//! ROS34PW2's steps lie well within DOP853's stability (simulation.rs,
+//! `move_if_due`).
 
 use super::tableau::{Method, Scheme};
 
@@ -198,7 +204,7 @@ pub fn order_up(method: Method) -> Option<Method> {
     }
 }
 
-/// `auto` moving a run up one order (module docs).
+/// `auto` moving a run to another method (module docs).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AutoMove {
     /// The method it ran with.
@@ -207,26 +213,62 @@ pub struct AutoMove {
     pub to: Method,
     /// The start of the communication step that asked for it (s).
     pub time: f64,
-    /// The steps attempted in the window's communication steps, oldest
-    /// first; the last `judged` of them were judged (the others are 0).
-    pub attempts: [usize; MOVE_UP_WINDOW],
-    /// How many communication steps the window held.
-    pub judged: usize,
+    /// Why.
+    pub why: MoveReason,
+}
+
+/// Why `auto` moved.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum MoveReason {
+    /// Up one order: the window's steps cost more than the next method's.
+    Cost {
+        /// The steps attempted in the window's communication steps, oldest
+        /// first; the last `judged` of them were judged (the others are 0).
+        attempts: [usize; MOVE_UP_WINDOW],
+        /// How many communication steps the window held.
+        judged: usize,
+    },
+    /// To ROS34PW2: most of the communication step's explicit steps were
+    /// held by stability (stiffness.rs).
+    Stability {
+        /// Steps found held by stability.
+        held: usize,
+        /// Steps tested.
+        tests: usize,
+    },
+    /// Back to DOP853: ROS34PW2's steps lie well within DOP853's stability
+    /// boundary on the vehicle's fastest mode, where DOP853's order pays.
+    Accuracy {
+        /// ROS34PW2's mean step over the communication step (s).
+        step: f64,
+        /// The largest |λ| of its W (/s).
+        rate: f64,
+    },
 }
 
 impl std::fmt::Display for AutoMove {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let AutoMove { from, to, time, attempts, judged } = *self;
-        write!(
-            f,
-            "method auto moved from {} to {} after the communication step from t = {time} s: {} attempted \
-             {:?} steps in the last {judged} communication steps, costing more than one step of {} in each",
-            from.name(),
-            to.name(),
-            from.name(),
-            &attempts[MOVE_UP_WINDOW - judged..],
-            to.name()
-        )
+        let AutoMove { from, to, time, why } = *self;
+        let (from, to) = (from.name(), to.name());
+        write!(f, "method auto moved from {from} to {to} after the communication step from t = {time} s: ")?;
+        match why {
+            MoveReason::Cost { attempts, judged } => write!(
+                f,
+                "{from} attempted {:?} steps in the last {judged} communication steps, costing more than one step \
+                 of {to} in each",
+                &attempts[MOVE_UP_WINDOW - judged..],
+            ),
+            MoveReason::Stability { held, tests } => write!(
+                f,
+                "{held} of the {tests} steps {from} took there were held by its stability on a fast damped mode, not \
+                 by the tolerance, and {to} (L-stable) is not held so"
+            ),
+            MoveReason::Accuracy { step, rate } => write!(
+                f,
+                "{from}'s steps ({step:.1e} s on average) are short for the vehicle's fastest mode (|λ| ≈ {rate:.1e} /s), \
+                 well within {to}'s stability, where its higher order takes fewer evaluations"
+            ),
+        }
     }
 }
 
@@ -268,18 +310,22 @@ impl AutoChoice {
         window[MOVE_UP_WINDOW - 1] = attempts;
         let judged = 1 + self.earlier_attempts.iter().filter(|&&n| n > 0).count();
         match moves_up(self.method, &window[MOVE_UP_WINDOW - judged..]) {
-            Some(to) => {
-                let moved = AutoMove { from: self.method, to, time, attempts: window, judged };
-                self.method = to;
-                self.earlier_attempts = [0; MOVE_UP_WINDOW - 1];
-                Some(moved)
-            }
+            Some(to) => Some(self.move_to(to, time, MoveReason::Cost { attempts: window, judged })),
             None => {
                 self.earlier_attempts.rotate_left(1);
                 self.earlier_attempts[MOVE_UP_WINDOW - 2] = attempts;
                 None
             }
         }
+    }
+
+    /// Moves to `to` after the communication step from `time`, for `why`,
+    /// and starts the window afresh.
+    pub fn move_to(&mut self, to: Method, time: f64, why: MoveReason) -> AutoMove {
+        let moved = AutoMove { from: self.method, to, time, why };
+        self.method = to;
+        self.earlier_attempts = [0; MOVE_UP_WINDOW - 1];
+        moved
     }
 
     /// The vehicle's pace as measured.
@@ -359,8 +405,8 @@ mod tests {
         assert_eq!(choice.earlier_attempts, [1, 3, 2, 2], "an advance of no length is not judged");
         let moved = choice.judge(0.6, 4).expect("3, 2, 2, 4 after a 1: 12 attempts in 5");
         assert_eq!(
-            (moved.from, moved.to, moved.attempts, moved.judged),
-            (Method::Tsit5, Method::Dop853, [1, 3, 2, 2, 4], 5)
+            (moved.from, moved.to, moved.why),
+            (Method::Tsit5, Method::Dop853, MoveReason::Cost { attempts: [1, 3, 2, 2, 4], judged: 5 })
         );
         assert_eq!(choice.method, Method::Dop853);
         assert_eq!(choice.earlier_attempts, [0; MOVE_UP_WINDOW - 1]);
@@ -372,7 +418,7 @@ mod tests {
         assert_eq!(fresh.method, Method::Bs3);
         assert_eq!(fresh.judge(0.1, 2), None);
         let moved = fresh.judge(0.2, 5).expect("7 attempts in 2 communication steps");
-        assert_eq!((moved.attempts, moved.judged), ([0, 0, 0, 2, 5], 2));
+        assert_eq!(moved.why, MoveReason::Cost { attempts: [0, 0, 0, 2, 5], judged: 2 });
         assert_eq!(fresh.judge(0.3, 3).map(|m| m.to), Some(Method::Dop853), "the window restarted at the move");
     }
 

@@ -13,6 +13,7 @@ use nalgebra::DVector;
 
 use super::reach::Reach;
 use super::rosenbrock::Linearization;
+use super::stiffness::StiffnessTest;
 use super::tableau::{DENSE_ROWS, ErrorEstimate, Method, Scheme};
 use crate::dynamics::DynamicsError;
 use crate::dynamics::actuation::clamped_ctrl;
@@ -188,6 +189,8 @@ pub struct Integrator {
     /// end (na; `activation_crossing`).
     pub(super) clamped_start: Vec<f64>,
     pub(super) clamped_end: Vec<f64>,
+    /// Whether its steps are held by stability (explicit methods).
+    pub(super) stiffness: StiffnessTest,
     /// How many times it has evaluated the rates, and formed W, ever.
     pub(super) evaluations: usize,
     pub(super) jacobians: usize,
@@ -259,6 +262,7 @@ impl Integrator {
             linear: linearization(model, method),
             clamped_start: vec![0.0; model.activation_count()],
             clamped_end: vec![0.0; model.activation_count()],
+            stiffness: StiffnessTest::new(nv, rates),
             evaluations: 0,
             jacobians: 0,
         }
@@ -280,6 +284,7 @@ impl Integrator {
     pub fn set_method(&mut self, model: &Model, method: Method) {
         self.method = method;
         self.first.valid = false;
+        self.stiffness.drop_pending();
         if !matches!(method.scheme(), Scheme::Rosenbrock(r) if self.linear.fits(model, r)) {
             self.linear = linearization(model, method);
         }
@@ -377,6 +382,10 @@ impl Integrator {
         };
         let last = tableau.b.len() - 1;
         for (i, row) in tableau.a.iter().enumerate() {
+            if i == 1 {
+                // The first stage is f where the last step ended; its stage at the end is not yet overwritten.
+                self.stiffness.at_first_stage(self.method, &self.k_qvel);
+            }
             if i == 0 && self.first.valid {
                 self.first_as_stage_one();
                 continue;
@@ -637,6 +646,9 @@ impl Integrator {
         retract(model, theta, self.delta.as_slice());
         qvel.copy_from_slice(self.qvel_next.as_slice());
         let clamped = clamp_activations(model, &mut qvel[model.nv..]);
+        if clamped {
+            self.stiffness.drop_pending();
+        }
         let first_same_as_last = self.last_stage_is_end() && !clamped;
         self.first.valid = first_same_as_last || (self.end.valid && !clamped);
         self.linear.age = self.linear.age.saturating_add(1);

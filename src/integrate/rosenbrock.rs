@@ -51,6 +51,9 @@ pub struct HeldJacobian {
     pub age: u32,
 }
 
+/// Power iterations that estimate W's largest |λ| (`Linearization::largest_rate`).
+const POWER_ITERATIONS: usize = 60;
+
 /// The relative size of a forward-difference probe: √ε balances truncation
 /// against round-off in the difference.
 const PROBE: f64 = 1.4901161193847656e-8;
@@ -133,6 +136,39 @@ impl Linearization {
             self.qacc_by_delta.as_mut_slice().copy_from_slice(by_delta);
             self.qacc_by_qvel.as_mut_slice().copy_from_slice(by_qvel);
         }
+    }
+
+    /// The largest |λ| of the Jacobian W stands for, [[0, I], [∂θ̈/∂Δ,
+    /// ∂θ̈/∂θ̇]] (act with θ̇), by power iteration: the iterate's growth
+    /// over the last [`POWER_ITERATIONS`]/2 iterations, which is |λ| for a
+    /// complex pair too (it turns the iterate, and grows it by |λ|). None
+    /// when no W is held. The stage storage serves as scratch.
+    fn largest_rate(&mut self) -> Option<f64> {
+        if !self.held || self.u_delta.is_empty() {
+            return None;
+        }
+        let nv = self.qacc_by_delta.ncols();
+        let (x_delta, x_qvel) = (&mut self.u_delta[0], &mut self.u_qvel[0]);
+        x_delta.fill(1.0);
+        x_qvel.fill(1.0);
+        let mut log_growth = 0.0;
+        for k in 0..POWER_ITERATIONS {
+            self.rhs_delta.copy_from(&x_qvel.rows(0, nv));
+            self.rhs_qvel.gemv(1.0, &self.qacc_by_delta, x_delta, 0.0);
+            self.rhs_qvel.gemv(1.0, &self.qacc_by_qvel, x_qvel, 1.0);
+            let size = (self.rhs_delta.norm_squared() + self.rhs_qvel.norm_squared()).sqrt();
+            if !(size > 0.0 && size.is_finite()) {
+                return (size == 0.0).then_some(0.0);
+            }
+            x_delta.copy_from(&self.rhs_delta);
+            x_qvel.copy_from(&self.rhs_qvel);
+            *x_delta /= size;
+            *x_qvel /= size;
+            if k >= POWER_ITERATIONS / 2 {
+                log_growth += size.ln();
+            }
+        }
+        Some((log_growth / (POWER_ITERATIONS - POWER_ITERATIONS / 2) as f64).exp())
     }
 
     /// Factors cI − B − A/c (A on θ̇'s columns: Δ's rate is θ̇).
@@ -220,6 +256,12 @@ impl Integrator {
     /// Holds a W that [`Integrator::save_jacobian`] wrote.
     pub(super) fn hold_jacobian(&mut self, saved: &HeldJacobian) {
         self.linear.hold(saved);
+    }
+
+    /// The largest |λ| of the Jacobian the held W stands for (None when a
+    /// Rosenbrock method holds none).
+    pub(super) fn held_largest_rate(&mut self) -> Option<f64> {
+        self.linear.largest_rate()
     }
 
     /// The Rosenbrock counterpart of `attempt`: forms the step (`delta`,

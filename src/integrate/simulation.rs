@@ -8,12 +8,13 @@ use super::adaptive::{
     AdvanceError, Carry, Settings, Stats, ToleranceRelaxed, per_second_error, step_factor, take_attempted_step,
     tested_error,
 };
-use super::auto::{AutoChoice, AutoMove, MethodSetting, PROBE_METHOD};
+use super::auto::{AutoChoice, AutoMove, MethodSetting, MoveReason, PROBE_METHOD};
 use super::reach::Reach;
 use super::rkmk::{Integrator, nu_of_qvel, qvel_of_nu};
 use super::rosenbrock::HeldJacobian;
+use super::stiffness::{RETURN_SHARE, StabilityHeld, held_by_stability};
 use super::switches::Switches;
-use super::tableau::Method;
+use super::tableau::{Method, Scheme};
 use crate::dynamics::DynamicsError;
 use crate::model::Model;
 use crate::workspace::Workspace;
@@ -129,8 +130,10 @@ pub struct Advanced {
     pub relaxed: Option<ToleranceRelaxed>,
     /// Set when `auto` chose the method at the start of this advance.
     pub chose: Option<AutoChoice>,
-    /// Set when `auto` moved up one order after this advance.
+    /// Set when `auto` moved to another method after this advance.
     pub moved: Option<AutoMove>,
+    /// Set the first time a method the user named was held by stability.
+    pub held: Option<StabilityHeld>,
 }
 
 /// A vehicle's run: its state, settings and buffers. The model is passed
@@ -153,6 +156,8 @@ pub struct Simulation {
     pub(super) switches: Switches,
     /// The end of the run (s), which no step passes ([`Simulation::set_horizon`]).
     horizon: f64,
+    /// Whether the run has said that stability held a named method's steps.
+    said_held: bool,
 }
 
 impl Simulation {
@@ -179,6 +184,7 @@ impl Simulation {
             qvel_belongs_to: model.qpos0.iter().copied().chain(std::iter::repeat_n(0.0, model.nv)).collect(),
             switches: Switches::new(model),
             horizon: f64::INFINITY,
+            said_held: false,
         }
     }
 
@@ -216,6 +222,7 @@ impl Simulation {
         self.ws.set_act(model, self.state.act(model))?;
         self.state.theta.copy_from_slice(self.ws.theta.as_slice());
         self.state.carry = Carry::default();
+        self.said_held = false;
         if self.state.auto_choice.take().is_some() {
             self.integrator.set_method(model, PROBE_METHOD);
         }
@@ -385,8 +392,9 @@ impl Simulation {
                     .relaxed_since(relaxation_before, called_at, self.settings.tolerance, rates)
                     .map(|relaxed| ToleranceRelaxed { no_slip, ..relaxed });
                 let judged = chose.is_none() && !starts;
-                let moved = if judged { self.move_up_if_dear(model, called_at, &stats) } else { None };
-                Ok(Advanced { stats, relaxed, chose, moved })
+                let moved = if judged { self.move_if_due(model, (called_at, t_end), &stats) } else { None };
+                let held = self.held_once(called_at, &stats);
+                Ok(Advanced { stats, relaxed, chose, moved, held })
             }
             Err(error) => {
                 self.state.time = error.reached();
@@ -415,8 +423,8 @@ impl Simulation {
         formed.map_err(|cause| AdvanceError::StepFailed { reached: t0, step: 0.0, cause })?;
         self.state.time = t_end;
         let stats = Stats::default();
-        let moved = self.move_up_if_dear(model, t0, &stats);
-        Ok(Advanced { stats, relaxed: None, chose: None, moved })
+        let moved = self.move_if_due(model, (t0, t_end), &stats);
+        Ok(Advanced { stats, relaxed: None, chose: None, moved, held: None })
     }
 
     /// Moves the state to the end of the step held, where the integration
@@ -549,13 +557,48 @@ impl Simulation {
         (choice, Ok(passes))
     }
 
-    /// After an advance from `t0` that `auto` did not choose in: moves a
-    /// run up one order when its last communication steps' attempts ask
-    /// for it (auto.rs).
-    fn move_up_if_dear(&mut self, model: &Model, t0: f64, stats: &Stats) -> Option<AutoMove> {
-        let moved = self.state.auto_choice.as_mut()?.judge(t0, stats.accepted + stats.rejected)?;
+    /// After an advance from `t0` to `t1` that `auto` did not choose in:
+    /// moves a run to ROS34PW2 when stability held most of its explicit
+    /// steps, back to DOP853 when ROS34PW2's steps lie well within DOP853's
+    /// stability, and up one order when its last communication steps'
+    /// attempts ask for it (auto.rs). Each is a function of the advance's
+    /// steps and the W held after it, so a restored run judges as the saved one.
+    fn move_if_due(&mut self, model: &Model, (t0, t1): (f64, f64), stats: &Stats) -> Option<AutoMove> {
+        let method = self.state.auto_choice?.method;
+        let moved = match method.scheme() {
+            Scheme::Explicit(_) if held_by_stability(stats) => {
+                let (held, tests) = (stats.stability_held, stats.stiffness_tests);
+                let choice = self.state.auto_choice.as_mut()?;
+                choice.move_to(Method::Ros34pw2, t0, MoveReason::Stability { held, tests })
+            }
+            Scheme::Explicit(_) => self.state.auto_choice.as_mut()?.judge(t0, stats.accepted + stats.rejected)?,
+            Scheme::Rosenbrock(_) => {
+                if stats.accepted == 0 {
+                    return None;
+                }
+                let rate = self.integrator.held_largest_rate()?;
+                let step = (t1 - t0) / stats.accepted as f64;
+                if step * rate >= RETURN_SHARE * PROBE_METHOD.real_stability_bound()? {
+                    return None;
+                }
+                let choice = self.state.auto_choice.as_mut()?;
+                choice.move_to(PROBE_METHOD, t0, MoveReason::Accuracy { step, rate })
+            }
+        };
         self.integrator.set_method(model, moved.to);
         Some(moved)
+    }
+
+    /// What to say the first time stability held the steps of a method
+    /// the user named (`auto` moves instead).
+    fn held_once(&mut self, time: f64, stats: &Stats) -> Option<StabilityHeld> {
+        let MethodSetting::Fixed(method) = self.setting else { return None };
+        if self.said_held || !held_by_stability(stats) {
+            return None;
+        }
+        self.said_held = true;
+        let (held, tests, tolerance) = (stats.stability_held, stats.stiffness_tests, self.settings.tolerance);
+        Some(StabilityHeld { method, time, tolerance, held, tests })
     }
 
     /// The workspace, holding the passes of the last evaluation.

@@ -800,6 +800,23 @@ impl Method {
         }
     }
 
+    /// Its stability boundary on the negative real axis: the largest x
+    /// with |R(−x)| ≤ 1, so that a step of h·|λ| ≤ x does not amplify a
+    /// damped mode of rate λ < 0. Where the vehicle has a fast, strongly
+    /// damped mode, this and not the tolerance holds an explicit method's
+    /// steps (h ≈ x / |λ|). None for ROS34PW2, which is L-stable.
+    /// (`stability_bounds_on_the_negative_real_axis` checks the values.)
+    pub fn real_stability_bound(self) -> Option<f64> {
+        match self {
+            Method::Rk4 => Some(2.7853),
+            Method::Dopri5 => Some(3.3066),
+            Method::Dop853 => Some(6.3936),
+            Method::Bs3 => Some(2.5127),
+            Method::Tsit5 => Some(3.5068),
+            Method::Ros34pw2 => None,
+        }
+    }
+
     /// Whether it adapts its step to a tolerance.
     pub fn is_adaptive(self) -> bool {
         match self.scheme() {
@@ -1017,7 +1034,11 @@ mod tests {
     /// |R(iy)| of a tableau on y' = λy with hλ = iy: the amplification of an
     /// undamped oscillation of frequency ω by one step h = y/ω.
     fn amplification(t: &Tableau, y: f64) -> f64 {
-        let z = Complex::new(0.0, y);
+        amplification_at(t, Complex::new(0.0, y))
+    }
+
+    /// |R(z)| of a tableau on y' = λy with hλ = z.
+    fn amplification_at(t: &Tableau, z: Complex<f64>) -> f64 {
         let mut stages: Vec<Complex<f64>> = Vec::with_capacity(t.b.len());
         for row in t.a {
             let sum: Complex<f64> = row.iter().zip(&stages).map(|(a, s)| s * *a).sum();
@@ -1054,6 +1075,25 @@ mod tests {
             growth(2.0),
             growth(3.0)
         );
+    }
+
+    /// The explicit methods' stability boundaries on the negative real axis,
+    /// as `Method::real_stability_bound` states them, from a scan of the
+    /// tableaus (RK4's is the root of 1 − x + x²/2 − x³/6 + x⁴/24 = 1, 2.7853).
+    #[test]
+    fn stability_bounds_on_the_negative_real_axis() {
+        for method in Method::ALL {
+            let (Scheme::Explicit(tableau), Some(stated)) = (method.scheme(), method.real_stability_bound()) else {
+                assert!(method.real_stability_bound().is_none(), "{method:?}");
+                continue;
+            };
+            let mut x = 0.0;
+            while amplification_at(tableau, Complex::new(-(x + 1e-4), 0.0)) <= 1.0 + 1e-12 {
+                x += 1e-4;
+            }
+            println!("{}: {x:.4}", method.name());
+            assert!((x - stated).abs() < 2e-3 * stated, "{method:?}: scanned {x}, stated {stated}");
+        }
     }
 
     /// R(z, w) of a Rosenbrock–W method on y' = λy with z = hλ, run with

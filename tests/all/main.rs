@@ -32,6 +32,7 @@ mod reaching;
 mod sensor_import;
 mod simulation;
 mod stiff_integration;
+mod stiffness;
 mod tendon_import;
 
 #[test]
