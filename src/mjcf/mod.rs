@@ -4,10 +4,12 @@
 //!
 //! Elements without effect on the dynamics (cameras, lights, visual
 //! settings…) are ignored with a warning each; elements that would change
-//! the dynamics in ways nudyn does not model (a tendon wrap's side site, flexible bodies,
-//! fluid forces, actuators with activation states…) are rejected with an [`MjcfError`] naming the element
-//! and its line (and its file, when it is in an included one). Sites,
-//! actuators and sensors are read: actuators act through `ctrl`.
+//! the dynamics in ways nudyn does not model (MuJoCo's flexes and
+//! composites, fluid forces, muscles…) are rejected with an [`MjcfError`]
+//! naming the element and its line (and its file, when it is in an included
+//! one). Sites, actuators and sensors are read: actuators act through
+//! `ctrl`. `<keyframe>`s are kept ([`keyframe`]), and `<custom>` texts
+//! naming modal data files make bodies flexible (`crate::flex`).
 //! `<include>`d files are merged in, `<frame>`s composed into what they
 //! place, mocap bodies fixed to the world, and `<compiler fusestatic>`
 //! applied, as MuJoCo 4.0 does.
