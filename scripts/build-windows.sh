@@ -35,7 +35,8 @@ as_root() {
 
 # rustup's prebuilt standard library when it can have it; otherwise Debian's
 # Rust builds one from source.
-if command -v rustup >/dev/null 2>&1 && rustup target add "$TARGET" >/dev/null 2>&1; then
+if command -v rustup >/dev/null 2>&1 \
+    && { rustup target list --installed | grep -qx "$TARGET" || rustup target add "$TARGET" >/dev/null 2>&1; }; then
     cargo=(cargo)
     packages=(gcc-mingw-w64-x86-64 libclang-dev)
 else
