@@ -14,7 +14,7 @@ command would compile: crate, target, features, profile) and names every
 dependency whose features differ, to add to workspace-hack/Cargo.toml
 (`[build-dependencies]` for build scripts and proc macros, whose profile
 has opt-level 0). The unit graph is an unstable cargo option: RUSTC_BOOTSTRAP=1
-allows it on the stable toolchain, as scripts/build-windows.sh does for -Zbuild-std."""
+allows it on the stable toolchain."""
 
 from __future__ import annotations
 

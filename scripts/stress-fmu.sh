@@ -16,6 +16,7 @@
 #
 #   bash scripts/stress-fmu.sh           # CI: RUNS=3, 15 s per target
 #   bash scripts/stress-fmu.sh --long    # RUNS=20, 600 s per target
+#   bash scripts/stress-fmu.sh --build   # only build the fuzz targets
 #
 # Needs what scripts/setup.sh installs (valgrind, cargo-fuzz) and the
 # release build (target/release/nudyn, libnudyn_fmu.so).
@@ -28,6 +29,21 @@ FUZZ_SECONDS=15
 if [ "${1:-}" = "--long" ]; then
     RUNS=20
     FUZZ_SECONDS=600
+fi
+
+# cargo fuzz needs nightly flags (-Zsanitizer); the stable toolchain accepts
+# them with RUSTC_BOOTSTRAP=1.
+export RUSTC_BOOTSTRAP=1
+# libFuzzer itself: clang's prebuilt runtime where libclang-dev brought it
+# (Debian's libclang-rt-NN-dev, which it recommends), instead of
+# libfuzzer-sys compiling its copy of libFuzzer's C++ sources (33 CPU-s).
+# Set for the build and the runs alike: when it changes, libfuzzer-sys
+# rebuilds and every target relinks.
+runtime="$(ls /usr/lib/llvm-*/lib/clang/*/lib/linux/libclang_rt.fuzzer-x86_64.a 2>/dev/null | sort -V | tail -1)"
+[ -z "$runtime" ] || export CUSTOM_LIBFUZZER_PATH="$runtime"
+if [ "${1:-}" = "--build" ]; then
+    cd fuzz
+    exec nice cargo fuzz build --release
 fi
 
 WORK="$(mktemp -d)"
@@ -95,9 +111,6 @@ check_memory() {
     fi
 }
 # --- fuzzing --------------------------------------------------------------------
-# cargo fuzz needs nightly flags (-Zsanitizer); the stable toolchain accepts
-# them with RUSTC_BOOTSTRAP=1.
-export RUSTC_BOOTSTRAP=1
 SEEDS="$WORK/seeds"
 mkdir -p "$SEEDS/mjcf_import" "$SEEDS/resource_loader" "$SEEDS/state_deserializer" "$SEEDS/call_sequence" \
     "$SEEDS/call_sequence_fmi3"

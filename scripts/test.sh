@@ -99,7 +99,7 @@ stage "unified features" python3 scripts/check-unified-features.py
 # tests/python/test_win64.py runs it under wine.
 background build-windows bash scripts/build-windows.sh
 # The fuzz targets' build (address sanitizer): scripts/stress-fmu.sh runs them.
-background build-fuzz bash -c 'cd fuzz && RUSTC_BOOTSTRAP=1 nice cargo fuzz build --release'
+background build-fuzz bash scripts/stress-fmu.sh --build
 
 stage clippy cargo clippy --release --workspace --all-targets -- -D warnings
 # Every target at once: the libraries and binaries are built with the same

@@ -51,19 +51,26 @@ def deep_model(tmp_path_factory):
     return path
 
 
-def test_every_command_reads_a_deep_chain_on_a_small_stack(nudyn, fmu_library, deep_model, tmp_path):
+@pytest.fixture(scope="module")
+def deep_fmu(nudyn, fmu_library, deep_model):
+    """The deep chain exported under the small stack, once for both tests: its
+    modelDescription lists dense dependencies (about 600 MB for 4000 dofs)."""
+    fmu = deep_model.parent / "deep.fmu"
+    run(nudyn, fmu_library, "export", deep_model, "-o", fmu)
+    return fmu
+
+
+def test_every_command_reads_a_deep_chain_on_a_small_stack(nudyn, fmu_library, deep_model, deep_fmu):
     described = json.loads(run(nudyn, fmu_library, "describe", deep_model, "--json"))
     assert (described["nq"], described["nv"]) == (7 + DEPTH - 1, 6 + DEPTH - 1)
     state = {"theta": [0, 0, 0, 1, 0, 0, 0] + [0.0] * (DEPTH - 1), "nu": [1e-3] * (6 + DEPTH - 1)}
     evaluated = json.loads(run(nudyn, fmu_library, "eval", deep_model, stdin=json.dumps(state)))
     assert np.all(np.isfinite(evaluated["nu_dot"]))
-    run(nudyn, fmu_library, "export", deep_model, "-o", tmp_path / "deep.fmu")
-    assert (tmp_path / "deep.fmu").stat().st_size > 0
+    assert deep_fmu.stat().st_size > 0
 
 
-def test_the_fmu_loads_a_deep_chain_on_a_small_stack(nudyn, fmu_library, deep_model, tmp_path):
-    run(nudyn, fmu_library, "export", deep_model, "-o", tmp_path / "deep.fmu")
-    package = FmuPackage.unzip(tmp_path / "deep.fmu", tmp_path / "unzipped")
+def test_the_fmu_loads_a_deep_chain_on_a_small_stack(nudyn, fmu_library, deep_model, deep_fmu, tmp_path):
+    package = FmuPackage.unzip(deep_fmu, tmp_path / "unzipped")
     nu = [1e-3] * (6 + DEPTH - 1)
     results = {}
 
