@@ -103,7 +103,7 @@ pub fn controller_model_description(
     let mut initial_unknowns = Vec::new();
     for (vr, _) in layout.variables() {
         if let Some(dependencies) = resource.dependencies(vr) {
-            outputs.push(md::Unknown { index: vr, dependencies: Some(dependencies), dependencies_kind: None });
+            outputs.push(md::Unknown { index: vr, dependencies: super::listed(dependencies), dependencies_kind: None });
             initial_unknowns.push(md::Unknown::new(vr));
         }
     }

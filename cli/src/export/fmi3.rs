@@ -123,7 +123,7 @@ pub fn model_description(
 
     let unknown = |float: &md3::Float64| md3::Unknown {
         value_reference: float.value_reference,
-        dependencies: table.known_variables(float.value_reference, &dependencies),
+        dependencies: table.known_variables(float.value_reference, &dependencies).and_then(super::listed),
     };
     let mut structure = md3::ModelStructure::default();
     let event_indicators =
@@ -131,7 +131,7 @@ pub fn model_description(
     structure.event_indicators = event_indicators
         .map(|v| md3::Unknown {
             value_reference: v.value_reference,
-            dependencies: table.known_variables(v.value_reference, &dependencies),
+            dependencies: table.known_variables(v.value_reference, &dependencies).and_then(super::listed),
         })
         .collect();
     for float in &floats {

@@ -26,6 +26,21 @@ use nudyn_contract::{DEFAULT_STEP_SIZE, DEFAULT_STOP_TIME};
 
 pub use binary::Platform;
 
+/// The most knowns a `<ModelStructure>` entry lists. An unknown that depends
+/// on more is written without `dependencies`, which declares it dependent on
+/// every known: the exact lists grow with the square of the dofs (a
+/// 4000-link chain's FMI 2.0 description took 588 MB with them), and a list
+/// that long tells a host little. The FMU's fmi3GetVariableDependencies
+/// still gives each element's exact knowns.
+pub const LISTED_DEPENDENCIES_AT_MOST: usize = 1000;
+
+/// `knowns` as a `<ModelStructure>` entry lists them (ascending), or `None`
+/// (every known) past [`LISTED_DEPENDENCIES_AT_MOST`].
+fn listed(mut knowns: Vec<u32>) -> Option<Vec<u32>> {
+    knowns.sort_unstable();
+    (knowns.len() <= LISTED_DEPENDENCIES_AT_MOST).then_some(knowns)
+}
+
 /// Why an FMU cannot be written.
 #[derive(Debug, thiserror::Error)]
 pub enum ExportError {

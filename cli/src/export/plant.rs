@@ -223,11 +223,9 @@ pub fn model_description(resource: &PlantResource, options: &ExportOptions, guid
         let kind = element.kind();
         let unknown = md::Unknown {
             index: index_of(element.value_reference),
-            dependencies: layout.dependencies(element.variable()).map(|knowns| {
-                let mut indices: Vec<u32> = knowns.into_iter().map(index_of_variable).collect();
-                indices.sort_unstable();
-                indices
-            }),
+            dependencies: layout
+                .dependencies(element.variable())
+                .and_then(|knowns| super::listed(knowns.into_iter().map(index_of_variable).collect())),
             dependencies_kind: None,
         };
         if !kind.exact_start && (kind.causality == Causality::Output || element.entry.shape == Shape::Derivative) {
