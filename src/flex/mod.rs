@@ -14,6 +14,7 @@ use crate::math::{Mat3, Vec3};
 use crate::vehicle::MassProperties;
 
 pub mod modal_file;
+pub mod nodes;
 pub mod rotation;
 
 /// How closely the nodes must reproduce the body's mass, centre of mass and
