@@ -13,6 +13,7 @@ use std::path::PathBuf;
 use crate::math::{Mat3, Vec3};
 use crate::vehicle::MassProperties;
 
+pub mod body;
 pub mod modal_file;
 pub mod nodes;
 pub mod rotation;
