@@ -78,7 +78,8 @@ impl MethodSetting {
             MethodSetting::Fixed(method) => method.description(),
             MethodSetting::Auto => {
                 "the cheapest of bs3, tsit5 and dop853 for the tolerance and for how fast the vehicle moves over \
-                 the first communication step, chosen once before the first step and logged"
+                 the first communication step, one order up when later motion asks, and ros34pw2 while stability \
+                 holds the explicit steps; each choice logged"
             }
         }
     }
