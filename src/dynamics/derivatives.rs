@@ -171,8 +171,8 @@ struct Passes {
     ctrl: Vec<Dual64>,
     /// The direction in θ's coordinates (nq).
     theta_rates: Vec<f64>,
-    /// The outputs the last run computed.
-    computed: Vec<Output>,
+    /// Whether the last run computed θ̈ (ν̇'s is the workspace's stage).
+    qacc_current: bool,
 }
 
 impl Passes {
@@ -185,7 +185,7 @@ impl Passes {
             eps_of_torque: zeros,
             ctrl: vec![Dual64::from(0.0); model.actuators.len()],
             theta_rates: vec![0.0; model.nq],
-            computed: Vec::new(),
+            qacc_current: false,
         }
     }
 
@@ -199,6 +199,7 @@ impl Passes {
         outputs: &[Output],
         limits: &mut Limits,
     ) -> Result<(), DerivativeError> {
+        self.qacc_current = false;
         theta_rates(model, point.theta, direction, &mut self.theta_rates);
         let ws = &mut self.ws;
         seed(ws.theta.as_mut_slice(), point.theta, &self.theta_rates);
@@ -231,7 +232,6 @@ impl Passes {
         }
         // ν̇ needs pass 3 with the factor's rates; θ̈ alone does without
         // them, and the outward pass only θ̈ needs.
-        self.computed = outputs.to_vec();
         let (nu_dot, qacc) = (outputs.contains(&Output::NuDot), outputs.contains(&Output::Qacc));
         if nu_dot {
             bias::link_sweep::<_, true>(model, ws, &self.eps, passive);
@@ -243,17 +243,18 @@ impl Passes {
         if qacc {
             ws.compute_accelerations(model)?;
         }
+        self.qacc_current = qacc;
         Ok(())
     }
 
     /// `output` of the last run, which must have been asked for.
     fn output(&self, output: Output) -> &[Dual64] {
-        let always = matches!(output, Output::Qvel | Output::Nu);
-        assert!(
-            always || self.computed.contains(&output),
-            "{output:?} was not asked of the last run: {:?}",
-            self.computed
-        );
+        let computed = match output {
+            Output::Qvel | Output::Nu => true,
+            Output::NuDot => self.ws.stage == Stage::Acceleration,
+            Output::Qacc => self.qacc_current,
+        };
+        assert!(computed, "{output:?} was not asked of the last run");
         match output {
             Output::Qvel => self.ws.qvel.as_slice(),
             Output::Nu => self.ws.nu.as_slice(),
