@@ -439,8 +439,7 @@ fn run(cli: Cli) -> Result<()> {
                 InputsArg::Torque => Inputs::Torque,
                 InputsArg::Ctrl => Inputs::Ctrl,
             };
-            let imported =
-                nudyn::mjcf::load_mjcf(&model).with_context(|| format!("cannot import {}", model.display()))?;
+            let imported = import(&model)?;
             let key = keyframe.map(|asked| nudyn::mjcf::keyframe::find(&imported.keyframes, &asked)).transpose()?;
             if let Some(key) = key
                 && key.places_mocap_bodies
@@ -467,7 +466,7 @@ fn run(cli: Cli) -> Result<()> {
                 json: output.as_deref(),
                 npz: npz.as_deref(),
             };
-            linearize::run(&compile(&model, &imported)?, &request)
+            linearize::run(&compile(&model, &imported.vehicle)?, &request)
         }
         Command::Simulate { model, step, stop, method, tolerance, max_step, energy_projection, format } => {
             let settings = Settings { tolerance, max_step: max_step.unwrap_or(step), energy_projection };
@@ -505,27 +504,27 @@ fn load_model(path: &Path) -> Result<Model> {
 /// end effector) and compiled, printing the importer's warnings.
 fn load_vehicle(path: &Path) -> Result<(Vehicle, Model)> {
     let vehicle = import_vehicle(path)?;
-    let model = Model::compile(&vehicle).with_context(|| format!("cannot compile {}", path.display()))?;
+    let model = compile(path, &vehicle)?;
     Ok((vehicle, model))
 }
 
 /// The vehicle as imported, printing the importer's warnings.
 fn import_vehicle(path: &Path) -> Result<Vehicle> {
+    Ok(import(path)?.vehicle)
+}
+
+/// The file as imported (the vehicle and its keyframes), printing the importer's warnings.
+fn import(path: &Path) -> Result<nudyn::mjcf::Imported> {
     let imported = nudyn::mjcf::load_mjcf(path).with_context(|| format!("cannot import {}", path.display()))?;
-    print_warnings(path, &imported);
-    Ok(imported.vehicle)
-}
-
-/// The model of an imported file, printing the importer's warnings.
-fn compile(path: &Path, imported: &nudyn::mjcf::Imported) -> Result<Model> {
-    print_warnings(path, imported);
-    Model::compile(&imported.vehicle).with_context(|| format!("cannot compile {}", path.display()))
-}
-
-fn print_warnings(path: &Path, imported: &nudyn::mjcf::Imported) {
     for warning in &imported.warnings {
         eprintln!("nudyn: warning: {}: {warning}", path.display());
     }
+    Ok(imported)
+}
+
+/// The model of the vehicle of the file at `path`.
+fn compile(path: &Path, vehicle: &Vehicle) -> Result<Model> {
+    Model::compile(vehicle).with_context(|| format!("cannot compile {}", path.display()))
 }
 
 fn eval(model_path: &Path) -> Result<()> {
