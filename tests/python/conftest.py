@@ -196,6 +196,29 @@ class EvalResult:
         pytest.fail(f"nudyn eval printed invalid JSON: {problem}\n{self.describe()}", pytrace=False)
 
 
+def tangent_jacobian(ref, qpos, qvel, torque, read, which: int, h: float) -> np.ndarray:
+    """∂read(d)/∂x of mj_forward at (qpos, qvel, torque), x = δq (which 0,
+    moved by mj_integratePos as mjd_transitionFD moves it), θ̇ (1) or the
+    joint forces (2): central differences with one Richardson step (error
+    O(h⁴)). `ref` is a nudyn_validation Reference; `read` picks an array of
+    its MjData."""
+    import mujoco
+
+    def value(dx):
+        moved = qpos.copy()
+        deltas = [np.zeros(ref.nv) for _ in range(3)]
+        deltas[which] = dx
+        mujoco.mj_integratePos(ref.model, moved, deltas[0], 1.0)
+        return read(ref.forward(moved, qvel + deltas[1], torque + deltas[2])).copy()
+
+    def column(k, step):
+        unit = np.zeros(ref.nv)
+        unit[k] = step
+        return (value(unit) - value(-unit)) / (2 * step)
+
+    return np.column_stack([(4 * column(k, h / 2) - column(k, h)) / 3 for k in range(ref.nv)])
+
+
 def run_eval(binary: Path, model: Path, stdin: str, timeout: float = 300) -> EvalResult:
     cmd = [str(binary), "eval", str(model)]
     proc = subprocess.run(

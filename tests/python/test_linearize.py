@@ -26,7 +26,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from conftest import EXAMPLES, ROOT
+from conftest import EXAMPLES, ROOT, tangent_jacobian
 from nudyn_validation.mujoco_reference import Reference, load_model
 
 # The examples whose dynamics the derivatives cover (no actuators, tendons
@@ -50,28 +50,10 @@ def relative(a, b):
 
 
 def mujoco_qacc_jacobians(ref: Reference, qpos, qvel, torque):
-    """∂θ̈/∂(δq, θ̇, T) by central differences of mj_forward, one Richardson
-    step (error O(h⁴))."""
-    m, nv = ref.model, ref.nv
-
-    def qacc(dq, dv, dt):
-        moved = qpos.copy()
-        mujoco.mj_integratePos(m, moved, dq, 1.0)
-        return ref.forward(moved, qvel + dv, torque + dt).qacc.copy()
-
-    def column(which, k, h):
-        unit = np.zeros(nv)
-        unit[k] = h
-        args = [np.zeros(nv)] * 3
-        plus, minus = list(args), list(args)
-        plus[which], minus[which] = unit, -unit
-        return (qacc(*plus) - qacc(*minus)) / (2 * h)
-
-    def jacobian(which, h):
-        richardson = lambda k: (4 * column(which, k, h / 2) - column(which, k, h)) / 3  # noqa: E731
-        return np.column_stack([richardson(k) for k in range(nv)])
-
-    return jacobian(0, STEP), jacobian(1, STEP), jacobian(2, STEP * 100)
+    """∂θ̈/∂(δq, θ̇, T) by central differences of mj_forward."""
+    qacc = lambda d: d.qacc  # noqa: E731
+    return tuple(tangent_jacobian(ref, qpos, qvel, torque, qacc, which, h)
+                 for which, h in ((0, STEP), (1, STEP), (2, STEP * 100)))
 
 
 @pytest.fixture(scope="module", params=COVERED, ids=[p.stem for p in COVERED])

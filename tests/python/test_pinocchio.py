@@ -29,7 +29,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from conftest import EXAMPLES
+from conftest import EXAMPLES, tangent_jacobian
 from nudyn_validation.mujoco_reference import Reference
 
 COVERED = [p for p in EXAMPLES if p.stem in ("bus_arm7", "chain60", "fixed_rig", "flexible_boom")]
@@ -104,25 +104,10 @@ def pinocchio_q(m: mujoco.MjModel, model: pin.Model, coordinates, qpos) -> np.nd
 
 
 def passive_jacobians(ref: Reference, qpos, qvel, h=1e-4):
-    """∂qfrc_passive/∂(δq, θ̇) by central differences with one Richardson step."""
-    m, nv = ref.model, ref.nv
-
-    def passive(dq, dv):
-        moved = qpos.copy()
-        mujoco.mj_integratePos(m, moved, dq, 1.0)
-        return ref.forward(moved, qvel + dv).qfrc_passive.copy()
-
-    def column(which, k, step):
-        unit = np.zeros(nv)
-        unit[k] = step
-        plus = (unit, np.zeros(nv)) if which == 0 else (np.zeros(nv), unit)
-        minus = (-unit, np.zeros(nv)) if which == 0 else (np.zeros(nv), -unit)
-        return (passive(*plus) - passive(*minus)) / (2 * step)
-
-    def jacobian(which):
-        return np.column_stack([(4 * column(which, k, h / 2) - column(which, k, h)) / 3 for k in range(nv)])
-
-    return jacobian(0), jacobian(1)
+    """∂qfrc_passive/∂(δq, θ̇) by central differences of mj_forward."""
+    passive = lambda d: d.qfrc_passive  # noqa: E731
+    torque = np.zeros(ref.nv)
+    return tuple(tangent_jacobian(ref, qpos, qvel, torque, passive, which, h) for which in (0, 1))
 
 
 def relative(a, b):
