@@ -77,8 +77,7 @@ impl Partials {
         seed: &[f64],
         sensitivity: &mut [f64],
     ) -> Result<(), CallError> {
-        let (unknowns, knowns) =
-            (classify(at.layout, unknowns, Role::Unknown)?, classify(at.layout, knowns, Role::Known)?);
+        let (unknowns, knowns) = classify_both(at.layout, unknowns, knowns)?;
         self.run(at, knowns.iter().copied().zip(seed.iter().copied()))?;
         for (out, &variable) in sensitivity.iter_mut().zip(&unknowns) {
             *out = self.derivative(at, variable);
@@ -96,8 +95,7 @@ impl Partials {
         seed: &[f64],
         sensitivity: &mut [f64],
     ) -> Result<(), CallError> {
-        let (unknowns, knowns) =
-            (classify(at.layout, unknowns, Role::Unknown)?, classify(at.layout, knowns, Role::Known)?);
+        let (unknowns, knowns) = classify_both(at.layout, unknowns, knowns)?;
         for (out, &variable) in sensitivity.iter_mut().zip(&knowns) {
             self.run(at, [(variable, 1.0)].into_iter())?;
             *out = unknowns.iter().zip(seed).map(|(&u, s)| s * self.derivative(at, u)).sum();
@@ -183,6 +181,15 @@ impl Partials {
 }
 
 /// The variables of `vrs`, each checked to be able to play `role`.
+/// The unknowns' and the knowns' variables, each checked for its role.
+fn classify_both(
+    layout: &Layout,
+    unknowns: &[u32],
+    knowns: &[u32],
+) -> Result<(Vec<RealVariable>, Vec<RealVariable>), CallError> {
+    Ok((classify(layout, unknowns, Role::Unknown)?, classify(layout, knowns, Role::Known)?))
+}
+
 fn classify(layout: &Layout, vrs: &[u32], role: Role) -> Result<Vec<RealVariable>, CallError> {
     vrs.iter()
         .map(|&vr| {
