@@ -315,6 +315,7 @@ impl Derivatives {
             (!model.tendons.is_empty(), "tendons"),
             (!model.constraints.equalities.is_empty(), "equality constraints"),
             (!model.constraints.friction.is_empty(), "friction loss"),
+            (!model.flexible.is_empty(), "flexible bodies' modes"),
         ];
         match unsupported.iter().find(|(has, _)| *has) {
             Some((_, what)) => Err(DerivativeError::Unsupported(what)),
