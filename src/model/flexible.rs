@@ -74,3 +74,15 @@ pub(crate) fn on_link(body: &ModalBody, offset: &Transform) -> ModalBody {
         .collect();
     ModalBody { body: body.body.clone(), nodes, modes }
 }
+
+impl super::Model {
+    /// The flexible bodies' strain energy ½ Σ ω² η² at the configuration `theta` (nq).
+    pub fn strain_energy(&self, theta: &[f64]) -> f64 {
+        self.flexible
+            .iter()
+            .map(|flexible| {
+                flexible.strain_energy(&theta[flexible.qpos_adr..flexible.qpos_adr + flexible.mode_count()])
+            })
+            .sum()
+    }
+}
