@@ -511,7 +511,8 @@ pub struct TreeDependence {
     qpos_link: Vec<usize>,
     /// Per dof: its link.
     dof_link: Vec<usize>,
-    /// Per link: its tree (its root link), parent, children and dofs.
+    /// Per link, then per flexible body's modal block: its tree (its root
+    /// link), parent, children and dofs.
     links: Vec<TreeLink>,
 }
 
@@ -549,6 +550,16 @@ impl TreeDependence {
                 qpos_link[q] = i;
             }
             links.push(TreeLink { tree, parent: link.parent, children: Vec::new(), dofs });
+        }
+        // A flexible body's modes are one more child of its link (the passes' modal block).
+        for flexible in &model.flexible {
+            let (block, tree) = (links.len(), links[flexible.link].tree);
+            let (m, dofs) = (flexible.mode_count(), flexible.dof_adr..flexible.dof_adr + flexible.mode_count());
+            links[flexible.link].children.push(block);
+            dof_link[dofs.clone()].fill(block);
+            qpos_tree[flexible.qpos_adr..flexible.qpos_adr + m].fill(Some(tree));
+            qpos_link[flexible.qpos_adr..flexible.qpos_adr + m].fill(block);
+            links.push(TreeLink { tree, parent: Some(flexible.link), children: Vec::new(), dofs });
         }
         Some(TreeDependence { qpos_tree, qpos_link, dof_link, links })
     }

@@ -183,7 +183,7 @@ fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool>(
 /// articulated-body algorithm's cost, without the İ^A recursion).
 pub(crate) fn bias_pass<const RATES: bool>(model: &Model, ws: &mut Workspace, eps: &[f64]) {
     let tendon_forces = model.tendons.iter().any(|t| t.has_passive_force());
-    let forces = !model.shortcuts.no_passive_forces() || tendon_forces || !model.flexible.is_empty();
+    let forces = model.has_passive_forces() || tendon_forces;
     if forces {
         passive_forces(model, ws);
         if tendon_forces {

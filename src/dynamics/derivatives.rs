@@ -226,7 +226,7 @@ impl Passes {
             ws.actuation_pass(model, &self.ctrl)?;
             self.eps.iter_mut().zip(ws.eps_actuator.iter()).for_each(|(e, a)| *e += *a);
         }
-        let passive = !model.shortcuts.no_passive_forces();
+        let passive = model.has_passive_forces();
         if passive {
             bias::passive_forces(model, ws);
         }
@@ -315,7 +315,6 @@ impl Derivatives {
             (!model.tendons.is_empty(), "tendons"),
             (!model.constraints.equalities.is_empty(), "equality constraints"),
             (!model.constraints.friction.is_empty(), "friction loss"),
-            (!model.flexible.is_empty(), "flexible bodies' modes"),
         ];
         match unsupported.iter().find(|(has, _)| *has) {
             Some((_, what)) => Err(DerivativeError::Unsupported(what)),
@@ -498,5 +497,9 @@ fn theta_rates(model: &Model, theta: &[f64], direction: &Direction, out: &mut [f
                 out[q..q + 4].copy_from_slice(&[moved.w, moved.i, moved.j, moved.k]);
             }
         }
+    }
+    for flexible in &model.flexible {
+        let (q, d, m) = (flexible.qpos_adr, flexible.dof_adr, flexible.mode_count());
+        out[q..q + m].copy_from_slice(&direction.theta[d..d + m]);
     }
 }

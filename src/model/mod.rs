@@ -424,6 +424,12 @@ impl Model {
         self.actuators.iter().filter(|a| a.activation.is_some()).count()
     }
 
+    /// Whether pass 3's recursion of passive forces has anything to carry:
+    /// gravity, joint springs or dampers, or a flexible body's modal stiffness.
+    pub fn has_passive_forces(&self) -> bool {
+        !self.shortcuts.no_passive_forces() || !self.flexible.is_empty()
+    }
+
     /// Whether forces beyond the tree's passes act: the tendons' armature
     /// or constraint rows (`Workspace::apply_constraint_forces`).
     pub fn couples_beyond_tree(&self) -> bool {

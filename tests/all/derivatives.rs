@@ -26,9 +26,19 @@ struct Case {
 }
 
 fn case(seed: u64, free_base: bool) -> Case {
+    flexible_case(seed, free_base, true, false)
+}
+
+/// As [`case`], with 1–2 bodies made flexible when `flexible`
+/// (docs/flexible.md), and without gravity, joint springs and dampers
+/// unless `passive` (the modes' stiffness acts still).
+fn flexible_case(seed: u64, free_base: bool, passive: bool, flexible: bool) -> Case {
     let mut rng = Rng::new(seed);
     let bodies = 2 + rng.below(7);
-    let vehicle = random_vehicle(&mut rng, TreeOptions { bodies, free_base, passive: true, chain: false });
+    let mut vehicle = random_vehicle(&mut rng, TreeOptions { bodies, free_base, passive, chain: false });
+    if flexible {
+        crate::common::make_flexible(&mut rng, &mut vehicle, true);
+    }
     let model = Model::compile(&vehicle).unwrap();
     // MuJoCo's ball spring jumps where the rotation from its rest pose
     // passes half a turn (the rotation vector flips): no configuration
@@ -206,6 +216,16 @@ fn assert_agrees_with_differences(case: &Case, label: &str, tolerance: f64) {
 fn jacobians_agree_with_central_differences_of_the_passes() {
     for seed in 0..16 {
         assert_agrees_with_differences(&case(seed, seed % 2 == 0), &format!("seed {seed}"), 1e-8);
+    }
+}
+
+/// The modal blocks run in dual numbers as the rigid passes do.
+#[test]
+fn jacobians_of_flexible_vehicles_agree_with_central_differences_of_the_passes() {
+    for seed in 0..8 {
+        let case = flexible_case(seed, seed % 2 == 0, seed % 4 < 2, true);
+        assert!(!case.model.flexible.is_empty());
+        assert_agrees_with_differences(&case, &format!("flexible, seed {seed}"), 1e-8);
     }
 }
 

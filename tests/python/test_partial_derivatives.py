@@ -17,6 +17,7 @@ refuses the call, naming what is missing."""
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
+import json
 import zipfile
 from ctypes import c_double, c_uint
 
@@ -32,6 +33,8 @@ from nudyn_driver.package import FmuPackage
 MODELS = {
     "bus_arm7": EXAMPLES_DIR / "bus_arm7.xml",
     "springdamper": ROOT / "tests" / "fixtures" / "springs" / "springdamper.xml",
+    # A flexible bench on a hinge of a free bus: its modes are a block of the passes (docs/flexible.md).
+    "bench_vehicle": ROOT / "tests" / "fixtures" / "flex" / "bench_vehicle.xml",
 }
 OUTPUTS = ("qvel", "kinetic_energy", "power")
 # Central differences' step; with it the exact derivatives are within
@@ -313,7 +316,7 @@ def test_the_quaternion_rate_is_half_q_times_omega(fmus, tmp_path):
 COVERED = ["bus_arm7", "chain60", "fixed_rig", "flexible_boom"]
 
 
-@pytest.mark.parametrize("name", COVERED + ["springdamper"])
+@pytest.mark.parametrize("name", COVERED + ["springdamper", "bench_vehicle"])
 def test_the_model_structure_lists_every_dependence_the_derivatives_have(cli, tmp_path, name):
     """ModelStructure's dependencies (FMI 2.0) against the exact Jacobian at
     a random state: every non-zero entry is listed (a host may take an
@@ -333,12 +336,19 @@ def test_the_model_structure_lists_every_dependence_the_derivatives_have(cli, tm
     point = random_point(names, seed=11)
     host.set(point)
     exact = jacobian(host, len(point))
+    # A mode's ν̇ is listed on its tree's branch like a joint's, but its
+    # shape may decouple it from some of those ν at every state (the
+    # bench's axis-aligned modes: torsion does not feel the turn about z):
+    # for the modes only the listing's completeness is checked.
+    modes = json.loads(cli.run("describe", model, "--json")).get("modes", [])
+    modal_nu = {index[f"nu[{m['dof_adr'] + 1}]"] for m in modes}
     for row, unknown in enumerate(names.unknowns):
         depends = {index[known] for known, d in zip(names.knowns, exact[row]) if d != 0}
         assert depends <= listed[index[unknown]], (unknown, sorted(depends - listed[index[unknown]]))
         if unknown.startswith("der(nu["):
             on_nu = {index[known] for known in names.nu}
-            assert listed[index[unknown]] & on_nu == depends & on_nu, unknown
+            if index[unknown[4:-1]] not in modal_nu:
+                assert listed[index[unknown]] & on_nu == depends & on_nu, unknown
     host.fmu.freeInstance()
 
 
