@@ -70,3 +70,44 @@ def test_a_rigid_vehicle_reports_no_strain_energy(cli, tmp_path):
     fmu = cli.export(ROOT / "examples" / "bus_arm7.xml", tmp_path / "bus.fmu", outputs=["modal_strain_energy"])
     result = fmpy.simulate_fmu(fmu, stop_time=0.1, output=["modal_strain_energy"])
     assert np.all(result["modal_strain_energy"] == 0.0)
+
+
+def test_the_coupled_frequencies_are_the_hybrid_coordinate_eigenproblems(cli, tmp_path):
+    """Free-free, at rest, undamped: `nudyn linearize`'s frequencies of the
+    bus, hinge and bench against the eigenproblem a GNC engineer builds from
+    the modal data, K x = ω² M x with M = [[M_rr, M_rη], [M_rηᵀ, 1]]:
+    M_rr MuJoCo's mass matrix of the rigid vehicle (the same MJCF),
+    M_rη = J_ωᵀ L_r + J_vᵀ L_t from `nudyn modal`'s participation factors
+    about the bench's frame and MuJoCo's Jacobian of that frame (body
+    axes), K = diag(0, ω_k²)."""
+    import mujoco
+
+    model = undamped(tmp_path)
+    linearized = json.loads(cli.run("linearize", model))
+    coupled = sorted(e["frequency_hz"] for e in linearized["eigenvalues"] if e["imag"] > 0)
+
+    rigid = mujoco.MjModel.from_xml_path(str(model))
+    data = mujoco.MjData(rigid)
+    mujoco.mj_forward(rigid, data)
+    mass_rigid = np.zeros((rigid.nv, rigid.nv))
+    mujoco.mj_fullM(rigid, data, mass_rigid)
+    bench = rigid.body("bench").id
+    jac_linear, jac_angular = np.zeros((3, rigid.nv)), np.zeros((3, rigid.nv))
+    mujoco.mj_jac(rigid, data, jac_linear, jac_angular, data.xpos[bench], bench)
+    to_body = data.xmat[bench].reshape(3, 3).T
+    modal = json.loads(cli.run("modal", model.parent / "bench.json", "--json"))["modes"]
+    coupling = np.column_stack([
+        (to_body @ jac_angular).T @ m["participation"]["rotation"] + (to_body @ jac_linear).T @ m["participation"]["translation"]
+        for m in modal
+    ])
+    m = len(modal)
+    mass = np.block([[mass_rigid, coupling], [coupling.T, np.eye(m)]])
+    stiffness = np.zeros_like(mass)
+    stiffness[rigid.nv:, rigid.nv:] = np.diag([(2 * np.pi * mode["frequency"]) ** 2 for mode in modal])
+    # K x = ω² M x as the symmetric L⁻¹ K L⁻ᵀ with M = L Lᵀ.
+    factor_inverse = np.linalg.inv(np.linalg.cholesky(mass))
+    squares = np.linalg.eigvalsh(factor_inverse @ stiffness @ factor_inverse.T)
+    expected = sorted(np.sqrt(s) / (2 * np.pi) for s in squares if s > 1e-9)
+    assert len(coupled) == len(expected) == m
+    print("coupled", coupled, "relative difference", np.max(np.abs(np.subtract(coupled, expected)) / expected))
+    assert np.allclose(coupled, expected, rtol=1e-9, atol=0), (coupled, expected)
