@@ -79,7 +79,7 @@ pub fn support_table() -> String {
     for (tag, reason) in actuator::REFUSED_ACTUATORS {
         let _ = writeln!(out, "| `<actuator>/<{tag}>` | {reason} |");
     }
-    for (attribute, reason) in reader::REFUSED_TRANSMISSIONS {
+    for (attribute, reason) in actuator::REFUSED_TRANSMISSIONS {
         let _ = writeln!(out, "| actuator `{attribute}=` | {reason} |");
     }
     for (tags, reason) in sensor::REFUSED_SENSORS {

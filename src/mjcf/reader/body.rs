@@ -130,7 +130,7 @@ impl Reader {
         let name = match element.text("name") {
             Some(name) => {
                 let copy = self.replicated_name(Named::Body, name, suffix);
-                claim_name(&mut self.body_names, "body", &copy, element)?;
+                claim_name(&mut self.body_names, "body", &copy, &element.origin())?;
                 copy
             }
             None => {
@@ -381,7 +381,7 @@ impl Reader {
         };
         let name = element.text("name").map(|name| self.replicated_name(Named::Site, name, suffix));
         if let Some(name) = &name {
-            claim_name(&mut self.site_names, "site", name, element)?;
+            claim_name(&mut self.site_names, "site", name, &element.origin())?;
         }
         let site = Site { name, body, pos, quat, line: element.line };
         Ok(SiteSpec { site, frame, fitted_to_mesh: settings.mesh })

@@ -5,7 +5,7 @@ use super::replicate::Named;
 use super::{JointElement, JointTarget, Reader, claim_name};
 use crate::math::Vec3;
 use crate::mjcf::defaults::{JointSettings, Limited};
-use crate::mjcf::element::Element;
+use crate::mjcf::element::{Element, Origin};
 use crate::mjcf::error::MjcfError;
 use crate::mjcf::orientation::normalized;
 use crate::vehicle::{Joint, JointConstraints, JointKind, JointLimit, SpringDamper};
@@ -85,7 +85,7 @@ impl Reader {
                 |name| self.replicated_name(Named::Joint, name, &suffix),
             );
             if named.is_some() {
-                claim_name(&mut self.joint_names, "joint", &name, &element)?;
+                claim_name(&mut self.joint_names, "joint", &name, &element.origin())?;
             }
             let range = match s.kind {
                 JointKind::Hinge | JointKind::Ball if self.joint_limited(&s) => {
@@ -176,7 +176,7 @@ impl Reader {
         if matches!(settings.kind, JointKind::Ball | JointKind::Free) {
             return Ok(None);
         }
-        self.limits(element, "actuatorfrc", settings.actuator_force_limited, settings.actuator_force_range)
+        self.limits(&element.origin(), "actuatorfrc", settings.actuator_force_limited, settings.actuator_force_range)
     }
 
     /// MuJoCo's rule for an `<prefix>limited` and `<prefix>range` pair: with
@@ -185,20 +185,20 @@ impl Reader {
     /// increasing.
     pub(super) fn limits(
         &self,
-        element: &Element,
+        at: &Origin,
         prefix: &str,
         limited: Limited,
         range: [f64; 2],
     ) -> Result<Option<[f64; 2]>, MjcfError> {
         if limited == Limited::Auto && range != [0.0; 2] && !self.compiler.autolimits {
-            return Err(element.invalid(format!(
+            return Err(at.invalid(format!(
                 "'{prefix}range' without '{prefix}limited' while <compiler autolimits=\"false\">; \
                  give '{prefix}limited' or remove '{prefix}range'"
             )));
         }
         let on = limited == Limited::Yes || (limited == Limited::Auto && range[0] < range[1]);
         if on && range[0] >= range[1] {
-            return Err(element.invalid(format!(
+            return Err(at.invalid(format!(
                 "invalid '{prefix}range' {} {}: the first value must be smaller than the second",
                 range[0], range[1]
             )));

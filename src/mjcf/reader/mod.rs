@@ -1,10 +1,11 @@
 //! Reads an MJCF document and builds the [`Vehicle`]: the settings
-//! sections first, then a walk through the body tree into a spec
-//! (`body.rs`), compiled once the tree is read (`compile.rs`: frames, mass
-//! properties, free-body alignment), then the sections that name its
-//! objects (tendons, equalities, actuators, sensors), and last what needs
-//! the whole file (`finish.rs`: the mass checks, `fusestatic`,
-//! `settotalmass`).
+//! sections first, then every other section parsed into a spec tree (the
+//! body tree by `body.rs`, tendons, equalities, actuators and sensors by
+//! `sections.rs`: defaults resolved, values checked, objects named by
+//! name), compiled once the whole document is read (`compile/`: frames,
+//! mass properties, free-body alignment, then the names resolved), and
+//! last what needs the whole model (`finish.rs`: the mass checks,
+//! `fusestatic`, `settotalmass`).
 
 mod body;
 mod compile;
@@ -27,7 +28,7 @@ use roxmltree::Document;
 use super::bodies::Align;
 use super::contacts::{ContactGeom, Reach};
 use super::defaults::{Defaults, GeomKind, JointSettings};
-use super::element::{Element, LineStarts};
+use super::element::{Element, LineStarts, Origin};
 use super::error::MjcfError;
 use super::include::{self, Sources};
 use super::inertia::{BodyInertia, GeomMass};
@@ -55,14 +56,6 @@ pub(crate) const MAX_REPLICATED_ELEMENTS: usize = 100_000;
 #[rustfmt::skip]
 pub(crate) const IGNORED_SECTIONS: &[&str] =
     &["size", "statistic", "visual", "contact", "extension"];
-
-/// Actuator attributes naming a transmission nudyn refuses, and why.
-#[rustfmt::skip]
-pub(crate) const REFUSED_TRANSMISSIONS: &[(&str, &str)] = &[
-    ("cranksite", "slider-crank transmissions"),
-    ("slidersite", "slider-crank transmissions"),
-    ("body", "body transmissions act through contacts, which nudyn does not model"),
-];
 
 /// Elements nudyn refuses where bodies or sections are expected, and why.
 #[rustfmt::skip]
@@ -378,10 +371,6 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
 
     let mut tree = ReadTree::default();
     let mut has_worldbody = false;
-    let mut actuator_sections = Vec::new();
-    let mut sensor_sections = Vec::new();
-    let mut equality_sections = Vec::new();
-    let mut tendon_sections = Vec::new();
     let mut keyframe_sections = Vec::new();
     for section in root.children() {
         match section.tag() {
@@ -390,17 +379,14 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
                 has_worldbody = true;
                 reader.read_worldbody(&section, &mut tree)?;
             }
-            // Read once every joint and site is known, wherever the section stands.
-            "actuator" => actuator_sections.push(section),
-            "sensor" => sensor_sections.push(section),
+            "actuator" => tree.actuator_sections.push(reader.parse_actuators(&section)?),
+            "sensor" => tree.sensor_sections.push(reader.parse_sensors(&section)?),
             // Read once the sizes are known.
             "keyframe" => keyframe_sections.push(section),
             "custom" => reader.read_custom(&section)?,
             tag if IGNORED_SECTIONS.contains(&tag) => reader.warnings.push(section.ignored()),
-            // Read once every joint and site is known.
-            "tendon" => tendon_sections.push(section),
-            // Read once every body, site and joint is known.
-            "equality" => equality_sections.push(section),
+            "tendon" => reader.parse_tendons(&section, &mut tree.tendons)?,
+            "equality" => reader.parse_equalities(&section, &mut tree.equalities)?,
             "deformable" => reader.read_deformable(&section)?,
             _ => return Err(section.unknown()),
         }
@@ -408,22 +394,7 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
     if !has_worldbody {
         return Err(MjcfError::MissingWorldbody { line: root.line, element: root.label() });
     }
-    reader.note_wrap_obstacles(&tendon_sections);
-    reader.compile_bodies(tree)?;
-    // Before the equalities, actuators and sensors, which may name tendons.
-    for section in &tendon_sections {
-        reader.read_tendons(section)?;
-    }
-    for section in &equality_sections {
-        reader.read_equalities(section)?;
-    }
-    for section in &actuator_sections {
-        reader.read_actuators(section)?;
-    }
-    // After the actuators, which sensors may name.
-    for section in &sensor_sections {
-        reader.read_sensors(section)?;
-    }
+    reader.compile(tree)?;
     for section in &keyframe_sections {
         reader.read_keyframes(section)?;
     }
@@ -489,23 +460,18 @@ impl Reader {
     }
 }
 
-/// Registers a body or joint name, rejecting a repetition.
-fn claim_name(
-    names: &mut HashMap<String, u32>,
-    kind: &'static str,
-    name: &str,
-    element: &Element,
-) -> Result<(), MjcfError> {
+/// Registers the name of an element of `kind`, rejecting a repetition.
+fn claim_name(names: &mut HashMap<String, u32>, kind: &'static str, name: &str, at: &Origin) -> Result<(), MjcfError> {
     if let Some(&first_line) = names.get(name) {
         return Err(MjcfError::DuplicateName {
-            line: element.line,
-            element: element.label(),
+            line: at.line,
+            element: at.label.clone(),
             kind,
             name: name.to_string(),
             first_line,
         });
     }
-    names.insert(name.to_string(), element.line);
+    names.insert(name.to_string(), at.line);
     Ok(())
 }
 

@@ -8,92 +8,29 @@
 //! frames of the sphere and cylinder geoms tendons wrap around; the geoms
 //! that may collide; each body's mass properties (`inertiafromgeom`,
 //! `boundmass`, `boundinertia`); and the free bodies aligned with their
-//! inertial frames. `fusestatic` and `settotalmass` follow once the whole
-//! file is read (`finish.rs`).
+//! inertial frames.
 
-use super::body::compose;
-use super::geom::mass_not_computed;
-use super::{BodyRecord, InertiaFromGeom, JointElement, Pose, Reader, WorldGeom};
+use super::{BodySpec, GeomSpec, MassSource, SiteSpec};
 use crate::math::{Quat, Vec3};
-use crate::mjcf::defaults::GeomSettings;
-use crate::mjcf::element::Element;
 use crate::mjcf::error::MjcfError;
 use crate::mjcf::inertia::{BodyInertia, EPS, GeomMass};
-use crate::vehicle::{Body, Site};
-
-/// The body tree as read, for the compile stage.
-#[derive(Default)]
-pub(super) struct ReadTree<'a> {
-    /// Each body, in the vehicle's order.
-    pub bodies: Vec<BodySpec<'a>>,
-    /// Every geom, the world body's too, in document order.
-    pub geoms: Vec<GeomSpec<'a>>,
-    /// Every site, the world body's too, in document order.
-    pub sites: Vec<SiteSpec>,
-}
-
-/// A `<site>` as read.
-pub(super) struct SiteSpec {
-    /// The site, its pose in the `<frame>`s around it.
-    pub site: Site,
-    /// The pose of those `<frame>`s in its body.
-    pub frame: Option<Pose>,
-    /// Whether it is fitted to a mesh (which moves its frame).
-    pub fitted_to_mesh: bool,
-}
-
-/// A `<body>` as read, its joints built.
-pub(super) struct BodySpec<'a> {
-    /// Its name (one made up when the file gives none).
-    pub name: String,
-    /// Its parent; `None` for the world body.
-    pub parent: Option<usize>,
-    /// The pose of the `<frame>`s around it, in its parent.
-    pub frame: Option<Pose>,
-    /// Its joints, with their settings resolved.
-    pub joints: Vec<JointElement<'a, 'a>>,
-    /// `gravcomp`.
-    pub gravcomp: f64,
-    /// What its mass properties and frame come from.
-    pub mass: MassSource<'a>,
-}
-
-/// What a body's mass properties and frame come from.
-pub(super) struct MassSource<'a> {
-    /// The `<body>` element, for messages.
-    pub element: Element<'a, 'a>,
-    /// Its `<inertial>`, in the `<frame>`s around it (their pose in the body).
-    pub explicit: Option<(BodyInertia, Option<Pose>)>,
-    /// Whether a joint lies between it and the world.
-    pub moving: bool,
-    /// Whether its frame moves to its inertial frame (a free body without
-    /// children, as `align` or `<compiler alignfree>` says).
-    pub aligned: bool,
-    /// Its pose in its parent before any `<frame>` around it.
-    pub own_pose: Pose,
-}
-
-/// A `<geom>` as read.
-pub(super) struct GeomSpec<'a> {
-    /// The element, for messages.
-    pub element: Element<'a, 'a>,
-    /// Its class's settings with its own attributes applied.
-    pub settings: GeomSettings,
-    /// The pose of the `<frame>`s around it, in its body.
-    pub frame: Option<Pose>,
-    /// Its name, with its `<replicate>` suffix.
-    pub name: Option<String>,
-    /// Its body; `None` for the world body.
-    pub body: Option<usize>,
-}
+use crate::mjcf::reader::body::compose;
+use crate::mjcf::reader::geom::mass_not_computed;
+use crate::mjcf::reader::{BodyRecord, InertiaFromGeom, Reader, WorldGeom};
+use crate::vehicle::Body;
 
 impl Reader {
     /// Compiles the bodies and geoms of `tree`: each body placed in its
     /// parent and in the world, the geoms in document order, then each
     /// body's mass properties, with which a free body may move its frame.
-    pub(super) fn compile_bodies(&mut self, tree: ReadTree) -> Result<(), MjcfError> {
-        let sources = self.place_bodies(tree.bodies)?;
-        for SiteSpec { mut site, frame, fitted_to_mesh } in tree.sites {
+    pub(super) fn compile_bodies(
+        &mut self,
+        bodies: Vec<BodySpec>,
+        geoms: Vec<GeomSpec>,
+        sites: Vec<SiteSpec>,
+    ) -> Result<(), MjcfError> {
+        let sources = self.place_bodies(bodies)?;
+        for SiteSpec { mut site, frame, fitted_to_mesh } in sites {
             if let Some(frame) = frame {
                 (site.pos, site.quat) = compose(&frame, &(site.pos, site.quat));
             }
@@ -101,7 +38,7 @@ impl Reader {
             self.site_fitted_to_mesh.push(fitted_to_mesh);
         }
         let mut masses: Vec<Vec<GeomMass>> = sources.iter().map(|_| Vec::new()).collect();
-        for geom in &tree.geoms {
+        for geom in &geoms {
             self.register_wrap_geom(geom)?;
             match geom.body {
                 None => self.compile_world_geom(geom)?,
