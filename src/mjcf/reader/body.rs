@@ -1,7 +1,7 @@
 //! The walk through the body tree: bodies, their frames and `<replicate>`s,
 //! joints, geoms and sites in document order, read into a [`ReadTree`]
 //! (their defaults resolved, the `<frame>`s around them kept) for the
-//! compile stage (`compile.rs`); and the warning on contacts.
+//! compile stage (`compile/`).
 
 use super::compile::{BodySpec, GeomSpec, MassSource, ReadTree, SiteSpec};
 use super::geom::fromto_frame;
@@ -16,13 +16,11 @@ use crate::mjcf::bodies::{
     Align, BODY_ATTRIBUTES, BodySettings, FRAME_ATTRIBUTES, FREEJOINT_ATTRIBUTES, FrameSettings, FreeJointSettings,
     REPLICATE_ATTRIBUTES, ReplicateSettings, read_settings,
 };
-use crate::mjcf::contacts::BodyFilter;
 use crate::mjcf::defaults::{GEOM_ATTRIBUTES, JOINT_ATTRIBUTES, JointSettings, MAIN, SITE_ATTRIBUTES, SiteKind};
 use crate::mjcf::element::Element;
 use crate::mjcf::error::MjcfError;
 use crate::mjcf::inertia::BodyInertia;
 use crate::mjcf::orientation::Orientation;
-use crate::mjcf::{MjcfWarning, contacts};
 use crate::vehicle::{JointKind, Site};
 
 impl Reader {
@@ -389,52 +387,6 @@ impl Reader {
 
     pub(super) fn resolve(&self, element: &Element, orientation: &Orientation) -> Result<Quat, MjcfError> {
         orientation.resolve(&self.compiler.angles).map_err(|reason| element.invalid(reason))
-    }
-
-    /// A warning on each pair of geoms MuJoCo would collide at qpos0
-    /// (`super::contacts` says what is checked), unless `<flag contact>` or
-    /// `<flag constraint>` turns contacts off.
-    pub(super) fn warn_of_contacts(&mut self, root: &Element) {
-        let flags: Vec<Element> =
-            root.children().filter(|s| s.tag() == "option").flat_map(|option| option.children()).collect();
-        let disabled = |flag: &str| flags.iter().any(|f| f.text(flag) == Some("disable"));
-        if disabled("contact") || disabled("constraint") {
-            return;
-        }
-        let body = |name: &str| match name {
-            "world" => Some(None),
-            name => self.bodies.iter().position(|b| b.name == name && self.body_names.contains_key(name)).map(Some),
-        };
-        let exclusions = root.children().filter(|s| s.tag() == "contact").flat_map(|s| s.children());
-        let excluded: Vec<_> = exclusions
-            .filter(|e| e.tag() == "exclude")
-            .filter_map(|e| Some((body(e.text("body1")?)?, body(e.text("body2")?)?)))
-            .collect();
-        let parents: Vec<Option<usize>> = self.bodies.iter().map(|b| b.parent).collect();
-        let roots: Vec<bool> =
-            self.bodies.iter().map(|b| !b.joints.is_empty() || self.mocap_bodies.contains(&b.name)).collect();
-        let filter = BodyFilter {
-            parents: &parents,
-            poses: &self.world_poses,
-            roots: &roots,
-            filter_parent: !disabled("filterparent"),
-            excluded: &excluded,
-        };
-        for (a, b) in contacts::touching(&self.contact_geoms, &filter) {
-            let (first, second) = (&self.contact_geoms[a], &self.contact_geoms[b]);
-            let warning = MjcfWarning {
-                file: None,
-                line: first.line,
-                element: first.label.clone(),
-                message: format!(
-                    "touches <{}> (line {}) at the initial pose: MuJoCo would make contacts between them, \
-                     nudyn models no contacts",
-                    second.label,
-                    self.sources.line_in_file(second.line)
-                ),
-            };
-            self.warnings.push(warning);
-        }
     }
 }
 

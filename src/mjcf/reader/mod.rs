@@ -127,6 +127,10 @@ pub(crate) struct Physics {
     equality_disabled: bool,
     /// `<flag sensor="disable">`: sensordata stays 0.
     sensor_disabled: bool,
+    /// `<flag contact="disable">`: no contact warnings.
+    contact_disabled: bool,
+    /// `<flag filterparent="disable">`: a parent and child may touch.
+    filterparent_disabled: bool,
 }
 
 /// MuJoCo's defaults.
@@ -168,6 +172,8 @@ impl Default for Physics {
             limit_disabled: false,
             equality_disabled: false,
             sensor_disabled: false,
+            contact_disabled: false,
+            filterparent_disabled: false,
         }
     }
 }
@@ -291,6 +297,8 @@ struct Reader {
     world_poses: Vec<Pose>,
     /// The geoms that may collide, for the warning on contacts.
     contact_geoms: Vec<ContactGeom>,
+    /// The body pairs of the `<contact>` sections' `<exclude>`s, by name.
+    contact_exclusions: Vec<(String, String)>,
 }
 
 /// A geom of the world body: it moves no mass, so it has an effect only as
@@ -365,8 +373,11 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
         reader.read_assets(&section)?;
     }
     for exclude in root.children().filter(|s| s.tag() == "contact").flat_map(|s| s.children()) {
-        let bodies = ["body1", "body2"].iter().filter_map(|a| exclude.text(a).filter(|_| exclude.tag() == "exclude"));
-        reader.named_elsewhere.extend(bodies.map(str::to_string));
+        let [body1, body2] = ["body1", "body2"].map(|a| exclude.text(a).filter(|_| exclude.tag() == "exclude"));
+        reader.named_elsewhere.extend([body1, body2].into_iter().flatten().map(str::to_string));
+        if let (Some(body1), Some(body2)) = (body1, body2) {
+            reader.contact_exclusions.push((body1.to_string(), body2.to_string()));
+        }
     }
 
     let mut tree = ReadTree::default();
@@ -398,7 +409,6 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
     for section in &keyframe_sections {
         reader.read_keyframes(section)?;
     }
-    reader.warn_of_contacts(&root);
 
     let name = root.text("model").unwrap_or("vehicle").to_string();
     reader.finish(name)
@@ -443,6 +453,7 @@ impl Reader {
             wrap_obstacles: HashMap::new(),
             world_poses: Vec::new(),
             contact_geoms: Vec::new(),
+            contact_exclusions: Vec::new(),
         }
     }
 

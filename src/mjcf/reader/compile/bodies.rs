@@ -6,12 +6,14 @@
 //! primitive or its mesh (a mesh file is read here, and only for a geom
 //! whose mass counts or a primitive a tendon wraps around); the wrap
 //! frames of the sphere and cylinder geoms tendons wrap around; the geoms
-//! that may collide; each body's mass properties (`inertiafromgeom`,
+//! that may collide, and a warning on those that touch; each body's mass properties (`inertiafromgeom`,
 //! `boundmass`, `boundinertia`); and the free bodies aligned with their
 //! inertial frames.
 
 use super::{BodySpec, GeomSpec, MassSource, SiteSpec};
 use crate::math::{Quat, Vec3};
+use crate::mjcf::MjcfWarning;
+use crate::mjcf::contacts::{self, BodyFilter};
 use crate::mjcf::error::MjcfError;
 use crate::mjcf::inertia::{BodyInertia, EPS, GeomMass};
 use crate::mjcf::reader::body::compose;
@@ -169,5 +171,45 @@ impl Reader {
         let body = &mut self.bodies[index];
         (body.pos, body.quat) = compose(&(body.pos, body.quat), &(inertia.com, axes));
         BodyInertia::from_principal(inertia.mass, Vec3::zeros(), &Quat::identity(), principal)
+    }
+
+    /// A warning on each pair of geoms MuJoCo would collide at qpos0
+    /// (`super::contacts` says what is checked), unless `<flag contact>` or
+    /// `<flag constraint>` turns contacts off.
+    pub(super) fn warn_of_contacts(&mut self) {
+        if self.physics.contact_disabled || self.physics.constraint_disabled {
+            return;
+        }
+        let body = |name: &str| match name {
+            "world" => Some(None),
+            name => self.bodies.iter().position(|b| b.name == name && self.body_names.contains_key(name)).map(Some),
+        };
+        let excluded: Vec<_> =
+            self.contact_exclusions.iter().filter_map(|(body1, body2)| Some((body(body1)?, body(body2)?))).collect();
+        let parents: Vec<Option<usize>> = self.bodies.iter().map(|b| b.parent).collect();
+        let roots: Vec<bool> =
+            self.bodies.iter().map(|b| !b.joints.is_empty() || self.mocap_bodies.contains(&b.name)).collect();
+        let filter = BodyFilter {
+            parents: &parents,
+            poses: &self.world_poses,
+            roots: &roots,
+            filter_parent: !self.physics.filterparent_disabled,
+            excluded: &excluded,
+        };
+        for (a, b) in contacts::touching(&self.contact_geoms, &filter) {
+            let (first, second) = (&self.contact_geoms[a], &self.contact_geoms[b]);
+            let warning = MjcfWarning {
+                file: None,
+                line: first.line,
+                element: first.label.clone(),
+                message: format!(
+                    "touches <{}> (line {}) at the initial pose: MuJoCo would make contacts between them, \
+                     nudyn models no contacts",
+                    second.label,
+                    self.sources.line_in_file(second.line)
+                ),
+            };
+            self.warnings.push(warning);
+        }
     }
 }

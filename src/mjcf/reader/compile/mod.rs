@@ -3,9 +3,11 @@
 //! names by name, its line and label kept for messages) turned into the
 //! vehicle's types, as MuJoCo's compiler turns its spec into a model: the
 //! body tree first (`bodies.rs`), then the tendons, equalities, actuators
-//! and sensors, whose names resolve into it (`sections.rs`).
+//! and sensors, whose names resolve into it (`sections.rs`), then what
+//! needs them all: `fusestatic`, `settotalmass` (`fuse.rs`).
 
 mod bodies;
+mod fuse;
 mod sections;
 
 use super::{JointElement, Pose, Reader};
@@ -110,6 +112,8 @@ impl Reader {
         for section in &sensor_sections {
             self.compile_sensors(section)?;
         }
-        Ok(())
+        // Before fusestatic renumbers the bodies.
+        self.warn_of_contacts();
+        self.compile_masses()
     }
 }
