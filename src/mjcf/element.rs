@@ -217,12 +217,7 @@ impl<'a, 'input> Element<'a, 'input> {
 
     /// Two attributes given together that exclude each other.
     pub fn conflict(&self, first: &str, second: &str) -> MjcfError {
-        MjcfError::ConflictingAttributes {
-            line: self.line,
-            element: self.label(),
-            first: first.to_string(),
-            second: second.to_string(),
-        }
+        self.origin().conflict(first, second)
     }
 
     /// A construct whose effect on the dynamics nudyn does not model.
@@ -256,23 +251,14 @@ impl<'a, 'input> Element<'a, 'input> {
         MjcfError::UnknownClass { line: self.line, element: self.label(), class: class.to_string() }
     }
 
-    /// The warning that this element is ignored. Sections that do change
-    /// MuJoCo's dynamics say how nudyn's differ.
+    /// The warning that this element is ignored (see [`Origin::ignored`]).
     pub fn ignored(&self) -> MjcfWarning {
-        match self.tag() {
-            "contact" => self.warning("ignored: nudyn models no contacts"),
-            // Only geoms fixed to the world are ignored (a moving body's give its mass).
-            "geom" => self.warning(
-                "ignored: fixed to the world, it moves no mass, and nudyn models no contacts \
-                 (MuJoCo would make contacts with it)",
-            ),
-            _ => self.warning("ignored (no effect on the dynamics)"),
-        }
+        self.origin().ignored()
     }
 
     /// A warning about this element.
     pub fn warning(&self, message: impl Into<String>) -> MjcfWarning {
-        MjcfWarning { file: None, line: self.line, element: self.label(), message: message.into() }
+        self.origin().warning(message)
     }
 }
 
@@ -310,6 +296,35 @@ impl Origin {
     /// This element has no meaning inside its parent.
     pub fn unknown(&self) -> MjcfError {
         MjcfError::UnknownElement { line: self.line, element: self.label.clone(), parent: self.parent.clone() }
+    }
+
+    /// Two attributes given together that exclude each other.
+    pub fn conflict(&self, first: &str, second: &str) -> MjcfError {
+        MjcfError::ConflictingAttributes {
+            line: self.line,
+            element: self.label.clone(),
+            first: first.to_string(),
+            second: second.to_string(),
+        }
+    }
+
+    /// The warning that this element is ignored. Sections that do change
+    /// MuJoCo's dynamics say how nudyn's differ.
+    pub fn ignored(&self) -> MjcfWarning {
+        match self.tag.as_str() {
+            "contact" => self.warning("ignored: nudyn models no contacts"),
+            // Only geoms fixed to the world are ignored (a moving body's give its mass).
+            "geom" => self.warning(
+                "ignored: fixed to the world, it moves no mass, and nudyn models no contacts \
+                 (MuJoCo would make contacts with it)",
+            ),
+            _ => self.warning("ignored (no effect on the dynamics)"),
+        }
+    }
+
+    /// A warning about this element.
+    pub fn warning(&self, message: impl Into<String>) -> MjcfWarning {
+        MjcfWarning { file: None, line: self.line, element: self.label.clone(), message: message.into() }
     }
 }
 

@@ -226,9 +226,12 @@ struct Placed<'a> {
     suffix: Suffix,
 }
 
-/// A joint element with its resolved settings.
-struct JointElement<'a, 'input> {
-    element: Element<'a, 'input>,
+/// A `<joint>` or `<freejoint>` as read, its values checked.
+struct JointSpec {
+    /// The element, for messages.
+    at: Origin,
+    /// `name` as written.
+    name: Option<String>,
     settings: JointSettings,
     /// The pose of the `<frame>`s around a `<joint>`, in its body.
     frame: Option<Pose>,

@@ -62,19 +62,19 @@ impl Reader {
                 inertia
             });
             let inertia = match (selected.is_empty(), explicit) {
-                (false, _) => BodyInertia::from_geoms(&selected).map_err(|r| body.element.invalid(r))?,
+                (false, _) => BodyInertia::from_geoms(&selected).map_err(|r| body.at.invalid(r))?,
                 (true, Some(explicit)) => explicit,
                 // MuJoCo puts the inertial frame of a body without mass at the body's
                 // own pose in its parent, before any <frame> around it; it matters
                 // once boundmass gives it mass.
                 (true, None) => BodyInertia::from_principal(0.0, body.own_pose.0, &body.own_pose.1, Vec3::zeros()),
             };
-            let mut inertia = self.bound(&body.element, inertia)?;
+            let mut inertia = self.bound(&body.at, inertia)?;
             if body.aligned {
                 inertia = self.align_free(index, inertia);
             }
             let has_joints = !self.bodies[index].joints.is_empty();
-            let (line, label) = (body.element.line, body.element.label());
+            let (line, label) = (body.at.line, body.at.label);
             self.records.push(BodyRecord { line, label, inertia, has_joints, children: Vec::new() });
         }
         for index in 0..self.bodies.len() {
@@ -89,7 +89,7 @@ impl Reader {
     /// around it and its joints composed) and in the world at qpos0, its
     /// joints built, with the names made up for unnamed ones set apart;
     /// what their masses come from.
-    fn place_bodies<'a>(&mut self, bodies: Vec<BodySpec<'a>>) -> Result<Vec<MassSource<'a>>, MjcfError> {
+    fn place_bodies(&mut self, bodies: Vec<BodySpec>) -> Result<Vec<MassSource>, MjcfError> {
         let mut sources = Vec::with_capacity(bodies.len());
         for BodySpec { name, parent, frame, mut joints, gravcomp, mass } in bodies {
             for joint in joints.iter_mut() {
@@ -113,7 +113,7 @@ impl Reader {
                 mass_unknown: false,
                 joints,
                 gravcomp,
-                line: mass.element.line,
+                line: mass.at.line,
             });
             sources.push(mass);
         }
@@ -124,18 +124,18 @@ impl Reader {
     /// A geom of the world body: it moves no mass, so its mesh is never
     /// read; it may still collide, or be a tendon's wrap obstacle.
     fn compile_world_geom(&mut self, geom: &GeomSpec) -> Result<(), MjcfError> {
-        let GeomSpec { element, settings, frame, name, .. } = geom;
-        let read = self.geom_mass(element, settings, frame.as_ref(), false, false)?;
-        self.add_contact_geom(element, settings, None, read.reach);
+        let GeomSpec { at, settings, frame, name, .. } = geom;
+        let read = self.geom_mass(at, settings, frame.as_ref(), false, false)?;
+        self.add_contact_geom(at, settings, None, read.reach);
         let collides = settings.contype != [0, 0];
-        self.world_geoms.push(WorldGeom { name: name.clone(), collides, warning: element.ignored() });
+        self.world_geoms.push(WorldGeom { name: name.clone(), collides, warning: at.ignored() });
         Ok(())
     }
 
     /// A geom of `body`: its mass when it counts towards the body's (as
     /// `inertiafromgeom` and `inertiagrouprange` say).
     fn compile_body_geom(&mut self, geom: &GeomSpec, body: &MassSource) -> Result<Option<GeomMass>, MjcfError> {
-        let GeomSpec { element, settings, frame, body: index, .. } = geom;
+        let GeomSpec { at, settings, frame, body: index, .. } = geom;
         let from_geoms = match self.compiler.inertia_from_geom {
             InertiaFromGeom::Never => false,
             InertiaFromGeom::Always => true,
@@ -147,13 +147,13 @@ impl Reader {
             if let Some(index) = index {
                 self.bodies[*index].mass_unknown = true;
             }
-            self.warnings.push(element.warning(
+            self.warnings.push(at.warning(
                 "its mass is not computed: the body is fixed to the world, so it moves nothing \
                  (a subtree sensor that would count it is refused)",
             ));
         }
-        let read = self.geom_mass(element, settings, frame.as_ref(), body.moving, contributes)?;
-        self.add_contact_geom(element, settings, *index, read.reach);
+        let read = self.geom_mass(at, settings, frame.as_ref(), body.moving, contributes)?;
+        self.add_contact_geom(at, settings, *index, read.reach);
         Ok(read.mass)
     }
 

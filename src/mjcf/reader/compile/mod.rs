@@ -10,10 +10,10 @@ mod bodies;
 mod fuse;
 mod sections;
 
-use super::{JointElement, Pose, Reader};
+use super::{JointSpec, Pose, Reader};
 use crate::mjcf::actuator::ActuatorSpec;
 use crate::mjcf::defaults::GeomSettings;
-use crate::mjcf::element::Element;
+use crate::mjcf::element::Origin;
 use crate::mjcf::equality::EqualitySpec;
 use crate::mjcf::error::MjcfError;
 use crate::mjcf::inertia::BodyInertia;
@@ -23,11 +23,11 @@ use crate::vehicle::Site;
 
 /// The body tree as read, for the compile stage.
 #[derive(Default)]
-pub(super) struct ReadTree<'a> {
+pub(super) struct ReadTree {
     /// Each body, in the vehicle's order.
-    pub bodies: Vec<BodySpec<'a>>,
+    pub bodies: Vec<BodySpec>,
     /// Every geom, the world body's too, in document order.
-    pub geoms: Vec<GeomSpec<'a>>,
+    pub geoms: Vec<GeomSpec>,
     /// Every site, the world body's too, in document order.
     pub sites: Vec<SiteSpec>,
     /// The tendons of every `<tendon>` section, in document order.
@@ -52,7 +52,7 @@ pub(super) struct SiteSpec {
 }
 
 /// A `<body>` as read, its joints built.
-pub(super) struct BodySpec<'a> {
+pub(super) struct BodySpec {
     /// Its name (one made up when the file gives none).
     pub name: String,
     /// Its parent; `None` for the world body.
@@ -60,17 +60,17 @@ pub(super) struct BodySpec<'a> {
     /// The pose of the `<frame>`s around it, in its parent.
     pub frame: Option<Pose>,
     /// Its joints, with their settings resolved.
-    pub joints: Vec<JointElement<'a, 'a>>,
+    pub joints: Vec<JointSpec>,
     /// `gravcomp`.
     pub gravcomp: f64,
     /// What its mass properties and frame come from.
-    pub mass: MassSource<'a>,
+    pub mass: MassSource,
 }
 
 /// What a body's mass properties and frame come from.
-pub(super) struct MassSource<'a> {
+pub(super) struct MassSource {
     /// The `<body>` element, for messages.
-    pub element: Element<'a, 'a>,
+    pub at: Origin,
     /// Its `<inertial>`, in the `<frame>`s around it (their pose in the body).
     pub explicit: Option<(BodyInertia, Option<Pose>)>,
     /// Whether a joint lies between it and the world.
@@ -83,9 +83,9 @@ pub(super) struct MassSource<'a> {
 }
 
 /// A `<geom>` as read.
-pub(super) struct GeomSpec<'a> {
+pub(super) struct GeomSpec {
     /// The element, for messages.
-    pub element: Element<'a, 'a>,
+    pub at: Origin,
     /// Its class's settings with its own attributes applied.
     pub settings: GeomSettings,
     /// The pose of the `<frame>`s around it, in its body.
