@@ -4,6 +4,9 @@
 
 use std::fmt;
 
+use super::element::{Element, Origin};
+use super::error::MjcfError;
+
 /// One `<key>`: a state of the vehicle and its inputs. A vector the key
 /// does not give is MuJoCo's default: qpos0, and zeros for the others.
 #[derive(Clone, Debug, PartialEq)]
@@ -62,4 +65,51 @@ pub fn find<'a>(keyframes: &'a [Keyframe], asked: &str) -> Result<&'a Keyframe, 
                 .collect(),
         ),
     })
+}
+
+/// The vectors a `<key>` may give, in the order MuJoCo checks their sizes.
+const KEY_VECTORS: [&str; 6] = ["qpos", "qvel", "act", "mpos", "mquat", "ctrl"];
+
+/// A `<key>` as read: its numbers parsed (an empty vector counts as not
+/// given); their sizes are checked at compile, once the model's are known.
+#[derive(Clone, Debug)]
+pub(crate) struct KeySpec {
+    /// The element, for messages.
+    at: Origin,
+    name: Option<String>,
+    time: f64,
+    /// The vectors of [`KEY_VECTORS`], each if given.
+    vectors: [Option<Vec<f64>>; 6],
+}
+
+/// Reads one `<key>`.
+pub(crate) fn parse(key: &Element) -> Result<KeySpec, MjcfError> {
+    if key.tag() != "key" {
+        return Err(key.unknown());
+    }
+    key.check_attributes(&["name", "time", "qpos", "qvel", "act", "mpos", "mquat", "ctrl"])?;
+    if let Some(child) = key.children().next() {
+        return Err(child.unknown());
+    }
+    let time = key.number("time")?.unwrap_or(0.0);
+    let mut vectors: [Option<Vec<f64>>; 6] = Default::default();
+    for (attribute, vector) in KEY_VECTORS.into_iter().zip(&mut vectors) {
+        let Some(text) = key.text(attribute) else { continue };
+        let values: Result<Vec<f64>, _> = text.split_ascii_whitespace().map(str::parse).collect();
+        *vector = Some(values.map_err(|_| key.bad_value(attribute, "numbers"))?).filter(|v| !v.is_empty());
+    }
+    Ok(KeySpec { at: key.origin(), name: key.text("name").map(str::to_string), time, vectors })
+}
+
+/// The keyframe `spec` describes, with MuJoCo's check that each vector
+/// given has the model's size (`sizes`: nq, nv, na, 3 nmocap, 4 nmocap, nu).
+pub(crate) fn compile(spec: KeySpec, sizes: [usize; 6]) -> Result<Keyframe, MjcfError> {
+    for ((attribute, vector), size) in KEY_VECTORS.iter().zip(&spec.vectors).zip(sizes) {
+        if let Some(given) = vector.as_ref().map(Vec::len).filter(|&given| given != size) {
+            return Err(spec.at.invalid(format!("invalid {attribute} size, expected {size}, got {given}")));
+        }
+    }
+    let [qpos, qvel, act, mpos, mquat, ctrl] = spec.vectors;
+    let places_mocap_bodies = mpos.is_some() || mquat.is_some();
+    Ok(Keyframe { name: spec.name, time: spec.time, qpos, qvel, act, ctrl, places_mocap_bodies, line: spec.at.line })
 }

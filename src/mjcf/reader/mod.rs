@@ -1,11 +1,11 @@
 //! Reads an MJCF document and builds the [`Vehicle`]: the settings
 //! sections first, then every other section parsed into a spec tree (the
-//! body tree by `body.rs`, tendons, equalities, actuators and sensors by
-//! `sections.rs`: defaults resolved, values checked, objects named by
-//! name), compiled once the whole document is read (`compile/`: frames,
-//! mass properties, free-body alignment, then the names resolved), and
-//! last what needs the whole model (`finish.rs`: the mass checks,
-//! `fusestatic`, `settotalmass`).
+//! body tree by `body.rs`; tendons, equalities, actuators, sensors and
+//! keyframes by `sections.rs`: defaults resolved, values checked, objects
+//! named by name, each element's line and label kept in an `Origin`, no
+//! XML node), compiled once the whole document is read (`compile/`:
+//! frames, mass properties, free-body alignment, the names resolved,
+//! `fusestatic`, `settotalmass`), and last the [`Vehicle`] (`finish.rs`).
 
 mod body;
 mod compile;
@@ -385,7 +385,6 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
 
     let mut tree = ReadTree::default();
     let mut has_worldbody = false;
-    let mut keyframe_sections = Vec::new();
     for section in root.children() {
         match section.tag() {
             "compiler" | "option" | "default" | "asset" => {}
@@ -395,8 +394,7 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
             }
             "actuator" => tree.actuator_sections.push(reader.parse_actuators(&section)?),
             "sensor" => tree.sensor_sections.push(reader.parse_sensors(&section)?),
-            // Read once the sizes are known.
-            "keyframe" => keyframe_sections.push(section),
+            "keyframe" => reader.parse_keyframes(&section, &mut tree.keyframes)?,
             "custom" => reader.read_custom(&section)?,
             tag if IGNORED_SECTIONS.contains(&tag) => reader.warnings.push(section.ignored()),
             "tendon" => reader.parse_tendons(&section, &mut tree.tendons)?,
@@ -409,9 +407,6 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
         return Err(MjcfError::MissingWorldbody { line: root.line, element: root.label() });
     }
     reader.compile(tree)?;
-    for section in &keyframe_sections {
-        reader.read_keyframes(section)?;
-    }
 
     let name = root.text("model").unwrap_or("vehicle").to_string();
     reader.finish(name)

@@ -1,6 +1,6 @@
-//! The sections besides `<worldbody>` and the settings: assets and
-//! keyframes read, tendons, equalities, actuators and sensors parsed into
-//! specs for the compile stage (`compile/sections.rs`).
+//! The sections besides `<worldbody>` and the settings: assets read;
+//! tendons, equalities, actuators, sensors and keyframes parsed into specs
+//! for the compile stage (`compile/sections.rs`).
 
 use super::{Reader, no_children};
 use crate::mjcf::actuator::ActuatorSpec;
@@ -9,7 +9,7 @@ use crate::mjcf::defaults::MAIN;
 use crate::mjcf::element::Element;
 use crate::mjcf::equality::EqualitySpec;
 use crate::mjcf::error::MjcfError;
-use crate::mjcf::keyframe::Keyframe;
+use crate::mjcf::keyframe::{self, KeySpec};
 use crate::mjcf::mesh::MESH_ATTRIBUTES;
 use crate::mjcf::sensor::SensorSpec;
 use crate::mjcf::tendon::TendonSpec;
@@ -78,38 +78,11 @@ impl Reader {
         Ok(())
     }
 
-    /// The `<key>`s of a `<keyframe>` section, with MuJoCo's checks: each
-    /// vector given has the model's size (an empty one counts as not given).
-    pub(super) fn read_keyframes(&mut self, section: &Element) -> Result<(), MjcfError> {
+    /// The `<key>`s of a `<keyframe>` section, into specs.
+    pub(super) fn parse_keyframes(&self, section: &Element, specs: &mut Vec<KeySpec>) -> Result<(), MjcfError> {
         section.check_attributes(&[])?;
-        let joints = self.bodies.iter().flat_map(|b| &b.joints);
-        let (nq, nv) = joints.fold((0, 0), |(nq, nv), j| (nq + j.kind.nq(), nv + j.kind.nv()));
-        let nmocap = self.mocap_bodies.len();
-        // Each activation state nudyn models has one act.
-        let na = self.actuators.iter().filter(|a| a.activation.is_some()).count();
-        let nu = self.actuators.len();
         for key in section.children() {
-            if key.tag() != "key" {
-                return Err(key.unknown());
-            }
-            key.check_attributes(&["name", "time", "qpos", "qvel", "act", "mpos", "mquat", "ctrl"])?;
-            no_children(&key)?;
-            let vector = |attribute: &str, size: usize| -> Result<Option<Vec<f64>>, MjcfError> {
-                let Some(text) = key.text(attribute) else { return Ok(None) };
-                let values: Result<Vec<f64>, _> = text.split_ascii_whitespace().map(str::parse).collect();
-                let values = values.map_err(|_| key.bad_value(attribute, "numbers"))?;
-                match values.len() {
-                    0 => Ok(None),
-                    given if given == size => Ok(Some(values)),
-                    given => Err(key.invalid(format!("invalid {attribute} size, expected {size}, got {given}"))),
-                }
-            };
-            let time = key.number("time")?.unwrap_or(0.0);
-            let (qpos, qvel, act) = (vector("qpos", nq)?, vector("qvel", nv)?, vector("act", na)?);
-            let places_mocap_bodies = vector("mpos", 3 * nmocap)?.is_some() | vector("mquat", 4 * nmocap)?.is_some();
-            let ctrl = vector("ctrl", nu)?;
-            let name = key.text("name").map(str::to_string);
-            self.keyframes.push(Keyframe { name, time, qpos, qvel, act, ctrl, places_mocap_bodies, line: key.line });
+            specs.push(keyframe::parse(&key)?);
         }
         Ok(())
     }

@@ -4,7 +4,8 @@
 //! vehicle's types, as MuJoCo's compiler turns its spec into a model: the
 //! body tree first (`bodies.rs`), then the tendons, equalities, actuators
 //! and sensors, whose names resolve into it (`sections.rs`), then what
-//! needs them all: `fusestatic`, `settotalmass` (`fuse.rs`).
+//! needs them all: `fusestatic`, `settotalmass` (`fuse.rs`), and the
+//! keyframes' sizes.
 
 mod bodies;
 mod fuse;
@@ -17,6 +18,7 @@ use crate::mjcf::element::Origin;
 use crate::mjcf::equality::EqualitySpec;
 use crate::mjcf::error::MjcfError;
 use crate::mjcf::inertia::BodyInertia;
+use crate::mjcf::keyframe::KeySpec;
 use crate::mjcf::sensor::SensorSpec;
 use crate::mjcf::tendon::TendonSpec;
 use crate::vehicle::Site;
@@ -39,6 +41,8 @@ pub(super) struct ReadTree {
     pub actuator_sections: Vec<Vec<ActuatorSpec>>,
     /// Each `<sensor>` section's elements, likewise.
     pub sensor_sections: Vec<Vec<SensorSpec>>,
+    /// The `<key>`s of every `<keyframe>` section, in document order.
+    pub keyframes: Vec<KeySpec>,
 }
 
 /// A `<site>` as read.
@@ -99,7 +103,8 @@ pub(super) struct GeomSpec {
 impl Reader {
     /// Compiles `tree`: the bodies, then what names them.
     pub(super) fn compile(&mut self, tree: ReadTree) -> Result<(), MjcfError> {
-        let ReadTree { bodies, geoms, sites, tendons, equalities, actuator_sections, sensor_sections } = tree;
+        let ReadTree { bodies, geoms, sites, tendons, equalities, actuator_sections, sensor_sections, keyframes } =
+            tree;
         self.note_wrap_obstacles(&tendons);
         self.compile_bodies(bodies, geoms, sites)?;
         // Before the equalities, actuators and sensors, which may name tendons.
@@ -114,6 +119,7 @@ impl Reader {
         }
         // Before fusestatic renumbers the bodies.
         self.warn_of_contacts();
-        self.compile_masses()
+        self.compile_masses()?;
+        self.compile_keyframes(keyframes)
     }
 }
