@@ -349,6 +349,15 @@ pub(crate) fn read(xml: &str, path: Option<&Path>) -> Result<Imported, MjcfError
 
 /// Reads the document with its includes merged in.
 fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
+    // The document is gone once parsed: the compile stage reads the spec only.
+    let (mut reader, tree, name) = parse(xml, sources)?;
+    reader.compile(tree)?;
+    reader.finish(name)
+}
+
+/// Parses the document with its includes merged in: the settings read, every
+/// other section into the spec tree; gives the model's name too.
+fn parse(xml: &str, sources: &Sources) -> Result<(Reader, ReadTree, String), MjcfError> {
     let document = Document::parse(xml).map_err(|e| MjcfError::Xml {
         line: e.pos().row,
         column: e.pos().col,
@@ -406,10 +415,8 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
     if !has_worldbody {
         return Err(MjcfError::MissingWorldbody { line: root.line, element: root.label() });
     }
-    reader.compile(tree)?;
-
     let name = root.text("model").unwrap_or("vehicle").to_string();
-    reader.finish(name)
+    Ok((reader, tree, name))
 }
 
 impl Reader {

@@ -23,7 +23,7 @@ use crate::mjcf::sensor::SensorSpec;
 use crate::mjcf::tendon::TendonSpec;
 use crate::vehicle::Site;
 
-/// The body tree as read, for the compile stage.
+/// The spec tree: the document as parsed, for the compile stage.
 #[derive(Default)]
 pub(super) struct ReadTree {
     /// Each body, in the vehicle's order.
@@ -55,7 +55,7 @@ pub(super) struct SiteSpec {
     pub fitted_to_mesh: bool,
 }
 
-/// A `<body>` as read, its joints built.
+/// A `<body>` as read.
 pub(super) struct BodySpec {
     /// Its name (one made up when the file gives none).
     pub name: String,
