@@ -7,7 +7,7 @@ use crate::mjcf::actuator::{ActuatorSpec, TransmissionSpec};
 use crate::mjcf::element::Origin;
 use crate::mjcf::equality::{EqualitySpec, ObjectsSpec};
 use crate::mjcf::error::MjcfError;
-use crate::mjcf::keyframe::{self, KeySpec};
+use crate::mjcf::keyframe::{self, KeySizes, KeySpec};
 use crate::mjcf::reader::replicate::{Named, Reference};
 use crate::mjcf::reader::{ACTUATOR_GROUPS, Reader, claim_name};
 use crate::mjcf::sensor::SensorSpec;
@@ -233,12 +233,11 @@ impl Reader {
     pub(super) fn compile_keyframes(&mut self, specs: Vec<KeySpec>) -> Result<(), MjcfError> {
         let joints = self.bodies.iter().flat_map(|b| &b.joints);
         let (nq, nv) = joints.fold((0, 0), |(nq, nv), j| (nq + j.kind.nq(), nv + j.kind.nv()));
-        let nmocap = self.mocap_bodies.len();
         // Each activation state nudyn models has one act.
         let na = self.actuators.iter().filter(|a| a.activation.is_some()).count();
-        let sizes = [nq, nv, na, 3 * nmocap, 4 * nmocap, self.actuators.len()];
+        let sizes = KeySizes { nq, nv, na, nmocap: self.mocap_bodies.len(), nu: self.actuators.len() };
         for spec in specs {
-            self.keyframes.push(keyframe::compile(spec, sizes)?);
+            self.keyframes.push(keyframe::compile(spec, &sizes)?);
         }
         Ok(())
     }
