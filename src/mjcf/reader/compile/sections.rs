@@ -1,7 +1,8 @@
 //! The compile stage of the sections that name the body tree's objects:
 //! tendons, equalities, actuators and sensors, their names looked up in
 //! the compiled tree (`targets.rs`), the `<replicate>` copies of actuators
-//! and sensors made (`replicate.rs`), the `<flag>`s applied.
+//! and sensors made (`replicate.rs`), the `<flag>`s applied; and the
+//! keyframes, whose sizes are the compiled model's.
 
 use crate::mjcf::actuator::{ActuatorSpec, TransmissionSpec};
 use crate::mjcf::element::Origin;
