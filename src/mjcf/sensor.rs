@@ -130,9 +130,9 @@ pub(crate) fn attributes(kind: SensorKind) -> Vec<&'static str> {
 /// The kinds of frame a frame sensor measures or measures in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum FrameType {
-    /// `body`: the body frame.
+    /// `body`: the body's inertial frame (as MuJoCo names them).
     Body,
-    /// `xbody`: the body's inertial frame.
+    /// `xbody`: the body's own frame.
     XBody,
     /// `site`.
     Site,
@@ -176,6 +176,8 @@ pub(crate) fn parse(element: &Element, kind: SensorKind) -> Result<SensorSpec, M
     if cutoff > 0.0 && kind.is_direction() {
         return Err(element.invalid("cutoff applied to axis or quaternion datatype in sensor"));
     }
+    // A frame sensor names its frame by type and name (its reference frame
+    // likewise, or not at all); any other but the clock names one object.
     let mut frame = None;
     if names(own_attributes(kind)).contains(&"objtype") {
         let object = frame_type(element, "objtype", "objname")?;

@@ -178,7 +178,7 @@ impl Default for Physics {
     }
 }
 
-/// What an actuator needs to know of a joint it may name.
+/// What actuators, tendons, equalities and sensors need to know of a joint they may name.
 struct JointTarget {
     kind: JointKind,
     /// `range` as MuJoCo's compiler leaves it: in radians for a limited hinge
@@ -188,7 +188,8 @@ struct JointTarget {
     limited: bool,
 }
 
-/// What the checks after the whole tree is read need to know of a body.
+/// A body's mass properties as compiled, with what the mass check and
+/// `fusestatic` need to know of it.
 struct BodyRecord {
     line: u32,
     label: String,
@@ -240,13 +241,14 @@ struct JointSpec {
     suffix: Suffix,
 }
 
-/// What the walk through the document has gathered so far.
+/// The importer's state: the settings and name tables the parse fills,
+/// and the vehicle's parts the compile stage builds from the spec tree.
 struct Reader {
     compiler: Compiler,
     physics: Physics,
     defaults: Defaults,
     warnings: Vec<MjcfWarning>,
-    /// The `<key>`s read so far.
+    /// The `<key>`s compiled so far.
     keyframes: Vec<Keyframe>,
     /// The `nudyn:modal:` texts of `<custom>`, resolved at the end.
     modal_texts: Vec<modal::ModalText>,
@@ -286,7 +288,7 @@ struct Reader {
     replicated: HashMap<String, String>,
     /// The names given inside `<replicate>`s, with the copies they are in.
     replicated_names: Vec<ReplicatedName>,
-    /// The copy of an actuator or sensor element being read.
+    /// The copy of an actuator or sensor being compiled.
     copy: Option<ElementCopy>,
     /// The elements the `<replicate>`s expanded so far produce (see
     /// [`MAX_REPLICATED_ELEMENTS`]).
