@@ -29,6 +29,27 @@ pub struct Description {
     pub bodies: Vec<BodyDescription>,
     /// The tendons in MuJoCo's order.
     pub tendons: Vec<TendonDescription>,
+    /// The flexible bodies' modes, in θ and ν order after the joints
+    /// (docs/flexible.md); absent from the JSON of a rigid vehicle.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub modes: Vec<ModeDescription>,
+}
+
+/// One mode of a flexible body: its entries of θ and ν.
+#[derive(Clone, Debug, Serialize)]
+pub struct ModeDescription {
+    /// `BODY:modeK`, K from 1 by rising frequency.
+    pub name: String,
+    /// The flexible body.
+    pub body: String,
+    /// Its frequency (Hz) with the body clamped at its frame.
+    pub frequency: f64,
+    /// Its damping ratio ζ.
+    pub damping_ratio: f64,
+    /// Its θ entry, 0-based.
+    pub qpos_adr: usize,
+    /// Its ν (and ε) entry, 0-based.
+    pub dof_adr: usize,
 }
 
 /// One tendon: its path and the forces it carries, as MuJoCo's compiled
@@ -223,6 +244,20 @@ impl Description {
             actuators,
             bodies: vehicle.bodies.iter().map(describe_body).collect(),
             tendons: vehicle.tendons.iter().zip(&model.tendons).map(|(t, c)| describe_tendon(vehicle, t, c)).collect(),
+            modes: model
+                .flexible
+                .iter()
+                .flat_map(|flexible| {
+                    flexible.modal.modes.iter().enumerate().map(|(k, mode)| ModeDescription {
+                        name: format!("{}:mode{}", flexible.modal.body, k + 1),
+                        body: flexible.modal.body.clone(),
+                        frequency: mode.angular_frequency / std::f64::consts::TAU,
+                        damping_ratio: mode.damping_ratio,
+                        qpos_adr: flexible.qpos_adr + k,
+                        dof_adr: flexible.dof_adr + k,
+                    })
+                })
+                .collect(),
         }
     }
 }

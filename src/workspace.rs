@@ -7,6 +7,7 @@ use nalgebra::{DVector, SMatrix};
 
 use crate::dynamics::TendonInertiaState;
 use crate::dynamics::constraint::ConstraintRows;
+use crate::dynamics::flexible::FlexState;
 use crate::dynamics::subspace::Subspace;
 use crate::math::{Mat3, Quat, Real, SpatialMat, SpatialVec, Transform, Vec3};
 use crate::model::{Model, SensorSource};
@@ -41,6 +42,16 @@ pub struct Accumulation {
     /// passes reach (the highest index): it sets the parent's slots rather
     /// than adding to them.
     pub opens_parent: bool,
+    /// A flexible body's modal block adds into this link's slots (`dynamics::flexible`).
+    pub has_modes: bool,
+}
+
+impl Accumulation {
+    /// Whether the passes that carry modal blocks find anything in this link's slots.
+    #[inline(always)]
+    pub fn gathers(&self) -> bool {
+        self.has_children || self.has_modes
+    }
 }
 
 /// Preallocated buffers and results of the passes.
@@ -50,6 +61,8 @@ pub struct Workspace<S: Real = f64> {
     pub stage: Stage,
     /// Each link's place in the inward sums (fixed by the model).
     pub accumulation: Vec<Accumulation>,
+    /// Each flexible body's modal block (model order).
+    pub flex: Vec<FlexState<S>>,
     /// The shape of each link's motion subspace (fixed by the model).
     pub subspaces: Vec<Subspace>,
     /// The configuration θ (qpos, quaternions normalized) — set_configuration.
@@ -204,6 +217,16 @@ impl<S: Real> Workspace<S> {
                 accumulation[i].opens_parent = true;
             }
         }
+        let flex = model
+            .flexible
+            .iter()
+            .map(|flexible| {
+                let slots = &mut accumulation[flexible.link];
+                let opens_link = !slots.gathers();
+                slots.has_modes = true;
+                FlexState::new(flexible, opens_link)
+            })
+            .collect();
         let nu = model.actuators.len();
         let actuators_apply_wrenches = model.actuators.iter().any(|a| a.transmission.applies_wrenches());
         let interaction_bodies = if model.sensors.iter().any(|s| matches!(s.source, SensorSource::Interaction { .. })) {
@@ -215,6 +238,7 @@ impl<S: Real> Workspace<S> {
         Workspace {
             stage: Stage::Empty,
             accumulation,
+            flex,
             subspaces: model.links.iter().map(|link| Subspace::of(&link.motion_subspace, link.ndof)).collect(),
             theta: DVector::from_iterator(model.nq, model.qpos0.iter().map(|&q| S::from(q))),
             x_parent: vec![Transform::identity(); n],

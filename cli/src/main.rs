@@ -602,6 +602,16 @@ fn describe(model_path: &Path, json: bool) -> Result<()> {
             range(joint.dof_adr, joint.nv)
         );
     }
+    for mode in &description.modes {
+        table += &format!(
+            "\n{:<24} {:<24} {:<6} {:>9} {:>9}",
+            format!("{}, {:.3} Hz", mode.name, mode.frequency),
+            mode.body,
+            "mode",
+            mode.qpos_adr + 1,
+            mode.dof_adr + 1
+        );
+    }
     if !description.actuators.is_empty() {
         table += &format!("\n\n{} actuators (ctrl order)\n", description.actuators.len());
         table += &format!("{:<5} {:<24} {:<9} {:<36} {}", "ctrl", "actuator", "kind", "transmission", "ctrlrange");

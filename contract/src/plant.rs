@@ -368,6 +368,8 @@ pub enum RealVariable {
     Momentum(usize),
     /// Optional output `energy_residual`.
     EnergyResidual,
+    /// Optional output `modal_strain_energy`.
+    ModalStrainEnergy,
     /// Optional output `qfrc_constraint[k+1]` (MuJoCo's `d.qfrc_constraint`).
     QfrcConstraint(usize),
     /// `constraint_switch[k+1]`: event indicator k of model exchange, the
@@ -392,7 +394,8 @@ impl RealVariable {
             | RealVariable::MaxStep
             | RealVariable::KineticEnergy
             | RealVariable::Power
-            | RealVariable::EnergyResidual => 0,
+            | RealVariable::EnergyResidual
+            | RealVariable::ModalStrainEnergy => 0,
             RealVariable::Eps(k)
             | RealVariable::Ctrl(k)
             | RealVariable::XfrcApplied(k)
@@ -786,7 +789,7 @@ mod tests {
         let written = serde_json::to_string(&all).unwrap();
         assert_eq!(
             written,
-            r#"{"qvel":true,"kinetic_energy":true,"power":true,"momentum":true,"energy_residual":false,"qfrc_constraint":false}"#
+            r#"{"qvel":true,"kinetic_energy":true,"power":true,"momentum":true,"energy_residual":false,"modal_strain_energy":false,"qfrc_constraint":false}"#
         );
         assert_eq!(serde_json::from_str::<OptionalOutputs>(&written).unwrap(), all);
         let older: OptionalOutputs = serde_json::from_str(r#"{"qvel":true,"future":true}"#).unwrap();

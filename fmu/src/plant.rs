@@ -352,6 +352,7 @@ impl Component for Plant {
             RealVariable::Power => run.nu.iter().zip(&self.eps).map(|(n, e)| n * e).sum(),
             RealVariable::Momentum(k) => self.momentum[k],
             RealVariable::EnergyResidual => kinetic_energy(&run.nu) - self.initial_energy - run.carry.work,
+            RealVariable::ModalStrainEnergy => self.model.strain_energy(&run.theta),
             // A vehicle without constraints keeps no rows: its constraint forces are 0.
             RealVariable::QfrcConstraint(k) => {
                 self.sim.workspace().constraint_rows.qfrc_constraint.get(k).copied().unwrap_or(0.0)

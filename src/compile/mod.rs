@@ -23,9 +23,6 @@ impl Model {
     /// Compiles a vehicle with external wrench inputs on the named bodies
     /// (see [`Model::wrench_bodies`]).
     pub fn compile_with_wrench_inputs(vehicle: &Vehicle, wrench_bodies: &[String]) -> Result<Model, ModelError> {
-        if let Some(flexible) = vehicle.flexible.iter().find(|f| !f.modes.is_empty()) {
-            return Err(ModelError::FlexibleNotBuilt { body: flexible.body.clone(), modes: flexible.modes.len() });
-        }
         let tree = Tree::compile(vehicle, wrench_bodies)?;
         // The passes index by the model's addresses: check them before evaluating.
         tree.model.validate()?;

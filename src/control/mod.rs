@@ -250,11 +250,13 @@ impl ControlLaw {
                 vec![position.x, position.y, position.z, q.w, q.i, q.j, q.k]
             }
         };
-        Ok(ControlParameters {
-            c1: vec![DEFAULT_RATE_GAIN; model.nv],
-            c2: vec![DEFAULT_TARGET_GAIN; self.ny()],
-            target,
-        })
+        // A flexible body's modes have no actuator of their own: no rate
+        // feedback on their ν entries unless the user sets one.
+        let mut c1 = vec![DEFAULT_RATE_GAIN; model.nv];
+        for flexible in &model.flexible {
+            c1[flexible.dof_adr..flexible.dof_adr + flexible.mode_count()].fill(0.0);
+        }
+        Ok(ControlParameters { c1, c2: vec![DEFAULT_TARGET_GAIN; self.ny()], target })
     }
 }
 

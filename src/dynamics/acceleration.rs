@@ -53,6 +53,7 @@ impl<S: Real> Workspace<S> {
         require(self, Stage::JointRates, "compute_accelerations")?;
         // The parent's A in registers when it is the previous link, as pass 2 hands over V.
         let mut a_previous = SpatialVec::zeros();
+        let flexible = !model.flexible.is_empty();
         for i in 0..model.links.len() {
             let a_parent = match model.links[i].parent {
                 Some(p) if p + 1 == i => a_previous,
@@ -60,6 +61,9 @@ impl<S: Real> Workspace<S> {
                 None => SpatialVec::zeros(),
             };
             a_previous = by_subspace!(self.subspaces[i], acceleration_link(model, self, i, &a_parent));
+            if flexible {
+                super::flexible::accelerations(model, self, i);
+            }
         }
         Ok(())
     }

@@ -63,7 +63,7 @@ fn factor_link<S: Real, const N: usize, const UNIT: usize>(
     i: usize,
 ) -> Result<(), DynamicsError> {
     let link = &model.links[i];
-    let mut ia = if ws.accumulation[i].has_children { ws.ia_reduced[i] } else { SpatialMat::zeros() };
+    let mut ia = if ws.accumulation[i].gathers() { ws.ia_reduced[i] } else { SpatialMat::zeros() };
     link.add_spatial_inertia_to(&mut ia);
     let u = times_s::<_, N, UNIT>(&ia, &link.motion_subspace);
     let mut d = s_transpose_times_columns::<_, N, UNIT>(&link.motion_subspace, &u);
@@ -115,7 +115,11 @@ fn write_block<S: Real, const N: usize>(out: &mut Mat3<S>, m: &SMatrix<S, N, N>)
 /// Passes 0 and 1: each link's placement, then I^a, G, R, R⁻¹ for it
 /// (I^A, U and D are intermediates).
 pub(crate) fn articulated_pass<S: Real>(model: &Model, ws: &mut Workspace<S>) -> Result<(), DynamicsError> {
+    let flexible = !model.flexible.is_empty();
     for i in (0..model.links.len()).rev() {
+        if flexible {
+            super::flexible::factor_modes(model, ws, i)?;
+        }
         by_subspace!(ws.subspaces[i], place_and_factor_link(model, ws, i))?;
         if let Some(p) = model.links[i].parent {
             // Parents precede their children in the link order (p < i).

@@ -51,6 +51,9 @@ pub(crate) fn passive_forces<S: Real>(model: &Model, ws: &mut Workspace<S>) {
             ws.tau_passive[dof] = spring[k] * -link.stiffness - damper;
         }
     }
+    if !model.flexible.is_empty() {
+        super::flexible::passive_forces(model, ws);
+    }
     if !model.gravity_compensation.is_empty() {
         let mut routed = model.gravity_compensation.actuator_dofs.iter().peekable();
         for dof in 0..model.nv {
@@ -91,7 +94,7 @@ fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool>(
     // v_J = S θ̇ and c = V × v_J = V⁺ × v_J, recomputed rather than stored
     // by pass 2: two fewer per-link arrays to stream on long chains.
     let v_joint = s_times::<_, N, UNIT>(s, &ws.qvel.fixed_rows::<N>(adr).into_owned());
-    let has_children = ws.accumulation[i].has_children;
+    let has_children = ws.accumulation[i].gathers();
     // İ^A is zero for a link without children (its own inertia is constant in its frame).
     let ia_dot = (RATES && has_children).then(|| &ws.ia_dot_body[i]);
 
@@ -180,7 +183,7 @@ fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool>(
 /// articulated-body algorithm's cost, without the İ^A recursion).
 pub(crate) fn bias_pass<const RATES: bool>(model: &Model, ws: &mut Workspace, eps: &[f64]) {
     let tendon_forces = model.tendons.iter().any(|t| t.has_passive_force());
-    let forces = !model.shortcuts.no_passive_forces() || tendon_forces;
+    let forces = !model.shortcuts.no_passive_forces() || tendon_forces || !model.flexible.is_empty();
     if forces {
         passive_forces(model, ws);
         if tendon_forces {
@@ -193,7 +196,11 @@ pub(crate) fn bias_pass<const RATES: bool>(model: &Model, ws: &mut Workspace, ep
 /// Pass 3's sweep over the links, with the passive joint forces already
 /// in `tau_passive` when `forces` (else their ε is zero).
 pub(crate) fn link_sweep<S: Real, const RATES: bool>(model: &Model, ws: &mut Workspace<S>, eps: &[S], forces: bool) {
+    let flexible = !model.flexible.is_empty();
     for i in (0..model.links.len()).rev() {
+        if flexible {
+            super::flexible::bias::<_, RATES>(model, ws, i, eps, forces);
+        }
         by_subspace!(ws.subspaces[i], bias_link::<RATES>(model, ws, i, eps, forces));
     }
 }

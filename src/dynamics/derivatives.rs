@@ -315,6 +315,7 @@ impl Derivatives {
             (!model.tendons.is_empty(), "tendons"),
             (!model.constraints.equalities.is_empty(), "equality constraints"),
             (!model.constraints.friction.is_empty(), "friction loss"),
+            (!model.flexible.is_empty(), "flexible bodies' modes"),
         ];
         match unsupported.iter().find(|(has, _)| *has) {
             Some((_, what)) => Err(DerivativeError::Unsupported(what)),
@@ -412,10 +413,14 @@ impl Derivatives {
 }
 
 /// d(θ[k])/dt from the passes' θ (quaternions normalized) and θ̇: θ̇'s
-/// entry for a hinge, slide or translation; q̇ = ½ q ⊗ (0, ω) for a
+/// entry for a hinge, slide, translation or modal coordinate; q̇ = ½ q ⊗ (0, ω) for a
 /// quaternion's entries (ω in the body frame), orthogonal to q. Generic,
 /// so that run in dual numbers it carries its own derivative.
 pub fn qpos_rate<S: Real>(model: &Model, theta: &[S], qvel: &[S], k: usize) -> S {
+    // A flexible body's modal coordinate: its rate.
+    if let Some(flexible) = model.flexible.iter().find(|f| (f.qpos_adr..f.qpos_adr + f.mode_count()).contains(&k)) {
+        return qvel[flexible.dof_adr + k - flexible.qpos_adr];
+    }
     let link = model.links.iter().rev().find(|l| l.qpos_adr <= k).expect("every coordinate belongs to a link");
     let (q, w) = (&theta[link.qpos_adr..], &qvel[link.dof_adr..]);
     let half = |x: S| x * 0.5;

@@ -13,7 +13,7 @@ use crate::model::Model;
 use crate::workspace::{Accumulation, Stage, Workspace};
 
 /// Which way the recursion runs.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, PartialEq, Eq)]
 enum Direction {
     /// `input` is T; write ε.
     EpsFromTorque,
@@ -34,7 +34,7 @@ fn inward_link<S: Real, const N: usize>(
     let adr = link.dof_adr;
     let s = real(&cols::<_, N>(&link.motion_subspace));
     let mut p = body_forces.map_or(SpatialVec::zeros(), |f| -f[i]);
-    if ws.accumulation[i].has_children {
+    if ws.accumulation[i].gathers() {
         p += ws.p_scratch_body[i];
     }
     let x: SVector<S, N> = SVector::from_column_slice(&input[adr..adr + N]);
@@ -64,7 +64,11 @@ fn inward_pass<S: Real>(
     body_forces: Option<&[SpatialVec<S>]>,
     out: &mut [S],
 ) {
+    let flexible = !model.flexible.is_empty();
     for i in (0..model.links.len()).rev() {
+        if flexible {
+            super::flexible::inward(model, ws, i, direction == Direction::TorqueFromEps, input, out);
+        }
         match model.links[i].ndof {
             1 => inward_link::<_, 1>(model, ws, i, direction, input, body_forces, out),
             _ => inward_link::<_, 3>(model, ws, i, direction, input, body_forces, out),

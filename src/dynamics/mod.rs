@@ -26,6 +26,7 @@ pub mod box_qp;
 pub mod constraint;
 pub mod derivatives;
 mod equality;
+pub mod flexible;
 pub mod forces;
 mod gravity_compensation;
 mod interaction;

@@ -1,7 +1,7 @@
 //! Kinetic energy, power and the vehicle's spatial momentum.
 
 use super::{DynamicsError, require};
-use crate::math::SpatialVec;
+use crate::math::{SpatialVec, Vec3, rigid_inertia};
 use crate::model::Model;
 use crate::workspace::{Stage, Workspace};
 
@@ -21,8 +21,8 @@ impl Workspace {
         self.nu.iter().zip(eps).map(|(n, e)| n * e).sum()
     }
 
-    /// Spatial momentum of all bodies (angular about the world origin, then
-    /// linear), in world coordinates. Armature is rotor inertia, not body
+    /// Spatial momentum of all bodies and flexible bodies' nodes (angular
+    /// about the world origin, then linear), in world coordinates. Armature is rotor inertia, not body
     /// momentum, so it is not included (as in MuJoCo).
     pub fn momentum(&mut self, model: &Model) -> Result<SpatialVec, DynamicsError> {
         require(self, Stage::Velocity, "momentum")?;
@@ -32,6 +32,13 @@ impl Workspace {
             let h = link.inertia_times(&self.v_body[i]);
             // ⁱX₀ᵀ h: the link's momentum in world coordinates about the world origin.
             total += self.x_world[i].apply_transpose_force(&h);
+        }
+        for (flexible, state) in model.flexible.iter().zip(&self.flex) {
+            for (j, node) in flexible.modal.nodes.iter().enumerate() {
+                let inertia = rigid_inertia(node.mass, &Vec3::zeros(), &node.rotary_inertia);
+                let in_world = state.node_x[j].compose(&self.x_world[flexible.link]);
+                total += in_world.apply_transpose_force(&(inertia * state.v_node[j]));
+            }
         }
         Ok(total)
     }

@@ -65,6 +65,7 @@ pub(crate) fn velocity_pass<S: Real>(model: &Model, ws: &mut Workspace<S>, given
     // store, its linear half straddles two of the store's 16-byte writes,
     // which stalls the load until they retire.
     let mut v_previous = SpatialVec::zeros();
+    let flexible = !model.flexible.is_empty();
     for i in 0..model.links.len() {
         let v_parent = match model.links[i].parent {
             Some(p) if p + 1 == i => v_previous,
@@ -75,5 +76,8 @@ pub(crate) fn velocity_pass<S: Real>(model: &Model, ws: &mut Workspace<S>, given
             1 => velocity_link::<_, 1>(model, ws, i, given, &v_parent),
             _ => velocity_link::<_, 3>(model, ws, i, given, &v_parent),
         };
+        if flexible {
+            super::flexible::velocities(model, ws, i, given == Given::Nu);
+        }
     }
 }

@@ -10,6 +10,8 @@
 
 use std::path::PathBuf;
 
+use serde::{Deserialize, Serialize};
+
 use crate::math::{Mat3, Vec3};
 use crate::vehicle::MassProperties;
 
@@ -23,7 +25,7 @@ pub mod rotation;
 pub const MASS_PROPERTIES_TOLERANCE: f64 = 1e-6;
 
 /// One node of a flexible body: a lumped mass at a point of the undeformed body.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Node {
     /// The node's name in the modal file.
     pub name: String,
@@ -37,7 +39,7 @@ pub struct Node {
 
 /// One constrained mode, mass-normalized in SI (Φᵀ M Φ = 1 kg m² … so that
 /// the modal coordinate has units √kg·m).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Mode {
     /// ω (rad/s).
     pub angular_frequency: f64,
@@ -50,7 +52,7 @@ pub struct Mode {
 }
 
 /// A body's modal data, checked, in SI, with mass-normalized modes.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ModalBody {
     /// The MJCF body the file makes flexible.
     pub body: String,

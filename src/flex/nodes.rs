@@ -41,6 +41,21 @@ pub fn subspace<S: Real>(body: &ModalBody, j: usize, eta: &[S], out: &mut DMatri
     }
 }
 
+/// Ψ̇_j: the rate of Ψ_j's coordinates along η̇, written into `out` (6 × m);
+/// as [`subspace_rate_times`], column by column.
+pub fn subspace_rate<S: Real>(body: &ModalBody, j: usize, eta: &[S], eta_rate: &[S], out: &mut DMatrix<S>) {
+    let (_, rho) = displacement(body, j, eta);
+    let (_, rho_rate) = displacement(body, j, eta_rate);
+    let omega = right_jacobian(&rho) * rho_rate;
+    let jacobian_rate = right_jacobian_rate(&rho, &rho_rate);
+    let turned: Mat3<S> = rotation(&rho).transpose();
+    for (k, mode) in body.modes.iter().enumerate() {
+        let angular = jacobian_rate * real::<S, 3, 1>(&mode.rotation[j]);
+        let linear = -omega.cross(&(turned * real::<S, 3, 1>(&mode.translation[j])));
+        out.column_mut(k).copy_from(&spatial(&angular, &linear));
+    }
+}
+
 /// Ψ̇_j η̇: the rate of Ψ_j's coordinates along η̇, times η̇. With
 /// Ω = J_r ρ̇ the node's angular velocity relative to R (in its axes),
 /// d(Rotᵀ)/dt = −[Ω]× Rotᵀ.
@@ -121,6 +136,19 @@ mod tests {
             let expected = (after - before) / (2.0 * h) * nalgebra::DVector::from_column_slice(&RATE);
             let term = subspace_rate_times(&body, j, &ETA, &RATE);
             assert!((term - SpatialVec::from_column_slice(expected.as_slice())).norm() < 1e-8, "node {j}");
+        }
+    }
+
+    #[test]
+    fn the_rate_of_psi_is_its_derivative_along_the_motion() {
+        let body = body();
+        let h = 1e-6;
+        for j in 0..3 {
+            let (mut before, mut after, mut rate) = (DMatrix::zeros(6, 2), DMatrix::zeros(6, 2), DMatrix::zeros(6, 2));
+            subspace(&body, j, &moved(-h), &mut before);
+            subspace(&body, j, &moved(h), &mut after);
+            subspace_rate(&body, j, &ETA, &RATE, &mut rate);
+            assert!((rate - (after - before) / (2.0 * h)).norm() < 1e-8, "node {j}");
         }
     }
 }

@@ -890,14 +890,18 @@ fn start_norm(
 }
 
 /// Each dof with the coordinate it moves, if that is a vector coordinate
-/// (hinge, slide, free-joint position); rotations have none.
+/// (hinge, slide, free-joint position, modal coordinate); rotations have none.
 pub(super) fn positions<'a>(model: &'a Model, theta: &'a [f64]) -> impl Iterator<Item = (usize, Option<f64>)> + 'a {
-    model.links.iter().flat_map(move |link| {
+    let rigid = model.links.iter().flat_map(move |link| {
         (0..link.ndof).map(move |k| {
             let position = (link.joint != LinkJoint::Ball).then(|| theta[link.qpos_adr + k]);
             (link.dof_adr + k, position)
         })
-    })
+    });
+    let modal = model.flexible.iter().flat_map(move |flexible| {
+        (0..flexible.mode_count()).map(move |k| (flexible.dof_adr + k, Some(theta[flexible.qpos_adr + k])))
+    });
+    rigid.chain(modal)
 }
 
 #[cfg(test)]

@@ -98,6 +98,10 @@ pub fn retract(model: &Model, theta: &mut [f64], delta: &[f64]) {
             }
         }
     }
+    for flexible in &model.flexible {
+        let (q, d) = (&mut theta[flexible.qpos_adr..], &delta[flexible.dof_adr..]);
+        q[..flexible.mode_count()].iter_mut().zip(d).for_each(|(q, d)| *q += d);
+    }
 }
 
 /// dexp⁻¹₋Θ(ω): the rate of the body-frame rotation vector Θ of q = qₙ·exp(Θ)

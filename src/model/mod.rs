@@ -32,6 +32,7 @@ use crate::vehicle::{
 
 mod actuator;
 mod constraint;
+mod flexible;
 mod gravity_compensation;
 mod interaction;
 mod sensor;
@@ -39,6 +40,7 @@ mod tendon;
 mod validate;
 pub use actuator::{Actuator, ActuatorTarget, ActuatorTransmission, DofForceLimit, SiteFrame};
 pub use constraint::{CompiledEquality, Constraints, DofFriction, EqualityRows, Limit, TendonFriction, TendonLimit};
+pub use flexible::FlexBody;
 pub use gravity_compensation::{CompensatedLink, GravityCompensation};
 pub use interaction::InteractionBodies;
 pub use sensor::{BodyMass, Sensor, SensorSource};
@@ -294,6 +296,11 @@ pub struct Model {
     /// when no tendon has armature): derived from `tendons` and the links.
     #[serde(default)]
     pub tendon_inertia: Vec<InertiaTerm>,
+    /// The flexible bodies with modes, in body order; their modal
+    /// coordinates follow the rigid ones in θ and ν (docs/flexible.md).
+    /// Left out of a rigid model's file, which stays as it was.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub flexible: Vec<FlexBody>,
 }
 
 /// Why a vehicle cannot be compiled.
@@ -305,17 +312,20 @@ pub enum ModelError {
     /// No joints: nothing moves.
     #[error("the vehicle has no joints: nothing moves")]
     NoJoints,
-    /// A flexible body with modes, whose modal degrees of freedom the
-    /// passes do not carry yet (docs/flexible.md); with no modes it is rigid.
-    #[error(
-        "body '{body}' is flexible with {modes} modes: nudyn reads and checks its modal file, but its modal \
-         dynamics are not built yet (a modal file with no modes makes it the rigid body)"
-    )]
-    FlexibleNotBuilt {
+    /// A flexible body welded to the world: its modes would move no reference frame the passes carry.
+    #[error("body '{body}' is flexible but welded to the world: give it (or a body it hangs from) a joint")]
+    FlexibleOnWorld {
         /// The body.
         body: String,
-        /// Its mode count.
-        modes: usize,
+    },
+    /// A flexible body's modes together with a part of the model that does
+    /// not take them in yet (docs/flexible.md, "Status").
+    #[error("body '{body}' is flexible: {feature} do not take modal degrees of freedom in yet")]
+    FlexibleWith {
+        /// The body.
+        body: String,
+        /// What the vehicle has that does not.
+        feature: &'static str,
     },
     /// A free joint that is not on a child of the world body.
     #[error("free joint '{joint}' (line {line}) must be the only joint of a body placed directly in <worldbody>")]
@@ -545,8 +555,10 @@ impl Tree {
             gravity_compensation: bodies.compensation.applied(vehicle, actuator_gravcomp_dofs),
             tendons,
             tendon_inertia: Vec::new(),
+            flexible: Vec::new(),
         };
         model.tendon_inertia = tendon::inertia_terms(&model);
+        add_flexible_bodies(&mut model, vehicle, &bodies.attachments, &constraints)?;
         Ok(Tree { model, constraints, attachments: bodies.attachments, sites })
     }
 
@@ -572,6 +584,44 @@ impl Tree {
         };
         model
     }
+}
+
+/// The flexible bodies with modes of `vehicle` on their links, their modal
+/// coordinates appended to θ and ν (zero in qpos0 and the spring pose).
+/// Refuses the parts of a model that do not take modes in yet.
+fn add_flexible_bodies(
+    model: &mut Model,
+    vehicle: &Vehicle,
+    attachments: &[Attachment],
+    constraints: &Constraints,
+) -> Result<(), ModelError> {
+    for modal in vehicle.flexible.iter().filter(|f| !f.modes.is_empty()) {
+        let body =
+            vehicle.bodies.iter().position(|b| b.name == modal.body).expect("the importer names existing bodies");
+        let at = attachments[body];
+        let Some(link) = at.link else { return Err(ModelError::FlexibleOnWorld { body: modal.body.clone() }) };
+        let unsupported = [
+            (!model.tendons.is_empty(), "tendons"),
+            (!constraints.is_empty() || !vehicle.equalities.is_empty(), "joint limits, friction loss and equalities"),
+            (!model.gravity_compensation.is_empty() || vehicle.bodies[body].gravcomp != 0.0, "gravity compensation"),
+            (!model.body_masses.is_empty(), "subtree, force and torque sensors"),
+        ];
+        if let Some((_, feature)) = unsupported.into_iter().find(|(has, _)| *has) {
+            return Err(ModelError::FlexibleWith { body: modal.body.clone(), feature });
+        }
+        let modes = modal.modes.len();
+        model.flexible.push(FlexBody {
+            link,
+            qpos_adr: model.nq,
+            dof_adr: model.nv,
+            modal: flexible::on_link(modal, &at.offset),
+        });
+        model.nq += modes;
+        model.nv += modes;
+        model.qpos0.extend(std::iter::repeat_n(0.0, modes));
+        model.qpos_spring.extend(std::iter::repeat_n(0.0, modes));
+    }
+    Ok(())
 }
 
 /// The links of a vehicle's bodies and joints, and where each body and
@@ -615,7 +665,9 @@ impl BodyTree {
             for joint in &body.joints {
                 inboard = tree.add_joint(body, joint, inboard)?;
             }
-            if let (Some(mass_props), Some(link)) = (&body.inertia, inboard.link) {
+            // A flexible body's nodes carry its mass, in the passes' modal block.
+            let flexible = vehicle.flexible.iter().any(|f| f.body == body.name && !f.modes.is_empty());
+            if let (Some(mass_props), Some(link), false) = (&body.inertia, inboard.link, flexible) {
                 tree.add_body_inertia(link, &inboard, mass_props, body.gravcomp);
             }
             tree.attachments.push(inboard);

@@ -8,7 +8,7 @@
 //! a file must be refused at instantiation with a message, not crash, hang
 //! or allocate without bound later.
 
-use super::{ActuatorTransmission, EqualityRows, LinkJoint, Model, SensorSource, SiteFrame};
+use super::{ActuatorTransmission, EqualityRows, FlexBody, LinkJoint, Model, SensorSource, SiteFrame};
 use crate::math::Transform;
 use crate::vehicle::{JointKind, SensorKind};
 
@@ -49,6 +49,14 @@ pub enum InvalidModel {
         found: usize,
         /// The end of the previous link's.
         expected: usize,
+    },
+    /// A flexible body that is not laid out as the compiler lays it out.
+    #[error("flexible body {body}: {what}")]
+    Flexible {
+        /// Its index in the model's flexible bodies.
+        body: usize,
+        /// What is wrong.
+        what: String,
     },
     /// A size that does not match the links.
     #[error("{what} is {found}, the links give {expected}")]
@@ -277,6 +285,40 @@ fn joint_size(joint: LinkJoint) -> (usize, usize) {
 }
 
 /// The first non-finite value of `values`, as an error about `what` of `link`.
+/// A flexible body's link, addresses (after the rigid coordinates and the
+/// flexible bodies before it) and modal data.
+fn validate_flexible(model: &Model, flexible: &FlexBody, nq: usize, nv: usize) -> Result<(), String> {
+    if flexible.link >= model.links.len() {
+        return Err(format!("link {} does not exist", flexible.link));
+    }
+    if (flexible.qpos_adr, flexible.dof_adr) != (nq, nv) {
+        return Err(format!(
+            "its coordinates start at qpos {} and dof {}, expected {nq} and {nv}",
+            flexible.qpos_adr, flexible.dof_adr
+        ));
+    }
+    let modal = &flexible.modal;
+    for node in &modal.nodes {
+        let numbers = node.position.iter().chain(node.rotary_inertia.iter()).chain([&node.mass]);
+        if numbers.into_iter().any(|x| !x.is_finite()) || node.mass < 0.0 {
+            return Err(format!("node '{}' has a number that is not finite, or a negative mass", node.name));
+        }
+    }
+    for (k, mode) in modal.modes.iter().enumerate() {
+        let sized = mode.translation.len() == modal.nodes.len() && mode.rotation.len() == modal.nodes.len();
+        let shape_finite = mode.translation.iter().chain(&mode.rotation).flat_map(|v| v.iter()).all(|x| x.is_finite());
+        let rates =
+            mode.angular_frequency.is_finite() && mode.angular_frequency > 0.0 && mode.damping_ratio.is_finite();
+        if !(sized && shape_finite && rates && mode.damping_ratio >= 0.0) {
+            return Err(format!(
+                "mode {} is not one finite shape per node with a positive frequency and a non-negative damping ratio",
+                k + 1
+            ));
+        }
+    }
+    Ok(())
+}
+
 fn finite<'a>(link: usize, what: &'static str, values: impl IntoIterator<Item = &'a f64>) -> Result<(), InvalidModel> {
     match values.into_iter().find(|x| !x.is_finite()) {
         Some(&value) => Err(InvalidModel::Number { link, what, value, non_negative: false }),
@@ -333,6 +375,11 @@ fn validate(model: &Model) -> Result<(), InvalidModel> {
         non_negative(k, "damping", link.damping)?;
         non_negative(k, "mass", link.mass)?;
         check_physics(k, link)?;
+    }
+    for (k, flexible) in model.flexible.iter().enumerate() {
+        validate_flexible(model, flexible, nq, nv).map_err(|what| InvalidModel::Flexible { body: k, what })?;
+        nq += flexible.mode_count();
+        nv += flexible.mode_count();
     }
     for (what, found, expected) in [
         ("nq", model.nq, nq),

@@ -7,9 +7,13 @@
 //! the bias forces by Kane's method (h = Σ Jᵀ(m J̇θ̇ − m g, I J̇ωθ̇ + ω×Iω)),
 //! which holds for the quaternion quasi-velocities of ball and free joints.
 //! J̇θ̇ and ṁ are taken by 4th-order central differences along the exact
-//! constant-velocity motion. Nothing here uses the spatial-operator code under test.
+//! constant-velocity motion. A flexible body's nodes are rigid bodies placed
+//! by its modal coordinates (docs/flexible.md), their angular Jacobian
+//! columns taken by differences of the node's rotation (nalgebra's exp and
+//! log). Nothing here uses the spatial-operator code under test.
 
 use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, Unit, UnitQuaternion, Vector3};
+use nudyn::flex::{ModalBody, Mode, Node};
 use nudyn::vehicle::{Actuation, Body, Joint, JointKind, MassProperties, Vehicle};
 
 pub type V3 = Vector3<f64>;
@@ -26,6 +30,8 @@ enum DofMotion {
 
 /// World poses of all bodies and the world motion of every dof.
 pub struct Kinematics {
+    /// The configuration (the flexible bodies' nodes are placed from it).
+    pub theta: Vec<f64>,
     pub body_rot: Vec<M3>,
     pub body_pos: Vec<V3>,
     dofs: Vec<DofMotion>,
@@ -35,7 +41,29 @@ pub struct Kinematics {
 
 pub fn nq_nv(vehicle: &Vehicle) -> (usize, usize) {
     let joints = vehicle.bodies.iter().flat_map(|b| b.joints.iter());
-    joints.fold((0, 0), |(q, v), j| (q + j.kind.nq(), v + j.kind.nv()))
+    let (nq, nv) = joints.fold((0, 0), |(q, v), j| (q + j.kind.nq(), v + j.kind.nv()));
+    let modes = modal_count(vehicle);
+    (nq + modes, nv + modes)
+}
+
+/// The modal coordinates, after the joints' in θ and ν.
+pub fn modal_count(vehicle: &Vehicle) -> usize {
+    vehicle.flexible.iter().map(|f| f.modes.len()).sum()
+}
+
+/// Each flexible body with modes: its body index and its first modal coordinate's
+/// place in θ and in ν.
+fn flexible_bodies(vehicle: &Vehicle) -> Vec<(usize, &ModalBody, usize, usize)> {
+    let joints = vehicle.bodies.iter().flat_map(|b| b.joints.iter());
+    let (mut qa, mut va) = joints.fold((0, 0), |(q, v), j| (q + j.kind.nq(), v + j.kind.nv()));
+    let mut out = Vec::new();
+    for modal in vehicle.flexible.iter().filter(|f| !f.modes.is_empty()) {
+        let body = vehicle.bodies.iter().position(|b| b.name == modal.body).unwrap();
+        out.push((body, modal, qa, va));
+        qa += modal.modes.len();
+        va += modal.modes.len();
+    }
+    out
 }
 
 fn quat_at(theta: &[f64], adr: usize) -> UnitQuaternion<f64> {
@@ -50,6 +78,7 @@ fn quat_at(theta: &[f64], adr: usize) -> UnitQuaternion<f64> {
 pub fn kinematics(vehicle: &Vehicle, theta: &[f64]) -> Kinematics {
     let n = vehicle.bodies.len();
     let mut k = Kinematics {
+        theta: theta.to_vec(),
         body_rot: Vec::with_capacity(n),
         body_pos: Vec::with_capacity(n),
         dofs: Vec::new(),
@@ -138,7 +167,12 @@ pub struct BodyTerms {
 
 pub fn body_terms(vehicle: &Vehicle, k: &Kinematics, nv: usize) -> Vec<BodyTerms> {
     let mut out = Vec::new();
+    let flexible = flexible_bodies(vehicle);
     for (b, body) in vehicle.bodies.iter().enumerate() {
+        if let Some(&(_, modal, qa, va)) = flexible.iter().find(|f| f.0 == b) {
+            out.extend(node_terms(k, b, modal, &k.theta[qa..qa + modal.modes.len()], va, nv));
+            continue;
+        }
         let Some(mp) = &body.inertia else { continue };
         let com = k.body_pos[b] + k.body_rot[b] * mp.com;
         let inertia = k.body_rot[b] * mp.inertia * k.body_rot[b].transpose();
@@ -148,9 +182,48 @@ pub fn body_terms(vehicle: &Vehicle, k: &Kinematics, nv: usize) -> Vec<BodyTerms
     out
 }
 
+/// The nodes of flexible body `b` as rigid bodies at the modal coordinates
+/// `eta`, its modal rates at ν entry `va`.
+fn node_terms(k: &Kinematics, b: usize, modal: &ModalBody, eta: &[f64], va: usize, nv: usize) -> Vec<BodyTerms> {
+    let (rot, pos) = (k.body_rot[b], k.body_pos[b]);
+    let rotation_vector =
+        |j: usize, eta: &[f64]| -> V3 { modal.modes.iter().zip(eta).map(|(m, e)| m.rotation[j] * *e).sum() };
+    let turn = |j: usize, eta: &[f64]| Rotation3::from_scaled_axis(rotation_vector(j, eta)).into_inner();
+    (0..modal.nodes.len())
+        .map(|j| {
+            let node = &modal.nodes[j];
+            let displacement: V3 = modal.modes.iter().zip(eta).map(|(m, e)| m.translation[j] * *e).sum();
+            let com = pos + rot * (node.position + displacement);
+            let node_rot = rot * turn(j, eta);
+            let (mut jw, mut jv) = point_jacobian(k, b, &com, nv);
+            for (c, mode) in modal.modes.iter().enumerate() {
+                jv.fixed_view_mut::<3, 1>(0, va + c).copy_from(&(rot * mode.translation[j]));
+                // The node's angular velocity per unit rate of mode c (body
+                // axes), from E(η + hφ)E(η − hφ)ᵀ = exp(2h[ω]×) + O(h³), an
+                // even series in h: two Richardson steps leave O(h⁶).
+                let rate = |h: f64| {
+                    let (mut ahead, mut behind) = (eta.to_vec(), eta.to_vec());
+                    ahead[c] += h;
+                    behind[c] -= h;
+                    let step =
+                        nalgebra::Rotation3::from_matrix_unchecked(turn(j, &ahead) * turn(j, &behind).transpose());
+                    step.scaled_axis() / (2.0 * h)
+                };
+                let h = 8e-3;
+                let (once, twice, thrice) = (rate(h), rate(h / 2.0), rate(h / 4.0));
+                let (first, second) = ((4.0 * twice - once) / 3.0, (4.0 * thrice - twice) / 3.0);
+                let omega = (16.0 * second - first) / 15.0;
+                jw.fixed_view_mut::<3, 1>(0, va + c).copy_from(&(rot * omega));
+            }
+            BodyTerms { mass: node.mass, com, inertia: node_rot * node.rotary_inertia * node_rot.transpose(), jw, jv }
+        })
+        .collect()
+}
+
 pub fn armature(vehicle: &Vehicle) -> Vec<f64> {
     let joints = vehicle.bodies.iter().flat_map(|b| b.joints.iter());
-    joints.flat_map(|j| std::iter::repeat_n(j.armature, j.kind.nv())).collect()
+    let rigid = joints.flat_map(|j| std::iter::repeat_n(j.armature, j.kind.nv()));
+    rigid.chain(std::iter::repeat_n(0.0, modal_count(vehicle))).collect()
 }
 
 /// Dense mass matrix.
@@ -186,6 +259,9 @@ pub fn integrate_pos(vehicle: &Vehicle, theta: &[f64], u: &[f64], s: f64) -> Vec
         qa += joint.kind.nq();
         va += joint.kind.nv();
     }
+    for c in 0..modal_count(vehicle) {
+        out[qa + c] += s * u[va + c];
+    }
     out
 }
 
@@ -219,6 +295,12 @@ pub fn passive(vehicle: &Vehicle, theta: &[f64], qvel: &[f64]) -> DVector<f64> {
             }
             qa += joint.kind.nq();
             va += joint.kind.nv();
+        }
+    }
+    for (_, modal, qa, va) in flexible_bodies(vehicle) {
+        for (c, mode) in modal.modes.iter().enumerate() {
+            let omega = mode.angular_frequency;
+            tau[va + c] = -omega * omega * theta[qa + c] - 2.0 * mode.damping_ratio * omega * qvel[va + c];
         }
     }
     tau
@@ -494,7 +576,44 @@ pub fn random_theta(rng: &mut Rng, vehicle: &Vehicle) -> Vec<f64> {
             }
         }
     }
+    theta.extend(rng.vec(modal_count(vehicle), 0.5));
     theta
+}
+
+/// Makes 1–2 random bodies of `vehicle` flexible: 2–4 nodes with rotary
+/// inertia and 1–3 modes whose shapes use every component (not orthogonal:
+/// the dynamics do not need it); each body's inertia becomes its nodes'.
+pub fn make_flexible(rng: &mut Rng, vehicle: &mut Vehicle, damped: bool) {
+    let count = 1 + rng.below(2.min(vehicle.bodies.len()));
+    let mut chosen: Vec<usize> = Vec::new();
+    while chosen.len() < count {
+        let b = rng.below(vehicle.bodies.len());
+        if !chosen.contains(&b) {
+            chosen.push(b);
+        }
+    }
+    chosen.sort();
+    for b in chosen {
+        let nodes: Vec<Node> = (0..2 + rng.below(3))
+            .map(|j| Node {
+                name: format!("n{j}"),
+                position: rng.vec3(0.5),
+                mass: rng.uniform(0.2, 2.0),
+                rotary_inertia: random_mass(rng).inertia * 0.3,
+            })
+            .collect();
+        let modes = (0..1 + rng.below(3))
+            .map(|c| Mode {
+                angular_frequency: rng.uniform(1.0, 10.0) * (c + 1) as f64,
+                damping_ratio: if damped { rng.uniform(0.0, 0.1) } else { 0.0 },
+                translation: (0..nodes.len()).map(|_| rng.vec3(0.4)).collect(),
+                rotation: (0..nodes.len()).map(|_| rng.vec3(0.6)).collect(),
+            })
+            .collect();
+        let modal = ModalBody { body: vehicle.bodies[b].name.clone(), nodes, modes };
+        vehicle.bodies[b].inertia = Some(modal.mass_properties());
+        vehicle.flexible.push(modal);
+    }
 }
 
 /// max |a − b| / max(1, max |b|).

@@ -1,8 +1,8 @@
 //! An MJCF body made flexible by `<custom><text name="nudyn:modal:BODY"
 //! data="FILE"/>` (docs/flexible.md): the file found beside the MJCF, read,
-//! checked and held to the body's inertial at import; a body with modes
-//! refused at compile until the passes carry them, one with no modes the
-//! rigid body exactly. Fixture: tests/fixtures/flex/bench_vehicle.xml.
+//! checked and held to the body's inertial at import; its modes appended
+//! to θ and ν at compile, what does not take them in yet refused; a body
+//! with no modes the rigid body exactly. Fixture: tests/fixtures/flex/bench_vehicle.xml.
 
 use std::path::{Path, PathBuf};
 
@@ -30,14 +30,48 @@ fn import_error(path: &Path) -> String {
 }
 
 #[test]
-fn the_modal_file_is_read_beside_the_mjcf_and_refused_at_compile_while_the_passes_lack_modes() {
+fn the_modal_file_is_read_beside_the_mjcf_and_its_modes_follow_the_rigid_coordinates() {
     let imported = load_mjcf(&fixtures().join("bench_vehicle.xml")).unwrap();
     assert!(imported.warnings.is_empty(), "{:?}", imported.warnings);
     let [bench] = imported.vehicle.flexible.as_slice() else { panic!("{:?}", imported.vehicle.flexible) };
     assert_eq!((bench.body.as_str(), bench.nodes.len(), bench.modes.len()), ("bench", 3, 3));
-    let error = Model::compile(&imported.vehicle).unwrap_err();
-    assert_eq!(error, ModelError::FlexibleNotBuilt { body: "bench".into(), modes: 3 });
-    assert!(error.to_string().contains("modal dynamics are not built yet"), "{error}");
+    let model = Model::compile(&imported.vehicle).unwrap();
+    // Free joint (7, 6) and hinge (1, 1), then the bench's three modes.
+    assert_eq!((model.nq, model.nv), (11, 10));
+    let [flexible] = model.flexible.as_slice() else { panic!() };
+    assert_eq!((flexible.qpos_adr, flexible.dof_adr, flexible.link), (8, 7, 2));
+    assert_eq!(model.qpos0[8..], [0.0; 3]);
+    // The bench's mass is its nodes', not its link's.
+    assert_eq!(model.links[2].mass, 0.0);
+}
+
+#[test]
+fn a_flexible_body_welded_to_the_world_or_with_tendons_is_refused_at_compile() {
+    let welded = variant(
+        "welded",
+        |xml| {
+            let other = "<body name=\"other\"><joint type=\"slide\"/><inertial pos=\"0 0 0\" mass=\"1\" diaginertia=\"1 1 1\"/></body>";
+            xml.replace("<joint name=\"drive\" type=\"hinge\" axis=\"0 0 1\"/>", "")
+                .replace("<freejoint/>", "")
+                .replace("</worldbody>", &format!("{other}</worldbody>"))
+        },
+        |j| j,
+    );
+    let error = Model::compile(&load_mjcf(&welded).unwrap().vehicle).unwrap_err();
+    assert_eq!(error, ModelError::FlexibleOnWorld { body: "bench".into() });
+    let tendon = variant(
+        "tendon",
+        |xml| {
+            xml.replace(
+                "</worldbody>",
+                "</worldbody><tendon><fixed name=\"t\"><joint joint=\"drive\" coef=\"1\"/></fixed></tendon>",
+            )
+        },
+        |j| j,
+    );
+    let error = Model::compile(&load_mjcf(&tendon).unwrap().vehicle).unwrap_err();
+    assert_eq!(error, ModelError::FlexibleWith { body: "bench".into(), feature: "tendons" });
+    assert!(error.to_string().contains("tendons do not take modal degrees of freedom in yet"), "{error}");
 }
 
 #[test]

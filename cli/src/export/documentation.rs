@@ -175,6 +175,19 @@ pub fn index_html(model: &Model, description: &Document, rows: &[Row], what: &st
             span(joint.dof_adr, nv)
         ));
     }
+    for flexible in &model.flexible {
+        for (k, mode) in flexible.modal.modes.iter().enumerate() {
+            line(format!(
+                "<tr><td>mode {} ({:.4} Hz, damping ratio {})</td><td>{}</td><td>flexible</td><td>{}</td><td>{}</td></tr>",
+                k + 1,
+                mode.angular_frequency / std::f64::consts::TAU,
+                mode.damping_ratio,
+                escape(&flexible.modal.body),
+                flexible.qpos_adr + k + 1,
+                flexible.dof_adr + k + 1
+            ));
+        }
+    }
     line("</table>".into());
     line("<h2>Variables</h2>".into());
     line(

@@ -8,6 +8,14 @@ use nudyn::vehicle::{ActivationKind, JointKind, SensorKind};
 /// What one coordinate or dof is, for variable descriptions: the joint, its
 /// kind, and the component and unit of entry `k` within the joint.
 fn joint_entry(model: &Model, index: usize, qpos: bool) -> (String, &'static str) {
+    if let Some((mode, flexible)) = model.flexible.iter().find_map(|f| {
+        let first = if qpos { f.qpos_adr } else { f.dof_adr };
+        (first..first + f.mode_count()).contains(&index).then(|| (index - first, f))
+    }) {
+        let hertz = flexible.modal.modes[mode].angular_frequency / std::f64::consts::TAU;
+        let unit = if qpos { "sqrt(kg)*m" } else { "sqrt(kg)*m/s" };
+        return (format!("mode {} ({hertz:.4} Hz) of flexible body '{}'", mode + 1, flexible.modal.body), unit);
+    }
     let joint = model
         .joints
         .iter()

@@ -73,7 +73,7 @@ fn model_exchange(layout: &Layout) -> bool {
 /// before the derivatives, which are last so that adding one moves no
 /// value reference a script may hold (docs/fmi.md, "Which value references
 /// are stable").
-pub const TABLE: [Entry; 19] = [
+pub const TABLE: [Entry; 20] = [
     Entry {
         name: "tolerance",
         shape: Shape::Scalar,
@@ -232,6 +232,20 @@ pub const TABLE: [Entry; 19] = [
         },
         dependencies: |l, _| Some(l.theta().chain(l.nu()).collect()),
         slot: |_| RealVariable::EnergyResidual,
+    },
+    Entry {
+        name: "modal_strain_energy",
+        shape: Shape::Scalar,
+        optional: true,
+        len: |_| 1,
+        kind: Kind::CALCULATED_OUTPUT,
+        start: no_start,
+        description: |_, _| {
+            "strain energy of the flexible bodies' modes, 1/2 sum of omega^2 eta^2 (J); K + it is the mechanical energy"
+                .into()
+        },
+        dependencies: |l, _| Some(l.theta().collect()),
+        slot: |_| RealVariable::ModalStrainEnergy,
     },
     Entry {
         name: "qfrc_constraint",

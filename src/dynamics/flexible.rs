@@ -1,0 +1,466 @@
+//! The modal block of each flexible body inside the passes (docs/flexible.md,
+//! "In the O(N) recursions"). A body's m modes are eliminated at the frame
+//! R of the link that carries it, as a joint of m dofs whose "body" is the
+//! set of nodes, each moving with V_j = ʲX_R V_R + Ψ_j η̇:
+//!
+//!   pass 1:  𝓘_RR = Σ X_jᵀ I_j X_j,  U = Σ X_jᵀ I_j Ψ_j,  D = Σ Ψ_jᵀ I_j Ψ_j = R Rᵀ,
+//!            G = U D⁻¹,  I^a = 𝓘_RR − G Uᵀ  (added to the link's I^A);
+//!   pass 2:  w = η̇ + Gᵀ V_R = R⁻ᵀ ν_η,  V_j;
+//!   pass 3:  p_j = I_j c_j + V_j ×* I_j V_j,  c_j = Ψ̇_j η̇ + V_j × Ψ_j η̇,
+//!            u = Q − Σ Ψ_jᵀ p_j,  ν̇_η = ε_η + R⁻¹u (+ Ṙᵀw + RᵀĠᵀV_R),
+//!            p^a = Σ X_jᵀ p_j + G u  (added to the link's p^A);
+//!   outward: η̈ = R⁻ᵀ(R⁻¹u) − Gᵀ A_R.
+//!
+//! Q holds the modal stiffness and damping (−ω²η − 2ζωη̇) and, in the force
+//! recursion, gravity on the nodes. The factor's rates come from
+//! 𝓘̇ = Σ Ḃ_jᵀ I_j B_j + B_jᵀ I_j Ḃ_j with Ḃ_j = [−(Ψ_jη̇)× X_j, Ψ̇_j]:
+//!   U̇ = Σ X_jᵀ(Ψ_jη̇ ×* I_jΨ_j + I_jΨ̇_j),  Ḋ = Σ Ψ̇_jᵀI_jΨ_j + Ψ_jᵀI_jΨ̇_j,
+//!   İ^a = Σ X_jᵀ(Ψ_jη̇ ×* I_j − I_j Ψ_jη̇ ×)X_j − U̇Gᵀ − GU̇ᵀ + GḊGᵀ.
+//! Dense per body (m is small, nodes few): O(nodes · m²) per evaluation,
+//! in buffers sized once ([`FlexState`]).
+
+use nalgebra::{DMatrix, DVector};
+
+use super::{DynamicsError, accumulate};
+use crate::flex::nodes;
+use crate::math::{
+    Real, SpatialMat, SpatialVec, Transform, Vec3, cross_force, cross_motion, mul_cross_motion, real, rigid_inertia,
+    spatial,
+};
+use crate::model::{FlexBody, Model};
+use crate::workspace::Workspace;
+
+/// One flexible body's share of the workspace.
+#[derive(Clone, Debug)]
+pub struct FlexState<S: Real = f64> {
+    /// Whether this block sets its link's inward slots (no rigid child and
+    /// no block before it on the link) rather than adding to them.
+    pub opens_link: bool,
+    /// ʲX_R per node (pass 1).
+    pub node_x: Vec<Transform<S>>,
+    /// Ψ_j per node, 6 × m (pass 1).
+    pub psi: Vec<DMatrix<S>>,
+    /// V_j per node (pass 2).
+    pub v_node: Vec<SpatialVec<S>>,
+    /// U = 𝓘_Rη, 6 × m (pass 1).
+    pub coupling: DMatrix<S>,
+    /// R, upper triangular with R Rᵀ = D (pass 1).
+    pub r: DMatrix<S>,
+    /// R⁻¹ (pass 1).
+    pub r_inv: DMatrix<S>,
+    /// G = U D⁻¹, 6 × m (pass 1).
+    pub gain: DMatrix<S>,
+    /// Scratch: D, then D⁻¹ (m × m).
+    d: DMatrix<S>,
+    /// Scratch: I_j Ψ_j, then I_j Ψ̇_j (6 × m).
+    inertia_psi: DMatrix<S>,
+    /// Scratch: Ψ̇_j (6 × m).
+    psi_rate: DMatrix<S>,
+    /// Scratch: U̇ (6 × m).
+    coupling_rate: DMatrix<S>,
+    /// Scratch: Ḋ, then R⁻¹ḊR⁻ᵀ (m × m).
+    d_rate: DMatrix<S>,
+    /// Scratch: Ġᵀ (m × 6).
+    gain_t_rate: DMatrix<S>,
+    /// Scratch (m × m).
+    square: DMatrix<S>,
+    /// Scratch: the velocity-product u, the force u, and one more m-vector.
+    u_bias: DVector<S>,
+    u_force: DVector<S>,
+    scratch: DVector<S>,
+}
+
+impl<S: Real> FlexState<S> {
+    /// Buffers for `flexible`; `opens_link` as the workspace places it.
+    pub(crate) fn new(flexible: &FlexBody, opens_link: bool) -> Self {
+        let (m, nodes) = (flexible.mode_count(), flexible.modal.nodes.len());
+        FlexState {
+            opens_link,
+            node_x: vec![Transform::identity(); nodes],
+            psi: vec![DMatrix::zeros(6, m); nodes],
+            v_node: vec![SpatialVec::zeros(); nodes],
+            coupling: DMatrix::zeros(6, m),
+            r: DMatrix::zeros(m, m),
+            r_inv: DMatrix::zeros(m, m),
+            gain: DMatrix::zeros(6, m),
+            d: DMatrix::zeros(m, m),
+            inertia_psi: DMatrix::zeros(6, m),
+            psi_rate: DMatrix::zeros(6, m),
+            coupling_rate: DMatrix::zeros(6, m),
+            d_rate: DMatrix::zeros(m, m),
+            gain_t_rate: DMatrix::zeros(m, 6),
+            square: DMatrix::zeros(m, m),
+            u_bias: DVector::zeros(m),
+            u_force: DVector::zeros(m),
+            scratch: DVector::zeros(m),
+        }
+    }
+}
+
+/// Node `j`'s spatial inertia about its origin, in its axes.
+fn node_inertia<S: Real>(flexible: &FlexBody, j: usize) -> SpatialMat<S> {
+    let node = &flexible.modal.nodes[j];
+    real(&rigid_inertia(node.mass, &Vec3::zeros(), &node.rotary_inertia))
+}
+
+fn column<S: Real>(m: &DMatrix<S>, k: usize) -> SpatialVec<S> {
+    SpatialVec::from_fn(|row, _| m[(row, k)])
+}
+
+fn add_to_column<S: Real>(m: &mut DMatrix<S>, k: usize, v: &SpatialVec<S>) {
+    for row in 0..6 {
+        m[(row, k)] += v[row];
+    }
+}
+
+/// `r` = the upper-triangular R with R Rᵀ = `d` (as `articulated::upper_cholesky`, sized at run time), or false.
+fn upper_cholesky_into<S: Real>(d: &DMatrix<S>, r: &mut DMatrix<S>) -> bool {
+    let n = d.nrows();
+    r.fill(S::zero());
+    for j in (0..n).rev() {
+        let mut diag = d[(j, j)];
+        for k in j + 1..n {
+            diag -= r[(j, k)] * r[(j, k)];
+        }
+        if diag.value().partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            return false;
+        }
+        let rjj = diag.sqrt();
+        r[(j, j)] = rjj;
+        for i in 0..j {
+            let mut s = d[(i, j)];
+            for k in j + 1..n {
+                s -= r[(i, k)] * r[(j, k)];
+            }
+            r[(i, j)] = s / rjj;
+        }
+    }
+    true
+}
+
+/// `inv` = R⁻¹ for an upper-triangular `r` with a nonzero diagonal.
+fn upper_triangular_inverse_into<S: Real>(r: &DMatrix<S>, inv: &mut DMatrix<S>) {
+    let n = r.nrows();
+    inv.fill(S::zero());
+    for j in 0..n {
+        inv[(j, j)] = S::one() / r[(j, j)];
+        for i in (0..j).rev() {
+            let mut s = S::zero();
+            for k in i + 1..=j {
+                s += r[(i, k)] * inv[(k, j)];
+            }
+            inv[(i, j)] = -s / r[(i, i)];
+        }
+    }
+}
+
+/// The flexible bodies on link `i`, by index into the model's and workspace's lists.
+pub(crate) fn on_link(model: &Model, i: usize) -> impl Iterator<Item = usize> + '_ {
+    model.flexible.iter().enumerate().filter(move |(_, f)| f.link == i).map(|(f, _)| f)
+}
+
+/// Pass 1 for the modal blocks on link `i`: their factors, and I^a added to the link's I^A.
+pub(crate) fn factor_modes<S: Real>(model: &Model, ws: &mut Workspace<S>, i: usize) -> Result<(), DynamicsError> {
+    for f in on_link(model, i) {
+        let flexible = &model.flexible[f];
+        let m = flexible.mode_count();
+        let state = &mut ws.flex[f];
+        let eta = &ws.theta.as_slice()[flexible.qpos_adr..flexible.qpos_adr + m];
+        let mut rigid = SpatialMat::zeros();
+        state.coupling.fill(S::zero());
+        state.d.fill(S::zero());
+        for j in 0..flexible.modal.nodes.len() {
+            let x = nodes::transform(&flexible.modal, j, eta);
+            nodes::subspace(&flexible.modal, j, eta, &mut state.psi[j]);
+            let inertia = node_inertia::<S>(flexible, j);
+            x.add_inertia_to_parent(&inertia, &mut rigid, false);
+            for k in 0..m {
+                let i_psi = inertia * column(&state.psi[j], k);
+                state.inertia_psi.column_mut(k).copy_from(&i_psi);
+                add_to_column(&mut state.coupling, k, &x.apply_transpose_force(&i_psi));
+            }
+            for k in 0..m {
+                for l in 0..=k {
+                    state.d[(l, k)] += column(&state.psi[j], l).dot(&column(&state.inertia_psi, k));
+                }
+            }
+            state.node_x[j] = x;
+        }
+        if !upper_cholesky_into(&state.d, &mut state.r) {
+            return Err(DynamicsError::Singular { link: i });
+        }
+        upper_triangular_inverse_into(&state.r, &mut state.r_inv);
+        // D⁻¹ = R⁻ᵀR⁻¹ into `d` (D itself is not needed again), then G = U D⁻¹.
+        state.r_inv.tr_mul_to(&state.r_inv, &mut state.d);
+        state.coupling.mul_to(&state.d, &mut state.gain);
+        let mut reduced = rigid;
+        for row in 0..6 {
+            for col in 0..6 {
+                for k in 0..m {
+                    reduced[(row, col)] -= state.gain[(row, k)] * state.coupling[(col, k)];
+                }
+            }
+        }
+        accumulate(&mut ws.ia_reduced[i], reduced, state.opens_link);
+    }
+    Ok(())
+}
+
+/// Which of ν and θ̇ pass 2 is given (as `velocity::Given`).
+pub(crate) fn velocities<S: Real>(model: &Model, ws: &mut Workspace<S>, i: usize, nu_given: bool) {
+    for f in on_link(model, i) {
+        let flexible = &model.flexible[f];
+        let (m, adr) = (flexible.mode_count(), flexible.dof_adr);
+        let v_r = ws.v_body[i];
+        let state = &mut ws.flex[f];
+        for k in 0..m {
+            let gv = column(&state.gain, k).dot(&v_r);
+            if nu_given {
+                let w = (0..=k).map(|l| state.r_inv[(l, k)] * ws.nu[adr + l]).fold(S::zero(), |a, b| a + b);
+                ws.w_joint[adr + k] = w;
+                ws.qvel[adr + k] = w - gv;
+            } else {
+                ws.w_joint[adr + k] = ws.qvel[adr + k] + gv;
+            }
+        }
+        if !nu_given {
+            for k in 0..m {
+                ws.nu[adr + k] = (0..=k).map(|l| state.r[(l, k)] * ws.w_joint[adr + l]).fold(S::zero(), |a, b| a + b);
+            }
+        }
+        let rate = &ws.qvel.as_slice()[adr..adr + m];
+        for j in 0..flexible.modal.nodes.len() {
+            let relative = (0..m).fold(SpatialVec::zeros(), |v, k| v + column(&state.psi[j], k) * rate[k]);
+            state.v_node[j] = state.node_x[j].apply_motion(&v_r) + relative;
+        }
+    }
+}
+
+/// The modal forces −ω²η − 2ζωη̇ into `tau_passive`'s modal entries.
+pub(crate) fn passive_forces<S: Real>(model: &Model, ws: &mut Workspace<S>) {
+    for flexible in &model.flexible {
+        for k in 0..flexible.mode_count() {
+            let (q, v) = (ws.theta[flexible.qpos_adr + k], ws.qvel[flexible.dof_adr + k]);
+            ws.tau_passive[flexible.dof_adr + k] = q * -flexible.stiffness(k) - v * flexible.damping(k);
+        }
+    }
+}
+
+/// Pass 3 for the modal blocks on link `i`, before the link's own: their
+/// ν̇ terms, and p^a (and with `rates`, İ^a) added to the link's slots.
+pub(crate) fn bias<S: Real, const RATES: bool>(
+    model: &Model,
+    ws: &mut Workspace<S>,
+    i: usize,
+    eps: &[S],
+    forces: bool,
+) {
+    for f in on_link(model, i) {
+        let flexible = &model.flexible[f];
+        let (m, adr) = (flexible.mode_count(), flexible.dof_adr);
+        let eta = &ws.theta.as_slice()[flexible.qpos_adr..flexible.qpos_adr + m];
+        let rate = &ws.qvel.as_slice()[adr..adr + m];
+        let gravity =
+            (forces && !model.shortcuts.no_gravity).then(|| ws.x_world[i].rot * real::<S, 3, 1>(&model.gravity));
+        let state = &mut ws.flex[f];
+        let (mut p_bias, mut p_force) = (SpatialVec::zeros(), SpatialVec::zeros());
+        state.u_bias.fill(S::zero());
+        for k in 0..m {
+            state.u_force[k] = if forces { ws.tau_passive[adr + k] } else { S::zero() };
+        }
+        for j in 0..flexible.modal.nodes.len() {
+            let (x, v) = (&state.node_x[j], state.v_node[j]);
+            let inertia = node_inertia::<S>(flexible, j);
+            let relative = (0..m).fold(SpatialVec::zeros(), |acc, k| acc + column(&state.psi[j], k) * rate[k]);
+            let c = nodes::subspace_rate_times(&flexible.modal, j, eta, rate) + cross_motion(&v, &relative);
+            let p = inertia * c + cross_force(&v, &(inertia * v));
+            p_bias += x.apply_transpose_force(&p);
+            for k in 0..m {
+                state.u_bias[k] -= column(&state.psi[j], k).dot(&p);
+            }
+            if let Some(g) = &gravity {
+                // Gravity m g at the node's origin: p = −f_ext.
+                let p = -spatial(&Vec3::zeros(), &(x.rot * g * S::from(flexible.modal.nodes[j].mass)));
+                p_force += x.apply_transpose_force(&p);
+                for k in 0..m {
+                    state.u_force[k] -= column(&state.psi[j], k).dot(&p);
+                }
+            }
+        }
+        // R⁻¹u for both u (R⁻¹ upper triangular).
+        for k in 0..m {
+            let (mut joint_bias, mut eps_passive) = (S::zero(), S::zero());
+            for l in k..m {
+                joint_bias += state.r_inv[(k, l)] * state.u_bias[l];
+                eps_passive += state.r_inv[(k, l)] * state.u_force[l];
+            }
+            ws.eps_passive[adr + k] = eps_passive;
+            ws.nu_dot_joint[adr + k] = eps[adr + k] + eps_passive + joint_bias;
+            if RATES {
+                ws.nu_dot[adr + k] = ws.nu_dot_joint[adr + k];
+                ws.coriolis[adr + k] = -joint_bias;
+            }
+        }
+        for k in 0..m {
+            p_bias += column(&state.gain, k) * state.u_bias[k];
+            p_force += column(&state.gain, k) * state.u_force[k];
+        }
+        accumulate(&mut ws.p_bias_body[i], p_bias, state.opens_link);
+        if forces {
+            accumulate(&mut ws.p_force_body[i], p_force, state.opens_link);
+        }
+        if RATES {
+            rates(
+                flexible,
+                state,
+                ws.v_body[i],
+                &mut ws.ia_dot_body[i],
+                &mut ws.nu_dot,
+                &mut ws.coriolis,
+                &ws.w_joint,
+                eta,
+                rate,
+            );
+        }
+    }
+}
+
+/// The factor's rates of one block: its ν̇ and C gain Ṙᵀw + RᵀĠᵀV_R, and
+/// İ^a goes into the link's İ^A slot (`ia_dot`, opened by this block if it opens the link).
+#[allow(clippy::too_many_arguments)]
+fn rates<S: Real>(
+    flexible: &FlexBody,
+    state: &mut FlexState<S>,
+    v_r: SpatialVec<S>,
+    ia_dot: &mut SpatialMat<S>,
+    nu_dot: &mut DVector<S>,
+    coriolis: &mut DVector<S>,
+    w_joint: &DVector<S>,
+    eta: &[S],
+    rate: &[S],
+) {
+    let (m, adr) = (flexible.mode_count(), flexible.dof_adr);
+    let mut rigid_rate = SpatialMat::zeros();
+    state.coupling_rate.fill(S::zero());
+    state.d_rate.fill(S::zero());
+    for j in 0..flexible.modal.nodes.len() {
+        let x = &state.node_x[j];
+        let inertia = node_inertia::<S>(flexible, j);
+        let relative = (0..m).fold(SpatialVec::zeros(), |acc, k| acc + column(&state.psi[j], k) * rate[k]);
+        // Ψη̇ ×* I − I Ψη̇ × = −(B + Bᵀ), B = I (Ψη̇ ×).
+        let b = mul_cross_motion(&inertia, &relative);
+        x.add_inertia_to_parent(&-(b + b.transpose()), &mut rigid_rate, false);
+        nodes::subspace_rate(&flexible.modal, j, eta, rate, &mut state.psi_rate);
+        for k in 0..m {
+            let i_psi = inertia * column(&state.psi[j], k);
+            let i_psi_rate = inertia * column(&state.psi_rate, k);
+            let term = cross_force(&relative, &i_psi) + i_psi_rate;
+            add_to_column(&mut state.coupling_rate, k, &x.apply_transpose_force(&term));
+            for l in 0..m {
+                state.d_rate[(l, k)] +=
+                    column(&state.psi_rate, l).dot(&i_psi) + column(&state.psi[j], l).dot(&i_psi_rate);
+            }
+        }
+    }
+    // Ġᵀ = D⁻¹(U̇ᵀ − Ḋ Gᵀ); `d` holds D⁻¹.
+    for k in 0..m {
+        for col in 0..6 {
+            let mut s = S::zero();
+            for l in 0..m {
+                let dg: S = (0..m).map(|n| state.d_rate[(l, n)] * state.gain[(col, n)]).fold(S::zero(), |a, b| a + b);
+                s += state.d[(k, l)] * (state.coupling_rate[(col, l)] - dg);
+            }
+            state.gain_t_rate[(k, col)] = s;
+        }
+    }
+    // İ^a = 𝓘̇_RR − U̇Gᵀ − GU̇ᵀ + GḊGᵀ.
+    let mut reduced_rate = rigid_rate;
+    for row in 0..6 {
+        for col in 0..6 {
+            let mut s = S::zero();
+            for k in 0..m {
+                s += state.coupling_rate[(row, k)] * state.gain[(col, k)]
+                    + state.gain[(row, k)] * state.coupling_rate[(col, k)];
+                for l in 0..m {
+                    s -= state.gain[(row, k)] * state.d_rate[(k, l)] * state.gain[(col, l)];
+                }
+            }
+            reduced_rate[(row, col)] -= s;
+        }
+    }
+    accumulate(ia_dot, reduced_rate, state.opens_link);
+    // Φ(R⁻¹ḊR⁻ᵀ): R⁻¹Ḋ, then times R⁻ᵀ, upper triangle with the diagonal halved.
+    state.r_inv.mul_to(&state.d_rate, &mut state.square);
+    for a in 0..m {
+        for b in 0..m {
+            let scaled: S = (b..m).map(|l| state.square[(a, l)] * state.r_inv[(b, l)]).fold(S::zero(), |x, y| x + y);
+            state.d_rate[(a, b)] = match a.cmp(&b) {
+                std::cmp::Ordering::Less => scaled,
+                std::cmp::Ordering::Equal => scaled * 0.5,
+                std::cmp::Ordering::Greater => S::zero(),
+            };
+        }
+    }
+    // Ṙ = R Φ; the rate terms Ṙᵀw + RᵀĠᵀV_R.
+    state.r.mul_to(&state.d_rate, &mut state.square);
+    for k in 0..m {
+        let gv: S = (0..6).map(|col| state.gain_t_rate[(k, col)] * v_r[col]).fold(S::zero(), |a, b| a + b);
+        state.scratch[k] = gv;
+    }
+    for k in 0..m {
+        let mut term = S::zero();
+        for l in 0..m {
+            term += state.square[(l, k)] * w_joint[adr + l] + state.r[(l, k)] * state.scratch[l];
+        }
+        nu_dot[adr + k] += term;
+        coriolis[adr + k] -= term;
+    }
+}
+
+/// The outward pass for the modal blocks on link `i`, after the link's:
+/// η̈ = R⁻ᵀ(R⁻¹u) − Gᵀ A_R.
+pub(crate) fn accelerations<S: Real>(model: &Model, ws: &mut Workspace<S>, i: usize) {
+    for f in on_link(model, i) {
+        let flexible = &model.flexible[f];
+        let (m, adr) = (flexible.mode_count(), flexible.dof_adr);
+        let (state, a_r) = (&ws.flex[f], ws.a_body[i]);
+        for k in 0..m {
+            let joint: S =
+                (0..=k).map(|l| state.r_inv[(l, k)] * ws.nu_dot_joint[adr + l]).fold(S::zero(), |a, b| a + b);
+            ws.qacc[adr + k] = joint - column(&state.gain, k).dot(&a_r);
+        }
+    }
+}
+
+/// ε ↔ T for the modal blocks on link `i` (no body forces act on nodes):
+/// u = T_η, ε_η = R⁻¹u, or u = R ε_η, T_η = u; G u added to the link's slot.
+pub(crate) fn inward<S: Real>(
+    model: &Model,
+    ws: &mut Workspace<S>,
+    i: usize,
+    torque_from_eps: bool,
+    input: &[S],
+    out: &mut [S],
+) {
+    for f in on_link(model, i) {
+        let flexible = &model.flexible[f];
+        let (m, adr) = (flexible.mode_count(), flexible.dof_adr);
+        let state = &mut ws.flex[f];
+        for k in 0..m {
+            state.scratch[k] = if torque_from_eps {
+                (k..m).map(|l| state.r[(k, l)] * input[adr + l]).fold(S::zero(), |a, b| a + b)
+            } else {
+                input[adr + k]
+            };
+        }
+        for k in 0..m {
+            out[adr + k] = if torque_from_eps {
+                state.scratch[k]
+            } else {
+                (k..m).map(|l| state.r_inv[(k, l)] * state.scratch[l]).fold(S::zero(), |a, b| a + b)
+            };
+        }
+        let p = (0..m).fold(SpatialVec::zeros(), |p, k| p + column(&state.gain, k) * state.scratch[k]);
+        accumulate(&mut ws.p_scratch_body[i], p, state.opens_link);
+    }
+}

@@ -1,0 +1,88 @@
+//! Flexible bodies on the links that carry them (docs/flexible.md): each
+//! body's nodes and mode shapes brought into its link's frame, so that the
+//! passes place the modal block at the link frame whatever joints (or none)
+//! put the body there, and its modal coordinates' places in θ and ν, after
+//! every rigid coordinate.
+
+use serde::{Deserialize, Serialize};
+
+use crate::flex::{ModalBody, Mode, Node};
+use crate::math::Transform;
+
+/// One flexible body with modes, as the passes see it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FlexBody {
+    /// The link whose frame carries the body's frame (the modal block's
+    /// reference frame R is this link's frame).
+    pub link: usize,
+    /// First θ entry of its modal coordinates η.
+    pub qpos_adr: usize,
+    /// First ν (and θ̇) entry of its modal rates.
+    pub dof_adr: usize,
+    /// Its nodes and modes in the link's frame and axes (the node frames'
+    /// axes are the link's when undeformed); the body's name is kept.
+    pub modal: ModalBody,
+}
+
+impl FlexBody {
+    /// Its number of modes m.
+    pub fn mode_count(&self) -> usize {
+        self.modal.modes.len()
+    }
+
+    /// Mode `k`'s stiffness ω² (unit modal mass).
+    pub fn stiffness(&self, k: usize) -> f64 {
+        self.modal.modes[k].angular_frequency.powi(2)
+    }
+
+    /// Mode `k`'s viscous damping 2ζω (unit modal mass).
+    pub fn damping(&self, k: usize) -> f64 {
+        let mode = &self.modal.modes[k];
+        2.0 * mode.damping_ratio * mode.angular_frequency
+    }
+
+    /// ½ Σ ω_k² η_k² for the modal coordinates `eta`.
+    pub fn strain_energy(&self, eta: &[f64]) -> f64 {
+        eta.iter().enumerate().map(|(k, e)| 0.5 * self.stiffness(k) * e * e).sum()
+    }
+}
+
+/// `body` in the frame of the link that carries it, its body frame being
+/// `offset` (ᵇX_ₗ) on that link: positions, rotary inertias and mode
+/// shapes turned into link axes and moved to the link origin.
+pub(crate) fn on_link(body: &ModalBody, offset: &Transform) -> ModalBody {
+    let to_link = offset.rot.transpose();
+    let nodes = body
+        .nodes
+        .iter()
+        .map(|node| Node {
+            name: node.name.clone(),
+            position: offset.trans + to_link * node.position,
+            mass: node.mass,
+            rotary_inertia: to_link * node.rotary_inertia * offset.rot,
+        })
+        .collect();
+    let modes = body
+        .modes
+        .iter()
+        .map(|mode| Mode {
+            angular_frequency: mode.angular_frequency,
+            damping_ratio: mode.damping_ratio,
+            translation: mode.translation.iter().map(|t| to_link * t).collect(),
+            rotation: mode.rotation.iter().map(|r| to_link * r).collect(),
+        })
+        .collect();
+    ModalBody { body: body.body.clone(), nodes, modes }
+}
+
+impl super::Model {
+    /// The flexible bodies' strain energy ½ Σ ω² η² at the configuration `theta` (nq).
+    pub fn strain_energy(&self, theta: &[f64]) -> f64 {
+        self.flexible
+            .iter()
+            .map(|flexible| {
+                flexible.strain_energy(&theta[flexible.qpos_adr..flexible.qpos_adr + flexible.mode_count()])
+            })
+            .sum()
+    }
+}

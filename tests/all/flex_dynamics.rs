@@ -1,0 +1,49 @@
+//! A vehicle with flexible bodies over time (docs/flexible.md): what the
+//! equations of motion conserve, integrated by the FMU's methods.
+
+use nudyn::integrate::{Input, Method, Settings, Simulation};
+use nudyn::model::Model;
+
+use crate::common::{self, Rng, TreeOptions};
+
+/// Free-floating, undamped, ε = 0, no gravity and no joint springs: the
+/// momentum about the world origin and K + strain energy are conserved,
+/// within the integration's error (dop853 at 1e-10 per second): to 1e-9
+/// relative over 100 s (docs/flexible.md gives the figures).
+#[test]
+fn a_free_floating_flexible_vehicle_keeps_its_momentum_and_energy() {
+    // The done-when's 100 s on one vehicle, 10 s on two more.
+    for (seed, stop) in [(17, 100.0), (3, 10.0), (40, 10.0)] {
+        let mut rng = Rng::new(seed);
+        let mut vehicle =
+            common::random_vehicle(&mut rng, TreeOptions { bodies: 4, free_base: true, passive: false, chain: false });
+        common::make_flexible(&mut rng, &mut vehicle, false);
+        let model = Model::compile(&vehicle).unwrap();
+        assert!(!model.flexible.is_empty());
+        let settings = Settings { tolerance: 1e-10, max_step: 0.0, energy_projection: false };
+        let mut sim = Simulation::new(&model, Method::Dop853, settings);
+        sim.state.theta.copy_from_slice(&common::random_theta(&mut rng, &vehicle));
+        sim.state.nu.copy_from_slice(&rng.vec(model.nv, 0.5));
+        sim.initialize(&model).unwrap();
+        let invariants = |sim: &mut Simulation| {
+            let theta = sim.state.theta.clone();
+            let ws = sim.workspace_mut();
+            ws.set_configuration(&model, &theta).unwrap();
+            let nu = ws.nu.clone();
+            ws.set_nu(&model, nu.as_slice()).unwrap();
+            (ws.kinetic_energy() + model.strain_energy(&theta), ws.momentum(&model).unwrap())
+        };
+        let (energy, momentum) = invariants(&mut sim);
+        let strain = model.strain_energy(&sim.state.theta);
+        assert!(strain > 1e-2 * energy, "seed {seed}: the modes hold little energy ({strain:e} of {energy:e})");
+        let zero = vec![0.0; model.nv];
+        let input = Input { eps: &zero, eps_rate: &zero, ctrl: &[], ctrl_rate: &[] };
+        sim.advance_to(&model, stop, input).unwrap();
+        let (energy_end, momentum_end) = invariants(&mut sim);
+        let energy_drift = (energy_end - energy).abs() / energy;
+        let momentum_drift = (momentum_end - momentum).norm() / momentum.norm();
+        println!("seed {seed}: energy drift {energy_drift:.2e}, momentum drift {momentum_drift:.2e}");
+        assert!(energy_drift < 1e-9, "seed {seed}: K + strain energy drifts by {energy_drift:e}");
+        assert!(momentum_drift < 1e-9, "seed {seed}: momentum drifts by {momentum_drift:e}");
+    }
+}
