@@ -16,9 +16,9 @@
 
 use super::attributes::{Attribute, names, read_into, set};
 use super::defaults::Limited;
-use super::element::Element;
+use super::element::{Element, Origin};
 use super::error::MjcfError;
-use crate::vehicle::ActuatorKind;
+use crate::vehicle::{ActivationKind, ActuatorKind, BiasType, GainType};
 
 /// Attributes every actuator element reads into the general actuator, in
 /// `<actuator>` and in `<default>` (MuJoCo 4.0 schema; `ctrllimited` is not
@@ -398,4 +398,121 @@ impl ActuatorSettings {
         self.actdim = -1;
         self.actearly = false;
     }
+}
+
+/// An actuator element as read: MuJoCo's general actuator with its
+/// defaults resolved and its types checked, its transmission target by
+/// name, for the compile stage.
+#[derive(Clone, Debug)]
+pub(crate) struct ActuatorSpec {
+    /// The element, for messages.
+    pub at: Origin,
+    /// `name` as written.
+    pub name: Option<String>,
+    /// The element it was written with.
+    pub kind: ActuatorKind,
+    /// Its class's settings with its own attributes applied.
+    pub settings: ActuatorSettings,
+    /// `dyntype`, when it has an activation state.
+    pub activation: Option<ActivationKind>,
+    /// `gaintype`.
+    pub gain_type: GainType,
+    /// `biastype`.
+    pub bias_type: BiasType,
+    /// Where its force goes, by name.
+    pub transmission: TransmissionSpec,
+}
+
+/// An actuator's transmission target, by name as written.
+#[derive(Clone, Debug)]
+pub(crate) enum TransmissionSpec {
+    /// `joint` (or `jointinparent`: `in_parent`).
+    Joint { name: String, in_parent: bool },
+    /// `tendon`.
+    Tendon(String),
+    /// `site`, with `refsite` when given.
+    Site { site: String, refsite: Option<String> },
+}
+
+/// Reads an actuator element of `kind` whose class's settings, with the
+/// element's own applied, are `settings`, with MuJoCo's checks of what it
+/// gives, refusing what nudyn does not model; its target is looked up at
+/// compile.
+pub(crate) fn parse(
+    element: &Element,
+    kind: ActuatorKind,
+    settings: ActuatorSettings,
+) -> Result<ActuatorSpec, MjcfError> {
+    let transmission = transmission(element)?;
+    let activation = match settings.dyntype {
+        "none" => None,
+        "integrator" => Some(ActivationKind::Integrator),
+        "filter" => Some(ActivationKind::Filter),
+        "filterexact" => Some(ActivationKind::FilterExact),
+        other => return Err(element.unsupported(dynamics_refusal(other))),
+    };
+    let gain_type = match settings.gaintype {
+        "fixed" => GainType::Fixed,
+        "affine" => GainType::Affine,
+        other => return Err(element.unsupported(format!("gaintype \"{other}\" (nudyn models fixed and affine gains)"))),
+    };
+    let bias_type = match settings.biastype {
+        "none" => BiasType::None,
+        "affine" => BiasType::Affine,
+        other => return Err(element.unsupported(format!("biastype \"{other}\" (nudyn models none and affine biases)"))),
+    };
+    if settings.delay > 0.0 {
+        return Err(element.unsupported("delay: the force would follow a ctrl history, which nudyn does not keep"));
+    }
+    if settings.armature != 0.0 || settings.damping != [0.0; 3] {
+        return Err(element
+            .unsupported("actuator armature and damping; give the joint armature·gear² and damping·gear² instead"));
+    }
+    match (settings.actdim, activation) {
+        (2.., _) => return Err(element.invalid("actdim > 1 is only allowed for dyntype \"user\" and \"dcmotor\"")),
+        (1, None) => return Err(element.invalid("invalid actdim 1 in stateless actuator")),
+        (0, Some(_)) => return Err(element.invalid("invalid actdim 0 in stateful actuator")),
+        _ => {}
+    }
+    let name = element.text("name").map(str::to_string);
+    Ok(ActuatorSpec { at: element.origin(), name, kind, settings, activation, gain_type, bias_type, transmission })
+}
+
+/// Actuator attributes naming a transmission nudyn refuses, and why.
+#[rustfmt::skip]
+pub(crate) const REFUSED_TRANSMISSIONS: &[(&str, &str)] = &[
+    ("cranksite", "slider-crank transmissions"),
+    ("slidersite", "slider-crank transmissions"),
+    ("body", "body transmissions act through contacts, which nudyn does not model"),
+];
+
+/// The transmission an actuator element names: a joint, a tendon, or a
+/// site with an optional reference site. Slider-crank and body
+/// transmissions are refused.
+fn transmission(element: &Element) -> Result<TransmissionSpec, MjcfError> {
+    for (attribute, reason) in REFUSED_TRANSMISSIONS {
+        if element.has(attribute) {
+            return Err(element.unsupported(*reason));
+        }
+    }
+    let mut targets = ["joint", "jointinparent", "tendon", "site"].into_iter().filter(|a| element.has(a));
+    let target = targets.next();
+    if let (Some(first), Some(second)) = (target, targets.next()) {
+        return Err(element.conflict(first, second));
+    }
+    if element.has("cranklength") && target.is_some() {
+        return Err(element.invalid("cranklength and slidersite can only be used in slidercrank transmission"));
+    }
+    if element.has("refsite") && target != Some("site") {
+        return Err(element.invalid("refsite can only be used with site transmission"));
+    }
+    let Some(target) = target else {
+        return Err(element.invalid("missing transmission target for actuator"));
+    };
+    let name = element.text(target).unwrap_or_default().to_string();
+    Ok(match target {
+        "tendon" => TransmissionSpec::Tendon(name),
+        "site" => TransmissionSpec::Site { site: name, refsite: element.text("refsite").map(str::to_string) },
+        _ => TransmissionSpec::Joint { name, in_parent: target == "jointinparent" },
+    })
 }

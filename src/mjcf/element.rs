@@ -204,35 +204,35 @@ impl<'a, 'input> Element<'a, 'input> {
         }
     }
 
+    /// Where the element stands, for messages once the document is gone.
+    pub fn origin(&self) -> Origin {
+        let parent = self.node.parent_element().map_or("", |p| p.tag_name().name());
+        Origin { line: self.line, tag: self.tag().to_string(), label: self.label(), parent: parent.to_string() }
+    }
+
     /// A required attribute is absent.
     pub fn missing(&self, attribute: &str) -> MjcfError {
-        MjcfError::MissingAttribute { line: self.line, element: self.label(), attribute: attribute.to_string() }
+        self.origin().missing(attribute)
     }
 
     /// Two attributes given together that exclude each other.
     pub fn conflict(&self, first: &str, second: &str) -> MjcfError {
-        MjcfError::ConflictingAttributes {
-            line: self.line,
-            element: self.label(),
-            first: first.to_string(),
-            second: second.to_string(),
-        }
+        self.origin().conflict(first, second)
     }
 
     /// A construct whose effect on the dynamics nudyn does not model.
     pub fn unsupported(&self, reason: impl Into<String>) -> MjcfError {
-        MjcfError::Unsupported { line: self.line, element: self.label(), reason: reason.into() }
+        self.origin().unsupported(reason)
     }
 
     /// A rule of MuJoCo's compiler is broken.
     pub fn invalid(&self, reason: impl Into<String>) -> MjcfError {
-        MjcfError::Invalid { line: self.line, element: self.label(), reason: reason.into() }
+        self.origin().invalid(reason)
     }
 
     /// This element has no meaning inside its parent.
     pub fn unknown(&self) -> MjcfError {
-        let parent = self.node.parent_element().map_or("", |p| p.tag_name().name());
-        MjcfError::UnknownElement { line: self.line, element: self.label(), parent: parent.to_string() }
+        self.origin().unknown()
     }
 
     /// This element appears a second time where it may appear once.
@@ -251,10 +251,67 @@ impl<'a, 'input> Element<'a, 'input> {
         MjcfError::UnknownClass { line: self.line, element: self.label(), class: class.to_string() }
     }
 
+    /// The warning that this element is ignored (see [`Origin::ignored`]).
+    pub fn ignored(&self) -> MjcfWarning {
+        self.origin().ignored()
+    }
+
+    /// A warning about this element.
+    pub fn warning(&self, message: impl Into<String>) -> MjcfWarning {
+        self.origin().warning(message)
+    }
+}
+
+/// Where an element stands in the document: what the messages of the
+/// compile stage say of it, kept in the spec instead of the XML node so
+/// that the spec outlives the document.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) struct Origin {
+    /// 1-based line of the start tag (in the merged text).
+    pub line: u32,
+    /// The tag name.
+    pub tag: String,
+    /// The element as messages show it: the tag, plus the name when given.
+    pub label: String,
+    /// The parent element's tag.
+    pub parent: String,
+}
+
+impl Origin {
+    /// A required attribute is absent.
+    pub fn missing(&self, attribute: &str) -> MjcfError {
+        MjcfError::MissingAttribute { line: self.line, element: self.label.clone(), attribute: attribute.to_string() }
+    }
+
+    /// A construct whose effect on the dynamics nudyn does not model.
+    pub fn unsupported(&self, reason: impl Into<String>) -> MjcfError {
+        MjcfError::Unsupported { line: self.line, element: self.label.clone(), reason: reason.into() }
+    }
+
+    /// A rule of MuJoCo's compiler is broken.
+    pub fn invalid(&self, reason: impl Into<String>) -> MjcfError {
+        MjcfError::Invalid { line: self.line, element: self.label.clone(), reason: reason.into() }
+    }
+
+    /// This element has no meaning inside its parent.
+    pub fn unknown(&self) -> MjcfError {
+        MjcfError::UnknownElement { line: self.line, element: self.label.clone(), parent: self.parent.clone() }
+    }
+
+    /// Two attributes given together that exclude each other.
+    pub fn conflict(&self, first: &str, second: &str) -> MjcfError {
+        MjcfError::ConflictingAttributes {
+            line: self.line,
+            element: self.label.clone(),
+            first: first.to_string(),
+            second: second.to_string(),
+        }
+    }
+
     /// The warning that this element is ignored. Sections that do change
     /// MuJoCo's dynamics say how nudyn's differ.
     pub fn ignored(&self) -> MjcfWarning {
-        match self.tag() {
+        match self.tag.as_str() {
             "contact" => self.warning("ignored: nudyn models no contacts"),
             // Only geoms fixed to the world are ignored (a moving body's give its mass).
             "geom" => self.warning(
@@ -267,7 +324,7 @@ impl<'a, 'input> Element<'a, 'input> {
 
     /// A warning about this element.
     pub fn warning(&self, message: impl Into<String>) -> MjcfWarning {
-        MjcfWarning { file: None, line: self.line, element: self.label(), message: message.into() }
+        MjcfWarning { file: None, line: self.line, element: self.label.clone(), message: message.into() }
     }
 }
 

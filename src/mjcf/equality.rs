@@ -3,7 +3,7 @@
 //! refused (nudyn models no flexes).
 
 use super::attributes::{Attribute, Read, names, read_into, set};
-use super::element::Element;
+use super::element::{Element, Origin};
 use super::error::MjcfError;
 use crate::math::{Quat, Vec3};
 use crate::vehicle::{Equality, EqualityKind, EqualityObjects, JointKind, SoftConstraint};
@@ -47,16 +47,16 @@ impl EqualitySettings {
 }
 
 /// The objects equality elements name, as the importer knows them; each
-/// lookup gives the error that names the element and attribute.
+/// lookup gives the error that names the element (`at`) and attribute.
 pub(crate) trait EqualityTargets {
-    /// The body the attribute names: `None` for "world".
-    fn equality_body(&self, element: &Element, attribute: &str) -> Result<Option<usize>, MjcfError>;
-    /// The site the attribute names.
-    fn equality_site(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError>;
-    /// The tendon the attribute names.
-    fn equality_tendon(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError>;
-    /// The kind of the joint the attribute names.
-    fn equality_joint(&self, element: &Element, attribute: &str) -> Result<JointKind, MjcfError>;
+    /// The body `name`: `None` for "world".
+    fn equality_body(&self, at: &Origin, name: &str) -> Result<Option<usize>, MjcfError>;
+    /// The site `name`, which the attribute gives.
+    fn equality_site(&self, at: &Origin, attribute: &str, name: &str) -> Result<usize, MjcfError>;
+    /// The tendon `name`.
+    fn equality_tendon(&self, at: &Origin, name: &str) -> Result<usize, MjcfError>;
+    /// The kind of the joint `name`.
+    fn equality_joint(&self, at: &Origin, name: &str) -> Result<JointKind, MjcfError>;
 }
 
 /// What an equality element's own attributes give besides the objects it
@@ -137,12 +137,56 @@ pub(crate) fn attributes(own: &[Attribute<OwnSettings>]) -> Vec<&'static str> {
 /// The equality elements MuJoCo has that nudyn refuses: on flexes.
 pub(crate) const REFUSED_EQUALITIES: &[&str] = &["flex", "flexvert", "flexstrain"];
 
-/// Reads one element of `<equality>` whose class settings are `settings`.
-pub(crate) fn read(
-    element: &Element,
-    mut settings: EqualitySettings,
-    targets: &impl EqualityTargets,
-) -> Result<Equality, MjcfError> {
+/// An element of `<equality>` as read: its settings resolved and checked,
+/// the objects it names by name, for the compile stage.
+#[derive(Clone, Debug)]
+pub(crate) struct EqualitySpec {
+    /// The element, for messages.
+    pub at: Origin,
+    /// `name`.
+    pub name: Option<String>,
+    /// Its class's settings with its own attributes applied.
+    pub settings: EqualitySettings,
+    /// What it holds together, by name.
+    pub kind: KindSpec,
+}
+
+/// What an equality element holds together, the objects by name.
+#[derive(Clone, Debug)]
+pub(crate) enum KindSpec {
+    /// `<connect>`.
+    Connect { objects: ObjectsSpec, anchor: Vec3 },
+    /// `<weld>`.
+    Weld { objects: ObjectsSpec, anchor: Vec3, relpose: Option<(Vec3, Quat)>, torquescale: f64 },
+    /// `<joint>`.
+    Joint { joint1: String, joint2: Option<String>, polycoef: [f64; 5] },
+    /// `<tendon>`.
+    Tendon { tendon1: String, tendon2: Option<String>, polycoef: [f64; 5] },
+}
+
+/// The frames a connect or weld names: bodies (body2 absent: the world) or sites.
+#[derive(Clone, Debug)]
+pub(crate) enum ObjectsSpec {
+    /// `body1`, `body2`.
+    Bodies(String, Option<String>),
+    /// `site1`, `site2`.
+    Sites(String, String),
+}
+
+impl EqualitySpec {
+    /// The bodies and sites it names, by name, for the refusal of mocap bodies.
+    pub fn frames(&self) -> Option<&ObjectsSpec> {
+        match &self.kind {
+            KindSpec::Connect { objects, .. } | KindSpec::Weld { objects, .. } => Some(objects),
+            KindSpec::Joint { .. } | KindSpec::Tendon { .. } => None,
+        }
+    }
+}
+
+/// Reads one element of `<equality>` whose class settings are `settings`,
+/// with MuJoCo's checks of what it gives; the objects it names are looked
+/// up by [`compile`].
+pub(crate) fn parse(element: &Element, mut settings: EqualitySettings) -> Result<EqualitySpec, MjcfError> {
     let own = match EQUALITY_ATTRIBUTES.iter().find(|(tag, _)| *tag == element.tag()) {
         Some((_, own)) => *own,
         None if REFUSED_EQUALITIES.contains(&element.tag()) => {
@@ -161,79 +205,43 @@ pub(crate) fn read(
     let mut own_settings = OwnSettings::default();
     read_into(own, &mut own_settings, element)?;
     let OwnSettings { anchor, relpose, torquescale, polycoef } = own_settings;
+    let text = |attribute: &str| element.text(attribute).map(str::to_string);
+    let required = |attribute: &str| text(attribute).ok_or_else(|| element.missing(attribute));
     let kind = match element.tag() {
-        "joint" => {
-            let joint1 = element.text("joint1").ok_or_else(|| element.missing("joint1"))?;
-            let scalar = |attribute: &str| match targets.equality_joint(element, attribute)? {
-                JointKind::Hinge | JointKind::Slide => Ok(()),
-                _ => Err(element.invalid(format!("{attribute} must be a hinge or slide joint in equality constraint"))),
-            };
-            scalar("joint1")?;
-            let joint2 = element.text("joint2");
-            if joint2.is_some() {
-                scalar("joint2")?;
-            }
-            if joint2 == Some(joint1) {
-                return Err(element.invalid("joint1 and joint2 name the same joint in equality constraint"));
-            }
-            EqualityKind::Joint { joint1: joint1.to_string(), joint2: joint2.map(str::to_string), polycoef }
-        }
-        "tendon" => {
-            if !element.has("tendon1") {
-                return Err(element.missing("tendon1"));
-            }
-            let tendon1 = targets.equality_tendon(element, "tendon1")?;
-            let tendon2 = match element.has("tendon2") {
-                true => Some(targets.equality_tendon(element, "tendon2")?),
-                false => None,
-            };
-            if tendon2 == Some(tendon1) {
-                return Err(element.invalid("tendon1 and tendon2 name the same tendon in equality constraint"));
-            }
-            EqualityKind::Tendon { tendon1, tendon2, polycoef }
-        }
+        "joint" => KindSpec::Joint { joint1: required("joint1")?, joint2: text("joint2"), polycoef },
+        "tendon" => KindSpec::Tendon { tendon1: required("tendon1")?, tendon2: text("tendon2"), polycoef },
         tag => {
-            let objects = objects(element, targets)?;
+            let objects = objects(element)?;
             if tag == "connect" {
-                if matches!(objects, EqualityObjects::Bodies(..)) && !element.has("anchor") {
+                if matches!(objects, ObjectsSpec::Bodies(..)) && !element.has("anchor") {
                     return Err(element.missing("anchor"));
                 }
-                EqualityKind::Connect { objects, anchor: Vec3::from(anchor) }
+                KindSpec::Connect { objects, anchor: Vec3::from(anchor) }
             } else {
                 let quat = [relpose[3], relpose[4], relpose[5], relpose[6]];
                 let relpose = (quat != [0.0; 4]).then(|| {
                     let q = Quat::from_quaternion(nalgebra::Quaternion::new(quat[0], quat[1], quat[2], quat[3]));
                     (Vec3::new(relpose[0], relpose[1], relpose[2]), q)
                 });
-                EqualityKind::Weld { objects, anchor: Vec3::from(anchor), relpose, torquescale }
+                KindSpec::Weld { objects, anchor: Vec3::from(anchor), relpose, torquescale }
             }
         }
     };
-    Ok(Equality {
-        name: element.text("name").map(str::to_string),
-        kind,
-        active: settings.active,
-        soft: settings.soft,
-        line: element.line,
-    })
+    Ok(EqualitySpec { at: element.origin(), name: text("name"), settings, kind })
 }
 
-/// The frames a connect or weld holds: two bodies (body2 the world when
-/// left out) or two sites, not a mix, not a body with itself; sites take no
-/// `anchor` (nor `relpose`, for a weld).
-fn objects(element: &Element, targets: &impl EqualityTargets) -> Result<EqualityObjects, MjcfError> {
+/// The frames a connect or weld names: two bodies (body2 the world when
+/// left out) or two sites, not a mix; sites take no `anchor` (nor
+/// `relpose`, for a weld).
+fn objects(element: &Element) -> Result<ObjectsSpec, MjcfError> {
     let with_bodies = element.has("body1") || element.has("body2");
     let with_sites = element.has("site1") || element.has("site2");
-    let objects = match (with_bodies, with_sites) {
-        (true, true) => return Err(element.invalid("body and site semantics cannot be mixed in equality constraint")),
-        (false, false) => return Err(element.invalid("either body1 or site1 must be given in equality constraint")),
-        (true, false) => {
-            if !element.has("body1") {
-                return Err(element.missing("body1"));
-            }
-            let body2 = if element.has("body2") { targets.equality_body(element, "body2")? } else { None };
-            EqualityObjects::Bodies(targets.equality_body(element, "body1")?, body2)
-        }
+    let required =
+        |attribute: &str| element.text(attribute).map(str::to_string).ok_or_else(|| element.missing(attribute));
+    match (with_bodies, with_sites) {
+        (true, true) => Err(element.invalid("body and site semantics cannot be mixed in equality constraint")),
+        (false, false) => Err(element.invalid("either body1 or site1 must be given in equality constraint")),
+        (true, false) => Ok(ObjectsSpec::Bodies(required("body1")?, element.text("body2").map(str::to_string))),
         (false, true) => {
             // MuJoCo's schema: a frame given by sites has no anchor or relative pose.
             let body_only: &[&str] = if element.tag() == "weld" { &["anchor", "relpose"] } else { &["anchor"] };
@@ -245,20 +253,76 @@ fn objects(element: &Element, targets: &impl EqualityTargets) -> Result<Equality
                     body_attributes.join(", ")
                 )));
             }
-            for attribute in ["site1", "site2"] {
-                if !element.has(attribute) {
-                    return Err(element.missing(attribute));
-                }
-            }
-            EqualityObjects::Sites(targets.equality_site(element, "site1")?, targets.equality_site(element, "site2")?)
+            Ok(ObjectsSpec::Sites(required("site1")?, required("site2")?))
         }
+    }
+}
+
+/// The equality constraint `spec` describes, the objects it names looked
+/// up in `targets` and checked as MuJoCo's compiler checks them.
+pub(crate) fn compile(spec: &EqualitySpec, targets: &impl EqualityTargets) -> Result<Equality, MjcfError> {
+    let at = &spec.at;
+    let kind = match &spec.kind {
+        KindSpec::Joint { joint1, joint2, polycoef } => {
+            let scalar = |attribute: &str, name: &str| match targets.equality_joint(at, name)? {
+                JointKind::Hinge | JointKind::Slide => Ok(()),
+                _ => Err(at.invalid(format!("{attribute} must be a hinge or slide joint in equality constraint"))),
+            };
+            scalar("joint1", joint1)?;
+            if let Some(joint2) = joint2 {
+                scalar("joint2", joint2)?;
+            }
+            if joint2.as_ref() == Some(joint1) {
+                return Err(at.invalid("joint1 and joint2 name the same joint in equality constraint"));
+            }
+            EqualityKind::Joint { joint1: joint1.clone(), joint2: joint2.clone(), polycoef: *polycoef }
+        }
+        KindSpec::Tendon { tendon1, tendon2, polycoef } => {
+            let tendon1 = targets.equality_tendon(at, tendon1)?;
+            let tendon2 = tendon2.as_deref().map(|name| targets.equality_tendon(at, name)).transpose()?;
+            if tendon2 == Some(tendon1) {
+                return Err(at.invalid("tendon1 and tendon2 name the same tendon in equality constraint"));
+            }
+            EqualityKind::Tendon { tendon1, tendon2, polycoef: *polycoef }
+        }
+        KindSpec::Connect { objects: names, anchor } => {
+            EqualityKind::Connect { objects: compile_objects(at, names, targets)?, anchor: *anchor }
+        }
+        &KindSpec::Weld { objects: ref names, anchor, relpose, torquescale } => {
+            EqualityKind::Weld { objects: compile_objects(at, names, targets)?, anchor, relpose, torquescale }
+        }
+    };
+    Ok(Equality {
+        name: spec.name.clone(),
+        kind,
+        active: spec.settings.active,
+        soft: spec.settings.soft,
+        line: at.line,
+    })
+}
+
+/// The frames a connect or weld holds, looked up; not a body with itself.
+fn compile_objects(
+    at: &Origin,
+    names: &ObjectsSpec,
+    targets: &impl EqualityTargets,
+) -> Result<EqualityObjects, MjcfError> {
+    let objects = match names {
+        ObjectsSpec::Bodies(body1, body2) => {
+            let body2 = body2.as_deref().map(|name| targets.equality_body(at, name)).transpose()?.flatten();
+            EqualityObjects::Bodies(targets.equality_body(at, body1)?, body2)
+        }
+        ObjectsSpec::Sites(site1, site2) => EqualityObjects::Sites(
+            targets.equality_site(at, "site1", site1)?,
+            targets.equality_site(at, "site2", site2)?,
+        ),
     };
     let same = match objects {
         EqualityObjects::Bodies(a, b) => a == b,
         EqualityObjects::Sites(a, b) => a == b,
     };
     if same {
-        return Err(element.invalid("an equality constraint must join two different frames"));
+        return Err(at.invalid("an equality constraint must join two different frames"));
     }
     Ok(objects)
 }

@@ -3,7 +3,7 @@
 //! compute (so that `sensordata` keeps MuJoCo's layout or the import stops).
 
 use super::attributes::{Attribute, names, read_into, set};
-use super::element::Element;
+use super::element::{Element, Origin};
 use super::error::MjcfError;
 use crate::vehicle::{FrameObject, JointKind, Sensor, SensorKind, SensorTarget};
 
@@ -53,26 +53,26 @@ fn refuse_history(element: &Element, attribute: &str) -> Result<(), MjcfError> {
 }
 
 /// The objects sensors name, as the importer knows them; each lookup gives
-/// the error that names the element and attribute.
+/// the error that names the element (`at`) and attribute.
 pub(crate) trait SensorTargets {
-    /// The kind of the joint the attribute names.
-    fn joint_kind(&self, element: &Element, attribute: &str) -> Result<JointKind, MjcfError>;
-    /// Whether the joint the attribute names is limited.
-    fn joint_limited(&self, element: &Element, attribute: &str) -> Result<bool, MjcfError>;
-    /// The body the attribute names; `None` for "world".
-    fn body(&self, element: &Element, attribute: &str) -> Result<Option<usize>, MjcfError>;
-    /// The site the attribute names.
-    fn site(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError>;
-    /// The actuator the attribute names.
-    fn actuator(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError>;
-    /// The tendon the attribute names.
-    fn tendon(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError>;
-    /// Whether the tendon the attribute names is limited.
-    fn tendon_limited(&self, element: &Element, attribute: &str) -> Result<bool, MjcfError>;
-    /// The name the attribute gives (in a `<replicate>` copy, the copy's).
-    fn name(&self, element: &Element, attribute: &str) -> String;
-    /// The element's own name (in a `<replicate>` copy, the copy's).
-    fn own_name(&self, element: &Element) -> Option<String>;
+    /// The kind of the joint `name`.
+    fn joint_kind(&self, at: &Origin, name: &str) -> Result<JointKind, MjcfError>;
+    /// Whether the joint `name` is limited.
+    fn joint_limited(&self, at: &Origin, name: &str) -> Result<bool, MjcfError>;
+    /// The body `name`; `None` for "world".
+    fn body(&self, at: &Origin, name: &str) -> Result<Option<usize>, MjcfError>;
+    /// The site `name`, which the attribute gives.
+    fn site(&self, at: &Origin, attribute: &str, name: &str) -> Result<usize, MjcfError>;
+    /// The actuator `name`.
+    fn actuator(&self, at: &Origin, name: &str) -> Result<usize, MjcfError>;
+    /// The tendon `name`.
+    fn tendon(&self, at: &Origin, name: &str) -> Result<usize, MjcfError>;
+    /// Whether the tendon `name` is limited.
+    fn tendon_limited(&self, at: &Origin, name: &str) -> Result<bool, MjcfError>;
+    /// The name the attribute gives as `written` (in a `<replicate>` copy, the copy's).
+    fn name(&self, attribute: &str, written: &str) -> String;
+    /// The element's own name as `written` (in a `<replicate>` copy, the copy's).
+    fn own_name(&self, written: Option<&str>) -> Option<String>;
 }
 
 /// The sensor elements MuJoCo has that nudyn refuses, and why.
@@ -127,8 +127,45 @@ pub(crate) fn attributes(kind: SensorKind) -> Vec<&'static str> {
     names(COMMON_ATTRIBUTES).into_iter().chain(names(own_attributes(kind))).collect()
 }
 
-/// Reads one sensor element of a type nudyn computes.
-pub(crate) fn read(element: &Element, kind: SensorKind, targets: &impl SensorTargets) -> Result<Sensor, MjcfError> {
+/// The kinds of frame a frame sensor measures or measures in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum FrameType {
+    /// `body`: the body's inertial frame (as MuJoCo names them).
+    Body,
+    /// `xbody`: the body's own frame.
+    XBody,
+    /// `site`.
+    Site,
+}
+
+/// A sensor element as read: its settings checked, the objects it names by
+/// name, for the compile stage.
+#[derive(Clone, Debug)]
+pub(crate) struct SensorSpec {
+    /// The element, for messages.
+    pub at: Origin,
+    /// `name` as written.
+    pub name: Option<String>,
+    /// Its type.
+    pub kind: SensorKind,
+    /// `cutoff`.
+    pub cutoff: f64,
+    /// The objects it names: each attribute given and its name as written.
+    pub names: Vec<(&'static str, String)>,
+    /// A frame sensor's `objtype` and `reftype` (when given).
+    pub frame: Option<(FrameType, Option<FrameType>)>,
+}
+
+impl SensorSpec {
+    /// The name the attribute gives as written ("" when not given).
+    fn written(&self, attribute: &str) -> &str {
+        self.names.iter().find(|(a, _)| *a == attribute).map_or("", |(_, name)| name.as_str())
+    }
+}
+
+/// Reads one sensor element of a type nudyn computes, with MuJoCo's checks
+/// of what it gives; the objects it names are looked up by [`compile`].
+pub(crate) fn parse(element: &Element, kind: SensorKind) -> Result<SensorSpec, MjcfError> {
     element.check_attributes(&attributes(kind))?;
     if let Some(child) = element.children().next() {
         return Err(child.unknown());
@@ -139,94 +176,117 @@ pub(crate) fn read(element: &Element, kind: SensorKind, targets: &impl SensorTar
     if cutoff > 0.0 && kind.is_direction() {
         return Err(element.invalid("cutoff applied to axis or quaternion datatype in sensor"));
     }
-    let target = target(element, kind, targets)?;
-    Ok(Sensor { name: targets.own_name(element), kind, target, cutoff, line: element.line })
+    // A frame sensor names its frame by type and name (its reference frame
+    // likewise, or not at all); any other but the clock names one object.
+    let mut frame = None;
+    if names(own_attributes(kind)).contains(&"objtype") {
+        let object = frame_type(element, "objtype", "objname")?;
+        let reference = match (element.has("reftype"), element.has("refname")) {
+            (false, false) => None,
+            (true, true) => Some(frame_type(element, "reftype", "refname")?),
+            _ => return Err(element.invalid("attributes 'reftype', 'refname' must be specified together")),
+        };
+        frame = Some((object, reference));
+    } else if let Some(attribute) = own_attributes(kind).first().map(|a| a.name)
+        && !element.has(attribute)
+    {
+        return Err(element.missing(attribute));
+    }
+    let own = names(own_attributes(kind)).into_iter().filter(|a| !["objtype", "reftype"].contains(a));
+    let names = own.filter_map(|a| element.text(a).map(|name| (a, name.to_string()))).collect();
+    let name = element.text("name").map(str::to_string);
+    Ok(SensorSpec { at: element.origin(), name, kind, cutoff, names, frame })
 }
 
-/// What the sensor measures, checked as MuJoCo's compiler does.
-fn target(element: &Element, kind: SensorKind, targets: &impl SensorTargets) -> Result<SensorTarget, MjcfError> {
-    use SensorKind::*;
-    let required = |attribute: &str| match element.has(attribute) {
-        true => Ok(()),
-        false => Err(element.missing(attribute)),
-    };
-    Ok(match kind {
-        JointPos | JointVel | JointActuatorFrc | BallQuat | BallAngVel => {
-            required("joint")?;
-            let joint_kind = targets.joint_kind(element, "joint")?;
-            let ball = matches!(kind, BallQuat | BallAngVel);
-            match (ball, joint_kind) {
-                (true, JointKind::Ball) | (false, JointKind::Hinge | JointKind::Slide) => {}
-                (true, _) => return Err(element.invalid("joint must be ball in sensor")),
-                (false, _) => return Err(element.invalid("joint must be slide or hinge in sensor")),
-            }
-            SensorTarget::Joint(targets.name(element, "joint"))
-        }
-        JointLimitPos | JointLimitVel | JointLimitFrc => {
-            required("joint")?;
-            if !targets.joint_limited(element, "joint")? {
-                return Err(element.invalid("joint must be limited in sensor"));
-            }
-            SensorTarget::Joint(targets.name(element, "joint"))
-        }
-        ActuatorPos | ActuatorVel | ActuatorFrc => {
-            required("actuator")?;
-            SensorTarget::Actuator(targets.actuator(element, "actuator")?)
-        }
-        TendonPos | TendonVel | TendonActuatorFrc => {
-            required("tendon")?;
-            SensorTarget::Tendon(targets.tendon(element, "tendon")?)
-        }
-        TendonLimitPos | TendonLimitVel | TendonLimitFrc => {
-            required("tendon")?;
-            if !targets.tendon_limited(element, "tendon")? {
-                return Err(element.invalid("tendon must be limited in sensor"));
-            }
-            SensorTarget::Tendon(targets.tendon(element, "tendon")?)
-        }
-        Gyro | Velocimeter | Accelerometer | Force | Torque | Magnetometer => {
-            required("site")?;
-            SensorTarget::Frame { object: FrameObject::Site(targets.site(element, "site")?), reference: None }
-        }
-        SubtreeCom | SubtreeLinVel | SubtreeAngMom => {
-            required("body")?;
-            SensorTarget::Subtree(targets.body(element, "body")?)
-        }
-        Clock => SensorTarget::None,
-        _ => {
-            let object = frame_object(element, "objtype", "objname", targets)?;
-            let reference = match (element.has("reftype"), element.has("refname")) {
-                (false, false) => None,
-                (true, true) => Some(frame_object(element, "reftype", "refname", targets)?),
-                _ => {
-                    return Err(element.invalid("attributes 'reftype', 'refname' must be specified together"));
-                }
-            };
-            SensorTarget::Frame { object, reference }
-        }
-    })
-}
-
-/// The frame `type_attribute` and `name_attribute` name.
-fn frame_object(
-    element: &Element,
-    type_attribute: &str,
-    name_attribute: &str,
-    targets: &impl SensorTargets,
-) -> Result<FrameObject, MjcfError> {
+/// The type of frame `type_attribute` gives, `name_attribute` naming it.
+fn frame_type(element: &Element, type_attribute: &str, name_attribute: &str) -> Result<FrameType, MjcfError> {
     let objtype = element.text(type_attribute).ok_or_else(|| element.missing(type_attribute))?;
     if !element.has(name_attribute) {
         return Err(element.missing(name_attribute));
     }
     Ok(match objtype {
-        "body" => FrameObject::Body(targets.body(element, name_attribute)?),
-        "xbody" => FrameObject::XBody(targets.body(element, name_attribute)?),
-        "site" => FrameObject::Site(targets.site(element, name_attribute)?),
+        "body" => FrameType::Body,
+        "xbody" => FrameType::XBody,
+        "site" => FrameType::Site,
         "geom" | "camera" => {
             return Err(element.unsupported(format!(
                 "{type_attribute} \"{objtype}\": nudyn keeps no {objtype} frames; put a site where the {objtype} is"
             )));
         }
         _ => return Err(element.bad_value(type_attribute, "body, xbody, geom, site or camera")),
+    })
+}
+
+/// The sensor `spec` describes, the objects it names looked up in
+/// `targets` and checked as MuJoCo's compiler checks them.
+pub(crate) fn compile(spec: &SensorSpec, targets: &impl SensorTargets) -> Result<Sensor, MjcfError> {
+    use SensorKind::*;
+    let at = &spec.at;
+    let name = |attribute: &str| targets.name(attribute, spec.written(attribute));
+    let target = match spec.kind {
+        JointPos | JointVel | JointActuatorFrc | BallQuat | BallAngVel => {
+            let joint = name("joint");
+            let ball = matches!(spec.kind, BallQuat | BallAngVel);
+            match (ball, targets.joint_kind(at, &joint)?) {
+                (true, JointKind::Ball) | (false, JointKind::Hinge | JointKind::Slide) => {}
+                (true, _) => return Err(at.invalid("joint must be ball in sensor")),
+                (false, _) => return Err(at.invalid("joint must be slide or hinge in sensor")),
+            }
+            SensorTarget::Joint(joint)
+        }
+        JointLimitPos | JointLimitVel | JointLimitFrc => {
+            let joint = name("joint");
+            if !targets.joint_limited(at, &joint)? {
+                return Err(at.invalid("joint must be limited in sensor"));
+            }
+            SensorTarget::Joint(joint)
+        }
+        ActuatorPos | ActuatorVel | ActuatorFrc => SensorTarget::Actuator(targets.actuator(at, &name("actuator"))?),
+        TendonPos | TendonVel | TendonActuatorFrc => SensorTarget::Tendon(targets.tendon(at, &name("tendon"))?),
+        TendonLimitPos | TendonLimitVel | TendonLimitFrc => {
+            let tendon = name("tendon");
+            if !targets.tendon_limited(at, &tendon)? {
+                return Err(at.invalid("tendon must be limited in sensor"));
+            }
+            SensorTarget::Tendon(targets.tendon(at, &tendon)?)
+        }
+        Gyro | Velocimeter | Accelerometer | Force | Torque | Magnetometer => {
+            let site = targets.site(at, "site", &name("site"))?;
+            SensorTarget::Frame { object: FrameObject::Site(site), reference: None }
+        }
+        SubtreeCom | SubtreeLinVel | SubtreeAngMom => SensorTarget::Subtree(targets.body(at, &name("body"))?),
+        // The frame sensors, and the clock (which names no frame).
+        _ => match spec.frame {
+            Some((object_type, reference_type)) => {
+                let object = frame_object(at, object_type, "objname", &name("objname"), targets)?;
+                let reference = reference_type
+                    .map(|reference_type| frame_object(at, reference_type, "refname", &name("refname"), targets))
+                    .transpose()?;
+                SensorTarget::Frame { object, reference }
+            }
+            None => SensorTarget::None,
+        },
+    };
+    Ok(Sensor {
+        name: targets.own_name(spec.name.as_deref()),
+        kind: spec.kind,
+        target,
+        cutoff: spec.cutoff,
+        line: at.line,
+    })
+}
+
+/// The frame of type `frame_type` named `name` (which `attribute` gives).
+fn frame_object(
+    at: &Origin,
+    frame_type: FrameType,
+    attribute: &str,
+    name: &str,
+    targets: &impl SensorTargets,
+) -> Result<FrameObject, MjcfError> {
+    Ok(match frame_type {
+        FrameType::Body => FrameObject::Body(targets.body(at, name)?),
+        FrameType::XBody => FrameObject::XBody(targets.body(at, name)?),
+        FrameType::Site => FrameObject::Site(targets.site(at, attribute, name)?),
     })
 }

@@ -6,7 +6,7 @@
 
 use std::fmt::Write;
 
-use super::{actuator, attributes, bodies, defaults, equality, mesh, reader, sensor, tendon};
+use super::{actuator, attributes, bodies, defaults, equality, keyframe, mesh, reader, sensor, tendon};
 use crate::vehicle::SensorKind;
 
 /// docs/mjcf-support.md: element and attribute, read or ignored with a
@@ -79,7 +79,7 @@ pub fn support_table() -> String {
     for (tag, reason) in actuator::REFUSED_ACTUATORS {
         let _ = writeln!(out, "| `<actuator>/<{tag}>` | {reason} |");
     }
-    for (attribute, reason) in reader::REFUSED_TRANSMISSIONS {
+    for (attribute, reason) in actuator::REFUSED_TRANSMISSIONS {
         let _ = writeln!(out, "| actuator `{attribute}=` | {reason} |");
     }
     for (tags, reason) in sensor::REFUSED_SENSORS {
@@ -109,7 +109,8 @@ fn write_elements_read(out: &mut String) {
     let replicate = attributes::names(bodies::REPLICATE_ATTRIBUTES);
     let inertial = attributes::names(bodies::INERTIAL_ATTRIBUTES);
     let freejoint = attributes::names(bodies::FREEJOINT_ATTRIBUTES);
-    let elements: [(&str, &[&str]); 12] = [
+    let key = attributes::names(keyframe::KEY_ATTRIBUTES);
+    let elements: [(&str, &[&str]); 13] = [
         ("compiler", &compiler),
         ("option", &option),
         ("option/flag", &flag),
@@ -122,6 +123,7 @@ fn write_elements_read(out: &mut String) {
         ("geom", &geom),
         ("site", &site),
         ("asset/mesh", &mesh_attributes),
+        ("keyframe/key", &key),
     ];
     for (element, attributes) in elements {
         let _ = writeln!(out, "| `<{element}>` | {} |", code_list(attributes, false));

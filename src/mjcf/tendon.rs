@@ -6,7 +6,7 @@
 
 use super::attributes::{Attribute, names, read_into, set};
 use super::defaults::Limited;
-use super::element::Element;
+use super::element::{Element, Origin};
 use super::error::MjcfError;
 use crate::vehicle::{JointKind, JointLimit, PathPoint, SoftConstraint, Tendon, TendonPath, WrapGeom};
 
@@ -166,23 +166,21 @@ impl TendonSettings {
 }
 
 /// The objects tendon elements name, as the importer knows them; each
-/// lookup gives the error that names the element and attribute.
+/// lookup gives the error that names the element (`at`) and attribute.
 pub(crate) trait TendonTargets {
-    /// The kind of the joint the attribute names.
-    fn tendon_joint(&self, element: &Element, attribute: &str) -> Result<JointKind, MjcfError>;
-    /// The site the attribute names.
-    fn tendon_site(&self, element: &Element, attribute: &str) -> Result<usize, MjcfError>;
-    /// The sphere or cylinder geom the attribute names.
-    fn tendon_geom(&self, element: &Element, attribute: &str) -> Result<WrapGeom, MjcfError>;
-    /// The side site the attribute names for wrapping around `geom`.
-    fn tendon_side_site(&self, element: &Element, attribute: &str, geom: &WrapGeom) -> Result<usize, MjcfError>;
+    /// The kind of the joint `name`.
+    fn tendon_joint(&self, at: &Origin, name: &str) -> Result<JointKind, MjcfError>;
+    /// The site `name`, which the attribute gives.
+    fn tendon_site(&self, at: &Origin, attribute: &str, name: &str) -> Result<usize, MjcfError>;
+    /// The sphere or cylinder geom `name`.
+    fn tendon_geom(&self, at: &Origin, name: &str) -> Result<WrapGeom, MjcfError>;
+    /// The side site `name`, which the attribute gives, for wrapping around `geom`.
+    fn tendon_side_site(&self, at: &Origin, attribute: &str, name: &str, geom: &WrapGeom) -> Result<usize, MjcfError>;
 }
 
-/// What the `<flag>`s and `<compiler>` leave of a tendon's terms.
+/// What the `<flag>`s leave of a tendon's terms.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct TendonFlags {
-    /// `autolimits`.
-    pub autolimits: bool,
     /// `<flag spring="disable">`.
     pub spring_disabled: bool,
     /// `<flag damper="disable">`.
@@ -193,14 +191,68 @@ pub(crate) struct TendonFlags {
     pub limit_disabled: bool,
 }
 
+/// A `<fixed>` or `<spatial>` element as read: its settings resolved and
+/// checked, the objects of its path by name, for the compile stage.
+#[derive(Clone, Debug)]
+pub(crate) struct TendonSpec {
+    /// The element, for messages.
+    pub at: Origin,
+    /// `name`.
+    pub name: Option<String>,
+    /// Its class's settings with its own attributes applied.
+    pub settings: TendonSettings,
+    /// Whether it is limited (MuJoCo's tendon_limited, before any flag).
+    pub limited: bool,
+    /// Whether `actuatorfrcrange` applies.
+    pub force_limited: bool,
+    /// Whether `armature` comes from its default class (for messages).
+    pub armature_from_class: bool,
+    /// Its path, the objects by name.
+    pub path: PathSpec,
+}
+
+/// A tendon's path as read.
+#[derive(Clone, Debug)]
+pub(crate) enum PathSpec {
+    /// `<fixed>`: each `<joint>`, its name and `coef`.
+    Fixed(Vec<(Origin, String, f64)>),
+    /// `<spatial>`: its `<site>`, `<pulley>` and `<geom>` children.
+    Spatial(Vec<PointSpec>),
+}
+
+/// A child of a `<spatial>` tendon as read.
+#[derive(Clone, Debug)]
+pub(crate) enum PointSpec {
+    /// `<site site>`.
+    Site(Origin, String),
+    /// `<pulley divisor>`.
+    Pulley(f64),
+    /// `<geom geom sidesite>`.
+    Geom(Origin, String, Option<String>),
+}
+
+impl TendonSpec {
+    /// The geoms its path wraps around, by name.
+    pub fn wrap_geoms(&self) -> impl Iterator<Item = &str> {
+        let points = match &self.path {
+            PathSpec::Spatial(points) => points.as_slice(),
+            PathSpec::Fixed(_) => &[],
+        };
+        points.iter().filter_map(|point| match point {
+            PointSpec::Geom(_, geom, _) => Some(geom.as_str()),
+            _ => None,
+        })
+    }
+}
+
 /// Reads one `<fixed>` or `<spatial>` element whose class settings are
-/// `settings`; also tells whether it is limited (before the flags).
-pub(crate) fn read(
+/// `settings`, with MuJoCo's checks of its values (`autolimits`: the
+/// `<compiler>`'s); the objects it names are looked up by [`compile`].
+pub(crate) fn parse(
     element: &Element,
     mut settings: TendonSettings,
-    targets: &impl TendonTargets,
-    flags: TendonFlags,
-) -> Result<(Tendon, bool), MjcfError> {
+    autolimits: bool,
+) -> Result<TendonSpec, MjcfError> {
     let spatial = match element.tag() {
         "fixed" => false,
         "spatial" => true,
@@ -223,7 +275,7 @@ pub(crate) fn read(
     let force_limited = match settings.actuator_force_limited {
         Limited::Yes => true,
         Limited::No => false,
-        Limited::Auto if !flags.autolimits && (low, high) != (0.0, 0.0) => {
+        Limited::Auto if !autolimits && (low, high) != (0.0, 0.0) => {
             return Err(element.invalid(format!(
                 "tendon has actuatorfrcrange{} but not actuatorfrclimited while <compiler autolimits=\"false\">; \
                  give actuatorfrclimited or remove actuatorfrcrange",
@@ -240,15 +292,14 @@ pub(crate) fn read(
         )));
     }
     let [low, high] = settings.spring_length;
-    let unset = low == -1.0 && high == -1.0;
-    if !unset && low > high {
+    if !(low == -1.0 && high == -1.0) && low > high {
         return Err(element.invalid(format!("invalid springlength in tendon: {low} > {high}")));
     }
     let [range_low, range_high] = settings.range;
     let limited = match settings.limited {
         Limited::Yes => true,
         Limited::No => false,
-        Limited::Auto => flags.autolimits && range_low < range_high,
+        Limited::Auto => autolimits && range_low < range_high,
     };
     if limited && range_low >= range_high {
         return Err(element
@@ -257,14 +308,84 @@ pub(crate) fn read(
     if settings.armature < 0.0 {
         return Err(element.invalid(format!("tendon armature cannot be negative{}", origin("armature"))));
     }
-    let path = if spatial { spatial_path(element, targets)? } else { fixed_path(element, targets)? };
+    let path = if spatial { parse_spatial_path(element)? } else { parse_fixed_path(element)? };
+    Ok(TendonSpec {
+        at: element.origin(),
+        name: element.text("name").map(str::to_string),
+        settings,
+        limited,
+        force_limited,
+        armature_from_class: !element.has("armature"),
+        path,
+    })
+}
+
+/// A `<fixed>` tendon's `<joint joint coef>` children.
+fn parse_fixed_path(element: &Element) -> Result<PathSpec, MjcfError> {
+    let mut terms = Vec::new();
+    for child in element.children() {
+        if child.tag() != "joint" {
+            return Err(child.unknown());
+        }
+        let settings = path_settings(&child, FIXED_JOINT_ATTRIBUTES)?;
+        let name = child.text("joint").ok_or_else(|| child.missing("joint"))?;
+        let coef = settings.coef.ok_or_else(|| child.missing("coef"))?;
+        terms.push((child.origin(), name.to_string(), coef));
+    }
+    Ok(PathSpec::Fixed(terms))
+}
+
+/// A `<spatial>` tendon's `<site>`, `<geom>` and `<pulley>` children.
+fn parse_spatial_path(element: &Element) -> Result<PathSpec, MjcfError> {
+    let mut points = Vec::new();
+    for child in element.children() {
+        let required =
+            |attribute: &str| child.text(attribute).map(str::to_string).ok_or_else(|| child.missing(attribute));
+        points.push(match child.tag() {
+            "site" => {
+                path_settings(&child, SPATIAL_SITE_ATTRIBUTES)?;
+                PointSpec::Site(child.origin(), required("site")?)
+            }
+            "pulley" => {
+                let divisor = path_settings(&child, PULLEY_ATTRIBUTES)?.divisor;
+                let divisor = divisor.ok_or_else(|| child.missing("divisor"))?;
+                if divisor <= 0.0 {
+                    return Err(child.bad_value("divisor", "a positive number"));
+                }
+                PointSpec::Pulley(divisor)
+            }
+            "geom" => {
+                path_settings(&child, SPATIAL_GEOM_ATTRIBUTES)?;
+                PointSpec::Geom(child.origin(), required("geom")?, child.text("sidesite").map(str::to_string))
+            }
+            _ => return Err(child.unknown()),
+        });
+    }
+    Ok(PathSpec::Spatial(points))
+}
+
+/// The tendon `spec` describes: the objects of its path looked up in
+/// `targets` and the path checked as MuJoCo checks it, less what the
+/// `<flag>`s turn off.
+pub(crate) fn compile(
+    spec: &TendonSpec,
+    targets: &impl TendonTargets,
+    flags: TendonFlags,
+) -> Result<Tendon, MjcfError> {
+    let TendonSpec { at, settings, limited, force_limited, .. } = spec;
+    let path = match &spec.path {
+        PathSpec::Fixed(terms) => fixed_path(at, terms, targets)?,
+        PathSpec::Spatial(points) => spatial_path(at, points, targets)?,
+    };
     let wraps = matches!(&path, TendonPath::Spatial(points) if points.iter().any(|p| matches!(p, PathPoint::Geom(_))));
     if settings.armature > 0.0 && wraps {
         // MuJoCo 4.0 refuses the file: its J̇θ̇ of a wrapped path is not written.
-        return Err(element.invalid(format!("geom wrapping not supported by tendon armature{}", origin("armature"))));
+        let origin = if spec.armature_from_class { " (from its default class)" } else { "" };
+        return Err(at.invalid(format!("geom wrapping not supported by tendon armature{origin}")));
     }
-    let tendon = Tendon {
-        name: element.text("name").map(str::to_string),
+    let unset = settings.spring_length == [-1.0, -1.0];
+    Ok(Tendon {
+        name: spec.name.clone(),
         path,
         stiffness: if flags.spring_disabled { 0.0 } else { settings.stiffness[0] },
         damping: if flags.damper_disabled { 0.0 } else { settings.damping[0] },
@@ -273,78 +394,57 @@ pub(crate) fn read(
         spring_length: (!unset).then_some(settings.spring_length),
         frictionloss: if flags.frictionloss_disabled { 0.0 } else { settings.frictionloss },
         friction: settings.friction_soft,
-        limit: (limited && !flags.limit_disabled).then_some(JointLimit {
+        limit: (*limited && !flags.limit_disabled).then_some(JointLimit {
             range: settings.range,
             margin: settings.margin,
             soft: settings.limit_soft,
         }),
         range: settings.range,
-        line: element.line,
-    };
-    Ok((tendon, limited))
+        line: at.line,
+    })
 }
 
-/// A `<fixed>` tendon's `<joint joint coef>` children: hinge and slide joints, each once.
-fn fixed_path(element: &Element, targets: &impl TendonTargets) -> Result<TendonPath, MjcfError> {
-    let mut terms: Vec<(String, f64)> = Vec::new();
-    for child in element.children() {
-        if child.tag() != "joint" {
-            return Err(child.unknown());
-        }
-        let settings = path_settings(&child, FIXED_JOINT_ATTRIBUTES)?;
-        let name = child.text("joint").ok_or_else(|| child.missing("joint"))?;
-        let coef = settings.coef.ok_or_else(|| child.missing("coef"))?;
-        if !matches!(targets.tendon_joint(&child, "joint")?, JointKind::Hinge | JointKind::Slide) {
+/// A `<fixed>` tendon's terms: hinge and slide joints, each once.
+fn fixed_path(
+    at: &Origin,
+    terms: &[(Origin, String, f64)],
+    targets: &impl TendonTargets,
+) -> Result<TendonPath, MjcfError> {
+    let mut path: Vec<(String, f64)> = Vec::with_capacity(terms.len());
+    for (child, name, coef) in terms {
+        if !matches!(targets.tendon_joint(child, name)?, JointKind::Hinge | JointKind::Slide) {
             return Err(child.invalid(format!("joint '{name}' in a fixed tendon must be slide or hinge")));
         }
-        if terms.iter().any(|(known, _)| known == name) {
+        if path.iter().any(|(known, _)| known == name) {
             return Err(child.invalid(format!("joint '{name}' is repeated in the tendon")));
         }
-        terms.push((name.to_string(), coef));
+        path.push((name.clone(), *coef));
     }
-    if terms.is_empty() {
-        return Err(element.invalid("the tendon's path cannot be empty"));
+    if path.is_empty() {
+        return Err(at.invalid("the tendon's path cannot be empty"));
     }
-    Ok(TendonPath::Fixed(terms))
+    Ok(TendonPath::Fixed(path))
 }
 
-/// A `<spatial>` tendon's `<site>`, `<geom>` and `<pulley>` children,
-/// checked as MuJoCo checks the path.
-fn spatial_path(element: &Element, targets: &impl TendonTargets) -> Result<TendonPath, MjcfError> {
-    let mut points = Vec::new();
-    for child in element.children() {
-        match child.tag() {
-            "site" => {
-                path_settings(&child, SPATIAL_SITE_ATTRIBUTES)?;
-                if !child.has("site") {
-                    return Err(child.missing("site"));
+/// A `<spatial>` tendon's path, its objects looked up and checked as
+/// MuJoCo checks the path.
+fn spatial_path(at: &Origin, spec: &[PointSpec], targets: &impl TendonTargets) -> Result<TendonPath, MjcfError> {
+    let mut points = Vec::with_capacity(spec.len());
+    for point in spec {
+        points.push(match point {
+            PointSpec::Site(child, site) => PathPoint::Site(targets.tendon_site(child, "site", site)?),
+            PointSpec::Pulley(divisor) => PathPoint::Pulley(*divisor),
+            PointSpec::Geom(child, geom, side_site) => {
+                let mut geom = targets.tendon_geom(child, geom)?;
+                if let Some(side_site) = side_site {
+                    geom.side = Some(targets.tendon_side_site(child, "sidesite", side_site, &geom)?);
                 }
-                points.push(PathPoint::Site(targets.tendon_site(&child, "site")?));
+                PathPoint::Geom(geom)
             }
-            "pulley" => {
-                let divisor = path_settings(&child, PULLEY_ATTRIBUTES)?.divisor;
-                let divisor = divisor.ok_or_else(|| child.missing("divisor"))?;
-                if divisor <= 0.0 {
-                    return Err(child.bad_value("divisor", "a positive number"));
-                }
-                points.push(PathPoint::Pulley(divisor));
-            }
-            "geom" => {
-                path_settings(&child, SPATIAL_GEOM_ATTRIBUTES)?;
-                if !child.has("geom") {
-                    return Err(child.missing("geom"));
-                }
-                let mut geom = targets.tendon_geom(&child, "geom")?;
-                if child.has("sidesite") {
-                    geom.side = Some(targets.tendon_side_site(&child, "sidesite", &geom)?);
-                }
-                points.push(PathPoint::Geom(geom));
-            }
-            _ => return Err(child.unknown()),
-        }
+        });
     }
     if points.len() < 2 {
-        return Err(element.invalid("a spatial tendon's path must contain at least two objects"));
+        return Err(at.invalid("a spatial tendon's path must contain at least two objects"));
     }
     // MuJoCo's checks: no pulley after a pulley or at the end, every site
     // beside a site, no site twice in a row, a geom between two sites.
@@ -354,22 +454,23 @@ fn spatial_path(element: &Element, targets: &impl TendonTargets) -> Result<Tendo
     for k in 0..=last {
         match points[k] {
             PathPoint::Pulley(_) if k > 0 && is_pulley(k - 1) => {
-                return Err(element.invalid(format!("consecutive pulleys in the tendon's path (position {k})")));
+                return Err(at.invalid(format!("consecutive pulleys in the tendon's path (position {k})")));
             }
             PathPoint::Pulley(_) if k == last => {
-                return Err(element.invalid("a spatial tendon's path cannot end with a pulley"));
+                return Err(at.invalid("a spatial tendon's path cannot end with a pulley"));
             }
             PathPoint::Site(site) => {
                 if (k == 0 || is_pulley(k - 1)) && (k == last || is_pulley(k + 1)) {
-                    return Err(element
-                        .invalid(format!("site {k} of the tendon's path needs a neighbour that is not a pulley")));
+                    return Err(
+                        at.invalid(format!("site {k} of the tendon's path needs a neighbour that is not a pulley"))
+                    );
                 }
                 if k < last && points[k + 1] == PathPoint::Site(site) {
-                    return Err(element.invalid(format!("site {k} is repeated in the tendon's path")));
+                    return Err(at.invalid(format!("site {k} is repeated in the tendon's path")));
                 }
             }
             PathPoint::Geom { .. } if k == 0 || k == last || !is_site(k - 1) || !is_site(k + 1) => {
-                return Err(element.invalid(format!("geom {k} of the tendon's path is not between two sites")));
+                return Err(at.invalid(format!("geom {k} of the tendon's path is not between two sites")));
             }
             PathPoint::Pulley(_) | PathPoint::Geom { .. } => {}
         }

@@ -1,14 +1,15 @@
 //! The walk through the body tree: bodies, their frames and `<replicate>`s,
 //! joints, geoms and sites in document order, read into a [`ReadTree`]
 //! (their defaults resolved, the `<frame>`s around them kept) for the
-//! compile stage (`compile.rs`); and the warning on contacts.
+//! compile stage (`compile/`).
 
 use super::compile::{BodySpec, GeomSpec, MassSource, ReadTree, SiteSpec};
 use super::geom::fromto_frame;
+use super::joint::check_joint_values;
 use super::replicate::{Named, Suffix};
 use super::{
-    IGNORED_IN_BODIES, JointElement, MAX_REPLICATED_ELEMENTS, PendingBody, Placed, Pose, Reader, claim_name,
-    no_children, unsupported_child,
+    IGNORED_IN_BODIES, JointSpec, MAX_REPLICATED_ELEMENTS, PendingBody, Placed, Pose, Reader, claim_name, no_children,
+    unsupported_child,
 };
 use crate::math::{Quat, Vec3};
 use crate::mjcf::attributes::names;
@@ -16,13 +17,11 @@ use crate::mjcf::bodies::{
     Align, BODY_ATTRIBUTES, BodySettings, FRAME_ATTRIBUTES, FREEJOINT_ATTRIBUTES, FrameSettings, FreeJointSettings,
     REPLICATE_ATTRIBUTES, ReplicateSettings, read_settings,
 };
-use crate::mjcf::contacts::BodyFilter;
 use crate::mjcf::defaults::{GEOM_ATTRIBUTES, JOINT_ATTRIBUTES, JointSettings, MAIN, SITE_ATTRIBUTES, SiteKind};
-use crate::mjcf::element::Element;
+use crate::mjcf::element::{Element, Origin};
 use crate::mjcf::error::MjcfError;
 use crate::mjcf::inertia::BodyInertia;
 use crate::mjcf::orientation::Orientation;
-use crate::mjcf::{MjcfWarning, contacts};
 use crate::vehicle::{JointKind, Site};
 
 impl Reader {
@@ -30,7 +29,7 @@ impl Reader {
     pub(super) fn read_worldbody<'a>(
         &mut self,
         section: &Element<'a, 'a>,
-        tree: &mut ReadTree<'a>,
+        tree: &mut ReadTree,
     ) -> Result<(), MjcfError> {
         // MuJoCo: "World body cannot have attributes".
         section.check_attributes(&[])?;
@@ -93,7 +92,7 @@ impl Reader {
         frame: Option<Pose>,
         class: usize,
         suffix: Suffix,
-        tree: &mut ReadTree<'a>,
+        tree: &mut ReadTree,
     ) -> Result<(), MjcfError> {
         let mut pending = vec![PendingBody {
             element: top,
@@ -116,21 +115,21 @@ impl Reader {
     pub(super) fn read_body<'a>(
         &mut self,
         body: &PendingBody<'a>,
-        tree: &mut ReadTree<'a>,
+        tree: &mut ReadTree,
     ) -> Result<Vec<PendingBody<'a>>, MjcfError> {
         let &PendingBody { ref element, parent, inherited_class, parent_moving, frame, ref suffix } = body;
         let BodySettings { pos: own_pos, orientation, mocap, gravcomp, sleep_policy } =
             read_settings(BODY_ATTRIBUTES, element)?;
         let class = self.defaults.lookup(element, "childclass")?.unwrap_or(inherited_class);
         let own_pos = Vec3::from(own_pos);
-        let own_quat = self.resolve(element, &orientation)?;
+        let own_quat = self.resolve(&element.origin(), &orientation)?;
         let index = tree.bodies.len();
         // An unnamed body gets a name for messages and descriptions, which
         // nothing can refer to (MuJoCo's unnamed elements have none).
         let name = match element.text("name") {
             Some(name) => {
                 let copy = self.replicated_name(Named::Body, name, suffix);
-                claim_name(&mut self.body_names, "body", &copy, element)?;
+                claim_name(&mut self.body_names, "body", &copy, &element.origin())?;
                 copy
             }
             None => {
@@ -168,7 +167,7 @@ impl Reader {
             _ => false,
         };
         let explicit = inertial.map(|(_, inertia, frame)| (inertia, frame));
-        let mass = MassSource { element: *element, explicit, moving, aligned, own_pose: (own_pos, own_quat) };
+        let mass = MassSource { at: element.origin(), explicit, moving, aligned, own_pose: (own_pos, own_quat) };
         tree.bodies.push(BodySpec { name, parent, frame, joints, gravcomp, mass });
         Ok(child_bodies.into_iter().map(|child| PendingBody { parent_moving: moving, ..child }).collect())
     }
@@ -205,14 +204,17 @@ impl Reader {
                     no_children(&child)?;
                     let mut settings = self.defaults.class(self.class_of(&child, class)?).joint.clone();
                     settings.apply(&child)?;
-                    joints.push(JointElement { element: child, settings, frame, align: Align::Auto, suffix });
+                    check_joint_values(&child, &settings)?;
+                    let (at, name) = (child.origin(), child.text("name").map(str::to_string));
+                    joints.push(JointSpec { at, name, settings, frame, align: Align::Auto, suffix });
                 }
                 "freejoint" => {
                     // MuJoCo's <freejoint> takes no defaults.
                     let FreeJointSettings { align } = read_settings(FREEJOINT_ATTRIBUTES, &child)?;
                     no_children(&child)?;
                     let settings = JointSettings { kind: JointKind::Free, ..JointSettings::default() };
-                    joints.push(JointElement { element: child, settings, frame: None, align, suffix });
+                    let (at, name) = (child.origin(), child.text("name").map(str::to_string));
+                    joints.push(JointSpec { at, name, settings, frame: None, align, suffix });
                 }
                 "geom" => geoms.push(self.read_geom(child, class, frame, &suffix, Some(index))?),
                 "site" => sites.push(self.read_site(&child, class, Some(index), frame, &suffix)?),
@@ -291,7 +293,7 @@ impl Reader {
     pub(super) fn frame_pose(&self, item: &Placed) -> Result<Vec<(Pose, String)>, MjcfError> {
         let frame = &item.element;
         let FrameSettings { pos, orientation } = read_settings(FRAME_ATTRIBUTES, frame)?;
-        let quat = self.resolve(frame, &orientation)?;
+        let quat = self.resolve(&frame.origin(), &orientation)?;
         Ok(vec![((Vec3::from(pos), quat), String::new())])
     }
 
@@ -315,14 +317,15 @@ impl Reader {
         }
         self.replicated_elements.set(produced);
         let offset = Vec3::from(offset);
-        let step = self.resolve(replicate, &Orientation::Euler(euler))?;
+        let at = replicate.origin();
+        let step = self.resolve(&at, &Orientation::Euler(euler))?;
         let digits = count.to_string().len();
         let (mut pos, mut turned) = (Vec3::zeros(), Quat::identity());
         let mut copies = Vec::with_capacity(count as usize);
         for i in 0..count {
             // MuJoCo resolves i·euler afresh for each copy's orientation,
             // and accumulates the turn only for the positions.
-            let quat = self.resolve(replicate, &Orientation::Euler(euler.map(|angle| f64::from(i) * angle)))?;
+            let quat = self.resolve(&at, &Orientation::Euler(euler.map(|angle| f64::from(i) * angle)))?;
             copies.push(((pos, quat), format!("{separator}{i:0digits$}")));
             pos += turned * offset;
             turned *= step;
@@ -345,7 +348,7 @@ impl Reader {
         frame: Option<Pose>,
         suffix: &Suffix,
         body: Option<usize>,
-    ) -> Result<GeomSpec<'a>, MjcfError> {
+    ) -> Result<GeomSpec, MjcfError> {
         element.check_attributes(&names(GEOM_ATTRIBUTES))?;
         if let Some(child) = element.children().next() {
             return Err(unsupported_child(&child));
@@ -353,7 +356,7 @@ impl Reader {
         let mut settings = self.defaults.class(self.class_of(&element, body_class)?).geom.clone();
         settings.apply(&element)?;
         let name = element.text("name").map(|name| self.replicated_name(Named::Geom, name, suffix));
-        Ok(GeomSpec { element, settings, frame, name, body })
+        Ok(GeomSpec { at: element.origin(), settings, frame, name, body })
     }
 
     /// Reads a `<site>` of body `body` (`None`: the world body), its name claimed.
@@ -374,67 +377,22 @@ impl Reader {
                 if settings.kind == SiteKind::Sphere {
                     return Err(element.invalid("'fromto' requires a capsule, cylinder, ellipsoid or box site"));
                 }
-                let (pos, quat, _) = fromto_frame(element, &fromto, &settings.pos)?;
+                let (pos, quat, _) = fromto_frame(&element.origin(), &fromto, &settings.pos)?;
                 (pos, quat)
             }
-            None => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
+            None => (Vec3::from(settings.pos), self.resolve(&element.origin(), &settings.orientation)?),
         };
         let name = element.text("name").map(|name| self.replicated_name(Named::Site, name, suffix));
         if let Some(name) = &name {
-            claim_name(&mut self.site_names, "site", name, element)?;
+            claim_name(&mut self.site_names, "site", name, &element.origin())?;
         }
         let site = Site { name, body, pos, quat, line: element.line };
         Ok(SiteSpec { site, frame, fitted_to_mesh: settings.mesh })
     }
 
-    pub(super) fn resolve(&self, element: &Element, orientation: &Orientation) -> Result<Quat, MjcfError> {
-        orientation.resolve(&self.compiler.angles).map_err(|reason| element.invalid(reason))
-    }
-
-    /// A warning on each pair of geoms MuJoCo would collide at qpos0
-    /// (`super::contacts` says what is checked), unless `<flag contact>` or
-    /// `<flag constraint>` turns contacts off.
-    pub(super) fn warn_of_contacts(&mut self, root: &Element) {
-        let flags: Vec<Element> =
-            root.children().filter(|s| s.tag() == "option").flat_map(|option| option.children()).collect();
-        let disabled = |flag: &str| flags.iter().any(|f| f.text(flag) == Some("disable"));
-        if disabled("contact") || disabled("constraint") {
-            return;
-        }
-        let body = |name: &str| match name {
-            "world" => Some(None),
-            name => self.bodies.iter().position(|b| b.name == name && self.body_names.contains_key(name)).map(Some),
-        };
-        let exclusions = root.children().filter(|s| s.tag() == "contact").flat_map(|s| s.children());
-        let excluded: Vec<_> = exclusions
-            .filter(|e| e.tag() == "exclude")
-            .filter_map(|e| Some((body(e.text("body1")?)?, body(e.text("body2")?)?)))
-            .collect();
-        let parents: Vec<Option<usize>> = self.bodies.iter().map(|b| b.parent).collect();
-        let roots: Vec<bool> =
-            self.bodies.iter().map(|b| !b.joints.is_empty() || self.mocap_bodies.contains(&b.name)).collect();
-        let filter = BodyFilter {
-            parents: &parents,
-            poses: &self.world_poses,
-            roots: &roots,
-            filter_parent: !disabled("filterparent"),
-            excluded: &excluded,
-        };
-        for (a, b) in contacts::touching(&self.contact_geoms, &filter) {
-            let (first, second) = (&self.contact_geoms[a], &self.contact_geoms[b]);
-            let warning = MjcfWarning {
-                file: None,
-                line: first.line,
-                element: first.label.clone(),
-                message: format!(
-                    "touches <{}> (line {}) at the initial pose: MuJoCo would make contacts between them, \
-                     nudyn models no contacts",
-                    second.label,
-                    self.sources.line_in_file(second.line)
-                ),
-            };
-            self.warnings.push(warning);
-        }
+    /// An orientation in MuJoCo's conventions as the `<compiler>` sets them.
+    pub(super) fn resolve(&self, at: &Origin, orientation: &Orientation) -> Result<Quat, MjcfError> {
+        orientation.resolve(&self.compiler.angles).map_err(|reason| at.invalid(reason))
     }
 }
 
@@ -449,8 +407,8 @@ struct BodyChildren<'a> {
     /// Its `<inertial>`, with the element for messages on a second one and
     /// the pose of the `<frame>`s around it.
     inertial: Option<(Element<'a, 'a>, BodyInertia, Option<Pose>)>,
-    joints: Vec<JointElement<'a, 'a>>,
-    geoms: Vec<GeomSpec<'a>>,
+    joints: Vec<JointSpec>,
+    geoms: Vec<GeomSpec>,
     sites: Vec<SiteSpec>,
     child_bodies: Vec<PendingBody<'a>>,
 }

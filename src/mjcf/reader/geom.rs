@@ -8,7 +8,7 @@ use crate::math::{Mat3, Quat, Vec3};
 use crate::mjcf::bodies::{INERTIAL_ATTRIBUTES, InertialSettings, read_settings};
 use crate::mjcf::contacts::{ContactGeom, Reach};
 use crate::mjcf::defaults::{GeomKind, GeomSettings};
-use crate::mjcf::element::Element;
+use crate::mjcf::element::{Element, Origin};
 use crate::mjcf::error::MjcfError;
 use crate::mjcf::inertia::{BodyInertia, EPS, GeomMass, mul_quat, quat_array, quat_to_mat};
 use crate::mjcf::orientation::{ORIENTATION_ATTRIBUTES, normalized, z_to_quaternion};
@@ -23,7 +23,7 @@ impl Reader {
         let com = Vec3::from(pos.ok_or_else(|| element.missing("pos"))?);
         let mass = mass.ok_or_else(|| element.missing("mass"))?;
         let Some([xx, yy, zz, xy, xz, yz]) = fullinertia else {
-            let quat = self.resolve(element, &orientation.unwrap_or_default())?;
+            let quat = self.resolve(&element.origin(), &orientation.unwrap_or_default())?;
             return Ok(BodyInertia::from_principal(mass, com, &quat, Vec3::from(diaginertia)));
         };
         if let Some(attribute) = ORIENTATION_ATTRIBUTES.iter().find(|a| element.has(a)) {
@@ -37,7 +37,7 @@ impl Reader {
     }
 
     /// Applies `boundmass`, `boundinertia` and MuJoCo's triangle inequality.
-    pub(super) fn bound(&self, element: &Element, mut inertia: BodyInertia) -> Result<BodyInertia, MjcfError> {
+    pub(super) fn bound(&self, at: &Origin, mut inertia: BodyInertia) -> Result<BodyInertia, MjcfError> {
         let compiler = &self.compiler;
         inertia.mass = inertia.mass.max(compiler.bound_mass);
         let bounded = inertia.principal.map(|p| p.max(compiler.bound_inertia));
@@ -47,7 +47,7 @@ impl Reader {
         let p = inertia.principal;
         if p.x + p.y < p.z || p.x + p.z < p.y || p.y + p.z < p.x {
             if !compiler.balance_inertia {
-                return Err(element.invalid(format!(
+                return Err(at.invalid(format!(
                     "principal moments of inertia {} {} {} violate A + B >= C; \
                      fix them or set <compiler balanceinertia=\"true\">",
                     p.x, p.y, p.z
@@ -62,7 +62,7 @@ impl Reader {
     /// compiler sizes and places it by the mesh, then forgets the mesh.
     pub(super) fn fit_to_mesh(
         &self,
-        element: &Element,
+        at: &Origin,
         settings: &GeomSettings,
         mesh: &mesh::Mesh,
         size: [f64; 3],
@@ -72,7 +72,7 @@ impl Reader {
         let kind = settings.kind;
         let (fitted, center) = mesh
             .fit(kind, size, self.compiler.fit_aabb, settings.fit_scale)
-            .ok_or_else(|| element.invalid(format!("a {kind:?} geom cannot be fitted to a mesh")))?;
+            .ok_or_else(|| at.invalid(format!("a {kind:?} geom cannot be fitted to a mesh")))?;
         let (pos, quat) = absorb_frame(pos, quat, &mesh.frame_point(&center), &mesh.quat);
         Ok((fitted, pos, quat))
     }
@@ -81,7 +81,7 @@ impl Reader {
     /// cylinder's frame in its body (a primitive fitted to a mesh reads the
     /// mesh here, so only for a tendon).
     pub(super) fn register_wrap_geom(&mut self, geom: &GeomSpec) -> Result<(), MjcfError> {
-        let GeomSpec { element, settings, frame, name, body } = geom;
+        let GeomSpec { at, settings, frame, name, body } = geom;
         let Some(name) = name.as_ref().filter(|name| self.wrap_obstacles.contains_key(*name)) else {
             return Ok(());
         };
@@ -90,24 +90,24 @@ impl Reader {
             GeomKind::Sphere | GeomKind::Cylinder => {
                 let (pos, quat) = match settings.fromto {
                     Some(_) if settings.mesh.is_some() => {
-                        return Err(element.invalid("fromto cannot be used with a mesh"));
+                        return Err(at.invalid("fromto cannot be used with a mesh"));
                     }
                     Some(fromto) if settings.kind == GeomKind::Cylinder => {
-                        let (pos, quat, _) = fromto_frame(element, &fromto, &settings.pos)?;
+                        let (pos, quat, _) = fromto_frame(at, &fromto, &settings.pos)?;
                         (pos, quat)
                     }
-                    _ => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
+                    _ => (Vec3::from(settings.pos), self.resolve(at, &settings.orientation)?),
                 };
                 let (pos, quat) = frame.map_or((pos, quat), |frame| compose(frame, &(pos, quat)));
                 let (size, pos, quat) = match &settings.mesh {
                     Some(name) => {
-                        let mesh = self.mesh_named(element, name)?.mesh()?;
-                        self.fit_to_mesh(element, settings, mesh, settings.size, pos, quat)?
+                        let mesh = self.mesh_named(at, name)?.mesh()?;
+                        self.fit_to_mesh(at, settings, mesh, settings.size, pos, quat)?
                     }
                     None => (settings.size, pos, quat),
                 };
                 if size[0] <= 0.0 {
-                    return Err(element.invalid(format!("size[0] must be positive, found {}", size[0])));
+                    return Err(at.invalid(format!("size[0] must be positive, found {}", size[0])));
                 }
                 let cylinder = settings.kind == GeomKind::Cylinder;
                 Some(WrapGeom { body, pos, quat, radius: size[0], cylinder, side: None })
@@ -119,8 +119,8 @@ impl Reader {
     }
 
     /// The mesh asset a geom names (not read yet).
-    pub(super) fn mesh_named(&self, element: &Element, name: &str) -> Result<&mesh::MeshAsset, MjcfError> {
-        self.meshes.get(name).ok_or_else(|| element.invalid(format!("unknown mesh '{name}'")))
+    pub(super) fn mesh_named(&self, at: &Origin, name: &str) -> Result<&mesh::MeshAsset, MjcfError> {
+        self.meshes.get(name).ok_or_else(|| at.invalid(format!("unknown mesh '{name}'")))
     }
 
     /// The geom's mass, frame and principal moments when it contributes to its
@@ -128,20 +128,20 @@ impl Reader {
     /// needs its mesh, which is read only when it contributes.
     pub(super) fn geom_mass(
         &self,
-        element: &Element,
+        at: &Origin,
         settings: &GeomSettings,
         frame: Option<&Pose>,
         moving: bool,
         contributes: bool,
     ) -> Result<GeomRead, MjcfError> {
         if matches!(settings.kind, GeomKind::Mesh | GeomKind::Sdf) && settings.mesh.is_none() {
-            return Err(element.missing("mesh"));
+            return Err(at.missing("mesh"));
         }
         if settings.kind == GeomKind::Hfield && !settings.hfield {
-            return Err(element.missing("hfield"));
+            return Err(at.missing("hfield"));
         }
         if settings.kind == GeomKind::Plane && moving {
-            return Err(element.invalid("a plane geom is only allowed in a body that cannot move"));
+            return Err(at.invalid("a plane geom is only allowed in a body that cannot move"));
         }
         let mut size = settings.size;
         let (pos, quat) = match settings.fromto {
@@ -150,9 +150,9 @@ impl Reader {
                     settings.kind,
                     GeomKind::Capsule | GeomKind::Cylinder | GeomKind::Ellipsoid | GeomKind::Box
                 ) {
-                    return Err(element.invalid("'fromto' requires a capsule, cylinder, ellipsoid or box geom"));
+                    return Err(at.invalid("'fromto' requires a capsule, cylinder, ellipsoid or box geom"));
                 }
-                let (pos, quat, half_length) = fromto_frame(element, &fromto, &settings.pos)?;
+                let (pos, quat, half_length) = fromto_frame(at, &fromto, &settings.pos)?;
                 if matches!(settings.kind, GeomKind::Ellipsoid | GeomKind::Box) {
                     size = [size[0], size[0], half_length];
                 } else {
@@ -160,17 +160,17 @@ impl Reader {
                 }
                 (pos, quat)
             }
-            None => (Vec3::from(settings.pos), self.resolve(element, &settings.orientation)?),
+            None => (Vec3::from(settings.pos), self.resolve(at, &settings.orientation)?),
         };
         let (pos, quat) = frame.map_or((pos, quat), |frame| compose(frame, &(pos, quat)));
         let mesh = match &settings.mesh {
             Some(name) => {
                 if settings.fromto.is_some() {
-                    return Err(element.invalid("fromto cannot be used with a mesh"));
+                    return Err(at.invalid("fromto cannot be used with a mesh"));
                 }
-                let asset = self.mesh_named(element, name)?;
+                let asset = self.mesh_named(at, name)?;
                 if settings.kind == GeomKind::Mesh && settings.shell_inertia {
-                    return Err(element.invalid("for mesh geoms, inertia should be specified in the mesh asset"));
+                    return Err(at.invalid("for mesh geoms, inertia should be specified in the mesh asset"));
                 }
                 // A mesh is read only for a mass nudyn needs: one that only
                 // shapes contacts is never opened (nor a primitive's size fitted to it).
@@ -184,18 +184,18 @@ impl Reader {
         let (pos, quat) = match (settings.kind, mesh) {
             (GeomKind::Mesh | GeomKind::Sdf, _) | (_, None) => (pos, quat),
             (_, Some(mesh)) => {
-                let (fitted, pos, quat) = self.fit_to_mesh(element, settings, mesh, size, pos, quat)?;
+                let (fitted, pos, quat) = self.fit_to_mesh(at, settings, mesh, size, pos, quat)?;
                 size = fitted;
                 (pos, quat)
             }
         };
-        check_size(element, settings.kind, &size)?;
+        check_size(at, settings.kind, &size)?;
         let mesh = match (settings.kind, mesh) {
             (GeomKind::Mesh, Some(mesh)) => {
                 if settings.contype != [0, 0]
                     && let Some(reason) = &mesh.hull_error
                 {
-                    return Err(element.invalid(format!(
+                    return Err(at.invalid(format!(
                         "mesh '{}' (line {}): {reason}; MuJoCo needs the hull of a colliding geom's mesh \
                          (contype or conaffinity not 0)",
                         settings.mesh.as_deref().unwrap_or_default(),
@@ -215,7 +215,7 @@ impl Reader {
             return Ok(GeomRead { mass: None, reach });
         }
         if mass_not_computed(settings) {
-            return Err(element.unsupported(
+            return Err(at.unsupported(
                 "the mass properties of sdf and height-field geoms are not computed; give the body an \
                  <inertial>, or put the geom in a group outside inertiagrouprange",
             ));
@@ -244,7 +244,7 @@ impl Reader {
     /// Keeps a geom that may collide for the warning on contacts.
     pub(super) fn add_contact_geom(
         &mut self,
-        element: &Element,
+        at: &Origin,
         settings: &GeomSettings,
         body: Option<usize>,
         reach: Option<(Vec3, Quat, Reach)>,
@@ -261,8 +261,8 @@ impl Reader {
                 contype,
                 conaffinity,
                 margin: settings.margin,
-                label: element.label(),
-                line: element.line,
+                label: at.label.clone(),
+                line: at.line,
             });
         }
     }
@@ -271,17 +271,13 @@ impl Reader {
 /// The frame MuJoCo gives a geom or site with `fromto`: centred between the
 /// two points, its z axis pointing from the second towards the first; and
 /// the half distance between the points. A `pos` beside it is refused.
-pub(super) fn fromto_frame(
-    element: &Element,
-    fromto: &[f64; 6],
-    pos: &[f64; 3],
-) -> Result<(Vec3, Quat, f64), MjcfError> {
+pub(super) fn fromto_frame(at: &Origin, fromto: &[f64; 6], pos: &[f64; 3]) -> Result<(Vec3, Quat, f64), MjcfError> {
     if *pos != [0.0; 3] {
-        return Err(element.conflict("pos", "fromto"));
+        return Err(at.conflict("pos", "fromto"));
     }
     let from = Vec3::new(fromto[0], fromto[1], fromto[2]);
     let to = Vec3::new(fromto[3], fromto[4], fromto[5]);
-    let direction = normalized(from - to).ok_or_else(|| element.invalid("the 'fromto' points coincide"))?;
+    let direction = normalized(from - to).ok_or_else(|| at.invalid("the 'fromto' points coincide"))?;
     let half_length = (from - to).norm() / 2.0;
     Ok(((from + to) / 2.0, Quat::new_normalize(z_to_quaternion(&direction)), half_length))
 }
@@ -305,7 +301,7 @@ pub(super) fn absorb_frame(pos: Vec3, quat: Quat, inner_pos: &[f64; 3], inner_qu
 }
 
 /// MuJoCo's size check: the sizes a primitive uses must be positive.
-pub(super) fn check_size(element: &Element, kind: GeomKind, size: &[f64; 3]) -> Result<(), MjcfError> {
+pub(super) fn check_size(at: &Origin, kind: GeomKind, size: &[f64; 3]) -> Result<(), MjcfError> {
     let (used, name) = match kind {
         GeomKind::Sphere => (0..1, "sphere"),
         GeomKind::Capsule => (0..2, "capsule"),
@@ -316,7 +312,7 @@ pub(super) fn check_size(element: &Element, kind: GeomKind, size: &[f64; 3]) -> 
         GeomKind::Hfield | GeomKind::Mesh | GeomKind::Sdf => return Ok(()),
     };
     match used.into_iter().find(|&i| size[i] <= 0.0) {
-        Some(i) => Err(element.invalid(format!("size[{i}] of a {name} geom must be positive, found {}", size[i]))),
+        Some(i) => Err(at.invalid(format!("size[{i}] of a {name} geom must be positive, found {}", size[i]))),
         None => Ok(()),
     }
 }

@@ -2,10 +2,10 @@
 //! constraint parameters.
 
 use super::replicate::Named;
-use super::{JointElement, JointTarget, Reader, claim_name};
+use super::{JointSpec, JointTarget, Reader, claim_name};
 use crate::math::Vec3;
 use crate::mjcf::defaults::{JointSettings, Limited};
-use crate::mjcf::element::Element;
+use crate::mjcf::element::{Element, Origin};
 use crate::mjcf::error::MjcfError;
 use crate::mjcf::orientation::normalized;
 use crate::vehicle::{Joint, JointConstraints, JointKind, JointLimit, SpringDamper};
@@ -16,35 +16,18 @@ impl Reader {
         &mut self,
         body_name: &str,
         parent: Option<usize>,
-        elements: Vec<JointElement>,
+        specs: Vec<JointSpec>,
     ) -> Result<Vec<Joint>, MjcfError> {
-        let count = elements.len();
+        let count = specs.len();
         let mut joints = Vec::with_capacity(count);
         let mut after_ball = false;
         let mut dofs = 0;
-        for (k, joint) in elements.into_iter().enumerate() {
-            let JointElement { element, settings: s, suffix, .. } = joint;
-            let origin = |attribute: &str| {
-                if element.has(attribute) { "" } else { " (from its default class)" }
-            };
-            if s.springdamper != [0.0; 2] && !(s.springdamper[0] > 0.0 && s.springdamper[1] > 0.0) {
-                return Err(element.bad_value("springdamper", "two positive values (time constant, damping ratio)"));
-            }
-            if s.springyield != 0.0 {
-                return Err(element.unsupported(format!("springyield{}: yielding springs", origin("springyield"))));
-            }
-            for (attribute, coefficients) in [("stiffness", &s.stiffness), ("damping", &s.damping)] {
-                if coefficients[1..] != [0.0; 2] {
-                    return Err(element.unsupported(format!(
-                        "nonlinear {attribute}{} (more than one coefficient)",
-                        origin(attribute)
-                    )));
-                }
-            }
+        for (k, joint) in specs.into_iter().enumerate() {
+            let JointSpec { at, name: named, settings: s, suffix, .. } = joint;
 
             let rotational = matches!(s.kind, JointKind::Hinge | JointKind::Ball);
             if rotational && after_ball {
-                return Err(element.unsupported(
+                return Err(at.unsupported(
                     "a hinge or ball joint after a ball joint in the same body (MuJoCo allows no rotation after a ball joint)",
                 ));
             }
@@ -52,22 +35,23 @@ impl Reader {
 
             if s.kind == JointKind::Free {
                 if count > 1 {
-                    return Err(element.invalid("a free joint must be the only joint of its body"));
+                    return Err(at.invalid("a free joint must be the only joint of its body"));
                 }
                 if parent.is_some() {
-                    return Err(element.invalid("a free joint must belong to a body directly inside <worldbody>"));
+                    return Err(at.invalid("a free joint must belong to a body directly inside <worldbody>"));
                 }
             } else {
-                self.check_limits(&element, &s)?;
+                self.check_limits(&at, &s)?;
             }
             dofs += s.kind.nv();
             if dofs > 6 {
-                return Err(element.invalid("more than 6 degrees of freedom in one body"));
+                return Err(at.invalid("more than 6 degrees of freedom in one body"));
             }
 
             let axis = match s.kind {
+                // Not zero (checked when read), but a <frame> may turn a tiny one into zero.
                 JointKind::Hinge | JointKind::Slide => normalized(Vec3::from(s.axis))
-                    .ok_or_else(|| element.bad_value("axis", "a vector that is not zero"))?,
+                    .ok_or_else(|| at.invalid("the axis, turned by the <frame>s around it, is zero"))?,
                 JointKind::Ball | JointKind::Free => Vec3::z(),
             };
             let (reference, springref) = match s.kind {
@@ -78,14 +62,13 @@ impl Reader {
                 JointKind::Slide => (s.reference, s.springref),
                 JointKind::Ball | JointKind::Free => (0.0, 0.0),
             };
-            let actuator_force_range = self.actuator_force_range(&element, &s)?;
-            let named = element.text("name");
-            let name = named.map_or_else(
+            let actuator_force_range = self.actuator_force_range(&at, &s)?;
+            let name = named.as_deref().map_or_else(
                 || format!("{body_name}_joint{k}"),
                 |name| self.replicated_name(Named::Joint, name, &suffix),
             );
             if named.is_some() {
-                claim_name(&mut self.joint_names, "joint", &name, &element)?;
+                claim_name(&mut self.joint_names, "joint", &name, &at)?;
             }
             let range = match s.kind {
                 JointKind::Hinge | JointKind::Ball if self.joint_limited(&s) => {
@@ -116,7 +99,7 @@ impl Reader {
                     damper: !self.physics.damper_disabled,
                 }),
                 constraints: self.joint_constraints(&s, range),
-                line: element.line,
+                line: at.line,
             });
         }
         Ok(joints)
@@ -146,10 +129,10 @@ impl Reader {
     }
 
     /// MuJoCo's checks of joint limits.
-    pub(super) fn check_limits(&mut self, element: &Element, settings: &JointSettings) -> Result<(), MjcfError> {
+    pub(super) fn check_limits(&mut self, at: &Origin, settings: &JointSettings) -> Result<(), MjcfError> {
         let [low, high] = settings.range;
         if settings.limited == Limited::Auto && settings.range != [0.0; 2] && !self.compiler.autolimits {
-            return Err(element.invalid(
+            return Err(at.invalid(
                 "'range' without 'limited' while <compiler autolimits=\"false\">; give 'limited' or remove 'range'",
             ));
         }
@@ -158,10 +141,10 @@ impl Reader {
         }
         if settings.kind == JointKind::Ball {
             if low != 0.0 {
-                return Err(element.invalid("the first 'range' value of a ball joint must be 0"));
+                return Err(at.invalid("the first 'range' value of a ball joint must be 0"));
             }
         } else if low >= high {
-            return Err(element.invalid("the first 'range' value must be smaller than the second"));
+            return Err(at.invalid("the first 'range' value must be smaller than the second"));
         }
         Ok(())
     }
@@ -170,13 +153,13 @@ impl Reader {
     /// (`actuatorfrclimited`, `actuatorfrcrange`); ball and free joints have none.
     pub(super) fn actuator_force_range(
         &self,
-        element: &Element,
+        at: &Origin,
         settings: &JointSettings,
     ) -> Result<Option<[f64; 2]>, MjcfError> {
         if matches!(settings.kind, JointKind::Ball | JointKind::Free) {
             return Ok(None);
         }
-        self.limits(element, "actuatorfrc", settings.actuator_force_limited, settings.actuator_force_range)
+        self.limits(at, "actuatorfrc", settings.actuator_force_limited, settings.actuator_force_range)
     }
 
     /// MuJoCo's rule for an `<prefix>limited` and `<prefix>range` pair: with
@@ -185,24 +168,47 @@ impl Reader {
     /// increasing.
     pub(super) fn limits(
         &self,
-        element: &Element,
+        at: &Origin,
         prefix: &str,
         limited: Limited,
         range: [f64; 2],
     ) -> Result<Option<[f64; 2]>, MjcfError> {
         if limited == Limited::Auto && range != [0.0; 2] && !self.compiler.autolimits {
-            return Err(element.invalid(format!(
+            return Err(at.invalid(format!(
                 "'{prefix}range' without '{prefix}limited' while <compiler autolimits=\"false\">; \
                  give '{prefix}limited' or remove '{prefix}range'"
             )));
         }
         let on = limited == Limited::Yes || (limited == Limited::Auto && range[0] < range[1]);
         if on && range[0] >= range[1] {
-            return Err(element.invalid(format!(
+            return Err(at.invalid(format!(
                 "invalid '{prefix}range' {} {}: the first value must be smaller than the second",
                 range[0], range[1]
             )));
         }
         Ok(on.then_some(range))
     }
+}
+
+/// MuJoCo's checks of a `<joint>`'s values, made as it is read (`settings`:
+/// its class's with its own applied).
+pub(super) fn check_joint_values(element: &Element, s: &JointSettings) -> Result<(), MjcfError> {
+    let origin = |attribute: &str| if element.has(attribute) { "" } else { " (from its default class)" };
+    if s.springdamper != [0.0; 2] && !(s.springdamper[0] > 0.0 && s.springdamper[1] > 0.0) {
+        return Err(element.bad_value("springdamper", "two positive values (time constant, damping ratio)"));
+    }
+    if s.springyield != 0.0 {
+        return Err(element.unsupported(format!("springyield{}: yielding springs", origin("springyield"))));
+    }
+    for (attribute, coefficients) in [("stiffness", &s.stiffness), ("damping", &s.damping)] {
+        if coefficients[1..] != [0.0; 2] {
+            return Err(
+                element.unsupported(format!("nonlinear {attribute}{} (more than one coefficient)", origin(attribute)))
+            );
+        }
+    }
+    if matches!(s.kind, JointKind::Hinge | JointKind::Slide) && normalized(Vec3::from(s.axis)).is_none() {
+        return Err(element.bad_value("axis", "a vector that is not zero"));
+    }
+    Ok(())
 }

@@ -1,10 +1,11 @@
 //! Reads an MJCF document and builds the [`Vehicle`]: the settings
-//! sections first, then a walk through the body tree into a spec
-//! (`body.rs`), compiled once the tree is read (`compile.rs`: frames, mass
-//! properties, free-body alignment), then the sections that name its
-//! objects (tendons, equalities, actuators, sensors), and last what needs
-//! the whole file (`finish.rs`: the mass checks, `fusestatic`,
-//! `settotalmass`).
+//! sections first, then every other section parsed into a spec tree (the
+//! body tree by `body.rs`; tendons, equalities, actuators, sensors and
+//! keyframes by `sections.rs`: defaults resolved, values checked, objects
+//! named by name, each element's line and label kept in an `Origin`, no
+//! XML node), compiled once the whole document is read (`compile/`:
+//! frames, mass properties, free-body alignment, the names resolved,
+//! `fusestatic`, `settotalmass`), and last the [`Vehicle`] (`finish.rs`).
 
 mod body;
 mod compile;
@@ -27,7 +28,7 @@ use roxmltree::Document;
 use super::bodies::Align;
 use super::contacts::{ContactGeom, Reach};
 use super::defaults::{Defaults, GeomKind, JointSettings};
-use super::element::{Element, LineStarts};
+use super::element::{Element, LineStarts, Origin};
 use super::error::MjcfError;
 use super::include::{self, Sources};
 use super::inertia::{BodyInertia, GeomMass};
@@ -55,14 +56,6 @@ pub(crate) const MAX_REPLICATED_ELEMENTS: usize = 100_000;
 #[rustfmt::skip]
 pub(crate) const IGNORED_SECTIONS: &[&str] =
     &["size", "statistic", "visual", "contact", "extension"];
-
-/// Actuator attributes naming a transmission nudyn refuses, and why.
-#[rustfmt::skip]
-pub(crate) const REFUSED_TRANSMISSIONS: &[(&str, &str)] = &[
-    ("cranksite", "slider-crank transmissions"),
-    ("slidersite", "slider-crank transmissions"),
-    ("body", "body transmissions act through contacts, which nudyn does not model"),
-];
 
 /// Elements nudyn refuses where bodies or sections are expected, and why.
 #[rustfmt::skip]
@@ -134,6 +127,10 @@ pub(crate) struct Physics {
     equality_disabled: bool,
     /// `<flag sensor="disable">`: sensordata stays 0.
     sensor_disabled: bool,
+    /// `<flag contact="disable">`: no contact warnings.
+    contact_disabled: bool,
+    /// `<flag filterparent="disable">`: a parent and child may touch.
+    filterparent_disabled: bool,
 }
 
 /// MuJoCo's defaults.
@@ -175,11 +172,13 @@ impl Default for Physics {
             limit_disabled: false,
             equality_disabled: false,
             sensor_disabled: false,
+            contact_disabled: false,
+            filterparent_disabled: false,
         }
     }
 }
 
-/// What an actuator needs to know of a joint it may name.
+/// What actuators, tendons, equalities and sensors need to know of a joint they may name.
 struct JointTarget {
     kind: JointKind,
     /// `range` as MuJoCo's compiler leaves it: in radians for a limited hinge
@@ -189,7 +188,8 @@ struct JointTarget {
     limited: bool,
 }
 
-/// What the checks after the whole tree is read need to know of a body.
+/// A body's mass properties as compiled, with what the mass check and
+/// `fusestatic` need to know of it.
 struct BodyRecord {
     line: u32,
     label: String,
@@ -227,9 +227,12 @@ struct Placed<'a> {
     suffix: Suffix,
 }
 
-/// A joint element with its resolved settings.
-struct JointElement<'a, 'input> {
-    element: Element<'a, 'input>,
+/// A `<joint>` or `<freejoint>` as read, its values checked.
+struct JointSpec {
+    /// The element, for messages.
+    at: Origin,
+    /// `name` as written.
+    name: Option<String>,
     settings: JointSettings,
     /// The pose of the `<frame>`s around a `<joint>`, in its body.
     frame: Option<Pose>,
@@ -238,13 +241,14 @@ struct JointElement<'a, 'input> {
     suffix: Suffix,
 }
 
-/// What the walk through the document has gathered so far.
+/// The importer's state: the settings and name tables the parse fills,
+/// and the vehicle's parts the compile stage builds from the spec tree.
 struct Reader {
     compiler: Compiler,
     physics: Physics,
     defaults: Defaults,
     warnings: Vec<MjcfWarning>,
-    /// The `<key>`s read so far.
+    /// The `<key>`s compiled so far.
     keyframes: Vec<Keyframe>,
     /// The `nudyn:modal:` texts of `<custom>`, resolved at the end.
     modal_texts: Vec<modal::ModalText>,
@@ -284,7 +288,7 @@ struct Reader {
     replicated: HashMap<String, String>,
     /// The names given inside `<replicate>`s, with the copies they are in.
     replicated_names: Vec<ReplicatedName>,
-    /// The copy of an actuator or sensor element being read.
+    /// The copy of an actuator or sensor being compiled.
     copy: Option<ElementCopy>,
     /// The elements the `<replicate>`s expanded so far produce (see
     /// [`MAX_REPLICATED_ELEMENTS`]).
@@ -298,6 +302,8 @@ struct Reader {
     world_poses: Vec<Pose>,
     /// The geoms that may collide, for the warning on contacts.
     contact_geoms: Vec<ContactGeom>,
+    /// The body pairs of the `<contact>` sections' `<exclude>`s, by name.
+    contact_exclusions: Vec<(String, String)>,
 }
 
 /// A geom of the world body: it moves no mass, so it has an effect only as
@@ -345,6 +351,15 @@ pub(crate) fn read(xml: &str, path: Option<&Path>) -> Result<Imported, MjcfError
 
 /// Reads the document with its includes merged in.
 fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
+    // The document is gone once parsed: the compile stage reads the spec only.
+    let (mut reader, tree, name) = parse(xml, sources)?;
+    reader.compile(tree)?;
+    reader.finish(name)
+}
+
+/// Parses the document with its includes merged in: the settings read, every
+/// other section into the spec tree; gives the model's name too.
+fn parse(xml: &str, sources: &Sources) -> Result<(Reader, ReadTree, String), MjcfError> {
     let document = Document::parse(xml).map_err(|e| MjcfError::Xml {
         line: e.pos().row,
         column: e.pos().col,
@@ -372,17 +387,15 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
         reader.read_assets(&section)?;
     }
     for exclude in root.children().filter(|s| s.tag() == "contact").flat_map(|s| s.children()) {
-        let bodies = ["body1", "body2"].iter().filter_map(|a| exclude.text(a).filter(|_| exclude.tag() == "exclude"));
-        reader.named_elsewhere.extend(bodies.map(str::to_string));
+        let [body1, body2] = ["body1", "body2"].map(|a| exclude.text(a).filter(|_| exclude.tag() == "exclude"));
+        reader.named_elsewhere.extend([body1, body2].into_iter().flatten().map(str::to_string));
+        if let (Some(body1), Some(body2)) = (body1, body2) {
+            reader.contact_exclusions.push((body1.to_string(), body2.to_string()));
+        }
     }
 
     let mut tree = ReadTree::default();
     let mut has_worldbody = false;
-    let mut actuator_sections = Vec::new();
-    let mut sensor_sections = Vec::new();
-    let mut equality_sections = Vec::new();
-    let mut tendon_sections = Vec::new();
-    let mut keyframe_sections = Vec::new();
     for section in root.children() {
         match section.tag() {
             "compiler" | "option" | "default" | "asset" => {}
@@ -390,17 +403,13 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
                 has_worldbody = true;
                 reader.read_worldbody(&section, &mut tree)?;
             }
-            // Read once every joint and site is known, wherever the section stands.
-            "actuator" => actuator_sections.push(section),
-            "sensor" => sensor_sections.push(section),
-            // Read once the sizes are known.
-            "keyframe" => keyframe_sections.push(section),
+            "actuator" => tree.actuator_sections.push(reader.parse_actuators(&section)?),
+            "sensor" => tree.sensor_sections.push(reader.parse_sensors(&section)?),
+            "keyframe" => reader.parse_keyframes(&section, &mut tree.keyframes)?,
             "custom" => reader.read_custom(&section)?,
             tag if IGNORED_SECTIONS.contains(&tag) => reader.warnings.push(section.ignored()),
-            // Read once every joint and site is known.
-            "tendon" => tendon_sections.push(section),
-            // Read once every body, site and joint is known.
-            "equality" => equality_sections.push(section),
+            "tendon" => reader.parse_tendons(&section, &mut tree.tendons)?,
+            "equality" => reader.parse_equalities(&section, &mut tree.equalities)?,
             "deformable" => reader.read_deformable(&section)?,
             _ => return Err(section.unknown()),
         }
@@ -408,29 +417,8 @@ fn read_merged(xml: &str, sources: &Sources) -> Result<Imported, MjcfError> {
     if !has_worldbody {
         return Err(MjcfError::MissingWorldbody { line: root.line, element: root.label() });
     }
-    reader.note_wrap_obstacles(&tendon_sections);
-    reader.compile_bodies(tree)?;
-    // Before the equalities, actuators and sensors, which may name tendons.
-    for section in &tendon_sections {
-        reader.read_tendons(section)?;
-    }
-    for section in &equality_sections {
-        reader.read_equalities(section)?;
-    }
-    for section in &actuator_sections {
-        reader.read_actuators(section)?;
-    }
-    // After the actuators, which sensors may name.
-    for section in &sensor_sections {
-        reader.read_sensors(section)?;
-    }
-    for section in &keyframe_sections {
-        reader.read_keyframes(section)?;
-    }
-    reader.warn_of_contacts(&root);
-
     let name = root.text("model").unwrap_or("vehicle").to_string();
-    reader.finish(name)
+    Ok((reader, tree, name))
 }
 
 impl Reader {
@@ -472,6 +460,7 @@ impl Reader {
             wrap_obstacles: HashMap::new(),
             world_poses: Vec::new(),
             contact_geoms: Vec::new(),
+            contact_exclusions: Vec::new(),
         }
     }
 
@@ -489,23 +478,18 @@ impl Reader {
     }
 }
 
-/// Registers a body or joint name, rejecting a repetition.
-fn claim_name(
-    names: &mut HashMap<String, u32>,
-    kind: &'static str,
-    name: &str,
-    element: &Element,
-) -> Result<(), MjcfError> {
+/// Registers the name of an element of `kind`, rejecting a repetition.
+fn claim_name(names: &mut HashMap<String, u32>, kind: &'static str, name: &str, at: &Origin) -> Result<(), MjcfError> {
     if let Some(&first_line) = names.get(name) {
         return Err(MjcfError::DuplicateName {
-            line: element.line,
-            element: element.label(),
+            line: at.line,
+            element: at.label.clone(),
             kind,
             name: name.to_string(),
             first_line,
         });
     }
-    names.insert(name.to_string(), element.line);
+    names.insert(name.to_string(), at.line);
     Ok(())
 }
 

@@ -135,21 +135,21 @@ fn refuse_fluid_forces(element: &Element) -> Result<(), MjcfError> {
 }
 
 /// `<flag>` (MuJoCo 4.0 schema): every attribute takes "enable" or
-/// "disable"; those of contacts, the iterative solver and the discrete
-/// integrators are read for their syntax only (`filterparent` also by the
-/// contact warnings).
+/// "disable"; those of the iterative solver and the discrete integrators
+/// are read for their syntax only, those of contacts only for the contact
+/// warnings.
 pub(crate) const FLAG_ATTRIBUTES: &[Attribute<Physics>] = &[
     Attribute::into("actuation", |p, e, a| set(&mut p.actuation.enabled, enabled(e, a)?)),
     Attribute::checked("autoreset", |e, a| enabled(e, a).map(drop)),
     Attribute::into("clampctrl", |p, e, a| set(&mut p.actuation.clamp_ctrl, enabled(e, a)?)),
     Attribute::into("constraint", |p, e, a| set(&mut p.constraint_disabled, disabled(e, a)?)),
-    Attribute::checked("contact", |e, a| enabled(e, a).map(drop)),
+    Attribute::into("contact", |p, e, a| set(&mut p.contact_disabled, disabled(e, a)?)),
     Attribute::into("damper", |p, e, a| set(&mut p.damper_disabled, disabled(e, a)?)),
     Attribute::checked("diagexact", |e, a| enabled(e, a).map(drop)),
     Attribute::checked("energy", |e, a| enabled(e, a).map(drop)),
     Attribute::into("equality", |p, e, a| set(&mut p.equality_disabled, disabled(e, a)?)),
     Attribute::checked("eulerdamp", |e, a| enabled(e, a).map(drop)),
-    Attribute::checked("filterparent", |e, a| enabled(e, a).map(drop)),
+    Attribute::into("filterparent", |p, e, a| set(&mut p.filterparent_disabled, disabled(e, a)?)),
     Attribute::into("frictionloss", |p, e, a| set(&mut p.frictionloss_disabled, disabled(e, a)?)),
     Attribute::checked("fwdinv", |e, a| enabled(e, a).map(drop)),
     Attribute::into("gravity", |p, e, a| set(&mut p.gravity_disabled, disabled(e, a)?)),

@@ -20,7 +20,7 @@
 use std::collections::HashSet;
 
 use super::Reader;
-use crate::mjcf::element::Element;
+use crate::mjcf::element::{Element, Origin};
 use crate::mjcf::error::MjcfError;
 
 /// A `<replicate>` element: where it starts and ends in the text, its line.
@@ -77,6 +77,10 @@ pub(super) enum Named {
     Actuator,
 }
 
+/// An object an actuator or sensor names: the attribute, the kind of
+/// object, its name.
+pub(super) type Reference = (&'static str, Named, String);
+
 /// A name given inside `<replicate>`s: as written, and the copies it is in.
 pub(super) struct ReplicatedName {
     pub kind: Named,
@@ -90,30 +94,29 @@ pub(super) struct ElementCopy {
     /// The element's place among its section's children.
     pub index: usize,
     /// The names its attributes refer to in this copy: attribute, kind, name.
-    pub references: Vec<(&'static str, Named, String)>,
+    pub references: Vec<Reference>,
     /// The replicate copies it was made for, innermost first.
     pub suffix: Suffix,
 }
 
 impl Reader {
     /// The copies of a section's actuator or sensor `elements` in MuJoCo's
-    /// order; `references` gives the attributes an element names objects
-    /// with. `actuators`: an element some of whose references lie outside a
-    /// replicate it is copied with is refused (MuJoCo drops the actuator).
+    /// order, each element given with the objects it names (attribute,
+    /// kind, name as written). `actuators`: an element some of whose
+    /// references lie outside a replicate it is copied with is refused
+    /// (MuJoCo drops the actuator).
     pub(super) fn copies(
         &self,
-        elements: &[Element],
+        elements: &[(&Origin, Vec<Reference>)],
         actuators: bool,
-        references: impl Fn(&Element) -> Vec<(&'static str, Named)>,
     ) -> Result<Vec<ElementCopy>, MjcfError> {
         let mut list: Vec<ElementCopy> = elements
             .iter()
             .enumerate()
-            .map(|(index, element)| {
-                let named = references(element).into_iter().filter_map(|(attribute, kind)| {
-                    element.text(attribute).map(|name| (attribute, kind, name.to_string()))
-                });
-                ElementCopy { index, references: named.collect(), suffix: Suffix::default() }
+            .map(|(index, (_, references))| ElementCopy {
+                index,
+                references: references.clone(),
+                suffix: Suffix::default(),
             })
             .collect();
         for replicate in self.replicates() {
@@ -122,7 +125,7 @@ impl Reader {
             let (copied, kept): (Vec<ElementCopy>, Vec<ElementCopy>) =
                 list.into_iter().partition(|copy| copy.references.iter().any(|(_, kind, name)| in_scope(*kind, name)));
             for copy in &copied {
-                let element = &elements[copy.index];
+                let element = elements[copy.index].0;
                 let outside = copy.references.iter().find(|(_, kind, name)| !in_scope(*kind, name));
                 if let (true, Some((attribute, _, name))) = (actuators, outside) {
                     return Err(element.unsupported(format!(
@@ -185,18 +188,18 @@ impl Reader {
         (scope, copies)
     }
 
-    /// The name an element's attribute refers to, in the copy being read.
-    pub(super) fn reference(&self, element: &Element, attribute: &str) -> String {
+    /// The name an attribute gives as `written`, in the copy being compiled.
+    pub(super) fn reference(&self, attribute: &str, written: &str) -> String {
         let copied = self.copy.as_ref().and_then(|copy| copy.references.iter().find(|(a, _, _)| *a == attribute));
         match copied {
             Some((_, _, name)) => name.clone(),
-            None => element.text(attribute).unwrap_or_default().to_string(),
+            None => written.to_string(),
         }
     }
 
-    /// The element's own name, with the suffix of the copy being read.
-    pub(super) fn own_name(&self, element: &Element) -> Option<String> {
+    /// An element's own name as `written`, with the suffix of the copy being compiled.
+    pub(super) fn own_name(&self, written: Option<&str>) -> Option<String> {
         let suffix = self.copy.as_ref().map(|copy| copy.suffix.text()).unwrap_or_default();
-        element.text("name").map(|name| format!("{name}{suffix}"))
+        written.map(|name| format!("{name}{suffix}"))
     }
 }

@@ -6,94 +6,33 @@
 //! primitive or its mesh (a mesh file is read here, and only for a geom
 //! whose mass counts or a primitive a tendon wraps around); the wrap
 //! frames of the sphere and cylinder geoms tendons wrap around; the geoms
-//! that may collide; each body's mass properties (`inertiafromgeom`,
+//! that may collide, and a warning on those that touch; each body's mass properties (`inertiafromgeom`,
 //! `boundmass`, `boundinertia`); and the free bodies aligned with their
-//! inertial frames. `fusestatic` and `settotalmass` follow once the whole
-//! file is read (`finish.rs`).
+//! inertial frames.
 
-use super::body::compose;
-use super::geom::mass_not_computed;
-use super::{BodyRecord, InertiaFromGeom, JointElement, Pose, Reader, WorldGeom};
+use super::{BodySpec, GeomSpec, MassSource, SiteSpec};
 use crate::math::{Quat, Vec3};
-use crate::mjcf::defaults::GeomSettings;
-use crate::mjcf::element::Element;
+use crate::mjcf::MjcfWarning;
+use crate::mjcf::contacts::{self, BodyFilter};
 use crate::mjcf::error::MjcfError;
 use crate::mjcf::inertia::{BodyInertia, EPS, GeomMass};
-use crate::vehicle::{Body, Site};
-
-/// The body tree as read, for the compile stage.
-#[derive(Default)]
-pub(super) struct ReadTree<'a> {
-    /// Each body, in the vehicle's order.
-    pub bodies: Vec<BodySpec<'a>>,
-    /// Every geom, the world body's too, in document order.
-    pub geoms: Vec<GeomSpec<'a>>,
-    /// Every site, the world body's too, in document order.
-    pub sites: Vec<SiteSpec>,
-}
-
-/// A `<site>` as read.
-pub(super) struct SiteSpec {
-    /// The site, its pose in the `<frame>`s around it.
-    pub site: Site,
-    /// The pose of those `<frame>`s in its body.
-    pub frame: Option<Pose>,
-    /// Whether it is fitted to a mesh (which moves its frame).
-    pub fitted_to_mesh: bool,
-}
-
-/// A `<body>` as read, its joints built.
-pub(super) struct BodySpec<'a> {
-    /// Its name (one made up when the file gives none).
-    pub name: String,
-    /// Its parent; `None` for the world body.
-    pub parent: Option<usize>,
-    /// The pose of the `<frame>`s around it, in its parent.
-    pub frame: Option<Pose>,
-    /// Its joints, with their settings resolved.
-    pub joints: Vec<JointElement<'a, 'a>>,
-    /// `gravcomp`.
-    pub gravcomp: f64,
-    /// What its mass properties and frame come from.
-    pub mass: MassSource<'a>,
-}
-
-/// What a body's mass properties and frame come from.
-pub(super) struct MassSource<'a> {
-    /// The `<body>` element, for messages.
-    pub element: Element<'a, 'a>,
-    /// Its `<inertial>`, in the `<frame>`s around it (their pose in the body).
-    pub explicit: Option<(BodyInertia, Option<Pose>)>,
-    /// Whether a joint lies between it and the world.
-    pub moving: bool,
-    /// Whether its frame moves to its inertial frame (a free body without
-    /// children, as `align` or `<compiler alignfree>` says).
-    pub aligned: bool,
-    /// Its pose in its parent before any `<frame>` around it.
-    pub own_pose: Pose,
-}
-
-/// A `<geom>` as read.
-pub(super) struct GeomSpec<'a> {
-    /// The element, for messages.
-    pub element: Element<'a, 'a>,
-    /// Its class's settings with its own attributes applied.
-    pub settings: GeomSettings,
-    /// The pose of the `<frame>`s around it, in its body.
-    pub frame: Option<Pose>,
-    /// Its name, with its `<replicate>` suffix.
-    pub name: Option<String>,
-    /// Its body; `None` for the world body.
-    pub body: Option<usize>,
-}
+use crate::mjcf::reader::body::compose;
+use crate::mjcf::reader::geom::mass_not_computed;
+use crate::mjcf::reader::{BodyRecord, InertiaFromGeom, Reader, WorldGeom};
+use crate::vehicle::Body;
 
 impl Reader {
     /// Compiles the bodies and geoms of `tree`: each body placed in its
     /// parent and in the world, the geoms in document order, then each
     /// body's mass properties, with which a free body may move its frame.
-    pub(super) fn compile_bodies(&mut self, tree: ReadTree) -> Result<(), MjcfError> {
-        let sources = self.place_bodies(tree.bodies)?;
-        for SiteSpec { mut site, frame, fitted_to_mesh } in tree.sites {
+    pub(super) fn compile_bodies(
+        &mut self,
+        bodies: Vec<BodySpec>,
+        geoms: Vec<GeomSpec>,
+        sites: Vec<SiteSpec>,
+    ) -> Result<(), MjcfError> {
+        let sources = self.place_bodies(bodies)?;
+        for SiteSpec { mut site, frame, fitted_to_mesh } in sites {
             if let Some(frame) = frame {
                 (site.pos, site.quat) = compose(&frame, &(site.pos, site.quat));
             }
@@ -101,7 +40,7 @@ impl Reader {
             self.site_fitted_to_mesh.push(fitted_to_mesh);
         }
         let mut masses: Vec<Vec<GeomMass>> = sources.iter().map(|_| Vec::new()).collect();
-        for geom in &tree.geoms {
+        for geom in &geoms {
             self.register_wrap_geom(geom)?;
             match geom.body {
                 None => self.compile_world_geom(geom)?,
@@ -123,19 +62,19 @@ impl Reader {
                 inertia
             });
             let inertia = match (selected.is_empty(), explicit) {
-                (false, _) => BodyInertia::from_geoms(&selected).map_err(|r| body.element.invalid(r))?,
+                (false, _) => BodyInertia::from_geoms(&selected).map_err(|r| body.at.invalid(r))?,
                 (true, Some(explicit)) => explicit,
                 // MuJoCo puts the inertial frame of a body without mass at the body's
                 // own pose in its parent, before any <frame> around it; it matters
                 // once boundmass gives it mass.
                 (true, None) => BodyInertia::from_principal(0.0, body.own_pose.0, &body.own_pose.1, Vec3::zeros()),
             };
-            let mut inertia = self.bound(&body.element, inertia)?;
+            let mut inertia = self.bound(&body.at, inertia)?;
             if body.aligned {
                 inertia = self.align_free(index, inertia);
             }
             let has_joints = !self.bodies[index].joints.is_empty();
-            let (line, label) = (body.element.line, body.element.label());
+            let (line, label) = (body.at.line, body.at.label);
             self.records.push(BodyRecord { line, label, inertia, has_joints, children: Vec::new() });
         }
         for index in 0..self.bodies.len() {
@@ -150,7 +89,7 @@ impl Reader {
     /// around it and its joints composed) and in the world at qpos0, its
     /// joints built, with the names made up for unnamed ones set apart;
     /// what their masses come from.
-    fn place_bodies<'a>(&mut self, bodies: Vec<BodySpec<'a>>) -> Result<Vec<MassSource<'a>>, MjcfError> {
+    fn place_bodies(&mut self, bodies: Vec<BodySpec>) -> Result<Vec<MassSource>, MjcfError> {
         let mut sources = Vec::with_capacity(bodies.len());
         for BodySpec { name, parent, frame, mut joints, gravcomp, mass } in bodies {
             for joint in joints.iter_mut() {
@@ -174,7 +113,7 @@ impl Reader {
                 mass_unknown: false,
                 joints,
                 gravcomp,
-                line: mass.element.line,
+                line: mass.at.line,
             });
             sources.push(mass);
         }
@@ -185,18 +124,18 @@ impl Reader {
     /// A geom of the world body: it moves no mass, so its mesh is never
     /// read; it may still collide, or be a tendon's wrap obstacle.
     fn compile_world_geom(&mut self, geom: &GeomSpec) -> Result<(), MjcfError> {
-        let GeomSpec { element, settings, frame, name, .. } = geom;
-        let read = self.geom_mass(element, settings, frame.as_ref(), false, false)?;
-        self.add_contact_geom(element, settings, None, read.reach);
+        let GeomSpec { at, settings, frame, name, .. } = geom;
+        let read = self.geom_mass(at, settings, frame.as_ref(), false, false)?;
+        self.add_contact_geom(at, settings, None, read.reach);
         let collides = settings.contype != [0, 0];
-        self.world_geoms.push(WorldGeom { name: name.clone(), collides, warning: element.ignored() });
+        self.world_geoms.push(WorldGeom { name: name.clone(), collides, warning: at.ignored() });
         Ok(())
     }
 
     /// A geom of `body`: its mass when it counts towards the body's (as
     /// `inertiafromgeom` and `inertiagrouprange` say).
     fn compile_body_geom(&mut self, geom: &GeomSpec, body: &MassSource) -> Result<Option<GeomMass>, MjcfError> {
-        let GeomSpec { element, settings, frame, body: index, .. } = geom;
+        let GeomSpec { at, settings, frame, body: index, .. } = geom;
         let from_geoms = match self.compiler.inertia_from_geom {
             InertiaFromGeom::Never => false,
             InertiaFromGeom::Always => true,
@@ -208,13 +147,13 @@ impl Reader {
             if let Some(index) = index {
                 self.bodies[*index].mass_unknown = true;
             }
-            self.warnings.push(element.warning(
+            self.warnings.push(at.warning(
                 "its mass is not computed: the body is fixed to the world, so it moves nothing \
                  (a subtree sensor that would count it is refused)",
             ));
         }
-        let read = self.geom_mass(element, settings, frame.as_ref(), body.moving, contributes)?;
-        self.add_contact_geom(element, settings, *index, read.reach);
+        let read = self.geom_mass(at, settings, frame.as_ref(), body.moving, contributes)?;
+        self.add_contact_geom(at, settings, *index, read.reach);
         Ok(read.mass)
     }
 
@@ -232,5 +171,45 @@ impl Reader {
         let body = &mut self.bodies[index];
         (body.pos, body.quat) = compose(&(body.pos, body.quat), &(inertia.com, axes));
         BodyInertia::from_principal(inertia.mass, Vec3::zeros(), &Quat::identity(), principal)
+    }
+
+    /// A warning on each pair of geoms MuJoCo would collide at qpos0
+    /// (`super::contacts` says what is checked), unless `<flag contact>` or
+    /// `<flag constraint>` turns contacts off.
+    pub(super) fn warn_of_contacts(&mut self) {
+        if self.physics.contact_disabled || self.physics.constraint_disabled {
+            return;
+        }
+        let body = |name: &str| match name {
+            "world" => Some(None),
+            name => self.bodies.iter().position(|b| b.name == name && self.body_names.contains_key(name)).map(Some),
+        };
+        let excluded: Vec<_> =
+            self.contact_exclusions.iter().filter_map(|(body1, body2)| Some((body(body1)?, body(body2)?))).collect();
+        let parents: Vec<Option<usize>> = self.bodies.iter().map(|b| b.parent).collect();
+        let roots: Vec<bool> =
+            self.bodies.iter().map(|b| !b.joints.is_empty() || self.mocap_bodies.contains(&b.name)).collect();
+        let filter = BodyFilter {
+            parents: &parents,
+            poses: &self.world_poses,
+            roots: &roots,
+            filter_parent: !self.physics.filterparent_disabled,
+            excluded: &excluded,
+        };
+        for (a, b) in contacts::touching(&self.contact_geoms, &filter) {
+            let (first, second) = (&self.contact_geoms[a], &self.contact_geoms[b]);
+            let warning = MjcfWarning {
+                file: None,
+                line: first.line,
+                element: first.label.clone(),
+                message: format!(
+                    "touches <{}> (line {}) at the initial pose: MuJoCo would make contacts between them, \
+                     nudyn models no contacts",
+                    second.label,
+                    self.sources.line_in_file(second.line)
+                ),
+            };
+            self.warnings.push(warning);
+        }
     }
 }
