@@ -16,11 +16,11 @@ cd "$ROOT"
 WHEEL_DATA="$ROOT/target/wheel/nudyn.data"  # pyproject.toml's [tool.maturin] data
 DATA="$WHEEL_DATA/data/share/nudyn"
 
-# Every target, as scripts/test.sh builds them: after the tests this compiles
-# nothing again. maturin then builds nudyn-cli alone, whose dependencies
+# The targets scripts/test.sh builds: after the tests this compiles nothing
+# again. maturin then builds nudyn-cli alone, whose dependencies
 # get the workspace's features through workspace-hack (checked by
 # scripts/check-unified-features.py), so it only links the executable.
-cargo build --release --locked --workspace --all-targets
+cargo build --release --locked --workspace --lib --bins --tests --examples
 rm -rf "$ROOT/target/wheel"
 mkdir -p "$DATA/binaries/linux64"
 # The same library `nudyn export` packs from target/release, without the

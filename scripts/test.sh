@@ -102,10 +102,12 @@ background build-windows bash scripts/build-windows.sh
 background build-fuzz bash scripts/stress-fmu.sh --build
 
 stage clippy cargo clippy --release --workspace --all-targets -- -D warnings
-# Every target at once: the libraries and binaries are built with the same
-# features as the tests (dev-dependencies add features to shared crates), so
-# `cargo test` below reuses them instead of building the tree a second time.
-stage "cargo build" cargo build --release --workspace --all-targets
+# Every target the tests use, at once: the libraries and binaries are built
+# with the same features as the tests (dev-dependencies add features to
+# shared crates), so `cargo test` below reuses them instead of building the
+# tree a second time. Not the criterion benchmark (bench/benches), which
+# nothing here runs: clippy above checks it.
+stage "cargo build" cargo build --release --workspace --lib --bins --tests --examples
 stage "cargo test" cargo test --release --workspace
 
 finish setup-python

@@ -135,7 +135,7 @@ fn bench_stage(c: &mut Criterion, name: &str, model: &Model) {
 }
 
 fn benches(c: &mut Criterion) {
-    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/tendons");
+    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/tendons");
     for name in ["tendon_finger", "tendon_limits", "tendon_armature"] {
         // A fixture an older importer refuses is not timed (before/after runs).
         match nudyn::mjcf::load_mjcf(&fixtures.join(format!("{name}.xml"))) {
@@ -143,7 +143,7 @@ fn benches(c: &mut Criterion) {
             Err(error) => eprintln!("{name}: not timed ({error})"),
         }
     }
-    let examples = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples");
+    let examples = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
     let mut files: Vec<_> = std::fs::read_dir(&examples)
         .expect("examples/ exists")
         .map(|e| e.unwrap().path())
