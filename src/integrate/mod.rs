@@ -4,6 +4,7 @@
 
 mod adaptive;
 mod auto;
+mod filter;
 mod reach;
 mod rkmk;
 mod rosenbrock;
