@@ -536,8 +536,6 @@ impl Simulation {
         let (evaluations_before, jacobians_before) = (self.integrator.evaluations, self.integrator.jacobians);
         // The inputs may have changed at t0: the first stage is no test of the last step.
         self.integrator.stiffness.drop_pending();
-        // Formed afresh in each advance, as a run restored at t0 would.
-        self.integrator.filter.drop_formed();
         let stiffness_before = (self.integrator.stiffness.tests, self.integrator.stiffness.held);
         if self.switches.watched() {
             let Simulation { state, integrator, ws, switches, .. } = self;
@@ -559,7 +557,6 @@ impl Simulation {
             (&mut state.theta[..], &mut state.qvel[..], &mut state.carry, &mut state.reach);
         let watch = switches.watched();
         let control = integrator.method.control();
-        let explicit = matches!(integrator.method.scheme(), Scheme::Explicit(_));
         let tolerance = settings.tolerance;
         let mut stats = Stats::default();
         let mut t = t0;
@@ -589,11 +586,6 @@ impl Simulation {
             }
             if stats.accepted + stats.rejected >= MAX_STEPS {
                 return Err(AdvanceError::TooManySteps { reached: t, step, tolerance });
-            }
-            if explicit && integrator.filter.due() {
-                integrator
-                    .form_filter(model, ws, (theta, qvel), t, inputs_at)
-                    .map_err(|cause| AdvanceError::StepFailed { reached: t, step: 0.0, cause })?;
             }
             let mut step = step;
             let mut attempted = integrator.attempt(model, ws, (theta, qvel), (t, step), inputs_at);
@@ -697,7 +689,6 @@ impl Simulation {
                 } else if watch {
                     switches.step_taken();
                 }
-                integrator.filter.age += 1;
                 stats.accepted += 1;
                 if reaches {
                     hold_reach(reach, (theta, qvel, carry.work), t, settings);

@@ -4,7 +4,6 @@
 
 mod adaptive;
 mod auto;
-mod filter;
 mod reach;
 mod rkmk;
 mod rosenbrock;

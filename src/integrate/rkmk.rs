@@ -11,7 +11,6 @@
 
 use nalgebra::DVector;
 
-use super::filter::ErrorFilter;
 use super::reach::Reach;
 use super::rosenbrock::Linearization;
 use super::stiffness::StiffnessTest;
@@ -192,8 +191,6 @@ pub struct Integrator {
     pub(super) clamped_end: Vec<f64>,
     /// Whether its steps are held by stability (explicit methods).
     pub(super) stiffness: StiffnessTest,
-    /// The filter of its error estimates on a vehicle with constraint rows (filter.rs).
-    pub(super) filter: ErrorFilter,
     /// How many times it has evaluated the rates, and formed W, ever.
     pub(super) evaluations: usize,
     pub(super) jacobians: usize,
@@ -266,7 +263,6 @@ impl Integrator {
             clamped_start: vec![0.0; model.activation_count()],
             clamped_end: vec![0.0; model.activation_count()],
             stiffness: StiffnessTest::new(nv, rates),
-            filter: ErrorFilter::new(model),
             evaluations: 0,
             jacobians: 0,
         }
@@ -289,7 +285,6 @@ impl Integrator {
         self.method = method;
         self.first.valid = false;
         self.stiffness.drop_pending();
-        self.filter.drop_formed();
         if !matches!(method.scheme(), Scheme::Rosenbrock(r) if self.linear.fits(model, r)) {
             self.linear = linearization(model, method);
         }
@@ -437,7 +432,6 @@ impl Integrator {
                 accumulate(&self.k_delta, &self.k_qvel, weights, h, delta, qvel);
             }
         }
-        self.filter_estimates();
         Ok(())
     }
 

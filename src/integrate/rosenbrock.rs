@@ -346,7 +346,9 @@ impl Integrator {
         Ok(())
     }
 
-    /// W's derivatives at the step's start (θ, θ̇, t) ([`Integrator::rate_derivatives`]).
+    /// W's derivatives at the step's start (θ, θ̇, t), by forward
+    /// differences from the first stage: each Δ and θ̇ component is probed
+    /// by √ε of its size (at least √ε).
     fn linearize(
         &mut self,
         model: &Model,
@@ -356,29 +358,6 @@ impl Integrator {
         t: f64,
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<(), DynamicsError> {
-        let derivatives = (&mut linear.qacc_by_delta, &mut linear.qacc_by_qvel, &mut linear.probed);
-        self.rate_derivatives(model, ws, (theta, qvel), t, inputs_at, derivatives)?;
-        linear.held = true;
-        linear.fresh = true;
-        linear.age = 0;
-        self.jacobians += 1;
-        Ok(())
-    }
-
-    /// ∂(θ̈, act's rate)/∂Δ ((nv + na) × nv) and ∂(θ̈, act's rate)/∂(θ̇, act)
-    /// at the step's start (θ, θ̇, t), by forward differences from the first
-    /// stage (`first`, which must hold the rates there): each Δ and θ̇
-    /// component is probed by √ε of its size (at least √ε); `probed` is
-    /// scratch (nv + na).
-    pub(super) fn rate_derivatives(
-        &mut self,
-        model: &Model,
-        ws: &mut Workspace,
-        (theta, qvel): (&[f64], &[f64]),
-        t: f64,
-        inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
-        (by_delta, by_qvel, probed): (&mut DMatrix<f64>, &mut DMatrix<f64>, &mut DVector<f64>),
-    ) -> Result<(), DynamicsError> {
         for (dof, position) in positions(model, theta) {
             let probe = PROBE * position.map_or(1.0, |y| y.abs().max(1.0));
             self.delta.fill(0.0);
@@ -387,36 +366,41 @@ impl Integrator {
             retract(model, self.theta_stage.as_mut_slice(), self.delta.as_slice());
             self.qvel_stage.copy_from_slice(qvel);
             self.evaluate_stage(model, ws, t, inputs_at)?;
-            copy_rates(model, probed, ws);
-            difference(by_delta.column_mut(dof).iter_mut(), probed, &self.first.qacc, probe);
-            self.probe_rate_column(model, ws, (theta, qvel), dof, t, inputs_at, (by_qvel, probed))?;
+            copy_rates(model, &mut linear.probed, ws);
+            difference(linear.qacc_by_delta.column_mut(dof).iter_mut(), &linear.probed, &self.first.qacc, probe);
+            self.probe_rate_column(model, ws, linear, (theta, qvel), dof, t, inputs_at)?;
         }
         for k in model.nv..qvel.len() {
-            self.probe_rate_column(model, ws, (theta, qvel), k, t, inputs_at, (by_qvel, probed))?;
+            self.probe_rate_column(model, ws, linear, (theta, qvel), k, t, inputs_at)?;
         }
+        linear.held = true;
+        linear.fresh = true;
+        linear.age = 0;
+        self.jacobians += 1;
         Ok(())
     }
 
-    /// Column `k` of ∂(θ̈, act's rate)/∂(θ̇, act) into `by_qvel`, by a
-    /// forward difference from the first stage.
+    /// Column `k` of ∂(θ̈, act's rate)/∂(θ̇, act), by a forward difference
+    /// from the first stage.
     #[allow(clippy::too_many_arguments)]
     fn probe_rate_column(
         &mut self,
         model: &Model,
         ws: &mut Workspace,
+        linear: &mut Linearization,
         (theta, qvel): (&[f64], &[f64]),
         k: usize,
         t: f64,
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
-        (by_qvel, probed): (&mut DMatrix<f64>, &mut DVector<f64>),
     ) -> Result<(), DynamicsError> {
         let moved = qvel[k] + PROBE * qvel[k].abs().max(1.0);
         self.theta_stage.copy_from_slice(theta);
         self.qvel_stage.copy_from_slice(qvel);
         self.qvel_stage[k] = moved;
         self.evaluate_stage(model, ws, t, inputs_at)?;
-        copy_rates(model, probed, ws);
-        difference(by_qvel.column_mut(k).iter_mut(), probed, &self.first.qacc, moved - qvel[k]);
+        copy_rates(model, &mut linear.probed, ws);
+        let probe = moved - qvel[k];
+        difference(linear.qacc_by_qvel.column_mut(k).iter_mut(), &linear.probed, &self.first.qacc, probe);
         Ok(())
     }
 }

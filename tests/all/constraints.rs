@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use nudyn::integrate::{Input, Method, Settings, Simulation, ToleranceRelaxed};
+use nudyn::integrate::{Input, Method, Settings, Simulation};
 use nudyn::mjcf::parse_mjcf;
 use nudyn::model::{InvalidModel, Model};
 
@@ -152,37 +152,15 @@ fn driven_run(
 fn a_relaxation_with_the_no_slip_pass_says_the_pass_is_why() {
     // Its sweeps' clamps and stopping rule are not smooth in the state:
     // round-off is not what holds the error up there.
-    let relaxed = ToleranceRelaxed {
-        time: 0.5,
-        tolerance: 1e-8,
-        attained: 1e-7,
-        rates: 2.0,
-        start_rates: 1.0,
-        no_slip: Some((4, 1e-6)),
-    };
-    let warning = relaxed.to_string();
-    assert!(
-        warning.contains("MuJoCo's no-slip pass moves its friction forces") && !warning.contains("round-off"),
-        "{warning}"
-    );
-    assert!(!relaxed.meets_asked(), "a relaxation for the no-slip pass must warn");
-}
-
-/// The no-slip pass kept the error estimate up where it lies in the
-/// friction rows' damped modes: `dopri5` relaxed from 1e-8 on. With the
-/// estimate filtered to what reaches the result (docs/integration.md,
-/// "Where the local errors go") it holds 1e-8 and 1e-10, within 20 times.
-#[test]
-fn the_no_slip_pass_holds_the_tolerance_asked() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/constraints/noslip_trees.xml");
     let model = Model::compile(&nudyn::mjcf::load_mjcf(&path).unwrap().vehicle).unwrap();
-    let (reference, _, _) = driven_run(&model, Method::Dop853, 1e-12, 40, 0.3);
-    for tolerance in [1e-8, 1e-10] {
-        let (end, warnings, _) = driven_run(&model, Method::Dopri5, tolerance, 40, 0.3);
-        assert!(warnings.is_empty(), "{warnings:?}");
-        let error = end.iter().zip(&reference).map(|(x, r)| (x - r).abs() / (1.0 + r.abs())).fold(0.0, f64::max);
-        println!("noslip_trees dopri5 {tolerance:e}: error/tol {:.2e}", error / tolerance);
-        assert!(error <= 20.0 * tolerance, "{error:e} at {tolerance:e}");
+    let (_, warnings, _) = driven_run(&model, Method::Dopri5, 1e-8, 40, 0.3);
+    assert!(!warnings.is_empty(), "noslip_trees held 1e-8");
+    for warning in warnings {
+        assert!(
+            warning.contains("MuJoCo's no-slip pass moves its friction forces") && !warning.contains("round-off"),
+            "{warning}"
+        );
     }
 }
 

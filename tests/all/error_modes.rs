@@ -8,7 +8,7 @@
 //! linearized motion.
 
 use nalgebra::{DMatrix, DVector, Quaternion, UnitQuaternion};
-use nudyn::integrate::{Integrator, Method, MethodSetting, RunState, Settings, Simulation, retract};
+use nudyn::integrate::{Integrator, Method, RunState, Settings, Simulation, retract};
 use nudyn::model::{LinkJoint, Model};
 
 use crate::stiffness::{CONSTRAINED, INTERVAL, INTERVALS, eps, fixture};
@@ -278,64 +278,7 @@ fn the_local_errors_on_constrained_fixtures_lie_in_modes_that_decay() {
         );
         assert!(slow < 0.01, "{name} {method:?} {tolerance:e}: the estimate's slow part {slow}");
         let propagation = m.propagated / m.global;
-        assert!((1.0 / 10.0..10.0).contains(&propagation), "{name} {method:?} {tolerance:e}: {propagation}");
-        assert!(m.summed > 5.0 * m.global, "{name} {method:?} {tolerance:e}: {} against {}", m.summed, m.global);
-    }
-}
-
-/// (θ, ν) at the end of 1 s of `setting` at `tolerance` (ε = 0.3 sin k,
-/// 0.05 s communication steps), and the evaluations; None where the run
-/// relaxed its tolerance or stopped.
-fn band_run(model: &Model, setting: MethodSetting, tolerance: f64) -> Option<(Vec<f64>, usize)> {
-    let eps = eps(model);
-    let settings = Settings { tolerance, max_step: 0.0, energy_projection: false };
-    let mut sim = Simulation::new(model, setting, settings);
-    sim.initialize(model).unwrap();
-    let mut evaluations = 0;
-    for k in 1..=INTERVALS {
-        let advanced = sim.advance_to(model, k as f64 * INTERVAL, |_: f64, out: &mut [f64]| out.copy_from_slice(&eps));
-        let advanced = advanced.ok()?;
-        if advanced.relaxed.is_some() && tolerance > 1e-11 {
-            return None;
-        }
-        evaluations += advanced.stats.evaluations;
-    }
-    Some((sim.state.theta.iter().chain(&sim.state.nu).copied().collect(), evaluations))
-}
-
-/// The error delivered on the constrained fixtures by the explicit methods
-/// and `auto` (docs/integration.md, "Where the local errors go"): never
-/// above 20 times the tolerance nor relaxed; on the docked servicer, whose
-/// steps the error control holds, at least 1/50 of it with `dopri5`,
-/// `tsit5` and `bs3` at 1e-4 and 1e-6 (before the filter, 4e-4 to 1.9e-2).
-/// The rest is printed: below 1/50 where the communication step or the
-/// switches hold the steps, or where `dop853`'s estimate overstates its error.
-#[test]
-fn explicit_methods_on_constrained_fixtures_deliver_the_error_that_reaches_the_result() {
-    for path in CONSTRAINED {
-        let model = fixture(path);
-        let name = std::path::Path::new(path).file_stem().unwrap().to_string_lossy().into_owned();
-        let reference = band_run(&model, Method::Dop853.into(), 1e-12).unwrap().0;
-        let settings = [Method::Dop853, Method::Dopri5, Method::Tsit5, Method::Bs3].map(MethodSetting::from);
-        for setting in settings.into_iter().chain([MethodSetting::Auto]) {
-            for tolerance in [1e-4, 1e-6, 1e-8, 1e-10] {
-                if setting == Method::Bs3.into() && tolerance < 1e-7 {
-                    continue; // order 3: 10⁵ steps in the welds' first pull
-                }
-                let (end, evaluations) = band_run(&model, setting, tolerance)
-                    .unwrap_or_else(|| panic!("{name} {setting:?} at {tolerance:e} relaxed or stopped"));
-                let error =
-                    end.iter().zip(&reference).map(|(x, r)| (x - r).abs() / (1.0 + r.abs())).fold(0.0, f64::max)
-                        / tolerance;
-                println!("{name} {setting:?} {tolerance:e}: error/tol {error:.2e}, {evaluations} evaluations");
-                assert!(error <= 20.0, "{name} {setting:?} at {tolerance:e}: {error}");
-                let held_by_the_error_control = name == "docked_servicer"
-                    && [Method::Dopri5, Method::Tsit5, Method::Bs3].map(MethodSetting::from).contains(&setting)
-                    && tolerance >= 1e-6;
-                if held_by_the_error_control {
-                    assert!(error >= 1.0 / 50.0, "{name} {setting:?} at {tolerance:e}: {error}");
-                }
-            }
-        }
+        assert!((1.0 / 3.0..3.0).contains(&propagation), "{name} {method:?} {tolerance:e}: {propagation}");
+        assert!(m.summed > 10.0 * m.global, "{name} {method:?} {tolerance:e}: {} against {}", m.summed, m.global);
     }
 }
