@@ -336,6 +336,13 @@ impl Integrator {
         Ok(())
     }
 
+    /// The local error estimate of the step last attempted (h-scaled), on Δ
+    /// and on θ̇ then act: DOP853's 5th-order one, which its error norm
+    /// damps where its 3rd-order one is much larger.
+    pub fn error_estimate(&self) -> (&[f64], &[f64]) {
+        (self.error_delta.as_slice(), self.error_qvel.as_slice())
+    }
+
     /// The first non-finite value of the attempted step, if any.
     pub(super) fn non_finite_result(&self) -> Option<DynamicsError> {
         let update = self.qvel_next.iter().chain(self.delta.iter());

@@ -20,6 +20,7 @@ mod deep_trees;
 mod derivatives;
 mod dynamics_checks;
 mod dynamics_errors;
+mod error_modes;
 mod flex_dynamics;
 mod flex_import;
 mod flex_modal_file;

@@ -6,17 +6,18 @@
 
 use std::path::Path;
 
-use nalgebra::DMatrix;
-use nudyn::integrate::{AutoMove, Method, MethodSetting, MoveReason, Settings, Simulation, StabilityHeld, retract};
+use nudyn::integrate::{AutoMove, Method, MethodSetting, MoveReason, Settings, Simulation, StabilityHeld};
 use nudyn::model::Model;
 
-fn fixture(path: &str) -> Model {
+use crate::error_modes::rate_jacobian;
+
+pub fn fixture(path: &str) -> Model {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(path);
     Model::compile(&nudyn::mjcf::load_mjcf(&path).unwrap().vehicle).unwrap()
 }
 
 /// The constrained fixtures of the constraint tests with motion of their own.
-const CONSTRAINED: [&str; 4] = [
+pub const CONSTRAINED: [&str; 4] = [
     "tests/fixtures/constraints/docked_servicer.xml",
     "tests/fixtures/constraints/limited_arm.xml",
     "tests/fixtures/constraints/welded_strap.xml",
@@ -24,11 +25,11 @@ const CONSTRAINED: [&str; 4] = [
 ];
 
 /// The communication step (s) and their count: 1 s.
-const INTERVAL: f64 = 0.05;
-const INTERVALS: usize = 20;
+pub const INTERVAL: f64 = 0.05;
+pub const INTERVALS: usize = 20;
 
 /// ε = 0.3 sin k on dof k, held (as a function of time, so that every step ends at a communication point).
-fn eps(model: &Model) -> Vec<f64> {
+pub fn eps(model: &Model) -> Vec<f64> {
     (0..model.nv).map(|k| 0.3 * (k as f64).sin()).collect()
 }
 
@@ -66,41 +67,9 @@ fn run(model: &Model, method: Method, tolerance: f64, rate_every: usize) -> Run 
     Run { end: sim.state.theta.iter().chain(&sim.state.nu).copied().collect(), accepted, tests, held, rates }
 }
 
-/// The largest |λ| of the Jacobian of (θ̇, θ̈) in (θ, θ̇) at a state, by
-/// central differences of θ̈ (θ moved in its tangent space); the constraint
-/// mode is the state's own at every point, as outside a step.
+/// The largest |λ| of the Jacobian of (θ̇, θ̈) in (θ, θ̇) at a state.
 fn largest_rate(model: &Model, theta: &[f64], qvel: &[f64], eps: &[f64]) -> f64 {
-    let nv = model.nv;
-    let mut ws = model.workspace();
-    let ctrl = vec![0.0; model.actuators.len()];
-    let mut qacc = |theta: &[f64], qvel: &[f64]| {
-        ws.set_configuration(model, theta).unwrap();
-        ws.set_qvel(model, &qvel[..nv]).unwrap();
-        ws.set_act(model, &qvel[nv..]).unwrap();
-        ws.compute_qacc_actuated(model, eps, &ctrl).unwrap();
-        ws.qacc.clone()
-    };
-    let mut jacobian = DMatrix::zeros(2 * nv, 2 * nv);
-    for j in 0..nv {
-        jacobian[(j, nv + j)] = 1.0;
-    }
-    let step = 1e-6;
-    for j in 0..2 * nv {
-        let mut sides = [0.0, 0.0].map(|_| nalgebra::DVector::zeros(nv));
-        for (side, sign) in sides.iter_mut().zip([1.0, -1.0]) {
-            let (mut theta, mut qvel) = (theta.to_vec(), qvel.to_vec());
-            if j < nv {
-                let mut delta = vec![0.0; nv];
-                delta[j] = sign * step;
-                retract(model, &mut theta, &delta);
-            } else {
-                qvel[j - nv] += sign * step;
-            }
-            *side = qacc(&theta, &qvel);
-        }
-        let column = (&sides[0] - &sides[1]) / (2.0 * step);
-        jacobian.view_mut((nv, j), (nv, 1)).copy_from(&column);
-    }
+    let jacobian = rate_jacobian(model, theta, qvel, eps);
     jacobian.complex_eigenvalues().iter().map(|l| l.norm()).fold(0.0, f64::max)
 }
 
