@@ -15,7 +15,6 @@ use serde::{Deserialize, Serialize};
 use crate::math::{Mat3, Vec3};
 use crate::vehicle::MassProperties;
 
-pub mod body;
 pub mod modal_file;
 pub mod nodes;
 pub mod rotation;
