@@ -4,7 +4,7 @@
 //! I^A_i = I_i + Σ_children Xᵀ I^a_c X,  U = I^A S,  D = SᵀU + armature,
 //! D = R Rᵀ with R upper triangular,  G = U D⁻¹,  I^a = I^A − G Uᵀ.
 
-use nalgebra::SMatrix;
+use nalgebra::{Dim, Matrix, SMatrix, Storage, StorageMut};
 
 use super::subspace::{by_subspace, s_transpose_times_columns, times_s};
 use super::{DynamicsError, kinematics};
@@ -18,32 +18,54 @@ use crate::workspace::Workspace;
 /// the unique factor m of docs/DYNAMICS.md §3 needs this one.
 pub fn upper_cholesky<S: Real, const N: usize>(d: &SMatrix<S, N, N>) -> Option<SMatrix<S, N, N>> {
     let mut r = SMatrix::<S, N, N>::zeros();
-    for j in (0..N).rev() {
+    upper_cholesky_into(d, &mut r).then_some(r)
+}
+
+/// [`upper_cholesky`] into `r` (any square size, a flexible body's modal
+/// block too); false if `d` is not positive definite.
+pub fn upper_cholesky_into<S: Real, D: Dim, A: Storage<S, D, D>, B: StorageMut<S, D, D>>(
+    d: &Matrix<S, D, D, A>,
+    r: &mut Matrix<S, D, D, B>,
+) -> bool {
+    let n = d.nrows();
+    r.fill(S::zero());
+    for j in (0..n).rev() {
         let mut diag = d[(j, j)];
-        for k in j + 1..N {
+        for k in j + 1..n {
             diag -= r[(j, k)] * r[(j, k)];
         }
         // Also refuses NaN, which `diag <= 0.0` would let through.
         if diag.value().partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
-            return None;
+            return false;
         }
         let rjj = diag.sqrt();
         r[(j, j)] = rjj;
         for i in 0..j {
             let mut s = d[(i, j)];
-            for k in j + 1..N {
+            for k in j + 1..n {
                 s -= r[(i, k)] * r[(j, k)];
             }
             r[(i, j)] = s / rjj;
         }
     }
-    Some(r)
+    true
 }
 
 /// Inverse of an upper-triangular matrix with a nonzero diagonal.
 pub fn upper_triangular_inverse<S: Real, const N: usize>(r: &SMatrix<S, N, N>) -> SMatrix<S, N, N> {
     let mut inv = SMatrix::<S, N, N>::zeros();
-    for j in 0..N {
+    upper_triangular_inverse_into(r, &mut inv);
+    inv
+}
+
+/// [`upper_triangular_inverse`] into `inv` (any square size).
+pub fn upper_triangular_inverse_into<S: Real, D: Dim, A: Storage<S, D, D>, B: StorageMut<S, D, D>>(
+    r: &Matrix<S, D, D, A>,
+    inv: &mut Matrix<S, D, D, B>,
+) {
+    let n = r.nrows();
+    inv.fill(S::zero());
+    for j in 0..n {
         inv[(j, j)] = S::one() / r[(j, j)];
         for i in (0..j).rev() {
             let mut s = S::zero();
@@ -53,7 +75,6 @@ pub fn upper_triangular_inverse<S: Real, const N: usize>(r: &SMatrix<S, N, N>) -
             inv[(i, j)] = -s / r[(i, i)];
         }
     }
-    inv
 }
 
 /// Pass 1 for one link with N dofs; `ia_reduced[i]` holds its children's share of I^A.

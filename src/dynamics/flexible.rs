@@ -21,6 +21,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
+use super::articulated::{upper_cholesky_into, upper_triangular_inverse_into};
 use super::{DynamicsError, accumulate};
 use crate::flex::nodes;
 use crate::math::{
@@ -110,47 +111,6 @@ fn column<S: Real>(m: &DMatrix<S>, k: usize) -> SpatialVec<S> {
 fn add_to_column<S: Real>(m: &mut DMatrix<S>, k: usize, v: &SpatialVec<S>) {
     for row in 0..6 {
         m[(row, k)] += v[row];
-    }
-}
-
-/// `r` = the upper-triangular R with R Rᵀ = `d` (as `articulated::upper_cholesky`, sized at run time), or false.
-fn upper_cholesky_into<S: Real>(d: &DMatrix<S>, r: &mut DMatrix<S>) -> bool {
-    let n = d.nrows();
-    r.fill(S::zero());
-    for j in (0..n).rev() {
-        let mut diag = d[(j, j)];
-        for k in j + 1..n {
-            diag -= r[(j, k)] * r[(j, k)];
-        }
-        if diag.value().partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
-            return false;
-        }
-        let rjj = diag.sqrt();
-        r[(j, j)] = rjj;
-        for i in 0..j {
-            let mut s = d[(i, j)];
-            for k in j + 1..n {
-                s -= r[(i, k)] * r[(j, k)];
-            }
-            r[(i, j)] = s / rjj;
-        }
-    }
-    true
-}
-
-/// `inv` = R⁻¹ for an upper-triangular `r` with a nonzero diagonal.
-fn upper_triangular_inverse_into<S: Real>(r: &DMatrix<S>, inv: &mut DMatrix<S>) {
-    let n = r.nrows();
-    inv.fill(S::zero());
-    for j in 0..n {
-        inv[(j, j)] = S::one() / r[(j, j)];
-        for i in (0..j).rev() {
-            let mut s = S::zero();
-            for k in i + 1..=j {
-                s += r[(i, k)] * inv[(k, j)];
-            }
-            inv[(i, j)] = -s / r[(i, i)];
-        }
     }
 }
 
