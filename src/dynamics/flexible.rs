@@ -43,6 +43,8 @@ pub struct FlexState<S: Real = f64> {
     pub psi: Vec<DMatrix<S>>,
     /// V_j per node (pass 2).
     pub v_node: Vec<SpatialVec<S>>,
+    /// Ψ_j η̇ per node, its velocity relative to R (pass 2; pass 3 reads it).
+    v_relative: Vec<SpatialVec<S>>,
     /// U = 𝓘_Rη, 6 × m (pass 1).
     pub coupling: DMatrix<S>,
     /// R, upper triangular with R Rᵀ = D (pass 1).
@@ -80,6 +82,7 @@ impl<S: Real> FlexState<S> {
             node_x: vec![Transform::identity(); nodes],
             psi: vec![DMatrix::zeros(6, m); nodes],
             v_node: vec![SpatialVec::zeros(); nodes],
+            v_relative: vec![SpatialVec::zeros(); nodes],
             coupling: DMatrix::zeros(6, m),
             r: DMatrix::zeros(m, m),
             r_inv: DMatrix::zeros(m, m),
@@ -99,7 +102,7 @@ impl<S: Real> FlexState<S> {
 }
 
 /// Node `j`'s spatial inertia about its origin, in its axes.
-fn node_inertia<S: Real>(flexible: &FlexBody, j: usize) -> SpatialMat<S> {
+pub(crate) fn node_inertia<S: Real>(flexible: &FlexBody, j: usize) -> SpatialMat<S> {
     let node = &flexible.modal.nodes[j];
     real(&rigid_inertia(node.mass, &Vec3::zeros(), &node.rotary_inertia))
 }
@@ -191,6 +194,7 @@ pub(crate) fn velocities<S: Real>(model: &Model, ws: &mut Workspace<S>, i: usize
         let rate = &ws.qvel.as_slice()[adr..adr + m];
         for j in 0..flexible.modal.nodes.len() {
             let relative = (0..m).fold(SpatialVec::zeros(), |v, k| v + column(&state.psi[j], k) * rate[k]);
+            state.v_relative[j] = relative;
             state.v_node[j] = state.node_x[j].apply_motion(&v_r) + relative;
         }
     }
@@ -229,9 +233,8 @@ pub(crate) fn bias<S: Real, const RATES: bool>(
             state.u_force[k] = if forces { ws.tau_passive[adr + k] } else { S::zero() };
         }
         for j in 0..flexible.modal.nodes.len() {
-            let (x, v) = (&state.node_x[j], state.v_node[j]);
+            let (x, v, relative) = (&state.node_x[j], state.v_node[j], state.v_relative[j]);
             let inertia = node_inertia::<S>(flexible, j);
-            let relative = (0..m).fold(SpatialVec::zeros(), |acc, k| acc + column(&state.psi[j], k) * rate[k]);
             let c = nodes::subspace_rate_times(&flexible.modal, j, eta, rate) + cross_motion(&v, &relative);
             let p = inertia * c + cross_force(&v, &(inertia * v));
             p_bias += x.apply_transpose_force(&p);
@@ -305,8 +308,7 @@ fn rates<S: Real>(
     state.d_rate.fill(S::zero());
     for j in 0..flexible.modal.nodes.len() {
         let x = &state.node_x[j];
-        let inertia = node_inertia::<S>(flexible, j);
-        let relative = (0..m).fold(SpatialVec::zeros(), |acc, k| acc + column(&state.psi[j], k) * rate[k]);
+        let (inertia, relative) = (node_inertia::<S>(flexible, j), state.v_relative[j]);
         // Ψη̇ ×* I − I Ψη̇ × = −(B + Bᵀ), B = I (Ψη̇ ×).
         let b = mul_cross_motion(&inertia, &relative);
         x.add_inertia_to_parent(&-(b + b.transpose()), &mut rigid_rate, false);

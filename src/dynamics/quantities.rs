@@ -1,7 +1,7 @@
 //! Kinetic energy, power and the vehicle's spatial momentum.
 
 use super::{DynamicsError, require};
-use crate::math::{SpatialVec, Vec3, rigid_inertia};
+use crate::math::SpatialVec;
 use crate::model::Model;
 use crate::workspace::{Stage, Workspace};
 
@@ -34,8 +34,8 @@ impl Workspace {
             total += self.x_world[i].apply_transpose_force(&h);
         }
         for (flexible, state) in model.flexible.iter().zip(&self.flex) {
-            for (j, node) in flexible.modal.nodes.iter().enumerate() {
-                let inertia = rigid_inertia(node.mass, &Vec3::zeros(), &node.rotary_inertia);
+            for j in 0..flexible.modal.nodes.len() {
+                let inertia = super::flexible::node_inertia::<f64>(flexible, j);
                 let in_world = state.node_x[j].compose(&self.x_world[flexible.link]);
                 total += in_world.apply_transpose_force(&(inertia * state.v_node[j]));
             }
