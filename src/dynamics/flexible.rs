@@ -24,6 +24,7 @@ use nalgebra::{DMatrix, DVector};
 use super::articulated::{upper_cholesky_into, upper_triangular_inverse_into};
 use super::{DynamicsError, accumulate};
 use crate::flex::nodes;
+use crate::flex::point_masses;
 use crate::math::{
     Real, SpatialMat, SpatialVec, Transform, Vec3, cross_force, cross_motion, mul_cross_motion, real, rigid_inertia,
     spatial,
@@ -37,14 +38,18 @@ pub struct FlexState<S: Real = f64> {
     /// Whether this block sets its link's inward slots (no rigid child and
     /// no block before it on the link) rather than adding to them.
     pub opens_link: bool,
-    /// ʲX_R per node (pass 1).
+    /// ʲX_R per node taken one by one (`FlexBody::rotating`; pass 1).
     pub node_x: Vec<Transform<S>>,
-    /// Ψ_j per node, 6 × m (pass 1).
+    /// Ψ_j per such node, 6 × m (pass 1).
     pub psi: Vec<DMatrix<S>>,
-    /// V_j per node (pass 2).
+    /// V_j per such node (pass 2).
     pub v_node: Vec<SpatialVec<S>>,
-    /// Ψ_j η̇ per node, its velocity relative to R (pass 2; pass 3 reads it).
+    /// Ψ_j η̇ per such node, its velocity relative to R (pass 2; pass 3 reads it).
     v_relative: Vec<SpatialVec<S>>,
+    /// The point-mass nodes' c and S (pass 1).
+    points: point_masses::Configuration<S>,
+    /// 𝓘_RR, all nodes' inertia about R (pass 1).
+    pub rigid: SpatialMat<S>,
     /// U = 𝓘_Rη, 6 × m (pass 1).
     pub coupling: DMatrix<S>,
     /// R, upper triangular with R Rᵀ = D (pass 1).
@@ -76,13 +81,15 @@ pub struct FlexState<S: Real = f64> {
 impl<S: Real> FlexState<S> {
     /// Buffers for `flexible`; `opens_link` as the workspace places it.
     pub(crate) fn new(flexible: &FlexBody, opens_link: bool) -> Self {
-        let (m, nodes) = (flexible.mode_count(), flexible.modal.nodes.len());
+        let (m, nodes) = (flexible.mode_count(), flexible.rotating.len());
         FlexState {
             opens_link,
             node_x: vec![Transform::identity(); nodes],
             psi: vec![DMatrix::zeros(6, m); nodes],
             v_node: vec![SpatialVec::zeros(); nodes],
             v_relative: vec![SpatialVec::zeros(); nodes],
+            points: point_masses::Configuration::default(),
+            rigid: SpatialMat::zeros(),
             coupling: DMatrix::zeros(6, m),
             r: DMatrix::zeros(m, m),
             r_inv: DMatrix::zeros(m, m),
@@ -132,23 +139,26 @@ pub(crate) fn factor_modes<S: Real>(model: &Model, ws: &mut Workspace<S>, i: usi
         let mut rigid = SpatialMat::zeros();
         state.coupling.fill(S::zero());
         state.d.fill(S::zero());
-        for j in 0..flexible.modal.nodes.len() {
+        for (r, &j) in flexible.rotating.iter().enumerate() {
             let x = nodes::transform(&flexible.modal, j, eta);
-            nodes::subspace(&flexible.modal, j, eta, &mut state.psi[j]);
+            nodes::subspace(&flexible.modal, j, eta, &mut state.psi[r]);
             let inertia = node_inertia::<S>(flexible, j);
             x.add_inertia_to_parent(&inertia, &mut rigid, false);
             for k in 0..m {
-                let i_psi = inertia * column(&state.psi[j], k);
+                let i_psi = inertia * column(&state.psi[r], k);
                 state.inertia_psi.column_mut(k).copy_from(&i_psi);
                 add_to_column(&mut state.coupling, k, &x.apply_transpose_force(&i_psi));
             }
             for k in 0..m {
                 for l in 0..=k {
-                    state.d[(l, k)] += column(&state.psi[j], l).dot(&column(&state.inertia_psi, k));
+                    state.d[(l, k)] += column(&state.psi[r], l).dot(&column(&state.inertia_psi, k));
                 }
             }
-            state.node_x[j] = x;
+            state.node_x[r] = x;
         }
+        state.points = flexible.points.configuration(eta);
+        flexible.points.add_inertia(&state.points, eta, &mut rigid, &mut state.coupling, &mut state.d);
+        state.rigid = rigid;
         if !upper_cholesky_into(&state.d, &mut state.r) {
             return Err(DynamicsError::Singular { link: i });
         }
@@ -192,10 +202,10 @@ pub(crate) fn velocities<S: Real>(model: &Model, ws: &mut Workspace<S>, i: usize
             }
         }
         let rate = &ws.qvel.as_slice()[adr..adr + m];
-        for j in 0..flexible.modal.nodes.len() {
-            let relative = (0..m).fold(SpatialVec::zeros(), |v, k| v + column(&state.psi[j], k) * rate[k]);
-            state.v_relative[j] = relative;
-            state.v_node[j] = state.node_x[j].apply_motion(&v_r) + relative;
+        for r in 0..flexible.rotating.len() {
+            let relative = (0..m).fold(SpatialVec::zeros(), |v, k| v + column(&state.psi[r], k) * rate[k]);
+            state.v_relative[r] = relative;
+            state.v_node[r] = state.node_x[r].apply_motion(&v_r) + relative;
         }
     }
 }
@@ -232,23 +242,27 @@ pub(crate) fn bias<S: Real, const RATES: bool>(
         for k in 0..m {
             state.u_force[k] = if forces { ws.tau_passive[adr + k] } else { S::zero() };
         }
-        for j in 0..flexible.modal.nodes.len() {
-            let (x, v, relative) = (&state.node_x[j], state.v_node[j], state.v_relative[j]);
+        for (r, &j) in flexible.rotating.iter().enumerate() {
+            let (x, v, relative) = (&state.node_x[r], state.v_node[r], state.v_relative[r]);
             let inertia = node_inertia::<S>(flexible, j);
             let c = nodes::subspace_rate_times(&flexible.modal, j, eta, rate) + cross_motion(&v, &relative);
             let p = inertia * c + cross_force(&v, &(inertia * v));
             p_bias += x.apply_transpose_force(&p);
             for k in 0..m {
-                state.u_bias[k] -= column(&state.psi[j], k).dot(&p);
+                state.u_bias[k] -= column(&state.psi[r], k).dot(&p);
             }
             if let Some(g) = &gravity {
                 // Gravity m g at the node's origin: p = −f_ext.
                 let p = -spatial(&Vec3::zeros(), &(x.rot * g * S::from(flexible.modal.nodes[j].mass)));
                 p_force += x.apply_transpose_force(&p);
                 for k in 0..m {
-                    state.u_force[k] -= column(&state.psi[j], k).dot(&p);
+                    state.u_force[k] -= column(&state.psi[r], k).dot(&p);
                 }
             }
+        }
+        flexible.points.add_bias(&state.points, eta, rate, &ws.v_body[i], &mut p_bias, &mut state.u_bias);
+        if let Some(g) = &gravity {
+            flexible.points.add_gravity(&state.points, g, &mut p_force, &mut state.u_force);
         }
         // R⁻¹u for both u (R⁻¹ upper triangular).
         for k in 0..m {
@@ -306,24 +320,25 @@ fn rates<S: Real>(
     let mut rigid_rate = SpatialMat::zeros();
     state.coupling_rate.fill(S::zero());
     state.d_rate.fill(S::zero());
-    for j in 0..flexible.modal.nodes.len() {
-        let x = &state.node_x[j];
-        let (inertia, relative) = (node_inertia::<S>(flexible, j), state.v_relative[j]);
+    for (r, &j) in flexible.rotating.iter().enumerate() {
+        let x = &state.node_x[r];
+        let (inertia, relative) = (node_inertia::<S>(flexible, j), state.v_relative[r]);
         // Ψη̇ ×* I − I Ψη̇ × = −(B + Bᵀ), B = I (Ψη̇ ×).
         let b = mul_cross_motion(&inertia, &relative);
         x.add_inertia_to_parent(&-(b + b.transpose()), &mut rigid_rate, false);
         nodes::subspace_rate(&flexible.modal, j, eta, rate, &mut state.psi_rate);
         for k in 0..m {
-            let i_psi = inertia * column(&state.psi[j], k);
+            let i_psi = inertia * column(&state.psi[r], k);
             let i_psi_rate = inertia * column(&state.psi_rate, k);
             let term = cross_force(&relative, &i_psi) + i_psi_rate;
             add_to_column(&mut state.coupling_rate, k, &x.apply_transpose_force(&term));
             for l in 0..m {
                 state.d_rate[(l, k)] +=
-                    column(&state.psi_rate, l).dot(&i_psi) + column(&state.psi[j], l).dot(&i_psi_rate);
+                    column(&state.psi_rate, l).dot(&i_psi) + column(&state.psi[r], l).dot(&i_psi_rate);
             }
         }
     }
+    flexible.points.add_inertia_rates(eta, rate, &mut rigid_rate, &mut state.coupling_rate);
     // Ġᵀ = D⁻¹(U̇ᵀ − Ḋ Gᵀ); `d` holds D⁻¹.
     for k in 0..m {
         for col in 0..6 {

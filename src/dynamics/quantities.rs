@@ -34,11 +34,14 @@ impl Workspace {
             total += self.x_world[i].apply_transpose_force(&h);
         }
         for (flexible, state) in model.flexible.iter().zip(&self.flex) {
-            for j in 0..flexible.modal.nodes.len() {
-                let inertia = super::flexible::node_inertia::<f64>(flexible, j);
-                let in_world = state.node_x[j].compose(&self.x_world[flexible.link]);
-                total += in_world.apply_transpose_force(&(inertia * state.v_node[j]));
-            }
+            // The nodes' momentum about R: 𝓘_RR V_R + U η̇.
+            let (adr, m) = (flexible.dof_adr, flexible.mode_count());
+            let rate = self.qvel.rows(adr, m);
+            let h = state.rigid * self.v_body[flexible.link]
+                + SpatialVec::from_iterator(
+                    (0..6).map(|row| (0..m).map(|k| state.coupling[(row, k)] * rate[k]).sum::<f64>()),
+                );
+            total += self.x_world[flexible.link].apply_transpose_force(&h);
         }
         Ok(total)
     }

@@ -17,6 +17,7 @@ use crate::vehicle::MassProperties;
 
 pub mod modal_file;
 pub mod nodes;
+pub mod point_masses;
 pub mod rotation;
 
 /// How closely the nodes must reproduce the body's mass, centre of mass and

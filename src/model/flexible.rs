@@ -6,6 +6,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::flex::point_masses::{PointMasses, is_point_mass};
 use crate::flex::{ModalBody, Mode, Node};
 use crate::math::Transform;
 
@@ -22,9 +23,22 @@ pub struct FlexBody {
     /// Its nodes and modes in the link's frame and axes (the node frames'
     /// axes are the link's when undeformed); the body's name is kept.
     pub modal: ModalBody,
+    /// The nodes the passes take one by one (with rotary inertia or a
+    /// rotation in some mode), by index into `modal.nodes`.
+    pub rotating: Vec<usize>,
+    /// The other nodes, point masses, summed in closed form.
+    pub points: PointMasses,
 }
 
 impl FlexBody {
+    /// The body `modal` (in its link's frame) on `link`, its coordinates at
+    /// `qpos_adr` and `dof_adr`.
+    pub(crate) fn new(link: usize, qpos_adr: usize, dof_adr: usize, modal: ModalBody) -> FlexBody {
+        let rotating = (0..modal.nodes.len()).filter(|&j| !is_point_mass(&modal, j)).collect();
+        let points = PointMasses::of(&modal);
+        FlexBody { link, qpos_adr, dof_adr, modal, rotating, points }
+    }
+
     /// Its number of modes m.
     pub fn mode_count(&self) -> usize {
         self.modal.modes.len()

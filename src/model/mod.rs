@@ -616,12 +616,7 @@ fn add_flexible_bodies(
             return Err(ModelError::FlexibleWith { body: modal.body.clone(), feature });
         }
         let modes = modal.modes.len();
-        model.flexible.push(FlexBody {
-            link,
-            qpos_adr: model.nq,
-            dof_adr: model.nv,
-            modal: flexible::on_link(modal, &at.offset),
-        });
+        model.flexible.push(FlexBody::new(link, model.nq, model.nv, flexible::on_link(modal, &at.offset)));
         model.nq += modes;
         model.nv += modes;
         model.qpos0.extend(std::iter::repeat_n(0.0, modes));

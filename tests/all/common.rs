@@ -594,12 +594,20 @@ pub fn make_flexible(rng: &mut Rng, vehicle: &mut Vehicle, damped: bool) {
     }
     chosen.sort();
     for b in chosen {
-        let nodes: Vec<Node> = (0..2 + rng.below(3))
+        let count = 2 + rng.below(3);
+        // About half the nodes point masses (no rotary inertia, no rotation
+        // in any mode: the passes sum those in closed form); a body keeps
+        // one rotating node unless three points span its inertia.
+        let mut point: Vec<bool> = (0..count).map(|_| rng.below(2) == 0).collect();
+        if count < 3 {
+            point[0] = false;
+        }
+        let nodes: Vec<Node> = (0..count)
             .map(|j| Node {
                 name: format!("n{j}"),
                 position: rng.vec3(0.5),
                 mass: rng.uniform(0.2, 2.0),
-                rotary_inertia: random_mass(rng).inertia * 0.3,
+                rotary_inertia: if point[j] { Matrix3::zeros() } else { random_mass(rng).inertia * 0.3 },
             })
             .collect();
         let modes = (0..1 + rng.below(3))
@@ -607,7 +615,7 @@ pub fn make_flexible(rng: &mut Rng, vehicle: &mut Vehicle, damped: bool) {
                 angular_frequency: rng.uniform(1.0, 10.0) * (c + 1) as f64,
                 damping_ratio: if damped { rng.uniform(0.0, 0.1) } else { 0.0 },
                 translation: (0..nodes.len()).map(|_| rng.vec3(0.4)).collect(),
-                rotation: (0..nodes.len()).map(|_| rng.vec3(0.6)).collect(),
+                rotation: (0..nodes.len()).map(|j| if point[j] { Vector3::zeros() } else { rng.vec3(0.6) }).collect(),
             })
             .collect();
         let modal = ModalBody { body: vehicle.bodies[b].name.clone(), nodes, modes };
