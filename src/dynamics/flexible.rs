@@ -70,6 +70,8 @@ pub struct FlexState<S: Real = f64> {
     d_rate: DMatrix<S>,
     /// Scratch: Ġᵀ (m × 6).
     gain_t_rate: DMatrix<S>,
+    /// Scratch: G Ḋ (6 × m).
+    gain_d_rate: DMatrix<S>,
     /// Scratch (m × m).
     square: DMatrix<S>,
     /// Scratch: the velocity-product u, the force u, and one more m-vector.
@@ -100,6 +102,7 @@ impl<S: Real> FlexState<S> {
             coupling_rate: DMatrix::zeros(6, m),
             d_rate: DMatrix::zeros(m, m),
             gain_t_rate: DMatrix::zeros(m, 6),
+            gain_d_rate: DMatrix::zeros(6, m),
             square: DMatrix::zeros(m, m),
             u_bias: DVector::zeros(m),
             u_force: DVector::zeros(m),
@@ -339,28 +342,26 @@ fn rates<S: Real>(
         }
     }
     flexible.points.add_inertia_rates(eta, rate, &mut rigid_rate, &mut state.coupling_rate);
-    // Ġᵀ = D⁻¹(U̇ᵀ − Ḋ Gᵀ); `d` holds D⁻¹.
+    // Ġᵀ = D⁻¹(U̇ᵀ − ḊGᵀ), ḊGᵀ = (GḊ)ᵀ as Ḋ is symmetric; `d` holds D⁻¹.
+    state.gain.mul_to(&state.d_rate, &mut state.gain_d_rate);
     for k in 0..m {
         for col in 0..6 {
             let mut s = S::zero();
             for l in 0..m {
-                let dg: S = (0..m).map(|n| state.d_rate[(l, n)] * state.gain[(col, n)]).fold(S::zero(), |a, b| a + b);
-                s += state.d[(k, l)] * (state.coupling_rate[(col, l)] - dg);
+                s += state.d[(k, l)] * (state.coupling_rate[(col, l)] - state.gain_d_rate[(col, l)]);
             }
             state.gain_t_rate[(k, col)] = s;
         }
     }
-    // İ^a = 𝓘̇_RR − U̇Gᵀ − GU̇ᵀ + GḊGᵀ.
+    // İ^a = 𝓘̇_RR − U̇Gᵀ − GU̇ᵀ + (GḊ)Gᵀ.
     let mut reduced_rate = rigid_rate;
     for row in 0..6 {
         for col in 0..6 {
             let mut s = S::zero();
             for k in 0..m {
                 s += state.coupling_rate[(row, k)] * state.gain[(col, k)]
-                    + state.gain[(row, k)] * state.coupling_rate[(col, k)];
-                for l in 0..m {
-                    s -= state.gain[(row, k)] * state.d_rate[(k, l)] * state.gain[(col, l)];
-                }
+                    + state.gain[(row, k)] * state.coupling_rate[(col, k)]
+                    - state.gain_d_rate[(row, k)] * state.gain[(col, k)];
             }
             reduced_rate[(row, col)] -= s;
         }
