@@ -90,7 +90,7 @@ impl<S: Real> FlexState<S> {
             psi: vec![DMatrix::zeros(6, m); nodes],
             v_node: vec![SpatialVec::zeros(); nodes],
             v_relative: vec![SpatialVec::zeros(); nodes],
-            points: point_masses::Configuration::default(),
+            points: point_masses::Configuration::new(m),
             rigid: SpatialMat::zeros(),
             coupling: DMatrix::zeros(6, m),
             r: DMatrix::zeros(m, m),
@@ -159,8 +159,8 @@ pub(crate) fn factor_modes<S: Real>(model: &Model, ws: &mut Workspace<S>, i: usi
             }
             state.node_x[r] = x;
         }
-        state.points = flexible.points.configuration(eta);
-        flexible.points.add_inertia(&state.points, eta, &mut rigid, &mut state.coupling, &mut state.d);
+        flexible.points.configure(eta, &mut state.points);
+        flexible.points.add_inertia(&state.points, &mut rigid, &mut state.coupling, &mut state.d);
         state.rigid = rigid;
         if !upper_cholesky_into(&state.d, &mut state.r) {
             return Err(DynamicsError::Singular { link: i });
@@ -263,7 +263,7 @@ pub(crate) fn bias<S: Real, const RATES: bool>(
                 }
             }
         }
-        flexible.points.add_bias(&state.points, eta, rate, &ws.v_body[i], &mut p_bias, &mut state.u_bias);
+        flexible.points.add_bias(&mut state.points, rate, &ws.v_body[i], &mut p_bias, &mut state.u_bias);
         if let Some(g) = &gravity {
             flexible.points.add_gravity(&state.points, g, &mut p_force, &mut state.u_force);
         }
@@ -341,7 +341,7 @@ fn rates<S: Real>(
             }
         }
     }
-    flexible.points.add_inertia_rates(eta, rate, &mut rigid_rate, &mut state.coupling_rate);
+    flexible.points.add_inertia_rates(&state.points, rate, &mut rigid_rate, &mut state.coupling_rate);
     // Ġᵀ = D⁻¹(U̇ᵀ − ḊGᵀ), ḊGᵀ = (GḊ)ᵀ as Ḋ is symmetric; `d` holds D⁻¹.
     state.gain.mul_to(&state.d_rate, &mut state.gain_d_rate);
     for k in 0..m {
@@ -367,20 +367,27 @@ fn rates<S: Real>(
         }
     }
     accumulate(ia_dot, reduced_rate, state.opens_link);
-    // Φ(R⁻¹ḊR⁻ᵀ): R⁻¹Ḋ, then times R⁻ᵀ, upper triangle with the diagonal halved.
-    state.r_inv.mul_to(&state.d_rate, &mut state.square);
-    for a in 0..m {
-        for b in 0..m {
-            let scaled: S = (b..m).map(|l| state.square[(a, l)] * state.r_inv[(b, l)]).fold(S::zero(), |x, y| x + y);
-            state.d_rate[(a, b)] = match a.cmp(&b) {
-                std::cmp::Ordering::Less => scaled,
-                std::cmp::Ordering::Equal => scaled * 0.5,
-                std::cmp::Ordering::Greater => S::zero(),
-            };
+    if flexible.rotating.is_empty() {
+        // Point masses only: D is constant, Ṙ = 0.
+        state.square.fill(S::zero());
+    } else {
+        // Φ(R⁻¹ḊR⁻ᵀ): R⁻¹Ḋ, then times R⁻ᵀ, upper triangle with the diagonal halved.
+        state.r_inv.mul_to(&state.d_rate, &mut state.square);
+        for a in 0..m {
+            for b in 0..m {
+                let scaled: S =
+                    (b..m).map(|l| state.square[(a, l)] * state.r_inv[(b, l)]).fold(S::zero(), |x, y| x + y);
+                state.d_rate[(a, b)] = match a.cmp(&b) {
+                    std::cmp::Ordering::Less => scaled,
+                    std::cmp::Ordering::Equal => scaled * 0.5,
+                    std::cmp::Ordering::Greater => S::zero(),
+                };
+            }
         }
+        // Ṙ = R Φ.
+        state.r.mul_to(&state.d_rate, &mut state.square);
     }
-    // Ṙ = R Φ; the rate terms Ṙᵀw + RᵀĠᵀV_R.
-    state.r.mul_to(&state.d_rate, &mut state.square);
+    // The rate terms Ṙᵀw + RᵀĠᵀV_R.
     for k in 0..m {
         let gv: S = (0..6).map(|col| state.gain_t_rate[(k, col)] * v_r[col]).fold(S::zero(), |a, b| a + b);
         state.scratch[k] = gv;

@@ -68,19 +68,43 @@ fn inertia_of<S: Real>(mass: S, c: &Vec3<S>, s: &Mat3<S>) -> SpatialMat<S> {
     out
 }
 
-/// What pass 1 keeps of the point masses for pass 3: c and S at η.
-#[derive(Clone, Copy, Debug)]
+/// The point masses' sums at the workspace's state, kept from pass to pass.
+#[derive(Clone, Debug)]
 pub struct Configuration<S: Real> {
-    /// c = c₀ + Cη.
-    pub first_moment: Vec3<S>,
-    /// S = Σ mⱼ pⱼpⱼᵀ.
-    pub second_moment: Mat3<S>,
+    /// c = c₀ + Cη (pass 1).
+    first_moment: Vec3<S>,
+    /// S = Σ mⱼ pⱼpⱼᵀ (pass 1).
+    second_moment: Mat3<S>,
+    /// Σ mⱼ pⱼΦⱼₖᵀ = Qₖ + Σₗ ηₗTₗₖ per mode (pass 1).
+    position_shape: Vec<Mat3<S>>,
+    /// N = Σ mⱼ Φⱼη̇ pⱼᵀ (pass 3).
+    rate_moment: Mat3<S>,
+    /// Cη̇ (pass 3).
+    shape_rate: Vec3<S>,
 }
 
-impl<S: Real> Default for Configuration<S> {
-    fn default() -> Self {
-        Configuration { first_moment: Vec3::zeros(), second_moment: Mat3::zeros() }
+impl<S: Real> Configuration<S> {
+    /// Buffers for `modes` modes.
+    pub fn new(modes: usize) -> Self {
+        Configuration {
+            first_moment: Vec3::zeros(),
+            second_moment: Mat3::zeros(),
+            position_shape: vec![Mat3::zeros(); modes],
+            rate_moment: Mat3::zeros(),
+            shape_rate: Vec3::zeros(),
+        }
     }
+}
+
+/// tr(a b) without forming the product.
+fn trace_of_product<S: Real>(a: &Mat3<S>, b: &Mat3<S>) -> S {
+    let mut t = S::zero();
+    for i in 0..3 {
+        for j in 0..3 {
+            t += a[(i, j)] * b[(j, i)];
+        }
+    }
+    t
 }
 
 impl PointMasses {
@@ -118,25 +142,22 @@ impl PointMasses {
         real(&self.shape_shape[k * self.modes() + l])
     }
 
-    /// c and S at `eta`.
-    pub fn configuration<S: Real>(&self, eta: &[S]) -> Configuration<S> {
+    /// c, S and Σ mⱼ pⱼΦⱼₖᵀ at `eta` into `at`: with Y = Σ ηₖQₖ and
+    /// Z = Σ ηₖ Σ mⱼ pⱼΦⱼₖᵀ = Y + Σ ηₖηₗTₗₖ, S = P₀ + Yᵀ + Z.
+    pub fn configure<S: Real>(&self, eta: &[S], at: &mut Configuration<S>) {
         let m = self.modes();
         let mut c: Vec3<S> = real(&self.first_moment);
-        let mut s: Mat3<S> = real(&self.second_moment);
+        let (mut y, mut z) = (Mat3::zeros(), Mat3::zeros());
         for k in 0..m {
-            c += real::<S, 3, 1>(&self.shape_moments[k]) * eta[k];
             let q: Mat3<S> = real(&self.position_shape[k]);
-            s += (q + q.transpose()) * eta[k];
-            for l in 0..m {
-                s += self.shape_shape::<S>(k, l) * (eta[k] * eta[l]);
-            }
+            let position_shape = (0..m).fold(q, |a, l| a + self.shape_shape::<S>(l, k) * eta[l]);
+            c += real::<S, 3, 1>(&self.shape_moments[k]) * eta[k];
+            y += q * eta[k];
+            z += position_shape * eta[k];
+            at.position_shape[k] = position_shape;
         }
-        Configuration { first_moment: c, second_moment: s }
-    }
-
-    /// Σ mⱼ pⱼ Φⱼₖᵀ = Qₖ + Σₗ ηₗ Tₗₖ.
-    fn position_shape_at<S: Real>(&self, k: usize, eta: &[S]) -> Mat3<S> {
-        (0..self.modes()).fold(real(&self.position_shape[k]), |a, l| a + self.shape_shape::<S>(l, k) * eta[l])
+        at.first_moment = c;
+        at.second_moment = real::<S, 3, 3>(&self.second_moment) + y.transpose() + z;
     }
 
     /// Adds the point masses' 𝓘_RR to `rigid`, their U to `coupling` (6 × m)
@@ -144,7 +165,6 @@ impl PointMasses {
     pub fn add_inertia<S: Real>(
         &self,
         at: &Configuration<S>,
-        eta: &[S],
         rigid: &mut SpatialMat<S>,
         coupling: &mut nalgebra::DMatrix<S>,
         d: &mut nalgebra::DMatrix<S>,
@@ -154,7 +174,7 @@ impl PointMasses {
         }
         *rigid += inertia_of(S::from(self.mass), &at.first_moment, &at.second_moment);
         for k in 0..self.modes() {
-            let angular = axial(&self.position_shape_at(k, eta));
+            let angular = axial(&at.position_shape[k]);
             let linear: Vec3<S> = real(&self.shape_moments[k]);
             for row in 0..3 {
                 coupling[(row, k)] += angular[row];
@@ -166,17 +186,12 @@ impl PointMasses {
         }
     }
 
-    /// N = Σ mⱼ Φⱼη̇ pⱼᵀ.
-    fn rate_moment<S: Real>(&self, eta: &[S], rate: &[S]) -> Mat3<S> {
-        (0..self.modes()).fold(Mat3::zeros(), |n, k| n + self.position_shape_at(k, eta).transpose() * rate[k])
-    }
-
     /// The point masses' velocity-product force about R's origin (added to
-    /// `p`) and on the modes (subtracted from `u`), R moving with `v_r`.
+    /// `p`) and on the modes (subtracted from `u`), R moving with `v_r`;
+    /// keeps N and Cη̇ in `at` for [`PointMasses::add_inertia_rates`].
     pub fn add_bias<S: Real>(
         &self,
-        at: &Configuration<S>,
-        eta: &[S],
+        at: &mut Configuration<S>,
         rate: &[S],
         v_r: &SpatialVec<S>,
         p: &mut SpatialVec<S>,
@@ -191,18 +206,19 @@ impl PointMasses {
         let shape_rate = (0..m).fold(Vec3::zeros(), |a, k| a + real::<S, 3, 1>(&self.shape_moments[k]) * rate[k]);
         let omega_v = omega.cross(&v);
         let force = omega.cross(&(v * S::from(self.mass) + omega.cross(c) + shape_rate * S::from(2.0)));
-        let n = self.rate_moment(eta, rate);
+        let n = (0..m).fold(Mat3::zeros(), |n, k| n + at.position_shape[k].transpose() * rate[k]);
         let moment = c.cross(&omega_v) - omega.cross(&(s * omega)) + (omega * n.trace() - n * omega) * S::from(2.0);
         *p += spatial(&moment, &force);
         let (w, w2) = (skew(&omega), skew(&omega) * skew(&omega));
         for k in 0..m {
             let mut on_mode =
-                real::<S, 3, 1>(&self.shape_moments[k]).dot(&omega_v) + (w2 * self.position_shape_at(k, eta)).trace();
+                real::<S, 3, 1>(&self.shape_moments[k]).dot(&omega_v) + trace_of_product(&w2, &at.position_shape[k]);
             for (l, rate_l) in rate.iter().enumerate() {
-                on_mode += (w * self.shape_shape::<S>(l, k)).trace() * (*rate_l * S::from(2.0));
+                on_mode += trace_of_product(&w, &self.shape_shape::<S>(l, k)) * (*rate_l * S::from(2.0));
             }
             u[k] -= on_mode;
         }
+        (at.rate_moment, at.shape_rate) = (n, shape_rate);
     }
 
     /// Gravity `g` (R's axes) on the point masses: −f_ext about R's origin
@@ -224,10 +240,10 @@ impl PointMasses {
     }
 
     /// The rates along η̇ of 𝓘_RR (added to `rigid_rate`) and of U (added to
-    /// `coupling_rate`); D's is zero.
+    /// `coupling_rate`), after [`PointMasses::add_bias`]; D's is zero.
     pub fn add_inertia_rates<S: Real>(
         &self,
-        eta: &[S],
+        at: &Configuration<S>,
         rate: &[S],
         rigid_rate: &mut SpatialMat<S>,
         coupling_rate: &mut nalgebra::DMatrix<S>,
@@ -236,9 +252,8 @@ impl PointMasses {
             return;
         }
         let m = self.modes();
-        let n = self.rate_moment(eta, rate);
-        let c_rate = (0..m).fold(Vec3::zeros(), |a, k| a + real::<S, 3, 1>(&self.shape_moments[k]) * rate[k]);
-        *rigid_rate += inertia_of(S::zero(), &c_rate, &(n + n.transpose()));
+        let n = at.rate_moment;
+        *rigid_rate += inertia_of(S::zero(), &at.shape_rate, &(n + n.transpose()));
         for k in 0..m {
             let angular = (0..m).fold(Vec3::zeros(), |a, l| a + axial(&self.shape_shape::<S>(l, k)) * rate[l]);
             for row in 0..3 {
