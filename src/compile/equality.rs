@@ -46,8 +46,8 @@ fn equality_rows(
 ) -> Result<EqualityRows, String> {
     let (model, attachments, sites) = (&tree.model, &tree.attachments, &tree.sites);
     let frame_of_body = |body: Option<usize>| match body {
-        Some(b) => SiteFrame { link: attachments[b].link, frame: attachments[b].offset },
-        None => SiteFrame { link: None, frame: Transform::identity() },
+        Some(b) => SiteFrame { link: attachments[b].link, frame: attachments[b].offset, node: None },
+        None => SiteFrame { link: None, frame: Transform::identity(), node: None },
     };
     let resolve = |objects: &EqualityObjects| match *objects {
         EqualityObjects::Bodies(a, b) => ([frame_of_body(a), frame_of_body(b)], [a, b], true),

@@ -14,7 +14,8 @@ use nalgebra::Unit;
 
 use super::constraint::RowKind;
 use super::{DynamicsError, require};
-use crate::math::{Mat3, Quat, Vec3, angular, linear, quat_from_wxyz};
+use crate::flex::nodes;
+use crate::math::{Mat3, Quat, SpatialVec, Transform, Vec3, angular, cross_motion, linear, quat_from_wxyz};
 use crate::model::{LinkJoint, Model, SensorSource, SiteFrame};
 use crate::vehicle::SensorKind;
 use crate::workspace::{Stage, Workspace};
@@ -196,15 +197,15 @@ impl Workspace {
     ) {
         use SensorKind::*;
         if kind == FrameQuat {
-            let mut quat = self.world_quaternion(object, &quats[0]);
+            let mut quat = self.world_quaternion(model, object, &quats[0]);
             if let Some(reference) = reference_frame {
-                quat = self.world_quaternion(reference, &quats[1]).conjugate() * quat;
+                quat = self.world_quaternion(model, reference, &quats[1]).conjugate() * quat;
             }
             out.copy_from_slice(&[quat.w, quat.i, quat.j, quat.k]);
             return;
         }
-        let frame = self.frame_motion(object);
-        let reference = reference_frame.map(|r| self.frame_motion(r));
+        let frame = self.frame_motion(model, object);
+        let reference = reference_frame.map(|r| self.frame_motion(model, r));
         // A world vector in the reference frame's axes, if any.
         let in_reference = |v: Vec3| match &reference {
             Some(r) => r.rot.transpose() * v,
@@ -234,8 +235,29 @@ impl Workspace {
         write3(out, &value);
     }
 
+    /// What carries a site on `link`: the link, or the node the site sits
+    /// at (at the workspace's η): its placement in the world, velocity and
+    /// acceleration (its own coordinates). A node moves with
+    /// V_j = ʲX_R V_R + Ψ_jη̇ and A_j = ʲX_R A_R + Ψ_jη̈ + Ψ̇_jη̇ + V_j × Ψ_jη̇.
+    fn carrier(&self, model: &Model, frame: &SiteFrame, link: usize) -> (Transform, SpatialVec, SpatialVec) {
+        let (x_r, v_r, a_r) = (self.x_world[link], self.v_body[link], self.a_body[link]);
+        let Some(at) = frame.node else { return (x_r, v_r, a_r) };
+        let flexible = &model.flexible[at.flexible];
+        let (adr, m) = (flexible.dof_adr, flexible.mode_count());
+        let eta = &self.theta.as_slice()[flexible.qpos_adr..flexible.qpos_adr + m];
+        let (rate, acceleration) = (&self.qvel.as_slice()[adr..adr + m], &self.qacc.as_slice()[adr..adr + m]);
+        let x_node = nodes::transform(&flexible.modal, at.node, eta);
+        let relative = nodes::subspace_times(&flexible.modal, at.node, eta, rate);
+        let v = x_node.apply_motion(&v_r) + relative;
+        let a = x_node.apply_motion(&a_r)
+            + nodes::subspace_times(&flexible.modal, at.node, eta, acceleration)
+            + nodes::subspace_rate_times(&flexible.modal, at.node, eta, rate)
+            + cross_motion(&v, &relative);
+        (x_node.compose(&x_r), v, a)
+    }
+
     /// A frame's placement and velocity in the world.
-    fn frame_motion(&self, frame: &SiteFrame) -> FrameMotion {
+    fn frame_motion(&self, model: &Model, frame: &SiteFrame) -> FrameMotion {
         let Some(link) = frame.link else {
             return FrameMotion {
                 rot: frame.frame.rot.transpose(),
@@ -244,12 +266,12 @@ impl Workspace {
                 vel: Vec3::zeros(),
             };
         };
-        let in_world = frame.frame.compose(&self.x_world[link]);
-        let to_world = self.x_world[link].rot.transpose();
-        let v = &self.v_body[link];
-        let omega = angular(v);
-        // The frame origin's velocity, in link coordinates.
-        let vel = linear(v) + omega.cross(&frame.frame.trans);
+        let (x_carrier, v, _) = self.carrier(model, frame, link);
+        let in_world = frame.frame.compose(&x_carrier);
+        let to_world = x_carrier.rot.transpose();
+        let omega = angular(&v);
+        // The frame origin's velocity, in the carrier's coordinates.
+        let vel = linear(&v) + omega.cross(&frame.frame.trans);
         FrameMotion { rot: in_world.rot.transpose(), pos: in_world.trans, omega: to_world * omega, vel: to_world * vel }
     }
 
@@ -259,21 +281,28 @@ impl Workspace {
         let Some(link) = frame.link else {
             return (Vec3::zeros(), -model.gravity);
         };
-        let to_world = self.x_world[link].rot.transpose();
-        let a = &self.a_body[link];
+        let (x_carrier, _, a) = self.carrier(model, frame, link);
+        let to_world = x_carrier.rot.transpose();
         let r = frame.frame.trans;
-        let angular_acc = angular(a);
+        let angular_acc = angular(&a);
         // The spatial acceleration at the frame origin, then the classical one.
-        let at_origin = linear(a) + angular_acc.cross(&r);
+        let at_origin = linear(&a) + angular_acc.cross(&r);
         let linear_acc = to_world * at_origin + motion.omega.cross(&motion.vel) - model.gravity;
         (to_world * angular_acc, linear_acc)
     }
 
-    /// A frame's orientation in the world as MuJoCo composes it.
-    fn world_quaternion(&self, frame: &SiteFrame, in_link: &Quat) -> Quat {
-        match frame.link {
-            Some(link) => self.link_quats[link] * in_link,
-            None => *in_link,
+    /// A frame's orientation in the world as MuJoCo composes it (a node's
+    /// turn exp(ρ×), ρ = Φʳη, between the link's and the site's).
+    fn world_quaternion(&self, model: &Model, frame: &SiteFrame, in_link: &Quat) -> Quat {
+        let Some(link) = frame.link else { return *in_link };
+        match frame.node {
+            None => self.link_quats[link] * in_link,
+            Some(at) => {
+                let flexible = &model.flexible[at.flexible];
+                let eta = &self.theta.as_slice()[flexible.qpos_adr..flexible.qpos_adr + flexible.mode_count()];
+                let (_, rho) = nodes::displacement(&flexible.modal, at.node, eta);
+                self.link_quats[link] * Quat::from_scaled_axis(rho) * in_link
+            }
         }
     }
 

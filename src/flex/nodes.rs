@@ -41,6 +41,13 @@ pub fn subspace<S: Real>(body: &ModalBody, j: usize, eta: &[S], out: &mut DMatri
     }
 }
 
+/// Ψ_j v for a vector `v` of modal rates (or accelerations), without forming Ψ_j.
+pub fn subspace_times<S: Real>(body: &ModalBody, j: usize, eta: &[S], v: &[S]) -> SpatialVec<S> {
+    let (_, rho) = displacement(body, j, eta);
+    let (translation, rotation_vector) = displacement(body, j, v);
+    spatial(&(right_jacobian(&rho) * rotation_vector), &(rotation(&rho).transpose() * translation))
+}
+
 /// Ψ̇_j: the rate of Ψ_j's coordinates along η̇, written into `out` (6 × m);
 /// as [`subspace_rate_times`], column by column.
 pub fn subspace_rate<S: Real>(body: &ModalBody, j: usize, eta: &[S], eta_rate: &[S], out: &mut DMatrix<S>) {

@@ -11,13 +11,27 @@ use serde::{Deserialize, Serialize};
 use crate::math::{Real, Transform, Vec3};
 use crate::vehicle::{Activation, ActivationKind, ActuatorKind, BiasType, GainType};
 
-/// A site's frame as the passes see it: fixed to a link, or to the world.
+/// A site's frame as the passes see it: fixed to a link, to a node of a
+/// flexible body on that link, or to the world.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SiteFrame {
     /// The link carrying the site; `None` for a site fixed to the world.
     pub link: Option<usize>,
-    /// ˢX_ₗ: the site frame relative to the link frame (or to the world).
+    /// ˢX_ₗ: the site frame relative to the link frame (or to the world);
+    /// for a site at a node, ˢX_ⱼ relative to the node's frame.
     pub frame: Transform,
+    /// The node of a flexible body the site sits at, moving with it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub node: Option<NodeSite>,
+}
+
+/// Which node of which flexible body (`Model::flexible`) carries a site.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct NodeSite {
+    /// The flexible body, by index into `Model::flexible`.
+    pub flexible: usize,
+    /// The node, by index into its `modal.nodes`.
+    pub node: usize,
 }
 
 /// How an actuator's force reaches the dofs (MuJoCo's transmission).

@@ -38,7 +38,7 @@ mod interaction;
 mod sensor;
 mod tendon;
 mod validate;
-pub use actuator::{Actuator, ActuatorTarget, ActuatorTransmission, DofForceLimit, SiteFrame};
+pub use actuator::{Actuator, ActuatorTarget, ActuatorTransmission, DofForceLimit, NodeSite, SiteFrame};
 pub use constraint::{CompiledEquality, Constraints, DofFriction, EqualityRows, Limit, TendonFriction, TendonLimit};
 pub use flexible::FlexBody;
 pub use gravity_compensation::{CompensatedLink, GravityCompensation};
@@ -606,7 +606,15 @@ fn add_flexible_bodies(
             vehicle.bodies.iter().position(|b| b.name == modal.body).expect("the importer names existing bodies");
         let at = attachments[body];
         let Some(link) = at.link else { return Err(ModelError::FlexibleOnWorld { body: modal.body.clone() }) };
+        let here = model.flexible.len();
+        let at_node = |site: &SiteFrame| site.node.is_some_and(|n| n.flexible == here);
+        let actuated_node = model.actuators.iter().any(|a| match &a.transmission {
+            ActuatorTransmission::Site { site } => at_node(site),
+            ActuatorTransmission::RelativeSite { site, reference, .. } => at_node(site) || at_node(reference),
+            _ => false,
+        });
         let unsupported = [
+            (actuated_node, "actuators on sites at nodes"),
             (!model.tendons.is_empty(), "tendons"),
             (!constraints.is_empty() || !vehicle.equalities.is_empty(), "joint limits, friction loss and equalities"),
             (!model.gravity_compensation.is_empty() || vehicle.bodies[body].gravcomp != 0.0, "gravity compensation"),
@@ -752,18 +760,39 @@ impl BodyTree {
         self.compensation.add_body(link, gravcomp, mass_props.mass, &com);
     }
 }
-/// The sites' frames on the links that carry them (`attachments`, per body).
+/// How close a site must be to a node of a flexible body to ride it (m).
+pub const NODE_SITE_DISTANCE: f64 = 1e-6;
+
+/// The sites' frames on the links that carry them (`attachments`, per
+/// body). A site of a flexible body within [`NODE_SITE_DISTANCE`] of one of
+/// its nodes rides that node (docs/flexible.md, "Sites at nodes").
 fn site_frames(vehicle: &Vehicle, attachments: &[Attachment]) -> Vec<SiteFrame> {
+    // Model::flexible's order: the modal bodies with modes, as add_flexible_bodies pushes them.
+    let flexible: Vec<_> = vehicle.flexible.iter().filter(|f| !f.modes.is_empty()).collect();
     vehicle
         .sites
         .iter()
         .map(|site| {
             let in_body = Transform::from_pose(&site.quat.to_rotation_matrix().into_inner(), &site.pos);
-            match site.body {
-                Some(body) => {
-                    SiteFrame { link: attachments[body].link, frame: in_body.compose(&attachments[body].offset) }
+            let Some(body) = site.body else { return SiteFrame { link: None, frame: in_body, node: None } };
+            let at = &attachments[body];
+            let in_link = in_body.compose(&at.offset);
+            let name = &vehicle.bodies[body].name;
+            let node = flexible.iter().enumerate().filter(|(_, f)| &f.body == name).find_map(|(f, modal)| {
+                let j = modal.nodes.iter().position(|n| (n.position - site.pos).norm() <= NODE_SITE_DISTANCE)?;
+                Some((NodeSite { flexible: f, node: j }, modal.nodes[j].position))
+            });
+            match node {
+                Some((node, position)) => {
+                    // The node's frame at rest: its origin, the link's axes.
+                    let origin = at.offset.trans + at.offset.rot.transpose() * position;
+                    SiteFrame {
+                        link: at.link,
+                        frame: Transform { rot: in_link.rot, trans: in_link.trans - origin },
+                        node: Some(node),
+                    }
                 }
-                None => SiteFrame { link: None, frame: in_body },
+                None => SiteFrame { link: at.link, frame: in_link, node: None },
             }
         })
         .collect()
@@ -855,8 +884,8 @@ fn wrench_actuators(vehicle: &Vehicle, attachments: &[Attachment], name: &str) -
         });
     }
     let centre = Transform::from_pose(&Mat3::identity(), &vehicle.bodies[index].inertial_pos);
-    let site = SiteFrame { link: at.link, frame: centre.compose(&at.offset) };
-    let world = SiteFrame { link: None, frame: Transform::identity() };
+    let site = SiteFrame { link: at.link, frame: centre.compose(&at.offset), node: None };
+    let world = SiteFrame { link: None, frame: Transform::identity(), node: None };
     const COMPONENTS: [&str; 6] = ["force x", "force y", "force z", "torque x", "torque y", "torque z"];
     Ok(COMPONENTS
         .iter()

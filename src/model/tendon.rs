@@ -160,8 +160,9 @@ pub(super) fn compile_tendons(
                                     Some(b) => SiteFrame {
                                         link: attachments[b].link,
                                         frame: in_body.compose(&attachments[b].offset),
+                                        node: None,
                                     },
-                                    None => SiteFrame { link: None, frame: in_body },
+                                    None => SiteFrame { link: None, frame: in_body, node: None },
                                 };
                                 PathStop::Geom {
                                     frame,

@@ -24,6 +24,7 @@ mod error_modes;
 mod flex_dynamics;
 mod flex_import;
 mod flex_modal_file;
+mod flex_sites;
 mod gravity_compensation;
 mod integration_order;
 mod mjcf_files;
