@@ -32,6 +32,7 @@
 use super::reach::Reach;
 use super::rkmk::{Integrator, retract};
 use super::simulation::Simulation;
+use super::switches::MAX_STAGE_CUTS;
 use super::tableau::{ErrorEstimate, ErrorPer, Method, Scheme, StepControl};
 use crate::dynamics::DynamicsError;
 use crate::dynamics::quantities::kinetic_energy;
@@ -569,6 +570,8 @@ impl Simulation {
         let mut round_off_level: Option<f64> = None;
         let mut last_cause = None;
         let max_step = settings.step_bound(integrator.method);
+        // Cuts to a stage that left the mode since the last step taken.
+        let mut stage_cuts = 0;
         while t1 - t > end_slack {
             let planned = h.min(max_step);
             let remaining = limit - t;
@@ -650,6 +653,18 @@ impl Simulation {
             let crossed = error <= 1.0
                 && watch
                 && switches.switched(model, ws, integrator, theta, t + step, inputs_at).map_err(failed)?;
+            if error <= 1.0
+                && !crossed
+                && stage_cuts < MAX_STAGE_CUTS
+                && let Some(share) = integrator.stage_watch.earliest()
+            {
+                // A stage left the mode and the end is back in it: a switch undone
+                // within the step. Cut to that stage's time, whose end shows it.
+                stage_cuts += 1;
+                stats.locating += 1;
+                h = step * share;
+                continue;
+            }
             // The step to take: the one attempted, or one cut to end just past a switch.
             let mut taken = (step, per_second, error);
             if crossed {
@@ -690,6 +705,7 @@ impl Simulation {
                     switches.step_taken();
                 }
                 stats.accepted += 1;
+                stage_cuts = 0;
                 if reaches {
                     hold_reach(reach, (theta, qvel, carry.work), t, settings);
                     carry.work = reach.interpolate(model, t1, theta, qvel, integrator.dense_delta.as_mut_slice());

@@ -14,6 +14,7 @@ use nalgebra::DVector;
 use super::reach::Reach;
 use super::rosenbrock::Linearization;
 use super::stiffness::StiffnessTest;
+use super::switches::StageWatch;
 use super::tableau::{DENSE_ROWS, ErrorEstimate, Method, Scheme};
 use crate::dynamics::DynamicsError;
 use crate::dynamics::actuation::clamped_ctrl;
@@ -195,6 +196,8 @@ pub struct Integrator {
     pub(super) clamped_end: Vec<f64>,
     /// Whether its steps are held by stability (explicit methods).
     pub(super) stiffness: StiffnessTest,
+    /// Whether a stage of its steps left the constraint mode (switches.rs).
+    pub(super) stage_watch: StageWatch,
     /// How many times it has evaluated the rates, and formed W, ever.
     pub(super) evaluations: usize,
     pub(super) jacobians: usize,
@@ -267,6 +270,7 @@ impl Integrator {
             clamped_start: vec![0.0; model.activation_count()],
             clamped_end: vec![0.0; model.activation_count()],
             stiffness: StiffnessTest::new(nv, rates),
+            stage_watch: StageWatch::default(),
             evaluations: 0,
             jacobians: 0,
         }
@@ -387,6 +391,7 @@ impl Integrator {
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<(), DynamicsError> {
         self.end.valid = false;
+        self.stage_watch.start_attempt();
         let tableau = match self.method.scheme() {
             Scheme::Explicit(tableau) => tableau,
             Scheme::Rosenbrock(_) => return self.attempt_rosenbrock(model, ws, (theta, qvel), (t, h), inputs_at),
@@ -416,6 +421,7 @@ impl Integrator {
                     copy(&mut self.last_nu, &ws.nu);
                 }
             }
+            self.stage_watch.check_stage(model, ws, self.theta_stage.as_slice(), tableau.c[i])?;
         }
         // The same operations as a stage's, so that a "first same as last"
         // method's last stage is evaluated exactly at the step's result.

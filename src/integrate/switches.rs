@@ -25,9 +25,15 @@
 //! beyond the state is carried between steps, and a restored run repeats
 //! exactly.
 //!
-//! A switch undone within one step is not seen (the usual limit of event
-//! location); steps under error control are short against the time a soft
-//! constraint takes to act.
+//! A switch undone within one step does not show at its end. The margins
+//! are also read at each stage of an explicit step (the stage states lie
+//! within the step's error of the solution, and their rates are evaluated
+//! in the held mode anyway: [`StageWatch`]); a step whose end holds the
+//! mode but one of whose stages left it is cut to end at that stage's
+//! time, where location then finds the switch. A weld's impedance moving
+//! between pieces and back within 10 ms was missed so by `dop853` at
+//! loose tolerances, 4.7e-3 off (docs/integration.md, "Switches undone
+//! within one step").
 
 use super::rkmk::{Integrator, retract};
 use crate::dynamics::DynamicsError;
@@ -44,6 +50,55 @@ const MAX_ATTEMPTS: usize = 40;
 /// the step: held past its switch by that much of the step, a mode
 /// changes the state by a small part of what the step may err by.
 const RESOLUTION_SHARE: f64 = 0.01;
+
+/// How many times in a row a step may be cut to a stage that left the
+/// mode: the stage states only approximate the solution, so near a margin
+/// that touches zero without crossing, cuts could otherwise go on shrinking
+/// the step.
+pub(super) const MAX_STAGE_CUTS: usize = 4;
+
+/// The margins at the stages of an explicit step, in the mode the step
+/// holds (a copy of [`Switches`]' mode, set where it is established).
+#[derive(Clone, Debug, Default)]
+pub(super) struct StageWatch {
+    mode: ConstraintMode,
+    margins: Vec<f64>,
+    /// The earliest stage time, as a share of the step, whose margins left
+    /// the mode in the step attempted last.
+    earliest: Option<f64>,
+}
+
+impl StageWatch {
+    /// Forgets the last attempt's stages.
+    pub(super) fn start_attempt(&mut self) {
+        self.earliest = None;
+    }
+
+    /// Reads the margins of the stage just evaluated at `theta_stage`, at
+    /// `share` of the step; nothing on a vehicle without switches.
+    pub(super) fn check_stage(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        theta_stage: &[f64],
+        share: f64,
+    ) -> Result<(), DynamicsError> {
+        // A stage at the step's end is the end, which is checked as such.
+        if self.margins.is_empty() || share <= 0.0 || share >= 1.0 {
+            return Ok(());
+        }
+        self.mode.margins(model, ws, theta_stage, &mut self.margins)?;
+        if self.mode.left(&self.margins) && self.earliest.is_none_or(|earliest| share < earliest) {
+            self.earliest = Some(share);
+        }
+        Ok(())
+    }
+
+    /// The earliest stage of the last attempt that left the mode, as a share of the step.
+    pub(super) fn earliest(&self) -> Option<f64> {
+        self.earliest
+    }
+}
 
 /// The mode a step holds, its margins at the points of the step being
 /// located, and the end configuration.
@@ -118,6 +173,9 @@ impl Switches {
         self.mode.hold_sides(model, ws, theta)?;
         integrator.evaluate_start(model, ws, (theta, qvel), t, inputs_at)?;
         self.mode.hold_working_set(model, ws, &mut self.start);
+        let watch = &mut integrator.stage_watch;
+        watch.mode.clone_from(&self.mode);
+        watch.margins.resize(self.start.len(), 0.0);
         Ok(())
     }
 

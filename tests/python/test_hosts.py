@@ -67,6 +67,53 @@ def within(state, reference, asked):
     return error <= (20 * asked if asked else 1e-2), error
 
 
+@pytest.fixture(scope="module")
+def reference_points(nudyn):
+    """(θ, ν) at every communication point from the FMU's own integration at 1e-12, ε = 0."""
+    proc = subprocess.run([str(nudyn), "simulate", str(DOCKED), "--step", str(INTERVAL), "--stop", str(STOP),
+                           "--method", "dop853", "--tolerance", "1e-12"],
+                          input="{}", capture_output=True, text=True, timeout=600, check=True)
+    out = json.loads(proc.stdout)
+    return np.hstack([np.array(out["theta"]), np.array(out["nu"])])
+
+
+METHODS = {"dopri5": 2, "dop853": 3, "bs3": 5, "tsit5": 6}
+
+
+@pytest.mark.parametrize("method, tolerance", [
+    ("dopri5", 1e-4), ("dopri5", 1e-6), ("tsit5", 1e-4), ("tsit5", 1e-6), ("bs3", 1e-4),
+    ("dop853", 1e-4), ("dop853", 1e-6), ("dop853", 1e-8),
+])
+def test_every_communication_point_is_within_the_tolerance_without_a_stop_time(
+        fmu2, reference_points, method, tolerance, tmp_path):
+    """fmusim, OMSimulator and PyFMI set up the experiment without a stop
+    time, so the last step may reach past the last point and every point
+    the host reads may be a step's interpolant: FMPy drives the FMU so, and
+    each point, not only the last, must be within 20 × the tolerance (the
+    end alone hid an error filter's 285 × inside its steps)."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    description = read_model_description(str(fmu2))
+    refs = {v.name: v.valueReference for v in description.modelVariables}
+    state = [v.valueReference for v in description.modelVariables if v.name.startswith(("theta[", "nu["))]
+    fmu = FMU2Slave(guid=description.guid, unzipDirectory=extract(str(fmu2), unzipdir=str(tmp_path / "fmu")),
+                    modelIdentifier=description.coSimulation.modelIdentifier, instanceName="docked")
+    fmu.instantiate()
+    fmu.setupExperiment(tolerance=tolerance, startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.setInteger([refs["method"]], [METHODS[method]])
+    fmu.exitInitializationMode()
+    errors = []
+    for k, expected in enumerate(reference_points[1:]):
+        fmu.doStep(currentCommunicationPoint=k * INTERVAL, communicationStepSize=INTERVAL)
+        errors.append(np.max(np.abs(np.array(fmu.getReal(state)) - expected) / (1 + np.abs(expected))))
+    fmu.terminate()
+    fmu.freeInstance()
+    worst = int(np.argmax(errors))
+    assert errors[worst] <= 20 * tolerance, f"{errors[worst]:.3g} at t = {(worst + 1) * INTERVAL:.2f}"
+
+
 @pytest.mark.skipif(not FMUSIM, reason="no fmusim given (NUDYN_FMUSIM=PATH)")
 @pytest.mark.parametrize("how, asked", [
     (["--interface-type", "cs"], 1e-8),
