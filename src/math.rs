@@ -36,6 +36,10 @@ pub trait Real:
 {
     /// The number without its derivative.
     fn value(self) -> f64;
+
+    /// Whether the number and its derivative are both zero: a term that
+    /// may be skipped (a force zero in value can still move).
+    fn is_still_zero(self) -> bool;
 }
 
 impl Real for f64 {
@@ -43,12 +47,22 @@ impl Real for f64 {
     fn value(self) -> f64 {
         self
     }
+
+    #[inline(always)]
+    fn is_still_zero(self) -> bool {
+        self == 0.0
+    }
 }
 
 impl Real for Dual64 {
     #[inline(always)]
     fn value(self) -> f64 {
         self.re
+    }
+
+    #[inline(always)]
+    fn is_still_zero(self) -> bool {
+        self.re == 0.0 && self.eps == 0.0
     }
 }
 

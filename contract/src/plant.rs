@@ -94,7 +94,7 @@ pub fn serves_model_exchange(outputs: OptionalOutputs) -> bool {
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum NotCovered {
     /// The dynamics' derivatives refuse the model (activation states,
-    /// tendons, equalities, friction loss).
+    /// the tendons' armature, equalities, friction loss).
     #[error(transparent)]
     Dynamics(#[from] DerivativeError),
     /// The dynamics' derivatives cover it, the FMU's do not yet: the ctrl

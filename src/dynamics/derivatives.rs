@@ -16,15 +16,17 @@
 //!
 //! The passes made generic so far are the tree's (placements, the
 //! factorization, velocities, springs, dampers, gravity and its
-//! compensation, ν̇, C and θ̈) and the actuators' without activation
-//! states (transmissions, gains and biases, the clamps of ctrl and force,
-//! which hold their piece: a clamped input's derivative is 0). Joint
-//! limits are covered where none acts: a point with a limit row
-//! (distance within the margin) is refused by [`Derivatives::run`], the
-//! constraint forces not being generic yet. A model whose dynamics need
-//! more (activation states, tendons, equalities, friction loss) is
-//! refused by [`Derivatives::new`] with what is missing, rather than
-//! given a derivative that leaves a term out.
+//! compensation, ν̇, C and θ̈), the tendons' (lengths, moment arms and
+//! velocities of fixed and spatial paths with their wraps, springs and
+//! dampers) and the actuators' without activation states (transmissions,
+//! gains and biases, the clamps of ctrl and force, which hold their piece:
+//! a clamped input's derivative is 0). Joint and tendon limits are covered
+//! where none acts: a point with a limit row (distance within the margin)
+//! is refused by [`Derivatives::run`], the constraint forces not being
+//! generic yet. A model whose dynamics need more (activation states, the
+//! tendons' armature, equalities, friction loss) is refused by
+//! [`Derivatives::new`] with what is missing, rather than given a
+//! derivative that leaves a term out.
 
 use nalgebra::{DMatrix, Quaternion};
 use num_dual::Dual64;
@@ -205,14 +207,20 @@ impl Passes {
         seed(ws.theta.as_mut_slice(), point.theta, &self.theta_rates);
         ws.stage = Stage::Empty;
         ws.configuration_passes(model)?;
+        if !model.tendons.is_empty() {
+            ws.tendon_kinematics(model);
+        }
         ws.stage = Stage::Configuration;
-        limits.refuse_active(model, ws.theta.iter().map(|q| q.value()))?;
+        limits.refuse_active(model, ws)?;
         let velocity = match point.given {
             Given::Nu => ws.nu.as_mut_slice(),
             Given::Qvel => ws.qvel.as_mut_slice(),
         };
         seed(velocity, point.velocity, direction.velocity);
         velocity::velocity_pass(model, ws, point.given);
+        if !model.tendons.is_empty() {
+            ws.tendon_velocities(model);
+        }
         ws.stage = Stage::Velocity;
         seed(&mut self.eps, point.eps, direction.eps);
         // The FMU's knowns hold no joint forces: no inward pass for a zero T.
@@ -226,10 +234,7 @@ impl Passes {
             ws.actuation_pass(model, &self.ctrl)?;
             self.eps.iter_mut().zip(ws.eps_actuator.iter()).for_each(|(e, a)| *e += *a);
         }
-        let passive = model.has_passive_forces();
-        if passive {
-            bias::passive_forces(model, ws);
-        }
+        let passive = bias::all_passive_forces(model, ws);
         // ν̇ needs pass 3 with the factor's rates; θ̈ alone does without
         // them, and the outward pass only θ̈ needs.
         let (nu_dot, qacc) = (outputs.contains(&Output::NuDot), outputs.contains(&Output::Qacc));
@@ -264,23 +269,27 @@ impl Passes {
     }
 }
 
-/// The model's joint limits, and what a point's configuration gives them.
+/// The model's joint and tendon limits, and what a point's configuration gives them.
 #[derive(Clone, Debug)]
 struct Limits {
     /// Each limit side's distance less its margin at the point.
     switches: Vec<f64>,
     /// θ's values (quaternions normalized by the passes).
     theta: Vec<f64>,
+    /// The tendons' lengths.
+    tendon_length: Vec<f64>,
 }
 
 impl Limits {
-    /// [`DerivativeError::ActiveLimits`] when a side acts at configuration `theta`.
-    fn refuse_active(&mut self, model: &Model, theta: impl Iterator<Item = f64>) -> Result<(), DerivativeError> {
+    /// [`DerivativeError::ActiveLimits`] when a side acts at the
+    /// configuration of `ws` (its passes 0 and 1 and tendons run).
+    fn refuse_active(&mut self, model: &Model, ws: &Workspace<Dual64>) -> Result<(), DerivativeError> {
         if self.switches.is_empty() {
             return Ok(());
         }
-        self.theta.iter_mut().zip(theta).for_each(|(slot, q)| *slot = q);
-        limit_switching_functions(model, &self.theta, &[], &mut self.switches);
+        self.theta.iter_mut().zip(ws.theta.iter()).for_each(|(slot, q)| *slot = q.re);
+        self.tendon_length.iter_mut().zip(ws.tendon_length.iter()).for_each(|(slot, l)| *slot = l.re);
+        limit_switching_functions(model, &self.theta, &self.tendon_length, &mut self.switches);
         match self.switches.iter().filter(|s| **s < 0.0).count() {
             0 => Ok(()),
             rows => Err(DerivativeError::ActiveLimits { rows }),
@@ -303,7 +312,11 @@ impl Derivatives {
         Self::check(model)?;
         Ok(Derivatives {
             passes: Passes::new(model),
-            limits: Limits { switches: vec![0.0; model.constraints.limit_sides()], theta: vec![0.0; model.nq] },
+            limits: Limits {
+                switches: vec![0.0; model.constraints.limit_sides()],
+                theta: vec![0.0; model.nq],
+                tendon_length: vec![0.0; model.tendons.len()],
+            },
         })
     }
 
@@ -312,7 +325,7 @@ impl Derivatives {
     pub fn check(model: &Model) -> Result<(), DerivativeError> {
         let unsupported = [
             (model.activation_count() > 0, "actuators' activation states (dyntype)"),
-            (!model.tendons.is_empty(), "tendons"),
+            (!model.tendon_inertia.is_empty(), "tendons' armature"),
             (!model.constraints.equalities.is_empty(), "equality constraints"),
             (!model.constraints.friction.is_empty(), "friction loss"),
         ];

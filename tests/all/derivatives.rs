@@ -240,6 +240,25 @@ fn actuated_jacobians_agree_with_central_differences_of_the_passes() {
     }
 }
 
+/// Tendons through the dual-number passes: fixed and spatial paths, wraps
+/// around spheres and cylinders (with side sites), the tendons' springs and
+/// dampers, actuators on tendons and their `actuatorfrcrange` scaling.
+#[test]
+fn jacobians_with_tendons_agree_with_central_differences_of_the_passes() {
+    for path in [
+        "tests/fixtures/tendons/tendon_wrap.xml",
+        "tests/fixtures/tendons/tendon_sidesite.xml",
+        "tests/fixtures/tendons/tendon_wrap_fitted.xml",
+        "tests/fixtures/tendons/tendon_force_range.xml",
+    ] {
+        for seed in 0..3 {
+            let case = file_case(path, seed);
+            assert!(!case.model.tendons.is_empty());
+            assert_agrees_with_differences(&case, &format!("{path}, seed {seed}"), 1e-8);
+        }
+    }
+}
+
 /// A run's values are those of the f64 passes to round-off (not bit for
 /// bit: num-dual divides by multiplying with the reciprocal).
 #[test]
