@@ -66,6 +66,13 @@ impl Real for Dual64 {
     }
 }
 
+/// The sum of `terms`, as `f64`'s `Sum` adds (from −0.0, in order), so
+/// that generic code keeps the plain code's `f64` numbers.
+#[inline]
+pub fn sum<S: Real>(terms: impl Iterator<Item = S>) -> S {
+    terms.fold(S::from(-0.0), |total, term| total + term)
+}
+
 /// A 3-vector.
 pub type Vec3<S = f64> = Vector3<S>;
 /// A 3×3 matrix.

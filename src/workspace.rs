@@ -180,7 +180,7 @@ pub struct Workspace<S: Real = f64> {
     /// its forces and ε — apply_constraint_forces.
     pub tendon_inertia: TendonInertiaState,
     /// The active constraint rows and their forces — apply_constraint_forces.
-    pub constraint_rows: ConstraintRows,
+    pub constraint_rows: ConstraintRows<S>,
 
     /// MuJoCo's sensordata — compute_sensors.
     pub sensordata: DVector<f64>,
