@@ -12,6 +12,7 @@
 //! derivatives. The adjoint Jᵀv is taken column by column of the forward
 //! mode: one run per known.
 
+use nudyn::dynamics::constraint::ConstraintRows;
 use nudyn::dynamics::derivatives::{DerivativeError, Derivatives, Direction, Output, Point, ThetaDirection};
 use nudyn::dynamics::velocity::Given;
 use nudyn::model::Model;
@@ -32,6 +33,9 @@ pub struct At<'a> {
     pub nu: &'a [f64],
     /// ε.
     pub eps: &'a [f64],
+    /// The constraint rows of the plant's evaluations, whose held mode
+    /// (between events in model exchange) the derivatives hold.
+    pub rows: &'a ConstraintRows,
 }
 
 /// The dual workspace, or why the FMU has no derivatives, and the buffers
@@ -123,6 +127,7 @@ impl Partials {
             }
         }
         let derivatives = derivatives.as_mut().expect("made above");
+        derivatives.hold_constraint_mode_of(at.rows);
         for buffer in [&mut self.theta, &mut self.nu, &mut self.eps] {
             buffer.fill(0.0);
         }
@@ -147,6 +152,7 @@ impl Partials {
         };
         derivatives.run(at.model, &point, &direction, &[Output::NuDot]).map_err(|error| match error {
             DerivativeError::Dynamics(error) => CallError::Evaluate(error),
+            DerivativeError::OnSwitch(switches) => CallError::OneSided(switches),
             other => unreachable!("the directions are sized by the model: {other}"),
         })?;
         for (out, d) in self.qvel.iter_mut().zip(derivatives.derivative(Output::Qvel)) {
@@ -173,8 +179,7 @@ impl Partials {
                 at.nu.iter().zip(&self.eps).map(|(n, d)| n * d).sum::<f64>()
                     + self.nu.iter().zip(at.eps).map(|(d, e)| d * e).sum::<f64>()
             }
-            // Derivatives cover no constraint: the constraint forces are 0.
-            RealVariable::QfrcConstraint(_) => 0.0,
+            RealVariable::QfrcConstraint(k) => derivatives.qfrc_constraint_derivative(k),
             other => unreachable!("{other:?} is not an unknown: classified before"),
         }
     }

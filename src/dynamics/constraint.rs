@@ -226,16 +226,49 @@ impl<S: Real> ConstraintRows<S> {
         same_rows
     }
 
-    /// The forces of the problem set up in the rows, by the active-set
-    /// method (from the last solve's working set when the rows are the
-    /// same): the minimizer of its final working set, smooth in the data
-    /// while that set holds. For derivatives, which refuse the tendons'
-    /// armature and the no-slip pass.
-    pub(crate) fn solve_in_natural_working_set(&mut self) -> Result<(), DynamicsError> {
+    /// The forces of the problem set up in the rows: in the held working
+    /// set, or by the active-set method (from the last solve's working set
+    /// when the rows are the same); either way the minimizer of one working
+    /// set, smooth in the data while that set holds. For derivatives, which
+    /// refuse the tendons' armature and the no-slip pass.
+    pub(crate) fn solve_in_one_working_set(&mut self) -> Result<(), DynamicsError> {
         let (n, stride) = (self.count, self.max_rows);
         let warm = self.note_rows();
         let (hessian, gradient, lower, upper) = (&self.hessian, &self.gradient, &self.lower, &self.upper);
-        self.solver.solve(n, hessian, stride, gradient, lower, upper, &mut self.force, warm)
+        if self.held_working_set == Some(n) {
+            self.solver.solve_in_working_set(n, hessian, stride, gradient, lower, upper, &mut self.force)
+        } else {
+            self.solver.solve(n, hessian, stride, gradient, lower, upper, &mut self.force, warm)
+        }
+    }
+
+    /// Holds the constraint mode `held` holds (its limit sides, and its
+    /// working set and impedance pieces when held), or lets the state
+    /// decide again when it holds none: the mode an FMU holds between
+    /// events, for its derivatives.
+    pub fn hold_mode_of(&mut self, held: &ConstraintRows) {
+        match &held.held_sides {
+            Some(sides) => {
+                let mut mine = self.held_sides.take().unwrap_or_else(|| std::mem::take(&mut self.side_buffer));
+                mine.copy_from_slice(sides);
+                self.held_sides = Some(mine);
+            }
+            None => {
+                if let Some(mine) = self.held_sides.take() {
+                    self.side_buffer = mine;
+                }
+            }
+        }
+        self.held_working_set = held.held_working_set;
+        if let Some(n) = held.held_working_set {
+            self.solver.held[..n].copy_from_slice(&held.solver.held[..n]);
+            self.pieces[..n].copy_from_slice(&held.pieces[..n]);
+        }
+    }
+
+    /// Whether a mode is held (its limit sides at least).
+    pub fn holds_mode(&self) -> bool {
+        self.held_sides.is_some()
     }
 
     /// How far each row is from a switch of its force, by row (for the

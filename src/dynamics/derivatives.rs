@@ -36,7 +36,7 @@
 use nalgebra::{DMatrix, Quaternion};
 use num_dual::Dual64;
 
-use super::constraint::limit_switching_functions;
+use super::constraint::{ConstraintRows, limit_switching_functions};
 use super::velocity::{self, Given};
 use super::{DynamicsError, bias, check_input, forces};
 use crate::math::{Real, quat_from_wxyz};
@@ -254,8 +254,11 @@ impl Passes {
             // The forces of the mode the point is in: its active sides,
             // impedance pieces and working set, decided on the values.
             // They need θ̈ without them (run above, or by this call with ν̇).
-            ws.add_constraint_forces(model, &mut self.eps, |_, _, rows| rows.solve_in_natural_working_set())?;
-            switches.refuse_on_switch(model, ws)?;
+            ws.add_constraint_forces(model, &mut self.eps, |_, _, rows| rows.solve_in_one_working_set())?;
+            // A held mode's forces are smooth on both sides of its switches.
+            if !ws.constraint_rows.holds_mode() {
+                switches.refuse_on_switch(model, ws)?;
+            }
         }
         self.qacc_current = qacc;
         Ok(())
@@ -419,6 +422,21 @@ impl Derivatives {
     pub fn qpos_rate_derivative(&self, model: &Model, k: usize) -> f64 {
         let ws = &self.passes.ws;
         qpos_rate(model, ws.theta.as_slice(), ws.qvel.as_slice(), k).eps
+    }
+
+    /// Holds the constraint mode that `held` (an f64 workspace's rows)
+    /// holds, or none: the runs then give the derivatives of that mode's
+    /// forces (an FMU's between events, an integrator's over a step),
+    /// smooth on both sides of its switches, so a point on one is not
+    /// refused. Without a held mode each run takes its point's own.
+    pub fn hold_constraint_mode_of(&mut self, held: &ConstraintRows) {
+        self.passes.ws.constraint_rows.hold_mode_of(held);
+    }
+
+    /// The derivative of MuJoCo's qfrc_constraint = Jᵀf (entry `k`) along
+    /// the last run's direction: 0 where no constraint row acts.
+    pub fn qfrc_constraint_derivative(&self, k: usize) -> f64 {
+        self.passes.ws.constraint_rows.qfrc_constraint.get(k).map_or(0.0, |d| d.eps)
     }
 
     /// The Jacobians of `output` at `point`, for every input.
