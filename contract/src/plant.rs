@@ -97,10 +97,6 @@ pub enum NotCovered {
     /// the tendons' armature, equalities, friction loss).
     #[error(transparent)]
     Dynamics(#[from] DerivativeError),
-    /// The dynamics' derivatives cover it, the FMU's do not yet: the ctrl
-    /// inputs as knowns (actuators; wrench inputs are actuators).
-    #[error("the FMU's derivatives do not cover {0} yet; this model has them")]
-    Fmu(&'static str),
     /// The sensors' derivatives are not computed.
     #[error("derivatives do not cover sensors yet; this model has {0} sensordata entries")]
     Sensors(usize),
@@ -113,9 +109,6 @@ pub enum NotCovered {
 /// FMU of `model` with `outputs`, or the first thing they do not.
 pub fn derivatives_cover(model: &Model, outputs: OptionalOutputs) -> Result<(), NotCovered> {
     Derivatives::check(model)?;
-    if !model.actuators.is_empty() {
-        return Err(NotCovered::Fmu("actuators"));
-    }
     let sensordata: usize = model.sensors.iter().map(|s| s.dim()).sum();
     if sensordata > 0 {
         return Err(NotCovered::Sensors(sensordata));

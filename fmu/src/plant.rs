@@ -686,7 +686,7 @@ impl Component for Plant {
     ) -> Result<(), CallError> {
         let (model, layout, state) = (&self.model, &self.layout, &self.sim.state);
         let rows = &self.sim.workspace().constraint_rows;
-        let at = At { model, layout, theta: &state.theta, nu: &state.nu, eps: &self.eps, rows };
+        let at = At { model, layout, theta: &state.theta, nu: &state.nu, eps: &self.eps, ctrl: &self.ctrl, rows };
         self.partials.directional(&at, unknowns, knowns, seed, sensitivity)
     }
 
@@ -699,7 +699,7 @@ impl Component for Plant {
     ) -> Result<(), CallError> {
         let (model, layout, state) = (&self.model, &self.layout, &self.sim.state);
         let rows = &self.sim.workspace().constraint_rows;
-        let at = At { model, layout, theta: &state.theta, nu: &state.nu, eps: &self.eps, rows };
+        let at = At { model, layout, theta: &state.theta, nu: &state.nu, eps: &self.eps, ctrl: &self.ctrl, rows };
         self.partials.adjoint(&at, unknowns, knowns, seed, sensitivity)
     }
 
