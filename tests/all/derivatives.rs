@@ -325,6 +325,52 @@ fn constrained_jacobians_agree_with_central_differences_at_the_mode() {
     assert!(rows_seen > 50, "only {rows_seen} constraint rows active over the cases");
 }
 
+/// On a switch (the elbow's upper side exactly at its margin) a run is
+/// refused; with the mode an f64 workspace holds there (as an FMU holds
+/// one between events) it gives that mode's derivatives, which agree with
+/// the differences of the f64 passes with the mode held.
+#[test]
+fn a_held_mode_gives_its_derivatives_on_a_switch() {
+    let mut case = constrained_case("tests/fixtures/constraints/limited_arm.xml", 5, 0.3);
+    let model = &case.model;
+    let elbow = model.joints.iter().position(|j| j.name == "elbow").unwrap();
+    let limit = model.constraints.limits.iter().find(|l| l.joint == elbow).unwrap();
+    case.theta[limit.qpos] = limit.range[1] - limit.margin;
+    let mut derivatives = Derivatives::new(model).unwrap();
+    let (nv, nu) = (model.nv, model.actuators.len());
+    let (zeros, no_ctrl) = (vec![0.0; nv], vec![0.0; nu]);
+    let along = Direction {
+        theta: &zeros,
+        theta_in: ThetaDirection::Tangent,
+        velocity: &zeros,
+        eps: &zeros,
+        torque: &zeros,
+        ctrl: &no_ctrl,
+    };
+    let at = point(&case, Given::Qvel);
+    let refused = derivatives.run(model, &at, &along, &[Output::Qacc]).unwrap_err();
+    assert!(
+        matches!(&refused, DerivativeError::OnSwitch(s) if s.contains("upper limit of joint 'elbow'")),
+        "{refused}"
+    );
+
+    let mut ws = model.workspace();
+    let mut mode = ConstraintMode::new(model);
+    mode.hold_sides(model, &mut ws, at.theta).unwrap();
+    evaluate_on(model, &mut ws, &at);
+    let mut start = vec![0.0; mode.len()];
+    mode.hold_working_set(model, &mut ws, &mut start);
+    derivatives.hold_constraint_mode_of(&ws.constraint_rows);
+    let exact = derivatives.jacobians(model, &at, Output::Qacc).unwrap();
+    let differenced = differences(&case, Given::Qvel);
+    for (what, a, b) in
+        [("theta", &exact.theta, &differenced.theta), ("velocity", &exact.velocity, &differenced.velocity)]
+    {
+        let error = relative(a, b);
+        assert!(error < 1e-8, "{what}: {error:e} from the held mode's differences");
+    }
+}
+
 /// A run's values are those of the f64 passes to round-off (not bit for
 /// bit: num-dual divides by multiplying with the reciprocal).
 #[test]
