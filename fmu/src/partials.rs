@@ -13,6 +13,7 @@
 //! derivatives. The adjoint Jᵀv is taken column by column of the forward
 //! mode: one run per known.
 
+use nudyn::dynamics::DynamicsError;
 use nudyn::dynamics::constraint::ConstraintRows;
 use nudyn::dynamics::derivatives::{DerivativeError, Derivatives, Direction, Output, Point, ThetaDirection};
 use nudyn::dynamics::velocity::Given;
@@ -181,6 +182,15 @@ impl Partials {
         }
         for (out, d) in self.nu_dot.iter_mut().zip(derivatives.derivative(Output::NuDot)) {
             *out = d;
+        }
+        // A derivative that is not a number is a status, not a result.
+        let rates = self.qvel.iter().chain(&self.nu_dot);
+        if let Some((index, &value)) = rates.enumerate().find(|(_, d)| !d.is_finite()) {
+            return Err(CallError::Evaluate(DynamicsError::NonFinite {
+                what: "the derivative of (qvel, der(nu))",
+                index,
+                value,
+            }));
         }
         Ok(())
     }
