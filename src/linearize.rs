@@ -150,6 +150,15 @@ pub fn linearize(
             }
         }
     }
+    // nalgebra's Schur iterates without end on a matrix with a NaN.
+    if let Some(index) = a.iter().chain(b.iter()).position(|x| !x.is_finite()) {
+        let value = a.iter().chain(b.iter()).nth(index).copied().unwrap_or(f64::NAN);
+        return Err(DerivativeError::Dynamics(crate::dynamics::DynamicsError::NonFinite {
+            what: "A, B",
+            index,
+            value,
+        }));
+    }
     let mut eigenvalues: Vec<_> = a.complex_eigenvalues().iter().copied().collect();
     eigenvalues.sort_by(|x, y| x.norm().total_cmp(&y.norm()).then(x.im.total_cmp(&y.im)));
     let discrete = step.map(|h| {

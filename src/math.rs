@@ -36,12 +36,21 @@ pub trait Real:
 {
     /// The number without its derivative.
     fn value(self) -> f64;
+
+    /// Whether the number and its derivative are both zero: a term that
+    /// may be skipped (a force zero in value can still move).
+    fn is_still_zero(self) -> bool;
 }
 
 impl Real for f64 {
     #[inline(always)]
     fn value(self) -> f64 {
         self
+    }
+
+    #[inline(always)]
+    fn is_still_zero(self) -> bool {
+        self == 0.0
     }
 }
 
@@ -50,6 +59,18 @@ impl Real for Dual64 {
     fn value(self) -> f64 {
         self.re
     }
+
+    #[inline(always)]
+    fn is_still_zero(self) -> bool {
+        self.re == 0.0 && self.eps == 0.0
+    }
+}
+
+/// The sum of `terms`, as `f64`'s `Sum` adds (from −0.0, in order), so
+/// that generic code keeps the plain code's `f64` numbers.
+#[inline]
+pub fn sum<S: Real>(terms: impl Iterator<Item = S>) -> S {
+    terms.fold(S::from(-0.0), |total, term| total + term)
 }
 
 /// A 3-vector.

@@ -163,15 +163,15 @@ pub struct Workspace<S: Real = f64> {
     pub inputs_applied: bool,
 
     /// Each tendon's length (MuJoCo's ten_length) — set_configuration.
-    pub tendon_length: DVector<f64>,
+    pub tendon_length: DVector<S>,
     /// Each tendon's moment arms, row k the entries k·nv .. (k+1)·nv
     /// (MuJoCo's ten_J, dense) — set_configuration.
-    pub tendon_moment: Vec<f64>,
+    pub tendon_moment: Vec<S>,
     /// Each tendon's velocity J θ̇ (MuJoCo's ten_velocity) — pass 2.
-    pub tendon_velocity: DVector<f64>,
+    pub tendon_velocity: DVector<S>,
     /// Per-link scratch of the spatial tendons' unit forces (empty without
     /// spatial tendons) — set_configuration.
-    pub tendon_wrench: Vec<SpatialVec>,
+    pub tendon_wrench: Vec<SpatialVec<S>>,
     /// Each tendon's sum of its actuators' forces before their force range
     /// (empty when no tendon has an `actuatorfrcrange`) — compute_actuation.
     pub tendon_actuator_total: Vec<f64>,
@@ -180,7 +180,7 @@ pub struct Workspace<S: Real = f64> {
     /// its forces and ε — apply_constraint_forces.
     pub tendon_inertia: TendonInertiaState,
     /// The active constraint rows and their forces — apply_constraint_forces.
-    pub constraint_rows: ConstraintRows,
+    pub constraint_rows: ConstraintRows<S>,
 
     /// MuJoCo's sensordata — compute_sensors.
     pub sensordata: DVector<f64>,
@@ -281,7 +281,7 @@ impl<S: Real> Workspace<S> {
             ctrl_input: DVector::zeros(nu),
             inputs_applied: false,
             tendon_length: DVector::zeros(model.tendons.len()),
-            tendon_moment: vec![0.0; model.tendons.len() * model.nv],
+            tendon_moment: vec![S::zero(); model.tendons.len() * model.nv],
             tendon_velocity: DVector::zeros(model.tendons.len()),
             tendon_wrench: vec![SpatialVec::zeros(); if spatial_tendons { n } else { 0 }],
             tendon_actuator_total: vec![

@@ -28,6 +28,7 @@ fn layouts() -> impl Strategy<Value = Layout> {
         na,
         sensordata: vec![SensorDependence::Motion; sensors],
         switches,
+        eps_coupled: switches > 0,
         outputs,
         tree: None,
     })

@@ -94,14 +94,9 @@ pub fn serves_model_exchange(outputs: OptionalOutputs) -> bool {
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum NotCovered {
     /// The dynamics' derivatives refuse the model (activation states,
-    /// tendons, equalities, friction loss).
+    /// the tendons' armature, equalities, friction loss).
     #[error(transparent)]
     Dynamics(#[from] DerivativeError),
-    /// The dynamics' derivatives cover it, the FMU's do not yet: the ctrl
-    /// inputs as knowns (actuators; wrench inputs are actuators), and joint
-    /// limits, whose rows switch during a run.
-    #[error("the FMU's derivatives do not cover {0} yet; this model has them")]
-    Fmu(&'static str),
     /// The sensors' derivatives are not computed.
     #[error("derivatives do not cover sensors yet; this model has {0} sensordata entries")]
     Sensors(usize),
@@ -113,7 +108,7 @@ pub enum NotCovered {
 /// Whether the FMU's directional derivatives cover every unknown of a plant
 /// FMU of `model` with `outputs`, or the first thing they do not.
 pub fn derivatives_cover(model: &Model, outputs: OptionalOutputs) -> Result<(), NotCovered> {
-    tree_alone(model)?;
+    Derivatives::check(model)?;
     let sensordata: usize = model.sensors.iter().map(|s| s.dim()).sum();
     if sensordata > 0 {
         return Err(NotCovered::Sensors(sensordata));
@@ -127,17 +122,12 @@ pub fn derivatives_cover(model: &Model, outputs: OptionalOutputs) -> Result<(), 
 }
 
 /// Whether the dynamics are the tree's alone (no actuators, tendons or
-/// constraint forces): what the FMU's derivatives and [`TreeDependence`]
-/// cover so far.
-fn tree_alone(model: &Model) -> Result<(), NotCovered> {
-    Derivatives::check(model)?;
-    if !model.actuators.is_empty() {
-        return Err(NotCovered::Fmu("actuators"));
-    }
-    if !model.constraints.is_empty() {
-        return Err(NotCovered::Fmu("joint limits"));
-    }
-    Ok(())
+/// constraint forces), which [`TreeDependence`] describes.
+fn tree_alone(model: &Model) -> bool {
+    Derivatives::check(model).is_ok()
+        && model.actuators.is_empty()
+        && model.tendons.is_empty()
+        && !model.couples_beyond_tree()
 }
 
 /// What the plant FMU can do, at most.
@@ -485,6 +475,10 @@ pub struct Layout {
     /// Number of switches of the constraint forces (limit sides, and two
     /// per constraint row), the event indicators of model exchange.
     pub switches: usize,
+    /// Whether ν̇ feels every entry of ε, not its own alone: the
+    /// constraint forces (and the tendons' armature) solve one problem
+    /// over every dof.
+    pub eps_coupled: bool,
     /// The optional outputs present.
     pub outputs: OptionalOutputs,
     /// Which of the tree's knowns its unknowns depend on, where the
@@ -527,7 +521,9 @@ struct TreeLink {
 impl TreeDependence {
     /// That of `model`, if its dynamics are its tree's alone.
     pub fn of(model: &Model) -> Option<Self> {
-        tree_alone(model).ok()?;
+        if !tree_alone(model) {
+            return None;
+        }
         let (mut qpos_tree, mut qpos_link) = (vec![None; model.nq], vec![0; model.nq]);
         let mut dof_link = vec![0; model.nv];
         let mut links: Vec<TreeLink> = Vec::with_capacity(model.links.len());
@@ -607,6 +603,7 @@ impl Layout {
             na: model.activation_count(),
             sensordata,
             switches: model.constraints.switch_count(),
+            eps_coupled: model.couples_beyond_tree(),
             outputs,
             tree: TreeDependence::of(model),
         }
@@ -817,6 +814,7 @@ mod tests {
             na: 0,
             sensordata: Vec::new(),
             switches: 0,
+            eps_coupled: false,
             outputs: "qvel,power,momentum".parse().unwrap(),
             tree: None,
         };
@@ -847,6 +845,7 @@ mod tests {
             na: 0,
             sensordata: Vec::new(),
             switches: 0,
+            eps_coupled: false,
             outputs: "energy_residual".parse().unwrap(),
             tree: None,
         };

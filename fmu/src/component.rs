@@ -393,6 +393,10 @@ pub enum CallError {
          modelDescription): {0}"
     )]
     NoPartials(String),
+    /// Partial derivatives asked at a state on a switch of the constraint
+    /// forces, where they are one-sided (which switches).
+    #[error("the partial derivatives are one-sided at this state: {0}")]
+    OneSided(String),
     /// A variable passed as a known or an unknown that cannot be one.
     #[error("{name} (value reference {vr}) is not {role}")]
     NotPartial {

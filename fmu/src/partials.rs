@@ -3,15 +3,18 @@
 //! passes run in dual numbers (`nudyn::dynamics::derivatives`), one run
 //! per direction.
 //!
-//! The knowns are the states θ and ν and the inputs ε (FMI 2.0 §2.2.8 and
-//! FMI 3.0 §2.4.8 list the continuous states and the inputs as the knowns
-//! of `<Outputs>` and `<Derivatives>`, at communication points too);
+//! The knowns are the states θ and ν and the inputs ε, ctrl and the
+//! wrench inputs (FMI 2.0 §2.2.8 and FMI 3.0 §2.4.8 list the continuous
+//! states and the inputs as the knowns of `<Outputs>` and `<Derivatives>`,
+//! at communication points too);
 //! directions in θ are along θ's coordinates, the FMU's variables, a
 //! quaternion's component along itself having no effect (the passes
 //! normalize it). The unknowns are the continuous outputs and the state
 //! derivatives. The adjoint Jᵀv is taken column by column of the forward
 //! mode: one run per known.
 
+use nudyn::dynamics::DynamicsError;
+use nudyn::dynamics::constraint::ConstraintRows;
 use nudyn::dynamics::derivatives::{DerivativeError, Derivatives, Direction, Output, Point, ThetaDirection};
 use nudyn::dynamics::velocity::Given;
 use nudyn::model::Model;
@@ -32,6 +35,12 @@ pub struct At<'a> {
     pub nu: &'a [f64],
     /// ε.
     pub eps: &'a [f64],
+    /// The actuators' controls and the wrench inputs' values (MuJoCo's
+    /// ctrl, then xfrc_applied), as the plant applies them.
+    pub ctrl: &'a [f64],
+    /// The constraint rows of the plant's evaluations, whose held mode
+    /// (between events in model exchange) the derivatives hold.
+    pub rows: &'a ConstraintRows,
 }
 
 /// The dual workspace, or why the FMU has no derivatives, and the buffers
@@ -41,10 +50,12 @@ pub struct Partials {
     /// The dual workspace once made (`Ok(None)` before the first call), or
     /// why the FMU has none (logged on every call).
     derivatives: Result<Option<Derivatives>, String>,
-    /// The direction along θ, ν and ε.
+    /// The direction along θ, ν, ε and the controls (ctrl, then the
+    /// wrench inputs).
     theta: Vec<f64>,
     nu: Vec<f64>,
     eps: Vec<f64>,
+    ctrl: Vec<f64>,
     /// The physical joint forces' direction: always 0 (T is no variable of the FMU).
     torque: Vec<f64>,
     /// The derivatives of θ̇ and ν̇ along the last direction.
@@ -61,6 +72,7 @@ impl Partials {
             theta: Vec::new(),
             nu: Vec::new(),
             eps: Vec::new(),
+            ctrl: Vec::new(),
             torque: Vec::new(),
             qvel: Vec::new(),
             nu_dot: Vec::new(),
@@ -115,7 +127,13 @@ impl Partials {
         if derivatives.is_none() {
             let made = Derivatives::new(model).map_err(|why| CallError::NoPartials(why.to_string()))?;
             *derivatives = Some(made);
-            for (buffer, n) in [(&mut self.theta, model.nq), (&mut self.nu, model.nv), (&mut self.eps, model.nv)] {
+            let controls = model.actuators.len();
+            for (buffer, n) in [
+                (&mut self.theta, model.nq),
+                (&mut self.nu, model.nv),
+                (&mut self.eps, model.nv),
+                (&mut self.ctrl, controls),
+            ] {
                 buffer.resize(n, 0.0);
             }
             for buffer in [&mut self.torque, &mut self.qvel, &mut self.nu_dot] {
@@ -123,30 +141,40 @@ impl Partials {
             }
         }
         let derivatives = derivatives.as_mut().expect("made above");
-        for buffer in [&mut self.theta, &mut self.nu, &mut self.eps] {
+        derivatives.hold_constraint_mode_of(at.rows);
+        for buffer in [&mut self.theta, &mut self.nu, &mut self.eps, &mut self.ctrl] {
             buffer.fill(0.0);
         }
+        let wrench_inputs = model.mjcf_actuator_count();
         for (variable, seed) in direction {
             match variable {
                 RealVariable::Theta(k) => self.theta[k] += seed,
                 RealVariable::Nu(k) => self.nu[k] += seed,
                 RealVariable::Eps(k) => self.eps[k] += seed,
+                RealVariable::Ctrl(k) => self.ctrl[k] += seed,
+                RealVariable::XfrcApplied(k) => self.ctrl[wrench_inputs + k] += seed,
                 other => unreachable!("{other:?} is not a known: classified before"),
             }
         }
-        // A plant with derivatives has no actuators (`derivatives_cover`): no ctrl.
-        let point =
-            Point { theta: at.theta, velocity: at.nu, given: Given::Nu, eps: at.eps, torque: &self.torque, ctrl: &[] };
+        let point = Point {
+            theta: at.theta,
+            velocity: at.nu,
+            given: Given::Nu,
+            eps: at.eps,
+            torque: &self.torque,
+            ctrl: at.ctrl,
+        };
         let direction = Direction {
             theta: &self.theta,
             theta_in: ThetaDirection::Coordinates,
             velocity: &self.nu,
             eps: &self.eps,
             torque: &self.torque,
-            ctrl: &[],
+            ctrl: &self.ctrl,
         };
         derivatives.run(at.model, &point, &direction, &[Output::NuDot]).map_err(|error| match error {
             DerivativeError::Dynamics(error) => CallError::Evaluate(error),
+            DerivativeError::OnSwitch(switches) => CallError::OneSided(switches),
             other => unreachable!("the directions are sized by the model: {other}"),
         })?;
         for (out, d) in self.qvel.iter_mut().zip(derivatives.derivative(Output::Qvel)) {
@@ -154,6 +182,15 @@ impl Partials {
         }
         for (out, d) in self.nu_dot.iter_mut().zip(derivatives.derivative(Output::NuDot)) {
             *out = d;
+        }
+        // A derivative that is not a number is a status, not a result.
+        let rates = self.qvel.iter().chain(&self.nu_dot);
+        if let Some((index, &value)) = rates.enumerate().find(|(_, d)| !d.is_finite()) {
+            return Err(CallError::Evaluate(DynamicsError::NonFinite {
+                what: "the derivative of (qvel, der(nu))",
+                index,
+                value,
+            }));
         }
         Ok(())
     }
@@ -173,8 +210,7 @@ impl Partials {
                 at.nu.iter().zip(&self.eps).map(|(n, d)| n * d).sum::<f64>()
                     + self.nu.iter().zip(at.eps).map(|(d, e)| d * e).sum::<f64>()
             }
-            // Derivatives cover no constraint: the constraint forces are 0.
-            RealVariable::QfrcConstraint(_) => 0.0,
+            RealVariable::QfrcConstraint(k) => derivatives.qfrc_constraint_derivative(k),
             other => unreachable!("{other:?} is not an unknown: classified before"),
         }
     }
@@ -217,7 +253,7 @@ impl Role {
     fn admits(self, variable: RealVariable) -> bool {
         use RealVariable::*;
         match self {
-            Role::Known => matches!(variable, Theta(_) | Nu(_) | Eps(_)),
+            Role::Known => matches!(variable, Theta(_) | Nu(_) | Eps(_) | Ctrl(_) | XfrcApplied(_)),
             Role::Unknown => matches!(
                 variable,
                 Theta(_) | Nu(_) | Qvel(_) | DerTheta(_) | DerNu(_) | KineticEnergy | Power | QfrcConstraint(_)
@@ -227,7 +263,9 @@ impl Role {
 
     fn describe(self) -> &'static str {
         match self {
-            Role::Known => "a known of the partial derivatives (the states theta and nu, the inputs eps)",
+            Role::Known => {
+                "a known of the partial derivatives (the states theta and nu, the inputs eps, ctrl and xfrc_applied)"
+            }
             Role::Unknown => {
                 "an unknown of the partial derivatives (the outputs theta, nu, qvel, kinetic_energy, power, \
                  qfrc_constraint and the state derivatives)"

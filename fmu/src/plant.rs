@@ -685,7 +685,8 @@ impl Component for Plant {
         sensitivity: &mut [f64],
     ) -> Result<(), CallError> {
         let (model, layout, state) = (&self.model, &self.layout, &self.sim.state);
-        let at = At { model, layout, theta: &state.theta, nu: &state.nu, eps: &self.eps };
+        let rows = &self.sim.workspace().constraint_rows;
+        let at = At { model, layout, theta: &state.theta, nu: &state.nu, eps: &self.eps, ctrl: &self.ctrl, rows };
         self.partials.directional(&at, unknowns, knowns, seed, sensitivity)
     }
 
@@ -697,7 +698,8 @@ impl Component for Plant {
         sensitivity: &mut [f64],
     ) -> Result<(), CallError> {
         let (model, layout, state) = (&self.model, &self.layout, &self.sim.state);
-        let at = At { model, layout, theta: &state.theta, nu: &state.nu, eps: &self.eps };
+        let rows = &self.sim.workspace().constraint_rows;
+        let at = At { model, layout, theta: &state.theta, nu: &state.nu, eps: &self.eps, ctrl: &self.ctrl, rows };
         self.partials.adjoint(&at, unknowns, knowns, seed, sensitivity)
     }
 

@@ -149,8 +149,8 @@ fn transmit<S: Real>(ws: &Workspace<S>, actuator: &Actuator) -> Transmitted<S> {
             relative_site(ws, actuator, &site, &reference, common_link)
         }
         ActuatorTransmission::Tendon { tendon } => Transmitted {
-            length: S::from(ws.tendon_length[tendon] * gear[0]),
-            velocity: S::from(ws.tendon_velocity[tendon] * gear[0]),
+            length: ws.tendon_length[tendon] * gear[0],
+            velocity: ws.tendon_velocity[tendon] * gear[0],
             moment: Moment::Tendon { tendon, gear: gear[0] },
         },
     }
@@ -289,7 +289,7 @@ fn apply<S: Real>(
     force: S,
     qfrc: &mut [S],
     link_wrench: &mut [SpatialVec<S>],
-    tendon_moment: &[f64],
+    tendon_moment: &[S],
 ) {
     match moment {
         Moment::Dofs { dof, arms, count } => {
@@ -306,7 +306,7 @@ fn apply<S: Real>(
             let nv = qfrc.len();
             let arms = &tendon_moment[tendon * nv..(tendon + 1) * nv];
             for (slot, arm) in qfrc.iter_mut().zip(arms) {
-                *slot += force * (arm * gear);
+                *slot += force * (*arm * *gear);
             }
         }
     }

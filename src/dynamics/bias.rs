@@ -182,6 +182,13 @@ fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool>(
 /// from which the outward pass of acceleration.rs gives θ̈ (the
 /// articulated-body algorithm's cost, without the İ^A recursion).
 pub(crate) fn bias_pass<const RATES: bool>(model: &Model, ws: &mut Workspace, eps: &[f64]) {
+    let forces = all_passive_forces(model, ws);
+    link_sweep::<_, RATES>(model, ws, eps, forces);
+}
+
+/// The passive joint forces into `tau_passive`, the tendons' springs and
+/// dampers with the joints': whether there are any.
+pub(crate) fn all_passive_forces<S: Real>(model: &Model, ws: &mut Workspace<S>) -> bool {
     let tendon_forces = model.tendons.iter().any(|t| t.has_passive_force());
     let forces = model.has_passive_forces() || tendon_forces;
     if forces {
@@ -190,7 +197,7 @@ pub(crate) fn bias_pass<const RATES: bool>(model: &Model, ws: &mut Workspace, ep
             super::tendon::add_passive_forces(model, ws);
         }
     }
-    link_sweep::<_, RATES>(model, ws, eps, forces);
+    forces
 }
 
 /// Pass 3's sweep over the links, with the passive joint forces already

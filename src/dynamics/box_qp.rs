@@ -17,6 +17,7 @@
 //! allocate; no crate offers a bounded QP with caller-owned buffers.
 
 use super::DynamicsError;
+use crate::math::{Real, sum};
 
 /// Where an entry stands in the working set.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -29,24 +30,33 @@ pub enum Held {
     Upper,
 }
 
-/// Buffers for [`BoxQp::solve`], sized for the most rows.
-#[derive(Clone, Debug, Default)]
-pub struct BoxQp {
+/// Buffers for [`BoxQp::solve`], sized for the most rows; the data in
+/// `S` (a dual number carries the derivative of the minimizer at its
+/// working set: the decisions are taken on the values, and the answer is
+/// that working set's solve).
+#[derive(Clone, Debug)]
+pub struct BoxQp<S: Real = f64> {
     /// Each entry's place in the working set (after a solve: the final one).
     pub held: Vec<Held>,
     free: Vec<usize>,
-    factor: Vec<f64>,
-    target: Vec<f64>,
+    factor: Vec<S>,
+    target: Vec<S>,
 }
 
-impl BoxQp {
+impl<S: Real> Default for BoxQp<S> {
+    fn default() -> Self {
+        BoxQp::new(0)
+    }
+}
+
+impl<S: Real> BoxQp<S> {
     /// Buffers for up to `rows` entries.
     pub fn new(rows: usize) -> Self {
         BoxQp {
             held: vec![Held::Free; rows],
             free: Vec::with_capacity(rows),
-            factor: vec![0.0; rows * rows],
-            target: vec![0.0; rows],
+            factor: vec![S::zero(); rows * rows],
+            target: vec![S::zero(); rows],
         }
     }
 
@@ -58,12 +68,12 @@ impl BoxQp {
     pub fn solve(
         &mut self,
         n: usize,
-        h: &[f64],
+        h: &[S],
         stride: usize,
-        g: &[f64],
+        g: &[S],
         lower: &[f64],
         upper: &[f64],
-        f: &mut [f64],
+        f: &mut [S],
         warm: bool,
     ) -> Result<(), DynamicsError> {
         let at = |i: usize, j: usize| h[i * stride + j];
@@ -72,11 +82,11 @@ impl BoxQp {
         }
         for i in 0..n {
             f[i] = match self.held[i] {
-                Held::Lower if lower[i].is_finite() => lower[i],
-                Held::Upper if upper[i].is_finite() => upper[i],
+                Held::Lower if lower[i].is_finite() => S::from(lower[i]),
+                Held::Upper if upper[i].is_finite() => S::from(upper[i]),
                 _ => {
                     self.held[i] = Held::Free;
-                    0.0
+                    S::zero()
                 }
             };
         }
@@ -89,7 +99,7 @@ impl BoxQp {
             self.free.extend((0..n).filter(|&i| self.held[i] == Held::Free));
             let m = self.free.len();
             for (a, &i) in self.free.iter().enumerate() {
-                let held_part: f64 = (0..n).filter(|&j| self.held[j] != Held::Free).map(|j| at(i, j) * f[j]).sum();
+                let held_part = sum((0..n).filter(|&j| self.held[j] != Held::Free).map(|j| at(i, j) * f[j]));
                 self.target[a] = -(g[i] + held_part);
                 for (b, &j) in self.free.iter().enumerate() {
                     self.factor[a * m + b] = at(i, j);
@@ -97,14 +107,15 @@ impl BoxQp {
             }
             cholesky_solve(&mut self.factor[..m * m], m, &mut self.target[..m])?;
 
-            // Step towards it as far as the bounds allow.
+            // Step towards it as far as the bounds allow (decided on the
+            // values; the steps' points are not the answer).
             let mut step = 1.0;
             let mut blocking = None;
             for (a, &i) in self.free.iter().enumerate() {
-                let change = self.target[a] - f[i];
+                let change = (self.target[a] - f[i]).value();
                 let (bound, side) = if change < 0.0 { (lower[i], Held::Lower) } else { (upper[i], Held::Upper) };
                 if change != 0.0 && bound.is_finite() {
-                    let reach = (bound - f[i]) / change;
+                    let reach = (bound - f[i].value()) / change;
                     if reach < step {
                         step = reach.max(0.0);
                         blocking = Some((i, side, bound));
@@ -113,9 +124,9 @@ impl BoxQp {
             }
             if let Some((i, side, bound)) = blocking {
                 for (a, &i) in self.free.iter().enumerate() {
-                    f[i] += step * (self.target[a] - f[i]);
+                    f[i] += (self.target[a] - f[i]) * step;
                 }
-                f[i] = bound;
+                f[i] = S::from(bound);
                 self.held[i] = side;
                 continue;
             }
@@ -128,11 +139,11 @@ impl BoxQp {
 
             // At the minimizer of this working set: free the held entry
             // whose gradient points into the box the most.
-            let scale = g[..n].iter().fold(1.0_f64, |s, x| s.max(x.abs()));
+            let scale = g[..n].iter().fold(1.0_f64, |s, x| s.max(x.value().abs()));
             let mut release = None;
             let mut worst = 1e-14 * scale;
             for i in (0..n).filter(|&i| self.held[i] != Held::Free) {
-                let gradient: f64 = g[i] + (0..n).map(|j| at(i, j) * f[j]).sum::<f64>();
+                let gradient = (g[i] + sum((0..n).map(|j| at(i, j) * f[j]))).value();
                 let wrong_way = if self.held[i] == Held::Lower { -gradient } else { gradient };
                 if wrong_way > worst {
                     worst = wrong_way;
@@ -148,7 +159,7 @@ impl BoxQp {
     }
 }
 
-impl BoxQp {
+impl<S: Real> BoxQp<S> {
     /// The minimizer over the free entries with the held ones at their
     /// bounds, for the working set `held` holds (kept as it is): the answer
     /// of the last solve's working set at new data, smooth in the data,
@@ -157,25 +168,25 @@ impl BoxQp {
     pub fn solve_in_working_set(
         &mut self,
         n: usize,
-        h: &[f64],
+        h: &[S],
         stride: usize,
-        g: &[f64],
+        g: &[S],
         lower: &[f64],
         upper: &[f64],
-        f: &mut [f64],
+        f: &mut [S],
     ) -> Result<(), DynamicsError> {
         for i in 0..n {
             f[i] = match self.held[i] {
-                Held::Lower => lower[i],
-                Held::Upper => upper[i],
-                Held::Free => 0.0,
+                Held::Lower => S::from(lower[i]),
+                Held::Upper => S::from(upper[i]),
+                Held::Free => S::zero(),
             };
         }
         self.free.clear();
         self.free.extend((0..n).filter(|&i| self.held[i] == Held::Free));
         let m = self.free.len();
         for (a, &i) in self.free.iter().enumerate() {
-            let held_part: f64 = (0..n).filter(|&j| self.held[j] != Held::Free).map(|j| h[i * stride + j] * f[j]).sum();
+            let held_part = sum((0..n).filter(|&j| self.held[j] != Held::Free).map(|j| h[i * stride + j] * f[j]));
             self.target[a] = -(g[i] + held_part);
             for (b, &j) in self.free.iter().enumerate() {
                 self.factor[a * m + b] = h[i * stride + j];
@@ -198,17 +209,18 @@ impl BoxQp {
     pub fn working_set_margins(
         &self,
         n: usize,
-        h: &[f64],
+        h: &[S],
         stride: usize,
-        g: &[f64],
+        g: &[S],
         (lower, upper): (&[f64], &[f64]),
-        f: &[f64],
+        f: &[S],
         out: &mut [f64],
     ) {
         for i in 0..n {
-            let slope = || g[i] + (0..n).map(|j| h[i * stride + j] * f[j]).sum::<f64>();
+            let slope = || (g[i] + sum((0..n).map(|j| h[i * stride + j] * f[j]))).value();
+            let force = f[i].value();
             out[i] = match self.held[i] {
-                Held::Free => (f[i] - lower[i]).min(upper[i] - f[i]),
+                Held::Free => (force - lower[i]).min(upper[i] - force),
                 Held::Lower => slope(),
                 Held::Upper => -slope(),
             };
@@ -218,13 +230,13 @@ impl BoxQp {
 
 /// Solves S x = b in place (b becomes x) for symmetric positive definite S
 /// (m×m, row-major), by its Cholesky factor S = L Lᵀ written over S.
-fn cholesky_solve(s: &mut [f64], m: usize, b: &mut [f64]) -> Result<(), DynamicsError> {
+fn cholesky_solve<S: Real>(s: &mut [S], m: usize, b: &mut [S]) -> Result<(), DynamicsError> {
     for j in 0..m {
         let mut diagonal = s[j * m + j];
         for k in 0..j {
             diagonal -= s[j * m + k] * s[j * m + k];
         }
-        if diagonal.is_nan() || diagonal <= 0.0 {
+        if diagonal.value().is_nan() || diagonal.value() <= 0.0 {
             return Err(DynamicsError::ConstraintSolver { rows: m });
         }
         let root = diagonal.sqrt();

@@ -23,7 +23,8 @@
 
 use super::box_qp::{BoxQp, Held};
 use super::noslip::NoSlipBuffers;
-use super::{DynamicsError, require};
+use super::{DynamicsError, forces, require};
+use crate::math::{Real, SpatialVec, sum};
 use crate::model::Limit;
 use crate::model::Model;
 use crate::vehicle::{JointKind, SoftConstraint};
@@ -60,9 +61,10 @@ impl RowKind {
 }
 
 /// The rows active at the current state and their forces — filled by
-/// [`Workspace::add_constraint_eps`]; entries past `count` are stale.
-#[derive(Clone, Debug, Default)]
-pub struct ConstraintRows {
+/// [`Workspace::apply_constraint_forces`]; entries past `count` are stale.
+/// What depends on the state is in the passes' scalar `S`.
+#[derive(Clone, Debug)]
+pub struct ConstraintRows<S: Real = f64> {
     /// Active rows.
     pub count: usize,
     /// Each row's kind.
@@ -71,41 +73,41 @@ pub struct ConstraintRows {
     /// or limit list.
     pub id: Vec<usize>,
     /// Jᵀ: row k of J is entries k·nv .. (k+1)·nv.
-    pub jacobian: Vec<f64>,
+    pub jacobian: Vec<S>,
     /// E = m⁻¹Jᵀ, laid out like `jacobian`.
-    pub eps_columns: Vec<f64>,
+    pub eps_columns: Vec<S>,
     /// Distance to the limit, or an equality row's violation (MuJoCo's
     /// efc_pos; 0 for friction).
-    pub distance: Vec<f64>,
+    pub distance: Vec<S>,
     /// What the impedance is a function of: the distance, or the norm of
     /// a connect's or weld's whole violation (MuJoCo's `getposdim`).
-    pub violation: Vec<f64>,
+    pub violation: Vec<S>,
     /// MuJoCo's approximation of the row's diagonal of A (efc_diagApprox
     /// before the impedance adjusts it).
     pub diagonal_estimate: Vec<f64>,
     /// J̇θ̇ of a connect's or weld's row (0 for the others), which MuJoCo
     /// takes out of the reference acceleration.
-    pub jdot_v: Vec<f64>,
+    pub jdot_v: Vec<S>,
     /// MuJoCo's efc_margin.
     pub margin: Vec<f64>,
     /// J θ̇ (efc_vel).
-    pub velocity: Vec<f64>,
+    pub velocity: Vec<S>,
     /// Reference acceleration (efc_aref).
-    pub aref: Vec<f64>,
+    pub aref: Vec<S>,
     /// Regularizer R (efc_R).
-    pub regularizer: Vec<f64>,
+    pub regularizer: Vec<S>,
     /// The box of each force.
     pub lower: Vec<f64>,
     /// See `lower`.
     pub upper: Vec<f64>,
     /// The forces f (efc_force).
-    pub force: Vec<f64>,
+    pub force: Vec<S>,
     /// A + R, row-major with stride `max_rows`.
-    pub hessian: Vec<f64>,
+    pub hessian: Vec<S>,
     /// J·qacc_smooth − aref.
-    pub gradient: Vec<f64>,
+    pub gradient: Vec<S>,
     /// The solver's buffers; its working set is the last solve's.
-    pub solver: BoxQp,
+    pub solver: BoxQp<S>,
     /// The rows of the last solve (kind and constraint), whose working set
     /// starts the next solve when the rows are the same.
     last_rows: Vec<(RowKind, usize)>,
@@ -129,62 +131,76 @@ pub struct ConstraintRows {
     /// While limit sides are held: how far each row is from leaving its piece.
     piece_margins: Vec<f64>,
     /// Per-link scratch: spatial accelerations at θ̈ = 0 (for J̇θ̇).
-    pub bias_acceleration: Vec<crate::math::SpatialVec>,
+    pub bias_acceleration: Vec<SpatialVec<S>>,
     /// MuJoCo's qfrc_constraint = Jᵀf (nv).
-    pub qfrc_constraint: Vec<f64>,
+    pub qfrc_constraint: Vec<S>,
     /// ε_c = m⁻¹Jᵀf (nv).
-    pub eps_constraint: Vec<f64>,
+    pub eps_constraint: Vec<S>,
     /// The no-slip pass's buffers.
     pub(super) no_slip: NoSlipBuffers,
 }
 
-impl ConstraintRows {
+impl<S: Real> Default for ConstraintRows<S> {
+    fn default() -> Self {
+        ConstraintRows::sized(0, 0, 0, 0, NoSlipBuffers::default())
+    }
+}
+
+impl<S: Real> ConstraintRows<S> {
     /// Buffers for `model`'s constraints.
     pub fn new(model: &Model) -> Self {
-        let rows = model.constraints.max_rows();
-        let nv = model.nv;
         let has_equalities = !model.constraints.equalities.is_empty();
-        let per_row = vec![0.0; rows];
+        ConstraintRows::sized(
+            model.constraints.max_rows(),
+            model.nv,
+            model.constraints.limit_sides(),
+            if has_equalities { model.links.len() } else { 0 },
+            NoSlipBuffers::new(model),
+        )
+    }
+
+    /// Buffers for `rows` rows over `nv` dofs, `sides` limit sides and
+    /// `links` links' bias accelerations.
+    fn sized(rows: usize, nv: usize, sides: usize, links: usize, no_slip: NoSlipBuffers) -> Self {
+        let per_row = vec![S::zero(); rows];
+        let constants = vec![0.0; rows];
         ConstraintRows {
             count: 0,
             kind: vec![RowKind::Friction; rows],
             id: vec![0; rows],
-            jacobian: vec![0.0; rows * nv],
-            eps_columns: vec![0.0; rows * nv],
+            jacobian: vec![S::zero(); rows * nv],
+            eps_columns: vec![S::zero(); rows * nv],
             distance: per_row.clone(),
             violation: per_row.clone(),
-            diagonal_estimate: per_row.clone(),
+            diagonal_estimate: constants.clone(),
             jdot_v: per_row.clone(),
-            margin: per_row.clone(),
+            margin: constants.clone(),
             velocity: per_row.clone(),
             aref: per_row.clone(),
             regularizer: per_row.clone(),
-            lower: per_row.clone(),
-            upper: per_row.clone(),
+            lower: constants.clone(),
+            upper: constants,
             force: per_row.clone(),
-            hessian: vec![0.0; rows * rows],
+            hessian: vec![S::zero(); rows * rows],
             gradient: per_row,
             solver: BoxQp::new(rows),
             last_rows: Vec::with_capacity(rows),
             max_rows: rows,
             held_sides: None,
-            side_buffer: vec![false; model.constraints.limit_sides()],
+            side_buffer: vec![false; sides],
             held_working_set: None,
             margins: vec![f64::INFINITY; rows],
             pieces: vec![ImpedancePiece::Constant; rows],
             piece_margins: vec![f64::INFINITY; rows],
-            bias_acceleration: vec![
-                crate::math::SpatialVec::zeros();
-                if has_equalities { model.links.len() } else { 0 }
-            ],
-            qfrc_constraint: vec![0.0; if rows > 0 { nv } else { 0 }],
-            eps_constraint: vec![0.0; if rows > 0 { nv } else { 0 }],
-            no_slip: NoSlipBuffers::new(model),
+            bias_acceleration: vec![SpatialVec::zeros(); links],
+            qfrc_constraint: vec![S::zero(); if rows > 0 { nv } else { 0 }],
+            eps_constraint: vec![S::zero(); if rows > 0 { nv } else { 0 }],
+            no_slip,
         }
     }
 
     /// Opens row `count` with J = 0, free bounds and no J̇θ̇, and returns its index.
-    pub(super) fn push(&mut self, nv: usize, kind: RowKind, id: usize, distance: f64, margin: f64) -> usize {
+    pub(super) fn push(&mut self, nv: usize, kind: RowKind, id: usize, distance: S, margin: f64) -> usize {
         let k = self.count;
         self.count += 1;
         self.kind[k] = kind;
@@ -192,10 +208,105 @@ impl ConstraintRows {
         self.distance[k] = distance;
         self.violation[k] = distance;
         self.margin[k] = margin;
-        self.jdot_v[k] = 0.0;
+        self.jdot_v[k] = S::zero();
         (self.lower[k], self.upper[k]) = (f64::NEG_INFINITY, f64::INFINITY);
-        self.jacobian[k * nv..(k + 1) * nv].fill(0.0);
+        self.jacobian[k * nv..(k + 1) * nv].fill(S::zero());
         k
+    }
+
+    /// Whether the rows are those of the last solve (kind and constraint),
+    /// noting them for the next.
+    fn note_rows(&mut self) -> bool {
+        let n = self.count;
+        let same_rows = self.last_rows.len() == n && (0..n).all(|k| self.last_rows[k] == (self.kind[k], self.id[k]));
+        if !same_rows {
+            self.last_rows.clear();
+            self.last_rows.extend((0..n).map(|k| (self.kind[k], self.id[k])));
+        }
+        same_rows
+    }
+
+    /// The forces of the problem set up in the rows: in the held working
+    /// set, or by the active-set method (from the last solve's working set
+    /// when the rows are the same); either way the minimizer of one working
+    /// set, smooth in the data while that set holds. For derivatives, which
+    /// refuse the tendons' armature and the no-slip pass.
+    pub(crate) fn solve_in_one_working_set(&mut self) -> Result<(), DynamicsError> {
+        let (n, stride) = (self.count, self.max_rows);
+        let warm = self.note_rows();
+        let (hessian, gradient, lower, upper) = (&self.hessian, &self.gradient, &self.lower, &self.upper);
+        if self.held_working_set == Some(n) {
+            self.solver.solve_in_working_set(n, hessian, stride, gradient, lower, upper, &mut self.force)
+        } else {
+            self.solver.solve(n, hessian, stride, gradient, lower, upper, &mut self.force, warm)
+        }
+    }
+
+    /// Holds the constraint mode `held` holds (its limit sides, and its
+    /// working set and impedance pieces when held), or lets the state
+    /// decide again when it holds none: the mode an FMU holds between
+    /// events, for its derivatives.
+    pub fn hold_mode_of(&mut self, held: &ConstraintRows) {
+        match &held.held_sides {
+            Some(sides) => {
+                let mut mine = self.held_sides.take().unwrap_or_else(|| std::mem::take(&mut self.side_buffer));
+                mine.copy_from_slice(sides);
+                self.held_sides = Some(mine);
+            }
+            None => {
+                if let Some(mine) = self.held_sides.take() {
+                    self.side_buffer = mine;
+                }
+            }
+        }
+        self.held_working_set = held.held_working_set;
+        if let Some(n) = held.held_working_set {
+            self.solver.held[..n].copy_from_slice(&held.solver.held[..n]);
+            self.pieces[..n].copy_from_slice(&held.pieces[..n]);
+        }
+    }
+
+    /// Whether a mode is held (its limit sides at least).
+    pub fn holds_mode(&self) -> bool {
+        self.held_sides.is_some()
+    }
+
+    /// How far each row is from a switch of its force, by row (for the
+    /// first `count` entries of each): in `forces` from leaving the
+    /// solver's working set (a free force's distance to its nearer bound, a
+    /// held one's multiplier), in `pieces` from leaving its impedance's
+    /// piece. Negative once switched; within round-off of 0 on a switch.
+    pub(crate) fn mode_margins(&self, model: &Model, forces: &mut [f64], pieces: &mut [f64]) {
+        let (n, stride) = (self.count, self.max_rows);
+        let bounds = (self.lower.as_slice(), self.upper.as_slice());
+        self.solver.working_set_margins(n, &self.hessian, stride, &self.gradient, bounds, &self.force, forces);
+        for (k, margin) in pieces[..n].iter_mut().enumerate() {
+            let soft = soft_of(model, self.kind[k], self.id[k]);
+            let (piece, x) = impedance_piece(&soft.solimp, self.violation[k].value(), self.margin[k]);
+            *margin = impedance_piece_margin(&soft.solimp, piece, x);
+        }
+    }
+
+    /// Row `k` named for a message: its kind and the joint, tendon or
+    /// equality it belongs to.
+    pub fn row_name(&self, model: &Model, k: usize) -> String {
+        let constraints = &model.constraints;
+        let joint_of_dof = |dof: usize| {
+            let joint = model.joints.iter().rev().find(|j| j.dof_adr <= dof);
+            joint.map_or_else(|| format!("dof {dof}"), |j| format!("joint '{}'", j.name))
+        };
+        let tendon =
+            |t: usize| model.tendons[t].name.clone().map_or_else(|| format!("tendon {t}"), |n| format!("tendon '{n}'"));
+        let id = self.id[k];
+        match self.kind[k] {
+            RowKind::Equality => format!("row {k}, equality {}", constraints.equalities[id].label),
+            RowKind::Friction => format!("row {k}, friction loss of {}", joint_of_dof(constraints.friction[id].dof)),
+            RowKind::Limit => format!("row {k}, limit of {}", joint_of_dof(constraints.limits[id].dof)),
+            RowKind::TendonFriction => {
+                format!("row {k}, friction loss of {}", tendon(constraints.tendon_friction[id].tendon))
+            }
+            RowKind::TendonLimit => format!("row {k}, limit of {}", tendon(constraints.tendon_limits[id].tendon)),
+        }
     }
 
     /// Whether the limit side in `slot` makes a row: as held, or where
@@ -218,7 +329,7 @@ impl ConstraintRows {
             while end < self.count && (self.kind[end], self.id[end]) == group {
                 end += 1;
             }
-            if self.jacobian[first * nv..end * nv].iter().any(|&entry| entry != 0.0) {
+            if self.jacobian[first * nv..end * nv].iter().any(|entry| entry.value() != 0.0) {
                 for k in first..end {
                     self.move_row(nv, k, kept);
                     kept += 1;
@@ -237,15 +348,10 @@ impl ConstraintRows {
         self.jacobian.copy_within(from * nv..(from + 1) * nv, to * nv);
         self.kind[to] = self.kind[from];
         self.id[to] = self.id[from];
-        for field in [
-            &mut self.distance,
-            &mut self.violation,
-            &mut self.diagonal_estimate,
-            &mut self.jdot_v,
-            &mut self.margin,
-            &mut self.lower,
-            &mut self.upper,
-        ] {
+        for field in [&mut self.distance, &mut self.violation, &mut self.jdot_v] {
+            field[to] = field[from];
+        }
+        for field in [&mut self.diagonal_estimate, &mut self.margin, &mut self.lower, &mut self.upper] {
             field[to] = field[from];
         }
     }
@@ -253,17 +359,17 @@ impl ConstraintRows {
     /// The friction and limit rows at configuration `theta` (quaternions
     /// normalized), after the equality rows: the dofs' friction, the
     /// tendons', the joints' limits, the tendons' (MuJoCo's order).
-    fn instantiate_friction_and_limits(&mut self, model: &Model, theta: &[f64], tendons: &TendonState) {
+    fn instantiate_friction_and_limits(&mut self, model: &Model, theta: &[S], tendons: &TendonState<S>) {
         let nv = model.nv;
         let weights = &model.constraints.dof_invweight0;
         for (index, friction) in model.constraints.friction.iter().enumerate() {
-            let k = self.push(nv, RowKind::Friction, index, 0.0, 0.0);
-            self.jacobian[k * nv + friction.dof] = 1.0;
+            let k = self.push(nv, RowKind::Friction, index, S::zero(), 0.0);
+            self.jacobian[k * nv + friction.dof] = S::one();
             (self.lower[k], self.upper[k]) = (-friction.frictionloss, friction.frictionloss);
             self.diagonal_estimate[k] = weights[friction.dof];
         }
         for (index, friction) in model.constraints.tendon_friction.iter().enumerate() {
-            let k = self.push(nv, RowKind::TendonFriction, index, 0.0, 0.0);
+            let k = self.push(nv, RowKind::TendonFriction, index, S::zero(), 0.0);
             self.jacobian[k * nv..(k + 1) * nv].copy_from_slice(tendons.moment(friction.tendon));
             (self.lower[k], self.upper[k]) = (-friction.frictionloss, friction.frictionloss);
             self.diagonal_estimate[k] = model.tendons[friction.tendon].invweight0;
@@ -273,19 +379,20 @@ impl ConstraintRows {
             match limit.kind {
                 JointKind::Ball => {
                     let (distance, axis) = ball_limit_distance(limit, theta);
-                    if self.side_active(constraints.joint_limit_slot(index, 0), distance < limit.margin) {
+                    if self.side_active(constraints.joint_limit_slot(index, 0), distance.value() < limit.margin) {
                         let k = self.push(nv, RowKind::Limit, index, distance, limit.margin);
                         for (c, a) in axis.iter().enumerate() {
-                            self.jacobian[k * nv + limit.dof + c] = -a;
+                            self.jacobian[k * nv + limit.dof + c] = -*a;
                         }
                     }
                 }
                 _ => {
                     for (side, sign) in SIDES {
-                        let distance = sign * (limit.range[side] - theta[limit.qpos]);
-                        if self.side_active(constraints.joint_limit_slot(index, side), distance < limit.margin) {
+                        let distance = (-theta[limit.qpos] + limit.range[side]) * sign;
+                        if self.side_active(constraints.joint_limit_slot(index, side), distance.value() < limit.margin)
+                        {
                             let k = self.push(nv, RowKind::Limit, index, distance, limit.margin);
-                            self.jacobian[k * nv + limit.dof] = -sign;
+                            self.jacobian[k * nv + limit.dof] = S::from(-sign);
                         }
                     }
                 }
@@ -299,12 +406,12 @@ impl ConstraintRows {
         }
         for (index, limit) in constraints.tendon_limits.iter().enumerate() {
             for (side, sign) in SIDES {
-                let distance = sign * (limit.range[side] - tendons.length[limit.tendon]);
-                if self.side_active(constraints.tendon_limit_slot(index, side), distance < limit.margin) {
+                let distance = (-tendons.length[limit.tendon] + limit.range[side]) * sign;
+                if self.side_active(constraints.tendon_limit_slot(index, side), distance.value() < limit.margin) {
                     let k = self.push(nv, RowKind::TendonLimit, index, distance, limit.margin);
                     for (entry, arm) in self.jacobian[k * nv..(k + 1) * nv].iter_mut().zip(tendons.moment(limit.tendon))
                     {
-                        *entry = arm * -sign;
+                        *entry = *arm * -sign;
                     }
                     (self.lower[k], self.upper[k]) = (0.0, f64::INFINITY);
                     self.diagonal_estimate[k] = model.tendons[limit.tendon].invweight0;
@@ -320,9 +427,9 @@ const SIDES: [(usize, f64); 2] = [(0, -1.0), (1, 1.0)];
 
 /// A ball limit's distance (the larger range value less the rotation
 /// angle) and the axis its row pushes about.
-fn ball_limit_distance(limit: &Limit, theta: &[f64]) -> (f64, [f64; 3]) {
+fn ball_limit_distance<S: Real>(limit: &Limit, theta: &[S]) -> (S, [S; 3]) {
     let (angle, axis) = rotation_angle_axis(&theta[limit.qpos..limit.qpos + 4]);
-    (limit.range[0].max(limit.range[1]) - angle, axis)
+    (-angle + limit.range[0].max(limit.range[1]), axis)
 }
 
 /// Each limit side's distance less its margin at configuration `theta`
@@ -356,15 +463,15 @@ pub fn limit_switching_functions(model: &Model, theta: &[f64], tendon_length: &[
 }
 
 /// The tendons' lengths and moment arms at the state, as the rows read them.
-struct TendonState<'a> {
-    length: &'a [f64],
-    moments: &'a [f64],
+struct TendonState<'a, S: Real> {
+    length: &'a [S],
+    moments: &'a [S],
     nv: usize,
 }
 
-impl TendonState<'_> {
+impl<S: Real> TendonState<'_, S> {
     /// Tendon `k`'s moment arms.
-    fn moment(&self, k: usize) -> &[f64] {
+    fn moment(&self, k: usize) -> &[S] {
         &self.moments[k * self.nv..(k + 1) * self.nv]
     }
 }
@@ -372,17 +479,18 @@ impl TendonState<'_> {
 /// A unit quaternion's rotation angle in [0, π] and the unit axis it turns
 /// about, as MuJoCo's `mju_quat2Vel` and `mju_normalize3` give them (the
 /// axis is x when the angle vanishes).
-fn rotation_angle_axis(q: &[f64]) -> (f64, [f64; 3]) {
+fn rotation_angle_axis<S: Real>(q: &[S]) -> (S, [S; 3]) {
     let sine_norm = (q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
-    let mut axis = if sine_norm < MIN_VALUE { [1.0, 0.0, 0.0] } else { [q[1], q[2], q[3]].map(|x| x / sine_norm) };
-    let mut angle = 2.0 * sine_norm.atan2(q[0]);
-    if angle > std::f64::consts::PI {
+    let x_axis = [S::one(), S::zero(), S::zero()];
+    let mut axis = if sine_norm.value() < MIN_VALUE { x_axis } else { [q[1], q[2], q[3]].map(|x| x / sine_norm) };
+    let mut angle = sine_norm.atan2(q[0]) * 2.0;
+    if angle.value() > std::f64::consts::PI {
         angle -= 2.0 * std::f64::consts::PI;
     }
-    if angle.abs() < MIN_VALUE {
-        return (angle.abs(), [1.0, 0.0, 0.0]);
+    if angle.value().abs() < MIN_VALUE {
+        return (angle.abs(), x_axis);
     }
-    if angle < 0.0 {
+    if angle.value() < 0.0 {
         axis = axis.map(|x| -x);
     }
     (angle.abs(), axis)
@@ -421,15 +529,15 @@ fn impedance_parameters(solimp: &[f64; 5]) -> (f64, f64, f64, f64, f64) {
 /// Where on the impedance curve of `solimp` a row at `distance` from its
 /// `margin` is: the piece MuJoCo's `getimpedance` takes there, and the
 /// curve's argument x = |distance − margin| / width.
-fn impedance_piece(solimp: &[f64; 5], distance: f64, margin: f64) -> (ImpedancePiece, f64) {
+fn impedance_piece<S: Real>(solimp: &[f64; 5], distance: S, margin: f64) -> (ImpedancePiece, S) {
     let (dmin, dmax, width, midpoint, _) = impedance_parameters(solimp);
     if dmin == dmax || width <= MIN_VALUE {
-        return (ImpedancePiece::Constant, 0.0);
+        return (ImpedancePiece::Constant, S::zero());
     }
     let x = ((distance - margin) / width).abs();
-    let piece = if x >= 1.0 {
+    let piece = if x.value() >= 1.0 {
         ImpedancePiece::Level
-    } else if x <= midpoint {
+    } else if x.value() <= midpoint {
         ImpedancePiece::Rising
     } else {
         ImpedancePiece::Leveling
@@ -439,17 +547,17 @@ fn impedance_piece(solimp: &[f64; 5], distance: f64, margin: f64) -> (ImpedanceP
 
 /// The impedance on `piece` at x (MuJoCo's `getimpedance` where x is on
 /// that piece; beyond it, the piece's polynomial continued).
-fn impedance_on(solimp: &[f64; 5], piece: ImpedancePiece, x: f64) -> f64 {
+fn impedance_on<S: Real>(solimp: &[f64; 5], piece: ImpedancePiece, x: S) -> S {
     let (dmin, dmax, _, midpoint, power) = impedance_parameters(solimp);
     let y = match piece {
-        ImpedancePiece::Constant => return 0.5 * (dmin + dmax),
-        ImpedancePiece::Level => return dmax,
-        ImpedancePiece::Rising if x <= 0.0 => return dmin,
+        ImpedancePiece::Constant => return S::from(0.5 * (dmin + dmax)),
+        ImpedancePiece::Level => return S::from(dmax),
+        ImpedancePiece::Rising if x.value() <= 0.0 => return S::from(dmin),
         _ if power == 1.0 => x,
-        ImpedancePiece::Rising => raise(x, power) / raise(midpoint, power - 1.0),
-        ImpedancePiece::Leveling => 1.0 - raise(1.0 - x, power) / raise(1.0 - midpoint, power - 1.0),
+        ImpedancePiece::Rising => raise(x, power) / raise(S::from(midpoint), power - 1.0),
+        ImpedancePiece::Leveling => -(raise(-x + 1.0, power) / raise(S::from(1.0 - midpoint), power - 1.0)) + 1.0,
     };
-    dmin + y * (dmax - dmin)
+    y * (dmax - dmin) + dmin
 }
 
 /// How far x is from leaving `piece` (positive while on it).
@@ -464,11 +572,11 @@ fn impedance_piece_margin(solimp: &[f64; 5], piece: ImpedancePiece, x: f64) -> f
 }
 
 /// aᵇ, exact for the common powers 1 and 2 as MuJoCo computes them.
-fn raise(a: f64, b: f64) -> f64 {
+fn raise<S: Real>(a: S, b: f64) -> S {
     match b {
         1.0 => a,
         2.0 => a * a,
-        _ => a.powf(b),
+        _ => a.powf(S::from(b)),
     }
 }
 
@@ -586,93 +694,19 @@ impl Workspace {
         if !model.tendon_inertia.is_empty() {
             self.apply_tendon_inertia(model, applied)?;
         }
-        let mut rows = std::mem::take(&mut self.constraint_rows);
-        rows.count = 0;
-        self.instantiate_equalities(model, &mut rows);
-        let tendons = TendonState { length: self.tendon_length.as_slice(), moments: &self.tendon_moment, nv: model.nv };
-        rows.instantiate_friction_and_limits(model, self.theta.as_slice(), &tendons);
-        rows.drop_empty_constraints(model.nv);
-        if rows.count == 0 {
-            // No row active (limits away, no friction loss or equality):
-            // the pass already run is the answer.
-            rows.eps_constraint.fill(0.0);
-            rows.qfrc_constraint.fill(0.0);
-            self.constraint_rows = rows;
-            return Ok(());
-        }
-        // compute_qacc (stage JointRates) and the armature have run the outward pass already.
-        let mut result = Ok(());
-        if self.stage == Stage::Acceleration && model.tendon_inertia.is_empty() {
-            result = self.compute_accelerations(model);
-        }
-        let result = result.and_then(|()| self.solve_constraints(model, &mut rows));
-        if result.is_ok() {
-            let with_rates = self.stage == Stage::Acceleration;
-            for (d, constraint) in rows.eps_constraint.iter().enumerate() {
-                applied[d] += constraint;
-                self.nu_dot_joint[d] += constraint;
-                if with_rates {
-                    self.nu_dot[d] += constraint;
-                }
-            }
-        }
-        self.constraint_rows = rows;
-        result?;
-        self.compute_accelerations(model)
+        self.add_constraint_forces(model, applied, Self::solve_for_forces)
     }
 
-    /// The forces of the instantiated rows, with the outward pass's θ̈ as qacc_smooth.
-    fn solve_constraints(&mut self, model: &Model, rows: &mut ConstraintRows) -> Result<(), DynamicsError> {
-        let nv = model.nv;
+    /// The forces of the problem set up in `rows`: in the held working set,
+    /// or by the active-set method from the last one; the held working
+    /// set's margins; MuJoCo's no-slip pass.
+    fn solve_for_forces(&mut self, model: &Model, rows: &mut ConstraintRows) -> Result<(), DynamicsError> {
         let n = rows.count;
-        for k in 0..n {
-            let column = k * nv..(k + 1) * nv;
-            self.eps_from_forces(model, &rows.jacobian[column.clone()], None, &mut rows.eps_columns[column])?;
-        }
-        for k in 0..n {
-            let jacobian = &rows.jacobian[k * nv..(k + 1) * nv];
-            let dot = |v: &[f64]| jacobian.iter().zip(v).map(|(a, b)| a * b).sum::<f64>();
-            rows.velocity[k] = dot(self.qvel.as_slice());
-            let soft = match rows.kind[k] {
-                RowKind::Equality => model.constraints.equalities[rows.id[k]].soft,
-                RowKind::Friction => model.constraints.friction[rows.id[k]].soft,
-                RowKind::Limit => model.constraints.limits[rows.id[k]].soft,
-                RowKind::TendonFriction => model.constraints.tendon_friction[rows.id[k]].soft,
-                RowKind::TendonLimit => model.constraints.tendon_limits[rows.id[k]].soft,
-            };
-            let (natural, x) = impedance_piece(&soft.solimp, rows.violation[k], rows.margin[k]);
-            let piece = if rows.held_working_set == Some(n) { rows.pieces[k] } else { natural };
-            rows.pieces[k] = piece;
-            let imp = impedance_on(&soft.solimp, piece, x);
-            if rows.held_sides.is_some() {
-                rows.piece_margins[k] = impedance_piece_margin(&soft.solimp, piece, x);
-            }
-            let (stiffness, damping) = stiffness_damping(model, &soft, rows.kind[k].is_friction());
-            rows.regularizer[k] = ((1.0 - imp) * rows.diagonal_estimate[k] / imp).max(MIN_VALUE);
-            rows.aref[k] = -damping * rows.velocity[k] - stiffness * imp * (rows.distance[k] - rows.margin[k]);
-            rows.aref[k] -= rows.jdot_v[k];
-            rows.gradient[k] = dot(self.qacc.as_slice()) - rows.aref[k];
-        }
-        // A + R: A = EᵀE.
         let stride = rows.max_rows;
-        for i in 0..n {
-            let e_i = &rows.eps_columns[i * nv..(i + 1) * nv];
-            for j in 0..=i {
-                let e_j = &rows.eps_columns[j * nv..(j + 1) * nv];
-                let a: f64 = e_i.iter().zip(e_j).map(|(x, y)| x * y).sum();
-                rows.hessian[i * stride + j] = a;
-                rows.hessian[j * stride + i] = a;
-            }
-            rows.hessian[i * stride + i] += rows.regularizer[i];
-        }
         if !model.tendon_inertia.is_empty() {
             self.tendon_inertia_on_rows(model, n, &mut rows.eps_columns, &mut rows.hessian, stride);
         }
-        let same_rows = rows.last_rows.len() == n && (0..n).all(|k| rows.last_rows[k] == (rows.kind[k], rows.id[k]));
-        if !same_rows {
-            rows.last_rows.clear();
-            rows.last_rows.extend((0..n).map(|k| (rows.kind[k], rows.id[k])));
-        }
+        let same_rows = rows.note_rows();
         let (gradient, lower, upper) = (&rows.gradient, &rows.lower, &rows.upper);
         if rows.held_working_set == Some(n) {
             rows.solver.solve_in_working_set(n, &rows.hessian, stride, gradient, lower, upper, &mut rows.force)?;
@@ -683,16 +717,133 @@ impl Workspace {
             let bounds = (lower.as_slice(), upper.as_slice());
             rows.solver.working_set_margins(n, &rows.hessian, stride, gradient, bounds, &rows.force, &mut rows.margins);
         }
-        self.no_slip_pass(model, rows)?;
-        rows.eps_constraint.fill(0.0);
-        rows.qfrc_constraint.fill(0.0);
-        for k in 0..n {
-            let force = rows.force[k];
-            for d in 0..nv {
-                rows.eps_constraint[d] += rows.eps_columns[k * nv + d] * force;
-                rows.qfrc_constraint[d] += rows.jacobian[k * nv + d] * force;
+        self.no_slip_pass(model, rows)
+    }
+}
+
+impl<S: Real> Workspace<S> {
+    /// The constraint forces on a pass 3 just run for `applied`, their ε
+    /// added to `applied`, ν̇ (with the factor's rates) and ν̇'s joint part,
+    /// and θ̈ after them: [`Workspace::apply_constraint_forces`] after the
+    /// tendons' armature, with `solve` finding the forces of the problem
+    /// the rows set up (A + R in `hessian`, J·qacc_smooth − aref in
+    /// `gradient`). The rows' decisions (which sides act, the impedance's
+    /// piece, the solver's working set) are taken on the values, so that in
+    /// dual numbers the forces carry their derivative at that mode.
+    pub(crate) fn add_constraint_forces(
+        &mut self,
+        model: &Model,
+        applied: &mut [S],
+        solve: impl FnOnce(&mut Self, &Model, &mut ConstraintRows<S>) -> Result<(), DynamicsError>,
+    ) -> Result<(), DynamicsError> {
+        let mut rows = std::mem::take(&mut self.constraint_rows);
+        rows.count = 0;
+        self.instantiate_equalities(model, &mut rows);
+        let tendons = TendonState { length: self.tendon_length.as_slice(), moments: &self.tendon_moment, nv: model.nv };
+        rows.instantiate_friction_and_limits(model, self.theta.as_slice(), &tendons);
+        rows.drop_empty_constraints(model.nv);
+        if rows.count == 0 {
+            // No row active (limits away, no friction loss or equality):
+            // the pass already run is the answer.
+            rows.eps_constraint.fill(S::zero());
+            rows.qfrc_constraint.fill(S::zero());
+            self.constraint_rows = rows;
+            return Ok(());
+        }
+        // compute_qacc (stage JointRates) and the armature have run the outward pass already.
+        let mut result = Ok(());
+        if self.stage == Stage::Acceleration && model.tendon_inertia.is_empty() {
+            result = self.compute_accelerations(model);
+        }
+        let result = result
+            .and_then(|()| self.constraint_problem(model, &mut rows))
+            .and_then(|()| solve(self, model, &mut rows))
+            .map(|()| constraint_eps(model.nv, &mut rows));
+        if result.is_ok() {
+            let with_rates = self.stage == Stage::Acceleration;
+            for (d, constraint) in rows.eps_constraint.iter().enumerate() {
+                applied[d] += *constraint;
+                self.nu_dot_joint[d] += *constraint;
+                if with_rates {
+                    self.nu_dot[d] += *constraint;
+                }
             }
         }
+        self.constraint_rows = rows;
+        result?;
+        self.compute_accelerations(model)
+    }
+
+    /// The problem of the instantiated rows, with the outward pass's θ̈ as
+    /// qacc_smooth: E = m⁻¹Jᵀ, the impedance on each row's piece (held with
+    /// the working set), R, aref, the gradient and A + R = EᵀE + R.
+    fn constraint_problem(&mut self, model: &Model, rows: &mut ConstraintRows<S>) -> Result<(), DynamicsError> {
+        let nv = model.nv;
+        let n = rows.count;
+        for k in 0..n {
+            let column = k * nv..(k + 1) * nv;
+            let jacobian = &rows.jacobian[column.clone()];
+            // eps_from_forces's check of its input.
+            if let Some(index) = jacobian.iter().position(|j| !j.value().is_finite()) {
+                return Err(DynamicsError::NonFinite { what: "torque", index, value: jacobian[index].value() });
+            }
+            forces::eps_of_torque(model, self, jacobian, &mut rows.eps_columns[column]);
+        }
+        for k in 0..n {
+            let jacobian = &rows.jacobian[k * nv..(k + 1) * nv];
+            let dot = |v: &[S]| sum(jacobian.iter().zip(v).map(|(a, b)| *a * *b));
+            rows.velocity[k] = dot(self.qvel.as_slice());
+            let soft = soft_of(model, rows.kind[k], rows.id[k]);
+            let (natural, x) = impedance_piece(&soft.solimp, rows.violation[k], rows.margin[k]);
+            let piece = if rows.held_working_set == Some(n) { rows.pieces[k] } else { natural };
+            rows.pieces[k] = piece;
+            let imp = impedance_on(&soft.solimp, piece, x);
+            if rows.held_sides.is_some() {
+                rows.piece_margins[k] = impedance_piece_margin(&soft.solimp, piece, x.value());
+            }
+            let (stiffness, damping) = stiffness_damping(model, &soft, rows.kind[k].is_friction());
+            rows.regularizer[k] = ((-imp + 1.0) * rows.diagonal_estimate[k] / imp).max(S::from(MIN_VALUE));
+            rows.aref[k] = rows.velocity[k] * -damping - imp * stiffness * (rows.distance[k] - rows.margin[k]);
+            rows.aref[k] -= rows.jdot_v[k];
+            rows.gradient[k] = dot(self.qacc.as_slice()) - rows.aref[k];
+        }
+        // A + R: A = EᵀE.
+        let stride = rows.max_rows;
+        for i in 0..n {
+            let e_i = &rows.eps_columns[i * nv..(i + 1) * nv];
+            for j in 0..=i {
+                let e_j = &rows.eps_columns[j * nv..(j + 1) * nv];
+                let a = sum(e_i.iter().zip(e_j).map(|(x, y)| *x * *y));
+                rows.hessian[i * stride + j] = a;
+                rows.hessian[j * stride + i] = a;
+            }
+            rows.hessian[i * stride + i] += rows.regularizer[i];
+        }
         Ok(())
+    }
+}
+
+/// The solref and solimp of a row of `kind` for constraint `id`.
+fn soft_of(model: &Model, kind: RowKind, id: usize) -> SoftConstraint {
+    let constraints = &model.constraints;
+    match kind {
+        RowKind::Equality => constraints.equalities[id].soft,
+        RowKind::Friction => constraints.friction[id].soft,
+        RowKind::Limit => constraints.limits[id].soft,
+        RowKind::TendonFriction => constraints.tendon_friction[id].soft,
+        RowKind::TendonLimit => constraints.tendon_limits[id].soft,
+    }
+}
+
+/// ε_c = E f and MuJoCo's qfrc_constraint = Jᵀf of the solved rows.
+fn constraint_eps<S: Real>(nv: usize, rows: &mut ConstraintRows<S>) {
+    rows.eps_constraint.fill(S::zero());
+    rows.qfrc_constraint.fill(S::zero());
+    for k in 0..rows.count {
+        let force = rows.force[k];
+        for d in 0..nv {
+            rows.eps_constraint[d] += rows.eps_columns[k * nv + d] * force;
+            rows.qfrc_constraint[d] += rows.jacobian[k * nv + d] * force;
+        }
     }
 }

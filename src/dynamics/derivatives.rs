@@ -16,20 +16,27 @@
 //!
 //! The passes made generic so far are the tree's (placements, the
 //! factorization, velocities, springs, dampers, gravity and its
-//! compensation, ν̇, C and θ̈) and the actuators' without activation
-//! states (transmissions, gains and biases, the clamps of ctrl and force,
-//! which hold their piece: a clamped input's derivative is 0). Joint
-//! limits are covered where none acts: a point with a limit row
-//! (distance within the margin) is refused by [`Derivatives::run`], the
-//! constraint forces not being generic yet. A model whose dynamics need
-//! more (activation states, tendons, equalities, friction loss) is
-//! refused by [`Derivatives::new`] with what is missing, rather than
-//! given a derivative that leaves a term out.
+//! compensation, ν̇, C and θ̈), the tendons' (lengths, moment arms and
+//! velocities of fixed and spatial paths with their wraps, springs and
+//! dampers), the actuators' without activation states (transmissions,
+//! gains and biases, the clamps of ctrl and force, which hold their piece:
+//! a clamped input's derivative is 0) and the constraint forces'
+//! (equality rows, friction loss, joint and tendon limits). The constraint
+//! forces are taken at the mode of the point: the limit sides active
+//! there, each row's impedance piece and the solver's working set, each
+//! decided on the values, so that the duals carry the derivative of that
+//! mode's forces, a smooth function of the state (the integrators hold the
+//! same mode over a step). A point on a switch of that mode, where the
+//! derivative is one-sided, is refused by [`Derivatives::run`] with the
+//! switches named. A model whose dynamics need more (activation states,
+//! the tendons' armature, MuJoCo's no-slip pass) is refused by
+//! [`Derivatives::new`] with what is missing, rather than given a
+//! derivative that leaves a term out.
 
 use nalgebra::{DMatrix, Quaternion};
 use num_dual::Dual64;
 
-use super::constraint::limit_switching_functions;
+use super::constraint::{ConstraintRows, limit_switching_functions};
 use super::velocity::{self, Given};
 use super::{DynamicsError, bias, check_input, forces};
 use crate::math::{Real, quat_from_wxyz};
@@ -42,14 +49,12 @@ pub enum DerivativeError {
     /// The model has a part whose passes do not carry derivatives yet.
     #[error("derivatives do not cover {0} yet; this model has them")]
     Unsupported(&'static str),
-    /// A joint limit acts at the point (its row's force is not differentiated yet).
-    #[error(
-        "{rows} joint limit side(s) act at this point (within their margin); derivatives with constraint forces are not covered yet"
-    )]
-    ActiveLimits {
-        /// How many limit sides act.
-        rows: usize,
-    },
+    /// The point lies on a switch of the constraint forces (a limit side
+    /// at its margin, a force at a bound of its box with no push left, a
+    /// row's impedance where two pieces meet): their derivative there is
+    /// one-sided. Names each switch.
+    #[error("the constraint forces switch at this point ({0}); their derivative there is one-sided")]
+    OnSwitch(String),
     /// A direction has the wrong length.
     #[error("the direction of {what} has {found} entries, expected {expected}")]
     DirectionLength {
@@ -190,14 +195,14 @@ impl Passes {
     }
 
     /// The passes `outputs` need at `point` along `direction` (checked),
-    /// with `limits` refusing a point where a joint limit acts.
+    /// with `switches` refusing a point on a switch of the constraint forces.
     fn run(
         &mut self,
         model: &Model,
         point: &Point,
         direction: &Direction,
         outputs: &[Output],
-        limits: &mut Limits,
+        switches: &mut Switches,
     ) -> Result<(), DerivativeError> {
         self.qacc_current = false;
         theta_rates(model, point.theta, direction, &mut self.theta_rates);
@@ -205,14 +210,19 @@ impl Passes {
         seed(ws.theta.as_mut_slice(), point.theta, &self.theta_rates);
         ws.stage = Stage::Empty;
         ws.configuration_passes(model)?;
+        if !model.tendons.is_empty() {
+            ws.tendon_kinematics(model);
+        }
         ws.stage = Stage::Configuration;
-        limits.refuse_active(model, ws.theta.iter().map(|q| q.value()))?;
         let velocity = match point.given {
             Given::Nu => ws.nu.as_mut_slice(),
             Given::Qvel => ws.qvel.as_mut_slice(),
         };
         seed(velocity, point.velocity, direction.velocity);
         velocity::velocity_pass(model, ws, point.given);
+        if !model.tendons.is_empty() {
+            ws.tendon_velocities(model);
+        }
         ws.stage = Stage::Velocity;
         seed(&mut self.eps, point.eps, direction.eps);
         // The FMU's knowns hold no joint forces: no inward pass for a zero T.
@@ -226,10 +236,7 @@ impl Passes {
             ws.actuation_pass(model, &self.ctrl)?;
             self.eps.iter_mut().zip(ws.eps_actuator.iter()).for_each(|(e, a)| *e += *a);
         }
-        let passive = model.has_passive_forces();
-        if passive {
-            bias::passive_forces(model, ws);
-        }
+        let passive = bias::all_passive_forces(model, ws);
         // ν̇ needs pass 3 with the factor's rates; θ̈ alone does without
         // them, and the outward pass only θ̈ needs.
         let (nu_dot, qacc) = (outputs.contains(&Output::NuDot), outputs.contains(&Output::Qacc));
@@ -242,6 +249,16 @@ impl Passes {
         }
         if qacc {
             ws.compute_accelerations(model)?;
+        }
+        if model.couples_beyond_tree() {
+            // The forces of the mode the point is in: its active sides,
+            // impedance pieces and working set, decided on the values.
+            // They need θ̈ without them (run above, or by this call with ν̇).
+            ws.add_constraint_forces(model, &mut self.eps, |_, _, rows| rows.solve_in_one_working_set())?;
+            // A held mode's forces are smooth on both sides of its switches.
+            if !ws.constraint_rows.holds_mode() {
+                switches.refuse_on_switch(model, ws)?;
+            }
         }
         self.qacc_current = qacc;
         Ok(())
@@ -264,26 +281,81 @@ impl Passes {
     }
 }
 
-/// The model's joint limits, and what a point's configuration gives them.
+/// How close to 0 a switching function may come before the point counts
+/// as on the switch: round-off of the quantities it compares (lengths and
+/// angles, the impedance's argument; forces and multipliers relative to
+/// the problem's scale).
+const SWITCH_TOLERANCE: f64 = 1e-12;
+
+/// The buffers of the check for switches of the constraint forces.
 #[derive(Clone, Debug)]
-struct Limits {
+struct Switches {
     /// Each limit side's distance less its margin at the point.
-    switches: Vec<f64>,
+    sides: Vec<f64>,
     /// θ's values (quaternions normalized by the passes).
     theta: Vec<f64>,
+    /// The tendons' lengths.
+    tendon_length: Vec<f64>,
+    /// Each row's margins from its working set and its impedance's piece.
+    forces: Vec<f64>,
+    pieces: Vec<f64>,
 }
 
-impl Limits {
-    /// [`DerivativeError::ActiveLimits`] when a side acts at configuration `theta`.
-    fn refuse_active(&mut self, model: &Model, theta: impl Iterator<Item = f64>) -> Result<(), DerivativeError> {
-        if self.switches.is_empty() {
-            return Ok(());
+impl Switches {
+    fn new(model: &Model) -> Self {
+        let rows = model.constraints.max_rows();
+        Switches {
+            sides: vec![0.0; model.constraints.limit_sides()],
+            theta: vec![0.0; model.nq],
+            tendon_length: vec![0.0; model.tendons.len()],
+            forces: vec![0.0; rows],
+            pieces: vec![0.0; rows],
         }
-        self.theta.iter_mut().zip(theta).for_each(|(slot, q)| *slot = q);
-        limit_switching_functions(model, &self.theta, &[], &mut self.switches);
-        match self.switches.iter().filter(|s| **s < 0.0).count() {
-            0 => Ok(()),
-            rows => Err(DerivativeError::ActiveLimits { rows }),
+    }
+
+    /// [`DerivativeError::OnSwitch`] when the point whose constraint
+    /// forces `ws` holds lies on a switch, naming each.
+    fn refuse_on_switch(&mut self, model: &Model, ws: &Workspace<Dual64>) -> Result<(), DerivativeError> {
+        let constraints = &model.constraints;
+        let mut on = Vec::new();
+        self.theta.iter_mut().zip(ws.theta.iter()).for_each(|(slot, q)| *slot = q.re);
+        self.tendon_length.iter_mut().zip(ws.tendon_length.iter()).for_each(|(slot, l)| *slot = l.re);
+        limit_switching_functions(model, &self.theta, &self.tendon_length, &mut self.sides);
+        let side_name = |side: usize| ["lower", "upper"][side];
+        for (index, limit) in constraints.limits.iter().enumerate() {
+            for side in 0..2 {
+                if self.sides[constraints.joint_limit_slot(index, side)].abs() <= SWITCH_TOLERANCE {
+                    on.push(format!(
+                        "the {} limit of joint '{}' at its margin",
+                        side_name(side),
+                        model.joints[limit.joint].name
+                    ));
+                }
+            }
+        }
+        for (index, limit) in constraints.tendon_limits.iter().enumerate() {
+            for side in 0..2 {
+                if self.sides[constraints.tendon_limit_slot(index, side)].abs() <= SWITCH_TOLERANCE {
+                    let name = model.tendons[limit.tendon].name.clone().unwrap_or_else(|| limit.tendon.to_string());
+                    on.push(format!("the {} limit of tendon '{name}' at its margin", side_name(side)));
+                }
+            }
+        }
+        let rows = &ws.constraint_rows;
+        rows.mode_margins(model, &mut self.forces, &mut self.pieces);
+        let n = rows.count;
+        let scale = rows.gradient[..n].iter().chain(&rows.force[..n]).fold(1.0_f64, |s, x| s.max(x.re.abs()));
+        for k in 0..n {
+            if self.forces[k].abs() <= SWITCH_TOLERANCE * scale {
+                on.push(format!("{}: its force at a bound of its box", rows.row_name(model, k)));
+            }
+            if self.pieces[k].abs() <= SWITCH_TOLERANCE {
+                on.push(format!("{}: its impedance between two pieces", rows.row_name(model, k)));
+            }
+        }
+        match on.is_empty() {
+            true => Ok(()),
+            false => Err(DerivativeError::OnSwitch(on.join("; "))),
         }
     }
 }
@@ -293,7 +365,7 @@ impl Limits {
 #[derive(Clone, Debug)]
 pub struct Derivatives {
     passes: Passes,
-    limits: Limits,
+    switches: Switches,
 }
 
 impl Derivatives {
@@ -301,10 +373,7 @@ impl Derivatives {
     /// not cover yet.
     pub fn new(model: &Model) -> Result<Self, DerivativeError> {
         Self::check(model)?;
-        Ok(Derivatives {
-            passes: Passes::new(model),
-            limits: Limits { switches: vec![0.0; model.constraints.limit_sides()], theta: vec![0.0; model.nq] },
-        })
+        Ok(Derivatives { passes: Passes::new(model), switches: Switches::new(model) })
     }
 
     /// Whether derivatives cover `model`, without building the buffers
@@ -312,9 +381,8 @@ impl Derivatives {
     pub fn check(model: &Model) -> Result<(), DerivativeError> {
         let unsupported = [
             (model.activation_count() > 0, "actuators' activation states (dyntype)"),
-            (!model.tendons.is_empty(), "tendons"),
-            (!model.constraints.equalities.is_empty(), "equality constraints"),
-            (!model.constraints.friction.is_empty(), "friction loss"),
+            (!model.tendon_inertia.is_empty(), "tendons' armature"),
+            (model.constraints.runs_no_slip_pass(), "MuJoCo's no-slip pass (noslip_iterations)"),
         ];
         match unsupported.iter().find(|(has, _)| *has) {
             Some((_, what)) => Err(DerivativeError::Unsupported(what)),
@@ -334,7 +402,7 @@ impl Derivatives {
     ) -> Result<(), DerivativeError> {
         check_point(model, point)?;
         check_direction(model, point, direction)?;
-        self.passes.run(model, point, direction, outputs, &mut self.limits)
+        self.passes.run(model, point, direction, outputs, &mut self.switches)
     }
 
     /// The derivative of `output` along the last run's direction; panics
@@ -354,6 +422,21 @@ impl Derivatives {
     pub fn qpos_rate_derivative(&self, model: &Model, k: usize) -> f64 {
         let ws = &self.passes.ws;
         qpos_rate(model, ws.theta.as_slice(), ws.qvel.as_slice(), k).eps
+    }
+
+    /// Holds the constraint mode that `held` (an f64 workspace's rows)
+    /// holds, or none: the runs then give the derivatives of that mode's
+    /// forces (an FMU's between events, an integrator's over a step),
+    /// smooth on both sides of its switches, so a point on one is not
+    /// refused. Without a held mode each run takes its point's own.
+    pub fn hold_constraint_mode_of(&mut self, held: &ConstraintRows) {
+        self.passes.ws.constraint_rows.hold_mode_of(held);
+    }
+
+    /// The derivative of MuJoCo's qfrc_constraint = Jᵀf (entry `k`) along
+    /// the last run's direction: 0 where no constraint row acts.
+    pub fn qfrc_constraint_derivative(&self, k: usize) -> f64 {
+        self.passes.ws.constraint_rows.qfrc_constraint.get(k).map_or(0.0, |d| d.eps)
     }
 
     /// The Jacobians of `output` at `point`, for every input.
@@ -394,7 +477,7 @@ impl Derivatives {
                     torque: along(Input::Torque),
                     ctrl: if input == Input::Ctrl { unit.as_slice() } else { no_ctrl.as_slice() },
                 };
-                let run = self.passes.run(model, point, &direction, &outputs, &mut self.limits);
+                let run = self.passes.run(model, point, &direction, &outputs, &mut self.switches);
                 unit[column] = 0.0;
                 run?;
                 for (jacobian, output) in jacobians.iter_mut().zip(outputs) {

@@ -15,37 +15,37 @@ use super::constraint::RowKind;
 use super::equality::polynomial_coupling;
 use super::forces::add_joint_forces_of_wrenches;
 use super::wrap;
-use crate::math::{SpatialVec, Transform, Vec3, spatial};
+use crate::math::{Real, SpatialVec, Transform, Vec3, spatial};
 use crate::model::{ActuatorTransmission, EqualityRows, Model, Path, PathStop, Tendon};
 use crate::workspace::Workspace;
 
 /// A point of a spatial tendon's path in the world, and what carries it.
 #[derive(Clone, Copy)]
-pub(super) struct PathPoint {
+pub(super) struct PathPoint<S: Real = f64> {
     /// The link moving it (`None`: the world).
     pub link: Option<usize>,
     /// The MJCF body carrying it.
     pub body: Option<usize>,
     /// Its world position.
-    pub at: Vec3,
+    pub at: Vec3<S>,
 }
 
 /// MuJoCo's `mjMINVAL`: a shorter segment has no direction.
 const MIN_VALUE: f64 = 1e-15;
 
-impl Workspace {
+impl<S: Real> Workspace<S> {
     /// Lengths and moment arms of every tendon at the configuration of
     /// passes 0 and 1 (`set_configuration` runs it when the model has tendons).
     pub(crate) fn tendon_kinematics(&mut self, model: &Model) {
         let nv = model.nv;
         for (k, tendon) in model.tendons.iter().enumerate() {
             let row = k * nv..(k + 1) * nv;
-            self.tendon_moment[row.clone()].fill(0.0);
+            self.tendon_moment[row.clone()].fill(S::zero());
             self.tendon_length[k] = match &tendon.path {
                 Path::Fixed { terms } => {
-                    let mut length = 0.0;
+                    let mut length = S::zero();
                     for term in terms {
-                        length += term.coef * self.theta[term.qpos];
+                        length += self.theta[term.qpos] * term.coef;
                         self.tendon_moment[k * nv + term.dof] += term.coef;
                     }
                     length
@@ -64,7 +64,7 @@ impl Workspace {
     /// A spatial tendon's length, and its moment arms into `moment` (nv):
     /// the unit tension's point forces on each segment, summed per link and
     /// taken inward to the joints.
-    fn spatial_tendon(&mut self, model: &Model, stops: &[PathStop], moment: &mut [f64]) -> f64 {
+    fn spatial_tendon(&mut self, model: &Model, stops: &[PathStop], moment: &mut [S]) -> S {
         self.tendon_wrench.fill(SpatialVec::zeros());
         let (x_world, wrench) = (&self.x_world, &mut self.tendon_wrench);
         let mut pulls = false;
@@ -90,10 +90,17 @@ impl Workspace {
         let nv = model.nv;
         for k in 0..model.tendons.len() {
             let row = &self.tendon_moment[k * nv..(k + 1) * nv];
-            self.tendon_velocity[k] = row.iter().zip(self.qvel.iter()).map(|(j, v)| j * v).sum();
+            self.tendon_velocity[k] = row.iter().zip(self.qvel.iter()).fold(S::zero(), |sum, (j, v)| sum + *j * *v);
         }
     }
 
+    /// The moment arms of tendon `k` (nv).
+    pub fn tendon_moment_row(&self, model: &Model, k: usize) -> &[S] {
+        &self.tendon_moment[k * model.nv..(k + 1) * model.nv]
+    }
+}
+
+impl Workspace {
     /// The force tendon `k` carries, F, whose generalized force is JᵀF (F > 0
     /// pushes its ends apart): its spring and damper, its armature's
     /// −a·L̈ (L̈ = J θ̈ + J̇θ̇), its actuators' forces times their gear, and
@@ -139,11 +146,6 @@ impl Workspace {
         }
         force
     }
-
-    /// The moment arms of tendon `k` (nv).
-    pub fn tendon_moment_row(&self, model: &Model, k: usize) -> &[f64] {
-        &self.tendon_moment[k * model.nv..(k + 1) * model.nv]
-    }
 }
 
 /// Adds the unit tension's point forces of the straight segment `from →
@@ -153,17 +155,17 @@ impl Workspace {
 /// too: its two forces cancel exactly, while summed as wrenches they leave
 /// round-off arms of 1e-17 that a tendon limit's row would multiply into
 /// forces of 1e17. Whether some link took a force.
-fn pull_segment(
-    x_world: &[Transform],
-    wrench: &mut [SpatialVec],
-    from: &PathPoint,
-    to: &PathPoint,
+fn pull_segment<S: Real>(
+    x_world: &[Transform<S>],
+    wrench: &mut [SpatialVec<S>],
+    from: &PathPoint<S>,
+    to: &PathPoint<S>,
     divisor: f64,
 ) -> bool {
     if from.body == to.body || from.link == to.link {
         return false;
     }
-    let force = direction(from, to) / divisor;
+    let force = direction(from, to) / S::from(divisor);
     let mut pulls = false;
     for (point, f) in [(from, -force), (to, force)] {
         if let Some(link) = point.link {
@@ -179,10 +181,10 @@ fn pull_segment(
 
 /// The unit vector from `from` to `to`; MuJoCo's mju_normalize3: a
 /// vanishing segment points along x.
-pub(super) fn direction(from: &PathPoint, to: &PathPoint) -> Vec3 {
+pub(super) fn direction<S: Real>(from: &PathPoint<S>, to: &PathPoint<S>) -> Vec3<S> {
     let difference = to.at - from.at;
     let distance = difference.norm();
-    if distance < MIN_VALUE { Vec3::x() } else { difference * (1.0 / distance) }
+    if distance.value() < MIN_VALUE { Vec3::x() } else { difference * (S::one() / distance) }
 }
 
 /// Walks a spatial tendon's path as MuJoCo's `mj_tendon` does, calling
@@ -191,11 +193,11 @@ pub(super) fn direction(from: &PathPoint, to: &PathPoint) -> Vec3 {
 /// branch; a site, geom, site triple wraps (two straight segments to the
 /// geom's surface and the arc between, the arc's points moving with the
 /// geom), or runs straight when the segment misses the geom.
-pub(super) fn walk_path(
+pub(super) fn walk_path<S: Real>(
     stops: &[PathStop],
-    x_world: &[Transform],
-    mut segment: impl FnMut(&PathPoint, &PathPoint, f64),
-) -> f64 {
+    x_world: &[Transform<S>],
+    mut segment: impl FnMut(&PathPoint<S>, &PathPoint<S>, f64),
+) -> S {
     let site_point = |stop: &PathStop| match stop {
         PathStop::Site { frame, body } => {
             PathPoint { link: frame.link, body: *body, at: site_in_world(frame, x_world).trans }
@@ -203,7 +205,7 @@ pub(super) fn walk_path(
         _ => unreachable!("the importer ends a wrap at a site"),
     };
     let mut divisor = 1.0;
-    let mut length = 0.0;
+    let mut length = S::zero();
     let mut j = 0;
     while j + 1 < stops.len() {
         let start = match (&stops[j], &stops[j + 1]) {
@@ -228,7 +230,7 @@ pub(super) fn walk_path(
                 let side = side.map(|side| site_in_world(&side, x_world).trans);
                 match wrap::wrap(&start.at, &end.at, &geom, *radius, *cylinder, side.as_ref()) {
                     Some((arc, first, second)) => {
-                        let on_geom = |at: Vec3| PathPoint { link: frame.link, body: *body, at };
+                        let on_geom = |at: Vec3<S>| PathPoint { link: frame.link, body: *body, at };
                         let points = [start, on_geom(first), on_geom(second), end];
                         length += ((first - start.at).norm() + arc + (end.at - second).norm()) / divisor;
                         for pair in points.windows(2) {
@@ -256,14 +258,14 @@ pub(super) fn walk_path(
 /// Adds the tendons' springs and dampers to the passive joint forces,
 /// τ += Jᵀ(−k·x − b·L̇), x the length's distance beyond the spring's
 /// deadband (MuJoCo's `mj_springdamper`).
-pub(crate) fn add_passive_forces(model: &Model, ws: &mut Workspace) {
+pub(crate) fn add_passive_forces<S: Real>(model: &Model, ws: &mut Workspace<S>) {
     let nv = model.nv;
     for (k, tendon) in model.tendons.iter().enumerate() {
         if !tendon.has_passive_force() {
             continue;
         }
         let force = passive_force(tendon, ws.tendon_length[k], ws.tendon_velocity[k]);
-        if force != 0.0 {
+        if !force.is_still_zero() {
             for d in 0..nv {
                 ws.tau_passive[d] += ws.tendon_moment[k * nv + d] * force;
             }
@@ -273,14 +275,14 @@ pub(crate) fn add_passive_forces(model: &Model, ws: &mut Workspace) {
 
 /// A tendon's spring and damper force −(k·x + b·L̇), x the length's
 /// distance beyond the spring's deadband.
-fn passive_force(tendon: &Tendon, length: f64, velocity: f64) -> f64 {
+fn passive_force<S: Real>(tendon: &Tendon, length: S, velocity: S) -> S {
     let [lower, upper] = tendon.spring_length;
-    let stretch = if length > upper {
+    let stretch = if length.value() > upper {
         length - upper
-    } else if length < lower {
+    } else if length.value() < lower {
         length - lower
     } else {
-        0.0
+        S::zero()
     };
     -stretch * tendon.stiffness - velocity * tendon.damping
 }

@@ -11,30 +11,30 @@
 
 use std::f64::consts::PI;
 
-use crate::math::{Transform, Vec3};
+use crate::math::{Real, Transform, Vec3};
 
 /// MuJoCo's `mjMINVAL`.
 const MIN_VALUE: f64 = 1e-15;
 
 /// A 2D point.
-type Point = [f64; 2];
+type Point<S> = [S; 2];
 
 /// The wrap of `x0 → x1` (world points) around a sphere or cylinder of
 /// `radius` placed at `geom` (world → geom frame): the arc's length and the
 /// two points where the tendon meets the geom (world), or `None` when it
 /// runs straight.
 /// `side`: the side site (world), if any.
-pub(super) fn wrap(
-    x0: &Vec3,
-    x1: &Vec3,
-    geom: &Transform,
+pub(super) fn wrap<S: Real>(
+    x0: &Vec3<S>,
+    x1: &Vec3<S>,
+    geom: &Transform<S>,
     radius: f64,
     cylinder: bool,
-    side: Option<&Vec3>,
-) -> Option<(f64, Vec3, Vec3)> {
-    let local = |x: &Vec3| geom.rot * (x - geom.trans);
+    side: Option<&Vec3<S>>,
+) -> Option<(S, Vec3<S>, Vec3<S>)> {
+    let local = |x: &Vec3<S>| geom.rot * (x - geom.trans);
     let (p0, p1) = (local(x0), local(x1));
-    if p0.norm() < MIN_VALUE || p1.norm() < MIN_VALUE {
+    if p0.norm().value() < MIN_VALUE || p1.norm().value() < MIN_VALUE {
         return None;
     }
     let side = side.map(local);
@@ -49,7 +49,7 @@ pub(super) fn wrap(
     let mut length = length;
     if cylinder {
         // The helix: heights in proportion to the path length up to each point.
-        let planar = |p: &Vec3, q: &Vec3| ((p.x - q.x) * (p.x - q.x) + (p.y - q.y) * (p.y - q.y)).sqrt();
+        let planar = |p: &Vec3<S>, q: &Vec3<S>| ((p.x - q.x) * (p.x - q.x) + (p.y - q.y) * (p.y - q.y)).sqrt();
         let (to_first, from_second) = (planar(&p0, &q0), planar(&p1, &q1));
         let total = to_first + length + from_second;
         q0.z = p0.z + (p1.z - p0.z) * to_first / total;
@@ -57,7 +57,7 @@ pub(super) fn wrap(
         let height = (q1.z - q0.z).abs();
         length = (length * length + height * height).sqrt();
     }
-    let world = |q: &Vec3| geom.rot.transpose() * q + geom.trans;
+    let world = |q: &Vec3<S>| geom.rot.transpose() * q + geom.trans;
 
     Some((length, world(&q0), world(&q1)))
 }
@@ -66,14 +66,14 @@ pub(super) fn wrap(
 /// the plane of `p0`, `p1` and the centre (when the three are aligned, the
 /// plane through the side site `side`, or any plane through `p0`, chosen as
 /// MuJoCo chooses it).
-fn sphere_plane(p0: &Vec3, p1: &Vec3, side: Option<&Vec3>) -> (Vec3, Vec3) {
+fn sphere_plane<S: Real>(p0: &Vec3<S>, p1: &Vec3<S>, side: Option<&Vec3<S>>) -> (Vec3<S>, Vec3<S>) {
     let axis0 = normalized(p0);
     let mut normal = p0.cross(p1);
-    if let Some(side) = side.filter(|_| normal.norm() < MIN_VALUE) {
+    if let Some(side) = side.filter(|_| normal.norm().value() < MIN_VALUE) {
         normal = p0.cross(side);
     }
-    if normal.norm() < MIN_VALUE {
-        let a = axis0.abs();
+    if normal.norm().value() < MIN_VALUE {
+        let a = axis0.map(|x| x.value().abs());
         let largest = if a.y > a.x && a.y > a.z {
             1
         } else if a.z > a.x && a.z > a.y {
@@ -81,8 +81,8 @@ fn sphere_plane(p0: &Vec3, p1: &Vec3, side: Option<&Vec3>) -> (Vec3, Vec3) {
         } else {
             0
         };
-        let mut other = Vec3::new(1.0, 1.0, 1.0);
-        other[largest] = 0.0;
+        let mut other = Vec3::from_element(S::one());
+        other[largest] = S::zero();
         normal = axis0.cross(&other);
     }
     let normal = normalized(&normal);
@@ -90,18 +90,18 @@ fn sphere_plane(p0: &Vec3, p1: &Vec3, side: Option<&Vec3>) -> (Vec3, Vec3) {
 }
 
 /// MuJoCo's `mju_normalize3`: x along the unit x axis when it vanishes.
-fn normalized(v: &Vec3) -> Vec3 {
+fn normalized<S: Real>(v: &Vec3<S>) -> Vec3<S> {
     let norm = v.norm();
-    if norm < MIN_VALUE { Vec3::x() } else { v * (1.0 / norm) }
+    if norm.value() < MIN_VALUE { Vec3::x() } else { v * (S::one() / norm) }
 }
 
 /// MuJoCo's `mju_normalize` of a 2D vector.
-fn normalize2(v: &mut Point) -> f64 {
+fn normalize2<S: Real>(v: &mut Point<S>) -> S {
     let norm = (v[0] * v[0] + v[1] * v[1]).sqrt();
-    if norm < MIN_VALUE {
-        *v = [1.0, 0.0];
+    if norm.value() < MIN_VALUE {
+        *v = [S::one(), S::zero()];
     } else {
-        let inverse = 1.0 / norm;
+        let inverse = S::one() / norm;
         v[0] *= inverse;
         v[1] *= inverse;
     }
@@ -109,7 +109,8 @@ fn normalize2(v: &mut Point) -> f64 {
 }
 
 /// Whether the 2D segments a₁a₂ and b₁b₂ cross (parallel ones never do).
-fn segments_cross(a1: &[f64], a2: &[f64], b1: &[f64], b2: &[f64]) -> bool {
+fn segments_cross<S: Real>(a1: &[S], a2: &[S], b1: &[S], b2: &[S]) -> bool {
+    let [a1, a2, b1, b2] = [a1, a2, b1, b2].map(|p| [p[0].value(), p[1].value()]);
     let det = (b2[1] - b1[1]) * (a2[0] - a1[0]) - (b2[0] - b1[0]) * (a2[1] - a1[1]);
     if det.abs() < MIN_VALUE {
         return false;
@@ -122,52 +123,53 @@ fn segments_cross(a1: &[f64], a2: &[f64], b1: &[f64], b2: &[f64]) -> bool {
 /// The arc from `p0` to `p1` on the circle of `radius`, the long way round
 /// when the tangents' orientation says so (`second`: the second of the two
 /// tangent solutions).
-fn arc_length(p0: &Point, p1: &Point, second: bool, radius: f64) -> f64 {
+fn arc_length<S: Real>(p0: &Point<S>, p1: &Point<S>, second: bool, radius: f64) -> S {
     let (mut u0, mut u1) = (*p0, *p1);
     normalize2(&mut u0);
     normalize2(&mut u1);
-    let mut angle = (u0[0] * u1[0] + u0[1] * u1[1]).clamp(-1.0, 1.0).acos();
-    let cross = p0[1] * p1[0] - p0[0] * p1[1];
+    let mut angle = (u0[0] * u1[0] + u0[1] * u1[1]).clamp(S::from(-1.0), S::one()).acos();
+    let cross = (p0[1] * p1[0] - p0[0] * p1[1]).value();
     if (cross > 0.0 && second) || (cross < 0.0 && !second) {
-        angle = 2.0 * std::f64::consts::PI - angle;
+        angle = -angle + 2.0 * std::f64::consts::PI;
     }
-    radius * angle
+    angle * radius
 }
 
 /// The wrap around a circle of the 2D segment `ends` (x₀, y₀, x₁, y₁):
 /// the arc's length and its end points (x, y, x, y), or `None` when the
 /// segment does not cross the circle.
-fn wrap_circle(ends: &[f64; 4], radius: f64) -> Option<(f64, [f64; 4])> {
+fn wrap_circle<S: Real>(ends: &[S; 4], radius: f64) -> Option<(S, [S; 4])> {
     let square0 = ends[0] * ends[0] + ends[1] * ends[1];
     let square1 = ends[2] * ends[2] + ends[3] * ends[3];
     let square_radius = radius * radius;
-    if square0 < square_radius || square1 < square_radius || radius < MIN_VALUE {
+    if square0.value() < square_radius || square1.value() < square_radius || radius < MIN_VALUE {
         return None;
     }
     let difference = [ends[2] - ends[0], ends[3] - ends[1]];
     let dd = difference[0] * difference[0] + difference[1] * difference[1];
-    if dd < MIN_VALUE {
+    if dd.value() < MIN_VALUE {
         return None;
     }
     // The segment's point nearest the centre.
-    let a = (-(difference[0] * ends[0] + difference[1] * ends[1]) / dd).clamp(0.0, 1.0);
+    let a = (-(difference[0] * ends[0] + difference[1] * ends[1]) / dd).clamp(S::zero(), S::one());
     let nearest = [a * difference[0] + ends[0], a * difference[1] + ends[1]];
-    if nearest[0] * nearest[0] + nearest[1] * nearest[1] > square_radius {
+    if (nearest[0] * nearest[0] + nearest[1] * nearest[1]).value() > square_radius {
         return None;
     }
     let root0 = (square0 - square_radius).sqrt();
     let root1 = (square1 - square_radius).sqrt();
     // The two pairs of tangent points, and how good each is: the shorter
     // chord; crossing tangents are worst.
-    let mut solutions = [[0.0; 4]; 2];
+    let mut solutions = [[S::zero(); 4]; 2];
     let mut goodness = [0.0; 2];
     for (i, sign) in [1.0, -1.0].into_iter().enumerate() {
         let s = &mut solutions[i];
-        s[0] = (ends[0] * square_radius + sign * radius * ends[1] * root0) / square0;
-        s[1] = (ends[1] * square_radius - sign * radius * ends[0] * root0) / square0;
-        s[2] = (ends[2] * square_radius - sign * radius * ends[3] * root1) / square1;
-        s[3] = (ends[3] * square_radius + sign * radius * ends[2] * root1) / square1;
-        let chord = [s[0] - s[2], s[1] - s[3]];
+        let arm = sign * radius;
+        s[0] = (ends[0] * square_radius + ends[1] * arm * root0) / square0;
+        s[1] = (ends[1] * square_radius - ends[0] * arm * root0) / square0;
+        s[2] = (ends[2] * square_radius - ends[3] * arm * root1) / square1;
+        s[3] = (ends[3] * square_radius + ends[2] * arm * root1) / square1;
+        let chord = [(s[0] - s[2]).value(), (s[1] - s[3]).value()];
         goodness[i] = -(chord[0] * chord[0] + chord[1] * chord[1]);
         if segments_cross(&ends[0..2], &s[0..2], &ends[2..4], &s[2..4]) {
             goodness[i] = -10000.0;
@@ -189,20 +191,28 @@ fn wrap_circle(ends: &[f64; 4], radius: f64) -> Option<(f64, [f64; 4])> {
 /// polyline turns w about the centre, each tangent segment acos(r/|p|), so
 /// the arc turns |w| − acos(r/|p₀|) − acos(r/|p₁|) in the sense of w, and
 /// the straight segment is the path when that is not positive.
-fn wrap_circle_through(ends: &[f64; 4], side: Point, radius: f64) -> Option<(f64, [f64; 4])> {
+fn wrap_circle_through<S: Real>(ends: &[S; 4], side: Point<S>, radius: f64) -> Option<(S, [S; 4])> {
     let (norm0, norm1) = (ends[0].hypot(ends[1]), ends[2].hypot(ends[3]));
-    if norm0 < radius || norm1 < radius || radius < MIN_VALUE {
+    if norm0.value() < radius || norm1.value() < radius || radius < MIN_VALUE {
         return None;
     }
     let (angle0, angle1, angle_side) = (ends[1].atan2(ends[0]), ends[3].atan2(ends[2]), side[1].atan2(side[0]));
-    let turn = |angle: f64| (angle + PI).rem_euclid(2.0 * PI) - PI;
     let winding = turn(angle_side - angle0) + turn(angle1 - angle_side);
-    let (tangent0, tangent1) = ((radius / norm0).acos(), (radius / norm1).acos());
+    let (tangent0, tangent1) = ((S::from(radius) / norm0).acos(), (S::from(radius) / norm1).acos());
     let arc = winding.abs() - tangent0 - tangent1;
-    if arc <= 0.0 {
+    if arc.value() <= 0.0 {
         return None;
     }
-    let sense = winding.signum();
-    let (at0, at1) = (angle0 + sense * tangent0, angle1 - sense * tangent1);
-    Some((radius * arc, [radius * at0.cos(), radius * at0.sin(), radius * at1.cos(), radius * at1.sin()]))
+    let sense = winding.value().signum();
+    let (at0, at1) = (angle0 + tangent0 * sense, angle1 - tangent1 * sense);
+    Some((arc * radius, [at0.cos() * radius, at0.sin() * radius, at1.cos() * radius, at1.sin() * radius]))
+}
+
+/// An angle brought into [−π, π): (angle + π) mod 2π − π, the whole turns
+/// taken off by their count (exact in f64, as `rem_euclid` is, for the
+/// differences of two `atan2` this takes).
+fn turn<S: Real>(angle: S) -> S {
+    let shifted = angle + PI;
+    let turns = (shifted.value() / (2.0 * PI)).floor();
+    shifted - turns * (2.0 * PI) - PI
 }

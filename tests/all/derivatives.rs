@@ -8,9 +8,11 @@
 use nalgebra::{DMatrix, DVector};
 use nudyn::dynamics::constraint::limit_switching_functions;
 use nudyn::dynamics::derivatives::{DerivativeError, Derivatives, Direction, Jacobians, Output, Point, ThetaDirection};
+use nudyn::dynamics::mode::ConstraintMode;
 use nudyn::dynamics::velocity::Given;
 use nudyn::model::{LinkJoint, Model};
 use nudyn::vehicle::Vehicle;
+use nudyn::workspace::Workspace;
 
 use crate::common::{self, Rng, TreeOptions, integrate_pos, random_theta, random_vehicle};
 
@@ -58,17 +60,24 @@ fn flexible_case(seed: u64, free_base: bool, passive: bool, flexible: bool) -> C
 /// A vehicle file at a random state, with each actuator's ctrl inside the
 /// middle of its range (or within ±1), away from the clamp.
 fn file_case(path: &str, seed: u64) -> Case {
+    file_case_at(path, seed, |rng, vehicle, model| {
+        // No joint limit within reach of the differences' steps.
+        let mut switches = vec![0.0; model.constraints.limit_sides()];
+        let mut clear_of_limits = |theta: &[f64]| {
+            limit_switching_functions(model, theta, &[], &mut switches);
+            switches.iter().all(|s| *s > 0.01)
+        };
+        std::iter::repeat_with(|| random_theta(rng, vehicle)).find(|t| clear_of_limits(t)).unwrap()
+    })
+}
+
+/// A vehicle file at θ from `theta`, the rest of the state and the inputs random.
+fn file_case_at(path: &str, seed: u64, theta: impl FnOnce(&mut Rng, &Vehicle, &Model) -> Vec<f64>) -> Case {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(path);
     let vehicle = nudyn::mjcf::load_mjcf(&path).unwrap().vehicle;
     let model = Model::compile(&vehicle).unwrap();
     let mut rng = Rng::new(seed);
-    // No joint limit within reach of the differences' steps.
-    let mut switches = vec![0.0; model.constraints.limit_sides()];
-    let mut clear_of_limits = |theta: &[f64]| {
-        limit_switching_functions(&model, theta, &[], &mut switches);
-        switches.iter().all(|s| *s > 0.01)
-    };
-    let theta = std::iter::repeat_with(|| random_theta(&mut rng, &vehicle)).find(|t| clear_of_limits(t)).unwrap();
+    let theta = theta(&mut rng, &vehicle, &model);
     let (velocity, eps, torque) = (rng.vec(model.nv, 0.5), rng.vec(model.nv, 1.0), rng.vec(model.nv, 1.0));
     let ctrl = model
         .actuators
@@ -92,9 +101,24 @@ fn point(case: &Case, given: Given) -> Point<'_> {
     }
 }
 
-/// One output of the f64 passes at a state: ν̇ given ν, θ̈ given θ̇.
-fn evaluate(model: &Model, point: &Point) -> Vec<f64> {
+/// One output of the f64 passes at a state: ν̇ given ν, θ̈ given θ̇. With
+/// constraint rows, their forces are those of the constraint mode of the
+/// state `mode_of` (the limit sides, impedance pieces and solver's working
+/// set there, held as the integrators hold them over a step): a smooth
+/// function, whose derivative at `mode_of` the dual numbers give.
+fn evaluate(model: &Model, point: &Point, mode_of: &Point) -> Vec<f64> {
     let mut ws = model.workspace();
+    if model.couples_beyond_tree() {
+        let mut mode = ConstraintMode::new(model);
+        mode.hold_sides(model, &mut ws, mode_of.theta).unwrap();
+        evaluate_on(model, &mut ws, mode_of);
+        let mut start = vec![0.0; mode.len()];
+        mode.hold_working_set(model, &mut ws, &mut start);
+    }
+    evaluate_on(model, &mut ws, point)
+}
+
+fn evaluate_on(model: &Model, ws: &mut Workspace, point: &Point) -> Vec<f64> {
     ws.set_configuration(model, point.theta).unwrap();
     match point.given {
         Given::Nu => ws.set_nu(model, point.velocity).unwrap(),
@@ -141,8 +165,11 @@ fn differences(case: &Case, given: Given) -> Jacobians {
                     (moved(&case.velocity, 1), moved(&case.eps, 2), moved(&case.torque, 3), moved(&case.ctrl, 4));
                 let point =
                     Point { theta: &theta, velocity: &velocity, given, eps: &eps, torque: &torque, ctrl: &ctrl };
-                DVector::from_vec(evaluate(model, &point))
+                DVector::from_vec(evaluate(model, &point, &self::point(case, given)))
             };
+            // ε and T enter linearly: a long step keeps the differences'
+            // round-off small where the constraints make M⁻¹'s conditioning poor.
+            let h = if which == 2 || which == 3 { 1.0 } else { h };
             let central = |h: f64| (at(h) - at(-h)) / (2.0 * h);
             let richardson = (central(h / 2.0) * 4.0 - central(h)) / 3.0;
             jacobian.set_column(column, &richardson);
@@ -240,6 +267,110 @@ fn actuated_jacobians_agree_with_central_differences_of_the_passes() {
     }
 }
 
+/// Tendons through the dual-number passes: fixed and spatial paths, wraps
+/// around spheres and cylinders (with side sites), the tendons' springs and
+/// dampers, actuators on tendons and their `actuatorfrcrange` scaling.
+#[test]
+fn jacobians_with_tendons_agree_with_central_differences_of_the_passes() {
+    for path in [
+        "tests/fixtures/tendons/tendon_wrap.xml",
+        "tests/fixtures/tendons/tendon_sidesite.xml",
+        "tests/fixtures/tendons/tendon_wrap_fitted.xml",
+        "tests/fixtures/tendons/tendon_force_range.xml",
+    ] {
+        for seed in 0..3 {
+            let case = file_case(path, seed);
+            assert!(!case.model.tendons.is_empty());
+            assert_agrees_with_differences(&case, &format!("{path}, seed {seed}"), 1e-8);
+        }
+    }
+}
+
+/// A constrained vehicle file near its qpos0 (each dof moved by up to
+/// `spread` in the tangent space, velocities up to 0.5), the actuators' ctrl
+/// inside their ranges.
+fn constrained_case(path: &str, seed: u64, spread: f64) -> Case {
+    file_case_at(path, seed, |rng, vehicle, model| {
+        integrate_pos(vehicle, &model.qpos0, &rng.vec(model.nv, spread), 1.0)
+    })
+}
+
+/// Constraint forces at the constraint mode of the point (equality rows,
+/// friction loss, joint and tendon limits with sides active), against the
+/// differences of the f64 passes with that mode held: the docked
+/// servicer (welds, a connect, a joint coupling, friction loss, limits) and
+/// the other constrained fixtures, and the tendon fixtures with friction
+/// loss, limits and tendon couplings.
+#[test]
+fn constrained_jacobians_agree_with_central_differences_at_the_mode() {
+    let mut rows_seen = 0;
+    for (path, spread) in [
+        ("tests/fixtures/constraints/docked_servicer.xml", 0.05),
+        ("tests/fixtures/constraints/limited_arm.xml", 1.0),
+        ("tests/fixtures/constraints/slider_hand.xml", 0.3),
+        ("tests/fixtures/constraints/welded_strap.xml", 0.3),
+        ("tests/fixtures/constraints/refsafe_off.xml", 0.3),
+        ("tests/fixtures/constraints/empty_rows.xml", 0.3),
+        ("tests/fixtures/tendons/tendon_finger.xml", 0.5),
+        ("tests/fixtures/tendons/tendon_limits.xml", 0.5),
+    ] {
+        for seed in 0..3 {
+            let case = constrained_case(path, seed, spread);
+            assert_agrees_with_differences(&case, &format!("{path}, seed {seed}"), 1e-8);
+            let mut ws = case.model.workspace();
+            evaluate_on(&case.model, &mut ws, &point(&case, Given::Qvel));
+            rows_seen += ws.constraint_rows.count;
+        }
+    }
+    assert!(rows_seen > 50, "only {rows_seen} constraint rows active over the cases");
+}
+
+/// On a switch (the elbow's upper side exactly at its margin) a run is
+/// refused; with the mode an f64 workspace holds there (as an FMU holds
+/// one between events) it gives that mode's derivatives, which agree with
+/// the differences of the f64 passes with the mode held.
+#[test]
+fn a_held_mode_gives_its_derivatives_on_a_switch() {
+    let mut case = constrained_case("tests/fixtures/constraints/limited_arm.xml", 5, 0.3);
+    let model = &case.model;
+    let elbow = model.joints.iter().position(|j| j.name == "elbow").unwrap();
+    let limit = model.constraints.limits.iter().find(|l| l.joint == elbow).unwrap();
+    case.theta[limit.qpos] = limit.range[1] - limit.margin;
+    let mut derivatives = Derivatives::new(model).unwrap();
+    let (nv, nu) = (model.nv, model.actuators.len());
+    let (zeros, no_ctrl) = (vec![0.0; nv], vec![0.0; nu]);
+    let along = Direction {
+        theta: &zeros,
+        theta_in: ThetaDirection::Tangent,
+        velocity: &zeros,
+        eps: &zeros,
+        torque: &zeros,
+        ctrl: &no_ctrl,
+    };
+    let at = point(&case, Given::Qvel);
+    let refused = derivatives.run(model, &at, &along, &[Output::Qacc]).unwrap_err();
+    assert!(
+        matches!(&refused, DerivativeError::OnSwitch(s) if s.contains("upper limit of joint 'elbow'")),
+        "{refused}"
+    );
+
+    let mut ws = model.workspace();
+    let mut mode = ConstraintMode::new(model);
+    mode.hold_sides(model, &mut ws, at.theta).unwrap();
+    evaluate_on(model, &mut ws, &at);
+    let mut start = vec![0.0; mode.len()];
+    mode.hold_working_set(model, &mut ws, &mut start);
+    derivatives.hold_constraint_mode_of(&ws.constraint_rows);
+    let exact = derivatives.jacobians(model, &at, Output::Qacc).unwrap();
+    let differenced = differences(&case, Given::Qvel);
+    for (what, a, b) in
+        [("theta", &exact.theta, &differenced.theta), ("velocity", &exact.velocity, &differenced.velocity)]
+    {
+        let error = relative(a, b);
+        assert!(error < 1e-8, "{what}: {error:e} from the held mode's differences");
+    }
+}
+
 /// A run's values are those of the f64 passes to round-off (not bit for
 /// bit: num-dual divides by multiplying with the reciprocal).
 #[test]
@@ -253,7 +384,8 @@ fn a_run_gives_the_f64_values() {
         for (given, output) in [(Given::Qvel, Output::Qacc), (Given::Nu, Output::NuDot)] {
             derivatives.run(&case.model, &point(&case, given), &direction, &[output]).unwrap();
             let values: Vec<f64> = derivatives.value(output).collect();
-            let passes = evaluate(&case.model, &point(&case, given));
+            let at = point(&case, given);
+            let passes = evaluate(&case.model, &at, &at);
             let error = common::rel_err(&values, &passes);
             assert!(error < 1e-13, "seed {seed}, {output:?}: {error:e}");
             assert!(derivatives.derivative(output).all(|d| d == 0.0), "seed {seed}: a zero direction moved {output:?}");
@@ -299,9 +431,18 @@ fn models_beyond_the_generic_passes_and_bad_points_are_refused() {
     assert_eq!(refusal, DerivativeError::Unsupported("actuators' activation states (dyntype)"));
     assert!(refusal.to_string().contains("activation states"), "{refusal}");
 
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/constraints/noslip_trees.xml");
+    let model = Model::compile(&nudyn::mjcf::load_mjcf(&path).unwrap().vehicle).unwrap();
+    assert_eq!(
+        Derivatives::new(&model).unwrap_err(),
+        DerivativeError::Unsupported("MuJoCo's no-slip pass (noslip_iterations)")
+    );
+
+    // The shoulder exactly where its upper side becomes a row: a switch.
     let mut at_a_limit = file_case("tests/fixtures/actuators/kinds.xml", 0);
-    let shoulder = at_a_limit.model.joints.iter().find(|j| j.name == "shoulder").unwrap().qpos_adr;
-    at_a_limit.theta[shoulder] = 100f64.to_radians() + 0.01;
+    let shoulder = at_a_limit.model.joints.iter().position(|j| j.name == "shoulder").unwrap();
+    let limit = at_a_limit.model.constraints.limits.iter().find(|l| l.joint == shoulder).unwrap();
+    at_a_limit.theta[limit.qpos] = limit.range[1] - limit.margin;
     let mut derivatives = Derivatives::new(&at_a_limit.model).unwrap();
     let (nv, nu) = (at_a_limit.model.nv, at_a_limit.model.actuators.len());
     let (zeros, no_ctrl) = (vec![0.0; nv], vec![0.0; nu]);
@@ -315,7 +456,7 @@ fn models_beyond_the_generic_passes_and_bad_points_are_refused() {
     };
     let error =
         derivatives.run(&at_a_limit.model, &point(&at_a_limit, Given::Qvel), &along, &[Output::Qacc]).unwrap_err();
-    assert_eq!(error, DerivativeError::ActiveLimits { rows: 1 });
+    assert_eq!(error, DerivativeError::OnSwitch("the upper limit of joint 'shoulder' at its margin".into()), "{error}");
 
     let case = case(3, true);
     let mut derivatives = Derivatives::new(&case.model).unwrap();

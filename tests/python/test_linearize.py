@@ -9,6 +9,10 @@ so far), at random states:
   mj_forward (δq moved by mj_integratePos, as MuJoCo's mjd_transitionFD
   does), with one Richardson step: within 1e-6 relative;
 - ∂θ̈/∂T against MuJoCo's M⁻¹ (mj_solveM): to round-off;
+- on the constrained fixtures (equality rows, friction loss, limits, tendon
+  rows), ∂θ̈/∂(δq, θ̇, ctrl) at states whose differences stay in one
+  constraint mode, against MuJoCo's differences with its solver run to
+  round-off: within 1e-6 relative;
 - with --step H at an equilibrium, the zero-order hold's A_d against the
   transition matrix of one step of MuJoCo's RK4 at step H, differenced
   centrally as mjd_transitionFD does (which refuses RK4 in MuJoCo 4.0):
@@ -19,6 +23,7 @@ so far), at random states:
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import zlib
 
@@ -235,3 +240,98 @@ def test_a_keyframe_is_the_point_its_vectors_give(nudyn, tmp_path):
     proc = subprocess.run([str(nudyn), "linearize", str(mocap), "--keyframe", "start"], capture_output=True, text=True)
     assert proc.returncode != 0
     assert "keyframe start (line 22) places mocap bodies (mpos, mquat)" in proc.stderr, proc.stderr
+
+
+# Constrained vehicles: equality rows, friction loss and limits (with sides
+# active), and tendons' friction, limits and couplings; how far each state's
+# dofs are spread about qpos0 (the docked servicer's welds hold at qpos0).
+CONSTRAINED = {
+    "tests/fixtures/constraints/docked_servicer.xml": 0.05,
+    "tests/fixtures/constraints/limited_arm.xml": 0.8,
+    "tests/fixtures/constraints/slider_hand.xml": 0.3,
+    "tests/fixtures/tendons/tendon_limits.xml": 0.5,
+    "tests/fixtures/tendons/tendon_finger.xml": 0.5,
+    # Tendons without rows: spatial paths wrapped round spheres and
+    # cylinders, side sites.
+    "tests/fixtures/tendons/tendon_wrap.xml": 0.5,
+    "tests/fixtures/tendons/tendon_sidesite.xml": 0.5,
+}
+CONSTRAINED_STATES = int(os.environ.get("NUDYN_CONSTRAINED_STATES", "4"))
+
+
+def constrained_jacobians(path, spread, states, seed, nudyn):
+    """At `states` random states of `path` whose constraint mode (MuJoCo's
+    rows and each row's state: a friction force at a bound or inside, a
+    limit's force zero or pushing) is the same at every point the
+    differences visit, and whose differences at h and h/2 agree (no
+    impedance piece crossed): nudyn linearize's ∂θ̈/∂(δq, θ̇, ctrl) and central
+    differences of mj_forward with MuJoCo's solver run to round-off. Yields
+    (∂ name, relative difference); states whose differences would cross a
+    switch are drawn again."""
+    m = load_model(ROOT / path)
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(seed)
+    nv = m.nv
+    done = 0
+    while done < states:
+        qpos = m.qpos0.copy()
+        mujoco.mj_integratePos(m, qpos, rng.normal(0, spread, nv), 1.0)
+        qvel = rng.normal(0, 0.3, nv)
+        low, high = m.actuator_ctrlrange[:, 0], m.actuator_ctrlrange[:, 1]
+        ranged = (m.actuator_ctrllimited == 1) & (low < high)
+        ctrl = np.where(ranged, low + (high - low) * rng.uniform(0.2, 0.8, m.nu), rng.uniform(-1, 1, m.nu))
+
+        def forward(dq, dv, du):
+            mujoco.mj_resetData(m, d)
+            d.qpos[:] = qpos
+            mujoco.mj_integratePos(m, d.qpos, dq, 1.0)
+            d.qvel[:] = qvel + dv
+            d.ctrl[:] = ctrl + du
+            mujoco.mj_forward(m, d)
+            return d.qacc.copy(), (tuple(d.efc_type[: d.nefc]), tuple(d.efc_state[: d.nefc]))
+
+        _, mode = forward(np.zeros(nv), np.zeros(nv), np.zeros(m.nu))
+        smooth = True
+
+        def jacobian(which, count, h=1e-5):
+            nonlocal smooth
+
+            def column(k, h):
+                nonlocal smooth
+                step = [np.zeros(nv), np.zeros(nv), np.zeros(m.nu)]
+                step[which][k] = h
+                (plus, plus_mode), (minus, minus_mode) = forward(*step), forward(*[-x for x in step])
+                smooth &= plus_mode == mode == minus_mode
+                return (plus - minus) / (2 * h)
+
+            columns = []
+            for k in range(count):
+                coarse, fine = column(k, h), column(k, h / 2)
+                # A switch MuJoCo's rows do not show (an impedance's piece)
+                # shows as differences that disagree at h and h/2.
+                smooth &= relative(coarse, fine) < 1e-7
+                columns.append((4 * fine - coarse) / 3)
+            return np.column_stack(columns) if columns else np.zeros((nv, 0))
+
+        theirs = [jacobian(0, nv), jacobian(1, nv), jacobian(2, m.nu)]
+        if not smooth:
+            continue
+        given_ctrl = ["--ctrl", listed(ctrl)] if m.nu else []
+        out, _ = linearize(nudyn, ROOT / path, "--qpos", listed(qpos), "--qvel", listed(qvel), *given_ctrl,
+                           "--inputs", "ctrl")
+        a, b = np.array(out["A"]), np.array(out["B"])
+        ours = [a[nv:, :nv], a[nv:, nv:], b[nv:]]
+        done += 1
+        yield len(mode[0]), [(what, relative(x, y)) for what, x, y in zip(("dq", "qvel", "ctrl"), ours, theirs)
+                             if y.size]
+
+
+@pytest.mark.parametrize("path", CONSTRAINED, ids=[p.split("/")[-1][:-4] for p in CONSTRAINED])
+def test_constrained_vehicles_agree_with_differences_of_mujoco(nudyn, path):
+    """The constraint forces' derivatives at the point's constraint mode,
+    against MuJoCo's forward dynamics differenced within that mode."""
+    for rows, errors in constrained_jacobians(path, CONSTRAINED[path], CONSTRAINED_STATES, zlib.crc32(path.encode()),
+                                              nudyn):
+        print(f"{path}: {rows} rows, " + ", ".join(f"∂qacc/∂{w} {e:.1e}" for w, e in errors))
+        for what, error in errors:
+            assert error < 1e-6, f"{path}: ∂qacc/∂{what} {error:.2e} from MuJoCo's differences ({rows} rows)"

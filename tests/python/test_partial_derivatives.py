@@ -11,8 +11,10 @@ with respect to θ (along its coordinates), ν and ε equal central
 differences of the same FMU's values, moved through fmi2SetContinuousStates
 (model exchange) or the initial state (co-simulation's initialization
 mode); the adjoint is the transpose of the directional derivative; a model
-the derivatives do not cover (one with actuators) declares none and
-refuses the call, naming what is missing."""
+the derivatives do not cover (one with sensors) declares none and
+refuses the call, naming what is missing. Constrained vehicles and
+tests/fixtures/actuators/kinds.xml (every actuator kind, ctrl a known)
+too."""
 
 from __future__ import annotations
 
@@ -21,6 +23,7 @@ import json
 import zipfile
 from ctypes import c_double, c_uint
 
+import mujoco
 import numpy as np
 import pytest
 from fmpy import read_model_description
@@ -35,7 +38,22 @@ MODELS = {
     "springdamper": ROOT / "tests" / "fixtures" / "springs" / "springdamper.xml",
     # A flexible bench on a hinge of a free bus: its modes are a block of the passes (docs/flexible.md).
     "bench_vehicle": ROOT / "tests" / "fixtures" / "flex" / "bench_vehicle.xml",
+    # Constraint forces: a connect, a joint coupling, friction loss and
+    # limits (slider_hand); a connect, joint and tendon limits on a spatial
+    # tendon, refsafe off (refsafe_off). In model exchange the FMU holds
+    # its constraint mode between events, and its derivatives are that mode's.
+    "slider_hand": ROOT / "tests" / "fixtures" / "constraints" / "slider_hand.xml",
+    "refsafe_off": ROOT / "tests" / "fixtures" / "constraints" / "refsafe_off.xml",
+    # Every actuator kind, transmission, gain and clamp, its ctrl a known
+    # (set inside each range, away from the clamps), and joint limits.
+    "kinds": ROOT / "tests" / "fixtures" / "actuators" / "kinds.xml",
 }
+# Their rows of der(nu) reach 1e8 at these states (the constraints pulled
+# 0.2 rad off): the differences' round-off is of the row's size, so their
+# error is taken relative to each row's largest entry (measured 2e-8 at
+# STEP, 2e-10 at 1e-6 on slider_hand), and ε reaches ν̇ through the
+# constraint forces, not as the identity.
+CONSTRAINED = {"slider_hand", "refsafe_off", "kinds"}
 OUTPUTS = ("qvel", "kinetic_energy", "power")
 # Central differences' step; with it the exact derivatives are within
 # 2e-8 relative of them on bus_arm7 and 2e-9 on springdamper (measured).
@@ -54,20 +72,32 @@ class Names:
     """The knowns (θ, ν, ε) and unknowns (der(θ), der(ν), θ, ν and the
     continuous outputs) of an FMU, element by element, as FMI 2.0 names."""
 
-    def __init__(self, fmu2):
+    def __init__(self, fmu2, model=None):
         package = FmuPackage.unzip(fmu2, fmu2.parent / (fmu2.stem + "-unzipped"))
         self.package = package
         self.theta, self.nu, self.eps = package.names("theta"), package.names("nu"), package.names("eps")
-        self.knowns = self.theta + self.nu + self.eps
+        self.ctrl = package.names("ctrl")
+        # MuJoCo's ctrlrange of each actuator ((0, 0) without one) of the MJCF `model`.
+        self.ctrl_ranges = []
+        if self.ctrl:
+            compiled = mujoco.MjModel.from_xml_path(str(model))
+            limited = compiled.actuator_ctrllimited == 1
+            self.ctrl_ranges = [tuple(r) if on else (0.0, 0.0) for r, on in zip(compiled.actuator_ctrlrange, limited)]
+        self.knowns = self.theta + self.nu + self.eps + self.ctrl
         self.unknowns = ([f"der({n})" for n in self.theta + self.nu] + self.theta + self.nu + package.names("qvel")
                          + ["kinetic_energy", "power"])
 
 
 def random_point(names: Names, seed: int) -> np.ndarray:
-    """θ near its start (quaternions off unit length), ν and ε at random."""
+    """θ near its start (quaternions off unit length), ν and ε at random,
+    ctrl inside each range's middle (within ±0.5 without one), clear of the
+    clamps, whose pieces a difference would straddle."""
     rng = np.random.default_rng(seed)
     theta = np.array(names.package.starts("theta")) + rng.normal(0, 0.2, len(names.theta))
-    return np.concatenate([theta, rng.normal(0, 0.7, len(names.nu)), rng.normal(0, 2.0, len(names.eps))])
+    ctrl = []
+    for low, high in names.ctrl_ranges:
+        ctrl.append(low + (high - low) * rng.uniform(0.3, 0.7) if low < high else rng.uniform(-0.5, 0.5))
+    return np.concatenate([theta, rng.normal(0, 0.7, len(names.nu)), rng.normal(0, 2.0, len(names.eps)), ctrl])
 
 
 class Fmi2:
@@ -103,7 +133,7 @@ class Fmi2:
         names, nx = self.names, len(self.names.theta) + len(self.names.nu)
         if self.interface == "ME":
             self.fmu.setContinuousStates((c_double * nx)(*point[:nx]), nx)
-            self.fmu.setReal(self.refs(names.eps), list(point[nx:]))
+            self.fmu.setReal(self.refs(names.knowns[nx:]), list(point[nx:]))
         else:
             self.fmu.setReal(self.refs(names.knowns), list(point))
 
@@ -137,7 +167,7 @@ class Fmi3:
             self.fmu.enterContinuousTimeMode()
         nq, nv = len(names.theta), len(names.nu)
         # The arrays, and how many elements each has.
-        self.known_arrays = [("theta", nq), ("nu", nv), ("eps", nv)]
+        self.known_arrays = [("theta", nq), ("nu", nv), ("eps", nv)] + ([("ctrl", len(names.ctrl))] if names.ctrl else [])
         self.unknown_arrays = [("der(theta)", nq), ("der(nu)", nv), ("theta", nq), ("nu", nv), ("qvel", nv),
                                ("kinetic_energy", 1), ("power", 1)]
 
@@ -149,7 +179,7 @@ class Fmi3:
         nx = sum(n for _, n in self.known_arrays[:2])
         if self.interface == "ME":
             self.fmu.setContinuousStates((c_double * nx)(*point[:nx]), nx)
-            self.fmu.setFloat64([self.vr["eps"]], list(point[nx:]))
+            self.fmu.setFloat64([self.vr[a] for a, _ in self.known_arrays[2:]], list(point[nx:]))
         else:
             self.fmu.setFloat64([self.vr[a] for a, _ in self.known_arrays], list(point))
 
@@ -171,7 +201,7 @@ class Fmi3:
 
 
 def instance(fmus, name, version, interface, tmp_path):
-    names = Names(fmus[(name, 2)])
+    names = Names(fmus[(name, 2)], MODELS[name])
     kind = Fmi2 if version == 2 else Fmi3
     return kind(fmus[(name, version)], names, interface, tmp_path / "unzipped"), names
 
@@ -204,11 +234,14 @@ def test_directional_derivatives_are_central_differences_of_the_fmu(fmus, tmp_pa
     exact = jacobian(host, len(point))
     differences = central_differences(host, point)
     scale = np.maximum(1.0, np.abs(differences))
+    if name in CONSTRAINED:
+        scale = np.maximum(scale, np.abs(differences).max(axis=1, keepdims=True))
     error = np.max(np.abs(exact - differences) / scale)
     assert error <= 1e-6, (error, np.unravel_index(np.argmax(np.abs(exact - differences) / scale), exact.shape))
-    # ∂ν̇/∂ε = I exactly, and θ and ν pass their seeds through.
+    # ∂ν̇/∂ε = I exactly (without constraint forces), and θ and ν pass their seeds through.
     nq, nv = len(names.theta), len(names.nu)
-    assert np.array_equal(exact[nq:nq + nv, nq + nv:], np.eye(nv))
+    if name not in CONSTRAINED:
+        assert np.array_equal(exact[nq:nq + nv, nq + nv:], np.eye(nv))
     assert np.array_equal(exact[nq + nv:2 * (nq + nv), :nq + nv], np.eye(nq + nv))
     host.fmu.freeInstance()
 
@@ -232,7 +265,7 @@ def test_the_adjoint_is_the_transpose(fmus, tmp_path, name, interface):
     host.fmu.freeInstance()
 
 
-def test_a_model_with_actuators_declares_no_derivatives_and_says_why(cli, tmp_path):
+def test_a_model_with_sensors_declares_no_derivatives_and_says_why(cli, tmp_path):
     servicer = EXAMPLES_DIR / "servicer.xml"
     fmu2 = cli.export(servicer, tmp_path / "servicer2.fmu", fmi_version=2)
     fmu3 = cli.export(servicer, tmp_path / "servicer3.fmu", fmi_version=3)
@@ -241,7 +274,7 @@ def test_a_model_with_actuators_declares_no_derivatives_and_says_why(cli, tmp_pa
         root = ET.fromstring(zipfile.ZipFile(fmu).read("modelDescription.xml"))
         for interface in ("CoSimulation", "ModelExchange"):
             assert [root.find(interface).get(flag) for flag in flags] == ["false"] * len(flags), (fmu, interface)
-    names = Names(fmu2)
+    names = Names(fmu2, servicer)
     for version, fmu in ((2, fmu2), (3, fmu3)):
         host = (Fmi2 if version == 2 else Fmi3)(fmu, names, "CS", tmp_path / f"unzipped{version}")
         with pytest.raises(Exception):
@@ -250,7 +283,7 @@ def test_a_model_with_actuators_declares_no_derivatives_and_says_why(cli, tmp_pa
             else:
                 host.fmu.getDirectionalDerivative([host.vr["nu"]], [host.vr["eps"]], [1.0] * len(names.eps),
                                                   nSensitivity=len(names.nu))
-        assert any("providesDirectionalDerivative" in m and "actuators" in m for m in host.messages), host.messages
+        assert any("providesDirectionalDerivative" in m and "sensors" in m for m in host.messages), host.messages
         host.fmu.freeInstance()
 
 
@@ -316,14 +349,15 @@ def test_the_quaternion_rate_is_half_q_times_omega(fmus, tmp_path):
 COVERED = ["bus_arm7", "chain60", "fixed_rig", "flexible_boom"]
 
 
-@pytest.mark.parametrize("name", COVERED + ["springdamper", "bench_vehicle"])
+@pytest.mark.parametrize("name", COVERED + ["springdamper", "bench_vehicle", "slider_hand", "refsafe_off", "kinds"])
 def test_the_model_structure_lists_every_dependence_the_derivatives_have(cli, tmp_path, name):
     """ModelStructure's dependencies (FMI 2.0) against the exact Jacobian at
     a random state: every non-zero entry is listed (a host may take an
     unlisted one to be 0), and a ν̇ lists exactly the ν it depends on (its
     tree's branch: the dofs from the root to its joint and below it). The
     other lists are exact to the joint: a multi-dof joint's block is listed
-    whole, where θ̇ = ℓ*ν may leave an entry of it 0."""
+    whole, where θ̇ = ℓ*ν may leave an entry of it 0. A constrained vehicle
+    lists every state and input (complete, not exact)."""
     model = MODELS.get(name, EXAMPLES_DIR / f"{name}.xml")
     fmu = cli.export(model, tmp_path / f"{name}.fmu", outputs=OUTPUTS)
     root = ET.fromstring(zipfile.ZipFile(fmu).read("modelDescription.xml"))
@@ -331,7 +365,7 @@ def test_the_model_structure_lists_every_dependence_the_derivatives_have(cli, tm
     index = {v.get("name"): i for i, v in enumerate(root.iterfind("ModelVariables/ScalarVariable"), start=1)}
     listed = {int(u.get("index")): {int(i) for i in u.get("dependencies").split()}
               for u in root.iterfind("ModelStructure/*/Unknown") if u.get("dependencies") is not None}
-    names = Names(fmu)
+    names = Names(fmu, model)
     host = Fmi2(fmu, names, "ME", tmp_path / "unzipped")
     point = random_point(names, seed=11)
     host.set(point)
@@ -345,7 +379,9 @@ def test_the_model_structure_lists_every_dependence_the_derivatives_have(cli, tm
     for row, unknown in enumerate(names.unknowns):
         depends = {index[known] for known, d in zip(names.knowns, exact[row]) if d != 0}
         assert depends <= listed[index[unknown]], (unknown, sorted(depends - listed[index[unknown]]))
-        if unknown.startswith("der(nu["):
+        # With constraint forces the listing is every state (they couple
+        # any dof to any other through the rows): completeness only.
+        if unknown.startswith("der(nu[") and name not in CONSTRAINED:
             on_nu = {index[known] for known in names.nu}
             if index[unknown[4:-1]] not in modal_nu:
                 assert listed[index[unknown]] & on_nu == depends & on_nu, unknown

@@ -309,12 +309,15 @@ pub const TABLE: [Entry; 20] = [
         description: describe::der_nu,
         // Every actuator's ε reaches every dof through ℓ in general; a
         // tree alone couples its own dofs only, a branch not its siblings.
+        // ε enters ν̇ additively, unless the constraint forces, solved over
+        // every dof, pass each entry of ε on to every other.
         dependencies: |l, k| {
             let forces = l.ctrl().chain(l.wrenches()).chain(l.act());
             Some(match &l.tree {
                 Some(tree) => {
                     tree.theta(k).chain(tree.path_and_subtree(k)).chain([RealVariable::Eps(k)]).chain(forces).collect()
                 }
+                None if l.eps_coupled => l.theta().chain(l.nu()).chain(l.eps()).chain(forces).collect(),
                 None => l.theta().chain(l.nu()).chain([RealVariable::Eps(k)]).chain(forces).collect(),
             })
         },
