@@ -20,7 +20,7 @@ DATA="$WHEEL_DATA/data/share/nudyn"
 # again. maturin then builds nudyn-cli alone, whose dependencies
 # get the workspace's features through workspace-hack (checked by
 # scripts/check-unified-features.py), so it only links the executable.
-cargo build --release --locked --workspace --lib --bins --tests --examples
+cargo build --release --locked --workspace --lib --bins --test '*' --examples
 rm -rf "$ROOT/target/wheel"
 mkdir -p "$DATA/binaries/linux64"
 # The same library `nudyn export` packs from target/release, without the

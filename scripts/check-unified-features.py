@@ -25,8 +25,9 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-# What scripts/test.sh builds (every target but the benchmarks).
-WORKSPACE = ["--workspace", "--lib", "--bins", "--tests", "--examples"]
+# What scripts/test.sh builds in the release profile (every target but the
+# benchmarks and the crates' unit tests, which it builds at opt-level 0).
+WORKSPACE = ["--workspace", "--lib", "--bins", "--test", "*", "--examples"]
 BUILT_ALONE = {
     "the wheel (maturin)": ["-p", "nudyn-cli"],
     "tests/python/test_modeldescription_schema.py": ["-p", "modeldescription", "--example", "write_example"],

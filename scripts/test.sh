@@ -102,13 +102,30 @@ background build-windows bash scripts/build-windows.sh
 background build-fuzz bash scripts/stress-fmu.sh --build
 
 stage clippy cargo clippy --release --workspace --all-targets -- -D warnings
-# Every target the tests use, at once: the libraries and binaries are built
-# with the same features as the tests (dev-dependencies add features to
-# shared crates), so `cargo test` below reuses them instead of building the
-# tree a second time. Not the criterion benchmark (bench/benches), which
-# nothing here runs: clippy above checks it.
-stage "cargo build" cargo build --release --workspace --lib --bins --tests --examples
-stage "cargo test" cargo test --release --workspace
+# Every target the tests use but the crates' unit tests (below), at once:
+# the libraries and binaries are built with the same features as the tests
+# (dev-dependencies add features to shared crates), so `cargo test` below
+# reuses them instead of building the tree a second time. Not the criterion
+# benchmark (bench/benches), which nothing here runs: clippy above checks it.
+stage "cargo build" cargo build --release --workspace --lib --bins --test '*' --examples
+stage "cargo test" cargo test --release --workspace --test '*'
+stage "cargo test (doc)" cargo test --release --workspace --doc
+# The crates' unit tests (their #[cfg(test)] modules) compile each crate a
+# second time, in test mode: at opt-level 3 that took about 95 CPU-s (49
+# the core crate's), at 0 it takes 42 and the tests run in 4 (the same
+# tests, and the same numbers: Rust's floating point does not depend on the
+# optimization level). Cargo's
+# bench profile is the release profile and shares its folder, so the
+# dependencies are reused; only the workspace's own crates are built again,
+# at opt-level 0. On the command line, not in Cargo.toml: `cargo bench`
+# (the criterion benchmark) must keep the crates optimized.
+unit_test_config=()
+for package in nudyn nudyn-contract nudyn-fmu nudyn-cli modeldescription workspace-hack; do
+    unit_test_config+=(--config "profile.bench.package.$package.opt-level=0")
+done
+# nudyn-bench: no unit tests (its Cargo.toml), and its binary would be built optimized.
+stage "cargo test (unit tests)" cargo test --profile bench --workspace --exclude nudyn-bench --lib --bins \
+    "${unit_test_config[@]}"
 
 finish setup-python
 finish build-windows
