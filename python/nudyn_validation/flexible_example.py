@@ -9,7 +9,7 @@ writes OUT_FOLDER/flexible_spacecraft.xml, array.json and boom.json (the
 files in examples/ are its output; tests/python/test_flexible_example.py
 makes them again and compares). The arrays are aluminium-like plates of
 2 m × 1 m × 5 mm at 1000 kg/m³ (10 kg, first mode about 1 Hz), the boom a
-3 m bar of 30 mm × 30 mm (2.7 kg, first mode about 4 Hz), each clamped at
+3 m bar of 30 mm × 20 mm (1.8 kg, first modes about 3 and 4.5 Hz), each clamped at
 its root, 4 modes kept, 0.5 % damping. The same file loads in MuJoCo as
 the rigid vehicle.
 
@@ -49,7 +49,9 @@ class Appendage:
 # The array's length along body y (out from the bus), its width along body
 # x, its normal along body −z; the boom's length along body x.
 ARRAY = Appendage("array", (2.0, 1.0, 0.005), (12, 6, 1), (0.0, 0.5, 0.0025), (0, 1, 0, 1, 0, 0, 0, 0, -1))
-BOOM = Appendage("boom", (3.0, 0.03, 0.03), (24, 1, 1), (0.0, 0.015, 0.015), (1, 0, 0, 0, 1, 0, 0, 0, 1))
+# The boom's section is not square, so that no two of its modes share a
+# frequency (a repeated frequency's mode shapes are any basis of their plane).
+BOOM = Appendage("boom", (3.0, 0.03, 0.02), (24, 1, 1), (0.0, 0.015, 0.01), (1, 0, 0, 0, 1, 0, 0, 0, 1))
 
 BUS = '<inertial pos="0 0 0" mass="800" diaginertia="180 200 220"/>'
 
@@ -148,7 +150,7 @@ def lumped_equivalent(example: dict[str, int]) -> str:
         f'<inertial pos="0.1 0 0" mass="0.1" diaginertia="1e-3 1e-3 1e-3"/>'
         f'{_chain(f"array_{side}_", example["array_" + side], 2.0, 10.0, "0 0 1", "0.1 0 0")}</body>'
         for side, y, turn in (("left", 0.6, 1.5707963267948966), ("right", -0.6, -1.5707963267948966)))
-    boom = _chain("boom", example["boom"], 3.0, 2.7, "0 1 0", "0.6 0 0")
+    boom = _chain("boom", example["boom"], 3.0, 1.8, "0 1 0", "0.6 0 0")
     return (f'<mujoco model="flexible_spacecraft_lumped"><option gravity="0 0 0"/><worldbody><body name="bus">'
             f"<freejoint/>{BUS}{arrays}{boom}</body></worldbody></mujoco>")
 

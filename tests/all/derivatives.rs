@@ -179,9 +179,16 @@ fn differences(case: &Case, given: Given) -> Jacobians {
     Jacobians { theta: columns(0), velocity: columns(1), eps: columns(2), torque: columns(3), ctrl: columns(4) }
 }
 
-/// The zero direction of a vehicle without actuators (`zeros`: nv).
-fn nowhere(zeros: &[f64]) -> Direction<'_> {
-    Direction { theta: zeros, theta_in: ThetaDirection::Tangent, velocity: zeros, eps: zeros, torque: zeros, ctrl: &[] }
+/// The zero direction: `zeros` (nv) in θ, velocity, ε and torque, `no_ctrl` in ctrl.
+fn nowhere<'a>(zeros: &'a [f64], no_ctrl: &'a [f64]) -> Direction<'a> {
+    Direction {
+        theta: zeros,
+        theta_in: ThetaDirection::Tangent,
+        velocity: zeros,
+        eps: zeros,
+        torque: zeros,
+        ctrl: no_ctrl,
+    }
 }
 
 /// max |a − b| / max(1, max |b|) over a matrix.
@@ -339,14 +346,7 @@ fn a_held_mode_gives_its_derivatives_on_a_switch() {
     let mut derivatives = Derivatives::new(model).unwrap();
     let (nv, nu) = (model.nv, model.actuators.len());
     let (zeros, no_ctrl) = (vec![0.0; nv], vec![0.0; nu]);
-    let along = Direction {
-        theta: &zeros,
-        theta_in: ThetaDirection::Tangent,
-        velocity: &zeros,
-        eps: &zeros,
-        torque: &zeros,
-        ctrl: &no_ctrl,
-    };
+    let along = nowhere(&zeros, &no_ctrl);
     let at = point(&case, Given::Qvel);
     let refused = derivatives.run(model, &at, &along, &[Output::Qacc]).unwrap_err();
     assert!(
@@ -380,7 +380,7 @@ fn a_run_gives_the_f64_values() {
         let mut derivatives = Derivatives::new(&case.model).unwrap();
         let nv = case.model.nv;
         let zeros = vec![0.0; nv];
-        let direction = nowhere(&zeros);
+        let direction = nowhere(&zeros, &[]);
         for (given, output) in [(Given::Qvel, Output::Qacc), (Given::Nu, Output::NuDot)] {
             derivatives.run(&case.model, &point(&case, given), &direction, &[output]).unwrap();
             let values: Vec<f64> = derivatives.value(output).collect();
@@ -446,14 +446,7 @@ fn models_beyond_the_generic_passes_and_bad_points_are_refused() {
     let mut derivatives = Derivatives::new(&at_a_limit.model).unwrap();
     let (nv, nu) = (at_a_limit.model.nv, at_a_limit.model.actuators.len());
     let (zeros, no_ctrl) = (vec![0.0; nv], vec![0.0; nu]);
-    let along = Direction {
-        theta: &zeros,
-        theta_in: ThetaDirection::Tangent,
-        velocity: &zeros,
-        eps: &zeros,
-        torque: &zeros,
-        ctrl: &no_ctrl,
-    };
+    let along = nowhere(&zeros, &no_ctrl);
     let error =
         derivatives.run(&at_a_limit.model, &point(&at_a_limit, Given::Qvel), &along, &[Output::Qacc]).unwrap_err();
     assert_eq!(error, DerivativeError::OnSwitch("the upper limit of joint 'shoulder' at its margin".into()), "{error}");
@@ -476,7 +469,7 @@ fn models_beyond_the_generic_passes_and_bad_points_are_refused() {
     let mut eps = case.eps.clone();
     eps[1] = f64::NAN;
     let bad = Point { eps: &eps, ..point(&case, Given::Qvel) };
-    let direction = nowhere(&zeros);
+    let direction = nowhere(&zeros, &[]);
     let error = derivatives.run(&case.model, &bad, &direction, &[Output::Qacc]).unwrap_err();
     assert!(error.to_string().contains("eps[2] is not finite"), "{error}");
 }
