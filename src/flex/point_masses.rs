@@ -27,7 +27,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::ModalBody;
-use crate::math::{Mat3, Real, SpatialMat, SpatialVec, Vec3, real, skew, spatial};
+use crate::math::{Mat3, Real, SpatialMat, SpatialVec, Vec3, angular, linear, real, skew, spatial};
 
 /// The modal integrals of a body's point-mass nodes (all zero when it has none).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -181,7 +181,7 @@ impl PointMasses {
                 coupling[(row + 3, k)] += linear[row];
             }
             for l in 0..=k {
-                d[(l, k)] += S::from(self.shape_shape[l * self.modes() + k].trace());
+                d[(l, k)] += self.shape_shape::<S>(l, k).trace();
             }
         }
     }
@@ -201,7 +201,7 @@ impl PointMasses {
             return;
         }
         let m = self.modes();
-        let (omega, v) = (Vec3::new(v_r[0], v_r[1], v_r[2]), Vec3::new(v_r[3], v_r[4], v_r[5]));
+        let (omega, v) = (angular(v_r), linear(v_r));
         let (c, s) = (&at.first_moment, &at.second_moment);
         let shape_rate = (0..m).fold(Vec3::zeros(), |a, k| a + real::<S, 3, 1>(&self.shape_moments[k]) * rate[k]);
         let omega_v = omega.cross(&v);

@@ -592,6 +592,11 @@ impl Tree {
     }
 }
 
+/// The modal bodies with modes, in `Model::flexible`'s order.
+fn with_modes(vehicle: &Vehicle) -> impl Iterator<Item = &crate::flex::ModalBody> {
+    vehicle.flexible.iter().filter(|f| !f.modes.is_empty())
+}
+
 /// The flexible bodies with modes of `vehicle` on their links, their modal
 /// coordinates appended to θ and ν (zero in qpos0 and the spring pose).
 /// Refuses the parts of a model that do not take modes in yet.
@@ -601,7 +606,7 @@ fn add_flexible_bodies(
     attachments: &[Attachment],
     constraints: &Constraints,
 ) -> Result<(), ModelError> {
-    for modal in vehicle.flexible.iter().filter(|f| !f.modes.is_empty()) {
+    for modal in with_modes(vehicle) {
         let body =
             vehicle.bodies.iter().position(|b| b.name == modal.body).expect("the importer names existing bodies");
         let at = attachments[body];
@@ -767,8 +772,6 @@ pub const NODE_SITE_DISTANCE: f64 = 1e-6;
 /// body). A site of a flexible body within [`NODE_SITE_DISTANCE`] of one of
 /// its nodes rides that node (docs/flexible.md, "Sites at nodes").
 fn site_frames(vehicle: &Vehicle, attachments: &[Attachment]) -> Vec<SiteFrame> {
-    // Model::flexible's order: the modal bodies with modes, as add_flexible_bodies pushes them.
-    let flexible: Vec<_> = vehicle.flexible.iter().filter(|f| !f.modes.is_empty()).collect();
     vehicle
         .sites
         .iter()
@@ -778,7 +781,7 @@ fn site_frames(vehicle: &Vehicle, attachments: &[Attachment]) -> Vec<SiteFrame> 
             let at = &attachments[body];
             let in_link = in_body.compose(&at.offset);
             let name = &vehicle.bodies[body].name;
-            let node = flexible.iter().enumerate().filter(|(_, f)| &f.body == name).find_map(|(f, modal)| {
+            let node = with_modes(vehicle).enumerate().filter(|(_, f)| &f.body == name).find_map(|(f, modal)| {
                 let j = modal.nodes.iter().position(|n| (n.position - site.pos).norm() <= NODE_SITE_DISTANCE)?;
                 Some((NodeSite { flexible: f, node: j }, modal.nodes[j].position))
             });
