@@ -4,6 +4,7 @@ nudyn_validation.flexible_example) mesh their beams and plates with it."""
 
 from __future__ import annotations
 
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -70,3 +71,12 @@ def write_box_deck(path: Path, size, divisions, *, young, poisson, density, mode
               "*SOLID SECTION, ELSET=EALL, MATERIAL=MATERIAL",
               "*STEP", "*FREQUENCY", str(modes), "*NODE FILE", "U", "*END STEP"]
     path.write_text("\n".join(lines) + "\n")
+
+
+def run_ccx(ccx: str, deck: Path, timeout: float = 120) -> Path:
+    """Runs CalculiX on `deck` in its folder; the .frd it writes. Raises
+    RuntimeError with ccx's output when it fails."""
+    proc = subprocess.run([ccx, deck.stem], cwd=deck.parent, capture_output=True, text=True, timeout=timeout)
+    if proc.returncode != 0 or "ERROR" in proc.stdout:
+        raise RuntimeError(f"ccx failed on {deck.name}: {proc.stdout[-2000:]}{proc.stderr}")
+    return deck.with_suffix(".frd")

@@ -29,7 +29,7 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from .calculix_decks import write_box_deck
+from .calculix_decks import run_ccx, write_box_deck
 
 YOUNG, POISSON, DENSITY = 70e9, 0.3, 1000.0
 MODES, DAMPING = 4, 0.005
@@ -62,11 +62,9 @@ def modal_file(appendage: Appendage, folder: Path, ccx: str) -> Path:
         deck = Path(work) / f"{appendage.name}.inp"
         write_box_deck(deck, appendage.size, appendage.divisions, young=YOUNG, poisson=POISSON, density=DENSITY,
                        modes=2 * MODES)
-        proc = subprocess.run([ccx, deck.stem], cwd=work, capture_output=True, text=True, timeout=300)
-        if proc.returncode != 0 or "ERROR" in proc.stdout:
-            raise RuntimeError(f"ccx failed on {deck.name}: {proc.stdout[-2000:]}{proc.stderr}")
+        frd = run_ccx(ccx, deck, timeout=300)
         output = folder / f"{appendage.name}.json"
-        command = [sys.executable, "-m", "nudyn_validation.calculix", str(deck.with_suffix(".frd")), "-o",
+        command = [sys.executable, "-m", "nudyn_validation.calculix", str(frd), "-o",
                    str(output), "--inp", str(deck), "--density", str(DENSITY), "--modes", str(MODES),
                    "--damping", str(DAMPING), "--origin", ",".join(map(str, appendage.origin)),
                    "--axes", ",".join(map(str, appendage.axes))]

@@ -26,7 +26,7 @@ import pytest
 
 from conftest import ROOT
 from nudyn_validation import calculix
-from nudyn_validation.calculix_decks import write_box_deck
+from nudyn_validation.calculix_decks import run_ccx, write_box_deck
 
 BENCH = ROOT / "tests" / "fixtures" / "flex" / "bench.json"
 
@@ -199,12 +199,6 @@ def ccx():
         pytest.fail("ccx not found: install the Debian package calculix-ccx (scripts/setup-test.sh does)",
                     pytrace=False)
     return path
-
-
-def run_ccx(ccx, deck: Path):
-    proc = subprocess.run([ccx, deck.stem], cwd=deck.parent, capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 0 and "ERROR" not in proc.stdout, proc.stdout[-2000:] + proc.stderr
-    return deck.with_suffix(".frd")
 
 
 def dat_frequencies(dat: Path):
