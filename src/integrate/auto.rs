@@ -33,6 +33,15 @@
 //! step's guess. The window grows from the second, judged alone (a start
 //! that misled is caught at once), and starts afresh after a move.
 //!
+//! The rule above is for steps that end at every communication point, as
+//! they do while the host changes the input at each (a closed loop). Once
+//! the input stays as it was at the last point (an open-loop run, a slowly
+//! sampled controller), steps may reach past the points and the state there
+//! comes from the dense output (reach.rs); a run on BS3 or TSIT5 then moves
+//! to DOP853 for the rest of the run, since with steps no longer cut at
+//! each point its order takes the fewest evaluations at every tolerance
+//! (docs/integration.md, "`auto` when the input is held").
+//!
 //! A vehicle whose explicit steps stability holds (a fast, strongly damped
 //! mode: stiffness.rs) moves to ROS34PW2 after a communication step in
 //! which most of its tested steps were so held, and back to DOP853 when
@@ -78,8 +87,9 @@ impl MethodSetting {
             MethodSetting::Fixed(method) => method.description(),
             MethodSetting::Auto => {
                 "the cheapest of bs3, tsit5 and dop853 for the tolerance and for how fast the vehicle moves over \
-                 the first communication step, one order up when later motion asks, and ros34pw2 while stability \
-                 holds the explicit steps; each choice logged"
+                 the first communication step, one order up when later motion asks, dop853 once the input is held \
+                 (steps past the communication points), and ros34pw2 while stability holds the explicit steps; each \
+                 choice logged"
             }
         }
     }
@@ -237,6 +247,9 @@ pub enum MoveReason {
         /// Steps tested.
         tests: usize,
     },
+    /// To DOP853: the host holds the input, so steps may reach past the
+    /// communication points, where DOP853 takes the fewest evaluations.
+    HeldInput,
     /// Back to DOP853: ROS34PW2's steps lie well within DOP853's stability
     /// boundary on the vehicle's fastest mode, where DOP853's order pays.
     Accuracy {
@@ -251,7 +264,10 @@ impl std::fmt::Display for AutoMove {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let AutoMove { from, to, time, why } = *self;
         let (from, to) = (from.name(), to.name());
-        write!(f, "method auto moved from {from} to {to} after the communication step from t = {time} s: ")?;
+        match why {
+            MoveReason::HeldInput => write!(f, "method auto moved from {from} to {to} at t = {time} s: ")?,
+            _ => write!(f, "method auto moved from {from} to {to} after the communication step from t = {time} s: ")?,
+        }
         match why {
             MoveReason::Cost { attempts, judged } => write!(
                 f,
@@ -263,6 +279,12 @@ impl std::fmt::Display for AutoMove {
                 f,
                 "{held} of the {tests} steps {from} took there were held by its stability on a fast damped mode, not \
                  by the tolerance, and {to} (L-stable) is not held so"
+            ),
+            MoveReason::HeldInput => write!(
+                f,
+                "the input has stayed as it was at the last communication point, so the steps may reach past the \
+                 communication points (the state there from the dense output), where {to}'s order takes the fewest \
+                 evaluations"
             ),
             MoveReason::Accuracy { step, rate } => write!(
                 f,

@@ -310,6 +310,7 @@ impl Simulation {
         let relaxation_before = self.state.carry.relaxation;
         let evaluations_before = self.integrator.evaluations;
         let mut chose = None;
+        let mut held_move = None;
         let mut starts = false;
         let result = if let Err(cause) = self.settings.check_interval(self.method(), t_end - t0) {
             Err(AdvanceError::TooLong { reached: t0, cause })
@@ -320,6 +321,9 @@ impl Simulation {
                 self.state.auto_choice = Some(choice);
                 chose = Some(choice);
                 probe = taken.map(usize::from);
+            }
+            if chose.is_none() && input_held {
+                held_move = self.reach_with_dop853(model, t0);
             }
             let probe_evaluations = self.integrator.evaluations - evaluations_before;
             // A method that starts here (its first step from the starting
@@ -334,12 +338,9 @@ impl Simulation {
                     // Steps may reach past t_end where the method can interpolate and the host
                     // holds the input (the same constant as over the last advance: a closed
                     // loop, which changes it at every point, ends its steps there); not with
-                    // energy projection, which holds K at a step's end only, nor with `auto`,
-                    // whose choice was measured for steps that end at every point.
-                    let reaches = input_held
-                        && self.method().dense().is_some()
-                        && !self.settings.energy_projection
-                        && self.setting != MethodSetting::Auto;
+                    // energy projection, which holds K at a step's end only.
+                    let reaches =
+                        input_held && self.method().dense().is_some() && !self.settings.energy_projection;
                     let limit = if reaches { self.horizon.max(t_end) } else { t_end };
                     let result = if self.method().is_adaptive() {
                         self.advance_adaptive(model, (t_end, limit), &mut inputs_at)
@@ -391,8 +392,8 @@ impl Simulation {
                     .carry
                     .relaxed_since(relaxation_before, called_at, self.settings.tolerance, rates)
                     .map(|relaxed| ToleranceRelaxed { no_slip, ..relaxed });
-                let judged = chose.is_none() && !starts;
-                let moved = if judged { self.move_if_due(model, (called_at, t_end), &stats) } else { None };
+                let judged = chose.is_none() && held_move.is_none() && !starts;
+                let moved = if judged { self.move_if_due(model, (called_at, t_end), &stats, input_held) } else { held_move };
                 let held = self.held_once(called_at, &stats);
                 Ok(Advanced { stats, relaxed, chose, moved, held })
             }
@@ -423,7 +424,7 @@ impl Simulation {
         formed.map_err(|cause| AdvanceError::StepFailed { reached: t0, step: 0.0, cause })?;
         self.state.time = t_end;
         let stats = Stats::default();
-        let moved = self.move_if_due(model, (t0, t_end), &stats);
+        let moved = self.move_if_due(model, (t0, t_end), &stats, true);
         Ok(Advanced { stats, relaxed: None, chose: None, moved, held: None })
     }
 
@@ -557,13 +558,37 @@ impl Simulation {
         (choice, Ok(passes))
     }
 
+    /// `auto` at an advance from `t0` whose input is held: a run on BS3 or
+    /// TSIT5 moves to DOP853, whose steps then reach past the communication
+    /// points (auto.rs). Not with energy projection, which ends every step
+    /// at a point.
+    fn reach_with_dop853(&mut self, model: &Model, t0: f64) -> Option<AutoMove> {
+        let method = self.state.auto_choice?.method;
+        if self.settings.energy_projection || !matches!(method, Method::Bs3 | Method::Tsit5) {
+            return None;
+        }
+        let moved = self.state.auto_choice.as_mut()?.move_to(PROBE_METHOD, t0, MoveReason::HeldInput);
+        self.integrator.set_method(model, moved.to);
+        Some(moved)
+    }
+
     /// After an advance from `t0` to `t1` that `auto` did not choose in:
     /// moves a run to ROS34PW2 when stability held most of its explicit
     /// steps, back to DOP853 when ROS34PW2's steps lie well within DOP853's
     /// stability, and up one order when its last communication steps'
     /// attempts ask for it (auto.rs). Each is a function of the advance's
     /// steps and the W held after it, so a restored run judges as the saved one.
-    fn move_if_due(&mut self, model: &Model, (t0, t1): (f64, f64), stats: &Stats) -> Option<AutoMove> {
+    /// Not back from ROS34PW2 while the input is held (`input_held`) and its
+    /// steps span half the interval or more: they end at every point and
+    /// look short for the fastest mode only because of that, and DOP853's,
+    /// reaching past the points, would be held by stability again.
+    fn move_if_due(
+        &mut self,
+        model: &Model,
+        (t0, t1): (f64, f64),
+        stats: &Stats,
+        input_held: bool,
+    ) -> Option<AutoMove> {
         let method = self.state.auto_choice?.method;
         let moved = match method.scheme() {
             Scheme::Explicit(_) if held_by_stability(stats) => {
@@ -578,6 +603,9 @@ impl Simulation {
                 }
                 let rate = self.integrator.held_largest_rate()?;
                 let step = (t1 - t0) / stats.accepted as f64;
+                if input_held && 2.0 * step >= t1 - t0 {
+                    return None;
+                }
                 if step * rate >= RETURN_SHARE * PROBE_METHOD.real_stability_bound()? {
                     return None;
                 }

@@ -35,10 +35,15 @@ def examples(exported_fmu, tmp_path_factory):
     return found
 
 
-def run(example, steps: int, **start) -> Instance:
+def run(example, steps: int, closed_loop: bool = False, **start) -> Instance:
+    """`steps` communication steps; with `closed_loop` the host sets ε anew
+    before each (a different value every time, 1e-12 N·m apart: a closed
+    loop's pattern), so that no step reaches past a communication point."""
     package, vehicle = example
     fmu = Instance(package, start=start, theta=vehicle.qpos, nu=vehicle.nu, logging_on=True)
-    for _ in range(steps):
+    for n in range(steps):
+        if closed_loop:
+            fmu.set_array("eps", np.full(len(vehicle.nu), 1e-12 * n))
         fmu.step(STEP)
     return fmu
 
@@ -59,14 +64,15 @@ def test_auto_picks_by_the_rule_and_says_why(examples, name, tolerance, chosen):
 
 
 def test_a_start_that_misleads_is_corrected_by_moving_up(examples):
-    """chain60 starts slower than it moves: auto picks tsit5 from the start
-    at 1e-4 (its probe passes and is the first step), tsit5 starts from there
-    and then takes 13 steps in the communication step after, and auto moves
-    up to dop853: over 5 s within 5 % of dop853's evaluations (measured 2853
-    against 2830), where tsit5 alone takes more (3272)."""
+    """chain60 in a closed loop starts slower than it moves: auto picks tsit5
+    from the start at 1e-4 (its probe passes and is the first step), tsit5
+    starts from there and then takes 13 steps in the communication step
+    after, and auto moves up to dop853: over 5 s within 5 % of dop853's
+    evaluations (measured 2853 against 2830), where tsit5 alone takes more
+    (3272)."""
     evaluations = {}
     for method in ["auto", "dop853", "tsit5"]:
-        with run(examples["chain60"], 50, method=method, tolerance=1e-4) as fmu:
+        with run(examples["chain60"], 50, closed_loop=True, method=method, tolerance=1e-4) as fmu:
             evaluations[method] = fmu.log.evaluations()
             choices = fmu.log.method_choices()
             if method == "auto":
@@ -76,6 +82,38 @@ def test_a_start_that_misleads_is_corrected_by_moving_up(examples):
                 # A method the user names is never replaced.
                 assert choices == []
     assert evaluations["auto"] < 1.05 * evaluations["dop853"] < evaluations["tsit5"], evaluations
+
+
+HELD = re.compile(r"fmi2DoStep: method auto moved from (\w+) to dop853 at t = (\S+) s: the input has stayed")
+
+
+@pytest.mark.parametrize(("tolerance", "chosen"), [(1e-4, "bs3"), (1e-6, "tsit5")])
+def test_a_held_input_moves_auto_to_dop853_reaching_past_the_points(examples, tolerance, chosen):
+    """bus_arm7 open loop (ε = 0 throughout): auto chooses as in a closed
+    loop for its first communication step, then, the input held, moves to
+    dop853 for the rest of the run and its steps reach past the points. Over
+    10 s it then costs what dop853 named costs plus the first communication
+    step's (measured 190 / 163 evaluations at 1e-4, 292 / 281 at 1e-6), where
+    ending every step at a point took 402 and 614, and delivers the accuracy
+    dop853 does: within the band [1/50, 20] of the tolerance against a
+    dop853 run at 1e-13 (measured 0.32 and 0.68 of it in bench_auto's
+    measure of qpos and qvel; here in θ and ν, the FMU's outputs)."""
+    steps = 100
+    with run(examples["bus_arm7"], steps, method="auto", tolerance=tolerance) as auto, \
+            run(examples["bus_arm7"], steps, method="dop853", tolerance=tolerance) as dop853, \
+            run(examples["bus_arm7"], steps, closed_loop=True, method="auto", tolerance=tolerance) as closed, \
+            run(examples["bus_arm7"], steps, method="dop853", tolerance=1e-13) as reference:
+        choices = auto.log.method_choices()
+        assert CHOSE.match(choices[0]).group(1) == chosen, choices
+        assert HELD.match(choices[1]).groups() == (chosen, "0.1"), choices
+        assert len(choices) == 2, choices
+        assert not any(HELD.match(m) for m in closed.log.method_choices()), "a closed loop never holds its input"
+        assert dop853.log.evaluations() < auto.log.evaluations() < 0.6 * closed.log.evaluations(), \
+            (auto.log.evaluations(), dop853.log.evaluations(), closed.log.evaluations())
+        for name in ["theta", "nu"]:
+            exact = reference.array(name)
+            error = np.max(np.abs(auto.array(name) - exact) / (1.0 + np.abs(exact)))
+            assert error < 20 * tolerance, (name, error / tolerance)
 
 
 def test_a_probe_that_passes_is_the_first_step(examples):
@@ -95,7 +133,9 @@ def test_a_probe_that_passes_is_the_first_step(examples):
             reference.step(STEP)
             scale = 1.0 + np.abs(reference.array("theta"))
             assert np.max(np.abs(fmu.array("theta") - reference.array("theta")) / scale) < 1e-6
-        for _ in range(5):
+        for n in range(5):
+            # A closed loop's input, so that auto does not move to dop853 for a held one.
+            fmu.set_array("eps", np.full(len(vehicle.nu), 1e-12 * (n + 1)))
             fmu.step(STEP)
         (message,) = fmu.log.method_choices()
         assert CHOSE.match(message).group(1) == "tsit5", message
@@ -221,4 +261,5 @@ def test_a_restored_state_moves_to_ros34pw2_and_back_as_the_saved_run(exported_f
                 assert_restores_bit_for_bit(running, fresh, advance, round(0.2 / step))
             moves = [MOVED.match(m).groups()[:2] for m in running.log.method_choices() if MOVED.match(m)]
             assert ("dop853", "ros34pw2") in moves, running.log.method_choices()
-            assert (("ros34pw2", "dop853") in moves) == (tolerance == 1e-8), running.log.method_choices()
+            if tolerance == 1e-8:
+                assert ("ros34pw2", "dop853") in moves, running.log.method_choices()
