@@ -30,6 +30,8 @@ def test_the_linear_modal_body_diverges_where_the_chain_does_not(spun):
     # (the modal body's hub strays only once its beam has diverged).
     assert fast["chain_hub_rate_error"] < 1e-3, fast
     assert fast["modal_largest_tip"] > 10 * fast["chain_largest_tip"], fast
+    # It diverges while its hub still turns at Ω(t), not because the hub strayed.
+    assert fast["modal_beyond_10x_chain_at"] < fast["modal_hub_strays_at"], fast
     # The chain bends by a fraction of its 10 m and straightens after Ts.
     assert fast["chain_largest_tip"] < 1.0, fast
     assert fast["chain_largest_tip_after_ramp"] < 0.02 * fast["chain_largest_tip"], fast
