@@ -53,10 +53,14 @@ def frozen_copy(model_path: Path, files: dict[str, Path], folder: Path) -> Path:
     every modal file written again with its nodes and no modes. Returns the
     MJCF's path in the mirror."""
     source = model_path.parent.resolve()
-    frozen = {path: json.loads(path.read_text()) for path in set(files.values())}
-    for path, modal in frozen.items():
+    for path in files.values():
         if not path.is_relative_to(source):
             raise FreezeError(f"cannot freeze the modes of {path}: it is outside the model's folder {source}")
+        if not path.is_file():
+            # nudyn also looks beside an <include>d file that names it; this copy does not.
+            raise FreezeError(f"cannot freeze the modes of {path}: no such file beside the model")
+    frozen = {path: json.loads(path.read_text()) for path in set(files.values())}
+    for modal in frozen.values():
         modal["modes"] = []
     # The folders on the way to a modal file are made real; everything else is linked.
     real_folders = {source} | {parent for path in frozen for parent in path.parents if parent.is_relative_to(source)}
