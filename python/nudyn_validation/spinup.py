@@ -113,6 +113,62 @@ def run_chain(boom: Boom, chain: mujoco.MjModel, torques: np.ndarray, step: floa
     return {"hub_rate": np.array(rates), "tip": np.array(tips)}
 
 
+def run_stiffened(boom: Boom, chain: mujoco.MjModel, shapes: np.ndarray, torques: np.ndarray, step: float,
+                  substeps: int) -> dict:
+    """What a modal body with geometric stiffening would do, outside nudyn:
+    the chain's own equations linearized about the straight beam turning
+    at Ω (MuJoCo's hinge accelerations by central differences: the
+    stiffness at rest, its part in Ω², the Coriolis part in Ω and the
+    response to Ω̇), projected on the same modes, RK4 in Python with the hub
+    rate the held torques give a rigid hub (piecewise linear). This is the
+    first-order model of Kane, Ryan and Banerjee: the linear modal model
+    plus the second-order foreshortening's work, which docs/flexible.md
+    describes as the option not built."""
+    data, hinges = mujoco.MjData(chain), boom.links
+
+    def hinge_acceleration(angles, rates, hub_rate, hub_torque=0.0):
+        data.qpos[:], data.qvel[:] = 0.0, 0.0
+        data.qpos[1:], data.qvel[1:], data.qvel[0], data.ctrl[0] = angles, rates, hub_rate, hub_torque
+        mujoco.mj_forward(chain, data)
+        return data.qacc[1:].copy(), data.qacc[0]
+
+    def jacobians(hub_rate, delta=1e-6):
+        unit = np.eye(hinges) * delta
+        by_angle = [hinge_acceleration(u, 0, hub_rate)[0] - hinge_acceleration(-u, 0, hub_rate)[0] for u in unit]
+        by_rate = [hinge_acceleration(0, u, hub_rate)[0] - hinge_acceleration(0, -u, hub_rate)[0] for u in unit]
+        return np.column_stack(by_angle) / (2 * delta), np.column_stack(by_rate) / (2 * delta)
+
+    at_rest, _ = jacobians(0.0)
+    turning, coriolis = jacobians(1.0)  # at Ω = 1: the Ω² and Ω parts are the differences from rest
+    accelerations, hub = hinge_acceleration(np.zeros(hinges), np.zeros(hinges), 0.0, hub_torque=HUB_INERTIA)
+    full = np.zeros((chain.nv, chain.nv))
+    mujoco.mj_fullM(chain, data, full)
+    project = shapes.T @ full[1:, 1:]  # η of the hinge angles, for mass-normalized modes
+    stiffness, per_rate_squared = project @ at_rest @ shapes, project @ (turning - at_rest) @ shapes
+    per_rate, per_acceleration = project @ coriolis @ shapes, project @ accelerations / hub
+    modes, h = shapes.shape[1], step / substeps
+
+    def derivative(state, rate, acceleration):
+        eta, eta_dot = state[:modes], state[modes:]
+        eta_ddot = ((stiffness + rate**2 * per_rate_squared) @ eta + rate * per_rate @ eta_dot
+                    + per_acceleration * acceleration)
+        return np.concatenate([eta_dot, eta_ddot])
+
+    state, rate, lever = np.zeros(2 * modes), 0.0, shapes.T @ tip_lever(boom)
+    turning_inertia = full.sum()
+    tips = [0.0]
+    for torque in torques:
+        acceleration = torque / turning_inertia
+        for _ in range(substeps):
+            k1 = derivative(state, rate, acceleration)
+            k2 = derivative(state + h / 2 * k1, rate + h / 2 * acceleration, acceleration)
+            k3 = derivative(state + h / 2 * k2, rate + h / 2 * acceleration, acceleration)
+            k4 = derivative(state + h * k3, rate + h * acceleration, acceleration)
+            state, rate = state + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4), rate + h * acceleration
+        tips.append(float(lever @ state[:modes]))
+    return {"tip": np.array(tips)}
+
+
 def export_modal(cli: Nudyn, folder: Path, boom: Boom, shapes: np.ndarray, squares: np.ndarray) -> Path:
     """The hub carrying the beam as one flexible body with the modes given
     (columns of `shapes`, in hinge angles): its files in `folder`, its FMU
@@ -158,6 +214,7 @@ def spin_up(cli: Nudyn, folder: Path, links: int, modes: int, final_rates, stop:
             "rate": manoeuvre.rate(times),
             "chain": run_chain(boom, chain, torques, step, substeps),
             "modal": run_modal(fmu, boom, shapes[:, :modes], torques, step, substeps),
+            "stiffened": run_stiffened(boom, chain, shapes[:, :modes], torques, step, substeps),
         }
     return {"times": times, "frequencies": np.sqrt(squares), "runs": runs, "ramp": SpinUp.ramp}
 
@@ -186,6 +243,7 @@ def figures(result: dict) -> dict:
             "modal_beyond_10x_chain_at": first_time(np.abs(modal) > 10 * chain_largest),
             "modal_hub_strays_at": first_time(np.abs(run["modal"]["hub_rate"] - run["rate"]) > 1e-3),
             "largest_difference": float(np.abs(chain - modal).max()),
+            "stiffened_largest_difference": float(np.abs(chain - run["stiffened"]["tip"]).max()),
             "chain_hub_rate_error": float(np.abs(run["chain"]["hub_rate"] - run["rate"]).max()),
             "modal_hub_rate_error": float(np.abs(run["modal"]["hub_rate"] - run["rate"]).max()),
         })
@@ -198,7 +256,9 @@ def plot(result: dict, final_rate: float, path: Path) -> None:
     logarithmic one (where the modal body's divergence shows)."""
     times, run = result["times"], result["runs"][final_rate]
     fig, (near, far) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
-    for label, side, style in (("lumped chain (MuJoCo)", "chain", "-"), ("linear modal body (nudyn)", "modal", "--")):
+    sides = (("lumped chain (MuJoCo)", "chain", "-"), ("linear modal body (nudyn)", "modal", "--"),
+             ("modal with geometric stiffening (not in nudyn)", "stiffened", ":"))
+    for label, side, style in sides:
         near.plot(times, run[side]["tip"], style, label=label)
         far.semilogy(times, np.abs(run[side]["tip"]) + 1e-6, style, label=label)
     limit = 2 * np.abs(run["chain"]["tip"]).max()
@@ -209,7 +269,7 @@ def plot(result: dict, final_rate: float, path: Path) -> None:
     for axes in (near, far):
         axes.axvline(result["ramp"], color="grey", linewidth=0.8)
         axes.grid(True, linewidth=0.3)
-    near.legend(loc="lower left")
+    near.legend(loc="lower right")
     near.set_title(f"Spin-up of a 10 m beam to {final_rate:g} rad/s over {result['ramp']:g} s")
     fig.tight_layout()
     fig.savefig(path, dpi=80)
