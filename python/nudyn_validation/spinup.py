@@ -16,7 +16,8 @@ The hub is a hinge with an inertia far above the beam's, driven by the
 torque that gives a rigid hub Ω(t) at every communication point, held over
 each step on both sides (nudyn through its FMU in FMPy, RK4 on both). The
 quantity is the tip's deflection normal to the undeformed beam, in the
-hub's frame.
+hub's frame. A third model, outside nudyn, shows what geometric stiffening
+would add (`run_stiffened`).
 
     python -m nudyn_validation.spinup OUTDIR [--nudyn NUDYN] [--final-rate 6]
 
@@ -144,13 +145,14 @@ def run_stiffened(boom: Boom, chain: mujoco.MjModel, shapes: np.ndarray, torques
     full = np.zeros((chain.nv, chain.nv))
     mujoco.mj_fullM(chain, data, full)
     project = shapes.T @ full[1:, 1:]  # η of the hinge angles, for mass-normalized modes
-    stiffness, per_rate_squared = project @ at_rest @ shapes, project @ (turning - at_rest) @ shapes
+    # η̈ per η at rest (−ω² on the diagonal), and the parts of it in Ω² and Ω, and per Ω̇.
+    restoring, per_rate_squared = project @ at_rest @ shapes, project @ (turning - at_rest) @ shapes
     per_rate, per_acceleration = project @ coriolis @ shapes, project @ accelerations / hub
     modes, h = shapes.shape[1], step / substeps
 
     def derivative(state, rate, acceleration):
         eta, eta_dot = state[:modes], state[modes:]
-        eta_ddot = ((stiffness + rate**2 * per_rate_squared) @ eta + rate * per_rate @ eta_dot
+        eta_ddot = ((restoring + rate**2 * per_rate_squared) @ eta + rate * per_rate @ eta_dot
                     + per_acceleration * acceleration)
         return np.concatenate([eta_dot, eta_ddot])
 
