@@ -48,8 +48,8 @@ def test_the_linear_modal_body_diverges_where_the_chain_does_not(spun):
 
 def test_below_the_first_frequency_the_two_agree(spun):
     """At Ωs = 0.5 rad/s (the chain's first frequency is 3.45 rad/s) what the
-    modal body lacks, the turn's stiffening and softening (of order Ω²/ω₁²),
-    stays within 5 % of the tip's largest deflection."""
+    modal body lacks, the turn's geometric stiffening (of order Ω²/ω₁²), stays
+    within 5 % of the tip's largest deflection (1.2 % measured)."""
     _, table = spun
     slow = table[SLOW]
     assert max(slow["chain_hub_rate_error"], slow["modal_hub_rate_error"]) < 1e-6, slow
