@@ -30,7 +30,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -43,6 +42,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (after choosing the backend)
 
 from nudyn_driver.cli import Nudyn  # noqa: E402
+from nudyn_driver.locations import nudyn_binary  # noqa: E402
 
 from .lumped_chain import Boom  # noqa: E402
 
@@ -281,15 +281,14 @@ def plot(result: dict, final_rate: float, path: Path) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("outdir", type=Path)
-    parser.add_argument("--nudyn", type=Path, default=shutil.which("nudyn"), help="the nudyn binary (default: on PATH)")
+    parser.add_argument("--nudyn", type=Path, default=nudyn_binary(),
+                        help="the nudyn binary (default $NUDYN_BIN or target/release/nudyn)")
     parser.add_argument("--links", type=int, default=20, help="rods of the chain (default 20)")
     parser.add_argument("--modes", type=int, default=4, help="modes of the modal body (default 4)")
     parser.add_argument("--final-rate", type=float, default=6.0, help="Ωs of the plotted run (rad/s, default 6)")
     parser.add_argument("--slow-rate", type=float, default=0.5, help="Ωs of the control run (rad/s, default 0.5)")
     parser.add_argument("--stop", type=float, default=30.0, help="seconds simulated (default 30)")
     args = parser.parse_args()
-    if args.nudyn is None:
-        parser.error("no nudyn on PATH: give --nudyn")
     args.outdir.mkdir(parents=True, exist_ok=True)
     # The chain's highest frequency is about 7 links² rad/s; RK4 is stable
     # for ω h < 2.8, kept here below 1.5.
