@@ -587,14 +587,25 @@ fn describe(model_path: &Path, json: bool) -> Result<()> {
         return emit(&serde_json::to_string_pretty(&description)?);
     }
     let mut table = format!("{}: nq = {}, nv = {}\n", description.name, description.nq, description.nv);
-    table += &format!("{:<24} {:<24} {:<6} {:>9} {:>9}", "joint", "body", "kind", "theta", "nu, eps");
+    let mode_labels: Vec<String> =
+        description.modes.iter().map(|mode| format!("{}, {:.3} Hz", mode.name, mode.frequency)).collect();
+    let joint_width = column_width(
+        24,
+        description.joints.iter().map(|j| j.name.as_str()).chain(mode_labels.iter().map(String::as_str)),
+    );
+    let body_width = column_width(
+        24,
+        description.joints.iter().map(|j| j.body.as_str()).chain(description.modes.iter().map(|m| m.body.as_str())),
+    );
+    table +=
+        &format!("{:<joint_width$} {:<body_width$} {:<6} {:>9} {:>9}", "joint", "body", "kind", "theta", "nu, eps");
     for joint in &description.joints {
         // 1-based FMU variable indices, as in theta[k] and nu[k].
         let range = |first: usize, n: usize| {
             if n == 1 { format!("{}", first + 1) } else { format!("{}..{}", first + 1, first + n) }
         };
         table += &format!(
-            "\n{:<24} {:<24} {:<6} {:>9} {:>9}",
+            "\n{:<joint_width$} {:<body_width$} {:<6} {:>9} {:>9}",
             joint.name,
             joint.body,
             joint.kind.name(),
@@ -602,27 +613,36 @@ fn describe(model_path: &Path, json: bool) -> Result<()> {
             range(joint.dof_adr, joint.nv)
         );
     }
-    for mode in &description.modes {
+    for (mode, label) in description.modes.iter().zip(&mode_labels) {
         table += &format!(
-            "\n{:<24} {:<24} {:<6} {:>9} {:>9}",
-            format!("{}, {:.3} Hz", mode.name, mode.frequency),
+            "\n{:<joint_width$} {:<body_width$} {:<6} {:>9} {:>9}",
+            label,
             mode.body,
             "mode",
             mode.qpos_adr + 1,
             mode.dof_adr + 1
         );
     }
+    let actuator_width = column_width(24, description.actuators.iter().map(|a| a.name.as_deref().unwrap_or("-")));
     if !description.actuators.is_empty() {
-        table += &format!("\n\n{} actuators (ctrl order)\n", description.actuators.len());
-        table += &format!("{:<5} {:<24} {:<9} {:<36} {}", "ctrl", "actuator", "kind", "transmission", "ctrlrange");
-        for (k, actuator) in description.actuators.iter().enumerate() {
-            let transmission = match &actuator.refsite {
+        let transmissions: Vec<String> = description
+            .actuators
+            .iter()
+            .map(|actuator| match &actuator.refsite {
                 Some(refsite) => format!("{} {} (refsite {refsite})", actuator.transmission, actuator.target),
                 None => format!("{} {}", actuator.transmission, actuator.target),
-            };
+            })
+            .collect();
+        let transmission_width = column_width(36, transmissions.iter().map(String::as_str));
+        table += &format!("\n\n{} actuators (ctrl order)\n", description.actuators.len());
+        table += &format!(
+            "{:<5} {:<actuator_width$} {:<9} {:<transmission_width$} {}",
+            "ctrl", "actuator", "kind", "transmission", "ctrlrange"
+        );
+        for (k, (actuator, transmission)) in description.actuators.iter().zip(&transmissions).enumerate() {
             let range = actuator.ctrlrange.map_or("unlimited".to_string(), |[low, high]| format!("{low} .. {high}"));
             table += &format!(
-                "\n{:<5} {:<24} {:<9} {:<36} {range}",
+                "\n{:<5} {:<actuator_width$} {:<9} {:<transmission_width$} {range}",
                 k + 1,
                 actuator.name.as_deref().unwrap_or("-"),
                 actuator.kind.name(),
@@ -635,7 +655,7 @@ fn describe(model_path: &Path, json: bool) -> Result<()> {
     if !activations.is_empty() {
         table += &format!("\n\n{} activation states (act order)\n", activations.len());
         table += &format!(
-            "{:<5} {:<5} {:<24} {:<12} {:>10} {:<16} {}",
+            "{:<5} {:<5} {:<actuator_width$} {:<12} {:>10} {:<16} {}",
             "act", "ctrl", "actuator", "dyntype", "tau", "actrange", "actearly"
         );
         for (k, (index, actuator)) in activations.into_iter().enumerate() {
@@ -647,7 +667,7 @@ fn describe(model_path: &Path, json: bool) -> Result<()> {
             };
             let range = activation.range.map_or("unlimited".to_string(), |[low, high]| format!("{low} .. {high}"));
             table += &format!(
-                "\n{:<5} {:<5} {:<24} {:<12} {:>10} {:<16} {}",
+                "\n{:<5} {:<5} {:<actuator_width$} {:<12} {:>10} {:<16} {}",
                 k + 1,
                 index + 1,
                 actuator.name.as_deref().unwrap_or("-"),
@@ -660,11 +680,12 @@ fn describe(model_path: &Path, json: bool) -> Result<()> {
     }
     if !description.tendons.is_empty() {
         table += &format!("\n\n{} tendons\n", description.tendons.len());
-        table += &format!("{:<24} {:<8} {:>12} {}", "tendon", "kind", "length0", "range");
+        let tendon_width = column_width(24, description.tendons.iter().map(|t| t.name.as_deref().unwrap_or("-")));
+        table += &format!("{:<tendon_width$} {:<8} {:>12} {}", "tendon", "kind", "length0", "range");
         for tendon in &description.tendons {
             let range = tendon.range.map_or("unlimited".to_string(), |[low, high]| format!("{low} .. {high}"));
             table += &format!(
-                "\n{:<24} {:<8} {:>12.6} {range}",
+                "\n{:<tendon_width$} {:<8} {:>12.6} {range}",
                 tendon.name.as_deref().unwrap_or("-"),
                 tendon.kind,
                 tendon.length0
@@ -675,6 +696,13 @@ fn describe(model_path: &Path, json: bool) -> Result<()> {
     table += "\n\nFMU variables of `nudyn export` without options (--outputs and --wrench-inputs add some)\n";
     table += &nudyn_cli::export::variable_table::markdown(&PlantResource::new(model, OptionalOutputs::default()));
     emit(table.trim_end())
+}
+
+/// The width of a column of `nudyn describe`'s tables: its longest entry's,
+/// and never under `least`, the width it had when every column was fixed
+/// (so that short names print as they always have).
+fn column_width<'a>(least: usize, entries: impl Iterator<Item = &'a str>) -> usize {
+    entries.map(|entry| entry.chars().count()).fold(least, usize::max)
 }
 
 /// Writes `text` and a newline to standard output. A reader that closed

@@ -156,6 +156,8 @@ def main(argv=None) -> int:
     paths = write(validation, out)
     print(paths["table"].read_text())
     print(f"FMU:     {validation.fmu_path}")
+    if validation.rigid_fmu_path is not None:
+        print(f"rigid:   {validation.rigid_fmu_path} (the modes frozen; compared with MuJoCo)")
     for label, key in (("picture", "plot"), ("table", "table"), ("numbers", "json")):
         print(f"{label + ':':8s} {paths[key]}")
     if not validation.passed:

@@ -26,6 +26,7 @@ from nudyn_driver.instance import Instance
 from nudyn_driver.package import FmuPackage
 
 from .judgement import TWINS, judge, passes, twin_nudges
+from .modal_part import MODAL_OUTPUTS, FreezeError, ModalPart, export_frozen, modal_files, run_modal_part
 from .mujoco_reference import load_model
 from .mujoco_run import MujocoVehicle
 from .runners import Fmi3CoSimulation, ModelExchange
@@ -334,6 +335,11 @@ class ModelValidation:
     fmu_path: Path
     settings: Settings
     results: list[ScenarioResult]
+    # A vehicle with modal bodies: `results` compare the FMU with its modes
+    # frozen (`rigid_fmu_path`) with MuJoCo; `modal` is the FMU with them
+    # (`fmu_path`) over the same inputs, per scenario (modal_part.py).
+    modal: list[ModalPart] | None = None
+    rigid_fmu_path: Path | None = None
 
     @property
     def passed(self) -> bool:
@@ -352,9 +358,25 @@ def validate_model(
     settings = settings or Settings()
     settings.check()
     # nudyn's importer first: its messages name the unsupported element.
-    Nudyn(nudyn).export(model_path, fmu_path, outputs=EXTRA_OUTPUTS, fmi_version=settings.fmi_version,
-                        wrench_inputs=settings.wrench_bodies)
-    return run_scenarios(model_path, fmu_path, scenario_names, settings)
+    options = {"fmi_version": settings.fmi_version, "wrench_inputs": settings.wrench_bodies}
+    Nudyn(nudyn).export(model_path, fmu_path, outputs=EXTRA_OUTPUTS, **options)
+    try:
+        files = modal_files(load_model(model_path), model_path)
+    except ValueError as e:
+        raise ValidationError(str(e)) from None
+    if not files:
+        return run_scenarios(model_path, fmu_path, scenario_names, settings)
+    # MuJoCo's twin is the rigid vehicle: the comparison is of the modes frozen.
+    Nudyn(nudyn).export(model_path, fmu_path, outputs=EXTRA_OUTPUTS + MODAL_OUTPUTS, **options)
+    rigid_fmu = fmu_path.with_name(f"{fmu_path.stem}.rigid.fmu")
+    try:
+        export_frozen(nudyn, model_path, files, rigid_fmu, outputs=EXTRA_OUTPUTS, **options)
+    except FreezeError as e:
+        raise ValidationError(str(e)) from None
+    validation = run_scenarios(model_path, rigid_fmu, scenario_names, settings)
+    validation.fmu_path, validation.rigid_fmu_path = fmu_path, rigid_fmu
+    validation.modal = [run_modal_part(fmu_path, nudyn, model_path, r, settings, open_fmu) for r in validation.results]
+    return validation
 
 
 def run_scenarios(

@@ -28,6 +28,7 @@ import mujoco
 import numpy as np
 
 BUS = '<inertial pos="0 0 0" mass="100" diaginertia="10 12 14"/>'
+FREE_BUS = f"<freejoint/>{BUS}"
 
 
 @dataclass(frozen=True)
@@ -36,6 +37,12 @@ class Boom:
     length: float = 0.5
     mass: float = 1.0
     stiffness: float = 2000.0
+    # What carries the boom: the joint and inertial of the body named "bus",
+    # and where along its x axis the first hinge sits.
+    carrier: str = FREE_BUS
+    root: float = 0.5
+    # The content of an <actuator> element both models carry (none: "").
+    actuators: str = ""
 
     @property
     def rod_inertia(self) -> list[float]:
@@ -43,11 +50,15 @@ class Boom:
         transverse = self.mass * self.length**2 / 12
         return [1e-3, transverse, transverse]
 
+    @property
+    def actuator_element(self) -> str:
+        return f"<actuator>{self.actuators}</actuator>" if self.actuators else ""
+
     def chain_mjcf(self) -> str:
         i_xx, i_yy, i_zz = self.rod_inertia
         inner = ""
         for k in reversed(range(self.links)):
-            pos = "0.5 0 0" if k == 0 else f"{self.length} 0 0"
+            pos = f"{self.root} 0 0" if k == 0 else f"{self.length} 0 0"
             inner = (
                 f'<body name="link{k}" pos="{pos}">'
                 f'<joint name="hinge{k}" type="hinge" axis="0 0 1" stiffness="{self.stiffness}"/>'
@@ -56,7 +67,7 @@ class Boom:
             )
         return (
             '<mujoco model="lumped_chain"><option gravity="0 0 0" integrator="RK4" timestep="1e-4"/>'
-            f'<worldbody><body name="bus"><freejoint/>{BUS}{inner}</body></worldbody></mujoco>'
+            f'<worldbody><body name="bus">{self.carrier}{inner}</body></worldbody>{self.actuator_element}</mujoco>'
         )
 
     def flexible_mjcf(self, modal_file: str) -> str:
@@ -68,25 +79,27 @@ class Boom:
         return (
             '<mujoco model="modal_boom"><option gravity="0 0 0"/>'
             f'<custom><text name="nudyn:modal:boom" data="{modal_file}"/></custom>'
-            f'<worldbody><body name="bus"><freejoint/>{BUS}<body name="boom" pos="0.5 0 0">'
+            f'<worldbody><body name="bus">{self.carrier}<body name="boom" pos="{self.root} 0 0">'
             f'<inertial pos="{centre} 0 0" mass="{mass}" fullinertia="{self.links * i_xx} {bending} {bending} 0 0 0"/>'
-            "</body></body></worldbody></mujoco>"
+            f"</body></body></worldbody>{self.actuator_element}</mujoco>"
         )
 
     def modes(self, chain: mujoco.MjModel) -> np.ndarray:
         """The constrained modes in hinge angles, mass-normalized (columns),
-        and their ω² — from MuJoCo's mass matrix at rest, the bus held."""
+        and their ω² — from MuJoCo's mass matrix at rest, the bus held (the
+        hinges are the last `links` degrees of freedom)."""
         data = mujoco.MjData(chain)
         mujoco.mj_forward(chain, data)
         full = np.zeros((chain.nv, chain.nv))
         mujoco.mj_fullM(chain, data, full)
-        factor_inverse = np.linalg.inv(np.linalg.cholesky(full[6:, 6:]))
+        factor_inverse = np.linalg.inv(np.linalg.cholesky(full[-self.links:, -self.links:]))
         squares, vectors = np.linalg.eigh(factor_inverse @ (self.stiffness * np.eye(self.links)) @ factor_inverse.T)
         return factor_inverse.T @ vectors, squares
 
     def modal_file(self, shapes: np.ndarray, squares: np.ndarray) -> dict:
-        """The modal body: a node per rod, each mode's shape at it to first
-        order in the hinge angles (a turn Σθ about z, a displacement along y)."""
+        """The modal body: a node per rod, each mode (a column of `shapes`)
+        at it to first order in the hinge angles (a turn Σθ about z, a
+        displacement along y)."""
         centres = [self.length * (k + 0.5) for k in range(self.links)]
         hinges = [self.length * k for k in range(self.links)]
         nodes = [
@@ -95,7 +108,7 @@ class Boom:
             for k in range(self.links)
         ]
         modes = []
-        for mode in range(self.links):
+        for mode in range(shapes.shape[1]):
             shape = []
             for node in range(self.links):
                 turn = sum(shapes[h, mode] for h in range(node + 1))

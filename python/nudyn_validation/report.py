@@ -122,7 +122,50 @@ def table(validation: ModelValidation) -> str:
         + "; ".join(f"**{r.scenario.name}**: {r.scenario.description}" for r in validation.results)
         + ".",
     ]
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines + modal_table(validation)) + "\n"
+
+
+def modal_table(validation: ModelValidation) -> list[str]:
+    """For a vehicle with modal bodies: what the rows above compare, and the
+    modal part (modal_part.py): per scenario the strain energy, the mode
+    moved most and how far the modes take the joints from MuJoCo's rigid
+    run, then each mode's range."""
+    if not validation.modal:
+        return []
+    summaries = [part.summary() for part in validation.modal]
+    lines = [
+        "",
+        "## The modal part",
+        "",
+        f"The vehicle has modal bodies, which MuJoCo ignores: the rows above compare the rigid part, the FMU "
+        f"with its modes frozen (`{validation.rigid_fmu_path.name}`: the modal files' nodes and no modes), with "
+        f"MuJoCo's rigid vehicle. Below, the FMU with its modes (`{validation.fmu_path.name}`) from the same "
+        "state with the modes at rest, given the same held inputs (ε on the joints replayed, 0 on the modes; "
+        "ctrl and wrenches). It is not judged: the modes are what MuJoCo does not have.",
+        "",
+        "| scenario | largest strain energy (J) | largest kinetic energy (J) | mode moved most | its largest \\|η\\| "
+        "(√kg m) | joints' largest difference from MuJoCo's rigid run |",
+        "|---|---|---|---|---|---|",
+    ]
+    for x in summaries:
+        lines.append(
+            f"| {x['scenario']} | {_number(x['max_strain_energy'])} | {_number(x['max_kinetic_energy'])} | "
+            f"`{x['mode_moved_most']}` | {_number(x['max_abs_eta'])} | "
+            f"{_number(x['max_joint_difference_from_rigid_mujoco'])} |"
+        )
+    lines += [
+        "",
+        "Each mode's range of η (least, greatest), by scenario:",
+        "",
+        "| mode | frequency (Hz) | " + " | ".join(x["scenario"] for x in summaries) + " |",
+        "|---|---|" + "---|" * len(summaries),
+    ]
+    for k, mode in enumerate(summaries[0]["modes"]):
+        ranges = " | ".join(
+            f"{_number(x['modes'][k]['eta_range'][0])}, {_number(x['modes'][k]['eta_range'][1])}" for x in summaries
+        )
+        lines.append(f"| `{mode['name']}` | {mode['frequency_hz']:.4g} | {ranges} |")
+    return lines
 
 
 def write(validation: ModelValidation, out_dir: Path) -> dict[str, Path]:
@@ -149,5 +192,8 @@ def write(validation: ModelValidation, out_dir: Path) -> dict[str, Path]:
         "scenarios": [r.summary() for r in validation.results],
         "passed": validation.passed,
     }
+    if validation.modal:
+        numbers["rigid_fmu"] = str(validation.rigid_fmu_path)
+        numbers["modal"] = [part.summary() for part in validation.modal]
     paths["json"].write_text(json.dumps(numbers, indent=2) + "\n")
     return paths

@@ -84,3 +84,18 @@ def test_tendons_are_mujocos(nudyn, path):
         assert (tendon["stiffness"], tendon["damping"]) == (m.tendon_stiffness[t], m.tendon_damping[t])
         assert tendon["frictionloss"] == m.tendon_frictionloss[t]
         assert tendon["range"] == (list(m.tendon_range[t]) if m.tendon_limited[t] else None)
+
+
+def test_each_column_starts_where_its_heading_does(nudyn):
+    """The joints' table is as wide as its longest entry: a modal row's
+    name (`array_right:mode2, 10.062 Hz`, 28 characters) does not push its
+    row's later columns off their headings."""
+    path = ROOT / "examples" / "flexible_spacecraft" / "flexible_spacecraft.xml"
+    text = subprocess.run([str(nudyn), "describe", str(path)], capture_output=True, text=True, check=True).stdout
+    lines = text.splitlines()
+    header = lines.index(next(line for line in lines if line.startswith("joint ")))
+    body, kind = lines[header].index("body"), lines[header].index("kind")
+    rows = lines[header + 1:lines.index("", header)]
+    assert any(row.startswith("array_right:mode2, 10.062 Hz ") for row in rows)
+    for row in rows:
+        assert row[body - 1] == " " and row[body] != " " and row[kind:].split()[0] in ("free", "hinge", "mode"), row
