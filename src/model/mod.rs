@@ -611,15 +611,7 @@ fn add_flexible_bodies(
             vehicle.bodies.iter().position(|b| b.name == modal.body).expect("the importer names existing bodies");
         let at = attachments[body];
         let Some(link) = at.link else { return Err(ModelError::FlexibleOnWorld { body: modal.body.clone() }) };
-        let here = model.flexible.len();
-        let at_node = |site: &SiteFrame| site.node.is_some_and(|n| n.flexible == here);
-        let actuated_node = model.actuators.iter().any(|a| match &a.transmission {
-            ActuatorTransmission::Site { site } => at_node(site),
-            ActuatorTransmission::RelativeSite { site, reference, .. } => at_node(site) || at_node(reference),
-            _ => false,
-        });
         let unsupported = [
-            (actuated_node, "actuators on sites at nodes"),
             (!model.tendons.is_empty(), "tendons"),
             (!constraints.is_empty() || !vehicle.equalities.is_empty(), "joint limits, friction loss and equalities"),
             (!model.gravity_compensation.is_empty() || vehicle.bodies[body].gravcomp != 0.0, "gravity compensation"),
