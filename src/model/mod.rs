@@ -327,6 +327,25 @@ pub enum ModelError {
         /// What the vehicle has that does not.
         feature: &'static str,
     },
+    /// A child body placed at a node of a flexible body: it would have to
+    /// move with the node's deformation, which the passes do not take in
+    /// yet (docs/flexible.md, "Status"); fixed to the undeformed frame it
+    /// would move wrongly, so it is refused.
+    #[error(
+        "body '{body}' is flexible: its child '{child}' (line {line}) sits at its node '{node}', and child bodies \
+         at nodes do not take modal degrees of freedom in yet (move the child off the node to fix it to the undeformed frame of \
+         '{body}', or give the node no modes)"
+    )]
+    FlexibleChildAtNode {
+        /// The flexible body.
+        body: String,
+        /// The child body.
+        child: String,
+        /// The child's MJCF line.
+        line: u32,
+        /// The node's name in the modal file.
+        node: String,
+    },
     /// A free joint that is not on a child of the world body.
     #[error("free joint '{joint}' (line {line}) must be the only joint of a body placed directly in <worldbody>")]
     MisplacedFreeJoint {
@@ -611,6 +630,18 @@ fn add_flexible_bodies(
             vehicle.bodies.iter().position(|b| b.name == modal.body).expect("the importer names existing bodies");
         let at = attachments[body];
         let Some(link) = at.link else { return Err(ModelError::FlexibleOnWorld { body: modal.body.clone() }) };
+        let at_node = |child: &crate::vehicle::Body| {
+            let node = modal.nodes.iter().find(|n| (n.position - child.pos).norm() <= NODE_SITE_DISTANCE)?;
+            Some(ModelError::FlexibleChildAtNode {
+                body: modal.body.clone(),
+                child: child.name.clone(),
+                line: child.line,
+                node: node.name.clone(),
+            })
+        };
+        if let Some(error) = vehicle.bodies.iter().filter(|c| c.parent == Some(body)).find_map(at_node) {
+            return Err(error);
+        }
         let unsupported = [
             (!model.tendons.is_empty(), "tendons"),
             (!constraints.is_empty() || !vehicle.equalities.is_empty(), "joint limits, friction loss and equalities"),
@@ -757,7 +788,8 @@ impl BodyTree {
         self.compensation.add_body(link, gravcomp, mass_props.mass, &com);
     }
 }
-/// How close a site must be to a node of a flexible body to ride it (m).
+/// How close a site must be to a node of a flexible body to ride it, and
+/// a child body's frame to be refused as at a node (m).
 pub const NODE_SITE_DISTANCE: f64 = 1e-6;
 
 /// The sites' frames on the links that carry them (`attachments`, per
