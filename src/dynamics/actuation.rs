@@ -8,7 +8,8 @@
 //! inward pass turns all wrenches into joint forces, T_i = S_iᵀ Σ_subtree f,
 //! and another maps T to ε. A site at a node of a flexible body puts its
 //! wrench f_j on the node: on the link as ʲX_Rᵀ f_j (the node's deformed
-//! placement), and on the body's modes as Ψ_jᵀ f_j (docs/flexible.md). Nothing forms a Jacobian or the mass matrix.
+//! placement), and on the body's modes as Ψ_jᵀ f_j (docs/flexible.md).
+//! Nothing forms a Jacobian or the mass matrix.
 //! An actuator's velocity is its moment arms times θ̇, as in MuJoCo: for a
 //! wrench f on a link moving with V, f·V.
 
@@ -386,11 +387,11 @@ fn apply<S: Real>(
                 *slot += *arm * force;
             }
         }
-        Moment::Wrenches(site) => {
-            for (link, wrench) in &site.wrenches[..site.count] {
+        Moment::Wrenches(unit) => {
+            for (link, wrench) in &unit.wrenches[..unit.count] {
                 link_wrench[*link] += wrench * force;
             }
-            for node in site.at_nodes.iter().flatten() {
+            for node in unit.at_nodes.iter().flatten() {
                 let flexible = &model.flexible[node.at.flexible];
                 let (q, v, m) = (flexible.qpos_adr, flexible.dof_adr, flexible.mode_count());
                 let (eta, modal) = (&theta[q..q + m], &mut qfrc[v..v + m]);

@@ -327,14 +327,14 @@ pub enum ModelError {
         /// What the vehicle has that does not.
         feature: &'static str,
     },
-    /// A child body placed at a node of a flexible body: it would have to
-    /// move with the node's deformation, which the passes do not take in
-    /// yet (docs/flexible.md, "Status"); fixed to the undeformed frame it
-    /// would move wrongly, so it is refused.
+    /// A child body placed at a node of a flexible body that its modes
+    /// move: it would have to move with the node's deformation, which the
+    /// passes do not take in yet (docs/flexible.md, "Status"); fixed to the
+    /// undeformed frame it would move wrongly, so it is refused.
     #[error(
-        "body '{body}' is flexible: its child '{child}' (line {line}) sits at its node '{node}', and child bodies \
-         at nodes do not take modal degrees of freedom in yet (move the child off the node to fix it to the undeformed frame of \
-         '{body}', or give the node no modes)"
+        "body '{body}' is flexible: its child '{child}' (line {line}) sits at its node '{node}', which its modes \
+         move, and child bodies at such nodes do not take modal degrees of freedom in yet (a child off every \
+         node, or at a node no mode moves, is fixed to the undeformed frame of '{body}')"
     )]
     FlexibleChildAtNode {
         /// The flexible body.
@@ -630,8 +630,14 @@ fn add_flexible_bodies(
             vehicle.bodies.iter().position(|b| b.name == modal.body).expect("the importer names existing bodies");
         let at = attachments[body];
         let Some(link) = at.link else { return Err(ModelError::FlexibleOnWorld { body: modal.body.clone() }) };
+        // A node that no mode moves (a clamped interface node) is fixed to R, and so is a child there.
+        let moves = |j: usize| {
+            modal.modes.iter().any(|mode| mode.translation[j] != Vec3::zeros() || mode.rotation[j] != Vec3::zeros())
+        };
         let at_node = |child: &crate::vehicle::Body| {
-            let node = modal.nodes.iter().find(|n| (n.position - child.pos).norm() <= NODE_SITE_DISTANCE)?;
+            let j = (0..modal.nodes.len())
+                .find(|&j| (modal.nodes[j].position - child.pos).norm() <= NODE_SITE_DISTANCE && moves(j))?;
+            let node = &modal.nodes[j];
             Some(ModelError::FlexibleChildAtNode {
                 body: modal.body.clone(),
                 child: child.name.clone(),
@@ -789,7 +795,7 @@ impl BodyTree {
     }
 }
 /// How close a site must be to a node of a flexible body to ride it, and
-/// a child body's frame to be refused as at a node (m).
+/// a child body's frame to be taken as at the node (m).
 pub const NODE_SITE_DISTANCE: f64 = 1e-6;
 
 /// The sites' frames on the links that carry them (`attachments`, per
