@@ -6,15 +6,19 @@
 //! A site transmission is a wrench on the link carrying the site (and, with
 //! a reference site, the opposite wrench on the reference's link); one
 //! inward pass turns all wrenches into joint forces, T_i = S_iᵀ Σ_subtree f,
-//! and another maps T to ε. Nothing forms a Jacobian or the mass matrix.
+//! and another maps T to ε. A site at a node of a flexible body puts its
+//! wrench f_j on the node: on the link as ʲX_Rᵀ f_j (the node's deformed
+//! placement), and on the body's modes as Ψ_jᵀ f_j (docs/flexible.md).
+//! Nothing forms a Jacobian or the mass matrix.
 //! An actuator's velocity is its moment arms times θ̇, as in MuJoCo: for a
 //! wrench f on a link moving with V, f·V.
 
 use nalgebra::Rotation3;
 
 use super::{DynamicsError, check_input, check_length, forces, require};
+use crate::flex::nodes;
 use crate::math::{Mat3, Quat, Real, SpatialVec, Transform, Vec3, quat_difference, quat_from_wxyz, real, spatial};
-use crate::model::{Actuator, ActuatorTransmission, Model, SiteFrame};
+use crate::model::{Actuator, ActuatorTransmission, Model, NodeSite, SiteFrame};
 use crate::vehicle::{BiasType, GainType};
 use crate::workspace::{Stage, Workspace};
 
@@ -22,10 +26,77 @@ use crate::workspace::{Stage, Workspace};
 enum Moment<S: Real> {
     /// Moment arms on `count` consecutive dofs from `dof`.
     Dofs { dof: usize, arms: [S; 6], count: usize },
-    /// Wrenches on links (link coordinates, about the link origin).
-    Wrenches { wrenches: [(usize, SpatialVec<S>); 3], count: usize },
+    /// Wrenches on links, and at nodes.
+    Wrenches(SiteWrenches<S>),
     /// A tendon's moment arms times `gear`.
     Tendon { tendon: usize, gear: f64 },
+}
+
+/// A site transmission's unit wrenches: on links (link coordinates, about
+/// the link origin), and the same at the nodes that carry sites, for their
+/// modal forces.
+struct SiteWrenches<S: Real> {
+    wrenches: [(usize, SpatialVec<S>); 3],
+    count: usize,
+    at_nodes: [Option<NodeWrench<S>>; 2],
+}
+
+/// One unit wrench of a site transmission: on `link` (link coordinates,
+/// about its origin), and the same on the node it reaches the link through.
+#[derive(Clone, Copy)]
+struct OnLink<S: Real> {
+    link: usize,
+    wrench: SpatialVec<S>,
+    at_node: Option<NodeWrench<S>>,
+}
+
+/// A wrench on a node of a flexible body (node coordinates, about its
+/// origin): its modal forces are Ψ_jᵀ f (docs/flexible.md, "Sites at nodes").
+#[derive(Clone, Copy)]
+struct NodeWrench<S: Real> {
+    at: NodeSite,
+    wrench: SpatialVec<S>,
+}
+
+/// What carries a site: its link, and the node it rides with ʲX_R, the
+/// node's placement on the link at the workspace's η.
+struct Carrier<S: Real> {
+    link: usize,
+    node: Option<(NodeSite, Transform<S>)>,
+}
+
+impl<S: Real> Carrier<S> {
+    /// The carrier of `site`, `None` for a site on the world.
+    fn of(model: &Model, ws: &Workspace<S>, site: &SiteFrame) -> Option<Carrier<S>> {
+        let link = site.link?;
+        let node = site.node.map(|at| {
+            let flexible = &model.flexible[at.flexible];
+            let eta = &ws.theta.as_slice()[flexible.qpos_adr..flexible.qpos_adr + flexible.mode_count()];
+            (at, nodes::transform(&flexible.modal, at.node, eta))
+        });
+        Some(Carrier { link, node })
+    }
+
+    /// The carrier's placement in the world (the link's, or the node's on it).
+    fn in_world(&self, x_world: &[Transform<S>]) -> Transform<S> {
+        match &self.node {
+            None => x_world[self.link],
+            Some((_, x_node)) => x_node.compose(&x_world[self.link]),
+        }
+    }
+
+    /// A wrench `f` in the carrier's coordinates on the link (about its
+    /// origin), with the node's share when it rides one.
+    fn wrench(&self, f: SpatialVec<S>) -> OnLink<S> {
+        match &self.node {
+            None => OnLink { link: self.link, wrench: f, at_node: None },
+            Some((at, x_node)) => OnLink {
+                link: self.link,
+                wrench: x_node.apply_transpose_force(&f),
+                at_node: Some(NodeWrench { at: *at, wrench: f }),
+            },
+        }
+    }
 }
 
 /// An actuator's transmission at the current state.
@@ -35,18 +106,39 @@ struct Transmitted<S: Real> {
     moment: Moment<S>,
 }
 
-impl<S: Real> Moment<S> {
-    /// Wrenches collected on the links that exist (a site on the world moves nothing).
-    fn wrenches(candidates: [(Option<usize>, SpatialVec<S>); 3]) -> Moment<S> {
-        let mut wrenches = [(0, SpatialVec::zeros()); 3];
-        let mut count = 0;
-        for (link, wrench) in candidates {
-            if let Some(link) = link {
-                wrenches[count] = (link, wrench);
-                count += 1;
+impl<S: Real> SiteWrenches<S> {
+    /// Wrenches collected on the links that exist (a site on the world
+    /// moves nothing), with the node shares of those at nodes.
+    fn of(candidates: [Option<OnLink<S>>; 3]) -> SiteWrenches<S> {
+        let mut out = SiteWrenches { wrenches: [(0, SpatialVec::zeros()); 3], count: 0, at_nodes: [None; 2] };
+        let mut node_count = 0;
+        for OnLink { link, wrench, at_node } in candidates.into_iter().flatten() {
+            out.wrenches[out.count] = (link, wrench);
+            out.count += 1;
+            if at_node.is_some() {
+                out.at_nodes[node_count] = at_node;
+                node_count += 1;
             }
         }
-        Moment::Wrenches { wrenches, count }
+        out
+    }
+
+    /// Their power at the workspace's velocities: Σ f·V over the links,
+    /// plus Σ f_j·Ψ_jη̇ over the nodes (as MuJoCo, moment arms times θ̇).
+    fn power(&self, model: &Model, ws: &Workspace<S>) -> S {
+        let on_links =
+            self.wrenches[..self.count].iter().fold(S::from(-0.0), |sum, (link, w)| sum + w.dot(&ws.v_body[*link]));
+        self.at_nodes.iter().flatten().fold(on_links, |sum, node| {
+            let flexible = &model.flexible[node.at.flexible];
+            let (q, v, m) = (flexible.qpos_adr, flexible.dof_adr, flexible.mode_count());
+            let (eta, rate) = (&ws.theta.as_slice()[q..q + m], &ws.qvel.as_slice()[v..v + m]);
+            sum + node.wrench.dot(&nodes::subspace_times(&flexible.modal, node.at.node, eta, rate))
+        })
+    }
+
+    /// Transmitted with this moment, its velocity its power.
+    fn transmitted(self, model: &Model, ws: &Workspace<S>, length: S) -> Transmitted<S> {
+        Transmitted { length, velocity: self.power(model, ws), moment: Moment::Wrenches(self) }
     }
 }
 
@@ -69,27 +161,35 @@ pub(super) fn site_in_world<S: Real>(site: &SiteFrame, x_world: &[Transform<S>])
     }
 }
 
+/// A site's placement in the world, ˢX₀, with its carrier (`None` on the world).
+fn site_placement<S: Real>(site: &SiteFrame, carrier: &Option<Carrier<S>>, x_world: &[Transform<S>]) -> Transform<S> {
+    match carrier {
+        Some(carrier) => site.frame.real().compose(&carrier.in_world(x_world)),
+        None => site.frame.real(),
+    }
+}
+
 /// The wrench of force `f` through the site's origin and torque `n` (both in
-/// world axes) on the site's link, in link coordinates about the link origin.
-pub(super) fn wrench_at_site<S: Real>(
+/// world axes) on the site's carrier, in link coordinates about the link
+/// origin, with the node's share when the site rides one.
+fn wrench_at_site<S: Real>(
     site: &SiteFrame,
+    carrier: &Option<Carrier<S>>,
     x_world: &[Transform<S>],
     n: &Vec3<S>,
     f: &Vec3<S>,
-) -> (Option<usize>, SpatialVec<S>) {
-    let Some(link) = site.link else {
-        return (None, SpatialVec::zeros());
-    };
-    let to_link = &x_world[link].rot;
-    let (n, f) = (to_link * n, to_link * f);
-    // The site's origin in link coordinates.
+) -> Option<OnLink<S>> {
+    let carrier = carrier.as_ref()?;
+    let to_carrier = carrier.in_world(x_world).rot;
+    let (n, f) = (to_carrier * n, to_carrier * f);
+    // The site's origin in the carrier's coordinates.
     let r = real::<S, 3, 1>(&site.frame.trans);
-    (Some(link), spatial(&(n + r.cross(&f)), &f))
+    Some(carrier.wrench(spatial(&(n + r.cross(&f)), &f)))
 }
 
 /// Length, velocity and unit moment of `actuator` at the workspace's state
 /// (world placements must be current for a reference site).
-fn transmit<S: Real>(ws: &Workspace<S>, actuator: &Actuator) -> Transmitted<S> {
+fn transmit<S: Real>(model: &Model, ws: &Workspace<S>, actuator: &Actuator) -> Transmitted<S> {
     let theta = ws.theta.as_slice();
     let qvel = ws.qvel.as_slice();
     let gear = &actuator.gear;
@@ -125,28 +225,16 @@ fn transmit<S: Real>(ws: &Workspace<S>, actuator: &Actuator) -> Transmitted<S> {
             Transmitted { length: zero, velocity: dot(&arms, dof), moment: Moment::Dofs { dof, arms, count: 6 } }
         }
         ActuatorTransmission::Site { site } => {
-            let Some(link) = site.link else {
-                return Transmitted {
-                    length: zero,
-                    velocity: zero,
-                    moment: Moment::wrenches([(None, SpatialVec::zeros()); 3]),
-                };
+            let Some(carrier) = Carrier::of(model, ws, &site) else {
+                return SiteWrenches::of([None; 3]).transmitted(model, ws, zero);
             };
-            // The gear in site coordinates, moved to the link origin.
+            // The gear in site coordinates, moved to the carrier's origin.
             let in_site = spatial(&actuator.gear_rotation(), &actuator.gear_translation());
             let wrench: SpatialVec<S> = real(&site.frame.apply_transpose_force(&in_site));
-            Transmitted {
-                length: zero,
-                velocity: wrench.dot(&ws.v_body[link]),
-                moment: Moment::wrenches([
-                    (Some(link), wrench),
-                    (None, SpatialVec::zeros()),
-                    (None, SpatialVec::zeros()),
-                ]),
-            }
+            SiteWrenches::of([Some(carrier.wrench(wrench)), None, None]).transmitted(model, ws, zero)
         }
         ActuatorTransmission::RelativeSite { site, reference, common_link } => {
-            relative_site(ws, actuator, &site, &reference, common_link)
+            relative_site(model, ws, actuator, &site, &reference, common_link)
         }
         ActuatorTransmission::Tendon { tendon } => Transmitted {
             length: ws.tendon_length[tendon] * gear[0],
@@ -163,6 +251,7 @@ fn transmit<S: Real>(ws: &Workspace<S>, actuator: &Actuator) -> Transmitted<S> {
 /// opposite at the reference site, and on their common link the torque
 /// that cancels the pair's couple there (MuJoCo clears those moment arms).
 fn relative_site<S: Real>(
+    model: &Model,
     ws: &Workspace<S>,
     actuator: &Actuator,
     site: &SiteFrame,
@@ -170,7 +259,9 @@ fn relative_site<S: Real>(
     common_link: Option<usize>,
 ) -> Transmitted<S> {
     let x_world = ws.x_world.as_slice();
-    let (at_site, at_reference) = (site_in_world(site, x_world), site_in_world(reference, x_world));
+    let (site_carrier, reference_carrier) = (Carrier::of(model, ws, site), Carrier::of(model, ws, reference));
+    let (at_site, at_reference) =
+        (site_placement(site, &site_carrier, x_world), site_placement(reference, &reference_carrier, x_world));
     // Rotations site → world (columns: the site's axes in world).
     let (site_axes, reference_axes): (Mat3<S>, Mat3<S>) = (at_site.rot.transpose(), at_reference.rot.transpose());
     let (gear_translation, gear_rotation) = (actuator.gear_translation(), actuator.gear_rotation());
@@ -190,19 +281,15 @@ fn relative_site<S: Real>(
     }
     let force = reference_axes * gear_translation;
     let torque = reference_axes * gear_rotation;
-    let (on_site, on_reference) =
-        (wrench_at_site(site, x_world, &torque, &force), wrench_at_site(reference, x_world, &(-torque), &(-force)));
+    let on_site = wrench_at_site(site, &site_carrier, x_world, &torque, &force);
+    let on_reference = wrench_at_site(reference, &reference_carrier, x_world, &(-torque), &(-force));
     let couple = offset.cross(&force);
-    let correction = match common_link {
-        Some(link) => (Some(link), spatial(&(x_world[link].rot * -couple), &Vec3::zeros())),
-        None => (None, SpatialVec::zeros()),
-    };
-    let candidates = [on_site, on_reference, correction];
-    let velocity = candidates
-        .iter()
-        .filter_map(|(link, w)| link.map(|l| w.dot(&ws.v_body[l])))
-        .fold(S::from(-0.0), |sum, v| sum + v);
-    Transmitted { length, velocity, moment: Moment::wrenches(candidates) }
+    let correction = common_link.map(|link| OnLink {
+        link,
+        wrench: spatial(&(x_world[link].rot * -couple), &Vec3::zeros()),
+        at_node: None,
+    });
+    SiteWrenches::of([on_site, on_reference, correction]).transmitted(model, ws, length)
 }
 
 /// Each actuator's activation state (its index in act: they are numbered
@@ -283,8 +370,11 @@ fn clip<S: Real>(x: S, low: f64, high: f64) -> S {
 }
 
 /// Adds `force` times the unit moment to the dof forces or link wrenches
-/// (`tendon_moment`: the tendons' moment arms, nv per tendon).
+/// (`tendon_moment`: the tendons' moment arms, nv per tendon; `theta` the
+/// configuration, for the modal forces of wrenches at nodes).
 fn apply<S: Real>(
+    model: &Model,
+    theta: &[S],
     moment: &Moment<S>,
     force: S,
     qfrc: &mut [S],
@@ -297,9 +387,15 @@ fn apply<S: Real>(
                 *slot += *arm * force;
             }
         }
-        Moment::Wrenches { wrenches, count } => {
-            for (link, wrench) in &wrenches[..*count] {
+        Moment::Wrenches(unit) => {
+            for (link, wrench) in &unit.wrenches[..unit.count] {
                 link_wrench[*link] += wrench * force;
+            }
+            for node in unit.at_nodes.iter().flatten() {
+                let flexible = &model.flexible[node.at.flexible];
+                let (q, v, m) = (flexible.qpos_adr, flexible.dof_adr, flexible.mode_count());
+                let (eta, modal) = (&theta[q..q + m], &mut qfrc[v..v + m]);
+                nodes::add_subspace_transpose_times(&flexible.modal, node.at.node, eta, &node.wrench, force, modal);
             }
         }
         Moment::Tendon { tendon, gear } => {
@@ -404,9 +500,17 @@ impl Workspace {
             return Err(DynamicsError::Length { what: "actuator index", expected: model.actuators.len(), found: k });
         }
         self.prepare_transmissions(model);
-        let transmitted = transmit(self, &model.actuators[k]);
+        let transmitted = transmit(model, self, &model.actuators[k]);
         let mut qfrc = std::mem::take(&mut self.qfrc_actuator);
-        apply(&transmitted.moment, 1.0, qfrc.as_mut_slice(), &mut self.link_wrench, &self.tendon_moment);
+        apply(
+            model,
+            self.theta.as_slice(),
+            &transmitted.moment,
+            1.0,
+            qfrc.as_mut_slice(),
+            &mut self.link_wrench,
+            &self.tendon_moment,
+        );
         self.collect_wrenches(model, qfrc.as_mut_slice());
         moment.copy_from_slice(qfrc.as_slice());
         self.qfrc_actuator = qfrc;
@@ -428,7 +532,7 @@ impl<S: Real> Workspace<S> {
         }
         let actuators = model.actuators[..mjcf_count].iter().zip(activation_slots(model));
         for (k, (actuator, slot)) in actuators.enumerate() {
-            let transmitted = transmit(self, actuator);
+            let transmitted = transmit(model, self, actuator);
             self.actuator_length[k] = transmitted.length;
             if !actuation.enabled {
                 // MuJoCo then computes the lengths only.
@@ -449,6 +553,8 @@ impl<S: Real> Workspace<S> {
             let force = clamp_force(actuator, force);
             self.actuator_force[k] = force;
             apply(
+                model,
+                self.theta.as_slice(),
                 &transmitted.moment,
                 force,
                 self.qfrc_actuator.as_mut_slice(),
@@ -498,7 +604,7 @@ impl<S: Real> Workspace<S> {
             if let ActuatorTransmission::Tendon { tendon } = actuator.transmission
                 && model.tendons[tendon].actuator_force_range.is_some()
             {
-                let transmitted = transmit(self, actuator);
+                let transmitted = transmit(model, self, actuator);
                 let input = self.actuator_input(model, actuator, slot, ctrl[k]);
                 self.tendon_actuator_total[tendon] +=
                     unclamped_force(actuator, input, transmitted.length, transmitted.velocity).value();
@@ -545,12 +651,20 @@ impl<S: Real> Workspace<S> {
         self.link_wrench.fill(SpatialVec::zeros());
         let first = model.mjcf_actuator_count();
         for (k, actuator) in model.actuators[first..].iter().enumerate() {
-            let transmitted = transmit(self, actuator);
+            let transmitted = transmit(model, self, actuator);
             let index = first + k;
             self.actuator_length[index] = transmitted.length;
             self.actuator_velocity[index] = transmitted.velocity;
             self.actuator_force[index] = values[k];
-            apply(&transmitted.moment, values[k], qfrc, &mut self.link_wrench, &self.tendon_moment);
+            apply(
+                model,
+                self.theta.as_slice(),
+                &transmitted.moment,
+                values[k],
+                qfrc,
+                &mut self.link_wrench,
+                &self.tendon_moment,
+            );
         }
         self.collect_wrenches(model, qfrc);
     }

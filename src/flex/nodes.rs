@@ -14,7 +14,7 @@ use nalgebra::DMatrix;
 
 use super::ModalBody;
 use super::rotation::{right_jacobian, right_jacobian_rate, rotation};
-use crate::math::{Mat3, Real, SpatialVec, Transform, Vec3, real, spatial};
+use crate::math::{Mat3, Real, SpatialVec, Transform, Vec3, angular, linear, real, spatial};
 
 /// Φᵗ_j η and Φʳ_j η: node `j`'s displacement and rotation vector.
 pub fn displacement<S: Real>(body: &ModalBody, j: usize, eta: &[S]) -> (Vec3<S>, Vec3<S>) {
@@ -46,6 +46,27 @@ pub fn subspace_times<S: Real>(body: &ModalBody, j: usize, eta: &[S], v: &[S]) -
     let (_, rho) = displacement(body, j, eta);
     let (translation, rotation_vector) = displacement(body, j, v);
     spatial(&(right_jacobian(&rho) * rotation_vector), &(rotation(&rho).transpose() * translation))
+}
+
+/// `out` += Ψ_jᵀ f · `scale` for a wrench `f` in node `j`'s coordinates
+/// (about its origin): the modal forces of that wrench, without forming
+/// Ψ_j. Column k of Ψ_j is [J_r Φʳ_k ; Rotᵀ Φᵗ_k], so its product with f is
+/// Φʳ_k · J_rᵀ f_angular + Φᵗ_k · Rot f_linear.
+pub fn add_subspace_transpose_times<S: Real>(
+    body: &ModalBody,
+    j: usize,
+    eta: &[S],
+    f: &SpatialVec<S>,
+    scale: S,
+    out: &mut [S],
+) {
+    let (_, rho) = displacement(body, j, eta);
+    let torque = right_jacobian(&rho).transpose() * angular(f);
+    let force = rotation(&rho) * linear(f);
+    for (slot, mode) in out.iter_mut().zip(&body.modes) {
+        let arm = real::<S, 3, 1>(&mode.rotation[j]).dot(&torque) + real::<S, 3, 1>(&mode.translation[j]).dot(&force);
+        *slot += arm * scale;
+    }
 }
 
 /// Ψ̇_j: the rate of Ψ_j's coordinates along η̇, written into `out` (6 × m);
@@ -80,7 +101,6 @@ pub fn subspace_rate_times<S: Real>(body: &ModalBody, j: usize, eta: &[S], eta_r
 mod tests {
     use super::*;
     use crate::flex::{Mode, Node};
-    use crate::math::{angular, linear};
 
     /// Three nodes and two modes with every component in use (the
     /// kinematics need no orthogonality).
@@ -156,6 +176,21 @@ mod tests {
             subspace(&body, j, &moved(h), &mut after);
             subspace_rate(&body, j, &ETA, &RATE, &mut rate);
             assert!((rate - (after - before) / (2.0 * h)).norm() < 1e-8, "node {j}");
+        }
+    }
+
+    #[test]
+    fn the_modal_forces_of_a_wrench_are_psi_transposed_times_it() {
+        let body = body();
+        let f = SpatialVec::from_column_slice(&[0.3, -1.2, 0.7, 2.0, 0.4, -0.9]);
+        for j in 0..3 {
+            let mut psi = DMatrix::zeros(6, 2);
+            subspace(&body, j, &ETA, &mut psi);
+            let expected = psi.transpose() * nalgebra::DVector::from_column_slice(f.as_slice()) * 2.0;
+            let mut out = [1.0, -1.0];
+            add_subspace_transpose_times(&body, j, &ETA, &f, 2.0, &mut out);
+            assert!((out[0] - 1.0 - expected[0]).abs() < 1e-14, "node {j}");
+            assert!((out[1] + 1.0 - expected[1]).abs() < 1e-14, "node {j}");
         }
     }
 }

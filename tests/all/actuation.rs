@@ -274,3 +274,21 @@ fn actuation_does_not_allocate() {
     result.unwrap();
     assert_eq!(ALLOCATIONS.with(Cell::get), 0, "compute_actuation allocated");
 }
+
+/// Actuators on sites at a flexible body's nodes (their modal forces) too.
+#[test]
+fn actuation_at_nodes_does_not_allocate() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/flex/bench_thruster.xml");
+    let vehicle = nudyn::mjcf::load_mjcf(&path).unwrap().vehicle;
+    let model = Model::compile(&vehicle).unwrap();
+    let mut ws = model.workspace();
+    let mut rng = Rng::new(12);
+    ws.set_configuration(&model, &random_theta(&mut rng, &vehicle)).unwrap();
+    ws.set_qvel(&model, &rng.vec(model.nv, 1.0)).unwrap();
+    let ctrl = rng.vec(model.actuators.len(), 1.0);
+    COUNTING.with(|c| c.set(true));
+    let result = ws.compute_actuation(&model, &ctrl);
+    COUNTING.with(|c| c.set(false));
+    result.unwrap();
+    assert_eq!(ALLOCATIONS.with(Cell::get), 0, "compute_actuation allocated");
+}

@@ -185,39 +185,61 @@ pub fn body_terms(vehicle: &Vehicle, k: &Kinematics, nv: usize) -> Vec<BodyTerms
 /// The nodes of flexible body `b` as rigid bodies at the modal coordinates
 /// `eta`, its modal rates at ν entry `va`.
 fn node_terms(k: &Kinematics, b: usize, modal: &ModalBody, eta: &[f64], va: usize, nv: usize) -> Vec<BodyTerms> {
+    (0..modal.nodes.len())
+        .map(|j| {
+            let node = node_motion(k, b, modal, eta, va, nv, j);
+            let inertia = node.rot * modal.nodes[j].rotary_inertia * node.rot.transpose();
+            BodyTerms { mass: modal.nodes[j].mass, com: node.pos, inertia, jw: node.jw, jv: node.jv }
+        })
+        .collect()
+}
+
+/// A node of a flexible body as a rigid body: its world rotation and
+/// origin, and the angular and linear (of its origin) Jacobians, 3×nv.
+pub struct NodeMotion {
+    pub rot: M3,
+    pub pos: V3,
+    pub jw: DMatrix<f64>,
+    pub jv: DMatrix<f64>,
+}
+
+/// Node `j` of flexible body `b` at the modal coordinates `eta` (its modal
+/// rates at ν entry `va`).
+fn node_motion(k: &Kinematics, b: usize, modal: &ModalBody, eta: &[f64], va: usize, nv: usize, j: usize) -> NodeMotion {
     let (rot, pos) = (k.body_rot[b], k.body_pos[b]);
     let rotation_vector =
         |j: usize, eta: &[f64]| -> V3 { modal.modes.iter().zip(eta).map(|(m, e)| m.rotation[j] * *e).sum() };
     let turn = |j: usize, eta: &[f64]| Rotation3::from_scaled_axis(rotation_vector(j, eta)).into_inner();
-    (0..modal.nodes.len())
-        .map(|j| {
-            let node = &modal.nodes[j];
-            let displacement: V3 = modal.modes.iter().zip(eta).map(|(m, e)| m.translation[j] * *e).sum();
-            let com = pos + rot * (node.position + displacement);
-            let node_rot = rot * turn(j, eta);
-            let (mut jw, mut jv) = point_jacobian(k, b, &com, nv);
-            for (c, mode) in modal.modes.iter().enumerate() {
-                jv.fixed_view_mut::<3, 1>(0, va + c).copy_from(&(rot * mode.translation[j]));
-                // The node's angular velocity per unit rate of mode c (body
-                // axes), from E(η + hφ)E(η − hφ)ᵀ = exp(2h[ω]×) + O(h³), an
-                // even series in h: two Richardson steps leave O(h⁶).
-                let rate = |h: f64| {
-                    let (mut ahead, mut behind) = (eta.to_vec(), eta.to_vec());
-                    ahead[c] += h;
-                    behind[c] -= h;
-                    let step =
-                        nalgebra::Rotation3::from_matrix_unchecked(turn(j, &ahead) * turn(j, &behind).transpose());
-                    step.scaled_axis() / (2.0 * h)
-                };
-                let h = 8e-3;
-                let (once, twice, thrice) = (rate(h), rate(h / 2.0), rate(h / 4.0));
-                let (first, second) = ((4.0 * twice - once) / 3.0, (4.0 * thrice - twice) / 3.0);
-                let omega = (16.0 * second - first) / 15.0;
-                jw.fixed_view_mut::<3, 1>(0, va + c).copy_from(&(rot * omega));
-            }
-            BodyTerms { mass: node.mass, com, inertia: node_rot * node.rotary_inertia * node_rot.transpose(), jw, jv }
-        })
-        .collect()
+    let node = &modal.nodes[j];
+    let displacement: V3 = modal.modes.iter().zip(eta).map(|(m, e)| m.translation[j] * *e).sum();
+    let origin = pos + rot * (node.position + displacement);
+    let (mut jw, mut jv) = point_jacobian(k, b, &origin, nv);
+    for (c, mode) in modal.modes.iter().enumerate() {
+        jv.fixed_view_mut::<3, 1>(0, va + c).copy_from(&(rot * mode.translation[j]));
+        // The node's angular velocity per unit rate of mode c (body
+        // axes), from E(η + hφ)E(η − hφ)ᵀ = exp(2h[ω]×) + O(h³), an
+        // even series in h: two Richardson steps leave O(h⁶).
+        let rate = |h: f64| {
+            let (mut ahead, mut behind) = (eta.to_vec(), eta.to_vec());
+            ahead[c] += h;
+            behind[c] -= h;
+            let step = nalgebra::Rotation3::from_matrix_unchecked(turn(j, &ahead) * turn(j, &behind).transpose());
+            step.scaled_axis() / (2.0 * h)
+        };
+        let h = 8e-3;
+        let (once, twice, thrice) = (rate(h), rate(h / 2.0), rate(h / 4.0));
+        let (first, second) = ((4.0 * twice - once) / 3.0, (4.0 * thrice - twice) / 3.0);
+        let omega = (16.0 * second - first) / 15.0;
+        jw.fixed_view_mut::<3, 1>(0, va + c).copy_from(&(rot * omega));
+    }
+    NodeMotion { rot: rot * turn(j, eta), pos: origin, jw, jv }
+}
+
+/// Node `j` of the flexible body `body` (by index into `vehicle.bodies`) at θ.
+pub fn node_at(vehicle: &Vehicle, theta: &[f64], body: usize, j: usize) -> NodeMotion {
+    let (_, nv) = nq_nv(vehicle);
+    let &(_, modal, qa, va) = flexible_bodies(vehicle).iter().find(|f| f.0 == body).expect("a flexible body");
+    node_motion(&kinematics(vehicle, theta), body, modal, &theta[qa..qa + modal.modes.len()], va, nv, j)
 }
 
 pub fn armature(vehicle: &Vehicle) -> Vec<f64> {

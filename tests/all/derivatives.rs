@@ -263,11 +263,17 @@ fn jacobians_of_flexible_vehicles_agree_with_central_differences_of_the_passes()
     }
 }
 
-/// Every actuator kind, transmission and clamp (tests/fixtures/actuators/kinds.xml)
-/// and the servicer's thrusters, wheels and arm servos, ctrl away from its clamps.
+/// Every actuator kind, transmission and clamp (tests/fixtures/actuators/kinds.xml),
+/// the servicer's thrusters, wheels and arm servos, ctrl away from its clamps,
+/// and actuators on sites at a flexible body's nodes (their modal forces).
 #[test]
 fn actuated_jacobians_agree_with_central_differences_of_the_passes() {
-    for (path, seeds) in [("tests/fixtures/actuators/kinds.xml", 0..4), ("examples/servicer.xml", 0..2)] {
+    let files = [
+        ("tests/fixtures/actuators/kinds.xml", 0..4),
+        ("examples/servicer.xml", 0..2),
+        ("tests/fixtures/flex/bench_thruster.xml", 0..2),
+    ];
+    for (path, seeds) in files {
         for seed in seeds {
             assert_agrees_with_differences(&file_case(path, seed), &format!("{path}, seed {seed}"), 1e-8);
         }

@@ -16,7 +16,7 @@ use std::path::Path;
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use nudyn::integrate::{Input, Method, Settings, Simulation};
 use nudyn::mjcf::load_mjcf;
-use nudyn::model::{Model, ModelError, NodeSite, SensorSource};
+use nudyn::model::{Model, NodeSite, SensorSource};
 
 use crate::common::Rng;
 
@@ -143,18 +143,4 @@ fn a_site_at_a_node_rides_the_node_and_its_sensors_read_the_nodes_motion() {
         close("velocimeter", v3(middle, VELOCIMETER), axes * v3(middle, LINVEL));
         close("accelerometer", v3(middle, ACCELEROMETER), axes * v3(middle, LINACC));
     }
-}
-
-#[test]
-fn an_actuator_on_a_site_at_a_node_is_refused() {
-    let dir = std::env::temp_dir().join(format!("nudyn-flex-sites-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let xml = std::fs::read_to_string(fixture()).unwrap().replace(
-        "<sensor>",
-        "<actuator><general name=\"thruster\" site=\"middle\" gear=\"1 0 0 0 0 0\"/></actuator><sensor>",
-    );
-    std::fs::write(dir.join("bench_sensors.xml"), xml).unwrap();
-    std::fs::copy(fixture().with_file_name("bench.json"), dir.join("bench.json")).unwrap();
-    let error = Model::compile(&load_mjcf(&dir.join("bench_sensors.xml")).unwrap().vehicle).unwrap_err();
-    assert_eq!(error, ModelError::FlexibleWith { body: "bench".into(), feature: "actuators on sites at nodes" });
 }

@@ -21,6 +21,7 @@ mod derivatives;
 mod dynamics_checks;
 mod dynamics_errors;
 mod error_modes;
+mod flex_actuators;
 mod flex_dynamics;
 mod flex_import;
 mod flex_modal_file;
