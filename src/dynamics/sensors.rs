@@ -128,7 +128,7 @@ impl Workspace {
         } else if needs.actuation {
             self.compute_actuation(model, ctrl)?;
         }
-        self.read_sensors(model, time);
+        self.read_sensors_with(model, &needs, time);
         Ok(())
     }
 }
@@ -144,7 +144,11 @@ impl<S: Real> Workspace<S> {
         if model.sensors.is_empty() || model.sensors_disabled {
             return None;
         }
-        let needs = Needs::of(model);
+        self.read_sensors_with(model, &Needs::of(model), time)
+    }
+
+    /// [`Workspace::read_sensors`] with the model's `needs` found.
+    fn read_sensors_with(&mut self, model: &Model, needs: &Needs, time: f64) -> Option<usize> {
         self.world_transforms(model);
         if needs.quaternions {
             self.link_quaternions(model);
