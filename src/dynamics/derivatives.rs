@@ -20,8 +20,9 @@
 //! velocities of fixed and spatial paths with their wraps, springs and
 //! dampers), the actuators' without activation states (transmissions,
 //! gains and biases, the clamps of ctrl and force, which hold their piece:
-//! a clamped input's derivative is 0) and the constraint forces'
-//! (equality rows, friction loss, joint and tendon limits). The constraint
+//! a clamped input's derivative is 0), the constraint forces' (equality
+//! rows, friction loss, joint and tendon limits) and the sensors' (every
+//! kind nudyn reads, after the passes: [`Output::Sensordata`]). The constraint
 //! forces are taken at the mode of the point: the limit sides active
 //! there, each row's impedance piece and the solver's working set, each
 //! decided on the values, so that the duals carry the derivative of that

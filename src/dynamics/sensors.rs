@@ -9,6 +9,10 @@
 //! classical acceleration is the spatial one at the point plus ω × v.
 //! Quaternions are composed link by link as MuJoCo composes `xquat`, so
 //! that a framequat has MuJoCo's sign.
+//!
+//! The readings are generic over the passes' scalar (`read_sensors`): in
+//! dual numbers (`derivatives`) each carries its derivative, every branch
+//! (a cutoff's clamp, which limit row is a sensor's) decided on the values.
 
 use nalgebra::{Quaternion, Unit};
 
