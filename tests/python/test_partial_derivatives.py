@@ -365,7 +365,7 @@ COVERED = ["bus_arm7", "chain60", "fixed_rig", "flexible_boom"]
 
 
 @pytest.mark.parametrize("name", COVERED + ["springdamper", "bench_vehicle", "slider_hand", "refsafe_off", "kinds",
-                                  "docked_servicer", "servicer"])
+                                  "every_sensor", "docked_servicer", "servicer"])
 def test_the_model_structure_lists_every_dependence_the_derivatives_have(cli, tmp_path, name):
     """ModelStructure's dependencies (FMI 2.0) against the exact Jacobian at
     a random state: every non-zero entry is listed (a host may take an
@@ -398,7 +398,7 @@ def test_the_model_structure_lists_every_dependence_the_derivatives_have(cli, tm
         # With constraint forces the listing is every state (they couple
         # any dof to any other through the rows), and with actuators (they
         # reach every dof through ℓ): completeness only.
-        if unknown.startswith("der(nu[") and name not in CONSTRAINED | {"servicer", "docked_servicer"}:
+        if unknown.startswith("der(nu[") and name not in CONSTRAINED | {"every_sensor", "servicer", "docked_servicer"}:
             on_nu = {index[known] for known in names.nu}
             if index[unknown[4:-1]] not in modal_nu:
                 assert listed[index[unknown]] & on_nu == depends & on_nu, unknown
