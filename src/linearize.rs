@@ -29,7 +29,7 @@ pub enum Inputs {
     Ctrl,
 }
 
-/// An output of the linearization, each nv rows.
+/// An output of the linearization, each nv rows but the sensors'.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum LinearOutput {
     /// δq.
@@ -40,11 +40,14 @@ pub enum LinearOutput {
     Nu,
     /// θ̈.
     Qacc,
+    /// MuJoCo's sensordata (nsensordata rows), as mjd_transitionFD's C and D take it.
+    Sensordata,
 }
 
 impl LinearOutput {
     /// Every output, in the order of their names.
-    pub const ALL: [LinearOutput; 4] = [LinearOutput::Qpos, LinearOutput::Qvel, LinearOutput::Nu, LinearOutput::Qacc];
+    pub const ALL: [LinearOutput; 5] =
+        [LinearOutput::Qpos, LinearOutput::Qvel, LinearOutput::Nu, LinearOutput::Qacc, LinearOutput::Sensordata];
 
     /// The output's name on the command line and in the files.
     pub fn name(self) -> &'static str {
@@ -53,6 +56,15 @@ impl LinearOutput {
             LinearOutput::Qvel => "qvel",
             LinearOutput::Nu => "nu",
             LinearOutput::Qacc => "qacc",
+            LinearOutput::Sensordata => "sensordata",
+        }
+    }
+
+    /// How many rows of C and D the output has for `model`.
+    pub fn len(self, model: &Model) -> usize {
+        match self {
+            LinearOutput::Sensordata => Output::Sensordata.len(model),
+            _ => model.nv,
         }
     }
 }
@@ -80,7 +92,7 @@ pub struct Linearization {
     pub a: DMatrix<f64>,
     /// 2nv × (nv, or nu for ctrl).
     pub b: DMatrix<f64>,
-    /// The outputs' rows, nv each, in the order asked.
+    /// The outputs' rows ([`LinearOutput::len`] each), in the order asked.
     pub c: DMatrix<f64>,
     /// See `c`.
     pub d: DMatrix<f64>,
@@ -108,21 +120,26 @@ pub fn linearize(
         eps: &point.eps,
         torque: &point.torque,
         ctrl: &point.ctrl,
+        time: 0.0,
     };
     let input = match inputs {
         Inputs::Eps => Input::Eps,
         Inputs::Torque => Input::Torque,
         Inputs::Ctrl => Input::Ctrl,
     };
-    // ν's Jacobians come from the same runs as θ̈'s, only when asked (and
-    // only in θ and the velocity: ν does not depend on the inputs).
+    // ν's and the sensors' Jacobians come from the same runs as θ̈'s,
+    // only when asked (ν's only in θ and the velocity: ν does not depend
+    // on the inputs).
+    let columns = [Input::Theta, Input::Velocity, input];
     let wants_nu = outputs.contains(&LinearOutput::Nu);
-    let [qacc_by, nu_by] = if wants_nu {
-        derivatives.jacobians_of(model, &at, [Output::Qacc, Output::Nu], &[Input::Theta, Input::Velocity, input])?
+    let [qacc_by, nu_by, sensors_by] = if outputs.contains(&LinearOutput::Sensordata) {
+        derivatives.jacobians_of(model, &at, [Output::Qacc, Output::Nu, Output::Sensordata], &columns)?
+    } else if wants_nu {
+        let [qacc_by, nu_by] = derivatives.jacobians_of(model, &at, [Output::Qacc, Output::Nu], &columns)?;
+        [qacc_by, nu_by, Vec::new()]
     } else {
-        let [qacc_by] =
-            derivatives.jacobians_of(model, &at, [Output::Qacc], &[Input::Theta, Input::Velocity, input])?;
-        [qacc_by, Vec::new()]
+        let [qacc_by] = derivatives.jacobians_of(model, &at, [Output::Qacc], &columns)?;
+        [qacc_by, Vec::new(), Vec::new()]
     };
     let inputs_count = qacc_by[2].ncols();
     let mut a = DMatrix::zeros(2 * nv, 2 * nv);
@@ -133,10 +150,11 @@ pub fn linearize(
     let mut b = DMatrix::zeros(2 * nv, inputs_count);
     b.view_mut((nv, 0), (nv, inputs_count)).copy_from(&qacc_by[2]);
 
-    let mut c = DMatrix::zeros(nv * outputs.len(), 2 * nv);
-    let mut d = DMatrix::zeros(nv * outputs.len(), inputs_count);
-    for (k, output) in outputs.iter().enumerate() {
-        let rows = k * nv;
+    let output_rows: usize = outputs.iter().map(|o| o.len(model)).sum();
+    let mut c = DMatrix::zeros(output_rows, 2 * nv);
+    let mut d = DMatrix::zeros(output_rows, inputs_count);
+    let mut rows = 0;
+    for output in outputs {
         match output {
             LinearOutput::Qpos => c.view_mut((rows, 0), (nv, nv)).fill_with_identity(),
             LinearOutput::Qvel => c.view_mut((rows, nv), (nv, nv)).fill_with_identity(),
@@ -148,7 +166,14 @@ pub fn linearize(
                 c.view_mut((rows, 0), (nv, 2 * nv)).copy_from(&a.rows(nv, nv));
                 d.view_mut((rows, 0), (nv, inputs_count)).copy_from(&qacc_by[2]);
             }
+            LinearOutput::Sensordata => {
+                let n = sensors_by[0].nrows();
+                c.view_mut((rows, 0), (n, nv)).copy_from(&sensors_by[0]);
+                c.view_mut((rows, nv), (n, nv)).copy_from(&sensors_by[1]);
+                d.view_mut((rows, 0), (n, inputs_count)).copy_from(&sensors_by[2]);
+            }
         }
+        rows += output.len(model);
     }
     // nalgebra's Schur iterates without end on a matrix with a NaN.
     if let Some(index) = a.iter().chain(b.iter()).position(|x| !x.is_finite()) {

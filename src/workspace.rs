@@ -183,16 +183,16 @@ pub struct Workspace<S: Real = f64> {
     pub constraint_rows: ConstraintRows<S>,
 
     /// MuJoCo's sensordata — compute_sensors.
-    pub sensordata: DVector<f64>,
+    pub sensordata: DVector<S>,
     /// Each link's orientation in the world as MuJoCo composes `xquat`,
     /// when a framequat sensor needs it — compute_sensors.
-    pub link_quats: Vec<Quat>,
+    pub link_quats: Vec<Quat<S>>,
     /// Each body's inertial force less the external forces on it (world
     /// axes, torque about its centre of mass), when a force or torque
     /// sensor needs it — compute_sensors.
-    pub body_wrench: Vec<SpatialVec>,
+    pub body_wrench: Vec<SpatialVec<S>>,
     /// Each body's centre of mass in the world, with `body_wrench`.
-    pub body_com: Vec<Vec3>,
+    pub body_com: Vec<Vec3<S>>,
 }
 
 impl Workspace {

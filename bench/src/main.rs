@@ -349,7 +349,7 @@ fn directional_derivative_case<'a>(
 fn derivative_point<'a>(state: &'a State, eps: &'a [f64], ctrl: &'a [f64]) -> nudyn::dynamics::derivatives::Point<'a> {
     let given = nudyn::dynamics::velocity::Given::Nu;
     let theta = std::hint::black_box(state.theta.as_slice());
-    nudyn::dynamics::derivatives::Point { theta, velocity: &state.nu, given, eps, torque: eps, ctrl }
+    nudyn::dynamics::derivatives::Point { theta, velocity: &state.nu, given, eps, torque: eps, ctrl, time: 0.0 }
 }
 
 /// A timed case of the Jacobians of ν̇ in θ, ν, ε, T and ctrl at `state`

@@ -98,7 +98,11 @@ pub fn run(model: &Model, request: &Request) -> Result<()> {
     let file = LinearizationFile {
         state: names("dq").chain(names("qvel")).collect(),
         inputs,
-        outputs: request.outputs.iter().flat_map(|o| names(o.name())).collect(),
+        outputs: request
+            .outputs
+            .iter()
+            .flat_map(|o| (1..=o.len(model)).map(|k| format!("{}[{k}]", o.name())))
+            .collect(),
         a: rows(&linear.a),
         b: rows(&linear.b),
         c: rows(&linear.c),

@@ -217,7 +217,7 @@ enum Command {
         /// The inputs u of B and D.
         #[arg(long, value_enum, default_value = "eps")]
         inputs: InputsArg,
-        /// The outputs y of C and D, comma-separated: qpos (dq), qvel, nu, qacc.
+        /// The outputs y of C and D, comma-separated: qpos (dq), qvel, nu, qacc, sensordata.
         #[arg(long, value_enum, value_delimiter = ',', default_value = "qpos,qvel")]
         outputs: Vec<OutputArg>,
         /// Also the zero-order hold's discrete pair for this step (s).
@@ -288,6 +288,8 @@ enum OutputArg {
     Nu,
     /// θ̈.
     Qacc,
+    /// MuJoCo's sensordata.
+    Sensordata,
 }
 
 /// `--outputs`' help, from the contract's list of optional outputs.
@@ -432,6 +434,7 @@ fn run(cli: Cli) -> Result<()> {
                     OutputArg::Qvel => LinearOutput::Qvel,
                     OutputArg::Nu => LinearOutput::Nu,
                     OutputArg::Qacc => LinearOutput::Qacc,
+                    OutputArg::Sensordata => LinearOutput::Sensordata,
                 })
                 .collect();
             let inputs = match inputs {

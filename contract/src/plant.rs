@@ -97,9 +97,6 @@ pub enum NotCovered {
     /// the tendons' armature, equalities, friction loss).
     #[error(transparent)]
     Dynamics(#[from] DerivativeError),
-    /// The sensors' derivatives are not computed.
-    #[error("derivatives do not cover sensors yet; this model has {0} sensordata entries")]
-    Sensors(usize),
     /// An optional output whose derivative is not computed.
     #[error("derivatives do not cover the optional output {0} yet; this FMU has it")]
     Output(&'static str),
@@ -109,10 +106,6 @@ pub enum NotCovered {
 /// FMU of `model` with `outputs`, or the first thing they do not.
 pub fn derivatives_cover(model: &Model, outputs: OptionalOutputs) -> Result<(), NotCovered> {
     Derivatives::check(model)?;
-    let sensordata: usize = model.sensors.iter().map(|s| s.dim()).sum();
-    if sensordata > 0 {
-        return Err(NotCovered::Sensors(sensordata));
-    }
     // The momentum's passes are not generic yet; the energy residual is a
     // record of the integration, not a function of the state.
     match ["momentum", "energy_residual"].into_iter().find(|&name| outputs.has(name)) {

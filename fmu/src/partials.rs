@@ -9,8 +9,8 @@
 //! at communication points too);
 //! directions in θ are along θ's coordinates, the FMU's variables, a
 //! quaternion's component along itself having no effect (the passes
-//! normalize it). The unknowns are the continuous outputs and the state
-//! derivatives. The adjoint Jᵀv is taken column by column of the forward
+//! normalize it). The unknowns are the continuous outputs (sensordata
+//! among them) and the state derivatives. The adjoint Jᵀv is taken column by column of the forward
 //! mode: one run per known.
 
 use nudyn::dynamics::DynamicsError;
@@ -41,6 +41,8 @@ pub struct At<'a> {
     /// The constraint rows of the plant's evaluations, whose held mode
     /// (between events in model exchange) the derivatives hold.
     pub rows: &'a ConstraintRows,
+    /// The time, which the clock sensors read.
+    pub time: f64,
 }
 
 /// The dual workspace, or why the FMU has no derivatives, and the buffers
@@ -61,6 +63,8 @@ pub struct Partials {
     /// The derivatives of θ̇ and ν̇ along the last direction.
     qvel: Vec<f64>,
     nu_dot: Vec<f64>,
+    /// The sensors' derivatives along the last direction, when an unknown is one.
+    sensordata: Vec<f64>,
 }
 
 impl Partials {
@@ -76,6 +80,7 @@ impl Partials {
             torque: Vec::new(),
             qvel: Vec::new(),
             nu_dot: Vec::new(),
+            sensordata: Vec::new(),
         }
     }
 
@@ -90,7 +95,8 @@ impl Partials {
         sensitivity: &mut [f64],
     ) -> Result<(), CallError> {
         let (unknowns, knowns) = classify_both(at.layout, unknowns, knowns)?;
-        self.run(at, knowns.iter().copied().zip(seed.iter().copied()))?;
+        let sensors = reads_sensors(&unknowns);
+        self.run(at, knowns.iter().copied().zip(seed.iter().copied()), sensors)?;
         for (out, &variable) in sensitivity.iter_mut().zip(&unknowns) {
             *out = self.derivative(at, variable);
         }
@@ -108,8 +114,9 @@ impl Partials {
         sensitivity: &mut [f64],
     ) -> Result<(), CallError> {
         let (unknowns, knowns) = classify_both(at.layout, unknowns, knowns)?;
+        let sensors = reads_sensors(&unknowns);
         for (out, &variable) in sensitivity.iter_mut().zip(&knowns) {
-            self.run(at, [(variable, 1.0)].into_iter())?;
+            self.run(at, [(variable, 1.0)].into_iter(), sensors)?;
             *out = unknowns.iter().zip(seed).map(|(&u, s)| s * self.derivative(at, u)).sum();
         }
         Ok(())
@@ -120,8 +127,14 @@ impl Partials {
         self.derivatives.as_ref().map(|_| ()).map_err(|why| CallError::NoPartials(why.clone()))
     }
 
-    /// Runs the passes at `at` along the direction of the (known, seed) pairs.
-    fn run(&mut self, at: &At, direction: impl Iterator<Item = (RealVariable, f64)>) -> Result<(), CallError> {
+    /// Runs the passes at `at` along the direction of the (known, seed)
+    /// pairs, and the sensors' too when `sensors`.
+    fn run(
+        &mut self,
+        at: &At,
+        direction: impl Iterator<Item = (RealVariable, f64)>,
+        sensors: bool,
+    ) -> Result<(), CallError> {
         let derivatives = self.derivatives.as_mut().map_err(|why| CallError::NoPartials(why.clone()))?;
         let model = at.model;
         if derivatives.is_none() {
@@ -139,6 +152,7 @@ impl Partials {
             for buffer in [&mut self.torque, &mut self.qvel, &mut self.nu_dot] {
                 buffer.resize(model.nv, 0.0);
             }
+            self.sensordata.resize(Output::Sensordata.len(model), 0.0);
         }
         let derivatives = derivatives.as_mut().expect("made above");
         derivatives.hold_constraint_mode_of(at.rows);
@@ -163,6 +177,7 @@ impl Partials {
             eps: at.eps,
             torque: &self.torque,
             ctrl: at.ctrl,
+            time: at.time,
         };
         let direction = Direction {
             theta: &self.theta,
@@ -172,7 +187,8 @@ impl Partials {
             torque: &self.torque,
             ctrl: &self.ctrl,
         };
-        derivatives.run(at.model, &point, &direction, &[Output::NuDot]).map_err(|error| match error {
+        let outputs: &[Output] = if sensors { &[Output::NuDot, Output::Sensordata] } else { &[Output::NuDot] };
+        derivatives.run(at.model, &point, &direction, outputs).map_err(|error| match error {
             DerivativeError::Dynamics(error) => CallError::Evaluate(error),
             DerivativeError::OnSwitch(switches) => CallError::OneSided(switches),
             other => unreachable!("the directions are sized by the model: {other}"),
@@ -191,6 +207,15 @@ impl Partials {
                 index,
                 value,
             }));
+        }
+        if sensors {
+            for (out, d) in self.sensordata.iter_mut().zip(derivatives.derivative(Output::Sensordata)) {
+                *out = d;
+            }
+            if let Some((index, &value)) = self.sensordata.iter().enumerate().find(|(_, d)| !d.is_finite()) {
+                let what = "the derivative of sensordata";
+                return Err(CallError::Evaluate(DynamicsError::NonFinite { what, index, value }));
+            }
         }
         Ok(())
     }
@@ -211,12 +236,17 @@ impl Partials {
                     + self.nu.iter().zip(at.eps).map(|(d, e)| d * e).sum::<f64>()
             }
             RealVariable::QfrcConstraint(k) => derivatives.qfrc_constraint_derivative(k),
+            RealVariable::Sensordata(k) => self.sensordata[k],
             other => unreachable!("{other:?} is not an unknown: classified before"),
         }
     }
 }
 
-/// The variables of `vrs`, each checked to be able to play `role`.
+/// Whether some of `unknowns` is a sensor's reading.
+fn reads_sensors(unknowns: &[RealVariable]) -> bool {
+    unknowns.iter().any(|u| matches!(u, RealVariable::Sensordata(_)))
+}
+
 /// The unknowns' and the knowns' variables, each checked for its role.
 fn classify_both(
     layout: &Layout,
@@ -256,7 +286,15 @@ impl Role {
             Role::Known => matches!(variable, Theta(_) | Nu(_) | Eps(_) | Ctrl(_) | XfrcApplied(_)),
             Role::Unknown => matches!(
                 variable,
-                Theta(_) | Nu(_) | Qvel(_) | DerTheta(_) | DerNu(_) | KineticEnergy | Power | QfrcConstraint(_)
+                Theta(_)
+                    | Nu(_)
+                    | Sensordata(_)
+                    | Qvel(_)
+                    | DerTheta(_)
+                    | DerNu(_)
+                    | KineticEnergy
+                    | Power
+                    | QfrcConstraint(_)
             ),
         }
     }
@@ -267,8 +305,8 @@ impl Role {
                 "a known of the partial derivatives (the states theta and nu, the inputs eps, ctrl and xfrc_applied)"
             }
             Role::Unknown => {
-                "an unknown of the partial derivatives (the outputs theta, nu, qvel, kinetic_energy, power, \
-                 qfrc_constraint and the state derivatives)"
+                "an unknown of the partial derivatives (the outputs theta, nu, sensordata, qvel, kinetic_energy, \
+                 power, qfrc_constraint and the state derivatives)"
             }
         }
     }

@@ -686,7 +686,8 @@ impl Component for Plant {
     ) -> Result<(), CallError> {
         let (model, layout, state) = (&self.model, &self.layout, &self.sim.state);
         let rows = &self.sim.workspace().constraint_rows;
-        let at = At { model, layout, theta: &state.theta, nu: &state.nu, eps: &self.eps, ctrl: &self.ctrl, rows };
+        let (theta, nu, time) = (&state.theta, &state.nu, state.time);
+        let at = At { model, layout, theta, nu, eps: &self.eps, ctrl: &self.ctrl, rows, time };
         self.partials.directional(&at, unknowns, knowns, seed, sensitivity)
     }
 
@@ -699,7 +700,8 @@ impl Component for Plant {
     ) -> Result<(), CallError> {
         let (model, layout, state) = (&self.model, &self.layout, &self.sim.state);
         let rows = &self.sim.workspace().constraint_rows;
-        let at = At { model, layout, theta: &state.theta, nu: &state.nu, eps: &self.eps, ctrl: &self.ctrl, rows };
+        let (theta, nu, time) = (&state.theta, &state.nu, state.time);
+        let at = At { model, layout, theta, nu, eps: &self.eps, ctrl: &self.ctrl, rows, time };
         self.partials.adjoint(&at, unknowns, knowns, seed, sensitivity)
     }
 

@@ -20,8 +20,9 @@
 //! velocities of fixed and spatial paths with their wraps, springs and
 //! dampers), the actuators' without activation states (transmissions,
 //! gains and biases, the clamps of ctrl and force, which hold their piece:
-//! a clamped input's derivative is 0) and the constraint forces'
-//! (equality rows, friction loss, joint and tendon limits). The constraint
+//! a clamped input's derivative is 0), the constraint forces' (equality
+//! rows, friction loss, joint and tendon limits) and the sensors' (every
+//! kind nudyn reads, after the passes: [`Output::Sensordata`]). The constraint
 //! forces are taken at the mode of the point: the limit sides active
 //! there, each row's impedance piece and the solver's working set, each
 //! decided on the values, so that the duals carry the derivative of that
@@ -37,6 +38,7 @@ use nalgebra::{DMatrix, Quaternion};
 use num_dual::Dual64;
 
 use super::constraint::{ConstraintRows, limit_switching_functions};
+use super::sensors::{cutoff_switch, sensors_need_accelerations};
 use super::velocity::{self, Given};
 use super::{DynamicsError, bias, check_input, forces};
 use crate::math::{Real, quat_from_wxyz};
@@ -88,6 +90,8 @@ pub struct Point<'a> {
     pub torque: &'a [f64],
     /// The actuators' controls.
     pub ctrl: &'a [f64],
+    /// The time, which the clock sensors read (their derivative is 0).
+    pub time: f64,
 }
 
 /// How a direction in θ is written.
@@ -117,7 +121,7 @@ pub struct Direction<'a> {
     pub ctrl: &'a [f64],
 }
 
-/// The outputs whose derivatives a run gives, each nv long.
+/// The outputs whose derivatives a run gives, each nv long but the sensors'.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Output {
     /// θ̇ (MuJoCo's qvel; the given one's derivative is the direction's).
@@ -128,6 +132,20 @@ pub enum Output {
     NuDot,
     /// θ̈ (MuJoCo's qacc).
     Qacc,
+    /// MuJoCo's sensordata (its nsensordata entries), with the point's
+    /// inputs and constraint mode; a reading held at its `cutoff` has
+    /// derivative 0.
+    Sensordata,
+}
+
+impl Output {
+    /// How many entries the output has for `model`.
+    pub fn len(self, model: &Model) -> usize {
+        match self {
+            Output::Sensordata => model.sensors.iter().map(|s| s.dim()).sum(),
+            _ => model.nv,
+        }
+    }
 }
 
 /// The inputs a Jacobian's columns run along.
@@ -150,8 +168,8 @@ impl Input {
     pub const ALL: [Input; 5] = [Input::Theta, Input::Velocity, Input::Eps, Input::Torque, Input::Ctrl];
 }
 
-/// The Jacobians of one output at a point, one matrix per input: nv rows,
-/// and nv columns for θ (tangent space), the velocity, ε and T, nu for ctrl.
+/// The Jacobians of one output at a point, one matrix per input: a row
+/// per entry of the output, and nv columns for θ (tangent space), the velocity, ε and T, nu for ctrl.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Jacobians {
     /// ∂/∂θ in the tangent space.
@@ -178,6 +196,8 @@ struct Passes {
     theta_rates: Vec<f64>,
     /// Whether the last run computed θ̈ (ν̇'s is the workspace's stage).
     qacc_current: bool,
+    /// Whether the last run read the sensors.
+    sensors_current: bool,
 }
 
 impl Passes {
@@ -191,6 +211,7 @@ impl Passes {
             ctrl: vec![Dual64::from(0.0); model.actuators.len()],
             theta_rates: vec![0.0; model.nq],
             qacc_current: false,
+            sensors_current: false,
         }
     }
 
@@ -204,7 +225,7 @@ impl Passes {
         outputs: &[Output],
         switches: &mut Switches,
     ) -> Result<(), DerivativeError> {
-        self.qacc_current = false;
+        (self.qacc_current, self.sensors_current) = (false, false);
         theta_rates(model, point.theta, direction, &mut self.theta_rates);
         let ws = &mut self.ws;
         seed(ws.theta.as_mut_slice(), point.theta, &self.theta_rates);
@@ -239,7 +260,10 @@ impl Passes {
         let passive = bias::all_passive_forces(model, ws);
         // ν̇ needs pass 3 with the factor's rates; θ̈ alone does without
         // them, and the outward pass only θ̈ needs.
-        let (nu_dot, qacc) = (outputs.contains(&Output::NuDot), outputs.contains(&Output::Qacc));
+        // The sensors read θ̈ and the constraint forces of the point's inputs where they need them.
+        let sensors = outputs.contains(&Output::Sensordata);
+        let nu_dot = outputs.contains(&Output::NuDot);
+        let qacc = outputs.contains(&Output::Qacc) || (sensors && sensors_need_accelerations(model));
         if nu_dot {
             bias::link_sweep::<_, true>(model, ws, &self.eps, passive);
             ws.stage = Stage::Acceleration;
@@ -261,6 +285,17 @@ impl Passes {
             }
         }
         self.qacc_current = qacc;
+        if sensors {
+            let on_cutoff = ws.read_sensors(model, point.time);
+            // A held mode holds the cutoffs' pieces too: a reading on its
+            // cutoff then keeps the derivative of the unclamped side.
+            if let Some(entry) = on_cutoff
+                && !ws.constraint_rows.holds_mode()
+            {
+                return Err(DerivativeError::OnSwitch(cutoff_switch(model, entry)));
+            }
+            self.sensors_current = true;
+        }
         Ok(())
     }
 
@@ -270,6 +305,7 @@ impl Passes {
             Output::Qvel | Output::Nu => true,
             Output::NuDot => self.ws.stage == Stage::Acceleration,
             Output::Qacc => self.qacc_current,
+            Output::Sensordata => self.sensors_current,
         };
         assert!(computed, "{output:?} was not asked of the last run");
         match output {
@@ -277,6 +313,7 @@ impl Passes {
             Output::Nu => self.ws.nu.as_slice(),
             Output::NuDot => self.ws.nu_dot.as_slice(),
             Output::Qacc => self.ws.qacc.as_slice(),
+            Output::Sensordata => self.ws.sensordata.as_slice(),
         }
     }
 }
@@ -465,7 +502,8 @@ impl Derivatives {
         for &input in inputs {
             let count = if input == Input::Ctrl { nu } else { nv };
             let mut unit = vec![0.0; count];
-            let mut jacobians: [DMatrix<f64>; N] = std::array::from_fn(|_| DMatrix::zeros(nv, count));
+            let mut jacobians: [DMatrix<f64>; N] =
+                std::array::from_fn(|k| DMatrix::zeros(outputs[k].len(model), count));
             for column in 0..count {
                 unit[column] = 1.0;
                 let along = |which: Input| if which == input { unit.as_slice() } else { zeros.as_slice() };

@@ -24,36 +24,37 @@
 use super::constraint::RowKind;
 use super::equality::{orientation, weld_rotation_map};
 use super::tendon::{direction, walk_path};
-use crate::math::{Mat3, Transform, Vec3, angular, linear, spatial};
+use crate::math::{Mat3, Real, Transform, Vec3, angular, linear, real, spatial};
 use crate::model::{ActuatorTransmission, EqualityRows, Model, Path, SiteFrame};
 use crate::vehicle::SensorKind;
 use crate::workspace::Workspace;
 
-impl Workspace {
+impl<S: Real> Workspace<S> {
     /// Each body's inertial force less the external forces on it, in world
     /// axes about its centre of mass, into `body_wrench` and `body_com`.
     /// Needs the link accelerations, the actuators' forces and the
     /// constraint rows of the current inputs, and current world placements.
     pub(super) fn body_interaction_wrenches(&mut self, model: &Model) {
+        let gravity = real::<S, 3, 1>(&model.gravity);
         for (b, body) in model.body_masses.iter().enumerate() {
+            let c = real::<S, 3, 1>(&body.com);
             let (com, wrench) = match body.link {
                 // Fixed to the world: it accelerates at −g and bears its weight.
-                None => (body.com, spatial(&Vec3::zeros(), &(-body.mass * model.gravity))),
+                None => (c, spatial(&Vec3::zeros(), &(gravity * S::from(-body.mass)))),
                 Some(link) => {
                     let placement = &self.x_world[link];
                     let to_world = placement.rot.transpose();
                     let (v, a) = (&self.v_body[link], &self.a_body[link]);
                     let omega = angular(v);
                     let alpha = angular(a);
-                    let c = body.com;
+                    let inertia = real::<S, 3, 3>(&body.inertia);
                     // Newton–Euler about the centre of mass, link axes: the
                     // spatial acceleration at c plus ω × v_c, and −g.
                     let velocity = linear(v) + omega.cross(&c);
-                    let acceleration =
-                        linear(a) + alpha.cross(&c) + omega.cross(&velocity) - placement.rot * model.gravity;
-                    let torque = body.inertia * alpha + omega.cross(&(body.inertia * omega));
+                    let acceleration = linear(a) + alpha.cross(&c) + omega.cross(&velocity) - placement.rot * gravity;
+                    let torque = inertia * alpha + omega.cross(&(inertia * omega));
                     let com = placement.trans + to_world * c;
-                    (com, spatial(&(to_world * torque), &(to_world * (body.mass * acceleration))))
+                    (com, spatial(&(to_world * torque), &(to_world * (acceleration * S::from(body.mass)))))
                 }
             };
             self.body_com[b] = com;
@@ -74,7 +75,7 @@ impl Workspace {
         for (k, tendon) in model.tendons.iter().enumerate() {
             let Path::Spatial { stops } = &tendon.path else { continue };
             let force = self.tendon_force(model, k);
-            if force == 0.0 {
+            if force.is_still_zero() {
                 continue;
             }
             let (body_wrench, body_com) = (&mut self.body_wrench, &self.body_com);
@@ -140,26 +141,26 @@ impl Workspace {
             for (i, sign) in [(0, 1.0), (1, -1.0)] {
                 let Some(b) = bodies[i] else { continue };
                 let placement = self.in_world(&frames[i]);
-                let point = placement.trans + placement.rot.transpose() * anchors[i];
+                let point = placement.trans + placement.rot.transpose() * real::<S, 3, 1>(&anchors[i]);
                 let about_com = torque + (point - self.body_com[b]).cross(&f);
-                self.body_wrench[b] -= sign * spatial(&about_com, &f);
+                self.body_wrench[b] -= spatial(&about_com, &f) * S::from(sign);
             }
             k += equality.rows.count();
         }
     }
 
     /// A frame's placement in the world, ᶠX₀.
-    fn in_world(&self, frame: &SiteFrame) -> Transform {
+    fn in_world(&self, frame: &SiteFrame) -> Transform<S> {
         match frame.link {
-            Some(link) => frame.frame.compose(&self.x_world[link]),
-            None => frame.frame,
+            Some(link) => frame.frame.real().compose(&self.x_world[link]),
+            None => frame.frame.real(),
         }
     }
 
     /// A force or torque sensor's reading: the interaction force of the
     /// bodies `first..end` (a subtree) in the site frame, the torque about
     /// the site. Needs [`Workspace::body_interaction_wrenches`].
-    pub(super) fn interaction_reading(&self, kind: SensorKind, site: &SiteFrame, first: usize, end: usize) -> Vec3 {
+    pub(super) fn interaction_reading(&self, kind: SensorKind, site: &SiteFrame, first: usize, end: usize) -> Vec3<S> {
         let placement = self.in_world(site);
         let (mut force, mut torque) = (Vec3::zeros(), Vec3::zeros());
         for b in first..end {
@@ -168,7 +169,7 @@ impl Workspace {
             torque += angular(&self.body_wrench[b]) + (self.body_com[b] - placement.trans).cross(&f);
         }
         // ᶠX₀'s rotation takes world axes to the site's.
-        let to_site: Mat3 = placement.rot;
+        let to_site: Mat3<S> = placement.rot;
         match kind {
             SensorKind::Force => to_site * force,
             _ => to_site * torque,

@@ -15,7 +15,7 @@ use super::constraint::RowKind;
 use super::equality::polynomial_coupling;
 use super::forces::add_joint_forces_of_wrenches;
 use super::wrap;
-use crate::math::{Real, SpatialVec, Transform, Vec3, spatial};
+use crate::math::{Real, SpatialVec, Transform, Vec3, spatial, sum};
 use crate::model::{ActuatorTransmission, EqualityRows, Model, Path, PathStop, Tendon};
 use crate::workspace::Workspace;
 
@@ -100,47 +100,49 @@ impl<S: Real> Workspace<S> {
     }
 }
 
-impl Workspace {
+impl<S: Real> Workspace<S> {
     /// The force tendon `k` carries, F, whose generalized force is JᵀF (F > 0
     /// pushes its ends apart): its spring and damper, its armature's
     /// −a·L̈ (L̈ = J θ̈ + J̇θ̇), its actuators' forces times their gear, and
     /// its friction-loss, limit and equality rows' forces times the
-    /// tendon's share of the row.
-    pub(super) fn tendon_force(&self, model: &Model, k: usize) -> f64 {
+    /// tendon's share of the row (a limit row's side decided on the values).
+    pub(super) fn tendon_force(&self, model: &Model, k: usize) -> S {
         let tendon = &model.tendons[k];
-        let mut force = 0.0;
+        let mut force = S::zero();
         if tendon.armature != 0.0 {
-            let along: f64 = self.tendon_moment_row(model, k).iter().zip(self.qacc.iter()).map(|(j, a)| j * a).sum();
-            force -= tendon.armature * (along + self.tendon_inertia.jdot_qvel(k));
+            // J̇θ̇ is kept in f64 only: the derivatives refuse the tendons' armature.
+            let along = sum(self.tendon_moment_row(model, k).iter().zip(self.qacc.iter()).map(|(j, a)| *j * *a));
+            force -= (along + self.tendon_inertia.jdot_qvel(k)) * tendon.armature;
         }
         if tendon.has_passive_force() {
             force += passive_force(tendon, self.tendon_length[k], self.tendon_velocity[k]);
         }
         for (a, actuator) in model.actuators.iter().enumerate() {
             if matches!(actuator.transmission, ActuatorTransmission::Tendon { tendon } if tendon == k) {
-                force += actuator.gear[0] * self.actuator_force[a];
+                force += self.actuator_force[a] * actuator.gear[0];
             }
         }
         let rows = &self.constraint_rows;
         let constraints = &model.constraints;
         for r in 0..rows.count {
             let share = match rows.kind[r] {
-                RowKind::TendonFriction if constraints.tendon_friction[rows.id[r]].tendon == k => 1.0,
+                RowKind::TendonFriction if constraints.tendon_friction[rows.id[r]].tendon == k => S::one(),
                 // The row is ∓J on the lower and upper side.
                 RowKind::TendonLimit if constraints.tendon_limits[rows.id[r]].tendon == k => {
                     let row = &rows.jacobian[r * model.nv..(r + 1) * model.nv];
-                    let along: f64 = row.iter().zip(self.tendon_moment_row(model, k)).map(|(a, b)| a * b).sum();
-                    along.signum()
+                    let arms = self.tendon_moment_row(model, k);
+                    let along: f64 = row.iter().zip(arms).map(|(a, b)| a.value() * b.value()).sum();
+                    S::from(along.signum())
                 }
                 RowKind::Equality => match &constraints.equalities[rows.id[r]].rows {
                     EqualityRows::Tendon { first, second, polycoef, .. } if *first == k || *second == Some(k) => {
                         let offset = |t: usize| self.tendon_length[t] - model.tendons[t].length0;
                         let (_, slope) = polynomial_coupling(polycoef, offset(*first), second.map(offset));
-                        if *first == k { 1.0 } else { -slope }
+                        if *first == k { S::one() } else { -slope }
                     }
-                    _ => 0.0,
+                    _ => S::zero(),
                 },
-                _ => 0.0,
+                _ => S::zero(),
             };
             force += share * rows.force[r];
         }

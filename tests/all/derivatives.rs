@@ -63,8 +63,10 @@ fn file_case(path: &str, seed: u64) -> Case {
     file_case_at(path, seed, |rng, vehicle, model| {
         // No joint limit within reach of the differences' steps.
         let mut switches = vec![0.0; model.constraints.limit_sides()];
+        let mut ws = model.workspace();
         let mut clear_of_limits = |theta: &[f64]| {
-            limit_switching_functions(model, theta, &[], &mut switches);
+            ws.set_configuration(model, theta).unwrap();
+            limit_switching_functions(model, theta, ws.tendon_length.as_slice(), &mut switches);
             switches.iter().all(|s| *s > 0.01)
         };
         std::iter::repeat_with(|| random_theta(rng, vehicle)).find(|t| clear_of_limits(t)).unwrap()
@@ -98,27 +100,28 @@ fn point(case: &Case, given: Given) -> Point<'_> {
         eps: &case.eps,
         torque: &case.torque,
         ctrl: &case.ctrl,
+        time: 0.0,
     }
 }
 
-/// One output of the f64 passes at a state: ν̇ given ν, θ̈ given θ̇. With
-/// constraint rows, their forces are those of the constraint mode of the
+/// One output of the f64 passes at a state: ν̇, θ̈ or the sensors'
+/// readings (`output`). With constraint rows, their forces are those of the constraint mode of the
 /// state `mode_of` (the limit sides, impedance pieces and solver's working
 /// set there, held as the integrators hold them over a step): a smooth
 /// function, whose derivative at `mode_of` the dual numbers give.
-fn evaluate(model: &Model, point: &Point, mode_of: &Point) -> Vec<f64> {
+fn evaluate(model: &Model, point: &Point, mode_of: &Point, output: Output) -> Vec<f64> {
     let mut ws = model.workspace();
     if model.couples_beyond_tree() {
         let mut mode = ConstraintMode::new(model);
         mode.hold_sides(model, &mut ws, mode_of.theta).unwrap();
-        evaluate_on(model, &mut ws, mode_of);
+        evaluate_on(model, &mut ws, mode_of, output);
         let mut start = vec![0.0; mode.len()];
         mode.hold_working_set(model, &mut ws, &mut start);
     }
-    evaluate_on(model, &mut ws, point)
+    evaluate_on(model, &mut ws, point, output)
 }
 
-fn evaluate_on(model: &Model, ws: &mut Workspace, point: &Point) -> Vec<f64> {
+fn evaluate_on(model: &Model, ws: &mut Workspace, point: &Point, output: Output) -> Vec<f64> {
     ws.set_configuration(model, point.theta).unwrap();
     match point.given {
         Given::Nu => ws.set_nu(model, point.velocity).unwrap(),
@@ -129,22 +132,26 @@ fn evaluate_on(model: &Model, ws: &mut Workspace, point: &Point) -> Vec<f64> {
     applied.iter_mut().zip(point.eps).for_each(|(a, e)| *a += e);
     ws.compute_nu_dot_actuated(model, &applied, point.ctrl).unwrap();
     ws.compute_accelerations(model).unwrap();
-    let output = match point.given {
-        Given::Nu => &ws.nu_dot,
-        Given::Qvel => &ws.qacc,
-    };
-    output.as_slice().to_vec()
+    match output {
+        Output::NuDot => ws.nu_dot.as_slice().to_vec(),
+        Output::Qacc => ws.qacc.as_slice().to_vec(),
+        Output::Sensordata => {
+            ws.compute_sensors(model, &applied, point.ctrl, point.time).unwrap();
+            ws.sensordata.as_slice().to_vec()
+        }
+        other => unreachable!("{other:?} is given, not evaluated"),
+    }
 }
 
 /// The Jacobians by central differences of the f64 passes with one
 /// Richardson step (error O(h⁴); measured: within 5e-10 of the exact ones
 /// on these trees); θ moved by MuJoCo's position integration.
-fn differences(case: &Case, given: Given) -> Jacobians {
+fn differences(case: &Case, given: Given, output: Output) -> Jacobians {
     let (model, nv, nu) = (&case.model, case.model.nv, case.model.actuators.len());
     let h = 1e-3;
     let columns = |which: usize| {
         let count = if which == 4 { nu } else { nv };
-        let mut jacobian = DMatrix::zeros(nv, count);
+        let mut jacobian = DMatrix::zeros(output.len(model), count);
         for column in 0..count {
             let at = |step: f64| {
                 let moved = |values: &[f64], k: usize| -> Vec<f64> {
@@ -163,13 +170,21 @@ fn differences(case: &Case, given: Given) -> Jacobians {
                 };
                 let (velocity, eps, torque, ctrl) =
                     (moved(&case.velocity, 1), moved(&case.eps, 2), moved(&case.torque, 3), moved(&case.ctrl, 4));
-                let point =
-                    Point { theta: &theta, velocity: &velocity, given, eps: &eps, torque: &torque, ctrl: &ctrl };
-                DVector::from_vec(evaluate(model, &point, &self::point(case, given)))
+                let point = Point {
+                    theta: &theta,
+                    velocity: &velocity,
+                    given,
+                    eps: &eps,
+                    torque: &torque,
+                    ctrl: &ctrl,
+                    time: 0.0,
+                };
+                DVector::from_vec(evaluate(model, &point, &self::point(case, given), output))
             };
             // ε and T enter linearly: a long step keeps the differences'
-            // round-off small where the constraints make M⁻¹'s conditioning poor.
-            let h = if which == 2 || which == 3 { 1.0 } else { h };
+            // round-off small where the constraints make M⁻¹'s conditioning
+            // poor; not the sensors' (it would cross their cutoffs).
+            let h = if (which == 2 || which == 3) && output != Output::Sensordata { 1.0 } else { h };
             let central = |h: f64| (at(h) - at(-h)) / (2.0 * h);
             let richardson = (central(h / 2.0) * 4.0 - central(h)) / 3.0;
             jacobian.set_column(column, &richardson);
@@ -226,10 +241,21 @@ fn the_derivative_of_nu_in_qvel_is_the_factor_and_of_nu_dot_in_eps_the_identity(
 /// Every Jacobian of θ̈ (θ̇ given) and ν̇ (ν given) within `tolerance` of
 /// the differences.
 fn assert_agrees_with_differences(case: &Case, label: &str, tolerance: f64) {
+    assert_outputs_agree_with_differences(
+        case,
+        label,
+        &[(Given::Qvel, Output::Qacc), (Given::Nu, Output::NuDot)],
+        tolerance,
+    )
+}
+
+/// Every Jacobian of each output (its velocity given) within `tolerance`
+/// of the differences.
+fn assert_outputs_agree_with_differences(case: &Case, label: &str, outputs: &[(Given, Output)], tolerance: f64) {
     let mut derivatives = Derivatives::new(&case.model).unwrap();
-    for (given, output) in [(Given::Qvel, Output::Qacc), (Given::Nu, Output::NuDot)] {
+    for &(given, output) in outputs {
         let exact = derivatives.jacobians(&case.model, &point(case, given), output).unwrap();
-        let differenced = differences(case, given);
+        let differenced = differences(case, given, output);
         for (what, a, b) in [
             ("theta", &exact.theta, &differenced.theta),
             ("velocity", &exact.velocity, &differenced.velocity),
@@ -331,11 +357,88 @@ fn constrained_jacobians_agree_with_central_differences_at_the_mode() {
             let case = constrained_case(path, seed, spread);
             assert_agrees_with_differences(&case, &format!("{path}, seed {seed}"), 1e-8);
             let mut ws = case.model.workspace();
-            evaluate_on(&case.model, &mut ws, &point(&case, Given::Qvel));
+            evaluate_on(&case.model, &mut ws, &point(&case, Given::Qvel), Output::Qacc);
             rows_seen += ws.constraint_rows.count;
         }
     }
     assert!(rows_seen > 50, "only {rows_seen} constraint rows active over the cases");
+}
+
+/// Every kind of sensor through the dual numbers: ∂sensordata/∂(δq, θ̇,
+/// ε, T, ctrl) and ∂sensordata/∂ν against the differences of the f64
+/// sensors (`compute_sensors`), at random states: every_sensor.xml (joint,
+/// ball, frame, subtree, gyro, velocimeter, magnetometer, accelerometer and
+/// actuator sensors, cutoffs, the clock), the force and torque fixtures
+/// (welded bodies), sites at a flexible body's nodes, mocap frames; and at
+/// the constraint mode of the point, the docked servicer (force and torque
+/// sensors with welds and a connect, joint limit sensors), the joint and
+/// tendon limit sensors of limited_arm and tendon_limits, and empty_rows'
+/// force and torque with a spatial tendon's limit. A run's readings are the f64 sensors' (the clock's time
+/// included) to round-off.
+#[test]
+fn sensor_jacobians_agree_with_central_differences_of_the_sensors() {
+    let outputs = [(Given::Qvel, Output::Sensordata), (Given::Nu, Output::Sensordata)];
+    for (path, seeds) in [
+        ("tests/fixtures/sensors/every_sensor.xml", 0..3),
+        ("tests/fixtures/sensors/force_torque.xml", 0..2),
+        ("tests/fixtures/sensors/frames_mocap.xml", 0..1),
+        ("tests/fixtures/flex/bench_sensors.xml", 0..2),
+    ] {
+        for seed in seeds {
+            let case = file_case(path, seed);
+            assert!(!case.model.sensors.is_empty());
+            assert_outputs_agree_with_differences(&case, &format!("{path}, seed {seed}"), &outputs, 1e-7);
+            assert_sensor_values_are_the_f64_sensors(&case, &format!("{path}, seed {seed}"));
+        }
+    }
+    for (path, spread) in [
+        ("tests/fixtures/constraints/docked_servicer.xml", 0.05),
+        ("tests/fixtures/constraints/limited_arm.xml", 1.0),
+        ("tests/fixtures/tendons/tendon_limits.xml", 0.5),
+        ("tests/fixtures/constraints/empty_rows.xml", 0.3),
+    ] {
+        for seed in 0..2 {
+            let case = constrained_case(path, seed, spread);
+            assert_outputs_agree_with_differences(&case, &format!("{path}, seed {seed}"), &outputs, 1e-7);
+            assert_sensor_values_are_the_f64_sensors(&case, &format!("{path}, seed {seed}"));
+        }
+    }
+}
+
+fn assert_sensor_values_are_the_f64_sensors(case: &Case, label: &str) {
+    let model = &case.model;
+    let (zeros, no_ctrl) = (vec![0.0; model.nv], vec![0.0; model.actuators.len()]);
+    let at = Point { time: 0.25, ..point(case, Given::Qvel) };
+    let mut derivatives = Derivatives::new(model).unwrap();
+    derivatives.run(model, &at, &nowhere(&zeros, &no_ctrl), &[Output::Sensordata]).unwrap();
+    let values: Vec<f64> = derivatives.value(Output::Sensordata).collect();
+    let error = common::rel_err(&values, &evaluate(model, &at, &at, Output::Sensordata));
+    assert!(error < 1e-12, "{label}: the readings differ from the f64 sensors' by {error:e}");
+}
+
+/// A reading clamped at its `cutoff` has derivative 0; one exactly at
+/// it is on a switch of the clamp, refused with the sensor named.
+#[test]
+fn a_reading_at_its_cutoff_is_a_switch_and_past_it_is_held() {
+    let mut case = file_case("tests/fixtures/sensors/every_sensor.xml", 0);
+    let model = &case.model;
+    let (index, sensor) = model.sensors.iter().enumerate().find(|(_, s)| s.cutoff > 0.0).unwrap();
+    let nudyn::model::SensorSource::Joint { qpos, .. } = sensor.source else {
+        panic!("the first cutoff is a jointpos's")
+    };
+    let (adr, cutoff) = (sensor.adr, sensor.cutoff);
+    let mut derivatives = Derivatives::new(model).unwrap();
+    let (nv, nu) = (model.nv, model.actuators.len());
+    case.theta[qpos] = 2.0 * cutoff;
+    let jacobians = derivatives.jacobians(model, &point(&case, Given::Qvel), Output::Sensordata).unwrap();
+    assert!(jacobians.theta.row(adr).iter().all(|d| *d == 0.0), "{}", jacobians.theta.row(adr));
+    case.theta[qpos] = cutoff;
+    let (zeros, no_ctrl) = (vec![0.0; nv], vec![0.0; nu]);
+    let refused = derivatives
+        .run(&case.model, &point(&case, Given::Qvel), &nowhere(&zeros, &no_ctrl), &[Output::Sensordata])
+        .unwrap_err();
+    let named = format!("{}'s reading (sensordata[{}]) at its cutoff", case.model.sensors[index].label(index), adr + 1);
+    assert_eq!(refused, DerivativeError::OnSwitch(named));
 }
 
 /// On a switch (the elbow's upper side exactly at its margin) a run is
@@ -363,12 +466,12 @@ fn a_held_mode_gives_its_derivatives_on_a_switch() {
     let mut ws = model.workspace();
     let mut mode = ConstraintMode::new(model);
     mode.hold_sides(model, &mut ws, at.theta).unwrap();
-    evaluate_on(model, &mut ws, &at);
+    evaluate_on(model, &mut ws, &at, Output::Qacc);
     let mut start = vec![0.0; mode.len()];
     mode.hold_working_set(model, &mut ws, &mut start);
     derivatives.hold_constraint_mode_of(&ws.constraint_rows);
     let exact = derivatives.jacobians(model, &at, Output::Qacc).unwrap();
-    let differenced = differences(&case, Given::Qvel);
+    let differenced = differences(&case, Given::Qvel, Output::Qacc);
     for (what, a, b) in
         [("theta", &exact.theta, &differenced.theta), ("velocity", &exact.velocity, &differenced.velocity)]
     {
@@ -391,7 +494,7 @@ fn a_run_gives_the_f64_values() {
             derivatives.run(&case.model, &point(&case, given), &direction, &[output]).unwrap();
             let values: Vec<f64> = derivatives.value(output).collect();
             let at = point(&case, given);
-            let passes = evaluate(&case.model, &at, &at);
+            let passes = evaluate(&case.model, &at, &at, output);
             let error = common::rel_err(&values, &passes);
             assert!(error < 1e-13, "seed {seed}, {output:?}: {error:e}");
             assert!(derivatives.derivative(output).all(|d| d == 0.0), "seed {seed}: a zero direction moved {output:?}");

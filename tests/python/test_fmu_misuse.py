@@ -37,11 +37,14 @@ def unzipped(exported_fmu, tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def unzipped_fmi3(exported_fmu, tmp_path_factory):
-    """servicer's FMI 3.0 plant and controller, unzipped."""
+    """servicer's FMI 3.0 plant and controller, unzipped. The plant has the
+    momentum output, whose derivative is not computed, so that it provides
+    no partial derivatives (fmi3_misuse's refusals before any argument)."""
     directory = tmp_path_factory.mktemp("misuse3")
     made = []
     for name, controller in (("plant", False), ("controller", True)):
-        fmu = exported_fmu(ROOT / "examples/servicer.xml", controller=controller, fmi_version=3)
+        options = dict(controller=True) if controller else dict(outputs=("momentum",))
+        fmu = exported_fmu(ROOT / "examples/servicer.xml", fmi_version=3, **options)
         with zipfile.ZipFile(fmu) as archive:
             archive.extractall(directory / name)
         made.append(directory / name)

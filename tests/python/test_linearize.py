@@ -335,3 +335,55 @@ def test_constrained_vehicles_agree_with_differences_of_mujoco(nudyn, path):
         print(f"{path}: {rows} rows, " + ", ".join(f"∂qacc/∂{w} {e:.1e}" for w, e in errors))
         for what, error in errors:
             assert error < 1e-6, f"{path}: ∂qacc/∂{what} {error:.2e} from MuJoCo's differences ({rows} rows)"
+
+
+# Sensors (`--outputs sensordata`): every kind but the limits' (every_sensor,
+# cutoffs and the clock among them), force and torque on welded bodies
+# (force_torque), and on the docked servicer force, torque and joint limit
+# sensors through welds and a connect, near qpos0 where the welds hold.
+SENSED = {
+    "tests/fixtures/sensors/every_sensor.xml": 0.3,
+    "tests/fixtures/sensors/force_torque.xml": 0.3,
+    "tests/fixtures/constraints/docked_servicer.xml": 0.01,
+}
+
+
+@pytest.mark.parametrize("path", SENSED, ids=[p.split("/")[-1][:-4] for p in SENSED])
+def test_the_sensors_rows_are_mujocos_transition_c_and_d(nudyn, path):
+    """C and D of sensordata (x = (δq, θ̇), u = ctrl) against MuJoCo's
+    mjd_transitionFD (centered at step 1e-5, its solver run to round-off), at random
+    states near qpos0: within 1e-6 relative to the largest entry, as the
+    other comparisons here. A reading held at its cutoff has derivative 0
+    in both. (Relative to each row's largest entry the docked servicer's
+    pod_mount force and dock torque rows differ by up to 8e-4: MuJoCo's
+    differences there grow as 1/h, 4.5e-6 at h = 1e-4, 7.9e-4 at 1e-6,
+    the solver's residual on weld forces of 1e5 N, while nudyn's own
+    differences agree to 1e-7: tests/all/derivatives.rs.)"""
+    m = load_model(ROOT / path)
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(zlib.crc32(path.encode()))
+    nv, ns = m.nv, m.nsensordata
+    for _ in range(2):
+        qpos = m.qpos0.copy()
+        mujoco.mj_integratePos(m, qpos, rng.normal(0, SENSED[path], nv), 1.0)
+        qvel = rng.normal(0, 0.3, nv)
+        low, high = m.actuator_ctrlrange[:, 0], m.actuator_ctrlrange[:, 1]
+        ranged = (m.actuator_ctrllimited == 1) & (low < high)
+        ctrl = np.where(ranged, low + (high - low) * rng.uniform(0.2, 0.8, m.nu), rng.uniform(-1, 1, m.nu))
+        mujoco.mj_resetData(m, d)
+        d.qpos[:], d.qvel[:], d.ctrl[:] = qpos, qvel, ctrl
+        mujoco.mj_forward(m, d)
+        a, b = np.zeros((2 * nv, 2 * nv)), np.zeros((2 * nv, m.nu))
+        c, dd = np.zeros((ns, 2 * nv)), np.zeros((ns, m.nu))
+        # Its step 1e-5: at 1e-6 its differences of the docked servicer's
+        # readings from weld forces carry 3e-6 of the solver's residual.
+        mujoco.mjd_transitionFD(m, d, 1e-5, 1, a, b, c, dd)
+        given_ctrl = ["--ctrl", listed(ctrl)] if m.nu else []
+        out, _ = linearize(nudyn, ROOT / path, "--qpos", listed(qpos), "--qvel", listed(qvel), *given_ctrl,
+                           "--inputs", "ctrl", "--outputs", "sensordata")
+        ours_c, ours_d = np.array(out["C"]), np.array(out["D"]).reshape(ns, m.nu)
+        errors = {"C": relative(ours_c, c), "D": relative(ours_d, dd) if m.nu else 0.0}
+        print(f"{path}: {d.nefc} rows, sensordata " + ", ".join(f"{k} {e:.1e}" for k, e in errors.items())
+              + " from mjd_transitionFD")
+        for what, error in errors.items():
+            assert error < 1e-6, f"{path}: the sensors' {what} {error:.2e} from MuJoCo's ({d.nefc} rows)"

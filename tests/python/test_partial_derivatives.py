@@ -10,11 +10,13 @@ the FMU normalizes) the derivatives of the state derivatives and outputs
 with respect to θ (along its coordinates), ν and ε equal central
 differences of the same FMU's values, moved through fmi2SetContinuousStates
 (model exchange) or the initial state (co-simulation's initialization
-mode); the adjoint is the transpose of the directional derivative; a model
-the derivatives do not cover (one with sensors) declares none and
-refuses the call, naming what is missing. Constrained vehicles and
+mode); the adjoint is the transpose of the directional derivative; an FMU
+the derivatives do not cover (one with the momentum output) declares none
+and refuses the call, naming what is missing. Constrained vehicles,
 tests/fixtures/actuators/kinds.xml (every actuator kind, ctrl a known)
-too."""
+and tests/fixtures/sensors/every_sensor.xml (its sensors among the
+unknowns) too; the docked servicer's force, torque and limit sensors in
+the ModelStructure check."""
 
 from __future__ import annotations
 
@@ -47,13 +49,22 @@ MODELS = {
     # Every actuator kind, transmission, gain and clamp, its ctrl a known
     # (set inside each range, away from the clamps), and joint limits.
     "kinds": ROOT / "tests" / "fixtures" / "actuators" / "kinds.xml",
+    # Sensors as unknowns: every kind but the limits' and the force and
+    # torque (joint, ball, frame, subtree, gyro, velocimeter, magnetometer,
+    # accelerometer, actuator sensors, cutoffs, the clock).
+    "every_sensor": ROOT / "tests" / "fixtures" / "sensors" / "every_sensor.xml",
 }
+# The docked servicer's force, torque and joint limit sensors through welds
+# and a connect: its ModelStructure is checked against the exact Jacobian.
+# (Its stiff welds leave the FMU's own differences 1e-5 off at 0.01 rad
+# from qpos0, 0.7 at this test's 0.2: round-off of forces of 1e9 N.)
+DOCKED = ROOT / "tests" / "fixtures" / "constraints" / "docked_servicer.xml"
 # Their rows of der(nu) reach 1e8 at these states (the constraints pulled
 # 0.2 rad off): the differences' round-off is of the row's size, so their
 # error is taken relative to each row's largest entry (measured 2e-8 at
 # STEP, 2e-10 at 1e-6 on slider_hand), and ε reaches ν̇ through the
 # constraint forces, not as the identity.
-CONSTRAINED = {"slider_hand", "refsafe_off", "kinds"}
+CONSTRAINED = {"slider_hand", "refsafe_off", "kinds", "docked_servicer"}
 OUTPUTS = ("qvel", "kinetic_energy", "power")
 # Central differences' step; with it the exact derivatives are within
 # 2e-8 relative of them on bus_arm7 and 2e-9 on springdamper (measured).
@@ -84,8 +95,9 @@ class Names:
             limited = compiled.actuator_ctrllimited == 1
             self.ctrl_ranges = [tuple(r) if on else (0.0, 0.0) for r, on in zip(compiled.actuator_ctrlrange, limited)]
         self.knowns = self.theta + self.nu + self.eps + self.ctrl
-        self.unknowns = ([f"der({n})" for n in self.theta + self.nu] + self.theta + self.nu + package.names("qvel")
-                         + ["kinetic_energy", "power"])
+        self.sensordata = package.names("sensordata")
+        self.unknowns = ([f"der({n})" for n in self.theta + self.nu] + self.theta + self.nu + self.sensordata
+                         + package.names("qvel") + ["kinetic_energy", "power"])
 
 
 def random_point(names: Names, seed: int) -> np.ndarray:
@@ -168,8 +180,9 @@ class Fmi3:
         nq, nv = len(names.theta), len(names.nu)
         # The arrays, and how many elements each has.
         self.known_arrays = [("theta", nq), ("nu", nv), ("eps", nv)] + ([("ctrl", len(names.ctrl))] if names.ctrl else [])
-        self.unknown_arrays = [("der(theta)", nq), ("der(nu)", nv), ("theta", nq), ("nu", nv), ("qvel", nv),
-                               ("kinetic_energy", 1), ("power", 1)]
+        self.unknown_arrays = [("der(theta)", nq), ("der(nu)", nv), ("theta", nq), ("nu", nv),
+                               *([("sensordata", len(names.sensordata))] if names.sensordata else []),
+                               ("qvel", nv), ("kinetic_energy", 1), ("power", 1)]
 
     @staticmethod
     def _unzip(fmu, directory):
@@ -241,7 +254,7 @@ def test_directional_derivatives_are_central_differences_of_the_fmu(fmus, tmp_pa
     # ∂ν̇/∂ε = I exactly (without constraint forces), and θ and ν pass their seeds through.
     nq, nv = len(names.theta), len(names.nu)
     if name not in CONSTRAINED:
-        assert np.array_equal(exact[nq:nq + nv, nq + nv:], np.eye(nv))
+        assert np.array_equal(exact[nq:nq + nv, nq + nv:nq + 2 * nv], np.eye(nv))
     assert np.array_equal(exact[nq + nv:2 * (nq + nv), :nq + nv], np.eye(nq + nv))
     host.fmu.freeInstance()
 
@@ -265,10 +278,12 @@ def test_the_adjoint_is_the_transpose(fmus, tmp_path, name, interface):
     host.fmu.freeInstance()
 
 
-def test_a_model_with_sensors_declares_no_derivatives_and_says_why(cli, tmp_path):
+def test_an_fmu_beyond_the_derivatives_declares_none_and_says_why(cli, tmp_path):
+    """The momentum output has no derivative yet: an FMU with it (here of a
+    vehicle with sensors, which have derivatives) declares none."""
     servicer = EXAMPLES_DIR / "servicer.xml"
-    fmu2 = cli.export(servicer, tmp_path / "servicer2.fmu", fmi_version=2)
-    fmu3 = cli.export(servicer, tmp_path / "servicer3.fmu", fmi_version=3)
+    fmu2 = cli.export(servicer, tmp_path / "servicer2.fmu", fmi_version=2, outputs=("momentum",))
+    fmu3 = cli.export(servicer, tmp_path / "servicer3.fmu", fmi_version=3, outputs=("momentum",))
     for fmu, flags in ((fmu2, ["providesDirectionalDerivative"]),
                        (fmu3, ["providesDirectionalDerivatives", "providesAdjointDerivatives"])):
         root = ET.fromstring(zipfile.ZipFile(fmu).read("modelDescription.xml"))
@@ -283,7 +298,7 @@ def test_a_model_with_sensors_declares_no_derivatives_and_says_why(cli, tmp_path
             else:
                 host.fmu.getDirectionalDerivative([host.vr["nu"]], [host.vr["eps"]], [1.0] * len(names.eps),
                                                   nSensitivity=len(names.nu))
-        assert any("providesDirectionalDerivative" in m and "sensors" in m for m in host.messages), host.messages
+        assert any("providesDirectionalDerivative" in m and "momentum" in m for m in host.messages), host.messages
         host.fmu.freeInstance()
 
 
@@ -349,7 +364,8 @@ def test_the_quaternion_rate_is_half_q_times_omega(fmus, tmp_path):
 COVERED = ["bus_arm7", "chain60", "fixed_rig", "flexible_boom"]
 
 
-@pytest.mark.parametrize("name", COVERED + ["springdamper", "bench_vehicle", "slider_hand", "refsafe_off", "kinds"])
+@pytest.mark.parametrize("name", COVERED + ["springdamper", "bench_vehicle", "slider_hand", "refsafe_off", "kinds",
+                                  "every_sensor", "docked_servicer", "servicer"])
 def test_the_model_structure_lists_every_dependence_the_derivatives_have(cli, tmp_path, name):
     """ModelStructure's dependencies (FMI 2.0) against the exact Jacobian at
     a random state: every non-zero entry is listed (a host may take an
@@ -358,7 +374,7 @@ def test_the_model_structure_lists_every_dependence_the_derivatives_have(cli, tm
     other lists are exact to the joint: a multi-dof joint's block is listed
     whole, where θ̇ = ℓ*ν may leave an entry of it 0. A constrained vehicle
     lists every state and input (complete, not exact)."""
-    model = MODELS.get(name, EXAMPLES_DIR / f"{name}.xml")
+    model = DOCKED if name == "docked_servicer" else MODELS.get(name, EXAMPLES_DIR / f"{name}.xml")
     fmu = cli.export(model, tmp_path / f"{name}.fmu", outputs=OUTPUTS)
     root = ET.fromstring(zipfile.ZipFile(fmu).read("modelDescription.xml"))
     assert root.find("ModelExchange").get("providesDirectionalDerivative") == "true"
@@ -380,8 +396,9 @@ def test_the_model_structure_lists_every_dependence_the_derivatives_have(cli, tm
         depends = {index[known] for known, d in zip(names.knowns, exact[row]) if d != 0}
         assert depends <= listed[index[unknown]], (unknown, sorted(depends - listed[index[unknown]]))
         # With constraint forces the listing is every state (they couple
-        # any dof to any other through the rows): completeness only.
-        if unknown.startswith("der(nu[") and name not in CONSTRAINED:
+        # any dof to any other through the rows), and with actuators (they
+        # reach every dof through ℓ): completeness only.
+        if unknown.startswith("der(nu[") and name not in CONSTRAINED | {"every_sensor", "servicer", "docked_servicer"}:
             on_nu = {index[known] for known in names.nu}
             if index[unknown[4:-1]] not in modal_nu:
                 assert listed[index[unknown]] & on_nu == depends & on_nu, unknown
