@@ -95,13 +95,15 @@ def scheduler():
     cluster that flies them, as a user's `--scheduler`: a cluster of their
     own each (run_campaign's `workers`) took about 2 CPU-s to start and
     stop. Its worker imports nudyn_campaign from this checkout's python/,
-    as run_campaign's own workers do."""
+    as run_campaign's own workers do. Its HTTP server takes any free port:
+    Dask's default, 8787, held for the module, would make the local
+    clusters of the commands run meanwhile warn on stderr that it is taken."""
     from dask.distributed import LocalCluster
 
     paths = [str(ROOT / "python"), *filter(None, os.environ.get("PYTHONPATH", "").split(os.pathsep))]
     with pytest.MonkeyPatch.context() as patch:
         patch.setenv("PYTHONPATH", os.pathsep.join(dict.fromkeys(paths)))
-        cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None,
+        cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0",
                                silence_logs=logging.ERROR)
     with cluster:
         yield cluster.scheduler_address
