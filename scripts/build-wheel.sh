@@ -19,7 +19,8 @@ DATA="$WHEEL_DATA/data/share/nudyn"
 # The targets scripts/test.sh builds: after the tests this compiles nothing
 # again. maturin then builds nudyn-cli alone, whose dependencies
 # get the workspace's features through workspace-hack (checked by
-# scripts/check-unified-features.py), so it only links the executable.
+# scripts/check-unified-features.py), and the release profile strips the
+# executable as the wheel ships it (Cargo.toml), so it compiles nothing.
 cargo build --release --locked --workspace --lib --bins --test '*' --examples
 rm -rf "$ROOT/target/wheel"
 mkdir -p "$DATA/binaries/linux64"

@@ -58,7 +58,8 @@ python_packages() {
     if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ] \
         || ! "$VENV/bin/python" -c 'import pytest, xdist, libcosimpy, pinocchio, tqdm' >/dev/null 2>&1; then
         echo "setup-test: installing Python packages from requirements-test.txt"
-        "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -r "$REQ"
+        # uv, which scripts/setup.sh installed into the venv.
+        "$VENV/bin/uv" pip install --quiet --python "$VENV/bin/python" -r "$REQ"
         echo "$want" >"$stamp"
     fi
     echo "setup-test: ok ($("$VENV/bin/python" -c 'import pytest, pinocchio; print("pytest", pytest.__version__, "pinocchio", pinocchio.__version__)'))"

@@ -8,6 +8,7 @@ minute on two cores."""
 from __future__ import annotations
 
 import json
+import logging
 import os
 import signal
 import stat
@@ -85,6 +86,27 @@ def one_line_error(proc: subprocess.CompletedProcess, expected: str) -> None:
 def rows(table) -> str:
     """The table's rows, NaN-safe and exact (repr of every float)."""
     return json.dumps(table.to_pylist(), sort_keys=True)
+
+
+@pytest.fixture(scope="module")
+def scheduler():
+    """The address of one local Dask cluster (a worker process) for the
+    tests whose campaigns are about their rows and files, not about the
+    cluster that flies them, as a user's `--scheduler`: a cluster of their
+    own each (run_campaign's `workers`) took about 2 CPU-s to start and
+    stop. Its worker imports nudyn_campaign from this checkout's python/,
+    as run_campaign's own workers do. Its HTTP server takes any free port:
+    Dask's default, 8787, held for the module, would make the local
+    clusters of the commands run meanwhile warn on stderr that it is taken."""
+    from dask.distributed import LocalCluster
+
+    paths = [str(ROOT / "python"), *filter(None, os.environ.get("PYTHONPATH", "").split(os.pathsep))]
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("PYTHONPATH", os.pathsep.join(dict.fromkeys(paths)))
+        cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0",
+                               silence_logs=logging.ERROR)
+    with cluster:
+        yield cluster.scheduler_address
 
 
 @pytest.fixture(scope="module")
@@ -284,10 +306,10 @@ step = 0.05
 """
 
 
-def test_input_schedules_and_the_impulse_per_actuator(nudyn, tmp_path):
+def test_input_schedules_and_the_impulse_per_actuator(nudyn, scheduler, tmp_path):
     path = tmp_path / "burns.toml"
     path.write_text(SERVICER_BURNS.format(servicer=ROOT / "examples" / "servicer.xml"))
-    table = run_campaign(path, tmp_path / "out", workers=1, nudyn=nudyn, progress=False)
+    table = run_campaign(path, tmp_path / "out", scheduler=scheduler, nudyn=nudyn, progress=False)
     assert set(table.column("status").to_pylist()) == {"ok"}
     for row in table.to_pylist():
         impulse = row["impulse"]
@@ -302,9 +324,10 @@ def test_input_schedules_and_the_impulse_per_actuator(nudyn, tmp_path):
         load(bad)
 
 
-def test_trajectories_are_written_per_case_when_asked(nudyn, tmp_path):
+def test_trajectories_are_written_per_case_when_asked(nudyn, scheduler, tmp_path):
     text = WITH_FAILURES.replace("step = 0.05", "step = 0.05\ntrajectories = true")
-    table = run_campaign(write(tmp_path, text), tmp_path / "out", cases=5, workers=1, nudyn=nudyn, progress=False)
+    table = run_campaign(write(tmp_path, text), tmp_path / "out", cases=5, scheduler=scheduler, nudyn=nudyn,
+                         progress=False)
     for row in table.to_pylist():
         trajectory = pq.read_table(tmp_path / "out" / "trajectories" / f"case-{row['case']:06d}.parquet")
         assert trajectory.column_names[:2] == ["time", "nu[1]"] and "nu[13]" in trajectory.column_names
@@ -313,9 +336,10 @@ def test_trajectories_are_written_per_case_when_asked(nudyn, tmp_path):
         assert trajectory.column("nu[4]").to_pylist()[0] == row["nu[4]"]
 
 
-def test_the_integration_method_is_a_dispersion_too(nudyn, tmp_path):
+def test_the_integration_method_is_a_dispersion_too(nudyn, scheduler, tmp_path):
     text = WITH_FAILURES.replace("1e300", "0.2") + '"plant.method" = {{ grid = ["rk4", "dop853"] }}\n'
-    table = run_campaign(write(tmp_path, text), tmp_path / "out", cases=4, workers=1, nudyn=nudyn, progress=False)
+    table = run_campaign(write(tmp_path, text), tmp_path / "out", cases=4, scheduler=scheduler, nudyn=nudyn,
+                         progress=False)
     assert table.column("plant.method").to_pylist() == ["rk4", "dop853"] * 2
     assert set(table.column("status").to_pylist()) == {"ok"}
     with pytest.raises(CampaignError, match="expected a finite number"):
@@ -358,7 +382,7 @@ step = 0.05
 """
 
 
-def test_a_rerun_resumes_only_rows_flown_from_the_same_campaign(nudyn, tmp_path):
+def test_a_rerun_resumes_only_rows_flown_from_the_same_campaign(nudyn, scheduler, tmp_path):
     """OUT/campaign.json records what the rows were flown from: a rerun
     with another seed, another dispersion or another plant FMU is refused
     with what differs (it used to report the old rows as the new campaign's,
@@ -366,7 +390,7 @@ def test_a_rerun_resumes_only_rows_flown_from_the_same_campaign(nudyn, tmp_path)
     afresh; the same campaign with more cases resumes."""
     path = write(tmp_path, SHORT)
     out = tmp_path / "out"
-    first = run_campaign(path, out, workers=1, nudyn=nudyn, progress=False)
+    first = run_campaign(path, out, scheduler=scheduler, nudyn=nudyn, progress=False)
     parts = {part: part.stat().st_mtime_ns for part in (out / "parts").glob("part-*.parquet")}
     changes = [
         (SHORT.replace("seed = 3", "seed = 4"), "seed: 3 → 4"),
@@ -377,24 +401,24 @@ def test_a_rerun_resumes_only_rows_flown_from_the_same_campaign(nudyn, tmp_path)
     for text, expected in changes:
         changed = write(tmp_path, text, "changed.toml")
         with pytest.raises(CampaignError, match="holds the rows of another campaign") as error:
-            run_campaign(changed, out, workers=1, nudyn=nudyn, progress=False)
+            run_campaign(changed, out, scheduler=scheduler, nudyn=nudyn, progress=False)
         assert expected in str(error.value) and "--overwrite" in str(error.value), str(error.value)
         one_line_error(campaign_command(changed, "--out", out), expected)
     assert {part: part.stat().st_mtime_ns for part in (out / "parts").glob("part-*.parquet")} == parts
     assert rows(pq.read_table(out / "results.parquet")) == rows(first)
 
     reseeded = write(tmp_path, SHORT.replace("seed = 3", "seed = 4"), "reseeded.toml")
-    afresh = run_campaign(reseeded, out, workers=1, nudyn=nudyn, progress=False, overwrite=True)
+    afresh = run_campaign(reseeded, out, scheduler=scheduler, nudyn=nudyn, progress=False, overwrite=True)
     assert afresh.column("nu[4]").to_pylist() == [draw(load(reseeded), k)["nu[4]"] for k in range(4)]
     assert afresh.column("nu[4]").to_pylist() != first.column("nu[4]").to_pylist()
     assert "campaign seed 4" in (out / "report.md").read_text()
-    more = run_campaign(reseeded, out, cases=6, workers=1, nudyn=nudyn, progress=False)
+    more = run_campaign(reseeded, out, cases=6, scheduler=scheduler, nudyn=nudyn, progress=False)
     assert rows(more.slice(0, 4)) == rows(afresh) and more.num_rows == 6
 
     # Rows from before the record existed are not taken for anyone's.
     (out / "campaign.json").unlink()
     with pytest.raises(CampaignError, match="no record of what they were flown from"):
-        run_campaign(reseeded, out, workers=1, nudyn=nudyn, progress=False)
+        run_campaign(reseeded, out, scheduler=scheduler, nudyn=nudyn, progress=False)
 
 
 @pytest.mark.parametrize(
@@ -523,7 +547,7 @@ method = "rk4"
 """
 
 
-def test_a_system_file_is_flown_as_its_mjcf_with_the_same_values(nudyn, tmp_path):
+def test_a_system_file_is_flown_as_its_mjcf_with_the_same_values(nudyn, scheduler, tmp_path):
     """`campaign.system`: the archive's FMUs, its controller values and its
     experiment, with the same rows as the MJCF's campaign given the same
     values by hand (and different rows without them: the values count)."""
@@ -532,13 +556,13 @@ def test_a_system_file_is_flown_as_its_mjcf_with_the_same_values(nudyn, tmp_path
                     "--step", "0.1", "--outputs", "kinetic_energy,momentum", "--set", "controller.c1=2"],
                    check=True, capture_output=True)
     system = run_campaign(write(tmp_path, SYSTEM_CAMPAIGN.replace("SOURCE", 'system = "loop.ssp"')), tmp_path / "system",
-                          workers=1, nudyn=nudyn, progress=False)
+                          scheduler=scheduler, nudyn=nudyn, progress=False)
     by_hand = SYSTEM_CAMPAIGN.replace("SOURCE", 'model = "{model}"\ncontroller = true\nduration = 3.0\nstep = 0.1')
     by_hand += "[controller]\nc1 = 2.0\n"
-    mjcf = run_campaign(write(tmp_path, by_hand, "by_hand.toml"), tmp_path / "mjcf", workers=1, nudyn=nudyn,
+    mjcf = run_campaign(write(tmp_path, by_hand, "by_hand.toml"), tmp_path / "mjcf", scheduler=scheduler, nudyn=nudyn,
                         progress=False)
     default_gain = run_campaign(write(tmp_path, by_hand.replace("c1 = 2.0", "c1 = 5.0"), "default.toml"),
-                                tmp_path / "default", workers=1, nudyn=nudyn, progress=False)
+                                tmp_path / "default", scheduler=scheduler, nudyn=nudyn, progress=False)
     assert set(system.column("status").to_pylist()) == {"ok"}
     for column in ("final_nu", "peak_nu", "energy_drift", "nu[4:6]", "controller.c2"):
         assert system.column(column).to_pylist() == mjcf.column(column).to_pylist(), column
@@ -591,7 +615,7 @@ def test_a_second_campaign_into_a_folder_in_use_is_refused(nudyn, tmp_path):
     assert "campaign seed 3" in (out / "report.md").read_text()
 
 
-def test_a_first_run_does_not_replace_files_no_campaign_wrote(nudyn, tmp_path):
+def test_a_first_run_does_not_replace_files_no_campaign_wrote(nudyn, scheduler, tmp_path):
     """An --out with no campaign.json that holds a file a run writes (the
     user's own report.md) is refused, the file left as it was; other files
     are no concern of the run and stay; --overwrite replaces them."""
@@ -602,18 +626,18 @@ def test_a_first_run_does_not_replace_files_no_campaign_wrote(nudyn, tmp_path):
     (out / "notes.txt").write_text("kept")
     expected = f"{out} holds report.md and no campaign.json: no campaign wrote them, and this one would replace them"
     with pytest.raises(CampaignError) as error:
-        run_campaign(path, out, workers=1, nudyn=nudyn, progress=False)
+        run_campaign(path, out, scheduler=scheduler, nudyn=nudyn, progress=False)
     assert expected in str(error.value), str(error.value)
     one_line_error(campaign_command(path, "--out", out, "--nudyn", nudyn), expected)
     assert (out / "report.md").read_text() == "my own notes"
     assert sorted(p.name for p in out.iterdir()) == [".nudyn-campaign.lock", "notes.txt", "report.md"]
 
-    table = run_campaign(path, out, workers=1, nudyn=nudyn, progress=False, overwrite=True)
+    table = run_campaign(path, out, scheduler=scheduler, nudyn=nudyn, progress=False, overwrite=True)
     assert table.num_rows == 4
     assert (out / "report.md").read_text().startswith("# Campaign campaign")
     assert (out / "notes.txt").read_text() == "kept"
     # Written by the campaign now: a rerun resumes.
-    assert rows(run_campaign(path, out, workers=1, nudyn=nudyn, progress=False)) == rows(table)
+    assert rows(run_campaign(path, out, scheduler=scheduler, nudyn=nudyn, progress=False)) == rows(table)
 
 
 def test_a_campaign_leaves_nothing_in_the_temporary_directory(nudyn, tmp_path):
@@ -686,7 +710,7 @@ def test_a_malformed_system_file_is_one_line_naming_it(loop_ssp, nudyn, tmp_path
     assert not (tmp_path / "out" / "parts").exists()
 
 
-def test_a_system_files_plant_values_are_flown_as_fmpy_sets_them(loop_ssp, nudyn, tmp_path):
+def test_a_system_files_plant_values_are_flown_as_fmpy_sets_them(loop_ssp, nudyn, scheduler, tmp_path):
     """The plant's .ssv values are start values FMPy's simulate_ssp sets on
     the plant before its initialization: the campaign flies them too (it
     used to fly the plant FMU's own start values, which a .ssv edited or
@@ -716,7 +740,7 @@ def test_a_system_files_plant_values_are_flown_as_fmpy_sets_them(loop_ssp, nudyn
     fmpy = simulate_ssp(str(edited), stop_time=0.5, step_size=0.05, parameter_set=parameters)
 
     path = write(tmp_path, '[campaign]\nsystem = "edited.ssp"\ncases = 1\ntrajectories = true\n')
-    table = run_campaign(path, tmp_path / "out", workers=1, nudyn=nudyn, progress=False)
+    table = run_campaign(path, tmp_path / "out", scheduler=scheduler, nudyn=nudyn, progress=False)
     assert table.column("status").to_pylist() == ["ok"]
     trajectory = pq.read_table(tmp_path / "out" / "trajectories" / "case-000000.parquet")
     # FMPy's row k holds the outputs after the step from t_k.
