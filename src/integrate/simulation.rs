@@ -339,8 +339,7 @@ impl Simulation {
                     // holds the input (the same constant as over the last advance: a closed
                     // loop, which changes it at every point, ends its steps there); not with
                     // energy projection, which holds K at a step's end only.
-                    let reaches =
-                        input_held && self.method().dense().is_some() && !self.settings.energy_projection;
+                    let reaches = input_held && self.method().dense().is_some() && !self.settings.energy_projection;
                     let limit = if reaches { self.horizon.max(t_end) } else { t_end };
                     let result = if self.method().is_adaptive() {
                         self.advance_adaptive(model, (t_end, limit), &mut inputs_at)
@@ -393,7 +392,8 @@ impl Simulation {
                     .relaxed_since(relaxation_before, called_at, self.settings.tolerance, rates)
                     .map(|relaxed| ToleranceRelaxed { no_slip, ..relaxed });
                 let judged = chose.is_none() && held_move.is_none() && !starts;
-                let moved = if judged { self.move_if_due(model, (called_at, t_end), &stats, input_held) } else { held_move };
+                let moved =
+                    if judged { self.move_if_due(model, (called_at, t_end), &stats, input_held) } else { held_move };
                 let held = self.held_once(called_at, &stats);
                 Ok(Advanced { stats, relaxed, chose, moved, held })
             }

@@ -14,7 +14,7 @@ use crate::common::{
 };
 use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, UnitQuaternion};
 use nudyn::model::Model;
-use nudyn::vehicle::{Actuator, ActuatorKind, BiasType, GainType, JointKind, Site, Transmission, Vehicle};
+use nudyn::vehicle::{Actuator, JointKind, Site, Transmission, Vehicle};
 
 /// A random tree with sites on its bodies and on the world, a motor on
 /// every joint (`joint` or `jointinparent`), and motors on sites with and
@@ -34,26 +34,11 @@ fn actuated_vehicle(rng: &mut Rng, free_base: bool) -> Vehicle {
         });
     }
     let gear = |rng: &mut Rng| std::array::from_fn(|_| rng.uniform(-2.0, 2.0));
-    let motor = |transmission, gear| Actuator {
-        name: None,
-        kind: ActuatorKind::Motor,
-        transmission,
-        gear,
-        gain_type: GainType::Fixed,
-        gain: [1.0, 0.0, 0.0],
-        bias_type: BiasType::None,
-        bias: [0.0; 3],
-        ctrl_range: None,
-        force_range: None,
-        activation: None,
-        group_disabled: false,
-        line: 0,
-    };
     let joints: Vec<String> = vehicle.bodies.iter().flat_map(|b| &b.joints).map(|j| j.name.clone()).collect();
     for joint in joints {
         let in_parent = rng.below(2) == 0;
         let g = gear(rng);
-        vehicle.actuators.push(motor(Transmission::Joint { joint, in_parent }, g));
+        vehicle.actuators.push(common::motor(Transmission::Joint { joint, in_parent }, g));
     }
     let sites = vehicle.sites.len();
     for k in 0..12 {
@@ -66,7 +51,7 @@ fn actuated_vehicle(rng: &mut Rng, free_base: bool) -> Vehicle {
             2 => g[..3].fill(0.0),
             _ => {}
         }
-        vehicle.actuators.push(motor(Transmission::Site { site, refsite }, g));
+        vehicle.actuators.push(common::motor(Transmission::Site { site, refsite }, g));
     }
     vehicle
 }

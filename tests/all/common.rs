@@ -14,7 +14,10 @@
 
 use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, Unit, UnitQuaternion, Vector3};
 use nudyn::flex::{ModalBody, Mode, Node};
-use nudyn::vehicle::{Actuation, Body, Joint, JointKind, MassProperties, Vehicle};
+use nudyn::vehicle::{
+    Actuation, Actuator, ActuatorKind, BiasType, Body, GainType, Joint, JointKind, MassProperties, Transmission,
+    Vehicle,
+};
 
 pub type V3 = Vector3<f64>;
 pub type M3 = Matrix3<f64>;
@@ -647,6 +650,25 @@ pub fn make_flexible(rng: &mut Rng, vehicle: &mut Vehicle, damped: bool) {
 }
 
 /// max |a − b| / max(1, max |b|).
+/// A motor (gain 1, no bias, no ranges) on `transmission` with `gear`.
+pub fn motor(transmission: Transmission, gear: [f64; 6]) -> Actuator {
+    Actuator {
+        name: None,
+        kind: ActuatorKind::Motor,
+        transmission,
+        gear,
+        gain_type: GainType::Fixed,
+        gain: [1.0, 0.0, 0.0],
+        bias_type: BiasType::None,
+        bias: [0.0; 3],
+        ctrl_range: None,
+        force_range: None,
+        activation: None,
+        group_disabled: false,
+        line: 0,
+    }
+}
+
 pub fn rel_err(a: &[f64], b: &[f64]) -> f64 {
     assert_eq!(a.len(), b.len(), "length mismatch");
     let scale = b.iter().fold(1.0f64, |m, x| m.max(x.abs()));

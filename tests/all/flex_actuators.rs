@@ -19,7 +19,7 @@ use std::path::Path;
 use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, UnitQuaternion};
 use nudyn::mjcf::load_mjcf;
 use nudyn::model::Model;
-use nudyn::vehicle::{Actuator, ActuatorKind, BiasType, GainType, Site, Transmission, Vehicle};
+use nudyn::vehicle::{Actuator, Site, Transmission, Vehicle};
 
 use crate::common::{
     self, Kinematics, Rng, TreeOptions, V3, kinematics, node_at, point_jacobian, random_theta, random_vehicle, rel_err,
@@ -91,21 +91,7 @@ fn dense_transmission(vehicle: &Vehicle, theta: &[f64], actuator: &Actuator) -> 
 }
 
 fn motor(site: usize, refsite: Option<usize>, gear: [f64; 6]) -> Actuator {
-    Actuator {
-        name: None,
-        kind: ActuatorKind::Motor,
-        transmission: Transmission::Site { site, refsite },
-        gear,
-        gain_type: GainType::Fixed,
-        gain: [1.0, 0.0, 0.0],
-        bias_type: BiasType::None,
-        bias: [0.0; 3],
-        ctrl_range: None,
-        force_range: None,
-        activation: None,
-        group_disabled: false,
-        line: 0,
-    }
+    common::motor(Transmission::Site { site, refsite }, gear)
 }
 
 /// A random tree with flexible bodies, a site at every node of each (turned

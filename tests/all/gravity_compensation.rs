@@ -10,7 +10,7 @@ use crate::common;
 use crate::common::{Rng, TreeOptions, V3, kinematics, point_jacobian, random_theta, random_vehicle, rel_err};
 use nalgebra::DVector;
 use nudyn::model::Model;
-use nudyn::vehicle::{Actuator, ActuatorKind, BiasType, GainType, Transmission, Vehicle};
+use nudyn::vehicle::{Actuator, Transmission, Vehicle};
 use proptest::prelude::*;
 
 /// qfrc_gravcomp from the vehicle description: each body's compensating
@@ -46,21 +46,8 @@ fn compensated_vehicle(rng: &mut Rng, bodies: usize, free_base: bool) -> Vehicle
 
 /// A motor on the vehicle's first joint, with no ctrl range.
 fn motor_on_first_joint(vehicle: &Vehicle) -> Actuator {
-    Actuator {
-        name: None,
-        kind: ActuatorKind::Motor,
-        transmission: Transmission::Joint { joint: vehicle.bodies[0].joints[0].name.clone(), in_parent: false },
-        gear: [1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-        gain_type: GainType::Fixed,
-        gain: [1.0, 0.0, 0.0],
-        bias_type: BiasType::None,
-        bias: [0.0; 3],
-        ctrl_range: None,
-        force_range: None,
-        activation: None,
-        group_disabled: false,
-        line: 0,
-    }
+    let joint = vehicle.bodies[0].joints[0].name.clone();
+    common::motor(Transmission::Joint { joint, in_parent: false }, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0])
 }
 
 /// θ̈ with the actuators at ctrl = 0 and no applied ε, at rest.
