@@ -127,8 +127,11 @@ def _client(workers: int | None, scheduler: str | None, scratch: Path):
     try:
         # The scheduler's and the workers' Dask folders (temporary-directory) and the workers' own temporary files.
         with dask.config.set({"temporary-directory": str(scratch)}):
+            # Its HTTP server on any free port: Dask's default, 8787, is taken by
+            # a second campaign or any Dask session running meanwhile, and
+            # Dask then warns on stderr (dashboard_address=None still binds it).
             cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs=logging.ERROR, env={"TMPDIR": str(scratch)})
+                                   dashboard_address=":0", silence_logs=logging.ERROR, env={"TMPDIR": str(scratch)})
     finally:
         signal.signal(signal.SIGINT, handler)
     return Client(cluster), cluster

@@ -483,6 +483,26 @@ def test_bad_outputs_metrics_schedulers_and_worker_counts_are_one_line_errors(nu
         run_campaign(path, tmp_path / "w", workers=0, nudyn=nudyn, progress=False)
 
 
+def test_a_campaign_beside_another_dask_session_says_nothing_on_stderr(nudyn, tmp_path):
+    """Port 8787 (Dask's default for its HTTP server) held by another
+    process, as by a second campaign or a user's own Dask session: the
+    command's own cluster takes another port, and stderr stays empty."""
+    import socket
+
+    holder = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    try:
+        holder.bind(("", 8787))
+        holder.listen()
+    except OSError:
+        pass  # another process holds it already, which is the case under test
+    with holder:
+        path = write(tmp_path, SHORT)
+        proc = subprocess.run([sys.executable, "-m", "nudyn_campaign", str(path), "--out", str(tmp_path / "out"),
+                               "--workers", "1", "--no-progress", "--nudyn", str(nudyn)], capture_output=True,
+                              text=True, timeout=300, env={**os.environ, "PYTHONPATH": str(ROOT / "python")})
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+
+
 def test_ctrl_c_ends_with_how_to_resume_and_the_rerun_completes(nudyn, tmp_path):
     """SIGINT to the command's process group (what Ctrl-C in a terminal
     sends, to the Dask workers too) once the first chunk is written: one
