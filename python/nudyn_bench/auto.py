@@ -1,5 +1,6 @@
 """Time to the accuracy asked with `method = auto`, judged as issue 36
-judges it: on every example and on 10 random six-body trees (trees.py),
+judges it: on every example, issue 50's slow station and on 10 random
+six-body trees (trees.py),
 10 s of the validation's tumble from each in 0.1 s communication steps,
 ε = 0, at tolerances 1e-4 … 1e-10, `auto` and the default `dop853`:
 
@@ -62,6 +63,9 @@ from .trees import write_tree
 from .vehicles import ROOT, Vehicle, prepare
 
 EXAMPLES = ["bus_arm7", "fixed_rig", "flexible_boom", "servicer", "chain60"]
+# Issue 50's slow station: two 7-dof arms on a 5000 kg free base, the
+# tumble's rates scaled so that the base turns at about 0.01 rad/s.
+STATION = ("slow_station", ROOT / "tests" / "fixtures" / "slow_station.xml", 0.03)
 TREES = 10
 METHODS = ["auto", "dop853"]
 TOLERANCES = [1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10]
@@ -91,6 +95,12 @@ def exported_with_reference(vehicle: Vehicle, bench: Path, nudyn: Path, work: Pa
     package = FmuPackage.unzip(Nudyn(nudyn).export(vehicle.path, work / f"{vehicle.name}.fmu"),
                                work / f"{vehicle.name}_fmu")
     reference = simulate(bench, vehicle, "dop853:1e-13", duration)
+    if reference["failed"]:
+        # dop853 at 1e-13 with steps past the points can stall where round-off rules (tree5 at
+        # 8.6 s, docs/integration.md): 1e-12 then, still a hundredth of the tightest tolerance.
+        print(f"bench_auto: {vehicle.name}: reference at 1e-13 failed ({reference['failed']}); at 1e-12",
+              file=sys.stderr, flush=True)
+        reference = simulate(bench, vehicle, "dop853:1e-12", duration)
     return package, np.array(reference["qpos"]), np.array(reference["qvel"])
 
 
@@ -170,7 +180,8 @@ def table(results: dict) -> str:
     if trees:
         rows.append((f"median of {len(trees)} trees", trees))
     lines = [f"# `method = auto` against MuJoCo ({results['date']}, {results['commit']})", "",
-             "10 s of each vehicle's tumble in 0.1 s communication steps. Per tolerance and method: the method auto "
+             "10 s of each vehicle's tumble in 0.1 s communication steps (the slow station's rates scaled to a turn "
+             "of about 0.01 rad/s). Per tolerance and method: the method auto "
              "chose (→ the one it moved up to); error / tolerance; steps (rejected); θ̈ evaluations; the FMU's "
              "fastest ms in the native host and in FMPy; MuJoCo RK4's fastest ms at the largest step dividing 0.1 s that "
              "reaches max(error, tolerance); native / MuJoCo and FMPy / MuJoCo (— where MuJoCo reaches it at no "
@@ -231,12 +242,13 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         host = native_host.build(work)
-        vehicles = [(name, ROOT / "examples" / f"{name}.xml") for name in (EXAMPLES[:1] if args.quick else EXAMPLES)]
-        vehicles += [(f"tree{seed}", write_tree(seed, work / f"tree{seed}.xml"))
+        vehicles = [(name, ROOT / "examples" / f"{name}.xml", 1.0) for name in (EXAMPLES[:1] if args.quick else EXAMPLES)]
+        vehicles += [] if args.quick else [STATION]
+        vehicles += [(f"tree{seed}", write_tree(seed, work / f"tree{seed}.xml"), 1.0)
                      for seed in range(1 if args.quick else TREES)]
-        for name, path in vehicles:
+        for name, path, rate_scale in vehicles:
             print(f"bench_auto: {name}", file=sys.stderr, flush=True)
-            vehicle = prepare(name, path, work)
+            vehicle = prepare(name, path, work, rate_scale=rate_scale)
             results["vehicles"][name] = vehicle_runs(vehicle, bench, nudyn, host, work, args.quick)
     (args.out / "auto.json").write_text(json.dumps(results, indent=1) + "\n")
     (args.out / "auto.md").write_text(table(results))
