@@ -112,6 +112,10 @@ pub fn linearize(
     step: Option<f64>,
 ) -> Result<Linearization, DerivativeError> {
     let nv = model.nv;
+    if model.activation_count() > 0 {
+        // x would need act after (δθ, θ̇), and the point its values.
+        return Err(DerivativeError::Unsupported("activation states as states of the linearization"));
+    }
     let mut derivatives = Derivatives::new(model)?;
     let at = Point {
         theta: &point.qpos,
@@ -120,6 +124,7 @@ pub fn linearize(
         eps: &point.eps,
         torque: &point.torque,
         ctrl: &point.ctrl,
+        act: &[],
         time: 0.0,
     };
     let input = match inputs {
