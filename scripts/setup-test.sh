@@ -58,8 +58,9 @@ python_packages() {
     if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ] \
         || ! "$VENV/bin/python" -c 'import pytest, xdist, libcosimpy, pinocchio, tqdm' >/dev/null 2>&1; then
         echo "setup-test: installing Python packages from requirements-test.txt"
-        # uv, which scripts/setup.sh installed into the venv.
-        "$VENV/bin/uv" pip install --quiet --python "$VENV/bin/python" -r "$REQ"
+        # uv, which scripts/setup.sh installed into the venv, with the
+        # bytecode written now (setup.sh's install_pins says why).
+        "$VENV/bin/uv" pip install --quiet --compile-bytecode --python "$VENV/bin/python" -r "$REQ"
         echo "$want" >"$stamp"
     fi
     echo "setup-test: ok ($("$VENV/bin/python" -c 'import pytest, pinocchio; print("pytest", pytest.__version__, "pinocchio", pinocchio.__version__)'))"
