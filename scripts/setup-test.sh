@@ -54,7 +54,7 @@ python_packages() {
     # reinstall when either changed since the last successful install, or the
     # test packages cannot be imported any more.
     stamp="$VENV/.requirements-test.sha256"
-    want="$(cat "$ROOT/requirements.txt" "$REQ" | sha256sum | cut -d' ' -f1)"
+    want="$(cat "$ROOT/requirements.txt" "$REQ" | sha256sum | cut -d' ' -f1) bytecode"
     if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ] \
         || ! "$VENV/bin/python" -c 'import pytest, xdist, libcosimpy, pinocchio, tqdm' >/dev/null 2>&1; then
         echo "setup-test: installing Python packages from requirements-test.txt"

@@ -79,7 +79,9 @@ python_venv() {
     # Reinstall only when requirements.txt changed since the last successful
     # install, or the packages cannot be imported any more.
     stamp="$VENV/.requirements.sha256"
-    want="$(sha256sum "$REQ" | cut -d' ' -f1)"
+    # The stamp names the bytecode too: a venv installed before uv wrote it
+    # is installed once more, which writes it.
+    want="$(sha256sum "$REQ" | cut -d' ' -f1) bytecode"
     if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ] \
         || ! "$VENV/bin/python" -c 'import mujoco, fmpy, numpy, matplotlib, dask.distributed, pyarrow, tqdm' >/dev/null 2>&1; then
         echo "setup: installing Python packages from requirements.txt"
