@@ -200,7 +200,7 @@ fn factor_block<S: Real, M: Dim>(
 ) -> Option<SpatialMat<S>> {
     let m = modes.value();
     let mut rigid = SpatialMat::zeros();
-    state.coupling.fill(S::zero());
+    state.coupling.as_mut_slice().fill(S::zero());
     if !state.constant_factor {
         state.d.copy_from(&state.points.modal_mass);
     }
@@ -447,8 +447,12 @@ fn rates<S: Real, M: Dim>(
 ) {
     let m = modes.value();
     let mut rigid_rate = SpatialMat::zeros();
-    state.coupling_rate.fill(S::zero());
-    state.d_rate.fill(S::zero());
+    // Ḋ is zero for point masses only.
+    let varying = !flexible.rotating.is_empty();
+    state.coupling_rate.as_mut_slice().fill(S::zero());
+    if varying {
+        state.d_rate.as_mut_slice().fill(S::zero());
+    }
     for (r, &j) in flexible.rotating.iter().enumerate() {
         let x = &state.node_x[r];
         let (inertia, relative) = (node_inertia::<S>(flexible, j), state.v_relative[r]);
@@ -471,8 +475,6 @@ fn rates<S: Real, M: Dim>(
         }
     }
     state.points.add_inertia_rates(modes, &mut rigid_rate, &mut state.coupling_rate);
-    // Ḋ is zero for point masses only.
-    let varying = !flexible.rotating.is_empty();
     let (gain, d_rate) = (leading(&state.gain, U6, modes), leading(&state.d_rate, modes, modes));
     let mut gain_d_rate = leading_mut(&mut state.gain_d_rate, U6, modes);
     if varying {
