@@ -22,7 +22,7 @@
 //! masses only has a constant D (the modal masses): its factor R, R⁻¹ and
 //! D⁻¹ are made once, with the workspace, and Ḋ = Ṙ = 0. Each block's
 //! arithmetic is instantiated for 1 to [`FIXED_MODES`] modes, where its
-//! loops unroll ([`by_modes!`]), and for any count beyond.
+//! loops unroll (`by_modes!`), and for any count beyond.
 
 use nalgebra::{DMatrix, DVector, Dim, U1, U6};
 
@@ -92,13 +92,13 @@ pub struct FlexState<S: Real = f64> {
     inertia_psi: DMatrix<S>,
     /// Scratch: Ψ̇_j (6 × m).
     psi_rate: DMatrix<S>,
-    /// Scratch: U̇, then U̇ − GḊ (6 × m).
+    /// Scratch: U̇ (6 × m).
     coupling_rate: DMatrix<S>,
     /// Scratch: Ḋ, then R⁻¹ḊR⁻ᵀ's upper triangle with its diagonal halved (m × m).
     d_rate: DMatrix<S>,
     /// Scratch: G Ḋ (6 × m).
     gain_d_rate: DMatrix<S>,
-    /// Scratch: R⁻¹Ḋ, then Ṙ (m × m).
+    /// Scratch: R⁻¹Ḋ (m × m).
     square: DMatrix<S>,
     /// Scratch: the velocity-product u, the force u, and one more m-vector.
     u_bias: DVector<S>,

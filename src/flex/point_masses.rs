@@ -17,9 +17,11 @@
 //! so with N = Σ mⱼ Φⱼη̇ pⱼᵀ the block's is, about R's origin and on the modes,
 //!
 //!   f = ω × (Mv + ω × c + 2Cη̇),   n = c × (ω × v) − ω × Sω + 2(tr(N) ω − Nω),
-//!   uₖ = −(Cₖ·(ω × v) + tr((ω×)² Σ mⱼ pⱼΦⱼₖᵀ) + 2 Σₗ η̇ₗ tr((ω×) Tₗₖ));
+//!   uₖ = −(Cₖ·(ω × v) + tr((ω×)² Σ mⱼ pⱼΦⱼₖᵀ) + 2 Σₗ η̇ₗ tr((ω×) Tₗₖ)),
 //!
-//! and their rates along η̇: Ṡ = N + Nᵀ, ċ = Cη̇, U̇'s column k = [Σₗ η̇ₗ Σ mⱼ Φⱼₗ × Φⱼₖ; 0],
+//! where tr((ω×) T) = ω · axial(T), axial(T) the vector of T's
+//! antisymmetric part, so that the last sum is 2 ω · Σₗ η̇ₗ axial(Tₗₖ);
+//! and their rates along η̇: Ṡ = N + Nᵀ, ċ = Cη̇, U̇'s column k = [Σₗ η̇ₗ axial(Tₗₖ); 0],
 //! Ḋ = 0. The cost is O(m²) whatever the number of such nodes (a finite-
 //! element model's solid elements give only such nodes), and the sums are
 //! exact: the same as taking the nodes one by one.
