@@ -319,8 +319,8 @@ fn velocities_of_block<S: Real, M: Dim>(
     for r in 0..flexible.rotating.len() {
         let psi = leading(&state.psi[r], U6, modes);
         let mut relative = SpatialVec::zeros();
-        for k in 0..m {
-            relative += column(&psi, k) * qvel[k];
+        for (k, rate) in qvel.iter().enumerate() {
+            relative += column(&psi, k) * *rate;
         }
         state.v_relative[r] = relative;
         state.v_node[r] = state.node_x[r].apply_motion(&v_r) + relative;
@@ -371,8 +371,10 @@ fn bias_of_block<const RATES: bool, S: Real, M: Dim>(
     let u_bias = &mut state.u_bias.as_mut_slice()[..m];
     let u_force = &mut state.u_force.as_mut_slice()[..m];
     u_bias.fill(S::zero());
-    for k in 0..m {
-        u_force[k] = if forces { ws.tau_passive[adr + k] } else { S::zero() };
+    if forces {
+        u_force.copy_from_slice(&ws.tau_passive.as_slice()[adr..adr + m]);
+    } else {
+        u_force.fill(S::zero());
     }
     for (r, &j) in flexible.rotating.iter().enumerate() {
         let (x, v, relative) = (&state.node_x[r], state.v_node[r], state.v_relative[r]);
@@ -381,15 +383,15 @@ fn bias_of_block<const RATES: bool, S: Real, M: Dim>(
         let c = nodes::subspace_rate_times(&flexible.modal, j, eta, rate) + cross_motion(&v, &relative);
         let p = inertia * c + cross_force(&v, &(inertia * v));
         p_bias += x.apply_transpose_force(&p);
-        for k in 0..m {
-            u_bias[k] -= column(&psi, k).dot(&p);
+        for (k, u) in u_bias.iter_mut().enumerate() {
+            *u -= column(&psi, k).dot(&p);
         }
         if let Some(g) = &gravity {
             // Gravity m g at the node's origin: p = −f_ext.
             let p = -spatial(&Vec3::zeros(), &(x.rot * g * S::from(flexible.modal.nodes[j].mass)));
             p_force += x.apply_transpose_force(&p);
-            for k in 0..m {
-                u_force[k] -= column(&psi, k).dot(&p);
+            for (k, u) in u_force.iter_mut().enumerate() {
+                *u -= column(&psi, k).dot(&p);
             }
         }
     }
