@@ -11,7 +11,9 @@
 //! derivatives (derivatives.rs: 2·nv runs of the passes in dual numbers,
 //! the tangent directions Δ of `retract`, in the constraint mode the step
 //! holds) where they cover the model; else, and at a point they refuse,
-//! forward differences (2·nv evaluations of θ̈). W is formed at the
+//! forward differences (2·nv evaluations of θ̈). The exact W costs 2–4
+//! times the differences' and gave the same steps where measured (docs/integration.md,
+//! "What W is made from"). W is formed at the
 //! first step and kept over the steps that follow, across advances (it is
 //! part of an FMU state: [`HeldJacobian`]), until a step with an older W is
 //! rejected or [`W_MAX_AGE`] steps were accepted with it; then it is formed
@@ -79,7 +81,7 @@ const PROBE: f64 = 1.4901161193847656e-8;
 
 /// W, its factored iteration matrix, and the stage storage of a Rosenbrock
 /// step. Empty (no storage) unless the method is a Rosenbrock method.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub(super) struct Linearization {
     /// The method's coefficients in stage form.
     stages: RosenbrockStages,
@@ -105,30 +107,9 @@ pub(super) struct Linearization {
     rhs_qvel: DVector<f64>,
     /// The rates at a probe of W's derivatives (nv + na).
     probed: DVector<f64>,
-    /// The passes in dual numbers that give W's derivatives exactly: `Ok`
-    /// when they cover the model, else what they do not cover.
-    exact: Result<Box<ExactJacobian>, &'static str>,
-}
-
-impl Default for Linearization {
-    fn default() -> Self {
-        Linearization {
-            stages: RosenbrockStages::default(),
-            qacc_by_delta: DMatrix::default(),
-            qacc_by_qvel: DMatrix::default(),
-            held: false,
-            fresh: false,
-            age: 0,
-            lu: DMatrix::default(),
-            pivots: Vec::new(),
-            u_delta: Vec::new(),
-            u_qvel: Vec::new(),
-            rhs_delta: DVector::default(),
-            rhs_qvel: DVector::default(),
-            probed: DVector::default(),
-            exact: Err("an explicit method's steps"),
-        }
-    }
+    /// The passes in dual numbers that give W's derivatives exactly, when
+    /// they cover the model.
+    exact: Option<Box<ExactJacobian>>,
 }
 
 /// The derivatives' passes and the directions of W's columns, allocated
@@ -145,12 +126,10 @@ struct ExactJacobian {
 }
 
 impl ExactJacobian {
-    fn new(model: &Model) -> Result<Box<Self>, &'static str> {
-        let derivatives = Derivatives::new(model).map_err(|refused| match refused {
-            DerivativeError::Unsupported(what) => what,
-            _ => "this model",
-        })?;
-        Ok(Box::new(ExactJacobian {
+    /// The buffers for `model`, or None when the derivatives do not cover it.
+    fn new(model: &Model) -> Option<Box<Self>> {
+        let derivatives = Derivatives::new(model).ok()?;
+        Some(Box::new(ExactJacobian {
             derivatives,
             unit: vec![0.0; model.nv],
             zeros: vec![0.0; model.nv],
@@ -495,7 +474,7 @@ impl Integrator {
         t: f64,
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<bool, DynamicsError> {
-        let Ok(exact) = linear.exact.as_mut() else { return Ok(false) };
+        let Some(exact) = linear.exact.as_mut() else { return Ok(false) };
         if self.jacobian_source == JacobianSource::Differences {
             return Ok(false);
         }
