@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
-use nudyn::integrate::{Input, MethodSetting, Settings, Simulation};
+use nudyn::integrate::{Input, JacobianSource, MethodSetting, Settings, Simulation};
 use nudyn::model::{Model, Shortcuts};
 use nudyn::workspace::Workspace;
 use serde::{Deserialize, Serialize};
@@ -87,7 +87,8 @@ enum Command {
         /// integrator's `advance`, as one FMU doStep.
         #[arg(long, default_value_t = 0.1)]
         sample: f64,
-        /// Runs, as METHOD:VALUE — rk4:STEP, or dopri5, dop853, ros34pw2, bs3, tsit5 or auto with :TOLERANCE.
+        /// Runs, as METHOD:VALUE — rk4:STEP, or dopri5, dop853, ros34pw2, bs3, tsit5 or auto with :TOLERANCE;
+        /// ros34pw2/differences (or auto/differences) forms W by forward differences even where exact derivatives cover the model.
         #[arg(long = "run", required = true)]
         runs: Vec<String>,
         /// Timed repetitions of each run.
@@ -245,6 +246,9 @@ fn eval_cost(
     let mut qacc_ws = model.workspace();
     let mut derivatives = nudyn::dynamics::derivatives::Derivatives::new(model).ok();
     let mut jacobian_derivatives = derivatives.clone();
+    let mut w_derivatives = derivatives.clone();
+    let mut w_ws = model.workspace();
+    let (mut unit, zeros, no_ctrl) = (vec![0.0; model.nv], vec![0.0; model.nv], vec![0.0; model.actuators.len()]);
     let ones = vec![1.0; model.nv];
     let mut cases: Vec<Case> = Vec::new();
     for ((name, m), ws) in variants.iter().zip(workspaces.iter_mut()) {
@@ -258,6 +262,12 @@ fn eval_cost(
     }
     if let Some(derivatives) = jacobian_derivatives.as_mut() {
         cases.push(jacobian_case(model, derivatives, state, (&eps, &ctrl, &act)));
+    }
+    if let (Some(qvel), Some(derivatives)) = (&state.qvel, w_derivatives.as_mut()) {
+        cases.push(exact_w_case(model, derivatives, (&state.theta, qvel), (&mut unit, &zeros, &no_ctrl)));
+    }
+    if let Some(qvel) = &state.qvel {
+        cases.push(differences_w_case(model, &mut w_ws, &state.theta, qvel, &eps));
     }
     if ported {
         cases.push(forward_case(
@@ -377,6 +387,76 @@ fn jacobian_case<'a>(
     }
 }
 
+/// A timed case of ROS34PW2's W from exact derivatives, as the integrator
+/// forms it: ∂θ̈/∂Δ and ∂θ̈/∂θ̇, one run of the passes in dual numbers
+/// per column (2·nv), θ̈ only, ε and ctrl 0.
+fn exact_w_case<'a>(
+    model: &'a Model,
+    derivatives: &'a mut nudyn::dynamics::derivatives::Derivatives,
+    (theta, qvel): (&'a [f64], &'a [f64]),
+    (unit, zeros, no_ctrl): (&'a mut [f64], &'a [f64], &'a [f64]),
+) -> Case<'a> {
+    use nudyn::dynamics::derivatives::{Direction, Output, Point, ThetaDirection};
+    Case {
+        name: "nudyn ros34pw2 W from exact derivatives (2nv runs in dual numbers)".to_string(),
+        call: Box::new(move || {
+            let given = nudyn::dynamics::velocity::Given::Qvel;
+            let theta = std::hint::black_box(theta);
+            let point = Point { theta, velocity: qvel, given, eps: zeros, torque: zeros, ctrl: no_ctrl, time: 0.0 };
+            for moved in [true, false] {
+                for column in 0..model.nv {
+                    unit[column] = 1.0;
+                    let (theta, velocity) = if moved { (&*unit, zeros) } else { (zeros, &*unit) };
+                    let direction = Direction {
+                        theta,
+                        theta_in: ThetaDirection::Tangent,
+                        velocity,
+                        eps: zeros,
+                        torque: zeros,
+                        ctrl: no_ctrl,
+                    };
+                    derivatives.run(model, &point, &direction, &[Output::Qacc]).expect("the state evaluates");
+                    std::hint::black_box(derivatives.derivative(Output::Qacc).sum::<f64>());
+                    unit[column] = 0.0;
+                }
+            }
+        }),
+    }
+}
+
+/// A timed case of ROS34PW2's W by forward differences, as the integrator
+/// forms it: 2·nv evaluations of θ̈, each at θ moved along one tangent
+/// direction or θ̇ along one entry (the actuators at ctrl 0).
+fn differences_w_case<'a>(
+    model: &'a Model,
+    ws: &'a mut Workspace,
+    theta: &'a [f64],
+    qvel: &'a [f64],
+    eps: &'a [f64],
+) -> Case<'a> {
+    let (mut moved_theta, mut moved_qvel, mut delta) = (theta.to_vec(), qvel.to_vec(), vec![0.0; model.nv]);
+    let no_ctrl = vec![0.0; model.actuators.len()];
+    Case {
+        name: "nudyn ros34pw2 W by forward differences (2nv evaluations of θ̈)".to_string(),
+        call: Box::new(move || {
+            for column in 0..2 * model.nv {
+                moved_theta.copy_from_slice(std::hint::black_box(theta));
+                moved_qvel.copy_from_slice(qvel);
+                if column < model.nv {
+                    delta[column] = 1.5e-8;
+                    nudyn::integrate::retract(model, &mut moved_theta, &delta);
+                    delta[column] = 0.0;
+                } else {
+                    moved_qvel[column - model.nv] += 1.5e-8;
+                }
+                ws.set_configuration(model, &moved_theta).expect("the state evaluates");
+                ws.set_qvel(model, &moved_qvel).expect("the state evaluates");
+                ws.compute_qacc_actuated(model, eps, &no_ctrl).expect("the state evaluates");
+            }
+        }),
+    }
+}
+
 /// A timed case of nudyn's ν̇: one `forward` from `state` with applied `eps`.
 fn forward_case<'a>(
     name: String,
@@ -483,6 +563,8 @@ struct SimulateResult {
     rejected: usize,
     evaluations: usize,
     jacobians: usize,
+    /// Of those W, the ones formed from exact derivatives (dual numbers).
+    exact_jacobians: usize,
     /// Why the run stopped early, if it did (then the samples end there).
     failed: Option<String>,
     /// With `auto`: the method it chose at the start and ended with, and its log messages.
@@ -504,6 +586,10 @@ fn simulate(
     samples: bool,
 ) -> Result<SimulateResult> {
     let (method_name, value) = run.split_once(':').with_context(|| format!("--run {run}: expected METHOD:VALUE"))?;
+    let (method_name, source) = match method_name.strip_suffix("/differences") {
+        Some(method_name) => (method_name, JacobianSource::Differences),
+        None => (method_name, JacobianSource::Exact),
+    };
     let method = MethodSetting::from_name(method_name).with_context(|| format!("--run {run}: unknown method"))?;
     let value: f64 = value.parse().with_context(|| format!("--run {run}: not a number"))?;
     let settings = if !matches!(method, MethodSetting::Fixed(m) if !m.is_adaptive()) {
@@ -524,6 +610,7 @@ fn simulate(
         rejected: 0,
         evaluations: 0,
         jacobians: 0,
+        exact_jacobians: 0,
         failed: None,
         chosen: None,
         ended_with: None,
@@ -539,6 +626,7 @@ fn simulate(
     let input = Input { eps: &zero, eps_rate: &zero, ctrl: &[], ctrl_rate: &[] };
     let start_run = || {
         let mut sim = Simulation::new(model, method, settings);
+        sim.set_jacobian_source(source);
         sim.state.theta.copy_from_slice(&state.theta);
         sim.state.nu.copy_from_slice(&state.nu);
         sim
@@ -549,7 +637,7 @@ fn simulate(
     for _ in 0..repetitions {
         let mut sim = start_run();
         result.choice.clear();
-        let (mut accepted, mut rejected, mut evaluations, mut jacobians) = (0, 0, 0, 0);
+        let (mut accepted, mut rejected, mut evaluations, mut jacobians, mut exact_jacobians) = (0, 0, 0, 0, 0);
         let start = Instant::now();
         for n in 0..intervals {
             let t = n as f64 * sample;
@@ -559,6 +647,7 @@ fn simulate(
                     rejected += advanced.stats.rejected;
                     evaluations += advanced.stats.evaluations;
                     jacobians += advanced.stats.jacobians;
+                    exact_jacobians += advanced.stats.exact_jacobians;
                     if let Some(choice) = advanced.chose {
                         result.chosen = Some(choice.method.name());
                         result.choice.push(choice.to_string());
@@ -579,8 +668,8 @@ fn simulate(
         }
         result.seconds.push(start.elapsed().as_secs_f64());
         result.ended_with = sim.state.auto_choice.map(|choice| choice.method.name());
-        (result.accepted, result.rejected, result.evaluations, result.jacobians) =
-            (accepted, rejected, evaluations, jacobians);
+        (result.accepted, result.rejected, result.evaluations, result.jacobians, result.exact_jacobians) =
+            (accepted, rejected, evaluations, jacobians, exact_jacobians);
     }
     if samples {
         for (n, (theta, nu)) in trajectory.iter().enumerate().take(reached + 1) {

@@ -820,22 +820,27 @@ pub fn do_step(instance: &mut Instance, time: f64, step: f64, name: &str) -> Res
         }
     }
     if instance.logger.enabled(LogCategory::Calls) {
-        let nudyn::integrate::Stats { accepted, rejected, jacobians, evaluations, locating, .. } = report.stats;
+        let nudyn::integrate::Stats { accepted, rejected, jacobians, exact_jacobians, evaluations, locating, .. } =
+            report.stats;
         let mut message = format!("{name}: {accepted} internal steps taken, {rejected} rejected");
         if locating > 0 {
             message += &format!(", {locating} attempted to locate constraint switches");
         }
         if jacobians > 0 {
-            message += &format!(", W formed {jacobians} times");
+            let by_differences = jacobians - exact_jacobians;
+            message += &format!(
+                ", W formed {jacobians} times ({exact_jacobians} from exact derivatives, {by_differences} by forward differences)"
+            );
         }
         message += &format!(", {evaluations} evaluations of the rates");
         instance.logger.log(Status::Ok, LogCategory::Calls, &message);
     }
     if instance.logger.enabled(LogCategory::StepStatistics) {
-        let nudyn::integrate::Stats { accepted, rejected, jacobians, evaluations, locating, .. } = report.stats;
+        let nudyn::integrate::Stats { accepted, rejected, jacobians, exact_jacobians, evaluations, locating, .. } =
+            report.stats;
         let statistics = serde_json::json!({
-            "accepted": accepted, "rejected": rejected, "jacobians": jacobians, "evaluations": evaluations,
-            "locating": locating,
+            "accepted": accepted, "rejected": rejected, "jacobians": jacobians, "exact_jacobians": exact_jacobians,
+            "evaluations": evaluations, "locating": locating,
         });
         instance.logger.log(Status::Ok, LogCategory::StepStatistics, &statistics.to_string());
     }

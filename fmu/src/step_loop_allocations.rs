@@ -101,6 +101,54 @@ fn the_fmi2_step_loop_does_not_allocate() {
     }
 }
 
+/// With `ros34pw2`, whose W comes from exact derivatives on bus_arm7:
+/// forming W allocates nothing either. The tolerance is tight enough that
+/// W is formed again within the counted steps as it ages (checked on the
+/// same run outside the FMU).
+#[test]
+fn the_fmi2_step_loop_with_ros34pw2_does_not_allocate() {
+    let (dir, guid, layout) = crate::test_resources::write("bus_arm7", "fmi2-loop-ros34pw2");
+    let c =
+        crate::test_resources::instantiate_fmi2(fmi2Type_fmi2CoSimulation, &crate::test_resources::uri(&dir), &guid);
+    assert!(!c.is_null());
+    let method = [nudyn_contract::plant::method_value(nudyn::integrate::Method::Ros34pw2)];
+    let tolerance_vr = [layout.value_reference(RealVariable::Tolerance).expect("declared")];
+    let nu_vr: Vec<u32> = (0..NV).map(|k| layout.value_reference(RealVariable::Nu(k)).expect("declared")).collect();
+    let spin: Vec<f64> = (0..NV).map(|k| 0.3 * (k as f64 + 1.0).cos()).collect();
+    let mut read = vec![0.0; NV];
+    unsafe {
+        assert_eq!(
+            fmi2SetInteger(c, [nudyn_contract::plant::METHOD_VR].as_ptr(), 1, method.as_ptr()),
+            fmi2Status_fmi2OK
+        );
+        assert_eq!(fmi2SetReal(c, tolerance_vr.as_ptr(), 1, [1e-9].as_ptr()), fmi2Status_fmi2OK);
+        assert_eq!(fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0.0), fmi2Status_fmi2OK);
+        assert_eq!(fmi2EnterInitializationMode(c), fmi2Status_fmi2OK);
+        assert_eq!(fmi2SetReal(c, nu_vr.as_ptr(), NV, spin.as_ptr()), fmi2Status_fmi2OK);
+        assert_eq!(fmi2ExitInitializationMode(c), fmi2Status_fmi2OK);
+        let count = allocations(20, |k| {
+            assert_eq!(fmi2DoStep(c, k as f64 * STEP, STEP, 1), fmi2Status_fmi2OK);
+            assert_eq!(fmi2GetReal(c, nu_vr.as_ptr(), NV, read.as_mut_ptr()), fmi2Status_fmi2OK);
+        });
+        fmi2FreeInstance(c);
+        assert_eq!(count, 0, "allocations in 20 communication steps");
+    }
+    let model = crate::test_resources::model("bus_arm7");
+    let settings = nudyn::integrate::Settings { tolerance: 1e-9, max_step: 0.0, energy_projection: false };
+    let mut sim = nudyn::integrate::Simulation::new(&model, nudyn::integrate::Method::Ros34pw2, settings);
+    sim.state.nu.copy_from_slice(&spin);
+    sim.initialize(&model).unwrap();
+    let (mut formed, mut exact) = (0, 0);
+    for k in 0..22 {
+        let stats =
+            sim.advance_to(&model, (k + 1) as f64 * STEP, |_: f64, eps: &mut [f64]| eps.fill(0.0)).unwrap().stats;
+        if k >= 2 {
+            (formed, exact) = (formed + stats.jacobians, exact + stats.exact_jacobians);
+        }
+    }
+    assert!(formed > 0 && exact == formed, "W formed {formed} times in the counted steps, {exact} exactly");
+}
+
 #[test]
 fn the_fmi3_step_loop_does_not_allocate() {
     let (path, token) = fmi3_resources("fmi3-loop");

@@ -19,6 +19,11 @@ fn example(example: &str) -> (nudyn::vehicle::Vehicle, nudyn::model::Model) {
     (vehicle, model)
 }
 
+/// `examples/<example>.xml` compiled, as its plant resource holds it.
+pub fn model(example: &str) -> nudyn::model::Model {
+    self::example(example).1
+}
+
 /// `resource` written to a directory of its own for test `test`: (the
 /// directory, the GUID).
 fn write_resource<R: Resource>(resource: &R, test: &str) -> (PathBuf, CString) {

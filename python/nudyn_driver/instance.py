@@ -69,7 +69,7 @@ class Log:
 
     def step_statistics(self) -> list[dict[str, int]]:
         """Each doStep's statistics, in order: {"accepted", "rejected",
-        "jacobians", "evaluations", "locating"}."""
+        "jacobians", "exact_jacobians", "evaluations", "locating"}."""
         return [json.loads(message) for _, category, message in self.messages if category == "logStepStatistics"]
 
     def internal_steps(self) -> tuple[int, int]:

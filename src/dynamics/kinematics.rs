@@ -24,7 +24,15 @@ pub fn joint_transform<S: Real>(link: &Link, theta: &mut [S]) -> Result<Transfor
     Ok(match link.joint {
         LinkJoint::Hinge => {
             let angle = q[0] - link.reference;
-            rotate_about_anchor(Rotation3::from_axis_angle(&Unit::new_unchecked(axis), angle).into_inner())
+            // At angle 0 nalgebra gives a constant identity, whose derivative
+            // is wrong; there the rotation is written as its first-order
+            // term, I + [u]× angle, which is the identity in f64 as nalgebra's is.
+            let rot = if angle.value() == 0.0 {
+                Mat3::identity() + axis.cross_matrix() * angle
+            } else {
+                Rotation3::from_axis_angle(&Unit::new_unchecked(axis), angle).into_inner()
+            };
+            rotate_about_anchor(rot)
         }
         LinkJoint::Slide => Transform::from_pose(&Mat3::identity(), &(axis * (q[0] - link.reference))),
         LinkJoint::Ball => {

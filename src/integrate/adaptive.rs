@@ -257,8 +257,12 @@ pub struct Stats {
     pub rejected: usize,
     /// Evaluations of the rates θ̈, the integration's unit of cost.
     pub evaluations: usize,
-    /// Times a Rosenbrock method formed its matrix W (2·nv of the evaluations each).
+    /// Times a Rosenbrock method formed its matrix W: from exact
+    /// derivatives (2·nv runs of the passes in dual numbers, not counted in
+    /// `evaluations`), or by forward differences (2·nv of the evaluations).
     pub jacobians: usize,
+    /// Of those, the times from exact derivatives.
+    pub exact_jacobians: usize,
     /// Steps attempted to locate where limit sides switch (`switches`).
     pub locating: usize,
     /// Steps of an explicit method tested for stiffness (stiffness.rs:
@@ -534,7 +538,8 @@ impl Simulation {
             // step is left for the advance that takes one.
             return Ok(Stats::default());
         }
-        let (evaluations_before, jacobians_before) = (self.integrator.evaluations, self.integrator.jacobians);
+        let (evaluations_before, jacobians_before, exact_before) =
+            (self.integrator.evaluations, self.integrator.jacobians, self.integrator.exact_jacobians);
         // The inputs may have changed at t0: the first stage is no test of the last step.
         self.integrator.stiffness.drop_pending();
         let stiffness_before = (self.integrator.stiffness.tests, self.integrator.stiffness.held);
@@ -741,6 +746,7 @@ impl Simulation {
         carry.next_step = h;
         stats.evaluations = integrator.evaluations - evaluations_before;
         stats.jacobians = integrator.jacobians - jacobians_before;
+        stats.exact_jacobians = integrator.exact_jacobians - exact_before;
         stats.stiffness_tests = integrator.stiffness.tests - stiffness_before.0;
         stats.stability_held = integrator.stiffness.held - stiffness_before.1;
         Ok(stats)

@@ -20,7 +20,7 @@ pub use auto::{
 };
 pub use reach::Reach;
 pub use rkmk::{Integrator, retract};
-pub use rosenbrock::{HeldJacobian, W_MAX_AGE};
+pub use rosenbrock::{HeldJacobian, JacobianSource, W_MAX_AGE};
 pub use simulation::{Advanced, Input, InputSignal, RunState, Simulation};
 pub use stiffness::{STABILITY_SHARE, StabilityHeld};
 pub use tableau::{

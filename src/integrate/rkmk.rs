@@ -12,7 +12,7 @@
 use nalgebra::DVector;
 
 use super::reach::Reach;
-use super::rosenbrock::Linearization;
+use super::rosenbrock::{JacobianSource, Linearization};
 use super::stiffness::StiffnessTest;
 use super::switches::StageWatch;
 use super::tableau::{DENSE_ROWS, ErrorEstimate, Method, Scheme};
@@ -198,9 +198,13 @@ pub struct Integrator {
     pub(super) stiffness: StiffnessTest,
     /// Whether a stage of its steps left the constraint mode (switches.rs).
     pub(super) stage_watch: StageWatch,
-    /// How many times it has evaluated the rates, and formed W, ever.
+    /// How many times it has evaluated the rates, and formed W, ever, and
+    /// of those W how many from exact derivatives.
     pub(super) evaluations: usize,
     pub(super) jacobians: usize,
+    pub(super) exact_jacobians: usize,
+    /// Where a Rosenbrock method's W comes from.
+    pub(super) jacobian_source: JacobianSource,
 }
 
 impl Integrator {
@@ -273,6 +277,8 @@ impl Integrator {
             stage_watch: StageWatch::default(),
             evaluations: 0,
             jacobians: 0,
+            exact_jacobians: 0,
+            jacobian_source: JacobianSource::default(),
         }
     }
 

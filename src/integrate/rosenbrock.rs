@@ -4,10 +4,16 @@
 //!
 //! The ODE is rkmk.rs's: y = (Δ, θ̇) from (0, θ̇ₙ), with
 //! f = (dexp⁻¹₋Δ(θ̇), θ̈(θₙ ⊕ Δ, θ̇, t)). Its matrix W is
-//!     W = [ 0  I ]   A = ∂θ̈/∂Δ, B = ∂θ̈/∂θ̇ by forward differences
-//!         [ A  B ]   (2·nv evaluations of θ̈),
+//!     W = [ 0  I ]   A = ∂θ̈/∂Δ, B = ∂θ̈/∂θ̇,
+//!         [ A  B ]
 //! the Jacobian but for the small, non-stiff block of dexp⁻¹ on ball
-//! joints (−½[ω]×), which a W-method does not need. W is formed at the
+//! joints (−½[ω]×), which a W-method does not need. A and B are exact
+//! derivatives (derivatives.rs: 2·nv runs of the passes in dual numbers,
+//! the tangent directions Δ of `retract`, in the constraint mode the step
+//! holds) where they cover the model; else, and at a point they refuse,
+//! forward differences (2·nv evaluations of θ̈). The exact W costs 2–4
+//! times the differences' and gave the same steps where measured (docs/integration.md,
+//! "What W is made from"). W is formed at the
 //! first step and kept over the steps that follow, across advances (it is
 //! part of an FMU state: [`HeldJacobian`]), until a step with an older W is
 //! rejected or [`W_MAX_AGE`] steps were accepted with it; then it is formed
@@ -19,7 +25,9 @@
 //! because nalgebra's allocates, and the hot path must not.
 //! The actuators' activations act (na) ride along after θ̇ (rkmk.rs): B
 //! and A then have nv + na rows (θ̈ then act's rate) and B nv + na columns,
-//! probed like θ̇'s, and the matrix is (nv + na) × (nv + na).
+//! probed like θ̇'s, and the matrix is (nv + na) × (nv + na) (exact
+//! derivatives do not cover activation states yet: such a model's W is
+//! always by differences).
 
 use nalgebra::{DMatrix, DVector};
 
@@ -27,6 +35,8 @@ use super::adaptive::positions;
 use super::rkmk::{Integrator, copy_rates, max_abs, retract};
 use super::tableau::{ROSENBROCK_STAGES, Rosenbrock, RosenbrockStages};
 use crate::dynamics::DynamicsError;
+use crate::dynamics::derivatives::{DerivativeError, Derivatives, Direction, Output, Point, ThetaDirection};
+use crate::dynamics::velocity::Given;
 use crate::model::Model;
 use crate::workspace::Workspace;
 
@@ -49,6 +59,17 @@ pub struct HeldJacobian {
     pub derivatives: Vec<f64>,
     /// Steps accepted with it since it was formed.
     pub age: u32,
+}
+
+/// Where a Rosenbrock method's W comes from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum JacobianSource {
+    /// Exact derivatives (dual numbers) where they cover the model and the
+    /// point, forward differences elsewhere.
+    #[default]
+    Exact,
+    /// Forward differences always, as before exact derivatives (for comparison).
+    Differences,
 }
 
 /// Power iterations that estimate W's largest |λ| (`Linearization::largest_rate`).
@@ -86,6 +107,75 @@ pub(super) struct Linearization {
     rhs_qvel: DVector<f64>,
     /// The rates at a probe of W's derivatives (nv + na).
     probed: DVector<f64>,
+    /// The passes in dual numbers that give W's derivatives exactly, when
+    /// they cover the model.
+    exact: Option<Box<ExactJacobian>>,
+}
+
+/// The derivatives' passes and the directions of W's columns, allocated
+/// with the integrator so that forming W allocates nothing.
+#[derive(Clone, Debug)]
+struct ExactJacobian {
+    derivatives: Derivatives,
+    /// A unit direction (nv), one entry 1 at a time.
+    unit: Vec<f64>,
+    /// Zeros: the directions not moved, and the joint forces (nv).
+    zeros: Vec<f64>,
+    /// Zeros along ctrl (nu).
+    no_ctrl: Vec<f64>,
+}
+
+impl ExactJacobian {
+    /// The buffers for `model`, or None when the derivatives do not cover it.
+    fn new(model: &Model) -> Option<Box<Self>> {
+        let derivatives = Derivatives::new(model).ok()?;
+        Some(Box::new(ExactJacobian {
+            derivatives,
+            unit: vec![0.0; model.nv],
+            zeros: vec![0.0; model.nv],
+            no_ctrl: vec![0.0; model.actuators.len()],
+        }))
+    }
+
+    /// ∂θ̈/∂Δ and ∂θ̈/∂θ̇ at (θ, θ̇) with the inputs (ε, ctrl) at `t`
+    /// into `by_delta` and `by_qvel`, column by column, in the constraint
+    /// mode `ws` holds (the one its evaluations of the step's stages hold).
+    #[allow(clippy::too_many_arguments)]
+    fn form(
+        &mut self,
+        model: &Model,
+        ws: &Workspace,
+        (theta, qvel): (&[f64], &[f64]),
+        (eps, ctrl): (&[f64], &[f64]),
+        t: f64,
+        (by_delta, by_qvel): (&mut DMatrix<f64>, &mut DMatrix<f64>),
+    ) -> Result<(), DerivativeError> {
+        self.derivatives.hold_constraint_mode_of(&ws.constraint_rows);
+        let point = Point { theta, velocity: qvel, given: Given::Qvel, eps, torque: &self.zeros, ctrl, time: t };
+        for (moved, jacobian) in [(true, by_delta), (false, by_qvel)] {
+            for column in 0..model.nv {
+                self.unit[column] = 1.0;
+                let (theta, velocity) = if moved { (&self.unit, &self.zeros) } else { (&self.zeros, &self.unit) };
+                let direction = Direction {
+                    theta,
+                    theta_in: ThetaDirection::Tangent,
+                    velocity,
+                    eps: &self.zeros,
+                    torque: &self.zeros,
+                    ctrl: &self.no_ctrl,
+                };
+                let run = self.derivatives.run(model, &point, &direction, &[Output::Qacc]);
+                self.unit[column] = 0.0;
+                run?;
+                for (entry, derivative) in
+                    jacobian.column_mut(column).iter_mut().zip(self.derivatives.derivative(Output::Qacc))
+                {
+                    *entry = derivative;
+                }
+            }
+        }
+        Ok(())
+    }
 }
 
 impl Linearization {
@@ -107,6 +197,7 @@ impl Linearization {
             rhs_delta: DVector::zeros(nv),
             rhs_qvel: DVector::zeros(rates),
             probed: DVector::zeros(rates),
+            exact: ExactJacobian::new(model),
         }
     }
 
@@ -346,10 +437,61 @@ impl Integrator {
         Ok(())
     }
 
+    /// W's derivatives at the step's start (θ, θ̇, t): exact where the
+    /// derivatives cover the model and the point, else by differences.
+    fn linearize(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        linear: &mut Linearization,
+        (theta, qvel): (&[f64], &[f64]),
+        t: f64,
+        inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
+    ) -> Result<(), DynamicsError> {
+        if self.linearize_exactly(model, ws, linear, (theta, qvel), t, inputs_at)? {
+            self.exact_jacobians += 1;
+        } else {
+            self.linearize_by_differences(model, ws, linear, (theta, qvel), t, inputs_at)?;
+        }
+        linear.held = true;
+        linear.fresh = true;
+        linear.age = 0;
+        self.jacobians += 1;
+        Ok(())
+    }
+
+    /// W's derivatives at the step's start by dual numbers, when they cover
+    /// the model and are asked for; whether they were formed. A point the
+    /// derivatives refuse (on a switch of a constraint mode that `ws` does
+    /// not hold, where they are one-sided) is left to the differences,
+    /// which take one side as a step's stages would.
+    fn linearize_exactly(
+        &mut self,
+        model: &Model,
+        ws: &Workspace,
+        linear: &mut Linearization,
+        (theta, qvel): (&[f64], &[f64]),
+        t: f64,
+        inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
+    ) -> Result<bool, DynamicsError> {
+        let Some(exact) = linear.exact.as_mut() else { return Ok(false) };
+        if self.jacobian_source == JacobianSource::Differences {
+            return Ok(false);
+        }
+        inputs_at(t, self.eps_stage.as_mut_slice(), self.ctrl_stage.as_mut_slice());
+        let inputs = (self.eps_stage.as_slice(), self.ctrl_stage.as_slice());
+        let blocks = (&mut linear.qacc_by_delta, &mut linear.qacc_by_qvel);
+        match exact.form(model, ws, (theta, &qvel[..model.nv]), inputs, t, blocks) {
+            Ok(()) => Ok(true),
+            Err(DerivativeError::Dynamics(cause)) => Err(cause),
+            Err(_) => Ok(false),
+        }
+    }
+
     /// W's derivatives at the step's start (θ, θ̇, t), by forward
     /// differences from the first stage: each Δ and θ̇ component is probed
     /// by √ε of its size (at least √ε).
-    fn linearize(
+    fn linearize_by_differences(
         &mut self,
         model: &Model,
         ws: &mut Workspace,
@@ -373,10 +515,6 @@ impl Integrator {
         for k in model.nv..qvel.len() {
             self.probe_rate_column(model, ws, linear, (theta, qvel), k, t, inputs_at)?;
         }
-        linear.held = true;
-        linear.fresh = true;
-        linear.age = 0;
-        self.jacobians += 1;
         Ok(())
     }
 
@@ -414,7 +552,65 @@ fn difference<'a>(out: impl Iterator<Item = &'a mut f64>, probed: &DVector<f64>,
 
 #[cfg(test)]
 mod tests {
+    use super::super::switches::Switches;
+    use super::super::tableau::Method;
     use super::*;
+
+    /// The limited arm with its elbow's upper side exactly at its margin,
+    /// everything moving, and a workspace for it.
+    fn on_a_switch() -> (Model, Vec<f64>, Vec<f64>) {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/constraints/limited_arm.xml");
+        let model = Model::compile(&crate::mjcf::load_mjcf(&path).unwrap().vehicle).unwrap();
+        let elbow = model.joints.iter().position(|j| j.name == "elbow").unwrap();
+        let limit = model.constraints.limits.iter().find(|l| l.joint == elbow).unwrap();
+        let mut theta = model.qpos0.clone();
+        theta[limit.qpos] = limit.range[1] - limit.margin;
+        let qvel = (0..model.nv).map(|k| 0.2 * (k as f64 + 1.0).sin()).collect();
+        (model, theta, qvel)
+    }
+
+    /// A ROS34PW2 step's W from (θ, θ̇) at t = 0 with `source`, the mode
+    /// held as an adaptive run holds it when `held`: its two blocks, and
+    /// how many W were formed and how many exactly.
+    fn first_w(held: bool, source: JacobianSource) -> (DMatrix<f64>, DMatrix<f64>, usize, usize) {
+        let (model, theta, qvel) = on_a_switch();
+        let mut ws = model.workspace();
+        let mut integrator = Integrator::new(&model, Method::Ros34pw2);
+        integrator.jacobian_source = source;
+        let ctrl = vec![0.2; model.actuators.len()];
+        let mut inputs = |_: f64, eps: &mut [f64], c: &mut [f64]| {
+            eps.fill(0.0);
+            c.copy_from_slice(&ctrl);
+        };
+        if held {
+            let mut switches = Switches::new(&model);
+            switches.establish(&model, &mut ws, &mut integrator, (&theta, &qvel), 0.0, false, &mut inputs).unwrap();
+        }
+        integrator.attempt(&model, &mut ws, (&theta, &qvel), (0.0, 1e-4), &mut inputs).unwrap();
+        let linear = &integrator.linear;
+        (linear.qacc_by_delta.clone(), linear.qacc_by_qvel.clone(), integrator.jacobians, integrator.exact_jacobians)
+    }
+
+    /// On a switch of the constraint forces: in the mode an adaptive run
+    /// holds over the step W is exact (that mode's forces are smooth across
+    /// the switch) and equals the differences in the same mode; with no
+    /// mode held the derivatives are one-sided there and refused, and W is
+    /// by differences, which take the side the step's stages see.
+    #[test]
+    fn on_a_switch_w_is_exact_in_the_held_mode_and_by_differences_without_one() {
+        let (by_delta, by_qvel, formed, exact) = first_w(true, JacobianSource::Exact);
+        assert_eq!((formed, exact), (1, 1));
+        let (fd_by_delta, fd_by_qvel, formed, exact) = first_w(true, JacobianSource::Differences);
+        assert_eq!((formed, exact), (1, 0));
+        for (a, b) in [(&by_delta, &fd_by_delta), (&by_qvel, &fd_by_qvel)] {
+            let relative = (a - b).amax() / b.amax();
+            assert!(relative < 1e-6, "{relative:e} from the differences");
+        }
+        let (unheld_by_delta, unheld_by_qvel, formed, exact) = first_w(false, JacobianSource::Exact);
+        assert_eq!((formed, exact), (1, 0), "refused on the switch, by differences");
+        let (fd_by_delta, fd_by_qvel, ..) = first_w(false, JacobianSource::Differences);
+        assert_eq!((unheld_by_delta, unheld_by_qvel), (fd_by_delta, fd_by_qvel));
+    }
 
     /// The in-place LU solves a system that needs pivoting as a dense solve
     /// would, and reports a singular one.

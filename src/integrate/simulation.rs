@@ -11,7 +11,7 @@ use super::adaptive::{
 use super::auto::{AutoChoice, AutoMove, MethodSetting, MoveReason, PROBE_METHOD};
 use super::reach::Reach;
 use super::rkmk::{Integrator, nu_of_qvel, qvel_of_nu};
-use super::rosenbrock::HeldJacobian;
+use super::rosenbrock::{HeldJacobian, JacobianSource};
 use super::stiffness::{RETURN_SHARE, StabilityHeld, held_by_stability};
 use super::switches::Switches;
 use super::tableau::{Method, Scheme};
@@ -204,6 +204,14 @@ impl Simulation {
     /// The method asked for.
     pub fn method_setting(&self) -> MethodSetting {
         self.setting
+    }
+
+    /// Where a Rosenbrock method's W comes from: exact derivatives where
+    /// they cover the model and the point (the default), or forward
+    /// differences always (to compare with the runs before them). W held
+    /// is kept; the next one formed comes from `source`.
+    pub fn set_jacobian_source(&mut self, source: JacobianSource) {
+        self.integrator.jacobian_source = source;
     }
 
     /// Changes the method asked for; `auto` chooses again at the next advance.

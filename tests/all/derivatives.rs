@@ -313,6 +313,18 @@ fn jacobians_agree_with_central_differences_of_the_passes() {
     }
 }
 
+/// At the file's pose (qpos0: each hinge at its reference angle, where
+/// nalgebra's axis-angle rotation is a constant identity) the derivatives
+/// in θ still agree: hinges about an axis off the link origin (the boom's
+/// deploy hinge, the servicer's arm joints) carried none there before.
+#[test]
+fn jacobians_at_the_file_pose_agree_with_central_differences() {
+    for path in ["tests/fixtures/damped_stiff_boom.xml", "examples/servicer.xml"] {
+        let case = file_case_at(path, 3, |_, _, model| model.qpos0.clone());
+        assert_agrees_with_differences(&case, &format!("{path} at qpos0"), 1e-8);
+    }
+}
+
 /// The modal blocks run in dual numbers as the rigid passes do.
 #[test]
 fn jacobians_of_flexible_vehicles_agree_with_central_differences_of_the_passes() {

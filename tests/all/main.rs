@@ -33,6 +33,7 @@ mod mjcf_import;
 mod mjcf_support;
 mod model_json;
 mod reaching;
+mod rosenbrock_jacobian;
 mod sensor_import;
 mod simulation;
 mod stiff_integration;
