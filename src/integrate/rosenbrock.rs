@@ -65,10 +65,12 @@ pub struct HeldJacobian {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum JacobianSource {
     /// Exact derivatives (dual numbers) where they cover the model and the
-    /// point, forward differences elsewhere.
-    #[default]
+    /// point, forward differences elsewhere. The same steps and errors as
+    /// differences, 2·nv fewer θ̈ evaluations per W, but each W costs 2–4
+    /// times as much (docs/integration.md, "What W is made from").
     Exact,
-    /// Forward differences always, as before exact derivatives (for comparison).
+    /// Forward differences: the cheaper W, so the default.
+    #[default]
     Differences,
 }
 
@@ -126,8 +128,13 @@ struct ExactJacobian {
 }
 
 impl ExactJacobian {
-    /// The buffers for `model`, or None when the derivatives do not cover it.
+    /// The buffers for `model`, or None when the derivatives do not cover
+    /// it, or it has activation states (W's act rows and columns are not
+    /// formed here).
     fn new(model: &Model) -> Option<Box<Self>> {
+        if model.activation_count() > 0 {
+            return None;
+        }
         let derivatives = Derivatives::new(model).ok()?;
         Some(Box::new(ExactJacobian {
             derivatives,
@@ -151,7 +158,8 @@ impl ExactJacobian {
         (by_delta, by_qvel): (&mut DMatrix<f64>, &mut DMatrix<f64>),
     ) -> Result<(), DerivativeError> {
         self.derivatives.hold_constraint_mode_of(&ws.constraint_rows);
-        let point = Point { theta, velocity: qvel, given: Given::Qvel, eps, torque: &self.zeros, ctrl, time: t };
+        let point =
+            Point { theta, velocity: qvel, given: Given::Qvel, eps, torque: &self.zeros, ctrl, act: &[], time: t };
         for (moved, jacobian) in [(true, by_delta), (false, by_qvel)] {
             for column in 0..model.nv {
                 self.unit[column] = 1.0;
@@ -163,6 +171,7 @@ impl ExactJacobian {
                     eps: &self.zeros,
                     torque: &self.zeros,
                     ctrl: &self.no_ctrl,
+                    act: &[],
                 };
                 let run = self.derivatives.run(model, &point, &direction, &[Output::Qacc]);
                 self.unit[column] = 0.0;
