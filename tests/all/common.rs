@@ -46,7 +46,7 @@ pub struct Kinematics {
     /// For each body, the modal coordinates of the flexible ancestors whose
     /// nodes carry it: (ν entry, angular velocity, velocity of `point`,
     /// `point`), world, per unit rate.
-    node_twists: Vec<Vec<(usize, V3, V3, V3)>>,
+    pub node_twists: Vec<Vec<(usize, V3, V3, V3)>>,
 }
 
 pub fn nq_nv(vehicle: &Vehicle) -> (usize, usize) {
