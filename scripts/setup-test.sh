@@ -54,12 +54,13 @@ python_packages() {
     # reinstall when either changed since the last successful install, or the
     # test packages cannot be imported any more.
     stamp="$VENV/.requirements-test.sha256"
-    want="$(cat "$ROOT/requirements.txt" "$REQ" | sha256sum | cut -d' ' -f1)"
+    want="$(cat "$ROOT/requirements.txt" "$REQ" | sha256sum | cut -d' ' -f1) bytecode"
     if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ] \
         || ! "$VENV/bin/python" -c 'import pytest, xdist, libcosimpy, pinocchio, tqdm' >/dev/null 2>&1; then
         echo "setup-test: installing Python packages from requirements-test.txt"
-        # uv, which scripts/setup.sh installed into the venv.
-        "$VENV/bin/uv" pip install --quiet --python "$VENV/bin/python" -r "$REQ"
+        # uv, which scripts/setup.sh installed into the venv, with the
+        # bytecode written now (setup.sh's install_pins says why).
+        "$VENV/bin/uv" pip install --quiet --compile-bytecode --python "$VENV/bin/python" -r "$REQ"
         echo "$want" >"$stamp"
     fi
     echo "setup-test: ok ($("$VENV/bin/python" -c 'import pytest, pinocchio; print("pytest", pytest.__version__, "pinocchio", pinocchio.__version__)'))"

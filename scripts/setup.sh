@@ -52,15 +52,23 @@ debian_packages() {
 
 # --- Python venv, the repository's Python packages and nudyn-campaign -------
 # uv installs the pins (the versions pip resolves, measured the same) in
-# about 5 CPU-s where pip took 40: it fetches in parallel and leaves the
-# bytecode to the first import. It is pip-installed into the venv first, at
-# its own pin; scripts/setup-test.sh uses it too.
+# about 5 CPU-s where pip took 40: it fetches in parallel. It is
+# pip-installed into the venv first, at its own pin; scripts/setup-test.sh
+# uses it too (install_pins). --compile-bytecode: the packages' .pyc are
+# written once, here, on every core. uv leaves them to the first import
+# otherwise, and where PYTHONDONTWRITEBYTECODE is set (as on the machines
+# the suite is timed on) no import writes them: every Python process the
+# tests start (pytest's workers, Dask's, validate.py, the campaign and
+# bench commands) compiled matplotlib, dask and the rest again, about 1
+# CPU-s each. With the .pyc the Python tests took 421 CPU-s where they took
+# 492 without (the same pins, pytest -n 2, side by side on a loaded
+# 2-core machine, 2026-11-30); writing them here costs about 9.
 UV_PIN="uv==0.13.8"
 install_pins() {
     if [ "$("$VENV/bin/uv" --version 2>/dev/null | cut -d' ' -f2)" != "${UV_PIN#uv==}" ]; then
         "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check "$UV_PIN"
     fi
-    "$VENV/bin/uv" pip install --quiet --python "$VENV/bin/python" -r "$1"
+    "$VENV/bin/uv" pip install --quiet --compile-bytecode --python "$VENV/bin/python" -r "$1"
 }
 
 python_venv() {
@@ -73,7 +81,9 @@ python_venv() {
     # Reinstall only when requirements.txt changed since the last successful
     # install, or the packages cannot be imported any more.
     stamp="$VENV/.requirements.sha256"
-    want="$(sha256sum "$REQ" | cut -d' ' -f1)"
+    # The stamp names the bytecode too: a venv installed before uv wrote it
+    # is installed once more, which writes it.
+    want="$(sha256sum "$REQ" | cut -d' ' -f1) bytecode"
     if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ] \
         || ! "$VENV/bin/python" -c 'import mujoco, fmpy, numpy, matplotlib, dask.distributed, pyarrow, tqdm' >/dev/null 2>&1; then
         echo "setup: installing Python packages from requirements.txt"

@@ -69,14 +69,16 @@ impl LinearOutput {
     }
 }
 
-/// The point of the linearization: θ (nq), θ̇ (nv), the ε and T held (nv
-/// each) and the actuators' ctrl (nu).
+/// The point of the linearization: θ (nq), θ̇ (nv), the activation states
+/// act (na), the ε and T held (nv each) and the actuators' ctrl (nu).
 #[derive(Clone, Debug)]
 pub struct OperatingPoint {
     /// θ (qpos).
     pub qpos: Vec<f64>,
     /// θ̇ (qvel).
     pub qvel: Vec<f64>,
+    /// act (na).
+    pub act: Vec<f64>,
     /// ε held.
     pub eps: Vec<f64>,
     /// T held.
@@ -85,12 +87,13 @@ pub struct OperatingPoint {
     pub ctrl: Vec<f64>,
 }
 
-/// ẋ = A x + B u, y = C x + D u at the point; `discrete` with a step.
+/// ẋ = A x + B u, y = C x + D u at the point, x = (δθ, θ̇, act) (δθ in
+/// the tangent space); `discrete` with a step.
 #[derive(Clone, Debug)]
 pub struct Linearization {
-    /// 2nv × 2nv.
+    /// (2nv + na) × (2nv + na).
     pub a: DMatrix<f64>,
-    /// 2nv × (nv, or nu for ctrl).
+    /// (2nv + na) × (nv, or nu for ctrl).
     pub b: DMatrix<f64>,
     /// The outputs' rows ([`LinearOutput::len`] each), in the order asked.
     pub c: DMatrix<f64>,
@@ -111,7 +114,8 @@ pub fn linearize(
     outputs: &[LinearOutput],
     step: Option<f64>,
 ) -> Result<Linearization, DerivativeError> {
-    let nv = model.nv;
+    let (nv, na) = (model.nv, model.activation_count());
+    let n = 2 * nv + na;
     let mut derivatives = Derivatives::new(model)?;
     let at = Point {
         theta: &point.qpos,
@@ -120,6 +124,7 @@ pub fn linearize(
         eps: &point.eps,
         torque: &point.torque,
         ctrl: &point.ctrl,
+        act: &point.act,
         time: 0.0,
     };
     let input = match inputs {
@@ -127,31 +132,39 @@ pub fn linearize(
         Inputs::Torque => Input::Torque,
         Inputs::Ctrl => Input::Ctrl,
     };
-    // ν's and the sensors' Jacobians come from the same runs as θ̈'s,
-    // only when asked (ν's only in θ and the velocity: ν does not depend
-    // on the inputs).
-    let columns = [Input::Theta, Input::Velocity, input];
-    let wants_nu = outputs.contains(&LinearOutput::Nu);
-    let [qacc_by, nu_by, sensors_by] = if outputs.contains(&LinearOutput::Sensordata) {
-        derivatives.jacobians_of(model, &at, [Output::Qacc, Output::Nu, Output::Sensordata], &columns)?
-    } else if wants_nu {
-        let [qacc_by, nu_by] = derivatives.jacobians_of(model, &at, [Output::Qacc, Output::Nu], &columns)?;
-        [qacc_by, nu_by, Vec::new()]
+    // ν's, act's rates and the sensors' Jacobians come from the same runs
+    // as θ̈'s (ν and act_dot are computed by every run; the sensors only
+    // when asked). Columns: δθ, θ̇, the input, then act's (none without).
+    let columns = [Input::Theta, Input::Velocity, input, Input::Act];
+    let (qacc_by, nu_by, act_dot_by, sensors_by) = if outputs.contains(&LinearOutput::Sensordata) {
+        let [qacc_by, nu_by, act_dot_by, sensors_by] = derivatives.jacobians_of(
+            model,
+            &at,
+            [Output::Qacc, Output::Nu, Output::ActDot, Output::Sensordata],
+            &columns,
+        )?;
+        (qacc_by, nu_by, act_dot_by, sensors_by)
     } else {
-        let [qacc_by] = derivatives.jacobians_of(model, &at, [Output::Qacc], &columns)?;
-        [qacc_by, Vec::new(), Vec::new()]
+        let [qacc_by, nu_by, act_dot_by] =
+            derivatives.jacobians_of(model, &at, [Output::Qacc, Output::Nu, Output::ActDot], &columns)?;
+        (qacc_by, nu_by, act_dot_by, Vec::new())
     };
     let inputs_count = qacc_by[2].ncols();
-    let mut a = DMatrix::zeros(2 * nv, 2 * nv);
+    // Rows of x's rates: θ̈ from nv, act's from 2nv; each over (δθ, θ̇, act).
+    let mut a = DMatrix::zeros(n, n);
     a.view_mut((0, 0), (nv, nv)).copy_from(&rotation_vector_rates(model, &point.qvel));
     a.view_mut((0, nv), (nv, nv)).fill_with_identity();
-    a.view_mut((nv, 0), (nv, nv)).copy_from(&qacc_by[0]);
-    a.view_mut((nv, nv), (nv, nv)).copy_from(&qacc_by[1]);
-    let mut b = DMatrix::zeros(2 * nv, inputs_count);
-    b.view_mut((nv, 0), (nv, inputs_count)).copy_from(&qacc_by[2]);
+    let mut b = DMatrix::zeros(n, inputs_count);
+    for (row, by) in [(nv, &qacc_by), (2 * nv, &act_dot_by)] {
+        let count = by[0].nrows();
+        a.view_mut((row, 0), (count, nv)).copy_from(&by[0]);
+        a.view_mut((row, nv), (count, nv)).copy_from(&by[1]);
+        a.view_mut((row, 2 * nv), (count, na)).copy_from(&by[3]);
+        b.view_mut((row, 0), (count, inputs_count)).copy_from(&by[2]);
+    }
 
     let output_rows: usize = outputs.iter().map(|o| o.len(model)).sum();
-    let mut c = DMatrix::zeros(output_rows, 2 * nv);
+    let mut c = DMatrix::zeros(output_rows, n);
     let mut d = DMatrix::zeros(output_rows, inputs_count);
     let mut rows = 0;
     for output in outputs {
@@ -163,14 +176,15 @@ pub fn linearize(
                 c.view_mut((rows, nv), (nv, nv)).copy_from(&nu_by[1]);
             }
             LinearOutput::Qacc => {
-                c.view_mut((rows, 0), (nv, 2 * nv)).copy_from(&a.rows(nv, nv));
+                c.view_mut((rows, 0), (nv, n)).copy_from(&a.rows(nv, nv));
                 d.view_mut((rows, 0), (nv, inputs_count)).copy_from(&qacc_by[2]);
             }
             LinearOutput::Sensordata => {
-                let n = sensors_by[0].nrows();
-                c.view_mut((rows, 0), (n, nv)).copy_from(&sensors_by[0]);
-                c.view_mut((rows, nv), (n, nv)).copy_from(&sensors_by[1]);
-                d.view_mut((rows, 0), (n, inputs_count)).copy_from(&sensors_by[2]);
+                let count = sensors_by[0].nrows();
+                c.view_mut((rows, 0), (count, nv)).copy_from(&sensors_by[0]);
+                c.view_mut((rows, nv), (count, nv)).copy_from(&sensors_by[1]);
+                c.view_mut((rows, 2 * nv), (count, na)).copy_from(&sensors_by[3]);
+                d.view_mut((rows, 0), (count, inputs_count)).copy_from(&sensors_by[2]);
             }
         }
         rows += output.len(model);

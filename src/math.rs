@@ -10,7 +10,9 @@
 
 use std::ops::{Add, AddAssign, Div, DivAssign, Mul, MulAssign, Neg, Sub, SubAssign};
 
-use nalgebra::{Matrix3, RealField, SMatrix, SVector, UnitQuaternion, Vector3};
+use nalgebra::{
+    DMatrix, Dim, Dyn, Matrix3, MatrixView, MatrixViewMut, RealField, SMatrix, SVector, U1, UnitQuaternion, Vector3,
+};
 use num_dual::Dual64;
 use serde::{Deserialize, Serialize};
 
@@ -95,6 +97,24 @@ pub fn real<S: Real, const R: usize, const C: usize>(m: &SMatrix<f64, R, C>) -> 
 pub fn skew<S: Real>(a: &Vec3<S>) -> Mat3<S> {
     let zero = S::zero();
     Mat3::new(zero, -a.z, a.y, a.z, zero, -a.x, -a.y, a.x, zero)
+}
+
+/// The leading `rows` × `cols` block of a buffer. With sizes known at
+/// compile time (`Const`), the loops over the view unroll and its bounds
+/// checks fold away; `Dyn` sizes give the same code for any size.
+#[inline(always)]
+pub fn leading<S: Real, R: Dim, C: Dim>(m: &DMatrix<S>, rows: R, cols: C) -> MatrixView<'_, S, R, C, U1, Dyn> {
+    m.generic_view((0, 0), (rows, cols))
+}
+
+/// [`leading`], mutable.
+#[inline(always)]
+pub fn leading_mut<S: Real, R: Dim, C: Dim>(
+    m: &mut DMatrix<S>,
+    rows: R,
+    cols: C,
+) -> MatrixViewMut<'_, S, R, C, U1, Dyn> {
+    m.generic_view_mut((0, 0), (rows, cols))
 }
 
 /// Angular part of a spatial vector.

@@ -220,6 +220,12 @@ pub enum ActuatorKind {
     Velocity,
     /// `<damper>`: force = −kv velocity ctrl.
     Damper,
+    /// `<intvelocity>`: act integrates ctrl (a velocity command);
+    /// force = kp (act − length) − kv velocity.
+    IntVelocity,
+    /// `<cylinder>`: act follows ctrl (a pressure) with a time constant;
+    /// force = area act + bias₀ + bias₁ length + bias₂ velocity.
+    Cylinder,
 }
 
 impl ActuatorKind {
@@ -231,6 +237,8 @@ impl ActuatorKind {
             ActuatorKind::Position => "position",
             ActuatorKind::Velocity => "velocity",
             ActuatorKind::Damper => "damper",
+            ActuatorKind::IntVelocity => "intvelocity",
+            ActuatorKind::Cylinder => "cylinder",
         }
     }
 }
@@ -927,7 +935,7 @@ mod tests {
             assert_eq!(serde_json::to_value(kind).unwrap(), kind.name());
         }
         use ActuatorKind::*;
-        for kind in [General, Motor, Position, Velocity, Damper] {
+        for kind in [General, Motor, Position, Velocity, Damper, IntVelocity, Cylinder] {
             assert_eq!(serde_json::to_value(kind).unwrap(), kind.name());
         }
     }

@@ -238,6 +238,8 @@ fn eval_cost(
     let stripped = stripped_of_ports(model);
     let mut stripped_ws = stripped.workspace();
     let ctrl = mid_range_ctrl(model);
+    // The activation states at MuJoCo's start.
+    let act = vec![0.0; model.activation_count()];
     let (mut actuated_ws, mut sensed_ws) = (model.workspace(), model.workspace());
 
     let mut qacc_ws = model.workspace();
@@ -252,10 +254,10 @@ fn eval_cost(
         cases.push(qacc_case(model, &mut qacc_ws, &state.theta, qvel, &eps));
     }
     if let Some(derivatives) = derivatives.as_mut() {
-        cases.push(directional_derivative_case(model, derivatives, state, &eps, &ctrl, &ones));
+        cases.push(directional_derivative_case(model, derivatives, state, (&eps, &ctrl, &act), &ones));
     }
     if let Some(derivatives) = jacobian_derivatives.as_mut() {
-        cases.push(jacobian_case(model, derivatives, state, &eps, &ctrl));
+        cases.push(jacobian_case(model, derivatives, state, (&eps, &ctrl, &act)));
     }
     if ported {
         cases.push(forward_case(
@@ -320,15 +322,14 @@ fn directional_derivative_case<'a>(
     model: &'a Model,
     derivatives: &'a mut nudyn::dynamics::derivatives::Derivatives,
     state: &'a State,
-    eps: &'a [f64],
-    ctrl: &'a [f64],
+    (eps, ctrl, act): (&'a [f64], &'a [f64], &'a [f64]),
     direction: &'a [f64],
 ) -> Case<'a> {
     use nudyn::dynamics::derivatives::{Direction, ThetaDirection};
     Case {
         name: "nudyn directional derivative of ν̇ (dual numbers)".to_string(),
         call: Box::new(move || {
-            let point = derivative_point(state, eps, ctrl);
+            let point = derivative_point(state, eps, ctrl, act);
             let along = Direction {
                 theta: direction,
                 theta_in: ThetaDirection::Tangent,
@@ -336,6 +337,7 @@ fn directional_derivative_case<'a>(
                 eps: direction,
                 torque: eps,
                 ctrl,
+                act,
             };
             derivatives
                 .run(model, &point, &along, &[nudyn::dynamics::derivatives::Output::NuDot])
@@ -345,26 +347,30 @@ fn directional_derivative_case<'a>(
 }
 
 /// The point of the derivatives' cases: `state` (θ, ν) with ε and the
-/// joint forces both `eps`, and `ctrl`.
-fn derivative_point<'a>(state: &'a State, eps: &'a [f64], ctrl: &'a [f64]) -> nudyn::dynamics::derivatives::Point<'a> {
+/// joint forces both `eps`, `ctrl` and `act`.
+fn derivative_point<'a>(
+    state: &'a State,
+    eps: &'a [f64],
+    ctrl: &'a [f64],
+    act: &'a [f64],
+) -> nudyn::dynamics::derivatives::Point<'a> {
     let given = nudyn::dynamics::velocity::Given::Nu;
     let theta = std::hint::black_box(state.theta.as_slice());
-    nudyn::dynamics::derivatives::Point { theta, velocity: &state.nu, given, eps, torque: eps, ctrl, time: 0.0 }
+    nudyn::dynamics::derivatives::Point { theta, velocity: &state.nu, given, eps, torque: eps, ctrl, act, time: 0.0 }
 }
 
-/// A timed case of the Jacobians of ν̇ in θ, ν, ε, T and ctrl at `state`
+/// A timed case of the Jacobians of ν̇ in θ, ν, ε, T, ctrl and act at `state`
 /// (4nv + nu directions, one run each).
 fn jacobian_case<'a>(
     model: &'a Model,
     derivatives: &'a mut nudyn::dynamics::derivatives::Derivatives,
     state: &'a State,
-    eps: &'a [f64],
-    ctrl: &'a [f64],
+    (eps, ctrl, act): (&'a [f64], &'a [f64], &'a [f64]),
 ) -> Case<'a> {
     Case {
         name: "nudyn Jacobians of ν̇ (dual numbers)".to_string(),
         call: Box::new(move || {
-            let point = derivative_point(state, eps, ctrl);
+            let point = derivative_point(state, eps, ctrl, act);
             let nu_dot = nudyn::dynamics::derivatives::Output::NuDot;
             derivatives.jacobians(model, &point, nu_dot).expect("the state evaluates");
         }),

@@ -16,6 +16,8 @@ pub struct Request<'a> {
     pub qpos: Option<Vec<f64>>,
     /// θ̇; default 0.
     pub qvel: Option<Vec<f64>>,
+    /// act; default 0.
+    pub act: Option<Vec<f64>>,
     /// ε held; default 0.
     pub eps: Option<Vec<f64>>,
     /// T held; default 0.
@@ -39,6 +41,8 @@ pub struct Request<'a> {
 struct LinearizationFile {
     qpos: Vec<f64>,
     qvel: Vec<f64>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    act: Vec<f64>,
     eps: Vec<f64>,
     torque: Vec<f64>,
     ctrl: Vec<f64>,
@@ -72,7 +76,7 @@ struct Eigenvalue {
 
 /// Runs `nudyn linearize`.
 pub fn run(model: &Model, request: &Request) -> Result<()> {
-    let nv = model.nv;
+    let (nv, na) = (model.nv, model.activation_count());
     let given = |values: &Option<Vec<f64>>, default: Vec<f64>, what: &str, expected: usize| -> Result<Vec<f64>> {
         let values = values.clone().unwrap_or(default);
         if values.len() != expected {
@@ -83,6 +87,7 @@ pub fn run(model: &Model, request: &Request) -> Result<()> {
     let point = OperatingPoint {
         qpos: given(&request.qpos, model.qpos0.clone(), "qpos", model.nq)?,
         qvel: given(&request.qvel, vec![0.0; nv], "qvel", nv)?,
+        act: given(&request.act, vec![0.0; na], "act", na)?,
         eps: given(&request.eps, vec![0.0; nv], "eps", nv)?,
         torque: given(&request.torque, vec![0.0; nv], "torque", nv)?,
         ctrl: given(&request.ctrl, vec![0.0; model.actuators.len()], "ctrl", model.actuators.len())?,
@@ -96,7 +101,7 @@ pub fn run(model: &Model, request: &Request) -> Result<()> {
         Inputs::Ctrl => (1..=model.actuators.len()).map(|k| format!("ctrl[{k}]")).collect(),
     };
     let file = LinearizationFile {
-        state: names("dq").chain(names("qvel")).collect(),
+        state: names("dq").chain(names("qvel")).chain((1..=na).map(|k| format!("act[{k}]"))).collect(),
         inputs,
         outputs: request
             .outputs
@@ -120,6 +125,7 @@ pub fn run(model: &Model, request: &Request) -> Result<()> {
         bd: linear.discrete.as_ref().map(|(.., bd)| rows(bd)),
         qpos: point.qpos,
         qvel: point.qvel,
+        act: point.act,
         eps: point.eps,
         torque: point.torque,
         ctrl: point.ctrl,

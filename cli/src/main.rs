@@ -181,21 +181,21 @@ enum Command {
         format: Format,
     },
     /// Linearize the dynamics at a state from their exact derivatives:
-    /// A, B, C, D of dx/dt = A x + B u, y = C x + D u, with x = (dq, qvel)
-    /// (dq the displacement in the tangent space, rotations as rotation
-    /// vectors in the body frame: MuJoCo's mjd_transitionFD state) and u
-    /// the eps inputs or the joint forces; with --step, the zero-order
-    /// hold's Ad, Bd. Writes JSON (stdout or --output) with the matrices by
-    /// rows and the names of x, u and y, optionally an .npz; prints the
-    /// eigenvalues (frequency, damping) on stderr. Vehicles with activation
-    /// states, tendons, equalities or friction loss, and points where a
-    /// joint limit acts, are refused for now.
+    /// A, B, C, D of dx/dt = A x + B u, y = C x + D u, with x = (dq, qvel,
+    /// act) (dq the displacement in the tangent space, rotations as rotation
+    /// vectors in the body frame, act the activation states if any:
+    /// MuJoCo's mjd_transitionFD state) and u the eps inputs, the joint
+    /// forces or ctrl; with --step, the zero-order hold's Ad, Bd. Writes
+    /// JSON (stdout or --output) with the matrices by rows and the names of
+    /// x, u and y, optionally an .npz; prints the eigenvalues (frequency,
+    /// damping) on stderr. Vehicles with tendon armature or MuJoCo's no-slip
+    /// pass, and points on a switch of the constraint forces, are refused.
     Linearize {
         /// The vehicle's MJCF file.
         model: PathBuf,
         /// Start from this `<key>` of the file's `<keyframe>` (its name, or
-        /// its index from 0): its qpos, qvel and ctrl, which --qpos, --qvel
-        /// and --ctrl replace where given.
+        /// its index from 0): its qpos, qvel, act and ctrl, which --qpos,
+        /// --qvel, --act and --ctrl replace where given.
         #[arg(long)]
         keyframe: Option<String>,
         /// θ (nq values, comma-separated); default the model's qpos0.
@@ -204,6 +204,10 @@ enum Command {
         /// θ̇ (nv values); default 0.
         #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
         qvel: Option<Vec<f64>>,
+        /// The actuators' activation states (na values, MuJoCo's act), states
+        /// of the linearization after θ̇; default 0.
+        #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+        act: Option<Vec<f64>>,
         /// The eps held at the point (nv values); default 0.
         #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
         eps: Option<Vec<f64>>,
@@ -421,7 +425,21 @@ fn run(cli: Cli) -> Result<()> {
             };
             system(&model, &output, end_effector.as_deref(), &options)
         }
-        Command::Linearize { model, keyframe, qpos, qvel, eps, torque, ctrl, inputs, outputs, step, output, npz } => {
+        Command::Linearize {
+            model,
+            keyframe,
+            qpos,
+            qvel,
+            act,
+            eps,
+            torque,
+            ctrl,
+            inputs,
+            outputs,
+            step,
+            output,
+            npz,
+        } => {
             if let Some(h) = step
                 && !(h.is_finite() && h > 0.0)
             {
@@ -460,6 +478,7 @@ fn run(cli: Cli) -> Result<()> {
             let request = linearize::Request {
                 qpos: from_key(qpos, |key| &key.qpos),
                 qvel: from_key(qvel, |key| &key.qvel),
+                act: from_key(act, |key| &key.act),
                 eps,
                 torque,
                 ctrl: from_key(ctrl, |key| &key.ctrl),

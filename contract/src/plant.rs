@@ -93,8 +93,8 @@ pub fn serves_model_exchange(outputs: OptionalOutputs) -> bool {
 /// What a plant FMU has that its directional derivatives do not cover yet.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum NotCovered {
-    /// The dynamics' derivatives refuse the model (activation states,
-    /// the tendons' armature, equalities, friction loss).
+    /// The dynamics' derivatives refuse the model (the tendons' armature,
+    /// MuJoCo's no-slip pass).
     #[error(transparent)]
     Dynamics(#[from] DerivativeError),
     /// An optional output whose derivative is not computed.

@@ -3,7 +3,7 @@
 //! passes run in dual numbers (`nudyn::dynamics::derivatives`), one run
 //! per direction.
 //!
-//! The knowns are the states θ and ν and the inputs ε, ctrl and the
+//! The knowns are the states θ, ν and act and the inputs ε, ctrl and the
 //! wrench inputs (FMI 2.0 §2.2.8 and FMI 3.0 §2.4.8 list the continuous
 //! states and the inputs as the knowns of `<Outputs>` and `<Derivatives>`,
 //! at communication points too);
@@ -38,6 +38,8 @@ pub struct At<'a> {
     /// The actuators' controls and the wrench inputs' values (MuJoCo's
     /// ctrl, then xfrc_applied), as the plant applies them.
     pub ctrl: &'a [f64],
+    /// The activation states (MuJoCo's act).
+    pub act: &'a [f64],
     /// The constraint rows of the plant's evaluations, whose held mode
     /// (between events in model exchange) the derivatives hold.
     pub rows: &'a ConstraintRows,
@@ -52,12 +54,13 @@ pub struct Partials {
     /// The dual workspace once made (`Ok(None)` before the first call), or
     /// why the FMU has none (logged on every call).
     derivatives: Result<Option<Derivatives>, String>,
-    /// The direction along θ, ν, ε and the controls (ctrl, then the
-    /// wrench inputs).
+    /// The direction along θ, ν, ε, the controls (ctrl, then the
+    /// wrench inputs) and act.
     theta: Vec<f64>,
     nu: Vec<f64>,
     eps: Vec<f64>,
     ctrl: Vec<f64>,
+    act: Vec<f64>,
     /// The physical joint forces' direction: always 0 (T is no variable of the FMU).
     torque: Vec<f64>,
     /// The derivatives of θ̇ and ν̇ along the last direction.
@@ -77,6 +80,7 @@ impl Partials {
             nu: Vec::new(),
             eps: Vec::new(),
             ctrl: Vec::new(),
+            act: Vec::new(),
             torque: Vec::new(),
             qvel: Vec::new(),
             nu_dot: Vec::new(),
@@ -146,6 +150,7 @@ impl Partials {
                 (&mut self.nu, model.nv),
                 (&mut self.eps, model.nv),
                 (&mut self.ctrl, controls),
+                (&mut self.act, model.activation_count()),
             ] {
                 buffer.resize(n, 0.0);
             }
@@ -156,7 +161,7 @@ impl Partials {
         }
         let derivatives = derivatives.as_mut().expect("made above");
         derivatives.hold_constraint_mode_of(at.rows);
-        for buffer in [&mut self.theta, &mut self.nu, &mut self.eps, &mut self.ctrl] {
+        for buffer in [&mut self.theta, &mut self.nu, &mut self.eps, &mut self.ctrl, &mut self.act] {
             buffer.fill(0.0);
         }
         let wrench_inputs = model.mjcf_actuator_count();
@@ -167,6 +172,7 @@ impl Partials {
                 RealVariable::Eps(k) => self.eps[k] += seed,
                 RealVariable::Ctrl(k) => self.ctrl[k] += seed,
                 RealVariable::XfrcApplied(k) => self.ctrl[wrench_inputs + k] += seed,
+                RealVariable::Act(k) => self.act[k] += seed,
                 other => unreachable!("{other:?} is not a known: classified before"),
             }
         }
@@ -177,6 +183,7 @@ impl Partials {
             eps: at.eps,
             torque: &self.torque,
             ctrl: at.ctrl,
+            act: at.act,
             time: at.time,
         };
         let direction = Direction {
@@ -186,6 +193,7 @@ impl Partials {
             eps: &self.eps,
             torque: &self.torque,
             ctrl: &self.ctrl,
+            act: &self.act,
         };
         let outputs: &[Output] = if sensors { &[Output::NuDot, Output::Sensordata] } else { &[Output::NuDot] };
         derivatives.run(at.model, &point, &direction, outputs).map_err(|error| match error {
@@ -226,6 +234,8 @@ impl Partials {
         match variable {
             RealVariable::Theta(k) => self.theta[k],
             RealVariable::Nu(k) => self.nu[k],
+            RealVariable::Act(k) => self.act[k],
+            RealVariable::DerAct(k) => derivatives.act_rate_within_range_derivative(at.model, k),
             RealVariable::Qvel(k) => self.qvel[k],
             RealVariable::DerTheta(k) => derivatives.qpos_rate_derivative(at.model, k),
             RealVariable::DerNu(k) => self.nu_dot[k],
@@ -283,11 +293,13 @@ impl Role {
     fn admits(self, variable: RealVariable) -> bool {
         use RealVariable::*;
         match self {
-            Role::Known => matches!(variable, Theta(_) | Nu(_) | Eps(_) | Ctrl(_) | XfrcApplied(_)),
+            Role::Known => matches!(variable, Theta(_) | Nu(_) | Act(_) | Eps(_) | Ctrl(_) | XfrcApplied(_)),
             Role::Unknown => matches!(
                 variable,
                 Theta(_)
                     | Nu(_)
+                    | Act(_)
+                    | DerAct(_)
                     | Sensordata(_)
                     | Qvel(_)
                     | DerTheta(_)
@@ -302,11 +314,11 @@ impl Role {
     fn describe(self) -> &'static str {
         match self {
             Role::Known => {
-                "a known of the partial derivatives (the states theta and nu, the inputs eps, ctrl and xfrc_applied)"
+                "a known of the partial derivatives (the states theta, nu and act, the inputs eps, ctrl and xfrc_applied)"
             }
             Role::Unknown => {
-                "an unknown of the partial derivatives (the outputs theta, nu, sensordata, qvel, kinetic_energy, \
-                 power, qfrc_constraint and the state derivatives)"
+                "an unknown of the partial derivatives (the outputs theta, nu, act, sensordata, qvel, \
+                 kinetic_energy, power, qfrc_constraint and the state derivatives)"
             }
         }
     }

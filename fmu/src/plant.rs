@@ -686,8 +686,8 @@ impl Component for Plant {
     ) -> Result<(), CallError> {
         let (model, layout, state) = (&self.model, &self.layout, &self.sim.state);
         let rows = &self.sim.workspace().constraint_rows;
-        let (theta, nu, time) = (&state.theta, &state.nu, state.time);
-        let at = At { model, layout, theta, nu, eps: &self.eps, ctrl: &self.ctrl, rows, time };
+        let (theta, nu, act, time) = (&state.theta, &state.nu, self.sim.act(model), state.time);
+        let at = At { model, layout, theta, nu, eps: &self.eps, ctrl: &self.ctrl, act, rows, time };
         self.partials.directional(&at, unknowns, knowns, seed, sensitivity)
     }
 
@@ -700,8 +700,8 @@ impl Component for Plant {
     ) -> Result<(), CallError> {
         let (model, layout, state) = (&self.model, &self.layout, &self.sim.state);
         let rows = &self.sim.workspace().constraint_rows;
-        let (theta, nu, time) = (&state.theta, &state.nu, state.time);
-        let at = At { model, layout, theta, nu, eps: &self.eps, ctrl: &self.ctrl, rows, time };
+        let (theta, nu, act, time) = (&state.theta, &state.nu, self.sim.act(model), state.time);
+        let at = At { model, layout, theta, nu, eps: &self.eps, ctrl: &self.ctrl, act, rows, time };
         self.partials.adjoint(&at, unknowns, knowns, seed, sensitivity)
     }
 

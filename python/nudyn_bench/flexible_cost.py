@@ -47,8 +47,9 @@ def measure(bench: Path, repetitions: int, batch_ms: float) -> dict:
     rows = {}
     for label, key in CASES.items():
         ratios = [ours / theirs for ours, theirs in zip(times[key], forward)]
+        quartiles = statistics.quantiles(ratios, n=4)
         rows[label] = {"nanoseconds": statistics.median(times[key]), "ratio_median": statistics.median(ratios),
-                       "ratio_best": min(ratios)}
+                       "ratio_quartiles": [quartiles[0], quartiles[2]], "ratio_best": min(ratios)}
     return {"nv": lumped.nv, "mj_forward_nanoseconds": statistics.median(forward), "cases": rows}
 
 
@@ -64,10 +65,12 @@ def main(argv=None) -> int:
         return 2
     result = measure(bench, args.repetitions, args.batch_ms)
     print(f"nv = {result['nv']}; mj_forward of the lumped equivalent: {result['mj_forward_nanoseconds']:.0f} ns")
-    print("| nudyn | ns (median) | / mj_forward, median of the repetitions' ratios | best |")
-    print("|---|---|---|---|")
+    print("| nudyn | ns (median) | / mj_forward, median of the repetitions' ratios | quartiles | best |")
+    print("|---|---|---|---|---|")
     for label, row in result["cases"].items():
-        print(f"| {label} | {row['nanoseconds']:.0f} | {row['ratio_median']:.2f} | {row['ratio_best']:.2f} |")
+        low, high = row["ratio_quartiles"]
+        print(f"| {label} | {row['nanoseconds']:.0f} | {row['ratio_median']:.2f} | {low:.2f}–{high:.2f} "
+              f"| {row['ratio_best']:.2f} |")
     return 0
 
 

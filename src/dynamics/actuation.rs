@@ -467,20 +467,6 @@ impl Workspace {
         Ok(())
     }
 
-    /// Activation state k's rate as a host's solver integrates it (model
-    /// exchange): MuJoCo's act_dot, but 0 where act is at or past a bound of
-    /// its range and would leave it, where MuJoCo's step clamps act. Needs
-    /// [`Workspace::compute_actuation`].
-    pub fn act_rate_within_range(&self, model: &Model, k: usize) -> f64 {
-        let range = model.actuators.iter().filter_map(|a| a.activation).nth(k).and_then(|a| a.range);
-        let (act, rate) = (self.act[k], self.act_dot[k]);
-        match range {
-            Some([low, _]) if act <= low && rate < 0.0 => 0.0,
-            Some([_, high]) if act >= high && rate > 0.0 => 0.0,
-            _ => rate,
-        }
-    }
-
     /// Whether pass 3 is done for exactly these inputs, with the actuators
     /// (by [`Workspace::compute_nu_dot_actuated`]).
     pub(crate) fn nu_dot_is_for(&self, eps: &[f64], ctrl: &[f64]) -> bool {
@@ -519,6 +505,21 @@ impl Workspace {
 }
 
 impl<S: Real> Workspace<S> {
+    /// Activation state k's rate as a host's solver integrates it (model
+    /// exchange): MuJoCo's act_dot, but 0 where act is at or past a bound of
+    /// its range and would leave it, where MuJoCo's step clamps act (and so
+    /// its derivative 0 there, in dual numbers). Needs
+    /// [`Workspace::compute_actuation`].
+    pub fn act_rate_within_range(&self, model: &Model, k: usize) -> S {
+        let range = model.actuators.iter().filter_map(|a| a.activation).nth(k).and_then(|a| a.range);
+        let (act, rate) = (self.act[k].value(), self.act_dot[k]);
+        match range {
+            Some([low, _]) if act <= low && rate.value() < 0.0 => S::zero(),
+            Some([_, high]) if act >= high && rate.value() > 0.0 => S::zero(),
+            _ => rate,
+        }
+    }
+
     /// [`Workspace::compute_actuation`] after its checks.
     pub(crate) fn actuation_pass(&mut self, model: &Model, ctrl: &[S]) -> Result<(), DynamicsError> {
         let actuation = model.actuation;

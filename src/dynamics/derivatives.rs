@@ -18,9 +18,11 @@
 //! factorization, velocities, springs, dampers, gravity and its
 //! compensation, ν̇, C and θ̈), the tendons' (lengths, moment arms and
 //! velocities of fixed and spatial paths with their wraps, springs and
-//! dampers), the actuators' without activation states (transmissions,
+//! dampers), the actuators' (transmissions,
 //! gains and biases, the clamps of ctrl and force, which hold their piece:
-//! a clamped input's derivative is 0), the constraint forces' (equality
+//! a clamped input's derivative is 0; activation states, whose act the
+//! direction may move, their rates MuJoCo's act_dot, an act read clamped to
+//! its range with derivative 0 beyond it), the constraint forces' (equality
 //! rows, friction loss, joint and tendon limits) and the sensors' (every
 //! kind nudyn reads, after the passes: [`Output::Sensordata`]). The constraint
 //! forces are taken at the mode of the point: the limit sides active
@@ -29,8 +31,8 @@
 //! mode's forces, a smooth function of the state (the integrators hold the
 //! same mode over a step). A point on a switch of that mode, where the
 //! derivative is one-sided, is refused by [`Derivatives::run`] with the
-//! switches named. A model whose dynamics need more (activation states,
-//! the tendons' armature, MuJoCo's no-slip pass) is refused by
+//! switches named. A model whose dynamics need more (the tendons'
+//! armature, MuJoCo's no-slip pass) is refused by
 //! [`Derivatives::new`] with what is missing, rather than given a
 //! derivative that leaves a term out.
 
@@ -90,6 +92,8 @@ pub struct Point<'a> {
     pub torque: &'a [f64],
     /// The actuators' controls.
     pub ctrl: &'a [f64],
+    /// The activation states (MuJoCo's act, na; empty without them).
+    pub act: &'a [f64],
     /// The time, which the clock sensors read (their derivative is 0).
     pub time: f64,
 }
@@ -119,6 +123,8 @@ pub struct Direction<'a> {
     pub torque: &'a [f64],
     /// Along ctrl.
     pub ctrl: &'a [f64],
+    /// Along act.
+    pub act: &'a [f64],
 }
 
 /// The outputs whose derivatives a run gives, each nv long but the sensors'.
@@ -136,6 +142,8 @@ pub enum Output {
     /// inputs and constraint mode; a reading held at its `cutoff` has
     /// derivative 0.
     Sensordata,
+    /// The activation states' rates (na): MuJoCo's act_dot.
+    ActDot,
 }
 
 impl Output {
@@ -143,6 +151,7 @@ impl Output {
     pub fn len(self, model: &Model) -> usize {
         match self {
             Output::Sensordata => model.sensors.iter().map(|s| s.dim()).sum(),
+            Output::ActDot => model.activation_count(),
             _ => model.nv,
         }
     }
@@ -161,15 +170,27 @@ pub enum Input {
     Torque,
     /// ctrl (nu).
     Ctrl,
+    /// act (na).
+    Act,
 }
 
 impl Input {
-    /// Every input, in [`Jacobians`]' order.
-    pub const ALL: [Input; 5] = [Input::Theta, Input::Velocity, Input::Eps, Input::Torque, Input::Ctrl];
+    /// Every input, in [`Jacobians`]' order (and in the order of the enum).
+    pub const ALL: [Input; 6] = [Input::Theta, Input::Velocity, Input::Eps, Input::Torque, Input::Ctrl, Input::Act];
+
+    /// How many columns the input has for `model`.
+    pub fn len(self, model: &Model) -> usize {
+        match self {
+            Input::Ctrl => model.actuators.len(),
+            Input::Act => model.activation_count(),
+            _ => model.nv,
+        }
+    }
 }
 
 /// The Jacobians of one output at a point, one matrix per input: a row
-/// per entry of the output, and nv columns for θ (tangent space), the velocity, ε and T, nu for ctrl.
+/// per entry of the output, and nv columns for θ (tangent space), the
+/// velocity, ε and T, nu for ctrl, na for act.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Jacobians {
     /// ∂/∂θ in the tangent space.
@@ -182,6 +203,8 @@ pub struct Jacobians {
     pub torque: DMatrix<f64>,
     /// ∂/∂ctrl.
     pub ctrl: DMatrix<f64>,
+    /// ∂/∂act.
+    pub act: DMatrix<f64>,
 }
 
 /// The passes' workspace in dual numbers and the inputs' buffers.
@@ -254,6 +277,7 @@ impl Passes {
         }
         if !model.actuators.is_empty() {
             seed(&mut self.ctrl, point.ctrl, direction.ctrl);
+            seed(ws.act.as_mut_slice(), point.act, direction.act);
             ws.actuation_pass(model, &self.ctrl)?;
             self.eps.iter_mut().zip(ws.eps_actuator.iter()).for_each(|(e, a)| *e += *a);
         }
@@ -302,7 +326,7 @@ impl Passes {
     /// `output` of the last run, which must have been asked for.
     fn output(&self, output: Output) -> &[Dual64] {
         let computed = match output {
-            Output::Qvel | Output::Nu => true,
+            Output::Qvel | Output::Nu | Output::ActDot => true,
             Output::NuDot => self.ws.stage == Stage::Acceleration,
             Output::Qacc => self.qacc_current,
             Output::Sensordata => self.sensors_current,
@@ -314,6 +338,7 @@ impl Passes {
             Output::NuDot => self.ws.nu_dot.as_slice(),
             Output::Qacc => self.ws.qacc.as_slice(),
             Output::Sensordata => self.ws.sensordata.as_slice(),
+            Output::ActDot => self.ws.act_dot.as_slice(),
         }
     }
 }
@@ -417,7 +442,6 @@ impl Derivatives {
     /// (an exporter's question): what [`Derivatives::new`] refuses.
     pub fn check(model: &Model) -> Result<(), DerivativeError> {
         let unsupported = [
-            (model.activation_count() > 0, "actuators' activation states (dyntype)"),
             (!model.tendon_inertia.is_empty(), "tendons' armature"),
             (model.constraints.runs_no_slip_pass(), "MuJoCo's no-slip pass (noslip_iterations)"),
         ];
@@ -429,7 +453,8 @@ impl Derivatives {
 
     /// Runs the passes `outputs` need at `point` along `direction`;
     /// [`Derivatives::derivative`] and [`Derivatives::value`] then read
-    /// those outputs (θ̇ and ν are always computed; ν̇ and θ̈ when asked).
+    /// those outputs (θ̇, ν and act_dot are always computed; ν̇ and θ̈ when
+    /// asked).
     pub fn run(
         &mut self,
         model: &Model,
@@ -470,6 +495,13 @@ impl Derivatives {
         self.passes.ws.constraint_rows.hold_mode_of(held);
     }
 
+    /// The derivative of activation state k's rate as model exchange's
+    /// host integrates it ([`Workspace::act_rate_within_range`]: 0 at a
+    /// bound act would leave) along the last run's direction.
+    pub fn act_rate_within_range_derivative(&self, model: &Model, k: usize) -> f64 {
+        self.passes.ws.act_rate_within_range(model, k).eps
+    }
+
     /// The derivative of MuJoCo's qfrc_constraint = Jᵀf (entry `k`) along
     /// the last run's direction: 0 where no constraint row acts.
     pub fn qfrc_constraint_derivative(&self, k: usize) -> f64 {
@@ -480,7 +512,7 @@ impl Derivatives {
     pub fn jacobians(&mut self, model: &Model, point: &Point, output: Output) -> Result<Jacobians, DerivativeError> {
         let [mut by_input] = self.jacobians_of(model, point, [output], &Input::ALL)?;
         let mut take = || by_input.remove(0);
-        Ok(Jacobians { theta: take(), velocity: take(), eps: take(), torque: take(), ctrl: take() })
+        Ok(Jacobians { theta: take(), velocity: take(), eps: take(), torque: take(), ctrl: take(), act: take() })
     }
 
     /// The Jacobians of each of `outputs` at `point` with respect to each
@@ -496,24 +528,26 @@ impl Derivatives {
         inputs: &[Input],
     ) -> Result<[Vec<DMatrix<f64>>; N], DerivativeError> {
         check_point(model, point)?;
-        let (nv, nu) = (model.nv, model.actuators.len());
-        let (zeros, no_ctrl) = (vec![0.0; nv], vec![0.0; nu]);
+        let zeros = Input::ALL.map(|input| vec![0.0; input.len(model)]);
         let mut out: [Vec<DMatrix<f64>>; N] = std::array::from_fn(|_| Vec::with_capacity(inputs.len()));
         for &input in inputs {
-            let count = if input == Input::Ctrl { nu } else { nv };
+            let count = input.len(model);
             let mut unit = vec![0.0; count];
             let mut jacobians: [DMatrix<f64>; N] =
                 std::array::from_fn(|k| DMatrix::zeros(outputs[k].len(model), count));
             for column in 0..count {
                 unit[column] = 1.0;
-                let along = |which: Input| if which == input { unit.as_slice() } else { zeros.as_slice() };
+                let along = |which: Input| {
+                    if which == input { unit.as_slice() } else { zeros[which as usize].as_slice() }
+                };
                 let direction = Direction {
                     theta: along(Input::Theta),
                     theta_in: ThetaDirection::Tangent,
                     velocity: along(Input::Velocity),
                     eps: along(Input::Eps),
                     torque: along(Input::Torque),
-                    ctrl: if input == Input::Ctrl { unit.as_slice() } else { no_ctrl.as_slice() },
+                    ctrl: along(Input::Ctrl),
+                    act: along(Input::Act),
                 };
                 let run = self.passes.run(model, point, &direction, &outputs, &mut self.switches);
                 unit[column] = 0.0;
@@ -560,6 +594,7 @@ fn check_point(model: &Model, point: &Point) -> Result<(), DerivativeError> {
     check_input("eps", point.eps, model.nv)?;
     check_input("torque", point.torque, model.nv)?;
     check_input("ctrl", point.ctrl, model.actuators.len())?;
+    check_input("act", point.act, model.activation_count())?;
     Ok(())
 }
 
@@ -575,6 +610,7 @@ fn check_direction(model: &Model, point: &Point, direction: &Direction) -> Resul
         ("eps", direction.eps, model.nv),
         ("torque", direction.torque, model.nv),
         ("ctrl", direction.ctrl, model.actuators.len()),
+        ("act", direction.act, model.activation_count()),
     ] {
         if values.len() != expected {
             return Err(DerivativeError::DirectionLength { what, expected, found: values.len() });

@@ -16,27 +16,53 @@
 //! 𝓘̇ = Σ Ḃ_jᵀ I_j B_j + B_jᵀ I_j Ḃ_j with Ḃ_j = [−(Ψ_jη̇)× X_j, Ψ̇_j]:
 //!   U̇ = Σ X_jᵀ(Ψ_jη̇ ×* I_jΨ_j + I_jΨ̇_j),  Ḋ = Σ Ψ̇_jᵀI_jΨ_j + Ψ_jᵀI_jΨ̇_j,
 //!   İ^a = Σ X_jᵀ(Ψ_jη̇ ×* I_j − I_j Ψ_jη̇ ×)X_j − U̇Gᵀ − GU̇ᵀ + GḊGᵀ.
+//! With Ġᵀ = D⁻¹(U̇ − GḊ)ᵀ and RᵀD⁻¹ = R⁻¹, the rate term RᵀĠᵀV_R is
+//! R⁻¹(U̇ − GḊ)ᵀV_R. Dense per body (m is small, nodes few): O(nodes · m²)
+//! per evaluation, in buffers sized once ([`FlexState`]). A body of point
+//! masses only has a constant D (the modal masses): its factor R, R⁻¹ and
+//! D⁻¹ are made once, with the workspace, and Ḋ = Ṙ = 0. Each block's
+//! arithmetic is instantiated for 1 to [`FIXED_MODES`] modes, where its
+//! loops unroll (`by_modes!`), and for any count beyond.
+//!
 //! A child body at a node hangs from that node as from a parent link: its
 //! I^a, p^a and İ^a (brought to the node's frame) join the node's, so that
 //! for such a node I_j is its own inertia plus its children's articulated
 //! inertias, p_j gains their p^a, and the rates gain Σ B_jᵀ İ_j B_j; its
 //! parent velocity and acceleration are the node's, V_j and
 //! A_j = X_j A_R + Ψ_j η̈ + c_j.
-//! Dense per body (m is small, nodes few): O(nodes · m²) per evaluation,
-//! in buffers sized once ([`FlexState`]).
 
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DVector, Dim, U1, U6};
 
 use super::articulated::{upper_cholesky_into, upper_triangular_inverse_into};
 use super::{DynamicsError, accumulate};
 use crate::flex::nodes;
 use crate::flex::point_masses;
 use crate::math::{
-    Real, SpatialMat, SpatialVec, Transform, Vec3, cross_force, cross_motion, mul_cross_motion, real, rigid_inertia,
-    spatial,
+    Real, SpatialMat, SpatialVec, Transform, Vec3, cross_force, cross_motion, leading, leading_mut, mul_cross_motion,
+    real, rigid_inertia, spatial,
 };
 use crate::model::{FlexBody, Model};
 use crate::workspace::{NodeParent, Workspace};
+
+/// The largest mode count with its own fixed-size instance of the blocks' arithmetic.
+pub const FIXED_MODES: usize = 6;
+
+/// `f(modes, args)` with `modes` the dimension of `m` modes: `Const` up to
+/// [`FIXED_MODES`], `Dyn` beyond.
+macro_rules! by_modes {
+    ($m:expr, $f:ident $(::<$($g:tt),*>)? ($($arg:expr),* $(,)?)) => {{
+        use nalgebra::{Const, Dyn};
+        match $m {
+            1 => $f $(::<$($g),*>)? (Const::<1>, $($arg),*),
+            2 => $f $(::<$($g),*>)? (Const::<2>, $($arg),*),
+            3 => $f $(::<$($g),*>)? (Const::<3>, $($arg),*),
+            4 => $f $(::<$($g),*>)? (Const::<4>, $($arg),*),
+            5 => $f $(::<$($g),*>)? (Const::<5>, $($arg),*),
+            6 => $f $(::<$($g),*>)? (Const::<6>, $($arg),*),
+            m => $f $(::<$($g),*>)? (Dyn(m), $($arg),*),
+        }
+    }};
+}
 
 /// One flexible body's share of the workspace.
 #[derive(Clone, Debug)]
@@ -44,6 +70,9 @@ pub struct FlexState<S: Real = f64> {
     /// Whether this block sets its link's inward slots (no rigid child and
     /// no block before it on the link) rather than adding to them.
     pub opens_link: bool,
+    /// Whether D is constant (point masses only): R, R⁻¹ and D⁻¹ are made
+    /// with the workspace, and Ḋ = 0.
+    constant_factor: bool,
     /// ʲX_R per node taken one by one (`FlexBody::rotating`; pass 1).
     pub node_x: Vec<Transform<S>>,
     /// Ψ_j per such node, 6 × m (pass 1).
@@ -52,8 +81,8 @@ pub struct FlexState<S: Real = f64> {
     pub v_node: Vec<SpatialVec<S>>,
     /// Ψ_j η̇ per such node, its velocity relative to R (pass 2; pass 3 reads it).
     v_relative: Vec<SpatialVec<S>>,
-    /// The point-mass nodes' c and S (pass 1).
-    points: point_masses::Configuration<S>,
+    /// The point-mass nodes' integrals and sums.
+    points: point_masses::State<S>,
     /// 𝓘_RR, all nodes' inertia about R (pass 1).
     pub rigid: SpatialMat<S>,
     /// U = 𝓘_Rη, 6 × m (pass 1).
@@ -64,21 +93,19 @@ pub struct FlexState<S: Real = f64> {
     pub r_inv: DMatrix<S>,
     /// G = U D⁻¹, 6 × m (pass 1).
     pub gain: DMatrix<S>,
-    /// Scratch: D, then D⁻¹ (m × m).
+    /// D, then D⁻¹ (m × m; D⁻¹ throughout with a constant factor).
     d: DMatrix<S>,
-    /// Scratch: I_j Ψ_j, then I_j Ψ̇_j (6 × m).
+    /// Scratch: I_j Ψ_j (6 × m).
     inertia_psi: DMatrix<S>,
     /// Scratch: Ψ̇_j (6 × m).
     psi_rate: DMatrix<S>,
     /// Scratch: U̇ (6 × m).
     coupling_rate: DMatrix<S>,
-    /// Scratch: Ḋ, then R⁻¹ḊR⁻ᵀ (m × m).
+    /// Scratch: Ḋ, then R⁻¹ḊR⁻ᵀ's upper triangle with its diagonal halved (m × m).
     d_rate: DMatrix<S>,
-    /// Scratch: Ġᵀ (m × 6).
-    gain_t_rate: DMatrix<S>,
     /// Scratch: G Ḋ (6 × m).
     gain_d_rate: DMatrix<S>,
-    /// Scratch (m × m).
+    /// Scratch: R⁻¹Ḋ (m × m).
     square: DMatrix<S>,
     /// Scratch: the velocity-product u, the force u, and one more m-vector.
     u_bias: DVector<S>,
@@ -106,24 +133,33 @@ impl<S: Real> FlexState<S> {
     pub(crate) fn new(flexible: &FlexBody, opens_link: bool) -> Self {
         let (m, nodes) = (flexible.mode_count(), flexible.rotating.len());
         let carrying = if flexible.node_children.is_empty() { 0 } else { nodes };
+        let points = point_masses::State::new(&flexible.points, m);
+        let (mut r, mut r_inv, mut d) = (DMatrix::zeros(m, m), DMatrix::zeros(m, m), DMatrix::zeros(m, m));
+        // Point masses only: the factor of the constant D, once (if D is
+        // not positive definite, pass 1 factors it and reports it).
+        let constant_factor = nodes == 0 && upper_cholesky_into(&points.modal_mass, &mut r);
+        if constant_factor {
+            upper_triangular_inverse_into(&r, &mut r_inv);
+            inverse_from_factor(nalgebra::Dyn(m), &r_inv, &mut d);
+        }
         FlexState {
             opens_link,
+            constant_factor,
             node_x: vec![Transform::identity(); nodes],
             psi: vec![DMatrix::zeros(6, m); nodes],
             v_node: vec![SpatialVec::zeros(); nodes],
             v_relative: vec![SpatialVec::zeros(); nodes],
-            points: point_masses::Configuration::new(m),
+            points,
             rigid: SpatialMat::zeros(),
             coupling: DMatrix::zeros(6, m),
-            r: DMatrix::zeros(m, m),
-            r_inv: DMatrix::zeros(m, m),
+            r,
+            r_inv,
             gain: DMatrix::zeros(6, m),
-            d: DMatrix::zeros(m, m),
+            d,
             inertia_psi: DMatrix::zeros(6, m),
             psi_rate: DMatrix::zeros(6, m),
             coupling_rate: DMatrix::zeros(6, m),
             d_rate: DMatrix::zeros(m, m),
-            gain_t_rate: DMatrix::zeros(m, 6),
             gain_d_rate: DMatrix::zeros(6, m),
             square: DMatrix::zeros(m, m),
             u_bias: DVector::zeros(m),
@@ -139,9 +175,7 @@ impl<S: Real> FlexState<S> {
             a_node: vec![SpatialVec::zeros(); carrying],
         }
     }
-}
 
-impl<S: Real> FlexState<S> {
     /// Σ X_jᵀ I^a_j V_j over the nodes that carry children, I^a_j their
     /// children's articulated inertias: the share of 𝓘_RR V_R + U η̇ that is
     /// not the nodes' momentum (after pass 2).
@@ -151,6 +185,38 @@ impl<S: Real> FlexState<S> {
             .map(|r| self.node_x[r].apply_transpose_force(&(self.child_inertia[r] * self.v_node[r])))
             .fold(SpatialVec::zeros(), |a, b| a + b)
     }
+}
+
+/// D⁻¹ = R⁻ᵀR⁻¹ into `d_inv` (both m × m; R⁻¹ upper triangular).
+fn inverse_from_factor<S: Real, M: Dim>(modes: M, r_inv: &DMatrix<S>, d_inv: &mut DMatrix<S>) {
+    let r_inv = leading(r_inv, modes, modes);
+    let mut d_inv = leading_mut(d_inv, modes, modes);
+    for a in 0..modes.value() {
+        for b in a..modes.value() {
+            let mut s = S::zero();
+            for l in 0..=a {
+                s += r_inv[(l, a)] * r_inv[(l, b)];
+            }
+            d_inv[(a, b)] = s;
+            d_inv[(b, a)] = s;
+        }
+    }
+}
+
+/// Node `j`'s spatial inertia about its origin, in its axes.
+pub(crate) fn node_inertia<S: Real>(flexible: &FlexBody, j: usize) -> SpatialMat<S> {
+    let node = &flexible.modal.nodes[j];
+    real(&rigid_inertia(node.mass, &Vec3::zeros(), &node.rotary_inertia))
+}
+
+/// Column `k` of a 6-row block.
+fn column<S: Real, M: Dim>(m: &nalgebra::MatrixView<'_, S, U6, M, U1, nalgebra::Dyn>, k: usize) -> SpatialVec<S> {
+    SpatialVec::from_fn(|row, _| m[(row, k)])
+}
+
+/// The flexible bodies on link `i`, by index into the model's and workspace's lists.
+pub(crate) fn on_link(model: &Model, i: usize) -> impl Iterator<Item = usize> + '_ {
+    model.flexible.iter().enumerate().filter(move |(_, f)| f.link == i).map(|(f, _)| f)
 }
 
 /// Node slot `r`'s inertia I_j: its own, plus its children's I^a when it carries any.
@@ -222,105 +288,152 @@ pub(crate) fn child_bias<S: Real>(
     }
 }
 
-/// Node `j`'s spatial inertia about its origin, in its axes.
-pub(crate) fn node_inertia<S: Real>(flexible: &FlexBody, j: usize) -> SpatialMat<S> {
-    let node = &flexible.modal.nodes[j];
-    real(&rigid_inertia(node.mass, &Vec3::zeros(), &node.rotary_inertia))
-}
-
-fn column<S: Real>(m: &DMatrix<S>, k: usize) -> SpatialVec<S> {
-    SpatialVec::from_fn(|row, _| m[(row, k)])
-}
-
-fn add_to_column<S: Real>(m: &mut DMatrix<S>, k: usize, v: &SpatialVec<S>) {
-    for row in 0..6 {
-        m[(row, k)] += v[row];
-    }
-}
-
-/// The flexible bodies on link `i`, by index into the model's and workspace's lists.
-pub(crate) fn on_link(model: &Model, i: usize) -> impl Iterator<Item = usize> + '_ {
-    model.flexible.iter().enumerate().filter(move |(_, f)| f.link == i).map(|(f, _)| f)
-}
-
 /// Pass 1 for the modal blocks on link `i`: their factors, and I^a added to the link's I^A.
 pub(crate) fn factor_modes<S: Real>(model: &Model, ws: &mut Workspace<S>, i: usize) -> Result<(), DynamicsError> {
     for f in on_link(model, i) {
         let flexible = &model.flexible[f];
-        let m = flexible.mode_count();
         let state = &mut ws.flex[f];
-        let eta = &ws.theta.as_slice()[flexible.qpos_adr..flexible.qpos_adr + m];
-        let mut rigid = SpatialMat::zeros();
-        state.coupling.fill(S::zero());
-        state.d.fill(S::zero());
-        for (r, &j) in flexible.rotating.iter().enumerate() {
-            let x = nodes::transform(&flexible.modal, j, eta);
-            nodes::subspace(&flexible.modal, j, eta, &mut state.psi[r]);
-            let inertia = slot_inertia(flexible, state, r);
-            x.add_inertia_to_parent(&inertia, &mut rigid, false);
-            for k in 0..m {
-                let i_psi = inertia * column(&state.psi[r], k);
-                state.inertia_psi.column_mut(k).copy_from(&i_psi);
-                add_to_column(&mut state.coupling, k, &x.apply_transpose_force(&i_psi));
-            }
-            for k in 0..m {
-                for l in 0..=k {
-                    state.d[(l, k)] += column(&state.psi[r], l).dot(&column(&state.inertia_psi, k));
-                }
-            }
-            state.node_x[r] = x;
-        }
-        flexible.points.configure(eta, &mut state.points);
-        flexible.points.add_inertia(&state.points, &mut rigid, &mut state.coupling, &mut state.d);
-        state.rigid = rigid;
-        if !upper_cholesky_into(&state.d, &mut state.r) {
-            return Err(DynamicsError::Singular { link: i });
-        }
-        upper_triangular_inverse_into(&state.r, &mut state.r_inv);
-        // D⁻¹ = R⁻ᵀR⁻¹ into `d` (D itself is not needed again), then G = U D⁻¹.
-        state.r_inv.tr_mul_to(&state.r_inv, &mut state.d);
-        state.coupling.mul_to(&state.d, &mut state.gain);
-        let mut reduced = rigid;
-        for row in 0..6 {
-            for col in 0..6 {
-                for k in 0..m {
-                    reduced[(row, col)] -= state.gain[(row, k)] * state.coupling[(col, k)];
-                }
-            }
-        }
+        let eta = &ws.theta.as_slice()[flexible.qpos_adr..flexible.qpos_adr + flexible.mode_count()];
+        let reduced = by_modes!(flexible.mode_count(), factor_block(flexible, state, eta))
+            .ok_or(DynamicsError::Singular { link: i })?;
         accumulate(&mut ws.ia_reduced[i], reduced, state.opens_link);
     }
     Ok(())
 }
 
+/// Pass 1 for one block: its factor, and I^a (None if D is not positive definite).
+fn factor_block<S: Real, M: Dim>(
+    modes: M,
+    flexible: &FlexBody,
+    state: &mut FlexState<S>,
+    eta: &[S],
+) -> Option<SpatialMat<S>> {
+    let m = modes.value();
+    let mut rigid = SpatialMat::zeros();
+    state.coupling.as_mut_slice().fill(S::zero());
+    if !state.constant_factor {
+        state.d.copy_from(&state.points.modal_mass);
+    }
+    for (r, &j) in flexible.rotating.iter().enumerate() {
+        let x = nodes::transform(&flexible.modal, j, eta);
+        nodes::subspace(&flexible.modal, j, eta, &mut state.psi[r]);
+        let inertia = slot_inertia(flexible, state, r);
+        x.add_inertia_to_parent(&inertia, &mut rigid, false);
+        let psi = leading(&state.psi[r], U6, modes);
+        let mut inertia_psi = leading_mut(&mut state.inertia_psi, U6, modes);
+        let mut coupling = leading_mut(&mut state.coupling, U6, modes);
+        for k in 0..m {
+            let i_psi = inertia * column(&psi, k);
+            inertia_psi.column_mut(k).copy_from(&i_psi);
+            let mut slot = coupling.column_mut(k);
+            slot += x.apply_transpose_force(&i_psi);
+        }
+        let mut d = leading_mut(&mut state.d, modes, modes);
+        for k in 0..m {
+            for l in 0..=k {
+                let mut s = S::zero();
+                for row in 0..6 {
+                    s += psi[(row, l)] * inertia_psi[(row, k)];
+                }
+                d[(l, k)] += s;
+            }
+        }
+        state.node_x[r] = x;
+    }
+    state.points.configure(modes, eta);
+    state.points.add_inertia(modes, &mut rigid, &mut state.coupling);
+    state.rigid = rigid;
+    if !state.constant_factor {
+        if !upper_cholesky_into(&leading(&state.d, modes, modes), &mut leading_mut(&mut state.r, modes, modes)) {
+            return None;
+        }
+        upper_triangular_inverse_into(
+            &leading(&state.r, modes, modes),
+            &mut leading_mut(&mut state.r_inv, modes, modes),
+        );
+        inverse_from_factor(modes, &state.r_inv, &mut state.d);
+    }
+    // G = U D⁻¹, and I^a = 𝓘_RR − G Uᵀ (symmetric: the upper triangle, mirrored).
+    let (coupling, d_inv) = (leading(&state.coupling, U6, modes), leading(&state.d, modes, modes));
+    let mut gain = leading_mut(&mut state.gain, U6, modes);
+    for k in 0..m {
+        for row in 0..6 {
+            let mut s = S::zero();
+            for l in 0..m {
+                s += coupling[(row, l)] * d_inv[(l, k)];
+            }
+            gain[(row, k)] = s;
+        }
+    }
+    let mut reduced = rigid;
+    for col in 0..6 {
+        for row in 0..=col {
+            let mut s = S::zero();
+            for k in 0..m {
+                s += gain[(row, k)] * coupling[(col, k)];
+            }
+            reduced[(row, col)] -= s;
+            reduced[(col, row)] = reduced[(row, col)];
+        }
+    }
+    Some(reduced)
+}
+
 /// Which of ν and θ̇ pass 2 is given (as `velocity::Given`).
 pub(crate) fn velocities<S: Real>(model: &Model, ws: &mut Workspace<S>, i: usize, nu_given: bool) {
     for f in on_link(model, i) {
-        let flexible = &model.flexible[f];
-        let (m, adr) = (flexible.mode_count(), flexible.dof_adr);
-        let v_r = ws.v_body[i];
-        let state = &mut ws.flex[f];
+        by_modes!(model.flexible[f].mode_count(), velocities_of_block(model, ws, i, f, nu_given));
+    }
+}
+
+/// Pass 2 for block `f` on link `i`.
+fn velocities_of_block<S: Real, M: Dim>(
+    modes: M,
+    model: &Model,
+    ws: &mut Workspace<S>,
+    i: usize,
+    f: usize,
+    nu_given: bool,
+) {
+    let flexible = &model.flexible[f];
+    let (m, adr) = (modes.value(), flexible.dof_adr);
+    let v_r = ws.v_body[i];
+    let state = &mut ws.flex[f];
+    let (gain, r, r_inv) =
+        (leading(&state.gain, U6, modes), leading(&state.r, modes, modes), leading(&state.r_inv, modes, modes));
+    let nu = &mut ws.nu.as_mut_slice()[adr..adr + m];
+    let w = &mut ws.w_joint.as_mut_slice()[adr..adr + m];
+    let qvel = &mut ws.qvel.as_mut_slice()[adr..adr + m];
+    for k in 0..m {
+        let gv = column(&gain, k).dot(&v_r);
+        if nu_given {
+            let mut w_k = S::zero();
+            for l in 0..=k {
+                w_k += r_inv[(l, k)] * nu[l];
+            }
+            w[k] = w_k;
+            qvel[k] = w_k - gv;
+        } else {
+            w[k] = qvel[k] + gv;
+        }
+    }
+    if !nu_given {
         for k in 0..m {
-            let gv = column(&state.gain, k).dot(&v_r);
-            if nu_given {
-                let w = (0..=k).map(|l| state.r_inv[(l, k)] * ws.nu[adr + l]).fold(S::zero(), |a, b| a + b);
-                ws.w_joint[adr + k] = w;
-                ws.qvel[adr + k] = w - gv;
-            } else {
-                ws.w_joint[adr + k] = ws.qvel[adr + k] + gv;
+            let mut nu_k = S::zero();
+            for l in 0..=k {
+                nu_k += r[(l, k)] * w[l];
             }
+            nu[k] = nu_k;
         }
-        if !nu_given {
-            for k in 0..m {
-                ws.nu[adr + k] = (0..=k).map(|l| state.r[(l, k)] * ws.w_joint[adr + l]).fold(S::zero(), |a, b| a + b);
-            }
+    }
+    for r in 0..flexible.rotating.len() {
+        let psi = leading(&state.psi[r], U6, modes);
+        let mut relative = SpatialVec::zeros();
+        for (k, rate) in qvel.iter().enumerate() {
+            relative += column(&psi, k) * *rate;
         }
-        let rate = &ws.qvel.as_slice()[adr..adr + m];
-        for r in 0..flexible.rotating.len() {
-            let relative = (0..m).fold(SpatialVec::zeros(), |v, k| v + column(&state.psi[r], k) * rate[k]);
-            state.v_relative[r] = relative;
-            state.v_node[r] = state.node_x[r].apply_motion(&v_r) + relative;
-        }
+        state.v_relative[r] = relative;
+        state.v_node[r] = state.node_x[r].apply_motion(&v_r) + relative;
     }
 }
 
@@ -344,110 +457,126 @@ pub(crate) fn bias<S: Real, const RATES: bool>(
     forces: bool,
 ) {
     for f in on_link(model, i) {
-        let flexible = &model.flexible[f];
-        let (m, adr) = (flexible.mode_count(), flexible.dof_adr);
-        let eta = &ws.theta.as_slice()[flexible.qpos_adr..flexible.qpos_adr + m];
-        let rate = &ws.qvel.as_slice()[adr..adr + m];
-        let gravity =
-            (forces && !model.shortcuts.no_gravity).then(|| ws.x_world[i].rot * real::<S, 3, 1>(&model.gravity));
-        let state = &mut ws.flex[f];
-        let (mut p_bias, mut p_force) = (SpatialVec::zeros(), SpatialVec::zeros());
-        state.u_bias.fill(S::zero());
-        for k in 0..m {
-            state.u_force[k] = if forces { ws.tau_passive[adr + k] } else { S::zero() };
+        by_modes!(model.flexible[f].mode_count(), bias_of_block::<RATES, _, _>(model, ws, i, f, eps, forces));
+    }
+}
+
+/// Pass 3 for block `f` on link `i`.
+fn bias_of_block<const RATES: bool, S: Real, M: Dim>(
+    modes: M,
+    model: &Model,
+    ws: &mut Workspace<S>,
+    i: usize,
+    f: usize,
+    eps: &[S],
+    forces: bool,
+) {
+    let flexible = &model.flexible[f];
+    let (m, adr) = (modes.value(), flexible.dof_adr);
+    let eta = &ws.theta.as_slice()[flexible.qpos_adr..flexible.qpos_adr + m];
+    let rate = &ws.qvel.as_slice()[adr..adr + m];
+    let gravity = (forces && !model.shortcuts.no_gravity).then(|| ws.x_world[i].rot * real::<S, 3, 1>(&model.gravity));
+    let state = &mut ws.flex[f];
+    let (mut p_bias, mut p_force) = (SpatialVec::zeros(), SpatialVec::zeros());
+    let u_bias = &mut state.u_bias.as_mut_slice()[..m];
+    let u_force = &mut state.u_force.as_mut_slice()[..m];
+    u_bias.fill(S::zero());
+    if forces {
+        u_force.copy_from_slice(&ws.tau_passive.as_slice()[adr..adr + m]);
+    } else {
+        u_force.fill(S::zero());
+    }
+    for (r, &j) in flexible.rotating.iter().enumerate() {
+        let (x, v, relative) = (&state.node_x[r], state.v_node[r], state.v_relative[r]);
+        let psi = leading(&state.psi[r], U6, modes);
+        let inertia = node_inertia::<S>(flexible, j);
+        let c = nodes::subspace_rate_times(&flexible.modal, j, eta, rate) + cross_motion(&v, &relative);
+        let mut p = inertia * c + cross_force(&v, &(inertia * v));
+        let carries = flexible.carries(r);
+        if carries {
+            // The children's articulated inertias see the node's c_j, and their p^a join.
+            p += state.child_inertia[r] * c + state.child_bias[r];
+            state.node_bias_acceleration[r] = c;
         }
-        for (r, &j) in flexible.rotating.iter().enumerate() {
-            let (x, v, relative) = (state.node_x[r], state.v_node[r], state.v_relative[r]);
-            let own = node_inertia::<S>(flexible, j);
-            let c = nodes::subspace_rate_times(&flexible.modal, j, eta, rate) + cross_motion(&v, &relative);
-            let carries = flexible.carries(r);
-            let mut p = cross_force(&v, &(own * v));
-            if carries {
-                // The children's articulated inertias see the node's c_j, and their p^a join.
-                p += (own + state.child_inertia[r]) * c + state.child_bias[r];
-                state.node_bias_acceleration[r] = c;
-            } else {
-                p += own * c;
-            }
-            p_bias += x.apply_transpose_force(&p);
-            for k in 0..m {
-                state.u_bias[k] -= column(&state.psi[r], k).dot(&p);
-            }
-            if gravity.is_some() || (forces && carries) {
-                // Gravity m g at the node's origin (p = −f_ext), and the children's p^a of forces.
-                let mut p = match &gravity {
-                    Some(g) => -spatial(&Vec3::zeros(), &(x.rot * g * S::from(flexible.modal.nodes[j].mass))),
-                    None => SpatialVec::zeros(),
-                };
-                if forces && carries {
-                    p += state.child_force[r];
-                }
-                p_force += x.apply_transpose_force(&p);
-                for k in 0..m {
-                    state.u_force[k] -= column(&state.psi[r], k).dot(&p);
-                }
-            }
+        p_bias += x.apply_transpose_force(&p);
+        for (k, u) in u_bias.iter_mut().enumerate() {
+            *u -= column(&psi, k).dot(&p);
         }
-        flexible.points.add_bias(&mut state.points, rate, &ws.v_body[i], &mut p_bias, &mut state.u_bias);
-        if let Some(g) = &gravity {
-            flexible.points.add_gravity(&state.points, g, &mut p_force, &mut state.u_force);
-        }
-        // R⁻¹u for both u (R⁻¹ upper triangular).
-        for k in 0..m {
-            let (mut joint_bias, mut eps_passive) = (S::zero(), S::zero());
-            for l in k..m {
-                joint_bias += state.r_inv[(k, l)] * state.u_bias[l];
-                eps_passive += state.r_inv[(k, l)] * state.u_force[l];
+        if gravity.is_some() || (forces && carries) {
+            // Gravity m g at the node's origin (p = −f_ext), and the children's p^a of forces.
+            let mut p = match &gravity {
+                Some(g) => -spatial(&Vec3::zeros(), &(x.rot * g * S::from(flexible.modal.nodes[j].mass))),
+                None => SpatialVec::zeros(),
+            };
+            if forces && carries {
+                p += state.child_force[r];
             }
-            ws.eps_passive[adr + k] = eps_passive;
-            ws.nu_dot_joint[adr + k] = eps[adr + k] + eps_passive + joint_bias;
-            if RATES {
-                ws.nu_dot[adr + k] = ws.nu_dot_joint[adr + k];
-                ws.coriolis[adr + k] = -joint_bias;
+            p_force += x.apply_transpose_force(&p);
+            for (k, u) in u_force.iter_mut().enumerate() {
+                *u -= column(&psi, k).dot(&p);
             }
         }
-        for k in 0..m {
-            p_bias += column(&state.gain, k) * state.u_bias[k];
-            p_force += column(&state.gain, k) * state.u_force[k];
+    }
+    state.points.add_bias(modes, rate, &ws.v_body[i], &mut p_bias, u_bias);
+    if let Some(g) = &gravity {
+        state.points.add_gravity(modes, g, &mut p_force, u_force);
+    }
+    // R⁻¹u for both u (R⁻¹ upper triangular).
+    let (r_inv, gain) = (leading(&state.r_inv, modes, modes), leading(&state.gain, U6, modes));
+    for k in 0..m {
+        let (mut joint_bias, mut eps_passive) = (S::zero(), S::zero());
+        for l in k..m {
+            joint_bias += r_inv[(k, l)] * u_bias[l];
+            eps_passive += r_inv[(k, l)] * u_force[l];
         }
-        accumulate(&mut ws.p_bias_body[i], p_bias, state.opens_link);
-        if forces {
-            accumulate(&mut ws.p_force_body[i], p_force, state.opens_link);
-        }
+        ws.eps_passive[adr + k] = eps_passive;
+        ws.nu_dot_joint[adr + k] = eps[adr + k] + eps_passive + joint_bias;
         if RATES {
-            rates(
-                flexible,
-                state,
-                ws.v_body[i],
-                &mut ws.ia_dot_body[i],
-                &mut ws.nu_dot,
-                &mut ws.coriolis,
-                &ws.w_joint,
-                eta,
-                rate,
-            );
+            ws.nu_dot[adr + k] = ws.nu_dot_joint[adr + k];
+            ws.coriolis[adr + k] = -joint_bias;
         }
+    }
+    for k in 0..m {
+        let g = column(&gain, k);
+        p_bias += g * u_bias[k];
+        p_force += g * u_force[k];
+    }
+    accumulate(&mut ws.p_bias_body[i], p_bias, state.opens_link);
+    if forces {
+        accumulate(&mut ws.p_force_body[i], p_force, state.opens_link);
+    }
+    if RATES {
+        let w = &ws.w_joint.as_slice()[adr..adr + m];
+        let nu_dot = &mut ws.nu_dot.as_mut_slice()[adr..adr + m];
+        let coriolis = &mut ws.coriolis.as_mut_slice()[adr..adr + m];
+        rates(modes, flexible, state, ws.v_body[i], &mut ws.ia_dot_body[i], nu_dot, coriolis, w, eta, rate);
     }
 }
 
 /// The factor's rates of one block: its ν̇ and C gain Ṙᵀw + RᵀĠᵀV_R, and
-/// İ^a goes into the link's İ^A slot (`ia_dot`, opened by this block if it opens the link).
+/// İ^a goes into the link's İ^A slot (`ia_dot`, opened by this block if it
+/// opens the link). `nu_dot`, `coriolis` and `w` are the block's entries.
 #[allow(clippy::too_many_arguments)]
-fn rates<S: Real>(
+fn rates<S: Real, M: Dim>(
+    modes: M,
     flexible: &FlexBody,
     state: &mut FlexState<S>,
     v_r: SpatialVec<S>,
     ia_dot: &mut SpatialMat<S>,
-    nu_dot: &mut DVector<S>,
-    coriolis: &mut DVector<S>,
-    w_joint: &DVector<S>,
+    nu_dot: &mut [S],
+    coriolis: &mut [S],
+    w: &[S],
     eta: &[S],
     rate: &[S],
 ) {
-    let (m, adr) = (flexible.mode_count(), flexible.dof_adr);
+    let m = modes.value();
     let mut rigid_rate = SpatialMat::zeros();
-    state.coupling_rate.fill(S::zero());
-    state.d_rate.fill(S::zero());
+    // Ḋ is zero for point masses only.
+    let varying = !flexible.rotating.is_empty();
+    state.coupling_rate.as_mut_slice().fill(S::zero());
+    if varying {
+        state.d_rate.as_mut_slice().fill(S::zero());
+    }
     for (r, &j) in flexible.rotating.iter().enumerate() {
         let x = &state.node_x[r];
         let (inertia, relative) = (slot_inertia(flexible, state, r), state.v_relative[r]);
@@ -461,78 +590,111 @@ fn rates<S: Real>(
         };
         x.add_inertia_to_parent(&own_rate, &mut rigid_rate, false);
         nodes::subspace_rate(&flexible.modal, j, eta, rate, &mut state.psi_rate);
+        let (psi, psi_rate) = (leading(&state.psi[r], U6, modes), leading(&state.psi_rate, U6, modes));
+        let mut coupling_rate = leading_mut(&mut state.coupling_rate, U6, modes);
+        let mut d_rate = leading_mut(&mut state.d_rate, modes, modes);
         for k in 0..m {
-            let i_psi = inertia * column(&state.psi[r], k);
-            let mut i_psi_rate = inertia * column(&state.psi_rate, k);
+            let i_psi = inertia * column(&psi, k);
+            let mut i_psi_rate = inertia * column(&psi_rate, k);
             if let Some(rate) = &carried_rate {
-                i_psi_rate += rate * column(&state.psi[r], k);
+                i_psi_rate += rate * column(&psi, k);
             }
             let term = cross_force(&relative, &i_psi) + i_psi_rate;
-            add_to_column(&mut state.coupling_rate, k, &x.apply_transpose_force(&term));
+            let mut slot = coupling_rate.column_mut(k);
+            slot += x.apply_transpose_force(&term);
             for l in 0..m {
-                state.d_rate[(l, k)] +=
-                    column(&state.psi_rate, l).dot(&i_psi) + column(&state.psi[r], l).dot(&i_psi_rate);
+                d_rate[(l, k)] += column(&psi_rate, l).dot(&i_psi) + column(&psi, l).dot(&i_psi_rate);
             }
         }
     }
-    flexible.points.add_inertia_rates(&state.points, rate, &mut rigid_rate, &mut state.coupling_rate);
-    // Ġᵀ = D⁻¹(U̇ᵀ − ḊGᵀ), ḊGᵀ = (GḊ)ᵀ as Ḋ is symmetric; `d` holds D⁻¹.
-    state.gain.mul_to(&state.d_rate, &mut state.gain_d_rate);
-    for k in 0..m {
-        for col in 0..6 {
-            let mut s = S::zero();
-            for l in 0..m {
-                s += state.d[(k, l)] * (state.coupling_rate[(col, l)] - state.gain_d_rate[(col, l)]);
+    state.points.add_inertia_rates(modes, &mut rigid_rate, &mut state.coupling_rate);
+    let (gain, d_rate) = (leading(&state.gain, U6, modes), leading(&state.d_rate, modes, modes));
+    let mut gain_d_rate = leading_mut(&mut state.gain_d_rate, U6, modes);
+    if varying {
+        for k in 0..m {
+            for row in 0..6 {
+                let mut s = S::zero();
+                for l in 0..m {
+                    s += gain[(row, l)] * d_rate[(l, k)];
+                }
+                gain_d_rate[(row, k)] = s;
             }
-            state.gain_t_rate[(k, col)] = s;
         }
     }
-    // İ^a = 𝓘̇_RR − U̇Gᵀ − GU̇ᵀ + (GḊ)Gᵀ.
+    // İ^a = 𝓘̇_RR − U̇Gᵀ − GU̇ᵀ + (GḊ)Gᵀ (symmetric: the upper triangle, mirrored).
+    let coupling_rate = leading(&state.coupling_rate, U6, modes);
     let mut reduced_rate = rigid_rate;
-    for row in 0..6 {
-        for col in 0..6 {
+    for col in 0..6 {
+        for row in 0..=col {
             let mut s = S::zero();
             for k in 0..m {
-                s += state.coupling_rate[(row, k)] * state.gain[(col, k)]
-                    + state.gain[(row, k)] * state.coupling_rate[(col, k)]
-                    - state.gain_d_rate[(row, k)] * state.gain[(col, k)];
+                s += coupling_rate[(row, k)] * gain[(col, k)] + gain[(row, k)] * coupling_rate[(col, k)];
+                if varying {
+                    s -= gain_d_rate[(row, k)] * gain[(col, k)];
+                }
             }
             reduced_rate[(row, col)] -= s;
+            reduced_rate[(col, row)] = reduced_rate[(row, col)];
         }
     }
     accumulate(ia_dot, reduced_rate, state.opens_link);
-    if flexible.rotating.is_empty() {
-        // Point masses only: D is constant, Ṙ = 0.
-        state.square.fill(S::zero());
-    } else {
-        // Φ(R⁻¹ḊR⁻ᵀ): R⁻¹Ḋ, then times R⁻ᵀ, upper triangle with the diagonal halved.
-        state.r_inv.mul_to(&state.d_rate, &mut state.square);
+    // RᵀĠᵀV_R = R⁻¹(U̇ − GḊ)ᵀV_R.
+    let (r, r_inv) = (leading(&state.r, modes, modes), leading(&state.r_inv, modes, modes));
+    let scratch = &mut state.scratch.as_mut_slice()[..m];
+    for k in 0..m {
+        let mut s = S::zero();
+        for row in 0..6 {
+            let y = if varying { coupling_rate[(row, k)] - gain_d_rate[(row, k)] } else { coupling_rate[(row, k)] };
+            s += y * v_r[row];
+        }
+        scratch[k] = s;
+    }
+    for k in 0..m {
+        let mut term = S::zero();
+        for l in k..m {
+            term += r_inv[(k, l)] * scratch[l];
+        }
+        nu_dot[k] += term;
+        coriolis[k] -= term;
+    }
+    if varying {
+        // Ṙᵀw with Ṙ = RΦ, Φ = R⁻¹ḊR⁻ᵀ's upper triangle with the diagonal halved.
+        let mut square = leading_mut(&mut state.square, modes, modes);
         for a in 0..m {
             for b in 0..m {
-                let scaled: S =
-                    (b..m).map(|l| state.square[(a, l)] * state.r_inv[(b, l)]).fold(S::zero(), |x, y| x + y);
-                state.d_rate[(a, b)] = match a.cmp(&b) {
+                let mut s = S::zero();
+                for l in 0..m {
+                    s += r_inv[(a, l)] * d_rate[(l, b)];
+                }
+                square[(a, b)] = s;
+            }
+        }
+        let mut phi = leading_mut(&mut state.d_rate, modes, modes);
+        for a in 0..m {
+            for b in 0..m {
+                let mut scaled = S::zero();
+                for l in b..m {
+                    scaled += square[(a, l)] * r_inv[(b, l)];
+                }
+                phi[(a, b)] = match a.cmp(&b) {
                     std::cmp::Ordering::Less => scaled,
                     std::cmp::Ordering::Equal => scaled * 0.5,
                     std::cmp::Ordering::Greater => S::zero(),
                 };
             }
         }
-        // Ṙ = R Φ.
-        state.r.mul_to(&state.d_rate, &mut state.square);
-    }
-    // The rate terms Ṙᵀw + RᵀĠᵀV_R.
-    for k in 0..m {
-        let gv: S = (0..6).map(|col| state.gain_t_rate[(k, col)] * v_r[col]).fold(S::zero(), |a, b| a + b);
-        state.scratch[k] = gv;
-    }
-    for k in 0..m {
-        let mut term = S::zero();
-        for l in 0..m {
-            term += state.square[(l, k)] * w_joint[adr + l] + state.r[(l, k)] * state.scratch[l];
+        for k in 0..m {
+            let mut term = S::zero();
+            for l in 0..m {
+                let mut r_rate = S::zero();
+                for c in 0..m {
+                    r_rate += r[(l, c)] * phi[(c, k)];
+                }
+                term += r_rate * w[l];
+            }
+            nu_dot[k] += term;
+            coriolis[k] -= term;
         }
-        nu_dot[adr + k] += term;
-        coriolis[adr + k] -= term;
     }
 }
 
@@ -540,19 +702,30 @@ fn rates<S: Real>(
 /// η̈ = R⁻ᵀ(R⁻¹u) − Gᵀ A_R.
 pub(crate) fn accelerations<S: Real>(model: &Model, ws: &mut Workspace<S>, i: usize) {
     for f in on_link(model, i) {
-        let flexible = &model.flexible[f];
-        let (m, adr) = (flexible.mode_count(), flexible.dof_adr);
-        let (state, a_r) = (&mut ws.flex[f], ws.a_body[i]);
-        for k in 0..m {
-            let joint: S =
-                (0..=k).map(|l| state.r_inv[(l, k)] * ws.nu_dot_joint[adr + l]).fold(S::zero(), |a, b| a + b);
-            ws.qacc[adr + k] = joint - column(&state.gain, k).dot(&a_r);
+        by_modes!(model.flexible[f].mode_count(), accelerations_of_block(model, ws, i, f));
+    }
+}
+
+/// The outward pass for block `f` on link `i`.
+fn accelerations_of_block<S: Real, M: Dim>(modes: M, model: &Model, ws: &mut Workspace<S>, i: usize, f: usize) {
+    let flexible = &model.flexible[f];
+    let (m, adr) = (modes.value(), flexible.dof_adr);
+    let (state, a_r) = (&mut ws.flex[f], ws.a_body[i]);
+    let (r_inv, gain) = (leading(&state.r_inv, modes, modes), leading(&state.gain, U6, modes));
+    let nu_dot_joint = &ws.nu_dot_joint.as_slice()[adr..adr + m];
+    let qacc = &mut ws.qacc.as_mut_slice()[adr..adr + m];
+    for k in 0..m {
+        let mut joint = S::zero();
+        for l in 0..=k {
+            joint += r_inv[(l, k)] * nu_dot_joint[l];
         }
-        // The nodes that carry children: A_j = X_j A_R + Ψ_j η̈ + c_j, their children's parent acceleration.
-        for r in (0..flexible.rotating.len()).filter(|&r| flexible.carries(r)) {
-            let modal = (0..m).fold(SpatialVec::zeros(), |a, k| a + column(&state.psi[r], k) * ws.qacc[adr + k]);
-            state.a_node[r] = state.node_x[r].apply_motion(&a_r) + modal + state.node_bias_acceleration[r];
-        }
+        qacc[k] = joint - column(&gain, k).dot(&a_r);
+    }
+    // The nodes that carry children: A_j = X_j A_R + Ψ_j η̈ + c_j, their children's parent acceleration.
+    for r in (0..flexible.rotating.len()).filter(|&r| flexible.carries(r)) {
+        let psi = leading(&state.psi[r], U6, modes);
+        let modal = (0..m).fold(SpatialVec::zeros(), |a, k| a + column(&psi, k) * qacc[k]);
+        state.a_node[r] = state.node_x[r].apply_motion(&a_r) + modal + state.node_bias_acceleration[r];
     }
 }
 
@@ -579,7 +752,7 @@ pub(crate) fn inward<S: Real>(
             let p_node = state.child_scratch[r];
             p += state.node_x[r].apply_transpose_force(&p_node);
             for k in 0..m {
-                state.u_force[k] += column(&state.psi[r], k).dot(&p_node);
+                state.u_force[k] += SpatialVec::from_fn(|row, _| state.psi[r][(row, k)]).dot(&p_node);
             }
         }
         for k in 0..m {
@@ -596,7 +769,7 @@ pub(crate) fn inward<S: Real>(
                 (k..m).map(|l| state.r_inv[(k, l)] * state.scratch[l]).fold(S::zero(), |a, b| a + b)
             };
         }
-        let p = (0..m).fold(p, |p, k| p + column(&state.gain, k) * state.scratch[k]);
+        let p = (0..m).fold(p, |p, k| p + SpatialVec::from_fn(|row, _| state.gain[(row, k)]) * state.scratch[k]);
         accumulate(&mut ws.p_scratch_body[i], p, state.opens_link);
     }
 }

@@ -1,6 +1,7 @@
 //! Actuator elements, in `<actuator>` and in `<default>`: `<general>` and the
-//! shortcuts `<motor>`, `<position>`, `<velocity>` and `<damper>`, resolved
-//! into MuJoCo's one general actuator as MuJoCo 4.0's parser does.
+//! shortcuts `<motor>`, `<position>`, `<velocity>`, `<damper>`,
+//! `<intvelocity>` and `<cylinder>`, resolved into MuJoCo's one general
+//! actuator as MuJoCo 4.0's parser does.
 //!
 //! MuJoCo 4.0's rules for defaults (its Modeling chapter, "Shortcuts"): a
 //! default class has a single actuator default, written with `<general>` or
@@ -46,18 +47,9 @@ pub(crate) const COMMON_ATTRIBUTES: &[Attribute<ActuatorSettings>] = &[
 /// The keywords of `ctrllimited`, `forcelimited` and `actlimited`.
 const LIMITED: [(&str, Limited); 3] = [("false", Limited::No), ("true", Limited::Yes), ("auto", Limited::Auto)];
 
-/// `ctrlrange`: a range written here overrides one the class would
-/// inherit. MuJoCo objects only to a range inherited (inheritrange > 0)
-/// beside one written on the same element.
+/// `ctrlrange`.
 fn read_ctrl_range(settings: &mut ActuatorSettings, element: &Element, attribute: &str) -> Result<(), MjcfError> {
-    if element.number("inheritrange")?.is_some_and(|r| r > 0.0) {
-        return Err(element.invalid("ctrlrange and inheritrange cannot both be defined"));
-    }
-    if let Some(range) = element.numbers(attribute)? {
-        settings.ctrlrange = range;
-        settings.inheritrange = 0.0;
-    }
-    Ok(())
+    set(&mut settings.ctrlrange, element.numbers(attribute)?)
 }
 
 /// Attributes that only `<general>` has, besides the common ones; it
@@ -94,6 +86,28 @@ const POSITION_ATTRIBUTES: &[Attribute<ActuatorSettings>] = &[
 /// `<velocity>`'s and `<damper>`'s own attribute, read like `<position>`'s gains.
 const KV_ATTRIBUTES: &[Attribute<ActuatorSettings>] = &[Attribute::by_reader("kv")];
 
+/// `<intvelocity>`'s own attributes: `<position>`'s gains (no filter), and
+/// the range of the integrated command, given or inherited from the target.
+/// MuJoCo 4.0 sets `actlimited` itself (limited when the range is
+/// increasing), whatever the element or its class writes.
+const INTVELOCITY_ATTRIBUTES: &[Attribute<ActuatorSettings>] = &[
+    Attribute::by_reader("kp"),
+    Attribute::by_reader("kv"),
+    Attribute::by_reader("dampratio"),
+    Attribute::into("inheritrange", |s, e, a| set(&mut s.inheritrange, e.number(a)?)),
+    Attribute::into("actrange", |s, e, a| set(&mut s.actrange, e.numbers(a)?)),
+    Attribute::checked("actlimited", |e, a| e.keyword(a, &LIMITED).map(drop)),
+];
+
+/// `<cylinder>`'s own attributes, read by [`ActuatorSettings::apply`]
+/// together: its time constant, its area (or diameter) as gain, its bias.
+const CYLINDER_ATTRIBUTES: &[Attribute<ActuatorSettings>] = &[
+    Attribute::by_reader("timeconst"),
+    Attribute::by_reader("area"),
+    Attribute::by_reader("diameter"),
+    Attribute::by_reader("bias"),
+];
+
 /// Attributes that name the actuator, its class and its transmission target
 /// (not allowed in `<default>`), read by the reader.
 const TARGET_ATTRIBUTES: &[Attribute<ActuatorSettings>] = &[
@@ -116,6 +130,8 @@ pub(crate) fn own_attributes(kind: ActuatorKind) -> &'static [Attribute<Actuator
         ActuatorKind::Motor => &[],
         ActuatorKind::Position => POSITION_ATTRIBUTES,
         ActuatorKind::Velocity | ActuatorKind::Damper => KV_ATTRIBUTES,
+        ActuatorKind::IntVelocity => INTVELOCITY_ATTRIBUTES,
+        ActuatorKind::Cylinder => CYLINDER_ATTRIBUTES,
     }
 }
 
@@ -126,6 +142,8 @@ pub(crate) const ACTUATOR_KINDS: &[(&str, ActuatorKind)] = &[
     ("position", ActuatorKind::Position),
     ("velocity", ActuatorKind::Velocity),
     ("damper", ActuatorKind::Damper),
+    ("intvelocity", ActuatorKind::IntVelocity),
+    ("cylinder", ActuatorKind::Cylinder),
 ];
 
 /// The actuator kinds an element tag stands for, among those nudyn models.
@@ -136,8 +154,6 @@ pub(crate) fn kind_of(tag: &str) -> Option<ActuatorKind> {
 /// The actuator elements MuJoCo has that nudyn refuses, and why.
 #[rustfmt::skip]
 pub(crate) const REFUSED_ACTUATORS: &[(&str, &str)] = &[
-    ("intvelocity", "the intvelocity shortcut is not read yet (a general actuator with dyntype \"integrator\" is)"),
-    ("cylinder", "the cylinder shortcut is not read yet (a general actuator with dyntype \"filter\" is)"),
     ("muscle", "muscle actuators (activation dynamics and muscle force curves)"),
     ("adhesion", "adhesion actuators act through contacts, which nudyn does not model"),
     ("pid", "pid actuators (their inputs and integral and slew states)"),
@@ -300,6 +316,28 @@ fn shortcut_gain_type(kind: ActuatorKind) -> &'static str {
     }
 }
 
+/// A shortcut's table without activation dynamics (MuJoCo's dynprm[0] stays 1).
+const NO_DYNAMICS: (&str, f64) = ("none", 1.0);
+
+/// A servo's (`<position>`'s, `<intvelocity>`'s) kp and biasprm[2]: −kv, or
+/// a positive damping ratio (resolved by the compiler); each from the
+/// element, else from the class that lends them.
+fn servo_gains(element: &Element, lender: Option<&ActuatorSettings>) -> Result<(f64, f64), MjcfError> {
+    let kp = match element.number("kp")? {
+        Some(kp) => kp,
+        None => lender.map_or(1.0, |l| l.gainprm[0]),
+    };
+    let damping = match (element.number("kv")?, element.number("dampratio")?) {
+        (Some(_), Some(_)) => return Err(element.invalid("kv and dampratio cannot both be defined")),
+        (Some(kv), None) if kv < 0.0 => return Err(element.invalid("kv cannot be negative")),
+        (Some(kv), None) => -kv,
+        (None, Some(ratio)) if ratio < 0.0 => return Err(element.invalid("dampratio cannot be negative")),
+        (None, Some(ratio)) => ratio,
+        (None, None) => lender.map_or(0.0, |l| l.biasprm[2]),
+    };
+    Ok((kp, damping))
+}
+
 impl ActuatorSettings {
     /// Whether a shortcut of `kind` takes its parameters from these settings.
     pub fn lends_parameters_to(&self, kind: ActuatorKind) -> bool {
@@ -320,14 +358,31 @@ impl ActuatorSettings {
         read_into(own_attributes(kind), self, element)?;
         match kind {
             ActuatorKind::General => {}
-            ActuatorKind::Motor => self.set_table("fixed", &[1.0], "none", &[], None),
-            ActuatorKind::Position => self.apply_position(element, lender)?,
+            ActuatorKind::Motor => self.set_table("fixed", &[1.0], "none", &[], NO_DYNAMICS),
+            ActuatorKind::Position => {
+                self.settle_inherited_range(element, "ctrlrange")?;
+                let (kp, damping) = servo_gains(element, lender)?;
+                let timeconst = match element.number("timeconst")? {
+                    Some(t) if t < 0.0 => return Err(element.invalid("timeconst cannot be negative")),
+                    Some(t) => t,
+                    None => lender.filter(|l| l.dyntype == "filterexact").map_or(0.0, |l| l.dynprm[0]),
+                };
+                let dynamics = if timeconst > 0.0 { ("filterexact", timeconst) } else { NO_DYNAMICS };
+                self.set_table("fixed", &[kp], "affine", &[0.0, -kp, damping], dynamics);
+            }
+            ActuatorKind::IntVelocity => {
+                self.settle_inherited_range(element, "actrange")?;
+                let (kp, damping) = servo_gains(element, lender)?;
+                self.set_table("fixed", &[kp], "affine", &[0.0, -kp, damping], ("integrator", 1.0));
+                self.actlimited = Limited::Auto;
+            }
+            ActuatorKind::Cylinder => self.apply_cylinder(element, lender)?,
             ActuatorKind::Velocity => {
                 let kv = match element.number("kv")? {
                     Some(kv) => kv,
                     None => lender.map_or(1.0, |l| l.gainprm[0]),
                 };
-                self.set_table("fixed", &[kv], "affine", &[0.0, 0.0, -kv], None);
+                self.set_table("fixed", &[kv], "affine", &[0.0, 0.0, -kv], NO_DYNAMICS);
             }
             ActuatorKind::Damper => {
                 let kv = match element.number("kv")? {
@@ -337,7 +392,7 @@ impl ActuatorSettings {
                 if kv < 0.0 {
                     return Err(element.invalid("damping coefficient cannot be negative"));
                 }
-                self.set_table("affine", &[0.0, 0.0, -kv], "none", &[], None);
+                self.set_table("affine", &[0.0, 0.0, -kv], "none", &[], NO_DYNAMICS);
                 self.ctrllimited = Limited::Yes;
                 if self.ctrlrange.iter().any(|&x| x < 0.0) {
                     return Err(element.invalid("damper control range cannot be negative"));
@@ -348,33 +403,47 @@ impl ActuatorSettings {
         Ok(())
     }
 
-    /// `<position>`: gain kp, bias (0, −kp, −kv), and a filter when timeconst > 0.
-    fn apply_position(&mut self, element: &Element, lender: Option<&ActuatorSettings>) -> Result<(), MjcfError> {
-        let kp = match element.number("kp")? {
-            Some(kp) => kp,
-            None => lender.map_or(1.0, |l| l.gainprm[0]),
-        };
-        // biasprm[2] holds −kv, or a positive damping ratio (resolved by the compiler).
-        let damping = match (element.number("kv")?, element.number("dampratio")?) {
-            (Some(_), Some(_)) => return Err(element.invalid("kv and dampratio cannot both be defined")),
-            (Some(kv), None) if kv < 0.0 => return Err(element.invalid("kv cannot be negative")),
-            (Some(kv), None) => -kv,
-            (None, Some(ratio)) if ratio < 0.0 => return Err(element.invalid("dampratio cannot be negative")),
-            (None, Some(ratio)) => ratio,
-            (None, None) => lender.map_or(0.0, |l| l.biasprm[2]),
-        };
+    /// A servo's range taken from its target (`inheritrange`: `range` is
+    /// `<position>`'s ctrlrange, `<intvelocity>`'s actrange) excludes one
+    /// written beside it, as MuJoCo 4.0 has it: both on one element are
+    /// refused, and a range written on the element replaces the class's
+    /// inheritrange (an inheritrange written on it replaces the class's
+    /// range at compile).
+    fn settle_inherited_range(&mut self, element: &Element, range: &str) -> Result<(), MjcfError> {
+        if element.has(range) {
+            if element.number("inheritrange")?.is_some_and(|r| r > 0.0) {
+                return Err(element.invalid(format!("{range} and inheritrange cannot both be defined")));
+            }
+            self.inheritrange = 0.0;
+        }
+        Ok(())
+    }
+
+    /// `<cylinder>`: a filter with time constant `timeconst` on ctrl, gain
+    /// `area` (π/4 `diameter`² when a diameter of at least 0 is given),
+    /// affine bias `bias`; each from the element, else from the class that
+    /// lends them, else MuJoCo's defaults (1, 1, 0).
+    fn apply_cylinder(&mut self, element: &Element, lender: Option<&ActuatorSettings>) -> Result<(), MjcfError> {
         let timeconst = match element.number("timeconst")? {
-            Some(t) if t < 0.0 => return Err(element.invalid("timeconst cannot be negative")),
             Some(t) => t,
-            None => lender.filter(|l| l.dyntype == "filterexact").map_or(0.0, |l| l.dynprm[0]),
+            None => lender.map_or(1.0, |l| l.dynprm[0]),
         };
-        self.set_table("fixed", &[kp], "affine", &[0.0, -kp, damping], (timeconst > 0.0).then_some(timeconst));
+        let area = match (element.number("diameter")?.filter(|d| *d >= 0.0), element.number("area")?) {
+            (Some(diameter), _) => std::f64::consts::FRAC_PI_4 * diameter * diameter,
+            (None, Some(area)) => area,
+            (None, None) => lender.map_or(1.0, |l| l.gainprm[0]),
+        };
+        let bias = match element.numbers::<3>("bias")? {
+            Some(bias) => bias,
+            None => lender.map_or([0.0; 3], |l| [l.biasprm[0], l.biasprm[1], l.biasprm[2]]),
+        };
+        self.set_table("fixed", &[area], "affine", &bias, ("filter", timeconst));
         Ok(())
     }
 
     /// A shortcut's table: the gain and bias types and parameters (the
-    /// parameters not listed are 0), no activation, or a filter with this
-    /// time constant, never read early (MuJoCo 4.0 clears `actearly`; the
+    /// parameters not listed are 0), the activation's `dyntype` and
+    /// `dynprm[0]`, never read early (MuJoCo 4.0 clears `actearly`; the
     /// activation's range stays the class's).
     fn set_table(
         &mut self,
@@ -382,7 +451,7 @@ impl ActuatorSettings {
         gain: &[f64],
         biastype: &'static str,
         bias: &[f64],
-        filter: Option<f64>,
+        (dyntype, dynprm): (&'static str, f64),
     ) {
         self.gaintype = gaintype;
         self.gainprm = [0.0; 10];
@@ -391,10 +460,7 @@ impl ActuatorSettings {
         self.biasprm = [0.0; 10];
         self.biasprm[..bias.len()].copy_from_slice(bias);
         self.dynprm = [0.0; 10];
-        (self.dyntype, self.dynprm[0]) = match filter {
-            Some(timeconst) => ("filterexact", timeconst),
-            None => ("none", 1.0),
-        };
+        (self.dyntype, self.dynprm[0]) = (dyntype, dynprm);
         self.actdim = -1;
         self.actearly = false;
     }

@@ -188,10 +188,6 @@ fn invalid(e: &MjcfError) -> bool {
 
 #[rustfmt::skip]
 const REFUSED: &[Refused] = &[
-    Refused { what: "intvelocity", variant: unsupported, element: "<intvelocity name=\"a\">", reason: "intvelocity shortcut",
-        actuators: r#"<intvelocity name="a" joint="h"/>"# },
-    Refused { what: "cylinder", variant: unsupported, element: "<cylinder>", reason: "cylinder shortcut",
-        actuators: r#"<cylinder joint="h"/>"# },
     Refused { what: "muscle", variant: unsupported, element: "<muscle>", reason: "muscle",
         actuators: r#"<muscle joint="h"/>"# },
     Refused { what: "adhesion", variant: unsupported, element: "<adhesion>", reason: "contacts",
@@ -262,6 +258,16 @@ const REFUSED: &[Refused] = &[
         actuators: r#"<position joint="free_spin" inheritrange="1"/>"# },
     Refused { what: "ctrlrange and inheritrange", variant: invalid, element: "<position>", reason: "cannot both",
         actuators: r#"<position joint="h" ctrlrange="0 1" inheritrange="1"/>"# },
+    Refused { what: "actrange and inheritrange", variant: invalid, element: "<intvelocity>", reason: "actrange and inheritrange cannot both",
+        actuators: r#"<intvelocity joint="h" actrange="0 1" inheritrange="1"/>"# },
+    Refused { what: "intvelocity kv and dampratio", variant: invalid, element: "<intvelocity>", reason: "kv and dampratio",
+        actuators: r#"<intvelocity joint="h" kv="1" dampratio="1"/>"# },
+    Refused { what: "intvelocity with a filter", variant: |e| matches!(e, MjcfError::UnknownAttribute { .. }), element: "<intvelocity>", reason: "'timeconst'",
+        actuators: r#"<intvelocity joint="h" timeconst="1"/>"# },
+    Refused { what: "cylinder bias of two", variant: |e| matches!(e, MjcfError::BadValue { .. }), element: "<cylinder>", reason: "bias",
+        actuators: r#"<cylinder joint="h" bias="1 2"/>"# },
+    Refused { what: "inheritrange of a filter", variant: invalid, element: "<general>", reason: "only available for position and intvelocity",
+        actuators: r#"<general joint="h" gainprm="2" biastype="affine" biasprm="0 -2 0" dyntype="filter" inheritrange="1"/>"# },
     Refused { what: "unknown attribute", variant: |e| matches!(e, MjcfError::UnknownAttribute { .. }), element: "<motor>", reason: "'kp'",
         actuators: r#"<motor joint="h" kp="1"/>"# },
     Refused { what: "unknown element", variant: |e| matches!(e, MjcfError::UnknownElement { .. }), element: "<servo>", reason: "unknown element",
@@ -377,4 +383,41 @@ fn activation_dynamics_are_read_with_their_ranges_and_actearly() {
     assert_eq!(actuator(&inherited.vehicle, "m").activation, None);
     // A shortcut's table clears actearly (MuJoCo 4.0 gives actuator_actearly 0 here).
     assert_eq!(actuator(&inherited.vehicle, "p").activation, state(ActivationKind::FilterExact, 0.1, None, false));
+}
+
+/// `<intvelocity>` and `<cylinder>` read into MuJoCo 4.0's general actuators
+/// with an integrator and a filter (test_actuators.py and test_activation.py
+/// compare the same fixture with MuJoCo itself): gains and bias from the
+/// element, from their class, or lent by a `<general>` default; the
+/// integrator's range its joint's under `inheritrange`; a cylinder's gain
+/// its area, π/4 d² from a diameter.
+#[test]
+fn intvelocity_and_cylinder_read_into_integrator_and_filter_actuators() {
+    use nudyn::vehicle::{Activation, ActivationKind};
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/activation/shortcut_servos.xml");
+    let Imported { vehicle, .. } = load_mjcf(&path).unwrap();
+    let state = |kind, time_constant, range| Some(Activation { kind, time_constant, range, early: false });
+    let (fixed, affine) = (GainType::Fixed, BiasType::Affine);
+
+    let shoulder = actuator(&vehicle, "shoulder_int");
+    assert_eq!(shoulder.kind, ActuatorKind::IntVelocity);
+    // biasprm[2] holds the damping ratio until the compiler resolves it.
+    assert_eq!(law(shoulder), (fixed, [30.0, 0.0, 0.0], affine, [0.0, -30.0, 0.7]));
+    assert_eq!(shoulder.activation, state(ActivationKind::Integrator, 1.0, Some([-1.2, 0.8])));
+    assert_eq!(shoulder.ctrl_range, Some([-1.0, 1.0]));
+
+    let elbow = actuator(&vehicle, "elbow_int");
+    assert_eq!(law(elbow), (fixed, [12.0, 0.0, 0.0], affine, [0.0, -12.0, 0.7]));
+    assert_eq!(elbow.activation, state(ActivationKind::Integrator, 1.0, Some([-0.4, 0.4])));
+
+    let ram = actuator(&vehicle, "ram");
+    assert_eq!(ram.kind, ActuatorKind::Cylinder);
+    assert_eq!(law(ram), (fixed, [PI / 4.0 * 0.25, 0.0, 0.0], affine, [0.5, -20.0, -2.0]));
+    assert_eq!(ram.activation, state(ActivationKind::Filter, 0.15, None));
+    assert_eq!(ram.ctrl_range, Some([0.0, 30.0]));
+
+    let elbow_ram = actuator(&vehicle, "elbow_ram");
+    assert_eq!(law(elbow_ram), (fixed, [0.05, 0.0, 0.0], affine, [0.0, -1.0, -0.1]));
+    assert_eq!(elbow_ram.activation, state(ActivationKind::Filter, 0.05, None));
+    assert_eq!(Model::compile(&vehicle).unwrap().activation_count(), 4);
 }

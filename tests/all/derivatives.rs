@@ -25,6 +25,8 @@ struct Case {
     eps: Vec<f64>,
     torque: Vec<f64>,
     ctrl: Vec<f64>,
+    /// The activation states (empty without them).
+    act: Vec<f64>,
 }
 
 fn case(seed: u64, free_base: bool) -> Case {
@@ -62,7 +64,7 @@ fn with_children(seed: u64, free_base: bool, passive: bool, flexible: bool, chil
     };
     let theta = std::iter::repeat_with(|| random_theta(&mut rng, &vehicle)).find(|t| far_from_half_turns(t)).unwrap();
     let (velocity, eps, torque) = (rng.vec(model.nv, 1.5), rng.vec(model.nv, 2.0), rng.vec(model.nv, 3.0));
-    Case { vehicle, model, theta, velocity, eps, torque, ctrl: Vec::new() }
+    Case { vehicle, model, theta, velocity, eps, torque, ctrl: Vec::new(), act: Vec::new() }
 }
 
 /// A vehicle file at a random state, with each actuator's ctrl inside the
@@ -97,7 +99,17 @@ fn file_case_at(path: &str, seed: u64, theta: impl FnOnce(&mut Rng, &Vehicle, &M
             _ => rng.uniform(-1.0, 1.0),
         })
         .collect();
-    Case { vehicle, model, theta, velocity, eps, torque, ctrl }
+    // act inside the middle of its range (or within ±0.5), away from the clamp.
+    let act = model
+        .actuators
+        .iter()
+        .filter_map(|a| a.activation)
+        .map(|activation| match activation.range {
+            Some([low, high]) => low + (high - low) * rng.uniform(0.3, 0.7),
+            None => rng.uniform(-0.5, 0.5),
+        })
+        .collect();
+    Case { vehicle, model, theta, velocity, eps, torque, ctrl, act }
 }
 
 fn point(case: &Case, given: Given) -> Point<'_> {
@@ -108,6 +120,7 @@ fn point(case: &Case, given: Given) -> Point<'_> {
         eps: &case.eps,
         torque: &case.torque,
         ctrl: &case.ctrl,
+        act: &case.act,
         time: 0.0,
     }
 }
@@ -135,6 +148,7 @@ fn evaluate_on(model: &Model, ws: &mut Workspace, point: &Point, output: Output)
         Given::Nu => ws.set_nu(model, point.velocity).unwrap(),
         Given::Qvel => ws.set_qvel(model, point.velocity).unwrap(),
     }
+    ws.set_act(model, point.act).unwrap();
     let mut applied = vec![0.0; model.nv];
     ws.eps_from_forces(model, point.torque, None, &mut applied).unwrap();
     applied.iter_mut().zip(point.eps).for_each(|(a, e)| *a += e);
@@ -147,6 +161,7 @@ fn evaluate_on(model: &Model, ws: &mut Workspace, point: &Point, output: Output)
             ws.compute_sensors(model, &applied, point.ctrl, point.time).unwrap();
             ws.sensordata.as_slice().to_vec()
         }
+        Output::ActDot => ws.act_dot.as_slice().to_vec(),
         other => unreachable!("{other:?} is given, not evaluated"),
     }
 }
@@ -155,10 +170,14 @@ fn evaluate_on(model: &Model, ws: &mut Workspace, point: &Point, output: Output)
 /// Richardson step (error O(h⁴); measured: within 5e-10 of the exact ones
 /// on these trees); θ moved by MuJoCo's position integration.
 fn differences(case: &Case, given: Given, output: Output) -> Jacobians {
-    let (model, nv, nu) = (&case.model, case.model.nv, case.model.actuators.len());
+    let (model, nv, nu, na) = (&case.model, case.model.nv, case.model.actuators.len(), case.act.len());
     let h = 1e-3;
     let columns = |which: usize| {
-        let count = if which == 4 { nu } else { nv };
+        let count = match which {
+            4 => nu,
+            5 => na,
+            _ => nv,
+        };
         let mut jacobian = DMatrix::zeros(output.len(model), count);
         for column in 0..count {
             let at = |step: f64| {
@@ -176,8 +195,13 @@ fn differences(case: &Case, given: Given, output: Output) -> Jacobians {
                 } else {
                     case.theta.clone()
                 };
-                let (velocity, eps, torque, ctrl) =
-                    (moved(&case.velocity, 1), moved(&case.eps, 2), moved(&case.torque, 3), moved(&case.ctrl, 4));
+                let (velocity, eps, torque, ctrl, act) = (
+                    moved(&case.velocity, 1),
+                    moved(&case.eps, 2),
+                    moved(&case.torque, 3),
+                    moved(&case.ctrl, 4),
+                    moved(&case.act, 5),
+                );
                 let point = Point {
                     theta: &theta,
                     velocity: &velocity,
@@ -185,6 +209,7 @@ fn differences(case: &Case, given: Given, output: Output) -> Jacobians {
                     eps: &eps,
                     torque: &torque,
                     ctrl: &ctrl,
+                    act: &act,
                     time: 0.0,
                 };
                 DVector::from_vec(evaluate(model, &point, &self::point(case, given), output))
@@ -199,10 +224,17 @@ fn differences(case: &Case, given: Given, output: Output) -> Jacobians {
         }
         jacobian
     };
-    Jacobians { theta: columns(0), velocity: columns(1), eps: columns(2), torque: columns(3), ctrl: columns(4) }
+    Jacobians {
+        theta: columns(0),
+        velocity: columns(1),
+        eps: columns(2),
+        torque: columns(3),
+        ctrl: columns(4),
+        act: columns(5),
+    }
 }
 
-/// The zero direction: `zeros` (nv) in θ, velocity, ε and torque, `no_ctrl` in ctrl.
+/// The zero direction: `zeros` (nv) in θ, velocity, ε and torque, `no_ctrl` in ctrl, none in act.
 fn nowhere<'a>(zeros: &'a [f64], no_ctrl: &'a [f64]) -> Direction<'a> {
     Direction {
         theta: zeros,
@@ -211,6 +243,7 @@ fn nowhere<'a>(zeros: &'a [f64], no_ctrl: &'a [f64]) -> Direction<'a> {
         eps: zeros,
         torque: zeros,
         ctrl: no_ctrl,
+        act: &[],
     }
 }
 
@@ -270,6 +303,7 @@ fn assert_outputs_agree_with_differences(case: &Case, label: &str, outputs: &[(G
             ("eps", &exact.eps, &differenced.eps),
             ("torque", &exact.torque, &differenced.torque),
             ("ctrl", &exact.ctrl, &differenced.ctrl),
+            ("act", &exact.act, &differenced.act),
         ] {
             let error = relative(a, b);
             assert!(
@@ -320,6 +354,22 @@ fn actuated_jacobians_agree_with_central_differences_of_the_passes() {
     for (path, seeds) in files {
         for seed in seeds {
             assert_agrees_with_differences(&file_case(path, seed), &format!("{path}, seed {seed}"), 1e-8);
+        }
+    }
+}
+
+/// Activation states through the dual-number passes (integrator, filter
+/// and filterexact, limited, read early; MuJoCo's intvelocity and
+/// cylinder): ν̇, θ̈ and act_dot in every input, act among them, against
+/// central differences of the f64 passes, act inside its range.
+#[test]
+fn jacobians_with_activation_states_agree_with_central_differences_of_the_passes() {
+    for path in ["tests/fixtures/activation/filtered_arm.xml", "tests/fixtures/activation/shortcut_servos.xml"] {
+        for seed in 0..3 {
+            let case = file_case(path, seed);
+            assert!(!case.act.is_empty());
+            let outputs = [(Given::Qvel, Output::Qacc), (Given::Nu, Output::NuDot), (Given::Nu, Output::ActDot)];
+            assert_outputs_agree_with_differences(&case, &format!("{path}, seed {seed}"), &outputs, 1e-8);
         }
     }
 }
@@ -539,7 +589,8 @@ fn coordinate_and_tangent_directions_agree() {
         assert_eq!(coordinates.len(), nq);
         let zeros = vec![0.0; nv];
         let mut along = |theta: &[f64], theta_in| {
-            let direction = Direction { theta, theta_in, velocity: &zeros, eps: &zeros, torque: &zeros, ctrl: &[] };
+            let direction =
+                Direction { theta, theta_in, velocity: &zeros, eps: &zeros, torque: &zeros, ctrl: &[], act: &[] };
             derivatives.run(&case.model, &point(&case, Given::Qvel), &direction, &[Output::Qacc]).unwrap();
             derivatives.derivative(Output::Qacc).collect::<Vec<f64>>()
         };
@@ -552,11 +603,11 @@ fn coordinate_and_tangent_directions_agree() {
 
 #[test]
 fn models_beyond_the_generic_passes_and_bad_points_are_refused() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/activation/filtered_arm.xml");
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/tendons/tendon_armature.xml");
     let model = Model::compile(&nudyn::mjcf::load_mjcf(&path).unwrap().vehicle).unwrap();
     let refusal = Derivatives::new(&model).unwrap_err();
-    assert_eq!(refusal, DerivativeError::Unsupported("actuators' activation states (dyntype)"));
-    assert!(refusal.to_string().contains("activation states"), "{refusal}");
+    assert_eq!(refusal, DerivativeError::Unsupported("tendons' armature"));
+    assert!(refusal.to_string().contains("armature"), "{refusal}");
 
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/constraints/noslip_trees.xml");
     let model = Model::compile(&nudyn::mjcf::load_mjcf(&path).unwrap().vehicle).unwrap();
@@ -590,6 +641,7 @@ fn models_beyond_the_generic_passes_and_bad_points_are_refused() {
         eps: &zeros,
         torque: &zeros,
         ctrl: &[],
+        act: &[],
     };
     let error = derivatives.run(&case.model, &point(&case, Given::Qvel), &direction, &[Output::Qacc]).unwrap_err();
     assert_eq!(error, DerivativeError::DirectionLength { what: "theta", expected: nv, found: nv - 1 });

@@ -4,8 +4,10 @@
 use crate::common;
 
 use crate::common::{Rng, TreeOptions, random_theta, random_vehicle, rel_err};
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use nudyn::dynamics::flexible::FIXED_MODES;
 use nudyn::dynamics::subspace::Subspace;
+use nudyn::flex::{ModalBody, Mode, Node};
 use nudyn::model::{Model, Shortcuts};
 use nudyn::vehicle::{JointKind, Vehicle};
 use nudyn::workspace::Workspace;
@@ -187,6 +189,59 @@ proptest! {
             prop_assert!(false, "{e}\n{vehicle:#?}");
         }
     }
+}
+
+/// Flexible bodies with more modes than the blocks' fixed-size instances
+/// (`flexible::FIXED_MODES`: the same arithmetic at a size known only at run
+/// time), and bodies of point masses only (a constant factor, made with the
+/// workspace), against the dense reference.
+#[test]
+fn flexible_bodies_with_many_modes_or_only_point_masses() {
+    for seed in 0..12 {
+        let mut rng = Rng::new(4900 + seed);
+        let options = TreeOptions { bodies: 3, free_base: seed % 2 == 0, passive: true, chain: false };
+        let mut vehicle = random_vehicle(&mut rng, options);
+        common::make_flexible(&mut rng, &mut vehicle, true);
+        let modes = if seed < 6 { FIXED_MODES + 1 + rng.below(3) } else { 1 + rng.below(FIXED_MODES) };
+        let points_only = seed % 3 != 2;
+        for f in 0..vehicle.flexible.len() {
+            let modal = &mut vehicle.flexible[f];
+            reshape_flexible_body(&mut rng, modal, modes, points_only);
+            let inertia = modal.mass_properties();
+            let body = vehicle.bodies.iter_mut().find(|b| b.name == vehicle.flexible[f].body).unwrap();
+            body.inertia = Some(inertia);
+        }
+        let model = Model::compile(&vehicle).unwrap();
+        assert!(model.flexible.iter().all(|f| f.mode_count() == modes && f.rotating.is_empty() == points_only));
+        if let Err(e) = check_vehicle(&vehicle, &mut rng) {
+            panic!("seed {seed} ({modes} modes, point masses only: {points_only}): {e}");
+        }
+    }
+}
+
+/// New nodes and `modes` random damped modes for `modal`: 4–6 point masses,
+/// or three nodes with rotary inertia and two point masses.
+fn reshape_flexible_body(rng: &mut Rng, modal: &mut ModalBody, modes: usize, points_only: bool) {
+    let point: Vec<bool> =
+        if points_only { vec![true; 4 + rng.below(3)] } else { vec![false, false, false, true, true] };
+    modal.nodes = point
+        .iter()
+        .enumerate()
+        .map(|(j, &point)| Node {
+            name: format!("n{j}"),
+            position: rng.vec3(0.5),
+            mass: rng.uniform(0.2, 2.0),
+            rotary_inertia: if point { Matrix3::zeros() } else { common::random_mass(rng).inertia * 0.3 },
+        })
+        .collect();
+    modal.modes = (0..modes)
+        .map(|c| Mode {
+            angular_frequency: rng.uniform(1.0, 10.0) * (c + 1) as f64,
+            damping_ratio: rng.uniform(0.0, 0.1),
+            translation: point.iter().map(|_| rng.vec3(0.4)).collect(),
+            rotation: point.iter().map(|&p| if p { Vector3::zeros() } else { rng.vec3(0.6) }).collect(),
+        })
+        .collect();
 }
 
 #[test]

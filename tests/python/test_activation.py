@@ -69,6 +69,38 @@ def test_qacc_and_act_dot_match_mj_forward(nudyn):
     assert np.max(np.abs(np.array(without["qacc"]) - references[0][0])) > 1e-3
 
 
+SHORTCUTS = ROOT / "tests" / "fixtures" / "activation" / "shortcut_servos.xml"
+
+
+def test_intvelocity_and_cylinder_act_as_in_mj_forward(nudyn):
+    """MuJoCo's <intvelocity> and <cylinder> shortcuts (on elements, from
+    classes, lent by a <general> default, an activation range inherited
+    from the joint; test_actuators.py compares their compiled parameters):
+    at random states, controls (some past their ranges) and activations
+    (the integrators' within their ranges, where a run keeps them: nudyn's
+    force reads act clamped, MuJoCo's as it is, docs/DYNAMICS.md §5), nudyn eval's
+    qacc, act_dot and actuator forces are mj_forward's to 1e-12."""
+    model = mujoco.MjModel.from_xml_path(str(SHORTCUTS))
+    assert list(model.actuator_dyntype) == [1, 1, 2, 2]
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(12)
+    requests, references = [], []
+    for _ in range(N_STATES):
+        qpos, qvel, ctrl, act = random_state(model, rng)
+        act[:2] = [rng.uniform(*model.actuator_actrange[i]) for i in range(2)]
+        act[2:] *= 30  # the cylinders' pressures
+        data.qpos[:], data.qvel[:], data.ctrl[:], data.act[:] = qpos, qvel, ctrl, act
+        mujoco.mj_forward(model, data)
+        requests.append({"theta": qpos.tolist(), "qvel": qvel.tolist(), "ctrl": ctrl.tolist(), "act": act.tolist()})
+        references.append((data.qacc.copy(), data.act_dot.copy(), data.actuator_force.copy()))
+    answers = run_eval(nudyn, SHORTCUTS, json.dumps(requests)).json()
+    for k, (answer, (qacc, act_dot, force)) in enumerate(zip(answers, references)):
+        for name, ours, theirs in [("qacc", answer["qacc"], qacc), ("act_dot", answer["act_dot"], act_dot),
+                                   ("actuator_force", answer["actuator_force"], force)]:
+            error = np.max(np.abs(np.array(ours) - theirs))
+            assert error <= 1e-12 * max(1.0, np.max(np.abs(theirs))), (k, name, error)
+
+
 def fixture_for_rk4(tmp_path, timestep: float):
     """The fixture with `timestep`, and its filterexact actuators written as
     filter. MuJoCo's RK4 takes τ(1 − e^(−h/τ)) for h in a filterexact's

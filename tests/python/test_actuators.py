@@ -30,7 +30,9 @@ from conftest import EXAMPLES, ROOT, run_eval
 from nudyn_validation.mujoco_reference import Reference, load_model, rel_err
 
 FIXTURES = sorted((ROOT / "tests" / "fixtures" / "actuators").glob("*.xml"))
-ACTUATED = FIXTURES + [p for p in EXAMPLES if "<actuator" in p.read_text()]
+# With activation states (act at 0 here; test_activation.py moves it).
+ACTIVATED = sorted((ROOT / "tests" / "fixtures" / "activation").glob("*.xml"))
+ACTUATED = FIXTURES + ACTIVATED + [p for p in EXAMPLES if "<actuator" in p.read_text()]
 N_STATES = 6
 ACTUATOR_KEYS = ["actuator_length", "actuator_velocity", "actuator_force", "qfrc_actuator", "eps_actuator"]
 
@@ -203,6 +205,31 @@ def assert_same_actuators(described, m: mujoco.MjModel, context: str):
                 np.testing.assert_allclose(a[key], bounds[i], rtol=1e-15, atol=1e-15, err_msg=f"{where}: {key}")
             else:
                 assert a[key] is None, f"{where}: {key} {a[key]} but MuJoCo does not limit it"
+        assert_same_activation(a.get("activation"), m, i, where)
+
+
+DYNAMICS_TYPES = {
+    int(mujoco.mjtDyn.mjDYN_NONE): None,
+    int(mujoco.mjtDyn.mjDYN_INTEGRATOR): "integrator",
+    int(mujoco.mjtDyn.mjDYN_FILTER): "filter",
+    int(mujoco.mjtDyn.mjDYN_FILTEREXACT): "filterexact",
+}
+
+
+def assert_same_activation(activation, m: mujoco.MjModel, i: int, where: str):
+    """`describe --json`'s activation of actuator i against MuJoCo's dyntype,
+    dynprm[0], actlimited and actrange, and actearly."""
+    kind = DYNAMICS_TYPES[int(m.actuator_dyntype[i])]
+    if kind is None:
+        assert activation is None, f"{where}: an activation {activation} where MuJoCo has none"
+        return
+    assert activation is not None and activation["kind"] == kind, f"{where}: {activation} but MuJoCo's is {kind}"
+    np.testing.assert_allclose(activation["time_constant"], m.actuator_dynprm[i, 0], rtol=1e-15, err_msg=where)
+    if m.actuator_actlimited[i]:
+        np.testing.assert_allclose(activation["range"], m.actuator_actrange[i], rtol=1e-15, atol=1e-15, err_msg=where)
+    else:
+        assert activation["range"] is None, f"{where}: actrange {activation['range']} but MuJoCo does not limit act"
+    assert activation["early"] == bool(m.actuator_actearly[i]), where
 
 
 @pytest.mark.parametrize("path", ACTUATED, ids=[p.stem for p in ACTUATED])
@@ -230,6 +257,8 @@ SHORTCUT_PARAMETERS = {
     "position": ["kp", "kv", "dampratio"],
     "velocity": ["kv"],
     "damper": ["kv"],
+    "intvelocity": ["kp", "kv", "dampratio"],
+    "cylinder": ["timeconst", "area", "diameter"],
     "general": [],
 }
 
@@ -252,6 +281,14 @@ def random_actuator_attributes(rng, kind, in_default):
             attributes[name] = f"{rng.uniform(0.1, 30):.3g}"
     if "kv" in attributes and "dampratio" in attributes:
         del attributes["dampratio"]
+    if kind == "intvelocity":
+        # The range of its integrated command, given or its joint's.
+        if rng.random() < 0.3:
+            attributes["actrange"] = "-0.5 0.7"
+        elif not in_default and rng.random() < 0.3:
+            attributes["inheritrange"] = f"{rng.uniform(0.5, 1.5):.3g}"
+    if kind == "cylinder" and rng.random() < 0.4:
+        attributes["bias"] = " ".join(f"{x:.3g}" for x in rng.uniform(-5, 5, 3))
     if kind == "general":
         if rng.random() < 0.5:
             attributes["gaintype"] = rng.choice(["fixed", "affine"])
@@ -289,8 +326,8 @@ def random_defaults_model(rng) -> str:
     return f"""<mujoco>
   {defaults}
   <worldbody>
-    <body><joint name="h" axis="0 1 0"/><geom size="0.1"/>
-      <body pos="0.3 0 0"><joint name="s" type="slide"/><geom size="0.1"/></body>
+    <body><joint name="h" axis="0 1 0" range="-1 1.5"/><geom size="0.1"/>
+      <body pos="0.3 0 0"><joint name="s" type="slide" range="-0.2 0.3"/><geom size="0.1"/></body>
     </body>
   </worldbody>
   <actuator>{actuators}</actuator>

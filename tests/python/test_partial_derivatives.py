@@ -16,7 +16,9 @@ and refuses the call, naming what is missing. Constrained vehicles,
 tests/fixtures/actuators/kinds.xml (every actuator kind, ctrl a known)
 and tests/fixtures/sensors/every_sensor.xml (its sensors among the
 unknowns) too; the docked servicer's force, torque and limit sensors in
-the ModelStructure check."""
+the ModelStructure check. Activation states (tests/fixtures/activation/
+shortcut_servos.xml: MuJoCo's intvelocity and cylinder) as knowns and
+unknowns: act among the states, der(act) among the derivatives."""
 
 from __future__ import annotations
 
@@ -53,6 +55,9 @@ MODELS = {
     # torque (joint, ball, frame, subtree, gyro, velocimeter, magnetometer,
     # accelerometer, actuator sensors, cutoffs, the clock).
     "every_sensor": ROOT / "tests" / "fixtures" / "sensors" / "every_sensor.xml",
+    # Activation states (integrators limited to their ranges, filters):
+    # act a state after θ and ν, set inside each range, clear of the clamps.
+    "shortcut_servos": ROOT / "tests" / "fixtures" / "activation" / "shortcut_servos.xml",
 }
 # The docked servicer's force, torque and joint limit sensors through welds
 # and a connect: its ModelStructure is checked against the exact Jacobian.
@@ -80,36 +85,45 @@ def fmus(cli, tmp_path_factory):
 
 
 class Names:
-    """The knowns (θ, ν, ε) and unknowns (der(θ), der(ν), θ, ν and the
-    continuous outputs) of an FMU, element by element, as FMI 2.0 names."""
+    """The knowns (θ, ν, act, ε, ctrl) and unknowns (der(θ), der(ν),
+    der(act), θ, ν, act and the continuous outputs) of an FMU, element by
+    element, as FMI 2.0 names."""
 
     def __init__(self, fmu2, model=None):
         package = FmuPackage.unzip(fmu2, fmu2.parent / (fmu2.stem + "-unzipped"))
         self.package = package
         self.theta, self.nu, self.eps = package.names("theta"), package.names("nu"), package.names("eps")
-        self.ctrl = package.names("ctrl")
-        # MuJoCo's ctrlrange of each actuator ((0, 0) without one) of the MJCF `model`.
-        self.ctrl_ranges = []
+        self.ctrl, self.act = package.names("ctrl"), package.names("act")
+        # MuJoCo's ctrlrange of each actuator and actrange of each
+        # activation ((0, 0) without one) of the MJCF `model`.
+        self.ctrl_ranges, self.act_ranges = [], []
         if self.ctrl:
             compiled = mujoco.MjModel.from_xml_path(str(model))
             limited = compiled.actuator_ctrllimited == 1
             self.ctrl_ranges = [tuple(r) if on else (0.0, 0.0) for r, on in zip(compiled.actuator_ctrlrange, limited)]
-        self.knowns = self.theta + self.nu + self.eps + self.ctrl
+            self.act_ranges = [tuple(compiled.actuator_actrange[i]) if compiled.actuator_actlimited[i] else (0.0, 0.0)
+                               for i in range(compiled.nu) if compiled.actuator_dyntype[i] != 0]
+        self.states = self.theta + self.nu + self.act
+        self.knowns = self.states + self.eps + self.ctrl
         self.sensordata = package.names("sensordata")
-        self.unknowns = ([f"der({n})" for n in self.theta + self.nu] + self.theta + self.nu + self.sensordata
+        self.unknowns = ([f"der({n})" for n in self.states] + self.states + self.sensordata
                          + package.names("qvel") + ["kinetic_energy", "power"])
 
 
 def random_point(names: Names, seed: int) -> np.ndarray:
     """θ near its start (quaternions off unit length), ν and ε at random,
-    ctrl inside each range's middle (within ±0.5 without one), clear of the
-    clamps, whose pieces a difference would straddle."""
+    ctrl and act inside each range's middle (within ±0.5 without one),
+    clear of the clamps, whose pieces a difference would straddle."""
     rng = np.random.default_rng(seed)
     theta = np.array(names.package.starts("theta")) + rng.normal(0, 0.2, len(names.theta))
-    ctrl = []
-    for low, high in names.ctrl_ranges:
-        ctrl.append(low + (high - low) * rng.uniform(0.3, 0.7) if low < high else rng.uniform(-0.5, 0.5))
-    return np.concatenate([theta, rng.normal(0, 0.7, len(names.nu)), rng.normal(0, 2.0, len(names.eps)), ctrl])
+
+    def within(ranges):
+        return [low + (high - low) * rng.uniform(0.3, 0.7) if low < high else rng.uniform(-0.5, 0.5)
+                for low, high in ranges]
+
+    ctrl = within(names.ctrl_ranges)
+    act = within(names.act_ranges) if names.act else []
+    return np.concatenate([theta, rng.normal(0, 0.7, len(names.nu)), act, rng.normal(0, 2.0, len(names.eps)), ctrl])
 
 
 class Fmi2:
@@ -142,7 +156,7 @@ class Fmi2:
         return [self.vr[n] for n in names]
 
     def set(self, point):
-        names, nx = self.names, len(self.names.theta) + len(self.names.nu)
+        names, nx = self.names, len(self.names.states)
         if self.interface == "ME":
             self.fmu.setContinuousStates((c_double * nx)(*point[:nx]), nx)
             self.fmu.setReal(self.refs(names.knowns[nx:]), list(point[nx:]))
@@ -177,22 +191,26 @@ class Fmi3:
             self.fmu.exitInitializationMode()
             self.fmu.updateDiscreteStates()
             self.fmu.enterContinuousTimeMode()
-        nq, nv = len(names.theta), len(names.nu)
+        nq, nv, na = len(names.theta), len(names.nu), len(names.act)
+        acts = [("act", na)] if na else []
         # The arrays, and how many elements each has.
-        self.known_arrays = [("theta", nq), ("nu", nv), ("eps", nv)] + ([("ctrl", len(names.ctrl))] if names.ctrl else [])
-        self.unknown_arrays = [("der(theta)", nq), ("der(nu)", nv), ("theta", nq), ("nu", nv),
+        self.known_arrays = ([("theta", nq), ("nu", nv), *acts, ("eps", nv)]
+                             + ([("ctrl", len(names.ctrl))] if names.ctrl else []))
+        self.unknown_arrays = [("der(theta)", nq), ("der(nu)", nv), *([("der(act)", na)] if na else []),
+                               ("theta", nq), ("nu", nv), *acts,
                                *([("sensordata", len(names.sensordata))] if names.sensordata else []),
                                ("qvel", nv), ("kinetic_energy", 1), ("power", 1)]
+        self.states = 2 + len(acts)
 
     @staticmethod
     def _unzip(fmu, directory):
         return FmuPackage.unzip(fmu, directory).directory
 
     def set(self, point):
-        nx = sum(n for _, n in self.known_arrays[:2])
+        nx = sum(n for _, n in self.known_arrays[:self.states])
         if self.interface == "ME":
             self.fmu.setContinuousStates((c_double * nx)(*point[:nx]), nx)
-            self.fmu.setFloat64([self.vr[a] for a, _ in self.known_arrays[2:]], list(point[nx:]))
+            self.fmu.setFloat64([self.vr[a] for a, _ in self.known_arrays[self.states:]], list(point[nx:]))
         else:
             self.fmu.setFloat64([self.vr[a] for a, _ in self.known_arrays], list(point))
 
@@ -251,11 +269,11 @@ def test_directional_derivatives_are_central_differences_of_the_fmu(fmus, tmp_pa
         scale = np.maximum(scale, np.abs(differences).max(axis=1, keepdims=True))
     error = np.max(np.abs(exact - differences) / scale)
     assert error <= 1e-6, (error, np.unravel_index(np.argmax(np.abs(exact - differences) / scale), exact.shape))
-    # ∂ν̇/∂ε = I exactly (without constraint forces), and θ and ν pass their seeds through.
-    nq, nv = len(names.theta), len(names.nu)
+    # ∂ν̇/∂ε = I exactly (without constraint forces), and θ, ν and act pass their seeds through.
+    nq, nv, nx = len(names.theta), len(names.nu), len(names.states)
     if name not in CONSTRAINED:
-        assert np.array_equal(exact[nq:nq + nv, nq + nv:nq + 2 * nv], np.eye(nv))
-    assert np.array_equal(exact[nq + nv:2 * (nq + nv), :nq + nv], np.eye(nq + nv))
+        assert np.array_equal(exact[nq:nq + nv, nx:nx + nv], np.eye(nv))
+    assert np.array_equal(exact[nx:2 * nx, :nx], np.eye(nx))
     host.fmu.freeInstance()
 
 
@@ -365,7 +383,7 @@ COVERED = ["bus_arm7", "chain60", "fixed_rig", "flexible_boom"]
 
 
 @pytest.mark.parametrize("name", COVERED + ["springdamper", "bench_vehicle", "slider_hand", "refsafe_off", "kinds",
-                                  "every_sensor", "docked_servicer", "servicer"])
+                                  "every_sensor", "docked_servicer", "servicer", "shortcut_servos"])
 def test_the_model_structure_lists_every_dependence_the_derivatives_have(cli, tmp_path, name):
     """ModelStructure's dependencies (FMI 2.0) against the exact Jacobian at
     a random state: every non-zero entry is listed (a host may take an
@@ -398,7 +416,8 @@ def test_the_model_structure_lists_every_dependence_the_derivatives_have(cli, tm
         # With constraint forces the listing is every state (they couple
         # any dof to any other through the rows), and with actuators (they
         # reach every dof through ℓ): completeness only.
-        if unknown.startswith("der(nu[") and name not in CONSTRAINED | {"every_sensor", "servicer", "docked_servicer"}:
+        if unknown.startswith("der(nu[") and name not in CONSTRAINED | {"every_sensor", "servicer", "docked_servicer",
+                                                                       "shortcut_servos"}:
             on_nu = {index[known] for known in names.nu}
             if index[unknown[4:-1]] not in modal_nu:
                 assert listed[index[unknown]] & on_nu == depends & on_nu, unknown

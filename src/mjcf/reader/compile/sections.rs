@@ -14,7 +14,7 @@ use crate::mjcf::reader::{ACTUATOR_GROUPS, Reader, claim_name};
 use crate::mjcf::sensor::SensorSpec;
 use crate::mjcf::tendon::{TendonFlags, TendonSpec};
 use crate::mjcf::{equality, sensor, tendon};
-use crate::vehicle::{Activation, Actuator, BiasType, GainType, JointKind, Transmission};
+use crate::vehicle::{Activation, ActivationKind, Actuator, BiasType, GainType, JointKind, Transmission};
 
 impl Reader {
     /// Notes the geoms the tendons wrap around, each with the first such
@@ -123,14 +123,22 @@ impl Reader {
         let ActuatorSpec { at, kind, gain_type, bias_type, .. } = spec;
         let mut settings = spec.settings.clone();
         let transmission = self.transmission(at, &spec.transmission)?;
-        // A position servo may take its ctrlrange from its joint's range.
+        // A servo may take its range from its target's: a position servo
+        // (no activation, or a filtered setpoint) its ctrlrange, an
+        // integrated-velocity servo its actrange.
         let position_like = *gain_type == GainType::Fixed
             && *bias_type == BiasType::Affine
             && settings.gainprm[0] == -settings.biasprm[1];
         if position_like && settings.inheritrange > 0.0 {
             let [low, high] = self.inherited_range(at, &transmission)?;
             let (mean, radius) = (0.5 * (high + low), 0.5 * (high - low) * settings.inheritrange);
-            settings.ctrlrange = [mean - radius, mean + radius];
+            match spec.activation {
+                None | Some(ActivationKind::FilterExact) => settings.ctrlrange = [mean - radius, mean + radius],
+                Some(ActivationKind::Integrator) => settings.actrange = [mean - radius, mean + radius],
+                Some(ActivationKind::Filter) => {
+                    return Err(at.invalid("inheritrange only available for position and intvelocity actuators"));
+                }
+            }
         }
         let force_range = self.limits(at, "force", settings.forcelimited, settings.forcerange)?;
         let ctrl_range = self.limits(at, "ctrl", settings.ctrllimited, settings.ctrlrange)?;
