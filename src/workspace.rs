@@ -44,6 +44,21 @@ pub struct Accumulation {
     pub opens_parent: bool,
     /// A flexible body's modal block adds into this link's slots (`dynamics::flexible`).
     pub has_modes: bool,
+    /// This link's parent frame is a node of a flexible body: it adds into
+    /// that node's slots instead of its parent link's, and `opens_parent`
+    /// says whether it sets them (the first child of that node the inward
+    /// passes reach).
+    pub node: Option<NodeParent>,
+}
+
+/// Where a child body at a node hangs: its flexible body and its entry in
+/// `FlexBody::node_children`.
+#[derive(Clone, Copy, Debug)]
+pub struct NodeParent {
+    /// Index into `Model::flexible` (and `Workspace::flex`).
+    pub flexible: u32,
+    /// Index into that body's `node_children`.
+    pub child: u32,
 }
 
 impl Accumulation {
@@ -209,8 +224,18 @@ impl<S: Real> Workspace<S> {
         let n = model.links.len();
         let dof = || DVector::zeros(model.nv);
         let mut accumulation = vec![Accumulation::default(); n];
+        let mut opened_nodes = Vec::new();
+        for (f, flexible) in model.flexible.iter().enumerate() {
+            for (c, child) in flexible.node_children.iter().enumerate() {
+                accumulation[child.link].node = Some(NodeParent { flexible: f as u32, child: c as u32 });
+            }
+        }
         for (i, link) in model.links.iter().enumerate().rev() {
-            if let Some(p) = link.parent
+            if let Some(at) = accumulation[i].node {
+                let slot = (at.flexible, model.flexible[at.flexible as usize].node_children[at.child as usize].slot);
+                accumulation[i].opens_parent = !opened_nodes.contains(&slot);
+                opened_nodes.push(slot);
+            } else if let Some(p) = link.parent
                 && !accumulation[p].has_children
             {
                 accumulation[p].has_children = true;

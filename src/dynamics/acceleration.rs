@@ -18,21 +18,17 @@ use crate::math::{Real, SpatialVec, cross_motion};
 use crate::model::Model;
 use crate::workspace::{Stage, Workspace};
 
-/// The outward pass for one link with N dofs, whose parent's A is
-/// `a_parent`; returns its A.
+/// The outward pass for one link with N dofs, whose parent's A in its
+/// frame is `a_plus`; returns its A.
 #[inline(always)]
 fn acceleration_link<S: Real, const N: usize, const UNIT: usize>(
     model: &Model,
     ws: &mut Workspace<S>,
     i: usize,
-    a_parent: &SpatialVec<S>,
+    a_plus: SpatialVec<S>,
 ) -> SpatialVec<S> {
     let link = &model.links[i];
     let adr = link.dof_adr;
-    let a_plus = match link.parent {
-        Some(_) => ws.x_parent[i].apply_motion(a_parent),
-        None => SpatialVec::zeros(),
-    };
     let s = &link.motion_subspace;
     let v_joint = s_times::<_, N, UNIT>(s, &ws.qvel.fixed_rows::<N>(adr).into_owned());
     let a_passed = a_plus + cross_motion(&ws.v_plus_body[i], &v_joint);
@@ -55,12 +51,14 @@ impl<S: Real> Workspace<S> {
         let mut a_previous = SpatialVec::zeros();
         let flexible = !model.flexible.is_empty();
         for i in 0..model.links.len() {
-            let a_parent = match model.links[i].parent {
-                Some(p) if p + 1 == i => a_previous,
-                Some(p) => self.a_body[p],
-                None => SpatialVec::zeros(),
+            let a_plus = match (model.links[i].parent, self.accumulation[i].node) {
+                // A child at a node: the node's A_j, in the link's frame.
+                (_, Some(at)) => super::flexible::child_acceleration(model, self, at),
+                (Some(p), None) if p + 1 == i => self.x_parent[i].apply_motion(&a_previous),
+                (Some(p), None) => self.x_parent[i].apply_motion(&self.a_body[p]),
+                (None, None) => SpatialVec::zeros(),
             };
-            a_previous = by_subspace!(self.subspaces[i], acceleration_link(model, self, i, &a_parent));
+            a_previous = by_subspace!(self.subspaces[i], acceleration_link(model, self, i, a_plus));
             if flexible {
                 super::flexible::accelerations(model, self, i);
             }

@@ -690,6 +690,7 @@ impl<S: Real> Workspace<S> {
                 model,
                 &self.x_parent,
                 &self.accumulation,
+                &mut self.flex,
                 &mut self.p_scratch_body,
                 &self.link_wrench,
                 qfrc,

@@ -142,7 +142,9 @@ pub(crate) fn articulated_pass<S: Real>(model: &Model, ws: &mut Workspace<S>) ->
             super::flexible::factor_modes(model, ws, i)?;
         }
         by_subspace!(ws.subspaces[i], place_and_factor_link(model, ws, i))?;
-        if let Some(p) = model.links[i].parent {
+        if let Some(at) = ws.accumulation[i].node {
+            super::flexible::place_child(model, ws, i, at);
+        } else if let Some(p) = model.links[i].parent {
             // Parents precede their children in the link order (p < i).
             let (parents, children) = ws.ia_reduced.split_at_mut(i);
             ws.x_parent[i].add_inertia_to_parent(&children[0], &mut parents[p], ws.accumulation[i].opens_parent);

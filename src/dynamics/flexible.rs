@@ -23,6 +23,13 @@
 //! D⁻¹ are made once, with the workspace, and Ḋ = Ṙ = 0. Each block's
 //! arithmetic is instantiated for 1 to [`FIXED_MODES`] modes, where its
 //! loops unroll (`by_modes!`), and for any count beyond.
+//!
+//! A child body at a node hangs from that node as from a parent link: its
+//! I^a, p^a and İ^a (brought to the node's frame) join the node's, so that
+//! for such a node I_j is its own inertia plus its children's articulated
+//! inertias, p_j gains their p^a, and the rates gain Σ B_jᵀ İ_j B_j; its
+//! parent velocity and acceleration are the node's, V_j and
+//! A_j = X_j A_R + Ψ_j η̈ + c_j.
 
 use nalgebra::{DMatrix, DVector, Dim, U1, U6};
 
@@ -35,7 +42,7 @@ use crate::math::{
     real, rigid_inertia, spatial,
 };
 use crate::model::{FlexBody, Model};
-use crate::workspace::Workspace;
+use crate::workspace::{NodeParent, Workspace};
 
 /// The largest mode count with its own fixed-size instance of the blocks' arithmetic.
 pub const FIXED_MODES: usize = 6;
@@ -104,12 +111,28 @@ pub struct FlexState<S: Real = f64> {
     u_bias: DVector<S>,
     u_force: DVector<S>,
     scratch: DVector<S>,
+    /// Per child at a node: its first link's placement relative to the
+    /// node, ᶜX_j (pass 1).
+    pub child_x: Vec<Transform<S>>,
+    /// Per node of `rotating` (empty without children at nodes): the
+    /// children's I^a in the node's frame (pass 1) ...
+    child_inertia: Vec<SpatialMat<S>>,
+    /// ... their p^a of the velocity products and of the forces, and İ^a (pass 3) ...
+    child_bias: Vec<SpatialVec<S>>,
+    child_force: Vec<SpatialVec<S>>,
+    child_inertia_rate: Vec<SpatialMat<S>>,
+    /// ... their wrenches in the force recursions (ε ↔ T, Jᵀf) ...
+    pub(crate) child_scratch: Vec<SpatialVec<S>>,
+    /// ... and the node's c_j (pass 3) and A_j (the outward pass).
+    node_bias_acceleration: Vec<SpatialVec<S>>,
+    pub(crate) a_node: Vec<SpatialVec<S>>,
 }
 
 impl<S: Real> FlexState<S> {
     /// Buffers for `flexible`; `opens_link` as the workspace places it.
     pub(crate) fn new(flexible: &FlexBody, opens_link: bool) -> Self {
         let (m, nodes) = (flexible.mode_count(), flexible.rotating.len());
+        let carrying = if flexible.node_children.is_empty() { 0 } else { nodes };
         let points = point_masses::State::new(&flexible.points, m);
         let (mut r, mut r_inv, mut d) = (DMatrix::zeros(m, m), DMatrix::zeros(m, m), DMatrix::zeros(m, m));
         // Point masses only: the factor of the constant D, once (if D is
@@ -142,7 +165,25 @@ impl<S: Real> FlexState<S> {
             u_bias: DVector::zeros(m),
             u_force: DVector::zeros(m),
             scratch: DVector::zeros(m),
+            child_x: vec![Transform::identity(); flexible.node_children.len()],
+            child_inertia: vec![SpatialMat::zeros(); carrying],
+            child_bias: vec![SpatialVec::zeros(); carrying],
+            child_force: vec![SpatialVec::zeros(); carrying],
+            child_inertia_rate: vec![SpatialMat::zeros(); carrying],
+            child_scratch: vec![SpatialVec::zeros(); carrying],
+            node_bias_acceleration: vec![SpatialVec::zeros(); carrying],
+            a_node: vec![SpatialVec::zeros(); carrying],
         }
+    }
+
+    /// Σ X_jᵀ I^a_j V_j over the nodes that carry children, I^a_j their
+    /// children's articulated inertias: the share of 𝓘_RR V_R + U η̇ that is
+    /// not the nodes' momentum (after pass 2).
+    pub(crate) fn carried_momentum(&self, flexible: &FlexBody) -> SpatialVec<S> {
+        (0..flexible.rotating.len())
+            .filter(|&r| flexible.carries(r))
+            .map(|r| self.node_x[r].apply_transpose_force(&(self.child_inertia[r] * self.v_node[r])))
+            .fold(SpatialVec::zeros(), |a, b| a + b)
     }
 }
 
@@ -178,6 +219,75 @@ pub(crate) fn on_link(model: &Model, i: usize) -> impl Iterator<Item = usize> + 
     model.flexible.iter().enumerate().filter(move |(_, f)| f.link == i).map(|(f, _)| f)
 }
 
+/// Node slot `r`'s inertia I_j: its own, plus its children's I^a when it carries any.
+fn slot_inertia<S: Real>(flexible: &FlexBody, state: &FlexState<S>, r: usize) -> SpatialMat<S> {
+    let own = node_inertia::<S>(flexible, flexible.rotating[r]);
+    if flexible.carries(r) { own + state.child_inertia[r] } else { own }
+}
+
+/// The flexible body and node slot that link `i` (a child at a node) hangs from.
+#[inline]
+pub(crate) fn node_of(model: &Model, at: NodeParent) -> (usize, usize, usize) {
+    let (f, c) = (at.flexible as usize, at.child as usize);
+    (f, c, model.flexible[f].node_children[c].slot)
+}
+
+/// Passes 0 and 1 for a child's first link `i` at a node, after its own:
+/// `x_parent` (its placement on the parent link through the deformed node,
+/// ᶜX_j ʲX_R), ᶜX_j kept, and its I^a into the node's slot.
+pub(crate) fn place_child<S: Real>(model: &Model, ws: &mut Workspace<S>, i: usize, at: NodeParent) {
+    let (f, c, slot) = node_of(model, at);
+    let flexible = &model.flexible[f];
+    let eta = &ws.theta.as_slice()[flexible.qpos_adr..flexible.qpos_adr + flexible.mode_count()];
+    let to_node = ws.x_parent[i];
+    ws.x_parent[i] = to_node.compose(&nodes::transform(&flexible.modal, flexible.rotating[slot], eta));
+    let state = &mut ws.flex[f];
+    state.child_x[c] = to_node;
+    to_node.add_inertia_to_parent(&ws.ia_reduced[i], &mut state.child_inertia[slot], ws.accumulation[i].opens_parent);
+}
+
+/// V⁺ of a child's first link at a node: ᶜX_j V_j (pass 2, after its body's block).
+#[inline]
+pub(crate) fn child_velocity<S: Real>(model: &Model, ws: &Workspace<S>, at: NodeParent) -> SpatialVec<S> {
+    let (f, c, slot) = node_of(model, at);
+    let state = &ws.flex[f];
+    state.child_x[c].apply_motion(&state.v_node[slot])
+}
+
+/// A⁺ (before its own joint's terms) of a child's first link at a node:
+/// ᶜX_j A_j (the outward pass, after its body's block).
+#[inline]
+pub(crate) fn child_acceleration<S: Real>(model: &Model, ws: &Workspace<S>, at: NodeParent) -> SpatialVec<S> {
+    let (f, c, slot) = node_of(model, at);
+    let state = &ws.flex[f];
+    state.child_x[c].apply_motion(&state.a_node[slot])
+}
+
+/// Pass 3's hand-over of a child's first link at a node: its p^a of the
+/// velocity products and of the forces (`force`, when the recursion of
+/// forces runs) and, with the rates, its İ^a term, brought to the node's
+/// frame by ᶜX_j into the node's slots.
+pub(crate) fn child_bias<S: Real>(
+    model: &Model,
+    ws: &mut Workspace<S>,
+    at: NodeParent,
+    opens: bool,
+    bias: SpatialVec<S>,
+    force: Option<SpatialVec<S>>,
+    inertia_rate: Option<&SpatialMat<S>>,
+) {
+    let (f, c, slot) = node_of(model, at);
+    let state = &mut ws.flex[f];
+    let x = state.child_x[c];
+    accumulate(&mut state.child_bias[slot], x.apply_transpose_force(&bias), opens);
+    if let Some(force) = force {
+        accumulate(&mut state.child_force[slot], x.apply_transpose_force(&force), opens);
+    }
+    if let Some(rate) = inertia_rate {
+        x.add_inertia_to_parent(rate, &mut state.child_inertia_rate[slot], opens);
+    }
+}
+
 /// Pass 1 for the modal blocks on link `i`: their factors, and I^a added to the link's I^A.
 pub(crate) fn factor_modes<S: Real>(model: &Model, ws: &mut Workspace<S>, i: usize) -> Result<(), DynamicsError> {
     for f in on_link(model, i) {
@@ -207,7 +317,7 @@ fn factor_block<S: Real, M: Dim>(
     for (r, &j) in flexible.rotating.iter().enumerate() {
         let x = nodes::transform(&flexible.modal, j, eta);
         nodes::subspace(&flexible.modal, j, eta, &mut state.psi[r]);
-        let inertia = node_inertia::<S>(flexible, j);
+        let inertia = slot_inertia(flexible, state, r);
         x.add_inertia_to_parent(&inertia, &mut rigid, false);
         let psi = leading(&state.psi[r], U6, modes);
         let mut inertia_psi = leading_mut(&mut state.inertia_psi, U6, modes);
@@ -381,14 +491,26 @@ fn bias_of_block<const RATES: bool, S: Real, M: Dim>(
         let psi = leading(&state.psi[r], U6, modes);
         let inertia = node_inertia::<S>(flexible, j);
         let c = nodes::subspace_rate_times(&flexible.modal, j, eta, rate) + cross_motion(&v, &relative);
-        let p = inertia * c + cross_force(&v, &(inertia * v));
+        let mut p = inertia * c + cross_force(&v, &(inertia * v));
+        let carries = flexible.carries(r);
+        if carries {
+            // The children's articulated inertias see the node's c_j, and their p^a join.
+            p += state.child_inertia[r] * c + state.child_bias[r];
+            state.node_bias_acceleration[r] = c;
+        }
         p_bias += x.apply_transpose_force(&p);
         for (k, u) in u_bias.iter_mut().enumerate() {
             *u -= column(&psi, k).dot(&p);
         }
-        if let Some(g) = &gravity {
-            // Gravity m g at the node's origin: p = −f_ext.
-            let p = -spatial(&Vec3::zeros(), &(x.rot * g * S::from(flexible.modal.nodes[j].mass)));
+        if gravity.is_some() || (forces && carries) {
+            // Gravity m g at the node's origin (p = −f_ext), and the children's p^a of forces.
+            let mut p = match &gravity {
+                Some(g) => -spatial(&Vec3::zeros(), &(x.rot * g * S::from(flexible.modal.nodes[j].mass))),
+                None => SpatialVec::zeros(),
+            };
+            if forces && carries {
+                p += state.child_force[r];
+            }
             p_force += x.apply_transpose_force(&p);
             for (k, u) in u_force.iter_mut().enumerate() {
                 *u -= column(&psi, k).dot(&p);
@@ -457,17 +579,26 @@ fn rates<S: Real, M: Dim>(
     }
     for (r, &j) in flexible.rotating.iter().enumerate() {
         let x = &state.node_x[r];
-        let (inertia, relative) = (node_inertia::<S>(flexible, j), state.v_relative[r]);
-        // Ψη̇ ×* I − I Ψη̇ × = −(B + Bᵀ), B = I (Ψη̇ ×).
+        let (inertia, relative) = (slot_inertia(flexible, state, r), state.v_relative[r]);
+        // Ψη̇ ×* I − I Ψη̇ × = −(B + Bᵀ), B = I (Ψη̇ ×); a node carrying
+        // children adds their İ_j: Bᵀ İ_j B to 𝓘̇ (B = [X_j, Ψ_j]).
         let b = mul_cross_motion(&inertia, &relative);
-        x.add_inertia_to_parent(&-(b + b.transpose()), &mut rigid_rate, false);
+        let carried_rate = flexible.carries(r).then(|| state.child_inertia_rate[r]);
+        let own_rate = match &carried_rate {
+            Some(rate) => rate - (b + b.transpose()),
+            None => -(b + b.transpose()),
+        };
+        x.add_inertia_to_parent(&own_rate, &mut rigid_rate, false);
         nodes::subspace_rate(&flexible.modal, j, eta, rate, &mut state.psi_rate);
         let (psi, psi_rate) = (leading(&state.psi[r], U6, modes), leading(&state.psi_rate, U6, modes));
         let mut coupling_rate = leading_mut(&mut state.coupling_rate, U6, modes);
         let mut d_rate = leading_mut(&mut state.d_rate, modes, modes);
         for k in 0..m {
             let i_psi = inertia * column(&psi, k);
-            let i_psi_rate = inertia * column(&psi_rate, k);
+            let mut i_psi_rate = inertia * column(&psi_rate, k);
+            if let Some(rate) = &carried_rate {
+                i_psi_rate += rate * column(&psi, k);
+            }
             let term = cross_force(&relative, &i_psi) + i_psi_rate;
             let mut slot = coupling_rate.column_mut(k);
             slot += x.apply_transpose_force(&term);
@@ -577,8 +708,9 @@ pub(crate) fn accelerations<S: Real>(model: &Model, ws: &mut Workspace<S>, i: us
 
 /// The outward pass for block `f` on link `i`.
 fn accelerations_of_block<S: Real, M: Dim>(modes: M, model: &Model, ws: &mut Workspace<S>, i: usize, f: usize) {
-    let (m, adr) = (modes.value(), model.flexible[f].dof_adr);
-    let (state, a_r) = (&ws.flex[f], ws.a_body[i]);
+    let flexible = &model.flexible[f];
+    let (m, adr) = (modes.value(), flexible.dof_adr);
+    let (state, a_r) = (&mut ws.flex[f], ws.a_body[i]);
     let (r_inv, gain) = (leading(&state.r_inv, modes, modes), leading(&state.gain, U6, modes));
     let nu_dot_joint = &ws.nu_dot_joint.as_slice()[adr..adr + m];
     let qacc = &mut ws.qacc.as_mut_slice()[adr..adr + m];
@@ -589,10 +721,18 @@ fn accelerations_of_block<S: Real, M: Dim>(modes: M, model: &Model, ws: &mut Wor
         }
         qacc[k] = joint - column(&gain, k).dot(&a_r);
     }
+    // The nodes that carry children: A_j = X_j A_R + Ψ_j η̈ + c_j, their children's parent acceleration.
+    for r in (0..flexible.rotating.len()).filter(|&r| flexible.carries(r)) {
+        let psi = leading(&state.psi[r], U6, modes);
+        let modal = (0..m).fold(SpatialVec::zeros(), |a, k| a + column(&psi, k) * qacc[k]);
+        state.a_node[r] = state.node_x[r].apply_motion(&a_r) + modal + state.node_bias_acceleration[r];
+    }
 }
 
-/// ε ↔ T for the modal blocks on link `i` (no body forces act on nodes):
-/// u = T_η, ε_η = R⁻¹u, or u = R ε_η, T_η = u; G u added to the link's slot.
+/// ε ↔ T for the modal blocks on link `i`, with p_j the wrenches that the
+/// children at node j hand over (`child_scratch`; no other force acts on
+/// nodes): u = T_η − Σ Ψ_jᵀp_j, ε_η = R⁻¹u, or u = R ε_η, T_η = u + Σ Ψ_jᵀp_j;
+/// Σ X_jᵀp_j + G u added to the link's slot.
 pub(crate) fn inward<S: Real>(
     model: &Model,
     ws: &mut Workspace<S>,
@@ -605,23 +745,31 @@ pub(crate) fn inward<S: Real>(
         let flexible = &model.flexible[f];
         let (m, adr) = (flexible.mode_count(), flexible.dof_adr);
         let state = &mut ws.flex[f];
+        // The children's wrenches at their nodes: Σ Ψ_jᵀ p_j on the modes, Σ X_jᵀ p_j on the link.
+        state.u_force.fill(S::zero());
+        let mut p = SpatialVec::zeros();
+        for r in (0..flexible.rotating.len()).filter(|&r| flexible.carries(r)) {
+            let p_node = state.child_scratch[r];
+            p += state.node_x[r].apply_transpose_force(&p_node);
+            for k in 0..m {
+                state.u_force[k] += SpatialVec::from_fn(|row, _| state.psi[r][(row, k)]).dot(&p_node);
+            }
+        }
         for k in 0..m {
             state.scratch[k] = if torque_from_eps {
                 (k..m).map(|l| state.r[(k, l)] * input[adr + l]).fold(S::zero(), |a, b| a + b)
             } else {
-                input[adr + k]
+                input[adr + k] - state.u_force[k]
             };
         }
         for k in 0..m {
             out[adr + k] = if torque_from_eps {
-                state.scratch[k]
+                state.scratch[k] + state.u_force[k]
             } else {
                 (k..m).map(|l| state.r_inv[(k, l)] * state.scratch[l]).fold(S::zero(), |a, b| a + b)
             };
         }
-        let p = (0..m).fold(SpatialVec::zeros(), |p, k| {
-            p + SpatialVec::from_fn(|row, _| state.gain[(row, k)]) * state.scratch[k]
-        });
+        let p = (0..m).fold(p, |p, k| p + SpatialVec::from_fn(|row, _| state.gain[(row, k)]) * state.scratch[k]);
         accumulate(&mut ws.p_scratch_body[i], p, state.opens_link);
     }
 }

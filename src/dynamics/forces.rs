@@ -7,10 +7,11 @@
 
 use nalgebra::SVector;
 
+use super::flexible::FlexState;
 use super::{DynamicsError, accumulate, block, check_input, check_length, cols, require};
 use crate::math::{Real, SpatialVec, Transform, real};
 use crate::model::Model;
-use crate::workspace::{Accumulation, Stage, Workspace};
+use crate::workspace::{Accumulation, NodeParent, Stage, Workspace};
 
 /// Which way the recursion runs.
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -51,8 +52,14 @@ fn inward_link<S: Real, const N: usize>(
     out[adr..adr + N].copy_from_slice(y.as_slice());
     if let Some(parent) = link.parent {
         let p_reduced = p + cols::<_, N>(&ws.gain[i]) * u;
-        let to_parent = ws.x_parent[i].apply_transpose_force(&p_reduced);
-        accumulate(&mut ws.p_scratch_body[parent], to_parent, ws.accumulation[i].opens_parent);
+        let opens = ws.accumulation[i].opens_parent;
+        match ws.accumulation[i].node {
+            Some(at) => child_wrench(model, &mut ws.flex, at, &p_reduced, opens),
+            None => {
+                let to_parent = ws.x_parent[i].apply_transpose_force(&p_reduced);
+                accumulate(&mut ws.p_scratch_body[parent], to_parent, opens);
+            }
+        }
     }
 }
 
@@ -82,29 +89,59 @@ pub(super) fn eps_of_torque<S: Real>(model: &Model, ws: &mut Workspace<S>, torqu
     inward_pass(model, ws, Direction::EpsFromTorque, torque, None, eps);
 }
 
+/// A child at a node hands wrench `f` (its frame) to the node's slot, in the node's frame.
+fn child_wrench<S: Real>(model: &Model, flex: &mut [FlexState<S>], at: NodeParent, f: &SpatialVec<S>, opens: bool) {
+    let (f_index, c, slot) = super::flexible::node_of(model, at);
+    let state = &mut flex[f_index];
+    accumulate(&mut state.child_scratch[slot], state.child_x[c].apply_transpose_force(f), opens);
+}
+
 /// T += Σ Jᵢᵀfᵢ, the joint forces of per-link wrenches `wrenches` (link
 /// coordinates, about the link origin): p_i = f_i + Σ_children Xᵀ p_c,
-/// T_i += S_iᵀ p_i. `p` holds each link's share from its children
-/// (set by the first child the pass reaches, so it needs no clearing).
+/// T_i += S_iᵀ p_i; a node carrying children takes their p_c and gives
+/// its modes Ψ_jᵀ p_j and its link X_jᵀ p_j. `p` holds each link's share
+/// from its children (set by the first child the pass reaches, so it needs
+/// no clearing).
 pub(crate) fn add_joint_forces_of_wrenches<S: Real>(
     model: &Model,
     x_parent: &[Transform<S>],
     accumulation: &[Accumulation],
+    flex: &mut [FlexState<S>],
     p: &mut [SpatialVec<S>],
     wrenches: &[SpatialVec<S>],
     torque: &mut [S],
 ) {
+    let flexible = !model.flexible.is_empty();
     for i in (0..model.links.len()).rev() {
         let link = &model.links[i];
+        if flexible {
+            for f in super::flexible::on_link(model, i) {
+                let (body, state) = (&model.flexible[f], &mut flex[f]);
+                let mut on_link = SpatialVec::zeros();
+                for r in (0..body.rotating.len()).filter(|&r| body.carries(r)) {
+                    let p_node = state.child_scratch[r];
+                    on_link += state.node_x[r].apply_transpose_force(&p_node);
+                    for k in 0..body.mode_count() {
+                        let column = SpatialVec::from_fn(|row, _| state.psi[r][(row, k)]);
+                        torque[body.dof_adr + k] += column.dot(&p_node);
+                    }
+                }
+                accumulate(&mut p[i], on_link, state.opens_link);
+            }
+        }
         let mut total = wrenches[i];
-        if accumulation[i].has_children {
+        if accumulation[i].gathers() {
             total += p[i];
         }
         for k in 0..link.ndof {
             torque[link.dof_adr + k] += real::<S, 6, 1>(&link.motion_subspace.column(k).into_owned()).dot(&total);
         }
-        if let Some(parent) = link.parent {
-            accumulate(&mut p[parent], x_parent[i].apply_transpose_force(&total), accumulation[i].opens_parent);
+        match (link.parent, accumulation[i].node) {
+            (_, Some(at)) => child_wrench(model, flex, at, &total, accumulation[i].opens_parent),
+            (Some(parent), None) => {
+                accumulate(&mut p[parent], x_parent[i].apply_transpose_force(&total), accumulation[i].opens_parent)
+            }
+            (None, None) => {}
         }
     }
 }

@@ -25,6 +25,7 @@ pub(crate) fn gravity_compensation_pass<S: Real>(model: &Model, ws: &mut Workspa
         model,
         &ws.x_parent,
         &ws.accumulation,
+        &mut ws.flex,
         &mut ws.p_scratch_body,
         &ws.gravcomp_wrench,
         ws.qfrc_gravcomp.as_mut_slice(),

@@ -37,10 +37,12 @@ impl Workspace {
             // The nodes' momentum about R: 𝓘_RR V_R + U η̇.
             let (adr, m) = (flexible.dof_adr, flexible.mode_count());
             let rate = self.qvel.rows(adr, m);
-            let h = state.rigid * self.v_body[flexible.link]
+            let mut h = state.rigid * self.v_body[flexible.link]
                 + SpatialVec::from_iterator(
                     (0..6).map(|row| (0..m).map(|k| state.coupling[(row, k)] * rate[k]).sum::<f64>()),
                 );
+            // 𝓘 holds the articulated inertias of the children at nodes, whose links count above.
+            h -= state.carried_momentum(flexible);
             total += self.x_world[flexible.link].apply_transpose_force(&h);
         }
         Ok(total)

@@ -388,7 +388,15 @@ impl<S: Real> Workspace<S> {
                 }
                 LinkJoint::Slide | LinkJoint::Translation => Quat::identity(),
             };
-            let parent = link.parent.map_or(Quat::identity(), |p| self.link_quats[p]);
+            let mut parent = link.parent.map_or(Quat::identity(), |p| self.link_quats[p]);
+            if let Some(at) = self.accumulation[i].node {
+                // A child at a node: the node's turn exp([Φʳ_j η]×) on its parent link.
+                let (f, _, slot) = crate::dynamics::flexible::node_of(model, at);
+                let flexible = &model.flexible[f];
+                let eta = &self.theta.as_slice()[flexible.qpos_adr..flexible.qpos_adr + flexible.mode_count()];
+                let (_, rho) = nodes::displacement(&flexible.modal, flexible.rotating[slot], eta);
+                parent *= Quat::from_scaled_axis(rho);
+            }
             let tree = real_quat::<S>(&model.link_tree_quats[i]);
             self.link_quats[i] = Quat::new_normalize((parent * tree * joint).into_inner());
         }

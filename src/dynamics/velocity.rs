@@ -20,20 +20,17 @@ pub enum Given {
     Qvel,
 }
 
-/// Pass 2 for one link with N dofs, whose parent's V is `v_parent`; returns its V.
+/// Pass 2 for one link with N dofs, whose V⁺ (its parent's V in its
+/// frame) is `v_plus`; returns its V.
 fn velocity_link<S: Real, const N: usize>(
     model: &Model,
     ws: &mut Workspace<S>,
     i: usize,
     given: Given,
-    v_parent: &SpatialVec<S>,
+    v_plus: SpatialVec<S>,
 ) -> SpatialVec<S> {
     let link = &model.links[i];
     let adr = link.dof_adr;
-    let v_plus = match link.parent {
-        Some(_) => ws.x_parent[i].apply_motion(v_parent),
-        None => SpatialVec::zeros(),
-    };
     let gain_t = cols::<_, N>(&ws.gain[i]).transpose();
     let gv: SVector<S, N> = gain_t * v_plus;
     let (w, qvel) = match given {
@@ -67,14 +64,16 @@ pub(crate) fn velocity_pass<S: Real>(model: &Model, ws: &mut Workspace<S>, given
     let mut v_previous = SpatialVec::zeros();
     let flexible = !model.flexible.is_empty();
     for i in 0..model.links.len() {
-        let v_parent = match model.links[i].parent {
-            Some(p) if p + 1 == i => v_previous,
-            Some(p) => ws.v_body[p],
-            None => SpatialVec::zeros(),
+        let v_plus = match (model.links[i].parent, ws.accumulation[i].node) {
+            // A child at a node: the node's V_j, in the link's frame.
+            (_, Some(at)) => super::flexible::child_velocity(model, ws, at),
+            (Some(p), None) if p + 1 == i => ws.x_parent[i].apply_motion(&v_previous),
+            (Some(p), None) => ws.x_parent[i].apply_motion(&ws.v_body[p]),
+            (None, None) => SpatialVec::zeros(),
         };
         v_previous = match model.links[i].ndof {
-            1 => velocity_link::<_, 1>(model, ws, i, given, &v_parent),
-            _ => velocity_link::<_, 3>(model, ws, i, given, &v_parent),
+            1 => velocity_link::<_, 1>(model, ws, i, given, v_plus),
+            _ => velocity_link::<_, 3>(model, ws, i, given, v_plus),
         };
         if flexible {
             super::flexible::velocities(model, ws, i, given == Given::Nu);

@@ -75,8 +75,9 @@ fn inertia_of<S: Real>(mass: S, c: &Vec3<S>, s: &Mat3<S>) -> SpatialMat<S> {
 }
 
 impl PointMasses {
-    /// The integrals of `body`'s nodes for which `is_point_mass` holds.
-    pub fn of(body: &ModalBody) -> PointMasses {
+    /// The integrals of `body`'s nodes other than those in `one_by_one`
+    /// (every node that is not a point mass, and those carrying a child body).
+    pub fn of(body: &ModalBody, one_by_one: &[usize]) -> PointMasses {
         let m = body.modes.len();
         let mut out = PointMasses {
             shape_moments: vec![Vec3::zeros(); m],
@@ -84,7 +85,7 @@ impl PointMasses {
             shape_shape: vec![Mat3::zeros(); m * m],
             ..PointMasses::default()
         };
-        for (j, node) in body.nodes.iter().enumerate().filter(|(j, _)| is_point_mass(body, *j)) {
+        for (j, node) in body.nodes.iter().enumerate().filter(|(j, _)| !one_by_one.contains(j)) {
             let (mass, r) = (node.mass, node.position);
             out.mass += mass;
             out.first_moment += r * mass;

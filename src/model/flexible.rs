@@ -28,15 +28,53 @@ pub struct FlexBody {
     pub rotating: Vec<usize>,
     /// The other nodes, point masses, summed in closed form.
     pub points: PointMasses,
+    /// The child bodies at nodes (docs/flexible.md, "Child bodies at
+    /// nodes"): their first links, whose parent frame is the node's.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub node_children: Vec<NodeChild>,
+    /// Per entry of `rotating`: whether some child body rides that node.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub carries: Vec<bool>,
+}
+
+/// A child body at a node: its first link, whose `x_tree` is relative to
+/// the node's frame, and the node it rides.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct NodeChild {
+    /// The child's first link (its parent is the flexible body's link).
+    pub link: usize,
+    /// The node, by index into `FlexBody::rotating` (a node carrying a
+    /// child is always taken one by one).
+    pub slot: usize,
 }
 
 impl FlexBody {
     /// The body `modal` (in its link's frame) on `link`, its coordinates at
-    /// `qpos_adr` and `dof_adr`.
-    pub(crate) fn new(link: usize, qpos_adr: usize, dof_adr: usize, modal: ModalBody) -> FlexBody {
-        let rotating = (0..modal.nodes.len()).filter(|&j| !is_point_mass(&modal, j)).collect();
-        let points = PointMasses::of(&modal);
-        FlexBody { link, qpos_adr, dof_adr, modal, rotating, points }
+    /// `qpos_adr` and `dof_adr`, carrying child bodies whose first links
+    /// ride nodes as `children` gives them (link, node index into `modal.nodes`).
+    pub(crate) fn new(
+        link: usize,
+        qpos_adr: usize,
+        dof_adr: usize,
+        modal: ModalBody,
+        children: &[(usize, usize)],
+    ) -> FlexBody {
+        // A node carrying a child is a full rigid node: the child's articulated
+        // inertia joins the node's, which the point-mass sums cannot hold.
+        let carried = |j: usize| children.iter().any(|&(_, node)| node == j);
+        let rotating: Vec<usize> =
+            (0..modal.nodes.len()).filter(|&j| !is_point_mass(&modal, j) || carried(j)).collect();
+        let points = PointMasses::of(&modal, &rotating);
+        let slot = |j: usize| rotating.iter().position(|&r| r == j).expect("a carrying node is taken one by one");
+        let node_children = children.iter().map(|&(link, node)| NodeChild { link, slot: slot(node) }).collect();
+        let carries = if children.is_empty() { Vec::new() } else { rotating.iter().map(|&j| carried(j)).collect() };
+        FlexBody { link, qpos_adr, dof_adr, modal, rotating, points, node_children, carries }
+    }
+
+    /// Whether the node in slot `r` of `rotating` carries a child body.
+    #[inline]
+    pub fn carries(&self, r: usize) -> bool {
+        self.carries.get(r).copied().unwrap_or(false)
     }
 
     /// Its number of modes m.

@@ -40,7 +40,7 @@ mod tendon;
 mod validate;
 pub use actuator::{Actuator, ActuatorTarget, ActuatorTransmission, DofForceLimit, NodeSite, SiteFrame};
 pub use constraint::{CompiledEquality, Constraints, DofFriction, EqualityRows, Limit, TendonFriction, TendonLimit};
-pub use flexible::FlexBody;
+pub use flexible::{FlexBody, NodeChild};
 pub use gravity_compensation::{CompensatedLink, GravityCompensation};
 pub use interaction::InteractionBodies;
 pub use sensor::{BodyMass, Sensor, SensorSource};
@@ -74,7 +74,9 @@ pub struct Link {
     /// Parent link; `None` for a link attached to the world.
     pub parent: Option<usize>,
     /// Fixed placement of the joint's inboard frame relative to the parent
-    /// link frame (or world).
+    /// link frame (or world); for the first link of a child body at a node
+    /// of a flexible body, relative to that node's frame
+    /// (`FlexBody::node_children`), which the modes move on the parent link.
     pub x_tree: Transform,
     /// The joint type.
     pub joint: LinkJoint,
@@ -327,14 +329,16 @@ pub enum ModelError {
         /// What the vehicle has that does not.
         feature: &'static str,
     },
-    /// A child body placed at a node of a flexible body that its modes
-    /// move: it would have to move with the node's deformation, which the
-    /// passes do not take in yet (docs/flexible.md, "Status"); fixed to the
-    /// undeformed frame it would move wrongly, so it is refused.
+    /// A child body without joints placed at a node of a flexible body
+    /// that its modes move: a child with a joint there rides the node, a
+    /// welded one would have to join the node's inertia, which is not built
+    /// (docs/flexible.md, "Status"); fixed to the undeformed frame it would
+    /// move wrongly, so it is refused.
     #[error(
-        "body '{body}' is flexible: its child '{child}' (line {line}) sits at its node '{node}', which its modes \
-         move, and child bodies at such nodes do not take modal degrees of freedom in yet (a child off every \
-         node, or at a node no mode moves, is fixed to the undeformed frame of '{body}')"
+        "body '{body}' is flexible: its child '{child}' (line {line}) is welded at its node '{node}', which its \
+         modes move; a child body rides a node through a joint of its own (give it one), and bodies welded at \
+         such nodes are not built (a child off every node, or at a node no mode moves, is fixed to the \
+         undeformed frame of '{body}')"
     )]
     FlexibleChildAtNode {
         /// The flexible body.
@@ -634,19 +638,29 @@ fn add_flexible_bodies(
         let moves = |j: usize| {
             modal.modes.iter().any(|mode| mode.translation[j] != Vec3::zeros() || mode.rotation[j] != Vec3::zeros())
         };
-        let at_node = |child: &crate::vehicle::Body| {
-            let j = (0..modal.nodes.len())
-                .find(|&j| (modal.nodes[j].position - child.pos).norm() <= NODE_SITE_DISTANCE && moves(j))?;
-            let node = &modal.nodes[j];
-            Some(ModelError::FlexibleChildAtNode {
-                body: modal.body.clone(),
-                child: child.name.clone(),
-                line: child.line,
-                node: node.name.clone(),
-            })
-        };
-        if let Some(error) = vehicle.bodies.iter().filter(|c| c.parent == Some(body)).find_map(at_node) {
-            return Err(error);
+        // Children at a node that some mode moves ride that node (their first
+        // link's parent frame is the node's); one welded there is refused.
+        let mut children = Vec::new();
+        for (c, child) in vehicle.bodies.iter().enumerate().filter(|(_, c)| c.parent == Some(body)) {
+            let Some(j) = (0..modal.nodes.len())
+                .find(|&j| (modal.nodes[j].position - child.pos).norm() <= NODE_SITE_DISTANCE && moves(j))
+            else {
+                continue;
+            };
+            if child.joints.is_empty() {
+                return Err(ModelError::FlexibleChildAtNode {
+                    body: modal.body.clone(),
+                    child: child.name.clone(),
+                    line: child.line,
+                    node: modal.nodes[j].name.clone(),
+                });
+            }
+            // The child's first link: up from its last while the parent is not the body's link.
+            let mut first = attachments[c].link.expect("a child with joints has links");
+            while let Some(p) = model.links[first].parent.filter(|&p| p != link) {
+                first = p;
+            }
+            children.push((first, j));
         }
         let unsupported = [
             (!model.tendons.is_empty(), "tendons"),
@@ -658,7 +672,13 @@ fn add_flexible_bodies(
             return Err(ModelError::FlexibleWith { body: modal.body.clone(), feature });
         }
         let modes = modal.modes.len();
-        model.flexible.push(FlexBody::new(link, model.nq, model.nv, flexible::on_link(modal, &at.offset)));
+        let on_link = flexible::on_link(modal, &at.offset);
+        for &(first, j) in &children {
+            // Relative to the undeformed node frame: R's axes, origin at the node.
+            let node_to_link = Transform::from_pose(&Mat3::identity(), &-on_link.nodes[j].position);
+            model.links[first].x_tree = model.links[first].x_tree.compose(&node_to_link);
+        }
+        model.flexible.push(FlexBody::new(link, model.nq, model.nv, on_link, &children));
         model.nq += modes;
         model.nv += modes;
         model.qpos0.extend(std::iter::repeat_n(0.0, modes));

@@ -10,7 +10,10 @@
 //! constant-velocity motion. A flexible body's nodes are rigid bodies placed
 //! by its modal coordinates (docs/flexible.md), their angular Jacobian
 //! columns taken by differences of the node's rotation (nalgebra's exp and
-//! log). Nothing here uses the spatial-operator code under test.
+//! log). A child body at a node of a flexible body (its `pos` within 1 µm
+//! of a node that some mode moves) hangs from that node's frame, and each
+//! modal coordinate moves it as the node's twist per unit rate.
+//! Nothing here uses the spatial-operator code under test.
 
 use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, Unit, UnitQuaternion, Vector3};
 use nudyn::flex::{ModalBody, Mode, Node};
@@ -40,6 +43,10 @@ pub struct Kinematics {
     dofs: Vec<DofMotion>,
     /// For each body, the dofs that move it (ancestors' and its own).
     pub body_dofs: Vec<Vec<usize>>,
+    /// For each body, the modal coordinates of the flexible ancestors whose
+    /// nodes carry it: (ν entry, angular velocity, velocity of `point`,
+    /// `point`), world, per unit rate.
+    pub node_twists: Vec<Vec<(usize, V3, V3, V3)>>,
 }
 
 pub fn nq_nv(vehicle: &Vehicle) -> (usize, usize) {
@@ -86,15 +93,37 @@ pub fn kinematics(vehicle: &Vehicle, theta: &[f64]) -> Kinematics {
         body_pos: Vec::with_capacity(n),
         dofs: Vec::new(),
         body_dofs: Vec::with_capacity(n),
+        node_twists: Vec::with_capacity(n),
     };
+    let (_, nv) = nq_nv(vehicle);
+    let flexible = flexible_bodies(vehicle);
     let mut qadr = 0;
     for body in &vehicle.bodies {
-        let (parent_rot, parent_pos, mut dofs) = match body.parent {
+        let (mut parent_rot, mut parent_pos, mut dofs) = match body.parent {
             Some(p) => (k.body_rot[p], k.body_pos[p], k.body_dofs[p].clone()),
             None => (M3::identity(), V3::zeros(), Vec::new()),
         };
+        let mut twists = body.parent.map_or_else(Vec::new, |p| k.node_twists[p].clone());
+        let mut offset = body.pos;
+        let carrier = body.parent.and_then(|p| flexible.iter().find(|f| f.0 == p));
+        if let Some(&(p, modal, qa, va)) = carrier {
+            let moves =
+                |j: usize| modal.modes.iter().any(|m| m.translation[j] != V3::zeros() || m.rotation[j] != V3::zeros());
+            let at = (0..modal.nodes.len()).find(|&j| (modal.nodes[j].position - body.pos).norm() <= 1e-6 && moves(j));
+            if let Some(j) = at {
+                let node = node_motion(&k, p, modal, &theta[qa..qa + modal.modes.len()], va, nv, j);
+                for c in 0..modal.modes.len() {
+                    let (w, v): (V3, V3) = (
+                        node.jw.fixed_view::<3, 1>(0, va + c).into_owned(),
+                        node.jv.fixed_view::<3, 1>(0, va + c).into_owned(),
+                    );
+                    twists.push((va + c, w, v, node.pos));
+                }
+                (parent_rot, parent_pos, offset) = (node.rot, node.pos, body.pos - modal.nodes[j].position);
+            }
+        }
         let mut rot = parent_rot * body.quat.to_rotation_matrix().into_inner();
-        let mut pos = parent_pos + parent_rot * body.pos;
+        let mut pos = parent_pos + parent_rot * offset;
         for joint in &body.joints {
             match joint.kind {
                 JointKind::Hinge => {
@@ -139,6 +168,7 @@ pub fn kinematics(vehicle: &Vehicle, theta: &[f64]) -> Kinematics {
         k.body_rot.push(rot);
         k.body_pos.push(pos);
         k.body_dofs.push(dofs);
+        k.node_twists.push(twists);
     }
     k
 }
@@ -155,6 +185,10 @@ pub fn point_jacobian(k: &Kinematics, body: usize, point: &V3, nv: usize) -> (DM
             }
             DofMotion::Translation { axis } => jv.fixed_view_mut::<3, 1>(0, d).copy_from(&axis),
         }
+    }
+    for &(d, w, v, at) in &k.node_twists[body] {
+        jw.fixed_view_mut::<3, 1>(0, d).copy_from(&w);
+        jv.fixed_view_mut::<3, 1>(0, d).copy_from(&(v + w.cross(&(point - at))));
     }
     (jw, jv)
 }
@@ -378,6 +412,39 @@ pub fn upper_factor(m: &DMatrix<f64>) -> DMatrix<f64> {
     flip(&l)
 }
 
+/// The ν entries in an order where every dof follows those that carry it:
+/// bodies in order, each body's joints' and then its modes' (which carry
+/// the children at its nodes, ahead in ν).
+pub fn tree_order(vehicle: &Vehicle) -> Vec<usize> {
+    let flexible = flexible_bodies(vehicle);
+    let mut order = Vec::new();
+    let mut va = 0;
+    for (b, body) in vehicle.bodies.iter().enumerate() {
+        let nv: usize = body.joints.iter().map(|j| j.kind.nv()).sum();
+        order.extend(va..va + nv);
+        va += nv;
+        if let Some(&(_, modal, _, modes)) = flexible.iter().find(|f| f.0 == b) {
+            order.extend(modes..modes + modal.modes.len());
+        }
+    }
+    order
+}
+
+/// The factor m of M (m mᵀ = M) upper triangular with a positive diagonal
+/// in [`tree_order`], given in ν's order.
+pub fn tree_factor(vehicle: &Vehicle, m: &DMatrix<f64>) -> DMatrix<f64> {
+    let order = tree_order(vehicle);
+    let n = m.nrows();
+    let factor = upper_factor(&DMatrix::from_fn(n, n, |r, c| m[(order[r], order[c])]));
+    let mut out = DMatrix::zeros(n, n);
+    for r in 0..n {
+        for c in 0..n {
+            out[(order[r], order[c])] = factor[(r, c)];
+        }
+    }
+    out
+}
+
 /// θ̈ from the dense equations: M θ̈ = T + τ_passive − h.
 pub fn forward_dynamics(vehicle: &Vehicle, theta: &[f64], qvel: &[f64], torque: &[f64]) -> DVector<f64> {
     let m = mass_matrix(vehicle, theta);
@@ -391,7 +458,7 @@ pub fn forward_dynamics(vehicle: &Vehicle, theta: &[f64], qvel: &[f64], torque: 
 pub fn nu_dot_reference(vehicle: &Vehicle, theta: &[f64], qvel: &[f64], torque: &[f64]) -> DVector<f64> {
     let u = DVector::from_column_slice(qvel);
     let qacc = forward_dynamics(vehicle, theta, qvel, torque);
-    let m_at = |s: f64| upper_factor(&mass_matrix(vehicle, &integrate_pos(vehicle, theta, qvel, s)));
+    let m_at = |s: f64| tree_factor(vehicle, &mass_matrix(vehicle, &integrate_pos(vehicle, theta, qvel, s)));
     let difference = |h: f64| central_difference(&m_at(h), &m_at(-h), &m_at(2.0 * h), &m_at(-2.0 * h), h);
     // Richardson's step on the O(h⁴) differences: the factor's square roots
     // make its higher derivatives large on badly conditioned trees, where
@@ -647,6 +714,50 @@ pub fn make_flexible(rng: &mut Rng, vehicle: &mut Vehicle, damped: bool) {
         vehicle.bodies[b].inertia = Some(modal.mass_properties());
         vehicle.flexible.push(modal);
     }
+}
+
+/// Places child bodies at nodes of `vehicle`'s flexible bodies: each child
+/// with joints of a flexible body moves onto one of its nodes (point masses
+/// and rotating nodes alike) with probability ¾, and when none did, a new
+/// child with a hinge, a ball or two joints hangs from a random node of the
+/// first flexible body. Returns how many children sit at nodes.
+pub fn attach_children_to_nodes(rng: &mut Rng, vehicle: &mut Vehicle) -> usize {
+    let mut attached = 0;
+    for modal in vehicle.flexible.iter().filter(|f| !f.modes.is_empty()) {
+        let b = vehicle.bodies.iter().position(|body| body.name == modal.body).unwrap();
+        for child in vehicle.bodies.iter_mut().filter(|c| c.parent == Some(b) && !c.joints.is_empty()) {
+            if rng.below(4) != 0 {
+                child.pos = modal.nodes[rng.below(modal.nodes.len())].position;
+                attached += 1;
+            }
+        }
+    }
+    if attached == 0 {
+        let Some(modal) = vehicle.flexible.iter().find(|f| !f.modes.is_empty()) else { return 0 };
+        let b = vehicle.bodies.iter().position(|body| body.name == modal.body).unwrap();
+        let n = vehicle.bodies.len();
+        let kinds: &[JointKind] = match rng.below(3) {
+            0 => &[JointKind::Hinge],
+            1 => &[JointKind::Ball],
+            _ => &[JointKind::Slide, JointKind::Hinge],
+        };
+        let joints = kinds.iter().enumerate().map(|(k, &kind)| joint(rng, format!("j{n}_{k}"), kind)).collect();
+        vehicle.bodies.push(Body {
+            name: format!("b{n}"),
+            parent: Some(b),
+            pos: modal.nodes[rng.below(modal.nodes.len())].position,
+            quat: rng.unit_quat(),
+            inertia: Some(random_mass(rng)),
+            inertial_pos: V3::zeros(),
+            inertial_quat: None,
+            mass_unknown: false,
+            joints,
+            gravcomp: 0.0,
+            line: 0,
+        });
+        attached = 1;
+    }
+    attached
 }
 
 /// max |a − b| / max(1, max |b|).

@@ -7,7 +7,9 @@
 //! - against the dense reference (`common`: the nodes as rigid bodies,
 //!   their Jacobians written out), on random trees with sites at nodes,
 //!   with and without reference sites: moment arms, length, velocity, T,
-//!   ε = m⁻¹T and ν̇ of the actuated vehicle;
+//!   ε = m⁻¹T and ν̇ of the actuated vehicle; also with child bodies at
+//!   nodes (docs/flexible.md, "Child bodies at nodes") carrying sites and
+//!   motors, whose wrenches reach the modes through their nodes;
 //! - by virtual work on the fixture `tests/fixtures/flex/bench_thruster.xml`:
 //!   T·δθ = F·δp + N·δφ for the site's pose moved along random tangent
 //!   directions δθ (central differences), F and N the gear's force and
@@ -33,6 +35,9 @@ struct SiteMotion {
     jw: DMatrix<f64>,
     jv: DMatrix<f64>,
     dofs: Vec<usize>,
+    /// The modal coordinates of the nodes that carry its body (their ν
+    /// entry and the node's origin), which move it as they move the node.
+    carried_by: Vec<(usize, V3)>,
 }
 
 fn site_motion(vehicle: &Vehicle, k: &Kinematics, theta: &[f64], site: usize) -> SiteMotion {
@@ -46,26 +51,30 @@ fn site_motion(vehicle: &Vehicle, k: &Kinematics, theta: &[f64], site: usize) ->
             jw: DMatrix::zeros(3, nv),
             jv: DMatrix::zeros(3, nv),
             dofs: Vec::new(),
+            carried_by: Vec::new(),
         };
     };
     let modal = vehicle.flexible.iter().find(|f| f.body == vehicle.bodies[b].name && !f.modes.is_empty());
+    let carried_by = k.node_twists[b].iter().map(|&(d, _, _, at)| (d, at)).collect();
     // The sites below are put exactly at nodes, or well away from them.
     match modal.and_then(|m| m.nodes.iter().position(|n| n.position == s.pos)) {
         Some(j) => {
             let node = node_at(vehicle, theta, b, j);
-            SiteMotion { rot: node.rot * local, pos: node.pos, jw: node.jw, jv: node.jv, dofs: k.body_dofs[b].clone() }
+            let dofs = k.body_dofs[b].clone();
+            SiteMotion { rot: node.rot * local, pos: node.pos, jw: node.jw, jv: node.jv, dofs, carried_by }
         }
         None => {
             let pos = k.body_pos[b] + k.body_rot[b] * s.pos;
             let (jw, jv) = point_jacobian(k, b, &pos, nv);
-            SiteMotion { rot: k.body_rot[b] * local, pos, jw, jv, dofs: k.body_dofs[b].clone() }
+            SiteMotion { rot: k.body_rot[b] * local, pos, jw, jv, dofs: k.body_dofs[b].clone(), carried_by }
         }
     }
 }
 
 /// A site transmission's length and moment arms (nv), as MuJoCo defines
 /// them, from the sites' Jacobians: Jᵀ(R g) at the site; with a reference
-/// site (J_s − J_r)ᵀ(R_r g) with the rigid dofs that move both cleared.
+/// site (J_s − J_r)ᵀ(R_r g) with the rigid dofs that move both cleared, and
+/// the modes of a node from which both hang.
 fn dense_transmission(vehicle: &Vehicle, theta: &[f64], actuator: &Actuator) -> (f64, DVector<f64>) {
     let k = kinematics(vehicle, theta);
     let g = &actuator.gear;
@@ -79,6 +88,10 @@ fn dense_transmission(vehicle: &Vehicle, theta: &[f64], actuator: &Actuator) -> 
             let mut arms = (&at.jv - &from.jv).transpose() * (from.rot * translation)
                 + (&at.jw - &from.jw).transpose() * (from.rot * rotation);
             for d in at.dofs.iter().filter(|d| from.dofs.contains(d)) {
+                arms[*d] = 0.0;
+            }
+            // So are the modes of a node that carries both (through child bodies).
+            for (d, _) in at.carried_by.iter().filter(|c| from.carried_by.contains(c)) {
                 arms[*d] = 0.0;
             }
             let turn =
@@ -97,11 +110,15 @@ fn motor(site: usize, refsite: Option<usize>, gear: [f64; 6]) -> Actuator {
 /// A random tree with flexible bodies, a site at every node of each (turned
 /// at random) and one on every rigid body, and motors on sites at nodes:
 /// alone, against a reference site on another body or the world, and
-/// against another node of the same body.
-fn actuated_at_nodes(rng: &mut Rng, free_base: bool, passive: bool) -> Vehicle {
+/// against another node of the same body. With `children_at_nodes`, child
+/// bodies hang from nodes, and the site of each has a motor of its own too.
+fn actuated_at_nodes(rng: &mut Rng, free_base: bool, passive: bool, children_at_nodes: bool) -> Vehicle {
     let bodies = 2 + rng.below(4);
     let mut vehicle = random_vehicle(rng, TreeOptions { bodies, free_base, passive, chain: false });
     common::make_flexible(rng, &mut vehicle, passive);
+    if children_at_nodes {
+        common::attach_children_to_nodes(rng, &mut vehicle);
+    }
     let mut node_sites: Vec<Vec<usize>> = Vec::new();
     for modal in vehicle.flexible.clone() {
         let body = vehicle.bodies.iter().position(|b| b.name == modal.body).unwrap();
@@ -126,6 +143,19 @@ fn actuated_at_nodes(rng: &mut Rng, free_base: bool, passive: bool) -> Vehicle {
         vehicle.sites.push(Site { name: None, body, pos, quat: rng.unit_quat(), line: 0 });
     }
     let gear = |rng: &mut Rng| std::array::from_fn(|_| rng.uniform(-2.0, 2.0));
+    if children_at_nodes {
+        // A motor alone on the site of each body that hangs from a node.
+        let at_node = |body: usize| {
+            let parent = vehicle.bodies[body].parent.map(|p| &vehicle.bodies[p].name);
+            let modal = vehicle.flexible.iter().find(|f| Some(&f.body) == parent);
+            modal.is_some_and(|m| m.nodes.iter().any(|n| n.position == vehicle.bodies[body].pos))
+        };
+        let carried: Vec<usize> = (0..vehicle.bodies.len()).filter(|&b| at_node(b)).map(|b| elsewhere[b]).collect();
+        assert!(!carried.is_empty());
+        for site in carried {
+            vehicle.actuators.push(motor(site, None, gear(rng)));
+        }
+    }
     for sites in &node_sites {
         for (n, &site) in sites.iter().enumerate() {
             vehicle.actuators.push(motor(site, None, gear(rng)));
@@ -141,10 +171,21 @@ fn actuated_at_nodes(rng: &mut Rng, free_base: bool, passive: bool) -> Vehicle {
 
 #[test]
 fn actuators_at_nodes_act_through_the_nodes_jacobians() {
-    let mut rng = Rng::new(4949);
+    check_against_the_dense_reference(4949, false);
+}
+
+/// With children at nodes: their sites' wrenches go through the nodes to
+/// the modes (and their velocities are the nodes' carried on).
+#[test]
+fn actuators_on_children_at_nodes_act_through_the_nodes_jacobians() {
+    check_against_the_dense_reference(4950, true);
+}
+
+fn check_against_the_dense_reference(seed: u64, children_at_nodes: bool) {
+    let mut rng = Rng::new(seed);
     for trial in 0..16 {
         let (free_base, passive) = (trial % 2 == 0, trial % 4 < 2);
-        let vehicle = actuated_at_nodes(&mut rng, free_base, passive);
+        let vehicle = actuated_at_nodes(&mut rng, free_base, passive, children_at_nodes);
         let model = Model::compile(&vehicle).unwrap();
         let theta = random_theta(&mut rng, &vehicle);
         let qvel = rng.vec(model.nv, 1.5);
@@ -156,10 +197,15 @@ fn actuators_at_nodes_act_through_the_nodes_jacobians() {
 
         let mut torque = DVector::zeros(model.nv);
         let mut row = vec![0.0; model.nv];
+        let mut moving_modes = 0;
         for (a, actuator) in vehicle.actuators.iter().enumerate() {
             let what = format!("trial {trial}, actuator {a} ({:?})", actuator.transmission);
             let (length, arms) = dense_transmission(&vehicle, &theta, actuator);
-            assert!(arms.rows(model.nv - common::modal_count(&vehicle), common::modal_count(&vehicle)).norm() > 1e-3);
+            // Every actuator moves the modes, but a pair of a node's site and
+            // a site of the child on that node whose modes do not turn it.
+            let modal_arms = arms.rows(model.nv - common::modal_count(&vehicle), common::modal_count(&vehicle)).norm();
+            assert!(children_at_nodes || modal_arms > 1e-3, "{what}: no modal arms");
+            moving_modes += usize::from(modal_arms > 1e-3);
             // The reference's node angular Jacobians are differences: 8.5e-11 at worst.
             let velocity = arms.dot(&DVector::from_column_slice(&qvel));
             assert!(
@@ -179,9 +225,10 @@ fn actuators_at_nodes_act_through_the_nodes_jacobians() {
             assert!(rel_err(&row, arms.as_slice()) < 1e-9, "{what}: moment arms {row:?} vs {arms}");
             torque += &arms * ctrl[a];
         }
+        assert!(2 * moving_modes > vehicle.actuators.len(), "trial {trial}: {moving_modes} actuators move the modes");
         assert!(rel_err(ws.qfrc_actuator.as_slice(), torque.as_slice()) < 1e-9, "trial {trial}: T");
-        let m = common::upper_factor(&common::mass_matrix(&vehicle, &theta));
-        let eps = m.solve_upper_triangular(&torque).unwrap();
+        let m = common::tree_factor(&vehicle, &common::mass_matrix(&vehicle, &theta));
+        let eps = m.lu().solve(&torque).unwrap();
         assert!(rel_err(ws.eps_actuator.as_slice(), eps.as_slice()) < 1e-9, "trial {trial}: eps = m⁻¹T");
         // ν̇ of the actuated vehicle (through the passes) against the dense equations under T.
         let zero = vec![0.0; model.nv];

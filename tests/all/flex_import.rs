@@ -74,32 +74,40 @@ fn a_flexible_body_welded_to_the_world_or_with_tendons_is_refused_at_compile() {
     assert!(error.to_string().contains("tendons do not take modal degrees of freedom in yet"), "{error}");
 }
 
-/// A child at a node that the modes move would have to move with the
-/// node's deformation, which the passes do not take in yet: refused, naming
-/// the body, the child and the node. A child elsewhere, or at a node no
-/// mode moves (bench.json's "root"), is fixed to the bench's frame, as
-/// documented; with no modes a child at the tip is the rigid vehicle's.
+/// A child with a joint at a node that the modes move rides that node
+/// (docs/flexible.md, "Child bodies at nodes"); one welded there is
+/// refused, naming the body, the child and the node. A child elsewhere, or
+/// at a node no mode moves (bench.json's "root"), is fixed to the bench's
+/// frame, as documented; with no modes a child at the tip is the rigid
+/// vehicle's.
 #[test]
-fn a_child_body_at_a_node_is_refused_at_compile() {
-    let child = |pos: &str| {
+fn a_child_body_at_a_node_rides_it_and_a_welded_one_is_refused() {
+    let child = |pos: &str, joint: &str| {
         format!(
-            "<body name=\"panel\" pos=\"{pos}\"><joint name=\"yoke\" axis=\"0 1 0\"/>\
+            "<body name=\"panel\" pos=\"{pos}\">{joint}\
              <inertial pos=\"0.2 0 0\" mass=\"1\" diaginertia=\"0.1 0.1 0.1\"/></body></body></body>"
         )
     };
-    let at_tip = |xml: String| xml.replacen("</body>\n    </body>", &child("1 0 0.0000005"), 1);
-    let error = Model::compile(&load_mjcf(&variant("child_at_node", at_tip, |j| j)).unwrap().vehicle).unwrap_err();
+    let hinge = "<joint name=\"yoke\" axis=\"0 1 0\"/>";
+    let at_tip = |xml: String| xml.replacen("</body>\n    </body>", &child("1 0 0.0000005", hinge), 1);
+    let model = Model::compile(&load_mjcf(&variant("child_at_node", at_tip, |j| j)).unwrap().vehicle).unwrap();
+    let yoke = model.links.iter().position(|l| l.joint_name == "yoke").unwrap();
+    let flexible = &model.flexible[0];
+    assert_eq!(flexible.node_children.len(), 1);
+    assert_eq!(flexible.node_children[0].link, yoke);
+    assert_eq!(flexible.modal.nodes[flexible.rotating[flexible.node_children[0].slot]].name, "tip");
+    let welded_at_tip = |xml: String| xml.replacen("</body>\n    </body>", &child("1 0 0.0000005", ""), 1);
+    let error =
+        Model::compile(&load_mjcf(&variant("welded_at_node", welded_at_tip, |j| j)).unwrap().vehicle).unwrap_err();
     let expected =
         ModelError::FlexibleChildAtNode { body: "bench".into(), child: "panel".into(), line: 18, node: "tip".into() };
     assert_eq!(error, expected);
-    assert!(
-        error.to_string().contains("child bodies at such nodes do not take modal degrees of freedom in yet"),
-        "{error}"
-    );
-    let beside_tip = |xml: String| xml.replacen("</body>\n    </body>", &child("1 0 0.00001"), 1);
-    Model::compile(&load_mjcf(&variant("child_beside_node", beside_tip, |j| j)).unwrap().vehicle).unwrap();
-    let at_root = |xml: String| xml.replacen("</body>\n    </body>", &child("0 0 0"), 1);
-    Model::compile(&load_mjcf(&variant("child_at_clamped_node", at_root, |j| j)).unwrap().vehicle).unwrap();
+    assert!(error.to_string().contains("is welded at its node 'tip'"), "{error}");
+    for (name, pos) in [("child_beside_node", "1 0 0.00001"), ("child_at_clamped_node", "0 0 0")] {
+        let elsewhere = |xml: String| xml.replacen("</body>\n    </body>", &child(pos, hinge), 1);
+        let model = Model::compile(&load_mjcf(&variant(name, elsewhere, |j| j)).unwrap().vehicle).unwrap();
+        assert!(model.flexible[0].node_children.is_empty(), "{name}");
+    }
     Model::compile(&load_mjcf(&variant("child_at_rigid_node", at_tip, no_modes)).unwrap().vehicle).unwrap();
 }
 

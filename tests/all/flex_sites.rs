@@ -144,3 +144,57 @@ fn a_site_at_a_node_rides_the_node_and_its_sensors_read_the_nodes_motion() {
         close("accelerometer", v3(middle, ACCELEROMETER), axes * v3(middle, LINACC));
     }
 }
+
+/// A child body at a node (docs/flexible.md, "Child bodies at nodes";
+/// fixture tests/fixtures/flex/bench_child.xml): the frame sensors on a site
+/// of the panel that hangs from the node "middle" on a hinge read the node's
+/// frame (the site "middle", placed by the node's own code) carried on
+/// through the hinge, by the rigid-body relations: orientation q_m·rot(a, φ),
+/// ω_m + q_m a φ̇, α_m + q_m a φ̈ + ω_m × q_m a φ̇, and the site's point
+/// velocity and acceleration about the node's origin.
+#[test]
+fn a_child_at_a_node_rides_the_node_and_its_sensors_read_its_motion() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/flex/bench_child.xml");
+    let model = Model::compile(&load_mjcf(&path).unwrap().vehicle).unwrap();
+    assert_eq!(model.flexible[0].node_children.len(), 1);
+    let (yoke_q, yoke_v) = (8, 7);
+    let axis = Vector3::new(0.0, 1.0, 0.0);
+    let on_panel = Vector3::new(0.3, 0.05, -0.02);
+    let mut rng = Rng::new(50);
+    for case in 0..4 {
+        let mut theta = model.qpos0.clone();
+        let q = UnitQuaternion::from_scaled_axis(rng.vec3(1.0));
+        theta[3..7].copy_from_slice(&[q.w, q.i, q.j, q.k]);
+        theta[7] = rng.uniform(-1.0, 1.0);
+        theta[yoke_q] = rng.uniform(-1.0, 1.0);
+        for k in 0..3 {
+            theta[9 + k] = rng.uniform(-0.1, 0.1);
+        }
+        let nu = rng.vec(model.nv, 0.8);
+        let mut ws = model.workspace();
+        ws.set_configuration(&model, &theta).unwrap();
+        ws.set_nu(&model, &nu).unwrap();
+        let zero = vec![0.0; model.nv];
+        ws.compute_sensors(&model, &zero, &[], 0.0).unwrap();
+        let s = ws.sensordata.as_slice();
+        let (rate, acceleration) = (ws.qvel[yoke_v], ws.qacc[yoke_v]);
+        assert!(rate.abs() > 1e-3 && acceleration.abs() > 1e-3, "case {case}: the hinge moves");
+        let (node_pos, node_quat) = (v3(s, 19), quat(s, 22));
+        let (node_vel, node_omega, node_acc, node_alpha) = (v3(s, 26), v3(s, 29), v3(s, 32), v3(s, 35));
+        let expected_quat = node_quat * UnitQuaternion::from_scaled_axis(axis * theta[yoke_q]);
+        assert!(quat(s, 3).angle_to(&expected_quat) < 1e-12, "case {case}: orientation");
+        let arm = expected_quat * on_panel;
+        let close = |what: &str, a: Vector3<f64>, b: Vector3<f64>| {
+            let err = (a - b).norm() / b.norm().max(1.0);
+            assert!(err < 1e-12, "case {case}: {what} {a:?} against {b:?} ({err:e})");
+        };
+        close("framepos", v3(s, 0), node_pos + arm);
+        let hinge = node_quat * axis;
+        let omega = node_omega + hinge * rate;
+        close("frameangvel", v3(s, 10), omega);
+        close("framelinvel", v3(s, 7), node_vel + omega.cross(&arm));
+        let alpha = node_alpha + hinge * acceleration + node_omega.cross(&(hinge * rate));
+        close("frameangacc", v3(s, 16), alpha);
+        close("framelinacc", v3(s, 13), node_acc + alpha.cross(&arm) + omega.cross(&omega.cross(&arm)));
+    }
+}
