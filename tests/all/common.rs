@@ -533,6 +533,24 @@ impl Rng {
     }
 }
 
+/// A body at `pos` in its parent with `joints`, turned and weighted at
+/// random (its orientation, then its mass properties, drawn in that order).
+fn random_body(rng: &mut Rng, name: String, parent: Option<usize>, pos: V3, joints: Vec<Joint>) -> Body {
+    Body {
+        name,
+        parent,
+        pos,
+        quat: rng.unit_quat(),
+        inertia: Some(random_mass(rng)),
+        inertial_pos: V3::zeros(),
+        inertial_quat: None,
+        mass_unknown: false,
+        joints,
+        gravcomp: 0.0,
+        line: 0,
+    }
+}
+
 /// Full, off-centre mass properties: principal moments that satisfy the
 /// triangle inequality, rotated to random axes.
 pub fn random_mass(rng: &mut Rng) -> MassProperties {
@@ -611,19 +629,8 @@ pub fn random_vehicle(rng: &mut Rng, opts: TreeOptions) -> Vehicle {
                 joints.push(j);
             }
         }
-        let mut body = Body {
-            name: format!("b{b}"),
-            parent,
-            pos: rng.vec3(0.5),
-            quat: rng.unit_quat(),
-            inertia: Some(random_mass(rng)),
-            inertial_pos: V3::zeros(),
-            inertial_quat: None,
-            mass_unknown: false,
-            joints,
-            gravcomp: 0.0,
-            line: 0,
-        };
+        let pos = rng.vec3(0.5);
+        let mut body = random_body(rng, format!("b{b}"), parent, pos, joints);
         if b == 0 && opts.free_base {
             if opts.passive {
                 body.joints[0].stiffness = rng.uniform(0.0, 5.0);
@@ -742,19 +749,8 @@ pub fn attach_children_to_nodes(rng: &mut Rng, vehicle: &mut Vehicle) -> usize {
             _ => &[JointKind::Slide, JointKind::Hinge],
         };
         let joints = kinds.iter().enumerate().map(|(k, &kind)| joint(rng, format!("j{n}_{k}"), kind)).collect();
-        vehicle.bodies.push(Body {
-            name: format!("b{n}"),
-            parent: Some(b),
-            pos: modal.nodes[rng.below(modal.nodes.len())].position,
-            quat: rng.unit_quat(),
-            inertia: Some(random_mass(rng)),
-            inertial_pos: V3::zeros(),
-            inertial_quat: None,
-            mass_unknown: false,
-            joints,
-            gravcomp: 0.0,
-            line: 0,
-        });
+        let pos = modal.nodes[rng.below(modal.nodes.len())].position;
+        vehicle.bodies.push(random_body(rng, format!("b{n}"), Some(b), pos, joints));
         attached = 1;
     }
     attached
