@@ -33,7 +33,7 @@ pub(crate) const COMMON_ATTRIBUTES: &[Attribute<ActuatorSettings>] = &[
     Attribute::checked("interp", |e, a| e.keyword(a, &[("zoh", ()), ("linear", ()), ("cubic", ())]).map(drop)),
     Attribute::into("delay", |s, e, a| set(&mut s.delay, e.number(a)?)),
     Attribute::into("ctrllimited", |s, e, a| set(&mut s.ctrllimited, e.keyword(a, &LIMITED)?)),
-    Attribute::into("ctrlrange", read_ctrl_range),
+    Attribute::into("ctrlrange", |s, e, a| set(&mut s.ctrlrange, e.numbers(a)?)),
     Attribute::into("forcelimited", |s, e, a| set(&mut s.forcelimited, e.keyword(a, &LIMITED)?)),
     Attribute::into("forcerange", |s, e, a| set(&mut s.forcerange, e.numbers(a)?)),
     Attribute::checked("lengthrange", |e, a| e.numbers::<2>(a).map(drop)),
@@ -46,11 +46,6 @@ pub(crate) const COMMON_ATTRIBUTES: &[Attribute<ActuatorSettings>] = &[
 
 /// The keywords of `ctrllimited`, `forcelimited` and `actlimited`.
 const LIMITED: [(&str, Limited); 3] = [("false", Limited::No), ("true", Limited::Yes), ("auto", Limited::Auto)];
-
-/// `ctrlrange`.
-fn read_ctrl_range(settings: &mut ActuatorSettings, element: &Element, attribute: &str) -> Result<(), MjcfError> {
-    set(&mut settings.ctrlrange, element.numbers(attribute)?)
-}
 
 /// Attributes that only `<general>` has, besides the common ones; it
 /// overwrites only those it gives. `ffrange` and `velrange` are read for

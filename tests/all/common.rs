@@ -756,7 +756,6 @@ pub fn attach_children_to_nodes(rng: &mut Rng, vehicle: &mut Vehicle) -> usize {
     attached
 }
 
-/// max |a − b| / max(1, max |b|).
 /// A motor (gain 1, no bias, no ranges) on `transmission` with `gear`.
 pub fn motor(transmission: Transmission, gear: [f64; 6]) -> Actuator {
     Actuator {
@@ -776,6 +775,7 @@ pub fn motor(transmission: Transmission, gear: [f64; 6]) -> Actuator {
     }
 }
 
+/// max |a − b| / max(1, max |b|).
 pub fn rel_err(a: &[f64], b: &[f64]) -> f64 {
     assert_eq!(a.len(), b.len(), "length mismatch");
     let scale = b.iter().fold(1.0f64, |m, x| m.max(x.abs()));
