@@ -11,8 +11,9 @@
 # crate, or a link, at a time), so the venv's installation, the win64
 # cross-build and the fuzz targets' sanitizer build (separate target
 # folders) run beside clippy and the main build. The Python tests run on
-# every core (pytest-xdist, a test file per worker), and so do the fuzz
-# targets. Each stage's time is printed at the end.
+# every core (pytest-xdist, a test file per worker); the memory checks and
+# the fuzz targets run beside them at low priority, on the time the tests
+# spend waiting for their subprocesses. Each stage's time is printed at the end.
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -66,9 +67,11 @@ stop_background() {
 }
 trap stop_background EXIT
 
-# Waits for a background stage; prints its log and fails if it failed.
+# Waits for a background stage; prints its log's last LINES lines (3 unless
+# given) and fails if it failed:
+#   finish NAME [LINES]
 finish() {
-    local name=$1 status=0
+    local name=$1 lines=${2:-3} status=0
     wait "${PIDS[$name]}" || status=$?
     unset "PIDS[$name]"
     if [ "$status" -ne 0 ]; then
@@ -76,7 +79,7 @@ finish() {
         echo "test.sh: $name failed (exit $status)" >&2
         exit "$status"
     fi
-    tail -n 3 "$LOGS/$name.log"
+    tail -n "$lines" "$LOGS/$name.log"
     # Its CPU time was written when it ended.
     TIMES+=("$(printf '%5d s %5d s CPU  %s (in the background)' $(($(stat -c %Y "$LOGS/$name.cpu") - STARTED[$name])) \
         "$(cpu_seconds "$LOGS/$name.cpu")" "$name")")
@@ -132,14 +135,19 @@ finish build-windows
 # The wheel (both platforms' binaries): tests/python/test_wheel.py installs it.
 stage wheel bash scripts/build-wheel.sh
 
+# Valgrind and the fuzz targets (a fixed number of inputs each, not a time:
+# scripts/stress-fmu.sh) at low priority, beside the Python tests: they need
+# no core the tests use, and take the ones the tests leave idle.
+finish build-fuzz
+background stress-fmu nice bash scripts/stress-fmu.sh
+
 # NUDYN_FMU_LIB: the FMU library just built (the tests' fixture would
 # otherwise build it again for nudyn-fmu alone, with other features).
 stage "Python tests" env NUDYN_BIN=target/release/nudyn NUDYN_FMU_LIB="$ROOT/target/release/libnudyn_fmu.so" \
     .venv/bin/python -m pytest tests/python -q --durations=25 --numprocesses auto --dist loadfile \
     --no-loadscope-reorder
 
-finish build-fuzz
-stage "valgrind and fuzzing" bash scripts/stress-fmu.sh
+finish stress-fmu 20
 
 times >"$LOGS/cpu.txt"
 echo "test.sh: ok; times (wall, CPU):"
