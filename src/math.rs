@@ -330,6 +330,20 @@ pub fn quat_from_wxyz<S: Real>(q: &[S]) -> nalgebra::Quaternion<S> {
     nalgebra::Quaternion::new(q[0], q[1], q[2], q[3])
 }
 
+/// The unit quaternion of the turn by the rotation vector `rho`, exp(ρ/2).
+/// nalgebra's `from_scaled_axis` is a constant identity for |ρ/2| ≤ ε, which
+/// in dual numbers loses the derivative at ρ = 0 (a flexible body's modes at
+/// rest); there its first-order form (1, ρ/2), the identity to within ε², keeps it.
+#[inline]
+pub fn quat_from_rotation_vector<S: Real>(rho: Vec3<S>) -> Quat<S> {
+    let half = rho * S::from(0.5);
+    if half.norm_squared().value() <= f64::EPSILON * f64::EPSILON {
+        Quat::new_unchecked(nalgebra::Quaternion::from_parts(S::one(), half))
+    } else {
+        Quat::from_scaled_axis(rho)
+    }
+}
+
 /// Scales the (w, x, y, z) quaternion `q[..4]` to unit length in place and
 /// returns its norm before; `None`, and `q` untouched, when it is zero.
 ///

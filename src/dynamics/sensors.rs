@@ -20,7 +20,8 @@ use super::constraint::RowKind;
 use super::{DynamicsError, require};
 use crate::flex::nodes;
 use crate::math::{
-    Mat3, Quat, Real, SpatialVec, Transform, Vec3, angular, cross_motion, linear, quat_from_wxyz, real, sum,
+    Mat3, Quat, Real, SpatialVec, Transform, Vec3, angular, cross_motion, linear, quat_from_rotation_vector,
+    quat_from_wxyz, real, sum,
 };
 use crate::model::{LinkJoint, Model, SensorSource, SiteFrame};
 use crate::vehicle::SensorKind;
@@ -370,7 +371,7 @@ impl<S: Real> Workspace<S> {
                 let flexible = &model.flexible[at.flexible];
                 let eta = &self.theta.as_slice()[flexible.qpos_adr..flexible.qpos_adr + flexible.mode_count()];
                 let (_, rho) = nodes::displacement(&flexible.modal, at.node, eta);
-                self.link_quats[link] * Quat::from_scaled_axis(rho) * in_link
+                self.link_quats[link] * quat_from_rotation_vector(rho) * in_link
             }
         }
     }
@@ -395,7 +396,7 @@ impl<S: Real> Workspace<S> {
                 let flexible = &model.flexible[f];
                 let eta = &self.theta.as_slice()[flexible.qpos_adr..flexible.qpos_adr + flexible.mode_count()];
                 let (_, rho) = nodes::displacement(&flexible.modal, flexible.rotating[slot], eta);
-                parent *= Quat::from_scaled_axis(rho);
+                parent *= quat_from_rotation_vector(rho);
             }
             let tree = real_quat::<S>(&model.link_tree_quats[i]);
             self.link_quats[i] = Quat::new_normalize((parent * tree * joint).into_inner());

@@ -485,6 +485,22 @@ fn sensor_jacobians_agree_with_central_differences_of_the_sensors() {
     }
 }
 
+/// At the file's pose the modal coordinates are 0, where nalgebra's
+/// exponential of a rotation vector is a constant identity: the readings of
+/// sites at nodes, and of a body hanging from a node, still have their
+/// derivatives in η there.
+#[test]
+fn sensor_jacobians_at_rest_of_the_modes_agree_with_central_differences() {
+    let outputs = [(Given::Qvel, Output::Sensordata), (Given::Nu, Output::Sensordata)];
+    for path in ["tests/fixtures/flex/bench_sensors.xml", "tests/fixtures/flex/bench_child.xml"] {
+        let case = file_case_at(path, 1, |_, _, model| model.qpos0.clone());
+        assert!(
+            case.model.flexible.iter().all(|f| case.theta[f.qpos_adr..][..f.mode_count()].iter().all(|e| *e == 0.0))
+        );
+        assert_outputs_agree_with_differences(&case, &format!("{path} at qpos0"), &outputs, 1e-7);
+    }
+}
+
 fn assert_sensor_values_are_the_f64_sensors(case: &Case, label: &str) {
     let model = &case.model;
     let (zeros, no_ctrl) = (vec![0.0; model.nv], vec![0.0; model.actuators.len()]);
