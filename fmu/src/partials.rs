@@ -68,6 +68,8 @@ pub struct Partials {
     nu_dot: Vec<f64>,
     /// The sensors' derivatives along the last direction, when an unknown is one.
     sensordata: Vec<f64>,
+    /// The momentum's derivative along the last direction, when an unknown is one of it.
+    momentum: [f64; 6],
 }
 
 impl Partials {
@@ -85,6 +87,7 @@ impl Partials {
             qvel: Vec::new(),
             nu_dot: Vec::new(),
             sensordata: Vec::new(),
+            momentum: [0.0; 6],
         }
     }
 
@@ -99,8 +102,8 @@ impl Partials {
         sensitivity: &mut [f64],
     ) -> Result<(), CallError> {
         let (unknowns, knowns) = classify_both(at.layout, unknowns, knowns)?;
-        let sensors = reads_sensors(&unknowns);
-        self.run(at, knowns.iter().copied().zip(seed.iter().copied()), sensors)?;
+        let reads = Reads::of(&unknowns);
+        self.run(at, knowns.iter().copied().zip(seed.iter().copied()), reads)?;
         for (out, &variable) in sensitivity.iter_mut().zip(&unknowns) {
             *out = self.derivative(at, variable);
         }
@@ -118,9 +121,9 @@ impl Partials {
         sensitivity: &mut [f64],
     ) -> Result<(), CallError> {
         let (unknowns, knowns) = classify_both(at.layout, unknowns, knowns)?;
-        let sensors = reads_sensors(&unknowns);
+        let reads = Reads::of(&unknowns);
         for (out, &variable) in sensitivity.iter_mut().zip(&knowns) {
-            self.run(at, [(variable, 1.0)].into_iter(), sensors)?;
+            self.run(at, [(variable, 1.0)].into_iter(), reads)?;
             *out = unknowns.iter().zip(seed).map(|(&u, s)| s * self.derivative(at, u)).sum();
         }
         Ok(())
@@ -132,12 +135,12 @@ impl Partials {
     }
 
     /// Runs the passes at `at` along the direction of the (known, seed)
-    /// pairs, and the sensors' too when `sensors`.
+    /// pairs, and the sensors and the momentum too where `reads` says.
     fn run(
         &mut self,
         at: &At,
         direction: impl Iterator<Item = (RealVariable, f64)>,
-        sensors: bool,
+        reads: Reads,
     ) -> Result<(), CallError> {
         let derivatives = self.derivatives.as_mut().map_err(|why| CallError::NoPartials(why.clone()))?;
         let model = at.model;
@@ -195,8 +198,15 @@ impl Partials {
             ctrl: &self.ctrl,
             act: &self.act,
         };
-        let outputs: &[Output] = if sensors { &[Output::NuDot, Output::Sensordata] } else { &[Output::NuDot] };
-        derivatives.run(at.model, &point, &direction, outputs).map_err(|error| match error {
+        let mut outputs = [Output::NuDot; 3];
+        let mut count = 1;
+        for (read, output) in [(reads.sensors, Output::Sensordata), (reads.momentum, Output::Momentum)] {
+            if read {
+                outputs[count] = output;
+                count += 1;
+            }
+        }
+        derivatives.run(at.model, &point, &direction, &outputs[..count]).map_err(|error| match error {
             DerivativeError::Dynamics(error) => CallError::Evaluate(error),
             DerivativeError::OnSwitch(switches) => CallError::OneSided(switches),
             other => unreachable!("the directions are sized by the model: {other}"),
@@ -216,7 +226,16 @@ impl Partials {
                 value,
             }));
         }
-        if sensors {
+        if reads.momentum {
+            for (out, d) in self.momentum.iter_mut().zip(derivatives.derivative(Output::Momentum)) {
+                *out = d;
+            }
+            if let Some((index, &value)) = self.momentum.iter().enumerate().find(|(_, d)| !d.is_finite()) {
+                let what = "the derivative of momentum";
+                return Err(CallError::Evaluate(DynamicsError::NonFinite { what, index, value }));
+            }
+        }
+        if reads.sensors {
             for (out, d) in self.sensordata.iter_mut().zip(derivatives.derivative(Output::Sensordata)) {
                 *out = d;
             }
@@ -247,14 +266,27 @@ impl Partials {
             }
             RealVariable::QfrcConstraint(k) => derivatives.qfrc_constraint_derivative(k),
             RealVariable::Sensordata(k) => self.sensordata[k],
+            RealVariable::Momentum(k) => self.momentum[k],
+            RealVariable::ModalStrainEnergy => at.model.strain_energy_derivative(at.theta, &self.theta),
             other => unreachable!("{other:?} is not an unknown: classified before"),
         }
     }
 }
 
-/// Whether some of `unknowns` is a sensor's reading.
-fn reads_sensors(unknowns: &[RealVariable]) -> bool {
-    unknowns.iter().any(|u| matches!(u, RealVariable::Sensordata(_)))
+/// Which outputs beyond θ̇ and ν̇ a run computes: those some unknown is an entry of.
+#[derive(Clone, Copy)]
+struct Reads {
+    sensors: bool,
+    momentum: bool,
+}
+
+impl Reads {
+    fn of(unknowns: &[RealVariable]) -> Self {
+        Reads {
+            sensors: unknowns.iter().any(|u| matches!(u, RealVariable::Sensordata(_))),
+            momentum: unknowns.iter().any(|u| matches!(u, RealVariable::Momentum(_))),
+        }
+    }
 }
 
 /// The unknowns' and the knowns' variables, each checked for its role.
@@ -306,6 +338,8 @@ impl Role {
                     | DerNu(_)
                     | KineticEnergy
                     | Power
+                    | Momentum(_)
+                    | ModalStrainEnergy
                     | QfrcConstraint(_)
             ),
         }
@@ -318,7 +352,7 @@ impl Role {
             }
             Role::Unknown => {
                 "an unknown of the partial derivatives (the outputs theta, nu, act, sensordata, qvel, \
-                 kinetic_energy, power, qfrc_constraint and the state derivatives)"
+                 kinetic_energy, power, momentum, modal_strain_energy, qfrc_constraint and the state derivatives)"
             }
         }
     }

@@ -144,6 +144,9 @@ pub enum Output {
     Sensordata,
     /// The activation states' rates (na): MuJoCo's act_dot.
     ActDot,
+    /// The vehicle's spatial momentum (6: angular about the world origin,
+    /// then linear, in world axes), [`Workspace::momentum`]'s.
+    Momentum,
 }
 
 impl Output {
@@ -152,6 +155,7 @@ impl Output {
         match self {
             Output::Sensordata => model.sensors.iter().map(|s| s.dim()).sum(),
             Output::ActDot => model.activation_count(),
+            Output::Momentum => 6,
             _ => model.nv,
         }
     }
@@ -221,6 +225,8 @@ struct Passes {
     qacc_current: bool,
     /// Whether the last run read the sensors.
     sensors_current: bool,
+    /// The momentum, when the last run was asked for it.
+    momentum: Option<[Dual64; 6]>,
 }
 
 impl Passes {
@@ -235,6 +241,7 @@ impl Passes {
             theta_rates: vec![0.0; model.nq],
             qacc_current: false,
             sensors_current: false,
+            momentum: None,
         }
     }
 
@@ -248,7 +255,7 @@ impl Passes {
         outputs: &[Output],
         switches: &mut Switches,
     ) -> Result<(), DerivativeError> {
-        (self.qacc_current, self.sensors_current) = (false, false);
+        (self.qacc_current, self.sensors_current, self.momentum) = (false, false, None);
         theta_rates(model, point.theta, direction, &mut self.theta_rates);
         let ws = &mut self.ws;
         seed(ws.theta.as_mut_slice(), point.theta, &self.theta_rates);
@@ -268,6 +275,9 @@ impl Passes {
             ws.tendon_velocities(model);
         }
         ws.stage = Stage::Velocity;
+        if outputs.contains(&Output::Momentum) {
+            self.momentum = Some(ws.momentum(model)?.into());
+        }
         seed(&mut self.eps, point.eps, direction.eps);
         // The FMU's knowns hold no joint forces: no inward pass for a zero T.
         if point.torque.iter().chain(direction.torque).any(|&t| t != 0.0) {
@@ -330,6 +340,7 @@ impl Passes {
             Output::NuDot => self.ws.stage == Stage::Acceleration,
             Output::Qacc => self.qacc_current,
             Output::Sensordata => self.sensors_current,
+            Output::Momentum => self.momentum.is_some(),
         };
         assert!(computed, "{output:?} was not asked of the last run");
         match output {
@@ -339,6 +350,7 @@ impl Passes {
             Output::Qacc => self.ws.qacc.as_slice(),
             Output::Sensordata => self.ws.sensordata.as_slice(),
             Output::ActDot => self.ws.act_dot.as_slice(),
+            Output::Momentum => self.momentum.as_ref().expect("checked above"),
         }
     }
 }

@@ -1,7 +1,7 @@
 //! Kinetic energy, power and the vehicle's spatial momentum.
 
 use super::{DynamicsError, require};
-use crate::math::SpatialVec;
+use crate::math::{Real, SpatialVec};
 use crate::model::Model;
 use crate::workspace::{Stage, Workspace};
 
@@ -20,11 +20,13 @@ impl Workspace {
     pub fn power(&self, eps: &[f64]) -> f64 {
         self.nu.iter().zip(eps).map(|(n, e)| n * e).sum()
     }
+}
 
+impl<S: Real> Workspace<S> {
     /// Spatial momentum of all bodies and flexible bodies' nodes (angular
     /// about the world origin, then linear), in world coordinates. Armature is rotor inertia, not body
     /// momentum, so it is not included (as in MuJoCo).
-    pub fn momentum(&mut self, model: &Model) -> Result<SpatialVec, DynamicsError> {
+    pub fn momentum(&mut self, model: &Model) -> Result<SpatialVec<S>, DynamicsError> {
         require(self, Stage::Velocity, "momentum")?;
         self.world_transforms(model);
         let mut total = SpatialVec::zeros();
@@ -39,7 +41,7 @@ impl Workspace {
             let rate = self.qvel.rows(adr, m);
             let mut h = state.rigid * self.v_body[flexible.link]
                 + SpatialVec::from_iterator(
-                    (0..6).map(|row| (0..m).map(|k| state.coupling[(row, k)] * rate[k]).sum::<f64>()),
+                    (0..6).map(|row| (0..m).map(|k| state.coupling[(row, k)] * rate[k]).fold(S::zero(), |a, b| a + b)),
                 );
             // 𝓘 holds the articulated inertias of the children at nodes, whose links count above.
             h -= state.carried_momentum(flexible);

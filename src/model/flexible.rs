@@ -137,4 +137,18 @@ impl super::Model {
             })
             .sum()
     }
+
+    /// The strain energy's derivative at `theta` along `direction` (both nq,
+    /// θ's coordinates): Σ ω² η δη.
+    pub fn strain_energy_derivative(&self, theta: &[f64], direction: &[f64]) -> f64 {
+        self.flexible
+            .iter()
+            .flat_map(|flexible| {
+                (0..flexible.mode_count()).map(|k| {
+                    let at = flexible.qpos_adr + k;
+                    flexible.stiffness(k) * theta[at] * direction[at]
+                })
+            })
+            .sum()
+    }
 }

@@ -162,6 +162,7 @@ fn evaluate_on(model: &Model, ws: &mut Workspace, point: &Point, output: Output)
             ws.sensordata.as_slice().to_vec()
         }
         Output::ActDot => ws.act_dot.as_slice().to_vec(),
+        Output::Momentum => ws.momentum(model).unwrap().as_slice().to_vec(),
         other => unreachable!("{other:?} is given, not evaluated"),
     }
 }
@@ -340,6 +341,21 @@ fn jacobians_of_flexible_vehicles_agree_with_central_differences_of_the_passes()
         let case = flexible_case(seed, seed % 2 == 0, seed % 4 < 2, true);
         assert!(!case.model.flexible.is_empty());
         assert_agrees_with_differences(&case, &format!("flexible, seed {seed}"), 1e-8);
+    }
+}
+
+/// The vehicle's spatial momentum, an output of the FMU, on rigid trees,
+/// flexible bodies and children at their nodes.
+#[test]
+fn momentum_jacobians_agree_with_central_differences() {
+    let outputs = [(Given::Qvel, Output::Momentum), (Given::Nu, Output::Momentum)];
+    for seed in 0..12 {
+        let case = match seed % 3 {
+            0 => case(seed, seed % 2 == 0),
+            1 => flexible_case(seed, seed % 2 == 0, true, true),
+            _ => with_children(seed, seed % 2 == 0, true, true, true),
+        };
+        assert_outputs_agree_with_differences(&case, &format!("momentum, seed {seed}"), &outputs, 1e-8);
     }
 }
 

@@ -37,9 +37,9 @@ def unzipped(exported_fmu, tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def unzipped_fmi3(exported_fmu, tmp_path_factory):
-    """servicer's FMI 3.0 plant and controller, unzipped. The plant has the
-    momentum output, whose derivative is not computed, so that it provides
-    no partial derivatives (fmi3_misuse's refusals before any argument)."""
+    """servicer's FMI 3.0 plant (with the momentum output) and controller,
+    unzipped. The controller provides no partial derivatives
+    (fmi3_misuse's refusals before any argument); the plant does."""
     directory = tmp_path_factory.mktemp("misuse3")
     made = []
     for name, controller in (("plant", False), ("controller", True)):

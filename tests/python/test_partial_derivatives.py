@@ -11,8 +11,10 @@ with respect to θ (along its coordinates), ν and ε equal central
 differences of the same FMU's values, moved through fmi2SetContinuousStates
 (model exchange) or the initial state (co-simulation's initialization
 mode); the adjoint is the transpose of the directional derivative; an FMU
-the derivatives do not cover (one with the momentum output) declares none
-and refuses the call, naming what is missing. Constrained vehicles,
+the derivatives do not cover (one with the energy residual, a record of
+its integration) declares none and refuses the call, naming what is
+missing. The outputs include the momentum, and the flexible bench's modal
+strain energy. Constrained vehicles,
 tests/fixtures/actuators/kinds.xml (every actuator kind, ctrl a known)
 and tests/fixtures/sensors/every_sensor.xml (its sensors among the
 unknowns) too; the docked servicer's force, torque and limit sensors in
@@ -70,7 +72,7 @@ DOCKED = ROOT / "tests" / "fixtures" / "constraints" / "docked_servicer.xml"
 # STEP, 2e-10 at 1e-6 on slider_hand), and ε reaches ν̇ through the
 # constraint forces, not as the identity.
 CONSTRAINED = {"slider_hand", "refsafe_off", "kinds", "docked_servicer"}
-OUTPUTS = ("qvel", "kinetic_energy", "power")
+OUTPUTS = ("qvel", "kinetic_energy", "power", "momentum")
 # Central differences' step; with it the exact derivatives are within
 # 2e-8 relative of them on bus_arm7 and 2e-9 on springdamper (measured).
 STEP = 1e-5
@@ -79,7 +81,10 @@ STEP = 1e-5
 @pytest.fixture(scope="module")
 def fmus(cli, tmp_path_factory):
     directory = tmp_path_factory.mktemp("partials")
-    return {(name, version): cli.export(path, directory / f"{name}{version}.fmu", outputs=OUTPUTS,
+    def outputs(name):
+        return OUTPUTS + (("modal_strain_energy",) if name == "bench_vehicle" else ())
+
+    return {(name, version): cli.export(path, directory / f"{name}{version}.fmu", outputs=outputs(name),
                                         fmi_version=version)
             for name, path in MODELS.items() for version in (2, 3)}
 
@@ -106,8 +111,10 @@ class Names:
         self.states = self.theta + self.nu + self.act
         self.knowns = self.states + self.eps + self.ctrl
         self.sensordata = package.names("sensordata")
+        self.momentum = package.names("momentum")
+        self.scalars = [name for name in ("kinetic_energy", "power", "modal_strain_energy") if name in package.vr]
         self.unknowns = ([f"der({n})" for n in self.states] + self.states + self.sensordata
-                         + package.names("qvel") + ["kinetic_energy", "power"])
+                         + package.names("qvel") + self.momentum + self.scalars)
 
 
 def random_point(names: Names, seed: int) -> np.ndarray:
@@ -199,7 +206,8 @@ class Fmi3:
         self.unknown_arrays = [("der(theta)", nq), ("der(nu)", nv), *([("der(act)", na)] if na else []),
                                ("theta", nq), ("nu", nv), *acts,
                                *([("sensordata", len(names.sensordata))] if names.sensordata else []),
-                               ("qvel", nv), ("kinetic_energy", 1), ("power", 1)]
+                               ("qvel", nv), *([("momentum", 6)] if names.momentum else []),
+                               *[(name, 1) for name in names.scalars]]
         self.states = 2 + len(acts)
 
     @staticmethod
@@ -297,16 +305,17 @@ def test_the_adjoint_is_the_transpose(fmus, tmp_path, name, interface):
 
 
 def test_an_fmu_beyond_the_derivatives_declares_none_and_says_why(cli, tmp_path):
-    """The momentum output has no derivative yet: an FMU with it (here of a
-    vehicle with sensors, which have derivatives) declares none."""
+    """The energy residual, a record of the FMU's own integration, has no
+    derivative: an FMU with it (here of a vehicle with sensors, which have
+    derivatives; co-simulation only) declares none."""
     servicer = EXAMPLES_DIR / "servicer.xml"
-    fmu2 = cli.export(servicer, tmp_path / "servicer2.fmu", fmi_version=2, outputs=("momentum",))
-    fmu3 = cli.export(servicer, tmp_path / "servicer3.fmu", fmi_version=3, outputs=("momentum",))
+    fmu2 = cli.export(servicer, tmp_path / "servicer2.fmu", fmi_version=2, outputs=("energy_residual",))
+    fmu3 = cli.export(servicer, tmp_path / "servicer3.fmu", fmi_version=3, outputs=("energy_residual",))
     for fmu, flags in ((fmu2, ["providesDirectionalDerivative"]),
                        (fmu3, ["providesDirectionalDerivatives", "providesAdjointDerivatives"])):
         root = ET.fromstring(zipfile.ZipFile(fmu).read("modelDescription.xml"))
-        for interface in ("CoSimulation", "ModelExchange"):
-            assert [root.find(interface).get(flag) for flag in flags] == ["false"] * len(flags), (fmu, interface)
+        assert root.find("ModelExchange") is None, fmu
+        assert [root.find("CoSimulation").get(flag) for flag in flags] == ["false"] * len(flags), fmu
     names = Names(fmu2, servicer)
     for version, fmu in ((2, fmu2), (3, fmu3)):
         host = (Fmi2 if version == 2 else Fmi3)(fmu, names, "CS", tmp_path / f"unzipped{version}")
@@ -316,7 +325,8 @@ def test_an_fmu_beyond_the_derivatives_declares_none_and_says_why(cli, tmp_path)
             else:
                 host.fmu.getDirectionalDerivative([host.vr["nu"]], [host.vr["eps"]], [1.0] * len(names.eps),
                                                   nSensitivity=len(names.nu))
-        assert any("providesDirectionalDerivative" in m and "momentum" in m for m in host.messages), host.messages
+        assert any("providesDirectionalDerivative" in m and "energy_residual" in m for m in host.messages), \
+            host.messages
         host.fmu.freeInstance()
 
 
