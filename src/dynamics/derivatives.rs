@@ -227,6 +227,12 @@ struct Passes {
     sensors_current: bool,
     /// The momentum, when the last run was asked for it.
     momentum: Option<[Dual64; 6]>,
+    /// Whether the last run's direction had no θ part: the configuration
+    /// passes' results in `ws` are then those of θ = `still_theta` with
+    /// zero derivatives, and a run at the same θ along no θ direction (a
+    /// Jacobian's velocity, ε, T, ctrl and act columns) reuses them.
+    configuration_still: bool,
+    still_theta: Vec<f64>,
 }
 
 impl Passes {
@@ -242,6 +248,8 @@ impl Passes {
             qacc_current: false,
             sensors_current: false,
             momentum: None,
+            configuration_still: false,
+            still_theta: vec![0.0; model.nq],
         }
     }
 
@@ -257,12 +265,20 @@ impl Passes {
     ) -> Result<(), DerivativeError> {
         (self.qacc_current, self.sensors_current, self.momentum) = (false, false, None);
         theta_rates(model, point.theta, direction, &mut self.theta_rates);
+        let still = self.theta_rates.iter().all(|&rate| rate == 0.0);
         let ws = &mut self.ws;
-        seed(ws.theta.as_mut_slice(), point.theta, &self.theta_rates);
-        ws.stage = Stage::Empty;
-        ws.configuration_passes(model)?;
-        if !model.tendons.is_empty() {
-            ws.tendon_kinematics(model);
+        if !(still && self.configuration_still && self.still_theta == point.theta) {
+            self.configuration_still = false;
+            seed(ws.theta.as_mut_slice(), point.theta, &self.theta_rates);
+            ws.stage = Stage::Empty;
+            ws.configuration_passes(model)?;
+            if !model.tendons.is_empty() {
+                ws.tendon_kinematics(model);
+            }
+            if still {
+                self.still_theta.copy_from_slice(point.theta);
+                self.configuration_still = true;
+            }
         }
         ws.stage = Stage::Configuration;
         let velocity = match point.given {

@@ -7,7 +7,9 @@
 
 use nalgebra::{DMatrix, DVector};
 use nudyn::dynamics::constraint::limit_switching_functions;
-use nudyn::dynamics::derivatives::{DerivativeError, Derivatives, Direction, Jacobians, Output, Point, ThetaDirection};
+use nudyn::dynamics::derivatives::{
+    DerivativeError, Derivatives, Direction, Input, Jacobians, Output, Point, ThetaDirection,
+};
 use nudyn::dynamics::mode::ConstraintMode;
 use nudyn::dynamics::velocity::Given;
 use nudyn::model::{LinkJoint, Model};
@@ -341,6 +343,54 @@ fn jacobians_of_flexible_vehicles_agree_with_central_differences_of_the_passes()
         let case = flexible_case(seed, seed % 2 == 0, seed % 4 < 2, true);
         assert!(!case.model.flexible.is_empty());
         assert_agrees_with_differences(&case, &format!("flexible, seed {seed}"), 1e-8);
+    }
+}
+
+/// A Jacobian's columns along no θ direction reuse the configuration
+/// passes of the column before: each column equals, bit for bit, a run of a
+/// fresh workspace (rigid and flexible trees, tendons, constraint rows and
+/// sensors, actuators with activation states).
+#[test]
+fn columns_reusing_the_configuration_equal_fresh_runs() {
+    let cases = [
+        case(1, true),
+        flexible_case(2, false, true, true),
+        file_case("tests/fixtures/sensors/every_sensor.xml", 0),
+        file_case("tests/fixtures/activation/shortcut_servos.xml", 0),
+        constrained_case("tests/fixtures/tendons/tendon_limits.xml", 0, 0.5),
+    ];
+    let outputs = [Output::NuDot, Output::Qacc, Output::Sensordata, Output::ActDot];
+    for (index, case) in cases.iter().enumerate() {
+        let model = &case.model;
+        let at = point(case, Given::Qvel);
+        let jacobians = Derivatives::new(model).unwrap().jacobians_of(model, &at, outputs, &Input::ALL).unwrap();
+        for (k, &input) in Input::ALL.iter().enumerate() {
+            for column in 0..input.len(model) {
+                let zeros = Input::ALL.map(|input| vec![0.0; input.len(model)]);
+                let mut unit = zeros[k].clone();
+                unit[column] = 1.0;
+                let along =
+                    |which: Input| if which == input { unit.as_slice() } else { zeros[which as usize].as_slice() };
+                let direction = Direction {
+                    theta: along(Input::Theta),
+                    theta_in: ThetaDirection::Tangent,
+                    velocity: along(Input::Velocity),
+                    eps: along(Input::Eps),
+                    torque: along(Input::Torque),
+                    ctrl: along(Input::Ctrl),
+                    act: along(Input::Act),
+                };
+                let mut fresh = Derivatives::new(model).unwrap();
+                fresh.run(model, &at, &direction, &outputs).unwrap();
+                for (o, &output) in outputs.iter().enumerate() {
+                    let column_of = jacobians[o][k].column(column);
+                    assert!(
+                        fresh.derivative(output).zip(column_of.iter()).all(|(a, b)| a.to_bits() == b.to_bits()),
+                        "case {index}, {output:?} along {input:?}[{column}]: the reused configuration differs"
+                    );
+                }
+            }
+        }
     }
 }
 
