@@ -18,8 +18,8 @@ use nalgebra::{SMatrix, SVector};
 use super::subspace::{by_subspace, s_times, s_transpose_times, s_transpose_times_columns, times_s};
 use super::{accumulate, block, cols};
 use crate::math::{
-    Quat, Real, SpatialMat, SpatialVec, Vec3, cross_force, cross_motion, mul_cross_motion, quat_difference, real,
-    spatial,
+    Quat, Real, SpatialMat, SpatialVec, Vec3, cross_force, cross_motion, mul_cross_motion, owned, quat_difference,
+    real, spatial,
 };
 use crate::model::{LinkJoint, Model};
 use crate::workspace::Workspace;
@@ -78,6 +78,7 @@ fn upper_half<S: Real, const N: usize>(x: &SMatrix<S, N, N>) -> SMatrix<S, N, N>
 /// of springs, dampers and gravity (else their ε is zero); `RATES`: whether
 /// to add the factor's rates and so complete ν̇ and C (else only the joint
 /// terms that θ̈ needs, without the İ^A recursion).
+#[inline(always)]
 fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool>(
     model: &Model,
     ws: &mut Workspace<S>,
@@ -94,7 +95,7 @@ fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool>(
     let (v, v_plus) = (ws.v_body[i], ws.v_plus_body[i]);
     // v_J = S θ̇ and c = V × v_J = V⁺ × v_J, recomputed rather than stored
     // by pass 2: two fewer per-link arrays to stream on long chains.
-    let v_joint = s_times::<_, N, UNIT>(s, &ws.qvel.fixed_rows::<N>(adr).into_owned());
+    let v_joint = s_times::<_, N, UNIT>(s, &owned(ws.qvel.fixed_rows::<N>(adr)));
     let has_children = ws.accumulation[i].gathers();
     // İ^A is zero for a link without children (its own inertia is constant in its frame).
     let ia_dot = (RATES && has_children).then(|| &ws.ia_dot_body[i]);
@@ -109,7 +110,7 @@ fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool>(
     // ν̇'s terms from the factor's rates, Ṙᵀw + RᵀĠᵀV⁺, which θ̈ does not need.
     let rates = RATES.then(|| {
         let d_inv = r_inv.transpose() * r_inv;
-        let w: SVector<S, N> = ws.w_joint.fixed_rows::<N>(adr).into_owned();
+        let w: SVector<S, N> = owned(ws.w_joint.fixed_rows::<N>(adr));
         let ia_dot_s: SMatrix<S, 6, N> = ia_dot.map_or_else(SMatrix::zeros, |ia_dot| times_s::<_, N, UNIT>(ia_dot, s));
         let d_dot = s_transpose_times_columns::<_, N, UNIT>(s, &ia_dot_s);
         let gain_t_dot = d_inv * (ia_dot_s.transpose() - d_dot * gain.transpose());

@@ -19,7 +19,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::cols;
-use crate::math::{Real, SpatialMat, SpatialVec, real};
+use crate::math::{Real, SpatialMat, SpatialVec, owned, real};
 use crate::model::MotionSubspace;
 
 /// `UNIT` of a link whose S is not columns of the identity.
@@ -118,7 +118,7 @@ pub(crate) fn s_transpose_times<S: Real, const N: usize, const UNIT: usize>(
     s: &MotionSubspace,
     f: &SpatialVec<S>,
 ) -> SVector<S, N> {
-    if UNIT == GENERAL { real(&cols::<f64, N>(s)).transpose() * f } else { f.fixed_rows::<N>(UNIT).into_owned() }
+    if UNIT == GENERAL { real(&cols::<f64, N>(s)).transpose() * f } else { owned(f.fixed_rows::<N>(UNIT)) }
 }
 
 /// M S.
@@ -127,7 +127,7 @@ pub(crate) fn times_s<S: Real, const N: usize, const UNIT: usize>(
     m: &SpatialMat<S>,
     s: &MotionSubspace,
 ) -> SMatrix<S, 6, N> {
-    if UNIT == GENERAL { m * real(&cols::<f64, N>(s)) } else { m.fixed_columns::<N>(UNIT).into_owned() }
+    if UNIT == GENERAL { m * real(&cols::<f64, N>(s)) } else { owned(m.fixed_columns::<N>(UNIT)) }
 }
 
 /// Sᵀ M for M = U (6×N): the N×N block of its rows.
@@ -136,5 +136,5 @@ pub(crate) fn s_transpose_times_columns<S: Real, const N: usize, const UNIT: usi
     s: &MotionSubspace,
     m: &SMatrix<S, 6, N>,
 ) -> SMatrix<S, N, N> {
-    if UNIT == GENERAL { real(&cols::<f64, N>(s)).transpose() * m } else { m.fixed_rows::<N>(UNIT).into_owned() }
+    if UNIT == GENERAL { real(&cols::<f64, N>(s)).transpose() * m } else { owned(m.fixed_rows::<N>(UNIT)) }
 }

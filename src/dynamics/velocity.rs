@@ -7,7 +7,7 @@
 use nalgebra::SVector;
 
 use super::{block, cols};
-use crate::math::{Real, SpatialVec, real};
+use crate::math::{Real, SpatialVec, owned, real};
 use crate::model::Model;
 use crate::workspace::Workspace;
 
@@ -35,12 +35,12 @@ fn velocity_link<S: Real, const N: usize>(
     let gv: SVector<S, N> = gain_t * v_plus;
     let (w, qvel) = match given {
         Given::Nu => {
-            let nu: SVector<S, N> = ws.nu.fixed_rows::<N>(adr).into_owned();
+            let nu: SVector<S, N> = owned(ws.nu.fixed_rows::<N>(adr));
             let w = block::<_, N>(&ws.r_inv_joint[i]).transpose() * nu;
             (w, w - gv)
         }
         Given::Qvel => {
-            let qvel: SVector<S, N> = ws.qvel.fixed_rows::<N>(adr).into_owned();
+            let qvel: SVector<S, N> = owned(ws.qvel.fixed_rows::<N>(adr));
             let w = qvel + gv;
             let nu = block::<_, N>(&ws.r_joint[i]).transpose() * w;
             ws.nu.fixed_rows_mut::<N>(adr).copy_from(&nu);
