@@ -79,7 +79,7 @@ fn upper_half<S: Real, const N: usize>(x: &SMatrix<S, N, N>) -> SMatrix<S, N, N>
 /// to add the factor's rates and so complete ν̇ and C (else only the joint
 /// terms that θ̈ needs, without the İ^A recursion).
 #[inline(always)]
-fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool>(
+fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool, const FLEXIBLE: bool>(
     model: &Model,
     ws: &mut Workspace<S>,
     i: usize,
@@ -157,7 +157,8 @@ fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool>(
         let ia_reduced = &ws.ia_reduced[i];
         let opens_parent = ws.accumulation[i].opens_parent;
         let p_reduced = p_bias + ia_reduced * cross_motion(&v_plus, &v_joint) + gain * u;
-        if let Some(at) = ws.accumulation[i].node {
+        let node = if FLEXIBLE { ws.accumulation[i].node } else { None };
+        if let Some(at) = node {
             // A child at a node hands its terms to the node (docs/flexible.md).
             let f_reduced = forces.then(|| p_force + gain * u_force);
             let rate = rates
@@ -227,11 +228,25 @@ pub(crate) fn all_passive_forces<S: Real>(model: &Model, ws: &mut Workspace<S>) 
 /// Pass 3's sweep over the links, with the passive joint forces already
 /// in `tau_passive` when `forces` (else their ε is zero).
 pub(crate) fn link_sweep<S: Real, const RATES: bool>(model: &Model, ws: &mut Workspace<S>, eps: &[S], forces: bool) {
-    let flexible = !model.flexible.is_empty();
+    if model.flexible.is_empty() {
+        sweep::<_, RATES, false>(model, ws, eps, forces);
+    } else {
+        sweep::<_, RATES, true>(model, ws, eps, forces);
+    }
+}
+
+/// [`link_sweep`]; without `FLEXIBLE` (a vehicle without flexible bodies)
+/// it has no modal blocks and no children at nodes to look for.
+fn sweep<S: Real, const RATES: bool, const FLEXIBLE: bool>(
+    model: &Model,
+    ws: &mut Workspace<S>,
+    eps: &[S],
+    forces: bool,
+) {
     for i in (0..model.links.len()).rev() {
-        if flexible {
+        if FLEXIBLE {
             super::flexible::bias::<_, RATES>(model, ws, i, eps, forces);
         }
-        by_subspace!(ws.subspaces[i], bias_link::<RATES>(model, ws, i, eps, forces));
+        by_subspace!(ws.subspaces[i], bias_link::<RATES, FLEXIBLE>(model, ws, i, eps, forces));
     }
 }
