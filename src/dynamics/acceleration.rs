@@ -12,9 +12,9 @@
 
 use nalgebra::SVector;
 
-use super::subspace::{add_s_times, by_subspace, s_times};
+use super::subspace::{add_s_times, by_subspace, cross_s_times};
 use super::{DynamicsError, block, cols, require};
-use crate::math::{Real, SpatialVec, cross_motion, owned};
+use crate::math::{Real, SpatialVec, owned};
 use crate::model::Model;
 use crate::workspace::{Stage, Workspace};
 
@@ -30,8 +30,8 @@ fn acceleration_link<S: Real, const N: usize, const UNIT: usize>(
     let link = &model.links[i];
     let adr = link.dof_adr;
     let s = &link.motion_subspace;
-    let v_joint = s_times::<_, N, UNIT>(s, &owned(ws.qvel.fixed_rows::<N>(adr)));
-    let a_passed = a_plus + cross_motion(&ws.v_plus_body[i], &v_joint);
+    let qvel: SVector<S, N> = owned(ws.qvel.fixed_rows::<N>(adr));
+    let a_passed = a_plus + cross_s_times::<_, N, UNIT>(&ws.v_plus_body[i], s, &qvel);
     let joint_term: SVector<S, N> = owned(ws.nu_dot_joint.fixed_rows::<N>(adr));
     let qacc =
         block::<_, N>(&ws.r_inv_joint[i]).transpose() * joint_term - cols::<_, N>(&ws.gain[i]).transpose() * a_passed;

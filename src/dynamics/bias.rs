@@ -15,13 +15,12 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use super::subspace::{by_subspace, s_times, s_transpose_times, s_transpose_times_columns, times_s};
-use super::{accumulate, block, cols};
-use crate::math::{
-    Quat, Real, SpatialMat, SpatialVec, Vec3, cross_force, cross_motion, mul_cross_motion, owned, quat_difference,
-    real, spatial,
+use super::subspace::{
+    by_subspace, cross_s_times, mul_cross_s_times, s_transpose_times, s_transpose_times_columns, times_s,
 };
-use crate::model::{LinkJoint, Model};
+use super::{accumulate, block, cols};
+use crate::math::{Quat, Real, SpatialMat, SpatialVec, Vec3, cross_force, owned, quat_difference, real, spatial};
+use crate::model::{LinkJoint, Model, MotionSubspace};
 use crate::workspace::Workspace;
 
 /// Springs −k(θ − θ_spring) and dampers −b θ̇, as MuJoCo applies them
@@ -94,8 +93,9 @@ fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool, cons
     let r_inv = block::<_, N>(&ws.r_inv_joint[i]);
     let (v, v_plus) = (ws.v_body[i], ws.v_plus_body[i]);
     // v_J = S θ̇ and c = V × v_J = V⁺ × v_J, recomputed rather than stored
-    // by pass 2: two fewer per-link arrays to stream on long chains.
-    let v_joint = s_times::<_, N, UNIT>(s, &owned(ws.qvel.fixed_rows::<N>(adr)));
+    // by pass 2: two fewer per-link arrays to stream on long chains; the
+    // products with v_J take only its nonzero entries (subspace.rs).
+    let qvel: SVector<S, N> = owned(ws.qvel.fixed_rows::<N>(adr));
     let has_children = ws.accumulation[i].gathers();
     // İ^A is zero for a link without children (its own inertia is constant in its frame).
     let ia_dot = (RATES && has_children).then(|| &ws.ia_dot_body[i]);
@@ -156,13 +156,14 @@ fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool, cons
     if let Some(p) = link.parent {
         let ia_reduced = &ws.ia_reduced[i];
         let opens_parent = ws.accumulation[i].opens_parent;
-        let p_reduced = p_bias + ia_reduced * cross_motion(&v_plus, &v_joint) + gain * u;
+        let p_reduced = p_bias + ia_reduced * cross_s_times::<_, N, UNIT>(&v_plus, s, &qvel) + gain * u;
         let node = if FLEXIBLE { ws.accumulation[i].node } else { None };
         if let Some(at) = node {
             // A child at a node hands its terms to the node (docs/flexible.md).
             let f_reduced = forces.then(|| p_force + gain * u_force);
-            let rate = rates
-                .map(|(_, ia_dot_s, d_dot)| child_inertia_rate(ia_reduced, ia_dot, &v_joint, &gain, &ia_dot_s, &d_dot));
+            let rate = rates.map(|(_, ia_dot_s, d_dot)| {
+                child_inertia_rate::<_, N, UNIT>(ia_reduced, ia_dot, s, &qvel, &gain, &ia_dot_s, &d_dot)
+            });
             super::flexible::child_bias(model, ws, at, opens_parent, p_reduced, f_reduced, rate.as_ref());
             return;
         }
@@ -175,7 +176,7 @@ fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool, cons
             accumulate(&mut ws.p_force_body[p], x.apply_transpose_force(&(p_force + gain * u_force)), opens_parent);
         }
         let Some((_, ia_dot_s, d_dot)) = rates else { return };
-        let child_term = child_inertia_rate(ia_reduced, ia_dot, &v_joint, &gain, &ia_dot_s, &d_dot);
+        let child_term = child_inertia_rate::<_, N, UNIT>(ia_reduced, ia_dot, s, &qvel, &gain, &ia_dot_s, &d_dot);
         x.add_inertia_to_parent(&child_term, &mut ws.ia_dot_body[p], opens_parent);
     }
 }
@@ -184,18 +185,19 @@ fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool, cons
 /// İ^A − Q − Qᵀ: İ^a = (1 − G Sᵀ) İ^A (1 − G Sᵀ)ᵀ = İ^A − G A′ᵀ − A′ Gᵀ with
 /// A′ = İ^A S − ½ G Ḋ (rank-N updates instead of two 6×6 products), and
 /// v_J ×* I^a − I^a v_J × = −(B + Bᵀ) with B = I^a (v_J ×), I^a symmetric;
-/// so Q = B + G A′ᵀ.
+/// so Q = B + G A′ᵀ; v_J = S θ̇ with `qvel` the link's θ̇.
 #[inline(always)]
-fn child_inertia_rate<S: Real, const N: usize>(
+fn child_inertia_rate<S: Real, const N: usize, const UNIT: usize>(
     ia_reduced: &SpatialMat<S>,
     ia_dot: Option<&SpatialMat<S>>,
-    v_joint: &SpatialVec<S>,
+    s: &MotionSubspace,
+    qvel: &SVector<S, N>,
     gain: &SMatrix<S, 6, N>,
     ia_dot_s: &SMatrix<S, 6, N>,
     d_dot: &SMatrix<S, N, N>,
 ) -> SpatialMat<S> {
     let a_shifted = ia_dot_s - gain * (d_dot * S::from(0.5));
-    let q = mul_cross_motion(ia_reduced, v_joint) + gain * a_shifted.transpose();
+    let q = mul_cross_s_times::<_, N, UNIT>(ia_reduced, s, qvel) + gain * a_shifted.transpose();
     match ia_dot {
         Some(ia_dot) => ia_dot - q - q.transpose(),
         None => -(q + q.transpose()),
