@@ -324,15 +324,14 @@ impl<S: Real> Transform<S> {
         ]);
         let b_parent = b + r_c;
         let a_parent = symmetric(a + r_bt + r_bt.transpose() - r_c_r);
-        // Block by block into the slot: a whole 6×6 term built first and
-        // then stored went through memcpy, out of line.
+        let mut term = SpatialMat::zeros();
         for (row, col, block) in [(0, 0, a_parent), (0, 3, b_parent), (3, 0, b_parent.transpose()), (3, 3, c)] {
-            let mut view = slot.fixed_view_mut::<3, 3>(row, col);
-            if replace {
-                view.copy_from(&block);
-            } else {
-                view += block;
-            }
+            term.fixed_view_mut::<3, 3>(row, col).copy_from(&block);
+        }
+        if replace {
+            *slot = term;
+        } else {
+            *slot += term;
         }
     }
 }
