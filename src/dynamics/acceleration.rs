@@ -12,9 +12,9 @@
 
 use nalgebra::SVector;
 
-use super::subspace::{add_s_times, by_subspace, s_times};
+use super::subspace::{add_s_times, by_subspace, cross_s_times};
 use super::{DynamicsError, block, cols, require};
-use crate::math::{Real, SpatialVec, cross_motion};
+use crate::math::{Real, SpatialVec, owned};
 use crate::model::Model;
 use crate::workspace::{Stage, Workspace};
 
@@ -30,9 +30,9 @@ fn acceleration_link<S: Real, const N: usize, const UNIT: usize>(
     let link = &model.links[i];
     let adr = link.dof_adr;
     let s = &link.motion_subspace;
-    let v_joint = s_times::<_, N, UNIT>(s, &ws.qvel.fixed_rows::<N>(adr).into_owned());
-    let a_passed = a_plus + cross_motion(&ws.v_plus_body[i], &v_joint);
-    let joint_term: SVector<S, N> = ws.nu_dot_joint.fixed_rows::<N>(adr).into_owned();
+    let qvel: SVector<S, N> = owned(ws.qvel.fixed_rows::<N>(adr));
+    let a_passed = a_plus + cross_s_times::<_, N, UNIT>(&ws.v_plus_body[i], s, &qvel);
+    let joint_term: SVector<S, N> = owned(ws.nu_dot_joint.fixed_rows::<N>(adr));
     let qacc =
         block::<_, N>(&ws.r_inv_joint[i]).transpose() * joint_term - cols::<_, N>(&ws.gain[i]).transpose() * a_passed;
     ws.qacc.fixed_rows_mut::<N>(adr).copy_from(&qacc);
@@ -47,22 +47,32 @@ impl<S: Real> Workspace<S> {
     /// the last pass 3 (with or without the factor's rates). Needs pass 3.
     pub fn compute_accelerations(&mut self, model: &Model) -> Result<(), DynamicsError> {
         require(self, Stage::JointRates, "compute_accelerations")?;
-        // The parent's A in registers when it is the previous link, as pass 2 hands over V.
-        let mut a_previous = SpatialVec::zeros();
-        let flexible = !model.flexible.is_empty();
-        for i in 0..model.links.len() {
-            let a_plus = match (model.links[i].parent, self.accumulation[i].node) {
-                // A child at a node: the node's A_j, in the link's frame.
-                (_, Some(at)) => super::flexible::child_acceleration(model, self, at),
-                (Some(p), None) if p + 1 == i => self.x_parent[i].apply_motion(&a_previous),
-                (Some(p), None) => self.x_parent[i].apply_motion(&self.a_body[p]),
-                (None, None) => SpatialVec::zeros(),
-            };
-            a_previous = by_subspace!(self.subspaces[i], acceleration_link(model, self, i, a_plus));
-            if flexible {
-                super::flexible::accelerations(model, self, i);
-            }
+        if model.flexible.is_empty() {
+            acceleration_sweep::<_, false>(model, self);
+        } else {
+            acceleration_sweep::<_, true>(model, self);
         }
         Ok(())
+    }
+}
+
+/// The outward sweep; without `FLEXIBLE` (a vehicle without flexible
+/// bodies) it has no modal blocks and no children at nodes to look for.
+fn acceleration_sweep<S: Real, const FLEXIBLE: bool>(model: &Model, ws: &mut Workspace<S>) {
+    // The parent's A in registers when it is the previous link, as pass 2 hands over V.
+    let mut a_previous = SpatialVec::zeros();
+    for i in 0..model.links.len() {
+        let node = if FLEXIBLE { ws.accumulation[i].node } else { None };
+        let a_plus = match (model.links[i].parent, node) {
+            // A child at a node: the node's A_j, in the link's frame.
+            (_, Some(at)) => super::flexible::child_acceleration(model, ws, at),
+            (Some(p), None) if p + 1 == i => ws.x_parent[i].apply_motion(&a_previous),
+            (Some(p), None) => ws.x_parent[i].apply_motion(&ws.a_body[p]),
+            (None, None) => SpatialVec::zeros(),
+        };
+        a_previous = by_subspace!(ws.subspaces[i], acceleration_link(model, ws, i, a_plus));
+        if FLEXIBLE {
+            super::flexible::accelerations(model, ws, i);
+        }
     }
 }

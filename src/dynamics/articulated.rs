@@ -78,6 +78,7 @@ pub fn upper_triangular_inverse_into<S: Real, D: Dim, A: Storage<S, D, D>, B: St
 }
 
 /// Pass 1 for one link with N dofs; `ia_reduced[i]` holds its children's share of I^A.
+#[inline(always)]
 fn factor_link<S: Real, const N: usize, const UNIT: usize>(
     model: &Model,
     ws: &mut Workspace<S>,
@@ -136,13 +137,23 @@ fn write_block<S: Real, const N: usize>(out: &mut Mat3<S>, m: &SMatrix<S, N, N>)
 /// Passes 0 and 1: each link's placement, then I^a, G, R, R⁻¹ for it
 /// (I^A, U and D are intermediates).
 pub(crate) fn articulated_pass<S: Real>(model: &Model, ws: &mut Workspace<S>) -> Result<(), DynamicsError> {
-    let flexible = !model.flexible.is_empty();
+    if model.flexible.is_empty() {
+        articulated_sweep::<_, false>(model, ws)
+    } else {
+        articulated_sweep::<_, true>(model, ws)
+    }
+}
+
+/// Passes 0 and 1's sweep; without `FLEXIBLE` (a vehicle without flexible
+/// bodies) it has no modal blocks and no children at nodes to look for.
+fn articulated_sweep<S: Real, const FLEXIBLE: bool>(model: &Model, ws: &mut Workspace<S>) -> Result<(), DynamicsError> {
     for i in (0..model.links.len()).rev() {
-        if flexible {
+        if FLEXIBLE {
             super::flexible::factor_modes(model, ws, i)?;
         }
         by_subspace!(ws.subspaces[i], place_and_factor_link(model, ws, i))?;
-        if let Some(at) = ws.accumulation[i].node {
+        let node = if FLEXIBLE { ws.accumulation[i].node } else { None };
+        if let Some(at) = node {
             super::flexible::place_child(model, ws, i, at);
         } else if let Some(p) = model.links[i].parent {
             // Parents precede their children in the link order (p < i).

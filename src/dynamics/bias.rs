@@ -15,13 +15,12 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use super::subspace::{by_subspace, s_times, s_transpose_times, s_transpose_times_columns, times_s};
-use super::{accumulate, block, cols};
-use crate::math::{
-    Quat, Real, SpatialMat, SpatialVec, Vec3, cross_force, cross_motion, mul_cross_motion, quat_difference, real,
-    spatial,
+use super::subspace::{
+    by_subspace, cross_s_times, mul_cross_s_times, s_transpose_times, s_transpose_times_columns, times_s,
 };
-use crate::model::{LinkJoint, Model};
+use super::{accumulate, block, cols};
+use crate::math::{Quat, Real, SpatialMat, SpatialVec, Vec3, cross_force, owned, quat_difference, real, spatial};
+use crate::model::{LinkJoint, Model, MotionSubspace};
 use crate::workspace::Workspace;
 
 /// Springs −k(θ − θ_spring) and dampers −b θ̇, as MuJoCo applies them
@@ -78,7 +77,8 @@ fn upper_half<S: Real, const N: usize>(x: &SMatrix<S, N, N>) -> SMatrix<S, N, N>
 /// of springs, dampers and gravity (else their ε is zero); `RATES`: whether
 /// to add the factor's rates and so complete ν̇ and C (else only the joint
 /// terms that θ̈ needs, without the İ^A recursion).
-fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool>(
+#[inline(always)]
+fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool, const FLEXIBLE: bool>(
     model: &Model,
     ws: &mut Workspace<S>,
     i: usize,
@@ -93,8 +93,9 @@ fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool>(
     let r_inv = block::<_, N>(&ws.r_inv_joint[i]);
     let (v, v_plus) = (ws.v_body[i], ws.v_plus_body[i]);
     // v_J = S θ̇ and c = V × v_J = V⁺ × v_J, recomputed rather than stored
-    // by pass 2: two fewer per-link arrays to stream on long chains.
-    let v_joint = s_times::<_, N, UNIT>(s, &ws.qvel.fixed_rows::<N>(adr).into_owned());
+    // by pass 2: two fewer per-link arrays to stream on long chains; the
+    // products with v_J take only its nonzero entries (subspace.rs).
+    let qvel: SVector<S, N> = owned(ws.qvel.fixed_rows::<N>(adr));
     let has_children = ws.accumulation[i].gathers();
     // İ^A is zero for a link without children (its own inertia is constant in its frame).
     let ia_dot = (RATES && has_children).then(|| &ws.ia_dot_body[i]);
@@ -109,7 +110,7 @@ fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool>(
     // ν̇'s terms from the factor's rates, Ṙᵀw + RᵀĠᵀV⁺, which θ̈ does not need.
     let rates = RATES.then(|| {
         let d_inv = r_inv.transpose() * r_inv;
-        let w: SVector<S, N> = ws.w_joint.fixed_rows::<N>(adr).into_owned();
+        let w: SVector<S, N> = owned(ws.w_joint.fixed_rows::<N>(adr));
         let ia_dot_s: SMatrix<S, 6, N> = ia_dot.map_or_else(SMatrix::zeros, |ia_dot| times_s::<_, N, UNIT>(ia_dot, s));
         let d_dot = s_transpose_times_columns::<_, N, UNIT>(s, &ia_dot_s);
         let gain_t_dot = d_inv * (ia_dot_s.transpose() - d_dot * gain.transpose());
@@ -155,12 +156,14 @@ fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool>(
     if let Some(p) = link.parent {
         let ia_reduced = &ws.ia_reduced[i];
         let opens_parent = ws.accumulation[i].opens_parent;
-        let p_reduced = p_bias + ia_reduced * cross_motion(&v_plus, &v_joint) + gain * u;
-        if let Some(at) = ws.accumulation[i].node {
+        let p_reduced = p_bias + ia_reduced * cross_s_times::<_, N, UNIT>(&v_plus, s, &qvel) + gain * u;
+        let node = if FLEXIBLE { ws.accumulation[i].node } else { None };
+        if let Some(at) = node {
             // A child at a node hands its terms to the node (docs/flexible.md).
             let f_reduced = forces.then(|| p_force + gain * u_force);
-            let rate = rates
-                .map(|(_, ia_dot_s, d_dot)| child_inertia_rate(ia_reduced, ia_dot, &v_joint, &gain, &ia_dot_s, &d_dot));
+            let rate = rates.map(|(_, ia_dot_s, d_dot)| {
+                child_inertia_rate::<_, N, UNIT>(ia_reduced, ia_dot, s, &qvel, &gain, &ia_dot_s, &d_dot)
+            });
             super::flexible::child_bias(model, ws, at, opens_parent, p_reduced, f_reduced, rate.as_ref());
             return;
         }
@@ -173,7 +176,7 @@ fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool>(
             accumulate(&mut ws.p_force_body[p], x.apply_transpose_force(&(p_force + gain * u_force)), opens_parent);
         }
         let Some((_, ia_dot_s, d_dot)) = rates else { return };
-        let child_term = child_inertia_rate(ia_reduced, ia_dot, &v_joint, &gain, &ia_dot_s, &d_dot);
+        let child_term = child_inertia_rate::<_, N, UNIT>(ia_reduced, ia_dot, s, &qvel, &gain, &ia_dot_s, &d_dot);
         x.add_inertia_to_parent(&child_term, &mut ws.ia_dot_body[p], opens_parent);
     }
 }
@@ -182,18 +185,19 @@ fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool>(
 /// İ^A − Q − Qᵀ: İ^a = (1 − G Sᵀ) İ^A (1 − G Sᵀ)ᵀ = İ^A − G A′ᵀ − A′ Gᵀ with
 /// A′ = İ^A S − ½ G Ḋ (rank-N updates instead of two 6×6 products), and
 /// v_J ×* I^a − I^a v_J × = −(B + Bᵀ) with B = I^a (v_J ×), I^a symmetric;
-/// so Q = B + G A′ᵀ.
+/// so Q = B + G A′ᵀ; v_J = S θ̇ with `qvel` the link's θ̇.
 #[inline(always)]
-fn child_inertia_rate<S: Real, const N: usize>(
+fn child_inertia_rate<S: Real, const N: usize, const UNIT: usize>(
     ia_reduced: &SpatialMat<S>,
     ia_dot: Option<&SpatialMat<S>>,
-    v_joint: &SpatialVec<S>,
+    s: &MotionSubspace,
+    qvel: &SVector<S, N>,
     gain: &SMatrix<S, 6, N>,
     ia_dot_s: &SMatrix<S, 6, N>,
     d_dot: &SMatrix<S, N, N>,
 ) -> SpatialMat<S> {
     let a_shifted = ia_dot_s - gain * (d_dot * S::from(0.5));
-    let q = mul_cross_motion(ia_reduced, v_joint) + gain * a_shifted.transpose();
+    let q = mul_cross_s_times::<_, N, UNIT>(ia_reduced, s, qvel) + gain * a_shifted.transpose();
     match ia_dot {
         Some(ia_dot) => ia_dot - q - q.transpose(),
         None => -(q + q.transpose()),
@@ -226,11 +230,25 @@ pub(crate) fn all_passive_forces<S: Real>(model: &Model, ws: &mut Workspace<S>) 
 /// Pass 3's sweep over the links, with the passive joint forces already
 /// in `tau_passive` when `forces` (else their ε is zero).
 pub(crate) fn link_sweep<S: Real, const RATES: bool>(model: &Model, ws: &mut Workspace<S>, eps: &[S], forces: bool) {
-    let flexible = !model.flexible.is_empty();
+    if model.flexible.is_empty() {
+        sweep::<_, RATES, false>(model, ws, eps, forces);
+    } else {
+        sweep::<_, RATES, true>(model, ws, eps, forces);
+    }
+}
+
+/// [`link_sweep`]; without `FLEXIBLE` (a vehicle without flexible bodies)
+/// it has no modal blocks and no children at nodes to look for.
+fn sweep<S: Real, const RATES: bool, const FLEXIBLE: bool>(
+    model: &Model,
+    ws: &mut Workspace<S>,
+    eps: &[S],
+    forces: bool,
+) {
     for i in (0..model.links.len()).rev() {
-        if flexible {
+        if FLEXIBLE {
             super::flexible::bias::<_, RATES>(model, ws, i, eps, forces);
         }
-        by_subspace!(ws.subspaces[i], bias_link::<RATES>(model, ws, i, eps, forces));
+        by_subspace!(ws.subspaces[i], bias_link::<RATES, FLEXIBLE>(model, ws, i, eps, forces));
     }
 }

@@ -158,13 +158,13 @@ pub(crate) fn accumulate<T: std::ops::AddAssign>(slot: &mut T, value: T, opens_p
 /// An N×N block of a padded 3×3 matrix.
 #[inline(always)]
 pub(crate) fn block<S: Real, const N: usize>(m: &nalgebra::Matrix3<S>) -> SMatrix<S, N, N> {
-    m.fixed_view::<N, N>(0, 0).into_owned()
+    crate::math::owned(m.fixed_view::<N, N>(0, 0))
 }
 
 /// The first N columns of a padded 6×3 matrix.
 #[inline(always)]
 pub(crate) fn cols<S: Real, const N: usize>(m: &SMatrix<S, 6, 3>) -> SMatrix<S, 6, N> {
-    m.fixed_columns::<N>(0).into_owned()
+    crate::math::owned(m.fixed_columns::<N>(0))
 }
 
 /// All passes for one state: ν̇ = ε − C(θ,ν) + ε_passive, in O(N),
