@@ -319,3 +319,35 @@ fn a_thruster_at_a_node_does_the_virtual_work_of_its_wrench_on_the_nodes_pose() 
         assert_eq!((s[THRUSTER_VEL], s[TORQUER_VEL]), (ws.actuator_velocity[0], ws.actuator_velocity[1]));
     }
 }
+
+/// A wrench input on a body welded at a node (docs/flexible.md, "Bodies
+/// welded at nodes"; fixture tests/fixtures/flex/bench_welded.xml, the
+/// star tracker): its six unit forces and torques along the world's axes at
+/// the tracker's centre of mass act through the node, as the dense
+/// reference's Jacobians of that point give them, modes included.
+#[test]
+fn a_wrench_input_on_a_body_welded_at_a_node_acts_through_the_node() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/flex/bench_welded.xml");
+    let vehicle = load_mjcf(&path).unwrap().vehicle;
+    let model = Model::compile_with_wrench_inputs(&vehicle, &["tracker".to_string()]).unwrap();
+    let tracker = vehicle.bodies.iter().position(|b| b.name == "tracker").unwrap();
+    let first = model.mjcf_actuator_count();
+    let mut rng = Rng::new(4952);
+    for case in 0..4 {
+        let theta = random_theta(&mut rng, &vehicle);
+        let mut ws = model.workspace();
+        ws.set_configuration(&model, &theta).unwrap();
+        ws.set_qvel(&model, &rng.vec(model.nv, 1.0)).unwrap();
+        let k = kinematics(&vehicle, &theta);
+        let centre = k.body_pos[tracker] + k.body_rot[tracker] * vehicle.bodies[tracker].inertial_pos;
+        let (jw, jv) = point_jacobian(&k, tracker, &centre, model.nv);
+        let modes = model.nv - common::modal_count(&vehicle)..model.nv;
+        let mut row = vec![0.0; model.nv];
+        for axis in 0..6 {
+            ws.actuator_moment(&model, first + axis, &mut row).unwrap();
+            let expected = if axis < 3 { jv.row(axis).transpose() } else { jw.row(axis - 3).transpose() };
+            assert!(expected.rows(modes.start, modes.len()).norm() > 1e-3, "case {case}, axis {axis}: no modal arms");
+            assert!(rel_err(&row, expected.as_slice()) < 1e-9, "case {case}, axis {axis}: {row:?} vs {expected}");
+        }
+    }
+}
