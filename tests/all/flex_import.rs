@@ -105,6 +105,10 @@ fn a_child_body_at_a_node_rides_it_and_a_welded_one_joins_its_inertia() {
     let welded = flexible.welded[slot];
     let first_moment = welded.fixed_view::<3, 3>(0, 3).norm() / 2f64.sqrt();
     assert!((welded[(3, 3)] - 1.0).abs() < 1e-12 && (first_moment - 0.2).abs() < 1e-6, "{welded}");
+    // fusestatic keeps it a body (fused into the bench, it would change the bench's inertial).
+    let fused = |xml: String| welded_at_tip(xml).replace("<custom>", "<compiler fusestatic=\"true\"/><custom>");
+    let model = Model::compile(&load_mjcf(&variant("welded_fusestatic", fused, |j| j)).unwrap().vehicle).unwrap();
+    assert_eq!(model.flexible[0].welded[slot], welded);
     // A flexible body welded there is refused, naming both bodies and the node.
     let flexible_at_tip = |xml: String| {
         let second = "<body name=\"bench2\" pos=\"1 0 0\">\
