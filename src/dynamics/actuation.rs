@@ -38,7 +38,7 @@ enum Moment<S: Real> {
 struct SiteWrenches<S: Real> {
     wrenches: [(usize, SpatialVec<S>); 3],
     count: usize,
-    at_nodes: [Option<NodeWrench<S>>; 2],
+    at_nodes: [Option<NodeWrench<S>>; 3],
 }
 
 /// One unit wrench of a site transmission: on `link` (link coordinates,
@@ -110,7 +110,7 @@ impl<S: Real> SiteWrenches<S> {
     /// Wrenches collected on the links that exist (a site on the world
     /// moves nothing), with the node shares of those at nodes.
     fn of(candidates: [Option<OnLink<S>>; 3]) -> SiteWrenches<S> {
-        let mut out = SiteWrenches { wrenches: [(0, SpatialVec::zeros()); 3], count: 0, at_nodes: [None; 2] };
+        let mut out = SiteWrenches { wrenches: [(0, SpatialVec::zeros()); 3], count: 0, at_nodes: [None; 3] };
         let mut node_count = 0;
         for OnLink { link, wrench, at_node } in candidates.into_iter().flatten() {
             out.wrenches[out.count] = (link, wrench);
@@ -233,8 +233,8 @@ fn transmit<S: Real>(model: &Model, ws: &Workspace<S>, actuator: &Actuator) -> T
             let wrench: SpatialVec<S> = real(&site.frame.apply_transpose_force(&in_site));
             SiteWrenches::of([Some(carrier.wrench(wrench)), None, None]).transmitted(model, ws, zero)
         }
-        ActuatorTransmission::RelativeSite { site, reference, common_link } => {
-            relative_site(model, ws, actuator, &site, &reference, common_link)
+        ActuatorTransmission::RelativeSite { site, reference, common_link, common_node } => {
+            relative_site(model, ws, actuator, &site, &reference, common_link, common_node)
         }
         ActuatorTransmission::Tendon { tendon } => Transmitted {
             length: ws.tendon_length[tendon] * gear[0],
@@ -248,8 +248,9 @@ fn transmit<S: Real>(model: &Model, ws: &Workspace<S>, actuator: &Actuator) -> T
 /// `refsite`): length = gear · (the site's position in the reference frame,
 /// and the rotation vector from the reference to the site's orientation);
 /// force and torque along the reference frame's axes, at the site and
-/// opposite at the reference site, and on their common link the torque
-/// that cancels the pair's couple there (MuJoCo clears those moment arms).
+/// opposite at the reference site, and on their common link (or the node
+/// on it that both hang from) the torque that cancels the pair's couple
+/// there (MuJoCo clears those moment arms).
 fn relative_site<S: Real>(
     model: &Model,
     ws: &Workspace<S>,
@@ -257,6 +258,7 @@ fn relative_site<S: Real>(
     site: &SiteFrame,
     reference: &SiteFrame,
     common_link: Option<usize>,
+    common_node: Option<NodeSite>,
 ) -> Transmitted<S> {
     let x_world = ws.x_world.as_slice();
     let (site_carrier, reference_carrier) = (Carrier::of(model, ws, site), Carrier::of(model, ws, reference));
@@ -284,10 +286,11 @@ fn relative_site<S: Real>(
     let on_site = wrench_at_site(site, &site_carrier, x_world, &torque, &force);
     let on_reference = wrench_at_site(reference, &reference_carrier, x_world, &(-torque), &(-force));
     let couple = offset.cross(&force);
-    let correction = common_link.map(|link| OnLink {
-        link,
-        wrench: spatial(&(x_world[link].rot * -couple), &Vec3::zeros()),
-        at_node: None,
+    let correction = common_link.map(|link| {
+        let carrier =
+            Carrier::of(model, ws, &SiteFrame { link: Some(link), frame: Transform::identity(), node: common_node })
+                .expect("a common link");
+        carrier.wrench(spatial(&(carrier.in_world(x_world).rot * -couple), &Vec3::zeros()))
     });
     SiteWrenches::of([on_site, on_reference, correction]).transmitted(model, ws, length)
 }

@@ -29,7 +29,9 @@
 //! for such a node I_j is its own inertia plus its children's articulated
 //! inertias, p_j gains their p^a, and the rates gain Σ B_jᵀ İ_j B_j; its
 //! parent velocity and acceleration are the node's, V_j and
-//! A_j = X_j A_R + Ψ_j η̈ + c_j.
+//! A_j = X_j A_R + Ψ_j η̈ + c_j. A body welded at a node is part of the
+//! node: its inertia about the node's origin (first moment included) joins
+//! the node's own inertia, a constant, and gravity on both is I_node (0, g).
 
 use nalgebra::{DMatrix, DVector, Dim, U1, U6};
 
@@ -39,7 +41,7 @@ use crate::flex::nodes;
 use crate::flex::point_masses;
 use crate::math::{
     Real, SpatialMat, SpatialVec, Transform, Vec3, cross_force, cross_motion, leading, leading_mut, mul_cross_motion,
-    real, rigid_inertia, spatial,
+    real, spatial,
 };
 use crate::model::{FlexBody, Model};
 use crate::workspace::{NodeParent, Workspace};
@@ -73,6 +75,9 @@ pub struct FlexState<S: Real = f64> {
     /// Whether D is constant (point masses only): R, R⁻¹ and D⁻¹ are made
     /// with the workspace, and Ḋ = 0.
     constant_factor: bool,
+    /// Each node's own inertia, with the bodies welded at it
+    /// (`FlexBody::node_inertia`), per node taken one by one.
+    node_inertia: Vec<SpatialMat<S>>,
     /// ʲX_R per node taken one by one (`FlexBody::rotating`; pass 1).
     pub node_x: Vec<Transform<S>>,
     /// Ψ_j per such node, 6 × m (pass 1).
@@ -145,6 +150,7 @@ impl<S: Real> FlexState<S> {
         FlexState {
             opens_link,
             constant_factor,
+            node_inertia: (0..nodes).map(|r| real(&flexible.node_inertia(r))).collect(),
             node_x: vec![Transform::identity(); nodes],
             psi: vec![DMatrix::zeros(6, m); nodes],
             v_node: vec![SpatialVec::zeros(); nodes],
@@ -203,12 +209,6 @@ fn inverse_from_factor<S: Real, M: Dim>(modes: M, r_inv: &DMatrix<S>, d_inv: &mu
     }
 }
 
-/// Node `j`'s spatial inertia about its origin, in its axes.
-pub(crate) fn node_inertia<S: Real>(flexible: &FlexBody, j: usize) -> SpatialMat<S> {
-    let node = &flexible.modal.nodes[j];
-    real(&rigid_inertia(node.mass, &Vec3::zeros(), &node.rotary_inertia))
-}
-
 /// Column `k` of a 6-row block.
 fn column<S: Real, M: Dim>(m: &nalgebra::MatrixView<'_, S, U6, M, U1, nalgebra::Dyn>, k: usize) -> SpatialVec<S> {
     SpatialVec::from_fn(|row, _| m[(row, k)])
@@ -221,7 +221,7 @@ pub(crate) fn on_link(model: &Model, i: usize) -> impl Iterator<Item = usize> + 
 
 /// Node slot `r`'s inertia I_j: its own, plus its children's I^a when it carries any.
 fn slot_inertia<S: Real>(flexible: &FlexBody, state: &FlexState<S>, r: usize) -> SpatialMat<S> {
-    let own = node_inertia::<S>(flexible, flexible.rotating[r]);
+    let own = state.node_inertia[r];
     if flexible.carries(r) { own + state.child_inertia[r] } else { own }
 }
 
@@ -489,7 +489,7 @@ fn bias_of_block<const RATES: bool, S: Real, M: Dim>(
     for (r, &j) in flexible.rotating.iter().enumerate() {
         let (x, v, relative) = (&state.node_x[r], state.v_node[r], state.v_relative[r]);
         let psi = leading(&state.psi[r], U6, modes);
-        let inertia = node_inertia::<S>(flexible, j);
+        let inertia = state.node_inertia[r];
         let c = nodes::subspace_rate_times(&flexible.modal, j, eta, rate) + cross_motion(&v, &relative);
         let mut p = inertia * c + cross_force(&v, &(inertia * v));
         let carries = flexible.carries(r);
@@ -503,9 +503,10 @@ fn bias_of_block<const RATES: bool, S: Real, M: Dim>(
             *u -= column(&psi, k).dot(&p);
         }
         if gravity.is_some() || (forces && carries) {
-            // Gravity m g at the node's origin (p = −f_ext), and the children's p^a of forces.
+            // Gravity on the node and the bodies welded at it, I_node (0, g)
+            // in its axes (p = −f_ext), and the children's p^a of forces.
             let mut p = match &gravity {
-                Some(g) => -spatial(&Vec3::zeros(), &(x.rot * g * S::from(flexible.modal.nodes[j].mass))),
+                Some(g) => -(inertia * spatial(&Vec3::zeros(), &(x.rot * g))),
                 None => SpatialVec::zeros(),
             };
             if forces && carries {

@@ -77,7 +77,8 @@ pub enum ActuatorTransmission {
     /// reference site's frame, at the site and, opposite, at the reference
     /// site; the length measures the site in the reference frame. As MuJoCo
     /// clears the moment arms of the dofs that move both sites together, a
-    /// torque cancels the couple the pair exerts on their common link.
+    /// torque cancels the couple the pair exerts on their common link (or
+    /// on the node of a flexible body on it that both hang from).
     RelativeSite {
         /// The site.
         site: SiteFrame,
@@ -85,6 +86,11 @@ pub enum ActuatorTransmission {
         reference: SiteFrame,
         /// The deepest link that moves both sites, if any.
         common_link: Option<usize>,
+        /// The node of a flexible body on `common_link` that both sites
+        /// hang from (on bodies welded at it, or below children at it),
+        /// whose modes move both: the couple is cancelled there.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        common_node: Option<NodeSite>,
     },
     /// A tendon: length gear₀·L, moment arms gear₀·J.
     Tendon {

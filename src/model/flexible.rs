@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::flex::point_masses::{PointMasses, is_point_mass};
 use crate::flex::{ModalBody, Mode, Node};
-use crate::math::Transform;
+use crate::math::{SpatialMat, Transform, Vec3, rigid_inertia};
 
 /// One flexible body with modes, as the passes see it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -35,6 +35,11 @@ pub struct FlexBody {
     /// Per entry of `rotating`: whether some child body rides that node.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub carries: Vec<bool>,
+    /// Per entry of `rotating` (empty when no body is welded at a node):
+    /// the spatial inertia of the bodies welded at that node, about its
+    /// origin in its axes (docs/flexible.md, "Bodies welded at nodes").
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub welded: Vec<SpatialMat>,
 }
 
 /// A child body at a node: its first link, whose `x_tree` is relative to
@@ -51,24 +56,49 @@ pub struct NodeChild {
 impl FlexBody {
     /// The body `modal` (in its link's frame) on `link`, its coordinates at
     /// `qpos_adr` and `dof_adr`, carrying child bodies whose first links
-    /// ride nodes as `children` gives them (link, node index into `modal.nodes`).
+    /// ride nodes as `children` gives them (link, node index into `modal.nodes`),
+    /// and bodies welded at nodes as `welded` gives their inertias (node
+    /// index, spatial inertia about the node in its axes).
     pub(crate) fn new(
         link: usize,
         qpos_adr: usize,
         dof_adr: usize,
         modal: ModalBody,
         children: &[(usize, usize)],
+        welded: &[(usize, SpatialMat)],
     ) -> FlexBody {
-        // A node carrying a child is a full rigid node: the child's articulated
-        // inertia joins the node's, which the point-mass sums cannot hold.
+        // A node carrying a child, or a welded body, is a full rigid node: the
+        // child's articulated inertia, or the welded body's inertia with its
+        // first moment about the node, joins the node's, which the
+        // point-mass sums cannot hold.
         let carried = |j: usize| children.iter().any(|&(_, node)| node == j);
+        let weld = |j: usize| welded.iter().any(|&(node, _)| node == j);
         let rotating: Vec<usize> =
-            (0..modal.nodes.len()).filter(|&j| !is_point_mass(&modal, j) || carried(j)).collect();
+            (0..modal.nodes.len()).filter(|&j| !is_point_mass(&modal, j) || carried(j) || weld(j)).collect();
         let points = PointMasses::of(&modal, &rotating);
         let slot = |j: usize| rotating.iter().position(|&r| r == j).expect("a carrying node is taken one by one");
         let node_children = children.iter().map(|&(link, node)| NodeChild { link, slot: slot(node) }).collect();
         let carries = if children.is_empty() { Vec::new() } else { rotating.iter().map(|&j| carried(j)).collect() };
-        FlexBody { link, qpos_adr, dof_adr, modal, rotating, points, node_children, carries }
+        let welded = match welded.is_empty() {
+            true => Vec::new(),
+            false => rotating
+                .iter()
+                .map(|&j| welded.iter().filter(|&&(node, _)| node == j).map(|(_, inertia)| inertia).sum())
+                .collect(),
+        };
+        FlexBody { link, qpos_adr, dof_adr, modal, rotating, points, node_children, carries, welded }
+    }
+
+    /// The spatial inertia of the node in slot `r` of `rotating`, about its
+    /// origin in its axes: its mass and rotary inertia, and the bodies
+    /// welded at it.
+    pub fn node_inertia(&self, r: usize) -> SpatialMat {
+        let node = &self.modal.nodes[self.rotating[r]];
+        let own = rigid_inertia(node.mass, &Vec3::zeros(), &node.rotary_inertia);
+        match self.welded.get(r) {
+            Some(welded) => own + welded,
+            None => own,
+        }
     }
 
     /// Whether the node in slot `r` of `rotating` carries a child body.

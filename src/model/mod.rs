@@ -329,25 +329,19 @@ pub enum ModelError {
         /// What the vehicle has that does not.
         feature: &'static str,
     },
-    /// A child body without joints placed at a node of a flexible body
-    /// that its modes move: a child with a joint there rides the node, a
-    /// welded one would have to join the node's inertia, which is not built
-    /// (docs/flexible.md, "Status"); fixed to the undeformed frame it would
-    /// move wrongly, so it is refused.
+    /// A flexible body without joints at a node of another flexible body
+    /// that its modes move: its own modal block would sit on the other's
+    /// undeformed frame (docs/flexible.md, "Bodies welded at nodes").
     #[error(
-        "body '{body}' is flexible: its child '{child}' (line {line}) is welded at its node '{node}', which its \
-         modes move; a child body rides a node through a joint of its own (give it one), and bodies welded at \
-         such nodes are not built (a child off every node, or at a node no mode moves, is fixed to the \
-         undeformed frame of '{body}')"
+        "body '{body}' is flexible and welded at node '{node}' of the flexible body '{carrier}', which its modes \
+         move: a flexible body rides another's node through a joint of its own (give it one)"
     )]
-    FlexibleChildAtNode {
-        /// The flexible body.
+    FlexibleWeldedAtNode {
+        /// The welded flexible body.
         body: String,
-        /// The child body.
-        child: String,
-        /// The child's MJCF line.
-        line: u32,
-        /// The node's name in the modal file.
+        /// The flexible body it is welded to.
+        carrier: String,
+        /// The node's name in the carrier's modal file.
         node: String,
     },
     /// A free joint that is not on a child of the world body.
@@ -426,12 +420,30 @@ pub(crate) struct Attachment {
     /// The offset's rotation as the product of the body quaternions on the
     /// way, as MuJoCo composes `xquat` (so a frame quaternion gets its sign).
     pub quat: Quat,
+    /// For a body welded (no joint on the way) at a node of a flexible body
+    /// that its modes move: that node, and its undeformed origin on the link.
+    pub node: Option<(NodeSite, Vec3)>,
 }
 
 impl Attachment {
     /// A body frame that is the frame of `link`.
     fn at(link: Option<usize>) -> Attachment {
-        Attachment { link, offset: Transform::identity(), quat: Quat::identity() }
+        Attachment { link, offset: Transform::identity(), quat: Quat::identity(), node: None }
+    }
+
+    /// A frame fixed in the body, `in_body` (ᶠX_b), on what carries the body:
+    /// its link, or the node it is welded at (the frame then relative to the
+    /// node's frame: the link's axes, origin at the node).
+    pub(crate) fn frame(&self, in_body: &Transform) -> SiteFrame {
+        let in_link = in_body.compose(&self.offset);
+        match self.node {
+            None => SiteFrame { link: self.link, frame: in_link, node: None },
+            Some((node, origin)) => SiteFrame {
+                link: self.link,
+                frame: Transform { rot: in_link.rot, trans: in_link.trans - origin },
+                node: Some(node),
+            },
+        }
     }
 }
 
@@ -587,7 +599,8 @@ impl Tree {
             flexible: Vec::new(),
         };
         model.tendon_inertia = tendon::inertia_terms(&model);
-        add_flexible_bodies(&mut model, vehicle, &bodies.attachments, &constraints)?;
+        add_flexible_bodies(&mut model, vehicle, &bodies.attachments, &bodies.welded, &constraints)?;
+        common_nodes(&mut model, vehicle, &bodies.attachments);
         Ok(Tree { model, constraints, attachments: bodies.attachments, sites })
     }
 
@@ -627,34 +640,35 @@ fn add_flexible_bodies(
     model: &mut Model,
     vehicle: &Vehicle,
     attachments: &[Attachment],
+    welded: &[(NodeSite, SpatialMat)],
     constraints: &Constraints,
 ) -> Result<(), ModelError> {
-    for modal in with_modes(vehicle) {
+    for (f, modal) in with_modes(vehicle).enumerate() {
         let body =
             vehicle.bodies.iter().position(|b| b.name == modal.body).expect("the importer names existing bodies");
         let at = attachments[body];
         let Some(link) = at.link else { return Err(ModelError::FlexibleOnWorld { body: modal.body.clone() }) };
-        // A node that no mode moves (a clamped interface node) is fixed to R, and so is a child there.
-        let moves = |j: usize| {
-            modal.modes.iter().any(|mode| mode.translation[j] != Vec3::zeros() || mode.rotation[j] != Vec3::zeros())
-        };
-        // Children at a node that some mode moves ride that node (their first
-        // link's parent frame is the node's); one welded there is refused.
+        if let Some((node, _)) = at.node {
+            let carrier = with_modes(vehicle).nth(node.flexible).expect("a flexible body with modes");
+            return Err(ModelError::FlexibleWeldedAtNode {
+                body: modal.body.clone(),
+                carrier: carrier.body.clone(),
+                node: carrier.nodes[node.node].name.clone(),
+            });
+        }
+        // Children with joints at a node that some mode moves ride that node
+        // (their first link's parent frame is the node's), and so do those of
+        // the bodies welded at such a node.
         let mut children = Vec::new();
-        for (c, child) in vehicle.bodies.iter().enumerate().filter(|(_, c)| c.parent == Some(body)) {
-            let Some(j) = (0..modal.nodes.len())
-                .find(|&j| (modal.nodes[j].position - child.pos).norm() <= NODE_SITE_DISTANCE && moves(j))
-            else {
-                continue;
+        for (c, child) in vehicle.bodies.iter().enumerate().filter(|(_, c)| !c.joints.is_empty()) {
+            let Some(parent) = child.parent else { continue };
+            let node = match attachments[parent].node {
+                Some((node, _)) => Some(node.node).filter(|_| node.flexible == f),
+                None if parent == body => (0..modal.nodes.len())
+                    .find(|&j| (modal.nodes[j].position - child.pos).norm() <= NODE_SITE_DISTANCE && moves(modal, j)),
+                None => None,
             };
-            if child.joints.is_empty() {
-                return Err(ModelError::FlexibleChildAtNode {
-                    body: modal.body.clone(),
-                    child: child.name.clone(),
-                    line: child.line,
-                    node: modal.nodes[j].name.clone(),
-                });
-            }
+            let Some(j) = node else { continue };
             // The child's first link: up from its last while the parent is not the body's link.
             let mut first = attachments[c].link.expect("a child with joints has links");
             while let Some(p) = model.links[first].parent.filter(|&p| p != link) {
@@ -665,7 +679,12 @@ fn add_flexible_bodies(
         let unsupported = [
             (!model.tendons.is_empty(), "tendons"),
             (!constraints.is_empty() || !vehicle.equalities.is_empty(), "joint limits, friction loss and equalities"),
-            (!model.gravity_compensation.is_empty() || vehicle.bodies[body].gravcomp != 0.0, "gravity compensation"),
+            (
+                !model.gravity_compensation.is_empty()
+                    || vehicle.bodies[body].gravcomp != 0.0
+                    || vehicle.bodies.iter().zip(attachments).any(|(b, at)| at.node.is_some() && b.gravcomp != 0.0),
+                "gravity compensation",
+            ),
             (!model.body_masses.is_empty(), "subtree, force and torque sensors"),
         ];
         if let Some((_, feature)) = unsupported.into_iter().find(|(has, _)| *has) {
@@ -678,13 +697,49 @@ fn add_flexible_bodies(
             let node_to_link = Transform::from_pose(&Mat3::identity(), &-on_link.nodes[j].position);
             model.links[first].x_tree = model.links[first].x_tree.compose(&node_to_link);
         }
-        model.flexible.push(FlexBody::new(link, model.nq, model.nv, on_link, &children));
+        let welded: Vec<(usize, SpatialMat)> =
+            welded.iter().filter(|(node, _)| node.flexible == f).map(|(node, inertia)| (node.node, *inertia)).collect();
+        model.flexible.push(FlexBody::new(link, model.nq, model.nv, on_link, &children, &welded));
         model.nq += modes;
         model.nv += modes;
         model.qpos0.extend(std::iter::repeat_n(0.0, modes));
         model.qpos_spring.extend(std::iter::repeat_n(0.0, modes));
     }
     Ok(())
+}
+
+/// The node each reference-site pair hangs from on its common link (both
+/// sites on bodies welded at that node, or below children at it): its
+/// modes move both, so the pair's couple is cancelled there, as MuJoCo
+/// clears the dofs that move both sites. A site of the flexible body itself
+/// at the node is on that body, not hanging from it.
+fn common_nodes(model: &mut Model, vehicle: &Vehicle, attachments: &[Attachment]) {
+    for (given, compiled) in vehicle.actuators.iter().zip(model.actuators.iter_mut()) {
+        let (
+            Transmission::Site { site, refsite: Some(reference) },
+            ActuatorTransmission::RelativeSite { common_link: Some(common), common_node, .. },
+        ) = (&given.transmission, &mut compiled.transmission)
+        else {
+            continue;
+        };
+        let hangs_from = |k: usize| -> Option<NodeSite> {
+            let body = vehicle.sites[k].body?;
+            let link = attachments[body].link?;
+            if link == *common {
+                return attachments[body].node.map(|(node, _)| node);
+            }
+            let mut first = link;
+            while let Some(p) = model.links[first].parent.filter(|p| p != common) {
+                first = p;
+            }
+            model.links[first].parent?;
+            model.flexible.iter().enumerate().filter(|(_, f)| f.link == *common).find_map(|(f, flexible)| {
+                let child = flexible.node_children.iter().find(|c| c.link == first)?;
+                Some(NodeSite { flexible: f, node: flexible.rotating[child.slot] })
+            })
+        };
+        *common_node = hangs_from(*site).filter(|node| hangs_from(*reference) == Some(*node));
+    }
 }
 
 /// The links of a vehicle's bodies and joints, and where each body and
@@ -699,6 +754,31 @@ struct BodyTree {
     /// Each link's `x_tree` rotation as MuJoCo composes `xquat`.
     tree_quats: Vec<Quat>,
     compensation: GravityCompensation,
+    /// The spatial inertias of the bodies welded at nodes, about their
+    /// node's origin in the link's axes.
+    welded: Vec<(NodeSite, SpatialMat)>,
+}
+
+/// The node that a body without joints, child of body `parent` at `pos` in
+/// its frame, is welded at: its parent's, or a node of the flexible body
+/// `parent` within [`NODE_SITE_DISTANCE`] of `pos` that some mode moves
+/// (a child at a node no mode moves, or at no node, is fixed to R).
+fn welded_node(vehicle: &Vehicle, attachments: &[Attachment], parent: usize, pos: &Vec3) -> Option<(NodeSite, Vec3)> {
+    let at = attachments[parent];
+    if at.node.is_some() {
+        return at.node;
+    }
+    let name = &vehicle.bodies[parent].name;
+    let (f, modal) = with_modes(vehicle).enumerate().find(|(_, modal)| &modal.body == name)?;
+    let j = (0..modal.nodes.len())
+        .find(|&j| (modal.nodes[j].position - pos).norm() <= NODE_SITE_DISTANCE && moves(modal, j))?;
+    let origin = at.offset.trans + at.offset.rot.transpose() * modal.nodes[j].position;
+    Some((NodeSite { flexible: f, node: j }, origin))
+}
+
+/// Whether some mode of `modal` moves its node `j`.
+fn moves(modal: &crate::flex::ModalBody, j: usize) -> bool {
+    modal.modes.iter().any(|mode| mode.translation[j] != Vec3::zeros() || mode.rotation[j] != Vec3::zeros())
 }
 
 impl BodyTree {
@@ -712,6 +792,7 @@ impl BodyTree {
             attachments: Vec::with_capacity(vehicle.bodies.len()),
             tree_quats: Vec::new(),
             compensation: GravityCompensation::default(),
+            welded: Vec::new(),
         };
         for body in &vehicle.bodies {
             let parent = match body.parent {
@@ -724,14 +805,30 @@ impl BodyTree {
                 link: parent.link,
                 offset: body_in_parent.compose(&parent.offset),
                 quat: parent.quat * body.quat,
+                node: None,
             };
+            if body.joints.is_empty() {
+                inboard.node = body.parent.and_then(|p| welded_node(vehicle, &tree.attachments, p, &body.pos));
+            }
             for joint in &body.joints {
                 inboard = tree.add_joint(body, joint, inboard)?;
             }
-            // A flexible body's nodes carry its mass, in the passes' modal block.
+            // A flexible body's nodes carry its mass, in the passes' modal
+            // block, and so does a node the mass of a body welded at it.
             let flexible = vehicle.flexible.iter().any(|f| f.body == body.name && !f.modes.is_empty());
-            if let (Some(mass_props), Some(link), false) = (&body.inertia, inboard.link, flexible) {
-                tree.add_body_inertia(link, &inboard, mass_props, body.gravcomp);
+            match (&body.inertia, inboard.link, inboard.node) {
+                (Some(mass_props), Some(_), Some((node, origin))) => {
+                    let inertia = rigid_inertia(mass_props.mass, &mass_props.com, &mass_props.inertia);
+                    // ᵇX_ₙ = ᵇX_ₗ ˡX_ₙ, the node frame n at `origin` in link axes.
+                    let in_node = inboard.offset.compose(&Transform::from_pose(&Mat3::identity(), &-origin));
+                    let mut about_node = SpatialMat::zeros();
+                    in_node.add_inertia_to_parent(&inertia, &mut about_node, true);
+                    tree.welded.push((node, about_node));
+                }
+                (Some(mass_props), Some(link), None) if !flexible => {
+                    tree.add_body_inertia(link, &inboard, mass_props, body.gravcomp);
+                }
+                _ => {}
             }
             tree.attachments.push(inboard);
         }
@@ -820,7 +917,8 @@ pub const NODE_SITE_DISTANCE: f64 = 1e-6;
 
 /// The sites' frames on the links that carry them (`attachments`, per
 /// body). A site of a flexible body within [`NODE_SITE_DISTANCE`] of one of
-/// its nodes rides that node (docs/flexible.md, "Sites at nodes").
+/// its nodes rides that node (docs/flexible.md, "Sites at nodes"), and so
+/// does every site of a body welded at a node.
 fn site_frames(vehicle: &Vehicle, attachments: &[Attachment]) -> Vec<SiteFrame> {
     vehicle
         .sites
@@ -828,25 +926,20 @@ fn site_frames(vehicle: &Vehicle, attachments: &[Attachment]) -> Vec<SiteFrame> 
         .map(|site| {
             let in_body = Transform::from_pose(&site.quat.to_rotation_matrix().into_inner(), &site.pos);
             let Some(body) = site.body else { return SiteFrame { link: None, frame: in_body, node: None } };
-            let at = &attachments[body];
-            let in_link = in_body.compose(&at.offset);
+            let at = attachments[body];
             let name = &vehicle.bodies[body].name;
             let node = with_modes(vehicle).enumerate().filter(|(_, f)| &f.body == name).find_map(|(f, modal)| {
                 let j = modal.nodes.iter().position(|n| (n.position - site.pos).norm() <= NODE_SITE_DISTANCE)?;
-                Some((NodeSite { flexible: f, node: j }, modal.nodes[j].position))
+                // The node's frame at rest: its origin, the link's axes.
+                let origin = at.offset.trans + at.offset.rot.transpose() * modal.nodes[j].position;
+                Some((NodeSite { flexible: f, node: j }, origin))
             });
-            match node {
-                Some((node, position)) => {
-                    // The node's frame at rest: its origin, the link's axes.
-                    let origin = at.offset.trans + at.offset.rot.transpose() * position;
-                    SiteFrame {
-                        link: at.link,
-                        frame: Transform { rot: in_link.rot, trans: in_link.trans - origin },
-                        node: Some(node),
-                    }
-                }
-                None => SiteFrame { link: at.link, frame: in_link, node: None },
-            }
+            // A body welded at a node carries its sites on that node.
+            let carrier = match node {
+                Some(node) => Attachment { node: Some(node), ..at },
+                None => at,
+            };
+            carrier.frame(&in_body)
         })
         .collect()
 }
@@ -885,6 +978,7 @@ fn compile_actuators(vehicle: &Vehicle, links: &[Link], joints: &[JointInfo], si
                             site: sites[*site],
                             reference: sites[*reference],
                             common_link: common_link(links, sites[*site].link, sites[*reference].link),
+                            common_node: None,
                         },
                     };
                     let target = ActuatorTarget {
@@ -937,7 +1031,7 @@ fn wrench_actuators(vehicle: &Vehicle, attachments: &[Attachment], name: &str) -
         });
     }
     let centre = Transform::from_pose(&Mat3::identity(), &vehicle.bodies[index].inertial_pos);
-    let site = SiteFrame { link: at.link, frame: centre.compose(&at.offset), node: None };
+    let site = at.frame(&centre);
     let world = SiteFrame { link: None, frame: Transform::identity(), node: None };
     const COMPONENTS: [&str; 6] = ["force x", "force y", "force z", "torque x", "torque y", "torque z"];
     Ok(COMPONENTS
@@ -950,7 +1044,12 @@ fn wrench_actuators(vehicle: &Vehicle, attachments: &[Attachment], name: &str) -
                 name: Some(format!("{component} on '{name}'")),
                 kind: ActuatorKind::General,
                 target: ActuatorTarget { attribute: "xfrc_applied".into(), name: name.to_string(), refsite: None },
-                transmission: ActuatorTransmission::RelativeSite { site, reference: world, common_link: None },
+                transmission: ActuatorTransmission::RelativeSite {
+                    site,
+                    reference: world,
+                    common_link: None,
+                    common_node: None,
+                },
                 gear,
                 gain_type: GainType::Fixed,
                 gain: [1.0, 0.0, 0.0],

@@ -276,9 +276,7 @@ fn frame_of(
     axes_needed: bool,
 ) -> Result<(SiteFrame, Quat), String> {
     let body_frame = |index: &Option<usize>| match index {
-        Some(b) => {
-            (SiteFrame { link: attachments[*b].link, frame: attachments[*b].offset, node: None }, attachments[*b].quat)
-        }
+        Some(b) => (attachments[*b].frame(&Transform::identity()), attachments[*b].quat),
         None => (SiteFrame { link: None, frame: Transform::identity(), node: None }, Quat::identity()),
     };
     Ok(match object {
@@ -304,7 +302,7 @@ fn frame_of(
             };
             let (at, body_quat) = body_frame(&Some(*b));
             let in_body = Transform::from_pose(&quat.to_rotation_matrix().into_inner(), &body.inertial_pos);
-            (SiteFrame { link: at.link, frame: in_body.compose(&at.frame), node: None }, body_quat * quat)
+            (SiteFrame { link: at.link, frame: in_body.compose(&at.frame), node: at.node }, body_quat * quat)
         }
     })
 }

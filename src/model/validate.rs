@@ -241,8 +241,15 @@ fn validate_actuator(model: &Model, k: usize) -> Result<(), String> {
             joint_at(*dof, *qpos - 3, LinkJoint::Translation) && joint_at(*dof + 3, *qpos, LinkJoint::Ball)
         }
         ActuatorTransmission::Site { site } => site_ok(site),
-        ActuatorTransmission::RelativeSite { site, reference, common_link } => {
-            site_ok(site) && site_ok(reference) && common_link.is_none_or(|l| l < model.links.len())
+        ActuatorTransmission::RelativeSite { site, reference, common_link, common_node } => {
+            site_ok(site)
+                && site_ok(reference)
+                && common_link.is_none_or(|l| l < model.links.len())
+                && common_node.is_none_or(|at| {
+                    model.flexible.get(at.flexible).is_some_and(|f| {
+                        Some(f.link) == *common_link && at.node < f.modal.nodes.len() && f.rotating.contains(&at.node)
+                    })
+                })
         }
         ActuatorTransmission::Tendon { tendon } => *tendon < model.tendons.len(),
     };

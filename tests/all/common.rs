@@ -756,6 +756,52 @@ pub fn attach_children_to_nodes(rng: &mut Rng, vehicle: &mut Vehicle) -> usize {
     attached
 }
 
+/// Welds bodies at nodes of `vehicle`'s flexible bodies (docs/flexible.md,
+/// "Bodies welded at nodes"): at a random node of each, a body without
+/// joints, turned and off-centre at random; under it, each with
+/// probability ½, a child with a hinge or a ball and a second welded body
+/// (which may carry a child with a joint of its own). Returns the welded
+/// bodies' indices.
+pub fn weld_bodies_to_nodes(rng: &mut Rng, vehicle: &mut Vehicle) -> Vec<usize> {
+    let mut welded = Vec::new();
+    let flexible: Vec<(usize, Vec<V3>)> = vehicle
+        .flexible
+        .iter()
+        .filter(|f| !f.modes.is_empty())
+        .map(|f| {
+            let b = vehicle.bodies.iter().position(|body| body.name == f.body).unwrap();
+            (b, f.nodes.iter().map(|n| n.position).collect())
+        })
+        .collect();
+    for (b, nodes) in flexible {
+        let pos = nodes[rng.below(nodes.len())];
+        let add = |rng: &mut Rng, vehicle: &mut Vehicle, parent: usize, pos: V3, joints: Vec<Joint>| {
+            let n = vehicle.bodies.len();
+            vehicle.bodies.push(random_body(rng, format!("b{n}"), Some(parent), pos, joints));
+            n
+        };
+        let on_node = add(rng, vehicle, b, pos, Vec::new());
+        welded.push(on_node);
+        let mut carriers = vec![on_node];
+        if rng.below(2) == 0 {
+            let pos = rng.vec3(0.3);
+            let second = add(rng, vehicle, on_node, pos, Vec::new());
+            welded.push(second);
+            carriers.push(second);
+        }
+        for carrier in carriers {
+            if rng.below(2) == 0 {
+                let n = vehicle.bodies.len();
+                let kind = if rng.below(2) == 0 { JointKind::Hinge } else { JointKind::Ball };
+                let joints = vec![joint(rng, format!("j{n}"), kind)];
+                let pos = rng.vec3(0.3);
+                add(rng, vehicle, carrier, pos, joints);
+            }
+        }
+    }
+    welded
+}
+
 /// A motor (gain 1, no bias, no ranges) on `transmission` with `gear`.
 pub fn motor(transmission: Transmission, gear: [f64; 6]) -> Actuator {
     Actuator {

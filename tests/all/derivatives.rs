@@ -37,13 +37,21 @@ fn case(seed: u64, free_base: bool) -> Case {
 
 /// As [`case`], with 1–2 bodies made flexible when `flexible`
 /// (docs/flexible.md), child bodies hanging from their nodes when
-/// `children_at_nodes`, and without gravity, joint springs and dampers
+/// `children_at_nodes`, bodies welded at nodes when `welded`, and without
+/// gravity, joint springs and dampers
 /// unless `passive` (the modes' stiffness acts still).
 fn flexible_case(seed: u64, free_base: bool, passive: bool, flexible: bool) -> Case {
-    with_children(seed, free_base, passive, flexible, false)
+    with_children(seed, free_base, passive, flexible, false, false)
 }
 
-fn with_children(seed: u64, free_base: bool, passive: bool, flexible: bool, children_at_nodes: bool) -> Case {
+fn with_children(
+    seed: u64,
+    free_base: bool,
+    passive: bool,
+    flexible: bool,
+    children_at_nodes: bool,
+    welded: bool,
+) -> Case {
     let mut rng = Rng::new(seed);
     let bodies = 2 + rng.below(7);
     let mut vehicle = random_vehicle(&mut rng, TreeOptions { bodies, free_base, passive, chain: false });
@@ -52,6 +60,9 @@ fn with_children(seed: u64, free_base: bool, passive: bool, flexible: bool, chil
     }
     if children_at_nodes {
         crate::common::attach_children_to_nodes(&mut rng, &mut vehicle);
+    }
+    if welded {
+        crate::common::weld_bodies_to_nodes(&mut rng, &mut vehicle);
     }
     let model = Model::compile(&vehicle).unwrap();
     // MuJoCo's ball spring jumps where the rotation from its rest pose
@@ -413,9 +424,19 @@ fn momentum_jacobians_agree_with_central_differences() {
 #[test]
 fn jacobians_with_children_at_nodes_agree_with_central_differences_of_the_passes() {
     for seed in 0..8 {
-        let case = with_children(100 + seed, seed % 2 == 0, seed % 4 < 2, true, true);
+        let case = with_children(100 + seed, seed % 2 == 0, seed % 4 < 2, true, true, false);
         assert!(case.model.flexible.iter().any(|f| !f.node_children.is_empty()));
         assert_agrees_with_differences(&case, &format!("children at nodes, seed {seed}"), 1e-8);
+    }
+}
+
+/// With bodies welded at nodes (docs/flexible.md, "Bodies welded at nodes").
+#[test]
+fn jacobians_with_bodies_welded_at_nodes_agree_with_central_differences_of_the_passes() {
+    for seed in 0..8 {
+        let case = with_children(200 + seed, seed % 2 == 0, seed % 4 < 2, true, false, true);
+        assert!(case.model.flexible.iter().any(|f| !f.welded.is_empty()));
+        assert_agrees_with_differences(&case, &format!("bodies welded at nodes, seed {seed}"), 1e-8);
     }
 }
 

@@ -191,6 +191,30 @@ proptest! {
     }
 }
 
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 32, ..ProptestConfig::default() })]
+
+    /// Bodies welded at nodes of flexible bodies (docs/flexible.md, "Bodies
+    /// welded at nodes"), some carrying children with joints, beside
+    /// children with joints at nodes, against the dense reference, where
+    /// they are rigid bodies fixed in the nodes' frames.
+    #[test]
+    fn random_trees_with_bodies_welded_at_nodes(seed in any::<u64>(), bodies in 1usize..6, free_base in any::<bool>(), passive in any::<bool>()) {
+        let mut rng = Rng::new(seed);
+        let mut vehicle = random_vehicle(&mut rng, TreeOptions { bodies, free_base, passive, chain: false });
+        common::make_flexible(&mut rng, &mut vehicle, passive);
+        if rng.below(2) == 0 {
+            common::attach_children_to_nodes(&mut rng, &mut vehicle);
+        }
+        let welded = common::weld_bodies_to_nodes(&mut rng, &mut vehicle);
+        let model = Model::compile(&vehicle).unwrap();
+        prop_assert!(!welded.is_empty() && model.flexible.iter().any(|f| !f.welded.is_empty()));
+        if let Err(e) = check_vehicle(&vehicle, &mut rng) {
+            prop_assert!(false, "{e}\n{vehicle:#?}");
+        }
+    }
+}
+
 /// Flexible bodies with more modes than the blocks' fixed-size instances
 /// (`flexible::FIXED_MODES`: the same arithmetic at a size known only at run
 /// time), and bodies of point masses only (a constant factor, made with the

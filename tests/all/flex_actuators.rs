@@ -111,14 +111,17 @@ fn motor(site: usize, refsite: Option<usize>, gear: [f64; 6]) -> Actuator {
 /// at random) and one on every rigid body, and motors on sites at nodes:
 /// alone, against a reference site on another body or the world, and
 /// against another node of the same body. With `children_at_nodes`, child
-/// bodies hang from nodes, and the site of each has a motor of its own too.
-fn actuated_at_nodes(rng: &mut Rng, free_base: bool, passive: bool, children_at_nodes: bool) -> Vehicle {
+/// bodies hang from nodes, and the site of each has a motor of its own too;
+/// with `welded`, bodies welded at nodes (some carrying children with
+/// joints) have sites and motors alone on them as well.
+fn actuated_at_nodes(rng: &mut Rng, free_base: bool, passive: bool, children_at_nodes: bool, welded: bool) -> Vehicle {
     let bodies = 2 + rng.below(4);
     let mut vehicle = random_vehicle(rng, TreeOptions { bodies, free_base, passive, chain: false });
     common::make_flexible(rng, &mut vehicle, passive);
     if children_at_nodes {
         common::attach_children_to_nodes(rng, &mut vehicle);
     }
+    let welded_bodies = if welded { common::weld_bodies_to_nodes(rng, &mut vehicle) } else { Vec::new() };
     let mut node_sites: Vec<Vec<usize>> = Vec::new();
     for modal in vehicle.flexible.clone() {
         let body = vehicle.bodies.iter().position(|b| b.name == modal.body).unwrap();
@@ -156,6 +159,9 @@ fn actuated_at_nodes(rng: &mut Rng, free_base: bool, passive: bool, children_at_
             vehicle.actuators.push(motor(site, None, gear(rng)));
         }
     }
+    for &body in &welded_bodies {
+        vehicle.actuators.push(motor(elsewhere[body], None, gear(rng)));
+    }
     for sites in &node_sites {
         for (n, &site) in sites.iter().enumerate() {
             vehicle.actuators.push(motor(site, None, gear(rng)));
@@ -171,21 +177,28 @@ fn actuated_at_nodes(rng: &mut Rng, free_base: bool, passive: bool, children_at_
 
 #[test]
 fn actuators_at_nodes_act_through_the_nodes_jacobians() {
-    check_against_the_dense_reference(4949, false);
+    check_against_the_dense_reference(4949, false, false);
 }
 
 /// With children at nodes: their sites' wrenches go through the nodes to
 /// the modes (and their velocities are the nodes' carried on).
 #[test]
 fn actuators_on_children_at_nodes_act_through_the_nodes_jacobians() {
-    check_against_the_dense_reference(4950, true);
+    check_against_the_dense_reference(4950, true, false);
 }
 
-fn check_against_the_dense_reference(seed: u64, children_at_nodes: bool) {
+/// With bodies welded at nodes (docs/flexible.md, "Bodies welded at
+/// nodes"): their sites ride the nodes, off the nodes' origins.
+#[test]
+fn actuators_on_bodies_welded_at_nodes_act_through_the_nodes_jacobians() {
+    check_against_the_dense_reference(4951, true, true);
+}
+
+fn check_against_the_dense_reference(seed: u64, children_at_nodes: bool, welded: bool) {
     let mut rng = Rng::new(seed);
     for trial in 0..16 {
         let (free_base, passive) = (trial % 2 == 0, trial % 4 < 2);
-        let vehicle = actuated_at_nodes(&mut rng, free_base, passive, children_at_nodes);
+        let vehicle = actuated_at_nodes(&mut rng, free_base, passive, children_at_nodes, welded);
         let model = Model::compile(&vehicle).unwrap();
         let theta = random_theta(&mut rng, &vehicle);
         let qvel = rng.vec(model.nv, 1.5);
@@ -304,5 +317,37 @@ fn a_thruster_at_a_node_does_the_virtual_work_of_its_wrench_on_the_nodes_pose() 
         assert_eq!(s[THRUSTER_POS], 0.0, "a site transmission without refsite has length 0");
         assert_eq!((s[THRUSTER_FRC], s[TORQUER_FRC]), (ctrl[0], ctrl[1]));
         assert_eq!((s[THRUSTER_VEL], s[TORQUER_VEL]), (ws.actuator_velocity[0], ws.actuator_velocity[1]));
+    }
+}
+
+/// A wrench input on a body welded at a node (docs/flexible.md, "Bodies
+/// welded at nodes"; fixture tests/fixtures/flex/bench_welded.xml, the
+/// star tracker): its six unit forces and torques along the world's axes at
+/// the tracker's centre of mass act through the node, as the dense
+/// reference's Jacobians of that point give them, modes included.
+#[test]
+fn a_wrench_input_on_a_body_welded_at_a_node_acts_through_the_node() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/flex/bench_welded.xml");
+    let vehicle = load_mjcf(&path).unwrap().vehicle;
+    let model = Model::compile_with_wrench_inputs(&vehicle, &["tracker".to_string()]).unwrap();
+    let tracker = vehicle.bodies.iter().position(|b| b.name == "tracker").unwrap();
+    let first = model.mjcf_actuator_count();
+    let mut rng = Rng::new(4952);
+    for case in 0..4 {
+        let theta = random_theta(&mut rng, &vehicle);
+        let mut ws = model.workspace();
+        ws.set_configuration(&model, &theta).unwrap();
+        ws.set_qvel(&model, &rng.vec(model.nv, 1.0)).unwrap();
+        let k = kinematics(&vehicle, &theta);
+        let centre = k.body_pos[tracker] + k.body_rot[tracker] * vehicle.bodies[tracker].inertial_pos;
+        let (jw, jv) = point_jacobian(&k, tracker, &centre, model.nv);
+        let modes = model.nv - common::modal_count(&vehicle)..model.nv;
+        let mut row = vec![0.0; model.nv];
+        for axis in 0..6 {
+            ws.actuator_moment(&model, first + axis, &mut row).unwrap();
+            let expected = if axis < 3 { jv.row(axis).transpose() } else { jw.row(axis - 3).transpose() };
+            assert!(expected.rows(modes.start, modes.len()).norm() > 1e-3, "case {case}, axis {axis}: no modal arms");
+            assert!(rel_err(&row, expected.as_slice()) < 1e-9, "case {case}, axis {axis}: {row:?} vs {expected}");
+        }
     }
 }

@@ -13,7 +13,7 @@ use crate::common::{self, Rng, TreeOptions};
 #[test]
 fn a_free_floating_flexible_vehicle_keeps_its_momentum_and_energy() {
     // The done-when's 100 s on one vehicle, 10 s on two more.
-    check_conservation(&[(17, 100.0), (3, 10.0), (40, 10.0)], false);
+    check_conservation(&[(17, 100.0), (3, 10.0), (40, 10.0)], false, false);
 }
 
 /// The same with child bodies at nodes (docs/flexible.md, "Child bodies at
@@ -25,13 +25,23 @@ fn a_free_floating_vehicle_with_children_at_nodes_keeps_its_momentum_and_energy(
     // 7.9e-9 in momentum about the world origin, its base 40 m away by
     // then; its rate dp/dt is at round-off, 1e-11 of p, as the vehicles'
     // without children.)
-    check_conservation(&[(8, 100.0), (21, 10.0), (5, 10.0)], true);
+    check_conservation(&[(8, 100.0), (21, 10.0), (5, 10.0)], true, false);
+}
+
+/// The same with bodies welded at nodes (docs/flexible.md, "Bodies welded
+/// at nodes"), some carrying children with joints, beside children with
+/// joints at nodes: the welded bodies' inertia about their node, first
+/// moment included, in the node's.
+#[test]
+fn a_free_floating_vehicle_with_bodies_welded_at_nodes_keeps_its_momentum_and_energy() {
+    check_conservation(&[(12, 100.0), (30, 10.0), (31, 10.0)], true, true);
 }
 
 /// Integrates free-floating random vehicles with flexible bodies (and with
-/// `children_at_nodes`, children hanging from their nodes) for the seconds
-/// given per seed, and holds K + strain energy and the momentum to 1e-9.
-fn check_conservation(runs: &[(u64, f64)], children_at_nodes: bool) {
+/// `children_at_nodes`, children hanging from their nodes, and with
+/// `welded`, bodies welded at them) for the seconds given per seed, and
+/// holds K + strain energy and the momentum to 1e-9.
+fn check_conservation(runs: &[(u64, f64)], children_at_nodes: bool, welded: bool) {
     for &(seed, stop) in runs {
         let mut rng = Rng::new(seed);
         let mut vehicle =
@@ -40,8 +50,12 @@ fn check_conservation(runs: &[(u64, f64)], children_at_nodes: bool) {
         if children_at_nodes {
             common::attach_children_to_nodes(&mut rng, &mut vehicle);
         }
+        if welded {
+            common::weld_bodies_to_nodes(&mut rng, &mut vehicle);
+        }
         let model = Model::compile(&vehicle).unwrap();
         assert!(!model.flexible.is_empty());
+        assert_eq!(model.flexible.iter().any(|f| !f.welded.is_empty()), welded);
         assert_eq!(model.flexible.iter().any(|f| !f.node_children.is_empty()), children_at_nodes);
         let settings = Settings { tolerance: 1e-10, max_step: 0.0, energy_projection: false };
         let mut sim = Simulation::new(&model, Method::Dop853, settings);

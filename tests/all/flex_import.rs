@@ -75,13 +75,13 @@ fn a_flexible_body_welded_to_the_world_or_with_tendons_is_refused_at_compile() {
 }
 
 /// A child with a joint at a node that the modes move rides that node
-/// (docs/flexible.md, "Child bodies at nodes"); one welded there is
-/// refused, naming the body, the child and the node. A child elsewhere, or
+/// (docs/flexible.md, "Child bodies at nodes"); one welded there joins the
+/// node's inertia ("Bodies welded at nodes"). A child elsewhere, or
 /// at a node no mode moves (bench.json's "root"), is fixed to the bench's
 /// frame, as documented; with no modes a child at the tip is the rigid
 /// vehicle's.
 #[test]
-fn a_child_body_at_a_node_rides_it_and_a_welded_one_is_refused() {
+fn a_child_body_at_a_node_rides_it_and_a_welded_one_joins_its_inertia() {
     let child = |pos: &str, joint: &str| {
         format!(
             "<body name=\"panel\" pos=\"{pos}\">{joint}\
@@ -96,13 +96,37 @@ fn a_child_body_at_a_node_rides_it_and_a_welded_one_is_refused() {
     assert_eq!(flexible.node_children.len(), 1);
     assert_eq!(flexible.node_children[0].link, yoke);
     assert_eq!(flexible.modal.nodes[flexible.rotating[flexible.node_children[0].slot]].name, "tip");
+    // Welded there, its mass joins the node (1 kg at 0.2 m from it), not the bench's link.
     let welded_at_tip = |xml: String| xml.replacen("</body>\n    </body>", &child("1 0 0.0000005", ""), 1);
-    let error =
-        Model::compile(&load_mjcf(&variant("welded_at_node", welded_at_tip, |j| j)).unwrap().vehicle).unwrap_err();
+    let model = Model::compile(&load_mjcf(&variant("welded_at_node", welded_at_tip, |j| j)).unwrap().vehicle).unwrap();
+    let flexible = &model.flexible[0];
+    assert!(flexible.node_children.is_empty());
+    let slot = flexible.rotating.iter().position(|&j| flexible.modal.nodes[j].name == "tip").unwrap();
+    let welded = flexible.welded[slot];
+    let first_moment = welded.fixed_view::<3, 3>(0, 3).norm() / 2f64.sqrt();
+    assert!((welded[(3, 3)] - 1.0).abs() < 1e-12 && (first_moment - 0.2).abs() < 1e-6, "{welded}");
+    // fusestatic keeps it a body (fused into the bench, it would change the bench's inertial).
+    let fused = |xml: String| welded_at_tip(xml).replace("<custom>", "<compiler fusestatic=\"true\"/><custom>");
+    let model = Model::compile(&load_mjcf(&variant("welded_fusestatic", fused, |j| j)).unwrap().vehicle).unwrap();
+    assert_eq!(model.flexible[0].welded[slot], welded);
+    // A flexible body welded there is refused, naming both bodies and the node.
+    let flexible_at_tip = |xml: String| {
+        let second = "<body name=\"bench2\" pos=\"1 0 0\">\
+                      <inertial pos=\"0.375 0 0\" mass=\"4\" diaginertia=\"0.01 0.7075 0.7075\"/></body></body></body>";
+        xml.replacen("</body>\n    </body>", second, 1).replace(
+            "<text name=\"nudyn:modal:bench\" data=\"bench.json\"/>",
+            "<text name=\"nudyn:modal:bench\" data=\"bench.json\"/><text name=\"nudyn:modal:bench2\" data=\"bench.json\"/>",
+        )
+    };
+    let vehicle = load_mjcf(&variant("flexible_at_node", flexible_at_tip, |j| j)).unwrap().vehicle;
+    let error = Model::compile(&vehicle).unwrap_err();
     let expected =
-        ModelError::FlexibleChildAtNode { body: "bench".into(), child: "panel".into(), line: 18, node: "tip".into() };
+        ModelError::FlexibleWeldedAtNode { body: "bench2".into(), carrier: "bench".into(), node: "tip".into() };
     assert_eq!(error, expected);
-    assert!(error.to_string().contains("is welded at its node 'tip'"), "{error}");
+    assert!(error.to_string().contains("give it one"), "{error}");
+    let bench = &model.links[flexible.link];
+    let rigid = Model::compile(&load_mjcf(&variant("plain_bench", |xml| xml, |j| j)).unwrap().vehicle).unwrap();
+    assert_eq!(bench.mass, rigid.links[rigid.flexible[0].link].mass);
     for (name, pos) in [("child_beside_node", "1 0 0.00001"), ("child_at_clamped_node", "0 0 0")] {
         let elsewhere = |xml: String| xml.replacen("</body>\n    </body>", &child(pos, hinge), 1);
         let model = Model::compile(&load_mjcf(&variant(name, elsewhere, |j| j)).unwrap().vehicle).unwrap();

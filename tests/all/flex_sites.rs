@@ -198,3 +198,57 @@ fn a_child_at_a_node_rides_the_node_and_its_sensors_read_its_motion() {
         close("framelinacc", v3(s, 13), node_acc + alpha.cross(&arm) + omega.cross(&omega.cross(&arm)));
     }
 }
+
+/// A body welded at a node (docs/flexible.md, "Bodies welded at nodes";
+/// fixture tests/fixtures/flex/bench_welded.xml): the frame sensors on a
+/// site of the star tracker welded at the node "middle", and on the
+/// tracker's own frame, read the node's frame (the site "middle", placed by
+/// the node's own code) carried rigidly: orientation q_m·q_b·q_s, position
+/// p_m + q_m·(q_b s), the node's ω and α, and the point's velocity and
+/// acceleration about the node's origin. Gravity on (the accelerations
+/// read −g as the world's).
+#[test]
+fn a_body_welded_at_a_node_rides_the_node_and_its_sensors_read_its_motion() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/flex/bench_welded.xml");
+    let vehicle = load_mjcf(&path).unwrap().vehicle;
+    let model = Model::compile(&vehicle).unwrap();
+    let flexible = &model.flexible[0];
+    assert_eq!((flexible.node_children.len(), flexible.welded.len()), (1, flexible.rotating.len()));
+    let tracker = vehicle.bodies.iter().find(|b| b.name == "tracker").unwrap().quat;
+    let site = vehicle.sites.iter().find(|s| s.name.as_deref() == Some("boresight")).unwrap();
+    let (site_pos, site_quat) = (site.pos, site.quat);
+    let mut rng = Rng::new(51);
+    for case in 0..4 {
+        let mut theta = model.qpos0.clone();
+        let q = UnitQuaternion::from_scaled_axis(rng.vec3(1.0));
+        theta[3..7].copy_from_slice(&[q.w, q.i, q.j, q.k]);
+        for coordinate in &mut theta[7..] {
+            *coordinate = rng.uniform(-0.1, 0.1);
+        }
+        let nu = rng.vec(model.nv, 0.8);
+        let mut ws = model.workspace();
+        ws.set_configuration(&model, &theta).unwrap();
+        ws.set_nu(&model, &nu).unwrap();
+        let zero = vec![0.0; model.nv];
+        ws.compute_sensors(&model, &zero, &[1.5], 0.0).unwrap();
+        let s = ws.sensordata.as_slice();
+        let (node_pos, node_quat) = (v3(s, 19), quat(s, 22));
+        let (node_vel, node_omega, node_acc, node_alpha) = (v3(s, 26), v3(s, 29), v3(s, 32), v3(s, 35));
+        assert!(node_alpha.norm() > 1e-2, "case {case}: the node accelerates");
+        let body_quat = node_quat * tracker;
+        assert!(quat(s, 41).angle_to(&body_quat) < 1e-12, "case {case}: the tracker's orientation");
+        assert!(quat(s, 3).angle_to(&(body_quat * site_quat)) < 1e-12, "case {case}: the site's orientation");
+        let arm = body_quat * site_pos;
+        let close = |what: &str, a: Vector3<f64>, b: Vector3<f64>| {
+            let err = (a - b).norm() / b.norm().max(1.0);
+            assert!(err < 1e-12, "case {case}: {what} {a:?} against {b:?} ({err:e})");
+        };
+        close("the tracker's framepos", v3(s, 38), node_pos);
+        close("framepos", v3(s, 0), node_pos + arm);
+        close("frameangvel", v3(s, 10), node_omega);
+        close("framelinvel", v3(s, 7), node_vel + node_omega.cross(&arm));
+        close("frameangacc", v3(s, 16), node_alpha);
+        let linacc = node_acc + node_alpha.cross(&arm) + node_omega.cross(&node_omega.cross(&arm));
+        close("framelinacc", v3(s, 13), linacc);
+    }
+}

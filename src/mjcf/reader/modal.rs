@@ -13,7 +13,7 @@ pub(crate) const MODAL_PREFIX: &str = "nudyn:modal:";
 /// A `nudyn:modal:` text as read, resolved once the bodies are known.
 #[derive(Debug)]
 pub(super) struct ModalText {
-    body: String,
+    pub(super) body: String,
     data: String,
     line: u32,
     element: String,

@@ -88,8 +88,9 @@ impl Reader {
     /// mocap, not named by anything that refers to bodies (a sensor, a
     /// camera's or light's target, a contact exclusion), carrying no site a
     /// force or torque sensor reads, and not with a mass under another
-    /// gravcomp than its parent's (unless that is the world) disappears
-    /// into its parent. Its mass properties join the parent's (unless the parent is
+    /// gravcomp than its parent's (unless that is the world), and not a
+    /// child of a flexible body (whose inertial its nodes must reproduce),
+    /// disappears into its parent. Its mass properties join the parent's (unless the parent is
     /// the world, or its mass is below mjMINVAL), its child bodies and sites
     /// become the parent's, placed where they were. The parent's inertial
     /// frame moves: sensors of objtype "body" on it measure the merged one.
@@ -107,7 +108,11 @@ impl Reader {
             // have this yet).
             let compensated_otherwise = parent_host.is_some_and(|p| self.bodies[p].gravcomp != body.gravcomp)
                 && self.records[index].inertia.mass >= MIN_VALUE;
-            let keep = referenced[index] || named || !body.joints.is_empty() || compensated_otherwise;
+            // A flexible body's inertial is its nodes': a body welded to it
+            // stays a body (at a node it joins that node, docs/flexible.md).
+            let on_flexible =
+                body.parent.is_some_and(|p| self.modal_texts.iter().any(|t| t.body == self.bodies[p].name));
+            let keep = referenced[index] || named || !body.joints.is_empty() || compensated_otherwise || on_flexible;
             kept.push(keep);
             host.push(if keep { Some(index) } else { parent_host });
         }
