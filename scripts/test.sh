@@ -136,10 +136,13 @@ finish build-windows
 stage wheel bash scripts/build-wheel.sh
 
 # Valgrind and the fuzz targets (a fixed number of inputs each, not a time:
-# scripts/stress-fmu.sh) at low priority, beside the Python tests: they need
-# no core the tests use, and take the ones the tests leave idle.
+# scripts/stress-fmu.sh) at the lowest priority, beside the Python tests:
+# they take the cores the tests leave idle. `nice` alone would not do: each
+# background stage is a session of its own (setsid), and where the kernel
+# groups the CPU by session (sched_autogroup), a session's share is set by
+# its group's niceness (/proc/self/autogroup), not by its processes'.
 finish build-fuzz
-background stress-fmu nice bash scripts/stress-fmu.sh
+background stress-fmu bash -c 'echo 19 2>/dev/null >/proc/self/autogroup; exec nice -n 19 bash scripts/stress-fmu.sh'
 
 # NUDYN_FMU_LIB: the FMU library just built (the tests' fixture would
 # otherwise build it again for nudyn-fmu alone, with other features).

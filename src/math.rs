@@ -43,9 +43,18 @@ pub trait Real:
     /// Whether the number and its derivative are both zero: a term that
     /// may be skipped (a force zero in value can still move).
     fn is_still_zero(self) -> bool;
+
+    /// Whether the passes run in their specialized instances (sweeps of
+    /// their own for vehicles without flexible bodies, the modal blocks at
+    /// fixed sizes): f64's, the evaluations' hot path. The dual numbers of
+    /// the derivatives take the general instances alone, which keeps the
+    /// FMU's code from doubling them (4.98 against 5.22 MB).
+    const SPECIALIZED: bool;
 }
 
 impl Real for f64 {
+    const SPECIALIZED: bool = true;
+
     #[inline(always)]
     fn value(self) -> f64 {
         self
@@ -58,6 +67,8 @@ impl Real for f64 {
 }
 
 impl Real for Dual64 {
+    const SPECIALIZED: bool = false;
+
     #[inline(always)]
     fn value(self) -> f64 {
         self.re

@@ -47,7 +47,7 @@ impl<S: Real> Workspace<S> {
     /// the last pass 3 (with or without the factor's rates). Needs pass 3.
     pub fn compute_accelerations(&mut self, model: &Model) -> Result<(), DynamicsError> {
         require(self, Stage::JointRates, "compute_accelerations")?;
-        if model.flexible.is_empty() {
+        if S::SPECIALIZED && model.flexible.is_empty() {
             acceleration_sweep::<_, false>(model, self);
         } else {
             acceleration_sweep::<_, true>(model, self);

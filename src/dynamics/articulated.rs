@@ -137,7 +137,7 @@ fn write_block<S: Real, const N: usize>(out: &mut Mat3<S>, m: &SMatrix<S, N, N>)
 /// Passes 0 and 1: each link's placement, then I^a, G, R, R⁻¹ for it
 /// (I^A, U and D are intermediates).
 pub(crate) fn articulated_pass<S: Real>(model: &Model, ws: &mut Workspace<S>) -> Result<(), DynamicsError> {
-    if model.flexible.is_empty() {
+    if S::SPECIALIZED && model.flexible.is_empty() {
         articulated_sweep::<_, false>(model, ws)
     } else {
         articulated_sweep::<_, true>(model, ws)

@@ -230,7 +230,7 @@ pub(crate) fn all_passive_forces<S: Real>(model: &Model, ws: &mut Workspace<S>) 
 /// Pass 3's sweep over the links, with the passive joint forces already
 /// in `tau_passive` when `forces` (else their ε is zero).
 pub(crate) fn link_sweep<S: Real, const RATES: bool>(model: &Model, ws: &mut Workspace<S>, eps: &[S], forces: bool) {
-    if model.flexible.is_empty() {
+    if S::SPECIALIZED && model.flexible.is_empty() {
         sweep::<_, RATES, false>(model, ws, eps, forces);
     } else {
         sweep::<_, RATES, true>(model, ws, eps, forces);

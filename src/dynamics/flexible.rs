@@ -50,11 +50,13 @@ use crate::workspace::{NodeParent, Workspace};
 pub const FIXED_MODES: usize = 6;
 
 /// `f(modes, args)` with `modes` the dimension of `m` modes: `Const` up to
-/// [`FIXED_MODES`], `Dyn` beyond.
+/// [`FIXED_MODES`], `Dyn` beyond, and always `Dyn` for a scalar `S` without
+/// specialized instances ([`Real::SPECIALIZED`]).
 macro_rules! by_modes {
     ($m:expr, $f:ident $(::<$($g:tt),*>)? ($($arg:expr),* $(,)?)) => {{
         use nalgebra::{Const, Dyn};
         match $m {
+            m if !S::SPECIALIZED => $f $(::<$($g),*>)? (Dyn(m), $($arg),*),
             1 => $f $(::<$($g),*>)? (Const::<1>, $($arg),*),
             2 => $f $(::<$($g),*>)? (Const::<2>, $($arg),*),
             3 => $f $(::<$($g),*>)? (Const::<3>, $($arg),*),

@@ -58,7 +58,7 @@ fn velocity_link<S: Real, const N: usize>(
 
 /// Pass 2 over all links.
 pub(crate) fn velocity_pass<S: Real>(model: &Model, ws: &mut Workspace<S>, given: Given) {
-    if model.flexible.is_empty() {
+    if S::SPECIALIZED && model.flexible.is_empty() {
         velocity_sweep::<_, false>(model, ws, given);
     } else {
         velocity_sweep::<_, true>(model, ws, given);

@@ -38,8 +38,8 @@ def unzipped(exported_fmu, tmp_path_factory):
 @pytest.fixture(scope="session")
 def unzipped_fmi3(exported_fmu, tmp_path_factory):
     """servicer's FMI 3.0 plant (with the momentum output) and controller,
-    unzipped. The controller provides no partial derivatives
-    (fmi3_misuse's refusals before any argument); the plant does."""
+    unzipped. The plant provides partial derivatives, the controller none
+    (fmi3_misuse's refusals of wrong counts, and before any argument)."""
     directory = tmp_path_factory.mktemp("misuse3")
     made = []
     for name, controller in (("plant", False), ("controller", True)):
