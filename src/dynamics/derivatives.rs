@@ -127,6 +127,23 @@ pub struct Direction<'a> {
     pub act: &'a [f64],
 }
 
+impl<'a> Direction<'a> {
+    /// `values` along `input` (tangent space for θ), `zeros[other]` along
+    /// every other input (each as long as that input: [`Input::len`]).
+    pub fn along(input: Input, values: &'a [f64], zeros: &'a [Vec<f64>; 6]) -> Self {
+        let along = |which: Input| if which == input { values } else { zeros[which as usize].as_slice() };
+        Direction {
+            theta: along(Input::Theta),
+            theta_in: ThetaDirection::Tangent,
+            velocity: along(Input::Velocity),
+            eps: along(Input::Eps),
+            torque: along(Input::Torque),
+            ctrl: along(Input::Ctrl),
+            act: along(Input::Act),
+        }
+    }
+}
+
 /// The outputs whose derivatives a run gives, each nv long but the sensors'.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Output {
@@ -565,18 +582,7 @@ impl Derivatives {
                 std::array::from_fn(|k| DMatrix::zeros(outputs[k].len(model), count));
             for column in 0..count {
                 unit[column] = 1.0;
-                let along = |which: Input| {
-                    if which == input { unit.as_slice() } else { zeros[which as usize].as_slice() }
-                };
-                let direction = Direction {
-                    theta: along(Input::Theta),
-                    theta_in: ThetaDirection::Tangent,
-                    velocity: along(Input::Velocity),
-                    eps: along(Input::Eps),
-                    torque: along(Input::Torque),
-                    ctrl: along(Input::Ctrl),
-                    act: along(Input::Act),
-                };
+                let direction = Direction::along(input, &unit, &zeros);
                 let run = self.passes.run(model, point, &direction, &outputs, &mut self.switches);
                 unit[column] = 0.0;
                 run?;

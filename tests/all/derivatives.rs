@@ -380,17 +380,7 @@ fn columns_reusing_the_configuration_equal_fresh_runs() {
                 let zeros = Input::ALL.map(|input| vec![0.0; input.len(model)]);
                 let mut unit = zeros[k].clone();
                 unit[column] = 1.0;
-                let along =
-                    |which: Input| if which == input { unit.as_slice() } else { zeros[which as usize].as_slice() };
-                let direction = Direction {
-                    theta: along(Input::Theta),
-                    theta_in: ThetaDirection::Tangent,
-                    velocity: along(Input::Velocity),
-                    eps: along(Input::Eps),
-                    torque: along(Input::Torque),
-                    ctrl: along(Input::Ctrl),
-                    act: along(Input::Act),
-                };
+                let direction = Direction::along(input, &unit, &zeros);
                 let mut fresh = Derivatives::new(model).unwrap();
                 fresh.run(model, &at, &direction, &outputs).unwrap();
                 for (o, &output) in outputs.iter().enumerate() {
