@@ -249,7 +249,8 @@ fn eval_cost(
     // ros34pw2 forms no exact W with activation states (its act rows and columns).
     let mut w_derivatives = derivatives.clone().filter(|_| model.activation_count() == 0);
     let mut w_ws = model.workspace();
-    let (mut unit, zeros, no_ctrl) = (vec![0.0; model.nv], vec![0.0; model.nv], vec![0.0; model.actuators.len()]);
+    let mut unit = vec![0.0; model.nv];
+    let zeros = nudyn::dynamics::derivatives::Input::ALL.map(|input| vec![0.0; input.len(model)]);
     let ones = vec![1.0; model.nv];
     let mut cases: Vec<Case> = Vec::new();
     for ((name, m), ws) in variants.iter().zip(workspaces.iter_mut()) {
@@ -265,7 +266,7 @@ fn eval_cost(
         cases.push(jacobian_case(model, derivatives, state, (&eps, &ctrl, &act)));
     }
     if let (Some(qvel), Some(derivatives)) = (&state.qvel, w_derivatives.as_mut()) {
-        cases.push(exact_w_case(model, derivatives, (&state.theta, qvel), (&mut unit, &zeros, &no_ctrl)));
+        cases.push(exact_w_case(model, derivatives, (&state.theta, qvel), (&mut unit, &zeros)));
     }
     if let Some(qvel) = &state.qvel {
         cases.push(differences_w_case(model, &mut w_ws, &state.theta, qvel, &eps));
@@ -395,29 +396,21 @@ fn exact_w_case<'a>(
     model: &'a Model,
     derivatives: &'a mut nudyn::dynamics::derivatives::Derivatives,
     (theta, qvel): (&'a [f64], &'a [f64]),
-    (unit, zeros, no_ctrl): (&'a mut [f64], &'a [f64], &'a [f64]),
+    (unit, zeros): (&'a mut [f64], &'a [Vec<f64>; 6]),
 ) -> Case<'a> {
-    use nudyn::dynamics::derivatives::{Direction, Output, Point, ThetaDirection};
+    use nudyn::dynamics::derivatives::{Direction, Input, Output, Point};
     Case {
         name: "nudyn ros34pw2 W from exact derivatives (2nv runs in dual numbers)".to_string(),
         call: Box::new(move || {
             let given = nudyn::dynamics::velocity::Given::Qvel;
             let theta = std::hint::black_box(theta);
-            let point =
-                Point { theta, velocity: qvel, given, eps: zeros, torque: zeros, ctrl: no_ctrl, act: &[], time: 0.0 };
-            for moved in [true, false] {
+            let zero = |input: Input| zeros[input as usize].as_slice();
+            let (eps, torque, ctrl) = (zero(Input::Eps), zero(Input::Torque), zero(Input::Ctrl));
+            let point = Point { theta, velocity: qvel, given, eps, torque, ctrl, act: &[], time: 0.0 };
+            for input in [Input::Theta, Input::Velocity] {
                 for column in 0..model.nv {
                     unit[column] = 1.0;
-                    let (theta, velocity) = if moved { (&*unit, zeros) } else { (zeros, &*unit) };
-                    let direction = Direction {
-                        theta,
-                        theta_in: ThetaDirection::Tangent,
-                        velocity,
-                        eps: zeros,
-                        torque: zeros,
-                        ctrl: no_ctrl,
-                        act: &[],
-                    };
+                    let direction = Direction::along(input, unit, zeros);
                     derivatives.run(model, &point, &direction, &[Output::Qacc]).expect("the state evaluates");
                     std::hint::black_box(derivatives.derivative(Output::Qacc).sum::<f64>());
                     unit[column] = 0.0;

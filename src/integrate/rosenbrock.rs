@@ -35,7 +35,7 @@ use super::adaptive::positions;
 use super::rkmk::{Integrator, copy_rates, max_abs, retract};
 use super::tableau::{ROSENBROCK_STAGES, Rosenbrock, RosenbrockStages};
 use crate::dynamics::DynamicsError;
-use crate::dynamics::derivatives::{DerivativeError, Derivatives, Direction, Output, Point, ThetaDirection};
+use crate::dynamics::derivatives::{DerivativeError, Derivatives, Direction, Input, Output, Point};
 use crate::dynamics::velocity::Given;
 use crate::model::Model;
 use crate::workspace::Workspace;
@@ -121,10 +121,8 @@ struct ExactJacobian {
     derivatives: Derivatives,
     /// A unit direction (nv), one entry 1 at a time.
     unit: Vec<f64>,
-    /// Zeros: the directions not moved, and the joint forces (nv).
-    zeros: Vec<f64>,
-    /// Zeros along ctrl (nu).
-    no_ctrl: Vec<f64>,
+    /// Zeros along each input (the directions not moved, and the joint forces).
+    zeros: [Vec<f64>; 6],
 }
 
 impl ExactJacobian {
@@ -139,8 +137,7 @@ impl ExactJacobian {
         Some(Box::new(ExactJacobian {
             derivatives,
             unit: vec![0.0; model.nv],
-            zeros: vec![0.0; model.nv],
-            no_ctrl: vec![0.0; model.actuators.len()],
+            zeros: Input::ALL.map(|input| vec![0.0; input.len(model)]),
         }))
     }
 
@@ -158,21 +155,12 @@ impl ExactJacobian {
         (by_delta, by_qvel): (&mut DMatrix<f64>, &mut DMatrix<f64>),
     ) -> Result<(), DerivativeError> {
         self.derivatives.hold_constraint_mode_of(&ws.constraint_rows);
-        let point =
-            Point { theta, velocity: qvel, given: Given::Qvel, eps, torque: &self.zeros, ctrl, act: &[], time: t };
-        for (moved, jacobian) in [(true, by_delta), (false, by_qvel)] {
+        let torque = &self.zeros[Input::Torque as usize];
+        let point = Point { theta, velocity: qvel, given: Given::Qvel, eps, torque, ctrl, act: &[], time: t };
+        for (input, jacobian) in [(Input::Theta, by_delta), (Input::Velocity, by_qvel)] {
             for column in 0..model.nv {
                 self.unit[column] = 1.0;
-                let (theta, velocity) = if moved { (&self.unit, &self.zeros) } else { (&self.zeros, &self.unit) };
-                let direction = Direction {
-                    theta,
-                    theta_in: ThetaDirection::Tangent,
-                    velocity,
-                    eps: &self.zeros,
-                    torque: &self.zeros,
-                    ctrl: &self.no_ctrl,
-                    act: &[],
-                };
+                let direction = Direction::along(input, &self.unit, &self.zeros);
                 let run = self.derivatives.run(model, &point, &direction, &[Output::Qacc]);
                 self.unit[column] = 0.0;
                 run?;
