@@ -79,12 +79,12 @@ def sections(library) -> dict[str, int]:
 
 
 def test_the_fmu_is_small_without_debug_sections(nudyn, fmu_library, tmp_path):
-    """The release build keeps line tables (valgrind's and profilers'
-    reports name lines); the FMU carries the code only: its library is the
-    built one less its debug sections."""
+    """The FMU carries the code only: its library is the built one less any
+    debug sections. The release profile builds none; a debug build, or a
+    release build with line tables for a profiler, has them
+    (cli/tests/fmu_export.rs checks their removal on such a library)."""
     built = sections(fmu_library)
     debug_size = sum(size for name, size in built.items() if name.startswith(".debug_"))
-    assert debug_size > 0, built
     fmu = tmp_path / "bus.fmu"
     assert export(nudyn, fmu_library, fmu).returncode == 0
     with zipfile.ZipFile(fmu) as archive:

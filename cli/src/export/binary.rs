@@ -243,8 +243,8 @@ pub fn check_library(platform: Platform, library: &[u8], functions: &[&str], ver
 }
 
 /// `library` as the FMU carries it: an ELF library without its DWARF
-/// sections (`.debug_*`), the line tables the release profile keeps for
-/// valgrind and profilers; a PE DLL as it is
+/// sections (`.debug_*`), which a debug build has, or a release build with
+/// line tables for a profiler (the release profile has none); a PE DLL as it is
 /// (scripts/build-windows.sh strips it). Done here rather than by `strip`:
 /// `nudyn export` also runs where binutils are not installed (the wheel).
 pub fn without_debug_sections(platform: Platform, library: Vec<u8>) -> Result<Vec<u8>, String> {
