@@ -165,6 +165,19 @@ def _quiet_dask() -> None:
         logging.getLogger(name).setLevel(logging.CRITICAL + 1)
 
 
+def _quiet_workers(client) -> None:
+    """After Ctrl-C, the local cluster's workers quiet too, before it closes.
+
+    Closing it after an interrupt, its scheduler may go before a worker's
+    heartbeat, which then logs an error with a traceback on the command's
+    stderr (seen on a loaded machine). The workers are the run's own and
+    alive (they ignore SIGINT); a user's --scheduler's are left alone."""
+    try:
+        client.run(_quiet_dask)
+    except Exception:  # noqa: BLE001  (the run is ending on the interrupt whatever this finds)
+        pass
+
+
 def prepare_out(out: Path) -> None:
     """OUT as a directory that can be written, or an OutputError naming the path and what is wrong."""
     if out.exists() and not out.is_dir():
@@ -267,6 +280,10 @@ def _run_locked(campaign, out, nudyn, scratch, workers, scheduler, progress, sto
         interrupt = signal.signal(signal.SIGINT, _interrupt_quietly) if main_thread else None
         try:
             _run(client, campaign, worker_spec, fmus, missing, out, progress, stop_after_chunks, len(done))
+        except KeyboardInterrupt:
+            if cluster is not None:
+                _quiet_workers(client)
+            raise
         finally:
             if main_thread:
                 signal.signal(signal.SIGINT, interrupt)

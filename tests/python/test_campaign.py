@@ -534,6 +534,51 @@ def test_ctrl_c_ends_with_how_to_resume_and_the_rerun_completes(nudyn, tmp_path)
     assert done.column("case").to_pylist() == list(range(80))
 
 
+def test_once_interrupted_the_local_clusters_workers_are_quiet_before_it_closes(nudyn, scheduler, tmp_path,
+                                                                                 monkeypatch):
+    """The Ctrl-C test above, made deterministic for another race it lost
+    on a loaded machine: closing the cluster after the interrupt, its
+    scheduler went before a worker's heartbeat, which logged an error and
+    its traceback on the command's stderr. Here the module's cluster stands
+    for the run's own, and the interrupt comes during the run: by the time
+    the cluster closes, no worker's Dask logger writes an error."""
+    from dask.distributed import Client
+
+    from nudyn_campaign import runner
+
+    def worker_levels():
+        return {name: logging.getLogger(name).level for name in list(logging.root.manager.loggerDict)}
+
+    def worker_errors_written():
+        return logging.getLogger("distributed.worker").isEnabledFor(logging.ERROR)
+
+    with Client(scheduler) as observer:
+        saved = observer.run(worker_levels)
+        at_close = {}
+
+        class OwnCluster:
+            def close(self):
+                at_close.update(observer.run(worker_errors_written))
+
+        def interrupted(*arguments):
+            raise KeyboardInterrupt
+
+        monkeypatch.setattr(runner, "_client", lambda workers, address, scratch: (Client(scheduler), OwnCluster()))
+        monkeypatch.setattr(runner, "_run", interrupted)
+        try:
+            assert observer.run(worker_errors_written) and set(saved)
+            with pytest.raises(KeyboardInterrupt):
+                run_campaign(write(tmp_path, SHORT), tmp_path / "out", workers=1, nudyn=nudyn, progress=False)
+            assert at_close and not any(at_close.values()), at_close
+        finally:
+            def restore(levels):
+                for name, level in levels.items():
+                    logging.getLogger(name).setLevel(level)
+
+            for worker, levels in saved.items():
+                observer.run(restore, levels, workers=[worker])
+
+
 def test_once_interrupted_no_dask_logger_writes_even_the_ones_with_their_own_level():
     """The Ctrl-C test above, made deterministic for one race it lost in CI:
     the interrupt broke distributed's wait, whose cancel callback then failed
