@@ -18,11 +18,7 @@ import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
-
-import pyarrow as pa
-import pyarrow.compute as pc
-import pyarrow.parquet as pq
-from tqdm import tqdm
+from typing import TYPE_CHECKING
 
 from nudyn_driver.cli import Nudyn
 from nudyn_driver.locations import nudyn_binary
@@ -30,10 +26,16 @@ from nudyn_driver.package import FmuPackage
 
 from . import provenance, variables
 from . import spec as specs
-from .cases import run_chunk
 from .files import OutputError, locked, write_atomically
 from .spec import CampaignError
 from .metrics import NAMES
+
+# pyarrow, Dask, tqdm and the workers' code (cases.py: MuJoCo, FMPy) are
+# imported where they are used: a campaign refused before any case (a bad
+# file, --out, target or metric) needs none of them, and its one-line error
+# comes in a third of the time.
+if TYPE_CHECKING:
+    import pyarrow as pa
 
 # The folder holding these packages: python/ of a checkout, site-packages of the wheel.
 PACKAGES = Path(__file__).resolve().parents[1]
@@ -87,6 +89,8 @@ def _system_fmus(path: Path) -> Fmus:
 
 def finished_cases(out: Path) -> set[int]:
     """The cases whose rows are already written (in out/parts/)."""
+    import pyarrow.parquet as pq
+
     done: set[int] = set()
     for part in sorted((out / "parts").glob("part-*.parquet")):
         done.update(pq.read_table(part, columns=["case"]).column("case").to_pylist())
@@ -94,11 +98,15 @@ def finished_cases(out: Path) -> set[int]:
 
 
 def _table(rows: list[dict], columns: list[str]) -> pa.Table:
+    import pyarrow as pa
+
     return pa.table({column: [row.get(column) for row in rows] for column in columns})
 
 
 def _write_parquet(table: pa.Table, path: Path) -> None:
     """A file is either absent or complete, and only a regular file is replaced (files.py)."""
+    import pyarrow.parquet as pq
+
     write_atomically(path, lambda temporary: pq.write_table(table, temporary))
 
 
@@ -155,6 +163,19 @@ def _quiet_dask() -> None:
              if any(name == family or name.startswith(family + ".") for family in families)]
     for name in {*families, *names}:
         logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+
+
+def _quiet_workers(client) -> None:
+    """After Ctrl-C, the local cluster's workers quiet too, before it closes.
+
+    Closing it after an interrupt, its scheduler may go before a worker's
+    heartbeat, which then logs an error with a traceback on the command's
+    stderr (seen on a loaded machine). The workers are the run's own and
+    alive (they ignore SIGINT); a user's --scheduler's are left alone."""
+    try:
+        client.run(_quiet_dask)
+    except Exception:  # noqa: BLE001  (the run is ending on the interrupt whatever this finds)
+        pass
 
 
 def prepare_out(out: Path) -> None:
@@ -259,6 +280,10 @@ def _run_locked(campaign, out, nudyn, scratch, workers, scheduler, progress, sto
         interrupt = signal.signal(signal.SIGINT, _interrupt_quietly) if main_thread else None
         try:
             _run(client, campaign, worker_spec, fmus, missing, out, progress, stop_after_chunks, len(done))
+        except KeyboardInterrupt:
+            if cluster is not None:
+                _quiet_workers(client)
+            raise
         finally:
             if main_thread:
                 signal.signal(signal.SIGINT, interrupt)
@@ -269,7 +294,11 @@ def _run_locked(campaign, out, nudyn, scratch, workers, scheduler, progress, sto
 
 
 def _run(client, campaign, worker_spec, fmus, missing, out, progress, stop_after_chunks, already) -> None:
+    import pyarrow as pa
     from dask.distributed import as_completed
+    from tqdm import tqdm
+
+    from .cases import run_chunk
 
     workers = max(1, len(client.scheduler_info().get("workers", {})))
     size = max(1, min(50, math.ceil(len(missing) / (4 * workers))))
@@ -307,6 +336,10 @@ def _run(client, campaign, worker_spec, fmus, missing, out, progress, stop_after
 
 def consolidate(campaign: specs.Campaign, out: Path, columns: list[str]) -> pa.Table:
     """Every written part, in case order, as OUT/results.parquet."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+    import pyarrow.parquet as pq
+
     parts = [pq.read_table(part) for part in sorted((out / "parts").glob("part-*.parquet"))]
     table = pa.concat_tables(parts, promote_options="default") if parts else pa.table({c: [] for c in columns})
     # A rerun with fewer --cases keeps the finished parts but reports only its own cases.

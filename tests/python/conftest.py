@@ -38,6 +38,13 @@ sys.path.insert(0, str(ROOT / "python"))
 
 from nudyn_driver.cli import Nudyn  # noqa: E402  (needs the path above)
 
+# The FMUs the tests export carry linux64's library alone: nudyn packs every
+# platform's library found in $NUDYN_FMU_BINARIES (else target/share/nudyn/
+# binaries), and deflating the 6 MB win64 DLL into every export doubled its
+# CPU (servicer: 0.17 against 0.08 s). Only the tests of the platforms read
+# it, and they export with the binaries as built (`every_platform_built`).
+os.environ["NUDYN_FMU_BINARIES"] = str(ROOT / "target" / "test-cache" / "linux64-only")
+
 
 # The test files that take longest, longest first (their sums of test
 # durations in a run of the whole suite on 2 workers on a loaded machine,
@@ -105,6 +112,15 @@ def cli(nudyn, fmu_library):
 
 
 @pytest.fixture(scope="module")
+def every_platform_built():
+    """For a module of tests of the platforms' binaries: its exports pack
+    every one built in target/share/nudyn/binaries, as a user's do."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.delenv("NUDYN_FMU_BINARIES")
+        yield
+
+
+@pytest.fixture(scope="module")
 def once():
     """`once(make, *args)`: make(*args) the first time a test of the module
     asks for it, the same value after. For the runs several tests of a
@@ -141,8 +157,9 @@ def exported_fmu(cli):
     **options)` writes, made once for every test process and kept in
     target/test-cache/fmus/<key>/ (read-only use: unzip it elsewhere). The
     key covers nudyn, the FMU library, the win64 DLL the export packs when
-    it is built, the files of the model's folder and the options, so a
-    rebuild or an edited model makes a new export."""
+    it is built and the binaries folder it packs from (linux64-only, above,
+    but for the tests of the platforms), the files of the model's folder and
+    the options, so a rebuild or an edited model makes a new export."""
     binaries = hashlib.sha256()
     share = cli.binary.parent.parent / "share" / "nudyn" / "binaries" / "win64" / "nudyn_fmu.dll"
     _digest_files(binaries, [cli.binary, cli.fmu_library, share])
@@ -151,6 +168,7 @@ def exported_fmu(cli):
         digest = binaries.copy()
         _digest_files(digest, sorted(p for p in Path(model).parent.rglob("*") if p.is_file()))
         digest.update(f"{Path(model).resolve()} {sorted(options.items())}".encode())
+        digest.update(os.environ.get("NUDYN_FMU_BINARIES", "").encode())
         folder = CACHE_DIR / "fmus" / digest.hexdigest()[:32]
         fmu = folder / f"{Path(model).stem}.fmu"
         with file_lock(CACHE_DIR / "fmus.lock"):

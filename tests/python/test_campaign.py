@@ -110,10 +110,12 @@ def scheduler():
 
 
 @pytest.fixture(scope="module")
-def one_worker(nudyn, tmp_path_factory):
+def one_worker(nudyn, scheduler, tmp_path_factory):
+    """The closed-loop campaign on the module's cluster (one worker): the
+    table the other runs must give."""
     directory = tmp_path_factory.mktemp("campaign")
     path = write(directory, CLOSED_LOOP)
-    return path, run_campaign(path, directory / "one", workers=1, nudyn=nudyn, progress=False)
+    return path, run_campaign(path, directory / "one", scheduler=scheduler, nudyn=nudyn, progress=False)
 
 
 def test_every_case_is_a_row_with_its_draws_and_metrics(one_worker):
@@ -152,8 +154,9 @@ def test_any_case_reruns_alone_to_the_same_numbers(one_worker, nudyn, tmp_path):
     assert json.dumps(alone, sort_keys=True) == json.dumps(table.to_pylist()[9], sort_keys=True)
 
 
-def test_failed_cases_are_recorded_and_the_rest_complete(nudyn, tmp_path):
-    table = run_campaign(write(tmp_path, WITH_FAILURES), tmp_path / "out", workers=2, nudyn=nudyn, progress=False)
+def test_failed_cases_are_recorded_and_the_rest_complete(nudyn, scheduler, tmp_path):
+    table = run_campaign(write(tmp_path, WITH_FAILURES), tmp_path / "out", scheduler=scheduler, nudyn=nudyn,
+                         progress=False)
     assert table.num_rows == 16
     huge = [row for row in table.to_pylist() if row["eps[10]"] == 1e300]
     fine = [row for row in table.to_pylist() if row["eps[10]"] != 1e300]
@@ -163,17 +166,17 @@ def test_failed_cases_are_recorded_and_the_rest_complete(nudyn, tmp_path):
     assert "## Failed cases" in (tmp_path / "out" / "report.md").read_text()
 
 
-def test_an_interrupted_campaign_resumes_with_the_missing_cases_only(one_worker, nudyn, tmp_path):
+def test_an_interrupted_campaign_resumes_with_the_missing_cases_only(one_worker, nudyn, scheduler, tmp_path):
     path, table = one_worker
     out = tmp_path / "resumed"
     with pytest.raises(CampaignInterrupted):
-        run_campaign(path, out, workers=1, nudyn=nudyn, progress=False, stop_after_chunks=1)
+        run_campaign(path, out, scheduler=scheduler, nudyn=nudyn, progress=False, stop_after_chunks=1)
     parts = sorted((out / "parts").glob("part-*.parquet"))
     assert len(parts) == 1
     first = {part: part.stat().st_mtime_ns for part in parts}
     done = pq.read_table(parts[0]).num_rows
     assert 0 < done < 12
-    resumed = run_campaign(path, out, workers=1, nudyn=nudyn, progress=False)
+    resumed = run_campaign(path, out, scheduler=scheduler, nudyn=nudyn, progress=False)
     assert rows(resumed) == rows(table)
     # The finished part was not run again.
     assert all(part.stat().st_mtime_ns == mtime for part, mtime in first.items())
@@ -506,7 +509,7 @@ def test_a_campaign_beside_another_dask_session_says_nothing_on_stderr(nudyn, tm
     assert proc.returncode == 0 and proc.stderr == "", proc.stderr
 
 
-def test_ctrl_c_ends_with_how_to_resume_and_the_rerun_completes(nudyn, tmp_path):
+def test_ctrl_c_ends_with_how_to_resume_and_the_rerun_completes(nudyn, scheduler, tmp_path):
     """SIGINT to the command's process group (what Ctrl-C in a terminal
     sends, to the Dask workers too) once the first chunk is written: one
     line, status 130, no traceback from the driver or the workers; the
@@ -530,8 +533,53 @@ def test_ctrl_c_ends_with_how_to_resume_and_the_rerun_completes(nudyn, tmp_path)
     assert stderr == f"nudyn-campaign: interrupted; rerun to resume ({out})\n", stderr
     assert len(list((out / "parts").glob("part-*.parquet"))) < 8
     assert list(temporary.iterdir()) == []
-    done = run_campaign(path, out, workers=2, nudyn=nudyn, progress=False)
+    done = run_campaign(path, out, scheduler=scheduler, nudyn=nudyn, progress=False)
     assert done.column("case").to_pylist() == list(range(80))
+
+
+def test_once_interrupted_the_local_clusters_workers_are_quiet_before_it_closes(nudyn, scheduler, tmp_path,
+                                                                                 monkeypatch):
+    """The Ctrl-C test above, made deterministic for another race it lost
+    on a loaded machine: closing the cluster after the interrupt, its
+    scheduler went before a worker's heartbeat, which logged an error and
+    its traceback on the command's stderr. Here the module's cluster stands
+    for the run's own, and the interrupt comes during the run: by the time
+    the cluster closes, no worker's Dask logger writes an error."""
+    from dask.distributed import Client
+
+    from nudyn_campaign import runner
+
+    def worker_levels():
+        return {name: logging.getLogger(name).level for name in list(logging.root.manager.loggerDict)}
+
+    def worker_errors_written():
+        return logging.getLogger("distributed.worker").isEnabledFor(logging.ERROR)
+
+    with Client(scheduler) as observer:
+        saved = observer.run(worker_levels)
+        at_close = {}
+
+        class OwnCluster:
+            def close(self):
+                at_close.update(observer.run(worker_errors_written))
+
+        def interrupted(*arguments):
+            raise KeyboardInterrupt
+
+        monkeypatch.setattr(runner, "_client", lambda workers, address, scratch: (Client(scheduler), OwnCluster()))
+        monkeypatch.setattr(runner, "_run", interrupted)
+        try:
+            assert observer.run(worker_errors_written) and set(saved)
+            with pytest.raises(KeyboardInterrupt):
+                run_campaign(write(tmp_path, SHORT), tmp_path / "out", workers=1, nudyn=nudyn, progress=False)
+            assert at_close and not any(at_close.values()), at_close
+        finally:
+            def restore(levels):
+                for name, level in levels.items():
+                    logging.getLogger(name).setLevel(level)
+
+            for worker, levels in saved.items():
+                observer.run(restore, levels, workers=[worker])
 
 
 def test_once_interrupted_no_dask_logger_writes_even_the_ones_with_their_own_level():

@@ -12,7 +12,10 @@ import xml.etree.ElementTree as ET
 import zipfile
 
 import fmpy
+import pytest
 from conftest import EXAMPLES_DIR, ROOT
+
+pytestmark = pytest.mark.usefixtures("every_platform_built")
 
 MODEL = EXAMPLES_DIR / "bus_arm7.xml"
 WIN64_DLL = ROOT / "target" / "share" / "nudyn" / "binaries" / "win64" / "nudyn_fmu.dll"

@@ -31,6 +31,8 @@ from conftest import EXAMPLES_DIR, ROOT
 from fmpy import read_model_description
 from nudyn_driver.package import FmuPackage
 
+pytestmark = pytest.mark.usefixtures("every_platform_built")
+
 WIN64_DLL = ROOT / "target" / "share" / "nudyn" / "binaries" / "win64" / "nudyn_fmu.dll"
 WINE_PREFIX = ROOT / "target" / "wine"  # kept between runs: creating it takes seconds
 STEPS = 300
