@@ -9,8 +9,9 @@ use crate::dynamics::TendonInertiaState;
 use crate::dynamics::constraint::ConstraintRows;
 use crate::dynamics::flexible::FlexState;
 use crate::dynamics::subspace::Subspace;
+use crate::flex::nodes;
 use crate::math::{Mat3, Quat, Real, SpatialMat, SpatialVec, Transform, Vec3};
-use crate::model::{Model, SensorSource};
+use crate::model::{Model, NodeSite, SensorSource};
 
 /// 6×3 storage for per-link 6×ndof quantities (first `ndof` columns used).
 pub type LinkCols<S = f64> = SMatrix<S, 6, 3>;
@@ -324,6 +325,15 @@ impl<S: Real> Workspace<S> {
             body_wrench: vec![SpatialVec::zeros(); interaction_bodies],
             body_com: vec![Vec3::zeros(); interaction_bodies],
         }
+    }
+
+    /// The modal coordinates η of the flexible body `at` names, and its
+    /// node's placement ʲX_R on the body at that η: where a site, a sensor's
+    /// frame or an actuator's point riding the node is carried.
+    pub(crate) fn node_placement(&self, model: &Model, at: NodeSite) -> (&[S], Transform<S>) {
+        let flexible = &model.flexible[at.flexible];
+        let eta = &self.theta.as_slice()[flexible.qpos_adr..flexible.qpos_adr + flexible.mode_count()];
+        (eta, nodes::transform(&flexible.modal, at.node, eta))
     }
 }
 

@@ -69,11 +69,7 @@ impl<S: Real> Carrier<S> {
     /// The carrier of `site`, `None` for a site on the world.
     fn of(model: &Model, ws: &Workspace<S>, site: &SiteFrame) -> Option<Carrier<S>> {
         let link = site.link?;
-        let node = site.node.map(|at| {
-            let flexible = &model.flexible[at.flexible];
-            let eta = &ws.theta.as_slice()[flexible.qpos_adr..flexible.qpos_adr + flexible.mode_count()];
-            (at, nodes::transform(&flexible.modal, at.node, eta))
-        });
+        let node = site.node.map(|at| (at, ws.node_placement(model, at).1));
         Some(Carrier { link, node })
     }
 

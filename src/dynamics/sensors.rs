@@ -311,9 +311,8 @@ impl<S: Real> Workspace<S> {
         let Some(at) = frame.node else { return (x_r, v_r, a_r) };
         let flexible = &model.flexible[at.flexible];
         let (adr, m) = (flexible.dof_adr, flexible.mode_count());
-        let eta = &self.theta.as_slice()[flexible.qpos_adr..flexible.qpos_adr + m];
+        let (eta, x_node) = self.node_placement(model, at);
         let (rate, acceleration) = (&self.qvel.as_slice()[adr..adr + m], &self.qacc.as_slice()[adr..adr + m]);
-        let x_node = nodes::transform(&flexible.modal, at.node, eta);
         let relative = nodes::subspace_times(&flexible.modal, at.node, eta, rate);
         let v = x_node.apply_motion(&v_r) + relative;
         let a = x_node.apply_motion(&a_r)
