@@ -332,7 +332,7 @@ impl<S: Real> Workspace<S> {
     /// frame or an actuator's point riding the node is carried.
     pub(crate) fn node_placement(&self, model: &Model, at: NodeSite) -> (&[S], Transform<S>) {
         let flexible = &model.flexible[at.flexible];
-        let eta = &self.theta.as_slice()[flexible.qpos_adr..flexible.qpos_adr + flexible.mode_count()];
+        let eta = flexible.eta(self.theta.as_slice());
         (eta, nodes::transform(&flexible.modal, at.node, eta))
     }
 }

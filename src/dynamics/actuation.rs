@@ -126,8 +126,8 @@ impl<S: Real> SiteWrenches<S> {
             self.wrenches[..self.count].iter().fold(S::from(-0.0), |sum, (link, w)| sum + w.dot(&ws.v_body[*link]));
         self.at_nodes.iter().flatten().fold(on_links, |sum, node| {
             let flexible = &model.flexible[node.at.flexible];
-            let (q, v, m) = (flexible.qpos_adr, flexible.dof_adr, flexible.mode_count());
-            let (eta, rate) = (&ws.theta.as_slice()[q..q + m], &ws.qvel.as_slice()[v..v + m]);
+            let (v, m) = (flexible.dof_adr, flexible.mode_count());
+            let (eta, rate) = (flexible.eta(ws.theta.as_slice()), &ws.qvel.as_slice()[v..v + m]);
             sum + node.wrench.dot(&nodes::subspace_times(&flexible.modal, node.at.node, eta, rate))
         })
     }
@@ -392,8 +392,8 @@ fn apply<S: Real>(
             }
             for node in unit.at_nodes.iter().flatten() {
                 let flexible = &model.flexible[node.at.flexible];
-                let (q, v, m) = (flexible.qpos_adr, flexible.dof_adr, flexible.mode_count());
-                let (eta, modal) = (&theta[q..q + m], &mut qfrc[v..v + m]);
+                let (v, m) = (flexible.dof_adr, flexible.mode_count());
+                let (eta, modal) = (flexible.eta(theta), &mut qfrc[v..v + m]);
                 nodes::add_subspace_transpose_times(&flexible.modal, node.at.node, eta, &node.wrench, force, modal);
             }
         }

@@ -240,7 +240,7 @@ pub(crate) fn node_of(model: &Model, at: NodeParent) -> (usize, usize, usize) {
 pub(crate) fn place_child<S: Real>(model: &Model, ws: &mut Workspace<S>, i: usize, at: NodeParent) {
     let (f, c, slot) = node_of(model, at);
     let flexible = &model.flexible[f];
-    let eta = &ws.theta.as_slice()[flexible.qpos_adr..flexible.qpos_adr + flexible.mode_count()];
+    let eta = flexible.eta(ws.theta.as_slice());
     let to_node = ws.x_parent[i];
     ws.x_parent[i] = to_node.compose(&nodes::transform(&flexible.modal, flexible.rotating[slot], eta));
     let state = &mut ws.flex[f];
@@ -295,7 +295,7 @@ pub(crate) fn factor_modes<S: Real>(model: &Model, ws: &mut Workspace<S>, i: usi
     for f in on_link(model, i) {
         let flexible = &model.flexible[f];
         let state = &mut ws.flex[f];
-        let eta = &ws.theta.as_slice()[flexible.qpos_adr..flexible.qpos_adr + flexible.mode_count()];
+        let eta = flexible.eta(ws.theta.as_slice());
         let reduced = by_modes!(flexible.mode_count(), factor_block(flexible, state, eta))
             .ok_or(DynamicsError::Singular { link: i })?;
         accumulate(&mut ws.ia_reduced[i], reduced, state.opens_link);
@@ -475,7 +475,7 @@ fn bias_of_block<const RATES: bool, S: Real, M: Dim>(
 ) {
     let flexible = &model.flexible[f];
     let (m, adr) = (modes.value(), flexible.dof_adr);
-    let eta = &ws.theta.as_slice()[flexible.qpos_adr..flexible.qpos_adr + m];
+    let eta = flexible.eta(ws.theta.as_slice());
     let rate = &ws.qvel.as_slice()[adr..adr + m];
     let gravity = (forces && !model.shortcuts.no_gravity).then(|| ws.x_world[i].rot * real::<S, 3, 1>(&model.gravity));
     let state = &mut ws.flex[f];

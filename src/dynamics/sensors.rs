@@ -368,7 +368,7 @@ impl<S: Real> Workspace<S> {
             None => self.link_quats[link] * in_link,
             Some(at) => {
                 let flexible = &model.flexible[at.flexible];
-                let eta = &self.theta.as_slice()[flexible.qpos_adr..flexible.qpos_adr + flexible.mode_count()];
+                let eta = flexible.eta(self.theta.as_slice());
                 let (_, rho) = nodes::displacement(&flexible.modal, at.node, eta);
                 self.link_quats[link] * quat_from_rotation_vector(rho) * in_link
             }
@@ -393,7 +393,7 @@ impl<S: Real> Workspace<S> {
                 // A child at a node: the node's turn exp([Φʳ_j η]×) on its parent link.
                 let (f, _, slot) = crate::dynamics::flexible::node_of(model, at);
                 let flexible = &model.flexible[f];
-                let eta = &self.theta.as_slice()[flexible.qpos_adr..flexible.qpos_adr + flexible.mode_count()];
+                let eta = flexible.eta(self.theta.as_slice());
                 let (_, rho) = nodes::displacement(&flexible.modal, flexible.rotating[slot], eta);
                 parent *= quat_from_rotation_vector(rho);
             }

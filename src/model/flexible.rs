@@ -112,6 +112,12 @@ impl FlexBody {
         self.modal.modes.len()
     }
 
+    /// Its modal coordinates η: their entries of `theta` (nq long).
+    #[inline]
+    pub fn eta<'a, T>(&self, theta: &'a [T]) -> &'a [T] {
+        &theta[self.qpos_adr..self.qpos_adr + self.mode_count()]
+    }
+
     /// Mode `k`'s stiffness ω² (unit modal mass).
     pub fn stiffness(&self, k: usize) -> f64 {
         self.modal.modes[k].angular_frequency.powi(2)
@@ -160,12 +166,7 @@ pub(crate) fn on_link(body: &ModalBody, offset: &Transform) -> ModalBody {
 impl super::Model {
     /// The flexible bodies' strain energy ½ Σ ω² η² at the configuration `theta` (nq).
     pub fn strain_energy(&self, theta: &[f64]) -> f64 {
-        self.flexible
-            .iter()
-            .map(|flexible| {
-                flexible.strain_energy(&theta[flexible.qpos_adr..flexible.qpos_adr + flexible.mode_count()])
-            })
-            .sum()
+        self.flexible.iter().map(|flexible| flexible.strain_energy(flexible.eta(theta))).sum()
     }
 
     /// The strain energy's derivative at `theta` along `direction` (both nq,
