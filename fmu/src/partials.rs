@@ -227,22 +227,11 @@ impl Partials {
             }));
         }
         if reads.momentum {
-            for (out, d) in self.momentum.iter_mut().zip(derivatives.derivative(Output::Momentum)) {
-                *out = d;
-            }
-            if let Some((index, &value)) = self.momentum.iter().enumerate().find(|(_, d)| !d.is_finite()) {
-                let what = "the derivative of momentum";
-                return Err(CallError::Evaluate(DynamicsError::NonFinite { what, index, value }));
-            }
+            copy_finite(&mut self.momentum, derivatives.derivative(Output::Momentum), "the derivative of momentum")?;
         }
         if reads.sensors {
-            for (out, d) in self.sensordata.iter_mut().zip(derivatives.derivative(Output::Sensordata)) {
-                *out = d;
-            }
-            if let Some((index, &value)) = self.sensordata.iter().enumerate().find(|(_, d)| !d.is_finite()) {
-                let what = "the derivative of sensordata";
-                return Err(CallError::Evaluate(DynamicsError::NonFinite { what, index, value }));
-            }
+            let derivative = derivatives.derivative(Output::Sensordata);
+            copy_finite(&mut self.sensordata, derivative, "the derivative of sensordata")?;
         }
         Ok(())
     }
@@ -270,6 +259,18 @@ impl Partials {
             RealVariable::ModalStrainEnergy => at.model.strain_energy_derivative(at.theta, &self.theta),
             other => unreachable!("{other:?} is not an unknown: classified before"),
         }
+    }
+}
+
+/// Copies `derivative` into `out`; a derivative that is not a number is a
+/// status naming `what`, not a result.
+fn copy_finite(out: &mut [f64], derivative: impl Iterator<Item = f64>, what: &'static str) -> Result<(), CallError> {
+    for (out, d) in out.iter_mut().zip(derivative) {
+        *out = d;
+    }
+    match out.iter().enumerate().find(|(_, d)| !d.is_finite()) {
+        Some((index, &value)) => Err(CallError::Evaluate(DynamicsError::NonFinite { what, index, value })),
+        None => Ok(()),
     }
 }
 
