@@ -275,6 +275,13 @@ impl<S: Real> Transform<S> {
         spatial(&(self.rot * w), &(self.rot * v))
     }
 
+    /// X⁻¹ m: a child-frame motion vector in parent coordinates.
+    #[inline]
+    pub fn apply_inverse_motion(&self, m: &SpatialVec<S>) -> SpatialVec<S> {
+        let w = self.rot.transpose() * angular(m);
+        spatial(&w, &(self.rot.transpose() * linear(m) + self.trans.cross(&w)))
+    }
+
     /// Xᵀ f: a child-frame force vector in parent coordinates.
     #[inline]
     pub fn apply_transpose_force(&self, f: &SpatialVec<S>) -> SpatialVec<S> {

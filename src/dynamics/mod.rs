@@ -33,6 +33,7 @@ mod interaction;
 pub mod kinematics;
 pub mod mode;
 mod noslip;
+pub mod qacc_jacobian;
 pub mod quantities;
 pub mod sensors;
 pub mod subspace;

@@ -32,6 +32,7 @@ mod mjcf_files;
 mod mjcf_import;
 mod mjcf_support;
 mod model_json;
+mod qacc_jacobian;
 mod reaching;
 mod rosenbrock_jacobian;
 mod sensor_import;

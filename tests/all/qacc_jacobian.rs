@@ -1,0 +1,102 @@
+//! The closed-form θ̈ Jacobian (src/dynamics/qacc_jacobian.rs) against the
+//! dual numbers of derivatives.rs, an independent route (every pass run in
+//! dual numbers, column by column), on random trees with every joint type,
+//! gravity, springs, dampers, armature and joint forces, and on the example
+//! vehicles; and what it refuses.
+
+use nalgebra::DMatrix;
+use nudyn::dynamics::derivatives::{DerivativeError, Derivatives, Output, Point};
+use nudyn::dynamics::qacc_jacobian::QaccJacobian;
+use nudyn::dynamics::velocity::Given;
+use nudyn::model::Model;
+use nudyn::vehicle::{JointKind, Vehicle};
+
+use crate::common::{self, Rng, TreeOptions, random_theta, random_vehicle};
+
+/// ∂θ̈/∂Δ and ∂θ̈/∂θ̇ in closed form and in dual numbers, at (θ, θ̇) under joint forces `torque`.
+fn both_ways(model: &Model, theta: &[f64], qvel: &[f64], torque: &[f64]) -> [(DMatrix<f64>, DMatrix<f64>); 2] {
+    let nv = model.nv;
+    let zeros = vec![0.0; nv];
+    let mut closed = (DMatrix::zeros(nv, nv), DMatrix::zeros(nv, nv));
+    QaccJacobian::new(model)
+        .unwrap()
+        .compute(model, (theta, qvel), (&zeros, torque), (&mut closed.0, &mut closed.1))
+        .unwrap();
+    let point =
+        Point { theta, velocity: qvel, given: Given::Qvel, eps: &zeros, torque, ctrl: &[], act: &[], time: 0.0 };
+    let duals = Derivatives::new(model).unwrap().jacobians(model, &point, Output::Qacc).unwrap();
+    [closed, (duals.theta, duals.velocity)]
+}
+
+fn assert_agree(model: &Model, theta: &[f64], qvel: &[f64], torque: &[f64], label: &str) {
+    let [(by_delta, by_qvel), (dual_by_delta, dual_by_qvel)] = both_ways(model, theta, qvel, torque);
+    let errors = [
+        common::rel_err(by_delta.as_slice(), dual_by_delta.as_slice()),
+        common::rel_err(by_qvel.as_slice(), dual_by_qvel.as_slice()),
+    ];
+    assert!(errors.iter().all(|e| *e < 1e-10), "{label}: ∂θ̈/∂Δ and ∂θ̈/∂θ̇ differ from the duals' by {errors:?}");
+}
+
+/// A random tree with gravity, springs and dampers, but none on ball
+/// joints (a free joint's rotation is one), whose spring the closed form refuses.
+fn random_case(seed: u64) -> (Model, Vec<f64>, Vec<f64>, Vec<f64>) {
+    let mut rng = Rng::new(seed);
+    let bodies = 2 + rng.below(7);
+    let options = TreeOptions { bodies, free_base: seed % 2 == 0, passive: true, chain: seed % 3 == 0 };
+    let mut vehicle: Vehicle = random_vehicle(&mut rng, options);
+    for joint in vehicle.bodies.iter_mut().flat_map(|b| b.joints.iter_mut()) {
+        if matches!(joint.kind, JointKind::Ball | JointKind::Free) {
+            joint.stiffness = 0.0;
+        }
+    }
+    let model = Model::compile(&vehicle).unwrap();
+    let theta = random_theta(&mut rng, &vehicle);
+    let (qvel, torque) = (rng.vec(model.nv, 1.5), rng.vec(model.nv, 3.0));
+    (model, theta, qvel, torque)
+}
+
+#[test]
+fn the_closed_form_agrees_with_the_dual_numbers_on_random_trees() {
+    for seed in 0..60 {
+        let (model, theta, qvel, torque) = random_case(seed);
+        assert_agree(&model, &theta, &qvel, &torque, &format!("seed {seed}"));
+    }
+}
+
+#[test]
+fn the_closed_form_agrees_with_the_dual_numbers_on_the_examples() {
+    for name in ["bus_arm7", "chain60", "fixed_rig", "flexible_boom"] {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("examples/{name}.xml"));
+        let vehicle = nudyn::mjcf::load_mjcf(&path).unwrap().vehicle;
+        let model = Model::compile(&vehicle).unwrap();
+        let mut rng = Rng::new(7);
+        for repeat in 0..3 {
+            let theta = random_theta(&mut rng, &vehicle);
+            let (qvel, torque) = (rng.vec(model.nv, 1.0), rng.vec(model.nv, 1.0));
+            assert_agree(&model, &theta, &qvel, &torque, &format!("{name}, state {repeat}"));
+        }
+    }
+}
+
+#[test]
+fn the_closed_form_refuses_what_it_leaves_out() {
+    let (model, theta, qvel, torque) = random_case(1);
+    let nv = model.nv;
+    let mut eps = vec![0.0; nv];
+    eps[nv - 1] = 0.5;
+    let mut out = (DMatrix::zeros(nv, nv), DMatrix::zeros(nv, nv));
+    let refused =
+        QaccJacobian::new(&model).unwrap().compute(&model, (&theta, &qvel), (&eps, &torque), (&mut out.0, &mut out.1));
+    assert!(matches!(refused, Err(DerivativeError::Unsupported(what)) if what.contains("ε")), "{refused:?}");
+
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/servicer.xml");
+    let servicer = Model::compile(&nudyn::mjcf::load_mjcf(&path).unwrap().vehicle).unwrap();
+    assert_eq!(QaccJacobian::new(&servicer).unwrap_err(), DerivativeError::Unsupported("actuators"));
+
+    let mut rng = Rng::new(3);
+    let options = TreeOptions { bodies: 3, free_base: true, passive: true, chain: true };
+    let mut vehicle = random_vehicle(&mut rng, options);
+    vehicle.bodies[0].joints[0].stiffness = 2.0;
+    let sprung = Model::compile(&vehicle).unwrap();
+    assert_eq!(QaccJacobian::new(&sprung).unwrap_err(), DerivativeError::Unsupported("springs on ball joints"));
+}
