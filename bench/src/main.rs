@@ -249,6 +249,9 @@ fn eval_cost(
     // ros34pw2 forms no exact W with activation states (its act rows and columns).
     let mut w_derivatives = derivatives.clone().filter(|_| model.activation_count() == 0);
     let mut w_ws = model.workspace();
+    let mut closed_form = nudyn::dynamics::qacc_jacobian::QaccJacobian::new(model).ok();
+    let mut closed_form_out =
+        (nalgebra::DMatrix::zeros(model.nv, model.nv), nalgebra::DMatrix::zeros(model.nv, model.nv));
     let mut unit = vec![0.0; model.nv];
     let zeros = nudyn::dynamics::derivatives::Input::ALL.map(|input| vec![0.0; input.len(model)]);
     let ones = vec![1.0; model.nv];
@@ -267,6 +270,10 @@ fn eval_cost(
     }
     if let (Some(qvel), Some(derivatives)) = (&state.qvel, w_derivatives.as_mut()) {
         cases.push(exact_w_case(model, derivatives, (&state.theta, qvel), (&mut unit, &zeros)));
+    }
+    if let (Some(qvel), Some(closed_form)) = (&state.qvel, closed_form.as_mut()) {
+        let zero = &zeros[nudyn::dynamics::derivatives::Input::Eps as usize];
+        cases.push(closed_form_case(model, closed_form, (&state.theta, qvel), zero, &mut closed_form_out));
     }
     if let Some(qvel) = &state.qvel {
         cases.push(differences_w_case(model, &mut w_ws, &state.theta, qvel, &eps));
@@ -416,6 +423,25 @@ fn exact_w_case<'a>(
                     unit[column] = 0.0;
                 }
             }
+        }),
+    }
+}
+
+/// A timed case of ∂θ̈/∂Δ and ∂θ̈/∂θ̇ in closed form (qacc_jacobian.rs), ε
+/// and the joint forces 0: what Pinocchio's `computeABADerivatives` gives
+/// for θ and θ̇, and ros34pw2's W.
+fn closed_form_case<'a>(
+    model: &'a Model,
+    closed_form: &'a mut nudyn::dynamics::qacc_jacobian::QaccJacobian,
+    (theta, qvel): (&'a [f64], &'a [f64]),
+    zero: &'a [f64],
+    (by_delta, by_qvel): &'a mut (nalgebra::DMatrix<f64>, nalgebra::DMatrix<f64>),
+) -> Case<'a> {
+    Case {
+        name: "nudyn θ̈ Jacobians in θ and θ̇ (closed form)".to_string(),
+        call: Box::new(move || {
+            let theta = std::hint::black_box(theta);
+            closed_form.compute(model, (theta, qvel), (zero, zero), (by_delta, by_qvel)).expect("the state evaluates");
         }),
     }
 }

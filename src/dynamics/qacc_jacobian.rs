@@ -49,29 +49,35 @@
 use nalgebra::{DMatrix, SVector};
 
 use super::derivatives::DerivativeError;
-use super::forces::eps_of_torque;
 use super::{block, cols};
 use crate::math::{
     SpatialMat, SpatialVec, Vec3, angular, cross_force, cross_motion, linear, mul_cross_motion, skew, spatial,
 };
 use crate::model::{LinkJoint, Model};
-use crate::workspace::{LinkCols, Workspace};
+use crate::workspace::Workspace;
 
 /// The passes at the point and the buffers of the closed form, allocated
-/// once so that a Jacobian allocates nothing.
+/// once (a Jacobian allocates only gemm's packing buffer).
 #[derive(Clone, Debug)]
 pub struct QaccJacobian {
     ws: Workspace,
     /// ε of the joint forces T, ℓ(θ)T.
     eps_of_torque: Vec<f64>,
-    /// Per link, world coordinates: S (its first `ndof` columns).
-    subspace: Vec<LinkCols>,
-    /// Ψ̇ = v_λ × S.
-    psi_dot: Vec<LinkCols>,
-    /// Ψ̈ = a_λ × S + v_λ × Ψ̇.
-    psi_ddot: Vec<LinkCols>,
+    /// Per dof (a column s of its link's S), world coordinates: s.
+    subspace: Vec<SpatialVec>,
+    /// Ψ̇ = v_λ × s.
+    psi_dot: Vec<SpatialVec>,
+    /// Ψ̈ = a_λ × s + v_λ × Ψ̇.
+    psi_ddot: Vec<SpatialVec>,
     /// Ṡ + Ψ̇, the change of the subtree's accelerations per unit θ̇ but for s × v_b.
-    rate_terms: Vec<LinkCols>,
+    rate_terms: Vec<SpatialVec>,
+    /// Per dof of link k, after the inward sweep: I^C_k s and (2B^C_k)ᵀ s
+    /// (s ᵀI^C_k and sᵀ2B^C_k, the rows of k's subtree), and what its column
+    /// gives an ancestor's row: s ×* F_k + I^C_k Ψ̈ + 2B^C_k Ψ̇ in Δ, I^C_k(Ṡ + Ψ̇) + 2B^C_k s in θ̇.
+    inertia_s: Vec<SpatialVec>,
+    coriolis_t_s: Vec<SpatialVec>,
+    ancestor_by_delta: Vec<SpatialVec>,
+    ancestor_by_qvel: Vec<SpatialVec>,
     velocity: Vec<SpatialVec>,
     acceleration: Vec<SpatialVec>,
     /// I^C, 2B^C and F: each link's own term, then (after the inward sweep) its subtree's.
@@ -82,10 +88,10 @@ pub struct QaccJacobian {
     torque_by_delta: DMatrix<f64>,
     torque_by_qvel: DMatrix<f64>,
     mass_inverse: DMatrix<f64>,
-    /// A unit joint force, its ε, and the outward pass's accelerations.
-    unit: Vec<f64>,
-    unit_eps: Vec<f64>,
-    outward: Vec<SpatialVec>,
+    /// Each dof's link.
+    dof_link: Vec<usize>,
+    /// ℓ(θ) = m⁻¹ (nv × nv).
+    factor_inverse: DMatrix<f64>,
 }
 
 impl QaccJacobian {
@@ -114,10 +120,14 @@ impl QaccJacobian {
         Ok(QaccJacobian {
             ws: model.workspace(),
             eps_of_torque: vec![0.0; nv],
-            subspace: vec![LinkCols::zeros(); n],
-            psi_dot: vec![LinkCols::zeros(); n],
-            psi_ddot: vec![LinkCols::zeros(); n],
-            rate_terms: vec![LinkCols::zeros(); n],
+            subspace: vec![SpatialVec::zeros(); nv],
+            psi_dot: vec![SpatialVec::zeros(); nv],
+            psi_ddot: vec![SpatialVec::zeros(); nv],
+            rate_terms: vec![SpatialVec::zeros(); nv],
+            inertia_s: vec![SpatialVec::zeros(); nv],
+            coriolis_t_s: vec![SpatialVec::zeros(); nv],
+            ancestor_by_delta: vec![SpatialVec::zeros(); nv],
+            ancestor_by_qvel: vec![SpatialVec::zeros(); nv],
             velocity: vec![SpatialVec::zeros(); n],
             acceleration: vec![SpatialVec::zeros(); n],
             inertia: vec![SpatialMat::zeros(); n],
@@ -126,9 +136,8 @@ impl QaccJacobian {
             torque_by_delta: DMatrix::zeros(nv, nv),
             torque_by_qvel: DMatrix::zeros(nv, nv),
             mass_inverse: DMatrix::zeros(nv, nv),
-            unit: vec![0.0; nv],
-            unit_eps: vec![0.0; nv],
-            outward: vec![SpatialVec::zeros(); n],
+            dof_link: model.links.iter().enumerate().flat_map(|(i, l)| std::iter::repeat_n(i, l.ndof)).collect(),
+            factor_inverse: DMatrix::zeros(nv, nv),
         })
     }
 
@@ -155,6 +164,9 @@ impl QaccJacobian {
         self.inward_sweep(model);
         self.torque_derivatives(model);
         self.mass_inverse(model);
+        // nalgebra's gemm (matrixmultiply, which picks AVX and FMA where the
+        // processor has them) is several times faster than a loop built for
+        // any x86-64; it allocates its packing buffer, once per Jacobian.
         by_delta.gemm(1.0, &self.mass_inverse, &self.torque_by_delta, 0.0);
         by_qvel.gemm(1.0, &self.mass_inverse, &self.torque_by_qvel, 0.0);
         Ok(())
@@ -172,19 +184,19 @@ impl QaccJacobian {
                 None => (SpatialVec::zeros(), -gravity),
             };
             let (mut joint_velocity, mut joint_acceleration) = (SpatialVec::zeros(), SpatialVec::zeros());
-            for k in 0..link.ndof {
+            let dofs = link.dof_adr..link.dof_adr + link.ndof;
+            for (k, d) in dofs.clone().enumerate() {
                 let s = x.apply_inverse_motion(&link.motion_subspace.column(k).into_owned());
                 let psi_dot = cross_motion(&v_parent, &s);
-                self.subspace[i].set_column(k, &s);
-                self.psi_dot[i].set_column(k, &psi_dot);
-                self.psi_ddot[i].set_column(k, &(cross_motion(&a_parent, &s) + cross_motion(&v_parent, &psi_dot)));
-                joint_velocity += s * ws.qvel[link.dof_adr + k];
-                joint_acceleration += s * ws.qacc[link.dof_adr + k];
+                self.subspace[d] = s;
+                self.psi_dot[d] = psi_dot;
+                self.psi_ddot[d] = cross_motion(&a_parent, &s) + cross_motion(&v_parent, &psi_dot);
+                joint_velocity += s * ws.qvel[d];
+                joint_acceleration += s * ws.qacc[d];
             }
             let v = v_parent + joint_velocity;
-            for k in 0..link.ndof {
-                let s = self.subspace[i].column(k).into_owned();
-                self.rate_terms[i].set_column(k, &(cross_motion(&v, &s) + self.psi_dot[i].column(k)));
+            for d in dofs {
+                self.rate_terms[d] = cross_motion(&v, &self.subspace[d]) + self.psi_dot[d];
             }
             let a = a_parent + cross_motion(&v_parent, &joint_velocity) + joint_acceleration;
             let mut y = SpatialMat::zeros();
@@ -212,102 +224,113 @@ impl QaccJacobian {
         }
     }
 
-    /// ∂τ_passive/∂x − ∂ID/∂x for x = Δ and θ̇: for each link k, the
-    /// entries of its rows and each ancestor-or-self j's columns (k in j's
-    /// subtree), and of j's rows and k's columns (j a strict ancestor).
+    /// ∂τ_passive/∂x − ∂ID/∂x for x = Δ and θ̇: for each dof a (row) of
+    /// link k and each dof b of an ancestor-or-self j of k, entry (a, b)
+    /// (a in b's subtree) and, when j is a strict ancestor, entry (b, a).
     fn torque_derivatives(&mut self, model: &Model) {
-        self.torque_by_delta.fill(0.0);
-        self.torque_by_qvel.fill(0.0);
         for (k, link) in model.links.iter().enumerate() {
-            let (adr_k, n_k) = (link.dof_adr, link.ndof);
-            let s_k = &self.subspace[k];
-            // I^C_k S_k and (2B^C_k)ᵀ S_k: S_kᵀ I^C_k and S_kᵀ 2B^C_k as columns.
-            let inertia_s: LinkCols = self.inertia[k] * s_k;
-            let coriolis_t_s: LinkCols = self.coriolis[k].transpose() * s_k;
-            // k's columns seen from its strict ancestors' rows.
-            let mut by_delta_terms = LinkCols::zeros();
-            let mut by_qvel_terms = LinkCols::zeros();
-            for c in 0..n_k {
-                let s = s_k.column(c).into_owned();
-                by_delta_terms.set_column(
-                    c,
-                    &(cross_force(&s, &self.force[k])
-                        + self.inertia[k] * self.psi_ddot[k].column(c)
-                        + self.coriolis[k] * self.psi_dot[k].column(c)),
-                );
-                by_qvel_terms.set_column(c, &(self.inertia[k] * self.rate_terms[k].column(c) + self.coriolis[k] * s));
+            let (inertia, coriolis) = (&self.inertia[k], &self.coriolis[k]);
+            for d in link.dof_adr..link.dof_adr + link.ndof {
+                let s = &self.subspace[d];
+                self.inertia_s[d] = inertia * s;
+                self.coriolis_t_s[d] = coriolis.tr_mul(s);
+                self.ancestor_by_delta[d] =
+                    cross_force(s, &self.force[k]) + inertia * self.psi_ddot[d] + coriolis * self.psi_dot[d];
+                self.ancestor_by_qvel[d] = inertia * self.rate_terms[d] + coriolis * s;
             }
+        }
+        let nv = model.nv;
+        let by_delta = self.torque_by_delta.as_mut_slice();
+        let by_qvel = self.torque_by_qvel.as_mut_slice();
+        by_delta.fill(0.0);
+        by_qvel.fill(0.0);
+        for (k, link) in model.links.iter().enumerate() {
             let mut ancestor = Some(k);
             while let Some(j) = ancestor {
-                let (adr_j, n_j) = (model.links[j].dof_adr, model.links[j].ndof);
-                for r in 0..n_k {
-                    for c in 0..n_j {
-                        self.torque_by_delta[(adr_k + r, adr_j + c)] -=
-                            inertia_s.column(r).dot(&self.psi_ddot[j].column(c))
-                                + coriolis_t_s.column(r).dot(&self.psi_dot[j].column(c));
-                        self.torque_by_qvel[(adr_k + r, adr_j + c)] -=
-                            inertia_s.column(r).dot(&self.rate_terms[j].column(c))
-                                + coriolis_t_s.column(r).dot(&self.subspace[j].column(c));
-                    }
-                }
-                if j != k {
-                    for r in 0..n_j {
-                        let s_j = self.subspace[j].column(r);
-                        for c in 0..n_k {
-                            self.torque_by_delta[(adr_j + r, adr_k + c)] -= s_j.dot(&by_delta_terms.column(c));
-                            self.torque_by_qvel[(adr_j + r, adr_k + c)] -= s_j.dot(&by_qvel_terms.column(c));
+                let ancestor_link = &model.links[j];
+                for a in link.dof_adr..link.dof_adr + link.ndof {
+                    let (inertia_s, coriolis_t_s) = (&self.inertia_s[a], &self.coriolis_t_s[a]);
+                    for b in ancestor_link.dof_adr..ancestor_link.dof_adr + ancestor_link.ndof {
+                        by_delta[a + b * nv] = -(inertia_s.dot(&self.psi_ddot[b]) + coriolis_t_s.dot(&self.psi_dot[b]));
+                        by_qvel[a + b * nv] =
+                            -(inertia_s.dot(&self.rate_terms[b]) + coriolis_t_s.dot(&self.subspace[b]));
+                        if j != k {
+                            by_delta[b + a * nv] = -self.subspace[b].dot(&self.ancestor_by_delta[a]);
+                            by_qvel[b + a * nv] = -self.subspace[b].dot(&self.ancestor_by_qvel[a]);
                         }
                     }
                 }
-                ancestor = model.links[j].parent;
+                ancestor = ancestor_link.parent;
             }
             // Springs −k(θ − θ_spring) (ball joints' are refused) and dampers −b θ̇.
-            for d in adr_k..adr_k + n_k {
+            for d in link.dof_adr..link.dof_adr + link.ndof {
                 if !model.shortcuts.no_springs {
-                    self.torque_by_delta[(d, d)] -= link.stiffness;
+                    by_delta[d + d * nv] -= link.stiffness;
                 }
                 if !model.shortcuts.no_dampers {
-                    self.torque_by_qvel[(d, d)] -= link.damping;
+                    by_qvel[d + d * nv] -= link.damping;
                 }
             }
         }
     }
 
-    /// M⁻¹ = ℓ*ℓ column by column: ε = ℓ e_c by the inward pass of
-    /// forces.rs, then θ̈ = ℓ*ε outward.
+    /// M⁻¹ = ℓ*ℓ = ℓᵀℓ: ℓ's columns ℓe_c by the inward pass of forces.rs
+    /// with every other force zero, which for a unit joint force at dof c
+    /// walks only the links from c's to the base (ℓe_c is zero elsewhere),
+    /// then the symmetric product.
     fn mass_inverse(&mut self, model: &Model) {
+        self.factor_inverse.fill(0.0);
         for c in 0..model.nv {
-            self.unit[c] = 1.0;
-            eps_of_torque(model, &mut self.ws, &self.unit, &mut self.unit_eps);
-            self.unit[c] = 0.0;
-            for (i, link) in model.links.iter().enumerate() {
-                let a_plus =
-                    link.parent.map_or(SpatialVec::zeros(), |p| self.ws.x_parent[i].apply_motion(&self.outward[p]));
-                let column = self.mass_inverse.column_mut(c);
-                self.outward[i] = match link.ndof {
-                    1 => outward_link::<1>(model, &self.ws, i, &self.unit_eps, a_plus, column),
-                    _ => outward_link::<3>(model, &self.ws, i, &self.unit_eps, a_plus, column),
+            // p of the link reached, in its coordinates: zero at the force's own link.
+            let (mut link, mut p) = (Some(self.dof_link[c]), SpatialVec::zeros());
+            let column = self.factor_inverse.column_mut(c);
+            let eps = column.data.into_slice_mut();
+            while let Some(i) = link {
+                let p_reduced = match model.links[i].ndof {
+                    1 => inward_link::<1>(model, &self.ws, i, c, &p, eps),
+                    _ => inward_link::<3>(model, &self.ws, i, c, &p, eps),
                 };
+                p = self.ws.x_parent[i].apply_transpose_force(&p_reduced);
+                link = model.links[i].parent;
+            }
+        }
+        // Column c of ℓ is zero below its link's last dof (ancestors come
+        // first in the link order).
+        let nv = model.nv;
+        let l = self.factor_inverse.as_slice();
+        for a in 0..nv {
+            let end_a = model.links[self.dof_link[a]].dof_adr + model.links[self.dof_link[a]].ndof;
+            for b in a..nv {
+                let end = end_a.min(model.links[self.dof_link[b]].dof_adr + model.links[self.dof_link[b]].ndof);
+                let column = |c: usize| &l[c * nv..c * nv + end];
+                let entry: f64 = column(a).iter().zip(column(b)).map(|(x, y)| x * y).sum();
+                self.mass_inverse[(a, b)] = entry;
+                self.mass_inverse[(b, a)] = entry;
             }
         }
     }
 }
 
-/// ℓ* for one link with N dofs: θ̈_i = R_i⁻ᵀε_i − G_iᵀA⁺ into `out`; returns A_i = A⁺ + S θ̈_i.
-fn outward_link<const N: usize>(
+/// ℓ on the path of a unit joint force at dof `unit`, for link i with N
+/// dofs and p (its children's share on the path, its coordinates):
+/// u = e − Sᵀp, ε_i = R_i⁻¹u into `eps`; returns p + G u, for the parent.
+fn inward_link<const N: usize>(
     model: &Model,
     ws: &Workspace,
     i: usize,
-    eps: &[f64],
-    a_plus: SpatialVec,
-    mut out: nalgebra::DVectorViewMut<f64>,
+    unit: usize,
+    p: &SpatialVec,
+    eps: &mut [f64],
 ) -> SpatialVec {
     let link = &model.links[i];
     let adr = link.dof_adr;
-    let e = SVector::<f64, N>::from_column_slice(&eps[adr..adr + N]);
-    let qacc = block::<_, N>(&ws.r_inv_joint[i]).transpose() * e - cols::<_, N>(&ws.gain[i]).transpose() * a_plus;
-    out.rows_mut(adr, N).copy_from(&qacc);
-    a_plus + cols::<_, N>(&link.motion_subspace) * qacc
+    let mut u: SVector<f64, N> = -(cols::<_, N>(&link.motion_subspace).transpose() * p);
+    if (adr..adr + N).contains(&unit) {
+        u[unit - adr] += 1.0;
+    }
+    let e = block::<_, N>(&ws.r_inv_joint[i]) * u;
+    eps[adr..adr + N].copy_from_slice(e.as_slice());
+    p + cols::<_, N>(&ws.gain[i]) * u
 }
 
 /// 2B for inertia `y` at velocity `v` (`momentum` = Y v): the matrix of
