@@ -42,7 +42,8 @@ fn assert_agree(model: &Model, theta: &[f64], qvel: &[f64], torque: &[f64], labe
 fn random_case(seed: u64) -> (Model, Vec<f64>, Vec<f64>, Vec<f64>) {
     let mut rng = Rng::new(seed);
     let bodies = 2 + rng.below(7);
-    let options = TreeOptions { bodies, free_base: seed % 2 == 0, passive: true, chain: seed % 3 == 0 };
+    let options =
+        TreeOptions { bodies, free_base: seed.is_multiple_of(2), passive: true, chain: seed.is_multiple_of(3) };
     let mut vehicle: Vehicle = random_vehicle(&mut rng, options);
     for joint in vehicle.bodies.iter_mut().flat_map(|b| b.joints.iter_mut()) {
         if matches!(joint.kind, JointKind::Ball | JointKind::Free) {
