@@ -1,5 +1,8 @@
 //! `nudyn linearize`: the dynamics linearized at a state, A, B, C, D, from
-//! the exact derivatives of [`crate::dynamics::derivatives`].
+//! the exact derivatives of [`crate::dynamics::derivatives`], or, where the
+//! model and the point allow and only θ and its rates are asked for, θ̈'s
+//! in closed form ([`crate::dynamics::qacc_jacobian`]: the same numbers to
+//! round-off, at a fraction of the cost).
 //!
 //! The state is MuJoCo's for linearization (that of `mjd_transitionFD`):
 //! x = (δq, θ̇), δq the displacement from the point's θ in the tangent
@@ -15,6 +18,7 @@
 use nalgebra::DMatrix;
 
 use crate::dynamics::derivatives::{DerivativeError, Derivatives, Input, Output, Point};
+use crate::dynamics::qacc_jacobian::QaccJacobian;
 use crate::dynamics::velocity::Given;
 use crate::model::{LinkJoint, Model};
 
@@ -116,38 +120,20 @@ pub fn linearize(
 ) -> Result<Linearization, DerivativeError> {
     let (nv, na) = (model.nv, model.activation_count());
     let n = 2 * nv + na;
-    let mut derivatives = Derivatives::new(model)?;
-    let at = Point {
-        theta: &point.qpos,
-        velocity: &point.qvel,
-        given: Given::Qvel,
-        eps: &point.eps,
-        torque: &point.torque,
-        ctrl: &point.ctrl,
-        act: &point.act,
-        time: 0.0,
-    };
     let input = match inputs {
         Inputs::Eps => Input::Eps,
         Inputs::Torque => Input::Torque,
         Inputs::Ctrl => Input::Ctrl,
     };
-    // ν's, act's rates and the sensors' Jacobians come from the same runs
-    // as θ̈'s (ν and act_dot are computed by every run; the sensors only
-    // when asked). Columns: δθ, θ̇, the input, then act's (none without).
-    let columns = [Input::Theta, Input::Velocity, input, Input::Act];
-    let (qacc_by, nu_by, act_dot_by, sensors_by) = if outputs.contains(&LinearOutput::Sensordata) {
-        let [qacc_by, nu_by, act_dot_by, sensors_by] = derivatives.jacobians_of(
-            model,
-            &at,
-            [Output::Qacc, Output::Nu, Output::ActDot, Output::Sensordata],
-            &columns,
-        )?;
-        (qacc_by, nu_by, act_dot_by, sensors_by)
+    let closed_form = point.eps.iter().all(|e| *e == 0.0)
+        && outputs.iter().all(|o| !matches!(o, LinearOutput::Nu | LinearOutput::Sensordata))
+        && QaccJacobian::check(model).is_ok();
+    let (qacc_by, nu_by, act_dot_by, sensors_by) = if closed_form {
+        let qacc_by = closed_form_blocks(model, point, input)?;
+        let act_dot_by = qacc_by.iter().map(|by| DMatrix::zeros(0, by.ncols())).collect();
+        (qacc_by, Vec::new(), act_dot_by, Vec::new())
     } else {
-        let [qacc_by, nu_by, act_dot_by] =
-            derivatives.jacobians_of(model, &at, [Output::Qacc, Output::Nu, Output::ActDot], &columns)?;
-        (qacc_by, nu_by, act_dot_by, Vec::new())
+        dual_blocks(model, point, input, outputs)?
     };
     let inputs_count = qacc_by[2].ncols();
     // Rows of x's rates: θ̈ from nv, act's from 2nv; each over (δθ, θ̇, act).
@@ -205,6 +191,68 @@ pub fn linearize(
         (h, ad, bd)
     });
     Ok(Linearization { a, b, c, d, eigenvalues, discrete })
+}
+
+/// The Jacobians of θ̈, ν, act's rates and the sensors (each as
+/// [`Derivatives::jacobians_of`] gives them) over δθ, θ̇, `input` and act,
+/// from the passes in dual numbers.
+type Blocks = (Vec<DMatrix<f64>>, Vec<DMatrix<f64>>, Vec<DMatrix<f64>>, Vec<DMatrix<f64>>);
+
+fn dual_blocks(
+    model: &Model,
+    point: &OperatingPoint,
+    input: Input,
+    outputs: &[LinearOutput],
+) -> Result<Blocks, DerivativeError> {
+    let mut derivatives = Derivatives::new(model)?;
+    let at = Point {
+        theta: &point.qpos,
+        velocity: &point.qvel,
+        given: Given::Qvel,
+        eps: &point.eps,
+        torque: &point.torque,
+        ctrl: &point.ctrl,
+        act: &point.act,
+        time: 0.0,
+    };
+    // ν's, act's rates and the sensors' Jacobians come from the same runs
+    // as θ̈'s (ν and act_dot are computed by every run; the sensors only
+    // when asked). Columns: δθ, θ̇, the input, then act's (none without).
+    let columns = [Input::Theta, Input::Velocity, input, Input::Act];
+    Ok(if outputs.contains(&LinearOutput::Sensordata) {
+        let [qacc_by, nu_by, act_dot_by, sensors_by] = derivatives.jacobians_of(
+            model,
+            &at,
+            [Output::Qacc, Output::Nu, Output::ActDot, Output::Sensordata],
+            &columns,
+        )?;
+        (qacc_by, nu_by, act_dot_by, sensors_by)
+    } else {
+        let [qacc_by, nu_by, act_dot_by] =
+            derivatives.jacobians_of(model, &at, [Output::Qacc, Output::Nu, Output::ActDot], &columns)?;
+        (qacc_by, nu_by, act_dot_by, Vec::new())
+    })
+}
+
+/// θ̈'s Jacobians over δθ, θ̇, `input` and act (none: the closed form
+/// covers no actuators) in closed form (dynamics/qacc_jacobian.rs), for a
+/// point without applied ε: ∂θ̈/∂T = M⁻¹, ∂θ̈/∂ε = ℓ*, no ctrl columns.
+fn closed_form_blocks(
+    model: &Model,
+    point: &OperatingPoint,
+    input: Input,
+) -> Result<Vec<DMatrix<f64>>, DerivativeError> {
+    let nv = model.nv;
+    let mut closed_form = QaccJacobian::new(model)?;
+    let (mut by_delta, mut by_qvel) = (DMatrix::zeros(nv, nv), DMatrix::zeros(nv, nv));
+    let state = (point.qpos.as_slice(), point.qvel.as_slice());
+    closed_form.compute(model, state, (&point.eps, &point.torque), (&mut by_delta, &mut by_qvel))?;
+    let by_input = match input {
+        Input::Torque => closed_form.mass_inverse().clone(),
+        Input::Eps => closed_form.factor_inverse().transpose(),
+        _ => DMatrix::zeros(nv, 0),
+    };
+    Ok(vec![by_delta, by_qvel, by_input, DMatrix::zeros(nv, 0)])
 }
 
 /// ∂δq̇/∂δq at the point: −½[ω]× on each ball or free joint's rotation

@@ -163,13 +163,24 @@ impl QaccJacobian {
         self.outward_sweep(model);
         self.inward_sweep(model);
         self.torque_derivatives(model);
-        self.mass_inverse(model);
+        self.invert_mass_matrix(model);
         // nalgebra's gemm (matrixmultiply, which picks AVX and FMA where the
         // processor has them) is several times faster than a loop built for
         // any x86-64; it allocates its packing buffer, once per Jacobian.
         by_delta.gemm(1.0, &self.mass_inverse, &self.torque_by_delta, 0.0);
         by_qvel.gemm(1.0, &self.mass_inverse, &self.torque_by_qvel, 0.0);
         Ok(())
+    }
+
+    /// M⁻¹ at the last [`QaccJacobian::compute`]'s θ: ∂θ̈/∂T.
+    pub fn mass_inverse(&self) -> &DMatrix<f64> {
+        &self.mass_inverse
+    }
+
+    /// ℓ(θ) = m⁻¹ at the last [`QaccJacobian::compute`]'s θ; its transpose
+    /// ℓ* is ∂θ̈/∂ε.
+    pub fn factor_inverse(&self) -> &DMatrix<f64> {
+        &self.factor_inverse
     }
 
     /// Base to tip: each link's world S, v, a, Ψ̇, Ψ̈, Ṡ + Ψ̇, and its own Y, 2B, f.
@@ -278,7 +289,7 @@ impl QaccJacobian {
     /// with every other force zero, which for a unit joint force at dof c
     /// walks only the links from c's to the base (ℓe_c is zero elsewhere),
     /// then the symmetric product.
-    fn mass_inverse(&mut self, model: &Model) {
+    fn invert_mass_matrix(&mut self, model: &Model) {
         self.factor_inverse.fill(0.0);
         for c in 0..model.nv {
             // p of the link reached, in its coordinates: zero at the force's own link.

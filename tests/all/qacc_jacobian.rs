@@ -101,3 +101,26 @@ fn the_closed_form_refuses_what_it_leaves_out() {
     let sprung = Model::compile(&vehicle).unwrap();
     assert_eq!(QaccJacobian::new(&sprung).unwrap_err(), DerivativeError::Unsupported("springs on ball joints"));
 }
+
+/// `nudyn linearize` takes the closed form when only θ and its rates are
+/// asked for at a point without ε; asked for ν too, it runs the dual
+/// numbers. The two give the same A and B, for the joint forces and for ε
+/// (∂θ̈/∂ε = ℓ*, the transpose of ℓ's columns).
+#[test]
+fn linearize_gives_the_same_matrices_by_either_route() {
+    use nudyn::linearize::{Inputs, LinearOutput, OperatingPoint, linearize};
+    for seed in 0..12 {
+        let (model, theta, qvel, torque) = random_case(seed);
+        let point =
+            OperatingPoint { qpos: theta, qvel, act: Vec::new(), eps: vec![0.0; model.nv], torque, ctrl: Vec::new() };
+        for inputs in [Inputs::Torque, Inputs::Eps] {
+            let closed = linearize(&model, &point, inputs, &[LinearOutput::Qacc], None).unwrap();
+            let duals = linearize(&model, &point, inputs, &[LinearOutput::Qacc, LinearOutput::Nu], None).unwrap();
+            let errors = [
+                common::rel_err(closed.a.as_slice(), duals.a.as_slice()),
+                common::rel_err(closed.b.as_slice(), duals.b.as_slice()),
+            ];
+            assert!(errors.iter().all(|e| *e < 1e-10), "seed {seed}, {inputs:?}: A and B differ by {errors:?}");
+        }
+    }
+}
