@@ -249,7 +249,7 @@ fn closed_form_blocks(
     closed_form.compute(model, state, (&point.eps, &point.torque), (&mut by_delta, &mut by_qvel))?;
     let by_input = match input {
         Input::Torque => closed_form.mass_inverse().clone(),
-        Input::Eps => closed_form.factor_inverse().transpose(),
+        Input::Eps => closed_form.factor_inverse_adjoint().into_owned(),
         _ => DMatrix::zeros(nv, 0),
     };
     Ok(vec![by_delta, by_qvel, by_input, DMatrix::zeros(nv, 0)])

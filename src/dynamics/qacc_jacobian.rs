@@ -87,11 +87,11 @@ pub struct QaccJacobian {
     /// ∂τ_passive/∂Δ − ∂ID/∂Δ and the same in θ̇ (nv × nv).
     torque_by_delta: DMatrix<f64>,
     torque_by_qvel: DMatrix<f64>,
-    mass_inverse: DMatrix<f64>,
     /// Each dof's link.
     dof_link: Vec<usize>,
-    /// ℓ(θ) = m⁻¹ (nv × nv).
-    factor_inverse: DMatrix<f64>,
+    factor: FactorInverse,
+    /// M⁻¹ = ℓᵀℓ when asked (nv × nv).
+    mass_inverse: DMatrix<f64>,
 }
 
 impl QaccJacobian {
@@ -117,6 +117,7 @@ impl QaccJacobian {
     pub fn new(model: &Model) -> Result<Self, DerivativeError> {
         Self::check(model)?;
         let (n, nv) = (model.links.len(), model.nv);
+        let padded = nv.div_ceil(BLOCK_ROWS) * BLOCK_ROWS;
         Ok(QaccJacobian {
             ws: model.workspace(),
             eps_of_torque: vec![0.0; nv],
@@ -135,9 +136,16 @@ impl QaccJacobian {
             force: vec![SpatialVec::zeros(); n],
             torque_by_delta: DMatrix::zeros(nv, nv),
             torque_by_qvel: DMatrix::zeros(nv, nv),
+            factor: FactorInverse {
+                ell: DMatrix::zeros(padded, nv),
+                ell_transposed: DMatrix::zeros(padded, nv),
+                ell_times: DMatrix::zeros(padded, nv),
+                product: DMatrix::zeros(padded, nv),
+                dof_end: model.links.iter().flat_map(|l| std::iter::repeat_n(l.dof_adr + l.ndof, l.ndof)).collect(),
+                row_ranges: model.links.iter().flat_map(|l| std::iter::repeat_n(l.dof_adr..nv, l.ndof)).collect(),
+            },
             mass_inverse: DMatrix::zeros(nv, nv),
             dof_link: model.links.iter().enumerate().flat_map(|(i, l)| std::iter::repeat_n(i, l.ndof)).collect(),
-            factor_inverse: DMatrix::zeros(nv, nv),
         })
     }
 
@@ -157,30 +165,36 @@ impl QaccJacobian {
         let ws = &mut self.ws;
         ws.set_configuration(model, theta)?;
         ws.set_qvel(model, qvel)?;
-        ws.eps_from_forces(model, torque, None, &mut self.eps_of_torque)?;
+        if torque.iter().any(|t| *t != 0.0) {
+            ws.eps_from_forces(model, torque, None, &mut self.eps_of_torque)?;
+        } else {
+            self.eps_of_torque.fill(0.0);
+        }
         ws.compute_qacc(model, &self.eps_of_torque)?;
         ws.world_transforms(model);
         self.outward_sweep(model);
         self.inward_sweep(model);
         self.torque_derivatives(model);
-        self.invert_mass_matrix(model);
-        // nalgebra's gemm (matrixmultiply, which picks AVX and FMA where the
-        // processor has them) is several times faster than a loop built for
-        // any x86-64; it allocates its packing buffer, once per Jacobian.
-        by_delta.gemm(1.0, &self.mass_inverse, &self.torque_by_delta, 0.0);
-        by_qvel.gemm(1.0, &self.mass_inverse, &self.torque_by_qvel, 0.0);
+        self.factor_inverse(model);
+        for (t, out) in [(&self.torque_by_delta, by_delta), (&self.torque_by_qvel, by_qvel)] {
+            out.copy_from(&self.factor.times_mass_inverse(t).rows(0, model.nv));
+        }
         Ok(())
     }
 
-    /// M⁻¹ at the last [`QaccJacobian::compute`]'s θ: ∂θ̈/∂T.
-    pub fn mass_inverse(&self) -> &DMatrix<f64> {
+    /// M⁻¹ = ℓᵀℓ at the last [`QaccJacobian::compute`]'s θ: ∂θ̈/∂T.
+    pub fn mass_inverse(&mut self) -> &DMatrix<f64> {
+        let nv = self.mass_inverse.nrows();
+        let factor = &mut self.factor;
+        factor.ell_times.copy_from(&factor.ell);
+        multiply_by_ell_transposed(factor);
+        self.mass_inverse.copy_from(&factor.product.rows(0, nv));
         &self.mass_inverse
     }
 
-    /// ℓ(θ) = m⁻¹ at the last [`QaccJacobian::compute`]'s θ; its transpose
-    /// ℓ* is ∂θ̈/∂ε.
-    pub fn factor_inverse(&self) -> &DMatrix<f64> {
-        &self.factor_inverse
+    /// ℓ* = ℓᵀ at the last [`QaccJacobian::compute`]'s θ: ∂θ̈/∂ε.
+    pub fn factor_inverse_adjoint(&self) -> nalgebra::DMatrixView<'_, f64> {
+        self.factor.ell_transposed.rows(0, self.mass_inverse.nrows())
     }
 
     /// Base to tip: each link's world S, v, a, Ψ̇, Ψ̈, Ṡ + Ψ̇, and its own Y, 2B, f.
@@ -285,16 +299,16 @@ impl QaccJacobian {
         }
     }
 
-    /// M⁻¹ = ℓ*ℓ = ℓᵀℓ: ℓ's columns ℓe_c by the inward pass of forces.rs
+    /// ℓ = m⁻¹ and ℓᵀ: ℓ's columns ℓe_c by the inward pass of forces.rs
     /// with every other force zero, which for a unit joint force at dof c
-    /// walks only the links from c's to the base (ℓe_c is zero elsewhere),
-    /// then the symmetric product.
-    fn invert_mass_matrix(&mut self, model: &Model) {
-        self.factor_inverse.fill(0.0);
+    /// walks only the links from c's to the base (ℓe_c is zero elsewhere).
+    fn factor_inverse(&mut self, model: &Model) {
+        let ell = &mut self.factor.ell;
+        ell.fill(0.0);
         for c in 0..model.nv {
             // p of the link reached, in its coordinates: zero at the force's own link.
             let (mut link, mut p) = (Some(self.dof_link[c]), SpatialVec::zeros());
-            let column = self.factor_inverse.column_mut(c);
+            let column = ell.column_mut(c);
             let eps = column.data.into_slice_mut();
             while let Some(i) = link {
                 let p_reduced = match model.links[i].ndof {
@@ -305,18 +319,10 @@ impl QaccJacobian {
                 link = model.links[i].parent;
             }
         }
-        // Column c of ℓ is zero below its link's last dof (ancestors come
-        // first in the link order).
         let nv = model.nv;
-        let l = self.factor_inverse.as_slice();
-        for a in 0..nv {
-            let end_a = model.links[self.dof_link[a]].dof_adr + model.links[self.dof_link[a]].ndof;
-            for b in a..nv {
-                let end = end_a.min(model.links[self.dof_link[b]].dof_adr + model.links[self.dof_link[b]].ndof);
-                let column = |c: usize| &l[c * nv..c * nv + end];
-                let entry: f64 = column(a).iter().zip(column(b)).map(|(x, y)| x * y).sum();
-                self.mass_inverse[(a, b)] = entry;
-                self.mass_inverse[(b, a)] = entry;
+        for c in 0..nv {
+            for r in 0..nv {
+                self.factor.ell_transposed[(c, r)] = self.factor.ell[(r, c)];
             }
         }
     }
@@ -342,6 +348,96 @@ fn inward_link<const N: usize>(
     let e = block::<_, N>(&ws.r_inv_joint[i]) * u;
     eps[adr..adr + N].copy_from_slice(e.as_slice());
     p + cols::<_, N>(&ws.gain[i]) * u
+}
+
+/// ℓ(θ) = m⁻¹, its transpose, ℓ times the matrix given and ℓᵀ times
+/// that, each with its rows padded with zeros to whole blocks of
+/// [`multiply`] (padded × nv); and where ℓ's rows and columns are zero.
+#[derive(Clone, Debug)]
+struct FactorInverse {
+    ell: DMatrix<f64>,
+    ell_transposed: DMatrix<f64>,
+    ell_times: DMatrix<f64>,
+    product: DMatrix<f64>,
+    /// Past each dof's link's last dof: ℓ's column c is zero from row
+    /// dof_end[c] on (a link's ancestors come first in the link order).
+    dof_end: Vec<usize>,
+    /// For each dof i, the columns where row i of ℓ may be nonzero (i's
+    /// link an ancestor-or-self of theirs): from i's link's first dof on.
+    row_ranges: Vec<std::ops::Range<usize>>,
+}
+
+impl FactorInverse {
+    /// M⁻¹t = ℓᵀ(ℓt) for t (nv × nv), each product over ℓ's nonzero part
+    /// only; the rows past nv are padding.
+    fn times_mass_inverse(&mut self, t: &DMatrix<f64>) -> &DMatrix<f64> {
+        multiply(&self.ell, t, &mut self.ell_times, |first_row| self.row_ranges[first_row].clone());
+        multiply_by_ell_transposed(self);
+        &self.product
+    }
+}
+
+/// `product` = ℓᵀ `ell_times`: ℓᵀ's row i is zero past i's link's last dof.
+fn multiply_by_ell_transposed(factor: &mut FactorInverse) {
+    let nv = factor.dof_end.len();
+    let last_row = |first_row: usize| (first_row + BLOCK_ROWS).min(nv) - 1;
+    let ends = &factor.dof_end;
+    multiply(&factor.ell_transposed, &factor.ell_times, &mut factor.product, |first_row| 0..ends[last_row(first_row)]);
+}
+
+/// Rows of a block of [`multiply`]'s product.
+const BLOCK_ROWS: usize = 8;
+
+/// out = a b, with `a` and `out` padded to whole blocks of rows and
+/// `a`'s columns as many as `b`'s rows; the rows of `a` from `first_row`
+/// on (a block's) are zero outside the columns `k_range(first_row)`. By
+/// blocks of out (BLOCK_ROWS × 2) held in registers over the whole sum:
+/// eight 2-wide registers, which x86-64's baseline SSE2 has room for beside
+/// a's column and b's entries. Written out because nalgebra's `gemm` on
+/// dynamic matrices allocates its packing buffers, and forming W must not
+/// allocate (the FMU's step loop).
+fn multiply(a: &DMatrix<f64>, b: &DMatrix<f64>, out: &mut DMatrix<f64>, k_range: impl Fn(usize) -> std::ops::Range<usize>) {
+    let (padded, m) = (a.nrows(), b.ncols());
+    for first_row in (0..padded).step_by(BLOCK_ROWS) {
+        let ks = k_range(first_row);
+        let mut j = 0;
+        while j + 2 <= m {
+            let [left, right] = product_block::<2>(a, b, first_row, j, ks.clone());
+            out.view_mut((first_row, j), (BLOCK_ROWS, 1)).copy_from_slice(&left);
+            out.view_mut((first_row, j + 1), (BLOCK_ROWS, 1)).copy_from_slice(&right);
+            j += 2;
+        }
+        if j < m {
+            let [last] = product_block::<1>(a, b, first_row, j, ks);
+            out.view_mut((first_row, j), (BLOCK_ROWS, 1)).copy_from_slice(&last);
+        }
+    }
+}
+
+/// Rows `first_row..first_row + BLOCK_ROWS` of (a b)'s columns
+/// `first_column..first_column + COLS`, summed over `ks`.
+#[inline(always)]
+fn product_block<const COLS: usize>(
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    first_row: usize,
+    first_column: usize,
+    ks: std::ops::Range<usize>,
+) -> [[f64; BLOCK_ROWS]; COLS] {
+    let mut sums = [[0.0; BLOCK_ROWS]; COLS];
+    let b_columns: [&[f64]; COLS] =
+        std::array::from_fn(|c| &b.as_slice()[(first_column + c) * b.nrows()..][ks.clone()]);
+    for (step, a_column) in a.as_slice().chunks_exact(a.nrows()).skip(ks.start).take(ks.len()).enumerate() {
+        let a_part: &[f64; BLOCK_ROWS] =
+            a_column[first_row..first_row + BLOCK_ROWS].try_into().expect("a whole block of rows");
+        for (sum, b_column) in sums.iter_mut().zip(&b_columns) {
+            let entry = b_column[step];
+            for (s, x) in sum.iter_mut().zip(a_part) {
+                *s += x * entry;
+            }
+        }
+    }
+    sums
 }
 
 /// 2B for inertia `y` at velocity `v` (`momentum` = Y v): the matrix of

@@ -36,6 +36,7 @@ use super::rkmk::{Integrator, copy_rates, max_abs, retract};
 use super::tableau::{ROSENBROCK_STAGES, Rosenbrock, RosenbrockStages};
 use crate::dynamics::DynamicsError;
 use crate::dynamics::derivatives::{DerivativeError, Derivatives, Direction, Input, Output, Point};
+use crate::dynamics::qacc_jacobian::QaccJacobian;
 use crate::dynamics::velocity::Given;
 use crate::model::Model;
 use crate::workspace::Workspace;
@@ -64,13 +65,18 @@ pub struct HeldJacobian {
 /// Where a Rosenbrock method's W comes from.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum JacobianSource {
-    /// Exact derivatives (dual numbers) where they cover the model and the
-    /// point, forward differences elsewhere. The same steps and errors as
-    /// differences, 2·nv fewer θ̈ evaluations per W, but each W costs 2–4
-    /// times as much (docs/integration.md, "What W is made from").
-    Exact,
-    /// Forward differences: the cheaper W, so the default.
+    /// θ̈'s derivatives in closed form (dynamics/qacc_jacobian.rs) where
+    /// they cover the model and the point (no applied ε): exact, and 4–10
+    /// times cheaper than the differences; forward differences elsewhere.
     #[default]
+    ClosedForm,
+    /// Exact derivatives: the closed form where it applies, else the dual
+    /// numbers where they cover the model and the point, else forward
+    /// differences. The dual numbers' W costs 2–4 times the differences'
+    /// and gave the same steps where measured (docs/integration.md, "What
+    /// W is made from").
+    Exact,
+    /// Forward differences only.
     Differences,
 }
 
@@ -112,6 +118,8 @@ pub(super) struct Linearization {
     /// The passes in dual numbers that give W's derivatives exactly, when
     /// they cover the model.
     exact: Option<Box<ExactJacobian>>,
+    /// θ̈'s derivatives in closed form, when they cover the model.
+    closed_form: Option<Box<QaccJacobian>>,
 }
 
 /// The derivatives' passes and the directions of W's columns, allocated
@@ -195,6 +203,7 @@ impl Linearization {
             rhs_qvel: DVector::zeros(rates),
             probed: DVector::zeros(rates),
             exact: ExactJacobian::new(model),
+            closed_form: QaccJacobian::new(model).ok().map(Box::new),
         }
     }
 
@@ -457,11 +466,12 @@ impl Integrator {
         Ok(())
     }
 
-    /// W's derivatives at the step's start by dual numbers, when they cover
-    /// the model and are asked for; whether they were formed. A point the
-    /// derivatives refuse (on a switch of a constraint mode that `ws` does
-    /// not hold, where they are one-sided) is left to the differences,
-    /// which take one side as a step's stages would.
+    /// W's derivatives at the step's start in closed form or by dual
+    /// numbers, when they cover the model and the point and the source
+    /// asks for them; whether they were formed. A point the dual numbers
+    /// refuse (on a switch of a constraint mode that `ws` does not hold,
+    /// where they are one-sided) is left to the differences, which take one
+    /// side as a step's stages would.
     fn linearize_exactly(
         &mut self,
         model: &Model,
@@ -471,14 +481,30 @@ impl Integrator {
         t: f64,
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<bool, DynamicsError> {
-        let Some(exact) = linear.exact.as_mut() else { return Ok(false) };
         if self.jacobian_source == JacobianSource::Differences {
             return Ok(false);
         }
         inputs_at(t, self.eps_stage.as_mut_slice(), self.ctrl_stage.as_mut_slice());
-        let inputs = (self.eps_stage.as_slice(), self.ctrl_stage.as_slice());
+        let qvel = &qvel[..model.nv];
         let blocks = (&mut linear.qacc_by_delta, &mut linear.qacc_by_qvel);
-        match exact.form(model, ws, (theta, &qvel[..model.nv]), inputs, t, blocks) {
+        if let Some(closed_form) = linear.closed_form.as_mut()
+            && self.eps_stage.iter().all(|e| *e == 0.0)
+        {
+            // The stages apply ε and ctrl only, and a model the closed form
+            // covers has no actuators: the joint forces T are ε's zeros.
+            let zeros = self.eps_stage.as_slice();
+            return match closed_form.compute(model, (theta, qvel), (zeros, zeros), blocks) {
+                Ok(()) => Ok(true),
+                Err(DerivativeError::Dynamics(cause)) => Err(cause),
+                Err(_) => Ok(false),
+            };
+        }
+        let Some(exact) = linear.exact.as_mut() else { return Ok(false) };
+        if self.jacobian_source != JacobianSource::Exact {
+            return Ok(false);
+        }
+        let inputs = (self.eps_stage.as_slice(), self.ctrl_stage.as_slice());
+        match exact.form(model, ws, (theta, qvel), inputs, t, blocks) {
             Ok(()) => Ok(true),
             Err(DerivativeError::Dynamics(cause)) => Err(cause),
             Err(_) => Ok(false),
