@@ -50,9 +50,7 @@ use nalgebra::{DMatrix, SVector};
 
 use super::derivatives::DerivativeError;
 use super::{block, cols};
-use crate::math::{
-    SpatialMat, SpatialVec, Vec3, angular, cross_force, cross_motion, linear, mul_cross_motion, skew, spatial,
-};
+use crate::math::{SpatialMat, SpatialVec, Vec3, angular, cross_force, cross_motion, linear, skew, spatial};
 use crate::model::{LinkJoint, Model};
 use crate::workspace::Workspace;
 
@@ -224,8 +222,7 @@ impl QaccJacobian {
                 self.rate_terms[d] = cross_motion(&v, &self.subspace[d]) + self.psi_dot[d];
             }
             let a = a_parent + cross_motion(&v_parent, &joint_velocity) + joint_acceleration;
-            let mut y = SpatialMat::zeros();
-            x.add_inertia_to_parent(&link.spatial_inertia(), &mut y, true);
+            let y = world_inertia(link, x);
             let momentum = y * v;
             self.force[i] = y * a + cross_force(&v, &momentum);
             self.coriolis[i] = coriolis_matrix(&y, &v, &momentum);
@@ -396,7 +393,12 @@ const BLOCK_ROWS: usize = 8;
 /// a's column and b's entries. Written out because nalgebra's `gemm` on
 /// dynamic matrices allocates its packing buffers, and forming W must not
 /// allocate (the FMU's step loop).
-fn multiply(a: &DMatrix<f64>, b: &DMatrix<f64>, out: &mut DMatrix<f64>, k_range: impl Fn(usize) -> std::ops::Range<usize>) {
+fn multiply(
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    out: &mut DMatrix<f64>,
+    k_range: impl Fn(usize) -> std::ops::Range<usize>,
+) {
     let (padded, m) = (a.nrows(), b.ncols());
     for first_row in (0..padded).step_by(BLOCK_ROWS) {
         let ks = k_range(first_row);
@@ -440,16 +442,34 @@ fn product_block<const COLS: usize>(
     sums
 }
 
+/// The link's spatial inertia in world coordinates about the world origin,
+/// from its ten numbers (the congruence Xᵀ Y X for a rigid body): with E
+/// the link's rotation and r its origin (world), h = E ᵀh_link + m r and
+/// Ī = Eᵀ Ī_link E − ĥ′ r̂ − r̂ ĥ′ − m r̂ r̂ (h′ = Eᵀh_link, the parallel-axis shift).
+fn world_inertia(link: &crate::model::Link, x: &crate::math::Transform) -> SpatialMat {
+    let rotated_moment = x.rot.transpose() * link.mass_moment;
+    let (h, r) = (skew(&rotated_moment), skew(&x.trans));
+    let rotational = x.rot.transpose() * link.rotational_inertia * x.rot - h * r - r * h - r * r * link.mass;
+    let moment = skew(&(rotated_moment + x.trans * link.mass));
+    let mut out = SpatialMat::zeros();
+    out.fixed_view_mut::<3, 3>(0, 0).copy_from(&((rotational + rotational.transpose()) * 0.5));
+    out.fixed_view_mut::<3, 3>(0, 3).copy_from(&moment);
+    out.fixed_view_mut::<3, 3>(3, 0).copy_from(&moment.transpose());
+    out.fixed_view_mut::<3, 3>(3, 3).fill_with_identity();
+    out.fixed_view_mut::<3, 3>(3, 3).scale_mut(link.mass);
+    out
+}
+
 /// 2B for inertia `y` at velocity `v` (`momentum` = Y v): the matrix of
 /// w ↦ v ×* Y w − Y (v × w) + w ×* Y v, the change of f = Y a + v ×* Y v
-/// with v along w when a changes by −v × w.
+/// with v along w when a changes by −v × w. As (v×)ᵀ = −v×*, the first two
+/// terms are P + Pᵀ with P = v ×* Y.
 fn coriolis_matrix(y: &SpatialMat, v: &SpatialVec, momentum: &SpatialVec) -> SpatialMat {
-    let mut out = -mul_cross_motion(y, v);
+    let mut p = SpatialMat::zeros();
     for c in 0..6 {
-        let column = cross_force(v, &y.column(c).into_owned());
-        let mut slot = out.column_mut(c);
-        slot += column;
+        p.set_column(c, &cross_force(v, &y.column(c).into_owned()));
     }
+    let mut out = p + p.transpose();
     // w ×* h = (w_ang × h_ang + w_lin × h_lin, w_ang × h_lin) = [−h_ang× −h_lin×; −h_lin× 0] w.
     let (h_ang, h_lin) = (skew(&angular(momentum)), skew(&linear(momentum)));
     let mut block_at = |row: usize, col: usize, m: &nalgebra::Matrix3<f64>| {
