@@ -1,6 +1,8 @@
 #!/usr/bin/env python3
-"""ros34pw2 with W from exact derivatives against W by forward differences
-(issue 48, item 4), side by side in one `nudyn-bench` process per vehicle:
+"""ros34pw2 with each source of its W (issue 48, item 4), side by side in
+one `nudyn-bench` process per vehicle: the default (θ̈'s derivatives in
+closed form where they cover the vehicle and ε is zero, else forward
+differences), `exact` (closed form, else dual numbers) and `differences`;
 steps, θ̈ evaluations, W formed, wall time (median of the repetitions) and
 the error against dop853 at 1e-13 (largest |x − x_ref| / (1 + |x_ref|)
 over θ, quaternions up to sign, and θ̇ at the 0.1 s points); and the cost
@@ -79,9 +81,10 @@ def w_costs(path: Path, state: Path) -> dict:
     result = json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
     median = {name: float(np.median(times)) for name, times in result["nanoseconds"].items()}
     nu_dot = median["nudyn"]
-    pick = lambda prefix: next(v for k, v in median.items() if k.startswith(prefix))  # noqa: E731
+    pick = lambda prefix: next((v for k, v in median.items() if k.startswith(prefix)), float("nan"))  # noqa: E731
     return {"nv": result["nv"], "nu_dot_ns": nu_dot,
             "qacc_in_nu_dot": pick("nudyn qacc") / nu_dot,
+            "closed_form_w_in_nu_dot": pick("nudyn θ̈ Jacobians in θ and θ̇ (closed form)") / nu_dot,
             "exact_w_in_nu_dot": pick("nudyn ros34pw2 W from exact") / nu_dot,
             "differences_w_in_nu_dot": pick("nudyn ros34pw2 W by forward") / nu_dot}
 
@@ -98,17 +101,21 @@ def main() -> int:
                     example_state("bus_arm7", work)]
         for name, path, state, model in vehicles:
             costs = w_costs(path, state)
+            closed_form = (f"{costs['closed_form_w_in_nu_dot']:.1f} ν̇" if np.isfinite(costs["closed_form_w_in_nu_dot"])
+                           else "not covered")
             print(f"{name}: nv {costs['nv']}, ν̇ {costs['nu_dot_ns']:.0f} ns; θ̈ {costs['qacc_in_nu_dot']:.2f} ν̇; "
-                  f"W exact {costs['exact_w_in_nu_dot']:.1f} ν̇, W by differences "
+                  f"W in closed form {closed_form}, "
+                  f"by dual numbers {costs['exact_w_in_nu_dot']:.1f} ν̇, by differences "
                   f"{costs['differences_w_in_nu_dot']:.1f} ν̇", flush=True)
             reference = simulate(path, state, ["dop853:1e-13"], 1)[0]
             ref_qpos, ref_qvel = np.array(reference["qpos"]), np.array(reference["qvel"])
             rows = []
             for tolerance in TOLERANCES:
-                runs = simulate(path, state, [f"ros34pw2/exact:{tolerance:g}", f"ros34pw2:{tolerance:g}"],
-                                args.repetitions)
+                sources = ["default", "exact", "differences"]
+                runs = simulate(path, state, [f"ros34pw2:{tolerance:g}", f"ros34pw2/exact:{tolerance:g}",
+                                              f"ros34pw2/differences:{tolerance:g}"], args.repetitions)
                 row = {"tolerance": tolerance}
-                for key, run in zip(["exact", "differences"], runs):
+                for key, run in zip(sources, runs):
                     n = len(run["qpos"])
                     error = scaled_error(model, run["qpos"], run["qvel"], ref_qpos[:n], ref_qvel[:n])
                     row[key] = {k: run[k] for k in ("accepted", "rejected", "evaluations", "jacobians",
@@ -118,13 +125,11 @@ def main() -> int:
                     row[key]["reached"] = run["time"][-1]
                     row[key]["evaluations_per_step"] = run["evaluations"] / max(1, run["accepted"] + run["rejected"])
                 rows.append(row)
-                e, d = row["exact"], row["differences"]
-                print(f"  {tolerance:g}: exact {e['accepted']}+{e['rejected']} steps, {e['evaluations']} θ̈ "
-                      f"({e['evaluations_per_step']:.2f}/step), W {e['jacobians']} ({e['exact_jacobians']} exact), "
-                      f"{e['seconds'] * 1e3:.0f} ms, error/tol {e['error'] / tolerance:.2g}, reached {e['reached']:g} | "
-                      f"differences {d['accepted']}+{d['rejected']}, {d['evaluations']} θ̈ "
-                      f"({d['evaluations_per_step']:.2f}/step), W {d['jacobians']}, {d['seconds'] * 1e3:.0f} ms, "
-                      f"error/tol {d['error'] / tolerance:.2g}, reached {d['reached']:g}", flush=True)
+                print(f"  {tolerance:g}:", " | ".join(
+                    f"{key} {r['accepted']}+{r['rejected']} steps, {r['evaluations']} θ̈ "
+                    f"({r['evaluations_per_step']:.2f}/step), W {r['jacobians']} ({r['exact_jacobians']} exact), "
+                    f"{r['seconds'] * 1e3:.0f} ms, error/tol {r['error'] / tolerance:.2g}, reached {r['reached']:g}"
+                    for key, r in ((key, row[key]) for key in sources)), flush=True)
             results.append({"vehicle": name, "costs": costs, "rows": rows})
     if args.out:
         args.out.write_text(json.dumps(results, indent=1))

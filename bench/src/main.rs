@@ -88,7 +88,9 @@ enum Command {
         #[arg(long, default_value_t = 0.1)]
         sample: f64,
         /// Runs, as METHOD:VALUE — rk4:STEP, or dopri5, dop853, ros34pw2, bs3, tsit5 or auto with :TOLERANCE;
-        /// ros34pw2/differences (or auto/differences) forms W by forward differences even where exact derivatives cover the model.
+        /// ros34pw2 forms W in closed form where it covers the vehicle and ε is zero, else by forward
+        /// differences; ros34pw2/exact (or auto/exact) adds the dual numbers' exact W where they cover
+        /// the vehicle, ros34pw2/differences (or auto/differences) forms W by forward differences only.
         #[arg(long = "run", required = true)]
         runs: Vec<String>,
         /// Timed repetitions of each run.
@@ -585,7 +587,7 @@ struct SimulateResult {
     rejected: usize,
     evaluations: usize,
     jacobians: usize,
-    /// Of those W, the ones formed from exact derivatives (dual numbers).
+    /// Of those W, the ones formed from exact derivatives (closed form or dual numbers).
     exact_jacobians: usize,
     /// Why the run stopped early, if it did (then the samples end there).
     failed: Option<String>,
@@ -608,8 +610,10 @@ fn simulate(
     samples: bool,
 ) -> Result<SimulateResult> {
     let (method_name, value) = run.split_once(':').with_context(|| format!("--run {run}: expected METHOD:VALUE"))?;
-    let (method_name, source) = match method_name.strip_suffix("/exact") {
-        Some(method_name) => (method_name, JacobianSource::Exact),
+    let (method_name, source) = match method_name.split_once('/') {
+        Some((method_name, "exact")) => (method_name, JacobianSource::Exact),
+        Some((method_name, "differences")) => (method_name, JacobianSource::Differences),
+        Some(_) => bail!("--run {run}: the W source after / is exact or differences"),
         None => (method_name, JacobianSource::default()),
     };
     let method = MethodSetting::from_name(method_name).with_context(|| format!("--run {run}: unknown method"))?;
