@@ -7,13 +7,16 @@
 //!     W = [ 0  I ]   A = ∂θ̈/∂Δ, B = ∂θ̈/∂θ̇,
 //!         [ A  B ]
 //! the Jacobian but for the small, non-stiff block of dexp⁻¹ on ball
-//! joints (−½[ω]×), which a W-method does not need. A and B are exact
-//! derivatives (derivatives.rs: 2·nv runs of the passes in dual numbers,
-//! the tangent directions Δ of `retract`, in the constraint mode the step
-//! holds) where they cover the model; else, and at a point they refuse,
-//! forward differences (2·nv evaluations of θ̈). The exact W costs 2–4
-//! times the differences' and gave the same steps where measured (docs/integration.md,
-//! "What W is made from"). W is formed at the
+//! joints (−½[ω]×), which a W-method does not need. By default ([`JacobianSource`])
+//! A and B are θ̈'s derivatives in closed form (dynamics/qacc_jacobian.rs,
+//! along the tangent directions Δ of `retract`) where they cover the
+//! vehicle and no ε is applied: exact, for 2.4 ν̇ on the damped stiff
+//! boom where the differences cost 17; else forward differences (2·nv
+//! evaluations of θ̈). `JacobianSource::Exact` adds the dual numbers
+//! (derivatives.rs, 2·nv runs of the passes, in the constraint mode the
+//! step holds), which cost 2–4 times the differences. Every kind gave the
+//! same steps where measured (docs/integration.md, "What W is made from").
+//! W is formed at the
 //! first step and kept over the steps that follow, across advances (it is
 //! part of an FMU state: [`HeldJacobian`]), until a step with an older W is
 //! rejected or [`W_MAX_AGE`] steps were accepted with it; then it is formed
@@ -66,8 +69,9 @@ pub struct HeldJacobian {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum JacobianSource {
     /// θ̈'s derivatives in closed form (dynamics/qacc_jacobian.rs) where
-    /// they cover the model and the point (no applied ε): exact, and 4–10
-    /// times cheaper than the differences; forward differences elsewhere.
+    /// they cover the model and the point (no applied ε): exact, and 6–8
+    /// times cheaper than the differences (docs/integration.md); forward
+    /// differences elsewhere.
     #[default]
     ClosedForm,
     /// Exact derivatives: the closed form where it applies, else the dual
