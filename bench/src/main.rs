@@ -88,7 +88,7 @@ enum Command {
         #[arg(long, default_value_t = 0.1)]
         sample: f64,
         /// Runs, as METHOD:VALUE — rk4:STEP, or dopri5, dop853, ros34pw2, bs3, tsit5 or auto with :TOLERANCE;
-        /// ros34pw2 forms W in closed form where it covers the vehicle and ε is zero, else by forward
+        /// ros34pw2 forms W in closed form where it covers the vehicle, else by forward
         /// differences; ros34pw2/exact (or auto/exact) adds the dual numbers' exact W where they cover
         /// the vehicle, ros34pw2/differences (or auto/differences) forms W by forward differences only.
         #[arg(long = "run", required = true)]
@@ -252,8 +252,9 @@ fn eval_cost(
     let mut w_derivatives = derivatives.clone().filter(|_| model.activation_count() == 0);
     let mut w_ws = model.workspace();
     let mut closed_form = nudyn::dynamics::qacc_jacobian::QaccJacobian::new(model).ok();
-    let mut closed_form_out =
-        (nalgebra::DMatrix::zeros(model.nv, model.nv), nalgebra::DMatrix::zeros(model.nv, model.nv));
+    let mut closed_form_with_eps = closed_form.clone();
+    let square = || nalgebra::DMatrix::zeros(model.nv, model.nv);
+    let (mut closed_form_out, mut closed_form_with_eps_out) = ((square(), square()), (square(), square()));
     let mut unit = vec![0.0; model.nv];
     let zeros = nudyn::dynamics::derivatives::Input::ALL.map(|input| vec![0.0; input.len(model)]);
     let ones = vec![1.0; model.nv];
@@ -273,9 +274,16 @@ fn eval_cost(
     if let (Some(qvel), Some(derivatives)) = (&state.qvel, w_derivatives.as_mut()) {
         cases.push(exact_w_case(model, derivatives, (&state.theta, qvel), (&mut unit, &zeros)));
     }
+    let zero = &zeros[nudyn::dynamics::derivatives::Input::Eps as usize];
     if let (Some(qvel), Some(closed_form)) = (&state.qvel, closed_form.as_mut()) {
-        let zero = &zeros[nudyn::dynamics::derivatives::Input::Eps as usize];
-        cases.push(closed_form_case(model, closed_form, (&state.theta, qvel), zero, &mut closed_form_out));
+        let name = "nudyn θ̈ Jacobians in θ and θ̇ (closed form)";
+        let state = (state.theta.as_slice(), qvel.as_slice());
+        cases.push(closed_form_case(name, model, closed_form, state, (zero, zero), &mut closed_form_out));
+    }
+    if let (Some(qvel), Some(closed_form)) = (&state.qvel, closed_form_with_eps.as_mut()) {
+        let name = "nudyn θ̈ Jacobians in θ and θ̇ (closed form, ε = 1 on every dof)";
+        let state = (state.theta.as_slice(), qvel.as_slice());
+        cases.push(closed_form_case(name, model, closed_form, state, (&ones, zero), &mut closed_form_with_eps_out));
     }
     if let Some(qvel) = &state.qvel {
         cases.push(differences_w_case(model, &mut w_ws, &state.theta, qvel, &eps));
@@ -429,21 +437,22 @@ fn exact_w_case<'a>(
     }
 }
 
-/// A timed case of ∂θ̈/∂Δ and ∂θ̈/∂θ̇ in closed form (qacc_jacobian.rs), ε
-/// and the joint forces 0: what Pinocchio's `computeABADerivatives` gives
-/// for θ and θ̇, and ros34pw2's W.
+/// A timed case of ∂θ̈/∂Δ and ∂θ̈/∂θ̇ in closed form (qacc_jacobian.rs)
+/// with `eps` applied and no joint forces: what Pinocchio's
+/// `computeABADerivatives` gives for θ and θ̇ (with ε 0), and ros34pw2's W.
 fn closed_form_case<'a>(
+    name: &str,
     model: &'a Model,
     closed_form: &'a mut nudyn::dynamics::qacc_jacobian::QaccJacobian,
     (theta, qvel): (&'a [f64], &'a [f64]),
-    zero: &'a [f64],
+    (eps, torque): (&'a [f64], &'a [f64]),
     (by_delta, by_qvel): &'a mut (nalgebra::DMatrix<f64>, nalgebra::DMatrix<f64>),
 ) -> Case<'a> {
     Case {
-        name: "nudyn θ̈ Jacobians in θ and θ̇ (closed form)".to_string(),
+        name: name.to_string(),
         call: Box::new(move || {
             let theta = std::hint::black_box(theta);
-            closed_form.compute(model, (theta, qvel), (zero, zero), (by_delta, by_qvel)).expect("the state evaluates");
+            closed_form.compute(model, (theta, qvel), (eps, torque), (by_delta, by_qvel)).expect("the state evaluates");
         }),
     }
 }

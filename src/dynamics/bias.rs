@@ -65,7 +65,7 @@ pub(crate) fn passive_forces<S: Real>(model: &Model, ws: &mut Workspace<S>) {
 }
 
 /// Φ: the upper triangle with the diagonal halved (so Φ(X) + Φ(X)ᵀ = X for symmetric X).
-fn upper_half<S: Real, const N: usize>(x: &SMatrix<S, N, N>) -> SMatrix<S, N, N> {
+pub(super) fn upper_half<S: Real, const N: usize>(x: &SMatrix<S, N, N>) -> SMatrix<S, N, N> {
     let mut out = x.upper_triangle();
     for k in 0..N {
         out[(k, k)] *= 0.5;

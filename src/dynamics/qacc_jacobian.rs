@@ -46,13 +46,15 @@
 //! tendons, gravity compensation, constraint rows, flexible bodies): such
 //! models and points are refused, and derivatives.rs serves them.
 
-use nalgebra::{DMatrix, SVector};
+use nalgebra::{DMatrix, SMatrix, SVector};
 
+use super::articulated::upper_triangular_inverse;
+use super::bias::upper_half;
 use super::derivatives::DerivativeError;
 use super::{block, cols};
-use crate::math::{SpatialMat, SpatialVec, Vec3, angular, cross_force, cross_motion, linear, skew, spatial};
+use crate::math::{Mat3, SpatialMat, SpatialVec, Vec3, angular, cross_force, cross_motion, linear, skew, spatial};
 use crate::model::{LinkJoint, Model};
-use crate::workspace::Workspace;
+use crate::workspace::{LinkCols, Workspace};
 
 /// The passes at the point and the buffers of the closed form, allocated
 /// once (a Jacobian allocates only gemm's packing buffer).
@@ -90,6 +92,32 @@ pub struct QaccJacobian {
     factor: FactorInverse,
     /// M⁻¹ = ℓᵀℓ when asked (nv × nv).
     mass_inverse: DMatrix<f64>,
+    applied: AppliedEps,
+}
+
+/// An applied ε as the joint forces T_ε = m(θ)ε it stands for: the
+/// inward pass of forces.rs gives T_ε,i = S_iᵀ Σ_{k in i's subtree} f_k with
+/// f_k = G_k R_k ε_k = U_k z_k (U = I^A S, z = R⁻ᵀε), a spatial force at
+/// each link, but for its own row, whose term is R_iε_i. Turning joint j along s turns the f_k of j's subtree with it
+/// (which changes only its ancestors' rows, by S_iᵀ(s ×* F^ε_j), F^ε_j the
+/// sum of those f), and changes the articulated inertia of each strict
+/// ancestor k by δI^A_λ(j) = s ×* I^a_j − I^a_j s× and then
+/// δI^A_λ(k) = P_k δI^A_k P_kᵀ (P = 1 − G Sᵀ), so its f_k by
+/// δU z + U δz, with δD = SᵀδI^A S, δR = R Φ(R⁻¹δD R⁻ᵀ) (bias.rs's Φ) and
+/// δz = −R⁻ᵀδRᵀz; an ancestor i's row takes δR_i ε_i for its own term
+/// (forces.rs's T_i = R_iε_i + S_iᵀp_i: Rε, not Sᵀf, as D holds the
+/// armature) and S_iᵀ of the sum of the f's changed below it, down to j's
+/// parent. World coordinates, per link.
+#[derive(Clone, Debug)]
+struct AppliedEps {
+    /// I^a (a link's share of its parent's I^A), G, U, R and z.
+    reduced_inertia: Vec<SpatialMat>,
+    gain: Vec<LinkCols>,
+    joint_force: Vec<LinkCols>,
+    r: Vec<Mat3>,
+    z: Vec<Vec3>,
+    /// F^ε: the sum of f over each link's subtree.
+    subtree_force: Vec<SpatialVec>,
 }
 
 impl QaccJacobian {
@@ -143,13 +171,21 @@ impl QaccJacobian {
                 row_ranges: model.links.iter().flat_map(|l| std::iter::repeat_n(l.dof_adr..nv, l.ndof)).collect(),
             },
             mass_inverse: DMatrix::zeros(nv, nv),
+            applied: AppliedEps {
+                reduced_inertia: vec![SpatialMat::zeros(); n],
+                gain: vec![LinkCols::zeros(); n],
+                joint_force: vec![LinkCols::zeros(); n],
+                r: vec![Mat3::zeros(); n],
+                z: vec![Vec3::zeros(); n],
+                subtree_force: vec![SpatialVec::zeros(); n],
+            },
             dof_link: model.links.iter().enumerate().flat_map(|(i, l)| std::iter::repeat_n(i, l.ndof)).collect(),
         })
     }
 
     /// ∂θ̈/∂Δ (Δ in the tangent space, as derivatives.rs's) into `by_delta`
-    /// and ∂θ̈/∂θ̇ into `by_qvel` (nv × nv each) at (θ, θ̇) under constant
-    /// joint forces `torque`; `eps` must be zero (see the module's text).
+    /// and ∂θ̈/∂θ̇ into `by_qvel` (nv × nv each) at (θ, θ̇) under an applied
+    /// ε and constant joint forces `torque`.
     pub fn compute(
         &mut self,
         model: &Model,
@@ -157,9 +193,6 @@ impl QaccJacobian {
         (eps, torque): (&[f64], &[f64]),
         (by_delta, by_qvel): (&mut DMatrix<f64>, &mut DMatrix<f64>),
     ) -> Result<(), DerivativeError> {
-        if eps.iter().any(|e| *e != 0.0) {
-            return Err(DerivativeError::Unsupported("an applied ε (its joint forces m(θ)ε turn with θ)"));
-        }
         let ws = &mut self.ws;
         ws.set_configuration(model, theta)?;
         ws.set_qvel(model, qvel)?;
@@ -168,11 +201,20 @@ impl QaccJacobian {
         } else {
             self.eps_of_torque.fill(0.0);
         }
+        crate::dynamics::check_input("eps", eps, model.nv)?;
+        let applied_eps = eps.iter().any(|e| *e != 0.0);
+        for (total, e) in self.eps_of_torque.iter_mut().zip(eps) {
+            *total += e;
+        }
         ws.compute_qacc(model, &self.eps_of_torque)?;
         ws.world_transforms(model);
         self.outward_sweep(model);
         self.inward_sweep(model);
         self.torque_derivatives(model);
+        if applied_eps {
+            self.applied.prepare(model, &self.ws, eps);
+            self.applied.add_derivatives(model, &self.subspace, &mut self.torque_by_delta);
+        }
         self.factor_inverse(model);
         for (t, out) in [(&self.torque_by_delta, by_delta), (&self.torque_by_qvel, by_qvel)] {
             out.copy_from(&self.factor.times_mass_inverse(t).rows(0, model.nv));
@@ -345,6 +387,117 @@ fn inward_link<const N: usize>(
     let e = block::<_, N>(&ws.r_inv_joint[i]) * u;
     eps[adr..adr + N].copy_from_slice(e.as_slice());
     p + cols::<_, N>(&ws.gain[i]) * u
+}
+
+impl AppliedEps {
+    /// Each link's world I^a, G, U, R and z, and F^ε over its subtree, for `eps`.
+    fn prepare(&mut self, model: &Model, ws: &Workspace, eps: &[f64]) {
+        for (i, link) in model.links.iter().enumerate() {
+            match link.ndof {
+                1 => self.prepare_link::<1>(model, ws, i, eps),
+                _ => self.prepare_link::<3>(model, ws, i, eps),
+            }
+        }
+        for i in (0..model.links.len()).rev() {
+            if let Some(p) = model.links[i].parent {
+                let child_force = self.subtree_force[i];
+                self.subtree_force[p] += child_force;
+            }
+        }
+    }
+
+    fn prepare_link<const N: usize>(&mut self, model: &Model, ws: &Workspace, i: usize, eps: &[f64]) {
+        let (link, x) = (&model.links[i], &ws.x_world[i]);
+        let r = block::<_, N>(&ws.r_joint[i]);
+        let mut gain = LinkCols::zeros();
+        for k in 0..N {
+            gain.set_column(k, &x.apply_transpose_force(&ws.gain[i].column(k).into_owned()));
+        }
+        let gain_n = cols::<_, N>(&gain);
+        let e = SVector::<f64, N>::from_column_slice(&eps[link.dof_adr..link.dof_adr + N]);
+        let z = block::<_, N>(&ws.r_inv_joint[i]).transpose() * e;
+        let joint_force = gain_n * (r * r.transpose());
+        self.subtree_force[i] = gain_n * (r * e);
+        self.gain[i] = gain;
+        self.joint_force[i].fixed_columns_mut::<N>(0).copy_from(&joint_force);
+        self.r[i].fixed_view_mut::<N, N>(0, 0).copy_from(&r);
+        self.z[i].fixed_rows_mut::<N>(0).copy_from(&z);
+        if link.parent.is_some() {
+            x.add_inertia_to_parent(&ws.ia_reduced[i], &mut self.reduced_inertia[i], true);
+        }
+    }
+
+    /// Adds ∂T_ε/∂Δ to `by_delta`, column by column: each dof's walk up its
+    /// link's ancestors.
+    fn add_derivatives(&self, model: &Model, subspace: &[SpatialVec], by_delta: &mut DMatrix<f64>) {
+        for (j, link) in model.links.iter().enumerate() {
+            let Some(parent) = link.parent else { continue };
+            for column in link.dof_adr..link.dof_adr + link.ndof {
+                let s = &subspace[column];
+                let mut turned = SpatialMat::zeros();
+                for c in 0..6 {
+                    turned.set_column(c, &cross_force(s, &self.reduced_inertia[j].column(c).into_owned()));
+                }
+                // δI^A of j's parent: s ×* I^a_j − I^a_j s× = turned + turnedᵀ.
+                let mut inertia_change = turned + turned.transpose();
+                let turned_force = cross_force(s, &self.subtree_force[j]);
+                let mut force_changes = SpatialVec::zeros();
+                let mut ancestor = Some(parent);
+                while let Some(k) = ancestor {
+                    let ancestor_link = &model.links[k];
+                    let subspace_k = &subspace[ancestor_link.dof_adr..ancestor_link.dof_adr + ancestor_link.ndof];
+                    let (force_change, own_change) = match ancestor_link.ndof {
+                        1 => self.force_change::<1>(k, subspace_k, &inertia_change),
+                        _ => self.force_change::<3>(k, subspace_k, &inertia_change),
+                    };
+                    // k's own row takes its own term as δ(Rε), the others' f through S.
+                    let row_force = turned_force + force_changes;
+                    for (r, s_k) in subspace_k.iter().enumerate() {
+                        by_delta[(ancestor_link.dof_adr + r, column)] += s_k.dot(&row_force) + own_change[r];
+                    }
+                    force_changes += force_change;
+                    ancestor = ancestor_link.parent;
+                    if ancestor.is_some() {
+                        inertia_change = match ancestor_link.ndof {
+                            1 => self.project::<1>(k, subspace_k, &inertia_change),
+                            _ => self.project::<3>(k, subspace_k, &inertia_change),
+                        };
+                    }
+                }
+            }
+        }
+    }
+
+    /// δf_k = δU z + U δz for link k with N dofs (world S `subspace`) whose
+    /// I^A changes by `change`, and the change δR ε of its own row's term
+    /// Rε (which is not Sᵀf: D has the armature, SᵀU does not).
+    fn force_change<const N: usize>(
+        &self,
+        k: usize,
+        subspace: &[SpatialVec],
+        change: &SpatialMat,
+    ) -> (SpatialVec, Vec3) {
+        let s = SMatrix::<f64, 6, N>::from_fn(|row, col| subspace[col][row]);
+        let joint_force_change = change * s;
+        let d_change = s.transpose() * joint_force_change;
+        let r = block::<_, N>(&self.r[k]);
+        let (r_inv, z) =
+            (upper_triangular_inverse(&r), SVector::<f64, N>::from_column_slice(&self.z[k].as_slice()[..N]));
+        let r_change = r * upper_half(&(r_inv * d_change * r_inv.transpose()));
+        let z_change = -(r_inv.transpose() * (r_change.transpose() * z));
+        // ε = Rᵀz.
+        let own = r_change * (r.transpose() * z);
+        let mut own_change = Vec3::zeros();
+        own_change.fixed_rows_mut::<N>(0).copy_from(&own);
+        (joint_force_change * z + cols::<_, N>(&self.joint_force[k]) * z_change, own_change)
+    }
+
+    /// P δI^A Pᵀ, P = 1 − G Sᵀ: link k's change handed to its parent.
+    fn project<const N: usize>(&self, k: usize, subspace: &[SpatialVec], change: &SpatialMat) -> SpatialMat {
+        let s = SMatrix::<f64, 6, N>::from_fn(|row, col| subspace[col][row]);
+        let p = SpatialMat::identity() - cols::<_, N>(&self.gain[k]) * s.transpose();
+        p * change * p.transpose()
+    }
 }
 
 /// ℓ(θ) = m⁻¹, its transpose, ℓ times the matrix given and ℓᵀ times

@@ -10,7 +10,7 @@
 //! joints (−½[ω]×), which a W-method does not need. By default ([`JacobianSource`])
 //! A and B are θ̈'s derivatives in closed form (dynamics/qacc_jacobian.rs,
 //! along the tangent directions Δ of `retract`) where they cover the
-//! vehicle and no ε is applied: exact, for 2.4 ν̇ on the damped stiff
+//! vehicle: exact, for 2.4 ν̇ on the damped stiff
 //! boom where the differences cost 17; else forward differences (2·nv
 //! evaluations of θ̈). `JacobianSource::Exact` adds the dual numbers
 //! (derivatives.rs, 2·nv runs of the passes, in the constraint mode the
@@ -69,9 +69,8 @@ pub struct HeldJacobian {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum JacobianSource {
     /// θ̈'s derivatives in closed form (dynamics/qacc_jacobian.rs) where
-    /// they cover the model and the point (no applied ε): exact, and 6–8
-    /// times cheaper than the differences (docs/integration.md); forward
-    /// differences elsewhere.
+    /// they cover the model: exact, and several times cheaper than the
+    /// differences (docs/integration.md); forward differences elsewhere.
     #[default]
     ClosedForm,
     /// Exact derivatives: the closed form where it applies, else the dual
@@ -122,8 +121,10 @@ pub(super) struct Linearization {
     /// The passes in dual numbers that give W's derivatives exactly, when
     /// they cover the model.
     exact: Option<Box<ExactJacobian>>,
-    /// θ̈'s derivatives in closed form, when they cover the model.
+    /// θ̈'s derivatives in closed form, when they cover the model, and
+    /// the joint forces they take (none: nv zeros).
     closed_form: Option<Box<QaccJacobian>>,
+    no_torque: Vec<f64>,
 }
 
 /// The derivatives' passes and the directions of W's columns, allocated
@@ -208,6 +209,7 @@ impl Linearization {
             probed: DVector::zeros(rates),
             exact: ExactJacobian::new(model),
             closed_form: QaccJacobian::new(model).ok().map(Box::new),
+            no_torque: vec![0.0; nv],
         }
     }
 
@@ -491,13 +493,11 @@ impl Integrator {
         inputs_at(t, self.eps_stage.as_mut_slice(), self.ctrl_stage.as_mut_slice());
         let qvel = &qvel[..model.nv];
         let blocks = (&mut linear.qacc_by_delta, &mut linear.qacc_by_qvel);
-        if let Some(closed_form) = linear.closed_form.as_mut()
-            && self.eps_stage.iter().all(|e| *e == 0.0)
-        {
-            // The stages apply ε and ctrl only, and a model the closed form
-            // covers has no actuators: the joint forces T are ε's zeros.
-            let zeros = self.eps_stage.as_slice();
-            return match closed_form.compute(model, (theta, qvel), (zeros, zeros), blocks) {
+        if let Some(closed_form) = linear.closed_form.as_mut() {
+            // The stages apply ε and ctrl only (a model the closed form
+            // covers has no actuators), no joint forces T.
+            let inputs = (self.eps_stage.as_slice(), linear.no_torque.as_slice());
+            return match closed_form.compute(model, (theta, qvel), inputs, blocks) {
                 Ok(()) => Ok(true),
                 Err(DerivativeError::Dynamics(cause)) => Err(cause),
                 Err(_) => Ok(false),

@@ -13,23 +13,26 @@ use nudyn::vehicle::{JointKind, Vehicle};
 
 use crate::common::{self, Rng, TreeOptions, random_theta, random_vehicle};
 
-/// ∂θ̈/∂Δ and ∂θ̈/∂θ̇ in closed form and in dual numbers, at (θ, θ̇) under joint forces `torque`.
-fn both_ways(model: &Model, theta: &[f64], qvel: &[f64], torque: &[f64]) -> [(DMatrix<f64>, DMatrix<f64>); 2] {
+/// ∂θ̈/∂Δ and ∂θ̈/∂θ̇ in closed form and in dual numbers, at (θ, θ̇) under
+/// an applied ε and joint forces `torque`.
+fn both_ways(
+    model: &Model,
+    (theta, qvel): (&[f64], &[f64]),
+    (eps, torque): (&[f64], &[f64]),
+) -> [(DMatrix<f64>, DMatrix<f64>); 2] {
     let nv = model.nv;
-    let zeros = vec![0.0; nv];
     let mut closed = (DMatrix::zeros(nv, nv), DMatrix::zeros(nv, nv));
     QaccJacobian::new(model)
         .unwrap()
-        .compute(model, (theta, qvel), (&zeros, torque), (&mut closed.0, &mut closed.1))
+        .compute(model, (theta, qvel), (eps, torque), (&mut closed.0, &mut closed.1))
         .unwrap();
-    let point =
-        Point { theta, velocity: qvel, given: Given::Qvel, eps: &zeros, torque, ctrl: &[], act: &[], time: 0.0 };
+    let point = Point { theta, velocity: qvel, given: Given::Qvel, eps, torque, ctrl: &[], act: &[], time: 0.0 };
     let duals = Derivatives::new(model).unwrap().jacobians(model, &point, Output::Qacc).unwrap();
     [closed, (duals.theta, duals.velocity)]
 }
 
-fn assert_agree(model: &Model, theta: &[f64], qvel: &[f64], torque: &[f64], label: &str) {
-    let [(by_delta, by_qvel), (dual_by_delta, dual_by_qvel)] = both_ways(model, theta, qvel, torque);
+fn assert_agree(model: &Model, state: (&[f64], &[f64]), forces: (&[f64], &[f64]), label: &str) {
+    let [(by_delta, by_qvel), (dual_by_delta, dual_by_qvel)] = both_ways(model, state, forces);
     let errors = [
         common::rel_err(by_delta.as_slice(), dual_by_delta.as_slice()),
         common::rel_err(by_qvel.as_slice(), dual_by_qvel.as_slice()),
@@ -39,7 +42,7 @@ fn assert_agree(model: &Model, theta: &[f64], qvel: &[f64], torque: &[f64], labe
 
 /// A random tree with gravity, springs and dampers, but none on ball
 /// joints (a free joint's rotation is one), whose spring the closed form refuses.
-fn random_case(seed: u64) -> (Model, Vec<f64>, Vec<f64>, Vec<f64>) {
+fn random_case(seed: u64) -> (Model, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>) {
     let mut rng = Rng::new(seed);
     let bodies = 2 + rng.below(7);
     let options =
@@ -52,15 +55,18 @@ fn random_case(seed: u64) -> (Model, Vec<f64>, Vec<f64>, Vec<f64>) {
     }
     let model = Model::compile(&vehicle).unwrap();
     let theta = random_theta(&mut rng, &vehicle);
-    let (qvel, torque) = (rng.vec(model.nv, 1.5), rng.vec(model.nv, 3.0));
-    (model, theta, qvel, torque)
+    let (qvel, eps, torque) = (rng.vec(model.nv, 1.5), rng.vec(model.nv, 2.0), rng.vec(model.nv, 3.0));
+    (model, theta, qvel, eps, torque)
 }
 
 #[test]
 fn the_closed_form_agrees_with_the_dual_numbers_on_random_trees() {
     for seed in 0..60 {
-        let (model, theta, qvel, torque) = random_case(seed);
-        assert_agree(&model, &theta, &qvel, &torque, &format!("seed {seed}"));
+        let (model, theta, qvel, eps, torque) = random_case(seed);
+        let zeros = vec![0.0; model.nv];
+        // Without ε, and with ε (its joint forces m(θ)ε turn with θ).
+        assert_agree(&model, (&theta, &qvel), (&zeros, &torque), &format!("seed {seed}, no ε"));
+        assert_agree(&model, (&theta, &qvel), (&eps, &torque), &format!("seed {seed}, with ε"));
     }
 }
 
@@ -73,23 +79,14 @@ fn the_closed_form_agrees_with_the_dual_numbers_on_the_examples() {
         let mut rng = Rng::new(7);
         for repeat in 0..3 {
             let theta = random_theta(&mut rng, &vehicle);
-            let (qvel, torque) = (rng.vec(model.nv, 1.0), rng.vec(model.nv, 1.0));
-            assert_agree(&model, &theta, &qvel, &torque, &format!("{name}, state {repeat}"));
+            let (qvel, eps, torque) = (rng.vec(model.nv, 1.0), rng.vec(model.nv, 1.0), rng.vec(model.nv, 1.0));
+            assert_agree(&model, (&theta, &qvel), (&eps, &torque), &format!("{name}, state {repeat}"));
         }
     }
 }
 
 #[test]
 fn the_closed_form_refuses_what_it_leaves_out() {
-    let (model, theta, qvel, torque) = random_case(1);
-    let nv = model.nv;
-    let mut eps = vec![0.0; nv];
-    eps[nv - 1] = 0.5;
-    let mut out = (DMatrix::zeros(nv, nv), DMatrix::zeros(nv, nv));
-    let refused =
-        QaccJacobian::new(&model).unwrap().compute(&model, (&theta, &qvel), (&eps, &torque), (&mut out.0, &mut out.1));
-    assert!(matches!(refused, Err(DerivativeError::Unsupported(what)) if what.contains("ε")), "{refused:?}");
-
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/servicer.xml");
     let servicer = Model::compile(&nudyn::mjcf::load_mjcf(&path).unwrap().vehicle).unwrap();
     assert_eq!(QaccJacobian::new(&servicer).unwrap_err(), DerivativeError::Unsupported("actuators"));
@@ -103,16 +100,15 @@ fn the_closed_form_refuses_what_it_leaves_out() {
 }
 
 /// `nudyn linearize` takes the closed form when only θ and its rates are
-/// asked for at a point without ε; asked for ν too, it runs the dual
-/// numbers. The two give the same A and B, for the joint forces and for ε
-/// (∂θ̈/∂ε = ℓ*, the transpose of ℓ's columns).
+/// asked for; asked for ν too, it runs the dual numbers. The two give the
+/// same A and B, for the joint forces and for ε (∂θ̈/∂ε = ℓ*, the
+/// transpose of ℓ's columns), at points with ε and T held.
 #[test]
 fn linearize_gives_the_same_matrices_by_either_route() {
     use nudyn::linearize::{Inputs, LinearOutput, OperatingPoint, linearize};
     for seed in 0..12 {
-        let (model, theta, qvel, torque) = random_case(seed);
-        let point =
-            OperatingPoint { qpos: theta, qvel, act: Vec::new(), eps: vec![0.0; model.nv], torque, ctrl: Vec::new() };
+        let (model, theta, qvel, eps, torque) = random_case(seed);
+        let point = OperatingPoint { qpos: theta, qvel, act: Vec::new(), eps, torque, ctrl: Vec::new() };
         for inputs in [Inputs::Torque, Inputs::Eps] {
             let closed = linearize(&model, &point, inputs, &[LinearOutput::Qacc], None).unwrap();
             let duals = linearize(&model, &point, inputs, &[LinearOutput::Qacc, LinearOutput::Nu], None).unwrap();
