@@ -40,11 +40,13 @@
 //! Mansard's derivatives of the recursive Newton–Euler algorithm, derived
 //! here in this notation; docs/linearization.md, "In closed form".)
 //!
-//! An applied ε, whose joint forces m(θ)ε turn with the configuration,
-//! would need the factor's own derivatives, as would every force whose
-//! law reads the configuration beyond the joints' springs (actuators,
-//! tendons, gravity compensation, constraint rows, flexible bodies): such
-//! models and points are refused, and derivatives.rs serves them.
+//! An applied ε stands for the joint forces m(θ)ε, which change with the
+//! configuration through the factor: [`AppliedEps`] adds their derivative
+//! (the articulated inertias' change up each column's path, O(N·depth)
+//! 6×6 products). Forces whose law reads the configuration otherwise
+//! (actuators, tendons, gravity compensation, constraint rows, flexible
+//! bodies, springs on ball joints) are refused, and derivatives.rs serves
+//! those models.
 
 use nalgebra::{DMatrix, SMatrix, SVector};
 
@@ -98,7 +100,8 @@ pub struct QaccJacobian {
 /// An applied ε as the joint forces T_ε = m(θ)ε it stands for: the
 /// inward pass of forces.rs gives T_ε,i = S_iᵀ Σ_{k in i's subtree} f_k with
 /// f_k = G_k R_k ε_k = U_k z_k (U = I^A S, z = R⁻ᵀε), a spatial force at
-/// each link, but for its own row, whose term is R_iε_i. Turning joint j along s turns the f_k of j's subtree with it
+/// each link, but for its own row, whose term is R_iε_i. Turning joint j
+/// along s turns the f_k of j's subtree with it
 /// (which changes only its ancestors' rows, by S_iᵀ(s ×* F^ε_j), F^ε_j the
 /// sum of those f), and changes the articulated inertia of each strict
 /// ancestor k by δI^A_λ(j) = s ×* I^a_j − I^a_j s× and then
