@@ -1,15 +1,17 @@
 //! ∂θ̈/∂Δ and ∂θ̈/∂θ̇ in closed form, for a rigid tree whose forces are
-//! gravity, joint springs and dampers and constant joint forces T: the
-//! derivatives of the inverse dynamics τ = ID(θ, θ̇, θ̈) in world
-//! coordinates, a few 6-vector products per pair of a joint and its
+//! gravity, joint springs and dampers, an applied ε and constant joint
+//! forces T: the derivatives of the inverse dynamics τ = ID(θ, θ̇, θ̈) in
+//! world coordinates, a few 6-vector products per pair of a joint and its
 //! ancestor, then θ̈'s through the mass matrix,
 //!
-//!   ∂θ̈/∂x = M⁻¹ (∂τ_passive/∂x − ∂ID/∂x |θ̈ held),
+//!   ∂θ̈/∂x = M⁻¹ (∂τ_applied/∂x − ∂ID/∂x |θ̈ held),
 //!
-//! M⁻¹ from the factor of pass 1 (ℓ*ℓ: one inward and one outward pass per
-//! column). The same derivatives as derivatives.rs's dual numbers give (to
-//! round-off), at a fraction of their cost: derivatives.rs runs every pass
-//! once per column; this runs the passes once and then O(N·depth) products.
+//! M⁻¹ = ℓᵀℓ from the factor of pass 1 (ℓ = m⁻¹, whose columns are the
+//! inward pass of forces.rs along each dof's path to the base). The same
+//! derivatives as derivatives.rs's dual numbers give (to round-off), at a
+//! fraction of their cost: derivatives.rs runs every pass once per column;
+//! this runs the passes once, then O(N·depth) products and two products
+//! with ℓ.
 //!
 //! All quantities below are world vectors about the world origin, so that a
 //! subtree's sums need no transforms. For link i with world motion subspace
@@ -59,7 +61,7 @@ use crate::model::{LinkJoint, Model};
 use crate::workspace::{LinkCols, Workspace};
 
 /// The passes at the point and the buffers of the closed form, allocated
-/// once (a Jacobian allocates only gemm's packing buffer).
+/// once, so that a Jacobian allocates nothing.
 #[derive(Clone, Debug)]
 pub struct QaccJacobian {
     ws: Workspace,
@@ -196,6 +198,8 @@ impl QaccJacobian {
         (eps, torque): (&[f64], &[f64]),
         (by_delta, by_qvel): (&mut DMatrix<f64>, &mut DMatrix<f64>),
     ) -> Result<(), DerivativeError> {
+        super::check_input("eps", eps, model.nv)?;
+        super::check_input("torque", torque, model.nv)?;
         let ws = &mut self.ws;
         ws.set_configuration(model, theta)?;
         ws.set_qvel(model, qvel)?;
@@ -204,7 +208,6 @@ impl QaccJacobian {
         } else {
             self.eps_of_torque.fill(0.0);
         }
-        crate::dynamics::check_input("eps", eps, model.nv)?;
         let applied_eps = eps.iter().any(|e| *e != 0.0);
         for (total, e) in self.eps_of_torque.iter_mut().zip(eps) {
             *total += e;
@@ -409,6 +412,7 @@ impl AppliedEps {
         }
     }
 
+    /// [`AppliedEps::prepare`] for link i with N dofs, f but not F^ε.
     fn prepare_link<const N: usize>(&mut self, model: &Model, ws: &Workspace, i: usize, eps: &[f64]) {
         let (link, x) = (&model.links[i], &ws.x_world[i]);
         let r = block::<_, N>(&ws.r_joint[i]);
