@@ -87,6 +87,16 @@ fn the_closed_form_agrees_with_the_dual_numbers_on_the_examples() {
 
 #[test]
 fn the_closed_form_refuses_what_it_leaves_out() {
+    let (model, theta, qvel, mut eps, torque) = random_case(1);
+    let nv = model.nv;
+    eps[nv - 1] = f64::NAN;
+    let mut out = (DMatrix::zeros(nv, nv), DMatrix::zeros(nv, nv));
+    let mut closed_form = QaccJacobian::new(&model).unwrap();
+    let refused = closed_form.compute(&model, (&theta, &qvel), (&eps, &torque), (&mut out.0, &mut out.1));
+    assert_eq!(refused.unwrap_err().to_string(), format!("eps[{nv}] is not finite (NaN)"));
+    let refused = closed_form.compute(&model, (&theta, &qvel), (&torque[1..], &torque), (&mut out.0, &mut out.1));
+    assert_eq!(refused.unwrap_err().to_string(), format!("eps has {} entries, expected {nv}", nv - 1));
+
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/servicer.xml");
     let servicer = Model::compile(&nudyn::mjcf::load_mjcf(&path).unwrap().vehicle).unwrap();
     assert_eq!(QaccJacobian::new(&servicer).unwrap_err(), DerivativeError::Unsupported("actuators"));
