@@ -234,8 +234,8 @@ fn dual_blocks(
 }
 
 /// θ̈'s Jacobians over δθ, θ̇, `input` and act (none: the closed form
-/// covers no actuators) in closed form (dynamics/qacc_jacobian.rs):
-/// ∂θ̈/∂T = M⁻¹, ∂θ̈/∂ε = ℓ*, no ctrl columns.
+/// covers no activation states) in closed form (dynamics/qacc_jacobian.rs):
+/// ∂θ̈/∂T = M⁻¹, ∂θ̈/∂ε = ℓ*, ∂θ̈/∂ctrl = M⁻¹ times the joint actuators' slopes.
 fn closed_form_blocks(
     model: &Model,
     point: &OperatingPoint,
@@ -245,11 +245,11 @@ fn closed_form_blocks(
     let mut closed_form = QaccJacobian::new(model)?;
     let (mut by_delta, mut by_qvel) = (DMatrix::zeros(nv, nv), DMatrix::zeros(nv, nv));
     let state = (point.qpos.as_slice(), point.qvel.as_slice());
-    closed_form.compute(model, state, (&point.eps, &point.torque), (&mut by_delta, &mut by_qvel))?;
+    closed_form.compute(model, state, (&point.eps, &point.torque, &point.ctrl), (&mut by_delta, &mut by_qvel))?;
     let by_input = match input {
         Input::Torque => closed_form.mass_inverse().clone(),
         Input::Eps => closed_form.factor_inverse_adjoint().into_owned(),
-        _ => DMatrix::zeros(nv, 0),
+        _ => closed_form.by_ctrl(model, &point.ctrl),
     };
     Ok(vec![by_delta, by_qvel, by_input, DMatrix::zeros(nv, 0)])
 }

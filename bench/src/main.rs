@@ -278,12 +278,19 @@ fn eval_cost(
     if let (Some(qvel), Some(closed_form)) = (&state.qvel, closed_form.as_mut()) {
         let name = "nudyn θ̈ Jacobians in θ and θ̇ (closed form)";
         let state = (state.theta.as_slice(), qvel.as_slice());
-        cases.push(closed_form_case(name, model, closed_form, state, (zero, zero), &mut closed_form_out));
+        cases.push(closed_form_case(name, model, closed_form, state, (zero, zero, &ctrl), &mut closed_form_out));
     }
     if let (Some(qvel), Some(closed_form)) = (&state.qvel, closed_form_with_eps.as_mut()) {
         let name = "nudyn θ̈ Jacobians in θ and θ̇ (closed form, ε = 1 on every dof)";
         let state = (state.theta.as_slice(), qvel.as_slice());
-        cases.push(closed_form_case(name, model, closed_form, state, (&ones, zero), &mut closed_form_with_eps_out));
+        cases.push(closed_form_case(
+            name,
+            model,
+            closed_form,
+            state,
+            (&ones, zero, &ctrl),
+            &mut closed_form_with_eps_out,
+        ));
     }
     if let Some(qvel) = &state.qvel {
         cases.push(differences_w_case(model, &mut w_ws, &state.theta, qvel, &eps));
@@ -438,21 +445,22 @@ fn exact_w_case<'a>(
 }
 
 /// A timed case of ∂θ̈/∂Δ and ∂θ̈/∂θ̇ in closed form (qacc_jacobian.rs)
-/// with `eps` applied and no joint forces: what Pinocchio's
+/// with `eps` applied, no joint forces and the actuators at `ctrl`: what Pinocchio's
 /// `computeABADerivatives` gives for θ and θ̇ (with ε 0), and ros34pw2's W.
 fn closed_form_case<'a>(
     name: &str,
     model: &'a Model,
     closed_form: &'a mut nudyn::dynamics::qacc_jacobian::QaccJacobian,
     (theta, qvel): (&'a [f64], &'a [f64]),
-    (eps, torque): (&'a [f64], &'a [f64]),
+    (eps, torque, ctrl): (&'a [f64], &'a [f64], &'a [f64]),
     (by_delta, by_qvel): &'a mut (nalgebra::DMatrix<f64>, nalgebra::DMatrix<f64>),
 ) -> Case<'a> {
     Case {
         name: name.to_string(),
         call: Box::new(move || {
             let theta = std::hint::black_box(theta);
-            closed_form.compute(model, (theta, qvel), (eps, torque), (by_delta, by_qvel)).expect("the state evaluates");
+            let inputs = (eps, torque, ctrl);
+            closed_form.compute(model, (theta, qvel), inputs, (by_delta, by_qvel)).expect("the state evaluates");
         }),
     }
 }

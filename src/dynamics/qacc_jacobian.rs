@@ -1,6 +1,6 @@
 //! ∂θ̈/∂Δ and ∂θ̈/∂θ̇ in closed form, for a rigid tree whose forces are
-//! gravity, joint springs and dampers, an applied ε and constant joint
-//! forces T: the derivatives of the inverse dynamics τ = ID(θ, θ̇, θ̈) in
+//! gravity, joint springs and dampers, an applied ε, constant joint
+//! forces T and actuators on its hinges and slides: the derivatives of the inverse dynamics τ = ID(θ, θ̇, θ̈) in
 //! world coordinates, a few 6-vector products per pair of a joint and its
 //! ancestor, then θ̈'s through the mass matrix,
 //!
@@ -45,10 +45,11 @@
 //! An applied ε stands for the joint forces m(θ)ε, which change with the
 //! configuration through the factor: [`AppliedEps`] adds their derivative
 //! (the articulated inertias' change up each column's path, O(N·depth)
-//! 6×6 products). Forces whose law reads the configuration otherwise
-//! (actuators, tendons, gravity compensation, constraint rows, flexible
-//! bodies, springs on ball joints) are refused, and derivatives.rs serves
-//! those models.
+//! 6×6 products). Actuators on hinges and slides add their force's slopes
+//! on their dof's diagonal. Forces whose law reads the configuration
+//! otherwise (other actuators, tendons, gravity compensation, constraint
+//! rows, flexible bodies, springs on ball joints) are refused, and
+//! derivatives.rs serves those models.
 
 use nalgebra::{DMatrix, SMatrix, SVector};
 
@@ -57,7 +58,8 @@ use super::bias::upper_half;
 use super::derivatives::DerivativeError;
 use super::{block, cols};
 use crate::math::{Mat3, SpatialMat, SpatialVec, Vec3, angular, cross_force, cross_motion, linear, skew, spatial};
-use crate::model::{LinkJoint, Model};
+use crate::model::{Actuator, ActuatorTransmission, LinkJoint, Model};
+use crate::vehicle::{BiasType, GainType};
 use crate::workspace::{LinkCols, Workspace};
 
 /// The passes at the point and the buffers of the closed form, allocated
@@ -130,9 +132,20 @@ impl QaccJacobian {
     pub fn check(model: &Model) -> Result<(), DerivativeError> {
         let ball_springs =
             !model.shortcuts.no_springs && model.links.iter().any(|l| l.joint == LinkJoint::Ball && l.stiffness != 0.0);
+        // Actuators on hinges and slides without activation states: their
+        // forces are functions of one dof's θ and θ̇ (joint_actuators).
+        let on_joints = |a: &Actuator| {
+            matches!(a.transmission, ActuatorTransmission::Scalar { .. })
+                && a.activation.is_none()
+                && a.setpoint_period == 0.0
+        };
         let unsupported = [
             (!model.flexible.is_empty(), "flexible bodies"),
-            (!model.actuators.is_empty(), "actuators"),
+            (
+                !model.actuators.iter().all(on_joints),
+                "actuators other than on hinges and slides, or with activation states",
+            ),
+            (!model.actuator_force_limits.is_empty(), "joints' actuatorfrcrange"),
             (!model.tendons.is_empty(), "tendons"),
             (!model.constraints.is_empty() || model.couples_beyond_tree(), "constraint rows"),
             (!model.gravity_compensation.is_empty(), "gravity compensation"),
@@ -190,16 +203,17 @@ impl QaccJacobian {
 
     /// ∂θ̈/∂Δ (Δ in the tangent space, as derivatives.rs's) into `by_delta`
     /// and ∂θ̈/∂θ̇ into `by_qvel` (nv × nv each) at (θ, θ̇) under an applied
-    /// ε and constant joint forces `torque`.
+    /// ε, constant joint forces `torque` and the actuators' `ctrl`.
     pub fn compute(
         &mut self,
         model: &Model,
         (theta, qvel): (&[f64], &[f64]),
-        (eps, torque): (&[f64], &[f64]),
+        (eps, torque, ctrl): (&[f64], &[f64], &[f64]),
         (by_delta, by_qvel): (&mut DMatrix<f64>, &mut DMatrix<f64>),
     ) -> Result<(), DerivativeError> {
         super::check_input("eps", eps, model.nv)?;
         super::check_input("torque", torque, model.nv)?;
+        super::check_input("ctrl", ctrl, model.actuators.len())?;
         let ws = &mut self.ws;
         ws.set_configuration(model, theta)?;
         ws.set_qvel(model, qvel)?;
@@ -212,11 +226,22 @@ impl QaccJacobian {
         for (total, e) in self.eps_of_torque.iter_mut().zip(eps) {
             *total += e;
         }
-        ws.compute_qacc(model, &self.eps_of_torque)?;
+        if model.actuators.is_empty() {
+            ws.compute_qacc(model, &self.eps_of_torque)?;
+        } else {
+            ws.compute_qacc_actuated(model, &self.eps_of_torque, ctrl)?;
+        }
         ws.world_transforms(model);
         self.outward_sweep(model);
         self.inward_sweep(model);
         self.torque_derivatives(model);
+        for (k, actuator) in model.actuators.iter().enumerate() {
+            let slopes = joint_actuator_slopes(model, actuator, &self.ws, ctrl[k]);
+            if let Some((dof, slopes)) = slopes {
+                self.torque_by_delta[(dof, dof)] += slopes.by_length;
+                self.torque_by_qvel[(dof, dof)] += slopes.by_velocity;
+            }
+        }
         if applied_eps {
             self.applied.prepare(model, &self.ws, eps);
             self.applied.add_derivatives(model, &self.subspace, &mut self.torque_by_delta);
@@ -236,6 +261,19 @@ impl QaccJacobian {
         multiply_by_ell_transposed(factor);
         self.mass_inverse.copy_from(&factor.product.rows(0, nv));
         &self.mass_inverse
+    }
+
+    /// ∂θ̈/∂ctrl (nv × actuators) at the last [`QaccJacobian::compute`]'s
+    /// point and `ctrl`: M⁻¹ times each joint actuator's force per unit ctrl.
+    pub fn by_ctrl(&mut self, model: &Model, ctrl: &[f64]) -> DMatrix<f64> {
+        let mass_inverse = self.mass_inverse().clone();
+        let mut out = DMatrix::zeros(model.nv, model.actuators.len());
+        for (k, actuator) in model.actuators.iter().enumerate() {
+            if let Some((dof, slopes)) = joint_actuator_slopes(model, actuator, &self.ws, ctrl[k]) {
+                out.column_mut(k).axpy(slopes.by_ctrl, &mass_inverse.column(dof), 0.0);
+            }
+        }
+        out
     }
 
     /// ℓ* = ℓᵀ at the last [`QaccJacobian::compute`]'s θ: ∂θ̈/∂ε.
@@ -371,6 +409,58 @@ impl QaccJacobian {
             }
         }
     }
+}
+
+/// How a joint actuator's force on its dof changes: per unit of the dof's
+/// θ, θ̇ and of ctrl (each 0 where a clamp holds the piece, as the passes'
+/// own clamps give it).
+struct JointActuatorSlopes {
+    by_length: f64,
+    by_velocity: f64,
+    by_ctrl: f64,
+}
+
+/// A joint actuator's slopes and its dof (None when its force is off):
+/// force = gain(l, v)·ctrl + bias(l, v), l = gear·θ, v = gear·θ̇, on the dof
+/// times gear (actuation.rs's `unclamped_force`, `clamp_force`).
+fn joint_actuator_slopes(
+    model: &Model,
+    actuator: &Actuator,
+    ws: &Workspace,
+    ctrl: f64,
+) -> Option<(usize, JointActuatorSlopes)> {
+    let ActuatorTransmission::Scalar { dof, qpos } = actuator.transmission else { return None };
+    if !(model.actuation.enabled && actuator.enabled) {
+        return None;
+    }
+    let gear = actuator.gear[0];
+    let (length, velocity) = (gear * ws.theta[qpos], gear * ws.qvel[dof]);
+    let clamped_ctrl = super::actuation::clamped_ctrl(actuator, model.actuation.clamp_ctrl, ctrl);
+    let ctrl_slope = if clamped_ctrl == ctrl { 1.0 } else { 0.0 };
+    let [g0, g1, g2] = actuator.gain;
+    let (gain, gain_by_length, gain_by_velocity) = match actuator.gain_type {
+        GainType::Fixed => (g0, 0.0, 0.0),
+        GainType::Affine => (length * g1 + g0 + velocity * g2, g1, g2),
+    };
+    let [b0, b1, b2] = actuator.bias;
+    let (bias, bias_by_length, bias_by_velocity) = match actuator.bias_type {
+        BiasType::None => (0.0, 0.0, 0.0),
+        BiasType::Affine => (length * b1 + b0 + velocity * b2, b1, b2),
+    };
+    let force = gain * clamped_ctrl + bias;
+    let force_slope = match actuator.force_range {
+        Some([low, high]) if force < low || force > high => 0.0,
+        _ => 1.0,
+    };
+    let scale = force_slope * gear;
+    Some((
+        dof,
+        JointActuatorSlopes {
+            by_length: scale * (gain_by_length * clamped_ctrl + bias_by_length) * gear,
+            by_velocity: scale * (gain_by_velocity * clamped_ctrl + bias_by_velocity) * gear,
+            by_ctrl: scale * gain * ctrl_slope,
+        },
+    ))
 }
 
 /// ℓ on the path of a unit joint force at dof `unit`, for link i with N

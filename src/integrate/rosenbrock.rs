@@ -494,9 +494,8 @@ impl Integrator {
         let qvel = &qvel[..model.nv];
         let blocks = (&mut linear.qacc_by_delta, &mut linear.qacc_by_qvel);
         if let Some(closed_form) = linear.closed_form.as_mut() {
-            // The stages apply ε and ctrl only (a model the closed form
-            // covers has no actuators), no joint forces T.
-            let inputs = (self.eps_stage.as_slice(), linear.no_torque.as_slice());
+            // The stages apply ε and ctrl, no joint forces T.
+            let inputs = (self.eps_stage.as_slice(), linear.no_torque.as_slice(), self.ctrl_stage.as_slice());
             return match closed_form.compute(model, (theta, qvel), inputs, blocks) {
                 Ok(()) => Ok(true),
                 Err(DerivativeError::Dynamics(cause)) => Err(cause),

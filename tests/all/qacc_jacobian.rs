@@ -18,20 +18,20 @@ use crate::common::{self, Rng, TreeOptions, random_theta, random_vehicle};
 fn both_ways(
     model: &Model,
     (theta, qvel): (&[f64], &[f64]),
-    (eps, torque): (&[f64], &[f64]),
+    (eps, torque, ctrl): (&[f64], &[f64], &[f64]),
 ) -> [(DMatrix<f64>, DMatrix<f64>); 2] {
     let nv = model.nv;
     let mut closed = (DMatrix::zeros(nv, nv), DMatrix::zeros(nv, nv));
     QaccJacobian::new(model)
         .unwrap()
-        .compute(model, (theta, qvel), (eps, torque), (&mut closed.0, &mut closed.1))
+        .compute(model, (theta, qvel), (eps, torque, ctrl), (&mut closed.0, &mut closed.1))
         .unwrap();
-    let point = Point { theta, velocity: qvel, given: Given::Qvel, eps, torque, ctrl: &[], act: &[], time: 0.0 };
+    let point = Point { theta, velocity: qvel, given: Given::Qvel, eps, torque, ctrl, act: &[], time: 0.0 };
     let duals = Derivatives::new(model).unwrap().jacobians(model, &point, Output::Qacc).unwrap();
     [closed, (duals.theta, duals.velocity)]
 }
 
-fn assert_agree(model: &Model, state: (&[f64], &[f64]), forces: (&[f64], &[f64]), label: &str) {
+fn assert_agree(model: &Model, state: (&[f64], &[f64]), forces: (&[f64], &[f64], &[f64]), label: &str) {
     let [(by_delta, by_qvel), (dual_by_delta, dual_by_qvel)] = both_ways(model, state, forces);
     let errors = [
         common::rel_err(by_delta.as_slice(), dual_by_delta.as_slice()),
@@ -65,8 +65,8 @@ fn the_closed_form_agrees_with_the_dual_numbers_on_random_trees() {
         let (model, theta, qvel, eps, torque) = random_case(seed);
         let zeros = vec![0.0; model.nv];
         // Without ε, and with ε (its joint forces m(θ)ε turn with θ).
-        assert_agree(&model, (&theta, &qvel), (&zeros, &torque), &format!("seed {seed}, no ε"));
-        assert_agree(&model, (&theta, &qvel), (&eps, &torque), &format!("seed {seed}, with ε"));
+        assert_agree(&model, (&theta, &qvel), (&zeros, &torque, &[]), &format!("seed {seed}, no ε"));
+        assert_agree(&model, (&theta, &qvel), (&eps, &torque, &[]), &format!("seed {seed}, with ε"));
     }
 }
 
@@ -80,9 +80,46 @@ fn the_closed_form_agrees_with_the_dual_numbers_on_the_examples() {
         for repeat in 0..3 {
             let theta = random_theta(&mut rng, &vehicle);
             let (qvel, eps, torque) = (rng.vec(model.nv, 1.0), rng.vec(model.nv, 1.0), rng.vec(model.nv, 1.0));
-            assert_agree(&model, (&theta, &qvel), (&eps, &torque), &format!("{name}, state {repeat}"));
+            assert_agree(&model, (&theta, &qvel), (&eps, &torque, &[]), &format!("{name}, state {repeat}"));
         }
     }
+}
+
+/// Joint actuators of every gain and bias, at controls inside their ranges
+/// and past them, and with forces inside and past their force ranges
+/// (the clamps hold their pieces, derivative 0, as the passes' own do).
+#[test]
+fn the_closed_form_agrees_with_the_dual_numbers_with_joint_actuators() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/actuators/joint_servos.xml");
+    let vehicle = nudyn::mjcf::load_mjcf(&path).unwrap().vehicle;
+    let model = Model::compile(&vehicle).unwrap();
+    let mut rng = Rng::new(11);
+    let mut clamped = [0usize; 2];
+    for repeat in 0..40 {
+        let theta = random_theta(&mut rng, &vehicle);
+        let (qvel, eps, torque) = (rng.vec(model.nv, 1.5), rng.vec(model.nv, 1.0), rng.vec(model.nv, 1.0));
+        // ctrl within ±2.5: past the ranges of ±1, ±1.5 and [0, 1] at times.
+        let ctrl = rng.vec(model.actuators.len(), 2.5);
+        for (actuator, c) in model.actuators.iter().zip(&ctrl) {
+            if actuator.ctrl_range.is_some_and(|[low, high]| *c < low || *c > high) {
+                clamped[0] += 1;
+            }
+        }
+        let mut ws = model.workspace();
+        ws.set_configuration(&model, &theta).unwrap();
+        ws.set_qvel(&model, &qvel).unwrap();
+        ws.compute_qacc_actuated(&model, &eps, &ctrl).unwrap();
+        for (k, actuator) in model.actuators.iter().enumerate() {
+            if actuator.force_range.is_some_and(|[low, high]| {
+                let force = ws.actuator_force[k];
+                force <= low || force >= high
+            }) {
+                clamped[1] += 1;
+            }
+        }
+        assert_agree(&model, (&theta, &qvel), (&eps, &torque, &ctrl), &format!("joint_servos, state {repeat}"));
+    }
+    assert!(clamped.iter().all(|n| *n > 5), "ctrl clamped {} times, forces {} times: too few", clamped[0], clamped[1]);
 }
 
 #[test]
@@ -92,14 +129,16 @@ fn the_closed_form_refuses_what_it_leaves_out() {
     eps[nv - 1] = f64::NAN;
     let mut out = (DMatrix::zeros(nv, nv), DMatrix::zeros(nv, nv));
     let mut closed_form = QaccJacobian::new(&model).unwrap();
-    let refused = closed_form.compute(&model, (&theta, &qvel), (&eps, &torque), (&mut out.0, &mut out.1));
+    let refused = closed_form.compute(&model, (&theta, &qvel), (&eps, &torque, &[]), (&mut out.0, &mut out.1));
     assert_eq!(refused.unwrap_err().to_string(), format!("eps[{nv}] is not finite (NaN)"));
-    let refused = closed_form.compute(&model, (&theta, &qvel), (&torque[1..], &torque), (&mut out.0, &mut out.1));
+    let refused = closed_form.compute(&model, (&theta, &qvel), (&torque[1..], &torque, &[]), (&mut out.0, &mut out.1));
     assert_eq!(refused.unwrap_err().to_string(), format!("eps has {} entries, expected {nv}", nv - 1));
 
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/servicer.xml");
     let servicer = Model::compile(&nudyn::mjcf::load_mjcf(&path).unwrap().vehicle).unwrap();
-    assert_eq!(QaccJacobian::new(&servicer).unwrap_err(), DerivativeError::Unsupported("actuators"));
+    let refused = QaccJacobian::new(&servicer).unwrap_err();
+    let expected = "actuators other than on hinges and slides, or with activation states";
+    assert_eq!(refused, DerivativeError::Unsupported(expected));
 
     let mut rng = Rng::new(3);
     let options = TreeOptions { bodies: 3, free_base: true, passive: true, chain: true };
@@ -128,5 +167,27 @@ fn linearize_gives_the_same_matrices_by_either_route() {
             ];
             assert!(errors.iter().all(|e| *e < 1e-10), "seed {seed}, {inputs:?}: A and B differ by {errors:?}");
         }
+    }
+    // Joint actuators: ctrl as the input, some past their ranges.
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/actuators/joint_servos.xml");
+    let vehicle = nudyn::mjcf::load_mjcf(&path).unwrap().vehicle;
+    let model = Model::compile(&vehicle).unwrap();
+    let mut rng = Rng::new(13);
+    for repeat in 0..8 {
+        let point = OperatingPoint {
+            qpos: random_theta(&mut rng, &vehicle),
+            qvel: rng.vec(model.nv, 1.0),
+            act: Vec::new(),
+            eps: rng.vec(model.nv, 1.0),
+            torque: rng.vec(model.nv, 1.0),
+            ctrl: rng.vec(model.actuators.len(), 2.0),
+        };
+        let closed = linearize(&model, &point, Inputs::Ctrl, &[LinearOutput::Qacc], None).unwrap();
+        let duals = linearize(&model, &point, Inputs::Ctrl, &[LinearOutput::Qacc, LinearOutput::Nu], None).unwrap();
+        let errors = [
+            common::rel_err(closed.a.as_slice(), duals.a.as_slice()),
+            common::rel_err(closed.b.as_slice(), duals.b.as_slice()),
+        ];
+        assert!(errors.iter().all(|e| *e < 1e-10), "joint_servos, state {repeat}: A and B differ by {errors:?}");
     }
 }
