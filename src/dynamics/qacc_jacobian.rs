@@ -1,6 +1,6 @@
 //! ∂θ̈/∂Δ and ∂θ̈/∂θ̇ in closed form, for a rigid tree whose forces are
 //! gravity, joint springs and dampers, an applied ε, constant joint
-//! forces T and actuators on its hinges and slides: the derivatives of the inverse dynamics τ = ID(θ, θ̇, θ̈) in
+//! forces T and actuators on its hinges, slides and sites: the derivatives of the inverse dynamics τ = ID(θ, θ̇, θ̈) in
 //! world coordinates, a few 6-vector products per pair of a joint and its
 //! ancestor, then θ̈'s through the mass matrix,
 //!
@@ -46,10 +46,12 @@
 //! configuration through the factor: [`AppliedEps`] adds their derivative
 //! (the articulated inertias' change up each column's path, O(N·depth)
 //! 6×6 products). Actuators on hinges and slides add their force's slopes
-//! on their dof's diagonal. Forces whose law reads the configuration
-//! otherwise (other actuators, tendons, gravity compensation, constraint
-//! rows, flexible bodies, springs on ball joints) are refused, and
-//! derivatives.rs serves those models.
+//! on their dof's diagonal; actuators on sites with a constant force are
+//! wrenches fixed in their bodies, which turn with the subtree as ε's
+//! forces do. Forces whose law reads the configuration otherwise (other
+//! actuators, tendons, gravity compensation, constraint rows, flexible
+//! bodies, springs on ball joints) are refused, and derivatives.rs serves
+//! those models.
 
 use nalgebra::{DMatrix, SMatrix, SVector};
 
@@ -99,6 +101,9 @@ pub struct QaccJacobian {
     /// M⁻¹ = ℓᵀℓ when asked (nv × nv).
     mass_inverse: DMatrix<f64>,
     applied: AppliedEps,
+    /// The site actuators' wrenches, each link's in world coordinates, then
+    /// summed over its subtree.
+    site_force: Vec<SpatialVec>,
 }
 
 /// An applied ε as the joint forces T_ε = m(θ)ε it stands for: the
@@ -132,18 +137,26 @@ impl QaccJacobian {
     pub fn check(model: &Model) -> Result<(), DerivativeError> {
         let ball_springs =
             !model.shortcuts.no_springs && model.links.iter().any(|l| l.joint == LinkJoint::Ball && l.stiffness != 0.0);
-        // Actuators on hinges and slides without activation states: their
-        // forces are functions of one dof's θ and θ̇ (joint_actuators).
-        let on_joints = |a: &Actuator| {
-            matches!(a.transmission, ActuatorTransmission::Scalar { .. })
-                && a.activation.is_none()
-                && a.setpoint_period == 0.0
+        // Actuators without activation states on hinges and slides, whose
+        // forces are functions of one dof's θ and θ̇ (joint_actuator_slopes),
+        // and on sites with a force that reads neither length nor velocity
+        // (thrusters: a wrench fixed in its body, add_site_force_derivatives).
+        let covered = |a: &Actuator| {
+            let constant = (a.gain_type == GainType::Fixed || a.gain[1..] == [0.0, 0.0])
+                && (a.bias_type == BiasType::None || a.bias[1..] == [0.0, 0.0]);
+            let transmission = match a.transmission {
+                ActuatorTransmission::Scalar { .. } => true,
+                ActuatorTransmission::Site { .. } => constant,
+                _ => false,
+            };
+            transmission && a.activation.is_none() && a.setpoint_period == 0.0
         };
         let unsupported = [
             (!model.flexible.is_empty(), "flexible bodies"),
             (
-                !model.actuators.iter().all(on_joints),
-                "actuators other than on hinges and slides, or with activation states",
+                !model.actuators.iter().all(covered),
+                "actuators other than on hinges, slides or sites (with a force that reads neither length nor \
+                 velocity), or with activation states",
             ),
             (!model.actuator_force_limits.is_empty(), "joints' actuatorfrcrange"),
             (!model.tendons.is_empty(), "tendons"),
@@ -197,6 +210,7 @@ impl QaccJacobian {
                 z: vec![Vec3::zeros(); n],
                 subtree_force: vec![SpatialVec::zeros(); n],
             },
+            site_force: vec![SpatialVec::zeros(); n],
             dof_link: model.links.iter().enumerate().flat_map(|(i, l)| std::iter::repeat_n(i, l.ndof)).collect(),
         })
     }
@@ -242,6 +256,9 @@ impl QaccJacobian {
                 self.torque_by_qvel[(dof, dof)] += slopes.by_velocity;
             }
         }
+        if self.ws.actuators_apply_wrenches {
+            self.add_site_force_derivatives(model);
+        }
         if applied_eps {
             self.applied.prepare(model, &self.ws, eps);
             self.applied.add_derivatives(model, &self.subspace, &mut self.torque_by_delta);
@@ -268,12 +285,49 @@ impl QaccJacobian {
     pub fn by_ctrl(&mut self, model: &Model, ctrl: &[f64]) -> DMatrix<f64> {
         let mass_inverse = self.mass_inverse().clone();
         let mut out = DMatrix::zeros(model.nv, model.actuators.len());
+        let mut moment = vec![0.0; model.nv];
         for (k, actuator) in model.actuators.iter().enumerate() {
             if let Some((dof, slopes)) = joint_actuator_slopes(model, actuator, &self.ws, ctrl[k]) {
                 out.column_mut(k).axpy(slopes.by_ctrl, &mass_inverse.column(dof), 0.0);
+            } else if let Some(per_ctrl) = site_force_per_ctrl(model, actuator, ctrl[k]) {
+                // The generalized force of a unit force of the actuator (its
+                // moment arms) times the force per unit ctrl.
+                self.ws.actuator_moment(model, k, &mut moment).expect("the passes ran at this point");
+                let moment = nalgebra::DVector::from_column_slice(&moment);
+                out.column_mut(k).gemv(per_ctrl, &mass_inverse, &moment, 0.0);
             }
         }
         out
+    }
+
+    /// The derivative of the site actuators' joint forces: each is a wrench
+    /// fixed in its body, so turning joint j turns those of j's subtree with
+    /// it, which changes only j's strict ancestors' rows, by
+    /// S_iᵀ(s ×* F^site_j), F^site_j their sum (world coordinates); as
+    /// with ε's forces in [`AppliedEps`].
+    fn add_site_force_derivatives(&mut self, model: &Model) {
+        for i in 0..model.links.len() {
+            self.site_force[i] = self.ws.x_world[i].apply_transpose_force(&self.ws.link_wrench[i]);
+        }
+        for i in (0..model.links.len()).rev() {
+            if let Some(p) = model.links[i].parent {
+                let child_force = self.site_force[i];
+                self.site_force[p] += child_force;
+            }
+        }
+        for (j, link) in model.links.iter().enumerate() {
+            for column in link.dof_adr..link.dof_adr + link.ndof {
+                let turned = cross_force(&self.subspace[column], &self.site_force[j]);
+                let mut ancestor = link.parent;
+                while let Some(i) = ancestor {
+                    let ancestor_link = &model.links[i];
+                    for row in ancestor_link.dof_adr..ancestor_link.dof_adr + ancestor_link.ndof {
+                        self.torque_by_delta[(row, column)] += self.subspace[row].dot(&turned);
+                    }
+                    ancestor = ancestor_link.parent;
+                }
+            }
+        }
     }
 
     /// ℓ* = ℓᵀ at the last [`QaccJacobian::compute`]'s θ: ∂θ̈/∂ε.
@@ -461,6 +515,23 @@ fn joint_actuator_slopes(
             by_ctrl: scale * gain * ctrl_slope,
         },
     ))
+}
+
+/// A site actuator's force per unit ctrl (None for another actuator or
+/// when its force is off): its gain where neither ctrl nor force is held
+/// by a clamp, else 0.
+fn site_force_per_ctrl(model: &Model, actuator: &Actuator, ctrl: f64) -> Option<f64> {
+    let on = model.actuation.enabled && actuator.enabled;
+    if !(on && matches!(actuator.transmission, ActuatorTransmission::Site { .. })) {
+        return None;
+    }
+    let clamped_ctrl = super::actuation::clamped_ctrl(actuator, model.actuation.clamp_ctrl, ctrl);
+    let force_held = actuator.force_range.is_some_and(|[low, high]| {
+        let force = actuator.gain[0] * clamped_ctrl
+            + if actuator.bias_type == BiasType::Affine { actuator.bias[0] } else { 0.0 };
+        force < low || force > high
+    });
+    Some(if clamped_ctrl == ctrl && !force_held { actuator.gain[0] } else { 0.0 })
 }
 
 /// ℓ on the path of a unit joint force at dof `unit`, for link i with N
