@@ -56,6 +56,9 @@ fn allocations(steps: usize, mut step: impl FnMut(usize)) -> usize {
 }
 
 const STEP: f64 = 0.01;
+/// The flexible spacecraft's tolerance in the ros34pw2 loop: at 1e-9 its stiff
+/// modes took 100 s of steps; at 1e-5 W is still formed within the counted steps.
+const TOLERANCE_FLEX: f64 = 1e-5;
 
 /// bus_arm7: 14 positions, 13 dofs.
 const NQ: usize = 14;
@@ -110,17 +113,17 @@ fn the_fmi2_step_loop_does_not_allocate() {
 #[test]
 fn the_fmi2_step_loop_with_ros34pw2_does_not_allocate() {
     let cases = [
-        ("bus_arm7", 0.0, true),
-        ("bus_arm7", 0.2, true),
-        ("servicer", 0.2, true),
-        ("flexible_spacecraft/flexible_spacecraft", 0.2, false),
+        ("bus_arm7", 0.0, 1e-9, true),
+        ("bus_arm7", 0.2, 1e-9, true),
+        ("servicer", 0.2, 1e-9, true),
+        ("flexible_spacecraft/flexible_spacecraft", 0.2, TOLERANCE_FLEX, false),
     ];
-    for (example, eps, closed_form) in cases {
-        ros34pw2_loop_allocates_nothing(example, eps, closed_form);
+    for (example, eps, tolerance, closed_form) in cases {
+        ros34pw2_loop_allocates_nothing(example, eps, tolerance, closed_form);
     }
 }
 
-fn ros34pw2_loop_allocates_nothing(example: &str, eps_value: f64, closed_form: bool) {
+fn ros34pw2_loop_allocates_nothing(example: &str, eps_value: f64, tolerance: f64, closed_form: bool) {
     let label = format!("{example}, ε {eps_value}");
     let nv = crate::test_resources::model(example).nv;
     let (dir, guid, layout) =
@@ -142,7 +145,7 @@ fn ros34pw2_loop_allocates_nothing(example: &str, eps_value: f64, closed_form: b
             fmi2SetInteger(c, [nudyn_contract::plant::METHOD_VR].as_ptr(), 1, method.as_ptr()),
             fmi2Status_fmi2OK
         );
-        assert_eq!(fmi2SetReal(c, tolerance_vr.as_ptr(), 1, [1e-9].as_ptr()), fmi2Status_fmi2OK);
+        assert_eq!(fmi2SetReal(c, tolerance_vr.as_ptr(), 1, [tolerance].as_ptr()), fmi2Status_fmi2OK);
         assert_eq!(fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0.0), fmi2Status_fmi2OK);
         assert_eq!(fmi2EnterInitializationMode(c), fmi2Status_fmi2OK);
         assert_eq!(fmi2SetReal(c, nu_vr.as_ptr(), nv, spin.as_ptr()), fmi2Status_fmi2OK);
@@ -156,7 +159,7 @@ fn ros34pw2_loop_allocates_nothing(example: &str, eps_value: f64, closed_form: b
         assert_eq!(count, 0, "{label}: allocations in 20 communication steps");
     }
     let model = crate::test_resources::model(example);
-    let settings = nudyn::integrate::Settings { tolerance: 1e-9, max_step: 0.0, energy_projection: false };
+    let settings = nudyn::integrate::Settings { tolerance, max_step: 0.0, energy_projection: false };
     let mut sim = nudyn::integrate::Simulation::new(&model, nudyn::integrate::Method::Ros34pw2, settings);
     sim.state.nu.copy_from_slice(&spin);
     sim.initialize(&model).unwrap();
