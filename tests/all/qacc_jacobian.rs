@@ -40,6 +40,14 @@ fn assert_agree(model: &Model, state: (&[f64], &[f64]), forces: (&[f64], &[f64],
     assert!(errors.iter().all(|e| *e < 1e-10), "{label}: ∂θ̈/∂Δ and ∂θ̈/∂θ̇ differ from the duals' by {errors:?}");
 }
 
+/// A vehicle file of the repository (its path from the root), imported and compiled.
+fn load(file: &str) -> (Vehicle, Model) {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(file);
+    let vehicle = nudyn::mjcf::load_mjcf(&path).unwrap().vehicle;
+    let model = Model::compile(&vehicle).unwrap();
+    (vehicle, model)
+}
+
 /// A random tree with gravity, springs and dampers, but none on ball
 /// joints (a free joint's rotation is one), whose spring the closed form refuses.
 fn random_case(seed: u64) -> (Model, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>) {
@@ -73,9 +81,7 @@ fn the_closed_form_agrees_with_the_dual_numbers_on_random_trees() {
 #[test]
 fn the_closed_form_agrees_with_the_dual_numbers_on_the_examples() {
     for name in ["bus_arm7", "chain60", "fixed_rig", "flexible_boom"] {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("examples/{name}.xml"));
-        let vehicle = nudyn::mjcf::load_mjcf(&path).unwrap().vehicle;
-        let model = Model::compile(&vehicle).unwrap();
+        let (vehicle, model) = load(&format!("examples/{name}.xml"));
         let mut rng = Rng::new(7);
         for repeat in 0..3 {
             let theta = random_theta(&mut rng, &vehicle);
@@ -100,9 +106,7 @@ fn the_closed_form_agrees_with_the_dual_numbers_with_actuators() {
 /// [`the_closed_form_agrees_with_the_dual_numbers_with_actuators`] on one
 /// file, ctrl within ±`ctrl_scale` (past the ranges at times).
 fn agrees_with_actuators(file: &str, ctrl_scale: f64) {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(file);
-    let vehicle = nudyn::mjcf::load_mjcf(&path).unwrap().vehicle;
-    let model = Model::compile(&vehicle).unwrap();
+    let (vehicle, model) = load(file);
     let mut rng = Rng::new(11);
     let mut clamped = [0usize; 2];
     for repeat in 0..40 {
@@ -149,8 +153,7 @@ fn the_closed_form_refuses_what_it_leaves_out() {
     let refused = closed_form.compute(&model, (&theta, &qvel), (&torque[1..], &torque, &[]), (&mut out.0, &mut out.1));
     assert_eq!(refused.unwrap_err().to_string(), format!("eps has {} entries, expected {nv}", nv - 1));
 
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/activation/filtered_arm.xml");
-    let filtered = Model::compile(&nudyn::mjcf::load_mjcf(&path).unwrap().vehicle).unwrap();
+    let (_, filtered) = load("tests/fixtures/activation/filtered_arm.xml");
     let refused = QaccJacobian::new(&filtered).unwrap_err().to_string();
     assert!(refused.contains("activation states"), "{refused}");
 
@@ -192,9 +195,7 @@ fn linearize_gives_the_same_matrices_by_either_route() {
 /// input, ctrl within ±`ctrl_scale`.
 fn linearize_with_ctrl_by_either_route(file: &str, ctrl_scale: f64) {
     use nudyn::linearize::{Inputs, LinearOutput, OperatingPoint, linearize};
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(file);
-    let vehicle = nudyn::mjcf::load_mjcf(&path).unwrap().vehicle;
-    let model = Model::compile(&vehicle).unwrap();
+    let (vehicle, model) = load(file);
     let mut rng = Rng::new(13);
     for repeat in 0..8 {
         let point = OperatingPoint {
