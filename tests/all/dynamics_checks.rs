@@ -41,8 +41,10 @@ fn check_vehicle(vehicle: &Vehicle, rng: &mut Rng) -> Result<(), String> {
     };
 
     // The reference's Jacobians are exact for joints; a node's angular
-    // columns are differences (to about 1e-12 of the node's rotation rate).
-    let reference = if common::modal_count(vehicle) == 0 { 1e-12 } else { 1e-10 };
+    // columns are differences (to about 1e-12 of the node's rotation rate;
+    // m m* = M to 1.6e-10 at worst in 10,000 random cases of each flexible
+    // test, 2026-11-30).
+    let reference = if common::modal_count(vehicle) == 0 { 1e-12 } else { 5e-10 };
 
     // 1. m m* = M, and m is the unique upper factor.
     let m_dense = common::mass_matrix(vehicle, &theta);
@@ -146,7 +148,11 @@ fn check_vehicle(vehicle: &Vehicle, rng: &mut Rng) -> Result<(), String> {
         let mut derivatives = Derivatives::new(&model).map_err(|e| e.to_string())?;
         derivatives.run(&model, &point, &along_the_motion, &[Output::Momentum]).map_err(|e| e.to_string())?;
         let rate = DVector::from_iterator(6, derivatives.derivative(Output::Momentum));
-        let scale = p.norm().max(1.0);
+        // Its parts through ν̇ and through θ cancel: round-off is relative
+        // to them, about |p|·|ν̇|/|ν| (a strongly deformed one-body free
+        // flexible tree, its mass matrix near singular, ν̇ ≈ 7e4 at |ν| ≈ 2:
+        // 1.4e-8, 2.9e-9 of |p|; 2026-11-30).
+        let scale = (p.norm() * (1.0 + nu_dot.norm() / nu.norm().max(1e-300))).max(1.0);
         fail("d/dt momentum = 0", rate.norm() / scale, 1e-9)?;
         // Modal stiffness and damping are internal forces: they keep the
         // momentum but exchange kinetic energy with strain energy.
