@@ -85,7 +85,12 @@ fn check_vehicle(vehicle: &Vehicle, rng: &mut Rng) -> Result<(), String> {
 
     // 4. ν̇ = m*θ̈ + ṁ*θ̇ with θ̈ from the dense equations under the same torques.
     let nu_dot_ref = common::nu_dot_reference(vehicle, &theta, &qvel, &torque);
-    fail("nu_dot", rel_err(ws.nu_dot.as_slice(), nu_dot_ref.as_slice()), 1e-7)?;
+    // The reference's ṁ* differences factors of a mass matrix whose node
+    // columns are themselves differences on a flexible tree: 2.9e-7 at worst
+    // in 10,000 random cases of each flexible test (rigid trees 2.3e-9; θ̈,
+    // without ṁ*, 1.4e-8), 2026-11-30.
+    let nu_dot_tolerance = if common::modal_count(vehicle) == 0 { 1e-7 } else { 1e-6 };
+    fail("nu_dot", rel_err(ws.nu_dot.as_slice(), nu_dot_ref.as_slice()), nu_dot_tolerance)?;
     // θ̈ from the outward pass after pass 3 against the dense M⁻¹(T + τ_passive − h).
     ws.compute_accelerations(&model).unwrap();
     let qacc_dense = common::forward_dynamics(vehicle, &theta, &qvel, &torque);
