@@ -247,8 +247,8 @@ fn closed_form_blocks(
     let state = (point.qpos.as_slice(), point.qvel.as_slice());
     closed_form.compute(model, state, (&point.eps, &point.torque, &point.ctrl), (&mut by_delta, &mut by_qvel))?;
     let by_input = match input {
-        Input::Torque => closed_form.mass_inverse().clone(),
-        Input::Eps => closed_form.factor_inverse_adjoint().into_owned(),
+        Input::Torque => closed_form.mass_inverse(model).clone(),
+        Input::Eps => closed_form.factor_inverse_adjoint(model).clone(),
         _ => closed_form.by_ctrl(model, &point.ctrl),
     };
     Ok(vec![by_delta, by_qvel, by_input, DMatrix::zeros(nv, 0)])

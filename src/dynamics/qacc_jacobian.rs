@@ -6,12 +6,12 @@
 //!
 //!   ∂θ̈/∂x = M⁻¹ (∂τ_applied/∂x − ∂ID/∂x |θ̈ held),
 //!
-//! M⁻¹ = ℓᵀℓ from the factor of pass 1 (ℓ = m⁻¹, whose columns are the
-//! inward pass of forces.rs along each dof's path to the base). The same
-//! derivatives as derivatives.rs's dual numbers give (to round-off), at a
-//! fraction of their cost: derivatives.rs runs every pass once per column;
-//! this runs the passes once, then O(N·depth) products and two products
-//! with ℓ.
+//! M⁻¹ = ℓᵀℓ from the factor of pass 1 (ℓ = m⁻¹: forces.rs's inward pass
+//! from joint forces to ε, and ℓᵀ its adjoint outward, applied to the
+//! columns by [`FactorPasses`]). The same derivatives as derivatives.rs's
+//! dual numbers give (to round-off), at a fraction of their cost:
+//! derivatives.rs runs every pass once per column; this runs the passes
+//! once, then O(N·depth) products, then two O(N) passes per column.
 //!
 //! All quantities below are world vectors about the world origin, so that a
 //! subtree's sums need no transforms. For link i with world motion subspace
@@ -54,6 +54,7 @@
 //! those models.
 
 use nalgebra::{DMatrix, SMatrix, SVector};
+use wide::f64x4;
 
 use super::articulated::upper_triangular_inverse;
 use super::bias::upper_half;
@@ -95,11 +96,10 @@ pub struct QaccJacobian {
     /// ∂τ_passive/∂Δ − ∂ID/∂Δ and the same in θ̇ (nv × nv).
     torque_by_delta: DMatrix<f64>,
     torque_by_qvel: DMatrix<f64>,
-    /// Each dof's link.
-    dof_link: Vec<usize>,
-    factor: FactorInverse,
-    /// M⁻¹ = ℓᵀℓ when asked (nv × nv).
-    mass_inverse: DMatrix<f64>,
+    factor: FactorPasses,
+    /// M⁻¹ = ℓᵀℓ or ℓᵀ when asked (nv × nv), and the identity they are taken of.
+    asked: DMatrix<f64>,
+    identity: DMatrix<f64>,
     applied: AppliedEps,
     /// The site actuators' wrenches, each link's in world coordinates, then
     /// summed over its subtree.
@@ -174,7 +174,6 @@ impl QaccJacobian {
     pub fn new(model: &Model) -> Result<Self, DerivativeError> {
         Self::check(model)?;
         let (n, nv) = (model.links.len(), model.nv);
-        let padded = nv.div_ceil(BLOCK_ROWS) * BLOCK_ROWS;
         Ok(QaccJacobian {
             ws: model.workspace(),
             eps_of_torque: vec![0.0; nv],
@@ -193,15 +192,9 @@ impl QaccJacobian {
             force: vec![SpatialVec::zeros(); n],
             torque_by_delta: DMatrix::zeros(nv, nv),
             torque_by_qvel: DMatrix::zeros(nv, nv),
-            factor: FactorInverse {
-                ell: DMatrix::zeros(padded, nv),
-                ell_transposed: DMatrix::zeros(padded, nv),
-                ell_times: DMatrix::zeros(padded, nv),
-                product: DMatrix::zeros(padded, nv),
-                dof_end: model.links.iter().flat_map(|l| std::iter::repeat_n(l.dof_adr + l.ndof, l.ndof)).collect(),
-                row_ranges: model.links.iter().flat_map(|l| std::iter::repeat_n(l.dof_adr..nv, l.ndof)).collect(),
-            },
-            mass_inverse: DMatrix::zeros(nv, nv),
+            factor: FactorPasses::new(model),
+            asked: DMatrix::zeros(nv, nv),
+            identity: DMatrix::identity(nv, nv),
             applied: AppliedEps {
                 reduced_inertia: vec![SpatialMat::zeros(); n],
                 gain: vec![LinkCols::zeros(); n],
@@ -211,7 +204,6 @@ impl QaccJacobian {
                 subtree_force: vec![SpatialVec::zeros(); n],
             },
             site_force: vec![SpatialVec::zeros(); n],
-            dof_link: model.links.iter().enumerate().flat_map(|(i, l)| std::iter::repeat_n(i, l.ndof)).collect(),
         })
     }
 
@@ -263,27 +255,22 @@ impl QaccJacobian {
             self.applied.prepare(model, &self.ws, eps);
             self.applied.add_derivatives(model, &self.subspace, &mut self.torque_by_delta);
         }
-        self.factor_inverse(model);
-        for (t, out) in [(&self.torque_by_delta, by_delta), (&self.torque_by_qvel, by_qvel)] {
-            out.copy_from(&self.factor.times_mass_inverse(t).rows(0, model.nv));
-        }
+        self.factor.prepare(model, &self.ws);
+        let ts = [&self.torque_by_delta, &self.torque_by_qvel];
+        self.factor.apply(model, &self.subspace, ts, [by_delta, by_qvel], false);
         Ok(())
     }
 
     /// M⁻¹ = ℓᵀℓ at the last [`QaccJacobian::compute`]'s θ: ∂θ̈/∂T.
-    pub fn mass_inverse(&mut self) -> &DMatrix<f64> {
-        let nv = self.mass_inverse.nrows();
-        let factor = &mut self.factor;
-        factor.ell_times.copy_from(&factor.ell);
-        multiply_by_ell_transposed(factor);
-        self.mass_inverse.copy_from(&factor.product.rows(0, nv));
-        &self.mass_inverse
+    pub fn mass_inverse(&mut self, model: &Model) -> &DMatrix<f64> {
+        self.factor.apply(model, &self.subspace, [&self.identity], [&mut self.asked], false);
+        &self.asked
     }
 
     /// ∂θ̈/∂ctrl (nv × actuators) at the last [`QaccJacobian::compute`]'s
     /// point and `ctrl`: M⁻¹ times each joint actuator's force per unit ctrl.
     pub fn by_ctrl(&mut self, model: &Model, ctrl: &[f64]) -> DMatrix<f64> {
-        let mass_inverse = self.mass_inverse().clone();
+        let mass_inverse = self.mass_inverse(model).clone();
         let mut out = DMatrix::zeros(model.nv, model.actuators.len());
         let mut moment = vec![0.0; model.nv];
         for (k, actuator) in model.actuators.iter().enumerate() {
@@ -331,8 +318,9 @@ impl QaccJacobian {
     }
 
     /// ℓ* = ℓᵀ at the last [`QaccJacobian::compute`]'s θ: ∂θ̈/∂ε.
-    pub fn factor_inverse_adjoint(&self) -> nalgebra::DMatrixView<'_, f64> {
-        self.factor.ell_transposed.rows(0, self.mass_inverse.nrows())
+    pub fn factor_inverse_adjoint(&mut self, model: &Model) -> &DMatrix<f64> {
+        self.factor.apply(model, &self.subspace, [&self.identity], [&mut self.asked], true);
+        &self.asked
     }
 
     /// Base to tip: each link's world S, v, a, Ψ̇, Ψ̈, Ṡ + Ψ̇, and its own Y, 2B, f.
@@ -435,34 +423,6 @@ impl QaccJacobian {
             }
         }
     }
-
-    /// ℓ = m⁻¹ and ℓᵀ: ℓ's columns ℓe_c by the inward pass of forces.rs
-    /// with every other force zero, which for a unit joint force at dof c
-    /// walks only the links from c's to the base (ℓe_c is zero elsewhere).
-    fn factor_inverse(&mut self, model: &Model) {
-        let ell = &mut self.factor.ell;
-        ell.fill(0.0);
-        for c in 0..model.nv {
-            // p of the link reached, in its coordinates: zero at the force's own link.
-            let (mut link, mut p) = (Some(self.dof_link[c]), SpatialVec::zeros());
-            let column = ell.column_mut(c);
-            let eps = column.data.into_slice_mut();
-            while let Some(i) = link {
-                let p_reduced = match model.links[i].ndof {
-                    1 => inward_link::<1>(model, &self.ws, i, c, &p, eps),
-                    _ => inward_link::<3>(model, &self.ws, i, c, &p, eps),
-                };
-                p = self.ws.x_parent[i].apply_transpose_force(&p_reduced);
-                link = model.links[i].parent;
-            }
-        }
-        let nv = model.nv;
-        for c in 0..nv {
-            for r in 0..nv {
-                self.factor.ell_transposed[(c, r)] = self.factor.ell[(r, c)];
-            }
-        }
-    }
 }
 
 /// How a joint actuator's force on its dof changes: per unit of the dof's
@@ -532,28 +492,6 @@ fn site_force_per_ctrl(model: &Model, actuator: &Actuator, ctrl: f64) -> Option<
         force < low || force > high
     });
     Some(if clamped_ctrl == ctrl && !force_held { actuator.gain[0] } else { 0.0 })
-}
-
-/// ℓ on the path of a unit joint force at dof `unit`, for link i with N
-/// dofs and p (its children's share on the path, its coordinates):
-/// u = e − Sᵀp, ε_i = R_i⁻¹u into `eps`; returns p + G u, for the parent.
-fn inward_link<const N: usize>(
-    model: &Model,
-    ws: &Workspace,
-    i: usize,
-    unit: usize,
-    p: &SpatialVec,
-    eps: &mut [f64],
-) -> SpatialVec {
-    let link = &model.links[i];
-    let adr = link.dof_adr;
-    let mut u: SVector<f64, N> = -(cols::<_, N>(&link.motion_subspace).transpose() * p);
-    if (adr..adr + N).contains(&unit) {
-        u[unit - adr] += 1.0;
-    }
-    let e = block::<_, N>(&ws.r_inv_joint[i]) * u;
-    eps[adr..adr + N].copy_from_slice(e.as_slice());
-    p + cols::<_, N>(&ws.gain[i]) * u
 }
 
 impl AppliedEps {
@@ -668,99 +606,205 @@ impl AppliedEps {
     }
 }
 
-/// ℓ(θ) = m⁻¹, its transpose, ℓ times the matrix given and ℓᵀ times
-/// that, each with its rows padded with zeros to whole blocks of
-/// [`multiply`] (padded × nv); and where ℓ's rows and columns are zero.
-#[derive(Clone, Debug)]
-struct FactorInverse {
-    ell: DMatrix<f64>,
-    ell_transposed: DMatrix<f64>,
-    ell_times: DMatrix<f64>,
-    product: DMatrix<f64>,
-    /// Past each dof's link's last dof: ℓ's column c is zero from row
-    /// dof_end[c] on (a link's ancestors come first in the link order).
-    dof_end: Vec<usize>,
-    /// For each dof i, the columns where row i of ℓ may be nonzero (i's
-    /// link an ancestor-or-self of theirs): from i's link's first dof on.
-    row_ranges: Vec<std::ops::Range<usize>>,
-}
+/// Columns taken together by [`FactorPasses`]: independent sums enough to
+/// hide the latency of each path's chain of sums, few enough for a link's
+/// six rows to stay in the first-level cache.
+const LANES: usize = 8;
+/// A row of a block: its columns, in 4-wide vectors (`wide`: explicit
+/// SIMD, which the compiler did not find in plain loops over the columns).
+type Lanes = [f64x4; LANES / 4];
+const ZERO_LANES: Lanes = [f64x4::ZERO; LANES / 4];
 
-impl FactorInverse {
-    /// M⁻¹t = ℓᵀ(ℓt) for t (nv × nv), each product over ℓ's nonzero part
-    /// only; the rows past nv are padding.
-    fn times_mass_inverse(&mut self, t: &DMatrix<f64>) -> &DMatrix<f64> {
-        multiply(&self.ell, t, &mut self.ell_times, |first_row| self.row_ranges[first_row].clone());
-        multiply_by_ell_transposed(self);
-        &self.product
-    }
-}
-
-/// `product` = ℓᵀ `ell_times`: ℓᵀ's row i is zero past i's link's last dof.
-fn multiply_by_ell_transposed(factor: &mut FactorInverse) {
-    let nv = factor.dof_end.len();
-    let last_row = |first_row: usize| (first_row + BLOCK_ROWS).min(nv) - 1;
-    let ends = &factor.dof_end;
-    multiply(&factor.ell_transposed, &factor.ell_times, &mut factor.product, |first_row| 0..ends[last_row(first_row)]);
-}
-
-/// Rows of a block of [`multiply`]'s product.
-const BLOCK_ROWS: usize = 8;
-
-/// out = a b, with `a` and `out` padded to whole blocks of rows and
-/// `a`'s columns as many as `b`'s rows; the rows of `a` from `first_row`
-/// on (a block's) are zero outside the columns `k_range(first_row)`. By
-/// blocks of out (BLOCK_ROWS × 2) held in registers over the whole sum:
-/// eight 2-wide registers, which x86-64's baseline SSE2 has room for beside
-/// a's column and b's entries. Written out because nalgebra's `gemm` on
-/// dynamic matrices allocates its packing buffers, and forming W must not
-/// allocate (the FMU's step loop).
-fn multiply(
-    a: &DMatrix<f64>,
-    b: &DMatrix<f64>,
-    out: &mut DMatrix<f64>,
-    k_range: impl Fn(usize) -> std::ops::Range<usize>,
-) {
-    let (padded, m) = (a.nrows(), b.ncols());
-    for first_row in (0..padded).step_by(BLOCK_ROWS) {
-        let ks = k_range(first_row);
-        let mut j = 0;
-        while j + 2 <= m {
-            let [left, right] = product_block::<2>(a, b, first_row, j, ks.clone());
-            out.view_mut((first_row, j), (BLOCK_ROWS, 1)).copy_from_slice(&left);
-            out.view_mut((first_row, j + 1), (BLOCK_ROWS, 1)).copy_from_slice(&right);
-            j += 2;
-        }
-        if j < m {
-            let [last] = product_block::<1>(a, b, first_row, j, ks);
-            out.view_mut((first_row, j), (BLOCK_ROWS, 1)).copy_from_slice(&last);
-        }
-    }
-}
-
-/// Rows `first_row..first_row + BLOCK_ROWS` of (a b)'s columns
-/// `first_column..first_column + COLS`, summed over `ks`.
+/// acc += a x, column by column.
 #[inline(always)]
-fn product_block<const COLS: usize>(
-    a: &DMatrix<f64>,
-    b: &DMatrix<f64>,
-    first_row: usize,
-    first_column: usize,
-    ks: std::ops::Range<usize>,
-) -> [[f64; BLOCK_ROWS]; COLS] {
-    let mut sums = [[0.0; BLOCK_ROWS]; COLS];
-    let b_columns: [&[f64]; COLS] =
-        std::array::from_fn(|c| &b.as_slice()[(first_column + c) * b.nrows()..][ks.clone()]);
-    for (step, a_column) in a.as_slice().chunks_exact(a.nrows()).skip(ks.start).take(ks.len()).enumerate() {
-        let a_part: &[f64; BLOCK_ROWS] =
-            a_column[first_row..first_row + BLOCK_ROWS].try_into().expect("a whole block of rows");
-        for (sum, b_column) in sums.iter_mut().zip(&b_columns) {
-            let entry = b_column[step];
-            for (s, x) in sum.iter_mut().zip(a_part) {
-                *s += x * entry;
+fn add_scaled(acc: &mut Lanes, a: f64, x: &Lanes) {
+    let a = f64x4::splat(a);
+    for (s, v) in acc.iter_mut().zip(x) {
+        *s += a * *v;
+    }
+}
+
+/// The entry of `row` in column `w`.
+#[inline(always)]
+fn lane(row: &mut Lanes, w: usize) -> &mut f64 {
+    &mut row[w / 4].as_array_mut()[w % 4]
+}
+
+/// ℓ = m⁻¹ and ℓᵀ applied to a matrix by passes over the links, a block
+/// of [`LANES`] columns at a time: forces.rs's inward pass from joint
+/// forces to ε (ℓ) and its adjoint outward (ℓᵀ), both in world
+/// coordinates, where a link hands its sums to its parent without a
+/// transform. Per link i and column, ℓ:
+///
+///   u = t_i − S_iᵀ p_i,   (ℓt)_i = R_i⁻¹ u,   p_λ += p_i + G_i u;
+///
+/// ℓᵀ, base to tip, a_0 = 0:
+///
+///   (ℓᵀx)_i = R_i⁻ᵀ x_i + G_iᵀ a_λ,   a_i = a_λ − S_i (ℓᵀx)_i.
+///
+/// About 13 products per dof and column each, against a dense product's
+/// nv/2 per dof (a chain's ℓ is a full triangle).
+#[derive(Clone, Debug)]
+struct FactorPasses {
+    /// Each link's G (6 × its dofs) in world coordinates, and R⁻¹.
+    gain: Vec<LinkCols>,
+    r_inv: Vec<Mat3>,
+    /// Per link: the inward pass's p (its children's sums) and the
+    /// outward pass's a.
+    inward: Vec<[Lanes; 6]>,
+    /// Per link: whether it has children (else its p is zero, and its slot
+    /// is not read), and whether it is the first of its parent's children
+    /// the inward pass reaches (which writes the parent's p, the others add).
+    has_children: Vec<bool>,
+    first_child: Vec<bool>,
+    outward: Vec<[Lanes; 6]>,
+    /// Per dof, the block's rows: t, then ℓt, then ℓᵀℓt.
+    rows: Vec<Lanes>,
+}
+
+impl FactorPasses {
+    fn new(model: &Model) -> Self {
+        let n = model.links.len();
+        FactorPasses {
+            gain: vec![LinkCols::zeros(); n],
+            r_inv: vec![Mat3::zeros(); n],
+            inward: vec![[ZERO_LANES; 6]; n],
+            outward: vec![[ZERO_LANES; 6]; n],
+            rows: vec![ZERO_LANES; model.nv],
+            has_children: (0..n).map(|i| model.links.iter().any(|l| l.parent == Some(i))).collect(),
+            first_child: (0..n)
+                .map(|i| {
+                    model.links[i].parent.is_some_and(|p| !model.links[i + 1..].iter().any(|l| l.parent == Some(p)))
+                })
+                .collect(),
+        }
+    }
+
+    /// G in world coordinates and R⁻¹ from the passes at the point.
+    fn prepare(&mut self, model: &Model, ws: &Workspace) {
+        for (i, link) in model.links.iter().enumerate() {
+            for k in 0..link.ndof {
+                let column = ws.x_world[i].apply_transpose_force(&ws.gain[i].column(k).into_owned());
+                self.gain[i].set_column(k, &column);
+            }
+            self.r_inv[i] = ws.r_inv_joint[i];
+        }
+    }
+
+    /// `outs` = ℓᵀℓ `ts` = M⁻¹ `ts` (each pair nv × the same columns), or
+    /// ℓᵀ `ts` alone when `adjoint_only`; the pairs' columns taken as one
+    /// matrix's, so that small vehicles fill a block.
+    fn apply<const K: usize>(
+        &mut self,
+        model: &Model,
+        subspace: &[SpatialVec],
+        ts: [&DMatrix<f64>; K],
+        outs: [&mut DMatrix<f64>; K],
+        adjoint_only: bool,
+    ) {
+        let (nv, per) = ts[0].shape();
+        let columns = per * K;
+        for first in (0..columns).step_by(LANES) {
+            let width = LANES.min(columns - first);
+            for w in 0..LANES {
+                if w < width {
+                    let column = &ts[(first + w) / per].as_slice()[(first + w) % per * nv..][..nv];
+                    for (row, x) in self.rows.iter_mut().zip(column) {
+                        *lane(row, w) = *x;
+                    }
+                } else {
+                    self.rows.iter_mut().for_each(|row| *lane(row, w) = 0.0);
+                }
+            }
+            if !adjoint_only {
+                for i in (0..model.links.len()).rev() {
+                    match model.links[i].ndof {
+                        1 => self.inward_link::<1>(model, subspace, i),
+                        _ => self.inward_link::<3>(model, subspace, i),
+                    }
+                }
+            }
+            for i in 0..model.links.len() {
+                match model.links[i].ndof {
+                    1 => self.outward_link::<1>(model, subspace, i),
+                    _ => self.outward_link::<3>(model, subspace, i),
+                }
+            }
+            for w in 0..width {
+                let column = &mut outs[(first + w) / per].as_mut_slice()[(first + w) % per * nv..][..nv];
+                for (x, row) in column.iter_mut().zip(self.rows.iter_mut()) {
+                    *x = *lane(row, w);
+                }
             }
         }
     }
-    sums
+
+    /// ℓ's step at link i with N dofs.
+    #[inline(always)]
+    fn inward_link<const N: usize>(&mut self, model: &Model, subspace: &[SpatialVec], i: usize) {
+        let link = &model.links[i];
+        let adr = link.dof_adr;
+        let (before, from_i) = self.inward.split_at_mut(i);
+        let p = self.has_children[i].then_some(&from_i[0]);
+        let mut u = [ZERO_LANES; N];
+        for (d, u_d) in u.iter_mut().enumerate() {
+            *u_d = self.rows[adr + d];
+            if let Some(p) = p {
+                for (s, p_k) in subspace[adr + d].iter().zip(p) {
+                    add_scaled(u_d, -s, p_k);
+                }
+            }
+        }
+        for d in 0..N {
+            let mut e = ZERO_LANES;
+            for (c, u_c) in u.iter().enumerate() {
+                add_scaled(&mut e, self.r_inv[i][(d, c)], u_c);
+            }
+            self.rows[adr + d] = e;
+        }
+        let Some(parent) = link.parent else { return };
+        for (k, handed) in before[parent].iter_mut().enumerate() {
+            let mut sum = p.map_or(ZERO_LANES, |p| p[k]);
+            for (c, u_c) in u.iter().enumerate() {
+                add_scaled(&mut sum, self.gain[i][(k, c)], u_c);
+            }
+            if self.first_child[i] {
+                *handed = sum;
+            } else {
+                for (x, y) in handed.iter_mut().zip(&sum) {
+                    *x += *y;
+                }
+            }
+        }
+    }
+
+    /// ℓᵀ's step at link i with N dofs.
+    #[inline(always)]
+    fn outward_link<const N: usize>(&mut self, model: &Model, subspace: &[SpatialVec], i: usize) {
+        let link = &model.links[i];
+        let adr = link.dof_adr;
+        let (before, from_i) = self.outward.split_at_mut(i);
+        let a_parent = link.parent.map(|parent| &before[parent]);
+        let mut y = [ZERO_LANES; N];
+        for (d, y_d) in y.iter_mut().enumerate() {
+            for c in 0..N {
+                add_scaled(y_d, self.r_inv[i][(c, d)], &self.rows[adr + c]);
+            }
+            if let Some(a_parent) = a_parent {
+                for (k, a_k) in a_parent.iter().enumerate() {
+                    add_scaled(y_d, self.gain[i][(k, d)], a_k);
+                }
+            }
+        }
+        for (k, a_k) in from_i[0].iter_mut().enumerate() {
+            let mut sum = a_parent.map_or(ZERO_LANES, |a| a[k]);
+            for (d, y_d) in y.iter().enumerate() {
+                add_scaled(&mut sum, -subspace[adr + d][k], y_d);
+            }
+            *a_k = sum;
+        }
+        self.rows[adr..adr + N].copy_from_slice(&y);
+    }
 }
 
 /// The link's spatial inertia in world coordinates about the world origin,
