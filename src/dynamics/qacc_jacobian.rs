@@ -809,15 +809,23 @@ impl FactorPasses {
 
 /// The link's spatial inertia in world coordinates about the world origin,
 /// from its ten numbers (the congruence Xᵀ Y X for a rigid body): with E
-/// the link's rotation and r its origin (world), h = E ᵀh_link + m r and
-/// Ī = Eᵀ Ī_link E − ĥ′ r̂ − r̂ ĥ′ − m r̂ r̂ (h′ = Eᵀh_link, the parallel-axis shift).
+/// the link's rotation and r its origin (world), h = Eᵀh_link + m r and
+/// Ī = Eᵀ Ī_link E − ĥ′ r̂ − r̂ ĥ′ − m r̂ r̂ (h′ = Eᵀh_link, the parallel-axis
+/// shift), the last three terms by âb̂ = b aᵀ − (a·b) 1.
 fn world_inertia(link: &crate::model::Link, x: &crate::math::Transform) -> SpatialMat {
     let rotated_moment = x.rot.transpose() * link.mass_moment;
-    let (h, r) = (skew(&rotated_moment), skew(&x.trans));
-    let rotational = x.rot.transpose() * link.rotational_inertia * x.rot - h * r - r * h - r * r * link.mass;
-    let moment = skew(&(rotated_moment + x.trans * link.mass));
+    let r = &x.trans;
+    let rotated = x.rot.transpose() * link.rotational_inertia * x.rot;
+    let outer = r * rotated_moment.transpose();
+    let mut rotational =
+        (rotated + rotated.transpose()) * 0.5 - outer - outer.transpose() - r * r.transpose() * link.mass;
+    let diagonal = 2.0 * rotated_moment.dot(r) + link.mass * r.norm_squared();
+    for k in 0..3 {
+        rotational[(k, k)] += diagonal;
+    }
+    let moment = skew(&(rotated_moment + r * link.mass));
     let mut out = SpatialMat::zeros();
-    out.fixed_view_mut::<3, 3>(0, 0).copy_from(&((rotational + rotational.transpose()) * 0.5));
+    out.fixed_view_mut::<3, 3>(0, 0).copy_from(&rotational);
     out.fixed_view_mut::<3, 3>(0, 3).copy_from(&moment);
     out.fixed_view_mut::<3, 3>(3, 0).copy_from(&moment.transpose());
     out.fixed_view_mut::<3, 3>(3, 3).fill_with_identity();
@@ -828,21 +836,36 @@ fn world_inertia(link: &crate::model::Link, x: &crate::math::Transform) -> Spati
 /// 2B for inertia `y` at velocity `v` (`momentum` = Y v): the matrix of
 /// w ↦ v ×* Y w − Y (v × w) + w ×* Y v, the change of f = Y a + v ×* Y v
 /// with v along w when a changes by −v × w. As (v×)ᵀ = −v×*, the first two
-/// terms are P + Pᵀ with P = v ×* Y.
+/// terms are P + Pᵀ with P = v ×* Y, built from Y's blocks [Ī ĥ; ĥᵀ m]:
+/// with v = (ω, u), P = [ω̂Ī − ûĥ, ω̂ĥ + m û; −ω̂ĥ, m ω̂], where
+/// âĥ = h aᵀ − (a·h) 1.
 fn coriolis_matrix(y: &SpatialMat, v: &SpatialVec, momentum: &SpatialVec) -> SpatialMat {
-    let mut p = SpatialMat::zeros();
-    for c in 0..6 {
-        p.set_column(c, &cross_force(v, &y.column(c).into_owned()));
-    }
-    let mut out = p + p.transpose();
-    // w ×* h = (w_ang × h_ang + w_lin × h_lin, w_ang × h_lin) = [−h_ang× −h_lin×; −h_lin× 0] w.
-    let (h_ang, h_lin) = (skew(&angular(momentum)), skew(&linear(momentum)));
-    let mut block_at = |row: usize, col: usize, m: &nalgebra::Matrix3<f64>| {
-        let mut view = out.fixed_view_mut::<3, 3>(row, col);
-        view -= m;
+    let (omega, u) = (angular(v), linear(v));
+    let rotational = y.fixed_view::<3, 3>(0, 0);
+    let h = Vec3::new(y[(2, 4)], y[(0, 5)], y[(1, 3)]);
+    let mass = y[(3, 3)];
+    let skew_product = |a: &Vec3| {
+        let mut out = h * a.transpose();
+        let dot = a.dot(&h);
+        for k in 0..3 {
+            out[(k, k)] -= dot;
+        }
+        out
     };
-    block_at(0, 0, &h_ang);
-    block_at(0, 3, &h_lin);
-    block_at(3, 0, &h_lin);
+    let (omega_h, u_h) = (skew_product(&omega), skew_product(&u));
+    let mut omega_rotational = Mat3::zeros();
+    for k in 0..3 {
+        omega_rotational.set_column(k, &omega.cross(&rotational.column(k)));
+    }
+    let u_hat = skew(&u);
+    let top_left = omega_rotational - u_h;
+    let top_right = omega_h + u_hat * mass;
+    // P + Pᵀ by blocks, then w ×* h = [−ĥ_ang −ĥ_lin; −ĥ_lin 0] w.
+    let (h_ang, h_lin) = (skew(&angular(momentum)), skew(&linear(momentum)));
+    let mut out = SpatialMat::zeros();
+    out.fixed_view_mut::<3, 3>(0, 0).copy_from(&(top_left + top_left.transpose() - h_ang));
+    out.fixed_view_mut::<3, 3>(0, 3).copy_from(&(top_right - omega_h.transpose() - h_lin));
+    out.fixed_view_mut::<3, 3>(3, 0).copy_from(&(top_right.transpose() - omega_h - h_lin));
+    // m ω̂ + (m ω̂)ᵀ = 0.
     out
 }
