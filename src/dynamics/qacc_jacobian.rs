@@ -101,18 +101,16 @@ pub struct QaccJacobian {
     asked: DMatrix<f64>,
     identity: DMatrix<f64>,
     applied: AppliedEps,
-    /// The site actuators' wrenches, each link's in world coordinates, then
-    /// summed over its subtree.
-    site_force: Vec<SpatialVec>,
 }
 
 /// An applied ε as the joint forces T_ε = m(θ)ε it stands for: the
 /// inward pass of forces.rs gives T_ε,i = S_iᵀ Σ_{k in i's subtree} f_k with
 /// f_k = G_k R_k ε_k = U_k z_k (U = I^A S, z = R⁻ᵀε), a spatial force at
 /// each link, but for its own row, whose term is R_iε_i. Turning joint j
-/// along s turns the f_k of j's subtree with it
-/// (which changes only its ancestors' rows, by S_iᵀ(s ×* F^ε_j), F^ε_j the
-/// sum of those f), and changes the articulated inertia of each strict
+/// along s turns the f_k of j's subtree with it (which changes only its
+/// ancestors' rows, by S_iᵀ(s ×* F^ε_j), F^ε_j the sum of those f: taken
+/// with the inertial forces' turn, [`QaccJacobian::compute`]), and changes
+/// the articulated inertia of each strict
 /// ancestor k by δI^A_λ(j) = s ×* I^a_j − I^a_j s× and then
 /// δI^A_λ(k) = P_k δI^A_k P_kᵀ (P = 1 − G Sᵀ), so its f_k by
 /// δU z + U δz, with δD = SᵀδI^A S, δR = R Φ(R⁻¹δD R⁻ᵀ) (bias.rs's Φ) and
@@ -122,14 +120,14 @@ pub struct QaccJacobian {
 /// parent. World coordinates, per link.
 #[derive(Clone, Debug)]
 struct AppliedEps {
-    /// I^a (a link's share of its parent's I^A), G, U, R and z.
+    /// I^a (a link's share of its parent's I^A), U, R and z (G is
+    /// [`FactorPasses`]'s).
     reduced_inertia: Vec<SpatialMat>,
-    gain: Vec<LinkCols>,
     joint_force: Vec<LinkCols>,
     r: Vec<Mat3>,
     z: Vec<Vec3>,
-    /// F^ε: the sum of f over each link's subtree.
-    subtree_force: Vec<SpatialVec>,
+    /// f at each link.
+    link_force: Vec<SpatialVec>,
 }
 
 impl QaccJacobian {
@@ -140,7 +138,7 @@ impl QaccJacobian {
         // Actuators without activation states on hinges and slides, whose
         // forces are functions of one dof's θ and θ̇ (joint_actuator_slopes),
         // and on sites with a force that reads neither length nor velocity
-        // (thrusters: a wrench fixed in its body, add_site_force_derivatives).
+        // (thrusters: a wrench fixed in its body, turning with it: compute).
         let covered = |a: &Actuator| {
             let constant = (a.gain_type == GainType::Fixed || a.gain[1..] == [0.0, 0.0])
                 && (a.bias_type == BiasType::None || a.bias[1..] == [0.0, 0.0]);
@@ -197,13 +195,11 @@ impl QaccJacobian {
             identity: DMatrix::identity(nv, nv),
             applied: AppliedEps {
                 reduced_inertia: vec![SpatialMat::zeros(); n],
-                gain: vec![LinkCols::zeros(); n],
                 joint_force: vec![LinkCols::zeros(); n],
                 r: vec![Mat3::zeros(); n],
                 z: vec![Vec3::zeros(); n],
-                subtree_force: vec![SpatialVec::zeros(); n],
+                link_force: vec![SpatialVec::zeros(); n],
             },
-            site_force: vec![SpatialVec::zeros(); n],
         })
     }
 
@@ -238,7 +234,24 @@ impl QaccJacobian {
             ws.compute_qacc_actuated(model, &self.eps_of_torque, ctrl)?;
         }
         ws.world_transforms(model);
+        self.factor.prepare(model, &self.ws);
         self.outward_sweep(model);
+        // Forces applied at the links and turning with them (site
+        // actuators' wrenches fixed in their bodies, ε's f): turning joint j
+        // turns those of j's subtree, which changes j's strict ancestors'
+        // rows by S_iᵀ(s ×* F^applied_j), as the inertial forces' turn
+        // does with the opposite sign; so they come off F before its sums.
+        if self.ws.actuators_apply_wrenches {
+            for (i, force) in self.force.iter_mut().enumerate() {
+                *force -= self.ws.x_world[i].apply_transpose_force(&self.ws.link_wrench[i]);
+            }
+        }
+        if applied_eps {
+            self.applied.prepare(model, &self.ws, &self.factor.gain, eps);
+            for (force, applied) in self.force.iter_mut().zip(&self.applied.link_force) {
+                *force -= applied;
+            }
+        }
         self.inward_sweep(model);
         self.torque_derivatives(model);
         for (k, actuator) in model.actuators.iter().enumerate() {
@@ -248,14 +261,9 @@ impl QaccJacobian {
                 self.torque_by_qvel[(dof, dof)] += slopes.by_velocity;
             }
         }
-        if self.ws.actuators_apply_wrenches {
-            self.add_site_force_derivatives(model);
-        }
         if applied_eps {
-            self.applied.prepare(model, &self.ws, eps);
-            self.applied.add_derivatives(model, &self.subspace, &mut self.torque_by_delta);
+            self.applied.add_derivatives(model, &self.subspace, &self.factor.gain, &mut self.torque_by_delta);
         }
-        self.factor.prepare(model, &self.ws);
         let ts = [&self.torque_by_delta, &self.torque_by_qvel];
         self.factor.apply(model, &self.subspace, ts, [by_delta, by_qvel], false);
         Ok(())
@@ -285,36 +293,6 @@ impl QaccJacobian {
             }
         }
         out
-    }
-
-    /// The derivative of the site actuators' joint forces: each is a wrench
-    /// fixed in its body, so turning joint j turns those of j's subtree with
-    /// it, which changes only j's strict ancestors' rows, by
-    /// S_iᵀ(s ×* F^site_j), F^site_j their sum (world coordinates); as
-    /// with ε's forces in [`AppliedEps`].
-    fn add_site_force_derivatives(&mut self, model: &Model) {
-        for i in 0..model.links.len() {
-            self.site_force[i] = self.ws.x_world[i].apply_transpose_force(&self.ws.link_wrench[i]);
-        }
-        for i in (0..model.links.len()).rev() {
-            if let Some(p) = model.links[i].parent {
-                let child_force = self.site_force[i];
-                self.site_force[p] += child_force;
-            }
-        }
-        for (j, link) in model.links.iter().enumerate() {
-            for column in link.dof_adr..link.dof_adr + link.ndof {
-                let turned = cross_force(&self.subspace[column], &self.site_force[j]);
-                let mut ancestor = link.parent;
-                while let Some(i) = ancestor {
-                    let ancestor_link = &model.links[i];
-                    for row in ancestor_link.dof_adr..ancestor_link.dof_adr + ancestor_link.ndof {
-                        self.torque_by_delta[(row, column)] += self.subspace[row].dot(&turned);
-                    }
-                    ancestor = ancestor_link.parent;
-                }
-            }
-        }
     }
 
     /// ℓ* = ℓᵀ at the last [`QaccJacobian::compute`]'s θ: ∂θ̈/∂ε.
@@ -495,36 +473,25 @@ fn site_force_per_ctrl(model: &Model, actuator: &Actuator, ctrl: f64) -> Option<
 }
 
 impl AppliedEps {
-    /// Each link's world I^a, G, U, R and z, and F^ε over its subtree, for `eps`.
-    fn prepare(&mut self, model: &Model, ws: &Workspace, eps: &[f64]) {
+    /// Each link's world I^a, U, R, z and f for `eps`, given the world G.
+    fn prepare(&mut self, model: &Model, ws: &Workspace, gain: &[LinkCols], eps: &[f64]) {
         for (i, link) in model.links.iter().enumerate() {
             match link.ndof {
-                1 => self.prepare_link::<1>(model, ws, i, eps),
-                _ => self.prepare_link::<3>(model, ws, i, eps),
-            }
-        }
-        for i in (0..model.links.len()).rev() {
-            if let Some(p) = model.links[i].parent {
-                let child_force = self.subtree_force[i];
-                self.subtree_force[p] += child_force;
+                1 => self.prepare_link::<1>(model, ws, &gain[i], i, eps),
+                _ => self.prepare_link::<3>(model, ws, &gain[i], i, eps),
             }
         }
     }
 
-    /// [`AppliedEps::prepare`] for link i with N dofs, f but not F^ε.
-    fn prepare_link<const N: usize>(&mut self, model: &Model, ws: &Workspace, i: usize, eps: &[f64]) {
+    /// [`AppliedEps::prepare`] for link i with N dofs.
+    fn prepare_link<const N: usize>(&mut self, model: &Model, ws: &Workspace, gain: &LinkCols, i: usize, eps: &[f64]) {
         let (link, x) = (&model.links[i], &ws.x_world[i]);
         let r = block::<_, N>(&ws.r_joint[i]);
-        let mut gain = LinkCols::zeros();
-        for k in 0..N {
-            gain.set_column(k, &x.apply_transpose_force(&ws.gain[i].column(k).into_owned()));
-        }
-        let gain_n = cols::<_, N>(&gain);
+        let gain_n = cols::<_, N>(gain);
         let e = SVector::<f64, N>::from_column_slice(&eps[link.dof_adr..link.dof_adr + N]);
         let z = block::<_, N>(&ws.r_inv_joint[i]).transpose() * e;
         let joint_force = gain_n * (r * r.transpose());
-        self.subtree_force[i] = gain_n * (r * e);
-        self.gain[i] = gain;
+        self.link_force[i] = gain_n * (r * e);
         self.joint_force[i].fixed_columns_mut::<N>(0).copy_from(&joint_force);
         self.r[i].fixed_view_mut::<N, N>(0, 0).copy_from(&r);
         self.z[i].fixed_rows_mut::<N>(0).copy_from(&z);
@@ -535,7 +502,7 @@ impl AppliedEps {
 
     /// Adds ∂T_ε/∂Δ to `by_delta`, column by column: each dof's walk up its
     /// link's ancestors.
-    fn add_derivatives(&self, model: &Model, subspace: &[SpatialVec], by_delta: &mut DMatrix<f64>) {
+    fn add_derivatives(&self, model: &Model, subspace: &[SpatialVec], gain: &[LinkCols], by_delta: &mut DMatrix<f64>) {
         for (j, link) in model.links.iter().enumerate() {
             let Some(parent) = link.parent else { continue };
             for column in link.dof_adr..link.dof_adr + link.ndof {
@@ -546,7 +513,6 @@ impl AppliedEps {
                 }
                 // δI^A of j's parent: s ×* I^a_j − I^a_j s× = turned + turnedᵀ.
                 let mut inertia_change = turned + turned.transpose();
-                let turned_force = cross_force(s, &self.subtree_force[j]);
                 let mut force_changes = SpatialVec::zeros();
                 let mut ancestor = Some(parent);
                 while let Some(k) = ancestor {
@@ -557,16 +523,15 @@ impl AppliedEps {
                         _ => self.force_change::<3>(k, subspace_k, &inertia_change),
                     };
                     // k's own row takes its own term as δ(Rε), the others' f through S.
-                    let row_force = turned_force + force_changes;
                     for (r, s_k) in subspace_k.iter().enumerate() {
-                        by_delta[(ancestor_link.dof_adr + r, column)] += s_k.dot(&row_force) + own_change[r];
+                        by_delta[(ancestor_link.dof_adr + r, column)] += s_k.dot(&force_changes) + own_change[r];
                     }
                     force_changes += force_change;
                     ancestor = ancestor_link.parent;
                     if ancestor.is_some() {
                         inertia_change = match ancestor_link.ndof {
-                            1 => self.project::<1>(k, subspace_k, &inertia_change),
-                            _ => self.project::<3>(k, subspace_k, &inertia_change),
+                            1 => project::<1>(&gain[k], subspace_k, &inertia_change),
+                            _ => project::<3>(&gain[k], subspace_k, &inertia_change),
                         };
                     }
                 }
@@ -597,13 +562,14 @@ impl AppliedEps {
         own_change.fixed_rows_mut::<N>(0).copy_from(&own);
         (joint_force_change * z + cols::<_, N>(&self.joint_force[k]) * z_change, own_change)
     }
+}
 
-    /// P δI^A Pᵀ, P = 1 − G Sᵀ: link k's change handed to its parent.
-    fn project<const N: usize>(&self, k: usize, subspace: &[SpatialVec], change: &SpatialMat) -> SpatialMat {
-        let s = SMatrix::<f64, 6, N>::from_fn(|row, col| subspace[col][row]);
-        let p = SpatialMat::identity() - cols::<_, N>(&self.gain[k]) * s.transpose();
-        p * change * p.transpose()
-    }
+/// P δI^A Pᵀ, P = 1 − G Sᵀ: a link's change (its world G and S) handed to its parent.
+#[inline(always)]
+fn project<const N: usize>(gain: &LinkCols, subspace: &[SpatialVec], change: &SpatialMat) -> SpatialMat {
+    let s = SMatrix::<f64, 6, N>::from_fn(|row, col| subspace[col][row]);
+    let p = SpatialMat::identity() - cols::<_, N>(gain) * s.transpose();
+    p * change * p.transpose()
 }
 
 /// Columns taken together by [`FactorPasses`]: independent sums enough to
