@@ -581,11 +581,11 @@ const LANES: usize = 8;
 type Lanes = [f64x4; LANES / 4];
 const ZERO_LANES: Lanes = [f64x4::ZERO; LANES / 4];
 
-/// acc += a x, column by column.
+/// acc += a x over the first W vectors of a row (a block of 4·W columns).
 #[inline(always)]
-fn add_scaled(acc: &mut Lanes, a: f64, x: &Lanes) {
+fn add_scaled<const W: usize>(acc: &mut Lanes, a: f64, x: &Lanes) {
     let a = f64x4::splat(a);
-    for (s, v) in acc.iter_mut().zip(x) {
+    for (s, v) in acc.iter_mut().zip(x).take(W) {
         *s += a * *v;
     }
 }
@@ -682,19 +682,10 @@ impl FactorPasses {
                     self.rows.iter_mut().for_each(|row| *lane(row, w) = 0.0);
                 }
             }
-            if !adjoint_only {
-                for i in (0..model.links.len()).rev() {
-                    match model.links[i].ndof {
-                        1 => self.inward_link::<1>(model, subspace, i),
-                        _ => self.inward_link::<3>(model, subspace, i),
-                    }
-                }
-            }
-            for i in 0..model.links.len() {
-                match model.links[i].ndof {
-                    1 => self.outward_link::<1>(model, subspace, i),
-                    _ => self.outward_link::<3>(model, subspace, i),
-                }
+            // A last block of at most four columns takes half the work.
+            match width {
+                5.. => self.passes::<{ LANES / 4 }>(model, subspace, adjoint_only),
+                _ => self.passes::<1>(model, subspace, adjoint_only),
             }
             for w in 0..width {
                 let column = &mut outs[(first + w) / per].as_mut_slice()[(first + w) % per * nv..][..nv];
@@ -705,9 +696,28 @@ impl FactorPasses {
         }
     }
 
+    /// ℓ (unless `adjoint_only`), then ℓᵀ, on the block's first 4·W columns.
+    #[inline(always)]
+    fn passes<const W: usize>(&mut self, model: &Model, subspace: &[SpatialVec], adjoint_only: bool) {
+        if !adjoint_only {
+            for i in (0..model.links.len()).rev() {
+                match model.links[i].ndof {
+                    1 => self.inward_link::<1, W>(model, subspace, i),
+                    _ => self.inward_link::<3, W>(model, subspace, i),
+                }
+            }
+        }
+        for i in 0..model.links.len() {
+            match model.links[i].ndof {
+                1 => self.outward_link::<1, W>(model, subspace, i),
+                _ => self.outward_link::<3, W>(model, subspace, i),
+            }
+        }
+    }
+
     /// ℓ's step at link i with N dofs.
     #[inline(always)]
-    fn inward_link<const N: usize>(&mut self, model: &Model, subspace: &[SpatialVec], i: usize) {
+    fn inward_link<const N: usize, const W: usize>(&mut self, model: &Model, subspace: &[SpatialVec], i: usize) {
         let link = &model.links[i];
         let adr = link.dof_adr;
         let (before, from_i) = self.inward.split_at_mut(i);
@@ -717,14 +727,14 @@ impl FactorPasses {
             *u_d = self.rows[adr + d];
             if let Some(p) = p {
                 for (s, p_k) in subspace[adr + d].iter().zip(p) {
-                    add_scaled(u_d, -s, p_k);
+                    add_scaled::<W>(u_d, -s, p_k);
                 }
             }
         }
         for d in 0..N {
             let mut e = ZERO_LANES;
             for (c, u_c) in u.iter().enumerate() {
-                add_scaled(&mut e, self.r_inv[i][(d, c)], u_c);
+                add_scaled::<W>(&mut e, self.r_inv[i][(d, c)], u_c);
             }
             self.rows[adr + d] = e;
         }
@@ -732,12 +742,12 @@ impl FactorPasses {
         for (k, handed) in before[parent].iter_mut().enumerate() {
             let mut sum = p.map_or(ZERO_LANES, |p| p[k]);
             for (c, u_c) in u.iter().enumerate() {
-                add_scaled(&mut sum, self.gain[i][(k, c)], u_c);
+                add_scaled::<W>(&mut sum, self.gain[i][(k, c)], u_c);
             }
             if self.first_child[i] {
                 *handed = sum;
             } else {
-                for (x, y) in handed.iter_mut().zip(&sum) {
+                for (x, y) in handed.iter_mut().zip(&sum).take(W) {
                     *x += *y;
                 }
             }
@@ -746,7 +756,7 @@ impl FactorPasses {
 
     /// ℓᵀ's step at link i with N dofs.
     #[inline(always)]
-    fn outward_link<const N: usize>(&mut self, model: &Model, subspace: &[SpatialVec], i: usize) {
+    fn outward_link<const N: usize, const W: usize>(&mut self, model: &Model, subspace: &[SpatialVec], i: usize) {
         let link = &model.links[i];
         let adr = link.dof_adr;
         let (before, from_i) = self.outward.split_at_mut(i);
@@ -754,18 +764,18 @@ impl FactorPasses {
         let mut y = [ZERO_LANES; N];
         for (d, y_d) in y.iter_mut().enumerate() {
             for c in 0..N {
-                add_scaled(y_d, self.r_inv[i][(c, d)], &self.rows[adr + c]);
+                add_scaled::<W>(y_d, self.r_inv[i][(c, d)], &self.rows[adr + c]);
             }
             if let Some(a_parent) = a_parent {
                 for (k, a_k) in a_parent.iter().enumerate() {
-                    add_scaled(y_d, self.gain[i][(k, d)], a_k);
+                    add_scaled::<W>(y_d, self.gain[i][(k, d)], a_k);
                 }
             }
         }
         for (k, a_k) in from_i[0].iter_mut().enumerate() {
             let mut sum = a_parent.map_or(ZERO_LANES, |a| a[k]);
             for (d, y_d) in y.iter().enumerate() {
-                add_scaled(&mut sum, -subspace[adr + d][k], y_d);
+                add_scaled::<W>(&mut sum, -subspace[adr + d][k], y_d);
             }
             *a_k = sum;
         }
