@@ -316,7 +316,7 @@ pub(crate) fn clamped_ctrl<S: Real>(actuator: &Actuator, clamp_ctrl: bool, ctrl:
 /// input being the clamped ctrl, or the activation the force reads
 /// ([`Workspace::actuator_input`]); a disabled group gives 0
 /// ([`clamp_force`] still clamps it).
-fn unclamped_force<S: Real>(actuator: &Actuator, input: S, length: S, velocity: S) -> S {
+pub(super) fn unclamped_force<S: Real>(actuator: &Actuator, input: S, length: S, velocity: S) -> S {
     let mut force = S::zero();
     if actuator.enabled {
         let [g0, g1, g2] = actuator.gain;
@@ -339,7 +339,7 @@ fn unclamped_force<S: Real>(actuator: &Actuator, input: S, length: S, velocity: 
 }
 
 /// The actuator's force clamped to its `forcerange`.
-fn clamp_force<S: Real>(actuator: &Actuator, force: S) -> S {
+pub(super) fn clamp_force<S: Real>(actuator: &Actuator, force: S) -> S {
     match actuator.force_range {
         Some([low, high]) => clip(force, low, high),
         None => force,

@@ -54,8 +54,10 @@
 //! those models.
 
 use nalgebra::{DMatrix, SMatrix, SVector};
+use num_dual::Dual64;
 use wide::f64x4;
 
+use super::actuation;
 use super::articulated::upper_triangular_inverse;
 use super::bias::upper_half;
 use super::derivatives::DerivativeError;
@@ -412,9 +414,20 @@ struct JointActuatorSlopes {
     by_ctrl: f64,
 }
 
-/// A joint actuator's slopes and its dof (None when its force is off):
-/// force = gain(l, v)·ctrl + bias(l, v), l = gear·θ, v = gear·θ̇, on the dof
-/// times gear (actuation.rs's `unclamped_force`, `clamp_force`).
+/// An actuator's force per unit of ctrl, length and velocity: actuation.rs's
+/// force law and clamps in dual numbers, seeded in each in turn.
+fn force_slopes(model: &Model, actuator: &Actuator, ctrl: f64, length: f64, velocity: f64) -> [f64; 3] {
+    std::array::from_fn(|seeded| {
+        let at = |value: f64, k: usize| Dual64::new(value, if k == seeded { 1.0 } else { 0.0 });
+        let input = actuation::clamped_ctrl(actuator, model.actuation.clamp_ctrl, at(ctrl, 0));
+        actuation::clamp_force(actuator, actuation::unclamped_force(actuator, input, at(length, 1), at(velocity, 2)))
+            .eps
+    })
+}
+
+/// A joint actuator's slopes and its dof (None for another actuator or when
+/// actuation is off): its force on the dof is gear × the force of length
+/// gear·θ and velocity gear·θ̇.
 fn joint_actuator_slopes(
     model: &Model,
     actuator: &Actuator,
@@ -422,54 +435,27 @@ fn joint_actuator_slopes(
     ctrl: f64,
 ) -> Option<(usize, JointActuatorSlopes)> {
     let ActuatorTransmission::Scalar { dof, qpos } = actuator.transmission else { return None };
-    if !(model.actuation.enabled && actuator.enabled) {
+    if !model.actuation.enabled {
         return None;
     }
     let gear = actuator.gear[0];
-    let (length, velocity) = (gear * ws.theta[qpos], gear * ws.qvel[dof]);
-    let clamped_ctrl = super::actuation::clamped_ctrl(actuator, model.actuation.clamp_ctrl, ctrl);
-    let ctrl_slope = if clamped_ctrl == ctrl { 1.0 } else { 0.0 };
-    let [g0, g1, g2] = actuator.gain;
-    let (gain, gain_by_length, gain_by_velocity) = match actuator.gain_type {
-        GainType::Fixed => (g0, 0.0, 0.0),
-        GainType::Affine => (length * g1 + g0 + velocity * g2, g1, g2),
-    };
-    let [b0, b1, b2] = actuator.bias;
-    let (bias, bias_by_length, bias_by_velocity) = match actuator.bias_type {
-        BiasType::None => (0.0, 0.0, 0.0),
-        BiasType::Affine => (length * b1 + b0 + velocity * b2, b1, b2),
-    };
-    let force = gain * clamped_ctrl + bias;
-    let force_slope = match actuator.force_range {
-        Some([low, high]) if force < low || force > high => 0.0,
-        _ => 1.0,
-    };
-    let scale = force_slope * gear;
+    let [by_ctrl, by_length, by_velocity] =
+        force_slopes(model, actuator, ctrl, gear * ws.theta[qpos], gear * ws.qvel[dof]);
     Some((
         dof,
         JointActuatorSlopes {
-            by_length: scale * (gain_by_length * clamped_ctrl + bias_by_length) * gear,
-            by_velocity: scale * (gain_by_velocity * clamped_ctrl + bias_by_velocity) * gear,
-            by_ctrl: scale * gain * ctrl_slope,
+            by_length: gear * by_length * gear,
+            by_velocity: gear * by_velocity * gear,
+            by_ctrl: gear * by_ctrl,
         },
     ))
 }
 
-/// A site actuator's force per unit ctrl (None for another actuator or
-/// when its force is off): its gain where neither ctrl nor force is held
-/// by a clamp, else 0.
+/// A site actuator's force per unit ctrl (None for another actuator or when
+/// actuation is off); the covered ones read neither length nor velocity.
 fn site_force_per_ctrl(model: &Model, actuator: &Actuator, ctrl: f64) -> Option<f64> {
-    let on = model.actuation.enabled && actuator.enabled;
-    if !(on && matches!(actuator.transmission, ActuatorTransmission::Site { .. })) {
-        return None;
-    }
-    let clamped_ctrl = super::actuation::clamped_ctrl(actuator, model.actuation.clamp_ctrl, ctrl);
-    let force_held = actuator.force_range.is_some_and(|[low, high]| {
-        let force = actuator.gain[0] * clamped_ctrl
-            + if actuator.bias_type == BiasType::Affine { actuator.bias[0] } else { 0.0 };
-        force < low || force > high
-    });
-    Some(if clamped_ctrl == ctrl && !force_held { actuator.gain[0] } else { 0.0 })
+    let site = matches!(actuator.transmission, ActuatorTransmission::Site { .. });
+    (site && model.actuation.enabled).then(|| force_slopes(model, actuator, ctrl, 0.0, 0.0)[0])
 }
 
 impl AppliedEps {
