@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """The cost of θ̈'s Jacobian (issue 48's cost item) side by side with
 Pinocchio's analytic ABA derivatives and MuJoCo's finite-difference
-transition matrices, on the examples Pinocchio can model.
+transition matrices, on the examples Pinocchio can model (the servicer's
+rigid tree: nudyn's case carries its actuators at mid-range ctrl, which
+Pinocchio, given joint forces only, does not have).
 
 Per vehicle and round (rounds interleave the three tools, so that a slow
 spell of the shared machine falls on all of them): `nudyn-bench eval-cost`
@@ -39,7 +41,7 @@ from nudyn_validation.mujoco_reference import Reference  # noqa: E402
 from test_pinocchio import pinocchio_model, pinocchio_q  # noqa: E402
 
 BENCH = ROOT / "target" / "release" / "nudyn-bench"
-VEHICLES = ["bus_arm7", "fixed_rig", "flexible_boom", "chain60"]
+VEHICLES = ["bus_arm7", "servicer", "fixed_rig", "flexible_boom", "chain60"]
 NUDYN_CASES = {
     "closed_form": "nudyn θ̈ Jacobians in θ and θ̇ (closed form)",
     "dual_jacobian": "nudyn Jacobians of ν̇ (dual numbers)",

@@ -331,8 +331,8 @@ impl QaccJacobian {
             }
             let a = a_parent + cross_motion(&v_parent, &joint_velocity) + joint_acceleration;
             let y = world_inertia(link, x);
-            let momentum = y * v;
-            self.force[i] = y * a + cross_force(&v, &momentum);
+            let momentum = inertia_times(&y, &v);
+            self.force[i] = inertia_times(&y, &a) + cross_force(&v, &momentum);
             self.coriolis[i] = coriolis_matrix(&y, &v, &momentum);
             self.inertia[i] = y;
             self.velocity[i] = v;
@@ -362,11 +362,12 @@ impl QaccJacobian {
             let (inertia, coriolis) = (&self.inertia[k], &self.coriolis[k]);
             for d in link.dof_adr..link.dof_adr + link.ndof {
                 let s = &self.subspace[d];
-                self.inertia_s[d] = inertia * s;
-                self.coriolis_t_s[d] = coriolis.tr_mul(s);
-                self.ancestor_by_delta[d] =
-                    cross_force(s, &self.force[k]) + inertia * self.psi_ddot[d] + coriolis * self.psi_dot[d];
-                self.ancestor_by_qvel[d] = inertia * self.rate_terms[d] + coriolis * s;
+                self.inertia_s[d] = inertia_times(inertia, s);
+                self.coriolis_t_s[d] = coriolis_transpose_times(coriolis, s);
+                self.ancestor_by_delta[d] = cross_force(s, &self.force[k])
+                    + inertia_times(inertia, &self.psi_ddot[d])
+                    + coriolis_times(coriolis, &self.psi_dot[d]);
+                self.ancestor_by_qvel[d] = inertia_times(inertia, &self.rate_terms[d]) + coriolis_times(coriolis, s);
             }
         }
         let nv = model.nv;
@@ -793,6 +794,35 @@ fn world_inertia(link: &crate::model::Link, x: &crate::math::Transform) -> Spati
     out.fixed_view_mut::<3, 3>(3, 3).fill_with_identity();
     out.fixed_view_mut::<3, 3>(3, 3).scale_mut(link.mass);
     out
+}
+
+/// Y m for a spatial inertia Y = [Ī ĥ; ĥᵀ m1] (a body's, or a subtree's sum
+/// of them) from its blocks: (Ī ω + h × u, m u − h × ω) for m = (ω, u).
+#[inline(always)]
+fn inertia_times(y: &SpatialMat, motion: &SpatialVec) -> SpatialVec {
+    let h = Vec3::new(y[(2, 4)], y[(0, 5)], y[(1, 3)]);
+    let (omega, u) = (angular(motion), linear(motion));
+    spatial(&(y.fixed_view::<3, 3>(0, 0) * omega + h.cross(&u)), &(u * y[(3, 3)] - h.cross(&omega)))
+}
+
+/// 2B w, 2B's lower right block being zero ([`coriolis_matrix`]).
+#[inline(always)]
+fn coriolis_times(b: &SpatialMat, w: &SpatialVec) -> SpatialVec {
+    let (top, bottom) = (angular(w), linear(w));
+    spatial(
+        &(b.fixed_view::<3, 3>(0, 0) * top + b.fixed_view::<3, 3>(0, 3) * bottom),
+        &(b.fixed_view::<3, 3>(3, 0) * top),
+    )
+}
+
+/// (2B)ᵀ s, as [`coriolis_times`].
+#[inline(always)]
+fn coriolis_transpose_times(b: &SpatialMat, s: &SpatialVec) -> SpatialVec {
+    let (top, bottom) = (angular(s), linear(s));
+    spatial(
+        &(b.fixed_view::<3, 3>(0, 0).tr_mul(&top) + b.fixed_view::<3, 3>(3, 0).tr_mul(&bottom)),
+        &b.fixed_view::<3, 3>(0, 3).tr_mul(&top),
+    )
 }
 
 /// 2B for inertia `y` at velocity `v` (`momentum` = Y v): the matrix of
