@@ -1,15 +1,16 @@
 #!/usr/bin/env python3
 """ros34pw2 with each source of its W (issue 48, item 4), side by side in
 one `nudyn-bench` process per vehicle: the default (θ̈'s derivatives in
-closed form where they cover the vehicle and ε is zero, else forward
-differences), `exact` (closed form, else dual numbers) and `differences`;
+closed form where they cover the vehicle, else forward differences), `exact` (closed form, else dual numbers) and `differences`;
 steps, θ̈ evaluations, W formed, wall time (median of the repetitions) and
 the error against dop853 at 1e-13 (largest |x − x_ref| / (1 + |x_ref|)
 over θ, quaternions up to sign, and θ̇ at the 0.1 s points); and the cost
 of one W of each kind in ν̇ evaluations (`nudyn-bench eval-cost`, the
 cases timed interleaved).
 
-    .venv/bin/python scripts/bench_ros_jacobian.py [--repetitions 3] [--out FILE.json]
+    .venv/bin/python scripts/bench_ros_jacobian.py [--repetitions 3] [--out FILE.json] [VEHICLE ...]
+
+VEHICLE: damped_stiff_boom, servicer, docked_servicer, bus_arm7 (default: all).
 """
 
 import argparse
@@ -93,13 +94,18 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repetitions", type=int, default=3)
     parser.add_argument("--out", type=Path)
+    parser.add_argument("vehicles", nargs="*")
     args = parser.parse_args()
     results = []
     with tempfile.TemporaryDirectory() as work:
         work = Path(work)
-        vehicles = [boom_state(work), example_state("servicer", work), docked_state(work),
-                    example_state("bus_arm7", work)]
-        for name, path, state, model in vehicles:
+        vehicles = {"damped_stiff_boom": lambda: boom_state(work), "servicer": lambda: example_state("servicer", work),
+                    "docked_servicer": lambda: docked_state(work), "bus_arm7": lambda: example_state("bus_arm7", work)}
+        unknown = set(args.vehicles) - set(vehicles)
+        if unknown:
+            parser.error(f"unknown vehicles {sorted(unknown)}; known: {', '.join(vehicles)}")
+        for key in args.vehicles or list(vehicles):
+            name, path, state, model = vehicles[key]()
             costs = w_costs(path, state)
             closed_form = (f"{costs['closed_form_w_in_nu_dot']:.1f} ν̇" if np.isfinite(costs["closed_form_w_in_nu_dot"])
                            else "not covered")
