@@ -605,12 +605,12 @@ struct FactorPasses {
     /// Per link: the inward pass's p (its children's sums) and the
     /// outward pass's a.
     inward: Vec<[Lanes; 6]>,
+    outward: Vec<[Lanes; 6]>,
     /// Per link: whether it has children (else its p is zero, and its slot
     /// is not read), and whether it is the first of its parent's children
     /// the inward pass reaches (which writes the parent's p, the others add).
     has_children: Vec<bool>,
     first_child: Vec<bool>,
-    outward: Vec<[Lanes; 6]>,
     /// Per dof, the block's rows: t, then ℓt, then ℓᵀℓt.
     rows: Vec<Lanes>,
 }
@@ -618,18 +618,21 @@ struct FactorPasses {
 impl FactorPasses {
     fn new(model: &Model) -> Self {
         let n = model.links.len();
+        let (mut has_children, mut first_child) = (vec![false; n], vec![false; n]);
+        for i in (0..n).rev() {
+            if let Some(p) = model.links[i].parent {
+                first_child[i] = !has_children[p];
+                has_children[p] = true;
+            }
+        }
         FactorPasses {
             gain: vec![LinkCols::zeros(); n],
             r_inv: vec![Mat3::zeros(); n],
             inward: vec![[ZERO_LANES; 6]; n],
             outward: vec![[ZERO_LANES; 6]; n],
             rows: vec![ZERO_LANES; model.nv],
-            has_children: (0..n).map(|i| model.links.iter().any(|l| l.parent == Some(i))).collect(),
-            first_child: (0..n)
-                .map(|i| {
-                    model.links[i].parent.is_some_and(|p| !model.links[i + 1..].iter().any(|l| l.parent == Some(p)))
-                })
-                .collect(),
+            has_children,
+            first_child,
         }
     }
 
