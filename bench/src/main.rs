@@ -606,6 +606,8 @@ struct SimulateResult {
     jacobians: usize,
     /// Of those W, the ones formed from exact derivatives (closed form or dual numbers).
     exact_jacobians: usize,
+    /// Steps past a sample point taken again to end there, their interpolant refused.
+    refused_interpolants: usize,
     /// Why the run stopped early, if it did (then the samples end there).
     failed: Option<String>,
     /// With `auto`: the method it chose at the start and ended with, and its log messages.
@@ -654,6 +656,7 @@ fn simulate(
         evaluations: 0,
         jacobians: 0,
         exact_jacobians: 0,
+        refused_interpolants: 0,
         failed: None,
         chosen: None,
         ended_with: None,
@@ -681,6 +684,7 @@ fn simulate(
         let mut sim = start_run();
         result.choice.clear();
         let (mut accepted, mut rejected, mut evaluations, mut jacobians, mut exact_jacobians) = (0, 0, 0, 0, 0);
+        let mut refused_interpolants = 0;
         let start = Instant::now();
         for n in 0..intervals {
             let t = n as f64 * sample;
@@ -691,6 +695,7 @@ fn simulate(
                     evaluations += advanced.stats.evaluations;
                     jacobians += advanced.stats.jacobians;
                     exact_jacobians += advanced.stats.exact_jacobians;
+                    refused_interpolants += advanced.stats.refused_interpolants;
                     if let Some(choice) = advanced.chose {
                         result.chosen = Some(choice.method.name());
                         result.choice.push(choice.to_string());
@@ -713,6 +718,7 @@ fn simulate(
         result.ended_with = sim.state.auto_choice.map(|choice| choice.method.name());
         (result.accepted, result.rejected, result.evaluations, result.jacobians, result.exact_jacobians) =
             (accepted, rejected, evaluations, jacobians, exact_jacobians);
+        result.refused_interpolants = refused_interpolants;
     }
     if samples {
         for (n, (theta, nu)) in trajectory.iter().enumerate().take(reached + 1) {

@@ -21,7 +21,7 @@ const MAGIC: &[u8; 8] = b"nudynFMS";
 /// Version of the byte layout below, raised with every change to it; a blob
 /// of another version is refused (what each version added is in git's
 /// history).
-const VERSION: u32 = 12;
+const VERSION: u32 = 13;
 
 /// The values that determine the plant's future: what an FMU state saves.
 #[derive(Clone, Debug, PartialEq)]
@@ -393,7 +393,7 @@ struct ScalarField {
 
 /// The scalars before the vectors: times, settings and integration values.
 /// Appending a field changes the byte layout: raise [`VERSION`].
-const SCALAR_FIELDS: [ScalarField; 10] = [
+const SCALAR_FIELDS: [ScalarField; 12] = [
     ScalarField { name: "time", bound: Bound::Finite, get: |s| s.run.time, set: |s, x| s.run.time = x },
     ScalarField { name: "start_time", bound: Bound::Finite, get: |s| s.start_time, set: |s, x| s.start_time = x },
     // Checked even when not defined: the writer stores 0 then.
@@ -439,6 +439,18 @@ const SCALAR_FIELDS: [ScalarField; 10] = [
         bound: Bound::NonNegative,
         get: |s| s.run.carry.start_rates,
         set: |s, x| s.run.carry.start_rates = x,
+    },
+    ScalarField {
+        name: "reach from",
+        bound: Bound::Finite,
+        get: |s| s.run.carry.reach_from,
+        set: |s, x| s.run.carry.reach_from = x,
+    },
+    ScalarField {
+        name: "refusals",
+        bound: Bound::NonNegative,
+        get: |s| s.run.carry.refusals,
+        set: |s, x| s.run.carry.refusals = x,
     },
 ];
 
@@ -613,7 +625,14 @@ mod tests {
                     theta: vec![1.0, 0.0, 0.0, 0.0, std::f64::consts::PI],
                     nu: vec![1e-300, -0.0, 3.5, 7.25],
                     qvel: vec![2e-300, -0.0, 1.75, -0.5],
-                    carry: Carry { next_step: 2.5e-3, work: -0.75, relaxation: 3.0, start_rates: 42.5 },
+                    carry: Carry {
+                        next_step: 2.5e-3,
+                        work: -0.75,
+                        relaxation: 3.0,
+                        start_rates: 42.5,
+                        reach_from: 1.25,
+                        refusals: 2.0,
+                    },
                     auto_choice: None,
                     input: vec![0.5, 0.25, -1.0, 2.0, -2.5, 0.125],
                     input_constant: true,

@@ -11,7 +11,7 @@
 //! restored run continues bit for bit as the run that saved it.
 
 use super::rkmk::{clamp_activations, retract};
-use super::tableau::{DENSE_ROWS, nested};
+use super::tableau::{DENSE_ROWS, nested, nested_slope};
 use crate::model::Model;
 
 /// The last step of an advance, which ended past the communication point.
@@ -86,5 +86,15 @@ impl Reach {
         clamp_activations(model, &mut qvel[model.nv..]);
         let work = self.origin.len() - 1;
         self.origin[work] + at(nv + work)
+    }
+
+    /// The interpolant's θ̈ at time `t` within the step for dof `dof`: the
+    /// slope of its θ̇.
+    pub(super) fn qacc(&self, t: f64, dof: usize) -> f64 {
+        let s = (t - self.start) / self.step;
+        // A row holds Δ (nv), then θ̇, act and the work (`origin`'s length).
+        let width = self.rows.len() / DENSE_ROWS;
+        let nv = width - self.origin.len();
+        nested_slope(s, DENSE_ROWS, |row| self.rows[row * width + nv + dof]) / self.step
     }
 }

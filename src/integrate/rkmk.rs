@@ -633,6 +633,31 @@ impl Integrator {
         Ok(())
     }
 
+    /// How far the interpolant in `reach` (just formed) strays from the
+    /// motion, per unit of tolerance-free error: its defect, θ̇'s slope
+    /// against θ̈ evaluated on it, at the middle of the step, where an
+    /// interpolant tied to both ends strays most, times a quarter of the
+    /// step (the defect carried over the half step, weighted s(1 − s));
+    /// largest over the dofs relative to 1 + |θ̇|. One evaluation, which
+    /// leaves the stages, `first` and `end` as they were.
+    pub(super) fn interpolant_strays(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        reach: &Reach,
+        inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
+    ) -> Result<f64, DynamicsError> {
+        let t = reach.start + 0.5 * reach.step;
+        let (theta, qvel) = (self.theta_stage.as_mut_slice(), self.qvel_stage.as_mut_slice());
+        reach.interpolate(model, t, theta, qvel, self.dense_delta.as_mut_slice());
+        self.evaluate_stage(model, ws, t, inputs_at)?;
+        let qvel = &self.qvel_stage.as_slice()[..model.nv];
+        let defect = (ws.qacc.iter().zip(qvel).enumerate())
+            .map(|(dof, (qacc, rate))| (reach.qacc(t, dof) - qacc).abs() / (1.0 + rate.abs()))
+            .fold(0.0, f64::max);
+        Ok(0.25 * reach.step * defect)
+    }
+
     /// Evaluates the rates at the step's start (θ, θ̇, t) into `first`.
     pub(super) fn evaluate_start(
         &mut self,

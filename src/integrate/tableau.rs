@@ -126,6 +126,18 @@ pub fn nested(s: f64, rows: usize, row: impl Fn(usize) -> f64) -> f64 {
     (0..rows).rev().fold(0.0, |inner, j| (row(j) + inner) * if j % 2 == 0 { s } else { 1.0 - s })
 }
 
+/// The nested form's derivative in s at s, from its rows' values as in [`nested`].
+pub fn nested_slope(s: f64, rows: usize, row: impl Fn(usize) -> f64) -> f64 {
+    let (mut value, mut slope) = (0.0, 0.0);
+    for j in (0..rows).rev() {
+        let (factor, factor_slope) = if j % 2 == 0 { (s, 1.0) } else { (1.0 - s, -1.0) };
+        let inner = row(j) + value;
+        slope = slope * factor + inner * factor_slope;
+        value = inner * factor;
+    }
+    slope
+}
+
 /// The classical 4th-order Runge–Kutta method.
 pub const RK4: Tableau = Tableau {
     a: &[&[], &[0.5], &[0.0, 0.5], &[0.0, 0.0, 1.0]],
