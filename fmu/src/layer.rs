@@ -820,11 +820,25 @@ pub fn do_step(instance: &mut Instance, time: f64, step: f64, name: &str) -> Res
         }
     }
     if instance.logger.enabled(LogCategory::Calls) {
-        let nudyn::integrate::Stats { accepted, rejected, jacobians, exact_jacobians, evaluations, locating, .. } =
-            report.stats;
+        let nudyn::integrate::Stats {
+            accepted,
+            rejected,
+            jacobians,
+            exact_jacobians,
+            evaluations,
+            locating,
+            refused_interpolants,
+            ..
+        } = report.stats;
         let mut message = format!("{name}: {accepted} internal steps taken, {rejected} rejected");
         if locating > 0 {
             message += &format!(", {locating} attempted to locate constraint switches");
+        }
+        if refused_interpolants > 0 {
+            message += &format!(
+                ", {refused_interpolants} past the communication point taken again to end there \
+                 (their interpolant strayed from the motion)"
+            );
         }
         if jacobians > 0 {
             let by_differences = jacobians - exact_jacobians;
@@ -836,11 +850,19 @@ pub fn do_step(instance: &mut Instance, time: f64, step: f64, name: &str) -> Res
         instance.logger.log(Status::Ok, LogCategory::Calls, &message);
     }
     if instance.logger.enabled(LogCategory::StepStatistics) {
-        let nudyn::integrate::Stats { accepted, rejected, jacobians, exact_jacobians, evaluations, locating, .. } =
-            report.stats;
+        let nudyn::integrate::Stats {
+            accepted,
+            rejected,
+            jacobians,
+            exact_jacobians,
+            evaluations,
+            locating,
+            refused_interpolants,
+            ..
+        } = report.stats;
         let statistics = serde_json::json!({
             "accepted": accepted, "rejected": rejected, "jacobians": jacobians, "exact_jacobians": exact_jacobians,
-            "evaluations": evaluations, "locating": locating,
+            "evaluations": evaluations, "locating": locating, "refused_interpolants": refused_interpolants,
         });
         instance.logger.log(Status::Ok, LogCategory::StepStatistics, &statistics.to_string());
     }

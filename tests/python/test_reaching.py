@@ -70,3 +70,44 @@ def test_a_state_saved_inside_a_step_continues_bit_for_bit(method, advance, stat
         # The state holds the step reaching past t = 3 s: its blob is longer than a fresh one's.
         assert blob_size(running) > blob_size(fresh)
         assert_restores_bit_for_bit(running, fresh, advance, 30)
+
+
+@pytest.fixture(scope="module")
+def servicer(nudyn, tmp_path_factory):
+    """examples/servicer.xml's FMU, unpacked, and a start off its arm
+    servos' targets (ctrl 0), as tests/all/reaching.rs starts it."""
+    from nudyn_driver.cli import Nudyn
+    from nudyn_driver.package import FmuPackage
+
+    path = ROOT / "examples" / "servicer.xml"
+    work = tmp_path_factory.mktemp("servicer")
+    package = FmuPackage.unzip(Nudyn(nudyn).export(path, work / "servicer.fmu"), work / "servicer")
+    # The free bus (7 coordinates, 6 dofs), then three wheels and four arm joints.
+    qpos = np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0] + [0.4 * np.sin(1.3 * k) for k in range(6, 13)])
+    qvel = np.array([0.02, -0.01, 0.01, 0.05, -0.03, 0.04] + [0.2 * np.cos(0.7 * k) for k in range(6, 13)])
+    nu = Nudyn(nudyn).eval(path, {"theta": list(qpos), "qvel": list(qvel)})["nu"]
+    return package, qpos, nu
+
+
+def test_a_state_saved_while_steps_end_at_the_points_continues_bit_for_bit(servicer):
+    """The servicer's interpolants stray on its servos' fast modes: steps past
+    the points are refused, and the steps then end at the points for a
+    while (docs/integration.md). That pause (the refusals counted and the
+    time it ends) is part of the FMU state: a state saved during it
+    continues bit for bit, as the run that saved it, into a fresh instance."""
+    from nudyn_driver.instance import Instance
+
+    package, qpos, nu = servicer
+
+    def started():
+        return Instance(package, start={"method": "dop853", "tolerance": 1e-8}, theta=qpos, nu=nu, logging_on=True)
+
+    with started() as running, started() as fresh:
+        # To the doStep that refuses an interpolant (the 15th, today), so that the pause follows.
+        for _ in range(40):
+            held(running, 1)
+            if running.log.step_statistics()[-1]["refused_interpolants"] > 0:
+                break
+        else:
+            pytest.fail("no interpolant refused in 40 doSteps")
+        assert_restores_bit_for_bit(running, fresh, held, 30)
