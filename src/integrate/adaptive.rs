@@ -289,8 +289,8 @@ pub struct Stats {
     /// boundary or more).
     pub stability_held: usize,
     /// Steps past the communication point taken again to end there, as
-    /// their interpolant strayed from the motion by more than the
-    /// tolerance (reach.rs).
+    /// their interpolant strayed from the motion by more than
+    /// 3 × the tolerance (`STRAY_ALLOWANCE`; reach.rs).
     pub refused_interpolants: usize,
 }
 
@@ -727,16 +727,19 @@ impl Simulation {
                 if reaches {
                     let (start, work) = ((&theta[..], &qvel[..]), carry.work);
                     integrator.form_interpolant(model, ws, start, (t, step), work, inputs_at, reach).map_err(failed)?;
-                    if !crossed {
-                        let strays = integrator.interpolant_strays(model, ws, reach, inputs_at).map_err(failed)?;
-                        if strays > STRAY_ALLOWANCE * tolerance {
-                            // Its end is right, its inside is not (a fast damped mode, which
-                            // the interpolant follows far less closely than the end):
-                            // taken again to end at t1, the next ones too for a while.
-                            carry.refuse_interpolant(t0, t1);
-                            stats.refused_interpolants += 1;
-                            continue;
-                        }
+                    // An interpolated state where the rates cannot be evaluated (or are not
+                    // finite) is not trusted either.
+                    let trusted = crossed
+                        || integrator
+                            .interpolant_strays(model, ws, reach, inputs_at)
+                            .is_ok_and(|strays| strays <= STRAY_ALLOWANCE * tolerance);
+                    if !trusted {
+                        // Its end is right, its inside is not (a fast damped mode, which
+                        // the interpolant follows far less closely than the end):
+                        // taken again to end at t1, the next ones too for a while.
+                        carry.refuse_interpolant(t0, t1);
+                        stats.refused_interpolants += 1;
+                        continue;
                     }
                 }
                 if !crossed {

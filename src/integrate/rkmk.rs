@@ -634,8 +634,8 @@ impl Integrator {
     }
 
     /// How far the interpolant in `reach` (just formed) strays from the
-    /// motion, per unit of tolerance-free error: its defect, θ̇'s slope
-    /// against θ̈ evaluated on it, at the middle of the step, where an
+    /// motion, an estimate to set against the tolerance: its defect, θ̇'s
+    /// slope against θ̈ evaluated on it, at the middle of the step, where an
     /// interpolant tied to both ends strays most, times a quarter of the
     /// step (the defect carried over the half step, weighted s(1 − s));
     /// largest over the dofs relative to 1 + |θ̇|. One evaluation, which

@@ -844,6 +844,21 @@ mod tests {
 
     use super::*;
 
+    /// The nested form's slope, against central differences of its value.
+    #[test]
+    fn the_nested_slope_is_the_derivative_of_the_nested_form() {
+        let rows = [0.7, -1.3, 2.1, 0.4, -0.9, 1.6, -0.2];
+        for n in 1..=rows.len() {
+            for s in [0.0, 0.1, 0.5, 0.83, 1.0] {
+                let h = 1e-6;
+                let value = |s: f64| nested(s, n, |j| rows[j]);
+                let differenced = (value(s + h) - value(s - h)) / (2.0 * h);
+                let slope = nested_slope(s, n, |j| rows[j]);
+                assert!((slope - differenced).abs() < 1e-8, "{n} rows at {s}: {slope} against {differenced}");
+            }
+        }
+    }
+
     /// Row sums of a equal c, and the weights of the solution and of every
     /// estimator sum to 1 and 0: the first consistency conditions, which
     /// catch a mistyped coefficient in most rows.
