@@ -819,17 +819,17 @@ pub fn do_step(instance: &mut Instance, time: f64, step: f64, name: &str) -> Res
             instance.logger.log(Status::Ok, LogCategory::MethodChoice, &format!("{name}: {held}"));
         }
     }
+    let nudyn::integrate::Stats {
+        accepted,
+        rejected,
+        jacobians,
+        exact_jacobians,
+        evaluations,
+        locating,
+        refused_interpolants,
+        ..
+    } = report.stats;
     if instance.logger.enabled(LogCategory::Calls) {
-        let nudyn::integrate::Stats {
-            accepted,
-            rejected,
-            jacobians,
-            exact_jacobians,
-            evaluations,
-            locating,
-            refused_interpolants,
-            ..
-        } = report.stats;
         let mut message = format!("{name}: {accepted} internal steps taken, {rejected} rejected");
         if locating > 0 {
             message += &format!(", {locating} attempted to locate constraint switches");
@@ -850,16 +850,6 @@ pub fn do_step(instance: &mut Instance, time: f64, step: f64, name: &str) -> Res
         instance.logger.log(Status::Ok, LogCategory::Calls, &message);
     }
     if instance.logger.enabled(LogCategory::StepStatistics) {
-        let nudyn::integrate::Stats {
-            accepted,
-            rejected,
-            jacobians,
-            exact_jacobians,
-            evaluations,
-            locating,
-            refused_interpolants,
-            ..
-        } = report.stats;
         let statistics = serde_json::json!({
             "accepted": accepted, "rejected": rejected, "jacobians": jacobians, "exact_jacobians": exact_jacobians,
             "evaluations": evaluations, "locating": locating, "refused_interpolants": refused_interpolants,
