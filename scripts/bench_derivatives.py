@@ -3,7 +3,9 @@
 Pinocchio's analytic ABA derivatives and MuJoCo's finite-difference
 transition matrices, on the examples Pinocchio can model (the servicer's
 rigid tree: nudyn's case carries its actuators at mid-range ctrl, which
-Pinocchio, given joint forces only, does not have).
+Pinocchio, given joint forces only, does not have; `servicer_unactuated`
+is the same file with its <actuator> element removed, the same vehicle
+on both sides).
 
 Per vehicle and round (rounds interleave the three tools, so that a slow
 spell of the shared machine falls on all of them): `nudyn-bench eval-cost`
@@ -21,6 +23,7 @@ median over the rounds is reported.
 
 import argparse
 import json
+import re
 import statistics
 import subprocess
 import sys
@@ -41,7 +44,8 @@ from nudyn_validation.mujoco_reference import Reference  # noqa: E402
 from test_pinocchio import pinocchio_model, pinocchio_q  # noqa: E402
 
 BENCH = ROOT / "target" / "release" / "nudyn-bench"
-VEHICLES = ["bus_arm7", "servicer", "fixed_rig", "flexible_boom", "chain60"]
+VEHICLES = ["bus_arm7", "servicer", "servicer_unactuated", "fixed_rig", "flexible_boom", "chain60"]
+UNACTUATED = "_unactuated"
 NUDYN_CASES = {
     "closed_form": "nudyn θ̈ Jacobians in θ and θ̇ (closed form)",
     "dual_jacobian": "nudyn Jacobians of ν̇ (dual numbers)",
@@ -69,6 +73,16 @@ def nudyn_costs(path: Path, state: Path) -> dict:
     return {key: float(np.median(result["nanoseconds"][name])) / 1e3 for key, name in NUDYN_CASES.items()}
 
 
+def vehicle_path(name: str, work: Path) -> Path:
+    """The example's MJCF file; for NAME_unactuated, a copy of NAME's without its <actuator> element."""
+    if not name.endswith(UNACTUATED):
+        return ROOT / "examples" / f"{name}.xml"
+    text = (ROOT / "examples" / f"{name.removesuffix(UNACTUATED)}.xml").read_text()
+    path = work / f"{name}.xml"
+    path.write_text(re.sub(r"<actuator>.*?</actuator>", "", text, flags=re.S))
+    return path
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("vehicles", nargs="*", default=VEHICLES)
@@ -84,13 +98,14 @@ def main() -> int:
     import tempfile
     results = {}
     with tempfile.TemporaryDirectory() as work:
-        prepared = {name: prepare(name, ROOT / "examples" / f"{name}.xml", Path(work)) for name in args.vehicles}
+        paths = {name: vehicle_path(name, Path(work)) for name in args.vehicles}
+        prepared = {name: prepare(name, paths[name], Path(work)) for name in args.vehicles}
         rounds: dict[str, list[dict]] = {name: [] for name in args.vehicles}
         for _ in range(args.rounds):
             for name in args.vehicles:
                 vehicle = prepared[name]
                 row = {f"nudyn_{key}_us": value for key, value in nudyn_costs(vehicle.path, vehicle.state_path).items()}
-                ref = Reference.from_file(ROOT / "examples" / f"{name}.xml")
+                ref = Reference.from_file(paths[name])
                 m = ref.model
                 rng = np.random.default_rng(zlib.crc32(name.encode()) + 7)
                 qpos, qvel, torque = ref.random_state(rng)
