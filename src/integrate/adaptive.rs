@@ -120,20 +120,21 @@ pub struct Carry {
     /// After a refused interpolant, steps may reach past a communication
     /// point again from this time on (reach.rs).
     pub reach_from: f64,
-    /// Interpolants refused so far in the run: each doubles how many
-    /// communication steps then end their steps at the point.
+    /// Interpolants refused so far in the run: each doubles how long steps
+    /// then end at the points.
     pub refusals: f64,
 }
 
 impl Carry {
-    /// An interpolant refused in the advance over [`t0`, `t1`]: steps end
-    /// at the communication points for one such interval after `t1`, then
-    /// two, four, … with each refusal of the run (at most
-    /// [`MAX_REFUSAL_PAUSE`] intervals), then try again to reach past one.
-    fn refuse_interpolant(&mut self, t0: f64, t1: f64) {
+    /// The interpolant of a step past the communication point `t1` refused,
+    /// `length` the longer of the communication step and the refused step:
+    /// steps end at the points from `t1` on for once that length, then
+    /// twice, four times, … with each refusal of the run (at most
+    /// [`MAX_REFUSAL_PAUSE`] times), then try again to reach past one.
+    fn refuse_interpolant(&mut self, t1: f64, length: f64) {
         self.refusals += 1.0;
         let pause = 2f64.powf(self.refusals - 1.0).min(MAX_REFUSAL_PAUSE);
-        self.reach_from = t1 + pause * (t1 - t0);
+        self.reach_from = t1 + pause * length;
     }
 
     /// The tolerance the error control has actually held: `tolerance` unless
@@ -499,8 +500,9 @@ fn hold_reach(reach: &mut Reach, (theta, qvel, work): (&[f64], &[f64], f64), end
 /// flexible_boom stayed at 21 × tolerance.
 const STRAY_ALLOWANCE: f64 = 3.0;
 
-/// The most communication steps a refused interpolant pauses reaching
-/// past the points for ([`Carry::refuse_interpolant`]).
+/// The most lengths (communication or refused steps) a refused
+/// interpolant pauses reaching past the points for
+/// ([`Carry::refuse_interpolant`]).
 const MAX_REFUSAL_PAUSE: f64 = 64.0;
 
 /// Safety factor of the step-size controller.
@@ -556,11 +558,13 @@ impl Simulation {
     /// Steps of an embedded pair under error control from the state's time
     /// to `t1`. Where `limit` lies beyond `t1`, the last step may end past
     /// `t1`, up to `limit`: the state at `t1` is then its interpolant, and
-    /// the step is held in `state.reach` (reach.rs).
+    /// the step is held in `state.reach` (reach.rs). `communication_step`
+    /// is the host's interval that ends at `t1`.
     pub(super) fn advance_adaptive(
         &mut self,
         model: &Model,
         (t1, limit): (f64, f64),
+        communication_step: f64,
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<Stats, AdvanceError> {
         let t0 = self.state.time;
@@ -737,7 +741,7 @@ impl Simulation {
                         // Its end is right, its inside is not (a fast damped mode, which
                         // the interpolant follows far less closely than the end):
                         // taken again to end at t1, the next ones too for a while.
-                        carry.refuse_interpolant(t0, t1);
+                        carry.refuse_interpolant(t1, communication_step.max(step));
                         stats.refused_interpolants += 1;
                         continue;
                     }

@@ -350,7 +350,7 @@ impl Simulation {
                     let reaches = input_held && self.method().dense().is_some() && !self.settings.energy_projection;
                     let limit = if reaches { self.horizon.max(t_end) } else { t_end };
                     let result = if self.method().is_adaptive() {
-                        self.advance_adaptive(model, (t_end, limit), &mut inputs_at)
+                        self.advance_adaptive(model, (t_end, limit), t_end - called_at, &mut inputs_at)
                     } else {
                         self.advance_fixed(model, t_end, &mut inputs_at)
                     };
