@@ -192,9 +192,9 @@ fn a_state_saved_inside_a_step_continues_bit_for_bit() {
     }
 }
 
-/// examples/servicer.xml: a free bus, thrusters, wheels and two arms on
-/// position servos (kp 150, critically damped): fast damped modes, |λ| up
-/// to about 39 /s.
+/// examples/servicer.xml: a free bus with thrusters, three reaction
+/// wheels and a four-joint arm on position servos (kp 150, critically
+/// damped): fast damped modes, |λ| up to about 39 /s.
 fn servicer() -> Model {
     let imported = nudyn::mjcf::load_mjcf(Path::new("examples/servicer.xml")).unwrap();
     Model::compile(&imported.vehicle).unwrap()
@@ -208,7 +208,8 @@ fn servicer_run(model: &Model, tolerance: f64, points: usize, reach: bool) -> (V
     let mut sim = Simulation::new(model, Method::Dop853, settings(tolerance));
     let mut qvel = vec![0.0; model.nv];
     qvel[..6].copy_from_slice(&[0.02, -0.01, 0.01, 0.05, -0.03, 0.04]);
-    // The arm joints (after the free joint's 7 coordinates and 6 dofs) off their targets.
+    // The wheels and the arm joints (after the free joint's 7 coordinates and 6 dofs)
+    // moved; the arm's off its servo targets.
     for (k, rate) in qvel.iter_mut().enumerate().skip(6) {
         sim.state.theta[k + 1] = 0.4 * (1.3 * k as f64).sin();
         *rate = 0.2 * (0.7 * k as f64).cos();
