@@ -799,11 +799,17 @@ fn world_inertia(link: &crate::model::Link, x: &crate::math::Transform) -> Spati
     out
 }
 
+/// h of a spatial inertia Y = [Ī ĥ; ĥᵀ m1], read off ĥ's entries.
+#[inline(always)]
+fn first_moment(y: &SpatialMat) -> Vec3 {
+    Vec3::new(y[(2, 4)], y[(0, 5)], y[(1, 3)])
+}
+
 /// Y m for a spatial inertia Y = [Ī ĥ; ĥᵀ m1] (a body's, or a subtree's sum
 /// of them) from its blocks: (Ī ω + h × u, m u − h × ω) for m = (ω, u).
 #[inline(always)]
 fn inertia_times(y: &SpatialMat, motion: &SpatialVec) -> SpatialVec {
-    let h = Vec3::new(y[(2, 4)], y[(0, 5)], y[(1, 3)]);
+    let h = first_moment(y);
     let (omega, u) = (angular(motion), linear(motion));
     spatial(&(y.fixed_view::<3, 3>(0, 0) * omega + h.cross(&u)), &(u * y[(3, 3)] - h.cross(&omega)))
 }
@@ -837,7 +843,7 @@ fn coriolis_transpose_times(b: &SpatialMat, s: &SpatialVec) -> SpatialVec {
 fn coriolis_matrix(y: &SpatialMat, v: &SpatialVec, momentum: &SpatialVec) -> SpatialMat {
     let (omega, u) = (angular(v), linear(v));
     let rotational = y.fixed_view::<3, 3>(0, 0);
-    let h = Vec3::new(y[(2, 4)], y[(0, 5)], y[(1, 3)]);
+    let h = first_moment(y);
     let mass = y[(3, 3)];
     let skew_product = |a: &Vec3| {
         let mut out = h * a.transpose();
