@@ -26,13 +26,26 @@ fn settings(tolerance: f64) -> Settings {
 /// The station turning at about 0.01 rad/s, its base drifting at 1 cm/s
 /// and every arm joint off its drawn pose and turning at up to 0.05 rad/s.
 fn slow_start(model: &Model, method: Method, tolerance: f64) -> Simulation {
+    let base_rates = [0.01, -0.004, 0.006, 0.006, -0.004, 0.008];
+    started(model, method, tolerance, base_rates, |k| (0.3 * (k as f64).sin(), 0.05 * (1.7 * k as f64).cos()))
+}
+
+/// A run of a free-based vehicle whose other joints all have one
+/// coordinate per dof: the base at rest in its drawn pose with rates
+/// `base_rates`, dof k ≥ 6 at (coordinate, rate) `joint(k)`, ν = m*θ̇.
+fn started(
+    model: &Model,
+    method: Method,
+    tolerance: f64,
+    base_rates: [f64; 6],
+    joint: impl Fn(usize) -> (f64, f64),
+) -> Simulation {
     let mut sim = Simulation::new(model, method, settings(tolerance));
     let mut qvel = vec![0.0; model.nv];
-    qvel[..6].copy_from_slice(&[0.01, -0.004, 0.006, 0.006, -0.004, 0.008]);
-    // A hinge's dof k moves coordinate k + 1 (the free joint has 7 and 6).
+    qvel[..6].copy_from_slice(&base_rates);
+    // Dof k moves coordinate k + 1 (the free joint has 7 and 6).
     for (k, rate) in qvel.iter_mut().enumerate().skip(6) {
-        sim.state.theta[k + 1] = 0.3 * (k as f64).sin();
-        *rate = 0.05 * (1.7 * k as f64).cos();
+        (sim.state.theta[k + 1], *rate) = joint(k);
     }
     let mut ws = model.workspace();
     ws.set_configuration(model, &sim.state.theta).unwrap();
@@ -205,20 +218,9 @@ fn servicer() -> Model {
 /// reaching past the points, or (`reach` false) ending at each (ε given
 /// as a function of time); and the interpolants refused.
 fn servicer_run(model: &Model, tolerance: f64, points: usize, reach: bool) -> (Vec<Vec<f64>>, usize) {
-    let mut sim = Simulation::new(model, Method::Dop853, settings(tolerance));
-    let mut qvel = vec![0.0; model.nv];
-    qvel[..6].copy_from_slice(&[0.02, -0.01, 0.01, 0.05, -0.03, 0.04]);
-    // The wheels and the arm joints (after the free joint's 7 coordinates and 6 dofs)
-    // moved; the arm's off its servo targets.
-    for (k, rate) in qvel.iter_mut().enumerate().skip(6) {
-        sim.state.theta[k + 1] = 0.4 * (1.3 * k as f64).sin();
-        *rate = 0.2 * (0.7 * k as f64).cos();
-    }
-    let mut ws = model.workspace();
-    ws.set_configuration(model, &sim.state.theta).unwrap();
-    ws.set_qvel(model, &qvel).unwrap();
-    sim.state.nu.copy_from_slice(ws.nu.as_slice());
-    sim.initialize(model).unwrap();
+    // The wheels and the arm joints moved; the arm's off its servo targets.
+    let joint = |k: usize| (0.4 * (1.3 * k as f64).sin(), 0.2 * (0.7 * k as f64).cos());
+    let mut sim = started(model, Method::Dop853, tolerance, [0.02, -0.01, 0.01, 0.05, -0.03, 0.04], joint);
     let (zero_eps, zero_ctrl) = (vec![0.0; model.nv], vec![0.0; model.actuators.len()]);
     let (mut points_out, mut refused) = (Vec::new(), 0);
     for n in 1..=points {
