@@ -823,6 +823,37 @@ impl<S: Real> Workspace<S> {
     }
 }
 
+impl ConstraintRows {
+    /// How fast row `k` returns to its reference while its force is free
+    /// (between its bounds), in 1/s, and whether its reference has a
+    /// stiffness (so that its position returns too, not only its velocity);
+    /// `None` when the force is held at a bound, where the row moves as the
+    /// rest of the vehicle does. The row's acceleration is then
+    /// (1 − d)·a₀ + d·aref with d = A/(A + R) and aref = −b·v − k·d·r, so
+    /// v and r follow s² + d·b·s + d²·k = 0: the rate is that of its slower
+    /// root's envelope, d·b/2 for a critically or under-damped row, and
+    /// d·b/2 too for a friction row's velocity (k = 0), which decays at
+    /// twice that.
+    pub(crate) fn free_row_decay(&self, model: &Model, k: usize) -> Option<(f64, bool)> {
+        if self.solver.held[k] != Held::Free {
+            return None;
+        }
+        let diagonal = self.hessian[k * self.max_rows + k];
+        let regularizer = self.regularizer[k];
+        if !(diagonal > regularizer && diagonal.is_finite()) {
+            return None;
+        }
+        let impedance = (diagonal - regularizer) / diagonal;
+        let soft = soft_of(model, self.kind[k], self.id[k]);
+        let (stiffness, damping) = stiffness_damping(model, &soft, self.kind[k].is_friction());
+        let (linear, constant) = (impedance * damping, impedance * impedance * stiffness);
+        let discriminant = linear * linear - 4.0 * constant;
+        let rate =
+            if discriminant > 0.0 && constant > 0.0 { 0.5 * (linear - discriminant.sqrt()) } else { 0.5 * linear };
+        (rate > 0.0).then_some((rate, stiffness > 0.0))
+    }
+}
+
 /// The solref and solimp of a row of `kind` for constraint `id`.
 fn soft_of(model: &Model, kind: RowKind, id: usize) -> SoftConstraint {
     let constraints = &model.constraints;

@@ -441,14 +441,26 @@ const PERSISTENT_SHRINK: f64 = 1.0 / 16.0;
 /// shrink with the step, so the controller could not grow the step again.
 const ROUND_OFF_MARGIN: f64 = 10.0;
 
-/// A step's error per second from its scaled error `per_step` over `step`,
+/// A step's scaled error estimate (≤ 1 passes the per-step test).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct ScaledError {
+    /// The estimate's norm.
+    pub(super) per_step: f64,
+    /// The norm of what of it adds up from step to step: `per_step`'s
+    /// estimate with its part along the directions that free constraint
+    /// rows damp out discounted ([`Integrator::error_norm`]); `per_step`
+    /// without such rows.
+    pub(super) accumulating: f64,
+}
+
+/// A step's error per second from its scaled error `error` over `step`,
 /// and whether the method is held per unit step; a method held per step
 /// has no per-second error (its share of the tolerance stands for it), and
 /// so no round-off floor below it.
-pub(super) fn per_second_error(control: &StepControl, per_step: f64, step: f64) -> (f64, bool) {
+pub(super) fn per_second_error(control: &StepControl, error: ScaledError, step: f64) -> (f64, bool) {
     match control.error_per {
-        ErrorPer::UnitStep => (per_step / (step / TOLERANCE_TIME).min(1.0), true),
-        ErrorPer::Step { share } => (per_step / share, false),
+        ErrorPer::UnitStep => (error.accumulating / (step / TOLERANCE_TIME).min(1.0), true),
+        ErrorPer::Step { share } => (error.per_step / share, false),
     }
 }
 
@@ -654,14 +666,15 @@ impl Simulation {
                     }
                 }
             }
-            let per_step = match attempted {
-                Ok(()) => integrator.error_norm(model, ws, theta, tolerance),
+            let scaled = match attempted {
+                Ok(()) => integrator.error_norm(model, ws, theta, tolerance, step),
                 Err(cause) => {
                     last_cause = Some(Overflow::Dynamics(cause));
-                    f64::INFINITY
+                    ScaledError { per_step: f64::INFINITY, accumulating: f64::INFINITY }
                 }
             };
-            let (per_second, per_unit_step) = per_second_error(control, per_step, step);
+            let per_step = scaled.per_step;
+            let (per_second, per_unit_step) = per_second_error(control, scaled, step);
             if let Some(first_rejected) = first_rejection
                 && per_unit_step
                 && at_round_off_floor(per_step, (step, per_second), first_rejected)
@@ -716,9 +729,9 @@ impl Simulation {
                     .locate(model, ws, integrator, (theta, qvel), (t, step), tolerance, inputs_at)
                     .map_err(failed)?;
                 stats.locating += located.attempts;
-                let per_step = integrator.error_norm(model, ws, theta, tolerance);
-                let per_second = per_second_error(control, per_step, located.step).0;
-                taken = (located.step, per_second, tested_error(per_second, per_step, carry.relaxation));
+                let scaled = integrator.error_norm(model, ws, theta, tolerance, located.step);
+                let per_second = per_second_error(control, scaled, located.step).0;
+                taken = (located.step, per_second, tested_error(per_second, scaled.per_step, carry.relaxation));
             }
             if taken.2 <= 1.0 {
                 // The step size goes on from the step attempted: a cut to a switch says nothing of the error.
@@ -897,43 +910,96 @@ impl Integrator {
     /// estimate mapped by m* at the last stage's configuration (pass 2 on
     /// the estimate, which overwrites the workspace's velocities). act's
     /// error is scaled by tol·(1 + |act|) at the step's end.
-    pub(super) fn error_norm(&self, model: &Model, ws: &mut Workspace, theta: &[f64], tolerance: f64) -> f64 {
+    ///
+    /// With constraint rows whose forces are free, the ν error along the
+    /// directions they move, which they damp out at rate σ instead of
+    /// letting it add up, counts towards the error per second
+    /// ([`ScaledError::accumulating`]) only by max(h, 1/σ)/(1 s) of it: a
+    /// step of `step` ≥ 1/σ may leave at most the tolerance there, a
+    /// shorter one its per-second share times σ·(1 s) (decay.rs).
+    pub(super) fn error_norm(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        theta: &[f64],
+        tolerance: f64,
+        step: f64,
+    ) -> ScaledError {
+        let failed = ScaledError { per_step: f64::INFINITY, accumulating: f64::INFINITY };
         let two_estimates =
             matches!(self.method.scheme(), Scheme::Explicit(t) if matches!(t.error, ErrorEstimate::Dop853 { .. }));
         let estimates = if two_estimates { 2 } else { 1 };
+        let nv = model.nv;
+        let decay_rate = if ws.constraint_rows.count > 0 { self.damped.form(model, &ws.constraint_rows) } else { 0.0 };
+        // The damped parts' weight in the error per second (1: none).
+        let damped_weight = if decay_rate > 0.0 { (step.max(1.0 / decay_rate) / TOLERANCE_TIME).min(1.0) } else { 1.0 };
+        let splits = damped_weight < 1.0;
         let mut norms = [0.0_f64; 2];
-        for (k, norm) in norms.iter_mut().enumerate().take(estimates) {
+        let mut accumulating = [0.0_f64; 2];
+        for (k, (norm, accumulating)) in norms.iter_mut().zip(&mut accumulating).enumerate().take(estimates) {
             let (error_delta, error_qvel) = if k == 0 {
                 (&self.error_delta, &self.error_qvel)
             } else {
                 (&self.error_delta_low, &self.error_qvel_low)
             };
-            let (error_qvel, error_act) = error_qvel.as_slice().split_at(model.nv);
+            let (error_qvel, error_act) = error_qvel.as_slice().split_at(nv);
             if ws.set_qvel(model, error_qvel).is_err() {
-                return f64::INFINITY;
+                return failed;
             }
-            let act_next = &self.qvel_next.as_slice()[model.nv..];
+            let act_next = &self.qvel_next.as_slice()[nv..];
             for (error, act) in error_act.iter().zip(act_next) {
                 *norm = norm.max((error / (tolerance * (1.0 + act.abs()))).abs());
             }
             // Slices: nalgebra's indexing is checked against both dimensions.
+            let error_delta = error_delta.as_slice();
+            let damped = &mut self.damped;
+            if splits {
+                damped.error_nu.copy_from_slice(ws.nu.as_slice());
+                damped.split_nu(nv);
+                if damped.holds_positions() {
+                    // Δ's part along the rows: m*Δ's, mapped back by m*⁻¹ (passes 2 forward and back).
+                    if ws.set_qvel(model, error_delta).is_err() {
+                        return failed;
+                    }
+                    let along = damped.split_delta(nv, ws.nu.as_slice());
+                    if ws.set_nu(model, along).is_err() {
+                        return failed;
+                    }
+                    damped.damped_delta.copy_from_slice(ws.qvel.as_slice());
+                } else {
+                    damped.damped_delta.fill(0.0);
+                }
+            }
+            let error_nu = if splits { &damped.error_nu[..] } else { ws.nu.as_slice() };
             let (delta, nu_size) = (self.delta.as_slice(), self.nu_size.as_slice());
-            let (error_delta, error_nu) = (error_delta.as_slice(), ws.nu.as_slice());
+            *accumulating = *norm;
             for (dof, position) in positions(model, theta) {
                 let position = position.map_or(0.0, |y| y.abs().max((y + delta[dof]).abs()));
                 let scale_delta = tolerance * (1.0 + position);
                 let scale_nu = tolerance * (1.0 + nu_size[dof]);
-                *norm = norm.max((error_delta[dof] / scale_delta).abs()).max((error_nu[dof] / scale_nu).abs());
+                let (error_delta, error_nu) = (error_delta[dof], error_nu[dof]);
+                *norm = norm.max((error_delta / scale_delta).abs()).max((error_nu / scale_nu).abs());
+                let (delta_damped, nu_damped) =
+                    if splits { (damped.damped_delta[dof], damped.damped_nu[dof]) } else { (0.0, 0.0) };
+                *accumulating = [
+                    (error_delta - delta_damped) / scale_delta,
+                    damped_weight * delta_damped / scale_delta,
+                    (error_nu - nu_damped) / scale_nu,
+                    damped_weight * nu_damped / scale_nu,
+                ]
+                .iter()
+                .fold(*accumulating, |largest, part| largest.max(part.abs()));
             }
         }
-        let [high, low] = norms;
-        if two_estimates {
-            // The 5th-order estimate, damped where the 3rd-order one is much larger (Hairer's DOP853).
+        // The 5th-order estimate, damped where the 3rd-order one is much larger (Hairer's DOP853).
+        let combined = |[high, low]: [f64; 2]| {
+            if !two_estimates {
+                return high;
+            }
             let denominator = high * high + 0.01 * low * low;
             if denominator > 0.0 { high * high / denominator.sqrt() } else { 0.0 }
-        } else {
-            high
-        }
+        };
+        ScaledError { per_step: combined(norms), accumulating: combined(accumulating) }
     }
 }
 

@@ -4,6 +4,7 @@
 
 mod adaptive;
 mod auto;
+mod decay;
 mod reach;
 mod rkmk;
 mod rosenbrock;

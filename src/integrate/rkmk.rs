@@ -11,6 +11,7 @@
 
 use nalgebra::DVector;
 
+use super::decay::DampedDirections;
 use super::reach::Reach;
 use super::rosenbrock::{JacobianSource, Linearization};
 use super::stiffness::StiffnessTest;
@@ -198,6 +199,8 @@ pub struct Integrator {
     pub(super) stiffness: StiffnessTest,
     /// Whether a stage of its steps left the constraint mode (switches.rs).
     pub(super) stage_watch: StageWatch,
+    /// The directions free constraint rows damp out, for the error norm (decay.rs).
+    pub(super) damped: DampedDirections,
     /// How many times it has evaluated the rates, and formed W, ever, and
     /// of those W how many from exact derivatives.
     pub(super) evaluations: usize,
@@ -275,6 +278,7 @@ impl Integrator {
             clamped_end: vec![0.0; model.activation_count()],
             stiffness: StiffnessTest::new(nv, rates),
             stage_watch: StageWatch::default(),
+            damped: DampedDirections::new(model),
             evaluations: 0,
             jacobians: 0,
             exact_jacobians: 0,

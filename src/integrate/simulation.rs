@@ -5,8 +5,8 @@
 //! set (θ, ν); the integrator advances (θ, θ̇) (rkmk.rs says why).
 
 use super::adaptive::{
-    AdvanceError, Carry, Settings, Stats, ToleranceRelaxed, per_second_error, step_factor, take_attempted_step,
-    tested_error,
+    AdvanceError, Carry, ScaledError, Settings, Stats, ToleranceRelaxed, per_second_error, step_factor,
+    take_attempted_step, tested_error,
 };
 use super::auto::{AutoChoice, AutoMove, MethodSetting, MoveReason, PROBE_METHOD};
 use super::reach::Reach;
@@ -526,15 +526,15 @@ impl Simulation {
         .and_then(|()| integrator.attempt(model, ws, (&state.theta, &state.qvel), (t0, step), inputs_at));
         // The error relative to 1 + |x| itself (the norm with tolerance 1),
         // and the run's error test, as `advance_adaptive` applies it to a first step.
-        let per_step_of = |integrator: &Integrator, ws: &mut Workspace, tolerance: f64| match attempted {
-            Ok(()) => integrator.error_norm(model, ws, &state.theta, tolerance),
-            Err(_) => f64::INFINITY,
+        let scaled_at = |integrator: &mut Integrator, ws: &mut Workspace, tolerance: f64| match attempted {
+            Ok(()) => integrator.error_norm(model, ws, &state.theta, tolerance, step),
+            Err(_) => ScaledError { per_step: f64::INFINITY, accumulating: f64::INFINITY },
         };
         let control = PROBE_METHOD.control();
-        let (error_per_second, _) = per_second_error(control, per_step_of(integrator, ws, 1.0), step);
+        let (error_per_second, _) = per_second_error(control, scaled_at(integrator, ws, 1.0), step);
         let choice = AutoChoice::new(step, error_per_second, settings.tolerance);
-        let per_step = per_step_of(integrator, ws, settings.tolerance);
-        let error = tested_error(per_second_error(control, per_step, step).0, per_step, state.carry.relaxation);
+        let scaled = scaled_at(integrator, ws, settings.tolerance);
+        let error = tested_error(per_second_error(control, scaled, step).0, scaled.per_step, state.carry.relaxation);
         // A probe across a switch is not taken: the run's method locates it.
         let passes = error <= 1.0
             && integrator.non_finite_result().is_none()

@@ -16,6 +16,7 @@ mod adaptive_integration;
 mod compile_stage;
 mod constraints;
 mod control_law;
+mod damped_errors;
 mod deep_trees;
 mod derivatives;
 mod dynamics_checks;

@@ -1,0 +1,98 @@
+//! The error band on the constrained fixtures (docs/integration.md, "Errors
+//! the constraint rows damp out"): driven (ε = 0.3 sin k) in 0.05 s
+//! communication steps, the largest error at any communication point lies
+//! within [1/50, 20] × the tolerance for every adaptive explicit method and
+//! `auto`, with the input held (steps may reach past the points) and with
+//! the input given as a function of time (every step ends at a point),
+//! except below it where one step per point is already more accurate than
+//! asked.
+
+use nudyn::integrate::{Input, Method, MethodSetting, Settings, Simulation};
+use nudyn::model::Model;
+
+use crate::stiffness::{INTERVAL, eps, fixture};
+
+/// The band's ends, over the tolerance.
+const BAND: (f64, f64) = (1.0 / 50.0, 20.0);
+
+/// (θ, ν) at each of `points` communication points of `setting` at
+/// `tolerance`, with ε held (`held`) or given as a function of time, and
+/// the steps taken.
+fn points(model: &Model, setting: MethodSetting, tolerance: f64, points: usize, held: bool) -> (Vec<Vec<f64>>, usize) {
+    let settings = Settings { tolerance, max_step: 0.0, energy_projection: false };
+    let mut sim = Simulation::new(model, setting, settings);
+    sim.initialize(model).unwrap();
+    let eps = eps(model);
+    let zero = vec![0.0; model.nv];
+    let mut steps = 0;
+    let states = (1..=points)
+        .map(|n| {
+            let t = n as f64 * INTERVAL;
+            let advanced = if held {
+                sim.advance_to(model, t, Input { eps: &eps, eps_rate: &zero, ctrl: &[], ctrl_rate: &[] })
+            } else {
+                sim.advance_to(model, t, |_: f64, out: &mut [f64]| out.copy_from_slice(&eps))
+            };
+            steps += advanced.unwrap().stats.accepted;
+            sim.state.theta.iter().chain(&sim.state.nu).copied().collect()
+        })
+        .collect();
+    (states, steps)
+}
+
+/// The largest error relative to 1 + |x| at any point.
+fn largest_error(run: &[Vec<f64>], reference: &[Vec<f64>]) -> f64 {
+    run.iter()
+        .zip(reference)
+        .flat_map(|(x, r)| x.iter().zip(r).map(|(x, r)| (x - r).abs() / (1.0 + r.abs())))
+        .fold(0.0, f64::max)
+}
+
+fn band_on(path: &str, count: usize) {
+    let model = fixture(path);
+    let (reference, _) = points(&model, MethodSetting::Fixed(Method::Dop853), 1e-12, count, false);
+    let mut outside = Vec::new();
+    let settings = [Method::Dop853, Method::Dopri5, Method::Tsit5, Method::Bs3]
+        .map(MethodSetting::Fixed)
+        .into_iter()
+        .chain([MethodSetting::Auto]);
+    for setting in settings {
+        for tolerance in [1e-4, 1e-6, 1e-8] {
+            if setting == MethodSetting::Fixed(Method::Bs3) && tolerance < 1e-7 {
+                continue; // order 3: tens of thousands of steps at 1e-8
+            }
+            for held in [true, false] {
+                let (run, steps) = points(&model, setting, tolerance, count, held);
+                let ratio = largest_error(&run, &reference) / tolerance;
+                let line = format!(
+                    "{path} {setting:?} {tolerance:e} held {held}: largest error/tol {ratio:.2e}, {steps} steps"
+                );
+                println!("{line}");
+                // Below the band is allowed only where each step ends at a point and
+                // about one step per communication step already delivers more than
+                // asked (the floor of one step per point, issue 50; the limited arm's
+                // dop853 from 1e-6).
+                let at_the_floor = !held && 2 * steps <= 3 * count;
+                if ratio > BAND.1 || (ratio < BAND.0 && !at_the_floor) {
+                    outside.push(line);
+                }
+            }
+        }
+    }
+    assert!(outside.is_empty(), "outside the band:\n{}", outside.join("\n"));
+}
+
+#[test]
+fn the_docked_servicers_errors_lie_in_the_band() {
+    band_on("tests/fixtures/constraints/docked_servicer.xml", 40);
+}
+
+#[test]
+fn the_slider_hands_errors_lie_in_the_band() {
+    band_on("tests/fixtures/constraints/slider_hand.xml", 20);
+}
+
+#[test]
+fn the_limited_arms_errors_lie_in_the_band() {
+    band_on("tests/fixtures/constraints/limited_arm.xml", 20);
+}
