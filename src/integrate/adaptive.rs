@@ -911,12 +911,11 @@ impl Integrator {
     /// the estimate, which overwrites the workspace's velocities). act's
     /// error is scaled by tol·(1 + |act|) at the step's end.
     ///
-    /// With constraint rows whose forces are free, the ν error along the
-    /// directions they move, which they damp out at rate σ instead of
-    /// letting it add up, counts towards the error per second
-    /// ([`ScaledError::accumulating`]) only by max(h, 1/σ)/(1 s) of it: a
-    /// step of `step` ≥ 1/σ may leave at most the tolerance there, a
-    /// shorter one its per-second share times σ·(1 s) (decay.rs).
+    /// With constraint rows whose forces are free, the ν and Δ errors along
+    /// the directions they move, which they damp out at a rate σ instead of
+    /// letting them add up, count towards the error per second
+    /// ([`ScaledError::accumulating`]) only by max(`step`, 1/σ)/(1 s) of
+    /// them (decay.rs).
     pub(super) fn error_norm(
         &mut self,
         model: &Model,
@@ -930,10 +929,9 @@ impl Integrator {
             matches!(self.method.scheme(), Scheme::Explicit(t) if matches!(t.error, ErrorEstimate::Dop853 { .. }));
         let estimates = if two_estimates { 2 } else { 1 };
         let nv = model.nv;
-        let decay_rate = if ws.constraint_rows.count > 0 { self.damped.form(model, &ws.constraint_rows) } else { 0.0 };
-        // The damped parts' weight in the error per second (1: none).
-        let damped_weight = if decay_rate > 0.0 { (step.max(1.0 / decay_rate) / TOLERANCE_TIME).min(1.0) } else { 1.0 };
-        let splits = damped_weight < 1.0;
+        // A step of a second or more counts all of its error either way.
+        let splits =
+            step < TOLERANCE_TIME && ws.constraint_rows.count > 0 && self.damped.form(model, &ws.constraint_rows);
         let mut norms = [0.0_f64; 2];
         let mut accumulating = [0.0_f64; 2];
         for (k, (norm, accumulating)) in norms.iter_mut().zip(&mut accumulating).enumerate().take(estimates) {
@@ -955,19 +953,25 @@ impl Integrator {
             let damped = &mut self.damped;
             if splits {
                 damped.error_nu.copy_from_slice(ws.nu.as_slice());
-                damped.split_nu(nv);
+                damped.split_nu(nv, step);
                 if damped.holds_positions() {
-                    // Δ's part along the rows: m*Δ's, mapped back by m*⁻¹ (passes 2 forward and back).
+                    // Δ's parts along the rows: m*Δ's, mapped back by m*⁻¹ (pass 2 forward and back).
                     if ws.set_qvel(model, error_delta).is_err() {
                         return failed;
                     }
-                    let along = damped.split_delta(nv, ws.nu.as_slice());
-                    if ws.set_nu(model, along).is_err() {
-                        return failed;
+                    damped.split_delta(nv, step, ws.nu.as_slice());
+                    for (part, back) in [
+                        (&damped.damped_delta_nu, &mut damped.damped_delta),
+                        (&damped.weighted_delta_nu, &mut damped.weighted_delta),
+                    ] {
+                        if ws.set_nu(model, part).is_err() {
+                            return failed;
+                        }
+                        back.copy_from_slice(ws.qvel.as_slice());
                     }
-                    damped.damped_delta.copy_from_slice(ws.qvel.as_slice());
                 } else {
                     damped.damped_delta.fill(0.0);
+                    damped.weighted_delta.fill(0.0);
                 }
             }
             let error_nu = if splits { &damped.error_nu[..] } else { ws.nu.as_slice() };
@@ -979,16 +983,17 @@ impl Integrator {
                 let scale_nu = tolerance * (1.0 + nu_size[dof]);
                 let (error_delta, error_nu) = (error_delta[dof], error_nu[dof]);
                 *norm = norm.max((error_delta / scale_delta).abs()).max((error_nu / scale_nu).abs());
-                let (delta_damped, nu_damped) =
-                    if splits { (damped.damped_delta[dof], damped.damped_nu[dof]) } else { (0.0, 0.0) };
-                *accumulating = [
-                    (error_delta - delta_damped) / scale_delta,
-                    damped_weight * delta_damped / scale_delta,
-                    (error_nu - nu_damped) / scale_nu,
-                    damped_weight * nu_damped / scale_nu,
-                ]
-                .iter()
-                .fold(*accumulating, |largest, part| largest.max(part.abs()));
+                let parts = if splits {
+                    [
+                        (error_delta - damped.damped_delta[dof]) / scale_delta,
+                        damped.weighted_delta[dof] / scale_delta,
+                        (error_nu - damped.damped_nu[dof]) / scale_nu,
+                        damped.weighted_nu[dof] / scale_nu,
+                    ]
+                } else {
+                    [error_delta / scale_delta, 0.0, error_nu / scale_nu, 0.0]
+                };
+                *accumulating = parts.iter().fold(*accumulating, |largest, part| largest.max(part.abs()));
             }
         }
         // The 5th-order estimate, damped where the 3rd-order one is much larger (Hairer's DOP853).

@@ -9,8 +9,17 @@
 //! directions are range(E) and the rest, which no row acts on, its
 //! orthogonal complement: the split of a ν error is an orthogonal
 //! projection, the paper's coordinates making it one. A position error
-//! Δ is split the same way in m*Δ, and its part mapped back by m*⁻¹.
+//! Δ is split the same way in m*Δ, and its parts mapped back by m*⁻¹.
+//!
+//! An error along a direction that decays at rate σ counts towards the
+//! error per second by max(h, 1/σ)/(1 s) of it
+//! ([`super::adaptive::TOLERANCE_TIME`]): a step of h ≥ 1/σ may leave the
+//! tolerance there (it is gone before the next step adds as much), a
+//! shorter one σ·(1 s) times its share per second. The directions are
+//! formed from the fastest row to the slowest, each with the rate of the
+//! row that adds it, the slowest of those spanning it.
 
+use super::adaptive::TOLERANCE_TIME;
 use crate::dynamics::constraint::ConstraintRows;
 use crate::model::Model;
 
@@ -19,104 +28,145 @@ use crate::model::Model;
 /// connect on one body).
 const DEPENDENT_COLUMN: f64 = 1e-8;
 
-/// An orthonormal basis of the free rows' directions in ν, and the parts
-/// of a step's errors along them (preallocated for the model's most rows).
+/// Orthonormal directions in ν with their decay rates.
+#[derive(Clone, Debug, Default)]
+struct Directions {
+    /// Unit columns, nv each, column after column.
+    basis: Vec<f64>,
+    /// The decay rate of each (1/s).
+    rates: Vec<f64>,
+    count: usize,
+}
+
+impl Directions {
+    fn new(rows: usize, nv: usize) -> Self {
+        Directions { basis: vec![0.0; rows * nv], rates: vec![0.0; rows], count: 0 }
+    }
+
+    /// Adds E's column of row `k`, decaying at `rate` (no faster than the
+    /// columns before it), if it adds a direction; a redundant one slows
+    /// the directions it lies along to its rate.
+    fn add(&mut self, nv: usize, rows: &ConstraintRows, k: usize, rate: f64) {
+        let original = &rows.eps_columns[k * nv..(k + 1) * nv];
+        let (kept, rest) = self.basis.split_at_mut(self.count * nv);
+        let column = &mut rest[..nv];
+        column.copy_from_slice(original);
+        let length = norm(column);
+        // Gram–Schmidt, twice (one pass loses orthogonality between nearly parallel rows).
+        for _ in 0..2 {
+            for unit in kept.chunks_exact(nv) {
+                let along = dot(unit, column);
+                column.iter_mut().zip(unit).for_each(|(c, u)| *c -= along * u);
+            }
+        }
+        let left = norm(column);
+        if left > DEPENDENT_COLUMN * length {
+            column.iter_mut().for_each(|c| *c /= left);
+            self.rates[self.count] = rate;
+            self.count += 1;
+        } else {
+            for (unit, kept_rate) in kept.chunks_exact(nv).zip(&mut self.rates) {
+                if dot(unit, original).abs() > DEPENDENT_COLUMN * length {
+                    *kept_rate = kept_rate.min(rate);
+                }
+            }
+        }
+    }
+
+    /// `x`'s parts along the directions: all of it in `plain`, and each
+    /// direction's weighted by max(`step`, 1/σ)/(1 s) (at most 1) in
+    /// `weighted`.
+    fn split(&self, nv: usize, step: f64, x: &[f64], (plain, weighted): (&mut [f64], &mut [f64])) {
+        plain.fill(0.0);
+        weighted.fill(0.0);
+        for (unit, rate) in self.basis[..self.count * nv].chunks_exact(nv).zip(&self.rates) {
+            let along = dot(unit, x);
+            let weight = (step.max(1.0 / rate) / TOLERANCE_TIME).min(1.0);
+            for ((p, w), u) in plain.iter_mut().zip(weighted.iter_mut()).zip(unit) {
+                *p += along * u;
+                *w += weight * along * u;
+            }
+        }
+    }
+}
+
+/// The free rows' directions in ν, and the parts of a step's errors along
+/// them (preallocated for the model's most rows).
 #[derive(Clone, Debug, Default)]
 pub(super) struct DampedDirections {
-    /// Orthonormal columns, nv each, column after column: first those of
-    /// the rows with a stiffness, then the others'.
-    basis: Vec<f64>,
-    /// How many columns span the rows with a stiffness, and all free rows.
-    stiff: usize,
-    all: usize,
-    /// The ν error being split, and its part along all the free rows (nv).
+    /// Along which velocity errors decay: every free row's.
+    velocities: Directions,
+    /// Along which position errors decay: those of the free rows with a stiffness.
+    positions: Directions,
+    /// The free rows, fastest first: (rate, row, has a stiffness).
+    order: Vec<(f64, usize, bool)>,
+    /// The ν error being split, and its parts along the free rows' directions,
+    /// plain and weighted (nv each).
     pub(super) error_nu: Vec<f64>,
     pub(super) damped_nu: Vec<f64>,
-    /// The part of a Δ error along the rows with a stiffness (nv), and m*Δ's (scratch).
+    pub(super) weighted_nu: Vec<f64>,
+    /// m*Δ's parts likewise (nv each), for m*⁻¹ to map back.
+    pub(super) damped_delta_nu: Vec<f64>,
+    pub(super) weighted_delta_nu: Vec<f64>,
+    /// Δ's parts, mapped back (nv each).
     pub(super) damped_delta: Vec<f64>,
-    scratch: Vec<f64>,
+    pub(super) weighted_delta: Vec<f64>,
 }
 
 impl DampedDirections {
     pub(super) fn new(model: &Model) -> Self {
-        let rows = model.constraints.max_rows();
-        let per_dof = if rows > 0 { model.nv } else { 0 };
+        let (rows, nv) = (model.constraints.max_rows(), model.nv);
+        let per_dof = || vec![0.0; if rows > 0 { nv } else { 0 }];
         DampedDirections {
-            basis: vec![0.0; rows * model.nv],
-            stiff: 0,
-            all: 0,
-            error_nu: vec![0.0; per_dof],
-            damped_nu: vec![0.0; per_dof],
-            damped_delta: vec![0.0; per_dof],
-            scratch: vec![0.0; per_dof],
+            velocities: Directions::new(rows, nv),
+            positions: Directions::new(rows, nv),
+            order: Vec::with_capacity(rows),
+            error_nu: per_dof(),
+            damped_nu: per_dof(),
+            weighted_nu: per_dof(),
+            damped_delta_nu: per_dof(),
+            weighted_delta_nu: per_dof(),
+            damped_delta: per_dof(),
+            weighted_delta: per_dof(),
         }
     }
 
-    /// Forms the basis of the free rows of `rows` (from the last
-    /// evaluation) and returns the slowest of their decay rates (1/s); 0
-    /// when no row is free.
-    pub(super) fn form(&mut self, model: &Model, rows: &ConstraintRows) -> f64 {
-        let nv = model.nv;
-        let mut slowest = f64::INFINITY;
-        self.all = 0;
-        for stiff_pass in [true, false] {
-            for k in 0..rows.count {
-                let Some((rate, stiff)) = rows.free_row_decay(model, k) else { continue };
-                if stiff != stiff_pass {
-                    continue;
-                }
-                // Redundant columns add no direction, but their rates still bound how fast
-                // the directions decay.
-                slowest = slowest.min(rate);
-                // Gram–Schmidt, twice over the columns kept (one pass loses
-                // orthogonality between nearly parallel rows).
-                let (kept, rest) = self.basis.split_at_mut(self.all * nv);
-                let column = &mut rest[..nv];
-                column.copy_from_slice(&rows.eps_columns[k * nv..(k + 1) * nv]);
-                let length = norm(column);
-                for _ in 0..2 {
-                    for unit in kept.chunks_exact(nv) {
-                        let along = dot(unit, column);
-                        column.iter_mut().zip(unit).for_each(|(c, u)| *c -= along * u);
-                    }
-                }
-                let left = norm(column);
-                if left > DEPENDENT_COLUMN * length {
-                    column.iter_mut().for_each(|c| *c /= left);
-                    self.all += 1;
-                }
-            }
-            if stiff_pass {
-                self.stiff = self.all;
+    /// Forms the directions of the free rows of `rows` (from the last
+    /// evaluation); whether there are any.
+    pub(super) fn form(&mut self, model: &Model, rows: &ConstraintRows) -> bool {
+        self.order.clear();
+        self.order.extend(
+            (0..rows.count).filter_map(|k| rows.free_row_decay(model, k).map(|(rate, stiff)| (rate, k, stiff))),
+        );
+        self.order.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+        self.velocities.count = 0;
+        self.positions.count = 0;
+        for &(rate, k, stiff) in &self.order {
+            self.velocities.add(model.nv, rows, k, rate);
+            if stiff {
+                self.positions.add(model.nv, rows, k, rate);
             }
         }
-        if self.all == 0 || !slowest.is_finite() { 0.0 } else { slowest }
+        self.velocities.count > 0
     }
 
-    /// Whether the basis spans rows with a stiffness (whose positions return).
+    /// Whether position errors have directions to decay along.
     pub(super) fn holds_positions(&self) -> bool {
-        self.stiff > 0
+        self.positions.count > 0
     }
 
-    /// `damped_nu`: `error_nu`'s part along all the free rows.
-    pub(super) fn split_nu(&mut self, nv: usize) {
-        project(&self.basis[..self.all * nv], nv, &self.error_nu, &mut self.damped_nu);
+    /// `damped_nu` and `weighted_nu`: `error_nu`'s parts along the free
+    /// rows, for a step of `step`.
+    pub(super) fn split_nu(&mut self, nv: usize, step: f64) {
+        let parts = (&mut self.damped_nu[..], &mut self.weighted_nu[..]);
+        self.velocities.split(nv, step, &self.error_nu, parts);
     }
 
-    /// `scratch`: the part of `delta_nu` (m*Δ) along the rows with a
-    /// stiffness, to be mapped back by m*⁻¹ into `damped_delta`.
-    pub(super) fn split_delta(&mut self, nv: usize, delta_nu: &[f64]) -> &[f64] {
-        project(&self.basis[..self.stiff * nv], nv, delta_nu, &mut self.scratch);
-        &self.scratch
-    }
-}
-
-/// `out`: `x`'s orthogonal projection on the orthonormal columns `basis`.
-fn project(basis: &[f64], nv: usize, x: &[f64], out: &mut [f64]) {
-    out.fill(0.0);
-    for unit in basis.chunks_exact(nv) {
-        let along = dot(unit, x);
-        out.iter_mut().zip(unit).for_each(|(o, u)| *o += along * u);
+    /// `damped_delta_nu` and `weighted_delta_nu`: `delta_nu`'s (m*Δ's)
+    /// parts along the free rows with a stiffness.
+    pub(super) fn split_delta(&mut self, nv: usize, step: f64, delta_nu: &[f64]) {
+        let parts = (&mut self.damped_delta_nu[..], &mut self.weighted_delta_nu[..]);
+        self.positions.split(nv, step, delta_nu, parts);
     }
 }
 

@@ -15,6 +15,18 @@ use crate::stiffness::{INTERVAL, eps, fixture};
 /// The band's ends, over the tolerance.
 const BAND: (f64, f64) = (1.0 / 50.0, 20.0);
 
+/// Runs measured below the band, (fixture, setting, tolerance, held), and
+/// the least they must still deliver over the tolerance: `dop853` (and
+/// `auto`, which chooses it) on the docked servicer at 1e-8 with every step
+/// ending at a point, 1.4e-2 in the welds' first pull (t ≈ 0.15 s) and
+/// 1e-4 … 1e-3 after it. The steps (about 5 ms) are held by the damped
+/// part of the 5th-order estimate, which at h·σ ≈ 0.5 overstates the
+/// error of the 8th-order solution the method goes on with.
+const BELOW_THE_BAND: [(&str, MethodSetting, f64, bool, f64); 2] = [
+    ("docked_servicer", MethodSetting::Fixed(Method::Dop853), 1e-8, false, 1e-3),
+    ("docked_servicer", MethodSetting::Auto, 1e-8, false, 1e-3),
+];
+
 /// (θ, ν) at each of `points` communication points of `setting` at
 /// `tolerance`, with ε held (`held`) or given as a function of time, and
 /// the steps taken.
@@ -73,7 +85,11 @@ fn band_on(path: &str, count: usize) {
                 // asked (the floor of one step per point, issue 50; the limited arm's
                 // dop853 from 1e-6).
                 let at_the_floor = !held && 2 * steps <= 3 * count;
-                if ratio > BAND.1 || (ratio < BAND.0 && !at_the_floor) {
+                let least = BELOW_THE_BAND
+                    .iter()
+                    .find(|known| path.contains(known.0) && (known.1, known.2, known.3) == (setting, tolerance, held))
+                    .map_or(BAND.0, |known| known.4);
+                if ratio > BAND.1 || (ratio < least && !at_the_floor) {
                     outside.push(line);
                 }
             }
