@@ -712,6 +712,20 @@ impl Simulation {
                 && switches.switched(model, ws, integrator, theta, t + step, inputs_at).map_err(failed)?;
             if error <= 1.0
                 && !crossed
+                && watch
+                && integrator.stage_watch.earliest().is_none()
+                && let Some(share) = integrator.method.gap_probe()
+            {
+                // The widest gap between stages read at its middle, on the interpolant.
+                let start = (&theta[..], &qvel[..]);
+                let probe = &mut switches.probe;
+                integrator
+                    .form_interpolant(model, ws, start, (t, step), carry.work, inputs_at, probe)
+                    .map_err(failed)?;
+                integrator.probe_margins(model, ws, probe, share, inputs_at);
+            }
+            if error <= 1.0
+                && !crossed
                 && stage_cuts < MAX_STAGE_CUTS
                 && let Some(share) = integrator.stage_watch.earliest()
             {

@@ -662,6 +662,29 @@ impl Integrator {
         Ok(0.25 * reach.step * defect)
     }
 
+    /// Reads the constraint margins at `share` of the step whose
+    /// interpolant `probe` holds, as at a stage (switches.rs): the state
+    /// there from the interpolant, its rates evaluated in the step's mode.
+    /// A point whose rates cannot be evaluated counts as one that left it.
+    pub(super) fn probe_margins(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        probe: &Reach,
+        share: f64,
+        inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
+    ) {
+        let t = probe.start + share * probe.step;
+        let (theta, qvel) = (self.theta_stage.as_mut_slice(), self.qvel_stage.as_mut_slice());
+        probe.interpolate(model, t, theta, qvel, self.dense_delta.as_mut_slice());
+        let read = self
+            .evaluate_stage(model, ws, t, inputs_at)
+            .and_then(|_| self.stage_watch.check_stage(model, ws, self.theta_stage.as_slice(), share));
+        if read.is_err() {
+            self.stage_watch.left_at(share);
+        }
+    }
+
     /// Evaluates the rates at the step's start (θ, θ̇, t) into `first`.
     pub(super) fn evaluate_start(
         &mut self,

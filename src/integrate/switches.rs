@@ -33,8 +33,13 @@
 //! time, where location then finds the switch. A weld's impedance moving
 //! between pieces and back within 10 ms was missed so by `dop853` at
 //! loose tolerances, 4.7e-3 off (docs/integration.md, "Switches undone
-//! within one step").
+//! within one step"). Where a method's stages leave a gap of more than a
+//! third of the step (`tsit5`, `dopri5`, `bs3`), the margins are read at
+//! its middle too, on the step's interpolant ([`super::tableau::Method::gap_probe`]): with
+//! the damped errors discounted (decay.rs) their steps grew long enough
+//! for a 5.5 ms excursion of the same weld to fall between two stages.
 
+use super::reach::Reach;
 use super::rkmk::{Integrator, retract};
 use crate::dynamics::DynamicsError;
 use crate::dynamics::mode::ConstraintMode;
@@ -98,6 +103,12 @@ impl StageWatch {
     pub(super) fn earliest(&self) -> Option<f64> {
         self.earliest
     }
+
+    /// Takes the point at `share` of the step for one that left the mode
+    /// (its rates could not be evaluated).
+    pub(super) fn left_at(&mut self, share: f64) {
+        self.earliest = Some(self.earliest.map_or(share, |earliest| earliest.min(share)));
+    }
 }
 
 /// The mode a step holds, its margins at the points of the step being
@@ -115,6 +126,9 @@ pub struct Switches {
     after: Vec<f64>,
     /// The configuration at the end of the attempted step.
     theta_end: Vec<f64>,
+    /// The interpolant of a step whose widest gap between stages is probed
+    /// ([`super::tableau::Method::gap_probe`]).
+    pub(super) probe: Reach,
 }
 
 /// Where a located switch left the integrator.
@@ -136,6 +150,7 @@ impl Switches {
             before: margins.clone(),
             after: margins,
             theta_end: if mode.is_empty() { Vec::new() } else { vec![0.0; model.nq] },
+            probe: if mode.is_empty() { Reach::default() } else { Reach::new(model) },
             mode,
         }
     }

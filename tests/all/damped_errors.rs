@@ -112,3 +112,30 @@ fn the_slider_hands_errors_lie_in_the_band() {
 fn the_limited_arms_errors_lie_in_the_band() {
     band_on("tests/fixtures/constraints/limited_arm.xml", 20);
 }
+
+/// The docked servicer left at rest (ε = 0), 0.01 s communication steps,
+/// `tsit5` at 1e-4 with the input held: the pod's weld leaves its impedance
+/// piece at 0.1141 s and comes back at 0.1196 s, inside an 11 ms step whose
+/// stages at 0.327 and 0.9 of it fall on either side. Read at the middle
+/// of that gap, the excursion is located; missed, the state at 0.12 s was
+/// 47 times the tolerance off.
+#[test]
+fn an_excursion_between_two_stages_is_caught_by_the_gap_probe() {
+    let model = fixture("tests/fixtures/constraints/docked_servicer.xml");
+    let settings = |tolerance| Settings { tolerance, max_step: 0.0, energy_projection: false };
+    let zero = vec![0.0; model.nv];
+    let run = |method: Method, tolerance: f64| -> Vec<Vec<f64>> {
+        let mut sim = Simulation::new(&model, method, settings(tolerance));
+        sim.initialize(&model).unwrap();
+        (1..=30)
+            .map(|n| {
+                let input = Input { eps: &zero, eps_rate: &zero, ctrl: &[], ctrl_rate: &[] };
+                sim.advance_to(&model, n as f64 * 0.01, input).unwrap();
+                sim.state.theta.iter().chain(&sim.state.nu).copied().collect()
+            })
+            .collect()
+    };
+    let reference = run(Method::Dop853, 1e-12);
+    let ratio = largest_error(&run(Method::Tsit5, 1e-4), &reference) / 1e-4;
+    assert!(ratio <= BAND.1, "largest error/tol {ratio:.3}");
+}
