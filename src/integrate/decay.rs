@@ -29,7 +29,7 @@ use crate::model::Model;
 const DEPENDENT_COLUMN: f64 = 1e-8;
 
 /// Orthonormal directions in ν with their decay rates.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 struct Directions {
     /// Unit columns, nv each, column after column.
     basis: Vec<f64>,
@@ -92,7 +92,7 @@ impl Directions {
 
 /// The free rows' directions in ν, and the parts of a step's errors along
 /// them (preallocated for the model's most rows).
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub(super) struct DampedDirections {
     /// Along which velocity errors decay: every free row's.
     velocities: Directions,
