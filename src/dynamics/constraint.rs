@@ -833,9 +833,12 @@ impl ConstraintRows {
     /// v and r follow s² + d·b·s + d²·k = 0: the rate is that of its slower
     /// root's envelope, d·b/2 for a critically or under-damped row, and
     /// d·b/2 too for a friction row's velocity (k = 0), which decays at
-    /// twice that.
+    /// twice that. `None` for a friction row when MuJoCo's no-slip pass
+    /// runs: the pass moves those forces after the solver, so their rows
+    /// follow its sweeps, not their references.
     pub(crate) fn free_row_decay(&self, model: &Model, k: usize) -> Option<(f64, bool)> {
-        if self.solver.held[k] != Held::Free {
+        let moved_by_no_slip = self.kind[k].is_friction() && model.constraints.runs_no_slip_pass();
+        if self.solver.held[k] != Held::Free || moved_by_no_slip {
             return None;
         }
         let diagonal = self.hessian[k * self.max_rows + k];

@@ -31,12 +31,25 @@ const BELOW_THE_BAND: [(&str, MethodSetting, f64, bool, f64); 2] = [
 /// `tolerance`, with ε held (`held`) or given as a function of time, and
 /// the steps taken; a relaxation of the tolerance fails the test.
 fn points(model: &Model, setting: MethodSetting, tolerance: f64, points: usize, held: bool) -> (Vec<Vec<f64>>, usize) {
+    let (states, steps, relaxed) = points_relaxing(model, setting, tolerance, points, held);
+    assert!(relaxed.is_empty(), "{setting:?} at {tolerance:e}: {relaxed:?}");
+    (states, steps)
+}
+
+/// [`points`], and the relaxations of the tolerance the run made.
+fn points_relaxing(
+    model: &Model,
+    setting: MethodSetting,
+    tolerance: f64,
+    points: usize,
+    held: bool,
+) -> (Vec<Vec<f64>>, usize, Vec<String>) {
     let settings = Settings { tolerance, max_step: 0.0, energy_projection: false };
     let mut sim = Simulation::new(model, setting, settings);
     sim.initialize(model).unwrap();
     let eps = eps(model);
     let zero = vec![0.0; model.nv];
-    let mut steps = 0;
+    let (mut steps, mut relaxed) = (0, Vec::new());
     let states = (1..=points)
         .map(|n| {
             let t = n as f64 * INTERVAL;
@@ -46,12 +59,12 @@ fn points(model: &Model, setting: MethodSetting, tolerance: f64, points: usize, 
                 sim.advance_to(model, t, |_: f64, out: &mut [f64]| out.copy_from_slice(&eps))
             };
             let advanced = advanced.unwrap();
-            assert!(advanced.relaxed.is_none(), "{setting:?} at {tolerance:e}: {:?}", advanced.relaxed);
+            relaxed.extend(advanced.relaxed.map(|relaxation| relaxation.to_string()));
             steps += advanced.stats.accepted;
             sim.state.theta.iter().chain(&sim.state.nu).copied().collect()
         })
         .collect();
-    (states, steps)
+    (states, steps, relaxed)
 }
 
 /// The largest error relative to 1 + |x| at any point.
@@ -139,5 +152,21 @@ fn an_excursion_between_two_stages_is_caught_by_the_gap_probe() {
     };
     let reference = run(Method::Dop853, 1e-12);
     let ratio = largest_error(&run(Method::Tsit5, 1e-4), &reference) / 1e-4;
+    assert!(ratio <= BAND.1, "largest error/tol {ratio:.3}");
+}
+
+/// With MuJoCo's no-slip pass the friction rows follow its sweeps, not
+/// their references, so their directions are not discounted: `dopri5` at
+/// 1e-8 on noslip_trees, driven with the input held, stays within the
+/// band's top (25 times the tolerance with them discounted). The pass is
+/// not smooth, so the run may relax the tolerance, and says why.
+#[test]
+fn friction_rows_the_no_slip_pass_moves_are_not_discounted() {
+    let model = fixture("tests/fixtures/constraints/noslip_trees.xml");
+    let fixed = |method| MethodSetting::Fixed(method);
+    let (reference, _, _) = points_relaxing(&model, fixed(Method::Dop853), 1e-12, 20, false);
+    let (run, _, relaxed) = points_relaxing(&model, fixed(Method::Dopri5), 1e-8, 20, true);
+    assert!(relaxed.iter().all(|relaxation| relaxation.contains("no-slip")), "{relaxed:?}");
+    let ratio = largest_error(&run, &reference) / 1e-8;
     assert!(ratio <= BAND.1, "largest error/tol {ratio:.3}");
 }
