@@ -710,6 +710,8 @@ impl Simulation {
             let crossed = error <= 1.0
                 && watch
                 && switches.switched(model, ws, integrator, theta, t + step, inputs_at).map_err(failed)?;
+            // Whether this attempt's interpolant is in `switches.probe`.
+            let mut probed = false;
             if error <= 1.0
                 && !crossed
                 && watch
@@ -723,6 +725,7 @@ impl Simulation {
                     .form_interpolant(model, ws, start, (t, step), carry.work, inputs_at, probe)
                     .map_err(failed)?;
                 integrator.probe_margins(model, ws, probe, share, inputs_at);
+                probed = true;
             }
             if error <= 1.0
                 && !crossed
@@ -756,8 +759,15 @@ impl Simulation {
                 let end = if step == remaining { limit } else { t + step };
                 let reaches = end - t1 > end_slack;
                 if reaches {
-                    let (start, work) = ((&theta[..], &qvel[..]), carry.work);
-                    integrator.form_interpolant(model, ws, start, (t, step), work, inputs_at, reach).map_err(failed)?;
+                    if probed {
+                        // The same step's, formed for the probe (dop853's takes three evaluations).
+                        reach.clone_from(&switches.probe);
+                    } else {
+                        let (start, work) = ((&theta[..], &qvel[..]), carry.work);
+                        integrator
+                            .form_interpolant(model, ws, start, (t, step), work, inputs_at, reach)
+                            .map_err(failed)?;
+                    }
                     // An interpolated state where the rates cannot be evaluated (or are not
                     // finite) is not trusted either.
                     let trusted = crossed

@@ -34,10 +34,12 @@
 //! between pieces and back within 10 ms was missed so by `dop853` at
 //! loose tolerances, 4.7e-3 off (docs/integration.md, "Switches undone
 //! within one step"). Where a method's stages leave a gap of more than a
-//! third of the step (`tsit5`, `dopri5`, `bs3`), the margins are read at
-//! its middle too, on the step's interpolant ([`super::tableau::Method::gap_probe`]): with
-//! the damped errors discounted (decay.rs) their steps grew long enough
-//! for a 5.5 ms excursion of the same weld to fall between two stages.
+//! fifth of the step (every explicit method), the margins are read at its
+//! middle too, on the step's interpolant
+//! ([`super::tableau::Method::gap_probe`]): with the damped errors
+//! discounted (decay.rs) the steps grew long enough for a 5.5 ms
+//! excursion of the same weld to fall between two of `tsit5`'s stages,
+//! and a touch of a limit between two of `dop853`'s.
 
 use super::reach::Reach;
 use super::rkmk::{Integrator, retract};

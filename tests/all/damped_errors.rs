@@ -170,3 +170,28 @@ fn friction_rows_the_no_slip_pass_moves_are_not_discounted() {
     let ratio = largest_error(&run, &reference) / 1e-8;
     assert!(ratio <= BAND.1, "largest error/tol {ratio:.3}");
 }
+
+/// The arm of empty_rows swinging under gravity (ε = 0), 0.05 s
+/// communication steps, `dop853` at 1e-3 with the input held: its elbow's
+/// limit comes on and off again between the stages at 1/3 and 0.6 of a
+/// step, which the probe at 0.467 reads (978 times the tolerance at 0.9 s
+/// without it).
+#[test]
+fn a_limit_touched_between_dop853s_stages_is_caught_by_the_gap_probe() {
+    let model = fixture("tests/fixtures/constraints/empty_rows.xml");
+    let settings = |tolerance| Settings { tolerance, max_step: 0.0, energy_projection: false };
+    let zero = vec![0.0; model.nv];
+    let run = |tolerance: f64| -> Vec<Vec<f64>> {
+        let mut sim = Simulation::new(&model, Method::Dop853, settings(tolerance));
+        sim.initialize(&model).unwrap();
+        (1..=40)
+            .map(|n| {
+                let input = Input { eps: &zero, eps_rate: &zero, ctrl: &[], ctrl_rate: &[] };
+                sim.advance_to(&model, n as f64 * INTERVAL, input).unwrap();
+                sim.state.theta.iter().chain(&sim.state.nu).copied().collect()
+            })
+            .collect()
+    };
+    let ratio = largest_error(&run(1e-3), &run(1e-12)) / 1e-3;
+    assert!(ratio <= BAND.1, "largest error/tol {ratio:.3}");
+}
