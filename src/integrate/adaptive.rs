@@ -710,7 +710,9 @@ impl Simulation {
             let crossed = error <= 1.0
                 && watch
                 && switches.switched(model, ws, integrator, theta, t + step, inputs_at).map_err(failed)?;
-            // Whether this attempt's interpolant is in `switches.probe`.
+            // Whether `reach` holds this attempt's interpolant. Nothing is held in
+            // `reach` before the advance's last step (one that reaches past t1), so
+            // the probe may form it there.
             let mut probed = false;
             if error <= 1.0
                 && !crossed
@@ -720,11 +722,10 @@ impl Simulation {
             {
                 // The widest gap between stages read at its middle, on the interpolant.
                 let start = (&theta[..], &qvel[..]);
-                let probe = &mut switches.probe;
                 integrator
-                    .form_interpolant(model, ws, start, (t, step), carry.work, inputs_at, probe)
+                    .form_interpolant(model, ws, start, (t, step), carry.work, inputs_at, reach)
                     .map_err(failed)?;
-                integrator.probe_margins(model, ws, probe, share, inputs_at);
+                integrator.probe_margins(model, ws, reach, share, inputs_at);
                 probed = true;
             }
             if error <= 1.0
@@ -759,10 +760,8 @@ impl Simulation {
                 let end = if step == remaining { limit } else { t + step };
                 let reaches = end - t1 > end_slack;
                 if reaches {
-                    if probed {
-                        // The same step's, formed for the probe (dop853's takes three evaluations).
-                        reach.clone_from(&switches.probe);
-                    } else {
+                    // Formed already for the probe (dop853's takes three evaluations).
+                    if !probed {
                         let (start, work) = ((&theta[..], &qvel[..]), carry.work);
                         integrator
                             .form_interpolant(model, ws, start, (t, step), work, inputs_at, reach)

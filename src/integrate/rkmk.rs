@@ -652,9 +652,7 @@ impl Integrator {
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) -> Result<f64, DynamicsError> {
         let t = reach.start + 0.5 * reach.step;
-        let (theta, qvel) = (self.theta_stage.as_mut_slice(), self.qvel_stage.as_mut_slice());
-        reach.interpolate(model, t, theta, qvel, self.dense_delta.as_mut_slice());
-        self.evaluate_stage(model, ws, t, inputs_at)?;
+        self.evaluate_on_interpolant(model, ws, reach, t, inputs_at)?;
         let qvel = &self.qvel_stage.as_slice()[..model.nv];
         let defect = (ws.qacc.iter().zip(qvel).enumerate())
             .map(|(dof, (qacc, rate))| (reach.qacc(t, dof) - qacc).abs() / (1.0 + rate.abs()))
@@ -663,26 +661,40 @@ impl Integrator {
     }
 
     /// Reads the constraint margins at `share` of the step whose
-    /// interpolant `probe` holds, as at a stage (switches.rs): the state
+    /// interpolant `reach` holds, as at a stage (switches.rs): the state
     /// there from the interpolant, its rates evaluated in the step's mode.
     /// A point whose rates cannot be evaluated counts as one that left it.
     pub(super) fn probe_margins(
         &mut self,
         model: &Model,
         ws: &mut Workspace,
-        probe: &Reach,
+        reach: &Reach,
         share: f64,
         inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
     ) {
-        let t = probe.start + share * probe.step;
-        let (theta, qvel) = (self.theta_stage.as_mut_slice(), self.qvel_stage.as_mut_slice());
-        probe.interpolate(model, t, theta, qvel, self.dense_delta.as_mut_slice());
+        let t = reach.start + share * reach.step;
         let read = self
-            .evaluate_stage(model, ws, t, inputs_at)
+            .evaluate_on_interpolant(model, ws, reach, t, inputs_at)
             .and_then(|_| self.stage_watch.check_stage(model, ws, self.theta_stage.as_slice(), share));
         if read.is_err() {
             self.stage_watch.left_at(share);
         }
+    }
+
+    /// Evaluates the rates at time `t` on the interpolant `reach` holds (the
+    /// state there in `theta_stage` and `qvel_stage`); the stages, `first`
+    /// and `end` stay as they were.
+    fn evaluate_on_interpolant(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        reach: &Reach,
+        t: f64,
+        inputs_at: &mut impl FnMut(f64, &mut [f64], &mut [f64]),
+    ) -> Result<f64, DynamicsError> {
+        let (theta, qvel) = (self.theta_stage.as_mut_slice(), self.qvel_stage.as_mut_slice());
+        reach.interpolate(model, t, theta, qvel, self.dense_delta.as_mut_slice());
+        self.evaluate_stage(model, ws, t, inputs_at)
     }
 
     /// Evaluates the rates at the step's start (θ, θ̇, t) into `first`.

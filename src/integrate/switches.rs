@@ -41,7 +41,6 @@
 //! excursion of the same weld to fall between two of `tsit5`'s stages,
 //! and a touch of a limit between two of `dop853`'s.
 
-use super::reach::Reach;
 use super::rkmk::{Integrator, retract};
 use crate::dynamics::DynamicsError;
 use crate::dynamics::mode::ConstraintMode;
@@ -128,9 +127,6 @@ pub struct Switches {
     after: Vec<f64>,
     /// The configuration at the end of the attempted step.
     theta_end: Vec<f64>,
-    /// The interpolant of a step whose widest gap between stages is probed
-    /// ([`super::tableau::Method::gap_probe`]).
-    pub(super) probe: Reach,
 }
 
 /// Where a located switch left the integrator.
@@ -152,7 +148,6 @@ impl Switches {
             before: margins.clone(),
             after: margins,
             theta_end: if mode.is_empty() { Vec::new() } else { vec![0.0; model.nq] },
-            probe: if mode.is_empty() { Reach::default() } else { Reach::new(model) },
             mode,
         }
     }
