@@ -87,6 +87,12 @@ pub fn sum<S: Real>(terms: impl Iterator<Item = S>) -> S {
     terms.fold(S::from(-0.0), |total, term| total + term)
 }
 
+/// a · b of two slices of equal length (plain f64 buffers, no nalgebra view).
+#[inline]
+pub fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
 /// A 3-vector.
 pub type Vec3<S = f64> = Vector3<S>;
 /// A 3×3 matrix.

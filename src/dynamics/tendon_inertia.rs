@@ -16,7 +16,7 @@
 use super::DynamicsError;
 use super::actuation::site_in_world;
 use super::forces::eps_of_torque;
-use crate::math::{SpatialVec, Vec3, angular, linear};
+use crate::math::{SpatialVec, Vec3, angular, dot, linear};
 use crate::model::{Model, Path, PathStop};
 use crate::workspace::{Stage, Workspace};
 
@@ -143,10 +143,6 @@ fn armature_tendons(model: &Model) -> String {
         })
         .collect();
     names.join(", ")
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 impl Workspace {

@@ -453,6 +453,11 @@ pub(super) struct ScaledError {
     pub(super) accumulating: f64,
 }
 
+impl ScaledError {
+    /// A step whose rates or estimate could not be evaluated: it fails.
+    pub(super) const FAILED: ScaledError = ScaledError { per_step: f64::INFINITY, accumulating: f64::INFINITY };
+}
+
 /// A step's error per second from its scaled error `error` over `step`,
 /// and whether the method is held per unit step; a method held per step
 /// has no per-second error (its share of the tolerance stands for it), and
@@ -670,7 +675,7 @@ impl Simulation {
                 Ok(()) => integrator.error_norm(model, ws, theta, tolerance, step),
                 Err(cause) => {
                     last_cause = Some(Overflow::Dynamics(cause));
-                    ScaledError { per_step: f64::INFINITY, accumulating: f64::INFINITY }
+                    ScaledError::FAILED
                 }
             };
             let per_step = scaled.per_step;
@@ -947,7 +952,6 @@ impl Integrator {
         tolerance: f64,
         step: f64,
     ) -> ScaledError {
-        let failed = ScaledError { per_step: f64::INFINITY, accumulating: f64::INFINITY };
         let two_estimates =
             matches!(self.method.scheme(), Scheme::Explicit(t) if matches!(t.error, ErrorEstimate::Dop853 { .. }));
         let estimates = if two_estimates { 2 } else { 1 };
@@ -965,7 +969,7 @@ impl Integrator {
             };
             let (error_qvel, error_act) = error_qvel.as_slice().split_at(nv);
             if ws.set_qvel(model, error_qvel).is_err() {
-                return failed;
+                return ScaledError::FAILED;
             }
             let act_next = &self.qvel_next.as_slice()[nv..];
             for (error, act) in error_act.iter().zip(act_next) {
@@ -980,7 +984,7 @@ impl Integrator {
                 if damped.holds_positions() {
                     // Δ's parts along the rows: m*Δ's, mapped back by m*⁻¹ (pass 2 forward and back).
                     if ws.set_qvel(model, error_delta).is_err() {
-                        return failed;
+                        return ScaledError::FAILED;
                     }
                     damped.split_delta(nv, step, ws.nu.as_slice());
                     for (part, back) in [
@@ -988,7 +992,7 @@ impl Integrator {
                         (&damped.weighted_delta_nu, &mut damped.weighted_delta),
                     ] {
                         if ws.set_nu(model, part).is_err() {
-                            return failed;
+                            return ScaledError::FAILED;
                         }
                         back.copy_from_slice(ws.qvel.as_slice());
                     }
@@ -999,6 +1003,7 @@ impl Integrator {
             }
             let error_nu = if splits { &damped.error_nu[..] } else { ws.nu.as_slice() };
             let (delta, nu_size) = (self.delta.as_slice(), self.nu_size.as_slice());
+            // act's part, which no row damps.
             *accumulating = *norm;
             for (dof, position) in positions(model, theta) {
                 let position = position.map_or(0.0, |y| y.abs().max((y + delta[dof]).abs()));
@@ -1006,17 +1011,18 @@ impl Integrator {
                 let scale_nu = tolerance * (1.0 + nu_size[dof]);
                 let (error_delta, error_nu) = (error_delta[dof], error_nu[dof]);
                 *norm = norm.max((error_delta / scale_delta).abs()).max((error_nu / scale_nu).abs());
-                let parts = if splits {
-                    [
+                if splits {
+                    let parts = [
                         (error_delta - damped.damped_delta[dof]) / scale_delta,
                         damped.weighted_delta[dof] / scale_delta,
                         (error_nu - damped.damped_nu[dof]) / scale_nu,
                         damped.weighted_nu[dof] / scale_nu,
-                    ]
-                } else {
-                    [error_delta / scale_delta, 0.0, error_nu / scale_nu, 0.0]
-                };
-                *accumulating = parts.iter().fold(*accumulating, |largest, part| largest.max(part.abs()));
+                    ];
+                    *accumulating = parts.iter().fold(*accumulating, |largest, part| largest.max(part.abs()));
+                }
+            }
+            if !splits {
+                *accumulating = *norm;
             }
         }
         // The 5th-order estimate, damped where the 3rd-order one is much larger (Hairer's DOP853).

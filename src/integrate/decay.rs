@@ -21,6 +21,7 @@
 
 use super::adaptive::TOLERANCE_TIME;
 use crate::dynamics::constraint::ConstraintRows;
+use crate::math::dot;
 use crate::model::Model;
 
 /// A column of E whose part outside the columns before it is below this
@@ -168,10 +169,6 @@ impl DampedDirections {
         let parts = (&mut self.damped_delta_nu[..], &mut self.weighted_delta_nu[..]);
         self.positions.split(nv, step, delta_nu, parts);
     }
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 fn norm(a: &[f64]) -> f64 {

@@ -528,7 +528,7 @@ impl Simulation {
         // and the run's error test, as `advance_adaptive` applies it to a first step.
         let scaled_at = |integrator: &mut Integrator, ws: &mut Workspace, tolerance: f64| match attempted {
             Ok(()) => integrator.error_norm(model, ws, &state.theta, tolerance, step),
-            Err(_) => ScaledError { per_step: f64::INFINITY, accumulating: f64::INFINITY },
+            Err(_) => ScaledError::FAILED,
         };
         let control = PROBE_METHOD.control();
         let (error_per_second, _) = per_second_error(control, scaled_at(integrator, ws, 1.0), step);

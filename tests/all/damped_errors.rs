@@ -137,22 +137,26 @@ fn the_limited_arms_errors_lie_in_the_band() {
 #[test]
 fn an_excursion_between_two_stages_is_caught_by_the_gap_probe() {
     let model = fixture("tests/fixtures/constraints/docked_servicer.xml");
-    let settings = |tolerance| Settings { tolerance, max_step: 0.0, energy_projection: false };
-    let zero = vec![0.0; model.nv];
-    let run = |method: Method, tolerance: f64| -> Vec<Vec<f64>> {
-        let mut sim = Simulation::new(&model, method, settings(tolerance));
-        sim.initialize(&model).unwrap();
-        (1..=30)
-            .map(|n| {
-                let input = Input { eps: &zero, eps_rate: &zero, ctrl: &[], ctrl_rate: &[] };
-                sim.advance_to(&model, n as f64 * 0.01, input).unwrap();
-                sim.state.theta.iter().chain(&sim.state.nu).copied().collect()
-            })
-            .collect()
-    };
-    let reference = run(Method::Dop853, 1e-12);
-    let ratio = largest_error(&run(Method::Tsit5, 1e-4), &reference) / 1e-4;
+    let reference = at_rest(&model, Method::Dop853, 1e-12, (0.01, 30));
+    let ratio = largest_error(&at_rest(&model, Method::Tsit5, 1e-4, (0.01, 30)), &reference) / 1e-4;
     assert!(ratio <= BAND.1, "largest error/tol {ratio:.3}");
+}
+
+/// (θ, ν) at `count` communication points `interval` apart of `model` left
+/// to itself (ε = 0 held, so that steps may reach past the points, and no
+/// stop time) with `method` at `tolerance`.
+fn at_rest(model: &Model, method: Method, tolerance: f64, (interval, count): (f64, usize)) -> Vec<Vec<f64>> {
+    let settings = Settings { tolerance, max_step: 0.0, energy_projection: false };
+    let mut sim = Simulation::new(model, method, settings);
+    sim.initialize(model).unwrap();
+    let zero = vec![0.0; model.nv];
+    (1..=count)
+        .map(|n| {
+            let input = Input { eps: &zero, eps_rate: &zero, ctrl: &[], ctrl_rate: &[] };
+            sim.advance_to(model, n as f64 * interval, input).unwrap();
+            sim.state.theta.iter().chain(&sim.state.nu).copied().collect()
+        })
+        .collect()
 }
 
 /// With MuJoCo's no-slip pass the friction rows follow its sweeps, not
@@ -179,19 +183,7 @@ fn friction_rows_the_no_slip_pass_moves_are_not_discounted() {
 #[test]
 fn a_limit_touched_between_dop853s_stages_is_caught_by_the_gap_probe() {
     let model = fixture("tests/fixtures/constraints/empty_rows.xml");
-    let settings = |tolerance| Settings { tolerance, max_step: 0.0, energy_projection: false };
-    let zero = vec![0.0; model.nv];
-    let run = |tolerance: f64| -> Vec<Vec<f64>> {
-        let mut sim = Simulation::new(&model, Method::Dop853, settings(tolerance));
-        sim.initialize(&model).unwrap();
-        (1..=40)
-            .map(|n| {
-                let input = Input { eps: &zero, eps_rate: &zero, ctrl: &[], ctrl_rate: &[] };
-                sim.advance_to(&model, n as f64 * INTERVAL, input).unwrap();
-                sim.state.theta.iter().chain(&sim.state.nu).copied().collect()
-            })
-            .collect()
-    };
+    let run = |tolerance| at_rest(&model, Method::Dop853, tolerance, (INTERVAL, 40));
     let ratio = largest_error(&run(1e-3), &run(1e-12)) / 1e-3;
     assert!(ratio <= BAND.1, "largest error/tol {ratio:.3}");
 }
