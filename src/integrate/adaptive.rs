@@ -749,7 +749,7 @@ impl Simulation {
             let mut taken = (step, per_second, error);
             if crossed {
                 let located = switches
-                    .locate(model, ws, integrator, (theta, qvel), (t, step), tolerance, inputs_at)
+                    .locate(model, ws, integrator, (theta, qvel), (t, step, carry.work), tolerance, reach, inputs_at)
                     .map_err(failed)?;
                 stats.locating += located.attempts;
                 let scaled = integrator.error_norm(model, ws, theta, tolerance, located.step);

@@ -684,7 +684,7 @@ impl Integrator {
     /// Evaluates the rates at time `t` on the interpolant `reach` holds (the
     /// state there in `theta_stage` and `qvel_stage`); the stages, `first`
     /// and `end` stay as they were.
-    fn evaluate_on_interpolant(
+    pub(super) fn evaluate_on_interpolant(
         &mut self,
         model: &Model,
         ws: &mut Workspace,

@@ -77,7 +77,10 @@ fn largest_error(run: &[Vec<f64>], reference: &[Vec<f64>]) -> f64 {
 
 fn band_on(path: &str, count: usize) {
     let model = fixture(path);
-    let (reference, _) = points(&model, MethodSetting::Fixed(Method::Dop853), 1e-12, count, false);
+    // At 1e-12 the reference may meet the round-off in the rates and say so
+    // (the servicer's: references at 1e-12, 1e-13 and 1e-14 differ by 2–4e-12);
+    // held within 20 times that, it lies 10 times below the band at 1e-8.
+    let (reference, _, _) = points_relaxing(&model, MethodSetting::Fixed(Method::Dop853), 1e-12, count, false);
     let mut outside = Vec::new();
     let settings = [Method::Dop853, Method::Dopri5, Method::Tsit5, Method::Bs3]
         .map(MethodSetting::Fixed)
