@@ -122,6 +122,10 @@ pub struct Workspace<S: Real = f64> {
     pub p_force_body: Vec<SpatialVec<S>>,
     /// Children's share of the force-only recursions' p (ε ↔ T).
     pub p_scratch_body: Vec<SpatialVec<S>>,
+    /// Whether some link below each link carries torque, in a pass over
+    /// torques on few links (`forces::eps_of_sparse_torque`); set, like the
+    /// slots, by the first child the pass reaches.
+    pub subtree_carries: Vec<bool>,
     /// Children's share of İ^A — pass 3.
     pub ia_dot_body: Vec<SpatialMat<S>>,
     /// Gravity compensation on each link (link coordinates), nonzero on the
@@ -282,6 +286,7 @@ impl<S: Real> Workspace<S> {
             p_bias_body: vec![SpatialVec::zeros(); n],
             p_force_body: vec![SpatialVec::zeros(); n],
             p_scratch_body: vec![SpatialVec::zeros(); n],
+            subtree_carries: vec![false; n],
             ia_dot_body: vec![SpatialMat::zeros(); n],
             gravcomp_wrench: vec![SpatialVec::zeros(); if model.gravity_compensation.is_empty() { 0 } else { n }],
             qfrc_gravcomp: dof(),

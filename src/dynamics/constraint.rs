@@ -76,6 +76,9 @@ pub struct ConstraintRows<S: Real = f64> {
     pub jacobian: Vec<S>,
     /// E = m⁻¹Jᵀ, laid out like `jacobian`.
     pub eps_columns: Vec<S>,
+    /// The dofs outside which each column of E is zero (a row moves its
+    /// bodies' links and their ancestors only).
+    pub eps_spans: Vec<(usize, usize)>,
     /// Distance to the limit, or an equality row's violation (MuJoCo's
     /// efc_pos; 0 for friction).
     pub distance: Vec<S>,
@@ -170,6 +173,7 @@ impl<S: Real> ConstraintRows<S> {
             id: vec![0; rows],
             jacobian: vec![S::zero(); rows * nv],
             eps_columns: vec![S::zero(); rows * nv],
+            eps_spans: vec![(0, 0); rows],
             distance: per_row.clone(),
             violation: per_row.clone(),
             diagonal_estimate: constants.clone(),
@@ -705,6 +709,8 @@ impl Workspace {
         let stride = rows.max_rows;
         if !model.tendon_inertia.is_empty() {
             self.tendon_inertia_on_rows(model, n, &mut rows.eps_columns, &mut rows.hessian, stride);
+            // The tendons' armature spreads each column of E over their dofs.
+            rows.eps_spans[..n].fill((0, model.nv));
         }
         let same_rows = rows.note_rows();
         let (gradient, lower, upper) = (&rows.gradient, &rows.lower, &rows.upper);
@@ -787,7 +793,7 @@ impl<S: Real> Workspace<S> {
             if let Some(index) = jacobian.iter().position(|j| !j.value().is_finite()) {
                 return Err(DynamicsError::NonFinite { what: "torque", index, value: jacobian[index].value() });
             }
-            forces::eps_of_torque(model, self, jacobian, &mut rows.eps_columns[column]);
+            rows.eps_spans[k] = forces::eps_of_sparse_torque(model, self, jacobian, &mut rows.eps_columns[column]);
         }
         for k in 0..n {
             let jacobian = &rows.jacobian[k * nv..(k + 1) * nv];
@@ -807,13 +813,17 @@ impl<S: Real> Workspace<S> {
             rows.aref[k] -= rows.jdot_v[k];
             rows.gradient[k] = dot(self.qacc.as_slice()) - rows.aref[k];
         }
-        // A + R: A = EᵀE.
+        // A + R: A = EᵀE, each product over the dofs where both columns may be nonzero
+        // (the terms left out are zeros, so the sums are the same).
         let stride = rows.max_rows;
         for i in 0..n {
             let e_i = &rows.eps_columns[i * nv..(i + 1) * nv];
             for j in 0..=i {
                 let e_j = &rows.eps_columns[j * nv..(j + 1) * nv];
-                let a = sum(e_i.iter().zip(e_j).map(|(x, y)| *x * *y));
+                let (first, end) =
+                    (rows.eps_spans[i].0.max(rows.eps_spans[j].0), rows.eps_spans[i].1.min(rows.eps_spans[j].1));
+                let shared = first..end.max(first);
+                let a = sum(e_i[shared.clone()].iter().zip(&e_j[shared]).map(|(x, y)| *x * *y));
                 rows.hessian[i * stride + j] = a;
                 rows.hessian[j * stride + i] = a;
             }
@@ -875,7 +885,9 @@ fn constraint_eps<S: Real>(nv: usize, rows: &mut ConstraintRows<S>) {
     rows.qfrc_constraint.fill(S::zero());
     for k in 0..rows.count {
         let force = rows.force[k];
-        for d in 0..nv {
+        // J is zero where E is (a row's dofs are its bodies' and their ancestors').
+        let (first, end) = rows.eps_spans[k];
+        for d in first..end {
             rows.eps_constraint[d] += rows.eps_columns[k * nv + d] * force;
             rows.qfrc_constraint[d] += rows.jacobian[k * nv + d] * force;
         }

@@ -89,6 +89,49 @@ pub(super) fn eps_of_torque<S: Real>(model: &Model, ws: &mut Workspace<S>, torqu
     inward_pass(model, ws, Direction::EpsFromTorque, torque, None, eps);
 }
 
+/// [`eps_of_torque`] for torques on few links, as a constraint row's
+/// Jacobian is (a weld between two free bodies moves their dofs and those
+/// of their ancestors only): a link none of whose subtree carries torque
+/// has ε = 0 and hands nothing on, so its arithmetic is skipped. The
+/// results are eps_of_torque's. Vehicles with flexible bodies, whose nodes
+/// gather their children apart from the links, take the full pass.
+/// Returns the dofs outside which ε is zero.
+pub(super) fn eps_of_sparse_torque<S: Real>(
+    model: &Model,
+    ws: &mut Workspace<S>,
+    torque: &[S],
+    eps: &mut [S],
+) -> (usize, usize) {
+    if !model.flexible.is_empty() {
+        eps_of_torque(model, ws, torque, eps);
+        return (0, model.nv);
+    }
+    let mut span = (model.nv, 0);
+    for i in (0..model.links.len()).rev() {
+        let link = &model.links[i];
+        let dofs = link.dof_adr..link.dof_adr + link.ndof;
+        let accumulation = ws.accumulation[i];
+        let carries = (accumulation.has_children && ws.subtree_carries[i])
+            || torque[dofs.clone()].iter().any(|t| !t.is_still_zero());
+        if let Some(parent) = link.parent {
+            ws.subtree_carries[parent] = carries || (!accumulation.opens_parent && ws.subtree_carries[parent]);
+            if !carries && accumulation.opens_parent {
+                ws.p_scratch_body[parent] = SpatialVec::zeros();
+            }
+        }
+        if !carries {
+            eps[dofs].fill(S::zero());
+            continue;
+        }
+        span = (span.0.min(dofs.start), span.1.max(dofs.end));
+        match link.ndof {
+            1 => inward_link::<_, 1>(model, ws, i, Direction::EpsFromTorque, torque, None, eps),
+            _ => inward_link::<_, 3>(model, ws, i, Direction::EpsFromTorque, torque, None, eps),
+        }
+    }
+    span
+}
+
 /// A child at a node hands wrench `f` (its frame) to the node's slot, in the node's frame.
 fn child_wrench<S: Real>(model: &Model, flex: &mut [FlexState<S>], at: NodeParent, f: &SpatialVec<S>, opens: bool) {
     let (f_index, c, slot) = super::flexible::node_of(model, at);
