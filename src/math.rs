@@ -4,7 +4,8 @@
 //! a motion vector is (ω, v) with v the velocity of the frame's origin, a
 //! force vector is (n, f) with n the moment about the frame's origin.
 //!
-//! Every helper is `#[inline]`: the passes call them per link from other
+//! Every helper but the congruence (`Transform::add_inertia_to_parent`,
+//! which says why) is `#[inline]`: the passes call them per link from other
 //! codegen units, and out of line they cost a fifth of a ν̇ (bus_arm7
 //! 3.30 → 2.70 µs with them inlined, criterion).
 
@@ -347,7 +348,14 @@ impl<S: Real> Transform<S> {
     /// The term is exactly symmetric (its diagonal blocks are symmetrized): the
     /// passes accumulate these along the tree, and formulas that rely on
     /// symmetry would let a round-off asymmetry grow link by link.
-    #[inline(always)]
+    ///
+    /// Unlike the other helpers it is kept out of line, a call with its
+    /// operands in memory: with only its 3×3 rotations out of line, as the
+    /// compiler chose before, every example's ν̇ took 2–8 % longer than now
+    /// (2026-11-30, side by side), and a variant inlined whole into the
+    /// passes' link functions made chain60's pass 3 about twice as slow
+    /// (the link function's values and the congruence's compete for the registers).
+    #[inline(never)]
     pub fn add_inertia_to_parent(&self, inertia: &SpatialMat<S>, slot: &mut SpatialMat<S>, replace: bool) {
         let (e, e_t) = (self.rot, self.rot.transpose());
         let symmetric = |m: Mat3<S>| (m + m.transpose()) * S::from(0.5);
