@@ -221,3 +221,53 @@ impl Workspace {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The sparse pass gives the full pass's ε bit for bit, and zero
+    /// outside the span it returns, for torque on each dof alone, on each
+    /// pair of dofs and on all of them, on vehicles whose trees branch
+    /// (the hand's two fingers, the arm's tool and sensor pod on the
+    /// servicer), away from their file pose.
+    #[test]
+    fn the_sparse_pass_gives_the_full_pass_results() {
+        for file in ["tests/fixtures/constraints/slider_hand.xml", "tests/fixtures/constraints/docked_servicer.xml"] {
+            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(file);
+            let model = Model::compile(&crate::mjcf::load_mjcf(&path).unwrap().vehicle).unwrap();
+            let mut ws = model.workspace();
+            let theta: Vec<f64> = model.qpos0.iter().enumerate().map(|(k, q)| q + 0.1 * (k as f64).sin()).collect();
+            ws.set_configuration(&model, &theta).unwrap();
+            let nv = model.nv;
+            let mut torques = vec![vec![1.0; nv]];
+            for a in 0..nv {
+                for b in a..nv {
+                    let mut torque = vec![0.0; nv];
+                    torque[a] = 1.0;
+                    torque[b] -= 0.5;
+                    torques.push(torque);
+                }
+            }
+            let full: Vec<Vec<f64>> = (torques.iter())
+                .map(|torque| {
+                    let mut eps = vec![0.0; nv];
+                    eps_of_torque(&model, &mut ws, torque, &mut eps);
+                    eps
+                })
+                .collect();
+            // One sparse pass after another, as the rows are formed: what one
+            // leaves in the slots must not reach the next.
+            let mut sparse = vec![f64::NAN; nv];
+            let bits = |v: &[f64]| v.iter().map(|x| (x + 0.0).to_bits()).collect::<Vec<_>>();
+            for (torque, full) in torques.iter().zip(&full) {
+                let (first, end) = eps_of_sparse_torque(&model, &mut ws, torque, &mut sparse);
+                assert_eq!(bits(&sparse), bits(full), "{file}, torque {torque:?}");
+                assert!(
+                    full.iter().enumerate().all(|(d, e)| (first..end).contains(&d) || *e == 0.0),
+                    "{file}: {torque:?}"
+                );
+            }
+        }
+    }
+}
