@@ -50,7 +50,8 @@ use crate::model::Model;
 use crate::workspace::Workspace;
 
 /// At most this many attempts locate one switch: from the interpolant's
-/// estimate they close the bracket in two to four, and bisect where three
+/// estimate they close the bracket in four or five on the docked servicer
+/// (two where the estimate is within the resolution), and bisect where three
 /// of the secant's have not halved it, so that 40 reach any resolution
 /// down to round-off from a step of any length.
 const MAX_ATTEMPTS: usize = 40;
