@@ -318,18 +318,21 @@ impl Switches {
         // moved, just short of it after its end moved: an accurate
         // estimate then closes the bracket in two readings.
         let mut past = true;
+        // How far past or short of the estimate a reading aims, and the least
+        // it keeps from either end of the bracket.
+        let nudge = 0.4 * resolution;
         let mut widths = [step; 3];
         while bracket.after - bracket.before > resolution && bracket.readings < limit {
             let (before, after) = (bracket.before, bracket.after);
             let width = after - before;
-            let inset = (0.4 * resolution).max(1e-6 * width);
+            let inset = nudge.max(1e-6 * width);
             let aim = match first {
                 Some(first) if bracket.readings == 0 => first.clamp(before + inset, after - inset),
                 // Bisect where the secant has not halved the bracket in its last three readings.
                 _ if bracket.readings >= 3 && width > 0.5 * widths[bracket.readings % 3] => before + 0.5 * width,
                 _ => {
                     let estimate = before + self.earliest_switch(weight_before, weight_after) * width;
-                    let nudged = if past { estimate + 0.4 * resolution } else { estimate - 0.4 * resolution };
+                    let nudged = if past { estimate + nudge } else { estimate - nudge };
                     nudged.clamp(before + inset, after - inset)
                 }
             };
