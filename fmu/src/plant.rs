@@ -654,7 +654,7 @@ impl Component for Plant {
             self.held_margins()?;
             let sides = self.mode.sides();
             let ws = self.sim.workspace_mut();
-            for k in sides..self.margins.len() - self.model.constraints.max_rows() {
+            for k in sides..sides + self.model.constraints.max_rows() {
                 if self.mode.distance(k, self.margins[k]) < 0.0 {
                     ws.cross_working_set(k - sides);
                 }
@@ -665,7 +665,7 @@ impl Component for Plant {
         self.mode.hold_sides(model, self.sim.workspace_mut(), &self.theta_scratch).map_err(CallError::Evaluate)?;
         let ws = self.sim.evaluate_velocity(model).map_err(CallError::Evaluate)?;
         ws.compute_nu_dot_actuated(model, &self.eps, &self.ctrl).map_err(CallError::Evaluate)?;
-        self.mode.hold_working_set(model, ws, &mut self.margins);
+        self.mode.hold_working_set(ws, &mut self.margins);
         self.mode_held = true;
         // The evaluation just made is the held mode's at this state.
         self.evaluated = Evaluated::Acceleration;

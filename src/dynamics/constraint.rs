@@ -634,6 +634,7 @@ impl Workspace {
             rows.side_buffer = held;
         }
         rows.held_working_set = None;
+        rows.no_slip.release();
     }
 
     /// Holds the working set of the last solve and the rows' impedance
@@ -641,13 +642,12 @@ impl Workspace {
     /// integrator's step starts from, its sides held) for the evaluations
     /// until [`Workspace::release_working_set`]: each then gives the
     /// minimizer with the same bounds reached, and [`Workspace::
-    /// switching_margins`] tells where that stops being the answer. Not
-    /// with MuJoCo's no-slip pass, which moves the forces afterwards.
-    pub fn hold_working_set(&mut self, model: &Model) {
+    /// switching_margins`] tells where that stops being the answer. The
+    /// no-slip pass's decisions are held with it.
+    pub fn hold_working_set(&mut self) {
         let rows = &mut self.constraint_rows;
-        if model.constraints.options.noslip_iterations == 0 {
-            rows.held_working_set = Some(rows.count);
-        }
+        rows.held_working_set = Some(rows.count);
+        rows.no_slip.hold();
     }
 
     /// Moves row `row` across the bound it crossed in the held working set
@@ -657,10 +657,12 @@ impl Workspace {
     /// again, within the solver's tolerance.
     pub fn cross_working_set(&mut self, row: usize) {
         let rows = &mut self.constraint_rows;
+        // The solver's force: the no-slip pass clamps a friction row's own.
+        let force = rows.no_slip.solved_force(row).unwrap_or(rows.force[row]);
         let held = &mut rows.solver.held[row];
         *held = match *held {
-            Held::Free if rows.force[row] < rows.lower[row] => Held::Lower,
-            Held::Free if rows.force[row] > rows.upper[row] => Held::Upper,
+            Held::Free if force < rows.lower[row] => Held::Lower,
+            Held::Free if force > rows.upper[row] => Held::Upper,
             Held::Free => Held::Free,
             Held::Lower | Held::Upper => Held::Free,
         };
@@ -669,20 +671,20 @@ impl Workspace {
     /// Lets the solver find the working set again (the sides stay held).
     pub fn release_working_set(&mut self) {
         self.constraint_rows.held_working_set = None;
+        self.constraint_rows.no_slip.release();
     }
 
     /// The rows' margins of the last evaluation (sides held) into `out`
-    /// (2 × `max_rows` long: the forces' working set, then the impedance
-    /// pieces): +∞ past the rows, and for the forces of a model with the
-    /// no-slip pass (they are not the solver's).
-    pub fn switching_margins(&self, model: &Model, out: &mut [f64]) {
+    /// (2 × `max_rows` long, then the no-slip pass's: the forces' working
+    /// set, the impedance pieces, the pass's decisions): +∞ past the rows.
+    pub fn switching_margins(&self, out: &mut [f64]) {
         let rows = &self.constraint_rows;
         out.fill(f64::INFINITY);
-        let (forces, pieces) = out.split_at_mut(rows.max_rows);
-        if model.constraints.options.noslip_iterations == 0 {
-            forces[..rows.count].copy_from_slice(&rows.margins[..rows.count]);
-        }
+        let (forces, rest) = out.split_at_mut(rows.max_rows);
+        let (pieces, no_slip) = rest.split_at_mut(rows.max_rows);
+        forces[..rows.count].copy_from_slice(&rows.margins[..rows.count]);
         pieces[..rows.count].copy_from_slice(&rows.piece_margins[..rows.count]);
+        no_slip.copy_from_slice(rows.no_slip.margins());
     }
 
     /// Puts the forces beyond the tree's on a pass 3 just run for `applied`
@@ -719,7 +721,7 @@ impl Workspace {
         } else {
             rows.solver.solve(n, &rows.hessian, stride, gradient, lower, upper, &mut rows.force, same_rows)?;
         }
-        if rows.held_sides.is_some() && model.constraints.options.noslip_iterations == 0 {
+        if rows.held_sides.is_some() {
             let bounds = (lower.as_slice(), upper.as_slice());
             rows.solver.working_set_margins(n, &rows.hessian, stride, gradient, bounds, &rows.force, &mut rows.margins);
         }

@@ -67,9 +67,9 @@ impl ConstraintMode {
     /// Second half: holds the working set and impedance pieces of the
     /// evaluation just made, and writes the margins there into `start`
     /// (whose levels of switching they set).
-    pub fn hold_working_set(&mut self, model: &Model, ws: &mut Workspace, start: &mut [f64]) {
-        ws.hold_working_set(model);
-        self.write_margins(model, ws, start);
+    pub fn hold_working_set(&mut self, ws: &mut Workspace, start: &mut [f64]) {
+        ws.hold_working_set();
+        self.write_margins(ws, start);
         for (threshold, margin) in self.thresholds.iter_mut().zip(start.iter()) {
             *threshold = margin.min(0.0);
         }
@@ -85,7 +85,7 @@ impl ConstraintMode {
         out: &mut [f64],
     ) -> Result<(), DynamicsError> {
         side_switching_functions(model, ws, theta, &mut self.side_values)?;
-        self.write_margins(model, ws, out);
+        self.write_margins(ws, out);
         Ok(())
     }
 
@@ -104,12 +104,12 @@ impl ConstraintMode {
         self.sides_active.len()
     }
 
-    fn write_margins(&self, model: &Model, ws: &Workspace, out: &mut [f64]) {
+    fn write_margins(&self, ws: &Workspace, out: &mut [f64]) {
         let (sides, rows) = out.split_at_mut(self.sides_active.len());
         for ((margin, &active), &value) in sides.iter_mut().zip(&self.sides_active).zip(&self.side_values) {
             *margin = if active { -value } else { value };
         }
-        ws.switching_margins(model, rows);
+        ws.switching_margins(rows);
     }
 }
 

@@ -8,6 +8,13 @@
 //! sweep's cost improvement, divided by the trace of its trees' M at the
 //! state, falls below `noslip_tolerance`. With `<flag island="disable">`
 //! all rows are one group and the trace is M's.
+//!
+//! The pass's decisions (each sweep's clamp of each row, each island's
+//! number of sweeps) make its forces jump or kink where they change: the
+//! stopping rule is a jump. So they belong to the constraint mode: an
+//! integrator holds them over a step like the solver's working set
+//! ([`Workspace::hold_working_set`]), the pass then follows them, and
+//! their margins say where MuJoCo's pass would decide otherwise.
 
 use super::DynamicsError;
 use super::constraint::{ConstraintRows, RowKind};
@@ -19,6 +26,29 @@ use crate::workspace::Workspace;
 const MIN_VALUE: f64 = 1e-15;
 /// A row whose Jacobian reaches no dof: in no island.
 const NO_TREE: usize = usize::MAX;
+
+/// Where a sweep put a friction row's force.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+enum Clamp {
+    /// At the row's own minimizer, within its box.
+    #[default]
+    Free,
+    /// Clamped to the box's lower end.
+    Lower,
+    /// Clamped to its upper end.
+    Upper,
+}
+
+/// What one pass decided.
+#[derive(Clone, Debug, Default)]
+struct Decisions {
+    /// The rows of the pass.
+    rows: usize,
+    /// Each island's sweeps, at its first row (0 at the other rows).
+    sweeps: Vec<usize>,
+    /// Each sweep's clamp of each row: sweep j of row k at j·max_rows + k.
+    clamps: Vec<Clamp>,
+}
 
 /// The pass's buffers (empty for a model that never runs it).
 #[derive(Clone, Debug, Default)]
@@ -34,6 +64,17 @@ pub struct NoSlipBuffers {
     /// A unit ε and the torque m ε it gives: one column of m.
     unit: Vec<f64>,
     column: Vec<f64>,
+    /// The solver's forces, before the pass moved the friction rows'.
+    solved: Vec<f64>,
+    /// The last pass's decisions.
+    decided: Decisions,
+    /// The decisions held over an integrator's step, when `holding`.
+    held: Decisions,
+    holding: bool,
+    /// How far each of the last pass's decisions is from changing
+    /// ([`Constraints::no_slip_switches`](crate::model::Constraints::no_slip_switches)
+    /// long): the clamps, then the stopping rules; +∞ where nothing switches.
+    margins: Vec<f64>,
 }
 
 impl NoSlipBuffers {
@@ -53,14 +94,43 @@ impl NoSlipBuffers {
             dof_tree[link.dof_adr..link.dof_adr + link.ndof].fill(root);
         }
         let nv = model.nv;
+        let max_rows = constraints.max_rows();
+        let sweeps = constraints.options.noslip_iterations as usize;
+        let decisions = Decisions { rows: 0, sweeps: vec![0; max_rows], clamps: vec![Clamp::Free; sweeps * max_rows] };
         NoSlipBuffers {
             dof_tree,
             tree_parent: (0..model.links.len()).collect(),
-            row_island: vec![NO_TREE; constraints.max_rows()],
+            row_island: vec![NO_TREE; max_rows],
             mass_diagonal: vec![0.0; nv],
             unit: vec![0.0; nv],
             column: vec![0.0; nv],
+            solved: vec![0.0; max_rows],
+            decided: decisions.clone(),
+            held: decisions,
+            holding: false,
+            margins: vec![f64::INFINITY; constraints.no_slip_switches()],
         }
+    }
+
+    /// Holds the last pass's decisions for the passes that follow.
+    pub(super) fn hold(&mut self) {
+        self.held.clone_from(&self.decided);
+        self.holding = !self.margins.is_empty();
+    }
+
+    /// Lets the passes decide again.
+    pub(super) fn release(&mut self) {
+        self.holding = false;
+    }
+
+    /// The last pass's margins (empty without the pass).
+    pub(super) fn margins(&self) -> &[f64] {
+        &self.margins
+    }
+
+    /// Row `k`'s force as the solver gave it, when the pass ran on the rows.
+    pub(super) fn solved_force(&self, k: usize) -> Option<f64> {
+        (k < self.decided.rows).then(|| self.solved[k])
     }
 
     /// The representative of `tree`'s group, halving paths on the way.
@@ -127,16 +197,25 @@ impl NoSlipBuffers {
 
 impl Workspace {
     /// Runs MuJoCo's no-slip pass on the solved forces in `rows` when the
-    /// model asks for it and a friction-loss row is active.
+    /// model asks for it and a friction-loss row is active; while decisions
+    /// are held over as many rows, it follows them.
     pub(super) fn no_slip_pass(&mut self, model: &Model, rows: &mut ConstraintRows) -> Result<(), DynamicsError> {
         let options = &model.constraints.options;
         let n = rows.count;
-        let is_friction = |k: usize| rows.kind[k].is_friction();
-        if options.noslip_iterations == 0 || !(0..n).any(is_friction) {
+        let mut pass = std::mem::take(&mut rows.no_slip);
+        if pass.margins.is_empty() {
+            rows.no_slip = pass;
+            return Ok(());
+        }
+        pass.margins.fill(f64::INFINITY);
+        pass.decided.sweeps.fill(0);
+        pass.decided.rows = n;
+        pass.solved[..n].copy_from_slice(&rows.force[..n]);
+        if !(0..n).any(|k| rows.kind[k].is_friction()) {
+            rows.no_slip = pass;
             return Ok(());
         }
         let nv = model.nv;
-        let mut pass = std::mem::take(&mut rows.no_slip);
         // diag(M) = Σⱼ (m eⱼ)², as M = m mᵀ: one inward pass per dof.
         pass.mass_diagonal.fill(0.0);
         let mut result = Ok(());
@@ -153,13 +232,25 @@ impl Workspace {
         }
         if result.is_ok() {
             pass.assign_islands(rows, nv, options.islands);
+            let holding = pass.holding && pass.held.rows == n;
             for first in 0..n {
                 let island = pass.row_island[first];
                 if island == NO_TREE || (0..first).any(|k| pass.row_island[k] == island) {
                     continue;
                 }
                 let scale = 1.0 / pass.island_inertia(island, options.islands);
-                sweep_island(rows, &pass.row_island, island, scale, options);
+                // An island the held pass did not have (its rows' trees joined otherwise) decides anew.
+                let held = (holding && pass.held.sweeps[first] > 0).then_some(&pass.held);
+                let sweeps = sweep_island(
+                    rows,
+                    (&pass.row_island, island, first),
+                    scale,
+                    options,
+                    held,
+                    &mut pass.decided.clamps,
+                    &mut pass.margins,
+                );
+                pass.decided.sweeps[first] = sweeps;
             }
         }
         rows.no_slip = pass;
@@ -167,20 +258,26 @@ impl Workspace {
     }
 }
 
-/// Gauss-Seidel sweeps over `island`'s friction rows until its scaled
-/// improvement falls below `noslip_tolerance` or `noslip_iterations` sweeps
-/// have run.
+/// Gauss-Seidel sweeps over the friction rows of `island` (whose first row
+/// is `first`) until its scaled improvement falls below `noslip_tolerance`
+/// or `noslip_iterations` sweeps have run, or as `held` decided; writes
+/// each sweep's clamps into `clamps` and the margins of the decisions into
+/// `margins`, and returns the sweeps run.
 fn sweep_island(
     rows: &mut ConstraintRows,
-    row_island: &[usize],
-    island: usize,
+    (row_island, island, first): (&[usize], usize, usize),
     scale: f64,
     options: &ConstraintOptions,
-) {
+    held: Option<&Decisions>,
+    clamps: &mut [Clamp],
+    margins: &mut [f64],
+) -> usize {
     let n = rows.count;
     let stride = rows.max_rows;
+    let iterations = options.noslip_iterations as usize;
+    let (clamp_margins, stop_margins) = margins.split_at_mut(iterations * stride);
     let in_island = |k: usize| row_island[k] == island;
-    for iteration in 0..options.noslip_iterations {
+    for iteration in 0..iterations {
         let mut improvement = 0.0;
         if iteration == 0 {
             // The main solver's cost counts ½ f R f, which this pass's does not.
@@ -197,19 +294,38 @@ fn sweep_island(
             let residual = coupled + rows.gradient[i] - rows.regularizer[i] * rows.force[i];
             let inverse_diagonal = 1.0 / (hessian[i] - rows.regularizer[i]).max(MIN_VALUE);
             let old = rows.force[i];
-            let mut force = old - residual * inverse_diagonal;
-            if force < rows.lower[i] {
-                force = rows.lower[i];
-            } else if force > rows.upper[i] {
-                force = rows.upper[i];
-            }
+            let minimizer = old - residual * inverse_diagonal;
+            let (lower, upper) = (rows.lower[i], rows.upper[i]);
+            let slot = iteration * stride + i;
+            clamps[slot] = match held {
+                Some(held) => held.clamps[slot],
+                None if minimizer < lower => Clamp::Lower,
+                None if minimizer > upper => Clamp::Upper,
+                None => Clamp::Free,
+            };
+            let (force, margin) = match clamps[slot] {
+                Clamp::Free => (minimizer, (minimizer - lower).min(upper - minimizer)),
+                Clamp::Lower => (lower, lower - minimizer),
+                Clamp::Upper => (upper, minimizer - upper),
+            };
+            clamp_margins[slot] = margin;
             rows.force[i] = force;
             let delta = force - old;
             improvement -= 0.5 * delta * delta / inverse_diagonal + delta * residual;
         }
         improvement *= scale;
-        if improvement < options.noslip_tolerance {
-            break;
+        let stops = match held {
+            Some(held) => iteration + 1 == held.sweeps[first],
+            None => improvement < options.noslip_tolerance,
+        };
+        // After the last sweep, stopping or not is the same.
+        if iteration + 1 < iterations {
+            let to_tolerance = improvement - options.noslip_tolerance;
+            stop_margins[iteration * stride + first] = if stops { -to_tolerance } else { to_tolerance };
+        }
+        if stops {
+            return iteration + 1;
         }
     }
+    iterations
 }

@@ -160,7 +160,6 @@ impl Carry {
             attained: self.attained_tolerance(tolerance),
             rates: rates(),
             start_rates: self.start_rates,
-            no_slip: None,
         })
     }
 }
@@ -194,11 +193,6 @@ pub struct ToleranceRelaxed {
     pub rates: f64,
     /// The largest |θ̈| of the run's first step ([`Carry::start_rates`]).
     pub start_rates: f64,
-    /// MuJoCo's no-slip pass, when the vehicle has it: (noslip_iterations,
-    /// noslip_tolerance). Its iterations stop at a tolerance, so the
-    /// friction forces it moves are not smooth in the state: that, not
-    /// round-off, is then what holds the error up.
-    pub no_slip: Option<(u32, f64)>,
 }
 
 impl ToleranceRelaxed {
@@ -213,16 +207,16 @@ impl ToleranceRelaxed {
     }
 
     /// Whether the tolerance held still meets the one asked: round-off (not
-    /// a run-away motion, not the no-slip pass) put it at most
+    /// a run-away motion) put it at most
     /// [`HELD_AS_ASKED`] times looser.
     pub fn meets_asked(&self) -> bool {
-        !self.diverges() && self.no_slip.is_none() && self.attained <= HELD_AS_ASKED * self.tolerance
+        !self.diverges() && self.attained <= HELD_AS_ASKED * self.tolerance
     }
 }
 
 impl std::fmt::Display for ToleranceRelaxed {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let ToleranceRelaxed { time, tolerance, attained, rates, start_rates, no_slip } = *self;
+        let ToleranceRelaxed { time, tolerance, attained, rates, start_rates } = *self;
         if self.diverges() {
             write!(
                 f,
@@ -230,14 +224,6 @@ impl std::fmt::Display for ToleranceRelaxed {
                  now {rates:.2e}), as in an unstable loop around the FMU (a gain too high for the communication \
                  step); tolerance {tolerance:e} per second cannot be held in it",
                 self.growth()
-            )?;
-        } else if let Some((iterations, slip_tolerance)) = no_slip {
-            write!(
-                f,
-                "tolerance {tolerance:e} per second is below what this vehicle's rates allow: MuJoCo's no-slip pass \
-                 moves its friction forces by projected sweeps (at most noslip_iterations = {iterations}, stopping at \
-                 noslip_tolerance = {slip_tolerance:e}) whose clamps and stopping rule are not smooth in the state \
-                 (largest |qacc| {rates:.2e})"
             )?;
         } else {
             write!(

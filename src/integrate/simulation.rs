@@ -390,15 +390,8 @@ impl Simulation {
             Ok(stats) => {
                 self.state.time = t_end;
                 let rates = || self.integrator.largest_rate();
-                let constraints = &model.constraints;
-                let no_slip = constraints
-                    .runs_no_slip_pass()
-                    .then_some((constraints.options.noslip_iterations, constraints.options.noslip_tolerance));
-                let relaxed = self
-                    .state
-                    .carry
-                    .relaxed_since(relaxation_before, called_at, self.settings.tolerance, rates)
-                    .map(|relaxed| ToleranceRelaxed { no_slip, ..relaxed });
+                let relaxed =
+                    self.state.carry.relaxed_since(relaxation_before, called_at, self.settings.tolerance, rates);
                 let judged = chose.is_none() && held_move.is_none() && !starts;
                 let moved =
                     if judged { self.move_if_due(model, (called_at, t_end), &stats, input_held) } else { held_move };

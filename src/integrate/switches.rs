@@ -208,7 +208,7 @@ impl Switches {
         }
         self.mode.hold_sides(model, ws, theta)?;
         integrator.evaluate_start(model, ws, (theta, qvel), t, inputs_at)?;
-        self.mode.hold_working_set(model, ws, &mut self.start);
+        self.mode.hold_working_set(ws, &mut self.start);
         let watch = &mut integrator.stage_watch;
         watch.mode.clone_from(&self.mode);
         watch.margins.resize(self.start.len(), 0.0);

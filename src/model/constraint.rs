@@ -200,11 +200,18 @@ impl Constraints {
     }
 
     /// How many switches the constraint forces have (limit sides, then two
-    /// per row: its force's working set and its impedance piece), the
-    /// margins of [`crate::dynamics::mode::ConstraintMode`]; 0 without
-    /// constraints.
+    /// per row: its force's working set and its impedance piece, then the
+    /// no-slip pass's [`Constraints::no_slip_switches`]), the margins of
+    /// [`crate::dynamics::mode::ConstraintMode`]; 0 without constraints.
     pub fn switch_count(&self) -> usize {
-        if self.is_empty() { 0 } else { self.limit_sides() + 2 * self.max_rows() }
+        if self.is_empty() { 0 } else { self.limit_sides() + 2 * self.max_rows() + self.no_slip_switches() }
+    }
+
+    /// The no-slip pass's switches: each sweep's clamp of each row, then
+    /// each sweep's stopping rule of each island (named by its first row);
+    /// 0 without the pass.
+    pub fn no_slip_switches(&self) -> usize {
+        if self.runs_no_slip_pass() { 2 * self.options.noslip_iterations as usize * self.max_rows() } else { 0 }
     }
 
     /// The slot of side `side` (0 lower, 1 upper; a ball's is 0) of joint limit `index`.

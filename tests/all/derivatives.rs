@@ -150,7 +150,7 @@ fn evaluate(model: &Model, point: &Point, mode_of: &Point, output: Output) -> Ve
         mode.hold_sides(model, &mut ws, mode_of.theta).unwrap();
         evaluate_on(model, &mut ws, mode_of, output);
         let mut start = vec![0.0; mode.len()];
-        mode.hold_working_set(model, &mut ws, &mut start);
+        mode.hold_working_set(&mut ws, &mut start);
     }
     evaluate_on(model, &mut ws, point, output)
 }
@@ -640,7 +640,7 @@ fn a_held_mode_gives_its_derivatives_on_a_switch() {
     mode.hold_sides(model, &mut ws, at.theta).unwrap();
     evaluate_on(model, &mut ws, &at, Output::Qacc);
     let mut start = vec![0.0; mode.len()];
-    mode.hold_working_set(model, &mut ws, &mut start);
+    mode.hold_working_set(&mut ws, &mut start);
     derivatives.hold_constraint_mode_of(&ws.constraint_rows);
     let exact = derivatives.jacobians(model, &at, Output::Qacc).unwrap();
     let differenced = differences(&case, Given::Qvel, Output::Qacc);
