@@ -845,12 +845,16 @@ impl ConstraintRows {
     /// v and r follow s² + d·b·s + d²·k = 0: the rate is that of its slower
     /// root's envelope, d·b/2 for a critically or under-damped row, and
     /// d·b/2 too for a friction row's velocity (k = 0), which decays at
-    /// twice that. `None` for a friction row when MuJoCo's no-slip pass
-    /// runs: the pass moves those forces after the solver, so their rows
-    /// follow its sweeps, not their references.
+    /// twice that. A friction row that MuJoCo's no-slip pass moves is the
+    /// pass's: where its sweeps leave the force free (the row sticks),
+    /// they take the row's acceleration to aref = −b·v with no regularizer,
+    /// so its velocity decays at b; else `None`.
     pub(crate) fn free_row_decay(&self, model: &Model, k: usize) -> Option<(f64, bool)> {
-        let moved_by_no_slip = self.kind[k].is_friction() && model.constraints.runs_no_slip_pass();
-        if self.solver.held[k] != Held::Free || moved_by_no_slip {
+        if self.kind[k].is_friction() && model.constraints.runs_no_slip_pass() {
+            let (_, damping) = stiffness_damping(model, &soft_of(model, self.kind[k], self.id[k]), true);
+            return (self.no_slip.sticks(k) && damping > 0.0).then_some((damping, false));
+        }
+        if self.solver.held[k] != Held::Free {
             return None;
         }
         let diagonal = self.hessian[k * self.max_rows + k];

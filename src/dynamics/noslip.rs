@@ -71,6 +71,9 @@ pub struct NoSlipBuffers {
     /// The decisions held over an integrator's step, when `holding`.
     held: Decisions,
     holding: bool,
+    /// Whether the last pass's last sweep over each row left its force
+    /// free (the row sticks).
+    free_at_end: Vec<bool>,
     /// How far each of the last pass's decisions is from changing
     /// ([`Constraints::no_slip_switches`](crate::model::Constraints::no_slip_switches)
     /// long): the clamps, then the stopping rules; +∞ where nothing switches.
@@ -108,6 +111,7 @@ impl NoSlipBuffers {
             decided: decisions.clone(),
             held: decisions,
             holding: false,
+            free_at_end: vec![false; max_rows],
             margins: vec![f64::INFINITY; constraints.no_slip_switches()],
         }
     }
@@ -126,6 +130,12 @@ impl NoSlipBuffers {
     /// The last pass's margins (empty without the pass).
     pub(super) fn margins(&self) -> &[f64] {
         &self.margins
+    }
+
+    /// Whether the last pass left row `k`'s force free of its box (a friction
+    /// row that sticks): its acceleration is then taken to its reference.
+    pub(super) fn sticks(&self, k: usize) -> bool {
+        k < self.decided.rows && self.free_at_end[k]
     }
 
     /// Row `k`'s force as the solver gave it, when the pass ran on the rows.
@@ -211,6 +221,7 @@ impl Workspace {
         pass.decided.sweeps.fill(0);
         pass.decided.rows = n;
         pass.solved[..n].copy_from_slice(&rows.force[..n]);
+        pass.free_at_end.fill(false);
         if !(0..n).any(|k| rows.kind[k].is_friction()) {
             rows.no_slip = pass;
             return Ok(());
@@ -241,13 +252,14 @@ impl Workspace {
                 let scale = 1.0 / pass.island_inertia(island, options.islands);
                 // An island the held pass did not have (its rows' trees joined otherwise) decides anew.
                 let held = (holding && pass.held.sweeps[first] > 0).then_some(&pass.held);
+                let decided = (&mut pass.decided.clamps[..], &mut pass.free_at_end[..]);
                 let sweeps = sweep_island(
                     rows,
                     (&pass.row_island, island, first),
                     scale,
                     options,
                     held,
-                    &mut pass.decided.clamps,
+                    decided,
                     &mut pass.margins,
                 );
                 pass.decided.sweeps[first] = sweeps;
@@ -261,7 +273,8 @@ impl Workspace {
 /// Gauss-Seidel sweeps over the friction rows of `island` (whose first row
 /// is `first`) until its scaled improvement falls below `noslip_tolerance`
 /// or `noslip_iterations` sweeps have run, or as `held` decided; writes
-/// each sweep's clamps into `clamps` and the margins of the decisions into
+/// each sweep's clamps into `clamps` (and whether the last left each row
+/// free into `free_at_end`) and the margins of the decisions into
 /// `margins`, and returns the sweeps run.
 fn sweep_island(
     rows: &mut ConstraintRows,
@@ -269,7 +282,7 @@ fn sweep_island(
     scale: f64,
     options: &ConstraintOptions,
     held: Option<&Decisions>,
-    clamps: &mut [Clamp],
+    (clamps, free_at_end): (&mut [Clamp], &mut [bool]),
     margins: &mut [f64],
 ) -> usize {
     let n = rows.count;
@@ -309,6 +322,7 @@ fn sweep_island(
                 Clamp::Upper => (upper, minimizer - upper),
             };
             clamp_margins[slot] = margin;
+            free_at_end[i] = clamps[slot] == Clamp::Free;
             rows.force[i] = force;
             let delta = force - old;
             improvement -= 0.5 * delta * delta / inverse_diagonal + delta * residual;

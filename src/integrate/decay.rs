@@ -151,6 +151,22 @@ impl DampedDirections {
         self.velocities.count > 0
     }
 
+    /// `error_nu`, here a defect of the rates in ν, carried over `span` as
+    /// an interpolant strays with it (`Integrator::interpolant_strays`):
+    /// along a free row's direction, which pulls a state off it back at σ,
+    /// only over 1/σ where that is shorter (the state's offset there, not
+    /// its drift).
+    pub(super) fn carry_defect(&mut self, nv: usize, span: f64) {
+        let x = &mut self.error_nu;
+        x.iter_mut().for_each(|entry| *entry *= span);
+        let directions = &self.velocities;
+        for (unit, rate) in directions.basis[..directions.count * nv].chunks_exact(nv).zip(&directions.rates) {
+            let dropped = 1.0 - span.min(1.0 / rate) / span;
+            let along = dot(unit, x);
+            x.iter_mut().zip(unit).for_each(|(entry, u)| *entry -= dropped * along * u);
+        }
+    }
+
     /// Whether position errors have directions to decay along.
     pub(super) fn holds_positions(&self) -> bool {
         self.positions.count > 0
@@ -173,4 +189,41 @@ impl DampedDirections {
 
 fn norm(a: &[f64]) -> f64 {
     dot(a, a).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Directions over two dofs: (1, 1)/√2 decaying at `rate`.
+    fn one_direction(rate: f64, error_nu: Vec<f64>) -> DampedDirections {
+        let diagonal = Directions { basis: vec![std::f64::consts::FRAC_1_SQRT_2; 2], rates: vec![rate], count: 1 };
+        DampedDirections {
+            velocities: diagonal.clone(),
+            positions: diagonal,
+            order: Vec::new(),
+            error_nu,
+            damped_nu: vec![0.0; 2],
+            weighted_nu: vec![0.0; 2],
+            damped_delta_nu: vec![0.0; 2],
+            weighted_delta_nu: vec![0.0; 2],
+            damped_delta: vec![0.0; 2],
+            weighted_delta: vec![0.0; 2],
+        }
+    }
+
+    #[test]
+    fn a_defect_is_carried_along_a_fast_direction_over_its_time_constant_only() {
+        // (3, 1) = 2·(1, 1) + (1, −1): the first part over 1/σ = 0.01, the second over the span 0.05.
+        let mut fast = one_direction(100.0, vec![3.0, 1.0]);
+        fast.carry_defect(2, 0.05);
+        let expected = [0.01 * 2.0 + 0.05, 0.01 * 2.0 - 0.05];
+        for (carried, expected) in fast.error_nu.iter().zip(expected) {
+            assert!((carried - expected).abs() < 1e-15, "{:?}", fast.error_nu);
+        }
+        // A direction slower than the span carries the whole defect over it.
+        let mut slow = one_direction(10.0, vec![3.0, 1.0]);
+        slow.carry_defect(2, 0.05);
+        assert!(slow.error_nu.iter().zip([0.15, 0.05]).all(|(c, e)| (c - e).abs() < 1e-15), "{:?}", slow.error_nu);
+    }
 }

@@ -162,20 +162,24 @@ fn at_rest(model: &Model, method: Method, tolerance: f64, (interval, count): (f6
         .collect()
 }
 
-/// With MuJoCo's no-slip pass the friction rows follow its sweeps, not
-/// their references, so their directions are not discounted: `dopri5` at
-/// 1e-8 on noslip_trees, driven with the input held, stays within the
-/// band's top (25 times the tolerance with them discounted), and its
-/// tolerance is not relaxed.
+/// With MuJoCo's no-slip pass a friction row that sticks has its
+/// acceleration taken to its reference −b·v, with no regularizer, so its
+/// velocity decays at b; one that slips is clamped and decays at no rate.
+/// `dopri5` and `dop853` at 1e-8 on noslip_trees, driven with the input
+/// held, land inside the band with those rates (taken as not decaying, the
+/// steps were held short by them: `dop853` reached past no point and
+/// delivered 4e-4 times the tolerance), and the tolerance is not relaxed.
 #[test]
-fn friction_rows_the_no_slip_pass_moves_are_not_discounted() {
+fn friction_rows_the_no_slip_pass_holds_decay_at_their_references_damping() {
     let model = fixture("tests/fixtures/constraints/noslip_trees.xml");
     let fixed = |method| MethodSetting::Fixed(method);
     let (reference, _, _) = points_relaxing(&model, fixed(Method::Dop853), 1e-12, 20, false);
-    let (run, _, relaxed) = points_relaxing(&model, fixed(Method::Dopri5), 1e-8, 20, true);
-    assert!(relaxed.is_empty(), "{relaxed:?}");
-    let ratio = largest_error(&run, &reference) / 1e-8;
-    assert!(ratio <= BAND.1, "largest error/tol {ratio:.3}");
+    for method in [Method::Dopri5, Method::Dop853] {
+        let (run, _, relaxed) = points_relaxing(&model, fixed(method), 1e-8, 20, true);
+        assert!(relaxed.is_empty(), "{method:?}: {relaxed:?}");
+        let ratio = largest_error(&run, &reference) / 1e-8;
+        assert!((BAND.0..=BAND.1).contains(&ratio), "{method:?}: largest error/tol {ratio:.3}");
+    }
 }
 
 /// The arm of empty_rows swinging under gravity (ε = 0), 0.05 s
