@@ -6,12 +6,13 @@
 use nalgebra::{DVector, SMatrix};
 
 use crate::dynamics::TendonInertiaState;
+use crate::dynamics::WrapPath;
 use crate::dynamics::constraint::ConstraintRows;
 use crate::dynamics::flexible::FlexState;
 use crate::dynamics::subspace::Subspace;
 use crate::flex::nodes;
 use crate::math::{Mat3, Quat, Real, SpatialMat, SpatialVec, Transform, Vec3};
-use crate::model::{Model, NodeSite, SensorSource};
+use crate::model::{Model, NodeSite, SensorSource, WRAP_SWITCHES};
 
 /// 6×3 storage for per-link 6×ndof quantities (first `ndof` columns used).
 pub type LinkCols<S = f64> = SMatrix<S, 6, 3>;
@@ -192,6 +193,18 @@ pub struct Workspace<S: Real = f64> {
     /// Per-link scratch of the spatial tendons' unit forces (empty without
     /// spatial tendons) — set_configuration.
     pub tendon_wrench: Vec<SpatialVec<S>>,
+    /// The spatial tendons' wraps' switching functions (`WRAP_SWITCHES`
+    /// per wrap: whether it meets its geom, both sites outside it, which
+    /// way round; +∞ where not reached) — set_configuration.
+    pub wrap_switching: Vec<f64>,
+    /// The path each wrap took — set_configuration.
+    pub wrap_paths: Vec<WrapPath>,
+    /// The wraps' paths an integrator holds over a step
+    /// (`Workspace::hold_working_set`), when `wraps_held`.
+    pub wrap_paths_held: Vec<WrapPath>,
+    /// Whether set_configuration takes `wrap_paths_held` rather than
+    /// deciding the paths on the state.
+    pub wraps_held: bool,
     /// Each tendon's sum of its actuators' forces before their force range
     /// (empty when no tendon has an `actuatorfrcrange`) — compute_actuation.
     pub tendon_actuator_total: Vec<f64>,
@@ -315,6 +328,10 @@ impl<S: Real> Workspace<S> {
             tendon_moment: vec![S::zero(); model.tendons.len() * model.nv],
             tendon_velocity: DVector::zeros(model.tendons.len()),
             tendon_wrench: vec![SpatialVec::zeros(); if spatial_tendons { n } else { 0 }],
+            wrap_switching: vec![f64::INFINITY; model.wrap_switches()],
+            wrap_paths: vec![WrapPath::Straight; model.wrap_switches() / WRAP_SWITCHES],
+            wrap_paths_held: vec![WrapPath::Straight; model.wrap_switches() / WRAP_SWITCHES],
+            wraps_held: false,
             tendon_actuator_total: vec![
                 0.0;
                 if model.tendons.iter().any(|t| t.actuator_force_range.is_some()) {

@@ -594,7 +594,7 @@ impl Layout {
             wrench_inputs: 6 * model.wrench_bodies.len(),
             na: model.activation_count(),
             sensordata,
-            switches: model.constraints.switch_count(),
+            switches: model.switch_count(),
             eps_coupled: model.couples_beyond_tree(),
             outputs,
             tree: TreeDependence::of(model),

@@ -635,6 +635,7 @@ impl Workspace {
         }
         rows.held_working_set = None;
         rows.no_slip.release();
+        self.wraps_held = false;
     }
 
     /// Holds the working set of the last solve and the rows' impedance
@@ -643,11 +644,14 @@ impl Workspace {
     /// until [`Workspace::release_working_set`]: each then gives the
     /// minimizer with the same bounds reached, and [`Workspace::
     /// switching_margins`] tells where that stops being the answer. The
-    /// no-slip pass's decisions are held with it.
+    /// no-slip pass's decisions and the spatial tendons' wrap paths are
+    /// held with it.
     pub fn hold_working_set(&mut self) {
         let rows = &mut self.constraint_rows;
         rows.held_working_set = Some(rows.count);
         rows.no_slip.hold();
+        self.wrap_paths_held.copy_from_slice(&self.wrap_paths);
+        self.wraps_held = !self.wrap_paths.is_empty();
     }
 
     /// Moves row `row` across the bound it crossed in the held working set
@@ -672,6 +676,7 @@ impl Workspace {
     pub fn release_working_set(&mut self) {
         self.constraint_rows.held_working_set = None;
         self.constraint_rows.no_slip.release();
+        self.wraps_held = false;
     }
 
     /// The rows' margins of the last evaluation (sides held) into `out`

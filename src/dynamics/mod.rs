@@ -43,6 +43,7 @@ pub mod velocity;
 mod wrap;
 
 pub use tendon_inertia::TendonInertiaState;
+pub use wrap::WrapPath;
 
 use nalgebra::SMatrix;
 

@@ -1,6 +1,7 @@
 //! The constraint mode: what makes MuJoCo's constraint forces switch, held
 //! while the state moves, and how far each switch is (docs/integration.md,
-//! "Constraint switches").
+//! "Constraint switches"); and the spatial tendons' wraps, whose path
+//! switches too (not held: their margins only say where).
 //!
 //! The forces are smooth in the state except where a limit side switches
 //! on or off, a force reaches or leaves a bound of its box, or a row's
@@ -27,16 +28,23 @@ pub struct ConstraintMode {
     /// where the mode was set (a bound force's multiplier may start a hair
     /// below 0, within the solver's tolerance).
     thresholds: Vec<f64>,
+    /// How many of the margins are the constraint rows' (after the sides).
+    rows: usize,
+    /// The sign of each wrap's switching function where the mode was set:
+    /// its margin is the function times that.
+    wrap_signs: Vec<f64>,
 }
 
 impl ConstraintMode {
-    /// Buffers for `model`: [`Constraints::switch_count`](crate::model::Constraints::switch_count) margins.
+    /// Buffers for `model`: [`Model::switch_count`] margins.
     pub fn new(model: &Model) -> Self {
         let sides = model.constraints.limit_sides();
         ConstraintMode {
             sides_active: vec![false; sides],
             side_values: vec![0.0; sides],
-            thresholds: vec![0.0; model.constraints.switch_count()],
+            thresholds: vec![0.0; model.switch_count()],
+            rows: model.constraints.switch_count().saturating_sub(sides),
+            wrap_signs: vec![1.0; model.wrap_switches()],
         }
     }
 
@@ -69,6 +77,9 @@ impl ConstraintMode {
     /// (whose levels of switching they set).
     pub fn hold_working_set(&mut self, ws: &mut Workspace, start: &mut [f64]) {
         ws.hold_working_set();
+        for (sign, value) in self.wrap_signs.iter_mut().zip(&ws.wrap_switching) {
+            *sign = if *value < 0.0 { -1.0 } else { 1.0 };
+        }
         self.write_margins(ws, start);
         for (threshold, margin) in self.thresholds.iter_mut().zip(start.iter()) {
             *threshold = margin.min(0.0);
@@ -105,11 +116,17 @@ impl ConstraintMode {
     }
 
     fn write_margins(&self, ws: &Workspace, out: &mut [f64]) {
-        let (sides, rows) = out.split_at_mut(self.sides_active.len());
+        let (sides, rest) = out.split_at_mut(self.sides_active.len());
+        let (rows, wraps) = rest.split_at_mut(self.rows);
         for ((margin, &active), &value) in sides.iter_mut().zip(&self.sides_active).zip(&self.side_values) {
             *margin = if active { -value } else { value };
         }
-        ws.switching_margins(rows);
+        if !rows.is_empty() {
+            ws.switching_margins(rows);
+        }
+        for ((margin, sign), value) in wraps.iter_mut().zip(&self.wrap_signs).zip(&ws.wrap_switching) {
+            *margin = sign * value;
+        }
     }
 }
 

@@ -10,13 +10,15 @@
 //! tendon. A segment wrapped around a geom (`wrap`) pulls the points where
 //! it meets the geom, which move with the geom's link.
 
+use std::ops::Range;
+
 use super::actuation::site_in_world;
 use super::constraint::RowKind;
 use super::equality::polynomial_coupling;
 use super::forces::add_joint_forces_of_wrenches;
-use super::wrap;
+use super::wrap::{self, WrapPath};
 use crate::math::{Real, SpatialVec, Transform, Vec3, spatial, sum};
-use crate::model::{ActuatorTransmission, EqualityRows, Model, Path, PathStop, Tendon};
+use crate::model::{ActuatorTransmission, EqualityRows, Model, Path, PathStop, Tendon, WRAP_SWITCHES};
 use crate::workspace::Workspace;
 
 /// A point of a spatial tendon's path in the world, and what carries it.
@@ -35,9 +37,11 @@ const MIN_VALUE: f64 = 1e-15;
 
 impl<S: Real> Workspace<S> {
     /// Lengths and moment arms of every tendon at the configuration of
-    /// passes 0 and 1 (`set_configuration` runs it when the model has tendons).
+    /// passes 0 and 1 (`set_configuration` runs it when the model has
+    /// tendons), and the wraps' switching functions.
     pub(crate) fn tendon_kinematics(&mut self, model: &Model) {
         let nv = model.nv;
+        let mut first_wrap = 0;
         for (k, tendon) in model.tendons.iter().enumerate() {
             let row = k * nv..(k + 1) * nv;
             self.tendon_moment[row.clone()].fill(S::zero());
@@ -53,7 +57,9 @@ impl<S: Real> Workspace<S> {
                 Path::Spatial { stops } => {
                     self.world_transforms(model);
                     let mut moment = std::mem::take(&mut self.tendon_moment);
-                    let length = self.spatial_tendon(model, stops, &mut moment[row]);
+                    let wraps = first_wrap..first_wrap + Tendon::wraps(stops);
+                    let length = self.spatial_tendon(model, stops, &mut moment[row], wraps.clone());
+                    first_wrap = wraps.end;
                     self.tendon_moment = moment;
                     length
                 }
@@ -63,12 +69,17 @@ impl<S: Real> Workspace<S> {
 
     /// A spatial tendon's length, and its moment arms into `moment` (nv):
     /// the unit tension's point forces on each segment, summed per link and
-    /// taken inward to the joints.
-    fn spatial_tendon(&mut self, model: &Model, stops: &[PathStop], moment: &mut [S]) -> S {
+    /// taken inward to the joints. Its wraps, the model's `wraps`, take
+    /// the paths held, if any, else decide them, and note their paths and
+    /// switching functions.
+    fn spatial_tendon(&mut self, model: &Model, stops: &[PathStop], moment: &mut [S], wraps: Range<usize>) -> S {
         self.tendon_wrench.fill(SpatialVec::zeros());
         let (x_world, wrench) = (&self.x_world, &mut self.tendon_wrench);
+        let held = self.wraps_held.then(|| &self.wrap_paths_held[wraps.clone()]);
+        let functions = wraps.start * WRAP_SWITCHES..wraps.end * WRAP_SWITCHES;
+        let decided = (&mut self.wrap_paths[wraps], &mut self.wrap_switching[functions]);
         let mut pulls = false;
-        let length = walk_path(stops, x_world, |from, to, divisor| {
+        let length = walk_path(stops, x_world, held, Some(decided), |from, to, divisor| {
             pulls |= pull_segment(x_world, wrench, from, to, divisor);
         });
         if pulls {
@@ -195,10 +206,15 @@ pub(super) fn direction<S: Real>(from: &PathPoint<S>, to: &PathPoint<S>) -> Vec3
 /// pulley sets the divisor of the segments after it and starts a new
 /// branch; a site, geom, site triple wraps (two straight segments to the
 /// geom's surface and the arc between, the arc's points moving with the
-/// geom), or runs straight when the segment misses the geom.
+/// geom), or runs straight when the segment misses the geom: each wrap
+/// as `held` says (one per geom in the path's order), or as the state
+/// decides. With `decided`, each wrap's path goes to its first slice and
+/// its switching functions to its second ([`WRAP_SWITCHES`] per geom).
 pub(super) fn walk_path<S: Real>(
     stops: &[PathStop],
     x_world: &[Transform<S>],
+    held: Option<&[WrapPath]>,
+    mut decided: Option<(&mut [WrapPath], &mut [f64])>,
     mut segment: impl FnMut(&PathPoint<S>, &PathPoint<S>, f64),
 ) -> S {
     let site_point = |stop: &PathStop| match stop {
@@ -209,6 +225,7 @@ pub(super) fn walk_path<S: Real>(
     };
     let mut divisor = 1.0;
     let mut length = S::zero();
+    let mut wraps = 0;
     let mut j = 0;
     while j + 1 < stops.len() {
         let start = match (&stops[j], &stops[j + 1]) {
@@ -231,7 +248,16 @@ pub(super) fn walk_path<S: Real>(
                 let end = site_point(&stops[j + 2]);
                 let geom = site_in_world(frame, x_world);
                 let side = side.map(|side| site_in_world(&side, x_world).trans);
-                match wrap::wrap(&start.at, &end.at, &geom, *radius, *cylinder, side.as_ref()) {
+                let mut functions = [0.0; WRAP_SWITCHES];
+                let path = held.map(|held| held[wraps]);
+                let (path, wrapped) =
+                    wrap::wrap(&start.at, &end.at, &geom, *radius, *cylinder, side.as_ref(), path, &mut functions);
+                if let Some((paths, switching)) = decided.as_mut() {
+                    paths[wraps] = path;
+                    switching[wraps * WRAP_SWITCHES..(wraps + 1) * WRAP_SWITCHES].copy_from_slice(&functions);
+                }
+                wraps += 1;
+                match wrapped {
                     Some((arc, first, second)) => {
                         let on_geom = |at: Vec3<S>| PathPoint { link: frame.link, body: *body, at };
                         let points = [start, on_geom(first), on_geom(second), end];

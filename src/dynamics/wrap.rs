@@ -12,6 +12,7 @@
 use std::f64::consts::PI;
 
 use crate::math::{Real, Transform, Vec3};
+use crate::model::WRAP_SWITCHES;
 
 /// MuJoCo's `mjMINVAL`.
 const MIN_VALUE: f64 = 1e-15;
@@ -19,11 +20,37 @@ const MIN_VALUE: f64 = 1e-15;
 /// A 2D point.
 type Point<S> = [S; 2];
 
+/// A wrap's arc length and the two points where the tendon meets the geom.
+type Wrapped<S> = (S, Vec3<S>, Vec3<S>);
+
+/// Which path a wrap takes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum WrapPath {
+    /// Straight from site to site.
+    #[default]
+    Straight,
+    /// Round the geom by the first or second pair of tangent points (a
+    /// side site's wrap has one).
+    Around(usize),
+}
+
 /// The wrap of `x0 → x1` (world points) around a sphere or cylinder of
-/// `radius` placed at `geom` (world → geom frame): the arc's length and the
-/// two points where the tendon meets the geom (world), or `None` when it
-/// runs straight.
+/// `radius` placed at `geom` (world → geom frame): the path taken, and
+/// the arc's length and the two points where the tendon meets the geom
+/// (world), or `None` when it runs straight.
 /// `side`: the side site (world), if any.
+///
+/// MuJoCo decides the path on the state; `held` takes a path decided
+/// before instead, continued smoothly past where the state would decide
+/// otherwise (an arc shrinking through zero goes on as a negative one),
+/// as an integrator holds it over a step. `switching` gets the functions
+/// whose signs decide the path, +∞ where one is not reached: whether the
+/// segment meets the circle (the wrap comes on and off with zero arc, its
+/// length once differentiable and its curvature unbounded there), whether
+/// both sites are outside it (the path jumps to straight when one
+/// enters), and which of the two ways round is taken (the moment arms
+/// jump where they swap).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn wrap<S: Real>(
     x0: &Vec3<S>,
     x1: &Vec3<S>,
@@ -31,19 +58,23 @@ pub(super) fn wrap<S: Real>(
     radius: f64,
     cylinder: bool,
     side: Option<&Vec3<S>>,
-) -> Option<(S, Vec3<S>, Vec3<S>)> {
+    held: Option<WrapPath>,
+    switching: &mut [f64; WRAP_SWITCHES],
+) -> (WrapPath, Option<Wrapped<S>>) {
+    *switching = [f64::INFINITY; WRAP_SWITCHES];
     let local = |x: &Vec3<S>| geom.rot * (x - geom.trans);
     let (p0, p1) = (local(x0), local(x1));
     if p0.norm().value() < MIN_VALUE || p1.norm().value() < MIN_VALUE {
-        return None;
+        return (WrapPath::Straight, None);
     }
     let side = side.map(local);
     let (axis0, axis1) = if cylinder { (Vec3::x(), Vec3::y()) } else { sphere_plane(&p0, &p1, side.as_ref()) };
     let ends = [p0.dot(&axis0), p0.dot(&axis1), p1.dot(&axis0), p1.dot(&axis1)];
-    let (length, points) = match side {
-        Some(s) => wrap_circle_through(&ends, [s.dot(&axis0), s.dot(&axis1)], radius)?,
-        None => wrap_circle(&ends, radius)?,
+    let (path, wrapped) = match side {
+        Some(s) => wrap_circle_through(&ends, [s.dot(&axis0), s.dot(&axis1)], radius, held, switching),
+        None => wrap_circle(&ends, radius, held, switching),
     };
+    let Some((length, points)) = wrapped else { return (path, None) };
     let lift = |k: usize| axis0 * points[2 * k] + axis1 * points[2 * k + 1];
     let (mut q0, mut q1) = (lift(0), lift(1));
     let mut length = length;
@@ -55,11 +86,13 @@ pub(super) fn wrap<S: Real>(
         q0.z = p0.z + (p1.z - p0.z) * to_first / total;
         q1.z = p0.z + (p1.z - p0.z) * (to_first + length) / total;
         let height = (q1.z - q0.z).abs();
-        length = (length * length + height * height).sqrt();
+        // Signed: a held arc continued through zero (never negative as MuJoCo decides it).
+        let helix = (length * length + height * height).sqrt();
+        length = if length.value() < 0.0 { -helix } else { helix };
     }
     let world = |q: &Vec3<S>| geom.rot.transpose() * q + geom.trans;
 
-    Some((length, world(&q0), world(&q1)))
+    (path, Some((length, world(&q0), world(&q1))))
 }
 
 /// The plane of a sphere wrap: its first axis towards `p0`, its second in
@@ -122,39 +155,52 @@ fn segments_cross<S: Real>(a1: &[S], a2: &[S], b1: &[S], b2: &[S]) -> bool {
 
 /// The arc from `p0` to `p1` on the circle of `radius`, the long way round
 /// when the tangents' orientation says so (`second`: the second of the two
-/// tangent solutions).
-fn arc_length<S: Real>(p0: &Point<S>, p1: &Point<S>, second: bool, radius: f64) -> S {
+/// tangent solutions). `continued`: a held wrap past where its segment
+/// stops meeting the circle, whose tangent points have crossed over: its
+/// arc goes on through zero to a small negative one instead of jumping to
+/// nearly a whole turn.
+fn arc_length<S: Real>(p0: &Point<S>, p1: &Point<S>, second: bool, radius: f64, continued: bool) -> S {
     let (mut u0, mut u1) = (*p0, *p1);
     normalize2(&mut u0);
     normalize2(&mut u1);
     let mut angle = (u0[0] * u1[0] + u0[1] * u1[1]).clamp(S::from(-1.0), S::one()).acos();
     let cross = (p0[1] * p1[0] - p0[0] * p1[1]).value();
     if (cross > 0.0 && second) || (cross < 0.0 && !second) {
-        angle = -angle + 2.0 * std::f64::consts::PI;
+        angle = if continued { -angle } else { -angle + 2.0 * PI };
     }
     angle * radius
 }
 
 /// The wrap around a circle of the 2D segment `ends` (x₀, y₀, x₁, y₁):
-/// the arc's length and its end points (x, y, x, y), or `None` when the
-/// segment does not cross the circle.
-fn wrap_circle<S: Real>(ends: &[S; 4], radius: f64) -> Option<(S, [S; 4])> {
+/// the path (`held`, or as the segment decides), and for a wrap the
+/// arc's length and its end points (x, y, x, y); MuJoCo's is `None` when
+/// a site is inside the circle or the segment does not cross it.
+/// `switching` as [`wrap`]'s.
+fn wrap_circle<S: Real>(
+    ends: &[S; 4],
+    radius: f64,
+    held: Option<WrapPath>,
+    switching: &mut [f64; WRAP_SWITCHES],
+) -> (WrapPath, Option<(S, [S; 4])>) {
     let square0 = ends[0] * ends[0] + ends[1] * ends[1];
     let square1 = ends[2] * ends[2] + ends[3] * ends[3];
     let square_radius = radius * radius;
-    if square0.value() < square_radius || square1.value() < square_radius || radius < MIN_VALUE {
-        return None;
+    switching[1] = square0.value().min(square1.value()) - square_radius;
+    // No tangent from a site inside the circle: straight, held or not.
+    if switching[1] < 0.0 || radius < MIN_VALUE {
+        return (WrapPath::Straight, None);
     }
     let difference = [ends[2] - ends[0], ends[3] - ends[1]];
     let dd = difference[0] * difference[0] + difference[1] * difference[1];
     if dd.value() < MIN_VALUE {
-        return None;
+        return (WrapPath::Straight, None);
     }
     // The segment's point nearest the centre.
     let a = (-(difference[0] * ends[0] + difference[1] * ends[1]) / dd).clamp(S::zero(), S::one());
     let nearest = [a * difference[0] + ends[0], a * difference[1] + ends[1]];
-    if (nearest[0] * nearest[0] + nearest[1] * nearest[1]).value() > square_radius {
-        return None;
+    switching[0] = square_radius - (nearest[0] * nearest[0] + nearest[1] * nearest[1]).value();
+    if switching[0] < 0.0 && held.is_none_or(|path| path == WrapPath::Straight) {
+        return (WrapPath::Straight, None);
     }
     let root0 = (square0 - square_radius).sqrt();
     let root1 = (square1 - square_radius).sqrt();
@@ -176,12 +222,21 @@ fn wrap_circle<S: Real>(ends: &[S; 4], radius: f64) -> Option<(S, [S; 4])> {
         }
     }
     let i = if goodness[0] > goodness[1] { 0 } else { 1 };
+    switching[2] = goodness[0] - goodness[1];
     let chosen = solutions[i];
-    if segments_cross(&ends[0..2], &chosen[0..2], &ends[2..4], &chosen[2..4]) {
-        return None;
+    let natural = if switching[0] < 0.0 || segments_cross(&ends[0..2], &chosen[0..2], &ends[2..4], &chosen[2..4]) {
+        WrapPath::Straight
+    } else {
+        WrapPath::Around(i)
+    };
+    match held.unwrap_or(natural) {
+        WrapPath::Straight => (WrapPath::Straight, None),
+        path @ WrapPath::Around(i) => {
+            let s = solutions[i];
+            let length = arc_length(&[s[0], s[1]], &[s[2], s[3]], i == 1, radius, natural == WrapPath::Straight);
+            (path, Some((length, s)))
+        }
     }
-    let length = arc_length(&[chosen[0], chosen[1]], &[chosen[2], chosen[3]], i == 1, radius);
-    Some((length, chosen))
 }
 
 /// The wrap of the 2D segment `ends` (x₀, y₀, x₁, y₁) around the circle of
@@ -190,22 +245,34 @@ fn wrap_circle<S: Real>(ends: &[S; 4], radius: f64) -> Option<(S, [S; 4])> {
 /// (x, y, x, y), or `None` when the straight segment is that path. The
 /// polyline turns w about the centre, each tangent segment acos(r/|p|), so
 /// the arc turns |w| − acos(r/|p₀|) − acos(r/|p₁|) in the sense of w, and
-/// the straight segment is the path when that is not positive.
-fn wrap_circle_through<S: Real>(ends: &[S; 4], side: Point<S>, radius: f64) -> Option<(S, [S; 4])> {
+/// the straight segment is the path when that is not positive;
+/// `switching` as [`wrap`]'s (the arc's turn decides whether it wraps);
+/// a `held` wrap goes on with a negative arc.
+fn wrap_circle_through<S: Real>(
+    ends: &[S; 4],
+    side: Point<S>,
+    radius: f64,
+    held: Option<WrapPath>,
+    switching: &mut [f64; WRAP_SWITCHES],
+) -> (WrapPath, Option<(S, [S; 4])>) {
     let (norm0, norm1) = (ends[0].hypot(ends[1]), ends[2].hypot(ends[3]));
+    switching[1] = norm0.value().min(norm1.value()) - radius;
     if norm0.value() < radius || norm1.value() < radius || radius < MIN_VALUE {
-        return None;
+        return (WrapPath::Straight, None);
     }
     let (angle0, angle1, angle_side) = (ends[1].atan2(ends[0]), ends[3].atan2(ends[2]), side[1].atan2(side[0]));
     let winding = turn(angle_side - angle0) + turn(angle1 - angle_side);
     let (tangent0, tangent1) = ((S::from(radius) / norm0).acos(), (S::from(radius) / norm1).acos());
     let arc = winding.abs() - tangent0 - tangent1;
-    if arc.value() <= 0.0 {
-        return None;
+    switching[0] = arc.value();
+    let natural = if arc.value() <= 0.0 { WrapPath::Straight } else { WrapPath::Around(0) };
+    if held.unwrap_or(natural) == WrapPath::Straight {
+        return (WrapPath::Straight, None);
     }
     let sense = winding.value().signum();
     let (at0, at1) = (angle0 + tangent0 * sense, angle1 - tangent1 * sense);
-    Some((arc * radius, [at0.cos() * radius, at0.sin() * radius, at1.cos() * radius, at1.sin() * radius]))
+    let points = [at0.cos() * radius, at0.sin() * radius, at1.cos() * radius, at1.sin() * radius];
+    (WrapPath::Around(0), Some((arc * radius, points)))
 }
 
 /// An angle brought into [−π, π): (angle + π) mod 2π − π, the whole turns

@@ -44,7 +44,7 @@ pub use flexible::{FlexBody, NodeChild};
 pub use gravity_compensation::{CompensatedLink, GravityCompensation};
 pub use interaction::InteractionBodies;
 pub use sensor::{BodyMass, Sensor, SensorSource};
-pub use tendon::{FixedTerm, InertiaTerm, Path, PathStop, Tendon};
+pub use tendon::{FixedTerm, InertiaTerm, Path, PathStop, Tendon, WRAP_SWITCHES};
 pub use validate::InvalidModel;
 
 /// Motion subspace storage: up to three columns, the first `ndof` used.
@@ -469,6 +469,24 @@ impl Model {
     /// or constraint rows (`Workspace::apply_constraint_forces`).
     pub fn couples_beyond_tree(&self) -> bool {
         !self.tendon_inertia.is_empty() || !self.constraints.is_empty()
+    }
+
+    /// The spatial tendons' wraps' switching functions, three per geom a
+    /// path wraps (`Workspace::wrap_switching`).
+    pub fn wrap_switches(&self) -> usize {
+        let wraps = |path: &Path| match path {
+            Path::Spatial { stops } => Tendon::wraps(stops),
+            Path::Fixed { .. } => 0,
+        };
+        WRAP_SWITCHES * self.tendons.iter().map(|tendon| wraps(&tendon.path)).sum::<usize>()
+    }
+
+    /// How many switches the dynamics have, the margins of
+    /// [`crate::dynamics::mode::ConstraintMode`] and a model-exchange FMU's
+    /// event indicators: the constraint forces' ([`Constraints::switch_count`]),
+    /// then the wraps' ([`Model::wrap_switches`]).
+    pub fn switch_count(&self) -> usize {
+        self.constraints.switch_count() + self.wrap_switches()
     }
 }
 

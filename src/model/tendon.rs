@@ -42,6 +42,11 @@ pub struct Tendon {
 }
 
 impl Tendon {
+    /// How many geoms a spatial path wraps round.
+    pub fn wraps(stops: &[PathStop]) -> usize {
+        stops.iter().filter(|stop| matches!(stop, PathStop::Geom { .. })).count()
+    }
+
     /// The tendon as messages name it: its element and name, or its index.
     pub fn label(&self, index: usize) -> String {
         let element = match self.path {
@@ -86,6 +91,11 @@ pub struct FixedTerm {
     /// `coef`.
     pub coef: f64,
 }
+
+/// How many switching functions a wrap has: whether the segment meets its
+/// geom, whether both sites are outside it, which way round it goes
+/// (`Workspace::wrap_switching`).
+pub const WRAP_SWITCHES: usize = 3;
 
 /// One element of a spatial tendon's path.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

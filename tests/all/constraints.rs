@@ -168,6 +168,28 @@ fn the_no_slip_pass_is_held_and_its_switches_located() {
 }
 
 #[test]
+fn a_wrap_coming_on_is_held_and_located() {
+    // The ball's wrap of tendon_wrap comes on at t = 0.2239 s: its length is
+    // once differentiable there and its moment arms grow as the square root
+    // of the time since, which no error per second can follow. Stepped
+    // across, dop853 relaxed its tolerance at 1e-8 and 1e-10 and every
+    // method failed at 1e-12 with its step at 1e-15 s; each wrap's path is
+    // now held over a step, continued past its switch, and the switch located.
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/tendons/tendon_wrap.xml");
+    let model = Model::compile(&nudyn::mjcf::load_mjcf(&path).unwrap().vehicle).unwrap();
+    let (reference, _, _) = driven_run(&model, Method::Dop853, 1e-13, 10, 0.3);
+    for method in [Method::Dop853, Method::Dopri5, Method::Tsit5] {
+        for tolerance in [1e-8, 1e-10] {
+            let (end, warnings, locating) = driven_run(&model, method, tolerance, 10, 0.3);
+            let error = end.iter().zip(&reference).map(|(x, r)| (x - r).abs() / (1.0 + r.abs())).fold(0.0, f64::max);
+            assert!(warnings.is_empty(), "{method:?} at {tolerance:e}: {warnings:?}");
+            assert!(locating > 0, "{method:?} at {tolerance:e} located no switch");
+            assert!(error <= 20.0 * tolerance, "{method:?} at {tolerance:e}: error {error:e}");
+        }
+    }
+}
+
+#[test]
 fn adaptive_methods_locate_the_switches_and_meet_the_tolerance() {
     // Stepped across blindly, the jumps and kinks of the constraint forces
     // were taken for round-off: every method relaxed its tolerance and
