@@ -163,7 +163,10 @@ fn arc_length<S: Real>(p0: &Point<S>, p1: &Point<S>, second: bool, radius: f64, 
     let (mut u0, mut u1) = (*p0, *p1);
     normalize2(&mut u0);
     normalize2(&mut u1);
-    let mut angle = (u0[0] * u1[0] + u0[1] * u1[1]).clamp(S::from(-1.0), S::one()).acos();
+    // MuJoCo's acos of the dot product, as atan2 of |cross| and dot: the same
+    // angle, but acos near 1 keeps half the digits (an arc of 1e-8 rad reads
+    // 0), where a wrap coming on starts.
+    let mut angle = (u0[0] * u1[1] - u0[1] * u1[0]).abs().atan2(u0[0] * u1[0] + u0[1] * u1[1]);
     let cross = (p0[1] * p1[0] - p0[0] * p1[1]).value();
     if (cross > 0.0 && second) || (cross < 0.0 && !second) {
         angle = if continued { -angle } else { -angle + 2.0 * PI };
