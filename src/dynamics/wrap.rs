@@ -9,7 +9,7 @@
 //! path homotopic to the polyline from the first site through the side
 //! site to the second, in the plane with the disc removed.
 
-use std::f64::consts::PI;
+use std::f64::consts::{FRAC_PI_2, PI};
 
 use crate::math::{Real, Transform, Vec3};
 use crate::model::WRAP_SWITCHES;
@@ -29,8 +29,8 @@ pub enum WrapPath {
     /// Straight from site to site.
     #[default]
     Straight,
-    /// Round the geom by the first or second pair of tangent points (a
-    /// side site's wrap has one).
+    /// Round the geom: by the first or second pair of tangent points, or
+    /// for a side site's wrap the signs of its turns (`wrap_circle_through`).
     Around(usize),
 }
 
@@ -248,9 +248,15 @@ fn wrap_circle<S: Real>(
 /// (x, y, x, y), or `None` when the straight segment is that path. The
 /// polyline turns w about the centre, each tangent segment acos(r/|p|), so
 /// the arc turns |w| − acos(r/|p₀|) − acos(r/|p₁|) in the sense of w, and
-/// the straight segment is the path when that is not positive;
-/// `switching` as [`wrap`]'s (the arc's turn decides whether it wraps);
-/// a `held` wrap goes on with a negative arc.
+/// the straight segment is the path when that is not positive.
+///
+/// w is the sum of the two turns p₀ → side → p₁, each in [−π, π): where
+/// one passes ±π the polyline passes the centre and the path jumps to the
+/// other way round. A `held` wrap ([`WrapPath::Around`] with the turns'
+/// and w's signs as bits 0, 1 and 2) goes on from where it was decided: a
+/// turn that has passed ±π taken on past it, w's sense kept, and an arc
+/// through zero going on negative. `switching` as [`wrap`]'s, the last
+/// being π minus the larger turn so taken on.
 fn wrap_circle_through<S: Real>(
     ends: &[S; 4],
     side: Point<S>,
@@ -264,18 +270,43 @@ fn wrap_circle_through<S: Real>(
         return (WrapPath::Straight, None);
     }
     let (angle0, angle1, angle_side) = (ends[1].atan2(ends[0]), ends[3].atan2(ends[2]), side[1].atan2(side[0]));
-    let winding = turn(angle_side - angle0) + turn(angle1 - angle_side);
+    let mut turns = [turn(angle_side - angle0), turn(angle1 - angle_side)];
     let (tangent0, tangent1) = ((S::from(radius) / norm0).acos(), (S::from(radius) / norm1).acos());
-    let arc = winding.abs() - tangent0 - tangent1;
-    switching[0] = arc.value();
-    let natural = if arc.value() <= 0.0 { WrapPath::Straight } else { WrapPath::Around(0) };
-    if held.unwrap_or(natural) == WrapPath::Straight {
-        return (WrapPath::Straight, None);
+    let mut winding = turns[0] + turns[1];
+    let arc = |winding: S, positive: bool| if positive { winding } else { -winding } - tangent0 - tangent1;
+    let mut positive = winding.value() >= 0.0;
+    switching[0] = arc(winding, positive).value();
+    let natural = if switching[0] <= 0.0 {
+        WrapPath::Straight
+    } else {
+        let bit = |b: bool, k: usize| usize::from(b) << k;
+        WrapPath::Around(bit(turns[0].value() >= 0.0, 0) | bit(turns[1].value() >= 0.0, 1) | bit(positive, 2))
+    };
+    match held {
+        None => {}
+        Some(WrapPath::Straight) => return (WrapPath::Straight, None),
+        Some(WrapPath::Around(bits)) => {
+            for (k, turn) in turns.iter_mut().enumerate() {
+                // Past ±π the turn's sign flips at a large size; through 0 at a small one.
+                let was_positive = bits & (1 << k) != 0;
+                if (turn.value() >= 0.0) != was_positive && turn.value().abs() > FRAC_PI_2 {
+                    *turn += if was_positive { 2.0 * PI } else { -2.0 * PI };
+                }
+            }
+            winding = turns[0] + turns[1];
+            positive = bits & 4 != 0;
+        }
     }
-    let sense = winding.value().signum();
+    // Where a turn taken on from the decision passes ±π.
+    switching[2] = PI - turns[0].value().abs().max(turns[1].value().abs());
+    let path = held.unwrap_or(natural);
+    if path == WrapPath::Straight {
+        return (path, None);
+    }
+    let sense = if positive { 1.0 } else { -1.0 };
     let (at0, at1) = (angle0 + tangent0 * sense, angle1 - tangent1 * sense);
     let points = [at0.cos() * radius, at0.sin() * radius, at1.cos() * radius, at1.sin() * radius];
-    (WrapPath::Around(0), Some((arc * radius, points)))
+    (path, Some((arc(winding, positive) * radius, points)))
 }
 
 /// An angle brought into [−π, π): (angle + π) mod 2π − π, the whole turns
