@@ -1,12 +1,14 @@
 //! The constraint mode: what makes MuJoCo's constraint forces switch, held
 //! while the state moves, and how far each switch is (docs/integration.md,
-//! "Constraint switches"); and the spatial tendons' wraps, whose path
-//! switches too (not held: their margins only say where).
+//! "Constraint switches"); and the spatial tendons' wraps, whose paths
+//! switch too and are held with it (wrap.rs).
 //!
 //! The forces are smooth in the state except where a limit side switches
 //! on or off, a force reaches or leaves a bound of its box, or a row's
-//! impedance changes piece. A mode fixes all three (the sides active, the
-//! solver's working set, the pieces) on a [`Workspace`]; its margins, one
+//! impedance changes piece (and, with MuJoCo's no-slip pass, where its
+//! sweeps decide otherwise). A mode fixes all of these (the sides active,
+//! the solver's working set, the pieces, the pass's decisions, the wraps'
+//! paths) on a [`Workspace`]; its margins, one
 //! per switch and positive while the mode holds, tell where it stops being
 //! MuJoCo's. The adaptive integrators hold a step's start mode over the
 //! step and locate where a margin crosses zero; a model-exchange FMU holds
