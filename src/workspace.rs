@@ -12,7 +12,7 @@ use crate::dynamics::flexible::FlexState;
 use crate::dynamics::subspace::Subspace;
 use crate::flex::nodes;
 use crate::math::{Mat3, Quat, Real, SpatialMat, SpatialVec, Transform, Vec3};
-use crate::model::{Model, NodeSite, SensorSource, WRAP_SWITCHES};
+use crate::model::{Model, NodeSite, SensorSource};
 
 /// 6×3 storage for per-link 6×ndof quantities (first `ndof` columns used).
 pub type LinkCols<S = f64> = SMatrix<S, 6, 3>;
@@ -329,8 +329,8 @@ impl<S: Real> Workspace<S> {
             tendon_velocity: DVector::zeros(model.tendons.len()),
             tendon_wrench: vec![SpatialVec::zeros(); if spatial_tendons { n } else { 0 }],
             wrap_switching: vec![f64::INFINITY; model.wrap_switches()],
-            wrap_paths: vec![WrapPath::Straight; model.wrap_switches() / WRAP_SWITCHES],
-            wrap_paths_held: vec![WrapPath::Straight; model.wrap_switches() / WRAP_SWITCHES],
+            wrap_paths: vec![WrapPath::Straight; model.wrap_count()],
+            wrap_paths_held: vec![WrapPath::Straight; model.wrap_count()],
             wraps_held: false,
             tendon_actuator_total: vec![
                 0.0;

@@ -633,9 +633,7 @@ impl Workspace {
         if let Some(held) = rows.held_sides.take() {
             rows.side_buffer = held;
         }
-        rows.held_working_set = None;
-        rows.no_slip.release();
-        self.wraps_held = false;
+        self.release_working_set();
     }
 
     /// Holds the working set of the last solve and the rows' impedance

@@ -25,7 +25,7 @@ use super::constraint::RowKind;
 use super::equality::{orientation, weld_rotation_map};
 use super::tendon::{direction, walk_path};
 use crate::math::{Mat3, Real, Transform, Vec3, angular, linear, real, spatial};
-use crate::model::{ActuatorTransmission, EqualityRows, Model, Path, SiteFrame, Tendon};
+use crate::model::{ActuatorTransmission, EqualityRows, Model, Path, SiteFrame};
 use crate::vehicle::SensorKind;
 use crate::workspace::Workspace;
 
@@ -72,17 +72,14 @@ impl<S: Real> Workspace<S> {
     /// unit tension's moment arms take it; a segment within one body pulls
     /// on it with two opposite forces on one line, which cancel.
     fn subtract_tendon_forces(&mut self, model: &Model) {
-        let mut first_wrap = 0;
-        for (k, tendon) in model.tendons.iter().enumerate() {
+        for ((k, tendon), wraps) in model.tendons.iter().enumerate().zip(model.tendon_wraps()) {
             let Path::Spatial { stops } = &tendon.path else { continue };
-            // The paths the tendons' kinematics took at this configuration.
-            let wraps = first_wrap..first_wrap + Tendon::wraps(stops);
-            first_wrap = wraps.end;
             let force = self.tendon_force(model, k);
             if force.is_still_zero() {
                 continue;
             }
             let (body_wrench, body_com) = (&mut self.body_wrench, &self.body_com);
+            // The paths the tendons' kinematics took at this configuration.
             walk_path(stops, &self.x_world, Some(&self.wrap_paths[wraps]), None, |from, to, divisor| {
                 if from.body == to.body {
                     return;

@@ -41,8 +41,7 @@ impl<S: Real> Workspace<S> {
     /// tendons), and the wraps' switching functions.
     pub(crate) fn tendon_kinematics(&mut self, model: &Model) {
         let nv = model.nv;
-        let mut first_wrap = 0;
-        for (k, tendon) in model.tendons.iter().enumerate() {
+        for ((k, tendon), wraps) in model.tendons.iter().enumerate().zip(model.tendon_wraps()) {
             let row = k * nv..(k + 1) * nv;
             self.tendon_moment[row.clone()].fill(S::zero());
             self.tendon_length[k] = match &tendon.path {
@@ -57,9 +56,7 @@ impl<S: Real> Workspace<S> {
                 Path::Spatial { stops } => {
                     self.world_transforms(model);
                     let mut moment = std::mem::take(&mut self.tendon_moment);
-                    let wraps = first_wrap..first_wrap + Tendon::wraps(stops);
-                    let length = self.spatial_tendon(model, stops, &mut moment[row], wraps.clone());
-                    first_wrap = wraps.end;
+                    let length = self.spatial_tendon(model, stops, &mut moment[row], wraps);
                     self.tendon_moment = moment;
                     length
                 }

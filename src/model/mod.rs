@@ -471,14 +471,29 @@ impl Model {
         !self.tendon_inertia.is_empty() || !self.constraints.is_empty()
     }
 
-    /// The spatial tendons' wraps' switching functions, three per geom a
-    /// path wraps (`Workspace::wrap_switching`).
+    /// Each tendon's wraps, as its range of the model's in the order of the
+    /// paths (`Workspace::wrap_paths`; empty for a fixed tendon).
+    pub fn tendon_wraps(&self) -> impl Iterator<Item = std::ops::Range<usize>> + '_ {
+        self.tendons.iter().scan(0, |first, tendon| {
+            let count = match &tendon.path {
+                Path::Spatial { stops } => stops.iter().filter(|stop| matches!(stop, PathStop::Geom { .. })).count(),
+                Path::Fixed { .. } => 0,
+            };
+            let wraps = *first..*first + count;
+            *first = wraps.end;
+            Some(wraps)
+        })
+    }
+
+    /// How many geoms the spatial tendons' paths wrap round.
+    pub fn wrap_count(&self) -> usize {
+        self.tendon_wraps().last().map_or(0, |wraps| wraps.end)
+    }
+
+    /// The wraps' switching functions, [`WRAP_SWITCHES`] per wrap
+    /// (`Workspace::wrap_switching`).
     pub fn wrap_switches(&self) -> usize {
-        let wraps = |path: &Path| match path {
-            Path::Spatial { stops } => Tendon::wraps(stops),
-            Path::Fixed { .. } => 0,
-        };
-        WRAP_SWITCHES * self.tendons.iter().map(|tendon| wraps(&tendon.path)).sum::<usize>()
+        WRAP_SWITCHES * self.wrap_count()
     }
 
     /// How many switches the dynamics have, the margins of

@@ -42,11 +42,6 @@ pub struct Tendon {
 }
 
 impl Tendon {
-    /// How many geoms a spatial path wraps round.
-    pub fn wraps(stops: &[PathStop]) -> usize {
-        stops.iter().filter(|stop| matches!(stop, PathStop::Geom { .. })).count()
-    }
-
     /// The tendon as messages name it: its element and name, or its index.
     pub fn label(&self, index: usize) -> String {
         let element = match self.path {
