@@ -50,6 +50,13 @@ impl ConstraintMode {
         }
     }
 
+    /// A mode of `count` margins alone, each switching at zero: for
+    /// testing what reads margins.
+    #[cfg(test)]
+    pub(crate) fn of_margins(count: usize) -> Self {
+        ConstraintMode { thresholds: vec![0.0; count], ..ConstraintMode::default() }
+    }
+
     /// How many margins the mode has (0 without constraints).
     pub fn len(&self) -> usize {
         self.thresholds.len()

@@ -138,6 +138,9 @@ pub struct Switches {
     attempted: Vec<f64>,
     /// The configuration at the end of the attempted step.
     theta_end: Vec<f64>,
+    /// The margins that a reading of the bracket being narrowed found to
+    /// jump rather than pass through zero: left out of the secant.
+    jumps: Vec<bool>,
 }
 
 /// A switch's bracket, in time into the step (s).
@@ -172,6 +175,7 @@ impl Switches {
             after: margins.clone(),
             attempted: margins,
             theta_end: if mode.is_empty() { Vec::new() } else { vec![0.0; model.nq] },
+            jumps: vec![false; mode.len()],
             mode,
         }
     }
@@ -274,7 +278,7 @@ impl Switches {
                     })
                 })
                 .ok()
-                .map(|bracket| bracket.after)
+                .map(|bracket| (bracket.before, bracket.after))
         });
         self.end.copy_from_slice(&self.attempted);
         let bracket = self.narrow((step, resolution), MAX_ATTEMPTS, hint, |switches, aim| {
@@ -296,17 +300,20 @@ impl Switches {
     /// Narrows the bracket (0, `step`) of the earliest switch, whose
     /// margins are `start` and `end`, to `resolution` or at most `limit`
     /// readings of `read` (which sets `end` at the share given and says
-    /// whether it left the mode), the first at `first` if given, then by
-    /// the secant.
+    /// whether it left the mode), then by the secant. A `hint` (a bracket
+    /// found on the interpolant) is read first at its end and, where that
+    /// switches, at its start: a switch that only a jumping margin shows
+    /// (no secant to follow) is then bracketed in two readings.
     fn narrow(
         &mut self,
         (step, resolution): (f64, f64),
         limit: usize,
-        first: Option<f64>,
+        hint: Option<(f64, f64)>,
         mut read: impl FnMut(&mut Self, f64) -> Result<bool, DynamicsError>,
     ) -> Result<Bracket, DynamicsError> {
         self.before.copy_from_slice(&self.start);
         self.after.copy_from_slice(&self.end);
+        self.jumps.fill(false);
         let mut bracket = Bracket { before: 0.0, after: step, holds_after: true, readings: 0 };
         // The Illinois rule: an end of the bracket that stays while the other
         // moves twice has its distances halved in the secant, so that the
@@ -326,15 +333,24 @@ impl Switches {
             let (before, after) = (bracket.before, bracket.after);
             let width = after - before;
             let inset = nudge.max(1e-6 * width);
-            let aim = match first {
-                Some(first) if bracket.readings == 0 => first.clamp(before + inset, after - inset),
+            let aim = match hint {
+                // The hint is read as close to the bracket's ends as it lies: it
+                // may bound the switch to within the resolution already.
+                Some((_, end)) if bracket.readings == 0 => end.clamp(before + nudge, after - nudge),
+                Some((start, end)) if bracket.readings == 1 && after == end && start > before => {
+                    start.clamp(before + nudge, after - nudge)
+                }
                 // Bisect where the secant has not halved the bracket in its last three readings.
                 _ if bracket.readings >= 3 && width > 0.5 * widths[bracket.readings % 3] => before + 0.5 * width,
-                _ => {
-                    let estimate = before + self.earliest_switch(weight_before, weight_after) * width;
-                    let nudged = if past { estimate + nudge } else { estimate - nudge };
-                    nudged.clamp(before + inset, after - inset)
-                }
+                _ => match self.earliest_switch(weight_before, weight_after) {
+                    Some(share) => {
+                        let estimate = before + share * width;
+                        let nudged = if past { estimate + nudge } else { estimate - nudge };
+                        nudged.clamp(before + inset, after - inset)
+                    }
+                    // Only margins that jump switch in the bracket: no secant to follow.
+                    None => before + 0.5 * width,
+                },
             };
             widths[bracket.readings % 3] = width;
             bracket.readings += 1;
@@ -346,6 +362,7 @@ impl Switches {
                 past = false;
                 weight_after = 1.0;
             } else {
+                self.note_jumps((aim - before) / width);
                 bracket.before = aim;
                 self.before.copy_from_slice(&self.end);
                 bracket.holds_after = false;
@@ -368,11 +385,38 @@ impl Switches {
 
     /// The earliest switch, as a share of the bracket, of the margins that
     /// switch between its ends, each taken as linear between them (the
-    /// secant).
-    fn earliest_switch(&self, weight_before: f64, weight_after: f64) -> f64 {
-        earliest_zero((0..self.before.len()).map(|k| {
-            (weight_before * self.mode.distance(k, self.before[k]), weight_after * self.mode.distance(k, self.after[k]))
-        }))
+    /// secant); `None` when only margins that jump switch there.
+    fn earliest_switch(&self, weight_before: f64, weight_after: f64) -> Option<f64> {
+        let continuous = || (0..self.before.len()).filter(|&k| !self.jumps[k]);
+        continuous().any(|k| self.switches_in_bracket(k)).then(|| {
+            earliest_zero(continuous().map(|k| {
+                let (before, after) = (self.mode.distance(k, self.before[k]), self.mode.distance(k, self.after[k]));
+                (weight_before * before, weight_after * after)
+            }))
+        })
+    }
+
+    /// Whether margin `k` switches between the bracket's ends.
+    fn switches_in_bracket(&self, k: usize) -> bool {
+        self.mode.distance(k, self.before[k]) >= 0.0 && self.mode.distance(k, self.after[k]) < 0.0
+    }
+
+    /// After a reading at `share` of the bracket that did not switch (its
+    /// margins in `end`): a margin switching in the bracket that its line
+    /// put well past zero there, but that moved by less than a tenth of
+    /// what the line said, jumps (as a wrap's choice of tangents does
+    /// where they cross, by 10⁴): its secant would aim at the bracket's
+    /// start reading after reading, so it is left out.
+    fn note_jumps(&mut self, share: f64) {
+        for k in 0..self.before.len() {
+            if self.jumps[k] || !self.switches_in_bracket(k) {
+                continue;
+            }
+            let (before, after) = (self.mode.distance(k, self.before[k]), self.mode.distance(k, self.after[k]));
+            let line = before + (after - before) * share;
+            let moved = before - self.mode.distance(k, self.end[k]);
+            self.jumps[k] = line < -before && moved < 0.1 * (before - line);
+        }
     }
 }
 
@@ -395,5 +439,66 @@ mod tests {
         let distances = [(1.0, 2.0), (3.0, -1.0), (1.0, -3.0), (-1.0, -2.0)];
         assert_eq!(earliest_zero(distances.into_iter()), 0.25);
         assert_eq!(earliest_zero([(1.0, 2.0)].into_iter()), 1.0);
+    }
+
+    /// Switches over margins given as functions of the time into a step of 1 s.
+    fn switches_of(margins: &[fn(f64) -> f64]) -> Switches {
+        let start: Vec<f64> = margins.iter().map(|m| m(0.0)).collect();
+        let end: Vec<f64> = margins.iter().map(|m| m(1.0)).collect();
+        Switches {
+            mode: ConstraintMode::of_margins(margins.len()),
+            before: start.clone(),
+            after: end.clone(),
+            attempted: end.clone(),
+            jumps: vec![false; margins.len()],
+            theta_end: Vec::new(),
+            start,
+            end,
+        }
+    }
+
+    /// Narrows (0, 1 s) to `RESOLUTION` from `hint` on `margins`.
+    fn narrowed(margins: &[fn(f64) -> f64], hint: Option<(f64, f64)>) -> Bracket {
+        let mut switches = switches_of(margins);
+        let bracket = switches
+            .narrow((1.0, RESOLUTION), MAX_ATTEMPTS, hint, |switches, aim| {
+                for (value, margin) in switches.end.iter_mut().zip(margins) {
+                    *value = margin(aim);
+                }
+                Ok(switches.mode.left(&switches.end))
+            })
+            .expect("the readings cannot fail");
+        assert!(bracket.after - bracket.before <= RESOLUTION, "not narrowed: {:?}", (bracket.before, bracket.after));
+        bracket
+    }
+
+    const RESOLUTION: f64 = 1e-9;
+
+    /// A wrap's choice of tangents where they cross, by 10⁴, at 0.37 s.
+    fn jumping(t: f64) -> f64 {
+        if t < 0.37 { 1e-3 } else { -1e4 }
+    }
+
+    #[test]
+    fn a_margin_that_jumps_is_left_out_of_the_secant() {
+        // A continuous margin crossing just before it: the secant follows that one.
+        let bracket = narrowed(&[jumping, |t| 0.37 - 1e-10 - t], None);
+        assert!((bracket.after - 0.37).abs() < 1e-9 && bracket.readings <= 6, "{} readings", bracket.readings);
+        // Just after it: the secant brings the bracket near, halving closes it.
+        let bracket = narrowed(&[jumping, |t| 0.37 + 1e-10 - t], None);
+        assert!((bracket.after - 0.37).abs() < 1e-9 && bracket.readings <= 16, "{} readings", bracket.readings);
+        // Alone, it is bisected (30 halvings of 1 s to 1e-9 s).
+        let bracket = narrowed(&[jumping], None);
+        assert!((bracket.after - 0.37).abs() < 1e-9 && bracket.readings <= 34, "{} readings", bracket.readings);
+    }
+
+    #[test]
+    fn a_hint_within_the_resolution_closes_the_bracket_at_once() {
+        // A jump a hair after the start, bracketed on the interpolant already.
+        let bracket = narrowed(&[|t| if t < 1e-12 { 1e4 } else { -1e-3 }], Some((0.0, 6.6e-10)));
+        assert_eq!(bracket.readings, 1);
+        // A hint whose end switches and whose start does not: two readings.
+        let bracket = narrowed(&[jumping], Some((0.37 - 0.5e-9, 0.37 + 0.4e-9)));
+        assert_eq!(bracket.readings, 2);
     }
 }
