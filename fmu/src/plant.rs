@@ -597,6 +597,11 @@ impl Component for Plant {
         if sizes != expected {
             return Err(SnapshotError::Sizes { found: sizes, expected }.into());
         }
+        let rows = state.run.reach.working_set.len();
+        if rows > self.model.constraints.max_rows() {
+            let (what, must) = ("the rows of a working set", "at most the vehicle's constraint rows");
+            return Err(SnapshotError::Value { what, value: rows as f64, must }.into());
+        }
         self.sim.settings = state.settings;
         // The method first: changing it drops W, which the restore then holds.
         self.sim.set_method(&self.model, state.method);

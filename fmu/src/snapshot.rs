@@ -9,6 +9,7 @@
 //! (finite, positive settings), so that even a blob crafted with a valid
 //! checksum cannot put a NaN into the outputs.
 
+use nudyn::dynamics::box_qp::Held;
 use nudyn::integrate::{
     AutoChoice, Carry, DENSE_ROWS, HeldJacobian, MOVE_UP_WINDOW, MethodSetting, Reach, RunState, Scheme, Settings,
 };
@@ -21,7 +22,7 @@ const MAGIC: &[u8; 8] = b"nudynFMS";
 /// Version of the byte layout below, raised with every change to it; a blob
 /// of another version is refused (what each version added is in git's
 /// history).
-const VERSION: u32 = 13;
+const VERSION: u32 = 14;
 
 /// The values that determine the plant's future: what an FMU state saves.
 #[derive(Clone, Debug, PartialEq)]
@@ -188,7 +189,8 @@ impl Snapshot {
 
     /// The size of [`Snapshot::serialize`]'s output.
     pub fn serialized_size(&self) -> usize {
-        let reach = if self.state.run.reach.held { reach_len(self.sizes()) } else { 0 };
+        let run = &self.state.run;
+        let reach = if run.reach.held { reach_len(self.sizes()) + 1 + run.reach.working_set.len() } else { 0 };
         let scalars = Self::scalar_count(self.sizes()) + CHOICE_SCALARS + self.state.jacobian.derivatives.len() + reach;
         MAGIC.len() + 4 + 4 + self.guid.len() + 3 * 4 + FLAGS + 4 + 8 * scalars + 8
     }
@@ -223,7 +225,8 @@ impl Snapshot {
         }
         let vectors = VECTOR_FIELDS.iter().flat_map(|field| (field.get)(s));
         let reach = &s.run.reach;
-        let reach_values: Vec<f64> = if reach.held { reach_values(reach).collect() } else { Vec::new() };
+        let reach_values: Vec<f64> =
+            if reach.held { reach_values(reach).chain(working_set_values(reach)).collect() } else { Vec::new() };
         for x in scalars.iter().chain(&choice).chain(vectors).chain(&s.jacobian.derivatives).chain(&reach_values) {
             bytes.extend_from_slice(&x.to_le_bytes());
         }
@@ -265,6 +268,7 @@ impl Snapshot {
         let scalars: Vec<f64> = (0..Self::scalar_count(sizes) + CHOICE_SCALARS + jacobian_len + reach_len)
             .map(|_| reader.f64())
             .collect::<Result<_, _>>()?;
+        let past_switch = if holds_reach { read_working_set(&mut reader)? } else { None };
         let contents_len = reader.at;
         let found = u64::from_le_bytes(reader.take(8)?.try_into().expect("8 bytes"));
         if reader.at != bytes.len() {
@@ -364,6 +368,10 @@ impl Snapshot {
         state.jacobian.derivatives = rest.to_vec();
         if holds_reach {
             state.run.reach = read_reach(reach, sizes)?;
+            if let Some(working_set) = past_switch {
+                state.run.reach.past_switch = true;
+                state.run.reach.working_set = working_set;
+            }
         }
         Ok(Snapshot { phase, guid: found_guid, state })
     }
@@ -393,7 +401,7 @@ struct ScalarField {
 
 /// The scalars before the vectors: times, settings and integration values.
 /// Appending a field changes the byte layout: raise [`VERSION`].
-const SCALAR_FIELDS: [ScalarField; 12] = [
+const SCALAR_FIELDS: [ScalarField; 13] = [
     ScalarField { name: "time", bound: Bound::Finite, get: |s| s.run.time, set: |s, x| s.run.time = x },
     ScalarField { name: "start_time", bound: Bound::Finite, get: |s| s.start_time, set: |s, x| s.start_time = x },
     // Checked even when not defined: the writer stores 0 then.
@@ -445,6 +453,12 @@ const SCALAR_FIELDS: [ScalarField; 12] = [
         bound: Bound::Finite,
         get: |s| s.run.carry.reach_from,
         set: |s, x| s.run.carry.reach_from = x,
+    },
+    ScalarField {
+        name: "reach cap",
+        bound: Bound::NonNegative,
+        get: |s| s.run.carry.reach_cap,
+        set: |s, x| s.run.carry.reach_cap = x,
     },
     ScalarField {
         name: "refusals",
@@ -547,7 +561,53 @@ fn read_reach(values: &[f64], n: Sizes) -> Result<Reach, SnapshotError> {
         work_end,
         tolerance,
         max_step,
+        past_switch: false,
+        working_set: Vec::new(),
     })
+}
+
+/// After a held step's values: 0, or where the step was cut to end past a
+/// constraint switch, 1 + the rows of the solver's working set there, then
+/// each row's place in it ([`held_code`]).
+fn working_set_values(reach: &Reach) -> impl Iterator<Item = f64> + '_ {
+    let marker = if reach.past_switch { 1 + reach.working_set.len() } else { 0 };
+    std::iter::once(marker as f64).chain(reach.working_set.iter().map(|&held| f64::from(held_code(held))))
+}
+
+/// A working set's entry as saved.
+fn held_code(held: Held) -> u8 {
+    match held {
+        Held::Free => 0,
+        Held::Lower => 1,
+        Held::Upper => 2,
+    }
+}
+
+/// The working set [`working_set_values`] wrote, if the step ended past a switch.
+fn read_working_set(reader: &mut Reader) -> Result<Option<Vec<Held>>, SnapshotError> {
+    let marker = reader.f64()?;
+    // No more rows than bytes left: a corrupt count is refused before it allocates.
+    let most = (reader.bytes.len() - reader.at) / 8;
+    if marker.fract() != 0.0 || !(0.0..=most as f64).contains(&marker) {
+        return Err(SnapshotError::Value {
+            what: "the working set's marker",
+            value: marker,
+            must: "0, or 1 + its rows",
+        });
+    }
+    if marker == 0.0 {
+        return Ok(None);
+    }
+    let rows = marker as usize - 1;
+    let set = (0..rows)
+        .map(|_| match reader.f64()? {
+            0.0 => Ok(Held::Free),
+            1.0 => Ok(Held::Lower),
+            2.0 => Ok(Held::Upper),
+            value => Err(SnapshotError::Value { what: "a working set's entry", value, must: "0, 1 or 2" }),
+        })
+        .collect::<Result<_, _>>()?;
+    Ok(Some(set))
 }
 
 /// What `auto` measured, after the scalars (0 before it has chosen): the
@@ -631,6 +691,7 @@ mod tests {
                         relaxation: 3.0,
                         start_rates: 42.5,
                         reach_from: 1.25,
+                        reach_cap: 0.0625,
                         refusals: 2.0,
                     },
                     auto_choice: None,
@@ -694,7 +755,19 @@ mod tests {
             work_end: -0.5,
             tolerance: 1e-4,
             max_step: 0.0,
+            past_switch: false,
+            working_set: Vec::new(),
         };
+        snapshot
+    }
+
+    /// The sample as a run whose last step, cut to end past a constraint
+    /// switch, reaches past the communication point.
+    fn sample_past_switch() -> Snapshot {
+        let mut snapshot = sample_with_reach();
+        let reach = &mut snapshot.state.run.reach;
+        reach.past_switch = true;
+        reach.working_set = vec![Held::Free, Held::Upper, Held::Lower, Held::Free];
         snapshot
     }
 
@@ -712,6 +785,7 @@ mod tests {
             (Some(10.0), sample_holding_w()),
             (None, sample_with_choice()),
             (Some(10.0), sample_with_reach()),
+            (None, sample_past_switch()),
         ];
         for (stop_time, base) in bases {
             let mut original = base;
@@ -837,6 +911,20 @@ mod tests {
                 error.to_string().contains("a step count auto weighs") && error.to_string().contains(must),
                 "{error}"
             );
+        }
+        // The last value before the checksum: the working set's marker
+        // without rows, its last entry with them.
+        let (without_rows, with_rows) = (serialized(&sample_with_reach()), serialized(&sample_past_switch()));
+        let marker_at = without_rows.len() - 16;
+        let entry_at = with_rows.len() - 16;
+        for (mut bytes, at, value, what) in [
+            (without_rows.clone(), marker_at, 0.5, "the working set's marker"),
+            (without_rows, marker_at, 1e9, "the working set's marker"),
+            (with_rows, entry_at, 3.0, "a working set's entry"),
+        ] {
+            bytes[at..at + 8].copy_from_slice(&f64::to_le_bytes(value));
+            let error = Snapshot::deserialize(&with_valid_checksum(bytes), GUID, SIZES).unwrap_err();
+            assert!(error.to_string().contains(what), "{error}");
         }
         let mut choice_without_auto = sample_with_choice();
         choice_without_auto.state.method = Method::Tsit5.into();

@@ -126,6 +126,10 @@ pub struct ConstraintRows<S: Real = f64> {
     /// (`Workspace::hold_working_set`): the forces are its minimizer's,
     /// smooth in the state, instead of the box's.
     held_working_set: Option<usize>,
+    /// With this many rows, the next solve starts from the working set the
+    /// solver holds, whatever rows the last solve had
+    /// (`Workspace::start_solve_from`).
+    given_start: Option<usize>,
     /// While limit sides are held: how far each row's force is from
     /// leaving its working set ([`BoxQp::working_set_margins`]).
     margins: Vec<f64>,
@@ -193,6 +197,7 @@ impl<S: Real> ConstraintRows<S> {
             held_sides: None,
             side_buffer: vec![false; sides],
             held_working_set: None,
+            given_start: None,
             margins: vec![f64::INFINITY; rows],
             pieces: vec![ImpedancePiece::Constant; rows],
             piece_margins: vec![f64::INFINITY; rows],
@@ -670,6 +675,23 @@ impl Workspace {
         };
     }
 
+    /// The working set of the last solve, one entry per row.
+    pub fn working_set(&self) -> &[Held] {
+        let rows = &self.constraint_rows;
+        &rows.solver.held[..rows.count]
+    }
+
+    /// Starts the next solve from the working set `set` (one entry per row,
+    /// as [`Workspace::working_set`] gave it), where it has that many rows:
+    /// so that a run continued from the end of a step cut to a switch
+    /// finds the working set it found there, whatever was solved between
+    /// (found from scratch a hair past the switch, it could be the old one).
+    pub fn start_solve_from(&mut self, set: &[Held]) {
+        let rows = &mut self.constraint_rows;
+        rows.solver.held[..set.len()].copy_from_slice(set);
+        rows.given_start = Some(set.len());
+    }
+
     /// Lets the solver find the working set again (the sides stay held).
     pub fn release_working_set(&mut self) {
         self.constraint_rows.held_working_set = None;
@@ -717,12 +739,12 @@ impl Workspace {
             // The tendons' armature spreads each column of E over their dofs.
             rows.eps_spans[..n].fill((0, model.nv));
         }
-        let same_rows = rows.note_rows();
+        let warm = rows.note_rows() | (rows.given_start.take() == Some(n));
         let (gradient, lower, upper) = (&rows.gradient, &rows.lower, &rows.upper);
         if rows.held_working_set == Some(n) {
             rows.solver.solve_in_working_set(n, &rows.hessian, stride, gradient, lower, upper, &mut rows.force)?;
         } else {
-            rows.solver.solve(n, &rows.hessian, stride, gradient, lower, upper, &mut rows.force, same_rows)?;
+            rows.solver.solve(n, &rows.hessian, stride, gradient, lower, upper, &mut rows.force, warm)?;
         }
         if rows.held_sides.is_some() {
             let bounds = (lower.as_slice(), upper.as_slice());

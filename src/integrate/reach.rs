@@ -12,6 +12,7 @@
 
 use super::rkmk::{clamp_activations, retract};
 use super::tableau::{DENSE_ROWS, nested, nested_slope};
+use crate::dynamics::box_qp::Held;
 use crate::model::Model;
 
 /// The last step of an advance, which ended past the communication point.
@@ -44,6 +45,13 @@ pub struct Reach {
     pub tolerance: f64,
     /// The `max_step` it was taken with.
     pub max_step: f64,
+    /// Whether the step was cut to end just past a constraint switch: the
+    /// integration goes on from its end in the mode past the switch,
+    /// the solver starting from `working_set`.
+    pub past_switch: bool,
+    /// The constraint solver's working set at the step's end, past the
+    /// switch (one entry per row there; empty unless `past_switch`).
+    pub working_set: Vec<Held>,
 }
 
 impl Reach {
@@ -56,6 +64,7 @@ impl Reach {
             rows: vec![0.0; DENSE_ROWS * (2 * nv + na + 1)],
             theta_end: vec![0.0; model.nq],
             qvel_end: vec![0.0; nv + na],
+            working_set: Vec::with_capacity(model.constraints.max_rows()),
             ..Reach::default()
         }
     }

@@ -434,6 +434,8 @@ impl Simulation {
     /// can differ in the last bit from rates evaluated at the stored θ (a
     /// quaternion is normalized again), which is what a run restored from
     /// an FMU state has; evaluated afresh in both, the runs agree bit for bit.
+    /// A step that ended past a switch has the solver start there from the
+    /// working set it found then, for the same reason.
     fn go_to_reach_end(&mut self) {
         self.integrator.first.valid = false;
         let state = &mut self.state;
@@ -443,6 +445,9 @@ impl Simulation {
         state.qvel.copy_from_slice(&reach.qvel_end);
         state.carry.work = reach.work_end;
         reach.held = false;
+        if reach.past_switch {
+            self.ws.start_solve_from(&reach.working_set);
+        }
     }
 
     /// Whether `input` is constant and equal to the last advance's constant

@@ -257,3 +257,51 @@ fn an_interpolant_that_strays_from_a_fast_damped_mode_is_refused() {
         assert!(error <= 20.0, "at {tolerance:e}: error {error:e} × tolerance");
     }
 }
+
+/// A step cut to end just past a constraint switch that reaches past the
+/// communication point is held like any other: the run goes on from its
+/// end in the mode past the switch instead of locating the switch again
+/// from the point. The solver's working set there is part of the state,
+/// so a state saved then continues bit for bit, into the instance that ran
+/// on (whose solver was left elsewhere) and into a fresh one.
+#[test]
+fn a_step_held_past_a_switch_continues_bit_for_bit() {
+    let cases = [
+        ("docked_servicer", 1e-6, [Method::Dop853, Method::Dopri5]),
+        ("noslip_trees", 1e-6, [Method::Dop853, Method::Tsit5]),
+        ("empty_rows", 1e-8, [Method::Dop853, Method::Tsit5]),
+    ];
+    for (name, tolerance, methods) in cases {
+        let model = crate::stiffness::fixture(&format!("tests/fixtures/constraints/{name}.xml"));
+        let eps = crate::stiffness::eps(&model);
+        let zero = vec![0.0; model.nv];
+        let hold = |sim: &mut Simulation, points: std::ops::RangeInclusive<usize>| {
+            for n in points {
+                let input = Input { eps: &eps, eps_rate: &zero, ctrl: &[], ctrl_rate: &[] };
+                sim.advance_to(&model, n as f64 * crate::stiffness::INTERVAL, input).unwrap();
+            }
+        };
+        for method in methods {
+            let mut sim = Simulation::new(&model, method, settings(tolerance));
+            sim.initialize(&model).unwrap();
+            let past_switch = (1..=60).find(|&n| {
+                hold(&mut sim, n..=n);
+                let reach = &sim.state.reach;
+                reach.held && reach.past_switch && !reach.working_set.is_empty()
+            });
+            let Some(saved_at) = past_switch else {
+                panic!("{name}, {}: no step held past a switch in 60 points", method.name());
+            };
+            let saved = sim.state.clone();
+            let rest = saved_at + 1..=saved_at + 20;
+            hold(&mut sim, rest.clone());
+            let continued = sim.state.clone();
+            let mut fresh = Simulation::new(&model, method, settings(tolerance));
+            for restored in [&mut sim, &mut fresh] {
+                restored.restore(&model, &saved, &HeldJacobian::default());
+                hold(restored, rest.clone());
+                assert_eq!(restored.state, continued, "{name}, {}", method.name());
+            }
+        }
+    }
+}

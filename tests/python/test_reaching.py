@@ -111,3 +111,40 @@ def test_a_state_saved_while_steps_end_at_the_points_continues_bit_for_bit(servi
         else:
             pytest.fail("no interpolant refused in 40 doSteps")
         assert_restores_bit_for_bit(running, fresh, held, 30)
+
+
+def test_a_state_saved_past_a_constraint_switch_continues_bit_for_bit(nudyn, tmp_path):
+    """A step cut to end just past a constraint switch, reaching past the
+    communication point, is held like any other: the run goes on from its
+    end in the mode past the switch. The solver's working set there is part
+    of the FMU state (its rows' entries lengthen the blob), and a state
+    saved then continues bit for bit, in the instance and in a fresh one."""
+    from nudyn_driver.cli import Nudyn
+    from nudyn_driver.instance import Instance
+    from nudyn_driver.package import FmuPackage
+
+    path = ROOT / "tests" / "fixtures" / "constraints" / "docked_servicer.xml"
+    package = FmuPackage.unzip(Nudyn(nudyn).export(path, tmp_path / "docked.fmu"), tmp_path / "docked")
+    interval = 0.05
+
+    def started():
+        instance = Instance(package, start={"method": "dop853", "tolerance": 1e-6}, logging_on=True)
+        instance.set_array("eps", [0.3 * np.sin(k) for k in range(len(instance.array("nu")))])
+        return instance
+
+    def advance(instance, steps):
+        start = round(instance.time / interval)
+        for k in range(start, start + steps):
+            instance.step(interval, k * interval)
+
+    with started() as running, started() as fresh:
+        sizes = []
+        for _ in range(40):
+            advance(running, 1)
+            sizes.append(blob_size(running))
+            # Without a step held, with one, and with one past a switch (longer by its rows).
+            if len(set(sizes)) == 3 and sizes[-1] == max(sizes):
+                break
+        else:
+            pytest.fail(f"no step held past a switch in 40 doSteps: blob sizes {sorted(set(sizes))}")
+        assert_restores_bit_for_bit(running, fresh, advance, 20)
