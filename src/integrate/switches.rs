@@ -138,9 +138,11 @@ pub struct Switches {
     attempted: Vec<f64>,
     /// The configuration at the end of the attempted step.
     theta_end: Vec<f64>,
-    /// The margins that a reading of the bracket being narrowed found to
-    /// jump rather than pass through zero: left out of the secant.
-    jumps: Vec<bool>,
+    /// Per margin, what the readings of the bracket being narrowed showed
+    /// of a jump ([`NEAR_SIDE_STAYS`], [`FAR_SIDE_STAYS`]): a margin that
+    /// shows both jumps rather than passes through zero, and is left out
+    /// of the secant.
+    jump_evidence: Vec<u8>,
 }
 
 /// A switch's bracket, in time into the step (s).
@@ -175,7 +177,7 @@ impl Switches {
             after: margins.clone(),
             attempted: margins,
             theta_end: if mode.is_empty() { Vec::new() } else { vec![0.0; model.nq] },
-            jumps: vec![false; mode.len()],
+            jump_evidence: vec![0; mode.len()],
             mode,
         }
     }
@@ -313,7 +315,7 @@ impl Switches {
     ) -> Result<Bracket, DynamicsError> {
         self.before.copy_from_slice(&self.start);
         self.after.copy_from_slice(&self.end);
-        self.jumps.fill(false);
+        self.jump_evidence.fill(0);
         let mut bracket = Bracket { before: 0.0, after: step, holds_after: true, readings: 0 };
         // The Illinois rule: an end of the bracket that stays while the other
         // moves twice has its distances halved in the secant, so that the
@@ -355,6 +357,7 @@ impl Switches {
             widths[bracket.readings % 3] = width;
             bracket.readings += 1;
             let left = read(self, aim)?;
+            self.note_jumps((aim - before) / width, left);
             if left {
                 bracket.after = aim;
                 self.after.copy_from_slice(&self.end);
@@ -362,7 +365,6 @@ impl Switches {
                 past = false;
                 weight_after = 1.0;
             } else {
-                self.note_jumps((aim - before) / width);
                 bracket.before = aim;
                 self.before.copy_from_slice(&self.end);
                 bracket.holds_after = false;
@@ -387,7 +389,7 @@ impl Switches {
     /// switch between its ends, each taken as linear between them (the
     /// secant); `None` when only margins that jump switch there.
     fn earliest_switch(&self, weight_before: f64, weight_after: f64) -> Option<f64> {
-        let continuous = || (0..self.before.len()).filter(|&k| !self.jumps[k]);
+        let continuous = || (0..self.before.len()).filter(|&k| !self.jumps(k));
         continuous().any(|k| self.switches_in_bracket(k)).then(|| {
             earliest_zero(continuous().map(|k| {
                 let (before, after) = (self.mode.distance(k, self.before[k]), self.mode.distance(k, self.after[k]));
@@ -401,24 +403,46 @@ impl Switches {
         self.mode.distance(k, self.before[k]) >= 0.0 && self.mode.distance(k, self.after[k]) < 0.0
     }
 
-    /// After a reading at `share` of the bracket that did not switch (its
-    /// margins in `end`): a margin switching in the bracket that its line
-    /// put well past zero there, but that moved by less than a tenth of
-    /// what the line said, jumps (as a wrap's choice of tangents does
-    /// where they cross, by 10⁴): its secant would aim at the bracket's
-    /// start reading after reading, so it is left out.
-    fn note_jumps(&mut self, share: f64) {
+    /// Whether the readings showed margin `k` to jump.
+    fn jumps(&self, k: usize) -> bool {
+        self.jump_evidence[k] == NEAR_SIDE_STAYS | FAR_SIDE_STAYS
+    }
+
+    /// After a reading at `share` of the bracket (its margins in `end`,
+    /// `left` whether it switched), before the bracket moves: of each
+    /// margin switching in the bracket, whether the reading found it where
+    /// the bracket's end on its side of the switch has it, although the
+    /// line between the ends put it a share of the way across. A margin
+    /// that a wrap's choice of tangents makes jump (by 10⁴ where they
+    /// cross) shows this on both sides; a smooth one on one side at most
+    /// (a margin that starts at zero and bends back reads as staying near
+    /// its start), so only both make a jump.
+    fn note_jumps(&mut self, share: f64, left: bool) {
         for k in 0..self.before.len() {
-            if self.jumps[k] || !self.switches_in_bracket(k) {
+            if !self.switches_in_bracket(k) {
                 continue;
             }
             let (before, after) = (self.mode.distance(k, self.before[k]), self.mode.distance(k, self.after[k]));
-            let line = before + (after - before) * share;
-            let moved = before - self.mode.distance(k, self.end[k]);
-            self.jumps[k] = line < -before && moved < 0.1 * (before - line);
+            let reading = self.mode.distance(k, self.end[k]);
+            let across = after - before;
+            let stays = if reading >= 0.0 {
+                ((reading - before).abs() < 0.1 * share * across.abs()).then_some(NEAR_SIDE_STAYS)
+            } else if left {
+                ((reading - after).abs() < 0.1 * (1.0 - share) * across.abs()).then_some(FAR_SIDE_STAYS)
+            } else {
+                None
+            };
+            self.jump_evidence[k] |= stays.unwrap_or(0);
         }
     }
 }
+
+/// Of a margin that jumps: a reading short of the switch found it where
+/// the bracket's start has it.
+const NEAR_SIDE_STAYS: u8 = 1;
+
+/// A reading past the switch found it where the bracket's end has it.
+const FAR_SIDE_STAYS: u8 = 2;
 
 /// The earliest zero, as a share of the bracket, of the (before, after)
 /// distances that change from non-negative to negative across it.
@@ -450,7 +474,7 @@ mod tests {
             before: start.clone(),
             after: end.clone(),
             attempted: end.clone(),
-            jumps: vec![false; margins.len()],
+            jump_evidence: vec![0; margins.len()],
             theta_end: Vec::new(),
             start,
             end,
@@ -458,7 +482,7 @@ mod tests {
     }
 
     /// Narrows (0, 1 s) to `RESOLUTION` from `hint` on `margins`.
-    fn narrowed(margins: &[fn(f64) -> f64], hint: Option<(f64, f64)>) -> Bracket {
+    fn narrowed(margins: &[fn(f64) -> f64], hint: Option<(f64, f64)>) -> (Bracket, Switches) {
         let mut switches = switches_of(margins);
         let bracket = switches
             .narrow((1.0, RESOLUTION), MAX_ATTEMPTS, hint, |switches, aim| {
@@ -469,7 +493,7 @@ mod tests {
             })
             .expect("the readings cannot fail");
         assert!(bracket.after - bracket.before <= RESOLUTION, "not narrowed: {:?}", (bracket.before, bracket.after));
-        bracket
+        (bracket, switches)
     }
 
     const RESOLUTION: f64 = 1e-9;
@@ -482,23 +506,33 @@ mod tests {
     #[test]
     fn a_margin_that_jumps_is_left_out_of_the_secant() {
         // A continuous margin crossing just before it: the secant follows that one.
-        let bracket = narrowed(&[jumping, |t| 0.37 - 1e-10 - t], None);
-        assert!((bracket.after - 0.37).abs() < 1e-9 && bracket.readings <= 6, "{} readings", bracket.readings);
+        let (bracket, switches) = narrowed(&[jumping, |t| 0.37 - 1e-10 - t], None);
+        assert!((bracket.after - 0.37).abs() < 1e-9 && bracket.readings <= 10, "{} readings", bracket.readings);
+        assert!(switches.jumps(0) && !switches.jumps(1));
         // Just after it: the secant brings the bracket near, halving closes it.
-        let bracket = narrowed(&[jumping, |t| 0.37 + 1e-10 - t], None);
+        let (bracket, _) = narrowed(&[jumping, |t| 0.37 + 1e-10 - t], None);
         assert!((bracket.after - 0.37).abs() < 1e-9 && bracket.readings <= 16, "{} readings", bracket.readings);
-        // Alone, it is bisected (30 halvings of 1 s to 1e-9 s).
-        let bracket = narrowed(&[jumping], None);
+        // Alone, it is halved (30 halvings of 1 s to 1e-9 s).
+        let (bracket, _) = narrowed(&[jumping], None);
         assert!((bracket.after - 0.37).abs() < 1e-9 && bracket.readings <= 34, "{} readings", bracket.readings);
+    }
+
+    #[test]
+    fn a_margin_that_starts_at_zero_and_bends_back_is_no_jump() {
+        // Just past an earlier switch, it rises and falls through zero at 0.4 s.
+        let (bracket, switches) = narrowed(&[|t| 1e-9 + 0.4 * t - t * t], None);
+        assert!(!switches.jumps(0));
+        // The secant's own pace here (Illinois), 17 readings; halving took 30.
+        assert!((bracket.after - 0.4).abs() < 1e-8 && bracket.readings <= 20, "{} readings", bracket.readings);
     }
 
     #[test]
     fn a_hint_within_the_resolution_closes_the_bracket_at_once() {
         // A jump a hair after the start, bracketed on the interpolant already.
-        let bracket = narrowed(&[|t| if t < 1e-12 { 1e4 } else { -1e-3 }], Some((0.0, 6.6e-10)));
+        let (bracket, _) = narrowed(&[|t| if t < 1e-12 { 1e4 } else { -1e-3 }], Some((0.0, 6.6e-10)));
         assert_eq!(bracket.readings, 1);
         // A hint whose end switches and whose start does not: two readings.
-        let bracket = narrowed(&[jumping], Some((0.37 - 0.5e-9, 0.37 + 0.4e-9)));
+        let (bracket, _) = narrowed(&[jumping], Some((0.37 - 0.5e-9, 0.37 + 0.4e-9)));
         assert_eq!(bracket.readings, 2);
     }
 }

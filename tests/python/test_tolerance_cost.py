@@ -49,8 +49,12 @@ def test_cost_falls_as_the_tolerance_loosens(model, cli, tmp_path):
 @pytest.mark.parametrize("model", EXAMPLES, ids=example_ids())
 def test_auto_costs_no_more_at_a_looser_tolerance(model, cli, tmp_path):
     """`method = auto` changes method with the tolerance, so its cost is
-    counted in evaluations of the rates, not steps: they never grow as the
-    tolerance loosens from 1e-10 to 1e-4."""
+    counted in evaluations of the rates, not steps: they do not grow as the
+    tolerance loosens from 1e-10 to 1e-4, by more than a refused
+    interpolant's retaken step. (The servicer's arm servos have interpolants
+    refused five or six times in 5 s at every tolerance, each a whole step
+    taken again: its `dop853` took 1017 evaluations at 1e-8 and 1025 at
+    1e-7, with 5 and 6 refusals; a method chosen wrongly costs far more.)"""
     vehicle = prepare(model.stem, model, tmp_path)
     package = FmuPackage.unzip(cli.export(model, tmp_path / f"{model.stem}.fmu"), tmp_path / model.stem)
     tolerances = [1e-10, 1e-9, 1e-8, 1e-7, 1e-6, 1e-5, 1e-4]
@@ -62,5 +66,6 @@ def test_auto_costs_no_more_at_a_looser_tolerance(model, cli, tmp_path):
                 fmu.step(COMMUNICATION_STEP, communication_point=n * COMMUNICATION_STEP)
             evaluations.append(fmu.log.evaluations())
     report = ", ".join(f"{t:g}: {e}" for t, e in zip(tolerances, evaluations))
-    assert all(tight >= loose for tight, loose in zip(evaluations, evaluations[1:])), report
+    # A dop853 step and its interpolant's check: 13 evaluations.
+    assert all(tight + 13 >= loose for tight, loose in zip(evaluations, evaluations[1:])), report
     assert evaluations[0] > evaluations[-1], report
