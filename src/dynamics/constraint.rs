@@ -144,7 +144,7 @@ pub struct ConstraintRows<S: Real = f64> {
     /// ε_c = m⁻¹Jᵀf (nv).
     pub eps_constraint: Vec<S>,
     /// The no-slip pass's buffers.
-    pub(super) no_slip: NoSlipBuffers,
+    pub(super) no_slip: NoSlipBuffers<S>,
 }
 
 impl<S: Real> Default for ConstraintRows<S> {
@@ -168,7 +168,7 @@ impl<S: Real> ConstraintRows<S> {
 
     /// Buffers for `rows` rows over `nv` dofs, `sides` limit sides and
     /// `links` links' bias accelerations.
-    fn sized(rows: usize, nv: usize, sides: usize, links: usize, no_slip: NoSlipBuffers) -> Self {
+    fn sized(rows: usize, nv: usize, sides: usize, links: usize, no_slip: NoSlipBuffers<S>) -> Self {
         let per_row = vec![S::zero(); rows];
         let constants = vec![0.0; rows];
         ConstraintRows {
@@ -273,6 +273,7 @@ impl<S: Real> ConstraintRows<S> {
             self.solver.held[..n].copy_from_slice(&held.solver.held[..n]);
             self.pieces[..n].copy_from_slice(&held.pieces[..n]);
         }
+        self.no_slip.hold_those_of(&held.no_slip);
     }
 
     /// Whether a mode is held (its limit sides at least).

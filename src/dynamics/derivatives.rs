@@ -26,15 +26,15 @@
 //! rows, friction loss, joint and tendon limits) and the sensors' (every
 //! kind nudyn reads, after the passes: [`Output::Sensordata`]). The constraint
 //! forces are taken at the mode of the point: the limit sides active
-//! there, each row's impedance piece and the solver's working set, each
-//! decided on the values, so that the duals carry the derivative of that
-//! mode's forces, a smooth function of the state (the integrators hold the
-//! same mode over a step). A point on a switch of that mode, where the
-//! derivative is one-sided, is refused by [`Derivatives::run`] with the
-//! switches named. A model whose dynamics need more (the tendons'
-//! armature, MuJoCo's no-slip pass) is refused by
-//! [`Derivatives::new`] with what is missing, rather than given a
-//! derivative that leaves a term out.
+//! there, each row's impedance piece, the solver's working set and the
+//! no-slip pass's decisions, each decided on the values, so that the duals
+//! carry the derivative of that mode's forces, a smooth function of the
+//! state (the integrators hold the same mode over a step). A point on a
+//! switch of that mode, where the derivative is one-sided, is refused by
+//! [`Derivatives::run`] with the switches named. A model whose dynamics
+//! need more (the tendons' armature) is refused by [`Derivatives::new`]
+//! with what is missing, rather than given a derivative that leaves a term
+//! out.
 
 use nalgebra::{DMatrix, Quaternion};
 use num_dual::Dual64;
@@ -345,7 +345,10 @@ impl Passes {
             // The forces of the mode the point is in: its active sides,
             // impedance pieces and working set, decided on the values.
             // They need θ̈ without them (run above, or by this call with ν̇).
-            ws.add_constraint_forces(model, &mut self.eps, |_, _, rows| rows.solve_in_one_working_set())?;
+            ws.add_constraint_forces(model, &mut self.eps, |ws, model, rows| {
+                rows.solve_in_one_working_set()?;
+                ws.no_slip_pass(model, rows)
+            })?;
             // A held mode's forces are smooth on both sides of its switches.
             if !ws.constraint_rows.holds_mode() {
                 switches.refuse_on_switch(model, ws)?;
@@ -460,6 +463,24 @@ impl Switches {
                 on.push(format!("{}: its impedance between two pieces", rows.row_name(model, k)));
             }
         }
+        // The no-slip pass's: each sweep's clamp of each row, then each island's stop.
+        let (clamps, stops) = rows
+            .no_slip
+            .margins()
+            .split_at(rows.no_slip.margins().len().min(constraints.options.noslip_iterations as usize * rows.max_rows));
+        for (slot, margin) in clamps.iter().enumerate() {
+            if margin.abs() <= SWITCH_TOLERANCE * scale {
+                let (sweep, k) = (slot / rows.max_rows, slot % rows.max_rows);
+                on.push(format!(
+                    "{}: the no-slip pass's sweep {} at a bound of its box",
+                    rows.row_name(model, k),
+                    sweep + 1
+                ));
+            }
+        }
+        if stops.iter().any(|margin| margin.abs() <= SWITCH_TOLERANCE) {
+            on.push("the no-slip pass's improvement at noslip_tolerance".to_string());
+        }
         match on.is_empty() {
             true => Ok(()),
             false => Err(DerivativeError::OnSwitch(on.join("; "))),
@@ -486,10 +507,7 @@ impl Derivatives {
     /// Whether derivatives cover `model`, without building the buffers
     /// (an exporter's question): what [`Derivatives::new`] refuses.
     pub fn check(model: &Model) -> Result<(), DerivativeError> {
-        let unsupported = [
-            (!model.tendon_inertia.is_empty(), "tendons' armature"),
-            (model.constraints.runs_no_slip_pass(), "MuJoCo's no-slip pass (noslip_iterations)"),
-        ];
+        let unsupported = [(!model.tendon_inertia.is_empty(), "tendons' armature")];
         match unsupported.iter().find(|(has, _)| *has) {
             Some((_, what)) => Err(DerivativeError::Unsupported(what)),
             None => Ok(()),

@@ -15,7 +15,7 @@ use crate::workspace::{Accumulation, NodeParent, Stage, Workspace};
 
 /// Which way the recursion runs.
 #[derive(Clone, Copy, PartialEq, Eq)]
-enum Direction {
+pub(super) enum Direction {
     /// `input` is T; write ε.
     EpsFromTorque,
     /// `input` is ε; write T.
@@ -63,7 +63,7 @@ fn inward_link<S: Real, const N: usize>(
     }
 }
 
-fn inward_pass<S: Real>(
+pub(super) fn inward_pass<S: Real>(
     model: &Model,
     ws: &mut Workspace<S>,
     direction: Direction,

@@ -16,11 +16,13 @@
 //! ([`Workspace::hold_working_set`]), the pass then follows them, and
 //! their margins say where MuJoCo's pass would decide otherwise.
 
-use super::DynamicsError;
 use super::constraint::{ConstraintRows, RowKind};
+use super::forces::{Direction, inward_pass};
+use super::{DynamicsError, require};
+use crate::math::{Real, sum};
 use crate::model::Model;
 use crate::vehicle::ConstraintOptions;
-use crate::workspace::Workspace;
+use crate::workspace::{Stage, Workspace};
 
 /// MuJoCo's smallest denominator (mjMINVAL).
 const MIN_VALUE: f64 = 1e-15;
@@ -50,22 +52,24 @@ struct Decisions {
     clamps: Vec<Clamp>,
 }
 
-/// The pass's buffers (empty for a model that never runs it).
-#[derive(Clone, Debug, Default)]
-pub struct NoSlipBuffers {
+/// The pass's buffers (empty for a model that never runs it), in the
+/// passes' scalar: with dual numbers the forces carry their derivatives
+/// through the sweeps, each decision taken on the values.
+#[derive(Clone, Debug)]
+pub struct NoSlipBuffers<S: Real = f64> {
     /// Each dof's kinematic tree, named by the link at its root.
     dof_tree: Vec<usize>,
     /// Union-find parents over trees (indexed by link; only roots used).
     tree_parent: Vec<usize>,
     /// Each row's island (its representative tree), or [`NO_TREE`].
     row_island: Vec<usize>,
-    /// diag(M) at the state.
+    /// diag(M) at the state (its values: it scales the stopping rule only).
     mass_diagonal: Vec<f64>,
     /// A unit ε and the torque m ε it gives: one column of m.
-    unit: Vec<f64>,
-    column: Vec<f64>,
+    unit: Vec<S>,
+    column: Vec<S>,
     /// The solver's forces, before the pass moved the friction rows'.
-    solved: Vec<f64>,
+    solved: Vec<S>,
     /// The last pass's decisions.
     decided: Decisions,
     /// The decisions held over an integrator's step, when `holding`.
@@ -80,7 +84,26 @@ pub struct NoSlipBuffers {
     margins: Vec<f64>,
 }
 
-impl NoSlipBuffers {
+impl<S: Real> Default for NoSlipBuffers<S> {
+    fn default() -> Self {
+        NoSlipBuffers {
+            dof_tree: Vec::new(),
+            tree_parent: Vec::new(),
+            row_island: Vec::new(),
+            mass_diagonal: Vec::new(),
+            unit: Vec::new(),
+            column: Vec::new(),
+            solved: Vec::new(),
+            decided: Decisions::default(),
+            held: Decisions::default(),
+            holding: false,
+            free_at_end: Vec::new(),
+            margins: Vec::new(),
+        }
+    }
+}
+
+impl<S: Real> NoSlipBuffers<S> {
     /// Buffers for `model` when it runs the pass (iterations > 0 and
     /// friction-loss rows), else none.
     pub fn new(model: &Model) -> Self {
@@ -105,9 +128,9 @@ impl NoSlipBuffers {
             tree_parent: (0..model.links.len()).collect(),
             row_island: vec![NO_TREE; max_rows],
             mass_diagonal: vec![0.0; nv],
-            unit: vec![0.0; nv],
-            column: vec![0.0; nv],
-            solved: vec![0.0; max_rows],
+            unit: vec![S::zero(); nv],
+            column: vec![S::zero(); nv],
+            solved: vec![S::zero(); max_rows],
             decided: decisions.clone(),
             held: decisions,
             holding: false,
@@ -120,6 +143,12 @@ impl NoSlipBuffers {
     pub(super) fn hold(&mut self) {
         self.held.clone_from(&self.decided);
         self.holding = !self.margins.is_empty();
+    }
+
+    /// Holds the decisions `other` holds (an f64 workspace's), or none.
+    pub(super) fn hold_those_of<T: Real>(&mut self, other: &NoSlipBuffers<T>) {
+        self.held.clone_from(&other.held);
+        self.holding = other.holding && !self.margins.is_empty();
     }
 
     /// Lets the passes decide again.
@@ -140,7 +169,7 @@ impl NoSlipBuffers {
 
     /// Row `k`'s force as the solver gave it, when the pass ran on the rows.
     pub(super) fn solved_force(&self, k: usize) -> Option<f64> {
-        (k < self.decided.rows).then(|| self.solved[k])
+        (k < self.decided.rows).then(|| self.solved[k].value())
     }
 
     /// The representative of `tree`'s group, halving paths on the way.
@@ -160,14 +189,14 @@ impl NoSlipBuffers {
     /// Each row's island: trees a row reaches into are joined, and so are
     /// those of an equality constraint's rows together (MuJoCo joins the
     /// two bodies' trees even where one row's Jacobian vanishes in one).
-    fn assign_islands(&mut self, rows: &ConstraintRows, nv: usize, islands: bool) {
+    fn assign_islands(&mut self, rows: &ConstraintRows<S>, nv: usize, islands: bool) {
         for (t, parent) in self.tree_parent.iter_mut().enumerate() {
             *parent = t;
         }
         for k in 0..rows.count {
             let jacobian = &rows.jacobian[k * nv..(k + 1) * nv];
             let mut first = NO_TREE;
-            for d in (0..nv).filter(|&d| jacobian[d] != 0.0) {
+            for d in (0..nv).filter(|&d| jacobian[d].value() != 0.0) {
                 let tree = self.dof_tree[d];
                 if first == NO_TREE {
                     first = tree;
@@ -205,11 +234,11 @@ impl NoSlipBuffers {
     }
 }
 
-impl Workspace {
+impl<S: Real> Workspace<S> {
     /// Runs MuJoCo's no-slip pass on the solved forces in `rows` when the
     /// model asks for it and a friction-loss row is active; while decisions
     /// are held over as many rows, it follows them.
-    pub(super) fn no_slip_pass(&mut self, model: &Model, rows: &mut ConstraintRows) -> Result<(), DynamicsError> {
+    pub(crate) fn no_slip_pass(&mut self, model: &Model, rows: &mut ConstraintRows<S>) -> Result<(), DynamicsError> {
         let options = &model.constraints.options;
         let n = rows.count;
         let mut pass = std::mem::take(&mut rows.no_slip);
@@ -229,16 +258,15 @@ impl Workspace {
         let nv = model.nv;
         // diag(M) = Σⱼ (m eⱼ)², as M = m mᵀ: one inward pass per dof.
         pass.mass_diagonal.fill(0.0);
-        let mut result = Ok(());
-        for j in 0..nv {
-            pass.unit[j] = 1.0;
-            result = self.torque_from_eps(model, &pass.unit, &mut pass.column);
-            pass.unit[j] = 0.0;
-            if result.is_err() {
-                break;
-            }
-            for (entry, m) in pass.mass_diagonal.iter_mut().zip(&pass.column) {
-                *entry += m * m;
+        let result = require(self, Stage::Configuration, "no_slip_pass");
+        if result.is_ok() {
+            for j in 0..nv {
+                pass.unit[j] = S::one();
+                inward_pass(model, self, Direction::TorqueFromEps, &pass.unit, None, &mut pass.column);
+                pass.unit[j] = S::zero();
+                for (entry, m) in pass.mass_diagonal.iter_mut().zip(&pass.column) {
+                    *entry += m.value() * m.value();
+                }
             }
         }
         if result.is_ok() {
@@ -276,8 +304,8 @@ impl Workspace {
 /// each sweep's clamps into `clamps` (and whether the last left each row
 /// free into `free_at_end`) and the margins of the decisions into
 /// `margins`, and returns the sweeps run.
-fn sweep_island(
-    rows: &mut ConstraintRows,
+fn sweep_island<S: Real>(
+    rows: &mut ConstraintRows<S>,
     (row_island, island, first): (&[usize], usize, usize),
     scale: f64,
     options: &ConstraintOptions,
@@ -291,11 +319,11 @@ fn sweep_island(
     let (clamp_margins, stop_margins) = margins.split_at_mut(iterations * stride);
     let in_island = |k: usize| row_island[k] == island;
     for iteration in 0..iterations {
-        let mut improvement = 0.0;
+        let mut improvement = S::zero();
         if iteration == 0 {
             // The main solver's cost counts ½ f R f, which this pass's does not.
             for k in (0..n).filter(|&k| in_island(k)) {
-                improvement += 0.5 * rows.force[k] * rows.force[k] * rows.regularizer[k];
+                improvement += S::from(0.5) * rows.force[k] * rows.force[k] * rows.regularizer[k];
             }
         }
         for i in 0..n {
@@ -303,31 +331,32 @@ fn sweep_island(
                 continue;
             }
             let hessian = &rows.hessian[i * stride..i * stride + n];
-            let coupled: f64 = hessian.iter().zip(&rows.force[..n]).map(|(h, f)| h * f).sum();
+            let coupled = sum(hessian.iter().zip(&rows.force[..n]).map(|(h, f)| *h * *f));
             let residual = coupled + rows.gradient[i] - rows.regularizer[i] * rows.force[i];
-            let inverse_diagonal = 1.0 / (hessian[i] - rows.regularizer[i]).max(MIN_VALUE);
+            let diagonal = hessian[i] - rows.regularizer[i];
+            let inverse_diagonal = S::one() / if diagonal.value() < MIN_VALUE { S::from(MIN_VALUE) } else { diagonal };
             let old = rows.force[i];
             let minimizer = old - residual * inverse_diagonal;
             let (lower, upper) = (rows.lower[i], rows.upper[i]);
             let slot = iteration * stride + i;
             clamps[slot] = match held {
                 Some(held) => held.clamps[slot],
-                None if minimizer < lower => Clamp::Lower,
-                None if minimizer > upper => Clamp::Upper,
+                None if minimizer.value() < lower => Clamp::Lower,
+                None if minimizer.value() > upper => Clamp::Upper,
                 None => Clamp::Free,
             };
             let (force, margin) = match clamps[slot] {
-                Clamp::Free => (minimizer, (minimizer - lower).min(upper - minimizer)),
-                Clamp::Lower => (lower, lower - minimizer),
-                Clamp::Upper => (upper, minimizer - upper),
+                Clamp::Free => (minimizer, (minimizer.value() - lower).min(upper - minimizer.value())),
+                Clamp::Lower => (S::from(lower), lower - minimizer.value()),
+                Clamp::Upper => (S::from(upper), minimizer.value() - upper),
             };
             clamp_margins[slot] = margin;
             free_at_end[i] = clamps[slot] == Clamp::Free;
             rows.force[i] = force;
             let delta = force - old;
-            improvement -= 0.5 * delta * delta / inverse_diagonal + delta * residual;
+            improvement -= S::from(0.5) * delta * delta / inverse_diagonal + delta * residual;
         }
-        improvement *= scale;
+        let improvement = improvement.value() * scale;
         let stops = match held {
             Some(held) => iteration + 1 == held.sweeps[first],
             None => improvement < options.noslip_tolerance,

@@ -508,6 +508,7 @@ fn constrained_jacobians_agree_with_central_differences_at_the_mode() {
         ("tests/fixtures/constraints/welded_strap.xml", 0.3),
         ("tests/fixtures/constraints/refsafe_off.xml", 0.3),
         ("tests/fixtures/constraints/empty_rows.xml", 0.3),
+        ("tests/fixtures/constraints/noslip_trees.xml", 0.3),
         ("tests/fixtures/tendons/tendon_finger.xml", 0.5),
         ("tests/fixtures/tendons/tendon_limits.xml", 0.5),
     ] {
@@ -712,13 +713,6 @@ fn models_beyond_the_generic_passes_and_bad_points_are_refused() {
     let refusal = Derivatives::new(&model).unwrap_err();
     assert_eq!(refusal, DerivativeError::Unsupported("tendons' armature"));
     assert!(refusal.to_string().contains("armature"), "{refusal}");
-
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/constraints/noslip_trees.xml");
-    let model = Model::compile(&nudyn::mjcf::load_mjcf(&path).unwrap().vehicle).unwrap();
-    assert_eq!(
-        Derivatives::new(&model).unwrap_err(),
-        DerivativeError::Unsupported("MuJoCo's no-slip pass (noslip_iterations)")
-    );
 
     // The shoulder exactly where its upper side becomes a row: a switch.
     let mut at_a_limit = file_case("tests/fixtures/actuators/kinds.xml", 0);

@@ -208,8 +208,7 @@ def test_the_actuators_inputs_agree_with_differences_of_mujoco(nudyn, path):
 
 
 def test_vehicles_beyond_the_derivatives_are_refused_with_a_reason(nudyn):
-    for path, reason in [("tests/fixtures/tendons/tendon_armature.xml", "tendons' armature"),
-                         ("tests/fixtures/constraints/noslip_trees.xml", "MuJoCo's no-slip pass (noslip_iterations)")]:
+    for path, reason in [("tests/fixtures/tendons/tendon_armature.xml", "tendons' armature")]:
         proc = subprocess.run([str(nudyn), "linearize", str(ROOT / path)], capture_output=True, text=True, timeout=60)
         assert proc.returncode != 0 and proc.stdout == ""
         assert f"derivatives do not cover {reason} yet" in proc.stderr, proc.stderr
@@ -252,6 +251,9 @@ CONSTRAINED = {
     "tests/fixtures/constraints/slider_hand.xml": 0.3,
     "tests/fixtures/tendons/tendon_limits.xml": 0.5,
     "tests/fixtures/tendons/tendon_finger.xml": 0.5,
+    # MuJoCo's no-slip pass over the friction rows, its decisions (each
+    # sweep's clamps, each island's sweeps) those of the point.
+    "tests/fixtures/constraints/noslip_trees.xml": 0.3,
     # Tendons without rows: spatial paths wrapped round spheres and
     # cylinders, side sites.
     "tests/fixtures/tendons/tendon_wrap.xml": 0.5,

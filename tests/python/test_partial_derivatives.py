@@ -50,6 +50,9 @@ MODELS = {
     # its constraint mode between events, and its derivatives are that mode's.
     "slider_hand": ROOT / "tests" / "fixtures" / "constraints" / "slider_hand.xml",
     "refsafe_off": ROOT / "tests" / "fixtures" / "constraints" / "refsafe_off.xml",
+    # MuJoCo's no-slip pass over friction rows in two islands: its
+    # decisions (each sweep's clamps, each island's sweeps) held with the mode.
+    "noslip_trees": ROOT / "tests" / "fixtures" / "constraints" / "noslip_trees.xml",
     # Every actuator kind, transmission, gain and clamp, its ctrl a known
     # (set inside each range, away from the clamps), and joint limits.
     "kinds": ROOT / "tests" / "fixtures" / "actuators" / "kinds.xml",
@@ -71,7 +74,7 @@ DOCKED = ROOT / "tests" / "fixtures" / "constraints" / "docked_servicer.xml"
 # error is taken relative to each row's largest entry (measured 2e-8 at
 # STEP, 2e-10 at 1e-6 on slider_hand), and ε reaches ν̇ through the
 # constraint forces, not as the identity.
-CONSTRAINED = {"slider_hand", "refsafe_off", "kinds", "docked_servicer"}
+CONSTRAINED = {"slider_hand", "refsafe_off", "noslip_trees", "kinds", "docked_servicer"}
 OUTPUTS = ("qvel", "kinetic_energy", "power", "momentum")
 # Central differences' step; with it the exact derivatives are within
 # 2e-8 relative of them on bus_arm7 and 2e-9 on springdamper (measured).
@@ -288,7 +291,13 @@ def test_directional_derivatives_are_central_differences_of_the_fmu(fmus, tmp_pa
 @pytest.mark.parametrize("name", MODELS)
 @pytest.mark.parametrize("interface", ["ME", "CS"])
 def test_the_adjoint_is_the_transpose(fmus, tmp_path, name, interface):
-    """vᵀ(Ju) = (Jᵀv)ᵀu, here after a step in co-simulation."""
+    """vᵀ(Ju) = (Jᵀv)ᵀu, here after a step in co-simulation. To 1e-12 of
+    |vᵀ(Ju)|, but 1e-9 with the no-slip pass, whose sweeps amplify
+    round-off in the derivatives at some states: at this test's model
+    exchange point a derivative along u differs from the sum of its
+    halves' by up to 1.3e-10 of the largest entry (1e-16 at the
+    co-simulation point), and vᵀ(Ju) from (Jᵀv)ᵀu by 4.0e-10 of itself
+    (measured; the adjoint is the transpose of the unit directions')."""
     host, names = instance(fmus, name, 3, interface, tmp_path)
     point = random_point(names, seed=7)
     host.set(point)
@@ -299,7 +308,8 @@ def test_the_adjoint_is_the_transpose(fmus, tmp_path, name, interface):
     for _ in range(3):
         u, v = rng.normal(size=len(names.knowns)), rng.normal(size=len(names.unknowns))
         forward, backward = v @ host.directional(u), host.adjoint(v) @ u
-        assert abs(forward - backward) <= 1e-12 * max(1.0, abs(forward)), (forward, backward)
+        tolerance = 1e-9 if name == "noslip_trees" else 1e-12
+        assert abs(forward - backward) <= tolerance * max(1.0, abs(forward)), (forward, backward)
     host.fmu.terminate()
     host.fmu.freeInstance()
 
