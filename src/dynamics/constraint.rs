@@ -687,10 +687,14 @@ impl Workspace {
     /// so that a run continued from the end of a step cut to a switch
     /// finds the working set it found there, whatever was solved between
     /// (found from scratch a hair past the switch, it could be the old one).
+    /// A set longer than the rows can be (not one this model's solver gave)
+    /// is not started from.
     pub fn start_solve_from(&mut self, set: &[Held]) {
         let rows = &mut self.constraint_rows;
-        rows.solver.held[..set.len()].copy_from_slice(set);
-        rows.given_start = Some(set.len());
+        if let Some(held) = rows.solver.held.get_mut(..set.len()) {
+            held.copy_from_slice(set);
+            rows.given_start = Some(set.len());
+        }
     }
 
     /// Lets the solver find the working set again (the sides stay held).
