@@ -832,11 +832,13 @@ pub fn do_step(instance: &mut Instance, time: f64, step: f64, name: &str) -> Res
     if instance.logger.enabled(LogCategory::Calls) {
         let mut message = format!("{name}: {accepted} internal steps taken, {rejected} rejected");
         if locating > 0 {
-            message += &format!(", {locating} attempted to locate constraint switches");
+            message += &format!(
+                ", {locating} attempted to locate switches (constraint forces, tendon wraps, activation clamps)"
+            );
         }
         if refused_interpolants > 0 {
             message += &format!(
-                ", {refused_interpolants} past the communication point taken again to end there \
+                ", {refused_interpolants} past the communication point taken again at most half as long \
                  (their interpolant strayed from the motion)"
             );
         }

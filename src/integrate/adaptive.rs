@@ -276,7 +276,8 @@ pub struct Stats {
     pub jacobians: usize,
     /// Of those, the times from exact derivatives.
     pub exact_jacobians: usize,
-    /// Steps attempted to locate where limit sides switch (`switches`).
+    /// Steps attempted to locate a switch: of the constraint mode or a
+    /// tendon's wrap (`switches`), or an activation clamp.
     pub locating: usize,
     /// Steps of an explicit method tested for stiffness (stiffness.rs:
     /// not `bs3`, nor a step cut to a switch).
