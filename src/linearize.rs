@@ -203,7 +203,7 @@ fn dual_blocks(
     input: Input,
     outputs: &[LinearOutput],
 ) -> Result<Blocks, DerivativeError> {
-    let mut derivatives = Derivatives::new(model)?;
+    let mut derivatives = Derivatives::new(model);
     let at = Point {
         theta: &point.qpos,
         velocity: &point.qvel,

@@ -211,7 +211,7 @@ pub struct Workspace<S: Real = f64> {
 
     /// The tendons' armature: its columns and factors — set_configuration;
     /// its forces and ε — apply_constraint_forces.
-    pub tendon_inertia: TendonInertiaState,
+    pub tendon_inertia: TendonInertiaState<S>,
     /// The active constraint rows and their forces — apply_constraint_forces.
     pub constraint_rows: ConstraintRows<S>,
 

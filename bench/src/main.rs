@@ -246,7 +246,7 @@ fn eval_cost(
     let (mut actuated_ws, mut sensed_ws) = (model.workspace(), model.workspace());
 
     let mut qacc_ws = model.workspace();
-    let mut derivatives = nudyn::dynamics::derivatives::Derivatives::new(model).ok();
+    let mut derivatives = Some(nudyn::dynamics::derivatives::Derivatives::new(model));
     let mut jacobian_derivatives = derivatives.clone();
     // ros34pw2 forms no exact W with activation states (its act rows and columns).
     let mut w_derivatives = derivatives.clone().filter(|_| model.activation_count() == 0);

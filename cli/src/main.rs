@@ -188,8 +188,8 @@ enum Command {
     /// forces or ctrl; with --step, the zero-order hold's Ad, Bd. Writes
     /// JSON (stdout or --output) with the matrices by rows and the names of
     /// x, u and y, optionally an .npz; prints the eigenvalues (frequency,
-    /// damping) on stderr. Vehicles with tendon armature, and points on a
-    /// switch of the constraint forces, are refused.
+    /// damping) on stderr. Points on a switch of the constraint forces are
+    /// refused.
     Linearize {
         /// The vehicle's MJCF file.
         model: PathBuf,

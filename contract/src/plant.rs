@@ -14,7 +14,6 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
-use nudyn::dynamics::derivatives::{DerivativeError, Derivatives};
 use nudyn::integrate::{Method, MethodSetting};
 use nudyn::model::{LinkJoint, Model};
 use nudyn::vehicle::SensorKind;
@@ -72,14 +71,13 @@ pub fn method_items() -> String {
     MethodSetting::ALL.iter().map(|&m| format!("{} = {}", method_value(m), m.name())).collect::<Vec<_>>().join(", ")
 }
 
-/// What a plant FMU of `model` with `outputs` can do: model exchange,
-/// unless it has the energy residual ([`serves_model_exchange`]), and
-/// directional and adjoint derivatives where they cover the model and its
-/// outputs ([`derivatives_cover`]).
-pub fn capabilities(model: &Model, outputs: OptionalOutputs) -> Capabilities {
+/// What a plant FMU with `outputs` can do: model exchange, unless it has
+/// the energy residual ([`serves_model_exchange`]), and directional and
+/// adjoint derivatives where they cover its outputs ([`derivatives_cover`]).
+pub fn capabilities(outputs: OptionalOutputs) -> Capabilities {
     Capabilities {
         model_exchange: serves_model_exchange(outputs),
-        provides_directional_derivative: derivatives_cover(model, outputs).is_ok(),
+        provides_directional_derivative: derivatives_cover(outputs).is_ok(),
         ..CAPABILITIES
     }
 }
@@ -93,19 +91,15 @@ pub fn serves_model_exchange(outputs: OptionalOutputs) -> bool {
 /// What a plant FMU has that its directional derivatives do not cover yet.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum NotCovered {
-    /// The dynamics' derivatives refuse the model (the tendons' armature,
-    /// MuJoCo's no-slip pass).
-    #[error(transparent)]
-    Dynamics(#[from] DerivativeError),
     /// An optional output whose derivative is not computed.
     #[error("derivatives do not cover the optional output {0}; this FMU has it")]
     Output(&'static str),
 }
 
 /// Whether the FMU's directional derivatives cover every unknown of a plant
-/// FMU of `model` with `outputs`, or the first thing they do not.
-pub fn derivatives_cover(model: &Model, outputs: OptionalOutputs) -> Result<(), NotCovered> {
-    Derivatives::check(model)?;
+/// FMU with `outputs`, or the first thing they do not: the dynamics'
+/// derivatives cover every vehicle nudyn imports.
+pub fn derivatives_cover(outputs: OptionalOutputs) -> Result<(), NotCovered> {
     // The energy residual is a record of the integration, not a function of the state.
     match outputs.has("energy_residual") {
         true => Err(NotCovered::Output("energy_residual")),
@@ -116,10 +110,7 @@ pub fn derivatives_cover(model: &Model, outputs: OptionalOutputs) -> Result<(), 
 /// Whether the dynamics are the tree's alone (no actuators, tendons or
 /// constraint forces), which [`TreeDependence`] describes.
 fn tree_alone(model: &Model) -> bool {
-    Derivatives::check(model).is_ok()
-        && model.actuators.is_empty()
-        && model.tendons.is_empty()
-        && !model.couples_beyond_tree()
+    model.actuators.is_empty() && model.tendons.is_empty() && !model.couples_beyond_tree()
 }
 
 /// What the plant FMU can do, at most.

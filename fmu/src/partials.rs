@@ -73,9 +73,9 @@ pub struct Partials {
 }
 
 impl Partials {
-    /// The partials of a plant of `model` whose FMU has the variables of `layout`.
-    pub fn new(model: &Model, layout: &Layout) -> Self {
-        let derivatives = derivatives_cover(model, layout.outputs).map(|()| None).map_err(|why| why.to_string());
+    /// The partials of a plant whose FMU has the variables of `layout`.
+    pub fn new(layout: &Layout) -> Self {
+        let derivatives = derivatives_cover(layout.outputs).map(|()| None).map_err(|why| why.to_string());
         Partials {
             derivatives,
             theta: Vec::new(),
@@ -145,7 +145,7 @@ impl Partials {
         let derivatives = self.derivatives.as_mut().map_err(|why| CallError::NoPartials(why.clone()))?;
         let model = at.model;
         if derivatives.is_none() {
-            let made = Derivatives::new(model).map_err(|why| CallError::NoPartials(why.to_string()))?;
+            let made = Derivatives::new(model);
             *derivatives = Some(made);
             let controls = model.actuators.len();
             for (buffer, n) in [

@@ -102,7 +102,7 @@ impl Plant {
             .unzip();
         let (model, start_method) = (resource.model, resource.method);
         let reals = layout.elements().map(|element| (element.variable(), element.kind())).collect();
-        let partials = Partials::new(&model, &layout);
+        let partials = Partials::new(&layout);
         let mut plant = Plant {
             layout,
             reals,
@@ -225,7 +225,7 @@ impl Plant {
 
 impl Component for Plant {
     fn capabilities(&self) -> Capabilities {
-        capabilities(&self.model, self.layout.outputs)
+        capabilities(self.layout.outputs)
     }
 
     fn reset(&mut self) {

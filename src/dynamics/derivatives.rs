@@ -31,10 +31,9 @@
 //! carry the derivative of that mode's forces, a smooth function of the
 //! state (the integrators hold the same mode over a step). A point on a
 //! switch of that mode, where the derivative is one-sided, is refused by
-//! [`Derivatives::run`] with the switches named. A model whose dynamics
-//! need more (the tendons' armature) is refused by [`Derivatives::new`]
-//! with what is missing, rather than given a derivative that leaves a term
-//! out.
+//! [`Derivatives::run`] with the switches named. The tendons' armature
+//! (MuJoCo's M + its terms, and the rows' mass matrix with it) runs in the
+//! duals too.
 
 use nalgebra::{DMatrix, Quaternion};
 use num_dual::Dual64;
@@ -292,6 +291,9 @@ impl Passes {
             if !model.tendons.is_empty() {
                 ws.tendon_kinematics(model);
             }
+            if !model.tendon_inertia.is_empty() {
+                ws.tendon_inertia_configuration(model)?;
+            }
             if still {
                 self.still_theta.copy_from_slice(point.theta);
                 self.configuration_still = true;
@@ -345,7 +347,17 @@ impl Passes {
             // The forces of the mode the point is in: its active sides,
             // impedance pieces and working set, decided on the values.
             // They need θ̈ without them (run above, or by this call with ν̇).
+            // The tendons' armature first (MuJoCo's qacc_smooth), then the rows
+            // with the mass matrix it makes, as the f64 passes take them.
+            if !model.tendon_inertia.is_empty() {
+                ws.apply_tendon_inertia(model, &mut self.eps)?;
+            }
             ws.add_constraint_forces(model, &mut self.eps, |ws, model, rows| {
+                if !model.tendon_inertia.is_empty() {
+                    let (n, stride) = (rows.count, rows.max_rows);
+                    ws.tendon_inertia_on_rows(model, n, &mut rows.eps_columns, &mut rows.hessian, stride);
+                    rows.eps_spans[..n].fill((0, model.nv));
+                }
                 rows.solve_in_one_working_set()?;
                 ws.no_slip_pass(model, rows)
             })?;
@@ -497,21 +509,9 @@ pub struct Derivatives {
 }
 
 impl Derivatives {
-    /// The buffers for `model`, or what the model has that derivatives do
-    /// not cover yet.
-    pub fn new(model: &Model) -> Result<Self, DerivativeError> {
-        Self::check(model)?;
-        Ok(Derivatives { passes: Passes::new(model), switches: Switches::new(model) })
-    }
-
-    /// Whether derivatives cover `model`, without building the buffers
-    /// (an exporter's question): what [`Derivatives::new`] refuses.
-    pub fn check(model: &Model) -> Result<(), DerivativeError> {
-        let unsupported = [(!model.tendon_inertia.is_empty(), "tendons' armature")];
-        match unsupported.iter().find(|(has, _)| *has) {
-            Some((_, what)) => Err(DerivativeError::Unsupported(what)),
-            None => Ok(()),
-        }
+    /// The buffers for `model`.
+    pub fn new(model: &Model) -> Self {
+        Derivatives { passes: Passes::new(model), switches: Switches::new(model) }
     }
 
     /// Runs the passes `outputs` need at `point` along `direction`;

@@ -119,7 +119,6 @@ impl<S: Real> Workspace<S> {
         let tendon = &model.tendons[k];
         let mut force = S::zero();
         if tendon.armature != 0.0 {
-            // J̇θ̇ is kept in f64 only: the derivatives refuse the tendons' armature.
             let along = sum(self.tendon_moment_row(model, k).iter().zip(self.qacc.iter()).map(|(j, a)| *j * *a));
             force -= (along + self.tendon_inertia.jdot_qvel(k)) * tendon.armature;
         }

@@ -139,14 +139,13 @@ struct ExactJacobian {
 }
 
 impl ExactJacobian {
-    /// The buffers for `model`, or None when the derivatives do not cover
-    /// it, or it has activation states (W's act rows and columns are not
-    /// formed here).
+    /// The buffers for `model`, or None when it has activation states (W's
+    /// act rows and columns are not formed here).
     fn new(model: &Model) -> Option<Box<Self>> {
         if model.activation_count() > 0 {
             return None;
         }
-        let derivatives = Derivatives::new(model).ok()?;
+        let derivatives = Derivatives::new(model);
         Some(Box::new(ExactJacobian {
             derivatives,
             unit: vec![0.0; model.nv],

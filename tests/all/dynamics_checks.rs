@@ -150,7 +150,7 @@ fn check_vehicle(vehicle: &Vehicle, rng: &mut Rng) -> Result<(), String> {
             ctrl: &none,
             act: &none,
         };
-        let mut derivatives = Derivatives::new(&model).map_err(|e| e.to_string())?;
+        let mut derivatives = Derivatives::new(&model);
         derivatives.run(&model, &point, &along_the_motion, &[Output::Momentum]).map_err(|e| e.to_string())?;
         let rate = DVector::from_iterator(6, derivatives.derivative(Output::Momentum));
         // Its parts through ν̇ and through θ cancel: round-off is relative

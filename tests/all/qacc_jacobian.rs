@@ -27,7 +27,7 @@ fn both_ways(
         .compute(model, (theta, qvel), (eps, torque, ctrl), (&mut closed.0, &mut closed.1))
         .unwrap();
     let point = Point { theta, velocity: qvel, given: Given::Qvel, eps, torque, ctrl, act: &[], time: 0.0 };
-    let duals = Derivatives::new(model).unwrap().jacobians(model, &point, Output::Qacc).unwrap();
+    let duals = Derivatives::new(model).jacobians(model, &point, Output::Qacc).unwrap();
     [closed, (duals.theta, duals.velocity)]
 }
 

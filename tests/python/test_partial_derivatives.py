@@ -53,6 +53,8 @@ MODELS = {
     # MuJoCo's no-slip pass over friction rows in two islands: its
     # decisions (each sweep's clamps, each island's sweeps) held with the mode.
     "noslip_trees": ROOT / "tests" / "fixtures" / "constraints" / "noslip_trees.xml",
+    # The tendons' armature, with a connect, a tendon coupling, friction loss and limits.
+    "tendon_armature": ROOT / "tests" / "fixtures" / "tendons" / "tendon_armature.xml",
     # Every actuator kind, transmission, gain and clamp, its ctrl a known
     # (set inside each range, away from the clamps), and joint limits.
     "kinds": ROOT / "tests" / "fixtures" / "actuators" / "kinds.xml",
@@ -74,7 +76,7 @@ DOCKED = ROOT / "tests" / "fixtures" / "constraints" / "docked_servicer.xml"
 # error is taken relative to each row's largest entry (measured 2e-8 at
 # STEP, 2e-10 at 1e-6 on slider_hand), and ε reaches ν̇ through the
 # constraint forces, not as the identity.
-CONSTRAINED = {"slider_hand", "refsafe_off", "noslip_trees", "kinds", "docked_servicer"}
+CONSTRAINED = {"slider_hand", "refsafe_off", "noslip_trees", "tendon_armature", "kinds", "docked_servicer"}
 OUTPUTS = ("qvel", "kinetic_energy", "power", "momentum")
 # Central differences' step; with it the exact derivatives are within
 # 2e-8 relative of them on bus_arm7 and 2e-9 on springdamper (measured).

@@ -48,7 +48,7 @@ fn header(model: &Model, options: &ExportOptions, guid: &str) -> Header {
             ),
         },
         model_identifier: options.model_identifier.clone(),
-        capabilities: capabilities(model, options.outputs),
+        capabilities: capabilities(options.outputs),
         event_indicators: Layout::new(model, options.outputs).event_indicator_count(),
         generated: generation_date_and_time(),
     }
