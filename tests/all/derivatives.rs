@@ -532,9 +532,10 @@ fn constrained_jacobians_agree_with_central_differences_at_the_mode() {
 /// (welded bodies), sites at a flexible body's nodes, mocap frames; and at
 /// the constraint mode of the point, the docked servicer (force and torque
 /// sensors with welds and a connect, joint limit sensors), the joint and
-/// tendon limit sensors of limited_arm and tendon_limits, and empty_rows'
-/// force and torque with a spatial tendon's limit. A run's readings are the f64 sensors' (the clock's time
-/// included) to round-off.
+/// tendon limit sensors of limited_arm and tendon_limits, empty_rows'
+/// force and torque with a spatial tendon's limit, and tendon_armature's
+/// tendon and accelerometer readings with the tendons' armature. A run's
+/// readings are the f64 sensors' (the clock's time included) to round-off.
 #[test]
 fn sensor_jacobians_agree_with_central_differences_of_the_sensors() {
     let outputs = [(Given::Qvel, Output::Sensordata), (Given::Nu, Output::Sensordata)];
@@ -556,6 +557,8 @@ fn sensor_jacobians_agree_with_central_differences_of_the_sensors() {
         ("tests/fixtures/constraints/limited_arm.xml", 1.0),
         ("tests/fixtures/tendons/tendon_limits.xml", 0.5),
         ("tests/fixtures/constraints/empty_rows.xml", 0.3),
+        // A spatial tendon's actuator force and an accelerometer with the tendons' armature.
+        ("tests/fixtures/tendons/tendon_armature.xml", 0.3),
     ] {
         for seed in 0..2 {
             let case = constrained_case(path, seed, spread);
