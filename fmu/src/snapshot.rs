@@ -268,7 +268,7 @@ impl Snapshot {
         let scalars: Vec<f64> = (0..Self::scalar_count(sizes) + CHOICE_SCALARS + jacobian_len + reach_len)
             .map(|_| reader.f64())
             .collect::<Result<_, _>>()?;
-        let past_switch = if holds_reach { read_working_set(&mut reader)? } else { None };
+        let working_set = if holds_reach { read_working_set(&mut reader)? } else { Vec::new() };
         let contents_len = reader.at;
         let found = u64::from_le_bytes(reader.take(8)?.try_into().expect("8 bytes"));
         if reader.at != bytes.len() {
@@ -367,11 +367,7 @@ impl Snapshot {
         }
         state.jacobian.derivatives = rest.to_vec();
         if holds_reach {
-            state.run.reach = read_reach(reach, sizes)?;
-            if let Some(working_set) = past_switch {
-                state.run.reach.past_switch = true;
-                state.run.reach.working_set = working_set;
-            }
+            state.run.reach = Reach { working_set, ..read_reach(reach, sizes)? };
         }
         Ok(Snapshot { phase, guid: found_guid, state })
     }
@@ -561,17 +557,16 @@ fn read_reach(values: &[f64], n: Sizes) -> Result<Reach, SnapshotError> {
         work_end,
         tolerance,
         max_step,
-        past_switch: false,
         working_set: Vec::new(),
     })
 }
 
-/// After a held step's values: 0, or where the step was cut to end past a
-/// constraint switch, 1 + the rows of the solver's working set there, then
+/// After a held step's values: the rows of the solver's working set where
+/// the step was cut to end past a constraint switch (0 otherwise), then
 /// each row's place in it ([`held_code`]).
 fn working_set_values(reach: &Reach) -> impl Iterator<Item = f64> + '_ {
-    let marker = if reach.past_switch { 1 + reach.working_set.len() } else { 0 };
-    std::iter::once(marker as f64).chain(reach.working_set.iter().map(|&held| f64::from(held_code(held))))
+    let rows = reach.working_set.len() as f64;
+    std::iter::once(rows).chain(reach.working_set.iter().map(|&held| f64::from(held_code(held))))
 }
 
 /// A working set's entry as saved.
@@ -583,31 +578,23 @@ fn held_code(held: Held) -> u8 {
     }
 }
 
-/// The working set [`working_set_values`] wrote, if the step ended past a switch.
-fn read_working_set(reader: &mut Reader) -> Result<Option<Vec<Held>>, SnapshotError> {
-    let marker = reader.f64()?;
+/// The working set [`working_set_values`] wrote.
+fn read_working_set(reader: &mut Reader) -> Result<Vec<Held>, SnapshotError> {
+    let rows = reader.f64()?;
     // No more rows than bytes left: a corrupt count is refused before it allocates.
     let most = (reader.bytes.len() - reader.at) / 8;
-    if marker.fract() != 0.0 || !(0.0..=most as f64).contains(&marker) {
-        return Err(SnapshotError::Value {
-            what: "the working set's marker",
-            value: marker,
-            must: "0, or 1 + its rows",
-        });
+    if rows.fract() != 0.0 || !(0.0..=most as f64).contains(&rows) {
+        let must = "a whole number, at most the values left";
+        return Err(SnapshotError::Value { what: "the working set's rows", value: rows, must });
     }
-    if marker == 0.0 {
-        return Ok(None);
-    }
-    let rows = marker as usize - 1;
-    let set = (0..rows)
+    (0..rows as usize)
         .map(|_| match reader.f64()? {
             0.0 => Ok(Held::Free),
             1.0 => Ok(Held::Lower),
             2.0 => Ok(Held::Upper),
             value => Err(SnapshotError::Value { what: "a working set's entry", value, must: "0, 1 or 2" }),
         })
-        .collect::<Result<_, _>>()?;
-    Ok(Some(set))
+        .collect()
 }
 
 /// What `auto` measured, after the scalars (0 before it has chosen): the
@@ -755,7 +742,6 @@ mod tests {
             work_end: -0.5,
             tolerance: 1e-4,
             max_step: 0.0,
-            past_switch: false,
             working_set: Vec::new(),
         };
         snapshot
@@ -765,9 +751,7 @@ mod tests {
     /// switch, reaches past the communication point.
     fn sample_past_switch() -> Snapshot {
         let mut snapshot = sample_with_reach();
-        let reach = &mut snapshot.state.run.reach;
-        reach.past_switch = true;
-        reach.working_set = vec![Held::Free, Held::Upper, Held::Lower, Held::Free];
+        snapshot.state.run.reach.working_set = vec![Held::Free, Held::Upper, Held::Lower, Held::Free];
         snapshot
     }
 
@@ -912,14 +896,14 @@ mod tests {
                 "{error}"
             );
         }
-        // The last value before the checksum: the working set's marker
-        // without rows, its last entry with them.
+        // The last value before the checksum: the working set's count of
+        // rows without rows, its last entry with them.
         let (without_rows, with_rows) = (serialized(&sample_with_reach()), serialized(&sample_past_switch()));
-        let marker_at = without_rows.len() - 16;
+        let rows_at = without_rows.len() - 16;
         let entry_at = with_rows.len() - 16;
         for (mut bytes, at, value, what) in [
-            (without_rows.clone(), marker_at, 0.5, "the working set's marker"),
-            (without_rows, marker_at, 1e9, "the working set's marker"),
+            (without_rows.clone(), rows_at, 0.5, "the working set's rows"),
+            (without_rows, rows_at, 1e9, "the working set's rows"),
             (with_rows, entry_at, 3.0, "a working set's entry"),
         ] {
             bytes[at..at + 8].copy_from_slice(&f64::to_le_bytes(value));

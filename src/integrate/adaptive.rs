@@ -814,7 +814,6 @@ impl Simulation {
                     // A step cut to a switch located: the next advance goes on from its end
                     // in the mode past the switch. Of that mode, only the solver's working
                     // set does not follow from the state alone, so it is kept with the step.
-                    reach.past_switch = crossed;
                     reach.working_set.clear();
                     if crossed {
                         reach.working_set.extend_from_slice(ws.working_set());

@@ -45,12 +45,11 @@ pub struct Reach {
     pub tolerance: f64,
     /// The `max_step` it was taken with.
     pub max_step: f64,
-    /// Whether the step was cut to end just past a constraint switch: the
-    /// integration goes on from its end in the mode past the switch,
-    /// the solver starting from `working_set`.
-    pub past_switch: bool,
-    /// The constraint solver's working set at the step's end, past the
-    /// switch (one entry per row there; empty unless `past_switch`).
+    /// Where the step was cut to end just past a constraint switch, the
+    /// constraint solver's working set at its end, one entry per row
+    /// there: the integration goes on from the end in the mode past the
+    /// switch, the solver starting from this. Empty otherwise (and where no
+    /// row acts there, when the solve has nothing to start).
     pub working_set: Vec<Held>,
 }
 

