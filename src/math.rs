@@ -88,10 +88,11 @@ pub fn sum<S: Real>(terms: impl Iterator<Item = S>) -> S {
     terms.fold(S::from(-0.0), |total, term| total + term)
 }
 
-/// a · b of two slices of equal length (plain f64 buffers, no nalgebra view).
+/// a · b of two slices of equal length (plain buffers, no nalgebra view),
+/// summed as [`sum`] does.
 #[inline]
-pub fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
+pub fn dot<S: Real>(a: &[S], b: &[S]) -> S {
+    sum(a.iter().zip(b).map(|(x, y)| *x * *y))
 }
 
 /// A 3-vector.

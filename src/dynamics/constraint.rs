@@ -24,7 +24,7 @@
 use super::box_qp::{BoxQp, Held};
 use super::noslip::NoSlipBuffers;
 use super::{DynamicsError, forces, require};
-use crate::math::{Real, SpatialVec, sum};
+use crate::math::{Real, SpatialVec, dot};
 use crate::model::Limit;
 use crate::model::Model;
 use crate::vehicle::{JointKind, SoftConstraint};
@@ -829,8 +829,7 @@ impl<S: Real> Workspace<S> {
         }
         for k in 0..n {
             let jacobian = &rows.jacobian[k * nv..(k + 1) * nv];
-            let dot = |v: &[S]| sum(jacobian.iter().zip(v).map(|(a, b)| *a * *b));
-            rows.velocity[k] = dot(self.qvel.as_slice());
+            rows.velocity[k] = dot(jacobian, self.qvel.as_slice());
             let soft = soft_of(model, rows.kind[k], rows.id[k]);
             let (natural, x) = impedance_piece(&soft.solimp, rows.violation[k], rows.margin[k]);
             let piece = if rows.held_working_set == Some(n) { rows.pieces[k] } else { natural };
@@ -843,7 +842,7 @@ impl<S: Real> Workspace<S> {
             rows.regularizer[k] = ((-imp + 1.0) * rows.diagonal_estimate[k] / imp).max(S::from(MIN_VALUE));
             rows.aref[k] = rows.velocity[k] * -damping - imp * stiffness * (rows.distance[k] - rows.margin[k]);
             rows.aref[k] -= rows.jdot_v[k];
-            rows.gradient[k] = dot(self.qacc.as_slice()) - rows.aref[k];
+            rows.gradient[k] = dot(jacobian, self.qacc.as_slice()) - rows.aref[k];
         }
         // A + R: A = EᵀE, each product over the dofs where both columns may be nonzero
         // (the terms left out are zeros, so the sums are the same).
@@ -855,7 +854,7 @@ impl<S: Real> Workspace<S> {
                 let (first, end) =
                     (rows.eps_spans[i].0.max(rows.eps_spans[j].0), rows.eps_spans[i].1.min(rows.eps_spans[j].1));
                 let shared = first..end.max(first);
-                let a = sum(e_i[shared.clone()].iter().zip(&e_j[shared]).map(|(x, y)| *x * *y));
+                let a = dot(&e_i[shared.clone()], &e_j[shared]);
                 rows.hessian[i * stride + j] = a;
                 rows.hessian[j * stride + i] = a;
             }

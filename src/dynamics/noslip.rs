@@ -19,7 +19,7 @@
 use super::constraint::{ConstraintRows, RowKind};
 use super::forces::{Direction, inward_pass};
 use super::{DynamicsError, require};
-use crate::math::{Real, sum};
+use crate::math::{Real, dot};
 use crate::model::Model;
 use crate::vehicle::ConstraintOptions;
 use crate::workspace::{Stage, Workspace};
@@ -331,7 +331,7 @@ fn sweep_island<S: Real>(
                 continue;
             }
             let hessian = &rows.hessian[i * stride..i * stride + n];
-            let coupled = sum(hessian.iter().zip(&rows.force[..n]).map(|(h, f)| *h * *f));
+            let coupled = dot(hessian, &rows.force[..n]);
             let residual = coupled + rows.gradient[i] - rows.regularizer[i] * rows.force[i];
             let diagonal = hessian[i] - rows.regularizer[i];
             let inverse_diagonal = S::one() / if diagonal.value() < MIN_VALUE { S::from(MIN_VALUE) } else { diagonal };

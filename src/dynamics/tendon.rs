@@ -17,7 +17,7 @@ use super::constraint::RowKind;
 use super::equality::polynomial_coupling;
 use super::forces::add_joint_forces_of_wrenches;
 use super::wrap::{self, WrapPath};
-use crate::math::{Real, SpatialVec, Transform, Vec3, spatial, sum};
+use crate::math::{Real, SpatialVec, Transform, Vec3, dot, spatial};
 use crate::model::{ActuatorTransmission, EqualityRows, Model, Path, PathStop, Tendon, WRAP_SWITCHES};
 use crate::workspace::Workspace;
 
@@ -119,7 +119,7 @@ impl<S: Real> Workspace<S> {
         let tendon = &model.tendons[k];
         let mut force = S::zero();
         if tendon.armature != 0.0 {
-            let along = sum(self.tendon_moment_row(model, k).iter().zip(self.qacc.iter()).map(|(j, a)| *j * *a));
+            let along = dot(self.tendon_moment_row(model, k), self.qacc.as_slice());
             force -= (along + self.tendon_inertia.jdot_qvel(k)) * tendon.armature;
         }
         if tendon.has_passive_force() {

@@ -20,11 +20,6 @@ use crate::math::{Real, SpatialVec, Vec3, angular, dot, linear, sum};
 use crate::model::{Model, Path, PathStop};
 use crate::workspace::{Stage, Workspace};
 
-/// a · b in the passes' scalar (the order of `dot`'s sum, so that f64 keeps its bits).
-fn dot_in<S: Real>(a: &[S], b: &[S]) -> S {
-    sum(a.iter().zip(b).map(|(x, y)| *x * *y))
-}
-
 /// MuJoCo's `mjMINVAL`: a shorter segment has no direction.
 const MIN_VALUE: f64 = 1e-15;
 
@@ -206,7 +201,7 @@ impl<S: Real> Workspace<S> {
         let k = model.tendon_inertia.len();
         for i in 0..k {
             for j in 0..k {
-                let g = dot_in(state.eps_column(nv, i), state.eps_column(nv, j));
+                let g = dot(state.eps_column(nv, i), state.eps_column(nv, j));
                 state.factors[i * k + j] = g * model.tendon_inertia[i].weight + f64::from(u8::from(i == j));
             }
         }
@@ -228,8 +223,7 @@ impl<S: Real> Workspace<S> {
         let mut state = std::mem::take(&mut self.tendon_inertia);
         let mut force = std::mem::take(&mut state.force);
         for (k, term) in model.tendon_inertia.iter().enumerate() {
-            force[k] =
-                dot_in(&state.columns[k * nv..(k + 1) * nv], self.qacc.as_slice()) + state.jdot_qvel[term.tendon];
+            force[k] = dot(&state.columns[k * nv..(k + 1) * nv], self.qacc.as_slice()) + state.jdot_qvel[term.tendon];
         }
         state.solve(model, &mut force);
         state.eps.fill(S::zero());
@@ -269,7 +263,7 @@ impl<S: Real> Workspace<S> {
         for r in 0..count {
             let row = &eps_columns[r * nv..(r + 1) * nv];
             for (t, value) in b.iter_mut().enumerate() {
-                *value = dot_in(state.eps_column(nv, t), row);
+                *value = dot(state.eps_column(nv, t), row);
                 state.projection[t * stride + r] = *value;
             }
             state.solve(model, &mut b);
