@@ -130,9 +130,9 @@ pub struct Carry {
 
 impl Carry {
     /// The interpolant of the step of `refused` (s) past the communication
-    /// point `t1` refused, `length` the longer of the communication step
-    /// and that step: steps reaching past a point are at most half as long
-    /// from `t1` on, for once that length, then twice, four times, … with
+    /// point `t1`, which ends a communication step of `communication_step`,
+    /// refused: steps reaching past a point are at most half as long from
+    /// `t1` on, for once the longer of the two steps, then twice, four times, … with
     /// each refusal of the run (at most [`MAX_REFUSAL_PAUSE`] times), then
     /// as long as the error control allows again. Half the step: an
     /// interpolant's error falls with its step's 5th to 8th power, and the
@@ -140,10 +140,10 @@ impl Carry {
     /// the points instead (at most the communication step) left runs far
     /// more accurate than asked (noslip_trees' `dop853` at 1e-6: 1.4e-3 of
     /// the tolerance, docs/integration.md).
-    fn refuse_interpolant(&mut self, t1: f64, refused: f64, length: f64) {
+    fn refuse_interpolant(&mut self, t1: f64, refused: f64, communication_step: f64) {
         self.refusals += 1.0;
         let pause = 2f64.powf(self.refusals - 1.0).min(MAX_REFUSAL_PAUSE);
-        self.reach_from = t1 + pause * length;
+        self.reach_from = t1 + pause * communication_step.max(refused);
         self.reach_cap = 0.5 * refused;
     }
 
@@ -784,7 +784,7 @@ impl Simulation {
                         // Its end is right, its inside is not (a fast damped mode, which
                         // the interpolant follows far less closely than the end):
                         // taken again at most half as long, the next ones too for a while.
-                        carry.refuse_interpolant(t1, step, communication_step.max(step));
+                        carry.refuse_interpolant(t1, step, communication_step);
                         stats.refused_interpolants += 1;
                         continue;
                     }
