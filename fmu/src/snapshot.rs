@@ -367,7 +367,9 @@ impl Snapshot {
         }
         state.jacobian.derivatives = rest.to_vec();
         if holds_reach {
-            state.run.reach = Reach { working_set, ..read_reach(reach, sizes)? };
+            let reach = read_reach(reach, sizes)?;
+            check_held_step(&reach, state.run.time)?;
+            state.run.reach = Reach { working_set, ..reach };
         }
         Ok(Snapshot { phase, guid: found_guid, state })
     }
@@ -559,6 +561,25 @@ fn read_reach(values: &[f64], n: Sizes) -> Result<Reach, SnapshotError> {
         max_step,
         working_set: Vec::new(),
     })
+}
+
+/// A held step ends where its size says (to rounding: a step that reaches
+/// the limit ends on it) and spans the time it is held at; the next advance
+/// would otherwise go on from its end to that time, however far (a forged
+/// blob with the time at 7e36 and the step at 0.01 s ran 100 000 steps).
+fn check_held_step(reach: &Reach, time: f64) -> Result<(), SnapshotError> {
+    let rounding = 4.0 * f64::EPSILON * reach.end.abs().max(1.0);
+    if (reach.start + reach.step - reach.end).abs() > rounding {
+        return Err(SnapshotError::Value {
+            what: "the held step's end",
+            value: reach.end,
+            must: "its start plus its size",
+        });
+    }
+    if !(reach.start <= time && time <= reach.end) {
+        return Err(SnapshotError::Value { what: "the time", value: time, must: "within the step held past it" });
+    }
+    Ok(())
 }
 
 /// After a held step's values: the rows of the solver's working set where
@@ -858,9 +879,22 @@ mod tests {
         nan_reach.state.run.reach.rows[7] = f64::NAN;
         let mut empty_reach = sample_with_reach();
         empty_reach.state.run.reach.step = 0.0;
+        let mut time_past_reach = sample_with_reach();
+        time_past_reach.state.run.time = 6.8e36;
+        let mut time_before_reach = sample_with_reach();
+        time_before_reach.state.run.reach.start = 0.5;
+        time_before_reach.state.run.reach.step = 0.25;
+        let mut end_off_reach = sample_with_reach();
+        end_off_reach.state.run.reach.end = 0.75 + 1e-9;
         for (snapshot, what) in [
             (nan_reach, "the step held past the communication point"),
             (empty_reach, "the held step's size"),
+            (
+                time_past_reach,
+                "the time = 6800000000000000000000000000000000000, which must be within the step held past it",
+            ),
+            (time_before_reach, "the time = 0.30000000000000004, which must be within the step"),
+            (end_off_reach, "the held step's end"),
             (nan_theta, "a value of theta"),
             (negative_step, "max_step"),
             (infinite_time, "time"),
