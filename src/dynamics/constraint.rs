@@ -147,6 +147,62 @@ pub struct ConstraintRows<S: Real = f64> {
     pub(super) no_slip: NoSlipBuffers<S>,
 }
 
+/// The rows whose columns of E a problem kept for the next, for runs of
+/// the derivatives' passes at one θ (a Jacobian's velocity, ε, T, ctrl and
+/// act columns reuse the configuration passes of the column before): E
+/// depends on θ alone, so it is taken again for the same rows.
+#[derive(Clone, Debug)]
+pub(crate) struct KeptColumns {
+    /// Whether the next problem may take the columns.
+    still: bool,
+    /// How many rows' columns are kept (`None`: none), and their kinds and
+    /// ids (the first that many entries).
+    rows: Option<usize>,
+    kind: Vec<RowKind>,
+    id: Vec<usize>,
+}
+
+impl KeptColumns {
+    /// Room for `model`'s rows.
+    pub(crate) fn new(model: &Model) -> Self {
+        let rows = model.constraints.max_rows();
+        KeptColumns { still: false, rows: None, kind: vec![RowKind::Friction; rows], id: vec![0; rows] }
+    }
+
+    /// Whether the next run is at the θ of the run before, whose
+    /// configuration passes it reuses; if not, the columns kept are
+    /// forgotten, so that a run that stops before its problem leaves none
+    /// of another θ's.
+    pub(crate) fn still(&mut self, still: bool) {
+        self.still = still;
+        if !still {
+            self.rows = None;
+        }
+    }
+
+    /// Whether `rows`' columns of E are those kept: a still run with the
+    /// same rows. Forgets them otherwise, as they are about to be replaced.
+    fn hold_for<S: Real>(&mut self, rows: &ConstraintRows<S>) -> bool {
+        let n = rows.count;
+        let held = std::mem::take(&mut self.still)
+            && self.rows == Some(n)
+            && self.kind[..n] == rows.kind[..n]
+            && self.id[..n] == rows.id[..n];
+        if !held {
+            self.rows = None;
+        }
+        held
+    }
+
+    /// Keeps `rows`' columns just formed.
+    fn keep<S: Real>(&mut self, rows: &ConstraintRows<S>) {
+        let n = rows.count;
+        self.kind[..n].copy_from_slice(&rows.kind[..n]);
+        self.id[..n].copy_from_slice(&rows.id[..n]);
+        self.rows = Some(n);
+    }
+}
+
 impl<S: Real> Default for ConstraintRows<S> {
     fn default() -> Self {
         ConstraintRows::sized(0, 0, 0, 0, NoSlipBuffers::default())
@@ -730,7 +786,7 @@ impl Workspace {
         if !model.tendon_inertia.is_empty() {
             self.apply_tendon_inertia(model, applied)?;
         }
-        self.add_constraint_forces(model, applied, Self::solve_for_forces)
+        self.add_constraint_forces(model, applied, None, Self::solve_for_forces)
     }
 
     /// The forces of the problem set up in `rows`: in the held working set,
@@ -772,6 +828,7 @@ impl<S: Real> Workspace<S> {
         &mut self,
         model: &Model,
         applied: &mut [S],
+        kept: Option<&mut KeptColumns>,
         solve: impl FnOnce(&mut Self, &Model, &mut ConstraintRows<S>) -> Result<(), DynamicsError>,
     ) -> Result<(), DynamicsError> {
         let mut rows = std::mem::take(&mut self.constraint_rows);
@@ -794,7 +851,7 @@ impl<S: Real> Workspace<S> {
             result = self.compute_accelerations(model);
         }
         let result = result
-            .and_then(|()| self.constraint_problem(model, &mut rows))
+            .and_then(|()| self.constraint_problem(model, &mut rows, kept))
             .and_then(|()| solve(self, model, &mut rows))
             .map(|()| constraint_eps(model.nv, &mut rows));
         if result.is_ok() {
@@ -815,17 +872,31 @@ impl<S: Real> Workspace<S> {
     /// The problem of the instantiated rows, with the outward pass's θ̈ as
     /// qacc_smooth: E = m⁻¹Jᵀ, the impedance on each row's piece (held with
     /// the working set), R, aref, the gradient and A + R = EᵀE + R.
-    fn constraint_problem(&mut self, model: &Model, rows: &mut ConstraintRows<S>) -> Result<(), DynamicsError> {
+    /// E's columns are taken from the last problem where `kept` says they
+    /// still hold, and kept for the next where it is given.
+    fn constraint_problem(
+        &mut self,
+        model: &Model,
+        rows: &mut ConstraintRows<S>,
+        mut kept: Option<&mut KeptColumns>,
+    ) -> Result<(), DynamicsError> {
         let nv = model.nv;
         let n = rows.count;
-        for k in 0..n {
-            let column = k * nv..(k + 1) * nv;
-            let jacobian = &rows.jacobian[column.clone()];
-            // eps_from_forces's check of its input.
-            if let Some(index) = jacobian.iter().position(|j| !j.value().is_finite()) {
-                return Err(DynamicsError::NonFinite { what: "torque", index, value: jacobian[index].value() });
+        // Only the derivatives' runs keep columns: f64's hot path stays as it was.
+        if S::SPECIALIZED || !kept.as_deref_mut().is_some_and(|kept| kept.hold_for(rows)) {
+            for k in 0..n {
+                let column = k * nv..(k + 1) * nv;
+                let jacobian = &rows.jacobian[column.clone()];
+                // eps_from_forces's check of its input.
+                if let Some(index) = jacobian.iter().position(|j| !j.value().is_finite()) {
+                    return Err(DynamicsError::NonFinite { what: "torque", index, value: jacobian[index].value() });
+                }
+                rows.eps_spans[k] = forces::eps_of_sparse_torque(model, self, jacobian, &mut rows.eps_columns[column]);
             }
-            rows.eps_spans[k] = forces::eps_of_sparse_torque(model, self, jacobian, &mut rows.eps_columns[column]);
+            // The tendons' armature changes the columns in place, after this.
+            if let Some(kept) = kept.filter(|_| !S::SPECIALIZED && model.tendon_inertia.is_empty()) {
+                kept.keep(rows);
+            }
         }
         for k in 0..n {
             let jacobian = &rows.jacobian[k * nv..(k + 1) * nv];

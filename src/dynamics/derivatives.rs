@@ -38,7 +38,7 @@
 use nalgebra::{DMatrix, Quaternion};
 use num_dual::Dual64;
 
-use super::constraint::{ConstraintRows, limit_switching_functions};
+use super::constraint::{ConstraintRows, KeptColumns, limit_switching_functions};
 use super::sensors::{cutoff_switch, sensors_need_accelerations};
 use super::velocity::{self, Given};
 use super::{DynamicsError, bias, check_input, forces};
@@ -249,6 +249,9 @@ struct Passes {
     /// Jacobian's velocity, ε, T, ctrl and act columns) reuses them.
     configuration_still: bool,
     still_theta: Vec<f64>,
+    /// The constraint rows' columns of E the last run formed, which such a
+    /// run takes again.
+    kept_columns: KeptColumns,
 }
 
 impl Passes {
@@ -266,6 +269,7 @@ impl Passes {
             momentum: None,
             configuration_still: false,
             still_theta: vec![0.0; model.nq],
+            kept_columns: KeptColumns::new(model),
         }
     }
 
@@ -283,7 +287,9 @@ impl Passes {
         theta_rates(model, point.theta, direction, &mut self.theta_rates);
         let still = self.theta_rates.iter().all(|&rate| rate == 0.0);
         let ws = &mut self.ws;
-        if !(still && self.configuration_still && self.still_theta == point.theta) {
+        let reused = still && self.configuration_still && self.still_theta == point.theta;
+        self.kept_columns.still(reused);
+        if !reused {
             self.configuration_still = false;
             seed(ws.theta.as_mut_slice(), point.theta, &self.theta_rates);
             ws.stage = Stage::Empty;
@@ -352,7 +358,7 @@ impl Passes {
             if !model.tendon_inertia.is_empty() {
                 ws.apply_tendon_inertia(model, &mut self.eps)?;
             }
-            ws.add_constraint_forces(model, &mut self.eps, |ws, model, rows| {
+            ws.add_constraint_forces(model, &mut self.eps, Some(&mut self.kept_columns), |ws, model, rows| {
                 if !model.tendon_inertia.is_empty() {
                     let (n, stride) = (rows.count, rows.max_rows);
                     ws.tendon_inertia_on_rows(model, n, &mut rows.eps_columns, &mut rows.hessian, stride);

@@ -358,9 +358,11 @@ fn jacobians_of_flexible_vehicles_agree_with_central_differences_of_the_passes()
 }
 
 /// A Jacobian's columns along no θ direction reuse the configuration
-/// passes of the column before: each column equals, bit for bit, a run of a
-/// fresh workspace (rigid and flexible trees, tendons, constraint rows and
-/// sensors, actuators with activation states).
+/// passes of the column before, and the constraint rows' columns of E: each
+/// column equals, bit for bit, a run of a fresh workspace (rigid and
+/// flexible trees, tendons, constraint rows with welds, limits and the
+/// no-slip pass, the tendons' armature, which changes E in place and so is
+/// not reused, sensors, actuators with activation states).
 #[test]
 fn columns_reusing_the_configuration_equal_fresh_runs() {
     let cases = [
@@ -369,6 +371,9 @@ fn columns_reusing_the_configuration_equal_fresh_runs() {
         file_case("tests/fixtures/sensors/every_sensor.xml", 0),
         file_case("tests/fixtures/activation/shortcut_servos.xml", 0),
         constrained_case("tests/fixtures/tendons/tendon_limits.xml", 0, 0.5),
+        constrained_case("tests/fixtures/constraints/docked_servicer.xml", 0, 0.05),
+        constrained_case("tests/fixtures/constraints/noslip_trees.xml", 0, 0.3),
+        constrained_case("tests/fixtures/tendons/tendon_armature.xml", 0, 0.5),
     ];
     let outputs = [Output::NuDot, Output::Qacc, Output::Sensordata, Output::ActDot];
     for (index, case) in cases.iter().enumerate() {
