@@ -770,6 +770,38 @@ mod tests {
         }
     }
 
+    /// θ̇ (the integrated velocity) of a state from which a doStep may
+    /// follow must be the one its ν gives; in initialization mode, where
+    /// θ̇ is formed from ν on leaving it, it is not read.
+    #[test]
+    fn a_state_whose_velocities_disagree_is_refused_where_a_step_follows() {
+        let (uri, guid) = resources("velocities");
+        let c = instantiate(&uri, &guid);
+        let qvel_of = |state: fmi2FMUstate| unsafe { &mut (*(state as *mut crate::snapshot::Snapshot)).state.run.qvel };
+        unsafe {
+            assert_eq!(fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0.0), fmi2Status_fmi2OK);
+            assert_eq!(fmi2EnterInitializationMode(c), fmi2Status_fmi2OK);
+            let mut at_initialization: fmi2FMUstate = std::ptr::null_mut();
+            assert_eq!(fmi2GetFMUstate(c, &mut at_initialization), fmi2Status_fmi2OK);
+            qvel_of(at_initialization)[0] = 1e270;
+            assert_eq!(fmi2ExitInitializationMode(c), fmi2Status_fmi2OK);
+            assert_eq!(fmi2DoStep(c, 0.0, 0.01, 1), fmi2Status_fmi2OK);
+            let mut stepping: fmi2FMUstate = std::ptr::null_mut();
+            assert_eq!(fmi2GetFMUstate(c, &mut stepping), fmi2Status_fmi2OK);
+            assert_eq!(fmi2SetFMUstate(c, stepping), fmi2Status_fmi2OK, "its own state");
+            qvel_of(stepping)[0] += 1e-3;
+            assert_eq!(fmi2SetFMUstate(c, stepping), fmi2Status_fmi2Error);
+            assert_eq!(fmi2SetFMUstate(c, at_initialization), fmi2Status_fmi2OK);
+            assert_eq!(phase(c), Phase::InitializationMode);
+            assert_eq!(fmi2ExitInitializationMode(c), fmi2Status_fmi2OK);
+            assert_eq!(fmi2DoStep(c, 0.0, 0.01, 1), fmi2Status_fmi2OK, "θ̇ formed again from ν");
+            for mut state in [at_initialization, stepping] {
+                assert_eq!(fmi2FreeFMUstate(c, &mut state), fmi2Status_fmi2OK);
+            }
+            fmi2FreeInstance(c);
+        }
+    }
+
     #[test]
     fn pointers_that_were_not_handed_out_are_refused_unread() {
         let (uri, guid) = resources("pointers");

@@ -9,7 +9,7 @@
 use nudyn::dynamics::derivatives::qpos_rate;
 use nudyn::dynamics::mode::ConstraintMode;
 use nudyn::dynamics::quantities::kinetic_energy;
-use nudyn::integrate::{HeldJacobian, Input, MethodSetting, Settings, Simulation};
+use nudyn::integrate::{HeldJacobian, Input, MethodSetting, RunState, Settings, Simulation};
 use nudyn::model::Model;
 use nudyn_contract::capabilities::Capabilities;
 use nudyn_contract::plant::{
@@ -220,6 +220,27 @@ impl Plant {
     fn qpos_rate(&self, k: usize) -> f64 {
         let ws = self.sim.workspace();
         qpos_rate(&self.model, ws.theta.as_slice(), ws.qvel.as_slice(), k)
+    }
+
+    /// Whether θ̇ (the integrated velocity, which the next doStep goes on
+    /// from) and ν of a saved run are one velocity, ν = m*(θ)θ̇, to
+    /// round-off: a blob where they disagree (a forged θ̇ of 1e270 beside
+    /// ν = 0 took 100 000 steps of 1e-9 s, 6 s, before its doStep failed) is
+    /// refused. Checked in a workspace of its own, so that a refusal leaves
+    /// the instance as it was.
+    fn check_velocities(&self, run: &RunState) -> Result<(), CallError> {
+        let model = &self.model;
+        let mut ws = model.workspace();
+        ws.set_configuration(model, &run.theta).map_err(CallError::Evaluate)?;
+        ws.set_qvel(model, &run.qvel[..model.nv]).map_err(CallError::Evaluate)?;
+        let scale = 1.0 + run.nu.iter().chain(ws.nu.iter()).fold(0.0f64, |m, x| m.max(x.abs()));
+        match run.nu.iter().zip(ws.nu.iter()).find(|(saved, of_qvel)| (*saved - *of_qvel).abs() > 1e-9 * scale) {
+            Some((&value, _)) => {
+                let must = "m*(theta) qvel, the nu of the state's own theta and qvel, to round-off";
+                Err(SnapshotError::Value { what: "a value of nu", value, must }.into())
+            }
+            None => Ok(()),
+        }
     }
 }
 
@@ -601,6 +622,11 @@ impl Component for Plant {
         if rows > self.model.constraints.max_rows() {
             let (what, must) = ("the rows of a working set", "at most the vehicle's constraint rows");
             return Err(SnapshotError::Value { what, value: rows as f64, must }.into());
+        }
+        // Where a doStep may follow: before it, θ̇ is formed from ν at the
+        // initialization, and model exchange forms it from the states it is given.
+        if matches!(snapshot.phase, Phase::StepComplete | Phase::StepFailed) {
+            self.check_velocities(&state.run)?;
         }
         self.sim.settings = state.settings;
         // The method first: changing it drops W, which the restore then holds.
