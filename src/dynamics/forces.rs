@@ -234,11 +234,7 @@ mod tests {
     #[test]
     fn the_sparse_pass_gives_the_full_pass_results() {
         for file in ["tests/fixtures/constraints/slider_hand.xml", "tests/fixtures/constraints/docked_servicer.xml"] {
-            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(file);
-            let model = Model::compile(&crate::mjcf::load_mjcf(&path).unwrap().vehicle).unwrap();
-            let mut ws = model.workspace();
-            let theta: Vec<f64> = model.qpos0.iter().enumerate().map(|(k, q)| q + 0.1 * (k as f64).sin()).collect();
-            ws.set_configuration(&model, &theta).unwrap();
+            let (model, mut ws) = crate::dynamics::test_vehicle(file, 0.1);
             let nv = model.nv;
             let mut torques = vec![vec![1.0; nv]];
             for a in 0..nv {

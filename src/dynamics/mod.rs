@@ -122,6 +122,19 @@ pub enum DynamicsError {
 }
 
 /// Checks a vector's length.
+/// Unit tests' vehicle: `file` (relative to the crate's root) compiled, and
+/// a workspace configured at θ_k = qpos0_k + `spread`·sin k, away from the
+/// file pose.
+#[cfg(test)]
+pub(crate) fn test_vehicle(file: &str, spread: f64) -> (Model, Workspace) {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(file);
+    let model = Model::compile(&crate::mjcf::load_mjcf(&path).unwrap().vehicle).unwrap();
+    let mut ws = model.workspace();
+    let theta: Vec<f64> = model.qpos0.iter().enumerate().map(|(k, q)| q + spread * (k as f64).sin()).collect();
+    ws.set_configuration(&model, &theta).unwrap();
+    (model, ws)
+}
+
 pub(crate) fn check_length(what: &'static str, values: &[f64], expected: usize) -> Result<(), DynamicsError> {
     if values.len() != expected {
         return Err(DynamicsError::Length { what, expected, found: values.len() });

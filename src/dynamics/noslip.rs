@@ -428,11 +428,7 @@ mod tests {
             "examples/bus_arm7.xml",
         ];
         for file in files {
-            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(file);
-            let model = Model::compile(&crate::mjcf::load_mjcf(&path).unwrap().vehicle).unwrap();
-            let mut ws = model.workspace();
-            let theta: Vec<f64> = model.qpos0.iter().enumerate().map(|(k, q)| q + 0.3 * (k as f64).sin()).collect();
-            ws.set_configuration(&model, &theta).unwrap();
+            let (model, mut ws) = crate::dynamics::test_vehicle(file, 0.3);
             let nv = model.nv;
             let mut pass = NoSlipBuffers::<f64> {
                 mass_diagonal: vec![f64::NAN; nv],
