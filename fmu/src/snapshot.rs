@@ -367,9 +367,7 @@ impl Snapshot {
         }
         state.jacobian.derivatives = rest.to_vec();
         if holds_reach {
-            let reach = read_reach(reach, sizes)?;
-            check_held_step(&reach, state.run.time)?;
-            state.run.reach = Reach { working_set, ..reach };
+            state.run.reach = Reach { working_set, ..read_reach(reach, sizes, state.run.time)? };
         }
         Ok(Snapshot { phase, guid: found_guid, state })
     }
@@ -520,8 +518,12 @@ fn reach_values(reach: &Reach) -> impl Iterator<Item = f64> + '_ {
 }
 
 /// A held step from its values ([`reach_values`]), checked: finite, a
-/// positive size and tolerance, a non-negative max_step.
-fn read_reach(values: &[f64], n: Sizes) -> Result<Reach, SnapshotError> {
+/// positive size and tolerance, a non-negative max_step, an end at its
+/// start plus its size (to rounding: a step that reaches the limit ends on
+/// it), spanning `time`, the time it is held at. The next advance would
+/// otherwise go on from its end to that time, however far (a forged blob
+/// with the time at 7e36 and the step at 0.01 s ran 100 000 steps).
+fn read_reach(values: &[f64], n: Sizes, time: f64) -> Result<Reach, SnapshotError> {
     if let Some(&value) = values.iter().find(|x| !x.is_finite()) {
         return Err(SnapshotError::Value {
             what: "a value of the step held past the communication point",
@@ -538,6 +540,12 @@ fn read_reach(values: &[f64], n: Sizes) -> Result<Reach, SnapshotError> {
             let must = if positive { "positive" } else { "non-negative" };
             return Err(SnapshotError::Value { what, value, must });
         }
+    }
+    if (start + step - end).abs() > 4.0 * f64::EPSILON * end.abs().max(1.0) {
+        return Err(SnapshotError::Value { what: "the held step's end", value: end, must: "its start plus its size" });
+    }
+    if !(start <= time && time <= end) {
+        return Err(SnapshotError::Value { what: "the time", value: time, must: "within the step held past it" });
     }
     let rates = n.nv + n.na;
     let mut rest = vectors;
@@ -561,25 +569,6 @@ fn read_reach(values: &[f64], n: Sizes) -> Result<Reach, SnapshotError> {
         max_step,
         working_set: Vec::new(),
     })
-}
-
-/// A held step ends where its size says (to rounding: a step that reaches
-/// the limit ends on it) and spans the time it is held at; the next advance
-/// would otherwise go on from its end to that time, however far (a forged
-/// blob with the time at 7e36 and the step at 0.01 s ran 100 000 steps).
-fn check_held_step(reach: &Reach, time: f64) -> Result<(), SnapshotError> {
-    let rounding = 4.0 * f64::EPSILON * reach.end.abs().max(1.0);
-    if (reach.start + reach.step - reach.end).abs() > rounding {
-        return Err(SnapshotError::Value {
-            what: "the held step's end",
-            value: reach.end,
-            must: "its start plus its size",
-        });
-    }
-    if !(reach.start <= time && time <= reach.end) {
-        return Err(SnapshotError::Value { what: "the time", value: time, must: "within the step held past it" });
-    }
-    Ok(())
 }
 
 /// After a held step's values: the rows of the solver's working set where
