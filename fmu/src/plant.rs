@@ -90,6 +90,10 @@ pub struct Plant {
     theta_scratch: Vec<f64>,
     /// The partial derivatives' dual workspace, or why there are none.
     partials: Partials,
+    /// Where a restored state's velocities are checked (`check_velocities`),
+    /// apart from the one the outputs are read from; made at the first
+    /// restore and kept, as a master that rolls back may restore every step.
+    restore_check: Option<Box<nudyn::workspace::Workspace>>,
 }
 
 impl Plant {
@@ -127,6 +131,7 @@ impl Plant {
             indicators: vec![0.0; model.switch_count()],
             theta_scratch: vec![0.0; model.nq],
             partials,
+            restore_check: None,
             model,
         };
         plant.set_starts();
@@ -227,10 +232,10 @@ impl Plant {
     /// round-off: a blob where they disagree (a forged θ̇ of 1e270 beside
     /// ν = 0 took 100 000 steps of 1e-9 s, 6 s, before its doStep failed) is
     /// refused. Checked in a workspace of its own, so that a refusal leaves
-    /// the instance as it was.
-    fn check_velocities(&self, run: &RunState) -> Result<(), CallError> {
+    /// the instance (and the outputs it reads) as it was.
+    fn check_velocities(&mut self, run: &RunState) -> Result<(), CallError> {
         let model = &self.model;
-        let mut ws = model.workspace();
+        let ws = self.restore_check.get_or_insert_with(|| Box::new(model.workspace()));
         ws.set_configuration(model, &run.theta).map_err(CallError::Evaluate)?;
         ws.set_qvel(model, &run.qvel[..model.nv]).map_err(CallError::Evaluate)?;
         let scale = 1.0 + run.nu.iter().chain(ws.nu.iter()).fold(0.0f64, |m, x| m.max(x.abs()));
