@@ -18,6 +18,8 @@ use nalgebra::{
 use num_dual::Dual64;
 use serde::{Deserialize, Serialize};
 
+mod dual_congruence;
+
 /// The scalar the passes compute in: `f64`, or a dual number that carries
 /// a directional derivative through the same code (`dynamics::derivatives`).
 /// Branches (a joint limit, a zero quaternion) decide on [`Real::value`].
@@ -52,29 +54,19 @@ pub trait Real:
     /// FMU's code from doubling them (4.98 against 5.22 MB).
     const SPECIALIZED: bool;
 
-    /// [`Transform::add_inertia_to_parent`] with Xᵀ I X taken apart where
-    /// that is cheaper than in `Self`'s own arithmetic; false, and `slot`
-    /// untouched, where it is not. A dual number's transform
-    /// that does not move along the direction (a run along ν, ε or ctrl at
-    /// the θ of the run before: pass 3's İ^A) has the congruence of the
-    /// values plus that of the inertia's derivatives, two `f64` congruences
-    /// (about 1 500 instructions) instead of one in dual numbers (about
-    /// 2 400), with the same bits: the dual product's terms with the
-    /// transform's zero derivatives add exact zeros.
-    fn add_congruence_apart(
-        x: &Transform<Self>,
-        inertia: &SpatialMat<Self>,
-        slot: &mut SpatialMat<Self>,
-        replace: bool,
-    ) -> bool;
+    /// `slot` = Xᵀ I X (if `replace`) or `slot` += Xᵀ I X,
+    /// [`Transform::add_inertia_to_parent`]: by blocks in the scalar's own
+    /// arithmetic for `f64`, and for dual numbers on (value, derivative)
+    /// pairs with the transform in `f64` (dual_congruence.rs).
+    fn add_congruence(x: &Transform<Self>, inertia: &SpatialMat<Self>, slot: &mut SpatialMat<Self>, replace: bool);
 }
 
 impl Real for f64 {
     const SPECIALIZED: bool = true;
 
     #[inline(always)]
-    fn add_congruence_apart(_: &Transform, _: &SpatialMat, _: &mut SpatialMat, _: bool) -> bool {
-        false
+    fn add_congruence(x: &Transform, inertia: &SpatialMat, slot: &mut SpatialMat, replace: bool) {
+        x.add_inertia_to_parent(inertia, slot, replace);
     }
 
     #[inline(always)]
@@ -92,17 +84,8 @@ impl Real for Dual64 {
     const SPECIALIZED: bool = false;
 
     #[inline(always)]
-    fn add_congruence_apart(
-        x: &Transform<Self>,
-        inertia: &SpatialMat<Self>,
-        slot: &mut SpatialMat<Self>,
-        replace: bool,
-    ) -> bool {
-        let still = x.rot.as_slice().iter().chain(x.trans.as_slice()).all(|entry| entry.eps == 0.0);
-        if still {
-            add_still_congruence(x, inertia, slot, replace);
-        }
-        still
+    fn add_congruence(x: &Transform<Self>, inertia: &SpatialMat<Self>, slot: &mut SpatialMat<Self>, replace: bool) {
+        dual_congruence::add_dual_congruence(x, inertia, slot, replace);
     }
 
     #[inline(always)]
@@ -113,27 +96,6 @@ impl Real for Dual64 {
     #[inline(always)]
     fn is_still_zero(self) -> bool {
         self.re == 0.0 && self.eps == 0.0
-    }
-}
-
-/// [`Real::add_congruence_apart`] for a dual number's transform whose
-/// derivatives are all zero: kept out of line, so that the dual congruence
-/// beside it, taken where the transform moves, keeps its registers.
-#[inline(never)]
-fn add_still_congruence(
-    x: &Transform<Dual64>,
-    inertia: &SpatialMat<Dual64>,
-    slot: &mut SpatialMat<Dual64>,
-    replace: bool,
-) {
-    let values = Transform { rot: x.rot.map(|entry| entry.re), trans: x.trans.map(|entry| entry.re) };
-    let (mut term, mut derivative) = (SpatialMat::zeros(), SpatialMat::zeros());
-    values.add_inertia_to_parent(&SpatialMat::from_fn(|i, j| inertia[(i, j)].re), &mut term, true);
-    values.add_inertia_to_parent(&SpatialMat::from_fn(|i, j| inertia[(i, j)].eps), &mut derivative, true);
-    let (term, derivative) = (term.as_slice(), derivative.as_slice());
-    for (k, entry) in slot.as_mut_slice().iter_mut().enumerate() {
-        let added = Dual64::new(term[k], derivative[k]);
-        *entry = if replace { added } else { *entry + added };
     }
 }
 
@@ -412,10 +374,13 @@ impl<S: Real> Transform<S> {
     /// (2026-11-30, side by side), and a variant inlined whole into the
     /// passes' link functions made chain60's pass 3 about twice as slow
     /// (the link function's values and the congruence's compete for the registers).
+    ///
+    /// The dual numbers of the derivatives take it apart instead
+    /// ([`Real::add_congruence`]).
     #[inline(never)]
     pub fn add_inertia_to_parent(&self, inertia: &SpatialMat<S>, slot: &mut SpatialMat<S>, replace: bool) {
-        if !S::SPECIALIZED && S::add_congruence_apart(self, inertia, slot, replace) {
-            return;
+        if !S::SPECIALIZED {
+            return S::add_congruence(self, inertia, slot, replace);
         }
         let (e, e_t) = (self.rot, self.rot.transpose());
         let symmetric = |m: Mat3<S>| (m + m.transpose()) * S::from(0.5);
@@ -595,25 +560,30 @@ mod tests {
         assert!((slot - (m + dense)).abs().max() < 1e-13);
     }
 
-    /// In dual numbers, with the transform still (taken apart into two f64
-    /// congruences) and moving (in dual arithmetic), against the dense
-    /// product in dual numbers; into an empty slot and added to one.
+    /// In dual numbers, with the transform still and moving, against the
+    /// dense product in dual arithmetic; into an empty slot and added to
+    /// one. The values are the f64 congruence's, bit for bit.
     #[test]
     fn dual_congruences_equal_the_dense_product_still_or_moving() {
         let (m, x, _) = sample();
         let rate = SpatialMat::from_fn(|i, j| ((i * 5 + j * 5) as f64 * 0.21).cos() + (i + j) as f64 * 0.1);
         let inertia = m.zip_map(&rate, Dual64::new);
-        let turn = nalgebra::Rotation3::from_euler_angles(0.4, 0.2, -0.3).into_inner() - Mat3::identity();
+        // A turn's rate, Ė = −(ω×) E.
+        let turning = -skew(&Vec3::new(0.7, -0.4, 1.1)) * x.rot;
         for moving in [false, true] {
             let speed = if moving { 1.0 } else { 0.0 };
             let x = Transform {
-                rot: x.rot.zip_map(&(x.rot * turn), |value, rate| Dual64::new(value, speed * rate)),
+                rot: x.rot.zip_map(&turning, |value, rate| Dual64::new(value, speed * rate)),
                 trans: x.trans.map(|value| Dual64::new(value, speed * (value - 0.3))),
             };
             let dense = x.motion_matrix().transpose() * inertia * x.motion_matrix();
             for replace in [true, false] {
                 let mut slot = if replace { SpatialMat::from_element(Dual64::new(7.0, 3.0)) } else { inertia };
+                let mut values = slot.map(|entry| entry.re);
                 x.add_inertia_to_parent(&inertia, &mut slot, replace);
+                let real_x = Transform { rot: x.rot.map(|entry| entry.re), trans: x.trans.map(|entry| entry.re) };
+                real_x.add_inertia_to_parent(&inertia.map(|entry| entry.re), &mut values, replace);
+                assert_eq!(slot.map(|entry| entry.re), values, "moving {moving}, replace {replace}");
                 let expected = if replace { dense } else { inertia + dense };
                 for (got, want) in slot.iter().zip(&expected) {
                     assert!((got.re - want.re).abs() < 1e-13, "moving {moving}, replace {replace}: {got} {want}");
