@@ -57,18 +57,16 @@ pub(super) fn add_dual_congruence(
 /// I (v×) = [A ω× + B l×, B ω×; Bᵀ ω× + C l×, C ω×], so its blocks are
 /// S + Sᵀ with S = A ω× + B l×; B ω× − ω× B − l× C; and C ω× − ω× C.
 fn subtract_turning([a, b, c]: [&mut Block; 3], omega: &Vec3, linear: &Vec3) {
-    let value = |m: &Block, i: usize, j: usize| m[i][j].re;
-    // Row i of m (a×) is row i of m crossed with a.
-    let times_cross = |m: &Block, transposed: bool, v: &Vec3| -> [[f64; 3]; 3] {
-        std::array::from_fn(|i| {
-            let row = |j: usize| if transposed { value(m, j, i) } else { value(m, i, j) };
-            [row(1) * v[2] - row(2) * v[1], row(2) * v[0] - row(0) * v[2], row(0) * v[1] - row(1) * v[0]]
-        })
+    let value = |m: &Block| -> [[f64; 3]; 3] { std::array::from_fn(|i| std::array::from_fn(|j| m[i][j].re)) };
+    let (a_value, b_value, c_value) = (value(a), value(b), value(c));
+    let b_transposed: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| b_value[j][i]));
+    // Row i of m (v×) is row i of m crossed with v.
+    let times_cross = |m: &[[f64; 3]; 3], v: &Vec3| -> [[f64; 3]; 3] {
+        m.map(|row| [row[1] * v[2] - row[2] * v[1], row[2] * v[0] - row[0] * v[2], row[0] * v[1] - row[1] * v[0]])
     };
-    let (a_omega, b_linear) = (times_cross(a, false, omega), times_cross(b, false, linear));
-    let (b_omega, bt_omega, c_linear) =
-        (times_cross(b, false, omega), times_cross(b, true, omega), times_cross(c, false, linear));
-    let c_omega = times_cross(c, false, omega);
+    let (a_omega, b_linear) = (times_cross(&a_value, omega), times_cross(&b_value, linear));
+    let (b_omega, bt_omega) = (times_cross(&b_value, omega), times_cross(&b_transposed, omega));
+    let (c_linear, c_omega) = (times_cross(&c_value, linear), times_cross(&c_value, omega));
     for i in 0..3 {
         for j in 0..3 {
             // ω× B = −(Bᵀ ω×)ᵀ and l× C = −(C l×)ᵀ, C symmetric.
