@@ -9,6 +9,7 @@
 //! codegen units, and out of line they cost a fifth of a ν̇ (bus_arm7
 //! 3.30 → 2.70 µs with them inlined, criterion).
 
+use std::borrow::Borrow;
 use std::ops::{Add, AddAssign, Div, DivAssign, Mul, MulAssign, Neg, Sub, SubAssign};
 
 use nalgebra::{
@@ -139,21 +140,29 @@ pub fn mat3_product<S: Real>(a: &Mat3<S>, b: &Mat3<S>) -> Mat3<S> {
     )
 }
 
-/// a b for small fixed-size matrices: nalgebra's product in `f64`, where
-/// the compiler inlines it; in dual numbers written out (each entry summed
-/// as nalgebra sums it), as nalgebra's generic product is a call there,
-/// about a sixth of a directional derivative's instructions on bus_arm7 in
-/// pass 3's per-link products.
+/// a b for small fixed-size matrices, written out (each entry summed as
+/// nalgebra sums it): nalgebra's generic product is a call per product in
+/// dual numbers, about a sixth of a directional derivative's instructions on
+/// bus_arm7 in passes 1 and 3's per-link products. The passes take it
+/// through [`times!`] for dual numbers only.
 #[inline(always)]
 pub fn product<S: Real, const R: usize, const K: usize, const C: usize>(
-    a: &SMatrix<S, R, K>,
-    b: &SMatrix<S, K, C>,
+    a: impl Borrow<SMatrix<S, R, K>>,
+    b: impl Borrow<SMatrix<S, K, C>>,
 ) -> SMatrix<S, R, C> {
-    if S::SPECIALIZED {
-        return *a * *b;
-    }
+    let (a, b) = (a.borrow(), b.borrow());
     SMatrix::from_fn(|i, j| (1..K).fold(a[(i, 0)] * b[(0, j)], |sum, k| sum + a[(i, k)] * b[(k, j)]))
 }
+
+/// `a * b` in the passes' scalar `S` (in scope where it is used): as
+/// written in `f64`, whose code and bits it keeps, and by [`product`] in
+/// dual numbers.
+macro_rules! times {
+    ($a:expr, $b:expr) => {
+        if S::SPECIALIZED { $a * $b } else { $crate::math::product($a, $b) }
+    };
+}
+pub(crate) use times;
 
 /// A unit quaternion (MuJoCo order w, x, y, z when read from or written to qpos).
 pub type Quat<S = f64> = UnitQuaternion<S>;

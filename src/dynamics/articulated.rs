@@ -8,7 +8,7 @@ use nalgebra::{Dim, Matrix, SMatrix, Storage, StorageMut};
 
 use super::subspace::{by_subspace, s_transpose_times_columns, times_s};
 use super::{DynamicsError, kinematics};
-use crate::math::{Mat3, Real, SpatialMat, product};
+use crate::math::{Mat3, Real, SpatialMat, times};
 use crate::model::Model;
 use crate::workspace::Workspace;
 
@@ -104,13 +104,13 @@ fn factor_link<S: Real, const N: usize, const UNIT: usize>(
     } else {
         let r = upper_cholesky(&d).ok_or(DynamicsError::Singular { link: i })?;
         let r_inv = upper_triangular_inverse(&r);
-        let d_inv = product(&r_inv.transpose(), &r_inv);
+        let d_inv = times!(r_inv.transpose(), r_inv);
         (r, r_inv, d_inv)
     };
-    let gain = product(&u, &d_inv);
+    let gain = times!(u, d_inv);
     // Only a parent takes in I^a (passes 1 and 3); a base link has none.
     if link.parent.is_some() {
-        ws.ia_reduced[i] = ia - product(&gain, &u.transpose());
+        ws.ia_reduced[i] = ia - times!(gain, u.transpose());
     }
     ws.gain[i].fixed_columns_mut::<N>(0).copy_from(&gain);
     write_block(&mut ws.r_joint[i], &r);

@@ -20,7 +20,7 @@ use super::subspace::{
 };
 use super::{accumulate, block, cols};
 use crate::math::{
-    Quat, Real, SpatialMat, SpatialVec, Vec3, cross_force, owned, product, quat_difference, real, spatial,
+    Quat, Real, SpatialMat, SpatialVec, Vec3, cross_force, owned, quat_difference, real, spatial, times,
 };
 use crate::model::{LinkJoint, Model, MotionSubspace};
 use crate::workspace::Workspace;
@@ -108,16 +108,16 @@ fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool, cons
         p_bias += ws.p_bias_body[i];
     }
     let u: SVector<S, N> = -s_transpose_times::<_, N, UNIT>(s, &p_bias);
-    let joint_bias = product(&r_inv, &u);
+    let joint_bias = times!(r_inv, u);
     // ν̇'s terms from the factor's rates, Ṙᵀw + RᵀĠᵀV⁺, which θ̈ does not need.
     let rates = RATES.then(|| {
-        let d_inv = product(&r_inv.transpose(), &r_inv);
+        let d_inv = times!(r_inv.transpose(), r_inv);
         let w: SVector<S, N> = owned(ws.w_joint.fixed_rows::<N>(adr));
         let ia_dot_s: SMatrix<S, 6, N> = ia_dot.map_or_else(SMatrix::zeros, |ia_dot| times_s::<_, N, UNIT>(ia_dot, s));
         let d_dot = s_transpose_times_columns::<_, N, UNIT>(s, &ia_dot_s);
-        let gain_t_dot = product(&d_inv, &(ia_dot_s.transpose() - product(&d_dot, &gain.transpose())));
-        let r_dot = product(&r, &upper_half(&product(&product(&r_inv, &d_dot), &r_inv.transpose())));
-        (product(&r_dot.transpose(), &w) + product(&r.transpose(), &product(&gain_t_dot, &v_plus)), ia_dot_s, d_dot)
+        let gain_t_dot = times!(d_inv, ia_dot_s.transpose() - times!(d_dot, gain.transpose()));
+        let r_dot = times!(r, upper_half(&times!(times!(r_inv, d_dot), r_inv.transpose())));
+        (times!(r_dot.transpose(), w) + times!(r.transpose(), times!(gain_t_dot, v_plus)), ia_dot_s, d_dot)
     });
 
     // Springs, dampers and gravity.
@@ -141,7 +141,7 @@ fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool, cons
     } else {
         SVector::zeros()
     };
-    let eps_passive = product(&r_inv, &u_force);
+    let eps_passive = times!(r_inv, u_force);
 
     for k in 0..N {
         ws.eps_passive[adr + k] = eps_passive[k];
@@ -158,12 +158,11 @@ fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool, cons
     if let Some(p) = link.parent {
         let ia_reduced = &ws.ia_reduced[i];
         let opens_parent = ws.accumulation[i].opens_parent;
-        let p_reduced =
-            p_bias + product(ia_reduced, &cross_s_times::<_, N, UNIT>(&v_plus, s, &qvel)) + product(&gain, &u);
+        let p_reduced = p_bias + times!(ia_reduced, cross_s_times::<_, N, UNIT>(&v_plus, s, &qvel)) + times!(gain, u);
         let node = if FLEXIBLE { ws.accumulation[i].node } else { None };
         if let Some(at) = node {
             // A child at a node hands its terms to the node (docs/flexible.md).
-            let f_reduced = forces.then(|| p_force + product(&gain, &u_force));
+            let f_reduced = forces.then(|| p_force + times!(gain, u_force));
             let rate = rates.map(|(_, ia_dot_s, d_dot)| {
                 child_inertia_rate::<_, N, UNIT>(ia_reduced, ia_dot, s, &qvel, &gain, &ia_dot_s, &d_dot)
             });
@@ -178,7 +177,7 @@ fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool, cons
         if forces {
             accumulate(
                 &mut ws.p_force_body[p],
-                x.apply_transpose_force(&(p_force + product(&gain, &u_force))),
+                x.apply_transpose_force(&(p_force + times!(gain, u_force))),
                 opens_parent,
             );
         }
@@ -203,8 +202,8 @@ fn child_inertia_rate<S: Real, const N: usize, const UNIT: usize>(
     ia_dot_s: &SMatrix<S, 6, N>,
     d_dot: &SMatrix<S, N, N>,
 ) -> SpatialMat<S> {
-    let a_shifted = ia_dot_s - product(gain, &(d_dot * S::from(0.5)));
-    let q = mul_cross_s_times::<_, N, UNIT>(ia_reduced, s, qvel) + product(gain, &a_shifted.transpose());
+    let a_shifted = ia_dot_s - times!(gain, d_dot * S::from(0.5));
+    let q = mul_cross_s_times::<_, N, UNIT>(ia_reduced, s, qvel) + times!(gain, a_shifted.transpose());
     match ia_dot {
         Some(ia_dot) => ia_dot - q - q.transpose(),
         None => -(q + q.transpose()),
