@@ -585,9 +585,9 @@ mod tests {
         assert!((slot - (m + dense)).abs().max() < 1e-13);
     }
 
-    /// In dual numbers, with the transform still and moving, against the
-    /// dense product in dual arithmetic; into an empty slot and added to
-    /// one. The values are the f64 congruence's, bit for bit.
+    /// In dual numbers, with the transform still, turning, and turning and
+    /// moving, against the dense product in dual arithmetic; into an empty
+    /// slot and added to one. The values are the f64 congruence's, bit for bit.
     #[test]
     fn dual_congruences_equal_the_dense_product_still_or_moving() {
         let (m, x, _) = sample();
@@ -595,11 +595,12 @@ mod tests {
         let inertia = m.zip_map(&rate, Dual64::new);
         // A turn's rate, Ė = −(ω×) E.
         let turning = -skew(&Vec3::new(0.7, -0.4, 1.1)) * x.rot;
-        for moving in [false, true] {
-            let speed = if moving { 1.0 } else { 0.0 };
+        // Still; turning about the child's origin; turning and moving it.
+        for (turn, shift) in [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0)] {
+            let moving = (turn, shift);
             let x = Transform {
-                rot: x.rot.zip_map(&turning, |value, rate| Dual64::new(value, speed * rate)),
-                trans: x.trans.map(|value| Dual64::new(value, speed * (value - 0.3))),
+                rot: x.rot.zip_map(&turning, |value, rate| Dual64::new(value, turn * rate)),
+                trans: x.trans.map(|value| Dual64::new(value, shift * (value - 0.3))),
             };
             let dense = x.motion_matrix().transpose() * inertia * x.motion_matrix();
             for replace in [true, false] {
@@ -608,11 +609,11 @@ mod tests {
                 x.add_inertia_to_parent(&inertia, &mut slot, replace);
                 let real_x = Transform { rot: x.rot.map(|entry| entry.re), trans: x.trans.map(|entry| entry.re) };
                 real_x.add_inertia_to_parent(&inertia.map(|entry| entry.re), &mut values, replace);
-                assert_eq!(slot.map(|entry| entry.re), values, "moving {moving}, replace {replace}");
+                assert_eq!(slot.map(|entry| entry.re), values, "moving {moving:?}, replace {replace}");
                 let expected = if replace { dense } else { inertia + dense };
                 for (got, want) in slot.iter().zip(&expected) {
-                    assert!((got.re - want.re).abs() < 1e-13, "moving {moving}, replace {replace}: {got} {want}");
-                    assert!((got.eps - want.eps).abs() < 1e-13, "moving {moving}, replace {replace}: {got} {want}");
+                    assert!((got.re - want.re).abs() < 1e-13, "moving {moving:?}, replace {replace}: {got} {want}");
+                    assert!((got.eps - want.eps).abs() < 1e-13, "moving {moving:?}, replace {replace}: {got} {want}");
                 }
             }
         }

@@ -42,7 +42,9 @@ pub(super) fn add_dual_congruence(
         let spin = rot_rate * values.rot.transpose();
         let omega =
             Vec3::new(spin[(1, 2)] - spin[(2, 1)], spin[(2, 0)] - spin[(0, 2)], spin[(0, 1)] - spin[(1, 0)]) * 0.5;
-        subtract_turning([&mut a, &mut b, &mut c], &omega, &(values.rot * trans_rate));
+        // A hinge or ball about the child's origin leaves it still: no linear part.
+        let linear = (trans_rate != Vec3::zeros()).then(|| values.rot * trans_rate);
+        subtract_turning([&mut a, &mut b, &mut c], &omega, linear.as_ref());
     }
     let term = congruence(&values, &a, &b, &c);
     if replace {
@@ -56,7 +58,7 @@ pub(super) fn add_dual_congruence(
 /// of I (v×) + (I (v×))ᵀ for v = (ω, l), read from the values:
 /// I (v×) = [A ω× + B l×, B ω×; Bᵀ ω× + C l×, C ω×], so its blocks are
 /// S + Sᵀ with S = A ω× + B l×; B ω× − ω× B − l× C; and C ω× − ω× C.
-fn subtract_turning([a, b, c]: [&mut Block; 3], omega: &Vec3, linear: &Vec3) {
+fn subtract_turning([a, b, c]: [&mut Block; 3], omega: &Vec3, linear: Option<&Vec3>) {
     let value = |m: &Block| -> [[f64; 3]; 3] { std::array::from_fn(|i| std::array::from_fn(|j| m[i][j].re)) };
     let (a_value, b_value, c_value) = (value(a), value(b), value(c));
     let b_transposed: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| b_value[j][i]));
@@ -64,14 +66,26 @@ fn subtract_turning([a, b, c]: [&mut Block; 3], omega: &Vec3, linear: &Vec3) {
     let times_cross = |m: &[[f64; 3]; 3], v: &Vec3| -> [[f64; 3]; 3] {
         m.map(|row| [row[1] * v[2] - row[2] * v[1], row[2] * v[0] - row[0] * v[2], row[0] * v[1] - row[1] * v[0]])
     };
-    let (a_omega, b_linear) = (times_cross(&a_value, omega), times_cross(&b_value, linear));
+    // S = A ω× (+ B l×), and the upper-right block's B ω× − ω× B (− l× C).
+    let mut s = times_cross(&a_value, omega);
     let (b_omega, bt_omega) = (times_cross(&b_value, omega), times_cross(&b_transposed, omega));
-    let (c_linear, c_omega) = (times_cross(&c_value, linear), times_cross(&c_value, omega));
+    let mut upper_right: [[f64; 3]; 3] =
+        std::array::from_fn(|i| std::array::from_fn(|j| b_omega[i][j] + bt_omega[j][i]));
+    if let Some(linear) = linear {
+        let (b_linear, c_linear) = (times_cross(&b_value, linear), times_cross(&c_value, linear));
+        for i in 0..3 {
+            for j in 0..3 {
+                s[i][j] += b_linear[i][j];
+                upper_right[i][j] += c_linear[j][i];
+            }
+        }
+    }
+    let c_omega = times_cross(&c_value, omega);
     for i in 0..3 {
         for j in 0..3 {
             // ω× B = −(Bᵀ ω×)ᵀ and l× C = −(C l×)ᵀ, C symmetric.
-            a[i][j].eps -= a_omega[i][j] + b_linear[i][j] + a_omega[j][i] + b_linear[j][i];
-            b[i][j].eps -= b_omega[i][j] + bt_omega[j][i] + c_linear[j][i];
+            a[i][j].eps -= s[i][j] + s[j][i];
+            b[i][j].eps -= upper_right[i][j];
             c[i][j].eps -= c_omega[i][j] + c_omega[j][i];
         }
     }
