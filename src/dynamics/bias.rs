@@ -109,15 +109,18 @@ fn bias_link<S: Real, const N: usize, const UNIT: usize, const RATES: bool, cons
     }
     let u: SVector<S, N> = -s_transpose_times::<_, N, UNIT>(s, &p_bias);
     let joint_bias = times!(r_inv, u);
-    // ν̇'s terms from the factor's rates, Ṙᵀw + RᵀĠᵀV⁺, which θ̈ does not need.
+    // ν̇'s terms from the factor's rates, Ṙᵀw + RᵀĠᵀV⁺, which θ̈ does not need,
+    // as products with vectors: Ṙᵀw = Φ(R⁻¹ḊR⁻ᵀ)ᵀ(Rᵀw), and RᵀD⁻¹ = R⁻¹ (D = RRᵀ),
+    // so RᵀĠᵀV⁺ = R⁻¹((İ^A S)ᵀV⁺ − Ḋ(GᵀV⁺)).
+    // Ṙ and Ġ themselves, N×N and N×6, are never formed: for a free base that
+    // is four 6×6 products fewer.
     let rates = RATES.then(|| {
-        let d_inv = times!(r_inv.transpose(), r_inv);
         let w: SVector<S, N> = owned(ws.w_joint.fixed_rows::<N>(adr));
         let ia_dot_s: SMatrix<S, 6, N> = ia_dot.map_or_else(SMatrix::zeros, |ia_dot| times_s::<_, N, UNIT>(ia_dot, s));
         let d_dot = s_transpose_times_columns::<_, N, UNIT>(s, &ia_dot_s);
-        let gain_t_dot = times!(d_inv, ia_dot_s.transpose() - times!(d_dot, gain.transpose()));
-        let r_dot = times!(r, upper_half(&times!(times!(r_inv, d_dot), r_inv.transpose())));
-        (times!(r_dot.transpose(), w) + times!(r.transpose(), times!(gain_t_dot, v_plus)), ia_dot_s, d_dot)
+        let turn = upper_half(&times!(times!(r_inv, d_dot), r_inv.transpose()));
+        let gain_rate = times!(ia_dot_s.transpose(), v_plus) - times!(d_dot, times!(gain.transpose(), v_plus));
+        (times!(turn.transpose(), times!(r.transpose(), w)) + times!(r_inv, gain_rate), ia_dot_s, d_dot)
     });
 
     // Springs, dampers and gravity.
