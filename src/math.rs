@@ -65,6 +65,8 @@ pub trait Real:
 impl Real for f64 {
     const SPECIALIZED: bool = true;
 
+    /// The blockwise congruence itself ([`Transform::add_inertia_to_parent`]
+    /// forms it in place for `f64` and calls this for the other scalars only).
     #[inline(always)]
     fn add_congruence(x: &Transform, inertia: &SpatialMat, slot: &mut SpatialMat, replace: bool) {
         x.add_inertia_to_parent(inertia, slot, replace);
