@@ -38,6 +38,7 @@
 use nalgebra::{DMatrix, Quaternion};
 use num_dual::Dual64;
 
+use super::configuration_tangent::ConfigurationTangent;
 use super::constraint::{ConstraintRows, KeptColumns, limit_switching_functions};
 use super::sensors::{cutoff_switch, sensors_need_accelerations};
 use super::velocity::{self, Given};
@@ -252,6 +253,13 @@ struct Passes {
     /// The constraint rows' columns of E the last run formed, which such a
     /// run takes again.
     kept_columns: KeptColumns,
+    /// The configuration passes in `f64` at θ = `values_theta` (when
+    /// `values_current`), from which [`ConfigurationTangent`] fills `ws`'s
+    /// configuration for a run at that θ along any direction.
+    values: Workspace,
+    values_theta: Vec<f64>,
+    values_current: bool,
+    tangent: ConfigurationTangent,
 }
 
 impl Passes {
@@ -270,7 +278,35 @@ impl Passes {
             configuration_still: false,
             still_theta: vec![0.0; model.nq],
             kept_columns: KeptColumns::new(model),
+            values: model.workspace(),
+            values_theta: vec![0.0; model.nq],
+            values_current: false,
+            tangent: ConfigurationTangent::new(model),
         }
+    }
+
+    /// `ws`'s θ and configuration passes at `theta` along θ's rate
+    /// `self.theta_rates`: from the `f64` passes' values and the derivatives'
+    /// sweep where it covers the model (configuration_tangent.rs), else the
+    /// passes in dual numbers.
+    fn configuration(&mut self, model: &Model, theta: &[f64]) -> Result<(), DerivativeError> {
+        let ws = &mut self.ws;
+        if !ConfigurationTangent::covers(model) {
+            seed(ws.theta.as_mut_slice(), theta, &self.theta_rates);
+            return Ok(ws.configuration_passes(model)?);
+        }
+        if !(self.values_current && self.values_theta == theta) {
+            self.values_current = false;
+            self.values.theta.copy_from_slice(theta);
+            self.values.configuration_passes(model)?;
+            self.values_theta.copy_from_slice(theta);
+            self.values_current = true;
+        }
+        self.tangent.fill(model, &self.values, theta, &self.theta_rates, ws);
+        if !model.gravity_compensation.is_empty() {
+            super::gravity_compensation::gravity_compensation_pass(model, ws);
+        }
+        Ok(())
     }
 
     /// The passes `outputs` need at `point` along `direction` (checked),
@@ -286,14 +322,13 @@ impl Passes {
         (self.qacc_current, self.sensors_current, self.momentum) = (false, false, None);
         theta_rates(model, point.theta, direction, &mut self.theta_rates);
         let still = self.theta_rates.iter().all(|&rate| rate == 0.0);
-        let ws = &mut self.ws;
         let reused = still && self.configuration_still && self.still_theta == point.theta;
         self.kept_columns.still(reused);
         if !reused {
             self.configuration_still = false;
-            seed(ws.theta.as_mut_slice(), point.theta, &self.theta_rates);
-            ws.stage = Stage::Empty;
-            ws.configuration_passes(model)?;
+            self.ws.stage = Stage::Empty;
+            self.configuration(model, point.theta)?;
+            let ws = &mut self.ws;
             if !model.tendons.is_empty() {
                 ws.tendon_kinematics(model);
             }
@@ -305,6 +340,7 @@ impl Passes {
                 self.configuration_still = true;
             }
         }
+        let ws = &mut self.ws;
         ws.stage = Stage::Configuration;
         let velocity = match point.given {
             Given::Nu => ws.nu.as_mut_slice(),

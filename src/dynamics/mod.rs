@@ -23,6 +23,7 @@ pub mod actuation;
 pub mod articulated;
 pub mod bias;
 pub mod box_qp;
+mod configuration_tangent;
 pub mod constraint;
 pub mod derivatives;
 mod equality;
