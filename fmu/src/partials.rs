@@ -18,6 +18,7 @@ use nudyn::dynamics::constraint::ConstraintRows;
 use nudyn::dynamics::derivatives::{DerivativeError, Derivatives, Direction, Output, Point, ThetaDirection};
 use nudyn::dynamics::velocity::Given;
 use nudyn::model::Model;
+use nudyn::workspace::Workspace;
 use nudyn_contract::plant::{Layout, RealVariable, derivatives_cover};
 
 use crate::component::CallError;
@@ -45,6 +46,9 @@ pub struct At<'a> {
     pub rows: &'a ConstraintRows,
     /// The time, which the clock sensors read.
     pub time: f64,
+    /// The plant's evaluations' workspace, whose configuration the
+    /// derivatives take where it was evaluated at θ.
+    pub evaluated: &'a Workspace,
 }
 
 /// The dual workspace, or why the FMU has no derivatives, and the buffers
@@ -206,10 +210,12 @@ impl Partials {
                 count += 1;
             }
         }
-        derivatives.run(at.model, &point, &direction, &outputs[..count]).map_err(|error| match error {
-            DerivativeError::Dynamics(error) => CallError::Evaluate(error),
-            DerivativeError::OnSwitch(switches) => CallError::OneSided(switches),
-            other => unreachable!("the directions are sized by the model: {other}"),
+        derivatives.run_after(at.model, at.evaluated, &point, &direction, &outputs[..count]).map_err(|error| {
+            match error {
+                DerivativeError::Dynamics(error) => CallError::Evaluate(error),
+                DerivativeError::OnSwitch(switches) => CallError::OneSided(switches),
+                other => unreachable!("the directions are sized by the model: {other}"),
+            }
         })?;
         for (out, d) in self.qvel.iter_mut().zip(derivatives.derivative(Output::Qvel)) {
             *out = d;

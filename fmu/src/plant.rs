@@ -721,9 +721,10 @@ impl Component for Plant {
         sensitivity: &mut [f64],
     ) -> Result<(), CallError> {
         let (model, layout, state) = (&self.model, &self.layout, &self.sim.state);
-        let rows = &self.sim.workspace().constraint_rows;
+        let evaluated = self.sim.workspace();
+        let rows = &evaluated.constraint_rows;
         let (theta, nu, act, time) = (&state.theta, &state.nu, self.sim.act(model), state.time);
-        let at = At { model, layout, theta, nu, eps: &self.eps, ctrl: &self.ctrl, act, rows, time };
+        let at = At { model, layout, theta, nu, eps: &self.eps, ctrl: &self.ctrl, act, rows, time, evaluated };
         self.partials.directional(&at, unknowns, knowns, seed, sensitivity)
     }
 
@@ -735,9 +736,10 @@ impl Component for Plant {
         sensitivity: &mut [f64],
     ) -> Result<(), CallError> {
         let (model, layout, state) = (&self.model, &self.layout, &self.sim.state);
-        let rows = &self.sim.workspace().constraint_rows;
+        let evaluated = self.sim.workspace();
+        let rows = &evaluated.constraint_rows;
         let (theta, nu, act, time) = (&state.theta, &state.nu, self.sim.act(model), state.time);
-        let at = At { model, layout, theta, nu, eps: &self.eps, ctrl: &self.ctrl, act, rows, time };
+        let at = At { model, layout, theta, nu, eps: &self.eps, ctrl: &self.ctrl, act, rows, time, evaluated };
         self.partials.adjoint(&at, unknowns, knowns, seed, sensitivity)
     }
 

@@ -43,7 +43,7 @@ use super::constraint::{ConstraintRows, KeptColumns, limit_switching_functions};
 use super::sensors::{cutoff_switch, sensors_need_accelerations};
 use super::velocity::{self, Given};
 use super::{DynamicsError, bias, check_input, forces};
-use crate::math::{Real, quat_from_wxyz};
+use crate::math::{Real, normalize_wxyz, quat_from_wxyz};
 use crate::model::{LinkJoint, Model};
 use crate::workspace::{Stage, Workspace};
 
@@ -288,21 +288,30 @@ impl Passes {
     /// `ws`'s θ and configuration passes at `theta` along θ's rate
     /// `self.theta_rates`: from the `f64` passes' values and the derivatives'
     /// sweep where it covers the model (configuration_tangent.rs), else the
-    /// passes in dual numbers.
-    fn configuration(&mut self, model: &Model, theta: &[f64]) -> Result<(), DerivativeError> {
+    /// passes in dual numbers. The values are `offered`'s where its
+    /// configuration passes ran at `theta`, else those of the `f64` passes
+    /// run here (kept for the next run at the same θ).
+    fn configuration(
+        &mut self,
+        model: &Model,
+        theta: &[f64],
+        offered: Option<&Workspace>,
+    ) -> Result<(), DerivativeError> {
         let ws = &mut self.ws;
         if !ConfigurationTangent::covers(model) {
             seed(ws.theta.as_mut_slice(), theta, &self.theta_rates);
             return Ok(ws.configuration_passes(model)?);
         }
-        if !(self.values_current && self.values_theta == theta) {
+        let offered = offered.filter(|values| configured_at(model, values, theta));
+        if offered.is_none() && !(self.values_current && self.values_theta == theta) {
             self.values_current = false;
             self.values.theta.copy_from_slice(theta);
             self.values.configuration_passes(model)?;
             self.values_theta.copy_from_slice(theta);
             self.values_current = true;
         }
-        self.tangent.fill(model, &self.values, theta, &self.theta_rates, ws);
+        let values = offered.unwrap_or(&self.values);
+        self.tangent.fill(model, values, theta, &self.theta_rates, ws);
         if !model.gravity_compensation.is_empty() {
             super::gravity_compensation::gravity_compensation_pass(model, ws);
         }
@@ -318,6 +327,7 @@ impl Passes {
         direction: &Direction,
         outputs: &[Output],
         switches: &mut Switches,
+        offered: Option<&Workspace>,
     ) -> Result<(), DerivativeError> {
         (self.qacc_current, self.sensors_current, self.momentum) = (false, false, None);
         theta_rates(model, point.theta, direction, &mut self.theta_rates);
@@ -327,7 +337,7 @@ impl Passes {
         if !reused {
             self.configuration_still = false;
             self.ws.stage = Stage::Empty;
-            self.configuration(model, point.theta)?;
+            self.configuration(model, point.theta, offered)?;
             let ws = &mut self.ws;
             if !model.tendons.is_empty() {
                 ws.tendon_kinematics(model);
@@ -569,7 +579,25 @@ impl Derivatives {
     ) -> Result<(), DerivativeError> {
         check_point(model, point)?;
         check_direction(model, point, direction)?;
-        self.passes.run(model, point, direction, outputs, &mut self.switches)
+        self.passes.run(model, point, direction, outputs, &mut self.switches, None)
+    }
+
+    /// [`Derivatives::run`], taking the configuration's values from
+    /// `evaluated` (an `f64` workspace, as an FMU's or an integrator's
+    /// evaluations leave it) where its configuration passes ran at the
+    /// point's θ: a direction then reruns none of them. Where they did not
+    /// (another θ, or not run), the same as [`Derivatives::run`].
+    pub fn run_after(
+        &mut self,
+        model: &Model,
+        evaluated: &Workspace,
+        point: &Point,
+        direction: &Direction,
+        outputs: &[Output],
+    ) -> Result<(), DerivativeError> {
+        check_point(model, point)?;
+        check_direction(model, point, direction)?;
+        self.passes.run(model, point, direction, outputs, &mut self.switches, Some(evaluated))
     }
 
     /// The derivative of `output` along the last run's direction; panics
@@ -643,7 +671,7 @@ impl Derivatives {
             for column in 0..count {
                 unit[column] = 1.0;
                 let direction = Direction::along(input, &unit, &zeros);
-                let run = self.passes.run(model, point, &direction, &outputs, &mut self.switches);
+                let run = self.passes.run(model, point, &direction, &outputs, &mut self.switches, None);
                 unit[column] = 0.0;
                 run?;
                 for (jacobian, output) in jacobians.iter_mut().zip(outputs) {
@@ -679,6 +707,26 @@ pub fn qpos_rate<S: Real>(model: &Model, theta: &[S], qvel: &[S], k: usize) -> S
         (LinkJoint::Ball, _) => half(q[0] * w[2] + q[1] * w[1] - q[2] * w[0]),
         (_, i) => w[i],
     }
+}
+
+/// Whether `values`' configuration passes ran at `theta`: they did (their
+/// stage says so) at a θ whose quaternions normalize to the bits of
+/// `values.theta`, which the passes normalized in place, and whose other
+/// entries are `values.theta`'s.
+fn configured_at(model: &Model, values: &Workspace, theta: &[f64]) -> bool {
+    if values.stage < Stage::Configuration {
+        return false;
+    }
+    model.links.iter().all(|link| {
+        let (q, held) = (&theta[link.qpos_adr..], &values.theta.as_slice()[link.qpos_adr..]);
+        match link.joint {
+            LinkJoint::Ball => {
+                let mut unit = [q[0], q[1], q[2], q[3]];
+                normalize_wxyz(&mut unit).is_some() && unit.iter().zip(held).all(|(a, b)| a.to_bits() == b.to_bits())
+            }
+            _ => q[..link.ndof].iter().zip(held).all(|(a, b)| a.to_bits() == b.to_bits()),
+        }
+    })
 }
 
 /// The point's entries: their lengths, and finite.

@@ -173,7 +173,7 @@ impl ExactJacobian {
             for column in 0..model.nv {
                 self.unit[column] = 1.0;
                 let direction = Direction::along(input, &self.unit, &self.zeros);
-                let run = self.derivatives.run(model, &point, &direction, &[Output::Qacc]);
+                let run = self.derivatives.run_after(model, ws, &point, &direction, &[Output::Qacc]);
                 self.unit[column] = 0.0;
                 run?;
                 for (entry, derivative) in

@@ -400,6 +400,60 @@ fn columns_reusing_the_configuration_equal_fresh_runs() {
     }
 }
 
+/// `run_after` takes the configuration's values from an evaluated f64
+/// workspace only where its passes ran at the point's θ (a quaternion off
+/// unit length included): the derivatives are then the bits of `run`'s;
+/// a workspace corrupted after its passes shows that its values are the
+/// ones taken, and at another θ or before any pass it is left alone.
+#[test]
+fn an_evaluated_workspace_lends_its_configuration_at_the_point_only() {
+    let mut cases = [
+        case(1, true),
+        file_case("tests/fixtures/sensors/every_sensor.xml", 0),
+        constrained_case("tests/fixtures/constraints/docked_servicer.xml", 0, 0.05),
+    ];
+    for (index, case) in cases.iter_mut().enumerate() {
+        let model = &case.model;
+        for link in model.links.iter().filter(|l| l.joint == LinkJoint::Ball) {
+            case.theta[link.qpos_adr..link.qpos_adr + 4].iter_mut().for_each(|c| *c *= 1.3);
+        }
+        let at = point(case, Given::Nu);
+        let along: Vec<f64> = (0..model.nq).map(|k| (0.37 * k as f64 + 0.1).sin()).collect();
+        let velocity: Vec<f64> = (0..model.nv).map(|k| (0.7 * k as f64).cos()).collect();
+        let (zeros, no_ctrl) = (vec![0.0; model.nv], vec![0.0; model.actuators.len()]);
+        let direction = Direction {
+            theta: &along,
+            theta_in: ThetaDirection::Coordinates,
+            velocity: &velocity,
+            ..nowhere(&zeros, &no_ctrl)
+        };
+        let outputs = [Output::NuDot, Output::Sensordata];
+        let mut reference = Derivatives::new(model);
+        reference.run(model, &at, &direction, &outputs).unwrap();
+        let derivatives_after = |evaluated: &Workspace| {
+            let mut derivatives = Derivatives::new(model);
+            derivatives.run_after(model, evaluated, &at, &direction, &outputs).unwrap();
+            outputs.map(|output| derivatives.derivative(output).collect::<Vec<_>>())
+        };
+        let same = |found: &[Vec<f64>; 2]| {
+            outputs.iter().zip(found).all(|(&output, found)| {
+                reference.derivative(output).zip(found).all(|(a, b)| a.to_bits() == b.to_bits())
+            })
+        };
+        let mut evaluated = model.workspace();
+        assert!(same(&derivatives_after(&evaluated)), "case {index}: a workspace before any pass");
+        evaluated.set_configuration(model, &case.theta).unwrap();
+        assert!(same(&derivatives_after(&evaluated)), "case {index}: a workspace at the point");
+        let elsewhere: Vec<f64> = case.theta.iter().map(|q| q + 1e-3).collect();
+        evaluated.set_configuration(model, &elsewhere).unwrap();
+        assert!(same(&derivatives_after(&evaluated)), "case {index}: a workspace at another θ");
+        evaluated.set_configuration(model, &case.theta).unwrap();
+        let last = model.links.len() - 1;
+        evaluated.r_inv_joint[last][(0, 0)] *= 1.25;
+        assert!(!same(&derivatives_after(&evaluated)), "case {index}: the evaluated values were not taken");
+    }
+}
+
 /// The vehicle's spatial momentum, an output of the FMU, on rigid trees,
 /// flexible bodies, children at their nodes and bodies welded there.
 #[test]
