@@ -60,10 +60,23 @@ pub trait Real:
     /// arithmetic for `f64`, and for dual numbers on (value, derivative)
     /// pairs with the transform in `f64` (dual_congruence.rs).
     fn add_congruence(x: &Transform<Self>, inertia: &SpatialMat<Self>, slot: &mut SpatialMat<Self>, replace: bool);
+
+    /// atan2(self, x), the angle of the point (x, self), whose derivative
+    /// is (x ẏ − y ẋ) / (x² + y²) wherever the point is not the origin.
+    /// The generic code takes this where atan2 is smooth, not
+    /// `RealField::atan2`: num-dual's differentiates atan(y/x), which is NaN
+    /// at x = 0 (a side site straight below a cylinder's axis) and where x²
+    /// underflows.
+    fn atan2_differentiable(self, x: Self) -> Self;
 }
 
 impl Real for f64 {
     const SPECIALIZED: bool = true;
+
+    #[inline(always)]
+    fn atan2_differentiable(self, x: f64) -> f64 {
+        self.atan2(x)
+    }
 
     /// The blockwise congruence itself ([`Transform::add_inertia_to_parent`]
     /// forms it in place for `f64` and calls this for the other scalars only).
@@ -85,6 +98,12 @@ impl Real for f64 {
 
 impl Real for Dual64 {
     const SPECIALIZED: bool = false;
+
+    #[inline]
+    fn atan2_differentiable(self, x: Dual64) -> Dual64 {
+        let squared_radius = x.re * x.re + self.re * self.re;
+        Dual64::new(self.re.atan2(x.re), (x.re * self.eps - self.re * x.eps) / squared_radius)
+    }
 
     #[inline(always)]
     fn add_congruence(x: &Transform<Self>, inertia: &SpatialMat<Self>, slot: &mut SpatialMat<Self>, replace: bool) {
@@ -531,6 +550,30 @@ pub fn quat_difference<S: Real>(qa: &Quat<S>, qb: &Quat<S>) -> Vec3<S> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// atan2's derivative in dual numbers against central differences of
+    /// f64's atan2, at points on and beside the y axis (num-dual's own gives
+    /// NaN on it and, along x, where x² underflows) and off it, in every quadrant
+    /// clear of the cut along the negative x axis.
+    #[test]
+    fn atan2_is_differentiable_wherever_it_is_smooth() {
+        let points =
+            [(0.0, -0.08), (-0.0, 0.3), (1e-170, -0.08), (-1e-170, 2.0), (0.3, 0.4), (-0.7, 0.2), (-0.5, -1e-3)];
+        for (x, y) in points {
+            for (dx, dy) in [(1.0, 0.0), (0.0, 1.0), (0.6, -0.8)] {
+                let exact = Dual64::new(y, dy).atan2_differentiable(Dual64::new(x, dx));
+                let at = |h: f64| (y + h * dy).atan2(x + h * dx);
+                let central = |h: f64| (at(h) - at(-h)) / (2.0 * h);
+                let differenced = (4.0 * central(5e-5) - central(1e-4)) / 3.0;
+                assert_eq!(exact.re, y.atan2(x), "({x}, {y})");
+                assert!(
+                    (exact.eps - differenced).abs() < 1e-8 * (1.0 + differenced.abs()),
+                    "({x}, {y}) along ({dx}, {dy}): {} against {differenced}",
+                    exact.eps
+                );
+            }
+        }
+    }
 
     #[test]
     fn quaternions_normalize_exactly_at_any_finite_scale() {

@@ -166,7 +166,7 @@ fn arc_length<S: Real>(p0: &Point<S>, p1: &Point<S>, second: bool, radius: f64, 
     // MuJoCo's acos of the dot product, as atan2 of |cross| and dot: the same
     // angle, but acos near 1 keeps half the digits (an arc of 1e-8 rad reads
     // 0), where a wrap coming on starts.
-    let mut angle = (u0[0] * u1[1] - u0[1] * u1[0]).abs().atan2(u0[0] * u1[0] + u0[1] * u1[1]);
+    let mut angle = (u0[0] * u1[1] - u0[1] * u1[0]).abs().atan2_differentiable(u0[0] * u1[0] + u0[1] * u1[1]);
     let cross = (p0[1] * p1[0] - p0[0] * p1[1]).value();
     if (cross > 0.0 && second) || (cross < 0.0 && !second) {
         angle = if continued { -angle } else { -angle + 2.0 * PI };
@@ -269,7 +269,11 @@ fn wrap_circle_through<S: Real>(
     if norm0.value() < radius || norm1.value() < radius || radius < MIN_VALUE {
         return (WrapPath::Straight, None);
     }
-    let (angle0, angle1, angle_side) = (ends[1].atan2(ends[0]), ends[3].atan2(ends[2]), side[1].atan2(side[0]));
+    let (angle0, angle1, angle_side) = (
+        ends[1].atan2_differentiable(ends[0]),
+        ends[3].atan2_differentiable(ends[2]),
+        side[1].atan2_differentiable(side[0]),
+    );
     let mut turns = [turn(angle_side - angle0), turn(angle1 - angle_side)];
     let (tangent0, tangent1) = ((S::from(radius) / norm0).acos(), (S::from(radius) / norm1).acos());
     let mut winding = turns[0] + turns[1];

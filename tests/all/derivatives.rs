@@ -542,6 +542,30 @@ fn jacobians_with_tendons_agree_with_central_differences_of_the_passes() {
     }
 }
 
+/// tendon_sidesite at a state of `tests/python/test_linearize.py`'s draw
+/// where the flexor's side site, straight below the cylinder's axis, lies
+/// at x = 0 exactly in the wrap's plane, at angle atan2(−0.08, 0): its
+/// derivative was NaN there (num-dual differentiates atan(y/x)), and
+/// `nudyn linearize` refused the state.
+#[test]
+fn a_side_site_on_the_wrap_planes_axis_has_finite_derivatives() {
+    let theta = vec![
+        -0.02696759246661383,
+        -0.22154906384346068,
+        0.5829093975826143,
+        0.9103407876553549,
+        0.057286411113582264,
+        -0.4031590199986246,
+        0.07389669834642376,
+        0.185800239422986,
+        1.0987461717255034,
+        -0.5587167206748891,
+        0.31260625317915913,
+    ];
+    let case = file_case_at("tests/fixtures/tendons/tendon_sidesite.xml", 7, |_, _, _| theta);
+    assert_agrees_with_differences(&case, "tendon_sidesite, side site at x = 0", 1e-8);
+}
+
 /// A constrained vehicle file near its qpos0 (each dof moved by up to
 /// `spread` in the tangent space, velocities up to 0.5), the actuators' ctrl
 /// inside their ranges.
