@@ -34,9 +34,17 @@ RUNS=3
 declare -A FUZZ_INPUTS=([mjcf_import]=50000 [resource_loader]=50000 [state_deserializer]=900
     [call_sequence]=500 [call_sequence_fmi3]=5000)
 FUZZ_SECONDS=
+# libFuzzer's -timeout per input is wall-clock time. Beside the Python tests
+# at the lowest priority a fuzzer may get a few per cent of a core, so an
+# input that takes 0.6 s (the 1500-deep seed chain, instrumented) ran past
+# 20 s there while other builds shared the machine; the CI's short run allows
+# 120 s, which still stops a hang. --long, a core per target, keeps 20 s and
+# so still finds the slow inputs.
+INPUT_TIMEOUT=120
 if [ "${1:-}" = "--long" ]; then
     RUNS=20
     FUZZ_SECONDS=600
+    INPUT_TIMEOUT=20
 fi
 
 # cargo fuzz needs nightly flags (-Zsanitizer); the stable toolchain accepts
@@ -180,7 +188,7 @@ fuzz_one() {
         echo "stress-fmu: fuzzing $target for ${FUZZ_INPUTS[$target]} inputs"
     fi
     (cd fuzz && nice cargo fuzz run --release "$target" "corpus/$target" "$SEEDS/$target" -- \
-        "$limit" -timeout=20 -rss_limit_mb=4096 -print_final_stats=1 \
+        "$limit" -timeout="$INPUT_TIMEOUT" -rss_limit_mb=4096 -print_final_stats=1 \
         2>"$WORK/fuzz-$target.txt") || {
         tail -n 60 "$WORK/fuzz-$target.txt" >&2
         echo "stress-fmu: $target crashed; the input is in fuzz/artifacts/$target/" >&2
