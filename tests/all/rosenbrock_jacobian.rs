@@ -40,10 +40,14 @@ fn first_w(model: &Model, source: JacobianSource, displaced: f64) -> (HeldJacobi
     (w, stats)
 }
 
-/// max |a − b| / max |b| over each block of W (∂θ̈/∂Δ, then ∂θ̈/∂θ̇).
+/// max |a − b| / max |b| over each block of W (∂θ̈/∂Δ, then ∂θ̈/∂θ̇); NaN
+/// where an entry is (`f64::max` would pass over it).
 fn block_differences(model: &Model, exact: &HeldJacobian, differenced: &HeldJacobian) -> [f64; 2] {
     let block = model.nv * model.nv;
     let relative = |a: &[f64], b: &[f64]| {
+        if a.iter().chain(b).any(|x| x.is_nan()) {
+            return f64::NAN;
+        }
         let scale = b.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
         a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max) / scale
     };
