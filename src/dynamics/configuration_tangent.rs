@@ -234,6 +234,15 @@ mod tests {
         [difference[0] / scale[0], difference[1] / scale[1]]
     }
 
+    /// [`differences`] of the entries `entries` gives of each item of `a` and `b`.
+    fn compare<'a, T, I: Iterator<Item = &'a Dual64>>(
+        a: &'a [T],
+        b: &'a [T],
+        entries: impl Fn(&'a T) -> I + Copy,
+    ) -> [f64; 2] {
+        differences(a.iter().flat_map(entries), b.iter().flat_map(entries))
+    }
+
     /// Every quantity of passes 0 and 1, filled from the `f64` values and
     /// the sweep, against the passes run in dual numbers, at a θ with
     /// quaternions off unit length, along directions in θ's coordinates
@@ -275,34 +284,10 @@ mod tests {
             let with_parent = |m: &Model, i: usize| m.links[i].parent.is_some();
             let differences = [
                 ("theta", differences(dual.theta.iter(), filled.theta.iter())),
-                (
-                    "x_parent rot",
-                    differences(
-                        dual.x_parent.iter().flat_map(|x| x.rot.iter()),
-                        filled.x_parent.iter().flat_map(|x| x.rot.iter()),
-                    ),
-                ),
-                (
-                    "x_parent trans",
-                    differences(
-                        dual.x_parent.iter().flat_map(|x| x.trans.iter()),
-                        filled.x_parent.iter().flat_map(|x| x.trans.iter()),
-                    ),
-                ),
-                (
-                    "x_world rot",
-                    differences(
-                        dual.x_world.iter().flat_map(|x| x.rot.iter()),
-                        filled.x_world.iter().flat_map(|x| x.rot.iter()),
-                    ),
-                ),
-                (
-                    "x_world trans",
-                    differences(
-                        dual.x_world.iter().flat_map(|x| x.trans.iter()),
-                        filled.x_world.iter().flat_map(|x| x.trans.iter()),
-                    ),
-                ),
+                ("x_parent rot", compare(&dual.x_parent, &filled.x_parent, |x| x.rot.iter())),
+                ("x_parent trans", compare(&dual.x_parent, &filled.x_parent, |x| x.trans.iter())),
+                ("x_world rot", compare(&dual.x_world, &filled.x_world, |x| x.rot.iter())),
+                ("x_world trans", compare(&dual.x_world, &filled.x_world, |x| x.trans.iter())),
                 (
                     "ia_reduced",
                     differences(
@@ -314,24 +299,9 @@ mod tests {
                             .flat_map(|i| filled.ia_reduced[i].iter()),
                     ),
                 ),
-                (
-                    "gain",
-                    differences(dual.gain.iter().flat_map(|g| g.iter()), filled.gain.iter().flat_map(|g| g.iter())),
-                ),
-                (
-                    "r_joint",
-                    differences(
-                        dual.r_joint.iter().flat_map(|r| r.iter()),
-                        filled.r_joint.iter().flat_map(|r| r.iter()),
-                    ),
-                ),
-                (
-                    "r_inv_joint",
-                    differences(
-                        dual.r_inv_joint.iter().flat_map(|r| r.iter()),
-                        filled.r_inv_joint.iter().flat_map(|r| r.iter()),
-                    ),
-                ),
+                ("gain", compare(&dual.gain, &filled.gain, |g| g.iter())),
+                ("r_joint", compare(&dual.r_joint, &filled.r_joint, |r| r.iter())),
+                ("r_inv_joint", compare(&dual.r_inv_joint, &filled.r_inv_joint, |r| r.iter())),
             ];
             for (what, [value, rate]) in differences {
                 assert!(value < 1e-13, "{file}: {what}'s values differ by {value:e} of the largest");

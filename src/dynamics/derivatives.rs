@@ -577,9 +577,7 @@ impl Derivatives {
         direction: &Direction,
         outputs: &[Output],
     ) -> Result<(), DerivativeError> {
-        check_point(model, point)?;
-        check_direction(model, point, direction)?;
-        self.passes.run(model, point, direction, outputs, &mut self.switches, None)
+        self.checked_run(model, point, direction, outputs, None)
     }
 
     /// [`Derivatives::run`], taking the configuration's values from
@@ -595,9 +593,22 @@ impl Derivatives {
         direction: &Direction,
         outputs: &[Output],
     ) -> Result<(), DerivativeError> {
+        self.checked_run(model, point, direction, outputs, Some(evaluated))
+    }
+
+    /// The point and direction checked, then the passes, with the `f64`
+    /// configuration `offered` where it was evaluated at the point's θ.
+    fn checked_run(
+        &mut self,
+        model: &Model,
+        point: &Point,
+        direction: &Direction,
+        outputs: &[Output],
+        offered: Option<&Workspace>,
+    ) -> Result<(), DerivativeError> {
         check_point(model, point)?;
         check_direction(model, point, direction)?;
-        self.passes.run(model, point, direction, outputs, &mut self.switches, Some(evaluated))
+        self.passes.run(model, point, direction, outputs, &mut self.switches, offered)
     }
 
     /// The derivative of `output` along the last run's direction; panics
