@@ -821,13 +821,17 @@ pub fn motor(transmission: Transmission, gear: [f64; 6]) -> Actuator {
     }
 }
 
-/// max |a − b| / max(1, max |b|); NaN where an entry of either is NaN
-/// (`f64::max` would pass over it, and a NaN is no agreement).
+/// max |a − b| / max(1, max |b|); NaN where an entry of either is NaN.
 pub fn rel_err(a: &[f64], b: &[f64]) -> f64 {
+    max_abs_difference(a, b) / b.iter().fold(1.0f64, |m, x| m.max(x.abs()))
+}
+
+/// max |a − b|; NaN where an entry of either is NaN (`f64::max` would pass
+/// over it, and a NaN is no agreement).
+pub fn max_abs_difference(a: &[f64], b: &[f64]) -> f64 {
     assert_eq!(a.len(), b.len(), "length mismatch");
     if a.iter().chain(b).any(|x| x.is_nan()) {
         return f64::NAN;
     }
-    let scale = b.iter().fold(1.0f64, |m, x| m.max(x.abs()));
-    a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / scale
+    a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
 }

@@ -8,6 +8,8 @@ use std::path::Path;
 use nudyn::integrate::{HeldJacobian, Input, JacobianSource, Method, Settings, Simulation, Stats, retract};
 use nudyn::model::Model;
 
+use crate::common;
+
 fn load(path: &str) -> Model {
     let imported = nudyn::mjcf::load_mjcf(Path::new(path)).unwrap();
     Model::compile(&imported.vehicle).unwrap()
@@ -41,16 +43,11 @@ fn first_w(model: &Model, source: JacobianSource, displaced: f64) -> (HeldJacobi
 }
 
 /// max |a − b| / max |b| over each block of W (∂θ̈/∂Δ, then ∂θ̈/∂θ̇); NaN
-/// where an entry is (`f64::max` would pass over it).
+/// where an entry is.
 fn block_differences(model: &Model, exact: &HeldJacobian, differenced: &HeldJacobian) -> [f64; 2] {
     let block = model.nv * model.nv;
-    let relative = |a: &[f64], b: &[f64]| {
-        if a.iter().chain(b).any(|x| x.is_nan()) {
-            return f64::NAN;
-        }
-        let scale = b.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
-        a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max) / scale
-    };
+    let relative =
+        |a: &[f64], b: &[f64]| common::max_abs_difference(a, b) / b.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
     let (a, b) = (exact.derivatives.split_at(block), differenced.derivatives.split_at(block));
     [relative(a.0, b.0), relative(a.1, b.1)]
 }
