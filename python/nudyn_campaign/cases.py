@@ -1,7 +1,9 @@
 """What a worker does: fly a chunk of cases through the campaign's FMUs.
 
 Each chunk extracts its FMUs into a temporary folder of its own, removed
-when the chunk ends however it ends, and makes one instance per FMU; between
+when the chunk ends however it ends (inside the Dask worker's own folder,
+which Dask purges once it finds the worker dead, so that a worker killed
+mid-chunk leaves nothing behind either), and makes one instance per FMU; between
 cases it resets them (fmi2Reset) rather than instantiating again. A case
 that the FMU refuses or discards is a row with its status and message,
 never an exception.
@@ -39,11 +41,25 @@ def _package(fmu: bytes, directory: Path) -> FmuPackage:
     return FmuPackage(directory)
 
 
+def _scratch_parent() -> str | None:
+    """Where a chunk's temporary folders go: the Dask worker's own folder
+    when a worker runs the chunk (a worker killed with SIGKILL, by a user or
+    a cluster's preemption, cannot remove its files; the next worker started
+    on that machine purges the folder of a dead one), else the temporary
+    directory."""
+    try:
+        from distributed import get_worker
+
+        return get_worker().local_directory
+    except (ImportError, ValueError):  # not in a worker
+        return None
+
+
 def _reference(mjcf: str) -> Reference:
     key = hashlib.sha256(mjcf.encode()).hexdigest()
     if key not in _REFERENCES:
         # MuJoCo reads the model whole: the file is not needed once it is loaded.
-        with tempfile.TemporaryDirectory(prefix="nudyn-campaign-") as directory:
+        with tempfile.TemporaryDirectory(prefix="nudyn-campaign-", dir=_scratch_parent()) as directory:
             path = Path(directory) / "model.xml"
             path.write_text(mjcf)
             _REFERENCES[key] = Reference.from_file(path)
@@ -107,7 +123,7 @@ def run_chunk(spec: dict, plant_fmu: bytes, controller_fmu: bytes | None, mjcf: 
     """Rows (drawn values, metrics, status, message) of `cases`: pairs of
     the case index and its drawn values. `mjcf` (for qvel) is None for a
     system file's FMUs."""
-    with tempfile.TemporaryDirectory(prefix="nudyn-campaign-") as scratch:
+    with tempfile.TemporaryDirectory(prefix="nudyn-campaign-", dir=_scratch_parent()) as scratch:
         plant_package = _package(plant_fmu, Path(scratch) / "plant")
         controller_package = None
         if controller_fmu is not None:
