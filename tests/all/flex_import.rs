@@ -13,16 +13,30 @@ fn fixtures() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/flex")
 }
 
-/// A folder of its own under the system's temporary one, with the fixture
-/// vehicle (its text changed by `edit`) and the modal file (`modal`).
-fn variant(name: &str, edit: impl Fn(String) -> String, modal: impl Fn(String) -> String) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("nudyn-flex-import-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+/// The fixture vehicle (its text changed by `edit`) and the modal file
+/// (`modal`) in a temporary folder of their own, removed when this is
+/// dropped; it derefs to the vehicle's path.
+struct Variant {
+    _folder: tempfile::TempDir,
+    vehicle: PathBuf,
+}
+
+impl std::ops::Deref for Variant {
+    type Target = Path;
+
+    fn deref(&self) -> &Path {
+        &self.vehicle
+    }
+}
+
+fn variant(name: &str, edit: impl Fn(String) -> String, modal: impl Fn(String) -> String) -> Variant {
+    let folder = tempfile::Builder::new().prefix(&format!("nudyn-flex-import-{name}-")).tempdir().unwrap();
     let xml = std::fs::read_to_string(fixtures().join("bench_vehicle.xml")).unwrap();
-    std::fs::write(dir.join("bench_vehicle.xml"), edit(xml)).unwrap();
+    std::fs::write(folder.path().join("bench_vehicle.xml"), edit(xml)).unwrap();
     let json = std::fs::read_to_string(fixtures().join("bench.json")).unwrap();
-    std::fs::write(dir.join("bench.json"), modal(json)).unwrap();
-    dir.join("bench_vehicle.xml")
+    std::fs::write(folder.path().join("bench.json"), modal(json)).unwrap();
+    let vehicle = folder.path().join("bench_vehicle.xml");
+    Variant { _folder: folder, vehicle }
 }
 
 fn import_error(path: &Path) -> String {
