@@ -260,6 +260,13 @@ struct Passes {
     values_theta: Vec<f64>,
     values_current: bool,
     tangent: ConfigurationTangent,
+    /// The inputs of the last run, if it completed (θ, the velocity, ε, T,
+    /// ctrl and act, one after the other, then the time; `completed_given`
+    /// its velocity's kind): a run along ε alone at the same inputs takes
+    /// its values ([`Passes::along_eps_alone`]).
+    completed: Vec<f64>,
+    completed_given: Given,
+    is_completed: bool,
 }
 
 impl Passes {
@@ -282,7 +289,57 @@ impl Passes {
             values_theta: vec![0.0; model.nq],
             values_current: false,
             tangent: ConfigurationTangent::new(model),
+            completed: Vec::with_capacity(
+                model.nq + 3 * model.nv + model.actuators.len() + model.activation_count() + 1,
+            ),
+            completed_given: Given::Nu,
+            is_completed: false,
         }
+    }
+
+    /// `point`'s inputs, in [`Passes::completed`]'s order.
+    fn inputs<'a>(point: &'a Point) -> impl Iterator<Item = f64> + 'a {
+        let slices = [point.theta, point.velocity, point.eps, point.torque, point.ctrl, point.act];
+        slices.into_iter().flatten().copied().chain([point.time])
+    }
+
+    /// Whether a run along `direction` can take the values of the last
+    /// run and the identity for ∂ν̇/∂ε ([`Passes::along_eps_alone`]): it
+    /// runs along ε alone, at the inputs of the last run, which completed
+    /// and computed the outputs asked, on a vehicle where ε enters ν̇ only
+    /// by adding to it (no constraint rows or tendon armature, whose solves
+    /// take ε in); θ̈ and the sensors, which ε moves through the passes, are
+    /// not taken this way.
+    fn takes_eps_alone(&self, model: &Model, point: &Point, direction: &Direction, outputs: &[Output]) -> bool {
+        let computed = |output: &Output| match output {
+            Output::Qvel | Output::Nu | Output::ActDot => true,
+            Output::NuDot => self.ws.stage == Stage::Acceleration,
+            Output::Momentum => self.momentum.is_some(),
+            Output::Qacc | Output::Sensordata => false,
+        };
+        let others = [direction.theta, direction.velocity, direction.torque, direction.ctrl, direction.act];
+        self.is_completed
+            && !model.couples_beyond_tree()
+            && others.into_iter().flatten().all(|&d| d == 0.0)
+            && outputs.iter().all(computed)
+            && self.completed_given == point.given
+            && Self::inputs(point).map(f64::to_bits).eq(self.completed.iter().map(|v| v.to_bits()))
+    }
+
+    /// A run along ε alone where [`Passes::takes_eps_alone`]: the outputs'
+    /// values are the last run's, ν̇'s derivative is ε's direction and
+    /// every other output's (θ̇, ν, act_dot and the momentum's) is zero.
+    /// Such runs are a Jacobian's ε columns and a host's ε seeds, which
+    /// otherwise run passes 2 and 3 in dual numbers to find the identity.
+    fn along_eps_alone(&mut self, direction: &Direction) {
+        let ws = &mut self.ws;
+        let unmoved = [&mut ws.theta, &mut ws.qvel, &mut ws.nu, &mut ws.act, &mut ws.act_dot];
+        unmoved.into_iter().flat_map(|values| values.iter_mut()).for_each(|v| v.eps = 0.0);
+        ws.nu_dot.iter_mut().zip(direction.eps).for_each(|(v, &d)| v.eps = d);
+        if let Some(momentum) = &mut self.momentum {
+            momentum.iter_mut().for_each(|v| v.eps = 0.0);
+        }
+        (self.qacc_current, self.sensors_current) = (false, false);
     }
 
     /// `ws`'s θ and configuration passes at `theta` along θ's rate
@@ -329,6 +386,11 @@ impl Passes {
         switches: &mut Switches,
         offered: Option<&Workspace>,
     ) -> Result<(), DerivativeError> {
+        if self.takes_eps_alone(model, point, direction, outputs) {
+            self.along_eps_alone(direction);
+            return Ok(());
+        }
+        self.is_completed = false;
         (self.qacc_current, self.sensors_current, self.momentum) = (false, false, None);
         theta_rates(model, point.theta, direction, &mut self.theta_rates);
         let still = self.theta_rates.iter().all(|&rate| rate == 0.0);
@@ -430,6 +492,9 @@ impl Passes {
             }
             self.sensors_current = true;
         }
+        self.completed.clear();
+        self.completed.extend(Self::inputs(point));
+        (self.completed_given, self.is_completed) = (point.given, true);
         Ok(())
     }
 
@@ -811,5 +876,112 @@ fn theta_rates(model: &Model, theta: &[f64], direction: &Direction, out: &mut [f
     for flexible in &model.flexible {
         let (q, d, m) = (flexible.qpos_adr, flexible.dof_adr, flexible.mode_count());
         out[q..q + m].copy_from_slice(&direction.theta[d..d + m]);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{Derivatives, Direction, Output, Point, ThetaDirection};
+    use crate::dynamics::test_vehicle;
+    use crate::dynamics::velocity::Given;
+    use crate::model::Model;
+
+    /// Every derivative and value a run gives of `outputs`, and the
+    /// accessors' (θ's rate, act's rate, qfrc_constraint), as bits.
+    fn everything(derivatives: &Derivatives, model: &Model, outputs: &[Output]) -> Vec<u64> {
+        let mut out: Vec<f64> = Vec::new();
+        for &output in outputs {
+            out.extend(derivatives.derivative(output));
+            out.extend(derivatives.value(output));
+        }
+        out.extend((0..model.nq).map(|k| derivatives.qpos_rate_derivative(model, k)));
+        out.extend((0..model.activation_count()).map(|k| derivatives.act_rate_within_range_derivative(model, k)));
+        out.extend((0..model.nv).map(|k| derivatives.qfrc_constraint_derivative(k)));
+        out.into_iter().map(f64::to_bits).collect()
+    }
+
+    fn wave(n: usize, a: f64, b: f64) -> Vec<f64> {
+        (0..n).map(|k| (a * k as f64 + b).sin()).collect()
+    }
+
+    /// A direction along θ (its coordinates), the velocity and ε, and
+    /// zeros (`zeros`: nv, nu and na long) along T, ctrl and act.
+    fn direction<'a>(theta: &'a [f64], velocity: &'a [f64], eps: &'a [f64], zeros: &'a [Vec<f64>; 3]) -> Direction<'a> {
+        Direction {
+            theta,
+            theta_in: ThetaDirection::Coordinates,
+            velocity,
+            eps,
+            torque: &zeros[0],
+            ctrl: &zeros[1],
+            act: &zeros[2],
+        }
+    }
+
+    /// A run along ε alone after runs at the same inputs takes their values
+    /// and the identity where ε only adds to ν̇ (bus_arm7, actuators with
+    /// activation states, a flexible boom), and every output and accessor
+    /// then gives the bits of a fresh run's; with constraint rows or the
+    /// tendons' armature, with θ̈ or the sensors asked, at other inputs or
+    /// along more than ε, the passes run.
+    #[test]
+    fn a_run_along_eps_alone_gives_a_fresh_runs_bits_and_is_taken_where_eps_only_adds() {
+        let plain = [Output::Qvel, Output::Nu, Output::NuDot, Output::ActDot, Output::Momentum];
+        for (file, takes) in [
+            ("examples/bus_arm7.xml", true),
+            ("tests/fixtures/activation/shortcut_servos.xml", true),
+            ("examples/flexible_boom.xml", true),
+            ("tests/fixtures/constraints/docked_servicer.xml", false),
+            ("tests/fixtures/tendons/tendon_armature.xml", false),
+        ] {
+            let (model, ws) = test_vehicle(file, 0.3);
+            let (nq, nv, nu, na) = (model.nq, model.nv, model.actuators.len(), model.activation_count());
+            let theta = ws.theta.as_slice().to_vec();
+            let (velocity, mut eps) = (wave(nv, 0.7, 0.2), wave(nv, 1.1, 0.5));
+            let (torque, ctrl, act) = (vec![0.0; nv], wave(nu, 0.3, 0.1), wave(na, 0.9, 0.4));
+            let zeros = [vec![0.0; nv], vec![0.0; nu], vec![0.0; na]];
+            let (no_theta, no_velocity) = (vec![0.0; nq], vec![0.0; nv]);
+            let (along_theta, along_velocity, along_eps) =
+                (wave(nq, 0.37, 0.1), wave(nv, 0.61, 0.2), wave(nv, 0.53, 0.3));
+            let eps_alone = direction(&no_theta, &no_velocity, &along_eps, &zeros);
+            let point_eps = eps.clone();
+            let point = Point {
+                theta: &theta,
+                velocity: &velocity,
+                given: Given::Nu,
+                eps: &point_eps,
+                torque: &torque,
+                ctrl: &ctrl,
+                act: &act,
+                time: 0.0,
+            };
+            let mut fresh = Derivatives::new(&model);
+            fresh.run(&model, &point, &eps_alone, &plain).unwrap();
+            let expected = everything(&fresh, &model, &plain);
+            for before in [
+                direction(&along_theta, &no_velocity, &no_velocity, &zeros),
+                direction(&no_theta, &along_velocity, &no_velocity, &zeros),
+            ] {
+                let mut derivatives = Derivatives::new(&model);
+                derivatives.run(&model, &point, &before, &plain).unwrap();
+                assert_eq!(derivatives.passes.takes_eps_alone(&model, &point, &eps_alone, &plain), takes, "{file}");
+                derivatives.run(&model, &point, &eps_alone, &plain).unwrap();
+                assert!(everything(&derivatives, &model, &plain) == expected, "{file}");
+                // Taken again after itself.
+                assert_eq!(derivatives.passes.takes_eps_alone(&model, &point, &eps_alone, &plain), takes, "{file}");
+                // Not along more than ε, nor for θ̈ or the sensors.
+                let mixed = direction(&no_theta, &along_velocity, &along_eps, &zeros);
+                assert!(!derivatives.passes.takes_eps_alone(&model, &point, &mixed, &plain), "{file}");
+                for asked in [[Output::NuDot, Output::Qacc], [Output::NuDot, Output::Sensordata]] {
+                    assert!(!derivatives.passes.takes_eps_alone(&model, &point, &eps_alone, &asked), "{file}");
+                }
+            }
+            // Not at other inputs.
+            let mut derivatives = Derivatives::new(&model);
+            derivatives.run(&model, &point, &eps_alone, &plain).unwrap();
+            eps[0] += 1e-9;
+            let moved = Point { eps: &eps, ..point };
+            assert!(!derivatives.passes.takes_eps_alone(&model, &moved, &eps_alone, &plain), "{file}");
+        }
     }
 }
