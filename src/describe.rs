@@ -161,13 +161,13 @@ pub struct ActuatorDescription {
     pub forcerange: Option<[f64; 2]>,
     /// MuJoCo's gaintype: fixed or affine.
     pub gaintype: GainType,
-    /// gainprm[0..3] (gain = gainprm[0], or affine in length and velocity).
+    /// gainprm[0..3] (gain = gainprm\[0\], or affine in length and velocity).
     pub gainprm: [f64; 3],
     /// MuJoCo's biastype: none or affine.
     pub biastype: BiasType,
     /// biasprm[0..3], a damping ratio resolved into −kv.
     pub biasprm: [f64; 3],
-    /// Its activation dynamics (dyntype, dynprm[0], actrange, actearly),
+    /// Its activation dynamics (dyntype, dynprm\[0\], actrange, actearly),
     /// when it has an activation state `act` (absent otherwise).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub activation: Option<Activation>,

@@ -10,7 +10,7 @@
 //! its body frame, every other coordinate moved by δq), θ̇ MuJoCo's qvel.
 //! ẋ = (δq̇, θ̈) with δq̇ = θ̇ except for a ball or free joint's rotation,
 //! whose rotation vector moves as δq̇ = J_r(δq)⁻¹ω = ω + ½ δq × ω + O(δq²),
-//! so that ∂δq̇/∂δq = −½[ω]× at the point. The inputs u are ε, the
+//! so that ∂δq̇/∂δq = −½\[ω\]× at the point. The inputs u are ε, the
 //! physical joint forces T (MuJoCo's qfrc_applied) or the actuators' ctrl,
 //! added to the point's. With a step H, the pair of the zero-order hold:
 //! A_d = e^{AH}, B_d = ∫₀ᴴ e^{As} ds B, from the exponential of [[A, B], [0, 0]]·H.

@@ -165,7 +165,7 @@ pub fn mat3_product<S: Real>(a: &Mat3<S>, b: &Mat3<S>) -> Mat3<S> {
 /// nalgebra sums it): nalgebra's generic product is a call per product in
 /// dual numbers, about a sixth of a directional derivative's instructions on
 /// bus_arm7 in passes 1 and 3's per-link products. The passes take it
-/// through [`times!`] for dual numbers only.
+/// through `times!` for dual numbers only.
 #[inline(always)]
 pub fn product<S: Real, const R: usize, const K: usize, const C: usize>(
     a: impl Borrow<SMatrix<S, R, K>>,

@@ -263,7 +263,7 @@ pub enum Transmission {
         /// Index of the reference site in [`Vehicle::sites`].
         refsite: Option<usize>,
     },
-    /// `tendon`: the tendon's length times gear[0], its moment arms times gear[0].
+    /// `tendon`: the tendon's length times gear\[0\], its moment arms times gear\[0\].
     Tendon {
         /// Index of the tendon in [`Vehicle::tendons`].
         tendon: usize,
@@ -274,9 +274,9 @@ pub enum Transmission {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum GainType {
-    /// gain = gainprm[0].
+    /// gain = gainprm\[0\].
     Fixed,
-    /// gain = gainprm[0] + gainprm[1] length + gainprm[2] velocity.
+    /// gain = gainprm\[0\] + gainprm\[1\] length + gainprm\[2\] velocity.
     Affine,
 }
 
@@ -286,7 +286,7 @@ pub enum GainType {
 pub enum BiasType {
     /// bias = 0.
     None,
-    /// bias = biasprm[0] + biasprm[1] length + biasprm[2] velocity.
+    /// bias = biasprm\[0\] + biasprm\[1\] length + biasprm\[2\] velocity.
     Affine,
 }
 
@@ -309,7 +309,7 @@ pub enum ActivationKind {
 pub struct Activation {
     /// `dyntype`.
     pub kind: ActivationKind,
-    /// dynprm[0]: a filter's time constant τ (s).
+    /// dynprm\[0\]: a filter's time constant τ (s).
     pub time_constant: f64,
     /// `actrange` when `actlimited`: act is kept within it.
     pub range: Option<[f64; 2]>,
@@ -351,7 +351,7 @@ pub struct Actuator {
     /// `biastype`.
     pub bias_type: BiasType,
     /// The first three of `biasprm`. As in MuJoCo, a positive `biasprm[2]`
-    /// of a position-like actuator (gainprm[0] = −biasprm[1]) is a damping
+    /// of a position-like actuator (gainprm\[0\] = −biasprm\[1\]) is a damping
     /// ratio, turned into a damping by [`crate::model::Model::compile`].
     pub bias: [f64; 3],
     /// `ctrlrange` when `ctrllimited` (resolved as MuJoCo does, including `autolimits`).

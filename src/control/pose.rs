@@ -3,7 +3,7 @@
 //! With R the body's rotation (body → world) and R̂ the target's, the error
 //! is the rotation vector of the body relative to the target,
 //!
-//!   φ = log(R̂ᵀR),  i.e.  R = R̂ exp([φ]×),  |φ| ≤ π (the shorter way round),
+//!   φ = log(R̂ᵀR),  i.e.  R = R̂ exp(\[φ\]×),  |φ| ≤ π (the shorter way round),
 //!
 //! in the target frame's axes (which are also the body's: R̂ᵀR φ = φ). The
 //! controlled quantity is Y_rot = φ with Ŷ_rot = 0, so ΔY_rot = −φ.
@@ -29,7 +29,7 @@ pub fn rotation_error(current: &Quat, target: &Quat) -> Vec3 {
     quat_difference(current, target)
 }
 
-/// J_r⁻ᵀ(φ) = I − ½[φ]× + β(θ)[φ]×², θ = |φ|, β = 1/θ² − cot(θ/2)/(2θ)
+/// J_r⁻ᵀ(φ) = I − ½\[φ\]× + β(θ)\[φ\]×², θ = |φ|, β = 1/θ² − cot(θ/2)/(2θ)
 /// (→ 1/12 + θ²/720 as θ → 0); finite for θ < 2π.
 pub fn right_jacobian_inverse_transpose(phi: &Vec3) -> Mat3 {
     let angle = phi.norm();

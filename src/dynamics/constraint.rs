@@ -16,7 +16,7 @@
 //!    row allows ([`super::box_qp`]): the dual of MuJoCo's problem, whose
 //!    unique minimizer all its solvers approach;
 //! 6. MuJoCo's no-slip pass on the friction-loss rows, when the model asks
-//!    for it ([`super::noslip`]);
+//!    for it (`super::noslip`);
 //! 7. ε_c = E f and MuJoCo's qfrc_constraint = Jᵀf; ε_c is added to the
 //!    pass's ν̇ and θ̈'s joint term (ε enters ν̇ additively), and the outward
 //!    pass gives θ̈.

@@ -688,7 +688,7 @@ impl Derivatives {
         self.passes.output(output).iter().map(|d| d.re)
     }
 
-    /// The derivative of d(θ[k])/dt ([`qpos_rate`]) along the last run's
+    /// The derivative of d(θ\[k\])/dt ([`qpos_rate`]) along the last run's
     /// direction: θ's rate as the state derivative of model exchange.
     pub fn qpos_rate_derivative(&self, model: &Model, k: usize) -> f64 {
         let ws = &self.passes.ws;
@@ -764,7 +764,7 @@ impl Derivatives {
     }
 }
 
-/// d(θ[k])/dt from the passes' θ (quaternions normalized) and θ̇: θ̇'s
+/// d(θ\[k\])/dt from the passes' θ (quaternions normalized) and θ̇: θ̇'s
 /// entry for a hinge, slide, translation or modal coordinate; q̇ = ½ q ⊗ (0, ω) for a
 /// quaternion's entries (ω in the body frame), orthogonal to q. Generic,
 /// so that run in dual numbers it carries its own derivative.

@@ -8,7 +8,7 @@
 //!
 //! M⁻¹ = ℓᵀℓ from the factor of pass 1 (ℓ = m⁻¹: forces.rs's inward pass
 //! from joint forces to ε, and ℓᵀ its adjoint outward, applied to the
-//! columns by [`FactorPasses`]). The same derivatives as derivatives.rs's
+//! columns by `FactorPasses`). The same derivatives as derivatives.rs's
 //! dual numbers give (to round-off), at a fraction of their cost:
 //! derivatives.rs runs every pass once per column; this runs the passes
 //! once, then O(N·depth) products, then two O(N) passes per column.
@@ -43,7 +43,7 @@
 //! here in this notation; docs/linearization.md, "In closed form".)
 //!
 //! An applied ε stands for the joint forces m(θ)ε, which change with the
-//! configuration through the factor: [`AppliedEps`] adds their derivative
+//! configuration through the factor: `AppliedEps` adds their derivative
 //! (the articulated inertias' change up each column's path, O(N·depth)
 //! 6×6 products). Actuators on hinges and slides add their force's slopes
 //! on their dof's diagonal; actuators on sites with a constant force are

@@ -17,7 +17,7 @@
 //!
 //! The passes are generic over `N` (the link's dofs) and `UNIT` (the row of
 //! S where the identity's columns start, or [`GENERAL`] for any other S);
-//! [`by_subspace!`] calls the instance of a link's shape.
+//! `by_subspace!` calls the instance of a link's shape.
 
 use nalgebra::{SMatrix, SVector};
 

@@ -1,6 +1,6 @@
 //! A node of a flexible body as a rigid body moved by the modal coordinates
 //! η (docs/flexible.md, "The model"): its frame N_j relative to the body
-//! frame R is placed at p_j = r_j + Φᵗ_j η and turned by Rot_j = exp([ρ_j]×),
+//! frame R is placed at p_j = r_j + Φᵗ_j η and turned by Rot_j = exp(\[ρ_j\]×),
 //! ρ_j = Φʳ_j η. In N_j's coordinates its velocity relative to R is Ψ_j η̇ with
 //!
 //!   Ψ_j = [ J_r(ρ_j) Φʳ_j ; Rot_jᵀ Φᵗ_j ]      (angular rows first),
@@ -86,7 +86,7 @@ pub fn subspace_rate<S: Real>(body: &ModalBody, j: usize, eta: &[S], eta_rate: &
 
 /// Ψ̇_j η̇: the rate of Ψ_j's coordinates along η̇, times η̇. With
 /// Ω = J_r ρ̇ the node's angular velocity relative to R (in its axes),
-/// d(Rotᵀ)/dt = −[Ω]× Rotᵀ.
+/// d(Rotᵀ)/dt = −\[Ω\]× Rotᵀ.
 pub fn subspace_rate_times<S: Real>(body: &ModalBody, j: usize, eta: &[S], eta_rate: &[S]) -> SpatialVec<S> {
     let (_, rho) = displacement(body, j, eta);
     let (translation_rate, rho_rate) = displacement(body, j, eta_rate);

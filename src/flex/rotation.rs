@@ -1,11 +1,11 @@
 //! The rotation of a node of a flexible body by its rotation vector
-//! ρ = Φʳ η (docs/flexible.md, "The model"): Rot = exp([ρ]×), the right
+//! ρ = Φʳ η (docs/flexible.md, "The model"): Rot = exp(\[ρ\]×), the right
 //! Jacobian J_r that maps ρ̇ to the node's angular velocity in its own axes,
 //! and J_r's rate along a motion, for the velocity-product terms.
 //!
 //! With θ = |ρ| and s = θ²:
 //!
-//!   Rot = 1 + c[ρ]× + a[ρ]×²,   J_r = 1 − a[ρ]× + b[ρ]×²,
+//!   Rot = 1 + c\[ρ\]× + a\[ρ\]×²,   J_r = 1 − a\[ρ\]× + b\[ρ\]×²,
 //!   c = sin θ / θ,  a = (1 − cos θ)/θ²,  b = (θ − sin θ)/θ³,
 //!
 //! each a function of s, smooth through s = 0 (their Taylor series there:
@@ -49,7 +49,7 @@ fn coefficients<S: Real>(s: S) -> [S; 5] {
     [c, a, b, da, db]
 }
 
-/// exp([ρ]×).
+/// exp(\[ρ\]×).
 pub fn rotation<S: Real>(rho: &Vec3<S>) -> Mat3<S> {
     let [c, a, ..] = coefficients(rho.norm_squared());
     let k = skew(rho);

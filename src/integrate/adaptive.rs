@@ -218,7 +218,7 @@ impl ToleranceRelaxed {
 
     /// Whether the tolerance held still meets the one asked: round-off (not
     /// a run-away motion) put it at most
-    /// [`HELD_AS_ASKED`] times looser.
+    /// `HELD_AS_ASKED` times looser.
     pub fn meets_asked(&self) -> bool {
         !self.diverges() && self.attained <= HELD_AS_ASKED * self.tolerance
     }

@@ -167,13 +167,13 @@ impl Actuator {
     }
 
     /// Whether MuJoCo takes it for a position servo: fixed gain kp, affine
-    /// bias with biasprm[1] = −kp (its `dampratio` and setpoint wrapping apply).
+    /// bias with biasprm\[1\] = −kp (its `dampratio` and setpoint wrapping apply).
     pub fn is_position_servo(&self) -> bool {
         self.gain_type == GainType::Fixed && self.bias_type == BiasType::Affine && self.gain[0] == -self.bias[1]
     }
 
-    /// Whether MuJoCo's compiler reads biasprm[2] as a damping ratio: a
-    /// positive biasprm[2] when gainprm[0] = −biasprm[1], whatever the types.
+    /// Whether MuJoCo's compiler reads biasprm\[2\] as a damping ratio: a
+    /// positive biasprm\[2\] when gainprm\[0\] = −biasprm\[1\], whatever the types.
     pub fn has_damping_ratio(&self) -> bool {
         self.gain[0] == -self.bias[1] && self.bias[2] > 0.0
     }

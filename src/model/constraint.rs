@@ -91,7 +91,7 @@ pub enum EqualityRows {
     },
     /// One row: L₁ − L₁⁰ − p(L₂ − L₂⁰) of two tendons' lengths, L⁰ in qpos0.
     Tendon {
-        /// Tendon 1 (index into [`Model::tendons`]).
+        /// Tendon 1 (index into [`Model::tendons`](super::Model::tendons)).
         first: usize,
         /// Tendon 2, if any.
         second: Option<usize>,
@@ -127,7 +127,7 @@ pub struct DofFriction {
 /// Friction loss on one tendon.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TendonFriction {
-    /// The tendon (index into [`Model::tendons`]).
+    /// The tendon (index into [`Model::tendons`](super::Model::tendons)).
     pub tendon: usize,
     /// Its `frictionloss`: the largest force the row can apply.
     pub frictionloss: f64,
@@ -138,7 +138,7 @@ pub struct TendonFriction {
 /// A limited tendon.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TendonLimit {
-    /// The tendon (index into [`Model::tendons`]).
+    /// The tendon (index into [`Model::tendons`](super::Model::tendons)).
     pub tendon: usize,
     /// `range` of its length.
     pub range: [f64; 2],
@@ -151,7 +151,7 @@ pub struct TendonLimit {
 /// A limited joint.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Limit {
-    /// The joint (index into [`Model::joints`]).
+    /// The joint (index into [`Model::joints`](super::Model::joints)).
     pub joint: usize,
     /// Hinge, slide or ball.
     pub kind: JointKind,
