@@ -826,6 +826,16 @@ pub fn rel_err(a: &[f64], b: &[f64]) -> f64 {
     max_abs_difference(a, b) / b.iter().fold(1.0f64, |m, x| m.max(x.abs()))
 }
 
+/// The largest |x − r| / (1 + |r|) over the pairs (x, r) (an end state
+/// against its reference); NaN where an entry of either is NaN, as
+/// [`max_abs_difference`].
+pub fn largest_relative_error<'a>(pairs: impl IntoIterator<Item = (&'a f64, &'a f64)>) -> f64 {
+    pairs.into_iter().fold(0.0f64, |m, (x, r)| {
+        let error = (x - r).abs() / (1.0 + r.abs());
+        if m.is_nan() || error.is_nan() { f64::NAN } else { m.max(error) }
+    })
+}
+
 /// max |a − b|; NaN where an entry of either is NaN (`f64::max` would pass
 /// over it, and a NaN is no agreement).
 pub fn max_abs_difference(a: &[f64], b: &[f64]) -> f64 {

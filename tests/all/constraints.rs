@@ -10,6 +10,8 @@ use nudyn::integrate::{Input, Method, Settings, Simulation};
 use nudyn::mjcf::parse_mjcf;
 use nudyn::model::{InvalidModel, Model};
 
+use crate::common::largest_relative_error;
+
 /// A free bus with a hinge, a slide and a ball joint, each with friction
 /// loss, no gravity, dampers or limits: only the constraints take energy.
 fn frictional(flags: &str) -> Model {
@@ -158,7 +160,7 @@ fn switches_held_and_located(fixture: &str, steps: usize, tolerances: &[f64]) {
     for method in [Method::Dop853, Method::Dopri5, Method::Tsit5] {
         for &tolerance in tolerances {
             let (end, warnings, locating) = driven_run(&model, method, tolerance, steps, 0.3);
-            let error = end.iter().zip(&reference).map(|(x, r)| (x - r).abs() / (1.0 + r.abs())).fold(0.0, f64::max);
+            let error = largest_relative_error(end.iter().zip(&reference));
             assert!(warnings.is_empty(), "{method:?} at {tolerance:e}: {warnings:?}");
             assert!(locating > 0, "{method:?} at {tolerance:e} located no switch");
             assert!(error <= 20.0 * tolerance, "{method:?} at {tolerance:e}: error {error:e}");
@@ -211,7 +213,7 @@ fn adaptive_methods_locate_the_switches_and_meet_the_tolerance() {
                 continue; // order 3: 10⁵ steps in the welds' first pull
             }
             let (end, relaxed, locating) = docked_run(&model, method, tolerance);
-            let error = end.iter().zip(&reference).map(|(x, r)| (x - r).abs() / (1.0 + r.abs())).fold(0.0, f64::max);
+            let error = largest_relative_error(end.iter().zip(&reference));
             assert!(!relaxed, "{method:?} at {tolerance:e} relaxed its tolerance");
             assert!(locating > 0, "{method:?} at {tolerance:e} located no switch");
             assert!(error <= 20.0 * tolerance, "{method:?} at {tolerance:e}: error {error:e}");
@@ -247,7 +249,7 @@ fn a_switch_undone_within_a_step_is_located_from_its_stages() {
     for tolerance in [1e-4, 1e-6] {
         let points = points_at_rest(&model, Method::Dop853, tolerance);
         for (k, (point, expected)) in points.iter().zip(&reference).enumerate() {
-            let error = point.iter().zip(expected).map(|(x, r)| (x - r).abs() / (1.0 + r.abs())).fold(0.0, f64::max);
+            let error = largest_relative_error(point.iter().zip(expected));
             let t = (k + 1) as f64 * 0.01;
             assert!(error <= 20.0 * tolerance, "dop853 at {tolerance:e}, t = {t:.2}: error {error:e}");
         }

@@ -10,6 +10,7 @@
 use nudyn::integrate::{Input, Method, MethodSetting, Settings, Simulation};
 use nudyn::model::Model;
 
+use crate::common::largest_relative_error;
 use crate::stiffness::{INTERVAL, eps, fixture};
 
 /// The band's ends, over the tolerance.
@@ -75,10 +76,7 @@ fn points_relaxing(
 
 /// The largest error relative to 1 + |x| at any point.
 fn largest_error(run: &[Vec<f64>], reference: &[Vec<f64>]) -> f64 {
-    run.iter()
-        .zip(reference)
-        .flat_map(|(x, r)| x.iter().zip(r).map(|(x, r)| (x - r).abs() / (1.0 + r.abs())))
-        .fold(0.0, f64::max)
+    largest_relative_error(run.iter().zip(reference).flat_map(|(x, r)| x.iter().zip(r)))
 }
 
 fn band_on(path: &str, count: usize) {

@@ -11,6 +11,8 @@ use nudyn::dynamics::box_qp::Held;
 use nudyn::integrate::{HeldJacobian, Input, Method, Settings, Simulation};
 use nudyn::model::Model;
 
+use crate::common::largest_relative_error;
+
 /// Two arms on a 5000 kg base (tests/fixtures/slow_station.xml).
 fn station() -> Model {
     let imported = nudyn::mjcf::load_mjcf(Path::new("tests/fixtures/slow_station.xml")).unwrap();
@@ -123,8 +125,7 @@ fn reference(model: &Model, schedule: &Schedule) -> Vec<Vec<f64>> {
 
 /// The largest |x − x_ref| / (1 + |x_ref|) over the points and (θ, ν).
 fn largest_error(points: &[Vec<f64>], reference: &[Vec<f64>]) -> f64 {
-    let pairs = points.iter().zip(reference).flat_map(|(p, r)| p.iter().zip(r));
-    pairs.map(|(x, r)| (x - r).abs() / (1.0 + r.abs())).fold(0.0, f64::max)
+    largest_relative_error(points.iter().zip(reference).flat_map(|(p, r)| p.iter().zip(r)))
 }
 
 /// At 1e-4 each method with a dense output takes fewer steps than there

@@ -9,6 +9,7 @@ use std::path::Path;
 use nudyn::integrate::{AutoMove, Method, MethodSetting, MoveReason, Settings, Simulation, StabilityHeld};
 use nudyn::model::Model;
 
+use crate::common::largest_relative_error;
 use crate::error_modes::rate_jacobian;
 
 pub fn fixture(path: &str) -> Model {
@@ -74,7 +75,7 @@ fn largest_rate(model: &Model, theta: &[f64], qvel: &[f64], eps: &[f64]) -> f64 
 }
 
 fn scaled_error(end: &[f64], reference: &[f64]) -> f64 {
-    end.iter().zip(reference).map(|(x, r)| (x - r).abs() / (1.0 + r.abs())).fold(0.0, f64::max)
+    largest_relative_error(end.iter().zip(reference))
 }
 
 /// The measure of docs/integration.md ("Constraint switches"): per
