@@ -2,7 +2,9 @@
 //! generic over their scalar ([`Real`]), run in dual numbers
 //! (num-dual's `Dual64`), each carrying its value and its derivative along
 //! one direction of the inputs. One directional derivative costs one run
-//! of the passes in duals; a Jacobian, one run per column. The result is
+//! of the passes in duals; a Jacobian, one run per column (a column along
+//! ε, ctrl or act alone at the inputs of the run before takes that run's
+//! values and runs less, or nothing: `Passes::alone_along`). The result is
 //! the derivative of the code itself, exact to round-off, with nothing to
 //! tune (a finite difference trades truncation against cancellation).
 //!
@@ -228,6 +230,16 @@ pub struct Jacobians {
     pub act: DMatrix<f64>,
 }
 
+/// How a run along the inputs alone takes the values of the run before
+/// ([`Passes::alone_along`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Alone {
+    /// Along ε: no pass runs.
+    Eps,
+    /// Along ctrl or act (and ε): the velocities and the actuators run.
+    Actuators,
+}
+
 /// The passes' workspace in dual numbers and the inputs' buffers.
 #[derive(Clone, Debug)]
 struct Passes {
@@ -304,29 +316,36 @@ impl Passes {
     }
 
     /// Whether a run along `direction` can take the values of the last
-    /// run and the identity for ∂ν̇/∂ε ([`Passes::along_eps_alone`]): it
-    /// runs along ε alone, at the inputs of the last run, which completed
-    /// and computed the outputs asked, on a vehicle where ε enters ν̇ only
-    /// by adding to it (no constraint rows or tendon armature, whose solves
-    /// take ε in); θ̈ and the sensors, which ε moves through the passes, are
-    /// not taken this way.
-    fn takes_eps_alone(&self, model: &Model, point: &Point, direction: &Direction, outputs: &[Output]) -> bool {
+    /// run: it runs along the inputs ε, ctrl and act alone (no θ, velocity
+    /// or T part), at the inputs of the last run, which completed and
+    /// computed the outputs asked, on a vehicle where those inputs enter ν̇
+    /// only by adding to ε (no constraint rows or tendon armature, whose
+    /// solves take ε in); θ̈ and the sensors, which ε moves through the
+    /// passes, are never taken this way. Along ε alone no pass runs
+    /// ([`Passes::along_eps_alone`]); along ctrl or act the velocities and
+    /// the actuators run, and pass 3 does not ([`Passes::run`]).
+    fn alone_along(&self, model: &Model, point: &Point, direction: &Direction, outputs: &[Output]) -> Option<Alone> {
         let computed = |output: &Output| match output {
             Output::Qvel | Output::Nu | Output::ActDot => true,
             Output::NuDot => self.ws.stage == Stage::Acceleration,
             Output::Momentum => self.momentum.is_some(),
             Output::Qacc | Output::Sensordata => false,
         };
-        let others = [direction.theta, direction.velocity, direction.torque, direction.ctrl, direction.act];
-        self.is_completed
+        let zero = |values: &[&[f64]]| values.iter().copied().flatten().all(|&d| d == 0.0);
+        let applies = self.is_completed
             && !model.couples_beyond_tree()
-            && others.into_iter().flatten().all(|&d| d == 0.0)
+            && zero(&[direction.theta, direction.velocity, direction.torque])
             && outputs.iter().all(computed)
             && self.completed_given == point.given
-            && Self::inputs(point).map(f64::to_bits).eq(self.completed.iter().map(|v| v.to_bits()))
+            && Self::inputs(point).map(f64::to_bits).eq(self.completed.iter().map(|v| v.to_bits()));
+        match applies {
+            false => None,
+            true if zero(&[direction.ctrl, direction.act]) => Some(Alone::Eps),
+            true => Some(Alone::Actuators),
+        }
     }
 
-    /// A run along ε alone where [`Passes::takes_eps_alone`]: the outputs'
+    /// A run along ε alone where [`Passes::alone_along`]: the outputs'
     /// values are the last run's, ν̇'s derivative is ε's direction and
     /// every other output's (θ̇, ν, act_dot and the momentum's) is zero.
     /// Such runs are a Jacobian's ε columns and a host's ε seeds, which
@@ -386,7 +405,8 @@ impl Passes {
         switches: &mut Switches,
         offered: Option<&Workspace>,
     ) -> Result<(), DerivativeError> {
-        if self.takes_eps_alone(model, point, direction, outputs) {
+        let alone = self.alone_along(model, point, direction, outputs);
+        if alone == Some(Alone::Eps) {
             self.along_eps_alone(direction);
             return Ok(());
         }
@@ -440,6 +460,16 @@ impl Passes {
             ws.actuation_pass(model, &self.ctrl)?;
             self.eps.iter_mut().zip(ws.eps_actuator.iter()).for_each(|(e, a)| *e += *a);
         }
+        if alone == Some(Alone::Actuators) {
+            // ν̇ = ε + ε_actuator + terms of θ and ν alone, at the values
+            // of the last run: its derivative is the sum's.
+            if outputs.contains(&Output::NuDot) {
+                ws.nu_dot.iter_mut().zip(&self.eps).for_each(|(v, e)| v.eps = e.eps);
+                ws.stage = Stage::Acceleration;
+            }
+            self.record_completed(point);
+            return Ok(());
+        }
         let passive = bias::all_passive_forces(model, ws);
         // ν̇ needs pass 3 with the factor's rates; θ̈ alone does without
         // them, and the outward pass only θ̈ needs.
@@ -492,10 +522,15 @@ impl Passes {
             }
             self.sensors_current = true;
         }
+        self.record_completed(point);
+        Ok(())
+    }
+
+    /// Notes that a run at `point` completed ([`Passes::alone_along`]).
+    fn record_completed(&mut self, point: &Point) {
         self.completed.clear();
         self.completed.extend(Self::inputs(point));
         (self.completed_given, self.is_completed) = (point.given, true);
-        Ok(())
     }
 
     /// `output` of the last run, which must have been asked for.
@@ -881,7 +916,7 @@ fn theta_rates(model: &Model, theta: &[f64], direction: &Direction, out: &mut [f
 
 #[cfg(test)]
 mod tests {
-    use super::{Derivatives, Direction, Output, Point, ThetaDirection};
+    use super::{Alone, Derivatives, Direction, Output, Point, ThetaDirection};
     use crate::dynamics::test_vehicle;
     use crate::dynamics::velocity::Given;
     use crate::model::Model;
@@ -904,33 +939,36 @@ mod tests {
         (0..n).map(|k| (a * k as f64 + b).sin()).collect()
     }
 
-    /// A direction along θ (its coordinates), the velocity and ε, and
-    /// zeros (`zeros`: nv, nu and na long) along T, ctrl and act.
-    fn direction<'a>(theta: &'a [f64], velocity: &'a [f64], eps: &'a [f64], zeros: &'a [Vec<f64>; 3]) -> Direction<'a> {
-        Direction {
-            theta,
-            theta_in: ThetaDirection::Coordinates,
-            velocity,
-            eps,
-            torque: &zeros[0],
-            ctrl: &zeros[1],
-            act: &zeros[2],
-        }
+    /// A direction along θ (its coordinates), the velocity, ε, ctrl and
+    /// act, and zeros (`zeros`: nv long) along T.
+    fn direction<'a>(
+        theta: &'a [f64],
+        velocity: &'a [f64],
+        eps: &'a [f64],
+        (ctrl, act): (&'a [f64], &'a [f64]),
+        zeros: &'a [f64],
+    ) -> Direction<'a> {
+        Direction { theta, theta_in: ThetaDirection::Coordinates, velocity, eps, torque: zeros, ctrl, act }
     }
 
-    /// A run along ε alone after runs at the same inputs takes their values
-    /// and the identity where ε only adds to ν̇ (bus_arm7, actuators with
-    /// activation states, a flexible boom), and every output and accessor
+    /// A run along the inputs alone (ε; ctrl and act) after runs at the
+    /// same inputs takes their values where those inputs only add to ν̇'s ε
+    /// (bus_arm7, the servicer's thrusters and servos, actuators with
+    /// activation states, a flexible boom, actuators on tendons with and
+    /// without force ranges), and every output and accessor
     /// then gives the bits of a fresh run's; with constraint rows or the
     /// tendons' armature, with θ̈ or the sensors asked, at other inputs or
-    /// along more than ε, the passes run.
+    /// along the velocity too, the passes run.
     #[test]
-    fn a_run_along_eps_alone_gives_a_fresh_runs_bits_and_is_taken_where_eps_only_adds() {
+    fn a_run_along_the_inputs_alone_gives_a_fresh_runs_bits_and_is_taken_where_they_only_add() {
         let plain = [Output::Qvel, Output::Nu, Output::NuDot, Output::ActDot, Output::Momentum];
         for (file, takes) in [
             ("examples/bus_arm7.xml", true),
+            ("examples/servicer.xml", true),
             ("tests/fixtures/activation/shortcut_servos.xml", true),
             ("examples/flexible_boom.xml", true),
+            ("tests/fixtures/tendons/tendon_wrap.xml", true),
+            ("tests/fixtures/tendons/tendon_force_range.xml", true),
             ("tests/fixtures/constraints/docked_servicer.xml", false),
             ("tests/fixtures/tendons/tendon_armature.xml", false),
         ] {
@@ -939,11 +977,12 @@ mod tests {
             let theta = ws.theta.as_slice().to_vec();
             let (velocity, mut eps) = (wave(nv, 0.7, 0.2), wave(nv, 1.1, 0.5));
             let (torque, ctrl, act) = (vec![0.0; nv], wave(nu, 0.3, 0.1), wave(na, 0.9, 0.4));
-            let zeros = [vec![0.0; nv], vec![0.0; nu], vec![0.0; na]];
             let (no_theta, no_velocity) = (vec![0.0; nq], vec![0.0; nv]);
+            let (no_ctrl, no_act) = (vec![0.0; nu], vec![0.0; na]);
+            let still = (&no_ctrl[..], &no_act[..]);
             let (along_theta, along_velocity, along_eps) =
                 (wave(nq, 0.37, 0.1), wave(nv, 0.61, 0.2), wave(nv, 0.53, 0.3));
-            let eps_alone = direction(&no_theta, &no_velocity, &along_eps, &zeros);
+            let (along_ctrl, along_act) = (wave(nu, 0.41, 0.6), wave(na, 0.23, 0.7));
             let point_eps = eps.clone();
             let point = Point {
                 theta: &theta,
@@ -955,25 +994,36 @@ mod tests {
                 act: &act,
                 time: 0.0,
             };
-            let mut fresh = Derivatives::new(&model);
-            fresh.run(&model, &point, &eps_alone, &plain).unwrap();
-            let expected = everything(&fresh, &model, &plain);
-            for before in [
-                direction(&along_theta, &no_velocity, &no_velocity, &zeros),
-                direction(&no_theta, &along_velocity, &no_velocity, &zeros),
-            ] {
-                let mut derivatives = Derivatives::new(&model);
-                derivatives.run(&model, &point, &before, &plain).unwrap();
-                assert_eq!(derivatives.passes.takes_eps_alone(&model, &point, &eps_alone, &plain), takes, "{file}");
-                derivatives.run(&model, &point, &eps_alone, &plain).unwrap();
-                assert!(everything(&derivatives, &model, &plain) == expected, "{file}");
-                // Taken again after itself.
-                assert_eq!(derivatives.passes.takes_eps_alone(&model, &point, &eps_alone, &plain), takes, "{file}");
-                // Not along more than ε, nor for θ̈ or the sensors.
-                let mixed = direction(&no_theta, &along_velocity, &along_eps, &zeros);
-                assert!(!derivatives.passes.takes_eps_alone(&model, &point, &mixed, &plain), "{file}");
-                for asked in [[Output::NuDot, Output::Qacc], [Output::NuDot, Output::Sensordata]] {
-                    assert!(!derivatives.passes.takes_eps_alone(&model, &point, &eps_alone, &asked), "{file}");
+            let eps_alone = direction(&no_theta, &no_velocity, &along_eps, still, &no_velocity);
+            let mut alone = vec![(eps_alone, Alone::Eps)];
+            if nu > 0 {
+                let along = (&along_ctrl[..], &no_act[..]);
+                alone.push((direction(&no_theta, &no_velocity, &no_velocity, along, &no_velocity), Alone::Actuators));
+                let along = (&along_ctrl[..], &along_act[..]);
+                alone.push((direction(&no_theta, &no_velocity, &along_eps, along, &no_velocity), Alone::Actuators));
+            }
+            for (along, kind) in &alone {
+                let mut fresh = Derivatives::new(&model);
+                fresh.run(&model, &point, along, &plain).unwrap();
+                let expected = everything(&fresh, &model, &plain);
+                for before in [
+                    direction(&along_theta, &no_velocity, &no_velocity, still, &no_velocity),
+                    direction(&no_theta, &along_velocity, &no_velocity, still, &no_velocity),
+                ] {
+                    let mut derivatives = Derivatives::new(&model);
+                    derivatives.run(&model, &point, &before, &plain).unwrap();
+                    let taken = takes.then_some(*kind);
+                    assert_eq!(derivatives.passes.alone_along(&model, &point, along, &plain), taken, "{file}");
+                    derivatives.run(&model, &point, along, &plain).unwrap();
+                    assert!(everything(&derivatives, &model, &plain) == expected, "{file}, {kind:?}");
+                    // Taken again after itself.
+                    assert_eq!(derivatives.passes.alone_along(&model, &point, along, &plain), taken, "{file}");
+                    // Not along the velocity too, nor for θ̈ or the sensors.
+                    let mixed = Direction { velocity: &along_velocity, ..*along };
+                    assert_eq!(derivatives.passes.alone_along(&model, &point, &mixed, &plain), None, "{file}");
+                    for asked in [[Output::NuDot, Output::Qacc], [Output::NuDot, Output::Sensordata]] {
+                        assert_eq!(derivatives.passes.alone_along(&model, &point, along, &asked), None, "{file}");
+                    }
                 }
             }
             // Not at other inputs.
@@ -981,7 +1031,7 @@ mod tests {
             derivatives.run(&model, &point, &eps_alone, &plain).unwrap();
             eps[0] += 1e-9;
             let moved = Point { eps: &eps, ..point };
-            assert!(!derivatives.passes.takes_eps_alone(&model, &moved, &eps_alone, &plain), "{file}");
+            assert_eq!(derivatives.passes.alone_along(&model, &moved, &eps_alone, &plain), None, "{file}");
         }
     }
 }
