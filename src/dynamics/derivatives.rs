@@ -529,7 +529,10 @@ impl Passes {
     /// Notes that a run at `point` completed ([`Passes::alone_along`]).
     fn record_completed(&mut self, point: &Point) {
         self.completed.clear();
-        self.completed.extend(Self::inputs(point));
+        for slice in [point.theta, point.velocity, point.eps, point.torque, point.ctrl, point.act] {
+            self.completed.extend_from_slice(slice);
+        }
+        self.completed.push(point.time);
         (self.completed_given, self.is_completed) = (point.given, true);
     }
 
