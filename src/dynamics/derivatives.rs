@@ -274,8 +274,8 @@ struct Passes {
     tangent: ConfigurationTangent,
     /// The inputs of the last run, if it completed (θ, the velocity, ε, T,
     /// ctrl and act, one after the other, then the time; `completed_given`
-    /// its velocity's kind): a run along ε alone at the same inputs takes
-    /// its values ([`Passes::along_eps_alone`]).
+    /// its velocity's kind): a run along the inputs alone at the same
+    /// inputs takes its values ([`Passes::alone_along`]).
     completed: Vec<f64>,
     completed_given: Given,
     is_completed: bool,
