@@ -203,7 +203,17 @@ def test_a_real_scheduler_with_a_worker_killed_mid_campaign(one_worker, nudyn, t
     worker_env = {**env, "TMPDIR": str(temporary)}
 
     def chunk_folders(worker: str) -> list:
-        return list((local / worker).rglob("nudyn-campaign-*"))
+        """The chunk folders in the worker's Dask folders (each
+        dask-scratch-space/worker-*/, beside its worker-*.dirlock file), read
+        while the worker may be removing them: a folder gone meanwhile is
+        not listed."""
+        found = []
+        for scratch in (local / worker / "dask-scratch-space").glob("worker-*"):
+            try:
+                found += [entry for entry in scratch.iterdir() if entry.name.startswith("nudyn-campaign-")]
+            except (FileNotFoundError, NotADirectoryError):
+                pass
+        return found
 
     def worker(name: str) -> subprocess.Popen:
         return _dask("worker", address, "--nthreads", "1", "--no-dashboard", "--name", name,
