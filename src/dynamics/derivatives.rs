@@ -272,13 +272,12 @@ struct Passes {
     values_theta: Vec<f64>,
     values_current: bool,
     tangent: ConfigurationTangent,
-    /// The inputs of the last run, if it completed (θ, the velocity, ε, T,
-    /// ctrl and act, one after the other, then the time; `completed_given`
-    /// its velocity's kind): a run along the inputs alone at the same
+    /// The inputs of the last run (θ, the velocity, ε, T, ctrl and act, one
+    /// after the other, then the time) and its velocity's kind, if it
+    /// completed (else None): a run along the inputs alone at the same
     /// inputs takes its values ([`Passes::alone_along`]).
     completed: Vec<f64>,
-    completed_given: Given,
-    is_completed: bool,
+    completed_given: Option<Given>,
 }
 
 impl Passes {
@@ -304,15 +303,13 @@ impl Passes {
             completed: Vec::with_capacity(
                 model.nq + 3 * model.nv + model.actuators.len() + model.activation_count() + 1,
             ),
-            completed_given: Given::Nu,
-            is_completed: false,
+            completed_given: None,
         }
     }
 
-    /// `point`'s inputs, in [`Passes::completed`]'s order.
-    fn inputs<'a>(point: &'a Point) -> impl Iterator<Item = f64> + 'a {
-        let slices = [point.theta, point.velocity, point.eps, point.torque, point.ctrl, point.act];
-        slices.into_iter().flatten().copied().chain([point.time])
+    /// `point`'s inputs but the time, in [`Passes::completed`]'s order.
+    fn input_slices<'a>(point: &Point<'a>) -> [&'a [f64]; 6] {
+        [point.theta, point.velocity, point.eps, point.torque, point.ctrl, point.act]
     }
 
     /// Whether a run along `direction` can take the values of the last
@@ -325,19 +322,14 @@ impl Passes {
     /// ([`Passes::along_eps_alone`]); along ctrl or act the velocities and
     /// the actuators run, and pass 3 does not ([`Passes::run`]).
     fn alone_along(&self, model: &Model, point: &Point, direction: &Direction, outputs: &[Output]) -> Option<Alone> {
-        let computed = |output: &Output| match output {
-            Output::Qvel | Output::Nu | Output::ActDot => true,
-            Output::NuDot => self.ws.stage == Stage::Acceleration,
-            Output::Momentum => self.momentum.is_some(),
-            Output::Qacc | Output::Sensordata => false,
-        };
+        let taken = |&output: &Output| !matches!(output, Output::Qacc | Output::Sensordata) && self.computed(output);
         let zero = |values: &[&[f64]]| values.iter().copied().flatten().all(|&d| d == 0.0);
-        let applies = self.is_completed
+        let inputs = Self::input_slices(point).into_iter().flatten().chain([&point.time]);
+        let applies = self.completed_given == Some(point.given)
             && !model.couples_beyond_tree()
             && zero(&[direction.theta, direction.velocity, direction.torque])
-            && outputs.iter().all(computed)
-            && self.completed_given == point.given
-            && Self::inputs(point).map(f64::to_bits).eq(self.completed.iter().map(|v| v.to_bits()));
+            && outputs.iter().all(taken)
+            && inputs.map(|v| v.to_bits()).eq(self.completed.iter().map(|v| v.to_bits()));
         match applies {
             false => None,
             true if zero(&[direction.ctrl, direction.act]) => Some(Alone::Eps),
@@ -410,7 +402,7 @@ impl Passes {
             self.along_eps_alone(direction);
             return Ok(());
         }
-        self.is_completed = false;
+        self.completed_given = None;
         (self.qacc_current, self.sensors_current, self.momentum) = (false, false, None);
         theta_rates(model, point.theta, direction, &mut self.theta_rates);
         let still = self.theta_rates.iter().all(|&rate| rate == 0.0);
@@ -529,23 +521,27 @@ impl Passes {
     /// Notes that a run at `point` completed ([`Passes::alone_along`]).
     fn record_completed(&mut self, point: &Point) {
         self.completed.clear();
-        for slice in [point.theta, point.velocity, point.eps, point.torque, point.ctrl, point.act] {
+        for slice in Self::input_slices(point) {
             self.completed.extend_from_slice(slice);
         }
         self.completed.push(point.time);
-        (self.completed_given, self.is_completed) = (point.given, true);
+        self.completed_given = Some(point.given);
     }
 
-    /// `output` of the last run, which must have been asked for.
-    fn output(&self, output: Output) -> &[Dual64] {
-        let computed = match output {
+    /// Whether the last run computed `output`.
+    fn computed(&self, output: Output) -> bool {
+        match output {
             Output::Qvel | Output::Nu | Output::ActDot => true,
             Output::NuDot => self.ws.stage == Stage::Acceleration,
             Output::Qacc => self.qacc_current,
             Output::Sensordata => self.sensors_current,
             Output::Momentum => self.momentum.is_some(),
-        };
-        assert!(computed, "{output:?} was not asked of the last run");
+        }
+    }
+
+    /// `output` of the last run, which must have been asked for.
+    fn output(&self, output: Output) -> &[Dual64] {
+        assert!(self.computed(output), "{output:?} was not asked of the last run");
         match output {
             Output::Qvel => self.ws.qvel.as_slice(),
             Output::Nu => self.ws.nu.as_slice(),
