@@ -26,12 +26,18 @@ const BAND: (f64, f64) = (1.0 / 50.0, 20.0);
 /// on empty_rows at 1e-4 and 1e-6 with every step ending at a point,
 /// 3.4e-4 and 2.2e-3: its steps end at the points and at the elbow
 /// limit's switches (33 and 36 for 20 points; 33 with the input held too,
-/// where steps may reach past the points), which is more than asked.
-const BELOW_THE_BAND: [(&str, MethodSetting, f64, bool, f64); 4] = [
+/// where steps may reach past the points), which is more than asked. And
+/// the welded strap (its one row dropped: a pendulum's slow swing) with
+/// every step ending at a point: `tsit5` at 1e-8 and `auto` at 1e-4 and
+/// 1e-8 take 31–41 steps for 20 points, 4e-3 … 1e-2, near the floor.
+const BELOW_THE_BAND: [(&str, MethodSetting, f64, bool, f64); 7] = [
     ("docked_servicer", MethodSetting::Fixed(Method::Dop853), 1e-8, false, 1e-3),
     ("docked_servicer", MethodSetting::Auto, 1e-8, false, 1e-3),
     ("empty_rows", MethodSetting::Fixed(Method::Dop853), 1e-4, false, 1e-4),
     ("empty_rows", MethodSetting::Fixed(Method::Dop853), 1e-6, false, 1e-3),
+    ("welded_strap", MethodSetting::Fixed(Method::Tsit5), 1e-8, false, 2e-3),
+    ("welded_strap", MethodSetting::Auto, 1e-4, false, 2e-3),
+    ("welded_strap", MethodSetting::Auto, 1e-8, false, 2e-3),
 ];
 
 /// (θ, ν) at each of `points` communication points of `setting` at
@@ -92,9 +98,6 @@ fn band_on(path: &str, count: usize) {
         .chain([MethodSetting::Auto]);
     for setting in settings {
         for tolerance in [1e-4, 1e-6, 1e-8] {
-            if setting == MethodSetting::Fixed(Method::Bs3) && tolerance < 1e-7 {
-                continue; // order 3: tens of thousands of steps at 1e-8
-            }
             for held in [true, false] {
                 let (run, steps) = points(&model, setting, tolerance, count, held);
                 let ratio = largest_error(&run, &reference) / tolerance;
@@ -152,6 +155,15 @@ fn the_empty_rows_errors_lie_in_the_band() {
 #[test]
 fn refsafe_offs_errors_lie_in_the_band() {
     band_on("tests/fixtures/constraints/refsafe_off.xml", 20);
+}
+
+/// Its one row is dropped, so nothing damps its error: `bs3` delivered the
+/// tolerance to the power 1.5 (0.0069 of it at 1e-6, 0.00069 at 1e-8)
+/// before the order gap was allowed for (docs/integration.md, "The order
+/// gap").
+#[test]
+fn the_welded_straps_errors_lie_in_the_band() {
+    band_on("tests/fixtures/constraints/welded_strap.xml", 20);
 }
 
 /// The docked servicer left at rest (ε = 0), 0.01 s communication steps,
