@@ -123,7 +123,7 @@ pub struct Carry {
     /// point are no longer than `reach_cap` until this time (reach.rs).
     pub reach_from: f64,
     /// The longest step that may reach past a point until `reach_from`:
-    /// half the step last refused.
+    /// the step last refused shortened by [`interpolant_shrink`].
     pub reach_cap: f64,
     /// Interpolants refused so far in the run: each doubles how long the
     /// cap then holds.
@@ -133,20 +133,19 @@ pub struct Carry {
 impl Carry {
     /// The interpolant of the step of `refused` (s) past the communication
     /// point `t1`, which ends a communication step of `communication_step`,
-    /// refused: steps reaching past a point are at most half as long from
-    /// `t1` on, for once the longer of the two steps, then twice, four times, … with
-    /// each refusal of the run (at most [`MAX_REFUSAL_PAUSE`] times), then
-    /// as long as the error control allows again. Half the step: an
-    /// interpolant's error falls with its step's 5th to 8th power, and the
-    /// refusal allows 3 times the tolerance, where ending the steps at
-    /// the points instead (at most the communication step) left runs far
-    /// more accurate than asked (noslip_trees' `dop853` at 1e-6: 1.4e-3 of
-    /// the tolerance, docs/integration.md).
-    fn refuse_interpolant(&mut self, t1: f64, refused: f64, communication_step: f64) {
+    /// refused: steps reaching past a point are at most `shrink` times as
+    /// long ([`interpolant_shrink`]) from `t1` on, for once the longer of the
+    /// two steps, then twice, four times, … with each refusal of the run (at
+    /// most [`MAX_REFUSAL_PAUSE`] times), then as long as the error control
+    /// allows again. Ending the steps at the points instead (at most the
+    /// communication step) left runs far more accurate than asked
+    /// (noslip_trees' `dop853` at 1e-6: 1.4e-3 of the tolerance,
+    /// docs/integration.md).
+    fn refuse_interpolant(&mut self, t1: f64, refused: f64, shrink: f64, communication_step: f64) {
         self.refusals += 1.0;
         let pause = 2f64.powf(self.refusals - 1.0).min(MAX_REFUSAL_PAUSE);
         self.reach_from = t1 + pause * communication_step.max(refused);
-        self.reach_cap = 0.5 * refused;
+        self.reach_cap = shrink * refused;
     }
 
     /// The tolerance the error control has actually held: `tolerance` unless
@@ -543,6 +542,19 @@ fn hold_reach(reach: &mut Reach, (theta, qvel, work): (&[f64], &[f64], f64), end
 /// flexible_boom stayed at 21 × tolerance.
 const STRAY_ALLOWANCE: f64 = 3.0;
 
+/// The factor by which the steps after one whose interpolant strayed
+/// `strays` times what is allowed (> 1) are shortened: as the step-size
+/// controller's, from the interpolant's order p (its stray, the defect
+/// carried over a quarter step, falls as h^(p+1)), but never below half,
+/// the factor before 2026-12-02, which held the runs that refused most
+/// in the band. Half alone held tendon_limits' `dop853` at 1e-4 to 0.0078
+/// of the tolerance: its interpolant over a 0.118 s step strayed 8.6
+/// times the allowance and over 0.059 s 0.0021 times (a fast damped mode,
+/// whose stray fell as h^11.5 there).
+pub(super) fn interpolant_shrink(strays: f64, interpolant_order: u32) -> f64 {
+    (SAFETY * strays.recip().powf(1.0 / f64::from(interpolant_order + 1))).max(0.5)
+}
+
 /// The most lengths (communication or refused steps) a refused
 /// interpolant pauses reaching past the points for
 /// ([`Carry::refuse_interpolant`]).
@@ -806,14 +818,18 @@ impl Simulation {
                     // An interpolated state where the rates cannot be evaluated (or are not
                     // finite) is not trusted either. A step cut to a switch is checked too:
                     // its interpolant serves every point up to its end.
-                    let trusted = integrator
+                    let strays = integrator
                         .interpolant_strays(model, ws, reach, inputs_at)
-                        .is_ok_and(|strays| strays <= STRAY_ALLOWANCE * tolerance);
-                    if !trusted {
+                        .ok()
+                        .filter(|strays| strays.is_finite())
+                        .map_or(f64::INFINITY, |strays| strays / (STRAY_ALLOWANCE * tolerance));
+                    if strays > 1.0 {
                         // Its end is right, its inside is not (a fast damped mode, which
                         // the interpolant follows far less closely than the end):
-                        // taken again at most half as long, the next ones too for a while.
-                        carry.refuse_interpolant(t1, step, communication_step);
+                        // taken again shorter, the next ones too for a while.
+                        let order = integrator.method.dense().map_or(1, |dense| dense.order);
+                        let shrink = interpolant_shrink(strays, order);
+                        carry.refuse_interpolant(t1, step, shrink, communication_step);
                         stats.refused_interpolants += 1;
                         continue;
                     }
