@@ -71,9 +71,10 @@ pub trait Component {
     }
 
     /// fmi2NewDiscreteStates: what holds from this event to the next is set
-    /// from the state here.
-    fn update_discrete_states(&mut self) -> Result<(), CallError> {
-        Ok(())
+    /// from the state here; whether it was (the derivatives may then jump,
+    /// so the host's integrator must start afresh: `fmi2.rs`).
+    fn update_discrete_states(&mut self) -> Result<bool, CallError> {
+        Ok(false)
     }
 
     /// fmi2ExitInitializationMode: whatever was set must make a run; the

@@ -559,13 +559,17 @@ pub unsafe extern "C" fn fmi2NewDiscreteStates(c: fmi2Component, event_info: *mu
         enter(c, Function::NewDiscreteStates, |instance| {
             let event_info = event_info.as_mut().ok_or(FmiError::Null("fmi2eventInfo"))?;
             // The constraint mode the state gives holds until the next event;
-            // no discrete states of the host's change, no time events.
-            instance.component.update_discrete_states()?;
+            // no discrete states of the host's change, no time events. A mode
+            // set anew may make the derivatives jump: the states are said to
+            // have changed (their values stay), since that is what makes hosts
+            // such as fmusim start their integrator afresh; carried across the
+            // jump, CVODE's history missed the next switch (docs/fmi.md).
+            let mode_set = instance.component.update_discrete_states()?;
             *event_info = fmi2EventInfo {
                 newDiscreteStatesNeeded: fmi2False as fmi2Boolean,
                 terminateSimulation: fmi2False as fmi2Boolean,
                 nominalsOfContinuousStatesChanged: fmi2False as fmi2Boolean,
-                valuesOfContinuousStatesChanged: fmi2False as fmi2Boolean,
+                valuesOfContinuousStatesChanged: fmi2Boolean::from(mode_set),
                 nextEventTimeDefined: fmi2False as fmi2Boolean,
                 nextEventTime: 0.0,
             };

@@ -939,9 +939,12 @@ pub unsafe extern "C" fn fmi3UpdateDiscreteStates(
                 outputs.push(flag.as_mut().ok_or(FmiError::Null(name))?);
             }
             // The constraint mode the state gives holds until the next event;
-            // no discrete states of the host's change, no time events.
-            instance.component.update_discrete_states()?;
-            outputs.into_iter().for_each(|flag| *flag = false);
+            // no discrete states of the host's change, no time events. A mode set
+            // anew says the states changed, as fmi2NewDiscreteStates does (fmi2.rs).
+            let mode_set = instance.component.update_discrete_states()?;
+            for (flag, (_, name)) in outputs.into_iter().zip(flags) {
+                *flag = mode_set && name == "valuesOfContinuousStatesChanged";
+            }
             *next_event_time = 0.0;
             Ok(())
         })

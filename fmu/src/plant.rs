@@ -682,9 +682,9 @@ impl Component for Plant {
     /// bound: found from scratch a hair past the switch, the working set
     /// could be the old one again, and its indicator would then stay below
     /// zero, where the host sees no further crossing.
-    fn update_discrete_states(&mut self) -> Result<(), CallError> {
+    fn update_discrete_states(&mut self) -> Result<bool, CallError> {
         if self.mode.is_empty() {
-            return Ok(());
+            return Ok(false);
         }
         if self.mode_held {
             self.held_margins()?;
@@ -705,7 +705,7 @@ impl Component for Plant {
         self.mode_held = true;
         // The evaluation just made is the held mode's at this state.
         self.evaluated = Evaluated::Acceleration;
-        Ok(())
+        Ok(true)
     }
 
     fn partials(&self) -> Result<(), CallError> {

@@ -125,6 +125,11 @@ def test_every_communication_point_is_within_the_tolerance_without_a_stop_time(
     (["--interface-type", "me", "--solver", "cvode", "--tolerance", "1e-8"], None),
 ])
 def test_fmusim_runs_the_docked_servicer_to_the_end(fmu, reference, how, asked, tmp_path):
+    """Model exchange at 1e-8 within 1e-5 (measured 2.2e-7, as FMPy's
+    CVODE): fmusim restarts CVODE after an event only when the FMU says the
+    states changed, which it says where it sets the constraint mode anew;
+    before, CVODE carried its history across the jump, missed the next
+    switch, and ended 8.4e-5 off."""
     out, log = tmp_path / "out.csv", tmp_path / "log.txt"
     proc = subprocess.run([FMUSIM, *how, "--stop-time", str(STOP), "--output-interval", str(INTERVAL),
                            "--output-file", str(out), "--log-file", str(log), str(fmu)],
@@ -136,6 +141,8 @@ def test_fmusim_runs_the_docked_servicer_to_the_end(fmu, reference, how, asked, 
     assert time == pytest.approx(STOP, abs=1e-12)
     close, error = within(state, reference, asked)
     assert close, error
+    if how[1] == "me" and "--tolerance" in how:
+        assert error <= 1e-5, error
 
 
 @pytest.fixture(scope="module")
