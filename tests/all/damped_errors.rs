@@ -5,9 +5,12 @@
 //! `auto`, with the input held (steps may reach past the points) and with
 //! the input given as a function of time (every step ends at a point),
 //! except below it where one step per point is already more accurate than
-//! asked.
+//! asked. At 1e-10 (not `bs3`: 10⁵ steps and more) the error is held
+//! below the band's top only: its bottom, 2e-12, lies within the
+//! reference's own round-off (references at 1e-12, 1e-13 and 1e-14 of the
+//! servicer differ by 2–4e-12).
 
-use nudyn::integrate::{Input, Method, MethodSetting, Settings, Simulation};
+use nudyn::integrate::{Input, Method, MethodSetting, Settings, Simulation, ToleranceRelaxed};
 use nudyn::model::Model;
 
 use crate::common::largest_relative_error;
@@ -47,13 +50,38 @@ const BELOW_THE_BAND: [(&str, MethodSetting, f64, bool, f64); 11] = [
     ("tendon_limits", MethodSetting::Auto, 1e-6, false, 1e-3),
 ];
 
+/// The tightest tolerance of the band, below which round-off in the rates
+/// of stiff rows may rule the error estimate: refsafe_off's rows (time
+/// constants of 1 ms) hold `dop853`'s estimate above 1e-10 per second
+/// (its θ̈ carries 1.5–2.3e-9 of round-off there, measured where the
+/// estimate stopped falling as the step was cut), so the run says it holds
+/// 1–1.7e-9 per second, a note that the error delivered still meets the
+/// tolerance (3.8 and 4.7 times it), not a warning.
+const ROUND_OFF_TOLERANCE: f64 = 1e-10;
+
+/// A run's communication points, and what it took.
+struct Points {
+    /// (θ, ν) at each.
+    states: Vec<Vec<f64>>,
+    /// Steps taken.
+    steps: usize,
+    /// Steps past a point taken again, their interpolant refused.
+    refused: usize,
+}
+
 /// (θ, ν) at each of `points` communication points of `setting` at
-/// `tolerance`, with ε held (`held`) or given as a function of time, and
-/// the steps taken; a relaxation of the tolerance fails the test.
-fn points(model: &Model, setting: MethodSetting, tolerance: f64, points: usize, held: bool) -> (Vec<Vec<f64>>, usize) {
-    let (states, steps, relaxed) = points_relaxing(model, setting, tolerance, points, held);
-    assert!(relaxed.is_empty(), "{setting:?} at {tolerance:e}: {relaxed:?}");
-    (states, steps)
+/// `tolerance`, with ε held (`held`) or given as a function of time; a
+/// relaxation of the tolerance fails the test, except at
+/// [`ROUND_OFF_TOLERANCE`] one that still meets what was asked.
+fn points(model: &Model, setting: MethodSetting, tolerance: f64, points: usize, held: bool) -> Points {
+    let (run, relaxed) = points_relaxing(model, setting, tolerance, points, held);
+    let unexcused: Vec<String> = relaxed
+        .iter()
+        .filter(|relaxation| tolerance > ROUND_OFF_TOLERANCE || !relaxation.meets_asked())
+        .map(ToString::to_string)
+        .collect();
+    assert!(unexcused.is_empty(), "{setting:?} at {tolerance:e}: {unexcused:?}");
+    run
 }
 
 /// [`points`], and the relaxations of the tolerance the run made.
@@ -63,13 +91,13 @@ fn points_relaxing(
     tolerance: f64,
     points: usize,
     held: bool,
-) -> (Vec<Vec<f64>>, usize, Vec<String>) {
+) -> (Points, Vec<ToleranceRelaxed>) {
     let settings = Settings { tolerance, max_step: 0.0, energy_projection: false };
     let mut sim = Simulation::new(model, setting, settings);
     sim.initialize(model).unwrap();
     let eps = eps(model);
     let zero = vec![0.0; model.nv];
-    let (mut steps, mut relaxed) = (0, Vec::new());
+    let (mut steps, mut refused, mut relaxed) = (0, 0, Vec::new());
     let states = (1..=points)
         .map(|n| {
             let t = n as f64 * INTERVAL;
@@ -79,12 +107,13 @@ fn points_relaxing(
                 sim.advance_to(model, t, |_: f64, out: &mut [f64]| out.copy_from_slice(&eps))
             };
             let advanced = advanced.unwrap();
-            relaxed.extend(advanced.relaxed.map(|relaxation| relaxation.to_string()));
+            relaxed.extend(advanced.relaxed);
             steps += advanced.stats.accepted;
+            refused += advanced.stats.refused_interpolants;
             sim.state.theta.iter().chain(&sim.state.nu).copied().collect()
         })
         .collect();
-    (states, steps, relaxed)
+    (Points { states, steps, refused }, relaxed)
 }
 
 /// The largest error relative to 1 + |x| at any point.
@@ -97,31 +126,34 @@ fn band_on(path: &str, count: usize) {
     // At 1e-12 the reference may meet the round-off in the rates and say so
     // (the servicer's: references at 1e-12, 1e-13 and 1e-14 differ by 2–4e-12);
     // held within 20 times that, it lies 10 times below the band at 1e-8.
-    let (reference, _, _) = points_relaxing(&model, MethodSetting::Fixed(Method::Dop853), 1e-12, count, false);
+    let (reference, _) = points_relaxing(&model, MethodSetting::Fixed(Method::Dop853), 1e-12, count, false);
     let mut outside = Vec::new();
     let settings = [Method::Dop853, Method::Dopri5, Method::Tsit5, Method::Bs3]
         .map(MethodSetting::Fixed)
         .into_iter()
         .chain([MethodSetting::Auto]);
     for setting in settings {
-        for tolerance in [1e-4, 1e-6, 1e-8] {
+        let tightest = if setting == MethodSetting::Fixed(Method::Bs3) { 1e-8 } else { ROUND_OFF_TOLERANCE };
+        for tolerance in [1e-4, 1e-6, 1e-8, ROUND_OFF_TOLERANCE].into_iter().filter(|&tolerance| tolerance >= tightest) {
             for held in [true, false] {
-                let (run, steps) = points(&model, setting, tolerance, count, held);
-                let ratio = largest_error(&run, &reference) / tolerance;
+                let Points { states, steps, refused } = points(&model, setting, tolerance, count, held);
+                let ratio = largest_error(&states, &reference.states) / tolerance;
                 let line = format!(
                     "{path} {setting:?} {tolerance:e} held {held}: largest error/tol {ratio:.2e}, {steps} steps"
                 );
                 println!("{line}");
-                // Below the band is allowed only where each step ends at a point and
+                // Below the band is allowed only where each step ends at a point (or
+                // near one: an interpolant refused takes the step again shorter) and
                 // about one step per communication step already delivers more than
                 // asked (the floor of one step per point, issue 50; the limited arm's
                 // dop853 from 1e-6).
-                let at_the_floor = !held && 2 * steps <= 3 * count;
+                let at_the_floor = (!held || refused > 0) && 2 * steps <= 3 * count;
                 let least = BELOW_THE_BAND
                     .iter()
                     .find(|known| path.contains(known.0) && (known.1, known.2, known.3) == (setting, tolerance, held))
                     .map_or(BAND.0, |known| known.4);
-                if ratio > BAND.1 || (ratio < least && !at_the_floor) {
+                let bottom_measured = tolerance > ROUND_OFF_TOLERANCE;
+                if ratio > BAND.1 || (ratio < least && !at_the_floor && bottom_measured) {
                     outside.push(line);
                 }
             }
@@ -224,11 +256,11 @@ fn at_rest(model: &Model, method: Method, tolerance: f64, (interval, count): (f6
 fn friction_rows_the_no_slip_pass_holds_decay_at_their_references_damping() {
     let model = fixture("tests/fixtures/constraints/noslip_trees.xml");
     let fixed = |method| MethodSetting::Fixed(method);
-    let (reference, _, _) = points_relaxing(&model, fixed(Method::Dop853), 1e-12, 20, false);
+    let (reference, _) = points_relaxing(&model, fixed(Method::Dop853), 1e-12, 20, false);
     for method in [Method::Dopri5, Method::Dop853] {
-        let (run, _, relaxed) = points_relaxing(&model, fixed(method), 1e-8, 20, true);
+        let (run, relaxed) = points_relaxing(&model, fixed(method), 1e-8, 20, true);
         assert!(relaxed.is_empty(), "{method:?}: {relaxed:?}");
-        let ratio = largest_error(&run, &reference) / 1e-8;
+        let ratio = largest_error(&run.states, &reference.states) / 1e-8;
         assert!((BAND.0..=BAND.1).contains(&ratio), "{method:?}: largest error/tol {ratio:.3}");
     }
 }
