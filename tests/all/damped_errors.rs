@@ -134,7 +134,8 @@ fn band_on(path: &str, count: usize) {
         .chain([MethodSetting::Auto]);
     for setting in settings {
         let tightest = if setting == MethodSetting::Fixed(Method::Bs3) { 1e-8 } else { ROUND_OFF_TOLERANCE };
-        for tolerance in [1e-4, 1e-6, 1e-8, ROUND_OFF_TOLERANCE].into_iter().filter(|&tolerance| tolerance >= tightest) {
+        let tolerances = [1e-4, 1e-6, 1e-8, ROUND_OFF_TOLERANCE].into_iter().filter(|&tolerance| tolerance >= tightest);
+        for tolerance in tolerances {
             for held in [true, false] {
                 let Points { states, steps, refused } = points(&model, setting, tolerance, count, held);
                 let ratio = largest_error(&states, &reference.states) / tolerance;
