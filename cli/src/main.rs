@@ -162,7 +162,7 @@ enum Command {
         /// Integration method: rk4 (fixed internal steps of --max-step), dopri5, dop853, ros34pw2, bs3 or tsit5
         /// (adaptive; ros34pw2 is implicit, for stiff vehicles; bs3 the cheapest per step, for loose tolerances),
         /// or auto (the cheapest of bs3, tsit5 and dop853 for the tolerance and the motion over the first step,
-        /// one order up when later motion asks, dop853 once the input is held, ros34pw2 while stability holds
+        /// one order up when later motion asks, tsit5 or dop853 once the input is held, ros34pw2 while stability holds
         /// the explicit steps: chosen as the FMU's auto chooses and said on stderr).
         #[arg(long, default_value = "rk4", value_parser = parse_method)]
         method: MethodSetting,

@@ -8,7 +8,7 @@ use super::adaptive::{
     AdvanceError, Carry, ScaledError, Settings, Stats, ToleranceRelaxed, per_second_error, step_factor,
     take_attempted_step, tested_error,
 };
-use super::auto::{AutoChoice, AutoMove, MethodSetting, MoveReason, PROBE_METHOD};
+use super::auto::{AutoChoice, AutoMove, MethodSetting, MoveReason, PROBE_METHOD, held_input_move};
 use super::reach::Reach;
 use super::rkmk::{Integrator, nu_of_qvel, qvel_of_nu};
 use super::rosenbrock::{HeldJacobian, JacobianSource};
@@ -331,7 +331,7 @@ impl Simulation {
                 probe = taken.map(usize::from);
             }
             if chose.is_none() && input_held {
-                held_move = self.reach_with_dop853(model, t0);
+                held_move = self.reach_with_dense_output(model, t0);
             }
             let probe_evaluations = self.integrator.evaluations - evaluations_before;
             // A method that starts here (its first step from the starting
@@ -564,16 +564,17 @@ impl Simulation {
         (choice, Ok(passes))
     }
 
-    /// `auto` at an advance from `t0` whose input is held: a run on BS3 or
-    /// TSIT5 moves to DOP853, whose steps then reach past the communication
-    /// points (auto.rs). Not with energy projection, which ends every step
-    /// at a point.
-    fn reach_with_dop853(&mut self, model: &Model, t0: f64) -> Option<AutoMove> {
-        let method = self.state.auto_choice?.method;
-        if self.settings.energy_projection || !matches!(method, Method::Bs3 | Method::Tsit5) {
+    /// `auto` at an advance from `t0` whose input is held, so that the steps
+    /// reach past the communication points: a run on BS3 moves to TSIT5, and
+    /// below [`held_input_move`]'s tolerance a run on either to DOP853
+    /// (auto.rs). Not with energy projection, which ends every step at a point.
+    fn reach_with_dense_output(&mut self, model: &Model, t0: f64) -> Option<AutoMove> {
+        if self.settings.energy_projection {
             return None;
         }
-        let moved = self.state.auto_choice.as_mut()?.move_to(PROBE_METHOD, t0, MoveReason::HeldInput);
+        let choice = self.state.auto_choice?;
+        let to = held_input_move(choice.method, self.settings.tolerance, choice.pace())?;
+        let moved = self.state.auto_choice.as_mut()?.move_to(to, t0, MoveReason::HeldInput);
         self.integrator.set_method(model, moved.to);
         Some(moved)
     }

@@ -84,36 +84,44 @@ def test_a_start_that_misleads_is_corrected_by_moving_up(examples):
     assert evaluations["auto"] < 1.05 * evaluations["dop853"] < evaluations["tsit5"], evaluations
 
 
-HELD = re.compile(r"fmi2DoStep: method auto moved from (\w+) to dop853 at t = (\S+) s: the input has stayed")
+HELD = re.compile(r"fmi2DoStep: method auto moved from (\w+) to (\w+) at t = (\S+) s: the input has stayed")
 
 
-@pytest.mark.parametrize(("tolerance", "chosen"), [(1e-4, "bs3"), (1e-6, "tsit5")])
-def test_a_held_input_moves_auto_to_dop853_reaching_past_the_points(examples, tolerance, chosen):
-    """bus_arm7 open loop (ε = 0 throughout): auto chooses as in a closed
-    loop for its first communication step, then, the input held, moves to
-    dop853 for the rest of the run and its steps reach past the points. Over
-    10 s it then costs what dop853 named costs plus the first communication
-    step's (measured 190 / 163 evaluations at 1e-4, 292 / 281 at 1e-6), where
-    ending every step at a point took 402 and 614, and delivers the accuracy
-    dop853 does: within the band [1/50, 20] of the tolerance against a
-    dop853 run at 1e-13 (measured 0.32 and 0.68 of it in bench_auto's
-    measure of qpos and qvel; here in θ and ν, the FMU's outputs)."""
+@pytest.mark.parametrize(("tolerance", "chosen", "held"),
+                         [(1e-4, "bs3", "tsit5"), (1e-6, "tsit5", None), (1e-8, "tsit5", "dop853")])
+def test_a_held_input_moves_auto_to_a_method_reaching_past_the_points(examples, tolerance, chosen, held):
+    """bus_arm7 open loop (ε = 0 throughout), a slow vehicle for its
+    communication step: auto chooses as in a closed loop for its first
+    communication step, then, the input held, bs3 moves to tsit5, and
+    below 10^-6.5 tsit5 to dop853, for the rest of the run, and its steps
+    reach past the points. Over 10 s it then costs no more than the
+    cheaper of tsit5 and dop853 named, to 10 % (measured 118, 289 and 476
+    evaluations, against tsit5's 119, 283, 570 and dop853's 171, 295, 465;
+    moving to dop853 at every tolerance took 199 and 306 at 1e-4 and
+    1e-6), where ending every step at a point took 402, 614 and 812, and
+    delivers the accuracy asked: within the band [1/50, 20] of the
+    tolerance against a dop853 run at 1e-13 (measured 19, 3.2 and 1.0 in
+    bench_auto's measure of qpos and qvel; here in θ and ν, the FMU's
+    outputs)."""
     steps = 100
     with run(examples["bus_arm7"], steps, method="auto", tolerance=tolerance) as auto, \
             run(examples["bus_arm7"], steps, method="dop853", tolerance=tolerance) as dop853, \
+            run(examples["bus_arm7"], steps, method="tsit5", tolerance=tolerance) as tsit5, \
             run(examples["bus_arm7"], steps, closed_loop=True, method="auto", tolerance=tolerance) as closed, \
             run(examples["bus_arm7"], steps, method="dop853", tolerance=1e-13) as reference:
         choices = auto.log.method_choices()
         assert CHOSE.match(choices[0]).group(1) == chosen, choices
-        assert HELD.match(choices[1]).groups() == (chosen, "0.1"), choices
-        assert len(choices) == 2, choices
+        if held:
+            assert HELD.match(choices[1]).groups() == (chosen, held, "0.1"), choices
+        assert len(choices) == (2 if held else 1), choices
         assert not any(HELD.match(m) for m in closed.log.method_choices()), "a closed loop never holds its input"
-        assert dop853.log.evaluations() < auto.log.evaluations() < 0.6 * closed.log.evaluations(), \
-            (auto.log.evaluations(), dop853.log.evaluations(), closed.log.evaluations())
+        cheaper = min(dop853.log.evaluations(), tsit5.log.evaluations())
+        assert auto.log.evaluations() <= 1.1 * cheaper < 0.8 * closed.log.evaluations(), \
+            (auto.log.evaluations(), dop853.log.evaluations(), tsit5.log.evaluations(), closed.log.evaluations())
         for name in ["theta", "nu"]:
             exact = reference.array(name)
             error = np.max(np.abs(auto.array(name) - exact) / (1.0 + np.abs(exact)))
-            assert error < 20 * tolerance, (name, error / tolerance)
+            assert tolerance / 50 < error < 20 * tolerance, (name, error / tolerance)
 
 
 def test_a_probe_that_passes_is_the_first_step(examples):
