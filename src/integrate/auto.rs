@@ -213,8 +213,8 @@ fn evaluations_per_step(method: Method) -> usize {
 /// of `pace`, if any: `bs3` to `tsit5`, and either to `dop853` below the
 /// tolerance down to which `tsit5` took the fewest evaluations with steps
 /// reaching past the points: about 1e-6 on the slow vehicles (bus_arm7
-/// and the slow station; the rule for steps ending at the points keeps it
-/// to about 1e-9), about 1e-4 on the others (the random trees; 1e-6 there)
+/// and the slow station), about 1e-4 on the others (the random trees),
+/// where with steps ending at the points it keeps to 1e-9 and 1e-6 ([`Pace::method`])
 /// (docs/integration.md, "When the input is held"). `bs3` never took the
 /// fewest. The bounds lie halfway in log between the tolerances measured.
 pub fn held_input_move(method: Method, tolerance: f64, pace: Pace) -> Option<Method> {
