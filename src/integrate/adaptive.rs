@@ -123,7 +123,7 @@ pub struct Carry {
     /// point are no longer than `reach_cap` until this time (reach.rs).
     pub reach_from: f64,
     /// The longest step that may reach past a point until `reach_from`:
-    /// the step last refused shortened by [`interpolant_shrink`].
+    /// the step last refused shortened as its stray asks (`interpolant_shrink`).
     pub reach_cap: f64,
     /// Interpolants refused so far in the run: each doubles how long the
     /// cap then holds.
