@@ -50,7 +50,7 @@ const BELOW_THE_BAND: [(&str, MethodSetting, f64, bool, f64); 11] = [
     ("tendon_limits", MethodSetting::Auto, 1e-6, false, 1e-3),
 ];
 
-/// The tightest tolerance of the band, below which round-off in the rates
+/// The tightest tolerance the band runs at, where round-off in the rates
 /// of stiff rows may rule the error estimate: refsafe_off's rows (time
 /// constants of 1 ms) hold `dop853`'s estimate above 1e-10 per second
 /// (its θ̈ carries 1.5–2.3e-9 of round-off there, measured where the
