@@ -20,6 +20,7 @@ use nalgebra::DMatrix;
 use crate::dynamics::derivatives::{DerivativeError, Derivatives, Input, Output, Point};
 use crate::dynamics::qacc_jacobian::QaccJacobian;
 use crate::dynamics::velocity::Given;
+use crate::math::{Transform, angular, linear};
 use crate::model::{LinkJoint, Model};
 
 /// Which inputs the linearization's B and D are for.
@@ -33,8 +34,9 @@ pub enum Inputs {
     Ctrl,
 }
 
-/// An output of the linearization, each nv rows but the sensors'.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// An output of the linearization, each nv rows but the sensors' and the
+/// end effector's.
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum LinearOutput {
     /// δq.
     Qpos,
@@ -46,13 +48,20 @@ pub enum LinearOutput {
     Qacc,
     /// MuJoCo's sensordata (nsensordata rows), as mjd_transitionFD's C and D take it.
     Sensordata,
+    /// The pose of a body frame (`offset` = ᵇX_ₗ on `link`, as
+    /// [`crate::control::BodyFrame`] finds it), 6 rows: the frame's origin
+    /// in world axes, then its turn φ in its own axes (R = R₀ exp(\[φ\]×),
+    /// R₀ its orientation at the point), as MuJoCo's mj_jacBody gives them
+    /// (jacp, and jacr in the body's axes). A function of δq alone.
+    EndEffector {
+        /// The link carrying the body.
+        link: usize,
+        /// The body frame relative to the link frame.
+        offset: Transform,
+    },
 }
 
 impl LinearOutput {
-    /// Every output, in the order of their names.
-    pub const ALL: [LinearOutput; 5] =
-        [LinearOutput::Qpos, LinearOutput::Qvel, LinearOutput::Nu, LinearOutput::Qacc, LinearOutput::Sensordata];
-
     /// The output's name on the command line and in the files.
     pub fn name(self) -> &'static str {
         match self {
@@ -61,6 +70,7 @@ impl LinearOutput {
             LinearOutput::Nu => "nu",
             LinearOutput::Qacc => "qacc",
             LinearOutput::Sensordata => "sensordata",
+            LinearOutput::EndEffector { .. } => "end_effector",
         }
     }
 
@@ -68,6 +78,7 @@ impl LinearOutput {
     pub fn len(self, model: &Model) -> usize {
         match self {
             LinearOutput::Sensordata => Output::Sensordata.len(model),
+            LinearOutput::EndEffector { .. } => 6,
             _ => model.nv,
         }
     }
@@ -171,6 +182,9 @@ pub fn linearize(
                 c.view_mut((rows, 2 * nv), (count, na)).copy_from(&sensors_by[3]);
                 d.view_mut((rows, 0), (count, inputs_count)).copy_from(&sensors_by[2]);
             }
+            LinearOutput::EndEffector { link, offset } => {
+                c.view_mut((rows, 0), (6, nv)).copy_from(&end_effector_rows(model, &point.qpos, *link, offset)?);
+            }
         }
         rows += output.len(model);
     }
@@ -252,6 +266,33 @@ fn closed_form_blocks(
         _ => closed_form.by_ctrl(model, &point.ctrl),
     };
     Ok(vec![by_delta, by_qvel, by_input, DMatrix::zeros(nv, 0)])
+}
+
+/// [`LinearOutput::EndEffector`]'s rows over δq at θ = `qpos`: column k is
+/// the frame's motion when θ̇ = e_k (pass 2), since δq moves θ as θ̇ does
+/// at the point (q ⊕ δq, mj_integratePos's step); its twist in its own
+/// axes (ω, v) gives (R v, ω), R the frame's orientation (body → world).
+fn end_effector_rows(
+    model: &Model,
+    qpos: &[f64],
+    link: usize,
+    offset: &Transform,
+) -> Result<DMatrix<f64>, DerivativeError> {
+    let nv = model.nv;
+    let mut ws = model.workspace();
+    ws.set_configuration(model, qpos)?;
+    let body_to_world = offset.compose(&ws.world_transforms(model)[link]).rot.transpose();
+    let mut rows = DMatrix::zeros(6, nv);
+    let mut unit = vec![0.0; nv];
+    for k in 0..nv {
+        unit[k] = 1.0;
+        ws.set_qvel(model, &unit)?;
+        unit[k] = 0.0;
+        let twist = offset.apply_motion(&ws.v_body[link]);
+        rows.fixed_view_mut::<3, 1>(0, k).copy_from(&(body_to_world * linear(&twist)));
+        rows.fixed_view_mut::<3, 1>(3, k).copy_from(&angular(&twist));
+    }
+    Ok(rows)
 }
 
 /// ∂δq̇/∂δq at the point: −½[ω]× on each ball or free joint's rotation

@@ -6,7 +6,7 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
-use nudyn::control::ControlLaw;
+use nudyn::control::{BodyFrame, ControlLaw};
 use nudyn::eval::{EvalRequest, EvalResponse, evaluate};
 use nudyn::integrate::{MethodSetting, Settings};
 use nudyn::linearize::{Inputs, LinearOutput};
@@ -221,9 +221,15 @@ enum Command {
         /// The inputs u of B and D.
         #[arg(long, value_enum, default_value = "eps")]
         inputs: InputsArg,
-        /// The outputs y of C and D, comma-separated: qpos (dq), qvel, nu, qacc, sensordata.
+        /// The outputs y of C and D, comma-separated: qpos (dq), qvel, nu, qacc, sensordata,
+        /// end_effector (the pose of --end-effector).
         #[arg(long, value_enum, value_delimiter = ',', default_value = "qpos,qvel")]
         outputs: Vec<OutputArg>,
+        /// The body whose pose the end_effector output is (6 rows: its origin
+        /// in world axes, then its turn as a rotation vector in its own axes);
+        /// adds end_effector to --outputs if it is not there.
+        #[arg(long, value_name = "BODY")]
+        end_effector: Option<String>,
         /// Also the zero-order hold's discrete pair for this step (s).
         #[arg(long, allow_hyphen_values = true)]
         step: Option<f64>,
@@ -294,6 +300,9 @@ enum OutputArg {
     Qacc,
     /// MuJoCo's sensordata.
     Sensordata,
+    /// The pose of --end-effector: its origin (world axes), then its turn (rotation vector, its own axes).
+    #[value(name = "end_effector", alias = "end-effector")]
+    EndEffector,
 }
 
 /// `--outputs`' help, from the contract's list of optional outputs.
@@ -435,7 +444,8 @@ fn run(cli: Cli) -> Result<()> {
             torque,
             ctrl,
             inputs,
-            outputs,
+            mut outputs,
+            end_effector,
             step,
             output,
             npz,
@@ -445,6 +455,21 @@ fn run(cli: Cli) -> Result<()> {
             {
                 bail!("--step must be a positive number of seconds, not {h}");
             }
+            if end_effector.is_some() && !outputs.contains(&OutputArg::EndEffector) {
+                outputs.push(OutputArg::EndEffector);
+            }
+            let inputs = match inputs {
+                InputsArg::Eps => Inputs::Eps,
+                InputsArg::Torque => Inputs::Torque,
+                InputsArg::Ctrl => Inputs::Ctrl,
+            };
+            let imported = import(&model)?;
+            let compiled = compile(&model, &imported.vehicle)?;
+            let frame = match (&end_effector, outputs.contains(&OutputArg::EndEffector)) {
+                (Some(body), _) => Some(BodyFrame::find(&imported.vehicle, &compiled, body).context("--end-effector")?),
+                (None, true) => bail!("--outputs end_effector needs --end-effector BODY"),
+                (None, false) => None,
+            };
             let outputs: Vec<LinearOutput> = outputs
                 .iter()
                 .map(|o| match o {
@@ -453,14 +478,12 @@ fn run(cli: Cli) -> Result<()> {
                     OutputArg::Nu => LinearOutput::Nu,
                     OutputArg::Qacc => LinearOutput::Qacc,
                     OutputArg::Sensordata => LinearOutput::Sensordata,
+                    OutputArg::EndEffector => {
+                        let frame = frame.as_ref().expect("checked above");
+                        LinearOutput::EndEffector { link: frame.link, offset: frame.offset }
+                    }
                 })
                 .collect();
-            let inputs = match inputs {
-                InputsArg::Eps => Inputs::Eps,
-                InputsArg::Torque => Inputs::Torque,
-                InputsArg::Ctrl => Inputs::Ctrl,
-            };
-            let imported = import(&model)?;
             let key = keyframe.map(|asked| nudyn::mjcf::keyframe::find(&imported.keyframes, &asked)).transpose()?;
             if let Some(key) = key
                 && key.places_mocap_bodies
@@ -488,7 +511,7 @@ fn run(cli: Cli) -> Result<()> {
                 json: output.as_deref(),
                 npz: npz.as_deref(),
             };
-            linearize::run(&compile(&model, &imported.vehicle)?, &request)
+            linearize::run(&compiled, &request)
         }
         Command::Simulate { model, step, stop, method, tolerance, max_step, energy_projection, format } => {
             let settings = Settings { tolerance, max_step: max_step.unwrap_or(step), energy_projection };

@@ -21,6 +21,7 @@ mod deep_trees;
 mod derivatives;
 mod dynamics_checks;
 mod dynamics_errors;
+mod end_effector;
 mod error_modes;
 mod flex_actuators;
 mod flex_dynamics;

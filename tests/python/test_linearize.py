@@ -391,6 +391,82 @@ def test_the_sensors_rows_are_mujocos_transition_c_and_d(nudyn, path):
             assert error < 1e-6, f"{path}: the sensors' {what} {error:.2e} from MuJoCo's ({d.nefc} rows)"
 
 
+# Each example's end effector, and bus_arm7 with a tool tip welded to its
+# end effector at an offset (a body frame that is not its link's).
+TOOL_TIP = '<body name="tool_tip" pos="0.03 -0.02 0.21" euler="10 -25 40"><geom size="0.01" mass="0.1"/></body>'
+END_EFFECTORS = [("examples/bus_arm7.xml", "end_effector"), ("examples/servicer.xml", "hand"),
+                 ("examples/fixed_rig.xml", "wrist"), ("examples/flexible_boom.xml", "solar_array"),
+                 ("tool_tip", "tool_tip")]
+
+
+def pose_by_differences(m: mujoco.MjModel, d: mujoco.MjData, qpos, body: int, h: float):
+    """∂(xpos, φ)/∂δq of `body` by central differences of mj_kinematics, δq
+    moving qpos as mj_integratePos does and φ the body-frame rotation
+    vector of the moved orientation relative to the point's (mju_subQuat)."""
+    def pose(delta):
+        q = qpos.copy()
+        mujoco.mj_integratePos(m, q, delta, 1.0)
+        d.qpos[:] = q
+        mujoco.mj_kinematics(m, d)
+        return d.xpos[body].copy(), d.xquat[body].copy()
+    _, at = pose(np.zeros(m.nv))
+    columns = []
+    for k in range(m.nv):
+        step = np.zeros(m.nv)
+        step[k] = h
+        (p_plus, q_plus), (p_minus, q_minus) = pose(step), pose(-step)
+        turn_plus, turn_minus = np.zeros(3), np.zeros(3)
+        mujoco.mju_subQuat(turn_plus, q_plus, at)
+        mujoco.mju_subQuat(turn_minus, q_minus, at)
+        columns.append(np.concatenate([p_plus - p_minus, turn_plus - turn_minus]) / (2 * h))
+    return np.array(columns).T
+
+
+@pytest.mark.parametrize("path,body", END_EFFECTORS, ids=[b for _, b in END_EFFECTORS])
+def test_the_end_effector_rows_are_mujocos_body_jacobian(nudyn, path, body, tmp_path):
+    """`--end-effector BODY`'s six rows of C (its origin in world axes,
+    then its turn in its own axes) over δq against MuJoCo's mj_jacBody
+    (jacp, and jacr in the body's axes) to 1e-10 relative, and against
+    central differences of its pose from mj_kinematics to 1e-6; zero over
+    θ̇ and in D. The tool tip checks a body welded at an offset to its link."""
+    if path == "tool_tip":
+        text = (ROOT / "examples/bus_arm7.xml").read_text()
+        flange = '<geom type="box" size="0.04 0.06 0.05" pos="0.02 0.01 0.12"/>'
+        assert flange in text
+        file = tmp_path / "bus_arm7_tool.xml"
+        file.write_text(text.replace(flange, flange + TOOL_TIP))
+    else:
+        file = ROOT / path
+    ref = Reference.from_file(file)
+    m, d = ref.model, ref.data
+    index = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body)
+    rng = np.random.default_rng(zlib.crc32(body.encode()))
+    nv = m.nv
+    for _ in range(3):
+        qpos, qvel, _ = ref.random_state(rng)
+        out, _ = linearize(nudyn, file, "--qpos", listed(qpos), "--qvel", listed(qvel), "--outputs", "qvel",
+                           "--end-effector", body)
+        assert out["outputs"][nv:] == [f"end_effector[{k}]" for k in range(1, 7)]
+        c, dd = np.array(out["C"])[nv:], np.array(out["D"])[nv:]
+        assert not c[:, nv:].any() and not dd.any()
+        ref.forward(qpos, qvel)
+        jacp, jacr = np.zeros((3, nv)), np.zeros((3, nv))
+        mujoco.mj_jacBody(m, d, jacp, jacr, index)
+        analytic = np.vstack([jacp, d.xmat[index].reshape(3, 3).T @ jacr])
+        differences = pose_by_differences(m, d, qpos, index, 1e-6)
+        errors = relative(c[:, :nv], analytic), relative(c[:, :nv], differences)
+        print(f"{body}: end effector rows {errors[0]:.1e} from mj_jacBody, {errors[1]:.1e} from differences")
+        assert errors[0] < 1e-10 and errors[1] < 1e-6, errors
+
+
+def test_the_end_effector_output_needs_a_body(nudyn):
+    for args, message in [(["--outputs", "qpos,end_effector"], "needs --end-effector BODY"),
+                          (["--end-effector", "nope"], "no body named 'nope'")]:
+        proc = subprocess.run([str(nudyn), "linearize", str(ROOT / "examples/bus_arm7.xml"), *args],
+                              capture_output=True, text=True, timeout=60)
+        assert proc.returncode != 0 and message in proc.stderr, proc.stderr
+
+
 def test_activation_states_are_states_of_the_linearization(nudyn):
     """With activation states (tests/fixtures/activation/shortcut_servos.xml:
     MuJoCo's intvelocity integrators and cylinder filters) x is (δq, θ̇,
