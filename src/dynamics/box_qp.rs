@@ -17,7 +17,7 @@
 //! allocate; no crate offers a bounded QP with caller-owned buffers.
 
 use super::DynamicsError;
-use crate::math::{Real, sum};
+use crate::math::{Real, dot_interleaved, sum};
 
 /// Where an entry stands in the working set.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -232,36 +232,32 @@ impl<S: Real> BoxQp<S> {
 /// (m×m, row-major), by its Cholesky factor S = L Lᵀ written over S.
 fn cholesky_solve<S: Real>(s: &mut [S], m: usize, b: &mut [S]) -> Result<(), DynamicsError> {
     for j in 0..m {
-        let mut diagonal = s[j * m + j];
-        for k in 0..j {
-            diagonal -= s[j * m + k] * s[j * m + k];
-        }
+        let (row_j, below) = s[j * m..].split_at_mut(m);
+        let diagonal = row_j[j] - dot_interleaved(&row_j[..j], &row_j[..j]);
         if diagonal.value().is_nan() || diagonal.value() <= 0.0 {
             return Err(DynamicsError::ConstraintSolver { rows: m });
         }
         let root = diagonal.sqrt();
-        s[j * m + j] = root;
-        for i in j + 1..m {
-            let mut value = s[i * m + j];
-            for k in 0..j {
-                value -= s[i * m + k] * s[j * m + k];
-            }
-            s[i * m + j] = value / root;
+        row_j[j] = root;
+        // The rows below j, against L's row j so far.
+        for row_i in below.chunks_exact_mut(m) {
+            row_i[j] = (row_i[j] - dot_interleaved(&row_i[..j], &row_j[..j])) / root;
         }
     }
+    // L y = b, row by row.
     for i in 0..m {
-        let mut value = b[i];
-        for k in 0..i {
-            value -= s[i * m + k] * b[k];
-        }
-        b[i] = value / s[i * m + i];
+        let row_i = &s[i * m..i * m + m];
+        b[i] = (b[i] - dot_interleaved(&row_i[..i], &b[..i])) / row_i[i];
     }
+    // Lᵀ x = y, from the last entry: each x_i found is taken off the
+    // entries above it along L's row i (independent updates, no running sum).
     for i in (0..m).rev() {
-        let mut value = b[i];
-        for k in i + 1..m {
-            value -= s[k * m + i] * b[k];
+        let row_i = &s[i * m..i * m + m];
+        b[i] = b[i] / row_i[i];
+        let x_i = b[i];
+        for (b_k, l_ik) in b[..i].iter_mut().zip(&row_i[..i]) {
+            *b_k -= *l_ik * x_i;
         }
-        b[i] = value / s[i * m + i];
     }
     Ok(())
 }
