@@ -8,6 +8,7 @@
 use nalgebra::SVector;
 
 use super::flexible::FlexState;
+use super::subspace::{by_subspace, s_transpose_times};
 use super::{DynamicsError, accumulate, block, check_input, check_length, cols, require};
 use crate::math::{Real, SpatialVec, Transform, real};
 use crate::model::Model;
@@ -22,7 +23,7 @@ pub(super) enum Direction {
     TorqueFromEps,
 }
 
-fn inward_link<S: Real, const N: usize>(
+fn inward_link<S: Real, const N: usize, const UNIT: usize>(
     model: &Model,
     ws: &mut Workspace<S>,
     i: usize,
@@ -33,7 +34,7 @@ fn inward_link<S: Real, const N: usize>(
 ) {
     let link = &model.links[i];
     let adr = link.dof_adr;
-    let s = real(&cols::<_, N>(&link.motion_subspace));
+    let s = &link.motion_subspace;
     let mut p = body_forces.map_or(SpatialVec::zeros(), |f| -f[i]);
     if ws.accumulation[i].gathers() {
         p += ws.p_scratch_body[i];
@@ -41,12 +42,12 @@ fn inward_link<S: Real, const N: usize>(
     let x: SVector<S, N> = SVector::from_column_slice(&input[adr..adr + N]);
     let (u, y) = match direction {
         Direction::EpsFromTorque => {
-            let u = x - s.transpose() * p;
+            let u = x - s_transpose_times::<_, N, UNIT>(s, &p);
             (u, block::<_, N>(&ws.r_inv_joint[i]) * u)
         }
         Direction::TorqueFromEps => {
             let u = block::<_, N>(&ws.r_joint[i]) * x;
-            (u, u + s.transpose() * p)
+            (u, u + s_transpose_times::<_, N, UNIT>(s, &p))
         }
     };
     out[adr..adr + N].copy_from_slice(y.as_slice());
@@ -76,10 +77,7 @@ pub(super) fn inward_pass<S: Real>(
         if flexible {
             super::flexible::inward(model, ws, i, direction == Direction::TorqueFromEps, input, out);
         }
-        match model.links[i].ndof {
-            1 => inward_link::<_, 1>(model, ws, i, direction, input, body_forces, out),
-            _ => inward_link::<_, 3>(model, ws, i, direction, input, body_forces, out),
-        }
+        by_subspace!(ws.subspaces[i], inward_link(model, ws, i, direction, input, body_forces, out));
     }
 }
 
@@ -124,10 +122,7 @@ pub(super) fn eps_of_sparse_torque<S: Real>(
             continue;
         }
         span = (span.0.min(dofs.start), span.1.max(dofs.end));
-        match link.ndof {
-            1 => inward_link::<_, 1>(model, ws, i, Direction::EpsFromTorque, torque, None, eps),
-            _ => inward_link::<_, 3>(model, ws, i, Direction::EpsFromTorque, torque, None, eps),
-        }
+        by_subspace!(ws.subspaces[i], inward_link(model, ws, i, Direction::EpsFromTorque, torque, None, eps));
     }
     span
 }
