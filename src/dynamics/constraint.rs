@@ -916,14 +916,35 @@ impl<S: Real> Workspace<S> {
             rows.gradient[k] = dot(jacobian, self.qacc.as_slice()) - rows.aref[k];
         }
         // A + R: A = EᵀE, each product over the dofs where both columns may be nonzero
-        // (the terms left out are zeros, so the sums are the same).
+        // (the terms left out are zeros, so the sums are the same). Four
+        // entries of a row at a time, over the union of their dofs: four
+        // running sums the processor overlaps, each added in the order
+        // `dot` adds it, so the numbers are `dot`'s.
         let stride = rows.max_rows;
         for i in 0..n {
             let e_i = &rows.eps_columns[i * nv..(i + 1) * nv];
-            for j in 0..=i {
+            let span_i = rows.eps_spans[i];
+            let mut j = 0;
+            while j + 4 <= i + 1 {
+                let spans: [(usize, usize); 4] = std::array::from_fn(|q| rows.eps_spans[j + q]);
+                let first = spans.iter().map(|span| span.0).min().unwrap_or(0).max(span_i.0);
+                let end = spans.iter().map(|span| span.1).max().unwrap_or(0).min(span_i.1);
+                let e: [&[S]; 4] = std::array::from_fn(|q| &rows.eps_columns[(j + q) * nv..(j + q + 1) * nv]);
+                let mut sums = [S::from(-0.0); 4];
+                for k in first..end.max(first) {
+                    for (sum, e_q) in sums.iter_mut().zip(&e) {
+                        *sum += e_i[k] * e_q[k];
+                    }
+                }
+                for (q, a) in sums.into_iter().enumerate() {
+                    rows.hessian[i * stride + j + q] = a;
+                    rows.hessian[(j + q) * stride + i] = a;
+                }
+                j += 4;
+            }
+            for j in j..=i {
                 let e_j = &rows.eps_columns[j * nv..(j + 1) * nv];
-                let (first, end) =
-                    (rows.eps_spans[i].0.max(rows.eps_spans[j].0), rows.eps_spans[i].1.min(rows.eps_spans[j].1));
+                let (first, end) = (span_i.0.max(rows.eps_spans[j].0), span_i.1.min(rows.eps_spans[j].1));
                 let shared = first..end.max(first);
                 let a = dot(&e_i[shared.clone()], &e_j[shared]);
                 rows.hessian[i * stride + j] = a;
