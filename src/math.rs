@@ -135,29 +135,6 @@ pub fn dot<S: Real>(a: &[S], b: &[S]) -> S {
     sum(a.iter().zip(b).map(|(x, y)| *x * *y))
 }
 
-/// a · b in four partial sums, of the entries k ≡ 0, 1, 2 and 3 (mod 4),
-/// added as (s₀ + s₁) + (s₂ + s₃): for the long products of the
-/// constraint rows (A = EᵀE and its Cholesky factor). One running sum
-/// waits for each addition before the next (four cycles each); four
-/// independent ones overlap, and the compiler packs them in vector lanes.
-#[inline]
-pub fn dot_interleaved<S: Real>(a: &[S], b: &[S]) -> S {
-    let n = a.len().min(b.len());
-    let (a, b) = (&a[..n], &b[..n]);
-    let mut partial = [S::from(-0.0); 4];
-    let (a_quads, b_quads) = (a.chunks_exact(4), b.chunks_exact(4));
-    let (a_rest, b_rest) = (a_quads.remainder(), b_quads.remainder());
-    for (x, y) in a_quads.zip(b_quads) {
-        for k in 0..4 {
-            partial[k] += x[k] * y[k];
-        }
-    }
-    for (k, (x, y)) in a_rest.iter().zip(b_rest).enumerate() {
-        partial[k] += *x * *y;
-    }
-    (partial[0] + partial[1]) + (partial[2] + partial[3])
-}
-
 /// A 3-vector.
 pub type Vec3<S = f64> = Vector3<S>;
 /// A 3×3 matrix.
