@@ -240,8 +240,8 @@ fn cholesky_solve<S: Real>(s: &mut [S], m: usize, b: &mut [S]) -> Result<(), Dyn
     for j in 0..m {
         let (row_j, below) = s[j * m..].split_at_mut(m);
         let mut diagonal = row_j[j];
-        for k in 0..j {
-            diagonal -= row_j[k] * row_j[k];
+        for l_jk in &row_j[..j] {
+            diagonal -= *l_jk * *l_jk;
         }
         if diagonal.value().is_nan() || diagonal.value() <= 0.0 {
             return Err(DynamicsError::ConstraintSolver { rows: m });
@@ -267,7 +267,7 @@ fn cholesky_solve<S: Real>(s: &mut [S], m: usize, b: &mut [S]) -> Result<(), Dyn
     }
     // L y = b: y_i found, it is taken off every entry below at once.
     for i in 0..m {
-        b[i] = b[i] / s[i * m + i];
+        b[i] /= s[i * m + i];
         let y_i = b[i];
         for k in i + 1..m {
             b[k] -= s[k * m + i] * y_i;
