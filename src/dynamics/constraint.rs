@@ -900,7 +900,8 @@ impl<S: Real> Workspace<S> {
         }
         for k in 0..n {
             let jacobian = &rows.jacobian[k * nv..(k + 1) * nv];
-            rows.velocity[k] = dot(jacobian, self.qvel.as_slice());
+            let (velocity, jacobian_qacc) = two_dots(jacobian, self.qvel.as_slice(), self.qacc.as_slice());
+            rows.velocity[k] = velocity;
             let soft = soft_of(model, rows.kind[k], rows.id[k]);
             let (natural, x) = impedance_piece(&soft.solimp, rows.violation[k], rows.margin[k]);
             let piece = if rows.held_working_set == Some(n) { rows.pieces[k] } else { natural };
@@ -913,7 +914,7 @@ impl<S: Real> Workspace<S> {
             rows.regularizer[k] = ((-imp + 1.0) * rows.diagonal_estimate[k] / imp).max(S::from(MIN_VALUE));
             rows.aref[k] = rows.velocity[k] * -damping - imp * stiffness * (rows.distance[k] - rows.margin[k]);
             rows.aref[k] -= rows.jdot_v[k];
-            rows.gradient[k] = dot(jacobian, self.qacc.as_slice()) - rows.aref[k];
+            rows.gradient[k] = jacobian_qacc - rows.aref[k];
         }
         // A + R: A = EᵀE, each product over the dofs where both columns may be nonzero
         // (the terms left out are zeros, so the sums are the same). Four
@@ -954,6 +955,18 @@ impl<S: Real> Workspace<S> {
         }
         Ok(())
     }
+}
+
+/// (a · b, a · c) in one sweep over a, each summed as [`dot`] sums it:
+/// two running sums that overlap where two `dot`s would wait on each
+/// addition in turn.
+fn two_dots<S: Real>(a: &[S], b: &[S], c: &[S]) -> (S, S) {
+    let (mut ab, mut ac) = (S::from(-0.0), S::from(-0.0));
+    for ((a, b), c) in a.iter().zip(b).zip(c) {
+        ab += *a * *b;
+        ac += *a * *c;
+    }
+    (ab, ac)
 }
 
 impl ConstraintRows {
