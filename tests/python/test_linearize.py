@@ -399,35 +399,13 @@ END_EFFECTORS = [("examples/bus_arm7.xml", "end_effector"), ("examples/servicer.
                  ("tool_tip", "tool_tip")]
 
 
-def pose_by_differences(m: mujoco.MjModel, d: mujoco.MjData, qpos, body: int, h: float):
-    """∂(xpos, φ)/∂δq of `body` by central differences of mj_kinematics, δq
-    moving qpos as mj_integratePos does and φ the body-frame rotation
-    vector of the moved orientation relative to the point's (mju_subQuat)."""
-    def pose(delta):
-        q = qpos.copy()
-        mujoco.mj_integratePos(m, q, delta, 1.0)
-        d.qpos[:] = q
-        mujoco.mj_kinematics(m, d)
-        return d.xpos[body].copy(), d.xquat[body].copy()
-    _, at = pose(np.zeros(m.nv))
-    columns = []
-    for k in range(m.nv):
-        step = np.zeros(m.nv)
-        step[k] = h
-        (p_plus, q_plus), (p_minus, q_minus) = pose(step), pose(-step)
-        turn_plus, turn_minus = np.zeros(3), np.zeros(3)
-        mujoco.mju_subQuat(turn_plus, q_plus, at)
-        mujoco.mju_subQuat(turn_minus, q_minus, at)
-        columns.append(np.concatenate([p_plus - p_minus, turn_plus - turn_minus]) / (2 * h))
-    return np.array(columns).T
-
-
 @pytest.mark.parametrize("path,body", END_EFFECTORS, ids=[b for _, b in END_EFFECTORS])
 def test_the_end_effector_rows_are_mujocos_body_jacobian(nudyn, path, body, tmp_path):
     """`--end-effector BODY`'s six rows of C (its origin in world axes,
     then its turn in its own axes) over δq against MuJoCo's mj_jacBody
     (jacp, and jacr in the body's axes) to 1e-10 relative, and against
-    central differences of its pose from mj_kinematics to 1e-6; zero over
+    central differences of its pose from mj_forward (conftest's
+    tangent_jacobian; the turn by mju_subQuat) to 1e-6; zero over
     θ̇ and in D. The tool tip checks a body welded at an offset to its link."""
     if path == "tool_tip":
         text = (ROOT / "examples/bus_arm7.xml").read_text()
@@ -453,7 +431,14 @@ def test_the_end_effector_rows_are_mujocos_body_jacobian(nudyn, path, body, tmp_
         jacp, jacr = np.zeros((3, nv)), np.zeros((3, nv))
         mujoco.mj_jacBody(m, d, jacp, jacr, index)
         analytic = np.vstack([jacp, d.xmat[index].reshape(3, 3).T @ jacr])
-        differences = pose_by_differences(m, d, qpos, index, 1e-6)
+        at = d.xquat[index].copy()
+
+        def pose(data):
+            turn = np.zeros(3)
+            mujoco.mju_subQuat(turn, data.xquat[index], at)
+            return np.concatenate([data.xpos[index], turn])
+
+        differences = tangent_jacobian(ref, qpos, qvel, np.zeros(nv), pose, 0, STEP)
         errors = relative(c[:, :nv], analytic), relative(c[:, :nv], differences)
         print(f"{body}: end effector rows {errors[0]:.1e} from mj_jacBody, {errors[1]:.1e} from differences")
         assert errors[0] < 1e-10 and errors[1] < 1e-6, errors
