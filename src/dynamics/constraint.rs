@@ -24,7 +24,7 @@
 use super::box_qp::{BoxQp, Held};
 use super::noslip::NoSlipBuffers;
 use super::{DynamicsError, forces, require};
-use crate::math::{Real, SpatialVec, dot};
+use crate::math::{Real, SpatialVec};
 use crate::model::Limit;
 use crate::model::Model;
 use crate::vehicle::{JointKind, SoftConstraint};
@@ -917,7 +917,7 @@ impl<S: Real> Workspace<S> {
             rows.gradient[k] = jacobian_qacc - rows.aref[k];
         }
         // A + R: A = EᵀE, each product over the dofs where both columns may be nonzero
-        // (the terms left out are zeros, so the sums are the same). Four
+        // (the terms left out are zeros, so the sums are the same). Up to four
         // entries of a row at a time, over the union of their dofs: four
         // running sums the processor overlaps, each added in the order
         // `dot` adds it, so the numbers are `dot`'s.
@@ -925,31 +925,22 @@ impl<S: Real> Workspace<S> {
         for i in 0..n {
             let e_i = &rows.eps_columns[i * nv..(i + 1) * nv];
             let span_i = rows.eps_spans[i];
-            let mut j = 0;
-            while j + 4 <= i + 1 {
-                let spans: [(usize, usize); 4] = std::array::from_fn(|q| rows.eps_spans[j + q]);
+            for j in (0..=i).step_by(4) {
+                let count = (i + 1 - j).min(4);
+                let spans = &rows.eps_spans[j..j + count];
                 let first = spans.iter().map(|span| span.0).min().unwrap_or(0).max(span_i.0);
                 let end = spans.iter().map(|span| span.1).max().unwrap_or(0).min(span_i.1);
-                let e: [&[S]; 4] = std::array::from_fn(|q| &rows.eps_columns[(j + q) * nv..(j + q + 1) * nv]);
+                let e: [&[S]; 4] = std::array::from_fn(|q| &rows.eps_columns[(j + q.min(count - 1)) * nv..][..nv]);
                 let mut sums = [S::from(-0.0); 4];
                 for k in first..end.max(first) {
-                    for (sum, e_q) in sums.iter_mut().zip(&e) {
+                    for (sum, e_q) in sums.iter_mut().zip(&e).take(count) {
                         *sum += e_i[k] * e_q[k];
                     }
                 }
-                for (q, a) in sums.into_iter().enumerate() {
+                for (q, a) in sums.into_iter().enumerate().take(count) {
                     rows.hessian[i * stride + j + q] = a;
                     rows.hessian[(j + q) * stride + i] = a;
                 }
-                j += 4;
-            }
-            for j in j..=i {
-                let e_j = &rows.eps_columns[j * nv..(j + 1) * nv];
-                let (first, end) = (span_i.0.max(rows.eps_spans[j].0), span_i.1.min(rows.eps_spans[j].1));
-                let shared = first..end.max(first);
-                let a = dot(&e_i[shared.clone()], &e_j[shared]);
-                rows.hessian[i * stride + j] = a;
-                rows.hessian[j * stride + i] = a;
             }
             rows.hessian[i * stride + i] += rows.regularizer[i];
         }
@@ -957,7 +948,7 @@ impl<S: Real> Workspace<S> {
     }
 }
 
-/// (a · b, a · c) in one sweep over a, each summed as [`dot`] sums it:
+/// (a · b, a · c) in one sweep over a, each summed as [`crate::math::dot`] sums it:
 /// two running sums that overlap where two `dot`s would wait on each
 /// addition in turn.
 fn two_dots<S: Real>(a: &[S], b: &[S], c: &[S]) -> (S, S) {
